@@ -1,0 +1,39 @@
+# The two README commands: `make demo` and `make test`. Nothing clever.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test install system-deps lint clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+
+$(STAMP): $(BIN)/python pyproject.toml
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+# Debian's chromium for the dashboard's browser tests (never a downloaded browser).
+system-deps:
+	@if [ ! -x /usr/bin/chromium ]; then \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null; then \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null) \
+	      || echo "note: could not install chromium; browser tests will skip (fail under CI)"; \
+	  else echo "note: /usr/bin/chromium missing; browser tests will skip (fail under CI)"; fi; \
+	fi
+
+demo: install
+	$(BIN)/saddlescope demo
+
+lint: install
+	$(BIN)/ruff check backend worker tests
+	$(BIN)/lint-imports --config pyproject.toml
+
+test: install system-deps lint
+	$(BIN)/python -m pytest
+
+clean:
+	rm -rf $(VENV) var

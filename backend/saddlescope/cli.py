@@ -1,0 +1,170 @@
+"""The ``saddlescope`` command (CONTRACTS section 3).
+
+Each command parses its arguments and calls one function elsewhere; bad input ends with one clear
+sentence on stderr and a non-zero exit status, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from saddlescope.core.errors import SaddleScopeError
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must look like 1920x1080, got {text!r}") from None
+    if w < 64 or h < 64:
+        raise argparse.ArgumentTypeError(f"size {text!r} is too small (at least 64x64)")
+    return w, h
+
+
+def _pattern(text: str) -> tuple[int, int]:
+    try:
+        c, r = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"pattern must look like 9x6 (inner corners), got {text!r}") from None
+    return c, r
+
+
+def _camera_source(text: str) -> tuple[str, str]:
+    name, sep, source = text.partition("=")
+    if not sep or not name or not source:
+        raise argparse.ArgumentTypeError(f"--camera takes NAME=SOURCE (a video or an image glob), got {text!r}")
+    return name, source
+
+
+def _write_json(data: dict, out: str | None) -> None:
+    text = json.dumps(data, indent=2, allow_nan=False)
+    if out:
+        Path(out).parent.mkdir(parents=True, exist_ok=True)
+        Path(out).write_text(text + "\n")
+    else:
+        print(text)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    s = sub.add_parser("demo", help="make a synthetic ride if none exists, process it, serve the dashboard")
+    s.add_argument("--no-serve", action="store_true", help="process, print the indicators as JSON, exit")
+    s.add_argument("--host", default="127.0.0.1")
+    s.add_argument("--port", type=int, default=8000)
+
+    s = sub.add_parser("serve", help="the API and the dashboard")
+    s.add_argument("--host", default="127.0.0.1")
+    s.add_argument("--port", type=int, default=8000)
+
+    sub.add_parser("worker", help="a Celery worker (needs SADDLESCOPE_BROKER_URL)")
+
+    s = sub.add_parser("synth", help="write a synthetic ride bundle with truth.json")
+    s.add_argument("out", help="output folder")
+    s.add_argument("--gait", default="canter", choices=["walk", "sitting_trot", "rising_trot", "canter"])
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--size", type=_size, default=None, help="WxH, overrides the rig's resolution")
+    s.add_argument("--fps", type=float, default=None, help="overrides the rig's frame rate")
+    s.add_argument("--duration", type=float, default=None, help="motion clip length in seconds")
+    s.add_argument("--rig", default="thesis", choices=["thesis", "wide"])
+
+    s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
+    s.add_argument("ride")
+    s.add_argument("--json", dest="json_out", default=None, help="write the result here (else stdout)")
+
+    s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
+    s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
+    s.add_argument("--square", type=float, required=True, help="square size in mm")
+    s.add_argument("--board", default="checkerboard", choices=["checkerboard", "charuco"])
+    s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
+    s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
+    s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")
+    s.add_argument("--json", dest="json_out", default=None)
+    s.add_argument("--toml", dest="toml_out", default=None, help="also write an anipose-style TOML")
+
+    s = sub.add_parser("import", help="read a C3D or TRC motion-capture file")
+    s.add_argument("file")
+    s.add_argument("--json", dest="json_out", default=None)
+
+    s = sub.add_parser("bench", help="performance benchmarks, ratios measured side by side")
+    s.add_argument("--json", dest="json_out", default=None)
+    s.add_argument("--quick", action="store_true", help="smaller inputs, for a smoke test")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    cmd = args.command
+    if cmd == "synth":
+        from saddlescope.io.synth_writer import write_ride_bundle
+
+        path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,
+                                 size=args.size, fps=args.fps, duration_s=args.duration)
+        print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
+        return 0
+    if cmd == "analyze":
+        from saddlescope.services.analysis import analyze_bundle
+
+        result = analyze_bundle(Path(args.ride), on_progress=_print_progress)
+        _write_json(result, args.json_out)
+        return 0
+    if cmd == "calibrate":
+        from saddlescope.io.calibration_files import calibrate_sources
+
+        result = calibrate_sources(dict(args.camera), pattern=args.pattern, square_mm=args.square,
+                                   board_kind=args.board, dictionary=args.dictionary,
+                                   marker_mm=args.marker, toml_out=args.toml_out)
+        _write_json(result, args.json_out)
+        return 0
+    if cmd == "import":
+        from saddlescope.io.mocap import read_mocap
+
+        _write_json(read_mocap(Path(args.file)).summary(), args.json_out)
+        return 0
+    if cmd == "bench":
+        from saddlescope.bench import run_benchmarks
+
+        result = run_benchmarks(quick=args.quick)
+        _write_json(result, args.json_out)
+        if args.json_out:
+            print(json.dumps(result, indent=2))
+        return 0
+    if cmd == "demo":
+        from saddlescope.services.demo import run_demo
+
+        return run_demo(serve=not args.no_serve, host=args.host, port=args.port)
+    if cmd == "serve":
+        from saddlescope.services.server import serve
+
+        serve(host=args.host, port=args.port)
+        return 0
+    if cmd == "worker":
+        from saddlescope_worker.app import run_worker
+
+        return run_worker()
+    raise AssertionError(cmd)
+
+
+def _print_progress(fraction: float, stage: str) -> None:
+    print(f"[{fraction * 100:5.1f} %] {stage}", file=sys.stderr, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return run(args)
+    except SaddleScopeError as exc:
+        print(f"saddlescope {args.command}: {exc}", file=sys.stderr)
+        return 2
+    except FileNotFoundError as exc:
+        print(f"saddlescope {args.command}: file not found: {exc.filename or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

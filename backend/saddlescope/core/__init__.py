@@ -1,0 +1,1 @@
+"""The science: numpy, scipy and OpenCV only (checked by import-linter)."""

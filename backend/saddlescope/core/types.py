@@ -1,0 +1,147 @@
+"""Shared frozen dataclasses of the core.
+
+Units: image points in pixels; 3-D points of calibration and triangulation in millimetres
+(``*_mm``); kinematics in metres and seconds (``*_m``, ``*_s``). Camera poses are relative to the
+left camera: ``x_cam = R @ x_left + t_mm`` (CONTRACTS section 2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
+CLIP_KINDS: tuple[str, ...] = ("calibration", "plumb", "static", "motion")
+GAITS: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter")
+DIRECTIONS: tuple[str, ...] = ("CW", "CCW")
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera with OpenCV distortion (k1, k2, p1, p2, k3).
+
+    K : ndarray of shape (3, 3); dist : ndarray of shape (5,); image_size : (width, height) px;
+    R : ndarray of shape (3, 3) and t_mm : ndarray of shape (3,) map rig (left-camera) coordinates in
+    mm into this camera's coordinates. ``*_std`` hold one standard deviation where known.
+    """
+
+    name: str
+    K: np.ndarray
+    dist: np.ndarray
+    image_size: tuple[int, int]
+    R: np.ndarray = field(default_factory=lambda: np.eye(3))
+    t_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rms_px: float | None = None
+    K_std: np.ndarray | None = None
+    dist_std: np.ndarray | None = None
+
+    @property
+    def rvec(self) -> np.ndarray:
+        return cv2.Rodrigues(np.asarray(self.R, dtype=np.float64))[0].ravel()
+
+    @property
+    def projection_matrix(self) -> np.ndarray:
+        """P = K [R | t], shape (3, 4), for undistorted pixel coordinates."""
+        return self.K @ np.hstack([self.R, np.reshape(self.t_mm, (3, 1))])
+
+    @property
+    def center_mm(self) -> np.ndarray:
+        """Camera centre in rig coordinates, shape (3,)."""
+        return -self.R.T @ np.reshape(self.t_mm, 3)
+
+    def project(self, points_mm: np.ndarray) -> np.ndarray:
+        """Project rig points of shape (..., 3) to distorted pixels of shape (..., 2)."""
+        pts = np.asarray(points_mm, dtype=np.float64)
+        shape = pts.shape[:-1]
+        flat = pts.reshape(-1, 3)
+        out = np.full((flat.shape[0], 2), np.nan)
+        ok = np.all(np.isfinite(flat), axis=1)
+        if ok.any():
+            img, _ = cv2.projectPoints(flat[ok], self.rvec, np.asarray(self.t_mm, dtype=np.float64),
+                                       np.asarray(self.K, dtype=np.float64),
+                                       np.asarray(self.dist, dtype=np.float64))
+            out[ok] = img.reshape(-1, 2)
+        return out.reshape(*shape, 2)
+
+    def undistort_points(self, xy_px: np.ndarray) -> np.ndarray:
+        """Remove lens distortion: distorted pixels (..., 2) -> ideal pixels (..., 2) (same K)."""
+        pts = np.asarray(xy_px, dtype=np.float64)
+        shape = pts.shape
+        flat = pts.reshape(-1, 2)
+        out = np.full_like(flat, np.nan)
+        ok = np.all(np.isfinite(flat), axis=1)
+        if ok.any():
+            und = cv2.undistortPointsIter(flat[ok].reshape(-1, 1, 2), self.K, self.dist, None, self.K,
+                                          (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10))
+            out[ok] = und.reshape(-1, 2)
+        return out.reshape(shape)
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Calibrated cameras keyed by role (left, middle, right, or any names for other rigs).
+
+    ``checks`` holds metric quality numbers (e.g. ``board_square_error_mm``); ``flags`` lists
+    human-readable warnings (e.g. a metric error over its threshold).
+    """
+
+    cameras: dict[str, Camera]
+    checks: dict[str, float] = field(default_factory=dict)
+    flags: tuple[str, ...] = ()
+    pairs: dict[str, dict] = field(default_factory=dict)
+
+    @property
+    def names(self) -> list[str]:
+        return list(self.cameras)
+
+
+@dataclass(frozen=True)
+class Board:
+    """A planar calibration board. ``inner_corners`` is (cols, rows) as OpenCV's pattern size."""
+
+    kind: str
+    inner_corners: tuple[int, int]
+    square_mm: float
+    dictionary: str | None = None
+    marker_mm: float | None = None
+    legacy: bool = False
+
+    def object_points_mm(self) -> np.ndarray:
+        """Inner-corner coordinates in board mm, shape (cols*rows, 3), row-major as OpenCV returns."""
+        cols, rows = self.inner_corners
+        grid = np.zeros((rows * cols, 3), np.float64)
+        grid[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * self.square_mm
+        return grid
+
+
+@dataclass(frozen=True)
+class ImageTracks:
+    """2-D marker tracks of one camera clip.
+
+    xy_px : ndarray of shape (F, M, 2), NaN where a marker was not found (a gap, never a guess);
+    area_px : ndarray of shape (F, M); frame_index : ndarray of shape (F,) of the clip's frames.
+    """
+
+    camera: str
+    xy_px: np.ndarray
+    frame_index: np.ndarray
+    area_px: np.ndarray | None = None
+    flags: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class MarkerTracks:
+    """3-D marker tracks in rig coordinates (mm).
+
+    t_s : ndarray of shape (F,), time of each sample on the left camera's clock;
+    xyz_mm : ndarray of shape (F, M, 3), NaN in gaps; reprojection_error_px : (F, M);
+    views : (F, M) number of cameras used.
+    """
+
+    names: tuple[str, ...]
+    t_s: np.ndarray
+    xyz_mm: np.ndarray
+    reprojection_error_px: np.ndarray | None = None
+    views: np.ndarray | None = None

@@ -1,0 +1,1 @@
+"""Files, no web or DB: video frames, ride bundles, C3D/TRC, exports."""
