@@ -28,14 +28,16 @@ def _pattern(text: str) -> tuple[int, int]:
     try:
         c, r = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"pattern must look like 9x6 (inner corners), got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"pattern must look like 9x6 (inner corners), got {text!r}") from None
     return c, r
 
 
 def _camera_source(text: str) -> tuple[str, str]:
     name, sep, source = text.partition("=")
     if not sep or not name or not source:
-        raise argparse.ArgumentTypeError(f"--camera takes NAME=SOURCE (a video or an image glob), got {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"--camera takes NAME=SOURCE (a video or an image glob), got {text!r}")
     return name, source
 
 

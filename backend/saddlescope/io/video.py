@@ -1,0 +1,179 @@
+"""Reading clips: a video file any FFmpeg build decodes (PyAV), or a folder of numbered images.
+
+Frames come out as grey uint8 arrays of shape (H, W). For YUV video that is the Y (luma) plane read in
+place from the decoded frame, so detection costs little more than decoding (no colour conversion).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+
+import av
+import cv2
+import numpy as np
+
+from saddlescope.core.errors import VideoError
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm"}
+_PLANAR_LUMA = {"yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "yuvj444p", "nv12", "nv21", "gray",
+                "yuv420p10le"}
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What a clip is: frame rate, frame count, resolution, codec."""
+
+    path: Path
+    fps: float
+    frame_count: int
+    width: int
+    height: int
+    codec: str
+    duration_s: float
+
+    def as_dict(self) -> dict:
+        return {"path": str(self.path), "fps": self.fps, "frame_count": self.frame_count,
+                "width": self.width, "height": self.height, "codec": self.codec,
+                "duration_s": self.duration_s}
+
+
+def _image_files(folder: Path) -> list[Path]:
+    files = [p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file()]
+
+    def key(p: Path):
+        nums = re.findall(r"\d+", p.stem)
+        return (int(nums[-1]) if nums else -1, p.name)
+
+    return sorted(files, key=key)
+
+
+def _open(path: Path):
+    try:
+        return av.open(str(path), mode="r")
+    except (av.error.FFmpegError, OSError, UnicodeDecodeError) as exc:
+        raise VideoError(f"{path}: not a readable video ({exc.__class__.__name__}: {exc})") from None
+
+
+def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo:
+    """Check a clip decodes and read its fps, frame count and resolution.
+
+    The frame count is counted from the packets when the container does not state it, and the last
+    frames are decoded, so a truncated file is caught here rather than half-way through a job.
+    ``fps_hint`` is used for image folders (default 30).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise VideoError(f"{path}: file not found")
+    if path.is_dir():
+        files = _image_files(path)
+        if not files:
+            raise VideoError(f"{path}: folder holds no numbered images ({', '.join(sorted(IMAGE_SUFFIXES))})")
+        first = cv2.imread(str(files[0]), cv2.IMREAD_GRAYSCALE)
+        if first is None:
+            raise VideoError(f"{files[0]}: not a readable image")
+        fps = float(fps_hint or 30.0)
+        return VideoInfo(path, fps, len(files), first.shape[1], first.shape[0], "images", len(files) / fps)
+    if path.stat().st_size == 0:
+        raise VideoError(f"{path}: empty file (0 bytes)")
+    with _open(path) as container:
+        if not container.streams.video:
+            raise VideoError(f"{path}: has no video stream")
+        stream = container.streams.video[0]
+        rate = stream.average_rate or stream.guessed_rate or stream.base_rate
+        if not rate or float(rate) <= 0:
+            raise VideoError(f"{path}: frame rate unknown")
+        fps = float(rate)
+        width, height = stream.codec_context.width, stream.codec_context.height
+        codec = stream.codec_context.name
+        n_decoded = 0
+        try:
+            for frame in container.decode(stream):
+                n_decoded += 1
+                width, height = frame.width, frame.height
+        except (av.error.FFmpegError, ValueError) as exc:
+            if n_decoded == 0:
+                raise VideoError(f"{path}: no frame decodes ({exc})") from None
+            raise VideoError(f"{path}: truncated or corrupt after frame {n_decoded} ({exc})") from None
+    if n_decoded == 0:
+        raise VideoError(f"{path}: no frame decodes (empty or truncated video)")
+    if width <= 0 or height <= 0:
+        raise VideoError(f"{path}: frame size unknown")
+    return VideoInfo(path, fps, n_decoded, int(width), int(height), codec, n_decoded / fps)
+
+
+def _luma(frame) -> np.ndarray:
+    """The Y plane of a decoded frame as (H, W) uint8, without colour conversion where possible."""
+    fmt = frame.format.name
+    if fmt in _PLANAR_LUMA and not fmt.endswith("10le"):
+        plane = frame.planes[0]
+        buf = np.frombuffer(plane, np.uint8).reshape(-1, plane.line_size)
+        return buf[: frame.height, : frame.width]
+    return frame.to_ndarray(format="gray")
+
+
+def iter_gray_frames(path: Path | str, start: int = 0, stop: int | None = None,
+                     step: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+    """Yield (frame index, grey frame of shape (H, W), uint8) for frames start, start+step, ... < stop.
+
+    The yielded array may be a view into the decoder's buffer: copy it to keep it past the next
+    iteration.
+    """
+    path = Path(path)
+    if step < 1:
+        raise ValueError("step must be >= 1")
+    if path.is_dir():
+        files = _image_files(path)
+        for i in range(start, len(files) if stop is None else min(stop, len(files)), step):
+            img = cv2.imread(str(files[i]), cv2.IMREAD_GRAYSCALE)
+            if img is None:
+                raise VideoError(f"{files[i]}: not a readable image")
+            yield i, img
+        return
+    with _open(path) as container:
+        if not container.streams.video:
+            raise VideoError(f"{path}: has no video stream")
+        stream = container.streams.video[0]
+        stream.thread_type = "AUTO"
+        index = -1
+        try:
+            for frame in container.decode(stream):
+                index += 1
+                if index < start or (index - start) % step:
+                    continue
+                if stop is not None and index >= stop:
+                    break
+                yield index, _luma(frame)
+        except (av.error.FFmpegError, ValueError) as exc:
+            raise VideoError(f"{path}: decoding failed after frame {index} ({exc})") from None
+
+
+def read_gray_frames(path: Path | str, indices) -> dict[int, np.ndarray]:
+    """Decode the wanted frames (copies), keyed by index."""
+    wanted = sorted(set(int(i) for i in indices))
+    if not wanted:
+        return {}
+    out: dict[int, np.ndarray] = {}
+    want = set(wanted)
+    for i, img in iter_gray_frames(path, start=wanted[0], stop=wanted[-1] + 1):
+        if i in want:
+            out[i] = img.copy()
+    return out
+
+
+def frame_brightness(path: Path | str, *, downscale: int = 8) -> np.ndarray:
+    """Mean grey level of every frame (F,), from the luma plane sampled on a coarse grid (for sync)."""
+    values = [float(img[::downscale, ::downscale].mean()) for _, img in iter_gray_frames(path)]
+    return np.asarray(values)
+
+
+def fps_fraction(fps: float) -> Fraction:
+    """A frame rate as a fraction for encoders (29.97 -> 30000/1001)."""
+    for den in (1, 1001, 1000):
+        num = fps * den
+        if abs(num - round(num)) < 1e-6:
+            return Fraction(int(round(num)), den)
+    return Fraction(fps).limit_denominator(100000)

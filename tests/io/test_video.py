@@ -1,0 +1,74 @@
+"""Video reading: probe, grey frames, image folders and bad files."""
+
+from pathlib import Path
+
+import av
+import cv2
+import numpy as np
+import pytest
+
+from saddlescope.core.errors import VideoError
+from saddlescope.io.video import frame_brightness, iter_gray_frames, probe_video, read_gray_frames
+
+
+def _write_clip(path: Path, n: int = 20, size=(160, 120), fps: int = 30) -> np.ndarray:
+    w, h = size
+    container = av.open(str(path), "w")
+    stream = container.add_stream("libx264", rate=fps)
+    stream.width, stream.height, stream.pix_fmt = w, h, "yuv420p"
+    stream.options = {"crf": "10"}
+    levels = np.linspace(20, 230, n).astype(np.uint8)
+    for level in levels:
+        img = np.full((h, w, 3), level, np.uint8)
+        for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="rgb24")):
+            container.mux(packet)
+    for packet in stream.encode():
+        container.mux(packet)
+    container.close()
+    return levels
+
+
+def test_probe_and_read_grey(tmp_path):
+    path = tmp_path / "clip.mp4"
+    levels = _write_clip(path)
+    info = probe_video(path)
+    assert (info.fps, info.frame_count, info.width, info.height) == (30.0, 20, 160, 120)
+    frames = list(iter_gray_frames(path))
+    assert [i for i, _ in frames] == list(range(20))
+    assert frames[0][1].shape == (120, 160) and frames[0][1].dtype == np.uint8
+    # the luma of a flat grey RGB frame is the grey level (within limited-range rounding)
+    means = frame_brightness(path, downscale=4)
+    assert np.all(np.abs(means - (16 + levels.astype(float) * 219 / 255)) < 3)
+    picked = read_gray_frames(path, [3, 7])
+    assert sorted(picked) == [3, 7]
+    assert [i for i, _ in iter_gray_frames(path, start=5, stop=11, step=3)] == [5, 8]
+
+
+def test_image_folder(tmp_path):
+    for i in (1, 2, 10):
+        cv2.imwrite(str(tmp_path / f"{i:04d}.png"), np.full((40, 50), i * 10, np.uint8))
+    info = probe_video(tmp_path, fps_hint=25)
+    assert (info.frame_count, info.width, info.height, info.fps) == (3, 50, 40, 25.0)
+    assert [int(img[0, 0]) for _, img in iter_gray_frames(tmp_path)] == [10, 20, 100]
+
+
+def test_bad_files(tmp_path):
+    empty = tmp_path / "empty.mp4"
+    empty.write_bytes(b"")
+    with pytest.raises(VideoError, match="empty file"):
+        probe_video(empty)
+    text = tmp_path / "notes.mp4"
+    text.write_text("this is not a video\n" * 50)
+    with pytest.raises(VideoError, match="notes.mp4"):
+        probe_video(text)
+    with pytest.raises(VideoError, match="not found"):
+        probe_video(tmp_path / "missing.mp4")
+    good = tmp_path / "good.mp4"
+    _write_clip(good, n=40)
+    data = good.read_bytes()
+    truncated = tmp_path / "truncated.mp4"
+    truncated.write_bytes(data[: len(data) // 2])
+    with pytest.raises(VideoError, match="truncated.mp4"):
+        probe_video(truncated)
+    with pytest.raises(VideoError, match="no numbered images"):
+        probe_video(tmp_path / "emptydir" if (tmp_path / "emptydir").mkdir() is None else None)
