@@ -1,0 +1,510 @@
+"""Curve fits of the registered marker coordinates and their analytic derivatives (thesis 5.5).
+
+x (travel): a straight line, slope = average speed. y (gravity) and z: a Fourier series
+``a0 + sum_k a_k cos(k w t) + b_k sin(k w t)`` (eq. 5.23) with the fundamental ``w`` fitted too
+(nonlinear least squares from the period estimate). The fundamental is the *stride* frequency,
+so a walk's or trot's vertical motion (twice per stride) is carried by the second harmonic.
+
+Order. The thesis shows that a series of order N has at most 2N extrema per period of the
+fundamental (eq. 5.24-5.33; its eq. 5.28 should read cos 2θ = cos²θ − sin²θ) and fits orders
+E/2 and E/2 + 1, E being the number of extrema the user counted. Here E is counted per stride on
+a smooth fixed-frequency fit of the data, ignoring wiggles smaller than ``prominence`` of the
+peak-to-peak range, and the better of the two orders is chosen by the corrected Akaike
+information criterion (AICc) unless another ``criterion`` is asked for.
+
+Goodness of fit as MATLAB's Curve Fitting Toolbox: SSE, R², adjusted R² (with the residual
+degrees of freedom n − p, ω counted as a parameter), RMSE = sqrt(SSE / (n − p)), and 95 %
+confidence intervals of the coefficients from the Jacobian at the solution.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import t as student_t
+
+from saddlescope.core.errors import InputError, KinematicsError
+
+CRITERIA = ("aicc", "bic", "adj_r2")
+
+
+@dataclass(frozen=True)
+class GoodnessOfFit:
+    """Goodness-of-fit numbers of one least-squares fit (n samples, p parameters)."""
+
+    sse: float
+    r2: float
+    adj_r2: float
+    rmse: float
+    n: int
+    n_params: int
+    aicc: float
+    bic: float
+
+    @property
+    def dfe(self) -> int:
+        """Residual degrees of freedom n - p."""
+        return self.n - self.n_params
+
+    def as_dict(self) -> dict:
+        return {"sse": self.sse, "r2": self.r2, "adj_r2": self.adj_r2, "rmse": self.rmse, "n": self.n,
+                "n_params": self.n_params, "dfe": self.dfe, "aicc": self.aicc, "bic": self.bic}
+
+
+def _goodness(y: np.ndarray, residuals: np.ndarray, n_params: int) -> GoodnessOfFit:
+    n = y.shape[0]
+    sse = float(np.sum(residuals**2))
+    sst = float(np.sum((y - y.mean()) ** 2))
+    dfe = n - n_params
+    r2 = 1.0 - sse / sst if sst > 0 else 1.0
+    adj = 1.0 - (1.0 - r2) * (n - 1) / dfe if dfe > 0 else float("nan")
+    rmse = float(np.sqrt(sse / dfe)) if dfe > 0 else float("nan")
+    # A floor keeps the criteria finite for exact (noise-free) fits; ties then favour fewer parameters.
+    sse_eff = max(sse, n * (1e-12 * max(np.sqrt(sst / max(n, 1)), 1e-300)) ** 2)
+    loglik_term = n * np.log(sse_eff / n)
+    aicc = float(loglik_term + 2 * n_params + (2 * n_params * (n_params + 1) / (n - n_params - 1)
+                                               if n - n_params - 1 > 0 else np.inf))
+    bic = float(loglik_term + n_params * np.log(n))
+    return GoodnessOfFit(sse=sse, r2=float(r2), adj_r2=float(adj), rmse=rmse, n=n, n_params=n_params,
+                         aicc=aicc, bic=bic)
+
+
+def _confidence(jac: np.ndarray, gof: GoodnessOfFit, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+    """Standard errors and half-widths of the confidence intervals from the Jacobian (n, p)."""
+    if gof.dfe <= 0:
+        nan = np.full(jac.shape[1], np.nan)
+        return nan, nan
+    s2 = gof.sse / gof.dfe
+    # QR of the Jacobian avoids squaring its condition number in J^T J.
+    _, r = np.linalg.qr(jac)
+    try:
+        r_inv = np.linalg.inv(r)
+    except np.linalg.LinAlgError:
+        r_inv = np.linalg.pinv(r)
+    cov = s2 * (r_inv @ r_inv.T)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return se, student_t.ppf(0.5 + level / 2, gof.dfe) * se
+
+
+def _check_series(t, y, name: str) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(t, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    if t.ndim != 1 or y.shape != t.shape:
+        raise InputError(f"{name}: t and y must be 1-D arrays of equal length, got {t.shape} and {y.shape}")
+    ok = np.isfinite(t) & np.isfinite(y)
+    return t[ok], y[ok]
+
+
+@dataclass(frozen=True)
+class LinearFit:
+    """Straight line ``y = intercept + slope * (t - t0)``; ``slope`` is the average speed.
+
+    ci : ndarray of shape (2, 2)
+        95 % intervals, rows (intercept, slope), columns (low, high).
+    residuals : ndarray of shape (n,)
+        Data minus fit at the samples used.
+    """
+
+    intercept: float
+    slope: float
+    t0: float
+    gof: GoodnessOfFit
+    ci: np.ndarray
+    residuals: np.ndarray
+
+    def evaluate(self, t, derivative: int = 0) -> np.ndarray:
+        """Value (0), velocity (1) or acceleration (2) at times ``t`` of any shape."""
+        t = np.asarray(t, dtype=np.float64)
+        if derivative == 0:
+            return self.intercept + self.slope * (t - self.t0)
+        if derivative == 1:
+            return np.full_like(t, self.slope)
+        if derivative == 2:
+            return np.zeros_like(t)
+        raise InputError(f"derivative must be 0, 1 or 2, got {derivative}")
+
+
+def fit_linear(t, y, *, name: str = "x") -> LinearFit:
+    """Least-squares straight line through (t, y), NaN samples ignored.
+
+    Parameters
+    ----------
+    t, y : ndarray of shape (n,)
+    name : str
+        What is fitted, for error messages.
+    """
+    t, y = _check_series(t, y, name)
+    if t.size < 3:
+        raise KinematicsError(f"{name}: {t.size} samples are too few for a straight-line fit")
+    t0 = float(t.mean())
+    jac = np.column_stack([np.ones_like(t), t - t0])
+    coef, *_ = np.linalg.lstsq(jac, y, rcond=None)
+    residuals = y - jac @ coef
+    gof = _goodness(y, residuals, 2)
+    _, half = _confidence(jac, gof)
+    ci = np.column_stack([coef - half, coef + half])
+    return LinearFit(intercept=float(coef[0]), slope=float(coef[1]), t0=t0, gof=gof, ci=ci,
+                     residuals=residuals)
+
+
+@dataclass(frozen=True)
+class FourierFit:
+    """Fourier series ``a0 + sum_k a_k cos(k w (t - t0)) + b_k sin(k w (t - t0))`` (eq. 5.23).
+
+    a0 : float; a, b : ndarray of shape (N,); omega_rad_s : float (fundamental w); t0 : float
+    (time origin, the mean sample time, which decorrelates w from the phases).
+    ci : dict
+        95 % intervals: ``"a0"`` (2,), ``"a"`` (N, 2), ``"b"`` (N, 2), ``"omega_rad_s"`` (2,)
+        (the last is NaN-free only if ω was fitted or pooled).
+    se : dict
+        Standard errors with the same keys.
+    omega_source : str
+        ``"fitted"`` (nonlinear least squares), ``"fixed"`` (given) or ``"pooled"`` (common ω of
+        several fits, see :func:`fit_marker_kinematics`).
+    criterion : str
+        How the order was chosen (``"aicc"``, ``"bic"``, ``"adj_r2"`` or ``"given"``).
+    extrema_per_period : int or None
+        The extrema counted per fundamental period (E of the order rule).
+    candidates : tuple of dict
+        The orders tried with their goodness of fit (for the dashboard).
+    """
+
+    a0: float
+    a: np.ndarray
+    b: np.ndarray
+    omega_rad_s: float
+    t0: float
+    gof: GoodnessOfFit
+    ci: dict
+    se: dict
+    residuals: np.ndarray
+    omega_source: str = "fitted"
+    criterion: str = "given"
+    extrema_per_period: int | None = None
+    candidates: tuple = ()
+    flags: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def order(self) -> int:
+        return int(self.a.shape[0])
+
+    @property
+    def f0_hz(self) -> float:
+        return self.omega_rad_s / (2 * np.pi)
+
+    def evaluate(self, t, derivative: int = 0) -> np.ndarray:
+        """Value (0), velocity (1) or acceleration (2) at times ``t`` of any shape (analytic)."""
+        if derivative not in (0, 1, 2):
+            raise InputError(f"derivative must be 0, 1 or 2, got {derivative}")
+        t = np.asarray(t, dtype=np.float64)
+        k = np.arange(1, self.order + 1)
+        kw = k * self.omega_rad_s
+        theta = (t[..., None] - self.t0) * kw
+        # a cos θ + b sin θ = Re[(a - i b) e^{iθ}]; each derivative multiplies by i k w.
+        c = (self.a - 1j * self.b) * (1j * kw) ** derivative
+        out = np.real(np.sum(c * np.exp(1j * theta), axis=-1))
+        return out + self.a0 if derivative == 0 else out
+
+    def harmonics(self, derivative: int = 0) -> tuple[float, np.ndarray, np.ndarray]:
+        """The series as ``sum_k A_k cos(2 pi k f0 t + phi_k)`` in the absolute time t.
+
+        Parameters
+        ----------
+        derivative : {0, 1, 2}
+            0: position harmonics; 1: velocity; 2: acceleration (what the vibration code takes).
+            The constant ``a0`` is not included.
+
+        Returns
+        -------
+        f0_hz : float
+        amplitudes : ndarray of shape (N,)
+        phases : ndarray of shape (N,), rad in (-pi, pi]
+        """
+        if derivative not in (0, 1, 2):
+            raise InputError(f"derivative must be 0, 1 or 2, got {derivative}")
+        k = np.arange(1, self.order + 1)
+        kw = k * self.omega_rad_s
+        amp = np.hypot(self.a, self.b) * kw**derivative
+        # a cos θ + b sin θ = A cos(θ + φ) with φ = atan2(-b, a); then shift the origin to t = 0.
+        phase = np.arctan2(-self.b, self.a) + derivative * np.pi / 2 - kw * self.t0
+        phase = np.angle(np.exp(1j * phase))
+        return self.f0_hz, amp, phase
+
+
+def _design(tau: np.ndarray, omega: float, order: int) -> np.ndarray:
+    k = np.arange(1, order + 1)
+    theta = tau[:, None] * (k * omega)
+    return np.column_stack([np.ones_like(tau), np.cos(theta), np.sin(theta)])
+
+
+def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: int = 8) -> int:
+    """Number E of extrema (maxima + minima) per period, robust to noise.
+
+    A linear least-squares Fourier series with the fundamental ``2 pi / period_s`` (order up to
+    ``max_order``, fewer for short records) smooths the data; its extrema over one period are
+    counted cyclically with hysteresis: a turning point counts only if the curve then moves by at
+    least ``prominence`` times its peak-to-peak range.
+
+    Parameters
+    ----------
+    t, y : ndarray of shape (n,)
+    period_s : float
+    prominence : float, optional
+
+    Returns
+    -------
+    E : int
+        An even number >= 2 (a periodic curve has as many minima as maxima).
+    """
+    t, y = _check_series(t, y, "count_extrema")
+    if not np.isfinite(period_s) or period_s <= 0:
+        raise InputError(f"period_s must be positive, got {period_s}")
+    omega = 2 * np.pi / period_s
+    order = int(max(1, min(max_order, (t.size - 2) // 4)))
+    tau = t - t.mean()
+    coef, *_ = np.linalg.lstsq(_design(tau, omega, order), y, rcond=None)
+    grid = np.linspace(0.0, period_s, 720, endpoint=False)
+    curve = _design(grid, omega, order) @ coef
+    span = np.ptp(curve)
+    if span <= 0:
+        return 2
+    h = prominence * span
+    start = int(np.argmax(curve))
+    seq = np.concatenate([curve[start:], curve[:start], curve[start:start + 1]])
+    minima = 0
+    looking_for_min = True
+    run = seq[0]
+    for value in seq[1:]:
+        if looking_for_min:
+            if value < run:
+                run = value
+            elif value >= run + h:
+                minima += 1
+                looking_for_min, run = False, value
+        else:
+            if value > run:
+                run = value
+            elif value <= run - h:
+                looking_for_min, run = True, value
+    return 2 * max(minima, 1)
+
+
+def _fit_order(tau: np.ndarray, y: np.ndarray, omega0: float, order: int, fit_omega: bool,
+               name: str) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, tuple[str, ...]]:
+    """Coefficients [a0, a_1..a_N, b_1..b_N], omega, residuals, Jacobian, flags."""
+    design = _design(tau, omega0, order)
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    if not fit_omega:
+        return coef, omega0, y - design @ coef, design, ()
+    k = np.arange(1, order + 1)
+
+    def residual(p):
+        return _design(tau, p[-1], order) @ p[:-1] - y
+
+    def jacobian(p):
+        w = p[-1]
+        d = _design(tau, w, order)
+        theta = tau[:, None] * (k * w)
+        a, b = p[1:order + 1], p[order + 1:-1]
+        dw = np.sum(tau[:, None] * k * (-a * np.sin(theta) + b * np.cos(theta)), axis=1)
+        return np.column_stack([d, dw])
+
+    p0 = np.concatenate([coef, [omega0]])
+    res = least_squares(residual, p0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-15, ftol=1e-15,
+                        gtol=1e-15, max_nfev=2000)
+    flags: tuple[str, ...] = ()
+    omega = float(res.x[-1])
+    if not (0.8 * omega0 <= omega <= 1.25 * omega0) or not res.success:
+        flags = (f"{name}: the fitted fundamental ({omega / (2 * np.pi):.3f} Hz) left the neighbourhood of "
+                 f"the stride frequency ({omega0 / (2 * np.pi):.3f} Hz); kept the stride frequency",)
+        return coef, omega0, y - design @ coef, design, flags
+    return res.x[:-1], omega, residual(res.x), jacobian(res.x), flags
+
+
+def _criterion_value(gof: GoodnessOfFit, criterion: str) -> float:
+    return -gof.adj_r2 if criterion == "adj_r2" else getattr(gof, criterion)
+
+
+def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: str = "aicc",
+                fit_omega: bool = True, prominence: float = 0.1, name: str = "y") -> FourierFit:
+    """Fit a Fourier series with its fundamental (eq. 5.23); order from the extrema rule.
+
+    Parameters
+    ----------
+    t, y : ndarray of shape (n,)
+        Times (s) and values (NaN ignored), over a whole number of periods.
+    period_s : float
+        The stride period: the start (or, with ``fit_omega=False``, the value) of 2 pi / w.
+    order : int, optional
+        Number of harmonics N; default: the better of E/2 and E/2 + 1 by ``criterion``.
+    criterion : {"aicc", "bic", "adj_r2"}
+        Order selection: smallest AICc (default), smallest BIC, or largest adjusted R².
+    fit_omega : bool, optional
+        Fit w too (nonlinear least squares) or keep 2 pi / period_s.
+    prominence : float, optional
+        See :func:`count_extrema`.
+    name : str
+        What is fitted (e.g. ``"marker 1 y"``), for messages.
+
+    Returns
+    -------
+    FourierFit
+    """
+    t, y = _check_series(t, y, name)
+    if criterion not in CRITERIA:
+        raise InputError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
+    if not np.isfinite(period_s) or period_s <= 0:
+        raise InputError(f"period_s must be positive, got {period_s}")
+    omega0 = 2 * np.pi / period_s
+    extrema = None
+    if order is None:
+        extrema = count_extrema(t, y, period_s=period_s, prominence=prominence)
+        orders = [max(1, extrema // 2), max(1, extrema // 2) + 1]
+        used_criterion = criterion
+    else:
+        if order < 1:
+            raise InputError(f"order must be at least 1, got {order}")
+        orders = [int(order)]
+        used_criterion = "given"
+    n_needed = 2 * orders[0] + 1 + int(fit_omega) + 1
+    if t.size < n_needed:
+        raise KinematicsError(f"{name}: {t.size} samples are too few for a Fourier fit of order {orders[0]}")
+    orders = [o for o in orders if t.size >= 2 * o + 1 + int(fit_omega) + 1]
+    t0 = float(t.mean())
+    tau = t - t0
+    fits = []
+    for o in orders:
+        coef, omega, resid, jac, flags = _fit_order(tau, y, omega0, o, fit_omega, name)
+        omega_free = fit_omega and not flags
+        gof = _goodness(y, resid, jac.shape[1] if omega_free else 2 * o + 1)
+        se, half = _confidence(jac if omega_free else jac[:, : 2 * o + 1], gof)
+        fits.append((o, coef, omega, resid, gof, se, half, flags, omega_free))
+    best = min(fits, key=lambda f: (_criterion_value(f[4], criterion), f[0]))
+    o, coef, omega, resid, gof, se, half, flags, omega_free = best
+
+    def pack(v):
+        return {"a0": v[0], "a": v[1:o + 1], "b": v[o + 1:2 * o + 1],
+                "omega_rad_s": v[2 * o + 1] if omega_free else np.nan}
+
+    se_d = pack(se)
+    half_d = pack(half)
+    values = {"a0": coef[0], "a": coef[1:o + 1], "b": coef[o + 1:2 * o + 1], "omega_rad_s": omega}
+    ci = {key: np.stack([values[key] - half_d[key], values[key] + half_d[key]], axis=-1) for key in values}
+    candidates = tuple({"order": f[0], "omega_rad_s": f[2], **f[4].as_dict()} for f in fits)
+    return FourierFit(a0=float(coef[0]), a=np.array(coef[1:o + 1]), b=np.array(coef[o + 1:2 * o + 1]),
+                      omega_rad_s=float(omega), t0=t0, gof=gof, ci=ci, se=se_d, residuals=resid,
+                      omega_source="fitted" if omega_free else "fixed", criterion=used_criterion,
+                      extrema_per_period=extrema, candidates=candidates, flags=flags)
+
+
+@dataclass(frozen=True)
+class MarkerKinematics:
+    """Fits and analytic derivatives of every marker's motion-frame coordinates.
+
+    fits_x : tuple of LinearFit (M,); fits_y, fits_z : tuple of FourierFit (M,);
+    t_s : ndarray of shape (F,); velocity_m_s, acceleration_m_s2 : ndarray of shape (F, M, 3);
+    omega_rad_s : float, the common fundamental (pooled) or NaN when each fit kept its own;
+    omega_per_fit : ndarray of shape (M, 2), the free fundamental of each y and z fit;
+    flags : tuple of str.
+    """
+
+    t_s: np.ndarray
+    fits_x: tuple
+    fits_y: tuple
+    fits_z: tuple
+    velocity_m_s: np.ndarray
+    acceleration_m_s2: np.ndarray
+    omega_rad_s: float
+    omega_per_fit: np.ndarray
+    flags: tuple[str, ...] = ()
+
+    @property
+    def average_speed_m_s(self) -> float:
+        """Mean slope of the x fits (eq. 5.5.3: the average velocity)."""
+        return float(np.mean([f.slope for f in self.fits_x]))
+
+
+def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = True,
+                          criterion: str = "aicc", names: tuple[str, ...] | None = None) -> MarkerKinematics:
+    """Fit x linearly and y, z with Fourier series for every marker; differentiate analytically.
+
+    Parameters
+    ----------
+    t_s : ndarray of shape (F,)
+        Times of the analysis window (s).
+    xyz_m : ndarray of shape (F, M, 3)
+        Registered marker positions in the motion frame (m), NaN in gaps.
+    period_s : float
+        Stride period (start value of the fundamental).
+    common_omega : bool, optional
+        A rigid body has one fundamental: when True (default) each y and z series is first fitted
+        with its own w, the inverse-variance weighted mean of those w is taken, and every series
+        is refitted (linearly, same order) with it. This keeps the markers' velocities
+        consistent, which the angular velocity (differences of marker velocities) needs. When
+        False, each fit keeps its own w as in the thesis.
+    criterion : str
+        Order selection criterion, see :func:`fit_fourier`.
+    names : tuple of str, optional
+        Marker names for messages.
+
+    Returns
+    -------
+    MarkerKinematics
+    """
+    t_s = np.asarray(t_s, dtype=np.float64)
+    xyz = np.asarray(xyz_m, dtype=np.float64)
+    if xyz.ndim != 3 or xyz.shape[2] != 3 or t_s.shape != (xyz.shape[0],):
+        raise InputError(f"xyz_m must have shape (F, M, 3) with F = len(t_s); got {xyz.shape} and "
+                         f"{t_s.shape}")
+    n_mark = xyz.shape[1]
+    label = [names[m] if names is not None and m < len(names) else f"marker {m + 1}" for m in range(n_mark)]
+    fits_x = tuple(fit_linear(t_s, xyz[:, m, 0], name=f"{label[m]} x") for m in range(n_mark))
+    free = [[fit_fourier(t_s, xyz[:, m, c], period_s=period_s, criterion=criterion, name=f"{label[m]} {ax}")
+             for c, ax in ((1, "y"), (2, "z"))] for m in range(n_mark)]
+    omega_per_fit = np.array([[f.omega_rad_s for f in row] for row in free])
+    flags = [flag for row in free for f in row for flag in f.flags]
+    pooled = float("nan")
+    if common_omega:
+        se = np.array([[f.se["omega_rad_s"] for f in row] for row in free])
+        ok = np.isfinite(se) & (se > 0)
+        if ok.any():
+            w = 1.0 / se[ok] ** 2
+            pooled = float(np.sum(w * omega_per_fit[ok]) / np.sum(w))
+            pooled_se = float(1.0 / np.sqrt(np.sum(w)))
+        else:
+            pooled = 2 * np.pi / period_s
+            pooled_se = float("nan")
+            flags.append("no fit determined the fundamental; used the stride period's")
+        refit = []
+        for m, row in enumerate(free):
+            new_row = []
+            for c, f in zip((1, 2), row, strict=True):
+                g = fit_fourier(t_s, xyz[:, m, c], period_s=2 * np.pi / pooled, order=f.order,
+                                fit_omega=False, name=f"{label[m]} {'xyz'[c]}")
+                half = student_t.ppf(0.975, max(g.gof.dfe, 1)) * pooled_se
+                new_row.append(_with_pooled_omega(g, f, pooled_se, half))
+            refit.append(new_row)
+        free = refit
+    fits_y = tuple(row[0] for row in free)
+    fits_z = tuple(row[1] for row in free)
+    vel = np.empty(xyz.shape)
+    acc = np.empty(xyz.shape)
+    for m in range(n_mark):
+        for c, fit in enumerate((fits_x[m], fits_y[m], fits_z[m])):
+            vel[:, m, c] = fit.evaluate(t_s, 1)
+            acc[:, m, c] = fit.evaluate(t_s, 2)
+    return MarkerKinematics(t_s=t_s, fits_x=fits_x, fits_y=fits_y, fits_z=fits_z, velocity_m_s=vel,
+                            acceleration_m_s2=acc, omega_rad_s=pooled, omega_per_fit=omega_per_fit,
+                            flags=tuple(flags))
+
+
+def _with_pooled_omega(fixed: FourierFit, free: FourierFit, pooled_se: float, half: float) -> FourierFit:
+    """The fixed-w refit, labelled with the pooled w's uncertainty and the free fit's order choice."""
+    se = dict(fixed.se, omega_rad_s=pooled_se)
+    ci = dict(fixed.ci, omega_rad_s=np.array([fixed.omega_rad_s - half, fixed.omega_rad_s + half]))
+    return FourierFit(a0=fixed.a0, a=fixed.a, b=fixed.b, omega_rad_s=fixed.omega_rad_s, t0=fixed.t0,
+                      gof=fixed.gof, ci=ci, se=se, residuals=fixed.residuals, omega_source="pooled",
+                      criterion=free.criterion, extrema_per_period=free.extrema_per_period,
+                      candidates=free.candidates, flags=free.flags)

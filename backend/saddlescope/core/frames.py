@@ -1,0 +1,208 @@
+"""The motion reference frame (thesis 5.3, eq. 5.6-5.12).
+
+x = direction of travel (net displacement of a marker over whole periods, eq. 5.6-5.7),
+y = gravity, down (from the plumb clip: unit vector from the upper to the lower marker),
+corrected to be orthogonal to x (eq. 5.8-5.9), z = x cross y. Origin: the first position of
+marker 1 (CONTRACTS section 2). Rig coordinates are in mm, motion coordinates in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from saddlescope.core.errors import InputError, KinematicsError
+
+# Warn when the measured gravity is further than this from perpendicular to the travel.
+_PERPENDICULAR_TOL_DEG = 10.0
+# Left-camera image "down" in rig coordinates (OpenCV camera: x right, y down, z forward).
+CAMERA_DOWN = np.array([0.0, 1.0, 0.0])
+
+
+@dataclass(frozen=True)
+class MotionFrame:
+    """A motion reference frame.
+
+    R : ndarray of shape (3, 3)
+        Rig -> motion rotation; its rows are the unit axes x, y, z in rig coordinates, so
+        ``x_motion = R @ (x_rig - origin_mm)`` (eq. 5.12 with R = R_CM^T).
+    origin_mm : ndarray of shape (3,)
+        Origin in rig coordinates (mm).
+    gravity_source : str
+        ``"plumb"``, ``"hint"`` (the caller's down direction, e.g. from the rig) or
+        ``"camera_down"`` (the left camera's image y axis: a level camera is assumed).
+    warnings : tuple of str
+        Human-readable warnings (no plumb, plumb far from perpendicular to the travel, ...).
+    gravity_raw : ndarray of shape (3,)
+        The unit gravity estimate before orthogonalisation, rig coordinates.
+    travel_raw : ndarray of shape (3,)
+        The unit travel direction (eq. 5.7), rig coordinates.
+    angle_travel_gravity_deg : float
+        Angle between the raw gravity and the travel (90 ideally).
+    diagnostics : dict
+        Further numbers (plumb length and its spread, number of plumb frames used).
+    """
+
+    R: np.ndarray
+    origin_mm: np.ndarray
+    gravity_source: str
+    warnings: tuple[str, ...] = ()
+    gravity_raw: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    travel_raw: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    angle_travel_gravity_deg: float = float("nan")
+    diagnostics: dict = field(default_factory=dict)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _as_track(x, name: str) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim == 1:
+        x = x[None, :]
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise InputError(f"{name} must have shape (F, 3) or (3,), got {x.shape}")
+    return x
+
+
+def plumb_gravity(plumb_top_mm, plumb_bottom_mm) -> tuple[np.ndarray, dict]:
+    """Unit gravity (down) from the two plumb markers, averaged over frames.
+
+    Parameters
+    ----------
+    plumb_top_mm, plumb_bottom_mm : ndarray of shape (F, 3) or (3,)
+        Upper and lower plumb marker positions (rig mm), NaN in gaps.
+
+    Returns
+    -------
+    gravity : ndarray of shape (3,)
+        Mean of the per-frame unit vectors from top to bottom, normalised.
+    diagnostics : dict
+        ``plumb_frames``, ``plumb_length_mm`` (median), ``plumb_spread_deg`` (r.m.s. angle of the
+        per-frame directions about the mean: the plumb's swing plus noise).
+    """
+    top = _as_track(plumb_top_mm, "plumb_top_mm")
+    bottom = _as_track(plumb_bottom_mm, "plumb_bottom_mm")
+    if top.shape != bottom.shape:
+        raise InputError(f"plumb_top_mm {top.shape} and plumb_bottom_mm {bottom.shape} differ in shape")
+    d = bottom - top
+    ok = np.all(np.isfinite(d), axis=1)
+    length = np.linalg.norm(d, axis=1)
+    ok &= length > 0
+    if not ok.any():
+        raise KinematicsError("the plumb clip has no frame with both plumb markers found")
+    units = d[ok] / length[ok, None]
+    g = _unit(units.mean(axis=0))
+    cos = np.clip(units @ g, -1.0, 1.0)
+    diag = {"plumb_frames": int(ok.sum()), "plumb_length_mm": float(np.median(length[ok])),
+            "plumb_spread_deg": float(np.degrees(np.sqrt(np.mean(np.arccos(cos) ** 2))))}
+    return g, diag
+
+
+def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_down_hint=None,
+                 origin_mm=None) -> MotionFrame:
+    """Build the motion reference frame (eq. 5.6-5.10).
+
+    Parameters
+    ----------
+    travel_xyz_mm : ndarray of shape (F, 3)
+        Track (rig mm) of the marker that defines the travel, over whole periods: the direction
+        is its net displacement from the first to the last finite sample (eq. 5.7), so pass
+        ``xyz[start:stop + 1]`` when the sample one window later exists.
+    plumb_top_mm, plumb_bottom_mm : ndarray of shape (F, 3) or (3,), optional
+        Plumb markers (rig mm). Without them gravity is the ``rig_down_hint`` or, failing that,
+        the left camera's image down direction, with a warning.
+    rig_down_hint : ndarray of shape (3,), optional
+        An approximate down direction in rig coordinates.
+    origin_mm : ndarray of shape (3,), optional
+        Origin (rig mm); default the first finite sample of ``travel_xyz_mm`` (marker 1's first
+        position when marker 1 defines the travel).
+
+    Returns
+    -------
+    MotionFrame
+
+    Raises
+    ------
+    KinematicsError
+        If the marker does not travel, or gravity is (nearly) parallel to the travel.
+    """
+    track = _as_track(travel_xyz_mm, "travel_xyz_mm")
+    finite = np.flatnonzero(np.all(np.isfinite(track), axis=1))
+    if finite.size < 2:
+        raise KinematicsError("the travel marker has fewer than two positions in the window")
+    displacement = track[finite[-1]] - track[finite[0]]
+    distance_mm = float(np.linalg.norm(displacement))
+    spread_mm = float(np.max(np.linalg.norm(track[finite] - track[finite[0]], axis=1)))
+    if distance_mm < 1e-6 or distance_mm < 0.05 * spread_mm:
+        raise KinematicsError(f"the travel marker moved only {distance_mm:.1f} mm over the window; the "
+                              "horse must travel to define the motion frame's x axis")
+    u1 = displacement / distance_mm  # eq. 5.7
+    warnings: list[str] = []
+    diagnostics: dict = {"travel_distance_mm": distance_mm}
+    if plumb_top_mm is not None and plumb_bottom_mm is not None:
+        g, plumb_diag = plumb_gravity(plumb_top_mm, plumb_bottom_mm)
+        diagnostics.update(plumb_diag)
+        source = "plumb"
+    elif rig_down_hint is not None:
+        g = np.asarray(rig_down_hint, dtype=np.float64).reshape(-1)
+        if g.shape != (3,) or not np.all(np.isfinite(g)) or np.linalg.norm(g) == 0:
+            raise InputError(f"rig_down_hint must be a non-zero 3-vector, got {rig_down_hint!r}")
+        g = _unit(g)
+        source = "hint"
+        warnings.append("no plumb clip: gravity taken from the given down direction, so vertical "
+                        "accelerations may mix in some horizontal motion")
+    else:
+        g = CAMERA_DOWN.copy()
+        source = "camera_down"
+        warnings.append("no plumb clip and no down hint: gravity taken as the left camera's image "
+                        "down direction (assumes a level camera); vertical results are approximate")
+    if (plumb_top_mm is None) != (plumb_bottom_mm is None):
+        warnings.append("only one plumb marker track was given; the plumb was ignored")
+    angle = float(np.degrees(np.arccos(np.clip(u1 @ g, -1.0, 1.0))))
+    if abs(angle - 90.0) > 80.0:
+        raise KinematicsError(f"gravity ({source}) is within {90 - abs(angle - 90):.1f} deg of the travel "
+                              "direction; the motion frame is undefined (check the plumb clip)")
+    if abs(angle - 90.0) > _PERPENDICULAR_TOL_DEG:
+        warnings.append(f"gravity ({source}) is {abs(angle - 90):.1f} deg from perpendicular to the travel: "
+                        "the horse was not on level ground, or the plumb or travel marker is wrong")
+    u3 = _unit(np.cross(u1, g))  # eq. 5.8
+    u2 = np.cross(u3, u1)  # eq. 5.9
+    R = np.vstack([u1, u2, u3])  # rows = axes: the transpose of R_CM of eq. 5.10
+    origin = track[finite[0]] if origin_mm is None else np.asarray(origin_mm, dtype=np.float64).reshape(3)
+    return MotionFrame(R=R, origin_mm=np.array(origin, dtype=np.float64), gravity_source=source,
+                       warnings=tuple(warnings), gravity_raw=g, travel_raw=u1,
+                       angle_travel_gravity_deg=angle, diagnostics=diagnostics)
+
+
+def to_motion_frame(xyz_mm, frame: MotionFrame) -> np.ndarray:
+    """Rig coordinates (mm) -> motion coordinates (m) (eq. 5.12).
+
+    Parameters
+    ----------
+    xyz_mm : ndarray of shape (..., 3)
+        Points in rig coordinates, mm (NaN propagates).
+    frame : MotionFrame
+
+    Returns
+    -------
+    xyz_m : ndarray of shape (..., 3)
+        The same points in the motion frame, m.
+    """
+    xyz = np.asarray(xyz_mm, dtype=np.float64)
+    if xyz.shape[-1] != 3:
+        raise InputError(f"xyz_mm must have shape (..., 3), got {xyz.shape}")
+    return (xyz - frame.origin_mm) @ frame.R.T / 1000.0
+
+
+def vectors_to_motion_frame(vec_rig, frame: MotionFrame, *, scale: float = 1e-3) -> np.ndarray:
+    """Rotate free vectors (directions, velocities) into the motion frame, no origin shift.
+
+    ``vec_rig`` has shape (..., 3); the result is ``scale * R @ v`` (default mm -> m).
+    """
+    v = np.asarray(vec_rig, dtype=np.float64)
+    if v.shape[-1] != 3:
+        raise InputError(f"vec_rig must have shape (..., 3), got {v.shape}")
+    return scale * (v @ frame.R.T)

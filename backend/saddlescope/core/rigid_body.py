@@ -1,0 +1,434 @@
+"""Angular kinematics of the marker triangle and the invisible saddle point (thesis 6.1-6.4).
+
+Angular velocity. For three markers the thesis writes v_i = v_j + ω × r_ji (r_ji: from marker j
+to marker i) for the two other markers j, k and solves the pair in closed form (eq. 6.3-6.4,
+from eq. 6.13-6.14): ω¹ = (v_j − v_i) × (v_k − v_i) / (−r_ki · (v_j − v_i)) and
+ω² = (v_j − v_i) × (v_k − v_i) / (r_ji · (v_k − v_i)). Three choices of the reference marker i give
+six versions. All share the singularity ω · n = 0 (eq. 6.35), n the normal of the markers'
+plane: numerator and denominator both vanish. With markers in a row on the horse's side n is
+lateral, so a roll or yaw (ω in the markers' plane) is singular while pitch (ω along n) is not.
+
+The closed forms are only ill-conditioned, not short of information: with three non-collinear
+markers the pairwise relations v_j − v_i = ω × (r_j − r_i) determine ω fully. The least-squares
+solution over all pairs is therefore the default estimate; the versions are kept for comparison
+with the thesis, with their spread and a per-version conditioning index, and those near their
+singularity are excluded from their mean (and flagged).
+
+Angular acceleration (eq. 6.36-6.39): α × r_ji = a_i − a_j − ω × (ω × r_ji). The thesis prints
+the known vectors of eq. 6.38-6.39 as a_j + ω × (ω × r_ji), dropping a_i; the derivation
+(eq. 6.13-6.14 applied to eq. 6.36-6.37) gives K2 = a_j − a_i + ω × (ω × r_ji), used here.
+
+Saddle point S (eq. 6.41-6.55): body frame from markers 1-3, S's body coordinates from the
+static shot, its position during the ride, and v_S = v_i + ω × r_iS, a_S = a_i + α × r_iS +
+ω × (ω × r_iS) from each marker i, averaged, with their spread.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.registration import check_marker_layout
+
+# (reference marker i, other markers j, k) of versions 1-3 (thesis "ver1".."ver3").
+_VERSIONS = ((0, 1, 2), (1, 0, 2), (2, 0, 1))
+VERSION_NAMES = ("1,ver1", "2,ver1", "1,ver2", "2,ver2", "1,ver3", "2,ver3")
+_PAIRS = ((0, 1), (0, 2), (1, 2))
+
+
+@dataclass(frozen=True)
+class AngularKinematics:
+    """Angular velocity and acceleration of the marker triangle, with diagnostics.
+
+    omega_rad_s, alpha_rad_s2 : ndarray of shape (F, 3)
+        The final estimates (``method``).
+    omega_lsq, alpha_lsq : ndarray of shape (F, 3)
+        Least squares over the three marker pairs.
+    omega_versions, alpha_versions : ndarray of shape (F, 6, 3)
+        The six closed-form versions (eq. 6.3-6.4, 6.38-6.39), order of ``VERSION_NAMES``.
+    omega_versions_mean, alpha_versions_mean : ndarray of shape (F, 3)
+        Mean of the versions not excluded (NaN where all are excluded).
+    version_conditioning : ndarray of shape (F, 6)
+        |cos| of the angle between the two vectors of each version's denominator: near 0 the
+        version divides by nearly zero.
+    excluded : ndarray of bool, shape (F, 6)
+        Versions left out of the mean (conditioning below the threshold).
+    singularity_index : ndarray of shape (F,)
+        |n · ω̂| (eq. 6.35): 1 = ω normal to the markers' plane (best), 0 = singular.
+    omega_spread, alpha_spread : ndarray of shape (F,)
+        Largest distance of a kept version from the least-squares estimate (rad/s, rad/s²).
+    normal : ndarray of shape (F, 3)
+        Unit normal n of the markers' plane (eq. 6.33).
+    method : str
+        ``"lsq"`` or ``"versions"``.
+    flags : tuple of str
+    """
+
+    omega_rad_s: np.ndarray
+    alpha_rad_s2: np.ndarray
+    omega_lsq: np.ndarray
+    alpha_lsq: np.ndarray
+    omega_versions: np.ndarray
+    alpha_versions: np.ndarray
+    omega_versions_mean: np.ndarray
+    alpha_versions_mean: np.ndarray
+    version_conditioning: np.ndarray
+    excluded: np.ndarray
+    singularity_index: np.ndarray
+    omega_spread: np.ndarray
+    alpha_spread: np.ndarray
+    normal: np.ndarray
+    method: str
+    flags: tuple[str, ...] = ()
+
+    @property
+    def median_singularity_index(self) -> float:
+        """One number for the result's ``angular.singularity_index``."""
+        s = self.singularity_index[np.isfinite(self.singularity_index)]
+        return float(np.median(s)) if s.size else float("nan")
+
+
+@dataclass(frozen=True)
+class PointKinematics:
+    """Kinematics of the invisible saddle point S in the motion frame.
+
+    position_m, velocity_m_s, acceleration_m_s2 : ndarray of shape (F, 3)
+        Position (eq. 6.48) and the mean over the three markers of eq. 6.54 / 6.55.
+    velocity_per_marker, acceleration_per_marker : ndarray of shape (F, 3, 3)
+        (frame, marker used, component).
+    velocity_spread, acceleration_spread : ndarray of shape (F,)
+        Largest distance of a per-marker estimate from the mean.
+    body_coordinates_m : ndarray of shape (3,)
+        S in the body frame (eq. 6.47).
+    """
+
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    acceleration_m_s2: np.ndarray
+    velocity_per_marker: np.ndarray
+    acceleration_per_marker: np.ndarray
+    velocity_spread: np.ndarray
+    acceleration_spread: np.ndarray
+    body_coordinates_m: np.ndarray
+
+
+def _check_triplet(x, name: str) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim == 2:
+        x = x[None]
+    if x.ndim != 3 or x.shape[1:] != (3, 3):
+        raise InputError(f"{name} must have shape (F, 3, 3) (frame, marker, xyz) for three markers, "
+                         f"got {x.shape}")
+    return x
+
+
+def _skew_lsq(d: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Least-squares u of u × d_p = rhs_p over pairs p, per frame.
+
+    d, rhs : (F, P, 3) -> u : (F, 3). u × d = -[d]× u, so the normal matrix is
+    sum_p [d]×^T [d]× = sum_p (|d|² I − d dᵀ) and the right side sum_p -[d]×^T rhs = sum_p d × rhs.
+    """
+    dd = np.einsum("fpi,fpi->fp", d, d)
+    normal = np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d, d)
+    b = np.sum(np.cross(d, rhs), axis=1)
+    out = np.full(b.shape, np.nan)
+    ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    if ok.any():
+        out[ok] = np.linalg.solve(normal[ok], b[ok][..., None])[..., 0]
+    return out
+
+
+def _closed_form(k1: np.ndarray, k2: np.ndarray, k3: np.ndarray, k4: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Both solutions of K1 × u = K2, K3 × u = K4 (eq. 6.13-6.14) and their conditioning."""
+    num = np.cross(k2, k4)
+    den1 = -np.einsum("fi,fi->f", k2, k3)
+    den2 = np.einsum("fi,fi->f", k1, k4)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u1 = num / den1[:, None]
+        u2 = num / den2[:, None]
+        c1 = np.abs(den1) / (np.linalg.norm(k2, axis=1) * np.linalg.norm(k3, axis=1))
+        c2 = np.abs(den2) / (np.linalg.norm(k1, axis=1) * np.linalg.norm(k4, axis=1))
+    return u1, u2, np.nan_to_num(c1, nan=0.0), np.nan_to_num(c2, nan=0.0)
+
+
+def omega_versions(r, v) -> tuple[np.ndarray, np.ndarray]:
+    """The six closed-form angular velocities (eq. 6.3-6.4 for each reference marker).
+
+    Parameters
+    ----------
+    r, v : ndarray of shape (F, 3, 3)
+        Marker positions (m) and velocities (m/s), (frame, marker, xyz).
+
+    Returns
+    -------
+    versions : ndarray of shape (F, 6, 3)
+        In the order of ``VERSION_NAMES``; inf/NaN at exact singularities.
+    conditioning : ndarray of shape (F, 6)
+        |cos| between the two vectors of each denominator (0 = singular).
+    """
+    r = _check_triplet(r, "r")
+    v = _check_triplet(v, "v")
+    out = np.empty((r.shape[0], 6, 3))
+    cond = np.empty((r.shape[0], 6))
+    for n, (i, j, k) in enumerate(_VERSIONS):
+        # v_i = v_j + ω × r_ji  <=>  r_ji × ω = v_j − v_i (K1 = r_ji, K2 = v_j − v_i); eq. 6.15-6.18.
+        k1, k2 = r[:, i] - r[:, j], v[:, j] - v[:, i]
+        k3, k4 = r[:, i] - r[:, k], v[:, k] - v[:, i]
+        out[:, 2 * n], out[:, 2 * n + 1], cond[:, 2 * n], cond[:, 2 * n + 1] = _closed_form(k1, k2, k3, k4)
+    return out, cond
+
+
+def alpha_versions(r, a, omega) -> tuple[np.ndarray, np.ndarray]:
+    """The six closed-form angular accelerations (eq. 6.38-6.39, with the relative a_j − a_i).
+
+    Parameters
+    ----------
+    r, a : ndarray of shape (F, 3, 3)
+        Marker positions (m) and accelerations (m/s²).
+    omega : ndarray of shape (F, 3)
+        The angular velocity used in the centripetal terms.
+
+    Returns
+    -------
+    versions : ndarray of shape (F, 6, 3); conditioning : ndarray of shape (F, 6)
+    """
+    r = _check_triplet(r, "r")
+    a = _check_triplet(a, "a")
+    w = np.asarray(omega, dtype=np.float64).reshape(-1, 3)
+    out = np.empty((r.shape[0], 6, 3))
+    cond = np.empty((r.shape[0], 6))
+    for n, (i, j, k) in enumerate(_VERSIONS):
+        rji, rki = r[:, i] - r[:, j], r[:, i] - r[:, k]
+        # a_i = a_j + ω × (ω × r_ji) + α × r_ji  <=>  r_ji × α = a_j − a_i + ω × (ω × r_ji)  (eq. 6.36)
+        k2 = a[:, j] - a[:, i] + np.cross(w, np.cross(w, rji))
+        k4 = a[:, k] - a[:, i] + np.cross(w, np.cross(w, rki))
+        out[:, 2 * n], out[:, 2 * n + 1], cond[:, 2 * n], cond[:, 2 * n + 1] = _closed_form(rji, k2, rki, k4)
+    return out, cond
+
+
+def omega_least_squares(r, v) -> np.ndarray:
+    """Angular velocity from all marker pairs: v_j − v_i = ω × (r_j − r_i), least squares per frame.
+
+    r, v : ndarray of shape (F, 3, 3) -> omega : ndarray of shape (F, 3).
+    """
+    r = _check_triplet(r, "r")
+    v = _check_triplet(v, "v")
+    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
+    dv = np.stack([v[:, j] - v[:, i] for i, j in _PAIRS], axis=1)
+    return _skew_lsq(d, dv)
+
+
+def alpha_least_squares(r, a, omega) -> np.ndarray:
+    """Angular acceleration from all pairs: a_j − a_i − ω × (ω × d) = α × d, d = r_j − r_i.
+
+    r, a : ndarray of shape (F, 3, 3); omega : (F, 3) -> alpha : ndarray of shape (F, 3).
+    """
+    r = _check_triplet(r, "r")
+    a = _check_triplet(a, "a")
+    w = np.asarray(omega, dtype=np.float64).reshape(-1, 3)
+    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
+    da = np.stack([a[:, j] - a[:, i] for i, j in _PAIRS], axis=1)
+    w3 = np.broadcast_to(w[:, None, :], d.shape)
+    return _skew_lsq(d, da - np.cross(w3, np.cross(w3, d)))
+
+
+def plane_normal(r) -> np.ndarray:
+    """Unit normal of the markers' plane, n = r21 × r31 / |r21 × r31| (eq. 6.33); (F, 3, 3) -> (F, 3)."""
+    r = _check_triplet(r, "r")
+    c = np.cross(r[:, 0] - r[:, 1], r[:, 0] - r[:, 2])
+    return c / np.linalg.norm(c, axis=1, keepdims=True)
+
+
+def singularity_index(r, omega) -> np.ndarray:
+    """|n · ω̂| per frame (eq. 6.35): 0 where the closed-form versions are singular.
+
+    r : (F, 3, 3); omega : (F, 3) -> (F,). NaN where ω = 0 (no rotation: nothing to resolve).
+    """
+    n = plane_normal(r)
+    w = np.asarray(omega, dtype=np.float64).reshape(-1, 3)
+    norm = np.linalg.norm(w, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.abs(np.einsum("fi,fi->f", n, w)) / norm
+
+
+def _mean_kept(versions: np.ndarray, excluded: np.ndarray) -> np.ndarray:
+    kept = ~excluded & np.all(np.isfinite(versions), axis=2)
+    count = kept.sum(axis=1)
+    total = np.sum(np.where(kept[..., None], versions, 0.0), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(count[:, None] > 0, total / count[:, None], np.nan)
+
+
+def _spread(versions: np.ndarray, excluded: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    dist = np.linalg.norm(versions - reference[:, None, :], axis=2)
+    dist = np.where(~excluded & np.isfinite(dist), dist, -np.inf)
+    out = dist.max(axis=1)
+    return np.where(np.isfinite(out), out, np.nan)
+
+
+def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: str = "lsq",
+                       min_height_ratio: float = 0.03) -> AngularKinematics:
+    """Angular velocity and acceleration of the three-marker body, every estimate and its flags.
+
+    Parameters
+    ----------
+    r : ndarray of shape (F, 3, 3)
+        Registered marker positions (m), motion frame.
+    v, a : ndarray of shape (F, 3, 3)
+        Marker velocities (m/s) and accelerations (m/s²) from the fits.
+    singularity_threshold : float, optional
+        Versions whose conditioning is below this are excluded from the versions' mean.
+    method : {"lsq", "versions"}
+        Final estimate: least squares over the pairs (default, well posed whatever ω's direction)
+        or the mean of the kept versions (the thesis's choice; frames where all are excluded
+        fall back to least squares).
+    min_height_ratio : float, optional
+        Collinearity limit, see :func:`saddlescope.core.registration.check_marker_layout`.
+
+    Returns
+    -------
+    AngularKinematics
+
+    Raises
+    ------
+    KinematicsError
+        If the markers are (nearly) collinear.
+    """
+    if method not in ("lsq", "versions"):
+        raise InputError(f"method must be 'lsq' or 'versions', got {method!r}")
+    r = _check_triplet(r, "r")
+    v = _check_triplet(v, "v")
+    a = _check_triplet(a, "a")
+    if not (r.shape == v.shape == a.shape):
+        raise InputError(f"r, v and a must have the same shape, got {r.shape}, {v.shape}, {a.shape}")
+    finite = np.all(np.isfinite(r), axis=(1, 2))
+    if not finite.any():
+        raise KinematicsError("no frame has all three markers registered")
+    check_marker_layout(r[np.flatnonzero(finite)[0]], min_height_ratio=min_height_ratio)
+
+    w_lsq = omega_least_squares(r, v)
+    w_ver, w_cond = omega_versions(r, v)
+    w_excl = ~(w_cond >= singularity_threshold)
+    w_mean = _mean_kept(w_ver, w_excl)
+    flags: list[str] = []
+    if method == "lsq":
+        omega = w_lsq
+    else:
+        omega = np.where(np.isfinite(w_mean), w_mean, w_lsq)
+    a_lsq = alpha_least_squares(r, a, omega)
+    a_ver, a_cond = alpha_versions(r, a, omega)
+    a_excl = ~(a_cond >= singularity_threshold)
+    a_mean = _mean_kept(a_ver, a_excl)
+    alpha = a_lsq if method == "lsq" else np.where(np.isfinite(a_mean), a_mean, a_lsq)
+
+    sing = singularity_index(r, w_lsq)
+    valid = finite & np.isfinite(sing)
+    if valid.any():
+        med = float(np.median(sing[valid]))
+        if med < singularity_threshold:
+            flags.append(f"ω is nearly in the markers' plane (median |n·ω̂| = {med:.2f} < "
+                         f"{singularity_threshold}): the thesis's closed-form versions are near their "
+                         "singularity (eq. 6.35) and unreliable; the least-squares estimate is not affected")
+    for name, excl in (("ω", w_excl), ("α", a_excl)):
+        frac = excl[finite].mean(axis=0) if finite.any() else np.zeros(6)
+        for vname, f in zip(VERSION_NAMES, frac, strict=True):
+            if f > 0:
+                flags.append(f"{name}^{vname} excluded in {f:.0%} of frames (conditioning below "
+                             f"{singularity_threshold})")
+    if method == "versions":
+        fallback = finite & ~np.all(np.isfinite(w_mean), axis=1)
+        if fallback.any():
+            flags.append(f"all ω versions excluded in {fallback[finite].mean():.0%} of frames; least "
+                         "squares used there")
+    return AngularKinematics(
+        omega_rad_s=omega, alpha_rad_s2=alpha, omega_lsq=w_lsq, alpha_lsq=a_lsq,
+        omega_versions=w_ver, alpha_versions=a_ver, omega_versions_mean=w_mean, alpha_versions_mean=a_mean,
+        version_conditioning=w_cond, excluded=w_excl, singularity_index=sing,
+        omega_spread=_spread(w_ver, w_excl, w_lsq), alpha_spread=_spread(a_ver, a_excl, a_lsq),
+        normal=plane_normal(r), method=method, flags=tuple(flags))
+
+
+def body_frame(r) -> np.ndarray:
+    """Rotation body -> motion from markers 1-3 (eq. 6.41-6.45, 6.49-6.53).
+
+    r : ndarray of shape (F, 3, 3) or (3, 3) -> R_MB of shape (F, 3, 3) or (3, 3), columns
+    u1 (marker 1 -> 2), u2, u3 (normal).
+    """
+    x = np.asarray(r, dtype=np.float64)
+    single = x.ndim == 2
+    x = _check_triplet(x, "r")
+    u1 = x[:, 1] - x[:, 0]
+    u1 = u1 / np.linalg.norm(u1, axis=1, keepdims=True)  # eq. 6.41
+    u2p = x[:, 2] - x[:, 0]
+    u2p = u2p / np.linalg.norm(u2p, axis=1, keepdims=True)  # eq. 6.42
+    u3 = np.cross(u1, u2p)
+    u3 = u3 / np.linalg.norm(u3, axis=1, keepdims=True)  # eq. 6.43
+    u2 = np.cross(u3, u1)  # eq. 6.44
+    R = np.stack([u1, u2, u3], axis=2)  # eq. 6.45: columns
+    return R[0] if single else R
+
+
+def saddle_body_coordinates(static_markers, static_saddle, *, min_height_ratio: float = 0.03) -> np.ndarray:
+    """S in the body frame from the static shot (eq. 6.47).
+
+    Parameters
+    ----------
+    static_markers : ndarray of shape (3, 3)
+        Markers 1-3 in the static shot (any frame, e.g. motion m or rig mm).
+    static_saddle : ndarray of shape (3,)
+        The saddle marker S in the same frame and units.
+
+    Returns
+    -------
+    r_BS : ndarray of shape (3,)
+        S relative to marker 1 in body axes (same units).
+    """
+    m = np.asarray(static_markers, dtype=np.float64)
+    s = np.asarray(static_saddle, dtype=np.float64).reshape(-1)
+    if m.shape != (3, 3) or s.shape != (3,):
+        raise InputError(f"static_markers must be (3, 3) and static_saddle (3,), got {m.shape} and {s.shape}")
+    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(s))):
+        raise KinematicsError("the static shot lacks a horse marker or the saddle marker")
+    check_marker_layout(m, min_height_ratio=min_height_ratio, what="the static-shot markers")
+    return body_frame(m).T @ (s - m[0])
+
+
+def saddle_point_kinematics(r, v, a, angular: AngularKinematics, r_bs) -> PointKinematics:
+    """Position, velocity and acceleration of the invisible point S (eq. 6.48, 6.54-6.55).
+
+    Parameters
+    ----------
+    r, v, a : ndarray of shape (F, 3, 3)
+        Registered positions (m), velocities (m/s) and accelerations (m/s²) of markers 1-3.
+    angular : AngularKinematics
+        Its ``omega_rad_s`` and ``alpha_rad_s2`` are used.
+    r_bs : ndarray of shape (3,)
+        S in body coordinates (m), from :func:`saddle_body_coordinates`.
+
+    Returns
+    -------
+    PointKinematics
+    """
+    r = _check_triplet(r, "r")
+    v = _check_triplet(v, "v")
+    a = _check_triplet(a, "a")
+    r_bs = np.asarray(r_bs, dtype=np.float64).reshape(3)
+    position = np.einsum("fij,j->fi", body_frame(r), r_bs) + r[:, 0]  # eq. 6.48
+    w = angular.omega_rad_s
+    al = angular.alpha_rad_s2
+    r_is = position[:, None, :] - r  # (F, marker, 3): from marker i to S
+    w3 = np.broadcast_to(w[:, None, :], r_is.shape)
+    a3 = np.broadcast_to(al[:, None, :], r_is.shape)
+    v_per = v + np.cross(w3, r_is)  # eq. 6.54
+    a_per = a + np.cross(a3, r_is) + np.cross(w3, np.cross(w3, r_is))  # eq. 6.55
+    v_mean = v_per.mean(axis=1)
+    a_mean = a_per.mean(axis=1)
+    return PointKinematics(
+        position_m=position, velocity_m_s=v_mean, acceleration_m_s2=a_mean, velocity_per_marker=v_per,
+        acceleration_per_marker=a_per,
+        velocity_spread=np.linalg.norm(v_per - v_mean[:, None], axis=2).max(axis=1),
+        acceleration_spread=np.linalg.norm(a_per - a_mean[:, None], axis=2).max(axis=1),
+        body_coordinates_m=r_bs)
