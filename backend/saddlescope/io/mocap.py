@@ -265,7 +265,7 @@ def _walk_c3d(data: bytes, name: str) -> _C3DLayout:
                                  f"name length {n})")
         rec_name = data[pos + 2:pos + 2 + n].decode("latin-1")
         if not all(33 <= ord(c) < 127 for c in rec_name):
-            raise MocapFileError(f"{name}: corrupt parameter record name {rec_name!r} at byte {pos}")
+            raise MocapFileError(f"{name}: corrupt parameter record name {rec_name[:32]!r} at byte {pos}")
         offset = codec.int16(data, pos + 2 + n)
         body = pos + 2 + n + 2
         next_pos = pos + 2 + n + offset if offset else p_end
