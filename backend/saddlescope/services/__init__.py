@@ -1,0 +1,1 @@
+"""Use cases (run a job's stages, register rides, health): no FastAPI, no Celery here."""

@@ -1,0 +1,305 @@
+"""SQLAlchemy 2 typed models: the whole schema in one page.
+
+Every club-owned table carries ``club_id`` so the repositories can scope each query to one club.
+Enumerations are stored as short strings with a CHECK constraint (portable across SQLite and
+PostgreSQL). Times are timezone-aware UTC. Large arrays never go in the database: results keep
+the storage key of a compressed ``.npz`` file.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import enum
+from typing import Any
+
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    CheckConstraint,
+    Date,
+    DateTime,
+    Enum,
+    Float,
+    ForeignKey,
+    Index,
+    MetaData,
+    String,
+    Text,
+    TypeDecorator,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+
+# Stable constraint names, so Alembic migrations are the same on SQLite and PostgreSQL.
+NAMING_CONVENTION = {
+    "ix": "ix_%(column_0_label)s",
+    "uq": "uq_%(table_name)s_%(column_0_N_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+
+def utcnow() -> dt.datetime:
+    return dt.datetime.now(dt.UTC)
+
+
+class UTCDateTime(TypeDecorator):
+    """A timezone-aware UTC timestamp, also on SQLite (which forgets the zone)."""
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: dt.datetime | None, dialect) -> dt.datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            raise ValueError("naive datetime given; use an aware UTC datetime")
+        return value.astimezone(dt.UTC)
+
+    def process_result_value(self, value: dt.datetime | None, dialect) -> dt.datetime | None:
+        if value is None:
+            return None
+        return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
+
+
+class Role(enum.StrEnum):
+    MEMBER = "member"
+    ADMIN = "admin"
+
+
+class JobStatus(enum.StrEnum):
+    QUEUED = "queued"
+    RUNNING = "running"
+    DONE = "done"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+
+    @property
+    def finished(self) -> bool:
+        return self in (JobStatus.DONE, JobStatus.FAILED, JobStatus.CANCELLED)
+
+
+class RideStatus(enum.StrEnum):
+    NEW = "new"  # created, clips not all uploaded
+    READY = "ready"  # all clips present
+    PROCESSING = "processing"
+    ANALYSED = "analysed"
+    FAILED = "failed"
+
+
+RIDE_STATUSES = tuple(s.value for s in RideStatus)
+
+
+def _str_enum(values: tuple[str, ...] | type[enum.StrEnum], name: str, length: int = 16) -> Enum:
+    """A portable string enumeration: VARCHAR plus a named CHECK constraint."""
+    if isinstance(values, type):
+        values = tuple(v.value for v in values)
+    return Enum(*values, name=name, native_enum=False, create_constraint=True, length=length,
+                validate_strings=True)
+
+
+class Base(DeclarativeBase):
+    metadata = MetaData(naming_convention=NAMING_CONVENTION)
+    type_annotation_map = {dt.datetime: UTCDateTime(), dict[str, Any]: JSON(), list[Any]: JSON()}
+
+
+class TimestampMixin:
+    created_at: Mapped[dt.datetime] = mapped_column(default=utcnow)
+
+
+class Club(TimestampMixin, Base):
+    __tablename__ = "clubs"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), unique=True)
+
+
+class User(TimestampMixin, Base):
+    __tablename__ = "users"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    email: Mapped[str] = mapped_column(String(320), unique=True)  # stored lower-case
+    display_name: Mapped[str] = mapped_column(String(200), default="")
+    password_hash: Mapped[str] = mapped_column(String(255))
+    role: Mapped[str] = mapped_column(_str_enum(Role, "user_role"), default=Role.MEMBER.value)
+    is_active: Mapped[bool] = mapped_column(default=True)
+
+    club: Mapped[Club] = relationship()
+
+
+class Horse(TimestampMixin, Base):
+    __tablename__ = "horses"
+    __table_args__ = (
+        UniqueConstraint("club_id", "name"),
+        CheckConstraint("height_withers_m IS NULL OR (height_withers_m > 0.5 AND height_withers_m < 2.5)",
+                        name="height_range"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    breed: Mapped[str | None] = mapped_column(String(200))
+    birth_year: Mapped[int | None]
+    height_withers_m: Mapped[float | None] = mapped_column(Float)
+
+
+class Rider(TimestampMixin, Base):
+    __tablename__ = "riders"
+    __table_args__ = (UniqueConstraint("club_id", "name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    # A rider may also log in (to grade rides); riders without accounts are fine.
+    user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"), index=True)
+
+
+class Rig(TimestampMixin, Base):
+    """A camera set-up on one day: three cameras, their calibration and its quality flags."""
+
+    __tablename__ = "rigs"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    recorded_on: Mapped[dt.date | None] = mapped_column(Date)
+    # {"left": {"model": ..., "serial": ...}, "middle": ..., "right": ...}
+    cameras: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # The `calibration` object of the result format (CONTRACTS section 2), once calibrated.
+    calibration: Mapped[dict[str, Any] | None]
+    quality: Mapped[dict[str, Any] | None]
+
+
+class Ride(TimestampMixin, Base):
+    __tablename__ = "rides"
+    __table_args__ = (Index("ix_rides_club_id_gait", "club_id", "gait"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    horse_id: Mapped[int] = mapped_column(ForeignKey("horses.id", ondelete="RESTRICT"), index=True)
+    rider_id: Mapped[int] = mapped_column(ForeignKey("riders.id", ondelete="RESTRICT"), index=True)
+    rig_id: Mapped[int | None] = mapped_column(ForeignKey("rigs.id", ondelete="SET NULL"), index=True)
+    gait: Mapped[str] = mapped_column(_str_enum(GAITS, "gait"))
+    direction: Mapped[str] = mapped_column(_str_enum(DIRECTIONS, "direction", length=4))
+    ridden_on: Mapped[dt.date | None] = mapped_column(Date)
+    status: Mapped[str] = mapped_column(_str_enum(RideStatus, "ride_status"), default=RideStatus.NEW.value)
+    notes: Mapped[str] = mapped_column(Text, default="")
+    # Storage key of the folder holding the ride bundle (ride.json + clips), when registered from one.
+    bundle_key: Mapped[str | None] = mapped_column(String(500))
+
+    horse: Mapped[Horse] = relationship()
+    rider: Mapped[Rider] = relationship()
+    recordings: Mapped[list[Recording]] = relationship(back_populates="ride", order_by="Recording.id")
+
+
+class Recording(TimestampMixin, Base):
+    """One clip of one camera: belongs to a ride, or to a rig (calibration clips shared by rides)."""
+
+    __tablename__ = "recordings"
+    __table_args__ = (
+        UniqueConstraint("ride_id", "clip_kind", "camera_role"),
+        CheckConstraint("ride_id IS NOT NULL OR rig_id IS NOT NULL", name="owner"),
+        CheckConstraint("size_bytes IS NULL OR size_bytes >= 0", name="size_bytes"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    ride_id: Mapped[int | None] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
+    rig_id: Mapped[int | None] = mapped_column(ForeignKey("rigs.id", ondelete="CASCADE"), index=True)
+    camera_role: Mapped[str] = mapped_column(_str_enum(CAMERA_ROLES, "camera_role", length=8))
+    clip_kind: Mapped[str] = mapped_column(_str_enum(CLIP_KINDS, "clip_kind"))
+    # Storage key (relative to the storage root), never an absolute path.
+    path: Mapped[str] = mapped_column(String(500))
+    sha256: Mapped[str | None] = mapped_column(String(64))
+    fps: Mapped[float | None] = mapped_column(Float)
+    frame_count: Mapped[int | None]
+    width: Mapped[int | None]
+    height: Mapped[int | None]
+    size_bytes: Mapped[int | None] = mapped_column(BigInteger)  # videos exceed 2 GiB
+    probed_at: Mapped[dt.datetime | None]
+
+    ride: Mapped[Ride | None] = relationship(back_populates="recordings")
+
+
+class Job(Base):
+    __tablename__ = "jobs"
+    __table_args__ = (
+        CheckConstraint("progress >= 0 AND progress <= 1", name="progress_range"),
+        Index("ix_jobs_status_created_at", "status", "created_at"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    # NULL for system jobs (self-test, maintenance) that belong to no club.
+    club_id: Mapped[int | None] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    ride_id: Mapped[int | None] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
+    rig_id: Mapped[int | None] = mapped_column(ForeignKey("rigs.id", ondelete="CASCADE"), index=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    payload: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    stage: Mapped[str | None] = mapped_column(String(64))
+    status: Mapped[str] = mapped_column(_str_enum(JobStatus, "job_status"), default=JobStatus.QUEUED.value)
+    progress: Mapped[float] = mapped_column(Float, default=0.0)
+    # {"probe": 0.12, ...} wall seconds per finished stage
+    timings: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    error: Mapped[str | None] = mapped_column(Text)
+    code_version: Mapped[str | None] = mapped_column(String(64))
+    host: Mapped[str | None] = mapped_column(String(255))
+    attempts: Mapped[int] = mapped_column(default=0)
+    created_at: Mapped[dt.datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[dt.datetime | None]
+    finished_at: Mapped[dt.datetime | None]
+    updated_at: Mapped[dt.datetime | None]
+
+
+class Result(TimestampMixin, Base):
+    """The analysis of one ride; a re-run replaces it."""
+
+    __tablename__ = "results"
+    __table_args__ = (
+        Index("ix_results_club_id_acc_y_wb_rms", "club_id", "acc_y_wb_rms"),
+        Index("ix_results_club_id_vdv_y_wb", "club_id", "vdv_y_wb"),
+        Index("ix_results_club_id_vel_x_avg_kmh", "club_id", "vel_x_avg_kmh"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    ride_id: Mapped[int] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), unique=True)
+    job_id: Mapped[int | None] = mapped_column(ForeignKey("jobs.id", ondelete="SET NULL"), index=True)
+    indicators: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    quality: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # Leaderboard columns copied out of `indicators` so they can be indexed and sorted.
+    acc_y_wb_rms: Mapped[float | None] = mapped_column(Float)
+    acc_y_wk_rms: Mapped[float | None] = mapped_column(Float)
+    vdv_y_wb: Mapped[float | None] = mapped_column(Float)
+    vdv_y_wk: Mapped[float | None] = mapped_column(Float)
+    vel_x_avg_kmh: Mapped[float | None] = mapped_column(Float)
+    amplitude_y_m: Mapped[float | None] = mapped_column(Float)
+    stride_frequency_hz: Mapped[float | None] = mapped_column(Float)
+    # Storage keys: the full result JSON (CONTRACTS section 2) and the compressed arrays.
+    result_key: Mapped[str | None] = mapped_column(String(500))
+    arrays_key: Mapped[str | None] = mapped_column(String(500))
+    code_version: Mapped[str | None] = mapped_column(String(64))
+
+
+LEADERBOARD_COLUMNS = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "vel_x_avg_kmh",
+                       "amplitude_y_m", "stride_frequency_hz")
+
+
+class Grade(TimestampMixin, Base):
+    """A rider's comfort grade of a ride (1 = very uncomfortable ... 5 = very comfortable)."""
+
+    __tablename__ = "grades"
+    __table_args__ = (
+        UniqueConstraint("ride_id", "rider_id"),
+        CheckConstraint("grade >= 1 AND grade <= 5", name="grade_range"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    ride_id: Mapped[int] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
+    rider_id: Mapped[int] = mapped_column(ForeignKey("riders.id", ondelete="CASCADE"), index=True)
+    grade: Mapped[int]
+    comment: Mapped[str] = mapped_column(Text, default="")

@@ -1,0 +1,227 @@
+"""How the API hands work to workers.
+
+Two queues behind one small interface (`JobQueue`):
+
+- `EmbeddedQueue` (no broker configured): a local pool of worker *processes* inside the server
+  or command, so a long analysis never blocks the web server's event loop or the GIL.
+- `CeleryQueue` (``SADDLESCOPE_BROKER_URL`` set): ``send_task`` by name to Celery workers
+  (`saddlescope_worker`), so the API needs no import of the worker's code.
+
+Both end in the same function, `saddlescope.services.runner.run_job(job_id)`. Only ids travel;
+the job row must be committed before `submit` is called.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import threading
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import Protocol
+
+from saddlescope.core.errors import SaddleScopeError
+from saddlescope.settings import Settings, get_settings
+
+log = logging.getLogger(__name__)
+
+RUN_JOB_TASK = "saddlescope.run_job"
+QUEUE_NAME = "saddlescope"
+
+
+class QueueUnavailable(SaddleScopeError):
+    """The job could not be handed to a worker (broker unreachable, pool shut down)."""
+
+
+class JobQueue(Protocol):
+    mode: str
+
+    def submit(self, job_id: int) -> None:
+        """Hand job `job_id` (already committed) to a worker."""
+
+    def health(self) -> tuple[bool, str]:
+        """(ok, detail) for /api/health."""
+
+    def close(self) -> None:
+        """Release the pool or connections."""
+
+
+def _run_in_child(job_id: int, settings: Settings) -> str:
+    # Imported here: the child process needs the services, the parent (API) does not.
+    from saddlescope.services.runner import run_job
+
+    return run_job(job_id, settings=settings)
+
+
+class EmbeddedQueue:
+    """Jobs run in a local process pool ("spawn": safe next to the server's threads)."""
+
+    mode = "embedded"
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self._pool: ProcessPoolExecutor | None = None
+        self._lock = threading.Lock()
+        self._pending: set[Future] = set()
+
+    def _executor(self) -> ProcessPoolExecutor:
+        with self._lock:
+            if self._pool is None:
+                self._pool = ProcessPoolExecutor(max_workers=self.settings.embedded_workers,
+                                                 mp_context=multiprocessing.get_context("spawn"))
+            return self._pool
+
+    def submit(self, job_id: int) -> None:
+        try:
+            future = self._executor().submit(_run_in_child, job_id, self.settings)
+        except (RuntimeError, BrokenProcessPool) as exc:
+            raise QueueUnavailable(f"the local job pool cannot take job {job_id}: {exc}") from None
+        with self._lock:
+            self._pending.add(future)
+        future.add_done_callback(lambda f, job_id=job_id: self._done(job_id, f))
+
+    def _done(self, job_id: int, future: Future) -> None:
+        with self._lock:
+            self._pending.discard(future)
+        if future.cancelled():
+            return
+        exc = future.exception()
+        if isinstance(exc, BrokenProcessPool):
+            # A child died (out of memory, killed): the job row still says "running".
+            log.error("job %s: its worker process died (%s); the pool will be restarted", job_id, exc)
+            with self._lock:
+                self._pool = None
+            _mark_lost(self.settings, job_id)
+        elif exc is not None:
+            log.error("job %s failed with an internal error", job_id, exc_info=exc)
+
+    @property
+    def pending(self) -> int:
+        with self._lock:
+            return len(self._pending)
+
+    def health(self) -> tuple[bool, str]:
+        workers = self.settings.embedded_workers
+        return True, (f"embedded: local pool of {workers} process{'es' if workers > 1 else ''}, "
+                      f"{self.pending} job(s) pending")
+
+    def close(self) -> None:
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+
+    def wait_idle(self, timeout_s: float | None = None) -> bool:
+        """Block until every submitted job's process call has returned (for commands and tests)."""
+        from concurrent.futures import wait
+
+        with self._lock:
+            pending = set(self._pending)
+        _, not_done = wait(pending, timeout=timeout_s)
+        return not not_done
+
+
+def _mark_lost(settings: Settings, job_id: int) -> None:
+    """Fail a job whose embedded worker process died, so it does not stay "running" forever."""
+    from saddlescope.db.models import JobStatus
+    from saddlescope.db.repositories import JobRepository
+    from saddlescope.db.session import session_factory_for, session_scope
+
+    with session_scope(session_factory_for(settings.database_url)) as session:
+        JobRepository(session).finish(job_id, JobStatus.FAILED,
+                                      error="its worker process died (out of memory or killed)")
+
+
+def celery_config(settings: Settings) -> dict:
+    """Celery settings shared by the API's client and the workers (`saddlescope_worker.app`)."""
+    return {
+        "broker_url": settings.broker_url,
+        "task_serializer": "json",
+        "accept_content": ["json"],
+        "result_serializer": "json",
+        "task_ignore_result": True,  # outcomes live in the jobs table
+        "task_default_queue": QUEUE_NAME,
+        "task_acks_late": True,  # a job whose worker died is delivered again ...
+        "task_reject_on_worker_lost": True,  # ... also when the worker process was killed
+        "worker_prefetch_multiplier": 1,  # long tasks: never hoard jobs another worker could run
+        "broker_transport_options": {"visibility_timeout": settings.visibility_timeout_s},
+        "broker_connection_retry_on_startup": True,
+        # Soft limit: raised inside the task, so the job is recorded as failed; hard limit just after.
+        "task_soft_time_limit": settings.job_time_limit_s,
+        "task_time_limit": settings.job_time_limit_s + 300,
+        "worker_hijack_root_logger": False,
+        "timezone": "UTC",
+        "enable_utc": True,
+    }
+
+
+class CeleryQueue:
+    """Jobs go to Celery workers through the broker, by task name."""
+
+    mode = "celery"
+
+    def __init__(self, settings: Settings) -> None:
+        from celery import Celery
+
+        if settings.broker_url is None:
+            raise QueueUnavailable("CeleryQueue needs SADDLESCOPE_BROKER_URL")
+        self.settings = settings
+        self.app = Celery("saddlescope-api", set_as_current=False)
+        self.app.conf.update(celery_config(settings))
+        # Fail fast in a web request rather than retrying a dead broker for long.
+        self.app.conf.broker_connection_timeout = 5
+        self.app.conf.task_publish_retry_policy = {"max_retries": 2, "interval_start": 0.2,
+                                                   "interval_step": 0.5, "interval_max": 1.0}
+
+    def submit(self, job_id: int) -> None:
+        from kombu.exceptions import OperationalError
+
+        try:
+            self.app.send_task(RUN_JOB_TASK, args=[job_id], queue=QUEUE_NAME)
+        except OperationalError as exc:
+            raise QueueUnavailable(
+                f"the job broker is unreachable, job {job_id} was not queued: {exc}") from None
+
+    def health(self) -> tuple[bool, str]:
+        from kombu.exceptions import OperationalError
+
+        try:
+            with self.app.connection_for_write() as conn:
+                conn.ensure_connection(max_retries=1, interval_start=0, interval_step=0.2, timeout=3)
+                transport = conn.transport_cls
+        except (OperationalError, OSError) as exc:
+            return False, f"broker unreachable at {_redact(self.settings.broker_url)}: {exc}"
+        return True, f"celery over {transport} at {_redact(self.settings.broker_url)}"
+
+    def close(self) -> None:
+        self.app.close()
+
+
+def _redact(url: str | None) -> str:
+    """A broker URL without its password, for health reports and logs."""
+    from kombu.utils.url import maybe_sanitize_url
+
+    return maybe_sanitize_url(url or "")
+
+
+def make_queue(settings: Settings) -> JobQueue:
+    """The queue the settings ask for: embedded without a broker URL, Celery with one."""
+    return EmbeddedQueue(settings) if settings.embedded else CeleryQueue(settings)
+
+
+_default_queue: JobQueue | None = None
+_default_lock = threading.Lock()
+
+
+def default_queue() -> JobQueue:
+    """The process-wide queue built from `get_settings()` (commands; the API keeps its own)."""
+    global _default_queue
+    with _default_lock:
+        if _default_queue is None:
+            _default_queue = make_queue(get_settings())
+        return _default_queue
+
+
+def submit(job_id: int, *, queue: JobQueue | None = None) -> None:
+    """Hand a committed job to a worker: Celery ``send_task`` by name, or the local pool."""
+    (queue or default_queue()).submit(job_id)

@@ -1,0 +1,111 @@
+"""Use cases around jobs: create and queue one, read it, cancel it, wait for it.
+
+The API routes and the commands call these; none of them knows whether the queue is Celery or
+the embedded pool.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from saddlescope.core.errors import InputError
+from saddlescope.db.models import Job, JobStatus
+from saddlescope.db.repositories import JobRepository, RideRepository, RigRepository
+from saddlescope.db.session import session_scope
+from saddlescope.jobs import JobQueue, QueueUnavailable
+from saddlescope.services.stages import job_kind
+
+
+def create_job(session: Session, *, kind: str, ride_id: int | None = None, rig_id: int | None = None,
+               payload: dict[str, Any] | None = None, club_id: int | None = None) -> Job:
+    """Validate and add a queued job (not committed, not submitted)."""
+    spec = job_kind(kind)
+    payload = dict(payload or {})
+    if spec.validate_payload is not None:
+        payload = spec.validate_payload(payload)
+    if spec.needs_ride and ride_id is None:
+        raise InputError(f"a {kind!r} job needs a ride_id")
+    if ride_id is not None:
+        ride = RideRepository(session, club_id=club_id).find(ride_id)
+        if ride is None:
+            raise InputError(f"ride {ride_id} does not exist")
+        club_id = ride.club_id
+    if rig_id is not None:
+        rig = RigRepository(session, club_id=club_id).find(rig_id)
+        if rig is None:
+            raise InputError(f"rig {rig_id} does not exist")
+        club_id = rig.club_id
+    return JobRepository(session).add(kind=kind, club_id=club_id, ride_id=ride_id, rig_id=rig_id,
+                                      payload=payload)
+
+
+def submit_job(sessions: sessionmaker[Session], queue: JobQueue, *, kind: str, ride_id: int | None = None,
+               rig_id: int | None = None, payload: dict[str, Any] | None = None,
+               club_id: int | None = None) -> int:
+    """Create a job, commit it, then hand it to a worker; returns its id.
+
+    If the queue refuses it, the job is marked failed (with the reason) and `QueueUnavailable`
+    is raised.
+    """
+    with session_scope(sessions) as session:
+        job_id = create_job(session, kind=kind, ride_id=ride_id, rig_id=rig_id, payload=payload,
+                            club_id=club_id).id
+    # Committed above: a fast worker must find the row.
+    try:
+        queue.submit(job_id)
+    except QueueUnavailable as exc:
+        with session_scope(sessions) as session:
+            JobRepository(session).fail_queued(job_id, error=str(exc))
+        raise
+    return job_id
+
+
+def job_as_dict(job: Job) -> dict[str, Any]:
+    """The public view of a job (what GET /api/jobs/{id} returns)."""
+    return {
+        "id": job.id, "kind": job.kind, "status": job.status, "stage": job.stage, "progress": job.progress,
+        "timings_s": dict(job.timings or {}), "error": job.error, "ride_id": job.ride_id,
+        "rig_id": job.rig_id,
+        "payload": dict(job.payload or {}), "attempts": job.attempts, "code_version": job.code_version,
+        "host": job.host, "created_at": job.created_at, "started_at": job.started_at,
+        "finished_at": job.finished_at,
+    }
+
+
+def get_job(session: Session, job_id: int, *, club_id: int | None = None) -> Job:
+    """The job (in this club when `club_id` is given); `NotFound` otherwise."""
+    return JobRepository(session, club_id=club_id).get(job_id)
+
+
+def cancel_job(session: Session, job_id: int, *, club_id: int | None = None) -> Job:
+    """Cancel a queued or running job (a no-op on a finished one); returns the job."""
+    repo = JobRepository(session, club_id=club_id)
+    repo.get(job_id)
+    repo.request_cancel(job_id)
+    session.flush()
+    session.expire_all()
+    return repo.get(job_id)
+
+
+def wait_for_job(sessions: sessionmaker[Session], job_id: int, *, timeout_s: float = 3600.0,
+                 poll_s: float = 0.2,
+                 on_update: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+    """Poll a job until it is finished; returns its public view. `TimeoutError` after `timeout_s`."""
+    deadline = time.monotonic() + timeout_s
+    last: tuple | None = None
+    while True:
+        with session_scope(sessions) as session:
+            view = job_as_dict(get_job(session, job_id))
+        key = (view["status"], view["stage"], round(view["progress"], 3))
+        if on_update is not None and key != last:
+            on_update(view)
+        last = key
+        if JobStatus(view["status"]).finished:
+            return view
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"job {job_id} still {view['status']} after {timeout_s:.0f} s")
+        time.sleep(poll_s)

@@ -1,0 +1,158 @@
+"""The body of every job: run a job's stages in order, reporting progress and timings.
+
+`run_job` is what a Celery task calls (`saddlescope_worker.tasks`) and what the embedded process
+pool calls (`saddlescope.jobs`). It takes an id, never objects, and is safe to run again: a job
+already finished is left alone, and a job interrupted half-way (lost worker, restarted server) is
+re-run from its first stage, each stage replacing only its own outputs.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import time
+from dataclasses import dataclass, field
+
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.orm import Session, sessionmaker
+
+from saddlescope.core.errors import SaddleScopeError
+from saddlescope.db.models import JobStatus
+from saddlescope.db.repositories import JobRepository, RideRepository
+from saddlescope.db.session import session_factory_for, session_scope
+from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobKind, StageContext
+from saddlescope.settings import Settings, get_settings
+from saddlescope.storage import Storage
+
+log = logging.getLogger(__name__)
+
+# Progress is written at most this often (plus at every stage boundary), to spare the database.
+PROGRESS_INTERVAL_S = 0.25
+
+
+def worker_host() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+@dataclass
+class _Progress:
+    """Maps a stage's own 0-1 progress onto the job's bar and writes it, throttled."""
+
+    job_id: int
+    sessions: sessionmaker[Session]
+    weights: dict[str, float]
+    done_weight: float = 0.0
+    stage: str = ""
+    last_write: float = field(default=-1e9)
+
+    @property
+    def total(self) -> float:
+        return sum(self.weights.values())
+
+    def start(self, stage: str) -> None:
+        self.stage = stage
+        self.write(0.0, None, force=True)
+
+    def finish(self) -> None:
+        self.done_weight += self.weights[self.stage]
+
+    def write(self, fraction: float, detail: str | None, *, force: bool = False) -> None:
+        now = time.monotonic()
+        if not force and now - self.last_write < PROGRESS_INTERVAL_S:
+            return
+        self.last_write = now
+        fraction = min(max(float(fraction), 0.0), 1.0)
+        overall = (self.done_weight + fraction * self.weights[self.stage]) / self.total
+        label = self.stage if not detail else f"{self.stage}: {detail}"
+        with session_scope(self.sessions) as session:
+            repo = JobRepository(session)
+            if repo.status_of(self.job_id) == JobStatus.CANCELLED.value:
+                raise JobCancelled(self.job_id)
+            repo.set_progress(self.job_id, min(overall, 0.999), label[:64])
+
+    def __call__(self, fraction: float, detail: str | None = None) -> None:
+        self.write(fraction, detail, force=fraction >= 1.0)
+
+
+def _set_ride_status(sessions: sessionmaker[Session], ride_id: int | None, status: str | None) -> None:
+    if ride_id is None or status is None:
+        return
+    with session_scope(sessions) as session:
+        RideRepository(session).set_status(ride_id, status)
+
+
+def run_job(job_id: int, *, settings: Settings | None = None) -> str:
+    """Run job `job_id` to its end; returns its final status (done, failed, cancelled, ...).
+
+    Errors a user can cause (`SaddleScopeError`) end the job as failed with their message. Any
+    other error is recorded the same way and then re-raised, so the worker logs its traceback.
+    """
+    settings = settings or get_settings()
+    sessions = session_factory_for(settings.database_url)
+    storage = Storage(settings.storage_dir)
+
+    with session_scope(sessions) as session:
+        jobs = JobRepository(session)
+        job = jobs.find(job_id)
+        if job is None:
+            log.warning("job %s does not exist (deleted?); nothing to run", job_id)
+            return "missing"
+        kind: JobKind | None = JOB_KINDS.get(job.kind)
+        if kind is None:
+            if jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version):
+                known = ", ".join(sorted(JOB_KINDS))
+                jobs.finish(job_id, JobStatus.FAILED,
+                            error=f"unknown job kind {job.kind!r} (this worker knows {known})")
+            return jobs.status_of(job_id) or "missing"
+        if not jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version):
+            return job.status  # finished already (or cancelled before it started)
+        club_id, ride_id, rig_id, payload = job.club_id, job.ride_id, job.rig_id, dict(job.payload or {})
+
+    _set_ride_status(sessions, ride_id, kind.ride_status_running)
+    progress = _Progress(job_id, sessions, {name: STAGES[name].weight for name in kind.stages})
+    timings: dict[str, float] = {}
+    t_job = time.perf_counter()
+    current = kind.stages[0]
+
+    def save_timings() -> None:
+        timings["total"] = round(time.perf_counter() - t_job, 4)
+        with session_scope(sessions) as session:
+            JobRepository(session).set_timings(job_id, timings)
+
+    def end(status: JobStatus, error: str | None, ride_status: str | None) -> str:
+        save_timings()
+        with session_scope(sessions) as session:
+            finished = JobRepository(session).finish(job_id, status, error=error)
+        if finished:
+            _set_ride_status(sessions, ride_id, ride_status)
+            return status.value
+        return JobStatus.CANCELLED.value
+
+    try:
+        for current in kind.stages:
+            progress.start(current)
+            ctx = StageContext(job_id=job_id, kind=kind.name, stage=current, club_id=club_id, ride_id=ride_id,
+                               rig_id=rig_id, payload=payload, settings=settings, storage=storage,
+                               sessions=sessions, report=progress)
+            t_stage = time.perf_counter()
+            STAGES[current].run(ctx)
+            timings[current] = round(time.perf_counter() - t_stage, 4)
+            progress.finish()
+            save_timings()
+    except JobCancelled:
+        save_timings()
+        _set_ride_status(sessions, ride_id, kind.ride_status_failed)
+        return JobStatus.CANCELLED.value
+    except SaddleScopeError as exc:
+        return end(JobStatus.FAILED, f"{current}: {exc}", kind.ride_status_failed)
+    except OperationalError:
+        # The database went away: leave the job "running" so the worker's retry runs it again.
+        raise
+    except Exception as exc:
+        # Record, then re-raise: the job must not stay "running" forever, and the worker's log
+        # needs the traceback of a bug.
+        end(JobStatus.FAILED, f"{current}: internal error ({type(exc).__name__}: {exc})",
+            kind.ride_status_failed)
+        raise
+    return end(JobStatus.DONE, None, kind.ride_status_done)

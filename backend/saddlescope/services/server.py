@@ -1,0 +1,16 @@
+"""`saddlescope serve`: uvicorn running the application of `saddlescope.api.create_app`."""
+
+from __future__ import annotations
+
+from saddlescope.settings import Settings, get_settings
+
+
+def serve(host: str = "127.0.0.1", port: int = 8000, *, settings: Settings | None = None) -> None:
+    """Serve the API and the dashboard until interrupted (one process; jobs per the settings)."""
+    import uvicorn
+
+    # Imported here: the web layer sits above the services (only this entry point needs it).
+    from saddlescope.api.app import create_app
+
+    app = create_app(settings or get_settings())
+    uvicorn.run(app, host=host, port=port, log_level="info", proxy_headers=True, timeout_graceful_shutdown=10)

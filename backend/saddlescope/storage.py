@@ -1,0 +1,172 @@
+"""Where uploaded videos and result arrays live: a folder tree addressed by storage keys.
+
+A *key* is a relative POSIX path such as ``rides/12/bundle/motion/left.mp4``; the database stores
+keys, never absolute paths, so the storage root can move (or become an S3-compatible bucket later
+behind the same methods). Writes go to a temporary file first and are renamed into place, so a
+reader never sees half a file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path, PurePosixPath
+from typing import BinaryIO
+
+import numpy as np
+
+from saddlescope.core.errors import InputError
+
+CHUNK_BYTES = 1 << 20
+
+
+def ride_bundle_key(ride_id: int) -> str:
+    return f"rides/{ride_id}/bundle"
+
+
+def stage_output_key(ride_id: int, stage: str) -> str:
+    """The folder a pipeline stage owns for one ride; re-running the stage replaces it."""
+    return f"rides/{ride_id}/stages/{stage}"
+
+
+class Storage:
+    """A filesystem store rooted at `root` (created on first use)."""
+
+    def __init__(self, root: Path | str) -> None:
+        self.root = Path(root).expanduser().resolve()
+
+    def __repr__(self) -> str:
+        return f"Storage({str(self.root)!r})"
+
+    def path(self, key: str) -> Path:
+        """The absolute path of `key`; refuses keys that would leave the root."""
+        pure = PurePosixPath(key)
+        if not key or pure.is_absolute() or any(part in ("..", "") for part in pure.parts) or "\\" in key:
+            raise InputError(f"storage key {key!r} must be a relative path without '..'")
+        return self.root.joinpath(*pure.parts)
+
+    def exists(self, key: str) -> bool:
+        return self.path(key).exists()
+
+    def size(self, key: str) -> int:
+        return self.path(key).stat().st_size
+
+    def open(self, key: str) -> BinaryIO:
+        return self.path(key).open("rb")
+
+    def write_stream(self, key: str, stream: BinaryIO, *, max_bytes: int | None = None) -> tuple[int, str]:
+        """Copy `stream` to `key` atomically; returns (size in bytes, sha256 hex).
+
+        Raises `InputError` (and keeps nothing) when the stream exceeds `max_bytes`.
+        """
+        target = self.path(key)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        digest = hashlib.sha256()
+        size = 0
+        fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=".part-")
+        tmp = Path(tmp_name)
+        try:
+            with os.fdopen(fd, "wb") as out:
+                while chunk := stream.read(CHUNK_BYTES):
+                    size += len(chunk)
+                    if max_bytes is not None and size > max_bytes:
+                        raise InputError(f"{key}: larger than the upload limit of {max_bytes} bytes")
+                    digest.update(chunk)
+                    out.write(chunk)
+            tmp.replace(target)
+        finally:
+            tmp.unlink(missing_ok=True)
+        return size, digest.hexdigest()
+
+    def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
+        return self.write_stream(key, io.BytesIO(data))
+
+    def read_bytes(self, key: str) -> bytes:
+        return self.path(key).read_bytes()
+
+    def import_file(self, key: str, source: Path | str) -> tuple[int, str]:
+        """Copy a local file under `key`; returns (size in bytes, sha256 hex)."""
+        # A copy, not a hard link: a later rewrite of the source must not change stored clips.
+        with Path(source).open("rb") as stream:
+            return self.write_stream(key, stream)
+
+    def import_tree(self, key: str, source: Path | str) -> None:
+        """Put a local folder (e.g. a clip given as numbered images) under `key`."""
+        source = Path(source)
+        for file in sorted(p for p in source.rglob("*") if p.is_file()):
+            self.import_file(f"{key}/{file.relative_to(source).as_posix()}", file)
+
+    def sha256(self, key: str) -> str:
+        return sha256_file(self.path(key))
+
+    def iter_keys(self, prefix: str) -> Iterator[str]:
+        """Every file key under the folder `prefix`, sorted."""
+        base = self.path(prefix)
+        if base.is_file():
+            yield prefix
+            return
+        if base.is_dir():
+            for file in sorted(p for p in base.rglob("*") if p.is_file() and not p.name.startswith(".part-")):
+                yield file.relative_to(self.root).as_posix()
+
+    def delete(self, prefix: str) -> None:
+        """Remove a file or a whole folder (no error when absent)."""
+        target = self.path(prefix)
+        if target.is_dir():
+            shutil.rmtree(target)
+        else:
+            target.unlink(missing_ok=True)
+
+    def fresh_dir(self, key: str) -> Path:
+        """An empty folder at `key`, replacing whatever an earlier run left there."""
+        self.delete(key)
+        target = self.path(key)
+        target.mkdir(parents=True)
+        return target
+
+    def save_arrays(self, key: str, arrays: Mapping[str, np.ndarray]) -> tuple[int, str]:
+        """Write arrays as one compressed ``.npz`` under `key`; (size, sha256)."""
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **{name: np.asarray(a) for name, a in arrays.items()})
+        return self.write_bytes(key, buffer.getvalue())
+
+    def load_arrays(self, key: str) -> dict[str, np.ndarray]:
+        with np.load(self.path(key), allow_pickle=False) as data:
+            return {name: data[name] for name in data.files}
+
+    def check(self) -> str:
+        """Write, read and delete a probe file; returns a short description or raises OSError."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        probe = self.root / f".health-{os.getpid()}"
+        probe.write_bytes(b"ok")
+        if probe.read_bytes() != b"ok":
+            raise OSError(f"storage {self.root} returned different bytes than written")
+        probe.unlink()
+        free_gib = shutil.disk_usage(self.root).free / 1024**3
+        return f"{self.root} writable, {free_gib:.1f} GiB free"
+
+
+def sha256_file(path: Path | str) -> str:
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as stream:
+        while chunk := stream.read(CHUNK_BYTES):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def tree_digest(folder: Path | str) -> tuple[int, str]:
+    """Total size and sha256 of a folder (e.g. a clip given as numbered images): names and bytes, in order."""
+    folder = Path(folder)
+    digest = hashlib.sha256()
+    size = 0
+    for file in sorted(p for p in folder.rglob("*") if p.is_file()):
+        digest.update(file.relative_to(folder).as_posix().encode() + b"\0")
+        with file.open("rb") as stream:
+            while chunk := stream.read(CHUNK_BYTES):
+                digest.update(chunk)
+                size += len(chunk)
+    return size, digest.hexdigest()

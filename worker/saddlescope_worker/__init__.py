@@ -1,0 +1,1 @@
+"""Celery workers of SaddleScope: thin tasks that call `saddlescope.services`."""
