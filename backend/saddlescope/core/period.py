@@ -13,8 +13,6 @@ as high as at any candidate.
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-from scipy.optimize import minimize_scalar
 
 from saddlescope.core.errors import InputError, KinematicsError
 
@@ -77,22 +75,43 @@ def _dominant_frequency(comp: np.ndarray, dt: float, f_lo: float, f_hi: float) -
     return float(f_peak), freqs, power
 
 
-def _lag_score(comp_splines, comp: np.ndarray, t: np.ndarray, weights: np.ndarray, lag_s: float,
-               ) -> tuple[float, np.ndarray]:
-    """Amplitude-weighted mean of each component's correlation with itself lag_s later."""
-    overlap = t[t + lag_s <= t[-1]]
-    if overlap.size < 8:
-        return -1.0, np.full(comp.shape[1], -1.0)
-    n_ov = overlap.size
-    corr = np.empty(comp.shape[1])
-    for j, spline in enumerate(comp_splines):
-        a = comp[:n_ov, j]
-        b = spline(overlap + lag_s)
-        a = a - a.mean()
-        b = b - b.mean()
-        den = np.sqrt(np.sum(a * a) * np.sum(b * b))
-        corr[j] = np.sum(a * b) / den if den > 0 else 0.0
-    return float(np.sum(weights * corr) / np.sum(weights)), corr
+def _similarity(comp: np.ndarray, lag: int) -> tuple[np.ndarray, float, float]:
+    """Similarity of each component with itself ``lag`` samples later.
+
+    Returns the per-component ``1 - var(b - a) / (var(a) + var(b))`` (a = c(t), b = c(t + lag):
+    the correlation coefficient when both have equal variance, but blind to a residual linear
+    trend, which only adds a constant to b - a) and the pooled numerator and denominator.
+    """
+    n = comp.shape[0]
+    a = comp[: n - lag]
+    b = comp[lag:]
+    num = np.var(b - a, axis=0)
+    den = np.var(a, axis=0) + np.var(b, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sim = np.where(den > 0, 1.0 - num / den, 0.0)
+    return sim, float(num.sum()), float(den.sum())
+
+
+def _refine_lag(comp: np.ndarray, lag0: float, dt: float) -> float:
+    """Period (s) near ``lag0`` samples minimising the pooled lagged difference, sub-sample.
+
+    Integer lags only: white noise then adds the same floor to every lag, whereas interpolating
+    the signal to fractional lags would make that floor ripple and bias the minimum. The minimum
+    is refined by a parabola through its neighbours.
+    """
+    n = comp.shape[0]
+    lo = max(1, int(np.floor(0.93 * lag0)) - 1)
+    hi = min(n - 8, int(np.ceil(1.07 * lag0)) + 1)
+    if hi - lo < 2:
+        return lag0 * dt
+    lags = np.arange(lo, hi + 1)
+    d = np.array([_similarity(comp, int(L))[1] / _similarity(comp, int(L))[2] for L in lags])
+    i = int(np.argmin(d))
+    if 0 < i < lags.size - 1:
+        denom = d[i - 1] - 2 * d[i] + d[i + 1]
+        shift = 0.5 * (d[i - 1] - d[i + 1]) / denom if denom > 0 else 0.0
+        return float((lags[i] + np.clip(shift, -0.5, 0.5)) * dt)
+    return float(lags[i] * dt)
 
 
 def estimate_period(t_s, xyz, *, f_range_hz: tuple[float, float] = (0.5, 3.0), max_harmonic: int = 4,
@@ -155,23 +174,19 @@ def estimate_period(t_s, xyz, *, f_range_hz: tuple[float, float] = (0.5, 3.0), m
     weights = s[keep]
     nyquist = 0.5 / dt
     f_dom, freqs, power = _dominant_frequency(comp, dt, f_lo, min(max_harmonic * f_hi, 0.95 * nyquist))
-    splines = [CubicSpline(t, comp[:, j]) for j in range(comp.shape[1])]
-
     candidates = []
     for m in range(1, max_harmonic + 1):
         period = m / f_dom
         if not f_lo <= 1.0 / period <= f_hi:
             continue
         if period > 0.7 * duration_s:
-            continue  # too little overlap for a trustworthy autocorrelation
-
-        def neg_score(p):
-            return -_lag_score(splines, comp, t, weights, p)[0]
-
-        res = minimize_scalar(neg_score, bounds=(0.93 * period, 1.07 * period), method="bounded",
-                              options={"xatol": 1e-5 * period})
-        p_best = float(res.x)
-        score, corr = _lag_score(splines, comp, t, weights, p_best)
+            continue  # too little overlap for a trustworthy comparison
+        p_best = _refine_lag(comp, period / dt, dt)
+        lag = int(round(p_best / dt))
+        if lag >= comp.shape[0] - 8:
+            continue
+        corr = _similarity(comp, lag)[0]
+        score = float(np.sum(weights * corr) / np.sum(weights))
         candidates.append({"harmonic": m, "period_s": p_best, "score": score,
                            "correlations": corr.tolist()})
     if not candidates:

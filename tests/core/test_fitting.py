@@ -1,0 +1,121 @@
+"""Linear and Fourier fits (eq. 5.22-5.30) against known series."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.fitting import count_extrema, fit_fourier, fit_linear, fit_marker_kinematics
+
+PERIOD_S = 0.6
+W = 2 * np.pi / PERIOD_S
+T = np.arange(0, 2 * PERIOD_S + 1e-9, 1 / 30)  # two periods at 30 fps, as the thesis
+
+
+def series(t, a0, a, b, w=W):
+    k = np.arange(1, len(a) + 1)
+    th = np.multiply.outer(t, k * w)
+    return a0 + np.cos(th) @ np.asarray(a) + np.sin(th) @ np.asarray(b)
+
+
+A0, A, B = 0.02, [0.10, -0.04], [0.03, 0.01]
+
+
+def test_noise_free_recovers_coefficients_and_omega():
+    y = series(T, A0, A, B)
+    fit = fit_fourier(T, y, period_s=PERIOD_S * 1.02, order=2)  # started 2 % off
+    assert fit.omega_rad_s == pytest.approx(W, abs=1e-8)
+    np.testing.assert_allclose([fit.a0, *fit.a, *fit.b], [A0, *A, *B], atol=1e-8)
+    assert fit.gof.r2 == pytest.approx(1.0) and fit.gof.sse < 1e-20
+    assert fit.omega_source == "fitted"
+
+
+def test_order_from_extrema_rule_and_criterion():
+    # Walk-like vertical: 2x stride dominates -> 4 extrema per stride -> orders 2 and 3 tried.
+    y = series(T, 0.0, [0.005, 0.02], [0.0, 0.004])
+    assert count_extrema(T, y, period_s=PERIOD_S) == 4
+    fit = fit_fourier(T, y, period_s=PERIOD_S)
+    assert fit.extrema_per_period == 4 and fit.criterion == "aicc"
+    assert [c["order"] for c in fit.candidates] == [2, 3]
+    assert fit.order == 2  # exact at order 2: the extra harmonic is not worth its parameters
+
+
+def test_count_extrema_ignores_noise_wiggles():
+    rng = np.random.default_rng(5)
+    t = np.arange(0, 2.4, 1 / 30)
+    y = series(t, 0.0, [0.1], [0.0]) + rng.normal(0, 0.004, t.size)
+    assert count_extrema(t, y, period_s=PERIOD_S) == 2
+
+
+def test_confidence_intervals_cover_the_truth():
+    rng = np.random.default_rng(6)
+    truth = np.array([A0, *A, *B, W])
+    inside = []
+    for _ in range(150):
+        y = series(T, A0, A, B) + rng.normal(0, 0.005, T.size)
+        fit = fit_fourier(T, y, period_s=PERIOD_S, order=2)
+        ci = fit.ci
+        lo = np.concatenate([[ci["a0"][0]], ci["a"][:, 0], ci["b"][:, 0], [ci["omega_rad_s"][0]]])
+        hi = np.concatenate([[ci["a0"][1]], ci["a"][:, 1], ci["b"][:, 1], [ci["omega_rad_s"][1]]])
+        inside.append((lo <= truth) & (truth <= hi))
+    coverage = np.mean(inside, axis=0)
+    assert np.all(coverage > 0.88) and np.all(coverage <= 1.0)
+    assert np.mean(coverage) == pytest.approx(0.95, abs=0.03)
+
+
+def test_derivatives_and_harmonics_are_analytic():
+    y = series(T, A0, A, B)
+    fit = fit_fourier(T, y, period_s=PERIOD_S, order=2)
+    t = np.linspace(-1.0, 3.0, 101)
+    k = np.array([1, 2])
+    th = np.multiply.outer(t, k * W)
+    vel = (-np.sin(th) * (k * W)) @ A + (np.cos(th) * (k * W)) @ B
+    acc = (-np.cos(th) * (k * W) ** 2) @ A + (-np.sin(th) * (k * W) ** 2) @ B
+    np.testing.assert_allclose(fit.evaluate(t, 1), vel, atol=1e-7)
+    np.testing.assert_allclose(fit.evaluate(t, 2), acc, atol=1e-6)
+    for d in (0, 1, 2):
+        f0, amp, ph = fit.harmonics(d)
+        rebuilt = sum(amp[i] * np.cos(2 * np.pi * (i + 1) * f0 * t + ph[i]) for i in range(amp.size))
+        np.testing.assert_allclose(rebuilt + (fit.a0 if d == 0 else 0.0), fit.evaluate(t, d), atol=1e-8)
+    assert fit.harmonics(0)[1] == pytest.approx(np.hypot(A, B), abs=1e-9)
+
+
+def test_linear_fit_speed_and_interval():
+    rng = np.random.default_rng(7)
+    x = 1.0 + 4.9 * T + 0.01 * np.sin(W * T) + rng.normal(0, 0.002, T.size)
+    fit = fit_linear(T, x)
+    assert fit.slope == pytest.approx(4.9, abs=0.02)
+    assert fit.ci[1, 0] < fit.slope < fit.ci[1, 1]
+    assert np.all(fit.evaluate(T, 1) == fit.slope) and np.all(fit.evaluate(T, 2) == 0.0)
+    assert 0.99 < fit.gof.r2 <= 1.0 and fit.gof.n_params == 2 and fit.residuals.shape == T.shape
+
+
+def test_marker_kinematics_share_one_fundamental():
+    rng = np.random.default_rng(8)
+    xyz = np.empty((T.size, 3, 3))
+    for m in range(3):
+        xyz[:, m, 0] = 4.9 * T + 0.25 * m
+        xyz[:, m, 1] = series(T, 0.1 * m, [0.12, 0.03 * m], [0.02, 0.01])
+        xyz[:, m, 2] = series(T, 0.3, [0.01, 0.0], [0.02 + 0.005 * m, 0.0])
+    noisy = xyz + rng.normal(0, 0.001, xyz.shape)
+    kin = fit_marker_kinematics(T, noisy, period_s=PERIOD_S * 0.98)
+    assert kin.omega_rad_s == pytest.approx(W, rel=2e-3)
+    fits = kin.fits_y + kin.fits_z
+    assert all(f.omega_rad_s == kin.omega_rad_s and f.omega_source == "pooled" for f in fits)
+    assert kin.average_speed_m_s == pytest.approx(4.9, abs=0.01)
+    true_vy = -0.12 * W * np.sin(W * T) + 0.02 * W * np.cos(W * T) + 2 * W * 0.01 * np.cos(2 * W * T)
+    assert np.max(np.abs(kin.velocity_m_s[:, 0, 1] - true_vy)) < 0.05
+    assert kin.acceleration_m_s2.shape == (T.size, 3, 3)
+    noise_free = fit_marker_kinematics(T, xyz, period_s=PERIOD_S * 0.98)
+    assert noise_free.omega_rad_s == pytest.approx(W, abs=1e-8)
+    np.testing.assert_allclose(noise_free.velocity_m_s[:, 0, 1], true_vy, atol=1e-7)
+
+
+def test_bad_inputs():
+    with pytest.raises(KinematicsError, match="too few"):
+        fit_fourier(T[:5], series(T[:5], A0, A, B), period_s=PERIOD_S, order=2)
+    with pytest.raises(InputError, match="criterion"):
+        fit_fourier(T, series(T, A0, A, B), period_s=PERIOD_S, criterion="r2")
+    with pytest.raises(InputError, match="derivative"):
+        fit_fourier(T, series(T, A0, A, B), period_s=PERIOD_S, order=2).evaluate(T, 3)
