@@ -1,0 +1,344 @@
+"""JSON schemas of the result document (CONTRACTS section 2) and of a bundle's ``ride.json`` (section 1).
+
+``validate_result(doc)`` and ``validate_ride_meta(meta)`` check a document against its schema plus the
+few rules a schema cannot state (equal array lengths, finite numbers) and raise one typed error whose
+message lists the first problems, each with where it is (``indicators.vdv_y_wb``) and what is wrong.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import jsonschema
+
+from saddlescope.core.errors import BundleError, InputError
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+
+__all__ = ["RESULT_FORMAT", "RIDE_FORMAT", "INDICATOR_KEYS", "result_schema", "ride_schema",
+           "result_problems", "ride_problems", "validate_result", "validate_ride_meta"]
+
+RESULT_FORMAT = "saddlescope.result/1"
+RIDE_FORMAT = "saddlescope.ride/1"
+MAX_LISTED_PROBLEMS = 5
+
+# CONTRACTS section 2: the thesis's Table 8.7 set, always present.
+INDICATOR_KEYS: tuple[str, ...] = (
+    "acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "acc_y_max", "crest_factor_y",
+    "t_a8_action_wb_h", "t_a8_action_wk_h", "t_a8_limit_wb_h", "t_a8_limit_wk_h",
+    "t_vdv_action_wb_h", "t_vdv_action_wk_h", "t_vdv_limit_wb_h", "t_vdv_limit_wk_h",
+    "d_a8_action_wb_km", "d_a8_action_wk_km", "d_a8_limit_wb_km", "d_a8_limit_wk_km",
+    "d_vdv_action_wb_km", "d_vdv_action_wk_km", "d_vdv_limit_wb_km", "d_vdv_limit_wk_km",
+    "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz",
+)
+
+_NUMBER = {"type": "number"}
+_POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+_NON_NEGATIVE = {"type": "number", "minimum": 0}
+
+
+def _vector(n: int, *, nullable: bool = False) -> dict:
+    item = {"type": ["number", "null"]} if nullable else _NUMBER
+    return {"type": "array", "items": item, "minItems": n, "maxItems": n}
+
+
+def _matrix(rows: int, cols: int) -> dict:
+    return {"type": "array", "items": _vector(cols), "minItems": rows, "maxItems": rows}
+
+
+# A time series of 3-vectors; null marks a gap (JSON has no NaN).
+_SERIES3 = {"type": "array", "items": _vector(3, nullable=True)}
+
+_CAMERA = {
+    "type": "object",
+    "required": ["K", "dist", "image_size"],
+    "properties": {
+        "K": _matrix(3, 3),
+        "dist": {"type": "array", "items": _NUMBER, "minItems": 4, "maxItems": 14},
+        "image_size": {"type": "array", "items": {"type": "integer", "minimum": 1}, "minItems": 2,
+                       "maxItems": 2},
+        "rms_px": {"type": ["number", "null"], "minimum": 0},
+    },
+}
+_POSE = {"type": "object", "required": ["R", "t_mm"],
+         "properties": {"R": _matrix(3, 3), "t_mm": _vector(3)}}
+_OFFSETS = {"type": "object", "required": list(CAMERA_ROLES),
+            "properties": {role: _NUMBER for role in CAMERA_ROLES},
+            "additionalProperties": False}
+
+RESULT_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "$id": "https://saddlescope.example/schemas/result-1.json",
+    "title": "SaddleScope ride result",
+    "type": "object",
+    "required": ["format", "fps", "calibration", "sync", "period_s", "window", "saddle", "angular",
+                 "indicators", "quality", "timings_s"],
+    "properties": {
+        "format": {"const": RESULT_FORMAT},
+        "fps": _POSITIVE,
+        "calibration": {
+            "type": "object",
+            "required": ["cameras", "extrinsics"],
+            "properties": {
+                "cameras": {"type": "object", "required": list(CAMERA_ROLES),
+                            "additionalProperties": _CAMERA},
+                "extrinsics": {"type": "object", "required": [r for r in CAMERA_ROLES if r != "left"],
+                               "additionalProperties": _POSE},
+                "checks": {"type": "object", "additionalProperties": {"type": ["number", "null"]}},
+            },
+        },
+        "sync": {"type": "object", "required": ["motion"],
+                 "properties": {kind: _OFFSETS for kind in CLIP_KINDS}},
+        "period_s": _POSITIVE,
+        "window": {"type": "object", "required": ["start_s", "duration_s"],
+                   "properties": {"start_s": _NON_NEGATIVE, "duration_s": _POSITIVE}},
+        "saddle": {
+            "type": "object",
+            "required": ["t_s", "position_m", "velocity_m_s", "acceleration_m_s2"],
+            "properties": {"t_s": {"type": "array", "items": _NUMBER, "minItems": 2},
+                           "position_m": _SERIES3, "velocity_m_s": _SERIES3, "acceleration_m_s2": _SERIES3},
+        },
+        "angular": {
+            "type": "object",
+            "required": ["omega_rad_s", "alpha_rad_s2", "singularity_index"],
+            "properties": {"omega_rad_s": _SERIES3, "alpha_rad_s2": _SERIES3,
+                           "singularity_index": {"type": ["number", "null"], "minimum": 0, "maximum": 1}},
+        },
+        "indicators": {"type": "object", "required": list(INDICATOR_KEYS),
+                       "properties": {key: _NUMBER for key in INDICATOR_KEYS}},
+        "quality": {"type": "object"},
+        "timings_s": {"type": "object", "required": ["total"],
+                      "additionalProperties": _NON_NEGATIVE},
+    },
+}
+
+_CLIP_SET = {"type": "object", "required": list(CAMERA_ROLES),
+             "properties": {role: {"type": "string", "minLength": 1} for role in CAMERA_ROLES},
+             "additionalProperties": False}
+
+RIDE_SCHEMA: dict[str, Any] = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "$id": "https://saddlescope.example/schemas/ride-1.json",
+    "title": "SaddleScope ride bundle (ride.json)",
+    "type": "object",
+    "required": ["format", "cameras", "board", "sync", "gait", "direction", "clips"],
+    "properties": {
+        "format": {"const": RIDE_FORMAT},
+        "cameras": {"type": "array", "items": {"enum": list(CAMERA_ROLES)}, "uniqueItems": True,
+                    "minItems": len(CAMERA_ROLES), "maxItems": len(CAMERA_ROLES)},
+        "board": {
+            "type": "object",
+            "required": ["kind", "inner_corners", "square_mm"],
+            "properties": {
+                "kind": {"enum": ["checkerboard", "charuco"]},
+                "inner_corners": {"type": "array", "items": {"type": "integer", "minimum": 2},
+                                  "minItems": 2, "maxItems": 2},
+                "square_mm": _POSITIVE,
+                "dictionary": {"type": "string", "pattern": "^DICT_"},
+                "marker_mm": _POSITIVE,
+                "legacy": {"type": "boolean"},
+            },
+            "if": {"properties": {"kind": {"const": "charuco"}}},
+            "then": {"required": ["dictionary", "marker_mm"]},
+        },
+        "sync": {
+            "type": "object",
+            "required": ["method"],
+            "properties": {
+                "method": {"enum": ["flash", "offsets"]},
+                "offsets": {"type": "object", "properties": {kind: _OFFSETS for kind in CLIP_KINDS},
+                            "additionalProperties": _OFFSETS},
+            },
+            "if": {"properties": {"method": {"const": "offsets"}}},
+            "then": {"required": ["offsets"]},
+        },
+        "markers": {"type": "object",
+                    "properties": {"horse": {"type": "integer", "minimum": 3},
+                                   "plumb": {"type": "integer", "minimum": 0},
+                                   "saddle": {"type": "integer", "minimum": 0}},
+                    "additionalProperties": {"type": "integer", "minimum": 0}},
+        "horse": {"type": "object",
+                  "properties": {"name": {"type": "string"}, "breed": {"type": ["string", "null"]},
+                                 "birth_year": {"type": ["integer", "null"], "minimum": 1900},
+                                 "height_m": {"type": ["number", "null"], "exclusiveMinimum": 0}}},
+        "rider": {"type": "object", "properties": {"name": {"type": "string"}}},
+        "gait": {"enum": list(GAITS)},
+        "direction": {"enum": list(DIRECTIONS)},
+        "clips": {
+            "type": "object",
+            "required": ["static", "motion"],
+            "properties": {kind: _CLIP_SET for kind in CLIP_KINDS},
+            "additionalProperties": False,
+        },
+        "extra_clips": {
+            "type": "object",
+            "additionalProperties": {
+                "type": "object", "minProperties": 1,
+                "properties": {role: {"type": "string", "minLength": 1} for role in CAMERA_ROLES},
+                "additionalProperties": False},
+        },
+        "calibration_file": {"type": "string", "minLength": 1},
+    },
+    # A calibration clip set unless a calibration file replaces it.
+    "anyOf": [{"required": ["calibration_file"]},
+              {"properties": {"clips": {"required": ["calibration"]}}}],
+}
+
+
+def result_schema() -> dict[str, Any]:
+    """The JSON schema (draft 2020-12) of the result document, a fresh copy."""
+    import copy
+
+    return copy.deepcopy(RESULT_SCHEMA)
+
+
+def ride_schema() -> dict[str, Any]:
+    """The JSON schema (draft 2020-12) of a ride bundle's ``ride.json``, a fresh copy."""
+    import copy
+
+    return copy.deepcopy(RIDE_SCHEMA)
+
+
+def _where(path) -> str:
+    out = ""
+    for part in path:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _describe(error: jsonschema.ValidationError) -> str:
+    """One readable sentence for a schema error, naming the field."""
+    where = _where(error.absolute_path)
+    prefix = f"{where} " if where else ""
+    kind, value, inst = error.validator, error.validator_value, error.instance
+    if kind == "required" and isinstance(inst, dict):
+        missing = [k for k in value if k not in inst]
+        return f"{where + ': ' if where else ''}missing {', '.join(repr(k) for k in missing)}"
+    if kind == "enum":
+        return f"{prefix}{inst!r} is not one of {', '.join(str(v) for v in value)}"
+    if kind == "const":
+        return f"{prefix}must be {value!r}, got {inst!r}"
+    if kind == "additionalProperties" and value is False and isinstance(inst, dict):
+        allowed = list(error.schema.get("properties", {}))
+        extra = [k for k in inst if k not in allowed]
+        return (f"{prefix}has unknown {', '.join(repr(k) for k in extra)} "
+                f"(expected {', '.join(allowed)})")
+    if kind == "type":
+        expected = value if isinstance(value, str) else " or ".join(value)
+        return f"{prefix}must be {expected}, got {type(inst).__name__} {_short(inst)}"
+    if kind == "anyOf" and error.schema is RIDE_SCHEMA:
+        return "needs clips.calibration or a calibration_file"
+    return f"{prefix}{error.message}"
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _non_finite(doc: Any, path: tuple = ()) -> Iterator[str]:
+    if isinstance(doc, float) and not math.isfinite(doc):
+        yield f"{_where(path)} is {doc} (JSON numbers must be finite; use null for a gap)"
+    elif isinstance(doc, dict):
+        for key, val in doc.items():
+            yield from _non_finite(val, (*path, key))
+    elif isinstance(doc, list | tuple):
+        for i, val in enumerate(doc):
+            yield from _non_finite(val, (*path, i))
+
+
+def _schema_problems(doc: Any, schema: dict) -> list[str]:
+    validator = jsonschema.Draft202012Validator(schema)
+    errors = sorted(validator.iter_errors(doc), key=lambda e: (list(map(str, e.absolute_path)), e.message))
+    # Errors that differ only in an array index (a bad sample in a long series) are told once.
+    groups: dict[tuple, list[jsonschema.ValidationError]] = {}
+    for e in errors:
+        key = (tuple("[]" if isinstance(p, int) else p for p in e.absolute_path), e.validator)
+        groups.setdefault(key, []).append(e)
+    out = []
+    for same in groups.values():
+        text = _describe(same[0])
+        # "required" errors come one per missing key, but the description already names them all.
+        if len(same) > 1 and same[0].validator != "required":
+            text += f" (and {len(same) - 1} more like it)"
+        out.append(text)
+    return out
+
+
+def result_problems(doc: Any) -> list[str]:
+    """Every problem of a result document, as readable strings (empty list: valid)."""
+    problems = _schema_problems(doc, RESULT_SCHEMA)
+    problems += list(_non_finite(doc))
+    if isinstance(doc, dict):
+        for group, keys in (("saddle", ("position_m", "velocity_m_s", "acceleration_m_s2")),
+                            ("angular", ("omega_rad_s", "alpha_rad_s2"))):
+            series = doc.get(group)
+            t_s = (doc.get("saddle") or {}).get("t_s") if isinstance(doc.get("saddle"), dict) else None
+            if not isinstance(series, dict) or not isinstance(t_s, list):
+                continue
+            for key in keys:
+                arr = series.get(key)
+                # Angular series may be empty where the rigid-body stage could not run.
+                if isinstance(arr, list) and len(arr) != len(t_s) and not (group == "angular" and not arr):
+                    problems.append(f"{group}.{key} has {len(arr)} samples but saddle.t_s has {len(t_s)}")
+        saddle = doc.get("saddle")
+        if isinstance(saddle, dict) and isinstance(saddle.get("t_s"), list):
+            t_s = [t for t in saddle["t_s"] if isinstance(t, int | float)]
+            if any(b <= a for a, b in zip(t_s, t_s[1:], strict=False)):
+                problems.append("saddle.t_s must increase strictly")
+    return problems
+
+
+def validate_result(doc: Any) -> None:
+    """Check a result document against CONTRACTS section 2.
+
+    Raises
+    ------
+    InputError
+        Listing the first few problems (missing keys, wrong types or shapes, non-finite numbers,
+        series whose length differs from ``saddle.t_s``).
+    """
+    problems = result_problems(doc)
+    if problems:
+        raise InputError(_summarise("result", problems))
+
+
+def ride_problems(meta: Any) -> list[str]:
+    """Every problem of a ``ride.json`` document, as readable strings (empty list: valid)."""
+    problems = _schema_problems(meta, RIDE_SCHEMA)
+    problems += list(_non_finite(meta))
+    if not isinstance(meta, dict):
+        return problems
+    board = meta.get("board")
+    if isinstance(board, dict) and board.get("kind") == "charuco":
+        marker, square = board.get("marker_mm"), board.get("square_mm")
+        if isinstance(marker, int | float) and isinstance(square, int | float) and marker >= square:
+            problems.append(f"board.marker_mm ({marker}) must be smaller than board.square_mm ({square})")
+    sync, clips = meta.get("sync"), meta.get("clips")
+    if isinstance(sync, dict) and sync.get("method") == "offsets" and isinstance(clips, dict):
+        offsets = sync.get("offsets") if isinstance(sync.get("offsets"), dict) else {}
+        for kind in clips:
+            if kind in CLIP_KINDS and kind not in offsets:
+                problems.append(f"sync.offsets has no offsets for the {kind} clips")
+    return problems
+
+
+def validate_ride_meta(meta: Any, *, source: str = "ride.json") -> None:
+    """Check a ``ride.json`` document against CONTRACTS section 1 (fields only, not files).
+
+    Raises
+    ------
+    BundleError
+        ``"ride.json: gait 'gallop' is not one of walk, sitting_trot, rising_trot, canter"``, listing
+        the first few problems.
+    """
+    problems = ride_problems(meta)
+    if problems:
+        raise BundleError(_summarise(source, problems))
+
+
+def _summarise(source: str, problems: list[str]) -> str:
+    shown = "; ".join(problems[:MAX_LISTED_PROBLEMS])
+    more = len(problems) - MAX_LISTED_PROBLEMS
+    return f"{source}: {shown}" + (f" (and {more} more)" if more > 0 else "")
