@@ -121,6 +121,26 @@ class EmbeddedQueue:
         return not not_done
 
 
+class InlineQueue:
+    """Runs each job at once in the calling thread (commands that wait anyway, and tests)."""
+
+    mode = "embedded"
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+
+    def submit(self, job_id: int) -> None:
+        from saddlescope.services.runner import run_job
+
+        run_job(job_id, settings=self.settings)
+
+    def health(self) -> tuple[bool, str]:
+        return True, "embedded: jobs run inline in the calling process"
+
+    def close(self) -> None:
+        pass
+
+
 def _mark_lost(settings: Settings, job_id: int) -> None:
     """Fail a job whose embedded worker process died, so it does not stay "running" forever."""
     from saddlescope.db.models import JobStatus

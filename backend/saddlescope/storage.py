@@ -14,7 +14,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Iterator, Mapping
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
@@ -44,10 +44,10 @@ class Storage:
 
     def path(self, key: str) -> Path:
         """The absolute path of `key`; refuses keys that would leave the root."""
-        pure = PurePosixPath(key)
-        if not key or pure.is_absolute() or any(part in ("..", "") for part in pure.parts) or "\\" in key:
-            raise InputError(f"storage key {key!r} must be a relative path without '..'")
-        return self.root.joinpath(*pure.parts)
+        parts = key.split("/")
+        if not key or "\\" in key or "\0" in key or any(part in ("", ".", "..") for part in parts):
+            raise InputError(f"storage key {key!r} must be a relative path without '..', '.' or '//'")
+        return self.root.joinpath(*parts)
 
     def exists(self, key: str) -> bool:
         return self.path(key).exists()

@@ -20,7 +20,7 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Ride
 from saddlescope.db.repositories import ClubRepository, ResultRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.jobs import make_queue
+from saddlescope.jobs import JobQueue, make_queue
 from saddlescope.services.job_service import submit_job, wait_for_job
 from saddlescope.services.rides import register_bundle
 from saddlescope.settings import Settings, get_settings
@@ -63,11 +63,12 @@ def _demo_ride_id(sessions, storage: Storage, bundle: Path) -> int:
 
 
 def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
-             settings: Settings | None = None, bundle: Path = DEMO_BUNDLE,
+             settings: Settings | None = None, bundle: Path = DEMO_BUNDLE, queue: JobQueue | None = None,
              stdout: TextIO | None = None, stderr: TextIO | None = None) -> int:
     """Process the demo ride; then print its indicators (``serve=False``) or serve the dashboard.
 
-    Returns the exit status (0 on success, 1 when the analysis job failed).
+    Returns the exit status (0 on success, 1 when the analysis job failed). `queue` defaults to the
+    one the settings ask for (`saddlescope.jobs.make_queue`).
     """
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr
@@ -85,12 +86,14 @@ def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
         print(f"[{view['progress'] * 100:5.1f} %] {view['status']} {view['stage'] or ''}".rstrip(),
               file=stderr, flush=True)
 
-    queue = make_queue(settings)
+    own_queue = queue is None
+    queue = queue or make_queue(settings)
     try:
         job_id = submit_job(sessions, queue, kind="analyze", ride_id=ride_id)
         view = wait_for_job(sessions, job_id, on_update=show)
     finally:
-        queue.close()
+        if own_queue:
+            queue.close()
     if view["status"] != "done":
         print(f"demo: job {job_id} {view['status']}: {view['error'] or 'no detail'}", file=stderr)
         return 1

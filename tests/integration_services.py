@@ -1,0 +1,231 @@
+"""Test helpers of the service layer: real PostgreSQL, Redis and Celery worker fixtures, tiny bundles.
+
+Import the fixtures into a test module by assignment (``pg_database_url = integration_services.
+pg_database_url``). Without ``CI=true`` a missing service skips its tests with the reason; under CI
+it fails them. Each run gets its own PostgreSQL database and Redis db number, so parallel runs do
+not collide, and a summary at the end of the run names the services the tests really used.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from conftest import IN_CI, PROJECT_ROOT
+
+PG_HOST, PG_PORT = "127.0.0.1", 5432
+PG_USERS = ("postgres", "root")
+REDIS_HOST, REDIS_PORT = "127.0.0.1", 6379
+REDIS_DBS = range(9, 16)  # away from db 0, which a developer's own services may use
+VENV_BIN = Path(sys.executable).parent
+TEST_SECRET = "integration-test-secret-" + secrets.token_hex(8)
+
+
+def require_service(name: str, detail: str) -> None:
+    """Skip (or, under CI, fail) a test whose service is unreachable."""
+    message = f"{name} is not reachable: {detail}"
+    if IN_CI:
+        pytest.fail(f"{message} (CI=true requires it)")
+    pytest.skip(f"{message} (set CI=true to make this a failure)")
+
+
+class _ServiceReport:
+    """Collects one line per real service used and prints them in the terminal summary."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def pytest_terminal_summary(self, terminalreporter) -> None:
+        if self.lines:
+            terminalreporter.section("SaddleScope integration services used")
+            for line in self.lines:
+                terminalreporter.write_line(line)
+
+
+def report_service(config: pytest.Config, line: str) -> None:
+    plugin = config.pluginmanager.get_plugin("saddlescope-service-report")
+    if plugin is None:
+        plugin = _ServiceReport()
+        config.pluginmanager.register(plugin, "saddlescope-service-report")
+    if line not in plugin.lines:
+        plugin.lines.append(line)
+
+
+# --- PostgreSQL -----------------------------------------------------------------------------------
+
+def _pg_admin():
+    import psycopg
+
+    errors = []
+    for user in PG_USERS:
+        try:
+            conn = psycopg.connect(host=PG_HOST, port=PG_PORT, user=user, dbname="test", connect_timeout=3,
+                                   autocommit=True)
+        except psycopg.OperationalError as exc:
+            errors.append(f"as {user}: {str(exc).strip().splitlines()[0]}")
+            continue
+        return conn, user
+    require_service("PostgreSQL", f"{PG_HOST}:{PG_PORT} database 'test' ({'; '.join(errors)})")
+    raise AssertionError("unreachable")
+
+
+@pytest.fixture(scope="module")
+def pg_database_url(request):
+    """SQLAlchemy URL of a fresh, empty PostgreSQL database, dropped after the module."""
+    conn, user = _pg_admin()
+    name = f"saddlescope_test_{os.getpid()}_{secrets.token_hex(4)}"
+    with conn:
+        version = conn.execute("SHOW server_version").fetchone()[0]
+        conn.execute(f'CREATE DATABASE "{name}"')
+        report_service(request.config, f"PostgreSQL {version} at {PG_HOST}:{PG_PORT} (user {user}), "
+                                       f"throw-away databases saddlescope_test_*")
+        try:
+            yield f"postgresql+psycopg://{user}@{PG_HOST}:{PG_PORT}/{name}"
+        finally:
+            from saddlescope.db.session import engine_for
+
+            engine_for.cache_clear()
+            # FORCE: pools of engines still open in this process must not keep the database alive.
+            conn.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+
+# --- Redis ----------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def redis_url(request):
+    """URL of a Redis database number no other run is using (claimed with a lock key), flushed after."""
+    import redis
+
+    claimed = None
+    for db in REDIS_DBS:
+        client = redis.Redis(host=REDIS_HOST, port=REDIS_PORT, db=db, socket_connect_timeout=3)
+        try:
+            if client.set("saddlescope-test-lock", os.getpid(), nx=True, ex=3600):
+                if client.dbsize() == 1:  # only our lock: nobody else uses this db
+                    claimed = (db, client)
+                    break
+                client.delete("saddlescope-test-lock")
+        except redis.exceptions.ConnectionError as exc:
+            require_service("Redis", f"{REDIS_HOST}:{REDIS_PORT}: {exc}")
+        client.close()
+    if claimed is None:
+        require_service("Redis", f"every test db {REDIS_DBS.start}-{REDIS_DBS.stop - 1} is in use")
+    db, client = claimed
+    version = client.info("server")["redis_version"]
+    report_service(request.config, f"Redis {version} at {REDIS_HOST}:{REDIS_PORT} (db {db})")
+    try:
+        yield f"redis://{REDIS_HOST}:{REDIS_PORT}/{db}"
+    finally:
+        client.flushdb()
+        client.close()
+
+
+# --- a real Celery worker -------------------------------------------------------------------------
+
+def service_env(*, database_url: str, storage_dir: Path, broker_url: str | None = None) -> dict[str, str]:
+    """Environment of a SaddleScope child process (server or worker) for these services."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SADDLESCOPE_")}
+    env.update(SADDLESCOPE_DATABASE_URL=database_url, SADDLESCOPE_STORAGE_DIR=str(storage_dir),
+               SADDLESCOPE_SECRET_KEY=TEST_SECRET, PYTHONUNBUFFERED="1")
+    if broker_url is not None:
+        env["SADDLESCOPE_BROKER_URL"] = broker_url
+    return env
+
+
+def stop_process(proc: subprocess.Popen, *, timeout_s: float = 15.0) -> None:
+    """Terminate a child we started (SIGTERM, then SIGKILL if it lingers)."""
+    if proc.poll() is not None:
+        return
+    proc.send_signal(signal.SIGTERM)
+    try:
+        proc.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout=5)
+
+
+@pytest.fixture(scope="module")
+def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
+    """A real ``celery worker`` process (solo pool) on the test database and Redis db.
+
+    Yields a dict with the URLs, the shared storage folder and the worker's log path.
+    """
+    from saddlescope.db.migrate import upgrade_to_head
+
+    upgrade_to_head(pg_database_url)
+    root = tmp_path_factory.mktemp("celery")
+    storage_dir = root / "storage"
+    log_path = root / "worker.log"
+    env = service_env(database_url=pg_database_url, storage_dir=storage_dir, broker_url=redis_url)
+    name = f"saddlescope-test-{os.getpid()}@%h"
+    with log_path.open("wb") as log:
+        proc = subprocess.Popen([str(VENV_BIN / "celery"), "-A", "saddlescope_worker.app", "worker",
+                                 "--pool=solo", "-c", "1", "-Q", "saddlescope", "-n", name, "--loglevel=INFO",
+                                 "--without-gossip", "--without-mingle", "--without-heartbeat"],
+                                cwd=PROJECT_ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        deadline = time.monotonic() + 90
+        while b" ready." not in log_path.read_bytes():
+            if proc.poll() is not None:
+                pytest.fail(f"the Celery worker exited with {proc.returncode}:\n"
+                            f"{log_path.read_text()[-3000:]}")
+            if time.monotonic() > deadline:
+                pytest.fail(f"the Celery worker was not ready after 90 s:\n{log_path.read_text()[-3000:]}")
+            time.sleep(0.2)
+        import celery
+
+        report_service(request.config, f"Celery {celery.__version__} worker process pid {proc.pid} "
+                                       "(solo pool, real broker round trips)")
+        yield {"database_url": pg_database_url, "broker_url": redis_url, "storage_dir": storage_dir,
+               "log_path": log_path, "process": proc}
+    finally:
+        stop_process(proc)
+
+
+# --- tiny inputs ----------------------------------------------------------------------------------
+
+def write_tiny_clip(path: Path, *, frames: int = 5, size: tuple[int, int] = (64, 48),
+                    fps: float = 30.0) -> Path:
+    """A real (MJPEG AVI) video of `frames` grey frames of `size` (w, h) px."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+    if not writer.isOpened():
+        raise RuntimeError(f"OpenCV cannot write {path}")
+    for i in range(frames):
+        writer.write(np.full((size[1], size[0], 3), 40 + 10 * i, np.uint8))
+    writer.release()
+    return path
+
+
+def write_tiny_bundle(folder: Path, *, gait: str = "walk", frames: int = 5) -> Path:
+    """A ride bundle (CONTRACTS section 1) of tiny clips; the plumb clips are image folders."""
+    clips: dict[str, dict[str, str]] = {}
+    for kind in ("calibration", "plumb", "static", "motion"):
+        clips[kind] = {}
+        for role in ("left", "middle", "right"):
+            if kind == "plumb":
+                rel = f"{kind}/{role}"
+                for i in range(frames):
+                    (folder / rel).mkdir(parents=True, exist_ok=True)
+                    cv2.imwrite(str(folder / rel / f"{i + 1:04d}.png"), np.full((48, 64), 30 * i, np.uint8))
+            else:
+                rel = f"{kind}/{role}.avi"
+                write_tiny_clip(folder / rel, frames=frames)
+            clips[kind][role] = rel
+    meta = {"format": "saddlescope.ride/1", "cameras": ["left", "middle", "right"],
+            "board": {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0},
+            "sync": {"method": "flash"}, "markers": {"horse": 3, "plumb": 2, "saddle": 1},
+            "horse": {"name": "Horse 2", "breed": "Dutch", "birth_year": 1999, "height_m": 1.73},
+            "rider": {"name": "Rider B"}, "gait": gait, "direction": "CCW", "clips": clips}
+    (folder / "ride.json").write_text(json.dumps(meta, indent=2))
+    return folder
