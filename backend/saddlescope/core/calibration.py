@@ -1,0 +1,1309 @@
+"""Camera calibration: board corners, intrinsics, stereo pairs, joint bundle adjustment, metric checks.
+
+Thesis stages 3.4-3.6 and 8.2 (Bouguet's toolbox, done by hand there), automated:
+
+1. :func:`find_board_corners` finds a checkerboard (``findChessboardCornersSB``, then the classic detector
+   with ``cornerSubPix``) or a ChArUco board (normal, legacy or inverted print) in one grey frame.
+   :func:`detect_board_views` runs it over frames; :func:`select_instants` keeps a well-spread subset.
+2. :func:`calibrate_intrinsics` gives one camera's K and (k1, k2, p1, p2, k3) with standard deviations
+   (``cv2.calibrateCameraExtended``), dropping outlier views.
+3. :func:`stereo_extrinsics` gives the pose of one camera relative to another as the thesis did
+   (``cv2.stereoCalibrate`` with fixed intrinsics; pairs L-M, L-R, M-R).
+4. :func:`bundle_adjust` refines all cameras and all board poses jointly (robust loss, sparse Jacobian).
+5. :func:`metric_checks` triangulates board corners seen by two or more cameras and compares square
+   lengths and corner distances with the true board in millimetres (thesis Table 8.5).
+
+:func:`calibrate_rig` runs 2-5 and returns a :class:`~saddlescope.core.types.Rig` whose first camera
+is the reference (identity pose). Units: pixels in images, millimetres for board and poses.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.sparse import csr_matrix
+
+from saddlescope.core.errors import CalibrationError, InputError
+from saddlescope.core.types import Board, Camera, Rig
+
+MIN_VIEWS = 6
+MIN_CORNERS = 6
+_SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 1e-3)
+_CALIB_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-9)
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
+
+
+@dataclass(frozen=True)
+class BoardView:
+    """Board corners found in one frame of one camera.
+
+    frame : int
+        Frame index in the clip, or the common instant of a synchronised rig.
+    corners_px : ndarray of shape (N, 2)
+        Distorted pixel coordinates of the corners found.
+    ids : ndarray of shape (N,)
+        Index of each corner into ``board.object_points_mm()``.
+    """
+
+    frame: int
+    corners_px: np.ndarray
+    ids: np.ndarray
+
+
+# --------------------------------------------------------------------------------------------------
+# Boards and corner detection
+# --------------------------------------------------------------------------------------------------
+
+
+def make_board(kind: str, inner_corners: tuple[int, int], square_mm: float, *,
+               dictionary: str | None = None, marker_mm: float | None = None,
+               legacy: bool = False) -> Board:
+    """Validated :class:`Board`. For ChArUco, ``inner_corners`` is (squares_x - 1, squares_y - 1).
+
+    ``marker_mm`` defaults to 0.75 of the square (caliscope's ``aruco_scale``); ``dictionary`` to
+    ``DICT_4X4_50``.
+    """
+    if kind not in ("checkerboard", "charuco"):
+        raise InputError(f"board kind {kind!r} is not 'checkerboard' or 'charuco'")
+    cols, rows = (int(v) for v in inner_corners)
+    if cols < 2 or rows < 2:
+        raise InputError(f"board inner corners {cols}x{rows}: need at least 2x2")
+    if not np.isfinite(square_mm) or square_mm <= 0:
+        raise InputError(f"board square size {square_mm} mm must be positive")
+    if kind == "checkerboard":
+        return Board("checkerboard", (cols, rows), float(square_mm))
+    dictionary = dictionary or "DICT_4X4_50"
+    if not hasattr(cv2.aruco, dictionary):
+        raise InputError(f"unknown ArUco dictionary {dictionary!r} (e.g. DICT_4X4_50, DICT_5X5_100)")
+    marker_mm = 0.75 * square_mm if marker_mm is None else float(marker_mm)
+    if not 0 < marker_mm < square_mm:
+        raise InputError(f"ChArUco marker size {marker_mm} mm must be between 0 and the square "
+                         f"({square_mm} mm)")
+    return Board("charuco", (cols, rows), float(square_mm), dictionary=dictionary,
+                 marker_mm=marker_mm, legacy=bool(legacy))
+
+
+def _cv_charuco(board: Board):
+    cols, rows = board.inner_corners
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary or "DICT_4X4_50"))
+    cv_board = cv2.aruco.CharucoBoard((cols + 1, rows + 1), float(board.square_mm),
+                                      float(board.marker_mm or 0.75 * board.square_mm), dictionary)
+    cv_board.setLegacyPattern(bool(board.legacy))
+    return cv_board
+
+
+class BoardFinder:
+    """Finds one board in grey frames; remembers a ChArUco board's print polarity once seen.
+
+    Parameters
+    ----------
+    board : Board
+    inverted : bool or None
+        ChArUco printed white-on-black (caliscope's ``inverted = true``); None tries both.
+    max_width : int
+        Frames wider than this are searched downscaled first, then refined at full resolution.
+    """
+
+    def __init__(self, board: Board, *, inverted: bool | None = None, max_width: int = 1000):
+        self.board = board
+        self.inverted = inverted
+        self.max_width = int(max_width)
+        if board.kind == "charuco":
+            self._cv_board = _cv_charuco(board)
+            self._detector = cv2.aruco.CharucoDetector(self._cv_board)
+
+    def __call__(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Corners (N, 2) px and ids (N,) of the board in ``gray`` (H, W) uint8, or None."""
+        gray = _as_gray(gray)
+        scale = 1.0
+        small = gray
+        if gray.shape[1] > 1.5 * self.max_width:
+            scale = self.max_width / gray.shape[1]
+            small = cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        found = self._find(small)
+        if found is None:
+            return None
+        corners, ids = found
+        if scale != 1.0:
+            corners = _refine_full_resolution(gray, corners / scale, self.board, ids)
+        return corners, ids
+
+    def _find(self, gray):
+        if self.board.kind == "checkerboard":
+            return _find_checkerboard(gray, self.board)
+        polarities = [self.inverted] if self.inverted is not None else [False, True]
+        for inverted in polarities:
+            found = self._find_charuco(255 - gray if inverted else gray)
+            if found is not None:
+                self.inverted = inverted
+                return found
+        return None
+
+    def _find_charuco(self, gray):
+        corners, ids, _, _ = self._detector.detectBoard(gray)
+        if ids is None or len(ids) < MIN_CORNERS:
+            return None
+        ids = ids.ravel().astype(np.int64)
+        if self._cv_board.checkCharucoCornersCollinear(ids.reshape(-1, 1).astype(np.int32)):
+            return None  # a line of corners says nothing about a plane's pose
+        return corners.reshape(-1, 2).astype(np.float64), ids
+
+
+def find_board_corners(gray: np.ndarray, board: Board, *,
+                       inverted: bool | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Board corners in one grey image.
+
+    Parameters
+    ----------
+    gray : ndarray of shape (H, W), uint8 (a colour (H, W, 3) BGR image is converted)
+    board : Board
+    inverted : bool or None
+        ChArUco print polarity; None tries normal then inverted.
+
+    Returns
+    -------
+    (corners_px, ids) with shapes (N, 2) and (N,), or None if the board is not found. Checkerboard
+    corners come in a canonical order (see :func:`canonical_checkerboard_order`), all of them.
+    """
+    return BoardFinder(board, inverted=inverted)(gray)
+
+
+def _as_gray(img: np.ndarray) -> np.ndarray:
+    img = np.asarray(img)
+    if img.ndim == 3 and img.shape[2] == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if img.ndim != 2:
+        raise InputError(f"expected a grey image of shape (H, W), got shape {img.shape}")
+    if img.dtype != np.uint8:
+        img = cv2.normalize(img, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+    return img
+
+
+def _find_checkerboard(gray: np.ndarray, board: Board):
+    pattern = tuple(board.inner_corners)
+    ok, corners = cv2.findChessboardCornersSB(gray, pattern, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if not ok:
+        ok, corners = cv2.findChessboardCornersSB(
+            gray, pattern,
+            flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+    if not ok:
+        # classic detector as a fallback (it finds fewer boards, Bouguet README); refine to sub-pixel
+        ok, corners = cv2.findChessboardCorners(
+            gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        if not ok:
+            return None
+        corners = _subpix(gray, corners.reshape(-1, 2), board)
+    corners = corners.reshape(-1, 2).astype(np.float64)
+    corners = canonical_checkerboard_order(gray, corners, board.inner_corners)
+    return corners, np.arange(len(corners))
+
+
+def _min_spacing_px(corners: np.ndarray, board: Board, ids: np.ndarray) -> float:
+    cols = board.inner_corners[0]
+    pos = {int(i): k for k, i in enumerate(ids)}
+    d = [np.linalg.norm(corners[pos[i]] - corners[pos[j]])
+         for i in pos for j in (i + 1, i + cols)
+         if j in pos and (j != i + 1 or (i % cols) + 1 < cols)]
+    return float(min(d)) if d else 10.0
+
+
+def _subpix(gray, corners, board, ids=None):
+    ids = np.arange(len(corners)) if ids is None else ids
+    half = int(np.clip(_min_spacing_px(corners, board, ids) * 0.3, 2, 11))
+    pts = corners.reshape(-1, 1, 2).astype(np.float32)
+    cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), _SUBPIX_CRITERIA)
+    return pts.reshape(-1, 2).astype(np.float64)
+
+
+def _refine_full_resolution(gray, corners, board, ids):
+    return _subpix(gray, corners, board, ids)
+
+
+def canonical_checkerboard_order(gray: np.ndarray, corners_px: np.ndarray,
+                                 inner_corners: tuple[int, int]) -> np.ndarray:
+    """Reorder detected checkerboard corners so that every camera labels them alike.
+
+    OpenCV may return a board's corners starting from either end. For several cameras the labels must
+    agree, so: (1) the grid is made right-handed in the image (the board's front faces the camera);
+    (2) where the board has no 180-degree symmetry (cols + rows odd) the square between corners 0, 1,
+    cols, cols+1 is made the dark one; otherwise corner 0 is the one nearer the image's top-left.
+    Square boards (cols == rows) can still be labelled transposed between cameras.
+
+    Parameters
+    ----------
+    gray : ndarray of shape (H, W)
+    corners_px : ndarray of shape (cols*rows, 2), row-major
+    inner_corners : (cols, rows)
+
+    Returns
+    -------
+    ndarray of shape (cols*rows, 2)
+    """
+    cols, rows = inner_corners
+    grid = np.asarray(corners_px, np.float64).reshape(rows, cols, 2)
+    a = grid[0, 1] - grid[0, 0]
+    b = grid[1, 0] - grid[0, 0]
+    if a[0] * b[1] - a[1] * b[0] < 0:
+        grid = grid[::-1]
+    if (cols + rows) % 2 == 1:
+        first = _patch_mean(gray, grid[:2, :2].reshape(-1, 2).mean(axis=0))
+        nxt = grid[:2, 1:3] if cols >= 3 else grid[1:3, :2]
+        second = _patch_mean(gray, nxt.reshape(-1, 2).mean(axis=0))
+        if first > second:
+            grid = grid[::-1, ::-1]
+    elif grid[0, 0].sum() > grid[-1, -1].sum():
+        grid = grid[::-1, ::-1]
+    return np.ascontiguousarray(grid.reshape(-1, 2))
+
+
+def _patch_mean(gray, xy, radius=2):
+    h, w = gray.shape
+    x, y = int(round(xy[0])), int(round(xy[1]))
+    patch = gray[max(y - radius, 0): min(y + radius + 1, h), max(x - radius, 0): min(x + radius + 1, w)]
+    return float(patch.mean()) if patch.size else 0.0
+
+
+def detect_board_views(frames: Iterable[tuple[int, np.ndarray]], board: Board, *,
+                       inverted: bool | None = None, max_width: int = 1000) -> tuple[list[BoardView],
+                                                                                      tuple[int, int] | None]:
+    """Run :class:`BoardFinder` over frames.
+
+    Parameters
+    ----------
+    frames : iterable of (frame index, grey image of shape (H, W))
+    board : Board
+
+    Returns
+    -------
+    views : list of BoardView, in frame order
+    image_size : (width, height) of the frames, or None when there were no frames
+
+    Raises
+    ------
+    InputError
+        If the frames do not all have the same size.
+    """
+    finder = BoardFinder(board, inverted=inverted, max_width=max_width)
+    views: list[BoardView] = []
+    size = None
+    for index, gray in frames:
+        this = (int(gray.shape[1]), int(gray.shape[0]))
+        if size is None:
+            size = this
+        elif this != size:
+            raise InputError(f"frame {index} is {this[0]}x{this[1]} px, "
+                             f"earlier frames {size[0]}x{size[1]} px")
+        found = finder(gray)
+        if found is not None:
+            views.append(BoardView(int(index), found[0], found[1]))
+    return views, size
+
+
+# --------------------------------------------------------------------------------------------------
+# View selection
+# --------------------------------------------------------------------------------------------------
+
+
+def _guess_normal(view: BoardView, board: Board, image_size) -> np.ndarray:
+    """Board normal in the camera from a PnP with a guessed K (f = image width): for pose diversity."""
+    w, h = image_size
+    K = np.array([[w, 0, w / 2], [0, w, h / 2], [0, 0, 1.0]])
+    obj = board.object_points_mm()[view.ids]
+    ok, rvec, _ = cv2.solvePnP(obj, view.corners_px, K, None, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        return np.array([0.0, 0.0, 1.0])
+    return cv2.Rodrigues(rvec)[0][:, 2]
+
+
+def _coverage_cells(view: BoardView, image_size, grid) -> set[int]:
+    w, h = image_size
+    gw, gh = grid
+    mask = np.zeros((gh, gw), np.uint8)
+    pts = view.corners_px * [gw / w, gh / h]
+    hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2)
+    cv2.fillConvexPoly(mask, np.round(hull * 16).astype(np.int32), 1, shift=4)
+    cells = set(np.flatnonzero(mask).tolist())
+    cells.update((np.clip(pts[:, 1].astype(int), 0, gh - 1) * gw
+                  + np.clip(pts[:, 0].astype(int), 0, gw - 1)).tolist())
+    return cells
+
+
+def select_instants(views_by_camera: Mapping[str, list[BoardView]], board: Board,
+                    image_sizes: Mapping[str, tuple[int, int]], *, max_instants: int = 60,
+                    grid: tuple[int, int] = (8, 6), diversity_weight: float = 0.5) -> list[int]:
+    """Choose up to ``max_instants`` frames that spread the board over every camera's image and poses.
+
+    Greedy: each step takes the instant adding the most not-yet-covered image cells (per camera, on a
+    ``grid`` of cells), plus ``diversity_weight`` times its board tilt's angular distance (capped at
+    30 degrees) to the already chosen views of the same camera, summed over the cameras that see it.
+
+    Returns
+    -------
+    list of int, the chosen instants (frame keys), sorted.
+    """
+    cells: dict[int, dict[str, set[int]]] = {}
+    normals: dict[int, dict[str, np.ndarray]] = {}
+    for cam, views in views_by_camera.items():
+        for v in views:
+            cells.setdefault(v.frame, {})[cam] = _coverage_cells(v, image_sizes[cam], grid)
+            normals.setdefault(v.frame, {})[cam] = _guess_normal(v, board, image_sizes[cam])
+    candidates = sorted(cells)
+    if len(candidates) <= max_instants:
+        return candidates
+    n_cells = grid[0] * grid[1]
+    covered = {cam: set() for cam in views_by_camera}
+    chosen_normals: dict[str, list[np.ndarray]] = {cam: [] for cam in views_by_camera}
+    chosen: list[int] = []
+    remaining = set(candidates)
+    while remaining and len(chosen) < max_instants:
+        best, best_score = None, -1.0
+        for inst in sorted(remaining):
+            score = 0.0
+            for cam, c in cells[inst].items():
+                score += len(c - covered[cam]) / n_cells
+                sel = chosen_normals[cam]
+                if sel:
+                    cosang = np.clip(np.abs(np.stack(sel) @ normals[inst][cam]), -1, 1)
+                    ang = np.degrees(np.arccos(cosang.max()))
+                else:
+                    ang = 30.0
+                score += diversity_weight * min(ang, 30.0) / 30.0
+            if score > best_score:
+                best, best_score = inst, score
+        chosen.append(best)
+        remaining.discard(best)
+        for cam, c in cells[best].items():
+            covered[cam] |= c
+            chosen_normals[cam].append(normals[best][cam])
+    return sorted(chosen)
+
+
+# --------------------------------------------------------------------------------------------------
+# Intrinsics
+# --------------------------------------------------------------------------------------------------
+
+
+def _check_views(views: list[BoardView], board: Board, camera: str, clip: str | None, *,
+                 min_views: int) -> list[BoardView]:
+    where = f"{clip} clip of the {camera} camera" if clip else f"camera {camera}"
+    n_points = len(board.object_points_mm())
+    good = []
+    for v in views:
+        corners = np.asarray(v.corners_px, np.float64)
+        ids = np.asarray(v.ids, np.int64)
+        if corners.ndim != 2 or corners.shape[1] != 2 or len(ids) != len(corners):
+            raise InputError(f"{where}, frame {v.frame}: corners must have shape (N, 2) and ids (N,), "
+                             f"got {corners.shape} and {ids.shape}")
+        if ids.size and (ids.min() < 0 or ids.max() >= n_points):
+            raise InputError(f"{where}, frame {v.frame}: corner ids outside the board's 0..{n_points - 1}")
+        if len(ids) >= MIN_CORNERS and np.all(np.isfinite(corners)):
+            good.append(BoardView(int(v.frame), corners, ids))
+    if not good:
+        raise CalibrationError(f"no calibration board found in the {where}")
+    if len(good) < min_views:
+        raise CalibrationError(f"calibration board found in only {len(good)} frame(s) of the {where}; "
+                               f"need at least {min_views} views")
+    return good
+
+
+def _calib_flags(fix_k3: bool) -> int:
+    return cv2.CALIB_FIX_K3 if fix_k3 else 0
+
+
+def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple[int, int], *,
+                         camera: str = "camera", clip: str | None = None, fix_k3: bool = True,
+                         min_views: int = MIN_VIEWS, outlier_factor: float = 3.0,
+                         min_outlier_px: float = 0.5, max_rounds: int = 3) -> tuple[Camera, dict]:
+    """Intrinsics of one camera from board views (Zhang / Bouguet; thesis 3.4, Tables 8.1-8.3).
+
+    Parameters
+    ----------
+    views : list of BoardView
+    board : Board
+    image_size : (width, height) px
+    camera, clip : str
+        Names used in error messages.
+    fix_k3 : bool
+        Keep k3 = 0 (narrow lenses: k3 is poorly determined and trades off against k1, k2).
+    outlier_factor, min_outlier_px : float
+        A view whose RMS error exceeds ``max(outlier_factor * median, min_outlier_px)`` is dropped and
+        the calibration repeated (at most ``max_rounds`` times).
+
+    Returns
+    -------
+    camera : Camera
+        At identity pose, with ``K_std``, ``dist_std`` (one standard deviation) and ``rms_px``.
+    report : dict
+        ``rms_px``, ``residual_std_px`` (x, y), ``per_view_rms_px`` {frame: px}, ``dropped_frames``,
+        ``n_views``, ``n_points``, ``fix_k3``, ``poses`` {frame: (rvec (3,), tvec_mm (3,))}.
+
+    Raises
+    ------
+    CalibrationError
+        No board, fewer than ``min_views`` views, or OpenCV failing to converge.
+    """
+    views = _check_views(views, board, camera, clip, min_views=min_views)
+    obj_all = board.object_points_mm().astype(np.float32)
+    dropped: list[int] = []
+    w, h = (int(v) for v in image_size)
+    for _ in range(max_rounds + 1):
+        obj = [obj_all[v.ids] for v in views]
+        img = [v.corners_px.astype(np.float32).reshape(-1, 1, 2) for v in views]
+        try:
+            rms, K, dist, rvecs, tvecs, std_intr, _, per_view = cv2.calibrateCameraExtended(
+                obj, img, (w, h), None, None, flags=_calib_flags(fix_k3), criteria=_CALIB_CRITERIA)
+        except cv2.error as exc:
+            raise CalibrationError(f"calibration of camera {camera} failed in OpenCV: "
+                                   f"{str(exc).strip().splitlines()[-1]}") from None
+        per_view = per_view.ravel()
+        limit = max(outlier_factor * float(np.median(per_view)), min_outlier_px)
+        bad = per_view > limit
+        if not bad.any() or len(views) - bad.sum() < min_views:
+            break
+        dropped += [v.frame for v, b in zip(views, bad, strict=True) if b]
+        views = [v for v, b in zip(views, bad, strict=True) if not b]
+    residuals = []
+    for v, rv, tv in zip(views, rvecs, tvecs, strict=True):
+        proj, _ = cv2.projectPoints(obj_all[v.ids], rv, tv, K, dist)
+        residuals.append(proj.reshape(-1, 2) - v.corners_px)
+    res = np.concatenate(residuals)
+    std_intr = std_intr.ravel()
+    dist = dist.ravel()[:5]
+    cam = Camera(camera, K, np.pad(dist, (0, 5 - len(dist))), (w, h), rms_px=float(rms),
+                 K_std=np.array([[std_intr[0], 0, std_intr[2]], [0, std_intr[1], std_intr[3]], [0, 0, 0]]),
+                 dist_std=std_intr[4:9].copy())
+    report = {
+        "rms_px": float(rms),
+        "residual_std_px": res.std(axis=0).tolist(),
+        "per_view_rms_px": {int(v.frame): float(e) for v, e in zip(views, per_view, strict=True)},
+        "dropped_frames": sorted(dropped),
+        "n_views": len(views),
+        "n_points": int(len(res)),
+        "fix_k3": bool(fix_k3),
+        "poses": {int(v.frame): (np.asarray(rv, np.float64).ravel(), np.asarray(tv, np.float64).ravel())
+                  for v, rv, tv in zip(views, rvecs, tvecs, strict=True)},
+    }
+    return cam, report
+
+
+# --------------------------------------------------------------------------------------------------
+# Stereo pairs (thesis 3.5: L-M, L-R, M-R)
+# --------------------------------------------------------------------------------------------------
+
+
+def _shared(views_a: list[BoardView], views_b: list[BoardView]):
+    """Per shared instant: common ids, their corners in a and b."""
+    by_frame = {v.frame: v for v in views_b}
+    out = []
+    for va in views_a:
+        vb = by_frame.get(va.frame)
+        if vb is None:
+            continue
+        common, ia, ib = np.intersect1d(va.ids, vb.ids, return_indices=True)
+        if len(common) >= MIN_CORNERS:
+            out.append((va.frame, common, va.corners_px[ia], vb.corners_px[ib]))
+    return out
+
+
+def stereo_extrinsics(views_a: list[BoardView], views_b: list[BoardView], cam_a: Camera, cam_b: Camera,
+                      board: Board, *, min_shared: int = 3) -> dict:
+    """Pose of camera b relative to camera a from instants both see (thesis 3.5, Table 8.4).
+
+    ``cv2.stereoCalibrate`` with both cameras' intrinsics fixed.
+
+    Returns
+    -------
+    dict with ``R`` (3, 3) and ``t_mm`` (3,) such that ``x_b = R @ x_a + t_mm``, ``rms_px``,
+    ``n_views`` and ``frames``.
+
+    Raises
+    ------
+    CalibrationError
+        Fewer than ``min_shared`` instants where both cameras see at least 6 common corners.
+    """
+    shared = _shared(views_a, views_b)
+    if len(shared) < min_shared:
+        raise CalibrationError(f"cameras {cam_a.name} and {cam_b.name} see the board together in only "
+                               f"{len(shared)} frame(s); need at least {min_shared}")
+    obj_all = board.object_points_mm().astype(np.float32)
+    obj = [obj_all[ids] for _, ids, _, _ in shared]
+    img_a = [a.astype(np.float32).reshape(-1, 1, 2) for _, _, a, _ in shared]
+    img_b = [b.astype(np.float32).reshape(-1, 1, 2) for _, _, _, b in shared]
+    try:
+        out = cv2.stereoCalibrate(obj, img_a, img_b, cam_a.K, cam_a.dist, cam_b.K, cam_b.dist,
+                                  tuple(cam_a.image_size), flags=cv2.CALIB_FIX_INTRINSIC,
+                                  criteria=_CALIB_CRITERIA)
+    except cv2.error as exc:
+        raise CalibrationError(f"stereo calibration of {cam_a.name}-{cam_b.name} failed in OpenCV: "
+                               f"{str(exc).strip().splitlines()[-1]}") from None
+    rms, R, T = out[0], out[5], out[6]
+    return {"R": np.asarray(R, np.float64), "t_mm": np.asarray(T, np.float64).ravel(), "rms_px": float(rms),
+            "n_views": len(shared), "frames": [int(f) for f, _, _, _ in shared]}
+
+
+# --------------------------------------------------------------------------------------------------
+# Projection model (vectorised; OpenCV's 5-coefficient model, thesis eq. 3.4-3.10 with the
+# standard tangential terms instead of the typo in eq. 3.8)
+# --------------------------------------------------------------------------------------------------
+
+
+def _rotation_matrices(rvecs: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) of rotation vectors (N, 3) (Rodrigues' formula)."""
+    theta = np.linalg.norm(rvecs, axis=1)
+    small = theta < 1e-12
+    k = rvecs / np.where(small, 1.0, theta)[:, None]
+    kx = np.zeros((len(rvecs), 3, 3))
+    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    kx -= kx.transpose(0, 2, 1)
+    s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
+    R = np.eye(3) + s * kx + (1 - c) * (kx @ kx)
+    R[small] = np.eye(3)
+    return R
+
+
+def _distort_project(xc: np.ndarray, intr: np.ndarray) -> np.ndarray:
+    """Camera-frame points (M, 3) -> distorted px (M, 2); intr (M, 9) = fx fy cx cy k1 k2 p1 p2 k3."""
+    z = xc[:, 2]
+    x, y = xc[:, 0] / z, xc[:, 1] / z
+    fx, fy, cx, cy, k1, k2, p1, p2, k3 = intr.T
+    r2 = x * x + y * y
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return np.column_stack([fx * xd + cx, fy * yd + cy])
+
+
+def _intr_vector(cam: Camera) -> np.ndarray:
+    K, d = cam.K, np.asarray(cam.dist, np.float64).ravel()
+    d = np.pad(d, (0, max(0, 5 - len(d))))[:5]
+    return np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2], *d])
+
+
+def _camera_from_vector(name, intr, rvec, t, image_size, **kw) -> Camera:
+    K = np.array([[intr[0], 0, intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
+    R = cv2.Rodrigues(np.asarray(rvec, np.float64))[0]
+    return Camera(name, K, np.asarray(intr[4:9], np.float64), tuple(image_size), R=R,
+                  t_mm=np.asarray(t, np.float64), **kw)
+
+
+# --------------------------------------------------------------------------------------------------
+# Bundle adjustment
+# --------------------------------------------------------------------------------------------------
+
+
+def _pose_of_view(cam: Camera, view_obj, view_img):
+    ok, rvec, tvec = cv2.solvePnP(view_obj, view_img, cam.K, cam.dist, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        ok, rvec, tvec = cv2.solvePnP(view_obj, view_img, cam.K, cam.dist)
+    return ok, rvec.ravel(), tvec.ravel()
+
+
+def _robust_weights(sq_err: np.ndarray, loss: str, f_scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """IRLS weights rho'(s) and costs rho(s) of squared residual norms s (per observation)."""
+    z = sq_err / f_scale ** 2
+    if loss == "linear":
+        return np.ones_like(z), sq_err
+    if loss == "soft_l1":
+        root = np.sqrt(1 + z)
+        return 1 / root, 2 * f_scale ** 2 * (root - 1)
+    if loss == "huber":
+        r = np.sqrt(z)
+        w = np.where(r <= 1, 1.0, 1 / np.maximum(r, 1e-300))
+        return w, f_scale ** 2 * np.where(r <= 1, z, 2 * r - 1)
+    raise InputError(f"unknown bundle-adjustment loss {loss!r} (linear, soft_l1, huber)")
+
+
+_NCAM = 15  # per camera: fx fy cx cy k1 k2 p1 p2 k3 | rvec (3) t_mm (3)
+
+
+class _Bundle:
+    """Observations and the residual model of the joint bundle adjustment."""
+
+    def __init__(self, obj, obs_cam, obs_inst, obs_pt, obs_xy, n_cams, n_inst):
+        self.obj, self.cam, self.inst, self.pt, self.xy = obj, obs_cam, obs_inst, obs_pt, obs_xy
+        self.C, self.I = n_cams, n_inst
+        self.inst_onehot = csr_matrix((np.ones(len(obs_cam)), (obs_inst, np.arange(len(obs_cam)))),
+                                      shape=(n_inst, len(obs_cam)))
+        self.cam_onehot = csr_matrix((np.ones(len(obs_cam)), (obs_cam, np.arange(len(obs_cam)))),
+                                     shape=(n_cams, len(obs_cam)))
+        key = obs_cam * n_inst + obs_inst
+        self.pair_onehot = csr_matrix((np.ones(len(obs_cam)), (key, np.arange(len(obs_cam)))),
+                                      shape=(n_cams * n_inst, len(obs_cam)))
+
+    def board_points(self, boards: np.ndarray) -> np.ndarray:
+        """Corners in the reference frame (M, 3) for board poses (I, 6)."""
+        R = _rotation_matrices(boards[:, :3])
+        return np.einsum("mij,mj->mi", R[self.inst], self.obj[self.pt]) + boards[self.inst, 3:]
+
+    def camera_points(self, cams: np.ndarray, xr: np.ndarray) -> np.ndarray:
+        R = _rotation_matrices(cams[:, 9:12])
+        return np.einsum("mij,mj->mi", R[self.cam], xr) + cams[self.cam, 12:]
+
+    def project(self, cams: np.ndarray, xc: np.ndarray) -> np.ndarray:
+        return _distort_project(xc, cams[self.cam, :9]) - self.xy
+
+    def residuals(self, cams: np.ndarray, boards: np.ndarray) -> np.ndarray:
+        """(M, 2) px for cams (C, 15) and boards (I, 6)."""
+        return self.project(cams, self.camera_points(cams, self.board_points(boards)))
+
+    def jacobians(self, cams, boards, r0):
+        """Forward-difference blocks: A (M, 2, 15) w.r.t. the observing camera, B (M, 2, 6) board."""
+        M = len(self.cam)
+        A = np.empty((M, 2, _NCAM))
+        B = np.empty((M, 2, 6))
+        xr = self.board_points(boards)
+        xc = self.camera_points(cams, xr)
+        for k in range(_NCAM):
+            h = 1e-6 * np.maximum(np.abs(cams[:, k]), 1.0)
+            step = cams.copy()
+            step[:, k] += h
+            # intrinsics leave the camera-frame points alone; poses leave the board points alone
+            r = self.project(step, xc if k < 9 else self.camera_points(step, xr))
+            A[:, :, k] = (r - r0) / h[self.cam, None]
+        for k in range(6):
+            h = 1e-6 * np.maximum(np.abs(boards[:, k]), 1.0)
+            step = boards.copy()
+            step[:, k] += h
+            B[:, :, k] = (self.residuals(cams, step) - r0) / h[self.inst, None]
+        return A, B
+
+    def normal_equations(self, A, B, r, w):
+        """Blocks of J^T W J and J^T W r: U (C, 15, 15), V (I, 6, 6), W (C, I, 15, 6), gc, gb."""
+        Aw = A * w[:, None, None]
+        Bw = B * w[:, None, None]
+        M = len(w)
+        U = (self.cam_onehot @ np.einsum("mki,mkj->mij", Aw, A).reshape(M, -1)).reshape(self.C, _NCAM, _NCAM)
+        V = (self.inst_onehot @ np.einsum("mki,mkj->mij", Bw, B).reshape(M, -1)).reshape(self.I, 6, 6)
+        W = (self.pair_onehot @ np.einsum("mki,mkj->mij", Aw, B).reshape(M, -1)).reshape(
+            self.C, self.I, _NCAM, 6)
+        gc = (self.cam_onehot @ np.einsum("mki,mk->mi", Aw, r)).reshape(self.C, _NCAM)
+        gb = (self.inst_onehot @ np.einsum("mki,mk->mi", Bw, r)).reshape(self.I, 6)
+        return U, V, W, gc, gb
+
+
+def _schur_solve(U, V, W, gc, gb, free, lam):
+    """Damped Gauss-Newton step by the Schur complement over the board poses.
+
+    Returns (dc (C, 15), db (I, 6), S) where S is the reduced camera system on the free parameters.
+    """
+    C, I = W.shape[:2]
+    n = C * _NCAM
+    Ufull = np.zeros((n, n))
+    for c in range(C):
+        Ufull[c * _NCAM:(c + 1) * _NCAM, c * _NCAM:(c + 1) * _NCAM] = U[c]
+    Vd = V + lam * np.einsum("ijj->ij", V)[:, :, None] * np.eye(6) + 1e-12 * np.eye(6)
+    Vinv = np.linalg.inv(Vd)
+    Wi = W.transpose(1, 0, 2, 3).reshape(I, n, 6)  # per instant, all cameras stacked
+    WV = np.einsum("iaj,ijk->iak", Wi, Vinv)
+    S = Ufull - np.einsum("iak,ibk->ab", WV, Wi)
+    rhs = -(gc.ravel() - np.einsum("iak,ik->a", WV, gb))
+    Sf = S[np.ix_(free, free)]
+    Sf = Sf + lam * np.diag(np.diag(Sf)) + 1e-12 * np.eye(len(free))
+    dc = np.zeros(n)
+    dc[free] = np.linalg.solve(Sf, rhs[free])
+    db = np.einsum("ijk,ik->ij", Vinv, -gb - np.einsum("iaj,a->ij", Wi, dc))
+    return dc.reshape(C, _NCAM), db, S
+
+
+def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, list[BoardView]],
+                  board: Board, *, fix_k3: bool = True, loss: str = "soft_l1", f_scale_px: float = 1.0,
+                  outlier_px: float = 5.0, max_iterations: int = 60) -> tuple[dict[str, Camera], dict]:
+    """Refine all cameras (intrinsics, distortion, pose) and all board poses jointly.
+
+    The first camera is the reference (identity pose). Board poses are parameters per instant (a
+    frame key shared by all cameras). Each residual is a corner's reprojection error in px; the loss
+    is robust (``soft_l1`` or ``huber`` with scale ``f_scale_px``, solved by reweighting). The solver
+    is Levenberg-Marquardt on the normal equations with the board poses eliminated by the Schur
+    complement (the classic sparse bundle adjustment), so a step costs one small dense solve.
+
+    Parameters
+    ----------
+    cameras : dict name -> Camera
+        Initial values: intrinsics and poses relative to the first camera.
+    views_by_camera : dict name -> list of BoardView
+        Frame keys must be synchronised instants.
+    outlier_px : float
+        After a first pass, corners reprojecting worse than this are dropped and the fit repeated.
+
+    Returns
+    -------
+    cameras : dict name -> Camera, refined, with ``K_std``/``dist_std`` (one standard deviation) from
+        the Gauss-Newton covariance with the board poses marginalised
+    report : dict with ``rms_px`` (all), ``rms_px_by_camera``, ``n_observations``, ``n_dropped``,
+        ``n_instants``, ``iterations``, ``pose_std`` {camera: (rvec std (3,), t std mm (3,))},
+        ``board_poses`` {instant: (6,) rvec and t_mm in the reference camera}.
+    """
+    names = list(cameras)
+    obj_all = board.object_points_mm()
+
+    # board pose per instant, initialised from the camera seeing most corners
+    inst_pose: dict[int, np.ndarray] = {}
+    by_inst: dict[int, list[tuple[str, BoardView]]] = {}
+    for cam in names:
+        for v in views_by_camera.get(cam, []):
+            by_inst.setdefault(v.frame, []).append((cam, v))
+    for inst, entries in by_inst.items():
+        cam, v = max(entries, key=lambda e: len(e[1].ids))
+        c = cameras[cam]
+        ok, rvec, tvec = _pose_of_view(c, obj_all[v.ids], v.corners_px)
+        if ok:
+            Rb = c.R.T @ cv2.Rodrigues(rvec)[0]
+            inst_pose[inst] = np.concatenate([cv2.Rodrigues(Rb)[0].ravel(), c.R.T @ (tvec - c.t_mm)])
+    instants = sorted(inst_pose)
+    if not instants:
+        raise CalibrationError("bundle adjustment: no board pose could be initialised")
+    inst_index = {f: i for i, f in enumerate(instants)}
+    parts = [(ci, inst_index[v.frame], v) for ci, cam in enumerate(names)
+             for v in views_by_camera.get(cam, []) if v.frame in inst_index]
+    obs_cam = np.concatenate([np.full(len(v.ids), ci) for ci, _, v in parts])
+    obs_inst = np.concatenate([np.full(len(v.ids), ii) for _, ii, v in parts])
+    obs_pt = np.concatenate([v.ids for _, _, v in parts])
+    obs_xy = np.concatenate([v.corners_px for _, _, v in parts])
+
+    C, I = len(names), len(instants)
+    cams = np.array([np.concatenate([_intr_vector(cameras[n]), cameras[n].rvec, cameras[n].t_mm])
+                     for n in names])
+    boards = np.array([inst_pose[f] for f in instants])
+    free_mask = np.ones((C, _NCAM), bool)
+    free_mask[0, 9:] = False  # the reference camera defines the rig frame
+    if fix_k3:
+        free_mask[:, 8] = False
+    free = np.flatnonzero(free_mask.ravel())
+
+    keep = np.ones(len(obs_cam), bool)
+    n_dropped = 0
+    iterations = 0
+    for _pass in range(2):
+        bundle = _Bundle(obj_all, obs_cam[keep], obs_inst[keep], obs_pt[keep], obs_xy[keep], C, I)
+        r = bundle.residuals(cams, boards)
+        w, rho = _robust_weights(np.sum(r ** 2, axis=1), loss, f_scale_px)
+        cost = float(rho.sum())
+        lam = 1e-4
+        for _ in range(max_iterations):
+            iterations += 1
+            A, B = bundle.jacobians(cams, boards, r)
+            U, V, W, gc, gb = bundle.normal_equations(A, B, r, w)
+            improved = False
+            for _try in range(10):
+                dc, db, _ = _schur_solve(U, V, W, gc, gb, free, lam)
+                c_new, b_new = cams + dc, boards + db
+                r_new = bundle.residuals(c_new, b_new)
+                w_new, rho_new = _robust_weights(np.sum(r_new ** 2, axis=1), loss, f_scale_px)
+                cost_new = float(rho_new.sum())
+                if np.isfinite(cost_new) and cost_new < cost:
+                    improved = True
+                    break
+                lam *= 10
+            if not improved:
+                break
+            rel = (cost - cost_new) / max(cost, 1e-300)
+            cams, boards, r, w, cost = c_new, b_new, r_new, w_new, cost_new
+            lam = max(lam / 10, 1e-9)
+            if rel < 1e-10:
+                break
+        err = np.full(len(keep), np.inf)
+        err[keep] = np.hypot(r[:, 0], r[:, 1])
+        new_keep = keep & (err <= outlier_px)
+        if new_keep.sum() == keep.sum() or new_keep.sum() < 0.5 * keep.sum():
+            break
+        n_dropped = int((~new_keep).sum())
+        keep = new_keep
+
+    # covariance of the camera parameters with the board poses marginalised: sigma^2 S^-1
+    A, B = bundle.jacobians(cams, boards, r)
+    U, V, W, gc, gb = bundle.normal_equations(A, B, r, w)
+    _, _, S = _schur_solve(U, V, W, gc, gb, free, 0.0)
+    dof = max(2 * len(r) - len(free) - 6 * I, 1)
+    sigma2 = float(np.sum(w * np.sum(r ** 2, axis=1)) / dof)
+    std = np.zeros(C * _NCAM)
+    try:
+        std[free] = np.sqrt(np.clip(np.diag(np.linalg.inv(S[np.ix_(free, free)])), 0, None) * sigma2)
+    except np.linalg.LinAlgError:
+        std[free] = np.nan
+    std = std.reshape(C, _NCAM)
+
+    out, pose_std, rms_by_cam = {}, {}, {}
+    for ci, name in enumerate(names):
+        sel = bundle.cam == ci
+        rms_c = float(np.sqrt(np.mean(np.sum(r[sel] ** 2, axis=1)))) if sel.any() else float("nan")
+        rms_by_cam[name] = rms_c
+        s = std[ci]
+        K_std = np.array([[s[0], 0, s[2]], [0, s[1], s[3]], [0, 0, 0]])
+        out[name] = _camera_from_vector(name, cams[ci, :9], cams[ci, 9:12], cams[ci, 12:],
+                                        cameras[name].image_size, rms_px=rms_c, K_std=K_std,
+                                        dist_std=s[4:9].copy())
+        if ci > 0:
+            pose_std[name] = (s[9:12].copy(), s[12:].copy())
+    report = {
+        "rms_px": float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))),
+        "rms_px_by_camera": rms_by_cam,
+        "n_observations": int(keep.sum()),
+        "n_dropped": n_dropped,
+        "n_instants": I,
+        "iterations": iterations,
+        "pose_std": pose_std,
+        "board_poses": {f: boards[inst_index[f]].copy() for f in instants},
+    }
+    return out, report
+
+
+# --------------------------------------------------------------------------------------------------
+# Triangulation for checks and metric quality
+# --------------------------------------------------------------------------------------------------
+
+
+def _normalized(cam: Camera, xy_px: np.ndarray) -> np.ndarray:
+    """Distorted px (N, 2) -> undistorted normalised image coordinates (N, 2), NaN kept."""
+    out = np.full(xy_px.shape, np.nan)
+    ok = np.all(np.isfinite(xy_px), axis=1)
+    if ok.any():
+        und = cv2.undistortPoints(xy_px[ok].reshape(-1, 1, 2).astype(np.float64), cam.K, cam.dist,
+                                  criteria=_UNDISTORT_CRITERIA)
+        out[ok] = und.reshape(-1, 2)
+    return out
+
+
+def triangulate_dlt(cameras: list[Camera], xy_px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Linear N-view triangulation (DLT on undistorted normalised coordinates).
+
+    Parameters
+    ----------
+    cameras : list of C Camera (poses relative to a common frame, mm)
+    xy_px : ndarray of shape (C, N, 2)
+        Distorted pixel coordinates, NaN where a camera does not see the point.
+
+    Returns
+    -------
+    xyz_mm : ndarray of shape (N, 3), NaN where fewer than two cameras see the point
+    reprojection_error_px : ndarray of shape (N,), RMS over the cameras that see the point
+    """
+    xy_px = np.asarray(xy_px, np.float64)
+    C, N = xy_px.shape[:2]
+    if len(cameras) != C:
+        raise InputError(f"{len(cameras)} cameras but points for {C}")
+    A = np.zeros((N, 2 * C, 4))
+    seen = np.zeros((C, N), bool)
+    for c, cam in enumerate(cameras):
+        xn = _normalized(cam, xy_px[c])
+        ok = np.all(np.isfinite(xn), axis=1)
+        seen[c] = ok
+        P = np.hstack([cam.R, np.reshape(cam.t_mm, (3, 1)) / 1000.0])  # metres: better conditioned
+        xn0 = np.where(ok[:, None], xn, 0.0)
+        A[:, 2 * c] = (xn0[:, :1] * P[2] - P[0]) * ok[:, None]
+        A[:, 2 * c + 1] = (xn0[:, 1:] * P[2] - P[1]) * ok[:, None]
+    _, _, vt = np.linalg.svd(A)
+    X = vt[:, -1, :]
+    xyz = X[:, :3] / X[:, 3:] * 1000.0
+    n_seen = seen.sum(axis=0)
+    xyz[n_seen < 2] = np.nan
+    sq = np.zeros(N)
+    for c, cam in enumerate(cameras):
+        proj = cam.project(xyz)
+        d2 = np.sum((proj - xy_px[c]) ** 2, axis=1)
+        sq += np.where(seen[c] & np.isfinite(d2), d2, 0.0)
+    err = np.sqrt(sq / np.maximum(n_seen, 1))
+    err[n_seen < 2] = np.nan
+    return xyz, err
+
+
+def _instant_points(views_by_camera, names):
+    """instant -> (ids (K,), xy (C, K, 2) with NaN)."""
+    frames = sorted({v.frame for n in names for v in views_by_camera.get(n, [])})
+    by = {n: {v.frame: v for v in views_by_camera.get(n, [])} for n in names}
+    out = {}
+    for f in frames:
+        ids = np.unique(np.concatenate([by[n][f].ids for n in names if f in by[n]]))
+        xy = np.full((len(names), len(ids), 2), np.nan)
+        for c, n in enumerate(names):
+            v = by[n].get(f)
+            if v is not None:
+                xy[c, np.searchsorted(ids, v.ids)] = v.corners_px
+        if np.sum(np.any(np.isfinite(xy[..., 0]), axis=1)) >= 2:
+            out[f] = (ids, xy)
+    return out
+
+
+def _similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray]:
+    """Scale s and residuals (K, 3) of the best dst ~ s R src + t (Umeyama's closed form)."""
+    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+    a, b = src - mu_s, dst - mu_d
+    U, sv, Vt = np.linalg.svd(b.T @ a / len(src))
+    d = np.ones(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        d[-1] = -1
+    R = U @ np.diag(d) @ Vt
+    var_a = np.mean(np.sum(a ** 2, axis=1))
+    s = float(np.sum(sv * d) / var_a)
+    return s, b - s * a @ R.T
+
+
+def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView]], board: Board, *,
+                          cameras: list[str] | None = None) -> dict:
+    """Metric errors of the triangulated board (thesis Table 8.5, for every corner pair).
+
+    For each instant, corners seen by two or more of ``cameras`` are triangulated. Then (1) the true
+    board is fitted to them by a similarity transform (rotation, translation, scale): the scale
+    times the square size is the reconstructed square length, averaged over the whole board so that
+    it measures the calibration's systematic scale error rather than one corner's noise; (2) every
+    pair of corners is compared with its true distance (noise and systematic error together).
+
+    Returns
+    -------
+    dict with ``scales`` (I,) fitted scale per instant, ``fit_residuals_mm`` (P,) point distances to
+    the fitted board, ``adjacent_errors_mm`` (S,) neighbouring-corner distance errors,
+    ``distance_errors_mm`` (D,) and ``true_distances_mm`` (D,) for all corner pairs,
+    ``reprojection_error_px`` (P,), ``n_instants``, ``n_points``.
+    """
+    names = list(cameras or rig.cameras)
+    cams = [rig.cameras[n] for n in names]
+    obj = board.object_points_mm()
+    cols = board.inner_corners[0]
+    scales, fit_res, adj_err, d_err, d_true, reproj = [], [], [], [], [], []
+    n_pts = 0
+    for ids, xy in _instant_points(views_by_camera, names).values():
+        xyz, err = triangulate_dlt(cams, xy)
+        ok = np.isfinite(xyz[:, 0])
+        if ok.sum() < 4:
+            continue
+        ids, xyz = ids[ok], xyz[ok]
+        rows_cols = np.column_stack(np.divmod(ids, cols))
+        if np.linalg.matrix_rank(rows_cols - rows_cols.mean(axis=0)) < 2:
+            continue  # collinear corners fix no plane
+        s, res = _similarity_fit(obj[ids], xyz)
+        scales.append(s)
+        fit_res.append(np.linalg.norm(res, axis=1))
+        reproj.append(err[ok])
+        n_pts += len(ids)
+        iu, ju = np.triu_indices(len(ids), 1)
+        meas = np.linalg.norm(xyz[iu] - xyz[ju], axis=1)
+        true = np.linalg.norm(obj[ids[iu]] - obj[ids[ju]], axis=1)
+        d_err.append(meas - true)
+        d_true.append(true)
+        neighbour = np.abs(rows_cols[iu] - rows_cols[ju]).sum(axis=1) == 1
+        adj_err.append(meas[neighbour] - board.square_mm)
+    cat = lambda parts: np.concatenate(parts) if parts else np.zeros(0)
+    return {"scales": np.asarray(scales), "fit_residuals_mm": cat(fit_res),
+            "adjacent_errors_mm": cat(adj_err),
+            "distance_errors_mm": cat(d_err), "true_distances_mm": cat(d_true),
+            "reprojection_error_px": cat(reproj), "n_instants": len(scales), "n_points": n_pts}
+
+
+def _summary(err: np.ndarray, prefix: str) -> dict[str, float]:
+    if err.size == 0:
+        return {}
+    return {f"{prefix}_mean_mm": float(np.mean(err)), f"{prefix}_rms_mm": float(np.sqrt(np.mean(err ** 2))),
+            f"{prefix}_max_mm": float(np.max(np.abs(err)))}
+
+
+def metric_checks(rig: Rig, views_by_camera: Mapping[str, list[BoardView]], board: Board, *,
+                  max_square_error_pct: float = 1.0, max_square_error_mm: float | None = None,
+                  max_distance_rms_mm: float | None = None) -> tuple[dict[str, float], list[str], dict]:
+    """Metric quality of a rig in mm (thesis Table 8.5), overall and per camera pair.
+
+    Returns
+    -------
+    checks : dict of float
+        ``board_square_error_mm``: RMS over instants of the reconstructed square length (from the
+        board's fitted scale, :func:`board_distance_errors`) minus the true one; ``board_square_error_pct``;
+        ``board_scale_error_pct``: mean signed scale error (the systematic part);
+        ``board_fit_rms_mm``: RMS distance of the triangulated corners to the fitted board (point
+        noise); ``adjacent_distance_error_{mean,rms,max}_mm`` (neighbouring corners) and
+        ``corner_distance_error_{mean,rms,max}_mm`` (all corner pairs within an instant);
+        ``corner_distance_error_pct`` (RMS error / RMS true distance); ``triangulation_rms_px``;
+        ``check_instants``; ``check_points``.
+    flags : list of str
+        A sentence per threshold exceeded: square error over ``max_square_error_pct`` percent or over
+        ``max_square_error_mm``; corner-distance RMS over ``max_distance_rms_mm`` (None: not checked,
+        since on a narrow-baseline rig it is dominated by each corner's depth noise, not the
+        calibration).
+    per_pair : dict "a-b" -> dict of the same numbers using only those two cameras.
+    """
+    names = list(rig.cameras)
+    if len(names) < 2:
+        return {}, [], {}
+
+    def numbers(errs):
+        out: dict[str, float] = {}
+        scales = errs["scales"]
+        if scales.size:
+            out["board_square_error_mm"] = float(np.sqrt(np.mean((scales - 1) ** 2)) * board.square_mm)
+            out["board_square_error_pct"] = 100.0 * out["board_square_error_mm"] / board.square_mm
+            out["board_scale_error_pct"] = float(100 * np.mean(scales - 1))
+            out["board_fit_rms_mm"] = float(np.sqrt(np.mean(errs["fit_residuals_mm"] ** 2)))
+        out.update(_summary(errs["adjacent_errors_mm"], "adjacent_distance_error"))
+        d, true = errs["distance_errors_mm"], errs["true_distances_mm"]
+        if d.size:
+            out.update(_summary(d, "corner_distance_error"))
+            out["corner_distance_error_pct"] = float(100 * np.sqrt(np.mean(d ** 2) / np.mean(true ** 2)))
+        if errs["reprojection_error_px"].size:
+            out["triangulation_rms_px"] = float(np.sqrt(np.mean(errs["reprojection_error_px"] ** 2)))
+        out["check_instants"] = float(errs["n_instants"])
+        out["check_points"] = float(errs["n_points"])
+        return out
+
+    checks = numbers(board_distance_errors(rig, views_by_camera, board))
+    per_pair = {f"{a}-{b}": numbers(board_distance_errors(rig, views_by_camera, board, cameras=[a, b]))
+                for a, b in itertools.combinations(names, 2)}
+    flags: list[str] = []
+    if "board_square_error_mm" not in checks:
+        flags.append("no board was seen by two cameras at once: the rig's metric accuracy is unchecked")
+        return checks, flags, per_pair
+    sq_mm, sq_pct = checks["board_square_error_mm"], checks["board_square_error_pct"]
+    if sq_pct > max_square_error_pct or (max_square_error_mm is not None and sq_mm > max_square_error_mm):
+        limit = f"{max_square_error_pct:g} %"
+        if max_square_error_mm is not None:
+            limit += f" / {max_square_error_mm:g} mm"
+        flags.append(f"reconstructed board squares are off by {sq_mm:.2f} mm RMS ({sq_pct:.2f} % of "
+                     f"{board.square_mm:g} mm, over the {limit} limit): recalibrate before trusting "
+                     f"distances")
+    rms = checks.get("corner_distance_error_rms_mm", 0.0)
+    if max_distance_rms_mm is not None and rms > max_distance_rms_mm:
+        flags.append(f"distances between triangulated board corners are off by {rms:.2f} mm RMS, over the "
+                     f"{max_distance_rms_mm:g} mm limit")
+    return checks, flags, per_pair
+
+
+# --------------------------------------------------------------------------------------------------
+# The whole rig
+# --------------------------------------------------------------------------------------------------
+
+
+def _initial_poses(names, pairs, ref) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Chain pair poses from the reference along the pairs with most shared views (spanning tree)."""
+    poses = {ref: (np.eye(3), np.zeros(3))}
+    while len(poses) < len(names):
+        best = None
+        for (a, b), p in pairs.items():
+            for src, dst, R, t in ((a, b, p["R"], p["t_mm"]), (b, a, p["R"].T, -p["R"].T @ p["t_mm"])):
+                if src in poses and dst not in poses and (best is None or p["n_views"] > best[0]):
+                    best = (p["n_views"], src, dst, R, t)
+        if best is None:
+            missing = [n for n in names if n not in poses]
+            raise CalibrationError(f"camera(s) {', '.join(missing)} never see the board together with "
+                                   f"camera {ref} or a camera linked to it: cannot place them in the rig")
+        _, src, dst, R, t = best
+        Rs, ts = poses[src]
+        poses[dst] = (R @ Rs, R @ ts + t)
+    return poses
+
+
+def _fix_flipped_views(cameras, views_by_camera, board, *, max_px=20.0):
+    """Relabel (180-degree) or drop views inconsistent with the board pose the other cameras see.
+
+    Symmetric checkerboards can be labelled from the opposite corner in one camera; this finds such
+    views from the initial rig and tries the rotated labels.
+    """
+    names = list(cameras)
+    obj_all = board.object_points_mm()
+    n = len(obj_all)
+    cols, rows = board.inner_corners
+    symmetric = board.kind == "checkerboard" and (cols + rows) % 2 == 0
+    by_inst: dict[int, dict[str, BoardView]] = {}
+    for cam in names:
+        for v in views_by_camera.get(cam, []):
+            by_inst.setdefault(v.frame, {})[cam] = v
+    out = {cam: [] for cam in names}
+    n_fixed = n_dropped = 0
+    for per_cam in by_inst.values():
+        if len(per_cam) < 2:
+            for cam, v in per_cam.items():
+                out[cam].append(v)
+            continue
+        poses = {}
+        for cam, v in per_cam.items():
+            c = cameras[cam]
+            ok, rvec, tvec = _pose_of_view(c, obj_all[v.ids], v.corners_px)
+            if ok:
+                Rb = c.R.T @ cv2.Rodrigues(rvec)[0]
+                poses[cam] = (Rb, c.R.T @ (tvec - c.t_mm))
+
+        def err_of(cam, v, pose):
+            Rb, tb = pose
+            pts = obj_all[v.ids] @ Rb.T + tb
+            proj = cameras[cam].project(pts)
+            return float(np.sqrt(np.mean(np.sum((proj - v.corners_px) ** 2, axis=1))))
+
+        # the pose most cameras agree with
+        best_pose, best_votes = None, -1
+        for pose in poses.values():
+            votes = sum(err_of(c2, v2, pose) < max_px for c2, v2 in per_cam.items())
+            if votes > best_votes:
+                best_pose, best_votes = pose, votes
+        for cam, v in per_cam.items():
+            if best_pose is None or err_of(cam, v, best_pose) < max_px:
+                out[cam].append(v)
+                continue
+            if symmetric:
+                flipped = BoardView(v.frame, v.corners_px, n - 1 - v.ids)
+                if err_of(cam, flipped, best_pose) < max_px:
+                    out[cam].append(flipped)
+                    n_fixed += 1
+                    continue
+            n_dropped += 1
+    for cam in names:
+        out[cam].sort(key=lambda v: v.frame)
+    return out, n_fixed, n_dropped
+
+
+def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
+                  image_sizes: Mapping[str, tuple[int, int]], *, fix_k3: bool = True, bundle: bool = True,
+                  loss: str = "soft_l1", min_views: int = MIN_VIEWS, min_shared: int = 3,
+                  max_square_error_pct: float = 1.0, max_square_error_mm: float | None = None,
+                  max_distance_rms_mm: float | None = None,
+                  clip: str | None = "calibration") -> tuple[Rig, dict]:
+    """Calibrate one or more cameras into a :class:`Rig` (first camera = reference, identity pose).
+
+    Steps: intrinsics per camera (:func:`calibrate_intrinsics`); stereo pairs for every pair of cameras
+    that see the board together (:func:`stereo_extrinsics`, thesis 3.5); initial poses chained from
+    the reference; joint bundle adjustment (:func:`bundle_adjust`); metric checks in mm
+    (:func:`metric_checks`), whose failures become ``Rig.flags``.
+
+    Parameters
+    ----------
+    views_by_camera : dict name -> list of BoardView
+        Frame keys are synchronised instants (apply the sync offsets before).
+    board : Board
+    image_sizes : dict name -> (width, height)
+
+    Returns
+    -------
+    rig : Rig
+        ``checks`` holds the metric numbers, ``flags`` their failures, ``pairs`` the stereo results
+        {"a-b": {"R", "t_mm", "rms_px", "n_views"}}.
+    report : dict
+        ``intrinsics`` {name: report}, ``bundle`` report (or None), ``per_pair_checks``,
+        ``n_relabelled_views``, ``n_dropped_views``.
+    """
+    names = list(views_by_camera)
+    if not names:
+        raise InputError("no cameras to calibrate")
+    missing = [n for n in names if n not in image_sizes]
+    if missing:
+        raise InputError(f"image size missing for camera(s) {', '.join(missing)}")
+    intrinsics: dict[str, Camera] = {}
+    intr_reports: dict[str, dict] = {}
+    for name in names:
+        intrinsics[name], intr_reports[name] = calibrate_intrinsics(
+            views_by_camera[name], board, image_sizes[name], camera=name, clip=clip, fix_k3=fix_k3,
+            min_views=min_views)
+    # views kept by the intrinsic step (outlier views dropped)
+    views = {n: [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]]
+             for n in names}
+    report: dict = {"intrinsics": intr_reports, "bundle": None, "per_pair_checks": {},
+                    "n_relabelled_views": 0, "n_dropped_views": 0}
+    if len(names) == 1:
+        return Rig({names[0]: intrinsics[names[0]]}), report
+
+    pairs_cv: dict[tuple[str, str], dict] = {}
+    for a, b in itertools.combinations(names, 2):
+        try:
+            pairs_cv[(a, b)] = stereo_extrinsics(views[a], views[b], intrinsics[a], intrinsics[b], board,
+                                                 min_shared=min_shared)
+        except CalibrationError:
+            continue  # the pair may be linked through other cameras
+    init = _initial_poses(names, pairs_cv, names[0])
+    cams = {n: Camera(n, intrinsics[n].K, intrinsics[n].dist, intrinsics[n].image_size, R=init[n][0],
+                      t_mm=init[n][1], rms_px=intrinsics[n].rms_px, K_std=intrinsics[n].K_std,
+                      dist_std=intrinsics[n].dist_std) for n in names}
+    views, n_fixed, n_dropped = _fix_flipped_views(cams, views, board)
+    report["n_relabelled_views"], report["n_dropped_views"] = n_fixed, n_dropped
+    if bundle:
+        cams, report["bundle"] = bundle_adjust(cams, views, board, fix_k3=fix_k3, loss=loss)
+    pairs = {}
+    for (a, b), p in pairs_cv.items():
+        pairs[f"{a}-{b}"] = {"R": p["R"], "t_mm": p["t_mm"], "rms_px": p["rms_px"], "n_views": p["n_views"]}
+    rig = Rig(cams, pairs=pairs)
+    checks, flags, per_pair = metric_checks(rig, views, board, max_square_error_pct=max_square_error_pct,
+                                            max_square_error_mm=max_square_error_mm,
+                                            max_distance_rms_mm=max_distance_rms_mm)
+    for key, p in pairs.items():
+        p.update({f"check_{k}": v for k, v in per_pair.get(key, {}).items()})
+    if report["bundle"] is not None:
+        checks["bundle_rms_px"] = report["bundle"]["rms_px"]
+    report["per_pair_checks"] = per_pair
+    return Rig(cams, checks=checks, flags=tuple(flags), pairs=pairs), report
+
+
+# --------------------------------------------------------------------------------------------------
+# Synthetic views (tests and `saddlescope bench`)
+# --------------------------------------------------------------------------------------------------
+
+
+def simulate_board_views(rig: Rig, board: Board, board_rvecs: np.ndarray, board_t_mm: np.ndarray, *,
+                         noise_px: float, rng: np.random.Generator) -> dict[str, list[BoardView]]:
+    """Project board poses through a rig, with Gaussian pixel noise; keep views fully inside images.
+
+    Parameters
+    ----------
+    board_rvecs, board_t_mm : ndarray of shape (P, 3)
+        Board poses in the rig (reference camera) frame: ``x = R(rvec) @ X_board + t``.
+
+    Returns
+    -------
+    dict name -> list of BoardView, frame = pose index
+    """
+    obj = board.object_points_mm()
+    out: dict[str, list[BoardView]] = {n: [] for n in rig.cameras}
+    ids = np.arange(len(obj))
+    for k, (rv, t) in enumerate(zip(np.asarray(board_rvecs), np.asarray(board_t_mm), strict=True)):
+        pts = obj @ cv2.Rodrigues(rv)[0].T + t
+        for name, cam in rig.cameras.items():
+            depth = (pts @ cam.R.T + cam.t_mm)[:, 2]
+            if np.any(depth <= 0):
+                continue
+            xy = cam.project(pts) + rng.normal(0.0, noise_px, (len(obj), 2))
+            w, h = cam.image_size
+            if np.all((xy[:, 0] >= 1) & (xy[:, 0] <= w - 2) & (xy[:, 1] >= 1) & (xy[:, 1] <= h - 2)):
+                out[name].append(BoardView(k, xy, ids))
+    return out
+
+
+def thesis_like_views(n_poses: int = 90, *, rng: np.random.Generator, noise_px: float = 0.1,
+                      board: Board | None = None) -> tuple[Rig, Board, dict[str, list[BoardView]],
+                                                           dict[str, tuple[int, int]]]:
+    """A thesis-like rig (3 cameras, 640x480, f ~ 730 px, 0.23 m apart, scene 7.5 m away) and views.
+
+    The board (default 15 x 8 inner corners of 100 mm, as large as the thesis's 800 x 1500 mm board)
+    slides across the scene in six stations and tilts (thesis 8.2: six slides, 15 images each).
+
+    Returns
+    -------
+    rig (truth), board, views_by_camera, image_sizes
+    """
+    board = board or make_board("checkerboard", (15, 8), 100.0)
+    size = (640, 480)
+    names = ("left", "middle", "right")
+    cams = {}
+    for i, name in enumerate(names):
+        f = 730.0 + rng.normal(0, 5)
+        K = np.array([[f, 0, 320 + rng.normal(0, 5)], [0, f * (1 + rng.normal(0, 0.002)),
+                                                      240 + rng.normal(0, 5)], [0, 0, 1]])
+        dist = np.array([-0.13 + rng.normal(0, 0.005), 0.03 + rng.normal(0, 0.01),
+                         rng.normal(0, 0.001), rng.normal(0, 0.001), 0.0])
+        # cameras on a line 230 mm apart, turned slightly inwards
+        yaw = np.radians(-1.5 * (i - 1))
+        R = cv2.Rodrigues(np.array([rng.normal(0, 0.005), yaw, rng.normal(0, 0.005)]))[0]
+        centre = np.array([230.0 * i, rng.normal(0, 3), rng.normal(0, 10)])
+        cams[name] = Camera(name, K, dist, size, R=R, t_mm=-R @ centre)
+    # express relative to the left camera
+    R0, t0 = cams["left"].R, cams["left"].t_mm
+    rel = {n: Camera(n, c.K, c.dist, size, R=c.R @ R0.T, t_mm=c.t_mm - c.R @ R0.T @ t0)
+           for n, c in cams.items()}
+    rig = Rig(rel)
+    cols, rows = board.inner_corners
+    half = np.array([(cols - 1) * board.square_mm / 2, (rows - 1) * board.square_mm / 2, 0.0])
+    rvecs, ts = [], []
+    stations = np.linspace(-2000, 2000, 6) + 230
+    for k in range(n_poses):
+        x = stations[k % 6] + rng.uniform(-250, 250)
+        centre = np.array([x, rng.uniform(-300, 300), rng.uniform(6800, 8200)])
+        tilt = np.radians([rng.uniform(-35, 35), rng.uniform(-35, 35), rng.uniform(-15, 15)])
+        R = cv2.Rodrigues(tilt)[0]
+        rvecs.append(tilt)
+        ts.append(centre - R @ half)
+    views = simulate_board_views(rig, board, np.array(rvecs), np.array(ts), noise_px=noise_px, rng=rng)
+    return rig, board, views, {n: size for n in names}
