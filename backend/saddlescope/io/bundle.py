@@ -1,0 +1,410 @@
+"""Ride bundles (CONTRACTS section 1): open a folder or a .zip, validate ``ride.json``, find the clips.
+
+``open_bundle(path)`` returns a :class:`RideBundle` whose clip paths all exist. A zip is extracted into a
+temporary folder first, refusing members that would escape it (absolute paths, ``..``, symlinks),
+archives with too many members, and archives that unpack to more than a size limit or at a
+suspicious compression ratio (zip bombs). Every refusal is a :class:`BundleError` naming the file and
+the field or member at fault.
+
+``write_bundle_zip(bundle_dir, zip_path)`` writes the zip a ride export or an upload uses.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import stat
+import tempfile
+import zipfile
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+import cv2
+
+from saddlescope.core.errors import BundleError
+from saddlescope.core.types import CLIP_KINDS, Board
+from saddlescope.io.result_schema import validate_ride_meta
+
+__all__ = ["RideBundle", "open_bundle", "write_bundle_zip", "MAX_FILES", "MAX_BYTES", "MAX_RATIO"]
+
+RIDE_JSON = "ride.json"
+TRUTH_JSON = "truth.json"
+MAX_FILES = 50_000  # 12 clips of numbered images at 30 fps: over 2 minutes each
+MAX_BYTES = 8 * 1024**3
+MAX_RATIO = 200.0  # video and images barely compress; zeros compress ~1000:1
+_RATIO_MIN_BYTES = 1024**2  # tiny members (ride.json) may compress well without being bombs
+_MAX_JSON_BYTES = 16 * 1024**2
+_CHUNK = 1024**2
+_IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm"})
+_STORED_SUFFIXES = _IMAGE_SUFFIXES | {".mp4", ".mov", ".m4v", ".avi", ".mkv", ".webm", ".zip"}
+_DRIVE = re.compile(r"^[A-Za-z]:")
+
+
+@dataclass(frozen=True, eq=False)
+class RideBundle:
+    """A validated ride bundle.
+
+    Attributes
+    ----------
+    root : Path
+        Folder holding ``ride.json`` (a temporary folder for a zip; see :meth:`close`).
+    meta : dict
+        The parsed ``ride.json``.
+    board : Board
+        The calibration board.
+    clip_paths : dict of str to dict of str to Path
+        ``clip_paths[kind][camera]``, kind in calibration/plumb/static/motion (those present), each an
+        existing video file or folder of numbered images.
+    truth : dict or None
+        The parsed ``truth.json`` of a synthetic ride (result format), else None.
+    extra_clip_paths : dict of str to dict of str to Path
+        ``extra_clips`` of ``ride.json``: name -> camera -> path.
+    calibration_file : Path or None
+        A rig TOML/JSON to use instead of the calibration clips.
+    warnings : tuple of str
+        Things that are allowed but worth telling the user (no plumb clips).
+    source : Path or None
+        The folder or zip that was opened.
+    """
+
+    root: Path
+    meta: dict
+    board: Board
+    clip_paths: dict[str, dict[str, Path]]
+    truth: dict | None = None
+    extra_clip_paths: dict[str, dict[str, Path]] = field(default_factory=dict)
+    calibration_file: Path | None = None
+    warnings: tuple[str, ...] = ()
+    source: Path | None = None
+    temp_dir: Path | None = field(default=None, repr=False)
+
+    @property
+    def gait(self) -> str:
+        return self.meta["gait"]
+
+    @property
+    def direction(self) -> str:
+        return self.meta["direction"]
+
+    @property
+    def sync_method(self) -> str:
+        return self.meta["sync"]["method"]
+
+    def sync_offsets(self, kind: str) -> dict[str, float] | None:
+        """Known frame offsets of a clip set (``sync.method == "offsets"``), else None."""
+        if self.sync_method != "offsets":
+            return None
+        offsets = self.meta["sync"]["offsets"].get(kind)
+        return {role: float(v) for role, v in offsets.items()} if offsets is not None else None
+
+    def has_clips(self, kind: str) -> bool:
+        return kind in self.clip_paths or kind in self.extra_clip_paths
+
+    def clip(self, kind: str, camera: str) -> Path:
+        """Path of one clip (video file or image folder).
+
+        Raises
+        ------
+        BundleError
+            The bundle has no such clip set or camera.
+        """
+        per_camera = self.clip_paths.get(kind, self.extra_clip_paths.get(kind))
+        if per_camera is None:
+            known = ", ".join([*self.clip_paths, *self.extra_clip_paths])
+            raise BundleError(f"ride bundle {self.root.name}: no {kind} clips (it has {known})")
+        if camera not in per_camera:
+            raise BundleError(f"ride bundle {self.root.name}: the {kind} clips have no {camera!r} camera "
+                              f"(they have {', '.join(per_camera)})")
+        return per_camera[camera]
+
+    def close(self) -> None:
+        """Remove the temporary folder a zip was extracted to (a folder bundle is left alone)."""
+        if self.temp_dir is not None:
+            shutil.rmtree(self.temp_dir, ignore_errors=True)
+
+    def __enter__(self) -> RideBundle:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_bundle(path: str | Path, *, extract_to: str | Path | None = None, max_files: int = MAX_FILES,
+                max_bytes: int = MAX_BYTES, max_ratio: float = MAX_RATIO) -> RideBundle:
+    """Open and validate a ride bundle: a folder, a .zip of it, or the folder's ``ride.json``.
+
+    Parameters
+    ----------
+    path : path-like
+        Bundle folder, zip archive, or ``ride.json`` file.
+    extract_to : path-like, optional
+        Empty or new folder to extract a zip into; by default a temporary folder that
+        :meth:`RideBundle.close` removes.
+    max_files, max_bytes, max_ratio
+        Limits for a zip: member count, total uncompressed bytes, uncompressed/compressed ratio of a
+        member over 1 MiB.
+
+    Raises
+    ------
+    BundleError
+        Unsafe or corrupt zip, missing or invalid ``ride.json`` (naming the field), unknown camera
+        role, gait or format, a referenced clip or file that does not exist.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise BundleError(f"{path}: no such ride bundle (folder or .zip)")
+    if path.is_dir():
+        return _open_folder(_find_root(path), source=path)
+    if path.name == RIDE_JSON:
+        return _open_folder(path.parent, source=path)
+    if not zipfile.is_zipfile(path):
+        raise BundleError(f"{path.name}: a ride bundle must be a folder or a .zip archive")
+    if extract_to is None:
+        dest = Path(tempfile.mkdtemp(prefix="saddlescope-ride-"))
+        temp_dir: Path | None = dest
+    else:
+        dest = Path(extract_to)
+        if dest.exists() and any(dest.iterdir()):
+            raise BundleError(f"{dest}: the folder to extract {path.name} into is not empty")
+        dest.mkdir(parents=True, exist_ok=True)
+        temp_dir = None
+    try:
+        _extract_zip(path, dest, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio)
+        return _open_folder(_find_root(dest, label=path.name), source=path, temp_dir=temp_dir)
+    except BaseException:
+        if temp_dir is not None:
+            shutil.rmtree(temp_dir, ignore_errors=True)
+        raise
+
+
+def _find_root(folder: Path, *, label: str | None = None) -> Path:
+    """The folder itself, or its single subfolder, whichever holds ride.json (zips often nest one)."""
+    if (folder / RIDE_JSON).is_file():
+        return folder
+    subdirs = [p for p in folder.iterdir() if p.is_dir() and not p.name.startswith(("__MACOSX", "."))]
+    if len(subdirs) == 1 and (subdirs[0] / RIDE_JSON).is_file():
+        return subdirs[0]
+    raise BundleError(f"{label or folder}: no {RIDE_JSON} (is this a ride bundle?)")
+
+
+# -------------------------------------------------------------------------------------------- zip
+
+
+def _member_parts(info: zipfile.ZipInfo, zip_name: str) -> tuple[str, ...]:
+    name = info.filename.replace("\\", "/")
+    if name.startswith("/") or _DRIVE.match(name):
+        raise BundleError(f"{zip_name}: member {info.filename!r} has an absolute path")
+    parts = tuple(p for p in PurePosixPath(name).parts if p not in ("", "."))
+    if ".." in parts:
+        raise BundleError(f"{zip_name}: member {info.filename!r} has a '..' component (it would be "
+                          "written outside the bundle)")
+    return parts
+
+
+def _check_zip(zf: zipfile.ZipFile, zip_name: str, *, max_files: int, max_bytes: int,
+               max_ratio: float) -> list[tuple[zipfile.ZipInfo, tuple[str, ...]]]:
+    """Vet every member before anything is written."""
+    infos = zf.infolist()
+    if len(infos) > max_files:
+        raise BundleError(f"{zip_name}: {len(infos)} members, more than the limit of {max_files}")
+    members = []
+    seen: set[str] = set()
+    total = 0
+    for info in infos:
+        parts = _member_parts(info, zip_name)
+        if not parts:
+            continue
+        mode = info.external_attr >> 16
+        if stat.S_ISLNK(mode):
+            raise BundleError(f"{zip_name}: member {info.filename!r} is a symbolic link (not allowed)")
+        # Unix type bits, where set (Python's writestr leaves them 0), must say file or folder.
+        if info.create_system == 3 and stat.S_IFMT(mode) not in (0, stat.S_IFREG, stat.S_IFDIR):
+            raise BundleError(f"{zip_name}: member {info.filename!r} is not a regular file or folder")
+        if info.flag_bits & 0x1:
+            raise BundleError(f"{zip_name}: member {info.filename!r} is encrypted")
+        key = "/".join(parts).lower()  # case-insensitive file systems would merge these
+        if key in seen:
+            raise BundleError(f"{zip_name}: member {info.filename!r} appears twice")
+        seen.add(key)
+        total += info.file_size
+        if total > max_bytes:
+            raise BundleError(f"{zip_name}: unpacks to more than the limit of {max_bytes / 1e6:.0f} MB "
+                              f"(member {info.filename!r} alone is {info.file_size / 1e6:.0f} MB)")
+        if info.file_size > _RATIO_MIN_BYTES and info.file_size > max_ratio * max(info.compress_size, 1):
+            raise BundleError(f"{zip_name}: member {info.filename!r} compresses "
+                              f"{info.file_size / max(info.compress_size, 1):.0f}:1, over the limit of "
+                              f"{max_ratio:.0f}:1 (a zip bomb?)")
+        members.append((info, parts))
+    return members
+
+
+def _extract_zip(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, max_ratio: float) -> None:
+    name = zip_path.name
+    try:
+        with zipfile.ZipFile(zip_path) as zf:
+            members = _check_zip(zf, name, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio)
+            written_total = 0
+            for info, parts in members:
+                target = dest.joinpath(*parts)
+                if info.is_dir():
+                    target.mkdir(parents=True, exist_ok=True)
+                    continue
+                target.parent.mkdir(parents=True, exist_ok=True)
+                written = 0
+                with zf.open(info) as src, open(target, "wb") as out:
+                    while chunk := src.read(_CHUNK):
+                        written += len(chunk)
+                        written_total += len(chunk)
+                        # Headers can lie about sizes: count what really comes out.
+                        if written > info.file_size or written_total > max_bytes:
+                            raise BundleError(f"{name}: member {info.filename!r} unpacks to more than its "
+                                              "header says (a zip bomb?)")
+                        out.write(chunk)
+    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as exc:
+        raise BundleError(f"{name}: corrupt or unsupported zip archive ({exc})") from exc
+    except OSError as exc:
+        raise BundleError(f"{name}: cannot be extracted ({exc.strerror or exc})") from exc
+
+
+# ----------------------------------------------------------------------------------------- folder
+
+
+def _read_json(path: Path, label: str) -> Any:
+    if path.stat().st_size > _MAX_JSON_BYTES:
+        raise BundleError(f"{label}: {path.stat().st_size / 1e6:.0f} MB is too large for a JSON side file")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise BundleError(f"{label}: not UTF-8 text ({exc.reason})") from exc
+    except json.JSONDecodeError as exc:
+        raise BundleError(f"{label}: not valid JSON ({exc.msg} at line {exc.lineno}, "
+                          f"column {exc.colno})") from exc
+
+
+def _inside(root: Path, rel: str, where: str) -> Path:
+    """A path named in ride.json, checked to exist inside the bundle."""
+    parts = PurePosixPath(rel.replace("\\", "/")).parts
+    if rel.startswith(("/", "\\")) or _DRIVE.match(rel) or ".." in parts:
+        raise BundleError(f"{RIDE_JSON}: {where} {rel!r} must be a relative path inside the bundle")
+    target = root.joinpath(*parts)
+    if not target.exists():
+        raise BundleError(f"{RIDE_JSON}: {where} {rel!r} does not exist in the bundle")
+    # A symlink may not lead out of the bundle.
+    if not target.resolve().is_relative_to(root.resolve()):
+        raise BundleError(f"{RIDE_JSON}: {where} {rel!r} points outside the bundle")
+    return target
+
+
+def _clip_path(root: Path, rel: str, where: str) -> Path:
+    target = _inside(root, rel, where)
+    if target.is_dir():
+        images = [p for p in target.iterdir()
+                  if p.suffix.lower() in _IMAGE_SUFFIXES and any(c.isdigit() for c in p.stem)]
+        if not images:
+            raise BundleError(f"{RIDE_JSON}: {where} {rel!r} is a folder without numbered images "
+                              f"({', '.join(sorted(_IMAGE_SUFFIXES))})")
+    elif target.stat().st_size == 0:
+        raise BundleError(f"{RIDE_JSON}: {where} {rel!r} is an empty file")
+    return target
+
+
+def _board(meta: dict) -> Board:
+    b = meta["board"]
+    dictionary = b.get("dictionary")
+    if dictionary is not None and not isinstance(getattr(cv2.aruco, dictionary, None), int):
+        raise BundleError(f"{RIDE_JSON}: board.dictionary {dictionary!r} is not an OpenCV ArUco dictionary "
+                          "(e.g. DICT_4X4_50)")
+    marker = b.get("marker_mm")
+    return Board(kind=b["kind"], inner_corners=(int(b["inner_corners"][0]), int(b["inner_corners"][1])),
+                 square_mm=float(b["square_mm"]), dictionary=dictionary,
+                 marker_mm=float(marker) if marker is not None else None, legacy=bool(b.get("legacy", False)))
+
+
+def _open_folder(root: Path, *, source: Path, temp_dir: Path | None = None) -> RideBundle:
+    ride_json = root / RIDE_JSON
+    if not ride_json.is_file():
+        raise BundleError(f"{root}: no {RIDE_JSON} (is this a ride bundle?)")
+    meta = _read_json(ride_json, RIDE_JSON)
+    validate_ride_meta(meta, source=RIDE_JSON)
+
+    clip_paths = {kind: {role: _clip_path(root, rel, f"clips.{kind}.{role}")
+                         for role, rel in meta["clips"][kind].items()}
+                  for kind in CLIP_KINDS if kind in meta["clips"]}
+    extra = {name: {role: _clip_path(root, rel, f"extra_clips.{name}.{role}") for role, rel in cams.items()}
+             for name, cams in (meta.get("extra_clips") or {}).items()}
+    clash = set(extra) & set(CLIP_KINDS)
+    if clash:
+        raise BundleError(f"{RIDE_JSON}: extra_clips may not reuse the clip kind {sorted(clash)[0]!r}")
+
+    calibration_file = None
+    if meta.get("calibration_file"):
+        calibration_file = _inside(root, meta["calibration_file"], "calibration_file")
+        if calibration_file.suffix.lower() not in (".toml", ".json") or not calibration_file.is_file():
+            raise BundleError(f"{RIDE_JSON}: calibration_file {meta['calibration_file']!r} must be a "
+                              ".toml or .json rig file")
+
+    warnings = []
+    if "plumb" not in clip_paths:
+        warnings.append("no plumb clips: the vertical (gravity) cannot be measured from a plumb line")
+
+    truth = None
+    if (root / TRUTH_JSON).is_file():
+        truth = _read_json(root / TRUTH_JSON, TRUTH_JSON)
+        if not isinstance(truth, dict):
+            raise BundleError(f"{TRUTH_JSON}: must hold a JSON object (a result document)")
+
+    return RideBundle(root=root, meta=meta, board=_board(meta), clip_paths=clip_paths, truth=truth,
+                      extra_clip_paths=extra, calibration_file=calibration_file, warnings=tuple(warnings),
+                      source=source, temp_dir=temp_dir)
+
+
+# ----------------------------------------------------------------------------------------- writer
+
+
+def write_bundle_zip(bundle_dir: str | Path, zip_path: str | Path, *, validate: bool = True) -> Path:
+    """Zip a ride bundle folder (paths relative to it; media stored, text deflated).
+
+    Parameters
+    ----------
+    bundle_dir : path-like
+        Folder with ``ride.json`` at its top.
+    zip_path : path-like
+        Output archive; written to a temporary name first, then renamed.
+    validate : bool
+        Open the bundle first, so a broken bundle is never exported.
+
+    Raises
+    ------
+    BundleError
+        No ride.json, an invalid bundle (with ``validate``), or a symlink leading out of the folder.
+    """
+    bundle_dir = Path(bundle_dir)
+    zip_path = Path(zip_path)
+    if not (bundle_dir / RIDE_JSON).is_file():
+        raise BundleError(f"{bundle_dir}: no {RIDE_JSON} (is this a ride bundle?)")
+    if validate:
+        open_bundle(bundle_dir)
+    root = bundle_dir.resolve()
+    files = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames.sort()
+        for fname in sorted(filenames):
+            full = Path(dirpath) / fname
+            if full.resolve() == zip_path.resolve():
+                continue
+            if not full.resolve().is_relative_to(root):
+                raise BundleError(f"{bundle_dir}: {full.relative_to(root)} is a link to outside the bundle")
+            files.append(full)
+    zip_path.parent.mkdir(parents=True, exist_ok=True)
+    partial = zip_path.with_name(zip_path.name + ".part")
+    with zipfile.ZipFile(partial, "w", allowZip64=True) as zf:
+        for full in files:
+            arcname = full.relative_to(root).as_posix()
+            method = zipfile.ZIP_STORED if full.suffix.lower() in _STORED_SUFFIXES else zipfile.ZIP_DEFLATED
+            zf.write(full, arcname, compress_type=method)
+    os.replace(partial, zip_path)
+    return zip_path

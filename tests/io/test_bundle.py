@@ -1,0 +1,344 @@
+"""Ride bundles: folders and zips, ride.json validation, unsafe archives."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from saddlescope.core.errors import BundleError
+from saddlescope.io import bundle as bundle_mod
+from saddlescope.io.bundle import open_bundle, write_bundle_zip
+
+ROLES = ("left", "middle", "right")
+KINDS = ("calibration", "plumb", "static", "motion")
+
+
+def _meta(kinds=KINDS):
+    return {
+        "format": "saddlescope.ride/1",
+        "cameras": list(ROLES),
+        "board": {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0},
+        "sync": {"method": "flash"},
+        "markers": {"horse": 3, "plumb": 2, "saddle": 1},
+        "horse": {"name": "Horse 2", "breed": "Dutch", "birth_year": 1999, "height_m": 1.73},
+        "rider": {"name": "Rider B"},
+        "gait": "canter",
+        "direction": "CCW",
+        "clips": {kind: {r: f"{kind}/{r}.mp4" for r in ROLES} for kind in kinds},
+    }
+
+
+def make_bundle(root: Path, meta: dict | None = None, *, truth: dict | None = None) -> Path:
+    """A bundle folder whose clips are tiny stand-in files (nothing here decodes them)."""
+    meta = _meta() if meta is None else meta
+    root.mkdir(parents=True, exist_ok=True)
+    for per_camera in meta["clips"].values():
+        for rel in per_camera.values():
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            (root / rel).write_bytes(b"\x00\x00\x00\x18ftypisom stand-in clip")
+    (root / "ride.json").write_text(json.dumps(meta, indent=2))
+    if truth is not None:
+        (root / "truth.json").write_text(json.dumps(truth))
+    return root
+
+
+def _zip_with(path: Path, members: dict[str, bytes], infos: list[zipfile.ZipInfo] = ()) -> Path:
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+        for info in infos:
+            zf.writestr(info, b"x")
+    return path
+
+
+def _bundle_members(meta=None) -> dict[str, bytes]:
+    meta = _meta() if meta is None else meta
+    members = {"ride.json": json.dumps(meta).encode()}
+    for per_camera in meta["clips"].values():
+        for rel in per_camera.values():
+            members[rel] = b"stand-in clip"
+    return members
+
+
+# ------------------------------------------------------------------------------------- good bundles
+
+
+def test_folder_bundle(tmp_path):
+    root = make_bundle(tmp_path / "ride", truth={"format": "saddlescope.result/1"})
+    b = open_bundle(root)
+    assert b.root == root and b.source == root
+    assert b.gait == "canter" and b.direction == "CCW" and b.sync_method == "flash"
+    assert b.board.kind == "checkerboard" and b.board.inner_corners == (9, 6) and b.board.square_mm == 50.0
+    assert set(b.clip_paths) == set(KINDS)
+    assert b.clip("motion", "middle") == root / "motion" / "middle.mp4"
+    assert b.truth == {"format": "saddlescope.result/1"}
+    assert b.warnings == () and b.sync_offsets("motion") is None
+    # The ride.json path opens the same bundle.
+    assert open_bundle(root / "ride.json").clip_paths == b.clip_paths
+    b.close()
+    assert root.exists()  # a folder bundle is never deleted
+
+
+def test_zip_round_trip_and_cleanup(tmp_path):
+    root = make_bundle(tmp_path / "ride")
+    (root / "motion" / "left.mp4").write_bytes(os.urandom(4096))
+    zip_path = write_bundle_zip(root, tmp_path / "out" / "ride.zip")
+    with zipfile.ZipFile(zip_path) as zf:
+        names = zf.namelist()
+        assert "ride.json" in names and "motion/left.mp4" in names
+        assert zf.getinfo("motion/left.mp4").compress_type == zipfile.ZIP_STORED
+    with open_bundle(zip_path) as b:
+        assert b.source == zip_path and b.temp_dir is not None
+        assert b.meta == json.loads((root / "ride.json").read_text())
+        assert b.clip("motion", "left").read_bytes() == (root / "motion" / "left.mp4").read_bytes()
+        temp = b.temp_dir
+    assert not temp.exists()
+
+
+def test_zip_with_one_top_folder_and_extract_to(tmp_path):
+    members = {f"myride/{k}": v for k, v in _bundle_members().items()}
+    zip_path = _zip_with(tmp_path / "ride.zip", members)
+    b = open_bundle(zip_path, extract_to=tmp_path / "x")
+    assert b.root == tmp_path / "x" / "myride" and b.temp_dir is None
+    assert b.clip("static", "right").is_file()
+
+
+def test_image_folder_clip_extra_clips_and_offsets(tmp_path):
+    meta = _meta()
+    meta["clips"]["calibration"] = {r: f"calibration/{r}" for r in ROLES}
+    meta["extra_clips"] = {"warmup": {"left": "warmup/left.mp4"}}
+    meta["sync"] = {"method": "offsets",
+                    "offsets": {k: {"left": 0, "middle": 53, "right": 126.5} for k in KINDS}}
+    root = tmp_path / "ride"
+    root.mkdir()
+    for r in ROLES:
+        (root / "calibration" / r).mkdir(parents=True)
+        (root / "calibration" / r / "0001.png").write_bytes(b"png")
+    (root / "warmup").mkdir()
+    (root / "warmup" / "left.mp4").write_bytes(b"clip")
+    meta_files = {k: v for k, v in meta["clips"].items() if k != "calibration"}
+    make_bundle(root, {**meta, "clips": meta_files})  # writes the video stand-ins
+    (root / "ride.json").write_text(json.dumps(meta))
+    b = open_bundle(root)
+    assert b.clip("calibration", "left").is_dir()
+    assert b.clip("warmup", "left") == root / "warmup" / "left.mp4"
+    assert b.sync_offsets("motion") == {"left": 0.0, "middle": 53.0, "right": 126.5}
+    with pytest.raises(BundleError, match="the warmup clips have no 'right' camera"):
+        b.clip("warmup", "right")
+
+
+def test_plumb_optional_with_warning_and_calibration_file(tmp_path):
+    meta = _meta(kinds=("static", "motion"))
+    meta["calibration_file"] = "rig.toml"
+    root = make_bundle(tmp_path / "ride", meta)
+    with pytest.raises(BundleError, match="calibration_file 'rig.toml' does not exist"):
+        open_bundle(root)
+    (root / "rig.toml").write_text("[cam_0]\n")
+    b = open_bundle(root)
+    assert b.calibration_file == root / "rig.toml"
+    assert any("plumb" in w for w in b.warnings)
+    with pytest.raises(BundleError, match="no plumb clips"):
+        b.clip("plumb", "left")
+
+
+def test_charuco_board(tmp_path):
+    meta = _meta()
+    meta["board"] = {"kind": "charuco", "inner_corners": [4, 3], "square_mm": 54.0,
+                     "dictionary": "DICT_4X4_1000", "marker_mm": 40.5}
+    b = open_bundle(make_bundle(tmp_path / "ride", meta))
+    assert (b.board.dictionary, b.board.marker_mm) == ("DICT_4X4_1000", 40.5)
+    meta["board"]["dictionary"] = "DICT_9X9_7"
+    make_bundle(tmp_path / "ride", meta)
+    with pytest.raises(BundleError, match="'DICT_9X9_7' is not an OpenCV ArUco dictionary"):
+        open_bundle(tmp_path / "ride")
+
+
+# -------------------------------------------------------------------------------------- bad ride.json
+
+
+def test_unknown_gait_message(tmp_path):
+    meta = _meta()
+    meta["gait"] = "gallop"
+    with pytest.raises(BundleError) as info:
+        open_bundle(make_bundle(tmp_path / "ride", meta))
+    assert str(info.value) == "ride.json: gait 'gallop' is not one of walk, sitting_trot, rising_trot, canter"
+
+
+def test_unknown_camera_role(tmp_path):
+    meta = _meta()
+    meta["clips"]["motion"]["centre"] = meta["clips"]["motion"].pop("middle")
+    expected = r"clips.motion has unknown 'centre' \(expected left, middle, right\)"
+    with pytest.raises(BundleError, match=expected):
+        open_bundle(make_bundle(tmp_path / "ride", meta))
+    meta = _meta()
+    meta["cameras"] = ["left", "middle", "top"]
+    with pytest.raises(BundleError, match=r"cameras\[2\] 'top' is not one of left, middle, right"):
+        open_bundle(make_bundle(tmp_path / "ride2", meta))
+
+
+def test_missing_clip_file(tmp_path):
+    root = make_bundle(tmp_path / "ride")
+    (root / "motion" / "right.mp4").unlink()
+    expected = "clips.motion.right 'motion/right.mp4' does not exist in the bundle"
+    with pytest.raises(BundleError, match=expected):
+        open_bundle(root)
+
+
+def test_empty_clip_and_empty_image_folder(tmp_path):
+    root = make_bundle(tmp_path / "ride")
+    (root / "static" / "left.mp4").write_bytes(b"")
+    with pytest.raises(BundleError, match="clips.static.left 'static/left.mp4' is an empty file"):
+        open_bundle(root)
+    meta = _meta()
+    meta["clips"]["static"]["left"] = "static/left"
+    (root / "ride.json").write_text(json.dumps(meta))
+    (root / "static" / "left").mkdir()
+    (root / "static" / "left" / "notes.txt").write_text("no images")
+    with pytest.raises(BundleError, match="a folder without numbered images"):
+        open_bundle(root)
+
+
+@pytest.mark.parametrize("rel", ["../outside.mp4", "/etc/hostname", "C:/clips/left.mp4"])
+def test_clip_paths_must_stay_inside(tmp_path, rel):
+    (tmp_path / "outside.mp4").write_bytes(b"clip")
+    meta = _meta()
+    meta["clips"]["motion"]["left"] = rel
+    root = make_bundle(tmp_path / "ride", {**meta, "clips": {k: v for k, v in meta["clips"].items()
+                                                            if k != "motion"}})
+    (root / "ride.json").write_text(json.dumps(meta))
+    for r in ("middle", "right"):
+        (root / "motion").mkdir(exist_ok=True)
+        (root / "motion" / f"{r}.mp4").write_bytes(b"clip")
+    with pytest.raises(BundleError, match="must be a relative path inside the bundle"):
+        open_bundle(root)
+
+
+def test_symlinked_clip_leading_outside(tmp_path):
+    root = make_bundle(tmp_path / "ride")
+    secret = tmp_path / "secret.mp4"
+    secret.write_bytes(b"secret")
+    (root / "motion" / "left.mp4").unlink()
+    (root / "motion" / "left.mp4").symlink_to(secret)
+    with pytest.raises(BundleError, match="points outside the bundle"):
+        open_bundle(root)
+
+
+def test_missing_or_broken_ride_json(tmp_path):
+    with pytest.raises(BundleError, match="no such ride bundle"):
+        open_bundle(tmp_path / "nothing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(BundleError, match="no ride.json"):
+        open_bundle(tmp_path / "empty")
+    root = make_bundle(tmp_path / "ride")
+    (root / "ride.json").write_text('{"format": "saddlescope.ride/1",\n "gait": }')
+    with pytest.raises(BundleError, match="ride.json: not valid JSON .* line 2"):
+        open_bundle(root)
+    (root / "ride.json").write_text("[]")
+    with pytest.raises(BundleError, match="ride.json: must be object"):
+        open_bundle(root)
+
+
+def test_not_a_zip(tmp_path):
+    odd = tmp_path / "ride.zip"
+    odd.write_bytes(b"this is not an archive")
+    with pytest.raises(BundleError, match="must be a folder or a .zip"):
+        open_bundle(odd)
+    good = _zip_with(tmp_path / "good.zip", _bundle_members())
+    raw = good.read_bytes()
+    # Damage a member's data but keep the central directory: the CRC check must catch it.
+    start = raw.index(b"stand-in clip")
+    broken = tmp_path / "broken.zip"
+    broken.write_bytes(raw[:start] + b"STAND-IN CLIP" + raw[start + 13:])
+    with pytest.raises(BundleError, match="broken.zip: corrupt"):
+        open_bundle(broken)
+
+
+# ----------------------------------------------------------------------------------- unsafe archives
+
+
+def test_zip_slip_is_refused_and_nothing_escapes(tmp_path):
+    members = _bundle_members()
+    members["../evil.txt"] = b"pwned"
+    (tmp_path / "sub").mkdir()
+    zip_path = _zip_with(tmp_path / "sub" / "ride.zip", members)
+    dest = tmp_path / "sub" / "x"
+    with pytest.raises(BundleError, match=r"member '../evil.txt' has a '..' component"):
+        open_bundle(zip_path, extract_to=dest)
+    assert not (tmp_path / "sub" / "evil.txt").exists() and not (tmp_path / "evil.txt").exists()
+    assert not any(dest.rglob("*"))  # refused before anything was written
+
+
+def test_absolute_member_and_symlink_member(tmp_path):
+    absolute = zipfile.ZipInfo("/etc/cron.d/evil")
+    with pytest.raises(BundleError, match="has an absolute path"):
+        open_bundle(_zip_with(tmp_path / "a.zip", _bundle_members(), [absolute]))
+    link = zipfile.ZipInfo("motion/link.mp4")
+    link.create_system = 3
+    link.external_attr = (stat.S_IFLNK | 0o777) << 16
+    with pytest.raises(BundleError, match="'motion/link.mp4' is a symbolic link"):
+        open_bundle(_zip_with(tmp_path / "b.zip", _bundle_members(), [link]))
+
+
+def test_too_many_members(tmp_path):
+    zip_path = _zip_with(tmp_path / "ride.zip", _bundle_members())
+    with pytest.raises(BundleError, match="13 members, more than the limit of 5"):
+        open_bundle(zip_path, max_files=5)
+
+
+def _zeros_member(zip_path: Path, n_mib: int, members: dict[str, bytes]) -> Path:
+    with zipfile.ZipFile(zip_path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+        with zf.open("motion/huge.mp4", "w", force_zip64=True) as out:
+            block = bytes(1024**2)
+            for _ in range(n_mib):
+                out.write(block)
+    return zip_path
+
+
+def test_zip_bomb_over_the_size_limit(tmp_path):
+    zip_path = _zeros_member(tmp_path / "bomb.zip", 200, _bundle_members())
+    assert zip_path.stat().st_size < 1024**2  # 200 MiB of zeros, small on disk
+    before = set(Path(bundle_mod.tempfile.gettempdir()).glob("saddlescope-ride-*"))
+    with pytest.raises(BundleError, match="unpacks to more than the limit of 100 MB"):
+        open_bundle(zip_path, max_bytes=100 * 10**6)
+    after = set(Path(bundle_mod.tempfile.gettempdir()).glob("saddlescope-ride-*"))
+    assert after <= before  # the temporary folder was removed
+
+
+def test_zip_bomb_by_compression_ratio(tmp_path):
+    zip_path = _zeros_member(tmp_path / "bomb.zip", 8, _bundle_members())
+    with pytest.raises(BundleError, match=r"'motion/huge.mp4' compresses \d+:1, over the limit of 200:1"):
+        open_bundle(zip_path)
+
+
+def test_lying_header_is_caught_while_extracting(tmp_path, monkeypatch):
+    zip_path = _zip_with(tmp_path / "ride.zip", {**_bundle_members(), "motion/big.mp4": b"y" * 5000})
+    real_check = bundle_mod._check_zip
+
+    def shrink_sizes(zf, *args, **kwargs):
+        members = real_check(zf, *args, **kwargs)
+        for info, _ in members:
+            if info.filename == "motion/big.mp4":
+                info.file_size = 10  # what a forged header would claim
+        return members
+
+    monkeypatch.setattr(bundle_mod, "_check_zip", shrink_sizes)
+    with pytest.raises(BundleError, match="corrupt|more than its header says"):
+        open_bundle(zip_path)
+
+
+def test_write_bundle_zip_refuses_invalid_or_non_bundles(tmp_path):
+    with pytest.raises(BundleError, match="no ride.json"):
+        write_bundle_zip(tmp_path, tmp_path / "x.zip")
+    meta = _meta()
+    meta["direction"] = "sideways"
+    root = make_bundle(tmp_path / "ride", meta)
+    with pytest.raises(BundleError, match="direction 'sideways'"):
+        write_bundle_zip(root, tmp_path / "x.zip")
+    assert not (tmp_path / "x.zip").exists()
