@@ -63,14 +63,16 @@ def report_service(config: pytest.Config, line: str) -> None:
 
 # --- PostgreSQL -----------------------------------------------------------------------------------
 
+
 def _pg_admin():
     import psycopg
 
     errors = []
     for user in PG_USERS:
         try:
-            conn = psycopg.connect(host=PG_HOST, port=PG_PORT, user=user, dbname="test", connect_timeout=3,
-                                   autocommit=True)
+            conn = psycopg.connect(
+                host=PG_HOST, port=PG_PORT, user=user, dbname="test", connect_timeout=3, autocommit=True
+            )
         except psycopg.OperationalError as exc:
             errors.append(f"as {user}: {str(exc).strip().splitlines()[0]}")
             continue
@@ -87,8 +89,11 @@ def pg_database_url(request):
     with conn:
         version = conn.execute("SHOW server_version").fetchone()[0]
         conn.execute(f'CREATE DATABASE "{name}"')
-        report_service(request.config, f"PostgreSQL {version} at {PG_HOST}:{PG_PORT} (user {user}), "
-                                       f"throw-away databases saddlescope_test_*")
+        report_service(
+            request.config,
+            f"PostgreSQL {version} at {PG_HOST}:{PG_PORT} (user {user}), "
+            f"throw-away databases saddlescope_test_*",
+        )
         try:
             yield f"postgresql+psycopg://{user}@{PG_HOST}:{PG_PORT}/{name}"
         finally:
@@ -100,6 +105,7 @@ def pg_database_url(request):
 
 
 # --- Redis ----------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def redis_url(request):
@@ -132,11 +138,16 @@ def redis_url(request):
 
 # --- a real Celery worker -------------------------------------------------------------------------
 
+
 def service_env(*, database_url: str, storage_dir: Path, broker_url: str | None = None) -> dict[str, str]:
     """Environment of a SaddleScope child process (server or worker) for these services."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("SADDLESCOPE_")}
-    env.update(SADDLESCOPE_DATABASE_URL=database_url, SADDLESCOPE_STORAGE_DIR=str(storage_dir),
-               SADDLESCOPE_SECRET_KEY=TEST_SECRET, PYTHONUNBUFFERED="1")
+    env.update(
+        SADDLESCOPE_DATABASE_URL=database_url,
+        SADDLESCOPE_STORAGE_DIR=str(storage_dir),
+        SADDLESCOPE_SECRET_KEY=TEST_SECRET,
+        PYTHONUNBUFFERED="1",
+    )
     if broker_url is not None:
         env["SADDLESCOPE_BROKER_URL"] = broker_url
     return env
@@ -169,33 +180,62 @@ def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
     env = service_env(database_url=pg_database_url, storage_dir=storage_dir, broker_url=redis_url)
     name = f"saddlescope-test-{os.getpid()}@%h"
     with log_path.open("wb") as log:
-        proc = subprocess.Popen([str(VENV_BIN / "celery"), "-A", "saddlescope_worker.app", "worker",
-                                 "--pool=solo", "-c", "1", "-Q", "saddlescope", "-n", name, "--loglevel=INFO",
-                                 "--without-gossip", "--without-mingle", "--without-heartbeat"],
-                                cwd=PROJECT_ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(
+            [
+                str(VENV_BIN / "celery"),
+                "-A",
+                "saddlescope_worker.app",
+                "worker",
+                "--pool=solo",
+                "-c",
+                "1",
+                "-Q",
+                "saddlescope",
+                "-n",
+                name,
+                "--loglevel=INFO",
+                "--without-gossip",
+                "--without-mingle",
+                "--without-heartbeat",
+            ],
+            cwd=PROJECT_ROOT,
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
     try:
         deadline = time.monotonic() + 90
         while b" ready." not in log_path.read_bytes():
             if proc.poll() is not None:
-                pytest.fail(f"the Celery worker exited with {proc.returncode}:\n"
-                            f"{log_path.read_text()[-3000:]}")
+                pytest.fail(
+                    f"the Celery worker exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}"
+                )
             if time.monotonic() > deadline:
                 pytest.fail(f"the Celery worker was not ready after 90 s:\n{log_path.read_text()[-3000:]}")
             time.sleep(0.2)
         import celery
 
-        report_service(request.config, f"Celery {celery.__version__} worker process pid {proc.pid} "
-                                       "(solo pool, real broker round trips)")
-        yield {"database_url": pg_database_url, "broker_url": redis_url, "storage_dir": storage_dir,
-               "log_path": log_path, "process": proc}
+        report_service(
+            request.config,
+            f"Celery {celery.__version__} worker process pid {proc.pid} (solo pool, real broker round trips)",
+        )
+        yield {
+            "database_url": pg_database_url,
+            "broker_url": redis_url,
+            "storage_dir": storage_dir,
+            "log_path": log_path,
+            "process": proc,
+        }
     finally:
         stop_process(proc)
 
 
 # --- tiny inputs ----------------------------------------------------------------------------------
 
-def write_tiny_clip(path: Path, *, frames: int = 5, size: tuple[int, int] = (64, 48),
-                    fps: float = 30.0) -> Path:
+
+def write_tiny_clip(
+    path: Path, *, frames: int = 5, size: tuple[int, int] = (64, 48), fps: float = 30.0
+) -> Path:
     """A real (MJPEG AVI) video of `frames` grey frames of `size` (w, h) px."""
     path.parent.mkdir(parents=True, exist_ok=True)
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
@@ -222,10 +262,17 @@ def write_tiny_bundle(folder: Path, *, gait: str = "walk", frames: int = 5) -> P
                 rel = f"{kind}/{role}.avi"
                 write_tiny_clip(folder / rel, frames=frames)
             clips[kind][role] = rel
-    meta = {"format": "saddlescope.ride/1", "cameras": ["left", "middle", "right"],
-            "board": {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0},
-            "sync": {"method": "flash"}, "markers": {"horse": 3, "plumb": 2, "saddle": 1},
-            "horse": {"name": "Horse 2", "breed": "Dutch", "birth_year": 1999, "height_m": 1.73},
-            "rider": {"name": "Rider B"}, "gait": gait, "direction": "CCW", "clips": clips}
+    meta = {
+        "format": "saddlescope.ride/1",
+        "cameras": ["left", "middle", "right"],
+        "board": {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0},
+        "sync": {"method": "flash"},
+        "markers": {"horse": 3, "plumb": 2, "saddle": 1},
+        "horse": {"name": "Horse 2", "breed": "Dutch", "birth_year": 1999, "height_m": 1.73},
+        "rider": {"name": "Rider B"},
+        "gait": gait,
+        "direction": "CCW",
+        "clips": clips,
+    }
     (folder / "ride.json").write_text(json.dumps(meta, indent=2))
     return folder

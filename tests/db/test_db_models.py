@@ -40,11 +40,18 @@ def ride_ids(sessions):
         ids = {}
         for club_name in ("A", "B"):
             club = ClubRepository(s).get_or_create(club_name)
-            horse = HorseRepository(s).get_or_create(club_id=club.id, name="Horse 2", breed="Dutch",
-                                                     birth_year=1999, height_withers_m=1.73)
+            horse = HorseRepository(s).get_or_create(
+                club_id=club.id, name="Horse 2", breed="Dutch", birth_year=1999, height_withers_m=1.73
+            )
             rider = RiderRepository(s).get_or_create(club_id=club.id, name="Rider B")
-            ride = RideRepository(s).add(club_id=club.id, horse_id=horse.id, rider_id=rider.id, gait="canter",
-                                         direction="CCW", ridden_on=dt.date(2008, 5, 1))
+            ride = RideRepository(s).add(
+                club_id=club.id,
+                horse_id=horse.id,
+                rider_id=rider.id,
+                gait="canter",
+                direction="CCW",
+                ridden_on=dt.date(2008, 5, 1),
+            )
             ids[club_name] = (club.id, ride.id, rider.id)
     return ids
 
@@ -71,8 +78,9 @@ def test_enumerations_are_checked_in_python_and_in_the_database(sessions, ride_i
     club_id, ride_id, rider_id = ride_ids["A"]
     with pytest.raises(StatementError, match="gallop"), session_scope(sessions) as s:
         horse = HorseRepository(s).get_or_create(club_id=club_id, name="Horse 3")
-        RideRepository(s).add(club_id=club_id, horse_id=horse.id, rider_id=rider_id, gait="gallop",
-                              direction="CW")
+        RideRepository(s).add(
+            club_id=club_id, horse_id=horse.id, rider_id=rider_id, gait="gallop", direction="CW"
+        )
     # the CHECK constraint from the migration catches writes that bypass the ORM
     with pytest.raises(IntegrityError, match="CHECK"), session_scope(sessions) as s:
         s.execute(text("UPDATE rides SET gait = 'gallop' WHERE id = :id"), {"id": ride_id})
@@ -95,8 +103,9 @@ def test_grades_are_one_per_ride_and_rider_and_within_1_to_5(sessions, ride_ids)
     with session_scope(sessions) as s:
         grades = GradeRepository(s)
         first = grades.set_grade(club_id=club_id, ride_id=ride_id, rider_id=rider_id, grade=2)
-        again = grades.set_grade(club_id=club_id, ride_id=ride_id, rider_id=rider_id, grade=4,
-                                 comment="better")
+        again = grades.set_grade(
+            club_id=club_id, ride_id=ride_id, rider_id=rider_id, grade=4, comment="better"
+        )
         assert first.id == again.id and again.grade == 4
     with pytest.raises(IntegrityError), session_scope(sessions) as s:
         GradeRepository(s).set_grade(club_id=club_id, ride_id=ride_id, rider_id=ride_ids["B"][2], grade=6)
@@ -118,8 +127,14 @@ def test_recording_needs_a_ride_or_a_rig(sessions, ride_ids):
 def test_recording_sizes_above_4_gib_fit(sessions, ride_ids):
     club_id, ride_id, _ = ride_ids["A"]
     with session_scope(sessions) as s:
-        rec = RecordingRepository(s).add(club_id=club_id, ride_id=ride_id, camera_role="right",
-                                         clip_kind="static", path="big.mp4", size_bytes=5 * 1024**3)
+        rec = RecordingRepository(s).add(
+            club_id=club_id,
+            ride_id=ride_id,
+            camera_role="right",
+            clip_kind="static",
+            path="big.mp4",
+            size_bytes=5 * 1024**3,
+        )
     with sessions() as s:
         assert RecordingRepository(s).get(rec.id).size_bytes == 5 * 1024**3
 
@@ -165,13 +180,26 @@ def test_result_replaces_the_previous_one_and_fills_leaderboard_columns(sessions
     club_id, ride_id, _ = ride_ids["A"]
     with session_scope(sessions) as s:
         results = ResultRepository(s)
-        first = results.replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=None,
-                                         indicators={"acc_y_wb_rms": 2.0, "vel_x_avg_kmh": 19.5}, quality={},
-                                         result_key=None, arrays_key=None, code_version="v1")
-        second = results.replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=None,
-                                          indicators={"acc_y_wb_rms": 2.5, "vdv_y_wb": 4.0, "note": "x"},
-                                          quality={"ok": True}, result_key="r.json", arrays_key="a.npz",
-                                          code_version="v2")
+        first = results.replace_for_ride(
+            club_id=club_id,
+            ride_id=ride_id,
+            job_id=None,
+            indicators={"acc_y_wb_rms": 2.0, "vel_x_avg_kmh": 19.5},
+            quality={},
+            result_key=None,
+            arrays_key=None,
+            code_version="v1",
+        )
+        second = results.replace_for_ride(
+            club_id=club_id,
+            ride_id=ride_id,
+            job_id=None,
+            indicators={"acc_y_wb_rms": 2.5, "vdv_y_wb": 4.0, "note": "x"},
+            quality={"ok": True},
+            result_key="r.json",
+            arrays_key="a.npz",
+            code_version="v2",
+        )
         assert first.id == second.id
     with sessions() as s:
         result = ResultRepository(s).for_ride(ride_id)
@@ -182,8 +210,9 @@ def test_result_replaces_the_previous_one_and_fills_leaderboard_columns(sessions
 def test_cascade_deletes_a_rides_recordings(sessions, ride_ids):
     club_id, ride_id, _ = ride_ids["A"]
     with session_scope(sessions) as s:
-        RecordingRepository(s).add(club_id=club_id, ride_id=ride_id, camera_role="left", clip_kind="motion",
-                                   path="m.mp4")
+        RecordingRepository(s).add(
+            club_id=club_id, ride_id=ride_id, camera_role="left", clip_kind="motion", path="m.mp4"
+        )
     with session_scope(sessions) as s:
         s.execute(text("DELETE FROM rides WHERE id = :id"), {"id": ride_id})
     with sessions() as s:

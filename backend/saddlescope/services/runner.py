@@ -136,8 +136,10 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
                                rig_id=rig_id, payload=payload, settings=settings, storage=storage,
                                sessions=sessions, report=progress)
             t_stage = time.perf_counter()
-            STAGES[current].run(ctx)
-            timings[current] = round(time.perf_counter() - t_stage, 4)
+            try:
+                STAGES[current].run(ctx)
+            finally:  # a failed or cancelled stage's time is worth seeing too
+                timings[current] = round(time.perf_counter() - t_stage, 4)
             progress.finish()
             save_timings()
     except JobCancelled:

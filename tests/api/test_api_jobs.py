@@ -1,0 +1,148 @@
+"""The API in embedded mode: jobs run in the real local process pool; progress is read back over HTTP."""
+
+from __future__ import annotations
+
+import time
+
+import integration_services
+import pytest
+from fastapi.testclient import TestClient
+
+from saddlescope.api import create_app
+from saddlescope.db.session import session_factory_for
+from saddlescope.services.rides import register_bundle
+from saddlescope.settings import load_settings
+from saddlescope.storage import Storage
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    """One app (and one pool process) for the module; SQLite and storage in a temporary folder."""
+    root = tmp_path_factory.mktemp("api")
+    settings = load_settings(
+        database_url=f"sqlite:///{root / 'db.sqlite'}", storage_dir=str(root / "storage")
+    )
+    with TestClient(create_app(settings)) as client:  # the lifespan migrates (embedded mode)
+        ride_id = register_bundle(
+            session_factory_for(settings.database_url),
+            Storage(settings.storage_dir),
+            integration_services.write_tiny_bundle(root / "bundle"),
+        )
+        yield client, ride_id
+
+
+def wait_done(client: TestClient, job_id: int, timeout_s: float = 60.0) -> tuple[dict, list[dict]]:
+    """Poll GET /api/jobs/{id} until finished; returns the last view and every view seen."""
+    seen = []
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        response = client.get(f"/api/jobs/{job_id}")
+        assert response.status_code == 200
+        seen.append(response.json())
+        if seen[-1]["status"] in ("done", "failed", "cancelled"):
+            return seen[-1], seen
+        time.sleep(0.05)
+    pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1]}")
+
+
+def test_health_reports_each_part_ok_and_the_embedded_broker(env):
+    client, _ = env
+    response = client.get("/api/health")
+    assert response.status_code == 200
+    health = response.json()
+    assert health["status"] == "ok" and health["mode"] == "embedded"
+    assert {name: part["status"] for name, part in health["parts"].items()} == {
+        "database": "ok",
+        "broker": "ok",
+        "storage": "ok",
+    }
+    assert health["parts"]["broker"]["detail"].startswith("embedded")
+    assert "schema at revision" in health["parts"]["database"]["detail"]
+
+
+def test_probe_job_runs_in_the_pool_with_progress_and_timings(env):
+    client, ride_id = env
+    response = client.post("/api/jobs", json={"kind": "probe", "ride_id": ride_id})
+    assert response.status_code == 201, response.text
+    created = response.json()
+    assert created["status"] == "queued" and created["ride_id"] == ride_id
+    job, _ = wait_done(client, created["id"])
+    assert job["status"] == "done", job["error"]
+    assert job["progress"] == 1.0 and job["attempts"] == 1
+    assert set(job["timings_s"]) == {"probe", "total"} and job["timings_s"]["probe"] > 0
+    assert job["host"] and job["started_at"] and job["finished_at"]
+
+
+def test_selftest_progress_is_visible_while_running(env):
+    client, _ = env
+    job_id = client.post(
+        "/api/jobs", json={"kind": "selftest", "payload": {"steps": 12, "delay_s": 0.15}}
+    ).json()["id"]
+    job, seen = wait_done(client, job_id)
+    assert job["status"] == "done"
+    running = [v["progress"] for v in seen if v["status"] == "running"]
+    assert any(0 < p < 1 for p in running), seen  # intermediate progress was readable
+    assert running == sorted(running)
+    assert any((v["stage"] or "").startswith("selftest: step") for v in seen)
+
+
+def test_a_failing_job_reports_its_error(env):
+    client, _ = env
+    job_id = client.post(
+        "/api/jobs", json={"kind": "selftest", "payload": {"steps": 1, "fail": True}}
+    ).json()["id"]
+    job, _ = wait_done(client, job_id)
+    assert job["status"] == "failed" and "failed on request" in job["error"]
+
+
+def test_cancel_a_queued_job(env):
+    client, _ = env
+    # a long job occupies the single pool process, so the second one is still queued when cancelled
+    blocker = client.post(
+        "/api/jobs", json={"kind": "selftest", "payload": {"steps": 20, "delay_s": 0.05}}
+    ).json()
+    queued = client.post("/api/jobs", json={"kind": "selftest", "payload": {"steps": 1}}).json()
+    cancelled = client.post(f"/api/jobs/{queued['id']}/cancel")
+    assert cancelled.status_code == 200 and cancelled.json()["status"] == "cancelled"
+    wait_done(client, blocker["id"])
+    assert client.get(f"/api/jobs/{queued['id']}").json()["status"] == "cancelled"  # never started
+    assert client.get(f"/api/jobs/{queued['id']}").json()["attempts"] == 0
+
+
+@pytest.mark.parametrize(
+    ("body", "status", "message"),
+    [
+        ({"kind": "fly"}, 422, "unknown job kind 'fly'"),
+        ({"kind": "probe", "ride_id": 999}, 422, "ride 999 does not exist"),
+        ({"kind": "selftest", "payload": {"steps": 0}}, 422, "steps must be an integer from 1 to 1000"),
+        ({"kind": "selftest", "surprise": 1}, 422, "surprise"),
+    ],
+)
+def test_bad_job_requests_are_refused_with_a_reason(env, body, status, message):
+    client, _ = env
+    response = client.post("/api/jobs", json=body)
+    assert response.status_code == status
+    assert message in response.text
+
+
+def test_unknown_job_is_404(env):
+    client, _ = env
+    response = client.get("/api/jobs/987654")
+    assert response.status_code == 404 and response.json() == {"detail": "job 987654 not found"}
+
+
+def test_job_kinds_are_listed(env):
+    client, _ = env
+    kinds = {k["name"]: k["stages"] for k in client.get("/api/jobs/kinds").json()}
+    assert kinds["analyze"] == ["probe", "analyze"] and kinds["probe"] == ["probe"]
+
+
+def test_openapi_docs_and_dashboard_are_served(env):
+    client, _ = env
+    assert client.get("/docs").status_code == 200
+    paths = client.get("/openapi.json").json()["paths"]
+    assert {"/api/health", "/api/jobs", "/api/jobs/{job_id}"} <= set(paths)
+    page = client.get("/")
+    assert page.status_code == 200 and "<title>SaddleScope</title>" in page.text
+    script = client.get("/app.js")
+    assert script.status_code == 200 and "/api/health" in script.text
