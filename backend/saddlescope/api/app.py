@@ -15,6 +15,7 @@ from pathlib import Path
 from fastapi import FastAPI, Request, status
 from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy.exc import SQLAlchemyError
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope import __version__
@@ -33,8 +34,13 @@ FRONTEND_DIR = Path(__file__).resolve().parents[3] / "frontend"
 
 def _resume_unfinished(app: FastAPI) -> None:
     """Embedded mode: jobs a stopped server left queued or running are run again (stages are idempotent)."""
-    with session_scope(app.state.sessions) as session:
-        job_ids = [job.id for job in JobRepository(session).unfinished()]
+    try:
+        with session_scope(app.state.sessions) as session:
+            job_ids = [job.id for job in JobRepository(session).unfinished()]
+    except SQLAlchemyError as exc:
+        # Start anyway: /api/health then says what is wrong with the database.
+        log.warning("cannot look for unfinished jobs: %s", exc)
+        return
     for job_id in job_ids:
         log.info("resuming job %s left unfinished by an earlier server", job_id)
         app.state.queue.submit(job_id)

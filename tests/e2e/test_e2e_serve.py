@@ -1,0 +1,123 @@
+"""`saddlescope serve` as a real process: health over HTTP, and jobs in both modes.
+
+Embedded mode needs nothing but a free port. Celery mode (integration) runs the production shape:
+`saddlescope serve` with `saddlescope worker` on PostgreSQL and Redis.
+"""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import httpx
+import integration_services
+import pytest
+
+from conftest import PROJECT_ROOT
+from saddlescope.db.migrate import upgrade_to_head
+
+pg_database_url = integration_services.pg_database_url
+redis_url = integration_services.redis_url
+
+SADDLESCOPE = str(integration_services.VENV_BIN / "saddlescope")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start(args: list[str], env: dict, log_path: Path, cwd: Path) -> subprocess.Popen:
+    with log_path.open("wb") as log:
+        return subprocess.Popen([SADDLESCOPE, *args], cwd=cwd, env=env, stdout=log, stderr=subprocess.STDOUT)
+
+
+def wait_healthy(base: str, proc: subprocess.Popen, log_path: Path, timeout_s: float = 60.0) -> dict:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"saddlescope serve exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}")
+        try:
+            response = httpx.get(f"{base}/api/health", timeout=5)
+        except httpx.TransportError:
+            time.sleep(0.2)
+            continue
+        return response.json() | {"http_status": response.status_code}
+    pytest.fail(f"saddlescope serve did not answer within {timeout_s} s:\n{log_path.read_text()[-3000:]}")
+
+
+def run_job_over_http(base: str, body: dict, timeout_s: float = 60.0) -> dict:
+    created = httpx.post(f"{base}/api/jobs", json=body, timeout=10)
+    assert created.status_code == 201, created.text
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        job = httpx.get(f"{base}/api/jobs/{created.json()['id']}", timeout=10).json()
+        if job["status"] in ("done", "failed", "cancelled"):
+            return job
+        time.sleep(0.1)
+    pytest.fail(f"job not finished after {timeout_s} s: {job}")
+
+
+@pytest.mark.slow
+def test_serve_answers_health_with_every_part_ok_and_runs_a_job(tmp_path):
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    env = integration_services.service_env(
+        database_url=f"sqlite:///{tmp_path / 'var' / 'db.sqlite'}", storage_dir=tmp_path / "var" / "storage"
+    )
+    env.pop("SADDLESCOPE_SECRET_KEY")  # embedded mode works with the development default
+    log_path = tmp_path / "serve.log"
+    proc = start(["serve", "--host", "127.0.0.1", "--port", str(port)], env, log_path, tmp_path)
+    try:
+        health = wait_healthy(base, proc, log_path)
+        assert health["http_status"] == 200, health
+        assert {name: part["status"] for name, part in health["parts"].items()} == {
+            "database": "ok",
+            "broker": "ok",
+            "storage": "ok",
+        }
+        assert health["mode"] == "embedded" and health["parts"]["broker"]["detail"].startswith("embedded")
+        job = run_job_over_http(base, {"kind": "selftest", "payload": {"steps": 4, "delay_s": 0.05}})
+        assert job["status"] == "done" and job["progress"] == 1.0 and job["timings_s"]["selftest"] >= 0.2
+        page = httpx.get(f"{base}/", timeout=10)
+        assert page.status_code == 200 and "<title>SaddleScope</title>" in page.text
+    finally:
+        integration_services.stop_process(proc)
+    # a clean shutdown on SIGTERM (uvicorn re-raises the signal after shutting down gracefully)
+    assert proc.returncode in (0, -15) and "Finished server process" in log_path.read_text()
+
+
+@pytest.mark.slow
+@pytest.mark.integration
+def test_serve_with_saddlescope_workers_on_postgresql_and_redis(
+    request, tmp_path, pg_database_url, redis_url
+):
+    upgrade_to_head(pg_database_url)  # the compose file's one-shot `migrate` service
+    env = integration_services.service_env(
+        database_url=pg_database_url, storage_dir=tmp_path / "storage", broker_url=redis_url
+    )
+    worker_log, serve_log = tmp_path / "worker.log", tmp_path / "serve.log"
+    worker = start(["worker"], env, worker_log, PROJECT_ROOT)
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    server = start(["serve", "--host", "127.0.0.1", "--port", str(port)], env, serve_log, tmp_path)
+    try:
+        deadline = time.monotonic() + 90
+        while b" ready." not in worker_log.read_bytes():
+            assert worker.poll() is None, worker_log.read_text()[-3000:]
+            assert time.monotonic() < deadline, worker_log.read_text()[-3000:]
+            time.sleep(0.2)
+        health = wait_healthy(base, server, serve_log)
+        assert health["http_status"] == 200 and health["mode"] == "celery", health
+        integration_services.report_service(
+            request.config,
+            f"`saddlescope serve` + `saddlescope worker` processes (pids {server.pid}, {worker.pid})",
+        )
+        job = run_job_over_http(base, {"kind": "selftest", "payload": {"steps": 3, "delay_s": 0.05}})
+        assert job["status"] == "done" and set(job["timings_s"]) == {"selftest", "total"}, job
+    finally:
+        integration_services.stop_process(server)
+        integration_services.stop_process(worker, timeout_s=30)
