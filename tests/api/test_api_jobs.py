@@ -9,7 +9,9 @@ import pytest
 from fastapi.testclient import TestClient
 
 from saddlescope.api import create_app
-from saddlescope.db.session import session_factory_for
+from saddlescope.db.migrate import upgrade_to_head
+from saddlescope.db.repositories import JobRepository
+from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.rides import register_bundle
 from saddlescope.settings import load_settings
 from saddlescope.storage import Storage
@@ -146,3 +148,20 @@ def test_openapi_docs_and_dashboard_are_served(env):
     assert page.status_code == 200 and "<title>SaddleScope</title>" in page.text
     script = client.get("/app.js")
     assert script.status_code == 200 and "/api/health" in script.text
+
+
+def test_an_embedded_server_resumes_jobs_a_stopped_server_left_unfinished(tmp_path):
+    settings = load_settings(
+        database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "s")
+    )
+    upgrade_to_head(settings.database_url)
+    with session_scope(session_factory_for(settings.database_url)) as s:
+        jobs = JobRepository(s)
+        queued = jobs.add(kind="selftest", payload={"steps": 1, "delay_s": 0.0}).id
+        running = jobs.add(kind="selftest", payload={"steps": 1, "delay_s": 0.0}).id
+        jobs.mark_running(running, host="old-server:1", code_version="old")
+    with TestClient(create_app(settings)) as client:
+        first, _ = wait_done(client, queued)
+        second, _ = wait_done(client, running)
+    assert first["status"] == second["status"] == "done"
+    assert (first["attempts"], second["attempts"]) == (1, 2) and second["host"] != "old-server:1"
