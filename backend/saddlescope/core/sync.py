@@ -1,0 +1,208 @@
+"""Synchronisation of the cameras from a flash of light (thesis 3.5 eq. 3.11-3.14, 8.2).
+
+The thesis found the frame offsets (53 and 73 frames) by eye. Here the flash is found in each clip's
+per-frame mean brightness: a rise of several times the clip's own frame-to-frame noise, a plateau,
+and a fall back to the baseline. The onset is estimated to a fraction of a frame from the partially
+lit first frame: if a frame integrates light over a fraction ``integration`` of the frame period
+(global shutter: exposure / period; rolling shutter: (exposure + readout) / period; 1.0 when either
+spans the whole period) and the flash starts at time tau inside frame k's integration window
+[k, k + integration), that frame's brightness is baseline + phi * (plateau - baseline) with
+phi = (k + integration - tau) / integration, so tau = k + integration * (1 - phi). The end of the flash
+gives a second estimate the same way.
+
+Time is in frame units of each clip: frame k starts at time k. An offset o_c of camera c means that
+the instant seen in frame k of the reference (left) camera appears in frame k + o_c of camera c
+(thesis eq. 3.11: F_L(k) <-> F_M(k + dF_LM)).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from saddlescope.core.errors import SyncError
+
+MIN_FRAMES = 8
+
+
+def _robust_sigma(x: np.ndarray) -> float:
+    return float(1.4826 * np.median(np.abs(x - np.median(x))))
+
+
+def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_sigma: float = 8.0,
+                   noise_floor: float = 0.02, integration: float = 1.0,
+                   max_flash_fraction: float = 0.5) -> tuple[float, float]:
+    """Sub-frame start and end of the flash in one clip.
+
+    Parameters
+    ----------
+    mean_brightness : ndarray of shape (F,)
+        Mean grey level of each frame (0-255 scale, any consistent scale works).
+    clip, camera : str
+        Named in error messages.
+    min_sigma : float
+        The flash must rise and fall by more than this many standard deviations of the clip's own
+        frame-to-frame brightness noise (robust estimate; at least ``noise_floor`` grey levels).
+    integration : float in (0, 1]
+        Fraction of the frame period over which a frame's mean brightness integrates light.
+    max_flash_fraction : float
+        A bright interval longer than this fraction of the clip is a lighting change, not a flash.
+
+    Returns
+    -------
+    (onset, end) : floats in frames
+
+    Raises
+    ------
+    SyncError
+        Clip too short, no flash, or a brightness step that never comes back down.
+    """
+    b = np.asarray(mean_brightness, np.float64).ravel()
+    where = f"{clip} clip of the {camera} camera"
+    if len(b) < MIN_FRAMES:
+        raise SyncError(f"{where} has only {len(b)} frame(s); need at least {MIN_FRAMES} to find the "
+                        f"sync flash")
+    if not np.all(np.isfinite(b)):
+        raise SyncError(f"{where}: brightness has non-finite values")
+    if not 0 < integration <= 1:
+        raise SyncError(f"integration fraction {integration} must be in (0, 1]")
+    d = np.diff(b)
+    sigma = max(_robust_sigma(d) / np.sqrt(2), noise_floor)
+    level = min_sigma * sigma
+    rise_at = int(np.argmax(d))
+    if d[rise_at] <= level:
+        raise SyncError(f"no sync flash found in the {where}: the largest brightness rise is "
+                        f"{d[rise_at]:.2f} grey levels, under {min_sigma:g} x the frame-to-frame noise "
+                        f"({sigma:.3f})")
+    base_before = float(np.median(b[max(0, rise_at - 5): rise_at])) if rise_at > 0 else float(b[0])
+    # the lit run: contiguous frames above the baseline that include the frame after the largest rise
+    lit = b > base_before + level
+    start = rise_at + 1
+    while start > 0 and lit[start - 1]:
+        start -= 1
+    stop = rise_at + 1
+    while stop + 1 < len(b) and lit[stop + 1]:
+        stop += 1
+    if stop == len(b) - 1:
+        raise SyncError(f"no sync flash found in the {where}: the brightness rises at frame {start} but "
+                        f"never comes back down (a lighting change, or the clip ends during the flash)")
+    if stop - start + 1 > max_flash_fraction * len(b):
+        raise SyncError(f"no sync flash found in the {where}: the bright interval (frames {start}-{stop}) "
+                        f"lasts more than {max_flash_fraction:.0%} of the clip")
+    base_after = float(np.median(b[stop + 1: stop + 6]))
+    run = b[start: stop + 1]
+    plateau = float(np.median(run[1:-1])) if len(run) >= 3 else float(run.max())
+    if plateau - max(base_before, base_after) <= level:
+        raise SyncError(f"no sync flash found in the {where}: the bright frames {start}-{stop} do not "
+                        f"stand out of the noise")
+    phi = np.clip((b[start] - base_before) / (plateau - base_before), 0.0, 1.0)
+    psi = np.clip((b[stop] - base_after) / (plateau - base_after), 0.0, 1.0)
+    onset = start + integration * (1.0 - phi)
+    end = stop + integration * psi
+    return float(onset), float(end)
+
+
+def flash_onset(mean_brightness: np.ndarray, *, clip: str, camera: str, **kwargs) -> float:
+    """Sub-frame time (in frames) at which the sync flash starts; see :func:`flash_interval`."""
+    return flash_interval(mean_brightness, clip=clip, camera=camera, **kwargs)[0]
+
+
+def _check_fps(fps_by_camera: Mapping[str, float], cameras: list[str], clip: str, rel_tol: float) -> None:
+    missing = [c for c in cameras if c not in fps_by_camera]
+    if missing:
+        raise SyncError(f"{clip} clip: frame rate unknown for camera(s) {', '.join(missing)}")
+    ref = cameras[0]
+    f0 = float(fps_by_camera[ref])
+    for cam in cameras:
+        f = float(fps_by_camera[cam])
+        if not np.isfinite(f) or f <= 0:
+            raise SyncError(f"{clip} clip of the {cam} camera: frame rate {f} is not positive")
+        if abs(f - f0) > rel_tol * f0:
+            raise SyncError(f"{clip} clip: the {cam} camera runs at {f:g} fps but the {ref} camera at "
+                            f"{f0:g} fps; frame offsets need equal frame rates")
+
+
+def clip_offsets(brightness_by_camera: Mapping[str, np.ndarray], fps_by_camera: Mapping[str, float], *,
+                 clip: str, reference: str | None = None, fps_rel_tol: float = 1e-3,
+                 **flash_kwargs) -> dict[str, float]:
+    """Frame offsets of every camera relative to the reference (first, i.e. left) camera.
+
+    Parameters
+    ----------
+    brightness_by_camera : dict camera -> ndarray of shape (F_c,)
+        Mean frame brightness of each camera's clip.
+    fps_by_camera : dict camera -> float
+    clip : str
+        Clip kind (e.g. "motion"), named in errors.
+    reference : str, optional
+        Camera whose offset is 0; default the first key.
+    flash_kwargs
+        Passed to :func:`flash_interval`.
+
+    Returns
+    -------
+    dict camera -> offset in frames (float, sub-frame): the reference's frame k shows the same
+    instant as frame k + offset of that camera. Onset and end of the flash each give an estimate;
+    their mean is used when they agree within half a frame, the onset alone otherwise.
+
+    Raises
+    ------
+    SyncError
+        Different frame rates, clips too short, or no flash in a clip.
+    """
+    cameras = list(brightness_by_camera)
+    if not cameras:
+        raise SyncError(f"{clip} clip: no cameras to synchronise")
+    reference = reference or cameras[0]
+    if reference not in brightness_by_camera:
+        raise SyncError(f"{clip} clip: reference camera {reference} has no brightness curve")
+    cameras = [reference] + [c for c in cameras if c != reference]
+    _check_fps(fps_by_camera, cameras, clip, fps_rel_tol)
+    times = {c: flash_interval(brightness_by_camera[c], clip=clip, camera=c, **flash_kwargs) for c in cameras}
+    return offsets_from_intervals(times, reference=reference)
+
+
+def offsets_from_intervals(intervals: Mapping[str, tuple[float, float]], *,
+                           reference: str | None = None) -> dict[str, float]:
+    """Offsets from each camera's flash (onset, end): the mean of the onset and end differences when they
+    agree within half a frame (it halves the noise), the onset difference otherwise."""
+    reference = reference or next(iter(intervals))
+    on0, end0 = intervals[reference]
+    offsets = {}
+    for cam, (on, end) in intervals.items():
+        d_on, d_end = on - on0, end - end0
+        offsets[cam] = 0.5 * (d_on + d_end) if abs(d_on - d_end) < 0.5 else d_on
+    offsets[reference] = 0.0
+    return offsets
+
+
+def offsets_from_spec(sync: Mapping, *, clip: str, cameras: list[str]) -> dict[str, float] | None:
+    """Known offsets from ride.json ``{"method": "offsets", "offsets": {clip: {camera: frames}}}``.
+
+    Returns None when the method is "flash" (offsets must be measured). Offsets are made relative to
+    the first camera of ``cameras``.
+
+    Raises
+    ------
+    SyncError
+        Unknown method, or an offset missing or not a finite number for a camera of this clip.
+    """
+    method = sync.get("method", "flash") if isinstance(sync, Mapping) else None
+    if method == "flash":
+        return None
+    if method != "offsets":
+        raise SyncError(f"sync method {method!r} is not 'flash' or 'offsets'")
+    table = sync.get("offsets", {})
+    per_clip = table.get(clip) if isinstance(table, Mapping) else None
+    if not isinstance(per_clip, Mapping):
+        raise SyncError(f"sync offsets for the {clip} clip are missing from ride.json")
+    out = {}
+    for cam in cameras:
+        value = per_clip.get(cam)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+            raise SyncError(f"sync offset of the {cam} camera in the {clip} clip is missing or not a number "
+                            f"({value!r})")
+        out[cam] = float(value)
+    ref = out[cameras[0]]
+    return {cam: v - ref for cam, v in out.items()}

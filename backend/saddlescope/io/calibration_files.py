@@ -1,0 +1,550 @@
+"""Calibration from files: frames from videos or image globs, the ``calibrate`` command, TOML/JSON I/O.
+
+- :func:`calibrate_sources` is the body of ``saddlescope calibrate``: one source per camera (a video,
+  a folder of numbered images, or an image glob such as ``"calib/left_*.png"``); one camera gives
+  intrinsics, two or more also extrinsics (stereo pairs + joint bundle adjustment).
+- :func:`rig_to_dict` / :func:`rig_from_dict`: the ``calibration`` object of the result JSON
+  (CONTRACTS section 2) plus ``pairs``, standard deviations and flags.
+- :func:`write_anipose_toml` / :func:`read_anipose_toml`: the TOML of anipose / aniposelib, which
+  Pose2Sim and FreeMoCap also read: one ``[cam_N]`` table per camera with ``name``, ``size``
+  ([width, height]), ``matrix`` (3x3), ``distortions`` (k1, k2, p1, p2, k3), ``rotation`` (Rodrigues
+  vector, 3) and ``translation``, world to camera ``x_c = R X + t``. anipose keeps translations in the
+  unit of its board's square (usually mm); Pose2Sim's ``Calib.toml`` uses metres: pass ``units="m"``.
+- :func:`rig_from_caliscope_toml`: caliscope's ``camera_array.toml`` / ``config.toml`` (rotation as a
+  3x3 matrix, translation in metres, world to camera) and :func:`board_from_caliscope_toml` for its
+  ``charuco.toml``.
+
+Every rig read is re-expressed relative to its first camera (SaddleScope's convention: the first /
+left camera at identity, ``x_cam = R @ x_first + t_mm``).
+"""
+
+from __future__ import annotations
+
+import glob
+import json
+import math
+import re
+import time
+import tomllib
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from saddlescope.core.calibration import (
+    BoardFinder,
+    BoardView,
+    calibrate_rig,
+    make_board,
+    select_instants,
+)
+from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
+from saddlescope.core.sync import flash_interval, offsets_from_intervals
+from saddlescope.core.types import Board, Camera, Rig
+from saddlescope.io.video import IMAGE_SUFFIXES, frame_brightness, iter_gray_frames, probe_video
+
+_GLOB_CHARS = set("*?[")
+
+
+# --------------------------------------------------------------------------------------------------
+# Sources: videos, image folders, image globs
+# --------------------------------------------------------------------------------------------------
+
+
+def _natural_key(path: str):
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", path)]
+
+
+def source_images(source: str) -> list[str] | None:
+    """Image files of an image glob (or one image path), naturally sorted; None for a video/folder."""
+    if _GLOB_CHARS & set(source):
+        return sorted(glob.glob(source), key=_natural_key)
+    if Path(source).suffix.lower() in IMAGE_SUFFIXES and Path(source).is_file():
+        return [source]
+    return None
+
+
+def iter_source_frames(source: str, *, camera: str, start: int = 0, step: int = 1
+                       ) -> Iterator[tuple[int, np.ndarray]]:
+    """Yield (index, grey frame (H, W) uint8) from a video, an image folder or an image glob.
+
+    Raises
+    ------
+    InputError
+        An image glob matching nothing.
+    VideoError
+        Unreadable or truncated files, naming the camera.
+    """
+    images = source_images(source)
+    if images is None:
+        try:
+            yield from iter_gray_frames(source, start=start, step=step)
+        except VideoError as exc:
+            raise VideoError(f"calibration clip of the {camera} camera: {exc}") from None
+        return
+    if not images:
+        raise InputError(f"calibration source of the {camera} camera: no file matches {source!r}")
+    for i in range(start, len(images), step):
+        img = cv2.imread(images[i], cv2.IMREAD_GRAYSCALE)
+        if img is None:
+            raise VideoError(f"calibration image of the {camera} camera {images[i]}: not a readable image")
+        yield i, img
+
+
+def _probe(source: str, camera: str) -> dict:
+    images = source_images(source)
+    if images is not None:
+        if not images:
+            raise InputError(f"calibration source of the {camera} camera: no file matches {source!r}")
+        return {"kind": "images", "frame_count": len(images), "fps": None}
+    try:
+        info = probe_video(source)
+    except VideoError as exc:
+        raise VideoError(f"calibration clip of the {camera} camera: {exc}") from None
+    return {"kind": "video", "frame_count": info.frame_count, "fps": info.fps,
+            "size": (info.width, info.height)}
+
+
+def detect_source_views(source: str, board: Board, *, camera: str, start: int = 0, step: int = 1,
+                        key_offset: int = 0, inverted: bool | None = None
+                        ) -> tuple[list[BoardView], tuple[int, int] | None, int]:
+    """Board views in a source's frames start, start + step, ...
+
+    Each view's ``frame`` is the frame index minus ``key_offset`` (the sync offset, so that views of
+    different cameras at the same instant share a key).
+
+    Returns
+    -------
+    views, image_size (width, height), number of frames searched
+
+    Raises
+    ------
+    InputError
+        Frames of different sizes in one source (naming the camera and frame).
+    """
+    finder = BoardFinder(board, inverted=inverted)
+    views: list[BoardView] = []
+    size = None
+    n = 0
+    for index, gray in iter_source_frames(source, camera=camera, start=start, step=step):
+        n += 1
+        this = (int(gray.shape[1]), int(gray.shape[0]))
+        if size is None:
+            size = this
+        elif this != size:
+            raise InputError(f"calibration source of the {camera} camera: frame {index} is "
+                             f"{this[0]}x{this[1]} px but earlier frames are {size[0]}x{size[1]} px")
+        found = finder(gray)
+        if found is not None:
+            views.append(BoardView(int(index) - key_offset, found[0], found[1]))
+    return views, size, n
+
+
+# --------------------------------------------------------------------------------------------------
+# The `calibrate` command
+# --------------------------------------------------------------------------------------------------
+
+
+def _sync_offsets(sources: Mapping[str, str], probes: Mapping[str, dict], sync) -> tuple[dict, dict]:
+    """Integer frame offsets per camera for the calibration clips, and a description for the report."""
+    cams = list(sources)
+    zero = {c: 0.0 for c in cams}
+    if len(cams) == 1:
+        return zero, {"method": "single camera"}
+    if isinstance(sync, Mapping):
+        missing = [c for c in cams if c not in sync]
+        if missing:
+            raise SyncError(f"calibration clip: no sync offset given for camera(s) {', '.join(missing)}")
+        ref = float(sync[cams[0]])
+        return {c: float(sync[c]) - ref for c in cams}, {"method": "offsets"}
+    kinds = {p["kind"] for p in probes.values()}
+    if sync == "none" or kinds == {"images"}:
+        return zero, {"method": "none", "note": "frames paired by their index in each source"}
+    if sync not in ("auto", "flash"):
+        raise InputError(f"sync {sync!r} is not 'auto', 'flash', 'none' or a dict of offsets")
+    if "images" in kinds:
+        raise InputError("calibration sources mix videos and image globs: their frames cannot be paired")
+    intervals, errors = {}, {}
+    for cam, src in sources.items():
+        try:
+            brightness = frame_brightness(src)
+        except VideoError as exc:
+            raise VideoError(f"calibration clip of the {cam} camera: {exc}") from None
+        try:
+            intervals[cam] = flash_interval(brightness, clip="calibration", camera=cam)
+        except SyncError as exc:
+            errors[cam] = str(exc)
+    if not intervals and sync == "auto":
+        return zero, {"method": "none", "note": "no sync flash in any calibration clip: clips taken as "
+                                                "already synchronised (frame k of each is the same instant)"}
+    if errors:
+        raise SyncError(next(iter(errors.values())))
+    offsets = offsets_from_intervals(intervals, reference=cams[0])
+    return offsets, {"method": "flash", "offsets": dict(offsets)}
+
+
+def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], square_mm: float,
+                      board_kind: str = "checkerboard", dictionary: str | None = None,
+                      marker_mm: float | None = None, toml_out: str | Path | None = None,
+                      fix_k3: bool = True, max_views: int = 60, max_candidates: int = 300,
+                      sync: str | Mapping[str, float] = "auto", inverted: bool | None = None,
+                      legacy: bool = False, same_size: bool = True) -> dict:
+    """Calibrate cameras from their sources; the body of ``saddlescope calibrate``.
+
+    Parameters
+    ----------
+    sources : dict camera name -> video path, image folder, or image glob (the first camera is the
+        reference of the extrinsics)
+    pattern : (cols, rows)
+        Inner corners of the board (OpenCV's pattern size). For ChArUco too: a board of 5 x 7 squares
+        is pattern (4, 6).
+    square_mm : float
+    board_kind : "checkerboard" or "charuco"; dictionary, marker_mm, inverted, legacy for ChArUco.
+    toml_out : path, optional
+        Also write an anipose-style TOML (mm).
+    max_views : int
+        At most this many instants are used, chosen to spread the board over each image and its tilts.
+    max_candidates : int
+        Videos are sampled at about this many frames (every k-th frame).
+    sync : "auto", "flash", "none" or dict camera -> offset in frames
+        How to pair frames of different videos: "auto" measures the sync flash and, when no clip has
+        one, takes the clips as already synchronised. Image globs are paired by their sorted order.
+    same_size : bool
+        Require every camera to have the same image size (SaddleScope's three identical cameras).
+
+    Returns
+    -------
+    dict
+        :func:`rig_to_dict` (``cameras``, ``extrinsics``, ``checks``, ``flags``, ``pairs``) plus ``board``,
+        ``sync``, ``views`` (per camera: searched, detected, used, dropped frames, residual std) and
+        ``timings_s``.
+    """
+    t0 = time.perf_counter()
+    if not sources:
+        raise InputError("no camera given: use --camera NAME=SOURCE")
+    board = make_board(board_kind, pattern, square_mm, dictionary=dictionary, marker_mm=marker_mm,
+                       legacy=legacy)
+    sources = {str(k): str(v) for k, v in sources.items()}
+    probes = {cam: _probe(src, cam) for cam, src in sources.items()}
+    fps = {c: p["fps"] for c, p in probes.items() if p["fps"]}
+    if len(set(round(f, 3) for f in fps.values())) > 1:
+        listing = ", ".join(f"{c} {f:g} fps" for c, f in fps.items())
+        raise SyncError(f"calibration clips have different frame rates ({listing})")
+    offsets, sync_info = _sync_offsets(sources, probes, sync)
+    int_offsets = {c: int(round(o)) for c, o in offsets.items()}
+    first = max(0, max(-o for o in int_offsets.values()))
+    n_common = min(p["frame_count"] - int_offsets[c] for c, p in probes.items()) - first
+    if n_common <= 0:
+        raise SyncError("calibration clips do not overlap in time after applying the sync offsets "
+                        f"{int_offsets}")
+    step = max(1, math.ceil(n_common / max_candidates))
+    t_sync = time.perf_counter()
+
+    views, sizes, searched = {}, {}, {}
+    for cam, src in sources.items():
+        views[cam], size, searched[cam] = detect_source_views(
+            src, board, camera=cam, start=first + int_offsets[cam], step=step, key_offset=int_offsets[cam],
+            inverted=inverted)
+        if size is None:
+            raise VideoError(f"calibration clip of the {cam} camera: no frame could be read from {src}")
+        sizes[cam] = size
+        if not views[cam]:
+            raise CalibrationError(f"no calibration board ({board_kind} {pattern[0]}x{pattern[1]} inner "
+                                   f"corners) found in the calibration clip of the {cam} camera ({src})")
+    if same_size and len(set(sizes.values())) > 1:
+        listing = ", ".join(f"{c} {w}x{h}" for c, (w, h) in sizes.items())
+        raise InputError(f"calibration cameras have different image sizes ({listing}); the rig needs "
+                         f"cameras of one resolution")
+    t_detect = time.perf_counter()
+    chosen = set(select_instants(views, board, sizes, max_instants=max_views))
+    used = {cam: [v for v in vs if v.frame in chosen] for cam, vs in views.items()}
+    rig, report = calibrate_rig(used, board, sizes, fix_k3=fix_k3)
+    t_cal = time.perf_counter()
+
+    result = rig_to_dict(rig)
+    result["board"] = {"kind": board.kind, "inner_corners": list(board.inner_corners),
+                       "square_mm": board.square_mm}
+    if board.kind == "charuco":
+        result["board"].update({"dictionary": board.dictionary, "marker_mm": board.marker_mm,
+                                "legacy": board.legacy})
+    result["sync"] = {**sync_info, "frame_offsets": int_offsets, "frame_step": step}
+    result["views"] = {
+        cam: {"searched": searched[cam], "detected": len(views[cam]),
+              "used": report["intrinsics"][cam]["n_views"],
+              "dropped_frames": report["intrinsics"][cam]["dropped_frames"],
+              "residual_std_px": report["intrinsics"][cam]["residual_std_px"],
+              "intrinsic_rms_px": report["intrinsics"][cam]["rms_px"]}
+        for cam in sources}
+    if report["bundle"] is not None:
+        keys = ("rms_px", "rms_px_by_camera", "n_observations", "n_dropped", "n_instants", "iterations")
+        result["bundle"] = {k: report["bundle"][k] for k in keys}
+    result["timings_s"] = {"sync": t_sync - t0, "detection": t_detect - t_sync,
+                           "calibration": t_cal - t_detect, "total": time.perf_counter() - t0}
+    if toml_out:
+        write_anipose_toml(rig, toml_out)
+    return result
+
+
+# --------------------------------------------------------------------------------------------------
+# JSON (result format)
+# --------------------------------------------------------------------------------------------------
+
+
+def _lst(a) -> list:
+    return np.asarray(a, np.float64).tolist()
+
+
+def rig_to_dict(rig: Rig) -> dict:
+    """The result's ``calibration`` object (CONTRACTS section 2) for a rig.
+
+    ``cameras``: K, dist (k1, k2, p1, p2, k3), image_size [w, h], rms_px, K_std, dist_std;
+    ``extrinsics`` of every camera but the first: R, t_mm (``x_cam = R @ x_first + t_mm``);
+    ``checks``, ``flags`` and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}.
+    """
+    names = rig.names
+    cameras = {}
+    for name, cam in rig.cameras.items():
+        entry = {"K": _lst(cam.K), "dist": _lst(_dist5(cam.dist, f"camera {name} dist")),
+                 "image_size": [int(cam.image_size[0]), int(cam.image_size[1])], "rms_px": cam.rms_px}
+        if cam.K_std is not None:
+            entry["K_std"] = _lst(cam.K_std)
+        if cam.dist_std is not None:
+            entry["dist_std"] = _lst(cam.dist_std)
+        cameras[name] = entry
+    extrinsics = {n: {"R": _lst(rig.cameras[n].R), "t_mm": _lst(rig.cameras[n].t_mm)} for n in names[1:]}
+    pairs = {}
+    for key, p in rig.pairs.items():
+        pairs[key] = {k: (_lst(v) if isinstance(v, np.ndarray) else v) for k, v in p.items()}
+    return {"reference": names[0] if names else None, "cameras": cameras, "extrinsics": extrinsics,
+            "checks": {k: float(v) for k, v in rig.checks.items()}, "flags": list(rig.flags), "pairs": pairs}
+
+
+def _matrix(value, shape, what) -> np.ndarray:
+    try:
+        arr = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} is not numeric") from None
+    if arr.shape != shape or not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} must be finite numbers of shape {shape}, got {arr.shape}")
+    return arr
+
+
+def _dist5(value, what) -> np.ndarray:
+    d = np.asarray(value, np.float64).ravel()
+    if d.size not in (4, 5, 8, 12, 14) and d.size > 5:
+        raise InputError(f"{what} has {d.size} coefficients; expected 4 or 5 (k1, k2, p1, p2[, k3])")
+    if d.size > 5 and np.any(d[5:] != 0):
+        raise InputError(f"{what}: only the 5-coefficient model (k1, k2, p1, p2, k3) is supported")
+    return np.pad(d[:5], (0, max(0, 5 - d.size)))
+
+
+def rig_from_dict(d: Mapping) -> Rig:
+    """Inverse of :func:`rig_to_dict` (also accepts the plain CONTRACTS ``calibration`` object)."""
+    cams_in = d.get("cameras")
+    if not isinstance(cams_in, Mapping) or not cams_in:
+        raise InputError("calibration has no 'cameras'")
+    extr = d.get("extrinsics", {}) or {}
+    cameras = {}
+    for i, (name, c) in enumerate(cams_in.items()):
+        K = _matrix(c.get("K"), (3, 3), f"camera {name} K")
+        dist = _dist5(c.get("dist", [0, 0, 0, 0, 0]), f"camera {name} dist")
+        size = c.get("image_size")
+        if not isinstance(size, list | tuple) or len(size) != 2:
+            raise InputError(f"camera {name} image_size must be [width, height]")
+        e = extr.get(name)
+        if e is None and i > 0:
+            raise InputError(f"camera {name} has no extrinsics (only the first camera may omit them)")
+        R = np.eye(3) if e is None else _matrix(e.get("R"), (3, 3), f"camera {name} R")
+        t = np.zeros(3) if e is None else _matrix(e.get("t_mm"), (3,), f"camera {name} t_mm")
+        opt = lambda key: None if c.get(key) is None else np.asarray(c[key], np.float64)  # noqa: B023
+        cameras[name] = Camera(name, K, dist, (int(size[0]), int(size[1])), R=R, t_mm=t,
+                               rms_px=c.get("rms_px"), K_std=opt("K_std"), dist_std=opt("dist_std"))
+    pairs = {}
+    for key, p in (d.get("pairs") or {}).items():
+        pairs[key] = {k: (np.asarray(v, np.float64) if k in ("R", "t_mm") else v) for k, v in p.items()}
+    return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(d.get("flags") or ()), pairs=pairs)
+
+
+# --------------------------------------------------------------------------------------------------
+# TOML: anipose / Pose2Sim / FreeMoCap, caliscope
+# --------------------------------------------------------------------------------------------------
+
+_UNIT_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0}
+
+
+def _toml(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    if isinstance(value, float | np.floating):
+        v = float(value)
+        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    raise InputError(f"cannot write {type(value).__name__} to TOML")
+
+
+def _relative_to_first(world: dict[str, tuple]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World-to-camera poses (R, t) -> poses relative to the first camera."""
+    names = list(world)
+    R0, t0 = world[names[0]]
+    out = {}
+    for n, (R, t) in world.items():
+        Rr = R @ R0.T
+        out[n] = (Rr, t - Rr @ t0)
+    return out
+
+
+def write_anipose_toml(rig: Rig, path: str | Path, *, units: str = "mm") -> Path:
+    """Write the rig as anipose's calibration TOML (``[cam_0]`` ... and ``[metadata]``).
+
+    The world frame is the first camera's; translations in ``units`` ("mm" for anipose, "m" for
+    Pose2Sim).
+    """
+    if units not in _UNIT_MM:
+        raise InputError(f"units {units!r} not one of {', '.join(_UNIT_MM)}")
+    scale = 1.0 / _UNIT_MM[units]
+    lines = []
+    for i, (name, cam) in enumerate(rig.cameras.items()):
+        lines += [f"[cam_{i}]", f"name = {_toml(name)}",
+                  f"size = {_toml([int(cam.image_size[0]), int(cam.image_size[1])])}",
+                  f"matrix = {_toml(np.asarray(cam.K, np.float64))}",
+                  f"distortions = {_toml(_dist5(cam.dist, f'camera {name} dist'))}",
+                  f"rotation = {_toml(cam.rvec)}",
+                  f"translation = {_toml(np.asarray(cam.t_mm, np.float64) * scale)}",
+                  "fisheye = false", ""]
+    rms = [c.rms_px for c in rig.cameras.values() if c.rms_px is not None]
+    lines += ["[metadata]", f"adjusted = {_toml(bool(rig.checks.get('bundle_rms_px') is not None))}",
+              f"error = {_toml(float(np.mean(rms)) if rms else 0.0)}", f"units = {_toml(units)}",
+              'written_by = "saddlescope"']
+    for k, v in rig.checks.items():
+        lines.append(f"check_{k} = {_toml(float(v))}")
+    path = Path(path)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def _rotation(rot: np.ndarray, what: str) -> np.ndarray:
+    """A Rodrigues vector (3,) or a rotation matrix (3, 3) as a matrix; checked to be a rotation."""
+    R = cv2.Rodrigues(_matrix(rot.ravel(), (3,), what))[0] if rot.size == 3 else _matrix(rot, (3, 3), what)
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0:
+        raise InputError(f"{what} is not a rotation matrix")
+    return R
+
+
+def _load_toml(path: str | Path) -> dict:
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML ({exc})") from None
+
+
+def read_anipose_toml(path: str | Path, *, units: str | None = None) -> Rig:
+    """Read an anipose / aniposelib / Pose2Sim / FreeMoCap calibration TOML into a Rig.
+
+    ``units`` of the translations: "mm" (anipose's default, board squares in mm), "m" (Pose2Sim),
+    or None: taken from ``[metadata] units`` when present, else "mm".
+    """
+    data = _load_toml(path)
+    meta = data.get("metadata", {}) if isinstance(data.get("metadata"), Mapping) else {}
+    units = units or meta.get("units", "mm")
+    if units not in _UNIT_MM:
+        raise InputError(f"{path}: units {units!r} not one of {', '.join(_UNIT_MM)}")
+    scale = _UNIT_MM[units]
+    world, intr = {}, {}
+    for key, c in data.items():
+        if key == "metadata" or not isinstance(c, Mapping):
+            continue
+        name = str(c.get("name", key))
+        if c.get("fisheye", False):
+            raise InputError(f"{path}: camera {name} uses the fisheye model, which SaddleScope does "
+                             f"not support")
+        K = _matrix(c.get("matrix"), (3, 3), f"{path}: camera {name} matrix")
+        dist = _dist5(c.get("distortions", [0, 0, 0, 0]), f"{path}: camera {name} distortions")
+        size = c.get("size")
+        if not isinstance(size, list) or len(size) != 2:
+            raise InputError(f"{path}: camera {name} size must be [width, height]")
+        rot = np.asarray(c.get("rotation", [0, 0, 0]), np.float64)
+        R = _rotation(rot, f"{path}: camera {name} rotation")
+        t = _matrix(c.get("translation", [0, 0, 0]), (3,), f"{path}: camera {name} translation") * scale
+        world[name] = (R, t)
+        intr[name] = (K, dist, (int(size[0]), int(size[1])))
+    if not world:
+        raise InputError(f"{path}: no camera tables found")
+    rel = _relative_to_first(world)
+    return Rig({n: Camera(n, intr[n][0], intr[n][1], intr[n][2], R=rel[n][0], t_mm=rel[n][1]) for n in world})
+
+
+def rig_from_caliscope_toml(path: str | Path) -> Rig:
+    """Read caliscope's ``camera_array.toml`` (``[cameras.N]``) or ``config.toml`` (``[cam_N]``).
+
+    caliscope stores world-to-camera poses ``x_c = R X + t`` with R a 3x3 matrix and t in metres; the
+    rig is re-expressed relative to the first camera that is not ignored, in mm. Cameras are named
+    ``cam_<id>``.
+
+    Raises
+    ------
+    InputError
+        No cameras, or a camera without extrinsics (caliscope has not run its extrinsic stage).
+    """
+    data = _load_toml(path)
+    if isinstance(data.get("cameras"), Mapping):
+        tables = {f"cam_{k}": v for k, v in data["cameras"].items()}
+    else:
+        tables = {k: v for k, v in data.items() if re.fullmatch(r"cam_\d+", k) and isinstance(v, Mapping)}
+    tables = dict(sorted(tables.items(), key=lambda kv: int(kv[0].split("_")[1])))
+    world, intr = {}, {}
+    for name, c in tables.items():
+        if c.get("ignore", False):
+            continue
+        name = f"cam_{c.get('cam_id', name.split('_')[1])}"
+        if "rotation" not in c or "translation" not in c:
+            raise InputError(f"{path}: camera {name} has no extrinsics (rotation/translation); run "
+                             f"caliscope's extrinsic calibration first")
+        K = _matrix(c.get("matrix"), (3, 3), f"{path}: camera {name} matrix")
+        dist = _dist5(c.get("distortions", [0, 0, 0, 0, 0]), f"{path}: camera {name} distortions")
+        size = c.get("size")
+        if not isinstance(size, list) or len(size) != 2:
+            raise InputError(f"{path}: camera {name} size must be [width, height]")
+        rot = np.asarray(c["rotation"], np.float64)
+        R = _rotation(rot, f"{path}: camera {name} rotation")
+        t = _matrix(c["translation"], (3,), f"{path}: camera {name} translation") * 1000.0
+        world[name] = (R, t)
+        intr[name] = (K, dist, (int(size[0]), int(size[1])), c.get("error"))
+    if not world:
+        raise InputError(f"{path}: no cameras found")
+    rel = _relative_to_first(world)
+    return Rig({n: Camera(n, intr[n][0], intr[n][1], intr[n][2], R=rel[n][0], t_mm=rel[n][1],
+                          rms_px=None if intr[n][3] is None else float(intr[n][3])) for n in world})
+
+
+def board_from_caliscope_toml(path: str | Path) -> tuple[Board, bool]:
+    """caliscope's ``charuco.toml`` (or the ``[charuco]`` table of ``config.toml``) as (Board, inverted).
+
+    ``columns`` x ``rows`` are squares; the square is ``square_size_override_cm`` when present, else
+    ``board_width`` / ``columns`` in ``units``; markers are ``aruco_scale`` of a square.
+    """
+    data = _load_toml(path)
+    c = data.get("charuco", data)
+    try:
+        cols, rows = int(c["columns"]), int(c["rows"])
+        if c.get("square_size_override_cm"):
+            square_mm = float(c["square_size_override_cm"]) * 10.0
+        else:
+            per_unit = {"inch": 25.4, "cm": 10.0, "mm": 1.0}[c.get("units", "inch")]
+            square_mm = float(c["board_width"]) * per_unit / cols
+        board = make_board("charuco", (cols - 1, rows - 1), square_mm, dictionary=str(c["dictionary"]),
+                           marker_mm=float(c.get("aruco_scale", 0.75)) * square_mm)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"{path}: not a caliscope ChArUco description ({exc})") from None
+    return board, bool(c.get("inverted", False))
