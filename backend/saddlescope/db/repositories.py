@@ -12,7 +12,7 @@ import datetime as dt
 from collections.abc import Sequence
 from typing import Any, TypeVar
 
-from sqlalchemy import Select, func, select, update
+from sqlalchemy import Select, delete, func, select, update
 from sqlalchemy.orm import Session
 
 from saddlescope.db.models import (
@@ -141,6 +141,13 @@ class RideRepository(Repository):
     def _scoped_update(self, ride_id: int):
         stmt = update(Ride).where(Ride.id == ride_id)
         return stmt.where(Ride.club_id == self.club_id) if self.club_id is not None else stmt
+
+    def delete(self, ride_id: int) -> None:
+        """Delete a ride; its recordings, jobs, result and grades go with it (ON DELETE CASCADE)."""
+        stmt = delete(Ride).where(Ride.id == ride_id)
+        if self.club_id is not None:
+            stmt = stmt.where(Ride.club_id == self.club_id)
+        self.session.execute(stmt)
 
     def latest(self, limit: int = 50) -> Sequence[Ride]:
         return self.session.scalars(self._scoped(select(Ride)).order_by(Ride.id.desc()).limit(limit)).all()
