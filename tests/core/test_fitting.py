@@ -119,3 +119,24 @@ def test_bad_inputs():
         fit_fourier(T, series(T, A0, A, B), period_s=PERIOD_S, criterion="r2")
     with pytest.raises(InputError, match="derivative"):
         fit_fourier(T, series(T, A0, A, B), period_s=PERIOD_S, order=2).evaluate(T, 3)
+
+
+def test_trend_and_fourier_x_model():
+    # A drifting series: the pure series cannot follow it, the trend term can.
+    y = series(T, A0, A, B) + 0.05 * (T - T.mean()) + 0.3 * (T - T.mean()) ** 2
+    fit = fit_fourier(T, y, period_s=PERIOD_S, order=2, trend_degree=2)
+    np.testing.assert_allclose(fit.trend, [0.05, 0.3], atol=1e-8)
+    assert fit.omega_rad_s == pytest.approx(W, abs=1e-8)
+    assert fit.evaluate(T, 2) == pytest.approx(series(T, 0.0, -(np.array(A) * [W**2, 4 * W**2]),
+                                                      -(np.array(B) * [W**2, 4 * W**2])) + 0.6, abs=1e-6)
+    # Surge: x = travel + a periodic speed variation, kept by the "fourier" x model.
+    xyz = np.zeros((T.size, 3, 3))
+    for m in range(3):
+        xyz[:, m, 0] = 4.9 * T + 0.02 * np.sin(W * T) + 0.25 * m
+        xyz[:, m, 1] = series(T, 0.0, [0.12, 0.02], [0.0, 0.01])
+        xyz[:, m, 2] = series(T, 0.0, [0.01], [0.02])
+    kin = fit_marker_kinematics(T, xyz, period_s=PERIOD_S, x_model="fourier")
+    assert kin.average_speed_m_s == pytest.approx(4.9, abs=1e-8)
+    np.testing.assert_allclose(kin.acceleration_m_s2[:, 0, 0], -0.02 * W**2 * np.sin(W * T), atol=1e-6)
+    linear = fit_marker_kinematics(T, xyz, period_s=PERIOD_S)
+    assert np.all(linear.acceleration_m_s2[:, :, 0] == 0.0)  # the thesis's straight line

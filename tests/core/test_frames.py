@@ -109,3 +109,17 @@ def test_bad_inputs():
         motion_frame(marker_rig, plumb_top_mm=np.zeros(3), plumb_bottom_mm=along)
     with pytest.raises(InputError, match="shape"):
         motion_frame(np.zeros((4, 2)))
+
+
+def test_travel_velocity_is_exact_for_a_window_that_is_not_whole_periods():
+    from saddlescope.core.frames import travel_velocity
+
+    marker_rig = _to_rig(_marker_world_mm())
+    window = marker_rig[:-3]  # 34 samples: not a whole number of periods
+    naive = motion_frame(window)
+    fitted = motion_frame(window, t_s=T[:-3], period_s=PERIOD_S)
+    assert fitted.diagnostics["travel_method"] == "line_plus_series"
+    np.testing.assert_allclose(fitted.travel_raw, R_RW[:, 0], atol=1e-9)
+    assert np.degrees(np.arccos(naive.travel_raw @ R_RW[:, 0])) > 0.5  # eq. 5.7 tilts here
+    velocity = travel_velocity(T, marker_rig, period_s=PERIOD_S)
+    np.testing.assert_allclose(velocity, 4000 * R_RW[:, 0], atol=1e-6)

@@ -178,3 +178,41 @@ def test_collinear_markers_raise():
 def test_missing_static_saddle_raises():
     with pytest.raises(KinematicsError, match="saddle marker"):
         saddle_body_coordinates(THESIS_LAYOUT, np.array([np.nan, 0.0, 0.0]))
+
+
+def test_stages_chain_recovers_saddle_acceleration():
+    """Rig tracks -> period -> window -> motion frame -> registration -> fits -> angular -> S."""
+    from saddlescope.core.fitting import fit_marker_kinematics
+    from saddlescope.core.frames import motion_frame, to_motion_frame
+    from saddlescope.core.period import analysis_window, estimate_period
+    from saddlescope.core.registration import marker_model, register_rigid
+
+    c, s = np.cos(0.5), np.sin(0.5)
+    R_rw = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])  # rig <- world (world = true motion frame)
+
+    def to_rig_mm(p_m):
+        return (p_m * 1000.0) @ R_rw.T + np.array([-2000.0, 300.0, 8000.0])
+
+    t = np.arange(0, 3.0, 1 / 30)
+    body = np.vstack([THESIS_LAYOUT, SADDLE])
+    pos, vel, acc, omega, _ = rigid_motion(t, roll=0.04, pitch=0.06, yaw=0.02, body=body)
+    rig = to_rig_mm(pos[:, :3])
+    static = to_rig_mm(rigid_motion(np.array([0.3]), roll=0.0, pitch=0.0, yaw=0.0, body=body)[0][0])
+    period, _ = estimate_period(t, rig)
+    assert period == pytest.approx(1 / F0_HZ, rel=1e-3)
+    start, stop = analysis_window(t, np.ones(t.size, bool), period)
+    frame = motion_frame(rig[start:stop + 1, 0], plumb_top_mm=to_rig_mm(np.zeros(3)),
+                         plumb_bottom_mm=to_rig_mm(np.array([0.0, 1.0, 0.0])), t_s=t[start:stop + 1],
+                         period_s=period)
+    np.testing.assert_allclose(frame.R @ R_rw, np.eye(3), atol=1e-5)
+    model = to_motion_frame(marker_model(static[:3]), frame)
+    reg = register_rigid(to_motion_frame(rig[start:stop], frame), model)
+    kin = fit_marker_kinematics(t[start:stop], reg.registered, period_s=period, extra_orders=3,
+                                x_model="fourier")
+    ang = angular_kinematics(reg.registered, kin.velocity_m_s, kin.acceleration_m_s2)
+    r_bs = saddle_body_coordinates(model, to_motion_frame(static[3], frame))
+    sk = saddle_point_kinematics(reg.registered, kin.velocity_m_s, kin.acceleration_m_s2, ang, r_bs)
+    true_acc = acc[start:stop, 3]  # world axes = motion axes
+    rms_err = np.sqrt(np.mean((sk.acceleration_m_s2 - true_acc) ** 2, axis=0))
+    assert np.all(rms_err < 0.02), rms_err  # against ~12 m/s² r.m.s. vertical acceleration
+    np.testing.assert_allclose(ang.omega_rad_s, omega[start:stop], atol=1e-3)

@@ -169,6 +169,11 @@ class FourierFit:
         The extrema counted per fundamental period (E of the order rule).
     candidates : tuple of dict
         The orders tried with their goodness of fit (for the dashboard).
+    trend : ndarray of shape (D,)
+        Coefficients of (t - t0)^1 .. (t - t0)^D of an optional polynomial trend added to the
+        series (empty for the thesis's pure series). A linear trend absorbs drift (a slightly
+        tilted travel axis, a lateral drift); a quadratic one also a constant acceleration
+        (the centripetal acceleration on a curve). ``harmonics`` excludes the trend.
     """
 
     a0: float
@@ -185,6 +190,7 @@ class FourierFit:
     extrema_per_period: int | None = None
     candidates: tuple = ()
     flags: tuple[str, ...] = field(default_factory=tuple)
+    trend: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def order(self) -> int:
@@ -205,7 +211,8 @@ class FourierFit:
         # a cos θ + b sin θ = Re[(a - i b) e^{iθ}]; each derivative multiplies by i k w.
         c = (self.a - 1j * self.b) * (1j * kw) ** derivative
         out = np.real(np.sum(c * np.exp(1j * theta), axis=-1))
-        return out + self.a0 if derivative == 0 else out
+        poly = np.polynomial.polynomial.Polynomial(np.concatenate([[self.a0], self.trend]))
+        return out + poly.deriv(derivative)(t - self.t0)
 
     def harmonics(self, derivative: int = 0) -> tuple[float, np.ndarray, np.ndarray]:
         """The series as ``sum_k A_k cos(2 pi k f0 t + phi_k)`` in the absolute time t.
@@ -233,13 +240,16 @@ class FourierFit:
         return self.f0_hz, amp, phase
 
 
-def _design(tau: np.ndarray, omega: float, order: int) -> np.ndarray:
+def _design(tau: np.ndarray, omega: float, order: int, trend_degree: int = 0) -> np.ndarray:
+    """Columns [1, tau .. tau^D, cos(k w tau) (k = 1..N), sin(k w tau) (k = 1..N)]."""
     k = np.arange(1, order + 1)
     theta = tau[:, None] * (k * omega)
-    return np.column_stack([np.ones_like(tau), np.cos(theta), np.sin(theta)])
+    poly = tau[:, None] ** np.arange(trend_degree + 1)
+    return np.column_stack([poly, np.cos(theta), np.sin(theta)])
 
 
-def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: int = 8) -> int:
+def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: int = 8,
+                  trend_degree: int = 0) -> int:
     """Number E of extrema (maxima + minima) per period, robust to noise.
 
     A linear least-squares Fourier series with the fundamental ``2 pi / period_s`` (order up to
@@ -252,6 +262,8 @@ def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: 
     t, y : ndarray of shape (n,)
     period_s : float
     prominence : float, optional
+    trend_degree : int, optional
+        Degree of a polynomial trend fitted alongside and left out of the count.
 
     Returns
     -------
@@ -264,9 +276,9 @@ def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: 
     omega = 2 * np.pi / period_s
     order = int(max(1, min(max_order, (t.size - 2) // 4)))
     tau = t - t.mean()
-    coef, *_ = np.linalg.lstsq(_design(tau, omega, order), y, rcond=None)
+    coef, *_ = np.linalg.lstsq(_design(tau, omega, order, trend_degree), y, rcond=None)
     grid = np.linspace(0.0, period_s, 720, endpoint=False)
-    curve = _design(grid, omega, order) @ coef
+    curve = _design(grid, omega, order) @ np.concatenate([[0.0], coef[trend_degree + 1:]])
     span = np.ptp(curve)
     if span <= 0:
         return 2
@@ -292,22 +304,24 @@ def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: 
 
 
 def _fit_order(tau: np.ndarray, y: np.ndarray, omega0: float, order: int, fit_omega: bool,
-               name: str) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, tuple[str, ...]]:
-    """Coefficients [a0, a_1..a_N, b_1..b_N], omega, residuals, Jacobian, flags."""
-    design = _design(tau, omega0, order)
+               name: str, trend_degree: int
+               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, tuple[str, ...]]:
+    """Coefficients [a0, trend_1..trend_D, a_1..a_N, b_1..b_N], omega, residuals, Jacobian, flags."""
+    n_poly = trend_degree + 1
+    design = _design(tau, omega0, order, trend_degree)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     if not fit_omega:
         return coef, omega0, y - design @ coef, design, ()
     k = np.arange(1, order + 1)
 
     def residual(p):
-        return _design(tau, p[-1], order) @ p[:-1] - y
+        return _design(tau, p[-1], order, trend_degree) @ p[:-1] - y
 
     def jacobian(p):
         w = p[-1]
-        d = _design(tau, w, order)
+        d = _design(tau, w, order, trend_degree)
         theta = tau[:, None] * (k * w)
-        a, b = p[1:order + 1], p[order + 1:-1]
+        a, b = p[n_poly:n_poly + order], p[n_poly + order:-1]
         dw = np.sum(tau[:, None] * k * (-a * np.sin(theta) + b * np.cos(theta)), axis=1)
         return np.column_stack([d, dw])
 
@@ -328,7 +342,8 @@ def _criterion_value(gof: GoodnessOfFit, criterion: str) -> float:
 
 
 def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: str = "aicc",
-                fit_omega: bool = True, prominence: float = 0.1, name: str = "y") -> FourierFit:
+                fit_omega: bool = True, prominence: float = 0.1, extra_orders: int = 1,
+                trend_degree: int = 0, name: str = "y") -> FourierFit:
     """Fit a Fourier series with its fundamental (eq. 5.23); order from the extrema rule.
 
     Parameters
@@ -338,13 +353,20 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     period_s : float
         The stride period: the start (or, with ``fit_omega=False``, the value) of 2 pi / w.
     order : int, optional
-        Number of harmonics N; default: the better of E/2 and E/2 + 1 by ``criterion``.
+        Number of harmonics N; default: the best of E/2 .. E/2 + ``extra_orders`` by ``criterion``.
     criterion : {"aicc", "bic", "adj_r2"}
         Order selection: smallest AICc (default), smallest BIC, or largest adjusted R².
     fit_omega : bool, optional
         Fit w too (nonlinear least squares) or keep 2 pi / period_s.
     prominence : float, optional
         See :func:`count_extrema`.
+    extra_orders : int, optional
+        Orders tried above E/2: 1 gives the thesis's pair E/2, E/2 + 1. More lets the criterion
+        pick up small higher harmonics that hardly show as extrema but weigh in accelerations
+        (the k-th harmonic's acceleration scales with k²).
+    trend_degree : int, optional
+        Degree of a polynomial trend fitted with the series (0: the thesis's series; see
+        ``FourierFit.trend``).
     name : str
         What is fitted (e.g. ``"marker 1 y"``), for messages.
 
@@ -353,60 +375,72 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     FourierFit
     """
     t, y = _check_series(t, y, name)
+    if extra_orders < 0:
+        raise InputError(f"extra_orders must be >= 0, got {extra_orders}")
+    if trend_degree not in (0, 1, 2):
+        raise InputError(f"trend_degree must be 0, 1 or 2, got {trend_degree}")
     if criterion not in CRITERIA:
         raise InputError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
     if not np.isfinite(period_s) or period_s <= 0:
         raise InputError(f"period_s must be positive, got {period_s}")
     omega0 = 2 * np.pi / period_s
+    n_poly = trend_degree + 1
     extrema = None
     if order is None:
-        extrema = count_extrema(t, y, period_s=period_s, prominence=prominence)
-        orders = [max(1, extrema // 2), max(1, extrema // 2) + 1]
+        extrema = count_extrema(t, y, period_s=period_s, prominence=prominence, trend_degree=trend_degree)
+        orders = [max(1, extrema // 2) + extra for extra in range(extra_orders + 1)]
         used_criterion = criterion
     else:
         if order < 1:
             raise InputError(f"order must be at least 1, got {order}")
         orders = [int(order)]
         used_criterion = "given"
-    n_needed = 2 * orders[0] + 1 + int(fit_omega) + 1
-    if t.size < n_needed:
+
+    def n_params(o):
+        return n_poly + 2 * o + int(fit_omega)
+
+    if t.size < n_params(orders[0]) + 1:
         raise KinematicsError(f"{name}: {t.size} samples are too few for a Fourier fit of order {orders[0]}")
-    orders = [o for o in orders if t.size >= 2 * o + 1 + int(fit_omega) + 1]
+    orders = [o for o in orders if t.size >= n_params(o) + 1]
     t0 = float(t.mean())
     tau = t - t0
     fits = []
     for o in orders:
-        coef, omega, resid, jac, flags = _fit_order(tau, y, omega0, o, fit_omega, name)
+        coef, omega, resid, jac, flags = _fit_order(tau, y, omega0, o, fit_omega, name, trend_degree)
         omega_free = fit_omega and not flags
-        gof = _goodness(y, resid, jac.shape[1] if omega_free else 2 * o + 1)
-        se, half = _confidence(jac if omega_free else jac[:, : 2 * o + 1], gof)
+        n_lin = n_poly + 2 * o
+        gof = _goodness(y, resid, n_lin + int(omega_free))
+        se, half = _confidence(jac if omega_free else jac[:, :n_lin], gof)
         fits.append((o, coef, omega, resid, gof, se, half, flags, omega_free))
     best = min(fits, key=lambda f: (_criterion_value(f[4], criterion), f[0]))
     o, coef, omega, resid, gof, se, half, flags, omega_free = best
 
     def pack(v):
-        return {"a0": v[0], "a": v[1:o + 1], "b": v[o + 1:2 * o + 1],
-                "omega_rad_s": v[2 * o + 1] if omega_free else np.nan}
+        return {"a0": v[0], "trend": v[1:n_poly], "a": v[n_poly:n_poly + o],
+                "b": v[n_poly + o:n_poly + 2 * o], "omega_rad_s": v[n_poly + 2 * o] if omega_free else np.nan}
 
     se_d = pack(se)
     half_d = pack(half)
-    values = {"a0": coef[0], "a": coef[1:o + 1], "b": coef[o + 1:2 * o + 1], "omega_rad_s": omega}
+    values = dict(pack(np.append(coef, omega)), omega_rad_s=omega)
     ci = {key: np.stack([values[key] - half_d[key], values[key] + half_d[key]], axis=-1) for key in values}
     candidates = tuple({"order": f[0], "omega_rad_s": f[2], **f[4].as_dict()} for f in fits)
-    return FourierFit(a0=float(coef[0]), a=np.array(coef[1:o + 1]), b=np.array(coef[o + 1:2 * o + 1]),
+    return FourierFit(a0=float(coef[0]), a=np.array(values["a"]), b=np.array(values["b"]),
                       omega_rad_s=float(omega), t0=t0, gof=gof, ci=ci, se=se_d, residuals=resid,
                       omega_source="fitted" if omega_free else "fixed", criterion=used_criterion,
-                      extrema_per_period=extrema, candidates=candidates, flags=flags)
+                      extrema_per_period=extrema, candidates=candidates, flags=flags,
+                      trend=np.array(values["trend"]))
 
 
 @dataclass(frozen=True)
 class MarkerKinematics:
     """Fits and analytic derivatives of every marker's motion-frame coordinates.
 
-    fits_x : tuple of LinearFit (M,); fits_y, fits_z : tuple of FourierFit (M,);
+    fits_x : tuple (M,) of LinearFit (thesis) or FourierFit (``x_model="fourier"``);
+    fits_y, fits_z : tuple of FourierFit (M,);
     t_s : ndarray of shape (F,); velocity_m_s, acceleration_m_s2 : ndarray of shape (F, M, 3);
     omega_rad_s : float, the common fundamental (pooled) or NaN when each fit kept its own;
-    omega_per_fit : ndarray of shape (M, 2), the free fundamental of each y and z fit;
+    omega_per_fit : ndarray of shape (M, 3), the free fundamental of each axis's Fourier fit
+    (NaN for a linear x);
     flags : tuple of str.
     """
 
@@ -422,12 +456,13 @@ class MarkerKinematics:
 
     @property
     def average_speed_m_s(self) -> float:
-        """Mean slope of the x fits (eq. 5.5.3: the average velocity)."""
-        return float(np.mean([f.slope for f in self.fits_x]))
+        """Mean travel speed of the markers (the slope of the x fits, thesis 5.5.3)."""
+        return float(np.mean([f.slope if isinstance(f, LinearFit) else f.trend[0] for f in self.fits_x]))
 
 
 def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = True,
-                          criterion: str = "aicc", names: tuple[str, ...] | None = None) -> MarkerKinematics:
+                          criterion: str = "aicc", extra_orders: int = 1, x_model: str = "linear",
+                          trend_degree: int = 0, names: tuple[str, ...] | None = None) -> MarkerKinematics:
     """Fit x linearly and y, z with Fourier series for every marker; differentiate analytically.
 
     Parameters
@@ -439,13 +474,21 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
     period_s : float
         Stride period (start value of the fundamental).
     common_omega : bool, optional
-        A rigid body has one fundamental: when True (default) each y and z series is first fitted
+        A rigid body has one fundamental: when True (default) each Fourier series is first fitted
         with its own w, the inverse-variance weighted mean of those w is taken, and every series
         is refitted (linearly, same order) with it. This keeps the markers' velocities
         consistent, which the angular velocity (differences of marker velocities) needs. When
         False, each fit keeps its own w as in the thesis.
     criterion : str
         Order selection criterion, see :func:`fit_fourier`.
+    extra_orders : int, optional
+        See :func:`fit_fourier`.
+    x_model : {"linear", "fourier"}
+        ``"linear"``: the thesis's straight line (constant speed, zero x acceleration);
+        ``"fourier"``: a line plus a Fourier series, which keeps the surge (the speed's variation
+        within the stride).
+    trend_degree : int, optional
+        Polynomial trend added to the y and z series (see :func:`fit_fourier`).
     names : tuple of str, optional
         Marker names for messages.
 
@@ -458,44 +501,55 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
     if xyz.ndim != 3 or xyz.shape[2] != 3 or t_s.shape != (xyz.shape[0],):
         raise InputError(f"xyz_m must have shape (F, M, 3) with F = len(t_s); got {xyz.shape} and "
                          f"{t_s.shape}")
+    if x_model not in ("linear", "fourier"):
+        raise InputError(f"x_model must be 'linear' or 'fourier', got {x_model!r}")
     n_mark = xyz.shape[1]
     label = [names[m] if names is not None and m < len(names) else f"marker {m + 1}" for m in range(n_mark)]
-    fits_x = tuple(fit_linear(t_s, xyz[:, m, 0], name=f"{label[m]} x") for m in range(n_mark))
-    free = [[fit_fourier(t_s, xyz[:, m, c], period_s=period_s, criterion=criterion, name=f"{label[m]} {ax}")
-             for c, ax in ((1, "y"), (2, "z"))] for m in range(n_mark)]
-    omega_per_fit = np.array([[f.omega_rad_s for f in row] for row in free])
-    flags = [flag for row in free for f in row for flag in f.flags]
+    # Fourier-fitted axes and their trend degree.
+    axes = {1: trend_degree, 2: trend_degree}
+    if x_model == "fourier":
+        axes = {0: 1, **axes}
+    fits: dict[tuple[int, int], LinearFit | FourierFit] = {}
+    for m in range(n_mark):
+        if x_model == "linear":
+            fits[m, 0] = fit_linear(t_s, xyz[:, m, 0], name=f"{label[m]} x")
+        for c, degree in axes.items():
+            fits[m, c] = fit_fourier(t_s, xyz[:, m, c], period_s=period_s, criterion=criterion,
+                                     extra_orders=extra_orders, trend_degree=degree,
+                                     name=f"{label[m]} {'xyz'[c]}")
+    omega_per_fit = np.full((n_mark, 3), np.nan)
+    for (m, c), f in fits.items():
+        if isinstance(f, FourierFit):
+            omega_per_fit[m, c] = f.omega_rad_s
+    flags = [flag for f in fits.values() if isinstance(f, FourierFit) for flag in f.flags]
     pooled = float("nan")
     if common_omega:
-        se = np.array([[f.se["omega_rad_s"] for f in row] for row in free])
+        keys = [k for k, f in fits.items() if isinstance(f, FourierFit)]
+        se = np.array([fits[k].se["omega_rad_s"] for k in keys])
+        omegas = np.array([fits[k].omega_rad_s for k in keys])
         ok = np.isfinite(se) & (se > 0)
         if ok.any():
             w = 1.0 / se[ok] ** 2
-            pooled = float(np.sum(w * omega_per_fit[ok]) / np.sum(w))
+            pooled = float(np.sum(w * omegas[ok]) / np.sum(w))
             pooled_se = float(1.0 / np.sqrt(np.sum(w)))
         else:
             pooled = 2 * np.pi / period_s
             pooled_se = float("nan")
             flags.append("no fit determined the fundamental; used the stride period's")
-        refit = []
-        for m, row in enumerate(free):
-            new_row = []
-            for c, f in zip((1, 2), row, strict=True):
-                g = fit_fourier(t_s, xyz[:, m, c], period_s=2 * np.pi / pooled, order=f.order,
-                                fit_omega=False, name=f"{label[m]} {'xyz'[c]}")
-                half = student_t.ppf(0.975, max(g.gof.dfe, 1)) * pooled_se
-                new_row.append(_with_pooled_omega(g, f, pooled_se, half))
-            refit.append(new_row)
-        free = refit
-    fits_y = tuple(row[0] for row in free)
-    fits_z = tuple(row[1] for row in free)
+        for m, c in keys:
+            free = fits[m, c]
+            g = fit_fourier(t_s, xyz[:, m, c], period_s=2 * np.pi / pooled, order=free.order, fit_omega=False,
+                            trend_degree=axes[c], name=f"{label[m]} {'xyz'[c]}")
+            half = student_t.ppf(0.975, max(g.gof.dfe, 1)) * pooled_se
+            fits[m, c] = _with_pooled_omega(g, free, pooled_se, half)
     vel = np.empty(xyz.shape)
     acc = np.empty(xyz.shape)
-    for m in range(n_mark):
-        for c, fit in enumerate((fits_x[m], fits_y[m], fits_z[m])):
-            vel[:, m, c] = fit.evaluate(t_s, 1)
-            acc[:, m, c] = fit.evaluate(t_s, 2)
-    return MarkerKinematics(t_s=t_s, fits_x=fits_x, fits_y=fits_y, fits_z=fits_z, velocity_m_s=vel,
+    for (m, c), fit in fits.items():
+        vel[:, m, c] = fit.evaluate(t_s, 1)
+        acc[:, m, c] = fit.evaluate(t_s, 2)
+    return MarkerKinematics(t_s=t_s, fits_x=tuple(fits[m, 0] for m in range(n_mark)),
+                            fits_y=tuple(fits[m, 1] for m in range(n_mark)),
+                            fits_z=tuple(fits[m, 2] for m in range(n_mark)), velocity_m_s=vel,
                             acceleration_m_s2=acc, omega_rad_s=pooled, omega_per_fit=omega_per_fit,
                             flags=tuple(flags))
 
@@ -507,4 +561,4 @@ def _with_pooled_omega(fixed: FourierFit, free: FourierFit, pooled_se: float, ha
     return FourierFit(a0=fixed.a0, a=fixed.a, b=fixed.b, omega_rad_s=fixed.omega_rad_s, t0=fixed.t0,
                       gof=fixed.gof, ci=ci, se=se, residuals=fixed.residuals, omega_source="pooled",
                       criterion=free.criterion, extrema_per_period=free.extrema_per_period,
-                      candidates=free.candidates, flags=free.flags)
+                      candidates=free.candidates, flags=free.flags, trend=fixed.trend)

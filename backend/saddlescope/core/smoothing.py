@@ -70,42 +70,85 @@ def _window_starts(t_fit: np.ndarray, t_eval: np.ndarray, k: int) -> np.ndarray:
     return np.searchsorted(pair_sum, 2.0 * t_eval, side="left").astype(np.intp)
 
 
-def _local_quadratic(t_fit: np.ndarray, y_fit: np.ndarray, robust_w: np.ndarray, t_eval: np.ndarray,
-                     k: int, *, degree: int = 2) -> np.ndarray:
-    """Weighted local polynomial value at each evaluation time.
+class _Windows:
+    """Neighbour windows, distance weights and abscissa powers of a set of evaluation times.
 
-    t_fit : (n,), y_fit : (n,), robust_w : (n,), t_eval : (m,) -> (m,).
+    They depend on the times only, so they are computed once and reused by every robustness
+    pass (cached when they fit in memory, recomputed chunk by chunk otherwise).
     """
-    n_eval = t_eval.shape[0]
-    out = np.empty(n_eval)
-    starts = _window_starts(t_fit, t_eval, k)
-    offsets = np.arange(k)
-    rows = max(1, _CHUNK_ELEMENTS // max(k, 1))
-    n_coef = degree + 1
-    for lo in range(0, n_eval, rows):
-        hi = min(lo + rows, n_eval)
-        idx = starts[lo:hi, None] + offsets[None, :]  # (r, k)
-        dt = t_fit[idx] - t_eval[lo:hi, None]
+
+    def __init__(self, t_fit: np.ndarray, t_eval: np.ndarray, k: int, degree: int = 2):
+        self.t_fit, self.t_eval, self.k, self.degree = t_fit, t_eval, k, degree
+        self.starts = _window_starts(t_fit, t_eval, k)
+        self.chunk = max(1, _CHUNK_ELEMENTS // max(k, 1))
+        n_chunks = -(-t_eval.shape[0] // self.chunk)
+        self.cache: dict[int, tuple] | None = {} if n_chunks * self.chunk * k <= 2 * _CHUNK_ELEMENTS else None
+
+    def chunk_data(self, lo: int) -> tuple:
+        if self.cache is not None and lo in self.cache:
+            return self.cache[lo]
+        hi = min(lo + self.chunk, self.t_eval.shape[0])
+        k = self.k
+        idx = self.starts[lo:hi, None] + np.arange(k)[None, :]  # (r, k)
+        dt = self.t_fit[idx] - self.t_eval[lo:hi, None]
         dist = np.abs(dt)
         dmax = dist.max(axis=1, keepdims=True)
         dmax = np.where(dmax > 0, dmax, 1.0)
-        u = dist / dmax
-        # Tricube distance weights (zero at the furthest neighbour, as MATLAB's lowess).
-        w = (1.0 - np.clip(u, 0.0, 1.0) ** 3) ** 3 * robust_w[idx]
+        # Tricube distance weights. Scaling by k/(k-1) of the furthest distance leaves the outermost
+        # neighbours a small weight: with a short span (5 points) a zero weight would leave a
+        # quadratic through three points, which does not smooth at all.
+        u = dist / (dmax * k / (k - 1))
+        w_dist = (1.0 - np.clip(u, 0.0, 1.0) ** 3) ** 3
         x = dt / dmax  # centred and scaled abscissa keeps the normal equations well conditioned
-        basis = np.stack([x**p for p in range(n_coef)], axis=-1)  # (r, k, c)
-        wb = basis * w[..., None]
-        A = np.einsum("rkc,rkd->rcd", wb, basis)
-        b = np.einsum("rkc,rk->rc", wb, y_fit[idx])
-        # A window may lose its support when robust weights zero most of it: fall back to pinv.
-        det = np.linalg.det(A)
-        scale = np.einsum("rcc->r", A) ** n_coef
-        good = np.abs(det) > 1e-12 * np.maximum(scale, 1e-300)
-        coef = np.empty((hi - lo, n_coef))
-        if np.any(good):
-            coef[good] = np.linalg.solve(A[good], b[good][..., None])[..., 0]
-        if np.any(~good):
-            coef[~good] = np.einsum("rcd,rd->rc", np.linalg.pinv(A[~good]), b[~good])
+        powers = np.empty(x.shape + (2 * self.degree + 1,))  # (r, k, 2 degree + 1)
+        powers[..., 0] = 1.0
+        for p in range(1, powers.shape[-1]):
+            powers[..., p] = powers[..., p - 1] * x
+        data = (hi, idx, np.sign(dt), w_dist, powers)
+        if self.cache is not None:
+            self.cache[lo] = data
+        return data
+
+
+def _local_quadratic(win: _Windows, y_fit: np.ndarray, robust_w: np.ndarray) -> np.ndarray:
+    """Weighted local polynomial value at each evaluation time of ``win``; y_fit, robust_w : (n,)."""
+    n_eval = win.t_eval.shape[0]
+    n_coef = win.degree + 1
+    out = np.empty(n_eval)
+    ij = np.add.outer(np.arange(n_coef), np.arange(n_coef))
+    for lo in range(0, n_eval, win.chunk):
+        hi, idx, side, w_dist, powers = win.chunk_data(lo)
+        w = w_dist * robust_w[idx]
+        # Weighted moments sum w x^p and sum w y x^p build every normal matrix at once.
+        moments = np.matmul(w[:, None, :], powers)[:, 0, :]  # (r, 2 degree + 1)
+        b = np.matmul((w * y_fit[idx])[:, None, :], powers[..., :n_coef])[:, 0, :]
+        A = moments[:, ij]  # Hankel: A[c, d] = sum w x^(c + d)
+        coef = np.zeros((hi - lo, n_coef))
+        todo = np.ones(hi - lo, dtype=bool)
+        # Where robust weights leave support on one side only (and none at the point itself, as
+        # at a record's end whose last samples were rejected), a quadratic would extrapolate
+        # wildly: use a line there.
+        positive = w > 0
+        extrapolating = ~((positive & (side < 0)).any(axis=1) & (positive & (side > 0)).any(axis=1)) & ~(
+            positive & (side == 0)).any(axis=1)
+        # Robust weights may zero most of a window: drop to a local line, then to a weighted mean,
+        # rather than take a minimum-norm quadratic through two points (which can be far off).
+        for c in range(n_coef, 0, -1):
+            if not todo.any():
+                break
+            todo_c = todo & ~extrapolating if c > 2 else todo
+            if not todo_c.any():
+                continue
+            Ac = A[todo_c][:, :c, :c]
+            scale = np.einsum("rcc->r", Ac) ** c
+            good = np.abs(np.linalg.det(Ac)) > 1e-10 * np.maximum(scale, 1e-300)
+            rows = np.flatnonzero(todo_c)[good]
+            if rows.size:
+                coef[rows, :c] = np.linalg.solve(Ac[good], b[rows, :c][..., None])[..., 0]
+                todo[rows] = False
+        if todo.any():  # robust weights zeroed the whole window: plain distance-weighted mean
+            wd = w_dist[todo]
+            coef[todo, 0] = np.sum(wd * y_fit[idx[todo]], axis=1) / np.sum(wd, axis=1)
         out[lo:hi] = coef[:, 0]
     return out
 
@@ -120,22 +163,25 @@ def _bisquare(residual: np.ndarray) -> np.ndarray:
 
 
 def _rloess_1d(t: np.ndarray, y: np.ndarray, k_span: float, iterations: int,
-               t_eval: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+               t_eval: np.ndarray | None = None, win: _Windows | None = None,
+               ) -> tuple[np.ndarray, np.ndarray | None]:
     """Smooth one finite series; optionally also evaluate the final local fit at t_eval."""
     n = t.shape[0]
     k = span_points(n, k_span)
+    if win is None or win.k != k or win.t_fit.shape != t.shape:
+        win = _Windows(t, t, k)
     robust_w = np.ones(n)
-    fit = _local_quadratic(t, y, robust_w, t, k)
+    fit = _local_quadratic(win, y, robust_w)
     for _ in range(iterations):
         robust_w = _bisquare(y - fit)
-        fit = _local_quadratic(t, y, robust_w, t, k)
+        fit = _local_quadratic(win, y, robust_w)
     extra = None
     if t_eval is not None and t_eval.size:
-        extra = _local_quadratic(t, y, robust_w, t_eval, k)
+        extra = _local_quadratic(_Windows(t, t_eval, k), y, robust_w)
     return fit, extra
 
 
-def rloess(t, y, *, span: float = 0.10, iterations: int = 4) -> np.ndarray:
+def rloess(t, y, *, span: float = 0.10, iterations: int = 4, span_s: float | None = None) -> np.ndarray:
     """Robust local quadratic regression of each column of ``y`` (MATLAB ``smooth(..., 'rloess')``).
 
     Parameters
@@ -150,6 +196,9 @@ def rloess(t, y, *, span: float = 0.10, iterations: int = 4) -> np.ndarray:
     iterations : int, optional
         Number of bisquare robustness passes after the first ordinary pass (MATLAB: 4, five
         passes in all). 0 gives plain loess.
+    span_s : float, optional
+        The window as a duration instead (overrides ``span``): 10 % of a long ride can exceed a
+        stride and flatten the motion, whereas the thesis smoothed only its two-period window.
 
     Returns
     -------
@@ -162,13 +211,24 @@ def rloess(t, y, *, span: float = 0.10, iterations: int = 4) -> np.ndarray:
     t = _as_time(t, y.shape[0])
     if iterations < 0:
         raise InputError(f"iterations must be >= 0, got {iterations}")
+    if span_s is not None:
+        if not np.isfinite(span_s) or span_s <= 0:
+            raise InputError(f"span_s must be a positive duration, got {span_s}")
+        dt = float(np.median(np.diff(t))) if t.shape[0] > 1 else 1.0
+        span = float(max(1, round(span_s / dt) + 1))
     cols = y.reshape(y.shape[0], -1)
     out = np.full_like(cols, np.nan)
+    shared = None  # the windows of complete columns are the same: compute them once
     for c in range(cols.shape[1]):
         ok = np.isfinite(cols[:, c])
         if ok.sum() < 5:
             raise InputError(f"column {c} has {int(ok.sum())} finite samples; rloess needs at least 5")
-        out[ok, c], _ = _rloess_1d(t[ok], cols[ok, c], span, iterations)
+        if ok.all():
+            if shared is None:
+                shared = _Windows(t, t, span_points(t.shape[0], span))
+            out[:, c], _ = _rloess_1d(t, cols[:, c], span, iterations, win=shared)
+        else:
+            out[ok, c], _ = _rloess_1d(t[ok], cols[ok, c], span, iterations)
     return out.reshape(y.shape)
 
 
