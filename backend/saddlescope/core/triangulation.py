@@ -367,7 +367,7 @@ def triangulate_nview(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *, refin
     reprojection_error_px : ndarray of shape (...,)
         RMS over the cameras used of the distance between projection and observation.
     views : ndarray of shape (...,), int
-        Number of cameras used.
+        Number of cameras used (0 where the point was not triangulated).
     used : ndarray of shape (C, ...), bool
         Only with ``return_used=True``.
     """
@@ -415,6 +415,8 @@ def triangulate_nview(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *, refin
     n_use = use.sum(axis=0)
     rms[n_use < 2] = np.nan
     X[n_use < 2] = np.nan
+    use[:, n_use < 2] = False
+    n_use[n_use < 2] = 0  # nothing triangulated, nothing used
     out = (X.reshape(shape + (3,)), rms.reshape(shape), n_use.reshape(shape).astype(int))
     if return_used:
         return out + (use.reshape((len(names),) + shape),)
@@ -699,6 +701,8 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     """
     if not tracks:
         raise InputError("no camera tracks to triangulate")
+    if method not in ("nview", "thesis_pairs"):
+        raise InputError(f"unknown triangulation method {method!r} (use 'nview' or 'thesis_pairs')")
     if not (fps > 0 and math.isfinite(fps)):
         raise InputError(f"frame rate must be positive, got {fps}")
     cams = list(tracks)
@@ -729,10 +733,8 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
             xy = {c: xy[c][:, perms[c]] for c in cams}
     if method == "nview":
         X, err, views = triangulate_nview(rig, xy, **kwargs)
-    elif method == "thesis_pairs":
-        X, err, views = triangulate_thesis_pairs(rig, xy, **kwargs)
     else:
-        raise InputError(f"unknown triangulation method {method!r} (use 'nview' or 'thesis_pairs')")
+        X, err, views = triangulate_thesis_pairs(rig, xy, **kwargs)
     if names is None:
         names = tuple(str(i + 1) for i in range(M))
     elif len(names) != M:
