@@ -739,6 +739,9 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
     """
     names = list(cameras)
     obj_all = board.object_points_mm()
+    for name in names:
+        if not views_by_camera.get(name):
+            raise CalibrationError(f"bundle adjustment: camera {name} has no board view")
 
     # board pose per instant, initialised from the camera seeing most corners
     inst_pose: dict[int, np.ndarray] = {}
@@ -1307,3 +1310,62 @@ def thesis_like_views(n_poses: int = 90, *, rng: np.random.Generator, noise_px: 
         ts.append(centre - R @ half)
     views = simulate_board_views(rig, board, np.array(rvecs), np.array(ts), noise_px=noise_px, rng=rng)
     return rig, board, views, {n: size for n in names}
+
+
+def board_texture(board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray, float, np.ndarray]:
+    """Image of the board with a one-square white margin.
+
+    Returns
+    -------
+    texture : ndarray (H, W) uint8
+    px_per_mm : float
+    origin_px : ndarray (2,), texture pixel of board point (0, 0) (inner corner 0)
+    """
+    cols, rows = board.inner_corners
+    sq = int(px_per_square)
+    if board.kind == "charuco":
+        size = ((cols + 1) * sq + 2 * sq, (rows + 1) * sq + 2 * sq)
+        tex = _cv_charuco(board).generateImage(size, marginSize=sq, borderBits=1)
+        origin = np.array([2 * sq, 2 * sq], np.float64)  # margin + first square
+    else:
+        tex = np.full(((rows + 3) * sq, (cols + 3) * sq), 255, np.uint8)
+        for j in range(rows + 1):
+            for i in range(cols + 1):
+                if (i + j) % 2 == 0:  # the square left of and above corner 0 is dark (canonical order)
+                    tex[(j + 1) * sq:(j + 2) * sq, (i + 1) * sq:(i + 2) * sq] = 0
+        origin = np.array([2 * sq, 2 * sq], np.float64)
+    return tex, sq / board.square_mm, origin - 0.5
+
+
+def render_board(board: Board, camera: Camera, board_rvec: np.ndarray, board_t_mm: np.ndarray, *,
+                 background: int = 128, supersample: int = 2, px_per_square: int = 40) -> np.ndarray:
+    """Synthetic grey image (H, W) uint8 of the board seen by a camera (with its lens distortion).
+
+    The board pose is in the camera's frame: ``x_cam = R(board_rvec) @ X_board + board_t_mm``. For
+    tests, demos and benchmarks; anti-aliased by rendering ``supersample`` times larger.
+    """
+    tex, px_per_mm, origin = board_texture(board, px_per_square=px_per_square)
+    w, h = camera.image_size
+    s = int(supersample)
+    # undistort a coarse grid and interpolate: the distortion field is smooth, undistortPoints is slow
+    step = 8
+    gy, gx = np.arange(0, h * s + step, step), np.arange(0, w * s + step, step)
+    ys, xs = np.meshgrid(gy, gx, indexing="ij")
+    pix = np.column_stack([(xs.ravel() + 0.5) / s - 0.5, (ys.ravel() + 0.5) / s - 0.5])
+    coarse = cv2.undistortPoints(pix.reshape(-1, 1, 2), camera.K, camera.dist,
+                                 criteria=_UNDISTORT_CRITERIA).reshape(len(gy), len(gx), 2)
+    mx, my = np.meshgrid(np.arange(w * s, dtype=np.float32) / step, np.arange(h * s, dtype=np.float32) / step)
+    norm = np.dstack([cv2.remap(coarse[..., k].astype(np.float32), mx, my, cv2.INTER_LINEAR)
+                      for k in range(2)]).reshape(-1, 2).astype(np.float64)
+    R = cv2.Rodrigues(np.asarray(board_rvec, np.float64))[0]
+    H = np.column_stack([R[:, 0], R[:, 1], np.asarray(board_t_mm, np.float64)])
+    uvw = np.column_stack([norm, np.ones(len(norm))]) @ np.linalg.inv(H).T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = uvw[:, 0] / uvw[:, 2] * px_per_mm + origin[0]
+        v = uvw[:, 1] / uvw[:, 2] * px_per_mm + origin[1]
+    behind = ~(uvw[:, 2] > 0)
+    u[behind] = -1e6
+    v[behind] = -1e6
+    big = cv2.remap(tex, u.reshape(h * s, w * s).astype(np.float32), v.reshape(h * s, w * s).astype(np.float32),
+                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=int(background))
+    return cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA) if s > 1 else big
