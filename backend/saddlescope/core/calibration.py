@@ -1366,6 +1366,7 @@ def render_board(board: Board, camera: Camera, board_rvec: np.ndarray, board_t_m
     behind = ~(uvw[:, 2] > 0)
     u[behind] = -1e6
     v[behind] = -1e6
-    big = cv2.remap(tex, u.reshape(h * s, w * s).astype(np.float32), v.reshape(h * s, w * s).astype(np.float32),
+    shape = (h * s, w * s)
+    big = cv2.remap(tex, u.reshape(shape).astype(np.float32), v.reshape(shape).astype(np.float32),
                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=int(background))
     return cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA) if s > 1 else big
