@@ -1,0 +1,232 @@
+"""Marker detection and tracking on frames drawn here: blurred discs at known sub-pixel positions."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from scipy.special import erf
+
+from saddlescope.core.errors import DetectionError, InputError
+from saddlescope.core.markers import detect_blobs, initial_markers, track_markers
+
+SHAPE = (480, 640)
+
+
+def texture(rng, shape=SHAPE, amplitude=8.0, level=60.0):
+    """A smooth random background (arena sand, a horse's coat), float."""
+    h, w = shape
+    coarse = rng.normal(0.0, 1.0, (h // 8 + 2, w // 8 + 2))
+    return level + amplitude * cv2.resize(coarse, (w, h), interpolation=cv2.INTER_CUBIC)
+
+
+def render(blobs, *, background=None, shape=SHAPE, noise=0.0, rng=None):
+    """uint8 frame with blurred discs: ``blobs`` = [((x, y), radius_px, amplitude, blur_sigma_px), ...]."""
+    img = np.full(shape, 40.0) if background is None else background.copy()
+    for (cx, cy), radius, amplitude, sigma in blobs:
+        reach = int(radius + 6 * sigma + 2)
+        x0, y0 = int(cx) - reach, int(cy) - reach
+        yy, xx = np.mgrid[y0:y0 + 2 * reach + 1, x0:x0 + 2 * reach + 1]
+        r = np.hypot(xx - cx, yy - cy)
+        img[y0:y0 + 2 * reach + 1, x0:x0 + 2 * reach + 1] += \
+            amplitude * 0.5 * (1 - erf((r - radius) / (np.sqrt(2) * sigma)))
+    if noise:
+        img = img + rng.normal(0.0, noise, shape)
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+def marker(xy, radius=2.0, amplitude=200.0, sigma=0.8):
+    """A retro-reflective marker at 640x480 from 7.5 m: 3-5 px across with a bright core."""
+    return (tuple(xy), radius, amplitude, sigma)
+
+
+ROW = np.array([[0.0, 0.0], [32.0, 2.0], [63.0, -1.0]])  # three horse markers, left to right
+
+
+# --------------------------------------------------------------------------------------------------
+# detect_blobs
+# --------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("radius, sigma, scale", [(2.0, 0.8, 1), (1.5, 0.7, 1), (7.0, 1.5, 3)])
+def test_subpixel_centroids_on_clean_discs(radius, sigma, scale):
+    rng = np.random.default_rng(0)
+    shape = (SHAPE[0] * scale, SHAPE[1] * scale)
+    errors = []
+    for _ in range(10):
+        truth = np.array([[100.0, 100.0], [300.0, 220.0], [500.0, 400.0]]) * scale + rng.uniform(0, 1, (3, 2))
+        frame = render([marker(p, radius, 200.0, sigma) for p in truth], shape=shape)
+        xy, area, peak = detect_blobs(frame, threshold=140, area_range_px=(2, 10_000))
+        order = np.argsort(xy[:, 0])
+        errors.append(xy[order] - truth)
+        assert np.all(peak > 140) and np.all(area >= 2)
+    assert np.max(np.abs(errors)) < 0.05
+
+
+def test_centroids_with_noise_and_texture_are_unbiased_enough():
+    rng = np.random.default_rng(1)
+    bg = texture(rng, amplitude=10.0)
+    errors = []
+    for _ in range(10):
+        truth = np.array([[120.0, 140.0], [320.0, 260.0], [520.0, 380.0]]) + rng.uniform(0, 1, (3, 2))
+        frame = render([marker(p) for p in truth], background=bg, noise=2.0, rng=rng)
+        xy, _, _ = detect_blobs(frame, threshold=150, area_range_px=(3, 200))
+        errors.append(xy[np.argsort(xy[:, 0])] - truth)
+    assert np.sqrt(np.mean(np.square(errors))) < 0.1
+
+
+def test_detect_blobs_window_area_filter_and_strided_views():
+    rng = np.random.default_rng(2)
+    truth = np.array([[200.3, 240.6], [260.8, 250.1]])
+    frame = render([marker(truth[0]), marker(truth[1]), ((400.0, 300.0), 9.0, 150.0, 1.0)])
+    xy, area, _ = detect_blobs(frame, threshold=120, area_range_px=(3, 60))
+    assert xy.shape == (2, 2)  # the big patch fails the area filter
+    xy_roi, _, _ = detect_blobs(frame, threshold=120, area_range_px=(3, 60), roi=(230, 200, 330, 300))
+    np.testing.assert_allclose(xy_roi, truth[1:], atol=0.05)  # full-image coordinates
+    # A decoder's Y plane: rows padded to a larger stride, handed over as a non-contiguous view.
+    buffer = rng.integers(0, 255, (480, 704), dtype=np.uint8)
+    buffer[:, :640] = frame
+    view = buffer[:, :640]
+    assert not view.flags.c_contiguous
+    xy_view, _, _ = detect_blobs(view, threshold=120, area_range_px=(3, 60))
+    np.testing.assert_allclose(xy_view, xy)
+
+
+def test_detect_blobs_rejects_colour_frames():
+    with pytest.raises(InputError, match=r"\(H, W\)"):
+        detect_blobs(np.zeros((10, 10, 3), np.uint8), threshold=100)
+    with pytest.raises(InputError, match="uint8"):
+        detect_blobs(np.zeros((10, 10), np.float32), threshold=100)
+
+
+# --------------------------------------------------------------------------------------------------
+# initial_markers
+# --------------------------------------------------------------------------------------------------
+
+def test_initial_markers_finds_the_row_among_distractors():
+    rng = np.random.default_rng(3)
+    truth = ROW + [250.4, 200.7]
+    distractors = [((150.0, 350.0), 10.0, 120.0, 2.0),   # a light patch
+                   ((500.0, 80.0), 0.4, 255.0, 0.4),      # a one-pixel glint
+                   ((420.0, 330.0), 2.0, 90.0, 0.8),      # a dim reflection, marker-sized
+                   ((270.0, 400.0), 2.6, 200.0, 0.8)]     # a bright look-alike far below the row
+    frame = render([marker(p) for p in truth] + distractors, background=texture(rng), noise=1.0, rng=rng)
+    pattern = initial_markers(frame, 3, camera="left", clip="static")
+    np.testing.assert_allclose(pattern.xy_px, truth, atol=0.2)  # labelled left to right
+    assert 3 <= pattern.diameter_px <= 6
+    assert pattern.area_range_px[0] <= pattern.area_px.min() <= pattern.area_px.max() <= pattern.area_range_px[1]
+    assert 40 < pattern.threshold < 255
+
+
+def test_initial_markers_layouts():
+    plumb = np.array([[320.2, 100.4], [318.9, 300.7]])
+    frame = render([marker(plumb[1]), marker(plumb[0])])
+    np.testing.assert_allclose(initial_markers(frame, 2).xy_px, plumb, atol=0.05)  # top first
+    ball = np.array([[100.5, 50.5]])
+    frame = render([marker(ball[0], radius=3.0), ((400.0, 300.0), 12.0, 100.0, 1.5)])
+    np.testing.assert_allclose(initial_markers(frame, 1).xy_px, ball, atol=0.05)
+    static = np.vstack([ROW + [200.0, 300.0], [[230.0, 250.0]]])  # 3 horse markers + the saddle point
+    frame = render([marker(p) for p in static])
+    xy = initial_markers(frame, 4).xy_px
+    np.testing.assert_allclose(xy, static[[0, 3, 1, 2]], atol=0.05)  # left to right
+
+
+def test_initial_markers_follows_given_first_frame_positions():
+    truth = ROW + [250.0, 200.0]
+    frame = render([marker(p) for p in truth] + [marker((255.0, 215.0))])
+    pattern = initial_markers(frame, 3, first_frame_xy=truth[::-1] + 1.5)
+    np.testing.assert_allclose(pattern.xy_px, truth[::-1], atol=0.05)
+    with pytest.raises(DetectionError, match="no blob within"):
+        initial_markers(frame, 3, first_frame_xy=truth + [0.0, 100.0])
+
+
+def test_initial_markers_refuses_to_guess():
+    evenly = [marker((100.0 + 40.0 * k, 240.0)) for k in range(6)]  # six identical blobs in a row
+    with pytest.raises(DetectionError, match="equally plausible"):
+        initial_markers(render(evenly), 3, camera="left", clip="motion")
+    two = render([marker(p) for p in (ROW + [200.0, 200.0])[:2]])
+    with pytest.raises(DetectionError, match=r"camera 'middle', clip 'static'.*need 3"):
+        initial_markers(two, 3, camera="middle", clip="static")
+    with pytest.raises(DetectionError, match="no bright markers"):
+        initial_markers(np.full(SHAPE, 90, np.uint8), 3)
+
+
+# --------------------------------------------------------------------------------------------------
+# track_markers
+# --------------------------------------------------------------------------------------------------
+
+def ride(n_frames=50, *, occlude=(), hidden_until=0, seed=4):
+    """A row of markers crossing the image and bobbing, with a look-alike and a light patch riding along.
+
+    Yields (index, frame) lazily as a decoder would, each frame a strided view into one reused buffer.
+    Returns the generator and the true positions (F, 3, 2).
+    """
+    rng = np.random.default_rng(seed)
+    bg = texture(rng)
+    k = np.arange(n_frames)
+    centre = np.column_stack([100 + 6.5 * k, 240 + 25 * np.sin(2 * np.pi * k / 18)])
+    truth = centre[:, None, :] + ROW[None]
+    buffer = np.zeros((SHAPE[0], SHAPE[1] + 64), np.uint8)
+
+    def frames():
+        for f in range(n_frames):
+            blobs = [marker(p) for m, p in enumerate(truth[f])
+                     if (f, m) not in occlude and not (m == 2 and f < hidden_until)]
+            blobs.append(marker(truth[f, 1] + [1.0, -14.0], radius=2.2, amplitude=190))  # look-alike
+            blobs.append(((truth[f, 0, 0] - 25, truth[f, 0, 1] + 22), 6.0, 110.0, 1.5))  # light patch
+            buffer[:, :SHAPE[1]] = render(blobs, background=bg, noise=2.0, rng=rng)
+            yield 100 + f, buffer[:, :SHAPE[1]]
+
+    return frames(), truth
+
+
+def test_track_markers_follows_rejects_and_leaves_gaps():
+    occluded = {(f, 1) for f in range(20, 24)} | {(35, 0)}
+    frames, truth = ride(occlude=occluded)
+    tracks = track_markers(frames, n_markers=3, camera="left", clip="motion")
+    assert tracks.camera == "left"
+    assert tracks.xy_px.shape == (50, 3, 2) and tracks.area_px.shape == (50, 3)
+    np.testing.assert_array_equal(tracks.frame_index, np.arange(100, 150))
+    missing = {(int(f), int(m)) for f, m in zip(*np.nonzero(np.isnan(tracks.xy_px[..., 0])), strict=True)}
+    assert missing == occluded  # the look-alike never stands in for the hidden marker
+    err = np.linalg.norm(tracks.xy_px - truth, axis=-1)
+    assert np.nanmax(err) < 0.4 and np.sqrt(np.nanmean(err ** 2)) < 0.15  # labels stable, sub-pixel
+    assert any("marker 2 missing in 4 of 50 frames" in f for f in tracks.flags)
+
+
+def test_cross_product_filter_rejects_a_mirror_image():
+    """Fig. 4.13: a look-alike mirrored across markers 1-3 keeps the distances but not the sign."""
+    tri = np.array([[0.0, 0.0], [30.0, -12.0], [60.0, 0.0]])
+    frames = []
+    for f in range(12):
+        pts = tri + [200.0 + 3 * f, 240.0]
+        blobs = [marker(p) for m, p in enumerate(pts) if not (m == 1 and f >= 6)]
+        if f >= 6:
+            blobs.append(marker(pts[1] + [0.0, 24.0]))  # marker 2 hidden, its mirror image shows
+        frames.append((f, render(blobs)))
+    tracks = track_markers(iter(frames), n_markers=3, distance_tol=0.9)  # distances alone cannot tell
+    assert np.all(np.isfinite(tracks.xy_px[:6])) and np.all(np.isnan(tracks.xy_px[6:, 1]))
+    assert np.all(np.isfinite(tracks.xy_px[6:, [0, 2]]))
+
+
+def test_track_markers_waits_until_all_markers_are_visible():
+    frames, truth = ride(n_frames=12, hidden_until=3)
+    tracks = track_markers(frames, n_markers=3, camera="left", clip="motion")
+    assert np.all(np.isnan(tracks.xy_px[:3])) and np.all(np.isfinite(tracks.xy_px[3:]))
+    assert np.nanmax(np.abs(tracks.xy_px - truth)) < 0.4
+
+
+def test_track_markers_fails_clearly():
+    frames, _ = ride(n_frames=6, hidden_until=6)
+    with pytest.raises(DetectionError, match=r"camera 'right', clip 'motion'.*first 4 frames"):
+        track_markers(frames, n_markers=3, camera="right", clip="motion", max_init_frames=4)
+    with pytest.raises(DetectionError, match="no frames"):
+        track_markers(iter(()), n_markers=3, camera="left")
+    with pytest.raises(InputError, match=r"frame 7.*\(H, W\)"):
+        track_markers(iter([(7, np.zeros((4, 4, 3), np.uint8))]), n_markers=3)
+
+
+def test_track_markers_with_overrides():
+    frames, truth = ride(n_frames=10)
+    tracks = track_markers(frames, n_markers=3, threshold=150, area_range_px=(4, 60), window_px=(160, 90),
+                           first_frame_xy=truth[0] + 1.0)
+    assert np.nanmax(np.abs(tracks.xy_px - truth)) < 0.4
