@@ -113,7 +113,8 @@ def test_initial_markers_finds_the_row_among_distractors():
     pattern = initial_markers(frame, 3, camera="left", clip="static")
     np.testing.assert_allclose(pattern.xy_px, truth, atol=0.2)  # labelled left to right
     assert 3 <= pattern.diameter_px <= 6
-    assert pattern.area_range_px[0] <= pattern.area_px.min() <= pattern.area_px.max() <= pattern.area_range_px[1]
+    lo, hi = pattern.area_range_px
+    assert lo <= pattern.area_px.min() <= pattern.area_px.max() <= hi
     assert 40 < pattern.threshold < 255
 
 
