@@ -106,12 +106,18 @@ class BoardFinder:
         ChArUco printed white-on-black (caliscope's ``inverted = true``); None tries both.
     max_width : int
         Frames wider than this are searched downscaled first, then refined at full resolution.
+    thorough : bool
+        Also try ``findChessboardCornersSB``'s exhaustive mode and the full classic detector (about a
+        second per frame without a board): right for a few still images; for video frames (many,
+        mostly alike) False keeps a frame to tens of milliseconds.
     """
 
-    def __init__(self, board: Board, *, inverted: bool | None = None, max_width: int = 1000):
+    def __init__(self, board: Board, *, inverted: bool | None = None, max_width: int = 1000,
+                 thorough: bool = True):
         self.board = board
         self.inverted = inverted
         self.max_width = int(max_width)
+        self.thorough = bool(thorough)
         if board.kind == "charuco":
             self._cv_board = _cv_charuco(board)
             self._detector = cv2.aruco.CharucoDetector(self._cv_board)
@@ -134,7 +140,7 @@ class BoardFinder:
 
     def _find(self, gray):
         if self.board.kind == "checkerboard":
-            return _find_checkerboard(gray, self.board)
+            return _find_checkerboard(gray, self.board, thorough=self.thorough)
         polarities = [self.inverted] if self.inverted is not None else [False, True]
         for inverted in polarities:
             found = self._find_charuco(255 - gray if inverted else gray)
@@ -183,17 +189,18 @@ def _as_gray(img: np.ndarray) -> np.ndarray:
     return img
 
 
-def _find_checkerboard(gray: np.ndarray, board: Board):
+def _find_checkerboard(gray: np.ndarray, board: Board, *, thorough: bool = True):
     pattern = tuple(board.inner_corners)
     ok, corners = cv2.findChessboardCornersSB(gray, pattern, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
-    if not ok:
+    if not ok and thorough:
         ok, corners = cv2.findChessboardCornersSB(
             gray, pattern,
             flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
     if not ok:
-        # classic detector as a fallback (it finds fewer boards, Bouguet README)
-        ok, corners = cv2.findChessboardCorners(
-            gray, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        # classic detector as a fallback (it finds fewer boards, Bouguet README); quick check on video
+        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        ok, corners = cv2.findChessboardCorners(gray, pattern,
+                                                flags=flags if thorough else flags | cv2.CALIB_CB_FAST_CHECK)
         if not ok:
             return None
     # cornerSubPix with a window scaled to the squares: on Bouguet's images it halves SB's residuals
@@ -268,7 +275,8 @@ def _patch_mean(gray, xy, radius=2):
 
 
 def detect_board_views(frames: Iterable[tuple[int, np.ndarray]], board: Board, *,
-                       inverted: bool | None = None, max_width: int = 1000) -> tuple[list[BoardView],
+                       inverted: bool | None = None, max_width: int = 1000,
+                       thorough: bool = False) -> tuple[list[BoardView],
                                                                                       tuple[int, int] | None]:
     """Run :class:`BoardFinder` over frames.
 
@@ -287,7 +295,7 @@ def detect_board_views(frames: Iterable[tuple[int, np.ndarray]], board: Board, *
     InputError
         If the frames do not all have the same size.
     """
-    finder = BoardFinder(board, inverted=inverted, max_width=max_width)
+    finder = BoardFinder(board, inverted=inverted, max_width=max_width, thorough=thorough)
     views: list[BoardView] = []
     size = None
     for index, gray in frames:
@@ -1355,18 +1363,18 @@ def render_board(board: Board, camera: Camera, board_rvec: np.ndarray, board_t_m
     coarse = cv2.undistortPoints(pix.reshape(-1, 1, 2), camera.K, camera.dist,
                                  criteria=_UNDISTORT_CRITERIA).reshape(len(gy), len(gx), 2)
     mx, my = np.meshgrid(np.arange(w * s, dtype=np.float32) / step, np.arange(h * s, dtype=np.float32) / step)
-    norm = np.dstack([cv2.remap(coarse[..., k].astype(np.float32), mx, my, cv2.INTER_LINEAR)
-                      for k in range(2)]).reshape(-1, 2).astype(np.float64)
+    xn = cv2.remap(np.ascontiguousarray(coarse[..., 0], np.float32), mx, my, cv2.INTER_LINEAR)
+    yn = cv2.remap(np.ascontiguousarray(coarse[..., 1], np.float32), mx, my, cv2.INTER_LINEAR)
     R = cv2.Rodrigues(np.asarray(board_rvec, np.float64))[0]
-    H = np.column_stack([R[:, 0], R[:, 1], np.asarray(board_t_mm, np.float64)])
-    uvw = np.column_stack([norm, np.ones(len(norm))]) @ np.linalg.inv(H).T
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = uvw[:, 0] / uvw[:, 2] * px_per_mm + origin[0]
-        v = uvw[:, 1] / uvw[:, 2] * px_per_mm + origin[1]
-    behind = ~(uvw[:, 2] > 0)
+    # the board plane maps to normalised image coordinates by H = [r1 r2 t]; invert it per pixel
+    Hi = np.linalg.inv(np.column_stack([R[:, 0], R[:, 1], np.asarray(board_t_mm, np.float64)]))
+    den = Hi[2, 0] * xn + Hi[2, 1] * yn + Hi[2, 2]
+    behind = den <= 0
+    den[behind] = 1.0
+    u = (Hi[0, 0] * xn + Hi[0, 1] * yn + Hi[0, 2]) / den * px_per_mm + origin[0]
+    v = (Hi[1, 0] * xn + Hi[1, 1] * yn + Hi[1, 2]) / den * px_per_mm + origin[1]
     u[behind] = -1e6
     v[behind] = -1e6
-    shape = (h * s, w * s)
-    big = cv2.remap(tex, u.reshape(shape).astype(np.float32), v.reshape(shape).astype(np.float32),
-                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=int(background))
+    big = cv2.remap(tex, u.astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_CONSTANT, borderValue=int(background))
     return cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA) if s > 1 else big

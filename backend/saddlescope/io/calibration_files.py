@@ -123,7 +123,8 @@ def detect_source_views(source: str, board: Board, *, camera: str, start: int = 
     InputError
         Frames of different sizes in one source (naming the camera and frame).
     """
-    finder = BoardFinder(board, inverted=inverted)
+    # still images are few: search each thoroughly; video frames are many: the quick detectors
+    finder = BoardFinder(board, inverted=inverted, thorough=source_images(source) is not None)
     views: list[BoardView] = []
     size = None
     n = 0
