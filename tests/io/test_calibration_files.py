@@ -9,8 +9,8 @@ import av
 import cv2
 import numpy as np
 import pytest
-from conftest import real_data_path
 
+from conftest import real_data_path
 from saddlescope.core.calibration import BoardView, board_distance_errors, make_board, render_board
 from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
 from saddlescope.core.types import Camera, Rig
@@ -177,7 +177,8 @@ def test_caliscope_videos_calibrated_from_scratch():
 def _rig_with_extras():
     rig = _truth_rig()
     cams = {n: Camera(n, c.K, c.dist, c.image_size, R=c.R, t_mm=c.t_mm, rms_px=0.2,
-                      K_std=np.diag([0.3, 0.3, 0.0]), dist_std=np.full(5, 0.001)) for n, c in rig.cameras.items()}
+                      K_std=np.diag([0.3, 0.3, 0.0]), dist_std=np.full(5, 0.001))
+            for n, c in rig.cameras.items()}
     pairs = {"left-right": {"R": cams["right"].R, "t_mm": cams["right"].t_mm, "rms_px": 0.21, "n_views": 12}}
     return Rig(cams, checks={"board_square_error_mm": 0.1}, flags=("a flag",), pairs=pairs)
 
@@ -192,7 +193,8 @@ def test_rig_dict_round_trip_is_json():
         a, b = rig.cameras[n], back.cameras[n]
         assert np.allclose(a.K, b.K) and np.allclose(a.R, b.R) and np.allclose(a.t_mm, b.t_mm)
         assert np.allclose(a.K_std, b.K_std) and b.rms_px == 0.2
-    assert back.flags == ("a flag",) and np.allclose(back.pairs["left-right"]["t_mm"], rig.cameras["right"].t_mm)
+    assert back.flags == ("a flag",)
+    assert np.allclose(back.pairs["left-right"]["t_mm"], rig.cameras["right"].t_mm)
     with pytest.raises(InputError, match="camera right has no extrinsics"):
         rig_from_dict({"cameras": d["cameras"], "extrinsics": {}})
     with pytest.raises(InputError, match="camera left K"):
