@@ -86,13 +86,15 @@ class _Blobs:
     peak: np.ndarray        # (K,)
     background: np.ndarray  # (K,)
     fill: np.ndarray        # (K,) area / bounding-box area
+    aspect: np.ndarray      # (K,) bounding box's long side / short side
 
     @property
     def contrast(self) -> np.ndarray:
         return np.maximum(self.peak - self.background, 1.0)
 
     def take(self, idx) -> _Blobs:
-        return _Blobs(self.xy[idx], self.area[idx], self.peak[idx], self.background[idx], self.fill[idx])
+        return _Blobs(self.xy[idx], self.area[idx], self.peak[idx], self.background[idx], self.fill[idx],
+                      self.aspect[idx])
 
     def __len__(self) -> int:
         return self.xy.shape[0]
@@ -100,7 +102,7 @@ class _Blobs:
 
 def _empty_blobs() -> _Blobs:
     z = np.zeros(0)
-    return _Blobs(np.zeros((0, 2)), z, z.copy(), z.copy(), z.copy())
+    return _Blobs(np.zeros((0, 2)), z, z.copy(), z.copy(), z.copy(), z.copy())
 
 
 def _label(win: np.ndarray, threshold: float):
@@ -151,39 +153,29 @@ def _refine(win: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.ndar
     ys = Y0[:, None] + np.arange(sh)
     vx, vy = xs < X1[:, None], ys < Y1[:, None]
     xi, yi = np.minimum(xs, W - 1), np.minimum(ys, H - 1)
-    patch = win[yi[:, :, None], xi[:, None, :]].astype(np.float64)
+    patch = win[yi[:, :, None], xi[:, None, :]].astype(np.float32)
     lab = labels[yi[:, :, None], xi[:, None, :]]
     valid = vy[:, :, None] & vx[:, None, :]
     free = valid & (lab == 0)
     edge = ((xs == X0[:, None]) | (xs == X1[:, None] - 1))[:, None, :] \
         | ((ys == Y0[:, None]) | (ys == Y1[:, None] - 1))[:, :, None]
-    ring = (edge & free).astype(np.float64)
+    ring = edge & free
+    # Background: a grey opening with a square wider than the blob (white top-hat). It erases the blob
+    # and keeps whatever is larger - a flat or sloping background, and also the step of an edge the
+    # marker sits on (saddle pad against the horse), where a fitted plane would pull the centroid.
+    opened = np.empty_like(patch)
+    side = np.maximum(w, h) + 2 * pad + 1
+    for k in range(K):
+        opened[k] = cv2.morphologyEx(patch[k], cv2.MORPH_OPEN, _square(int(side[k])))
+    top = patch - opened
+    # The top-hat of pure noise is positive: remove its level, measured on the free border.
     n = ring.sum(axis=(1, 2))
-    X = xs[:, None, :].astype(np.float64)
-    Y = ys[:, :, None].astype(np.float64)
-    nz = np.maximum(n, 1.0)
-    xm = (ring * X).sum(axis=(1, 2)) / nz
-    ym = (ring * Y).sum(axis=(1, 2)) / nz
-    gm = (ring * patch).sum(axis=(1, 2)) / nz
-    dx, dy, dg = X - xm[:, None, None], Y - ym[:, None, None], patch - gm[:, None, None]
-    rdx, rdy = ring * dx, ring * dy
-    sxx, syy, sxy = (rdx * dx).sum(axis=(1, 2)), (rdy * dy).sum(axis=(1, 2)), (rdx * dy).sum(axis=(1, 2))
-    sxg, syg = (rdx * dg).sum(axis=(1, 2)), (rdy * dg).sum(axis=(1, 2))
-    det = sxx * syy - sxy * sxy
-    fit = (n >= 8) & (det > 1e-9)
-    safe = np.where(fit, det, 1.0)
-    ax = np.where(fit, (syy * sxg - sxy * syg) / safe, 0.0)
-    ay = np.where(fit, (sxx * syg - sxy * sxg) / safe, 0.0)
-    if not (n >= 8).all():  # crowded or at the image edge: a flat level from the darkest free pixel
-        darkest = np.where(free, patch, np.inf).min(axis=(1, 2))
-        own_min = np.where(lab == ids[:, None, None], patch, np.inf).min(axis=(1, 2)) - 1.0
-        gm = np.where(n >= 8, gm, np.where(np.isfinite(darkest), darkest, own_min))
+    floor = np.where(n > 0, np.where(ring, top, 0.0).sum(axis=(1, 2)) / np.maximum(n, 1), 0.0)
     inner = (valid & ((xs >= (x - pad)[:, None]) & (xs < (x + w + pad)[:, None]))[:, None, :]
              & ((ys >= (y - pad)[:, None]) & (ys < (y + h + pad)[:, None]))[:, :, None])
     own = lab == ids[:, None, None]
     keep = inner & (own | (lab == 0))
-    wts = patch - (gm[:, None, None] + ax[:, None, None] * dx + ay[:, None, None] * dy)
-    wts = np.where(keep, np.maximum(wts, 0.0), 0.0)
+    wts = np.where(keep, np.maximum(top - floor[:, None, None], 0.0), 0.0)
     total = wts.sum(axis=(1, 2))
     out = np.empty((K, 4))
     ok = total > 0
@@ -191,8 +183,19 @@ def _refine(win: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.ndar
     out[:, 0] = np.where(ok, (wts.sum(axis=1) * xs).sum(axis=1) / tz, x + (w - 1) / 2)
     out[:, 1] = np.where(ok, (wts.sum(axis=2) * ys).sum(axis=1) / tz, y + (h - 1) / 2)
     out[:, 2] = np.where(own, patch, -np.inf).max(axis=(1, 2))
-    out[:, 3] = gm + ax * (out[:, 0] - xm) + ay * (out[:, 1] - ym)
+    own_n = np.maximum(own.sum(axis=(1, 2)), 1)
+    out[:, 3] = np.where(own, opened, 0.0).sum(axis=(1, 2)) / own_n
     return out
+
+
+_SQUARES: dict[int, np.ndarray] = {}
+
+
+def _square(side: int) -> np.ndarray:
+    kernel = _SQUARES.get(side)
+    if kernel is None:
+        kernel = _SQUARES[side] = np.ones((side, side), np.uint8)
+    return kernel
 
 
 def _centroids(win: np.ndarray, labels: np.ndarray, stats: np.ndarray, keep: np.ndarray, offset,
@@ -201,8 +204,10 @@ def _centroids(win: np.ndarray, labels: np.ndarray, stats: np.ndarray, keep: np.
     out = _refine(win, labels, keep, stats[keep, :4], pad_px)
     xy = out[:, :2] + np.asarray(offset, dtype=np.float64)
     area = stats[keep, cv2.CC_STAT_AREA].astype(np.float64)
-    fill = area / (stats[keep, cv2.CC_STAT_WIDTH] * stats[keep, cv2.CC_STAT_HEIGHT])
-    return _Blobs(xy, area, out[:, 2].copy(), out[:, 3].copy(), fill)
+    w, h = stats[keep, cv2.CC_STAT_WIDTH], stats[keep, cv2.CC_STAT_HEIGHT]
+    fill = area / (w * h)
+    aspect = np.maximum(w, h) / np.minimum(w, h)
+    return _Blobs(xy, area, out[:, 2].copy(), out[:, 3].copy(), fill, aspect)
 
 
 def _roi_bounds(roi, shape) -> tuple[int, int, int, int]:
@@ -266,44 +271,81 @@ def _default_layout(n_markers: int) -> str:
     return {1: "single", 2: "vertical", 3: "row"}.get(n_markers, "any")
 
 
-def _candidate_thresholds(gray: np.ndarray) -> tuple[float, list[float]]:
-    """Background level and a few thresholds between it and the brightest pixel."""
+@dataclass(frozen=True)
+class _Scene:
+    """Whole-frame numbers the first-frame search needs: levels to try, noise, a coarse background."""
+
+    background: float
+    levels: list[float]
+    noise_sigma: float
+    coarse: np.ndarray  # the frame shrunk 8x by area averaging: background around any blob
+    min_contrast: float
+
+
+def _scene(gray: np.ndarray, threshold: float | None = None) -> _Scene:
     sample = gray[::4, ::4]
     background = float(np.median(sample))
     brightest = float(gray.max())
-    span = brightest - background
-    levels = [background + f * span for f in (0.3, 0.5, 0.7, 0.85)]
-    return background, sorted({round(v, 1) for v in levels})
+    if threshold is None:
+        span = brightest - background
+        levels = sorted({round(background + f * span, 1) for f in (0.3, 0.5, 0.7, 0.85)})
+    else:
+        levels = [float(threshold)]
+    # Sensor noise from neighbouring pixels (robust to edges and texture): median |difference| / 0.954.
+    rows = gray[::4].astype(np.int16)
+    noise = float(np.median(np.abs(np.diff(rows, axis=1)))) / 0.954
+    H, W = gray.shape
+    coarse = cv2.resize(gray, (max(W // 8, 1), max(H // 8, 1)), interpolation=cv2.INTER_AREA)
+    # A retro-reflective marker under a lamp stands far above the noise; flicker does not.
+    return _Scene(background, levels, noise, coarse, max(16.0, 6.0 * noise))
 
 
-def _all_blobs(gray: np.ndarray, threshold: float, area_range_px, max_candidates: int, pad_px: int) -> _Blobs:
-    """Whole-image blobs at one threshold, cut to the brightest round-ish ``max_candidates``."""
-    n, labels, stats, _ = _label(gray, threshold)
+def _all_blobs(gray: np.ndarray, threshold: float, area_range_px, max_candidates: int, pad_px: int,
+               scene: _Scene, exclude_xy: np.ndarray | None = None, exclude_radius_px: float = 1.0,
+               roi=None) -> _Blobs:
+    """Blobs of the image (or its ``roi``) at one threshold with enough contrast, cut to the
+    ``max_candidates`` that stand out most from their surroundings; full-image coordinates."""
+    x0, y0, x1, y1 = _roi_bounds(roi, gray.shape)
+    if x1 - x0 < 3 or y1 - y0 < 3:
+        return _empty_blobs()
+    win = gray[y0:y1, x0:x1]
+    n, labels, stats, cents = _label(win, threshold)
     if n <= 1:
         return _empty_blobs()
+    cents = cents + (x0, y0)
     area = stats[1:, cv2.CC_STAT_AREA]
     lo, hi = area_range_px
     keep = np.flatnonzero((area >= lo) & (area <= hi)) + 1
     if keep.size == 0:
         return _empty_blobs()
-    fill = stats[keep, cv2.CC_STAT_AREA] / (stats[keep, cv2.CC_STAT_WIDTH] * stats[keep, cv2.CC_STAT_HEIGHT])
-    keep = keep[(fill > 0.3) | (stats[keep, cv2.CC_STAT_AREA] <= 12)]  # drop streaks and rings
+    w, h = stats[keep, cv2.CC_STAT_WIDTH], stats[keep, cv2.CC_STAT_HEIGHT]
+    small = stats[keep, cv2.CC_STAT_AREA] <= 12
+    fill = stats[keep, cv2.CC_STAT_AREA] / (w * h)
+    aspect = np.maximum(w, h) / np.minimum(w, h)
+    keep = keep[small | ((fill > 0.3) & (aspect <= 3))]  # drop streaks, stripes and rings
+    if exclude_xy is not None and len(exclude_xy) and keep.size:
+        d = np.linalg.norm(cents[keep][:, None, :] - np.asarray(exclude_xy)[None, :, :], axis=-1)
+        keep = keep[d.min(axis=1) > exclude_radius_px]
     if keep.size > max_candidates:
         fg = labels > 0
-        lab = labels[fg]
-        sums = np.bincount(lab, weights=gray[fg], minlength=n)
+        sums = np.bincount(labels[fg], weights=win[fg], minlength=n)
         mean = sums[keep] / stats[keep, cv2.CC_STAT_AREA]
-        sizes = stats[keep, cv2.CC_STAT_AREA]
-        rank = np.lexsort((-sizes, -mean))  # brightest (on average) first, then biggest
+        ch, cw = scene.coarse.shape
+        cx = np.clip((cents[keep, 0] / 8).astype(int), 0, cw - 1)
+        cy = np.clip((cents[keep, 1] / 8).astype(int), 0, ch - 1)
+        rank = np.argsort(-(mean - scene.coarse[cy, cx]))  # standing out most from the surroundings
         keep = np.sort(keep[rank[:max_candidates]])
-    return _centroids(gray, labels, stats, keep, (0, 0), pad_px)
+    blobs = _centroids(win, labels, stats, keep, (x0, y0), pad_px)
+    return blobs.take(np.flatnonzero(blobs.contrast >= scene.min_contrast))
 
 
 def _pattern_scores(blobs: _Blobs, combos: np.ndarray, layout: str) -> np.ndarray:
     """Implausibility of each combination (ncomb, n) of blobs as the marker pattern; lower is better."""
     la = np.log(blobs.area)[combos]
     lc = np.log(blobs.contrast)[combos]
-    shape_pen = np.where(blobs.area > 12, np.clip(1 - blobs.fill / _DISC_FILL, 0, None), 0.0)[combos]
+    # Round: a disc fills pi/4 of its square bounding box (tiny blobs are too coarse to tell).
+    shape_pen = np.where(blobs.area > 12, np.abs(blobs.fill / _DISC_FILL - 1) + 0.5 * np.log(blobs.aspect),
+                         0.0)[combos]
     score = shape_pen.mean(axis=1)
     score = score + 0.5 * np.mean(np.log(blobs.contrast.max()) - lc, axis=1)  # prefer the brightest
     n = combos.shape[1]
@@ -314,13 +356,19 @@ def _pattern_scores(blobs: _Blobs, combos: np.ndarray, layout: str) -> np.ndarra
     diff = pts[:, :, None, :] - pts[:, None, :, :]
     dist = np.linalg.norm(diff, axis=-1)
     diam = 2 * np.sqrt(np.exp(la).mean(axis=1) / np.pi)
-    score = score + 0.2 * np.log(np.maximum(dist.max(axis=(1, 2)) / diam, 1.0))  # close together
+    # Close together: horse markers sit within a hand's breadth or two of each other; a plumb's two
+    # markers are deliberately far apart, so there spacing says nothing.
+    spread_weight = {"row": 0.5, "any": 0.2}.get(layout, 0.0)
+    score = score + spread_weight * np.log(np.maximum(dist.max(axis=(1, 2)) / diam, 1.0))
     if layout == "row" and n >= 3:
         centred = pts - pts.mean(axis=1, keepdims=True)
-        sv = np.linalg.svd(centred, compute_uv=False)
-        score = score + 4 * sv[:, -1] / np.maximum(sv[:, 0], 1e-9)
-        _, _, vt = np.linalg.svd(centred, full_matrices=False)
+        _, sv, vt = np.linalg.svd(centred, full_matrices=False)
+        score = score + 2 * sv[:, -1] / np.maximum(sv[:, 0], 1e-9)
         score = score + 0.5 * np.abs(vt[:, 0, 1])  # |sin| of the row's angle from horizontal
+        # Markers along a back are spaced alike: neighbours' gaps along the row should match.
+        along = np.sort(np.einsum("cnk,ck->cn", centred, vt[:, 0]), axis=1)
+        gaps = np.maximum(np.diff(along, axis=1), 1e-6)
+        score = score + np.log(gaps).std(axis=1)
     elif layout == "vertical" and n == 2:
         d = pts[:, 1] - pts[:, 0]
         score = score + 2 * np.abs(d[:, 0]) / np.maximum(np.linalg.norm(d, axis=1), 1e-9)
@@ -331,15 +379,26 @@ def _pattern_scores(blobs: _Blobs, combos: np.ndarray, layout: str) -> np.ndarra
 
 
 def _plausible(blobs: _Blobs, combos: np.ndarray, layout: str) -> np.ndarray:
-    """Markers of one set look alike (areas within 4x, contrasts within 3x of each other), and a "row"
-    is one: its width across is at most 30 % of its length."""
+    """Markers of one set look alike (areas within 4x, contrasts within 3x of each other), stand apart,
+    and a "row" is one: near horizontal, at most 30 % as wide as long, gaps within 3x of each other."""
     a = blobs.area[combos]
     c = blobs.contrast[combos]
     ok = (a.max(axis=1) <= 4 * a.min(axis=1)) & (c.max(axis=1) <= 3 * c.min(axis=1))
+    if combos.shape[1] >= 2:
+        # Separate markers stand apart by at least two diameters; closer blobs are pieces of one thing.
+        pts = blobs.xy[combos]
+        dist = np.linalg.norm(pts[:, :, None, :] - pts[:, None, :, :], axis=-1)
+        dist[:, np.arange(combos.shape[1]), np.arange(combos.shape[1])] = np.inf
+        ok &= dist.min(axis=(1, 2)) >= 2 * 2 * np.sqrt(a.max(axis=1) / np.pi)
     if layout == "row" and combos.shape[1] >= 3:
         pts = blobs.xy[combos]
-        sv = np.linalg.svd(pts - pts.mean(axis=1, keepdims=True), compute_uv=False)
+        centred = pts - pts.mean(axis=1, keepdims=True)
+        _, sv, vt = np.linalg.svd(centred, full_matrices=False)
         ok &= sv[:, -1] <= 0.3 * sv[:, 0]
+        ok &= np.abs(vt[:, 0, 1]) <= 0.5  # within 30 degrees of horizontal: along a horse's back
+        along = np.sort(np.einsum("cnk,ck->cn", centred, vt[:, 0]), axis=1)
+        gaps = np.diff(along, axis=1)
+        ok &= gaps.max(axis=1) <= 3 * gaps.min(axis=1)
     return ok
 
 
@@ -364,7 +423,8 @@ def _pattern_from(blobs: _Blobs, idx: np.ndarray, threshold: float, area_range_p
 def initial_markers(gray: np.ndarray, n_markers: int, *, threshold: float | None = None,
                     area_range_px: tuple[float, float] | None = None, first_frame_xy=None,
                     layout: str | None = None, max_candidates: int = 24, ambiguity_margin: float = 0.03,
-                    pad_px: int = 2, camera: str = "", clip: str = "") -> MarkerPattern:
+                    exclude_xy=None, roi: tuple[int, int, int, int] | None = None, pad_px: int = 2,
+                    camera: str = "", clip: str = "") -> MarkerPattern:
     """Find and label ``n_markers`` markers on one frame (a static shot or a clip's first frame).
 
     Without ``first_frame_xy``, the n blobs forming the most plausible marker pattern win: similar
@@ -382,7 +442,8 @@ def initial_markers(gray: np.ndarray, n_markers: int, *, threshold: float | None
     threshold : float, keyword-only
         Grey level; default automatic.
     area_range_px : (float, float), keyword-only
-        Accepted blob areas; default 2 px up to 0.5 % of the image for the search, then a range around
+        Accepted blob areas; default 2 px up to 0.05 % of the image (154 px at 640x480, a disc 14 px
+        across; 1037 px at 1920x1080) for the search, then a range around
         the markers found (a quarter of the smallest to four times the largest) for tracking.
     first_frame_xy : array_like of shape (n_markers, 2), keyword-only
         Approximate marker positions (labels in this order): the nearest blob to each is taken.
@@ -392,6 +453,10 @@ def initial_markers(gray: np.ndarray, n_markers: int, *, threshold: float | None
         Blobs kept per threshold for the combinatorial search (brightest first).
     ambiguity_margin : float, keyword-only
         A second, different set of blobs scoring within this of the best makes the frame ambiguous.
+    exclude_xy : array_like of shape (E, 2), keyword-only
+        Blobs within 1 px of these positions are not markers (e.g. spots that did not move).
+    roi : (x0, y0, x1, y1), keyword-only
+        Search only this window (end exclusive); coordinates stay full-image.
     camera, clip : str, keyword-only
         Named in error messages.
 
@@ -412,18 +477,31 @@ def initial_markers(gray: np.ndarray, n_markers: int, *, threshold: float | None
     layout = layout or _default_layout(n)
     if layout not in ("row", "vertical", "any", "single"):
         raise InputError(f"{where}unknown marker layout {layout!r}")
-    H, W = gray.shape
-    search_range = area_range_px or (2.0, max(50.0, 0.005 * H * W))
-    if threshold is None:
-        background, levels = _candidate_thresholds(gray)
-        if float(gray.max()) - background < 16:
-            raise DetectionError(f"{where}no bright markers: the brightest pixel ({int(gray.max())}) is "
-                                 f"barely above the background ({background:.0f})")
-    else:
-        levels = [float(threshold)]
+    return _find_pattern(gray, n, threshold=threshold, area_range_px=area_range_px,
+                         first_frame_xy=first_frame_xy, layout=layout, max_candidates=max_candidates,
+                         ambiguity_margin=ambiguity_margin, exclude_xy=exclude_xy, roi=roi, pad_px=pad_px,
+                         where=where, scene=_scene(gray, threshold))
+
+
+def _default_area_range(shape) -> tuple[float, float]:
+    H, W = shape
+    return 2.0, max(50.0, 0.0005 * H * W)
+
+
+def _find_pattern(gray, n, *, threshold, area_range_px, first_frame_xy, layout, max_candidates,
+                  ambiguity_margin, exclude_xy, roi, pad_px, where, scene: _Scene) -> MarkerPattern:
+    """The work of :func:`initial_markers`, with the frame's :class:`_Scene` given (the tracker reuses it)."""
+    search_range = area_range_px or _default_area_range(gray.shape)
+    exclude = None if exclude_xy is None else np.asarray(exclude_xy, dtype=np.float64).reshape(-1, 2)
+    levels = scene.levels
+    x0, y0, x1, y1 = _roi_bounds(roi, gray.shape)
+    brightest = float(gray[y0:y1, x0:x1].max()) if x1 > x0 and y1 > y0 else 0.0
+    if threshold is None and brightest - scene.background < scene.min_contrast:
+        raise DetectionError(f"{where}no bright markers: the brightest pixel ({brightest:.0f}) is "
+                             f"barely above the background ({scene.background:.0f})")
 
     if first_frame_xy is not None:
-        pattern = _pattern_near(gray, n, np.asarray(first_frame_xy, dtype=np.float64), levels,
+        pattern = _pattern_near(gray, n, np.asarray(first_frame_xy, dtype=np.float64), scene,
                                 search_range, area_range_px, max_candidates, pad_px, where)
         if threshold is not None:
             return pattern
@@ -432,7 +510,7 @@ def initial_markers(gray: np.ndarray, n_markers: int, *, threshold: float | None
     best = None  # (score, threshold, blobs, idx, runner_up)
     most = 0
     for level in levels:
-        blobs = _all_blobs(gray, level, search_range, max_candidates, pad_px)
+        blobs = _all_blobs(gray, level, search_range, max_candidates, pad_px, scene, exclude, roi=roi)
         most = max(most, len(blobs))
         if len(blobs) < n:
             continue
@@ -460,7 +538,7 @@ def initial_markers(gray: np.ndarray, n_markers: int, *, threshold: float | None
     return _retune(gray, pattern, fixed_area=area_range_px is not None, pad_px=pad_px)
 
 
-def _pattern_near(gray, n, xy0, levels, search_range, area_range_px, max_candidates, pad_px, where):
+def _pattern_near(gray, n, xy0, scene, search_range, area_range_px, max_candidates, pad_px, where):
     if xy0.shape != (n, 2) or not np.all(np.isfinite(xy0)):
         raise InputError(f"{where}first_frame_xy must be {n} finite (x, y) pairs, got shape {xy0.shape}")
     if n > 1:
@@ -469,8 +547,8 @@ def _pattern_near(gray, n, xy0, levels, search_range, area_range_px, max_candida
     else:
         radius = 15.0
     best = None
-    for level in levels:
-        blobs = _all_blobs(gray, level, search_range, max(max_candidates, 200), pad_px)
+    for level in scene.levels:
+        blobs = _all_blobs(gray, level, search_range, max(max_candidates, 200), pad_px, scene)
         if len(blobs) == 0:
             continue
         d = np.linalg.norm(xy0[:, None, :] - blobs.xy[None, :, :], axis=-1)
@@ -591,8 +669,12 @@ class _Tracker:
                 cand = sorted(cand, key=row.__getitem__)[:4]
             options.append(cand + [-1])
             costs.append(row)
+        # After a loss, one lone blob proves nothing: ask for two markers that keep their pattern.
+        min_found = 2 if self.lost > 0 and self.M >= 2 else 0
         best_cost, best = math.inf, None
         for combo in itertools.product(*options):
+            if min_found and sum(c >= 0 for c in combo) < min_found:
+                continue
             total = 0.0
             seen = set()
             for i, c in enumerate(combo):
@@ -712,21 +794,80 @@ class _Tracker:
             self.threshold = self.background + 0.5 * max(min(self.ref_contrast), 2.0)
 
 
+def _bright_spots(gray: np.ndarray, levels, area_range_px, roi=None) -> np.ndarray:
+    """Plain centroids (S, 2) of every blob at any of ``levels`` (in ``roi``): what a frame shows, cheaply."""
+    x0, y0, x1, y1 = _roi_bounds(roi, gray.shape)
+    win = gray[y0:y1, x0:x1]
+    lo, hi = area_range_px
+    spots = [np.zeros((0, 2))]
+    for level in levels:
+        n, _, stats, cents = _label(win, level)
+        area = stats[1:n, cv2.CC_STAT_AREA]
+        spots.append(cents[1:n][(area >= lo) & (area <= hi)] + (x0, y0))
+    return np.concatenate(spots)
+
+
+def _coarse(gray: np.ndarray) -> np.ndarray:
+    H, W = gray.shape
+    return cv2.resize(gray, (max(W // 8, 1), max(H // 8, 1)), interpolation=cv2.INTER_AREA).astype(np.int16)
+
+
+def _moving_roi(coarse: np.ndarray, previous: np.ndarray, noise_sigma: float, shape):
+    """Bounding box (x0, y0, x1, y1) of what changed between two 8x-shrunk frames, or None."""
+    # An 8x8 average has 1/8 of the pixel noise; ask for 6 of those sigmas and a few grey levels.
+    changed = np.abs(coarse - previous) > max(3.0, 6.0 * noise_sigma / 8.0)
+    if not changed.any():
+        return None
+    rows = np.flatnonzero(changed.any(axis=1))
+    cols = np.flatnonzero(changed.any(axis=0))
+    H, W = shape
+    return (max(8 * (int(cols[0]) - 2), 0), max(8 * (int(rows[0]) - 2), 0),
+            min(8 * (int(cols[-1]) + 3), W), min(8 * (int(rows[-1]) + 3), H))
+
+
+def _relabel(pattern: MarkerPattern, vec_ref) -> MarkerPattern:
+    """Order a re-found pattern like the markers were before (the permutation that best keeps the
+    vectors between markers), so labels survive losing the markers for a while."""
+    M = pattern.xy_px.shape[0]
+    if M < 2:
+        return pattern
+    xy = pattern.xy_px
+    best, best_cost = None, math.inf
+    for perm in itertools.permutations(range(M)):
+        cost = 0.0
+        for a, b in itertools.combinations(range(M), 2):
+            rx, ry = vec_ref[a][b]
+            d = xy[perm[b]] - xy[perm[a]]
+            cost += math.hypot(d[0] - rx, d[1] - ry) / max(math.hypot(rx, ry), 1e-9)
+        if cost < best_cost:
+            best, best_cost = perm, cost
+    idx = np.asarray(best)
+    return MarkerPattern(xy[idx], pattern.area_px[idx], pattern.peak[idx], pattern.background[idx],
+                         pattern.threshold, pattern.area_range_px, pattern.diameter_px, pattern.score)
+
+
 def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, camera: str = "",
                   clip: str = "", threshold: float | None = None,
                   area_range_px: tuple[float, float] | None = None,
                   window_px: int | Sequence[int] | None = None,
                   first_frame_xy=None, layout: str | None = None, distance_tol: float = 0.25,
-                  max_init_frames: int = 10, pad_px: int = 2) -> ImageTracks:
+                  moving: bool = False, max_init_frames: int = 150, confirm_frames: int = 5,
+                  lost_frames: int = 5, search_every: int = 3, pad_px: int = 2) -> ImageTracks:
     """Detect and follow ``n_markers`` markers through a clip.
 
-    The first frame (or the first of ``max_init_frames`` on which all markers are visible) is searched
-    whole with :func:`initial_markers`; later frames only inside a window around the markers'
-    constant-velocity prediction, which grows while markers are lost. In the window, blobs pass the
-    threshold and area filters, then the best assignment of blobs to markers is chosen: near the
-    prediction, similar area and brightness, pairwise distances within ``distance_tol`` of the pattern
+    Search: the first frame on which all markers are visible is searched whole with
+    :func:`initial_markers` (with ``moving=True`` only where the image changed, and without the spots
+    that stood still since the previous frame). Track: later frames only inside a window around the
+    markers' constant-velocity prediction, which grows while markers are lost. In the window, blobs pass
+    the threshold and area filters, then the best assignment of blobs to markers is chosen: near the
+    prediction, similar area, vectors between markers within ``distance_tol`` of the last frame
     (eq. 4.11) and the same cross-product signs as the first frame (Fig. 4.13). A marker without an
     acceptable blob is a gap (NaN).
+
+    If some marker is missing on two of the first ``confirm_frames`` frames after a search, the pattern
+    found was not the markers: those frames become gaps and the search goes on. After ``lost_frames``
+    frames without any marker (the horse left the view, a rider's leg, the pole), tracking stops and the
+    search resumes every ``search_every`` frames; a re-found pattern keeps the old labels.
 
     Parameters
     ----------
@@ -741,12 +882,18 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
         fixed; otherwise it follows the markers' brightness.
     window_px : int or (int, int), keyword-only
         Fixed window width and height; default automatic (the markers' bounding box plus a margin of
-        four marker diameters plus the markers' speed in px/frame).
+        three marker diameters plus half the markers' speed in px/frame).
     distance_tol : float, keyword-only
         Relative tolerance of the vector between two markers (length and direction) against the last
         frame where both were seen.
+    moving : bool, keyword-only
+        The markers move (a ride): blobs that stay put from one frame to the next (glints, lamps,
+        scenery) are not markers, and only changing parts of the image are searched. The search then
+        needs two frames.
     max_init_frames : int, keyword-only
-        Frames to try for initialisation before giving up.
+        Frames to wait for the first sight of all markers before giving up (the horse may enter late).
+    confirm_frames, lost_frames, search_every : int, keyword-only
+        See above.
 
     Returns
     -------
@@ -769,51 +916,98 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
             raise InputError(f"{where}window_px must be a size >= 3 px or (width, height), got {window_px}")
     if not 0 < distance_tol < 1:
         raise InputError(f"{where}distance_tol must be in (0, 1), got {distance_tol}")
-    xy_rows: list[np.ndarray] = []
-    area_rows: list[np.ndarray] = []
+    n = int(n_markers)
+    layout = layout or _default_layout(n)
+    xy_rows: list = []
+    area_rows: list = []
     indices: list[int] = []
     tracker: _Tracker | None = None
+    ever_found = False
+    tracked_from = 0            # row where the current tracker started
+    since_search = search_every  # frames since the last search attempt
     last_error: DetectionError | None = None
-    n = int(n_markers)
+    scene: _Scene | None = None
+    scene_age = 0
+    previous: np.ndarray | None = None        # moving mode: the previous frame (a copy) ...
+    previous_coarse: np.ndarray | None = None  # ... and its 8x-shrunk version
+    vec_ref = None               # vectors between markers when they were last tracked
+
     for index, gray in frames:
-        if tracker is None:
-            _check_gray(gray, camera, clip, index)
-            try:
-                pattern = initial_markers(gray, n, threshold=threshold, area_range_px=area_range_px,
-                                          first_frame_xy=first_frame_xy, layout=layout, pad_px=pad_px,
-                                          camera=camera, clip=clip)
-            except DetectionError as exc:
-                last_error = exc
-                xy_rows.append(np.full((n, 2), np.nan))
-                area_rows.append(np.full(n, np.nan))
-                indices.append(int(index))
-                if len(indices) >= max_init_frames:
-                    raise DetectionError(f"{where}markers not found on any of the first {len(indices)} "
-                                         f"frames (last: {exc})") from None
-                continue
-            tracker = _Tracker(pattern, threshold_fixed=threshold is not None, window_px=window_px,
-                               distance_tol=distance_tol, pad_px=pad_px, shape=gray.shape)
-            xy_rows.append(pattern.xy_px.copy())
-            area_rows.append(pattern.area_px.astype(np.float64))
-            indices.append(int(index))
-            continue
-        if gray.shape != (tracker.H, tracker.W):
-            raise InputError(f"{where}frame {index} has shape {gray.shape}, earlier frames "
-                             f"{(tracker.H, tracker.W)}")
-        found, areas = tracker.step(gray)
-        xy_rows.append(found)
-        area_rows.append(areas)
         indices.append(int(index))
+        if tracker is not None:
+            if gray.shape != (tracker.H, tracker.W):
+                raise InputError(f"{where}frame {index} has shape {gray.shape}, earlier frames "
+                                 f"{(tracker.H, tracker.W)}")
+            found, areas = tracker.step(gray)
+            xy_rows.append(found)
+            area_rows.append(areas)
+            recent = xy_rows[tracked_from + 1:]
+            if len(recent) <= confirm_frames and sum(any(p is None for p in row) for row in recent) >= 2:
+                # Not followed at once: the pattern found was not the markers. Forget it, search again.
+                for r in range(tracked_from, len(xy_rows)):
+                    xy_rows[r] = [None] * n
+                    area_rows[r] = [None] * n
+                tracker, since_search = None, 0
+            elif tracker.lost >= lost_frames:
+                vec_ref = tracker.vec_ref
+                tracker, since_search = None, 0
+            if tracker is None and moving:
+                previous, previous_coarse = gray.copy(), _coarse(gray)
+            continue
+
+        # Searching.
+        _check_gray(gray, camera, clip, index)
+        xy_rows.append([None] * n)
+        area_rows.append([None] * n)
+        since_search += 1
+        if ever_found and since_search < search_every:
+            continue  # markers lost: look again every few frames only (a search costs ~10 frames' tracking)
+        since_search = 0
+        coarse = _coarse(gray)
+        if scene is None or scene_age >= 30 or scene.coarse.shape != coarse.shape:
+            scene, scene_age = _scene(gray, threshold), 0
+        scene_age += 1
+        try:
+            roi = exclude = None
+            if moving:
+                if previous_coarse is None or previous_coarse.shape != coarse.shape:
+                    raise DetectionError(f"{where}needs a second frame to tell moving markers from still "
+                                         "glints")
+                roi = _moving_roi(coarse, previous_coarse, scene.noise_sigma, gray.shape)
+                if roi is None:
+                    raise DetectionError(f"{where}nothing moves")
+                span = area_range_px or _default_area_range(gray.shape)
+                exclude = _bright_spots(previous, scene.levels, span, roi)
+            pattern = _find_pattern(gray, n, threshold=threshold, area_range_px=area_range_px,
+                                    first_frame_xy=first_frame_xy if not ever_found else None, layout=layout,
+                                    max_candidates=24, ambiguity_margin=0.03, exclude_xy=exclude, roi=roi,
+                                    pad_px=pad_px, where=where, scene=scene)
+        except DetectionError as exc:
+            last_error = exc
+            if moving:
+                previous, previous_coarse = gray.copy(), coarse
+            if not ever_found and len(indices) >= max_init_frames:
+                raise DetectionError(f"{where}markers not found on any of the first {len(indices)} "
+                                     f"frames (last: {exc})") from None
+            continue
+        if vec_ref is not None:
+            pattern = _relabel(pattern, vec_ref)
+        ever_found = True
+        tracker = _Tracker(pattern, threshold_fixed=threshold is not None, window_px=window_px,
+                           distance_tol=distance_tol, pad_px=pad_px, shape=gray.shape)
+        tracked_from = len(xy_rows) - 1
+        xy_rows[-1] = pattern.xy_px.tolist()
+        area_rows[-1] = pattern.area_px.tolist()
     if not indices:
         raise DetectionError(f"{where}no frames to detect markers in")
-    if tracker is None:
+    if all(all(p is None for p in row) for row in xy_rows):
         raise DetectionError(f"{where}markers not found on any of the {len(indices)} frames "
                              f"(last: {last_error})")
     xy_all = np.full((len(indices), n, 2), np.nan)
     area_all = np.full((len(indices), n), np.nan)
     for f, (row, arow) in enumerate(zip(xy_rows, area_rows, strict=True)):
         for m in range(n):
-            if row[m] is not None and np.all(np.isfinite(row[m])):
+            if row[m] is not None:
                 xy_all[f, m] = row[m]
                 area_all[f, m] = arow[m]
     missing = np.isnan(xy_all[..., 0]).sum(axis=0)
