@@ -149,6 +149,11 @@ class RideRepository(Repository):
             stmt = stmt.where(Ride.club_id == self.club_id)
         self.session.execute(stmt)
 
+    def latest_with_bundle(self, club_id: int) -> int | None:
+        """Id of the club's newest ride that has a stored bundle, or None."""
+        stmt = self._scoped(select(Ride.id).where(Ride.club_id == club_id, Ride.bundle_key.is_not(None)))
+        return self.session.scalar(stmt.order_by(Ride.id.desc()).limit(1))
+
     def latest(self, limit: int = 50) -> Sequence[Ride]:
         return self.session.scalars(self._scoped(select(Ride)).order_by(Ride.id.desc()).limit(limit)).all()
 

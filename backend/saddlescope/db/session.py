@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from sqlalchemy import Engine, create_engine, event, make_url
+from sqlalchemy import Engine, create_engine, event, make_url, text
 from sqlalchemy.engine import URL
 from sqlalchemy.exc import ArgumentError
 from sqlalchemy.orm import Session, sessionmaker
@@ -61,6 +61,12 @@ def engine_for(database_url: str) -> Engine:
 
 def session_factory_for(database_url: str) -> sessionmaker[Session]:
     return make_session_factory(engine_for(database_url))
+
+
+def ping(engine: Engine) -> None:
+    """Run a trivial query (raises SQLAlchemyError when the database is unreachable)."""
+    with engine.connect() as conn:
+        conn.execute(text("SELECT 1"))
 
 
 @contextmanager

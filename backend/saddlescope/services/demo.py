@@ -13,12 +13,9 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from sqlalchemy import select
-
 from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.db.models import Ride
-from saddlescope.db.repositories import ClubRepository, ResultRepository
+from saddlescope.db.repositories import ClubRepository, ResultRepository, RideRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.jobs import JobQueue, make_queue
 from saddlescope.services.job_service import submit_job, wait_for_job
@@ -55,8 +52,7 @@ def _demo_ride_id(sessions, storage: Storage, bundle: Path) -> int:
     """The demo club's ride registered from `bundle` earlier, or a newly registered one."""
     with session_scope(sessions) as session:
         club = ClubRepository(session).get_or_create(DEMO_CLUB)
-        ride_id = session.scalar(select(Ride.id).where(Ride.club_id == club.id, Ride.bundle_key.is_not(None))
-                                 .order_by(Ride.id.desc()).limit(1))
+        ride_id = RideRepository(session).latest_with_bundle(club.id)
     if ride_id is not None and storage.exists(f"rides/{ride_id}/bundle/ride.json"):
         return ride_id
     return register_bundle(sessions, storage, bundle, club_name=DEMO_CLUB)

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from sqlalchemy import Engine, text
+from sqlalchemy import Engine
 from sqlalchemy.exc import SQLAlchemyError
 
 from saddlescope.db.migrate import current_revision, head_revision
+from saddlescope.db.session import ping
 from saddlescope.jobs import JobQueue
 from saddlescope.storage import Storage
 
@@ -15,8 +16,7 @@ from saddlescope.storage import Storage
 def check_database(engine: Engine) -> tuple[bool, str]:
     """Connect, run a query, and check the schema is at the newest migration."""
     try:
-        with engine.connect() as conn:
-            conn.execute(text("SELECT 1"))
+        ping(engine)
         revision = current_revision(engine)
     except SQLAlchemyError as exc:
         return False, f"{engine.dialect.name} unreachable: {type(exc).__name__}: {str(exc).splitlines()[0]}"
