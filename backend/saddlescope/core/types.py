@@ -67,16 +67,11 @@ class Camera:
 
     def undistort_points(self, xy_px: np.ndarray) -> np.ndarray:
         """Remove lens distortion: distorted pixels (..., 2) -> ideal pixels (..., 2) (same K)."""
-        pts = np.asarray(xy_px, dtype=np.float64)
-        shape = pts.shape
-        flat = pts.reshape(-1, 2)
-        out = np.full_like(flat, np.nan)
-        ok = np.all(np.isfinite(flat), axis=1)
-        if ok.any():
-            und = cv2.undistortPointsIter(flat[ok].reshape(-1, 1, 2), self.K, self.dist, None, self.K,
-                                          (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10))
-            out[ok] = und.reshape(-1, 2)
-        return out.reshape(shape)
+        from saddlescope.core.triangulation import undistort_normalized  # the exact (Newton-refined) inverse
+
+        xn = undistort_normalized(self, xy_px)
+        K = np.asarray(self.K, dtype=np.float64)
+        return xn @ K[:2, :2].T + K[:2, 2]
 
 
 @dataclass(frozen=True)

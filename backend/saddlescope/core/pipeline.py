@@ -1,0 +1,576 @@
+"""The whole analysis of a ride: clips in, the result of CONTRACTS section 2 out.
+
+Stages (thesis stages 1-12): sync -> calibration -> detection -> triangulation -> kinematics ->
+indicators. The core opens no files: frames come from a :class:`ClipReader` (``saddlescope.io``
+provides one over a ride bundle), and progress goes to an ``on_progress(fraction, stage)`` callback
+so the core never knows about jobs or queues.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Protocol
+
+import numpy as np
+
+from saddlescope.core import calibration as calib
+from saddlescope.core import frames as motion
+from saddlescope.core.errors import DetectionError, InputError, KinematicsError, SyncError
+from saddlescope.core.fitting import fit_marker_kinematics
+from saddlescope.core.markers import track_markers
+from saddlescope.core.period import analysis_window, estimate_period
+from saddlescope.core.registration import marker_model, register_rigid
+from saddlescope.core.rigid_body import angular_kinematics, saddle_body_coordinates, saddle_point_kinematics
+from saddlescope.core.smoothing import bridge_gaps, rloess
+from saddlescope.core.sync import clip_offsets, flash_interval, offsets_from_spec
+from saddlescope.core.triangulation import triangulate_tracks
+from saddlescope.core.types import Board, ImageTracks, MarkerTracks, Rig
+
+RESULT_FORMAT = "saddlescope.result/1"
+
+# Share of the total progress each stage reports (rough wall-time shares on the thesis rig).
+STAGE_WEIGHTS: dict[str, float] = {"sync": 0.15, "calibration": 0.35, "detection": 0.3,
+                                   "triangulation": 0.05, "kinematics": 0.1, "indicators": 0.05}
+
+
+class ClipReader(Protocol):
+    """What the pipeline needs of a ride's clips (``saddlescope.io.clip_source.BundleClips``)."""
+
+    def has(self, kind: str) -> bool: ...
+    def cameras(self, kind: str) -> list[str]: ...
+    def fps(self, kind: str, camera: str) -> float: ...
+    def frame_count(self, kind: str, camera: str) -> int: ...
+    def image_size(self, kind: str, camera: str) -> tuple[int, int]: ...
+    def brightness(self, kind: str, camera: str) -> np.ndarray: ...
+    def gray_frames(self, kind: str, camera: str, start: int = 0, stop: int | None = None,
+                    step: int = 1) -> Iterator[tuple[int, np.ndarray]]: ...
+
+
+@dataclass(frozen=True)
+class PipelineParams:
+    """Choices a user may override; the defaults follow the thesis where it was right."""
+
+    n_periods: int = 2
+    smoothing_span: float = 0.10
+    smoothing_iterations: int = 4
+    max_gap_s: float = 0.15
+    triangulation: str = "nview"  # or "thesis_pairs"
+    max_calibration_instants: int = 60
+    calibration_step: int | None = None  # frames between board searches; None: about 12 per second
+    max_square_error_pct: float = 1.0
+    singularity_threshold: float = 0.2
+    angular_method: str = "lsq"
+    x_model: str = "linear"
+    detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
+
+
+@dataclass
+class _Progress:
+    callback: Callable[[float, str], None] | None
+    done: float = 0.0
+    timings_s: dict = field(default_factory=dict)
+
+    def stage(self, name: str, fraction_of_stage: float) -> None:
+        if self.callback is not None:
+            self.callback(min(1.0, self.done + STAGE_WEIGHTS[name] * fraction_of_stage), name)
+
+    def finish(self, name: str, started: float) -> None:
+        self.timings_s[name] = round(time.perf_counter() - started, 4)
+        self.done += STAGE_WEIGHTS[name]
+        self.stage(name, 0.0)
+
+
+def board_from_meta(meta: Mapping) -> Board:
+    """The calibration board of ride.json's ``board`` section."""
+    spec = meta.get("board")
+    if not isinstance(spec, Mapping):
+        raise InputError("ride.json has no 'board' section describing the calibration board")
+    try:
+        cols, rows = (int(v) for v in spec["inner_corners"])
+        return calib.make_board(str(spec.get("kind", "checkerboard")), (cols, rows), float(spec["square_mm"]),
+                                dictionary=spec.get("dictionary"), marker_mm=spec.get("marker_mm"),
+                                legacy=bool(spec.get("legacy", False)))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"ride.json board section is incomplete or wrong: {exc}") from None
+
+
+# --------------------------------------------------------------------------------------------------
+# Stage 2: synchronisation
+# --------------------------------------------------------------------------------------------------
+
+
+def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict]:
+    """Frame offsets per clip kind and camera (relative to the first camera) and the first frame
+    after the flash in each camera's clip, where detection may start."""
+    offsets: dict[str, dict[str, float]] = {}
+    first_frame: dict[str, dict[str, int]] = {}
+    sync_spec = meta.get("sync") or {"method": "flash"}
+    for kind in kinds:
+        cams = clips.cameras(kind)
+        fps = {c: clips.fps(kind, c) for c in cams}
+        known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
+        brightness = {c: clips.brightness(kind, c) for c in cams}
+        offsets[kind] = known if known is not None else clip_offsets(brightness, fps, clip=kind)
+        first_frame[kind] = {}
+        for c in cams:
+            try:
+                _, end = flash_interval(brightness[c], clip=kind, camera=c)
+                first_frame[kind][c] = int(math.ceil(end)) + 1
+            except SyncError:
+                if known is None:
+                    raise
+                first_frame[kind][c] = 0  # known offsets: the clip need not hold a flash
+    return offsets, first_frame
+
+
+# --------------------------------------------------------------------------------------------------
+# Stage 1: calibration
+# --------------------------------------------------------------------------------------------------
+
+
+def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, float],
+                         first_frame: Mapping[str, int], params: PipelineParams,
+                         progress: _Progress | None = None) -> tuple[Rig, dict]:
+    """Board views from every camera's calibration clip, put on the first camera's clock, then
+    intrinsics, stereo pairs, bundle adjustment and metric checks (thesis 3.4-3.6, 8.2)."""
+    cams = clips.cameras("calibration")
+    views_by_camera: dict[str, list] = {}
+    sizes: dict[str, tuple[int, int]] = {}
+    fps = clips.fps("calibration", cams[0])
+    step = params.calibration_step or max(1, int(round(fps / 12.0)))
+    # Start every camera on the same instant so that the sampled frames coincide after the offsets.
+    base = max(first_frame.get(c, 0) - int(round(offsets.get(c, 0.0))) for c in cams)
+    for i, cam in enumerate(cams):
+        start = max(0, base + int(round(offsets.get(cam, 0.0))))
+        views, size = calib.detect_board_views(
+            clips.gray_frames("calibration", cam, start=start, step=step), board)
+        sizes[cam] = size or clips.image_size("calibration", cam)
+        # frame k of this camera shows the instant of frame k - offset of the first camera
+        views_by_camera[cam] = [replace(v, frame=int(round(v.frame - offsets.get(cam, 0.0)))) for v in views]
+        if progress is not None:
+            progress.stage("calibration", 0.6 * (i + 1) / len(cams))
+    if len(cams) > 1:
+        keep = set(calib.select_instants(views_by_camera, board, sizes,
+                                         max_instants=params.max_calibration_instants))
+        views_by_camera = {c: [v for v in vs if v.frame in keep] for c, vs in views_by_camera.items()}
+    rig, report = calib.calibrate_rig(views_by_camera, board, sizes,
+                                      max_square_error_pct=params.max_square_error_pct)
+    report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
+    return rig, report
+
+
+def rig_to_result(rig: Rig) -> dict:
+    """The ``calibration`` section of the result (CONTRACTS section 2)."""
+    names = rig.names
+    cameras = {}
+    for name, cam in rig.cameras.items():
+        entry = {"K": np.asarray(cam.K).tolist(), "dist": np.asarray(cam.dist).ravel().tolist(),
+                 "image_size": [int(cam.image_size[0]), int(cam.image_size[1])], "rms_px": cam.rms_px}
+        if cam.K_std is not None:
+            entry["K_std"] = np.asarray(cam.K_std).tolist()
+        if cam.dist_std is not None:
+            entry["dist_std"] = np.asarray(cam.dist_std).ravel().tolist()
+        cameras[name] = entry
+    extrinsics = {name: {"R": np.asarray(rig.cameras[name].R).tolist(),
+                         "t_mm": np.asarray(rig.cameras[name].t_mm).ravel().tolist()} for name in names[1:]}
+    pairs = {key: {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in p.items()}
+             for key, p in rig.pairs.items()}
+    return {"cameras": cameras, "extrinsics": extrinsics, "checks": dict(rig.checks), "flags": list(rig.flags),
+            "pairs": pairs}
+
+
+# --------------------------------------------------------------------------------------------------
+# Stages 3-4: detection and triangulation
+# --------------------------------------------------------------------------------------------------
+
+
+def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mapping[str, int],
+                params: PipelineParams) -> dict[str, ImageTracks]:
+    """2-D marker tracks of every camera of one clip set (thesis 4.5)."""
+    overrides = dict(params.detection.get(kind, {}))
+    tracks = {}
+    for cam in clips.cameras(kind):
+        cam_overrides = overrides.pop(cam, {}) if isinstance(overrides.get(cam), Mapping) else {}
+        common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
+        tracks[cam] = track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)),
+                                    n_markers=n_markers, camera=cam, clip=kind, **common, **cam_overrides)
+    return tracks
+
+
+def triangulate_clip(rig: Rig, tracks: Mapping[str, ImageTracks], offsets: Mapping[str, float], fps: float,
+                     names: tuple[str, ...], params: PipelineParams) -> MarkerTracks:
+    return triangulate_tracks(rig, tracks, offsets, fps, method=params.triangulation, names=names)
+
+
+def _pairwise(xyz: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(xyz[:, None, :] - xyz[None, :, :], axis=-1)
+
+
+def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tuple[list[int], int, float]:
+    """Which static-shot markers are horse markers 1-3 (in the motion clip's order) and which is S.
+
+    The static shot shows the three horse markers and the saddle marker; the motion clip the three
+    horse markers. The triple whose distances best match the motion clip's (rigid body) is the horse
+    markers, the remaining one S.
+
+    Returns (static indices of motion markers 1-3, static index of S, RMS distance mismatch in mm).
+    """
+    d_motion = _pairwise(np.nanmedian(motion_mm, axis=0))
+    d_static = _pairwise(static_mm)
+    best = (np.inf, None, None)
+    for triple in itertools.permutations(range(static_mm.shape[0]), motion_mm.shape[1]):
+        idx = list(triple)
+        err = float(np.sqrt(np.mean((d_static[np.ix_(idx, idx)] - d_motion) ** 2)))
+        if err < best[0]:
+            rest = [i for i in range(static_mm.shape[0]) if i not in idx]
+            best = (err, idx, rest[0] if rest else None)
+    if best[1] is None or best[2] is None:
+        raise KinematicsError("the static shot must show the three horse markers and the saddle marker")
+    return best[1], best[2], best[0]
+
+
+# --------------------------------------------------------------------------------------------------
+# Stages 5-10: kinematics
+# --------------------------------------------------------------------------------------------------
+
+
+def _static_positions(tracks: MarkerTracks, what: str) -> np.ndarray:
+    xyz = tracks.xyz_mm
+    ok = np.all(np.isfinite(xyz), axis=(1, 2))
+    if ok.sum() < 1:
+        raise KinematicsError(f"the {what} clip has no frame where every marker is seen by two cameras")
+    return np.median(xyz[ok], axis=0)
+
+
+def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
+                      plumb_tracks: MarkerTracks | None, params: PipelineParams) -> dict:
+    """Saddle point kinematics from 3-D tracks (thesis 5.2-6.4). Returns plain arrays and fits."""
+    t = np.asarray(motion_tracks.t_s, dtype=np.float64)
+    xyz = np.asarray(motion_tracks.xyz_mm, dtype=np.float64)
+    n_frames, n_markers, _ = xyz.shape
+    flags: list[str] = []
+    if n_markers != 3:
+        raise KinematicsError(f"the motion clip must track 3 horse markers, got {n_markers}")
+    present = np.all(np.isfinite(xyz), axis=2)
+    if present.all(axis=1).mean() < 0.3:
+        raise KinematicsError(f"the markers are seen together in only {100 * present.all(axis=1).mean():.0f} %"
+                              " of the motion clip's frames; the ride cannot be analysed")
+    # Short gaps bridged (and flagged), long ones reported (5.2.1).
+    filled, filled_mask, long_gaps = bridge_gaps(t, xyz.reshape(n_frames, -1), max_gap_s=params.max_gap_s)
+    xyz = filled.reshape(n_frames, n_markers, 3)
+    if np.any(filled_mask):
+        flags.append(f"{int(np.any(filled_mask.reshape(n_frames, -1), axis=1).sum())} frames with a short "
+                     "marker gap were bridged")
+    for start_s, end_s in long_gaps:
+        flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s")
+    valid = np.all(np.isfinite(xyz), axis=(1, 2))
+
+    period_s, period_info = estimate_period(t, xyz)
+    i0, i1 = analysis_window(t, valid, period_s, n_periods=params.n_periods)
+    win = slice(i0, i1)
+    t_w = t[win]
+    xyz_w = xyz[win]
+    # Robust LOESS on every coordinate in the window (5.2.2).
+    ok_w = np.all(np.isfinite(xyz_w), axis=(1, 2))
+    smooth = np.full_like(xyz_w, np.nan)
+    smooth[ok_w] = rloess(t_w[ok_w], xyz_w[ok_w].reshape(ok_w.sum(), -1), span=params.smoothing_span,
+                          iterations=params.smoothing_iterations).reshape(-1, n_markers, 3)
+
+    # Motion reference frame (5.3): travel of marker 1, gravity from the plumb.
+    plumb_top = plumb_bottom = None
+    if plumb_tracks is not None:
+        p = _static_positions(plumb_tracks, "plumb") if plumb_tracks.xyz_mm.ndim == 3 else None
+        if p is not None and p.shape[0] >= 2:
+            # the upper plumb marker is the one further against gravity; the left camera's image y
+            # points roughly down, so it has the smaller rig y.
+            top, bottom = (0, 1) if p[0, 1] < p[1, 1] else (1, 0)
+            plumb_top = plumb_tracks.xyz_mm[:, top]
+            plumb_bottom = plumb_tracks.xyz_mm[:, bottom]
+    stop_travel = min(i1 + 1, n_frames)
+    frame = motion.motion_frame(xyz[i0:stop_travel, 0], plumb_top_mm=plumb_top, plumb_bottom_mm=plumb_bottom,
+                                origin_mm=smooth[0, 0] if ok_w[0] else None, t_s=t[i0:stop_travel],
+                                period_s=period_s)
+    flags.extend(frame.warnings)
+    xyz_m = motion.to_motion_frame(smooth, frame)
+
+    # Rigid registration of the static-shot model (5.4).
+    static_all = _static_positions(static_tracks, "static")
+    horse_idx, saddle_idx, mismatch_mm = identify_saddle_marker(static_all, xyz)
+    model_mm = marker_model(static_tracks.xyz_mm[:, horse_idx])
+    model_m_motion = motion.to_motion_frame(model_mm, frame)
+    reg = register_rigid(xyz_m, model_m_motion)
+    if not np.all(reg.valid):
+        raise KinematicsError("some frames of the analysed window could not be registered")
+    r = reg.registered
+
+    # Curve fitting (5.5): velocities and accelerations are analytic derivatives of the fits.
+    fits = fit_marker_kinematics(t_w, r, period_s=period_s, x_model=params.x_model)
+    flags.extend(fits.flags)
+    v, a = fits.velocity_m_s, fits.acceleration_m_s2
+
+    # Angular velocity and acceleration (6.1-6.2), the invisible saddle point (6.3-6.4).
+    ang = angular_kinematics(r, v, a, singularity_threshold=params.singularity_threshold,
+                             method=params.angular_method)
+    flags.extend(ang.flags)
+    static_motion = motion.to_motion_frame(static_all, frame)
+    r_bs = saddle_body_coordinates(static_motion[horse_idx], static_motion[saddle_idx])
+    s = saddle_point_kinematics(r, v, a, ang, r_bs)
+
+    omega = fits.omega_rad_s if np.isfinite(fits.omega_rad_s) else 2 * np.pi / period_s
+    period_fit_s = 2 * np.pi / omega
+    return {"t_s": t_w, "period_s": float(period_fit_s), "period_estimate_s": float(period_s),
+            "period_info": period_info, "window": (i0, i1), "frame": frame, "registration": reg,
+            "fits": fits, "angular": ang, "saddle": s, "markers_m": r, "static_mismatch_mm": mismatch_mm,
+            "r_bs_m": r_bs, "flags": flags, "long_gaps": long_gaps}
+
+
+def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int) -> tuple[np.ndarray, np.ndarray,
+                                                                                         np.ndarray]:
+    """Least-squares cosine series y ~ c0 + sum A_k cos(2 pi k f0 t + phi_k) at a known f0.
+
+    Returns (A (order,), phi (order,), fitted y)."""
+    cols = [np.ones_like(t_s)]
+    for k in range(1, order + 1):
+        w = 2 * np.pi * k * f0_hz * t_s
+        cols += [np.cos(w), np.sin(w)]
+    design = np.stack(cols, axis=1)
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    a_k, b_k = coef[1::2], coef[2::2]
+    # a cos + b sin = A cos(wt + phi) with A = hypot(a, b), phi = atan2(-b, a)
+    return np.hypot(a_k, b_k), np.arctan2(-b_k, a_k), design @ coef
+
+
+def vertical_harmonics(t_s: np.ndarray, acc_y: np.ndarray, pos_y: np.ndarray, period_s: float,
+                       fit_order: int) -> dict:
+    """Fourier form of the saddle point's vertical motion at the stride frequency (for the exact
+    harmonic weighting of the vibration stage) and its peak-to-peak displacement."""
+    f0 = 1.0 / period_s
+    max_order = max(1, (len(t_s) - 1) // 2 - 1)
+    order = int(min(max_order, max(fit_order + 2, 4)))
+    amps, phases, fitted = _harmonic_form(t_s, acc_y, f0, order)
+    resid = acc_y - fitted
+    pos_amp, pos_phase, _ = _harmonic_form(t_s, pos_y, f0, order)
+    dense = np.linspace(0.0, period_s, 2048, endpoint=False)
+    k = np.arange(1, order + 1)
+    y_dense = np.sum(pos_amp[None, :] * np.cos(2 * np.pi * f0 * dense[:, None] * k[None, :] + pos_phase[None, :]),
+                     axis=1)
+    return {"f0_hz": f0, "amplitudes_m_s2": amps, "phases_rad": phases, "order": order,
+            "fit_rms_residual_m_s2": float(np.sqrt(np.mean(resid ** 2))),
+            "amplitude_y_m": float(y_dense.max() - y_dense.min())}
+
+
+# --------------------------------------------------------------------------------------------------
+# The whole ride
+# --------------------------------------------------------------------------------------------------
+
+
+def _finite_list(x) -> list:
+    arr = np.asarray(x, dtype=np.float64)
+    return np.where(np.isfinite(arr), np.round(arr, 9), np.nan).tolist()
+
+
+def _nan_to_none(obj):
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _nan_to_none(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_nan_to_none(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _nan_to_none(obj.tolist())
+    if isinstance(obj, np.floating):
+        return _nan_to_none(float(obj))
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
+                 rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None) -> dict:
+    """Run every stage on one ride and return the result document (CONTRACTS section 2).
+
+    Parameters
+    ----------
+    clips : ClipReader
+        The ride's clips: calibration (unless ``rig`` is given), static, motion, optional plumb.
+    meta : mapping
+        ride.json (board, sync, markers, gait, direction, ...).
+    rig : Rig, optional
+        A calibration to reuse (e.g. the rig's, computed once for every ride of that day).
+    on_progress : callable(fraction, stage), optional
+    """
+    params = params or PipelineParams()
+    progress = _Progress(on_progress)
+    t_start = time.perf_counter()
+    for kind in ("static", "motion"):
+        if not clips.has(kind):
+            raise InputError(f"the ride has no {kind} clip; it is required")
+    if rig is None and not clips.has("calibration"):
+        raise InputError("the ride has no calibration clip and no calibration was given")
+    markers = dict(meta.get("markers") or {})
+    n_horse = int(markers.get("horse", 3))
+    n_saddle = int(markers.get("saddle", 1))
+    n_plumb = int(markers.get("plumb", 2))
+    kinds = [k for k in ("calibration", "plumb", "static", "motion") if clips.has(k)]
+    if rig is not None:
+        kinds.remove("calibration") if "calibration" in kinds else None
+
+    t0 = time.perf_counter()
+    progress.stage("sync", 0.0)
+    offsets, first_frame = synchronise(clips, meta, kinds)
+    progress.finish("sync", t0)
+
+    t0 = time.perf_counter()
+    calib_report: dict = {}
+    if rig is None:
+        rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta), offsets["calibration"],
+                                                 first_frame["calibration"], params, progress)
+    progress.finish("calibration", t0)
+
+    t0 = time.perf_counter()
+    plan = [("static", n_horse + n_saddle), ("motion", n_horse)]
+    if clips.has("plumb"):
+        plan.insert(0, ("plumb", n_plumb))
+    tracks2d: dict[str, dict[str, ImageTracks]] = {}
+    for i, (kind, n) in enumerate(plan):
+        try:
+            tracks2d[kind] = detect_clip(clips, kind, n, first_frame[kind], params)
+        except DetectionError:
+            if kind == "plumb":
+                tracks2d.pop(kind, None)
+                continue
+            raise
+        progress.stage("detection", (i + 1) / len(plan))
+    progress.finish("detection", t0)
+
+    t0 = time.perf_counter()
+    tracks3d: dict[str, MarkerTracks] = {}
+    for kind, per_cam in tracks2d.items():
+        cams = list(per_cam)
+        fps = clips.fps(kind, cams[0])
+        names = tuple(f"M{i + 1}" for i in range(len(next(iter(per_cam.values())).xy_px[0])))
+        tracks3d[kind] = triangulate_clip(rig, per_cam, offsets[kind], fps, names, params)
+    progress.finish("triangulation", t0)
+
+    t0 = time.perf_counter()
+    kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params)
+    progress.finish("kinematics", t0)
+
+    t0 = time.perf_counter()
+    from saddlescope.core.indicators import ride_indicators
+
+    s = kin["saddle"]
+    fit_order = max(f.order for f in kin["fits"].fits_y)
+    harm = vertical_harmonics(kin["t_s"], s.acceleration_m_s2[:, 1], s.position_m[:, 1], kin["period_s"],
+                              fit_order)
+    duration_s = kin["period_s"] * params.n_periods
+    speed_kmh = abs(kin["fits"].average_speed_m_s) * 3.6
+    indicators = ride_indicators(f0_hz=harm["f0_hz"], acc_y_amplitudes_m_s2=harm["amplitudes_m_s2"],
+                                 acc_y_phases_rad=harm["phases_rad"], duration_s=duration_s,
+                                 speed_kmh=speed_kmh, amplitude_y_m=harm["amplitude_y_m"],
+                                 stride_frequency_hz=1.0 / kin["period_s"])
+    progress.finish("indicators", t0)
+    progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
+    return _result_document(meta, rig, calib_report, offsets, tracks3d, kin, harm, indicators, clips,
+                            progress.timings_s, params)
+
+
+def _track_quality(tracks: MarkerTracks) -> dict:
+    xyz = tracks.xyz_mm
+    seen = np.all(np.isfinite(xyz), axis=2)
+    out = {"frames": int(xyz.shape[0]), "markers_seen_fraction": _finite_list(seen.mean(axis=0))}
+    if tracks.reprojection_error_px is not None:
+        err = np.asarray(tracks.reprojection_error_px, dtype=np.float64)
+        fin = err[np.isfinite(err)]
+        out["reprojection_error_px_median"] = float(np.median(fin)) if fin.size else None
+        out["reprojection_error_px_p95"] = float(np.percentile(fin, 95)) if fin.size else None
+    return out
+
+
+def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm, indicators, clips,
+                     timings_s, params: PipelineParams) -> dict:
+    s = kin["saddle"]
+    ang = kin["angular"]
+    fits = kin["fits"]
+    reg = kin["registration"]
+    frame = kin["frame"]
+    motion_cam = clips.cameras("motion")[0]
+    fps = float(clips.fps("motion", motion_cam))
+    t_s = kin["t_s"]
+    quality = {
+        "flags": list(dict.fromkeys(list(rig.flags) + kin["flags"])),
+        "calibration_ok": not rig.flags,
+        "gravity_source": frame.gravity_source,
+        "angle_travel_gravity_deg": frame.angle_travel_gravity_deg,
+        "rigidity_residual_mm": {"median": float(np.nanmedian(reg.rms_residual) * 1e3),
+                                 "max": float(np.nanmax(reg.rms_residual) * 1e3)},
+        "static_marker_mismatch_mm": kin["static_mismatch_mm"],
+        "singularity_index_median": ang.median_singularity_index,
+        "omega_versions_excluded_fraction": float(np.mean(ang.excluded)),
+        "saddle_acceleration_spread_m_s2_median": float(np.nanmedian(s.acceleration_spread)),
+        "vertical_harmonic_fit_rms_m_s2": harm["fit_rms_residual_m_s2"],
+        "tracks": {kind: _track_quality(tr) for kind, tr in tracks3d.items()},
+        "long_gaps_s": [list(g) for g in kin["long_gaps"]],
+        "period_estimate_s": kin["period_estimate_s"],
+    }
+    fits_doc = {}
+    for axis, group in (("x", fits.fits_x), ("y", fits.fits_y), ("z", fits.fits_z)):
+        fits_doc[axis] = [_fit_summary(f) for f in group]
+    result = {
+        "format": RESULT_FORMAT,
+        "fps": fps,
+        "gait": meta.get("gait"),
+        "direction": meta.get("direction"),
+        "calibration": rig_to_result(rig),
+        "sync": {kind: {c: float(v) for c, v in off.items()} for kind, off in offsets.items()},
+        "period_s": kin["period_s"],
+        "window": {"start_s": float(t_s[0]), "duration_s": float(len(t_s) / fps),
+                   "start_frame": int(kin["window"][0]), "frames": int(len(t_s))},
+        "saddle": {"t_s": _finite_list(t_s), "position_m": _finite_list(s.position_m),
+                   "velocity_m_s": _finite_list(s.velocity_m_s),
+                   "acceleration_m_s2": _finite_list(s.acceleration_m_s2),
+                   "acceleration_spread_m_s2": _finite_list(s.acceleration_spread),
+                   "body_coordinates_m": _finite_list(s.body_coordinates_m)},
+        "angular": {"omega_rad_s": _finite_list(ang.omega_rad_s), "alpha_rad_s2": _finite_list(ang.alpha_rad_s2),
+                    "singularity_index": ang.median_singularity_index,
+                    "singularity_index_per_frame": _finite_list(ang.singularity_index),
+                    "omega_versions_rad_s": _finite_list(ang.omega_versions),
+                    "omega_versions_excluded": np.asarray(ang.excluded).tolist(),
+                    "omega_spread_rad_s": _finite_list(ang.omega_spread),
+                    "method": ang.method},
+        "markers": {"names": ["M1", "M2", "M3"], "position_m": _finite_list(kin["markers_m"]),
+                    "velocity_m_s": _finite_list(fits.velocity_m_s),
+                    "acceleration_m_s2": _finite_list(fits.acceleration_m_s2),
+                    "rigidity_residual_mm": _finite_list(reg.rms_residual * 1e3), "fits": fits_doc},
+        "motion_frame": {"R_rig_to_motion": _finite_list(frame.R), "origin_mm": _finite_list(frame.origin_mm),
+                         "gravity_source": frame.gravity_source},
+        "vertical_harmonics": {"f0_hz": harm["f0_hz"], "amplitudes_m_s2": _finite_list(harm["amplitudes_m_s2"]),
+                               "phases_rad": _finite_list(harm["phases_rad"])},
+        "indicators": {k: float(v) for k, v in indicators.items()},
+        "quality": quality,
+        "params": {"n_periods": params.n_periods, "triangulation": params.triangulation,
+                   "smoothing_span": params.smoothing_span, "angular_method": params.angular_method,
+                   "x_model": params.x_model},
+        "timings_s": dict(timings_s),
+    }
+    if calib_report:
+        result["calibration"]["n_views"] = calib_report.get("n_views")
+    return _nan_to_none(result)
+
+
+def _fit_summary(fit) -> dict:
+    out = {"kind": type(fit).__name__}
+    gof = getattr(fit, "gof", None)
+    if gof is not None:
+        out.update({k: (float(v) if isinstance(v, int | float | np.floating) else v)
+                    for k, v in gof.as_dict().items()})
+    for attr in ("order", "f0_hz", "slope", "intercept", "omega_rad_s"):
+        if hasattr(fit, attr):
+            val = getattr(fit, attr)
+            if isinstance(val, int | float | np.floating | np.integer):
+                out[attr] = float(val)
+    return out
