@@ -24,6 +24,10 @@ import numpy as np
 
 from saddlescope.core.errors import InputError
 from saddlescope.core.synthetic_content import (
+    ALL_CLIPS,
+    BOARD,
+    DISTANCE_POINTS,
+    EXTRA_CLIPS,
     GRAVITY_M_S2,
     BallContent,
     BoardContent,
@@ -31,11 +35,7 @@ from saddlescope.core.synthetic_content import (
     PlumbContent,
 )
 from saddlescope.core.synthetic_gait import (
-    MARKER_NAMES,
-    SADDLE_NAME,
     GaitModel,
-    acceleration_harmonics,
-    saddle_vertical_peak_to_peak,
     sample_gait,
     with_t_cross,
 )
@@ -52,12 +52,8 @@ from saddlescope.core.synthetic_render import (
     render_pole,
 )
 from saddlescope.core.synthetic_rig import SceneRig, make_rig, normalized_pixel_grid
-from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, GAITS, Board
+from saddlescope.core.types import CAMERA_ROLES, GAITS
 
-EXTRA_CLIPS: tuple[str, ...] = ("freefall", "board_distance")
-ALL_CLIPS: tuple[str, ...] = CLIP_KINDS + EXTRA_CLIPS
-BOARD = Board(kind="checkerboard", inner_corners=(12, 11), square_mm=50.0)
-DISTANCE_POINTS = {"A": (0, 0), "B": (10, 0), "C": (0, 10), "D": (10, 10)}  # inner-corner (col, row)
 HOLD_FRAMES, MOVE_FRAMES = 3, 1  # calibration board: still for 3 frame periods, moved in 1
 FLASH_RAMP_FRAMES, FLASH_PLATEAU_FRAMES = 2.0, 1.5
 MIN_MOTION_S = 3.5
@@ -341,7 +337,7 @@ def build_scene(
     pole = None
     if options.occluder:
         c_mid = views["middle"].center_w
-        d_pole = float(r_place.uniform(2.6, 3.4))
+        d_pole = float(r_place.uniform(2.0, 2.6))  # near the cameras: parallax separates their views
         t_occ = start_s + float(r_place.uniform(0.3, 0.7)) * n_periods * period
         m2 = model.marker_positions(np.array([t_occ]))[0, 1] @ m_dir.T
         z_p = c_mid[2] + d_pole
@@ -349,7 +345,7 @@ def build_scene(
         pole = Pole(
             x_m=float(x_p),
             z_m=float(z_p),
-            width_m=0.09,
+            width_m=0.07,
             top_y_m=srig.ground_y_m - 2.1,
             ground_y_m=srig.ground_y_m,
         )
@@ -672,282 +668,21 @@ def true_marker_pixels(scene: Scene, camera: str, kind: str) -> dict:
     }
 
 
-# --- truth -----------------------------------------------------------------------------------------
-def _nan_to_none(x):
-    if isinstance(x, dict):
-        return {k: _nan_to_none(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_nan_to_none(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _nan_to_none(x.tolist())
-    if isinstance(x, (float, np.floating)):
-        return None if not np.isfinite(x) else float(x)
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
+# the truth lives in its own module; re-exported here as part of the synthetic arena's API
+from saddlescope.core.synthetic_truth import build_truth, ride_manifest, saddle_truth_at  # noqa: E402
 
-
-def _motion_frame(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """R_rig_to_motion (3, 3) and origin_mm (3,) = rigid marker 1 at the window's first sample."""
-    t0 = scene.window_times[:1]
-    m1 = scene.model.point(scene.model.body_points_m["marker1"], t0)[0]
-    return scene.R_arena_to_rig.T, scene.arena_to_rig_mm(m1)
-
-
-def saddle_truth_at(truth: dict, t_s: np.ndarray) -> dict:
-    """Exact kinematics of the saddle point S at left motion-clip times t_s (T,).
-
-    The frame is the motion reference frame (x travel, y gravity down, z = x cross y) with its
-    origin at (rigid) marker 1's position at t_s[0]. Returns t_s, position_m, velocity_m_s,
-    acceleration_m_s2, omega_rad_s, alpha_rad_s2 (each (T, 3)) as arrays.
-    """
-    try:
-        model = GaitModel.from_dict(truth["truth"]["model"])
-    except (KeyError, TypeError):
-        raise InputError("truth has no truth.model section (not a synthetic ride's truth.json)") from None
-    t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
-    if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)):
-        raise InputError("t_s must be a non-empty 1-D array of finite times in seconds")
-    s = model.body_points_m[SADDLE_NAME]
-    origin = model.point(model.body_points_m["marker1"], t[:1])[0]
-    omega, alpha = model.angular(t)
-    return {
-        "t_s": t,
-        "position_m": model.point(s, t) - origin,
-        "velocity_m_s": model.point(s, t, derivative=1),
-        "acceleration_m_s2": model.point(s, t, derivative=2),
-        "omega_rad_s": omega,
-        "alpha_rad_s2": alpha,
-    }
-
-
-def _indicators(scene: Scene, amps: np.ndarray, phases: np.ndarray, pp_m: float) -> dict:
-    try:
-        from saddlescope.core.indicators import ride_indicators
-    except ImportError:  # TODO: drop once core.indicators.ride_indicators exists
-        return {}
-    return ride_indicators(
-        f0_hz=scene.model.stride_hz,
-        acc_y_amplitudes_m_s2=amps,
-        acc_y_phases_rad=phases,
-        duration_s=scene.window_duration_s,
-        speed_kmh=scene.model.speed_m_s * 3.6,
-        amplitude_y_m=pp_m,
-        stride_frequency_hz=scene.model.stride_hz,
-    )
-
-
-def build_truth(scene: Scene) -> dict:
-    """The exact answer in the result format (CONTRACTS section 2) plus a ``truth`` section."""
-    rig = scene.rig
-    model = scene.model
-    cams, extr = {}, {}
-    for role, cam in rig.cameras.items():
-        cams[role] = {"K": cam.K, "dist": cam.dist, "image_size": list(cam.image_size), "rms_px": 0.0}
-        if role != "left":
-            extr[role] = {"R": cam.R, "t_mm": cam.t_mm}
-    t_win = scene.window_times
-    kin = saddle_truth_at({"truth": {"model": model.to_dict()}}, t_win)
-    # |n . omega_hat|: the thesis's singularity measure for the marker plane (eq. 6.35)
-    b = np.stack([model.body_points_m[n] for n in MARKER_NAMES])
-    rot = model.rotation(t_win)[0]
-    n_w = rot @ np.cross(b[1] - b[0], b[2] - b[0])
-    n_w /= np.linalg.norm(n_w, axis=1, keepdims=True)
-    w = kin["omega_rad_s"]
-    sing = np.abs(np.sum(n_w * w, axis=1)) / np.maximum(np.linalg.norm(w, axis=1), 1e-12)
-    amps, phases = acceleration_harmonics(model, model.body_points_m[SADDLE_NAME], axis=1, n_harmonics=40)
-    pp = saddle_vertical_peak_to_peak(model)
-    r_rm, origin_mm = _motion_frame(scene)
-
-    markers_3d, names = {}, {}
-    for kind in scene.clips:
-        content = scene.contents[kind]
-        names[kind] = list(content.marker_names)
-        if names[kind]:
-            markers_3d[kind] = rig.world_to_rig_mm(content.markers_w(scene.timings[kind].left_times))
-    clips = {}
-    for kind, tm in scene.timings.items():
-        clips[kind] = {
-            "frames": dict(tm.n_frames),
-            "fps": tm.fps,
-            "flash_on_s": tm.flash_on_s,
-            "flash_off_s": tm.flash_off_s,
-            "flash_ramp_s": tm.flash_ramp_s,
-            "flash_half_rise_s": tm.flash_on_s + tm.flash_ramp_s / 2,
-            "content_start_s": tm.content_start_s,
-        }
-    truth_sec = {
-        "markers_3d_mm": markers_3d,
-        "marker_names": names,
-        "marker_order": "marker1..3 numbered from the front (withers) to the back; saddle = S",
-        "motion_frame": {
-            "R_rig_to_motion": r_rm,
-            "origin_mm": origin_mm,
-            "note": "p_motion_m = R_rig_to_motion @ (p_rig_mm - origin_mm) / 1000",
-        },
-        "gravity_rig": rig.gravity_rig,
-        "model": model.to_dict(),
-        "saddle_body_m": model.body_points_m[SADDLE_NAME],
-        "saddle_acc_y_harmonics": {
-            "f0_hz": model.stride_hz,
-            "amplitudes_m_s2": amps,
-            "phases_rad": phases,
-            "time": "t in left motion-clip seconds",
-        },
-        "speed_kmh": model.speed_m_s * 3.6,
-        "speed_m_s": model.speed_m_s,
-        "stride_frequency_hz": model.stride_hz,
-        "amplitude_y_m": pp,
-        "direction": scene.direction,
-        "clips": clips,
-        "exposure_s": rig.exposure_s,
-        "marker_diameter_mm": rig.marker_diameter_mm,
-        "rig": rig.name,
-        "board": {
-            "kind": BOARD.kind,
-            "inner_corners": list(BOARD.inner_corners),
-            "square_mm": BOARD.square_mm,
-        },
-        "calibration_board": _board_truth(scene, "calibration"),
-    }
-    if scene.pole is not None:
-        p = scene.pole
-        truth_sec["occluder"] = {"kind": "pole", "x_m": p.x_m, "z_m": p.z_m, "width_m": p.width_m}
-    if "freefall" in scene.timings:
-        ball: BallContent = scene.contents["freefall"]
-        truth_sec["freefall"] = {
-            "g_m_s2": GRAVITY_M_S2,
-            "release_s": ball.release_s,
-            "catch_s": ball.catch_s,
-            "diameter_mm": ball.diameter_mm,
-            "p0_mm": rig.world_to_rig_mm(ball.p0_w),
-            "v0_mm_s": rig.R_world_to_rig @ ball.v0_w * 1000.0,
-            "g_mm_s2": rig.gravity_rig * GRAVITY_M_S2 * 1000.0,
-            "flight_left_frames": [
-                int(math.ceil(ball.release_s * scene.fps)),
-                int(math.floor(ball.catch_s * scene.fps)),
-            ],
-        }
-    if "board_distance" in scene.timings:
-        truth_sec["board_distance"] = _distance_truth(scene)
-    return _nan_to_none(
-        {
-            "format": "saddlescope.result/1",
-            "fps": scene.fps,
-            "calibration": {"cameras": cams, "extrinsics": extr, "checks": {"board_square_error_mm": 0.0}},
-            "sync": {kind: dict(tm.offsets) for kind, tm in scene.timings.items()},
-            "period_s": model.period_s,
-            "window": {
-                "start_s": scene.window_start_s,
-                "duration_s": scene.window_duration_s,
-                "periods": scene.window_periods,
-            },
-            "saddle": {
-                "t_s": kin["t_s"],
-                "position_m": kin["position_m"],
-                "velocity_m_s": kin["velocity_m_s"],
-                "acceleration_m_s2": kin["acceleration_m_s2"],
-            },
-            "angular": {
-                "omega_rad_s": kin["omega_rad_s"],
-                "alpha_rad_s2": kin["alpha_rad_s2"],
-                "singularity_index": float(np.median(sing)),
-            },
-            "indicators": _indicators(scene, amps, phases, pp),
-            "quality": {},
-            "timings_s": {},
-            "truth": truth_sec,
-        }
-    )
-
-
-def _board_truth(scene: Scene, kind: str) -> dict:
-    """Board pose (rig frame) at every left frame and whether it stands still in all cameras there."""
-    board: BoardContent = scene.contents[kind]
-    tm = scene.timings[kind]
-    r_wr, t_wr = scene.rig.R_world_to_rig, scene.rig.t_world_to_rig_mm
-    rs, ts, still, index = [], [], [], []
-    for t in tm.left_times:
-        r, o, s = board.pose_at(float(t))
-        # still in every camera's matching frame (rounded offset) over its exposure
-        ok = s
-        for role in ("middle", "right"):
-            k = round(t * scene.fps + tm.offsets[role])
-            tc = (k - tm.offsets[role]) / scene.fps
-            ok = ok and board.pose_at(tc)[2] and board.pose_index(tc) == board.pose_index(float(t))
-        rs.append(r_wr @ r)
-        ts.append(r_wr @ o * 1000.0 + t_wr)
-        still.append(bool(ok))
-        index.append(board.pose_index(float(t)))
-    return {
-        "R_board_to_rig": np.array(rs),
-        "t_mm": np.array(ts),
-        "still": still,
-        "pose_index": index,
-        "n_poses": len(board.poses),
-        "hold_s": board.hold_s,
-        "move_s": board.move_s,
-        "note": "x_rig_mm = R_board_to_rig @ board_object_point_mm + t_mm (Board.object_points_mm order)",
-    }
-
-
-def _distance_truth(scene: Scene) -> dict:
-    board: BoardContent = scene.contents["board_distance"]
-    tm = scene.timings["board_distance"]
-    cols = board.inner_corners[0]
-    poses = []
-    for j, (r, o) in enumerate(board.poses):
-        corners = scene.rig.world_to_rig_mm(board.corners_w(r, o))
-        pts = {name: corners[row * cols + col] for name, (col, row) in DISTANCE_POINTS.items()}
-        t0 = board.start_s + j * board.period_s
-        frames = [int(math.ceil(t0 * scene.fps)), int(math.floor((t0 + board.hold_s) * scene.fps))]
-        if j == 0:
-            frames[0] = int(math.ceil(tm.content_start_s * scene.fps))
-        poses.append({"points_mm": pts, "still_left_frames": frames})
-    names = list(DISTANCE_POINTS)
-    dist = {}
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            ca, cb = np.array(DISTANCE_POINTS[a]), np.array(DISTANCE_POINTS[b])
-            dist[a + b] = float(np.linalg.norm(ca - cb) * BOARD.square_mm)
-    return {
-        "points": {k: list(v) for k, v in DISTANCE_POINTS.items()},
-        "distances_mm": dist,
-        "poses": poses,
-        "board": _board_truth(scene, "board_distance"),
-        "note": "points are inner corners (col, row) of the checkerboard in ride.json board",
-    }
-
-
-def ride_manifest(scene: Scene, *, suffix: str = ".mp4") -> dict:
-    """The ride.json of the bundle (CONTRACTS section 1) with clip paths relative to the bundle."""
-    clips = {kind: {role: f"{kind}/{role}{suffix}" for role in CAMERA_ROLES} for kind in CLIP_KINDS}
-    extra = {
-        kind: {role: f"{kind}/{role}{suffix}" for role in CAMERA_ROLES}
-        for kind in EXTRA_CLIPS
-        if kind in scene.timings
-    }
-    manifest = {
-        "format": "saddlescope.ride/1",
-        "cameras": list(CAMERA_ROLES),
-        "board": {
-            "kind": BOARD.kind,
-            "inner_corners": list(BOARD.inner_corners),
-            "square_mm": BOARD.square_mm,
-        },
-        "sync": {"method": "flash"},
-        "markers": {"horse": 3, "plumb": 2, "saddle": 1},
-        "horse": scene.meta["horse"],
-        "rider": scene.meta["rider"],
-        "gait": scene.gait,
-        "direction": scene.direction,
-        "clips": clips,
-        "fps": scene.fps,
-        "frames": {kind: dict(tm.n_frames) for kind, tm in scene.timings.items()},
-        "synthetic": {"seed": scene.seed, "rig": scene.rig.name, "truth": "truth.json"},
-    }
-    if extra:
-        manifest["extra_clips"] = extra
-    return manifest
+__all__ = [
+    "ALL_CLIPS",
+    "BOARD",
+    "DISTANCE_POINTS",
+    "EXTRA_CLIPS",
+    "ClipTiming",
+    "RenderOptions",
+    "Scene",
+    "build_scene",
+    "build_truth",
+    "render_clip_frames",
+    "ride_manifest",
+    "saddle_truth_at",
+    "true_marker_pixels",
+]

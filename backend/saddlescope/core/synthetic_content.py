@@ -20,8 +20,13 @@ from saddlescope.core.synthetic_render import (
     composite_patch,
     fill_polygons,
 )
+from saddlescope.core.types import CLIP_KINDS, Board
 
 GRAVITY_M_S2 = 9.81
+EXTRA_CLIPS: tuple[str, ...] = ("freefall", "board_distance")
+ALL_CLIPS: tuple[str, ...] = CLIP_KINDS + EXTRA_CLIPS
+BOARD = Board(kind="checkerboard", inner_corners=(12, 11), square_mm=50.0)
+DISTANCE_POINTS = {"A": (0, 0), "B": (10, 0), "C": (0, 10), "D": (10, 10)}  # inner-corner (col, row)
 
 # Horse side silhouette in body coordinates (x forward, y down, metres, a 1.65 m horse), origin at
 # the saddle seat. Drawn in the plane z = side * 0.25.
