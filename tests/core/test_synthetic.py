@@ -13,6 +13,7 @@ from saddlescope.core.synthetic import (
     BOARD,
     build_scene,
     build_truth,
+    check_result_structure,
     render_clip_frames,
     saddle_truth_at,
     true_marker_pixels,
@@ -35,33 +36,6 @@ LIT = {
     "rising_trot": {"f": (1.3, 1.5), "v": (2.6, 3.6), "pp": (0.07, 0.16)},
     "canter": {"f": (1.6, 1.7), "v": (3.4, 7.0), "pp": (0.15, 0.30)},
 }
-INDICATOR_KEYS = [
-    "acc_y_wb_rms",
-    "acc_y_wk_rms",
-    "vdv_y_wb",
-    "vdv_y_wk",
-    "acc_y_max",
-    "crest_factor_y",
-    "t_a8_action_wb_h",
-    "t_a8_action_wk_h",
-    "t_a8_limit_wb_h",
-    "t_a8_limit_wk_h",
-    "t_vdv_action_wb_h",
-    "t_vdv_action_wk_h",
-    "t_vdv_limit_wb_h",
-    "t_vdv_limit_wk_h",
-    "d_a8_action_wb_km",
-    "d_a8_action_wk_km",
-    "d_a8_limit_wb_km",
-    "d_a8_limit_wk_km",
-    "d_vdv_action_wb_km",
-    "d_vdv_action_wk_km",
-    "d_vdv_limit_wb_km",
-    "d_vdv_limit_wk_km",
-    "vel_x_avg_kmh",
-    "amplitude_y_m",
-    "stride_frequency_hz",
-]
 CLEAN = RenderOptions(
     noise_sigma=0.0,
     shot_noise=0.0,
@@ -81,53 +55,6 @@ def scene():
 @pytest.fixture(scope="module")
 def truth(scene):
     return json.loads(json.dumps(build_truth(scene)))  # exactly what truth.json holds
-
-
-def check_result_structure(result: dict) -> list[str]:
-    """Problems with a result dict's structure (CONTRACTS section 2); empty when it is complete."""
-    problems = []
-    for key in (
-        "format",
-        "fps",
-        "calibration",
-        "sync",
-        "period_s",
-        "window",
-        "saddle",
-        "angular",
-        "indicators",
-        "quality",
-        "timings_s",
-    ):
-        if key not in result:
-            problems.append(f"missing {key}")
-    if problems:
-        return problems
-    if result["format"] != "saddlescope.result/1":
-        problems.append("format")
-    for role in CAMERA_ROLES:
-        cam = result["calibration"]["cameras"].get(role, {})
-        if (
-            np.shape(cam.get("K")) != (3, 3)
-            or np.shape(cam.get("dist")) != (5,)
-            or len(cam.get("image_size", [])) != 2
-        ):
-            problems.append(f"camera {role}")
-    for role in ("middle", "right"):
-        ext = result["calibration"]["extrinsics"].get(role, {})
-        if np.shape(ext.get("R")) != (3, 3) or np.shape(ext.get("t_mm")) != (3,):
-            problems.append(f"extrinsics {role}")
-    n = len(result["saddle"].get("t_s", []))
-    for key in ("position_m", "velocity_m_s", "acceleration_m_s2"):
-        if np.shape(result["saddle"].get(key)) != (n, 3):
-            problems.append(f"saddle {key}")
-    for key in ("omega_rad_s", "alpha_rad_s2"):
-        if np.shape(result["angular"].get(key)) != (n, 3):
-            problems.append(f"angular {key}")
-    if set(result["window"]) < {"start_s", "duration_s"}:
-        problems.append("window")
-    problems += [f"indicator {k}" for k in INDICATOR_KEYS if k not in result["indicators"]]
-    return problems
 
 
 # --- gait model -----------------------------------------------------------------------------------
@@ -202,6 +129,10 @@ def test_acceleration_harmonics_reproduce_the_exact_acceleration():
 # --- truth ----------------------------------------------------------------------------------------
 def test_truth_has_the_result_structure(truth):
     assert check_result_structure(truth) == []
+    broken = json.loads(json.dumps(truth))
+    del broken["indicators"]["vdv_y_wb"]
+    broken["saddle"]["position_m"] = broken["saddle"]["position_m"][:-1]
+    assert len(check_result_structure(broken)) == 2
     tr = truth["truth"]
     for key in (
         "markers_3d_mm",
@@ -217,9 +148,7 @@ def test_truth_has_the_result_structure(truth):
     assert set(truth["sync"]) >= {"calibration", "plumb", "static", "motion", "freefall", "board_distance"}
     # window: two periods starting at a left frame
     assert truth["window"]["duration_s"] == pytest.approx(2 * truth["period_s"])
-    assert truth["window"]["start_s"] * truth["fps"] == pytest.approx(
-        round(truth["window"]["start_s"] * truth["fps"])
-    )
+    assert truth["window"]["start_s"] * truth["fps"] == pytest.approx(round(truth["window"]["start_s"] * truth["fps"]))
     t = np.array(truth["saddle"]["t_s"])
     np.testing.assert_allclose(np.diff(t), 1 / truth["fps"])
     assert t[0] == pytest.approx(truth["window"]["start_s"])
@@ -253,9 +182,7 @@ def test_truth_saddle_matches_markers_and_saddle_truth_at(scene, truth):
     # harmonics in truth reproduce the exact vertical acceleration at the window samples
     h = tr["saddle_acc_y_harmonics"]
     kk = np.arange(1, len(h["amplitudes_m_s2"]) + 1)
-    ay = np.cos(np.multiply.outer(t, 2 * np.pi * h["f0_hz"] * kk) + h["phases_rad"]) @ np.array(
-        h["amplitudes_m_s2"]
-    )
+    ay = np.cos(np.multiply.outer(t, 2 * np.pi * h["f0_hz"] * kk) + h["phases_rad"]) @ np.array(h["amplitudes_m_s2"])
     np.testing.assert_allclose(ay, np.array(truth["saddle"]["acceleration_m_s2"])[:, 1], atol=1e-9)
     # amplitude_y = peak-to-peak of S's vertical displacement
     dense = saddle_truth_at(truth, t[0] + np.linspace(0, truth["period_s"], 2001))["position_m"][:, 1]
@@ -325,9 +252,7 @@ def _centroid(img: np.ndarray, xy: np.ndarray, half: int = 7) -> np.ndarray:
     win = img[y - half : y + half + 1, x - half : x + half + 1].astype(float)
     yy, xx = np.mgrid[-half : half + 1, -half : half + 1]
     ring = (np.abs(yy) == half) | (np.abs(xx) == half)
-    coef = np.linalg.lstsq(np.column_stack([np.ones(ring.sum()), xx[ring], yy[ring]]), win[ring], rcond=None)[
-        0
-    ]
+    coef = np.linalg.lstsq(np.column_stack([np.ones(ring.sum()), xx[ring], yy[ring]]), win[ring], rcond=None)[0]
     w = win - (coef[0] + coef[1] * xx + coef[2] * yy)
     w[w < 0.02 * w.max()] = 0.0
     return np.array([x + (w * xx).sum() / w.sum(), y + (w * yy).sum() / w.sum()])
@@ -338,9 +263,7 @@ def _centroid(img: np.ndarray, xy: np.ndarray, half: int = 7) -> np.ndarray:
 )
 def test_rendered_blob_centroids_match_projection(rig, size, blur):
     opts = RenderOptions(**{**CLEAN.__dict__, "motion_blur": blur})
-    s = build_scene(
-        gait="canter", seed=3, rig=rig, size=size, calibration_poses=2, extras=False, options=opts
-    )
+    s = build_scene(gait="canter", seed=3, rig=rig, size=size, calibration_poses=2, extras=False, options=opts)
     errs = []
     for kind in ("static", "motion"):
         for role in CAMERA_ROLES:
@@ -444,9 +367,7 @@ def test_board_corners_are_detectable_and_exact(scene, truth):
             kc = int(round(k + tm.offsets[role]))
             frame = next(render_clip_frames(scene, role, "calibration", start=kc, stop=kc + 1))
             up = cv2.resize(frame, None, fx=2, fy=2, interpolation=cv2.INTER_CUBIC)
-            ok, corners = cv2.findChessboardCornersSB(
-                up, BOARD.inner_corners, flags=cv2.CALIB_CB_NORMALIZE_IMAGE
-            )
+            ok, corners = cv2.findChessboardCornersSB(up, BOARD.inner_corners, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
             if not ok:
                 continue
             found += 1

@@ -167,9 +167,7 @@ def _make_views(rig: SceneRig) -> dict[str, CameraView]:
     return views
 
 
-def _visible_everywhere(
-    views: dict[str, CameraView], pts_w: np.ndarray, margin_px: float = 10.0
-) -> np.ndarray:
+def _visible_everywhere(views: dict[str, CameraView], pts_w: np.ndarray, margin_px: float = 10.0) -> np.ndarray:
     """pts_w (T, M, 3) -> (T,) True where every point is inside every image with a margin."""
     ok = np.ones(pts_w.shape[0], bool)
     for view in views.values():
@@ -291,9 +289,7 @@ def build_scene(
         raise InputError(f"motion duration {duration_s} s is outside 0.5-120 s")
     options = options or RenderOptions()
     ss = np.random.SeedSequence([int(seed), 0x5ADD1E])
-    r_rig, r_gait, r_meta, r_time, r_board, r_bg, r_place, r_look = (
-        np.random.default_rng(s) for s in ss.spawn(8)
-    )
+    r_rig, r_gait, r_meta, r_time, r_board, r_bg, r_place, r_look = (np.random.default_rng(s) for s in ss.spawn(8))
 
     srig = make_rig(rig, r_rig, size=size, fps=fps)
     fps_ = srig.fps
@@ -480,9 +476,7 @@ def _place(factory, views, what: str, candidates=(0.3, -0.3, 0.9, -0.9, 1.5, -1.
 def _add_static_glints(views: dict[str, CameraView], rig: SceneRig, rng: np.random.Generator) -> None:
     """Small bright spots on the back wall and fence near marker height (the same in every camera)."""
     n = 10
-    pts = np.column_stack(
-        [rng.uniform(-6.0, 6.0, n), rng.uniform(-0.2, 0.6, n), np.full(n, rig.wall_z_m - 0.02)]
-    )
+    pts = np.column_stack([rng.uniform(-6.0, 6.0, n), rng.uniform(-0.2, 0.6, n), np.full(n, rig.wall_z_m - 0.02)])
     diam = rng.uniform(35.0, 70.0, n)
     peak = rng.uniform(225.0, 275.0, n)
     opts = RenderOptions(motion_blur=False)
@@ -492,9 +486,7 @@ def _add_static_glints(views: dict[str, CameraView], rig: SceneRig, rng: np.rand
         draw_markers(view.background, xy[None], r, peak, options=opts)
 
 
-def _add_extra_clips(
-    timings, contents, views, srig: SceneRig, r_time, r_place, board_tmpl: BoardContent
-) -> None:
+def _add_extra_clips(timings, contents, views, srig: SceneRig, r_time, r_place, board_tmpl: BoardContent) -> None:
     fps_ = srig.fps
     # freefall (thesis 8.3): thrown from the lower edge of the volume, peaks at the upper edge
     rise = 2.0 * srig.volume_half_m[1]
@@ -530,9 +522,7 @@ def _add_extra_clips(
                 np.deg2rad(r_place.uniform(-20, 20)),
                 np.deg2rad(r_place.uniform(-8, 8)),
             )
-            centre = np.array(
-                [centre_x + r_place.normal(0, 0.1), r_place.normal(0, 0.08), r_place.normal(0, 0.08)]
-            )
+            centre = np.array([centre_x + r_place.normal(0, 0.1), r_place.normal(0, 0.08), r_place.normal(0, 0.08)])
             o_w = _board_origin(r_bw, centre, board_tmpl.inner_corners, board_tmpl.square_m)
             if _board_ok(views, board_tmpl, r_bw, o_w):
                 poses.append((r_bw, o_w))
@@ -601,9 +591,7 @@ def render_clip_frames(
     content = scene.contents[kind]
     times = timing.frame_times(camera)
     stop = len(times) if stop is None else min(int(stop), len(times))
-    flash = flash_fraction(
-        times, scene.rig.exposure_s, timing.flash_on_s, timing.flash_off_s, timing.flash_ramp_s
-    )
+    flash = flash_fraction(times, scene.rig.exposure_s, timing.flash_on_s, timing.flash_off_s, timing.flash_ramp_s)
     clip_no, cam_no = ALL_CLIPS.index(kind), CAMERA_ROLES.index(camera)
     rendered = np.asarray(content.rendered, bool)
     bank = noise_bank(np.random.default_rng([scene.seed, 0x5ADD1E, clip_no, cam_no]), frame_shape(view))
@@ -669,7 +657,12 @@ def true_marker_pixels(scene: Scene, camera: str, kind: str) -> dict:
 
 
 # the truth lives in its own module; re-exported here as part of the synthetic arena's API
-from saddlescope.core.synthetic_truth import build_truth, ride_manifest, saddle_truth_at  # noqa: E402
+from saddlescope.core.synthetic_truth import (  # noqa: E402
+    build_truth,
+    check_result_structure,
+    ride_manifest,
+    saddle_truth_at,
+)
 
 __all__ = [
     "ALL_CLIPS",
@@ -681,6 +674,7 @@ __all__ = [
     "Scene",
     "build_scene",
     "build_truth",
+    "check_result_structure",
     "render_clip_frames",
     "ride_manifest",
     "saddle_truth_at",
