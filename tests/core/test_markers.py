@@ -25,11 +25,13 @@ def render(blobs, *, background=None, shape=SHAPE, noise=0.0, rng=None):
     img = np.full(shape, 40.0) if background is None else background.copy()
     for (cx, cy), radius, amplitude, sigma in blobs:
         reach = int(radius + 6 * sigma + 2)
-        x0, y0 = int(cx) - reach, int(cy) - reach
-        yy, xx = np.mgrid[y0:y0 + 2 * reach + 1, x0:x0 + 2 * reach + 1]
+        x0, y0 = max(int(cx) - reach, 0), max(int(cy) - reach, 0)
+        x1, y1 = min(int(cx) + reach + 1, shape[1]), min(int(cy) + reach + 1, shape[0])
+        if x1 <= x0 or y1 <= y0:
+            continue
+        yy, xx = np.mgrid[y0:y1, x0:x1]
         r = np.hypot(xx - cx, yy - cy)
-        img[y0:y0 + 2 * reach + 1, x0:x0 + 2 * reach + 1] += \
-            amplitude * 0.5 * (1 - erf((r - radius) / (np.sqrt(2) * sigma)))
+        img[y0:y1, x0:x1] += amplitude * 0.5 * (1 - erf((r - radius) / (np.sqrt(2) * sigma)))
     if noise:
         img = img + rng.normal(0.0, noise, shape)
     return np.clip(np.round(img), 0, 255).astype(np.uint8)
@@ -111,7 +113,7 @@ def test_initial_markers_finds_the_row_among_distractors():
                    ((270.0, 400.0), 2.6, 200.0, 0.8)]     # a bright look-alike far below the row
     frame = render([marker(p) for p in truth] + distractors, background=texture(rng), noise=1.0, rng=rng)
     pattern = initial_markers(frame, 3, camera="left", clip="static")
-    np.testing.assert_allclose(pattern.xy_px, truth, atol=0.2)  # labelled left to right
+    np.testing.assert_allclose(pattern.xy_px, truth, atol=0.3)  # the right blobs, left to right
     assert 3 <= pattern.diameter_px <= 6
     lo, hi = pattern.area_range_px
     assert lo <= pattern.area_px.min() <= pattern.area_px.max() <= hi
@@ -231,3 +233,67 @@ def test_track_markers_with_overrides():
     tracks = track_markers(frames, n_markers=3, threshold=150, area_range_px=(4, 60), window_px=(160, 90),
                            first_frame_xy=truth[0] + 1.0)
     assert np.nanmax(np.abs(tracks.xy_px - truth)) < 0.4
+
+
+def test_centroid_of_a_marker_on_an_edge():
+    """A marker on the border of a light saddle pad: the background is a step, not a plane."""
+    rng = np.random.default_rng(9)
+    errors = []
+    for _ in range(8):
+        truth = np.array([300.0, 200.0]) + rng.uniform(0, 1, 2)
+        bg = np.full(SHAPE, 50.0)
+        bg[: int(truth[1]) - 1] = 130.0  # the pad above, dark hair below the marker's centre
+        frame = render([marker(truth, radius=2.0, amplitude=170.0)], background=bg)
+        xy, _, _ = detect_blobs(frame, threshold=160, area_range_px=(2, 100))
+        errors.append(xy[0] - truth)
+    assert np.max(np.abs(errors)) < 0.15
+
+
+def entering_row(n_frames=30, enter_at=8, seed=10):
+    """Markers riding in from the left edge past a still row of glints that looks just like them."""
+    rng = np.random.default_rng(seed)
+    bg = texture(rng)
+    glints = [marker((400.0 + 31.0 * k, 120.0 + (k == 1) * 2.0), radius=2.1, amplitude=210) for k in range(3)]
+    k = np.arange(n_frames)
+    centre = np.column_stack([-70 + 9.0 * (k - enter_at + 8), 300 + 6 * np.sin(2 * np.pi * k / 15)])
+    truth = centre[:, None, :] + ROW[None]
+
+    def frames():
+        for f in range(n_frames):
+            blobs = glints + [marker(p) for p in truth[f] if 3 < p[0] < SHAPE[1] - 3]
+            yield f, render(blobs, background=bg, noise=1.5, rng=rng)
+
+    return frames(), truth
+
+
+def test_moving_markers_are_told_from_still_glints():
+    frames, truth = entering_row()
+    tracks = track_markers(frames, n_markers=3, camera="left", clip="motion", moving=True)
+    seen = np.all(np.isfinite(tracks.xy_px[..., 0]), axis=1)
+    assert seen.sum() >= 18  # from soon after the whole row is in view to the end
+    assert np.nanmax(np.linalg.norm(tracks.xy_px - truth, axis=-1)) < 0.4  # never the glints
+    frames, _ = entering_row()
+    still = track_markers(frames, n_markers=3, moving=False)
+    assert np.nanmin(np.abs(still.xy_px[..., 1] - 120.0)) < 3  # without the hint the glints win
+
+
+def test_markers_lost_and_found_keep_their_labels():
+    occluded = {(f, m) for f in range(15, 27) for m in range(3)}  # all hidden for 12 frames
+    frames, truth = ride(n_frames=45, occlude=occluded)
+    # Custom labels (right to left) must survive the re-search.
+    tracks = track_markers(frames, n_markers=3, first_frame_xy=truth[0][::-1] + 0.5)
+    gaps = np.isnan(tracks.xy_px[..., 0])
+    assert gaps[15:27].all()
+    assert not gaps[:15].any() and gaps[27:].sum() <= 3 * 3  # re-found within a few frames
+    err = np.linalg.norm(tracks.xy_px - truth[:, ::-1], axis=-1)
+    assert np.nanmax(err) < 0.4
+
+
+def test_flash_frames_are_gaps():
+    frames, truth = ride(n_frames=24)
+    flashed = ((i, np.clip(f.astype(int) + (90 if 10 <= i - 100 < 13 else 0), 0, 255).astype(np.uint8))
+               for i, f in frames)
+    tracks = track_markers(flashed, n_markers=3)
+    gaps = np.isnan(tracks.xy_px[..., 0]).any(axis=1)
+    assert gaps[10:13].all() and not gaps[:10].any() and not gaps[13:].any()
+    assert np.nanmax(np.linalg.norm(tracks.xy_px - truth, axis=-1)) < 0.4

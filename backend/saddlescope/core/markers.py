@@ -145,9 +145,11 @@ def _refine(win: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.ndar
     H, W = win.shape
     x, y, w, h = (boxes[:, j].astype(np.int64) for j in range(4))
     pad = pad_px + (0.15 * np.maximum(w, h)).astype(np.int64)
-    g = pad + ring_gap_px
-    X0, Y0 = np.maximum(x - g, 0), np.maximum(y - g, 0)
-    X1, Y1 = np.minimum(x + w + g, W), np.minimum(y + h + g, H)
+    side = (np.maximum(w, h) + 2 * pad + 1) | 1  # the opening's square (odd): wider than the blob, blur too
+    g = pad + ring_gap_px                 # the ring where the background level is read
+    G = g + side                          # the patch: the opening needs a square's width around the ring
+    X0, Y0 = np.maximum(x - G, 0), np.maximum(y - G, 0)
+    X1, Y1 = np.minimum(x + w + G, W), np.minimum(y + h + G, H)
     sw, sh = int((X1 - X0).max()), int((Y1 - Y0).max())
     xs = X0[:, None] + np.arange(sw)  # (K, sw) window columns of each patch
     ys = Y0[:, None] + np.arange(sh)
@@ -157,24 +159,34 @@ def _refine(win: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.ndar
     lab = labels[yi[:, :, None], xi[:, None, :]]
     valid = vy[:, :, None] & vx[:, None, :]
     free = valid & (lab == 0)
-    edge = ((xs == X0[:, None]) | (xs == X1[:, None] - 1))[:, None, :] \
-        | ((ys == Y0[:, None]) | (ys == Y1[:, None] - 1))[:, :, None]
+    rx0, ry0 = np.maximum(x - g, 0), np.maximum(y - g, 0)
+    rx1, ry1 = np.minimum(x + w + g, W) - 1, np.minimum(y + h + g, H) - 1
+    in_x = (xs >= rx0[:, None]) & (xs <= rx1[:, None])
+    in_y = (ys >= ry0[:, None]) & (ys <= ry1[:, None])
+    edge = (((xs == rx0[:, None]) | (xs == rx1[:, None])) & in_x)[:, None, :] & in_y[:, :, None] \
+        | (((ys == ry0[:, None]) | (ys == ry1[:, None])) & in_y)[:, :, None] & in_x[:, None, :]
     ring = edge & free
     # Background: a grey opening with a square wider than the blob (white top-hat). It erases the blob
-    # and keeps whatever is larger - a flat or sloping background, and also the step of an edge the
-    # marker sits on (saddle pad against the horse), where a fitted plane would pull the centroid.
+    # and keeps whatever is larger - a flat or sloping background, and the step of an edge the marker
+    # sits on (saddle pad against the horse), where a fitted plane would pull the centroid. A small
+    # closing first fills thin dark lines (a stripe on the wall behind a plumb marker), which the
+    # marker hides: left in, they would count the marker twice along the line.
     opened = np.empty_like(patch)
-    side = np.maximum(w, h) + 2 * pad + 1
     for k in range(K):
-        opened[k] = cv2.morphologyEx(patch[k], cv2.MORPH_OPEN, _square(int(side[k])))
+        closed = cv2.morphologyEx(patch[k], cv2.MORPH_CLOSE, _square(5))
+        opened[k] = cv2.morphologyEx(closed, cv2.MORPH_OPEN, _square(int(side[k])))
     top = patch - opened
-    # The top-hat of pure noise is positive: remove its level, measured on the free border.
+    # The top-hat of pure noise is positive: remove its level, measured on the free ring.
     n = ring.sum(axis=(1, 2))
     floor = np.where(n > 0, np.where(ring, top, 0.0).sum(axis=(1, 2)) / np.maximum(n, 1), 0.0)
-    inner = (valid & ((xs >= (x - pad)[:, None]) & (xs < (x + w + pad)[:, None]))[:, None, :]
-             & ((ys >= (y - pad)[:, None]) & (ys < (y + h + pad)[:, None]))[:, :, None])
     own = lab == ids[:, None, None]
-    keep = inner & (own | (lab == 0))
+    # Weights only near the blob: its pixels grown by ``pad`` (a thin bright line through the marker,
+    # such as a plumb line, survives the opening and must not pull the centroid along itself).
+    near = np.empty_like(own)
+    own_u8 = own.view(np.uint8)
+    for k in range(K):
+        near[k] = cv2.dilate(own_u8[k], _square(2 * int(pad[k]) + 1)).view(bool)
+    keep = near & valid & (own | (lab == 0))
     wts = np.where(keep, np.maximum(top - floor[:, None, None], 0.0), 0.0)
     total = wts.sum(axis=(1, 2))
     out = np.empty((K, 4))
@@ -201,7 +213,13 @@ def _square(side: int) -> np.ndarray:
 def _centroids(win: np.ndarray, labels: np.ndarray, stats: np.ndarray, keep: np.ndarray, offset,
                pad_px: int) -> _Blobs:
     """Sub-pixel centroids (see :func:`_refine`) of the components ``keep``, in full-image pixels."""
-    out = _refine(win, labels, keep, stats[keep, :4], pad_px)
+    out = np.empty((keep.size, 4))
+    # Blobs of similar size share one stack of patches (one big blob must not inflate every patch).
+    size = np.maximum(stats[keep, cv2.CC_STAT_WIDTH], stats[keep, cv2.CC_STAT_HEIGHT])
+    bucket = np.ceil(np.log2(np.maximum(size, 1))).astype(int)
+    for b in np.unique(bucket):
+        sel = np.flatnonzero(bucket == b)
+        out[sel] = _refine(win, labels, keep[sel], stats[keep[sel], :4], pad_px)
     xy = out[:, :2] + np.asarray(offset, dtype=np.float64)
     area = stats[keep, cv2.CC_STAT_AREA].astype(np.float64)
     w, h = stats[keep, cv2.CC_STAT_WIDTH], stats[keep, cv2.CC_STAT_HEIGHT]
@@ -565,10 +583,16 @@ def _pattern_near(gray, n, xy0, scene, search_range, area_range_px, max_candidat
     return _pattern_from(blobs, idx, level, area_range_px, 0.0)
 
 
+# Tracking threshold: this fraction of the way from the markers' background up to the dimmest marker's
+# peak. Above one half, so that a light patch next to a marker on dark hair (a saddle pad's edge)
+# does not join the marker's blob; the weighted centroid still uses the blob's faint rim.
+_THRESHOLD_FRACTION = 0.6
+
+
 def _tracking_threshold(pattern: MarkerPattern) -> float:
-    """Half way between the markers' background and the dimmest marker's peak."""
+    """The tracking threshold for markers like these (see ``_THRESHOLD_FRACTION``)."""
     bg = float(np.median(pattern.background))
-    return bg + 0.5 * max(float(pattern.peak.min()) - bg, 2.0)
+    return bg + _THRESHOLD_FRACTION * max(float(pattern.peak.min()) - bg, 2.0)
 
 
 def _retune(gray, pattern: MarkerPattern, *, fixed_area: bool, pad_px: int) -> MarkerPattern:
@@ -635,6 +659,7 @@ class _Tracker:
         self.speed_cap = 3 * self.base_margin
         self.lost = 0
         self.steps = 0
+        self.level: float | None = None  # running mean grey level of the window (flash guard)
 
     def window(self, pred) -> tuple[tuple[int, int, int, int], float]:
         grow = 1.5 ** min(self.lost, 12)
@@ -669,12 +694,17 @@ class _Tracker:
                 cand = sorted(cand, key=row.__getitem__)[:4]
             options.append(cand + [-1])
             costs.append(row)
+        def i_of(combo):
+            return next(i for i, c in enumerate(combo) if c >= 0)
+
         # After a loss, one lone blob proves nothing: ask for two markers that keep their pattern.
         min_found = 2 if self.lost > 0 and self.M >= 2 else 0
         best_cost, best = math.inf, None
         for combo in itertools.product(*options):
             if min_found and sum(c >= 0 for c in combo) < min_found:
                 continue
+            if self.M >= 2 and sum(c >= 0 for c in combo) == 1 and costs[i_of(combo)][max(combo)] > 0.25:
+                continue  # a lone marker has no pattern to vouch for it: it must sit close to its prediction
             total = 0.0
             seen = set()
             for i, c in enumerate(combo):
@@ -735,9 +765,18 @@ class _Tracker:
             self._update(pred, found, areas, [], [])
             return found, areas
         win = gray[y0:y1, x0:x1]  # a view: only the window is read
+        level = cv2.mean(win)[0]
+        if self.level is None:
+            self.level = level
         n, labels, stats, cents = _label(win, self.threshold)
         lo, hi = self.area_range
         area_all = stats[1:n, cv2.CC_STAT_AREA]
+        if abs(level - self.level) > 0.25 * min(self.ref_contrast) or area_all.sum() > 0.25 * win.size:
+            # The window's brightness jumped (a flash, glare, the sun): whatever shines now is not
+            # to be trusted. Skip the frame as if the markers were hidden.
+            self._update(pred, found, areas, [], [])
+            return found, areas
+        self.level += 0.2 * (level - self.level)
         keep = np.flatnonzero((area_all >= lo) & (area_all <= hi)) + 1
         cand_xy = (cents[keep] + (x0, y0)).tolist()
         cand_area = stats[keep, cv2.CC_STAT_AREA].tolist()
@@ -790,8 +829,8 @@ class _Tracker:
             self.ref_contrast[m] += 0.1 * (max(peak - bg, 2.0) - self.ref_contrast[m])
         self.background += 0.1 * (sorted(bgs)[len(bgs) // 2] - self.background)
         if not self.threshold_fixed:
-            # Follow slow lighting changes: half way up the dimmest marker's contrast.
-            self.threshold = self.background + 0.5 * max(min(self.ref_contrast), 2.0)
+            # Follow slow lighting changes: a fixed fraction up the dimmest marker's contrast.
+            self.threshold = self.background + _THRESHOLD_FRACTION * max(min(self.ref_contrast), 2.0)
 
 
 def _bright_spots(gray: np.ndarray, levels, area_range_px, roi=None) -> np.ndarray:
