@@ -223,6 +223,19 @@ def test_resample_tracks_interpolates_and_keeps_gaps():
     assert np.isnan(out[7]).all() and np.isnan(out[8]).all()  # outside the tracked frames
 
 
+def test_resample_tracks_cubic_follows_curved_motion():
+    k = np.arange(20, dtype=float)
+    xy = np.stack([k ** 2, k ** 3 / 10], axis=-1)[:, None, :]  # accelerating marker
+    tracks = ImageTracks("right", xy, np.arange(20))
+    at = np.array([5.5, 10.25, 0.5, 18.5])
+    cubic = resample_tracks(tracks, at)
+    linear = resample_tracks(tracks, at, kind="linear")
+    np.testing.assert_allclose(cubic[:2, 0], np.stack([at[:2] ** 2, at[:2] ** 3 / 10], axis=-1), atol=1e-9)
+    assert abs(linear[0, 0, 0] - 5.5 ** 2) == pytest.approx(0.25)  # linear misses by a/8 = 2/8
+    # At the ends (no second neighbour) the cubic falls back to linear.
+    np.testing.assert_allclose(cubic[2:], linear[2:])
+
+
 def test_triangulate_tracks_with_subframe_offsets_and_relabelling(rig):
     fps = 30.0
     offsets = {"left": 0.0, "middle": 53.4, "right": 126.7}

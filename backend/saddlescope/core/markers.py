@@ -341,6 +341,10 @@ def _all_blobs(gray: np.ndarray, threshold: float, area_range_px, max_candidates
     fill = stats[keep, cv2.CC_STAT_AREA] / (w * h)
     aspect = np.maximum(w, h) / np.minimum(w, h)
     keep = keep[small | ((fill > 0.3) & (aspect <= 3))]  # drop streaks, stripes and rings
+    H, W = gray.shape
+    bx, by = stats[keep, 0] + x0, stats[keep, 1] + y0
+    cut = (bx == 0) | (by == 0) | (bx + stats[keep, 2] == W) | (by + stats[keep, 3] == H)
+    keep = keep[~cut]  # cut by the image border: not a whole marker
     if exclude_xy is not None and len(exclude_xy) and keep.size:
         d = np.linalg.norm(cents[keep][:, None, :] - np.asarray(exclude_xy)[None, :, :], axis=-1)
         keep = keep[d.min(axis=1) > exclude_radius_px]
@@ -788,6 +792,11 @@ class _Tracker:
             ids = keep[[combo[m] for m in marks]]
             out = _refine(win, labels, ids, stats[ids, :4], self.pad).tolist()
             for m, c, (cx, cy, peak, bg) in zip(marks, ids.tolist(), out, strict=True):
+                bx, by, bw, bh = (int(v) for v in stats[c, :4])
+                if bx + x0 == 0 or by + y0 == 0 or bx + x0 + bw == self.W or by + y0 + bh == self.H:
+                    # Cut by the image border: part of the marker is outside, its centroid is not the
+                    # marker's centre. A gap, not a biased point (the prediction still follows it).
+                    continue
                 found[m] = [cx + x0, cy + y0]
                 areas[m] = float(stats[c, cv2.CC_STAT_AREA])
                 peaks.append(peak)

@@ -619,11 +619,15 @@ def match_markers_across_cameras(rig: Rig, xy_by_camera: Mapping[str, np.ndarray
 # Tracks
 # --------------------------------------------------------------------------------------------------
 
-def resample_tracks(tracks: ImageTracks, frames: np.ndarray) -> np.ndarray:
+def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cubic") -> np.ndarray:
     """Sample a camera's 2-D tracks at fractional frame positions of its own clip.
 
-    Linear interpolation between the two neighbouring frames; a gap (NaN) in either neighbour, or a
-    position outside the tracked frames, gives NaN. Integer positions take the frame as it is.
+    ``kind="cubic"``: the cubic through the four nearest frames (two each side), where all four are
+    tracked, else linear between the two neighbours; ``"linear"``: always linear. Linear interpolation
+    misses the curvature of the motion by a Δt²/8 (0.4 px half way between frames for a saddle
+    bobbing at 3 px/frame², which over a 0.23 m baseline at 7.5 m is a decimetre in depth); the cubic
+    is exact up to third-order motion. A gap (NaN) in either neighbour, or a position outside the
+    tracked frames, gives NaN; integer positions take the frame as it is.
 
     Parameters
     ----------
@@ -631,11 +635,14 @@ def resample_tracks(tracks: ImageTracks, frames: np.ndarray) -> np.ndarray:
         ``xy_px`` of shape (F, M, 2) at ``frame_index`` (F,) (need not be contiguous).
     frames : ndarray of shape (N,)
         Wanted positions in this clip's frame numbers.
+    kind : {"cubic", "linear"}, keyword-only
 
     Returns
     -------
     ndarray of shape (N, M, 2)
     """
+    if kind not in ("cubic", "linear"):
+        raise InputError(f"unknown interpolation {kind!r} (use 'cubic' or 'linear')")
     xy = np.asarray(tracks.xy_px, dtype=np.float64)
     fi = np.asarray(tracks.frame_index, dtype=np.int64)
     if xy.ndim != 3 or xy.shape[-1] != 2 or xy.shape[0] != fi.shape[0]:
@@ -646,18 +653,25 @@ def resample_tracks(tracks: ImageTracks, frames: np.ndarray) -> np.ndarray:
     if fi.size == 0:
         return out
     first = int(fi.min())
-    dense = np.full((int(fi.max()) - first + 2, xy.shape[1], 2), np.nan)  # one NaN frame past the end
-    dense[fi - first] = xy
-    pos = frames - first
+    # Dense frames with a NaN frame before and two after, so every neighbour index exists.
+    dense = np.full((int(fi.max()) - first + 4, xy.shape[1], 2), np.nan)
+    dense[fi - first + 1] = xy
+    pos = frames - first + 1
     base = np.floor(pos)
     frac = pos - base
     snap = frac < 1e-9
-    inside = (base >= 0) & (base <= dense.shape[0] - 2) & np.isfinite(pos)
-    b = np.where(inside, base, 0).astype(np.int64)
-    lo = dense[b]
-    hi = dense[np.minimum(b + 1, dense.shape[0] - 1)]
-    f = frac[:, None, None]
-    val = np.where(snap[:, None, None], lo, (1 - f) * lo + f * hi)  # NaN in hi poisons only real blends
+    inside = (base >= 1) & (base <= dense.shape[0] - 3) & np.isfinite(pos)
+    b = np.where(inside, base, 1).astype(np.int64)
+    p0, p1 = dense[b], dense[b + 1]
+    t = frac[:, None, None]
+    val = np.where(snap[:, None, None], p0, (1 - t) * p0 + t * p1)  # NaN in p1 poisons only real blends
+    if kind == "cubic":
+        pm, p2 = dense[b - 1], dense[b + 2]
+        # Lagrange weights of the cubic through frames -1, 0, 1, 2 at t in [0, 1).
+        cubic = (-t * (t - 1) * (t - 2) / 6 * pm + (t + 1) * (t - 1) * (t - 2) / 2 * p0
+                 - (t + 1) * t * (t - 2) / 2 * p1 + (t + 1) * t * (t - 1) / 6 * p2)
+        use = ~snap[:, None, None] & np.isfinite(cubic)
+        val = np.where(use, cubic, val)
     out[inside] = val[inside]
     return out
 
@@ -665,13 +679,13 @@ def resample_tracks(tracks: ImageTracks, frames: np.ndarray) -> np.ndarray:
 def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_frames: Mapping[str, float],
                        fps: float, *, reference: str | None = None, method: str = "nview",
                        match_labels: bool = True, names: Sequence[str] | None = None,
-                       **kwargs) -> MarkerTracks:
+                       interpolation: str = "cubic", **kwargs) -> MarkerTracks:
     """2-D tracks of several cameras -> 3-D marker tracks on the reference camera's clock.
 
     Camera c's clip frame ``k + offsets_frames[c]`` shows the same instant as the reference clip's frame
     ``k`` (CONTRACTS: frame k of the left clip is frame k + offset of another camera's clip); offsets
-    may be fractional (sub-frame sync). Each camera's tracks are resampled there by linear
-    interpolation (a gap stays a gap), then triangulated.
+    may be fractional (sub-frame sync). Each camera's tracks are resampled there (cubic where four
+    frames around are tracked, else linear; a gap stays a gap), then triangulated.
 
     Parameters
     ----------
@@ -690,6 +704,8 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
         :func:`match_markers_across_cameras` on the first instant every camera sees every marker.
     names : sequence of str, keyword-only
         Marker names (default "1", "2", ...).
+    interpolation : {"cubic", "linear"}, keyword-only
+        How tracks are resampled between frames (see :func:`resample_tracks`).
     **kwargs
         Passed to the triangulation function.
 
@@ -723,7 +739,7 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     xy = {}
     for c in cams:
         offset = float(offsets_frames.get(c, 0.0)) - base
-        xy[c] = resample_tracks(tracks[c], ref_frames + offset)
+        xy[c] = resample_tracks(tracks[c], ref_frames + offset, kind=interpolation)
     if match_labels and M > 1:
         full = np.all(np.stack([np.all(np.isfinite(v), axis=(1, 2)) for v in xy.values()]), axis=0)
         hits = np.flatnonzero(full)
