@@ -210,6 +210,15 @@ def test_match_markers_across_cameras(rig):
     assert perms["right"][[1, 2]].tolist() == [0, 1]  # the seen ones; the missing one goes where it fits
 
 
+def test_match_markers_over_several_instants_outvotes_a_bad_one(rig):
+    X = horse_markers(np.linspace(0.1, 0.6, 6))  # (6, 3, 3)
+    xy = {n: c.project(X) for n, c in rig.cameras.items()}
+    xy["middle"] = xy["middle"][:, [1, 2, 0]]
+    xy["right"][2] = [[600.0, 20.0], [10.0, 400.0], [320.0, 470.0]]  # one frame of junk in one camera
+    perms = match_markers_across_cameras(rig, xy)
+    assert perms["middle"].tolist() == [2, 0, 1] and perms["right"].tolist() == [0, 1, 2]
+
+
 def test_resample_tracks_interpolates_and_keeps_gaps():
     xy = np.arange(10 * 1 * 2, dtype=float).reshape(10, 1, 2)  # x = 2k, y = 2k + 1 at frame 10 + k
     xy[5] = np.nan

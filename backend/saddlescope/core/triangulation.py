@@ -533,30 +533,33 @@ def triangulate_thesis_pairs(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *
 # --------------------------------------------------------------------------------------------------
 
 def match_markers_across_cameras(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *,
-                                 reference: str | None = None, max_combinations: int = 2_000_000
-                                 ) -> dict[str, np.ndarray]:
+                                 reference: str | None = None, cap_px: float = 50.0,
+                                 max_combinations: int = 2_000_000) -> dict[str, np.ndarray]:
     """Which marker of each camera is which marker of the reference camera.
 
     Brute force over label permutations (M <= 5 markers): every tuple of one detection per camera is
-    triangulated once (N-view, no outlier rejection) and costs its RMS reprojection error (infinite
-    if the point lies behind a camera); the permutations minimising the summed cost win.
+    triangulated once (N-view, no outlier rejection) and costs its RMS reprojection error, capped at
+    ``cap_px`` (also the cost of a point behind a camera) so that one bad instant cannot outvote the
+    others; the permutations minimising the cost summed over markers and instants win. Ties keep the
+    cameras' own labels.
 
     Parameters
     ----------
     rig : Rig
-    xy_by_camera : dict of camera name -> ndarray of shape (M, 2)
-        One frame's detections per camera, in each camera's own label order; NaN rows allowed
-        (a marker a camera did not see).
+    xy_by_camera : dict of camera name -> ndarray of shape (M, 2) or (T, M, 2)
+        Detections of one instant (or T instants) per camera, in each camera's own label order; NaN
+        rows allowed (a marker a camera did not see costs nothing).
     reference : str, keyword-only
         The camera whose labels are kept (default: "left" if given, else the first camera).
+    cap_px : float, keyword-only
     max_combinations : int, keyword-only
         Guard against an exhaustive search that would not finish.
 
     Returns
     -------
     dict of camera name -> ndarray of shape (M,), int
-        ``perm`` with ``xy_by_camera[name][perm[m]]`` being reference marker ``m``; the identity for
-        the reference camera.
+        ``perm`` with ``xy_by_camera[name][..., perm[m], :]`` being reference marker ``m``; the
+        identity for the reference camera.
     """
     names = list(xy_by_camera)
     if reference is None:
@@ -564,34 +567,38 @@ def match_markers_across_cameras(rig: Rig, xy_by_camera: Mapping[str, np.ndarray
     if reference not in names:
         raise InputError(f"reference camera {reference!r} has no image points")
     arrays = {n: np.asarray(xy_by_camera[n], dtype=np.float64) for n in names}
-    M = arrays[reference].shape[0]
+    ref = arrays[reference]
+    if ref.ndim == 2:
+        arrays = {n: a[None] for n, a in arrays.items()}
+    T, M = arrays[reference].shape[:2]
     for n, a in arrays.items():
-        if a.shape != (M, 2):
-            raise InputError(f"camera {n!r}: expected marker image points of shape ({M}, 2), got {a.shape}")
+        if a.shape != (T, M, 2):
+            raise InputError(f"camera {n!r}: expected marker image points of shape {ref.shape}, got "
+                             f"{np.asarray(xy_by_camera[n]).shape}")
     others = [n for n in names if n != reference]
     if not others:
         return {reference: np.arange(M)}
     n_perm = math.factorial(M) ** len(others)
-    if n_perm > max_combinations or M ** len(names) > max_combinations:
+    if n_perm > max_combinations or T * M ** len(names) > max_combinations:
         raise InputError(f"too many label permutations to try ({n_perm}) for {M} markers in "
                          f"{len(names)} cameras")
     order = [reference] + others
-    # Cost of every tuple (i_ref, i_1, ..., i_k): one triangulation of M^C points.
+    # Cost of every tuple (i_ref, i_1, ..., i_k) at every instant: one triangulation of T M^C points.
     grids = np.meshgrid(*[np.arange(M)] * len(order), indexing="ij")
     idx = [g.ravel() for g in grids]
-    xy = {n: arrays[n][i] for n, i in zip(order, idx, strict=True)}
+    xy = {n: arrays[n][:, i] for n, i in zip(order, idx, strict=True)}  # (T, M^C, 2)
     X, rms, nviews = triangulate_nview(rig, xy, reject_outliers=False)
-    behind = np.zeros(X.shape[0], dtype=bool)
+    behind = np.zeros(X.shape[:-1], dtype=bool)
     for n in order:
         cam = _camera(rig, n)
         R, t = np.asarray(cam.R, dtype=np.float64), np.asarray(cam.t_mm, dtype=np.float64).reshape(3)
-        z = (X @ R.T + t)[:, 2]
-        behind |= z <= 0
-    # A tuple any of whose detections is missing costs nothing extra: the gap stays a gap either way.
-    cost = np.where(np.isfinite(rms) & ~behind, rms, np.inf)
-    cost = np.where(nviews < len(order), np.where(np.isfinite(rms) & ~behind, rms, 0.0), cost)
-    cost = cost.reshape((M,) * len(order))
-    perms = np.array(list(itertools.permutations(range(M))))  # (M!, M)
+        behind |= (X @ R.T + t)[..., 2] <= 0
+    cost = np.where(np.isfinite(rms) & ~behind, np.minimum(rms, cap_px), cap_px)
+    # A tuple with a missing detection costs nothing extra: the gap stays a gap either way.
+    cost = np.where(nviews < len(order), np.where(np.isfinite(rms) & ~behind, np.minimum(rms, cap_px), 0.0),
+                    cost)
+    cost = cost.sum(axis=0).reshape((M,) * len(order))
+    perms = np.array(list(itertools.permutations(range(M))))  # (M!, M), the identity first
     best_total, best = np.inf, None
     # Sum over m of cost[m, p1[m], p2[m], ...] for every combination of permutations (chunks of the first).
     rest = list(itertools.product(range(len(perms)), repeat=len(others) - 1))
@@ -603,12 +610,9 @@ def match_markers_across_cameras(rig: Rig, xy_by_camera: Mapping[str, np.ndarray
             index.append(perms[rest_idx[:, k]])
         totals = cost[tuple(index)].sum(axis=1)
         j = int(np.argmin(totals))
-        if totals[j] < best_total:
+        if totals[j] < best_total - 1e-9:
             best_total = float(totals[j])
             best = [perms[p1]] + [perms[rest_idx[j, k]] for k in range(len(others) - 1)]
-    if best is None or not np.isfinite(best_total):
-        raise TriangulationError("no consistent marker correspondence across cameras "
-                                 f"{', '.join(order)}: every assignment puts a marker behind a camera")
     result = {reference: np.arange(M)}
     for n, p in zip(others, best, strict=True):
         result[n] = np.asarray(p, dtype=int)
@@ -701,7 +705,7 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     method : {"nview", "thesis_pairs"}, keyword-only
     match_labels : bool, keyword-only
         Relabel the other cameras' markers to the reference's with
-        :func:`match_markers_across_cameras` on the first instant every camera sees every marker.
+        :func:`match_markers_across_cameras` on up to 12 instants where every camera sees every marker.
     names : sequence of str, keyword-only
         Marker names (default "1", "2", ...).
     interpolation : {"cubic", "linear"}, keyword-only
@@ -744,8 +748,9 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
         full = np.all(np.stack([np.all(np.isfinite(v), axis=(1, 2)) for v in xy.values()]), axis=0)
         hits = np.flatnonzero(full)
         if hits.size:
-            k = int(hits[0])
-            perms = match_markers_across_cameras(rig, {c: xy[c][k] for c in cams}, reference=reference)
+            # A dozen instants spread over the clip, so that one odd frame cannot decide the labels.
+            pick = hits[np.unique(np.linspace(0, hits.size - 1, min(hits.size, 12)).round().astype(int))]
+            perms = match_markers_across_cameras(rig, {c: xy[c][pick] for c in cams}, reference=reference)
             xy = {c: xy[c][:, perms[c]] for c in cams}
     if method == "nview":
         X, err, views = triangulate_nview(rig, xy, **kwargs)
