@@ -1,37 +1,91 @@
-// SaddleScope placeholder dashboard: asks /api/health and shows each part (the real dashboard comes later).
+// SaddleScope dashboard: routes, the signed-in state in the header, and start-up.
 
-const summary = document.querySelector("[data-health-summary]");
-const table = document.querySelector("[data-health-table]");
-const refresh = document.querySelector("[data-health-refresh]");
+import { get } from "./js/api.js";
+import { page } from "./js/dom.js";
+import { setIndicatorInfo } from "./js/format.js";
+import { checkHealth } from "./js/health.js";
+import { currentPath, navigate, render, route } from "./js/router.js";
+import { onSessionChange, refreshSession, session, signOut } from "./js/session.js";
+import { mountCompare } from "./js/views/compare.js";
+import { mountEntities } from "./js/views/entities.js";
+import { mountGrades } from "./js/views/grades.js";
+import { mountHome } from "./js/views/home.js";
+import { mountJobs } from "./js/views/jobs.js";
+import { mountLeaderboard } from "./js/views/leaderboard.js";
+import { mountLogin } from "./js/views/login.js";
+import { mountRide } from "./js/views/ride.js";
+import { mountRides } from "./js/views/rides.js";
+import { mountUpload } from "./js/views/upload.js";
 
-function row(name, part) {
-  const tr = document.createElement("tr");
-  tr.dataset.part = name;
-  for (const [text, cls] of [[name, ""], [part.ok ? "ok" : "error", part.ok ? "ok" : "error"], [part.detail, ""]]) {
-    const td = document.createElement("td");
-    td.textContent = text;
-    if (cls) td.className = cls;
-    tr.append(td);
-  }
-  return tr;
+route("/", mountHome, { title: "Overview" });
+route("/login", mountLogin, { title: "Sign in", auth: false });
+route("/horses", mountEntities("horses"), { title: "Horses" });
+route("/riders", mountEntities("riders"), { title: "Riders" });
+route("/rides", mountRides, { title: "Rides" });
+route("/rides/:id", mountRide, { title: "Ride" });
+route("/upload", mountUpload, { title: "Upload a ride" });
+route("/jobs", mountJobs, { title: "Jobs" });
+route("/compare", mountCompare, { title: "Compare" });
+route("/leaderboard", mountLeaderboard, { title: "Leaderboard" });
+route("/grades", mountGrades, { title: "Grades" });
+
+const view = document.querySelector("[data-view]");
+
+function guard(target, path) {
+  if (target.auth && !session()) return `/login?next=${encodeURIComponent(path)}`;
+  return null;
 }
 
-export async function checkHealth() {
-  summary.textContent = "Checking\u2026";
+function notFound(el) {
+  el.append(page("not-found"));
+}
+
+function showAccount(current) {
+  const name = document.querySelector("[data-account-name]");
+  const login = document.querySelector("[data-account-login]");
+  const logout = document.querySelector("[data-account-logout]");
+  name.textContent = current ? `${current.user.display_name || current.user.email}${current.club ? ` \u00b7 ${current.club.name}` : ""}` : "";
+  login.hidden = Boolean(current);
+  logout.hidden = !current;
+  document.querySelector("[data-nav]").hidden = !current;
+}
+
+async function loadIndicatorInfo() {
   try {
-    const response = await fetch("/api/health", { headers: { Accept: "application/json" } });
-    const health = await response.json();
-    const body = table.tBodies[0];
-    body.replaceChildren(...Object.entries(health.parts).map(([name, part]) => row(name, part)));
-    table.hidden = false;
-    summary.textContent = `SaddleScope ${health.version} (${health.mode} mode): ` +
-      (health.status === "ok" ? "all parts ok" : "some parts are not ok");
-    summary.dataset.status = health.status;
+    const answer = await get("/api/indicators");
+    const list = Array.isArray(answer) ? answer : answer?.items;
+    if (list) setIndicatorInfo(Object.fromEntries(list.map((item) => [item.key ?? item.name, item])));
+    else setIndicatorInfo(answer?.indicators ?? answer);
   } catch (error) {
-    summary.textContent = `Cannot reach the server: ${error.message}`;
-    summary.dataset.status = "error";
+    // The built-in table (a copy of core.indicators.INDICATORS) serves instead.
+    console.info("indicator list not available from the server:", error.message);
   }
 }
 
-refresh.addEventListener("click", checkHealth);
-checkHealth();
+async function start() {
+  document.querySelector("[data-account-logout]").addEventListener("click", async () => {
+    await signOut();
+    navigate("/login");
+  });
+  let previous = null;
+  onSessionChange((current) => {
+    showAccount(current);
+    // Signed out (or the session expired) while on a page that needs it: back to sign-in.
+    if (previous && !current && currentPath().path !== "/login") {
+      navigate(`/login?next=${encodeURIComponent(currentPath().path)}`);
+    }
+    previous = current;
+  });
+  checkHealth();
+  try {
+    await refreshSession();
+  } catch (error) {
+    console.warn("cannot ask who is signed in:", error.message);
+  }
+  if (session()) await loadIndicatorInfo();
+  onSessionChange((current) => { if (current) loadIndicatorInfo(); });
+  window.addEventListener("hashchange", () => render());
+  await render({ view, guard, notFound });
+}
+
+start();

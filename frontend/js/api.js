@@ -1,0 +1,124 @@
+// The REST client: JSON in and out, the session cookie, the CSRF header on unsafe requests, and the
+// server's own error reason (FastAPI's `detail`) kept verbatim so pages can show it to the user.
+
+const UNSAFE = new Set(["POST", "PUT", "PATCH", "DELETE"]);
+const CSRF_HEADER = "X-CSRF-Token";
+const CSRF_COOKIES = ["saddlescope_csrf", "csrf_token", "csrftoken", "csrf"];
+
+let csrfToken = null;
+const unauthorisedListeners = new Set();
+
+/** An HTTP error with the server's reason (`detail`) as its message. */
+export class ApiError extends Error {
+  constructor(status, message, body) {
+    super(message);
+    this.name = "ApiError";
+    this.status = status;
+    this.body = body;
+  }
+}
+
+/** Remember the CSRF token a login, registration or /me answer handed out. */
+export function setCsrfToken(token) {
+  csrfToken = token || null;
+}
+
+function csrfFromCookie() {
+  for (const part of document.cookie.split(";")) {
+    const [name, ...rest] = part.trim().split("=");
+    if (CSRF_COOKIES.includes(name)) return decodeURIComponent(rest.join("="));
+  }
+  return null;
+}
+
+/** Called with no arguments whenever the server answers 401 (the session expired or never was). */
+export function onUnauthorised(listener) {
+  unauthorisedListeners.add(listener);
+  return () => unauthorisedListeners.delete(listener);
+}
+
+/** FastAPI `detail` as one readable sentence: a string as is, validation errors as "field: message". */
+export function reasonOf(body, status, statusText) {
+  const detail = body && typeof body === "object" ? body.detail : null;
+  if (typeof detail === "string" && detail) return detail;
+  if (Array.isArray(detail) && detail.length) {
+    return detail.map((item) => {
+      const loc = Array.isArray(item.loc) ? item.loc.filter((p) => p !== "body" && p !== "query").join(".") : "";
+      return loc ? `${loc}: ${item.msg}` : String(item.msg ?? JSON.stringify(item));
+    }).join("; ");
+  }
+  if (detail && typeof detail === "object") return JSON.stringify(detail);
+  if (typeof body === "string" && body.trim() && body.length < 500) return body.trim();
+  return `${status} ${statusText || "error"}`.trim();
+}
+
+function headersFor(method, extra, hasJson) {
+  const headers = new Headers(extra || {});
+  if (!headers.has("Accept")) headers.set("Accept", "application/json");
+  if (hasJson) headers.set("Content-Type", "application/json");
+  if (UNSAFE.has(method)) {
+    // The cookie is the source of truth (a later sign-in in another tab replaces it).
+    const token = csrfFromCookie() || csrfToken;
+    if (token) headers.set(CSRF_HEADER, token);
+  }
+  return headers;
+}
+
+async function readBody(response) {
+  if (response.status === 204) return null;
+  const type = response.headers.get("Content-Type") || "";
+  if (type.includes("json")) {
+    try {
+      return await response.json();
+    } catch {
+      return null;
+    }
+  }
+  return response.text();
+}
+
+/**
+ * One request. `json` is sent as a JSON body; `body` (FormData, Blob) as is.
+ * Resolves to the parsed body (with `withHeaders`: {data, headers, status});
+ * rejects with ApiError (status and the server's reason).
+ */
+export async function request(method, url, { json, body, headers, signal, params, withHeaders = false } = {}) {
+  method = method.toUpperCase();
+  const target = new URL(url, window.location.origin);
+  for (const [key, value] of Object.entries(params || {})) {
+    if (value !== undefined && value !== null && value !== "") target.searchParams.set(key, value);
+  }
+  let response;
+  try {
+    response = await fetch(target, {
+      method,
+      credentials: "same-origin",
+      headers: headersFor(method, headers, json !== undefined),
+      body: json !== undefined ? JSON.stringify(json) : body,
+      signal,
+    });
+  } catch (error) {
+    if (error.name === "AbortError") throw error;
+    throw new ApiError(0, `Cannot reach the server (${error.message}).`, null);
+  }
+  const parsed = await readBody(response);
+  if (!response.ok) {
+    if (response.status === 401) for (const listener of unauthorisedListeners) listener();
+    const error = new ApiError(response.status, reasonOf(parsed, response.status, response.statusText), parsed);
+    error.headers = response.headers;
+    throw error;
+  }
+  return withHeaders ? { data: parsed, headers: response.headers, status: response.status } : parsed;
+}
+
+export const get = (url, options) => request("GET", url, options);
+export const post = (url, json, options) => request("POST", url, { ...options, json });
+export const patch = (url, json, options) => request("PATCH", url, { ...options, json });
+export const del = (url, options) => request("DELETE", url, options);
+
+/** A list answer may be a bare array or a page object ({items: [...]}); pages want the array. */
+export function itemsOf(answer) {
+  if (Array.isArray(answer)) return answer;
+  if (answer && Array.isArray(answer.items)) return answer.items;
+  return [];
+}

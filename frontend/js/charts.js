@@ -1,0 +1,167 @@
+// Plotly charts, always drawn with Plotly.react so a redraw replaces the data in place.
+
+const AXIS_COLOURS = { x: "#1f5fa8", y: "#c2410c", z: "#2f855a" };
+const VERSION_COLOURS = ["#1f5fa8", "#6b8fd6", "#c2410c", "#e8925c", "#2f855a", "#7cc29a"];
+const FONT = { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 12, color: "#1d2630" };
+
+const CONFIG = {
+  responsive: true,
+  displaylogo: false,
+  modeBarButtonsToRemove: ["lasso2d", "select2d", "autoScale2d"],
+  toImageButtonOptions: { format: "png", scale: 2 },
+};
+
+function plotly() {
+  const lib = window.Plotly;
+  if (!lib) throw new Error("The chart library (vendor/plotly) did not load.");
+  return lib;
+}
+
+function baseLayout(title, xTitle, yTitle, extra = {}) {
+  return {
+    title: { text: title, x: 0, xanchor: "left", font: { size: 14 } },
+    font: FONT,
+    margin: { l: 64, r: 16, t: 40, b: 48 },
+    paper_bgcolor: "rgba(0,0,0,0)",
+    plot_bgcolor: "#ffffff",
+    xaxis: { title: { text: xTitle }, zeroline: false, gridcolor: "#e6e9ee", automargin: true },
+    yaxis: { title: { text: yTitle }, zeroline: true, zerolinecolor: "#c9ced6", gridcolor: "#e6e9ee", automargin: true },
+    legend: { orientation: "h", x: 1, xanchor: "right", y: 1.02, yanchor: "bottom" },
+    hovermode: "x unified",
+    ...extra,
+  };
+}
+
+function column(rows, i) {
+  return (rows || []).map((row) => (Array.isArray(row) && row[i] !== null && row[i] !== undefined ? row[i] : null));
+}
+
+/** Draw a message instead of a chart (no data). */
+export function emptyChart(div, message) {
+  plotly().purge(div);
+  div.replaceChildren();
+  div.classList.add("chart-empty");
+  div.textContent = message;
+}
+
+function ready(div) {
+  if (div.classList.contains("chart-empty")) {
+    div.classList.remove("chart-empty");
+    div.textContent = "";
+  }
+}
+
+/**
+ * x, y, z of an (N, 3) series against t_s.
+ * @param {HTMLElement} div
+ * @param {number[]} tS  times (s), shape (N,)
+ * @param {number[][]} xyz  shape (N, 3)
+ */
+export function xyzChart(div, tS, xyz, { title, unit, scale = 1 }) {
+  if (!tS?.length || !xyz?.length) return emptyChart(div, `${title}: no data in this result.`);
+  ready(div);
+  const traces = ["x", "y", "z"].map((axis, i) => ({
+    type: "scatter",
+    mode: "lines",
+    name: axis,
+    x: tS,
+    y: column(xyz, i).map((v) => (v === null ? null : v * scale)),
+    line: { color: AXIS_COLOURS[axis], width: 2 },
+    hovertemplate: `%{y:.4g} ${unit}`,
+  }));
+  return plotly().react(div, traces, baseLayout(title, "time (s)", unit), CONFIG);
+}
+
+/**
+ * The six ω versions (component `component`) with the singularity index on a second axis.
+ * @param {number[][][]} versions  shape (N, 6, 3)
+ * @param {number[]} singularity  shape (N,)
+ */
+export function versionsChart(div, tS, versions, singularity, { names, component = 1, omega = null }) {
+  if (!tS?.length || !versions?.length) {
+    return emptyChart(div, "This result has no per-version angular velocities.");
+  }
+  ready(div);
+  const axisName = "xyz"[component];
+  const nVersions = Array.isArray(versions[0]) ? versions[0].length : 0;
+  const traces = [];
+  for (let v = 0; v < nVersions; v += 1) {
+    traces.push({
+      type: "scatter", mode: "lines", name: `\u03c9<sup>${names?.[v] ?? v + 1}</sup>`, x: tS,
+      y: versions.map((frame) => {
+        const value = frame?.[v]?.[component];
+        return Number.isFinite(value) ? value : null;
+      }),
+      line: { color: VERSION_COLOURS[v % VERSION_COLOURS.length], width: 1.3 },
+      hovertemplate: "%{y:.3g} rad/s",
+    });
+  }
+  if (omega?.length) {
+    traces.push({ type: "scatter", mode: "lines", name: `\u03c9 (result)`, x: tS, y: column(omega, component),
+                  line: { color: "#1d2630", width: 2.5, dash: "dot" }, hovertemplate: "%{y:.3g} rad/s" });
+  }
+  if (singularity?.length) {
+    traces.push({ type: "scatter", mode: "lines", name: "singularity index |n\u00b7\u03c9\u0302|", x: tS,
+                  y: singularity, yaxis: "y2", line: { color: "#7c3aed", width: 2 },
+                  fill: "tozeroy", fillcolor: "rgba(124,58,237,0.08)", hovertemplate: "%{y:.2f}" });
+  }
+  const layout = baseLayout(`Six versions of \u03c9${axisName} and the singularity index`, "time (s)",
+                            `\u03c9${axisName} (rad/s)`, {
+    yaxis2: { title: { text: "singularity index" }, overlaying: "y", side: "right", range: [0, 1.05],
+              showgrid: false, zeroline: false },
+  });
+  layout.margin.r = 64;
+  layout.margin.b = 90;
+  layout.legend = { orientation: "h", x: 0, xanchor: "left", y: -0.22, yanchor: "top" };
+  return plotly().react(div, traces, layout, CONFIG);
+}
+
+/**
+ * Bars of a group summary with the spread: mean and std as error bar, min-max as a thin range.
+ * @param {{group: string, mean: number, std: number, min: number, max: number, n: number}[]} groups
+ */
+export function spreadBarChart(div, groups, { title, unit, xTitle }) {
+  if (!groups?.length) return emptyChart(div, "No analysed rides to compare yet.");
+  ready(div);
+  const labels = groups.map((g) => g.label ?? g.group);
+  const bars = {
+    type: "bar", name: "mean", x: labels, y: groups.map((g) => g.mean),
+    marker: { color: "#1f5fa8" },
+    error_y: { type: "data", array: groups.map((g) => (Number.isFinite(g.std) ? g.std : 0)), visible: true,
+               color: "#1d2630", thickness: 1.5, width: 6 },
+    text: groups.map((g) => `n = ${g.n}`), textposition: "none",
+    hovertemplate: `%{x}: %{y:.4g} ${unit} (\u00b1 std, %{text})<extra></extra>`,
+  };
+  const range = {
+    type: "scatter", mode: "markers", name: "min \u2013 max", x: labels, showlegend: false,
+    y: groups.map((g) => (g.min + g.max) / 2),
+    marker: { color: "rgba(0,0,0,0)", size: 1 },
+    error_y: { type: "data", symmetric: false, visible: true, color: "#c2410c", thickness: 1, width: 14,
+               array: groups.map((g) => g.max - (g.min + g.max) / 2),
+               arrayminus: groups.map((g) => (g.min + g.max) / 2 - g.min) },
+    hoverinfo: "skip",
+  };
+  const layout = baseLayout(title, xTitle, unit, { hovermode: "closest", bargap: 0.45, showlegend: false });
+  return plotly().react(div, [bars, range], layout, CONFIG);
+}
+
+/** Grades against indicator values, one point per horse and gait. */
+export function gradeScatter(div, points, { title, unit, label }) {
+  if (!points?.length) return emptyChart(div, "No graded horses with analysed rides yet.");
+  ready(div);
+  const trace = {
+    type: "scatter", mode: "markers+text", x: points.map((p) => p.value), y: points.map((p) => p.grade),
+    text: points.map((p) => p.horse), textposition: "top center",
+    customdata: points.map((p) => p.gait),
+    marker: { size: 11, color: "#1f5fa8", line: { color: "#fff", width: 1 } },
+    hovertemplate: `%{text} (%{customdata}): %{x:.4g} ${unit}, grade %{y:.2f}<extra></extra>`,
+  };
+  const layout = baseLayout(title, unit ? `${label} (${unit})` : label, "average grade", {
+    hovermode: "closest", showlegend: false,
+  });
+  layout.yaxis.range = [0.5, 5.5];
+  layout.yaxis.dtick = 1;
+  return plotly().react(div, [trace], layout, CONFIG);
+}
+
+export const COLOURS = AXIS_COLOURS;

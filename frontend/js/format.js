@@ -1,0 +1,129 @@
+// Numbers, units and indicator names for display. The indicator table mirrors
+// saddlescope.core.indicators.INDICATORS; the server's own list (GET /api/indicators) replaces it when offered.
+
+export const GAITS = ["walk", "sitting_trot", "rising_trot", "canter"];
+
+export const GAIT_LABELS = {
+  walk: "walk",
+  sitting_trot: "sitting trot",
+  rising_trot: "rising trot",
+  canter: "canter",
+};
+
+// Shown with the exposure times, as in saddlescope.core.indicators.PASSIVE_SEATED_CAVEAT.
+export const PASSIVE_SEATED_CAVEAT =
+  "The EU 2002/44/EC action and limit values assume a passive, seated person who takes no " +
+  "counter-measures against the vibration. A rider compensates actively (the pelvis follows " +
+  "the saddle in sitting trot, the trunk swings in canter; in rising trot the rider is not in " +
+  "continuous contact with the saddle at all), so the allowed times and distances are far on " +
+  "the safe side: read them as relative comfort indicators between horses and gaits, not as " +
+  "absolute limits (thesis 8.5).";
+
+const exposure = {};
+for (const [basis, basisLabel] of [["a8", "A(8)"], ["vdv", "VDV"]]) {
+  for (const level of ["action", "limit"]) {
+    for (const w of ["wb", "wk"]) {
+      exposure[`t_${basis}_${level}_${w}_h`] = {
+        unit: "h", label: `time to the ${basisLabel} exposure ${level} value (W_${w[1]})`, better: "higher" };
+      exposure[`d_${basis}_${level}_${w}_km`] = {
+        unit: "km", label: `distance to the ${basisLabel} exposure ${level} value (W_${w[1]})`, better: "higher" };
+    }
+  }
+}
+
+let indicatorInfo = {
+  acc_y_wb_rms: { unit: "m/s^2", label: "vertical W_b weighted r.m.s. acceleration", better: "lower" },
+  acc_y_wk_rms: { unit: "m/s^2", label: "vertical W_k weighted r.m.s. acceleration", better: "lower" },
+  vdv_y_wb: { unit: "m/s^1.75", label: "vertical W_b vibration dose value", better: "lower" },
+  vdv_y_wk: { unit: "m/s^1.75", label: "vertical W_k vibration dose value", better: "lower" },
+  acc_y_max: { unit: "m/s^2", label: "peak unweighted vertical acceleration", better: "lower" },
+  crest_factor_y: { unit: "", label: "vertical crest factor (W_b)", better: "lower" },
+  ...exposure,
+  vel_x_avg_kmh: { unit: "km/h", label: "average speed in the direction of travel", better: null },
+  amplitude_y_m: { unit: "m", label: "peak-to-peak vertical displacement of the saddle point", better: null },
+  stride_frequency_hz: { unit: "Hz", label: "stride frequency", better: null },
+  crest_factor_y_wk: { unit: "", label: "vertical crest factor (W_k)", better: "lower" },
+  acc_y_rms: { unit: "m/s^2", label: "unweighted vertical r.m.s. acceleration", better: "lower" },
+  duration_s: { unit: "s", label: "analysed duration (whole number of periods)", better: null },
+};
+
+// The thesis's eight comfort indicators (8.5), all W_b: the default choice in comparisons.
+export const COMFORT_INDICATORS = [
+  "acc_y_wb_rms", "vdv_y_wb", "acc_y_max", "crest_factor_y", "t_a8_limit_wb_h", "d_a8_limit_wb_km",
+  "vel_x_avg_kmh", "amplitude_y_m",
+];
+
+/** Replace the built-in indicator table with the server's (objects with unit, label, better). */
+export function setIndicatorInfo(info) {
+  if (info && typeof info === "object" && Object.keys(info).length) indicatorInfo = { ...indicatorInfo, ...info };
+}
+
+export function indicatorInfoOf(key) {
+  return indicatorInfo[key] || { unit: unitFromKey(key), label: key.replaceAll("_", " "), better: null };
+}
+
+export function indicatorKeys() {
+  return Object.keys(indicatorInfo);
+}
+
+function unitFromKey(key) {
+  for (const [suffix, unit] of [["_kmh", "km/h"], ["_km", "km"], ["_hz", "Hz"], ["_h", "h"], ["_s", "s"], ["_m", "m"]]) {
+    if (key.endsWith(suffix)) return unit;
+  }
+  return "";
+}
+
+/** "m/s^2" -> "m/s²" for text; keeps other units as they are. */
+export function prettyUnit(unit) {
+  return (unit || "").replace("^2", "\u00b2").replace("^1.75", "\u00b9\u00b7\u2077\u2075");
+}
+
+/** "W_b" -> "W_b" as text with the subscript marked up (returns a DocumentFragment). */
+export function labelFragment(label) {
+  const fragment = document.createDocumentFragment();
+  const parts = String(label).split(/(W_[a-z])/);
+  for (const part of parts) {
+    const m = /^W_([a-z])$/.exec(part);
+    if (m) {
+      fragment.append("W");
+      const sub = document.createElement("sub");
+      sub.textContent = m[1];
+      fragment.append(sub);
+    } else if (part) {
+      fragment.append(part);
+    }
+  }
+  return fragment;
+}
+
+/** Plain-text label ("W_b" -> "Wb") for chart axes and option lists. */
+export function labelText(label) {
+  return String(label).replace(/W_([a-z])/g, "W$1");
+}
+
+/**
+ * A number with `digits` significant digits, without exponent for everyday sizes:
+ * 0.0110 -> "0.0110", 1234.5 -> "1235", null/NaN -> "–".
+ */
+export function fmt(value, digits = 3) {
+  if (value === null || value === undefined || value === "") return "\u2013";
+  const x = Number(value);
+  if (!Number.isFinite(x)) return x === Infinity ? "\u221e" : "\u2013";
+  if (x === 0) return "0";
+  const magnitude = Math.floor(Math.log10(Math.abs(x)));
+  if (magnitude >= digits - 1) {
+    if (magnitude >= 9) return x.toExponential(digits - 1);
+    return Math.round(x).toString();
+  }
+  if (magnitude < -6) return x.toExponential(digits - 1);
+  return x.toFixed(digits - 1 - magnitude);
+}
+
+export function fmtUnit(value, unit, digits = 3) {
+  const text = fmt(value, digits);
+  return unit && text !== "\u2013" ? `${text} ${prettyUnit(unit)}` : text;
+}
+
+export function gaitLabel(gait) {
+  return GAIT_LABELS[gait] || gait || "";
+}

@@ -1,0 +1,45 @@
+// <select data-options="horses|riders|rigs|gaits|indicators|ranked-indicators">: filled from the API.
+// data-optional="text" adds a first, empty choice with that text.
+
+import { get, itemsOf } from "./api.js";
+import { h } from "./dom.js";
+import { COMFORT_INDICATORS, GAITS, gaitLabel, indicatorInfoOf, indicatorKeys, labelText, prettyUnit } from "./format.js";
+
+const SOURCES = {
+  horses: async () => itemsOf(await get("/api/horses", { params: { limit: 500, sort: "name" } }))
+    .map((horse) => ({ value: horse.id, text: horse.name })),
+  riders: async () => itemsOf(await get("/api/riders", { params: { limit: 500, sort: "name" } }))
+    .map((rider) => ({ value: rider.id, text: rider.name })),
+  rigs: async () => itemsOf(await get("/api/rigs", { params: { limit: 500 } }))
+    .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibration ? " (calibrated)" : ""}` })),
+  gaits: async () => GAITS.map((gait) => ({ value: gait, text: gaitLabel(gait) })),
+  indicators: async () => indicatorChoices(() => true),
+  "ranked-indicators": async () => indicatorChoices((info) => info.better === "lower" || info.better === "higher"),
+};
+
+function indicatorChoices(keep) {
+  // The thesis's eight comfort indicators first, then the rest of the table.
+  const keys = [...COMFORT_INDICATORS, ...indicatorKeys().filter((k) => !COMFORT_INDICATORS.includes(k))];
+  return keys.filter((key) => keep(indicatorInfoOf(key))).map((key) => {
+    const info = indicatorInfoOf(key);
+    const unit = info.unit ? ` (${prettyUnit(info.unit)})` : "";
+    return { value: key, text: `${labelText(info.label)}${unit}` };
+  });
+}
+
+/** Fill every data-options select under `root`; returns when all are filled. */
+export async function fillOptions(root) {
+  const selects = [...root.querySelectorAll("select[data-options]")];
+  const cache = new Map();
+  await Promise.all(selects.map(async (select) => {
+    const source = select.dataset.options;
+    if (!cache.has(source)) cache.set(source, SOURCES[source]());
+    const choices = await cache.get(source);
+    const keep = select.value;
+    const options = choices.map((c) => h("option", { value: c.value }, c.text));
+    if (select.dataset.optional) options.unshift(h("option", { value: "" }, select.dataset.optional));
+    if (!options.length) options.push(h("option", { value: "", disabled: true }, `no ${source} yet`));
+    select.replaceChildren(...options);
+    if (keep && choices.some((c) => String(c.value) === keep)) select.value = keep;
+  }));
+}

@@ -1,0 +1,38 @@
+// Repeat `work` every `intervalMs` while it resolves to true (or to a number: wait that many ms);
+// false stops. Pauses while the tab is hidden and resumes when it is shown again.
+
+export function poll(work, { intervalMs = 1500 } = {}) {
+  let timer = null;
+  let stopped = false;
+  let running = false;
+
+  async function tick() {
+    timer = null;
+    if (stopped || running) return;
+    running = true;
+    let again = false;
+    try {
+      again = await work();
+    } finally {
+      running = false;
+    }
+    if (again && !stopped && !document.hidden) {
+      timer = window.setTimeout(tick, typeof again === "number" ? again : intervalMs);
+    }
+  }
+
+  function onVisibility() {
+    if (!document.hidden && !timer && !stopped) tick();
+  }
+
+  document.addEventListener("visibilitychange", onVisibility);
+  tick();
+  return {
+    now: () => { if (timer) window.clearTimeout(timer); tick(); },
+    stop: () => {
+      stopped = true;
+      if (timer) window.clearTimeout(timer);
+      document.removeEventListener("visibilitychange", onVisibility);
+    },
+  };
+}

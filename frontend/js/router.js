@@ -1,0 +1,86 @@
+// Hash routes ("#/rides/12") to page modules; each page gets a fresh copy of its <template>.
+
+const routes = [];
+let cleanup = null;
+let renderCount = 0;
+
+/** Register a page: pattern like "/rides/:id", and `mount(view, params, query)` that may return a cleanup. */
+export function route(pattern, mount, { title, auth = true } = {}) {
+  const names = [];
+  const regex = new RegExp(`^${pattern.replace(/:(\w+)/g, (_, name) => {
+    names.push(name);
+    return "([^/]+)";
+  })}/?$`);
+  routes.push({ regex, names, mount, title, auth });
+}
+
+export function currentPath() {
+  const hash = window.location.hash.replace(/^#/, "") || "/";
+  const [path, queryString] = hash.split("?");
+  return { path: path || "/", query: new URLSearchParams(queryString || "") };
+}
+
+export function navigate(path) {
+  if (window.location.hash === `#${path}`) render();
+  else window.location.hash = path;
+}
+
+function match(path) {
+  for (const r of routes) {
+    const m = r.regex.exec(path);
+    if (m) return { route: r, params: Object.fromEntries(r.names.map((name, i) => [name, decodeURIComponent(m[i + 1])])) };
+  }
+  return null;
+}
+
+/**
+ * Render the page for the current hash into `view`. `guard(route)` may return another path to go to
+ * (e.g. the sign-in page) instead.
+ */
+export async function render({ view, guard, notFound } = renderOptions) {
+  renderOptions = { view, guard, notFound };
+  const { path, query } = currentPath();
+  const found = match(path);
+  const redirect = guard && found ? guard(found.route, path) : null;
+  if (redirect && redirect !== path) {
+    navigate(redirect);
+    return;
+  }
+  if (cleanup) {
+    try { cleanup(); } catch (error) { console.warn("page cleanup failed", error); }
+    cleanup = null;
+  }
+  const count = ++renderCount;
+  view.replaceChildren();
+  view.setAttribute("aria-busy", "true");
+  markNav(path);
+  const mount = found ? found.route.mount : notFound;
+  document.title = found?.route.title ? `${found.route.title} \u2013 SaddleScope` : "SaddleScope";
+  try {
+    const result = await mount(view, found ? found.params : {}, query);
+    if (count !== renderCount) {
+      if (typeof result === "function") result(); // a newer page was rendered meanwhile
+      return;
+    }
+    cleanup = typeof result === "function" ? result : null;
+  } finally {
+    if (count === renderCount) view.removeAttribute("aria-busy");
+  }
+  // Move focus to the new page's heading, as a page load would, for keyboard and screen-reader users
+  // (not on the first page, where the browser's own start is right).
+  const heading = view.querySelector("h1");
+  if (heading && count > 1) {
+    heading.setAttribute("tabindex", "-1");
+    heading.focus({ preventScroll: true });
+  }
+}
+let renderOptions = {};
+
+function markNav(path) {
+  for (const link of document.querySelectorAll("[data-nav] a")) {
+    const target = link.getAttribute("href").replace(/^#/, "");
+    const active = target === "/" ? path === "/" : path === target || path.startsWith(`${target}/`);
+    if (active) link.setAttribute("aria-current", "page");
+    else link.removeAttribute("aria-current");
+  }
+}

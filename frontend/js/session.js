@@ -1,0 +1,73 @@
+// Who is signed in: asks /api/auth/me once at start, keeps the answer, and tells listeners on change.
+
+import { ApiError, get, onUnauthorised, post, setCsrfToken } from "./api.js";
+
+let current = null; // {user, club} or null
+const listeners = new Set();
+
+function changed() {
+  for (const listener of listeners) listener(current);
+}
+
+export function onSessionChange(listener) {
+  listeners.add(listener);
+  return () => listeners.delete(listener);
+}
+
+export function session() {
+  return current;
+}
+
+function hasSessionCookies() {
+  // The CSRF cookie is readable and set together with the (HttpOnly) session cookie.
+  return document.cookie.split(";").some((part) => part.trim().startsWith("saddlescope_csrf="));
+}
+
+/** Ask the server who we are; null when not signed in. */
+export async function refreshSession() {
+  if (!hasSessionCookies()) {
+    // Without the cookies the answer is a 401 for sure; skip the request (and its console error).
+    current = null;
+    changed();
+    return current;
+  }
+  try {
+    const me = await get("/api/auth/me");
+    current = me && me.user ? me : null;
+  } catch (error) {
+    if (!(error instanceof ApiError) || (error.status !== 401 && error.status !== 403)) throw error;
+    current = null;
+  }
+  changed();
+  return current;
+}
+
+export async function signIn(email, password) {
+  const answer = await post("/api/auth/login", { email, password });
+  setCsrfToken(answer?.csrf_token);
+  await refreshSession();
+  return current;
+}
+
+export async function createClub(values) {
+  await post("/api/clubs", values);
+  return signIn(values.email, values.password);
+}
+
+export async function signOut() {
+  try {
+    await post("/api/auth/logout");
+  } finally {
+    setCsrfToken(null);
+    current = null;
+    changed();
+  }
+}
+
+// A 401 anywhere means the session is gone: forget it so the pages send the user to sign in.
+onUnauthorised(() => {
+  if (current) {
+    current = null;
+    changed();
+  }
+});

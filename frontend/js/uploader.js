@@ -1,0 +1,107 @@
+// Resumable uploads (the server's tus-like /api/uploads): create, send chunks with Upload-Offset,
+// resume from the server's offset after a dropped connection or a reload, then finalize.
+
+import { ApiError, del, get, post, request } from "./api.js";
+
+const CHUNK_BYTES = 4 * 1024 * 1024;
+const RETRIES = 4;
+const RESUME_PREFIX = "saddlescope.upload:";
+
+function resumeKey(file, target) {
+  const where = [target.target, target.ride_id, target.rig_id, target.clip_kind, target.camera].join("/");
+  return `${RESUME_PREFIX}${where}:${file.name}:${file.size}:${file.lastModified}`;
+}
+
+function offsetFrom(headers, fallback) {
+  const value = headers?.get("Upload-Offset");
+  const n = value === null || value === undefined ? Number.NaN : Number.parseInt(value, 10);
+  return Number.isFinite(n) ? n : fallback;
+}
+
+const sleep = (ms, signal) => new Promise((resolve, reject) => {
+  const timer = window.setTimeout(resolve, ms);
+  signal?.addEventListener("abort", () => { window.clearTimeout(timer); reject(new DOMException("Aborted", "AbortError")); });
+});
+
+async function openUpload(file, target) {
+  const key = resumeKey(file, target);
+  const known = window.localStorage.getItem(key);
+  if (known) {
+    try {
+      const state = await get(`/api/uploads/${known}`);
+      if (state && Number(state.length_bytes) === file.size) return { id: state.id ?? known, offset: Number(state.offset) || 0, key };
+    } catch (error) {
+      if (!(error instanceof ApiError) || error.status >= 500 || error.status === 0) throw error;
+      // 404/410: the server forgot it; start again.
+    }
+    window.localStorage.removeItem(key);
+  }
+  const created = await post("/api/uploads", { ...target, length_bytes: file.size, filename: file.name });
+  window.localStorage.setItem(key, String(created.id));
+  return { id: created.id, offset: Number(created.offset) || 0, key };
+}
+
+async function sendChunk(id, file, offset, signal) {
+  const chunk = file.slice(offset, Math.min(offset + CHUNK_BYTES, file.size));
+  try {
+    const answer = await request("PATCH", `/api/uploads/${id}`, {
+      body: chunk,
+      headers: { "Upload-Offset": String(offset), "Content-Type": "application/offset+octet-stream" },
+      signal,
+      withHeaders: true,
+    });
+    return offsetFrom(answer.headers, offset + chunk.size);
+  } catch (error) {
+    // 409: our offset is not the server's; carry on from the server's.
+    if (error instanceof ApiError && error.status === 409) {
+      const server = offsetFrom(error.headers, Number(error.body?.offset));
+      if (Number.isFinite(server)) return server;
+    }
+    throw error;
+  }
+}
+
+/**
+ * Upload `file` to `target` ({target: "bundle"|"ride_clip"|"rig_clip", ride_id?, rig_id?, clip_kind?, camera?}).
+ * `onProgress(sentBytes)` after each chunk. Resolves to the finalize answer.
+ */
+export async function uploadResumable(file, target, { onProgress, signal } = {}) {
+  const upload = await openUpload(file, target);
+  let offset = upload.offset;
+  onProgress?.(offset);
+  let failures = 0;
+  while (offset < file.size) {
+    try {
+      offset = await sendChunk(upload.id, file, offset, signal);
+      failures = 0;
+      onProgress?.(offset);
+    } catch (error) {
+      const transient = error instanceof ApiError && (error.status === 0 || error.status >= 500);
+      if (!transient || failures >= RETRIES || signal?.aborted) throw error;
+      failures += 1;
+      await sleep(500 * 2 ** failures, signal);
+      const state = await get(`/api/uploads/${upload.id}`);
+      offset = Number(state.offset) || 0;
+    }
+  }
+  try {
+    const result = await post(`/api/uploads/${upload.id}/finalize`, {}, { signal });
+    window.localStorage.removeItem(upload.key);
+    return result;
+  } catch (error) {
+    // A rejected file (4xx) will not get better by resuming: forget it on both sides.
+    if (error instanceof ApiError && error.status >= 400 && error.status < 500) {
+      window.localStorage.removeItem(upload.key);
+      del(`/api/uploads/${upload.id}`).catch(() => {});
+    }
+    throw error;
+  }
+}
+
+/** Abandon an upload on the server (the Cancel button). */
+export async function abandonUploads(file, target) {
+  const key = resumeKey(file, target);
+  const known = window.localStorage.getItem(key);
+  window.localStorage.removeItem(key);
+  if (known) await del(`/api/uploads/${known}`).catch(() => {});
+}

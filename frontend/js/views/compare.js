@@ -1,0 +1,52 @@
+// One horse across gaits, and horses within a gait: bars of the mean with std and min-max spread.
+
+import { get } from "../api.js";
+import { page, showError } from "../dom.js";
+import { spreadBarChart } from "../charts.js";
+import { GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
+import { fillOptions } from "../options.js";
+import { groupsOf, onFormChange } from "./analysis-common.js";
+
+export async function mountCompare(view, _params, query) {
+  view.append(page("compare"));
+  const horseForm = view.querySelector('[data-compare-form="horse"]');
+  const gaitForm = view.querySelector('[data-compare-form="gait"]');
+  const horseChart = view.querySelector('[data-chart="compare-horse"]');
+  const gaitChart = view.querySelector('[data-chart="compare-gait"]');
+  await fillOptions(view);
+  if (query.get("horse")) horseForm.elements.horse_id.value = query.get("horse");
+
+  const byHorse = onFormChange(horseForm, async ({ horse_id: horseId, indicator }, current) => {
+    const section = horseForm.closest("section");
+    if (!horseId) return;
+    try {
+      const answer = await get(`/api/horses/${horseId}/comparison`, { params: { indicator } });
+      if (!current()) return;
+      showError(section, null);
+      // Gaits in their natural order (walk, trots, canter), not the server's.
+      const groups = groupsOf(answer, indicator)
+        .map((g) => ({ ...g, label: gaitLabel(g.group ?? g.gait) }))
+        .sort((a, b) => GAITS.indexOf(a.group ?? a.gait) - GAITS.indexOf(b.group ?? b.gait));
+      const info = indicatorInfoOf(indicator);
+      const horse = horseForm.elements.horse_id.selectedOptions[0]?.textContent ?? "";
+      spreadBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait" });
+    } catch (error) {
+      showError(section, error);
+    }
+  });
+
+  const byGait = onFormChange(gaitForm, async ({ gait, indicator }, current) => {
+    const section = gaitForm.closest("section");
+    try {
+      const answer = await get("/api/comparison", { params: { gait, indicator } });
+      if (!current()) return;
+      showError(section, null);
+      const groups = groupsOf(answer, indicator).map((g) => ({ ...g, label: g.horse ?? g.group }));
+      const info = indicatorInfoOf(indicator);
+      spreadBarChart(gaitChart, groups, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "horse" });
+    } catch (error) {
+      showError(section, error);
+    }
+  });
+  await Promise.all([byHorse, byGait]);
+}

@@ -1,0 +1,109 @@
+// Horses and riders: a list with edit buttons next to a form that adds or edits one.
+
+import { del, get, itemsOf, patch, post } from "../api.js";
+import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { fmt } from "../format.js";
+
+const KINDS = {
+  horses: {
+    url: "/api/horses",
+    noun: "horse",
+    columns: [(x) => x.name, (x) => x.breed ?? "", (x) => x.birth_year ?? "",
+              (x) => (x.height_withers_m ? fmt(x.height_withers_m) : "")],
+    fields: ["name", "breed", "birth_year", "height_withers_m"],
+  },
+  riders: {
+    url: "/api/riders",
+    noun: "rider",
+    columns: [(x) => x.name],
+    fields: ["name"],
+  },
+};
+
+function capitalised(word) {
+  return word[0].toUpperCase() + word.slice(1);
+}
+
+export function mountEntities(kindName) {
+  return async (view) => {
+    const kind = KINDS[kindName];
+    view.append(page(kindName));
+    const table = view.querySelector("[data-entity-table]");
+    const empty = view.querySelector("[data-entity-empty]");
+    const form = view.querySelector("[data-entity-form]");
+    const title = view.querySelector("[data-entity-form-title]");
+    const submit = view.querySelector("[data-entity-submit]");
+    const cancel = view.querySelector("[data-entity-cancel]");
+    let editing = null;
+
+    function setEditing(item) {
+      editing = item;
+      form.reset();
+      showError(form, null);
+      if (item) {
+        for (const name of kind.fields) {
+          if (form.elements[name] && item[name] !== null && item[name] !== undefined) form.elements[name].value = item[name];
+        }
+      }
+      title.textContent = item ? `Edit ${item.name}` : `Add a ${kind.noun}`;
+      submit.textContent = item ? "Save changes" : `Add ${kind.noun}`;
+      cancel.hidden = !item;
+      if (item) form.elements.name.focus();
+    }
+
+    async function load() {
+      const items = itemsOf(await get(kind.url, { params: { limit: 500 } }))
+        .sort((a, b) => a.name.localeCompare(b.name));
+      table.tBodies[0].replaceChildren(...items.map((item) => h("tr", { dataset: { id: item.id } },
+        ...kind.columns.map((col, i) => (i === 0 ? h("th", { scope: "row" }, col(item)) : h("td", {}, col(item)))),
+        h("td", { class: "actions" },
+          h("button", { type: "button", class: "link-button", "aria-label": `Edit ${item.name}`,
+                        onclick: () => setEditing(item) }, "Edit"),
+          h("button", { type: "button", class: "link-button danger", "aria-label": `Delete ${item.name}`,
+                        onclick: () => remove(item) }, "Delete")))));
+      table.hidden = !items.length;
+      empty.hidden = items.length > 0;
+    }
+
+    async function remove(item) {
+      if (!window.confirm(`Delete ${kind.noun} ${item.name}?`)) return;
+      try {
+        await del(`${kind.url}/${item.id}`);
+        announce(`${capitalised(kind.noun)} ${item.name} deleted.`);
+        if (editing?.id === item.id) setEditing(null);
+        await load();
+      } catch (error) {
+        showError(form, error); // e.g. 409: rides still use it
+      }
+    }
+
+    form.addEventListener("submit", async (event) => {
+      event.preventDefault();
+      if (!form.elements.name.value.trim()) {
+        showError(form, "Please fill in the name.");
+        form.elements.name.focus();
+        return;
+      }
+      const values = formValues(form);
+      if (editing) {
+        // Cleared optional fields are sent as null so the server forgets them.
+        for (const name of kind.fields) if (!(name in values)) values[name] = null;
+      }
+      try {
+        const saved = await busy(form, () => (editing ? patch(`${kind.url}/${editing.id}`, values) : post(kind.url, values)));
+        announce(`${capitalised(kind.noun)} ${saved?.name ?? values.name} ${editing ? "saved" : "added"}.`);
+        setEditing(null);
+        await load();
+      } catch (error) {
+        showError(form, error);
+      }
+    });
+    cancel.addEventListener("click", () => setEditing(null));
+
+    try {
+      await load();
+    } catch (error) {
+      showError(form, error);
+    }
+  };
+}

@@ -1,0 +1,278 @@
+// One ride: its analysis job while it runs, then the result: indicator cards, exposure under the EU
+// directive (with the passive-seated caveat), quality flags, kinematics charts, grade form, exports.
+
+import { ApiError, get, itemsOf, post } from "../api.js";
+import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { emptyChart, versionsChart, xyzChart } from "../charts.js";
+import {
+  PASSIVE_SEATED_CAVEAT, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
+} from "../format.js";
+import { horseName, nameLookups, riderName } from "../lookups.js";
+import { fillOptions } from "../options.js";
+import { poll } from "../poll.js";
+
+// Order of saddlescope.core.rigid_body.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
+const VERSION_NAMES = ["1,ver1", "2,ver1", "1,ver2", "2,ver2", "1,ver3", "2,ver3"];
+
+const MAIN_CARDS = [
+  { key: "acc_y_wb_rms", title: "W_b r.m.s.", note: "BS 6841" },
+  { key: "acc_y_wk_rms", title: "W_k r.m.s.", note: "ISO 2631-1" },
+  { key: "vdv_y_wb", title: "VDV W_b", note: "vibration dose value" },
+  { key: "vdv_y_wk", title: "VDV W_k", note: "vibration dose value" },
+  { key: "crest_factor_y", title: "Crest factor", note: "W_b peak / r.m.s." },
+  { key: "acc_y_max", title: "Peak acceleration", note: "unweighted, vertical" },
+];
+const RIDE_CARDS = [
+  { key: "vel_x_avg_kmh", title: "Speed", note: "average, direction of travel" },
+  { key: "amplitude_y_m", title: "Vertical amplitude", note: "peak-to-peak at the saddle" },
+  { key: "stride_frequency_hz", title: "Stride frequency", note: "" },
+  { key: "duration_s", title: "Analysed window", note: "whole strides" },
+];
+const THRESHOLDS = [
+  { basis: "a8", level: "action", label: "A(8) action value", value: "0.5 m/s\u00b2" },
+  { basis: "a8", level: "limit", label: "A(8) limit value", value: "1.15 m/s\u00b2" },
+  { basis: "vdv", level: "action", label: "VDV action value", value: "9.1 m/s\u00b9\u00b7\u2077\u2075" },
+  { basis: "vdv", level: "limit", label: "VDV limit value", value: "21 m/s\u00b9\u00b7\u2077\u2075" },
+];
+const EXPORTS = [
+  { fmt: "csv", text: "Indicators (CSV)" },
+  { fmt: "xlsx", text: "Indicators (Excel .xlsx)" },
+  { fmt: "json", text: "Full result (JSON)" },
+  { fmt: "c3d", text: "3-D tracks (C3D)" },
+  { fmt: "trc", text: "3-D tracks (TRC)" },
+];
+
+function unitOf(result, key) {
+  return result.units?.[key] ?? indicatorInfoOf(key).unit;
+}
+
+function card(result, { key, title, note }) {
+  const value = result.indicators?.[key];
+  const unit = unitOf(result, key);
+  const titleEl = h("h3", { class: "card-title", id: `card-${key}` }, labelFragment(title));
+  return h("article", { class: "card", dataset: { indicator: key }, "aria-labelledby": `card-${key}`,
+                        title: indicatorInfoOf(key).label.replaceAll("_", "") },
+    titleEl,
+    h("p", { class: "card-value" },
+      h("span", { "data-value": value ?? "" }, fmt(value)),
+      unit ? h("span", { class: "card-unit" }, ` ${prettyUnit(unit)}`) : null),
+    note ? h("p", { class: "card-note" }, labelFragment(note)) : null);
+}
+
+function exposureRows(result) {
+  const ind = result.indicators || {};
+  return THRESHOLDS.map(({ basis, level, label, value }) => h("tr", { dataset: { threshold: `${basis}_${level}` } },
+    h("th", { scope: "row" }, label, h("span", { class: "hint" }, ` (${value})`)),
+    ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `t_${basis}_${level}_${w}_h` } },
+      fmt(ind[`t_${basis}_${level}_${w}_h`]))),
+    ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `d_${basis}_${level}_${w}_km` } },
+      fmt(ind[`d_${basis}_${level}_${w}_km`])))));
+}
+
+function qualityFacts(result) {
+  const q = result.quality || {};
+  const checks = result.calibration_checks || {};
+  const facts = [
+    ["Calibration", q.calibration_ok === undefined ? null : q.calibration_ok ? "ok" : "see warnings"],
+    ["Board square error", checks.board_square_error_mm === undefined ? null : `${fmt(checks.board_square_error_mm)} mm`],
+    ["Gravity from", q.gravity_source],
+    ["Reprojection error (median)", q.tracks?.motion?.reprojection_error_px_median == null ? null
+      : `${fmt(q.tracks.motion.reprojection_error_px_median)} px`],
+    ["Rigidity residual (median)", q.rigidity_residual_mm?.median == null ? null : `${fmt(q.rigidity_residual_mm.median)} mm`],
+    ["Singularity index (median)", q.singularity_index_median == null ? null : fmt(q.singularity_index_median, 2)],
+    ["Stride period", result.period_s == null ? null : `${fmt(result.period_s)} s`],
+  ];
+  return facts.filter(([, value]) => value !== null && value !== undefined)
+    .flatMap(([term, value]) => [h("dt", {}, term), h("dd", {}, String(value))]);
+}
+
+function largestComponent(omega) {
+  const sums = [0, 0, 0];
+  for (const row of omega || []) for (let i = 0; i < 3; i += 1) if (Number.isFinite(row?.[i])) sums[i] += row[i] ** 2;
+  return sums.indexOf(Math.max(...sums));
+}
+
+async function fullDocument(rideId) {
+  try {
+    return await get(`/api/rides/${rideId}/export/json`);
+  } catch (error) {
+    if (error instanceof ApiError && error.status === 404) return null;
+    throw error;
+  }
+}
+
+function drawSeries(view, series) {
+  const t = series.t_s;
+  const chart = (name) => view.querySelector(`[data-chart="${name}"]`);
+  xyzChart(chart("position"), t, series.position_m, { title: "Position", unit: "m" });
+  xyzChart(chart("velocity"), t, series.velocity_m_s, { title: "Velocity", unit: "m/s" });
+  xyzChart(chart("acceleration"), t, series.acceleration_m_s2, { title: "Acceleration", unit: "m/s\u00b2" });
+  xyzChart(chart("omega"), t, series.omega_rad_s, { title: "Angular velocity \u03c9", unit: "rad/s" });
+  xyzChart(chart("alpha"), t, series.alpha_rad_s2, { title: "Angular acceleration \u03b1", unit: "rad/s\u00b2" });
+}
+
+async function drawVersions(view, rideId, result) {
+  const div = view.querySelector('[data-chart="versions"]');
+  const series = result.series || {};
+  let t = series.t_s;
+  let versions = series.omega_versions_rad_s;
+  let singularity = series.singularity_index_per_frame;
+  let omega = series.omega_rad_s;
+  if (!versions) {
+    // The compact result leaves the six versions out; the full document has them.
+    const doc = await fullDocument(rideId);
+    versions = doc?.angular?.omega_versions_rad_s;
+    singularity = doc?.angular?.singularity_index_per_frame;
+    t = doc?.saddle?.t_s ?? t;
+    omega = doc?.angular?.omega_rad_s ?? omega;
+  }
+  if (!versions?.length) {
+    emptyChart(div, "This result has no per-version angular velocities (ω versions).");
+    return;
+  }
+  const select = h("select", { id: "versions-component" },
+    ...["x", "y", "z"].map((axis, i) => h("option", { value: String(i) }, `\u03c9${axis}`)));
+  select.value = String(largestComponent(omega));
+  const draw = () => versionsChart(div, t, versions, singularity, {
+    names: VERSION_NAMES, component: Number(select.value), omega });
+  select.addEventListener("change", draw);
+  div.closest("figure").prepend(h("div", { class: "field inline-field" },
+    h("label", { for: "versions-component" }, "Component"), select));
+  draw();
+}
+
+function attachGradeForm(view, ride) {
+  const form = view.querySelector("[data-grade-form]");
+  const ok = form.querySelector("[data-form-ok]");
+  form.addEventListener("submit", async (event) => {
+    event.preventDefault();
+    showError(form, null);
+    ok.hidden = true;
+    const values = formValues(form);
+    try {
+      await busy(form, () => post("/api/grades", {
+        ride_id: ride.id, rider_id: Number(values.rider_id), grade: Number(values.grade),
+        ...(values.comment ? { comment: values.comment } : {}) }));
+      ok.textContent = `Grade ${values.grade} saved.`;
+      ok.hidden = false;
+      announce(`Grade ${values.grade} saved.`);
+    } catch (error) {
+      showError(form, error);
+    }
+  });
+  return fillOptions(form).then(async () => {
+    form.elements.rider_id.value = String(ride.rider_id);
+    const grades = itemsOf(await get("/api/grades", { params: { ride_id: ride.id } }));
+    const own = grades.find((g) => g.rider_id === ride.rider_id);
+    if (own) {
+      form.elements.grade.value = String(own.grade);
+      form.elements.comment.value = own.comment ?? "";
+    }
+  });
+}
+
+function showResult(view, ride, result) {
+  const box = view.querySelector("[data-result]");
+  view.querySelector("[data-indicator-cards]").replaceChildren(
+    h("div", { class: "card-group" }, ...MAIN_CARDS.map((c) => card(result, c))),
+    h("div", { class: "card-group secondary" }, ...RIDE_CARDS.map((c) => card(result, c))));
+  view.querySelector("[data-exposure-table] tbody").replaceChildren(...exposureRows(result));
+  view.querySelector("[data-caveat]").textContent = result.caveat ?? PASSIVE_SEATED_CAVEAT;
+  view.querySelector("[data-quality-facts]").replaceChildren(...qualityFacts(result));
+  const flags = result.quality?.flags || [];
+  view.querySelector("[data-quality-flags]").replaceChildren(...(flags.length
+    ? flags.map((flag) => h("li", { class: "flag" }, flag))
+    : [h("li", { class: "no-flags" }, "No quality warnings.")]));
+  view.querySelector("[data-exports]").replaceChildren(...EXPORTS.map((e) => h("li", {},
+    h("a", { href: `/api/rides/${ride.id}/export/${e.fmt}`, download: "", dataset: { export: e.fmt } }, e.text))));
+  box.hidden = false;
+  drawSeries(view, result.series || {});
+}
+
+function showJob(state, job) {
+  const percent = Math.round((job.progress ?? 0) * 100);
+  state.replaceChildren(
+    h("p", {}, `Analysis job #${job.id}: ${job.status}${job.stage ? ` \u2013 ${job.stage}` : ""}`),
+    h("progress", { max: "1", value: String(job.progress ?? 0), "aria-label": "Analysis progress",
+                    "aria-valuetext": `${percent} percent` }),
+    job.error ? h("p", { class: "form-error" }, job.error) : null);
+}
+
+export async function mountRide(view, { id }) {
+  view.append(page("ride"));
+  const rideId = Number(id);
+  const state = view.querySelector("[data-ride-state]");
+  let ride;
+  let lookups;
+  try {
+    [ride, lookups] = await Promise.all([get(`/api/rides/${rideId}`), nameLookups()]);
+  } catch (error) {
+    view.querySelector("[data-ride-title]").textContent = `Ride #${id}`;
+    state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
+    return undefined;
+  }
+  const horse = horseName(ride, lookups);
+  const rider = riderName(ride, lookups);
+  view.querySelector("[data-ride-crumb]").textContent = `#${ride.id}`;
+  view.querySelector("[data-ride-title]").textContent = `${horse} \u2013 ${gaitLabel(ride.gait)}`;
+  document.title = `${horse}, ${gaitLabel(ride.gait)} \u2013 SaddleScope`;
+  view.querySelector("[data-ride-meta]").replaceChildren(
+    `Ride #${ride.id} \u00b7 rider ${rider} \u00b7 ${ride.direction === "CW" ? "clockwise" : "counter-clockwise"}`,
+    ride.ridden_on ? ` \u00b7 ${ride.ridden_on}` : "",
+    " \u00b7 ", h("span", { class: `badge status-${ride.status}` }, ride.status));
+
+  async function loadResult() {
+    const result = await get(`/api/rides/${rideId}/result`, { params: { max_points: 2000 } });
+    state.replaceChildren();
+    showResult(view, ride, result);
+    await Promise.all([drawVersions(view, rideId, result), attachGradeForm(view, ride)]);
+  }
+
+  if (ride.status === "analysed") {
+    try {
+      await loadResult();
+      return undefined;
+    } catch (error) {
+      if (!(error instanceof ApiError) || error.status !== 404) {
+        state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
+        return undefined;
+      }
+    }
+  }
+  // No result yet: follow the ride's newest job until it ends.
+  state.replaceChildren(h("p", {}, "This ride has not been analysed yet."));
+  const poller = poll(async () => {
+    let job;
+    try {
+      job = itemsOf(await get("/api/jobs", { params: { ride_id: rideId, limit: 20 } })).sort((a, b) => b.id - a.id)[0];
+    } catch (error) {
+      state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
+      return 5000;
+    }
+    if (!job) {
+      state.replaceChildren(h("p", {}, "This ride has not been analysed yet, and no analysis job exists for it."),
+        h("button", { type: "button", onclick: async (event) => {
+          event.target.disabled = true;
+          try {
+            await post(`/api/rides/${rideId}/analyze`);
+            poller.now();
+          } catch (err) {
+            state.append(h("p", { class: "form-error", role: "alert" }, err.message));
+          }
+        } }, "Analyse now"));
+      return 5000;
+    }
+    showJob(state, job);
+    if (job.status === "done") {
+      announce("Analysis finished.");
+      try {
+        await loadResult();
+      } catch (error) {
+        state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
+      }
+      return false;
+    }
+    return job.status === "queued" || job.status === "running" ? true : false;
+  });
+  return () => poller.stop();
+}
