@@ -33,6 +33,71 @@ def stage_output_key(ride_id: int, stage: str) -> str:
     return f"rides/{ride_id}/stages/{stage}"
 
 
+def rig_stage_output_key(rig_id: int, stage: str) -> str:
+    """The folder a stage of a rig's job owns (e.g. its calibration)."""
+    return f"rigs/{rig_id}/stages/{stage}"
+
+
+def upload_key(upload_id: str) -> str:
+    """Where the bytes of a resumable upload collect until it is finalised."""
+    return f"uploads/{upload_id}.part"
+
+
+class TooLarge(InputError):
+    """An upload exceeds the size limit (HTTP 413)."""
+
+
+class AtomicWriter:
+    """Bytes written in chunks to a temporary file next to `key`, hashed and counted on the way.
+
+    `commit` renames the file into place (a reader never sees half a file); `abort` (or leaving a
+    ``with`` block by an exception) removes it. More than `max_bytes` raises `TooLarge` at once, so
+    an oversized upload is refused while it streams, not after.
+    """
+
+    def __init__(self, storage: Storage, key: str, *, max_bytes: int | None = None) -> None:
+        self.key = key
+        self.target = storage.path(key)
+        self.target.parent.mkdir(parents=True, exist_ok=True)
+        self.max_bytes = max_bytes
+        self.size = 0
+        self._digest = hashlib.sha256()
+        fd, tmp_name = tempfile.mkstemp(dir=self.target.parent, prefix=".part-")
+        self._tmp = Path(tmp_name)
+        self._out = os.fdopen(fd, "wb")
+
+    def write(self, chunk: bytes) -> None:
+        self.size += len(chunk)
+        if self.max_bytes is not None and self.size > self.max_bytes:
+            self.abort()
+            raise TooLarge(f"{self.key.rsplit('/', 1)[-1]}: larger than the upload limit of "
+                           f"{self.max_bytes} bytes ({self.max_bytes / 1024**2:.0f} MiB)")
+        self._digest.update(chunk)
+        self._out.write(chunk)
+
+    @property
+    def sha256(self) -> str:
+        return self._digest.hexdigest()
+
+    def commit(self) -> tuple[int, str]:
+        """Move the bytes into place under `key`; returns (size in bytes, sha256 hex)."""
+        self._out.close()
+        self._tmp.replace(self.target)
+        return self.size, self.sha256
+
+    def abort(self) -> None:
+        if not self._out.closed:
+            self._out.close()
+        self._tmp.unlink(missing_ok=True)
+
+    def __enter__(self) -> AtomicWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None or not self._out.closed:
+            self.abort()
+
+
 class Storage:
     """A filesystem store rooted at `root` (created on first use)."""
 
@@ -58,29 +123,46 @@ class Storage:
     def open(self, key: str) -> BinaryIO:
         return self.path(key).open("rb")
 
+    def writer(self, key: str, *, max_bytes: int | None = None) -> AtomicWriter:
+        """An `AtomicWriter` for `key` (write chunks, then commit)."""
+        return AtomicWriter(self, key, max_bytes=max_bytes)
+
     def write_stream(self, key: str, stream: BinaryIO, *, max_bytes: int | None = None) -> tuple[int, str]:
         """Copy `stream` to `key` atomically; returns (size in bytes, sha256 hex).
 
-        Raises `InputError` (and keeps nothing) when the stream exceeds `max_bytes`.
+        Raises `TooLarge` (an `InputError`, and keeps nothing) when the stream exceeds `max_bytes`.
         """
-        target = self.path(key)
+        with self.writer(key, max_bytes=max_bytes) as out:
+            while chunk := stream.read(CHUNK_BYTES):
+                out.write(chunk)
+            return out.commit()
+
+    def move(self, source_key: str, target_key: str) -> None:
+        """Rename a stored file (same file system: atomic)."""
+        target = self.path(target_key)
         target.parent.mkdir(parents=True, exist_ok=True)
-        digest = hashlib.sha256()
-        size = 0
-        fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=".part-")
-        tmp = Path(tmp_name)
+        self.path(source_key).replace(target)
+
+    def link_or_copy(self, source_key: str, target: Path) -> None:
+        """Put a stored file at `target` (a hard link where possible: no copy of a large video)."""
+        source = self.path(source_key)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if source.is_dir():
+            shutil.copytree(source, target)
+            return
         try:
-            with os.fdopen(fd, "wb") as out:
-                while chunk := stream.read(CHUNK_BYTES):
-                    size += len(chunk)
-                    if max_bytes is not None and size > max_bytes:
-                        raise InputError(f"{key}: larger than the upload limit of {max_bytes} bytes")
-                    digest.update(chunk)
-                    out.write(chunk)
-            tmp.replace(target)
-        finally:
-            tmp.unlink(missing_ok=True)
-        return size, digest.hexdigest()
+            os.link(source, target)
+        except OSError:
+            shutil.copyfile(source, target)
+
+    def open_at(self, key: str, offset: int) -> BinaryIO:
+        """`key` opened for writing from byte `offset` (created if absent; anything after it dropped)."""
+        path = self.path(key)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(path, "r+b" if path.exists() else "w+b")  # noqa: SIM115 (the caller closes it)
+        handle.seek(offset)
+        handle.truncate()
+        return handle
 
     def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
         return self.write_stream(key, io.BytesIO(data))

@@ -15,7 +15,7 @@ import pytest
 from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job, Recording, Ride
-from saddlescope.db.repositories import JobRepository, ResultRepository
+from saddlescope.db.repositories import JobRepository, NotFound, ResultRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.jobs import InlineQueue
 from saddlescope.services import stages
@@ -62,7 +62,7 @@ def fake_analysis(monkeypatch):
     """A stand-in for saddlescope.services.analysis (the lead's pipeline), recording its calls."""
     calls = []
 
-    def analyze_bundle(path, on_progress=None):
+    def analyze_bundle(path, on_progress=None, rig=None):
         calls.append(path)
         assert (path / "ride.json").is_file()
         for stage_name in ("calibrate", "triangulate", "indicators"):
@@ -123,10 +123,10 @@ def test_bad_payloads_and_kinds_are_refused_before_queueing(sessions):
     with pytest.raises(SaddleScopeError, match="steps must be an integer from 1 to 1000"):
         add_job(sessions, kind="selftest", payload={"steps": "many"})
     with pytest.raises(
-        SaddleScopeError, match="unknown job kind 'fly'; known kinds: analyze, probe, selftest"
+        SaddleScopeError, match="unknown job kind 'fly'; known kinds: analyze, calibrate_rig, probe, selftest"
     ):
         add_job(sessions, kind="fly")
-    with pytest.raises(SaddleScopeError, match="ride 12345 does not exist"):
+    with pytest.raises(NotFound, match="ride 12345 not found"):
         add_job(sessions, kind="probe", ride_id=12345)
     with pytest.raises(SaddleScopeError, match="needs a ride_id"):
         add_job(sessions, kind="analyze")
@@ -188,7 +188,7 @@ def test_analyze_stores_the_result_and_rerunning_replaces_it(settings, sessions,
     storage = Storage(settings.storage_dir)
     first = add_job(sessions, kind="analyze", ride_id=ride_id)
     assert run_job(first, settings=settings) == "done", job_row(sessions, first).error
-    assert set(job_row(sessions, first).timings) == {"probe", "analyze", "total"}
+    assert set(job_row(sessions, first).timings) == {"probe", "assemble", "calibrate", "analyze", "total"}
     with sessions() as s:
         result = ResultRepository(s).for_ride(ride_id)
         assert s.get(Ride, ride_id).status == "analysed"

@@ -8,10 +8,20 @@ waits on another task.
 
 from __future__ import annotations
 
-from celery import Celery
+import logging
+import threading
 
-from saddlescope.jobs import QUEUE_NAME, celery_config
+from celery import Celery
+from celery.signals import worker_ready, worker_shutdown
+from sqlalchemy.exc import SQLAlchemyError
+
+from saddlescope.jobs import QUEUE_NAME, RUN_JOB_TASK, celery_config
 from saddlescope.settings import ConfigurationError, Settings, get_settings
+
+log = logging.getLogger(__name__)
+
+# How often a worker looks for jobs whose worker died (the first look is at start-up).
+RECOVERY_INTERVAL_S = 60.0
 
 
 def create_celery(settings: Settings) -> Celery:
@@ -33,6 +43,42 @@ def _settings_for_worker() -> Settings:
 
 
 app = create_celery(get_settings())
+_stop_recovery = threading.Event()
+
+
+def recover_once(settings: Settings | None = None) -> list[int]:
+    """Queue again the running jobs whose worker is gone (`saddlescope.services.runner.recover_lost_jobs`)."""
+    from saddlescope.db.session import session_factory_for
+    from saddlescope.services.runner import recover_lost_jobs
+
+    settings = settings or get_settings()
+
+    def submit(job_id: int) -> None:
+        app.send_task(RUN_JOB_TASK, args=[job_id], queue=QUEUE_NAME)
+
+    return recover_lost_jobs(session_factory_for(settings.database_url), submit)
+
+
+def _recovery_loop() -> None:
+    while True:
+        try:
+            recover_once()
+        except SQLAlchemyError as exc:  # the database is down: try again at the next round
+            log.warning("looking for lost jobs failed: %s", exc)
+        if _stop_recovery.wait(RECOVERY_INTERVAL_S):
+            return
+
+
+@worker_ready.connect
+def _start_recovery(**_: object) -> None:
+    # A thread: the solo pool runs tasks in the main thread, which must not wait for this.
+    _stop_recovery.clear()
+    threading.Thread(target=_recovery_loop, name="saddlescope-recover-lost-jobs", daemon=True).start()
+
+
+@worker_shutdown.connect
+def _stop_recovery_loop(**_: object) -> None:
+    _stop_recovery.set()
 
 
 def run_worker(argv: list[str] | None = None) -> int:

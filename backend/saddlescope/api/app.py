@@ -13,19 +13,23 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI, Request, status
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
-from sqlalchemy.exc import SQLAlchemyError
+from sqlalchemy.exc import DataError, IntegrityError, SQLAlchemyError
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope import __version__
 from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.db.repositories import JobRepository, NotFound
+from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFound
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.jobs import JobQueue, QueueUnavailable, make_queue
+from saddlescope.services.accounts import AuthError, Forbidden
+from saddlescope.services.job_service import JobStateError
+from saddlescope.services.uploads import IncompleteUpload
 from saddlescope.settings import Settings, get_settings
-from saddlescope.storage import Storage
+from saddlescope.storage import Storage, TooLarge
 
 log = logging.getLogger(__name__)
 
@@ -46,13 +50,18 @@ def _resume_unfinished(app: FastAPI) -> None:
         app.state.queue.submit(job_id)
 
 
-def create_app(settings: Settings | None = None, *, queue: JobQueue | None = None) -> FastAPI:
+def create_app(settings: Settings | None = None, *, queue: JobQueue | None = None,
+               open_registration: bool | None = None) -> FastAPI:
     """The SaddleScope web application for `settings` (default: from the environment).
 
     In embedded mode (no broker) the schema is migrated to the newest revision at start-up and
-    jobs run in a local process pool; with a broker they go to Celery workers.
+    jobs run in a local process pool; with a broker they go to Celery workers. `open_registration`:
+    whether anyone may create a club (POST /api/clubs); by default open in embedded mode and for
+    the first club of a deployment (``settings.open_registration`` where the settings have it).
     """
     settings = settings or get_settings()
+    if open_registration is None:
+        open_registration = getattr(settings, "open_registration", None)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -74,15 +83,27 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     app.state.engine = make_engine(settings.database_url)
     app.state.sessions = make_session_factory(app.state.engine)
     app.state.storage = Storage(settings.storage_dir)
+    app.state.open_registration = open_registration
     # Set here too so routes work when the lifespan is not run; the lifespan replaces it.
     app.state.queue = queue
 
     _add_error_handlers(app)
 
-    from saddlescope.api.routers import health, jobs
+    from saddlescope.api.routers import (
+        auth,
+        comparisons,
+        grades,
+        health,
+        horses,
+        jobs,
+        riders,
+        rides,
+        rigs,
+        uploads,
+    )
 
-    app.include_router(health.router, prefix="/api")
-    app.include_router(jobs.router, prefix="/api")
+    for module in (health, auth, horses, riders, rigs, rides, uploads, grades, comparisons, jobs):
+        app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIR, html=True), name="frontend")
     else:
@@ -90,15 +111,63 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     return app
 
 
+# Each error class answers with one status and its message as {"detail": ...}; the most specific
+# class wins (FastAPI looks the handlers up along the exception's MRO).
+ERROR_STATUS: dict[type[Exception], int] = {
+    NotFound: status.HTTP_404_NOT_FOUND,
+    Conflict: status.HTTP_409_CONFLICT,
+    BadQuery: status.HTTP_422_UNPROCESSABLE_CONTENT,
+    AuthError: status.HTTP_401_UNAUTHORIZED,
+    Forbidden: status.HTTP_403_FORBIDDEN,
+    TooLarge: status.HTTP_413_CONTENT_TOO_LARGE,
+    IncompleteUpload: status.HTTP_409_CONFLICT,
+    JobStateError: status.HTTP_409_CONFLICT,
+    QueueUnavailable: status.HTTP_503_SERVICE_UNAVAILABLE,
+    SaddleScopeError: status.HTTP_422_UNPROCESSABLE_CONTENT,  # bad input: a clip, a bundle, a value
+}
+
+
+def _validation_message(exc: RequestValidationError) -> str:
+    """Pydantic's errors as one sentence naming each field ("body.gait: Input should be 'walk', ...")."""
+    parts = []
+    for err in exc.errors()[:5]:
+        where = ".".join(str(p) for p in err.get("loc", ()))
+        parts.append(f"{where}: {err.get('msg', 'invalid')}".removeprefix(": "))
+    return "; ".join(parts) or "invalid request"
+
+
 def _add_error_handlers(app: FastAPI) -> None:
-    @app.exception_handler(NotFound)
-    async def not_found(request: Request, exc: NotFound) -> JSONResponse:
-        return JSONResponse({"detail": str(exc)}, status_code=status.HTTP_404_NOT_FOUND)
+    def respond(code: int):
+        async def handler(request: Request, exc: Exception) -> JSONResponse:
+            headers = {"WWW-Authenticate": "Bearer"} if code == status.HTTP_401_UNAUTHORIZED else None
+            return JSONResponse({"detail": str(exc)}, status_code=code, headers=headers)
 
-    @app.exception_handler(QueueUnavailable)
-    async def queue_unavailable(request: Request, exc: QueueUnavailable) -> JSONResponse:
-        return JSONResponse({"detail": str(exc)}, status_code=status.HTTP_503_SERVICE_UNAVAILABLE)
+        return handler
 
-    @app.exception_handler(SaddleScopeError)
-    async def bad_input(request: Request, exc: SaddleScopeError) -> JSONResponse:
-        return JSONResponse({"detail": str(exc)}, status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
+    for error, code in ERROR_STATUS.items():
+        app.add_exception_handler(error, respond(code))
+
+    @app.exception_handler(RequestValidationError)
+    async def invalid_request(request: Request, exc: RequestValidationError) -> JSONResponse:
+        # One readable sentence (as every other error), the structured list under "errors".
+        return JSONResponse({"detail": _validation_message(exc), "errors": _jsonable(exc.errors())},
+                            status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+    @app.exception_handler(IntegrityError)
+    async def integrity(request: Request, exc: IntegrityError) -> JSONResponse:
+        # Two requests raced for the same unique name, or a row vanished meanwhile.
+        log.info("integrity error answered with 409: %s", exc.orig)
+        return JSONResponse({"detail": "the change conflicts with data stored meanwhile; reload and try again"},
+                            status_code=status.HTTP_409_CONFLICT)
+
+    @app.exception_handler(DataError)
+    async def data_error(request: Request, exc: DataError) -> JSONResponse:
+        log.info("data error answered with 422: %s", exc.orig)
+        return JSONResponse({"detail": "a value is out of range or not storable (e.g. too large a number)"},
+                            status_code=status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+
+def _jsonable(errors) -> list:
+    from fastapi.encoders import jsonable_encoder
+
+    return jsonable_encoder([{k: v for k, v in e.items() if k in ("loc", "msg", "type")} for e in errors])

@@ -1,18 +1,56 @@
-"""Dependencies of the routes, as ``Annotated`` aliases (one place to change how each is made)."""
+"""Dependencies of the routes, as ``Annotated`` aliases (one place to change how each is made).
+
+Authentication and the club scope live here and nowhere else: `ClubDep` is the signed-in user's
+club with every repository already confined to it, so a route cannot reach another club's rows
+(another club's id is simply not found: 404).
+"""
 
 from __future__ import annotations
 
+import hmac
 from collections.abc import Iterator
+from dataclasses import dataclass
+from functools import cached_property
 from typing import Annotated
 
 from fastapi import Depends, Request
+from fastapi.security import OAuth2PasswordBearer
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
+from saddlescope.db.repositories import (
+    AnalyticsRepository,
+    GradeRepository,
+    HorseRepository,
+    JobRepository,
+    RecordingRepository,
+    ResultRepository,
+    RideRepository,
+    RiderRepository,
+    RigRepository,
+    UploadRepository,
+    UserRepository,
+)
 from saddlescope.db.session import session_scope
 from saddlescope.jobs import JobQueue
+from saddlescope.services.accounts import (
+    AuthError,
+    Forbidden,
+    Principal,
+    current_principal,
+    read_token,
+    require_admin,
+)
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage
+
+SESSION_COOKIE = "saddlescope_session"
+CSRF_COOKIE = "saddlescope_csrf"
+CSRF_HEADER = "X-CSRF-Token"
+SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+
+oauth2_scheme = OAuth2PasswordBearer(tokenUrl="/api/auth/login", auto_error=False,
+                                     description="the access token of POST /api/auth/login")
 
 
 def _settings(request: Request) -> Settings:
@@ -28,7 +66,9 @@ def _sessions(request: Request) -> sessionmaker[Session]:
 
 
 def _session(request: Request) -> Iterator[Session]:
-    # Commits when the route returns normally; routes that enqueue work commit first themselves.
+    # Commits when the route returns normally (before the response is sent: scope="function" below,
+    # so a failed commit is an error response and a client's next request sees the change); routes
+    # that enqueue work commit first themselves.
     with session_scope(request.app.state.sessions) as session:
         yield session
 
@@ -44,6 +84,106 @@ def _queue(request: Request) -> JobQueue:
 SettingsDep = Annotated[Settings, Depends(_settings)]
 EngineDep = Annotated[Engine, Depends(_engine)]
 SessionFactoryDep = Annotated[sessionmaker[Session], Depends(_sessions)]
-SessionDep = Annotated[Session, Depends(_session)]
+SessionDep = Annotated[Session, Depends(_session, scope="function")]
 StorageDep = Annotated[Storage, Depends(_storage)]
 QueueDep = Annotated[JobQueue, Depends(_queue)]
+
+
+def _principal(request: Request, settings: SettingsDep, session: SessionDep,
+               bearer: Annotated[str | None, Depends(oauth2_scheme)]) -> Principal:
+    """The caller, from a bearer token or the session cookie (then CSRF-checked on unsafe methods)."""
+    if bearer:
+        principal = read_token(bearer, settings)
+    else:
+        cookie = request.cookies.get(SESSION_COOKIE)
+        if not cookie:
+            raise AuthError("not signed in: send 'Authorization: Bearer <token>' from POST /api/auth/login, or "
+                            "sign in with the browser")
+        principal = read_token(cookie, settings)
+        if request.method not in SAFE_METHODS:
+            # Double submit: a page on another site can make the browser send the cookie, but it cannot
+            # read our CSRF cookie to copy it into the header. Comparing with the token signed into the
+            # session also defeats a CSRF cookie planted by a sibling domain.
+            header = request.headers.get(CSRF_HEADER, "")
+            if not header or not hmac.compare_digest(header, principal.csrf):
+                raise Forbidden(f"missing or wrong {CSRF_HEADER} header (copy the {CSRF_COOKIE} cookie into it "
+                                "on every POST, PUT, PATCH and DELETE)")
+    return current_principal(session, principal)
+
+
+PrincipalDep = Annotated[Principal, Depends(_principal)]
+
+
+@dataclass
+class ClubScope:
+    """The signed-in user's club: its id, the caller, and repositories confined to it."""
+
+    session: Session
+    principal: Principal
+
+    @property
+    def club_id(self) -> int:
+        return self.principal.club_id
+
+    def require_admin(self) -> None:
+        require_admin(self.principal)
+
+    def _repo(self, cls):
+        return cls(self.session, club_id=self.club_id)
+
+    @cached_property
+    def users(self) -> UserRepository:
+        return self._repo(UserRepository)
+
+    @cached_property
+    def horses(self) -> HorseRepository:
+        return self._repo(HorseRepository)
+
+    @cached_property
+    def riders(self) -> RiderRepository:
+        return self._repo(RiderRepository)
+
+    @cached_property
+    def rigs(self) -> RigRepository:
+        return self._repo(RigRepository)
+
+    @cached_property
+    def rides(self) -> RideRepository:
+        return self._repo(RideRepository)
+
+    @cached_property
+    def recordings(self) -> RecordingRepository:
+        return self._repo(RecordingRepository)
+
+    @cached_property
+    def jobs(self) -> JobRepository:
+        return self._repo(JobRepository)
+
+    @cached_property
+    def results(self) -> ResultRepository:
+        return self._repo(ResultRepository)
+
+    @cached_property
+    def grades(self) -> GradeRepository:
+        return self._repo(GradeRepository)
+
+    @cached_property
+    def uploads(self) -> UploadRepository:
+        return self._repo(UploadRepository)
+
+    @cached_property
+    def analytics(self) -> AnalyticsRepository:
+        return AnalyticsRepository(self.session, club_id=self.club_id)
+
+
+def _club(session: SessionDep, principal: PrincipalDep) -> ClubScope:
+    return ClubScope(session, principal)
+
+
+def _admin_club(club: Annotated[ClubScope, Depends(_club)]) -> ClubScope:
+    club.require_admin()
+    return club
+
+
+ClubDep = Annotated[ClubScope, Depends(_club)]
+AdminClubDep = Annotated[ClubScope, Depends(_admin_club)]

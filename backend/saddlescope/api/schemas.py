@@ -3,9 +3,66 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Literal
+from typing import Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_validator
+
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+
+T = TypeVar("T")
+
+Gait = Literal[GAITS]  # type: ignore[valid-type]
+Direction = Literal[DIRECTIONS]  # type: ignore[valid-type]
+CameraRole = Literal[CAMERA_ROLES]  # type: ignore[valid-type]
+ClipKind = Literal[CLIP_KINDS]  # type: ignore[valid-type]
+RoleName = Literal["admin", "member"]
+Name = Annotated[str, StringConstraints(strip_whitespace=True, min_length=1, max_length=200)]
+Text = Annotated[str, StringConstraints(max_length=10_000)]
+Email = Annotated[str, StringConstraints(strip_whitespace=True, min_length=3, max_length=320)]
+Password = Annotated[str, StringConstraints(min_length=8, max_length=1024)]
+
+
+# Ids fit the database's 32-bit integer columns (a larger number is simply not found).
+MAX_ID = 2_147_483_647
+RefId = Annotated[int, Field(ge=1, le=MAX_ID)]
+
+
+def _nul_free(value: Any, where: str = "body") -> None:
+    """Refuse NUL characters anywhere in a body: PostgreSQL cannot store them in text."""
+    if isinstance(value, str):
+        if "\x00" in value:
+            raise ValueError(f"{where}: text may not contain the NUL character")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            _nul_free(key, where)
+            _nul_free(item, f"{where}.{key}")
+    elif isinstance(value, list | tuple):
+        for item in value:
+            _nul_free(item, where)
+
+
+class _In(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_nul(cls, data: Any) -> Any:
+        _nul_free(data)
+        return data
+
+
+class _Out(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+
+class Page(BaseModel, Generic[T]):
+    items: list[T]
+    total: int = Field(description="rows matching the filters (all pages)")
+    limit: int
+    offset: int
+
+
+# --- health, errors ----------------------------------------------------------------------------------
 
 
 class PartHealth(BaseModel):
@@ -21,12 +78,321 @@ class HealthOut(BaseModel):
     parts: dict[str, PartHealth] = Field(description="database, broker and storage")
 
 
-class JobCreate(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class ErrorOut(BaseModel):
+    detail: str
 
-    kind: str = Field(description="job kind, e.g. 'probe', 'analyze' or 'selftest'", examples=["probe"])
-    ride_id: int | None = Field(default=None, description="the ride to work on (probe, analyze)")
-    rig_id: int | None = Field(default=None, description="the rig to work on (probe of calibration clips)")
+
+# --- accounts ----------------------------------------------------------------------------------------
+
+
+class ClubOut(_Out):
+    id: int
+    name: str
+    created_at: dt.datetime
+
+
+class UserOut(_Out):
+    id: int
+    club_id: int
+    email: str
+    display_name: str
+    role: RoleName
+    is_active: bool
+    created_at: dt.datetime
+
+
+class ClubCreate(_In):
+    club_name: Name
+    email: Email
+    password: Password
+    display_name: Annotated[str, StringConstraints(max_length=200)] = ""
+
+
+class ClubCreated(BaseModel):
+    club: ClubOut
+    user: UserOut
+
+
+class LoginIn(_In):
+    email: Email
+    password: Annotated[str, StringConstraints(max_length=1024)]
+
+
+class TokenOut(BaseModel):
+    access_token: str
+    token_type: Literal["bearer"] = "bearer"
+    expires_in: int = Field(description="seconds until the token (and the session cookie) expire")
+    csrf_token: str = Field(description="the value to send as X-CSRF-Token with the session cookie")
+    user: UserOut
+
+
+class MeOut(BaseModel):
+    user: UserOut
+    club: ClubOut
+
+
+class UserCreate(_In):
+    email: Email
+    password: Password
+    display_name: Annotated[str, StringConstraints(max_length=200)] = ""
+    role: RoleName = "member"
+
+
+class UserUpdate(_In):
+    display_name: Annotated[str, StringConstraints(max_length=200)] | None = None
+    role: RoleName | None = None
+    is_active: bool | None = None
+    password: Password | None = None
+
+
+# --- horses, riders, rigs ----------------------------------------------------------------------------
+
+
+class HorseIn(_In):
+    name: Name
+    breed: Annotated[str, StringConstraints(max_length=200)] | None = None
+    birth_year: int | None = Field(default=None, ge=1900, le=2100)
+    height_withers_m: float | None = Field(default=None, gt=0.5, lt=2.5)
+
+
+class HorseUpdate(_In):
+    name: Name | None = None
+    breed: Annotated[str, StringConstraints(max_length=200)] | None = None
+    birth_year: int | None = Field(default=None, ge=1900, le=2100)
+    height_withers_m: float | None = Field(default=None, gt=0.5, lt=2.5)
+
+
+class HorseOut(_Out):
+    id: int
+    name: str
+    breed: str | None
+    birth_year: int | None
+    height_withers_m: float | None
+    created_at: dt.datetime
+
+
+class RiderIn(_In):
+    name: Name
+    user_id: RefId | None = Field(default=None, description="the rider's own account, if any")
+
+
+class RiderUpdate(_In):
+    name: Name | None = None
+    user_id: RefId | None = None
+
+
+class RiderOut(_Out):
+    id: int
+    name: str
+    user_id: int | None
+    created_at: dt.datetime
+
+
+class BoardIn(_In):
+    """ride.json's "board" (CONTRACTS section 1)."""
+
+    kind: Literal["checkerboard", "charuco"] = "checkerboard"
+    inner_corners: tuple[Annotated[int, Field(ge=2, le=100)], Annotated[int, Field(ge=2, le=100)]]
+    square_mm: float = Field(gt=0, le=10_000)
+    dictionary: Annotated[str, StringConstraints(pattern=r"^DICT_[A-Z0-9_]+$", max_length=40)] | None = None
+    marker_mm: float | None = Field(default=None, gt=0, le=10_000)
+    legacy: bool | None = None
+
+
+class RigIn(_In):
+    name: Name
+    recorded_on: dt.date | None = None
+    cameras: dict[CameraRole, dict[str, str]] = Field(default_factory=dict,
+                                                      description="model, serial, ... of each camera")
+    board: BoardIn | None = Field(default=None, description="the calibration board its calibration clips show")
+
+
+class RigUpdate(_In):
+    name: Name | None = None
+    recorded_on: dt.date | None = None
+    cameras: dict[CameraRole, dict[str, str]] | None = None
+    board: BoardIn | None = None
+
+
+class RigOut(_Out):
+    id: int
+    name: str
+    recorded_on: dt.date | None
+    cameras: dict[str, Any]
+    board: dict[str, Any] | None
+    calibrated: bool
+    quality: dict[str, Any] | None
+    created_at: dt.datetime
+
+
+class RigDetail(RigOut):
+    calibration: dict[str, Any] | None
+
+
+# --- rides, recordings -------------------------------------------------------------------------------
+
+
+class MarkersIn(_In):
+    horse: int = Field(default=3, ge=3, le=10)
+    plumb: int = Field(default=2, ge=0, le=10)
+    saddle: int = Field(default=1, ge=0, le=10)
+
+
+Offsets = dict[CameraRole, Annotated[float, Field(ge=-1e6, le=1e6)]]
+
+
+class SyncIn(_In):
+    """ride.json's "sync": the flash (default), or known frame offsets per clip kind and camera."""
+
+    method: Literal["flash", "offsets"] = "flash"
+    offsets: dict[ClipKind, Offsets] | None = None
+
+    @model_validator(mode="after")
+    def _offsets_given(self) -> SyncIn:
+        if self.method == "offsets" and not self.offsets:
+            raise ValueError("sync method 'offsets' needs the offsets")
+        return self
+
+
+class RideMetaIn(_In):
+    """Optional ride.json sections of a ride assembled from uploaded clips."""
+
+    board: BoardIn | None = None
+    markers: MarkersIn | None = None
+    sync: SyncIn | None = None
+
+
+class RideIn(_In):
+    horse_id: RefId
+    rider_id: RefId
+    rig_id: RefId | None = None
+    gait: Gait
+    direction: Direction
+    ridden_on: dt.date | None = None
+    notes: Text = ""
+    meta: RideMetaIn | None = None
+
+
+class RideUpdate(_In):
+    horse_id: RefId | None = None
+    rider_id: RefId | None = None
+    rig_id: RefId | None = None
+    gait: Gait | None = None
+    direction: Direction | None = None
+    ridden_on: dt.date | None = None
+    notes: Text | None = None
+
+
+class RecordingOut(_Out):
+    id: int
+    ride_id: int | None
+    rig_id: int | None
+    clip_kind: str
+    camera_role: str
+    fps: float | None
+    frame_count: int | None
+    width: int | None
+    height: int | None
+    codec: str | None
+    size_bytes: int | None
+    sha256: str | None
+    original_filename: str | None
+    created_at: dt.datetime
+
+
+class RideOut(_Out):
+    id: int
+    horse_id: int
+    rider_id: int
+    rig_id: int | None
+    gait: str
+    direction: str
+    ridden_on: dt.date | None
+    status: str
+    notes: str
+    from_bundle: bool
+    indicators: dict[str, float | None] | None = Field(description="the comfort indicators once analysed")
+    created_at: dt.datetime
+
+
+class RideDetail(RideOut):
+    meta: dict[str, Any]
+    recordings: list[RecordingOut]
+    latest_job_id: int | None
+
+
+class ClipUploaded(BaseModel):
+    recording: RecordingOut
+    job_id: int | None = Field(description="the job this upload started (the set of clips became complete)")
+
+
+class BundleUploaded(BaseModel):
+    ride: RideOut
+    job_id: int
+
+
+# --- uploads (resumable) -----------------------------------------------------------------------------
+
+
+class UploadCreate(_In):
+    target: Literal["ride_clip", "rig_clip", "bundle"]
+    length_bytes: int = Field(ge=1, le=2**62, description="the file's total size")
+    ride_id: RefId | None = None
+    rig_id: RefId | None = Field(default=None, description="the rig (rig_clip), or the rig a bundle's ride uses")
+    clip_kind: ClipKind | None = None
+    camera: CameraRole | None = None
+    filename: Annotated[str, StringConstraints(max_length=255)] | None = None
+
+
+class UploadOut(_Out):
+    id: str
+    target: str
+    ride_id: int | None
+    rig_id: int | None
+    clip_kind: str | None
+    camera_role: str | None
+    filename: str | None
+    length_bytes: int
+    offset_bytes: int
+    status: str
+    error: str | None
+    outcome: dict[str, Any]
+    created_at: dt.datetime
+    updated_at: dt.datetime
+
+
+# --- grades ------------------------------------------------------------------------------------------
+
+
+class GradeIn(_In):
+    ride_id: RefId
+    rider_id: RefId
+    grade: int = Field(ge=1, le=5, description="1 = very uncomfortable ... 5 = very comfortable")
+    comment: Text = ""
+
+
+class GradeUpdate(_In):
+    grade: int | None = Field(default=None, ge=1, le=5)
+    comment: Text | None = None
+
+
+class GradeOut(_Out):
+    id: int
+    ride_id: int
+    rider_id: int
+    grade: int
+    comment: str
+    created_at: dt.datetime
+
+
+# --- jobs --------------------------------------------------------------------------------------------
+
+
+class JobCreate(_In):
+    kind: str = Field(description="job kind, e.g. 'analyze', 'calibrate_rig', 'probe' or 'selftest'",
+                      examples=["probe"], max_length=32)
+    ride_id: RefId | None = Field(default=None, description="the ride to work on (probe, analyze)")
+    rig_id: RefId | None = Field(default=None, description="the rig to work on (probe, calibrate_rig)")
     payload: dict[str, Any] = Field(default_factory=dict,
                                     description="kind-specific options, e.g. {'steps': 5} for selftest")
 
@@ -57,5 +423,95 @@ class JobKindOut(BaseModel):
     description: str
 
 
-class ErrorOut(BaseModel):
-    detail: str
+# --- results and comparisons -------------------------------------------------------------------------
+
+
+class ResultOut(BaseModel):
+    ride_id: int
+    job_id: int | None
+    code_version: str | None
+    created_at: dt.datetime | None
+    fps: float | None
+    period_s: float | None
+    window: dict[str, Any] | None
+    indicators: dict[str, float | None]
+    units: dict[str, str]
+    quality: dict[str, Any]
+    calibration_checks: dict[str, Any]
+    calibration_flags: list[Any]
+    series: dict[str, list[Any]] = Field(description="t_s, position_m, velocity_m_s, acceleration_m_s2, "
+                                                     "omega_rad_s, alpha_rad_s2 (decimated)")
+    decimation: dict[str, int]
+
+
+class IndicatorOut(BaseModel):
+    key: str
+    unit: str
+    label: str
+    thesis_name: str | None
+    better: Literal["lower", "higher"] | None
+    comfort: bool = Field(description="one of the thesis's eight comfort indicators")
+
+
+class GroupStats(BaseModel):
+    group: str
+    n: int
+    mean: float | None
+    std: float | None
+    min: float | None
+    max: float | None
+
+
+class HorseGroupStats(GroupStats):
+    horse_id: int | None
+
+
+class GaitComparison(BaseModel):
+    unit: str
+    gaits: list[GroupStats]
+
+
+class HorseComparisonOut(BaseModel):
+    horse_id: int
+    horse: str
+    rides: int
+    indicators: dict[str, GaitComparison]
+
+
+class HorsesInGait(BaseModel):
+    unit: str
+    horses: list[HorseGroupStats]
+
+
+class ComparisonOut(BaseModel):
+    gait: str
+    rides: int
+    indicators: dict[str, HorsesInGait]
+
+
+class LeaderboardEntry(BaseModel):
+    rank: int
+    horse_id: int | None
+    horse: str
+    n: int = Field(description="rides behind the mean")
+    mean: float | None
+    std: float | None
+    min: float | None
+    max: float | None
+    spread: float | None = Field(description="max - min over the horse's rides")
+
+
+class LeaderboardOut(BaseModel):
+    gait: str
+    indicator: str
+    unit: str
+    better: Literal["lower", "higher"]
+    rides: int
+    entries: list[LeaderboardEntry]
+
+
+class CorrelationOut(BaseModel):
+    gait: str | None
+    grades: int
+    indicators: dict[str, dict[str, Any]] = Field(
+        description="per indicator: n, pearson_r, pearson_p, spearman_rho, intervals, expected_sign, points")

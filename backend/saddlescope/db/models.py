@@ -169,6 +169,8 @@ class Rig(TimestampMixin, Base):
     recorded_on: Mapped[dt.date | None] = mapped_column(Date)
     # {"left": {"model": ..., "serial": ...}, "middle": ..., "right": ...}
     cameras: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # ride.json's "board" (CONTRACTS section 1) the calibration clips show; None: not given yet.
+    board: Mapped[dict[str, Any] | None]
     # The `calibration` object of the result format (CONTRACTS section 2), once calibrated.
     calibration: Mapped[dict[str, Any] | None]
     quality: Mapped[dict[str, Any] | None]
@@ -190,6 +192,8 @@ class Ride(TimestampMixin, Base):
     notes: Mapped[str] = mapped_column(Text, default="")
     # Storage key of the folder holding the ride bundle (ride.json + clips), when registered from one.
     bundle_key: Mapped[str | None] = mapped_column(String(500))
+    # Other ride.json sections of a ride assembled from uploaded clips ("sync", "markers", "board").
+    meta: Mapped[dict[str, Any]] = mapped_column(default=dict)
 
     horse: Mapped[Horse] = relationship()
     rider: Mapped[Rider] = relationship()
@@ -202,6 +206,7 @@ class Recording(TimestampMixin, Base):
     __tablename__ = "recordings"
     __table_args__ = (
         UniqueConstraint("ride_id", "clip_kind", "camera_role"),
+        UniqueConstraint("rig_id", "clip_kind", "camera_role"),
         CheckConstraint("ride_id IS NOT NULL OR rig_id IS NOT NULL", name="owner"),
         CheckConstraint("size_bytes IS NULL OR size_bytes >= 0", name="size_bytes"),
     )
@@ -221,6 +226,8 @@ class Recording(TimestampMixin, Base):
     height: Mapped[int | None]
     size_bytes: Mapped[int | None] = mapped_column(BigInteger)  # videos exceed 2 GiB
     probed_at: Mapped[dt.datetime | None]
+    codec: Mapped[str | None] = mapped_column(String(32))
+    original_filename: Mapped[str | None] = mapped_column(String(255))
 
     ride: Mapped[Ride | None] = relationship(back_populates="recordings")
 
@@ -303,3 +310,43 @@ class Grade(TimestampMixin, Base):
     rider_id: Mapped[int] = mapped_column(ForeignKey("riders.id", ondelete="CASCADE"), index=True)
     grade: Mapped[int]
     comment: Mapped[str] = mapped_column(Text, default="")
+
+
+class UploadTarget(enum.StrEnum):
+    RIDE_CLIP = "ride_clip"
+    RIG_CLIP = "rig_clip"
+    BUNDLE = "bundle"
+
+
+class UploadStatus(enum.StrEnum):
+    OPEN = "open"  # bytes still arriving
+    FINALISED = "finalised"  # turned into a recording or a ride
+    FAILED = "failed"  # finalising refused it (the reason is in `error`)
+
+
+class Upload(Base):
+    """A resumable upload (tus-like): bytes arrive in chunks at increasing offsets, then it is finalised."""
+
+    __tablename__ = "uploads"
+    __table_args__ = (
+        CheckConstraint("offset_bytes >= 0 AND offset_bytes <= length_bytes", name="offset_range"),
+    )
+
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)  # random hex: not guessable
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"), index=True)
+    target: Mapped[str] = mapped_column(_str_enum(UploadTarget, "upload_target"))
+    ride_id: Mapped[int | None] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
+    rig_id: Mapped[int | None] = mapped_column(ForeignKey("rigs.id", ondelete="CASCADE"), index=True)
+    clip_kind: Mapped[str | None] = mapped_column(_str_enum(CLIP_KINDS, "upload_clip_kind"))
+    camera_role: Mapped[str | None] = mapped_column(_str_enum(CAMERA_ROLES, "upload_camera_role", length=8))
+    filename: Mapped[str | None] = mapped_column(String(255))
+    length_bytes: Mapped[int] = mapped_column(BigInteger)
+    offset_bytes: Mapped[int] = mapped_column(BigInteger, default=0)
+    status: Mapped[str] = mapped_column(_str_enum(UploadStatus, "upload_status"),
+                                        default=UploadStatus.OPEN.value)
+    error: Mapped[str | None] = mapped_column(Text)
+    # What finalising made: {"recording_id": 3} or {"ride_id": 5, "job_id": 9}.
+    outcome: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    created_at: Mapped[dt.datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[dt.datetime] = mapped_column(default=utcnow)

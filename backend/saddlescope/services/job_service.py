@@ -30,15 +30,9 @@ def create_job(session: Session, *, kind: str, ride_id: int | None = None, rig_i
     if spec.needs_ride and ride_id is None:
         raise InputError(f"a {kind!r} job needs a ride_id")
     if ride_id is not None:
-        ride = RideRepository(session, club_id=club_id).find(ride_id)
-        if ride is None:
-            raise InputError(f"ride {ride_id} does not exist")
-        club_id = ride.club_id
+        club_id = RideRepository(session, club_id=club_id).get(ride_id).club_id  # NotFound: 404
     if rig_id is not None:
-        rig = RigRepository(session, club_id=club_id).find(rig_id)
-        if rig is None:
-            raise InputError(f"rig {rig_id} does not exist")
-        club_id = rig.club_id
+        club_id = RigRepository(session, club_id=club_id).get(rig_id).club_id
     return JobRepository(session).add(kind=kind, club_id=club_id, ride_id=ride_id, rig_id=rig_id,
                                       payload=payload)
 
@@ -89,6 +83,26 @@ def cancel_job(session: Session, job_id: int, *, club_id: int | None = None) -> 
     session.flush()
     session.expire_all()
     return repo.get(job_id)
+
+
+def retry_job(sessions: sessionmaker[Session], queue: JobQueue, job_id: int, *, club_id: int | None = None) -> int:
+    """Run a failed or cancelled job again (same id; its uploads and earlier outputs are kept)."""
+    with session_scope(sessions) as session:
+        repo = JobRepository(session, club_id=club_id)
+        job = repo.get(job_id)
+        if not repo.requeue(job_id):
+            raise JobStateError(f"job {job_id} is {job.status}; only a failed or cancelled job can be retried")
+    try:
+        queue.submit(job_id)
+    except QueueUnavailable as exc:
+        with session_scope(sessions) as session:
+            JobRepository(session).fail_queued(job_id, error=str(exc))
+        raise
+    return job_id
+
+
+class JobStateError(InputError):
+    """The job is not in a state that allows this (HTTP 409)."""
 
 
 def wait_for_job(sessions: sessionmaker[Session], job_id: int, *, timeout_s: float = 3600.0,

@@ -8,9 +8,11 @@ re-run from its first stage, each stage replacing only its own outputs.
 
 from __future__ import annotations
 
+import datetime as dt
 import logging
 import os
 import socket
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -18,7 +20,7 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import SaddleScopeError
-from saddlescope.db.models import JobStatus
+from saddlescope.db.models import JobStatus, utcnow
 from saddlescope.db.repositories import JobRepository, RideRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobKind, StageContext
@@ -29,6 +31,10 @@ log = logging.getLogger(__name__)
 
 # Progress is written at most this often (plus at every stage boundary), to spare the database.
 PROGRESS_INTERVAL_S = 0.25
+# A running job's worker writes a heartbeat this often, even while a stage reports no progress ...
+HEARTBEAT_S = 10.0
+# ... so a job silent for this long has lost its worker and may be handed to another one.
+STALE_AFTER_S = 180.0
 
 
 def worker_host() -> str:
@@ -73,6 +79,75 @@ class _Progress:
 
     def __call__(self, fraction: float, detail: str | None = None) -> None:
         self.write(fraction, detail, force=fraction >= 1.0)
+
+
+class _Heartbeat:
+    """A daemon thread touching the job row every `HEARTBEAT_S` while its stages run."""
+
+    def __init__(self, job_id: int, sessions: sessionmaker[Session], interval_s: float = HEARTBEAT_S) -> None:
+        self.job_id, self.sessions, self.interval_s = job_id, sessions, interval_s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"job-{job_id}-heartbeat", daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval_s):
+            try:
+                with session_scope(self.sessions) as session:
+                    JobRepository(session).touch(self.job_id)
+            except OperationalError as exc:  # the database blinked; the next beat tries again
+                log.warning("job %s: heartbeat not written (%s)", self.job_id, exc)
+
+    def __enter__(self) -> _Heartbeat:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
+
+
+def job_is_lost(host: str | None, updated_at: dt.datetime | None, *, now: dt.datetime | None = None,
+                stale_after_s: float = STALE_AFTER_S) -> bool:
+    """True when a running job's worker is gone: a dead process on this machine, or no heartbeat for long."""
+    now = now or utcnow()
+    if host and ":" in host:
+        name, _, pid = host.rpartition(":")
+        if name == socket.gethostname() and pid.isdigit() and int(pid) != os.getpid():
+            if not _process_alive(int(pid)):
+                return True
+    return updated_at is None or (now - updated_at).total_seconds() > stale_after_s
+
+
+def recover_lost_jobs(sessions: sessionmaker[Session], submit, *, stale_after_s: float = STALE_AFTER_S) -> list[int]:
+    """Queue again every running job whose worker died (killed, out of memory, machine lost).
+
+    A worker calls this when it starts (and now and then), so a job interrupted by a killed worker
+    completes on the next one; its stages are idempotent, so re-running from the first is safe.
+    `submit(job_id)` hands a job to the queue. Returns the ids queued again.
+    """
+    with session_scope(sessions) as session:
+        candidates = [(job.id, job.host, job.updated_at) for job in JobRepository(session).running()]
+    recovered = []
+    for job_id, host, updated_at in candidates:
+        if not job_is_lost(host, updated_at, stale_after_s=stale_after_s):
+            continue
+        with session_scope(sessions) as session:
+            if not JobRepository(session).requeue_lost(job_id, host=host):
+                continue  # finished or taken over meanwhile
+        log.warning("job %s: its worker %s is gone; queued again", job_id, host)
+        submit(job_id)
+        recovered.append(job_id)
+    return recovered
 
 
 def _set_ride_status(sessions: sessionmaker[Session], ride_id: int | None, status: str | None) -> None:
@@ -129,32 +204,33 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
             return status.value
         return JobStatus.CANCELLED.value
 
-    try:
-        for current in kind.stages:
-            progress.start(current)
-            ctx = StageContext(job_id=job_id, kind=kind.name, stage=current, club_id=club_id, ride_id=ride_id,
-                               rig_id=rig_id, payload=payload, settings=settings, storage=storage,
-                               sessions=sessions, report=progress)
-            t_stage = time.perf_counter()
-            try:
-                STAGES[current].run(ctx)
-            finally:  # a failed or cancelled stage's time is worth seeing too
-                timings[current] = round(time.perf_counter() - t_stage, 4)
-            progress.finish()
+    with _Heartbeat(job_id, sessions):
+        try:
+            for current in kind.stages:
+                progress.start(current)
+                ctx = StageContext(job_id=job_id, kind=kind.name, stage=current, club_id=club_id, ride_id=ride_id,
+                                   rig_id=rig_id, payload=payload, settings=settings, storage=storage,
+                                   sessions=sessions, report=progress)
+                t_stage = time.perf_counter()
+                try:
+                    STAGES[current].run(ctx)
+                finally:  # a failed or cancelled stage's time is worth seeing too
+                    timings[current] = round(time.perf_counter() - t_stage, 4)
+                progress.finish()
+                save_timings()
+        except JobCancelled:
             save_timings()
-    except JobCancelled:
-        save_timings()
-        _set_ride_status(sessions, ride_id, kind.ride_status_failed)
-        return JobStatus.CANCELLED.value
-    except SaddleScopeError as exc:
-        return end(JobStatus.FAILED, f"{current}: {exc}", kind.ride_status_failed)
-    except OperationalError:
-        # The database went away: leave the job "running" so the worker's retry runs it again.
-        raise
-    except Exception as exc:
-        # Record, then re-raise: the job must not stay "running" forever, and the worker's log
-        # needs the traceback of a bug.
-        end(JobStatus.FAILED, f"{current}: internal error ({type(exc).__name__}: {exc})",
-            kind.ride_status_failed)
-        raise
-    return end(JobStatus.DONE, None, kind.ride_status_done)
+            _set_ride_status(sessions, ride_id, kind.ride_status_failed)
+            return JobStatus.CANCELLED.value
+        except SaddleScopeError as exc:
+            return end(JobStatus.FAILED, f"{current}: {exc}", kind.ride_status_failed)
+        except OperationalError:
+            # The database went away: leave the job "running" so the worker's retry runs it again.
+            raise
+        except Exception as exc:
+            # Record, then re-raise: the job must not stay "running" forever, and the worker's log
+            # needs the traceback of a bug.
+            end(JobStatus.FAILED, f"{current}: internal error ({type(exc).__name__}: {exc})",
+                kind.ride_status_failed)
+            raise
+        return end(JobStatus.DONE, None, kind.ride_status_done)

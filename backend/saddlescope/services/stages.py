@@ -33,12 +33,21 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session, sessionmaker
 
-from saddlescope.core.errors import BundleError, InputError, SaddleScopeError
+from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.models import RideStatus
-from saddlescope.db.repositories import RecordingRepository, ResultRepository, RideRepository
+from saddlescope.db.repositories import (
+    RecordingRepository,
+    ResultRepository,
+    RideRepository,
+    RigRepository,
+)
 from saddlescope.db.session import session_scope
 from saddlescope.settings import Settings
-from saddlescope.storage import Storage, stage_output_key, tree_digest
+from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key, tree_digest
+
+ASSEMBLED_BUNDLE = "bundle"  # folder name of the assembled ride bundle in the assemble stage's outputs
+DEFAULT_MARKERS = {"horse": 3, "plumb": 2, "saddle": 1}
 
 
 class StageUnavailable(SaddleScopeError):
@@ -76,17 +85,24 @@ class StageContext:
             raise InputError(f"stage {self.stage!r} of job {self.job_id} needs a ride, the job has none")
         return self.ride_id
 
+    def _stage_key(self, stage: str) -> str:
+        if self.ride_id is not None:
+            return stage_output_key(self.ride_id, stage)
+        if self.rig_id is not None:
+            return rig_stage_output_key(self.rig_id, stage)
+        raise InputError(f"stage {self.stage!r} of job {self.job_id} needs a ride or a rig, the job has none")
+
     def outputs(self) -> Path:
-        """This stage's own folder for the job's ride, emptied first (so re-runs replace outputs)."""
-        return self.storage.fresh_dir(stage_output_key(self._require_ride(), self.stage))
+        """This stage's own folder for the job's ride (or rig), emptied first (re-runs replace outputs)."""
+        return self.storage.fresh_dir(self._stage_key(self.stage))
 
     def output_key(self, name: str) -> str:
         """Storage key of file `name` in this stage's folder."""
-        return f"{stage_output_key(self._require_ride(), self.stage)}/{name}"
+        return f"{self._stage_key(self.stage)}/{name}"
 
     def stage_dir(self, stage: str) -> Path:
-        """The folder an earlier stage wrote for this ride (read it, never write it)."""
-        return self.storage.path(stage_output_key(self._require_ride(), stage))
+        """The folder an earlier stage wrote for this ride or rig (read it, never write it)."""
+        return self.storage.path(self._stage_key(stage))
 
 
 @dataclass(frozen=True)
@@ -204,18 +220,180 @@ def run_probe(ctx: StageContext) -> None:
         with ctx.session() as session:
             RecordingRepository(session).set_probe(recording_id, sha256=sha256, size_bytes=size_bytes,
                                                    fps=info.fps, frame_count=info.frame_count,
-                                                   width=info.width, height=info.height)
+                                                   width=info.width, height=info.height, codec=info.codec)
     ctx.report(1.0, None)
 
 
 def _result_arrays(result: dict[str, Any]) -> dict[str, np.ndarray]:
     """The result's time series as float arrays (saddle.* and angular.*) for the .npz file."""
     arrays = {}
-    for group in ("saddle", "angular"):
+    for group in ("saddle", "angular", "markers"):
         for name, value in (result.get(group) or {}).items():
             if isinstance(value, list) and value:
-                arrays[f"{group}.{name}"] = np.asarray(value, dtype=np.float64)
+                try:  # None (a missing sample) becomes NaN; lists of names are not arrays
+                    arrays[f"{group}.{name}"] = np.asarray(value, dtype=np.float64)
+                except (TypeError, ValueError):
+                    continue
     return arrays
+
+
+def _complete_sets(recordings) -> dict[str, dict[str, str]]:
+    """Clip kind -> camera -> storage key, for the kinds recorded by all three cameras."""
+    by_kind: dict[str, dict[str, str]] = {}
+    for r in recordings:
+        by_kind.setdefault(r.clip_kind, {})[r.camera_role] = r.path
+    return {kind: cams for kind, cams in by_kind.items() if set(CAMERA_ROLES) <= set(cams)}
+
+
+def ride_document(ride, rig, *, clips: dict[str, dict[str, str]], calibration_file: str | None) -> dict[str, Any]:
+    """ride.json (CONTRACTS section 1) of a ride assembled from stored clips."""
+    meta = dict(ride.meta or {})
+    board = meta.get("board") or (rig.board if rig is not None else None)
+    if not board:
+        raise InputError(f"ride {ride.id}: no calibration board described (give the rig a 'board', or the ride "
+                         "a meta.board)")
+    horse = ride.horse
+    doc: dict[str, Any] = {
+        "format": "saddlescope.ride/1", "cameras": list(CAMERA_ROLES), "board": board,
+        "sync": meta.get("sync") or {"method": "flash"}, "markers": meta.get("markers") or dict(DEFAULT_MARKERS),
+        "horse": {"name": horse.name, "breed": horse.breed, "birth_year": horse.birth_year,
+                  "height_m": horse.height_withers_m},
+        "rider": {"name": ride.rider.name}, "gait": ride.gait, "direction": ride.direction, "clips": clips,
+    }
+    if calibration_file is not None:
+        doc["calibration_file"] = calibration_file
+    return doc
+
+
+def ride_clip_plan(ride_recordings, rig_recordings, *, rig_calibrated: bool) -> dict[str, dict[str, str]]:
+    """Which stored clip each camera of each kind comes from: the ride's own, else its rig's.
+
+    Raises `BundleError` naming what is missing (motion and static are required, and calibration
+    clips unless the rig is calibrated already).
+    """
+    own, shared = _complete_sets(ride_recordings), _complete_sets(rig_recordings)
+    plan = {kind: own.get(kind) or shared.get(kind) for kind in CLIP_KINDS}
+    missing = [kind for kind in ("static", "motion") if not plan[kind]]
+    if not plan["calibration"] and not rig_calibrated:
+        missing.insert(0, "calibration")
+    if missing:
+        raise BundleError(f"the clips of {' and '.join(missing)} are not all uploaded (each needs the left, "
+                          "middle and right cameras)")
+    return {kind: cams for kind, cams in plan.items() if cams}
+
+
+@stage("assemble", weight=0.5)
+def run_assemble(ctx: StageContext) -> None:
+    """Put the ride's clips (and its rig's shared ones) together as a ride bundle."""
+    ride_id = ctx._require_ride()
+    with ctx.session() as session:
+        ride = RideRepository(session).get(ride_id)
+        if ride.bundle_key is not None:
+            ctx.outputs()
+            (ctx.stage_dir(ctx.stage) / "source.json").write_text(json.dumps({"bundle_key": ride.bundle_key}))
+            return
+        rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
+        recordings = RecordingRepository(session)
+        plan = ride_clip_plan(recordings.for_ride(ride_id), recordings.for_rig(rig.id) if rig else [],
+                              rig_calibrated=bool(rig is not None and rig.calibration))
+        calibration = dict(rig.calibration) if rig is not None and rig.calibration else None
+        if calibration is not None and plan.get("calibration") and plan["calibration"] == _complete_sets(
+                recordings.for_rig(rig.id)).get("calibration"):
+            # The rig's calibration replaces its clips: no need to carry them into every ride.
+            plan.pop("calibration")
+        clips = {kind: {role: f"{kind}/{role}{Path(key).suffix}" for role, key in cams.items()}
+                 for kind, cams in plan.items()}
+        doc = ride_document(ride, rig, clips=clips,
+                            calibration_file="calibration.json" if "calibration" not in plan else None)
+    folder = ctx.outputs() / ASSEMBLED_BUNDLE
+    folder.mkdir()
+    for i, (kind, cams) in enumerate(plan.items()):
+        for role, key in cams.items():
+            ctx.storage.link_or_copy(key, folder / clips[kind][role])
+        ctx.report((i + 1) / (len(plan) + 1), kind)
+    if "calibration" not in plan:
+        (folder / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
+    (folder / "ride.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
+    ctx.report(1.0, None)
+
+
+def _bundle_path(ctx: StageContext, ride) -> Path:
+    if ride.bundle_key is not None:
+        return ctx.storage.path(ride.bundle_key)
+    folder = ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE
+    if not (folder / "ride.json").is_file():
+        raise BundleError(f"ride {ride.id}: its clips were not assembled into a bundle (run the assemble stage)")
+    return folder
+
+
+def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict, sync: dict | None,
+                         *, replace: bool) -> dict[str, Any]:
+    from saddlescope.services.calibration import calibrate_clips, calibration_quality
+
+    calibration = calibrate_clips(paths, board=board, sync=sync, on_progress=lambda f, s: ctx.report(f, s))
+    out = ctx.outputs()
+    (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
+    with ctx.session() as session:
+        rigs = RigRepository(session)
+        if replace:
+            rigs.set_calibration(rig_id, calibration, calibration_quality(calibration))
+        elif not rigs.set_calibration_if_missing(rig_id, calibration, calibration_quality(calibration)):
+            calibration = dict(rigs.get(rig_id).calibration)  # another job calibrated it first: use that
+    ctx.report(1.0, None)
+    return calibration
+
+
+@stage("calibrate", weight=6.0)
+def run_calibrate(ctx: StageContext) -> None:
+    """The rig's calibration: reused when stored, else computed once from the rig's clips and stored."""
+    ride_id = ctx._require_ride()
+    with ctx.session() as session:
+        ride = RideRepository(session).get(ride_id)
+        rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
+        if rig is None or rig.calibration:
+            note = {"source": "ride" if rig is None else "rig", "rig_id": rig.id if rig else None,
+                    "reused": rig is not None}
+            ctx.outputs()
+            (ctx.stage_dir(ctx.stage) / "source.json").write_text(json.dumps(note))
+            return
+        rig_clips = _complete_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
+        rig_id, board = rig.id, rig.board
+        meta = dict(ride.meta or {})
+    if rig_clips is not None:
+        if not board:
+            raise CalibrationError(f"rig {rig_id} has no 'board' (the calibration board its clips show)")
+        paths = {role: ctx.storage.path(key) for role, key in rig_clips.items()}
+        _calibrate_and_store(ctx, rig_id, paths, board, meta.get("sync"), replace=False)
+        return
+    # A ride bundle uploaded for a rig without calibration clips: the bundle's own clips calibrate the rig.
+    from saddlescope.io.bundle import open_bundle
+
+    with ctx.session() as session:
+        path = _bundle_path(ctx, RideRepository(session).get(ride_id))
+    with open_bundle(path) as bundle:
+        if "calibration" not in bundle.clip_paths:
+            raise CalibrationError(f"rig {rig_id} has no calibration, and neither the rig nor ride {ride_id} has "
+                                   "calibration clips to compute it")
+        _calibrate_and_store(ctx, rig_id, dict(bundle.clip_paths["calibration"]), bundle.meta["board"],
+                             bundle.meta.get("sync"), replace=False)
+
+
+@stage("calibrate_rig", weight=6.0)
+def run_calibrate_rig(ctx: StageContext) -> None:
+    """Calibrate a rig from its three calibration clips (replacing an earlier calibration)."""
+    if ctx.rig_id is None:
+        raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
+    with ctx.session() as session:
+        rig = RigRepository(session).get(ctx.rig_id)
+        clips = _complete_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
+        board = rig.board
+    if clips is None:
+        raise CalibrationError(f"rig {ctx.rig_id}: the calibration clips of the left, middle and right cameras "
+                               "are not all uploaded")
+    if not board:
+        raise CalibrationError(f"rig {ctx.rig_id} has no 'board' (the calibration board its clips show)")
+    paths = {role: ctx.storage.path(key) for role, key in clips.items()}
+    _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
 
 
 @stage("analyze", weight=20.0)
@@ -231,10 +409,18 @@ def run_analyze(ctx: StageContext) -> None:
     ride_id = ctx._require_ride()
     with ctx.session() as session:
         ride = RideRepository(session).get(ride_id)
-        bundle_key, club_id = ride.bundle_key, ride.club_id
-    if bundle_key is None:
-        raise BundleError(f"ride {ride_id} has no ride bundle in storage (register its clips first)")
-    result = analyze_bundle(ctx.storage.path(bundle_key), on_progress=lambda f, s: ctx.report(f, s))
+        club_id = ride.club_id
+        rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
+        calibration = dict(rig.calibration) if rig is not None and rig.calibration else None
+        if ride.bundle_key is None and not (ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE).is_dir():
+            raise BundleError(f"ride {ride_id} has no ride bundle in storage (register its clips first)")
+        path = _bundle_path(ctx, ride)
+    rig_model = None
+    if calibration is not None:
+        from saddlescope.services.calibration import rig_from_calibration
+
+        rig_model = rig_from_calibration(calibration)
+    result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model)
     ctx.outputs()
     result_key, arrays_key = ctx.output_key("result.json"), ctx.output_key("arrays.npz")
     ctx.storage.write_bytes(result_key, json.dumps(result, allow_nan=False).encode())
@@ -251,8 +437,10 @@ define_job_kind(JobKind("selftest", ("selftest",), validate_payload=_selftest_pa
                         description="a few timed steps, no files: checks that workers pick up jobs"))
 define_job_kind(JobKind("probe", ("probe",),
                         description="read the clips of a ride or rig and record their sizes and checksums"))
-define_job_kind(JobKind("analyze", ("probe", "analyze"), needs_ride=True,
+define_job_kind(JobKind("analyze", ("probe", "assemble", "calibrate", "analyze"), needs_ride=True,
                         ride_status_running=RideStatus.PROCESSING.value,
                         ride_status_done=RideStatus.ANALYSED.value,
                         ride_status_failed=RideStatus.FAILED.value,
                         description="the whole pipeline on a ride: kinematics and vibration indicators"))
+define_job_kind(JobKind("calibrate_rig", ("probe", "calibrate_rig"),
+                        description="calibrate a rig once from its three calibration clips (used by its rides)"))

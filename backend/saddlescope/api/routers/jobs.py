@@ -1,42 +1,77 @@
-"""Jobs: create one (it is queued at once), read its status, progress and timings, cancel it."""
+"""Jobs: create one (it is queued at once), list them, read status, progress and timings, cancel, retry."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter, status
+from typing import Annotated, Literal
+
+from fastapi import APIRouter, Query, status
 from starlette.concurrency import run_in_threadpool
 
-from saddlescope.api.deps import QueueDep, SessionDep, SessionFactoryDep
-from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut
-from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, submit_job
+from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep
+from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, page_of
+from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
+from saddlescope.db.models import Job
+from saddlescope.db.session import session_scope
+from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, retry_job, submit_job
 from saddlescope.services.stages import JOB_KINDS
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
+JobStatusName = Literal["queued", "running", "done", "failed", "cancelled"]
+
+
+def job_out(job: Job) -> JobOut:
+    return JobOut(**job_as_dict(job))
+
+
+@router.get("", response_model=Page[JobOut], responses=ERRORS)
+def list_jobs(club: ClubDep, paging: PagingDep, ride_id: QueryId = None, rig_id: QueryId = None,
+              status_: Annotated[JobStatusName | None, Query(alias="status")] = None,
+              kind: Annotated[str | None, Query(max_length=32)] = None) -> dict:
+    """The club's jobs, newest first; filter by ride, rig, status and kind."""
+    where = [column == value for column, value in ((Job.ride_id, ride_id), (Job.rig_id, rig_id),
+                                                   (Job.status, status_), (Job.kind, kind)) if value is not None]
+    page = club.jobs.list_page(where=where, sort=paging.sort or "-id", limit=paging.limit, offset=paging.offset)
+    return page_of(page, job_out)
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=JobOut,
-             responses={404: {"model": ErrorOut}, 422: {"model": ErrorOut}, 503: {"model": ErrorOut}})
-async def create(body: JobCreate, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
+             responses={**ERRORS, 503: {"model": ErrorOut}})
+async def create(body: JobCreate, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
     """Create a job and hand it to a worker (embedded pool or Celery)."""
+    club_id = club.club_id
+    club.session.rollback()
     job_id = await run_in_threadpool(submit_job, sessions, queue, kind=body.kind, ride_id=body.ride_id,
-                                     rig_id=body.rig_id, payload=body.payload)
-    with sessions() as session:
-        return JobOut(**job_as_dict(get_job(session, job_id)))
+                                     rig_id=body.rig_id, payload=body.payload, club_id=club_id)
+    with session_scope(sessions) as session:
+        return job_out(get_job(session, job_id))
 
 
-@router.get("/kinds", response_model=list[JobKindOut])
-def kinds() -> list[JobKindOut]:
+@router.get("/kinds", response_model=list[JobKindOut], responses=ERRORS)
+def kinds(club: ClubDep) -> list[JobKindOut]:
     """The job kinds this server knows, with their stages in order."""
     return [JobKindOut(name=k.name, stages=list(k.stages), needs_ride=k.needs_ride, description=k.description)
             for k in JOB_KINDS.values()]
 
 
-@router.get("/{job_id}", response_model=JobOut, responses={404: {"model": ErrorOut}})
-def read(job_id: int, session: SessionDep) -> JobOut:
+@router.get("/{job_id}", response_model=JobOut, responses=ERRORS)
+def read(job_id: Id, club: ClubDep) -> JobOut:
     """Status, stage, progress (0-1), per-stage timings and error of a job."""
-    return JobOut(**job_as_dict(get_job(session, job_id)))
+    return job_out(get_job(club.session, job_id, club_id=club.club_id))
 
 
-@router.post("/{job_id}/cancel", response_model=JobOut, responses={404: {"model": ErrorOut}})
-def cancel(job_id: int, session: SessionDep) -> JobOut:
+@router.post("/{job_id}/cancel", response_model=JobOut, responses=ERRORS)
+def cancel(job_id: Id, club: ClubDep) -> JobOut:
     """Cancel a queued or running job (a running one stops at its next progress report)."""
-    return JobOut(**job_as_dict(cancel_job(session, job_id)))
+    return job_out(cancel_job(club.session, job_id, club_id=club.club_id))
+
+
+@router.post("/{job_id}/retry", response_model=JobOut,
+             responses={**ERRORS, 409: {"model": ErrorOut, "description": "not failed or cancelled"},
+                        503: {"model": ErrorOut}})
+async def retry(job_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
+    """Run a failed or cancelled job again (same id; the uploads were kept)."""
+    club_id = club.club_id
+    club.session.rollback()
+    await run_in_threadpool(retry_job, sessions, queue, job_id, club_id=club_id)
+    with session_scope(sessions) as session:
+        return job_out(get_job(session, job_id))

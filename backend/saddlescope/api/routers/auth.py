@@ -1,0 +1,170 @@
+"""Accounts: register a club, sign in and out (bearer token + session cookie), the caller, club users."""
+
+from __future__ import annotations
+
+import json
+
+from fastapi import APIRouter, Request, Response, status
+from pydantic import ValidationError
+from starlette.concurrency import run_in_threadpool
+
+from saddlescope.api.deps import (
+    CSRF_COOKIE,
+    SESSION_COOKIE,
+    AdminClubDep,
+    ClubDep,
+    SessionFactoryDep,
+    SettingsDep,
+)
+from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, page_of
+from saddlescope.api.schemas import (
+    ClubCreate,
+    ClubCreated,
+    ClubOut,
+    ErrorOut,
+    LoginIn,
+    MeOut,
+    Page,
+    TokenOut,
+    UserCreate,
+    UserOut,
+    UserUpdate,
+)
+from saddlescope.core.errors import InputError
+from saddlescope.db.repositories import ClubRepository
+from saddlescope.db.session import session_scope
+from saddlescope.services.accounts import (
+    Forbidden,
+    add_user,
+    authenticate,
+    create_club,
+    issue_token,
+    update_user,
+)
+
+router = APIRouter(tags=["accounts"])
+
+LOGIN_OPENAPI = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/x-www-form-urlencoded": {
+                "schema": {"type": "object", "required": ["username", "password"],
+                           "properties": {"username": {"type": "string", "description": "e-mail address"},
+                                          "password": {"type": "string", "format": "password"}}}},
+            "application/json": {"schema": LoginIn.model_json_schema()},
+        },
+    }
+}
+
+
+def registration_open(request: Request, sessions) -> bool:
+    """Embedded mode, a first club, or ``open_registration``: anyone may create a club."""
+    configured = getattr(request.app.state, "open_registration", None)
+    if configured is not None:
+        return bool(configured)
+    if request.app.state.settings.embedded:
+        return True
+    with session_scope(sessions) as session:
+        return ClubRepository(session).count() == 0
+
+
+@router.post("/clubs", status_code=status.HTTP_201_CREATED, response_model=ClubCreated,
+             responses={403: {"model": ErrorOut}, 422: {"model": ErrorOut}, **CONFLICT})
+def register_club(body: ClubCreate, request: Request, sessions: SessionFactoryDep) -> ClubCreated:
+    """Create a club and its first user, an admin.
+
+    Open in embedded mode (no broker: a laptop or a club's own small server) and for the first club
+    of a deployment; closed otherwise unless the server was started with open registration.
+    """
+    if not registration_open(request, sessions):
+        raise Forbidden("registration of new clubs is closed on this server; ask its operator")
+    with session_scope(sessions) as session:
+        club, user = create_club(session, club_name=body.club_name, email=body.email, password=body.password,
+                                 display_name=body.display_name)
+        return ClubCreated(club=ClubOut.model_validate(club), user=UserOut.model_validate(user))
+
+
+async def _credentials(request: Request) -> tuple[str, str]:
+    content_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if content_type == "application/json":
+        try:
+            body = LoginIn.model_validate(json.loads(await request.body() or b"null"))
+        except (ValueError, ValidationError) as exc:
+            raise InputError(f"sign-in needs {{\"email\", \"password\"}} ({str(exc).splitlines()[0]})") from None
+        return body.email, body.password
+    form = await request.form(max_files=0, max_fields=10)
+    username, password = form.get("username"), form.get("password")
+    if not isinstance(username, str) or not isinstance(password, str) or not username:
+        raise InputError("sign-in needs the form fields username (your e-mail address) and password")
+    if "\x00" in username or "\x00" in password:
+        raise InputError("the e-mail address or password contains a NUL character")
+    return username, password
+
+
+@router.post("/auth/login", response_model=TokenOut, openapi_extra=LOGIN_OPENAPI,
+             responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}})
+async def login(request: Request, response: Response, settings: SettingsDep, sessions: SessionFactoryDep) -> TokenOut:
+    """Sign in with e-mail and password (OAuth2 password form, or JSON).
+
+    Returns a bearer token and sets the session cookie (HttpOnly) and the CSRF cookie for the browser.
+    """
+    email, password = await _credentials(request)
+
+    def check() -> TokenOut:
+        with session_scope(sessions) as session:
+            user = authenticate(session, email, password)
+            token, csrf, lifetime_s = issue_token(user, settings)
+            return TokenOut(access_token=token, expires_in=lifetime_s, csrf_token=csrf,
+                            user=UserOut.model_validate(user))
+
+    out = await run_in_threadpool(check)  # Argon2 takes tens of ms of CPU: off the event loop
+    secure = request.url.scheme == "https"
+    response.set_cookie(SESSION_COOKIE, out.access_token, max_age=out.expires_in, httponly=True, secure=secure,
+                        samesite="lax", path="/")
+    response.set_cookie(CSRF_COOKIE, out.csrf_token, max_age=out.expires_in, httponly=False, secure=secure,
+                        samesite="lax", path="/")
+    return out
+
+
+@router.post("/auth/logout", status_code=status.HTTP_204_NO_CONTENT)
+def logout(response: Response) -> Response:
+    """Forget the browser's session (clears both cookies). A bearer token simply expires."""
+    response.delete_cookie(SESSION_COOKIE, path="/")
+    response.delete_cookie(CSRF_COOKIE, path="/")
+    response.status_code = status.HTTP_204_NO_CONTENT
+    return response
+
+
+@router.get("/auth/me", response_model=MeOut, responses=ERRORS)
+def me(club: ClubDep) -> MeOut:
+    """The signed-in user and their club."""
+    user = club.users.get(club.principal.user_id)
+    return MeOut(user=UserOut.model_validate(user), club=ClubOut.model_validate(user.club))
+
+
+@router.get("/users", response_model=Page[UserOut], responses=ERRORS)
+def list_users(club: AdminClubDep, paging: PagingDep) -> dict:
+    """The club's users (admins only)."""
+    page = club.users.list_page(sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    return page_of(page, UserOut.model_validate)
+
+
+@router.post("/users", status_code=status.HTTP_201_CREATED, response_model=UserOut, responses={**ERRORS, **CONFLICT})
+def create_user(body: UserCreate, club: AdminClubDep) -> UserOut:
+    """Add a user to the club (admins only); they sign in with this e-mail and password."""
+    user = add_user(club.session, club_id=club.club_id, email=body.email, password=body.password,
+                    display_name=body.display_name, role=body.role)
+    return UserOut.model_validate(user)
+
+
+@router.get("/users/{user_id}", response_model=UserOut, responses=ERRORS)
+def read_user(user_id: Id, club: AdminClubDep) -> UserOut:
+    return UserOut.model_validate(club.users.get(user_id))
+
+
+@router.patch("/users/{user_id}", response_model=UserOut, responses=ERRORS)
+def change_user(user_id: Id, body: UserUpdate, club: AdminClubDep) -> UserOut:
+    """Change a user's role, name or password, or deactivate them (admins only; one admin always stays)."""
+    user = update_user(club.session, club_id=club.club_id, user_id=user_id, **body.model_dump(exclude_unset=True))
+    return UserOut.model_validate(user)

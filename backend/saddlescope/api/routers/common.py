@@ -1,0 +1,56 @@
+"""Small pieces every router uses: id path parameters, paging and sorting, file responses."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated
+
+from fastapi import Depends, Path, Query
+from fastapi.responses import Response
+
+from saddlescope.api.schemas import MAX_ID, ErrorOut
+
+Id = Annotated[int, Path(ge=1, le=MAX_ID, description="the id (within your club)")]
+QueryId = Annotated[int | None, Query(ge=1, le=MAX_ID)]
+MAX_OFFSET = 10_000_000
+
+# Responses every club route may give, for the OpenAPI.
+ERRORS = {401: {"model": ErrorOut, "description": "not signed in"},
+          403: {"model": ErrorOut, "description": "not allowed (role, CSRF)"},
+          404: {"model": ErrorOut, "description": "no such thing in your club"},
+          422: {"model": ErrorOut, "description": "invalid input, with the reason"}}
+CONFLICT = {409: {"model": ErrorOut, "description": "conflicts with existing data"}}
+
+
+@dataclass(frozen=True)
+class Paging:
+    limit: int
+    offset: int
+    sort: str | None
+
+
+def _paging(limit: Annotated[int, Query(ge=1, le=500, description="rows per page")] = 50,
+            offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description="rows to skip")] = 0,
+            sort: Annotated[str | None, Query(max_length=40, pattern=r"^-?[a-z0-9_]+$",
+                                              description="field to sort by; '-field' for descending")] = None,
+            ) -> Paging:
+    return Paging(limit, offset, sort)
+
+
+PagingDep = Annotated[Paging, Depends(_paging)]
+
+
+def page_of(page, convert) -> dict:
+    """A repository `Page` as the JSON list envelope."""
+    return {"items": [convert(row) for row in page.items], "total": page.total, "limit": page.limit,
+            "offset": page.offset}
+
+
+def download(data: bytes, filename: str, media_type: str) -> Response:
+    return Response(data, media_type=media_type,
+                    headers={"Content-Disposition": f'attachment; filename="{filename}"'})
+
+
+def changes(body, *, nullable: tuple[str, ...] = ()) -> dict:
+    """The fields a PATCH body sets; an explicit null clears only the fields in `nullable`."""
+    return {k: v for k, v in body.model_dump(exclude_unset=True).items() if v is not None or k in nullable}

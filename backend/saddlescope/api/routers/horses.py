@@ -1,0 +1,58 @@
+"""Horses of the club, and one horse's indicators across gaits."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Response, status
+
+from saddlescope.api.deps import AdminClubDep, ClubDep
+from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
+from saddlescope.api.schemas import HorseComparisonOut, HorseIn, HorseOut, HorseUpdate, Page
+from saddlescope.db.models import Horse
+from saddlescope.db.repositories import like_pattern
+from saddlescope.services.analytics import horse_comparison
+
+router = APIRouter(prefix="/horses", tags=["horses"])
+
+
+@router.get("", response_model=Page[HorseOut], responses=ERRORS)
+def list_horses(club: ClubDep, paging: PagingDep,
+                q: Annotated[str | None, Query(max_length=200, description="name contains")] = None) -> dict:
+    """The club's horses; sort by name (default), breed, birth_year, height_withers_m, created_at, id."""
+    where = [Horse.name.ilike(like_pattern(q), escape="\\")] if q else []
+    page = club.horses.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    return page_of(page, HorseOut.model_validate)
+
+
+@router.post("", status_code=status.HTTP_201_CREATED, response_model=HorseOut, responses={**ERRORS, **CONFLICT})
+def create_horse(body: HorseIn, club: ClubDep) -> HorseOut:
+    return HorseOut.model_validate(club.horses.add(**body.model_dump()))
+
+
+@router.get("/{horse_id}", response_model=HorseOut, responses=ERRORS)
+def read_horse(horse_id: Id, club: ClubDep) -> HorseOut:
+    return HorseOut.model_validate(club.horses.get(horse_id))
+
+
+@router.patch("/{horse_id}", response_model=HorseOut, responses={**ERRORS, **CONFLICT})
+def update_horse(horse_id: Id, body: HorseUpdate, club: ClubDep) -> HorseOut:
+    values = changes(body, nullable=("breed", "birth_year", "height_withers_m"))
+    return HorseOut.model_validate(club.horses.update_fields(horse_id, **values))
+
+
+@router.delete("/{horse_id}", status_code=status.HTTP_204_NO_CONTENT, responses={**ERRORS, **CONFLICT})
+def delete_horse(horse_id: Id, club: AdminClubDep) -> Response:
+    """Delete a horse without rides (admins only; 409 while rides use it)."""
+    club.horses.delete(horse_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.get("/{horse_id}/comparison", response_model=HorseComparisonOut, responses=ERRORS)
+def compare_gaits(horse_id: Id, club: ClubDep,
+                  indicator: Annotated[list[str] | None, Query(max_length=64,
+                                                               description="indicator keys (repeat); default "
+                                                                           "the eight comfort indicators")] = None,
+                  ) -> dict:
+    """One horse's indicators across gaits (thesis Figs 8.29-8.32): n, mean, std, min, max per gait."""
+    return horse_comparison(club.session, horse_id, club_id=club.club_id, indicators=indicator)

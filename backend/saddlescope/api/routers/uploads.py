@@ -1,0 +1,101 @@
+"""Resumable uploads (tus-like) for large phone videos: create, send chunks at offsets, resume, finalise."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Header, Path, Request, Response, status
+from starlette.concurrency import run_in_threadpool
+
+from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
+from saddlescope.api.routers.common import ERRORS
+from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
+from saddlescope.api.streaming import stream_chunk
+from saddlescope.db.models import UploadStatus
+from saddlescope.services.uploads import IncompleteUpload, create_upload, finalise_upload
+from saddlescope.storage import upload_key
+
+router = APIRouter(prefix="/uploads", tags=["uploads"])
+UploadId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="the upload's id")]
+CHUNK_OPENAPI = {"requestBody": {"required": True, "content": {
+    "application/offset+octet-stream": {"schema": {"type": "string", "format": "binary"}}}}}
+
+
+class OffsetMismatch(IncompleteUpload):
+    """A chunk's Upload-Offset is not where the upload stands (HTTP 409)."""
+
+
+def _headers(upload) -> dict[str, str]:
+    return {"Upload-Offset": str(upload.offset_bytes), "Upload-Length": str(upload.length_bytes),
+            "Cache-Control": "no-store"}
+
+
+@router.post("", status_code=status.HTTP_201_CREATED, response_model=UploadOut,
+             responses={**ERRORS, 413: {"model": ErrorOut}})
+def create(body: UploadCreate, club: ClubDep, settings: SettingsDep, response: Response) -> UploadOut:
+    """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then PATCH its bytes."""
+    upload = create_upload(club.session, club_id=club.club_id, user_id=club.principal.user_id, target=body.target,
+                           length_bytes=body.length_bytes, max_bytes=settings.max_upload_bytes,
+                           ride_id=body.ride_id, rig_id=body.rig_id, clip_kind=body.clip_kind, camera=body.camera,
+                           filename=body.filename)
+    response.headers["Location"] = f"/api/uploads/{upload.id}"
+    response.headers.update(_headers(upload))
+    return UploadOut.model_validate(upload)
+
+
+@router.get("/{upload_id}", response_model=UploadOut, responses=ERRORS)
+def read(upload_id: UploadId, club: ClubDep, response: Response) -> UploadOut:
+    """The upload's state; `offset_bytes` is where to resume."""
+    upload = club.uploads.get(upload_id)
+    response.headers.update(_headers(upload))
+    return UploadOut.model_validate(upload)
+
+
+@router.head("/{upload_id}", status_code=status.HTTP_200_OK, responses=ERRORS)
+def offset(upload_id: UploadId, club: ClubDep) -> Response:
+    """The offset to resume from, in the `Upload-Offset` header (and the total in `Upload-Length`)."""
+    return Response(status_code=status.HTTP_200_OK, headers=_headers(club.uploads.get(upload_id)))
+
+
+@router.patch("/{upload_id}", status_code=status.HTTP_204_NO_CONTENT, openapi_extra=CHUNK_OPENAPI,
+              responses={**ERRORS, 409: {"model": ErrorOut, "description": "wrong offset, or not open"},
+                         413: {"model": ErrorOut}})
+async def append(upload_id: UploadId, request: Request, club: ClubDep, storage: StorageDep,
+                 upload_offset: Annotated[int, Header(alias="Upload-Offset", ge=0, le=2**62)]) -> Response:
+    """Send the next chunk (the raw body) starting at byte `Upload-Offset`, which must equal the upload's
+    current offset (409 with the right one otherwise). Answers 204 with the new `Upload-Offset`."""
+    upload = await run_in_threadpool(club.uploads.get, upload_id)
+    if upload.status != UploadStatus.OPEN.value:
+        raise OffsetMismatch(f"upload {upload_id} is {upload.status}; it takes no more bytes")
+    if upload_offset != upload.offset_bytes:
+        raise OffsetMismatch(f"Upload-Offset {upload_offset} does not match the upload's offset "
+                             f"{upload.offset_bytes}; resume from {upload.offset_bytes}")
+    start, length = upload.offset_bytes, upload.length_bytes
+    club.session.rollback()  # no transaction open while the bytes arrive
+    end = await stream_chunk(request, storage, upload_key(upload_id), offset=start, limit=length)
+    moved = await run_in_threadpool(club.uploads.advance, upload_id, from_offset=start, to_offset=end)
+    if not moved:
+        raise OffsetMismatch(f"upload {upload_id} moved on meanwhile (another request sent bytes); ask for its offset")
+    await run_in_threadpool(club.session.commit)
+    return Response(status_code=status.HTTP_204_NO_CONTENT,
+                    headers={"Upload-Offset": str(end), "Upload-Length": str(length)})
+
+
+@router.post("/{upload_id}/finalize", responses={**ERRORS, 409: {"model": ErrorOut}, 503: {"model": ErrorOut}})
+async def finalize(upload_id: UploadId, club: ClubDep, storage: StorageDep, sessions: SessionFactoryDep,
+                   queue: QueueDep) -> dict:
+    """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle); starts the
+    processing the new clips allow. Returns ``{"recording_id", "job_id"}`` or ``{"ride_id", "job_id"}``."""
+    club_id = club.club_id
+    club.session.rollback()
+    return await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id)
+
+
+@router.delete("/{upload_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
+def abandon(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> Response:
+    """Abandon an upload and delete its bytes."""
+    club.uploads.delete(upload_id)
+    club.session.commit()
+    storage.delete(upload_key(upload_id))
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+

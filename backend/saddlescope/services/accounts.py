@@ -1,0 +1,183 @@
+"""Clubs, users, passwords and access tokens (no web framework here).
+
+Passwords are hashed with Argon2id (argon2-cffi's defaults). An access token is a JWT (HS256, signed
+with ``SADDLESCOPE_SECRET_KEY``) naming the user, their club and role, and carrying a random CSRF
+token: the browser gets the same token as an HttpOnly session cookie and must echo the CSRF token in a
+header on unsafe requests (`saddlescope.api.deps`).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+import secrets
+from dataclasses import dataclass
+
+import jwt
+from argon2 import PasswordHasher
+from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
+from sqlalchemy.orm import Session
+
+from saddlescope.core.errors import InputError, SaddleScopeError
+from saddlescope.db.models import Club, Role, User
+from saddlescope.db.repositories import ClubRepository, UserRepository
+from saddlescope.settings import Settings
+
+TOKEN_ALGORITHM = "HS256"
+TOKEN_AUDIENCE = "saddlescope"
+MIN_PASSWORD_LENGTH = 8
+_EMAIL = re.compile(r"^[^@\s]+@[^@\s]+\.[^@\s]+$")
+_hasher = PasswordHasher()
+# Verifying against this when the e-mail is unknown keeps sign-in time the same either way.
+_DUMMY_HASH = _hasher.hash("not-a-real-password")
+
+
+class AuthError(SaddleScopeError):
+    """Sign-in failed or a token is missing, expired or forged (HTTP 401)."""
+
+
+class Forbidden(SaddleScopeError):
+    """Signed in, but the role does not allow this (HTTP 403)."""
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who is calling: the signed-in user, their club and role (from a verified token)."""
+
+    user_id: int
+    club_id: int
+    role: str
+    csrf: str
+
+    @property
+    def is_admin(self) -> bool:
+        return self.role == Role.ADMIN.value
+
+
+def hash_password(password: str) -> str:
+    return _hasher.hash(password)
+
+
+def verify_password(password_hash: str, password: str) -> bool:
+    try:
+        return _hasher.verify(password_hash, password)
+    except (VerifyMismatchError, VerificationError, InvalidHashError):
+        return False
+
+
+def check_email(email: str) -> str:
+    email = email.strip().lower()
+    if not _EMAIL.match(email) or len(email) > 320:
+        raise InputError(f"{email!r} is not an e-mail address")
+    return email
+
+
+def check_password(password: str) -> str:
+    if len(password) < MIN_PASSWORD_LENGTH:
+        raise InputError(f"the password must have at least {MIN_PASSWORD_LENGTH} characters")
+    if len(password) > 1024:
+        raise InputError("the password is longer than 1024 characters")
+    return password
+
+
+def create_club(session: Session, *, club_name: str, email: str, password: str,
+                display_name: str = "") -> tuple[Club, User]:
+    """A new club and its first user, an admin (not committed)."""
+    club_name = club_name.strip()
+    if not club_name:
+        raise InputError("the club needs a name")
+    club = ClubRepository(session).add(club_name)
+    user = UserRepository(session, club_id=club.id).add(
+        email=check_email(email), password_hash=hash_password(check_password(password)),
+        display_name=display_name.strip(), role=Role.ADMIN.value)
+    return club, user
+
+
+def add_user(session: Session, *, club_id: int, email: str, password: str, display_name: str = "",
+             role: str = Role.MEMBER.value) -> User:
+    """A new user of the club (admins call this through the API)."""
+    if role not in {r.value for r in Role}:
+        raise InputError(f"role must be one of {', '.join(r.value for r in Role)}, got {role!r}")
+    return UserRepository(session, club_id=club_id).add(
+        email=check_email(email), password_hash=hash_password(check_password(password)),
+        display_name=display_name.strip(), role=role)
+
+
+def authenticate(session: Session, email: str, password: str) -> User:
+    """The active user with this e-mail and password; `AuthError` (one message for every failure)."""
+    user = UserRepository(session).by_email(email or "")
+    if user is None:
+        verify_password(_DUMMY_HASH, password or "")
+        raise AuthError("wrong e-mail address or password")
+    if not verify_password(user.password_hash, password or "") or not user.is_active:
+        raise AuthError("wrong e-mail address or password")
+    if _hasher.check_needs_rehash(user.password_hash):
+        user.password_hash = hash_password(password)
+    return user
+
+
+def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = None) -> tuple[str, str, int]:
+    """(token, csrf token, lifetime in s) for a signed-in user."""
+    now = now or dt.datetime.now(dt.UTC)
+    csrf = secrets.token_urlsafe(24)
+    lifetime_s = settings.token_lifetime_s
+    claims = {"sub": str(user.id), "club": user.club_id, "role": user.role, "csrf": csrf, "aud": TOKEN_AUDIENCE,
+              "iat": now, "exp": now + dt.timedelta(seconds=lifetime_s)}
+    token = jwt.encode(claims, settings.secret_key.get_secret_value(), algorithm=TOKEN_ALGORITHM)
+    return token, csrf, lifetime_s
+
+
+def read_token(token: str, settings: Settings) -> Principal:
+    """Verify a token's signature and expiry; `AuthError` saying why it is refused."""
+    try:
+        claims = jwt.decode(token, settings.secret_key.get_secret_value(), algorithms=[TOKEN_ALGORITHM],
+                            audience=TOKEN_AUDIENCE, options={"require": ["exp", "sub", "club", "csrf"]})
+    except jwt.ExpiredSignatureError:
+        raise AuthError("the sign-in has expired; sign in again") from None
+    except jwt.InvalidTokenError:
+        raise AuthError("invalid access token; sign in again") from None
+    try:
+        return Principal(user_id=int(claims["sub"]), club_id=int(claims["club"]), role=str(claims["role"]),
+                         csrf=str(claims["csrf"]))
+    except (KeyError, TypeError, ValueError):
+        raise AuthError("invalid access token; sign in again") from None
+
+
+def current_principal(session: Session, principal: Principal) -> Principal:
+    """The principal re-checked against the database: the user still exists, is active, same club.
+
+    The role is read afresh, so demoting an admin takes effect at once, not when the token expires.
+    """
+    user = session.get(User, principal.user_id)
+    if user is None or not user.is_active or user.club_id != principal.club_id:
+        raise AuthError("this account no longer exists or was deactivated; sign in again")
+    return Principal(user.id, user.club_id, user.role, principal.csrf)
+
+
+def require_admin(principal: Principal) -> None:
+    if not principal.is_admin:
+        raise Forbidden("only a club admin may do this")
+
+
+def update_user(session: Session, *, club_id: int, user_id: int, role: str | None = None,
+                is_active: bool | None = None, password: str | None = None,
+                display_name: str | None = None) -> User:
+    """Change a user of the club; the club always keeps at least one active admin."""
+    users = UserRepository(session, club_id=club_id)
+    user = users.get(user_id)
+    if role is not None and role not in {r.value for r in Role}:
+        raise InputError(f"role must be one of {', '.join(r.value for r in Role)}, got {role!r}")
+    losing_admin = user.role == Role.ADMIN.value and user.is_active and (
+        (role is not None and role != Role.ADMIN.value) or is_active is False)
+    if losing_admin and users.count_admins() <= 1:
+        raise InputError("the club must keep at least one active admin")
+    if role is not None:
+        user.role = role
+    if is_active is not None:
+        user.is_active = is_active
+    if password is not None:
+        user.password_hash = hash_password(check_password(password))
+    if display_name is not None:
+        user.display_name = display_name.strip()
+    session.flush()
+    return user

@@ -1,0 +1,112 @@
+"""Use cases of comparisons: a horse across gaits, horses within a gait, the club leaderboard, and the
+riders' grades against the indicators. The statistics are `saddlescope.core.indicators`'; this module
+only fetches the club's rows (`AnalyticsRepository`) and names the horses by id as well."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+from sqlalchemy.orm import Session
+
+from saddlescope.core.errors import InputError
+from saddlescope.core.indicators import (
+    COMFORT_INDICATORS,
+    GAITS,
+    INDICATORS,
+    compare_gaits,
+    compare_horses,
+    grades_vs_indicators,
+    indicator_unit,
+    leaderboard,
+)
+from saddlescope.db.repositories import AnalyticsRepository, GradeRepository, HorseRepository
+
+
+def check_indicator(indicator: str) -> str:
+    if indicator not in INDICATORS:
+        raise InputError(f"unknown indicator {indicator!r}; GET /api/indicators lists them")
+    return indicator
+
+
+def check_gait(gait: str) -> str:
+    if gait not in GAITS:
+        raise InputError(f"unknown gait {gait!r}; the gaits are {', '.join(GAITS)}")
+    return gait
+
+
+def _finite(value: float) -> float | None:
+    return value if isinstance(value, int | float) and math.isfinite(value) else None
+
+
+def _clean(stats: dict[str, Any]) -> dict[str, Any]:
+    """NaN (a standard deviation of one ride) and infinities become None in JSON."""
+    return {k: (_finite(v) if isinstance(v, float) else v) for k, v in stats.items()}
+
+
+def horse_comparison(session: Session, horse_id: int, *, club_id: int,
+                     indicators: Sequence[str] | None = None) -> dict[str, Any]:
+    """One horse across gaits (thesis Figs 8.29-8.32): per indicator, per gait n, mean, std, min, max."""
+    horse = HorseRepository(session, club_id=club_id).get(horse_id)
+    indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(horse_ids=[horse_id])
+    return {"horse_id": horse.id, "horse": horse.name, "rides": len(rows),
+            "indicators": {ind: {"unit": indicator_unit(ind),
+                                 "gaits": [_clean(g) for g in compare_gaits(rows, ind, horse=horse.name)]}
+                           for ind in indicators}}
+
+
+def horses_comparison(session: Session, *, club_id: int, gait: str, horse_ids: Sequence[int] | None = None,
+                      indicators: Sequence[str] | None = None) -> dict[str, Any]:
+    """Horses within one gait (thesis 8.5.2): per indicator, per horse n, mean, std, min, max."""
+    check_gait(gait)
+    indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
+    analytics = AnalyticsRepository(session, club_id=club_id)
+    if horse_ids:
+        names = analytics.horse_names(horse_ids)
+        unknown = sorted(set(horse_ids) - set(names))
+        if unknown:
+            raise InputError(f"no horse {', '.join(map(str, unknown))} in this club")
+    rows = analytics.indicator_rows(gait=gait, horse_ids=horse_ids or None)
+    ids = {row["horse"]: row["horse_id"] for row in rows}
+    return {"gait": gait, "rides": len(rows),
+            "indicators": {ind: {"unit": indicator_unit(ind),
+                                 "horses": [{"horse_id": ids.get(g["group"]), **_clean(g)}
+                                            for g in compare_horses(rows, ind, gait=gait)]}
+                           for ind in indicators}}
+
+
+def club_leaderboard(session: Session, *, club_id: int, gait: str, indicator: str,
+                     lower_is_better: bool | None = None) -> dict[str, Any]:
+    """The club's horses ranked in one gait by one indicator, most comfortable first.
+
+    Each entry: rank, horse id and name, ``n`` (rides behind it), mean, std, min, max and spread.
+    Only the indicator's column is read (indexed for the usual ones), so it stays fast over many rides.
+    """
+    check_gait(gait)
+    check_indicator(indicator)
+    if lower_is_better is None and INDICATORS[indicator].better is None:
+        raise InputError(f"{indicator!r} has no comfort direction; pass lower_is_better=true or false")
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(indicator, gait=gait)
+    ids = {row["horse"]: row["horse_id"] for row in rows}
+    ranking = leaderboard(rows, indicator, gait=gait, lower_is_better=lower_is_better)
+    lower = lower_is_better if lower_is_better is not None else INDICATORS[indicator].better == "lower"
+    return {"gait": gait, "indicator": indicator, "unit": indicator_unit(indicator),
+            "better": "lower" if lower else "higher", "rides": sum(r["n"] for r in ranking),
+            "entries": [{"horse_id": ids.get(r["horse"]), **_clean(r)} for r in ranking]}
+
+
+def grade_correlation_report(session: Session, *, club_id: int, gait: str | None = None,
+                             indicators: Sequence[str] | None = None) -> dict[str, Any]:
+    """The riders' average grades per horse and gait against the mean indicators (thesis Figs 8.33-8.36)."""
+    if gait is not None:
+        check_gait(gait)
+    indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
+    grade_rows = GradeRepository(session, club_id=club_id).grade_rows(gait=gait)
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait)
+    report = grades_vs_indicators(grade_rows, rows, indicators, gait=gait)
+    return {"gait": gait, "grades": len(grade_rows),
+            "indicators": {ind: {**_clean({k: v for k, v in r.items() if k != "points"}),
+                                 "unit": indicator_unit(ind), "points": r["points"]}
+                           for ind, r in report.items()}}

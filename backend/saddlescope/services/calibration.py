@@ -1,0 +1,79 @@
+"""Use case: calibrate a rig once from its three calibration clips, for every ride of that rig.
+
+The same code the pipeline runs inside `analyze_bundle` when a ride brings its own calibration clips
+(`saddlescope.core.pipeline.synchronise` and `calibrate_from_clips`), so a ride analysed with the
+rig's stored calibration gets the same numbers as `saddlescope analyze` on a bundle holding those
+calibration clips.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from saddlescope.core.errors import CalibrationError
+from saddlescope.core.pipeline import (
+    PipelineParams,
+    board_from_meta,
+    calibrate_from_clips,
+    rig_to_result,
+    synchronise,
+)
+from saddlescope.core.types import CAMERA_ROLES, Rig
+from saddlescope.io.calibration_files import rig_from_dict
+from saddlescope.io.clip_source import BundleClips
+
+
+def calibrate_clips(paths: Mapping[str, Path], *, board: Mapping[str, Any], sync: Mapping[str, Any] | None = None,
+                    params: PipelineParams | None = None,
+                    on_progress: Callable[[float, str], None] | None = None) -> dict[str, Any]:
+    """Calibrate three cameras from their calibration clips.
+
+    Parameters
+    ----------
+    paths : dict camera role -> Path
+        The calibration clip of each camera (left, middle, right).
+    board : dict
+        ride.json's ``board`` section (kind, inner_corners, square_mm, ...).
+    sync : dict, optional
+        ride.json's ``sync`` section (default: the flash).
+
+    Returns
+    -------
+    dict
+        The result's ``calibration`` object (CONTRACTS section 2) plus ``n_views`` per camera.
+
+    Raises
+    ------
+    CalibrationError
+        A camera's clip is missing, or the board was not seen often enough.
+    """
+    missing = [role for role in CAMERA_ROLES if role not in paths]
+    if missing:
+        raise CalibrationError(f"no calibration clip of the {', '.join(missing)} camera")
+    meta = {"board": dict(board), "sync": dict(sync or {"method": "flash"})}
+    clips = BundleClips({"calibration": {role: Path(paths[role]) for role in CAMERA_ROLES}})
+    if on_progress is not None:
+        on_progress(0.0, "sync")
+    offsets, first_frame = synchronise(clips, meta, ["calibration"])
+    if on_progress is not None:
+        on_progress(0.2, "board views")
+    rig, report = calibrate_from_clips(clips, board_from_meta(meta), offsets["calibration"],
+                                       first_frame["calibration"], params or PipelineParams())
+    calibration = rig_to_result(rig)
+    calibration["n_views"] = report.get("n_views")
+    calibration["sync"] = {"calibration": {c: float(v) for c, v in offsets["calibration"].items()}}
+    return calibration
+
+
+def rig_from_calibration(calibration: Mapping[str, Any]) -> Rig:
+    """The `Rig` of a stored ``calibration`` object (as `calibrate_clips` returns)."""
+    return rig_from_dict(calibration)
+
+
+def calibration_quality(calibration: Mapping[str, Any]) -> dict[str, Any]:
+    """The figures a user checks first: flags, metric checks and each camera's r.m.s. error."""
+    return {"flags": list(calibration.get("flags") or []), "checks": dict(calibration.get("checks") or {}),
+            "rms_px": {name: cam.get("rms_px") for name, cam in (calibration.get("cameras") or {}).items()},
+            "ok": not calibration.get("flags")}

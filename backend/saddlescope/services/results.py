@@ -1,0 +1,159 @@
+"""Use cases of results: a ride's indicators and plotted series, and its exports (JSON, CSV, xlsx, C3D, TRC)."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from saddlescope.core.errors import InputError
+from saddlescope.core.indicators import indicator_unit
+from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideRepository
+from saddlescope.storage import Storage
+
+EXPORT_FORMATS = {
+    "json": "application/json",
+    "csv": "text/csv; charset=utf-8",
+    "xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
+    "c3d": "application/octet-stream",
+    "trc": "text/plain; charset=utf-8",
+}
+TABLE_FORMATS = ("csv", "xlsx")
+SERIES = (("t_s", "saddle", "t_s"), ("position_m", "saddle", "position_m"),
+          ("velocity_m_s", "saddle", "velocity_m_s"), ("acceleration_m_s2", "saddle", "acceleration_m_s2"),
+          ("omega_rad_s", "angular", "omega_rad_s"), ("alpha_rad_s2", "angular", "alpha_rad_s2"))
+MARKER_LABELS = ("M1", "M2", "M3")
+SADDLE_LABEL = "S"
+
+
+def result_document(session: Session, storage: Storage, ride_id: int, *, club_id: int) -> dict[str, Any]:
+    """The full stored result document (CONTRACTS section 2) of an analysed ride of the club."""
+    RideRepository(session, club_id=club_id).get(ride_id)
+    result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
+    if result is None or result.result_key is None or not storage.exists(result.result_key):
+        raise NotFound(f"ride {ride_id} has no result yet (it has not been analysed)")
+    return json.loads(storage.read_bytes(result.result_key))
+
+
+def decimate(values: list, step: int) -> list:
+    return values[::step] if step > 1 else values
+
+
+def result_view(session: Session, storage: Storage, ride_id: int, *, club_id: int,
+                max_points: int = 2000) -> dict[str, Any]:
+    """What the dashboard shows of a ride: indicators with units, quality flags, decimated series.
+
+    Series are taken every ``step``-th sample so that none has more than `max_points` samples
+    (``decimation.step``; the indicators are always computed from the full series).
+    """
+    if max_points < 10:
+        raise InputError(f"max_points must be at least 10, got {max_points}")
+    doc = result_document(session, storage, ride_id, club_id=club_id)
+    result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
+    n = len((doc.get("saddle") or {}).get("t_s") or [])
+    step = max(1, math.ceil(n / max_points))
+    series = {name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES}
+    markers = doc.get("markers") or {}
+    if markers.get("position_m"):
+        series["markers_position_m"] = decimate(markers["position_m"], step)
+    indicators = dict(doc.get("indicators") or {})
+    calibration = doc.get("calibration") or {}
+    return {
+        "ride_id": ride_id,
+        "job_id": result.job_id if result is not None else None,
+        "code_version": result.code_version if result is not None else None,
+        "created_at": result.created_at if result is not None else None,
+        "fps": doc.get("fps"),
+        "period_s": doc.get("period_s"),
+        "window": doc.get("window"),
+        "indicators": indicators,
+        "units": {key: indicator_unit(key) for key in indicators},
+        "quality": doc.get("quality") or {},
+        "calibration_checks": calibration.get("checks") or {},
+        "calibration_flags": calibration.get("flags") or [],
+        "series": series,
+        "decimation": {"step": step, "samples": n, "max_points": max_points},
+    }
+
+
+def _ride_rows(session: Session, ride_ids: list[int] | None, *, club_id: int, where=()) -> list[dict[str, Any]]:
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(where=where)
+    if ride_ids is not None:
+        wanted = set(ride_ids)
+        rows = [r for r in rows if r["ride_id"] in wanted]
+    for row in rows:
+        row.pop("horse_id", None)
+    return rows
+
+
+def indicator_table_bytes(rows: list[dict[str, Any]], fmt: str) -> bytes:
+    """Indicators of rides as CSV or xlsx bytes (`saddlescope.io.export`)."""
+    from saddlescope.io.export import indicators_to_csv, indicators_to_xlsx
+
+    buffer = io.BytesIO()
+    if fmt == "csv":
+        indicators_to_csv(rows, buffer)
+    elif fmt == "xlsx":
+        indicators_to_xlsx(rows, buffer)
+    else:
+        raise InputError(f"indicator tables are exported as {' or '.join(TABLE_FORMATS)}, not {fmt!r}")
+    return buffer.getvalue()
+
+
+def tracks_mm(doc: dict[str, Any]) -> tuple[tuple[str, ...], np.ndarray, float]:
+    """(labels, points of shape (F, M, 3) in mm, rate in Hz): the markers and the saddle point S."""
+    saddle = doc.get("saddle") or {}
+    position = saddle.get("position_m") or []
+    if not position:
+        raise NotFound("the result holds no saddle track to export")
+    saddle_mm = np.asarray(position, dtype=np.float64).reshape(-1, 3) * 1e3
+    labels: list[str] = []
+    parts = []
+    markers = (doc.get("markers") or {}).get("position_m")
+    if markers:
+        m = np.asarray(markers, dtype=np.float64) * 1e3  # (F, 3 markers, 3)
+        if m.ndim == 3 and m.shape[0] == saddle_mm.shape[0] and m.shape[2] == 3:
+            names = (doc.get("markers") or {}).get("names") or MARKER_LABELS
+            labels += [str(n) for n in names][: m.shape[1]]
+            parts.append(m)
+    labels.append(SADDLE_LABEL)
+    parts.append(saddle_mm[:, None, :])
+    rate = float(doc.get("fps") or 0.0)
+    if not rate > 0:
+        raise InputError("the result has no frame rate; cannot export tracks")
+    return tuple(labels), np.concatenate(parts, axis=1), rate
+
+
+def export_ride(session: Session, storage: Storage, ride_id: int, fmt: str, *, club_id: int) -> tuple[bytes, str]:
+    """A ride's export as (bytes, file name)."""
+    if fmt not in EXPORT_FORMATS:
+        raise InputError(f"unknown export format {fmt!r}; choose one of {', '.join(EXPORT_FORMATS)}")
+    doc = result_document(session, storage, ride_id, club_id=club_id)
+    stem = f"ride-{ride_id}"
+    if fmt == "json":
+        return json.dumps(doc, indent=1, allow_nan=False).encode(), f"{stem}-result.json"
+    if fmt in TABLE_FORMATS:
+        return indicator_table_bytes(_ride_rows(session, [ride_id], club_id=club_id), fmt), f"{stem}-indicators.{fmt}"
+    from saddlescope.io.mocap import write_c3d, write_trc
+
+    labels, points_mm, rate = tracks_mm(doc)
+    with tempfile.TemporaryDirectory(prefix="saddlescope-export-") as tmp:
+        path = Path(tmp) / f"{stem}.{fmt}"
+        if fmt == "c3d":
+            write_c3d(path, labels, points_mm, rate)
+        else:
+            write_trc(path, labels, points_mm, rate, units="mm")
+        return path.read_bytes(), f"{stem}-tracks.{fmt}"
+
+
+def export_rides(session: Session, fmt: str, *, club_id: int, where=()) -> tuple[bytes, str]:
+    """Indicators of the club's analysed rides (matching the ride list filters) as CSV or xlsx."""
+    if fmt not in TABLE_FORMATS:
+        raise InputError(f"indicator tables are exported as {' or '.join(TABLE_FORMATS)}, not {fmt!r}")
+    return indicator_table_bytes(_ride_rows(session, None, club_id=club_id, where=where), fmt), f"rides.{fmt}"

@@ -1,0 +1,273 @@
+"""Use cases of uploads: accept a clip (probe it, check it agrees with its set), a ride bundle, or a
+resumable upload; then start whatever processing the new clip makes possible.
+
+The bytes arrive elsewhere (the API streams them into storage with `Storage.writer`); these functions
+take the *staged* storage key of a complete file. A refused file is deleted and leaves every earlier
+clip, recording and ride as it was.
+"""
+
+from __future__ import annotations
+
+import re
+import secrets
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from saddlescope.core.errors import InputError, VideoError
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
+from saddlescope.db.models import Recording, RideStatus, UploadStatus, UploadTarget
+from saddlescope.db.repositories import (
+    JobRepository,
+    RecordingRepository,
+    RideRepository,
+    RigRepository,
+    UploadRepository,
+)
+from saddlescope.db.session import session_scope
+from saddlescope.jobs import JobQueue
+from saddlescope.services.job_service import submit_job
+from saddlescope.services.rides import register_bundle
+from saddlescope.services.stages import ride_clip_plan
+from saddlescope.storage import Storage, TooLarge, upload_key
+
+RIG_CLIP_KINDS = ("calibration", "plumb", "static")
+RIDE_CLIP_KINDS = CLIP_KINDS
+# Frame rates of one clip set may differ by rounding in the container (29.97 written as 30000/1001 ...).
+FPS_TOLERANCE = 0.005
+_SUFFIX = re.compile(r"^\.[a-z0-9]{1,8}$")
+
+
+@dataclass(frozen=True)
+class ClipOwner:
+    """A ride or a rig of a club, whose clip `clip_kind` of camera `camera` is being uploaded."""
+
+    kind: str  # "ride" or "rig"
+    id: int
+    club_id: int
+
+    @property
+    def label(self) -> str:
+        return f"{self.kind} {self.id}"
+
+    def where(self) -> dict[str, int | None]:
+        return {"ride_id": self.id, "rig_id": None} if self.kind == "ride" else {"ride_id": None, "rig_id": self.id}
+
+
+def staging_key(club_id: int, filename: str | None = None) -> str:
+    """A fresh storage key for bytes still to be checked (``incoming/<club>/<random><suffix>``)."""
+    return f"incoming/{club_id}/{secrets.token_hex(12)}{clip_suffix(filename)}"
+
+
+def clip_suffix(filename: str | None, default: str = "") -> str:
+    """The lower-case suffix of an uploaded file's name, when it is a plain one (".mp4"), else `default`."""
+    if not filename:
+        return default
+    suffix = "." + filename.rsplit(".", 1)[-1].lower() if "." in filename else ""
+    return suffix if _SUFFIX.match(suffix) else default
+
+
+def check_clip_slot(owner: ClipOwner, clip_kind: str, camera: str) -> None:
+    """The clip kind and camera name must be ones this owner can have."""
+    kinds = RIDE_CLIP_KINDS if owner.kind == "ride" else RIG_CLIP_KINDS
+    if clip_kind not in kinds:
+        raise InputError(f"a {owner.kind} has no {clip_kind!r} clips; it takes {', '.join(kinds)}")
+    if camera not in CAMERA_ROLES:
+        raise InputError(f"unknown camera {camera!r}; the cameras are {', '.join(CAMERA_ROLES)}")
+
+
+def find_owner(session: Session, *, club_id: int, ride_id: int | None = None, rig_id: int | None = None
+               ) -> ClipOwner:
+    """The ride or rig (of this club: `NotFound` otherwise)."""
+    if (ride_id is None) == (rig_id is None):
+        raise InputError("name exactly one of ride_id and rig_id")
+    if ride_id is not None:
+        RideRepository(session, club_id=club_id).get(ride_id)
+        return ClipOwner("ride", ride_id, club_id)
+    RigRepository(session, club_id=club_id).get(rig_id)
+    return ClipOwner("rig", rig_id, club_id)
+
+
+def _agreement(owner: ClipOwner, clip_kind: str, camera: str, info, others: list[Recording]) -> None:
+    """The cameras of one clip set must share frame rate and frame size (one synchronised recording)."""
+    for other in others:
+        if other.camera_role == camera or other.fps is None:
+            continue
+        what = f"{owner.label}: the {clip_kind} clip of the {camera} camera"
+        if abs(info.fps - other.fps) > FPS_TOLERANCE * other.fps:
+            raise VideoError(f"{what} runs at {info.fps:.3f} fps but the {other.camera_role} camera's at "
+                             f"{other.fps:.3f} fps; the three cameras of a clip set must use the same frame rate")
+        if (info.width, info.height) != (other.width, other.height):
+            raise VideoError(f"{what} is {info.width}x{info.height} px but the {other.camera_role} camera's is "
+                             f"{other.width}x{other.height} px; the three cameras must record the same size")
+
+
+def accept_clip(sessions: sessionmaker[Session], storage: Storage, owner: ClipOwner, clip_kind: str, camera: str,
+                staged_key: str, *, size_bytes: int, sha256: str, filename: str | None) -> int:
+    """Probe a staged clip and, if usable, make it the owner's clip (replacing an earlier one).
+
+    Returns the recording id. Raises `VideoError` (unusable video, or disagreeing with the other cameras
+    of its set) or `InputError`; the staged file is deleted either way, earlier clips are untouched.
+    """
+    from saddlescope.io.video import probe_video
+
+    try:
+        check_clip_slot(owner, clip_kind, camera)
+        if size_bytes == 0:
+            raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera is an empty file")
+        try:
+            info = probe_video(storage.path(staged_key))
+        except VideoError as exc:
+            name = filename or "the upload"
+            reason = str(exc).split(": ", 1)[-1]  # the staging path means nothing to the user
+            raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable "
+                             f"video: {reason}") from None
+        final_key = (f"{owner.kind}s/{owner.id}/clips/{clip_kind}/{camera}-{sha256[:12]}"
+                     f"{clip_suffix(filename, '.video')}")
+        with session_scope(sessions) as session:
+            recordings = RecordingRepository(session, club_id=owner.club_id)
+            others = [r for r in (recordings.for_ride(owner.id) if owner.kind == "ride"
+                                  else recordings.for_rig(owner.id)) if r.clip_kind == clip_kind]
+            _agreement(owner, clip_kind, camera, info, others)
+            previous = next((r.path for r in others if r.camera_role == camera), None)
+            storage.move(staged_key, final_key)
+            try:
+                row = recordings.put_clip(**owner.where(), club_id=owner.club_id, clip_kind=clip_kind,
+                                          camera_role=camera, path=final_key, sha256=sha256, size_bytes=size_bytes,
+                                          fps=info.fps, frame_count=info.frame_count, width=info.width,
+                                          height=info.height, codec=info.codec, original_filename=filename)
+                if owner.kind == "rig" and clip_kind == "calibration":
+                    RigRepository(session, club_id=owner.club_id).clear_calibration(owner.id)
+                recording_id = row.id
+                session.commit()
+            except BaseException:
+                if final_key != previous:
+                    storage.delete(final_key)
+                raise
+    finally:
+        storage.delete(staged_key)
+    if previous is not None and previous != final_key:
+        storage.delete(previous)  # after the commit: a failed upload never loses the earlier clip
+    return recording_id
+
+
+def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: ClipOwner) -> int | None:
+    """Start the job a newly complete set of clips allows; returns its id (None when nothing to start).
+
+    A rig with its three calibration clips (and a board) and no calibration: a ``calibrate_rig`` job.
+    A ride whose clips are complete: an ``analyze`` job. Never a second job while one is queued or running.
+    """
+    with session_scope(sessions) as session:
+        jobs = JobRepository(session, club_id=owner.club_id)
+        recordings = RecordingRepository(session, club_id=owner.club_id)
+        if owner.kind == "rig":
+            rig = RigRepository(session, club_id=owner.club_id).get(owner.id)
+            cams = {r.camera_role for r in recordings.for_rig(owner.id) if r.clip_kind == "calibration"}
+            if rig.calibration or not rig.board or set(CAMERA_ROLES) - cams:
+                return None
+            if jobs.active_for(rig_id=owner.id, kind="calibrate_rig") is not None:
+                return None
+            kind, ids = "calibrate_rig", {"rig_id": owner.id}
+        else:
+            ride = RideRepository(session, club_id=owner.club_id).get(owner.id)
+            rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
+            try:
+                ride_clip_plan(recordings.for_ride(ride.id), recordings.for_rig(rig.id) if rig else [],
+                               rig_calibrated=bool(rig is not None and rig.calibration))
+            except InputError:
+                return None  # not complete yet
+            if jobs.active_for(ride_id=ride.id) is not None:
+                return None
+            RideRepository(session).set_status(ride.id, RideStatus.READY.value)
+            kind, ids = "analyze", {"ride_id": ride.id}
+    return submit_job(sessions, queue, kind=kind, club_id=owner.club_id, **ids)
+
+
+def accept_bundle(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, staged_key: str, *,
+                  club_id: int, rig_id: int | None = None) -> tuple[int, int]:
+    """Register a staged ride bundle zip as a ride of the club and start its analysis; (ride id, job id).
+
+    `saddlescope.io.bundle.open_bundle` refuses unsafe zips (``..`` paths, links, bombs), a missing or
+    invalid ride.json (unknown gait, camera roles, ...) and missing clips, as a `BundleError`.
+    """
+    try:
+        if rig_id is not None:
+            with session_scope(sessions) as session:
+                RigRepository(session, club_id=club_id).get(rig_id)
+        ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id)
+    finally:
+        storage.delete(staged_key)
+    job_id = submit_job(sessions, queue, kind="analyze", ride_id=ride_id, club_id=club_id)
+    return ride_id, job_id
+
+
+# --- resumable uploads --------------------------------------------------------------------------------
+
+
+def create_upload(session: Session, *, club_id: int, user_id: int | None, target: str, length_bytes: int,
+                  max_bytes: int, ride_id: int | None = None, rig_id: int | None = None,
+                  clip_kind: str | None = None, camera: str | None = None, filename: str | None = None):
+    """A new resumable upload (not committed); checks its target exists in the club and its size."""
+    if target not in {t.value for t in UploadTarget}:
+        raise InputError(f"target must be one of {', '.join(t.value for t in UploadTarget)}, got {target!r}")
+    if length_bytes > max_bytes:
+        raise TooLarge(f"{filename or 'the upload'}: {length_bytes} bytes is larger than the upload limit of "
+                       f"{max_bytes} bytes")
+    if target == UploadTarget.BUNDLE:
+        if ride_id is not None or clip_kind is not None or camera is not None:
+            raise InputError("a bundle upload names no ride, clip kind or camera (ride.json says it all)")
+        if rig_id is not None:
+            RigRepository(session, club_id=club_id).get(rig_id)
+    else:
+        owner = find_owner(session, club_id=club_id, ride_id=ride_id if target == UploadTarget.RIDE_CLIP else None,
+                           rig_id=rig_id if target == UploadTarget.RIG_CLIP else None)
+        if clip_kind is None or camera is None:
+            raise InputError(f"a {target} upload needs clip_kind and camera")
+        check_clip_slot(owner, clip_kind, camera)
+    return UploadRepository(session, club_id=club_id).add(
+        id_=secrets.token_hex(16), user_id=user_id, target=target, ride_id=ride_id, rig_id=rig_id,
+        clip_kind=clip_kind, camera_role=camera, filename=filename, length_bytes=length_bytes)
+
+
+def finalise_upload(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str, *,
+                    club_id: int) -> dict[str, Any]:
+    """Turn a complete resumable upload into a recording (and maybe a job) or a ride; returns the outcome.
+
+    A refused file marks the upload failed with the reason (and the error is raised again).
+    """
+    with session_scope(sessions) as session:
+        upload = UploadRepository(session, club_id=club_id).get(upload_id)
+        if upload.status != UploadStatus.OPEN.value:
+            raise InputError(f"upload {upload_id} is already {upload.status}")
+        if upload.offset_bytes != upload.length_bytes:
+            raise IncompleteUpload(f"upload {upload_id} has {upload.offset_bytes} of its {upload.length_bytes} "
+                                   "bytes; send the rest first")
+        target, ride_id, rig_id = upload.target, upload.ride_id, upload.rig_id
+        clip_kind, camera, filename, size = upload.clip_kind, upload.camera_role, upload.filename, upload.length_bytes
+    staged = staging_key(club_id, filename)
+    storage.move(upload_key(upload_id), staged)
+    try:
+        if target == UploadTarget.BUNDLE:
+            new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id)
+            outcome = {"ride_id": new_ride, "job_id": job_id}
+        else:
+            owner = ClipOwner("ride" if target == UploadTarget.RIDE_CLIP else "rig",
+                              ride_id if target == UploadTarget.RIDE_CLIP else rig_id, club_id)
+            recording_id = accept_clip(sessions, storage, owner, clip_kind, camera, staged, size_bytes=size,
+                                       sha256=storage.sha256(staged), filename=filename)
+            job_id = start_processing(sessions, queue, owner)
+            outcome = {"recording_id": recording_id, "job_id": job_id}
+    except InputError as exc:
+        with session_scope(sessions) as session:
+            UploadRepository(session, club_id=club_id).close(upload_id, status=UploadStatus.FAILED, error=str(exc))
+        raise
+    with session_scope(sessions) as session:
+        UploadRepository(session, club_id=club_id).close(upload_id, status=UploadStatus.FINALISED, outcome=outcome)
+    return outcome
+
+
+class IncompleteUpload(InputError):
+    """A resumable upload is finalised before all its bytes arrived (HTTP 409)."""
+
+
