@@ -1,0 +1,124 @@
+"""Tests of saddlescope.services.similarity: dtaidistance DTW and the ranking of ride pairs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from saddlescope.core.errors import InputError
+from saddlescope.core.similarity import dtw_distance_reference
+from saddlescope.services.similarity import (
+    bench_chaincode_10k,
+    bench_dtw_10k,
+    dtw_distance,
+    most_similar_rides,
+    normalise_stride,
+    stride_distance_dtw,
+)
+
+FPS = 30.0
+
+
+def _ride(rng, f_hz: float, speed_m_s: float, phase: float, gait: str, *, n: int = 240,
+          noise_m: float = 5e-4, amp: float = 1.0) -> np.ndarray:
+    """A saddle-like track: a closed stride loop (vertical amplitude scaled by ``amp``) plus travel
+    along x, sampled at 30 fps (m)."""
+    t = np.arange(n) / FPS
+    p = 2 * np.pi * f_hz * t + phase
+    if gait == "trot":  # vertical at twice the stride frequency
+        loop = np.column_stack([0.01 * np.cos(2 * p), 0.05 * amp * np.sin(2 * p + 0.3), 0.02 * np.sin(p)])
+    else:
+        loop = np.column_stack([0.03 * np.cos(p), 0.10 * amp * np.sin(p + 0.3), 0.01 * np.sin(2 * p)])
+    travel = np.column_stack([speed_m_s * t, np.zeros(n), np.zeros(n)])
+    return loop + travel + rng.normal(0.0, noise_m, (n, 3))
+
+
+def test_dtaidistance_matches_numpy_reference():
+    rng = np.random.default_rng(11)
+    for k in range(40):
+        n, m = (int(v) for v in rng.integers(2, 30, size=2))
+        window = None if k % 3 == 0 else int(rng.integers(1, 8))
+        a, b = rng.normal(size=(n, 3)), rng.normal(size=(m, 3))
+        assert dtw_distance(a, b, window=window) == pytest.approx(dtw_distance_reference(a, b, window=window))
+        a1, b1 = a[:, 0], b[:, 0]
+        assert dtw_distance(a1, b1, window=window) == pytest.approx(
+            dtw_distance_reference(a1, b1, window=window))
+
+
+def test_dtw_distance_bad_input():
+    with pytest.raises(InputError, match="NaN"):
+        dtw_distance(np.array([0.0, np.nan]), np.array([0.0, 1.0]))
+    with pytest.raises(InputError, match="dimensions"):
+        dtw_distance(np.zeros((5, 3)), np.zeros(5))
+
+
+def test_normalise_stride_removes_travel_and_mean():
+    rng = np.random.default_rng(0)
+    track = _ride(rng, 1.5, 3.0, 0.0, "canter", noise_m=0.0)
+    stride = normalise_stride(track, period_samples=FPS / 1.5, n_samples=64)
+    assert stride.shape == (64, 3)
+    assert np.allclose(stride.mean(axis=0), 0.0)
+    # What is left is the loop: x within its +-3 cm, not metres of travel.
+    assert np.ptp(stride[:, 0]) < 0.07
+    # The estimated period gives the same stride (up to interpolation).
+    est = normalise_stride(track, fps=FPS, n_samples=64)
+    assert np.allclose(est, stride, atol=3e-3)
+
+
+def test_identical_rides_rank_first_and_gaits_group():
+    rng = np.random.default_rng(3)
+    trot = _ride(rng, 1.4, 3.0, 0.0, "trot")
+    tracks = {
+        "trot1": trot,
+        # The same ride recorded from another start and at another travel speed: same motion.
+        "trot1_again": trot[17:] + np.column_stack([0.4 * np.arange(223) / FPS, np.zeros((223, 2))]),
+        "trot2": _ride(rng, 1.45, 3.3, 1.0, "trot", amp=1.4),
+        "canter1": _ride(rng, 1.65, 4.0, 0.5, "canter"),
+        "canter2": _ride(rng, 1.6, 4.2, 2.0, "canter", amp=0.8),
+    }
+    same_gait = {frozenset(p) for p in (("trot1", "trot1_again"), ("trot1", "trot2"),
+                                        ("trot1_again", "trot2"), ("canter1", "canter2"))}
+    ranked = most_similar_rides(tracks, method="dtw", top=10)
+    assert len(ranked) == 10 and [d["rank"] for d in ranked] == list(range(1, 11))
+    assert ranked[0]["rides"] == ["trot1", "trot1_again"]
+    assert ranked[0]["distance"] < 0.3 * ranked[1]["distance"]
+    assert {frozenset(d["rides"]) for d in ranked[:4]} == same_gait
+    assert all(d["distance"] <= e["distance"] for d, e in zip(ranked, ranked[1:], strict=False))
+
+    ranked = most_similar_rides(tracks, method="chaincode", top=5)
+    assert ranked[0]["rides"] == ["trot1", "trot1_again"]
+    assert {frozenset(d["rides"]) for d in ranked[:4]} == same_gait
+    assert ranked[0]["similarity"] > ranked[-1]["similarity"]
+    assert ranked[0]["shape_dissimilarity"] < ranked[-1]["shape_dissimilarity"]
+
+
+def test_dtw_shift_search_undoes_the_start_phase():
+    rng = np.random.default_rng(4)
+    stride = normalise_stride(_ride(rng, 1.5, 3.0, 0.0, "canter", noise_m=0.0), period_samples=20.0,
+                              n_samples=40)
+    dist, shift = stride_distance_dtw(stride, np.roll(stride, 7, axis=0))
+    assert dist == pytest.approx(0.0, abs=1e-12) and shift == 7
+
+
+def test_most_similar_rides_bad_input():
+    rng = np.random.default_rng(5)
+    good = _ride(rng, 1.5, 3.0, 0.0, "canter")
+    bad = good.copy()
+    bad[30, 2] = np.nan
+    with pytest.raises(InputError, match="ride 'b'.*NaN"):
+        most_similar_rides({"a": good, "b": bad})
+    with pytest.raises(InputError, match="at least two rides"):
+        most_similar_rides({"a": good})
+    with pytest.raises(InputError, match="unknown similarity method"):
+        most_similar_rides({"a": good, "b": good}, method="euclid")
+    with pytest.raises(InputError, match="at least 8"):
+        most_similar_rides({"a": good, "b": good[:5]})
+    with pytest.raises(InputError, match="shorter than one stride"):
+        most_similar_rides({"a": good, "b": good[:20]}, periods={"b": 30.0})
+
+
+def test_benchmarks_return_seconds():
+    # Timing is never asserted (shared machine); only that the benchmarks run and report a duration.
+    for bench in (bench_chaincode_10k, bench_dtw_10k):
+        seconds = bench()
+        assert np.isfinite(seconds) and seconds > 0
