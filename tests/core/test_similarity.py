@@ -198,7 +198,8 @@ def test_nw_matches_brute_force_on_random_sequences():
         assert score == _nw_brute(a, b, match, mismatch, gap)
         # The alignment spells the inputs and adds up to the score.
         assert np.array_equal(al_a[al_a != GAP], a) and np.array_equal(al_b[al_b != GAP], b)
-        total = sum(gap if GAP in (x, y) else (match if x == y else mismatch) for x, y in zip(al_a, al_b, strict=True))
+        total = sum(gap if GAP in (x, y) else (match if x == y else mismatch)
+                    for x, y in zip(al_a, al_b, strict=True))
         assert total == score
         # A band can only lose score.
         assert needleman_wunsch(a, b, match=match, mismatch=mismatch, gap=gap, band=1)[0] <= score
@@ -233,7 +234,8 @@ def test_dissertation_worked_example_of_common_couples():
     b = np.array([int(c) for c in "222221432222214322222100200000400003100003000400031003004031034"])
     i, j, length, _ = maximal_matches(a, b, min_length=2)
     # (S, T) = (4143, 22222143), (4143, 2222214322222143), (41434, B): P = 143, 143, 34.
-    assert list(zip(i.tolist(), j.tolist(), length.tolist(), strict=True)) == [(1, 5, 3), (1, 13, 3), (3, 61, 2)]
+    found = list(zip(i.tolist(), j.tolist(), length.tolist(), strict=True))
+    assert found == [(1, 5, 3), (1, 13, 3), (3, 61, 2)]
     d, couples = shape_dissimilarity(a, b, return_couples=True)
     # The second couple is dropped: its P lies inside the first one's (dissertation's chosen list).
     assert [(c["i"], c["j"]) for c in couples] == [(1, 5), (3, 61)]
