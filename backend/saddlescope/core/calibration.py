@@ -118,6 +118,8 @@ class BoardFinder:
         self.inverted = inverted
         self.max_width = int(max_width)
         self.thorough = bool(thorough)
+        self._upsample = 1.0
+        self._last_box: tuple[int, int, int, int] | None = None
         if board.kind == "charuco":
             self._cv_board = _cv_charuco(board)
             self._detector = cv2.aruco.CharucoDetector(self._cv_board)
@@ -125,6 +127,28 @@ class BoardFinder:
     def __call__(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """Corners (N, 2) px and ids (N,) of the board in ``gray`` (H, W) uint8, or None."""
         gray = _as_gray(gray)
+        if self._last_box is not None and self.board.kind == "checkerboard":
+            # Video: the board is usually near where it was; search that region first (a fraction of
+            # the frame's cost), then the whole frame.
+            x0, y0, x1, y1 = self._last_box
+            found = self._find_full(gray[y0:y1, x0:x1])
+            if found is not None:
+                corners = found[0] + np.array([x0, y0], dtype=np.float64)
+                self._remember(corners, gray.shape)
+                return corners, found[1]
+        found = self._find_full(gray)
+        if found is not None:
+            self._remember(found[0], gray.shape)
+        return found
+
+    def _remember(self, corners: np.ndarray, shape) -> None:
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        pad = np.maximum(hi - lo, 40.0)
+        x0, y0 = np.floor(np.maximum(lo - pad, 0)).astype(int)
+        x1, y1 = np.ceil(np.minimum(hi + pad, [shape[1], shape[0]])).astype(int)
+        self._last_box = (int(x0), int(y0), int(x1), int(y1))
+
+    def _find_full(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         scale = 1.0
         small = gray
         if gray.shape[1] > 1.5 * self.max_width:
@@ -140,7 +164,20 @@ class BoardFinder:
 
     def _find(self, gray):
         if self.board.kind == "checkerboard":
-            return _find_checkerboard(gray, self.board, thorough=self.thorough)
+            # A board far away has squares of a few pixels, where the detectors fail at native size but
+            # succeed on a 2x upsampled frame; remember which size worked, as frames of a clip are alike.
+            scales = [self._upsample, 1.0 if self._upsample != 1.0 else 2.0] if gray.shape[1] <= self.max_width \
+                else [1.0]
+            for up in scales:
+                big = gray if up == 1.0 else cv2.resize(gray, None, fx=up, fy=up, interpolation=cv2.INTER_CUBIC)
+                found = _find_checkerboard(big, self.board, thorough=self.thorough and up == 1.0)
+                if found is not None:
+                    self._upsample = up
+                    corners, ids = found
+                    if up != 1.0:
+                        corners = _refine_full_resolution(gray, corners / up, self.board, ids)
+                    return corners, ids
+            return None
         polarities = [self.inverted] if self.inverted is not None else [False, True]
         for inverted in polarities:
             found = self._find_charuco(255 - gray if inverted else gray)

@@ -19,8 +19,9 @@ import numpy as np
 
 from saddlescope.core import calibration as calib
 from saddlescope.core import frames as motion
-from saddlescope.core.errors import DetectionError, InputError, KinematicsError, SyncError
+from saddlescope.core.errors import DetectionError, InputError, KinematicsError, SyncError, TriangulationError
 from saddlescope.core.fitting import fit_marker_kinematics
+from saddlescope.core.marker_search import SequentialFrames, find_markers_multiview
 from saddlescope.core.markers import track_markers
 from saddlescope.core.period import analysis_window, estimate_period
 from saddlescope.core.registration import marker_model, register_rigid
@@ -202,8 +203,57 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
 
 
 def triangulate_clip(rig: Rig, tracks: Mapping[str, ImageTracks], offsets: Mapping[str, float], fps: float,
-                     names: tuple[str, ...], params: PipelineParams) -> MarkerTracks:
-    return triangulate_tracks(rig, tracks, offsets, fps, method=params.triangulation, names=names)
+                     names: tuple[str, ...], params: PipelineParams, *, match_labels: bool = True) -> MarkerTracks:
+    return triangulate_tracks(rig, tracks, offsets, fps, method=params.triangulation, names=names,
+                              match_labels=match_labels)
+
+
+def _names(n: int) -> tuple[str, ...]:
+    return tuple(f"M{i + 1}" for i in range(n))
+
+
+def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
+    """Gravity in rig coordinates: from the plumb line where seen, else the left camera's image down."""
+    if plumb is not None:
+        try:
+            p = _static_positions(plumb, "plumb")
+        except KinematicsError:
+            p = None
+        if p is not None and p.shape[0] >= 2:
+            g = p[1] - p[0]
+            g = g / np.linalg.norm(g)
+            return g if g[1] > 0 else -g
+    return np.array([0.0, 1.0, 0.0])
+
+
+def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
+                  first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray
+                  ) -> tuple[dict[str, ImageTracks], list[int], int | None]:
+    """Track the horse markers through the motion clip of every camera.
+
+    The horse may enter the view late and look-alikes abound, so the start is found with all cameras
+    at once (:func:`saddlescope.core.marker_search.find_markers_multiview`): the first instant where
+    the cameras agree on a triangle of the static shot's layout. That also tells which static marker
+    is the saddle marker S (the one left out). Tracking then follows each camera from there.
+
+    Returns (tracks per camera, static indices of horse markers 1-3, static index of S).
+    """
+    cams = clips.cameras("motion")
+    frames = SequentialFrames(lambda cam, start: clips.gray_frames("motion", cam, start=start))
+    first = max(int(first_frame.get(c, 0) - math.floor(offsets.get(c, 0.0))) for c in cams)
+    last = min(int(clips.frame_count("motion", c) - math.ceil(offsets.get(c, 0.0))) - 1 for c in cams)
+    # The saddle marker sits on the saddle above the horse markers: the static marker farthest
+    # against gravity is S, the others are the horse markers in the static shot's order.
+    height = -(static_mm @ down)
+    order = [int(i) for i in np.argsort(height)]
+    horse_idx = sorted(order[:n_horse])
+    rest = [i for i in range(static_mm.shape[0]) if i not in horse_idx]
+    _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last)
+    overrides = {k: v for k, v in params.detection.get("motion", {}).items() if not isinstance(v, Mapping)}
+    tracks = {c: track_markers(clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse,
+                               camera=c, clip="motion", first_frame_xy=found["xy"][c], **overrides)
+              for c in cams}
+    return tracks, horse_idx, (rest[0] if rest else None)
 
 
 def _pairwise(xyz: np.ndarray) -> np.ndarray:
@@ -247,7 +297,8 @@ def _static_positions(tracks: MarkerTracks, what: str) -> np.ndarray:
 
 
 def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
-                      plumb_tracks: MarkerTracks | None, params: PipelineParams) -> dict:
+                      plumb_tracks: MarkerTracks | None, params: PipelineParams, *,
+                      horse_idx: list[int] | None = None, saddle_idx: int | None = None) -> dict:
     """Saddle point kinematics from 3-D tracks (thesis 5.2-6.4). Returns plain arrays and fits."""
     t = np.asarray(motion_tracks.t_s, dtype=np.float64)
     xyz = np.asarray(motion_tracks.xyz_mm, dtype=np.float64)
@@ -299,7 +350,11 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
 
     # Rigid registration of the static-shot model (5.4).
     static_all = _static_positions(static_tracks, "static")
-    horse_idx, saddle_idx, mismatch_mm = identify_saddle_marker(static_all, xyz)
+    if horse_idx is None or saddle_idx is None:
+        horse_idx, saddle_idx, _ = identify_saddle_marker(static_all, xyz)
+    d_motion = _pairwise(np.nanmedian(xyz, axis=0))
+    d_static = _pairwise(static_all[horse_idx])
+    mismatch_mm = float(np.sqrt(np.mean((d_static - d_motion) ** 2)))
     model_mm = marker_model(static_tracks.xyz_mm[:, horse_idx])
     model_m_motion = motion.to_motion_frame(model_mm, frame)
     reg = register_rigid(xyz_m, model_m_motion)
@@ -432,32 +487,39 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.finish("calibration", t0)
 
     t0 = time.perf_counter()
-    plan = [("static", n_horse + n_saddle), ("motion", n_horse)]
-    if clips.has("plumb"):
-        plan.insert(0, ("plumb", n_plumb))
-    tracks2d: dict[str, dict[str, ImageTracks]] = {}
-    for i, (kind, n) in enumerate(plan):
-        try:
-            tracks2d[kind] = detect_clip(clips, kind, n, first_frame[kind], params)
-        except DetectionError:
-            if kind == "plumb":
-                tracks2d.pop(kind, None)
-                continue
-            raise
-        progress.stage("detection", (i + 1) / len(plan))
-    progress.finish("detection", t0)
-
-    t0 = time.perf_counter()
     tracks3d: dict[str, MarkerTracks] = {}
-    for kind, per_cam in tracks2d.items():
-        cams = list(per_cam)
-        fps = clips.fps(kind, cams[0])
-        names = tuple(f"M{i + 1}" for i in range(len(next(iter(per_cam.values())).xy_px[0])))
-        tracks3d[kind] = triangulate_clip(rig, per_cam, offsets[kind], fps, names, params)
+    fps = {kind: clips.fps(kind, clips.cameras(kind)[0]) for kind in ("static", "motion", "plumb")
+           if clips.has(kind)}
+    if clips.has("plumb"):
+        try:
+            plumb2d = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params)
+            tracks3d["plumb"] = triangulate_clip(rig, plumb2d, offsets["plumb"], fps["plumb"], _names(n_plumb),
+                                                 params)
+            plumb_problem = None
+        except (DetectionError, TriangulationError, KinematicsError) as exc:
+            plumb_problem = f"plumb clip not used: {exc}"
+    else:
+        plumb_problem = "no plumb clip"
+    progress.stage("detection", 0.2)
+    static2d = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params)
+    tracks3d["static"] = triangulate_clip(rig, static2d, offsets["static"], fps["static"],
+                                          _names(n_horse + n_saddle), params)
+    progress.stage("detection", 0.4)
+    static_mm = _static_positions(tracks3d["static"], "static")
+    down = _down_direction(tracks3d.get("plumb"))
+    motion2d, horse_idx, saddle_idx = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
+                                                    first_frame["motion"], params, down=down)
+    tracks3d["motion"] = triangulate_clip(rig, motion2d, offsets["motion"], fps["motion"], _names(n_horse),
+                                          params, match_labels=False)
+    progress.finish("detection", t0)
+    t0 = time.perf_counter()
     progress.finish("triangulation", t0)
 
     t0 = time.perf_counter()
-    kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params)
+    kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params,
+                            horse_idx=horse_idx, saddle_idx=saddle_idx)
+    if plumb_problem:
+        kin["flags"].insert(0, plumb_problem)
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()

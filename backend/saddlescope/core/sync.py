@@ -32,7 +32,8 @@ def _robust_sigma(x: np.ndarray) -> float:
 
 def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_sigma: float = 8.0,
                    noise_floor: float = 0.02, integration: float = 1.0,
-                   max_flash_fraction: float = 0.5) -> tuple[float, float]:
+                   max_flash_fraction: float = 0.5, edges: str = "step",
+                   ramp_width: float | None = None) -> tuple[float, float]:
     """Sub-frame start and end of the flash in one clip.
 
     Parameters
@@ -48,6 +49,10 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
         Fraction of the frame period over which a frame's mean brightness integrates light.
     max_flash_fraction : float
         A bright interval longer than this fraction of the clip is a lighting change, not a flash.
+    edges : {"auto", "ramp", "step"}
+        "auto" (default): "ramp" when the flash lights four frames or more, else "step". "ramp": each edge's time is the mid-point of a linear ramp fitted to its samples
+        (lamps that rise over a frame or more, any exposure); "step": an instantaneous flash
+        integrated over ``integration`` of the frame period (the onset and end themselves).
 
     Returns
     -------
@@ -92,15 +97,71 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
                         f"lasts more than {max_flash_fraction:.0%} of the clip")
     base_after = float(np.median(b[stop + 1: stop + 6]))
     run = b[start: stop + 1]
-    plateau = float(np.median(run[1:-1])) if len(run) >= 3 else float(run.max())
+    # the brightest frame lies on the lamp's plateau (a sync flash stays on for a frame or more)
+    plateau = float(run.max())
     if plateau - max(base_before, base_after) <= level:
         raise SyncError(f"no sync flash found in the {where}: the bright frames {start}-{stop} do not "
                         f"stand out of the noise")
+    if edges == "auto":
+        # a lamp lit for several frames shows its plateau and ramps; a brief flash is a step
+        edges = "ramp" if stop - start + 1 >= 4 else "step"
+    if edges in ("ramp", "samples"):
+        rise, fall = _edge_samples(b, base_before, base_after, start, stop)
+        if edges == "samples":
+            return rise, fall
+        w = _ramp_width([rise], [fall]) if ramp_width is None else ramp_width
+        return _edge_mid(rise, w, +1, start), _edge_mid(fall, w, -1, stop)
     phi = np.clip((b[start] - base_before) / (plateau - base_before), 0.0, 1.0)
     psi = np.clip((b[stop] - base_after) / (plateau - base_after), 0.0, 1.0)
     onset = start + integration * (1.0 - phi)
     end = stop + integration * psi
     return float(onset), float(end)
+
+
+def _edges_of(b, *, clip: str, camera: str, **kwargs):
+    kwargs = {k: v for k, v in kwargs.items() if k not in ("edges", "ramp_width")}
+    return flash_interval(b, clip=clip, camera=camera, edges="samples", **kwargs)
+
+
+def _edge_samples(b, base_before, base_after, start, stop):
+    """(k, y) of the samples strictly inside the rising and the falling edge, y normalised 0..1."""
+    plateau = float(b[start: stop + 1].max())
+    out = []
+    for base, lo, hi in ((base_before, start - 1, stop + 1), (base_after, start, stop + 2)):
+        k = np.arange(max(lo, 0), min(hi, len(b)))
+        y = (b[k] - base) / (plateau - base)
+        inside = (y > 0.03) & (y < 0.97)
+        out.append((k[inside].astype(np.float64), y[inside]))
+    # the rise is the first run of inside samples, the fall the last
+    rise_k, rise_y = out[0]
+    fall_k, fall_y = out[1]
+    peak = start + int(np.argmax(b[start: stop + 1]))  # the rise comes before the brightest frame
+    rise = (rise_k[rise_k < peak], rise_y[rise_k < peak])
+    fall = (fall_k[fall_k > peak], fall_y[fall_k > peak])
+    return rise, fall
+
+
+def _ramp_width(rises, falls) -> float:
+    """Width (frames) of the lamp's ramp as the exposures see it, from every edge with two or more
+    samples on it (the same lamp and exposure in every camera); one frame (an instant flash
+    integrated over a whole frame period) when no edge shows it."""
+    widths = []
+    for k, y in list(rises) + list(falls):
+        if len(k) >= 2:
+            slope = np.polyfit(k, y, 1)[0]
+            if abs(slope) > 1e-6:
+                widths.append(1.0 / abs(slope))
+    return float(np.clip(np.median(widths), 0.05, 20.0)) if widths else 1.0
+
+
+def _edge_mid(samples, w: float, direction: int, edge: int) -> float:
+    """Half-level time of one edge: each sample on a linear ramp of width w gives it (eq. of a line)."""
+    k, y = samples
+    if len(k) == 0:  # the edge fell between two frames
+        return float(edge - 0.5) if direction > 0 else float(edge + 0.5)
+    if direction > 0:
+        return float(np.mean(k - y * w) + w / 2)
+    return float(np.mean(k + y * w) - w / 2)
 
 
 def flash_onset(mean_brightness: np.ndarray, *, clip: str, camera: str, **kwargs) -> float:
@@ -159,6 +220,16 @@ def clip_offsets(brightness_by_camera: Mapping[str, np.ndarray], fps_by_camera: 
         raise SyncError(f"{clip} clip: reference camera {reference} has no brightness curve")
     cameras = [reference] + [c for c in cameras if c != reference]
     _check_fps(fps_by_camera, cameras, clip, fps_rel_tol)
+    if "edges" not in flash_kwargs:
+        # A lamp that ramps over two frames or more (seen on some edge) is timed by its half-level
+        # crossings, with one ramp width for all cameras (one lamp, one exposure setting); a brief
+        # flash by the step model.
+        samples = {c: _edges_of(brightness_by_camera[c], clip=clip, camera=c, **flash_kwargs) for c in cameras}
+        rises, falls = [e[0] for e in samples.values()], [e[1] for e in samples.values()]
+        lit_frames = [np.ptp(np.concatenate([r[0], f[0]])) + 1 if len(r[0]) and len(f[0]) else 0
+                      for r, f in zip(rises, falls, strict=True)]
+        if min(lit_frames) >= 4 and any(len(k) >= 2 for k, _ in rises + falls):
+            flash_kwargs = {**flash_kwargs, "edges": "ramp", "ramp_width": _ramp_width(rises, falls)}
     times = {c: flash_interval(brightness_by_camera[c], clip=clip, camera=c, **flash_kwargs) for c in cameras}
     return offsets_from_intervals(times, reference=reference)
 

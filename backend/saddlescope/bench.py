@@ -1,0 +1,147 @@
+"""`saddlescope bench`: performance measured as ratios taken side by side in one run.
+
+This machine is shared and noisy, so every speed claim is a ratio of two things timed alternately
+in the same run (best of a few repeats), or an absolute time with the load average next to it.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+
+def _best_of(fn: Callable[[], object], repeats: int) -> float:
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return float(best)
+
+
+def _alternate(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, float]:
+    """Best wall time of each function, run in alternation so load changes hit all alike."""
+    best = {k: np.inf for k in fns}
+    for _ in range(repeats):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            best[k] = min(best[k], time.perf_counter() - t0)
+    return {k: float(v) for k, v in best.items()}
+
+
+def _motion_clip(tmp: Path, rig: str, duration_s: float) -> tuple[Path, int, int]:
+    """Encode one camera's motion clip of a synthetic ride; returns (path, first frame after the
+    flash, number of frames)."""
+    from saddlescope.core.synthetic import build_scene, render_clip_frames
+    from saddlescope.io.video_writer import write_h264
+
+    scene = build_scene(gait="canter", seed=3, rig=rig, duration_s=duration_s, calibration_poses=8,
+                        extras=False)
+    path = tmp / f"motion_{rig}.mp4"
+    n = write_h264(path, render_clip_frames(scene, "left", "motion"), fps=scene.fps)
+    from saddlescope.core.sync import flash_interval
+    from saddlescope.io.video import frame_brightness
+
+    _, end = flash_interval(frame_brightness(path), clip="motion", camera="left")
+    return path, int(np.ceil(end)) + 1, n
+
+
+def detection_vs_decode(rig: str, *, duration_s: float, repeats: int, tmp: Path) -> dict:
+    """Marker-detection throughput / decode-only throughput on the same clip (both decode it)."""
+    from saddlescope.core.markers import track_markers
+    from saddlescope.io.video import iter_gray_frames
+
+    path, start, n = _motion_clip(tmp, rig, duration_s)
+
+    def decode_only():
+        for _ in iter_gray_frames(path, start=start):
+            pass
+
+    def detect():
+        track_markers(iter_gray_frames(path, start=start), n_markers=3, camera="left", clip="motion")
+
+    t = _alternate({"decode": decode_only, "detect": detect}, repeats)
+    frames = n - start
+    return {"ratio": t["decode"] / t["detect"], "decode_fps": frames / t["decode"],
+            "detect_fps": frames / t["detect"], "frames": frames}
+
+
+def calibration_3cams(repeats: int) -> dict:
+    """Three cameras from 90 board poses each (thesis-like rig and board), intrinsics + pairs + BA."""
+    from saddlescope.core.calibration import calibrate_rig, thesis_like_views
+
+    _, board, views, sizes = thesis_like_views(90, rng=np.random.default_rng(0))
+    t = _best_of(lambda: calibrate_rig(views, board, sizes), repeats)
+    return {"seconds": t, "board": list(board.inner_corners), "poses": 90}
+
+
+def analysis_vs_footage(tmp: Path, *, quick: bool) -> dict:
+    """Wall time of the whole analysis of a default thesis-rig ride / duration of its footage."""
+    from saddlescope.io.synth_writer import write_ride_bundle
+    from saddlescope.io.video import probe_video
+    from saddlescope.services.analysis import analyze_bundle
+
+    ride = tmp / "ride"
+    t0 = time.perf_counter()
+    kwargs = {"duration_s": 3.0, "calibration_poses": 40} if quick else {}
+    write_ride_bundle(ride, gait="canter", seed=1, rig="thesis", extras=False, **kwargs)
+    synth_s = time.perf_counter() - t0
+    per_set: dict[str, float] = {}
+    all_clips = 0.0
+    for kind in ("calibration", "plumb", "static", "motion"):
+        durations = [probe_video(ride / kind / f"{cam}.mp4").duration_s for cam in ("left", "middle", "right")]
+        per_set[kind] = max(durations)
+        all_clips += sum(durations)
+    t0 = time.perf_counter()
+    result = analyze_bundle(ride)
+    wall = time.perf_counter() - t0
+    footage = sum(per_set.values())
+    return {"ratio": wall / footage, "ratio_vs_all_camera_clips": wall / all_clips, "analysis_s": wall,
+            "footage_s": footage, "all_camera_clips_s": all_clips, "synth_s": synth_s,
+            "stage_timings_s": result.get("timings_s", {})}
+
+
+def run_benchmarks(*, quick: bool = False) -> dict:
+    """Every benchmark; keys of CONTRACTS section 3 first."""
+    repeats = 2 if quick else 3
+    out: dict = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+                             "load_avg_start": list(os.getloadavg())}}
+    tmp = Path(tempfile.mkdtemp(prefix="saddlescope-bench-"))
+    try:
+        d640 = detection_vs_decode("thesis", duration_s=3.0 if quick else 6.0, repeats=repeats, tmp=tmp)
+        out["detection_vs_decode_640x480"] = d640["ratio"]
+        d1080 = detection_vs_decode("wide", duration_s=2.0 if quick else 4.0, repeats=repeats, tmp=tmp)
+        out["detection_vs_decode_1920x1080"] = d1080["ratio"]
+        out["detail_detection"] = {"640x480": d640, "1920x1080": d1080}
+        cal = calibration_3cams(1 if quick else 2)
+        out["calibration_3cams_s"] = cal["seconds"]
+        out["detail_calibration"] = cal
+        ana = analysis_vs_footage(tmp, quick=quick)
+        out["analysis_vs_footage"] = ana["ratio"]
+        out["detail_analysis"] = ana
+        try:
+            from saddlescope.services.similarity import bench_chaincode_10k, bench_dtw_10k
+        except ImportError:
+            out["chaincode_10k_s"] = None
+            out["dtw_10k_s"] = None
+        else:
+            out["chaincode_10k_s"] = bench_chaincode_10k()
+            out["dtw_10k_s"] = bench_dtw_10k()
+        try:
+            from saddlescope.services import service_bench
+        except ImportError:
+            pass
+        else:
+            out["service"] = service_bench.run_all(quick=quick)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    out["machine"]["load_avg_end"] = list(os.getloadavg())
+    return out
