@@ -8,6 +8,7 @@ not collide, and a summary at the end of the run names the services the tests re
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import secrets
@@ -165,26 +166,25 @@ def stop_process(proc: subprocess.Popen, *, timeout_s: float = 15.0) -> None:
         proc.wait(timeout=5)
 
 
-@pytest.fixture(scope="module")
-def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
-    """A real ``celery worker`` process (solo pool) on the test database and Redis db.
+@contextlib.contextmanager
+def run_celery_worker(*, database_url: str, broker_url: str, storage_dir: Path, log_path: Path,
+                      app: str = "saddlescope_worker.app", extra_env: dict[str, str] | None = None,
+                      config: pytest.Config | None = None):
+    """A real ``celery worker`` process (solo pool) until the block ends; yields the Popen.
 
-    Yields a dict with the URLs, the shared storage folder and the worker's log path.
+    `app` is the module holding the Celery app (a test module may wrap ours, e.g. to install the
+    stand-in analysis); `extra_env` is added to the worker's environment (PYTHONPATH, ...).
     """
-    from saddlescope.db.migrate import upgrade_to_head
-
-    upgrade_to_head(pg_database_url)
-    root = tmp_path_factory.mktemp("celery")
-    storage_dir = root / "storage"
-    log_path = root / "worker.log"
-    env = service_env(database_url=pg_database_url, storage_dir=storage_dir, broker_url=redis_url)
-    name = f"saddlescope-test-{os.getpid()}@%h"
-    with log_path.open("wb") as log:
+    env = service_env(database_url=database_url, storage_dir=storage_dir, broker_url=broker_url)
+    env.update(extra_env or {})
+    name = f"saddlescope-test-{os.getpid()}-{secrets.token_hex(3)}@%h"
+    start = log_path.stat().st_size if log_path.exists() else 0  # a restarted worker appends to the log
+    with log_path.open("ab") as log:
         proc = subprocess.Popen(
             [
                 str(VENV_BIN / "celery"),
                 "-A",
-                "saddlescope_worker.app",
+                app,
                 "worker",
                 "--pool=solo",
                 "-c",
@@ -205,7 +205,7 @@ def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
         )
     try:
         deadline = time.monotonic() + 90
-        while b" ready." not in log_path.read_bytes():
+        while b" ready." not in log_path.read_bytes()[start:]:
             if proc.poll() is not None:
                 pytest.fail(
                     f"the Celery worker exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}"
@@ -213,12 +213,32 @@ def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
             if time.monotonic() > deadline:
                 pytest.fail(f"the Celery worker was not ready after 90 s:\n{log_path.read_text()[-3000:]}")
             time.sleep(0.2)
-        import celery
+        if config is not None:
+            import celery
 
-        report_service(
-            request.config,
-            f"Celery {celery.__version__} worker process pid {proc.pid} (solo pool, real broker round trips)",
-        )
+            report_service(
+                config,
+                f"Celery {celery.__version__} worker process pid {proc.pid} (solo pool, real broker round trips)",
+            )
+        yield proc
+    finally:
+        stop_process(proc)
+
+
+@pytest.fixture(scope="module")
+def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
+    """A real ``celery worker`` process (solo pool) on the test database and Redis db.
+
+    Yields a dict with the URLs, the shared storage folder and the worker's log path.
+    """
+    from saddlescope.db.migrate import upgrade_to_head
+
+    upgrade_to_head(pg_database_url)
+    root = tmp_path_factory.mktemp("celery")
+    storage_dir = root / "storage"
+    log_path = root / "worker.log"
+    with run_celery_worker(database_url=pg_database_url, broker_url=redis_url, storage_dir=storage_dir,
+                           log_path=log_path, config=request.config) as proc:
         yield {
             "database_url": pg_database_url,
             "broker_url": redis_url,
@@ -226,8 +246,19 @@ def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
             "log_path": log_path,
             "process": proc,
         }
-    finally:
-        stop_process(proc)
+
+
+# --- a tiny synthetic ride (real H.264 clips with markers, flash, board) ----------------------------
+
+
+@pytest.fixture(scope="session")
+def tiny_ride(tmp_path_factory) -> Path:
+    """A short synthetic ride bundle (2.5 s, 20 calibration poses, no extras), written once per session."""
+    from saddlescope.io.synth_writer import write_ride_bundle
+
+    folder = tmp_path_factory.mktemp("tiny-ride") / "ride"
+    write_ride_bundle(folder, gait="canter", seed=3, duration_s=2.5, calibration_poses=20, extras=False)
+    return folder
 
 
 # --- tiny inputs ----------------------------------------------------------------------------------

@@ -5,10 +5,12 @@ import { get, itemsOf } from "./api.js";
 import { h } from "./dom.js";
 import { COMFORT_INDICATORS, GAITS, gaitLabel, indicatorInfoOf, indicatorKeys, labelText, prettyUnit } from "./format.js";
 
+const byName = (items) => [...items].sort((a, b) => a.name.localeCompare(b.name));
+
 const SOURCES = {
-  horses: async () => itemsOf(await get("/api/horses", { params: { limit: 500, sort: "name" } }))
+  horses: async () => byName(itemsOf(await get("/api/horses", { params: { limit: 500 } })))
     .map((horse) => ({ value: horse.id, text: horse.name })),
-  riders: async () => itemsOf(await get("/api/riders", { params: { limit: 500, sort: "name" } }))
+  riders: async () => byName(itemsOf(await get("/api/riders", { params: { limit: 500 } })))
     .map((rider) => ({ value: rider.id, text: rider.name })),
   rigs: async () => itemsOf(await get("/api/rigs", { params: { limit: 500 } }))
     .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibration ? " (calibrated)" : ""}` })),

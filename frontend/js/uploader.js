@@ -18,6 +18,11 @@ function offsetFrom(headers, fallback) {
   return Number.isFinite(n) ? n : fallback;
 }
 
+/** Where the server's copy ends (`offset_bytes`, or `offset` in older answers). */
+function serverOffset(state) {
+  return Number(state?.offset_bytes ?? state?.offset) || 0;
+}
+
 const sleep = (ms, signal) => new Promise((resolve, reject) => {
   const timer = window.setTimeout(resolve, ms);
   signal?.addEventListener("abort", () => { window.clearTimeout(timer); reject(new DOMException("Aborted", "AbortError")); });
@@ -29,7 +34,7 @@ async function openUpload(file, target) {
   if (known) {
     try {
       const state = await get(`/api/uploads/${known}`);
-      if (state && Number(state.length_bytes) === file.size) return { id: state.id ?? known, offset: Number(state.offset) || 0, key };
+      if (state && Number(state.length_bytes) === file.size) return { id: state.id ?? known, offset: serverOffset(state), key };
     } catch (error) {
       if (!(error instanceof ApiError) || error.status >= 500 || error.status === 0) throw error;
       // 404/410: the server forgot it; start again.
@@ -38,7 +43,7 @@ async function openUpload(file, target) {
   }
   const created = await post("/api/uploads", { ...target, length_bytes: file.size, filename: file.name });
   window.localStorage.setItem(key, String(created.id));
-  return { id: created.id, offset: Number(created.offset) || 0, key };
+  return { id: created.id, offset: serverOffset(created), key };
 }
 
 async function sendChunk(id, file, offset, signal) {
@@ -54,7 +59,7 @@ async function sendChunk(id, file, offset, signal) {
   } catch (error) {
     // 409: our offset is not the server's; carry on from the server's.
     if (error instanceof ApiError && error.status === 409) {
-      const server = offsetFrom(error.headers, Number(error.body?.offset));
+      const server = offsetFrom(error.headers, Number(error.body?.offset_bytes ?? error.body?.offset));
       if (Number.isFinite(server)) return server;
     }
     throw error;
@@ -81,7 +86,7 @@ export async function uploadResumable(file, target, { onProgress, signal } = {})
       failures += 1;
       await sleep(500 * 2 ** failures, signal);
       const state = await get(`/api/uploads/${upload.id}`);
-      offset = Number(state.offset) || 0;
+      offset = serverOffset(state);
     }
   }
   try {

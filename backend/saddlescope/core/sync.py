@@ -49,10 +49,11 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
         Fraction of the frame period over which a frame's mean brightness integrates light.
     max_flash_fraction : float
         A bright interval longer than this fraction of the clip is a lighting change, not a flash.
-    edges : {"auto", "ramp", "step"}
-        "auto" (default): "ramp" when the flash lights four frames or more, else "step". "ramp": each edge's time is the mid-point of a linear ramp fitted to its samples
-        (lamps that rise over a frame or more, any exposure); "step": an instantaneous flash
-        integrated over ``integration`` of the frame period (the onset and end themselves).
+    edges : {"step", "ramp", "auto"}
+        "step" (default): an instantaneous flash integrated over ``integration`` of the frame period
+        (returns the onset and end themselves). "ramp": each edge's half-level time, from a linear ramp
+        of width ``ramp_width`` through its samples (lamps that rise over a frame or more); "auto":
+        "ramp" when the flash lights four frames or more. :func:`clip_offsets` chooses for all cameras.
 
     Returns
     -------

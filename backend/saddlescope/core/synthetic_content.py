@@ -158,12 +158,12 @@ class HorseContent:
             return None
         s = self.model.camera_side
         rot, org = self.pose_arena(np.array([t]))
-        pts = np.array([[0.17, 0.63, s * 0.42], [0.0, 0.12, s * 0.33]])
+        pts = np.array([[0.17, 0.63, s * 0.42], [-0.02, 0.17, s * 0.3]])
         w = self._body_to_world(pts, rot[0], org[0])
         # specular: the stirrup flashes for parts of the stride, differently in each camera
         phase = _hash01(len(view.role), ord(view.role[0]))
         stir = 300.0 * max(0.0, np.sin(2 * np.pi * (self.model.stride_hz * t + phase))) ** 6
-        return w, np.array([22.0, 14.0]), np.array([stir, 215.0])
+        return w, np.array([22.0, 20.0]), np.array([stir, 235.0])
 
     def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:
         s = self.model.camera_side

@@ -17,7 +17,9 @@ export function forIndicator(answer, indicator) {
 export function groupsOf(answer, indicator) {
   const part = forIndicator(answer, indicator);
   if (Array.isArray(part)) return part;
-  if (part && Array.isArray(part.groups)) return part.groups;
+  for (const key of ["gaits", "horses", "groups", "entries"]) {
+    if (part && Array.isArray(part[key])) return part[key];
+  }
   return itemsOf(part);
 }
 

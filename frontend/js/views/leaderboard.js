@@ -1,10 +1,10 @@
 // Horses ranked per gait and indicator, most comfortable first (the server ranks; we show).
 
-import { get, itemsOf } from "../api.js";
+import { get } from "../api.js";
 import { h, page, showError } from "../dom.js";
 import { fmt, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
-import { forIndicator, onFormChange } from "./analysis-common.js";
+import { groupsOf, onFormChange } from "./analysis-common.js";
 
 export async function mountLeaderboard(view, _params, query) {
   view.append(page("leaderboard"));
@@ -17,9 +17,11 @@ export async function mountLeaderboard(view, _params, query) {
   for (const name of ["gait", "indicator"]) if (query.get(name)) form.elements[name].value = query.get(name);
 
   await onFormChange(form, async ({ gait, indicator }, current) => {
+    let answer;
     let rows;
     try {
-      rows = itemsOf(forIndicator(await get("/api/leaderboard", { params: { gait, indicator } }), indicator));
+      answer = await get("/api/leaderboard", { params: { gait, indicator } });
+      rows = groupsOf(answer, indicator);
     } catch (error) {
       if (current()) showError(section, error);
       return;
@@ -30,7 +32,7 @@ export async function mountLeaderboard(view, _params, query) {
     const unit = prettyUnit(info.unit);
     view.querySelector("[data-value-head]").textContent = unit ? `Mean (${unit})` : "Mean";
     note.textContent = `${gaitLabel(gait)}, ${labelText(info.label)}: ` +
-      `${info.better === "higher" ? "higher" : "lower"} is more comfortable.`;
+      `${(answer.better ?? info.better) === "higher" ? "higher" : "lower"} is more comfortable.`;
     table.tBodies[0].replaceChildren(...rows.map((row) => h("tr", { dataset: { horse: row.horse } },
       h("td", { class: "num" }, String(row.rank)),
       h("th", { scope: "row" }, row.horse_id ? h("a", { href: `#/compare?horse=${row.horse_id}` }, row.horse) : row.horse),

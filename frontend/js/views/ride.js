@@ -241,10 +241,13 @@ export async function mountRide(view, { id }) {
   }
   // No result yet: follow the ride's newest job until it ends.
   state.replaceChildren(h("p", {}, "This ride has not been analysed yet."));
+  let latestJobId = ride.latest_job_id;
   const poller = poll(async () => {
     let job;
     try {
-      job = itemsOf(await get("/api/jobs", { params: { ride_id: rideId, limit: 20 } })).sort((a, b) => b.id - a.id)[0];
+      job = latestJobId
+        ? await get(`/api/jobs/${latestJobId}`)
+        : itemsOf(await get("/api/jobs", { params: { ride_id: rideId, limit: 20 } })).sort((a, b) => b.id - a.id)[0];
     } catch (error) {
       state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
       return 5000;
@@ -254,7 +257,7 @@ export async function mountRide(view, { id }) {
         h("button", { type: "button", onclick: async (event) => {
           event.target.disabled = true;
           try {
-            await post(`/api/rides/${rideId}/analyze`);
+            latestJobId = (await post(`/api/rides/${rideId}/analyze`))?.id ?? null;
             poller.now();
           } catch (err) {
             state.append(h("p", { class: "form-error", role: "alert" }, err.message));
