@@ -1,0 +1,457 @@
+"""The browser dashboard in a real browser: Debian's chromium driven by Playwright.
+
+A real `saddlescope serve` (embedded mode, temporary SQLite and storage) runs for the module. Club,
+user, horses, riders, rides and grades are created over the REST API; the analysis results are put
+in through the services/db layer (a result can otherwise only come from a pipeline run), built from
+exact Fourier series so the indicators are the core's own numbers.
+
+Without /usr/bin/chromium the tests skip with the reason (they fail under CI=true, where the Makefile
+installs it). No browser is ever downloaded.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import httpx
+import integration_services
+import numpy as np
+import pytest
+
+from conftest import IN_CI
+from saddlescope.core.indicators import ride_indicators
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                 "--disable-background-networking"]
+SADDLESCOPE = str(integration_services.VENV_BIN / "saddlescope")
+EMAIL, PASSWORD = "coach@example.org", "correct horse battery"
+CLUB = "Test Riding Club"
+
+# Horse -> (scale of the vertical acceleration harmonics, rides in canter). Ranked by W_b r.m.s. in
+# canter, lower (more comfortable) first: Bella, Comet, Dancer.
+HORSES = {"Bella": (0.6, 1), "Comet": (1.0, 2), "Dancer": (1.4, 1)}
+BASE_AMPLITUDES_M_S2 = (4.0, 1.5, 0.5)
+PHASES_RAD = (0.3, -0.8, 1.2)
+STRIDE_HZ = {"canter": 1.65, "walk": 0.9}
+SPEED_KMH = {"canter": 18.0, "walk": 5.4}
+FPS = 30.0
+
+
+def _fail_or_skip(reason: str) -> None:
+    if IN_CI:
+        pytest.fail(f"{reason} (required under CI)")
+    pytest.skip(reason)
+
+
+def _require_browser():
+    if not CHROMIUM.exists():
+        _fail_or_skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) "
+                      "to run the dashboard's browser tests")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        _fail_or_skip("the python package playwright is not installed")
+    return sync_playwright
+
+
+def js_fmt(value: float, digits: int = 3) -> str:
+    """The dashboard's number format (frontend/js/format.js `fmt`): `digits` significant digits."""
+    magnitude = math.floor(math.log10(abs(value)))
+    if magnitude >= digits - 1:
+        return str(int(math.floor(value + 0.5)))
+    return f"{value:.{digits - 1 - magnitude}f}"
+
+
+# ----------------------------------------------------------------------------- seeded results
+
+
+def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dict:
+    """A result document (CONTRACTS section 2 plus the pipeline's extra sections) whose vertical
+    saddle acceleration is an exact Fourier series; indicators from `core.indicators`."""
+    f0 = STRIDE_HZ[gait]
+    amps = [scale * a for a in BASE_AMPLITUDES_M_S2]
+    duration_s = 2.0 / f0  # two strides, as in the thesis
+    t = np.arange(int(round(duration_s * FPS))) / FPS
+    k = np.arange(1, len(amps) + 1)[:, None]
+    w = 2 * np.pi * k * f0
+    arg = w * t + np.asarray(PHASES_RAD)[:, None]
+    a = np.asarray(amps)[:, None]
+    acc_y = (a * np.cos(arg)).sum(0)
+    vel_y = (a / w * np.sin(arg)).sum(0)
+    pos_y = (-a / w**2 * np.cos(arg)).sum(0)
+    v_x = SPEED_KMH[gait] / 3.6
+    sway = np.sin(2 * np.pi * f0 * t)
+    position = np.stack([v_x * t, pos_y, 0.02 * sway], 1)
+    velocity = np.stack([np.full_like(t, v_x), vel_y, 0.02 * 2 * np.pi * f0 * np.cos(2 * np.pi * f0 * t)], 1)
+    acceleration = np.stack([np.zeros_like(t), acc_y, -0.02 * (2 * np.pi * f0) ** 2 * sway], 1)
+    omega = np.stack([0.1 * sway, 0.05 * np.cos(2 * np.pi * f0 * t),
+                      0.4 * np.sin(2 * np.pi * f0 * t + 0.5)], 1)
+    alpha = np.gradient(omega, t, axis=0)
+    versions = omega[:, None, :] + 0.03 * rng.standard_normal((t.size, 6, 3))
+    singularity = 0.15 + 0.1 * np.abs(sway)
+    amplitude_y_m = float(pos_y.max() - pos_y.min())
+    indicators = ride_indicators(f0_hz=f0, acc_y_amplitudes_m_s2=amps, acc_y_phases_rad=PHASES_RAD,
+                                 duration_s=duration_s, speed_kmh=SPEED_KMH[gait],
+                                 amplitude_y_m=amplitude_y_m, stride_frequency_hz=f0)
+    return {
+        "format": "saddlescope.result/1", "fps": FPS, "gait": gait, "direction": "CCW",
+        "calibration": {"cameras": {}, "extrinsics": {}, "checks": {"board_square_error_mm": 0.31}},
+        "sync": {"motion": {"left": 0.0, "middle": 53.0, "right": 126.0}},
+        "period_s": 1.0 / f0, "window": {"start_s": 0.0, "duration_s": duration_s},
+        "saddle": {"t_s": t.tolist(), "position_m": position.tolist(), "velocity_m_s": velocity.tolist(),
+                   "acceleration_m_s2": acceleration.tolist()},
+        "angular": {"omega_rad_s": omega.tolist(), "alpha_rad_s2": alpha.tolist(),
+                    "singularity_index": float(np.median(singularity)),
+                    "singularity_index_per_frame": singularity.tolist(),
+                    "omega_versions_rad_s": versions.tolist()},
+        "indicators": {key: float(value) for key, value in indicators.items()},
+        "quality": {"flags": ["markers lost from 0.40 s to 0.47 s"], "calibration_ok": True,
+                    "gravity_source": "plumb", "singularity_index_median": float(np.median(singularity))},
+        "timings_s": {"total": 1.0},
+    }
+
+
+def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) -> None:
+    """Put a finished analysis in as the analyse stage would: result JSON in storage, row in the DB."""
+    from saddlescope.db.models import RideStatus
+    from saddlescope.db.repositories import ResultRepository, RideRepository
+    from saddlescope.db.session import make_engine, make_session_factory, session_scope
+    from saddlescope.storage import Storage, stage_output_key
+
+    storage = Storage(storage_dir)
+    result_key = f"{stage_output_key(ride_id, 'analyze')}/result.json"
+    storage.write_bytes(result_key, json.dumps(doc, allow_nan=False).encode())
+    engine = make_engine(database_url)
+    try:
+        with session_scope(make_session_factory(engine)) as session:
+            ride = RideRepository(session).get(ride_id)
+            ResultRepository(session).replace_for_ride(
+                club_id=ride.club_id, ride_id=ride_id, job_id=None, indicators=doc["indicators"],
+                quality=doc["quality"], result_key=result_key, arrays_key=None, code_version="test")
+            RideRepository(session).set_status(ride_id, RideStatus.ANALYSED.value)
+    finally:
+        engine.dispose()
+
+
+# ----------------------------------------------------------------------------- fixtures
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_healthy(base: str, proc: subprocess.Popen, log_path: Path, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"saddlescope serve exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}")
+        try:
+            if httpx.get(f"{base}/api/health", timeout=5).status_code in (200, 503):
+                return
+        except httpx.TransportError:
+            time.sleep(0.2)
+    pytest.fail(f"saddlescope serve did not answer within {timeout_s} s:\n{log_path.read_text()[-3000:]}")
+
+
+def _ok(response: httpx.Response, *codes: int) -> dict:
+    assert response.status_code in (codes or (200, 201)), f"{response.request.url}: {response.text}"
+    return response.json() if response.content else {}
+
+
+@pytest.fixture(scope="module")
+def sync_playwright_factory():
+    return _require_browser()
+
+
+@pytest.fixture(scope="module")
+def dashboard(sync_playwright_factory, tmp_path_factory):
+    """A seeded `saddlescope serve`: yields base URL, ids of what was seeded and the expected numbers."""
+    root = tmp_path_factory.mktemp("dashboard")
+    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
+    storage_dir = root / "var" / "storage"
+    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
+    port = _free_port()
+    base = f"http://127.0.0.1:{port}"
+    log_path = root / "serve.log"
+    with log_path.open("wb") as log:
+        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
+                                env=env, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        _wait_healthy(base, proc, log_path)
+        seeded = _seed(base, database_url, storage_dir)
+        yield {"base": base, "log": log_path, **seeded}
+    finally:
+        integration_services.stop_process(proc)
+
+
+def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
+    rng = np.random.default_rng(7)
+    with httpx.Client(base_url=base, timeout=30) as api:
+        _ok(api.post("/api/clubs", json={"club_name": CLUB, "email": EMAIL, "password": PASSWORD,
+                                         "display_name": "Coach"}))
+        login = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))
+        api.headers["Authorization"] = f"Bearer {login['access_token']}"
+        api.cookies.clear()  # bearer only: no CSRF needed
+        riders = [_ok(api.post("/api/riders", json={"name": name}))["id"] for name in ("Rider A", "Rider B")]
+        horses, rides, docs = {}, [], {}
+        for name, (scale, n_canter) in HORSES.items():
+            horses[name] = _ok(api.post("/api/horses", json={"name": name, "breed": "Dutch"}))["id"]
+            gaits = ["canter"] * n_canter + (["walk"] if name == "Bella" else [])
+            for i, gait in enumerate(gaits):
+                ride = _ok(api.post("/api/rides", json={"horse_id": horses[name], "rider_id": riders[i % 2],
+                                                        "gait": gait, "direction": "CCW"}))
+                # Comet's second canter ride is a little rougher: its mean lies between its rides.
+                doc = result_document(scale=scale * (1.1 if i == 1 else 1.0), gait=gait, rng=rng)
+                store_result(database_url, storage_dir, ride["id"], doc)
+                rides.append({"id": ride["id"], "horse": name, "gait": gait})
+                docs[ride["id"]] = doc
+        for name, grade in (("Bella", 5), ("Comet", 3), ("Dancer", 2)):
+            ride = next(r for r in rides if r["horse"] == name and r["gait"] == "canter")
+            _ok(api.post("/api/grades", json={"ride_id": ride["id"], "rider_id": riders[0], "grade": grade}))
+    return {"horses": horses, "riders": riders, "rides": rides, "docs": docs, "database_url": database_url}
+
+
+@pytest.fixture(scope="module")
+def browser(sync_playwright_factory):
+    manager = sync_playwright_factory().start()
+    chromium = manager.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+    try:
+        yield chromium
+    finally:
+        chromium.close()
+        manager.stop()
+
+
+class Console:
+    """Console messages of type error and uncaught page errors of one browser context."""
+
+    def __init__(self) -> None:
+        self.errors: list[str] = []
+
+    def attach(self, page) -> None:
+        page.on("console", lambda msg: self.errors.append(msg.text) if msg.type == "error" else None)
+        page.on("pageerror", lambda exc: self.errors.append(f"uncaught: {exc}"))
+
+    def unexpected(self, *allowed_statuses: int) -> list[str]:
+        """Errors other than the browser's own note on an expected HTTP status of a request."""
+        allowed = [f"status of {s} " for s in allowed_statuses]
+        return [e for e in self.errors if not any(a in e for a in allowed)]
+
+
+@pytest.fixture
+def page(browser, dashboard):
+    context = browser.new_context(base_url=dashboard["base"], viewport={"width": 1280, "height": 900})
+    tab = context.new_page()
+    console = Console()
+    console.attach(tab)
+    tab.console = console
+    tab.set_default_timeout(15_000)
+    try:
+        yield tab
+    finally:
+        context.close()
+
+
+def sign_in(page) -> None:
+    """Sign in through the API of the page's own context (the cookies are shared with the page)."""
+    answer = page.context.request.post("/api/auth/login", data={"email": EMAIL, "password": PASSWORD})
+    assert answer.ok, answer.text()
+
+
+def chart_traces(page, name: str) -> list[dict]:
+    """The Plotly traces drawn in [data-chart=name]: name and number of points of each."""
+    return page.eval_on_selector(
+        f'[data-chart="{name}"]',
+        "el => (el.data || []).map(t => ({name: t.name, n: (t.y || []).length}))")
+
+
+# ----------------------------------------------------------------------------- tests
+
+
+def test_login_flow_shows_the_servers_reason_then_signs_in(page, dashboard):
+    page.goto("/#/rides")
+    # Not signed in: sent to the sign-in page, which remembers where we wanted to go.
+    page.wait_for_url("**/#/login?next=%2Frides")
+    page.locator("#login-email").fill(EMAIL)
+    page.locator("#login-password").fill("wrong password")
+    page.get_by_role("button", name="Sign in", exact=True).click()
+    error = page.locator("[data-login-form] [data-form-error]")
+    error.wait_for(state="visible")
+    wrong = httpx.post(f"{dashboard['base']}/api/auth/login",
+                       json={"email": EMAIL, "password": "wrong password"})
+    assert wrong.status_code == 401
+    assert error.inner_text() == wrong.json()["detail"]  # the server's reason, verbatim
+
+    page.locator("#login-password").fill(PASSWORD)
+    page.get_by_role("button", name="Sign in", exact=True).click()
+    page.wait_for_url("**/#/rides")
+    page.get_by_role("heading", level=1, name="Rides").wait_for()
+    assert CLUB in page.locator("[data-account-name]").inner_text()
+    assert page.locator("[data-nav] a[aria-current=page]").inner_text() == "Rides"
+    rows = page.locator("[data-ride-table] tbody tr")
+    rows.first.wait_for()
+    assert rows.count() == len(dashboard["rides"])
+
+    page.get_by_role("button", name="Sign out").click()
+    page.wait_for_url("**/#/login**")
+    assert page.locator("[data-account-logout]").is_hidden()
+    assert page.console.unexpected(401) == []
+
+
+def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
+    sign_in(page)
+    ride = next(r for r in dashboard["rides"] if r["horse"] == "Dancer")
+    doc = dashboard["docs"][ride["id"]]
+    ind = doc["indicators"]
+    n = len(doc["saddle"]["t_s"])
+    page.goto(f"/#/rides/{ride['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    assert page.locator("h1").inner_text() == "Dancer \u2013 canter"
+
+    for key in ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "crest_factor_y", "acc_y_max",
+                "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz"):
+        value = page.locator(f'[data-indicator="{key}"] [data-value]')
+        assert value.inner_text() == js_fmt(ind[key]), key
+        assert float(value.get_attribute("data-value")) == pytest.approx(ind[key], rel=1e-12), key
+    assert "m/s\u00b2" in page.locator('[data-indicator="acc_y_wb_rms"]').inner_text()
+    for key in ("t_a8_action_wb_h", "t_a8_limit_wk_h", "t_vdv_limit_wb_h", "d_a8_limit_wb_km",
+                "d_vdv_action_wk_km"):
+        cell = page.locator(f'[data-exposure-table] td[data-key="{key}"]')
+        assert cell.inner_text() == js_fmt(ind[key]), key
+    assert "passive, seated person" in page.locator("[data-caveat]").inner_text()
+    assert page.locator("[data-quality-flags] li").all_inner_texts() == doc["quality"]["flags"]
+
+    page.wait_for_function("document.querySelector('[data-chart=\"versions\"]').data !== undefined")
+    for name in ("position", "velocity", "acceleration", "omega", "alpha"):
+        traces = chart_traces(page, name)
+        assert [t["name"] for t in traces] == ["x", "y", "z"], name
+        assert all(t["n"] == n for t in traces), name
+    plotted_y = page.eval_on_selector('[data-chart="acceleration"]', "el => el.data[1].y")
+    np.testing.assert_allclose(plotted_y, np.asarray(doc["saddle"]["acceleration_m_s2"])[:, 1], rtol=1e-12)
+    versions = chart_traces(page, "versions")
+    # the six versions, the result's ω and the singularity index
+    assert len(versions) == 8 and all(t["n"] == n for t in versions)
+    assert "singularity" in versions[-1]["name"]
+
+    exports = page.locator("[data-exports] a")
+    formats = exports.evaluate_all("els => els.map(e => e.dataset.export)")
+    assert sorted(formats) == ["c3d", "csv", "json", "trc", "xlsx"]
+    answer = page.context.request.get(exports.filter(has_text="CSV").get_attribute("href"))
+    assert answer.ok and b"acc_y_wb_rms" in answer.body()
+    page.screenshot(path="/tmp/dash_ride.png", full_page=True)
+    assert page.console.unexpected() == []
+
+
+def test_leaderboard_ranks_the_most_comfortable_horse_first(page, dashboard):
+    sign_in(page)
+    page.goto("/#/leaderboard?gait=canter&indicator=acc_y_wb_rms")
+    rows = page.locator("[data-leaderboard-table] tbody tr")
+    rows.first.wait_for()
+    assert rows.locator("th").all_inner_texts() == ["Bella", "Comet", "Dancer"]
+    assert rows.nth(1).locator("td").nth(1).inner_text() == "2"  # Comet: two rides behind its mean
+    comet = [d["indicators"]["acc_y_wb_rms"] for rid, d in dashboard["docs"].items()
+             if next(r for r in dashboard["rides"] if r["id"] == rid)["horse"] == "Comet"]
+    assert rows.nth(1).locator("[data-value]").inner_text() == js_fmt(float(np.mean(comet)))
+
+    # A higher-is-better indicator turns the order round: the gentlest horse can be ridden longest.
+    page.select_option("#lb-ind", "t_a8_limit_wb_h")
+    page.wait_for_function("document.querySelector('[data-leaderboard-note]').textContent.includes('higher')")
+    assert rows.nth(0).locator("th").inner_text() == "Bella"
+    page.screenshot(path="/tmp/dash_leaderboard.png", full_page=True)
+    assert page.console.unexpected() == []
+
+
+def test_upload_form_shows_the_servers_reason_for_a_bad_file(page, dashboard):
+    sign_in(page)
+    page.goto("/#/upload")
+    not_a_zip = b"this is a text file, not a ride bundle\n"
+    page.locator("#up-bundle").set_input_files(
+        files=[{"name": "not-a-ride.zip", "mimeType": "application/zip", "buffer": not_a_zip}])
+    page.get_by_role("button", name="Upload and analyse").click()
+    error = page.locator("[data-upload-form] [data-form-error]")
+    error.wait_for(state="visible")
+    shown = error.inner_text()
+    # The same bytes over the API: the dashboard shows exactly the server's reason.
+    status, detail = _bundle_rejection(dashboard["base"], not_a_zip)
+    assert 400 <= status < 500
+    # Each upload has its own id, which the server's reason may name; the rest is word for word.
+    assert _without_upload_ids(detail) in _without_upload_ids(shown) and f"HTTP {status}" in shown
+    assert page.locator("[data-upload-submit]").is_enabled()
+    page.screenshot(path="/tmp/dash_upload_error.png", full_page=True)
+    assert page.console.unexpected(status) == []
+
+
+def _without_upload_ids(text: str) -> str:
+    return re.sub(r"\b[0-9a-f]{16,}\b", "<upload id>", text)
+
+
+def _bundle_rejection(base: str, data: bytes) -> tuple[int, str]:
+    with httpx.Client(base_url=base, timeout=30) as api:
+        token = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
+        api.cookies.clear()
+        api.headers["Authorization"] = f"Bearer {token}"
+        created = api.post("/api/uploads", json={"target": "bundle", "length_bytes": len(data),
+                                                 "filename": "not-a-ride.zip"})
+        if created.status_code >= 400:
+            return created.status_code, created.json()["detail"]
+        upload_id = created.json()["id"]
+        sent = api.patch(f"/api/uploads/{upload_id}", content=data,
+                         headers={"Upload-Offset": "0", "Content-Type": "application/offset+octet-stream"})
+        if sent.status_code >= 400:
+            return sent.status_code, sent.json()["detail"]
+        final = api.post(f"/api/uploads/{upload_id}/finalize")
+        assert final.status_code >= 400, final.text
+        return final.status_code, final.json()["detail"]
+
+
+@pytest.mark.slow
+def test_every_page_renders_without_console_errors(page, dashboard):
+    sign_in(page)
+    bella = dashboard["horses"]["Bella"]
+    pages = {
+        "/": "Overview", "/rides": "Rides", "/upload": "Upload a ride", "/jobs": "Jobs", "/horses": "Horses",
+        "/riders": "Riders", f"/compare?horse={bella}": "Compare", "/leaderboard": "Leaderboard",
+        "/grades": "Riders' grades against the indicators",
+    }
+    for path, heading in pages.items():
+        page.goto(f"/#{path}")
+        page.get_by_role("heading", level=1, name=heading).wait_for()
+        page.locator("main:not([aria-busy])").wait_for()  # the page finished loading its data
+    # The comparison charts and the grades scatter are drawn from the seeded rides.
+    page.goto(f"/#/compare?horse={bella}")
+    page.wait_for_function("document.querySelector('[data-chart=\"compare-gait\"]').data !== undefined")
+    page.wait_for_function("document.querySelector('[data-chart=\"compare-horse\"]').data !== undefined")
+    assert page.eval_on_selector('[data-chart="compare-horse"]', "el => el.data[0].x") == ["walk", "canter"]
+    assert page.eval_on_selector('[data-chart="compare-gait"]', "el => el.data[0].x") == ["Bella"]  # walk
+    page.select_option("#cmp-gait", "canter")
+    page.wait_for_function("document.querySelector('[data-chart=\"compare-gait\"]').data[0].x.length === 3")
+    horses_in_canter = page.eval_on_selector('[data-chart="compare-gait"]', "el => el.data[0].x")
+    assert horses_in_canter == ["Bella", "Comet", "Dancer"]
+    page.screenshot(path="/tmp/dash_compare.png", full_page=True)
+    page.goto("/#/grades")
+    page.select_option("#gr-gait", "canter")
+    page.wait_for_function("document.querySelector('[data-stat=\"n\"]')?.textContent === '3'")
+    assert page.eval_on_selector('[data-chart="grades"]', "el => el.data[0].y") == [5, 3, 2]
+    page.screenshot(path="/tmp/dash_grades.png", full_page=True)
+    # The horses page: add one through the form, then edit it.
+    page.goto("/#/horses")
+    page.get_by_label("Name").fill("Echo")
+    page.get_by_label("Birth year").fill("2012")
+    page.get_by_role("button", name="Add horse").click()
+    page.locator('[data-entity-table] tbody th:text-is("Echo")').wait_for()
+    page.get_by_role("button", name="Edit Echo").click()
+    page.get_by_label("Name").fill("Echo II")
+    page.get_by_role("button", name="Save changes").click()
+    page.locator('[data-entity-table] tbody th:text-is("Echo II")').wait_for()
+    assert page.console.unexpected() == []
