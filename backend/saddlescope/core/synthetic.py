@@ -11,6 +11,25 @@ frame k shows the instant t = (k - offset_c) / fps (offset = how many frames lat
 appears in that camera). Frame instants are exposure midpoints.
 
 Units: world/arena metres and seconds; rig (left camera) millimetres; pixels.
+
+The scene (what a test may rely on):
+
+- Rigs: "thesis" (Tables 8.1-8.4: 640x480, 30 fps, f ~720-737 px, cameras 0.22-0.24 m apart, the
+  middle one 7.5 m from the track) and "wide" (1920x1080, 60 fps, cameras 2.5 m apart converging).
+- The horse travels along a straight track parallel to the baseline: direction "CW" = to the right
+  in the images, "CCW" = to the left (drawn from the seed). Markers 1-3 sit in a shallow V on the
+  camera-facing flank, numbered from the front (withers) to the back; S is on the saddle above
+  them, visible in the static clip only (the rider hides it during the ride).
+- Every clip starts with a lamp flash seen by all cameras: the light ramps up over 2 frame periods,
+  stays on 1.5 periods, ramps down over 2; the half-level of the rise is at the same instant in
+  every camera (truth ``clips.<kind>.flash_half_rise_s``).
+- Calibration: the checkerboard ``BOARD`` (12x11 inner corners, 50 mm squares: 4-5 px at 7.5 m on
+  the thesis rig) in ``calibration_poses`` poses through the 6.5 x 0.7 x 0.5 m volume, each held still
+  for 3 frame periods and moved in 1 (truth ``calibration_board.still`` marks left frames whose
+  matching frames in every camera show the same still pose).
+- During the ride a striped pole 2-2.6 m in front of the cameras hides each marker for a few
+  frames in one camera at a time; a stirrup flash, a D-ring, the white saddle pad, wall glints and
+  sunlit patches are the look-alikes; noise, lighting drift, motion blur over the exposure.
 """
 
 from __future__ import annotations

@@ -396,8 +396,9 @@ class BoardContent:
         if res is not None:
             composite_patch(frame, *res)
 
-    def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:  # pragma: no cover - unused
-        raise NotImplementedError("boards are drawn with draw_samples")
+    def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:
+        """Draw the board as it stands at instant t (no motion blur)."""
+        self.draw_samples(frame, view, np.array([t]), RenderOptions())
 
     def corners_w(self, r_bw: np.ndarray, o_w: np.ndarray) -> np.ndarray:
         """Inner corners in world metres, (cols*rows, 3), row-major like Board.object_points_mm."""
