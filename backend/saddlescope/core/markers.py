@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from saddlescope.core.errors import DetectionError, InputError
 from saddlescope.core.types import ImageTracks
@@ -306,7 +307,7 @@ def _scene(gray: np.ndarray, threshold: float | None = None) -> _Scene:
     brightest = float(gray.max())
     if threshold is None:
         span = brightest - background
-        levels = sorted({round(background + f * span, 1) for f in (0.3, 0.5, 0.7, 0.85)})
+        levels = sorted({round(background + f * span, 1) for f in (0.4, 0.6, 0.8)})
     else:
         levels = [float(threshold)]
     # Sensor noise from neighbouring pixels (robust to edges and texture): median |difference| / 0.954.
@@ -328,7 +329,7 @@ def _all_blobs(gray: np.ndarray, threshold: float, area_range_px, max_candidates
         return _empty_blobs()
     win = gray[y0:y1, x0:x1]
     n, labels, stats, cents = _label(win, threshold)
-    if n <= 1:
+    if n <= 1 or n > 20_000:  # nothing, or a level inside the texture: no marker stands out there
         return _empty_blobs()
     cents = cents + (x0, y0)
     area = stats[1:, cv2.CC_STAT_AREA]
@@ -346,8 +347,8 @@ def _all_blobs(gray: np.ndarray, threshold: float, area_range_px, max_candidates
     cut = (bx == 0) | (by == 0) | (bx + stats[keep, 2] == W) | (by + stats[keep, 3] == H)
     keep = keep[~cut]  # cut by the image border: not a whole marker
     if exclude_xy is not None and len(exclude_xy) and keep.size:
-        d = np.linalg.norm(cents[keep][:, None, :] - np.asarray(exclude_xy)[None, :, :], axis=-1)
-        keep = keep[d.min(axis=1) > exclude_radius_px]
+        d, _ = cKDTree(np.asarray(exclude_xy)).query(cents[keep], distance_upper_bound=exclude_radius_px)
+        keep = keep[~np.isfinite(d)]  # nothing still within the radius
     if keep.size > max_candidates:
         fg = labels > 0
         sums = np.bincount(labels[fg], weights=win[fg], minlength=n)
@@ -972,7 +973,7 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
     tracker: _Tracker | None = None
     ever_found = False
     tracked_from = 0            # row where the current tracker started
-    since_search = search_every  # frames since the last search attempt
+    since_search = 10 ** 6       # frames since the last search attempt
     last_error: DetectionError | None = None
     scene: _Scene | None = None
     scene_age = 0
@@ -1008,8 +1009,11 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
         xy_rows.append([None] * n)
         area_rows.append([None] * n)
         since_search += 1
-        if ever_found and since_search < search_every:
-            continue  # markers lost: look again every few frames only (a search costs ~10 frames' tracking)
+        # A search costs some ten frames of tracking: after a loss look every few frames only, and for
+        # a ride (the horse walks in) every other frame.
+        every = search_every if ever_found else (2 if moving else 1)
+        if since_search < every:
+            continue
         since_search = 0
         coarse = _coarse(gray)
         if scene is None or scene_age >= 30 or scene.coarse.shape != coarse.shape:
