@@ -2,16 +2,25 @@
 
 The thesis's filter chain, with every choice the user used to make chosen automatically (and still
 overridable): grey image, threshold (4.5.1), 8-connected labelling (4.5.2), area range (4.5.3), a
-window that follows the markers' centre (4.5.4), pairwise distances that must match the pattern
-within a tolerance (4.5.5, eq. 4.6-4.11) and the sign of the cross product for look-alikes
-(Fig. 4.13). Centroids are intensity weighted (grey minus local background) for sub-pixel accuracy.
-A marker that is not found is a gap (NaN), never a guess.
+window that follows the markers' centre (4.5.4), vectors between markers that must match the last
+frame within a tolerance (4.5.5, eq. 4.6-4.11, vectors rather than distances) and the sign of the cross
+product for look-alikes (Fig. 4.13). A marker that is not found is a gap (NaN), never a guess.
+
+- Automatic choices: thresholds between the background and the brightest pixel, a contrast floor from
+  the frame's own noise, blobs that are round and not cut by the image border, and the most plausible
+  set of n blobs (alike in size and brightness, close together; horse markers in a near-horizontal
+  row with similar gaps, plumb markers one above the other). Ambiguity is an error, not a coin toss.
+- Rides (``moving=True``): only the part of the frame that changed is searched, and spots that stood
+  still since the previous frame (glints, lamps) are not markers.
+- Centroids: intensity weighted, grey minus a local background from a grey opening (so the step of a
+  saddle pad's edge or a thin line across the marker does not pull them); < 0.01 px on clean discs.
+- Tracking: constant-velocity prediction, a window around it, the best assignment of blobs to markers
+  (gate, area, pattern); flashes skipped; after a loss the search resumes and keeps the labels.
 
 Frames are grey uint8 (or uint16) arrays of shape (H, W), typically the Y plane of a decoded video
-frame, possibly a strided view into the decoder's buffer. After the first frame only a window around
-the predicted markers is read, so detection costs little next to decoding.
+frame, possibly a strided view into the decoder's buffer. While tracking only a window around the
+predicted markers is read, so detection costs little next to decoding.
 """
-
 from __future__ import annotations
 
 import itertools
