@@ -17,6 +17,8 @@ import re
 import socket
 import subprocess
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
@@ -269,6 +271,21 @@ def sign_in(page) -> None:
     assert answer.ok, answer.text()
 
 
+@contextmanager
+def api_client(dashboard) -> Iterator[httpx.Client]:
+    """A client of the seeded server signed in with a bearer token (no cookies, so no CSRF)."""
+    with httpx.Client(base_url=dashboard["base"], timeout=30) as api:
+        token = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
+        api.cookies.clear()
+        api.headers["Authorization"] = f"Bearer {token}"
+        yield api
+
+
+def api_get(dashboard, url: str, **params) -> dict:
+    with api_client(dashboard) as api:
+        return _ok(api.get(url, params=params))
+
+
 def chart_traces(page, name: str) -> list[dict]:
     """The Plotly traces drawn in [data-chart=name]: name and number of points of each."""
     return page.eval_on_selector(
@@ -301,7 +318,7 @@ def test_login_flow_shows_the_servers_reason_then_signs_in(page, dashboard):
     assert page.locator("[data-nav] a[aria-current=page]").inner_text() == "Rides"
     rows = page.locator("[data-ride-table] tbody tr")
     rows.first.wait_for()
-    assert rows.count() == len(dashboard["rides"])
+    assert rows.count() == api_get(dashboard, "/api/rides")["total"]
 
     page.get_by_role("button", name="Sign out").click()
     page.wait_for_url("**/#/login**")
@@ -383,7 +400,7 @@ def test_upload_form_shows_the_servers_reason_for_a_bad_file(page, dashboard):
     error.wait_for(state="visible")
     shown = error.inner_text()
     # The same bytes over the API: the dashboard shows exactly the server's reason.
-    status, detail = _bundle_rejection(dashboard["base"], not_a_zip)
+    status, detail = _bundle_rejection(dashboard, not_a_zip)
     assert 400 <= status < 500
     # Each upload has its own id, which the server's reason may name; the rest is word for word.
     assert _without_upload_ids(detail) in _without_upload_ids(shown) and f"HTTP {status}" in shown
@@ -396,11 +413,8 @@ def _without_upload_ids(text: str) -> str:
     return re.sub(r"\b[0-9a-f]{16,}\b", "<upload id>", text)
 
 
-def _bundle_rejection(base: str, data: bytes) -> tuple[int, str]:
-    with httpx.Client(base_url=base, timeout=30) as api:
-        token = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
-        api.cookies.clear()
-        api.headers["Authorization"] = f"Bearer {token}"
+def _bundle_rejection(dashboard, data: bytes) -> tuple[int, str]:
+    with api_client(dashboard) as api:
         created = api.post("/api/uploads", json={"target": "bundle", "length_bytes": len(data),
                                                  "filename": "not-a-ride.zip"})
         if created.status_code >= 400:
@@ -455,3 +469,85 @@ def test_every_page_renders_without_console_errors(page, dashboard):
     page.get_by_role("button", name="Save changes").click()
     page.locator('[data-entity-table] tbody th:text-is("Echo II")').wait_for()
     assert page.console.unexpected() == []
+
+
+def test_clips_one_by_one_show_the_probe_reason_and_a_retry_reuses_the_ride(page, dashboard):
+    sign_in(page)
+    rides_before = api_get(dashboard, "/api/rides")["total"]
+    page.goto("/#/upload")
+    page.get_by_label("Clips one by one").check()
+    page.locator("main:not([aria-busy])").wait_for()
+    page.select_option("#up-horse", label="Comet")
+    page.select_option("#up-gait", "walk")
+    not_a_video = b"\x00 not a video \x00" * 64
+    for kind in ("motion", "calibration"):
+        for camera in ("left", "middle", "right"):
+            page.locator(f"#clip-{kind}-{camera}").set_input_files(
+                files=[{"name": f"{kind}-{camera}.mp4", "mimeType": "video/mp4", "buffer": not_a_video}])
+    error = page.locator("[data-upload-form] [data-form-error]")
+    for _ in range(2):
+        page.get_by_role("button", name="Upload and analyse").click()
+        error.wait_for(state="visible")
+        assert "HTTP 422" in error.inner_text()
+        page.locator("[data-upload-submit]:enabled").wait_for()
+    rides = api_get(dashboard, "/api/rides", limit=500)
+    assert rides["total"] == rides_before + 1  # the second attempt went to the same ride
+    new_ride = max(rides["items"], key=lambda r: r["id"])
+    assert (new_ride["horse_id"], new_ride["gait"]) == (dashboard["horses"]["Comet"], "walk")
+    with api_client(dashboard) as api:  # leave the other tests the rides they seeded
+        _ok(api.delete(f"/api/rides/{new_ride['id']}"), 204)
+    assert page.console.unexpected(422) == []
+
+
+def test_jobs_page_follows_a_job_live_and_offers_retry(page, dashboard):
+    sign_in(page)
+    with api_client(dashboard) as api:
+        running = _ok(api.post("/api/jobs", json={"kind": "selftest", "payload": {"steps": 10, "delay_s": 0.3}}))
+        failing = _ok(api.post("/api/jobs", json={"kind": "selftest", "payload": {"steps": 1, "fail": True}}))
+    page.goto("/#/jobs")
+    row = page.locator(f'[data-jobs-table] tr[data-job-id="{running["id"]}"]')
+    row.wait_for()
+    assert row.get_attribute("data-status") in ("queued", "running")
+    assert "in progress" in page.locator("[data-jobs-note]").inner_text()
+    # No reload: the page polls until the job is done.
+    page.locator(f'[data-jobs-table] tr[data-job-id="{running["id"]}"][data-status="done"]').wait_for()
+    assert row.locator("progress").get_attribute("value") == "1"
+    failed = page.locator(f'[data-jobs-table] tr[data-job-id="{failing["id"]}"][data-status="failed"]')
+    failed.wait_for()
+    job = api_get(dashboard, f"/api/jobs/{failing['id']}")
+    assert job["error"] and job["error"] in failed.inner_text()
+    failed.get_by_role("button", name=f"Retry job {failing['id']}").click()
+    page.locator(f'[data-jobs-table] tr[data-job-id="{failing["id"]}"][data-status="failed"]').wait_for()
+    assert api_get(dashboard, f"/api/jobs/{failing['id']}")["attempts"] >= 2
+    page.screenshot(path="/tmp/dash_jobs.png", full_page=True)
+    assert page.console.unexpected() == []
+
+
+def test_grade_form_saves_the_riders_grade(page, dashboard):
+    sign_in(page)
+    walk = next(r for r in dashboard["rides"] if r["gait"] == "walk")
+    page.goto(f"/#/rides/{walk['id']}")
+    form = page.locator("[data-grade-form]")
+    form.wait_for(state="visible")
+    page.locator("main:not([aria-busy])").wait_for()
+    page.select_option("#grade-rider", label="Rider B")
+    page.select_option("#grade-value", "4")
+    page.get_by_label("Comment").fill("springy but even")
+    form.get_by_role("button", name="Save grade").click()
+    form.locator("[data-form-ok]").wait_for(state="visible")
+    grades = api_get(dashboard, "/api/grades", ride_id=walk["id"])["items"]
+    assert [(g["rider_id"], g["grade"], g["comment"]) for g in grades] == [
+        (dashboard["riders"][1], 4, "springy but even")]
+    assert page.console.unexpected() == []
+
+
+def test_without_chromium_the_tests_skip_and_under_ci_they_fail(monkeypatch, tmp_path):
+    import test_dashboard as module
+
+    monkeypatch.setattr(module, "CHROMIUM", tmp_path / "no-chromium")
+    monkeypatch.setattr(module, "IN_CI", False)
+    with pytest.raises(pytest.skip.Exception, match="apt-get install chromium"):
+        module._require_browser()
+    monkeypatch.setattr(module, "IN_CI", True)
+    with pytest.raises(pytest.fail.Exception, match="required under CI"):
+        module._require_browser()

@@ -1,7 +1,7 @@
 // Upload a ride: a bundle zip, or the clips one by one (motion clips, and static, plumb and
 // calibration clips unless a calibrated rig is chosen). Progress over all bytes, resumable.
 
-import { ApiError, post } from "../api.js";
+import { ApiError, patch, post } from "../api.js";
 import { announce, formValues, h, page, showError } from "../dom.js";
 import { fillOptions } from "../options.js";
 import { navigate } from "../router.js";
@@ -48,6 +48,7 @@ export async function mountUpload(view) {
   const cancel = form.querySelector("[data-upload-cancel]");
   let controller = null;
   let active = [];
+  let pendingRideId = null;
 
   const source = () => form.querySelector("[data-upload-source]:checked").value;
   function showSource() {
@@ -107,11 +108,14 @@ export async function mountUpload(view) {
     if (!values.rig_id && !clips.some((c) => c.kind === "calibration")) {
       throw new Error("Choose a calibrated camera rig, or add the calibration clips of the three cameras.");
     }
-    const ride = await post("/api/rides", {
+    const fields = {
       horse_id: Number(values.horse_id), rider_id: Number(values.rider_id), gait: values.gait,
-      direction: values.direction, ...(values.rig_id ? { rig_id: Number(values.rig_id) } : {}),
-      ...(values.ridden_on ? { ridden_on: values.ridden_on } : {}),
-    });
+      direction: values.direction, rig_id: values.rig_id ? Number(values.rig_id) : null,
+      ridden_on: values.ridden_on || null,
+    };
+    // After a failed attempt the ride exists already: send the clips to it again instead of a new one.
+    const ride = pendingRideId ? await patch(`/api/rides/${pendingRideId}`, fields) : await post("/api/rides", fields);
+    pendingRideId = ride.id;
     const progressOf = track(clips.reduce((total, c) => total + c.file.size, 0));
     active = [];
     for (const clip of clips) {
@@ -132,6 +136,7 @@ export async function mountUpload(view) {
     setBusy(true, "Starting\u2026");
     try {
       const rideId = source() === "bundle" ? await uploadBundle(values) : await uploadClips(values);
+      pendingRideId = null;
       setBusy(false, "Upload complete.");
       announce("Upload complete; the analysis has been queued.");
       navigate(rideId ? `/rides/${rideId}` : "/jobs");
