@@ -464,6 +464,7 @@ class GroupStats(BaseModel):
 
 class HorseGroupStats(GroupStats):
     horse_id: int | None
+    horse: str
 
 
 class GaitComparison(BaseModel):

@@ -72,7 +72,7 @@ def horses_comparison(session: Session, *, club_id: int, gait: str, horse_ids: S
     ids = {row["horse"]: row["horse_id"] for row in rows}
     return {"gait": gait, "rides": len(rows),
             "indicators": {ind: {"unit": indicator_unit(ind),
-                                 "horses": [{"horse_id": ids.get(g["group"]), **_clean(g)}
+                                 "horses": [{"horse_id": ids.get(g["group"]), "horse": g["group"], **_clean(g)}
                                             for g in compare_horses(rows, ind, gait=gait)]}
                            for ind in indicators}}
 

@@ -15,7 +15,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from saddlescope.core.errors import InputError, VideoError
+from saddlescope.core.errors import BundleError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.models import Recording, RideStatus, UploadStatus, UploadTarget
 from saddlescope.db.repositories import (
@@ -175,7 +175,7 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
             try:
                 ride_clip_plan(recordings.for_ride(ride.id), recordings.for_rig(rig.id) if rig else [],
                                rig_calibrated=bool(rig is not None and rig.calibration))
-            except InputError:
+            except (BundleError, InputError):
                 return None  # not complete yet
             if jobs.active_for(ride_id=ride.id) is not None:
                 return None
@@ -258,7 +258,7 @@ def finalise_upload(sessions: sessionmaker[Session], storage: Storage, queue: Jo
                                        sha256=storage.sha256(staged), filename=filename)
             job_id = start_processing(sessions, queue, owner)
             outcome = {"recording_id": recording_id, "job_id": job_id}
-    except InputError as exc:
+    except SaddleScopeError as exc:
         with session_scope(sessions) as session:
             UploadRepository(session, club_id=club_id).close(upload_id, status=UploadStatus.FAILED, error=str(exc))
         raise

@@ -1,0 +1,68 @@
+"""The two ways SaddleScope runs, as one module-scoped fixture each API test module can use.
+
+``embedded``: SQLite, jobs in threads of the test process (the stand-in analysis applies).
+``celery``: PostgreSQL, Redis and a real Celery worker process running the stand-in analysis.
+Without the services the celery variant skips (fails under CI=true), as the other integration tests.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import integration_services
+import pytest
+from api_helpers import ThreadQueue, standin_installed
+from fastapi.testclient import TestClient
+
+from conftest import PROJECT_ROOT
+from saddlescope.api import create_app
+from saddlescope.db.migrate import upgrade_to_head
+from saddlescope.settings import Settings, load_settings
+
+MAX_UPLOAD_BYTES = 16 * 1024**2
+ENGINES = ["embedded", pytest.param("celery", marks=[pytest.mark.integration, pytest.mark.slow])]
+
+
+@dataclass
+class Env:
+    engine: str
+    settings: Settings
+    client: TestClient
+    worker: object | None = None
+    log_path: Path | None = None
+
+
+def standin_worker_env(delay_s: float = 0.0) -> dict[str, str]:
+    tests = PROJECT_ROOT / "tests"
+    path = os.pathsep.join([str(tests / "api"), str(tests), os.environ.get("PYTHONPATH", "")])
+    return {"PYTHONPATH": path, "STANDIN_DELAY_S": str(delay_s)}
+
+
+def open_env(request, tmp_path_factory, *, worker: bool = True, **overrides):
+    """Yield an `Env` for ``request.param`` ("embedded" or "celery"), torn down after the module."""
+    root = tmp_path_factory.mktemp(f"api-{request.param}")
+    common = dict(storage_dir=str(root / "storage"), max_upload_bytes=MAX_UPLOAD_BYTES, **overrides)
+    if request.param == "embedded":
+        settings = load_settings(database_url=f"sqlite:///{root / 'db.sqlite'}", **common)
+        queue = ThreadQueue(settings)
+        with standin_installed(), TestClient(create_app(settings, queue=queue, open_registration=True)) as client:
+            yield Env("embedded", settings, client)
+        return
+    database_url = request.getfixturevalue("pg_database_url")
+    broker_url = request.getfixturevalue("redis_url")
+    upgrade_to_head(database_url)
+    settings = load_settings(database_url=database_url, broker_url=broker_url,
+                             secret_key=integration_services.TEST_SECRET, **common)
+    log_path = root / "worker.log"
+    if worker:
+        with integration_services.run_celery_worker(
+                database_url=database_url, broker_url=broker_url, storage_dir=Path(settings.storage_dir),
+                log_path=log_path, app="standin_worker", extra_env=standin_worker_env(),
+                config=request.config) as proc:
+            with TestClient(create_app(settings, open_registration=True)) as client:
+                yield Env("celery", settings, client, proc, log_path)
+        return
+    with TestClient(create_app(settings, open_registration=True)) as client:
+        yield Env("celery", settings, client)
