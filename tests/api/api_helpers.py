@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from integration_services import Api, add_member, new_club, sign_in  # noqa: F401 (the signed-in client)
 
 from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.types import CAMERA_ROLES
@@ -187,80 +188,6 @@ class ThreadQueue:
     def close(self) -> None:
         for thread in self.threads:
             thread.join(timeout=30)
-
-
-# --- a client signed in as a user ----------------------------------------------------------------------
-
-
-class Api:
-    """A TestClient with a bearer token: ``api.get("/horses")`` calls ``/api/horses``."""
-
-    def __init__(self, client, token: str | None = None) -> None:
-        self.client = client
-        self.headers = {"Authorization": f"Bearer {token}"} if token else {}
-
-    def request(self, method: str, path: str, **kwargs):
-        headers = {**self.headers, **kwargs.pop("headers", {})}
-        return self.client.request(method, f"/api{path}", headers=headers, **kwargs)
-
-    def get(self, path, **kw):
-        return self.request("GET", path, **kw)
-
-    def post(self, path, **kw):
-        return self.request("POST", path, **kw)
-
-    def put(self, path, **kw):
-        return self.request("PUT", path, **kw)
-
-    def patch(self, path, **kw):
-        return self.request("PATCH", path, **kw)
-
-    def delete(self, path, **kw):
-        return self.request("DELETE", path, **kw)
-
-    def ok(self, method: str, path: str, status: int = 200, **kw):
-        """The JSON of a call that must answer `status` (fails with the body otherwise)."""
-        response = self.request(method, path, **kw)
-        assert response.status_code == status, f"{method} {path}: {response.status_code} {response.text[:500]}"
-        return response.json() if response.content and "json" in response.headers.get("content-type", "") else response
-
-    def wait_job(self, job_id: int, *, timeout_s: float = 60.0) -> tuple[dict, list[dict]]:
-        """Poll a job until finished; (last view, every view seen)."""
-        seen: list[dict] = []
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            seen.append(self.ok("GET", f"/jobs/{job_id}"))
-            if seen[-1]["status"] in ("done", "failed", "cancelled"):
-                return seen[-1], seen
-            time.sleep(0.05)
-        pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1] if seen else None}")
-
-
-_counter = iter(range(1, 10**9))
-
-
-def new_club(client, *, name: str | None = None, password: str = "correct horse 1") -> tuple[Api, dict]:
-    """Register a fresh club (its first admin) and sign in; (api, {"club", "user", "email", "password"})."""
-    n = next(_counter)
-    name = name or f"Club {n}-{os.getpid()}-{time.monotonic_ns()}"
-    email = f"admin{n}.{time.monotonic_ns()}@club.example"
-    created = client.post("/api/clubs", json={"club_name": name, "email": email, "password": password})
-    assert created.status_code == 201, created.text
-    return sign_in(client, email, password), {**created.json(), "email": email, "password": password}
-
-
-def sign_in(client, email: str, password: str) -> Api:
-    response = client.post("/api/auth/login", data={"username": email, "password": password})
-    assert response.status_code == 200, response.text
-    client.cookies.clear()  # bearer only: a test's cookie must not authenticate the next one
-    return Api(client, response.json()["access_token"])
-
-
-def add_member(admin: Api, *, role: str = "member", password: str = "member password") -> tuple[Api, dict]:
-    n = next(_counter)
-    email = f"member{n}.{time.monotonic_ns()}@club.example"
-    user = admin.ok("POST", "/users", 201, json={"email": email, "password": password, "role": role})
-    return sign_in(admin.client, email, password), user
 
 
 # --- bundles and zips ------------------------------------------------------------------------------

@@ -49,12 +49,25 @@ def wait_healthy(base: str, proc: subprocess.Popen, log_path: Path, timeout_s: f
     pytest.fail(f"saddlescope serve did not answer within {timeout_s} s:\n{log_path.read_text()[-3000:]}")
 
 
+def sign_up(base: str) -> dict[str, str]:
+    """Register a club (open: embedded mode, or the first club of a deployment) and sign in; headers."""
+    account = {"club_name": "E2E riding club", "email": "admin@e2e.example", "password": "e2e password"}
+    created = httpx.post(f"{base}/api/clubs", json=account, timeout=10)
+    assert created.status_code == 201, created.text
+    login = httpx.post(f"{base}/api/auth/login", data={"username": account["email"], "password": account["password"]},
+                       timeout=10)
+    assert login.status_code == 200, login.text
+    return {"Authorization": f"Bearer {login.json()['access_token']}"}
+
+
 def run_job_over_http(base: str, body: dict, timeout_s: float = 60.0) -> dict:
-    created = httpx.post(f"{base}/api/jobs", json=body, timeout=10)
+    headers = sign_up(base)
+    assert httpx.post(f"{base}/api/jobs", json=body, timeout=10).status_code == 401  # not signed in
+    created = httpx.post(f"{base}/api/jobs", json=body, headers=headers, timeout=10)
     assert created.status_code == 201, created.text
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        job = httpx.get(f"{base}/api/jobs/{created.json()['id']}", timeout=10).json()
+        job = httpx.get(f"{base}/api/jobs/{created.json()['id']}", headers=headers, timeout=10).json()
         if job["status"] in ("done", "failed", "cancelled"):
             return job
         time.sleep(0.1)

@@ -7,6 +7,7 @@ import time
 import integration_services
 import pytest
 from fastapi.testclient import TestClient
+from integration_services import new_club
 
 from saddlescope.api import create_app
 from saddlescope.db.session import session_factory_for
@@ -31,18 +32,20 @@ def api(celery_worker, tmp_path_factory):
         secret_key=integration_services.TEST_SECRET,
     )
     bundle = integration_services.write_tiny_bundle(tmp_path_factory.mktemp("bundle") / "ride")
-    ride_id = register_bundle(
-        session_factory_for(settings.database_url), Storage(settings.storage_dir), bundle
-    )
-    with TestClient(create_app(settings)) as client:
-        yield client, ride_id, celery_worker
+    with TestClient(create_app(settings, open_registration=True)) as client:
+        api, account = new_club(client)
+        ride_id = register_bundle(
+            session_factory_for(settings.database_url), Storage(settings.storage_dir), bundle,
+            club_id=account["club"]["id"],
+        )
+        yield api, ride_id, celery_worker
 
 
 def wait_done(client, job_id, timeout_s=60.0):
     seen = []
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        seen.append(client.get(f"/api/jobs/{job_id}").json())
+        seen.append(client.get(f"/jobs/{job_id}").json())
         if seen[-1]["status"] in ("done", "failed", "cancelled"):
             return seen[-1], seen
         time.sleep(0.05)
@@ -51,7 +54,7 @@ def wait_done(client, job_id, timeout_s=60.0):
 
 def test_health_is_ok_with_postgresql_redis_and_storage(api):
     client, _, _ = api
-    health = client.get("/api/health").json()
+    health = client.client.get("/api/health").json()
     assert health["status"] == "ok" and health["mode"] == "celery", health
     assert health["parts"]["database"]["detail"].startswith("postgresql")
     assert "redis" in health["parts"]["broker"]["detail"]
@@ -59,7 +62,7 @@ def test_health_is_ok_with_postgresql_redis_and_storage(api):
 
 def test_probe_job_runs_on_the_celery_worker(api):
     client, ride_id, worker = api
-    response = client.post("/api/jobs", json={"kind": "probe", "ride_id": ride_id})
+    response = client.post("/jobs", json={"kind": "probe", "ride_id": ride_id})
     assert response.status_code == 201, response.text
     job, _ = wait_done(client, response.json()["id"])
     assert job["status"] == "done", job["error"]
@@ -71,7 +74,7 @@ def test_probe_job_runs_on_the_celery_worker(api):
 def test_selftest_progress_is_readable_through_the_api(api):
     client, _, _ = api
     job_id = client.post(
-        "/api/jobs", json={"kind": "selftest", "payload": {"steps": 10, "delay_s": 0.15}}
+        "/jobs", json={"kind": "selftest", "payload": {"steps": 10, "delay_s": 0.15}}
     ).json()["id"]
     job, seen = wait_done(client, job_id)
     assert job["status"] == "done" and job["timings_s"]["selftest"] >= 1.0
@@ -81,14 +84,14 @@ def test_selftest_progress_is_readable_through_the_api(api):
 def test_a_job_delivered_twice_runs_once(api):
     client, _, worker = api
     job_id = client.post(
-        "/api/jobs", json={"kind": "selftest", "payload": {"steps": 2, "delay_s": 0.05}}
+        "/jobs", json={"kind": "selftest", "payload": {"steps": 2, "delay_s": 0.05}}
     ).json()["id"]
     wait_done(client, job_id)
-    queue = CeleryQueue(client.app.state.settings)
+    queue = CeleryQueue(client.client.app.state.settings)
     try:
         queue.submit(job_id)  # as if the broker redelivered it
     finally:
         queue.close()
     time.sleep(1.0)
-    job = client.get(f"/api/jobs/{job_id}").json()
+    job = client.get(f"/jobs/{job_id}").json()
     assert job["status"] == "done" and job["attempts"] == 1

@@ -9,6 +9,7 @@ header on unsafe requests (`saddlescope.api.deps`).
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import re
 import secrets
 from dataclasses import dataclass
@@ -116,6 +117,11 @@ def authenticate(session: Session, email: str, password: str) -> User:
     return user
 
 
+def _signing_key(settings: Settings) -> bytes:
+    """The token key: derived from the secret for this one purpose (and always 256 bits long)."""
+    return hashlib.sha256(b"saddlescope-access-token-v1\0" + settings.secret_key.get_secret_value().encode()).digest()
+
+
 def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = None) -> tuple[str, str, int]:
     """(token, csrf token, lifetime in s) for a signed-in user."""
     now = now or dt.datetime.now(dt.UTC)
@@ -123,14 +129,14 @@ def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = Non
     lifetime_s = settings.token_lifetime_s
     claims = {"sub": str(user.id), "club": user.club_id, "role": user.role, "csrf": csrf, "aud": TOKEN_AUDIENCE,
               "iat": now, "exp": now + dt.timedelta(seconds=lifetime_s)}
-    token = jwt.encode(claims, settings.secret_key.get_secret_value(), algorithm=TOKEN_ALGORITHM)
+    token = jwt.encode(claims, _signing_key(settings), algorithm=TOKEN_ALGORITHM)
     return token, csrf, lifetime_s
 
 
 def read_token(token: str, settings: Settings) -> Principal:
     """Verify a token's signature and expiry; `AuthError` saying why it is refused."""
     try:
-        claims = jwt.decode(token, settings.secret_key.get_secret_value(), algorithms=[TOKEN_ALGORITHM],
+        claims = jwt.decode(token, _signing_key(settings), algorithms=[TOKEN_ALGORITHM],
                             audience=TOKEN_AUDIENCE, options={"require": ["exp", "sub", "club", "csrf"]})
     except jwt.ExpiredSignatureError:
         raise AuthError("the sign-in has expired; sign in again") from None
