@@ -442,6 +442,7 @@ def test_every_page_renders_without_console_errors(page, dashboard):
         page.goto(f"/#{path}")
         page.get_by_role("heading", level=1, name=heading).wait_for()
         page.locator("main:not([aria-busy])").wait_for()  # the page finished loading its data
+        page.screenshot(path=f"/tmp/dash_page{path.split('?')[0].replace('/', '_')}.png", full_page=True)
     # The comparison charts and the grades scatter are drawn from the seeded rides.
     page.goto(f"/#/compare?horse={bella}")
     page.wait_for_function("document.querySelector('[data-chart=\"compare-gait\"]').data !== undefined")
@@ -458,6 +459,12 @@ def test_every_page_renders_without_console_errors(page, dashboard):
     page.wait_for_function("document.querySelector('[data-stat=\"n\"]')?.textContent === '3'")
     assert page.eval_on_selector('[data-chart="grades"]', "el => el.data[0].y") == [5, 3, 2]
     page.screenshot(path="/tmp/dash_grades.png", full_page=True)
+    # A phone-sized window: the result page still reads (screenshot for a look).
+    page.set_viewport_size({"width": 390, "height": 844})
+    page.goto(f"/#/rides/{dashboard['rides'][0]['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    page.screenshot(path="/tmp/dash_mobile_ride.png", full_page=True)
+    page.set_viewport_size({"width": 1280, "height": 900})
     # The horses page: add one through the form, then edit it.
     page.goto("/#/horses")
     page.get_by_label("Name").fill("Echo")
