@@ -56,6 +56,7 @@ class PipelineParams:
     """Choices a user may override; the defaults follow the thesis where it was right."""
 
     n_periods: int = 2
+    smoothing: str = "rloess"  # or "none": the Fourier fits alone smooth
     smoothing_span: float = 0.10
     smoothing_iterations: int = 4
     max_gap_s: float = 0.15
@@ -66,6 +67,8 @@ class PipelineParams:
     singularity_threshold: float = 0.2
     angular_method: str = "lsq"
     x_model: str = "linear"
+    extra_orders: int = 1
+    max_order: int | None = None
     detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
 
 
@@ -239,17 +242,25 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     Returns (tracks per camera, static indices of horse markers 1-3, static index of S).
     """
     cams = clips.cameras("motion")
-    frames = SequentialFrames(lambda cam, start: clips.gray_frames("motion", cam, start=start))
-    first = max(int(first_frame.get(c, 0) - math.floor(offsets.get(c, 0.0))) for c in cams)
-    last = min(int(clips.frame_count("motion", c) - math.ceil(offsets.get(c, 0.0))) - 1 for c in cams)
     # The saddle marker sits on the saddle above the horse markers: the static marker farthest
     # against gravity is S, the others are the horse markers in the static shot's order.
     height = -(static_mm @ down)
     order = [int(i) for i in np.argsort(height)]
     horse_idx = sorted(order[:n_horse])
     rest = [i for i in range(static_mm.shape[0]) if i not in horse_idx]
-    _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last)
     overrides = {k: v for k, v in params.detection.get("motion", {}).items() if not isinstance(v, Mapping)}
+    try:
+        # First choice: each camera finds the markers by itself among what moves (glints stand still).
+        tracks = {c: track_markers(clips.gray_frames("motion", c, start=first_frame.get(c, 0)), n_markers=n_horse,
+                                   camera=c, clip="motion", **{"moving": True, **overrides}) for c in cams}
+        return tracks, horse_idx, (rest[0] if rest else None)
+    except DetectionError:
+        pass
+    # Then all cameras together: the first instant where they agree on the static shot's triangle.
+    frames = SequentialFrames(lambda cam, start: clips.gray_frames("motion", cam, start=start))
+    first = max(int(first_frame.get(c, 0) - math.floor(offsets.get(c, 0.0))) for c in cams)
+    last = min(int(clips.frame_count("motion", c) - math.ceil(offsets.get(c, 0.0))) - 1 for c in cams)
+    _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last)
     tracks = {c: track_markers(clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse,
                                camera=c, clip="motion", first_frame_xy=found["xy"][c], **overrides)
               for c in cams}
@@ -296,6 +307,19 @@ def _static_positions(tracks: MarkerTracks, what: str) -> np.ndarray:
     return np.median(xyz[ok], axis=0)
 
 
+def _longest_run(mask: np.ndarray) -> tuple[int, int]:
+    """[start, stop) of the longest run of True."""
+    best, start = (0, 0), None
+    for i, ok in enumerate(list(mask) + [False]):
+        if ok and start is None:
+            start = i
+        elif not ok and start is not None:
+            if i - start > best[1] - best[0]:
+                best = (start, i)
+            start = None
+    return best
+
+
 def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
                       plumb_tracks: MarkerTracks | None, params: PipelineParams, *,
                       horse_idx: list[int] | None = None, saddle_idx: int | None = None) -> dict:
@@ -320,16 +344,23 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
         flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s")
     valid = np.all(np.isfinite(xyz), axis=(1, 2))
 
-    period_s, period_info = estimate_period(t, xyz)
-    i0, i1 = analysis_window(t, valid, period_s, n_periods=params.n_periods)
+    # The horse crosses the view: analyse the longest stretch where every marker is tracked.
+    run0, run1 = _longest_run(valid)
+    if run1 - run0 < 8:
+        raise KinematicsError(f"the markers are tracked together for at most {run1 - run0} consecutive frames; "
+                              "the ride cannot be analysed")
+    period_s, period_info = estimate_period(t[run0:run1], xyz[run0:run1])
+    i0, i1 = analysis_window(t[run0:run1], valid[run0:run1], period_s, n_periods=params.n_periods)
+    i0, i1 = i0 + run0, i1 + run0
     win = slice(i0, i1)
     t_w = t[win]
     xyz_w = xyz[win]
     # Robust LOESS on every coordinate in the window (5.2.2).
     ok_w = np.all(np.isfinite(xyz_w), axis=(1, 2))
-    smooth = np.full_like(xyz_w, np.nan)
-    smooth[ok_w] = rloess(t_w[ok_w], xyz_w[ok_w].reshape(ok_w.sum(), -1), span=params.smoothing_span,
-                          iterations=params.smoothing_iterations).reshape(-1, n_markers, 3)
+    smooth = xyz_w.copy() if params.smoothing == "none" else np.full_like(xyz_w, np.nan)
+    if params.smoothing != "none":
+        smooth[ok_w] = rloess(t_w[ok_w], xyz_w[ok_w].reshape(ok_w.sum(), -1), span=params.smoothing_span,
+                              iterations=params.smoothing_iterations).reshape(-1, n_markers, 3)
 
     # Motion reference frame (5.3): travel of marker 1, gravity from the plumb.
     plumb_top = plumb_bottom = None
@@ -363,7 +394,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     r = reg.registered
 
     # Curve fitting (5.5): velocities and accelerations are analytic derivatives of the fits.
-    fits = fit_marker_kinematics(t_w, r, period_s=period_s, x_model=params.x_model)
+    fits = fit_marker_kinematics(t_w, r, period_s=period_s, x_model=params.x_model,
+                                 extra_orders=params.extra_orders)
     flags.extend(fits.flags)
     v, a = fits.velocity_m_s, fits.acceleration_m_s2
 
@@ -510,7 +542,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     motion2d, horse_idx, saddle_idx = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
                                                     first_frame["motion"], params, down=down)
     tracks3d["motion"] = triangulate_clip(rig, motion2d, offsets["motion"], fps["motion"], _names(n_horse),
-                                          params, match_labels=False)
+                                          params)
     progress.finish("detection", t0)
     t0 = time.perf_counter()
     progress.finish("triangulation", t0)
