@@ -1,0 +1,136 @@
+"""Resumable uploads (tus-like) and the streamed upload path: offsets, resuming, finalising, refusals."""
+
+from __future__ import annotations
+
+import hashlib
+
+import integration_services
+import pytest
+from api_helpers import new_club, zip_folder
+from engines import ENGINES, open_env
+from integration_services import write_tiny_bundle, write_tiny_clip
+
+from saddlescope.storage import Storage, upload_key
+
+pg_database_url = integration_services.pg_database_url
+redis_url = integration_services.redis_url
+
+
+@pytest.fixture(scope="module", params=ENGINES)
+def env(request, tmp_path_factory):
+    yield from open_env(request, tmp_path_factory, worker=False)
+
+
+@pytest.fixture(scope="module")
+def club(env, tmp_path_factory):
+    api, _ = new_club(env.client)
+    horse = api.ok("POST", "/horses", 201, json={"name": "Phone"})
+    rider = api.ok("POST", "/riders", 201, json={"name": "Filmed"})
+    ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
+                                               "direction": "CCW"})
+    folder = tmp_path_factory.mktemp("uploads")
+    return {"api": api, "ride": ride, "folder": folder}
+
+
+def start(api, ride_id: int, data: bytes, camera: str = "left", **extra) -> dict:
+    return api.ok("POST", "/uploads", 201, json={"target": "ride_clip", "ride_id": ride_id, "clip_kind": "motion",
+                                                 "camera": camera, "length_bytes": len(data),
+                                                 "filename": f"{camera}.avi", **extra})
+
+
+def send(api, upload_id: str, offset: int, chunk: bytes):
+    return api.patch(f"/uploads/{upload_id}", content=chunk,
+                     headers={"Upload-Offset": str(offset), "Content-Type": "application/offset+octet-stream"})
+
+
+def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club):
+    api, ride = club["api"], club["ride"]
+    data = write_tiny_clip(club["folder"] / "phone.avi", frames=12).read_bytes()
+    upload = start(api, ride["id"], data)
+    assert upload["offset_bytes"] == 0 and upload["status"] == "open" and len(upload["id"]) == 32
+    third = len(data) // 3
+    first = send(api, upload["id"], 0, data[:third])
+    assert first.status_code == 204 and first.headers["Upload-Offset"] == str(third)
+
+    # the connection dropped: the client asks where to resume
+    head = api.request("HEAD", f"/uploads/{upload['id']}")
+    assert head.status_code == 200 and head.headers["Upload-Offset"] == str(third)
+    assert head.headers["Upload-Length"] == str(len(data))
+    stale = send(api, upload["id"], 0, data[:third])  # a retry of the first chunk
+    assert stale.status_code == 409 and f"resume from {third}" in stale.json()["detail"]
+    early = api.post(f"/uploads/{upload['id']}/finalize")
+    assert early.status_code == 409 and f"has {third} of its {len(data)} bytes" in early.json()["detail"]
+
+    assert send(api, upload["id"], third, data[third:2 * third]).status_code == 204
+    too_much = send(api, upload["id"], 2 * third, data[2 * third:] + b"extra")
+    assert too_much.status_code == 413 and "more bytes than the" in too_much.json()["detail"]
+    assert api.ok("GET", f"/uploads/{upload['id']}")["offset_bytes"] == 2 * third  # the bad chunk did not count
+    assert send(api, upload["id"], 2 * third, data[2 * third:]).status_code == 204
+
+    outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")
+    assert outcome["job_id"] is None  # one camera of three: nothing to start yet
+    clip = next(r for r in api.ok("GET", f"/rides/{ride['id']}/clips") if r["id"] == outcome["recording_id"])
+    assert clip["sha256"] == hashlib.sha256(data).hexdigest() and clip["size_bytes"] == len(data)
+    assert (clip["frame_count"], clip["fps"], clip["width"], clip["height"]) == (12, 30.0, 64, 48)
+    assert clip["original_filename"] == "left.avi"
+    done = api.ok("GET", f"/uploads/{upload['id']}")
+    assert done["status"] == "finalised" and done["outcome"] == outcome
+    assert send(api, upload["id"], len(data), b"more").status_code == 409
+    assert not Storage(env.settings.storage_dir).exists(upload_key(upload["id"]))
+
+
+def test_a_refused_file_marks_the_upload_failed_with_the_reason(env, club):
+    api, ride = club["api"], club["ride"]
+    data = b"not a video at all " * 50
+    upload = start(api, ride["id"], data, camera="middle")
+    assert send(api, upload["id"], 0, data).status_code == 204
+    response = api.post(f"/uploads/{upload['id']}/finalize")
+    assert response.status_code == 422 and "(middle.avi) is not a usable video" in response.json()["detail"]
+    failed = api.ok("GET", f"/uploads/{upload['id']}")
+    assert failed["status"] == "failed" and "not a usable video" in failed["error"]
+    assert all(r["camera_role"] != "middle" for r in api.ok("GET", f"/rides/{ride['id']}/clips"))
+
+
+def test_abandon_and_bad_requests(env, club):
+    api, ride = club["api"], club["ride"]
+    upload = start(api, ride["id"], b"0123456789", camera="right")
+    assert send(api, upload["id"], 0, b"01234").status_code == 204
+    assert api.delete(f"/uploads/{upload['id']}").status_code == 204
+    assert api.get(f"/uploads/{upload['id']}").status_code == 404
+    assert not Storage(env.settings.storage_dir).exists(upload_key(upload["id"]))
+    assert api.get("/uploads/not-an-upload-id").status_code == 422
+    missing_offset = api.patch(f"/uploads/{'0' * 32}", content=b"x")
+    assert missing_offset.status_code == 422 and "Upload-Offset" in missing_offset.json()["detail"]
+    wrong = api.post("/uploads", json={"target": "rig_clip", "rig_id": 999, "clip_kind": "motion", "camera": "left",
+                                       "length_bytes": 5})
+    assert wrong.status_code == 404 and "rig 999 not found" in wrong.json()["detail"]
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Resumable rig"})
+    motion_for_rig = api.post("/uploads", json={"target": "rig_clip", "rig_id": rig["id"], "clip_kind": "motion",
+                                                "camera": "left", "length_bytes": 5})
+    assert motion_for_rig.status_code == 422 and "a rig has no 'motion' clips" in motion_for_rig.json()["detail"]
+
+
+def test_a_bundle_as_a_resumable_upload_becomes_a_ride_with_a_job(env, club):
+    api = club["api"]
+    data = zip_folder(write_tiny_bundle(club["folder"] / "bundle"))
+    upload = api.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data),
+                                                   "filename": "ride.zip"})
+    step = 7000
+    for offset in range(0, len(data), step):
+        assert send(api, upload["id"], offset, data[offset:offset + step]).status_code == 204
+    outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")
+    ride = api.ok("GET", f"/rides/{outcome['ride_id']}")
+    assert ride["from_bundle"] and len(ride["recordings"]) == 12 and ride["latest_job_id"] == outcome["job_id"]
+
+
+def test_raw_and_multipart_uploads_store_the_same_bytes(env, club):
+    api, ride = club["api"], club["ride"]
+    data = write_tiny_clip(club["folder"] / "raw.avi", frames=9).read_bytes()
+    raw = api.ok("PUT", f"/rides/{ride['id']}/clips/static/left", content=data,
+                 headers={"Content-Type": "video/x-msvideo", "X-Filename": "raw.avi"})
+    form = api.ok("PUT", f"/rides/{ride['id']}/clips/static/middle", files={"file": ("form.avi", data)},
+                  data={"note": "a form field next to the file is ignored"})
+    assert raw["recording"]["sha256"] == form["recording"]["sha256"] == hashlib.sha256(data).hexdigest()
+    assert raw["recording"]["original_filename"] == "raw.avi" and form["recording"]["original_filename"] == "form.avi"
+    no_file = api.put(f"/rides/{ride['id']}/clips/static/right", files={"other": ("x.avi", data)})
+    assert no_file.status_code == 422 and "no 'file' field" in no_file.json()["detail"]
