@@ -475,7 +475,7 @@ def _choose_window(views, model: GaitModel, m_dir, tm: ClipTiming, usable, fps_:
         n = int(math.ceil(n_periods * model.period_s * fps_ - 1e-9))
         if hi - lo + 1 < n + 2:
             continue
-        k0 = int(round(model.t_cross_s * fps_ - n / 2))
+        k0 = int(round((lo + hi - n) / 2))  # centred where all markers are in view
         k0 = min(max(k0, lo + 1), hi - n)
         return k0 / fps_, n_periods
     raise InputError(

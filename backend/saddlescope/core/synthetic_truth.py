@@ -149,6 +149,8 @@ def build_truth(scene: Scene) -> dict:
             "flash_half_rise_s": tm.flash_on_s + tm.flash_ramp_s / 2,
             "content_start_s": tm.content_start_s,
         }
+        if kind in markers_3d:
+            clips[kind]["markers_in_view_left_frames"] = _in_view_interval(scene, kind)
     truth_sec = {
         "markers_3d_mm": markers_3d,
         "marker_names": names,
@@ -235,6 +237,20 @@ def build_truth(scene: Scene) -> dict:
             "truth": truth_sec,
         }
     )
+
+
+def _in_view_interval(scene: Scene, kind: str) -> list[int] | None:
+    """First and last left frames at which every rendered marker is inside every camera's image
+    (ignoring the pole); the horse enters and leaves the field of view during a fast ride."""
+    tm = scene.timings[kind]
+    content = scene.contents[kind]
+    rendered = np.asarray(content.rendered, bool)
+    pts = content.markers_w(tm.left_times)[:, rendered]
+    ok = np.ones(tm.n_left, bool)
+    for view in scene.views.values():
+        ok &= np.all(view.inside(view.project(pts), 4.0), axis=1)
+    idx = np.nonzero(ok)[0]
+    return [int(idx[0]), int(idx[-1])] if idx.size else None
 
 
 def _board_truth(scene: Scene, kind: str) -> dict:
