@@ -349,7 +349,11 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     if run1 - run0 < 8:
         raise KinematicsError(f"the markers are tracked together for at most {run1 - run0} consecutive frames; "
                               "the ride cannot be analysed")
-    period_s, period_info = estimate_period(t[run0:run1], xyz[run0:run1])
+    # Period from the image-plane coordinates of the left camera: depth is the noisiest direction
+    # when the cameras stand close together (thesis rig).
+    planar = xyz[run0:run1].copy()
+    planar[..., 2] = 0.0
+    period_s, period_info = estimate_period(t[run0:run1], planar)
     i0, i1 = analysis_window(t[run0:run1], valid[run0:run1], period_s, n_periods=params.n_periods)
     i0, i1 = i0 + run0, i1 + run0
     win = slice(i0, i1)

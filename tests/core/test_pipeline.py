@@ -1,0 +1,125 @@
+"""The whole pipeline on a short synthetic ride, against its exact answer, and its bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from saddlescope.core import pipeline as P
+from saddlescope.core.errors import KinematicsError
+from saddlescope.core.synthetic import saddle_truth_at
+from saddlescope.core.types import MarkerTracks
+from saddlescope.io.result_schema import validate_result
+
+
+@pytest.fixture(scope="module")
+def short_ride(tmp_path_factory):
+    from saddlescope.io.synth_writer import write_ride_bundle
+
+    out = tmp_path_factory.mktemp("ride") / "canter"
+    write_ride_bundle(out, gait="canter", seed=4, rig="thesis", duration_s=3.0, extras=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def analysed(short_ride, tmp_path_factory):
+    out = tmp_path_factory.mktemp("result") / "result.json"
+    proc = subprocess.run([sys.executable, "-m", "saddlescope.cli", "analyze", str(short_ride), "--json", str(out)],
+                          capture_output=True, text=True, timeout=1500)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(out.read_text()), json.loads((short_ride / "truth.json").read_text())
+
+
+@pytest.mark.slow
+def test_analyze_cli_gives_a_valid_result_close_to_truth(analysed):
+    result, truth = analysed
+    validate_result(result)
+    assert result["format"] == "saddlescope.result/1"
+    # sync within a tenth of a frame (issue 4), period and speed (issue 5)
+    for kind in ("static", "motion"):
+        for cam, off in truth["sync"][kind].items():
+            assert abs(result["sync"][kind][cam] - off) < 0.1, (kind, cam)
+    assert abs(result["period_s"] / truth["period_s"] - 1) < 0.01
+    speed_true = truth["truth"]["speed_kmh"]
+    assert abs(result["indicators"]["vel_x_avg_kmh"] / speed_true - 1) < 0.02
+    assert abs(result["indicators"]["stride_frequency_hz"] * truth["period_s"] - 1) < 0.01
+    # the analysed window is a whole number (two) of periods
+    assert abs(result["window"]["duration_s"] / result["period_s"] - 2) < 0.05
+    for k in ("left", "middle", "right"):
+        f = result["calibration"]["cameras"][k]["K"][0][0]
+        assert abs(f / truth["calibration"]["cameras"][k]["K"][0][0] - 1) < 0.005
+    ts = np.array(result["saddle"]["t_s"])
+    exact = saddle_truth_at(truth, ts)
+    acc = np.array(result["saddle"]["acceleration_m_s2"], dtype=float)
+    err = np.sqrt(np.mean((acc[:, 1] - exact["acceleration_m_s2"][:, 1]) ** 2))
+    rms = np.sqrt(np.mean(exact["acceleration_m_s2"][:, 1] ** 2))
+    print(f"thesis rig: vertical acceleration error {err:.2f} m/s2 = {100 * err / rms:.0f} % of r.m.s. {rms:.2f}")
+
+
+@pytest.mark.slow
+def test_result_keeps_what_the_dashboard_plots(analysed):
+    result, _ = analysed
+    n = len(result["saddle"]["t_s"])
+    assert np.shape(result["angular"]["omega_versions_rad_s"]) == (n, 6, 3)
+    assert np.shape(result["markers"]["position_m"]) == (n, 3, 3)
+    assert {"x", "y", "z"} <= set(result["markers"]["fits"])
+    assert result["timings_s"]["total"] > 0
+    assert set(P.STAGE_WEIGHTS) <= set(result["timings_s"])
+
+
+def _rigid_tracks(n_frames=120, fps=30.0, collinear=False, lost=None):
+    t = np.arange(n_frames) / fps
+    f0 = 1.6
+    model = np.array([[0.0, 0.0, 0.0], [200.0, 10.0, 0.0], [400.0, -60.0 if not collinear else 0.0, 5.0]])
+    if collinear:
+        model[:, 1:] = 0.0
+    origin = np.stack([4000.0 * t, 60 * np.sin(2 * np.pi * f0 * t), 7000 + 10 * np.sin(2 * np.pi * f0 * t)], axis=1)
+    ang = 0.05 * np.sin(2 * np.pi * f0 * t)
+    c, s = np.cos(ang), np.sin(ang)
+    R = np.zeros((n_frames, 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1
+    xyz = np.einsum("fij,mj->fmi", R, model) + origin[:, None, :]
+    if lost is not None:
+        xyz[lost] = np.nan
+    static = np.concatenate([model, [[150.0, -330.0, -150.0]]])[None].repeat(5, axis=0) + [0, 0, 7000]
+    return (MarkerTracks(("M1", "M2", "M3"), t, xyz), MarkerTracks(("M1", "M2", "M3", "S"), t[:5], static))
+
+
+def test_kinematics_of_a_known_rigid_motion_run():
+    motion, static = _rigid_tracks()
+    kin = P.saddle_kinematics(motion, static, None, P.PipelineParams(smoothing="none"), horse_idx=[0, 1, 2],
+                              saddle_idx=3)
+    assert abs(kin["period_s"] - 1 / 1.6) < 1e-3
+    assert abs(kin["fits"].average_speed_m_s - 4.0) < 0.01
+    assert any("no plumb" in f for f in kin["flags"])
+
+
+def test_too_short_a_ride_is_refused():
+    motion, static = _rigid_tracks(n_frames=25)
+    with pytest.raises(KinematicsError):
+        P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+
+
+def test_markers_lost_for_most_of_the_ride_are_refused():
+    motion, static = _rigid_tracks(lost=np.r_[0:40, 45:120])
+    with pytest.raises(KinematicsError, match="tracked together|seen together"):
+        P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+
+
+def test_collinear_markers_are_refused():
+    motion, static = _rigid_tracks(collinear=True)
+    with pytest.raises(KinematicsError, match="collinear|line"):
+        P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+
+
+def test_no_static_shot_is_refused(tmp_path):
+    class NoStatic:
+        def has(self, kind):
+            return kind != "static"
+
+    with pytest.raises(Exception, match="static"):
+        P.analyze_ride(NoStatic(), {"board": {}})
