@@ -83,13 +83,23 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
                         f"({sigma:.3f})")
     base_before = float(np.median(b[max(0, rise_at - 5): rise_at])) if rise_at > 0 else float(b[0])
     # the lit run: contiguous frames above the baseline that include the frame after the largest rise
-    lit = b > base_before + level
+    # lit: well above the baseline relative to the flash itself, so slow lighting drift after a flash
+    # (clouds, auto-exposure) is not taken for a flash lasting half the clip
+    peak = float(b[rise_at + 1: rise_at + 1 + max(8, len(b) // 10)].max())
+    lit = b > base_before + max(level, 0.25 * (peak - base_before))
     start = rise_at + 1
     while start > 0 and lit[start - 1]:
         start -= 1
     stop = rise_at + 1
     while stop + 1 < len(b) and lit[stop + 1]:
         stop += 1
+    # then the dim edge frames of the flash (above the noise, falling away from it), a few at most
+    faint = b > base_before + level
+    for _ in range(3):
+        if start > 0 and faint[start - 1] and b[start - 1] < b[start]:
+            start -= 1
+        if stop + 1 < len(b) and faint[stop + 1] and b[stop + 1] < b[stop]:
+            stop += 1
     if stop == len(b) - 1:
         raise SyncError(f"no sync flash found in the {where}: the brightness rises at frame {start} but "
                         f"never comes back down (a lighting change, or the clip ends during the flash)")
