@@ -76,8 +76,9 @@ export function xyzChart(div, tS, xyz, { title, unit, scale = 1 }) {
  * The six ω versions (component `component`) with the singularity index on a second axis.
  * @param {number[][][]} versions  shape (N, 6, 3)
  * @param {number[]} singularity  shape (N,)
+ * @param {boolean[][]} [excluded]  shape (N, 6): samples to leave out
  */
-export function versionsChart(div, tS, versions, singularity, { names, component = 1, omega = null }) {
+export function versionsChart(div, tS, versions, singularity, { names, component = 1, omega = null, excluded = null }) {
   if (!tS?.length || !versions?.length) {
     return emptyChart(div, "This result has no per-version angular velocities.");
   }
@@ -88,9 +89,10 @@ export function versionsChart(div, tS, versions, singularity, { names, component
   for (let v = 0; v < nVersions; v += 1) {
     traces.push({
       type: "scatter", mode: "lines", name: `\u03c9<sup>${names?.[v] ?? v + 1}</sup>`, x: tS,
-      y: versions.map((frame) => {
+      // Excluded samples (poor conditioning, eq. 6.35) are left as gaps unless asked for.
+      y: versions.map((frame, i) => {
         const value = frame?.[v]?.[component];
-        return Number.isFinite(value) ? value : null;
+        return Number.isFinite(value) && !excluded?.[i]?.[v] ? value : null;
       }),
       line: { color: VERSION_COLOURS[v % VERSION_COLOURS.length], width: 1.3 },
       hovertemplate: "%{y:.3g} rad/s",

@@ -29,6 +29,8 @@ export function poll(work, { intervalMs = 1500 } = {}) {
   tick();
   return {
     now: () => { if (timer) window.clearTimeout(timer); tick(); },
+    // After `work` said stop (false): start polling again, e.g. when a job is retried.
+    restart: () => { if (timer) window.clearTimeout(timer); timer = null; stopped = false; tick(); },
     stop: () => {
       stopped = true;
       if (timer) window.clearTimeout(timer);

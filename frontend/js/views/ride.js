@@ -118,10 +118,12 @@ async function drawVersions(view, rideId, result) {
   let versions = series.omega_versions_rad_s;
   let singularity = series.singularity_index_per_frame;
   let omega = series.omega_rad_s;
+  let excluded = series.omega_versions_excluded;
   if (!versions) {
     // The compact result leaves the six versions out; the full document has them.
     const doc = await fullDocument(rideId);
     versions = doc?.angular?.omega_versions_rad_s;
+    excluded = doc?.angular?.omega_versions_excluded;
     singularity = doc?.angular?.singularity_index_per_frame;
     t = doc?.saddle?.t_s ?? t;
     omega = doc?.angular?.omega_rad_s ?? omega;
@@ -133,11 +135,18 @@ async function drawVersions(view, rideId, result) {
   const select = h("select", { id: "versions-component" },
     ...["x", "y", "z"].map((axis, i) => h("option", { value: String(i) }, `\u03c9${axis}`)));
   select.value = String(largestComponent(omega));
+  const showExcluded = h("input", { type: "checkbox", id: "versions-excluded" });
   const draw = () => versionsChart(div, t, versions, singularity, {
-    names: VERSION_NAMES, component: Number(select.value), omega });
+    names: VERSION_NAMES, component: Number(select.value), omega,
+    excluded: showExcluded.checked ? null : excluded });
   select.addEventListener("change", draw);
-  div.closest("figure").prepend(h("div", { class: "field inline-field" },
-    h("label", { for: "versions-component" }, "Component"), select));
+  showExcluded.addEventListener("change", draw);
+  const nExcluded = (excluded || []).flat().filter(Boolean).length;
+  div.closest("figure").prepend(h("div", { class: "chart-controls" },
+    h("div", { class: "field inline-field" }, h("label", { for: "versions-component" }, "Component"), select),
+    nExcluded ? h("div", { class: "field inline-field" }, showExcluded,
+      h("label", { for: "versions-excluded" },
+        `Show the ${nExcluded} samples excluded for poor conditioning (near the singularity)`)) : null));
   draw();
 }
 
@@ -189,13 +198,15 @@ function showResult(view, ride, result) {
   drawSeries(view, result.series || {});
 }
 
-function showJob(state, job) {
+function showJob(state, job, onRetry) {
   const percent = Math.round((job.progress ?? 0) * 100);
+  const ended = job.status === "failed" || job.status === "cancelled";
   state.replaceChildren(
     h("p", {}, `Analysis job #${job.id}: ${job.status}${job.stage ? ` \u2013 ${job.stage}` : ""}`),
     h("progress", { max: "1", value: String(job.progress ?? 0), "aria-label": "Analysis progress",
                     "aria-valuetext": `${percent} percent` }),
-    job.error ? h("p", { class: "form-error" }, job.error) : null);
+    job.error ? h("p", { class: "form-error" }, job.error) : null,
+    ended ? h("button", { type: "button", onclick: onRetry }, "Run the analysis again") : null);
 }
 
 export async function mountRide(view, { id }) {
@@ -216,10 +227,11 @@ export async function mountRide(view, { id }) {
   view.querySelector("[data-ride-crumb]").textContent = `#${ride.id}`;
   view.querySelector("[data-ride-title]").textContent = `${horse} \u2013 ${gaitLabel(ride.gait)}`;
   document.title = `${horse}, ${gaitLabel(ride.gait)} \u2013 SaddleScope`;
-  view.querySelector("[data-ride-meta]").replaceChildren(
+  const showMeta = () => view.querySelector("[data-ride-meta]").replaceChildren(
     `Ride #${ride.id} \u00b7 rider ${rider} \u00b7 ${ride.direction === "CW" ? "clockwise" : "counter-clockwise"}`,
     ride.ridden_on ? ` \u00b7 ${ride.ridden_on}` : "",
     " \u00b7 ", h("span", { class: `badge status-${ride.status}` }, ride.status));
+  showMeta();
 
   async function loadResult() {
     const result = await get(`/api/rides/${rideId}/result`, { params: { max_points: 2000 } });
@@ -258,17 +270,28 @@ export async function mountRide(view, { id }) {
           event.target.disabled = true;
           try {
             latestJobId = (await post(`/api/rides/${rideId}/analyze`))?.id ?? null;
-            poller.now();
+            poller.restart();
           } catch (err) {
             state.append(h("p", { class: "form-error", role: "alert" }, err.message));
           }
         } }, "Analyse now"));
       return 5000;
     }
-    showJob(state, job);
+    showJob(state, job, async (event) => {
+      event.target.disabled = true;
+      try {
+        latestJobId = (await post(`/api/jobs/${job.id}/retry`))?.id ?? job.id;
+        poller.restart();
+      } catch (err) {
+        event.target.disabled = false;
+        state.append(h("p", { class: "form-error", role: "alert" }, err.message));
+      }
+    });
     if (job.status === "done") {
       announce("Analysis finished.");
       try {
+        ride = await get(`/api/rides/${rideId}`);
+        showMeta();
         await loadResult();
       } catch (error) {
         state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
