@@ -99,6 +99,9 @@ def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dic
                       0.4 * np.sin(2 * np.pi * f0 * t + 0.5)], 1)
     alpha = np.gradient(omega, t, axis=0)
     versions = omega[:, None, :] + 0.03 * rng.standard_normal((t.size, 6, 3))
+    excluded = np.zeros((t.size, 6), dtype=bool)
+    excluded[:5, 0] = True  # version 1,ver1 left out of the first five frames (poor conditioning)
+    versions[:5, 0] += 50.0  # ... where it is far off, as near the singularity
     singularity = 0.15 + 0.1 * np.abs(sway)
     amplitude_y_m = float(pos_y.max() - pos_y.min())
     indicators = ride_indicators(f0_hz=f0, acc_y_amplitudes_m_s2=amps, acc_y_phases_rad=PHASES_RAD,
@@ -114,7 +117,8 @@ def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dic
         "angular": {"omega_rad_s": omega.tolist(), "alpha_rad_s2": alpha.tolist(),
                     "singularity_index": float(np.median(singularity)),
                     "singularity_index_per_frame": singularity.tolist(),
-                    "omega_versions_rad_s": versions.tolist()},
+                    "omega_versions_rad_s": versions.tolist(),
+                    "omega_versions_excluded": excluded.tolist()},
         "indicators": {key: float(value) for key, value in indicators.items()},
         "quality": {"flags": ["markers lost from 0.40 s to 0.47 s"], "calibration_ok": True,
                     "gravity_source": "plumb", "singularity_index_median": float(np.median(singularity))},
@@ -360,6 +364,14 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     # the six versions, the result's ω and the singularity index
     assert len(versions) == 8 and all(t["n"] == n for t in versions)
     assert "singularity" in versions[-1]["name"]
+    # Excluded samples are gaps until asked for.
+    first_version = "el => el.data[0].y.slice(0, 6)"
+    assert page.eval_on_selector('[data-chart="versions"]', first_version)[:5] == [None] * 5
+    page.get_by_label("Show the 5 samples excluded", exact=False).check()
+    shown = page.eval_on_selector('[data-chart="versions"]', first_version)
+    component = page.locator("#versions-component").input_value()
+    want = np.asarray(doc["angular"]["omega_versions_rad_s"])[:6, 0, int(component)]
+    np.testing.assert_allclose(shown, want, rtol=1e-12)
 
     exports = page.locator("[data-exports] a")
     formats = exports.evaluate_all("els => els.map(e => e.dataset.export)")
@@ -558,3 +570,29 @@ def test_without_chromium_the_tests_skip_and_under_ci_they_fail(monkeypatch, tmp
     monkeypatch.setattr(module, "IN_CI", True)
     with pytest.raises(pytest.fail.Exception, match="required under CI"):
         module._require_browser()
+
+
+def test_ride_without_result_follows_its_analysis_and_offers_a_rerun(page, dashboard):
+    sign_in(page)
+    with api_client(dashboard) as api:
+        ride = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Dancer"],
+                                                "rider_id": dashboard["riders"][1], "gait": "walk",
+                                                "direction": "CW"}))
+    try:
+        page.goto(f"/#/rides/{ride['id']}")
+        state = page.locator("[data-ride-state]")
+        page.get_by_role("button", name="Analyse now").click()
+        # A ride without clips: the job fails at once; the page shows the job's own error.
+        state.locator(".form-error").wait_for()
+        job_id = api_get(dashboard, f"/api/rides/{ride['id']}")["latest_job_id"]
+        job = api_get(dashboard, f"/api/jobs/{job_id}")
+        assert job["status"] == "failed" and state.locator(".form-error").inner_text() == job["error"]
+        page.get_by_role("button", name="Run the analysis again").click()
+        page.wait_for_function(
+            f"fetch('/api/jobs/{job_id}').then(r => r.json()).then(j => j.attempts >= 2 && j.status === 'failed')")
+        state.get_by_role("button", name="Run the analysis again").wait_for()
+        assert page.locator("[data-result]").is_hidden()
+    finally:
+        with api_client(dashboard) as api:
+            _ok(api.delete(f"/api/rides/{ride['id']}"), 204)
+    assert page.console.unexpected() == []
