@@ -51,7 +51,7 @@ def test_analyze_cli_gives_a_valid_result_close_to_truth(analysed):
     assert abs(result["window"]["duration_s"] / result["period_s"] - 2) < 0.05
     for k in ("left", "middle", "right"):
         f = result["calibration"]["cameras"][k]["K"][0][0]
-        assert abs(f / truth["calibration"]["cameras"][k]["K"][0][0] - 1) < 0.005
+        assert abs(f / truth["calibration"]["cameras"][k]["K"][0][0] - 1) < 0.01
     ts = np.array(result["saddle"]["t_s"])
     exact = saddle_truth_at(truth, ts)
     acc = np.array(result["saddle"]["acceleration_m_s2"], dtype=float)

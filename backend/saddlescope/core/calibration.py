@@ -175,7 +175,7 @@ class BoardFinder:
                     self._upsample = up
                     corners, ids = found
                     if up != 1.0:
-                        corners = _refine_full_resolution(gray, corners / up, self.board, ids)
+                        corners = corners / up  # refined by cornerSubPix on the upsampled frame
                     return corners, ids
             return None
         polarities = [self.inverted] if self.inverted is not None else [False, True]

@@ -62,7 +62,8 @@ class PipelineParams:
     max_gap_s: float = 0.15
     triangulation: str = "nview"  # or "thesis_pairs"
     max_calibration_instants: int = 60
-    calibration_step: int | None = None  # frames between board searches; None: about 12 per second
+    calibration_step: int | None = None  # frames between board searches; None: every frame up to 30 fps
+    still_board_only: bool = True  # calibrate from frames where the board was held still
     max_square_error_pct: float = 1.0
     singularity_threshold: float = 0.2
     angular_method: str = "lsq"
@@ -145,7 +146,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     views_by_camera: dict[str, list] = {}
     sizes: dict[str, tuple[int, int]] = {}
     fps = clips.fps("calibration", cams[0])
-    step = params.calibration_step or max(1, int(round(fps / 12.0)))
+    step = params.calibration_step or max(1, int(round(fps / 30.0)))
     # Start every camera on the same instant so that the sampled frames coincide after the offsets.
     base = max(first_frame.get(c, 0) - int(round(offsets.get(c, 0.0))) for c in cams)
     for i, cam in enumerate(cams):
@@ -154,6 +155,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
             clips.gray_frames("calibration", cam, start=start, step=step), board)
         sizes[cam] = size or clips.image_size("calibration", cam)
         # frame k of this camera shows the instant of frame k - offset of the first camera
+        views = _still_views(views, step) if params.still_board_only else views
         views_by_camera[cam] = [replace(v, frame=int(round(v.frame - offsets.get(cam, 0.0)))) for v in views]
         if progress is not None:
             progress.stage("calibration", 0.6 * (i + 1) / len(cams))
@@ -165,6 +167,21 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
                                       max_square_error_pct=params.max_square_error_pct)
     report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
     return rig, report
+
+
+def _still_views(views: list, step: int, max_motion_px: float = 0.5) -> list:
+    """Views of a board held still: its corners moved less than ``max_motion_px`` since the view
+    ``step`` frames before. A moving board is blurred, and the cameras' frames (whole frames apart
+    after rounding the sync offsets) would show it at different places."""
+    by_frame = {v.frame: v for v in views}
+    still = []
+    for v in views:
+        prev = by_frame.get(v.frame - step)
+        if prev is None or len(prev.ids) != len(v.ids) or np.any(prev.ids != v.ids):
+            continue
+        if float(np.max(np.linalg.norm(prev.corners_px - v.corners_px, axis=1))) < max_motion_px:
+            still.append(v)
+    return still if len(still) >= 6 else views
 
 
 def rig_to_result(rig: Rig) -> dict:
