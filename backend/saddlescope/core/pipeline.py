@@ -67,8 +67,8 @@ class PipelineParams:
     max_square_error_pct: float = 1.0
     singularity_threshold: float = 0.2
     angular_method: str = "lsq"
-    x_model: str = "linear"
-    extra_orders: int = 1
+    x_model: str = "fourier"  # the thesis's "linear" drops the surge within the stride
+    extra_orders: int = 3  # orders tried above the extrema rule's E/2 + 1 (chosen by AICc)
     max_order: int | None = None
     detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
 
