@@ -52,6 +52,7 @@ def state(env, setup) -> tuple:
 def refused(env, setup, response, status: int, *reasons: str) -> None:
     body = response.json()
     assert response.status_code == status, body
+    assert str(env.settings.storage_dir) not in body["detail"]  # where storage lives is nobody's business
     for reason in reasons:
         assert reason in body["detail"], body["detail"]
 

@@ -689,6 +689,20 @@ class AnalyticsRepository:
             rows.append(row)
         return rows
 
+    def indicator_values(self, indicator: str, *, gait: str) -> list[tuple[int, str, float | None]]:
+        """(horse id, horse name, value) of every analysed ride in `gait`: the least a ranking needs.
+
+        The value comes from the indicator's own column where it has one, else out of the result's
+        JSON inside the database; no ride, rider or date columns are read (a leaderboard over ten
+        thousand rides stays in the milliseconds).
+        """
+        value = (getattr(Result, indicator) if indicator in LEADERBOARD_COLUMNS
+                 else Result.indicators[indicator].as_float())
+        stmt = (select(Horse.id, Horse.name, value).select_from(Result)
+                .join(Ride, Ride.id == Result.ride_id).join(Horse, Horse.id == Ride.horse_id)
+                .where(Result.club_id == self.club_id, Ride.gait == gait))
+        return [tuple(row) for row in self.session.execute(stmt)]
+
     def horse_names(self, horse_ids: Sequence[int] | None = None) -> dict[int, str]:
         stmt = select(Horse.id, Horse.name).where(Horse.club_id == self.club_id)
         if horse_ids is not None:

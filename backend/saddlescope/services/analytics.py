@@ -88,8 +88,9 @@ def club_leaderboard(session: Session, *, club_id: int, gait: str, indicator: st
     check_indicator(indicator)
     if lower_is_better is None and INDICATORS[indicator].better is None:
         raise InputError(f"{indicator!r} has no comfort direction; pass lower_is_better=true or false")
-    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(indicator, gait=gait)
-    ids = {row["horse"]: row["horse_id"] for row in rows}
+    values = AnalyticsRepository(session, club_id=club_id).indicator_values(indicator, gait=gait)
+    ids = {name: horse_id for horse_id, name, _ in values}
+    rows = [{"horse": name, "gait": gait, indicator: value} for _, name, value in values]
     ranking = leaderboard(rows, indicator, gait=gait, lower_is_better=lower_is_better)
     lower = lower_is_better if lower_is_better is not None else INDICATORS[indicator].better == "lower"
     return {"gait": gait, "indicator": indicator, "unit": indicator_unit(indicator),

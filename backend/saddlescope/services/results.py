@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import datetime as dt
+import hashlib
 import io
 import json
 import math
 import tempfile
+import threading
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any
 
@@ -45,30 +49,26 @@ def decimate(values: list, step: int) -> list:
     return values[::step] if step > 1 else values
 
 
-def result_view(session: Session, storage: Storage, ride_id: int, *, club_id: int,
-                max_points: int = 2000) -> dict[str, Any]:
-    """What the dashboard shows of a ride: indicators with units, quality flags, decimated series.
-
-    Series are taken every ``step``-th sample so that none has more than `max_points` samples
-    (``decimation.step``; the indicators are always computed from the full series).
-    """
+def _view(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[str, Any]:
     if max_points < 10:
         raise InputError(f"max_points must be at least 10, got {max_points}")
-    doc = result_document(session, storage, ride_id, club_id=club_id)
-    result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
     n = len((doc.get("saddle") or {}).get("t_s") or [])
     step = max(1, math.ceil(n / max_points))
     series = {name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES}
     markers = doc.get("markers") or {}
     if markers.get("position_m"):
         series["markers_position_m"] = decimate(markers["position_m"], step)
+    angular = doc.get("angular") or {}
+    for key in ("omega_versions_rad_s", "omega_versions_excluded", "singularity_index_per_frame"):
+        if isinstance(angular.get(key), list) and len(angular[key]) == n:  # per frame: decimated alike
+            series[key] = decimate(angular[key], step)
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
     return {
         "ride_id": ride_id,
-        "job_id": result.job_id if result is not None else None,
-        "code_version": result.code_version if result is not None else None,
-        "created_at": result.created_at if result is not None else None,
+        "job_id": result.job_id,
+        "code_version": result.code_version,
+        "created_at": result.created_at,
         "fps": doc.get("fps"),
         "period_s": doc.get("period_s"),
         "window": doc.get("window"),
@@ -80,6 +80,82 @@ def result_view(session: Session, storage: Storage, ride_id: int, *, club_id: in
         "series": series,
         "decimation": {"step": step, "samples": n, "max_points": max_points},
     }
+
+
+def _analysed(session: Session, storage: Storage, ride_id: int, club_id: int):
+    RideRepository(session, club_id=club_id).get(ride_id)
+    result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
+    if result is None or result.result_key is None or not storage.exists(result.result_key):
+        raise NotFound(f"ride {ride_id} has no result yet (it has not been analysed)")
+    return result
+
+
+def result_view(session: Session, storage: Storage, ride_id: int, *, club_id: int,
+                max_points: int = 2000) -> dict[str, Any]:
+    """What the dashboard shows of a ride: indicators with units, quality flags, decimated series.
+
+    Series are taken every ``step``-th sample so that none has more than `max_points` samples
+    (``decimation.step``; the indicators are always computed from the full series).
+    """
+    result = _analysed(session, storage, ride_id, club_id)
+    return _view(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+
+
+class _BytesCache:
+    """A small thread-safe LRU of encoded views, bounded by total bytes."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = max_bytes
+        self._items: OrderedDict[str, bytes] = OrderedDict()
+        self._size = 0
+        self._lock = threading.Lock()
+
+    def get(self, key: str) -> bytes | None:
+        with self._lock:
+            data = self._items.get(key)
+            if data is not None:
+                self._items.move_to_end(key)
+            return data
+
+    def put(self, key: str, data: bytes) -> None:
+        if len(data) > self.max_bytes // 4:
+            return  # one huge view must not push out everything else
+        with self._lock:
+            if key in self._items:
+                return
+            self._items[key] = data
+            self._size += len(data)
+            while self._size > self.max_bytes:
+                _, old = self._items.popitem(last=False)
+                self._size -= len(old)
+
+
+_VIEWS = _BytesCache(64 * 1024**2)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, dt.datetime | dt.date):
+        return value.isoformat()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def result_view_json(session: Session, storage: Storage, ride_id: int, *, club_id: int,
+                     max_points: int = 2000) -> tuple[bytes, str]:
+    """`result_view` encoded as JSON bytes, and its entity tag.
+
+    The access check (the ride and its result in this club) runs on every call; the encoded view is
+    cached per result and `max_points`, so many readers of one ride cost a database lookup each, not
+    a parse and an encoding of the whole result document.
+    """
+    result = _analysed(session, storage, ride_id, club_id)
+    etag = hashlib.sha256(f"{result.id}|{result.result_key}|{result.created_at.isoformat()}|{max_points}"
+                          .encode()).hexdigest()[:32]
+    data = _VIEWS.get(etag)
+    if data is None:
+        view = _view(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+        data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
+        _VIEWS.put(etag, data)
+    return data, etag
 
 
 def _ride_rows(session: Session, ride_ids: list[int] | None, *, club_id: int, where=()) -> list[dict[str, Any]]:

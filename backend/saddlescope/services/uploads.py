@@ -120,7 +120,8 @@ def accept_clip(sessions: sessionmaker[Session], storage: Storage, owner: ClipOw
             info = probe_video(storage.path(staged_key))
         except VideoError as exc:
             name = filename or "the upload"
-            reason = str(exc).split(": ", 1)[-1]  # the staging path means nothing to the user
+            # The staging path means nothing to the user (and says where storage lives): name the file.
+            reason = str(exc).replace(str(storage.path(staged_key)), name).removeprefix(f"{name}: ")
             raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable "
                              f"video: {reason}") from None
         final_key = (f"{owner.kind}s/{owner.id}/clips/{clip_kind}/{camera}-{sha256[:12]}"

@@ -31,7 +31,7 @@ from saddlescope.db.models import Recording, Ride, RideStatus
 from saddlescope.db.repositories import RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
-from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view
+from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
 from saddlescope.services.uploads import (
     ClipOwner,
     accept_bundle,
@@ -203,12 +203,17 @@ async def analyze_ride(ride_id: Id, club: ClubDep, sessions: SessionFactoryDep, 
         return JobOut(**job_as_dict(get_job(session, job_id)))
 
 
-@router.get("/{ride_id}/result", response_model=ResultOut, responses=ERRORS)
-def read_result(ride_id: Id, club: ClubDep, storage: StorageDep,
-                max_points: Annotated[int, Query(ge=10, le=100_000)] = 2000) -> dict:
+@router.get("/{ride_id}/result", response_model=ResultOut, responses={**ERRORS, 304: {"description": "unchanged"}})
+def read_result(ride_id: Id, club: ClubDep, storage: StorageDep, request: Request,
+                max_points: Annotated[int, Query(ge=10, le=100_000)] = 2000) -> Response:
     """Indicators (with units), quality flags and the series the dashboard plots, decimated to at most
-    `max_points` samples. 404 until the ride is analysed."""
-    return result_view(club.session, storage, ride_id, club_id=club.club_id, max_points=max_points)
+    `max_points` samples. 404 until the ride is analysed. Sends an ETag: with ``If-None-Match`` an
+    unchanged result answers 304 without a body."""
+    data, etag = result_view_json(club.session, storage, ride_id, club_id=club.club_id, max_points=max_points)
+    headers = {"ETag": f'"{etag}"', "Cache-Control": "private, no-cache"}
+    if request.headers.get("if-none-match") == headers["ETag"]:
+        return Response(status_code=status.HTTP_304_NOT_MODIFIED, headers=headers)
+    return Response(data, media_type="application/json", headers=headers)
 
 
 @router.get("/{ride_id}/export/{fmt}", responses={**ERRORS, 200: {"content": {
