@@ -103,6 +103,16 @@ def test_a_bundle_upload_is_analysed_and_its_result_and_exports_are_served(env, 
     many = admin.ok("GET", "/rides/export/csv", params={"gait": "canter"})
     assert str(ride_id) in many.content.decode("utf-8-sig")
 
+    # the dashboard polls: an unchanged result is a 304 without a body; a re-analysis changes the tag
+    first = admin.get(f"/rides/{ride_id}/result")
+    unchanged = admin.get(f"/rides/{ride_id}/result", headers={"If-None-Match": first.headers["etag"]})
+    assert unchanged.status_code == 304 and not unchanged.content
+    again, _ = admin.wait_job(admin.ok("POST", f"/rides/{ride_id}/analyze", 201)["id"])
+    assert again["status"] == "done"
+    renewed = admin.get(f"/rides/{ride_id}/result", headers={"If-None-Match": first.headers["etag"]})
+    assert renewed.status_code == 200 and renewed.headers["etag"] != first.headers["etag"]
+    assert renewed.json()["job_id"] == again["id"]
+
 
 def upload_clip(api: Api, owner: str, owner_id: int, kind: str, camera: str, path) -> dict:
     return api.ok("PUT", f"/{owner}/{owner_id}/clips/{kind}/{camera}",
