@@ -218,7 +218,8 @@ def run_celery_worker(*, database_url: str, broker_url: str, storage_dir: Path, 
 
             report_service(
                 config,
-                f"Celery {celery.__version__} worker process pid {proc.pid} (solo pool, real broker round trips)",
+                f"Celery {celery.__version__} worker process pid {proc.pid} (solo pool, real broker "
+                "round trips)",
             )
         yield proc
     finally:
@@ -341,8 +342,10 @@ class Api:
     def ok(self, method: str, path: str, status: int = 200, **kw):
         """The JSON of a call that must answer `status` (fails with the body otherwise)."""
         response = self.request(method, path, **kw)
-        assert response.status_code == status, f"{method} {path}: {response.status_code} {response.text[:500]}"
-        return response.json() if response.content and "json" in response.headers.get("content-type", "") else response
+        assert response.status_code == status, (
+            f"{method} {path}: {response.status_code} {response.text[:500]}")
+        is_json = response.content and "json" in response.headers.get("content-type", "")
+        return response.json() if is_json else response
 
     def wait_job(self, job_id: int, *, timeout_s: float = 60.0) -> tuple[dict, list[dict]]:
         """Poll a job until finished; (last view, every view seen)."""

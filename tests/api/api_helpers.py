@@ -66,18 +66,35 @@ def standin_result(meta: dict, *, fps: float = 30.0) -> dict:
     velocity = np.stack([np.full_like(t, speed_m_s), vel_y, np.zeros_like(t)], axis=1)
     acceleration = np.stack([np.zeros_like(t), acc_y, np.zeros_like(t)], axis=1)
     markers = position[:, None, :] + np.array([[0.3, -0.2, 0.1], [-0.3, -0.2, 0.1], [0.0, -0.25, -0.2]])
-    indicators = ride_indicators(f0_hz=f0, acc_y_amplitudes_m_s2=amplitudes, acc_y_phases_rad=phases,
-                                 duration_s=duration_s, speed_kmh=speed_m_s * 3.6,
-                                 amplitude_y_m=float(np.ptp(pos_y)), stride_frequency_hz=f0)
+    indicators = ride_indicators(
+        f0_hz=f0,
+        acc_y_amplitudes_m_s2=amplitudes,
+        acc_y_phases_rad=phases,
+        duration_s=duration_s,
+        speed_kmh=speed_m_s * 3.6,
+        amplitude_y_m=float(np.ptp(pos_y)),
+        stride_frequency_hz=f0,
+    )
     return {
-        "format": "saddlescope.result/1", "fps": fps, "gait": gait, "direction": meta.get("direction"),
+        "format": "saddlescope.result/1",
+        "fps": fps,
+        "gait": gait,
+        "direction": meta.get("direction"),
         "calibration": standin_calibration(),
         "sync": {"motion": {role: 0.0 for role in CAMERA_ROLES}},
-        "period_s": 1.0 / f0, "window": {"start_s": 0.0, "duration_s": float(len(t) / fps)},
-        "saddle": {"t_s": t.tolist(), "position_m": position.tolist(), "velocity_m_s": velocity.tolist(),
-                   "acceleration_m_s2": acceleration.tolist()},
-        "angular": {"omega_rad_s": np.zeros_like(position).tolist(), "alpha_rad_s2": np.zeros_like(position).tolist(),
-                    "singularity_index": 0.1},
+        "period_s": 1.0 / f0,
+        "window": {"start_s": 0.0, "duration_s": float(len(t) / fps)},
+        "saddle": {
+            "t_s": t.tolist(),
+            "position_m": position.tolist(),
+            "velocity_m_s": velocity.tolist(),
+            "acceleration_m_s2": acceleration.tolist(),
+        },
+        "angular": {
+            "omega_rad_s": np.zeros_like(position).tolist(),
+            "alpha_rad_s2": np.zeros_like(position).tolist(),
+            "singularity_index": 0.1,
+        },
         "markers": {"names": ["M1", "M2", "M3"], "position_m": markers.tolist()},
         "indicators": {key: float(value) for key, value in indicators.items()},
         "quality": {"flags": [], "standin": True},
@@ -88,11 +105,20 @@ def standin_result(meta: dict, *, fps: float = 30.0) -> dict:
 def standin_calibration(size: tuple[int, int] = (640, 480)) -> dict:
     """A plausible three-camera calibration (result format) that `rig_from_dict` accepts."""
     K = [[800.0, 0.0, size[0] / 2], [0.0, 800.0, size[1] / 2], [0.0, 0.0, 1.0]]
-    cameras = {role: {"K": K, "dist": [0.0] * 5, "image_size": list(size), "rms_px": 0.2} for role in CAMERA_ROLES}
-    extrinsics = {role: {"R": np.eye(3).tolist(), "t_mm": [-1000.0 * (i + 1), 0.0, 0.0]}
-                  for i, role in enumerate(CAMERA_ROLES[1:])}
-    return {"cameras": cameras, "extrinsics": extrinsics, "checks": {"board_square_error_mm": 0.2}, "flags": [],
-            "pairs": {}}
+    cameras = {
+        role: {"K": K, "dist": [0.0] * 5, "image_size": list(size), "rms_px": 0.2} for role in CAMERA_ROLES
+    }
+    extrinsics = {
+        role: {"R": np.eye(3).tolist(), "t_mm": [-1000.0 * (i + 1), 0.0, 0.0]}
+        for i, role in enumerate(CAMERA_ROLES[1:])
+    }
+    return {
+        "cameras": cameras,
+        "extrinsics": extrinsics,
+        "checks": {"board_square_error_mm": 0.2},
+        "flags": [],
+        "pairs": {},
+    }
 
 
 def standin_analyze_bundle(path, on_progress=None, rig=None, params=None):
@@ -110,7 +136,9 @@ def standin_analyze_bundle(path, on_progress=None, rig=None, params=None):
     if str((meta.get("horse") or {}).get("name", "")).startswith("Failing"):
         from saddlescope.core.errors import DetectionError
 
-        raise DetectionError("motion clip of the left camera: no marker found in any frame (stand-in failure)")
+        raise DetectionError(
+            "motion clip of the left camera: no marker found in any frame (stand-in failure)"
+        )
     result = standin_result(meta)
     if rig is not None:
         result["quality"]["calibration_from_rig"] = True
@@ -178,7 +206,9 @@ class ThreadQueue:
     def submit(self, job_id: int) -> None:
         from saddlescope.services.runner import run_job
 
-        thread = threading.Thread(target=run_job, args=(job_id,), kwargs={"settings": self.settings}, daemon=True)
+        thread = threading.Thread(
+            target=run_job, args=(job_id,), kwargs={"settings": self.settings}, daemon=True
+        )
         thread.start()
         self.threads.append(thread)
 

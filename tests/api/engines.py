@@ -47,20 +47,32 @@ def open_env(request, tmp_path_factory, *, worker: bool = True, **overrides):
     if request.param == "embedded":
         settings = load_settings(database_url=f"sqlite:///{root / 'db.sqlite'}", **common)
         queue = ThreadQueue(settings)
-        with standin_installed(), TestClient(create_app(settings, queue=queue, open_registration=True)) as client:
+        with (
+            standin_installed(),
+            TestClient(create_app(settings, queue=queue, open_registration=True)) as client,
+        ):
             yield Env("embedded", settings, client)
         return
     database_url = request.getfixturevalue("pg_database_url")
     broker_url = request.getfixturevalue("redis_url")
     upgrade_to_head(database_url)
-    settings = load_settings(database_url=database_url, broker_url=broker_url,
-                             secret_key=integration_services.TEST_SECRET, **common)
+    settings = load_settings(
+        database_url=database_url,
+        broker_url=broker_url,
+        secret_key=integration_services.TEST_SECRET,
+        **common,
+    )
     log_path = root / "worker.log"
     if worker:
         with integration_services.run_celery_worker(
-                database_url=database_url, broker_url=broker_url, storage_dir=Path(settings.storage_dir),
-                log_path=log_path, app="standin_worker", extra_env=standin_worker_env(),
-                config=request.config) as proc:
+            database_url=database_url,
+            broker_url=broker_url,
+            storage_dir=Path(settings.storage_dir),
+            log_path=log_path,
+            app="standin_worker",
+            extra_env=standin_worker_env(),
+            config=request.config,
+        ) as proc:
             with TestClient(create_app(settings, open_registration=True)) as client:
                 yield Env("celery", settings, client, proc, log_path)
         return

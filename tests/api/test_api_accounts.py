@@ -46,15 +46,21 @@ def test_register_sign_in_with_form_or_json_and_read_me(env):
 def test_wrong_credentials_get_one_message(env):
     _, account = new_club(env.client)
     wrong = env.client.post("/api/auth/login", data={"username": account["email"], "password": "nope nope"})
-    unknown = env.client.post("/api/auth/login", data={"username": "nobody@x.example", "password": "nope nope"})
+    unknown = env.client.post(
+        "/api/auth/login", data={"username": "nobody@x.example", "password": "nope nope"}
+    )
     assert wrong.status_code == unknown.status_code == 401
     assert wrong.json() == unknown.json() == {"detail": "wrong e-mail address or password"}
     missing = env.client.post("/api/auth/login", data={"username": account["email"]})
     assert missing.status_code == 422 and "password" in missing.json()["detail"]
-    duplicate = env.client.post("/api/clubs", json={"club_name": account["club"]["name"], "email": "x@y.example",
-                                                    "password": "long enough"})
+    duplicate = env.client.post(
+        "/api/clubs",
+        json={"club_name": account["club"]["name"], "email": "x@y.example", "password": "long enough"},
+    )
     assert duplicate.status_code == 409 and "already exists" in duplicate.json()["detail"]
-    short = env.client.post("/api/clubs", json={"club_name": "Short", "email": "s@y.example", "password": "short"})
+    short = env.client.post(
+        "/api/clubs", json={"club_name": "Short", "email": "s@y.example", "password": "short"}
+    )
     assert short.status_code == 422 and "body.password" in short.json()["detail"]
 
 
@@ -62,7 +68,9 @@ def test_the_browser_session_cookie_needs_the_csrf_header_on_unsafe_methods(env)
     _, account = new_club(env.client)
     client = env.client
     client.cookies.clear()
-    login = client.post("/api/auth/login", data={"username": account["email"], "password": account["password"]})
+    login = client.post(
+        "/api/auth/login", data={"username": account["email"], "password": account["password"]}
+    )
     session_cookie, csrf = client.cookies.get("saddlescope_session"), client.cookies.get("saddlescope_csrf")
     assert session_cookie and csrf == login.json()["csrf_token"]
     set_cookie = login.headers.get_list("set-cookie")
@@ -103,11 +111,15 @@ def test_admins_manage_users_and_roles_apply_at_once(env):
     member.ok("PATCH", f"/users/{account['user']['id']}", json={"is_active": False})
     gone = admin.get("/horses")
     assert gone.status_code == 401 and "deactivated" in gone.json()["detail"]
-    refused = env.client.post("/api/auth/login", data={"username": account["email"], "password": account["password"]})
+    refused = env.client.post(
+        "/api/auth/login", data={"username": account["email"], "password": account["password"]}
+    )
     assert refused.status_code == 401
 
     member.ok("PATCH", f"/users/{user['id']}", json={"password": "a new password"})
-    assert sign_in(env.client, user["email"], "a new password").ok("GET", "/auth/me")["user"]["id"] == user["id"]
+    assert (
+        sign_in(env.client, user["email"], "a new password").ok("GET", "/auth/me")["user"]["id"] == user["id"]
+    )
 
 
 def test_an_expired_token_is_refused(env):
@@ -116,18 +128,29 @@ def test_an_expired_token_is_refused(env):
         user = session.get(User, account["user"]["id"])
         token, _, _ = issue_token(user, env.settings, now=dt.datetime.now(dt.UTC) - dt.timedelta(days=2))
     response = Api(env.client, token).get("/horses")
-    assert response.status_code == 401 and response.json()["detail"] == "the sign-in has expired; sign in again"
+    assert (
+        response.status_code == 401 and response.json()["detail"] == "the sign-in has expired; sign in again"
+    )
 
 
 def test_registration_is_closed_in_a_deployment_once_a_club_exists(tmp_path):
-    settings = load_settings(database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "s"),
-                             broker_url="redis://127.0.0.1:1/0", secret_key="a-deployment-secret-0123456789")
+    settings = load_settings(
+        database_url=f"sqlite:///{tmp_path / 'db.sqlite'}",
+        storage_dir=str(tmp_path / "s"),
+        broker_url="redis://127.0.0.1:1/0",
+        secret_key="a-deployment-secret-0123456789",
+    )
     upgrade_to_head(settings.database_url)
     with TestClient(create_app(settings)) as client:
         new_club(client)  # the first club of a deployment may register
-        closed = client.post("/api/clubs", json={"club_name": "Second", "email": "b@b.example",
-                                                 "password": "long enough"})
+        closed = client.post(
+            "/api/clubs", json={"club_name": "Second", "email": "b@b.example", "password": "long enough"}
+        )
         assert closed.status_code == 403 and "registration of new clubs is closed" in closed.json()["detail"]
     with TestClient(create_app(settings, open_registration=True)) as client:
-        assert client.post("/api/clubs", json={"club_name": "Second", "email": "b@b.example",
-                                               "password": "long enough"}).status_code == 201
+        assert (
+            client.post(
+                "/api/clubs", json={"club_name": "Second", "email": "b@b.example", "password": "long enough"}
+            ).status_code
+            == 201
+        )

@@ -14,8 +14,12 @@ from engines import ENGINES, open_env
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
 
-PUBLIC = {("GET", "/api/health"), ("POST", "/api/clubs"), ("POST", "/api/auth/login"),
-          ("POST", "/api/auth/logout")}
+PUBLIC = {
+    ("GET", "/api/health"),
+    ("POST", "/api/clubs"),
+    ("POST", "/api/auth/login"),
+    ("POST", "/api/auth/logout"),
+}
 SECRET = "Zanzibar-Secret"  # in every name club A owns: it must never show up in club B's answers
 
 
@@ -43,23 +47,68 @@ def world(env, tmp_path_factory):
     a_member, a_user = add_member(a)
     horse = a.ok("POST", "/horses", 201, json={"name": f"{SECRET} horse"})
     rider = a.ok("POST", "/riders", 201, json={"name": f"{SECRET} rider", "user_id": a_user["id"]})
-    rig = a.ok("POST", "/rigs", 201, json={"name": f"{SECRET} rig",
-                                           "board": {"inner_corners": [9, 6], "square_mm": 50}})
-    ride = a.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "rig_id": rig["id"],
-                                             "gait": "walk", "direction": "CW", "notes": SECRET})
-    grade = a.ok("POST", "/grades", 201, json={"ride_id": ride["id"], "rider_id": rider["id"], "grade": 3,
-                                               "comment": SECRET})
+    rig = a.ok(
+        "POST",
+        "/rigs",
+        201,
+        json={"name": f"{SECRET} rig", "board": {"inner_corners": [9, 6], "square_mm": 50}},
+    )
+    ride = a.ok(
+        "POST",
+        "/rides",
+        201,
+        json={
+            "horse_id": horse["id"],
+            "rider_id": rider["id"],
+            "rig_id": rig["id"],
+            "gait": "walk",
+            "direction": "CW",
+            "notes": SECRET,
+        },
+    )
+    grade = a.ok(
+        "POST",
+        "/grades",
+        201,
+        json={"ride_id": ride["id"], "rider_id": rider["id"], "grade": 3, "comment": SECRET},
+    )
     job = a.ok("POST", "/jobs", 201, json={"kind": "selftest", "payload": {"steps": 1, "delay_s": 0}})
-    upload = a.ok("POST", "/uploads", 201, json={"target": "ride_clip", "ride_id": ride["id"],
-                                                 "clip_kind": "motion", "camera": "left", "length_bytes": 10,
-                                                 "filename": f"{SECRET}.mp4"})
+    upload = a.ok(
+        "POST",
+        "/uploads",
+        201,
+        json={
+            "target": "ride_clip",
+            "ride_id": ride["id"],
+            "clip_kind": "motion",
+            "camera": "left",
+            "length_bytes": 10,
+            "filename": f"{SECRET}.mp4",
+        },
+    )
     b, _ = new_club(env.client)
     b_member, _ = add_member(b)
-    ids = {"horse_id": horse["id"], "rider_id": rider["id"], "rig_id": rig["id"], "ride_id": ride["id"],
-           "grade_id": grade["id"], "job_id": job["id"], "upload_id": upload["id"], "user_id": a_user["id"],
-           "fmt": "json", "clip_kind": "motion", "camera": "left"}
-    return {"a": a, "b": b, "b_member": b_member, "ids": ids, "a_admin_id": account["user"]["id"],
-            "tiny": integration_services.write_tiny_bundle(tmp_path_factory.mktemp("authz") / "ride")}
+    ids = {
+        "horse_id": horse["id"],
+        "rider_id": rider["id"],
+        "rig_id": rig["id"],
+        "ride_id": ride["id"],
+        "grade_id": grade["id"],
+        "job_id": job["id"],
+        "upload_id": upload["id"],
+        "user_id": a_user["id"],
+        "fmt": "json",
+        "clip_kind": "motion",
+        "camera": "left",
+    }
+    return {
+        "a": a,
+        "b": b,
+        "b_member": b_member,
+        "ids": ids,
+        "a_admin_id": account["user"]["id"],
+        "tiny": integration_services.write_tiny_bundle(tmp_path_factory.mktemp("authz") / "ride"),
+    }
 
 
 def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
@@ -72,11 +121,19 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
     elif path == "/api/jobs" and method == "POST":
         body = {"kind": "probe", "ride_id": ids["ride_id"]}
     elif path == "/api/uploads" and method == "POST":
-        body = {"target": "ride_clip", "ride_id": ids["ride_id"], "clip_kind": "motion", "camera": "left",
-                "length_bytes": 10}
+        body = {
+            "target": "ride_clip",
+            "ride_id": ids["ride_id"],
+            "clip_kind": "motion",
+            "camera": "left",
+            "length_bytes": 10,
+        }
     elif path == "/api/riders" and method == "POST":
         body = {"name": "Someone", "user_id": ids["user_id"]}
-    elif path in ("/api/horses/{horse_id}", "/api/riders/{rider_id}", "/api/rigs/{rig_id}") and method == "PATCH":
+    elif (
+        path in ("/api/horses/{horse_id}", "/api/riders/{rider_id}", "/api/rigs/{rig_id}")
+        and method == "PATCH"
+    ):
         body = {"name": "Renamed"}
     elif path == "/api/rides/{ride_id}" and method == "PATCH":
         body = {"notes": "changed"}
@@ -90,11 +147,15 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
     if path.endswith("/clips/{clip_kind}/{camera}"):
         kwargs = {"files": {"file": ("left.avi", (tiny / "motion/left.avi").read_bytes(), "video/x-msvideo")}}
     if path == "/api/rides/bundle":
-        kwargs = {"files": {"file": ("ride.zip", zip_folder(tiny), "application/zip")},
-                  "params": {"rig_id": ids["rig_id"]}}
+        kwargs = {
+            "files": {"file": ("ride.zip", zip_folder(tiny), "application/zip")},
+            "params": {"rig_id": ids["rig_id"]},
+        }
     if path == "/api/uploads/{upload_id}" and method == "PATCH":
-        kwargs = {"content": b"0123456789", "headers": {"Upload-Offset": "0",
-                                                        "Content-Type": "application/offset+octet-stream"}}
+        kwargs = {
+            "content": b"0123456789",
+            "headers": {"Upload-Offset": "0", "Content-Type": "application/offset+octet-stream"},
+        }
     if path.startswith("/api/rides/export/"):
         kwargs = {"params": {"horse_id": ids["horse_id"]}}
     if path == "/api/comparison":
@@ -102,7 +163,9 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
     if path in ("/api/leaderboard",):
         kwargs = {"params": {"gait": "walk"}}
     if path in ("/api/rides", "/api/grades", "/api/jobs") and method == "GET":
-        kwargs = {"params": {"ride_id": ids["ride_id"]} if path != "/api/rides" else {"horse_id": ids["horse_id"]}}
+        kwargs = {
+            "params": {"ride_id": ids["ride_id"]} if path != "/api/rides" else {"horse_id": ids["horse_id"]}
+        }
     return kwargs
 
 
@@ -112,14 +175,34 @@ def fill(path: str, ids: dict) -> str:
 
 
 # Routes that touch no other club's row by construction: they answer for the caller's own club.
-OWN_CLUB = {("GET", "/api/auth/me"), ("GET", "/api/indicators"), ("GET", "/api/jobs/kinds"),
-            ("POST", "/api/horses"), ("POST", "/api/rigs"), ("GET", "/api/horses"), ("GET", "/api/riders"),
-            ("GET", "/api/rigs"), ("GET", "/api/users"), ("GET", "/api/grades/correlation"),
-            ("GET", "/api/leaderboard"), ("GET", "/api/rides/export/{fmt}"), ("POST", "/api/users"),
-            ("GET", "/api/rides"), ("GET", "/api/grades"), ("GET", "/api/jobs")}
+OWN_CLUB = {
+    ("GET", "/api/auth/me"),
+    ("GET", "/api/indicators"),
+    ("GET", "/api/jobs/kinds"),
+    ("POST", "/api/horses"),
+    ("POST", "/api/rigs"),
+    ("GET", "/api/horses"),
+    ("GET", "/api/riders"),
+    ("GET", "/api/rigs"),
+    ("GET", "/api/users"),
+    ("GET", "/api/grades/correlation"),
+    ("GET", "/api/leaderboard"),
+    ("GET", "/api/rides/export/{fmt}"),
+    ("POST", "/api/users"),
+    ("GET", "/api/rides"),
+    ("GET", "/api/grades"),
+    ("GET", "/api/jobs"),
+}
 # Routes whose body or query names club A's things: refused as not found (or invalid), never done.
-REFERENCES = {("POST", "/api/rides"), ("POST", "/api/grades"), ("POST", "/api/jobs"), ("POST", "/api/uploads"),
-              ("POST", "/api/riders"), ("POST", "/api/rides/bundle"), ("GET", "/api/comparison")}
+REFERENCES = {
+    ("POST", "/api/rides"),
+    ("POST", "/api/grades"),
+    ("POST", "/api/jobs"),
+    ("POST", "/api/uploads"),
+    ("POST", "/api/riders"),
+    ("POST", "/api/rides/bundle"),
+    ("GET", "/api/comparison"),
+}
 
 
 def test_every_route_is_in_the_matrix(env):
@@ -149,7 +232,9 @@ def test_another_clubs_ids_are_not_found_and_no_data_leaks(env, world):
                     assert "no horse" in response.text or "not found" in response.text, where
             else:
                 assert response.status_code in (403, 404), where
-            if response.status_code == 404 and method != "HEAD":  # ours ("ride 3 not found"), not a missing route's
+            if (
+                response.status_code == 404 and method != "HEAD"
+            ):  # ours ("ride 3 not found"), not a missing route's
                 assert response.json()["detail"] != "Not Found", where
             checked += 1
     assert checked > 80
@@ -193,5 +278,7 @@ def test_a_forged_or_expired_token_is_401(env, world):
     expired = jwt.encode(past, "whatever-secret-000000000000000000", algorithm="HS256")
     response = Api(env.client, expired).get("/horses")
     assert response.status_code == 401
-    assert json.loads(response.text)["detail"] in ("invalid access token; sign in again",
-                                                   "the sign-in has expired; sign in again")
+    assert json.loads(response.text)["detail"] in (
+        "invalid access token; sign in again",
+        "the sign-in has expired; sign in again",
+    )

@@ -37,8 +37,9 @@ def admin(env) -> Api:
 
 
 def upload_zip(api: Api, data: bytes, **params) -> dict:
-    return api.ok("POST", "/rides/bundle", 201, files={"file": ("ride.zip", data, "application/zip")},
-                  params=params)
+    return api.ok(
+        "POST", "/rides/bundle", 201, files={"file": ("ride.zip", data, "application/zip")}, params=params
+    )
 
 
 def meta_of(folder, **changes) -> dict:
@@ -90,8 +91,16 @@ def test_a_bundle_upload_is_analysed_and_its_result_and_exports_are_served(env, 
     header = [c.value for c in next(book.worksheets[0].iter_rows(max_row=1))]
     assert "acc_y_wb_rms [m/s^2]" in header
 
-    positions = np.concatenate([np.asarray(expected["markers"]["position_m"]),
-                                np.asarray(expected["saddle"]["position_m"])[:, None]], axis=1) * 1e3
+    positions = (
+        np.concatenate(
+            [
+                np.asarray(expected["markers"]["position_m"]),
+                np.asarray(expected["saddle"]["position_m"])[:, None],
+            ],
+            axis=1,
+        )
+        * 1e3
+    )
     for fmt in ("c3d", "trc"):
         path = tmp_path / f"ride.{fmt}"
         path.write_bytes(admin.ok("GET", f"/rides/{ride_id}/export/{fmt}").content)
@@ -115,16 +124,25 @@ def test_a_bundle_upload_is_analysed_and_its_result_and_exports_are_served(env, 
 
 
 def upload_clip(api: Api, owner: str, owner_id: int, kind: str, camera: str, path) -> dict:
-    return api.ok("PUT", f"/{owner}/{owner_id}/clips/{kind}/{camera}",
-                  files={"file": (path.name, path.read_bytes(), "video/mp4")})
+    return api.ok(
+        "PUT",
+        f"/{owner}/{owner_id}/clips/{kind}/{camera}",
+        files={"file": (path.name, path.read_bytes(), "video/mp4")},
+    )
 
 
 def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admin, tiny_ride):
     board = json.loads((tiny_ride / "ride.json").read_text())["board"]
-    rig = admin.ok("POST", "/rigs", 201, json={"name": "Arena, Monday", "recorded_on": "2026-05-04", "board": board})
+    rig = admin.ok(
+        "POST", "/rigs", 201, json={"name": "Arena, Monday", "recorded_on": "2026-05-04", "board": board}
+    )
     for camera in ("left", "middle"):
-        assert upload_clip(admin, "rigs", rig["id"], "calibration", camera,
-                           tiny_ride / f"calibration/{camera}.mp4")["job_id"] is None
+        assert (
+            upload_clip(
+                admin, "rigs", rig["id"], "calibration", camera, tiny_ride / f"calibration/{camera}.mp4"
+            )["job_id"]
+            is None
+        )
     third = upload_clip(admin, "rigs", rig["id"], "calibration", "right", tiny_ride / "calibration/right.mp4")
     assert third["recording"]["fps"] == 30.0 and third["recording"]["sha256"]
     job, _ = admin.wait_job(third["job_id"])  # the third camera completes the set: calibration starts
@@ -133,28 +151,51 @@ def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admi
     assert rig_now["calibrated"] and set(rig_now["calibration"]["cameras"]) == {"left", "middle", "right"}
     for kind in ("plumb", "static"):
         for camera in ("left", "middle", "right"):
-            assert upload_clip(admin, "rigs", rig["id"], kind, camera, tiny_ride / f"{kind}/{camera}.mp4")["job_id"] \
-                is None  # the rig is calibrated already: nothing to start
+            assert (
+                upload_clip(admin, "rigs", rig["id"], kind, camera, tiny_ride / f"{kind}/{camera}.mp4")[
+                    "job_id"
+                ]
+                is None
+            )  # the rig is calibrated already: nothing to start
     assert len(admin.ok("GET", f"/rigs/{rig['id']}/clips")) == 9
 
-    horse = admin.ok("POST", "/horses", 201, json={"name": "Clip Horse", "breed": "Dutch", "birth_year": 2001})
+    horse = admin.ok(
+        "POST", "/horses", 201, json={"name": "Clip Horse", "breed": "Dutch", "birth_year": 2001}
+    )
     rider = admin.ok("POST", "/riders", 201, json={"name": "Clip Rider"})
     results = []
     for direction in ("CCW", "CW"):
-        ride = admin.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"],
-                                                     "rig_id": rig["id"], "gait": "canter",
-                                                     "direction": direction})
+        ride = admin.ok(
+            "POST",
+            "/rides",
+            201,
+            json={
+                "horse_id": horse["id"],
+                "rider_id": rider["id"],
+                "rig_id": rig["id"],
+                "gait": "canter",
+                "direction": direction,
+            },
+        )
         assert ride["status"] == "new"
-        jobs = [upload_clip(admin, "rides", ride["id"], "motion", camera, tiny_ride / f"motion/{camera}.mp4")["job_id"]
-                for camera in ("left", "middle", "right")]
+        jobs = [
+            upload_clip(admin, "rides", ride["id"], "motion", camera, tiny_ride / f"motion/{camera}.mp4")[
+                "job_id"
+            ]
+            for camera in ("left", "middle", "right")
+        ]
         assert jobs[:2] == [None, None] and jobs[2] is not None
         job, _ = admin.wait_job(jobs[2])
         assert job["kind"] == "analyze" and job["status"] == "done", job["error"]
         assert set(job["timings_s"]) == STAGES
         result = admin.ok("GET", f"/rides/{ride['id']}/result")
         assert result["quality"]["calibration_from_rig"]  # analyze_bundle got rig= the stored calibration
-        meta = {"horse": {"name": "Clip Horse"}, "rider": {"name": "Clip Rider"}, "gait": "canter",
-                "direction": direction}
+        meta = {
+            "horse": {"name": "Clip Horse"},
+            "rider": {"name": "Clip Rider"},
+            "gait": "canter",
+            "direction": direction,
+        }
         assert result["indicators"] == pytest.approx(standin_result(meta)["indicators"])
         results.append(result)
     calibrations = admin.ok("GET", "/jobs", params={"rig_id": rig["id"], "kind": "calibrate_rig"})
@@ -163,21 +204,39 @@ def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admi
 
 def test_comparisons_leaderboard_and_grades(env, tiny_ride):
     admin, _ = new_club(env.client)
-    plan = [("Ajax", "canter", "Rider A"), ("Ajax", "canter", "Rider B"), ("Bella", "canter", "Rider A"),
-            ("Cosmo", "canter", "Rider A"), ("Ajax", "walk", "Rider A")]
+    plan = [
+        ("Ajax", "canter", "Rider A"),
+        ("Ajax", "canter", "Rider B"),
+        ("Bella", "canter", "Rider A"),
+        ("Cosmo", "canter", "Rider A"),
+        ("Ajax", "walk", "Rider A"),
+    ]
     rides = []
     for horse, gait, rider in plan:
-        data = zip_folder(tiny_ride, rewrite={"ride.json": ride_json_with(
-            tiny_ride, horse={"name": horse}, rider={"name": rider}, gait=gait)})
+        data = zip_folder(
+            tiny_ride,
+            rewrite={
+                "ride.json": ride_json_with(
+                    tiny_ride, horse={"name": horse}, rider={"name": rider}, gait=gait
+                )
+            },
+        )
         created = upload_zip(admin, data)
         rides.append((created["ride"], created["job_id"], horse, gait, rider))
     for _, job_id, *_ in rides:
         job, _ = admin.wait_job(job_id)
         assert job["status"] == "done", job["error"]
-    expected_rows = [{"ride_id": ride["id"], "horse": horse, "gait": gait,
-                      **standin_result({"horse": {"name": horse}, "rider": {"name": rider}, "gait": gait,
-                                        "direction": "CCW"})["indicators"]}
-                     for ride, _, horse, gait, rider in rides]
+    expected_rows = [
+        {
+            "ride_id": ride["id"],
+            "horse": horse,
+            "gait": gait,
+            **standin_result(
+                {"horse": {"name": horse}, "rider": {"name": rider}, "gait": gait, "direction": "CCW"}
+            )["indicators"],
+        }
+        for ride, _, horse, gait, rider in rides
+    ]
 
     board = admin.ok("GET", "/leaderboard", params={"gait": "canter", "indicator": "acc_y_wb_rms"})
     truth = leaderboard(expected_rows, "acc_y_wb_rms", gait="canter")
@@ -185,19 +244,27 @@ def test_comparisons_leaderboard_and_grades(env, tiny_ride):
     assert [e["n"] for e in board["entries"]] == [t["n"] for t in truth]
     assert board["rides"] == 4 and board["better"] == "lower" and board["unit"] == "m/s^2"
     ajax = next(e for e in board["entries"] if e["horse"] == "Ajax")
-    assert ajax["n"] == 2 and ajax["spread"] == pytest.approx(next(t for t in truth if t["horse"] == "Ajax")["spread"])
+    assert ajax["n"] == 2 and ajax["spread"] == pytest.approx(
+        next(t for t in truth if t["horse"] == "Ajax")["spread"]
+    )
     assert ajax["spread"] > 0 and ajax["horse_id"] == rides[0][0]["horse_id"]
     longer = admin.ok("GET", "/leaderboard", params={"gait": "canter", "indicator": "t_a8_limit_wb_h"})
     assert longer["better"] == "higher"
-    assert [e["mean"] for e in longer["entries"]] == sorted((e["mean"] for e in longer["entries"]), reverse=True)
+    assert [e["mean"] for e in longer["entries"]] == sorted(
+        (e["mean"] for e in longer["entries"]), reverse=True
+    )
     refused = admin.get("/leaderboard", params={"gait": "canter", "indicator": "vel_x_avg_kmh"})
     assert refused.status_code == 422 and "lower_is_better" in refused.json()["detail"]
 
     ajax_id, bella_id = rides[0][0]["horse_id"], rides[2][0]["horse_id"]
-    gaits = admin.ok("GET", f"/horses/{ajax_id}/comparison", params={"indicator": ["acc_y_wb_rms", "vdv_y_wb"]})
+    gaits = admin.ok(
+        "GET", f"/horses/{ajax_id}/comparison", params={"indicator": ["acc_y_wb_rms", "vdv_y_wb"]}
+    )
     assert [g["group"] for g in gaits["indicators"]["acc_y_wb_rms"]["gaits"]] == ["walk", "canter"]
     canter = gaits["indicators"]["acc_y_wb_rms"]["gaits"][1]
-    assert canter["n"] == 2 and canter["mean"] == pytest.approx(np.mean([r["acc_y_wb_rms"] for r in expected_rows[:2]]))
+    assert canter["n"] == 2 and canter["mean"] == pytest.approx(
+        np.mean([r["acc_y_wb_rms"] for r in expected_rows[:2]])
+    )
     walk = gaits["indicators"]["vdv_y_wb"]["gaits"][0]
     assert walk["n"] == 1 and walk["std"] is None  # one ride: no spread (NaN in JSON is null)
 
@@ -208,11 +275,27 @@ def test_comparisons_leaderboard_and_grades(env, tiny_ride):
     riders = {r["name"]: r["id"] for r in admin.ok("GET", "/riders")["items"]}
     for (ride, _, _horse, gait, _), grade in zip(rides, (2, 2, 4, 5, 3), strict=True):
         if gait == "canter":
-            admin.ok("POST", "/grades", 201, json={"ride_id": ride["id"], "rider_id": riders["Rider A"],
-                                                   "grade": grade})
-    again = admin.ok("POST", "/grades", 201, json={"ride_id": rides[0][0]["id"], "rider_id": riders["Rider A"],
-                                                   "grade": 1, "comment": "changed my mind"})
-    assert again["grade"] == 1 and admin.ok("GET", "/grades", params={"ride_id": rides[0][0]["id"]})["total"] == 1
+            admin.ok(
+                "POST",
+                "/grades",
+                201,
+                json={"ride_id": ride["id"], "rider_id": riders["Rider A"], "grade": grade},
+            )
+    again = admin.ok(
+        "POST",
+        "/grades",
+        201,
+        json={
+            "ride_id": rides[0][0]["id"],
+            "rider_id": riders["Rider A"],
+            "grade": 1,
+            "comment": "changed my mind",
+        },
+    )
+    assert (
+        again["grade"] == 1
+        and admin.ok("GET", "/grades", params={"ride_id": rides[0][0]["id"]})["total"] == 1
+    )
     corr = admin.ok("GET", "/grades/correlation", params={"gait": "canter", "indicator": "acc_y_wb_rms"})
     stats = corr["indicators"]["acc_y_wb_rms"]
     assert stats["n"] == 3 and len(stats["points"]) == 3 and stats["expected_sign"] == -1
@@ -233,7 +316,9 @@ def test_cancel_retry_and_a_failed_stage_keeps_the_uploads(env, admin, tiny_ride
     refused = admin.post(f"/jobs/{job['id']}/retry")
     assert refused.status_code == 409 and "only a failed or cancelled job" in refused.json()["detail"]
 
-    data = zip_folder(tiny_ride, rewrite={"ride.json": ride_json_with(tiny_ride, horse={"name": "Failing Fox"})})
+    data = zip_folder(
+        tiny_ride, rewrite={"ride.json": ride_json_with(tiny_ride, horse={"name": "Failing Fox"})}
+    )
     created = upload_zip(admin, data)
     failed, _ = admin.wait_job(created["job_id"])
     assert failed["status"] == "failed"

@@ -36,8 +36,13 @@ PIPELINE_TIMEOUT_S = 900.0
 def reference(tiny_ride, tmp_path_factory) -> dict:
     """``saddlescope analyze RIDE --json OUT`` on the tiny ride (the command line, as a user runs it)."""
     out = tmp_path_factory.mktemp("reference") / "result.json"
-    done = subprocess.run([str(integration_services.VENV_BIN / "saddlescope"), "analyze", str(tiny_ride), "--json",
-                           str(out)], capture_output=True, text=True, timeout=PIPELINE_TIMEOUT_S, cwd=PROJECT_ROOT)
+    done = subprocess.run(
+        [str(integration_services.VENV_BIN / "saddlescope"), "analyze", str(tiny_ride), "--json", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=PIPELINE_TIMEOUT_S,
+        cwd=PROJECT_ROOT,
+    )
     if done.returncode != 0:
         reason = (done.stderr.strip().splitlines() or ["no message"])[-1]
         return {"error": f"`saddlescope analyze` fails on the tiny ride: {reason}"}
@@ -58,11 +63,17 @@ def same_indicators(served: dict, expected: dict) -> None:
 
 def test_embedded_bundle_upload_with_the_real_pipeline(reference, tiny_ride, tmp_path):
     require_pipeline(reference)
-    settings = load_settings(database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "storage"))
+    settings = load_settings(
+        database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "storage")
+    )
     with TestClient(create_app(settings)) as client:  # the real embedded process pool
         api, _ = new_club(client)
-        created = api.ok("POST", "/rides/bundle", 201,
-                         files={"file": ("ride.zip", zip_folder(tiny_ride), "application/zip")})
+        created = api.ok(
+            "POST",
+            "/rides/bundle",
+            201,
+            files={"file": ("ride.zip", zip_folder(tiny_ride), "application/zip")},
+        )
         job, _ = api.wait_job(created["job_id"], timeout_s=PIPELINE_TIMEOUT_S)
         assert job["status"] == "done", job["error"]
         result = api.ok("GET", f"/rides/{created['ride']['id']}/result")
@@ -71,26 +82,42 @@ def test_embedded_bundle_upload_with_the_real_pipeline(reference, tiny_ride, tmp
 
 
 @pytest.mark.integration
-def test_celery_clip_uploads_with_a_rig_calibrated_once(request, reference, tiny_ride, tmp_path, pg_database_url,
-                                                        redis_url):
+def test_celery_clip_uploads_with_a_rig_calibrated_once(
+    request, reference, tiny_ride, tmp_path, pg_database_url, redis_url
+):
     require_pipeline(reference)
     upgrade_to_head(pg_database_url)
-    settings = load_settings(database_url=pg_database_url, broker_url=redis_url, storage_dir=str(tmp_path / "storage"),
-                             secret_key=integration_services.TEST_SECRET)
+    settings = load_settings(
+        database_url=pg_database_url,
+        broker_url=redis_url,
+        storage_dir=str(tmp_path / "storage"),
+        secret_key=integration_services.TEST_SECRET,
+    )
     meta = json.loads((tiny_ride / "ride.json").read_text())
-    with integration_services.run_celery_worker(database_url=pg_database_url, broker_url=redis_url,
-                                                storage_dir=tmp_path / "storage", log_path=tmp_path / "worker.log",
-                                                config=request.config), \
-            TestClient(create_app(settings, open_registration=True)) as client:
+    with (
+        integration_services.run_celery_worker(
+            database_url=pg_database_url,
+            broker_url=redis_url,
+            storage_dir=tmp_path / "storage",
+            log_path=tmp_path / "worker.log",
+            config=request.config,
+        ),
+        TestClient(create_app(settings, open_registration=True)) as client,
+    ):
         api, _ = new_club(client)
         rig = api.ok("POST", "/rigs", 201, json={"name": "Tiny rig", "board": meta["board"]})
 
         def put(owner: str, owner_id: int, kind: str, camera: str) -> dict:
             path = tiny_ride / meta["clips"][kind][camera]
-            return api.ok("PUT", f"/{owner}/{owner_id}/clips/{kind}/{camera}", files={"file": (path.name,
-                                                                                               path.read_bytes())})
+            return api.ok(
+                "PUT",
+                f"/{owner}/{owner_id}/clips/{kind}/{camera}",
+                files={"file": (path.name, path.read_bytes())},
+            )
 
-        calibrate_job = [put("rigs", rig["id"], "calibration", c)["job_id"] for c in ("left", "middle", "right")][-1]
+        calibrate_job = [
+            put("rigs", rig["id"], "calibration", c)["job_id"] for c in ("left", "middle", "right")
+        ][-1]
         job, _ = api.wait_job(calibrate_job, timeout_s=PIPELINE_TIMEOUT_S)
         assert job["status"] == "done", job["error"]
         for kind in ("plumb", "static"):
@@ -98,10 +125,22 @@ def test_celery_clip_uploads_with_a_rig_calibrated_once(request, reference, tiny
                 put("rigs", rig["id"], kind, camera)
         horse = api.ok("POST", "/horses", 201, json={"name": meta["horse"]["name"]})
         rider = api.ok("POST", "/riders", 201, json={"name": meta["rider"]["name"]})
-        ride = api.ok("POST", "/rides", 201, json={
-            "horse_id": horse["id"], "rider_id": rider["id"], "rig_id": rig["id"], "gait": meta["gait"],
-            "direction": meta["direction"], "meta": {"markers": meta.get("markers")}})
-        analyze_job = [put("rides", ride["id"], "motion", c)["job_id"] for c in ("left", "middle", "right")][-1]
+        ride = api.ok(
+            "POST",
+            "/rides",
+            201,
+            json={
+                "horse_id": horse["id"],
+                "rider_id": rider["id"],
+                "rig_id": rig["id"],
+                "gait": meta["gait"],
+                "direction": meta["direction"],
+                "meta": {"markers": meta.get("markers")},
+            },
+        )
+        analyze_job = [put("rides", ride["id"], "motion", c)["job_id"] for c in ("left", "middle", "right")][
+            -1
+        ]
         job, _ = api.wait_job(analyze_job, timeout_s=PIPELINE_TIMEOUT_S)
         assert job["status"] == "done", job["error"]
         assert job["timings_s"]["calibrate"] < 5  # reused: the rig was calibrated by its own job

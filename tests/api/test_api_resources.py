@@ -1,4 +1,5 @@
-"""Resources as JSON: create, read, change, delete; lists paginated (limit/offset + total), filtered, sorted."""
+"""Resources as JSON: create, read, change, delete; lists paginated (limit/offset + total), filtered
+and sorted."""
 
 from __future__ import annotations
 
@@ -20,20 +21,45 @@ def env(request, tmp_path_factory):
 def stable(env):
     """A club with 5 horses, 2 riders, a rig and 12 rides over three months."""
     api, _ = new_club(env.client)
-    horses = [api.ok("POST", "/horses", 201, json={"name": name, "birth_year": year, "breed": breed})
-              for name, year, breed in [("Bravo", 2005, "Dutch"), ("alpha", 2010, None), ("Charlie", 1999, "Arab"),
-                                        ("Delta_1", 2012, "Dutch"), ("Echo%", 2001, None)]]
+    horses = [
+        api.ok("POST", "/horses", 201, json={"name": name, "birth_year": year, "breed": breed})
+        for name, year, breed in [
+            ("Bravo", 2005, "Dutch"),
+            ("alpha", 2010, None),
+            ("Charlie", 1999, "Arab"),
+            ("Delta_1", 2012, "Dutch"),
+            ("Echo%", 2001, None),
+        ]
+    ]
     riders = [api.ok("POST", "/riders", 201, json={"name": n}) for n in ("Rider A", "Rider B")]
-    rig = api.ok("POST", "/rigs", 201, json={"name": "Arena", "recorded_on": "2026-03-02",
-                                             "board": {"kind": "checkerboard", "inner_corners": [9, 6],
-                                                       "square_mm": 50}})
+    rig = api.ok(
+        "POST",
+        "/rigs",
+        201,
+        json={
+            "name": "Arena",
+            "recorded_on": "2026-03-02",
+            "board": {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50},
+        },
+    )
     rides = []
     gaits = ["walk", "sitting_trot", "rising_trot", "canter"]
     for i in range(12):
-        rides.append(api.ok("POST", "/rides", 201, json={
-            "horse_id": horses[i % 3]["id"], "rider_id": riders[i % 2]["id"], "rig_id": rig["id"] if i < 6 else None,
-            "gait": gaits[i % 4], "direction": "CW" if i % 2 else "CCW",
-            "ridden_on": f"2026-0{1 + i // 4}-{10 + i:02d}"}))
+        rides.append(
+            api.ok(
+                "POST",
+                "/rides",
+                201,
+                json={
+                    "horse_id": horses[i % 3]["id"],
+                    "rider_id": riders[i % 2]["id"],
+                    "rig_id": rig["id"] if i < 6 else None,
+                    "gait": gaits[i % 4],
+                    "direction": "CW" if i % 2 else "CCW",
+                    "ridden_on": f"2026-0{1 + i // 4}-{10 + i:02d}",
+                },
+            )
+        )
     return {"api": api, "horses": horses, "riders": riders, "rig": rig, "rides": rides}
 
 
@@ -101,7 +127,9 @@ def test_change_and_delete(stable):
     assert api.get(f"/horses/{horse['id']}").status_code == 404
     assert api.delete(f"/rigs/{stable['rig']['id']}").status_code == 409  # rides use it
     ride = stable["rides"][-1]
-    moved = api.ok("PATCH", f"/rides/{ride['id']}", json={"gait": "walk", "notes": "windy", "ridden_on": None})
+    moved = api.ok(
+        "PATCH", f"/rides/{ride['id']}", json={"gait": "walk", "notes": "windy", "ridden_on": None}
+    )
     assert (moved["gait"], moved["notes"], moved["ridden_on"]) == ("walk", "windy", None)
     assert api.patch(f"/rides/{ride['id']}", json={"horse_id": 999999}).status_code == 404
     detail = api.ok("GET", f"/rides/{ride['id']}")
@@ -116,9 +144,19 @@ def test_rigs_and_riders(stable):
     assert rig["board"] == {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0}
     assert rig["calibrated"] is False and rig["calibration"] is None
     assert api.ok("PATCH", f"/rigs/{rig['id']}", json={"name": "Indoor arena"})["name"] == "Indoor arena"
-    charuco = api.post("/rigs", json={"name": "Charuco", "board": {"kind": "charuco", "inner_corners": [4, 6],
-                                                                   "square_mm": 40, "dictionary": "DICT_4X4_50",
-                                                                   "marker_mm": 30}})
+    charuco = api.post(
+        "/rigs",
+        json={
+            "name": "Charuco",
+            "board": {
+                "kind": "charuco",
+                "inner_corners": [4, 6],
+                "square_mm": 40,
+                "dictionary": "DICT_4X4_50",
+                "marker_mm": 30,
+            },
+        },
+    )
     assert charuco.status_code == 201
     bad_board = api.post("/rigs", json={"name": "Bad", "board": {"inner_corners": [1, 6], "square_mm": 40}})
     assert bad_board.status_code == 422 and "inner_corners" in bad_board.json()["detail"]

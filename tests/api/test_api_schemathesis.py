@@ -32,10 +32,14 @@ def app_and_token(request, tmp_path_factory):
     from fastapi.testclient import TestClient
 
     root = tmp_path_factory.mktemp("schemathesis")
-    database_url = (f"sqlite:///{root / 'db.sqlite'}" if request.param == "sqlite"
-                    else request.getfixturevalue("pg_database_url"))  # PostgreSQL refuses what SQLite takes
-    app_settings = load_settings(database_url=database_url, storage_dir=str(root / "storage"),
-                                 max_upload_bytes=4 * 1024**2)
+    database_url = (
+        f"sqlite:///{root / 'db.sqlite'}"
+        if request.param == "sqlite"
+        else request.getfixturevalue("pg_database_url")
+    )  # PostgreSQL refuses what SQLite takes
+    app_settings = load_settings(
+        database_url=database_url, storage_dir=str(root / "storage"), max_upload_bytes=4 * 1024**2
+    )
     upgrade_to_head(app_settings.database_url)
     with standin_installed():
         app = create_app(app_settings, queue=ThreadQueue(app_settings), open_registration=True)
@@ -46,8 +50,12 @@ def app_and_token(request, tmp_path_factory):
             admin, _ = new_club(client)
             horse = admin.ok("POST", "/horses", 201, json={"name": "Fuzzy"})
             rider = admin.ok("POST", "/riders", 201, json={"name": "Fuzzer"})
-            admin.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
-                                                  "direction": "CW"})
+            admin.ok(
+                "POST",
+                "/rides",
+                201,
+                json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk", "direction": "CW"},
+            )
             admin.ok("POST", "/rigs", 201, json={"name": "Fuzz rig"})
             yield app, admin.headers
 
@@ -63,13 +71,19 @@ def test_no_request_makes_the_server_fail(app_and_token):
         operations += 1
 
         @given(case=operation.as_strategy())
-        @settings(max_examples=MAX_EXAMPLES, deadline=None, derandomize=True, database=None,
-                  suppress_health_check=list(HealthCheck))
+        @settings(
+            max_examples=MAX_EXAMPLES,
+            deadline=None,
+            derandomize=True,
+            database=None,
+            suppress_health_check=list(HealthCheck),
+        )
         def run(case) -> None:
             response = case.call(headers={**(case.headers or {}), **headers})
             if response.status_code >= 500:
-                failures.append(f"{case.method} {case.formatted_path} -> {response.status_code}: "
-                                f"{response.text[:300]}")
+                failures.append(
+                    f"{case.method} {case.formatted_path} -> {response.status_code}: {response.text[:300]}"
+                )
             assert response.status_code < 500
 
         try:

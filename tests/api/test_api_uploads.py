@@ -26,21 +26,39 @@ def club(env, tmp_path_factory):
     api, _ = new_club(env.client)
     horse = api.ok("POST", "/horses", 201, json={"name": "Phone"})
     rider = api.ok("POST", "/riders", 201, json={"name": "Filmed"})
-    ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
-                                               "direction": "CCW"})
+    ride = api.ok(
+        "POST",
+        "/rides",
+        201,
+        json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk", "direction": "CCW"},
+    )
     folder = tmp_path_factory.mktemp("uploads")
     return {"api": api, "ride": ride, "folder": folder}
 
 
 def start(api, ride_id: int, data: bytes, camera: str = "left", **extra) -> dict:
-    return api.ok("POST", "/uploads", 201, json={"target": "ride_clip", "ride_id": ride_id, "clip_kind": "motion",
-                                                 "camera": camera, "length_bytes": len(data),
-                                                 "filename": f"{camera}.avi", **extra})
+    return api.ok(
+        "POST",
+        "/uploads",
+        201,
+        json={
+            "target": "ride_clip",
+            "ride_id": ride_id,
+            "clip_kind": "motion",
+            "camera": camera,
+            "length_bytes": len(data),
+            "filename": f"{camera}.avi",
+            **extra,
+        },
+    )
 
 
 def send(api, upload_id: str, offset: int, chunk: bytes):
-    return api.patch(f"/uploads/{upload_id}", content=chunk,
-                     headers={"Upload-Offset": str(offset), "Content-Type": "application/offset+octet-stream"})
+    return api.patch(
+        f"/uploads/{upload_id}",
+        content=chunk,
+        headers={"Upload-Offset": str(offset), "Content-Type": "application/offset+octet-stream"},
+    )
 
 
 def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club):
@@ -61,11 +79,13 @@ def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club
     early = api.post(f"/uploads/{upload['id']}/finalize")
     assert early.status_code == 409 and f"has {third} of its {len(data)} bytes" in early.json()["detail"]
 
-    assert send(api, upload["id"], third, data[third:2 * third]).status_code == 204
-    too_much = send(api, upload["id"], 2 * third, data[2 * third:] + b"extra")
+    assert send(api, upload["id"], third, data[third : 2 * third]).status_code == 204
+    too_much = send(api, upload["id"], 2 * third, data[2 * third :] + b"extra")
     assert too_much.status_code == 413 and "more bytes than the" in too_much.json()["detail"]
-    assert api.ok("GET", f"/uploads/{upload['id']}")["offset_bytes"] == 2 * third  # the bad chunk did not count
-    assert send(api, upload["id"], 2 * third, data[2 * third:]).status_code == 204
+    assert (
+        api.ok("GET", f"/uploads/{upload['id']}")["offset_bytes"] == 2 * third
+    )  # the bad chunk did not count
+    assert send(api, upload["id"], 2 * third, data[2 * third :]).status_code == 204
 
     outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")
     assert outcome["job_id"] is None  # one camera of three: nothing to start yet
@@ -101,36 +121,68 @@ def test_abandon_and_bad_requests(env, club):
     assert api.get("/uploads/not-an-upload-id").status_code == 422
     missing_offset = api.patch(f"/uploads/{'0' * 32}", content=b"x")
     assert missing_offset.status_code == 422 and "Upload-Offset" in missing_offset.json()["detail"]
-    wrong = api.post("/uploads", json={"target": "rig_clip", "rig_id": 999, "clip_kind": "motion", "camera": "left",
-                                       "length_bytes": 5})
+    wrong = api.post(
+        "/uploads",
+        json={
+            "target": "rig_clip",
+            "rig_id": 999,
+            "clip_kind": "motion",
+            "camera": "left",
+            "length_bytes": 5,
+        },
+    )
     assert wrong.status_code == 404 and "rig 999 not found" in wrong.json()["detail"]
     rig = api.ok("POST", "/rigs", 201, json={"name": "Resumable rig"})
-    motion_for_rig = api.post("/uploads", json={"target": "rig_clip", "rig_id": rig["id"], "clip_kind": "motion",
-                                                "camera": "left", "length_bytes": 5})
-    assert motion_for_rig.status_code == 422 and "a rig has no 'motion' clips" in motion_for_rig.json()["detail"]
+    motion_for_rig = api.post(
+        "/uploads",
+        json={
+            "target": "rig_clip",
+            "rig_id": rig["id"],
+            "clip_kind": "motion",
+            "camera": "left",
+            "length_bytes": 5,
+        },
+    )
+    assert (
+        motion_for_rig.status_code == 422 and "a rig has no 'motion' clips" in motion_for_rig.json()["detail"]
+    )
 
 
 def test_a_bundle_as_a_resumable_upload_becomes_a_ride_with_a_job(env, club):
     api = club["api"]
     data = zip_folder(write_tiny_bundle(club["folder"] / "bundle"))
-    upload = api.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data),
-                                                   "filename": "ride.zip"})
+    upload = api.ok(
+        "POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data), "filename": "ride.zip"}
+    )
     step = 7000
     for offset in range(0, len(data), step):
-        assert send(api, upload["id"], offset, data[offset:offset + step]).status_code == 204
+        assert send(api, upload["id"], offset, data[offset : offset + step]).status_code == 204
     outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")
     ride = api.ok("GET", f"/rides/{outcome['ride_id']}")
-    assert ride["from_bundle"] and len(ride["recordings"]) == 12 and ride["latest_job_id"] == outcome["job_id"]
+    assert (
+        ride["from_bundle"] and len(ride["recordings"]) == 12 and ride["latest_job_id"] == outcome["job_id"]
+    )
 
 
 def test_raw_and_multipart_uploads_store_the_same_bytes(env, club):
     api, ride = club["api"], club["ride"]
     data = write_tiny_clip(club["folder"] / "raw.avi", frames=9).read_bytes()
-    raw = api.ok("PUT", f"/rides/{ride['id']}/clips/static/left", content=data,
-                 headers={"Content-Type": "video/x-msvideo", "X-Filename": "raw.avi"})
-    form = api.ok("PUT", f"/rides/{ride['id']}/clips/static/middle", files={"file": ("form.avi", data)},
-                  data={"note": "a form field next to the file is ignored"})
+    raw = api.ok(
+        "PUT",
+        f"/rides/{ride['id']}/clips/static/left",
+        content=data,
+        headers={"Content-Type": "video/x-msvideo", "X-Filename": "raw.avi"},
+    )
+    form = api.ok(
+        "PUT",
+        f"/rides/{ride['id']}/clips/static/middle",
+        files={"file": ("form.avi", data)},
+        data={"note": "a form field next to the file is ignored"},
+    )
     assert raw["recording"]["sha256"] == form["recording"]["sha256"] == hashlib.sha256(data).hexdigest()
-    assert raw["recording"]["original_filename"] == "raw.avi" and form["recording"]["original_filename"] == "form.avi"
+    assert (
+        raw["recording"]["original_filename"] == "raw.avi"
+        and form["recording"]["original_filename"] == "form.avi"
+    )
     no_file = api.put(f"/rides/{ride['id']}/clips/static/right", files={"other": ("x.avi", data)})
     assert no_file.status_code == 422 and "no 'file' field" in no_file.json()["detail"]

@@ -1,5 +1,6 @@
 """A worker killed (SIGKILL) in the middle of a stage: the next worker finishes the job, with the same
-result and no duplicate rows (PostgreSQL, Redis, real Celery worker processes; stand-in analysis made slow)."""
+result and no duplicate rows (PostgreSQL, Redis, real Celery worker processes; the stand-in analysis
+made slow)."""
 
 from __future__ import annotations
 
@@ -27,23 +28,42 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 def test_a_killed_worker_s_job_completes_on_the_next_worker(request, tmp_path, pg_database_url, redis_url):
     upgrade_to_head(pg_database_url)
-    settings = load_settings(database_url=pg_database_url, broker_url=redis_url, storage_dir=str(tmp_path / "storage"),
-                             secret_key=integration_services.TEST_SECRET)
+    settings = load_settings(
+        database_url=pg_database_url,
+        broker_url=redis_url,
+        storage_dir=str(tmp_path / "storage"),
+        secret_key=integration_services.TEST_SECRET,
+    )
     bundle = integration_services.write_tiny_bundle(tmp_path / "bundle")
     log_path = tmp_path / "worker.log"
-    worker_kwargs = dict(database_url=pg_database_url, broker_url=redis_url, storage_dir=tmp_path / "storage",
-                         log_path=log_path, app="standin_worker", config=request.config)
+    worker_kwargs = dict(
+        database_url=pg_database_url,
+        broker_url=redis_url,
+        storage_dir=tmp_path / "storage",
+        log_path=log_path,
+        app="standin_worker",
+        config=request.config,
+    )
     with TestClient(create_app(settings, open_registration=True)) as client:
         api, _ = new_club(client)
-        with integration_services.run_celery_worker(extra_env=standin_worker_env(delay_s=8.0),
-                                                    **worker_kwargs) as first:
-            created = api.ok("POST", "/rides/bundle", 201,
-                             files={"file": ("ride.zip", zip_folder(bundle), "application/zip")})
+        with integration_services.run_celery_worker(
+            extra_env=standin_worker_env(delay_s=8.0), **worker_kwargs
+        ) as first:
+            created = api.ok(
+                "POST",
+                "/rides/bundle",
+                201,
+                files={"file": ("ride.zip", zip_folder(bundle), "application/zip")},
+            )
             ride_id, job_id = created["ride"]["id"], created["job_id"]
             deadline = time.monotonic() + 60
             while True:
                 job = api.ok("GET", f"/jobs/{job_id}")
-                if job["status"] == "running" and (job["stage"] or "").startswith("analyze") and job["progress"] > 0.3:
+                if (
+                    job["status"] == "running"
+                    and (job["stage"] or "").startswith("analyze")
+                    and job["progress"] > 0.3
+                ):
                     break
                 assert job["status"] in ("queued", "running") and time.monotonic() < deadline, job
                 time.sleep(0.1)
@@ -51,21 +71,33 @@ def test_a_killed_worker_s_job_completes_on_the_next_worker(request, tmp_path, p
             first.wait(timeout=10)
         assert first.returncode == -signal.SIGKILL
         stuck = api.ok("GET", f"/jobs/{job_id}")
-        assert stuck["status"] == "running" and stuck["host"].endswith(f":{first.pid}") and stuck["attempts"] == 1
+        assert (
+            stuck["status"] == "running"
+            and stuck["host"].endswith(f":{first.pid}")
+            and stuck["attempts"] == 1
+        )
 
-        with integration_services.run_celery_worker(extra_env=standin_worker_env(delay_s=1.0),
-                                                    **worker_kwargs) as second:
+        with integration_services.run_celery_worker(
+            extra_env=standin_worker_env(delay_s=1.0), **worker_kwargs
+        ) as second:
             job, _ = api.wait_job(job_id, timeout_s=90)
         assert job["status"] == "done", job["error"]
         assert job["attempts"] == 2 and job["host"].endswith(f":{second.pid}")
         assert set(job["timings_s"]) == {"probe", "assemble", "calibrate", "analyze", "total"}
         result = api.ok("GET", f"/rides/{ride_id}/result")
-        meta = {"horse": {"name": "Horse 2"}, "rider": {"name": "Rider B"}, "gait": "walk", "direction": "CCW"}
+        meta = {
+            "horse": {"name": "Horse 2"},
+            "rider": {"name": "Rider B"},
+            "gait": "walk",
+            "direction": "CCW",
+        }
         assert result["indicators"] == pytest.approx(standin_result(meta)["indicators"])
         assert api.ok("GET", f"/rides/{ride_id}")["status"] == "analysed"
 
     with session_factory_for(pg_database_url)() as session:
-        count = lambda model, column: session.scalar(select(func.count()).select_from(model).where(column == ride_id))  # noqa: E731
+        count = lambda model, column: session.scalar(
+            select(func.count()).select_from(model).where(column == ride_id)
+        )  # noqa: E731
         assert count(Result, Result.ride_id) == 1
         assert count(Recording, Recording.ride_id) == 12
         assert count(Job, Job.ride_id) == 1

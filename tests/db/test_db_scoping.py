@@ -47,17 +47,28 @@ def two_clubs(sessions):
             horse = HorseRepository(s, club_id=club.id).add(name=f"Horse {name}")
             rider = RiderRepository(s, club_id=club.id).add(name=f"Rider {name}")
             rig = RigRepository(s, club_id=club.id).add(name=f"Rig {name}")
-            ride = RideRepository(s, club_id=club.id).add(horse_id=horse.id, rider_id=rider.id, rig_id=rig.id,
-                                                          gait="walk", direction="CW")
-            ids[name] = {"club": club.id, "horse": horse.id, "rider": rider.id, "rig": rig.id, "ride": ride.id}
+            ride = RideRepository(s, club_id=club.id).add(
+                horse_id=horse.id, rider_id=rider.id, rig_id=rig.id, gait="walk", direction="CW"
+            )
+            ids[name] = {
+                "club": club.id,
+                "horse": horse.id,
+                "rider": rider.id,
+                "rig": rig.id,
+                "ride": ride.id,
+            }
     return ids
 
 
 def test_a_scoped_repository_sees_only_its_club(sessions, two_clubs):
     a, b = two_clubs["A"], two_clubs["B"]
     with session_scope(sessions) as s:
-        for repo, key in ((HorseRepository, "horse"), (RiderRepository, "rider"), (RigRepository, "rig"),
-                          (RideRepository, "ride")):
+        for repo, key in (
+            (HorseRepository, "horse"),
+            (RiderRepository, "rider"),
+            (RigRepository, "rig"),
+            (RideRepository, "ride"),
+        ):
             assert repo(s, club_id=a["club"]).get(a[key]).club_id == a["club"]
             assert repo(s, club_id=a["club"]).find(b[key]) is None
             with pytest.raises(NotFound):
@@ -66,8 +77,9 @@ def test_a_scoped_repository_sees_only_its_club(sessions, two_clubs):
             assert page.total == 1 and [r.id for r in page.items] == [a[key]]
         # references to another club's rows are not found either
         with pytest.raises(NotFound, match="horse"):
-            RideRepository(s, club_id=a["club"]).add(horse_id=b["horse"], rider_id=a["rider"], gait="walk",
-                                                     direction="CW")
+            RideRepository(s, club_id=a["club"]).add(
+                horse_id=b["horse"], rider_id=a["rider"], gait="walk", direction="CW"
+            )
         with pytest.raises(NotFound, match="rig"):
             RideRepository(s, club_id=a["club"]).update_fields(a["ride"], rig_id=b["rig"])
         with pytest.raises(NotFound, match="ride"):
@@ -96,12 +108,21 @@ def test_the_leaderboard_values_come_from_the_clubs_results_only(sessions, two_c
     with session_scope(sessions) as s:
         for name, value in (("A", 1.5), ("B", 9.0)):
             ids = two_clubs[name]
-            ResultRepository(s).replace_for_ride(club_id=ids["club"], ride_id=ids["ride"], job_id=None,
-                                                 indicators={"acc_y_wb_rms": value, "t_a8_limit_wb_h": 2 * value},
-                                                 quality={}, result_key=None, arrays_key=None, code_version=None)
+            ResultRepository(s).replace_for_ride(
+                club_id=ids["club"],
+                ride_id=ids["ride"],
+                job_id=None,
+                indicators={"acc_y_wb_rms": value, "t_a8_limit_wb_h": 2 * value},
+                quality={},
+                result_key=None,
+                arrays_key=None,
+                code_version=None,
+            )
         a = AnalyticsRepository(s, club_id=two_clubs["A"]["club"])
         assert a.indicator_values("acc_y_wb_rms", gait="walk") == [(two_clubs["A"]["horse"], "Horse A", 1.5)]
-        assert a.indicator_values("t_a8_limit_wb_h", gait="walk") == [(two_clubs["A"]["horse"], "Horse A", 3.0)]
+        assert a.indicator_values("t_a8_limit_wb_h", gait="walk") == [
+            (two_clubs["A"]["horse"], "Horse A", 3.0)
+        ]
         assert a.indicator_values("acc_y_wb_rms", gait="canter") == []
         rows = a.indicator_rows()
         assert [(r["horse"], r["indicators"]["acc_y_wb_rms"]) for r in rows] == [("Horse A", 1.5)]
@@ -124,8 +145,9 @@ def test_a_rig_keeps_the_first_calibration_two_jobs_race_to_store(sessions, two_
         assert rigs.set_calibration_if_missing(rig, {"cameras": {"left": 1}}, {"ok": True})
         assert not rigs.set_calibration_if_missing(rig, {"cameras": {"left": 2}}, {"ok": True})
         assert rigs.get(rig).calibration == {"cameras": {"left": 1}}
-        RecordingRepository(s, club_id=two_clubs["A"]["club"]).add(rig_id=rig, camera_role="left",
-                                                                   clip_kind="calibration", path="x")
+        RecordingRepository(s, club_id=two_clubs["A"]["club"]).add(
+            rig_id=rig, camera_role="left", clip_kind="calibration", path="x"
+        )
         rigs.clear_calibration(rig)
         assert rigs.get(rig).calibration is None
 
@@ -137,12 +159,21 @@ def test_existing_rides_migrate_to_the_newest_schema(tmp_path):
     now = dt.datetime.now(dt.UTC).isoformat()
     with engine.begin() as conn:
         conn.execute(text("INSERT INTO clubs (id, name, created_at) VALUES (1, 'Old club', :t)"), {"t": now})
-        conn.execute(text("INSERT INTO horses (id, club_id, name, created_at) VALUES (1, 1, 'Old horse', :t)"),
-                     {"t": now})
-        conn.execute(text("INSERT INTO riders (id, club_id, name, created_at) VALUES (1, 1, 'Old rider', :t)"),
-                     {"t": now})
-        conn.execute(text("INSERT INTO rides (id, club_id, horse_id, rider_id, gait, direction, status, notes, "
-                          "created_at) VALUES (1, 1, 1, 1, 'walk', 'CW', 'new', '', :t)"), {"t": now})
+        conn.execute(
+            text("INSERT INTO horses (id, club_id, name, created_at) VALUES (1, 1, 'Old horse', :t)"),
+            {"t": now},
+        )
+        conn.execute(
+            text("INSERT INTO riders (id, club_id, name, created_at) VALUES (1, 1, 'Old rider', :t)"),
+            {"t": now},
+        )
+        conn.execute(
+            text(
+                "INSERT INTO rides (id, club_id, horse_id, rider_id, gait, direction, status, notes, "
+                "created_at) VALUES (1, 1, 1, 1, 'walk', 'CW', 'new', '', :t)"
+            ),
+            {"t": now},
+        )
     engine.dispose()
     upgrade_to_head(url)
     engine = make_engine(url)
@@ -170,8 +201,10 @@ def test_the_atomic_writer_hashes_counts_and_refuses_past_its_limit(tmp_path):
         size, digest = out.commit()
     assert (size, digest) == (10, hashlib.sha256(b"0123456789").hexdigest())
     assert storage.read_bytes("a/clip.mp4") == b"0123456789"
-    with pytest.raises(TooLarge, match="larger than the upload limit of 10 bytes"), \
-            storage.writer("a/clip.mp4", max_bytes=10) as out:
+    with (
+        pytest.raises(TooLarge, match="larger than the upload limit of 10 bytes"),
+        storage.writer("a/clip.mp4", max_bytes=10) as out,
+    ):
         out.write(b"0123456789")
         out.write(b"!")
     assert storage.read_bytes("a/clip.mp4") == b"0123456789"  # the earlier file is untouched

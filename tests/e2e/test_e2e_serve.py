@@ -54,8 +54,8 @@ def sign_up(base: str) -> dict[str, str]:
     account = {"club_name": "E2E riding club", "email": "admin@e2e.example", "password": "e2e password"}
     created = httpx.post(f"{base}/api/clubs", json=account, timeout=10)
     assert created.status_code == 201, created.text
-    login = httpx.post(f"{base}/api/auth/login", data={"username": account["email"], "password": account["password"]},
-                       timeout=10)
+    credentials = {"username": account["email"], "password": account["password"]}
+    login = httpx.post(f"{base}/api/auth/login", data=credentials, timeout=10)
     assert login.status_code == 200, login.text
     return {"Authorization": f"Bearer {login.json()['access_token']}"}
 

@@ -49,7 +49,9 @@ def test_lost_means_a_dead_local_process_or_a_silent_worker(dead_pid, live_pid):
 
 @pytest.fixture
 def setup(tmp_path):
-    settings = load_settings(database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "s"))
+    settings = load_settings(
+        database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "s")
+    )
     upgrade_to_head(settings.database_url)
     return settings, session_factory_for(settings.database_url)
 

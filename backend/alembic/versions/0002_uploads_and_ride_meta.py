@@ -33,8 +33,9 @@ def upgrade() -> None:
     with op.batch_alter_table("recordings") as batch:
         batch.add_column(sa.Column("codec", sa.String(length=32), nullable=True))
         batch.add_column(sa.Column("original_filename", sa.String(length=255), nullable=True))
-        batch.create_unique_constraint(op.f("uq_recordings_rig_id_clip_kind_camera_role"),
-                                       ["rig_id", "clip_kind", "camera_role"])
+        batch.create_unique_constraint(
+            op.f("uq_recordings_rig_id_clip_kind_camera_role"), ["rig_id", "clip_kind", "camera_role"]
+        )
     op.create_table(
         "uploads",
         sa.Column("id", sa.String(length=32), nullable=False),
@@ -43,10 +44,16 @@ def upgrade() -> None:
         sa.Column("target", _enum("ride_clip", "rig_clip", "bundle", name="upload_target"), nullable=False),
         sa.Column("ride_id", sa.Integer(), nullable=True),
         sa.Column("rig_id", sa.Integer(), nullable=True),
-        sa.Column("clip_kind", _enum("calibration", "plumb", "static", "motion", name="upload_clip_kind"),
-                  nullable=True),
-        sa.Column("camera_role", _enum("left", "middle", "right", name="upload_camera_role", length=8),
-                  nullable=True),
+        sa.Column(
+            "clip_kind",
+            _enum("calibration", "plumb", "static", "motion", name="upload_clip_kind"),
+            nullable=True,
+        ),
+        sa.Column(
+            "camera_role",
+            _enum("left", "middle", "right", name="upload_camera_role", length=8),
+            nullable=True,
+        ),
         sa.Column("filename", sa.String(length=255), nullable=True),
         sa.Column("length_bytes", sa.BigInteger(), nullable=False),
         sa.Column("offset_bytes", sa.BigInteger(), nullable=False),
@@ -55,16 +62,21 @@ def upgrade() -> None:
         sa.Column("outcome", sa.JSON(), nullable=False),
         sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
         sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
-        sa.CheckConstraint("offset_bytes >= 0 AND offset_bytes <= length_bytes",
-                           name=op.f("ck_uploads_offset_range")),
-        sa.ForeignKeyConstraint(["club_id"], ["clubs.id"], name=op.f("fk_uploads_club_id_clubs"),
-                                ondelete="CASCADE"),
-        sa.ForeignKeyConstraint(["user_id"], ["users.id"], name=op.f("fk_uploads_user_id_users"),
-                                ondelete="SET NULL"),
-        sa.ForeignKeyConstraint(["ride_id"], ["rides.id"], name=op.f("fk_uploads_ride_id_rides"),
-                                ondelete="CASCADE"),
-        sa.ForeignKeyConstraint(["rig_id"], ["rigs.id"], name=op.f("fk_uploads_rig_id_rigs"),
-                                ondelete="CASCADE"),
+        sa.CheckConstraint(
+            "offset_bytes >= 0 AND offset_bytes <= length_bytes", name=op.f("ck_uploads_offset_range")
+        ),
+        sa.ForeignKeyConstraint(
+            ["club_id"], ["clubs.id"], name=op.f("fk_uploads_club_id_clubs"), ondelete="CASCADE"
+        ),
+        sa.ForeignKeyConstraint(
+            ["user_id"], ["users.id"], name=op.f("fk_uploads_user_id_users"), ondelete="SET NULL"
+        ),
+        sa.ForeignKeyConstraint(
+            ["ride_id"], ["rides.id"], name=op.f("fk_uploads_ride_id_rides"), ondelete="CASCADE"
+        ),
+        sa.ForeignKeyConstraint(
+            ["rig_id"], ["rigs.id"], name=op.f("fk_uploads_rig_id_rigs"), ondelete="CASCADE"
+        ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_uploads")),
     )
     for column in ("club_id", "user_id", "ride_id", "rig_id"):

@@ -16,8 +16,15 @@ down_revision: str | None = "0002"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
-COLUMNS = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "vel_x_avg_kmh", "amplitude_y_m",
-           "stride_frequency_hz")
+COLUMNS = (
+    "acc_y_wb_rms",
+    "acc_y_wk_rms",
+    "vdv_y_wb",
+    "vdv_y_wk",
+    "vel_x_avg_kmh",
+    "amplitude_y_m",
+    "stride_frequency_hz",
+)
 OLD = ("acc_y_wb_rms", "vdv_y_wb", "vel_x_avg_kmh")
 
 
@@ -25,7 +32,9 @@ def upgrade() -> None:
     for name in OLD:  # (club, value) only: a ranking still had to read every wide row for its ride
         op.drop_index(f"ix_results_club_id_{name}", table_name="results")
     for name in COLUMNS:
-        op.create_index(f"ix_results_leaderboard_{name}", "results", ["club_id", "ride_id", name], unique=False)
+        op.create_index(
+            f"ix_results_leaderboard_{name}", "results", ["club_id", "ride_id", name], unique=False
+        )
 
 
 def downgrade() -> None:

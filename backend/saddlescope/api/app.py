@@ -157,7 +157,8 @@ def _add_error_handlers(app: FastAPI) -> None:
     async def integrity(request: Request, exc: IntegrityError) -> JSONResponse:
         # Two requests raced for the same unique name, or a row vanished meanwhile.
         log.info("integrity error answered with 409: %s", exc.orig)
-        return JSONResponse({"detail": "the change conflicts with data stored meanwhile; reload and try again"},
+        return JSONResponse({"detail": "the change conflicts with data stored meanwhile; reload and try "
+                                       "again"},
                             status_code=status.HTTP_409_CONFLICT)
 
     @app.exception_handler(DataError)

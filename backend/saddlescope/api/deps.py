@@ -49,8 +49,9 @@ CSRF_COOKIE = "saddlescope_csrf"
 CSRF_HEADER = "X-CSRF-Token"
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 
-oauth2_scheme = OAuth2PasswordBearer(tokenUrl="/api/auth/login", auto_error=False,
-                                     description="the access token of POST /api/auth/login")
+oauth2_scheme = OAuth2PasswordBearer(
+    tokenUrl="/api/auth/login", auto_error=False, description="the access token of POST /api/auth/login"
+)
 
 
 def _settings(request: Request) -> Settings:
@@ -89,16 +90,22 @@ StorageDep = Annotated[Storage, Depends(_storage)]
 QueueDep = Annotated[JobQueue, Depends(_queue)]
 
 
-def _principal(request: Request, settings: SettingsDep, session: SessionDep,
-               bearer: Annotated[str | None, Depends(oauth2_scheme)]) -> Principal:
+def _principal(
+    request: Request,
+    settings: SettingsDep,
+    session: SessionDep,
+    bearer: Annotated[str | None, Depends(oauth2_scheme)],
+) -> Principal:
     """The caller, from a bearer token or the session cookie (then CSRF-checked on unsafe methods)."""
     if bearer:
         principal = read_token(bearer, settings)
     else:
         cookie = request.cookies.get(SESSION_COOKIE)
         if not cookie:
-            raise AuthError("not signed in: send 'Authorization: Bearer <token>' from POST /api/auth/login, or "
-                            "sign in with the browser")
+            raise AuthError(
+                "not signed in: send 'Authorization: Bearer <token>' from POST /api/auth/login, or "
+                "sign in with the browser"
+            )
         principal = read_token(cookie, settings)
         if request.method not in SAFE_METHODS:
             # Double submit: a page on another site can make the browser send the cookie, but it cannot
@@ -106,8 +113,10 @@ def _principal(request: Request, settings: SettingsDep, session: SessionDep,
             # session also defeats a CSRF cookie planted by a sibling domain.
             header = request.headers.get(CSRF_HEADER, "")
             if not header or not hmac.compare_digest(header, principal.csrf):
-                raise Forbidden(f"missing or wrong {CSRF_HEADER} header (copy the {CSRF_COOKIE} cookie into it "
-                                "on every POST, PUT, PATCH and DELETE)")
+                raise Forbidden(
+                    f"missing or wrong {CSRF_HEADER} header (copy the {CSRF_COOKIE} cookie into it "
+                    "on every POST, PUT, PATCH and DELETE)"
+                )
     return current_principal(session, principal)
 
 

@@ -202,9 +202,12 @@ class BoardIn(_In):
 class RigIn(_In):
     name: Name
     recorded_on: dt.date | None = None
-    cameras: dict[CameraRole, dict[str, str]] = Field(default_factory=dict,
-                                                      description="model, serial, ... of each camera")
-    board: BoardIn | None = Field(default=None, description="the calibration board its calibration clips show")
+    cameras: dict[CameraRole, dict[str, str]] = Field(
+        default_factory=dict, description="model, serial, ... of each camera"
+    )
+    board: BoardIn | None = Field(
+        default=None, description="the calibration board its calibration clips show"
+    )
 
 
 class RigUpdate(_In):
@@ -338,7 +341,9 @@ class UploadCreate(_In):
     target: Literal["ride_clip", "rig_clip", "bundle"]
     length_bytes: int = Field(ge=1, le=2**62, description="the file's total size")
     ride_id: RefId | None = None
-    rig_id: RefId | None = Field(default=None, description="the rig (rig_clip), or the rig a bundle's ride uses")
+    rig_id: RefId | None = Field(
+        default=None, description="the rig (rig_clip), or the rig a bundle's ride uses"
+    )
     clip_kind: ClipKind | None = None
     camera: CameraRole | None = None
     filename: Annotated[str, StringConstraints(max_length=255)] | None = None
@@ -389,12 +394,16 @@ class GradeOut(_Out):
 
 
 class JobCreate(_In):
-    kind: str = Field(description="job kind, e.g. 'analyze', 'calibrate_rig', 'probe' or 'selftest'",
-                      examples=["probe"], max_length=32)
+    kind: str = Field(
+        description="job kind, e.g. 'analyze', 'calibrate_rig', 'probe' or 'selftest'",
+        examples=["probe"],
+        max_length=32,
+    )
     ride_id: RefId | None = Field(default=None, description="the ride to work on (probe, analyze)")
     rig_id: RefId | None = Field(default=None, description="the rig to work on (probe, calibrate_rig)")
-    payload: dict[str, Any] = Field(default_factory=dict,
-                                    description="kind-specific options, e.g. {'steps': 5} for selftest")
+    payload: dict[str, Any] = Field(
+        default_factory=dict, description="kind-specific options, e.g. {'steps': 5} for selftest"
+    )
 
 
 class JobOut(BaseModel):
@@ -439,8 +448,9 @@ class ResultOut(BaseModel):
     quality: dict[str, Any]
     calibration_checks: dict[str, Any]
     calibration_flags: list[Any]
-    series: dict[str, list[Any]] = Field(description="t_s, position_m, velocity_m_s, acceleration_m_s2, "
-                                                     "omega_rad_s, alpha_rad_s2 (decimated)")
+    series: dict[str, list[Any]] = Field(
+        description="t_s, position_m, velocity_m_s, acceleration_m_s2, omega_rad_s, alpha_rad_s2 (decimated)"
+    )
     decimation: dict[str, int]
 
 
@@ -515,4 +525,5 @@ class CorrelationOut(BaseModel):
     gait: str | None
     grades: int
     indicators: dict[str, dict[str, Any]] = Field(
-        description="per indicator: n, pearson_r, pearson_p, spearman_rho, intervals, expected_sign, points")
+        description="per indicator: n, pearson_r, pearson_p, spearman_rho, intervals, expected_sign, points"
+    )

@@ -31,8 +31,11 @@ UPLOAD_OPENAPI = {
         "required": True,
         "content": {
             "multipart/form-data": {
-                "schema": {"type": "object", "required": [FILE_FIELD],
-                           "properties": {FILE_FIELD: {"type": "string", "format": "binary"}}},
+                "schema": {
+                    "type": "object",
+                    "required": [FILE_FIELD],
+                    "properties": {FILE_FIELD: {"type": "string", "format": "binary"}},
+                },
             },
             "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
         },
@@ -83,7 +86,9 @@ class _MultipartState:
                 self.found_file = True
                 self._part = FILE_FIELD
                 raw = options.get(b"filename")
-                self.filename = raw.decode("utf-8", "replace").replace("\\", "/").rsplit("/", 1)[-1] if raw else None
+                self.filename = (
+                    raw.decode("utf-8", "replace").replace("\\", "/").rsplit("/", 1)[-1] if raw else None
+                )
             elif name:
                 self._part = f"field:{name}"
 
@@ -94,16 +99,23 @@ class _MultipartState:
             elif self._part is not None:
                 self._field_value += data[start:end]
                 if len(self._field_value) > MAX_FIELD_BYTES:
-                    raise UploadFormatError(f"the form field {self._part[6:]!r} is longer than {MAX_FIELD_BYTES} bytes")
+                    raise UploadFormatError(
+                        f"the form field {self._part[6:]!r} is longer than {MAX_FIELD_BYTES} bytes"
+                    )
 
         def on_part_end() -> None:
             if self._part is not None and self._part.startswith("field:"):
                 self.fields[self._part[6:]] = self._field_value.decode("utf-8", "replace")
 
-        return {"on_part_begin": on_part_begin, "on_header_field": on_header_field,
-                "on_header_value": on_header_value, "on_header_end": on_header_end,
-                "on_headers_finished": on_headers_finished, "on_part_data": on_part_data,
-                "on_part_end": on_part_end}
+        return {
+            "on_part_begin": on_part_begin,
+            "on_header_field": on_header_field,
+            "on_header_value": on_header_value,
+            "on_header_end": on_header_end,
+            "on_headers_finished": on_headers_finished,
+            "on_part_data": on_part_data,
+            "on_part_end": on_part_end,
+        }
 
     def take(self) -> bytes:
         data = b"".join(self.pending)
@@ -136,11 +148,17 @@ async def stream_upload(request: Request, storage: Storage, key: str, *, max_byt
     """
     content_type, options = parse_options_header(request.headers.get("content-type", ""))
     declared = request.headers.get("content-length")
-    if declared is not None and declared.isdigit() and content_type != b"multipart/form-data" \
-            and int(declared) > max_bytes:
+    if (
+        declared is not None
+        and declared.isdigit()
+        and content_type != b"multipart/form-data"
+        and int(declared) > max_bytes
+    ):
         from saddlescope.storage import TooLarge
 
-        raise TooLarge(f"the upload is {int(declared)} bytes, larger than the upload limit of {max_bytes} bytes")
+        raise TooLarge(
+            f"the upload is {int(declared)} bytes, larger than the upload limit of {max_bytes} bytes"
+        )
     writer = storage.writer(key, max_bytes=max_bytes)
     try:
         if content_type == b"multipart/form-data":
@@ -198,8 +216,9 @@ async def stream_chunk(request: Request, storage: Storage, key: str, *, offset: 
     try:
         async for chunk in request.stream():
             if end + len(chunk) > limit:
-                raise TooLarge(f"more bytes than the {limit} announced for this upload (offset {end} + "
-                               f"{len(chunk)})")
+                raise TooLarge(
+                    f"more bytes than the {limit} announced for this upload (offset {end} + {len(chunk)})"
+                )
             await run_in_threadpool(handle.write, chunk)
             end += len(chunk)
     except ClientDisconnect:

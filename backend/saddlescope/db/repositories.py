@@ -118,8 +118,8 @@ class Repository:
         # Ties (and NULLs) in a stable order, so pages never overlap.
         return [ordered.nulls_last(), self.model.id.desc() if sort.startswith("-") else self.model.id.asc()]
 
-    def list_page(self, *, where: Sequence[ColumnElement[bool]] = (), sort: str | None = None, limit: int = 50,
-                  offset: int = 0, stmt: Select | None = None) -> Page:
+    def list_page(self, *, where: Sequence[ColumnElement[bool]] = (), sort: str | None = None,
+                  limit: int = 50, offset: int = 0, stmt: Select | None = None) -> Page:
         """Rows matching `where` (in this club), `limit` of them from `offset`, and their total."""
         stmt = self._scoped(stmt if stmt is not None else select(self.model)).where(*where)
         total = self.session.scalar(select(func.count()).select_from(stmt.order_by(None).subquery()))
@@ -320,8 +320,8 @@ class RideRepository(Repository):
                                 rig_id=values.get("rig_id"))
         return super().update_fields(id_, **values)
 
-    def list_page(self, *, where: Sequence[ColumnElement[bool]] = (), sort: str | None = None, limit: int = 50,
-                  offset: int = 0, stmt: Select | None = None) -> Page:
+    def list_page(self, *, where: Sequence[ColumnElement[bool]] = (), sort: str | None = None,
+                  limit: int = 50, offset: int = 0, stmt: Select | None = None) -> Page:
         # Outer join: rides sort by their result's indicators; rides without a result come last.
         stmt = select(Ride).outerjoin(Result, Result.ride_id == Ride.id) if stmt is None else stmt
         return super().list_page(where=where, sort=sort, limit=limit, offset=offset, stmt=stmt)
@@ -521,11 +521,13 @@ class JobRepository(Repository):
         stmt = update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value)
         if host is not None:
             stmt = stmt.where(Job.host == host)
-        result = self.session.execute(stmt.values(status=JobStatus.QUEUED.value, stage=None, updated_at=utcnow()))
+        result = self.session.execute(
+            stmt.values(status=JobStatus.QUEUED.value, stage=None, updated_at=utcnow()))
         return result.rowcount == 1
 
     def running(self) -> Sequence[Job]:
-        return self.session.scalars(self._scoped(select(Job).where(Job.status == JobStatus.RUNNING.value))).all()
+        stmt = self._scoped(select(Job).where(Job.status == JobStatus.RUNNING.value))
+        return self.session.scalars(stmt).all()
 
     def unfinished(self) -> Sequence[Job]:
         stmt = self._scoped(select(Job).where(Job.status.in_(_ACTIVE))).order_by(Job.id)
@@ -576,8 +578,8 @@ class GradeRepository(Repository):
         if rider_id is not None:
             RiderRepository(self.session, club_id=self.club_id).get(rider_id)
 
-    def list_page(self, *, where: Sequence[ColumnElement[bool]] = (), sort: str | None = None, limit: int = 50,
-                  offset: int = 0, stmt: Select | None = None) -> Page:
+    def list_page(self, *, where: Sequence[ColumnElement[bool]] = (), sort: str | None = None,
+                  limit: int = 50, offset: int = 0, stmt: Select | None = None) -> Page:
         stmt = select(Grade).join(Ride, Ride.id == Grade.ride_id) if stmt is None else stmt
         return super().list_page(where=where, sort=sort, limit=limit, offset=offset, stmt=stmt)
 
@@ -645,7 +647,8 @@ class UploadRepository(Repository):
     def close(self, upload_id: str, *, status: UploadStatus, error: str | None = None,
               outcome: dict[str, Any] | None = None) -> None:
         row = self.get(upload_id)
-        row.status, row.error, row.outcome, row.updated_at = status.value, error, dict(outcome or {}), utcnow()
+        row.status, row.error, row.outcome = status.value, error, dict(outcome or {})
+        row.updated_at = utcnow()
         self.session.flush()
 
     def delete(self, upload_id: str) -> None:
@@ -677,9 +680,10 @@ class AnalyticsRepository:
         if horse_ids is not None:
             stmt = stmt.where(Ride.horse_id.in_(list(horse_ids)))
         rows = []
-        for ride_id, horse_id, horse, rider, ride_gait, date, data in self.session.execute(stmt.order_by(Ride.id)):
-            row = {"ride_id": ride_id, "horse_id": horse_id, "horse": horse, "rider": rider, "gait": ride_gait,
-                   "date": date}
+        for ride_id, horse_id, horse, rider, ride_gait, date, data in self.session.execute(
+                stmt.order_by(Ride.id)):
+            row = {"ride_id": ride_id, "horse_id": horse_id, "horse": horse, "rider": rider,
+                   "gait": ride_gait, "date": date}
             if column is not None:
                 row[indicator] = data
             elif indicator is not None:

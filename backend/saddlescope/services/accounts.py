@@ -81,27 +81,41 @@ def check_password(password: str) -> str:
     return password
 
 
-def create_club(session: Session, *, club_name: str, email: str, password: str,
-                display_name: str = "") -> tuple[Club, User]:
+def create_club(
+    session: Session, *, club_name: str, email: str, password: str, display_name: str = ""
+) -> tuple[Club, User]:
     """A new club and its first user, an admin (not committed)."""
     club_name = club_name.strip()
     if not club_name:
         raise InputError("the club needs a name")
     club = ClubRepository(session).add(club_name)
     user = UserRepository(session, club_id=club.id).add(
-        email=check_email(email), password_hash=hash_password(check_password(password)),
-        display_name=display_name.strip(), role=Role.ADMIN.value)
+        email=check_email(email),
+        password_hash=hash_password(check_password(password)),
+        display_name=display_name.strip(),
+        role=Role.ADMIN.value,
+    )
     return club, user
 
 
-def add_user(session: Session, *, club_id: int, email: str, password: str, display_name: str = "",
-             role: str = Role.MEMBER.value) -> User:
+def add_user(
+    session: Session,
+    *,
+    club_id: int,
+    email: str,
+    password: str,
+    display_name: str = "",
+    role: str = Role.MEMBER.value,
+) -> User:
     """A new user of the club (admins call this through the API)."""
     if role not in {r.value for r in Role}:
         raise InputError(f"role must be one of {', '.join(r.value for r in Role)}, got {role!r}")
     return UserRepository(session, club_id=club_id).add(
-        email=check_email(email), password_hash=hash_password(check_password(password)),
-        display_name=display_name.strip(), role=role)
+        email=check_email(email),
+        password_hash=hash_password(check_password(password)),
+        display_name=display_name.strip(),
+        role=role,
+    )
 
 
 def authenticate(session: Session, email: str, password: str) -> User:
@@ -119,7 +133,9 @@ def authenticate(session: Session, email: str, password: str) -> User:
 
 def _signing_key(settings: Settings) -> bytes:
     """The token key: derived from the secret for this one purpose (and always 256 bits long)."""
-    return hashlib.sha256(b"saddlescope-access-token-v1\0" + settings.secret_key.get_secret_value().encode()).digest()
+    return hashlib.sha256(
+        b"saddlescope-access-token-v1\0" + settings.secret_key.get_secret_value().encode()
+    ).digest()
 
 
 def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = None) -> tuple[str, str, int]:
@@ -127,8 +143,15 @@ def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = Non
     now = now or dt.datetime.now(dt.UTC)
     csrf = secrets.token_urlsafe(24)
     lifetime_s = settings.token_lifetime_s
-    claims = {"sub": str(user.id), "club": user.club_id, "role": user.role, "csrf": csrf, "aud": TOKEN_AUDIENCE,
-              "iat": now, "exp": now + dt.timedelta(seconds=lifetime_s)}
+    claims = {
+        "sub": str(user.id),
+        "club": user.club_id,
+        "role": user.role,
+        "csrf": csrf,
+        "aud": TOKEN_AUDIENCE,
+        "iat": now,
+        "exp": now + dt.timedelta(seconds=lifetime_s),
+    }
     token = jwt.encode(claims, _signing_key(settings), algorithm=TOKEN_ALGORITHM)
     return token, csrf, lifetime_s
 
@@ -136,15 +159,24 @@ def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = Non
 def read_token(token: str, settings: Settings) -> Principal:
     """Verify a token's signature and expiry; `AuthError` saying why it is refused."""
     try:
-        claims = jwt.decode(token, _signing_key(settings), algorithms=[TOKEN_ALGORITHM],
-                            audience=TOKEN_AUDIENCE, options={"require": ["exp", "sub", "club", "csrf"]})
+        claims = jwt.decode(
+            token,
+            _signing_key(settings),
+            algorithms=[TOKEN_ALGORITHM],
+            audience=TOKEN_AUDIENCE,
+            options={"require": ["exp", "sub", "club", "csrf"]},
+        )
     except jwt.ExpiredSignatureError:
         raise AuthError("the sign-in has expired; sign in again") from None
     except jwt.InvalidTokenError:
         raise AuthError("invalid access token; sign in again") from None
     try:
-        return Principal(user_id=int(claims["sub"]), club_id=int(claims["club"]), role=str(claims["role"]),
-                         csrf=str(claims["csrf"]))
+        return Principal(
+            user_id=int(claims["sub"]),
+            club_id=int(claims["club"]),
+            role=str(claims["role"]),
+            csrf=str(claims["csrf"]),
+        )
     except (KeyError, TypeError, ValueError):
         raise AuthError("invalid access token; sign in again") from None
 
@@ -165,16 +197,26 @@ def require_admin(principal: Principal) -> None:
         raise Forbidden("only a club admin may do this")
 
 
-def update_user(session: Session, *, club_id: int, user_id: int, role: str | None = None,
-                is_active: bool | None = None, password: str | None = None,
-                display_name: str | None = None) -> User:
+def update_user(
+    session: Session,
+    *,
+    club_id: int,
+    user_id: int,
+    role: str | None = None,
+    is_active: bool | None = None,
+    password: str | None = None,
+    display_name: str | None = None,
+) -> User:
     """Change a user of the club; the club always keeps at least one active admin."""
     users = UserRepository(session, club_id=club_id)
     user = users.get(user_id)
     if role is not None and role not in {r.value for r in Role}:
         raise InputError(f"role must be one of {', '.join(r.value for r in Role)}, got {role!r}")
-    losing_admin = user.role == Role.ADMIN.value and user.is_active and (
-        (role is not None and role != Role.ADMIN.value) or is_active is False)
+    losing_admin = (
+        user.role == Role.ADMIN.value
+        and user.is_active
+        and ((role is not None and role != Role.ADMIN.value) or is_active is False)
+    )
     if losing_admin and users.count_admins() <= 1:
         raise InputError("the club must keep at least one active admin")
     if role is not None:

@@ -45,20 +45,35 @@ def _clean(stats: dict[str, Any]) -> dict[str, Any]:
     return {k: (_finite(v) if isinstance(v, float) else v) for k, v in stats.items()}
 
 
-def horse_comparison(session: Session, horse_id: int, *, club_id: int,
-                     indicators: Sequence[str] | None = None) -> dict[str, Any]:
+def horse_comparison(
+    session: Session, horse_id: int, *, club_id: int, indicators: Sequence[str] | None = None
+) -> dict[str, Any]:
     """One horse across gaits (thesis Figs 8.29-8.32): per indicator, per gait n, mean, std, min, max."""
     horse = HorseRepository(session, club_id=club_id).get(horse_id)
     indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
     rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(horse_ids=[horse_id])
-    return {"horse_id": horse.id, "horse": horse.name, "rides": len(rows),
-            "indicators": {ind: {"unit": indicator_unit(ind),
-                                 "gaits": [_clean(g) for g in compare_gaits(rows, ind, horse=horse.name)]}
-                           for ind in indicators}}
+    return {
+        "horse_id": horse.id,
+        "horse": horse.name,
+        "rides": len(rows),
+        "indicators": {
+            ind: {
+                "unit": indicator_unit(ind),
+                "gaits": [_clean(g) for g in compare_gaits(rows, ind, horse=horse.name)],
+            }
+            for ind in indicators
+        },
+    }
 
 
-def horses_comparison(session: Session, *, club_id: int, gait: str, horse_ids: Sequence[int] | None = None,
-                      indicators: Sequence[str] | None = None) -> dict[str, Any]:
+def horses_comparison(
+    session: Session,
+    *,
+    club_id: int,
+    gait: str,
+    horse_ids: Sequence[int] | None = None,
+    indicators: Sequence[str] | None = None,
+) -> dict[str, Any]:
     """Horses within one gait (thesis 8.5.2): per indicator, per horse n, mean, std, min, max."""
     check_gait(gait)
     indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
@@ -70,15 +85,25 @@ def horses_comparison(session: Session, *, club_id: int, gait: str, horse_ids: S
             raise InputError(f"no horse {', '.join(map(str, unknown))} in this club")
     rows = analytics.indicator_rows(gait=gait, horse_ids=horse_ids or None)
     ids = {row["horse"]: row["horse_id"] for row in rows}
-    return {"gait": gait, "rides": len(rows),
-            "indicators": {ind: {"unit": indicator_unit(ind),
-                                 "horses": [{"horse_id": ids.get(g["group"]), "horse": g["group"], **_clean(g)}
-                                            for g in compare_horses(rows, ind, gait=gait)]}
-                           for ind in indicators}}
+    return {
+        "gait": gait,
+        "rides": len(rows),
+        "indicators": {
+            ind: {
+                "unit": indicator_unit(ind),
+                "horses": [
+                    {"horse_id": ids.get(g["group"]), "horse": g["group"], **_clean(g)}
+                    for g in compare_horses(rows, ind, gait=gait)
+                ],
+            }
+            for ind in indicators
+        },
+    }
 
 
-def club_leaderboard(session: Session, *, club_id: int, gait: str, indicator: str,
-                     lower_is_better: bool | None = None) -> dict[str, Any]:
+def club_leaderboard(
+    session: Session, *, club_id: int, gait: str, indicator: str, lower_is_better: bool | None = None
+) -> dict[str, Any]:
     """The club's horses ranked in one gait by one indicator, most comfortable first.
 
     Each entry: rank, horse id and name, ``n`` (rides behind it), mean, std, min, max and spread.
@@ -93,13 +118,19 @@ def club_leaderboard(session: Session, *, club_id: int, gait: str, indicator: st
     rows = [{"horse": name, "gait": gait, indicator: value} for _, name, value in values]
     ranking = leaderboard(rows, indicator, gait=gait, lower_is_better=lower_is_better)
     lower = lower_is_better if lower_is_better is not None else INDICATORS[indicator].better == "lower"
-    return {"gait": gait, "indicator": indicator, "unit": indicator_unit(indicator),
-            "better": "lower" if lower else "higher", "rides": sum(r["n"] for r in ranking),
-            "entries": [{"horse_id": ids.get(r["horse"]), **_clean(r)} for r in ranking]}
+    return {
+        "gait": gait,
+        "indicator": indicator,
+        "unit": indicator_unit(indicator),
+        "better": "lower" if lower else "higher",
+        "rides": sum(r["n"] for r in ranking),
+        "entries": [{"horse_id": ids.get(r["horse"]), **_clean(r)} for r in ranking],
+    }
 
 
-def grade_correlation_report(session: Session, *, club_id: int, gait: str | None = None,
-                             indicators: Sequence[str] | None = None) -> dict[str, Any]:
+def grade_correlation_report(
+    session: Session, *, club_id: int, gait: str | None = None, indicators: Sequence[str] | None = None
+) -> dict[str, Any]:
     """The riders' average grades per horse and gait against the mean indicators (thesis Figs 8.33-8.36)."""
     if gait is not None:
         check_gait(gait)
@@ -107,7 +138,15 @@ def grade_correlation_report(session: Session, *, club_id: int, gait: str | None
     grade_rows = GradeRepository(session, club_id=club_id).grade_rows(gait=gait)
     rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait)
     report = grades_vs_indicators(grade_rows, rows, indicators, gait=gait)
-    return {"gait": gait, "grades": len(grade_rows),
-            "indicators": {ind: {**_clean({k: v for k, v in r.items() if k != "points"}),
-                                 "unit": indicator_unit(ind), "points": r["points"]}
-                           for ind, r in report.items()}}
+    return {
+        "gait": gait,
+        "grades": len(grade_rows),
+        "indicators": {
+            ind: {
+                **_clean({k: v for k, v in r.items() if k != "points"}),
+                "unit": indicator_unit(ind),
+                "points": r["points"],
+            }
+            for ind, r in report.items()
+        },
+    }

@@ -25,9 +25,14 @@ from saddlescope.io.calibration_files import rig_from_dict
 from saddlescope.io.clip_source import BundleClips
 
 
-def calibrate_clips(paths: Mapping[str, Path], *, board: Mapping[str, Any], sync: Mapping[str, Any] | None = None,
-                    params: PipelineParams | None = None,
-                    on_progress: Callable[[float, str], None] | None = None) -> dict[str, Any]:
+def calibrate_clips(
+    paths: Mapping[str, Path],
+    *,
+    board: Mapping[str, Any],
+    sync: Mapping[str, Any] | None = None,
+    params: PipelineParams | None = None,
+    on_progress: Callable[[float, str], None] | None = None,
+) -> dict[str, Any]:
     """Calibrate three cameras from their calibration clips.
 
     Parameters
@@ -59,8 +64,13 @@ def calibrate_clips(paths: Mapping[str, Path], *, board: Mapping[str, Any], sync
     offsets, first_frame = synchronise(clips, meta, ["calibration"])
     if on_progress is not None:
         on_progress(0.2, "board views")
-    rig, report = calibrate_from_clips(clips, board_from_meta(meta), offsets["calibration"],
-                                       first_frame["calibration"], params or PipelineParams())
+    rig, report = calibrate_from_clips(
+        clips,
+        board_from_meta(meta),
+        offsets["calibration"],
+        first_frame["calibration"],
+        params or PipelineParams(),
+    )
     calibration = rig_to_result(rig)
     calibration["n_views"] = report.get("n_views")
     calibration["sync"] = {"calibration": {c: float(v) for c, v in offsets["calibration"].items()}}
@@ -74,6 +84,9 @@ def rig_from_calibration(calibration: Mapping[str, Any]) -> Rig:
 
 def calibration_quality(calibration: Mapping[str, Any]) -> dict[str, Any]:
     """The figures a user checks first: flags, metric checks and each camera's r.m.s. error."""
-    return {"flags": list(calibration.get("flags") or []), "checks": dict(calibration.get("checks") or {}),
-            "rms_px": {name: cam.get("rms_px") for name, cam in (calibration.get("cameras") or {}).items()},
-            "ok": not calibration.get("flags")}
+    return {
+        "flags": list(calibration.get("flags") or []),
+        "checks": dict(calibration.get("checks") or {}),
+        "rms_px": {name: cam.get("rms_px") for name, cam in (calibration.get("cameras") or {}).items()},
+        "ok": not calibration.get("flags"),
+    }

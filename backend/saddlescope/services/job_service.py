@@ -85,13 +85,15 @@ def cancel_job(session: Session, job_id: int, *, club_id: int | None = None) -> 
     return repo.get(job_id)
 
 
-def retry_job(sessions: sessionmaker[Session], queue: JobQueue, job_id: int, *, club_id: int | None = None) -> int:
+def retry_job(sessions: sessionmaker[Session], queue: JobQueue, job_id: int, *,
+              club_id: int | None = None) -> int:
     """Run a failed or cancelled job again (same id; its uploads and earlier outputs are kept)."""
     with session_scope(sessions) as session:
         repo = JobRepository(session, club_id=club_id)
         job = repo.get(job_id)
         if not repo.requeue(job_id):
-            raise JobStateError(f"job {job_id} is {job.status}; only a failed or cancelled job can be retried")
+            raise JobStateError(
+                f"job {job_id} is {job.status}; only a failed or cancelled job can be retried")
     try:
         queue.submit(job_id)
     except QueueUnavailable as exc:

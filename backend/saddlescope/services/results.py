@@ -1,4 +1,5 @@
-"""Use cases of results: a ride's indicators and plotted series, and its exports (JSON, CSV, xlsx, C3D, TRC)."""
+"""Use cases of results: a ride's indicators and plotted series, and its exports
+(JSON, CSV, xlsx, C3D, TRC)."""
 
 from __future__ import annotations
 
@@ -29,9 +30,14 @@ EXPORT_FORMATS = {
     "trc": "text/plain; charset=utf-8",
 }
 TABLE_FORMATS = ("csv", "xlsx")
-SERIES = (("t_s", "saddle", "t_s"), ("position_m", "saddle", "position_m"),
-          ("velocity_m_s", "saddle", "velocity_m_s"), ("acceleration_m_s2", "saddle", "acceleration_m_s2"),
-          ("omega_rad_s", "angular", "omega_rad_s"), ("alpha_rad_s2", "angular", "alpha_rad_s2"))
+SERIES = (
+    ("t_s", "saddle", "t_s"),
+    ("position_m", "saddle", "position_m"),
+    ("velocity_m_s", "saddle", "velocity_m_s"),
+    ("acceleration_m_s2", "saddle", "acceleration_m_s2"),
+    ("omega_rad_s", "angular", "omega_rad_s"),
+    ("alpha_rad_s2", "angular", "alpha_rad_s2"),
+)
 MARKER_LABELS = ("M1", "M2", "M3")
 SADDLE_LABEL = "S"
 
@@ -90,8 +96,9 @@ def _analysed(session: Session, storage: Storage, ride_id: int, club_id: int):
     return result
 
 
-def result_view(session: Session, storage: Storage, ride_id: int, *, club_id: int,
-                max_points: int = 2000) -> dict[str, Any]:
+def result_view(
+    session: Session, storage: Storage, ride_id: int, *, club_id: int, max_points: int = 2000
+) -> dict[str, Any]:
     """What the dashboard shows of a ride: indicators with units, quality flags, decimated series.
 
     Series are taken every ``step``-th sample so that none has more than `max_points` samples
@@ -139,8 +146,9 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
 
 
-def result_view_json(session: Session, storage: Storage, ride_id: int, *, club_id: int,
-                     max_points: int = 2000) -> tuple[bytes, str]:
+def result_view_json(
+    session: Session, storage: Storage, ride_id: int, *, club_id: int, max_points: int = 2000
+) -> tuple[bytes, str]:
     """`result_view` encoded as JSON bytes, and its entity tag.
 
     The access check (the ride and its result in this club) runs on every call; the encoded view is
@@ -148,8 +156,9 @@ def result_view_json(session: Session, storage: Storage, ride_id: int, *, club_i
     a parse and an encoding of the whole result document.
     """
     result = _analysed(session, storage, ride_id, club_id)
-    etag = hashlib.sha256(f"{result.id}|{result.result_key}|{result.created_at.isoformat()}|{max_points}"
-                          .encode()).hexdigest()[:32]
+    etag = hashlib.sha256(
+        f"{result.id}|{result.result_key}|{result.created_at.isoformat()}|{max_points}".encode()
+    ).hexdigest()[:32]
     data = _VIEWS.get(etag)
     if data is None:
         view = _view(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
@@ -158,7 +167,9 @@ def result_view_json(session: Session, storage: Storage, ride_id: int, *, club_i
     return data, etag
 
 
-def _ride_rows(session: Session, ride_ids: list[int] | None, *, club_id: int, where=()) -> list[dict[str, Any]]:
+def _ride_rows(
+    session: Session, ride_ids: list[int] | None, *, club_id: int, where=()
+) -> list[dict[str, Any]]:
     rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(where=where)
     if ride_ids is not None:
         wanted = set(ride_ids)
@@ -206,7 +217,9 @@ def tracks_mm(doc: dict[str, Any]) -> tuple[tuple[str, ...], np.ndarray, float]:
     return tuple(labels), np.concatenate(parts, axis=1), rate
 
 
-def export_ride(session: Session, storage: Storage, ride_id: int, fmt: str, *, club_id: int) -> tuple[bytes, str]:
+def export_ride(
+    session: Session, storage: Storage, ride_id: int, fmt: str, *, club_id: int
+) -> tuple[bytes, str]:
     """A ride's export as (bytes, file name)."""
     if fmt not in EXPORT_FORMATS:
         raise InputError(f"unknown export format {fmt!r}; choose one of {', '.join(EXPORT_FORMATS)}")
@@ -215,7 +228,9 @@ def export_ride(session: Session, storage: Storage, ride_id: int, fmt: str, *, c
     if fmt == "json":
         return json.dumps(doc, indent=1, allow_nan=False).encode(), f"{stem}-result.json"
     if fmt in TABLE_FORMATS:
-        return indicator_table_bytes(_ride_rows(session, [ride_id], club_id=club_id), fmt), f"{stem}-indicators.{fmt}"
+        return indicator_table_bytes(
+            _ride_rows(session, [ride_id], club_id=club_id), fmt
+        ), f"{stem}-indicators.{fmt}"
     from saddlescope.io.mocap import write_c3d, write_trc
 
     labels, points_mm, rate = tracks_mm(doc)

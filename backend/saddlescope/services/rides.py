@@ -52,7 +52,8 @@ def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBun
         rider = RiderRepository(session, club_id=club_id).get_or_create(
             name=str(rider_meta.get("name") or "Unnamed rider"))
         ride = RideRepository(session, club_id=club_id).add(
-            horse_id=horse.id, rider_id=rider.id, rig_id=rig_id, gait=meta["gait"], direction=meta["direction"],
+            horse_id=horse.id, rider_id=rider.id, rig_id=rig_id, gait=meta["gait"],
+            direction=meta["direction"],
             ridden_on=ridden_on or dt.datetime.now(dt.UTC).date(),
             meta={k: meta[k] for k in ("board", "sync", "markers") if k in meta})
         ride_id = ride.id

@@ -128,7 +128,8 @@ def job_is_lost(host: str | None, updated_at: dt.datetime | None, *, now: dt.dat
     return updated_at is None or (now - updated_at).total_seconds() > stale_after_s
 
 
-def recover_lost_jobs(sessions: sessionmaker[Session], submit, *, stale_after_s: float = STALE_AFTER_S) -> list[int]:
+def recover_lost_jobs(sessions: sessionmaker[Session], submit, *,
+                      stale_after_s: float = STALE_AFTER_S) -> list[int]:
     """Queue again every running job whose worker died (killed, out of memory, machine lost).
 
     A worker calls this when it starts (and now and then), so a job interrupted by a killed worker
@@ -208,9 +209,9 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
         try:
             for current in kind.stages:
                 progress.start(current)
-                ctx = StageContext(job_id=job_id, kind=kind.name, stage=current, club_id=club_id, ride_id=ride_id,
-                                   rig_id=rig_id, payload=payload, settings=settings, storage=storage,
-                                   sessions=sessions, report=progress)
+                ctx = StageContext(job_id=job_id, kind=kind.name, stage=current, club_id=club_id,
+                                   ride_id=ride_id, rig_id=rig_id, payload=payload, settings=settings,
+                                   storage=storage, sessions=sessions, report=progress)
                 t_stage = time.perf_counter()
                 try:
                     STAGES[current].run(ctx)

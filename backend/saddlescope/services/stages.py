@@ -245,17 +245,19 @@ def _complete_sets(recordings) -> dict[str, dict[str, str]]:
     return {kind: cams for kind, cams in by_kind.items() if set(CAMERA_ROLES) <= set(cams)}
 
 
-def ride_document(ride, rig, *, clips: dict[str, dict[str, str]], calibration_file: str | None) -> dict[str, Any]:
+def ride_document(ride, rig, *, clips: dict[str, dict[str, str]],
+                  calibration_file: str | None) -> dict[str, Any]:
     """ride.json (CONTRACTS section 1) of a ride assembled from stored clips."""
     meta = dict(ride.meta or {})
     board = meta.get("board") or (rig.board if rig is not None else None)
     if not board:
-        raise InputError(f"ride {ride.id}: no calibration board described (give the rig a 'board', or the ride "
-                         "a meta.board)")
+        raise InputError(f"ride {ride.id}: no calibration board described (give the rig a 'board', or "
+                         "the ride a meta.board)")
     horse = ride.horse
     doc: dict[str, Any] = {
         "format": "saddlescope.ride/1", "cameras": list(CAMERA_ROLES), "board": board,
-        "sync": meta.get("sync") or {"method": "flash"}, "markers": meta.get("markers") or dict(DEFAULT_MARKERS),
+        "sync": meta.get("sync") or {"method": "flash"},
+        "markers": meta.get("markers") or dict(DEFAULT_MARKERS),
         "horse": {"name": horse.name, "breed": horse.breed, "birth_year": horse.birth_year,
                   "height_m": horse.height_withers_m},
         "rider": {"name": ride.rider.name}, "gait": ride.gait, "direction": ride.direction, "clips": clips,
@@ -322,12 +324,13 @@ def _bundle_path(ctx: StageContext, ride) -> Path:
         return ctx.storage.path(ride.bundle_key)
     folder = ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE
     if not (folder / "ride.json").is_file():
-        raise BundleError(f"ride {ride.id}: its clips were not assembled into a bundle (run the assemble stage)")
+        raise BundleError(f"ride {ride.id}: its clips were not assembled into a bundle (run the assemble "
+                          "stage)")
     return folder
 
 
-def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict, sync: dict | None,
-                         *, replace: bool) -> dict[str, Any]:
+def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict,
+                         sync: dict | None, *, replace: bool) -> dict[str, Any]:
     from saddlescope.services.calibration import calibrate_clips, calibration_quality
 
     calibration = calibrate_clips(paths, board=board, sync=sync, on_progress=lambda f, s: ctx.report(f, s))
@@ -372,8 +375,8 @@ def run_calibrate(ctx: StageContext) -> None:
         path = _bundle_path(ctx, RideRepository(session).get(ride_id))
     with open_bundle(path) as bundle:
         if "calibration" not in bundle.clip_paths:
-            raise CalibrationError(f"rig {rig_id} has no calibration, and neither the rig nor ride {ride_id} has "
-                                   "calibration clips to compute it")
+            raise CalibrationError(f"rig {rig_id} has no calibration, and neither the rig nor ride "
+                                   f"{ride_id} has calibration clips to compute it")
         _calibrate_and_store(ctx, rig_id, dict(bundle.clip_paths["calibration"]), bundle.meta["board"],
                              bundle.meta.get("sync"), replace=False)
 
@@ -388,8 +391,8 @@ def run_calibrate_rig(ctx: StageContext) -> None:
         clips = _complete_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
         board = rig.board
     if clips is None:
-        raise CalibrationError(f"rig {ctx.rig_id}: the calibration clips of the left, middle and right cameras "
-                               "are not all uploaded")
+        raise CalibrationError(f"rig {ctx.rig_id}: the calibration clips of the left, middle and right "
+                               "cameras are not all uploaded")
     if not board:
         raise CalibrationError(f"rig {ctx.rig_id} has no 'board' (the calibration board its clips show)")
     paths = {role: ctx.storage.path(key) for role, key in clips.items()}
@@ -443,4 +446,5 @@ define_job_kind(JobKind("analyze", ("probe", "assemble", "calibrate", "analyze")
                         ride_status_failed=RideStatus.FAILED.value,
                         description="the whole pipeline on a ride: kinematics and vibration indicators"))
 define_job_kind(JobKind("calibrate_rig", ("probe", "calibrate_rig"),
-                        description="calibrate a rig once from its three calibration clips (used by its rides)"))
+                        description="calibrate a rig once from its three calibration clips (used by its "
+                                    "rides)"))

@@ -52,7 +52,11 @@ class ClipOwner:
         return f"{self.kind} {self.id}"
 
     def where(self) -> dict[str, int | None]:
-        return {"ride_id": self.id, "rig_id": None} if self.kind == "ride" else {"ride_id": None, "rig_id": self.id}
+        return (
+            {"ride_id": self.id, "rig_id": None}
+            if self.kind == "ride"
+            else {"ride_id": None, "rig_id": self.id}
+        )
 
 
 def staging_key(club_id: int, filename: str | None = None) -> str:
@@ -77,8 +81,9 @@ def check_clip_slot(owner: ClipOwner, clip_kind: str, camera: str) -> None:
         raise InputError(f"unknown camera {camera!r}; the cameras are {', '.join(CAMERA_ROLES)}")
 
 
-def find_owner(session: Session, *, club_id: int, ride_id: int | None = None, rig_id: int | None = None
-               ) -> ClipOwner:
+def find_owner(
+    session: Session, *, club_id: int, ride_id: int | None = None, rig_id: int | None = None
+) -> ClipOwner:
     """The ride or rig (of this club: `NotFound` otherwise)."""
     if (ride_id is None) == (rig_id is None):
         raise InputError("name exactly one of ride_id and rig_id")
@@ -96,15 +101,29 @@ def _agreement(owner: ClipOwner, clip_kind: str, camera: str, info, others: list
             continue
         what = f"{owner.label}: the {clip_kind} clip of the {camera} camera"
         if abs(info.fps - other.fps) > FPS_TOLERANCE * other.fps:
-            raise VideoError(f"{what} runs at {info.fps:.3f} fps but the {other.camera_role} camera's at "
-                             f"{other.fps:.3f} fps; the three cameras of a clip set must use the same frame rate")
+            raise VideoError(
+                f"{what} runs at {info.fps:.3f} fps but the {other.camera_role} camera's at "
+                f"{other.fps:.3f} fps; the three cameras of a clip set must use the same frame rate"
+            )
         if (info.width, info.height) != (other.width, other.height):
-            raise VideoError(f"{what} is {info.width}x{info.height} px but the {other.camera_role} camera's is "
-                             f"{other.width}x{other.height} px; the three cameras must record the same size")
+            raise VideoError(
+                f"{what} is {info.width}x{info.height} px but the {other.camera_role} camera's is "
+                f"{other.width}x{other.height} px; the three cameras must record the same size"
+            )
 
 
-def accept_clip(sessions: sessionmaker[Session], storage: Storage, owner: ClipOwner, clip_kind: str, camera: str,
-                staged_key: str, *, size_bytes: int, sha256: str, filename: str | None) -> int:
+def accept_clip(
+    sessions: sessionmaker[Session],
+    storage: Storage,
+    owner: ClipOwner,
+    clip_kind: str,
+    camera: str,
+    staged_key: str,
+    *,
+    size_bytes: int,
+    sha256: str,
+    filename: str | None,
+) -> int:
     """Probe a staged clip and, if usable, make it the owner's clip (replacing an earlier one).
 
     Returns the recording id. Raises `VideoError` (unusable video, or disagreeing with the other cameras
@@ -122,22 +141,42 @@ def accept_clip(sessions: sessionmaker[Session], storage: Storage, owner: ClipOw
             name = filename or "the upload"
             # The staging path means nothing to the user (and says where storage lives): name the file.
             reason = str(exc).replace(str(storage.path(staged_key)), name).removeprefix(f"{name}: ")
-            raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable "
-                             f"video: {reason}") from None
-        final_key = (f"{owner.kind}s/{owner.id}/clips/{clip_kind}/{camera}-{sha256[:12]}"
-                     f"{clip_suffix(filename, '.video')}")
+            raise VideoError(
+                f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable "
+                f"video: {reason}"
+            ) from None
+        final_key = (
+            f"{owner.kind}s/{owner.id}/clips/{clip_kind}/{camera}-{sha256[:12]}"
+            f"{clip_suffix(filename, '.video')}"
+        )
         with session_scope(sessions) as session:
             recordings = RecordingRepository(session, club_id=owner.club_id)
-            others = [r for r in (recordings.for_ride(owner.id) if owner.kind == "ride"
-                                  else recordings.for_rig(owner.id)) if r.clip_kind == clip_kind]
+            others = [
+                r
+                for r in (
+                    recordings.for_ride(owner.id) if owner.kind == "ride" else recordings.for_rig(owner.id)
+                )
+                if r.clip_kind == clip_kind
+            ]
             _agreement(owner, clip_kind, camera, info, others)
             previous = next((r.path for r in others if r.camera_role == camera), None)
             storage.move(staged_key, final_key)
             try:
-                row = recordings.put_clip(**owner.where(), club_id=owner.club_id, clip_kind=clip_kind,
-                                          camera_role=camera, path=final_key, sha256=sha256, size_bytes=size_bytes,
-                                          fps=info.fps, frame_count=info.frame_count, width=info.width,
-                                          height=info.height, codec=info.codec, original_filename=filename)
+                row = recordings.put_clip(
+                    **owner.where(),
+                    club_id=owner.club_id,
+                    clip_kind=clip_kind,
+                    camera_role=camera,
+                    path=final_key,
+                    sha256=sha256,
+                    size_bytes=size_bytes,
+                    fps=info.fps,
+                    frame_count=info.frame_count,
+                    width=info.width,
+                    height=info.height,
+                    codec=info.codec,
+                    original_filename=filename,
+                )
                 if owner.kind == "rig" and clip_kind == "calibration":
                     RigRepository(session, club_id=owner.club_id).clear_calibration(owner.id)
                 recording_id = row.id
@@ -174,8 +213,11 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
             ride = RideRepository(session, club_id=owner.club_id).get(owner.id)
             rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
             try:
-                ride_clip_plan(recordings.for_ride(ride.id), recordings.for_rig(rig.id) if rig else [],
-                               rig_calibrated=bool(rig is not None and rig.calibration))
+                ride_clip_plan(
+                    recordings.for_ride(ride.id),
+                    recordings.for_rig(rig.id) if rig else [],
+                    rig_calibrated=bool(rig is not None and rig.calibration),
+                )
             except (BundleError, InputError):
                 return None  # not complete yet
             if jobs.active_for(ride_id=ride.id) is not None:
@@ -185,8 +227,15 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
     return submit_job(sessions, queue, kind=kind, club_id=owner.club_id, **ids)
 
 
-def accept_bundle(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, staged_key: str, *,
-                  club_id: int, rig_id: int | None = None) -> tuple[int, int]:
+def accept_bundle(
+    sessions: sessionmaker[Session],
+    storage: Storage,
+    queue: JobQueue,
+    staged_key: str,
+    *,
+    club_id: int,
+    rig_id: int | None = None,
+) -> tuple[int, int]:
     """Register a staged ride bundle zip as a ride of the club and start its analysis; (ride id, job id).
 
     `saddlescope.io.bundle.open_bundle` refuses unsafe zips (``..`` paths, links, bombs), a missing or
@@ -206,33 +255,59 @@ def accept_bundle(sessions: sessionmaker[Session], storage: Storage, queue: JobQ
 # --- resumable uploads --------------------------------------------------------------------------------
 
 
-def create_upload(session: Session, *, club_id: int, user_id: int | None, target: str, length_bytes: int,
-                  max_bytes: int, ride_id: int | None = None, rig_id: int | None = None,
-                  clip_kind: str | None = None, camera: str | None = None, filename: str | None = None):
+def create_upload(
+    session: Session,
+    *,
+    club_id: int,
+    user_id: int | None,
+    target: str,
+    length_bytes: int,
+    max_bytes: int,
+    ride_id: int | None = None,
+    rig_id: int | None = None,
+    clip_kind: str | None = None,
+    camera: str | None = None,
+    filename: str | None = None,
+):
     """A new resumable upload (not committed); checks its target exists in the club and its size."""
     if target not in {t.value for t in UploadTarget}:
         raise InputError(f"target must be one of {', '.join(t.value for t in UploadTarget)}, got {target!r}")
     if length_bytes > max_bytes:
-        raise TooLarge(f"{filename or 'the upload'}: {length_bytes} bytes is larger than the upload limit of "
-                       f"{max_bytes} bytes")
+        raise TooLarge(
+            f"{filename or 'the upload'}: {length_bytes} bytes is larger than the upload limit of "
+            f"{max_bytes} bytes"
+        )
     if target == UploadTarget.BUNDLE:
         if ride_id is not None or clip_kind is not None or camera is not None:
             raise InputError("a bundle upload names no ride, clip kind or camera (ride.json says it all)")
         if rig_id is not None:
             RigRepository(session, club_id=club_id).get(rig_id)
     else:
-        owner = find_owner(session, club_id=club_id, ride_id=ride_id if target == UploadTarget.RIDE_CLIP else None,
-                           rig_id=rig_id if target == UploadTarget.RIG_CLIP else None)
+        owner = find_owner(
+            session,
+            club_id=club_id,
+            ride_id=ride_id if target == UploadTarget.RIDE_CLIP else None,
+            rig_id=rig_id if target == UploadTarget.RIG_CLIP else None,
+        )
         if clip_kind is None or camera is None:
             raise InputError(f"a {target} upload needs clip_kind and camera")
         check_clip_slot(owner, clip_kind, camera)
     return UploadRepository(session, club_id=club_id).add(
-        id_=secrets.token_hex(16), user_id=user_id, target=target, ride_id=ride_id, rig_id=rig_id,
-        clip_kind=clip_kind, camera_role=camera, filename=filename, length_bytes=length_bytes)
+        id_=secrets.token_hex(16),
+        user_id=user_id,
+        target=target,
+        ride_id=ride_id,
+        rig_id=rig_id,
+        clip_kind=clip_kind,
+        camera_role=camera,
+        filename=filename,
+        length_bytes=length_bytes,
+    )
 
 
-def finalise_upload(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str, *,
-                    club_id: int) -> dict[str, Any]:
+def finalise_upload(
+    sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str, *, club_id: int
+) -> dict[str, Any]:
     """Turn a complete resumable upload into a recording (and maybe a job) or a ride; returns the outcome.
 
     A refused file marks the upload failed with the reason (and the error is raised again).
@@ -242,10 +317,17 @@ def finalise_upload(sessions: sessionmaker[Session], storage: Storage, queue: Jo
         if upload.status != UploadStatus.OPEN.value:
             raise InputError(f"upload {upload_id} is already {upload.status}")
         if upload.offset_bytes != upload.length_bytes:
-            raise IncompleteUpload(f"upload {upload_id} has {upload.offset_bytes} of its {upload.length_bytes} "
-                                   "bytes; send the rest first")
+            raise IncompleteUpload(
+                f"upload {upload_id} has {upload.offset_bytes} of its {upload.length_bytes} "
+                "bytes; send the rest first"
+            )
         target, ride_id, rig_id = upload.target, upload.ride_id, upload.rig_id
-        clip_kind, camera, filename, size = upload.clip_kind, upload.camera_role, upload.filename, upload.length_bytes
+        clip_kind, camera, filename, size = (
+            upload.clip_kind,
+            upload.camera_role,
+            upload.filename,
+            upload.length_bytes,
+        )
     staged = staging_key(club_id, filename)
     storage.move(upload_key(upload_id), staged)
     try:
@@ -253,22 +335,36 @@ def finalise_upload(sessions: sessionmaker[Session], storage: Storage, queue: Jo
             new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id)
             outcome = {"ride_id": new_ride, "job_id": job_id}
         else:
-            owner = ClipOwner("ride" if target == UploadTarget.RIDE_CLIP else "rig",
-                              ride_id if target == UploadTarget.RIDE_CLIP else rig_id, club_id)
-            recording_id = accept_clip(sessions, storage, owner, clip_kind, camera, staged, size_bytes=size,
-                                       sha256=storage.sha256(staged), filename=filename)
+            owner = ClipOwner(
+                "ride" if target == UploadTarget.RIDE_CLIP else "rig",
+                ride_id if target == UploadTarget.RIDE_CLIP else rig_id,
+                club_id,
+            )
+            recording_id = accept_clip(
+                sessions,
+                storage,
+                owner,
+                clip_kind,
+                camera,
+                staged,
+                size_bytes=size,
+                sha256=storage.sha256(staged),
+                filename=filename,
+            )
             job_id = start_processing(sessions, queue, owner)
             outcome = {"recording_id": recording_id, "job_id": job_id}
     except SaddleScopeError as exc:
         with session_scope(sessions) as session:
-            UploadRepository(session, club_id=club_id).close(upload_id, status=UploadStatus.FAILED, error=str(exc))
+            UploadRepository(session, club_id=club_id).close(
+                upload_id, status=UploadStatus.FAILED, error=str(exc)
+            )
         raise
     with session_scope(sessions) as session:
-        UploadRepository(session, club_id=club_id).close(upload_id, status=UploadStatus.FINALISED, outcome=outcome)
+        UploadRepository(session, club_id=club_id).close(
+            upload_id, status=UploadStatus.FINALISED, outcome=outcome
+        )
     return outcome
 
 
 class IncompleteUpload(InputError):
     """A resumable upload is finalised before all its bytes arrived (HTTP 409)."""
-
-

@@ -49,9 +49,15 @@ LOGIN_OPENAPI = {
         "required": True,
         "content": {
             "application/x-www-form-urlencoded": {
-                "schema": {"type": "object", "required": ["username", "password"],
-                           "properties": {"username": {"type": "string", "description": "e-mail address"},
-                                          "password": {"type": "string", "format": "password"}}}},
+                "schema": {
+                    "type": "object",
+                    "required": ["username", "password"],
+                    "properties": {
+                        "username": {"type": "string", "description": "e-mail address"},
+                        "password": {"type": "string", "format": "password"},
+                    },
+                }
+            },
             "application/json": {"schema": LoginIn.model_json_schema()},
         },
     }
@@ -69,8 +75,12 @@ def registration_open(request: Request, sessions) -> bool:
         return ClubRepository(session).count() == 0
 
 
-@router.post("/clubs", status_code=status.HTTP_201_CREATED, response_model=ClubCreated,
-             responses={403: {"model": ErrorOut}, 422: {"model": ErrorOut}, **CONFLICT})
+@router.post(
+    "/clubs",
+    status_code=status.HTTP_201_CREATED,
+    response_model=ClubCreated,
+    responses={403: {"model": ErrorOut}, 422: {"model": ErrorOut}, **CONFLICT},
+)
 def register_club(body: ClubCreate, request: Request, sessions: SessionFactoryDep) -> ClubCreated:
     """Create a club and its first user, an admin.
 
@@ -80,8 +90,13 @@ def register_club(body: ClubCreate, request: Request, sessions: SessionFactoryDe
     if not registration_open(request, sessions):
         raise Forbidden("registration of new clubs is closed on this server; ask its operator")
     with session_scope(sessions) as session:
-        club, user = create_club(session, club_name=body.club_name, email=body.email, password=body.password,
-                                 display_name=body.display_name)
+        club, user = create_club(
+            session,
+            club_name=body.club_name,
+            email=body.email,
+            password=body.password,
+            display_name=body.display_name,
+        )
         return ClubCreated(club=ClubOut.model_validate(club), user=UserOut.model_validate(user))
 
 
@@ -91,7 +106,7 @@ async def _credentials(request: Request) -> tuple[str, str]:
         try:
             body = LoginIn.model_validate(json.loads(await request.body() or b"null"))
         except (ValueError, ValidationError) as exc:
-            raise InputError(f"sign-in needs {{\"email\", \"password\"}} ({str(exc).splitlines()[0]})") from None
+            raise InputError(f'sign-in needs {{"email", "password"}} ({str(exc).splitlines()[0]})') from None
         return body.email, body.password
     form = await request.form(max_files=0, max_fields=10)
     username, password = form.get("username"), form.get("password")
@@ -102,9 +117,15 @@ async def _credentials(request: Request) -> tuple[str, str]:
     return username, password
 
 
-@router.post("/auth/login", response_model=TokenOut, openapi_extra=LOGIN_OPENAPI,
-             responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}})
-async def login(request: Request, response: Response, settings: SettingsDep, sessions: SessionFactoryDep) -> TokenOut:
+@router.post(
+    "/auth/login",
+    response_model=TokenOut,
+    openapi_extra=LOGIN_OPENAPI,
+    responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}},
+)
+async def login(
+    request: Request, response: Response, settings: SettingsDep, sessions: SessionFactoryDep
+) -> TokenOut:
     """Sign in with e-mail and password (OAuth2 password form, or JSON).
 
     Returns a bearer token and sets the session cookie (HttpOnly) and the CSRF cookie for the browser.
@@ -115,15 +136,30 @@ async def login(request: Request, response: Response, settings: SettingsDep, ses
         with session_scope(sessions) as session:
             user = authenticate(session, email, password)
             token, csrf, lifetime_s = issue_token(user, settings)
-            return TokenOut(access_token=token, expires_in=lifetime_s, csrf_token=csrf,
-                            user=UserOut.model_validate(user))
+            return TokenOut(
+                access_token=token, expires_in=lifetime_s, csrf_token=csrf, user=UserOut.model_validate(user)
+            )
 
     out = await run_in_threadpool(check)  # Argon2 takes tens of ms of CPU: off the event loop
     secure = request.url.scheme == "https"
-    response.set_cookie(SESSION_COOKIE, out.access_token, max_age=out.expires_in, httponly=True, secure=secure,
-                        samesite="lax", path="/")
-    response.set_cookie(CSRF_COOKIE, out.csrf_token, max_age=out.expires_in, httponly=False, secure=secure,
-                        samesite="lax", path="/")
+    response.set_cookie(
+        SESSION_COOKIE,
+        out.access_token,
+        max_age=out.expires_in,
+        httponly=True,
+        secure=secure,
+        samesite="lax",
+        path="/",
+    )
+    response.set_cookie(
+        CSRF_COOKIE,
+        out.csrf_token,
+        max_age=out.expires_in,
+        httponly=False,
+        secure=secure,
+        samesite="lax",
+        path="/",
+    )
     return out
 
 
@@ -150,11 +186,19 @@ def list_users(club: AdminClubDep, paging: PagingDep) -> dict:
     return page_of(page, UserOut.model_validate)
 
 
-@router.post("/users", status_code=status.HTTP_201_CREATED, response_model=UserOut, responses={**ERRORS, **CONFLICT})
+@router.post(
+    "/users", status_code=status.HTTP_201_CREATED, response_model=UserOut, responses={**ERRORS, **CONFLICT}
+)
 def create_user(body: UserCreate, club: AdminClubDep) -> UserOut:
     """Add a user to the club (admins only); they sign in with this e-mail and password."""
-    user = add_user(club.session, club_id=club.club_id, email=body.email, password=body.password,
-                    display_name=body.display_name, role=body.role)
+    user = add_user(
+        club.session,
+        club_id=club.club_id,
+        email=body.email,
+        password=body.password,
+        display_name=body.display_name,
+        role=body.role,
+    )
     return UserOut.model_validate(user)
 
 
@@ -166,5 +210,7 @@ def read_user(user_id: Id, club: AdminClubDep) -> UserOut:
 @router.patch("/users/{user_id}", response_model=UserOut, responses=ERRORS)
 def change_user(user_id: Id, body: UserUpdate, club: AdminClubDep) -> UserOut:
     """Change a user's role, name or password, or deactivate them (admins only; one admin always stays)."""
-    user = update_user(club.session, club_id=club.club_id, user_id=user_id, **body.model_dump(exclude_unset=True))
+    user = update_user(
+        club.session, club_id=club.club_id, user_id=user_id, **body.model_dump(exclude_unset=True)
+    )
     return UserOut.model_validate(user)

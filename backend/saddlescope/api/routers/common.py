@@ -15,10 +15,12 @@ QueryId = Annotated[int | None, Query(ge=1, le=MAX_ID)]
 MAX_OFFSET = 10_000_000
 
 # Responses every club route may give, for the OpenAPI.
-ERRORS = {401: {"model": ErrorOut, "description": "not signed in"},
-          403: {"model": ErrorOut, "description": "not allowed (role, CSRF)"},
-          404: {"model": ErrorOut, "description": "no such thing in your club"},
-          422: {"model": ErrorOut, "description": "invalid input, with the reason"}}
+ERRORS = {
+    401: {"model": ErrorOut, "description": "not signed in"},
+    403: {"model": ErrorOut, "description": "not allowed (role, CSRF)"},
+    404: {"model": ErrorOut, "description": "no such thing in your club"},
+    422: {"model": ErrorOut, "description": "invalid input, with the reason"},
+}
 CONFLICT = {409: {"model": ErrorOut, "description": "conflicts with existing data"}}
 
 
@@ -29,11 +31,16 @@ class Paging:
     sort: str | None
 
 
-def _paging(limit: Annotated[int, Query(ge=1, le=500, description="rows per page")] = 50,
-            offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description="rows to skip")] = 0,
-            sort: Annotated[str | None, Query(max_length=40, pattern=r"^-?[a-z0-9_]+$",
-                                              description="field to sort by; '-field' for descending")] = None,
-            ) -> Paging:
+def _paging(
+    limit: Annotated[int, Query(ge=1, le=500, description="rows per page")] = 50,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description="rows to skip")] = 0,
+    sort: Annotated[
+        str | None,
+        Query(
+            max_length=40, pattern=r"^-?[a-z0-9_]+$", description="field to sort by; '-field' for descending"
+        ),
+    ] = None,
+) -> Paging:
     return Paging(limit, offset, sort)
 
 
@@ -42,13 +49,18 @@ PagingDep = Annotated[Paging, Depends(_paging)]
 
 def page_of(page, convert) -> dict:
     """A repository `Page` as the JSON list envelope."""
-    return {"items": [convert(row) for row in page.items], "total": page.total, "limit": page.limit,
-            "offset": page.offset}
+    return {
+        "items": [convert(row) for row in page.items],
+        "total": page.total,
+        "limit": page.limit,
+        "offset": page.offset,
+    }
 
 
 def download(data: bytes, filename: str, media_type: str) -> Response:
-    return Response(data, media_type=media_type,
-                    headers={"Content-Disposition": f'attachment; filename="{filename}"'})
+    return Response(
+        data, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
+    )
 
 
 def changes(body, *, nullable: tuple[str, ...] = ()) -> dict:

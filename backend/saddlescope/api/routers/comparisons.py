@@ -29,29 +29,49 @@ def _horse_ids(horses: str | None) -> list[int] | None:
 
 
 @router.get("/comparison", response_model=ComparisonOut, responses=ERRORS)
-def compare_horses(club: ClubDep, gait: Gait,
-                   horses: Annotated[str | None, Query(max_length=2000, pattern=r"^[0-9, ]*$",
-                                                       description="comma-separated horse ids; default all")] = None,
-                   indicator: Annotated[list[str] | None, Query(max_length=64, description="indicator keys "
-                                                                "(repeat); default the eight comfort indicators")]
-                   = None) -> dict:
+def compare_horses(
+    club: ClubDep,
+    gait: Gait,
+    horses: Annotated[
+        str | None,
+        Query(max_length=2000, pattern=r"^[0-9, ]*$", description="comma-separated horse ids; default all"),
+    ] = None,
+    indicator: Annotated[
+        list[str] | None,
+        Query(max_length=64, description="indicator keys (repeat); default the eight comfort indicators"),
+    ] = None,
+) -> dict:
     """Horses within one gait (thesis 8.5.2): per indicator and horse n, mean, std, min and max."""
-    return horses_comparison(club.session, club_id=club.club_id, gait=gait, horse_ids=_horse_ids(horses),
-                             indicators=indicator)
+    return horses_comparison(
+        club.session, club_id=club.club_id, gait=gait, horse_ids=_horse_ids(horses), indicators=indicator
+    )
 
 
 @router.get("/leaderboard", response_model=LeaderboardOut, responses=ERRORS)
-def leaderboard(club: ClubDep, gait: Gait,
-                indicator: Annotated[str, Query(max_length=64)] = "acc_y_wb_rms",
-                lower_is_better: bool | None = None) -> dict:
+def leaderboard(
+    club: ClubDep,
+    gait: Gait,
+    indicator: Annotated[str, Query(max_length=64)] = "acc_y_wb_rms",
+    lower_is_better: bool | None = None,
+) -> dict:
     """The club's horses ranked in a gait by an indicator, most comfortable first, with the number of rides
     behind each horse and their spread (max - min); ties share a rank."""
-    return club_leaderboard(club.session, club_id=club.club_id, gait=gait, indicator=indicator,
-                            lower_is_better=lower_is_better)
+    return club_leaderboard(
+        club.session, club_id=club.club_id, gait=gait, indicator=indicator, lower_is_better=lower_is_better
+    )
 
 
 @router.get("/indicators", response_model=list[IndicatorOut], responses=ERRORS)
 def indicators(club: ClubDep) -> list[IndicatorOut]:
     """Every indicator key: unit, label, its name in thesis Table 8.7, and which way is more comfortable."""
-    return [IndicatorOut(key=key, unit=info.unit, label=info.label, thesis_name=info.thesis_name, better=info.better,
-                         comfort=key in COMFORT_INDICATORS) for key, info in INDICATORS.items()]
+    return [
+        IndicatorOut(
+            key=key,
+            unit=info.unit,
+            label=info.label,
+            thesis_name=info.thesis_name,
+            better=info.better,
+            comfort=key in COMFORT_INDICATORS,
+        )
+        for key, info in INDICATORS.items()
+    ]

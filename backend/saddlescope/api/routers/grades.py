@@ -15,8 +15,14 @@ router = APIRouter(prefix="/grades", tags=["grades"])
 
 
 @router.get("", response_model=Page[GradeOut], responses=ERRORS)
-def list_grades(club: ClubDep, paging: PagingDep, ride_id: QueryId = None, rider_id: QueryId = None,
-                horse_id: QueryId = None, gait: Gait | None = None) -> dict:
+def list_grades(
+    club: ClubDep,
+    paging: PagingDep,
+    ride_id: QueryId = None,
+    rider_id: QueryId = None,
+    horse_id: QueryId = None,
+    gait: Gait | None = None,
+) -> dict:
     """Grades, filtered by ride, rider, horse and gait; sort by grade, created_at, ride_id, rider_id, id."""
     where = club.grades.filters(ride_id=ride_id, rider_id=rider_id, horse_id=horse_id, gait=gait)
     page = club.grades.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
@@ -28,15 +34,22 @@ def set_grade(body: GradeIn, club: ClubDep) -> GradeOut:
     """A rider's grade of a ride (1 = very uncomfortable ... 5 = very comfortable); grading the same ride
     again replaces the earlier grade."""
     club.grades.check_references(ride_id=body.ride_id, rider_id=body.rider_id)
-    return GradeOut.model_validate(club.grades.set_grade(ride_id=body.ride_id, rider_id=body.rider_id,
-                                                         grade=body.grade, comment=body.comment))
+    return GradeOut.model_validate(
+        club.grades.set_grade(
+            ride_id=body.ride_id, rider_id=body.rider_id, grade=body.grade, comment=body.comment
+        )
+    )
 
 
 @router.get("/correlation", response_model=CorrelationOut, responses=ERRORS)
-def correlation(club: ClubDep, gait: Gait | None = None,
-                indicator: Annotated[list[str] | None, Query(max_length=64, description="indicator keys (repeat); "
-                                                             "default the eight comfort indicators")] = None,
-                ) -> dict:
+def correlation(
+    club: ClubDep,
+    gait: Gait | None = None,
+    indicator: Annotated[
+        list[str] | None,
+        Query(max_length=64, description="indicator keys (repeat); default the eight comfort indicators"),
+    ] = None,
+) -> dict:
     """Riders' average grade per horse and gait against the mean indicator (thesis Figs 8.33-8.36):
     Pearson and Spearman coefficients with p values and 95 % intervals, and the points behind them."""
     return grade_correlation_report(club.session, club_id=club.club_id, gait=gait, indicators=indicator)

@@ -17,15 +17,20 @@ router = APIRouter(prefix="/horses", tags=["horses"])
 
 
 @router.get("", response_model=Page[HorseOut], responses=ERRORS)
-def list_horses(club: ClubDep, paging: PagingDep,
-                q: Annotated[str | None, Query(max_length=200, description="name contains")] = None) -> dict:
+def list_horses(
+    club: ClubDep,
+    paging: PagingDep,
+    q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
+) -> dict:
     """The club's horses; sort by name (default), breed, birth_year, height_withers_m, created_at, id."""
     where = [Horse.name.ilike(like_pattern(q), escape="\\")] if q else []
     page = club.horses.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, HorseOut.model_validate)
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=HorseOut, responses={**ERRORS, **CONFLICT})
+@router.post(
+    "", status_code=status.HTTP_201_CREATED, response_model=HorseOut, responses={**ERRORS, **CONFLICT}
+)
 def create_horse(body: HorseIn, club: ClubDep) -> HorseOut:
     return HorseOut.model_validate(club.horses.add(**body.model_dump()))
 
@@ -49,10 +54,13 @@ def delete_horse(horse_id: Id, club: AdminClubDep) -> Response:
 
 
 @router.get("/{horse_id}/comparison", response_model=HorseComparisonOut, responses=ERRORS)
-def compare_gaits(horse_id: Id, club: ClubDep,
-                  indicator: Annotated[list[str] | None, Query(max_length=64,
-                                                               description="indicator keys (repeat); default "
-                                                                           "the eight comfort indicators")] = None,
-                  ) -> dict:
+def compare_gaits(
+    horse_id: Id,
+    club: ClubDep,
+    indicator: Annotated[
+        list[str] | None,
+        Query(max_length=64, description="indicator keys (repeat); default the eight comfort indicators"),
+    ] = None,
+) -> dict:
     """One horse's indicators across gaits (thesis Figs 8.29-8.32): n, mean, std, min, max per gait."""
     return horse_comparison(club.session, horse_id, club_id=club.club_id, indicators=indicator)

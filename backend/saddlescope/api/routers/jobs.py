@@ -24,24 +24,51 @@ def job_out(job: Job) -> JobOut:
 
 
 @router.get("", response_model=Page[JobOut], responses=ERRORS)
-def list_jobs(club: ClubDep, paging: PagingDep, ride_id: QueryId = None, rig_id: QueryId = None,
-              status_: Annotated[JobStatusName | None, Query(alias="status")] = None,
-              kind: Annotated[str | None, Query(max_length=32)] = None) -> dict:
+def list_jobs(
+    club: ClubDep,
+    paging: PagingDep,
+    ride_id: QueryId = None,
+    rig_id: QueryId = None,
+    status_: Annotated[JobStatusName | None, Query(alias="status")] = None,
+    kind: Annotated[str | None, Query(max_length=32)] = None,
+) -> dict:
     """The club's jobs, newest first; filter by ride, rig, status and kind."""
-    where = [column == value for column, value in ((Job.ride_id, ride_id), (Job.rig_id, rig_id),
-                                                   (Job.status, status_), (Job.kind, kind)) if value is not None]
-    page = club.jobs.list_page(where=where, sort=paging.sort or "-id", limit=paging.limit, offset=paging.offset)
+    where = [
+        column == value
+        for column, value in (
+            (Job.ride_id, ride_id),
+            (Job.rig_id, rig_id),
+            (Job.status, status_),
+            (Job.kind, kind),
+        )
+        if value is not None
+    ]
+    page = club.jobs.list_page(
+        where=where, sort=paging.sort or "-id", limit=paging.limit, offset=paging.offset
+    )
     return page_of(page, job_out)
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=JobOut,
-             responses={**ERRORS, 503: {"model": ErrorOut}})
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    response_model=JobOut,
+    responses={**ERRORS, 503: {"model": ErrorOut}},
+)
 async def create(body: JobCreate, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
     """Create a job and hand it to a worker (embedded pool or Celery)."""
     club_id = club.club_id
     club.session.rollback()
-    job_id = await run_in_threadpool(submit_job, sessions, queue, kind=body.kind, ride_id=body.ride_id,
-                                     rig_id=body.rig_id, payload=body.payload, club_id=club_id)
+    job_id = await run_in_threadpool(
+        submit_job,
+        sessions,
+        queue,
+        kind=body.kind,
+        ride_id=body.ride_id,
+        rig_id=body.rig_id,
+        payload=body.payload,
+        club_id=club_id,
+    )
     with session_scope(sessions) as session:
         return job_out(get_job(session, job_id))
 
@@ -49,8 +76,10 @@ async def create(body: JobCreate, club: ClubDep, sessions: SessionFactoryDep, qu
 @router.get("/kinds", response_model=list[JobKindOut], responses=ERRORS)
 def kinds(club: ClubDep) -> list[JobKindOut]:
     """The job kinds this server knows, with their stages in order."""
-    return [JobKindOut(name=k.name, stages=list(k.stages), needs_ride=k.needs_ride, description=k.description)
-            for k in JOB_KINDS.values()]
+    return [
+        JobKindOut(name=k.name, stages=list(k.stages), needs_ride=k.needs_ride, description=k.description)
+        for k in JOB_KINDS.values()
+    ]
 
 
 @router.get("/{job_id}", response_model=JobOut, responses=ERRORS)
@@ -65,9 +94,15 @@ def cancel(job_id: Id, club: ClubDep) -> JobOut:
     return job_out(cancel_job(club.session, job_id, club_id=club.club_id))
 
 
-@router.post("/{job_id}/retry", response_model=JobOut,
-             responses={**ERRORS, 409: {"model": ErrorOut, "description": "not failed or cancelled"},
-                        503: {"model": ErrorOut}})
+@router.post(
+    "/{job_id}/retry",
+    response_model=JobOut,
+    responses={
+        **ERRORS,
+        409: {"model": ErrorOut, "description": "not failed or cancelled"},
+        503: {"model": ErrorOut},
+    },
+)
 async def retry(job_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
     """Run a failed or cancelled job again (same id; the uploads were kept)."""
     club_id = club.club_id

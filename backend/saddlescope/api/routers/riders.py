@@ -21,15 +21,20 @@ def _check_user(club, user_id: int | None) -> None:
 
 
 @router.get("", response_model=Page[RiderOut], responses=ERRORS)
-def list_riders(club: ClubDep, paging: PagingDep,
-                q: Annotated[str | None, Query(max_length=200, description="name contains")] = None) -> dict:
+def list_riders(
+    club: ClubDep,
+    paging: PagingDep,
+    q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
+) -> dict:
     """The club's riders; sort by name (default), created_at, id."""
     where = [Rider.name.ilike(like_pattern(q), escape="\\")] if q else []
     page = club.riders.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, RiderOut.model_validate)
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=RiderOut, responses={**ERRORS, **CONFLICT})
+@router.post(
+    "", status_code=status.HTTP_201_CREATED, response_model=RiderOut, responses={**ERRORS, **CONFLICT}
+)
 def create_rider(body: RiderIn, club: ClubDep) -> RiderOut:
     _check_user(club, body.user_id)
     return RiderOut.model_validate(club.riders.add(name=body.name, user_id=body.user_id))
@@ -43,7 +48,9 @@ def read_rider(rider_id: Id, club: ClubDep) -> RiderOut:
 @router.patch("/{rider_id}", response_model=RiderOut, responses={**ERRORS, **CONFLICT})
 def update_rider(rider_id: Id, body: RiderUpdate, club: ClubDep) -> RiderOut:
     _check_user(club, body.user_id)
-    return RiderOut.model_validate(club.riders.update_fields(rider_id, **changes(body, nullable=("user_id",))))
+    return RiderOut.model_validate(
+        club.riders.update_fields(rider_id, **changes(body, nullable=("user_id",)))
+    )
 
 
 @router.delete("/{rider_id}", status_code=status.HTTP_204_NO_CONTENT, responses={**ERRORS, **CONFLICT})

@@ -42,8 +42,11 @@ from saddlescope.services.uploads import (
 )
 
 router = APIRouter(prefix="/rides", tags=["rides"])
-UPLOAD_ERRORS = {**ERRORS, 413: {"model": ErrorOut, "description": "larger than the upload limit"},
-                 503: {"model": ErrorOut, "description": "the job queue is unreachable"}}
+UPLOAD_ERRORS = {
+    **ERRORS,
+    413: {"model": ErrorOut, "description": "larger than the upload limit"},
+    503: {"model": ErrorOut, "description": "the job queue is unreachable"},
+}
 RideStatusName = Literal[tuple(s.value for s in RideStatus)]  # type: ignore[valid-type]
 ExportFormat = Literal[tuple(EXPORT_FORMATS)]  # type: ignore[valid-type]
 
@@ -52,9 +55,20 @@ def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:
     indicators = None
     if result_indicators is not None:
         indicators = {k: result_indicators.get(k) for k in COMFORT_INDICATORS}
-    return RideOut(id=ride.id, horse_id=ride.horse_id, rider_id=ride.rider_id, rig_id=ride.rig_id, gait=ride.gait,
-                   direction=ride.direction, ridden_on=ride.ridden_on, status=ride.status, notes=ride.notes,
-                   from_bundle=ride.bundle_key is not None, indicators=indicators, created_at=ride.created_at)
+    return RideOut(
+        id=ride.id,
+        horse_id=ride.horse_id,
+        rider_id=ride.rider_id,
+        rig_id=ride.rig_id,
+        gait=ride.gait,
+        direction=ride.direction,
+        ridden_on=ride.ridden_on,
+        status=ride.status,
+        notes=ride.notes,
+        from_bundle=ride.bundle_key is not None,
+        indicators=indicators,
+        created_at=ride.created_at,
+    )
 
 
 def _indicators(club, ride_ids: list[int]) -> dict[int, dict]:
@@ -64,29 +78,49 @@ def _indicators(club, ride_ids: list[int]) -> dict[int, dict]:
 
     if not ride_ids:
         return {}
-    rows = club.session.execute(select(Result.ride_id, Result.indicators).where(
-        Result.club_id == club.club_id, Result.ride_id.in_(ride_ids)))
+    rows = club.session.execute(
+        select(Result.ride_id, Result.indicators).where(
+            Result.club_id == club.club_id, Result.ride_id.in_(ride_ids)
+        )
+    )
     return {ride_id: dict(ind or {}) for ride_id, ind in rows}
 
 
 def ride_detail(club, ride: Ride) -> RideDetail:
     base = ride_out(ride, _indicators(club, [ride.id]).get(ride.id)).model_dump()
     latest = club.jobs.latest_for_ride(ride.id)
-    return RideDetail(**base, meta=dict(ride.meta or {}),
-                      recordings=[RecordingOut.model_validate(r) for r in club.recordings.for_ride(ride.id)],
-                      latest_job_id=latest.id if latest else None)
+    return RideDetail(
+        **base,
+        meta=dict(ride.meta or {}),
+        recordings=[RecordingOut.model_validate(r) for r in club.recordings.for_ride(ride.id)],
+        latest_job_id=latest.id if latest else None,
+    )
 
 
 def _filters(horse_id, rider_id, rig_id, gait, status_, date_from, date_to):
-    return RideRepository.filters(horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, gait=gait, status=status_,
-                                  date_from=date_from, date_to=date_to)
+    return RideRepository.filters(
+        horse_id=horse_id,
+        rider_id=rider_id,
+        rig_id=rig_id,
+        gait=gait,
+        status=status_,
+        date_from=date_from,
+        date_to=date_to,
+    )
 
 
 @router.get("", response_model=Page[RideOut], responses=ERRORS)
-def list_rides(club: ClubDep, paging: PagingDep, horse_id: QueryId = None, rider_id: QueryId = None,
-               rig_id: QueryId = None, gait: Gait | None = None,
-               status_: Annotated[RideStatusName | None, Query(alias="status")] = None,
-               date_from: dt.date | None = None, date_to: dt.date | None = None) -> dict:
+def list_rides(
+    club: ClubDep,
+    paging: PagingDep,
+    horse_id: QueryId = None,
+    rider_id: QueryId = None,
+    rig_id: QueryId = None,
+    gait: Gait | None = None,
+    status_: Annotated[RideStatusName | None, Query(alias="status")] = None,
+    date_from: dt.date | None = None,
+    date_to: dt.date | None = None,
+) -> dict:
     """The club's rides, filtered by horse, rider, rig, gait, status and date range (ridden_on).
 
     Sort by ridden_on (default, newest first), created_at, gait, status, horse_id, rider_id, id, or an
@@ -104,26 +138,54 @@ def create_ride(body: RideIn, club: ClubDep) -> RideOut:
     """A ride to upload clips to (its motion clips; static, plumb and calibration come from its rig
     unless uploaded for the ride)."""
     meta = body.meta.model_dump(exclude_none=True) if body.meta is not None else {}
-    ride = club.rides.add(horse_id=body.horse_id, rider_id=body.rider_id, rig_id=body.rig_id, gait=body.gait,
-                          direction=body.direction, ridden_on=body.ridden_on or dt.datetime.now(dt.UTC).date(),
-                          notes=body.notes, meta=meta)
+    ride = club.rides.add(
+        horse_id=body.horse_id,
+        rider_id=body.rider_id,
+        rig_id=body.rig_id,
+        gait=body.gait,
+        direction=body.direction,
+        ridden_on=body.ridden_on or dt.datetime.now(dt.UTC).date(),
+        notes=body.notes,
+        meta=meta,
+    )
     return ride_out(ride)
 
 
-@router.get("/export/{fmt}", responses={**ERRORS, 200: {"content": {"text/csv": {}, EXPORT_FORMATS["xlsx"]: {}}}})
-def export_many(fmt: Literal["csv", "xlsx"], club: ClubDep, horse_id: QueryId = None, rider_id: QueryId = None,
-                rig_id: QueryId = None, gait: Gait | None = None, date_from: dt.date | None = None,
-                date_to: dt.date | None = None) -> Response:
+@router.get(
+    "/export/{fmt}", responses={**ERRORS, 200: {"content": {"text/csv": {}, EXPORT_FORMATS["xlsx"]: {}}}}
+)
+def export_many(
+    fmt: Literal["csv", "xlsx"],
+    club: ClubDep,
+    horse_id: QueryId = None,
+    rider_id: QueryId = None,
+    rig_id: QueryId = None,
+    gait: Gait | None = None,
+    date_from: dt.date | None = None,
+    date_to: dt.date | None = None,
+) -> Response:
     """Indicators of the club's analysed rides (with the ride list's filters) as CSV or xlsx."""
     where = _filters(horse_id, rider_id, rig_id, gait, None, date_from, date_to)
     data, name = export_rides(club.session, fmt, club_id=club.club_id, where=where)
     return download(data, name, EXPORT_FORMATS[fmt])
 
 
-@router.post("/bundle", status_code=status.HTTP_201_CREATED, response_model=BundleUploaded,
-             openapi_extra=UPLOAD_OPENAPI, responses=UPLOAD_ERRORS)
-async def upload_bundle(request: Request, club: ClubDep, settings: SettingsDep, storage: StorageDep,
-                        sessions: SessionFactoryDep, queue: QueueDep, rig_id: QueryId = None) -> BundleUploaded:
+@router.post(
+    "/bundle",
+    status_code=status.HTTP_201_CREATED,
+    response_model=BundleUploaded,
+    openapi_extra=UPLOAD_OPENAPI,
+    responses=UPLOAD_ERRORS,
+)
+async def upload_bundle(
+    request: Request,
+    club: ClubDep,
+    settings: SettingsDep,
+    storage: StorageDep,
+    sessions: SessionFactoryDep,
+    queue: QueueDep,
+    rig_id: QueryId = None,
+) -> BundleUploaded:
     """Upload a whole ride bundle as a zip (CONTRACTS section 1): ride.json and the clips. The horse and
     rider are found or created by name; the analysis starts at once. Unsafe zips (``..`` paths, links,
     zip bombs), an invalid ride.json (unknown gait or camera, ...) and missing clips are refused (422)."""
@@ -131,10 +193,12 @@ async def upload_bundle(request: Request, club: ClubDep, settings: SettingsDep, 
         await run_in_threadpool(club.rigs.get, rig_id)
     club_id = club.club_id
     club.session.rollback()
-    staged = await stream_upload(request, storage, staging_key(club_id, "bundle.zip"),
-                                 max_bytes=settings.max_upload_bytes)
-    ride_id, job_id = await run_in_threadpool(accept_bundle, sessions, storage, queue, staged.key, club_id=club_id,
-                                              rig_id=rig_id)
+    staged = await stream_upload(
+        request, storage, staging_key(club_id, "bundle.zip"), max_bytes=settings.max_upload_bytes
+    )
+    ride_id, job_id = await run_in_threadpool(
+        accept_bundle, sessions, storage, queue, staged.key, club_id=club_id, rig_id=rig_id
+    )
     with session_scope(sessions) as session:
         ride = RideRepository(session, club_id=club_id).get(ride_id)
         return BundleUploaded(ride=ride_out(ride), job_id=job_id)
@@ -167,11 +231,23 @@ def list_ride_clips(ride_id: Id, club: ClubDep) -> list[RecordingOut]:
     return [RecordingOut.model_validate(r) for r in club.recordings.for_ride(ride_id)]
 
 
-@router.put("/{ride_id}/clips/{clip_kind}/{camera}", response_model=ClipUploaded, openapi_extra=UPLOAD_OPENAPI,
-            responses=UPLOAD_ERRORS)
-async def upload_ride_clip(ride_id: Id, clip_kind: str, camera: CameraRole, request: Request, club: ClubDep,
-                           settings: SettingsDep, storage: StorageDep, sessions: SessionFactoryDep,
-                           queue: QueueDep) -> ClipUploaded:
+@router.put(
+    "/{ride_id}/clips/{clip_kind}/{camera}",
+    response_model=ClipUploaded,
+    openapi_extra=UPLOAD_OPENAPI,
+    responses=UPLOAD_ERRORS,
+)
+async def upload_ride_clip(
+    ride_id: Id,
+    clip_kind: str,
+    camera: CameraRole,
+    request: Request,
+    club: ClubDep,
+    settings: SettingsDep,
+    storage: StorageDep,
+    sessions: SessionFactoryDep,
+    queue: QueueDep,
+) -> ClipUploaded:
     """Upload one camera's clip of the ride (usually `motion`; multipart field `file`, or the raw bytes).
     It is probed at once and refused (422, the earlier clip kept) if it does not decode or disagrees with
     the other cameras' clips of the set in frame rate or size. The clip that completes the ride starts
@@ -180,32 +256,58 @@ async def upload_ride_clip(ride_id: Id, clip_kind: str, camera: CameraRole, requ
     owner = ClipOwner("ride", ride_id, club.club_id)
     check_clip_slot(owner, clip_kind, camera)
     club.session.rollback()
-    staged = await stream_upload(request, storage, staging_key(club.club_id, request.headers.get("x-filename")),
-                                 max_bytes=settings.max_upload_bytes)
+    staged = await stream_upload(
+        request,
+        storage,
+        staging_key(club.club_id, request.headers.get("x-filename")),
+        max_bytes=settings.max_upload_bytes,
+    )
     recording_id = await run_in_threadpool(
-        accept_clip, sessions, storage, owner, clip_kind, camera, staged.key, size_bytes=staged.size_bytes,
-        sha256=staged.sha256, filename=staged.filename)
+        accept_clip,
+        sessions,
+        storage,
+        owner,
+        clip_kind,
+        camera,
+        staged.key,
+        size_bytes=staged.size_bytes,
+        sha256=staged.sha256,
+        filename=staged.filename,
+    )
     job_id = await run_in_threadpool(start_processing, sessions, queue, owner)
     with session_scope(sessions) as session:
-        return ClipUploaded(recording=RecordingOut.model_validate(session.get(Recording, recording_id)),
-                            job_id=job_id)
+        return ClipUploaded(
+            recording=RecordingOut.model_validate(session.get(Recording, recording_id)), job_id=job_id
+        )
 
 
-@router.post("/{ride_id}/analyze", status_code=status.HTTP_201_CREATED, response_model=JobOut,
-             responses={**ERRORS, 503: {"model": ErrorOut}})
+@router.post(
+    "/{ride_id}/analyze",
+    status_code=status.HTTP_201_CREATED,
+    response_model=JobOut,
+    responses={**ERRORS, 503: {"model": ErrorOut}},
+)
 async def analyze_ride(ride_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
     """(Re)start the ride's analysis (an `analyze` job: probe, assemble, calibrate, analyze)."""
     await run_in_threadpool(club.rides.get, ride_id)
     club.session.rollback()
-    job_id = await run_in_threadpool(submit_job, sessions, queue, kind="analyze", ride_id=ride_id,
-                                     club_id=club.club_id)
+    job_id = await run_in_threadpool(
+        submit_job, sessions, queue, kind="analyze", ride_id=ride_id, club_id=club.club_id
+    )
     with session_scope(sessions) as session:
         return JobOut(**job_as_dict(get_job(session, job_id)))
 
 
-@router.get("/{ride_id}/result", response_model=ResultOut, responses={**ERRORS, 304: {"description": "unchanged"}})
-def read_result(ride_id: Id, club: ClubDep, storage: StorageDep, request: Request,
-                max_points: Annotated[int, Query(ge=10, le=100_000)] = 2000) -> Response:
+@router.get(
+    "/{ride_id}/result", response_model=ResultOut, responses={**ERRORS, 304: {"description": "unchanged"}}
+)
+def read_result(
+    ride_id: Id,
+    club: ClubDep,
+    storage: StorageDep,
+    request: Request,
+    max_points: Annotated[int, Query(ge=10, le=100_000)] = 2000,
+) -> Response:
     """Indicators (with units), quality flags and the series the dashboard plots, decimated to at most
     `max_points` samples. 404 until the ride is analysed. Sends an ETag: with ``If-None-Match`` an
     unchanged result answers 304 without a body."""
@@ -216,9 +318,21 @@ def read_result(ride_id: Id, club: ClubDep, storage: StorageDep, request: Reques
     return Response(data, media_type="application/json", headers=headers)
 
 
-@router.get("/{ride_id}/export/{fmt}", responses={**ERRORS, 200: {"content": {
-    "application/json": {}, "text/csv": {}, EXPORT_FORMATS["xlsx"]: {}, "application/octet-stream": {},
-    "text/plain": {}}}})
+@router.get(
+    "/{ride_id}/export/{fmt}",
+    responses={
+        **ERRORS,
+        200: {
+            "content": {
+                "application/json": {},
+                "text/csv": {},
+                EXPORT_FORMATS["xlsx"]: {},
+                "application/octet-stream": {},
+                "text/plain": {},
+            }
+        },
+    },
+)
 def export_one(ride_id: Id, fmt: ExportFormat, club: ClubDep, storage: StorageDep) -> Response:
     """The ride's result as JSON (CONTRACTS section 2), its indicators as CSV or xlsx, or the 3-D tracks of
     the markers and the saddle point S (motion frame, mm) as C3D or TRC."""

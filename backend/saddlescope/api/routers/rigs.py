@@ -26,22 +26,38 @@ from saddlescope.db.models import Rig
 from saddlescope.db.repositories import like_pattern
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
-from saddlescope.services.uploads import ClipOwner, accept_clip, check_clip_slot, staging_key, start_processing
+from saddlescope.services.uploads import (
+    ClipOwner,
+    accept_clip,
+    check_clip_slot,
+    staging_key,
+    start_processing,
+)
 
 router = APIRouter(prefix="/rigs", tags=["rigs"])
 UPLOAD_ERRORS = {**ERRORS, 413: {"model": ErrorOut, "description": "larger than the upload limit"}}
 
 
 def rig_out(rig: Rig, *, detail: bool = False) -> RigOut:
-    data = {"id": rig.id, "name": rig.name, "recorded_on": rig.recorded_on, "cameras": rig.cameras or {},
-            "board": rig.board, "calibrated": rig.calibration is not None, "quality": rig.quality,
-            "created_at": rig.created_at}
+    data = {
+        "id": rig.id,
+        "name": rig.name,
+        "recorded_on": rig.recorded_on,
+        "cameras": rig.cameras or {},
+        "board": rig.board,
+        "calibrated": rig.calibration is not None,
+        "quality": rig.quality,
+        "created_at": rig.created_at,
+    }
     return RigDetail(**data, calibration=rig.calibration) if detail else RigOut(**data)
 
 
 @router.get("", response_model=Page[RigOut], responses=ERRORS)
-def list_rigs(club: ClubDep, paging: PagingDep,
-              q: Annotated[str | None, Query(max_length=200, description="name contains")] = None) -> dict:
+def list_rigs(
+    club: ClubDep,
+    paging: PagingDep,
+    q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
+) -> dict:
     """The club's rigs; sort by recorded_on (default, newest first), name, created_at, id."""
     where = [Rig.name.ilike(like_pattern(q), escape="\\")] if q else []
     page = club.rigs.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
@@ -52,8 +68,14 @@ def list_rigs(club: ClubDep, paging: PagingDep,
 def create_rig(body: RigIn, club: ClubDep) -> RigOut:
     """A new rig; give its `board` so its calibration clips can be used."""
     data = body.model_dump(exclude_none=True)
-    return rig_out(club.rigs.add(name=data["name"], recorded_on=data.get("recorded_on"),
-                                 cameras=data.get("cameras"), board=data.get("board")))
+    return rig_out(
+        club.rigs.add(
+            name=data["name"],
+            recorded_on=data.get("recorded_on"),
+            cameras=data.get("cameras"),
+            board=data.get("board"),
+        )
+    )
 
 
 @router.get("/{rig_id}", response_model=RigDetail, responses=ERRORS)
@@ -85,11 +107,23 @@ def list_rig_clips(rig_id: Id, club: ClubDep) -> list[RecordingOut]:
     return [RecordingOut.model_validate(r) for r in club.recordings.for_rig(rig_id)]
 
 
-@router.put("/{rig_id}/clips/{clip_kind}/{camera}", response_model=ClipUploaded, openapi_extra=UPLOAD_OPENAPI,
-            responses=UPLOAD_ERRORS)
-async def upload_rig_clip(rig_id: Id, clip_kind: str, camera: CameraRole, request: Request, club: ClubDep,
-                          settings: SettingsDep, storage: StorageDep, sessions: SessionFactoryDep,
-                          queue: QueueDep) -> ClipUploaded:
+@router.put(
+    "/{rig_id}/clips/{clip_kind}/{camera}",
+    response_model=ClipUploaded,
+    openapi_extra=UPLOAD_OPENAPI,
+    responses=UPLOAD_ERRORS,
+)
+async def upload_rig_clip(
+    rig_id: Id,
+    clip_kind: str,
+    camera: CameraRole,
+    request: Request,
+    club: ClubDep,
+    settings: SettingsDep,
+    storage: StorageDep,
+    sessions: SessionFactoryDep,
+    queue: QueueDep,
+) -> ClipUploaded:
     """Upload one camera's calibration, plumb or static clip of the rig (multipart field `file`, or the
     raw bytes). It is probed at once; a clip that does not decode, or whose frame rate or size differs
     from the other cameras' clips of the set, is refused (422) and any earlier clip stays. The third
@@ -98,26 +132,45 @@ async def upload_rig_clip(rig_id: Id, clip_kind: str, camera: CameraRole, reques
     owner = ClipOwner("rig", rig_id, club.club_id)
     check_clip_slot(owner, clip_kind, camera)
     club.session.rollback()  # end the read transaction: the upload may take minutes
-    staged = await stream_upload(request, storage, staging_key(club.club_id, request.headers.get("x-filename")),
-                                 max_bytes=settings.max_upload_bytes)
+    staged = await stream_upload(
+        request,
+        storage,
+        staging_key(club.club_id, request.headers.get("x-filename")),
+        max_bytes=settings.max_upload_bytes,
+    )
     recording_id = await run_in_threadpool(
-        accept_clip, sessions, storage, owner, clip_kind, camera, staged.key, size_bytes=staged.size_bytes,
-        sha256=staged.sha256, filename=staged.filename)
+        accept_clip,
+        sessions,
+        storage,
+        owner,
+        clip_kind,
+        camera,
+        staged.key,
+        size_bytes=staged.size_bytes,
+        sha256=staged.sha256,
+        filename=staged.filename,
+    )
     job_id = await run_in_threadpool(start_processing, sessions, queue, owner)
     with session_scope(sessions) as session:
         from saddlescope.db.models import Recording
 
-        return ClipUploaded(recording=RecordingOut.model_validate(session.get(Recording, recording_id)),
-                            job_id=job_id)
+        return ClipUploaded(
+            recording=RecordingOut.model_validate(session.get(Recording, recording_id)), job_id=job_id
+        )
 
 
-@router.post("/{rig_id}/calibrate", status_code=status.HTTP_201_CREATED, response_model=JobOut,
-             responses={**ERRORS, 503: {"model": ErrorOut}})
+@router.post(
+    "/{rig_id}/calibrate",
+    status_code=status.HTTP_201_CREATED,
+    response_model=JobOut,
+    responses={**ERRORS, 503: {"model": ErrorOut}},
+)
 async def calibrate_rig(rig_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
     """(Re)calibrate the rig from its three calibration clips (a `calibrate_rig` job)."""
     await run_in_threadpool(club.rigs.get, rig_id)
     club.session.rollback()
-    job_id = await run_in_threadpool(submit_job, sessions, queue, kind="calibrate_rig", rig_id=rig_id,
-                                     club_id=club.club_id)
+    job_id = await run_in_threadpool(
+        submit_job, sessions, queue, kind="calibrate_rig", rig_id=rig_id, club_id=club.club_id
+    )
     with session_scope(sessions) as session:
         return JobOut(**job_as_dict(get_job(session, job_id)))

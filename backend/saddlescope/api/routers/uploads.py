@@ -17,8 +17,12 @@ from saddlescope.storage import upload_key
 
 router = APIRouter(prefix="/uploads", tags=["uploads"])
 UploadId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="the upload's id")]
-CHUNK_OPENAPI = {"requestBody": {"required": True, "content": {
-    "application/offset+octet-stream": {"schema": {"type": "string", "format": "binary"}}}}}
+CHUNK_OPENAPI = {
+    "requestBody": {
+        "required": True,
+        "content": {"application/offset+octet-stream": {"schema": {"type": "string", "format": "binary"}}},
+    }
+}
 
 
 class OffsetMismatch(IncompleteUpload):
@@ -26,18 +30,34 @@ class OffsetMismatch(IncompleteUpload):
 
 
 def _headers(upload) -> dict[str, str]:
-    return {"Upload-Offset": str(upload.offset_bytes), "Upload-Length": str(upload.length_bytes),
-            "Cache-Control": "no-store"}
+    return {
+        "Upload-Offset": str(upload.offset_bytes),
+        "Upload-Length": str(upload.length_bytes),
+        "Cache-Control": "no-store",
+    }
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=UploadOut,
-             responses={**ERRORS, 413: {"model": ErrorOut}})
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    response_model=UploadOut,
+    responses={**ERRORS, 413: {"model": ErrorOut}},
+)
 def create(body: UploadCreate, club: ClubDep, settings: SettingsDep, response: Response) -> UploadOut:
     """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then PATCH its bytes."""
-    upload = create_upload(club.session, club_id=club.club_id, user_id=club.principal.user_id, target=body.target,
-                           length_bytes=body.length_bytes, max_bytes=settings.max_upload_bytes,
-                           ride_id=body.ride_id, rig_id=body.rig_id, clip_kind=body.clip_kind, camera=body.camera,
-                           filename=body.filename)
+    upload = create_upload(
+        club.session,
+        club_id=club.club_id,
+        user_id=club.principal.user_id,
+        target=body.target,
+        length_bytes=body.length_bytes,
+        max_bytes=settings.max_upload_bytes,
+        ride_id=body.ride_id,
+        rig_id=body.rig_id,
+        clip_kind=body.clip_kind,
+        camera=body.camera,
+        filename=body.filename,
+    )
     response.headers["Location"] = f"/api/uploads/{upload.id}"
     response.headers.update(_headers(upload))
     return UploadOut.model_validate(upload)
@@ -57,33 +77,54 @@ def offset(upload_id: UploadId, club: ClubDep) -> Response:
     return Response(status_code=status.HTTP_200_OK, headers=_headers(club.uploads.get(upload_id)))
 
 
-@router.patch("/{upload_id}", status_code=status.HTTP_204_NO_CONTENT, openapi_extra=CHUNK_OPENAPI,
-              responses={**ERRORS, 409: {"model": ErrorOut, "description": "wrong offset, or not open"},
-                         413: {"model": ErrorOut}})
-async def append(upload_id: UploadId, request: Request, club: ClubDep, storage: StorageDep,
-                 upload_offset: Annotated[int, Header(alias="Upload-Offset", ge=0, le=2**62)]) -> Response:
+@router.patch(
+    "/{upload_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    openapi_extra=CHUNK_OPENAPI,
+    responses={
+        **ERRORS,
+        409: {"model": ErrorOut, "description": "wrong offset, or not open"},
+        413: {"model": ErrorOut},
+    },
+)
+async def append(
+    upload_id: UploadId,
+    request: Request,
+    club: ClubDep,
+    storage: StorageDep,
+    upload_offset: Annotated[int, Header(alias="Upload-Offset", ge=0, le=2**62)],
+) -> Response:
     """Send the next chunk (the raw body) starting at byte `Upload-Offset`, which must equal the upload's
     current offset (409 with the right one otherwise). Answers 204 with the new `Upload-Offset`."""
     upload = await run_in_threadpool(club.uploads.get, upload_id)
     if upload.status != UploadStatus.OPEN.value:
         raise OffsetMismatch(f"upload {upload_id} is {upload.status}; it takes no more bytes")
     if upload_offset != upload.offset_bytes:
-        raise OffsetMismatch(f"Upload-Offset {upload_offset} does not match the upload's offset "
-                             f"{upload.offset_bytes}; resume from {upload.offset_bytes}")
+        raise OffsetMismatch(
+            f"Upload-Offset {upload_offset} does not match the upload's offset "
+            f"{upload.offset_bytes}; resume from {upload.offset_bytes}"
+        )
     start, length = upload.offset_bytes, upload.length_bytes
     club.session.rollback()  # no transaction open while the bytes arrive
     end = await stream_chunk(request, storage, upload_key(upload_id), offset=start, limit=length)
     moved = await run_in_threadpool(club.uploads.advance, upload_id, from_offset=start, to_offset=end)
     if not moved:
-        raise OffsetMismatch(f"upload {upload_id} moved on meanwhile (another request sent bytes); ask for its offset")
+        raise OffsetMismatch(
+            f"upload {upload_id} moved on meanwhile (another request sent bytes); ask for its offset"
+        )
     await run_in_threadpool(club.session.commit)
-    return Response(status_code=status.HTTP_204_NO_CONTENT,
-                    headers={"Upload-Offset": str(end), "Upload-Length": str(length)})
+    return Response(
+        status_code=status.HTTP_204_NO_CONTENT,
+        headers={"Upload-Offset": str(end), "Upload-Length": str(length)},
+    )
 
 
-@router.post("/{upload_id}/finalize", responses={**ERRORS, 409: {"model": ErrorOut}, 503: {"model": ErrorOut}})
-async def finalize(upload_id: UploadId, club: ClubDep, storage: StorageDep, sessions: SessionFactoryDep,
-                   queue: QueueDep) -> dict:
+@router.post(
+    "/{upload_id}/finalize", responses={**ERRORS, 409: {"model": ErrorOut}, 503: {"model": ErrorOut}}
+)
+async def finalize(
+    upload_id: UploadId, club: ClubDep, storage: StorageDep, sessions: SessionFactoryDep, queue: QueueDep
+) -> dict:
     """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle); starts the
     processing the new clips allow. Returns ``{"recording_id", "job_id"}`` or ``{"ride_id", "job_id"}``."""
     club_id = club.club_id
@@ -98,4 +139,3 @@ def abandon(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> Response
     club.session.commit()
     storage.delete(upload_key(upload_id))
     return Response(status_code=status.HTTP_204_NO_CONTENT)
-
