@@ -544,6 +544,14 @@ class ResultRepository(Repository):
     def for_ride(self, ride_id: int) -> Result | None:
         return self.session.scalars(self._scoped(select(Result).where(Result.ride_id == ride_id))).first()
 
+    def indicators_for(self, ride_ids: Sequence[int]) -> dict[int, dict[str, Any]]:
+        """Ride id -> indicators of those rides (of this club) that have a result."""
+        if not ride_ids:
+            return {}
+        stmt = self._scoped(
+            select(Result.ride_id, Result.indicators).where(Result.ride_id.in_(list(ride_ids))))
+        return {ride_id: dict(indicators or {}) for ride_id, indicators in self.session.execute(stmt)}
+
     def replace_for_ride(self, *, club_id: int, ride_id: int, job_id: int | None, indicators: dict[str, Any],
                          quality: dict[str, Any], result_key: str | None, arrays_key: str | None,
                          code_version: str | None) -> Result:

@@ -27,8 +27,8 @@ from saddlescope.api.schemas import (
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
 from saddlescope.core.indicators import COMFORT_INDICATORS
-from saddlescope.db.models import Recording, Ride, RideStatus
-from saddlescope.db.repositories import RideRepository
+from saddlescope.db.models import Ride, RideStatus
+from saddlescope.db.repositories import RecordingRepository, RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
@@ -72,18 +72,7 @@ def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:
 
 
 def _indicators(club, ride_ids: list[int]) -> dict[int, dict]:
-    from sqlalchemy import select
-
-    from saddlescope.db.models import Result
-
-    if not ride_ids:
-        return {}
-    rows = club.session.execute(
-        select(Result.ride_id, Result.indicators).where(
-            Result.club_id == club.club_id, Result.ride_id.in_(ride_ids)
-        )
-    )
-    return {ride_id: dict(ind or {}) for ride_id, ind in rows}
+    return club.results.indicators_for(ride_ids)
 
 
 def ride_detail(club, ride: Ride) -> RideDetail:
@@ -276,9 +265,8 @@ async def upload_ride_clip(
     )
     job_id = await run_in_threadpool(start_processing, sessions, queue, owner)
     with session_scope(sessions) as session:
-        return ClipUploaded(
-            recording=RecordingOut.model_validate(session.get(Recording, recording_id)), job_id=job_id
-        )
+        recording = RecordingRepository(session, club_id=owner.club_id).get(recording_id)
+        return ClipUploaded(recording=RecordingOut.model_validate(recording), job_id=job_id)
 
 
 @router.post(

@@ -23,7 +23,7 @@ from saddlescope.api.schemas import (
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
 from saddlescope.db.models import Rig
-from saddlescope.db.repositories import like_pattern
+from saddlescope.db.repositories import RecordingRepository, like_pattern
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.uploads import (
@@ -152,11 +152,8 @@ async def upload_rig_clip(
     )
     job_id = await run_in_threadpool(start_processing, sessions, queue, owner)
     with session_scope(sessions) as session:
-        from saddlescope.db.models import Recording
-
-        return ClipUploaded(
-            recording=RecordingOut.model_validate(session.get(Recording, recording_id)), job_id=job_id
-        )
+        recording = RecordingRepository(session, club_id=owner.club_id).get(recording_id)
+        return ClipUploaded(recording=RecordingOut.model_validate(recording), job_id=job_id)
 
 
 @router.post(
