@@ -340,3 +340,18 @@ def test_a_member_works_with_the_clubs_data_but_cannot_manage_users(env, admin):
     assert member.get("/users").status_code == 403
     assert member.delete(f"/horses/{horse['id']}").status_code == 403
     assert admin.delete(f"/horses/{horse['id']}").status_code == 204
+
+
+def test_a_bundle_whose_cameras_disagree_fails_at_probe_with_the_reason(env, admin, tmp_path):
+    from integration_services import write_tiny_bundle, write_tiny_clip
+
+    bundle = write_tiny_bundle(tmp_path / "bundle")
+    odd = write_tiny_clip(tmp_path / "odd.avi", frames=5, size=(80, 60)).read_bytes()
+    created = upload_zip(admin, zip_folder(bundle, rewrite={"motion/middle.avi": odd}))
+    job, _ = admin.wait_job(created["job_id"])
+    assert job["status"] == "failed" and set(job["timings_s"]) == {"probe", "total"}
+    assert job["error"] == (
+        f"probe: ride {created['ride']['id']}: the motion clips disagree: the left camera's is 64x48 px at "
+        "30.000 fps, the middle camera's 80x60 px at 30.000 fps"
+    )
+    assert len(admin.ok("GET", f"/rides/{created['ride']['id']}")["recordings"]) == 12  # kept

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy.orm import Session, sessionmaker
 
-from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError
+from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.models import RideStatus
 from saddlescope.db.repositories import (
@@ -206,6 +206,7 @@ def run_probe(ctx: StageContext) -> None:
         clips = [(r.id, r.path, r.clip_kind, r.camera_role) for r in recordings]
     if not clips:
         raise BundleError(f"{owner} has no recordings to probe")
+    probed: dict[str, list] = {}
     for i, (recording_id, key, clip_kind, camera_role) in enumerate(clips):
         ctx.report(i / len(clips), f"{clip_kind}/{camera_role}")
         path = ctx.storage.path(key)
@@ -216,11 +217,27 @@ def run_probe(ctx: StageContext) -> None:
             size_bytes, sha256 = tree_digest(path)
         else:
             size_bytes, sha256 = path.stat().st_size, ctx.storage.sha256(key)
-        info = probe_video(path)
+        try:
+            info = probe_video(path)
+        except VideoError as exc:
+            name = key.rsplit("/", 1)[-1]  # not where storage lives
+            reason = str(exc).replace(str(path), name).removeprefix(f"{name}: ")
+            raise VideoError(f"{owner}: the {clip_kind} clip of the {camera_role} camera ({name}) is not a "
+                             f"usable video: {reason}") from None
+        probed.setdefault(clip_kind, []).append((camera_role, info))
         with ctx.session() as session:
             RecordingRepository(session).set_probe(recording_id, sha256=sha256, size_bytes=size_bytes,
                                                    fps=info.fps, frame_count=info.frame_count,
                                                    width=info.width, height=info.height, codec=info.codec)
+    # The cameras of one clip set recorded one scene together: same frame rate and frame size.
+    for clip_kind, infos in probed.items():
+        (first_role, first), *others = infos
+        for role, info in others:
+            if abs(info.fps - first.fps) > 0.005 * first.fps or (info.width, info.height) != (
+                    first.width, first.height):
+                raise VideoError(f"{owner}: the {clip_kind} clips disagree: the {first_role} camera's is "
+                                 f"{first.width}x{first.height} px at {first.fps:.3f} fps, the {role} "
+                                 f"camera's {info.width}x{info.height} px at {info.fps:.3f} fps")
     ctx.report(1.0, None)
 
 
