@@ -66,7 +66,7 @@ class PipelineParams:
     still_board_only: bool = True  # calibrate from frames where the board was held still
     max_square_error_pct: float = 1.0
     singularity_threshold: float = 0.2
-    angular_method: str = "lsq"
+    angular_method: str = "lsq_observable"  # "lsq" (all axes) or "versions" (the thesis)
     x_model: str = "fourier"  # the thesis's "linear" drops the surge within the stride
     extra_orders: int = 3  # orders tried above the extrema rule's E/2 + 1 (chosen by AICc)
     max_order: int | None = None

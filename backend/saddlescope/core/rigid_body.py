@@ -124,7 +124,7 @@ def _check_triplet(x, name: str) -> np.ndarray:
     return x
 
 
-def _skew_lsq(d: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0) -> np.ndarray:
     """Least-squares u of u × d_p = rhs_p over pairs p, per frame.
 
     d, rhs : (F, P, 3) -> u : (F, 3). u × d = -[d]× u, so the normal matrix is
@@ -136,8 +136,31 @@ def _skew_lsq(d: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     out = np.full(b.shape, np.nan)
     ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
     if ok.any():
-        out[ok] = np.linalg.solve(normal[ok], b[ok][..., None])[..., 0]
+        if min_eig_ratio <= 0:
+            out[ok] = np.linalg.solve(normal[ok], b[ok][..., None])[..., 0]
+        else:
+            # truncated pseudo-inverse: rotation about a direction the marker pairs barely span
+            # (the axis of a near line of markers) is not observable and is left out (set to 0)
+            e, V = np.linalg.eigh(normal[ok])
+            inv = np.where(e >= min_eig_ratio * e[:, -1:], 1.0 / np.maximum(e, 1e-300), 0.0)
+            out[ok] = np.einsum("fij,fj,fkj,fk->fi", V, inv, V, b[ok])
     return out
+
+
+def unobservable_axis(r, *, min_eig_ratio: float) -> tuple[np.ndarray, float]:
+    """The least observable rotation axis of the marker triangle and its eigenvalue ratio.
+
+    r : (F, 3, 3) -> (unit axis (3,), median ratio of the smallest to the largest eigenvalue of the
+    pairs' normal matrix). A ratio below ``min_eig_ratio`` means the angular velocity component about
+    that axis is not observable from the markers (they lie near a line along it)."""
+    r = _check_triplet(r, "r")
+    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
+    ok = np.all(np.isfinite(d), axis=(1, 2))
+    dd = np.einsum("fpi,fpi->fp", d[ok], d[ok])
+    normal = np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d[ok], d[ok])
+    e, V = np.linalg.eigh(normal)
+    axis = np.median(V[:, :, 0] * np.sign(V[:, :1, 0] + 1e-12), axis=0)
+    return axis / np.linalg.norm(axis), float(np.median(e[:, 0] / e[:, -1]))
 
 
 def _closed_form(k1: np.ndarray, k2: np.ndarray, k3: np.ndarray, k4: np.ndarray
@@ -209,7 +232,7 @@ def alpha_versions(r, a, omega) -> tuple[np.ndarray, np.ndarray]:
     return out, cond
 
 
-def omega_least_squares(r, v) -> np.ndarray:
+def omega_least_squares(r, v, *, min_eig_ratio: float = 0.0) -> np.ndarray:
     """Angular velocity from all marker pairs: v_j − v_i = ω × (r_j − r_i), least squares per frame.
 
     r, v : ndarray of shape (F, 3, 3) -> omega : ndarray of shape (F, 3).
@@ -218,10 +241,10 @@ def omega_least_squares(r, v) -> np.ndarray:
     v = _check_triplet(v, "v")
     d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
     dv = np.stack([v[:, j] - v[:, i] for i, j in _PAIRS], axis=1)
-    return _skew_lsq(d, dv)
+    return _skew_lsq(d, dv, min_eig_ratio)
 
 
-def alpha_least_squares(r, a, omega) -> np.ndarray:
+def alpha_least_squares(r, a, omega, *, min_eig_ratio: float = 0.0) -> np.ndarray:
     """Angular acceleration from all pairs: a_j − a_i − ω × (ω × d) = α × d, d = r_j − r_i.
 
     r, a : ndarray of shape (F, 3, 3); omega : (F, 3) -> alpha : ndarray of shape (F, 3).
@@ -232,7 +255,7 @@ def alpha_least_squares(r, a, omega) -> np.ndarray:
     d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
     da = np.stack([a[:, j] - a[:, i] for i, j in _PAIRS], axis=1)
     w3 = np.broadcast_to(w[:, None, :], d.shape)
-    return _skew_lsq(d, da - np.cross(w3, np.cross(w3, d)))
+    return _skew_lsq(d, da - np.cross(w3, np.cross(w3, d)), min_eig_ratio)
 
 
 def plane_normal(r) -> np.ndarray:
@@ -270,7 +293,7 @@ def _spread(versions: np.ndarray, excluded: np.ndarray, reference: np.ndarray) -
 
 
 def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: str = "lsq",
-                       min_height_ratio: float = 0.03) -> AngularKinematics:
+                       min_height_ratio: float = 0.03, observable_ratio: float = 0.05) -> AngularKinematics:
     """Angular velocity and acceleration of the three-marker body, every estimate and its flags.
 
     Parameters
@@ -297,8 +320,8 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
     KinematicsError
         If the markers are (nearly) collinear.
     """
-    if method not in ("lsq", "versions"):
-        raise InputError(f"method must be 'lsq' or 'versions', got {method!r}")
+    if method not in ("lsq", "lsq_observable", "versions"):
+        raise InputError(f"method must be 'lsq', 'lsq_observable' or 'versions', got {method!r}")
     r = _check_triplet(r, "r")
     v = _check_triplet(v, "v")
     a = _check_triplet(a, "a")
@@ -310,19 +333,29 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
     check_marker_layout(r[np.flatnonzero(finite)[0]], min_height_ratio=min_height_ratio)
 
     w_lsq = omega_least_squares(r, v)
+    flags: list[str] = []
+    ratio_cut = 0.0
+    if method == "lsq_observable":
+        axis, ratio = unobservable_axis(r[finite], min_eig_ratio=observable_ratio)
+        if ratio < observable_ratio:
+            ratio_cut = observable_ratio
+            flags.append(f"the markers lie near a line (eigenvalue ratio {ratio:.3f} < {observable_ratio}): rotation "
+                         f"about it (axis {np.round(axis, 2).tolist()} in the motion frame) is not observable, "
+                         "so its component of ω and α is left out (taken as zero)")
     w_ver, w_cond = omega_versions(r, v)
     w_excl = ~(w_cond >= singularity_threshold)
     w_mean = _mean_kept(w_ver, w_excl)
-    flags: list[str] = []
     if method == "lsq":
         omega = w_lsq
+    elif method == "lsq_observable":
+        omega = omega_least_squares(r, v, min_eig_ratio=ratio_cut)
     else:
         omega = np.where(np.isfinite(w_mean), w_mean, w_lsq)
-    a_lsq = alpha_least_squares(r, a, omega)
+    a_lsq = alpha_least_squares(r, a, omega, min_eig_ratio=ratio_cut)
     a_ver, a_cond = alpha_versions(r, a, omega)
     a_excl = ~(a_cond >= singularity_threshold)
     a_mean = _mean_kept(a_ver, a_excl)
-    alpha = a_lsq if method == "lsq" else np.where(np.isfinite(a_mean), a_mean, a_lsq)
+    alpha = a_lsq if method in ("lsq", "lsq_observable") else np.where(np.isfinite(a_mean), a_mean, a_lsq)
 
     sing = singularity_index(r, w_lsq)
     valid = finite & np.isfinite(sing)
