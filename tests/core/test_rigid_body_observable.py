@@ -1,0 +1,58 @@
+"""Angular velocity over the observable axes only: markers near a line leave rotation about it unseen."""
+
+import numpy as np
+
+from saddlescope.core.rigid_body import angular_kinematics, unobservable_axis
+
+
+def _row_motion(roll_amp: float, skin_mm: float, rng):
+    """Three markers in a near-horizontal row along x (heights differ by 4 cm), pitching and rolling."""
+    t = np.linspace(0, 1.2, 60)
+    f = 1.6
+    model = np.array([[0.0, 0.0, 0.0], [0.2, 0.04, 0.0], [0.4, 0.01, 0.0]])
+    pitch = 0.05 * np.sin(2 * np.pi * f * t)
+    roll = roll_amp * np.sin(2 * np.pi * f * t + 0.4)
+    dp = 0.05 * 2 * np.pi * f * np.cos(2 * np.pi * f * t)
+    dr = roll_amp * 2 * np.pi * f * np.cos(2 * np.pi * f * t + 0.4)
+    omega = np.stack([dr, np.zeros_like(t), dp], axis=1)  # small angles: roll about x, pitch about z
+    r = np.empty((len(t), 3, 3))
+    v = np.empty_like(r)
+    for k in range(len(t)):
+        cz, sz, cx, sx = np.cos(pitch[k]), np.sin(pitch[k]), np.cos(roll[k]), np.sin(roll[k])
+        R = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        r[k] = model @ R.T
+        v[k] = np.cross(omega[k], r[k])
+    v += rng.normal(0, skin_mm * 1e-3 * 2 * np.pi * f, v.shape)  # skin motion seen as velocity noise
+    return r, v, np.zeros_like(v), omega
+
+
+def test_row_of_markers_has_an_unobservable_axis_along_it():
+    r, _, _, _ = _row_motion(0.0, 0.0, np.random.default_rng(0))
+    axis, ratio = unobservable_axis(r, min_eig_ratio=0.05)
+    assert ratio < 0.05
+    assert abs(abs(axis[0]) - 1) < 0.05  # the row runs along x
+
+
+def test_leaving_out_the_unobservable_axis_beats_full_least_squares_under_skin_motion():
+    rng = np.random.default_rng(1)
+    r, v, a, omega = _row_motion(0.02, 3.0, rng)
+    full = angular_kinematics(r, v, a, method="lsq")
+    obs = angular_kinematics(r, v, a, method="lsq_observable")
+    err_full = np.sqrt(np.mean((full.omega_rad_s - omega) ** 2))
+    err_obs = np.sqrt(np.mean((obs.omega_rad_s - omega) ** 2))
+    assert err_obs < 0.5 * err_full
+    assert any("not observable" in f for f in obs.flags)
+    # pitch, about a well-observed axis, is estimated as well as by full least squares
+    pitch_obs = np.sqrt(np.mean((obs.omega_rad_s[:, 2] - omega[:, 2]) ** 2))
+    pitch_full = np.sqrt(np.mean((full.omega_rad_s[:, 2] - omega[:, 2]) ** 2))
+    assert pitch_obs <= 1.1 * pitch_full
+
+
+def test_well_spread_markers_keep_every_axis():
+    rng = np.random.default_rng(2)
+    r, v, a, omega = _row_motion(0.02, 0.0, rng)
+    r = r.copy()
+    r[:, 1, 1] += 0.25  # a triangle, not a row: nothing to leave out
+    res = angular_kinematics(r, np.cross(omega[:, None, :], r), a, method="lsq_observable")
+    assert not any("not observable" in f for f in res.flags)
+    assert np.allclose(res.omega_rad_s, omega, atol=1e-9)
