@@ -109,6 +109,48 @@ def analysis_vs_footage(tmp: Path, *, quick: bool) -> dict:
             "stage_timings_s": result.get("timings_s", {})}
 
 
+def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, ...],
+             duration_s: float | None = None) -> list[dict]:
+    """Pipeline results against truth.json: saddle position, vertical acceleration, speed, period and
+    indicator errors per synthetic ride (issues 5 and 6)."""
+    from saddlescope.core.synthetic import saddle_truth_at
+    from saddlescope.io.synth_writer import write_ride_bundle
+    from saddlescope.services.analysis import analyze_bundle
+
+    rows = []
+    for gait in gaits:
+        for seed in seeds:
+            ride = tmp / f"{rig}_{gait}_{seed}"
+            write_ride_bundle(ride, gait=gait, seed=seed, rig=rig, duration_s=duration_s, extras=False)
+            truth = __import__("json").loads((ride / "truth.json").read_text())
+            row: dict = {"rig": rig, "gait": gait, "seed": seed}
+            try:
+                result = analyze_bundle(ride)
+            except Exception as exc:  # noqa: BLE001 - a benchmark reports every failure and goes on
+                row["error"] = f"{type(exc).__name__}: {exc}"
+                rows.append(row)
+                continue
+            t = np.array(result["saddle"]["t_s"])
+            exact = saddle_truth_at(truth, t)
+            pos = np.array(result["saddle"]["position_m"], dtype=float)
+            acc = np.array(result["saddle"]["acceleration_m_s2"], dtype=float)
+            pos_true = exact["position_m"] - exact["position_m"][0]
+            pos_err = np.sqrt(np.mean(np.sum((pos - pos[0] - pos_true) ** 2, axis=1)))
+            acc_y = exact["acceleration_m_s2"][:, 1]
+            row.update({
+                "saddle_position_rms_error_m": float(pos_err),
+                "acc_y_rms_error_pct_of_rms": float(100 * np.sqrt(np.mean((acc[:, 1] - acc_y) ** 2))
+                                                  / np.sqrt(np.mean(acc_y ** 2))),
+                "speed_error_pct": 100 * (result["indicators"]["vel_x_avg_kmh"] / truth["truth"]["speed_kmh"] - 1),
+                "period_error_pct": 100 * (result["period_s"] / truth["period_s"] - 1),
+            })
+            for key in ("acc_y_wb_rms", "vdv_y_wb", "vel_x_avg_kmh", "amplitude_y_m"):
+                if key in truth.get("indicators", {}):
+                    row[f"{key}_error_pct"] = 100 * (result["indicators"][key] / truth["indicators"][key] - 1)
+            rows.append(row)
+    return rows
+
+
 def run_benchmarks(*, quick: bool = False) -> dict:
     """Every benchmark; keys of CONTRACTS section 3 first."""
     repeats = 2 if quick else 3
@@ -127,6 +169,9 @@ def run_benchmarks(*, quick: bool = False) -> dict:
         ana = analysis_vs_footage(tmp, quick=quick)
         out["analysis_vs_footage"] = ana["ratio"]
         out["detail_analysis"] = ana
+        if not quick:
+            out["accuracy_thesis"] = accuracy(tmp, rig="thesis", gaits=("walk", "sitting_trot", "rising_trot",
+                                                                        "canter"), seeds=(1,))
         try:
             from saddlescope.services.similarity import bench_chaincode_10k, bench_dtw_10k
         except ImportError:

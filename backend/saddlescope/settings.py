@@ -58,6 +58,8 @@ class Settings(BaseSettings):
     # None: migrate to the newest schema at start-up in embedded mode only (a deployment runs the
     # one-shot `migrate` service instead).
     auto_migrate: bool | None = None
+    # POST /api/clubs open to anyone (None: open in embedded mode and for a deployment's first club)
+    open_registration: bool | None = None
     code_version: str | None = None
 
     @model_validator(mode="after")

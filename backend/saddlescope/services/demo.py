@@ -25,6 +25,9 @@ from saddlescope.storage import Storage
 
 DEMO_BUNDLE = Path("var/demo/ride")
 DEMO_CLUB = "Demo club"
+# The embedded demo's sign-in, printed when the dashboard starts (never created with a broker set).
+DEMO_EMAIL = "demo@saddlescope.example"
+DEMO_PASSWORD = "saddlescope-demo"
 
 
 class DemoError(SaddleScopeError):
@@ -46,6 +49,19 @@ def ensure_demo_bundle(path: Path = DEMO_BUNDLE) -> Path:
     written = write_ride_bundle(path, gait="canter", seed=1, rig="thesis", size=None, fps=None,
                                 duration_s=None)
     return Path(written) if written is not None else path
+
+
+def ensure_demo_user(sessions) -> bool:
+    """An admin of the demo club to sign in to the dashboard with; True if it exists now."""
+    from saddlescope.db.repositories import UserRepository
+    from saddlescope.services.accounts import add_user
+
+    with session_scope(sessions) as session:
+        club = ClubRepository(session).get_or_create(DEMO_CLUB)
+        if UserRepository(session).by_email(DEMO_EMAIL) is None:
+            add_user(session, club_id=club.id, email=DEMO_EMAIL, password=DEMO_PASSWORD,
+                     display_name="Demo", role="admin")
+    return True
 
 
 def _demo_ride_id(sessions, storage: Storage, bundle: Path) -> int:
@@ -103,6 +119,8 @@ def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
         return 0
     from saddlescope.services.server import serve as serve_forever
 
+    if settings.embedded and ensure_demo_user(sessions):
+        print(f"demo: sign in as {DEMO_EMAIL} with password {DEMO_PASSWORD}", file=stderr, flush=True)
     print(f"demo: dashboard at http://{host}:{port}/", file=stderr, flush=True)
     serve_forever(host, port, settings=settings)
     return 0
