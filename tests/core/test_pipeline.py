@@ -21,7 +21,7 @@ def short_ride(tmp_path_factory):
     from saddlescope.io.synth_writer import write_ride_bundle
 
     out = tmp_path_factory.mktemp("ride") / "canter"
-    write_ride_bundle(out, gait="canter", seed=4, rig="thesis", duration_s=3.0, extras=False)
+    write_ride_bundle(out, gait="canter", seed=4, rig="thesis", duration_s=3.0, extras=True)
     return out
 
 
@@ -123,3 +123,21 @@ def test_no_static_shot_is_refused(tmp_path):
 
     with pytest.raises(Exception, match="static"):
         P.analyze_ride(NoStatic(), {"board": {}})
+
+
+@pytest.mark.slow
+def test_validation_experiments_of_the_thesis(short_ride, analysed):
+    """Free fall (thesis 8.3: 3.6 % error on g) and board distances (Table 8.5: 2.2-4.6 %)."""
+    from saddlescope.services.validation import run_validation
+
+    result, truth = analysed
+    points = {k: tuple(v) for k, v in truth["truth"]["board_distance"]["points"].items()}
+    found = run_validation(short_ride, P.rig_from_result(result["calibration"]), board_points=points)
+    g = found["freefall"]
+    print(f"free fall: g = {g['g_m_s2']:.3f} m/s2 ({g['error_pct']:+.2f} %) from {g['frames']} frames")
+    assert g["frames"] >= 15
+    assert abs(g["g_m_s2"] / truth["truth"]["freefall"]["g_m_s2"] - 1) < 0.01
+    errors = [d["error_pct"] for d in found["board_distance"].values()]
+    print("board distances, mean error per pair %:", [round(e, 2) for e in errors])
+    assert len(errors) == 6
+    assert max(abs(e) for e in errors) < 2.0

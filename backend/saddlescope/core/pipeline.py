@@ -169,6 +169,21 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     return rig, report
 
 
+def rig_from_result(calibration: Mapping) -> Rig:
+    """The rig of a result's ``calibration`` section (the inverse of :func:`rig_to_result`)."""
+    from saddlescope.core.types import Camera
+
+    cams = {}
+    for name, c in calibration["cameras"].items():
+        ext = calibration.get("extrinsics", {}).get(name)
+        cams[name] = Camera(name, np.asarray(c["K"], dtype=np.float64), np.asarray(c["dist"], dtype=np.float64),
+                            (int(c["image_size"][0]), int(c["image_size"][1])),
+                            R=np.asarray(ext["R"], dtype=np.float64) if ext else np.eye(3),
+                            t_mm=np.asarray(ext["t_mm"], dtype=np.float64) if ext else np.zeros(3),
+                            rms_px=c.get("rms_px"))
+    return Rig(cams, checks=dict(calibration.get("checks", {})), flags=tuple(calibration.get("flags", ())))
+
+
 def _still_views(views: list, step: int, max_motion_px: float = 0.5) -> list:
     """Views of a board held still: its corners moved less than ``max_motion_px`` since the view
     ``step`` frames before. A moving board is blurred, and the cameras' frames (whole frames apart

@@ -1,0 +1,44 @@
+"""Use case: the thesis's validation experiments on a ride bundle's extra clips (free fall, board
+distances), with the rig of that ride."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from saddlescope.core import calibration as calib
+from saddlescope.core.markers import track_markers
+from saddlescope.core.pipeline import _still_views, board_from_meta, synchronise
+from saddlescope.core.triangulation import triangulate_tracks
+from saddlescope.core.types import Rig
+from saddlescope.core.validation import board_point_distances, gravity_from_freefall
+from saddlescope.io.bundle import open_bundle
+from saddlescope.io.clip_source import BundleClips
+
+
+def run_validation(bundle_path: Path | str, rig: Rig, *, board_points: dict | None = None) -> dict:
+    """Free-fall gravity and board point distances from the bundle's ``extra_clips`` (those present)."""
+    out: dict = {}
+    with open_bundle(Path(bundle_path)) as bundle:
+        clips = BundleClips(bundle.extra_clip_paths)
+        kinds = [k for k in ("freefall", "board_distance") if clips.has(k)]
+        offsets, first = synchronise(clips, {"sync": {"method": "flash"}}, kinds)
+        if "freefall" in kinds:
+            cams = clips.cameras("freefall")
+            tracks = {c: track_markers(clips.gray_frames("freefall", c, start=first["freefall"][c]), n_markers=1,
+                                       camera=c, clip="freefall", moving=True) for c in cams}
+            ball = triangulate_tracks(rig, tracks, offsets["freefall"], clips.fps("freefall", cams[0]),
+                                      match_labels=False, names=("ball",))
+            out["freefall"] = gravity_from_freefall(ball.t_s, ball.xyz_mm[:, 0])
+        if "board_distance" in kinds:
+            board = board_from_meta(bundle.meta)
+            cols, rows = board.inner_corners
+            points = board_points or {"A": (0, 0), "B": (cols - 1, 0), "C": (0, rows - 1), "D": (cols - 1, rows - 1)}
+            views = {}
+            for c in clips.cameras("board_distance"):
+                found, _ = calib.detect_board_views(clips.gray_frames("board_distance", c,
+                                                                      start=first["board_distance"][c]), board)
+                off = offsets["board_distance"].get(c, 0.0)
+                views[c] = [replace(v, frame=int(round(v.frame - off))) for v in _still_views(found, 1)]
+            out["board_distance"] = board_point_distances(rig, views, board, points)
+    return out
