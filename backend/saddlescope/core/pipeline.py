@@ -33,6 +33,12 @@ from saddlescope.core.types import Board, ImageTracks, MarkerTracks, Rig
 
 RESULT_FORMAT = "saddlescope.result/1"
 
+# Stride frequencies searched per declared gait (literature: walk 0.85-0.95 Hz, trot 1.3-1.5 Hz,
+# canter 1.6-1.7 Hz), with wide margins. They keep the stride apart from the 2x vertical line of walk
+# and trot, whose lateral 1x content is the first to drown in depth noise on a narrow rig.
+STRIDE_RANGE_HZ: dict[str, tuple[float, float]] = {
+    "walk": (0.6, 1.25), "sitting_trot": (1.0, 1.9), "rising_trot": (1.0, 1.9), "canter": (1.25, 2.3)}
+
 # Share of the total progress each stage reports (rough wall-time shares on the thesis rig).
 STAGE_WEIGHTS: dict[str, float] = {"sync": 0.15, "calibration": 0.35, "detection": 0.3,
                                    "triangulation": 0.05, "kinematics": 0.1, "indicators": 0.05}
@@ -354,7 +360,8 @@ def _longest_run(mask: np.ndarray) -> tuple[int, int]:
 
 def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
                       plumb_tracks: MarkerTracks | None, params: PipelineParams, *,
-                      horse_idx: list[int] | None = None, saddle_idx: int | None = None) -> dict:
+                      horse_idx: list[int] | None = None, saddle_idx: int | None = None,
+                      gait: str | None = None) -> dict:
     """Saddle point kinematics from 3-D tracks (thesis 5.2-6.4). Returns plain arrays and fits."""
     t = np.asarray(motion_tracks.t_s, dtype=np.float64)
     xyz = np.asarray(motion_tracks.xyz_mm, dtype=np.float64)
@@ -385,7 +392,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     # when the cameras stand close together (thesis rig).
     planar = xyz[run0:run1].copy()
     planar[..., 2] = 0.0
-    period_s, period_info = estimate_period(t[run0:run1], planar)
+    period_s, period_info = estimate_period(t[run0:run1], planar, f_range_hz=STRIDE_RANGE_HZ.get(gait, (0.5, 3.0)))
     i0, i1 = analysis_window(t[run0:run1], valid[run0:run1], period_s, n_periods=params.n_periods)
     i0, i1 = i0 + run0, i1 + run0
     win = slice(i0, i1)
@@ -585,7 +592,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
 
     t0 = time.perf_counter()
     kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params,
-                            horse_idx=horse_idx, saddle_idx=saddle_idx)
+                            horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"))
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
     progress.finish("kinematics", t0)
