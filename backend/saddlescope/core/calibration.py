@@ -119,7 +119,6 @@ class BoardFinder:
         self.max_width = int(max_width)
         self.thorough = bool(thorough)
         self._upsample = 1.0
-        self._scale_hits = 0
         self._last_box: tuple[int, int, int, int] | None = None
         if board.kind == "charuco":
             self._cv_board = _cv_charuco(board)
@@ -169,13 +168,10 @@ class BoardFinder:
             # succeed on a 2x upsampled frame; remember which size worked, as frames of a clip are alike.
             scales = [self._upsample, 1.0 if self._upsample != 1.0 else 2.0] if gray.shape[1] <= self.max_width \
                 else [1.0]
-            if self._scale_hits >= 3:
-                scales = scales[:1]  # once a size has worked a few times, a failure means no board here
             for up in scales:
                 big = gray if up == 1.0 else cv2.resize(gray, None, fx=up, fy=up, interpolation=cv2.INTER_CUBIC)
                 found = _find_checkerboard(big, self.board, thorough=self.thorough and up == 1.0)
                 if found is not None:
-                    self._scale_hits = self._scale_hits + 1 if up == self._upsample else 1
                     self._upsample = up
                     corners, ids = found
                     if up != 1.0:
