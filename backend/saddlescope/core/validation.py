@@ -22,7 +22,7 @@ G_STANDARD_M_S2 = 9.80665
 
 
 def gravity_from_freefall(t_s: np.ndarray, xyz_mm: np.ndarray, *, min_frames: int = 8,
-                          max_residual_mm: float = 30.0) -> dict:
+                          max_residual_mm: float = 8.0, select_axes: tuple[int, ...] = (0, 1)) -> dict:
     """Gravitational acceleration from a ball's free-fall track.
 
     Parameters
@@ -31,8 +31,10 @@ def gravity_from_freefall(t_s: np.ndarray, xyz_mm: np.ndarray, *, min_frames: in
     xyz_mm : ndarray of shape (F, 3), NaN where the ball was not seen
 
     The flight is the longest run of frames where a parabola (x(t) = p + v t + a t^2 / 2 in every
-    coordinate) fits within ``max_residual_mm``: the throw and the catch are left out by growing the
-    run from its best-fitting core.
+    coordinate) fits within ``max_residual_mm`` on the ``select_axes`` (the image-plane axes of the
+    reference camera, precise where depth is not): the throw and the catch are left out. The
+    acceleration is then fitted on all three axes over that flight (depth noise adds only to
+    its second order).
 
     Returns
     -------
@@ -46,11 +48,14 @@ def gravity_from_freefall(t_s: np.ndarray, xyz_mm: np.ndarray, *, min_frames: in
     if idx.size < min_frames:
         raise KinematicsError(f"the ball is seen in only {idx.size} frames; at least {min_frames} are needed")
 
-    def fit(sel: np.ndarray) -> tuple[np.ndarray, float]:
+    axes = list(select_axes)
+
+    def fit(sel: np.ndarray, cols=None) -> tuple[np.ndarray, float]:
         tt = t[sel] - t[sel].mean()
         design = np.stack([np.ones_like(tt), tt, 0.5 * tt ** 2], axis=1)
-        coef, *_ = np.linalg.lstsq(design, x[sel], rcond=None)
-        resid = x[sel] - design @ coef
+        y = x[sel] if cols is None else x[sel][:, cols]
+        coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+        resid = y - design @ coef
         return coef, float(np.sqrt(np.mean(np.sum(resid ** 2, axis=1))))
 
     best = None
@@ -59,7 +64,7 @@ def gravity_from_freefall(t_s: np.ndarray, xyz_mm: np.ndarray, *, min_frames: in
         sel = idx[start: start + min_frames]
         if sel[-1] - sel[0] != min_frames - 1:
             continue
-        _, rms = fit(sel)
+        _, rms = fit(sel, axes)
         if rms > max_residual_mm:
             continue
         lo, hi = start, start + min_frames
@@ -69,7 +74,7 @@ def gravity_from_freefall(t_s: np.ndarray, xyz_mm: np.ndarray, *, min_frames: in
                 a, b = cand
                 if a < 0 or b > idx.size or idx[b - 1] - idx[a] != b - 1 - a:
                     continue
-                if fit(idx[a:b])[1] <= max_residual_mm:
+                if fit(idx[a:b], axes)[1] <= max_residual_mm:
                     lo, hi, grown = a, b, True
                     break
             if not grown:
