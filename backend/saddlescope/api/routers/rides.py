@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
+from saddlescope.api.routers.clips import UPLOAD_ERRORS, receive_clip
 from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, changes, download, page_of
 from saddlescope.api.schemas import (
     BundleUploaded,
@@ -28,25 +29,17 @@ from saddlescope.api.schemas import (
 from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
 from saddlescope.core.indicators import COMFORT_INDICATORS
 from saddlescope.db.models import Ride, RideStatus
-from saddlescope.db.repositories import RecordingRepository, RideRepository
+from saddlescope.db.repositories import RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
 from saddlescope.services.uploads import (
     ClipOwner,
     accept_bundle,
-    accept_clip,
-    check_clip_slot,
     staging_key,
-    start_processing,
 )
 
 router = APIRouter(prefix="/rides", tags=["rides"])
-UPLOAD_ERRORS = {
-    **ERRORS,
-    413: {"model": ErrorOut, "description": "larger than the upload limit"},
-    503: {"model": ErrorOut, "description": "the job queue is unreachable"},
-}
 RideStatusName = Literal[tuple(s.value for s in RideStatus)]  # type: ignore[valid-type]
 ExportFormat = Literal[tuple(EXPORT_FORMATS)]  # type: ignore[valid-type]
 
@@ -242,31 +235,8 @@ async def upload_ride_clip(
     the other cameras' clips of the set in frame rate or size. The clip that completes the ride starts
     its analysis."""
     await run_in_threadpool(club.rides.get, ride_id)
-    owner = ClipOwner("ride", ride_id, club.club_id)
-    check_clip_slot(owner, clip_kind, camera)
-    club.session.rollback()
-    staged = await stream_upload(
-        request,
-        storage,
-        staging_key(club.club_id, request.headers.get("x-filename")),
-        max_bytes=settings.max_upload_bytes,
-    )
-    recording_id = await run_in_threadpool(
-        accept_clip,
-        sessions,
-        storage,
-        owner,
-        clip_kind,
-        camera,
-        staged.key,
-        size_bytes=staged.size_bytes,
-        sha256=staged.sha256,
-        filename=staged.filename,
-    )
-    job_id = await run_in_threadpool(start_processing, sessions, queue, owner)
-    with session_scope(sessions) as session:
-        recording = RecordingRepository(session, club_id=owner.club_id).get(recording_id)
-        return ClipUploaded(recording=RecordingOut.model_validate(recording), job_id=job_id)
+    return await receive_clip(request, ClipOwner("ride", ride_id, club.club_id), clip_kind, camera, club=club,
+                              settings=settings, storage=storage, sessions=sessions, queue=queue)
 
 
 @router.post(

@@ -8,6 +8,7 @@ from fastapi import APIRouter, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import AdminClubDep, ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
+from saddlescope.api.routers.clips import UPLOAD_ERRORS, receive_clip
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import (
     CameraRole,
@@ -21,21 +22,16 @@ from saddlescope.api.schemas import (
     RigOut,
     RigUpdate,
 )
-from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
+from saddlescope.api.streaming import UPLOAD_OPENAPI
 from saddlescope.db.models import Rig
-from saddlescope.db.repositories import RecordingRepository, like_pattern
+from saddlescope.db.repositories import like_pattern
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.uploads import (
     ClipOwner,
-    accept_clip,
-    check_clip_slot,
-    staging_key,
-    start_processing,
 )
 
 router = APIRouter(prefix="/rigs", tags=["rigs"])
-UPLOAD_ERRORS = {**ERRORS, 413: {"model": ErrorOut, "description": "larger than the upload limit"}}
 
 
 def rig_out(rig: Rig, *, detail: bool = False) -> RigOut:
@@ -129,31 +125,8 @@ async def upload_rig_clip(
     from the other cameras' clips of the set, is refused (422) and any earlier clip stays. The third
     calibration clip starts the rig's calibration job."""
     await run_in_threadpool(club.rigs.get, rig_id)
-    owner = ClipOwner("rig", rig_id, club.club_id)
-    check_clip_slot(owner, clip_kind, camera)
-    club.session.rollback()  # end the read transaction: the upload may take minutes
-    staged = await stream_upload(
-        request,
-        storage,
-        staging_key(club.club_id, request.headers.get("x-filename")),
-        max_bytes=settings.max_upload_bytes,
-    )
-    recording_id = await run_in_threadpool(
-        accept_clip,
-        sessions,
-        storage,
-        owner,
-        clip_kind,
-        camera,
-        staged.key,
-        size_bytes=staged.size_bytes,
-        sha256=staged.sha256,
-        filename=staged.filename,
-    )
-    job_id = await run_in_threadpool(start_processing, sessions, queue, owner)
-    with session_scope(sessions) as session:
-        recording = RecordingRepository(session, club_id=owner.club_id).get(recording_id)
-        return ClipUploaded(recording=RecordingOut.model_validate(recording), job_id=job_id)
+    return await receive_clip(request, ClipOwner("rig", rig_id, club.club_id), clip_kind, camera, club=club,
+                              settings=settings, storage=storage, sessions=sessions, queue=queue)
 
 
 @router.post(
