@@ -21,6 +21,7 @@ from saddlescope.core import calibration as calib
 from saddlescope.core import frames as motion
 from saddlescope.core.errors import DetectionError, InputError, KinematicsError, SyncError, TriangulationError
 from saddlescope.core.fitting import fit_marker_kinematics
+from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.marker_search import SequentialFrames, find_markers_multiview
 from saddlescope.core.markers import track_markers
 from saddlescope.core.period import analysis_window, estimate_period
@@ -89,8 +90,8 @@ class _Progress:
         if self.callback is not None:
             self.callback(min(1.0, self.done + STAGE_WEIGHTS[name] * fraction_of_stage), name)
 
-    def finish(self, name: str, started: float) -> None:
-        self.timings_s[name] = round(time.perf_counter() - started, 4)
+    def finish(self, name: str, started: float, *, seconds: float | None = None) -> None:
+        self.timings_s[name] = round(time.perf_counter() - started if seconds is None else seconds, 4)
         self.done += STAGE_WEIGHTS[name]
         self.stage(name, 0.0)
 
@@ -547,7 +548,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     n_plumb = int(markers.get("plumb", 2))
     kinds = [k for k in ("calibration", "plumb", "static", "motion") if clips.has(k)]
     if rig is not None:
-        kinds.remove("calibration") if "calibration" in kinds else None
+        kinds = [k for k in kinds if k != "calibration"]
 
     t0 = time.perf_counter()
     progress.stage("sync", 0.0)
@@ -563,13 +564,23 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
 
     t0 = time.perf_counter()
     tracks3d: dict[str, MarkerTracks] = {}
+    # Detection and triangulation interleave (the static shot's 3-D layout guides the motion search):
+    # time the triangulations apart so each stage's timing is its own.
+    triangulation_s = 0.0
+
+    def triangulate(kind, tracks2d, n, **kw) -> MarkerTracks:
+        nonlocal triangulation_s
+        started = time.perf_counter()
+        out = triangulate_clip(rig, tracks2d, offsets[kind], fps[kind], _names(n), params, **kw)
+        triangulation_s += time.perf_counter() - started
+        return out
+
     fps = {kind: clips.fps(kind, clips.cameras(kind)[0]) for kind in ("static", "motion", "plumb")
            if clips.has(kind)}
     if clips.has("plumb"):
         try:
             plumb2d = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params)
-            tracks3d["plumb"] = triangulate_clip(rig, plumb2d, offsets["plumb"], fps["plumb"], _names(n_plumb),
-                                                 params)
+            tracks3d["plumb"] = triangulate("plumb", plumb2d, n_plumb)
             plumb_problem = None
         except (DetectionError, TriangulationError, KinematicsError) as exc:
             plumb_problem = f"plumb clip not used: {exc}"
@@ -577,18 +588,15 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         plumb_problem = "no plumb clip"
     progress.stage("detection", 0.2)
     static2d = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params)
-    tracks3d["static"] = triangulate_clip(rig, static2d, offsets["static"], fps["static"],
-                                          _names(n_horse + n_saddle), params)
+    tracks3d["static"] = triangulate("static", static2d, n_horse + n_saddle)
     progress.stage("detection", 0.4)
     static_mm = _static_positions(tracks3d["static"], "static")
     down = _down_direction(tracks3d.get("plumb"))
     motion2d, horse_idx, saddle_idx = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
                                                     first_frame["motion"], params, down=down)
-    tracks3d["motion"] = triangulate_clip(rig, motion2d, offsets["motion"], fps["motion"], _names(n_horse),
-                                          params)
-    progress.finish("detection", t0)
-    t0 = time.perf_counter()
-    progress.finish("triangulation", t0)
+    tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
+    progress.finish("detection", t0, seconds=time.perf_counter() - t0 - triangulation_s)
+    progress.finish("triangulation", t0, seconds=triangulation_s)
 
     t0 = time.perf_counter()
     kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params,
@@ -598,7 +606,6 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()
-    from saddlescope.core.indicators import ride_indicators
 
     s = kin["saddle"]
     fit_order = max(f.order for f in kin["fits"].fits_y)
