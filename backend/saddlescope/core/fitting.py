@@ -462,7 +462,8 @@ class MarkerKinematics:
 
 def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = True,
                           criterion: str = "aicc", extra_orders: int = 1, x_model: str = "linear",
-                          trend_degree: int = 0, names: tuple[str, ...] | None = None) -> MarkerKinematics:
+                          trend_degree: int = 0, names: tuple[str, ...] | None = None,
+                          reject_sigma: float | None = 5.0, reject_min_m: float = 0.003) -> MarkerKinematics:
     """Fit x linearly and y, z with Fourier series for every marker; differentiate analytically.
 
     Parameters
@@ -491,6 +492,10 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
         Polynomial trend added to the y and z series (see :func:`fit_fourier`).
     names : tuple of str, optional
         Marker names for messages.
+    reject_sigma, reject_min_m : optional
+        A sample whose residual in any coordinate exceeds ``reject_sigma`` robust standard
+        deviations (1.4826 median absolute residuals) of that fit and ``reject_min_m`` is a wild
+        detection: the marker's sample is left out and its series refitted (None: keep all).
 
     Returns
     -------
@@ -510,18 +515,40 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
     if x_model == "fourier":
         axes = {0: 1, **axes}
     fits: dict[tuple[int, int], LinearFit | FourierFit] = {}
-    for m in range(n_mark):
+
+    def fit_marker(m: int) -> None:
         if x_model == "linear":
             fits[m, 0] = fit_linear(t_s, xyz[:, m, 0], name=f"{label[m]} x")
         for c, degree in axes.items():
             fits[m, c] = fit_fourier(t_s, xyz[:, m, c], period_s=period_s, criterion=criterion,
                                      extra_orders=extra_orders, trend_degree=degree,
                                      name=f"{label[m]} {'xyz'[c]}")
+
+    rejected: list[str] = []
+    for m in range(n_mark):
+        fit_marker(m)
+        if reject_sigma is None:
+            continue
+        # Outliers judged against the fit itself: unlike a local smoother it keeps the harmonics.
+        wild = np.zeros(xyz.shape[0], dtype=bool)
+        for c in range(3):
+            r = xyz[:, m, c] - fits[m, c].evaluate(t_s)
+            fin = np.isfinite(r)
+            if fin.sum() < 5:
+                continue
+            scale = 1.4826 * float(np.median(np.abs(r[fin] - np.median(r[fin]))))
+            wild |= fin & (np.abs(r) > max(reject_sigma * scale, reject_min_m))
+        if wild.any() and np.isfinite(xyz[~wild, m, 1]).sum() >= 0.8 * np.isfinite(xyz[:, m, 1]).sum():
+            xyz = xyz.copy() if not rejected else xyz
+            xyz[wild, m] = np.nan
+            rejected.append(f"{label[m]}: {int(wild.sum())} wild samples left out of its fits "
+                            f"(beyond {reject_sigma:g} robust standard deviations)")
+            fit_marker(m)
     omega_per_fit = np.full((n_mark, 3), np.nan)
     for (m, c), f in fits.items():
         if isinstance(f, FourierFit):
             omega_per_fit[m, c] = f.omega_rad_s
-    flags = [flag for f in fits.values() if isinstance(f, FourierFit) for flag in f.flags]
+    flags = rejected + [flag for f in fits.values() if isinstance(f, FourierFit) for flag in f.flags]
     pooled = float("nan")
     if common_omega:
         keys = [k for k, f in fits.items() if isinstance(f, FourierFit)]

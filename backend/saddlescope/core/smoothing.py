@@ -321,3 +321,65 @@ def bridge_gaps(t, y, *, max_gap_s: float, span: float = 0.10, iterations: int =
         cols[where, c] = values
         filled[where, c] = True
     return cols.reshape(y.shape), filled.reshape(y.shape), _merge_intervals(long_gaps)
+
+
+def regularize_depth(t, xyz_mm, origin_mm, axis, *, period_s: float, max_order: int = 4,
+                     trend_degree: int = 1) -> tuple[np.ndarray, list[int]]:
+    """Smooth each marker's depth, keeping its direction from the cameras (its image position).
+
+    With cameras close together the depth of a point is tens of times noisier than its position
+    across the viewing ray, and that noise leaks into every rig axis (x = depth * ray). Each
+    marker's depth d(t) = axis . (p(t) - origin) (linear in time for travel on a straight line) is
+    fitted with a trend of ``trend_degree`` plus a Fourier series of the stride (f0 = 1 / ``period_s``)
+    whose order 0..``max_order`` is chosen by the Bayesian information criterion, so the sway a
+    precise rig sees is kept and the noise of a narrow rig is not; the point is then moved along
+    its own ray to the fitted depth.
+
+    Parameters
+    ----------
+    t : (N,) s; xyz_mm : (N, M, 3) rig mm, finite; origin_mm : (3,) mean camera centre;
+    axis : (3,) the worst-fixed direction (roughly the viewing direction).
+
+    Returns
+    -------
+    xyz_mm : (N, M, 3) the regularised points; orders : the Fourier order chosen per marker.
+    """
+    t = _as_time(t)
+    xyz = np.asarray(xyz_mm, dtype=np.float64)
+    if xyz.ndim != 3 or xyz.shape[0] != t.shape[0] or xyz.shape[2] != 3:
+        raise InputError(f"xyz_mm must have shape (N, M, 3) with N = {t.shape[0]}, got {xyz.shape}")
+    if not np.all(np.isfinite(xyz)):
+        raise InputError("regularize_depth needs finite points (bridge the gaps first)")
+    if not (period_s > 0 and np.isfinite(period_s)):
+        raise InputError(f"period_s must be positive, got {period_s}")
+    n = t.shape[0]
+    tau = t - t.mean()
+    w = 2.0 * np.pi / period_s
+    base = [tau ** d for d in range(trend_degree + 1)]
+    designs = []
+    for order in range(max_order + 1):
+        cols = base + [f(k * w * tau) for k in range(1, order + 1) for f in (np.cos, np.sin)]
+        if len(cols) >= n - 2:
+            break
+        designs.append(np.column_stack(cols))
+    rel = xyz - np.asarray(origin_mm, dtype=np.float64).reshape(1, 1, 3)
+    axis = np.asarray(axis, dtype=np.float64).reshape(3)
+    axis = axis / np.linalg.norm(axis)
+    rng = rel @ axis
+    if np.any(np.abs(rng) < 1e-6):
+        raise InputError("a marker lies in the cameras' plane across the depth axis; its depth is undefined")
+    out = xyz.copy()
+    orders = []
+    for m in range(xyz.shape[1]):
+        best = None
+        for order, design in enumerate(designs):
+            coef, *_ = np.linalg.lstsq(design, rng[:, m], rcond=None)
+            fitted = design @ coef
+            rss = float(np.sum((rng[:, m] - fitted) ** 2))
+            bic = n * np.log(max(rss, 1e-300) / n) + design.shape[1] * np.log(n)
+            if best is None or bic < best[0]:
+                best = (bic, order, fitted)
+        _, order, fitted = best
+        orders.append(order)
+        out[:, m] = np.asarray(origin_mm, dtype=np.float64) + rel[:, m] * (fitted / rng[:, m])[:, None]
+    return out, orders

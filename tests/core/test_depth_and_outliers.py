@@ -1,0 +1,106 @@
+"""Narrow-rig depth regularisation, the rig's position uncertainty, and wild samples in the fits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from saddlescope.core.errors import InputError, TriangulationError
+from saddlescope.core.fitting import fit_marker_kinematics
+from saddlescope.core.smoothing import regularize_depth
+from saddlescope.core.synthetic_rig import make_rig
+from saddlescope.core.triangulation import position_uncertainty
+from saddlescope.core.types import Rig
+
+PERIOD_S = 0.6
+T = np.arange(0, 2 * PERIOD_S + 1e-9, 1 / 30)
+
+
+def _rig(name: str) -> Rig:
+    scene = make_rig(name, np.random.default_rng(3))
+    return Rig(scene.cameras)
+
+
+def _path(t: np.ndarray, *, sway_mm: float = 0.0) -> np.ndarray:
+    """Three markers crossing the view 7.5 m away, bobbing 50 mm and swaying in depth."""
+    w = 2 * np.pi / PERIOD_S
+    base = np.stack([-1500 + 3800 * t, 50 * np.cos(w * t), 7500 + 300 * t + sway_mm * np.sin(w * t)], axis=1)
+    return base[:, None, :] + np.array([[0, 0, 0], [220, 40, 10], [440, -10, 5]])[None]
+
+
+def test_thesis_rig_fixes_depth_far_worse_than_a_wide_rig():
+    point = np.array([0.0, 0.0, 7500.0])
+    narrow = position_uncertainty(_rig("thesis"), point)
+    wide = position_uncertainty(_rig("wide"), point)
+    assert narrow["anisotropy"] > 15, narrow
+    assert wide["anisotropy"] < 5, wide
+    # the worst direction is the viewing direction (rig z) for cameras side by side
+    assert abs(narrow["worst_axis"][2]) > 0.99
+    assert narrow["std_mm"][0] > narrow["std_mm"][1] >= narrow["std_mm"][2] > 0
+
+
+def test_uncertainty_needs_two_cameras():
+    rig = _rig("thesis")
+    with pytest.raises(TriangulationError):
+        position_uncertainty(rig, np.array([0.0, 0.0, -7500.0]))  # behind every camera
+
+
+def test_depth_noise_removed_along_the_rays():
+    rng = np.random.default_rng(0)
+    truth = _path(T)
+    origin = np.array([230.0, 0.0, 0.0])
+    # noise along each point's ray from the cameras: the image positions stay exact
+    rel = truth - origin
+    noisy = origin + rel * (1 + rng.normal(0, 20.0, rel.shape[:2]) / rel[..., 2])[..., None]
+    out, orders = regularize_depth(T, noisy, origin, np.array([0.0, 0.0, 1.0]), period_s=PERIOD_S, max_order=0)
+    assert orders == [0, 0, 0]
+    err_before = np.sqrt(np.mean((noisy - truth) ** 2, axis=(0, 1)))
+    err_after = np.sqrt(np.mean((out - truth) ** 2, axis=(0, 1)))
+    assert err_after[2] < 0.3 * err_before[2]
+    assert err_after[0] < 0.5 * err_before[0]  # the depth noise had leaked into x = depth * ray
+    # directions from the origin are unchanged
+    d_in = rel / np.linalg.norm(rel, axis=2, keepdims=True)
+    d_out = (out - origin) / np.linalg.norm(out - origin, axis=2, keepdims=True)
+    np.testing.assert_allclose(d_in, d_out, atol=1e-12)
+    # noise-free straight crossing comes back exactly
+    exact, _ = regularize_depth(T, truth, origin, np.array([0.0, 0.0, 1.0]), period_s=PERIOD_S, max_order=0)
+    np.testing.assert_allclose(exact, truth, atol=1e-9)
+
+
+def test_bic_keeps_the_sway_a_precise_rig_sees():
+    rng = np.random.default_rng(1)
+    truth = _path(T, sway_mm=15.0)
+    origin = np.zeros(3)
+    noisy = truth * (1 + rng.normal(0, 0.5, truth.shape[:2]) / truth[..., 2])[..., None]
+    out, orders = regularize_depth(T, noisy, origin, np.array([0.0, 0.0, 1.0]), period_s=PERIOD_S, max_order=4)
+    assert all(o >= 1 for o in orders)
+    assert np.sqrt(np.mean((out[..., 2] - truth[..., 2]) ** 2)) < 0.5
+
+
+def test_regularize_depth_rejects_bad_input():
+    with pytest.raises(InputError, match="finite"):
+        bad = _path(T)
+        bad[3, 1, 2] = np.nan
+        regularize_depth(T, bad, np.zeros(3), np.array([0.0, 0.0, 1.0]), period_s=PERIOD_S)
+    with pytest.raises(InputError, match="shape"):
+        regularize_depth(T, _path(T)[:, 0], np.zeros(3), np.array([0.0, 0.0, 1.0]), period_s=PERIOD_S)
+
+
+def test_a_wild_sample_is_left_out_of_the_fits():
+    w = 2 * np.pi / PERIOD_S
+    xyz = np.zeros((T.size, 1, 3))
+    xyz[:, 0, 0] = 3.8 * T + 0.02 * np.sin(w * T)
+    xyz[:, 0, 1] = 0.05 * np.cos(w * T) + 0.01 * np.sin(2 * w * T)
+    xyz[:, 0, 2] = 0.01 * np.cos(w * T)
+    clean = fit_marker_kinematics(T, xyz, period_s=PERIOD_S, x_model="fourier")
+    assert not any("wild" in f for f in clean.flags)
+    wild = xyz.copy()
+    wild[17, 0, 1] += 0.08  # a glint taken for the marker
+    kept = fit_marker_kinematics(T, wild, period_s=PERIOD_S, x_model="fourier", reject_sigma=None)
+    fixed = fit_marker_kinematics(T, wild, period_s=PERIOD_S, x_model="fourier")
+    assert any("1 wild samples" in f for f in fixed.flags)
+    exact_acc = -(w**2) * 0.05 * np.cos(w * T) - (2 * w) ** 2 * 0.01 * np.sin(2 * w * T)
+    err_kept = np.sqrt(np.mean((kept.acceleration_m_s2[:, 0, 1] - exact_acc) ** 2))
+    err_fixed = np.sqrt(np.mean((fixed.acceleration_m_s2[:, 0, 1] - exact_acc) ** 2))
+    assert err_fixed < 1e-6 < 0.1 * err_kept
+    assert np.isfinite(fixed.acceleration_m_s2).all()
