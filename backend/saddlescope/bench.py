@@ -146,7 +146,7 @@ def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, .
             })
             floor = exact_marker_floor(truth)
             if floor is not None:
-                row["acc_y_rms_error_pct_exact_markers"] = floor
+                row["exact_markers"] = floor
             for key in ("acc_y_wb_rms", "vdv_y_wb", "vel_x_avg_kmh", "amplitude_y_m"):
                 if key in truth.get("indicators", {}):
                     row[f"{key}_error_pct"] = 100 * (result["indicators"][key] / truth["indicators"][key] - 1)
@@ -154,11 +154,14 @@ def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, .
     return rows
 
 
-def exact_marker_floor(truth: dict) -> float | None:
-    """Vertical acceleration error (% of r.m.s.) of the kinematics stages fed with the exact marker
-    positions of truth.json: what the markers' skin motion alone costs, the floor under any
-    measurement (it needs no cameras)."""
-    from saddlescope.core.pipeline import PipelineParams, saddle_kinematics
+def exact_marker_floor(truth: dict) -> dict | None:
+    """The kinematics and indicator stages fed with the exact marker positions of truth.json: what
+    the markers' skin motion alone costs, the floor under any measurement (no cameras involved).
+
+    Returns the vertical acceleration error (% of its r.m.s.) and the errors (%) of ``acc_y_wb_rms``
+    and ``vdv_y_wb``, or None for a truth without exact markers."""
+    from saddlescope.core.indicators import ride_indicators
+    from saddlescope.core.pipeline import PipelineParams, saddle_kinematics, vertical_harmonics
     from saddlescope.core.synthetic import saddle_truth_at
     from saddlescope.core.types import MarkerTracks
 
@@ -174,14 +177,47 @@ def exact_marker_floor(truth: dict) -> float | None:
         return MarkerTracks(tuple(f"M{i + 1}" for i in range(xyz.shape[1])), np.asarray(frames) / fps, xyz)
 
     frames = np.arange(first, last + 1)
-    motion = tracks(marks["motion"][frames, :3], frames)
-    static = tracks(marks["static"], np.arange(len(marks["static"])))
-    plumb = tracks(marks["plumb"], np.arange(len(marks["plumb"])))
-    kin = saddle_kinematics(motion, static, plumb, PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3,
-                            gait=tt.get("model", {}).get("gait"))
+    params = PipelineParams()
+    kin = saddle_kinematics(tracks(marks["motion"][frames, :3], frames),
+                            tracks(marks["static"], np.arange(len(marks["static"]))),
+                            tracks(marks["plumb"], np.arange(len(marks["plumb"]))), params,
+                            horse_idx=[0, 1, 2], saddle_idx=3, gait=tt.get("model", {}).get("gait"))
+    s = kin["saddle"]
     exact = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]
-    est = kin["saddle"].acceleration_m_s2[:, 1]
-    return float(100 * np.sqrt(np.mean((est - exact) ** 2)) / np.sqrt(np.mean(exact ** 2)))
+    harm = vertical_harmonics(kin["t_s"], s.acceleration_m_s2[:, 1], s.position_m[:, 1], kin["period_s"],
+                              max(f.order for f in kin["fits"].fits_y))
+    ind = ride_indicators(f0_hz=harm["f0_hz"], acc_y_amplitudes_m_s2=harm["amplitudes_m_s2"],
+                          acc_y_phases_rad=harm["phases_rad"], duration_s=kin["period_s"] * params.n_periods,
+                          speed_kmh=abs(kin["fits"].average_speed_m_s) * 3.6, amplitude_y_m=harm["amplitude_y_m"],
+                          stride_frequency_hz=1.0 / kin["period_s"])
+    ref = truth["indicators"]
+    return {"acc_y_rms_error_pct": float(100 * np.sqrt(np.mean((s.acceleration_m_s2[:, 1] - exact) ** 2))
+                                         / np.sqrt(np.mean(exact ** 2))),
+            "acc_y_wb_rms_error_pct": float(100 * (ind["acc_y_wb_rms"] / ref["acc_y_wb_rms"] - 1)),
+            "vdv_y_wb_error_pct": float(100 * (ind["vdv_y_wb"] / ref["vdv_y_wb"] - 1))}
+
+
+def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter"),
+                     seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6)) -> dict:
+    """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each): per gait the
+    mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors."""
+    import json
+
+    from saddlescope.core.synthetic import build_scene
+    from saddlescope.core.synthetic_truth import build_truth
+
+    out = {}
+    for gait in gaits:
+        rows = []
+        for seed in seeds:
+            scene = build_scene(gait=gait, seed=seed, rig=rig, extras=False, calibration_poses=4)
+            rows.append(exact_marker_floor(json.loads(json.dumps(build_truth(scene)))))
+        acc = [r["acc_y_rms_error_pct"] for r in rows]
+        out[gait] = {"acc_y_rms_error_pct_mean": float(np.mean(acc)), "acc_y_rms_error_pct_max": float(np.max(acc)),
+                     "acc_y_wb_rms_error_pct_max_abs": float(max(abs(r["acc_y_wb_rms_error_pct"]) for r in rows)),
+                     "vdv_y_wb_error_pct_max_abs": float(max(abs(r["vdv_y_wb_error_pct"]) for r in rows)),
+                     "seeds": list(seeds)}
+    return out
 
 
 def run_benchmarks(*, quick: bool = False) -> dict:
@@ -202,6 +238,7 @@ def run_benchmarks(*, quick: bool = False) -> dict:
         ana = analysis_vs_footage(tmp, quick=quick)
         out["analysis_vs_footage"] = ana["ratio"]
         out["detail_analysis"] = ana
+        out["kinematics_floor_thesis"] = kinematics_floor(rig="thesis", seeds=(1, 2) if quick else (1, 2, 3, 4, 5, 6))
         if not quick:
             out["accuracy_thesis"] = accuracy(tmp, rig="thesis", gaits=("walk", "sitting_trot", "rising_trot",
                                                                         "canter"), seeds=(1,))
