@@ -136,20 +136,24 @@ def validation(short_ride, analysed):
 
 @pytest.mark.slow
 def test_board_distances_of_the_thesis_experiment(validation):
-    """Points A-D of a board held in three places (thesis Table 8.5: 2.2-4.6 % error)."""
+    """Points A-D of a board held in three places (thesis Table 8.5: 2.2-4.6 % error). Placed from all
+    the board's corners; the thesis rig's depth resolution keeps a few tenths of a per cent."""
     found, _ = validation
     errors = [d["error_pct"] for d in found["board_distance"].values()]
     print("board distances, mean error per pair %:", [round(e, 2) for e in errors])
     assert len(errors) == 6
-    assert max(abs(e) for e in errors) < 2.0
+    assert max(abs(e) for e in errors) < 1.0
+    assert np.mean(np.abs(errors)) < 0.5
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="issue #4: on some rides each camera's one-marker tracker follows a different moving "
-                          "object than the ball (seed 4: g 20 % off; seed 1: -0.45 %)", strict=False)
 def test_free_fall_gives_g_within_one_percent(validation):
     """Thesis 8.3: a thrown ball gave g with 3.6 % error."""
     found, truth = validation
     g = found["freefall"]
-    print(f"free fall: g = {g['g_m_s2']:.3f} m/s2 ({g['error_pct']:+.2f} %) from {g['frames']} frames")
+    print(f"free fall: g = {g['g_m_s2']:.3f} +- {g['g_std_m_s2']:.3f} m/s2 ({g['error_pct']:+.2f} %) over "
+          f"{g['frames']} frames, cameras {g['cameras']}")
+    assert set(g["cameras"]) == {"left", "middle", "right"}
     assert abs(g["g_m_s2"] / truth["truth"]["freefall"]["g_m_s2"] - 1) < 0.01
+    flight = truth["truth"]["freefall"]["flight_left_frames"]
+    assert g["frames"] >= 0.8 * (flight[1] - flight[0] + 1)

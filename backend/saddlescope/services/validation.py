@@ -7,11 +7,10 @@ from dataclasses import replace
 from pathlib import Path
 
 from saddlescope.core import calibration as calib
-from saddlescope.core.markers import track_markers
+from saddlescope.core.freefall import detect_spots, measure_free_fall
 from saddlescope.core.pipeline import _still_views, board_from_meta, synchronise
-from saddlescope.core.triangulation import triangulate_tracks
 from saddlescope.core.types import Rig
-from saddlescope.core.validation import board_point_distances, gravity_from_freefall
+from saddlescope.core.validation import board_point_distances
 from saddlescope.io.bundle import open_bundle
 from saddlescope.io.clip_source import BundleClips
 
@@ -25,11 +24,8 @@ def run_validation(bundle_path: Path | str, rig: Rig, *, board_points: dict | No
         offsets, first = synchronise(clips, {"sync": {"method": "flash"}}, kinds)
         if "freefall" in kinds:
             cams = clips.cameras("freefall")
-            tracks = {c: track_markers(clips.gray_frames("freefall", c, start=first["freefall"][c]), n_markers=1,
-                                       camera=c, clip="freefall", moving=True) for c in cams}
-            ball = triangulate_tracks(rig, tracks, offsets["freefall"], clips.fps("freefall", cams[0]),
-                                      match_labels=False, names=("ball",))
-            out["freefall"] = gravity_from_freefall(ball.t_s, ball.xyz_mm[:, 0])
+            spots = {c: detect_spots(clips.gray_frames("freefall", c, start=first["freefall"][c])) for c in cams}
+            out["freefall"] = measure_free_fall(rig, spots, offsets["freefall"], clips.fps("freefall", cams[0]))
         if "board_distance" in kinds:
             board = board_from_meta(bundle.meta)
             cols, rows = board.inner_corners
