@@ -20,12 +20,15 @@ is the reference (identity pose). Units: pixels in images, millimetres for board
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.types import Board, Camera, Rig
@@ -119,6 +122,7 @@ class BoardFinder:
         self.max_width = int(max_width)
         self.thorough = bool(thorough)
         self._upsample = 1.0
+        self.refine_scale = 1.0  # of the last board found: the scale its corners were refined at
         self._last_box: tuple[int, int, int, int] | None = None
         if board.kind == "charuco":
             self._cv_board = _cv_charuco(board)
@@ -158,8 +162,10 @@ class BoardFinder:
         if found is None:
             return None
         corners, ids = found
+        self.refine_scale = self._upsample
         if scale != 1.0:
-            corners = _refine_full_resolution(gray, corners / scale, self.board, ids)
+            corners = _refine_full_resolution(gray, _unscale(corners, scale), self.board, ids)
+            self.refine_scale = 1.0
         return corners, ids
 
     def _find(self, gray):
@@ -170,12 +176,13 @@ class BoardFinder:
                 else [1.0]
             for up in scales:
                 big = gray if up == 1.0 else cv2.resize(gray, None, fx=up, fy=up, interpolation=cv2.INTER_CUBIC)
-                found = _find_checkerboard(big, self.board, thorough=self.thorough and up == 1.0)
+                found = _find_checkerboard(big, self.board, thorough=self.thorough and up == 1.0,
+                                           upsampled=up != 1.0)
                 if found is not None:
                     self._upsample = up
                     corners, ids = found
                     if up != 1.0:
-                        corners = corners / up  # refined by cornerSubPix on the upsampled frame
+                        corners = _unscale(corners, up)  # refined by cornerSubPix on the upsampled frame
                     return corners, ids
             return None
         polarities = [self.inverted] if self.inverted is not None else [False, True]
@@ -226,9 +233,21 @@ def _as_gray(img: np.ndarray) -> np.ndarray:
     return img
 
 
-def _find_checkerboard(gray: np.ndarray, board: Board, *, thorough: bool = True):
+def _find_checkerboard(gray: np.ndarray, board: Board, *, thorough: bool = True, upsampled: bool = False):
+    corners = _checkerboard_corners(gray, board, thorough=thorough)
+    if corners is None:
+        return None
+    # cornerSubPix with a window scaled to the squares: on Bouguet's images it halves SB's residuals
+    corners = _subpix(gray, corners, board, upsampled=upsampled)
+    corners = canonical_checkerboard_order(gray, corners, board.inner_corners)
+    return corners, np.arange(len(corners))
+
+
+def _checkerboard_corners(gray: np.ndarray, board: Board, *, thorough: bool = True,
+                          normalize: bool = True) -> np.ndarray | None:
+    """A checkerboard's corners (N, 2) as the detectors give them (not refined, in their order), or None."""
     pattern = tuple(board.inner_corners)
-    ok, corners = cv2.findChessboardCornersSB(gray, pattern, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
+    ok, corners = cv2.findChessboardCornersSB(gray, pattern, flags=cv2.CALIB_CB_NORMALIZE_IMAGE if normalize else 0)
     if not ok and thorough:
         ok, corners = cv2.findChessboardCornersSB(
             gray, pattern,
@@ -240,24 +259,26 @@ def _find_checkerboard(gray: np.ndarray, board: Board, *, thorough: bool = True)
                                                 flags=flags if thorough else flags | cv2.CALIB_CB_FAST_CHECK)
         if not ok:
             return None
-    # cornerSubPix with a window scaled to the squares: on Bouguet's images it halves SB's residuals
-    corners = _subpix(gray, corners.reshape(-1, 2).astype(np.float64), board)
-    corners = canonical_checkerboard_order(gray, corners, board.inner_corners)
-    return corners, np.arange(len(corners))
+    return corners.reshape(-1, 2).astype(np.float64)
 
 
 def _min_spacing_px(corners: np.ndarray, board: Board, ids: np.ndarray) -> float:
-    cols = board.inner_corners[0]
-    pos = {int(i): k for k, i in enumerate(ids)}
-    d = [np.linalg.norm(corners[pos[i]] - corners[pos[j]])
-         for i in pos for j in (i + 1, i + cols)
-         if j in pos and (j != i + 1 or (i % cols) + 1 < cols)]
-    return float(min(d)) if d else 10.0
+    cols, rows = board.inner_corners
+    grid = np.full((cols * rows, 2), np.nan)
+    grid[np.asarray(ids, dtype=np.int64)] = corners
+    grid = grid.reshape(rows, cols, 2)
+    d = np.concatenate([np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel(),
+                        np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel()])
+    d = d[np.isfinite(d)]
+    return float(d.min()) if len(d) else 10.0
 
 
-def _subpix(gray, corners, board, ids=None):
+def _subpix(gray, corners, board, ids=None, *, upsampled=False):
     ids = np.arange(len(corners)) if ids is None else ids
-    half = int(np.clip(round(_min_spacing_px(corners, board, ids) * 0.35), 2, 12))
+    # On an upsampled frame a corner's blur spans more pixels: a window of 0.35 of the spacing (2-3 px for
+    # squares of 4 px upsampled 2x) is too small, cornerSubPix then wanders and returns where it started
+    # (synthetic thesis-rig ride: 0.26 px r.m.s. error against 0.16 px with 0.55).
+    half = int(np.clip(round(_min_spacing_px(corners, board, ids) * (0.55 if upsampled else 0.35)), 2, 12))
     pts = corners.reshape(-1, 1, 2).astype(np.float32)
     cv2.cornerSubPix(gray, pts, (half, half), (-1, -1), _SUBPIX_CRITERIA)
     return pts.reshape(-1, 2).astype(np.float64)
@@ -265,6 +286,19 @@ def _subpix(gray, corners, board, ids=None):
 
 def _refine_full_resolution(gray, corners, board, ids):
     return _subpix(gray, corners, board, ids)
+
+
+def _unscale(xy: np.ndarray, scale: float) -> np.ndarray:
+    """Pixel coordinates in a frame resized by ``scale`` (cv2.resize) back in the original frame.
+
+    cv2.resize aligns pixel centres, so x / scale alone is off by (1 / scale - 1) / 2 px (0.25 px at 2x).
+    """
+    return (np.asarray(xy, np.float64) + 0.5) / scale - 0.5
+
+
+def _rescale(xy: np.ndarray, scale: float) -> np.ndarray:
+    """The inverse of :func:`_unscale`."""
+    return (np.asarray(xy, np.float64) + 0.5) * scale - 0.5
 
 
 def canonical_checkerboard_order(gray: np.ndarray, corners_px: np.ndarray,
@@ -311,16 +345,425 @@ def _patch_mean(gray, xy, radius=2):
     return float(patch.mean()) if patch.size else 0.0
 
 
+# Video: a board tracked from frame to frame, searched for only when lost
+
+_TRACK_MAX_MOVE = 0.25  # of a corner's square spacing: moving further it may have slid onto the next one
+_TRACK_MAX_FIT_GROWTH = 1.5  # r.m.s. distance of tracked corners from a board homography, over that when found
+_MOVING_PX = 1.0  # board motion between frames above which a lost board is not searched for (still < 0.5 px)
+_MIN_SQUARE_RATIO = 1.4  # of _square_checks: about 2 at a board's corner, at most 1 on its edge
+
+
+@dataclass(frozen=True)
+class _Track:
+    corners: np.ndarray  # (N, 2) px in the frame
+    scale: float  # the frame was resized by this before cornerSubPix (as when the board was found)
+    sign: float  # of _square_checks' ratios: which squares are dark
+    fit_rms: float  # px, r.m.s. distance of the corners from a board-to-image homography when found
+
+
+class BoardTracker:
+    """Checkerboard corners through the frames of a video: tracked from frame to frame, searched only when lost.
+
+    A board found in one frame is followed into the next by ``cornerSubPix`` from its previous corners,
+    on the frame resized as when it was found (tracked corners are as accurate as detected ones). They
+    are kept only if every corner moved less than a quarter of its square, the squares round each corner
+    still alternate as on the board (a board shifted by a whole square leaves corners on its edge, which
+    the move test cannot see) and they fit a board-to-image homography about as well as when found.
+
+    A lost board is looked for where strong saddle points (x-junctions) cluster, and only while that
+    region, and the one where the board was last seen, are not moving (a moving board is blurred, and only
+    boards held still are used): the board's grid is grown over the saddle points, else
+    ``findChessboardCornersSB`` searches the region. The whole frame is searched every ``search_every``
+    frames at most, so that boards the localizer misses are still found. A board found again is also
+    tracked back into the frame before.
+
+    Parameters
+    ----------
+    board : Board, a checkerboard
+    max_width : int
+        As :class:`BoardFinder`.
+    search_every : int
+        Frames between whole-frame searches while the board is lost (half a second of video suits).
+    """
+
+    def __init__(self, board: Board, *, max_width: int = 1000, search_every: int = 15):
+        if board.kind != "checkerboard":
+            raise InputError("BoardTracker follows checkerboards; ChArUco boards are found frame by frame")
+        self.board = board
+        self.max_width = int(max_width)
+        self.search_every = max(1, int(search_every))
+        self.finder = BoardFinder(board, max_width=max_width, thorough=False)
+        self.ids = np.arange(board.inner_corners[0] * board.inner_corners[1])
+        self._obj = board.object_points_mm()[:, :2].astype(np.float64)
+        self.counts = {"tracked": 0, "tracked_back": 0, "found_from_saddles": 0, "found_near_saddles": 0,
+                       "found_whole_frame": 0,
+                       "skipped_moving": 0, "skipped_unchanged": 0, "whole_frame_searches": 0}
+        self._failed: list[tuple[int, int, int, int]] = []  # boxes searched in vain in the frame before
+
+    def views(self, frames: Iterable[tuple[int, np.ndarray]]) -> Iterable[BoardView]:
+        """Board views of ``(frame index, grey image)`` pairs, in frame order (a generator)."""
+        track: _Track | None = None
+        prev: tuple[int, np.ndarray] | None = None  # the frame before, copied (decoders reuse buffers)
+        last_box: tuple[slice, slice] | None = None  # round the board when last seen
+        lost_for = 0  # frames since the board was last seen
+        since_search = self.search_every  # frames since the board was seen or the whole frame searched
+        for index, gray in frames:
+            gray = _as_gray(gray)
+            found = self._follow(gray, track) if track is not None else None
+            if found is not None:
+                self.counts["tracked"] += 1
+            elif (prev is not None and last_box is not None and lost_for < self.search_every
+                  and _motion_px(prev[1][last_box], gray[last_box]) > _MOVING_PX):
+                self.counts["skipped_moving"] += 1  # the board is being moved away: wait until it is still
+            else:
+                found, near_moving = self._search_near_saddles(gray, None if prev is None else prev[1])
+                if found is None and not near_moving and since_search >= self.search_every:
+                    found = self._search_whole(gray)
+                    since_search = 0
+                if found is not None and prev is not None and lost_for > 0:
+                    back = self._follow(prev[1], found)  # the frame before may show it still too
+                    if back is not None:
+                        self.counts["tracked_back"] += 1
+                        yield BoardView(prev[0], back.corners, self.ids.copy())
+            if found is not None:
+                since_search = lost_for = 0
+                last_box = _box_round(found.corners, gray.shape)
+                yield BoardView(int(index), found.corners, self.ids.copy())
+            else:
+                since_search += 1
+                lost_for += 1
+            track = found
+            prev = (int(index), gray.copy())
+
+    def _state(self, gray: np.ndarray, corners: np.ndarray, scale: float) -> _Track:
+        ratio, _ = _square_checks(gray, corners, self.board.inner_corners)
+        return _Track(corners, float(scale), 1.0 if np.median(ratio) >= 0 else -1.0,
+                      _homography_rms(self._obj, corners))
+
+    def _follow(self, gray: np.ndarray, track: _Track) -> _Track | None:
+        """The tracked board in ``gray``, or None if it is lost."""
+        corners, up = track.corners, track.scale
+        local = _local_spacing_px(corners, self.board.inner_corners)
+        h, w = gray.shape
+        pad = local.max() + 4.0  # the cornerSubPix window plus the largest accepted move
+        x0, y0 = np.maximum(np.floor(corners.min(axis=0) - pad), 0).astype(int)
+        x1, y1 = np.minimum(np.ceil(corners.max(axis=0) + pad), [w, h]).astype(int)
+        crop = gray[y0:y1, x0:x1]
+        img = crop if up == 1.0 else cv2.resize(crop, None, fx=up, fy=up, interpolation=cv2.INTER_CUBIC)
+        refined = _subpix(img, _rescale(corners - [x0, y0], up), self.board, upsampled=up != 1.0)
+        new = _unscale(refined, up) + [x0, y0]
+        if np.any(np.linalg.norm(new - corners, axis=1) >= _TRACK_MAX_MOVE * local):
+            return None
+        ratio, span = _square_checks(gray, new, self.board.inner_corners)
+        if np.any(ratio * track.sign < _MIN_SQUARE_RATIO) or np.any(span < 0.25 * np.median(span)):
+            return None
+        # the board fits a homography about as well as when it was found (lens distortion bends it a little)
+        if _homography_rms(self._obj, new) > _TRACK_MAX_FIT_GROWTH * track.fit_rms + 0.05 * np.median(local):
+            return None
+        return _Track(new, up, track.sign, track.fit_rms)
+
+    def _search_near_saddles(self, gray: np.ndarray, prev: np.ndarray | None) -> tuple[_Track | None, bool]:
+        """The board searched for where saddle points cluster; also whether such a region was moving."""
+        h, w = gray.shape
+        scale = self.max_width / w if w > 1.5 * self.max_width else 1.0
+        small = gray if scale == 1.0 else cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        moving = False
+        failed, self._failed = self._failed, []
+        for cluster in _saddle_clusters(small, len(self.ids))[:2]:
+            x0, y0 = np.maximum(np.floor(_unscale(cluster.box[:2], scale)), 0).astype(int)
+            x1, y1 = np.minimum(np.ceil(_unscale(cluster.box[2:], scale)), [w, h]).astype(int)
+            crop = gray[y0:y1, x0:x1]
+            motion = np.inf if prev is None else _motion_px(prev[y0:y1, x0:x1], crop)
+            if np.isfinite(motion) and motion > _MOVING_PX:
+                moving = True
+                self.counts["skipped_moving"] += 1
+                continue
+            box = (x0, y0, x1, y1)
+            if motion < 0.3 and any(_overlap(box, f) > 0.7 for f in failed):
+                # the picture the search failed on in the frame before, unchanged: it would fail again
+                self._failed.append(box)
+                self.counts["skipped_unchanged"] += 1
+                continue
+            spacing = cluster.spacing / scale
+            for grid in _grids_from_saddles(cluster, self.board.inner_corners):
+                grid = _unscale(grid, scale)
+                if self._looks_like_board(gray, grid):
+                    refine = 2.0 if spacing < 6 else 1.0
+                    corners = self._refined(crop, grid - [x0, y0], refine) + [x0, y0]
+                    if self._looks_like_board(gray, corners):
+                        self.counts["found_from_saddles"] += 1
+                        return self._state(gray, corners, refine), False
+                    break
+            if max(x1 - x0, y1 - y0) > 3 * (max(self.board.inner_corners) + 5) * spacing:
+                continue  # far larger than a board of such squares: a textured background, not worth SB
+            found = self._find_in(crop, spacing)
+            if found is not None:
+                self.counts["found_near_saddles"] += 1
+                return self._state(gray, found[0] + [x0, y0], found[1]), False
+            self._failed.append(box)
+        return None, moving
+
+    def _refined(self, crop: np.ndarray, corners: np.ndarray, scale: float) -> np.ndarray:
+        """Grid corners in a crop put in canonical order and refined on the crop resized by ``scale``."""
+        img = crop if scale == 1.0 else cv2.resize(crop, None, fx=scale, fy=scale, interpolation=cv2.INTER_CUBIC)
+        big = canonical_checkerboard_order(img, _rescale(corners, scale), self.board.inner_corners)
+        return _unscale(_subpix(img, big, self.board, upsampled=scale != 1.0), scale)
+
+    def _looks_like_board(self, gray: np.ndarray, corners: np.ndarray) -> bool:
+        """Every corner an x-junction of squares alternating as on the board (none on its edge), and all of
+        them on a plane's perspective image."""
+        ratio, span = _square_checks(gray, corners, self.board.inner_corners)
+        ratio = ratio * np.sign(np.median(ratio))
+        if np.any(ratio < _MIN_SQUARE_RATIO) or np.any(span < 0.25 * np.median(span)):
+            return False
+        local = _local_spacing_px(corners, self.board.inner_corners)
+        return _homography_rms(self._obj, corners) < 0.2 * float(np.median(local))
+
+    def _find_in(self, crop: np.ndarray, spacing: float) -> tuple[np.ndarray, float] | None:
+        """Board corners in a crop whose squares are about ``spacing`` px, and the scale they were refined at.
+
+        ``findChessboardCornersSB`` fails on squares of a few pixels, costing more than it takes to find a
+        board, and also now and then on an upsampled crop: so search the crop upsampled 3x when the squares
+        are small, else as it is, then the other way. Corners are refined as :class:`BoardFinder` does
+        (on the crop upsampled 2x if it had to be upsampled, else as it is).
+        """
+        if crop.shape[1] > 1.5 * self.max_width:  # a big board: searched downscaled, refined as it is
+            found = self.finder._find_full(crop)
+            return None if found is None else (found[0], self.finder.refine_scale)
+        scales = (3.0, 2.0) if spacing < 6 else (1.0, 3.0) if spacing < 12 else (1.0, 2.0)
+        for up in scales:
+            img = crop if up == 1.0 else cv2.resize(crop, None, fx=up, fy=up, interpolation=cv2.INTER_CUBIC)
+            # a crop round the board needs no histogram equalisation (without it SB is faster, as reliable)
+            corners = _checkerboard_corners(img, self.board, thorough=False, normalize=False)
+            if corners is None:
+                continue
+            refine = 1.0 if up == 1.0 else 2.0
+            return self._refined(crop, _unscale(corners, up), refine), refine
+        return None
+
+    def _search_whole(self, gray: np.ndarray) -> _Track | None:
+        self.counts["whole_frame_searches"] += 1
+        found = self.finder._find_full(gray)
+        if found is None:
+            return None
+        self.counts["found_whole_frame"] += 1
+        return self._state(gray, found[0], self.finder.refine_scale)
+
+
+def _homography_rms(obj_xy: np.ndarray, img_xy: np.ndarray) -> float:
+    """R.m.s. distance (px) of ``img_xy`` from the least-squares homography of board (x, y) to them."""
+    H, _ = cv2.findHomography(obj_xy, img_xy, 0)
+    if H is None:
+        return np.inf
+    fit = cv2.perspectiveTransform(obj_xy.reshape(-1, 1, 2), H).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum((img_xy - fit) ** 2, axis=1))))
+
+
+def _local_spacing_px(corners: np.ndarray, inner_corners: tuple[int, int]) -> np.ndarray:
+    """Per corner of a full grid, the distance (px) to its nearest neighbour along the grid."""
+    cols, rows = inner_corners
+    g = corners.reshape(rows, cols, 2)
+    d = np.full((rows, cols), np.inf)
+    dx = np.linalg.norm(np.diff(g, axis=1), axis=2)
+    dy = np.linalg.norm(np.diff(g, axis=0), axis=2)
+    d[:, :-1] = np.minimum(d[:, :-1], dx)
+    d[:, 1:] = np.minimum(d[:, 1:], dx)
+    d[:-1] = np.minimum(d[:-1], dy)
+    d[1:] = np.minimum(d[1:], dy)
+    return d.ravel()
+
+
+def _square_checks(gray: np.ndarray, corners: np.ndarray, inner_corners: tuple[int, int]) -> tuple[np.ndarray,
+                                                                                                   np.ndarray]:
+    """Per corner, from the grey levels at the centres of the four squares round it: (one diagonal's sum
+    minus the other's) / (their range), sign alternating along the grid, and that range.
+
+    About +-2 everywhere on a board (the sign says which squares are dark); at most 1 where a corner
+    lies on the board's edge (two of its "squares" are the margin), as after a shift by a whole square.
+    """
+    cols, rows = inner_corners
+    g = corners.reshape(rows, cols, 2)
+    ext = np.empty((rows + 2, cols + 2, 2))
+    ext[1:-1, 1:-1] = g
+    ext[1:-1, 0], ext[1:-1, -1] = 2 * g[:, 0] - g[:, 1], 2 * g[:, -1] - g[:, -2]
+    ext[0], ext[-1] = 2 * ext[1] - ext[2], 2 * ext[-2] - ext[-3]
+    centre = 0.25 * (ext[:-1, :-1] + ext[1:, :-1] + ext[:-1, 1:] + ext[1:, 1:])  # (rows + 1, cols + 1, 2)
+    v = cv2.remap(gray, centre[..., 0].astype(np.float32), centre[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                  borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+    four = np.stack([v[:-1, :-1], v[1:, 1:], v[:-1, 1:], v[1:, :-1]])
+    span = four.max(axis=0) - four.min(axis=0)
+    alt = np.where(np.add.outer(np.arange(rows), np.arange(cols)) % 2 == 0, 1.0, -1.0)
+    ratio = alt * (four[0] + four[1] - four[2] - four[3]) / np.maximum(span, 1e-6)
+    return ratio.ravel(), span.ravel()
+
+
+@dataclass(frozen=True)
+class _Cluster:
+    box: np.ndarray  # (x0, y0, x1, y1) px round the points, with room for the board's outer squares
+    spacing: float  # px, typical distance between neighbouring points
+    points: np.ndarray  # (M, 2) px, the saddle points
+    theta: np.ndarray  # (M,) rad, direction of each point's positive curvature (it turns 90 degrees from
+    # a board's corner to the next along the grid, as the dark squares swap diagonals)
+
+
+def _saddle_clusters(gray: np.ndarray, n_corners: int) -> list[_Cluster]:
+    """Dense clusters of strong saddle points (minus the Hessian determinant: checkerboard corners) that
+    may hold a board of ``n_corners`` corners, the largest first."""
+    g = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
+    xx = cv2.Sobel(g, cv2.CV_32F, 2, 0, ksize=3)
+    yy = cv2.Sobel(g, cv2.CV_32F, 0, 2, ksize=3)
+    xy = cv2.Sobel(g, cv2.CV_32F, 1, 1, ksize=3)
+    s = np.maximum(xy * xy - xx * yy, 0.0)
+    k = max(n_corners // 2, 2)
+    # the board's corners are the strongest saddles of the frame: keep those within 5x of its middle one
+    s[[0, -1], :] = 0
+    s[:, [0, -1]] = 0
+    peaks = (s >= cv2.dilate(s, np.ones((3, 3), np.uint8))) & (s > 0)
+    values = s[peaks]
+    if len(values) < k:
+        return []
+    ys, xs = np.nonzero(peaks & (s > 0.2 * np.partition(values, -k)[-k]))
+    if len(xs) < k:
+        return []
+    # sub-pixel peaks (a parabola through three samples each way)
+    c, l, r, u, d = s[ys, xs], s[ys, xs - 1], s[ys, xs + 1], s[ys - 1, xs], s[ys + 1, xs]
+    dx = 0.5 * (l - r) / np.minimum(l + r - 2 * c, -1e-12)
+    dy = 0.5 * (u - d) / np.minimum(u + d - 2 * c, -1e-12)
+    pts = np.column_stack([xs + np.clip(dx, -0.5, 0.5), ys + np.clip(dy, -0.5, 0.5)]).astype(np.float64)
+    theta = 0.5 * np.arctan2(2 * xy[ys, xs], xx[ys, xs] - yy[ys, xs]).astype(np.float64)
+    tree = cKDTree(pts)
+    nearest = tree.query(pts, k=2)[0][:, 1]
+    pairs = tree.query_pairs(2.0 * float(np.median(nearest)), output_type="ndarray")
+    graph = csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(pts), len(pts)))
+    _, label = connected_components(graph, directed=False)
+    clusters = []
+    for lab, count in zip(*np.unique(label, return_counts=True), strict=True):
+        if count >= k:
+            member = label == lab
+            p = pts[member]
+            spacing = float(np.median(nearest[member]))
+            pad = 2.5 * spacing  # the outer squares and a margin round the inner corners
+            clusters.append(_Cluster(np.concatenate([p.min(axis=0) - pad, p.max(axis=0) + pad]), spacing, p,
+                                     theta[member]))
+    return sorted(clusters, key=lambda cl: -len(cl.points))
+
+
+def _grids_from_saddles(cluster: _Cluster, inner_corners: tuple[int, int]) -> list[np.ndarray]:
+    """Candidate board corners (rows * cols, 2), row-major, from a lattice grown over a cluster's saddle
+    points from the one nearest its middle: every full cols x rows window of it (the lattice also takes
+    in the corners of the board's outer squares, and perhaps points beyond). The caller checks them.
+
+    Neighbours along the grid are about a step away, where the step (which perspective changes slowly)
+    predicts them, and of the other polarity.
+    """
+    cols, rows = inner_corners
+    pts, theta = cluster.points, cluster.theta
+    if len(pts) < cols * rows:
+        return []
+    # a lattice point's four neighbours along the grid are among its eight nearest points
+    _, nearest = cKDTree(pts).query(pts, k=min(9, len(pts)))
+    xy, th, near8 = pts.tolist(), theta.tolist(), nearest[:, 1:].tolist()
+
+    def across(i: int, j: int) -> bool:  # neighbours along the grid: positive curvature turned 90 degrees
+        return math.cos(2 * (th[i] - th[j])) < 0
+
+    seed = int(np.argmin(np.sum((pts - pts.mean(axis=0)) ** 2, axis=1)))
+    near = [j for j in near8[seed] if across(seed, j)
+            and math.dist(xy[seed], xy[j]) < 1.8 * cluster.spacing]
+    if len(near) < 2:
+        return []
+    u = pts[near[0]] - pts[seed]
+    v = max((pts[j] - pts[seed] for j in near[1:]),
+            key=lambda w: abs(u[0] * w[1] - u[1] * w[0]) / np.linalg.norm(w))
+    if abs(u[0] * v[1] - u[1] * v[0]) < 0.5 * np.linalg.norm(u) * np.linalg.norm(v):
+        return []  # no second direction
+    node = {(0, 0): seed}
+    steps = {(0, 0): (tuple(u), tuple(v))}
+    taken = {seed}
+    todo = [(0, 0)]
+    while todo:
+        i, j = todo.pop()
+        (ux, uy), (vx, vy) = steps[(i, j)]
+        here = node[(i, j)]
+        hx, hy = xy[here]
+        for di, dj, sx, sy in ((1, 0, ux, uy), (-1, 0, -ux, -uy), (0, 1, vx, vy), (0, -1, -vx, -vy)):
+            key = (i + di, j + dj)
+            if key in node:
+                continue
+            px, py = hx + sx, hy + sy
+            k = min(near8[here], key=lambda m: (xy[m][0] - px) ** 2 + (xy[m][1] - py) ** 2)
+            if math.dist(xy[k], (px, py)) > 0.3 * math.hypot(sx, sy) or not across(here, k):
+                continue
+            if k in taken:
+                return []  # one point on two grid places: not a lattice
+            node[key] = k
+            taken.add(k)
+            fx, fy = xy[k][0] - hx, xy[k][1] - hy
+            steps[key] = ((di * fx, di * fy), (vx, vy)) if di else ((ux, uy), (dj * fx, dj * fy))
+            todo.append(key)
+        if len(node) > (cols + 4) * (rows + 4):
+            return []
+    ij = np.array(list(node))
+    lo = ij.min(axis=0)
+    ni, nj = ij.max(axis=0) - lo + 1
+    have = np.zeros((ni, nj), bool)
+    where = np.zeros((ni, nj, 2))
+    have[ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = True
+    where[ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = pts[list(node.values())]
+    grids = []
+    for a, b in {(cols, rows), (rows, cols)}:  # the board's columns along the lattice's first axis or second
+        for oi, oj in itertools.product(range(ni - a + 1), range(nj - b + 1)):
+            if have[oi:oi + a, oj:oj + b].all():
+                win = where[oi:oi + a, oj:oj + b]
+                grids.append((win.transpose(1, 0, 2) if a == cols else win).reshape(-1, 2))
+    return grids
+
+
+def _box_round(corners: np.ndarray, shape: tuple[int, int]) -> tuple[slice, slice]:
+    """Slices of the image round a board's corners, with a margin of half the board's size."""
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    pad = 0.5 * (hi - lo)
+    x0, y0 = np.maximum(np.floor(lo - pad), 0).astype(int)
+    x1, y1 = np.minimum(np.ceil(hi + pad), [shape[1], shape[0]]).astype(int)
+    return slice(y0, y1), slice(x0, x1)
+
+
+def _overlap(a, b) -> float:
+    """Intersection over union of two boxes (x0, y0, x1, y1)."""
+    w = min(a[2], b[2]) - max(a[0], b[0])
+    h = min(a[3], b[3]) - max(a[1], b[1])
+    if w <= 0 or h <= 0:
+        return 0.0
+    inter = w * h
+    return inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
+
+
+def _motion_px(before: np.ndarray, after: np.ndarray) -> float:
+    """Rough motion (px) of the picture between two crops: grey-level change over the mean gradient along a
+    random direction (a shift by d changes a pixel by about d times that gradient)."""
+    a = cv2.GaussianBlur(before.astype(np.float32), (0, 0), 1.0)
+    b = cv2.GaussianBlur(after.astype(np.float32), (0, 0), 1.0)
+    gx = cv2.Sobel(b, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+    gy = cv2.Sobel(b, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+    # E|grad . u| over random unit u is half of E(|gx| + |gy|) for isotropic gradients
+    return float(np.mean(np.abs(b - a)) / (0.5 * np.mean(np.abs(gx) + np.abs(gy)) + 1e-6))
+
+
 def detect_board_views(frames: Iterable[tuple[int, np.ndarray]], board: Board, *,
                        inverted: bool | None = None, max_width: int = 1000,
-                       thorough: bool = False) -> tuple[list[BoardView],
-                                                                                      tuple[int, int] | None]:
-    """Run :class:`BoardFinder` over frames.
+                       thorough: bool = False, track: bool = True,
+                       search_every: int = 15) -> tuple[list[BoardView], tuple[int, int] | None]:
+    """Board views in frames.
 
     Parameters
     ----------
     frames : iterable of (frame index, grey image of shape (H, W))
     board : Board
+    track : bool
+        Frames are consecutive frames of a video (or every ``step``-th): a checkerboard is tracked from
+        frame to frame (:class:`BoardTracker`) instead of searched for in each frame. Not with ``thorough``.
+    search_every : int
+        While a tracked board is lost, frames between whole-frame searches (about half a second of video).
 
     Returns
     -------
@@ -332,16 +775,25 @@ def detect_board_views(frames: Iterable[tuple[int, np.ndarray]], board: Board, *
     InputError
         If the frames do not all have the same size.
     """
+    size = None
+
+    def checked():
+        nonlocal size
+        for index, gray in frames:
+            this = (int(gray.shape[1]), int(gray.shape[0]))
+            if size is None:
+                size = this
+            elif this != size:
+                raise InputError(f"frame {index} is {this[0]}x{this[1]} px, "
+                                 f"earlier frames {size[0]}x{size[1]} px")
+            yield index, gray
+
+    if track and not thorough and board.kind == "checkerboard":
+        tracker = BoardTracker(board, max_width=max_width, search_every=search_every)
+        return list(tracker.views(checked())), size
     finder = BoardFinder(board, inverted=inverted, max_width=max_width, thorough=thorough)
     views: list[BoardView] = []
-    size = None
-    for index, gray in frames:
-        this = (int(gray.shape[1]), int(gray.shape[0]))
-        if size is None:
-            size = this
-        elif this != size:
-            raise InputError(f"frame {index} is {this[0]}x{this[1]} px, "
-                             f"earlier frames {size[0]}x{size[1]} px")
+    for index, gray in checked():
         found = finder(gray)
         if found is not None:
             views.append(BoardView(int(index), found[0], found[1]))
@@ -401,7 +853,9 @@ def select_instants(views_by_camera: Mapping[str, list[BoardView]], board: Board
         return candidates
     n_cells = grid[0] * grid[1]
     covered = {cam: set() for cam in views_by_camera}
-    chosen_normals: dict[str, list[np.ndarray]] = {cam: [] for cam in views_by_camera}
+    # per instant and camera: the largest |cos| of the angle to the normals chosen so far (None: none yet),
+    # kept up to date as instants are chosen rather than recomputed for every candidate at every step
+    max_cos: dict[int, dict[str, float | None]] = {inst: dict.fromkeys(cells[inst]) for inst in candidates}
     chosen: list[int] = []
     remaining = set(candidates)
     while remaining and len(chosen) < max_instants:
@@ -410,12 +864,8 @@ def select_instants(views_by_camera: Mapping[str, list[BoardView]], board: Board
             score = 0.0
             for cam, c in cells[inst].items():
                 score += len(c - covered[cam]) / n_cells
-                sel = chosen_normals[cam]
-                if sel:
-                    cosang = np.clip(np.abs(np.stack(sel) @ normals[inst][cam]), -1, 1)
-                    ang = np.degrees(np.arccos(cosang.max()))
-                else:
-                    ang = 30.0
+                cos = max_cos[inst][cam]
+                ang = 30.0 if cos is None else math.degrees(math.acos(min(cos, 1.0)))
                 score += diversity_weight * min(ang, 30.0) / 30.0
             if score > best_score:
                 best, best_score = inst, score
@@ -423,7 +873,12 @@ def select_instants(views_by_camera: Mapping[str, list[BoardView]], board: Board
         remaining.discard(best)
         for cam, c in cells[best].items():
             covered[cam] |= c
-            chosen_normals[cam].append(normals[best][cam])
+            n_best = normals[best][cam]
+            for inst in remaining:
+                if cam in max_cos[inst]:
+                    cos = abs(float(normals[inst][cam] @ n_best))
+                    old = max_cos[inst][cam]
+                    max_cos[inst][cam] = cos if old is None else max(old, cos)
     return sorted(chosen)
 
 

@@ -69,7 +69,7 @@ class PipelineParams:
     max_gap_s: float = 0.15
     triangulation: str = "nview"  # or "thesis_pairs"
     max_calibration_instants: int = 60
-    calibration_step: int | None = None  # frames between board searches; None: every frame up to 30 fps
+    calibration_step: int | None = None  # frames between board looks; None: every frame (tracking is cheap)
     still_board_only: bool = True  # calibrate from frames where the board was held still
     max_square_error_pct: float = 1.0
     singularity_threshold: float = 0.2
@@ -151,23 +151,38 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
                          progress: _Progress | None = None) -> tuple[Rig, dict]:
     """Board views from every camera's calibration clip, put on the first camera's clock, then
     intrinsics, stereo pairs, bundle adjustment and metric checks (thesis 3.4-3.6, 8.2)."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
     cams = clips.cameras("calibration")
-    views_by_camera: dict[str, list] = {}
-    sizes: dict[str, tuple[int, int]] = {}
     fps = clips.fps("calibration", cams[0])
-    step = params.calibration_step or max(1, int(round(fps / 30.0)))
+    # The board is tracked from frame to frame, which costs little: look at every frame by default (sampling
+    # every other frame at 60 fps missed most short holds of the board in one camera or another).
+    step = params.calibration_step or 1
+    search_every = max(1, int(round(0.5 * fps / step)))  # a lost board is searched for in whole frames twice a second
     # Start every camera on the same instant so that the sampled frames coincide after the offsets.
     base = max(first_frame.get(c, 0) - int(round(offsets.get(c, 0.0))) for c in cams)
-    for i, cam in enumerate(cams):
+
+    def board_views(cam: str) -> tuple[list, tuple[int, int]]:
         start = max(0, base + int(round(offsets.get(cam, 0.0))))
         views, size = calib.detect_board_views(
-            clips.gray_frames("calibration", cam, start=start, step=step), board)
-        sizes[cam] = size or clips.image_size("calibration", cam)
+            clips.gray_frames("calibration", cam, start=start, step=step), board, search_every=search_every)
         # frame k of this camera shows the instant of frame k - offset of the first camera
         views = _still_views(views, step) if params.still_board_only else views
-        views_by_camera[cam] = [replace(v, frame=int(round(v.frame - offsets.get(cam, 0.0)))) for v in views]
-        if progress is not None:
-            progress.stage("calibration", 0.6 * (i + 1) / len(cams))
+        return ([replace(v, frame=int(round(v.frame - offsets.get(cam, 0.0)))) for v in views],
+                size or clips.image_size("calibration", cam))
+
+    # One thread per camera: decoding (PyAV) and the board search (OpenCV) release the GIL. Each camera's
+    # views depend on its clip alone, so the result does not depend on the threads' timing; progress is
+    # reported from this thread.
+    with ThreadPoolExecutor(max_workers=len(cams)) as pool:
+        jobs = {pool.submit(board_views, cam): cam for cam in cams}
+        for done, job in enumerate(as_completed(jobs), 1):
+            job.result()
+            if progress is not None:
+                progress.stage("calibration", 0.6 * done / len(cams))
+    found = {cam: job.result() for job, cam in jobs.items()}
+    views_by_camera = {cam: found[cam][0] for cam in cams}
+    sizes = {cam: found[cam][1] for cam in cams}
     if len(cams) > 1:
         keep = set(calib.select_instants(views_by_camera, board, sizes,
                                          max_instants=params.max_calibration_instants))

@@ -1,0 +1,156 @@
+"""Video mode of the checkerboard finder: tracking, the one-square-shift guard, the saddle-point localizer,
+skipping a moving board, and corners as accurate as detected ones."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from saddlescope.core import calibration as calib
+from saddlescope.core.calibration import BoardFinder, BoardTracker, detect_board_views, make_board, render_board
+from saddlescope.core.types import Camera
+
+# the thesis rig's board and camera: squares of 4-5 px at 7.5 m (found on a 2x upsampled frame)
+BOARD = make_board("checkerboard", (12, 11), 50.0)
+CAM = Camera("a", np.array([[730.0, 0, 320], [0, 730, 240], [0, 0, 1]]), np.array([-0.13, 0.02, 0, 0, 0]),
+             (640, 480))
+RVEC = np.radians([15.0, -20.0, 8.0])
+T_FAR = np.array([-300.0, -250.0, 7500.0])
+
+
+def _truth(rvec, t):
+    return CAM.project(BOARD.object_points_mm() @ cv2.Rodrigues(rvec)[0].T + t)
+
+
+def _frame(rvec, t, rng, *, blur_path=None):
+    """A rendered frame with the lens's blur and sensor noise; ``blur_path`` (K, 3) averages renders of
+    the board shifted along it (motion blur)."""
+    shifts = np.zeros((1, 3)) if blur_path is None else np.asarray(blur_path)
+    img = np.mean([render_board(BOARD, CAM, rvec, t + s).astype(np.float64) for s in shifts], axis=0)
+    img = cv2.GaussianBlur(img, (0, 0), 0.7)
+    return np.clip(img + rng.normal(0, 1.5, img.shape), 0, 255).astype(np.uint8)
+
+
+def _square_shift(rvec, di, dj):
+    """Board translation (mm) that moves it by di squares along its x axis and dj along its y axis."""
+    R = cv2.Rodrigues(rvec)[0]
+    return BOARD.square_mm * (di * R[:, 0] + dj * R[:, 1])
+
+
+def _rms(a, b):
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
+
+
+def test_tracking_follows_a_slowly_moving_board_as_accurately_as_detection():
+    rng = np.random.default_rng(1)
+    # 0.2 px a frame to the right and a slow turn: still enough for tracking, never re-detected
+    poses = [(RVEC + [0, 0, np.radians(0.02 * k)], T_FAR + [2.0 * k, 0, 0]) for k in range(8)]
+    frames = [(k, _frame(rv, t, rng)) for k, (rv, t) in enumerate(poses)]
+    tracker = BoardTracker(BOARD)
+    views = list(tracker.views(frames))
+    assert [v.frame for v in views] == list(range(8))
+    assert tracker.counts["tracked"] == 7
+    for v, (rv, t) in zip(views, poses, strict=True):
+        assert np.array_equal(v.ids, np.arange(132))
+        assert _rms(v.corners_px, _truth(rv, t)) < 0.15
+        # the same refinement as a fresh detection of that frame
+        detected, _ = BoardFinder(BOARD, thorough=False)(frames[v.frame][1])
+        assert np.abs(v.corners_px - detected).max() < 0.02
+
+
+def test_detection_on_an_upsampled_frame_is_unbiased():
+    # cv2.resize aligns pixel centres: dividing by 2 alone would put every corner 0.25 px off
+    rng = np.random.default_rng(2)
+    corners, _ = BoardFinder(BOARD, thorough=False)(_frame(RVEC, T_FAR, rng))
+    assert np.abs((corners - _truth(RVEC, T_FAR)).mean(axis=0)).max() < 0.05
+
+
+@pytest.mark.parametrize("shift", [(1, 0), (0, 1), (1, 1), (-1, 1)])
+def test_a_board_shifted_by_one_square_is_not_tracked_into_wrong_labels(shift):
+    rng = np.random.default_rng(3)
+    moved = T_FAR + _square_shift(RVEC, *shift)
+    frames = [(0, _frame(RVEC, T_FAR, rng)), (1, _frame(RVEC, moved, rng)), (2, _frame(RVEC, moved, rng))]
+    tracker = BoardTracker(BOARD)
+    views = {v.frame: v for v in tracker.views(frames)}
+    assert tracker.counts["tracked"] == 0  # every corner refines onto a corner, but some are on the edge
+    assert _rms(views[0].corners_px, _truth(RVEC, T_FAR)) < 0.2
+    for k in (1, 2):  # found again (the frame where it moved tracked back from the next), labelled right
+        assert _rms(views[k].corners_px, _truth(RVEC, moved)) < 0.2
+
+
+def test_square_checks_tell_a_shifted_grid():
+    rng = np.random.default_rng(4)
+    img = _frame(RVEC, T_FAR, rng)
+    good = _truth(RVEC, T_FAR)
+    ratio, _ = calib._square_checks(img, good, BOARD.inner_corners)
+    assert np.all(np.abs(ratio) > 1.6) and (np.all(ratio > 0) or np.all(ratio < 0))
+    for di, dj in [(1, 0), (1, 1)]:
+        shifted = _truth(RVEC, T_FAR + _square_shift(RVEC, di, dj))
+        r, _ = calib._square_checks(img, shifted, BOARD.inner_corners)
+        assert np.sum(r * np.sign(np.median(ratio)) < calib._MIN_SQUARE_RATIO) >= 11
+
+
+def test_a_lost_board_is_found_again_by_the_localizer():
+    rng = np.random.default_rng(5)
+    blank = np.clip(128 + rng.normal(0, 1.5, (480, 640)), 0, 255).astype(np.uint8)
+    rv_b, t_b = np.radians([-10.0, 25.0, -5.0]), np.array([100.0, -100.0, 6500.0])
+    frames = [(0, _frame(RVEC, T_FAR, rng)), (1, _frame(RVEC, T_FAR, rng))]
+    frames += [(k, blank.copy()) for k in range(2, 6)]
+    frames += [(k, _frame(rv_b, t_b, rng)) for k in range(6, 9)]
+    # whole-frame searches at most on the first frame: the board must come back through the localizer
+    tracker = BoardTracker(BOARD, search_every=1000)
+    views = {v.frame: v for v in tracker.views(frames)}
+    assert sorted(views) == [0, 1, 6, 7, 8]
+    assert tracker.counts["whole_frame_searches"] <= 1
+    assert tracker.counts["found_from_saddles"] + tracker.counts["found_near_saddles"] >= 1
+    for k in (6, 7, 8):
+        assert _rms(views[k].corners_px, _truth(rv_b, t_b)) < 0.2
+
+
+def test_the_localizer_points_at_the_board():
+    rng = np.random.default_rng(6)
+    img = _frame(RVEC, T_FAR, rng)
+    clusters = calib._saddle_clusters(img, 132)
+    truth = _truth(RVEC, T_FAR)
+    x0, y0, x1, y1 = clusters[0].box
+    assert x0 < truth[:, 0].min() and truth[:, 0].max() < x1 and y0 < truth[:, 1].min() and truth[:, 1].max() < y1
+    grids = calib._grids_from_saddles(clusters[0], BOARD.inner_corners)
+    # one of the candidate windows is the board, up to the labelling canonical order fixes
+    ordered = [calib.canonical_checkerboard_order(img, g, BOARD.inner_corners) for g in grids]
+    assert min(_rms(g, truth) for g in ordered) < 0.7
+
+
+def test_a_moving_board_is_not_searched_for(monkeypatch):
+    rng = np.random.default_rng(7)
+    step = np.array([12.0, 3.0, 0.0])  # about 1.2 px a frame, blurred along the way
+    path = np.linspace(0, 1, 5)[:, None] * step
+    frames = [(0, _frame(RVEC, T_FAR, rng)), (1, _frame(RVEC, T_FAR, rng))]
+    frames += [(k, _frame(RVEC, T_FAR + (k - 1) * step, rng, blur_path=path)) for k in range(2, 7)]
+    searched = []
+    real = calib._grids_from_saddles
+    monkeypatch.setattr(calib, "_grids_from_saddles", lambda *a: searched.append(1) or real(*a))
+    real_sb = calib._checkerboard_corners
+    monkeypatch.setattr(calib, "_checkerboard_corners", lambda *a, **k: searched.append(2) or real_sb(*a, **k))
+    tracker = BoardTracker(BOARD)
+    views = {v.frame: v for v in tracker.views(frames)}
+    assert sorted(views) == [0, 1]
+    assert tracker.counts["skipped_moving"] >= 4
+    assert len(searched) == 1  # the first frame's search only
+
+
+def test_detect_board_views_tracks_video_and_keeps_stills_and_charuco_per_frame():
+    rng = np.random.default_rng(8)
+    frames = [(k, _frame(RVEC, T_FAR, rng)) for k in range(3)]
+    views, size = detect_board_views(iter(frames), BOARD)
+    assert size == (640, 480) and [v.frame for v in views] == [0, 1, 2]
+    still, _ = detect_board_views(iter(frames), BOARD, thorough=True)  # still images: each searched alone
+    assert [v.frame for v in still] == [0, 1, 2]
+    assert max(_rms(v.corners_px, _truth(RVEC, T_FAR)) for v in views + still) < 0.2
+    charuco = make_board("charuco", (4, 3), 30.0)
+    near = Camera("a", CAM.K, np.zeros(5), (640, 480))
+    img = render_board(charuco, near, np.array([0.3, -0.2, 0.1]), np.array([-70.0, -50.0, 450.0]))
+    found, _ = detect_board_views(iter([(0, img), (1, img)]), charuco)
+    assert [len(v.ids) for v in found] == [12, 12]
+    with pytest.raises(calib.InputError, match="ChArUco"):
+        BoardTracker(charuco)
