@@ -68,7 +68,7 @@ class PipelineParams:
     smoothing_iterations: int = 4
     max_gap_s: float = 0.15
     triangulation: str = "nview"  # or "thesis_pairs"
-    max_calibration_instants: int = 60
+    max_calibration_instants: int = 150
     calibration_step: int | None = None  # frames between board looks; None: every frame (tracking is cheap)
     still_board_only: bool = True  # calibrate from frames where the board was held still
     max_square_error_pct: float = 1.0
@@ -184,6 +184,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     views_by_camera = {cam: found[cam][0] for cam in cams}
     sizes = {cam: found[cam][1] for cam in cams}
     if len(cams) > 1:
+        views_by_camera = _average_holds(views_by_camera)
         keep = set(calib.select_instants(views_by_camera, board, sizes,
                                          max_instants=params.max_calibration_instants))
         views_by_camera = {c: [v for v in vs if v.frame in keep] for c, vs in views_by_camera.items()}
@@ -191,6 +192,47 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
                                       max_square_error_pct=params.max_square_error_pct)
     report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
     return rig, report
+
+
+def _average_holds(views_by_camera: Mapping[str, list], *, same_pose_px: float = 0.5) -> dict[str, list]:
+    """One view per pose and camera, its corners averaged over the pose's still instants.
+
+    Consecutive still instants are split where the board has moved more than ``same_pose_px`` (a slow
+    sweep is many poses, a hold one). Averaging a hold's frames halves the corners' frame-to-frame
+    noise without giving the bundle adjustment many copies of one pose to weigh (wide rig: markers
+    4.6 mm RMS from 60 instants of any pose, 2.5 mm from every still instant, 2.3 mm from every pose
+    averaged)."""
+    by_frame: dict[int, dict] = {}
+    for cam, views in views_by_camera.items():
+        for v in views:
+            by_frame.setdefault(v.frame, {})[cam] = v
+
+    def same_pose(a: dict, b: dict) -> bool:
+        for cam in set(a) & set(b):
+            if np.array_equal(a[cam].ids, b[cam].ids):
+                return float(np.max(np.linalg.norm(a[cam].corners_px - b[cam].corners_px, axis=1))) <= same_pose_px
+        return False
+
+    out: dict[str, list] = {cam: [] for cam in views_by_camera}
+
+    def close(group: list[int]) -> None:
+        most = max(len(by_frame[f]) for f in group)
+        best = [f for f in group if len(by_frame[f]) == most]
+        key = best[len(best) // 2]
+        for cam, ref in by_frame[key].items():
+            same = [by_frame[f][cam] for f in group
+                    if cam in by_frame[f] and np.array_equal(by_frame[f][cam].ids, ref.ids)]
+            out[cam].append(replace(ref, corners_px=np.mean([v.corners_px for v in same], axis=0)))
+
+    group: list[int] = []
+    for frame in sorted(by_frame):
+        if group and (frame != group[-1] + 1 or not same_pose(by_frame[group[0]], by_frame[frame])):
+            close(group)
+            group = []
+        group.append(frame)
+    if group:
+        close(group)
+    return out
 
 
 def rig_from_result(calibration: Mapping) -> Rig:

@@ -188,7 +188,7 @@ def _sync_offsets(sources: Mapping[str, str], probes: Mapping[str, dict], sync) 
 def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], square_mm: float,
                       board_kind: str = "checkerboard", dictionary: str | None = None,
                       marker_mm: float | None = None, toml_out: str | Path | None = None,
-                      fix_k3: bool = True, max_views: int = 60, max_candidates: int = 300,
+                      fix_k3: bool | None = None, max_views: int = 60, max_candidates: int = 300,
                       sync: str | Mapping[str, float] = "auto", inverted: bool | None = None,
                       legacy: bool = False, same_size: bool = True) -> dict:
     """Calibrate cameras from their sources; the body of ``saddlescope calibrate``.
