@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
+import cv2
 import numpy as np
 
 from saddlescope.core import calibration as calib
@@ -191,7 +192,37 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     rig, report = calib.calibrate_rig(views_by_camera, board, sizes,
                                       max_square_error_pct=params.max_square_error_pct)
     report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
+    report["board_coverage"] = {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v}
     return rig, report
+
+
+def board_coverage(views: list, image_size: tuple[int, int]) -> dict:
+    """The image region the board covered (convex hull of every corner) and its share of the image.
+
+    The lens distortion is only known where the board has been: beyond it k1, k2 (and k3) are
+    extrapolated, by a pixel or more at the edges of a wide lens (synthetic wide rig).
+    """
+    pts = np.concatenate([v.corners_px for v in views]).astype(np.float32)
+    hull = cv2.convexHull(pts).reshape(-1, 2)
+    return {"hull_px": hull.astype(float).round(1).tolist(),
+            "area_fraction": float(cv2.contourArea(hull) / (image_size[0] * image_size[1]))}
+
+
+def outside_coverage(tracks: Mapping[str, ImageTracks], coverage: Mapping[str, dict], *,
+                     margin_px: float = 10.0) -> dict[str, float]:
+    """Per camera, the share of marker detections farther than ``margin_px`` outside the board's hull."""
+    out = {}
+    for cam, tr in tracks.items():
+        if cam not in coverage:
+            continue
+        hull = np.asarray(coverage[cam]["hull_px"], dtype=np.float32).reshape(-1, 1, 2)
+        xy = np.asarray(tr.xy_px, dtype=np.float64).reshape(-1, 2)
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        if xy.size == 0:
+            continue
+        d = np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), True) for x, y in xy])
+        out[cam] = float(np.mean(d < -margin_px))
+    return out
 
 
 def _average_holds(views_by_camera: Mapping[str, list], *, same_pose_px: float = 0.5) -> dict[str, list]:
@@ -674,6 +705,13 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     motion2d, horse_idx, saddle_idx = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
                                                     first_frame["motion"], params, down=down)
     tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
+    coverage_flags = []
+    if calib_report.get("board_coverage"):
+        for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items():
+            if share > 0.05:
+                coverage_flags.append(f"the {cam} camera saw the markers outside the region the calibration board "
+                                      f"covered in {100 * share:.0f} % of its detections: its lens distortion is "
+                                      "extrapolated there (move the board to the edges of every camera's view)")
     progress.finish("detection", t0, seconds=time.perf_counter() - t0 - triangulation_s)
     progress.finish("triangulation", t0, seconds=triangulation_s)
 
@@ -683,6 +721,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                             horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth)
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
+    kin["flags"][:0] = coverage_flags
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()
@@ -795,6 +834,8 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
     }
     if calib_report:
         result["calibration"]["n_views"] = calib_report.get("n_views")
+        result["calibration"]["board_coverage_fraction"] = {
+            c: v["area_fraction"] for c, v in calib_report.get("board_coverage", {}).items()}
     return _nan_to_none(result)
 
 
