@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
@@ -121,14 +122,20 @@ def board_from_meta(meta: Mapping) -> Board:
 def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict]:
     """Frame offsets per clip kind and camera (relative to the first camera) and the first frame
     after the flash in each camera's clip, where detection may start."""
+    from concurrent.futures import ThreadPoolExecutor
+
     offsets: dict[str, dict[str, float]] = {}
     first_frame: dict[str, dict[str, int]] = {}
     sync_spec = meta.get("sync") or {"method": "flash"}
+    # Every clip is decoded for its brightness: in threads (the decoder releases the GIL), in order.
+    jobs = [(kind, c) for kind in kinds for c in clips.cameras(kind)]
+    with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
+        decoded = dict(zip(jobs, pool.map(lambda job: clips.brightness(*job), jobs), strict=True))
     for kind in kinds:
         cams = clips.cameras(kind)
         fps = {c: clips.fps(kind, c) for c in cams}
         known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
-        brightness = {c: clips.brightness(kind, c) for c in cams}
+        brightness = {c: decoded[kind, c] for c in cams}
         offsets[kind] = known if known is not None else clip_offsets(brightness, fps, clip=kind)
         first_frame[kind] = {}
         for c in cams:
