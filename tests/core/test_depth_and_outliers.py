@@ -104,3 +104,22 @@ def test_a_wild_sample_is_left_out_of_the_fits():
     err_fixed = np.sqrt(np.mean((fixed.acceleration_m_s2[:, 0, 1] - exact_acc) ** 2))
     assert err_fixed < 1e-6 < 0.1 * err_kept
     assert np.isfinite(fixed.acceleration_m_s2).all()
+
+
+def test_a_few_frames_of_look_alike_do_not_hide_the_stride():
+    from saddlescope.core.period import estimate_period
+    from saddlescope.core.pipeline import _despiked
+
+    t = np.arange(0, 3.0, 1 / 60)
+    xyz = _path(t)
+    # trot: two bounces per 0.71 s stride, one a little higher
+    xyz[:, :, 1] = np.array([0.0, 40.0, -10.0]) + (40 * np.sin(2 * np.pi * 2.8 * t)
+                                                    + 10 * np.sin(2 * np.pi * 1.4 * t))[:, None]
+    period_clean, _ = estimate_period(t, _despiked(xyz, 1 / 60), f_range_hz=(1.0, 1.9))
+    assert period_clean == pytest.approx(2 / 2.8, rel=0.02)
+    spiked = xyz.copy()
+    spiked[5:9, 0, 0] += 850.0  # a look-alike for four frames
+    with pytest.raises(Exception, match="no periodic motion"):
+        estimate_period(t, spiked, f_range_hz=(1.0, 1.9))
+    period, _ = estimate_period(t, _despiked(spiked, 1 / 60), f_range_hz=(1.0, 1.9))
+    assert period == pytest.approx(2 / 2.8, rel=0.02)
