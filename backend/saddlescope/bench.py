@@ -160,8 +160,7 @@ def exact_marker_floor(truth: dict) -> dict | None:
 
     Returns the vertical acceleration error (% of its r.m.s.) and the errors (%) of ``acc_y_wb_rms``
     and ``vdv_y_wb``, or None for a truth without exact markers."""
-    from saddlescope.core.indicators import ride_indicators
-    from saddlescope.core.pipeline import PipelineParams, saddle_kinematics, vertical_harmonics
+    from saddlescope.core.pipeline import PipelineParams, kinematics_indicators, saddle_kinematics
     from saddlescope.core.synthetic import saddle_truth_at
     from saddlescope.core.types import MarkerTracks
 
@@ -184,12 +183,7 @@ def exact_marker_floor(truth: dict) -> dict | None:
                             horse_idx=[0, 1, 2], saddle_idx=3, gait=tt.get("model", {}).get("gait"))
     s = kin["saddle"]
     exact = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]
-    harm = vertical_harmonics(kin["t_s"], s.acceleration_m_s2[:, 1], s.position_m[:, 1], kin["period_s"],
-                              max(f.order for f in kin["fits"].fits_y))
-    ind = ride_indicators(f0_hz=harm["f0_hz"], acc_y_amplitudes_m_s2=harm["amplitudes_m_s2"],
-                          acc_y_phases_rad=harm["phases_rad"], duration_s=kin["period_s"] * params.n_periods,
-                          speed_kmh=abs(kin["fits"].average_speed_m_s) * 3.6, amplitude_y_m=harm["amplitude_y_m"],
-                          stride_frequency_hz=1.0 / kin["period_s"])
+    _, ind = kinematics_indicators(kin, params)
     ref = truth["indicators"]
     return {"acc_y_rms_error_pct": float(100 * np.sqrt(np.mean((s.acceleration_m_s2[:, 1] - exact) ** 2))
                                          / np.sqrt(np.mean(exact ** 2))),

@@ -13,6 +13,7 @@ import pytest
 
 from saddlescope.bench import exact_marker_floor
 from saddlescope.core import pipeline as P
+from saddlescope.core.registration import register_rigid
 from saddlescope.core.synthetic import saddle_truth_at
 
 pytestmark = pytest.mark.slow
@@ -46,11 +47,7 @@ def wide_ride(tmp_path_factory):
 def _rigid_aligned_errors(ours: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """Errors (K, 3) mm of our points after the best rigid motion onto the exact ones (the rig frame
     is the calibrated left camera's, which may sit a few mm and arc-seconds off the true one)."""
-    ca, cb = ours.mean(axis=0), exact.mean(axis=0)
-    u, _, vt = np.linalg.svd((ours - ca).T @ (exact - cb))
-    d = np.diag([1.0, 1.0, np.linalg.det(vt.T @ u.T)])
-    r = vt.T @ d @ u.T
-    return (ours - ca) @ r.T + cb - exact
+    return register_rigid(exact[None], ours).registered[0] - exact
 
 
 def test_wide_rig_markers_within_two_millimetres(wide_ride):

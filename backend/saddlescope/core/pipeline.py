@@ -516,7 +516,6 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     win = slice(i0, i1)
     t_w = t[win]
     xyz_w = xyz[win]
-    depth_orders = None
     if depth is not None and depth["anisotropy"] >= params.depth_anisotropy and np.all(np.isfinite(xyz_w)):
         # Narrow rig: the depth noise (systematic too: sub-frame sync, interpolation) leaks into
         # every axis through x = depth * ray, and the lateral sway is far below it: keep each
@@ -588,7 +587,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     return {"t_s": t_w, "period_s": float(period_fit_s), "period_estimate_s": float(period_s),
             "period_info": period_info, "window": (i0, i1), "frame": frame, "registration": reg,
             "fits": fits, "angular": ang, "saddle": s, "markers_m": r, "static_mismatch_mm": mismatch_mm,
-            "r_bs_m": r_bs, "flags": flags, "long_gaps": long_gaps, "depth_orders": depth_orders}
+            "r_bs_m": r_bs, "flags": flags, "long_gaps": long_gaps}
 
 
 def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int) -> tuple[np.ndarray, np.ndarray,
@@ -748,16 +747,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
 
     t0 = time.perf_counter()
 
-    s = kin["saddle"]
-    fit_order = max(f.order for f in kin["fits"].fits_y)
-    harm = vertical_harmonics(kin["t_s"], s.acceleration_m_s2[:, 1], s.position_m[:, 1], kin["period_s"],
-                              fit_order)
-    duration_s = kin["period_s"] * params.n_periods
-    speed_kmh = abs(kin["fits"].average_speed_m_s) * 3.6
-    indicators = ride_indicators(f0_hz=harm["f0_hz"], acc_y_amplitudes_m_s2=harm["amplitudes_m_s2"],
-                                 acc_y_phases_rad=harm["phases_rad"], duration_s=duration_s,
-                                 speed_kmh=speed_kmh, amplitude_y_m=harm["amplitude_y_m"],
-                                 stride_frequency_hz=1.0 / kin["period_s"])
+    harm, indicators = kinematics_indicators(kin, params)
     progress.finish("indicators", t0)
     progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
     return _result_document(meta, rig, calib_report, offsets, tracks3d, kin, harm, indicators, clips,
@@ -774,6 +764,20 @@ def _depth_uncertainty(rig: Rig, tracks: MarkerTracks) -> dict | None:
         return position_uncertainty(rig, np.median(xyz, axis=0))
     except TriangulationError:
         return None
+
+
+def kinematics_indicators(kin: Mapping, params: PipelineParams) -> tuple[dict, dict]:
+    """The vertical harmonics of the saddle point and the rider's indicators (thesis 7, 8.5) from the
+    output of :func:`saddle_kinematics`."""
+    s = kin["saddle"]
+    fit_order = max(f.order for f in kin["fits"].fits_y)
+    harm = vertical_harmonics(kin["t_s"], s.acceleration_m_s2[:, 1], s.position_m[:, 1], kin["period_s"],
+                              fit_order)
+    indicators = ride_indicators(f0_hz=harm["f0_hz"], acc_y_amplitudes_m_s2=harm["amplitudes_m_s2"],
+                                 acc_y_phases_rad=harm["phases_rad"], duration_s=kin["period_s"] * params.n_periods,
+                                 speed_kmh=abs(kin["fits"].average_speed_m_s) * 3.6,
+                                 amplitude_y_m=harm["amplitude_y_m"], stride_frequency_hz=1.0 / kin["period_s"])
+    return harm, indicators
 
 
 def _track_quality(tracks: MarkerTracks) -> dict:

@@ -796,7 +796,7 @@ def position_uncertainty(rig: Rig, point_mm: np.ndarray, *, sigma_px: float = 1.
         # d(pixel)/d(x_rig) = diag(fx, fy) / z [[1, 0, -u], [0, 1, -v]] R
         j = (np.diag([K[0, 0], K[1, 1]]) / xc[2]) @ np.array([[1.0, 0.0, -u], [0.0, 1.0, -v]]) @ R
         info += j.T @ j
-        centres.append(-R.T @ t)
+        centres.append(cam.center_mm)
     if len(centres) < 2:
         raise TriangulationError("fewer than two cameras see the point; its uncertainty is unbounded")
     w, vecs = np.linalg.eigh(info)
