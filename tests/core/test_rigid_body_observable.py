@@ -1,8 +1,10 @@
 """Angular velocity over the observable axes only: markers near a line leave rotation about it unseen."""
 
 import numpy as np
+import pytest
 
-from saddlescope.core.rigid_body import angular_kinematics, unobservable_axis
+from saddlescope.core.errors import InputError
+from saddlescope.core.rigid_body import angular_kinematics, unobservable_axis, weak_axis_gain
 
 
 def _row_motion(roll_amp: float, skin_mm: float, rng):
@@ -56,3 +58,47 @@ def test_well_spread_markers_keep_every_axis():
     res = angular_kinematics(r, np.cross(omega[:, None, :], r), a, method="lsq_observable")
     assert not any("not observable" in f for f in res.flags)
     assert np.allclose(res.omega_rad_s, omega, atol=1e-9)
+
+
+# --- lsq_wiener: the weak axis kept as far as the skin motion measured on the raw markers allows ---
+
+
+def test_wiener_keeps_the_weak_axis_when_the_markers_move_rigidly():
+    # No skin motion: roll about the row is small but exact, so nothing is shrunk (lsq_observable
+    # would drop it).
+    r, v, a, omega = _row_motion(0.02, 0.0, np.random.default_rng(4))
+    res = angular_kinematics(r, v, a, method="lsq_wiener", raw=(r, v, a))
+    assert np.allclose(res.omega_rad_s, omega, atol=1e-9)
+    assert any("kept at 100%" in f for f in res.flags)
+    dropped = angular_kinematics(r, v, a, method="lsq_observable")
+    assert np.sqrt(np.mean((dropped.omega_rad_s[:, 0] - omega[:, 0]) ** 2)) > 0.1 * np.std(omega[:, 0])
+
+
+def test_wiener_shrinks_a_weak_axis_that_skin_motion_swamps():
+    errs = {"lsq": [], "lsq_observable": [], "lsq_wiener": []}
+    for seed in range(8):
+        r, v, a, omega = _row_motion(0.02, 3.0, np.random.default_rng(10 + seed))
+        for method in errs:
+            res = angular_kinematics(r, v, a, method=method, raw=(r, v, a))
+            errs[method].append(np.sqrt(np.mean((res.omega_rad_s - omega) ** 2)))
+    mean = {k: float(np.mean(e)) for k, e in errs.items()}
+    # roll 100 times below its noise: Wiener keeps what a chance excess of noise power lets through
+    # (the powers come from 60 frames), so it lands near dropping the axis, far below keeping it
+    assert mean["lsq_wiener"] < 0.35 * mean["lsq"]
+    assert mean["lsq_wiener"] < 1.6 * mean["lsq_observable"]
+
+
+def test_wiener_gain_follows_the_roll_against_its_noise():
+    # Large roll against little skin motion: kept nearly whole; no roll at all: shrunk away.
+    r, v, a, _ = _row_motion(0.15, 0.3, np.random.default_rng(5))
+    gain_w, _ = weak_axis_gain(r, v, a)
+    assert gain_w > 0.9
+    r, v, a, _ = _row_motion(0.0, 3.0, np.random.default_rng(6))
+    gain_w, _ = weak_axis_gain(r, v, a)
+    assert gain_w < 0.3
+
+
+def test_wiener_needs_the_raw_markers():
+    r, v, a, _ = _row_motion(0.02, 0.0, np.random.default_rng(7))
+    with pytest.raises(InputError, match="raw"):
+        angular_kinematics(r, v, a, method="lsq_wiener")

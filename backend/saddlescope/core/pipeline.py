@@ -13,7 +13,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Protocol
 
 import cv2
@@ -27,7 +27,7 @@ from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.marker_search import SequentialFrames, find_markers_multiview
 from saddlescope.core.markers import track_markers
 from saddlescope.core.period import analysis_window, estimate_period
-from saddlescope.core.registration import marker_model, register_rigid
+from saddlescope.core.registration import Registration, marker_model, register_rigid
 from saddlescope.core.rigid_body import angular_kinematics, saddle_body_coordinates, saddle_point_kinematics
 from saddlescope.core.smoothing import bridge_gaps, regularize_depth, rloess
 from saddlescope.core.sync import clip_offsets, flash_interval, offsets_from_spec
@@ -77,9 +77,13 @@ class PipelineParams:
     singularity_threshold: float = 0.2
     depth_anisotropy: float = 5.0  # fit marker depth smoothly when the rig fixes it this many times worse
     depth_max_order: int = 0  # stride harmonics allowed in that depth fit (0: straight path only)
-    angular_method: str = "lsq_observable"  # "lsq" (all axes) or "versions" (the thesis)
+    # "lsq_wiener": least squares with the weakest axis shrunk by the skin motion the raw markers
+    # show; "lsq_observable" drops it when the markers lie near a line; "lsq"; "versions" (thesis)
+    angular_method: str = "lsq_wiener"
     x_model: str = "fourier"  # the thesis's "linear" drops the surge within the stride
     extra_orders: int = 3  # orders tried above the extrema rule's E/2 + 1 (chosen by AICc)
+    # "run": fit every frame of the tracked run and report the window; "window": the thesis's 5.5
+    fit_span: str = "run"
     max_order: int | None = None
     detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
 
@@ -471,6 +475,12 @@ def _longest_run(mask: np.ndarray) -> tuple[int, int]:
     return best
 
 
+def _on_window(fits, in_win: slice):
+    """Marker fits with their sampled velocities and accelerations cut to the analysed window."""
+    return replace(fits, t_s=fits.t_s[in_win], velocity_m_s=fits.velocity_m_s[in_win],
+                               acceleration_m_s2=fits.acceleration_m_s2[in_win])
+
+
 def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
                       plumb_tracks: MarkerTracks | None, params: PipelineParams, *,
                       horse_idx: list[int] | None = None, saddle_idx: int | None = None,
@@ -513,7 +523,13 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     period_s, period_info = estimate_period(t[run0:run1], planar, f_range_hz=STRIDE_RANGE_HZ.get(gait, (0.5, 3.0)))
     i0, i1 = analysis_window(t[run0:run1], valid[run0:run1], period_s, n_periods=params.n_periods)
     i0, i1 = i0 + run0, i1 + run0
-    win = slice(i0, i1)
+    # The fits see every tracked frame around the window ("run"), the thesis only the window: more
+    # strides average out camera noise and skin wobble that is not locked to the stride.
+    if params.fit_span not in ("run", "window"):
+        raise InputError(f"fit_span must be 'run' or 'window', got {params.fit_span!r}")
+    f0_, f1_ = (run0, run1) if params.fit_span == "run" else (i0, i1)
+    win = slice(f0_, f1_)
+    in_win = slice(i0 - f0_, i1 - f0_)
     t_w = t[win]
     xyz_w = xyz[win]
     if depth is not None and depth["anisotropy"] >= params.depth_anisotropy and np.all(np.isfinite(xyz_w)):
@@ -549,7 +565,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
             plumb_bottom = plumb_tracks.xyz_mm[:, bottom]
     stop_travel = min(i1 + 1, n_frames)
     frame = motion.motion_frame(xyz[i0:stop_travel, 0], plumb_top_mm=plumb_top, plumb_bottom_mm=plumb_bottom,
-                                origin_mm=smooth[0, 0] if ok_w[0] else None, t_s=t[i0:stop_travel],
+                                origin_mm=smooth[in_win][0, 0] if ok_w[in_win][0] else None,
+                                t_s=t[i0:stop_travel],
                                 period_s=period_s)
     flags.extend(frame.warnings)
     xyz_m = motion.to_motion_frame(smooth, frame)
@@ -566,17 +583,25 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     reg = register_rigid(xyz_m, model_m_motion)
     if not np.all(reg.valid):
         raise KinematicsError("some frames of the analysed window could not be registered")
-    r = reg.registered
 
-    # Curve fitting (5.5): velocities and accelerations are analytic derivatives of the fits.
-    fits = fit_marker_kinematics(t_w, r, period_s=period_s, x_model=params.x_model,
+    # Curve fitting (5.5): velocities and accelerations are analytic derivatives of the fits; what
+    # follows is reported on the analysed window.
+    fits = fit_marker_kinematics(t_w, reg.registered, period_s=period_s, x_model=params.x_model,
                                  extra_orders=params.extra_orders)
     flags.extend(fits.flags)
-    v, a = fits.velocity_m_s, fits.acceleration_m_s2
+    fits = _on_window(fits, in_win)
+    reg = Registration(*(getattr(reg, f.name)[in_win] for f in fields(reg)))
+    r, v, a = reg.registered, fits.velocity_m_s, fits.acceleration_m_s2
+    t_w = t_w[in_win]
 
     # Angular velocity and acceleration (6.1-6.2), the invisible saddle point (6.3-6.4).
+    raw = None
+    if params.angular_method == "lsq_wiener":
+        raw_fits = _on_window(fit_marker_kinematics(t[win], xyz_m, period_s=period_s, x_model=params.x_model,
+                                                    extra_orders=params.extra_orders), in_win)
+        raw = (xyz_m[in_win], raw_fits.velocity_m_s, raw_fits.acceleration_m_s2)
     ang = angular_kinematics(r, v, a, singularity_threshold=params.singularity_threshold,
-                             method=params.angular_method)
+                             method=params.angular_method, raw=raw)
     flags.extend(ang.flags)
     static_motion = motion.to_motion_frame(static_all, frame)
     r_bs = saddle_body_coordinates(static_motion[horse_idx], static_motion[saddle_idx])
@@ -842,7 +867,9 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
                     "omega_versions_rad_s": _finite_list(ang.omega_versions),
                     "omega_versions_excluded": np.asarray(ang.excluded).tolist(),
                     "omega_spread_rad_s": _finite_list(ang.omega_spread),
-                    "method": ang.method},
+                    "method": ang.method,
+                    "weak_axis_gain": (None if ang.weak_axis_gain is None else
+                                       {"omega": ang.weak_axis_gain[0], "alpha": ang.weak_axis_gain[1]})},
         "markers": {"names": ["M1", "M2", "M3"], "position_m": _finite_list(kin["markers_m"]),
                     "velocity_m_s": _finite_list(fits.velocity_m_s),
                     "acceleration_m_s2": _finite_list(fits.acceleration_m_s2),

@@ -14,6 +14,14 @@ solution over all pairs is therefore the default estimate; the versions are kept
 with the thesis, with their spread and a per-version conditioning index, and those near their
 singularity are excluded from their mean (and flagged).
 
+Markers in a near row fix rotation about the row poorly: a millimetre of skin motion over a few
+centimetres of the row's height reads as degrees of roll. The pipeline's estimate ("lsq_wiener")
+keeps that weakest axis in proportion to how far its measured power exceeds what skin motion
+predicts there. The prediction comes from the unregistered markers: their non-rigid part (the
+residual of the rigid least-squares fit) gives the skin motion's size, and the markers' geometry its
+effect on the weak axis. Rigid markers keep every axis whole (exact answers); skin motion that
+swamps the roll drops it, as "lsq_observable" always does for a near row.
+
 Angular acceleration (eq. 6.36-6.39): α × r_ji = a_i − a_j − ω × (ω × r_ji). The thesis prints
 the known vectors of eq. 6.38-6.39 as a_j + ω × (ω × r_ji), dropping a_i; the derivation
 (eq. 6.13-6.14 applied to eq. 6.36-6.37) gives K2 = a_j − a_i + ω × (ω × r_ji), used here.
@@ -36,6 +44,7 @@ from saddlescope.core.registration import check_marker_layout
 _VERSIONS = ((0, 1, 2), (1, 0, 2), (2, 0, 1))
 VERSION_NAMES = ("1,ver1", "2,ver1", "1,ver2", "2,ver2", "1,ver3", "2,ver3")
 _PAIRS = ((0, 1), (0, 2), (1, 2))
+ANGULAR_METHODS = ("lsq", "lsq_observable", "lsq_wiener", "versions")
 
 
 @dataclass(frozen=True)
@@ -62,8 +71,10 @@ class AngularKinematics:
     normal : ndarray of shape (F, 3)
         Unit normal n of the markers' plane (eq. 6.33).
     method : str
-        ``"lsq"`` or ``"versions"``.
+        ``"lsq"``, ``"lsq_observable"``, ``"lsq_wiener"`` or ``"versions"``.
     flags : tuple of str
+    weak_axis_gain : tuple of float or None
+        (ω, α) gains on the weakest rotation axis (``"lsq_wiener"`` only).
     """
 
     omega_rad_s: np.ndarray
@@ -82,6 +93,7 @@ class AngularKinematics:
     normal: np.ndarray
     method: str
     flags: tuple[str, ...] = ()
+    weak_axis_gain: tuple[float, float] | None = None
 
     @property
     def median_singularity_index(self) -> float:
@@ -124,11 +136,14 @@ def _check_triplet(x, name: str) -> np.ndarray:
     return x
 
 
-def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0) -> np.ndarray:
+def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0, weak_gain: float | None = None
+              ) -> np.ndarray:
     """Least-squares u of u × d_p = rhs_p over pairs p, per frame.
 
     d, rhs : (F, P, 3) -> u : (F, 3). u × d = -[d]× u, so the normal matrix is
     sum_p [d]×^T [d]× = sum_p (|d|² I − d dᵀ) and the right side sum_p -[d]×^T rhs = sum_p d × rhs.
+    ``weak_gain`` scales the component along the normal matrix's weakest eigenvector (the
+    shrinkage of :func:`weak_axis_gain`).
     """
     dd = np.einsum("fpi,fpi->fp", d, d)
     normal = np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d, d)
@@ -136,7 +151,12 @@ def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0) -> np.
     out = np.full(b.shape, np.nan)
     ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
     if ok.any():
-        if min_eig_ratio <= 0:
+        if weak_gain is not None:
+            e, V = np.linalg.eigh(normal[ok])
+            inv = 1.0 / np.maximum(e, 1e-300)
+            inv[:, 0] *= weak_gain
+            out[ok] = np.einsum("fij,fj,fkj,fk->fi", V, inv, V, b[ok])
+        elif min_eig_ratio <= 0:
             out[ok] = np.linalg.solve(normal[ok], b[ok][..., None])[..., 0]
         else:
             # truncated pseudo-inverse: rotation about a direction the marker pairs barely span
@@ -161,6 +181,46 @@ def unobservable_axis(r, *, min_eig_ratio: float) -> tuple[np.ndarray, float]:
     e, V = np.linalg.eigh(normal)
     axis = np.median(V[:, :, 0] * np.sign(V[:, :1, 0] + 1e-12), axis=0)
     return axis / np.linalg.norm(axis), float(np.median(e[:, 0] / e[:, -1]))
+
+
+def _weak_component_and_noise(d: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame: the least-squares u's component along the weakest axis, and its noise variance
+    predicted from the fit's own residual (isotropic noise of std σ on each marker coordinate:
+    residual sum of squares over the pairs = 9 σ², weak-axis variance = 3 σ² / e_min)."""
+    dd = np.einsum("fpi,fpi->fp", d, d)
+    normal = np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d, d)
+    b = np.sum(np.cross(d, rhs), axis=1)
+    ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    e, V = np.linalg.eigh(normal[ok])
+    u = np.linalg.solve(normal[ok], b[ok][..., None])[..., 0]
+    resid = rhs[ok] - np.cross(u[:, None, :], d[ok])
+    ss = np.einsum("fpi,fpi->f", resid, resid)
+    return np.einsum("fi,fi->f", u, V[:, :, 0]), ss / (3.0 * e[:, 0])
+
+
+def weak_axis_gain(r_raw, v_raw, a_raw, *, over_subtraction: float = 1.0) -> tuple[float, float]:
+    """Wiener gains (0-1) for the weakest rotation axis of ω and of α, from unregistered markers.
+
+    Registered markers are rigid by construction, so they hide how much of their rotation is skin
+    motion. The raw fitted velocities and accelerations keep the non-rigid part: its size (the
+    least-squares residual) predicts the noise of the weak-axis component, and the gain is
+    1 − noise power / measured power (0 when the component is no larger than its noise)."""
+    r, v, a = (_check_triplet(x, n) for x, n in ((r_raw, "r"), (v_raw, "v"), (a_raw, "a")))
+    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
+    dv = np.stack([v[:, j] - v[:, i] for i, j in _PAIRS], axis=1)
+    w_weak, w_noise = _weak_component_and_noise(d, dv)
+    w = omega_least_squares(r, v)
+    da = np.stack([a[:, j] - a[:, i] for i, j in _PAIRS], axis=1)
+    w3 = np.broadcast_to(w[:, None, :], d.shape)
+    a_weak, a_noise = _weak_component_and_noise(d, da - np.cross(w3, np.cross(w3, d)))
+
+    def gain(comp, noise):
+        power = float(np.mean(comp ** 2))
+        # both powers come from a few Fourier terms and scatter by tens of percent; over-subtracting
+        # (factor > 1) would drop a swamped axis more surely but lost real roll on synthetic rides
+        return float(np.clip(1.0 - over_subtraction * np.mean(noise) / power, 0.0, 1.0)) if power > 0 else 0.0
+
+    return gain(w_weak, w_noise), gain(a_weak, a_noise)
 
 
 def _closed_form(k1: np.ndarray, k2: np.ndarray, k3: np.ndarray, k4: np.ndarray
@@ -232,7 +292,7 @@ def alpha_versions(r, a, omega) -> tuple[np.ndarray, np.ndarray]:
     return out, cond
 
 
-def omega_least_squares(r, v, *, min_eig_ratio: float = 0.0) -> np.ndarray:
+def omega_least_squares(r, v, *, min_eig_ratio: float = 0.0, weak_gain: float | None = None) -> np.ndarray:
     """Angular velocity from all marker pairs: v_j − v_i = ω × (r_j − r_i), least squares per frame.
 
     r, v : ndarray of shape (F, 3, 3) -> omega : ndarray of shape (F, 3).
@@ -241,10 +301,11 @@ def omega_least_squares(r, v, *, min_eig_ratio: float = 0.0) -> np.ndarray:
     v = _check_triplet(v, "v")
     d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
     dv = np.stack([v[:, j] - v[:, i] for i, j in _PAIRS], axis=1)
-    return _skew_lsq(d, dv, min_eig_ratio)
+    return _skew_lsq(d, dv, min_eig_ratio, weak_gain)
 
 
-def alpha_least_squares(r, a, omega, *, min_eig_ratio: float = 0.0) -> np.ndarray:
+def alpha_least_squares(r, a, omega, *, min_eig_ratio: float = 0.0, weak_gain: float | None = None
+                        ) -> np.ndarray:
     """Angular acceleration from all pairs: a_j − a_i − ω × (ω × d) = α × d, d = r_j − r_i.
 
     r, a : ndarray of shape (F, 3, 3); omega : (F, 3) -> alpha : ndarray of shape (F, 3).
@@ -255,7 +316,7 @@ def alpha_least_squares(r, a, omega, *, min_eig_ratio: float = 0.0) -> np.ndarra
     d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
     da = np.stack([a[:, j] - a[:, i] for i, j in _PAIRS], axis=1)
     w3 = np.broadcast_to(w[:, None, :], d.shape)
-    return _skew_lsq(d, da - np.cross(w3, np.cross(w3, d)), min_eig_ratio)
+    return _skew_lsq(d, da - np.cross(w3, np.cross(w3, d)), min_eig_ratio, weak_gain)
 
 
 def plane_normal(r) -> np.ndarray:
@@ -293,7 +354,8 @@ def _spread(versions: np.ndarray, excluded: np.ndarray, reference: np.ndarray) -
 
 
 def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: str = "lsq",
-                       min_height_ratio: float = 0.03, observable_ratio: float = 0.05) -> AngularKinematics:
+                       min_height_ratio: float = 0.03, observable_ratio: float = 0.05,
+                       raw: tuple | None = None) -> AngularKinematics:
     """Angular velocity and acceleration of the three-marker body, every estimate and its flags.
 
     Parameters
@@ -304,12 +366,16 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
         Marker velocities (m/s) and accelerations (m/s²) from the fits.
     singularity_threshold : float, optional
         Versions whose conditioning is below this are excluded from the versions' mean.
-    method : {"lsq", "versions"}
-        Final estimate: least squares over the pairs (default, well posed whatever ω's direction)
-        or the mean of the kept versions (the thesis's choice; frames where all are excluded
-        fall back to least squares).
+    method : {"lsq", "lsq_observable", "lsq_wiener", "versions"}
+        Final estimate: least squares over the pairs (default, well posed whatever ω's direction);
+        the same without the weakest axis when the markers lie near a line ("lsq_observable"); with
+        that axis shrunk by a Wiener gain from the skin motion of the unregistered markers
+        ("lsq_wiener", needs ``raw``); or the mean of the kept versions (the thesis's choice;
+        frames where all are excluded fall back to least squares).
     min_height_ratio : float, optional
         Collinearity limit, see :func:`saddlescope.core.registration.check_marker_layout`.
+    raw : tuple of (r, v, a), optional
+        Unregistered marker positions and their fitted velocities and accelerations, for "lsq_wiener".
 
     Returns
     -------
@@ -320,8 +386,10 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
     KinematicsError
         If the markers are (nearly) collinear.
     """
-    if method not in ("lsq", "lsq_observable", "versions"):
-        raise InputError(f"method must be 'lsq', 'lsq_observable' or 'versions', got {method!r}")
+    if method not in ANGULAR_METHODS:
+        raise InputError(f"method must be one of {', '.join(ANGULAR_METHODS)}, got {method!r}")
+    if method == "lsq_wiener" and raw is None:
+        raise InputError("method 'lsq_wiener' needs the unregistered markers' (r, v, a) as raw")
     r = _check_triplet(r, "r")
     v = _check_triplet(v, "v")
     a = _check_triplet(a, "a")
@@ -342,6 +410,12 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
             flags.append(f"the markers lie near a line (eigenvalue ratio {ratio:.3f} < {observable_ratio}): rotation "
                          f"about it (axis {np.round(axis, 2).tolist()} in the motion frame) is not observable, "
                          "so its component of ω and α is left out (taken as zero)")
+    gains = (None, None)
+    if method == "lsq_wiener":
+        gains = weak_axis_gain(*raw)
+        _, ratio = unobservable_axis(r[finite], min_eig_ratio=observable_ratio)
+        flags.append(f"rotation about the markers' weakest axis (eigenvalue ratio {ratio:.3f}) kept at "
+                     f"{gains[0]:.0%} in ω and {gains[1]:.0%} in α: the rest is what skin motion predicts")
     w_ver, w_cond = omega_versions(r, v)
     w_excl = ~(w_cond >= singularity_threshold)
     w_mean = _mean_kept(w_ver, w_excl)
@@ -349,13 +423,15 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
         omega = w_lsq
     elif method == "lsq_observable":
         omega = omega_least_squares(r, v, min_eig_ratio=ratio_cut)
+    elif method == "lsq_wiener":
+        omega = omega_least_squares(r, v, weak_gain=gains[0])
     else:
         omega = np.where(np.isfinite(w_mean), w_mean, w_lsq)
-    a_lsq = alpha_least_squares(r, a, omega, min_eig_ratio=ratio_cut)
+    a_lsq = alpha_least_squares(r, a, omega, min_eig_ratio=ratio_cut, weak_gain=gains[1])
     a_ver, a_cond = alpha_versions(r, a, omega)
     a_excl = ~(a_cond >= singularity_threshold)
     a_mean = _mean_kept(a_ver, a_excl)
-    alpha = a_lsq if method in ("lsq", "lsq_observable") else np.where(np.isfinite(a_mean), a_mean, a_lsq)
+    alpha = a_lsq if method != "versions" else np.where(np.isfinite(a_mean), a_mean, a_lsq)
 
     sing = singularity_index(r, w_lsq)
     valid = finite & np.isfinite(sing)
@@ -381,7 +457,8 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
         omega_versions=w_ver, alpha_versions=a_ver, omega_versions_mean=w_mean, alpha_versions_mean=a_mean,
         version_conditioning=w_cond, excluded=w_excl, singularity_index=sing,
         omega_spread=_spread(w_ver, w_excl, w_lsq), alpha_spread=_spread(a_ver, a_excl, a_lsq),
-        normal=plane_normal(r), method=method, flags=tuple(flags))
+        normal=plane_normal(r), method=method, flags=tuple(flags),
+        weak_axis_gain=gains if method == "lsq_wiener" else None)
 
 
 def body_frame(r) -> np.ndarray:

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -341,6 +341,8 @@ def build_scene(
     m_dir = np.eye(3) if direction == "CW" else np.diag([-1.0, 1.0, -1.0])
     camera_side = -1.0 if direction == "CW" else 1.0  # the arena z of the camera-facing flank
     model = sample_gait(gait, r_gait, camera_side=camera_side)
+    if not options.skin_motion:
+        model = replace(model, skin={})
     period = model.period_s
 
     # --- clip timings -------------------------------------------------------------------------

@@ -34,6 +34,7 @@ class RenderOptions:
     marker_halo: float = 0.12  # faint glow around retro-reflective markers (fraction of the peak)
     markers: bool = True  # False renders the scene without its markers (for difference images)
     supersample: int = 3
+    skin_motion: bool = True  # False: markers fixed to the saddle body (checks of the kinematics alone)
 
 
 @dataclass(frozen=True)
