@@ -168,7 +168,7 @@ def indicator_errors_pct(indicators: dict, duration_s: float, truth: dict,
             for k in keys if k in ref and k in indicators}
 
 
-def exact_marker_floor(truth: dict) -> dict | None:
+def exact_marker_floor(truth: dict, params=None) -> dict | None:
     """The kinematics and indicator stages fed with the exact marker positions of truth.json: what
     the markers' skin motion alone costs, the floor under any measurement (no cameras involved).
 
@@ -190,7 +190,7 @@ def exact_marker_floor(truth: dict) -> dict | None:
         return MarkerTracks(tuple(f"M{i + 1}" for i in range(xyz.shape[1])), np.asarray(frames) / fps, xyz)
 
     frames = np.arange(first, last + 1)
-    params = PipelineParams()
+    params = params or PipelineParams()
     kin = saddle_kinematics(tracks(marks["motion"][frames, :3], frames),
                             tracks(marks["static"], np.arange(len(marks["static"]))),
                             tracks(marks["plumb"], np.arange(len(marks["plumb"]))), params,
@@ -204,7 +204,8 @@ def exact_marker_floor(truth: dict) -> dict | None:
 
 
 def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter"),
-                     seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6), skin_motion: bool = True) -> dict:
+                     seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6), skin_motion: bool = True,
+                     params=None) -> dict:
     """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each): per gait the
     mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors. Without
     ``skin_motion`` the markers are fixed to the saddle body and the stages should be exact."""
@@ -220,7 +221,7 @@ def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_tro
         for seed in seeds:
             scene = build_scene(gait=gait, seed=seed, rig=rig, extras=False, calibration_poses=4,
                                 options=RenderOptions(skin_motion=skin_motion))
-            rows.append(exact_marker_floor(json.loads(json.dumps(build_truth(scene)))))
+            rows.append(exact_marker_floor(json.loads(json.dumps(build_truth(scene))), params))
         acc = [r["acc_y_rms_error_pct"] for r in rows]
         out[gait] = {"acc_y_rms_error_pct_mean": float(np.mean(acc)), "acc_y_rms_error_pct_max": float(np.max(acc)),
                      "acc_y_wb_rms_error_pct_max_abs": float(max(abs(r["acc_y_wb_rms_error_pct"]) for r in rows)),

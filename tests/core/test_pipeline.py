@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core import pipeline as P
-from saddlescope.core.errors import KinematicsError
+from saddlescope.core.errors import InputError, KinematicsError
 from saddlescope.core.synthetic import saddle_truth_at
 from saddlescope.core.types import MarkerTracks
 from saddlescope.io.result_schema import validate_result
@@ -96,6 +96,23 @@ def test_kinematics_of_a_known_rigid_motion_run():
     assert abs(kin["period_s"] - 1 / 1.6) < 1e-3
     assert abs(kin["fits"].average_speed_m_s - 4.0) < 0.01
     assert any("no plumb" in f for f in kin["flags"])
+
+
+def test_fits_over_the_whole_run_report_the_window():
+    motion, static = _rigid_tracks()
+    kin = {span: P.saddle_kinematics(motion, static, None, P.PipelineParams(fit_span=span), horse_idx=[0, 1, 2],
+                                     saddle_idx=3) for span in ("run", "window")}
+    run, win = kin["run"], kin["window"]
+    # the same analysed window either way; on a rigid periodic motion the same answer
+    assert run["window"] == win["window"] and np.array_equal(run["t_s"], win["t_s"])
+    i0, i1 = run["window"]
+    assert run["saddle"].acceleration_m_s2.shape == (i1 - i0, 3) == run["markers_m"].shape[::2]
+    assert run["fits"].fits_y[0].gof.n > win["fits"].fits_y[0].gof.n  # the run's extra frames were fitted
+    # (the rotation makes the motion an endless series: the fits truncate it a little differently)
+    assert np.allclose(run["saddle"].acceleration_m_s2, win["saddle"].acceleration_m_s2, rtol=0, atol=2e-3)
+    with pytest.raises(InputError, match="fit_span"):
+        P.saddle_kinematics(motion, static, None, P.PipelineParams(fit_span="all"), horse_idx=[0, 1, 2],
+                            saddle_idx=3)
 
 
 def test_too_short_a_ride_is_refused():
