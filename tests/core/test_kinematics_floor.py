@@ -12,7 +12,7 @@ import pytest
 from saddlescope.bench import kinematics_floor
 
 # gait: (mean vertical acceleration error %, worst |W_b r.m.s. error| %), measured + margin
-BOUNDS = {"walk": (16.0, 15.0), "sitting_trot": (6.0, 5.0), "rising_trot": (6.0, 5.0), "canter": (8.0, 9.0)}
+BOUNDS = {"walk": (12.5, 10.0), "sitting_trot": (4.5, 3.5), "rising_trot": (4.5, 3.5), "canter": (6.5, 5.5)}
 
 
 @pytest.mark.parametrize("rig", ["thesis", "wide"])

@@ -102,3 +102,16 @@ def test_wiener_needs_the_raw_markers():
     r, v, a, _ = _row_motion(0.02, 0.0, np.random.default_rng(7))
     with pytest.raises(InputError, match="raw"):
         angular_kinematics(r, v, a, method="lsq_wiener")
+
+
+def test_wiener_gain_survives_degenerate_raw_frames():
+    # Raw (unregistered) markers may coincide or line up in a few frames (a look-alike taken for two
+    # markers): those frames are left out of the gain, never a crash (LinAlgError before).
+    r, v, a, _ = _row_motion(0.05, 0.5, np.random.default_rng(8))
+    r, v, a = r.copy(), v.copy(), a.copy()
+    r[:5] = r[:5, :1]  # three markers on one point
+    r[5:10, 2] = 2 * r[5:10, 1] - r[5:10, 0]  # exactly on a line
+    gain_w, gain_a = weak_axis_gain(r, v, a)
+    assert 0.0 <= gain_w <= 1.0 and 0.0 <= gain_a <= 1.0
+    r[:] = r[:, :1]  # every frame degenerate: nothing to keep
+    assert weak_axis_gain(r, v, a) == (0.0, 0.0)

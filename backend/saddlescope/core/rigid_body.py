@@ -151,19 +151,16 @@ def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0, weak_g
     out = np.full(b.shape, np.nan)
     ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
     if ok.any():
+        e, V = np.linalg.eigh(normal[ok])
+        # a (pseudo-)inverse: rotation about a direction the marker pairs barely span (the axis of a
+        # near line of markers, below min_eig_ratio) is not observable and is left out (set to 0);
+        # markers on one point span nothing (NaN)
+        inv = np.where(e > max(min_eig_ratio, 1e-12) * e[:, -1:], 1.0 / np.maximum(e, 1e-300), 0.0)
         if weak_gain is not None:
-            e, V = np.linalg.eigh(normal[ok])
-            inv = 1.0 / np.maximum(e, 1e-300)
             inv[:, 0] *= weak_gain
-            out[ok] = np.einsum("fij,fj,fkj,fk->fi", V, inv, V, b[ok])
-        elif min_eig_ratio <= 0:
-            out[ok] = np.linalg.solve(normal[ok], b[ok][..., None])[..., 0]
-        else:
-            # truncated pseudo-inverse: rotation about a direction the marker pairs barely span
-            # (the axis of a near line of markers) is not observable and is left out (set to 0)
-            e, V = np.linalg.eigh(normal[ok])
-            inv = np.where(e >= min_eig_ratio * e[:, -1:], 1.0 / np.maximum(e, 1e-300), 0.0)
-            out[ok] = np.einsum("fij,fj,fkj,fk->fi", V, inv, V, b[ok])
+        u = np.einsum("fij,fj,fkj,fk->fi", V, inv, V, b[ok])
+        u[~(e[:, -1] > 0)] = np.nan
+        out[ok] = u
     return out
 
 
@@ -192,8 +189,11 @@ def _weak_component_and_noise(d: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarra
     b = np.sum(np.cross(d, rhs), axis=1)
     ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
     e, V = np.linalg.eigh(normal[ok])
-    u = np.linalg.solve(normal[ok], b[ok][..., None])[..., 0]
-    resid = rhs[ok] - np.cross(u[:, None, :], d[ok])
+    # frames whose raw markers fall (almost) on one point or line say nothing about the weak axis
+    keep = e[:, 0] > 1e-9 * np.maximum(e[:, -1], 1e-300)
+    e, V, d_k, rhs_k, b_k = e[keep], V[keep], d[ok][keep], rhs[ok][keep], b[ok][keep]
+    u = np.einsum("fij,fj,fkj,fk->fi", V, 1.0 / e, V, b_k)
+    resid = rhs_k - np.cross(u[:, None, :], d_k)
     ss = np.einsum("fpi,fpi->f", resid, resid)
     return np.einsum("fi,fi->f", u, V[:, :, 0]), ss / (3.0 * e[:, 0])
 
@@ -215,6 +215,8 @@ def weak_axis_gain(r_raw, v_raw, a_raw, *, over_subtraction: float = 1.0) -> tup
     a_weak, a_noise = _weak_component_and_noise(d, da - np.cross(w3, np.cross(w3, d)))
 
     def gain(comp, noise):
+        if comp.size == 0:
+            return 0.0
         power = float(np.mean(comp ** 2))
         # both powers come from a few Fourier terms and scatter by tens of percent; over-subtracting
         # (factor > 1) would drop a swamped axis more surely but lost real roll on synthetic rides
