@@ -47,5 +47,6 @@ def test_fitting_every_tracked_stride_beats_the_window_alone():
     err = {span: kinematics_floor(rig="wide", gaits=("walk",), seeds=(1, 2, 3),
                                   params=PipelineParams(fit_span=span))["walk"]["acc_y_rms_error_pct_mean"]
            for span in ("run", "window")}
-    print(f"walk, exact markers: vertical acceleration error {err['run']:.1f} % (run) vs {err['window']:.1f} % (window)")
+    print(f"walk, exact markers: vertical acceleration error {err['run']:.1f} % (run) "
+          f"vs {err['window']:.1f} % (window)")
     assert err["run"] < 0.9 * err["window"]
