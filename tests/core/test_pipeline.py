@@ -110,6 +110,12 @@ def test_fits_over_the_whole_run_report_the_window():
     assert run["fits"].fits_y[0].gof.n > win["fits"].fits_y[0].gof.n  # the run's extra frames were fitted
     # (the rotation makes the motion an endless series: the fits truncate it a little differently)
     assert np.allclose(run["saddle"].acceleration_m_s2, win["saddle"].acceleration_m_s2, rtol=0, atol=2e-3)
+    # a long run: the fits reach one stride beyond the window on either side, no further
+    long = P.saddle_kinematics(*_rigid_tracks(n_frames=400), None, P.PipelineParams(), horse_idx=[0, 1, 2],
+                               saddle_idx=3)
+    (i0, i1), (f0, f1) = long["window"], long["fitted"]
+    stride = round(30.0 / 1.6)
+    assert f0 == i0 - stride and f1 == i1 + stride
     with pytest.raises(InputError, match="fit_span"):
         P.saddle_kinematics(motion, static, None, P.PipelineParams(fit_span="all"), horse_idx=[0, 1, 2],
                             saddle_idx=3)

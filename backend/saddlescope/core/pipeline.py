@@ -82,8 +82,11 @@ class PipelineParams:
     angular_method: str = "lsq_wiener"
     x_model: str = "fourier"  # the thesis's "linear" drops the surge within the stride
     extra_orders: int = 3  # orders tried above the extrema rule's E/2 + 1 (chosen by AICc)
-    # "run": fit every frame of the tracked run and report the window; "window": the thesis's 5.5
+    # "run": fit the tracked frames around the window, at most fit_margin_periods strides on either
+    # side, and report the window; "window": the thesis's 5.5. The margin is bounded because a real
+    # horse's stride drifts over a long side of the arena and one periodic fit would smear it.
     fit_span: str = "run"
+    fit_margin_periods: float = 1.0
     max_order: int | None = None
     detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
 
@@ -527,7 +530,10 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     # strides average out camera noise and skin wobble that is not locked to the stride.
     if params.fit_span not in ("run", "window"):
         raise InputError(f"fit_span must be 'run' or 'window', got {params.fit_span!r}")
-    f0_, f1_ = (run0, run1) if params.fit_span == "run" else (i0, i1)
+    f0_, f1_ = i0, i1
+    if params.fit_span == "run":
+        margin = int(round(params.fit_margin_periods * period_s / float(np.median(np.diff(t[run0:run1])))))
+        f0_, f1_ = max(run0, i0 - margin), min(run1, i1 + margin)
     win = slice(f0_, f1_)
     in_win = slice(i0 - f0_, i1 - f0_)
     t_w = t[win]
@@ -610,7 +616,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     omega = fits.omega_rad_s if np.isfinite(fits.omega_rad_s) else 2 * np.pi / period_s
     period_fit_s = 2 * np.pi / omega
     return {"t_s": t_w, "period_s": float(period_fit_s), "period_estimate_s": float(period_s),
-            "period_info": period_info, "window": (i0, i1), "frame": frame, "registration": reg,
+            "period_info": period_info, "window": (i0, i1), "fitted": (f0_, f1_), "frame": frame, "registration": reg,
             "fits": fits, "angular": ang, "saddle": s, "markers_m": r, "static_mismatch_mm": mismatch_mm,
             "r_bs_m": r_bs, "flags": flags, "long_gaps": long_gaps}
 
@@ -842,6 +848,8 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
         "tracks": {kind: _track_quality(tr) for kind, tr in tracks3d.items()},
         "long_gaps_s": [list(g) for g in kin["long_gaps"]],
         "period_estimate_s": kin["period_estimate_s"],
+        # the frames the fits saw (the window's harmonics are estimated from every tracked stride)
+        "fitted_frames": {"start_frame": int(kin["fitted"][0]), "frames": int(kin["fitted"][1] - kin["fitted"][0])},
     }
     fits_doc = {}
     for axis, group in (("x", fits.fits_x), ("y", fits.fits_y), ("z", fits.fits_z)):
@@ -882,7 +890,7 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
         "quality": quality,
         "params": {"n_periods": params.n_periods, "triangulation": params.triangulation,
                    "smoothing_span": params.smoothing_span, "angular_method": params.angular_method,
-                   "x_model": params.x_model},
+                   "x_model": params.x_model, "fit_span": params.fit_span, "smoothing": params.smoothing},
         "timings_s": dict(timings_s),
     }
     if calib_report:
