@@ -180,3 +180,38 @@ def test_free_fall_gives_g_within_one_percent(validation):
     assert abs(g["g_m_s2"] / truth["truth"]["freefall"]["g_m_s2"] - 1) < 0.01
     flight = truth["truth"]["freefall"]["flight_left_frames"]
     assert g["frames"] >= 0.8 * (flight[1] - flight[0] + 1)
+
+
+@pytest.mark.parametrize("lost_marker", [0, 1, 2])
+def test_a_marker_lost_at_the_acceleration_peak_costs_nothing(lost_marker):
+    # Exact markers fixed to the saddle (no skin motion), one of them lost for 4 frames where the
+    # saddle's vertical acceleration peaks: the gap is bridged for the registration but neither the
+    # fits nor the travel direction take the bridged samples as measurements (before: 10.8 % error
+    # with marker 1 lost, its bridged peak tilted the x axis; 7.2 % with marker 2).
+    from saddlescope.core.synthetic import build_scene
+    from saddlescope.core.synthetic_render import RenderOptions
+    from saddlescope.core.synthetic_truth import build_truth
+
+    scene = build_scene(gait="canter", seed=7, rig="thesis", extras=False, calibration_poses=4,
+                        options=RenderOptions(skin_motion=False))
+    truth = json.loads(json.dumps(build_truth(scene)))
+    tt, fps = truth["truth"], truth["fps"]
+    marks = {k: np.asarray(tt["markers_3d_mm"][k], float) for k in ("motion", "static", "plumb")}
+    first, last = tt["clips"]["motion"]["markers_in_view_left_frames"]
+    frames = np.arange(first, last + 1)
+
+    def tracks(xyz, f):
+        return MarkerTracks(tuple(f"M{i + 1}" for i in range(xyz.shape[1])), np.asarray(f) / fps, xyz)
+
+    acc_true = saddle_truth_at(truth, frames / fps)["acceleration_m_s2"][:, 1]
+    quarter = len(frames) // 4
+    peak = quarter + int(np.argmax(np.abs(acc_true[quarter:-quarter])))
+    xyz = marks["motion"][frames, :3].copy()
+    xyz[peak - 2:peak + 2, lost_marker] = np.nan
+    kin = P.saddle_kinematics(tracks(xyz, frames), tracks(marks["static"], np.arange(len(marks["static"]))),
+                              tracks(marks["plumb"], np.arange(len(marks["plumb"]))), P.PipelineParams(),
+                              horse_idx=[0, 1, 2], saddle_idx=3, gait="canter")
+    assert any("were bridged" in f for f in kin["flags"])
+    exact = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]
+    err = np.sqrt(np.mean((kin["saddle"].acceleration_m_s2[:, 1] - exact) ** 2)) / np.sqrt(np.mean(exact ** 2))
+    assert err < 0.01
