@@ -123,3 +123,14 @@ def test_travel_velocity_is_exact_for_a_window_that_is_not_whole_periods():
     assert np.degrees(np.arccos(naive.travel_raw @ R_RW[:, 0])) > 0.5  # eq. 5.7 tilts here
     velocity = travel_velocity(T, marker_rig, period_s=PERIOD_S)
     np.testing.assert_allclose(velocity, 4000 * R_RW[:, 0], atol=1e-6)
+
+
+def test_travel_velocity_leaves_out_a_look_alike_followed_for_a_few_frames():
+    from saddlescope.core.frames import travel_velocity
+
+    marker_rig = _to_rig(_marker_world_mm()).copy()
+    marker_rig[1:4] += [400.0, -300.0, 250.0]  # a look-alike near the start, as on a wide-rig trot
+    velocity = travel_velocity(T, marker_rig, period_s=PERIOD_S)
+    np.testing.assert_allclose(velocity, 4000 * R_RW[:, 0], atol=1e-6)
+    kept = travel_velocity(T, marker_rig, period_s=PERIOD_S, reject_sigma=None)
+    assert np.degrees(np.arccos(kept @ R_RW[:, 0] / np.linalg.norm(kept))) > 0.5

@@ -101,7 +101,8 @@ def plumb_gravity(plumb_top_mm, plumb_bottom_mm) -> tuple[np.ndarray, dict]:
     return g, diag
 
 
-def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4) -> np.ndarray:
+def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4, reject_sigma: float | None = 5.0,
+                    reject_min_mm: float = 3.0) -> np.ndarray:
     """Mean travel velocity of a marker from a line plus a periodic series, per coordinate.
 
     Eq. 5.7 takes the net displacement over exactly two periods; a window of whole frames is
@@ -119,6 +120,10 @@ def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4) -> np.ndarr
         Stride period.
     order : int, optional
         Harmonics of the stride fitted alongside (fewer if the window is short).
+    reject_sigma, reject_min_mm : optional
+        Samples further from the first fit than ``reject_sigma`` robust standard deviations and
+        ``reject_min_mm`` (a look-alike followed for a few frames) are left out of a second fit
+        (None: keep all).
 
     Returns
     -------
@@ -139,6 +144,20 @@ def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4) -> np.ndarr
     if n < design.shape[1] + 1:
         raise KinematicsError(f"the travel marker has only {n} positions in the window")
     coef, *_ = np.linalg.lstsq(design, track[ok], rcond=None)
+    if reject_sigma is not None:
+        # the series bends towards wild samples (and copies them a period away), so they are found
+        # by bisquare reweighting first, then left out of a plain refit
+        w = np.ones(n)
+        for _ in range(6):
+            miss = np.linalg.norm(track[ok] - design @ coef, axis=1)
+            scale = 4.685 * 1.4826 * max(float(np.median(miss)), 1e-9)
+            w = np.clip(1.0 - (miss / scale) ** 2, 0.0, None) ** 2
+            sw = np.sqrt(w)[:, None]
+            coef, *_ = np.linalg.lstsq(design * sw, track[ok] * sw, rcond=None)
+        miss = np.linalg.norm(track[ok] - design @ coef, axis=1)
+        keep = miss <= max(reject_sigma * 1.4826 * float(np.median(miss)), reject_min_mm)
+        if keep.sum() >= max(design.shape[1] + 1, 0.8 * n):
+            coef, *_ = np.linalg.lstsq(design[keep], track[ok][keep], rcond=None)
     return coef[1]
 
 

@@ -571,7 +571,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
             plumb_top = plumb_tracks.xyz_mm[:, top]
             plumb_bottom = plumb_tracks.xyz_mm[:, bottom]
     # travel (eq. 5.6-5.7, as a fitted velocity) from marker 1's measured positions over the fitted
-    # frames: a bridged peak tilted x by 1.5 mrad, a 7 mm ramp on a canter's vertical
+    # frames: a bridged peak tilted x by 1.5 mrad, a 7 mm ramp on a canter's vertical (a look-alike
+    # followed for a few frames is left out by the travel fit itself)
     travel = np.where(bridged_frames[win, None], np.nan, xyz[win, 0])
     frame = motion.motion_frame(travel, plumb_top_mm=plumb_top, plumb_bottom_mm=plumb_bottom,
                                 origin_mm=smooth[in_win][0, 0] if ok_w[in_win][0] else None,
