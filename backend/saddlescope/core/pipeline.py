@@ -481,7 +481,7 @@ def _longest_run(mask: np.ndarray) -> tuple[int, int]:
 def _on_window(fits, in_win: slice):
     """Marker fits with their sampled velocities and accelerations cut to the analysed window."""
     return replace(fits, t_s=fits.t_s[in_win], velocity_m_s=fits.velocity_m_s[in_win],
-                               acceleration_m_s2=fits.acceleration_m_s2[in_win])
+                   acceleration_m_s2=fits.acceleration_m_s2[in_win])
 
 
 def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
@@ -591,15 +591,15 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     model_m_motion = motion.to_motion_frame(model_mm, frame)
     reg = register_rigid(xyz_m, model_m_motion)
     if not np.all(reg.valid):
-        raise KinematicsError("some frames of the analysed window could not be registered")
+        raise KinematicsError("some frames of the analysed stretch could not be registered")
 
     # Curve fitting (5.5): velocities and accelerations are analytic derivatives of the fits; what
     # follows is reported on the analysed window.
     # Bridged samples keep the registration whole but are not measurements: the fits leave them out
     # (a 4-frame bridge flattened a canter's acceleration peak, 24 % error on a thesis-rig ride).
-    measured = ~bridged_frames[win]
-    fits = fit_marker_kinematics(t_w, np.where(measured[:, None, None], reg.registered, np.nan),
-                                 period_s=period_s, x_model=params.x_model, extra_orders=params.extra_orders)
+    measured = ~bridged_frames[win][:, None, None]
+    fits = fit_marker_kinematics(t_w, np.where(measured, reg.registered, np.nan), period_s=period_s,
+                                 x_model=params.x_model, extra_orders=params.extra_orders)
     flags.extend(fits.flags)
     fits = _on_window(fits, in_win)
     reg = Registration(*(getattr(reg, f.name)[in_win] for f in fields(reg)))
@@ -609,9 +609,9 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     # Angular velocity and acceleration (6.1-6.2), the invisible saddle point (6.3-6.4).
     raw = None
     if params.angular_method == "lsq_wiener":
-        raw_fits = _on_window(fit_marker_kinematics(t[win], np.where(measured[:, None, None], xyz_m, np.nan),
-                                                    period_s=period_s, x_model=params.x_model,
-                                                    extra_orders=params.extra_orders), in_win)
+        raw_fits = _on_window(fit_marker_kinematics(t[win], np.where(measured, xyz_m, np.nan), period_s=period_s,
+                                                    x_model=params.x_model, extra_orders=params.extra_orders),
+                              in_win)
         raw = (xyz_m[in_win], raw_fits.velocity_m_s, raw_fits.acceleration_m_s2)
     ang = angular_kinematics(r, v, a, singularity_threshold=params.singularity_threshold,
                              method=params.angular_method, raw=raw)
