@@ -136,6 +136,12 @@ def _check_triplet(x, name: str) -> np.ndarray:
     return x
 
 
+def _pair_normal(d: np.ndarray) -> np.ndarray:
+    """Normal matrix sum_p [d_p]×^T [d_p]× = sum_p (|d_p|² I − d_p d_pᵀ) of the pairs d (F, P, 3)."""
+    dd = np.einsum("fpi,fpi->fp", d, d)
+    return np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d, d)
+
+
 def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0, weak_gain: float | None = None
               ) -> np.ndarray:
     """Least-squares u of u × d_p = rhs_p over pairs p, per frame.
@@ -145,8 +151,7 @@ def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0, weak_g
     ``weak_gain`` scales the component along the normal matrix's weakest eigenvector (the
     shrinkage of :func:`weak_axis_gain`).
     """
-    dd = np.einsum("fpi,fpi->fp", d, d)
-    normal = np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d, d)
+    normal = _pair_normal(d)
     b = np.sum(np.cross(d, rhs), axis=1)
     out = np.full(b.shape, np.nan)
     ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
@@ -173,9 +178,7 @@ def unobservable_axis(r, *, min_eig_ratio: float) -> tuple[np.ndarray, float]:
     r = _check_triplet(r, "r")
     d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
     ok = np.all(np.isfinite(d), axis=(1, 2))
-    dd = np.einsum("fpi,fpi->fp", d[ok], d[ok])
-    normal = np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d[ok], d[ok])
-    e, V = np.linalg.eigh(normal)
+    e, V = np.linalg.eigh(_pair_normal(d[ok]))
     axis = np.median(V[:, :, 0] * np.sign(V[:, :1, 0] + 1e-12), axis=0)
     return axis / np.linalg.norm(axis), float(np.median(e[:, 0] / e[:, -1]))
 
@@ -184,8 +187,7 @@ def _weak_component_and_noise(d: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarra
     """Per frame: the least-squares u's component along the weakest axis, and its noise variance
     predicted from the fit's own residual (isotropic noise of std σ on each marker coordinate:
     residual sum of squares over the pairs = 9 σ², weak-axis variance = 3 σ² / e_min)."""
-    dd = np.einsum("fpi,fpi->fp", d, d)
-    normal = np.einsum("fp,ij->fij", dd, np.eye(3)) - np.einsum("fpi,fpj->fij", d, d)
+    normal = _pair_normal(d)
     b = np.sum(np.cross(d, rhs), axis=1)
     ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
     e, V = np.linalg.eigh(normal[ok])
