@@ -162,9 +162,8 @@ def indicator_errors_pct(indicators: dict, duration_s: float, truth: dict,
     still fit two, so the truth's VDV is taken at the result's duration (whole periods of a periodic
     signal: VDV^4 is proportional to the duration)."""
     ref = truth.get("indicators", {})
-    scale = {"vdv_y_wb": (duration_s / float(truth["window"]["duration_s"])) ** 0.25,
-             "vdv_y_wk": (duration_s / float(truth["window"]["duration_s"])) ** 0.25}
-    return {f"{k}_error_pct": 100 * (indicators[k] / (ref[k] * scale.get(k, 1.0)) - 1)
+    vdv_scale = (duration_s / float(truth["window"]["duration_s"])) ** 0.25
+    return {f"{k}_error_pct": 100 * (indicators[k] / (ref[k] * (vdv_scale if k.startswith("vdv_") else 1.0)) - 1)
             for k in keys if k in ref and k in indicators}
 
 

@@ -121,9 +121,9 @@ def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4, reject_sigm
     order : int, optional
         Harmonics of the stride fitted alongside (fewer if the window is short).
     reject_sigma, reject_min_mm : optional
-        Samples further from the first fit than ``reject_sigma`` robust standard deviations and
-        ``reject_min_mm`` (a look-alike followed for a few frames) are left out of a second fit
-        (None: keep all).
+        Samples further from a bisquare-reweighted fit than ``reject_sigma`` robust standard
+        deviations and ``reject_min_mm`` (a look-alike followed for a few frames) are left out of a
+        plain refit (None: keep all, one plain fit).
 
     Returns
     -------

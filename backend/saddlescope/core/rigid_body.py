@@ -136,6 +136,11 @@ def _check_triplet(x, name: str) -> np.ndarray:
     return x
 
 
+def _pair_differences(x: np.ndarray) -> np.ndarray:
+    """x_j − x_i for the marker pairs (1,2), (1,3), (2,3): (F, 3, 3) -> (F, P, 3)."""
+    return np.stack([x[:, j] - x[:, i] for i, j in _PAIRS], axis=1)
+
+
 def _pair_normal(d: np.ndarray) -> np.ndarray:
     """Normal matrix sum_p [d_p]×^T [d_p]× = sum_p (|d_p|² I − d_p d_pᵀ) of the pairs d (F, P, 3)."""
     dd = np.einsum("fpi,fpi->fp", d, d)
@@ -176,7 +181,7 @@ def unobservable_axis(r, *, min_eig_ratio: float) -> tuple[np.ndarray, float]:
     pairs' normal matrix). A ratio below ``min_eig_ratio`` means the angular velocity component about
     that axis is not observable from the markers (they lie near a line along it)."""
     r = _check_triplet(r, "r")
-    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
+    d = _pair_differences(r)
     ok = np.all(np.isfinite(d), axis=(1, 2))
     e, V = np.linalg.eigh(_pair_normal(d[ok]))
     axis = np.median(V[:, :, 0] * np.sign(V[:, :1, 0] + 1e-12), axis=0)
@@ -208,11 +213,11 @@ def weak_axis_gain(r_raw, v_raw, a_raw, *, over_subtraction: float = 1.0) -> tup
     least-squares residual) predicts the noise of the weak-axis component, and the gain is
     1 − noise power / measured power (0 when the component is no larger than its noise)."""
     r, v, a = (_check_triplet(x, n) for x, n in ((r_raw, "r"), (v_raw, "v"), (a_raw, "a")))
-    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
-    dv = np.stack([v[:, j] - v[:, i] for i, j in _PAIRS], axis=1)
+    d = _pair_differences(r)
+    dv = _pair_differences(v)
     w_weak, w_noise = _weak_component_and_noise(d, dv)
     w = omega_least_squares(r, v)
-    da = np.stack([a[:, j] - a[:, i] for i, j in _PAIRS], axis=1)
+    da = _pair_differences(a)
     w3 = np.broadcast_to(w[:, None, :], d.shape)
     a_weak, a_noise = _weak_component_and_noise(d, da - np.cross(w3, np.cross(w3, d)))
 
@@ -303,8 +308,8 @@ def omega_least_squares(r, v, *, min_eig_ratio: float = 0.0, weak_gain: float | 
     """
     r = _check_triplet(r, "r")
     v = _check_triplet(v, "v")
-    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
-    dv = np.stack([v[:, j] - v[:, i] for i, j in _PAIRS], axis=1)
+    d = _pair_differences(r)
+    dv = _pair_differences(v)
     return _skew_lsq(d, dv, min_eig_ratio, weak_gain)
 
 
@@ -317,8 +322,8 @@ def alpha_least_squares(r, a, omega, *, min_eig_ratio: float = 0.0, weak_gain: f
     r = _check_triplet(r, "r")
     a = _check_triplet(a, "a")
     w = np.asarray(omega, dtype=np.float64).reshape(-1, 3)
-    d = np.stack([r[:, j] - r[:, i] for i, j in _PAIRS], axis=1)
-    da = np.stack([a[:, j] - a[:, i] for i, j in _PAIRS], axis=1)
+    d = _pair_differences(r)
+    da = _pair_differences(a)
     w3 = np.broadcast_to(w[:, None, :], d.shape)
     return _skew_lsq(d, da - np.cross(w3, np.cross(w3, d)), min_eig_ratio, weak_gain)
 
