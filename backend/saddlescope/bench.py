@@ -203,11 +203,12 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
 
 
 def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter"),
-                     seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6), skin_motion: bool = True,
+                     seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6), skin_motion: str = "stride_locked",
                      params=None) -> dict:
     """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each): per gait the
-    mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors. Without
-    ``skin_motion`` the markers are fixed to the saddle body and the stages should be exact."""
+    mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors.
+    ``skin_motion`` is the arena's skin model (synthetic_gait.SKIN_MODELS); with "none" the markers
+    are fixed to the saddle body and the stages should be exact."""
     import json
 
     from saddlescope.core.synthetic import build_scene

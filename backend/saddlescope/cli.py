@@ -73,6 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=float, default=None, help="overrides the rig's frame rate")
     s.add_argument("--duration", type=float, default=None, help="motion clip length in seconds")
     s.add_argument("--rig", default="thesis", choices=["thesis", "wide"])
+    s.add_argument("--skin", default="stride_locked", choices=["stride_locked", "noise", "none"],
+                   help="the markers' skin sliding: locked to the stride (default, as on a real flank), "
+                        "small random noise only, or none (markers fixed to the saddle body)")
 
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
     s.add_argument("ride")
@@ -101,10 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     cmd = args.command
     if cmd == "synth":
+        from saddlescope.core.synthetic_render import RenderOptions
         from saddlescope.io.synth_writer import write_ride_bundle
 
         path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,
-                                 size=args.size, fps=args.fps, duration_s=args.duration)
+                                 size=args.size, fps=args.fps, duration_s=args.duration,
+                                 options=RenderOptions(skin_motion=args.skin))
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":

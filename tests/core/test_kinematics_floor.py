@@ -28,11 +28,27 @@ def test_exact_markers_give_the_saddle_within_the_skin_motion_floor(rig):
         assert floor[gait]["acc_y_wb_rms_error_pct_max_abs"] < wb, (gait, floor[gait])
 
 
+# the same with only small random skin sliding (skin_motion="noise"): measured on seeds 1-3, walk
+# 5.0-5.4 %, trots 0.9-1.5 %, canter 1.4-1.8 % (mean); worst |W_b| 3.6 %, 0.8 %, 1.6 %
+NOISE_BOUNDS = {"walk": (6.5, 4.5), "sitting_trot": (2.0, 1.5), "rising_trot": (2.0, 1.5), "canter": (2.5, 2.5)}
+
+
+@pytest.mark.parametrize("rig", ["thesis", "wide"])
+def test_skin_noise_alone_is_rejected_far_better_than_stride_locked_sliding(rig):
+    # Random sliding is what registration and the fits average out; what is locked to the stride
+    # is not (the default arena's floor above), so the same stages land far lower here.
+    floor = kinematics_floor(rig=rig, seeds=(1, 2, 3), skin_motion="noise")
+    for gait, (acc_mean, wb) in NOISE_BOUNDS.items():
+        assert floor[gait]["acc_y_rms_error_pct_mean"] < acc_mean, (gait, floor[gait])
+        assert floor[gait]["acc_y_wb_rms_error_pct_max_abs"] < wb, (gait, floor[gait])
+        assert floor[gait]["acc_y_rms_error_pct_mean"] < 0.6 * BOUNDS[gait][0]
+
+
 @pytest.mark.parametrize("rig", ["thesis", "wide"])
 def test_markers_fixed_to_the_saddle_give_the_exact_answer(rig):
     # No skin motion: every stage from the markers to the indicators is exact up to the fits'
     # truncation (a one-stride truth window against the pipeline's two strides once made VDV +19 %).
-    floor = kinematics_floor(rig=rig, seeds=(1, 2, 3), skin_motion=False)
+    floor = kinematics_floor(rig=rig, seeds=(1, 2, 3), skin_motion="none")
     for gait, row in floor.items():
         assert row["acc_y_rms_error_pct_max"] < 1.0, (gait, row)
         assert row["acc_y_wb_rms_error_pct_max_abs"] < 0.2, (gait, row)

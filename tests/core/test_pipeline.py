@@ -193,7 +193,7 @@ def test_a_marker_lost_at_the_acceleration_peak_costs_nothing(lost_marker):
     from saddlescope.core.synthetic_truth import build_truth
 
     scene = build_scene(gait="canter", seed=7, rig="thesis", extras=False, calibration_poses=4,
-                        options=RenderOptions(skin_motion=False))
+                        options=RenderOptions(skin_motion="none"))
     truth = json.loads(json.dumps(build_truth(scene)))
     tt, fps = truth["truth"], truth["fps"]
     marks = {k: np.asarray(tt["markers_3d_mm"][k], float) for k in ("motion", "static", "plumb")}

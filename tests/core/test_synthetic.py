@@ -117,6 +117,41 @@ def test_body_kinematics_exact(gait):
     np.testing.assert_allclose(dR, skew @ R, atol=1e-12)
 
 
+def _stride_locked_share(m, name: str) -> float:
+    # share of a marker's skin-motion power at the stride's harmonics, over 40 strides
+    t = np.arange(0, 40 / m.stride_hz, 1 / 240)
+    y = m.skin_offset(name, t)
+    k = np.arange(1, 9)
+    arg = np.multiply.outer(t, 2 * np.pi * m.stride_hz * k)
+    basis = np.hstack([np.cos(arg), np.sin(arg)])
+    fitted = basis @ np.linalg.lstsq(basis, y, rcond=None)[0]
+    return float(np.sum(fitted**2) / np.sum((y - y.mean(axis=0)) ** 2))
+
+
+def test_skin_models_slide_the_same_horse_differently():
+    rng = lambda: np.random.default_rng(11)  # noqa: E731
+    locked = sample_gait("walk", rng(), camera_side=1.0)  # the default
+    noise = sample_gait("walk", rng(), camera_side=1.0, skin_model="noise")
+    none = sample_gait("walk", rng(), camera_side=1.0, skin_model="none")
+    for other in (noise, none):  # one seed, one horse: only the skin differs
+        assert other.stride_hz == locked.stride_hz and other.speed_m_s == locked.speed_m_s
+        for name, p in locked.body_points_m.items():
+            np.testing.assert_array_equal(other.body_points_m[name], p)
+        for ch, (a, ph) in locked.harmonics.items():
+            np.testing.assert_array_equal(other.harmonics[ch][0], a)
+            np.testing.assert_array_equal(other.harmonics[ch][1], ph)
+    assert none.skin == {}
+    t = np.linspace(0, 20, 4000)
+    for name in ("marker1", "marker2", "marker3"):
+        # stride-locked: most of the sliding at the stride's harmonics; noise: a few percent there
+        assert _stride_locked_share(locked, name) > 0.6
+        assert _stride_locked_share(noise, name) < 0.2
+        rms = np.sqrt(np.mean(noise.skin_offset(name, t) ** 2, axis=0))
+        assert np.all(rms[:2] > 0.0002) and np.all(rms < 0.0015)  # "small": below 1.5 mm r.m.s.
+    with pytest.raises(InputError, match="skin model"):
+        sample_gait("walk", rng(), camera_side=1.0, skin_model="sticky")
+
+
 def test_acceleration_harmonics_reproduce_the_exact_acceleration():
     m = sample_gait("sitting_trot", np.random.default_rng(5), camera_side=1.0)
     r = m.body_points_m[SADDLE_NAME]

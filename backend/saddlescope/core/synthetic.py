@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -340,9 +340,7 @@ def build_scene(
     direction = "CW" if r_meta.random() < 0.5 else "CCW"
     m_dir = np.eye(3) if direction == "CW" else np.diag([-1.0, 1.0, -1.0])
     camera_side = -1.0 if direction == "CW" else 1.0  # the arena z of the camera-facing flank
-    model = sample_gait(gait, r_gait, camera_side=camera_side)
-    if not options.skin_motion:
-        model = replace(model, skin={})
+    model = sample_gait(gait, r_gait, camera_side=camera_side, skin_model=options.skin_motion)
     period = model.period_s
 
     # --- clip timings -------------------------------------------------------------------------

@@ -27,6 +27,15 @@ CHANNELS: tuple[str, ...] = ("x", "y", "z", "roll", "pitch", "yaw")
 N_HARMONICS = 4
 MARKER_NAMES: tuple[str, ...] = ("marker1", "marker2", "marker3")
 SADDLE_NAME = "saddle"
+# "stride_locked": sliding at the stride's first two harmonics plus a wobble near the third, a few
+# millimetres, as a real flank slides with the limbs; no fit can tell its stride-locked part from the
+# body's motion, so it sets a floor under any three-marker method. "noise": only small random
+# sliding, not locked to the stride (what rigid registration and the fits are there to reject).
+# "none": markers fixed to the saddle body (checks of the stages alone).
+SKIN_MODELS: tuple[str, ...] = ("stride_locked", "noise", "none")
+SKIN_NOISE_RMS_M = (0.0004, 0.0010)  # per marker and in-plane axis, drawn in this range
+SKIN_NOISE_BAND_HZ = (0.3, 6.0)
+SKIN_NOISE_COMPONENTS = 48
 
 # Literature ranges (SCIENCE.md, "Reference numbers"); the speed bands are narrowed inside the
 # literature range so that two strides fit in the thesis rig's 6.5 m field of view.
@@ -297,12 +306,16 @@ def sample_gait(
     camera_side: float,
     t_cross_s: float = 0.0,
     speed_range_m_s: tuple[float, float] | None = None,
+    skin_model: str = "stride_locked",
 ) -> GaitModel:
     """Draw one horse's gait: stride frequency, speed, Fourier coefficients, marker layout, skin motion.
 
     ``camera_side`` (+1 or -1) is the arena z side of the horse that faces the cameras (markers and
     saddle point go there). ``speed_range_m_s`` narrows the speed band (e.g. to fit a field of view).
+    ``skin_model`` is one of :data:`SKIN_MODELS` (see :func:`_skin_motion`).
     """
+    if skin_model not in SKIN_MODELS:
+        raise InputError(f"unknown skin model {skin_model!r}; expected one of {', '.join(SKIN_MODELS)}")
     if gait not in GAIT_RANGES:
         raise InputError(f"unknown gait {gait!r}; expected one of {', '.join(GAITS)}")
     rng_ = GAIT_RANGES[gait]
@@ -336,12 +349,7 @@ def sample_gait(
         # S on the saddle's side, above the marker row (hidden by the rider during the ride)
         SADDLE_NAME: np.array([-0.25 + jit(0.02), -0.03 + jit(0.01), s * (0.2 + jit(0.01))]),
     }
-    skin = {}
-    for name in MARKER_NAMES:
-        # two stride harmonics plus one incommensurate wobble, a few millimetres
-        freq = np.array([stride_hz, 2.0 * stride_hz, stride_hz * float(rng.uniform(2.6, 3.4))])
-        amp = rng.uniform(0.0005, 0.0025, (3, 3)) * np.array([1.0, 1.0, 0.4])[None, :]
-        skin[name] = {"amp_m": amp, "freq_hz": freq, "phase_rad": rng.uniform(-np.pi, np.pi, (3, 3))}
+    skin = _skin_motion(skin_model, rng, stride_hz)
 
     model = GaitModel(
         gait=gait,
@@ -372,6 +380,28 @@ def sample_gait(
             horse_height_m=horse_height,
         )
     return model
+
+
+def _skin_motion(skin_model: str, rng: np.random.Generator, stride_hz: float) -> dict:
+    """Per marker, the skin's sliding over the body as a sum of sines: amplitudes (3, J) m along
+    body x, y, z, frequencies (J,) Hz, phases (3, J) rad. Both sliding models are drawn from the
+    same stream whichever is asked for, so a seed gives the same horse and cameras under each."""
+    locked, noise = {}, {}
+    for name in MARKER_NAMES:
+        # two stride harmonics plus one incommensurate wobble, a few millimetres
+        freq = np.array([stride_hz, 2.0 * stride_hz, stride_hz * float(rng.uniform(2.6, 3.4))])
+        amp = rng.uniform(0.0005, 0.0025, (3, 3)) * np.array([1.0, 1.0, 0.4])[None, :]
+        locked[name] = {"amp_m": amp, "freq_hz": freq, "phase_rad": rng.uniform(-np.pi, np.pi, (3, 3))}
+    for name in MARKER_NAMES:
+        # band-limited random sliding: many sines at random frequencies, displacement falling as
+        # 1/f (soft tissue), each axis scaled to its drawn r.m.s., the flank's normal (z) to 0.4 of it
+        freq = rng.uniform(*SKIN_NOISE_BAND_HZ, SKIN_NOISE_COMPONENTS)
+        amp = (1.0 / freq)[None, :] * rng.rayleigh(1.0, (3, SKIN_NOISE_COMPONENTS))
+        rms = rng.uniform(*SKIN_NOISE_RMS_M, 3) * np.array([1.0, 1.0, 0.4])
+        amp *= (rms / np.sqrt(0.5 * np.sum(amp**2, axis=1)))[:, None]
+        noise[name] = {"amp_m": amp, "freq_hz": freq,
+                       "phase_rad": rng.uniform(-np.pi, np.pi, (3, SKIN_NOISE_COMPONENTS))}
+    return {"stride_locked": locked, "noise": noise, "none": {}}[skin_model]
 
 
 def with_t_cross(model: GaitModel, t_cross_s: float) -> GaitModel:

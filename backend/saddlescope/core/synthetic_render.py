@@ -34,7 +34,9 @@ class RenderOptions:
     marker_halo: float = 0.12  # faint glow around retro-reflective markers (fraction of the peak)
     markers: bool = True  # False renders the scene without its markers (for difference images)
     supersample: int = 3
-    skin_motion: bool = True  # False: markers fixed to the saddle body (checks of the kinematics alone)
+    # skin sliding of markers 1-3, one of synthetic_gait.SKIN_MODELS: "stride_locked" (as a real
+    # flank), "noise" (small random sliding only) or "none" (markers fixed to the saddle body)
+    skin_motion: str = "stride_locked"
 
 
 @dataclass(frozen=True)
