@@ -166,11 +166,17 @@ def test_cli_synth_default_canter_seed_7(tmp_path):
     )
 
 
-def test_cli_synth_skin_model_reaches_the_truth(tmp_path, monkeypatch):
+def test_cli_synth_skin_model_reaches_the_writer(tmp_path, monkeypatch):
     # --skin picks the arena's skin sliding; the bundle writer gets it (rendering stubbed: the
-    # writer itself is tested above) and a wrong name is refused by the parser.
+    # writer itself is tested above) and a wrong name is refused by the parser. The parser keeps
+    # its choices literal (no numpy at start-up), so they are checked against the arena's list.
     from saddlescope import cli
+    from saddlescope.core.synthetic_gait import SKIN_MODELS
     from saddlescope.io import synth_writer
+
+    synth = next(a for a in cli.build_parser()._subparsers._group_actions[0].choices["synth"]._actions
+                 if a.dest == "skin")
+    assert tuple(synth.choices) == SKIN_MODELS and synth.default == SKIN_MODELS[0]
 
     seen = {}
     monkeypatch.setattr(synth_writer, "write_ride_bundle",

@@ -32,7 +32,7 @@ SADDLE_NAME = "saddle"
 # body's motion, so it sets a floor under any three-marker method. "noise": only small random
 # sliding, not locked to the stride (what rigid registration and the fits are there to reject).
 # "none": markers fixed to the saddle body (checks of the stages alone).
-SKIN_MODELS: tuple[str, ...] = ("stride_locked", "noise", "none")
+SKIN_MODELS: tuple[str, ...] = ("stride_locked", "noise", "none")  # the first is the default
 SKIN_NOISE_RMS_M = (0.0004, 0.0010)  # per marker and in-plane axis, drawn in this range
 SKIN_NOISE_BAND_HZ = (0.3, 6.0)
 SKIN_NOISE_COMPONENTS = 48
