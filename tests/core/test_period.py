@@ -114,3 +114,18 @@ def test_analysis_window_errors():
     valid[::3] = True
     with pytest.raises(KinematicsError, match="lost for most of the ride"):
         analysis_window(t, valid, 0.6)
+
+
+def test_dominant_line_at_the_band_edge_stays_in_the_band():
+    """A strong drift just below the band makes the band's first bin its largest; the parabola
+    through that bin and the (higher) one outside the band must not move the line out of the band
+    (a wide-rig canter's 0.51 Hz edge bin once read as 0.28 Hz and the stride was lost)."""
+    from saddlescope.core.period import _dominant_frequency
+
+    t = np.arange(0, 3.1, 1 / 60)
+    drift = 200 * np.sin(2 * np.pi * 0.3 * t)
+    stride = 5 * np.sin(2 * np.pi * 1.65 * t)
+    comp = np.column_stack([drift + stride, 0.5 * drift])
+    f, freqs, _ = _dominant_frequency(comp, 1 / 60, 0.5, 7.0)
+    df = freqs[1] - freqs[0]
+    assert 0.5 <= f <= 0.5 + 2 * df

@@ -88,3 +88,27 @@ def test_layout_ratio_and_shapes():
     assert layout_ratio(equilateral) == pytest.approx(np.sqrt(3) / 2)
     with pytest.raises(InputError, match="markers"):
         register_rigid(np.zeros((4, 3, 3)), np.zeros((4, 3)))
+
+
+def test_look_alikes_that_break_the_marker_distances_are_found():
+    from saddlescope.core.registration import broken_distance_samples
+
+    rng = np.random.default_rng(5)
+    n = 120
+    body = np.array([[0.0, 0.0, 0.0], [200.0, 40.0, 10.0], [400.0, -5.0, 0.0]])
+    t = np.arange(n) / 60
+    xyz = body[None] + np.stack([3000 * t, 30 * np.sin(2 * np.pi * 2.8 * t), 0 * t], axis=1)[:, None, :]
+    xyz += rng.normal(0.0, 1.0, xyz.shape)  # camera noise and skin: a few millimetres at most
+    assert not broken_distance_samples(xyz).any()
+    xyz[10:14, 1] += [900.0, -300.0, 50.0]  # one marker taken for a glint: that marker only
+    xyz[40:43, 0] += [-1400.0, 200.0, 0.0]  # two wrong at once: the whole frame
+    xyz[40:43, 2] += [800.0, 100.0, 20.0]
+    xyz[70, 2] = np.nan  # a missing sample stays missing, and never counts as broken
+    xyz[71, 2] = np.nan
+    xyz[71, 0] += [0.0, 0.0, 600.0]  # with a marker missing, the one broken pair marks both of its markers
+    drop = broken_distance_samples(xyz)
+    expected = np.zeros((n, 3), dtype=bool)
+    expected[10:14, 1] = True
+    expected[40:43] = True
+    expected[71, :2] = True
+    np.testing.assert_array_equal(drop, expected)

@@ -68,10 +68,13 @@ def _dominant_frequency(comp: np.ndarray, dt: float, f_lo: float, f_hi: float) -
     f_peak = freqs[i]
     if 0 < i < power.shape[0] - 1:
         # Parabolic interpolation of the log power around the peak bin.
+        # Only at a true local maximum: at the band's edge the neighbour outside may be higher, and
+        # the vertex of that parabola lies anywhere (a 0.51 Hz edge bin once became 0.28 Hz).
         a, b, c = np.log(power[i - 1: i + 2] + 1e-300)
         denom = a - 2 * b + c
-        if denom < 0:
-            f_peak = freqs[i] + 0.5 * (a - c) / denom * (freqs[1] - freqs[0])
+        if denom < 0 and b >= max(a, c):
+            shift = float(np.clip(0.5 * (a - c) / denom, -0.5, 0.5))
+            f_peak = freqs[i] + shift * (freqs[1] - freqs[0])
     return float(f_peak), freqs, power
 
 

@@ -27,7 +27,7 @@ from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.marker_search import SequentialFrames, find_markers_multiview
 from saddlescope.core.markers import track_markers
 from saddlescope.core.period import analysis_window, estimate_period
-from saddlescope.core.registration import Registration, marker_model, register_rigid
+from saddlescope.core.registration import Registration, broken_distance_samples, marker_model, register_rigid
 from saddlescope.core.rigid_body import angular_kinematics, saddle_body_coordinates, saddle_point_kinematics
 from saddlescope.core.smoothing import bridge_gaps, regularize_depth, rloess
 from saddlescope.core.sync import clip_offsets, flash_interval, offsets_from_spec
@@ -504,6 +504,13 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     if present.all(axis=1).mean() < 0.3:
         raise KinematicsError(f"the markers are seen together in only {100 * present.all(axis=1).mean():.0f} %"
                               " of the motion clip's frames; the ride cannot be analysed")
+    # A look-alike taken for a marker breaks the markers' distances (often as the horse enters the
+    # view, before the markers do): such samples go before anything reads them.
+    broken = broken_distance_samples(xyz)
+    if broken.any():
+        xyz = np.where(broken[..., None], np.nan, xyz)
+        flags.append(f"{int(broken.sum())} marker samples in {int(broken.any(axis=1).sum())} frames broke the "
+                     "markers' distances (a look-alike taken for a marker) and were dropped")
     # Short gaps bridged (and flagged), long ones reported (5.2.1).
     filled, filled_mask, long_gaps = bridge_gaps(t, xyz.reshape(n_frames, -1), max_gap_s=params.max_gap_s)
     xyz = filled.reshape(n_frames, n_markers, 3)

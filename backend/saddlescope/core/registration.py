@@ -186,3 +186,54 @@ def register_rigid(measured, model, *, min_markers: int = 3) -> Registration:
     rms = np.where(valid, rms, np.nan)
     return Registration(R=R, t=t, registered=registered, residual=residual, rms_residual=rms,
                         n_markers=n_present, valid=valid)
+
+
+def broken_distance_samples(xyz, *, min_jump: float = 30.0, n_sigma: float = 5.0) -> np.ndarray:
+    """Marker samples that break the markers' rigid distances: a look-alike taken for a marker.
+
+    The markers sit on one rigid-enough body, so each pair's distance stays near its median over the
+    clip (skin sliding and camera noise move it by millimetres). A pair whose distance is off by more
+    than ``n_sigma`` robust standard deviations and ``min_jump`` (units of ``xyz``) is broken. A
+    marker in two broken pairs is the wrong one; a lone broken pair marks both of its markers (the
+    distances cannot tell which); with three markers all broken, the whole frame goes.
+
+    Parameters
+    ----------
+    xyz : ndarray of shape (F, M, 3)
+        Tracked positions, NaN where missing; M >= 3.
+
+    Returns
+    -------
+    ndarray of bool, shape (F, M)
+        True for samples to drop (never True where the sample was already missing).
+    """
+    xyz = np.asarray(xyz, dtype=np.float64)
+    if xyz.ndim != 3 or xyz.shape[2] != 3:
+        raise InputError(f"xyz must have shape (F, M, 3), got {xyz.shape}")
+    n_frames, n_markers, _ = xyz.shape
+    bad_pairs = np.zeros((n_frames, n_markers), dtype=np.int64)  # broken pairs each marker is in
+    pairs_seen = np.zeros((n_frames, n_markers), dtype=np.int64)
+    drop = np.zeros((n_frames, n_markers), dtype=bool)
+    for i in range(n_markers):
+        for j in range(i + 1, n_markers):
+            d = np.linalg.norm(xyz[:, i] - xyz[:, j], axis=1)
+            ok = np.isfinite(d)
+            if ok.sum() < 5:
+                continue
+            dev = np.abs(d - np.median(d[ok]))
+            sigma = 1.4826 * np.median(dev[ok])
+            broken = ok & (dev > max(n_sigma * sigma, min_jump))
+            for m in (i, j):
+                bad_pairs[:, m] += broken
+                pairs_seen[:, m] += ok
+            # a lone broken pair: both of its markers (resolved below where a third pair says more)
+            drop[:, i] |= broken
+            drop[:, j] |= broken
+    # Where a marker sits in two or more broken pairs, the others in only one are innocent unless
+    # every pair of the frame is broken.
+    if n_markers >= 3:
+        guilty = bad_pairs >= 2
+        all_broken = np.all((bad_pairs == pairs_seen) & (pairs_seen > 0) | ~np.isfinite(xyz[..., 0]), axis=1)
+        some_guilty = guilty.any(axis=1) & ~all_broken
+        drop[some_guilty] = guilty[some_guilty]
+    return drop & np.isfinite(xyz).all(axis=2)
