@@ -642,6 +642,13 @@ def _cross_signs(xy: np.ndarray, min_sine: float = 0.1) -> dict[tuple[int, int, 
     return out
 
 
+def _median(values: list[float]) -> float:
+    """Median of a short plain list (no numpy: the tracker's step must cost well under a millisecond)."""
+    v = sorted(values)
+    k = len(v) // 2
+    return v[k] if len(v) % 2 else 0.5 * (v[k - 1] + v[k])
+
+
 class _Tracker:
     """The per-frame state of :func:`track_markers` (kept private: the public API is the function).
 
@@ -822,16 +829,21 @@ class _Tracker:
             self.vel = [[0.9 * vx, 0.9 * vy] for vx, vy in self.vel]
             return
         self.lost = 0
-        # Markers not seen are carried along by the mean correction of those seen.
-        sx = sum(found[m][0] - pred[m][0] for m in seen) / len(seen)
-        sy = sum(found[m][1] - pred[m][1] for m in seen) / len(seen)
-        new = [found[m] if found[m] is not None else [pred[m][0] + sx, pred[m][1] + sy]
-               for m in range(self.M)]
-        vel = [[n[0] - e[0], n[1] - e[1]] for n, e in zip(new, self.est, strict=True)]
-        if len(seen) < self.M:
-            mvx = sum(vel[m][0] for m in seen) / len(seen)
-            mvy = sum(vel[m][1] for m in seen) / len(seen)
-            vel = [vel[m] if found[m] is not None else [mvx, mvy] for m in range(self.M)]
+        # The markers sit on one body and turn little between frames: they share one velocity (the
+        # median of those seen), and a marker not seen is placed by the pattern, from those seen and
+        # the vectors last measured between them. Per-marker velocities let a marker taken on a
+        # wrong blob for a frame fling its prediction away: a pole passing a thesis-rig walk merged
+        # two predictions onto one marker, and two markers were lost for the rest of the ride.
+        new = []
+        for m in range(self.M):
+            if found[m] is not None:
+                new.append(found[m])
+                continue
+            px = sum(found[s][0] + self.vec_ref[s][m][0] for s in seen) / len(seen)
+            py = sum(found[s][1] + self.vec_ref[s][m][1] for s in seen) / len(seen)
+            new.append([px, py])
+        common = [_median([found[m][k] - self.est[m][k] for m in seen]) for k in (0, 1)]
+        vel = [list(common) for _ in range(self.M)]
         for v in vel:  # a wrong match must not fling the window away
             speed = math.hypot(v[0], v[1])
             if speed > self.speed_cap:
