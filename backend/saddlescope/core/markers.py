@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import statistics
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -642,13 +643,6 @@ def _cross_signs(xy: np.ndarray, min_sine: float = 0.1) -> dict[tuple[int, int, 
     return out
 
 
-def _median(values: list[float]) -> float:
-    """Median of a short plain list (no numpy: the tracker's step must cost well under a millisecond)."""
-    v = sorted(values)
-    k = len(v) // 2
-    return v[k] if len(v) % 2 else 0.5 * (v[k - 1] + v[k])
-
-
 class _Tracker:
     """The per-frame state of :func:`track_markers` (kept private: the public API is the function).
 
@@ -660,9 +654,9 @@ class _Tracker:
 
     def __init__(self, pattern: MarkerPattern, *, threshold_fixed: bool, window_px, distance_tol: float,
                  pad_px: int, shape):
-        self.M = M = pattern.xy_px.shape[0]
+        self.M = pattern.xy_px.shape[0]
         self.est = pattern.xy_px.tolist()          # [[x, y], ...] estimated positions
-        self.vel = [[0.0, 0.0] for _ in range(M)]  # px / frame
+        self.vel = [0.0, 0.0]  # px / frame, shared by the markers (one body)
         self.ref_area = pattern.area_px.astype(float).tolist()
         self.ref_contrast = np.maximum(pattern.peak - pattern.background, 2.0).tolist()
         self.background = float(np.median(pattern.background))
@@ -686,7 +680,7 @@ class _Tracker:
         grow = 1.5 ** min(self.lost, 12)
         if self.steps < 3:  # the speed is not known yet
             grow *= 2.0
-        speed = max(math.hypot(vx, vy) for vx, vy in self.vel)
+        speed = math.hypot(*self.vel)
         margin = self.base_margin * grow + 0.5 * speed  # the prediction already moved by the speed
         xs = [p[0] for p in pred]
         ys = [p[1] for p in pred]
@@ -777,7 +771,8 @@ class _Tracker:
     def step(self, gray: np.ndarray) -> tuple[list, list]:
         """Markers on one frame: ([x, y] or None per marker, area or None per marker)."""
         self.steps += 1
-        pred = [[p[0] + v[0], p[1] + v[1]] for p, v in zip(self.est, self.vel, strict=True)]
+        vx, vy = self.vel
+        pred = [[p[0] + vx, p[1] + vy] for p in self.est]
         (x0, y0, x1, y1), margin = self.window(pred)
         M = self.M
         found: list = [None] * M
@@ -826,7 +821,7 @@ class _Tracker:
         if not seen:
             self.lost += 1
             self.est = pred
-            self.vel = [[0.9 * vx, 0.9 * vy] for vx, vy in self.vel]
+            self.vel = [0.9 * self.vel[0], 0.9 * self.vel[1]]
             return
         self.lost = 0
         # The markers sit on one body and turn little between frames: they share one velocity (the
@@ -842,14 +837,11 @@ class _Tracker:
             px = sum(found[s][0] + self.vec_ref[s][m][0] for s in seen) / len(seen)
             py = sum(found[s][1] + self.vec_ref[s][m][1] for s in seen) / len(seen)
             new.append([px, py])
-        common = [_median([found[m][k] - self.est[m][k] for m in seen]) for k in (0, 1)]
-        vel = [list(common) for _ in range(self.M)]
-        for v in vel:  # a wrong match must not fling the window away
-            speed = math.hypot(v[0], v[1])
-            if speed > self.speed_cap:
-                v[0] *= self.speed_cap / speed
-                v[1] *= self.speed_cap / speed
-        self.vel = vel
+        vx, vy = (statistics.median(found[m][k] - self.est[m][k] for m in seen) for k in (0, 1))
+        speed = math.hypot(vx, vy)
+        # a wrong match must not fling the window away
+        cap = min(1.0, self.speed_cap / speed) if speed > 0 else 1.0
+        self.vel = [cap * vx, cap * vy]
         self.est = new
         for a, b in itertools.combinations(seen, 2):
             pa, pb = found[a], found[b]

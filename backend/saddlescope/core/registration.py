@@ -212,8 +212,8 @@ def broken_distance_samples(xyz, *, min_jump: float = 30.0, n_sigma: float = 5.0
         raise InputError(f"xyz must have shape (F, M, 3), got {xyz.shape}")
     n_frames, n_markers, _ = xyz.shape
     bad_pairs = np.zeros((n_frames, n_markers), dtype=np.int64)  # broken pairs each marker is in
-    pairs_seen = np.zeros((n_frames, n_markers), dtype=np.int64)
-    drop = np.zeros((n_frames, n_markers), dtype=bool)
+    pairs_ok = np.zeros(n_frames, dtype=np.int64)  # pairs measured in each frame
+    drop = np.zeros((n_frames, n_markers), dtype=bool)  # only ever set where both markers were measured
     for i in range(n_markers):
         for j in range(i + 1, n_markers):
             d = np.linalg.norm(xyz[:, i] - xyz[:, j], axis=1)
@@ -223,17 +223,16 @@ def broken_distance_samples(xyz, *, min_jump: float = 30.0, n_sigma: float = 5.0
             dev = np.abs(d - np.median(d[ok]))
             sigma = 1.4826 * np.median(dev[ok])
             broken = ok & (dev > max(n_sigma * sigma, min_jump))
-            for m in (i, j):
-                bad_pairs[:, m] += broken
-                pairs_seen[:, m] += ok
+            bad_pairs[:, i] += broken
+            bad_pairs[:, j] += broken
+            pairs_ok += ok
             # a lone broken pair: both of its markers (resolved below where a third pair says more)
             drop[:, i] |= broken
             drop[:, j] |= broken
     # Where a marker sits in two or more broken pairs, the others in only one are innocent unless
     # every pair of the frame is broken.
-    if n_markers >= 3:
-        guilty = bad_pairs >= 2
-        all_broken = np.all((bad_pairs == pairs_seen) & (pairs_seen > 0) | ~np.isfinite(xyz[..., 0]), axis=1)
-        some_guilty = guilty.any(axis=1) & ~all_broken
-        drop[some_guilty] = guilty[some_guilty]
-    return drop & np.isfinite(xyz).all(axis=2)
+    guilty = bad_pairs >= 2
+    all_broken = (bad_pairs.sum(axis=1) == 2 * pairs_ok) & (pairs_ok > 0)
+    some_guilty = guilty.any(axis=1) & ~all_broken
+    drop[some_guilty] = guilty[some_guilty]
+    return drop
