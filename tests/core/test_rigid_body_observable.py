@@ -115,3 +115,33 @@ def test_wiener_gain_survives_degenerate_raw_frames():
     assert 0.0 <= gain_w <= 1.0 and 0.0 <= gain_a <= 1.0
     r[:] = r[:, :1]  # every frame degenerate: nothing to keep
     assert weak_axis_gain(r, v, a) == (0.0, 0.0)
+
+
+def test_a_wandering_roll_about_the_row_stays_out_of_the_saddle_position():
+    """With the roll about the marker row dropped from ω and α (gain 0), S's position keeps the
+    row's mean roll too: on the thesis rig each marker's straight depth path has its own slope, the
+    registered markers rolled 0.2 rad in two strides and S, 0.3 m above the row, drifted 6 cm. With
+    gain 1 the position is eq. 6.48 unchanged."""
+    from dataclasses import replace
+
+    from saddlescope.core.rigid_body import saddle_point_kinematics
+
+    rng = np.random.default_rng(3)
+    r, v, a, _ = _row_motion(0.0, 0.0, rng)
+    t = np.linspace(0, 1.2, 60)
+    centroid = r.mean(axis=1, keepdims=True)
+    drift = 0.2 * t / t[-1]  # spurious roll about the row (x), rad
+    c, s = np.cos(drift), np.sin(drift)
+    roll = np.zeros((len(t), 3, 3))
+    roll[:, 0, 0], roll[:, 1, 1], roll[:, 1, 2], roll[:, 2, 1], roll[:, 2, 2] = 1, c, -s, s, c
+    rolled = np.einsum("fij,fmj->fmi", roll, r - centroid) + centroid
+    r_bs = np.array([0.1, -0.3, -0.07])
+    ang = angular_kinematics(rolled, v, a, method="lsq")
+    true_path = saddle_point_kinematics(r, v, a, ang, r_bs).position_m
+    drifting = saddle_point_kinematics(rolled, v, a, ang, r_bs).position_m
+    kept = saddle_point_kinematics(rolled, v, a, replace(ang, weak_axis_gain=(0.0, 0.0)), r_bs).position_m
+    whole = saddle_point_kinematics(rolled, v, a, replace(ang, weak_axis_gain=(1.0, 1.0)), r_bs).position_m
+    assert np.max(np.linalg.norm(drifting - true_path, axis=1)) > 0.03  # what eq. 6.48 alone gives
+    steady = kept - true_path
+    assert np.max(np.linalg.norm(steady - steady.mean(axis=0), axis=1)) < 0.002
+    np.testing.assert_allclose(whole, drifting, atol=1e-12)

@@ -82,6 +82,10 @@ class PipelineParams:
     angular_method: str = "lsq_wiener"
     x_model: str = "fourier"  # the thesis's "linear" drops the surge within the stride
     extra_orders: int = 3  # orders tried above the extrema rule's E/2 + 1 (chosen by AICc)
+    # a straight line fitted with the y and z series: the registered markers keep slow drifts over the
+    # fitted span (gravity's tilt across the depth travelled, each marker's straight depth path) that
+    # a periodic series smears over its harmonics (a thesis-rig canter lost its fourth harmonic: 16 %)
+    trend_degree: int = 1
     # "run": fit the tracked frames around the window, at most fit_margin_periods strides on either
     # side, and report the window; "window": the thesis's 5.5. The margin is bounded because a real
     # horse's stride drifts over a long side of the arena and one periodic fit would smear it.
@@ -606,7 +610,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     # (a 4-frame bridge flattened a canter's acceleration peak, 24 % error on a thesis-rig ride).
     measured = ~bridged_frames[win][:, None, None]
     fits = fit_marker_kinematics(t_w, np.where(measured, reg.registered, np.nan), period_s=period_s,
-                                 x_model=params.x_model, extra_orders=params.extra_orders)
+                                 x_model=params.x_model, extra_orders=params.extra_orders,
+                                 trend_degree=params.trend_degree)
     flags.extend(fits.flags)
     fits = _on_window(fits, in_win)
     reg = Registration(*(getattr(reg, f.name)[in_win] for f in fields(reg)))
@@ -617,7 +622,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     raw = None
     if params.angular_method == "lsq_wiener":
         raw_fits = _on_window(fit_marker_kinematics(t[win], np.where(measured, xyz_m, np.nan), period_s=period_s,
-                                                    x_model=params.x_model, extra_orders=params.extra_orders),
+                                                    x_model=params.x_model, extra_orders=params.extra_orders,
+                                                    trend_degree=params.trend_degree),
                               in_win)
         raw = (xyz_m[in_win], raw_fits.velocity_m_s, raw_fits.acceleration_m_s2)
     ang = angular_kinematics(r, v, a, singularity_threshold=params.singularity_threshold,
@@ -635,18 +641,20 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
             "r_bs_m": r_bs, "flags": flags, "long_gaps": long_gaps}
 
 
-def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int) -> tuple[np.ndarray, np.ndarray,
-                                                                                         np.ndarray]:
-    """Least-squares cosine series y ~ c0 + sum A_k cos(2 pi k f0 t + phi_k) at a known f0.
+def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int, *, trend: bool = False
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Least-squares cosine series y ~ c0 + sum A_k cos(2 pi k f0 t + phi_k) at a known f0 (plus a
+    straight line c1 t with ``trend``: a slope is no part of an oscillation).
 
     Returns (A (order,), phi (order,), fitted y)."""
-    cols = [np.ones_like(t_s)]
+    cols = [np.ones_like(t_s)] + ([t_s - t_s.mean()] if trend else [])
     for k in range(1, order + 1):
         w = 2 * np.pi * k * f0_hz * t_s
         cols += [np.cos(w), np.sin(w)]
     design = np.stack(cols, axis=1)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-    a_k, b_k = coef[1::2], coef[2::2]
+    harm = coef[2:] if trend else coef[1:]
+    a_k, b_k = harm[0::2], harm[1::2]
     # a cos + b sin = A cos(wt + phi) with A = hypot(a, b), phi = atan2(-b, a)
     return np.hypot(a_k, b_k), np.arctan2(-b_k, a_k), design @ coef
 
@@ -660,7 +668,9 @@ def vertical_harmonics(t_s: np.ndarray, acc_y: np.ndarray, pos_y: np.ndarray, pe
     order = int(min(max_order, max(fit_order + 2, 4)))
     amps, phases, fitted = _harmonic_form(t_s, acc_y, f0, order)
     resid = acc_y - fitted
-    pos_amp, pos_phase, _ = _harmonic_form(t_s, pos_y, f0, order)
+    # the registered position may keep a slope over the window (a tilt of gravity, a wandering
+    # depth): fitted as a line, not folded into the peak-to-peak
+    pos_amp, pos_phase, _ = _harmonic_form(t_s, pos_y, f0, order, trend=True)
     dense = np.linspace(0.0, period_s, 2048, endpoint=False)
     k = np.arange(1, order + 1)
     y_dense = np.sum(pos_amp[None, :] * np.cos(2 * np.pi * f0 * dense[:, None] * k[None, :] + pos_phase[None, :]),

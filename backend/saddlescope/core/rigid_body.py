@@ -515,6 +515,34 @@ def saddle_body_coordinates(static_markers, static_saddle, *, min_height_ratio: 
     return body_frame(m).T @ (s - m[0])
 
 
+def _position_with_weak_axis_shrunk(r: np.ndarray, rot: np.ndarray, r_bs: np.ndarray, gain: float,
+                                    position: np.ndarray) -> np.ndarray:
+    """S's position (eq. 6.48) with the rotation about the markers' weakest axis kept at ``gain`` of
+    its deviation from the mean orientation, as ω keeps it: the same depth noise that swamps roll
+    in ω makes the registered roll wander (on the thesis rig each marker's straight depth path
+    has its own slope, and 0.3 m above the row S drifted 6 cm in two strides). The rotation is
+    taken about the markers' centroid, the point they fix best."""
+    from scipy.spatial.transform import Rotation
+
+    ok = np.all(np.isfinite(rot), axis=(1, 2))
+    if ok.sum() < 2:
+        return position
+    f0 = int(np.flatnonzero(ok)[0])
+    body = rot[f0].T @ (r[f0] - r[f0, 0]).T  # markers in body coordinates (3, marker), constant
+    _, e_vec = np.linalg.eigh(_pair_normal(_pair_differences(body.T[None]))[0])
+    axis_b = e_vec[:, 0]  # the weakest rotation axis, body coordinates
+    rots = Rotation.from_matrix(rot[ok])
+    mean = rots.mean()
+    phi = (mean.inv() * rots).as_rotvec()  # R(t) = R_mean exp([phi(t)]), phi in body coordinates
+    phi_w = phi @ axis_b
+    phi = phi + np.outer((gain - 1.0) * (phi_w - phi_w.mean()), axis_b)
+    rot_kept = (mean * Rotation.from_rotvec(phi)).as_matrix()
+    centroid_b = body.mean(axis=1)
+    out = position.copy()
+    out[ok] = r[ok].mean(axis=1) + np.einsum("fij,j->fi", rot_kept, r_bs - centroid_b)
+    return out
+
+
 def saddle_point_kinematics(r, v, a, angular: AngularKinematics, r_bs) -> PointKinematics:
     """Position, velocity and acceleration of the invisible point S (eq. 6.48, 6.54-6.55).
 
@@ -535,7 +563,11 @@ def saddle_point_kinematics(r, v, a, angular: AngularKinematics, r_bs) -> PointK
     v = _check_triplet(v, "v")
     a = _check_triplet(a, "a")
     r_bs = np.asarray(r_bs, dtype=np.float64).reshape(3)
-    position = np.einsum("fij,j->fi", body_frame(r), r_bs) + r[:, 0]  # eq. 6.48
+    rot = body_frame(r)
+    position = np.einsum("fij,j->fi", rot, r_bs) + r[:, 0]  # eq. 6.48
+    gain = None if angular.weak_axis_gain is None else angular.weak_axis_gain[0]
+    if gain is not None and gain < 1.0:
+        position = _position_with_weak_axis_shrunk(r, rot, r_bs, gain, position)
     w = angular.omega_rad_s
     al = angular.alpha_rad_s2
     r_is = position[:, None, :] - r  # (F, marker, 3): from marker i to S
