@@ -459,6 +459,15 @@ class MarkerKinematics:
         """Mean travel speed of the markers (the slope of the x fits, thesis 5.5.3)."""
         return float(np.mean([f.slope if isinstance(f, LinearFit) else f.trend[0] for f in self.fits_x]))
 
+    def position_m(self, t_s) -> np.ndarray:
+        """Every marker's fitted position (F, M, 3) at times t_s (s), from its x, y and z fits."""
+        t = np.asarray(t_s, dtype=np.float64)
+        out = np.empty((t.size, len(self.fits_y), 3))
+        for c, per_marker in enumerate((self.fits_x, self.fits_y, self.fits_z)):
+            for m, fit in enumerate(per_marker):
+                out[:, m, c] = fit.evaluate(t)
+        return out
+
 
 def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = True,
                           criterion: str = "aicc", extra_orders: int = 1, x_model: str = "linear",
@@ -551,11 +560,9 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
             rejected.append(f"{label[m]}: {int(wild.sum())} wild samples left out of its fits "
                             f"(beyond {reject_sigma:g} robust standard deviations)")
             fit_marker(m)
-    if shared_order and n_mark > 1:
-        whole = np.all(np.isfinite(xyz), axis=(1, 2))
+    whole = np.all(np.isfinite(xyz), axis=(1, 2))
+    if shared_order and n_mark > 1 and whole.sum() >= 8:
         for c, degree in axes.items():
-            if whole.sum() < 8:
-                break
             try:
                 order_c = fit_fourier(t_s[whole], xyz[whole, :, c].mean(axis=1), period_s=period_s,
                                       criterion=criterion, extra_orders=extra_orders, trend_degree=degree,

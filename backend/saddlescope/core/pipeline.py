@@ -625,7 +625,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
         # a bridge is an interpolation across up to a quarter second of a canter's stride; the fits,
         # which saw the same phase in the other strides, are the better positions there
         r = r.copy()
-        r[bridged_w] = _fitted_positions(fits, t_w[bridged_w])
+        r[bridged_w] = fits.position_m(t_w[bridged_w])
 
     # Angular velocity and acceleration (6.1-6.2), the invisible saddle point (6.3-6.4).
     raw = None
@@ -635,7 +635,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
                                                     trend_degree=params.trend_degree),
                               in_win)
         # bridged positions are no measurements of the skin motion the gain weighs
-        raw = (np.where(measured[in_win], xyz_m[in_win], np.nan), raw_fits.velocity_m_s, raw_fits.acceleration_m_s2)
+        raw = (np.where(bridged_w[:, None, None], np.nan, xyz_m[in_win]), raw_fits.velocity_m_s,
+               raw_fits.acceleration_m_s2)
     ang = angular_kinematics(r, v, a, singularity_threshold=params.singularity_threshold,
                              method=params.angular_method, raw=raw)
     flags.extend(ang.flags)
@@ -649,15 +650,6 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
             "period_info": period_info, "window": (i0, i1), "fitted": (f0_, f1_), "frame": frame, "registration": reg,
             "fits": fits, "angular": ang, "saddle": s, "markers_m": r, "static_mismatch_mm": mismatch_mm,
             "r_bs_m": r_bs, "flags": flags, "long_gaps": long_gaps}
-
-
-def _fitted_positions(fits, t_s: np.ndarray) -> np.ndarray:
-    """Every marker's fitted position (F, M, 3) at times t_s, from its x, y and z fits."""
-    out = np.empty((len(t_s), len(fits.fits_y), 3))
-    for c, per_marker in enumerate((fits.fits_x, fits.fits_y, fits.fits_z)):
-        for m, fit in enumerate(per_marker):
-            out[:, m, c] = fit.evaluate(t_s)
-    return out
 
 
 def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int, *, trend: bool = False

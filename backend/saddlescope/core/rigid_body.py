@@ -529,8 +529,7 @@ def _position_with_weak_axis_shrunk(r: np.ndarray, rot: np.ndarray, r_bs: np.nda
         return position
     f0 = int(np.flatnonzero(ok)[0])
     body = rot[f0].T @ (r[f0] - r[f0, 0]).T  # markers in body coordinates (3, marker), constant
-    _, e_vec = np.linalg.eigh(_pair_normal(_pair_differences(body.T[None]))[0])
-    axis_b = e_vec[:, 0]  # the weakest rotation axis, body coordinates
+    axis_b, _ = unobservable_axis(body.T[None], min_eig_ratio=0.0)  # the weakest axis, body coordinates
     rots = Rotation.from_matrix(rot[ok])
     mean = rots.mean()
     phi = (mean.inv() * rots).as_rotvec()  # R(t) = R_mean exp([phi(t)]), phi in body coordinates
