@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import SyncError
-from saddlescope.core.sync import clip_offsets, flash_interval, flash_onset, offsets_from_spec
+from saddlescope.core.sync import (
+    clip_frames_at,
+    clip_offsets,
+    flash_interval,
+    flash_onset,
+    nominal_frames_of,
+    offsets_from_spec,
+)
 
 
 def brightness(n_frames, onset, duration, *, rng, base=80.0, amp=30.0, noise=0.3, integration=1.0,
@@ -107,3 +114,19 @@ def test_known_offsets_from_ride_json():
         offsets_from_spec(bad, clip="motion", cameras=["left", "middle"])
     with pytest.raises(SyncError, match="not 'flash' or 'offsets'"):
         offsets_from_spec({"method": "clap"}, clip="motion", cameras=["left"])
+
+
+def test_nominal_clock_of_a_variable_rate_clip():
+    fps = 30.0
+    even = np.arange(50) / fps
+    # an even clip: nominal frames are its frames, whatever the anchor
+    np.testing.assert_allclose(clip_frames_at(np.array([3.0, 10.5, 40.25]), even, 4.3, fps), [3.0, 10.5, 40.25])
+    # a clip that dropped frame 20 and runs late by 0.2 frame from frame 30
+    late = np.where(np.arange(50) >= 20, 1.0, 0.0) + np.where(np.arange(50) >= 30, 0.2, 0.0)
+    times = (np.arange(50) + late) / fps
+    got = clip_frames_at(np.array([5.0, 19.0, 21.0, 25.0, 35.0, 60.0]), times, 2.0, fps)
+    np.testing.assert_allclose(got[:4], [5.0, 19.0, 20.0, 24.0])
+    assert got[4] == pytest.approx(35.0 - 1.2 + 0.0)  # nominal 35 = clip frame 33.8
+    assert np.isnan(got[5])  # past the clip's last frame
+    back = nominal_frames_of(got[:5], times, 2.0, fps)
+    np.testing.assert_allclose(back, [5.0, 19.0, 21.0, 25.0, 35.0])

@@ -276,6 +276,53 @@ def test_triangulate_tracks_with_subframe_offsets_and_relabelling(rig):
     assert np.nanmax(np.linalg.norm(pairs.xyz_mm - truth, axis=-1)) < 10.0
 
 
+def _phone_times(n, fps, rng, *, drops, steady=6):
+    """A phone's frame timestamps: even for ``steady`` frames (the sync flash), then each frame late
+    by up to 0.3 frame of jitter plus the frames dropped before it (at frames ``drops``)."""
+    k = np.arange(n)
+    dropped = np.sum(k[:, None] > np.asarray(drops)[None, :], axis=1)
+    late = np.where(k >= steady, dropped + rng.uniform(-0.3, 0.3, n), 0.0)
+    return (k + late) / fps
+
+
+def test_variable_rate_clips_are_placed_at_their_timestamps(rig):
+    # Every camera, the reference too, drops frames and jitters; the flash (anchor) is at each clip's
+    # frame 2 + offset. Tracks sampled at the stamped instants must triangulate as if even.
+    fps, rng = 30.0, np.random.default_rng(5)
+    offsets = {"left": 0.0, "middle": 7.4, "right": 3.7}
+    n = 70
+    tracks, clocks = {}, {}
+    for name, cam in rig.cameras.items():
+        times = _phone_times(n, fps, rng, drops=[15 + 7 * len(name), 30, 44 + len(name)])
+        anchor = 2.0 + offsets[name]
+        # the instant of clip frame j on the left camera's nominal clock: nominal frames from the anchor
+        nominal = anchor + (times - np.interp(anchor, np.arange(n), times)) * fps
+        tracks[name] = ImageTracks(name, cam.project(horse_markers((nominal - offsets[name]) / fps)), np.arange(n))
+        clocks[name] = (times, anchor)
+    frames_left = tracks["left"].frame_index[5:55]
+    tracks["left"] = ImageTracks("left", tracks["left"].xy_px[5:55], frames_left)
+    result = triangulate_tracks(rig, tracks, offsets, fps, clocks=clocks)
+    np.testing.assert_allclose(result.t_s, frames_left / fps)  # the nominal clock stays even
+    left_nominal_s = frames_left / fps
+    err = np.linalg.norm(result.xyz_mm - horse_markers(left_nominal_s), axis=-1)
+    assert np.nanmax(err) < 5.0 and np.isfinite(err).all()
+    # read as even clips, the same tracks are frames off after the first drop
+    naive = triangulate_tracks(rig, tracks, offsets, fps)
+    assert np.nanmax(np.linalg.norm(naive.xyz_mm - horse_markers(left_nominal_s), axis=-1)) > 50.0
+
+
+def test_cubic_resampling_goes_through_uneven_frames():
+    times = np.array([0.0, 1.0, 2.0, 4.0, 5.0, 6.5, 7.0])  # frame 3 after a drop, frame 5 late
+    xy = np.stack([times ** 3, 2.0 * times], axis=-1)[:, None, :]
+    tracks = ImageTracks("right", xy, np.arange(7))
+    at = np.array([2.5, 3.5, 4.0, 1.25])
+    out = resample_tracks(tracks, at, frame_times_s=times)
+    t_at = np.interp(at, np.arange(7), times)  # a fraction of a frame is that fraction of its interval
+    np.testing.assert_allclose(out[:, 0], np.stack([t_at ** 3, 2.0 * t_at], axis=-1), atol=1e-9)
+    even = resample_tracks(tracks, at)
+    assert abs(even[0, 0, 0] - 3.0 ** 3) > 0.1  # even nodes miss the cubic across the double interval
+
+
 def test_triangulate_tracks_bad_input(rig):
     tr = ImageTracks("left", np.zeros((5, 3, 2)), np.arange(5))
     with pytest.raises(TriangulationError, match="two cameras"):

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from saddlescope.core.errors import VideoError
+from saddlescope.core.errors import InputError, VideoError
 from saddlescope.io.video import frame_brightness, iter_gray_frames, probe_video, read_gray_frames
 
 
@@ -72,3 +72,31 @@ def test_bad_files(tmp_path):
         probe_video(truncated)
     with pytest.raises(VideoError, match="no numbered images"):
         probe_video(tmp_path / "emptydir" if (tmp_path / "emptydir").mkdir() is None else None)
+
+
+def test_a_phones_variable_frame_rate_is_read_from_the_timestamps(tmp_path):
+    from saddlescope.io.video_writer import write_h264
+
+    rng = np.random.default_rng(3)
+    # the sensor's frame slots, every 17th dropped, each frame stamped up to a fifth of a frame off
+    slots = np.concatenate([[0.0], np.cumsum(np.where(np.arange(59) % 17 == 8, 2.0, 1.0))])
+    times = (slots + rng.uniform(-0.2, 0.2, 60)) / 30.0
+    path = tmp_path / "phone.mp4"
+    frames = [np.full((48, 64), 10 + 3 * i, np.uint8) for i in range(60)]
+    assert write_h264(path, frames, fps=30.0, frame_times_s=times) == 60
+    info = probe_video(path)
+    assert info.variable_frame_rate and info.frame_count == 60
+    # the nominal rate, not the average (60 frames in 2.1 s); two seconds of jittered stamps fix it
+    # to a tenth of a percent
+    assert info.fps == pytest.approx(30.0, rel=2e-3)
+    np.testing.assert_allclose(info.frame_times_s - info.frame_times_s[0], times - times[0], atol=2e-5)
+    facts = info.as_dict()
+    assert facts["variable_frame_rate"] and facts["frame_interval_ms"]["max"] > 55.0
+    # an even clip stays even, at its container rate
+    even = tmp_path / "even.mp4"
+    write_h264(even, frames, fps=29.97)
+    info = probe_video(even)
+    assert not info.variable_frame_rate and info.fps == pytest.approx(29.97, abs=1e-6)
+    assert "variable_frame_rate" not in info.as_dict()
+    with pytest.raises(InputError, match="increase"):
+        write_h264(tmp_path / "bad.mp4", frames[:3], fps=30.0, frame_times_s=[0.0, 0.1, 0.1])

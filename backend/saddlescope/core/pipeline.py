@@ -30,7 +30,7 @@ from saddlescope.core.period import analysis_window, estimate_period
 from saddlescope.core.registration import Registration, broken_distance_samples, marker_model, register_rigid
 from saddlescope.core.rigid_body import angular_kinematics, saddle_body_coordinates, saddle_point_kinematics
 from saddlescope.core.smoothing import bridge_gaps, regularize_depth, rloess
-from saddlescope.core.sync import clip_offsets, flash_interval, offsets_from_spec
+from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
 from saddlescope.core.triangulation import position_uncertainty, triangulate_tracks
 from saddlescope.core.types import Board, ImageTracks, MarkerTracks, Rig
 
@@ -56,6 +56,7 @@ class ClipReader(Protocol):
     def frame_count(self, kind: str, camera: str) -> int: ...
     def image_size(self, kind: str, camera: str) -> tuple[int, int]: ...
     def brightness(self, kind: str, camera: str) -> np.ndarray: ...
+    def frame_times(self, kind: str, camera: str) -> np.ndarray | None: ...
     def gray_frames(self, kind: str, camera: str, start: int = 0, stop: int | None = None,
                     step: int = 1) -> Iterator[tuple[int, np.ndarray]]: ...
 
@@ -150,7 +151,10 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
         fps = {c: clips.fps(kind, c) for c in cams}
         known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
         brightness = {c: decoded[kind, c] for c in cams}
-        offsets[kind] = known if known is not None else clip_offsets(brightness, fps, clip=kind)
+        # a variable-rate clip's nominal rate comes from its stamps (a short clip's to a few tenths of
+        # a percent); its frames are then placed by their stamps, not by the rate
+        rel_tol = 0.01 if any(clips.frame_times(kind, c) is not None for c in cams) else 1e-3
+        offsets[kind] = known if known is not None else clip_offsets(brightness, fps, clip=kind, fps_rel_tol=rel_tol)
         first_frame[kind] = {}
         for c in cams:
             try:
@@ -163,6 +167,36 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
     return offsets, first_frame
 
 
+def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
+    """The timestamps of variable-rate clips (phones) and the frame where each was synchronised.
+
+    Returns ``clocks[kind][camera] = (frame times (F,) s, anchor frame)`` for the clips whose frames
+    are not evenly spaced, and a flag for each. The anchor is the sync flash's onset: frame offsets
+    are measured there, so the nominal even clock is tied to the clip's timestamps at that frame."""
+    clocks: dict[str, dict[str, tuple[np.ndarray, float]]] = {}
+    flags: list[str] = []
+    for kind in kinds:
+        stamped = {cam: clips.frame_times(kind, cam) for cam in clips.cameras(kind)}
+        if all(times is None for times in stamped.values()):
+            continue
+        for cam, times in stamped.items():
+            if times is None:
+                # an even camera beside a variable one: its own even stamps, so every camera of the
+                # clip is placed by time (the nominal rate of the others may differ from its rate)
+                times = np.arange(clips.frame_count(kind, cam)) / clips.fps(kind, cam)
+            else:
+                dt_ms = np.diff(times) * 1000.0
+                flags.append(f"the {kind} clip of the {cam} camera has a variable frame rate (frames "
+                             f"{dt_ms.min():.1f}-{dt_ms.max():.1f} ms apart, nominal "
+                             f"{1000.0 / clips.fps(kind, cam):.1f} ms): its frames are placed at their timestamps")
+            try:
+                anchor, _ = flash_interval(clips.brightness(kind, cam), clip=kind, camera=cam)
+            except SyncError:
+                anchor = 0.0  # offsets given in ride.json: counted from the clip's first frame
+            clocks.setdefault(kind, {})[cam] = (np.asarray(times, dtype=np.float64), float(anchor))
+    return clocks, flags
+
+
 # --------------------------------------------------------------------------------------------------
 # Stage 1: calibration
 # --------------------------------------------------------------------------------------------------
@@ -170,7 +204,8 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
 
 def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, float],
                          first_frame: Mapping[str, int], params: PipelineParams,
-                         progress: _Progress | None = None) -> tuple[Rig, dict]:
+                         progress: _Progress | None = None,
+                         clocks: Mapping[str, tuple[np.ndarray, float]] | None = None) -> tuple[Rig, dict]:
     """Board views from every camera's calibration clip, put on the first camera's clock, then
     intrinsics, stereo pairs, bundle adjustment and metric checks (thesis 3.4-3.6, 8.2)."""
     from concurrent.futures import ThreadPoolExecutor, as_completed
@@ -188,9 +223,13 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         start = max(0, base + int(round(offsets.get(cam, 0.0))))
         views, size = calib.detect_board_views(
             clips.gray_frames("calibration", cam, start=start, step=step), board, search_every=search_every)
-        # frame k of this camera shows the instant of frame k - offset of the first camera
+        # frame k of this camera shows the instant of frame k - offset of the first camera (for a
+        # variable-rate clip, k counted on its nominal clock: a dropped frame shifts the rest)
         views = _still_views(views, step) if params.still_board_only else views
-        return ([replace(v, frame=int(round(v.frame - offsets.get(cam, 0.0)))) for v in views],
+        frames = np.array([v.frame for v in views], dtype=np.float64)
+        if clocks and cam in clocks and views:
+            frames = nominal_frames_of(frames, clocks[cam][0], clocks[cam][1], fps)
+        return ([replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)],
                 size or clips.image_size("calibration", cam))
 
     # One thread per camera: decoding (PyAV) and the board search (OpenCV) release the GIL. Each camera's
@@ -356,9 +395,10 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
 
 
 def triangulate_clip(rig: Rig, tracks: Mapping[str, ImageTracks], offsets: Mapping[str, float], fps: float,
-                     names: tuple[str, ...], params: PipelineParams, *, match_labels: bool = True) -> MarkerTracks:
+                     names: tuple[str, ...], params: PipelineParams, *, match_labels: bool = True,
+                     clocks: Mapping[str, tuple[np.ndarray, float]] | None = None) -> MarkerTracks:
     return triangulate_tracks(rig, tracks, offsets, fps, method=params.triangulation, names=names,
-                              match_labels=match_labels)
+                              match_labels=match_labels, clocks=clocks)
 
 
 def _names(n: int) -> tuple[str, ...]:
@@ -750,13 +790,15 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     t0 = time.perf_counter()
     progress.stage("sync", 0.0)
     offsets, first_frame = synchronise(clips, meta, kinds)
+    clocks, clock_flags = frame_clocks(clips, kinds)
     progress.finish("sync", t0)
 
     t0 = time.perf_counter()
     calib_report: dict = {}
     if rig is None:
         rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta), offsets["calibration"],
-                                                 first_frame["calibration"], params, progress)
+                                                 first_frame["calibration"], params, progress,
+                                                 clocks=clocks.get("calibration"))
     progress.finish("calibration", t0)
 
     t0 = time.perf_counter()
@@ -768,7 +810,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     def triangulate(kind, tracks2d, n, **kw) -> MarkerTracks:
         nonlocal triangulation_s
         started = time.perf_counter()
-        out = triangulate_clip(rig, tracks2d, offsets[kind], fps[kind], _names(n), params, **kw)
+        out = triangulate_clip(rig, tracks2d, offsets[kind], fps[kind], _names(n), params,
+                               clocks=clocks.get(kind), **kw)
         triangulation_s += time.perf_counter() - started
         return out
 
@@ -808,7 +851,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                             horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth)
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
-    kin["flags"][:0] = coverage_flags
+    kin["flags"][:0] = clock_flags + coverage_flags
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()

@@ -288,3 +288,31 @@ def offsets_from_spec(sync: Mapping, *, clip: str, cameras: list[str]) -> dict[s
         out[cam] = float(value)
     ref = out[cameras[0]]
     return {cam: v - ref for cam, v in out.items()}
+
+
+# --------------------------------------------------------------------------------------------------
+# Variable frame rate: a clip's timestamps against the nominal even clock the offsets count in
+# --------------------------------------------------------------------------------------------------
+
+def clip_frames_at(nominal_frames: np.ndarray, frame_times_s: np.ndarray, anchor_frame: float,
+                   fps: float) -> np.ndarray:
+    """Fractional frame positions in a variable-rate clip of the instants of its nominal frames.
+
+    The nominal clock runs evenly at ``fps`` and agrees with the clip's timestamps at ``anchor_frame``
+    (the sync flash's onset, where the frame offsets tie the cameras together): nominal frame n is the
+    instant τ(anchor) + (n - anchor) / fps, placed between the clip's stamped frames (NaN outside).
+    For an even clip this is n itself."""
+    times = np.asarray(frame_times_s, dtype=np.float64)
+    idx = np.arange(times.size, dtype=np.float64)
+    t_anchor = float(np.interp(anchor_frame, idx, times))
+    want = t_anchor + (np.asarray(nominal_frames, dtype=np.float64) - anchor_frame) / fps
+    return np.interp(want, times, idx, left=np.nan, right=np.nan)
+
+
+def nominal_frames_of(clip_frames: np.ndarray, frame_times_s: np.ndarray, anchor_frame: float,
+                      fps: float) -> np.ndarray:
+    """The inverse of :func:`clip_frames_at`: the nominal (even-clock) frame of each clip frame."""
+    times = np.asarray(frame_times_s, dtype=np.float64)
+    idx = np.arange(times.size, dtype=np.float64)
+    t_anchor = float(np.interp(anchor_frame, idx, times))
+    return anchor_frame + (np.interp(np.asarray(clip_frames, dtype=np.float64), idx, times) - t_anchor) * fps

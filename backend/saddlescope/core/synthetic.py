@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -92,10 +92,14 @@ class ClipTiming:
     flash_off_s: float
     flash_ramp_s: float
     content_start_s: float
+    # per camera, how much later than its even clock each frame was taken (s): a phone's variable
+    # frame rate (RenderOptions.variable_frame_rate); empty for even clips
+    late_s: dict[str, np.ndarray] = field(default_factory=dict)
 
     def frame_times(self, role: str) -> np.ndarray:
         """Instants (left-clip seconds) of every frame of camera ``role``, shape (n_frames[role],)."""
-        return (np.arange(self.n_frames[role]) - self.offsets[role]) / self.fps
+        even = (np.arange(self.n_frames[role]) - self.offsets[role]) / self.fps
+        return even + self.late_s[role] if role in self.late_s else even
 
     @property
     def left_times(self) -> np.ndarray:
@@ -176,6 +180,25 @@ def _clip_timing(
     for role in ("middle", "right"):
         n_frames[role] = int(math.floor(n_left + offsets[role])) + int(rng.integers(0, 4))
     return ClipTiming(kind, fps, n_left, offsets, n_frames, on, off, ramp, content_start)
+
+
+VFR_JITTER_FRAMES = 0.2  # a phone's frame intervals wander by this much either way
+VFR_DROP_RATE = 0.03  # and it drops this share of frames (a double interval)
+
+
+def _variable_rate(timing: ClipTiming, rng: np.random.Generator) -> ClipTiming:
+    """The middle and right cameras as phones at a variable frame rate: from two frames after the
+    sync flash, each frame is late by its jitter plus the frames dropped before it. The left camera
+    keeps the even clock that the truth is written on."""
+    late = {}
+    for role in ("middle", "right"):
+        n = timing.n_frames[role]
+        k0 = int(math.ceil((timing.flash_off_s + timing.flash_ramp_s) * timing.fps + timing.offsets[role])) + 2
+        k = np.arange(n)
+        dropped = np.cumsum(rng.random(n) < VFR_DROP_RATE)
+        jitter = rng.uniform(-VFR_JITTER_FRAMES, VFR_JITTER_FRAMES, n)
+        late[role] = np.where(k >= k0, (dropped - dropped[min(k0, n - 1)] + jitter) / timing.fps, 0.0)
+    return replace(timing, late_s=late)
 
 
 def _make_views(rig: SceneRig) -> dict[str, CameraView]:
@@ -370,6 +393,9 @@ def build_scene(
         )
     t_cross = 0.5 * (usable[0] + usable[1])
     model = with_t_cross(model, t_cross)
+    if options.variable_frame_rate:
+        r_vfr = np.random.default_rng(np.random.SeedSequence([int(seed), 0x0F1A5]))
+        timings = {k: _variable_rate(tm_k, r_vfr) for k, tm_k in timings.items()}
     start_s, n_periods = _choose_window(views, model, m_dir, tm, usable, fps_)
 
     # --- the foreground pole: hides the markers in one camera at a time inside the window ---------

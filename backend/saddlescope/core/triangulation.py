@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core.errors import InputError, TriangulationError
+from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.types import Camera, ImageTracks, MarkerTracks, Rig
 
 __all__ = [
@@ -623,7 +624,8 @@ def match_markers_across_cameras(rig: Rig, xy_by_camera: Mapping[str, np.ndarray
 # Tracks
 # --------------------------------------------------------------------------------------------------
 
-def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cubic") -> np.ndarray:
+def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cubic",
+                    frame_times_s: np.ndarray | None = None) -> np.ndarray:
     """Sample a camera's 2-D tracks at fractional frame positions of its own clip.
 
     ``kind="cubic"``: the cubic through the four nearest frames (two each side), where all four are
@@ -640,6 +642,10 @@ def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cub
     frames : ndarray of shape (N,)
         Wanted positions in this clip's frame numbers.
     kind : {"cubic", "linear"}, keyword-only
+    frame_times_s : ndarray of shape (F_clip,), keyword-only
+        Each clip frame's timestamp, for a variable-rate clip: the cubic then goes through the four
+        frames at their own instants (a dropped frame leaves a double interval), and a fractional
+        position means that fraction of the time between its two frames.
 
     Returns
     -------
@@ -671,19 +677,45 @@ def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cub
     val = np.where(snap[:, None, None], p0, (1 - t) * p0 + t * p1)  # NaN in p1 poisons only real blends
     if kind == "cubic":
         pm, p2 = dense[b - 1], dense[b + 2]
-        # Lagrange weights of the cubic through frames -1, 0, 1, 2 at t in [0, 1).
-        cubic = (-t * (t - 1) * (t - 2) / 6 * pm + (t + 1) * (t - 1) * (t - 2) / 2 * p0
-                 - (t + 1) * t * (t - 2) / 2 * p1 + (t + 1) * t * (t - 1) / 6 * p2)
+        if frame_times_s is None:
+            # Lagrange weights of the cubic through frames -1, 0, 1, 2 at t in [0, 1).
+            cubic = (-t * (t - 1) * (t - 2) / 6 * pm + (t + 1) * (t - 1) * (t - 2) / 2 * p0
+                     - (t + 1) * t * (t - 2) / 2 * p1 + (t + 1) * t * (t - 1) / 6 * p2)
+        else:
+            # the same cubic through the four frames at their stamped instants (uneven nodes)
+            tn = _dense_frame_times(frame_times_s, first, dense.shape[0])
+            nodes = np.stack([tn[b - 1], tn[b], tn[b + 1], tn[b + 2]], axis=1)  # (N, 4)
+            tq = nodes[:, 1] + frac * (nodes[:, 2] - nodes[:, 1])
+            cubic = 0.0
+            for j, pj in enumerate((pm, p0, p1, p2)):
+                w = np.ones_like(tq)
+                for m in range(4):
+                    if m != j:
+                        w *= (tq - nodes[:, m]) / (nodes[:, j] - nodes[:, m])
+                cubic = cubic + w[:, None, None] * pj
         use = ~snap[:, None, None] & np.isfinite(cubic)
         val = np.where(use, cubic, val)
     out[inside] = val[inside]
     return out
 
 
+def _dense_frame_times(frame_times_s: np.ndarray, first: int, n_dense: int) -> np.ndarray:
+    """Timestamps of the dense rows of :func:`resample_tracks` (frame ``first - 1 + j``), extended
+    evenly at the median interval beyond the clip's stamped frames."""
+    times = np.asarray(frame_times_s, dtype=np.float64)
+    dt = float(np.median(np.diff(times))) if times.size > 1 else 1.0
+    fnum = first - 1 + np.arange(n_dense, dtype=np.float64)
+    last = times.size - 1
+    tn = np.interp(fnum, np.arange(times.size, dtype=np.float64), times)
+    tn = np.where(fnum < 0, times[0] + fnum * dt, tn)
+    return np.where(fnum > last, times[-1] + (fnum - last) * dt, tn)
+
+
 def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_frames: Mapping[str, float],
                        fps: float, *, reference: str | None = None, method: str = "nview",
                        match_labels: bool = True, names: Sequence[str] | None = None,
-                       interpolation: str = "cubic", **kwargs) -> MarkerTracks:
+                       interpolation: str = "cubic",
+                       clocks: Mapping[str, tuple[np.ndarray, float]] | None = None, **kwargs) -> MarkerTracks:
     """2-D tracks of several cameras -> 3-D marker tracks on the reference camera's clock.
 
     Camera c's clip frame ``k + offsets_frames[c]`` shows the same instant as the reference clip's frame
@@ -710,6 +742,11 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
         Marker names (default "1", "2", ...).
     interpolation : {"cubic", "linear"}, keyword-only
         How tracks are resampled between frames (see :func:`resample_tracks`).
+    clocks : dict of camera name -> (frame times (F_clip,) s, anchor frame), keyword-only
+        For variable-rate clips: each frame's timestamp and the frame (sub-frame) where the offsets
+        were measured. Offsets then count nominal frames at ``fps`` from that anchor, and the camera's
+        tracks are sampled at the stamped instants (:func:`clip_frames_at`); the reference's too, so
+        ``t_s`` stays even.
     **kwargs
         Passed to the triangulation function.
 
@@ -741,9 +778,15 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     ref_frames = np.asarray(tracks[reference].frame_index, dtype=np.float64)
     base = float(offsets_frames.get(reference, 0.0))
     xy = {}
+    clocks = clocks or {}
     for c in cams:
         offset = float(offsets_frames.get(c, 0.0)) - base
-        xy[c] = resample_tracks(tracks[c], ref_frames + offset, kind=interpolation)
+        wanted = ref_frames + offset
+        times = None
+        if c in clocks:
+            times, anchor = clocks[c]
+            wanted = clip_frames_at(wanted, times, anchor, fps)
+        xy[c] = resample_tracks(tracks[c], wanted, kind=interpolation, frame_times_s=times)
     if match_labels and M > 1:
         full = np.all(np.stack([np.all(np.isfinite(v), axis=(1, 2)) for v in xy.values()]), axis=0)
         hits = np.flatnonzero(full)

@@ -52,6 +52,11 @@ class BundleClips:
     def fps(self, kind: str, camera: str) -> float:
         return self.info(kind, camera).fps
 
+    def frame_times(self, kind: str, camera: str) -> np.ndarray | None:
+        """Each frame's presentation time (s) for a variable-rate clip; None for an even one."""
+        info = self.info(kind, camera)
+        return info.frame_times_s if info.variable_frame_rate else None
+
     def frame_count(self, kind: str, camera: str) -> int:
         return self.info(kind, camera).frame_count
 

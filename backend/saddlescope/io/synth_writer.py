@@ -67,7 +67,9 @@ def write_ride_bundle(
     for i, (kind, role, rel) in enumerate(jobs):
         path = out_dir / rel
         path.parent.mkdir(parents=True, exist_ok=True)
-        n = write_h264(path, render_clip_frames(scene, role, kind), fps=scene.fps, crf=crf)
+        timing = scene.timings[kind]
+        stamps = timing.frame_times(role) if role in timing.late_s else None
+        n = write_h264(path, render_clip_frames(scene, role, kind), fps=scene.fps, crf=crf, frame_times_s=stamps)
         if n != scene.timings[kind].n_frames[role]:
             raise InputError(f"{rel}: wrote {n} frames, expected {scene.timings[kind].n_frames[role]}")
         if on_progress is not None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
@@ -34,11 +34,48 @@ class VideoInfo:
     height: int
     codec: str
     duration_s: float
+    # phones record at a variable frame rate: frames are then not 1/fps apart, and ``fps`` is the
+    # nominal rate (the median frame interval, snapped to a standard rate) rather than the average
+    variable_frame_rate: bool = False
+    frame_times_s: np.ndarray | None = field(default=None, compare=False, repr=False)  # (frame_count,)
 
     def as_dict(self) -> dict:
-        return {"path": str(self.path), "fps": self.fps, "frame_count": self.frame_count,
-                "width": self.width, "height": self.height, "codec": self.codec,
-                "duration_s": self.duration_s}
+        out = {"path": str(self.path), "fps": self.fps, "frame_count": self.frame_count,
+               "width": self.width, "height": self.height, "codec": self.codec,
+               "duration_s": self.duration_s}
+        if self.variable_frame_rate and self.frame_times_s is not None:
+            dt_ms = np.diff(self.frame_times_s) * 1000.0
+            out["variable_frame_rate"] = True
+            out["frame_interval_ms"] = {"min": float(dt_ms.min()), "median": float(np.median(dt_ms)),
+                                        "max": float(dt_ms.max())}
+        return out
+
+
+STANDARD_RATES = (23.976, 24.0, 25.0, 29.97, 30.0, 48.0, 50.0, 59.94, 60.0, 90.0, 100.0, 119.88, 120.0, 240.0)
+# frame intervals further than this (fraction of the median interval) from even make a clip variable
+# rate; below it the timestamps' own rounding (1/15360 s ticks and the like) is all there is
+VFR_TOLERANCE = 0.02
+
+
+def frame_clock(times_s, average_fps: float) -> tuple[bool, float]:
+    """Whether presentation times ``times_s`` (F,) are uneven, and the clip's nominal frame rate.
+
+    Even clips keep their container rate. For uneven ones (dropped frames, a phone's variable rate)
+    the nominal rate counts frame slots: each interval is a whole number of median intervals (a drop
+    is two), and the slope of the stamps over their slots is the nominal interval (jittered stamps
+    average out: 60 frames tell 30 from 29.97 fps). Within 0.02 % of a standard rate the
+    rate is that one, so that cameras set alike report the same number."""
+    t = np.asarray(times_s, dtype=np.float64)
+    if t.size < 3:
+        return False, average_fps
+    dt = np.diff(t)
+    median = float(np.median(dt))
+    if median <= 0 or float(np.max(np.abs(dt - median))) <= VFR_TOLERANCE * median:
+        return False, average_fps
+    slot = np.concatenate([[0.0], np.cumsum(np.maximum(np.round(dt / median), 1.0))])
+    rate = 1.0 / float(np.polyfit(slot, t, 1)[0])  # the stamps' line over their slots
+    nearest = min(STANDARD_RATES, key=lambda r: abs(r - rate))
+    return True, (nearest if abs(nearest - rate) <= 2e-4 * nearest else rate)
 
 
 def _image_files(folder: Path) -> list[Path]:
@@ -90,10 +127,12 @@ def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo
         width, height = stream.codec_context.width, stream.codec_context.height
         codec = stream.codec_context.name
         n_decoded = 0
+        times: list[float | None] = []
         try:
             for frame in container.decode(stream):
                 n_decoded += 1
                 width, height = frame.width, frame.height
+                times.append(frame.time)
         except (av.error.FFmpegError, ValueError) as exc:
             if n_decoded == 0:
                 raise VideoError(f"{path}: no frame decodes ({exc})") from None
@@ -102,7 +141,18 @@ def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo
         raise VideoError(f"{path}: no frame decodes (empty or truncated video)")
     if width <= 0 or height <= 0:
         raise VideoError(f"{path}: frame size unknown")
-    return VideoInfo(path, fps, n_decoded, int(width), int(height), codec, n_decoded / fps)
+    frame_times = None
+    variable = False
+    if all(t is not None for t in times):
+        frame_times = np.asarray(times, dtype=np.float64)
+        # timestamps that do not increase say nothing about timing: the frames are taken as even
+        if np.all(np.diff(frame_times) > 0):
+            variable, fps = frame_clock(frame_times, fps)
+        else:
+            frame_times = None
+    duration = float(frame_times[-1] - frame_times[0]) + 1.0 / fps if variable else n_decoded / fps
+    return VideoInfo(path, fps, n_decoded, int(width), int(height), codec, duration,
+                     variable_frame_rate=variable, frame_times_s=frame_times)
 
 
 def _luma(frame) -> np.ndarray:

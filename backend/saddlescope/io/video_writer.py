@@ -7,7 +7,8 @@ players, OpenCV and PyAV decode them back to about the same grey levels; the raw
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from fractions import Fraction
 from pathlib import Path
 
 import av
@@ -27,16 +28,30 @@ def gray_to_yuv420p(frame: np.ndarray) -> np.ndarray:
     return out
 
 
+_VFR_TIME_BASE = Fraction(1, 90000)  # the MPEG clock, as phones stamp their frames
+
+
 def write_h264(
-    path: Path | str, frames: Iterable[np.ndarray], *, fps: float, crf: int = 20, preset: str = "veryfast"
+    path: Path | str, frames: Iterable[np.ndarray], *, fps: float, crf: int = 20, preset: str = "veryfast",
+    frame_times_s: Sequence[float] | None = None,
 ) -> int:
     """Encode uint8 grey frames (H, W) (H, W even) to an H.264 MP4; returns the number of frames written.
 
     ``crf`` is libx264's constant rate factor (18 near-transparent, 23 default, 28 visibly lossy).
+    ``frame_times_s`` (one per frame, increasing) stamps the frames at those instants (relative to the
+    first) on a 90 kHz clock, as a phone recording at a variable frame rate does; default even 1/fps.
     """
     path = Path(path)
     if not 0 <= int(crf) <= 51:
         raise InputError(f"crf must be 0-51, got {crf}")
+    ticks = None
+    if frame_times_s is not None:
+        t = np.asarray(frame_times_s, dtype=np.float64)
+        if t.ndim != 1 or t.size == 0:
+            raise InputError(f"{path.name}: frame times must be one list of instants")
+        ticks = np.round((t - t[0]) / float(_VFR_TIME_BASE)).astype(np.int64)
+        if np.any(np.diff(ticks) <= 0):
+            raise InputError(f"{path.name}: frame times must increase")
     n = 0
     try:
         with av.open(str(path), mode="w") as container:
@@ -55,12 +70,20 @@ def write_h264(
                     stream.width, stream.height = w, h
                     stream.pix_fmt = "yuv420p"
                     stream.options = {"crf": str(int(crf)), "preset": preset}
+                    if ticks is not None:
+                        stream.codec_context.time_base = _VFR_TIME_BASE
+                        stream.time_base = _VFR_TIME_BASE
                 elif (w, h) != (stream.width, stream.height):
                     raise InputError(
                         f"{path.name}: frame {n} is {w}x{h}, expected {stream.width}x{stream.height}"
                     )
                 vf = av.VideoFrame.from_ndarray(gray_to_yuv420p(img), format="yuv420p")
-                vf.pts = n
+                if ticks is None:
+                    vf.pts = n
+                else:
+                    if n >= len(ticks):
+                        raise InputError(f"{path.name}: more frames than frame times ({len(ticks)})")
+                    vf.pts, vf.time_base = int(ticks[n]), _VFR_TIME_BASE
                 for packet in stream.encode(vf):
                     container.mux(packet)
                 n += 1

@@ -17,6 +17,7 @@ from saddlescope.core.pipeline import (
     PipelineParams,
     board_from_meta,
     calibrate_from_clips,
+    frame_clocks,
     rig_to_result,
     synchronise,
 )
@@ -62,6 +63,7 @@ def calibrate_clips(
     if on_progress is not None:
         on_progress(0.0, "sync")
     offsets, first_frame = synchronise(clips, meta, ["calibration"])
+    clocks, _ = frame_clocks(clips, ["calibration"])
     if on_progress is not None:
         on_progress(0.2, "board views")
     rig, report = calibrate_from_clips(
@@ -70,6 +72,7 @@ def calibrate_clips(
         offsets["calibration"],
         first_frame["calibration"],
         params or PipelineParams(),
+        clocks=clocks.get("calibration"),
     )
     calibration = rig_to_result(rig)
     calibration["n_views"] = report.get("n_views")
