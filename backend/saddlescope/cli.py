@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--skin", default="stride_locked", choices=["stride_locked", "noise", "none"],
                    help="the markers' skin sliding: locked to the stride (default, as on a real flank), "
                         "small random noise only, or none (markers fixed to the saddle body)")
+    s.add_argument("--variable-frame-rate", action="store_true",
+                   help="the middle and right cameras record like phones: jittered frame intervals and "
+                        "dropped frames, each frame stamped with its instant")
 
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
     s.add_argument("ride")
@@ -109,7 +112,8 @@ def run(args: argparse.Namespace) -> int:
 
         path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,
                                  size=args.size, fps=args.fps, duration_s=args.duration,
-                                 options=RenderOptions(skin_motion=args.skin))
+                                 options=RenderOptions(skin_motion=args.skin,
+                                                       variable_frame_rate=args.variable_frame_rate))
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":
