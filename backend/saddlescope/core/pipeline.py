@@ -170,9 +170,10 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
 def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
     """The timestamps of variable-rate clips (phones) and the frame where each was synchronised.
 
-    Returns ``clocks[kind][camera] = (frame times (F,) s, anchor frame)`` for the clips whose frames
-    are not evenly spaced, and a flag for each. The anchor is the sync flash's onset: frame offsets
-    are measured there, so the nominal even clock is tied to the clip's timestamps at that frame."""
+    Returns ``clocks[kind][camera] = (frame times (F,) s, anchor frame)`` for every camera of a clip
+    set where one camera's frames are not evenly spaced (the even ones get their own even stamps),
+    and a flag for each uneven clip. The anchor is the sync flash's onset: frame offsets are measured
+    there, so the nominal even clock is tied to the clip's timestamps at that frame."""
     clocks: dict[str, dict[str, tuple[np.ndarray, float]]] = {}
     flags: list[str] = []
     for kind in kinds:
