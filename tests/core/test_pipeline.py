@@ -355,3 +355,18 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
     exact = saddle_truth_at(truth, t)["acceleration_m_s2"][:, 1]
     acc = np.array(result["saddle"]["acceleration_m_s2"], dtype=float)[:, 1]
     assert np.sqrt(np.mean((acc - exact) ** 2)) < 0.10 * np.sqrt(np.mean(exact ** 2))
+
+
+def test_a_look_alike_moving_with_the_horse_breaks_the_static_layout():
+    # Static shot: three horse markers about 0.19 m apart in a shallow V. A tracked triple with the
+    # same distances (any label order, depth noise) matches; one with a stirrup glint 0.7 m away does not.
+    static = np.array([[-15.0, 102.0, 7827.0], [162.0, 138.0, 7897.0], [332.0, 83.0, 7961.0]])
+    rng = np.random.default_rng(2)
+    moving = static[[2, 0, 1]][None] + np.array([1.0, 0.0, 0.0]) * np.arange(40)[:, None, None] * 50.0
+    noisy = moving + rng.normal(0.0, [2.0, 2.0, 20.0], moving.shape)
+    noisy[5, 1] = np.nan  # a lost sample is left out
+    assert P._layout_mismatch_mm(static, noisy) < 10.0
+    glint = noisy.copy()
+    glint[:, 2] = noisy[:, 0] + [150.0, 650.0, 120.0]
+    assert P._layout_mismatch_mm(static, glint) > P.PipelineParams().max_layout_mismatch_mm
+    assert P._layout_mismatch_mm(static, np.full((4, 3, 3), np.nan)) == np.inf

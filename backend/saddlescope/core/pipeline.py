@@ -79,6 +79,9 @@ class PipelineParams:
     still_board_only: bool = True  # calibrate from frames where the board was held still
     max_square_error_pct: float = 1.0
     singularity_threshold: float = 0.2
+    # the motion markers' distances against the static shot's (RMS, mm): beyond it a look-alike was
+    # tracked (wide-rig trot: 280 mm; true markers: depth noise and skin, a few to 20 mm)
+    max_layout_mismatch_mm: float = 50.0
     depth_anisotropy: float = 5.0  # fit marker depth smoothly when the rig fixes it this many times worse
     depth_max_order: int = 0  # stride harmonics allowed in that depth fit (0: straight path only)
     # "lsq_wiener": least squares with the weakest axis shrunk by the skin motion the raw markers
@@ -421,14 +424,16 @@ def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
 
 
 def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
-                  first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray
-                  ) -> tuple[dict[str, ImageTracks], list[int], int | None]:
+                  first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray,
+                  multiview: bool = False) -> tuple[dict[str, ImageTracks], list[int], int | None]:
     """Track the horse markers through the motion clip of every camera.
 
     The horse may enter the view late and look-alikes abound, so the start is found with all cameras
     at once (:func:`saddlescope.core.marker_search.find_markers_multiview`): the first instant where
     the cameras agree on a triangle of the static shot's layout. That also tells which static marker
     is the saddle marker S (the one left out). Tracking then follows each camera from there.
+
+    ``multiview`` skips the per-camera search (when what it found does not match the static shot).
 
     Returns (tracks per camera, static indices of horse markers 1-3, static index of S).
     """
@@ -440,13 +445,15 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     horse_idx = sorted(order[:n_horse])
     rest = [i for i in range(static_mm.shape[0]) if i not in horse_idx]
     overrides = {k: v for k, v in params.detection.get("motion", {}).items() if not isinstance(v, Mapping)}
-    try:
-        # First choice: each camera finds the markers by itself among what moves (glints stand still).
-        tracks = {c: track_markers(clips.gray_frames("motion", c, start=first_frame.get(c, 0)), n_markers=n_horse,
-                                   camera=c, clip="motion", **{"moving": True, **overrides}) for c in cams}
-        return tracks, horse_idx, (rest[0] if rest else None)
-    except DetectionError:
-        pass
+    if not multiview:
+        try:
+            # First choice: each camera finds the markers by itself among what moves (glints stand still).
+            tracks = {c: track_markers(clips.gray_frames("motion", c, start=first_frame.get(c, 0)),
+                                       n_markers=n_horse, camera=c, clip="motion", **{"moving": True, **overrides})
+                      for c in cams}
+            return tracks, horse_idx, (rest[0] if rest else None)
+        except DetectionError:
+            pass
     # Then all cameras together: the first instant where they agree on the static shot's triangle.
     frames = SequentialFrames(lambda cam, start: clips.gray_frames("motion", cam, start=start))
     first = max(int(first_frame.get(c, 0) - math.floor(offsets.get(c, 0.0))) for c in cams)
@@ -460,6 +467,23 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
 
 def _pairwise(xyz: np.ndarray) -> np.ndarray:
     return np.linalg.norm(xyz[:, None, :] - xyz[None, :, :], axis=-1)
+
+
+def _layout_mismatch_mm(static_horse_mm: np.ndarray, motion_mm: np.ndarray) -> float:
+    """RMS difference (mm) between the static shot's horse-marker distances and the tracked ones'
+    (medians over the clip; label order does not matter). inf when no frame has all markers."""
+    full = np.all(np.isfinite(motion_mm), axis=(1, 2))
+    if not full.any():
+        return float("inf")
+    d_static = np.sort(_pairwise(static_horse_mm)[np.triu_indices(len(static_horse_mm), 1)])
+    d_motion = np.sort(np.median(_pairwise_frames(motion_mm[full]), axis=0))
+    return float(np.sqrt(np.mean((d_static - d_motion) ** 2)))
+
+
+def _pairwise_frames(xyz: np.ndarray) -> np.ndarray:
+    """(F, M, 3) -> (F, M(M-1)/2) distances between every pair of markers."""
+    i, j = np.triu_indices(xyz.shape[1], 1)
+    return np.linalg.norm(xyz[:, i] - xyz[:, j], axis=-1)
 
 
 def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tuple[list[int], int, float]:
@@ -836,6 +860,23 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     motion2d, horse_idx, saddle_idx = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
                                                     first_frame["motion"], params, down=down)
     tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
+    layout_flags = []
+    found_mm = _layout_mismatch_mm(static_mm[horse_idx], tracks3d["motion"].xyz_mm)
+    if found_mm > params.max_layout_mismatch_mm:
+        # Each camera took the same moving look-alike (a stirrup's glint, the saddle pad) for a marker:
+        # the triangle does not match the static shot. Search again with all cameras and that triangle.
+        try:
+            again2d, again_h, again_s = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
+                                                      first_frame["motion"], params, down=down, multiview=True)
+            again = triangulate("motion", again2d, n_horse)
+            again_mm = _layout_mismatch_mm(static_mm[again_h], again.xyz_mm)
+        except (DetectionError, TriangulationError):
+            again_mm = np.inf
+        if again_mm < found_mm:
+            layout_flags.append(f"the moving spots each camera found were {found_mm:.0f} mm RMS off the static shot's "
+                                f"marker distances (a look-alike moving with the horse); the markers were found "
+                                f"again with all cameras and the static layout ({again_mm:.0f} mm)")
+            motion2d, horse_idx, saddle_idx, tracks3d["motion"] = again2d, again_h, again_s, again
     coverage_flags = []
     if calib_report.get("board_coverage"):
         for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items():
@@ -852,7 +893,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                             horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth)
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
-    kin["flags"][:0] = clock_flags + coverage_flags
+    kin["flags"][:0] = clock_flags + layout_flags + coverage_flags
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()
