@@ -231,7 +231,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         # variable-rate clip, k counted on its nominal clock: a dropped frame shifts the rest)
         views = _still_views(views, step) if params.still_board_only else views
         frames = np.array([v.frame for v in views], dtype=np.float64)
-        if clocks and cam in clocks and views:
+        if cam in (clocks or {}) and views:
             frames = nominal_frames_of(frames, clocks[cam][0], clocks[cam][1], fps)
         return ([replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)],
                 size or clips.image_size("calibration", cam))
@@ -466,7 +466,8 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
 
 
 def _pairwise(xyz: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(xyz[:, None, :] - xyz[None, :, :], axis=-1)
+    """(..., M, 3) -> (..., M, M) distances between every pair of markers (per frame when 3-D)."""
+    return np.linalg.norm(xyz[..., :, None, :] - xyz[..., None, :, :], axis=-1)
 
 
 def _layout_mismatch_mm(static_horse_mm: np.ndarray, motion_mm: np.ndarray) -> float:
@@ -475,15 +476,10 @@ def _layout_mismatch_mm(static_horse_mm: np.ndarray, motion_mm: np.ndarray) -> f
     full = np.all(np.isfinite(motion_mm), axis=(1, 2))
     if not full.any():
         return float("inf")
-    d_static = np.sort(_pairwise(static_horse_mm)[np.triu_indices(len(static_horse_mm), 1)])
-    d_motion = np.sort(np.median(_pairwise_frames(motion_mm[full]), axis=0))
+    pairs = np.triu_indices(len(static_horse_mm), 1)
+    d_static = np.sort(_pairwise(static_horse_mm)[pairs])
+    d_motion = np.sort(np.median(_pairwise(motion_mm[full]), axis=0)[pairs])
     return float(np.sqrt(np.mean((d_static - d_motion) ** 2)))
-
-
-def _pairwise_frames(xyz: np.ndarray) -> np.ndarray:
-    """(F, M, 3) -> (F, M(M-1)/2) distances between every pair of markers."""
-    i, j = np.triu_indices(xyz.shape[1], 1)
-    return np.linalg.norm(xyz[:, i] - xyz[:, j], axis=-1)
 
 
 def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tuple[list[int], int, float]:
@@ -495,7 +491,7 @@ def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tupl
 
     Returns (static indices of motion markers 1-3, static index of S, RMS distance mismatch in mm).
     """
-    d_motion = np.nanmedian(np.linalg.norm(motion_mm[:, :, None, :] - motion_mm[:, None, :, :], axis=-1), axis=0)
+    d_motion = np.nanmedian(_pairwise(motion_mm), axis=0)
     d_static = _pairwise(static_mm)
     best = (np.inf, None, None)
     for triple in itertools.permutations(range(static_mm.shape[0]), motion_mm.shape[1]):
@@ -665,7 +661,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
         horse_idx, saddle_idx, _ = identify_saddle_marker(static_all, xyz)
     # per-frame distances, then their median (the median of each coordinate of a moving, bobbing
     # marker set is no one instant's layout: 118 mm off on a correctly tracked canter)
-    d_motion = np.nanmedian(np.linalg.norm(xyz[:, :, None, :] - xyz[:, None, :, :], axis=-1), axis=0)
+    d_motion = np.nanmedian(_pairwise(xyz), axis=0)
     d_static = _pairwise(static_all[horse_idx])
     mismatch_mm = float(np.sqrt(np.mean((d_static - d_motion) ** 2)))
     model_mm = marker_model(static_tracks.xyz_mm[:, horse_idx])

@@ -294,6 +294,13 @@ def offsets_from_spec(sync: Mapping, *, clip: str, cameras: list[str]) -> dict[s
 # Variable frame rate: a clip's timestamps against the nominal even clock the offsets count in
 # --------------------------------------------------------------------------------------------------
 
+def _stamps(frame_times_s: np.ndarray, anchor_frame: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """A clip's stamps (F,), its frame numbers (F,) and the instant of its (fractional) anchor frame."""
+    times = np.asarray(frame_times_s, dtype=np.float64)
+    idx = np.arange(times.size, dtype=np.float64)
+    return times, idx, float(np.interp(anchor_frame, idx, times))
+
+
 def clip_frames_at(nominal_frames: np.ndarray, frame_times_s: np.ndarray, anchor_frame: float,
                    fps: float) -> np.ndarray:
     """Fractional frame positions in a variable-rate clip of the instants of its nominal frames.
@@ -302,9 +309,7 @@ def clip_frames_at(nominal_frames: np.ndarray, frame_times_s: np.ndarray, anchor
     (the sync flash's onset, where the frame offsets tie the cameras together): nominal frame n is the
     instant τ(anchor) + (n - anchor) / fps, placed between the clip's stamped frames (NaN outside).
     For an even clip this is n itself."""
-    times = np.asarray(frame_times_s, dtype=np.float64)
-    idx = np.arange(times.size, dtype=np.float64)
-    t_anchor = float(np.interp(anchor_frame, idx, times))
+    times, idx, t_anchor = _stamps(frame_times_s, anchor_frame)
     want = t_anchor + (np.asarray(nominal_frames, dtype=np.float64) - anchor_frame) / fps
     return np.interp(want, times, idx, left=np.nan, right=np.nan)
 
@@ -312,7 +317,5 @@ def clip_frames_at(nominal_frames: np.ndarray, frame_times_s: np.ndarray, anchor
 def nominal_frames_of(clip_frames: np.ndarray, frame_times_s: np.ndarray, anchor_frame: float,
                       fps: float) -> np.ndarray:
     """The inverse of :func:`clip_frames_at`: the nominal (even-clock) frame of each clip frame."""
-    times = np.asarray(frame_times_s, dtype=np.float64)
-    idx = np.arange(times.size, dtype=np.float64)
-    t_anchor = float(np.interp(anchor_frame, idx, times))
+    times, idx, t_anchor = _stamps(frame_times_s, anchor_frame)
     return anchor_frame + (np.interp(np.asarray(clip_frames, dtype=np.float64), idx, times) - t_anchor) * fps

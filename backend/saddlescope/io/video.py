@@ -35,7 +35,7 @@ class VideoInfo:
     codec: str
     duration_s: float
     # phones record at a variable frame rate: frames are then not 1/fps apart, and ``fps`` is the
-    # nominal rate (the median frame interval, snapped to a standard rate) rather than the average
+    # nominal rate (see frame_clock) rather than the average
     variable_frame_rate: bool = False
     frame_times_s: np.ndarray | None = field(default=None, compare=False, repr=False)  # (frame_count,)
 
