@@ -143,13 +143,17 @@ def triangle_candidates(rig: Rig, spots: Mapping[str, np.ndarray], model_mm: np.
 
 def find_markers_multiview(rig: Rig, frame_at: Callable[[str, int], np.ndarray | None],
                            offsets: Mapping[str, float], models_mm: list[np.ndarray], *, first: int, last: int,
-                           step: int = 2, clip: str = "motion", max_spots: int = 25) -> tuple[int, dict]:
+                           step: int = 2, clip: str = "motion", max_spots: int = 25,
+                           frame_position: Callable[[str, int], float] | None = None) -> tuple[int, dict]:
     """First instant (reference-camera frame) in [first, last) where every camera sees the marker
     triangle of one of ``models_mm``, and each camera's marker positions there.
 
     ``frame_at(camera, index)`` returns that camera's grey frame or None past its end; ``offsets``
-    maps camera -> frames later the same instant appears in it (reference camera 0). Positions are
-    returned at each camera's nearest whole frame (``frames``), snapped to the spots seen there.
+    maps camera -> frames later the same instant appears in it (reference camera 0). A variable-rate
+    clip (phones) needs ``frame_position(camera, k)``: the (fractional) frame of that camera at the
+    instant of reference frame k, NaN outside the clip; it replaces ``k + offsets[camera]``.
+    Positions are returned at each camera's nearest whole frame (``frames``), snapped to the spots
+    seen there.
 
     Returns (instant, {"xy": {camera: (M, 2)}, "frames": {camera: int}, "model": index, "rms_mm"}).
     """
@@ -158,7 +162,9 @@ def find_markers_multiview(rig: Rig, frame_at: Callable[[str, int], np.ndarray |
         spots = {}
         nearest = {}
         for c in cams:
-            t = k + offsets.get(c, 0.0)
+            t = frame_position(c, k) if frame_position is not None else k + offsets.get(c, 0.0)
+            if not np.isfinite(t) or t < 0:
+                break
             f0 = int(np.floor(t))
             a, b = frame_at(c, f0), frame_at(c, f0 + 1)
             if a is None:

@@ -30,7 +30,7 @@ from saddlescope.core.period import analysis_window, estimate_period
 from saddlescope.core.registration import Registration, broken_distance_samples, marker_model, register_rigid
 from saddlescope.core.rigid_body import angular_kinematics, saddle_body_coordinates, saddle_point_kinematics
 from saddlescope.core.smoothing import bridge_gaps, regularize_depth, rloess
-from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
+from saddlescope.core.sync import clip_frames_at, clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
 from saddlescope.core.triangulation import position_uncertainty, triangulate_tracks
 from saddlescope.core.types import Board, ImageTracks, MarkerTracks, Rig
 
@@ -425,7 +425,8 @@ def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
 
 def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
                   first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray,
-                  multiview: bool = False) -> tuple[dict[str, ImageTracks], list[int], int | None]:
+                  multiview: bool = False, clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
+                  ) -> tuple[dict[str, ImageTracks], list[int], int | None]:
     """Track the horse markers through the motion clip of every camera.
 
     The horse may enter the view late and look-alikes abound, so the start is found with all cameras
@@ -434,6 +435,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     is the saddle marker S (the one left out). Tracking then follows each camera from there.
 
     ``multiview`` skips the per-camera search (when what it found does not match the static shot).
+    ``clocks`` (:func:`frame_clocks`) pairs the cameras' frames by their timestamps (phones).
 
     Returns (tracks per camera, static indices of horse markers 1-3, static index of S).
     """
@@ -458,7 +460,14 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     frames = SequentialFrames(lambda cam, start: clips.gray_frames("motion", cam, start=start))
     first = max(int(first_frame.get(c, 0) - math.floor(offsets.get(c, 0.0))) for c in cams)
     last = min(int(clips.frame_count("motion", c) - math.ceil(offsets.get(c, 0.0))) - 1 for c in cams)
-    _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last)
+    fps = clips.fps("motion", cams[0])
+
+    def stamped_position(cam: str, k: int) -> float:  # the camera's frame at reference frame k's instant
+        times, anchor = clocks[cam]
+        return float(clip_frames_at(np.array([k + offsets.get(cam, 0.0)]), times, anchor, fps)[0])
+    position = stamped_position if clocks else None
+    _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last,
+                                      frame_position=position)
     tracks = {c: track_markers(clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse,
                                camera=c, clip="motion", first_frame_xy=found["xy"][c], **overrides)
               for c in cams}
@@ -856,7 +865,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     static_mm = _static_positions(tracks3d["static"], "static")
     down = _down_direction(tracks3d.get("plumb"))
     motion2d, horse_idx, saddle_idx = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
-                                                    first_frame["motion"], params, down=down)
+                                                    first_frame["motion"], params, down=down,
+                                                    clocks=clocks.get("motion"))
     tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
     layout_flags = []
     found_mm = _layout_mismatch_mm(static_mm[horse_idx], tracks3d["motion"].xyz_mm)
@@ -865,7 +875,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         # the triangle does not match the static shot. Search again with all cameras and that triangle.
         try:
             again2d, again_h, again_s = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
-                                                      first_frame["motion"], params, down=down, multiview=True)
+                                                      first_frame["motion"], params, down=down, multiview=True,
+                                                      clocks=clocks.get("motion"))
             again = triangulate("motion", again2d, n_horse)
             again_mm = _layout_mismatch_mm(static_mm[again_h], again.xyz_mm)
         except (DetectionError, TriangulationError):
