@@ -357,6 +357,28 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
     assert np.sqrt(np.mean((acc - exact) ** 2)) < 0.10 * np.sqrt(np.mean(exact ** 2))
 
 
+def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, monkeypatch):
+    # A club re-taped the lowest marker 12 cm further along after filming the static shot: the tracked
+    # triangle no longer matches the static one and no search finds one that does. The ride is still
+    # measured, and the result says what to check.
+    from saddlescope.services.analysis import analyze_bundle
+
+    static_positions = P._static_positions
+
+    def moved(tracks, what):
+        xyz = static_positions(tracks, what)
+        if what == "static":
+            xyz = xyz.copy()
+            xyz[np.argmax(xyz[:, 1]), 0] += 120.0  # rig y points down
+        return xyz
+
+    monkeypatch.setattr(P, "_static_positions", moved)
+    result = analyze_bundle(short_ride)
+    flags = " ".join(result["quality"]["flags"])
+    assert "off the static shot's marker distances and no closer triangle was found" in flags
+    assert "found again with all cameras" not in flags
+
+
 def test_a_look_alike_moving_with_the_horse_breaks_the_static_layout():
     # Static shot: three horse markers about 0.19 m apart in a shallow V. A tracked triple with the
     # same distances (any label order, depth noise) matches; one with a stirrup glint 0.7 m away does not.

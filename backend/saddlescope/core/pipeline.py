@@ -426,7 +426,7 @@ def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
 def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
                   first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray,
                   multiview: bool = False, clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
-                  ) -> tuple[dict[str, ImageTracks], list[int], int | None]:
+                  ) -> tuple[dict[str, ImageTracks], list[int], int | None, bool]:
     """Track the horse markers through the motion clip of every camera.
 
     The horse may enter the view late and look-alikes abound, so the start is found with all cameras
@@ -437,7 +437,8 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     ``multiview`` skips the per-camera search (when what it found does not match the static shot).
     ``clocks`` (:func:`frame_clocks`) pairs the cameras' frames by their timestamps (phones).
 
-    Returns (tracks per camera, static indices of horse markers 1-3, static index of S).
+    Returns (tracks per camera, static indices of horse markers 1-3, static index of S, whether the
+    all-cameras search found the start).
     """
     cams = clips.cameras("motion")
     # The saddle marker sits on the saddle above the horse markers: the static marker farthest
@@ -453,7 +454,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
             tracks = {c: track_markers(clips.gray_frames("motion", c, start=first_frame.get(c, 0)),
                                        n_markers=n_horse, camera=c, clip="motion", **{"moving": True, **overrides})
                       for c in cams}
-            return tracks, horse_idx, (rest[0] if rest else None)
+            return tracks, horse_idx, (rest[0] if rest else None), False
         except DetectionError:
             pass
     # Then all cameras together: the first instant where they agree on the static shot's triangle.
@@ -471,7 +472,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     tracks = {c: track_markers(clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse,
                                camera=c, clip="motion", first_frame_xy=found["xy"][c], **overrides)
               for c in cams}
-    return tracks, horse_idx, (rest[0] if rest else None)
+    return tracks, horse_idx, (rest[0] if rest else None), True
 
 
 def _pairwise(xyz: np.ndarray) -> np.ndarray:
@@ -864,28 +865,35 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.stage("detection", 0.4)
     static_mm = _static_positions(tracks3d["static"], "static")
     down = _down_direction(tracks3d.get("plumb"))
-    motion2d, horse_idx, saddle_idx = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
-                                                    first_frame["motion"], params, down=down,
-                                                    clocks=clocks.get("motion"))
+    motion2d, horse_idx, saddle_idx, searched_together = detect_motion(
+        clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
+        clocks=clocks.get("motion"))
     tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
     layout_flags = []
     found_mm = _layout_mismatch_mm(static_mm[horse_idx], tracks3d["motion"].xyz_mm)
     if found_mm > params.max_layout_mismatch_mm:
         # Each camera took the same moving look-alike (a stirrup's glint, the saddle pad) for a marker:
-        # the triangle does not match the static shot. Search again with all cameras and that triangle.
-        try:
-            again2d, again_h, again_s = detect_motion(clips, rig, static_mm, n_horse, offsets["motion"],
-                                                      first_frame["motion"], params, down=down, multiview=True,
-                                                      clocks=clocks.get("motion"))
-            again = triangulate("motion", again2d, n_horse)
-            again_mm = _layout_mismatch_mm(static_mm[again_h], again.xyz_mm)
-        except (DetectionError, TriangulationError):
-            again_mm = np.inf
+        # the triangle does not match the static shot. Search again with all cameras and that triangle
+        # (unless that search is what found these).
+        again_mm = np.inf
+        if not searched_together:
+            try:
+                again2d, again_h, again_s, _ = detect_motion(
+                    clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
+                    multiview=True, clocks=clocks.get("motion"))
+                again = triangulate("motion", again2d, n_horse)
+                again_mm = _layout_mismatch_mm(static_mm[again_h], again.xyz_mm)
+            except (DetectionError, TriangulationError):
+                pass
         if again_mm < found_mm:
             layout_flags.append(f"the moving spots each camera found were {found_mm:.0f} mm RMS off the static shot's "
                                 f"marker distances (a look-alike moving with the horse); the markers were found "
                                 f"again with all cameras and the static layout ({again_mm:.0f} mm)")
             motion2d, horse_idx, saddle_idx, tracks3d["motion"] = again2d, again_h, again_s, again
+        else:
+            layout_flags.append(f"the tracked markers are {found_mm:.0f} mm RMS off the static shot's marker distances "
+                                "and no closer triangle was found: a look-alike may have been tracked, or a marker "
+                                "moved between the static shot and the ride (check both clips)")
     coverage_flags = []
     if calib_report.get("board_coverage"):
         for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items():
