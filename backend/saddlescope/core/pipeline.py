@@ -520,6 +520,11 @@ def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tupl
 # --------------------------------------------------------------------------------------------------
 
 
+def _count(n, noun: str) -> str:
+    """"1 frame", "3 frames": counts in flags read as sentences."""
+    return f"{int(n)} {noun}{'' if int(n) == 1 else 's'}"
+
+
 def _static_positions(tracks: MarkerTracks, what: str) -> np.ndarray:
     xyz = tracks.xyz_mm
     ok = np.all(np.isfinite(xyz), axis=(1, 2))
@@ -587,14 +592,14 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     broken = broken_distance_samples(xyz)
     if broken.any():
         xyz = np.where(broken[..., None], np.nan, xyz)
-        flags.append(f"{int(broken.sum())} marker samples in {int(broken.any(axis=1).sum())} frames broke the "
-                     "markers' distances (a look-alike taken for a marker) and were dropped")
+        flags.append(f"{_count(broken.sum(), 'marker sample')} in {_count(broken.any(axis=1).sum(), 'frame')} "
+                     "broke the markers' distances (a look-alike taken for a marker) and were dropped")
     # Short gaps bridged (and flagged), long ones reported (5.2.1).
     filled, filled_mask, long_gaps = bridge_gaps(t, xyz.reshape(n_frames, -1), max_gap_s=params.max_gap_s)
     xyz = filled.reshape(n_frames, n_markers, 3)
     bridged_frames = np.any(filled_mask.reshape(n_frames, -1), axis=1)
     if bridged_frames.any():
-        flags.append(f"{int(bridged_frames.sum())} frames with a short marker gap were bridged (for the "
+        flags.append(f"{_count(bridged_frames.sum(), 'frame')} with a short marker gap bridged (for the "
                      "registration; the fits use measured frames only and give the positions there)")
     for start_s, end_s in long_gaps:
         flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s")
