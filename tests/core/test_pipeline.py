@@ -117,6 +117,21 @@ def test_look_alikes_as_the_horse_enters_the_view_are_dropped():
                        clean["saddle"].acceleration_m_s2[kin["window"][0] - i0:], atol=0.05)
 
 
+def test_markers_out_of_view_at_the_ends_are_not_called_lost():
+    # The horse walks in and out of the view: missing markers at the record's ends are said to be out
+    # of view; a gap in the middle is lost markers.
+    lost = np.zeros((120, 3), dtype=bool)
+    lost[:12, 2] = True
+    lost[50:62, :] = True
+    lost[110:, 0] = True
+    motion, static = _rigid_tracks(lost=lost)
+    kin = P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+    gaps = [f for f in kin["flags"] if "markers" in f and (" view " in f or "lost" in f)]
+    assert gaps == ["markers not all in view before 0.40 s (the record starts at 0.00 s)",
+                    "markers lost from 1.67 s to 2.03 s",
+                    "markers not all in view after 3.63 s (the record ends at 3.97 s)"]
+
+
 def test_fits_over_the_whole_run_report_the_window():
     motion, static = _rigid_tracks()
     kin = {span: P.saddle_kinematics(motion, static, None, P.PipelineParams(fit_span=span), horse_idx=[0, 1, 2],

@@ -602,7 +602,16 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
         flags.append(f"{_count(bridged_frames.sum(), 'frame')} with a short marker gap bridged (for the "
                      "registration; the fits use measured frames only and give the positions there)")
     for start_s, end_s in long_gaps:
-        flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s")
+        # at the record's ends the markers are not lost but not yet (or no longer) in every view
+        dt_s = float(np.median(np.diff(t)))
+        if start_s <= t[0] < t[-1] <= end_s:
+            flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s (one or another, all along)")
+        elif start_s <= t[0]:
+            flags.append(f"markers not all in view before {end_s + dt_s:.2f} s (the record starts at {t[0]:.2f} s)")
+        elif end_s >= t[-1]:
+            flags.append(f"markers not all in view after {start_s - dt_s:.2f} s (the record ends at {t[-1]:.2f} s)")
+        else:
+            flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s")
     valid = np.all(np.isfinite(xyz), axis=(1, 2))
 
     # The horse crosses the view: analyse the longest stretch where every marker is tracked.

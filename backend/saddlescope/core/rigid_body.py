@@ -452,10 +452,10 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
                          "singularity (eq. 6.35) and unreliable; the least-squares estimate is not affected")
     for name, excl in (("ω", w_excl), ("α", a_excl)):
         frac = excl[finite].mean(axis=0) if finite.any() else np.zeros(6)
-        for vname, f in zip(VERSION_NAMES, frac, strict=True):
-            if f > 0:
-                flags.append(f"{name}^{vname} excluded in {f:.0%} of frames (conditioning below "
-                             f"{singularity_threshold})")
+        shares = [f"{name}^{vname} {f:.0%}" for vname, f in zip(VERSION_NAMES, frac, strict=True) if f > 0]
+        if shares:  # one line per quantity: the share of frames each version was left out of
+            flags.append(f"{name} versions excluded near their singularity (conditioning below "
+                         f"{singularity_threshold}; share of frames): {', '.join(shares)}")
     if method == "versions":
         fallback = finite & ~np.all(np.isfinite(w_mean), axis=1)
         if fallback.any():
