@@ -172,8 +172,18 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
     the markers' skin motion alone costs, the floor under any measurement (no cameras involved).
 
     Returns the vertical acceleration error (% of its r.m.s.) and the errors (%) of ``acc_y_wb_rms``
-    and ``vdv_y_wb``, or None for a truth without exact markers."""
-    from saddlescope.core.pipeline import PipelineParams, kinematics_indicators, saddle_kinematics
+    and ``vdv_y_wb``, or None for a truth without exact markers. ``acc_y_rms_error_pct_rig`` is the
+    error when the same exact markers are treated as the ride's cameras would see them: a rig that
+    fixes depth poorly (the thesis's) has each marker's depth fitted with a straight path, so roll
+    about the travel direction, which moves the markers mostly in depth, is lost to it (equal to the
+    first where the rig fixes depth well)."""
+    from saddlescope.core.pipeline import (
+        PipelineParams,
+        depth_uncertainty,
+        kinematics_indicators,
+        rig_from_result,
+        saddle_kinematics,
+    )
     from saddlescope.core.synthetic import saddle_truth_at
     from saddlescope.core.types import MarkerTracks
 
@@ -190,16 +200,27 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
 
     frames = np.arange(first, last + 1)
     params = params or PipelineParams()
-    kin = saddle_kinematics(tracks(marks["motion"][frames, :3], frames),
-                            tracks(marks["static"], np.arange(len(marks["static"]))),
-                            tracks(marks["plumb"], np.arange(len(marks["plumb"]))), params,
-                            horse_idx=[0, 1, 2], saddle_idx=3, gait=tt.get("model", {}).get("gait"))
-    s = kin["saddle"]
-    exact = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]
+    motion = tracks(marks["motion"][frames, :3], frames)
+
+    def kinematics(depth=None):
+        return saddle_kinematics(motion, tracks(marks["static"], np.arange(len(marks["static"]))),
+                                 tracks(marks["plumb"], np.arange(len(marks["plumb"]))), params,
+                                 horse_idx=[0, 1, 2], saddle_idx=3, gait=tt.get("model", {}).get("gait"), depth=depth)
+
+    def acc_error_pct(kin):
+        exact = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]
+        return float(100 * np.sqrt(np.mean((kin["saddle"].acceleration_m_s2[:, 1] - exact) ** 2))
+                     / np.sqrt(np.mean(exact ** 2)))
+
+    kin = kinematics()
     _, ind = kinematics_indicators(kin, params)
-    return {"acc_y_rms_error_pct": float(100 * np.sqrt(np.mean((s.acceleration_m_s2[:, 1] - exact) ** 2))
-                                         / np.sqrt(np.mean(exact ** 2))),
-            **indicator_errors_pct(ind, kin["period_s"] * params.n_periods, truth, keys=("acc_y_wb_rms", "vdv_y_wb"))}
+    out = {"acc_y_rms_error_pct": acc_error_pct(kin),
+           **indicator_errors_pct(ind, kin["period_s"] * params.n_periods, truth, keys=("acc_y_wb_rms", "vdv_y_wb"))}
+    depth = depth_uncertainty(rig_from_result(truth["calibration"]), motion) if "calibration" in truth else None
+    out["acc_y_rms_error_pct_rig"] = (acc_error_pct(kinematics(depth))
+                                      if depth is not None and depth["anisotropy"] >= params.depth_anisotropy
+                                      else out["acc_y_rms_error_pct"])
+    return out
 
 
 def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter"),
@@ -223,7 +244,10 @@ def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_tro
                                 options=RenderOptions(skin_motion=skin_motion))
             rows.append(exact_marker_floor(json.loads(json.dumps(build_truth(scene))), params))
         acc = [r["acc_y_rms_error_pct"] for r in rows]
+        acc_rig = [r["acc_y_rms_error_pct_rig"] for r in rows]
         out[gait] = {"acc_y_rms_error_pct_mean": float(np.mean(acc)), "acc_y_rms_error_pct_max": float(np.max(acc)),
+                     "acc_y_rms_error_pct_rig_mean": float(np.mean(acc_rig)),
+                     "acc_y_rms_error_pct_rig_max": float(np.max(acc_rig)),
                      "acc_y_wb_rms_error_pct_max_abs": float(max(abs(r["acc_y_wb_rms_error_pct"]) for r in rows)),
                      "vdv_y_wb_error_pct_max_abs": float(max(abs(r["vdv_y_wb_error_pct"]) for r in rows)),
                      "seeds": list(seeds)}

@@ -53,6 +53,13 @@ def test_markers_fixed_to_the_saddle_give_the_exact_answer(rig):
         assert row["acc_y_rms_error_pct_max"] < 1.0, (gait, row)
         assert row["acc_y_wb_rms_error_pct_max_abs"] < 0.2, (gait, row)
         assert row["vdv_y_wb_error_pct_max_abs"] < 0.5, (gait, row)
+        # Seen through the rig: the wide rig fixes depth and loses nothing; the thesis rig's depth is
+        # fitted with a straight path, so the saddle's roll (which moves the markers in depth) is
+        # lost: measured 4.5 % walk, 2.6 % trots, 3.7 % canter (seeds 1-3, mean).
+        if rig == "wide":
+            assert row["acc_y_rms_error_pct_rig_max"] == row["acc_y_rms_error_pct_max"], (gait, row)
+        else:
+            assert 1.5 < row["acc_y_rms_error_pct_rig_mean"] < 6.0, (gait, row)
 
 
 def test_fitting_every_tracked_stride_beats_the_window_alone():

@@ -919,7 +919,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.finish("triangulation", t0, seconds=triangulation_s)
 
     t0 = time.perf_counter()
-    depth = _depth_uncertainty(rig, tracks3d["motion"])
+    depth = depth_uncertainty(rig, tracks3d["motion"])
     kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params,
                             horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth)
     if plumb_problem:
@@ -936,7 +936,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                             progress.timings_s, params)
 
 
-def _depth_uncertainty(rig: Rig, tracks: MarkerTracks) -> dict | None:
+def depth_uncertainty(rig: Rig, tracks: MarkerTracks) -> dict | None:
     """The rig's position uncertainty at the markers' median place (None if it cannot be had)."""
     xyz = np.asarray(tracks.xyz_mm, dtype=np.float64).reshape(-1, 3)
     xyz = xyz[np.all(np.isfinite(xyz), axis=1)]
