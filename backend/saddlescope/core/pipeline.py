@@ -646,7 +646,9 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
                                                period_s=period_s, max_order=params.depth_max_order)
         flags.append(f"the rig fixes depth {depth['anisotropy']:.0f} times worse than image position: each "
                      "marker's depth was fitted with a straight path across the view (stride orders "
-                     f"{depth_orders}); lateral sway is not measured by this rig")
+                     f"{depth_orders}); lateral sway and roll are not measured by this rig (both move the markers "
+                     "in depth), so the saddle point misses its roll times its sideways offset from the markers "
+                     "(a few % of the vertical acceleration; cameras 2-3 m apart see it)")
     # Robust LOESS on every coordinate in the window (5.2.2), as the thesis did, when asked. Not by
     # default: its local quadratic spans >= 5 samples (a sixth of a second at 30 fps) and flattens
     # the stride's higher harmonics (noiseless rides lose 2-13 % of the vertical acceleration's
