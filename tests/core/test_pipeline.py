@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import cv2
 import numpy as np
 import pytest
 
@@ -393,6 +394,34 @@ def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, monkeypatch
     flags = " ".join(result["quality"]["flags"])
     assert "off the static shot's marker distances and no closer triangle was found" in flags
     assert "found again with all cameras" not in flags
+
+
+def test_a_plumb_line_one_camera_cannot_see_is_triangulated_from_the_other_two(short_ride, analysed):
+    # The plumb line hangs at the end of the arena, outside the right camera's view (its markers are
+    # erased from that camera's frames; the sync flash is still seen). Gravity comes from the left and
+    # middle cameras, and the result says so, instead of falling back to a level-camera guess.
+    from saddlescope.core.errors import DetectionError
+    from saddlescope.io.bundle import open_bundle
+    from saddlescope.io.clip_source import BundleClips
+
+    class PlumbOutOfRightView(BundleClips):
+        def gray_frames(self, kind, camera, start=0, stop=None, step=1):
+            for i, frame in super().gray_frames(kind, camera, start, stop, step):
+                yield i, (cv2.medianBlur(frame, 21) if (kind, camera) == ("plumb", "right") else frame)
+
+    result, truth = analysed
+    rig = P.rig_from_result(result["calibration"])
+    with open_bundle(short_ride) as bundle:
+        clips = PlumbOutOfRightView(bundle.clip_paths)
+        with pytest.raises(DetectionError):
+            P.detect_clip(clips, "plumb", 2, {}, P.PipelineParams())
+        blind = P.analyze_ride(clips, bundle.meta, rig=rig)
+    flags = " ".join(blind["quality"]["flags"])
+    assert "the plumb clip was triangulated from the left and middle cameras only" in flags
+    assert blind["quality"]["gravity_source"] == result["quality"]["gravity_source"] == "plumb"
+    assert blind["quality"]["angle_travel_gravity_deg"] == pytest.approx(
+        result["quality"]["angle_travel_gravity_deg"], abs=0.3)
+    assert blind["indicators"]["acc_y_wb_rms"] == pytest.approx(result["indicators"]["acc_y_wb_rms"], rel=0.02)
 
 
 def test_a_look_alike_moving_with_the_horse_breaks_the_static_layout():

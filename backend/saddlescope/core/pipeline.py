@@ -386,16 +386,30 @@ def rig_to_result(rig: Rig) -> dict:
 
 
 def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mapping[str, int],
-                params: PipelineParams) -> dict[str, ImageTracks]:
-    """2-D marker tracks of every camera of one clip set (thesis 4.5)."""
+                params: PipelineParams, *, spare_cameras: bool = False) -> tuple[dict[str, ImageTracks], list[str]]:
+    """2-D marker tracks of every camera of one clip set (thesis 4.5), and flags.
+
+    With ``spare_cameras`` (still scenes: the plumb line, the standing horse) a camera that does not
+    see the markers is left out while two others do (a plumb line hung at the end of the arena may be
+    outside one camera's view): its failure is a flag, not the end of the analysis."""
     overrides = dict(params.detection.get(kind, {}))
     tracks = {}
+    missed: dict[str, DetectionError] = {}
     for cam in clips.cameras(kind):
         cam_overrides = overrides.pop(cam, {}) if isinstance(overrides.get(cam), Mapping) else {}
         common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
-        tracks[cam] = track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)),
-                                    n_markers=n_markers, camera=cam, clip=kind, **common, **cam_overrides)
-    return tracks
+        try:
+            tracks[cam] = track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)),
+                                        n_markers=n_markers, camera=cam, clip=kind, **common, **cam_overrides)
+        except DetectionError as exc:
+            if not spare_cameras:
+                raise
+            missed[cam] = exc
+    if len(tracks) < 2 and missed:
+        raise next(iter(missed.values()))
+    flags = [f"the {kind} clip was triangulated from the {' and '.join(tracks)} cameras only: {exc}"
+             for exc in missed.values()]
+    return tracks, flags
 
 
 def triangulate_clip(rig: Rig, tracks: Mapping[str, ImageTracks], offsets: Mapping[str, float], fps: float,
@@ -868,15 +882,17 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
            if clips.has(kind)}
     if clips.has("plumb"):
         try:
-            plumb2d = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params)
+            plumb2d, plumb_flags = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params,
+                                               spare_cameras=True)
             tracks3d["plumb"] = triangulate("plumb", plumb2d, n_plumb)
-            plumb_problem = None
+            plumb_problem = "; ".join(plumb_flags) or None
         except (DetectionError, TriangulationError, KinematicsError) as exc:
             plumb_problem = f"plumb clip not used: {exc}"
     else:
         plumb_problem = "no plumb clip"
     progress.stage("detection", 0.2)
-    static2d = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params)
+    static2d, static_flags = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params,
+                                         spare_cameras=True)
     tracks3d["static"] = triangulate("static", static2d, n_horse + n_saddle)
     progress.stage("detection", 0.4)
     static_mm = _static_positions(tracks3d["static"], "static")
@@ -926,7 +942,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                             horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth)
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
-    kin["flags"][:0] = clock_flags + layout_flags + coverage_flags
+    kin["flags"][:0] = clock_flags + static_flags + layout_flags + coverage_flags
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()
