@@ -90,6 +90,23 @@ def _rigid_tracks(n_frames=120, fps=30.0, collinear=False, lost=None):
     return (MarkerTracks(("M1", "M2", "M3"), t, xyz), MarkerTracks(("M1", "M2", "M3", "S"), t[:5], static))
 
 
+def test_motion_labels_are_matched_to_the_static_shot():
+    # The static shot lists the saddle marker second and the horse markers in another order than
+    # the motion clip's labels: the order is read from the markers' distances.
+    motion, static = _rigid_tracks()
+    static_mm = np.median(static.xyz_mm, axis=0)[[3, 2, 0, 1]]  # S, M3, M1, M2
+    swapped = motion.xyz_mm[:, [1, 0, 2]]  # motion labels M2, M1, M3
+    assert P.match_horse_markers(static_mm, [1, 2, 3], swapped) == [3, 2, 1]
+    # A symmetric layout (the middle marker equally far from both ends) matches both ways by
+    # distances; the horse's pose in the static shot decides (no half turn between the two).
+    iso = np.array([[0.0, 0.0, 0.0], [200.0, 30.0, 0.0], [400.0, 0.0, 0.0]])
+    static_iso = np.concatenate([iso, [[150.0, -330.0, -150.0]]]) + [0.0, 0.0, 7000.0]
+    t = np.arange(60) / 30.0
+    frames = iso[None] + np.stack([4000.0 * t, 40 * np.sin(10 * t), 7000 + 0 * t], axis=1)[:, None]
+    assert P.match_horse_markers(static_iso, [0, 1, 2], frames) == [0, 1, 2]
+    assert P.match_horse_markers(static_iso, [0, 1, 2], frames[:, [2, 1, 0]]) == [2, 1, 0]
+
+
 def test_kinematics_of_a_known_rigid_motion_run():
     motion, static = _rigid_tracks()
     kin = P.saddle_kinematics(motion, static, None, P.PipelineParams(smoothing="none"), horse_idx=[0, 1, 2],

@@ -529,6 +529,37 @@ def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tupl
     return best[1], best[2], best[0]
 
 
+def match_horse_markers(static_mm: np.ndarray, horse_idx: list[int], motion_mm: np.ndarray) -> list[int]:
+    """The static shot's horse markers in the motion clip's label order.
+
+    Each camera labels the markers it tracks in its own order, so motion marker 1 need not be the
+    static shot's first horse marker; registering the static layout to swapped labels bends the
+    saddle point's path (a wide-rig rising trot: 10.4 % vertical acceleration error with tracks good
+    to a millimetre). The order whose per-frame distances match the static shot's is taken; where
+    the layout is near-symmetric and two orders match, the one that keeps the horse nearest to its
+    static pose (smallest rotation from the static shot: the same side faces the cameras)."""
+    d_motion = np.nanmedian(_pairwise(motion_mm), axis=0)
+    d_static = _pairwise(static_mm)
+    scored = []
+    for perm in itertools.permutations(horse_idx):
+        idx = list(perm)
+        scored.append((float(np.sqrt(np.nanmean((d_static[np.ix_(idx, idx)] - d_motion) ** 2))), idx))
+    best = min(score for score, _ in scored)
+    close = [idx for score, idx in scored if score <= max(3.0, 2.0 * best)]
+    if len(close) == 1:
+        return close[0]
+
+    def rotation_deg(idx: list[int]) -> float:
+        reg = register_rigid(motion_mm, static_mm[idx])
+        rot = reg.R[reg.valid]
+        if not len(rot):
+            return np.inf
+        cos = np.clip((np.trace(rot, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+        return float(np.degrees(np.median(np.arccos(cos))))
+
+    return min(close, key=rotation_deg)
+
+
 # --------------------------------------------------------------------------------------------------
 # Stages 5-10: kinematics
 # --------------------------------------------------------------------------------------------------
@@ -926,6 +957,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
             layout_flags.append(f"the tracked markers are {found_mm:.0f} mm RMS off the static shot's marker distances "
                                 "and no closer triangle was found: a look-alike may have been tracked, or a marker "
                                 "moved between the static shot and the ride (check both clips)")
+    horse_idx = match_horse_markers(static_mm, horse_idx, tracks3d["motion"].xyz_mm)
     coverage_flags = []
     if calib_report.get("board_coverage"):
         for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items():
