@@ -97,6 +97,11 @@ def test_motion_labels_are_matched_to_the_static_shot():
     static_mm = np.median(static.xyz_mm, axis=0)[[3, 2, 0, 1]]  # S, M3, M1, M2
     swapped = motion.xyz_mm[:, [1, 0, 2]]  # motion labels M2, M1, M3
     assert P.match_horse_markers(static_mm, [1, 2, 3], swapped) == [3, 2, 1]
+    # Registered in the wrong order, the markers do not keep the static layout: flagged.
+    for order, flagged in (([0, 1, 2], False), ([1, 0, 2], True)):
+        kin = P.saddle_kinematics(MarkerTracks(motion.names, motion.t_s, motion.xyz_mm[:, order]), static, None,
+                                  P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+        assert any("kept the static shot's layout only to" in f for f in kin["flags"]) == flagged
     # A symmetric layout (the middle marker equally far from both ends) matches both ways by
     # distances; the horse's pose in the static shot decides (no half turn between the two).
     iso = np.array([[0.0, 0.0, 0.0], [200.0, 30.0, 0.0], [400.0, 0.0, 0.0]])

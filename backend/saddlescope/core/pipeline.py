@@ -82,6 +82,9 @@ class PipelineParams:
     # the motion markers' distances against the static shot's (RMS, mm): beyond it a look-alike was
     # tracked (wide-rig trot: 280 mm; true markers: depth noise and skin, a few to 20 mm)
     max_layout_mismatch_mm: float = 50.0
+    # median rigidity residual (registration) above which the saddle point is flagged unreliable:
+    # 1-3 mm on synthetic rides of both rigs (skin motion), 180 mm with two markers' labels swapped
+    max_rigidity_residual_mm: float = 15.0
     depth_anisotropy: float = 5.0  # fit marker depth smoothly when the rig fixes it this many times worse
     depth_max_order: int = 0  # stride harmonics allowed in that depth fit (0: straight path only)
     # "lsq_wiener": least squares with the weakest axis shrunk by the skin motion the raw markers
@@ -752,6 +755,11 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     flags.extend(fits.flags)
     fits = _on_window(fits, in_win)
     reg = Registration(*(getattr(reg, f.name)[in_win] for f in fields(reg)))
+    rigidity_mm = float(np.nanmedian(reg.rms_residual) * 1e3)
+    if rigidity_mm > params.max_rigidity_residual_mm:
+        flags.append(f"the markers kept the static shot's layout only to {rigidity_mm:.0f} mm (median rigidity "
+                     "residual; skin motion leaves a few mm): a look-alike was tracked, a marker moved after the "
+                     "static shot, or the static shot is of another set-up; the saddle point is unreliable")
     r, v, a = reg.registered, fits.velocity_m_s, fits.acceleration_m_s2
     t_w = t_w[in_win]
     bridged_w = bridged_frames[win][in_win]
