@@ -201,11 +201,11 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
     frames = np.arange(first, last + 1)
     params = params or PipelineParams()
     motion = tracks(marks["motion"][frames, :3], frames)
+    static, plumb = (tracks(marks[k], np.arange(len(marks[k]))) for k in ("static", "plumb"))
 
     def kinematics(depth=None):
-        return saddle_kinematics(motion, tracks(marks["static"], np.arange(len(marks["static"]))),
-                                 tracks(marks["plumb"], np.arange(len(marks["plumb"]))), params,
-                                 horse_idx=[0, 1, 2], saddle_idx=3, gait=tt.get("model", {}).get("gait"), depth=depth)
+        return saddle_kinematics(motion, static, plumb, params, horse_idx=[0, 1, 2], saddle_idx=3,
+                                 gait=tt.get("model", {}).get("gait"), depth=depth)
 
     def acc_error_pct(kin):
         exact = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]

@@ -649,9 +649,9 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     if bridged_frames.any():
         flags.append(f"{_count(bridged_frames.sum(), 'frame')} with a short marker gap bridged (for the "
                      "registration; the fits use measured frames only and give the positions there)")
+    dt_s = float(np.median(np.diff(t)))
     for start_s, end_s in long_gaps:
         # at the record's ends the markers are not lost but not yet (or no longer) in every view
-        dt_s = float(np.median(np.diff(t)))
         if start_s <= t[0] < t[-1] <= end_s:
             flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s (one or another, all along)")
         elif start_s <= t[0]:
