@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import DetectionError
-from saddlescope.core.marker_search import find_markers_multiview
+from saddlescope.core.marker_search import find_markers_multiview, find_plumb_multiview, in_image
 from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.types import Camera, Rig
 
@@ -67,3 +67,50 @@ def test_the_search_pairs_frames_by_their_timestamps():
     with pytest.raises(DetectionError):
         find_markers_multiview(rig, frame_at, offsets, [TRIANGLE_MM], first=n + 2, last=n + 8,
                                frame_position=position)
+
+
+# A plumb line 7 m out: markers 0.7 m apart on a string that shows as a thin bright line, a glint
+# beside the bottom marker (a fence nail 2 m further back) and glints on the wall behind.
+PLUMB_MM = np.array([[-300.0, -350.0, 7000.0], [-300.0, 350.0, 7000.0]])
+GLINTS_MM = np.array([[-240.0, 330.0, 9000.0], [1800.0, -300.0, 14000.0], [1900.0, 500.0, 14000.0],
+                      [-3000.0, 100.0, 14000.0], [2600.0, -200.0, 14000.0], [-1500.0, 400.0, 14000.0]])
+
+
+def _still_frame(cam: Camera, plumb_mm: np.ndarray = PLUMB_MM) -> np.ndarray:
+    img = np.full((480, 640), 60, np.uint8)
+    (x0, y0), (x1, y1) = cam.project(np.array([plumb_mm[0] - [0.0, 2000.0, 0.0], plumb_mm[1] + [0.0, 200.0, 0.0]]))
+    if np.isfinite(x0):
+        cv2.line(img, (round(16 * x0), round(16 * y0)), (round(16 * x1), round(16 * y1)), 150, 1, cv2.LINE_AA, shift=4)
+    for x, y in cam.project(np.vstack([plumb_mm, GLINTS_MM])):
+        if 0 <= x < 640 and 0 <= y < 480:
+            cv2.circle(img, (round(16 * x), round(16 * y)), 3 * 16, 235, -1, lineType=cv2.LINE_AA, shift=4)
+    return cv2.GaussianBlur(img, (0, 0), 0.7)
+
+
+def test_the_plumb_line_is_told_from_glints_and_its_string():
+    rig = _rig()
+    frames = {c: _still_frame(cam) for c, cam in rig.cameras.items()}
+    xy, _, points_mm = find_plumb_multiview(rig, frames)
+    assert set(xy) == set(rig.names)
+    for cam, pts in xy.items():  # upper marker first, as the tracker labels a vertical pair
+        np.testing.assert_allclose(pts, rig.cameras[cam].project(PLUMB_MM), atol=0.5)
+    np.testing.assert_allclose(points_mm, PLUMB_MM, atol=60.0)  # depth from a 0.46 m baseline at 7 m
+    # Without the plumb line two wall glints 7 degrees off vertical would pass (within 25 degrees of
+    # the cameras' image-down): the plumb line wins by being the more vertical pair.
+    bare = {c: _still_frame(cam, plumb_mm=np.full((2, 3), np.nan)) for c, cam in rig.cameras.items()}
+    np.testing.assert_allclose(find_plumb_multiview(rig, bare)[2], GLINTS_MM[[1, 2]], atol=60.0)
+
+
+def test_a_plumb_line_outside_one_camera_is_found_by_the_other_two():
+    rig = _rig()
+    # Slide the plumb line left until the right camera no longer sees it while the others still do.
+    shift = next(x for x in np.arange(0.0, -4000.0, -50.0)
+                 if not in_image(rig, "right", PLUMB_MM + [x, 0.0, 0.0])
+                 and in_image(rig, "middle", PLUMB_MM + [x, 0.0, 0.0]))
+    plumb = PLUMB_MM + [shift - 100.0, 0.0, 0.0]
+    assert in_image(rig, "left", plumb)
+    frames = {c: _still_frame(cam, plumb) for c, cam in rig.cameras.items()}
+    xy, _, points_mm = find_plumb_multiview(rig, frames)
+    assert set(xy) == {"left", "middle"}
+    for cam, pts in xy.items():
+        np.testing.assert_allclose(pts, rig.cameras[cam].project(plumb), atol=0.5)

@@ -319,3 +319,19 @@ def test_markers_behind_the_arena_pole_are_all_followed_again(tmp_path):
     hidden = np.flatnonzero((seen < 3) & (np.arange(seen.size) > full[0]) & (np.arange(seen.size) < full[-1]))
     assert hidden.size >= 5  # the pole did hide markers in the middle of the ride
     assert (seen[hidden[-1] + 1:] == 3).mean() > 0.9  # and all three are followed after it
+
+
+def test_a_marker_against_the_bright_sky_is_tracked():
+    # A plumb line's top marker seen against the sky (grey 200), its bottom marker against a wall (120),
+    # both peaking near 235: one threshold halfway up from the markers' mean surround lies below the
+    # sky, where the top marker merges with it and the window reads as glare. The tracking threshold
+    # then goes above each marker's own surround.
+    rng = np.random.default_rng(7)
+    sky = np.where(np.arange(SHAPE[0])[:, None] < 240, 200.0, 120.0) * np.ones(SHAPE)
+    top, bottom = (320.3, 180.6), (321.2, 330.4)
+    frames = [(i, render([marker(top, radius=2.5, amplitude=35.0), marker(bottom, radius=2.5, amplitude=115.0)],
+                         background=sky, noise=1.5, rng=rng)) for i in range(12)]
+    tracks = track_markers(iter(frames), n_markers=2, first_frame_xy=[top, bottom])
+    assert not tracks.flags
+    np.testing.assert_allclose(tracks.xy_px[:, 0], np.broadcast_to(top, (12, 2)), atol=0.3)
+    np.testing.assert_allclose(tracks.xy_px[:, 1], np.broadcast_to(bottom, (12, 2)), atol=0.3)

@@ -22,11 +22,14 @@ from saddlescope.core.types import Rig
 
 
 def bright_spots(gray: np.ndarray, *, max_spots: int = 40, radius_px: int | None = None,
-                 min_contrast: float = 25.0) -> np.ndarray:
-    """Centres (K, 2) of small bright spots, the most contrasted first.
+                 min_contrast: float = 25.0, return_peaks: bool = False, split_lines: bool = False):
+    """Centres (K, 2) of small bright spots, the most contrasted first (and with ``return_peaks``
+    their top-hat peaks (K,) in grey levels).
 
     A white top-hat keeps what is brighter than its surroundings within ``radius_px`` (markers,
     glints) and drops large bright areas (sky, white boards); centroids are weighted by the top-hat.
+    Thin lines pass the top-hat too: with ``split_lines`` a region too large for a spot is cut at
+    half its height above the threshold, so markers on a plumb line's string come apart from it.
     """
     h, w = gray.shape
     r = int(radius_px or max(4, round(w / 110)))
@@ -35,23 +38,35 @@ def bright_spots(gray: np.ndarray, *, max_spots: int = 40, radius_px: int | None
     thr = max(min_contrast, float(np.percentile(tophat, 99.5)))
     n, labels, stats, _ = cv2.connectedComponentsWithStats((tophat > thr).astype(np.uint8), connectivity=8)
     if n <= 1:
-        return np.empty((0, 2))
+        return (np.empty((0, 2)), np.empty(0)) if return_peaks else np.empty((0, 2))
     area = stats[1:, cv2.CC_STAT_AREA]
-    keep = np.flatnonzero(area <= (2 * r + 1) ** 2) + 1
+    small = area <= (2 * r + 1) ** 2
     spots, peaks = [], []
-    for i in keep:
-        x, y, bw, bh = stats[i, :4]
-        patch = tophat[y:y + bh, x:x + bw].astype(np.float64) * (labels[y:y + bh, x:x + bw] == i)
+
+    def add(patch: np.ndarray, x: int, y: int) -> None:
         total = patch.sum()
-        if total <= 0:
-            continue
-        yy, xx = np.mgrid[y:y + bh, x:x + bw]
-        spots.append(((xx * patch).sum() / total, (yy * patch).sum() / total))
-        peaks.append(patch.max())
+        if total > 0:
+            yy, xx = np.mgrid[y:y + patch.shape[0], x:x + patch.shape[1]]
+            spots.append(((xx * patch).sum() / total, (yy * patch).sum() / total))
+            peaks.append(patch.max())
+
+    for i in np.flatnonzero(small) + 1:
+        x, y, bw, bh = stats[i, :4]
+        add(tophat[y:y + bh, x:x + bw].astype(np.float64) * (labels[y:y + bh, x:x + bw] == i), x, y)
+    for i in (np.flatnonzero(~small) + 1) if split_lines else ():
+        x, y, bw, bh = stats[i, :4]
+        region = tophat[y:y + bh, x:x + bw].astype(np.float64) * (labels[y:y + bh, x:x + bw] == i)
+        cut = thr + 0.5 * (region.max() - thr)
+        m, sub, sub_stats, _ = cv2.connectedComponentsWithStats((region > cut).astype(np.uint8), connectivity=8)
+        for j in range(1, m):
+            if sub_stats[j, cv2.CC_STAT_AREA] <= (2 * r + 1) ** 2:
+                sx, sy, sw, sh = sub_stats[j, :4]
+                add(region[sy:sy + sh, sx:sx + sw] * (sub[sy:sy + sh, sx:sx + sw] == j), x + sx, y + sy)
     if not spots:
-        return np.empty((0, 2))
+        return (np.empty((0, 2)), np.empty(0)) if return_peaks else np.empty((0, 2))
     order = np.argsort(peaks)[::-1][:max_spots]
-    return np.asarray(spots, dtype=np.float64)[order]
+    xy = np.asarray(spots, dtype=np.float64)[order]
+    return (xy, np.asarray(peaks, dtype=np.float64)[order]) if return_peaks else xy
 
 
 def _spots_at(frames: tuple[np.ndarray, np.ndarray | None], frac: float, max_spots: int) -> np.ndarray:
@@ -87,6 +102,36 @@ def _spots_at(frames: tuple[np.ndarray, np.ndarray | None], frac: float, max_spo
     return np.asarray(out, dtype=np.float64).reshape(-1, 2)
 
 
+def consistent_points(rig: Rig, spots: Mapping[str, np.ndarray], *, max_error_px: float = 2.5
+                      ) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
+    """The 3-D points that one spot of every camera in ``spots`` agrees on, or None.
+
+    Every combination of one spot per camera is triangulated; those reprojecting within
+    ``max_error_px`` are kept, the best-fitting first, each spot used by one point at most.
+
+    Returns (points (P, 3) mm, spot index per point and camera (P, C), cameras (C,)).
+    """
+    cams = [c for c in rig.names if c in spots and len(spots[c])]
+    if len(cams) < 2:
+        return None
+    grids = np.meshgrid(*[np.arange(len(spots[c])) for c in cams], indexing="ij")
+    idx = np.stack([g.ravel() for g in grids], axis=1)  # (N, C) one spot per camera
+    if len(idx) > 200_000:
+        return None
+    xy = {c: spots[c][idx[:, i]] for i, c in enumerate(cams)}
+    xyz, err = triangulate_nview(Rig({c: rig.cameras[c] for c in cams}), xy, reject_outliers=False)[:2]
+    ok = np.flatnonzero(np.isfinite(err) & (err < max_error_px))
+    # A spot belongs to at most one 3-D point: keep the best-fitting points first.
+    taken = [set() for _ in cams]
+    keep = []
+    for i in ok[np.argsort(err[ok])]:
+        if all(idx[i, c] not in taken[c] for c in range(len(cams))):
+            keep.append(i)
+            for c in range(len(cams)):
+                taken[c].add(idx[i, c])
+    return xyz[keep], idx[keep], cams
+
+
 def triangle_candidates(rig: Rig, spots: Mapping[str, np.ndarray], model_mm: np.ndarray, *,
                         max_error_px: float = 2.5, tol_mm: float | None = None) -> tuple[dict, float] | None:
     """The marker triangle among the spots of every camera, or None.
@@ -100,29 +145,10 @@ def triangle_candidates(rig: Rig, spots: Mapping[str, np.ndarray], model_mm: np.
     -------
     ({camera: ndarray (M, 2)} in model order, RMS distance mismatch in mm) or None.
     """
-    cams = [c for c in rig.names if c in spots and len(spots[c])]
-    if len(cams) < 2:
+    found = consistent_points(rig, spots, max_error_px=max_error_px)
+    if found is None or len(found[0]) < model_mm.shape[0]:
         return None
-    grids = np.meshgrid(*[np.arange(len(spots[c])) for c in cams], indexing="ij")
-    idx = np.stack([g.ravel() for g in grids], axis=1)  # (N, C) one spot per camera
-    if len(idx) > 200_000:
-        return None
-    xy = {c: spots[c][idx[:, i]] for i, c in enumerate(cams)}
-    xyz, err = triangulate_nview(Rig({c: rig.cameras[c] for c in cams}), xy, reject_outliers=False)[:2]
-    ok = np.isfinite(err) & (err < max_error_px)
-    if ok.sum() < model_mm.shape[0]:
-        return None
-    pts, used = xyz[ok], idx[ok]
-    # A spot belongs to at most one 3-D point: keep the best-fitting points first.
-    order = np.argsort(err[ok])
-    taken = [set() for _ in cams]
-    keep = []
-    for i in order:
-        if all(used[i, c] not in taken[c] for c in range(len(cams))):
-            keep.append(i)
-            for c in range(len(cams)):
-                taken[c].add(used[i, c])
-    pts, used = pts[keep], used[keep]
+    pts, used, cams = found
     m = model_mm.shape[0]
     d_model = np.linalg.norm(model_mm[:, None] - model_mm[None], axis=2)
     pairs = list(itertools.combinations(range(m), 2))
@@ -192,6 +218,114 @@ def find_markers_multiview(rig: Rig, frame_at: Callable[[str, int], np.ndarray |
                          "the layout of the static shot (markers hidden, out of view, or the static shot "
                          "wrong)")
 
+
+def camera_down(rig: Rig) -> np.ndarray:
+    """The cameras' mean image-down direction in rig coordinates: gravity's direction for cameras
+    standing roughly level (a guess, used to recognise a plumb line, never as gravity itself)."""
+    down = np.mean([cam.R[1] for cam in rig.cameras.values()], axis=0)
+    return down / np.linalg.norm(down)
+
+
+def plumb_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: Mapping[str, np.ndarray] | None = None, *,
+                     max_tilt_deg: float = 25.0, length_mm: tuple[float, float] = (100.0, 5000.0),
+                     max_error_px: float = 2.5) -> tuple[dict, float, np.ndarray] | None:
+    """The plumb line's two markers among the spots of the cameras in ``spots``, or None.
+
+    Glints on a wall or fence can pass for a plumb marker in one camera (a single view has nothing
+    but brightness and a vertical pair to go by). Seen by every camera, a plumb line is two 3-D points
+    one above the other: pairs of consistent points 0.1-5 m apart within ``max_tilt_deg`` of the
+    cameras' image-down direction (cameras stand roughly level) are candidates. The string itself
+    gives consistent points along the same vertical, faint ones: with ``peaks`` (each spot's
+    brightness, :func:`bright_spots`) a pair loses 10 degrees' worth per its weaker point's shortfall
+    from the brightest point (retro-reflective markers outshine a string).
+
+    Returns ({camera: ndarray (2, 2)} upper marker first, score (the tilt from image-down in degrees
+    plus the brightness penalty), the two points (2, 3) mm) or None.
+    """
+    found = consistent_points(rig, spots, max_error_px=max_error_px)
+    if found is None or len(found[0]) < 2:
+        return None
+    pts, used, cams = found
+    down = camera_down(rig)
+    i, j = np.triu_indices(len(pts), 1)
+    d = pts[j] - pts[i]
+    length = np.linalg.norm(d, axis=1)
+    tilt = np.degrees(np.arccos(np.clip(np.abs(d @ down) / np.maximum(length, 1e-9), 0.0, 1.0)))
+    ok = (length >= length_mm[0]) & (length <= length_mm[1]) & (tilt <= max_tilt_deg)
+    if not ok.any():
+        return None
+    score = tilt.copy()
+    if peaks is not None:
+        brightness = np.mean([peaks[c][used[:, k]] for k, c in enumerate(cams)], axis=0)  # per point
+        score += 10.0 * (1.0 - np.minimum(brightness[i], brightness[j]) / brightness.max())
+    best = np.flatnonzero(ok)[np.argmin(score[ok])]
+    pair = [i[best], j[best]]
+    if pts[pair[0]] @ down > pts[pair[1]] @ down:
+        pair = pair[::-1]  # the upper marker first, as the tracker labels a vertical pair
+    return {c: spots[c][used[pair, k]] for k, c in enumerate(cams)}, float(score[best]), pts[pair]
+
+
+def _bright_at(gray: np.ndarray, xy: np.ndarray, *, radius_px: int = 3, min_contrast: float = 12.0) -> bool:
+    """Whether a marker-like bright spot is within ``radius_px`` of each of the points ``xy`` (K, 2):
+    the brightest pixel there stands ``min_contrast`` grey levels above the median of a ring 6-10 px
+    out. Points outside the image have none."""
+    h, w = gray.shape
+    for x, y in np.asarray(xy, dtype=np.float64):
+        if not (np.isfinite(x) and np.isfinite(y)):
+            return False
+        cx, cy = int(round(x)), int(round(y))
+        if not (10 <= cx < w - 10 and 10 <= cy < h - 10):
+            return False
+        patch = gray[cy - 10:cy + 11, cx - 10:cx + 11].astype(np.float64)
+        yy, xx = np.mgrid[-10:11, -10:11]
+        r = np.hypot(xx, yy)
+        if patch[r <= radius_px].max() - np.median(patch[(r >= 6) & (r <= 10)]) < min_contrast:
+            return False
+    return True
+
+
+def find_plumb_multiview(rig: Rig, frames: Mapping[str, np.ndarray], *, max_spots: int = 25
+                         ) -> tuple[dict, float, np.ndarray] | None:
+    """The plumb line's markers in the still frames ``frames`` {camera: grey frame}, or None.
+
+    Candidates come from all cameras' spots and from every two cameras' (a plumb line hung at the end
+    of the arena may be outside one camera's view, or a marker against the bright sky too faint for
+    the spot search there). Two cameras agree on spurious points easily (any spots on matching
+    epipolar lines), so a two-camera pair counts only where the third camera shows a bright spot at
+    both points or cannot see them (outside its image). The best-scoring candidate wins; one seen
+    by all cameras unless a two-camera one scores more than a degree better (:func:`plumb_candidates`).
+
+    Returns ({camera: (2, 2)} for the cameras whose spots it was found among, its score, the two
+    points (2, 3) mm)."""
+    frames = {c: g for c, g in frames.items() if c in rig.cameras}
+    found_spots = {c: bright_spots(g, max_spots=max_spots, return_peaks=True, split_lines=True)
+                   for c, g in frames.items()}
+    spots = {c: xy for c, (xy, _) in found_spots.items()}
+    peaks = {c: p for c, (_, p) in found_spots.items()}
+    everyone = plumb_candidates(rig, spots, peaks)
+    pairs = []
+    if len(spots) >= 3:
+        for two in itertools.combinations(spots, 2):
+            found = plumb_candidates(rig, {c: spots[c] for c in two}, peaks)
+            if found is None:
+                continue
+            others = [c for c in frames if c not in two]
+            if all(_bright_at(frames[c], rig.cameras[c].project(found[2])) or not in_image(rig, c, found[2])
+                   for c in others):
+                pairs.append(found)
+    best_pair = min(pairs, key=lambda p: p[1]) if pairs else None
+    if everyone is not None and (best_pair is None or everyone[1] <= best_pair[1] + 1.0):
+        return everyone
+    return best_pair
+
+
+def in_image(rig: Rig, camera: str, points_mm: np.ndarray) -> bool:
+    """Whether every point is in front of the camera and inside its image."""
+    cam = rig.cameras[camera]
+    depth = (np.asarray(points_mm) @ np.asarray(cam.R).T + cam.t_mm)[:, 2]
+    xy = cam.project(points_mm)
+    w, h = cam.image_size
+    return bool(np.all(depth > 0) and np.all((xy >= 0) & (xy < (w, h))))
 
 class SequentialFrames:
     """Random access to frames of forward-only streams, keeping the last few decoded frames.

@@ -607,7 +607,20 @@ _THRESHOLD_FRACTION = 0.6
 def _tracking_threshold(pattern: MarkerPattern) -> float:
     """The tracking threshold for markers like these (see ``_THRESHOLD_FRACTION``)."""
     bg = float(np.median(pattern.background))
-    return bg + _THRESHOLD_FRACTION * max(float(pattern.peak.min()) - bg, 2.0)
+    level = bg + _THRESHOLD_FRACTION * max(float(pattern.peak.min()) - bg, 2.0)
+    return _above_surrounds(level, pattern.background.tolist(), (pattern.peak - pattern.background).tolist())
+
+
+def _above_surrounds(level: float, backgrounds: list, contrasts: list) -> float:
+    """``level``, or higher where a marker's own surround is as bright as it: a marker against the
+    sky (a plumb line's top marker) merges with the sky below the sky's grey level, and the whole
+    window reads as glare. Then the level is ``_THRESHOLD_FRACTION`` of the way from each marker's
+    surround to its peak, the highest of those, if every marker's peak stays above it."""
+    if max(backgrounds) + 2.0 < level:
+        return level
+    own = [b + _THRESHOLD_FRACTION * max(c, 2.0) for b, c in zip(backgrounds, contrasts, strict=True)]
+    peaks = [b + c for b, c in zip(backgrounds, contrasts, strict=True)]
+    return max(own) if max(own) < min(peaks) - 2.0 else level
 
 
 def _retune(gray, pattern: MarkerPattern, *, fixed_area: bool, pad_px: int) -> MarkerPattern:
@@ -660,6 +673,7 @@ class _Tracker:
         self.ref_area = pattern.area_px.astype(float).tolist()
         self.ref_contrast = np.maximum(pattern.peak - pattern.background, 2.0).tolist()
         self.background = float(np.median(pattern.background))
+        self.ref_background = pattern.background.astype(float).tolist()  # per marker
         self.threshold = pattern.threshold
         self.threshold_fixed = threshold_fixed
         self.area_range = pattern.area_range_px
@@ -850,10 +864,13 @@ class _Tracker:
         for m, peak, bg in zip(seen, peaks, bgs, strict=True):
             self.ref_area[m] += 0.1 * (areas[m] - self.ref_area[m])
             self.ref_contrast[m] += 0.1 * (max(peak - bg, 2.0) - self.ref_contrast[m])
+            self.ref_background[m] += 0.1 * (bg - self.ref_background[m])
         self.background += 0.1 * (sorted(bgs)[len(bgs) // 2] - self.background)
         if not self.threshold_fixed:
             # Follow slow lighting changes: a fixed fraction up the dimmest marker's contrast.
-            self.threshold = self.background + _THRESHOLD_FRACTION * max(min(self.ref_contrast), 2.0)
+            self.threshold = _above_surrounds(
+                self.background + _THRESHOLD_FRACTION * max(min(self.ref_contrast), 2.0),
+                self.ref_background, self.ref_contrast)
 
 
 def _bright_spots(gray: np.ndarray, levels, area_range_px, roi=None) -> np.ndarray:

@@ -24,7 +24,7 @@ from saddlescope.core import frames as motion
 from saddlescope.core.errors import DetectionError, InputError, KinematicsError, SyncError, TriangulationError
 from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.indicators import ride_indicators
-from saddlescope.core.marker_search import SequentialFrames, find_markers_multiview
+from saddlescope.core.marker_search import SequentialFrames, find_markers_multiview, find_plumb_multiview, in_image
 from saddlescope.core.markers import track_markers
 from saddlescope.core.period import analysis_window, estimate_period
 from saddlescope.core.registration import Registration, broken_distance_samples, marker_model, register_rigid
@@ -389,18 +389,29 @@ def rig_to_result(rig: Rig) -> dict:
 
 
 def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mapping[str, int],
-                params: PipelineParams, *, spare_cameras: bool = False) -> tuple[dict[str, ImageTracks], list[str]]:
+                params: PipelineParams, *, spare_cameras: bool = False,
+                start_xy: Mapping[str, np.ndarray] | None = None) -> tuple[dict[str, ImageTracks], list[str]]:
     """2-D marker tracks of every camera of one clip set (thesis 4.5), and flags.
 
     With ``spare_cameras`` (still scenes: the plumb line, the standing horse) a camera that does not
     see the markers is left out while two others do (a plumb line hung at the end of the arena may be
-    outside one camera's view): its failure is a flag, not the end of the analysis."""
+    outside one camera's view): its failure is a flag, not the end of the analysis.
+    ``start_xy`` {camera: (n, 2)} gives the markers' positions on each camera's first frame (found
+    with all cameras at once); a camera it leaves out is not used (with ``spare_cameras``)."""
     overrides = dict(params.detection.get(kind, {}))
     tracks = {}
     missed: dict[str, DetectionError] = {}
     for cam in clips.cameras(kind):
         cam_overrides = overrides.pop(cam, {}) if isinstance(overrides.get(cam), Mapping) else {}
         common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
+        if start_xy is not None and "first_frame_xy" not in {**common, **cam_overrides}:
+            if cam not in start_xy:
+                if spare_cameras:
+                    missed[cam] = DetectionError(f"the {cam} camera's view holds no pair of spots that the "
+                                                 f"other cameras see as the {kind} line's markers")
+                    continue
+            else:
+                cam_overrides = {**cam_overrides, "first_frame_xy": start_xy[cam]}
         try:
             tracks[cam] = track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)),
                                         n_markers=n_markers, camera=cam, clip=kind, **common, **cam_overrides)
@@ -413,6 +424,28 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
     flags = [f"the {kind} clip was triangulated from the {' and '.join(tracks)} cameras only: {exc}"
              for exc in missed.values()]
     return tracks, flags
+
+
+def plumb_start_positions(clips: ClipReader, rig: Rig, first_frame: Mapping[str, int], n_plumb: int
+                          ) -> dict[str, np.ndarray] | None:
+    """Each camera's plumb markers on its first frame after the flash, found with all cameras at once
+    (:func:`find_plumb_multiview`), or None (then each camera searches alone)."""
+    if n_plumb != 2:
+        return None
+    frames = {}
+    for cam in clips.cameras("plumb"):
+        if cam in rig.cameras:
+            for _, gray in clips.gray_frames("plumb", cam, start=first_frame.get(cam, 0)):
+                frames[cam] = gray.copy()
+                break
+    found = find_plumb_multiview(rig, frames) if len(frames) >= 2 else None
+    if found is None:
+        return None
+    xy, _, points_mm = found
+    for cam in frames:
+        if cam not in xy and in_image(rig, cam, points_mm):
+            xy[cam] = rig.cameras[cam].project(points_mm)  # found by the other two: look where they put it
+    return xy
 
 
 def triangulate_clip(rig: Rig, tracks: Mapping[str, ImageTracks], offsets: Mapping[str, float], fps: float,
@@ -922,7 +955,9 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     if clips.has("plumb"):
         try:
             plumb2d, plumb_flags = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params,
-                                               spare_cameras=True)
+                                               spare_cameras=True,
+                                               start_xy=plumb_start_positions(clips, rig, first_frame["plumb"],
+                                                                              n_plumb))
             tracks3d["plumb"] = triangulate("plumb", plumb2d, n_plumb)
             plumb_problem = "; ".join(plumb_flags) or None
         except (DetectionError, TriangulationError, KinematicsError) as exc:
