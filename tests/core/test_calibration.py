@@ -288,3 +288,35 @@ def test_bad_corner_ids_are_rejected():
     bad = [BoardView(i, np.zeros((8, 2)), np.arange(40, 48) + 10) for i in range(6)]
     with pytest.raises(InputError, match="outside the board"):
         calibrate_intrinsics(bad, board, (640, 480), camera="left")
+
+
+def test_an_action_camera_lens_gets_its_k3_from_a_board_in_the_middle_of_the_view():
+    # 90-degree lenses 5.5 m from the track, 1920x1080, strong barrel distortion; the 0.6 m board
+    # covers the middle of each view, as a club would move it. From OpenCV's distortion-free
+    # start the free-k3 fit stopped in a wrong minimum and k3 stayed fixed at zero: focal lengths
+    # came out 1-2 % long, and a rig's scale with them.
+    rng = np.random.default_rng(11)
+    board = make_board("checkerboard", (12, 11), 50.0)
+    cams = {}
+    for i, (f, k) in enumerate([(1000.0, (-0.27, 0.09, 0.0003, -0.0002, -0.012)),
+                                (990.0, (-0.26, 0.085, -0.0002, 0.0001, -0.013))]):
+        R = cv2.Rodrigues(np.array([0.0, -np.arctan2(2000.0 * i, 5500.0), 0.0]))[0]  # turned to the track
+        K = np.array([[f, 0, 960.0 + 4 * i], [0, f, 540.0 - 3 * i], [0, 0, 1]])
+        cams[f"c{i}"] = Camera(f"c{i}", K, np.array(k), (1920, 1080), R=R, t_mm=-R @ [2000.0 * i, 0.0, 0.0])
+    truth = Rig(cams)
+    half = np.array([11 * 25.0, 10 * 25.0, 0.0])
+    rvecs, ts = [], []
+    for _ in range(120):
+        rv = np.radians([rng.uniform(-35, 35), rng.uniform(-35, 35), rng.uniform(-15, 15)])
+        c = np.array([1000.0 + rng.uniform(-2000, 2000), rng.uniform(-700, 700), 5000.0 + rng.uniform(-500, 500)])
+        rvecs.append(rv)
+        ts.append(c - cv2.Rodrigues(rv)[0] @ half)
+    views = simulate_board_views(truth, board, np.array(rvecs), np.array(ts), noise_px=0.15, rng=rng)
+    rig, report = calibrate_rig(views, board, {n: (1920, 1080) for n in cams})
+    chosen = {name: report["intrinsics"][name]["k3_test"]["chosen"] for name in cams}
+    assert "free" in chosen.values()
+    for name, cam in rig.cameras.items():
+        true = truth.cameras[name]
+        assert abs(cam.K[0, 0] / true.K[0, 0] - 1) < 0.003  # was 1.0 and 1.3 % long
+        if chosen[name] == "free":
+            assert abs(cam.dist[4] - true.dist[4]) < 0.002

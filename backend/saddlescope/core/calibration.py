@@ -917,7 +917,8 @@ def _calib_flags(fix_k3: bool) -> int:
 def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple[int, int], *,
                          camera: str = "camera", clip: str | None = None, fix_k3: bool = True,
                          min_views: int = MIN_VIEWS, outlier_factor: float = 3.0,
-                         min_outlier_px: float = 0.5, max_rounds: int = 3) -> tuple[Camera, dict]:
+                         min_outlier_px: float = 0.5, max_rounds: int = 3,
+                         guess: Camera | None = None) -> tuple[Camera, dict]:
     """Intrinsics of one camera from board views (Zhang / Bouguet; thesis 3.4, Tables 8.1-8.3).
 
     Parameters
@@ -932,6 +933,8 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
     outlier_factor, min_outlier_px : float
         A view whose RMS error exceeds ``max(outlier_factor * median, min_outlier_px)`` is dropped and
         the calibration repeated (at most ``max_rounds`` times).
+    guess : Camera, optional
+        Start from these intrinsics instead of OpenCV's distortion-free initial estimate.
 
     Returns
     -------
@@ -954,8 +957,11 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
         obj = [obj_all[v.ids] for v in views]
         img = [v.corners_px.astype(np.float32).reshape(-1, 1, 2) for v in views]
         try:
+            start = (None, None) if guess is None else (np.array(guess.K, np.float64),
+                                                        np.array(guess.dist, np.float64).ravel()[:5].copy())
+            flags = _calib_flags(fix_k3) | (0 if guess is None else cv2.CALIB_USE_INTRINSIC_GUESS)
             rms, K, dist, rvecs, tvecs, std_intr, _, per_view = cv2.calibrateCameraExtended(
-                obj, img, (w, h), None, None, flags=_calib_flags(fix_k3), criteria=_CALIB_CRITERIA)
+                obj, img, (w, h), *start, flags=flags, criteria=_CALIB_CRITERIA)
         except cv2.error as exc:
             raise CalibrationError(f"calibration of camera {camera} failed in OpenCV: "
                                    f"{str(exc).strip().splitlines()[-1]}") from None
@@ -1004,20 +1010,25 @@ def _choose_k3(cam: Camera, report: dict, views: list[BoardView], board: Board, 
     -0.02) the left camera's principal point came out 10 px off and its markers 50 mm aside. A narrow
     lens's k3 is not determined and trades off against k1 and k2, so it stays at zero there.
     """
+    dropped = set(report["dropped_frames"])
+    kept = [v for v in views if v.frame not in dropped]  # both models judged on the same corners
     try:
-        free_cam, free_rep = calibrate_intrinsics(views, board, image_size, camera=camera, clip=clip,
-                                                  fix_k3=False, min_views=min_views)
+        # From the fixed-k3 fit: from OpenCV's distortion-free start, a wide lens's free fit stopped
+        # in a wrong minimum (action camera, exact corners: f 5 % long, k3 = -0.005 for -0.013).
+        free_cam, free_rep = calibrate_intrinsics(kept, board, image_size, camera=camera, clip=clip,
+                                                  fix_k3=False, min_views=min_views, guess=cam, max_rounds=0)
     except CalibrationError:
         return cam, report
+    free_rep["dropped_frames"] = report["dropped_frames"]
     n_fixed, n_free = 2 * report["n_points"], 2 * free_rep["n_points"]
     bic_fixed = n_fixed * np.log(report["rms_px"] ** 2) + 8 * np.log(n_fixed)
     bic_free = n_free * np.log(free_rep["rms_px"] ** 2) + 9 * np.log(n_free)
     k3, k3_std = float(free_cam.dist[4]), float(free_cam.dist_std[4]) if free_cam.dist_std is not None else np.inf
     significant = np.isfinite(k3_std) and abs(k3) > 3.0 * k3_std
+    free = significant and bic_free < bic_fixed and n_free == n_fixed
     report["k3_test"] = {"k3_free": k3, "k3_std": k3_std, "bic_fixed": float(bic_fixed),
-                         "bic_free": float(bic_free), "chosen": "free" if significant and bic_free < bic_fixed
-                         else "fixed"}
-    if significant and bic_free < bic_fixed and n_free == n_fixed:
+                         "bic_free": float(bic_free), "chosen": "free" if free else "fixed"}
+    if free:
         free_rep["k3_test"] = report["k3_test"]
         return free_cam, free_rep
     return cam, report
