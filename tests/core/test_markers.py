@@ -335,3 +335,23 @@ def test_a_marker_against_the_bright_sky_is_tracked():
     assert not tracks.flags
     np.testing.assert_allclose(tracks.xy_px[:, 0], np.broadcast_to(top, (12, 2)), atol=0.3)
     np.testing.assert_allclose(tracks.xy_px[:, 1], np.broadcast_to(bottom, (12, 2)), atol=0.3)
+
+
+def test_a_still_start_lost_over_its_first_frames_is_looked_for_there_again():
+    # A plumb line's markers given by the all-cameras search; the bottom one is hidden on frames 1-2
+    # (someone walks past), so the start fails its first-frames check. A brighter, rounder vertical
+    # pair of glints elsewhere would win a search of the whole frame.
+    rng = np.random.default_rng(3)
+    top, bottom = (320.4, 150.2), (322.1, 300.7)
+    glints = [marker((500.0, 100.0), radius=2.5, amplitude=200.0), marker((500.0, 250.0), radius=2.5, amplitude=200.0)]
+    frames = []
+    for i in range(20):
+        ours = [marker(top, radius=2.0, amplitude=150.0)]
+        if i not in (1, 2):
+            ours.append(marker(bottom, radius=2.5, amplitude=110.0))
+        frames.append((i, render(ours + glints, noise=1.0, rng=rng)))
+    tracks = track_markers(iter(frames), n_markers=2, first_frame_xy=[top, bottom])
+    seen = np.all(np.isfinite(tracks.xy_px[..., 0]), axis=1)
+    assert seen[5:].all()
+    np.testing.assert_allclose(tracks.xy_px[5:, 0], np.broadcast_to(top, (15, 2)), atol=0.3)
+    np.testing.assert_allclose(tracks.xy_px[5:, 1], np.broadcast_to(bottom, (15, 2)), atol=0.3)

@@ -1002,6 +1002,7 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
     indices: list[int] = []
     tracker: _Tracker | None = None
     ever_found = False
+    confirmed = False  # a pattern followed through its first frames
     tracked_from = 0            # row where the current tracker started
     since_search = 10 ** 6       # frames since the last search attempt
     last_error: DetectionError | None = None
@@ -1021,6 +1022,7 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
             xy_rows.append(found)
             area_rows.append(areas)
             recent = xy_rows[tracked_from + 1:]
+            confirmed = confirmed or len(recent) > confirm_frames
             if len(recent) <= confirm_frames and sum(any(p is None for p in row) for row in recent) >= 2:
                 # Not followed at once: the pattern found was not the markers. Forget it, search again.
                 for r in range(tracked_from, len(xy_rows)):
@@ -1060,8 +1062,11 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
                     raise DetectionError(f"{where}nothing moves")
                 span = area_range_px or _default_area_range(gray.shape)
                 exclude = _bright_spots(previous, scene.levels, span, roi)
+            # Given positions hold for the first search, and in a still clip until a pattern is
+            # followed: a start lost over its first frames is looked for there again, not among glints.
+            look_near_start = first_frame_xy is not None and (not ever_found or (not moving and not confirmed))
             pattern = _find_pattern(gray, n, threshold=threshold, area_range_px=area_range_px,
-                                    first_frame_xy=first_frame_xy if not ever_found else None, layout=layout,
+                                    first_frame_xy=first_frame_xy if look_near_start else None, layout=layout,
                                     max_candidates=24, ambiguity_margin=0.03, exclude_xy=exclude, roi=roi,
                                     pad_px=pad_px, where=where, scene=scene)
         except DetectionError as exc:
