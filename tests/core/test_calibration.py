@@ -320,3 +320,14 @@ def test_an_action_camera_lens_gets_its_k3_from_a_board_in_the_middle_of_the_vie
         assert abs(cam.K[0, 0] / true.K[0, 0] - 1) < 0.003  # was 1.0 and 1.3 % long
         if chosen[name] == "free":
             assert abs(cam.dist[4] - true.dist[4]) < 0.002
+
+
+def test_an_outlier_view_is_dropped_only_where_a_round_follows():
+    rng = np.random.default_rng(5)
+    _, board, views, sizes = thesis_like_views(20, rng=rng, noise_px=0.1)
+    left = list(views["left"])
+    left[3] = BoardView(left[3].frame, left[3].corners_px + rng.normal(0.0, 4.0, left[3].corners_px.shape), left[3].ids)
+    _, kept = calibrate_intrinsics(left, board, sizes["left"], max_rounds=0)  # one fit: nothing to refit with
+    assert kept["dropped_frames"] == [] and kept["n_views"] == len(left)
+    _, refit = calibrate_intrinsics(left, board, sizes["left"])
+    assert refit["dropped_frames"] == [left[3].frame] and refit["n_views"] == len(left) - 1

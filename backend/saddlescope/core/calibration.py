@@ -953,7 +953,7 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
     obj_all = board.object_points_mm().astype(np.float32)
     dropped: list[int] = []
     w, h = (int(v) for v in image_size)
-    for _ in range(max_rounds + 1):
+    for round_ in range(max_rounds + 1):
         obj = [obj_all[v.ids] for v in views]
         img = [v.corners_px.astype(np.float32).reshape(-1, 1, 2) for v in views]
         try:
@@ -968,8 +968,8 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
         per_view = per_view.ravel()
         limit = max(outlier_factor * float(np.median(per_view)), min_outlier_px)
         bad = per_view > limit
-        if not bad.any() or len(views) - bad.sum() < min_views:
-            break
+        if not bad.any() or len(views) - bad.sum() < min_views or round_ == max_rounds:
+            break  # (views are dropped only where a round follows to fit without them)
         dropped += [v.frame for v, b in zip(views, bad, strict=True) if b]
         views = [v for v, b in zip(views, bad, strict=True) if not b]
     residuals = []
