@@ -953,13 +953,13 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
     obj_all = board.object_points_mm().astype(np.float32)
     dropped: list[int] = []
     w, h = (int(v) for v in image_size)
+    start = (None, None) if guess is None else (np.array(guess.K, np.float64),
+                                                np.array(guess.dist, np.float64).ravel()[:5].copy())
+    flags = _calib_flags(fix_k3) | (0 if guess is None else cv2.CALIB_USE_INTRINSIC_GUESS)
     for round_ in range(max_rounds + 1):
         obj = [obj_all[v.ids] for v in views]
         img = [v.corners_px.astype(np.float32).reshape(-1, 1, 2) for v in views]
         try:
-            start = (None, None) if guess is None else (np.array(guess.K, np.float64),
-                                                        np.array(guess.dist, np.float64).ravel()[:5].copy())
-            flags = _calib_flags(fix_k3) | (0 if guess is None else cv2.CALIB_USE_INTRINSIC_GUESS)
             rms, K, dist, rvecs, tvecs, std_intr, _, per_view = cv2.calibrateCameraExtended(
                 obj, img, (w, h), *start, flags=flags, criteria=_CALIB_CRITERIA)
         except cv2.error as exc:

@@ -270,6 +270,8 @@ def _bright_at(gray: np.ndarray, xy: np.ndarray, *, radius_px: int = 3, min_cont
     the brightest pixel there stands ``min_contrast`` grey levels above the median of a ring 6-10 px
     out. Points outside the image have none."""
     h, w = gray.shape
+    yy, xx = np.mgrid[-10:11, -10:11]
+    r = np.hypot(xx, yy)
     for x, y in np.asarray(xy, dtype=np.float64):
         if not (np.isfinite(x) and np.isfinite(y)):
             return False
@@ -277,8 +279,6 @@ def _bright_at(gray: np.ndarray, xy: np.ndarray, *, radius_px: int = 3, min_cont
         if not (10 <= cx < w - 10 and 10 <= cy < h - 10):
             return False
         patch = gray[cy - 10:cy + 11, cx - 10:cx + 11].astype(np.float64)
-        yy, xx = np.mgrid[-10:11, -10:11]
-        r = np.hypot(xx, yy)
         if patch[r <= radius_px].max() - np.median(patch[(r >= 6) & (r <= 10)]) < min_contrast:
             return False
     return True
@@ -310,7 +310,7 @@ def find_plumb_multiview(rig: Rig, frames: Mapping[str, np.ndarray], *, max_spot
             if found is None:
                 continue
             others = [c for c in frames if c not in two]
-            if all(_bright_at(frames[c], rig.cameras[c].project(found[2])) or not in_image(rig, c, found[2])
+            if all(not in_image(rig, c, found[2]) or _bright_at(frames[c], rig.cameras[c].project(found[2]))
                    for c in others):
                 pairs.append(found)
     best_pair = min(pairs, key=lambda p: p[1]) if pairs else None
@@ -326,6 +326,7 @@ def in_image(rig: Rig, camera: str, points_mm: np.ndarray) -> bool:
     xy = cam.project(points_mm)
     w, h = cam.image_size
     return bool(np.all(depth > 0) and np.all((xy >= 0) & (xy < (w, h))))
+
 
 class SequentialFrames:
     """Random access to frames of forward-only streams, keeping the last few decoded frames.
