@@ -284,29 +284,70 @@ def _bright_at(gray: np.ndarray, xy: np.ndarray, *, radius_px: int = 3, min_cont
     return True
 
 
-def find_plumb_multiview(rig: Rig, frames: Mapping[str, np.ndarray], *, max_spots: int = 25
-                         ) -> tuple[dict, float, np.ndarray] | None:
-    """The plumb line's markers in the still frames ``frames`` {camera: grey frame}, or None.
+def static_marker_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: Mapping[str, np.ndarray],
+                             n_markers: int, *, max_extent_mm: float = 2000.0, min_gap_mm: float = 30.0,
+                             max_error_px: float = 2.5, ambiguity: float = 0.5
+                             ) -> tuple[dict, float, np.ndarray] | None:
+    """The standing horse's ``n_markers`` markers among the spots of the cameras in ``spots``, or None.
 
-    Candidates come from all cameras' spots and from every two cameras' (a plumb line hung at the end
-    of the arena may be outside one camera's view, or a marker against the bright sky too faint for
-    the spot search there). Two cameras agree on spurious points easily (any spots on matching
-    epipolar lines), so a two-camera pair counts only where the third camera shows a bright spot at
-    both points or cannot see them (outside its image). The best-scoring candidate wins; one seen
-    by all cameras unless a two-camera one scores more than a degree better (:func:`plumb_candidates`).
+    One camera sees wall and fence glints as bright as the markers, and one behind the horse in its
+    image can pass for a marker there. Seen by every camera the markers are 3-D points on one horse:
+    sets of ``n_markers`` consistent points within ``max_extent_mm`` of each other (and at least
+    ``min_gap_mm`` apart) are candidates. A set loses 10 points per its dimmest point's shortfall from
+    the brightest consistent point and 5 per the spread of its log brightness (retro-reflective
+    markers look alike), and 2 per e-fold of its extent over 0.3 m (a horse's markers stand close).
+    Two different sets scoring within ``ambiguity`` of each other leave the choice to each camera
+    (None).
 
-    Returns ({camera: (2, 2)} for the cameras whose spots it was found among, its score, the two
-    points (2, 3) mm)."""
+    Returns ({camera: ndarray (n, 2)} left to right in the first camera, score, points (n, 3) mm).
+    """
+    found = consistent_points(rig, spots, max_error_px=max_error_px)
+    if found is None or len(found[0]) < n_markers:
+        return None
+    pts, used, cams = found
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+    brightness = np.mean([peaks[c][used[:, k]] for k, c in enumerate(cams)], axis=0)
+    log_b = np.log(np.maximum(brightness, 1e-9))
+    near = d <= max_extent_mm
+    scored = []
+    for combo in itertools.combinations(range(len(pts)), n_markers):
+        sub = d[np.ix_(combo, combo)]
+        if not near[np.ix_(combo, combo)].all() or sub[np.triu_indices(n_markers, 1)].min() < min_gap_mm:
+            continue
+        score = (10.0 * (1.0 - brightness[list(combo)].min() / brightness.max())
+                 + 5.0 * float(np.std(log_b[list(combo)]))
+                 + 2.0 * float(np.log(max(sub.max(), 300.0) / 300.0)))
+        scored.append((score, combo))
+        if len(scored) > 20_000:
+            return None
+    if not scored:
+        return None
+    scored.sort()
+    if len(scored) > 1 and scored[1][0] - scored[0][0] < ambiguity:
+        return None
+    combo = list(scored[0][1])
+    combo = [combo[i] for i in np.argsort(spots[cams[0]][used[combo, 0], 0])]  # left to right, as the tracker labels
+    return {c: spots[c][used[combo, k]] for k, c in enumerate(cams)}, float(scored[0][0]), pts[combo]
+
+
+def _find_still_multiview(rig: Rig, frames: Mapping[str, np.ndarray], candidates: Callable, *, max_spots: int,
+                          split_lines: bool) -> tuple[dict, float, np.ndarray] | None:
+    """The best of ``candidates(rig, spots, peaks)`` over all cameras' spots and every two cameras'.
+
+    Two cameras agree on spurious points easily (any spots on matching epipolar lines), so a
+    two-camera candidate counts only where the third camera shows a bright spot at each of its points
+    or cannot see them (outside its image). One seen by all cameras wins unless a two-camera one
+    scores more than 1 better."""
     frames = {c: g for c, g in frames.items() if c in rig.cameras}
-    found_spots = {c: bright_spots(g, max_spots=max_spots, return_peaks=True, split_lines=True)
+    found_spots = {c: bright_spots(g, max_spots=max_spots, return_peaks=True, split_lines=split_lines)
                    for c, g in frames.items()}
     spots = {c: xy for c, (xy, _) in found_spots.items()}
     peaks = {c: p for c, (_, p) in found_spots.items()}
-    everyone = plumb_candidates(rig, spots, peaks)
+    everyone = candidates(rig, spots, peaks)
     pairs = []
     if len(spots) >= 3:
         for two in itertools.combinations(spots, 2):
-            found = plumb_candidates(rig, {c: spots[c] for c in two}, peaks)
+            found = candidates(rig, {c: spots[c] for c in two}, peaks)
             if found is None:
                 continue
             others = [c for c in frames if c not in two]
@@ -317,6 +358,31 @@ def find_plumb_multiview(rig: Rig, frames: Mapping[str, np.ndarray], *, max_spot
     if everyone is not None and (best_pair is None or everyone[1] <= best_pair[1] + 1.0):
         return everyone
     return best_pair
+
+
+def find_plumb_multiview(rig: Rig, frames: Mapping[str, np.ndarray], *, max_spots: int = 25
+                         ) -> tuple[dict, float, np.ndarray] | None:
+    """The plumb line's markers in the still frames ``frames`` {camera: grey frame}, or None.
+
+    Candidates (:func:`plumb_candidates`) come from all cameras' spots and from every two cameras'
+    (a plumb line hung at the end of the arena may be outside one camera's view, or a marker against
+    the bright sky too faint for the spot search there): :func:`_find_still_multiview`.
+
+    Returns ({camera: (2, 2)} for the cameras whose spots it was found among, its score, the two
+    points (2, 3) mm)."""
+    return _find_still_multiview(rig, frames, plumb_candidates, max_spots=max_spots, split_lines=True)
+
+
+def find_static_multiview(rig: Rig, frames: Mapping[str, np.ndarray], n_markers: int, *, max_spots: int = 25
+                          ) -> tuple[dict, float, np.ndarray] | None:
+    """The standing horse's markers in the still frames ``frames`` {camera: grey frame}, or None
+    (:func:`static_marker_candidates`, from all cameras or two and the third's check:
+    :func:`_find_still_multiview`).
+
+    Returns ({camera: (n, 2)} for the cameras whose spots they were found among, score, points (n, 3) mm)."""
+    def candidates(rig_, spots, peaks):
+        return static_marker_candidates(rig_, spots, peaks, n_markers)
+    return _find_still_multiview(rig, frames, candidates, max_spots=max_spots, split_lines=False)
 
 
 def in_image(rig: Rig, camera: str, points_mm: np.ndarray) -> bool:

@@ -24,7 +24,13 @@ from saddlescope.core import frames as motion
 from saddlescope.core.errors import DetectionError, InputError, KinematicsError, SyncError, TriangulationError
 from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.indicators import ride_indicators
-from saddlescope.core.marker_search import SequentialFrames, find_markers_multiview, find_plumb_multiview, in_image
+from saddlescope.core.marker_search import (
+    SequentialFrames,
+    find_markers_multiview,
+    find_plumb_multiview,
+    find_static_multiview,
+    in_image,
+)
 from saddlescope.core.markers import track_markers
 from saddlescope.core.period import analysis_window, estimate_period
 from saddlescope.core.registration import Registration, broken_distance_samples, marker_model, register_rigid
@@ -407,8 +413,9 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
         if start_xy is not None and "first_frame_xy" not in {**common, **cam_overrides}:
             if cam not in start_xy:
                 if spare_cameras:
-                    missed[cam] = DetectionError(f"the {cam} camera's view holds no pair of spots that the "
-                                                 f"other cameras see as the {kind} line's markers")
+                    what = "the plumb line's markers" if kind == "plumb" else f"the {kind} clip's markers"
+                    missed[cam] = DetectionError(f"the {cam} camera's view does not hold the spots that the "
+                                                 f"other cameras see as {what}")
                     continue
             else:
                 cam_overrides = {**cam_overrides, "first_frame_xy": start_xy[cam]}
@@ -426,19 +433,23 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
     return tracks, flags
 
 
-def plumb_start_positions(clips: ClipReader, rig: Rig, first_frame: Mapping[str, int], n_plumb: int
+def still_start_positions(clips: ClipReader, rig: Rig, kind: str, first_frame: Mapping[str, int], n_markers: int
                           ) -> dict[str, np.ndarray] | None:
-    """Each camera's plumb markers on its first frame after the flash, found with all cameras at once
-    (:func:`find_plumb_multiview`), or None (then each camera searches alone)."""
-    if n_plumb != 2:
+    """Each camera's markers on its first frame of a still clip (``kind`` "plumb" or "static"), found
+    with all cameras at once (:func:`find_plumb_multiview`, :func:`find_static_multiview`), or None
+    (then each camera searches alone)."""
+    if kind == "plumb" and n_markers != 2:
         return None
     frames = {}
-    for cam in clips.cameras("plumb"):
+    for cam in clips.cameras(kind):
         if cam in rig.cameras:
-            for _, gray in clips.gray_frames("plumb", cam, start=first_frame.get(cam, 0)):
+            for _, gray in clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)):
                 frames[cam] = gray.copy()
                 break
-    found = find_plumb_multiview(rig, frames) if len(frames) >= 2 else None
+    if len(frames) < 2:
+        return None
+    found = (find_plumb_multiview(rig, frames) if kind == "plumb"
+             else find_static_multiview(rig, frames, n_markers))
     if found is None:
         return None
     xy, _, points_mm = found
@@ -956,8 +967,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         try:
             plumb2d, plumb_flags = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params,
                                                spare_cameras=True,
-                                               start_xy=plumb_start_positions(clips, rig, first_frame["plumb"],
-                                                                              n_plumb))
+                                               start_xy=still_start_positions(clips, rig, "plumb",
+                                                                              first_frame["plumb"], n_plumb))
             tracks3d["plumb"] = triangulate("plumb", plumb2d, n_plumb)
             plumb_problem = "; ".join(plumb_flags) or None
         except (DetectionError, TriangulationError, KinematicsError) as exc:
@@ -966,7 +977,9 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         plumb_problem = "no plumb clip"
     progress.stage("detection", 0.2)
     static2d, static_flags = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params,
-                                         spare_cameras=True)
+                                         spare_cameras=True,
+                                         start_xy=still_start_positions(clips, rig, "static", first_frame["static"],
+                                                                        n_horse + n_saddle))
     tracks3d["static"] = triangulate("static", static2d, n_horse + n_saddle)
     progress.stage("detection", 0.4)
     static_mm = _static_positions(tracks3d["static"], "static")
