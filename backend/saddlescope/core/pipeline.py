@@ -562,18 +562,22 @@ def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tupl
 
     Returns (static indices of motion markers 1-3, static index of S, RMS distance mismatch in mm).
     """
+    scored = _orders_by_mismatch(static_mm, itertools.permutations(range(static_mm.shape[0]), motion_mm.shape[1]),
+                                 motion_mm)
+    err, idx = min(scored, key=lambda s: s[0] if np.isfinite(s[0]) else np.inf, default=(np.nan, []))
+    rest = [i for i in range(static_mm.shape[0]) if i not in idx]
+    if not rest or not np.isfinite(err):
+        raise KinematicsError("the static shot must show the three horse markers and the saddle marker")
+    return idx, rest[0], err
+
+
+def _orders_by_mismatch(static_mm: np.ndarray, orders, motion_mm: np.ndarray) -> list[tuple[float, list[int]]]:
+    """(RMS mismatch mm, order) for each order of static markers standing for motion markers 1..M:
+    the static shot's distances between them against the motion clip's median per-frame distances."""
     d_motion = np.nanmedian(_pairwise(motion_mm), axis=0)
     d_static = _pairwise(static_mm)
-    best = (np.inf, None, None)
-    for triple in itertools.permutations(range(static_mm.shape[0]), motion_mm.shape[1]):
-        idx = list(triple)
-        err = float(np.sqrt(np.mean((d_static[np.ix_(idx, idx)] - d_motion) ** 2)))
-        if err < best[0]:
-            rest = [i for i in range(static_mm.shape[0]) if i not in idx]
-            best = (err, idx, rest[0] if rest else None)
-    if best[1] is None or best[2] is None:
-        raise KinematicsError("the static shot must show the three horse markers and the saddle marker")
-    return best[1], best[2], best[0]
+    return [(float(np.sqrt(np.nanmean((d_static[np.ix_(idx, idx)] - d_motion) ** 2))), idx)
+            for idx in map(list, orders)]
 
 
 def match_horse_markers(static_mm: np.ndarray, horse_idx: list[int], motion_mm: np.ndarray) -> list[int]:
@@ -585,12 +589,7 @@ def match_horse_markers(static_mm: np.ndarray, horse_idx: list[int], motion_mm: 
     to a millimetre). The order whose per-frame distances match the static shot's is taken; where
     the layout is near-symmetric and two orders match, the one that keeps the horse nearest to its
     static pose (smallest rotation from the static shot: the same side faces the cameras)."""
-    d_motion = np.nanmedian(_pairwise(motion_mm), axis=0)
-    d_static = _pairwise(static_mm)
-    scored = []
-    for perm in itertools.permutations(horse_idx):
-        idx = list(perm)
-        scored.append((float(np.sqrt(np.nanmean((d_static[np.ix_(idx, idx)] - d_motion) ** 2))), idx))
+    scored = _orders_by_mismatch(static_mm, itertools.permutations(horse_idx), motion_mm)
     best = min(score for score, _ in scored)
     close = [idx for score, idx in scored if score <= max(3.0, 2.0 * best)]
     if len(close) == 1:
