@@ -276,6 +276,33 @@ def test_moving_markers_are_told_from_still_glints():
     assert np.nanmin(np.abs(still.xy_px[..., 1] - 120.0)) < 3  # without the hint the glints win
 
 
+def test_a_row_entering_the_view_is_not_completed_with_a_look_alike(monkeypatch):
+    # A fast camera (120 fps: 3.5 px per frame) sees the horse enter from the left edge; a D-ring rides
+    # 13 px ahead of the leading marker and 14 px above the row. While the trailing marker is still
+    # outside the image, two markers and the D-ring make a passable row.
+    rng = np.random.default_rng(4)
+    bg = texture(rng)
+    k = np.arange(60)
+    row = np.array([[0.0, 0.0], [25.0, 1.0], [50.0, -1.0]])
+    centre = np.column_stack([-30.0 + 3.5 * k, 300.0 + 3.0 * np.sin(2 * np.pi * k / 40)])
+    truth = centre[:, None, :] + row[None]
+    ring = centre + [63.0, -14.0]
+
+    def frames():
+        for f in range(len(k)):
+            blobs = [marker(p) for p in np.vstack([truth[f], ring[f:f + 1]]) if 3 < p[0] < SHAPE[1] - 3]
+            yield f, render(blobs, background=bg, noise=1.0, rng=rng)
+
+    tracks = track_markers(frames(), n_markers=3, camera="middle", clip="motion", moving=True)
+    seen = np.all(np.isfinite(tracks.xy_px[..., 0]), axis=1)
+    assert seen[20:].all()
+    assert np.nanmax(np.linalg.norm(tracks.xy_px - truth, axis=-1)) < 0.5  # never the D-ring
+    # Taking the first passable row, the tracker would follow the D-ring for the rest of the clip.
+    monkeypatch.setattr("saddlescope.core.markers._row_runs_out_of_view", lambda pattern, shape: False)
+    hasty = track_markers(frames(), n_markers=3, camera="middle", clip="motion", moving=True)
+    assert np.nanmin(np.linalg.norm(hasty.xy_px[-1] - ring[-1], axis=-1)) < 1.0
+
+
 def test_markers_lost_and_found_keep_their_labels():
     occluded = {(f, m) for f in range(15, 27) for m in range(3)}  # all hidden for 12 frames
     frames, truth = ride(n_frames=45, occlude=occluded)

@@ -925,6 +925,23 @@ def _relabel(pattern: MarkerPattern, vec_ref) -> MarkerPattern:
                          pattern.threshold, pattern.area_range_px, pattern.diameter_px, pattern.score)
 
 
+def _row_runs_out_of_view(pattern: MarkerPattern, shape: tuple[int, int]) -> bool:
+    """Whether one more marker, the row's widest gap beyond either end, would not be whole in the
+    image (a diameter and 2 px from the edge): then the row found may be the part of the markers in
+    view, completed by a look-alike."""
+    xy = pattern.xy_px
+    if len(xy) < 2:
+        return False
+    centred = xy - xy.mean(axis=0)
+    direction = np.linalg.svd(centred, full_matrices=False)[2][0]
+    along = centred @ direction
+    step = float(np.diff(np.sort(along)).max())
+    margin = pattern.diameter_px + 2.0
+    h, w = shape
+    ends = np.array([xy[np.argmin(along)] - step * direction, xy[np.argmax(along)] + step * direction])
+    return bool(np.any((ends < margin) | (ends > (w - 1 - margin, h - 1 - margin))))
+
+
 def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, camera: str = "",
                   clip: str = "", threshold: float | None = None,
                   area_range_px: tuple[float, float] | None = None,
@@ -1076,6 +1093,17 @@ def track_markers(frames: Iterable[tuple[int, np.ndarray]], *, n_markers: int, c
             if not ever_found and len(indices) >= max_init_frames:
                 raise DetectionError(f"{where}markers not found on any of the first {len(indices)} "
                                      f"frames (last: {exc})") from None
+            continue
+        if moving and not look_near_start and layout == "row" and _row_runs_out_of_view(pattern, gray.shape):
+            # The horse is entering (or leaving) the view: a marker of the row may still be outside
+            # it, and a look-alike moving with the horse (a D-ring) would stand in for it; the tracker
+            # would keep the look-alike once the marker came in (a 120 fps canter: 16 % instead of 6 %).
+            last_error = DetectionError(f"{where}the marker row runs to the edge of the image: a marker may "
+                                        "still be outside the view")
+            previous, previous_coarse = gray.copy(), coarse
+            if not ever_found and len(indices) >= max_init_frames:
+                raise DetectionError(f"{where}markers not found on any of the first {len(indices)} "
+                                     f"frames (last: {last_error})") from None
             continue
         if vec_ref is not None:
             pattern = _relabel(pattern, vec_ref)
