@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import DetectionError
-from saddlescope.core.marker_search import find_markers_multiview, find_plumb_multiview, find_static_multiview, in_image
+from saddlescope.core.marker_search import (
+    bright_spots,
+    find_markers_multiview,
+    find_plumb_multiview,
+    find_static_multiview,
+    in_image,
+)
 from saddlescope.core.markers import track_markers
 from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.types import Camera, Rig
@@ -171,3 +177,19 @@ def test_a_standing_horse_with_a_marker_hidden_from_one_camera_is_found_by_the_o
     xy, _, points_mm = find_static_multiview(rig, frames, 4)
     assert set(xy) == {"left", "middle"}
     np.testing.assert_allclose(np.sort(points_mm[:, 0]), np.sort(HORSE_MM[:, 0]), atol=30.0)
+
+
+def test_a_spot_is_centred_on_its_marker_not_on_the_string_it_hangs_on():
+    # A plumb's bottom marker 4 px across; the string it hangs on shows just above the threshold for
+    # 19 px up from it and joins the marker's region. The spot must be the marker's centre (taking
+    # the whole region, a thesis-rig camera put it 6 px up the string and gravity came out 62 degrees
+    # off: the plumb's other marker was then taken at the string's end).
+    img = np.full((480, 640), 140.0)
+    img[214:233, 357] = 200.0
+    truth = np.array([357.4, 234.3])
+    yy, xx = np.mgrid[0:480, 0:640]
+    img = np.maximum(img, 140.0 + 100.0 * np.clip(2.0 - np.hypot(xx - truth[0], yy - truth[1]), 0.0, 1.0))
+    gray = cv2.GaussianBlur(np.clip(img, 0, 255).astype(np.uint8), (0, 0), 0.7)
+    xy = bright_spots(gray, split_lines=True)
+    assert len(xy) == 1
+    np.testing.assert_allclose(xy[0], truth, atol=0.2)

@@ -44,11 +44,18 @@ def bright_spots(gray: np.ndarray, *, max_spots: int = 40, radius_px: int | None
     spots, peaks = [], []
 
     def add(patch: np.ndarray, x: int, y: int) -> None:
-        total = patch.sum()
-        if total > 0:
-            yy, xx = np.mgrid[y:y + patch.shape[0], x:x + patch.shape[1]]
-            spots.append(((xx * patch).sum() / total, (yy * patch).sum() / total))
-            peaks.append(patch.max())
+        # Centroid of what stands above half the spot's peak, weighted by the excess: a region can hold
+        # more than the marker (a stretch of the string it hangs on, the bright edge of a plank beside
+        # it), which pulled a plumb marker's centre 6 px up its string on a thesis-rig camera. Any
+        # weighting by brightness alone keeps a symmetric spot's centre.
+        top = patch.max()
+        if top <= 0:
+            return
+        weights = np.maximum(patch - 0.5 * top, 0.0)
+        total = weights.sum()
+        yy, xx = np.mgrid[y:y + patch.shape[0], x:x + patch.shape[1]]
+        spots.append(((xx * weights).sum() / total, (yy * weights).sum() / total))
+        peaks.append(top)
 
     for i in np.flatnonzero(small) + 1:
         x, y, bw, bh = stats[i, :4]
