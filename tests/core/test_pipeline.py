@@ -459,3 +459,13 @@ def test_a_look_alike_moving_with_the_horse_breaks_the_static_layout():
     glint[:, 2] = noisy[:, 0] + [150.0, 650.0, 120.0]
     assert P._layout_mismatch_mm(static, glint) > P.PipelineParams().max_layout_mismatch_mm
     assert P._layout_mismatch_mm(static, np.full((4, 3, 3), np.nan)) == np.inf
+
+
+def test_cameras_disagreeing_on_a_stretch_of_the_ride_are_flagged():
+    rng = np.random.default_rng(3)
+    err = np.abs(rng.normal(0.0, 0.1, (300, 3)))  # a good track: 0.1 px
+    tracks = MarkerTracks(("M1", "M2", "M3"), np.arange(300) / 60.0, np.zeros((300, 3, 3)), err.copy())
+    assert P._disagreement_flag("motion", tracks) is None
+    err[120:180, 2] = rng.uniform(8.0, 20.0, 60)  # one camera followed a D-ring for a second
+    flag = P._disagreement_flag("motion", MarkerTracks(tracks.names, tracks.t_s, tracks.xyz_mm, err))
+    assert flag is not None and "motion clip" in flag and "7 %" in flag and "look-alike" in flag

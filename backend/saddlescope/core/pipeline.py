@@ -1029,7 +1029,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                             horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth)
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
-    kin["flags"][:0] = clock_flags + static_flags + layout_flags + coverage_flags
+    kin["flags"][:0] = (clock_flags + static_flags + layout_flags + coverage_flags
+                        + [f for kind, tr in tracks3d.items() if (f := _disagreement_flag(kind, tr))])
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()
@@ -1065,6 +1066,26 @@ def kinematics_indicators(kin: Mapping, params: PipelineParams) -> tuple[dict, d
                                  speed_kmh=abs(kin["fits"].average_speed_m_s) * 3.6,
                                  amplitude_y_m=harm["amplitude_y_m"], stride_frequency_hz=1.0 / kin["period_s"])
     return harm, indicators
+
+
+def _disagreement_flag(kind: str, tracks: MarkerTracks, *, share: float = 0.05) -> str | None:
+    """A flag when over ``share`` of a clip's triangulated samples reproject worse than 2 px and 8 times
+    the clip's median: the cameras saw different things there (one followed a look-alike, or the
+    synchronisation or calibration is off) and nothing could tell which camera was wrong."""
+    if tracks.reprojection_error_px is None:
+        return None
+    err = np.asarray(tracks.reprojection_error_px, dtype=np.float64)
+    err = err[np.isfinite(err)]
+    if err.size < 20:
+        return None
+    median = float(np.median(err))
+    limit = max(2.0, 8.0 * median)
+    bad = float(np.mean(err > limit))
+    if bad <= share:
+        return None
+    return (f"the cameras disagree on the {kind} clip's markers by more than {limit:.1f} px in {100 * bad:.0f} % "
+            f"of the triangulated samples (median {median:.2f} px): a camera may have followed a look-alike there, "
+            "or the synchronisation or calibration is off (check the cameras' tracks)")
 
 
 def _track_quality(tracks: MarkerTracks) -> dict:
