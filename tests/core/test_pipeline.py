@@ -418,6 +418,32 @@ def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, monkeypatch
     assert "found again with all cameras" not in flags
 
 
+def test_a_plumb_line_leaning_far_from_the_cameras_vertical_is_not_taken_for_gravity(short_ride, analysed,
+                                                                                      monkeypatch):
+    # One camera took the end of the plumb's string for its lower marker: triangulated, the line leans
+    # 60 degrees towards the cameras (the thesis rig fixes depth poorly), yet stands square to the
+    # travel, so the motion frame's own check passes it. It is refused, and the result says why.
+    triangulate = P.triangulate_clip
+
+    def leaning(rig, tracks, offsets, fps, names, params, **kw):
+        out = triangulate(rig, tracks, offsets, fps, names, params, **kw)
+        if len(names) == 2:
+            xyz = out.xyz_mm.copy()
+            length = np.nanmedian(np.linalg.norm(xyz[:, 1] - xyz[:, 0], axis=-1))
+            xyz[:, 1, 2] -= 1.7 * length  # one marker 1.7 line lengths nearer the cameras: 60 degrees
+            out = MarkerTracks(out.names, out.t_s, xyz, out.reprojection_error_px, out.views)
+        return out
+
+    from saddlescope.services.analysis import analyze_bundle
+
+    monkeypatch.setattr(P, "triangulate_clip", leaning)
+    result = analyze_bundle(short_ride)
+    flags = " ".join(result["quality"]["flags"])
+    assert "plumb clip not used: the plumb line found leans" in flags
+    assert result["quality"]["gravity_source"] != "plumb"
+    assert result["quality"]["angle_travel_gravity_deg"] == pytest.approx(90.0, abs=5.0)
+
+
 def test_a_plumb_line_one_camera_cannot_see_is_triangulated_from_the_other_two(short_ride, analysed):
     # The plumb line hangs at the end of the arena, outside the right camera's view (its markers are
     # erased from that camera's frames; the sync flash is still seen). Gravity comes from the left and

@@ -26,6 +26,7 @@ from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.marker_search import (
     SequentialFrames,
+    camera_down,
     find_markers_multiview,
     find_plumb_multiview,
     find_static_multiview,
@@ -88,6 +89,9 @@ class PipelineParams:
     # the motion markers' distances against the static shot's (RMS, mm): beyond it a look-alike was
     # tracked (wide-rig trot: 280 mm; true markers: depth noise and skin, a few to 20 mm)
     max_layout_mismatch_mm: float = 50.0
+    # a plumb line leaning more than this from the cameras' image-down direction is not one (cameras
+    # stand roughly level; the plumb search takes pairs within 25 degrees)
+    max_plumb_lean_deg: float = 30.0
     # median rigidity residual (registration) above which the saddle point is flagged unreliable:
     # 1-3 mm on synthetic rides of both rigs (skin motion), 180 mm with two markers' labels swapped
     max_rigidity_residual_mm: float = 15.0
@@ -468,6 +472,18 @@ def triangulate_clip(rig: Rig, tracks: Mapping[str, ImageTracks], offsets: Mappi
 
 def _names(n: int) -> tuple[str, ...]:
     return tuple(f"M{i + 1}" for i in range(n))
+
+
+def _plumb_lean_deg(plumb: MarkerTracks, rig: Rig) -> float:
+    """Angle (degrees) between the plumb line's two markers and the cameras' image-down direction."""
+    try:
+        p = _static_positions(plumb, "plumb")
+    except KinematicsError:
+        return 0.0  # no still positions: the kinematics stage says so
+    if p.shape[0] < 2 or not np.all(np.isfinite(p[:2])):
+        return 0.0
+    d = p[1] - p[0]
+    return float(np.degrees(np.arccos(min(1.0, abs(float(d @ camera_down(rig))) / max(np.linalg.norm(d), 1e-9)))))
 
 
 def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
@@ -970,6 +986,14 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                                                                               first_frame["plumb"], n_plumb))
             tracks3d["plumb"] = triangulate("plumb", plumb2d, n_plumb)
             plumb_problem = "; ".join(plumb_flags) or None
+            lean_deg = _plumb_lean_deg(tracks3d["plumb"], rig)
+            if lean_deg > params.max_plumb_lean_deg:
+                # A plumb line hangs along gravity and cameras stand roughly level: this is not one (a
+                # marker taken at the string's end put gravity 62 degrees off on a thesis-rig ride).
+                del tracks3d["plumb"]
+                plumb_problem = (f"plumb clip not used: the plumb line found leans {lean_deg:.0f} degrees from the "
+                                 f"cameras' vertical (more than {params.max_plumb_lean_deg:.0f}): its markers were "
+                                 "not found (check that every camera sees both plumb markers)")
         except (DetectionError, TriangulationError, KinematicsError) as exc:
             plumb_problem = f"plumb clip not used: {exc}"
     else:
