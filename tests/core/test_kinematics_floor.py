@@ -12,7 +12,8 @@ import pytest
 from saddlescope.bench import kinematics_floor
 
 # gait: (mean vertical acceleration error %, worst |W_b r.m.s. error| %), measured + margin
-BOUNDS = {"walk": (12.5, 10.0), "sitting_trot": (4.5, 3.5), "rising_trot": (4.5, 3.5), "canter": (6.5, 5.5)}
+# (seeds 1-3, both rigs: walk 11.7-12.0 / 10.8, trots 3.4-3.9 / 3.4, canter 5.4-5.7 / 4.2)
+BOUNDS = {"walk": (13.0, 12.0), "sitting_trot": (4.5, 4.0), "rising_trot": (4.5, 4.0), "canter": (6.5, 5.5)}
 
 
 @pytest.mark.parametrize("rig", ["thesis", "wide"])
@@ -29,8 +30,9 @@ def test_exact_markers_give_the_saddle_within_the_skin_motion_floor(rig):
 
 
 # the same with only small random skin sliding (skin_motion="noise"): measured on seeds 1-3, walk
-# 5.0-5.4 %, trots 0.9-1.5 %, canter 1.4-1.8 % (mean); worst |W_b| 3.6 %, 0.8 %, 1.6 %
-NOISE_BOUNDS = {"walk": (6.5, 4.5), "sitting_trot": (2.0, 1.5), "rising_trot": (2.0, 1.5), "canter": (2.5, 2.5)}
+# 5.0-5.4 %, trots 1.8-2.6 %, canter 2.5-3.1 % (mean); worst |W_b| 3.7 %, 1.5 %, 2.8 % (the weak
+# axis's noise is over-subtracted, rigid_body.weak_axis_gain: some real roll goes with it)
+NOISE_BOUNDS = {"walk": (6.5, 4.5), "sitting_trot": (3.0, 2.0), "rising_trot": (3.0, 2.0), "canter": (3.5, 3.5)}
 
 
 @pytest.mark.parametrize("rig", ["thesis", "wide"])
@@ -73,3 +75,12 @@ def test_fitting_every_tracked_stride_beats_the_window_alone():
     print(f"walk, exact markers: vertical acceleration error {err['run']:.1f} % (run) "
           f"vs {err['window']:.1f} % (window)")
     assert err["run"] < 0.9 * err["window"]
+
+
+def test_a_near_straight_row_does_not_keep_a_roll_made_of_skin_motion():
+    # Walk seed 18: the three markers lie within 2 cm of a straight line, so a millimetre of skin
+    # sliding reads as a large roll about the row; the saddle 7 cm inboard of the row takes it into
+    # its vertical acceleration. Predicting that noise from the rigid fit's residual alone kept 64 %
+    # of it (78 % error); over-subtracted, the axis is dropped as it should be (2.4 %).
+    floor = kinematics_floor(rig="wide", gaits=("walk",), seeds=(18,))
+    assert floor["walk"]["acc_y_rms_error_pct_max"] < 10.0, floor
