@@ -10,6 +10,7 @@ thesis 4.5 starts from the right blobs instead of asking the user for labels.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Callable, Mapping
 
@@ -233,6 +234,19 @@ def camera_down(rig: Rig) -> np.ndarray:
     return down / np.linalg.norm(down)
 
 
+def tilt_from_down_deg(rig: Rig, d: np.ndarray) -> np.ndarray:
+    """Angle (degrees) between each line direction ``d`` (..., 3) and the cameras' image-down
+    direction (:func:`camera_down`), either way along the line."""
+    d = np.asarray(d, dtype=np.float64)
+    length = np.linalg.norm(d, axis=-1)
+    return np.degrees(np.arccos(np.clip(np.abs(d @ camera_down(rig)) / np.maximum(length, 1e-9), 0.0, 1.0)))
+
+
+def _point_brightness(peaks: Mapping[str, np.ndarray], used: np.ndarray, cams: list[str]) -> np.ndarray:
+    """Each consistent point's spot peak, averaged over the cameras (:func:`consistent_points`)."""
+    return np.mean([peaks[c][used[:, k]] for k, c in enumerate(cams)], axis=0)
+
+
 def plumb_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: Mapping[str, np.ndarray] | None = None, *,
                      max_tilt_deg: float = 25.0, length_mm: tuple[float, float] = (100.0, 5000.0),
                      max_error_px: float = 2.5) -> tuple[dict, float, np.ndarray] | None:
@@ -257,13 +271,13 @@ def plumb_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: Mapping[s
     i, j = np.triu_indices(len(pts), 1)
     d = pts[j] - pts[i]
     length = np.linalg.norm(d, axis=1)
-    tilt = np.degrees(np.arccos(np.clip(np.abs(d @ down) / np.maximum(length, 1e-9), 0.0, 1.0)))
+    tilt = tilt_from_down_deg(rig, d)
     ok = (length >= length_mm[0]) & (length <= length_mm[1]) & (tilt <= max_tilt_deg)
     if not ok.any():
         return None
     score = tilt.copy()
     if peaks is not None:
-        brightness = np.mean([peaks[c][used[:, k]] for k, c in enumerate(cams)], axis=0)  # per point
+        brightness = _point_brightness(peaks, used, cams)
         score += 10.0 * (1.0 - np.minimum(brightness[i], brightness[j]) / brightness.max())
     best = np.flatnonzero(ok)[np.argmin(score[ok])]
     pair = [i[best], j[best]]
@@ -313,7 +327,7 @@ def static_marker_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: M
         return None
     pts, used, cams = found
     d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
-    brightness = np.mean([peaks[c][used[:, k]] for k, c in enumerate(cams)], axis=0)
+    brightness = _point_brightness(peaks, used, cams)
     log_b = np.log(np.maximum(brightness, 1e-9))
     near = d <= max_extent_mm
     scored = []
@@ -387,9 +401,8 @@ def find_static_multiview(rig: Rig, frames: Mapping[str, np.ndarray], n_markers:
     :func:`_find_still_multiview`).
 
     Returns ({camera: (n, 2)} for the cameras whose spots they were found among, score, points (n, 3) mm)."""
-    def candidates(rig_, spots, peaks):
-        return static_marker_candidates(rig_, spots, peaks, n_markers)
-    return _find_still_multiview(rig, frames, candidates, max_spots=max_spots, split_lines=False)
+    return _find_still_multiview(rig, frames, functools.partial(static_marker_candidates, n_markers=n_markers),
+                                 max_spots=max_spots, split_lines=False)
 
 
 def in_image(rig: Rig, camera: str, points_mm: np.ndarray) -> bool:

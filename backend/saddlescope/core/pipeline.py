@@ -26,11 +26,11 @@ from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.marker_search import (
     SequentialFrames,
-    camera_down,
     find_markers_multiview,
     find_plumb_multiview,
     find_static_multiview,
     in_image,
+    tilt_from_down_deg,
 )
 from saddlescope.core.markers import track_markers
 from saddlescope.core.period import analysis_window, estimate_period
@@ -482,8 +482,7 @@ def _plumb_lean_deg(plumb: MarkerTracks, rig: Rig) -> float:
         return 0.0  # no still positions: the kinematics stage says so
     if p.shape[0] < 2 or not np.all(np.isfinite(p[:2])):
         return 0.0
-    d = p[1] - p[0]
-    return float(np.degrees(np.arccos(min(1.0, abs(float(d @ camera_down(rig))) / max(np.linalg.norm(d), 1e-9)))))
+    return float(tilt_from_down_deg(rig, p[1] - p[0]))
 
 
 def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
