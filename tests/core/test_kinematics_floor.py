@@ -27,6 +27,11 @@ def test_exact_markers_give_the_saddle_within_the_skin_motion_floor(rig):
     for gait, (acc_mean, wb) in BOUNDS.items():
         assert floor[gait]["acc_y_rms_error_pct_mean"] < acc_mean, (gait, floor[gait])
         assert floor[gait]["acc_y_wb_rms_error_pct_max_abs"] < wb, (gait, floor[gait])
+        # the sliding the three markers share goes into the saddle point whatever the method: the
+        # floor stands above it (20 seeds, wide rig: walk 9.5, trots 2.6, canter 4.4 % of the r.m.s.)
+        common = floor[gait]["acc_y_skin_common_mode_pct_mean"]
+        assert 0.5 * acc_mean < floor[gait]["acc_y_rms_error_pct_mean"] and common > 0.2 * acc_mean, (gait, floor[gait])
+        assert common < floor[gait]["acc_y_rms_error_pct_mean"], (gait, floor[gait])
 
 
 # the same with only small random skin sliding (skin_motion="noise"): measured on seeds 1-3, walk

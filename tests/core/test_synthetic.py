@@ -152,6 +152,20 @@ def test_skin_models_slide_the_same_horse_differently():
         sample_gait("walk", rng(), camera_side=1.0, skin_model="sticky")
 
 
+def test_the_skin_common_mode_is_the_markers_mean_sliding_and_its_derivatives():
+    # what a rigid body fitted to the three markers cannot remove: their mean sliding, in the arena
+    m = sample_gait("canter", np.random.default_rng(3), camera_side=1.0)
+    t = np.linspace(0.0, 2.0, 2001)
+    h = t[1] - t[0]
+    rigid = sample_gait("canter", np.random.default_rng(3), camera_side=1.0, skin_model="none")
+    mean_slide = np.mean(m.marker_positions(t)[:, :3] - rigid.marker_positions(t)[:, :3], axis=1)
+    np.testing.assert_allclose(m.skin_common_mode(t), mean_slide, atol=1e-12)
+    p, v, a = (m.skin_common_mode(t, derivative=d) for d in range(3))
+    np.testing.assert_allclose((p[2:] - p[:-2]) / (2 * h), v[1:-1], atol=3e-4 * np.abs(v).max())
+    np.testing.assert_allclose((p[2:] - 2 * p[1:-1] + p[:-2]) / h**2, a[1:-1], atol=2e-4 * np.abs(a).max())
+    assert np.all(rigid.skin_common_mode(t, derivative=2) == 0.0)
+
+
 def test_acceleration_harmonics_reproduce_the_exact_acceleration():
     m = sample_gait("sitting_trot", np.random.default_rng(5), camera_side=1.0)
     r = m.body_points_m[SADDLE_NAME]

@@ -213,14 +213,28 @@ class GaitModel:
         rot = self.rotation(t_s)[derivative]
         return self.origin(t_s, derivative=derivative) + rot @ r
 
-    def skin_offset(self, name: str, t_s: np.ndarray) -> np.ndarray:
-        """Skin motion of marker ``name`` in body coordinates (T, 3) m; zero where none is modelled."""
+    def skin_offset(self, name: str, t_s: np.ndarray, *, derivative: int = 0) -> np.ndarray:
+        """Skin motion of marker ``name`` in body coordinates (T, 3) m, or its ``derivative``-th time
+        derivative; zero where none is modelled."""
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
         sk = self.skin.get(name)
         if sk is None:
             return np.zeros(t.shape + (3,))
-        arg = 2.0 * np.pi * np.multiply.outer(t, sk["freq_hz"])[:, None, :] + sk["phase_rad"][None]
-        return np.sum(sk["amp_m"][None] * np.sin(arg), axis=-1)
+        w = 2.0 * np.pi * sk["freq_hz"]
+        # d^n/dt^n A sin(w t + phi) = A w^n sin(w t + phi + n pi/2)
+        arg = np.multiply.outer(t, w)[:, None, :] + sk["phase_rad"][None] + derivative * np.pi / 2
+        return np.sum((sk["amp_m"] * w**derivative)[None] * np.sin(arg), axis=-1)
+
+    def skin_common_mode(self, t_s: np.ndarray, *, derivative: int = 0) -> np.ndarray:
+        """The mean of markers 1-3's skin sliding in the arena frame (T, 3), or its derivative (up to
+        2): the part of the sliding that moves all three markers alike, which a rigid body fitted to
+        them cannot tell from the body's own motion and which so goes straight into the saddle point."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
+        s = [np.mean([self.skin_offset(n, t, derivative=d) for n in MARKER_NAMES], axis=0) for d in range(3)]
+        rot = self.rotation(t)
+        # (R s)'' = R'' s + 2 R' s' + R s''
+        terms = {0: ((0, 0, 1.0),), 1: ((1, 0, 1.0), (0, 1, 1.0)), 2: ((2, 0, 1.0), (1, 1, 2.0), (0, 2, 1.0))}
+        return sum(c * np.einsum("tij,tj->ti", rot[r], s[k]) for r, k, c in terms[derivative])
 
     def marker_positions(self, t_s: np.ndarray, *, skin: bool = True) -> np.ndarray:
         """Markers 1-3 and the saddle point in the arena frame, (T, 4, 3) m; skin motion on 1-3."""
