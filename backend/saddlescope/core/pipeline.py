@@ -102,6 +102,7 @@ class PipelineParams:
     angular_method: str = "lsq_wiener"
     x_model: str = "fourier"  # the thesis's "linear" drops the surge within the stride
     extra_orders: int = 3  # orders tried above the extrema rule's E/2 + 1 (chosen by AICc)
+    omega_from: str = "vertical"  # series whose fitted fundamental is pooled (fitting.fit_marker_kinematics)
     # a straight line fitted with the y and z series: the registered markers keep slow drifts over the
     # fitted span (gravity's tilt across the depth travelled, each marker's straight depth path) that
     # a periodic series smears over its harmonics (a thesis-rig canter lost its fourth harmonic: 16 %)
@@ -809,7 +810,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     measured = ~bridged_frames[win][:, None, None]
     fits = fit_marker_kinematics(t_w, np.where(measured, reg.registered, np.nan), period_s=period_s,
                                  x_model=params.x_model, extra_orders=params.extra_orders,
-                                 trend_degree=params.trend_degree)
+                                 trend_degree=params.trend_degree, omega_from=params.omega_from)
     flags.extend(fits.flags)
     fits = _on_window(fits, in_win)
     reg = Registration(*(getattr(reg, f.name)[in_win] for f in fields(reg)))
@@ -832,7 +833,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     if params.angular_method == "lsq_wiener":
         raw_fits = _on_window(fit_marker_kinematics(t[win], np.where(measured, xyz_m, np.nan), period_s=period_s,
                                                     x_model=params.x_model, extra_orders=params.extra_orders,
-                                                    trend_degree=params.trend_degree),
+                                                    trend_degree=params.trend_degree, omega_from=params.omega_from),
                               in_win)
         # bridged positions are no measurements of the skin motion the gain weighs
         raw = (np.where(bridged_w[:, None, None], np.nan, xyz_m[in_win]), raw_fits.velocity_m_s,
@@ -1190,7 +1191,8 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
         "quality": quality,
         "params": {"n_periods": params.n_periods, "triangulation": params.triangulation,
                    "smoothing_span": params.smoothing_span, "angular_method": params.angular_method,
-                   "x_model": params.x_model, "fit_span": params.fit_span, "smoothing": params.smoothing},
+                   "x_model": params.x_model, "omega_from": params.omega_from, "fit_span": params.fit_span,
+                   "smoothing": params.smoothing},
         "timings_s": dict(timings_s),
     }
     if calib_report:
