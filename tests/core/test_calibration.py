@@ -16,6 +16,7 @@ from saddlescope.core.calibration import (
     find_board_corners,
     make_board,
     metric_checks,
+    principal_point_common_shift,
     render_board,
     select_instants,
     simulate_board_views,
@@ -164,6 +165,38 @@ def test_synthetic_thesis_rig_ninety_poses():
     # the thesis's pair baselines (Table 8.4: about 230 and 450 mm)
     baseline_mm = np.linalg.norm(truth.cameras["right"].t_mm)
     assert abs(np.linalg.norm(rig.pairs["left-right"]["t_mm"]) - baseline_mm) < 5
+
+
+def test_principal_points_moved_together_by_the_joint_adjustment_are_flagged(monkeypatch):
+    # Board held in a band across the images: a common shift of every principal point and a common
+    # tilt of the rig fit almost equally, and a hundredth of a pixel of disagreement between the
+    # cameras moved all three by 10-40 px on 50-60 fps thesis-rig rides. Each camera alone stays put;
+    # the rig is flagged when the joint solution leaves them all the same way.
+    import saddlescope.core.calibration as calibration
+
+    rng = np.random.default_rng(7)
+    _, board, views, sizes = thesis_like_views(40, rng=rng, noise_px=0.1)
+    clean, _ = calibrate_rig(views, board, sizes)
+    assert clean.checks["principal_point_common_shift_px"] < 3.0 and clean.flags == ()
+    real_bundle = calibration.bundle_adjust
+
+    def drifting_bundle(cams, *args, dy_px, **kw):
+        out, rep = real_bundle(cams, *args, **kw)
+        moved = {}
+        for n, c in out.items():
+            K = c.K.copy()
+            K[1, 2] += dy_px + (3.0 if n == "middle" else -1.5)  # each camera's own scatter differs
+            moved[n] = Camera(n, K, c.dist, c.image_size, R=c.R, t_mm=c.t_mm, rms_px=c.rms_px)
+        return moved, rep
+
+    for dy, flagged in ((-25.0, True), (-5.0, False)):
+        monkeypatch.setattr(calibration, "bundle_adjust",
+                            lambda cams, *a, _dy=dy, **kw: drifting_bundle(cams, *a, dy_px=_dy, **kw))
+        rig, _ = calibrate_rig(views, board, sizes)
+        shift = rig.checks["principal_point_common_shift_px"]
+        assert abs(shift - abs(dy)) < 3.0 + clean.checks["principal_point_common_shift_px"], shift
+        assert any("principal point" in f for f in rig.flags) is flagged, rig.flags
+    assert principal_point_common_shift({"a": clean.cameras["left"]}, {"a": clean.cameras["left"]}).tolist() == [0, 0]
 
 
 def test_bundle_adjustment_recovers_a_disturbed_rig():
