@@ -5,8 +5,7 @@ Embedded: SQLite and the server's own process pool, the ride uploaded as a zip b
 Celery: PostgreSQL, Redis and a real worker; the ride uploaded clip by clip with a rig whose calibration
 is computed once from the rig's calibration clips and handed to the analysis as ``rig=``.
 
-Should `saddlescope analyze` itself fail on the tiny ride, both tests are marked xfail with its message
-(the pipeline is being tuned); they run for real again as soon as it succeeds.
+Should `saddlescope analyze` itself fail on the tiny ride, both tests fail with its message.
 """
 
 from __future__ import annotations
@@ -45,13 +44,8 @@ def reference(tiny_ride, tmp_path_factory) -> dict:
     )
     if done.returncode != 0:
         reason = (done.stderr.strip().splitlines() or ["no message"])[-1]
-        return {"error": f"`saddlescope analyze` fails on the tiny ride: {reason}"}
+        pytest.fail(f"`saddlescope analyze` fails on the tiny ride: {reason}")
     return json.loads(out.read_text())
-
-
-def require_pipeline(reference: dict) -> None:
-    if "error" in reference:
-        pytest.xfail(reference["error"])
 
 
 def same_indicators(served: dict, expected: dict) -> None:
@@ -62,7 +56,6 @@ def same_indicators(served: dict, expected: dict) -> None:
 
 
 def test_embedded_bundle_upload_with_the_real_pipeline(reference, tiny_ride, tmp_path):
-    require_pipeline(reference)
     settings = load_settings(
         database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "storage")
     )
@@ -85,7 +78,6 @@ def test_embedded_bundle_upload_with_the_real_pipeline(reference, tiny_ride, tmp
 def test_celery_clip_uploads_with_a_rig_calibrated_once(
     request, reference, tiny_ride, tmp_path, pg_database_url, redis_url
 ):
-    require_pipeline(reference)
     upgrade_to_head(pg_database_url)
     settings = load_settings(
         database_url=pg_database_url,

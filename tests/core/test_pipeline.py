@@ -121,6 +121,33 @@ def test_kinematics_of_a_known_rigid_motion_run():
     assert any("no plumb" in f for f in kin["flags"])
 
 
+def test_without_a_plumb_gravity_is_the_cameras_mean_down_not_one_cameras():
+    """A rig whose left camera is rolled 6 degrees and the others level: without a plumb line the
+    vertical is the cameras' mean image-down (2 degrees off), not the left camera's (6 degrees)."""
+    from saddlescope.core.marker_search import camera_down
+    from saddlescope.core.types import Camera, Rig
+
+    def cam(name, roll_deg, x_mm):
+        c, s = np.cos(np.radians(roll_deg)), np.sin(np.radians(roll_deg))
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return Camera(name, np.array([[700.0, 0, 320], [0, 700.0, 240], [0, 0, 1]]), np.zeros(5), (640, 480),
+                      R=R, t_mm=np.array([-x_mm, 0.0, 0.0]))
+
+    rig = Rig({n: cam(n, roll, x) for n, roll, x in (("left", 6.0, 0.0), ("middle", 0.0, 230.0),
+                                                      ("right", 0.0, 460.0))})
+    hint = camera_down(rig)
+    assert np.degrees(np.arccos(hint @ [0.0, 1.0, 0.0])) == pytest.approx(2.0, abs=0.05)
+    motion, static = _rigid_tracks()
+    kin = P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3,
+                              down_hint=hint)
+    frame = kin["frame"]
+    assert frame.gravity_source == "hint"
+    assert any("no plumb line: gravity taken as the cameras' mean image-down" in f for f in kin["flags"])
+    # the motion frame's y is the hint, made perpendicular to the travel (which lies along rig x here)
+    g = hint - (hint @ frame.R[0]) * frame.R[0]
+    assert np.allclose(frame.R[1], g / np.linalg.norm(g), atol=1e-9)
+
+
 def test_look_alikes_as_the_horse_enters_the_view_are_dropped():
     """A wide-rig canter took glints for two markers in its first six tracked frames: the running
     median could not remove a spike that long at the run's start, and the stride was lost."""

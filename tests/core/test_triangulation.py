@@ -404,12 +404,10 @@ def test_caliscope_corners_match_board_geometry_and_their_triangulation(caliscop
 @pytest.mark.realdata
 def test_caliscope_with_the_project_loader(caliscope):
     """The project's own caliscope reader (relative to its first camera) gives the same distances."""
-    calibration_files = pytest.importorskip("saddlescope.io.calibration_files")
-    loader = getattr(calibration_files, "rig_from_caliscope_toml", None)
-    if loader is None:
-        pytest.skip("saddlescope.io.calibration_files has no rig_from_caliscope_toml")
+    from saddlescope.io.calibration_files import rig_from_caliscope_toml
+
     _, xy, board_mm, frame, _, _ = caliscope
-    rig = loader(real_data_path("caliscope_4cam", "camera_array.toml"))
+    rig = rig_from_caliscope_toml(real_data_path("caliscope_4cam", "camera_array.toml"))
     xyz, _, _ = triangulate_nview(rig, {f"cam_{n}": v for n, v in xy.items()})
     d = _distance_errors(xyz, board_mm, frame)
     assert np.sqrt(np.mean(d ** 2)) < 1.5

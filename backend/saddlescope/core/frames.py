@@ -162,6 +162,7 @@ def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4, reject_sigm
 
 
 def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_down_hint=None,
+                 hint_name: str = "the given down direction",
                  origin_mm=None, t_s=None, period_s: float | None = None) -> MotionFrame:
     """Build the motion reference frame (eq. 5.6-5.10).
 
@@ -176,6 +177,8 @@ def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_
         the left camera's image down direction, with a warning.
     rig_down_hint : ndarray of shape (3,), optional
         An approximate down direction in rig coordinates.
+    hint_name : str
+        What ``rig_down_hint`` is, for the warning.
     origin_mm : ndarray of shape (3,), optional
         Origin (rig mm); default the first finite sample of ``travel_xyz_mm`` (marker 1's first
         position when marker 1 defines the travel).
@@ -224,8 +227,9 @@ def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_
             raise InputError(f"rig_down_hint must be a non-zero 3-vector, got {rig_down_hint!r}")
         g = _unit(g)
         source = "hint"
-        warnings.append("no plumb clip: gravity taken from the given down direction, so vertical "
-                        "accelerations may mix in some horizontal motion")
+        warnings.append(f"no plumb line: gravity taken as {hint_name} (each degree it is off mixes 1.7 % "
+                        "of the horizontal motion into the vertical); film a plumb line for exact vertical "
+                        "results")
     else:
         g = CAMERA_DOWN.copy()
         source = "camera_down"

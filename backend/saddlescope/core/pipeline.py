@@ -26,6 +26,7 @@ from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.marker_search import (
     SequentialFrames,
+    camera_down,
     find_markers_multiview,
     find_plumb_multiview,
     find_static_multiview,
@@ -486,8 +487,8 @@ def _plumb_lean_deg(plumb: MarkerTracks, rig: Rig) -> float:
     return float(tilt_from_down_deg(rig, p[1] - p[0]))
 
 
-def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
-    """Gravity in rig coordinates: from the plumb line where seen, else the left camera's image down."""
+def _down_direction(plumb: MarkerTracks | None, rig: Rig) -> np.ndarray:
+    """Gravity in rig coordinates: from the plumb line where seen, else the cameras' mean image down."""
     if plumb is not None:
         try:
             p = _static_positions(plumb, "plumb")
@@ -497,7 +498,7 @@ def _down_direction(plumb: MarkerTracks | None) -> np.ndarray:
             g = p[1] - p[0]
             g = g / np.linalg.norm(g)
             return g if g[1] > 0 else -g
-    return np.array([0.0, 1.0, 0.0])
+    return camera_down(rig)
 
 
 def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
@@ -677,8 +678,12 @@ def _on_window(fits, in_win: slice):
 def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
                       plumb_tracks: MarkerTracks | None, params: PipelineParams, *,
                       horse_idx: list[int] | None = None, saddle_idx: int | None = None,
-                      gait: str | None = None, depth: Mapping | None = None) -> dict:
+                      gait: str | None = None, depth: Mapping | None = None,
+                      down_hint: np.ndarray | None = None) -> dict:
     """Saddle point kinematics from 3-D tracks (thesis 5.2-6.4). Returns plain arrays and fits.
+
+    ``down_hint`` (rig coordinates) stands in for gravity when there is no plumb line: the pipeline
+    passes the cameras' mean image-down direction (one tilted camera then costs a third of its tilt).
 
     ``depth`` is the rig's :func:`~saddlescope.core.triangulation.position_uncertainty` at the
     markers; where depth is much worse fixed than the image position (``params.depth_anisotropy``)
@@ -782,7 +787,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     # frames: a bridged peak tilted x by 1.5 mrad, a 7 mm ramp on a canter's vertical (a look-alike
     # followed for a few frames is left out by the travel fit itself)
     travel = np.where(bridged_frames[win, None], np.nan, xyz[win, 0])
-    frame = motion.motion_frame(travel, plumb_top_mm=plumb_top, plumb_bottom_mm=plumb_bottom,
+    frame = motion.motion_frame(travel, plumb_top_mm=plumb_top, plumb_bottom_mm=plumb_bottom, rig_down_hint=down_hint,
+                                hint_name="the cameras' mean image-down direction (level cameras assumed)",
                                 origin_mm=smooth[in_win][0, 0] if ok_w[in_win][0] else None,
                                 t_s=t_w, period_s=period_s)
     flags.extend(frame.warnings)
@@ -1006,7 +1012,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     tracks3d["static"] = triangulate("static", static2d, n_horse + n_saddle)
     progress.stage("detection", 0.4)
     static_mm = _static_positions(tracks3d["static"], "static")
-    down = _down_direction(tracks3d.get("plumb"))
+    down = _down_direction(tracks3d.get("plumb"), rig)
     motion2d, horse_idx, saddle_idx, searched_together = detect_motion(
         clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
         clocks=clocks.get("motion"))
@@ -1050,7 +1056,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     t0 = time.perf_counter()
     depth = depth_uncertainty(rig, tracks3d["motion"])
     kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params,
-                            horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth)
+                            horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth,
+                            down_hint=camera_down(rig))
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
     kin["flags"][:0] = (clock_flags + static_flags + layout_flags + coverage_flags
