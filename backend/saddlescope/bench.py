@@ -288,8 +288,12 @@ def run_benchmarks(*, quick: bool = False) -> dict:
         out["detail_analysis"] = ana
         out["kinematics_floor_thesis"] = kinematics_floor(rig="thesis", seeds=(1, 2) if quick else (1, 2, 3, 4, 5, 6))
         if not quick:
-            out["accuracy_thesis"] = accuracy(tmp, rig="thesis", gaits=("walk", "sitting_trot", "rising_trot",
-                                                                        "canter"), seeds=(1,))
+            gaits = ("walk", "sitting_trot", "rising_trot", "canter")
+            out["accuracy_thesis"] = accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,))
+            # the same horses with markers fixed to the saddle body: what the cameras and the stages
+            # cost without any skin motion (the floor is then zero)
+            out["accuracy_thesis_rigid_markers"] = accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,),
+                                                            skin_motion="none")
         try:
             from saddlescope.services.similarity import bench_chaincode_10k, bench_dtw_10k
         except ImportError:
