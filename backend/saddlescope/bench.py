@@ -110,11 +110,12 @@ def analysis_vs_footage(tmp: Path, *, quick: bool) -> dict:
 
 
 def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, ...],
-             duration_s: float | None = None, skin_motion: str = "stride_locked") -> list[dict]:
+             duration_s: float | None = None, skin_motion: str = "stride_locked",
+             marker_layout: str = "thesis") -> list[dict]:
     """Pipeline results against truth.json: saddle position, vertical acceleration, speed, period and
     indicator errors per synthetic ride (issues 5 and 6). ``skin_motion`` is the arena's skin model:
     with "none" the markers are fixed to the saddle body, so the errors are the cameras' and the
-    stages' alone."""
+    stages' alone. ``marker_layout`` is the markers' layout on the flank (synthetic_gait.MARKER_LAYOUTS)."""
     from saddlescope.core.synthetic import saddle_truth_at
     from saddlescope.core.synthetic_render import RenderOptions
     from saddlescope.io.synth_writer import write_ride_bundle
@@ -125,7 +126,7 @@ def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, .
         for seed in seeds:
             ride = tmp / f"{rig}_{gait}_{seed}"
             write_ride_bundle(ride, gait=gait, seed=seed, rig=rig, duration_s=duration_s, extras=False,
-                              options=RenderOptions(skin_motion=skin_motion))
+                              options=RenderOptions(skin_motion=skin_motion, marker_layout=marker_layout))
             truth = __import__("json").loads((ride / "truth.json").read_text())
             row: dict = {"rig": rig, "gait": gait, "seed": seed}
             try:
@@ -236,11 +237,12 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
 
 def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter"),
                      seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6), skin_motion: str = "stride_locked",
-                     params=None) -> dict:
+                     params=None, marker_layout: str = "thesis") -> dict:
     """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each): per gait the
     mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors.
     ``skin_motion`` is the arena's skin model (synthetic_gait.SKIN_MODELS); with "none" the markers
-    are fixed to the saddle body and the stages should be exact."""
+    are fixed to the saddle body and the stages should be exact. ``marker_layout``: see
+    synthetic_gait.MARKER_LAYOUTS."""
     import json
 
     from saddlescope.core.synthetic import build_scene
@@ -252,7 +254,7 @@ def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_tro
         rows = []
         for seed in seeds:
             scene = build_scene(gait=gait, seed=seed, rig=rig, extras=False, calibration_poses=4,
-                                options=RenderOptions(skin_motion=skin_motion))
+                                options=RenderOptions(skin_motion=skin_motion, marker_layout=marker_layout))
             rows.append(exact_marker_floor(json.loads(json.dumps(build_truth(scene))), params))
         acc = [r["acc_y_rms_error_pct"] for r in rows]
         acc_rig = [r["acc_y_rms_error_pct_rig"] for r in rows]

@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--skin", default="stride_locked", choices=["stride_locked", "noise", "none"],
                    help="the markers' skin sliding: locked to the stride (default, as on a real flank), "
                         "small random noise only, or none (markers fixed to the saddle body)")
+    s.add_argument("--layout", default="thesis", choices=["thesis", "triangle"],
+                   help="markers 1-3 on the flank: a shallow V as in the thesis (default), or a triangle with "
+                        "the middle marker about 10 cm below the others (fixes the saddle's roll far better)")
     s.add_argument("--variable-frame-rate", action="store_true",
                    help="the middle and right cameras record like phones: jittered frame intervals and "
                         "dropped frames, each frame stamped with its instant")
@@ -112,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
 
         path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,
                                  size=args.size, fps=args.fps, duration_s=args.duration,
-                                 options=RenderOptions(skin_motion=args.skin,
+                                 options=RenderOptions(skin_motion=args.skin, marker_layout=args.layout,
                                                        variable_frame_rate=args.variable_frame_rate))
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0

@@ -152,6 +152,27 @@ def test_skin_models_slide_the_same_horse_differently():
         sample_gait("walk", rng(), camera_side=1.0, skin_model="sticky")
 
 
+def test_the_triangle_layout_moves_only_the_middle_marker_of_the_same_horse():
+    from saddlescope.core.rigid_body import unobservable_axis
+
+    rng = lambda: np.random.default_rng(5)  # noqa: E731
+    thesis = sample_gait("canter", rng(), camera_side=1.0)  # the default
+    triangle = sample_gait("canter", rng(), camera_side=1.0, marker_layout="triangle")
+    assert triangle.stride_hz == thesis.stride_hz and triangle.skin.keys() == thesis.skin.keys()
+    for name, p in thesis.body_points_m.items():
+        drop = triangle.body_points_m[name] - p
+        if name == "marker2":  # about 10 cm below the line of the others instead of 3-5 cm
+            assert drop[0] == drop[2] == 0.0 and 0.05 < drop[1] < 0.07
+        else:
+            assert np.all(drop == 0.0), name
+    ratio_thesis, ratio_triangle = (
+        unobservable_axis(np.stack([m.body_points_m[f"marker{i}"] for i in (1, 2, 3)])[None], min_eig_ratio=0.0)[1]
+        for m in (thesis, triangle))
+    assert ratio_triangle > 3 * ratio_thesis  # the roll about the row is far better fixed
+    with pytest.raises(InputError, match="marker layout"):
+        sample_gait("walk", rng(), camera_side=1.0, marker_layout="square")
+
+
 def test_the_skin_common_mode_is_the_markers_mean_sliding_and_its_derivatives():
     # what a rigid body fitted to the three markers cannot remove: their mean sliding, in the arena
     m = sample_gait("canter", np.random.default_rng(3), camera_side=1.0)

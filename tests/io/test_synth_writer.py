@@ -187,3 +187,13 @@ def test_cli_synth_skin_model_reaches_the_writer(tmp_path, monkeypatch):
     assert seen["options"].skin_motion == "stride_locked"
     with pytest.raises(SystemExit):
         cli.build_parser().parse_args(["synth", str(tmp_path / "r"), "--skin", "sticky"])
+    # --layout likewise picks the markers' layout on the flank
+    from saddlescope.core.synthetic_gait import MARKER_LAYOUTS
+
+    layout = next(a for a in cli.build_parser()._subparsers._group_actions[0].choices["synth"]._actions
+                  if a.dest == "layout")
+    assert tuple(layout.choices) == MARKER_LAYOUTS and layout.default == MARKER_LAYOUTS[0]
+    assert cli.main(["synth", str(tmp_path / "r"), "--layout", "triangle"]) == 0
+    assert seen["options"].marker_layout == "triangle"
+    with pytest.raises(SystemExit):
+        cli.build_parser().parse_args(["synth", str(tmp_path / "r"), "--layout", "square"])

@@ -363,7 +363,8 @@ def build_scene(
     direction = "CW" if r_meta.random() < 0.5 else "CCW"
     m_dir = np.eye(3) if direction == "CW" else np.diag([-1.0, 1.0, -1.0])
     camera_side = -1.0 if direction == "CW" else 1.0  # the arena z of the camera-facing flank
-    model = sample_gait(gait, r_gait, camera_side=camera_side, skin_model=options.skin_motion)
+    model = sample_gait(gait, r_gait, camera_side=camera_side, skin_model=options.skin_motion,
+                        marker_layout=options.marker_layout)
     period = model.period_s
 
     # --- clip timings -------------------------------------------------------------------------

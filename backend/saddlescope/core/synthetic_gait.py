@@ -33,6 +33,11 @@ SADDLE_NAME = "saddle"
 # sliding, not locked to the stride (what rigid registration and the fits are there to reject).
 # "none": markers fixed to the saddle body (checks of the stages alone).
 SKIN_MODELS: tuple[str, ...] = ("stride_locked", "noise", "none")  # the first is the default
+# Markers 1-3 on the flank: "thesis", a shallow V (the middle marker 3-5 cm below the line of the
+# others, as in the thesis's photographs), or "triangle", the middle one about 10 cm below (what the
+# README recommends: the roll about the row is then fixed four to five times better)
+MARKER_LAYOUTS: tuple[str, ...] = ("thesis", "triangle")  # the first is the default
+_TRIANGLE_DROP_M = 0.06  # extra drop of marker 2 in the triangle layout (before the horse's scale)
 SKIN_NOISE_RMS_M = (0.0004, 0.0010)  # per marker and in-plane axis, drawn in this range
 SKIN_NOISE_BAND_HZ = (0.3, 6.0)
 SKIN_NOISE_COMPONENTS = 48
@@ -321,15 +326,19 @@ def sample_gait(
     t_cross_s: float = 0.0,
     speed_range_m_s: tuple[float, float] | None = None,
     skin_model: str = "stride_locked",
+    marker_layout: str = "thesis",
 ) -> GaitModel:
     """Draw one horse's gait: stride frequency, speed, Fourier coefficients, marker layout, skin motion.
 
     ``camera_side`` (+1 or -1) is the arena z side of the horse that faces the cameras (markers and
     saddle point go there). ``speed_range_m_s`` narrows the speed band (e.g. to fit a field of view).
-    ``skin_model`` is one of :data:`SKIN_MODELS` (see :func:`_skin_motion`).
+    ``skin_model`` is one of :data:`SKIN_MODELS` (see :func:`_skin_motion`); ``marker_layout`` one of
+    :data:`MARKER_LAYOUTS`. Neither changes the random draws: a seed gives the same horse under each.
     """
     if skin_model not in SKIN_MODELS:
         raise InputError(f"unknown skin model {skin_model!r}; expected one of {', '.join(SKIN_MODELS)}")
+    if marker_layout not in MARKER_LAYOUTS:
+        raise InputError(f"unknown marker layout {marker_layout!r}; expected one of {', '.join(MARKER_LAYOUTS)}")
     if gait not in GAIT_RANGES:
         raise InputError(f"unknown gait {gait!r}; expected one of {', '.join(GAITS)}")
     rng_ = GAIT_RANGES[gait]
@@ -353,10 +362,11 @@ def sample_gait(
     jit = lambda sd: rng.normal(0.0, sd)  # noqa: E731  small per-horse layout changes
     spacing = float(rng.uniform(0.17, 0.23))
     x1 = -0.15 + jit(0.015)
+    drop = _TRIANGLE_DROP_M if marker_layout == "triangle" else 0.0
     body = {
         # a shallow V along the flank behind the rider's leg, numbered front (withers) to back
         "marker1": np.array([x1, 0.26 * scale + jit(0.01), s * (0.27 + jit(0.01))]),
-        "marker2": np.array([x1 - spacing, 0.30 * scale + jit(0.01), s * (0.28 + jit(0.01))]),
+        "marker2": np.array([x1 - spacing, (0.30 + drop) * scale + jit(0.01), s * (0.28 + jit(0.01))]),
         "marker3": np.array(
             [x1 - spacing - float(rng.uniform(0.17, 0.23)), 0.25 * scale + jit(0.01), s * (0.27 + jit(0.01))]
         ),
