@@ -41,6 +41,18 @@ def test_order_from_extrema_rule_and_criterion():
     assert fit.order == 2  # exact at order 2: the extra harmonic is not worth its parameters
 
 
+def test_max_order_caps_the_orders_tried():
+    y = series(T, 0.0, [0.005, 0.02, 0.003], [0.0, 0.004, 0.002])
+    assert fit_fourier(T, y, period_s=PERIOD_S, extra_orders=3).order == 3
+    capped = fit_fourier(T, y, period_s=PERIOD_S, extra_orders=3, max_order=2)
+    assert capped.order == 2 and [c["order"] for c in capped.candidates] == [2]
+    xyz = np.stack([np.stack([4.0 * T, y, 0.27 + 0 * T], axis=1)] * 3, axis=1) + np.array([0.0, 0.0, 0.1])[:, None]
+    kin = fit_marker_kinematics(T, xyz, period_s=PERIOD_S, extra_orders=3, max_order=2, x_model="fourier")
+    assert all(f.order <= 2 for f in (*kin.fits_y, *kin.fits_z))
+    with pytest.raises(InputError, match="max_order"):
+        fit_fourier(T, y, period_s=PERIOD_S, max_order=0)
+
+
 def test_count_extrema_ignores_noise_wiggles():
     rng = np.random.default_rng(5)
     t = np.arange(0, 2.4, 1 / 30)

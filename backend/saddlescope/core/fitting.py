@@ -343,7 +343,7 @@ def _criterion_value(gof: GoodnessOfFit, criterion: str) -> float:
 
 def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: str = "aicc",
                 fit_omega: bool = True, prominence: float = 0.1, extra_orders: int = 1,
-                trend_degree: int = 0, name: str = "y") -> FourierFit:
+                trend_degree: int = 0, name: str = "y", max_order: int | None = None) -> FourierFit:
     """Fit a Fourier series with its fundamental (eq. 5.23); order from the extrema rule.
 
     Parameters
@@ -369,6 +369,9 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
         ``FourierFit.trend``).
     name : str
         What is fitted (e.g. ``"marker 1 y"``), for messages.
+    max_order : int, optional
+        Cap on the orders tried by the rule (a user's override: the criterion assumes white noise,
+        and tracking noise correlated over frames can pass for a small high harmonic).
 
     Returns
     -------
@@ -389,6 +392,10 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     if order is None:
         extrema = count_extrema(t, y, period_s=period_s, prominence=prominence, trend_degree=trend_degree)
         orders = [max(1, extrema // 2) + extra for extra in range(extra_orders + 1)]
+        if max_order is not None:
+            if max_order < 1:
+                raise InputError(f"max_order must be at least 1, got {max_order}")
+            orders = sorted({min(o, int(max_order)) for o in orders})
         used_criterion = criterion
     else:
         if order < 1:
@@ -473,7 +480,8 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
                           criterion: str = "aicc", extra_orders: int = 1, x_model: str = "linear",
                           trend_degree: int = 0, names: tuple[str, ...] | None = None,
                           reject_sigma: float | None = 5.0, reject_min_m: float = 0.003,
-                          shared_order: bool = True, omega_from: str = "vertical") -> MarkerKinematics:
+                          shared_order: bool = True, omega_from: str = "vertical",
+                          max_order: int | None = None) -> MarkerKinematics:
     """Fit x linearly and y, z with Fourier series for every marker; differentiate analytically.
 
     Parameters
@@ -519,6 +527,8 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
         own (same criterion), that marker's series takes the centroid's order. A canter's fourth
         harmonic (under a millimetre, yet 13 % of the vertical acceleration's r.m.s.) drowned in
         each marker's noise on the thesis rig and was dropped.
+    max_order : int, optional
+        Cap on every Fourier series' order (see :func:`fit_fourier`).
 
     Returns
     -------
@@ -547,7 +557,7 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
         for c, degree in axes.items():
             fits[m, c] = fit_fourier(t_s, xyz[:, m, c], period_s=period_s, criterion=criterion,
                                      extra_orders=extra_orders, trend_degree=degree,
-                                     name=f"{label[m]} {'xyz'[c]}")
+                                     name=f"{label[m]} {'xyz'[c]}", max_order=max_order)
 
     rejected: list[str] = []
     for m in range(n_mark):
@@ -575,7 +585,7 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
             try:
                 order_c = fit_fourier(t_s[whole], xyz[whole, :, c].mean(axis=1), period_s=period_s,
                                       criterion=criterion, extra_orders=extra_orders, trend_degree=degree,
-                                      name=f"markers' centroid {'xyz'[c]}").order
+                                      name=f"markers' centroid {'xyz'[c]}", max_order=max_order).order
             except KinematicsError:
                 continue
             for m in range(n_mark):

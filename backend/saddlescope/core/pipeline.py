@@ -113,7 +113,7 @@ class PipelineParams:
     # horse's stride drifts over a long side of the arena and one periodic fit would smear it.
     fit_span: str = "run"
     fit_margin_periods: float = 1.0
-    max_order: int | None = None
+    max_order: int | None = None  # cap on the Fourier order the extrema rule and AICc choose
     detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
 
 
@@ -815,7 +815,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     # (a 4-frame bridge flattened a canter's acceleration peak, 24 % error on a thesis-rig ride).
     measured = ~bridged_frames[win][:, None, None]
     fits = fit_marker_kinematics(t_w, np.where(measured, reg.registered, np.nan), period_s=period_s,
-                                 x_model=params.x_model, extra_orders=params.extra_orders,
+                                 x_model=params.x_model, extra_orders=params.extra_orders, max_order=params.max_order,
                                  trend_degree=params.trend_degree, omega_from=params.omega_from)
     flags.extend(fits.flags)
     fits = _on_window(fits, in_win)
@@ -839,6 +839,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     if params.angular_method == "lsq_wiener":
         raw_fits = _on_window(fit_marker_kinematics(t[win], np.where(measured, xyz_m, np.nan), period_s=period_s,
                                                     x_model=params.x_model, extra_orders=params.extra_orders,
+                                                    max_order=params.max_order,
                                                     trend_degree=params.trend_degree, omega_from=params.omega_from),
                               in_win)
         # bridged positions are no measurements of the skin motion the gain weighs
