@@ -487,8 +487,9 @@ def _plumb_lean_deg(plumb: MarkerTracks, rig: Rig) -> float:
     return float(tilt_from_down_deg(rig, p[1] - p[0]))
 
 
-def _down_direction(plumb: MarkerTracks | None, rig: Rig) -> np.ndarray:
-    """Gravity in rig coordinates: from the plumb line where seen, else the cameras' mean image down."""
+def _down_direction(plumb: MarkerTracks | None, cameras_down: np.ndarray) -> np.ndarray:
+    """Gravity in rig coordinates: from the plumb line where seen, else ``cameras_down`` (the cameras'
+    mean image down, :func:`camera_down`)."""
     if plumb is not None:
         try:
             p = _static_positions(plumb, "plumb")
@@ -498,7 +499,7 @@ def _down_direction(plumb: MarkerTracks | None, rig: Rig) -> np.ndarray:
             g = p[1] - p[0]
             g = g / np.linalg.norm(g)
             return g if g[1] > 0 else -g
-    return camera_down(rig)
+    return cameras_down
 
 
 def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
@@ -1013,7 +1014,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     tracks3d["static"] = triangulate("static", static2d, n_horse + n_saddle)
     progress.stage("detection", 0.4)
     static_mm = _static_positions(tracks3d["static"], "static")
-    down = _down_direction(tracks3d.get("plumb"), rig)
+    cameras_down = camera_down(rig)
+    down = _down_direction(tracks3d.get("plumb"), cameras_down)
     motion2d, horse_idx, saddle_idx, searched_together = detect_motion(
         clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
         clocks=clocks.get("motion"))
@@ -1058,7 +1060,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     depth = depth_uncertainty(rig, tracks3d["motion"])
     kin = saddle_kinematics(tracks3d["motion"], tracks3d["static"], tracks3d.get("plumb"), params,
                             horse_idx=horse_idx, saddle_idx=saddle_idx, gait=meta.get("gait"), depth=depth,
-                            down_hint=camera_down(rig))
+                            down_hint=cameras_down)
     if plumb_problem:
         kin["flags"].insert(0, plumb_problem)
     kin["flags"][:0] = (clock_flags + static_flags + layout_flags + coverage_flags

@@ -35,7 +35,7 @@ SADDLE_NAME = "saddle"
 SKIN_MODELS: tuple[str, ...] = ("stride_locked", "noise", "none")  # the first is the default
 # Markers 1-3 on the flank: "thesis", a shallow V (the middle marker 3-5 cm below the line of the
 # others, as in the thesis's photographs), or "triangle", the middle one about 10 cm below (what the
-# README recommends: the roll about the row is then fixed four to five times better)
+# README recommends: the roll about the row is then fixed 4-12 times better)
 MARKER_LAYOUTS: tuple[str, ...] = ("thesis", "triangle")  # the first is the default
 _TRIANGLE_DROP_M = 0.06  # extra drop of marker 2 in the triangle layout (before the horse's scale)
 SKIN_NOISE_RMS_M = (0.0004, 0.0010)  # per marker and in-plane axis, drawn in this range
