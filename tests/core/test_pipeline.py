@@ -68,6 +68,12 @@ def test_result_keeps_what_the_dashboard_plots(analysed):
     assert np.shape(result["angular"]["omega_versions_rad_s"]) == (n, 6, 3)
     assert np.shape(result["markers"]["position_m"]) == (n, 3, 3)
     assert {"x", "y", "z"} <= set(result["markers"]["fits"])
+    for fit in result["markers"]["fits"]["y"]:  # the goodness of fit and 95 % intervals of 5.5
+        assert {"sse", "r2", "adj_r2", "rmse", "noise_lag1"} <= set(fit)
+        lo, hi = fit["ci95"]["omega_rad_s"]
+        assert lo < fit["omega_rad_s"] < hi
+        assert np.all(np.array(fit["ci95"]["a"])[:, 0] <= np.array(fit["a"]))
+        assert np.all(np.array(fit["a"]) <= np.array(fit["ci95"]["a"])[:, 1])
     assert result["timings_s"]["total"] > 0
     assert set(P.STAGE_WEIGHTS) <= set(result["timings_s"])
 

@@ -15,6 +15,22 @@ information criterion (AICc) unless another ``criterion`` is asked for.
 Goodness of fit as MATLAB's Curve Fitting Toolbox: SSE, R², adjusted R² (with the residual
 degrees of freedom n − p, ω counted as a parameter), RMSE = sqrt(SSE / (n − p)), and 95 %
 confidence intervals of the coefficients from the Jacobian at the solution.
+
+Correlated noise. MATLAB's intervals and the textbook AICc assume residuals independent from
+sample to sample. Tracked markers are not: camera noise is correlated over two or three frames
+and skin sliding over many. Then a harmonic's coefficients scatter with the noise's spectral
+density at that harmonic, not with its average variance: for noise whose lag-1 autocorrelation
+is 0.5 a low harmonic scatters up to sqrt(3) times wider than the textbook says (its 95 %
+intervals cover about 75 % of the time), and a harmonic made of noise passes AICc two to three
+times as often as with white noise. So the fits also take the noise as first-order
+autoregressive, its correlation estimated from their residuals (the sandwich covariance of least
+squares under AR(1) noise; a non-parametric Newey-West estimate covered 95 % intervals only
+76-87 % of the time on two strides). Each standard error is the larger of the AR(1) and the
+textbook one, and AICc and BIC compare orders with the added harmonics' Wald statistic, the
+smaller of the two, in place of the fall of n log SSE (the same for white noise): neither is
+ever more liberal than MATLAB's, and both stop trusting noise that is correlated at the
+harmonics' frequencies.
+``criterion="aicc_white"`` keeps the textbook AICc.
 """
 
 from __future__ import annotations
@@ -23,11 +39,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.signal import lfilter
 from scipy.stats import t as student_t
 
 from saddlescope.core.errors import InputError, KinematicsError
 
-CRITERIA = ("aicc", "bic", "adj_r2")
+CRITERIA = ("aicc", "aicc_white", "bic", "adj_r2")
 
 
 @dataclass(frozen=True)
@@ -42,6 +59,10 @@ class GoodnessOfFit:
     n_params: int
     aicc: float
     bic: float
+    # lag-1 autocorrelation of the residuals, and of the noise as the standard errors take it
+    # (bias-corrected, clipped to [0, 0.98]; see the module's note on correlated noise)
+    residual_lag1: float = 0.0
+    noise_lag1: float = 0.0
 
     @property
     def dfe(self) -> int:
@@ -50,7 +71,8 @@ class GoodnessOfFit:
 
     def as_dict(self) -> dict:
         return {"sse": self.sse, "r2": self.r2, "adj_r2": self.adj_r2, "rmse": self.rmse, "n": self.n,
-                "n_params": self.n_params, "dfe": self.dfe, "aicc": self.aicc, "bic": self.bic}
+                "n_params": self.n_params, "dfe": self.dfe, "aicc": self.aicc, "bic": self.bic,
+                "residual_lag1": self.residual_lag1, "noise_lag1": self.noise_lag1}
 
 
 def _goodness(y: np.ndarray, residuals: np.ndarray, n_params: int) -> GoodnessOfFit:
@@ -71,21 +93,72 @@ def _goodness(y: np.ndarray, residuals: np.ndarray, n_params: int) -> GoodnessOf
                          aicc=aicc, bic=bic)
 
 
-def _confidence(jac: np.ndarray, gof: GoodnessOfFit, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-    """Standard errors and half-widths of the confidence intervals from the Jacobian (n, p)."""
-    if gof.dfe <= 0:
-        nan = np.full(jac.shape[1], np.nan)
-        return nan, nan
-    s2 = gof.sse / gof.dfe
+def _lag1(residuals: np.ndarray) -> float:
+    """Lag-1 autocorrelation of a residual series (0 for a constant one)."""
+    r = residuals - residuals.mean()
+    den = float(np.dot(r, r))
+    return float(np.dot(r[1:], r[:-1]) / den) if den > 0 and r.size > 2 else 0.0
+
+
+def _noise_correlation(residuals: np.ndarray, jac: np.ndarray, bread: np.ndarray) -> float:
+    """The noise's lag-1 autocorrelation from a fit's residuals, corrected for the bias fitting puts
+    into it (white noise's residuals have E[sum e_t e_t-1] = -s^2 tr(H L), H the hat matrix, L the
+    lag-1 shift: about -p / n for slow regressors), and clipped to [0, 0.98]: negative or no
+    correlation keeps the textbook intervals, so they are never narrower than MATLAB's."""
+    n, p = jac.shape
+    if n - p < 3:
+        return 0.0
+    tr_hl = float(np.trace(bread @ (jac[1:].T @ jac[:-1])))
+    r = residuals
+    den = float(r @ r)
+    rho = float(r[1:] @ r[:-1]) / den if den > 0 else 0.0
+    return float(np.clip(rho + tr_hl / (n - p), 0.0, 0.98))
+
+
+def _covariance(jac: np.ndarray, residuals: np.ndarray | None, floor_var: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Covariances (p, p) of least-squares parameters with Jacobian ``jac`` (n, p): the textbook
+    s^2 (J'J)^-1, s^2 = SSE / (n - p), and, from the ``residuals`` (n,) in sample order, the one for
+    AR(1) noise of lag-1 autocorrelation rho: the sandwich (J'J)^-1 J' Sigma J (J'J)^-1 with
+    Sigma_ij = s^2 rho^|i-j|. For a harmonic this is the noise's spectral density at its frequency,
+    which is what its coefficients scatter with. Sigma J is two exponential filters, forward and
+    back, so no n x n matrix is formed. ``floor_var`` (J'J)^-1 is added to both (keeps an exact
+    fit's tests finite). Returns (AR(1), textbook, rho); without residuals the first is the second."""
+    n, p = jac.shape
     # QR of the Jacobian avoids squaring its condition number in J^T J.
     _, r = np.linalg.qr(jac)
     try:
         r_inv = np.linalg.inv(r)
     except np.linalg.LinAlgError:
         r_inv = np.linalg.pinv(r)
-    cov = s2 * (r_inv @ r_inv.T)
-    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    return se, student_t.ppf(0.5 + level / 2, gof.dfe) * se
+    bread = r_inv @ r_inv.T
+    if residuals is None:
+        return floor_var * bread, floor_var * bread, 0.0
+    s2 = float(residuals @ residuals) / max(n - p, 1)
+    white = (s2 + floor_var) * bread
+    rho = _noise_correlation(residuals, jac, bread)
+    if rho <= 0:
+        return white, white, 0.0
+    fwd = lfilter([1.0], [1.0, -rho], jac, axis=0)
+    back = lfilter([1.0], [1.0, -rho], jac[::-1], axis=0)[::-1]
+    return bread @ (s2 * (jac.T @ (fwd + back - jac))) @ bread + floor_var * bread, white, rho
+
+
+def _confidence(jac: np.ndarray, gof: GoodnessOfFit, residuals: np.ndarray,
+                level: float = 0.95, scale: float = 0.0) -> tuple[np.ndarray, np.ndarray, tuple, float]:
+    """Standard errors, half-widths of the confidence intervals, the two covariances of
+    :func:`_covariance` and rho, for the parameters of Jacobian (n, p) (see the module's note on
+    correlated noise). Each standard error is the larger of the two: the AR(1) model can put less
+    noise at a high harmonic than there is (smooth noise that is not AR(1)), and no interval here
+    is narrower than MATLAB's. ``scale`` is the data's r.m.s. about its mean: a variance of
+    (1e-12 scale)^2 is the floor, as in the criteria."""
+    if gof.dfe <= 0:
+        nan = np.full(jac.shape[1], np.nan)
+        cov_nan = np.full((jac.shape[1],) * 2, np.nan)
+        return nan, nan, (cov_nan, cov_nan), 0.0
+    cov_ar1, cov_white, rho = _covariance(jac, residuals, (1e-12 * scale) ** 2)
+    se = np.sqrt(np.clip(np.maximum(np.diag(cov_ar1), np.diag(cov_white)), 0.0, None))
+    return se, student_t.ppf(0.5 + level / 2, gof.dfe) * se, (cov_ar1, cov_white), rho
 
 
 def _check_series(t, y, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -143,7 +216,8 @@ def fit_linear(t, y, *, name: str = "x") -> LinearFit:
     coef, *_ = np.linalg.lstsq(jac, y, rcond=None)
     residuals = y - jac @ coef
     gof = _goodness(y, residuals, 2)
-    _, half = _confidence(jac, gof)
+    _, half, _, rho = _confidence(jac, gof, residuals, scale=float(np.std(y)))
+    gof = replace(gof, residual_lag1=_lag1(residuals), noise_lag1=rho)
     ci = np.column_stack([coef - half, coef + half])
     return LinearFit(intercept=float(coef[0]), slope=float(coef[1]), t0=t0, gof=gof, ci=ci,
                      residuals=residuals)
@@ -164,7 +238,8 @@ class FourierFit:
         ``"fitted"`` (nonlinear least squares), ``"fixed"`` (given) or ``"pooled"`` (common ω of
         several fits, see :func:`fit_marker_kinematics`).
     criterion : str
-        How the order was chosen (``"aicc"``, ``"bic"``, ``"adj_r2"`` or ``"given"``).
+        How the order was chosen (``"aicc"``, ``"aicc_white"``, ``"bic"``, ``"adj_r2"`` or
+        ``"given"``).
     extrema_per_period : int or None
         The extrema counted per fundamental period (E of the order rule).
     candidates : tuple of dict
@@ -337,8 +412,45 @@ def _fit_order(tau: np.ndarray, y: np.ndarray, omega0: float, order: int, fit_om
     return res.x[:-1], omega, residual(res.x), jacobian(res.x), flags
 
 
-def _criterion_value(gof: GoodnessOfFit, criterion: str) -> float:
-    return -gof.adj_r2 if criterion == "adj_r2" else getattr(gof, criterion)
+def _penalty(n: int, p: int, criterion: str) -> float:
+    """The parameter penalty of AICc (2p + 2p(p+1)/(n-p-1)) or BIC (p log n)."""
+    if criterion == "bic":
+        return p * float(np.log(n))
+    return 2 * p + (2 * p * (p + 1) / (n - p - 1) if n - p - 1 > 0 else np.inf)
+
+
+def _choose(fits: list, criterion: str, n_poly: int) -> int:
+    """Index of the chosen candidate. ``fits`` rows are (order, coef, omega, resid, gof, se, half,
+    flags, omega_free, (cov_ar1, cov_white)), orders ascending. "aicc" and "bic" score the orders
+    as the criterion does, with the Wald statistic of the harmonics each step up adds in place of
+    that step's fall of n log SSE: the smaller of the statistics under the AR(1) and the textbook
+    covariance, so correlated noise does not pass for a harmonic and no harmonic passes that the
+    textbook criterion would refuse."""
+    if len(fits) == 1:
+        return 0
+    if criterion in ("aicc_white", "adj_r2"):
+        def key(g: GoodnessOfFit) -> float:
+            return g.aicc if criterion == "aicc_white" else -g.adj_r2
+        return min(range(len(fits)), key=lambda i: (key(fits[i][4]), fits[i][0]))
+    # Each step up the orders is scored by the Wald statistic of the harmonics it adds, taken in the
+    # bigger fit; the steps add up as the falls of n log SSE do in the textbook criterion.
+    scores = [_penalty(fits[0][4].n, fits[0][4].n_params, criterion)]
+    total_wald = 0.0
+    for (low, *_), (o, coef, _, _, gof, _, _, _, _, cov) in zip(fits[:-1], fits[1:], strict=True):
+        # the coefficients of harmonics low+1 .. o: a_k at n_poly + k - 1, b_k at n_poly + o + k - 1
+        idx = np.array([n_poly + k - 1 for k in range(low + 1, o + 1)]
+                       + [n_poly + o + k - 1 for k in range(low + 1, o + 1)], dtype=int)
+        walds = []
+        for one in cov:  # the AR(1) and the textbook covariance: the smaller statistic counts
+            c = one[np.ix_(idx, idx)]
+            if np.all(np.isfinite(c)):
+                walds.append(float(coef[idx] @ np.linalg.lstsq(c, coef[idx], rcond=None)[0]))
+            else:
+                walds.append(np.inf if np.any(coef[idx] != 0) else 0.0)
+        wald = min(walds)
+        total_wald += wald * gof.n / max(gof.dfe, 1)  # with the likelihood's variance SSE / n, as AICc
+        scores.append(_penalty(gof.n, gof.n_params, criterion) - total_wald)
+    return min(range(len(fits)), key=lambda i: (scores[i], fits[i][0]))
 
 
 def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: str = "aicc",
@@ -354,8 +466,9 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
         The stride period: the start (or, with ``fit_omega=False``, the value) of 2 pi / w.
     order : int, optional
         Number of harmonics N; default: the best of E/2 .. E/2 + ``extra_orders`` by ``criterion``.
-    criterion : {"aicc", "bic", "adj_r2"}
-        Order selection: smallest AICc (default), smallest BIC, or largest adjusted R².
+    criterion : {"aicc", "aicc_white", "bic", "adj_r2"}
+        Order selection: smallest AICc (default) or BIC, both with the noise's correlation over
+        samples accounted for (see the module's note); the textbook AICc; or largest adjusted R².
     fit_omega : bool, optional
         Fit w too (nonlinear least squares) or keep 2 pi / period_s.
     prominence : float, optional
@@ -417,10 +530,11 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
         omega_free = fit_omega and not flags
         n_lin = n_poly + 2 * o
         gof = _goodness(y, resid, n_lin + int(omega_free))
-        se, half = _confidence(jac if omega_free else jac[:, :n_lin], gof)
-        fits.append((o, coef, omega, resid, gof, se, half, flags, omega_free))
-    best = min(fits, key=lambda f: (_criterion_value(f[4], criterion), f[0]))
-    o, coef, omega, resid, gof, se, half, flags, omega_free = best
+        se, half, cov, rho = _confidence(jac if omega_free else jac[:, :n_lin], gof, resid, scale=float(np.std(y)))
+        gof = replace(gof, residual_lag1=_lag1(resid), noise_lag1=rho)
+        fits.append((o, coef, omega, resid, gof, se, half, flags, omega_free, cov))
+    best = fits[_choose(fits, criterion, n_poly)]
+    o, coef, omega, resid, gof, se, half, flags, omega_free, _ = best
 
     def pack(v):
         return {"a0": v[0], "trend": v[1:n_poly], "a": v[n_poly:n_poly + o],

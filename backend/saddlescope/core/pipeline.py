@@ -114,6 +114,9 @@ class PipelineParams:
     fit_span: str = "run"
     fit_margin_periods: float = 1.0
     max_order: int | None = None  # cap on the Fourier order the extrema rule and AICc choose
+    # order criterion (fitting.CRITERIA): "aicc" takes the noise's correlation over frames into
+    # account, "aicc_white" is the textbook AICc
+    criterion: str = "aicc"
     detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
 
 
@@ -817,7 +820,8 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     measured = ~bridged_frames[win][:, None, None]
     fits = fit_marker_kinematics(t_w, np.where(measured, reg.registered, np.nan), period_s=period_s,
                                  x_model=params.x_model, extra_orders=params.extra_orders, max_order=params.max_order,
-                                 trend_degree=params.trend_degree, omega_from=params.omega_from)
+                                 criterion=params.criterion, trend_degree=params.trend_degree,
+                                 omega_from=params.omega_from)
     flags.extend(fits.flags)
     fits = _on_window(fits, in_win)
     reg = Registration(*(getattr(reg, f.name)[in_win] for f in fields(reg)))
@@ -840,7 +844,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     if params.angular_method == "lsq_wiener":
         raw_fits = _on_window(fit_marker_kinematics(t[win], np.where(measured, xyz_m, np.nan), period_s=period_s,
                                                     x_model=params.x_model, extra_orders=params.extra_orders,
-                                                    max_order=params.max_order,
+                                                    max_order=params.max_order, criterion=params.criterion,
                                                     trend_degree=params.trend_degree, omega_from=params.omega_from),
                               in_win)
         # bridged positions are no measurements of the skin motion the gain weighs
@@ -1202,7 +1206,7 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
         "params": {"n_periods": params.n_periods, "triangulation": params.triangulation,
                    "smoothing_span": params.smoothing_span, "angular_method": params.angular_method,
                    "x_model": params.x_model, "omega_from": params.omega_from, "fit_span": params.fit_span,
-                   "smoothing": params.smoothing},
+                   "smoothing": params.smoothing, "criterion": params.criterion},
         "timings_s": dict(timings_s),
     }
     if calib_report:
@@ -1223,4 +1227,12 @@ def _fit_summary(fit) -> dict:
             val = getattr(fit, attr)
             if isinstance(val, int | float | np.floating | np.integer):
                 out[attr] = float(val)
+    # the coefficients with their 95 % confidence intervals (correlated noise accounted for, see
+    # fitting's module note): the slope's is the average speed's
+    ci = getattr(fit, "ci", None)
+    if isinstance(ci, np.ndarray):
+        out["ci95"] = {"intercept": _finite_list(ci[0]), "slope": _finite_list(ci[1])}
+    elif isinstance(ci, dict):
+        out["a"], out["b"] = _finite_list(fit.a), _finite_list(fit.b)
+        out["ci95"] = {k: _finite_list(ci[k]) for k in ("a0", "a", "b", "omega_rad_s") if k in ci}
     return out
