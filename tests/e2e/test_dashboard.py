@@ -27,7 +27,9 @@ import numpy as np
 import pytest
 
 from conftest import IN_CI
+from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.indicators import ride_indicators
+from saddlescope.core.pipeline import fits_document
 
 pytestmark = pytest.mark.browser
 
@@ -104,6 +106,10 @@ def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dic
     versions[:5, 0] += 50.0  # ... where it is far off, as near the singularity
     singularity = 0.15 + 0.1 * np.abs(sway)
     amplitude_y_m = float(pos_y.max() - pos_y.min())
+    # three markers around S with a millimetre of tracking noise, fitted as the pipeline does
+    markers = position[:, None, :] + np.array([[0.0, -0.05, 0.1], [-0.2, -0.04, 0.1], [-0.4, -0.06, 0.1]])
+    markers += rng.normal(0.0, 0.001, markers.shape)
+    fits = fits_document(fit_marker_kinematics(t, markers, period_s=1.0 / f0, x_model="fourier", trend_degree=1))
     indicators = ride_indicators(f0_hz=f0, acc_y_amplitudes_m_s2=amps, acc_y_phases_rad=PHASES_RAD,
                                  duration_s=duration_s, speed_kmh=SPEED_KMH[gait],
                                  amplitude_y_m=amplitude_y_m, stride_frequency_hz=f0)
@@ -119,6 +125,7 @@ def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dic
                     "singularity_index_per_frame": singularity.tolist(),
                     "omega_versions_rad_s": versions.tolist(),
                     "omega_versions_excluded": excluded.tolist()},
+        "markers": {"fits": json.loads(json.dumps(fits, allow_nan=False))},
         "indicators": {key: float(value) for key, value in indicators.items()},
         "quality": {"flags": ["markers lost from 0.40 s to 0.47 s"], "calibration_ok": True,
                     "gravity_source": "plumb", "singularity_index_median": float(np.median(singularity))},
@@ -352,6 +359,22 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
         assert cell.inner_text() == js_fmt(ind[key]), key
     assert "passive, seated person" in page.locator("[data-caveat]").inner_text()
     assert page.locator("[data-quality-flags] li").all_inner_texts() == doc["quality"]["flags"]
+
+    # the curve fits: nine series, and the stride frequency and speed with their 95 % intervals
+    fits = doc["markers"]["fits"]
+    rows = page.locator("[data-fit-table] tbody tr")
+    assert rows.count() == 9
+    y0 = fits["y"][0]
+    assert rows.nth(3).locator("th").inner_text() == "M1 y"
+    assert rows.nth(3).locator("td").nth(0).inner_text() == f"Fourier, order {y0['order']:.0f}"
+    assert rows.nth(3).locator("td").nth(3).inner_text() == js_fmt(y0["rmse"] * 1000, 2)
+    facts = page.locator("[data-fit-facts]").inner_text()
+    f0 = y0["omega_rad_s"] / (2 * np.pi)
+    lo, hi = (w / (2 * np.pi) for w in y0["ci95"]["omega_rad_s"])
+    assert lo < STRIDE_HZ["canter"] < hi
+    assert f"{js_fmt(f0, 4)} Hz ({js_fmt(lo, 4)}\u2013{js_fmt(hi, 4)})" in facts
+    speed = np.mean([f["trend"][0] for f in fits["x"]])
+    assert f"{js_fmt(speed, 4)} m/s" in facts and abs(speed - SPEED_KMH["canter"] / 3.6) < 0.01
 
     page.wait_for_function("document.querySelector('[data-chart=\"versions\"]').data !== undefined")
     for name in ("position", "velocity", "acceleration", "omega", "alpha"):

@@ -1166,9 +1166,7 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
         # the frames the fits saw (the window's harmonics are estimated from every tracked stride)
         "fitted_frames": {"start_frame": int(kin["fitted"][0]), "frames": int(kin["fitted"][1] - kin["fitted"][0])},
     }
-    fits_doc = {}
-    for axis, group in (("x", fits.fits_x), ("y", fits.fits_y), ("z", fits.fits_z)):
-        fits_doc[axis] = [_fit_summary(f) for f in group]
+    fits_doc = fits_document(fits)
     result = {
         "format": RESULT_FORMAT,
         "fps": fps,
@@ -1216,6 +1214,14 @@ def _result_document(meta, rig: Rig, calib_report, offsets, tracks3d, kin, harm,
     return _nan_to_none(result)
 
 
+def fits_document(fits) -> dict:
+    """The result's ``markers.fits``: per axis (x, y, z) and marker, the fit's kind, goodness of fit
+    (SSE, R², adjusted R², RMSE, the residuals' and the noise's lag-1 autocorrelation), order,
+    fundamental, coefficients and their 95 % confidence intervals (thesis 5.5)."""
+    return {axis: [_fit_summary(f) for f in group]
+            for axis, group in (("x", fits.fits_x), ("y", fits.fits_y), ("z", fits.fits_z))}
+
+
 def _fit_summary(fit) -> dict:
     out = {"kind": type(fit).__name__}
     gof = getattr(fit, "gof", None)
@@ -1233,6 +1239,7 @@ def _fit_summary(fit) -> dict:
     if isinstance(ci, np.ndarray):
         out["ci95"] = {"intercept": _finite_list(ci[0]), "slope": _finite_list(ci[1])}
     elif isinstance(ci, dict):
-        out["a"], out["b"] = _finite_list(fit.a), _finite_list(fit.b)
-        out["ci95"] = {k: _finite_list(ci[k]) for k in ("a0", "a", "b", "omega_rad_s") if k in ci}
+        # trend[0] of a Fourier x series is the average speed (m/s)
+        out["a"], out["b"], out["trend"] = _finite_list(fit.a), _finite_list(fit.b), _finite_list(fit.trend)
+        out["ci95"] = {k: _finite_list(ci[k]) for k in ("a0", "a", "b", "omega_rad_s", "trend") if k in ci}
     return out

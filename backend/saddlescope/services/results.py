@@ -84,6 +84,8 @@ def _view(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[st
         "calibration_checks": calibration.get("checks") or {},
         "calibration_flags": calibration.get("flags") or [],
         "series": series,
+        # the curve fits' goodness and 95 % intervals (thesis 5.5): a few numbers per marker and axis
+        "fits": markers.get("fits") or {},
         "decimation": {"step": step, "samples": n, "max_points": max_points},
     }
 

@@ -86,6 +86,44 @@ function qualityFacts(result) {
     .flatMap(([term, value]) => [h("dt", {}, term), h("dd", {}, String(value))]);
 }
 
+const MARKER_NAMES = ["M1", "M2", "M3"];
+
+function mean(values) {
+  const ok = values.filter(Number.isFinite);
+  return ok.length ? ok.reduce((a, b) => a + b, 0) / ok.length : null;
+}
+
+// The stride frequency and the average speed with their 95 % intervals, from the curve fits (thesis
+// 5.5): the markers share one fundamental; the speed is the mean slope of their x fits.
+function fitFacts(fits) {
+  const facts = [];
+  const y = (fits.y || []).find((f) => Array.isArray(f.ci95?.omega_rad_s));
+  if (y && Number.isFinite(y.omega_rad_s)) {
+    const [lo, hi] = y.ci95.omega_rad_s.map((w) => w / (2 * Math.PI));
+    facts.push(["Stride frequency (95 % CI)",
+      `${fmt(y.omega_rad_s / (2 * Math.PI), 4)} Hz (${fmt(lo, 4)}\u2013${fmt(hi, 4)})`]);
+  }
+  const speeds = (fits.x || []).map((f) => (f.kind === "LinearFit"
+    ? [f.slope, f.ci95?.slope] : [f.trend?.[0], f.ci95?.trend?.[0]]));
+  const speed = mean(speeds.map(([v]) => v));
+  const lo = mean(speeds.map(([, ci]) => ci?.[0]));
+  const hi = mean(speeds.map(([, ci]) => ci?.[1]));
+  if (speed !== null && lo !== null && hi !== null) {
+    facts.push(["Average speed (95 % CI)", `${fmt(speed, 4)} m/s (${fmt(lo, 4)}\u2013${fmt(hi, 4)})`]);
+  }
+  return facts.flatMap(([term, value]) => [h("dt", {}, term), h("dd", {}, value)]);
+}
+
+function fitRows(fits) {
+  return ["x", "y", "z"].flatMap((axis) => (fits[axis] || []).map((f, m) => h("tr", { dataset: { fit: `${axis}${m}` } },
+    h("th", { scope: "row" }, `${MARKER_NAMES[m] ?? `M${m + 1}`} ${axis}`),
+    h("td", {}, f.kind === "LinearFit" ? "straight line" : `Fourier, order ${Math.round(f.order)}`),
+    h("td", { class: "num" }, fmt(f.r2, 4)),
+    h("td", { class: "num" }, fmt(f.adj_r2, 4)),
+    h("td", { class: "num" }, Number.isFinite(f.rmse) ? fmt(f.rmse * 1000, 2) : "\u2013"),
+    h("td", { class: "num" }, fmt(f.noise_lag1, 2)))));
+}
+
 function largestComponent(omega) {
   const sums = [0, 0, 0];
   for (const row of omega || []) for (let i = 0; i < 3; i += 1) if (Number.isFinite(row?.[i])) sums[i] += row[i] ** 2;
@@ -192,6 +230,11 @@ function showResult(view, ride, result) {
   view.querySelector("[data-quality-flags]").replaceChildren(...(flags.length
     ? flags.map((flag) => h("li", { class: "flag" }, flag))
     : [h("li", { class: "no-flags" }, "No quality warnings.")]));
+  const fits = result.fits || {};
+  const fitsPanel = view.querySelector("[data-fits]");
+  fitsPanel.hidden = !Object.keys(fits).length;
+  view.querySelector("[data-fit-facts]").replaceChildren(...fitFacts(fits));
+  view.querySelector("[data-fit-table] tbody").replaceChildren(...fitRows(fits));
   view.querySelector("[data-exports]").replaceChildren(...EXPORTS.map((e) => h("li", {},
     h("a", { href: `/api/rides/${ride.id}/export/${e.fmt}`, download: "", dataset: { export: e.fmt } }, e.text))));
   box.hidden = false;
