@@ -451,6 +451,9 @@ class ResultOut(BaseModel):
     series: dict[str, list[Any]] = Field(
         description="t_s, position_m, velocity_m_s, acceleration_m_s2, omega_rad_s, alpha_rad_s2 (decimated)"
     )
+    fits: dict[str, list[dict[str, Any]]] = Field(
+        default_factory=dict,
+        description="per axis x, y, z and marker: the curve fit's goodness of fit and 95 % intervals (thesis 5.5)")
     decimation: dict[str, int]
 
 
