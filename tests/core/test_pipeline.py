@@ -221,6 +221,29 @@ def test_markers_lost_for_most_of_the_ride_are_refused():
     motion, static = _rigid_tracks(lost=np.r_[0:40, 45:120])
     with pytest.raises(KinematicsError, match="tracked together|seen together"):
         P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+    # seen in flickers while the horse crosses the view: lost for most of it
+    flicker = np.ones(120, dtype=bool)
+    flicker[::5] = False
+    motion, static = _rigid_tracks(lost=flicker)
+    with pytest.raises(KinematicsError, match=r"seen together in only 21 % of the frames from 0.00 s to 3.83 s"):
+        P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+    never = np.ones((120, 3), dtype=bool)
+    never[::2, 0] = never[1::2, 1] = False  # one marker or another always missing
+    motion, static = _rigid_tracks(lost=never)
+    with pytest.raises(KinematicsError, match="never seen together"):
+        P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+
+
+def test_a_long_clip_the_horse_crosses_in_a_fifth_of_is_analysed():
+    # Cameras run before and after the horse crosses their view: a 13 s clip with the markers in view
+    # for 2.7 s (a fifth of it) is a ride, not markers lost for most of it.
+    lost = np.ones(400, dtype=bool)
+    lost[150:230] = False
+    motion, static = _rigid_tracks(n_frames=400, lost=lost)
+    kin = P.saddle_kinematics(motion, static, None, P.PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3)
+    i0, i1 = kin["window"]
+    assert 150 <= i0 < i1 <= 230
+    assert "markers not all in view before 5.00 s (the record starts at 0.00 s)" in kin["flags"]
 
 
 def test_collinear_markers_are_refused():
