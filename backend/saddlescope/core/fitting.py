@@ -115,15 +115,15 @@ def _noise_correlation(residuals: np.ndarray, jac: np.ndarray, bread: np.ndarray
     return float(np.clip(rho + tr_hl / (n - p), 0.0, 0.98))
 
 
-def _covariance(jac: np.ndarray, residuals: np.ndarray | None, floor_var: float = 0.0
+def _covariance(jac: np.ndarray, residuals: np.ndarray, floor_var: float = 0.0
                 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Covariances (p, p) of least-squares parameters with Jacobian ``jac`` (n, p): the textbook
     s^2 (J'J)^-1, s^2 = SSE / (n - p), and, from the ``residuals`` (n,) in sample order, the one for
     AR(1) noise of lag-1 autocorrelation rho: the sandwich (J'J)^-1 J' Sigma J (J'J)^-1 with
     Sigma_ij = s^2 rho^|i-j|. For a harmonic this is the noise's spectral density at its frequency,
     which is what its coefficients scatter with. Sigma J is two exponential filters, forward and
-    back, so no n x n matrix is formed. ``floor_var`` (J'J)^-1 is added to both (keeps an exact
-    fit's tests finite). Returns (AR(1), textbook, rho); without residuals the first is the second."""
+    back, so no n x n matrix is formed (a gap between samples counts as one sample step). ``floor_var``
+    (J'J)^-1 is added to both (keeps an exact fit's tests finite). Returns (AR(1), textbook, rho)."""
     n, p = jac.shape
     # QR of the Jacobian avoids squaring its condition number in J^T J.
     _, r = np.linalg.qr(jac)
@@ -132,8 +132,6 @@ def _covariance(jac: np.ndarray, residuals: np.ndarray | None, floor_var: float 
     except np.linalg.LinAlgError:
         r_inv = np.linalg.pinv(r)
     bread = r_inv @ r_inv.T
-    if residuals is None:
-        return floor_var * bread, floor_var * bread, 0.0
     s2 = float(residuals @ residuals) / max(n - p, 1)
     white = (s2 + floor_var) * bread
     rho = _noise_correlation(residuals, jac, bread)
@@ -424,8 +422,8 @@ def _choose(fits: list, criterion: str, n_poly: int) -> int:
     flags, omega_free, (cov_ar1, cov_white)), orders ascending. "aicc" and "bic" score the orders
     as the criterion does, with the Wald statistic of the harmonics each step up adds in place of
     that step's fall of n log SSE: the smaller of the statistics under the AR(1) and the textbook
-    covariance, so correlated noise does not pass for a harmonic and no harmonic passes that the
-    textbook criterion would refuse."""
+    covariance, so correlated noise does not pass for a harmonic, and white noise is judged as the
+    textbook criterion judges it."""
     if len(fits) == 1:
         return 0
     if criterion in ("aicc_white", "adj_r2"):
