@@ -152,8 +152,9 @@ def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, .
             floor = exact_marker_floor(truth)
             if floor is not None:
                 row["exact_markers"] = floor
-            duration_s = result["period_s"] * round(result["window"]["duration_s"] / result["period_s"])
-            row.update(indicator_errors_pct(result["indicators"], duration_s, truth))
+            # (not duration_s: that is the clips' length asked for every ride of the loop)
+            analysed_s = result["period_s"] * round(result["window"]["duration_s"] / result["period_s"])
+            row.update(indicator_errors_pct(result["indicators"], analysed_s, truth))
             rows.append(row)
     return rows
 
