@@ -100,22 +100,19 @@ def _lag1(residuals: np.ndarray) -> float:
     return float(np.dot(r[1:], r[:-1]) / den) if den > 0 and r.size > 2 else 0.0
 
 
-def _noise_correlation(residuals: np.ndarray, jac: np.ndarray, bread: np.ndarray) -> float:
-    """The noise's lag-1 autocorrelation from a fit's residuals, corrected for the bias fitting puts
-    into it (white noise's residuals have E[sum e_t e_t-1] = -s^2 tr(H L), H the hat matrix, L the
+def _noise_correlation(residual_lag1: float, jac: np.ndarray, bread: np.ndarray) -> float:
+    """The noise's lag-1 autocorrelation from a fit's residuals' (:func:`_lag1`), corrected for the bias
+    fitting puts into it (white noise's residuals have E[sum e_t e_t-1] = -s^2 tr(H L), H the hat matrix, L the
     lag-1 shift: about -p / n for slow regressors), and clipped to [0, 0.98]: negative or no
     correlation keeps the textbook intervals, so they are never narrower than MATLAB's."""
     n, p = jac.shape
     if n - p < 3:
         return 0.0
     tr_hl = float(np.trace(bread @ (jac[1:].T @ jac[:-1])))
-    r = residuals
-    den = float(r @ r)
-    rho = float(r[1:] @ r[:-1]) / den if den > 0 else 0.0
-    return float(np.clip(rho + tr_hl / (n - p), 0.0, 0.98))
+    return float(np.clip(residual_lag1 + tr_hl / (n - p), 0.0, 0.98))
 
 
-def _covariance(jac: np.ndarray, residuals: np.ndarray, floor_var: float = 0.0
+def _covariance(jac: np.ndarray, residuals: np.ndarray, residual_lag1: float, floor_var: float = 0.0
                 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Covariances (p, p) of least-squares parameters with Jacobian ``jac`` (n, p): the textbook
     s^2 (J'J)^-1, s^2 = SSE / (n - p), and, from the ``residuals`` (n,) in sample order, the one for
@@ -134,7 +131,7 @@ def _covariance(jac: np.ndarray, residuals: np.ndarray, floor_var: float = 0.0
     bread = r_inv @ r_inv.T
     s2 = float(residuals @ residuals) / max(n - p, 1)
     white = (s2 + floor_var) * bread
-    rho = _noise_correlation(residuals, jac, bread)
+    rho = _noise_correlation(residual_lag1, jac, bread)
     if rho <= 0:
         return white, white, 0.0
     fwd = lfilter([1.0], [1.0, -rho], jac, axis=0)
@@ -143,20 +140,23 @@ def _covariance(jac: np.ndarray, residuals: np.ndarray, floor_var: float = 0.0
 
 
 def _confidence(jac: np.ndarray, gof: GoodnessOfFit, residuals: np.ndarray,
-                level: float = 0.95, scale: float = 0.0) -> tuple[np.ndarray, np.ndarray, tuple, float]:
-    """Standard errors, half-widths of the confidence intervals, the two covariances of
-    :func:`_covariance` and rho, for the parameters of Jacobian (n, p) (see the module's note on
-    correlated noise). Each standard error is the larger of the two: the AR(1) model can put less
-    noise at a high harmonic than there is (smooth noise that is not AR(1)), and no interval here
-    is narrower than MATLAB's. ``scale`` is the data's r.m.s. about its mean: a variance of
-    (1e-12 scale)^2 is the floor, as in the criteria."""
+                level: float = 0.95, scale: float = 0.0) -> tuple[np.ndarray, np.ndarray, tuple, GoodnessOfFit]:
+    """Standard errors, half-widths of the confidence intervals and the two covariances of
+    :func:`_covariance` for the parameters of Jacobian (n, p), and ``gof`` with the residuals' and
+    the noise's lag-1 autocorrelation filled in (see the module's note on correlated noise). Each
+    standard error is the larger of the two: the AR(1) model can put less noise at a high harmonic
+    than there is (smooth noise that is not AR(1)), and no interval here is narrower than MATLAB's.
+    ``scale`` is the data's r.m.s. about its mean: a variance of (1e-12 scale)^2 is the floor, as in
+    the criteria."""
     if gof.dfe <= 0:
         nan = np.full(jac.shape[1], np.nan)
         cov_nan = np.full((jac.shape[1],) * 2, np.nan)
-        return nan, nan, (cov_nan, cov_nan), 0.0
-    cov_ar1, cov_white, rho = _covariance(jac, residuals, (1e-12 * scale) ** 2)
+        return nan, nan, (cov_nan, cov_nan), gof
+    lag1 = _lag1(residuals)
+    cov_ar1, cov_white, rho = _covariance(jac, residuals, lag1, (1e-12 * scale) ** 2)
     se = np.sqrt(np.clip(np.maximum(np.diag(cov_ar1), np.diag(cov_white)), 0.0, None))
-    return se, student_t.ppf(0.5 + level / 2, gof.dfe) * se, (cov_ar1, cov_white), rho
+    return (se, student_t.ppf(0.5 + level / 2, gof.dfe) * se, (cov_ar1, cov_white),
+            replace(gof, residual_lag1=lag1, noise_lag1=rho))
 
 
 def _check_series(t, y, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -213,9 +213,7 @@ def fit_linear(t, y, *, name: str = "x") -> LinearFit:
     jac = np.column_stack([np.ones_like(t), t - t0])
     coef, *_ = np.linalg.lstsq(jac, y, rcond=None)
     residuals = y - jac @ coef
-    gof = _goodness(y, residuals, 2)
-    _, half, _, rho = _confidence(jac, gof, residuals, scale=float(np.std(y)))
-    gof = replace(gof, residual_lag1=_lag1(residuals), noise_lag1=rho)
+    _, half, _, gof = _confidence(jac, _goodness(y, residuals, 2), residuals, scale=float(np.std(y)))
     ci = np.column_stack([coef - half, coef + half])
     return LinearFit(intercept=float(coef[0]), slope=float(coef[1]), t0=t0, gof=gof, ci=ci,
                      residuals=residuals)
@@ -527,9 +525,8 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
         coef, omega, resid, jac, flags = _fit_order(tau, y, omega0, o, fit_omega, name, trend_degree)
         omega_free = fit_omega and not flags
         n_lin = n_poly + 2 * o
-        gof = _goodness(y, resid, n_lin + int(omega_free))
-        se, half, cov, rho = _confidence(jac if omega_free else jac[:, :n_lin], gof, resid, scale=float(np.std(y)))
-        gof = replace(gof, residual_lag1=_lag1(resid), noise_lag1=rho)
+        se, half, cov, gof = _confidence(jac if omega_free else jac[:, :n_lin],
+                                         _goodness(y, resid, n_lin + int(omega_free)), resid, scale=float(np.std(y)))
         fits.append((o, coef, omega, resid, gof, se, half, flags, omega_free, cov))
     best = fits[_choose(fits, criterion, n_poly)]
     o, coef, omega, resid, gof, se, half, flags, omega_free, _ = best
