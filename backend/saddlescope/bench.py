@@ -185,16 +185,12 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
     first where the rig fixes depth well). ``acc_y_skin_common_mode_pct`` is the vertical
     acceleration of the sliding the three markers share (their mean), which no rigid body fitted to
     the markers can tell from the body's motion: the part of the floor no method removes."""
-    from saddlescope.core.pipeline import (
-        PipelineParams,
-        depth_uncertainty,
-        kinematics_indicators,
-        rig_from_result,
-        saddle_kinematics,
-    )
+    from saddlescope.core.pipeline import PipelineParams, depth_uncertainty
+    from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
     from saddlescope.core.synthetic import saddle_truth_at
     from saddlescope.core.synthetic_gait import GaitModel
     from saddlescope.core.types import MarkerTracks
+    from saddlescope.io.rig_document import rig_from_dict
 
     tt = truth.get("truth", {})
     try:
@@ -217,19 +213,19 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
                                  gait=tt.get("model", {}).get("gait"), depth=depth)
 
     def acc_error_pct(kin):
-        exact = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]
-        return float(100 * np.sqrt(np.mean((kin["saddle"].acceleration_m_s2[:, 1] - exact) ** 2))
+        exact = saddle_truth_at(truth, kin.t_s)["acceleration_m_s2"][:, 1]
+        return float(100 * np.sqrt(np.mean((kin.saddle.acceleration_m_s2[:, 1] - exact) ** 2))
                      / np.sqrt(np.mean(exact ** 2)))
 
     kin = kinematics()
     _, ind = kinematics_indicators(kin, params)
-    exact_y = saddle_truth_at(truth, kin["t_s"])["acceleration_m_s2"][:, 1]
-    common_y = GaitModel.from_dict(tt["model"]).skin_common_mode(kin["t_s"], derivative=2)[:, 1]
+    exact_y = saddle_truth_at(truth, kin.t_s)["acceleration_m_s2"][:, 1]
+    common_y = GaitModel.from_dict(tt["model"]).skin_common_mode(kin.t_s, derivative=2)[:, 1]
     out = {"acc_y_rms_error_pct": acc_error_pct(kin),
            # the sliding all three markers share: no rigid body fitted to them can remove it
            "acc_y_skin_common_mode_pct": float(100 * np.sqrt(np.mean(common_y ** 2) / np.mean(exact_y ** 2))),
-           **indicator_errors_pct(ind, kin["period_s"] * params.n_periods, truth, keys=("acc_y_wb_rms", "vdv_y_wb"))}
-    depth = depth_uncertainty(rig_from_result(truth["calibration"]), motion) if "calibration" in truth else None
+           **indicator_errors_pct(ind, kin.period_s * params.n_periods, truth, keys=("acc_y_wb_rms", "vdv_y_wb"))}
+    depth = depth_uncertainty(rig_from_dict(truth["calibration"]), motion) if "calibration" in truth else None
     out["acc_y_rms_error_pct_rig"] = (acc_error_pct(kinematics(depth))
                                       if depth is not None and depth["anisotropy"] >= params.depth_anisotropy
                                       else out["acc_y_rms_error_pct"])

@@ -108,7 +108,7 @@ def test_a_wild_sample_is_left_out_of_the_fits():
 
 def test_a_few_frames_of_look_alike_do_not_hide_the_stride():
     from saddlescope.core.period import estimate_period
-    from saddlescope.core.pipeline import _despiked
+    from saddlescope.core.saddle import _despiked
 
     t = np.arange(0, 3.0, 1 / 60)
     xyz = _path(t)

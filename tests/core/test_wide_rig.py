@@ -13,8 +13,10 @@ import pytest
 
 from saddlescope.bench import exact_marker_floor
 from saddlescope.core import pipeline as P
+from saddlescope.core.pipeline import run
 from saddlescope.core.registration import register_rigid
 from saddlescope.core.synthetic import saddle_truth_at
+from saddlescope.io.result_document import result_to_document
 
 pytestmark = pytest.mark.slow
 
@@ -28,17 +30,17 @@ def wide_ride(tmp_path_factory):
     out = tmp_path_factory.mktemp("wide") / "canter"
     write_ride_bundle(out, gait="canter", seed=2, rig="wide", extras=False)
     captured = {}
-    original = P.saddle_kinematics
+    original = run.saddle_kinematics
 
     def keep_tracks(motion, *args, **kwargs):
         captured["motion"] = motion
         return original(motion, *args, **kwargs)
 
     mp = pytest.MonkeyPatch()
-    mp.setattr(P, "saddle_kinematics", keep_tracks)
+    mp.setattr(run, "saddle_kinematics", keep_tracks)
     try:
         with open_bundle(out) as bundle:
-            result = P.analyze_ride(BundleClips(bundle.clip_paths), bundle.meta)
+            result = result_to_document(P.analyze_ride(BundleClips(bundle.clip_paths), bundle.meta))
     finally:
         mp.undo()
     return result, captured["motion"], json.loads((out / "truth.json").read_text())

@@ -140,3 +140,127 @@ class MarkerTracks:
     xyz_mm: np.ndarray
     reprojection_error_px: np.ndarray | None = None
     views: np.ndarray | None = None
+
+
+# --------------------------------------------------------------------------------------------------
+# The result of a ride's analysis (CONTRACTS section 2); ``saddlescope.io.result_document`` turns it
+# into the result document and back. Arrays are float64, NaN where there is no value.
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class AnalysisWindow:
+    """The analysed stretch of the ride: a whole number of strides on the motion clip's clock."""
+
+    start_s: float
+    duration_s: float
+    start_frame: int
+    frames: int
+
+
+@dataclass(frozen=True)
+class SaddleKinematics:
+    """The hidden saddle point S in the motion reference frame, over the window (thesis 6.3-6.4).
+
+    t_s : ndarray of shape (F,); position_m, velocity_m_s, acceleration_m_s2 : ndarrays of shape (F, 3)
+    (x travel, y gravity down, z = x × y); acceleration_spread_m_s2 : ndarray of shape (F,), the spread of
+    S's acceleration over the ω versions; body_coordinates_m : ndarray of shape (3,), S in the markers'
+    body frame.
+    """
+
+    t_s: np.ndarray
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    acceleration_m_s2: np.ndarray
+    acceleration_spread_m_s2: np.ndarray
+    body_coordinates_m: np.ndarray
+
+
+@dataclass(frozen=True)
+class SaddleRotation:
+    """The saddle's angular velocity and acceleration over the window (thesis 6.1-6.2).
+
+    omega_rad_s, alpha_rad_s2 : ndarrays of shape (F, 3); singularity_index_per_frame : (F,);
+    omega_versions_rad_s : (F, V, 3) the thesis's ω versions, omega_versions_excluded : (F, V) bool;
+    omega_spread_rad_s : (F, 3); weak_axis_gain : (gain on ω, gain on α) of the weakly observed axis.
+    """
+
+    omega_rad_s: np.ndarray
+    alpha_rad_s2: np.ndarray
+    singularity_index: float
+    singularity_index_per_frame: np.ndarray
+    omega_versions_rad_s: np.ndarray
+    omega_versions_excluded: np.ndarray
+    omega_spread_rad_s: np.ndarray
+    method: str
+    weak_axis_gain: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class HorseMarkers:
+    """The three horse markers registered to the static shot, over the window (thesis 5.4-5.5).
+
+    position_m, velocity_m_s, acceleration_m_s2 : ndarrays of shape (F, 3, 3) (frame, marker, axis);
+    rigidity_residual_mm : (F,); fits : per axis ("x", "y", "z") a summary of each marker's fit.
+    """
+
+    names: tuple[str, ...]
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    acceleration_m_s2: np.ndarray
+    rigidity_residual_mm: np.ndarray
+    fits: dict
+
+
+@dataclass(frozen=True)
+class MotionFrameSummary:
+    """The motion reference frame (thesis 5.3): ``R_rig_to_motion`` (3, 3), ``origin_mm`` (3,)."""
+
+    R_rig_to_motion: np.ndarray
+    origin_mm: np.ndarray
+    gravity_source: str
+
+
+@dataclass(frozen=True)
+class VerticalHarmonics:
+    """S's vertical acceleration as a cosine series at the stride frequency f0 (thesis 7):
+    a(t) = Σ_k amplitudes_m_s2[k-1] cos(2π k f0 t + phases_rad[k-1])."""
+
+    f0_hz: float
+    amplitudes_m_s2: np.ndarray
+    phases_rad: np.ndarray
+
+
+@dataclass(frozen=True)
+class RideResult:
+    """Everything the analysis of one ride found (CONTRACTS section 2).
+
+    ``rig`` is the calibration used (computed from the ride's clips, or reused);
+    ``calibration_views`` and ``board_coverage_fraction`` per camera are set when it was computed.
+    ``sync_offsets[kind][camera]`` are frame offsets against the first camera; ``indicators`` the
+    rider's comfort indicators; ``quality`` the checks and flags (sentences) a user reads.
+    """
+
+    fps: float
+    gait: str | None
+    direction: str | None
+    rig: Rig
+    sync_offsets: dict[str, dict[str, float]]
+    period_s: float
+    window: AnalysisWindow
+    saddle: SaddleKinematics
+    angular: SaddleRotation
+    markers: HorseMarkers
+    motion_frame: MotionFrameSummary
+    vertical_harmonics: VerticalHarmonics
+    indicators: dict[str, float]
+    quality: dict
+    params: dict
+    timings_s: dict[str, float]
+    calibration_views: dict[str, int] | None = None
+    board_coverage_fraction: dict[str, float] | None = None
+
+    @property
+    def flags(self) -> list[str]:
+        """The result's quality flags, in the order the stages raised them."""
+        return list(self.quality.get("flags", []))

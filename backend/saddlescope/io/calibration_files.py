@@ -3,8 +3,8 @@
 - :func:`calibrate_sources` is the body of ``saddlescope calibrate``: one source per camera (a video,
   a folder of numbered images, or an image glob such as ``"calib/left_*.png"``); one camera gives
   intrinsics, two or more also extrinsics (stereo pairs + joint bundle adjustment).
-- :func:`rig_to_dict` / :func:`rig_from_dict`: the ``calibration`` object of the result JSON
-  (CONTRACTS section 2) plus ``pairs``, standard deviations and flags.
+- the ``calibration`` object of the result JSON is written and read by
+  :mod:`saddlescope.io.rig_document` (one serialiser for results, rigs and this command).
 - :func:`write_anipose_toml` / :func:`read_anipose_toml`: the TOML of anipose / aniposelib, which
   Pose2Sim and FreeMoCap also read: one ``[cam_N]`` table per camera with ``name``, ``size``
   ([width, height]), ``matrix`` (3x3), ``distortions`` (k1, k2, p1, p2, k3), ``rotation`` (Rodrigues
@@ -42,6 +42,7 @@ from saddlescope.core.calibration import (
 from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
 from saddlescope.core.sync import flash_interval, offsets_from_intervals
 from saddlescope.core.types import Board, Camera, Rig
+from saddlescope.io.rig_document import checked_matrix, distortion5, rig_to_dict
 from saddlescope.io.video import IMAGE_SUFFIXES, frame_brightness, iter_gray_frames, probe_video
 
 _GLOB_CHARS = set("*?[")
@@ -288,86 +289,6 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
 
 
 # --------------------------------------------------------------------------------------------------
-# JSON (result format)
-# --------------------------------------------------------------------------------------------------
-
-
-def _lst(a) -> list:
-    return np.asarray(a, np.float64).tolist()
-
-
-def rig_to_dict(rig: Rig) -> dict:
-    """The result's ``calibration`` object (CONTRACTS section 2) for a rig.
-
-    ``cameras``: K, dist (k1, k2, p1, p2, k3), image_size [w, h], rms_px, K_std, dist_std;
-    ``extrinsics`` of every camera but the first: R, t_mm (``x_cam = R @ x_first + t_mm``);
-    ``checks``, ``flags`` and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}.
-    """
-    names = rig.names
-    cameras = {}
-    for name, cam in rig.cameras.items():
-        entry = {"K": _lst(cam.K), "dist": _lst(_dist5(cam.dist, f"camera {name} dist")),
-                 "image_size": [int(cam.image_size[0]), int(cam.image_size[1])], "rms_px": cam.rms_px}
-        if cam.K_std is not None:
-            entry["K_std"] = _lst(cam.K_std)
-        if cam.dist_std is not None:
-            entry["dist_std"] = _lst(cam.dist_std)
-        cameras[name] = entry
-    extrinsics = {n: {"R": _lst(rig.cameras[n].R), "t_mm": _lst(rig.cameras[n].t_mm)} for n in names[1:]}
-    pairs = {}
-    for key, p in rig.pairs.items():
-        pairs[key] = {k: (_lst(v) if isinstance(v, np.ndarray) else v) for k, v in p.items()}
-    return {"reference": names[0] if names else None, "cameras": cameras, "extrinsics": extrinsics,
-            "checks": {k: float(v) for k, v in rig.checks.items()}, "flags": list(rig.flags), "pairs": pairs}
-
-
-def _matrix(value, shape, what) -> np.ndarray:
-    try:
-        arr = np.asarray(value, np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{what} is not numeric") from None
-    if arr.shape != shape or not np.all(np.isfinite(arr)):
-        raise InputError(f"{what} must be finite numbers of shape {shape}, got {arr.shape}")
-    return arr
-
-
-def _dist5(value, what) -> np.ndarray:
-    d = np.asarray(value, np.float64).ravel()
-    if d.size not in (4, 5, 8, 12, 14) and d.size > 5:
-        raise InputError(f"{what} has {d.size} coefficients; expected 4 or 5 (k1, k2, p1, p2[, k3])")
-    if d.size > 5 and np.any(d[5:] != 0):
-        raise InputError(f"{what}: only the 5-coefficient model (k1, k2, p1, p2, k3) is supported")
-    return np.pad(d[:5], (0, max(0, 5 - d.size)))
-
-
-def rig_from_dict(d: Mapping) -> Rig:
-    """Inverse of :func:`rig_to_dict` (also accepts the plain CONTRACTS ``calibration`` object)."""
-    cams_in = d.get("cameras")
-    if not isinstance(cams_in, Mapping) or not cams_in:
-        raise InputError("calibration has no 'cameras'")
-    extr = d.get("extrinsics", {}) or {}
-    cameras = {}
-    for i, (name, c) in enumerate(cams_in.items()):
-        K = _matrix(c.get("K"), (3, 3), f"camera {name} K")
-        dist = _dist5(c.get("dist", [0, 0, 0, 0, 0]), f"camera {name} dist")
-        size = c.get("image_size")
-        if not isinstance(size, list | tuple) or len(size) != 2:
-            raise InputError(f"camera {name} image_size must be [width, height]")
-        e = extr.get(name)
-        if e is None and i > 0:
-            raise InputError(f"camera {name} has no extrinsics (only the first camera may omit them)")
-        R = np.eye(3) if e is None else _matrix(e.get("R"), (3, 3), f"camera {name} R")
-        t = np.zeros(3) if e is None else _matrix(e.get("t_mm"), (3,), f"camera {name} t_mm")
-        opt = lambda key: None if c.get(key) is None else np.asarray(c[key], np.float64)  # noqa: B023
-        cameras[name] = Camera(name, K, dist, (int(size[0]), int(size[1])), R=R, t_mm=t,
-                               rms_px=c.get("rms_px"), K_std=opt("K_std"), dist_std=opt("dist_std"))
-    pairs = {}
-    for key, p in (d.get("pairs") or {}).items():
-        pairs[key] = {k: (np.asarray(v, np.float64) if k in ("R", "t_mm") else v) for k, v in p.items()}
-    return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(d.get("flags") or ()), pairs=pairs)
-
-
-# --------------------------------------------------------------------------------------------------
 # TOML: anipose / Pose2Sim / FreeMoCap, caliscope
 # --------------------------------------------------------------------------------------------------
 
@@ -416,7 +337,7 @@ def write_anipose_toml(rig: Rig, path: str | Path, *, units: str = "mm") -> Path
         lines += [f"[cam_{i}]", f"name = {_toml(name)}",
                   f"size = {_toml([int(cam.image_size[0]), int(cam.image_size[1])])}",
                   f"matrix = {_toml(np.asarray(cam.K, np.float64))}",
-                  f"distortions = {_toml(_dist5(cam.dist, f'camera {name} dist'))}",
+                  f"distortions = {_toml(distortion5(cam.dist, f'camera {name} dist'))}",
                   f"rotation = {_toml(cam.rvec)}",
                   f"translation = {_toml(np.asarray(cam.t_mm, np.float64) * scale)}",
                   "fisheye = false", ""]
@@ -433,7 +354,10 @@ def write_anipose_toml(rig: Rig, path: str | Path, *, units: str = "mm") -> Path
 
 def _rotation(rot: np.ndarray, what: str) -> np.ndarray:
     """A Rodrigues vector (3,) or a rotation matrix (3, 3) as a matrix; checked to be a rotation."""
-    R = cv2.Rodrigues(_matrix(rot.ravel(), (3,), what))[0] if rot.size == 3 else _matrix(rot, (3, 3), what)
+    if rot.size == 3:
+        R = cv2.Rodrigues(checked_matrix(rot.ravel(), (3,), what))[0]
+    else:
+        R = checked_matrix(rot, (3, 3), what)
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0:
         raise InputError(f"{what} is not a rotation matrix")
     return R
@@ -470,14 +394,14 @@ def read_anipose_toml(path: str | Path, *, units: str | None = None) -> Rig:
         if c.get("fisheye", False):
             raise InputError(f"{path}: camera {name} uses the fisheye model, which SaddleScope does "
                              f"not support")
-        K = _matrix(c.get("matrix"), (3, 3), f"{path}: camera {name} matrix")
-        dist = _dist5(c.get("distortions", [0, 0, 0, 0]), f"{path}: camera {name} distortions")
+        K = checked_matrix(c.get("matrix"), (3, 3), f"{path}: camera {name} matrix")
+        dist = distortion5(c.get("distortions", [0, 0, 0, 0]), f"{path}: camera {name} distortions")
         size = c.get("size")
         if not isinstance(size, list) or len(size) != 2:
             raise InputError(f"{path}: camera {name} size must be [width, height]")
         rot = np.asarray(c.get("rotation", [0, 0, 0]), np.float64)
         R = _rotation(rot, f"{path}: camera {name} rotation")
-        t = _matrix(c.get("translation", [0, 0, 0]), (3,), f"{path}: camera {name} translation") * scale
+        t = checked_matrix(c.get("translation", [0, 0, 0]), (3,), f"{path}: camera {name} translation") * scale
         world[name] = (R, t)
         intr[name] = (K, dist, (int(size[0]), int(size[1])))
     if not world:
@@ -512,14 +436,14 @@ def rig_from_caliscope_toml(path: str | Path) -> Rig:
         if "rotation" not in c or "translation" not in c:
             raise InputError(f"{path}: camera {name} has no extrinsics (rotation/translation); run "
                              f"caliscope's extrinsic calibration first")
-        K = _matrix(c.get("matrix"), (3, 3), f"{path}: camera {name} matrix")
-        dist = _dist5(c.get("distortions", [0, 0, 0, 0, 0]), f"{path}: camera {name} distortions")
+        K = checked_matrix(c.get("matrix"), (3, 3), f"{path}: camera {name} matrix")
+        dist = distortion5(c.get("distortions", [0, 0, 0, 0, 0]), f"{path}: camera {name} distortions")
         size = c.get("size")
         if not isinstance(size, list) or len(size) != 2:
             raise InputError(f"{path}: camera {name} size must be [width, height]")
         rot = np.asarray(c["rotation"], np.float64)
         R = _rotation(rot, f"{path}: camera {name} rotation")
-        t = _matrix(c["translation"], (3,), f"{path}: camera {name} translation") * 1000.0
+        t = checked_matrix(c["translation"], (3,), f"{path}: camera {name} translation") * 1000.0
         world[name] = (R, t)
         intr[name] = (K, dist, (int(size[0]), int(size[1])), c.get("error"))
     if not world:

@@ -18,12 +18,11 @@ from saddlescope.core.pipeline import (
     board_from_meta,
     calibrate_from_clips,
     frame_clocks,
-    rig_to_result,
     synchronise,
 )
 from saddlescope.core.types import CAMERA_ROLES, Rig
-from saddlescope.io.calibration_files import rig_from_dict
 from saddlescope.io.clip_source import BundleClips
+from saddlescope.io.rig_document import rig_from_dict, rig_to_dict
 
 
 def calibrate_clips(
@@ -74,7 +73,7 @@ def calibrate_clips(
         params or PipelineParams(),
         clocks=clocks.get("calibration"),
     )
-    calibration = rig_to_result(rig)
+    calibration = rig_to_dict(rig)
     calibration["n_views"] = report.get("n_views")
     calibration["sync"] = {"calibration": {c: float(v) for c, v in offsets["calibration"].items()}}
     return calibration

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from saddlescope.core import calibration as calib
 from saddlescope.core.freefall import detect_spots, measure_free_fall
-from saddlescope.core.pipeline import _still_views, board_from_meta, synchronise
+from saddlescope.core.pipeline import board_from_meta, still_views, synchronise
 from saddlescope.core.types import Rig
 from saddlescope.core.validation import board_point_distances
 from saddlescope.io.bundle import open_bundle
@@ -35,6 +35,6 @@ def run_validation(bundle_path: Path | str, rig: Rig, *, board_points: dict | No
                 found, _ = calib.detect_board_views(clips.gray_frames("board_distance", c,
                                                                       start=first["board_distance"][c]), board)
                 off = offsets["board_distance"].get(c, 0.0)
-                views[c] = [replace(v, frame=int(round(v.frame - off))) for v in _still_views(found, 1)]
+                views[c] = [replace(v, frame=int(round(v.frame - off))) for v in still_views(found, 1)]
             out["board_distance"] = board_point_distances(rig, views, board, points)
     return out

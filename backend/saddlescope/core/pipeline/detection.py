@@ -1,0 +1,353 @@
+"""Stages 3-4 of a ride: the markers found in every camera's clips and triangulated (thesis 4.5-4.6).
+
+The plumb line and the standing horse are found with all cameras at once; the static shot's 3-D
+layout then guides the search for the horse markers in the ride, and tells which static marker is
+the saddle marker S. Detection and triangulation interleave, so each is timed apart.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from saddlescope.core.errors import DetectionError, KinematicsError, TriangulationError
+from saddlescope.core.marker_search import (
+    SequentialFrames,
+    camera_down,
+    find_markers_multiview,
+    find_plumb_multiview,
+    find_static_multiview,
+    in_image,
+    tilt_from_down_deg,
+)
+from saddlescope.core.markers import track_markers
+from saddlescope.core.params import PipelineParams
+from saddlescope.core.pipeline.inputs import ClipReader, Progress
+from saddlescope.core.pipeline.setup import outside_coverage
+from saddlescope.core.saddle import layout_mismatch_mm, match_horse_markers, static_positions
+from saddlescope.core.sync import clip_frames_at
+from saddlescope.core.triangulation import position_uncertainty, triangulate_tracks
+from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
+
+__all__ = ["RideTracks", "depth_uncertainty", "detect_clip", "detect_motion", "detect_ride",
+           "disagreement_flag", "still_start_positions"]
+
+
+def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mapping[str, int],
+                params: PipelineParams, *, spare_cameras: bool = False,
+                start_xy: Mapping[str, np.ndarray] | None = None) -> tuple[dict[str, ImageTracks], list[str]]:
+    """2-D marker tracks of every camera of one clip set (thesis 4.5), and flags.
+
+    With ``spare_cameras`` (still scenes: the plumb line, the standing horse) a camera that does not
+    see the markers is left out while two others do (a plumb line hung at the end of the arena may be
+    outside one camera's view): its failure is a flag, not the end of the analysis.
+    ``start_xy`` {camera: (n, 2)} gives the markers' positions on each camera's first frame (found
+    with all cameras at once); a camera it leaves out is not used (with ``spare_cameras``)."""
+    overrides = dict(params.detection.get(kind, {}))
+    tracks = {}
+    missed: dict[str, DetectionError] = {}
+    for cam in clips.cameras(kind):
+        cam_overrides = overrides.pop(cam, {}) if isinstance(overrides.get(cam), Mapping) else {}
+        common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
+        if start_xy is not None and "first_frame_xy" not in {**common, **cam_overrides}:
+            if cam not in start_xy:
+                if spare_cameras:
+                    what = "the plumb line's markers" if kind == "plumb" else f"the {kind} clip's markers"
+                    missed[cam] = DetectionError(f"the {cam} camera's view does not hold the spots that the "
+                                                 f"other cameras see as {what}")
+                    continue
+            else:
+                cam_overrides = {**cam_overrides, "first_frame_xy": start_xy[cam]}
+        try:
+            tracks[cam] = track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)),
+                                        n_markers=n_markers, camera=cam, clip=kind, **common, **cam_overrides)
+        except DetectionError as exc:
+            if not spare_cameras:
+                raise
+            missed[cam] = exc
+    if len(tracks) < 2 and missed:
+        raise next(iter(missed.values()))
+    flags = [f"the {kind} clip was triangulated from the {' and '.join(tracks)} cameras only: {exc}"
+             for exc in missed.values()]
+    return tracks, flags
+
+
+def still_start_positions(clips: ClipReader, rig: Rig, kind: str, first_frame: Mapping[str, int], n_markers: int
+                          ) -> dict[str, np.ndarray] | None:
+    """Each camera's markers on its first frame of a still clip (``kind`` "plumb" or "static"), found
+    with all cameras at once (:func:`find_plumb_multiview`, :func:`find_static_multiview`), or None
+    (then each camera searches alone)."""
+    if kind == "plumb" and n_markers != 2:
+        return None
+    frames = {}
+    for cam in clips.cameras(kind):
+        if cam in rig.cameras:
+            for _, gray in clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)):
+                frames[cam] = gray.copy()
+                break
+    if len(frames) < 2:
+        return None
+    found = (find_plumb_multiview(rig, frames) if kind == "plumb"
+             else find_static_multiview(rig, frames, n_markers))
+    if found is None:
+        return None
+    xy, _, points_mm = found
+    for cam in frames:
+        if cam not in xy and in_image(rig, cam, points_mm):
+            xy[cam] = rig.cameras[cam].project(points_mm)  # found by the other two: look where they put it
+    return xy
+
+
+def _plumb_lean_deg(plumb: MarkerTracks, rig: Rig) -> float:
+    """Angle (degrees) between the plumb line's two markers and the cameras' image-down direction."""
+    try:
+        p = static_positions(plumb, "plumb")
+    except KinematicsError:
+        return 0.0  # no still positions: the kinematics stage says so
+    if p.shape[0] < 2 or not np.all(np.isfinite(p[:2])):
+        return 0.0
+    return float(tilt_from_down_deg(rig, p[1] - p[0]))
+
+
+def _down_direction(plumb: MarkerTracks | None, cameras_down: np.ndarray) -> np.ndarray:
+    """Gravity in rig coordinates: from the plumb line where seen, else ``cameras_down`` (the cameras'
+    mean image down, :func:`camera_down`)."""
+    if plumb is not None:
+        try:
+            p = static_positions(plumb, "plumb")
+        except KinematicsError:
+            p = None
+        if p is not None and p.shape[0] >= 2:
+            g = p[1] - p[0]
+            g = g / np.linalg.norm(g)
+            return g if g[1] > 0 else -g
+    return cameras_down
+
+
+def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
+                  first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray,
+                  multiview: bool = False, clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
+                  ) -> tuple[dict[str, ImageTracks], list[int], int | None, bool]:
+    """Track the horse markers through the motion clip of every camera.
+
+    The horse may enter the view late and look-alikes abound, so the start is found with all cameras
+    at once (:func:`saddlescope.core.marker_search.find_markers_multiview`): the first instant where
+    the cameras agree on a triangle of the static shot's layout. That also tells which static marker
+    is the saddle marker S (the one left out). Tracking then follows each camera from there.
+
+    ``multiview`` skips the per-camera search (when what it found does not match the static shot).
+    ``clocks`` (:func:`frame_clocks`) pairs the cameras' frames by their timestamps (phones).
+
+    Returns (tracks per camera, static indices of horse markers 1-3, static index of S, whether the
+    all-cameras search found the start).
+    """
+    cams = clips.cameras("motion")
+    # The saddle marker sits on the saddle above the horse markers: the static marker farthest
+    # against gravity is S, the others are the horse markers in the static shot's order.
+    height = -(static_mm @ down)
+    order = [int(i) for i in np.argsort(height)]
+    horse_idx = sorted(order[:n_horse])
+    rest = [i for i in range(static_mm.shape[0]) if i not in horse_idx]
+    overrides = {k: v for k, v in params.detection.get("motion", {}).items() if not isinstance(v, Mapping)}
+    if not multiview:
+        try:
+            # First choice: each camera finds the markers by itself among what moves (glints stand still).
+            tracks = {c: track_markers(clips.gray_frames("motion", c, start=first_frame.get(c, 0)),
+                                       n_markers=n_horse, camera=c, clip="motion", **{"moving": True, **overrides})
+                      for c in cams}
+            return tracks, horse_idx, (rest[0] if rest else None), False
+        except DetectionError:
+            pass
+    # Then all cameras together: the first instant where they agree on the static shot's triangle.
+    frames = SequentialFrames(lambda cam, start: clips.gray_frames("motion", cam, start=start))
+    first = max(int(first_frame.get(c, 0) - math.floor(offsets.get(c, 0.0))) for c in cams)
+    last = min(int(clips.frame_count("motion", c) - math.ceil(offsets.get(c, 0.0))) - 1 for c in cams)
+    fps = clips.fps("motion", cams[0])
+
+    def stamped_position(cam: str, k: int) -> float:  # the camera's frame at reference frame k's instant
+        times, anchor = clocks[cam]
+        return float(clip_frames_at(np.array([k + offsets.get(cam, 0.0)]), times, anchor, fps)[0])
+    position = stamped_position if clocks else None
+    _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last,
+                                      frame_position=position)
+    tracks = {c: track_markers(clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse,
+                               camera=c, clip="motion", first_frame_xy=found["xy"][c], **overrides)
+              for c in cams}
+    return tracks, horse_idx, (rest[0] if rest else None), True
+
+
+@dataclass
+class RideTracks:
+    """Every clip's triangulated markers and what their detection had to say.
+
+    ``tracks3d`` maps clip kind ("plumb", "static", "motion") to its :class:`MarkerTracks`;
+    ``motion2d`` holds each camera's image tracks of the ride; ``horse_idx`` the static shot's horse
+    markers in the ride's label order and ``saddle_idx`` its saddle marker S; ``cameras_down`` (3,)
+    the cameras' mean image-down direction in rig coordinates."""
+
+    tracks3d: dict[str, MarkerTracks] = field(default_factory=dict)
+    motion2d: dict[str, ImageTracks] = field(default_factory=dict)
+    horse_idx: list[int] = field(default_factory=list)
+    saddle_idx: int | None = None
+    cameras_down: np.ndarray | None = None
+    plumb_problem: str | None = None
+    flags: list[str] = field(default_factory=list)
+    triangulation_s: float = 0.0
+
+
+class _Triangulator:
+    """Triangulates a clip's image tracks with the ride's rig, offsets and clocks, timing itself."""
+
+    def __init__(self, clips: ClipReader, rig: Rig, offsets: Mapping, clocks: Mapping, params: PipelineParams):
+        self.rig, self.offsets, self.clocks, self.params = rig, offsets, clocks, params
+        self.fps = {kind: clips.fps(kind, clips.cameras(kind)[0]) for kind in ("static", "motion", "plumb")
+                    if clips.has(kind)}
+        self.seconds = 0.0
+
+    def __call__(self, kind: str, tracks2d: Mapping[str, ImageTracks], n: int) -> MarkerTracks:
+        """The 3-D tracks of ``n`` markers of clip ``kind`` (names M1..Mn)."""
+        started = time.perf_counter()
+        out = triangulate_tracks(self.rig, tracks2d, self.offsets[kind], self.fps[kind],
+                                 method=self.params.triangulation, names=tuple(f"M{i + 1}" for i in range(n)),
+                                 match_labels=True, clocks=self.clocks.get(kind))
+        self.seconds += time.perf_counter() - started
+        return out
+
+
+def _detect_plumb(clips: ClipReader, rig: Rig, first_frame: Mapping, params: PipelineParams, n_plumb: int,
+                  triangulate: _Triangulator, found: RideTracks) -> None:
+    """The plumb line's markers (gravity), or why the plumb clip is not used."""
+    if not clips.has("plumb"):
+        found.plumb_problem = "no plumb clip"
+        return
+    try:
+        plumb2d, plumb_flags = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params,
+                                           spare_cameras=True,
+                                           start_xy=still_start_positions(clips, rig, "plumb",
+                                                                          first_frame["plumb"], n_plumb))
+        found.tracks3d["plumb"] = triangulate("plumb", plumb2d, n_plumb)
+        found.plumb_problem = "; ".join(plumb_flags) or None
+        lean_deg = _plumb_lean_deg(found.tracks3d["plumb"], rig)
+        if lean_deg > params.max_plumb_lean_deg:
+            # A plumb line hangs along gravity and cameras stand roughly level: this is not one (a
+            # marker taken at the string's end put gravity 62 degrees off on a thesis-rig ride).
+            del found.tracks3d["plumb"]
+            found.plumb_problem = (f"plumb clip not used: the plumb line found leans {lean_deg:.0f} degrees from "
+                                   f"the cameras' vertical (more than {params.max_plumb_lean_deg:.0f}): its markers "
+                                   "were not found (check that every camera sees both plumb markers)")
+    except (DetectionError, TriangulationError, KinematicsError) as exc:
+        found.plumb_problem = f"plumb clip not used: {exc}"
+
+
+def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapping, clocks: Mapping,
+                  params: PipelineParams, n_horse: int, static_mm: np.ndarray, down: np.ndarray,
+                  triangulate: _Triangulator, found: RideTracks) -> None:
+    """The horse markers through the ride, searched again with all cameras when what each camera
+    found does not keep the static shot's layout."""
+    motion2d, horse_idx, saddle_idx, searched_together = detect_motion(
+        clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
+        clocks=clocks.get("motion"))
+    found.tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
+    found_mm = layout_mismatch_mm(static_mm[horse_idx], found.tracks3d["motion"].xyz_mm)
+    if found_mm > params.max_layout_mismatch_mm:
+        # Each camera took the same moving look-alike (a stirrup's glint, the saddle pad) for a marker:
+        # the triangle does not match the static shot. Search again with all cameras and that triangle
+        # (unless that search is what found these).
+        again_mm = np.inf
+        if not searched_together:
+            try:
+                again2d, again_h, again_s, _ = detect_motion(
+                    clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
+                    multiview=True, clocks=clocks.get("motion"))
+                again = triangulate("motion", again2d, n_horse)
+                again_mm = layout_mismatch_mm(static_mm[again_h], again.xyz_mm)
+            except (DetectionError, TriangulationError):
+                pass
+        if again_mm < found_mm:
+            found.flags.append(f"the moving spots each camera found were {found_mm:.0f} mm RMS off the static "
+                               f"shot's marker distances (a look-alike moving with the horse); the markers were "
+                               f"found again with all cameras and the static layout ({again_mm:.0f} mm)")
+            motion2d, horse_idx, saddle_idx, found.tracks3d["motion"] = again2d, again_h, again_s, again
+        else:
+            found.flags.append(f"the tracked markers are {found_mm:.0f} mm RMS off the static shot's marker "
+                               "distances and no closer triangle was found: a look-alike may have been tracked, or "
+                               "a marker moved between the static shot and the ride (check both clips)")
+    found.motion2d = motion2d
+    found.horse_idx = match_horse_markers(static_mm, horse_idx, found.tracks3d["motion"].xyz_mm)
+    found.saddle_idx = saddle_idx
+
+
+def _coverage_flags(motion2d: Mapping[str, ImageTracks], calib_report: Mapping) -> list[str]:
+    """A flag per camera that saw the markers outside the region the calibration board covered."""
+    flags = []
+    if calib_report.get("board_coverage"):
+        for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items():
+            if share > 0.05:
+                flags.append(f"the {cam} camera saw the markers outside the region the calibration board "
+                             f"covered in {100 * share:.0f} % of its detections: its lens distortion is "
+                             "extrapolated there (move the board to the edges of every camera's view)")
+    return flags
+
+
+def detect_ride(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapping, clocks: Mapping,
+                params: PipelineParams, calib_report: Mapping, progress: Progress, *,
+                n_horse: int, n_saddle: int, n_plumb: int) -> RideTracks:
+    """Stages 3-4: the plumb line, the standing horse and the ride's markers, in 3-D.
+
+    ``offsets``, ``first_frame`` and ``clocks`` are :func:`~saddlescope.core.pipeline.setup.synchronise`'s
+    and :func:`~saddlescope.core.pipeline.setup.frame_clocks`' per clip kind; ``calib_report`` the
+    calibration's report (its board coverage flags markers seen where the lens is extrapolated)."""
+    found = RideTracks()
+    triangulate = _Triangulator(clips, rig, offsets, clocks, params)
+    _detect_plumb(clips, rig, first_frame, params, n_plumb, triangulate, found)
+    progress.stage("detection", 0.2)
+    static2d, static_flags = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params,
+                                         spare_cameras=True,
+                                         start_xy=still_start_positions(clips, rig, "static", first_frame["static"],
+                                                                        n_horse + n_saddle))
+    found.flags.extend(static_flags)
+    found.tracks3d["static"] = triangulate("static", static2d, n_horse + n_saddle)
+    progress.stage("detection", 0.4)
+    static_mm = static_positions(found.tracks3d["static"], "static")
+    found.cameras_down = camera_down(rig)
+    down = _down_direction(found.tracks3d.get("plumb"), found.cameras_down)
+    _detect_horse(clips, rig, offsets, first_frame, clocks, params, n_horse, static_mm, down, triangulate, found)
+    found.flags.extend(_coverage_flags(found.motion2d, calib_report))
+    found.triangulation_s = triangulate.seconds
+    return found
+
+
+def depth_uncertainty(rig: Rig, tracks: MarkerTracks) -> dict | None:
+    """The rig's position uncertainty at the markers' median place (None if it cannot be had)."""
+    xyz = np.asarray(tracks.xyz_mm, dtype=np.float64).reshape(-1, 3)
+    xyz = xyz[np.all(np.isfinite(xyz), axis=1)]
+    if xyz.shape[0] == 0:
+        return None
+    try:
+        return position_uncertainty(rig, np.median(xyz, axis=0))
+    except TriangulationError:
+        return None
+
+
+def disagreement_flag(kind: str, tracks: MarkerTracks, *, share: float = 0.05) -> str | None:
+    """A flag when over ``share`` of a clip's triangulated samples reproject worse than 2 px and 8 times
+    the clip's median: the cameras saw different things there (one followed a look-alike, or the
+    synchronisation or calibration is off) and nothing could tell which camera was wrong."""
+    if tracks.reprojection_error_px is None:
+        return None
+    err = np.asarray(tracks.reprojection_error_px, dtype=np.float64)
+    err = err[np.isfinite(err)]
+    if err.size < 20:
+        return None
+    median = float(np.median(err))
+    limit = max(2.0, 8.0 * median)
+    bad = float(np.mean(err > limit))
+    if bad <= share:
+        return None
+    return (f"the cameras disagree on the {kind} clip's markers by more than {limit:.1f} px in {100 * bad:.0f} % "
+            f"of the triangulated samples (median {median:.2f} px): a camera may have followed a look-alike there, "
+            "or the synchronisation or calibration is off (check the cameras' tracks)")

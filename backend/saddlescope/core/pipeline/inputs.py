@@ -1,0 +1,55 @@
+"""What the pipeline reads and reports: the clips, and where progress goes.
+
+The core opens no files: frames come from a :class:`ClipReader` (``saddlescope.io.clip_source``
+provides one over a ride bundle), and progress goes to an ``on_progress(fraction, stage)`` callback so
+the core never knows about jobs or queues.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+__all__ = ["STAGE_WEIGHTS", "ClipReader", "Progress"]
+
+# Share of the total progress each stage reports (rough wall-time shares on the thesis rig).
+STAGE_WEIGHTS: dict[str, float] = {"sync": 0.15, "calibration": 0.35, "detection": 0.3,
+                                   "triangulation": 0.05, "kinematics": 0.1, "indicators": 0.05}
+
+
+class ClipReader(Protocol):
+    """What the pipeline needs of a ride's clips (``saddlescope.io.clip_source.BundleClips``)."""
+
+    def has(self, kind: str) -> bool: ...
+    def cameras(self, kind: str) -> list[str]: ...
+    def fps(self, kind: str, camera: str) -> float: ...
+    def frame_count(self, kind: str, camera: str) -> int: ...
+    def image_size(self, kind: str, camera: str) -> tuple[int, int]: ...
+    def brightness(self, kind: str, camera: str) -> np.ndarray: ...
+    def frame_times(self, kind: str, camera: str) -> np.ndarray | None: ...
+    def gray_frames(self, kind: str, camera: str, start: int = 0, stop: int | None = None,
+                    step: int = 1) -> Iterator[tuple[int, np.ndarray]]: ...
+
+
+@dataclass
+class Progress:
+    """Reports the whole analysis's progress as each stage's share of it, and times the stages."""
+
+    callback: Callable[[float, str], None] | None
+    done: float = 0.0
+    timings_s: dict = field(default_factory=dict)
+
+    def stage(self, name: str, fraction_of_stage: float) -> None:
+        """Report ``fraction_of_stage`` (0-1) of stage ``name`` done."""
+        if self.callback is not None:
+            self.callback(min(1.0, self.done + STAGE_WEIGHTS[name] * fraction_of_stage), name)
+
+    def finish(self, name: str, started: float, *, seconds: float | None = None) -> None:
+        """Record stage ``name`` as done, timed from ``started`` (or ``seconds`` when given)."""
+        self.timings_s[name] = round(time.perf_counter() - started if seconds is None else seconds, 4)
+        self.done += STAGE_WEIGHTS[name]
+        self.stage(name, 0.0)

@@ -1,0 +1,148 @@
+"""The ride's result assembled from what the stages found (CONTRACTS section 2).
+
+``saddlescope.io.result_document`` writes it as the result document and reads it back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from saddlescope.core.params import PipelineParams
+from saddlescope.core.pipeline.detection import RideTracks
+from saddlescope.core.saddle import SaddleAnalysis
+from saddlescope.core.types import (
+    AnalysisWindow,
+    HorseMarkers,
+    MarkerTracks,
+    MotionFrameSummary,
+    RideResult,
+    Rig,
+    SaddleKinematics,
+    SaddleRotation,
+    VerticalHarmonics,
+)
+
+__all__ = ["assemble_result", "fits_document", "rounded_list"]
+
+
+def rounded_list(x) -> list:
+    """An array as nested lists rounded to 9 decimals (nm, µs), NaN kept (the document writes None)."""
+    arr = np.asarray(x, dtype=np.float64)
+    return np.where(np.isfinite(arr), np.round(arr, 9), np.nan).tolist()
+
+
+def _track_quality(tracks: MarkerTracks) -> dict:
+    xyz = tracks.xyz_mm
+    seen = np.all(np.isfinite(xyz), axis=2)
+    out = {"frames": int(xyz.shape[0]), "markers_seen_fraction": rounded_list(seen.mean(axis=0))}
+    if tracks.reprojection_error_px is not None:
+        err = np.asarray(tracks.reprojection_error_px, dtype=np.float64)
+        fin = err[np.isfinite(err)]
+        out["reprojection_error_px_median"] = float(np.median(fin)) if fin.size else None
+        out["reprojection_error_px_p95"] = float(np.percentile(fin, 95)) if fin.size else None
+    return out
+
+
+def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str, MarkerTracks],
+             flags: Sequence[str], input_flags: Sequence[str]) -> dict:
+    """The result's ``quality``: the flags (``input_flags`` first, e.g. the bundle's own warnings) and
+    the figures behind them."""
+    s, ang, reg, frame = kin.saddle, kin.angular, kin.registration, kin.frame
+    return {
+        "flags": list(input_flags) + list(dict.fromkeys(list(rig.flags) + list(flags))),
+        "calibration_ok": not rig.flags,
+        "gravity_source": frame.gravity_source,
+        "angle_travel_gravity_deg": frame.angle_travel_gravity_deg,
+        "rigidity_residual_mm": {"median": float(np.nanmedian(reg.rms_residual) * 1e3),
+                                 "max": float(np.nanmax(reg.rms_residual) * 1e3)},
+        "static_marker_mismatch_mm": kin.static_mismatch_mm,
+        "singularity_index_median": ang.median_singularity_index,
+        "omega_versions_excluded_fraction": float(np.mean(ang.excluded)),
+        "saddle_acceleration_spread_m_s2_median": float(np.nanmedian(s.acceleration_spread)),
+        "vertical_harmonic_fit_rms_m_s2": harm["fit_rms_residual_m_s2"],
+        "tracks": {kind: _track_quality(tr) for kind, tr in tracks3d.items()},
+        "long_gaps_s": [list(g) for g in kin.long_gaps],
+        "period_estimate_s": kin.period_estimate_s,
+        # the frames the fits saw (the window's harmonics are estimated from every tracked stride)
+        "fitted_frames": {"start_frame": int(kin.fitted[0]), "frames": int(kin.fitted[1] - kin.fitted[0])},
+    }
+
+
+def _rotation(kin: SaddleAnalysis) -> SaddleRotation:
+    ang = kin.angular
+    return SaddleRotation(omega_rad_s=ang.omega_rad_s, alpha_rad_s2=ang.alpha_rad_s2,
+                          singularity_index=ang.median_singularity_index,
+                          singularity_index_per_frame=ang.singularity_index, omega_versions_rad_s=ang.omega_versions,
+                          omega_versions_excluded=np.asarray(ang.excluded), omega_spread_rad_s=ang.omega_spread,
+                          method=ang.method, weak_axis_gain=ang.weak_axis_gain)
+
+
+def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Mapping, found: RideTracks,
+                    kin: SaddleAnalysis, harm: Mapping, indicators: Mapping, fps: float, timings_s: Mapping,
+                    params: PipelineParams, flags: Sequence[str], input_flags: Sequence[str] = ()) -> RideResult:
+    """The :class:`RideResult` of a ride from its stages' outputs.
+
+    ``flags`` are the stages' flags in order (rig flags are put first); ``harm`` is
+    :func:`~saddlescope.core.saddle.vertical_harmonics`' output; ``fps`` the motion clip's rate."""
+    s, fits, frame, t_s = kin.saddle, kin.fits, kin.frame, kin.t_s
+    return RideResult(
+        fps=fps, gait=meta.get("gait"), direction=meta.get("direction"), rig=rig,
+        sync_offsets={kind: {c: float(v) for c, v in off.items()} for kind, off in offsets.items()},
+        period_s=kin.period_s,
+        window=AnalysisWindow(start_s=float(t_s[0]), duration_s=float(len(t_s) / fps),
+                              start_frame=int(kin.window[0]), frames=int(len(t_s))),
+        saddle=SaddleKinematics(t_s=t_s, position_m=s.position_m, velocity_m_s=s.velocity_m_s,
+                                acceleration_m_s2=s.acceleration_m_s2, acceleration_spread_m_s2=s.acceleration_spread,
+                                body_coordinates_m=s.body_coordinates_m),
+        angular=_rotation(kin),
+        markers=HorseMarkers(names=("M1", "M2", "M3"), position_m=kin.markers_m, velocity_m_s=fits.velocity_m_s,
+                             acceleration_m_s2=fits.acceleration_m_s2,
+                             rigidity_residual_mm=kin.registration.rms_residual * 1e3, fits=fits_document(fits)),
+        motion_frame=MotionFrameSummary(R_rig_to_motion=frame.R, origin_mm=frame.origin_mm,
+                                        gravity_source=frame.gravity_source),
+        vertical_harmonics=VerticalHarmonics(f0_hz=harm["f0_hz"], amplitudes_m_s2=harm["amplitudes_m_s2"],
+                                             phases_rad=harm["phases_rad"]),
+        indicators={k: float(v) for k, v in indicators.items()},
+        quality=_quality(rig, kin, harm, found.tracks3d, flags, input_flags),
+        params={"n_periods": params.n_periods, "triangulation": params.triangulation,
+                "smoothing_span": params.smoothing_span, "angular_method": params.angular_method,
+                "x_model": params.x_model, "omega_from": params.omega_from, "fit_span": params.fit_span,
+                "smoothing": params.smoothing, "criterion": params.criterion},
+        timings_s=dict(timings_s),
+        calibration_views=calib_report.get("n_views") if calib_report else None,
+        board_coverage_fraction=({c: v["area_fraction"] for c, v in calib_report.get("board_coverage", {}).items()}
+                                 if calib_report else None),
+    )
+
+
+def fits_document(fits) -> dict:
+    """The result's ``markers.fits``: per axis (x, y, z) and marker, the fit's kind, goodness of fit
+    (SSE, R², adjusted R², RMSE, the residuals' and the noise's lag-1 autocorrelation), order,
+    fundamental, coefficients and their 95 % confidence intervals (thesis 5.5)."""
+    return {axis: [_fit_summary(f) for f in group]
+            for axis, group in (("x", fits.fits_x), ("y", fits.fits_y), ("z", fits.fits_z))}
+
+
+def _fit_summary(fit) -> dict:
+    out = {"kind": type(fit).__name__}
+    gof = getattr(fit, "gof", None)
+    if gof is not None:
+        out.update({k: (float(v) if isinstance(v, int | float | np.floating) else v)
+                    for k, v in gof.as_dict().items()})
+    for attr in ("order", "f0_hz", "slope", "intercept", "omega_rad_s"):
+        if hasattr(fit, attr):
+            val = getattr(fit, attr)
+            if isinstance(val, int | float | np.floating | np.integer):
+                out[attr] = float(val)
+    # the coefficients with their 95 % confidence intervals (correlated noise accounted for, see
+    # fitting's module note): the slope's is the average speed's
+    ci = getattr(fit, "ci", None)
+    if isinstance(ci, np.ndarray):
+        out["ci95"] = {"intercept": rounded_list(ci[0]), "slope": rounded_list(ci[1])}
+    elif isinstance(ci, dict):
+        # trend[0] of a Fourier x series is the average speed (m/s)
+        out["a"], out["b"], out["trend"] = rounded_list(fit.a), rounded_list(fit.b), rounded_list(fit.trend)
+        out["ci95"] = {k: rounded_list(ci[k]) for k in ("a0", "a", "b", "omega_rad_s", "trend") if k in ci}
+    return out

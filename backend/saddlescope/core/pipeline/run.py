@@ -1,0 +1,102 @@
+"""The whole analysis of a ride: clips in, a :class:`~saddlescope.core.types.RideResult` out.
+
+Stages (thesis stages 1-12): sync -> calibration -> detection -> triangulation -> kinematics ->
+indicators; each is a module of this package or of ``saddlescope.core``, and this one only runs them.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+
+from saddlescope.core.errors import InputError
+from saddlescope.core.params import PipelineParams
+from saddlescope.core.pipeline.detection import depth_uncertainty, detect_ride, disagreement_flag
+from saddlescope.core.pipeline.inputs import ClipReader, Progress
+from saddlescope.core.pipeline.result import assemble_result
+from saddlescope.core.pipeline.setup import board_from_meta, calibrate_from_clips, frame_clocks, synchronise
+from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
+from saddlescope.core.types import RideResult, Rig
+
+__all__ = ["analyze_ride"]
+
+
+def _clip_kinds(clips: ClipReader, rig: Rig | None) -> list[str]:
+    """The clip sets to synchronise, after checking the ride has what the analysis needs."""
+    for kind in ("static", "motion"):
+        if not clips.has(kind):
+            raise InputError(f"the ride has no {kind} clip; it is required")
+    if rig is None and not clips.has("calibration"):
+        raise InputError("the ride has no calibration clip and no calibration was given")
+    kinds = [k for k in ("calibration", "plumb", "static", "motion") if clips.has(k)]
+    return [k for k in kinds if k != "calibration"] if rig is not None else kinds
+
+
+def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
+                 rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
+                 input_flags: Sequence[str] = ()) -> RideResult:
+    """Run every stage on one ride.
+
+    Parameters
+    ----------
+    clips : ClipReader
+        The ride's clips: calibration (unless ``rig`` is given), static, motion, optional plumb.
+    meta : mapping
+        ride.json (board, sync, markers, gait, direction, ...).
+    params : PipelineParams, optional
+        The user's choices (defaults: the thesis's, where it was right).
+    rig : Rig, optional
+        A calibration to reuse (e.g. the rig's, computed once for every ride of that day).
+    on_progress : callable(fraction, stage), optional
+        Called as each stage advances, ``fraction`` of the whole analysis in [0, 1].
+    input_flags : sequence of str, optional
+        Warnings about the input (e.g. the bundle's), put first among the result's flags.
+
+    Returns
+    -------
+    RideResult
+        ``saddlescope.io.result_document.result_to_document`` writes it as CONTRACTS section 2.
+    """
+    params = params or PipelineParams()
+    progress = Progress(on_progress)
+    t_start = time.perf_counter()
+    kinds = _clip_kinds(clips, rig)
+    markers = dict(meta.get("markers") or {})
+
+    t0 = time.perf_counter()
+    progress.stage("sync", 0.0)
+    offsets, first_frame = synchronise(clips, meta, kinds)
+    clocks, clock_flags = frame_clocks(clips, kinds)
+    progress.finish("sync", t0)
+
+    t0 = time.perf_counter()
+    calib_report: dict = {}
+    if rig is None:
+        rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta), offsets["calibration"],
+                                                 first_frame["calibration"], params, progress,
+                                                 clocks=clocks.get("calibration"))
+    progress.finish("calibration", t0)
+
+    t0 = time.perf_counter()
+    found = detect_ride(clips, rig, offsets, first_frame, clocks, params, calib_report, progress,
+                        n_horse=int(markers.get("horse", 3)), n_saddle=int(markers.get("saddle", 1)),
+                        n_plumb=int(markers.get("plumb", 2)))
+    progress.finish("detection", t0, seconds=time.perf_counter() - t0 - found.triangulation_s)
+    progress.finish("triangulation", t0, seconds=found.triangulation_s)
+
+    t0 = time.perf_counter()
+    kin = saddle_kinematics(found.tracks3d["motion"], found.tracks3d["static"], found.tracks3d.get("plumb"), params,
+                            horse_idx=found.horse_idx, saddle_idx=found.saddle_idx, gait=meta.get("gait"),
+                            depth=depth_uncertainty(rig, found.tracks3d["motion"]), down_hint=found.cameras_down)
+    disagreements = [f for kind, tr in found.tracks3d.items() if (f := disagreement_flag(kind, tr))]
+    flags = (clock_flags + found.flags + disagreements + ([found.plumb_problem] if found.plumb_problem else [])
+             + list(kin.flags))
+    progress.finish("kinematics", t0)
+
+    t0 = time.perf_counter()
+    harm, indicators = kinematics_indicators(kin, params)
+    progress.finish("indicators", t0)
+    progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
+    fps = float(clips.fps("motion", clips.cameras("motion")[0]))
+    return assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps, progress.timings_s,
+                           params, flags, input_flags)

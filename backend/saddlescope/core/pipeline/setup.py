@@ -1,0 +1,242 @@
+"""Setting up a ride: the board, the clips' synchronisation and the rig's calibration (thesis 3-4).
+
+Stage 2 (synchronisation) runs first because calibration puts every camera's board views on the
+first camera's clock; stage 1 (calibration) is skipped when a stored calibration is reused.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from saddlescope.core import calibration as calib
+from saddlescope.core.errors import InputError, SyncError
+from saddlescope.core.params import PipelineParams
+from saddlescope.core.pipeline.inputs import ClipReader, Progress
+from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
+from saddlescope.core.types import Board, ImageTracks, Rig
+
+__all__ = ["board_coverage", "board_from_meta", "calibrate_from_clips", "frame_clocks", "outside_coverage",
+           "still_views", "synchronise"]
+
+
+def board_from_meta(meta: Mapping) -> Board:
+    """The calibration board of ride.json's ``board`` section."""
+    spec = meta.get("board")
+    if not isinstance(spec, Mapping):
+        raise InputError("ride.json has no 'board' section describing the calibration board")
+    try:
+        cols, rows = (int(v) for v in spec["inner_corners"])
+        return calib.make_board(str(spec.get("kind", "checkerboard")), (cols, rows), float(spec["square_mm"]),
+                                dictionary=spec.get("dictionary"), marker_mm=spec.get("marker_mm"),
+                                legacy=bool(spec.get("legacy", False)))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"ride.json board section is incomplete or wrong: {exc}") from None
+
+
+def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict]:
+    """Frame offsets per clip kind and camera (relative to the first camera) and the first frame
+    after the flash in each camera's clip, where detection may start."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    offsets: dict[str, dict[str, float]] = {}
+    first_frame: dict[str, dict[str, int]] = {}
+    sync_spec = meta.get("sync") or {"method": "flash"}
+    # Every clip is decoded for its brightness: in threads (the decoder releases the GIL), in order.
+    jobs = [(kind, c) for kind in kinds for c in clips.cameras(kind)]
+    with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
+        decoded = dict(zip(jobs, pool.map(lambda job: clips.brightness(*job), jobs), strict=True))
+    for kind in kinds:
+        cams = clips.cameras(kind)
+        fps = {c: clips.fps(kind, c) for c in cams}
+        known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
+        brightness = {c: decoded[kind, c] for c in cams}
+        # a variable-rate clip's nominal rate comes from its stamps (a short clip's to a few tenths of
+        # a percent); its frames are then placed by their stamps, not by the rate
+        rel_tol = 0.01 if any(clips.frame_times(kind, c) is not None for c in cams) else 1e-3
+        offsets[kind] = known if known is not None else clip_offsets(brightness, fps, clip=kind, fps_rel_tol=rel_tol)
+        first_frame[kind] = {}
+        for c in cams:
+            try:
+                _, end = flash_interval(brightness[c], clip=kind, camera=c)
+                first_frame[kind][c] = int(math.ceil(end)) + 1
+            except SyncError:
+                if known is None:
+                    raise
+                first_frame[kind][c] = 0  # known offsets: the clip need not hold a flash
+    return offsets, first_frame
+
+
+def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
+    """The timestamps of variable-rate clips (phones) and the frame where each was synchronised.
+
+    Returns ``clocks[kind][camera] = (frame times (F,) s, anchor frame)`` for every camera of a clip
+    set where one camera's frames are not evenly spaced (the even ones get their own even stamps),
+    and a flag for each uneven clip. The anchor is the sync flash's onset: frame offsets are measured
+    there, so the nominal even clock is tied to the clip's timestamps at that frame."""
+    clocks: dict[str, dict[str, tuple[np.ndarray, float]]] = {}
+    flags: list[str] = []
+    for kind in kinds:
+        stamped = {cam: clips.frame_times(kind, cam) for cam in clips.cameras(kind)}
+        if all(times is None for times in stamped.values()):
+            continue
+        for cam, times in stamped.items():
+            if times is None:
+                # an even camera beside a variable one: its own even stamps, so every camera of the
+                # clip is placed by time (the nominal rate of the others may differ from its rate)
+                times = np.arange(clips.frame_count(kind, cam)) / clips.fps(kind, cam)
+            else:
+                dt_ms = np.diff(times) * 1000.0
+                flags.append(f"the {kind} clip of the {cam} camera has a variable frame rate (frames "
+                             f"{dt_ms.min():.1f}-{dt_ms.max():.1f} ms apart, nominal "
+                             f"{1000.0 / clips.fps(kind, cam):.1f} ms): its frames are placed at their timestamps")
+            try:
+                anchor, _ = flash_interval(clips.brightness(kind, cam), clip=kind, camera=cam)
+            except SyncError:
+                anchor = 0.0  # offsets given in ride.json: counted from the clip's first frame
+            clocks.setdefault(kind, {})[cam] = (np.asarray(times, dtype=np.float64), float(anchor))
+    return clocks, flags
+
+
+def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, float],
+                         first_frame: Mapping[str, int], params: PipelineParams,
+                         progress: Progress | None = None,
+                         clocks: Mapping[str, tuple[np.ndarray, float]] | None = None) -> tuple[Rig, dict]:
+    """Board views from every camera's calibration clip, put on the first camera's clock, then
+    intrinsics, stereo pairs, bundle adjustment and metric checks (thesis 3.4-3.6, 8.2)."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    cams = clips.cameras("calibration")
+    fps = clips.fps("calibration", cams[0])
+    # The board is tracked from frame to frame, which costs little: look at every frame by default (sampling
+    # every other frame at 60 fps missed most short holds of the board in one camera or another).
+    step = params.calibration_step or 1
+    search_every = max(1, int(round(0.5 * fps / step)))  # a lost board is searched for in whole frames twice a second
+    # Start every camera on the same instant so that the sampled frames coincide after the offsets.
+    base = max(first_frame.get(c, 0) - int(round(offsets.get(c, 0.0))) for c in cams)
+
+    def board_views(cam: str) -> tuple[list, tuple[int, int]]:
+        start = max(0, base + int(round(offsets.get(cam, 0.0))))
+        views, size = calib.detect_board_views(
+            clips.gray_frames("calibration", cam, start=start, step=step), board, search_every=search_every)
+        # frame k of this camera shows the instant of frame k - offset of the first camera (for a
+        # variable-rate clip, k counted on its nominal clock: a dropped frame shifts the rest)
+        views = still_views(views, step) if params.still_board_only else views
+        frames = np.array([v.frame for v in views], dtype=np.float64)
+        if cam in (clocks or {}) and views:
+            frames = nominal_frames_of(frames, clocks[cam][0], clocks[cam][1], fps)
+        return ([replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)],
+                size or clips.image_size("calibration", cam))
+
+    # One thread per camera: decoding (PyAV) and the board search (OpenCV) release the GIL. Each camera's
+    # views depend on its clip alone, so the result does not depend on the threads' timing; progress is
+    # reported from this thread.
+    with ThreadPoolExecutor(max_workers=len(cams)) as pool:
+        jobs = {pool.submit(board_views, cam): cam for cam in cams}
+        for done, job in enumerate(as_completed(jobs), 1):
+            job.result()
+            if progress is not None:
+                progress.stage("calibration", 0.6 * done / len(cams))
+    found = {cam: job.result() for job, cam in jobs.items()}
+    views_by_camera = {cam: found[cam][0] for cam in cams}
+    sizes = {cam: found[cam][1] for cam in cams}
+    if len(cams) > 1:
+        views_by_camera = _average_holds(views_by_camera)
+        keep = set(calib.select_instants(views_by_camera, board, sizes,
+                                         max_instants=params.max_calibration_instants))
+        views_by_camera = {c: [v for v in vs if v.frame in keep] for c, vs in views_by_camera.items()}
+    rig, report = calib.calibrate_rig(views_by_camera, board, sizes,
+                                      max_square_error_pct=params.max_square_error_pct)
+    report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
+    report["board_coverage"] = {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v}
+    return rig, report
+
+
+def board_coverage(views: list, image_size: tuple[int, int]) -> dict:
+    """The image region the board covered (convex hull of every corner) and its share of the image.
+
+    The lens distortion is only known where the board has been: beyond it k1, k2 (and k3) are
+    extrapolated, by a pixel or more at the edges of a wide lens (synthetic wide rig).
+    """
+    pts = np.concatenate([v.corners_px for v in views]).astype(np.float32)
+    hull = cv2.convexHull(pts).reshape(-1, 2)
+    return {"hull_px": hull.astype(float).round(1).tolist(),
+            "area_fraction": float(cv2.contourArea(hull) / (image_size[0] * image_size[1]))}
+
+
+def outside_coverage(tracks: Mapping[str, ImageTracks], coverage: Mapping[str, dict], *,
+                     margin_px: float = 10.0) -> dict[str, float]:
+    """Per camera, the share of marker detections farther than ``margin_px`` outside the board's hull."""
+    out = {}
+    for cam, tr in tracks.items():
+        if cam not in coverage:
+            continue
+        hull = np.asarray(coverage[cam]["hull_px"], dtype=np.float32).reshape(-1, 1, 2)
+        xy = np.asarray(tr.xy_px, dtype=np.float64).reshape(-1, 2)
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        if xy.size == 0:
+            continue
+        d = np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), True) for x, y in xy])
+        out[cam] = float(np.mean(d < -margin_px))
+    return out
+
+
+def _average_holds(views_by_camera: Mapping[str, list], *, same_pose_px: float = 0.5) -> dict[str, list]:
+    """One view per pose and camera, its corners averaged over the pose's still instants.
+
+    Consecutive still instants are split where the board has moved more than ``same_pose_px`` (a slow
+    sweep is many poses, a hold one). Averaging a hold's frames halves the corners' frame-to-frame
+    noise without giving the bundle adjustment many copies of one pose to weigh (wide rig: markers
+    4.6 mm RMS from 60 instants of any pose, 2.5 mm from every still instant, 2.3 mm from every pose
+    averaged)."""
+    by_frame: dict[int, dict] = {}
+    for cam, views in views_by_camera.items():
+        for v in views:
+            by_frame.setdefault(v.frame, {})[cam] = v
+
+    def same_pose(a: dict, b: dict) -> bool:
+        for cam in set(a) & set(b):
+            if np.array_equal(a[cam].ids, b[cam].ids):
+                return float(np.max(np.linalg.norm(a[cam].corners_px - b[cam].corners_px, axis=1))) <= same_pose_px
+        return False
+
+    out: dict[str, list] = {cam: [] for cam in views_by_camera}
+
+    def close(group: list[int]) -> None:
+        most = max(len(by_frame[f]) for f in group)
+        best = [f for f in group if len(by_frame[f]) == most]
+        key = best[len(best) // 2]
+        for cam, ref in by_frame[key].items():
+            same = [by_frame[f][cam] for f in group
+                    if cam in by_frame[f] and np.array_equal(by_frame[f][cam].ids, ref.ids)]
+            out[cam].append(replace(ref, corners_px=np.mean([v.corners_px for v in same], axis=0)))
+
+    group: list[int] = []
+    for frame in sorted(by_frame):
+        if group and (frame != group[-1] + 1 or not same_pose(by_frame[group[0]], by_frame[frame])):
+            close(group)
+            group = []
+        group.append(frame)
+    if group:
+        close(group)
+    return out
+
+
+def still_views(views: list, step: int, max_motion_px: float = 0.5) -> list:
+    """Views of a board held still: its corners moved less than ``max_motion_px`` since the view
+    ``step`` frames before. A moving board is blurred, and the cameras' frames (whole frames apart
+    after rounding the sync offsets) would show it at different places."""
+    by_frame = {v.frame: v for v in views}
+    still = []
+    for v in views:
+        prev = by_frame.get(v.frame - step)
+        if prev is None or len(prev.ids) != len(v.ids) or np.any(prev.ids != v.ids):
+            continue
+        if float(np.max(np.linalg.norm(prev.corners_px - v.corners_px, axis=1))) < max_motion_px:
+            still.append(v)
+    return still if len(still) >= 6 else views

@@ -1,0 +1,95 @@
+"""A rig's calibration as the result document's ``calibration`` object (CONTRACTS section 2), and back.
+
+The one serialiser of a :class:`~saddlescope.core.types.Rig`: the ride's result, a rig's stored
+calibration and ``saddlescope calibrate --json`` all write it with :func:`rig_to_dict` and read it
+with :func:`rig_from_dict`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from saddlescope.core.errors import InputError
+from saddlescope.core.types import Camera, Rig
+
+__all__ = ["checked_matrix", "distortion5", "rig_from_dict", "rig_to_dict"]
+
+
+def _lst(a) -> list:
+    """An array as nested lists of float."""
+    return np.asarray(a, np.float64).tolist()
+
+
+def rig_to_dict(rig: Rig) -> dict:
+    """The result's ``calibration`` object (CONTRACTS section 2) for a rig.
+
+    ``cameras``: K, dist (k1, k2, p1, p2, k3), image_size [w, h], rms_px, K_std, dist_std;
+    ``extrinsics`` of every camera but the first: R, t_mm (``x_cam = R @ x_first + t_mm``);
+    ``checks``, ``flags`` and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}.
+    """
+    names = rig.names
+    cameras: dict[str, dict] = {}
+    for name, cam in rig.cameras.items():
+        entry = {"K": _lst(cam.K), "dist": _lst(distortion5(cam.dist, f"camera {name} dist")),
+                 "image_size": [int(cam.image_size[0]), int(cam.image_size[1])], "rms_px": cam.rms_px}
+        if cam.K_std is not None:
+            entry["K_std"] = _lst(cam.K_std)
+        if cam.dist_std is not None:
+            entry["dist_std"] = _lst(cam.dist_std)
+        cameras[name] = entry
+    extrinsics = {n: {"R": _lst(rig.cameras[n].R), "t_mm": _lst(rig.cameras[n].t_mm)} for n in names[1:]}
+    pairs = {}
+    for key, p in rig.pairs.items():
+        pairs[key] = {k: (_lst(v) if isinstance(v, np.ndarray) else v) for k, v in p.items()}
+    checks = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in rig.checks.items()}
+    return {"cameras": cameras, "extrinsics": extrinsics, "checks": checks, "flags": list(rig.flags), "pairs": pairs}
+
+
+def checked_matrix(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """``value`` as a finite float array of ``shape``, or an InputError naming ``what``."""
+    try:
+        arr = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} is not numeric") from None
+    if arr.shape != shape or not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} must be finite numbers of shape {shape}, got {arr.shape}")
+    return arr
+
+
+def distortion5(value, what: str) -> np.ndarray:
+    """OpenCV distortion coefficients as the 5-coefficient model (k1, k2, p1, p2, k3), shape (5,)."""
+    d = np.asarray(value, np.float64).ravel()
+    if d.size not in (4, 5, 8, 12, 14) and d.size > 5:
+        raise InputError(f"{what} has {d.size} coefficients; expected 4 or 5 (k1, k2, p1, p2[, k3])")
+    if d.size > 5 and np.any(d[5:] != 0):
+        raise InputError(f"{what}: only the 5-coefficient model (k1, k2, p1, p2, k3) is supported")
+    return np.pad(d[:5], (0, max(0, 5 - d.size)))
+
+
+def rig_from_dict(d: Mapping) -> Rig:
+    """Inverse of :func:`rig_to_dict` (also accepts the plain CONTRACTS ``calibration`` object)."""
+    cams_in = d.get("cameras")
+    if not isinstance(cams_in, Mapping) or not cams_in:
+        raise InputError("calibration has no 'cameras'")
+    extr = d.get("extrinsics", {}) or {}
+    cameras = {}
+    for i, (name, c) in enumerate(cams_in.items()):
+        K = checked_matrix(c.get("K"), (3, 3), f"camera {name} K")
+        dist = distortion5(c.get("dist", [0, 0, 0, 0, 0]), f"camera {name} dist")
+        size = c.get("image_size")
+        if not isinstance(size, list | tuple) or len(size) != 2:
+            raise InputError(f"camera {name} image_size must be [width, height]")
+        e = extr.get(name)
+        if e is None and i > 0:
+            raise InputError(f"camera {name} has no extrinsics (only the first camera may omit them)")
+        R = np.eye(3) if e is None else checked_matrix(e.get("R"), (3, 3), f"camera {name} R")
+        t = np.zeros(3) if e is None else checked_matrix(e.get("t_mm"), (3,), f"camera {name} t_mm")
+        opt = lambda key: None if c.get(key) is None else np.asarray(c[key], np.float64)  # noqa: B023
+        cameras[name] = Camera(name, K, dist, (int(size[0]), int(size[1])), R=R, t_mm=t,
+                               rms_px=c.get("rms_px"), K_std=opt("K_std"), dist_std=opt("dist_std"))
+    pairs = {}
+    for key, p in (d.get("pairs") or {}).items():
+        pairs[key] = {k: (np.asarray(v, np.float64) if k in ("R", "t_mm") else v) for k, v in p.items()}
+    return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(d.get("flags") or ()), pairs=pairs)
