@@ -147,11 +147,11 @@ def run(args: argparse.Namespace) -> int:
             print(json.dumps(result, indent=2))
         return 0
     if cmd == "demo":
-        from saddlescope.services.demo import run_demo
+        from saddlescope.demo import run_demo
 
         return run_demo(serve=not args.no_serve, host=args.host, port=args.port)
     if cmd == "serve":
-        from saddlescope.services.server import serve
+        from saddlescope.server import serve
 
         serve(host=args.host, port=args.port)
         return 0

@@ -5,7 +5,7 @@ from fastapi.testclient import TestClient
 from saddlescope.api.app import create_app
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.session import session_factory_for
-from saddlescope.services.demo import DEMO_CLUB, DEMO_EMAIL, DEMO_PASSWORD, ensure_demo_user
+from saddlescope.demo import DEMO_CLUB, DEMO_EMAIL, DEMO_PASSWORD, ensure_demo_user
 from saddlescope.settings import load_settings
 
 

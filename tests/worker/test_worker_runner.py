@@ -17,10 +17,10 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job, Recording, Ride
 from saddlescope.db.repositories import JobRepository, NotFound, ResultRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.jobs import InlineQueue
+from saddlescope.demo import DemoError, ensure_demo_bundle, run_demo
 from saddlescope.services import stages
-from saddlescope.services.demo import DemoError, ensure_demo_bundle, run_demo
 from saddlescope.services.job_service import create_job, submit_job
+from saddlescope.services.queue import InlineQueue
 from saddlescope.services.rides import register_bundle
 from saddlescope.services.runner import run_job
 from saddlescope.settings import load_settings

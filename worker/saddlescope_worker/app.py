@@ -15,7 +15,7 @@ from celery import Celery
 from celery.signals import worker_ready, worker_shutdown
 from sqlalchemy.exc import SQLAlchemyError
 
-from saddlescope.jobs import QUEUE_NAME, RUN_JOB_TASK, celery_config
+from saddlescope.services.queue import QUEUE_NAME, RUN_JOB_TASK, celery_config
 from saddlescope.settings import ConfigurationError, Settings, get_settings
 
 log = logging.getLogger(__name__)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from sqlalchemy.exc import OperationalError
 
-from saddlescope.jobs import RUN_JOB_TASK
+from saddlescope.services.queue import RUN_JOB_TASK
 from saddlescope.services.runner import run_job as run_job_body
 from saddlescope_worker.app import app
 

@@ -24,9 +24,9 @@ from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFound
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.jobs import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.accounts import AuthError, Forbidden
 from saddlescope.services.job_service import JobStateError
+from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.uploads import IncompleteUpload
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage, TooLarge

@@ -32,7 +32,6 @@ from saddlescope.db.repositories import (
     UserRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.jobs import JobQueue
 from saddlescope.services.accounts import (
     AuthError,
     Forbidden,
@@ -41,6 +40,7 @@ from saddlescope.services.accounts import (
     read_token,
     require_admin,
 )
+from saddlescope.services.queue import JobQueue
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage
 

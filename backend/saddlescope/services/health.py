@@ -9,7 +9,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from saddlescope.db.migrate import current_revision, head_revision
 from saddlescope.db.session import ping
-from saddlescope.jobs import JobQueue
+from saddlescope.services.queue import JobQueue
 from saddlescope.storage import Storage
 
 

@@ -16,7 +16,7 @@ from saddlescope.core.errors import InputError
 from saddlescope.db.models import Job, JobStatus
 from saddlescope.db.repositories import JobRepository, RideRepository, RigRepository
 from saddlescope.db.session import session_scope
-from saddlescope.jobs import JobQueue, QueueUnavailable
+from saddlescope.services.queue import JobQueue, QueueUnavailable
 from saddlescope.services.stages import job_kind
 
 

@@ -1,7 +1,7 @@
 """The body of every job: run a job's stages in order, reporting progress and timings.
 
 `run_job` is what a Celery task calls (`saddlescope_worker.tasks`) and what the embedded process
-pool calls (`saddlescope.jobs`). It takes an id, never objects, and is safe to run again: a job
+pool calls (`saddlescope.services.queue`). It takes an id, never objects, and is safe to run again: a job
 already finished is left alone, and a job interrupted half-way (lost worker, restarted server) is
 re-run from its first stage, each stage replacing only its own outputs.
 """

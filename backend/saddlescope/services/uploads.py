@@ -26,8 +26,8 @@ from saddlescope.db.repositories import (
     UploadRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.jobs import JobQueue
 from saddlescope.services.job_service import submit_job
+from saddlescope.services.queue import JobQueue
 from saddlescope.services.rides import register_bundle
 from saddlescope.services.stages import ride_clip_plan
 from saddlescope.storage import Storage, TooLarge, upload_key

@@ -302,7 +302,7 @@ def run_benchmarks(*, quick: bool = False) -> dict:
             out["chaincode_10k_s"] = bench_chaincode_10k()
             out["dtw_10k_s"] = bench_dtw_10k()
         try:
-            from saddlescope.services import service_bench
+            from saddlescope.bench import service as service_bench
         except ImportError:
             pass
         else:

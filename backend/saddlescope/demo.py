@@ -2,7 +2,7 @@
 
 1. make a synthetic ride under ``./var/demo/ride`` if none exists,
 2. register it as a ride (club "Demo club") unless it already is,
-3. submit an ``analyze`` job through `saddlescope.jobs.submit` and wait for it,
+3. submit an ``analyze`` job through `saddlescope.services.queue.submit` and wait for it,
 4. print the indicators as JSON (``--no-serve``) or serve the dashboard.
 """
 
@@ -17,8 +17,8 @@ from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import ClubRepository, ResultRepository, RideRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.jobs import JobQueue, make_queue
 from saddlescope.services.job_service import submit_job, wait_for_job
+from saddlescope.services.queue import JobQueue, make_queue
 from saddlescope.services.rides import register_bundle
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage
@@ -80,7 +80,7 @@ def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
     """Process the demo ride; then print its indicators (``serve=False``) or serve the dashboard.
 
     Returns the exit status (0 on success, 1 when the analysis job failed). `queue` defaults to the
-    one the settings ask for (`saddlescope.jobs.make_queue`).
+    one the settings ask for (`saddlescope.services.queue.make_queue`).
     """
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr
@@ -117,7 +117,7 @@ def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
     if not serve:
         print(json.dumps(indicators, indent=2, allow_nan=False), file=stdout)
         return 0
-    from saddlescope.services.server import serve as serve_forever
+    from saddlescope.server import serve as serve_forever
 
     if settings.embedded and ensure_demo_user(sessions):
         print(f"demo: sign in as {DEMO_EMAIL} with password {DEMO_PASSWORD}", file=stderr, flush=True)

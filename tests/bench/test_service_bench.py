@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from saddlescope.services import service_bench
+from saddlescope.bench import service as service_bench
 
 pytestmark = pytest.mark.slow
 MIB = 1024**2
