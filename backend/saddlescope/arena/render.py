@@ -34,10 +34,10 @@ class RenderOptions:
     marker_halo: float = 0.12  # faint glow around retro-reflective markers (fraction of the peak)
     markers: bool = True  # False renders the scene without its markers (for difference images)
     supersample: int = 3
-    # skin sliding of markers 1-3, one of synthetic_gait.SKIN_MODELS: "stride_locked" (as a real
+    # skin sliding of markers 1-3, one of arena.gait.SKIN_MODELS: "stride_locked" (as a real
     # flank), "noise" (small random sliding only) or "none" (markers fixed to the saddle body)
     skin_motion: str = "stride_locked"
-    # markers 1-3's layout on the flank, one of synthetic_gait.MARKER_LAYOUTS: "thesis" (a shallow V)
+    # markers 1-3's layout on the flank, one of arena.gait.MARKER_LAYOUTS: "thesis" (a shallow V)
     # or "triangle" (the middle marker about 10 cm below the others, as the README recommends)
     marker_layout: str = "thesis"
     # the middle and right cameras record at a variable frame rate, as phones do (jittered frame

@@ -11,8 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from saddlescope.core.errors import InputError
-from saddlescope.core.synthetic_content import (
+from saddlescope.arena.content import (
     BOARD,
     DISTANCE_POINTS,
     EXTRA_CLIPS,
@@ -20,17 +19,18 @@ from saddlescope.core.synthetic_content import (
     BallContent,
     BoardContent,
 )
-from saddlescope.core.synthetic_gait import (
+from saddlescope.arena.gait import (
     MARKER_NAMES,
     SADDLE_NAME,
     GaitModel,
     acceleration_harmonics,
     saddle_vertical_peak_to_peak,
 )
+from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 
 if TYPE_CHECKING:
-    from saddlescope.core.synthetic import Scene
+    from saddlescope.arena.scene import Scene
 
 
 def _nan_to_none(x):

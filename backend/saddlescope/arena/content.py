@@ -1,6 +1,6 @@
 """What the synthetic cameras film: the horse and rider, the calibration board, the plumb line, the ball.
 
-Every content object works in world metres (``synthetic_rig`` frame W) and offers
+Every content object works in world metres (``arena.rig`` frame W) and offers
 ``markers_w(t)`` (T, M, 3) - the retro-reflective points rendered as blobs (NaN where absent) -
 and ``draw(frame, view, t)`` for everything else (dark shapes, the board), drawn before the markers.
 """
@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from saddlescope.core.synthetic_gait import MARKER_NAMES, SADDLE_NAME, GaitModel
-from saddlescope.core.synthetic_render import (
+from saddlescope.arena.gait import MARKER_NAMES, SADDLE_NAME, GaitModel
+from saddlescope.arena.render import (
     CameraView,
     RenderOptions,
     board_patch,

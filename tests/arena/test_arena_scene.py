@@ -8,26 +8,25 @@ import cv2
 import numpy as np
 import pytest
 
-from saddlescope.core.errors import InputError
-from saddlescope.core.synthetic import (
+from saddlescope.arena import (
     BOARD,
+    GAIT_RANGES,
+    SADDLE_NAME,
+    RenderOptions,
+    acceleration_harmonics,
     build_scene,
     build_truth,
     check_result_structure,
+    flash_fraction,
+    fourier_series,
+    make_rig,
     render_clip_frames,
     saddle_truth_at,
-    true_marker_pixels,
-)
-from saddlescope.core.synthetic_gait import (
-    GAIT_RANGES,
-    SADDLE_NAME,
-    acceleration_harmonics,
-    fourier_series,
     saddle_vertical_peak_to_peak,
     sample_gait,
+    true_marker_pixels,
 )
-from saddlescope.core.synthetic_render import RenderOptions, flash_fraction
-from saddlescope.core.synthetic_rig import make_rig
+from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, GAITS
 
 # Literature ranges (SCIENCE.md "Reference numbers")

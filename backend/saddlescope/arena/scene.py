@@ -41,8 +41,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from saddlescope.core.errors import InputError
-from saddlescope.core.synthetic_content import (
+from saddlescope.arena.content import (
     ALL_CLIPS,
     BOARD,
     DISTANCE_POINTS,
@@ -53,12 +52,12 @@ from saddlescope.core.synthetic_content import (
     HorseContent,
     PlumbContent,
 )
-from saddlescope.core.synthetic_gait import (
+from saddlescope.arena.gait import (
     GaitModel,
     sample_gait,
     with_t_cross,
 )
-from saddlescope.core.synthetic_render import (
+from saddlescope.arena.render import (
     CameraView,
     Pole,
     RenderOptions,
@@ -70,7 +69,8 @@ from saddlescope.core.synthetic_render import (
     render_background,
     render_pole,
 )
-from saddlescope.core.synthetic_rig import SceneRig, make_rig, normalized_pixel_grid
+from saddlescope.arena.rig import SceneRig, make_rig, normalized_pixel_grid
+from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, GAITS
 
 HOLD_FRAMES, MOVE_FRAMES = 3, 1  # calibration board: still for 3 frame periods, moved in 1
@@ -728,7 +728,7 @@ def true_marker_pixels(scene: Scene, camera: str, kind: str) -> dict:
 
 
 # the truth lives in its own module; re-exported here as part of the synthetic arena's API
-from saddlescope.core.synthetic_truth import (  # noqa: E402
+from saddlescope.arena.truth import (  # noqa: E402
     build_truth,
     check_result_structure,
     ride_manifest,

@@ -1,0 +1,60 @@
+"""The synthetic riding arena: complete rides with exact ground truth, for tests and the bench."""
+
+from saddlescope.arena.gait import (
+    GAIT_RANGES,
+    MARKER_LAYOUTS,
+    MARKER_NAMES,
+    SADDLE_NAME,
+    SKIN_MODELS,
+    GaitModel,
+    acceleration_harmonics,
+    fourier_series,
+    saddle_vertical_peak_to_peak,
+    sample_gait,
+)
+from saddlescope.arena.render import RenderOptions, flash_fraction
+from saddlescope.arena.rig import make_rig
+from saddlescope.arena.scene import (
+    ALL_CLIPS,
+    BOARD,
+    DISTANCE_POINTS,
+    EXTRA_CLIPS,
+    ClipTiming,
+    Scene,
+    build_scene,
+    build_truth,
+    check_result_structure,
+    render_clip_frames,
+    ride_manifest,
+    saddle_truth_at,
+    true_marker_pixels,
+)
+
+__all__ = [
+    "ALL_CLIPS",
+    "BOARD",
+    "DISTANCE_POINTS",
+    "EXTRA_CLIPS",
+    "GAIT_RANGES",
+    "MARKER_LAYOUTS",
+    "MARKER_NAMES",
+    "SADDLE_NAME",
+    "SKIN_MODELS",
+    "ClipTiming",
+    "GaitModel",
+    "RenderOptions",
+    "Scene",
+    "acceleration_harmonics",
+    "build_scene",
+    "build_truth",
+    "check_result_structure",
+    "flash_fraction",
+    "fourier_series",
+    "make_rig",
+    "render_clip_frames",
+    "ride_manifest",
+    "saddle_truth_at",
+    "saddle_vertical_peak_to_peak",
+    "sample_gait",
+    "true_marker_pixels",
+]
