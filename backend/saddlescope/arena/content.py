@@ -22,6 +22,18 @@ from saddlescope.arena.render import (
 )
 from saddlescope.core.types import CLIP_KINDS, Board
 
+__all__ = [
+    "ALL_CLIPS",
+    "BOARD",
+    "DISTANCE_POINTS",
+    "EXTRA_CLIPS",
+    "GRAVITY_M_S2",
+    "BallContent",
+    "BoardContent",
+    "HorseContent",
+    "PlumbContent",
+]
+
 GRAVITY_M_S2 = 9.81
 EXTRA_CLIPS: tuple[str, ...] = ("freefall", "board_distance")
 ALL_CLIPS: tuple[str, ...] = CLIP_KINDS + EXTRA_CLIPS

@@ -23,6 +23,25 @@ import numpy as np
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import GAITS
 
+__all__ = [
+    "CHANNELS",
+    "GAIT_RANGES",
+    "MARKER_LAYOUTS",
+    "MARKER_NAMES",
+    "N_HARMONICS",
+    "SADDLE_NAME",
+    "SKIN_MODELS",
+    "SKIN_NOISE_BAND_HZ",
+    "SKIN_NOISE_COMPONENTS",
+    "SKIN_NOISE_RMS_M",
+    "GaitModel",
+    "acceleration_harmonics",
+    "fourier_series",
+    "saddle_vertical_peak_to_peak",
+    "sample_gait",
+    "with_t_cross",
+]
+
 CHANNELS: tuple[str, ...] = ("x", "y", "z", "roll", "pitch", "yaw")
 N_HARMONICS = 4
 MARKER_NAMES: tuple[str, ...] = ("marker1", "marker2", "marker3")
@@ -347,32 +366,9 @@ def sample_gait(
     speed = float(rng.uniform(lo, hi))
     pp_target = float(rng.uniform(*rng_["pp_y_m"]))
     horse_height = float(rng.uniform(1.55, 1.75))
-
-    harmonics: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for name in CHANNELS:
-        shape = np.asarray(_SHAPES[gait][name], dtype=np.float64)
-        amps = shape * rng.uniform(0.7, 1.3, N_HARMONICS)
-        if name in ("roll", "pitch", "yaw"):
-            amps = np.deg2rad(amps)
-        phases = rng.uniform(-np.pi, np.pi, N_HARMONICS)
-        harmonics[name] = (amps, phases)
-
+    harmonics = _draw_harmonics(gait, rng)
     s = float(np.sign(camera_side)) or 1.0
-    scale = horse_height / 1.65
-    jit = lambda sd: rng.normal(0.0, sd)  # noqa: E731  small per-horse layout changes
-    spacing = float(rng.uniform(0.17, 0.23))
-    x1 = -0.15 + jit(0.015)
-    drop = _TRIANGLE_DROP_M if marker_layout == "triangle" else 0.0
-    body = {
-        # a shallow V along the flank behind the rider's leg, numbered front (withers) to back
-        "marker1": np.array([x1, 0.26 * scale + jit(0.01), s * (0.27 + jit(0.01))]),
-        "marker2": np.array([x1 - spacing, (0.30 + drop) * scale + jit(0.01), s * (0.28 + jit(0.01))]),
-        "marker3": np.array(
-            [x1 - spacing - float(rng.uniform(0.17, 0.23)), 0.25 * scale + jit(0.01), s * (0.27 + jit(0.01))]
-        ),
-        # S on the saddle's side, above the marker row (hidden by the rider during the ride)
-        SADDLE_NAME: np.array([-0.25 + jit(0.02), -0.03 + jit(0.01), s * (0.2 + jit(0.01))]),
-    }
+    body = _draw_body_points(rng, s, horse_height / 1.65, marker_layout)
     skin = _skin_motion(skin_model, rng, stride_hz)
 
     model = GaitModel(
@@ -386,22 +382,66 @@ def sample_gait(
         skin=skin,
         horse_height_m=horse_height,
     )
-    # scale the vertical channel so that S's peak-to-peak equals the target (rotation adds a little)
+    return _with_vertical_peak_to_peak(model, pp_target)
+
+
+def _draw_harmonics(gait: str, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Amplitudes (K,) and phases (K,) rad of every channel: the gait's shape scaled by 0.7-1.3 each.
+
+    Translations in metres, angles in radians (the shapes hold degrees).
+    """
+    harmonics: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for name in CHANNELS:
+        shape = np.asarray(_SHAPES[gait][name], dtype=np.float64)
+        amps = shape * rng.uniform(0.7, 1.3, N_HARMONICS)
+        if name in ("roll", "pitch", "yaw"):
+            amps = np.deg2rad(amps)
+        phases = rng.uniform(-np.pi, np.pi, N_HARMONICS)
+        harmonics[name] = (amps, phases)
+    return harmonics
+
+
+def _draw_body_points(rng: np.random.Generator, s: float, scale: float, marker_layout: str) -> dict[str, np.ndarray]:
+    """Markers 1-3 and the saddle point S in body coordinates (3,) m each, with small per-horse changes.
+
+    ``s`` (+1 or -1) is the camera-facing side along body z; ``scale`` the horse's height over 1.65 m.
+    """
+    jit = lambda sd: rng.normal(0.0, sd)  # noqa: E731  small per-horse layout changes
+    spacing = float(rng.uniform(0.17, 0.23))
+    x1 = -0.15 + jit(0.015)
+    drop = _TRIANGLE_DROP_M if marker_layout == "triangle" else 0.0
+    return {
+        # a shallow V along the flank behind the rider's leg, numbered front (withers) to back
+        "marker1": np.array([x1, 0.26 * scale + jit(0.01), s * (0.27 + jit(0.01))]),
+        "marker2": np.array([x1 - spacing, (0.30 + drop) * scale + jit(0.01), s * (0.28 + jit(0.01))]),
+        "marker3": np.array(
+            [x1 - spacing - float(rng.uniform(0.17, 0.23)), 0.25 * scale + jit(0.01), s * (0.27 + jit(0.01))]
+        ),
+        # S on the saddle's side, above the marker row (hidden by the rider during the ride)
+        SADDLE_NAME: np.array([-0.25 + jit(0.02), -0.03 + jit(0.01), s * (0.2 + jit(0.01))]),
+    }
+
+
+def _with_vertical_peak_to_peak(model: GaitModel, pp_target_m: float) -> GaitModel:
+    """The model with its vertical channel scaled so that S's peak-to-peak equals the target (m).
+
+    Six fixed-point steps: the body's rotation adds a little to S's vertical travel.
+    """
     for _ in range(6):
         pp = saddle_vertical_peak_to_peak(model)
         amps, phases = model.harmonics["y"]
         harmonics = dict(model.harmonics)
-        harmonics["y"] = (amps * (pp_target / pp), phases)
+        harmonics["y"] = (amps * (pp_target_m / pp), phases)
         model = GaitModel(
-            gait=gait,
-            stride_hz=stride_hz,
-            speed_m_s=speed,
-            t_cross_s=t_cross_s,
+            gait=model.gait,
+            stride_hz=model.stride_hz,
+            speed_m_s=model.speed_m_s,
+            t_cross_s=model.t_cross_s,
             harmonics=harmonics,
-            body_points_m=body,
-            camera_side=s,
-            skin=skin,
-            horse_height_m=horse_height,
+            body_points_m=model.body_points_m,
+            camera_side=model.camera_side,
+            skin=model.skin,
+            horse_height_m=model.horse_height_m,
         )
     return model
 

@@ -17,6 +17,24 @@ from scipy.special import erfc
 
 from saddlescope.core.types import Camera
 
+__all__ = [
+    "CameraView",
+    "Pole",
+    "RenderOptions",
+    "board_patch",
+    "composite_foreground",
+    "composite_patch",
+    "draw_markers",
+    "fill_polygons",
+    "finish_frame",
+    "flash_fraction",
+    "marker_coverage",
+    "noise_bank",
+    "noise_texture",
+    "render_background",
+    "render_pole",
+]
+
 
 @dataclass(frozen=True)
 class RenderOptions:

@@ -16,6 +16,8 @@ import numpy as np
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, Camera
 
+__all__ = ["RIGS", "SceneRig", "make_rig", "normalized_pixel_grid", "thesis_rig", "wide_rig"]
+
 RIGS: tuple[str, ...] = ("thesis", "wide")
 
 
