@@ -98,6 +98,7 @@ class CameraView:
 
     @property
     def center_w(self) -> np.ndarray:
+        """The camera centre in world metres, shape (3,)."""
         return -self.r_wc.T @ self.t_wc_mm / 1000.0
 
     def to_camera_mm(self, x_w_m: np.ndarray) -> np.ndarray:
@@ -120,7 +121,7 @@ class CameraView:
         return out.reshape(*shape, 2)
 
     def radius_px(self, x_w_m: np.ndarray, diameter_mm: np.ndarray | float) -> np.ndarray:
-        """Image radius (px) of spheres of the given diameter at world points (..., 3)."""
+        """Image radius (px), shape (...), of spheres of the given diameter (mm) at world points (..., 3) m."""
         z = self.to_camera_mm(x_w_m)[..., 2]
         f = 0.5 * (self.camera.K[0, 0] + self.camera.K[1, 1])
         return 0.5 * f * np.asarray(diameter_mm, dtype=np.float64) / np.maximum(z, 1.0)
@@ -268,6 +269,7 @@ def render_pole(view: CameraView, pole: Pole) -> None:
 
 
 def composite_foreground(frame: np.ndarray, view: CameraView) -> None:
+    """Lay the view's pre-rendered foreground pole over ``frame`` (H, W) float32, in place."""
     if view.fg_alpha is None:
         return
     x0, y0, x1, y1 = view.fg_box
@@ -277,7 +279,7 @@ def composite_foreground(frame: np.ndarray, view: CameraView) -> None:
 
 # --- dynamic drawing -------------------------------------------------------------------------------
 def fill_polygons(frame: np.ndarray, polygons: list[np.ndarray], values: list[float]) -> None:
-    """Draw filled anti-aliased polygons (each (N, 2) px) in order, NaN polygons skipped."""
+    """Draw filled anti-aliased polygons (each (N, 2) px) into ``frame`` (H, W) in order, NaN polygons skipped."""
     for poly, val in zip(polygons, values, strict=True):
         if poly.shape[0] < 3 or not np.all(np.isfinite(poly)):
             continue
@@ -342,7 +344,10 @@ def draw_markers(
     *,
     options: RenderOptions,
 ) -> None:
-    """Composite markers: centres_px (S, M, 2) exposure samples, radii_px (M,), peak values (M,)."""
+    """Composite markers into ``frame`` (H, W) float32, in place.
+
+    centres_px (S, M, 2) exposure samples, radii_px (M,), peak values (M,) DN.
+    """
     h, w = frame.shape
     for m in range(centres_px.shape[1]):
         res = marker_coverage(
@@ -445,6 +450,7 @@ def board_patch(
 
 
 def composite_patch(frame: np.ndarray, value: np.ndarray, alpha: np.ndarray, x0: int, y0: int) -> None:
+    """Blend a patch ``value`` (h, w) with opacity ``alpha`` (h, w) into ``frame`` (H, W) at column x0, row y0."""
     h, w = value.shape
     sub = frame[y0 : y0 + h, x0 : x0 + w]
     sub += alpha * (value - sub)
@@ -453,8 +459,11 @@ def composite_patch(frame: np.ndarray, value: np.ndarray, alpha: np.ndarray, x0:
 def flash_fraction(
     t_mid_s: np.ndarray, exposure_s: float, on_s: float, off_s: float, ramp_s: float
 ) -> np.ndarray:
-    """Mean flash level (0..1) over exposures centred at t_mid_s (F,), for a lamp that ramps up over
-    ramp_s from on_s and down over ramp_s from off_s (closed form of the trapezoid's integral)."""
+    """Mean flash level (0..1) over exposures centred at ``t_mid_s`` (F,) s, shape (F,).
+
+    For a lamp that ramps up over ramp_s from on_s and down over ramp_s from off_s (closed form of
+    the trapezoid's integral).
+    """
 
     def integral(t):  # integral of the trapezoid from -inf to t
         def ramp_int(x):  # integral of clip(x / ramp, 0, 1)
@@ -469,7 +478,10 @@ def flash_fraction(
 
 
 def noise_bank(rng: np.random.Generator, shape: tuple[int, int], *, pad: int = 61) -> np.ndarray:
-    """Standard normal noise of shape (H + pad, W + pad), float32, to be cut at random offsets per frame."""
+    """Standard normal noise of shape (H + pad, W + pad), float32, to be cut at random offsets per frame.
+
+    ``shape`` is the frames' (H, W).
+    """
     return rng.standard_normal((shape[0] + pad, shape[1] + pad), dtype=np.float32)
 
 

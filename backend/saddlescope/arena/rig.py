@@ -22,6 +22,7 @@ RIGS: tuple[str, ...] = ("thesis", "wide")
 
 
 def _rotvec(rx: float, ry: float, rz: float) -> np.ndarray:
+    """Rotation matrix (3, 3) of the rotation vector (rx, ry, rz) rad."""
     return cv2.Rodrigues(np.array([rx, ry, rz], dtype=np.float64))[0]
 
 

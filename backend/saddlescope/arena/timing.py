@@ -96,7 +96,8 @@ def variable_rate(timing: ClipTiming, rng: np.random.Generator) -> ClipTiming:
     """The middle and right cameras as phones at a variable frame rate.
 
     From two frames after the sync flash, each frame is late by its jitter plus the frames dropped
-    before it. The left camera keeps the even clock that the truth is written on.
+    before it. The left camera keeps the even clock that the truth is written on. The returned
+    timing's ``late_s[role]`` has shape (n_frames[role],), seconds.
     """
     late = {}
     for role in ("middle", "right"):

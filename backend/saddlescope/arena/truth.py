@@ -27,6 +27,7 @@ from saddlescope.arena.gait import (
 from saddlescope.arena.rig import SceneRig
 from saddlescope.arena.scene import Scene
 from saddlescope.core.errors import InputError
+from saddlescope.core.indicators import ride_indicators
 
 __all__ = ["build_truth", "saddle_truth_at"]
 
@@ -56,11 +57,23 @@ def _motion_frame(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def saddle_truth_at(truth: dict, t_s: np.ndarray) -> dict:
-    """Exact kinematics of the saddle point S at left motion-clip times t_s (T,).
+    """Exact kinematics of the saddle point S at left motion-clip times, from truth.json alone.
 
     The frame is the motion reference frame (x travel, y gravity down, z = x cross y) with its
-    origin at (rigid) marker 1's position at t_s[0]. Returns t_s, position_m, velocity_m_s,
-    acceleration_m_s2, omega_rad_s, alpha_rad_s2 (each (T, 3)) as arrays.
+    origin at (rigid) marker 1's position at t_s[0].
+
+    Parameters
+    ----------
+    truth : dict
+        A synthetic ride's truth.json (its ``truth.model`` section).
+    t_s : ndarray of shape (T,)
+        Left motion-clip seconds.
+
+    Returns
+    -------
+    dict
+        ``t_s`` (T,) and ``position_m``, ``velocity_m_s``, ``acceleration_m_s2``, ``omega_rad_s``,
+        ``alpha_rad_s2``, each ndarray of shape (T, 3).
     """
     try:
         model = GaitModel.from_dict(truth["truth"]["model"])
@@ -84,8 +97,6 @@ def saddle_truth_at(truth: dict, t_s: np.ndarray) -> dict:
 
 def _indicators(scene: Scene, harmonics: dict[str, tuple[np.ndarray, np.ndarray]], pp_m: float) -> dict:
     """Comfort indicators of the exact saddle-point accelerations over the window (all axes)."""
-    from saddlescope.core.indicators import ride_indicators
-
     f0 = scene.model.stride_hz
 
     def axis(name: str) -> dict:
@@ -277,8 +288,10 @@ def _freefall_truth(scene: Scene) -> dict:
 
 
 def _in_view_interval(scene: Scene, kind: str) -> list[int] | None:
-    """First and last left frames at which every rendered marker is inside every camera's image
-    (ignoring the pole); the horse enters and leaves the field of view during a fast ride."""
+    """First and last left frames at which every rendered marker is inside every camera's image.
+
+    The pole is ignored; the horse enters and leaves the field of view during a fast ride.
+    """
     tm = scene.timings[kind]
     content = scene.contents[kind]
     rendered = np.asarray(content.rendered, bool)
@@ -321,6 +334,7 @@ def _board_truth(scene: Scene, kind: str) -> dict:
 
 
 def _distance_truth(scene: Scene) -> dict:
+    """The board-distance clip: the corner points' exact positions (rig mm) per pose and their distances."""
     board: BoardContent = scene.contents["board_distance"]
     tm = scene.timings["board_distance"]
     cols = board.inner_corners[0]
