@@ -110,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     cmd = args.command
     if cmd == "synth":
-        from saddlescope.core.synthetic_render import RenderOptions
+        from saddlescope.arena import RenderOptions
         from saddlescope.io.synth_writer import write_ride_bundle
 
         path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,

@@ -9,8 +9,7 @@ import json
 import pytest
 
 from saddlescope import bench
-from saddlescope.core.synthetic import build_scene
-from saddlescope.core.synthetic_truth import build_truth
+from saddlescope.arena import build_scene, build_truth
 
 
 def test_every_ride_of_the_accuracy_loop_gets_the_clip_length_asked_for(monkeypatch, tmp_path):

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from saddlescope.arena import make_rig
 from saddlescope.core.errors import InputError, TriangulationError
 from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.smoothing import regularize_depth
-from saddlescope.core.synthetic_rig import make_rig
 from saddlescope.core.triangulation import position_uncertainty
 from saddlescope.core.types import Rig
 

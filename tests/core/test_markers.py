@@ -332,7 +332,7 @@ def test_markers_behind_the_arena_pole_are_all_followed_again(tmp_path):
     a glint on the pole was taken for one. With a velocity per marker, two predictions merged onto
     one marker and the camera followed one or two markers for the rest of the ride (the ride was
     refused: too short a stretch with all three). The markers now move as one pattern."""
-    from saddlescope.core.synthetic import build_scene, render_clip_frames
+    from saddlescope.arena import build_scene, render_clip_frames
     from saddlescope.io.video import iter_gray_frames
     from saddlescope.io.video_writer import write_h264
 

@@ -10,11 +10,11 @@ import cv2
 import numpy as np
 import pytest
 
+from saddlescope.arena import saddle_truth_at
 from saddlescope.core import pipeline as P
 from saddlescope.core import saddle as S
 from saddlescope.core.errors import InputError, KinematicsError
 from saddlescope.core.pipeline.detection import disagreement_flag
-from saddlescope.core.synthetic import saddle_truth_at
 from saddlescope.core.types import MarkerTracks
 from saddlescope.io.result_document import result_to_document
 from saddlescope.io.result_schema import validate_result
@@ -305,9 +305,7 @@ def test_a_marker_lost_at_the_acceleration_peak_costs_nothing(lost_marker):
     # saddle's vertical acceleration peaks: the gap is bridged for the registration but neither the
     # fits nor the travel direction take the bridged samples as measurements (before: 10.8 % error
     # with marker 1 lost, its bridged peak tilted the x axis; 7.2 % with marker 2).
-    from saddlescope.core.synthetic import build_scene
-    from saddlescope.core.synthetic_render import RenderOptions
-    from saddlescope.core.synthetic_truth import build_truth
+    from saddlescope.arena import RenderOptions, build_scene, build_truth
 
     scene = build_scene(gait="canter", seed=7, rig="thesis", extras=False, calibration_poses=4,
                         options=RenderOptions(skin_motion="none"))
@@ -337,9 +335,7 @@ def test_a_marker_lost_at_the_acceleration_peak_costs_nothing(lost_marker):
 def _exact_marker_ride(gait: str, seed: int):
     """Exact markers of a synthetic thesis-rig ride without skin motion: (truth, frames, tracks of the
     motion, static and plumb clips as arrays)."""
-    from saddlescope.core.synthetic import build_scene
-    from saddlescope.core.synthetic_render import RenderOptions
-    from saddlescope.core.synthetic_truth import build_truth
+    from saddlescope.arena import RenderOptions, build_scene, build_truth
 
     scene = build_scene(gait=gait, seed=seed, rig="thesis", extras=False, calibration_poses=4,
                         options=RenderOptions(skin_motion="none"))
@@ -435,7 +431,7 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
     # (a drop every second or so); read at their nominal rate the motion clip's frames would be whole
     # frames apart between cameras (tests/core/test_triangulation.py: decimetres), placed at their
     # stamps the ride measures as well as an even one (5.2 % on this ride at an even rate).
-    from saddlescope.core.synthetic_render import RenderOptions
+    from saddlescope.arena import RenderOptions
     from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.services.analysis import analyze_bundle
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from saddlescope.arena import flash_fraction
 from saddlescope.core.sync import clip_offsets
-from saddlescope.core.synthetic_render import flash_fraction
 
 
 @pytest.mark.parametrize(("ramp_frames", "exposure_s", "plateau_frames"),

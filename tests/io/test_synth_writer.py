@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
+from saddlescope.arena import build_scene, check_result_structure, true_marker_pixels
 from saddlescope.core.errors import InputError
-from saddlescope.core.synthetic import build_scene, check_result_structure, true_marker_pixels
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.io.synth_writer import write_ride_bundle
 from saddlescope.io.video import frame_brightness, iter_gray_frames, probe_video
@@ -171,7 +171,7 @@ def test_cli_synth_skin_model_reaches_the_writer(tmp_path, monkeypatch):
     # writer itself is tested above) and a wrong name is refused by the parser. The parser keeps
     # its choices literal (no numpy at start-up), so they are checked against the arena's list.
     from saddlescope import cli
-    from saddlescope.core.synthetic_gait import SKIN_MODELS
+    from saddlescope.arena import SKIN_MODELS
     from saddlescope.io import synth_writer
 
     synth = next(a for a in cli.build_parser()._subparsers._group_actions[0].choices["synth"]._actions
@@ -188,7 +188,7 @@ def test_cli_synth_skin_model_reaches_the_writer(tmp_path, monkeypatch):
     with pytest.raises(SystemExit):
         cli.build_parser().parse_args(["synth", str(tmp_path / "r"), "--skin", "sticky"])
     # --layout likewise picks the markers' layout on the flank
-    from saddlescope.core.synthetic_gait import MARKER_LAYOUTS
+    from saddlescope.arena import MARKER_LAYOUTS
 
     layout = next(a for a in cli.build_parser()._subparsers._group_actions[0].choices["synth"]._actions
                   if a.dest == "layout")

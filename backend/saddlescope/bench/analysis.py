@@ -40,7 +40,7 @@ def _alternate(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, 
 def _motion_clip(tmp: Path, rig: str, duration_s: float) -> tuple[Path, int, int]:
     """Encode one camera's motion clip of a synthetic ride; returns (path, first frame after the
     flash, number of frames)."""
-    from saddlescope.core.synthetic import build_scene, render_clip_frames
+    from saddlescope.arena import build_scene, render_clip_frames
     from saddlescope.io.video_writer import write_h264
 
     scene = build_scene(gait="canter", seed=3, rig=rig, duration_s=duration_s, calibration_poses=8,
@@ -115,9 +115,8 @@ def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, .
     """Pipeline results against truth.json: saddle position, vertical acceleration, speed, period and
     indicator errors per synthetic ride (issues 5 and 6). ``skin_motion`` is the arena's skin model:
     with "none" the markers are fixed to the saddle body, so the errors are the cameras' and the
-    stages' alone. ``marker_layout`` is the markers' layout on the flank (synthetic_gait.MARKER_LAYOUTS)."""
-    from saddlescope.core.synthetic import saddle_truth_at
-    from saddlescope.core.synthetic_render import RenderOptions
+    stages' alone. ``marker_layout`` is the markers' layout on the flank (arena.gait.MARKER_LAYOUTS)."""
+    from saddlescope.arena import RenderOptions, saddle_truth_at
     from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.services.analysis import analyze_bundle
 
@@ -185,10 +184,9 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
     first where the rig fixes depth well). ``acc_y_skin_common_mode_pct`` is the vertical
     acceleration of the sliding the three markers share (their mean), which no rigid body fitted to
     the markers can tell from the body's motion: the part of the floor no method removes."""
+    from saddlescope.arena import GaitModel, saddle_truth_at
     from saddlescope.core.pipeline import PipelineParams, depth_uncertainty
     from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
-    from saddlescope.core.synthetic import saddle_truth_at
-    from saddlescope.core.synthetic_gait import GaitModel
     from saddlescope.core.types import MarkerTracks
     from saddlescope.io.rig_document import rig_from_dict
 
@@ -237,14 +235,12 @@ def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_tro
                      params=None, marker_layout: str = "thesis") -> dict:
     """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each): per gait the
     mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors.
-    ``skin_motion`` is the arena's skin model (synthetic_gait.SKIN_MODELS); with "none" the markers
+    ``skin_motion`` is the arena's skin model (arena.gait.SKIN_MODELS); with "none" the markers
     are fixed to the saddle body and the stages should be exact. ``marker_layout``: see
-    synthetic_gait.MARKER_LAYOUTS."""
+    arena.gait.MARKER_LAYOUTS."""
     import json
 
-    from saddlescope.core.synthetic import build_scene
-    from saddlescope.core.synthetic_render import RenderOptions
-    from saddlescope.core.synthetic_truth import build_truth
+    from saddlescope.arena import RenderOptions, build_scene, build_truth
 
     out = {}
     for gait in gaits:

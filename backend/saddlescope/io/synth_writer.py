@@ -1,6 +1,6 @@
 """Write a synthetic ride bundle (CONTRACTS section 1) with its exact answer, truth.json.
 
-The geometry, motion and frames come from :mod:`saddlescope.core.synthetic`; this module only
+The geometry, motion and frames come from :mod:`saddlescope.arena`; this module only
 encodes the clips (H.264 MP4) and writes ride.json and truth.json.
 """
 
@@ -9,9 +9,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from saddlescope.arena import RenderOptions, build_scene, build_truth, render_clip_frames, ride_manifest
 from saddlescope.core.errors import InputError
-from saddlescope.core.synthetic import build_scene, build_truth, render_clip_frames, ride_manifest
-from saddlescope.core.synthetic_render import RenderOptions
 from saddlescope.io.video_writer import write_h264
 
 

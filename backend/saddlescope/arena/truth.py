@@ -1,4 +1,4 @@
-"""Ground truth of a synthetic ride: the exact answer in the result format, and ride.json.
+"""Ground truth of a synthetic ride: the exact answer in the result format.
 
 ``build_truth(scene)`` returns truth.json (CONTRACTS section 2 plus a ``truth`` section for tests);
 ``saddle_truth_at(truth, t_s)`` evaluates the saddle point's exact kinematics from truth.json alone.
@@ -7,33 +7,33 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from saddlescope.core.errors import InputError
-from saddlescope.core.synthetic_content import (
+from saddlescope.arena.content import (
     BOARD,
     DISTANCE_POINTS,
-    EXTRA_CLIPS,
     GRAVITY_M_S2,
     BallContent,
     BoardContent,
 )
-from saddlescope.core.synthetic_gait import (
+from saddlescope.arena.gait import (
     MARKER_NAMES,
     SADDLE_NAME,
     GaitModel,
     acceleration_harmonics,
     saddle_vertical_peak_to_peak,
 )
-from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
+from saddlescope.arena.rig import SceneRig
+from saddlescope.arena.scene import Scene
+from saddlescope.core.errors import InputError
+from saddlescope.core.indicators import ride_indicators
 
-if TYPE_CHECKING:
-    from saddlescope.core.synthetic import Scene
+__all__ = ["build_truth", "saddle_truth_at"]
 
 
 def _nan_to_none(x):
+    """``x`` with numpy arrays and scalars as plain lists and numbers, and NaN / inf as None (JSON-ready)."""
     if isinstance(x, dict):
         return {k: _nan_to_none(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -57,11 +57,23 @@ def _motion_frame(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def saddle_truth_at(truth: dict, t_s: np.ndarray) -> dict:
-    """Exact kinematics of the saddle point S at left motion-clip times t_s (T,).
+    """Exact kinematics of the saddle point S at left motion-clip times, from truth.json alone.
 
     The frame is the motion reference frame (x travel, y gravity down, z = x cross y) with its
-    origin at (rigid) marker 1's position at t_s[0]. Returns t_s, position_m, velocity_m_s,
-    acceleration_m_s2, omega_rad_s, alpha_rad_s2 (each (T, 3)) as arrays.
+    origin at (rigid) marker 1's position at t_s[0].
+
+    Parameters
+    ----------
+    truth : dict
+        A synthetic ride's truth.json (its ``truth.model`` section).
+    t_s : ndarray of shape (T,)
+        Left motion-clip seconds.
+
+    Returns
+    -------
+    dict
+        ``t_s`` (T,) and ``position_m``, ``velocity_m_s``, ``acceleration_m_s2``, ``omega_rad_s``,
+        ``alpha_rad_s2``, each ndarray of shape (T, 3).
     """
     try:
         model = GaitModel.from_dict(truth["truth"]["model"])
@@ -85,8 +97,6 @@ def saddle_truth_at(truth: dict, t_s: np.ndarray) -> dict:
 
 def _indicators(scene: Scene, harmonics: dict[str, tuple[np.ndarray, np.ndarray]], pp_m: float) -> dict:
     """Comfort indicators of the exact saddle-point accelerations over the window (all axes)."""
-    from saddlescope.core.indicators import ride_indicators
-
     f0 = scene.model.stride_hz
 
     def axis(name: str) -> dict:
@@ -107,50 +117,81 @@ def _indicators(scene: Scene, harmonics: dict[str, tuple[np.ndarray, np.ndarray]
 
 
 def build_truth(scene: Scene) -> dict:
-    """The exact answer in the result format (CONTRACTS section 2) plus a ``truth`` section."""
-    rig = scene.rig
+    """The exact answer in the result format (CONTRACTS section 2) plus a ``truth`` section.
+
+    The saddle and angular arrays hold the window's left motion-clip frames (N, 3); NaN becomes None
+    (JSON-ready).
+    """
     model = scene.model
+    t_win = scene.window_times
+    kin = saddle_truth_at({"truth": {"model": model.to_dict()}}, t_win)
+    harm = {
+        name: acceleration_harmonics(model, model.body_points_m[SADDLE_NAME], axis=i, n_harmonics=40)
+        for i, name in enumerate("xyz")
+    }
+    pp = saddle_vertical_peak_to_peak(model)
+    return _nan_to_none(
+        {
+            "format": "saddlescope.result/1",
+            "fps": scene.fps,
+            "calibration": _calibration_truth(scene.rig),
+            "sync": {kind: dict(tm.offsets) for kind, tm in scene.timings.items()},
+            "period_s": model.period_s,
+            "window": {
+                "start_s": scene.window_start_s,
+                "duration_s": scene.window_duration_s,
+                "periods": scene.window_periods,
+            },
+            "saddle": {
+                "t_s": kin["t_s"],
+                "position_m": kin["position_m"],
+                "velocity_m_s": kin["velocity_m_s"],
+                "acceleration_m_s2": kin["acceleration_m_s2"],
+            },
+            "angular": {
+                "omega_rad_s": kin["omega_rad_s"],
+                "alpha_rad_s2": kin["alpha_rad_s2"],
+                "singularity_index": _singularity_index(model, t_win, kin["omega_rad_s"]),
+            },
+            "indicators": _indicators(scene, harm, pp),
+            "quality": {},
+            "timings_s": {},
+            "truth": _truth_section(scene, harm, pp),
+        }
+    )
+
+
+def _calibration_truth(rig: SceneRig) -> dict:
+    """The rig's exact cameras (intrinsics, rig-frame extrinsics) in the result's calibration format."""
     cams, extr = {}, {}
     for role, cam in rig.cameras.items():
         cams[role] = {"K": cam.K, "dist": cam.dist, "image_size": list(cam.image_size), "rms_px": 0.0}
         if role != "left":
             extr[role] = {"R": cam.R, "t_mm": cam.t_mm}
-    t_win = scene.window_times
-    kin = saddle_truth_at({"truth": {"model": model.to_dict()}}, t_win)
-    # |n . omega_hat|: the thesis's singularity measure for the marker plane (eq. 6.35)
+    return {"cameras": cams, "extrinsics": extr, "checks": {"board_square_error_mm": 0.0}}
+
+
+def _singularity_index(model: GaitModel, t_win: np.ndarray, omega: np.ndarray) -> float:
+    """Median over the window of |n . omega_hat| for the marker plane's normal n (thesis eq. 6.35).
+
+    t_win (N,) s; omega (N, 3) rad/s.
+    """
     b = np.stack([model.body_points_m[n] for n in MARKER_NAMES])
     rot = model.rotation(t_win)[0]
     n_w = rot @ np.cross(b[1] - b[0], b[2] - b[0])
     n_w /= np.linalg.norm(n_w, axis=1, keepdims=True)
-    w = kin["omega_rad_s"]
+    w = omega
     sing = np.abs(np.sum(n_w * w, axis=1)) / np.maximum(np.linalg.norm(w, axis=1), 1e-12)
-    harm = {
-        name: acceleration_harmonics(model, model.body_points_m[SADDLE_NAME], axis=i, n_harmonics=40)
-        for i, name in enumerate("xyz")
-    }
-    amps, phases = harm["y"]
-    pp = saddle_vertical_peak_to_peak(model)
-    r_rm, origin_mm = _motion_frame(scene)
+    return float(np.median(sing))
 
-    markers_3d, names = {}, {}
-    for kind in scene.clips:
-        content = scene.contents[kind]
-        names[kind] = list(content.marker_names)
-        if names[kind]:
-            markers_3d[kind] = rig.world_to_rig_mm(content.markers_w(scene.timings[kind].left_times))
-    clips = {}
-    for kind, tm in scene.timings.items():
-        clips[kind] = {
-            "frames": dict(tm.n_frames),
-            "fps": tm.fps,
-            "flash_on_s": tm.flash_on_s,
-            "flash_off_s": tm.flash_off_s,
-            "flash_ramp_s": tm.flash_ramp_s,
-            "flash_half_rise_s": tm.flash_on_s + tm.flash_ramp_s / 2,
-            "content_start_s": tm.content_start_s,
-        }
-        if kind in markers_3d:
-            clips[kind]["markers_in_view_left_frames"] = _in_view_interval(scene, kind)
+
+def _truth_section(scene: Scene, harm: dict[str, tuple[np.ndarray, np.ndarray]], pp: float) -> dict:
+    """The ``truth`` section: markers in 3-D, the motion frame, the gait model, clips, boards, extras."""
+    rig = scene.rig
+    model = scene.model
+    amps, phases = harm["y"]
+    r_rm, origin_mm = _motion_frame(scene)
+    markers_3d, names = _markers_3d(scene)
     truth_sec = {
         "markers_3d_mm": markers_3d,
         "marker_names": names,
@@ -177,7 +218,7 @@ def build_truth(scene: Scene) -> dict:
         "stride_frequency_hz": model.stride_hz,
         "amplitude_y_m": pp,
         "direction": scene.direction,
-        "clips": clips,
+        "clips": _clips_truth(scene, markers_3d),
         "exposure_s": rig.exposure_s,
         "marker_diameter_mm": rig.marker_diameter_mm,
         "rig": rig.name,
@@ -192,56 +233,65 @@ def build_truth(scene: Scene) -> dict:
         p = scene.pole
         truth_sec["occluder"] = {"kind": "pole", "x_m": p.x_m, "z_m": p.z_m, "width_m": p.width_m}
     if "freefall" in scene.timings:
-        ball: BallContent = scene.contents["freefall"]
-        truth_sec["freefall"] = {
-            "g_m_s2": GRAVITY_M_S2,
-            "release_s": ball.release_s,
-            "catch_s": ball.catch_s,
-            "diameter_mm": ball.diameter_mm,
-            "p0_mm": rig.world_to_rig_mm(ball.p0_w),
-            "v0_mm_s": rig.R_world_to_rig @ ball.v0_w * 1000.0,
-            "g_mm_s2": rig.gravity_rig * GRAVITY_M_S2 * 1000.0,
-            "flight_left_frames": [
-                int(math.ceil(ball.release_s * scene.fps)),
-                int(math.floor(ball.catch_s * scene.fps)),
-            ],
-        }
+        truth_sec["freefall"] = _freefall_truth(scene)
     if "board_distance" in scene.timings:
         truth_sec["board_distance"] = _distance_truth(scene)
-    return _nan_to_none(
-        {
-            "format": "saddlescope.result/1",
-            "fps": scene.fps,
-            "calibration": {"cameras": cams, "extrinsics": extr, "checks": {"board_square_error_mm": 0.0}},
-            "sync": {kind: dict(tm.offsets) for kind, tm in scene.timings.items()},
-            "period_s": model.period_s,
-            "window": {
-                "start_s": scene.window_start_s,
-                "duration_s": scene.window_duration_s,
-                "periods": scene.window_periods,
-            },
-            "saddle": {
-                "t_s": kin["t_s"],
-                "position_m": kin["position_m"],
-                "velocity_m_s": kin["velocity_m_s"],
-                "acceleration_m_s2": kin["acceleration_m_s2"],
-            },
-            "angular": {
-                "omega_rad_s": kin["omega_rad_s"],
-                "alpha_rad_s2": kin["alpha_rad_s2"],
-                "singularity_index": float(np.median(sing)),
-            },
-            "indicators": _indicators(scene, harm, pp),
-            "quality": {},
-            "timings_s": {},
-            "truth": truth_sec,
+    return truth_sec
+
+
+def _markers_3d(scene: Scene) -> tuple[dict[str, np.ndarray], dict[str, list[str]]]:
+    """Per clip with markers, their exact rig positions (n_left, M, 3) mm at every left frame; names per clip."""
+    markers_3d, names = {}, {}
+    for kind in scene.clips:
+        content = scene.contents[kind]
+        names[kind] = list(content.marker_names)
+        if names[kind]:
+            markers_3d[kind] = scene.rig.world_to_rig_mm(content.markers_w(scene.timings[kind].left_times))
+    return markers_3d, names
+
+
+def _clips_truth(scene: Scene, markers_3d: dict[str, np.ndarray]) -> dict:
+    """Per clip: frame counts, the sync flash (left-clip s) and where the markers are in view."""
+    clips = {}
+    for kind, tm in scene.timings.items():
+        clips[kind] = {
+            "frames": dict(tm.n_frames),
+            "fps": tm.fps,
+            "flash_on_s": tm.flash_on_s,
+            "flash_off_s": tm.flash_off_s,
+            "flash_ramp_s": tm.flash_ramp_s,
+            "flash_half_rise_s": tm.flash_on_s + tm.flash_ramp_s / 2,
+            "content_start_s": tm.content_start_s,
         }
-    )
+        if kind in markers_3d:
+            clips[kind]["markers_in_view_left_frames"] = _in_view_interval(scene, kind)
+    return clips
+
+
+def _freefall_truth(scene: Scene) -> dict:
+    """The thrown ball's exact flight in the rig frame (mm, s) and its left frames in flight."""
+    rig = scene.rig
+    ball: BallContent = scene.contents["freefall"]
+    return {
+        "g_m_s2": GRAVITY_M_S2,
+        "release_s": ball.release_s,
+        "catch_s": ball.catch_s,
+        "diameter_mm": ball.diameter_mm,
+        "p0_mm": rig.world_to_rig_mm(ball.p0_w),
+        "v0_mm_s": rig.R_world_to_rig @ ball.v0_w * 1000.0,
+        "g_mm_s2": rig.gravity_rig * GRAVITY_M_S2 * 1000.0,
+        "flight_left_frames": [
+            int(math.ceil(ball.release_s * scene.fps)),
+            int(math.floor(ball.catch_s * scene.fps)),
+        ],
+    }
 
 
 def _in_view_interval(scene: Scene, kind: str) -> list[int] | None:
-    """First and last left frames at which every rendered marker is inside every camera's image
-    (ignoring the pole); the horse enters and leaves the field of view during a fast ride."""
+    """First and last left frames at which every rendered marker is inside every camera's image.
+
+    The pole is ignored; the horse enters and leaves the field of view during a fast ride.
+    """
     tm = scene.timings[kind]
     content = scene.contents[kind]
     rendered = np.asarray(content.rendered, bool)
@@ -284,6 +334,7 @@ def _board_truth(scene: Scene, kind: str) -> dict:
 
 
 def _distance_truth(scene: Scene) -> dict:
+    """The board-distance clip: the corner points' exact positions (rig mm) per pose and their distances."""
     board: BoardContent = scene.contents["board_distance"]
     tm = scene.timings["board_distance"]
     cols = board.inner_corners[0]
@@ -309,92 +360,3 @@ def _distance_truth(scene: Scene) -> dict:
         "board": _board_truth(scene, "board_distance"),
         "note": "points are inner corners (col, row) of the checkerboard in ride.json board",
     }
-
-
-def ride_manifest(scene: Scene, *, suffix: str = ".mp4") -> dict:
-    """The ride.json of the bundle (CONTRACTS section 1) with clip paths relative to the bundle."""
-    clips = {kind: {role: f"{kind}/{role}{suffix}" for role in CAMERA_ROLES} for kind in CLIP_KINDS}
-    extra = {
-        kind: {role: f"{kind}/{role}{suffix}" for role in CAMERA_ROLES} for kind in EXTRA_CLIPS if kind in scene.timings
-    }
-    manifest = {
-        "format": "saddlescope.ride/1",
-        "cameras": list(CAMERA_ROLES),
-        "board": {
-            "kind": BOARD.kind,
-            "inner_corners": list(BOARD.inner_corners),
-            "square_mm": BOARD.square_mm,
-        },
-        "sync": {"method": "flash"},
-        "markers": {"horse": 3, "plumb": 2, "saddle": 1},
-        "horse": scene.meta["horse"],
-        "rider": scene.meta["rider"],
-        "gait": scene.gait,
-        "direction": scene.direction,
-        "clips": clips,
-        "fps": scene.fps,
-        "frames": {kind: dict(tm.n_frames) for kind, tm in scene.timings.items()},
-        "synthetic": {"seed": scene.seed, "rig": scene.rig.name, "truth": "truth.json"},
-    }
-    if extra:
-        manifest["extra_clips"] = extra
-    return manifest
-
-
-RESULT_KEYS = (
-    "format",
-    "fps",
-    "calibration",
-    "sync",
-    "period_s",
-    "window",
-    "saddle",
-    "angular",
-    "indicators",
-    "quality",
-    "timings_s",
-)
-INDICATOR_KEYS = (
-    "acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "acc_y_max", "crest_factor_y",
-    "t_a8_action_wb_h", "t_a8_action_wk_h", "t_a8_limit_wb_h", "t_a8_limit_wk_h",
-    "t_vdv_action_wb_h", "t_vdv_action_wk_h", "t_vdv_limit_wb_h", "t_vdv_limit_wk_h",
-    "d_a8_action_wb_km", "d_a8_action_wk_km", "d_a8_limit_wb_km", "d_a8_limit_wk_km",
-    "d_vdv_action_wb_km", "d_vdv_action_wk_km", "d_vdv_limit_wb_km", "d_vdv_limit_wk_km",
-    "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz",
-)  # fmt: skip
-
-
-def check_result_structure(result: dict, *, cameras=CAMERA_ROLES) -> list[str]:
-    """Problems with a result document's structure (CONTRACTS section 2); empty when complete.
-
-    A small structural check (keys, array shapes, indicator keys), not a JSON schema.
-    """
-    problems = [f"missing key {k!r}" for k in RESULT_KEYS if k not in result]
-    if problems:
-        return problems
-    if result["format"] != "saddlescope.result/1":
-        problems.append(f"format is {result['format']!r}")
-    cams = result["calibration"].get("cameras", {})
-    for role in cameras:
-        cam = cams.get(role, {})
-        if np.shape(cam.get("K")) != (3, 3) or np.shape(cam.get("dist")) != (5,):
-            problems.append(f"calibration.cameras.{role} lacks K (3, 3) or dist (5,)")
-        if len(cam.get("image_size", [])) != 2:
-            problems.append(f"calibration.cameras.{role}.image_size")
-    for role in cameras[1:]:
-        ext = result["calibration"].get("extrinsics", {}).get(role, {})
-        if np.shape(ext.get("R")) != (3, 3) or np.shape(ext.get("t_mm")) != (3,):
-            problems.append(f"calibration.extrinsics.{role} lacks R (3, 3) or t_mm (3,)")
-    n = len(result["saddle"].get("t_s", []))
-    if n == 0:
-        problems.append("saddle.t_s is empty")
-    for key in ("position_m", "velocity_m_s", "acceleration_m_s2"):
-        if np.shape(result["saddle"].get(key)) != (n, 3):
-            problems.append(f"saddle.{key} is not ({n}, 3)")
-    for key in ("omega_rad_s", "alpha_rad_s2"):
-        if np.shape(result["angular"].get(key)) != (n, 3):
-            problems.append(f"angular.{key} is not ({n}, 3)")
-    if not {"start_s", "duration_s"} <= set(result["window"]):
-        problems.append("window lacks start_s or duration_s")
-    problems += [f"indicators.{k} missing" for k in INDICATOR_KEYS if k not in result["indicators"]]
-    return problems

@@ -1,6 +1,6 @@
 """What the synthetic cameras film: the horse and rider, the calibration board, the plumb line, the ball.
 
-Every content object works in world metres (``synthetic_rig`` frame W) and offers
+Every content object works in world metres (``arena.rig`` frame W) and offers
 ``markers_w(t)`` (T, M, 3) - the retro-reflective points rendered as blobs (NaN where absent) -
 and ``draw(frame, view, t)`` for everything else (dark shapes, the board), drawn before the markers.
 """
@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from saddlescope.core.synthetic_gait import MARKER_NAMES, SADDLE_NAME, GaitModel
-from saddlescope.core.synthetic_render import (
+from saddlescope.arena.gait import MARKER_NAMES, SADDLE_NAME, GaitModel
+from saddlescope.arena.render import (
     CameraView,
     RenderOptions,
     board_patch,
@@ -21,6 +21,18 @@ from saddlescope.core.synthetic_render import (
     fill_polygons,
 )
 from saddlescope.core.types import CLIP_KINDS, Board
+
+__all__ = [
+    "ALL_CLIPS",
+    "BOARD",
+    "DISTANCE_POINTS",
+    "EXTRA_CLIPS",
+    "GRAVITY_M_S2",
+    "BallContent",
+    "BoardContent",
+    "HorseContent",
+    "PlumbContent",
+]
 
 GRAVITY_M_S2 = 9.81
 EXTRA_CLIPS: tuple[str, ...] = ("freefall", "board_distance")
@@ -119,18 +131,21 @@ class HorseContent:
 
     @property
     def marker_names(self) -> tuple[str, ...]:
+        """Markers 1-3 and the saddle point S, in the order of :meth:`markers_w`."""
         return MARKER_NAMES + (SADDLE_NAME,)
 
     @property
     def rendered(self) -> np.ndarray:
+        """Which markers are drawn, shape (4,) bool: the rider hides S during the ride."""
         return np.array([True, True, True, not self.rider])
 
     @property
     def diameters_mm(self) -> np.ndarray:
+        """Marker diameters, shape (4,) mm."""
         return np.full(4, self.marker_diameter_mm)
 
     def pose_arena(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Body rotation (T, 3, 3) and origin (T, 3) in the arena frame."""
+        """Body rotation (T, 3, 3) and origin (T, 3) m in the arena frame at instants ``t`` (T,) s."""
         t = np.atleast_1d(t)
         if self.static:
             return np.broadcast_to(np.eye(3), (len(t), 3, 3)), np.tile(
@@ -139,7 +154,7 @@ class HorseContent:
         return self.model.rotation(t)[0], self.model.origin(t)
 
     def markers_arena(self, t: np.ndarray, *, skin: bool = True) -> np.ndarray:
-        """Markers 1-3 and S in the arena frame (T, 4, 3) m (skin motion only while moving)."""
+        """Markers 1-3 and S in the arena frame (T, 4, 3) m at instants ``t`` (T,) s (skin motion only while moving)."""
         t = np.atleast_1d(t)
         if self.static:
             pts = np.stack([self.model.body_points_m[n] for n in self.marker_names])
@@ -147,13 +162,22 @@ class HorseContent:
         return self.model.marker_positions(t, skin=skin)
 
     def markers_w(self, t: np.ndarray) -> np.ndarray:
+        """Markers 1-3 and S in world metres (T, 4, 3) at instants ``t`` (T,) s."""
         return self.markers_arena(t) @ self.m_dir.T
 
     def _body_to_world(self, pts_body: np.ndarray, rot: np.ndarray, org: np.ndarray) -> np.ndarray:
+        """Body points (N, 3) m -> world metres (N, 3), for the body pose ``rot`` (3, 3), ``org`` (3,)."""
         return (org + pts_body @ rot.T) @ self.m_dir.T
 
     def glints(self, view: CameraView, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Moving look-alikes near the markers: a stirrup flash and a saddle D-ring (world m, mm, DN)."""
+        """Moving look-alikes near the markers: a stirrup flash and a saddle D-ring.
+
+        Returns
+        -------
+        tuple of ndarray or None
+            World positions (2, 3) m, diameters (2,) mm and peak grey levels (2,) DN; None for the
+            standing horse or without distractors.
+        """
         if not self.distractors or self.static:
             return None
         s = self.model.camera_side
@@ -166,6 +190,7 @@ class HorseContent:
         return w, np.array([22.0, 20.0]), np.array([stir, 235.0])
 
     def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:
+        """Draw the horse, saddle pad, saddle and rider at instant ``t`` into ``frame`` (H, W) float32."""
         s = self.model.camera_side
         k = self.model.horse_height_m / 1.65
         rot, org = self.pose_arena(np.array([t]))
@@ -204,6 +229,7 @@ class HorseContent:
         fill_polygons(frame, np.split(px, np.cumsum(sizes)[:-1]), vals)
 
     def _legs(self, t: float, rot: np.ndarray, org: np.ndarray, k: float) -> list[tuple[bool, np.ndarray]]:
+        """The four legs as (near side, world quadrilateral (4, 3) m), swinging with the stride."""
         s = self.model.camera_side
         phases = _LEG_PHASES[self.model.gait]
         out = []
@@ -235,21 +261,26 @@ class PlumbContent:
 
     @property
     def rendered(self) -> np.ndarray:
+        """Both markers are drawn, shape (2,) bool."""
         return np.array([True, True])
 
     @property
     def diameters_mm(self) -> np.ndarray:
+        """Marker diameters, shape (2,) mm."""
         return np.full(2, self.marker_diameter_mm)
 
     def markers_w(self, t: np.ndarray) -> np.ndarray:
+        """The two hanging markers in world metres (T, 2, 3) at instants ``t`` (T,) s."""
         t = np.atleast_1d(t)
         pts = np.array([[self.x_m, y, self.z_m] for y in self.y_markers_m])
         return np.broadcast_to(pts, (len(t), 2, 3)).copy()
 
     def glints(self, view: CameraView, t: float):
+        """No look-alikes near the plumb line: None."""
         return None
 
     def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:
+        """Draw the string and the bob into ``frame`` (H, W) float32."""
         top = np.array([self.x_m, -1.3, self.z_m])
         bob = np.array([self.x_m, self.y_markers_m[1] + 0.25, self.z_m])
         ends = view.project(np.stack([top, bob]))
@@ -279,13 +310,16 @@ class BallContent:
 
     @property
     def rendered(self) -> np.ndarray:
+        """The ball is drawn, shape (1,) bool."""
         return np.array([True])
 
     @property
     def diameters_mm(self) -> np.ndarray:
+        """The ball's diameter, shape (1,) mm."""
         return np.array([self.diameter_mm])
 
     def markers_w(self, t: np.ndarray) -> np.ndarray:
+        """The ball's centre in world metres (T, 1, 3) at instants ``t`` (T,) s (still before and after the flight)."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
         tau = np.clip(t, self.release_s, self.catch_s) - self.release_s
         g = np.array([0.0, GRAVITY_M_S2, 0.0])  # world y is down
@@ -293,9 +327,11 @@ class BallContent:
         return p[:, None, :]
 
     def glints(self, view: CameraView, t: float):
+        """No look-alikes near the ball: None."""
         return None
 
     def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:
+        """Draw the hand that holds the ball before the throw and after the catch into ``frame`` (H, W)."""
         if t < self.release_s or t > self.catch_s:
             # a hand (dark blob) holds the ball before the throw and after the catch
             p = self.markers_w(np.array([t]))[0, 0] + np.array([0.0, 0.06, 0.0])
@@ -322,26 +358,31 @@ class BoardContent:
 
     @property
     def rendered(self) -> np.ndarray:
+        """No markers, shape (0,) bool."""
         return np.zeros(0, bool)
 
     @property
     def diameters_mm(self) -> np.ndarray:
+        """No markers, shape (0,)."""
         return np.zeros(0)
 
     peaks = np.zeros(0)
 
     def markers_w(self, t: np.ndarray) -> np.ndarray:
+        """No markers: shape (T, 0, 3) for instants ``t`` (T,)."""
         return np.zeros((len(np.atleast_1d(t)), 0, 3))
 
     def glints(self, view: CameraView, t: float):
+        """No look-alikes near the board: None."""
         return None
 
     @property
     def period_s(self) -> float:
+        """One pose's hold plus the move to the next (s)."""
         return self.hold_s + self.move_s
 
     def pose_at(self, t: float) -> tuple[np.ndarray, np.ndarray, bool]:
-        """(R_board_to_world, origin_world_m, still) at time t."""
+        """Pose at instant ``t`` (s): R_board_to_world (3, 3), origin_world_m (3,) and whether it is still."""
         x = (t - self.start_s) / self.period_s
         j = int(np.floor(x))
         if j < 0:
@@ -374,7 +415,10 @@ class BoardContent:
         options: RenderOptions,
         cache: dict | None = None,
     ) -> None:
-        """Draw the board blurred over the exposure instants t_samples; ``cache`` reuses still poses."""
+        """Draw the board blurred over the exposure instants ``t_samples`` (S,) s into ``frame`` (H, W).
+
+        ``cache`` reuses the patch of a still pose.
+        """
         if len(t_samples) > 3:  # three instants are plenty for a board in motion
             t_samples = np.asarray(t_samples)[[0, len(t_samples) // 2, -1]]
         poses = [self.pose_at(float(t))[:2] for t in t_samples]
@@ -397,11 +441,14 @@ class BoardContent:
             composite_patch(frame, *res)
 
     def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:
-        """Draw the board as it stands at instant t (no motion blur)."""
+        """Draw the board as it stands at instant ``t`` into ``frame`` (H, W) (no motion blur)."""
         self.draw_samples(frame, view, np.array([t]), RenderOptions())
 
     def corners_w(self, r_bw: np.ndarray, o_w: np.ndarray) -> np.ndarray:
-        """Inner corners in world metres, (cols*rows, 3), row-major like Board.object_points_mm."""
+        """Inner corners in world metres, (cols*rows, 3), row-major like Board.object_points_mm.
+
+        ``r_bw`` (3, 3) maps board -> world; ``o_w`` (3,) is the board origin in world metres.
+        """
         cols, rows = self.inner_corners
         grid = np.zeros((rows * cols, 3))
         grid[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * self.square_m

@@ -23,6 +23,25 @@ import numpy as np
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import GAITS
 
+__all__ = [
+    "CHANNELS",
+    "GAIT_RANGES",
+    "MARKER_LAYOUTS",
+    "MARKER_NAMES",
+    "N_HARMONICS",
+    "SADDLE_NAME",
+    "SKIN_MODELS",
+    "SKIN_NOISE_BAND_HZ",
+    "SKIN_NOISE_COMPONENTS",
+    "SKIN_NOISE_RMS_M",
+    "GaitModel",
+    "acceleration_harmonics",
+    "fourier_series",
+    "saddle_vertical_peak_to_peak",
+    "sample_gait",
+    "with_t_cross",
+]
+
 CHANNELS: tuple[str, ...] = ("x", "y", "z", "roll", "pitch", "yaw")
 N_HARMONICS = 4
 MARKER_NAMES: tuple[str, ...] = ("marker1", "marker2", "marker3")
@@ -159,6 +178,7 @@ class GaitModel:
 
     @property
     def period_s(self) -> float:
+        """One stride (s)."""
         return 1.0 / self.stride_hz
 
     # --- translation and rotation -------------------------------------------------------------
@@ -185,7 +205,7 @@ class GaitModel:
         return np.stack(cols, axis=-1)
 
     def rotation(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """R(t), dR/dt, d2R/dt2 of body -> arena, each (T, 3, 3), exact by the product rule."""
+        """R(t), dR/dt, d2R/dt2 of body -> arena at ``t_s`` (T,) s, each (T, 3, 3), exact by the product rule."""
         ang = [self.angles(t_s, derivative=d) for d in range(3)]
         mats = []
         # R = A B C with A = R_y(yaw), B = R_z(pitch), C = R_x(roll)
@@ -205,7 +225,10 @@ class GaitModel:
         return r, dr, ddr
 
     def angular(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Angular velocity omega (rad/s) and acceleration alpha (rad/s^2) in the arena frame, (T, 3)."""
+        """Angular velocity omega (rad/s) and acceleration alpha (rad/s^2) in the arena frame, (T, 3) each.
+
+        At instants ``t_s`` (T,) s.
+        """
         r, dr, ddr = self.rotation(t_s)
         rt = np.swapaxes(r, -1, -2)
         omega = _vee(dr @ rt)  # skew(omega) = dR R^T
@@ -213,14 +236,20 @@ class GaitModel:
         return omega, alpha
 
     def point(self, r_body_m: np.ndarray, t_s: np.ndarray, *, derivative: int = 0) -> np.ndarray:
-        """A body point (3,) in the arena frame: position, velocity or acceleration, (T, 3)."""
+        """A body point ``r_body_m`` (3,) m in the arena frame at ``t_s`` (T,) s.
+
+        Returns its position (T, 3) m, velocity m/s or acceleration m/s^2 (``derivative`` 0, 1, 2).
+        """
         r = np.asarray(r_body_m, dtype=np.float64)
         rot = self.rotation(t_s)[derivative]
         return self.origin(t_s, derivative=derivative) + rot @ r
 
     def skin_offset(self, name: str, t_s: np.ndarray, *, derivative: int = 0) -> np.ndarray:
-        """Skin motion of marker ``name`` in body coordinates (T, 3) m, or its ``derivative``-th time
-        derivative; zero where none is modelled."""
+        """Skin motion of marker ``name`` in body coordinates at instants ``t_s`` (T,) s.
+
+        Returns the offset (T, 3) m or its ``derivative``-th time derivative; zero where none is
+        modelled.
+        """
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
         sk = self.skin.get(name)
         if sk is None:
@@ -231,9 +260,12 @@ class GaitModel:
         return np.sum((sk["amp_m"] * w**derivative)[None] * np.sin(arg), axis=-1)
 
     def skin_common_mode(self, t_s: np.ndarray, *, derivative: int = 0) -> np.ndarray:
-        """The mean of markers 1-3's skin sliding in the arena frame (T, 3), or its derivative (up to
-        2): the part of the sliding that moves all three markers alike, which a rigid body fitted to
-        them cannot tell from the body's own motion and which so goes straight into the saddle point."""
+        """The mean of markers 1-3's skin sliding in the arena frame (T, 3) m, or its derivative (up to 2).
+
+        At instants ``t_s`` (T,) s. This is the part of the sliding that moves all three markers
+        alike, which a rigid body fitted to them cannot tell from the body's own motion and which so
+        goes straight into the saddle point.
+        """
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
         s = [np.mean([self.skin_offset(n, t, derivative=d) for n in MARKER_NAMES], axis=0) for d in range(3)]
         rot = self.rotation(t)
@@ -242,7 +274,7 @@ class GaitModel:
         return sum(c * np.einsum("tij,tj->ti", rot[r], s[k]) for r, k, c in terms[derivative])
 
     def marker_positions(self, t_s: np.ndarray, *, skin: bool = True) -> np.ndarray:
-        """Markers 1-3 and the saddle point in the arena frame, (T, 4, 3) m; skin motion on 1-3."""
+        """Markers 1-3 and the saddle point in the arena frame, (T, 4, 3) m at ``t_s`` (T,) s; skin motion on 1-3."""
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
         rot = self.rotation(t)[0]
         org = self.origin(t)
@@ -277,6 +309,7 @@ class GaitModel:
 
     @classmethod
     def from_dict(cls, d: dict) -> GaitModel:
+        """The model written by :meth:`to_dict` (truth.json ``truth.model``); InputError if incomplete."""
         try:
             harm = {
                 k: (np.asarray(v["amplitudes"], float), np.asarray(v["phases_rad"], float))
@@ -347,32 +380,9 @@ def sample_gait(
     speed = float(rng.uniform(lo, hi))
     pp_target = float(rng.uniform(*rng_["pp_y_m"]))
     horse_height = float(rng.uniform(1.55, 1.75))
-
-    harmonics: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for name in CHANNELS:
-        shape = np.asarray(_SHAPES[gait][name], dtype=np.float64)
-        amps = shape * rng.uniform(0.7, 1.3, N_HARMONICS)
-        if name in ("roll", "pitch", "yaw"):
-            amps = np.deg2rad(amps)
-        phases = rng.uniform(-np.pi, np.pi, N_HARMONICS)
-        harmonics[name] = (amps, phases)
-
+    harmonics = _draw_harmonics(gait, rng)
     s = float(np.sign(camera_side)) or 1.0
-    scale = horse_height / 1.65
-    jit = lambda sd: rng.normal(0.0, sd)  # noqa: E731  small per-horse layout changes
-    spacing = float(rng.uniform(0.17, 0.23))
-    x1 = -0.15 + jit(0.015)
-    drop = _TRIANGLE_DROP_M if marker_layout == "triangle" else 0.0
-    body = {
-        # a shallow V along the flank behind the rider's leg, numbered front (withers) to back
-        "marker1": np.array([x1, 0.26 * scale + jit(0.01), s * (0.27 + jit(0.01))]),
-        "marker2": np.array([x1 - spacing, (0.30 + drop) * scale + jit(0.01), s * (0.28 + jit(0.01))]),
-        "marker3": np.array(
-            [x1 - spacing - float(rng.uniform(0.17, 0.23)), 0.25 * scale + jit(0.01), s * (0.27 + jit(0.01))]
-        ),
-        # S on the saddle's side, above the marker row (hidden by the rider during the ride)
-        SADDLE_NAME: np.array([-0.25 + jit(0.02), -0.03 + jit(0.01), s * (0.2 + jit(0.01))]),
-    }
+    body = _draw_body_points(rng, s, horse_height / 1.65, marker_layout)
     skin = _skin_motion(skin_model, rng, stride_hz)
 
     model = GaitModel(
@@ -386,30 +396,77 @@ def sample_gait(
         skin=skin,
         horse_height_m=horse_height,
     )
-    # scale the vertical channel so that S's peak-to-peak equals the target (rotation adds a little)
+    return _with_vertical_peak_to_peak(model, pp_target)
+
+
+def _draw_harmonics(gait: str, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Amplitudes (K,) and phases (K,) rad of every channel: the gait's shape scaled by 0.7-1.3 each.
+
+    Translations in metres, angles in radians (the shapes hold degrees).
+    """
+    harmonics: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for name in CHANNELS:
+        shape = np.asarray(_SHAPES[gait][name], dtype=np.float64)
+        amps = shape * rng.uniform(0.7, 1.3, N_HARMONICS)
+        if name in ("roll", "pitch", "yaw"):
+            amps = np.deg2rad(amps)
+        phases = rng.uniform(-np.pi, np.pi, N_HARMONICS)
+        harmonics[name] = (amps, phases)
+    return harmonics
+
+
+def _draw_body_points(rng: np.random.Generator, s: float, scale: float, marker_layout: str) -> dict[str, np.ndarray]:
+    """Markers 1-3 and the saddle point S in body coordinates (3,) m each, with small per-horse changes.
+
+    ``s`` (+1 or -1) is the camera-facing side along body z; ``scale`` the horse's height over 1.65 m.
+    """
+    jit = lambda sd: rng.normal(0.0, sd)  # noqa: E731  small per-horse layout changes
+    spacing = float(rng.uniform(0.17, 0.23))
+    x1 = -0.15 + jit(0.015)
+    drop = _TRIANGLE_DROP_M if marker_layout == "triangle" else 0.0
+    return {
+        # a shallow V along the flank behind the rider's leg, numbered front (withers) to back
+        "marker1": np.array([x1, 0.26 * scale + jit(0.01), s * (0.27 + jit(0.01))]),
+        "marker2": np.array([x1 - spacing, (0.30 + drop) * scale + jit(0.01), s * (0.28 + jit(0.01))]),
+        "marker3": np.array(
+            [x1 - spacing - float(rng.uniform(0.17, 0.23)), 0.25 * scale + jit(0.01), s * (0.27 + jit(0.01))]
+        ),
+        # S on the saddle's side, above the marker row (hidden by the rider during the ride)
+        SADDLE_NAME: np.array([-0.25 + jit(0.02), -0.03 + jit(0.01), s * (0.2 + jit(0.01))]),
+    }
+
+
+def _with_vertical_peak_to_peak(model: GaitModel, pp_target_m: float) -> GaitModel:
+    """The model with its vertical channel scaled so that S's peak-to-peak equals the target (m).
+
+    Six fixed-point steps: the body's rotation adds a little to S's vertical travel.
+    """
     for _ in range(6):
         pp = saddle_vertical_peak_to_peak(model)
         amps, phases = model.harmonics["y"]
         harmonics = dict(model.harmonics)
-        harmonics["y"] = (amps * (pp_target / pp), phases)
+        harmonics["y"] = (amps * (pp_target_m / pp), phases)
         model = GaitModel(
-            gait=gait,
-            stride_hz=stride_hz,
-            speed_m_s=speed,
-            t_cross_s=t_cross_s,
+            gait=model.gait,
+            stride_hz=model.stride_hz,
+            speed_m_s=model.speed_m_s,
+            t_cross_s=model.t_cross_s,
             harmonics=harmonics,
-            body_points_m=body,
-            camera_side=s,
-            skin=skin,
-            horse_height_m=horse_height,
+            body_points_m=model.body_points_m,
+            camera_side=model.camera_side,
+            skin=model.skin,
+            horse_height_m=model.horse_height_m,
         )
     return model
 
 
 def _skin_motion(skin_model: str, rng: np.random.Generator, stride_hz: float) -> dict:
-    """Per marker, the skin's sliding over the body as a sum of sines: amplitudes (3, J) m along
-    body x, y, z, frequencies (J,) Hz, phases (3, J) rad. Both sliding models are drawn from the
-    same stream whichever is asked for, so a seed gives the same horse and cameras under each."""
+    """Per marker, the skin's sliding over the body as a sum of sines.
+
+    Amplitudes (3, J) m along body x, y, z, frequencies (J,) Hz, phases (3, J) rad. Both sliding
+    models are drawn from the same stream whichever is asked for, so a seed gives the same horse and
+    cameras under each.
+    """
     locked, noise = {}, {}
     for name in MARKER_NAMES:
         # two stride harmonics plus one incommensurate wobble, a few millimetres
@@ -448,7 +505,8 @@ def acceleration_harmonics(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Cosine series of a body point's acceleration along ``axis``: (A_k, phi_k), k = 1..n.
 
-    a(t) = sum_k A_k cos(2 pi k f0 t + phi_k) with t the model's (left-clip) time. The exact
+    ``r_body_m`` (3,) is the point in body coordinates; returns amplitudes (n,) m/s^2 and phases
+    (n,) rad of a(t) = sum_k A_k cos(2 pi k f0 t + phi_k) with t the model's (left-clip) time. The exact
     acceleration is periodic (the forward speed is constant), so the FFT of ``samples`` points over
     one period gives the coefficients to machine precision while samples > 2 n.
     """

@@ -17,6 +17,24 @@ from scipy.special import erfc
 
 from saddlescope.core.types import Camera
 
+__all__ = [
+    "CameraView",
+    "Pole",
+    "RenderOptions",
+    "board_patch",
+    "composite_foreground",
+    "composite_patch",
+    "draw_markers",
+    "fill_polygons",
+    "finish_frame",
+    "flash_fraction",
+    "marker_coverage",
+    "noise_bank",
+    "noise_texture",
+    "render_background",
+    "render_pole",
+]
+
 
 @dataclass(frozen=True)
 class RenderOptions:
@@ -34,10 +52,10 @@ class RenderOptions:
     marker_halo: float = 0.12  # faint glow around retro-reflective markers (fraction of the peak)
     markers: bool = True  # False renders the scene without its markers (for difference images)
     supersample: int = 3
-    # skin sliding of markers 1-3, one of synthetic_gait.SKIN_MODELS: "stride_locked" (as a real
+    # skin sliding of markers 1-3, one of arena.gait.SKIN_MODELS: "stride_locked" (as a real
     # flank), "noise" (small random sliding only) or "none" (markers fixed to the saddle body)
     skin_motion: str = "stride_locked"
-    # markers 1-3's layout on the flank, one of synthetic_gait.MARKER_LAYOUTS: "thesis" (a shallow V)
+    # markers 1-3's layout on the flank, one of arena.gait.MARKER_LAYOUTS: "thesis" (a shallow V)
     # or "triangle" (the middle marker about 10 cm below the others, as the README recommends)
     marker_layout: str = "thesis"
     # the middle and right cameras record at a variable frame rate, as phones do (jittered frame
@@ -80,6 +98,7 @@ class CameraView:
 
     @property
     def center_w(self) -> np.ndarray:
+        """The camera centre in world metres, shape (3,)."""
         return -self.r_wc.T @ self.t_wc_mm / 1000.0
 
     def to_camera_mm(self, x_w_m: np.ndarray) -> np.ndarray:
@@ -102,7 +121,7 @@ class CameraView:
         return out.reshape(*shape, 2)
 
     def radius_px(self, x_w_m: np.ndarray, diameter_mm: np.ndarray | float) -> np.ndarray:
-        """Image radius (px) of spheres of the given diameter at world points (..., 3)."""
+        """Image radius (px), shape (...), of spheres of the given diameter (mm) at world points (..., 3) m."""
         z = self.to_camera_mm(x_w_m)[..., 2]
         f = 0.5 * (self.camera.K[0, 0] + self.camera.K[1, 1])
         return 0.5 * f * np.asarray(diameter_mm, dtype=np.float64) / np.maximum(z, 1.0)
@@ -250,6 +269,7 @@ def render_pole(view: CameraView, pole: Pole) -> None:
 
 
 def composite_foreground(frame: np.ndarray, view: CameraView) -> None:
+    """Lay the view's pre-rendered foreground pole over ``frame`` (H, W) float32, in place."""
     if view.fg_alpha is None:
         return
     x0, y0, x1, y1 = view.fg_box
@@ -259,7 +279,7 @@ def composite_foreground(frame: np.ndarray, view: CameraView) -> None:
 
 # --- dynamic drawing -------------------------------------------------------------------------------
 def fill_polygons(frame: np.ndarray, polygons: list[np.ndarray], values: list[float]) -> None:
-    """Draw filled anti-aliased polygons (each (N, 2) px) in order, NaN polygons skipped."""
+    """Draw filled anti-aliased polygons (each (N, 2) px) into ``frame`` (H, W) in order, NaN polygons skipped."""
     for poly, val in zip(polygons, values, strict=True):
         if poly.shape[0] < 3 or not np.all(np.isfinite(poly)):
             continue
@@ -324,7 +344,10 @@ def draw_markers(
     *,
     options: RenderOptions,
 ) -> None:
-    """Composite markers: centres_px (S, M, 2) exposure samples, radii_px (M,), peak values (M,)."""
+    """Composite markers into ``frame`` (H, W) float32, in place.
+
+    centres_px (S, M, 2) exposure samples, radii_px (M,), peak values (M,) DN.
+    """
     h, w = frame.shape
     for m in range(centres_px.shape[1]):
         res = marker_coverage(
@@ -427,6 +450,7 @@ def board_patch(
 
 
 def composite_patch(frame: np.ndarray, value: np.ndarray, alpha: np.ndarray, x0: int, y0: int) -> None:
+    """Blend a patch ``value`` (h, w) with opacity ``alpha`` (h, w) into ``frame`` (H, W) at column x0, row y0."""
     h, w = value.shape
     sub = frame[y0 : y0 + h, x0 : x0 + w]
     sub += alpha * (value - sub)
@@ -435,8 +459,11 @@ def composite_patch(frame: np.ndarray, value: np.ndarray, alpha: np.ndarray, x0:
 def flash_fraction(
     t_mid_s: np.ndarray, exposure_s: float, on_s: float, off_s: float, ramp_s: float
 ) -> np.ndarray:
-    """Mean flash level (0..1) over exposures centred at t_mid_s (F,), for a lamp that ramps up over
-    ramp_s from on_s and down over ramp_s from off_s (closed form of the trapezoid's integral)."""
+    """Mean flash level (0..1) over exposures centred at ``t_mid_s`` (F,) s, shape (F,).
+
+    For a lamp that ramps up over ramp_s from on_s and down over ramp_s from off_s (closed form of
+    the trapezoid's integral).
+    """
 
     def integral(t):  # integral of the trapezoid from -inf to t
         def ramp_int(x):  # integral of clip(x / ramp, 0, 1)
@@ -451,7 +478,10 @@ def flash_fraction(
 
 
 def noise_bank(rng: np.random.Generator, shape: tuple[int, int], *, pad: int = 61) -> np.ndarray:
-    """Standard normal noise of shape (H + pad, W + pad), float32, to be cut at random offsets per frame."""
+    """Standard normal noise of shape (H + pad, W + pad), float32, to be cut at random offsets per frame.
+
+    ``shape`` is the frames' (H, W).
+    """
     return rng.standard_normal((shape[0] + pad, shape[1] + pad), dtype=np.float32)
 
 

@@ -16,10 +16,13 @@ import numpy as np
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, Camera
 
+__all__ = ["RIGS", "SceneRig", "make_rig", "normalized_pixel_grid", "thesis_rig", "wide_rig"]
+
 RIGS: tuple[str, ...] = ("thesis", "wide")
 
 
 def _rotvec(rx: float, ry: float, rz: float) -> np.ndarray:
+    """Rotation matrix (3, 3) of the rotation vector (rx, ry, rz) rad."""
     return cv2.Rodrigues(np.array([rx, ry, rz], dtype=np.float64))[0]
 
 
