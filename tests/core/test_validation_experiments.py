@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from saddlescope.core.calibration import BoardView, make_board
+from saddlescope.core.camera_model import project_points
 from saddlescope.core.errors import DetectionError
 from saddlescope.core.freefall import bright_spots, measure_free_fall
 from saddlescope.core.synthetic_rig import make_rig
-from saddlescope.core.triangulation import project_points
 from saddlescope.core.types import Rig
 from saddlescope.core.validation import board_point_distances, gravity_from_freefall, grid_points_px
 

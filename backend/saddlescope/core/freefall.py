@@ -30,8 +30,9 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+from saddlescope.core.camera_model import project_points
 from saddlescope.core.errors import DetectionError, KinematicsError
-from saddlescope.core.triangulation import project_points, resample_tracks, triangulate_nview
+from saddlescope.core.triangulation import resample_tracks, triangulate_nview
 from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
 from saddlescope.core.validation import G_STANDARD_M_S2, gravity_from_freefall
 

@@ -17,8 +17,9 @@ import cv2
 import numpy as np
 
 from saddlescope.core.calibration import BoardView
+from saddlescope.core.camera_model import project_points, undistort_normalized
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.triangulation import project_points, triangulate_nview, undistort_normalized
+from saddlescope.core.triangulation import triangulate_nview
 from saddlescope.core.types import Board, Camera, Rig
 
 G_STANDARD_M_S2 = 9.80665
