@@ -50,7 +50,7 @@ def bright_spots(gray: np.ndarray, *, max_spots: int = 40, min_contrast: float =
     local maxima of the weaker of the two principal curvatures of the image smoothed at a few scales
     (scale-normalised Hessian, ``sigmas_px`` on frames up to 800 px wide; a wider frame is first shrunk
     to that), and each is measured on the full frame by :func:`_half_max_centroid`. A top-hat (as
-    :func:`saddlescope.core.marker_search.bright_spots`) keeps whatever is narrower than its element:
+    :func:`saddlescope.core.detection.search.bright_spots`) keeps whatever is narrower than its element:
     between the planks of a wall the background itself is a bright stripe, which joined a ball passing
     over it into one blob too big to be a spot.
     """

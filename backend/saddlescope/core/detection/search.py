@@ -21,6 +21,21 @@ from saddlescope.core.errors import DetectionError
 from saddlescope.core.triangulation import triangulate_nview
 from saddlescope.core.types import Rig
 
+__all__ = [
+    "bright_spots",
+    "consistent_points",
+    "triangle_candidates",
+    "find_markers_multiview",
+    "camera_down",
+    "tilt_from_down_deg",
+    "plumb_candidates",
+    "static_marker_candidates",
+    "find_plumb_multiview",
+    "find_static_multiview",
+    "in_image",
+    "SequentialFrames",
+]
+
 
 def bright_spots(gray: np.ndarray, *, max_spots: int = 40, radius_px: int | None = None,
                  min_contrast: float = 25.0, return_peaks: bool = False, split_lines: bool = False):
