@@ -34,20 +34,11 @@ class CameraModel(Protocol):
     ndarray of shape (3,) mapping rig coordinates in mm into the camera's.
     """
 
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def K(self) -> np.ndarray: ...
-
-    @property
-    def dist(self) -> np.ndarray: ...
-
-    @property
-    def R(self) -> np.ndarray: ...
-
-    @property
-    def t_mm(self) -> np.ndarray: ...
+    name: str
+    K: np.ndarray
+    dist: np.ndarray
+    R: np.ndarray
+    t_mm: np.ndarray
 
 
 def _dist5(camera: CameraModel) -> np.ndarray:

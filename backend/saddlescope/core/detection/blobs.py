@@ -178,8 +178,12 @@ def _scene(gray: np.ndarray, threshold: float | None = None) -> _Scene:
 def _all_blobs(gray: np.ndarray, threshold: float, area_range_px, max_candidates: int, pad_px: int,
                scene: _Scene, exclude_xy: np.ndarray | None = None, exclude_radius_px: float = 1.0,
                roi=None) -> _Blobs:
-    """Blobs of the image (or its ``roi``) at one threshold with enough contrast, cut to the
-    ``max_candidates`` that stand out most from their surroundings; full-image coordinates."""
+    """Marker candidates of the image (or its ``roi``) at one threshold, in full-image coordinates.
+
+    Blobs in the area range, round (not streaks, stripes or rings), whole (not cut by the image
+    border), not within ``exclude_radius_px`` of ``exclude_xy`` and with enough contrast, cut to the
+    ``max_candidates`` that stand out most from their surroundings.
+    """
     x0, y0, x1, y1 = _roi_bounds(roi, gray.shape)
     if x1 - x0 < 3 or y1 - y0 < 3:
         return _empty_blobs()

@@ -98,8 +98,11 @@ def _pattern_scores(blobs: _Blobs, combos: np.ndarray, layout: str) -> np.ndarra
 
 
 def _plausible(blobs: _Blobs, combos: np.ndarray, layout: str) -> np.ndarray:
-    """Markers of one set look alike (areas within 4x, contrasts within 3x of each other), stand apart,
-    and a "row" is one: near horizontal, at most 30 % as wide as long, gaps within 3x of each other."""
+    """Which combinations (ncomb, n) of blobs could be the markers at all.
+
+    Markers of one set look alike (areas within 4x, contrasts within 3x of each other), stand apart,
+    and a "row" is one: near horizontal, at most 30 % as wide as long, gaps within 3x of each other.
+    """
     a = blobs.area[combos]
     c = blobs.contrast[combos]
     ok = (a.max(axis=1) <= 4 * a.min(axis=1)) & (c.max(axis=1) <= 3 * c.min(axis=1))
@@ -298,10 +301,13 @@ def _tracking_threshold(pattern: MarkerPattern) -> float:
 
 
 def _above_surrounds(level: float, backgrounds: list, contrasts: list) -> float:
-    """``level``, or higher where a marker's own surround is as bright as it: a marker against the
-    sky (a plumb line's top marker) merges with the sky below the sky's grey level, and the whole
-    window reads as glare. Then the level is ``_THRESHOLD_FRACTION`` of the way from each marker's
-    surround to its peak, the highest of those, if every marker's peak stays above it."""
+    """``level``, or higher where a marker's own surround is as bright as it.
+
+    A marker against the sky (a plumb line's top marker) merges with the sky below the sky's grey
+    level, and the whole window reads as glare. Then the level is ``_THRESHOLD_FRACTION`` of the way
+    from each marker's surround to its peak, the highest of those, if every marker's peak stays
+    above it.
+    """
     if max(backgrounds) + 2.0 < level:
         return level
     own = [b + _THRESHOLD_FRACTION * max(c, 2.0) for b, c in zip(backgrounds, contrasts, strict=True)]

@@ -139,8 +139,11 @@ class _Options:
 
 
 class _ClipRun:
-    """One clip through :func:`track_markers`: each frame is searched for the markers, or, once they
-    are found, followed by a :class:`_Tracker`; rows of positions and areas (None for a gap) pile up."""
+    """One clip through :func:`track_markers`.
+
+    Each frame is searched for the markers, or, once they are found, followed by a :class:`_Tracker`;
+    rows of positions and areas (None for a gap) pile up.
+    """
 
     def __init__(self, opt: _Options):
         self.opt = opt
@@ -168,8 +171,11 @@ class _ClipRun:
             self._search(index, gray)
 
     def _follow(self, index, gray: np.ndarray) -> None:
-        """One frame of tracking; the tracker is dropped when its pattern was not followed at once (not
-        the markers: its rows become gaps) or the markers are lost."""
+        """One frame of tracking.
+
+        The tracker is dropped when its pattern was not followed at once (not the markers: its rows
+        become gaps) or the markers are lost.
+        """
         opt, tracker = self.opt, self.tracker
         if gray.shape != (tracker.H, tracker.W):
             raise InputError(f"{opt.where}frame {index} has shape {gray.shape}, earlier frames "
@@ -243,8 +249,11 @@ class _ClipRun:
         return pattern
 
     def _moving_search_area(self, gray: np.ndarray, coarse: np.ndarray):
-        """For a ride: the window (x0, y0, x1, y1) that changed since the previous frame, and the spots
-        (S, 2) that were there before (still spots are not markers)."""
+        """For a ride: where to search, and the still spots that are not markers.
+
+        Returns the window (x0, y0, x1, y1) that changed since the previous frame, and the spots (S, 2)
+        that were there before.
+        """
         opt, scene = self.opt, self.scene
         if self.previous_coarse is None or self.previous_coarse.shape != coarse.shape:
             raise DetectionError(f"{opt.where}needs a second frame to tell moving markers from still "
@@ -290,8 +299,10 @@ class _ClipRun:
 
 
 def _relabel(pattern: MarkerPattern, vec_ref) -> MarkerPattern:
-    """Order a re-found pattern like the markers were before (the permutation that best keeps the
-    vectors between markers), so labels survive losing the markers for a while."""
+    """Order a re-found pattern like the markers were before, so labels survive losing them a while.
+
+    The permutation that best keeps the vectors between markers ``vec_ref`` wins.
+    """
     M = pattern.xy_px.shape[0]
     if M < 2:
         return pattern
@@ -311,9 +322,12 @@ def _relabel(pattern: MarkerPattern, vec_ref) -> MarkerPattern:
 
 
 def _row_runs_out_of_view(pattern: MarkerPattern, shape: tuple[int, int]) -> bool:
-    """Whether one more marker, the row's widest gap beyond either end, would not be whole in the
+    """Whether the marker row may run on outside the image.
+
+    True when one more marker, the row's widest gap beyond either end, would not be whole in the
     image (a diameter and 2 px from the edge): then the row found may be the part of the markers in
-    view, completed by a look-alike."""
+    view, completed by a look-alike.
+    """
     xy = pattern.xy_px
     if len(xy) < 2:
         return False

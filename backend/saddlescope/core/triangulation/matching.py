@@ -88,9 +88,11 @@ def _as_instants(xy_by_camera: Mapping[str, np.ndarray], reference: str) -> dict
 
 
 def _tuple_costs(rig: Rig, arrays: Mapping[str, np.ndarray], order: Sequence[str], cap_px: float) -> np.ndarray:
-    """Cost of every tuple (i_ref, i_1, ..., i_k) of one detection per camera, summed over the
-    instants, shape (M,) * C: its RMS reprojection error, capped at ``cap_px`` (also the cost of a
-    point behind a camera)."""
+    """Cost of every tuple (i_ref, i_1, ..., i_k) of one detection per camera, shape (M,) * C.
+
+    The tuple's RMS reprojection error summed over the instants, each capped at ``cap_px`` (also the
+    cost of a point behind a camera).
+    """
     M = arrays[order[0]].shape[1]
     # One triangulation of T M^C points.
     grids = np.meshgrid(*[np.arange(M)] * len(order), indexing="ij")
@@ -110,8 +112,10 @@ def _tuple_costs(rig: Rig, arrays: Mapping[str, np.ndarray], order: Sequence[str
 
 
 def _best_permutations(cost: np.ndarray, M: int, n_others: int) -> list[np.ndarray]:
-    """The permutation (M,) of each other camera's labels minimising the summed tuple ``cost``
-    (:func:`_tuple_costs`); the earliest (the identity first) wins ties."""
+    """The permutation (M,) of each other camera's labels minimising the summed tuple ``cost``.
+
+    ``cost`` as :func:`_tuple_costs` gives it; the earliest combination (the identity first) wins ties.
+    """
     perms = np.array(list(itertools.permutations(range(M))))  # (M!, M), the identity first
     best_total, best = np.inf, None
     # Sum over m of cost[m, p1[m], p2[m], ...] for every combination of permutations (chunks of the first).

@@ -95,9 +95,9 @@ class _Views:
         return X
 
     def predicted_error(self, X: np.ndarray, use: np.ndarray, c: int) -> np.ndarray:
-        """Camera c's error against the solution X of the cameras ``use`` (c not among them), in px,
-        normalised by how well those cameras pin down the point's image in camera c.
+        """Camera c's error against the solution X of the cameras ``use`` (c not among them), in px.
 
+        The error is normalised by how well those cameras pin down the point's image in camera c:
         r^T (I + J_c H^-1 J_c^T)^-1 r with H = sum of J^T J over the cameras used: a leave-one-out
         prediction error per unit (1 px) image noise, so a camera that the others see from a weak
         angle is not blamed for the geometry's weakness.
@@ -200,9 +200,11 @@ def triangulate_nview(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *, refin
 
 
 def _outlier_limit_px(err: np.ndarray, use: np.ndarray, outlier_px: float, outlier_sigmas: float) -> float:
-    """The rejection limit: the batch's own error level (robust sigma of all residuals of
-    over-determined points), so that a calibration's systematic few-pixel disagreements are not
-    mistaken for gross errors, and at least ``outlier_px``."""
+    """The rejection limit in px: the batch's own error level, at least ``outlier_px``.
+
+    The level is ``outlier_sigmas`` robust sigmas of all residuals of over-determined points, so that
+    a calibration's systematic few-pixel disagreements are not mistaken for gross errors.
+    """
     over = use & (use.sum(axis=0) >= 3)
     sigma_px = 1.4826 * float(np.median(err[over])) if over.any() else 0.0
     return max(outlier_px, outlier_sigmas * sigma_px)
@@ -210,10 +212,10 @@ def _outlier_limit_px(err: np.ndarray, use: np.ndarray, outlier_px: float, outli
 
 def _drop_outliers(views: _Views, use: np.ndarray, X: np.ndarray, err: np.ndarray, limit_px: float,
                    outlier_ratio: float, refine_iterations: int) -> bool:
-    """One round of the rejection of :func:`triangulate_nview`: where three or more cameras see a
-    point and the worst is over the limit, drop the one camera the others single out.
+    """One round of the rejection of :func:`triangulate_nview`.
 
-    ``use`` (C, P), ``X`` (P, 3) and ``err`` (C, P) are updated in place; False when nothing was
+    Where three or more cameras see a point and the worst is over the limit, the one camera the others
+    single out is dropped. ``use`` (C, P), ``X`` (P, 3) and ``err`` (C, P) are updated in place; False when nothing was
     dropped (the rounds end).
     """
     n_use = use.sum(axis=0)

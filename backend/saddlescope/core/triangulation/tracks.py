@@ -98,8 +98,10 @@ def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cub
 
 
 def _dense_frame_times(frame_times_s: np.ndarray, first: int, n_dense: int) -> np.ndarray:
-    """Timestamps of the dense rows of :func:`resample_tracks` (frame ``first - 1 + j``), extended
-    evenly at the median interval beyond the clip's stamped frames."""
+    """Timestamps of the dense rows of :func:`resample_tracks` (frame ``first - 1 + j``), shape (n_dense,).
+
+    Extended evenly at the median interval beyond the clip's stamped frames.
+    """
     times = np.asarray(frame_times_s, dtype=np.float64)
     dt = float(np.median(np.diff(times))) if times.size > 1 else 1.0
     fnum = first - 1 + np.arange(n_dense, dtype=np.float64)
@@ -214,8 +216,11 @@ def _on_reference_clock(tracks: Mapping[str, ImageTracks], offsets_frames: Mappi
 
 
 def _labels_of_reference(rig: Rig, xy: dict[str, np.ndarray], reference: str) -> dict[str, np.ndarray]:
-    """The other cameras' markers relabelled to the reference's (:func:`match_markers_across_cameras`
-    on up to 12 instants where every camera sees every marker); unchanged if there is none."""
+    """The other cameras' markers relabelled to the reference's.
+
+    :func:`match_markers_across_cameras` on up to 12 instants where every camera sees every marker;
+    unchanged if there is none.
+    """
     cams = list(xy)
     full = np.all(np.stack([np.all(np.isfinite(v), axis=(1, 2)) for v in xy.values()]), axis=0)
     hits = np.flatnonzero(full)

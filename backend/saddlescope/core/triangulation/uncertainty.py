@@ -22,11 +22,25 @@ def position_uncertainty(rig: Rig, point_mm: np.ndarray, *, sigma_px: float = 1.
     together (thesis rig: 0.23 m apart at 7.5 m) the point is fixed ~30 times worse along the
     viewing direction than across it.
 
+    Parameters
+    ----------
+    rig : Rig
+    point_mm : ndarray of shape (3,)
+        The point in rig coordinates, mm.
+    sigma_px : float, keyword-only
+        Image noise per coordinate, px.
+
     Returns
     -------
-    dict with ``std_mm`` (3,) standard deviations along the principal axes, largest first,
-    ``worst_axis`` (3,) unit vector of the largest, ``anisotropy`` (largest / smallest std), and
-    ``ray_origin_mm`` (3,), the mean centre of the cameras used.
+    dict
+        ``std_mm`` (3,) standard deviations along the principal axes, largest first, ``worst_axis``
+        (3,) unit vector of the largest, ``anisotropy`` (largest / smallest std), and
+        ``ray_origin_mm`` (3,), the mean centre of the cameras used.
+
+    Raises
+    ------
+    TriangulationError
+        Fewer than two cameras see the point, or their rays are parallel there.
     """
     x = np.asarray(point_mm, dtype=np.float64).reshape(3)
     info = np.zeros((3, 3))

@@ -76,7 +76,19 @@ def board_point_distances(rig: Rig, views_by_camera: Mapping[str, list[BoardView
     (default) places them with :func:`grid_points_px`, from all the corners each camera found
     (0.02-0.05 px; a few tenths of a per cent on the thesis rig, 0.05 % on a wide one).
 
-    Returns per pair: true_mm, mean_mm, std_mm, error_pct (of the mean), max_abs_error_pct, n.
+    Parameters
+    ----------
+    rig : Rig
+    views_by_camera : dict of camera name -> list of BoardView
+        Each view's ``corners_px`` (K, 2) with ``ids`` (K,), at its synchronised ``frame``.
+    board : Board
+    points : dict of name -> (col, row)
+    method : {"grid", "corners"}, keyword-only
+
+    Returns
+    -------
+    dict of pair name (e.g. "AB") -> dict
+        ``true_mm``, ``mean_mm``, ``std_mm``, ``error_pct`` (of the mean), ``max_abs_error_pct``, ``n``.
     """
     if method not in ("grid", "corners"):
         raise InputError(f"unknown board distance method {method!r} (use 'grid' or 'corners')")

@@ -76,8 +76,10 @@ def find_falling_ball(rig: Rig, tracks_by_camera: Mapping[str, list[ImageTracks]
 
     Parameters
     ----------
+    rig : Rig
     tracks_by_camera : dict camera -> list of ImageTracks
-        Candidates (``xy_px`` of shape (F, 1, 2)), e.g. :func:`moving_tracks` of :func:`link_spots`.
+        Candidates (``xy_px`` of shape (F, 1, 2)), e.g. :func:`~saddlescope.core.validation.spots.moving_tracks`
+        of :func:`~saddlescope.core.validation.spots.link_spots`.
     offsets_frames : dict camera -> float
         Camera c's frame ``k + offset[c]`` shows the same instant as the reference camera's frame ``k``
         (plus the reference's own offset).
@@ -146,9 +148,11 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
 
     Parameters
     ----------
-    spots_by_camera : dict camera -> {clip frame: ndarray (K, 2)}
-    offsets_frames : dict camera -> float
+    rig : Rig
+    spots_by_camera : dict of camera name -> {clip frame: ndarray of shape (K, 2)}
+    offsets_frames : dict of camera name -> float
         As :func:`find_falling_ball`.
+    fps : float
     start : mapping
         A first parabola on the reference clock: ``t0_s``, ``p_mm``, ``v_mm_s``, ``a_mm_s2`` (3,) with
         ``x(t) = p + v (t - t0) + a (t - t0)^2 / 2``, and the flight ``first_s``/``last_s`` to start from.
@@ -164,9 +168,16 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
 
     Returns
     -------
-    dict with ``g_m_s2`` (|a|), ``g_std_m_s2`` (its standard error), ``error_pct`` (against standard
-    gravity), ``direction`` (unit vector of a, rig axes), ``first``/``last`` (reference frames of the
-    flight), ``frames`` (reference frames spanned), ``observations`` per camera, ``rms_reprojection_px``.
+    dict
+        ``g_m_s2`` (|a|), ``g_std_m_s2`` (its standard error), ``error_pct`` (against standard
+        gravity), ``direction`` (unit vector of a, rig axes), ``first``/``last`` (reference frames of
+        the flight), ``frames`` (reference frames spanned), ``observations`` per camera,
+        ``rms_reprojection_px``.
+
+    Raises
+    ------
+    KinematicsError
+        Too few spots follow the parabola to fit it.
     """
     cams = [c for c in rig.names if c in spots_by_camera]
     reference = reference or cams[0]
@@ -193,8 +204,11 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
 
 
 class _Flight:
-    """The state of :func:`fit_flight`: every camera's spots on the reference clock (s from t0) and
-    the parabola's parameters so far (p, v, a: (9,), mm, mm/s, mm/s^2)."""
+    """The state of :func:`fit_flight`.
+
+    Every camera's spots on the reference clock (s from t0) and the parabola's parameters so far
+    (p, v, a: (9,), mm, mm/s, mm/s^2).
+    """
 
     def __init__(self, rig: Rig, times: Mapping[str, np.ndarray], frame_spots: Mapping[str, list[np.ndarray]],
                  params: np.ndarray, *, gate_px: float, outlier_sigmas: float, min_sigma_px: float):
@@ -231,8 +245,10 @@ class _Flight:
         return res, r, sigma
 
     def drop_outliers(self, obs):
-        """Fit, drop the spots beyond ``outlier_sigmas``, fit again (up to five times); the parameters
-        follow each fit. Returns (result, residuals, sigma, observations kept)."""
+        """Fit, drop the spots beyond ``outlier_sigmas``, fit again (up to five times).
+
+        The parameters follow each fit. Returns (result, residuals, sigma, observations kept).
+        """
         for _ in range(5):
             if sum(len(t) for t, _ in obs.values()) < 6:
                 raise KinematicsError("too few spots of the ball follow its parabola to fit its flight")
@@ -267,8 +283,10 @@ def _residuals(p: np.ndarray, rig: Rig, obs) -> np.ndarray:
 
 def _grow(flight: _Flight, obs, sigma: float, lo: float, hi: float, step: float, grow_limit_px: float,
           max_missed_frames: int) -> dict[str, float]:
-    """Extend the flight [lo, hi] (s from t0) frame by frame on both sides while spots follow the
-    parabola, refitting as they come; returns the furthest instants where they still did."""
+    """Extend the flight [lo, hi] (s from t0) frame by frame on both sides while spots follow it.
+
+    The parabola is refitted as they come. Returns the furthest instants where they still did.
+    """
     edge = {"before": lo, "after": hi}
     reached = dict(edge)  # the furthest instants where spots still followed the parabola
     misses = {"before": 0, "after": 0}
@@ -317,18 +335,35 @@ def _flight_result(res, obs, t0: float, fps: float) -> dict:
 def measure_free_fall(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: Mapping[str, float],
                       fps: float, *, clip: str = "freefall", reference: str | None = None,
                       min_acceleration_m_s2: float = 0.25 * G_STANDARD_M_S2) -> dict:
-    """Gravity from a thrown ball: :func:`find_falling_ball` among every camera's moving spot tracks,
-    then :func:`fit_flight` on all cameras' spots.
+    """Gravity from a thrown ball, measured with all cameras.
+
+    :func:`find_falling_ball` among every camera's moving spot tracks, then :func:`fit_flight` on all
+    cameras' spots.
 
     Parameters
     ----------
-    spots_by_camera : dict camera -> {clip frame: ndarray (K, 2)}
-        e.g. :func:`detect_spots` of each camera's frames after the sync flash.
+    rig : Rig
+    spots_by_camera : dict of camera name -> {clip frame: ndarray of shape (K, 2)}
+        e.g. :func:`~saddlescope.core.validation.spots.detect_spots` of each camera's frames after the
+        sync flash.
+    offsets_frames : dict of camera name -> float
+        As :func:`find_falling_ball`.
+    fps : float
+    clip : str, keyword-only
+        Named in errors.
+    reference : str, keyword-only
+    min_acceleration_m_s2 : float, keyword-only
 
     Returns
     -------
-    The dict of :func:`fit_flight`, plus ``g_triangulated_m_s2`` (the parabola fitted to the
-    triangulated track of the tracks found, for comparison) and ``cameras``.
+    dict
+        The dict of :func:`fit_flight`, plus ``g_triangulated_m_s2`` (the parabola fitted to the
+        triangulated track of the tracks found, for comparison) and ``cameras``.
+
+    Raises
+    ------
+    DetectionError
+        No falling ball found, or the object followed does not fall.
     """
     cams = [c for c in rig.names if c in spots_by_camera]
     reference = reference or (cams[0] if cams else "")

@@ -93,8 +93,10 @@ def _fit_parabola(t: np.ndarray, x: np.ndarray, sel: np.ndarray, cols=None) -> t
 
 def _grown_run(t: np.ndarray, x: np.ndarray, idx: np.ndarray, axes: list[int], lo: int, hi: int,
                max_residual_mm: float) -> tuple[int, int]:
-    """The run idx[lo:hi] grown a frame at a time, either side, while it stays contiguous and the
-    parabola fits within ``max_residual_mm``."""
+    """The run idx[lo:hi] grown a frame at a time, either side, while the parabola still fits.
+
+    The run stays contiguous and the parabola within ``max_residual_mm``; returns the grown (lo, hi).
+    """
     while True:
         grown = False
         for cand in ((lo - 1, hi), (lo, hi + 1)):
@@ -110,8 +112,11 @@ def _grown_run(t: np.ndarray, x: np.ndarray, idx: np.ndarray, axes: list[int], l
 
 def _falls(t: np.ndarray, x: np.ndarray, sel: np.ndarray, axes: list[int], min_acceleration_m_s2: float,
            min_significance: float) -> bool:
-    """Whether the ball accelerates on the precise axes over the frames ``sel``, clearly more than the
-    noise could fake (``min_significance`` standard errors)."""
+    """Whether the ball falls over the frames ``sel``.
+
+    It accelerates on the precise axes at least ``min_acceleration_m_s2``, clearly more than the noise
+    could fake (``min_significance`` standard errors).
+    """
     coef, rms = _fit_parabola(t, x, sel, axes)
     tt = t[sel] - t[sel].mean()
     design = np.stack([np.ones_like(tt), tt, 0.5 * tt ** 2], axis=1)

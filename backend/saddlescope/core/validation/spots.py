@@ -31,6 +31,21 @@ def bright_spots(gray: np.ndarray, *, max_spots: int = 40, min_contrast: float =
     :func:`saddlescope.core.detection.search.bright_spots`) keeps whatever is narrower than its element:
     between the planks of a wall the background itself is a bright stripe, which joined a ball passing
     over it into one blob too big to be a spot.
+
+    Parameters
+    ----------
+    gray : ndarray of shape (H, W)
+        Grey frame.
+    max_spots : int, keyword-only
+    min_contrast : float, keyword-only
+        Least height of a spot above its surroundings, grey levels.
+    sigmas_px : tuple of float, keyword-only
+        Smoothing scales of the curvature search.
+
+    Returns
+    -------
+    ndarray of shape (K, 2)
+        Spot centres in pixels, K <= ``max_spots``.
     """
     h, w = gray.shape
     f = max(1, w // 800)
@@ -102,7 +117,16 @@ def _half_max_centroid(gray: np.ndarray, centre_xy: tuple[float, float],
 def detect_spots(frames: Iterable[tuple[int, np.ndarray]], *, max_spots: int = 40) -> dict[int, np.ndarray]:
     """Small bright spots of every frame (:func:`bright_spots`).
 
-    Returns {frame index: ndarray (K, 2)}, the most contrasted first.
+    Parameters
+    ----------
+    frames : iterable of (int, ndarray of shape (H, W))
+        Frame index and grey frame.
+    max_spots : int, keyword-only
+
+    Returns
+    -------
+    dict of int -> ndarray of shape (K, 2)
+        Spot centres per frame index, the most contrasted first.
     """
     return {int(index): bright_spots(gray, max_spots=max_spots) for index, gray in frames}
 
@@ -140,10 +164,20 @@ def link_spots(spots: Spots, *, camera: str = "", first_step_px: float = 40.0, g
     ``first_step_px`` (its speed is unknown). Pairs are assigned closest first, so a still glint keeps
     its own spot when a ball passes it. A track missing for more than ``max_gap`` frames ends.
 
+    Parameters
+    ----------
+    spots : dict of int -> ndarray of shape (K, 2)
+        Spot centres per clip frame (:func:`detect_spots`).
+    camera : str, keyword-only
+        Named in the tracks.
+    first_step_px, gate_px : float, keyword-only
+    max_gap, min_frames : int, keyword-only
+
     Returns
     -------
-    list of ImageTracks with ``xy_px`` of shape (F, 1, 2) over each track's frames (NaN in its gaps),
-    for the tracks seen on at least ``min_frames`` frames.
+    list of ImageTracks
+        ``xy_px`` of shape (F, 1, 2) over each track's frames (NaN in its gaps), for the tracks seen on
+        at least ``min_frames`` frames.
     """
     active: list[_Track] = []
     done: list[_Track] = []
@@ -173,8 +207,10 @@ def link_spots(spots: Spots, *, camera: str = "", first_step_px: float = 40.0, g
 
 def moving_tracks(tracks: Iterable[ImageTracks], *, min_travel_px: float = 8.0,
                   max_tracks: int = 12) -> list[ImageTracks]:
-    """The tracks whose spot travels at least ``min_travel_px`` (a still glint does not), the longest
-    path first, at most ``max_tracks``."""
+    """The tracks whose spot travels at least ``min_travel_px`` (a still glint does not).
+
+    The longest path first, at most ``max_tracks``; each as given (``xy_px`` of shape (F, 1, 2)).
+    """
     out = []
     for tr in tracks:
         xy = tr.xy_px[:, 0]
