@@ -1,24 +1,16 @@
-"""Narrow-rig depth regularisation, the rig's position uncertainty, and wild samples in the fits."""
+"""Narrow-rig depth regularisation and wild samples in the fits."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from saddlescope.arena import make_rig
-from saddlescope.core.errors import InputError, TriangulationError
+from saddlescope.core.errors import InputError
 from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.smoothing import regularize_depth
-from saddlescope.core.triangulation import position_uncertainty
-from saddlescope.core.types import Rig
 
 PERIOD_S = 0.6
 T = np.arange(0, 2 * PERIOD_S + 1e-9, 1 / 30)
-
-
-def _rig(name: str) -> Rig:
-    scene = make_rig(name, np.random.default_rng(3))
-    return Rig(scene.cameras)
 
 
 def _path(t: np.ndarray, *, sway_mm: float = 0.0) -> np.ndarray:
@@ -26,23 +18,6 @@ def _path(t: np.ndarray, *, sway_mm: float = 0.0) -> np.ndarray:
     w = 2 * np.pi / PERIOD_S
     base = np.stack([-1500 + 3800 * t, 50 * np.cos(w * t), 7500 + 300 * t + sway_mm * np.sin(w * t)], axis=1)
     return base[:, None, :] + np.array([[0, 0, 0], [220, 40, 10], [440, -10, 5]])[None]
-
-
-def test_thesis_rig_fixes_depth_far_worse_than_a_wide_rig():
-    point = np.array([0.0, 0.0, 7500.0])
-    narrow = position_uncertainty(_rig("thesis"), point)
-    wide = position_uncertainty(_rig("wide"), point)
-    assert narrow["anisotropy"] > 15, narrow
-    assert wide["anisotropy"] < 5, wide
-    # the worst direction is the viewing direction (rig z) for cameras side by side
-    assert abs(narrow["worst_axis"][2]) > 0.99
-    assert narrow["std_mm"][0] > narrow["std_mm"][1] >= narrow["std_mm"][2] > 0
-
-
-def test_uncertainty_needs_two_cameras():
-    rig = _rig("thesis")
-    with pytest.raises(TriangulationError):
-        position_uncertainty(rig, np.array([0.0, 0.0, -7500.0]))  # behind every camera
 
 
 def test_depth_noise_removed_along_the_rays():

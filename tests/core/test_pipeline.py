@@ -134,7 +134,7 @@ def test_kinematics_of_a_known_rigid_motion_run():
 def test_without_a_plumb_gravity_is_the_cameras_mean_down_not_one_cameras():
     """A rig whose left camera is rolled 6 degrees and the others level: without a plumb line the
     vertical is the cameras' mean image-down (2 degrees off), not the left camera's (6 degrees)."""
-    from saddlescope.core.marker_search import camera_down
+    from saddlescope.core.detection import camera_down
     from saddlescope.core.types import Camera, Rig
 
     def cam(name, roll_deg, x_mm):

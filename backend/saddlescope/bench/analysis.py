@@ -56,7 +56,7 @@ def _motion_clip(tmp: Path, rig: str, duration_s: float) -> tuple[Path, int, int
 
 def detection_vs_decode(rig: str, *, duration_s: float, repeats: int, tmp: Path) -> dict:
     """Marker-detection throughput / decode-only throughput on the same clip (both decode it)."""
-    from saddlescope.core.markers import track_markers
+    from saddlescope.core.detection import track_markers
     from saddlescope.io.video import iter_gray_frames
 
     path, start, n = _motion_clip(tmp, rig, duration_s)

@@ -4,6 +4,20 @@ Each carries a human-readable message naming what was wrong (clip, camera, marke
 the API and failed jobs can show it as it is, without a traceback.
 """
 
+__all__ = [
+    "SaddleScopeError",
+    "InputError",
+    "VideoError",
+    "CalibrationError",
+    "SyncError",
+    "DetectionError",
+    "TriangulationError",
+    "KinematicsError",
+    "VibrationError",
+    "BundleError",
+    "MocapFileError",
+]
+
 
 class SaddleScopeError(Exception):
     """Base of every error a user can cause with bad input."""

@@ -23,7 +23,18 @@ import numpy as np
 
 from saddlescope.core.errors import SyncError
 
-MIN_FRAMES = 8
+__all__ = [
+    "MIN_FRAMES",
+    "flash_interval",
+    "flash_onset",
+    "clip_offsets",
+    "offsets_from_intervals",
+    "offsets_from_spec",
+    "clip_frames_at",
+    "nominal_frames_of",
+]
+
+MIN_FRAMES = 8  # the shortest clip a flash is looked for in
 
 
 def _robust_sigma(x: np.ndarray) -> float:
@@ -64,8 +75,29 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
     SyncError
         Clip too short, no flash, or a brightness step that never comes back down.
     """
-    b = np.asarray(mean_brightness, np.float64).ravel()
     where = f"{clip} clip of the {camera} camera"
+    b = _checked_brightness(mean_brightness, where, integration)
+    start, stop, base_before, base_after, plateau = _lit_run(b, where, min_sigma, noise_floor, max_flash_fraction)
+    if edges == "auto":
+        # a lamp lit for several frames shows its plateau and ramps; a brief flash is a step
+        edges = "ramp" if stop - start + 1 >= 4 else "step"
+    if edges in ("ramp", "samples"):
+        rise, fall = _edge_samples(b, base_before, base_after, start, stop)
+        if edges == "samples":
+            return rise, fall
+        w = _ramp_width([rise], [fall]) if ramp_width is None else ramp_width
+        return _edge_mid(rise, w, +1, start), _edge_mid(fall, w, -1, stop)
+    # the step model (module docstring): the partly lit first and last frames place onset and end
+    phi = np.clip((b[start] - base_before) / (plateau - base_before), 0.0, 1.0)
+    psi = np.clip((b[stop] - base_after) / (plateau - base_after), 0.0, 1.0)
+    onset = start + integration * (1.0 - phi)
+    end = stop + integration * psi
+    return float(onset), float(end)
+
+
+def _checked_brightness(mean_brightness: np.ndarray, where: str, integration: float) -> np.ndarray:
+    """The brightness curve as float64 (F,), refused if too short or not finite (or a bad ``integration``)."""
+    b = np.asarray(mean_brightness, np.float64).ravel()
     if len(b) < MIN_FRAMES:
         raise SyncError(f"{where} has only {len(b)} frame(s); need at least {MIN_FRAMES} to find the "
                         f"sync flash")
@@ -73,6 +105,15 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
         raise SyncError(f"{where}: brightness has non-finite values")
     if not 0 < integration <= 1:
         raise SyncError(f"integration fraction {integration} must be in (0, 1]")
+    return b
+
+
+def _lit_run(b: np.ndarray, where: str, min_sigma: float, noise_floor: float,
+             max_flash_fraction: float) -> tuple[int, int, float, float, float]:
+    """The flash in the brightness curve ``b`` (F,), or SyncError if none stands out of the noise.
+
+    Returns its first and last lit frames, the baselines before and after it, and its plateau.
+    """
     d = np.diff(b)
     sigma = max(_robust_sigma(d) / np.sqrt(2), noise_floor)
     level = min_sigma * sigma
@@ -82,6 +123,25 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
                         f"{d[rise_at]:.2f} grey levels, under {min_sigma:g} x the frame-to-frame noise "
                         f"({sigma:.3f})")
     base_before = float(np.median(b[max(0, rise_at - 5): rise_at])) if rise_at > 0 else float(b[0])
+    start, stop = _lit_frames(b, rise_at, base_before, level)
+    if stop == len(b) - 1:
+        raise SyncError(f"no sync flash found in the {where}: the brightness rises at frame {start} but "
+                        f"never comes back down (a lighting change, or the clip ends during the flash)")
+    if stop - start + 1 > max_flash_fraction * len(b):
+        raise SyncError(f"no sync flash found in the {where}: the bright interval (frames {start}-{stop}) "
+                        f"lasts more than {max_flash_fraction:.0%} of the clip")
+    base_after = float(np.median(b[stop + 1: stop + 6]))
+    run = b[start: stop + 1]
+    # the brightest frame lies on the lamp's plateau (a sync flash stays on for a frame or more)
+    plateau = float(run.max())
+    if plateau - max(base_before, base_after) <= level:
+        raise SyncError(f"no sync flash found in the {where}: the bright frames {start}-{stop} do not "
+                        f"stand out of the noise")
+    return start, stop, base_before, base_after, plateau
+
+
+def _lit_frames(b: np.ndarray, rise_at: int, base_before: float, level: float) -> tuple[int, int]:
+    """First and last frame of the flash that lights the frame after the largest rise ``rise_at``."""
     # the lit run: contiguous frames above the baseline that include the frame after the largest rise
     # lit: well above the baseline relative to the flash itself, so slow lighting drift after a flash
     # (clouds, auto-exposure) is not taken for a flash lasting half the clip
@@ -100,33 +160,7 @@ def flash_interval(mean_brightness: np.ndarray, *, clip: str, camera: str, min_s
             start -= 1
         if stop + 1 < len(b) and faint[stop + 1] and b[stop + 1] < b[stop]:
             stop += 1
-    if stop == len(b) - 1:
-        raise SyncError(f"no sync flash found in the {where}: the brightness rises at frame {start} but "
-                        f"never comes back down (a lighting change, or the clip ends during the flash)")
-    if stop - start + 1 > max_flash_fraction * len(b):
-        raise SyncError(f"no sync flash found in the {where}: the bright interval (frames {start}-{stop}) "
-                        f"lasts more than {max_flash_fraction:.0%} of the clip")
-    base_after = float(np.median(b[stop + 1: stop + 6]))
-    run = b[start: stop + 1]
-    # the brightest frame lies on the lamp's plateau (a sync flash stays on for a frame or more)
-    plateau = float(run.max())
-    if plateau - max(base_before, base_after) <= level:
-        raise SyncError(f"no sync flash found in the {where}: the bright frames {start}-{stop} do not "
-                        f"stand out of the noise")
-    if edges == "auto":
-        # a lamp lit for several frames shows its plateau and ramps; a brief flash is a step
-        edges = "ramp" if stop - start + 1 >= 4 else "step"
-    if edges in ("ramp", "samples"):
-        rise, fall = _edge_samples(b, base_before, base_after, start, stop)
-        if edges == "samples":
-            return rise, fall
-        w = _ramp_width([rise], [fall]) if ramp_width is None else ramp_width
-        return _edge_mid(rise, w, +1, start), _edge_mid(fall, w, -1, stop)
-    phi = np.clip((b[start] - base_before) / (plateau - base_before), 0.0, 1.0)
-    psi = np.clip((b[stop] - base_after) / (plateau - base_after), 0.0, 1.0)
-    onset = start + integration * (1.0 - phi)
-    end = stop + integration * psi
-    return float(onset), float(end)
+    return start, stop
 
 
 def _edges_of(b, *, clip: str, camera: str, **kwargs):
@@ -153,9 +187,11 @@ def _edge_samples(b, base_before, base_after, start, stop):
 
 
 def _ramp_width(rises, falls) -> float:
-    """Width (frames) of the lamp's ramp as the exposures see it, from every edge with two or more
-    samples on it (the same lamp and exposure in every camera); one frame (an instant flash
-    integrated over a whole frame period) when no edge shows it."""
+    """Width (frames) of the lamp's ramp as the exposures see it.
+
+    From every edge with two or more samples on it (the same lamp and exposure in every camera); one
+    frame (an instant flash integrated over a whole frame period) when no edge shows it.
+    """
     widths = []
     for k, y in list(rises) + list(falls):
         if len(k) >= 2:
@@ -176,7 +212,22 @@ def _edge_mid(samples, w: float, direction: int, edge: int) -> float:
 
 
 def flash_onset(mean_brightness: np.ndarray, *, clip: str, camera: str, **kwargs) -> float:
-    """Sub-frame time (in frames) at which the sync flash starts; see :func:`flash_interval`."""
+    """Sub-frame time (in frames) at which the sync flash starts.
+
+    Parameters
+    ----------
+    mean_brightness : ndarray of shape (F,)
+        Mean grey level of each frame.
+    clip, camera : str
+        Named in error messages.
+    **kwargs
+        Passed to :func:`flash_interval`.
+
+    Returns
+    -------
+    float
+        The onset of :func:`flash_interval`, in frames.
+    """
     return flash_interval(mean_brightness, clip=clip, camera=camera, **kwargs)[0]
 
 
@@ -247,8 +298,11 @@ def clip_offsets(brightness_by_camera: Mapping[str, np.ndarray], fps_by_camera: 
 
 def offsets_from_intervals(intervals: Mapping[str, tuple[float, float]], *,
                            reference: str | None = None) -> dict[str, float]:
-    """Offsets from each camera's flash (onset, end): the mean of the onset and end differences when they
-    agree within half a frame (it halves the noise), the onset difference otherwise."""
+    """Offsets in frames from each camera's flash (onset, end), relative to the reference camera.
+
+    The mean of the onset and end differences when they agree within half a frame (it halves the
+    noise), the onset difference otherwise. The reference defaults to the first camera.
+    """
     reference = reference or next(iter(intervals))
     on0, end0 = intervals[reference]
     offsets = {}
@@ -308,7 +362,24 @@ def clip_frames_at(nominal_frames: np.ndarray, frame_times_s: np.ndarray, anchor
     The nominal clock runs evenly at ``fps`` and agrees with the clip's timestamps at ``anchor_frame``
     (the sync flash's onset, where the frame offsets tie the cameras together): nominal frame n is the
     instant τ(anchor) + (n - anchor) / fps, placed between the clip's stamped frames (NaN outside).
-    For an even clip this is n itself."""
+    For an even clip this is n itself.
+
+    Parameters
+    ----------
+    nominal_frames : ndarray of shape (N,)
+        Frames on the nominal even clock.
+    frame_times_s : ndarray of shape (F,)
+        The clip's frame timestamps in seconds.
+    anchor_frame : float
+        The (fractional) clip frame where both clocks agree.
+    fps : float
+        The nominal frame rate.
+
+    Returns
+    -------
+    ndarray of shape (N,)
+        Fractional clip frames, NaN outside the clip.
+    """
     times, idx, t_anchor = _stamps(frame_times_s, anchor_frame)
     want = t_anchor + (np.asarray(nominal_frames, dtype=np.float64) - anchor_frame) / fps
     return np.interp(want, times, idx, left=np.nan, right=np.nan)
@@ -316,6 +387,23 @@ def clip_frames_at(nominal_frames: np.ndarray, frame_times_s: np.ndarray, anchor
 
 def nominal_frames_of(clip_frames: np.ndarray, frame_times_s: np.ndarray, anchor_frame: float,
                       fps: float) -> np.ndarray:
-    """The inverse of :func:`clip_frames_at`: the nominal (even-clock) frame of each clip frame."""
+    """The inverse of :func:`clip_frames_at`: the nominal (even-clock) frame of each clip frame.
+
+    Parameters
+    ----------
+    clip_frames : ndarray of shape (N,)
+        (Fractional) frames of the clip.
+    frame_times_s : ndarray of shape (F,)
+        The clip's frame timestamps in seconds.
+    anchor_frame : float
+        The (fractional) clip frame where both clocks agree.
+    fps : float
+        The nominal frame rate.
+
+    Returns
+    -------
+    ndarray of shape (N,)
+        Frames on the nominal even clock.
+    """
     times, idx, t_anchor = _stamps(frame_times_s, anchor_frame)
     return anchor_frame + (np.interp(np.asarray(clip_frames, dtype=np.float64), idx, times) - t_anchor) * fps

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from saddlescope.core.camera_model import undistort_normalized
+
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
 CLIP_KINDS: tuple[str, ...] = ("calibration", "plumb", "static", "motion")
 GAITS: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter")
@@ -39,6 +41,7 @@ class Camera:
 
     @property
     def rvec(self) -> np.ndarray:
+        """Rotation vector (Rodrigues) of ``R``, shape (3,)."""
         return cv2.Rodrigues(np.asarray(self.R, dtype=np.float64))[0].ravel()
 
     @property
@@ -52,7 +55,18 @@ class Camera:
         return -self.R.T @ np.reshape(self.t_mm, 3)
 
     def project(self, points_mm: np.ndarray) -> np.ndarray:
-        """Project rig points of shape (..., 3) to distorted pixels of shape (..., 2)."""
+        """Project rig points to distorted pixels with OpenCV's ``projectPoints``.
+
+        Parameters
+        ----------
+        points_mm : ndarray of shape (..., 3)
+            Rig coordinates in mm; non-finite rows give NaN.
+
+        Returns
+        -------
+        ndarray of shape (..., 2)
+            Distorted pixel coordinates.
+        """
         pts = np.asarray(points_mm, dtype=np.float64)
         shape = pts.shape[:-1]
         flat = pts.reshape(-1, 3)
@@ -66,9 +80,18 @@ class Camera:
         return out.reshape(*shape, 2)
 
     def undistort_points(self, xy_px: np.ndarray) -> np.ndarray:
-        """Remove lens distortion: distorted pixels (..., 2) -> ideal pixels (..., 2) (same K)."""
-        from saddlescope.core.triangulation import undistort_normalized  # the exact (Newton-refined) inverse
+        """Remove lens distortion with the exact (Newton-refined) inverse of the camera model.
 
+        Parameters
+        ----------
+        xy_px : ndarray of shape (..., 2)
+            Distorted pixel coordinates; NaN rows stay NaN.
+
+        Returns
+        -------
+        ndarray of shape (..., 2)
+            Ideal (undistorted) pixel coordinates with the same K.
+        """
         xn = undistort_normalized(self, xy_px)
         K = np.asarray(self.K, dtype=np.float64)
         return xn @ K[:2, :2].T + K[:2, 2]

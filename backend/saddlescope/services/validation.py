@@ -7,10 +7,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from saddlescope.core import calibration as calib
-from saddlescope.core.freefall import detect_spots, measure_free_fall
 from saddlescope.core.pipeline import board_from_meta, still_views, synchronise
 from saddlescope.core.types import Rig
-from saddlescope.core.validation import board_point_distances
+from saddlescope.core.validation import board_point_distances, detect_spots, measure_free_fall
 from saddlescope.io.bundle import open_bundle
 from saddlescope.io.clip_source import BundleClips
 

@@ -14,8 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from saddlescope.core.errors import DetectionError, KinematicsError, TriangulationError
-from saddlescope.core.marker_search import (
+from saddlescope.core.detection import (
     SequentialFrames,
     camera_down,
     find_markers_multiview,
@@ -23,8 +22,9 @@ from saddlescope.core.marker_search import (
     find_static_multiview,
     in_image,
     tilt_from_down_deg,
+    track_markers,
 )
-from saddlescope.core.markers import track_markers
+from saddlescope.core.errors import DetectionError, KinematicsError, TriangulationError
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.pipeline.setup import outside_coverage
@@ -135,7 +135,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     """Track the horse markers through the motion clip of every camera.
 
     The horse may enter the view late and look-alikes abound, so the start is found with all cameras
-    at once (:func:`saddlescope.core.marker_search.find_markers_multiview`): the first instant where
+    at once (:func:`saddlescope.core.detection.find_markers_multiview`): the first instant where
     the cameras agree on a triangle of the static shot's layout. That also tells which static marker
     is the saddle marker S (the one left out). Tracking then follows each camera from there.
 

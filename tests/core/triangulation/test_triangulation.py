@@ -13,13 +13,11 @@ from conftest import real_data_path
 from saddlescope.core.errors import InputError, TriangulationError
 from saddlescope.core.triangulation import (
     match_markers_across_cameras,
-    project_points,
     reprojection_errors,
     resample_tracks,
     triangulate_nview,
     triangulate_thesis_pairs,
     triangulate_tracks,
-    undistort_normalized,
 )
 from saddlescope.core.types import Camera, ImageTracks, Rig
 
@@ -45,17 +43,6 @@ def scene_points(rng, n):
 @pytest.fixture
 def rig():
     return thesis_rig()
-
-
-def test_undistort_inverts_the_camera_model(rig):
-    rng = np.random.default_rng(0)
-    cam = rig.cameras["middle"]
-    X = scene_points(rng, 50)
-    px = cam.project(X)  # OpenCV's projection
-    np.testing.assert_allclose(project_points(cam, X), px, atol=1e-9)
-    xn = undistort_normalized(cam, px)
-    xc = X @ cam.R.T + cam.t_mm
-    np.testing.assert_allclose(xn, xc[:, :2] / xc[:, 2:], atol=1e-13)
 
 
 def test_nview_exact_without_noise(rig):

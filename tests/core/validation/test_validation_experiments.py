@@ -9,11 +9,16 @@ import pytest
 
 from saddlescope.arena import make_rig
 from saddlescope.core.calibration import BoardView, make_board
+from saddlescope.core.camera_model import project_points
 from saddlescope.core.errors import DetectionError
-from saddlescope.core.freefall import bright_spots, measure_free_fall
-from saddlescope.core.triangulation import project_points
 from saddlescope.core.types import Rig
-from saddlescope.core.validation import board_point_distances, gravity_from_freefall, grid_points_px
+from saddlescope.core.validation import (
+    board_point_distances,
+    bright_spots,
+    gravity_from_freefall,
+    grid_points_px,
+    measure_free_fall,
+)
 
 FPS = 30.0
 OFFSETS = {"left": 0.0, "middle": 7.37, "right": -3.62}

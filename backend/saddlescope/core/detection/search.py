@@ -21,16 +21,49 @@ from saddlescope.core.errors import DetectionError
 from saddlescope.core.triangulation import triangulate_nview
 from saddlescope.core.types import Rig
 
+__all__ = [
+    "bright_spots",
+    "consistent_points",
+    "triangle_candidates",
+    "find_markers_multiview",
+    "camera_down",
+    "tilt_from_down_deg",
+    "plumb_candidates",
+    "static_marker_candidates",
+    "find_plumb_multiview",
+    "find_static_multiview",
+    "in_image",
+    "SequentialFrames",
+]
+
 
 def bright_spots(gray: np.ndarray, *, max_spots: int = 40, radius_px: int | None = None,
                  min_contrast: float = 25.0, return_peaks: bool = False, split_lines: bool = False):
-    """Centres (K, 2) of small bright spots, the most contrasted first (and with ``return_peaks``
-    their top-hat peaks (K,) in grey levels).
+    """Centres of small bright spots (markers, glints), the most contrasted first.
 
     A white top-hat keeps what is brighter than its surroundings within ``radius_px`` (markers,
     glints) and drops large bright areas (sky, white boards); centroids are weighted by the top-hat.
     Thin lines pass the top-hat too: with ``split_lines`` a region too large for a spot is cut at
     half its height above the threshold, so markers on a plumb line's string come apart from it.
+
+    Parameters
+    ----------
+    gray : ndarray of shape (H, W)
+        Grey frame.
+    max_spots : int, keyword-only
+    radius_px : int, keyword-only
+        Top-hat radius; default about 1/110 of the image width (at least 4 px).
+    min_contrast : float, keyword-only
+        Top-hat threshold floor in grey levels (the 99.5th percentile is used if higher).
+    return_peaks : bool, keyword-only
+    split_lines : bool, keyword-only
+
+    Returns
+    -------
+    xy : ndarray of shape (K, 2)
+        Spot centres in pixels.
+    peaks : ndarray of shape (K,)
+        The spots' top-hat peaks in grey levels; only with ``return_peaks``.
     """
     h, w = gray.shape
     r = int(radius_px or max(4, round(w / 110)))
@@ -117,7 +150,19 @@ def consistent_points(rig: Rig, spots: Mapping[str, np.ndarray], *, max_error_px
     Every combination of one spot per camera is triangulated; those reprojecting within
     ``max_error_px`` are kept, the best-fitting first, each spot used by one point at most.
 
-    Returns (points (P, 3) mm, spot index per point and camera (P, C), cameras (C,)).
+    Parameters
+    ----------
+    rig : Rig
+    spots : dict of camera name -> ndarray of shape (K_c, 2)
+        Distorted pixels, all at one instant.
+    max_error_px : float, keyword-only
+
+    Returns
+    -------
+    (points, used, cameras) or None
+        ``points`` ndarray of shape (P, 3) in mm, ``used`` ndarray of shape (P, C): each point's spot
+        index per camera, ``cameras`` the C camera names; None with fewer than two cameras' spots or
+        too many combinations.
     """
     cams = [c for c in rig.names if c in spots and len(spots[c])]
     if len(cams) < 2:
@@ -146,12 +191,20 @@ def triangle_candidates(rig: Rig, spots: Mapping[str, np.ndarray], model_mm: np.
 
     Parameters
     ----------
-    spots : dict camera -> ndarray (K_c, 2) distorted px, all at one instant
-    model_mm : ndarray of shape (M, 3), the markers' static-shot positions (any rigid placement)
+    rig : Rig
+    spots : dict of camera name -> ndarray of shape (K_c, 2)
+        Distorted pixels, all at one instant.
+    model_mm : ndarray of shape (M, 3)
+        The markers' static-shot positions (any rigid placement).
+    max_error_px : float, keyword-only
+    tol_mm : float, keyword-only
+        Largest RMS mismatch of the distances between markers; default 6 % of their mean (>= 6 mm).
 
     Returns
     -------
-    ({camera: ndarray (M, 2)} in model order, RMS distance mismatch in mm) or None.
+    (xy, rms_mm) or None
+        ``xy`` dict of camera name -> ndarray of shape (M, 2) in model order, ``rms_mm`` the RMS
+        distance mismatch in mm.
     """
     found = consistent_points(rig, spots, max_error_px=max_error_px)
     if found is None or len(found[0]) < model_mm.shape[0]:
@@ -179,9 +232,10 @@ def find_markers_multiview(rig: Rig, frame_at: Callable[[str, int], np.ndarray |
                            offsets: Mapping[str, float], models_mm: list[np.ndarray], *, first: int, last: int,
                            step: int = 2, clip: str = "motion", max_spots: int = 25,
                            frame_position: Callable[[str, int], float] | None = None) -> tuple[int, dict]:
-    """First instant (reference-camera frame) in [first, last) where every camera sees the marker
-    triangle of one of ``models_mm``, and each camera's marker positions there.
+    """The first instant where every camera sees the marker triangle, and the markers' positions there.
 
+    The instant is a reference-camera frame in [first, last) (every ``step``-th) where the spots of
+    every camera hold the triangle of one of ``models_mm`` (:func:`triangle_candidates`).
     ``frame_at(camera, index)`` returns that camera's grey frame or None past its end; ``offsets``
     maps camera -> frames later the same instant appears in it (reference camera 0). A variable-rate
     clip (phones) needs ``frame_position(camera, k)``: the (fractional) frame of that camera at the
@@ -189,7 +243,29 @@ def find_markers_multiview(rig: Rig, frame_at: Callable[[str, int], np.ndarray |
     Positions are returned at each camera's nearest whole frame (``frames``), snapped to the spots
     seen there.
 
-    Returns (instant, {"xy": {camera: (M, 2)}, "frames": {camera: int}, "model": index, "rms_mm"}).
+    Parameters
+    ----------
+    rig : Rig
+    frame_at : callable (camera, index) -> ndarray of shape (H, W) or None
+    offsets : dict of camera name -> float
+    models_mm : list of ndarray of shape (M, 3)
+        Candidate marker layouts (static-shot positions).
+    first, last, step : int, keyword-only
+    clip : str, keyword-only
+        Named in the error.
+    max_spots : int, keyword-only
+    frame_position : callable (camera, k) -> float, keyword-only
+
+    Returns
+    -------
+    (instant, found)
+        ``found``: {"xy": {camera: ndarray of shape (M, 2)}, "frames": {camera: int}, "model": index
+        into ``models_mm``, "rms_mm": float}.
+
+    Raises
+    ------
+    DetectionError
+        No such instant in [first, last).
     """
     cams = rig.names
     for k in range(first, last, step):
@@ -228,15 +304,29 @@ def find_markers_multiview(rig: Rig, frame_at: Callable[[str, int], np.ndarray |
 
 
 def camera_down(rig: Rig) -> np.ndarray:
-    """The cameras' mean image-down direction in rig coordinates: gravity's direction for cameras
-    standing roughly level (a guess, used to recognise a plumb line, never as gravity itself)."""
+    """The cameras' mean image-down direction in rig coordinates, a unit vector of shape (3,).
+
+    Gravity's direction for cameras standing roughly level: a guess, used to recognise a plumb line,
+    never as gravity itself.
+    """
     down = np.mean([cam.R[1] for cam in rig.cameras.values()], axis=0)
     return down / np.linalg.norm(down)
 
 
 def tilt_from_down_deg(rig: Rig, d: np.ndarray) -> np.ndarray:
-    """Angle (degrees) between each line direction ``d`` (..., 3) and the cameras' image-down
-    direction (:func:`camera_down`), either way along the line."""
+    """Angle in degrees between line directions and the cameras' image-down direction.
+
+    Parameters
+    ----------
+    rig : Rig
+    d : ndarray of shape (..., 3)
+        Line directions in rig coordinates (any length).
+
+    Returns
+    -------
+    ndarray of shape (...,)
+        Angle to :func:`camera_down`, either way along the line (0-90 degrees).
+    """
     d = np.asarray(d, dtype=np.float64)
     length = np.linalg.norm(d, axis=-1)
     return np.degrees(np.arccos(np.clip(np.abs(d @ camera_down(rig)) / np.maximum(length, 1e-9), 0.0, 1.0)))
@@ -260,8 +350,22 @@ def plumb_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: Mapping[s
     brightness, :func:`bright_spots`) a pair loses 10 degrees' worth per its weaker point's shortfall
     from the brightest point (retro-reflective markers outshine a string).
 
-    Returns ({camera: ndarray (2, 2)} upper marker first, score (the tilt from image-down in degrees
-    plus the brightness penalty), the two points (2, 3) mm) or None.
+    Parameters
+    ----------
+    rig : Rig
+    spots : dict of camera name -> ndarray of shape (K_c, 2)
+        Distorted pixels of one still instant.
+    peaks : dict of camera name -> ndarray of shape (K_c,), optional
+    max_tilt_deg : float, keyword-only
+    length_mm : (float, float), keyword-only
+    max_error_px : float, keyword-only
+
+    Returns
+    -------
+    (xy, score, points_mm) or None
+        ``xy`` dict of camera name -> ndarray of shape (2, 2), upper marker first; the score (the tilt
+        from image-down in degrees plus the brightness penalty); the two points, ndarray of shape
+        (2, 3) in mm.
     """
     found = consistent_points(rig, spots, max_error_px=max_error_px)
     if found is None or len(found[0]) < 2:
@@ -287,9 +391,11 @@ def plumb_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: Mapping[s
 
 
 def _bright_at(gray: np.ndarray, xy: np.ndarray, *, radius_px: int = 3, min_contrast: float = 12.0) -> bool:
-    """Whether a marker-like bright spot is within ``radius_px`` of each of the points ``xy`` (K, 2):
-    the brightest pixel there stands ``min_contrast`` grey levels above the median of a ring 6-10 px
-    out. Points outside the image have none."""
+    """Whether a marker-like bright spot is within ``radius_px`` of each of the points ``xy`` (K, 2).
+
+    A spot: the brightest pixel there stands ``min_contrast`` grey levels above the median of a ring
+    6-10 px out. Points outside the image have none.
+    """
     h, w = gray.shape
     yy, xx = np.mgrid[-10:11, -10:11]
     r = np.hypot(xx, yy)
@@ -320,7 +426,21 @@ def static_marker_candidates(rig: Rig, spots: Mapping[str, np.ndarray], peaks: M
     Two different sets scoring within ``ambiguity`` of each other leave the choice to each camera
     (None).
 
-    Returns ({camera: ndarray (n, 2)} left to right in the first camera, score, points (n, 3) mm).
+    Parameters
+    ----------
+    rig : Rig
+    spots : dict of camera name -> ndarray of shape (K_c, 2)
+        Distorted pixels of one still instant.
+    peaks : dict of camera name -> ndarray of shape (K_c,)
+        Each spot's brightness (:func:`bright_spots`).
+    n_markers : int
+    max_extent_mm, min_gap_mm, max_error_px, ambiguity : float, keyword-only
+
+    Returns
+    -------
+    (xy, score, points_mm) or None
+        ``xy`` dict of camera name -> ndarray of shape (n, 2), left to right in the first camera; the
+        score; the points, ndarray of shape (n, 3) in mm.
     """
     found = consistent_points(rig, spots, max_error_px=max_error_px)
     if found is None or len(found[0]) < n_markers:
@@ -358,7 +478,8 @@ def _find_still_multiview(rig: Rig, frames: Mapping[str, np.ndarray], candidates
     Two cameras agree on spurious points easily (any spots on matching epipolar lines), so a
     two-camera candidate counts only where the third camera shows a bright spot at each of its points
     or cannot see them (outside its image). One seen by all cameras wins unless a two-camera one
-    scores more than 1 better."""
+    scores more than 1 better.
+    """
     frames = {c: g for c, g in frames.items() if c in rig.cameras}
     found_spots = {c: bright_spots(g, max_spots=max_spots, return_peaks=True, split_lines=split_lines)
                    for c, g in frames.items()}
@@ -383,30 +504,40 @@ def _find_still_multiview(rig: Rig, frames: Mapping[str, np.ndarray], candidates
 
 def find_plumb_multiview(rig: Rig, frames: Mapping[str, np.ndarray], *, max_spots: int = 25
                          ) -> tuple[dict, float, np.ndarray] | None:
-    """The plumb line's markers in the still frames ``frames`` {camera: grey frame}, or None.
+    """The plumb line's markers in the still frames ``frames`` {camera: grey frame (H, W)}, or None.
 
     Candidates (:func:`plumb_candidates`) come from all cameras' spots and from every two cameras'
     (a plumb line hung at the end of the arena may be outside one camera's view, or a marker against
     the bright sky too faint for the spot search there): :func:`_find_still_multiview`.
 
-    Returns ({camera: (2, 2)} for the cameras whose spots it was found among, its score, the two
-    points (2, 3) mm)."""
+    Returns
+    -------
+    (xy, score, points_mm) or None
+        ``xy`` dict of camera name -> ndarray of shape (2, 2) (upper marker first) for the cameras
+        whose spots it was found among, its score, and the two points, ndarray of shape (2, 3) in mm.
+    """
     return _find_still_multiview(rig, frames, plumb_candidates, max_spots=max_spots, split_lines=True)
 
 
 def find_static_multiview(rig: Rig, frames: Mapping[str, np.ndarray], n_markers: int, *, max_spots: int = 25
                           ) -> tuple[dict, float, np.ndarray] | None:
-    """The standing horse's markers in the still frames ``frames`` {camera: grey frame}, or None
-    (:func:`static_marker_candidates`, from all cameras or two and the third's check:
-    :func:`_find_still_multiview`).
+    """The standing horse's markers in the still frames ``frames`` {camera: grey frame (H, W)}, or None.
 
-    Returns ({camera: (n, 2)} for the cameras whose spots they were found among, score, points (n, 3) mm)."""
+    Candidates (:func:`static_marker_candidates`) come from all cameras or two and the third's check
+    (:func:`_find_still_multiview`).
+
+    Returns
+    -------
+    (xy, score, points_mm) or None
+        ``xy`` dict of camera name -> ndarray of shape (n, 2) (left to right) for the cameras whose
+        spots they were found among, the score, and the points, ndarray of shape (n, 3) in mm.
+    """
     return _find_still_multiview(rig, frames, functools.partial(static_marker_candidates, n_markers=n_markers),
                                  max_spots=max_spots, split_lines=False)
 
 
 def in_image(rig: Rig, camera: str, points_mm: np.ndarray) -> bool:
-    """Whether every point is in front of the camera and inside its image."""
+    """Whether every point of ``points_mm`` (N, 3), rig mm, is in front of the camera and inside its image."""
     cam = rig.cameras[camera]
     depth = (np.asarray(points_mm) @ np.asarray(cam.R).T + cam.t_mm)[:, 2]
     xy = cam.project(points_mm)
@@ -429,6 +560,7 @@ class SequentialFrames:
         self._ended: dict[str, int] = {}
 
     def __call__(self, camera: str, index: int) -> np.ndarray | None:
+        """The camera's grey frame ``index`` (H, W), or None before the clip or past its end."""
         if index < 0:
             return None
         cache = self._cache.setdefault(camera, {})

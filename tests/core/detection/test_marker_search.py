@@ -6,15 +6,15 @@ import cv2
 import numpy as np
 import pytest
 
-from saddlescope.core.errors import DetectionError
-from saddlescope.core.marker_search import (
+from saddlescope.core.detection import (
     bright_spots,
     find_markers_multiview,
     find_plumb_multiview,
     find_static_multiview,
     in_image,
+    track_markers,
 )
-from saddlescope.core.markers import track_markers
+from saddlescope.core.errors import DetectionError
 from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.types import Camera, Rig
 

@@ -5,8 +5,9 @@ moving bright thing: a one-marker tracker per camera may follow a different obje
 the triangulated "ball" is then nonsense. Three calibrated cameras can tell: the ball is the bright spot
 whose tracks in the cameras triangulate to one 3-D point at every instant (small reprojection error)
 and whose 3-D track is a parabola with a clear acceleration. Every camera's bright spots
-(:func:`detect_spots`) are linked into short 2-D tracks (:func:`link_spots`); the tracks that stand
-still are dropped; :func:`find_falling_ball` tries one moving track per camera (or none) and keeps the
+(:func:`~saddlescope.core.validation.spots.detect_spots`) are linked into short 2-D tracks
+(:func:`~saddlescope.core.validation.spots.link_spots`); the tracks that stand still are dropped;
+:func:`find_falling_ball` tries one moving track per camera (or none) and keeps the
 combination seen by the most cameras over the longest flight.
 
 Measuring. A ball passing in front of a glint merges with it for a frame or two, which cuts its 2-D
@@ -24,187 +25,19 @@ rig whose ball crossed the wall's top edge, which spoils a few centroids).
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 
-import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+from saddlescope.core.camera_model import project_points
 from saddlescope.core.errors import DetectionError, KinematicsError
-from saddlescope.core.triangulation import project_points, resample_tracks, triangulate_nview
+from saddlescope.core.triangulation import resample_tracks, triangulate_nview
 from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
-from saddlescope.core.validation import G_STANDARD_M_S2, gravity_from_freefall
+from saddlescope.core.validation.gravity import G_STANDARD_M_S2, gravity_from_freefall
+from saddlescope.core.validation.spots import Spots, link_spots, moving_tracks
 
-__all__ = ["bright_spots", "detect_spots", "link_spots", "moving_tracks", "find_falling_ball", "fit_flight",
-           "measure_free_fall"]
-
-Spots = Mapping[int, np.ndarray]  # clip frame index -> (K, 2) spot centres, distorted px
-
-
-def bright_spots(gray: np.ndarray, *, max_spots: int = 40, min_contrast: float = 25.0,
-                 sigmas_px: tuple[float, ...] = (1.5, 2.5, 4.0)) -> np.ndarray:
-    """Centres (K, 2) of small bright spots (a ball, glints), the most contrasted first.
-
-    A spot curves down both ways; an edge, a stripe or a line only one way. So the candidates are the
-    local maxima of the weaker of the two principal curvatures of the image smoothed at a few scales
-    (scale-normalised Hessian, ``sigmas_px`` on frames up to 800 px wide; a wider frame is first shrunk
-    to that), and each is measured on the full frame by :func:`_half_max_centroid`. A top-hat (as
-    :func:`saddlescope.core.marker_search.bright_spots`) keeps whatever is narrower than its element:
-    between the planks of a wall the background itself is a bright stripe, which joined a ball passing
-    over it into one blob too big to be a spot.
-    """
-    h, w = gray.shape
-    f = max(1, w // 800)
-    small = cv2.resize(gray, (w // f, h // f), interpolation=cv2.INTER_AREA) if f > 1 else gray
-    g0 = small.astype(np.float32)
-    strength = np.zeros_like(g0)
-    scale = np.zeros_like(g0)
-    for s in sigmas_px:
-        g = cv2.GaussianBlur(g0, (0, 0), s)
-        dxx = cv2.Sobel(g, cv2.CV_32F, 2, 0, ksize=3)
-        dyy = cv2.Sobel(g, cv2.CV_32F, 0, 2, ksize=3)
-        dxy = cv2.Sobel(g, cv2.CV_32F, 1, 1, ksize=3)
-        # minus the larger Hessian eigenvalue, times sigma^2 (the 3x3 Sobel kernels sum to 4)
-        root = cv2.magnitude(cv2.subtract(dxx, dyy), cv2.multiply(dxy, 2.0))
-        weak = cv2.addWeighted(cv2.add(dxx, dyy), -0.125 * s * s, root, -0.125 * s * s, 0)
-        better = weak > strength
-        np.copyto(strength, weak, where=better)
-        scale[better] = s
-    peaks = (strength >= cv2.dilate(strength, np.ones((5, 5), np.uint8))) & (strength > 0.1 * min_contrast)
-    ys, xs = np.nonzero(peaks)
-    order = np.argsort(strength[ys, xs])[::-1][:3 * max_spots]
-    spots, contrast = [], []
-    for i in order:
-        centre = (xs[i] * f + (f - 1) / 2.0, ys[i] * f + (f - 1) / 2.0)
-        found = _half_max_centroid(gray, centre, max(2.0, 1.5 * f * scale[ys[i], xs[i]]))
-        if found is not None and found[1] >= min_contrast:
-            spots.append(found[0])
-            contrast.append(found[1])
-    keep = np.argsort(contrast)[::-1][:max_spots]
-    return np.asarray(spots, dtype=np.float64).reshape(-1, 2)[keep]
-
-
-def _half_max_centroid(gray: np.ndarray, centre_xy: tuple[float, float],
-                       radius_px: float) -> tuple[tuple[float, float], float] | None:
-    """Centroid and contrast of the spot whose brightest pixel lies within ``radius_px`` of ``centre_xy``.
-
-    The background is the median of a ring about twice the spot's radius out; the pixels brighter than
-    half-way between it and the spot's brightest pixel (and than most of the ring), connected to that
-    pixel, weigh by how much they exceed that level. A symmetric spot gives its centre whatever lies
-    under the ring (a stripe, an edge), as long as it stays below half the spot's height.
-    """
-    h, w = gray.shape
-    half = int(np.ceil(2.0 * radius_px)) + 2
-    cx, cy = int(round(centre_xy[0])), int(round(centre_xy[1]))
-    x0, y0 = max(0, cx - half), max(0, cy - half)
-    x1, y1 = min(w, cx + half + 1), min(h, cy + half + 1)
-    win = gray[y0:y1, x0:x1].astype(np.float64)
-    if win.shape[0] < 5 or win.shape[1] < 5:
-        return None
-    r = int(np.ceil(radius_px))
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    near = (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
-    py, px = np.unravel_index(np.argmax(np.where(near, win, -np.inf)), win.shape)
-    ring = np.concatenate([win[0], win[-1], win[1:-1, 0], win[1:-1, -1]])
-    background = float(np.median(ring))
-    top = float(win[py, px])
-    if top <= background:
-        return None
-    # half-way up, and clear of the brightest quarter of the ring's own height above it: a spot in
-    # front of an edge to a bright area (the sky above a wall) must not take that area's pixels
-    ring_high = float(np.percentile(ring, 95))
-    level = max(background + 0.5 * (top - background), ring_high + 0.25 * (top - ring_high))
-    _, labels = cv2.connectedComponents((win > level).astype(np.uint8), connectivity=8)
-    weights = np.where(labels == labels[py, px], win - level, 0.0)
-    total = weights.sum()
-    return ((float((xx * weights).sum() / total), float((yy * weights).sum() / total)), top - background)
-
-
-def detect_spots(frames: Iterable[tuple[int, np.ndarray]], *, max_spots: int = 40) -> dict[int, np.ndarray]:
-    """Small bright spots of every frame (:func:`bright_spots`).
-
-    Returns {frame index: ndarray (K, 2)}, the most contrasted first.
-    """
-    return {int(index): bright_spots(gray, max_spots=max_spots) for index, gray in frames}
-
-
-class _Track:
-    """A spot followed from frame to frame."""
-
-    def __init__(self, frame: int, xy: np.ndarray):
-        self.frames = [frame]
-        self.xy = [xy]
-
-    def predict(self, frame: int) -> np.ndarray:
-        """Constant acceleration through the last three points (constant velocity through two)."""
-        f = np.asarray(self.frames[-3:], dtype=np.float64) - self.frames[-1]
-        p = np.asarray(self.xy[-3:])
-        if f.size == 1:
-            return p[-1]
-        coef = np.polyfit(f, p, deg=min(2, f.size - 1))
-        dt = frame - self.frames[-1]
-        return np.array([np.polyval(coef[:, 0], dt), np.polyval(coef[:, 1], dt)])
-
-    def as_image_tracks(self, camera: str) -> ImageTracks:
-        frames = np.arange(self.frames[0], self.frames[-1] + 1)
-        xy = np.full((frames.size, 1, 2), np.nan)
-        xy[np.asarray(self.frames) - frames[0], 0] = self.xy
-        return ImageTracks(camera=camera, xy_px=xy, frame_index=frames)
-
-
-def link_spots(spots: Spots, *, camera: str = "", first_step_px: float = 40.0, gate_px: float = 6.0,
-               max_gap: int = 2, min_frames: int = 4) -> list[ImageTracks]:
-    """Link every frame's spots into tracks.
-
-    A track predicts its next position from its last three (constant acceleration: a ball in flight)
-    and takes a spot within ``gate_px`` of it; a track of one spot takes any spot within
-    ``first_step_px`` (its speed is unknown). Pairs are assigned closest first, so a still glint keeps
-    its own spot when a ball passes it. A track missing for more than ``max_gap`` frames ends.
-
-    Returns
-    -------
-    list of ImageTracks with ``xy_px`` of shape (F, 1, 2) over each track's frames (NaN in its gaps),
-    for the tracks seen on at least ``min_frames`` frames.
-    """
-    active: list[_Track] = []
-    done: list[_Track] = []
-    for index in sorted(spots):
-        xy = np.asarray(spots[index], dtype=np.float64).reshape(-1, 2)
-        pairs = []
-        if len(xy):
-            for i, tr in enumerate(active):
-                d = np.linalg.norm(xy - tr.predict(index), axis=1)
-                limit = first_step_px if len(tr.frames) == 1 else gate_px
-                pairs += [(float(d[j]), i, int(j)) for j in np.flatnonzero(d < limit)]
-        taken_track, taken_spot = set(), set()
-        for _, i, j in sorted(pairs):
-            if i in taken_track or j in taken_spot:
-                continue
-            active[i].frames.append(index)
-            active[i].xy.append(xy[j])
-            taken_track.add(i)
-            taken_spot.add(j)
-        going = []
-        for tr in active:
-            (going if index - tr.frames[-1] <= max_gap else done).append(tr)
-        active = going + [_Track(index, xy[j]) for j in range(len(xy)) if j not in taken_spot]
-    done += active
-    return [tr.as_image_tracks(camera) for tr in done if len(tr.frames) >= min_frames]
-
-
-def moving_tracks(tracks: Iterable[ImageTracks], *, min_travel_px: float = 8.0,
-                  max_tracks: int = 12) -> list[ImageTracks]:
-    """The tracks whose spot travels at least ``min_travel_px`` (a still glint does not), the longest
-    path first, at most ``max_tracks``."""
-    out = []
-    for tr in tracks:
-        xy = tr.xy_px[:, 0]
-        xy = xy[np.all(np.isfinite(xy), axis=1)]
-        extent = float(np.linalg.norm(xy.max(axis=0) - xy.min(axis=0))) if len(xy) else 0.0
-        if extent >= min_travel_px:
-            out.append((extent, tr))
-    out.sort(key=lambda e: -e[0])
-    return [tr for _, tr in out[:max_tracks]]
+__all__ = ["find_falling_ball", "fit_flight", "measure_free_fall"]
 
 
 def _shift(offsets: Mapping[str, float], reference: str) -> dict[str, float]:
@@ -237,14 +70,16 @@ def find_falling_ball(rig: Rig, tracks_by_camera: Mapping[str, list[ImageTracks]
     Every combination of one track per camera (or none; at least two cameras) is triangulated on the
     reference camera's clock. It is the ball if its cameras agree (median reprojection error below
     ``max_error_px`` over at least ``min_frames`` instants seen together) and its 3-D track holds a
-    free flight (:func:`saddlescope.core.validation.gravity_from_freefall`) accelerating at least
+    free flight (:func:`saddlescope.core.validation.gravity.gravity_from_freefall`) accelerating at least
     ``min_acceleration_m_s2`` (a falling object, not a still glint or a walking person). The best has
     the most cameras, then the longest flight, then the smallest parabola residual.
 
     Parameters
     ----------
+    rig : Rig
     tracks_by_camera : dict camera -> list of ImageTracks
-        Candidates (``xy_px`` of shape (F, 1, 2)), e.g. :func:`moving_tracks` of :func:`link_spots`.
+        Candidates (``xy_px`` of shape (F, 1, 2)), e.g. :func:`~saddlescope.core.validation.spots.moving_tracks`
+        of :func:`~saddlescope.core.validation.spots.link_spots`.
     offsets_frames : dict camera -> float
         Camera c's frame ``k + offset[c]`` shows the same instant as the reference camera's frame ``k``
         (plus the reference's own offset).
@@ -313,9 +148,11 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
 
     Parameters
     ----------
-    spots_by_camera : dict camera -> {clip frame: ndarray (K, 2)}
-    offsets_frames : dict camera -> float
+    rig : Rig
+    spots_by_camera : dict of camera name -> {clip frame: ndarray of shape (K, 2)}
+    offsets_frames : dict of camera name -> float
         As :func:`find_falling_ball`.
+    fps : float
     start : mapping
         A first parabola on the reference clock: ``t0_s``, ``p_mm``, ``v_mm_s``, ``a_mm_s2`` (3,) with
         ``x(t) = p + v (t - t0) + a (t - t0)^2 / 2``, and the flight ``first_s``/``last_s`` to start from.
@@ -331,9 +168,16 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
 
     Returns
     -------
-    dict with ``g_m_s2`` (|a|), ``g_std_m_s2`` (its standard error), ``error_pct`` (against standard
-    gravity), ``direction`` (unit vector of a, rig axes), ``first``/``last`` (reference frames of the
-    flight), ``frames`` (reference frames spanned), ``observations`` per camera, ``rms_reprojection_px``.
+    dict
+        ``g_m_s2`` (|a|), ``g_std_m_s2`` (its standard error), ``error_pct`` (against standard
+        gravity), ``direction`` (unit vector of a, rig axes), ``first``/``last`` (reference frames of
+        the flight), ``frames`` (reference frames spanned), ``observations`` per camera,
+        ``rms_reprojection_px``.
+
+    Raises
+    ------
+    KinematicsError
+        Too few spots follow the parabola to fit it.
     """
     cams = [c for c in rig.names if c in spots_by_camera]
     reference = reference or cams[0]
@@ -345,41 +189,72 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
     frame_spots = {c: [np.asarray(spots_by_camera[c][k], dtype=np.float64).reshape(-1, 2)
                        for k in sorted(spots_by_camera[c])] for c in cams}
     lo, hi = float(start["first_s"]) - t0, float(start["last_s"]) - t0
+    flight = _Flight(rig, times, frame_spots, params, gate_px=gate_px, outlier_sigmas=outlier_sigmas,
+                     min_sigma_px=min_sigma_px)
+    step = 1.0 / fps
+    obs = flight.gather(lo - 0.5 * step, hi + 0.5 * step)
+    res, r, sigma, obs = flight.drop_outliers(obs)
+    if grow:
+        reached = _grow(flight, obs, sigma, lo, hi, step, grow_limit_px, max_missed_frames)
+        # once more over the whole flight with the final parabola: spots that the first, rougher one
+        # dropped (near the throw, when it came from a short stretch) come back
+        obs = flight.gather(reached["before"] - 0.5 * step, reached["after"] + 0.5 * step)
+        res, r, sigma, obs = flight.drop_outliers(obs)
+    return _flight_result(res, obs, t0, fps)
 
-    def gather(a: float, b: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+
+class _Flight:
+    """The state of :func:`fit_flight`.
+
+    Every camera's spots on the reference clock (s from t0) and the parabola's parameters so far
+    (p, v, a: (9,), mm, mm/s, mm/s^2).
+    """
+
+    def __init__(self, rig: Rig, times: Mapping[str, np.ndarray], frame_spots: Mapping[str, list[np.ndarray]],
+                 params: np.ndarray, *, gate_px: float, outlier_sigmas: float, min_sigma_px: float):
+        self.rig = rig
+        self.times = times
+        self.frame_spots = frame_spots
+        self.params = params
+        self.gate_px = gate_px
+        self.outlier_sigmas = outlier_sigmas
+        self.min_sigma_px = min_sigma_px
+
+    def gather(self, a: float, b: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Per camera: its instants in [a, b) with a spot near the parabola, and the nearest spot."""
         out = {}
-        for c in cams:
-            idx = np.flatnonzero((times[c] >= a) & (times[c] < b))
-            pred = project_points(rig.cameras[c], _parabola(params, times[c][idx]))
+        for c in self.times:
+            idx = np.flatnonzero((self.times[c] >= a) & (self.times[c] < b))
+            pred = project_points(self.rig.cameras[c], _parabola(self.params, self.times[c][idx]))
             xy = np.full((idx.size, 2), np.nan)
             for n, (i, p) in enumerate(zip(idx, pred, strict=True)):
-                d = np.linalg.norm(frame_spots[c][i] - p, axis=1)
-                if d.size and d.min() < gate_px:
-                    xy[n] = frame_spots[c][i][np.argmin(d)]
+                d = np.linalg.norm(self.frame_spots[c][i] - p, axis=1)
+                if d.size and d.min() < self.gate_px:
+                    xy[n] = self.frame_spots[c][i][np.argmin(d)]
             ok = np.all(np.isfinite(xy), axis=1)
             if ok.any():
-                out[c] = (times[c][idx][ok], xy[ok])
+                out[c] = (self.times[c][idx][ok], xy[ok])
         return out
 
-    def residuals(p: np.ndarray, obs) -> np.ndarray:
-        return np.concatenate([(project_points(rig.cameras[c], _parabola(p, t)) - xy).ravel()
-                               for c, (t, xy) in obs.items()])
-
-    def solve(obs):
-        res = least_squares(residuals, params, args=(obs,), x_scale=np.r_[[100.0] * 3, [1000.0] * 3, [1e4] * 3])
+    def solve(self, obs):
+        """Least squares of the parabola on the observations; (result, residuals (N, 2) px, robust sigma px)."""
+        res = least_squares(_residuals, self.params, args=(self.rig, obs),
+                            x_scale=np.r_[[100.0] * 3, [1000.0] * 3, [1e4] * 3])
         r = res.fun.reshape(-1, 2)
-        sigma = max(min_sigma_px, 1.4826 * float(np.median(np.abs(r))))
+        sigma = max(self.min_sigma_px, 1.4826 * float(np.median(np.abs(r))))
         return res, r, sigma
 
-    def drop_outliers(obs):
-        nonlocal params
+    def drop_outliers(self, obs):
+        """Fit, drop the spots beyond ``outlier_sigmas``, fit again (up to five times).
+
+        The parameters follow each fit. Returns (result, residuals, sigma, observations kept).
+        """
         for _ in range(5):
             if sum(len(t) for t, _ in obs.values()) < 6:
                 raise KinematicsError("too few spots of the ball follow its parabola to fit its flight")
-            res, r, sigma = solve(obs)
-            params = res.x
-            bad = np.linalg.norm(r, axis=1) > outlier_sigmas * sigma * np.sqrt(2)
+            res, r, sigma = self.solve(obs)
+            self.params = res.x
+            bad = np.linalg.norm(r, axis=1) > self.outlier_sigmas * sigma * np.sqrt(2)
             if not bad.any():
                 return res, r, sigma, obs
             keep, n = {}, 0
@@ -390,26 +265,41 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
             obs = keep
         return res, r, sigma, obs
 
-    step = 1.0 / fps
-    obs = gather(lo - 0.5 * step, hi + 0.5 * step)
-    res, r, sigma, obs = drop_outliers(obs)
+    def following(self, new, limit: float):
+        """The observations ``new`` within ``limit`` px of the parabola's projection, per camera."""
+        fits = {}
+        for c, (t, xy) in new.items():
+            near = np.linalg.norm(project_points(self.rig.cameras[c], _parabola(self.params, t)) - xy, axis=1) < limit
+            if near.any():
+                fits[c] = (t[near], xy[near])
+        return fits
+
+
+def _residuals(p: np.ndarray, rig: Rig, obs) -> np.ndarray:
+    """Reprojection residuals (2 N,) px of the parabola ``p`` (9,) against the observations."""
+    return np.concatenate([(project_points(rig.cameras[c], _parabola(p, t)) - xy).ravel()
+                           for c, (t, xy) in obs.items()])
+
+
+def _grow(flight: _Flight, obs, sigma: float, lo: float, hi: float, step: float, grow_limit_px: float,
+          max_missed_frames: int) -> dict[str, float]:
+    """Extend the flight [lo, hi] (s from t0) frame by frame on both sides while spots follow it.
+
+    The parabola is refitted as they come. Returns the furthest instants where they still did.
+    """
     edge = {"before": lo, "after": hi}
     reached = dict(edge)  # the furthest instants where spots still followed the parabola
-    misses = {"before": 0, "after": 0} if grow else {}
+    misses = {"before": 0, "after": 0}
     while misses:
         for side in list(misses):
             # the next frame's instants beyond the flight so far, in every camera
             sign = -1.0 if side == "before" else 1.0
             edge[side] += sign * step
-            new = gather(*sorted((edge[side] - sign * 0.5 * step, edge[side] + sign * 0.5 * step)))
+            new = flight.gather(*sorted((edge[side] - sign * 0.5 * step, edge[side] + sign * 0.5 * step)))
             # at least a pixel: a few spoilt centroids (the ball before an edge) bend the parabola by a
             # fraction of one, while past the throw or the catch the ball is off by its speed
-            limit = max(grow_limit_px, outlier_sigmas * sigma * np.sqrt(2))
-            fits = {}
-            for c, (t, xy) in new.items():
-                near = np.linalg.norm(project_points(rig.cameras[c], _parabola(params, t)) - xy, axis=1) < limit
-                if near.any():
-                    fits[c] = (t[near], xy[near])
+            limit = max(grow_limit_px, flight.outlier_sigmas * sigma * np.sqrt(2))
+            fits = flight.following(new, limit)
             if not fits:
                 # the throw or the catch, out of view, or a few spots spoilt (the ball before an edge)
                 misses[side] += 1
@@ -421,12 +311,12 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
             for c, (t, xy) in fits.items():
                 t_old, xy_old = obs.get(c, (np.empty(0), np.empty((0, 2))))
                 obs[c] = (np.concatenate([t_old, t]), np.concatenate([xy_old, xy]))
-            res, r, sigma, obs = drop_outliers(obs)
-    if grow:
-        # once more over the whole flight with the final parabola: spots that the first, rougher one
-        # dropped (near the throw, when it came from a short stretch) come back
-        obs = gather(reached["before"] - 0.5 * step, reached["after"] + 0.5 * step)
-        res, r, sigma, obs = drop_outliers(obs)
+            _, _, sigma, obs = flight.drop_outliers(obs)
+    return reached
+
+
+def _flight_result(res, obs, t0: float, fps: float) -> dict:
+    """The dict of :func:`fit_flight` from the final least-squares result and observations."""
     # standard error of |a| from the Gauss-Newton covariance
     acc = res.x[6:9]
     g = float(np.linalg.norm(acc))
@@ -445,18 +335,35 @@ def fit_flight(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: M
 def measure_free_fall(rig: Rig, spots_by_camera: Mapping[str, Spots], offsets_frames: Mapping[str, float],
                       fps: float, *, clip: str = "freefall", reference: str | None = None,
                       min_acceleration_m_s2: float = 0.25 * G_STANDARD_M_S2) -> dict:
-    """Gravity from a thrown ball: :func:`find_falling_ball` among every camera's moving spot tracks,
-    then :func:`fit_flight` on all cameras' spots.
+    """Gravity from a thrown ball, measured with all cameras.
+
+    :func:`find_falling_ball` among every camera's moving spot tracks, then :func:`fit_flight` on all
+    cameras' spots.
 
     Parameters
     ----------
-    spots_by_camera : dict camera -> {clip frame: ndarray (K, 2)}
-        e.g. :func:`detect_spots` of each camera's frames after the sync flash.
+    rig : Rig
+    spots_by_camera : dict of camera name -> {clip frame: ndarray of shape (K, 2)}
+        e.g. :func:`~saddlescope.core.validation.spots.detect_spots` of each camera's frames after the
+        sync flash.
+    offsets_frames : dict of camera name -> float
+        As :func:`find_falling_ball`.
+    fps : float
+    clip : str, keyword-only
+        Named in errors.
+    reference : str, keyword-only
+    min_acceleration_m_s2 : float, keyword-only
 
     Returns
     -------
-    The dict of :func:`fit_flight`, plus ``g_triangulated_m_s2`` (the parabola fitted to the
-    triangulated track of the tracks found, for comparison) and ``cameras``.
+    dict
+        The dict of :func:`fit_flight`, plus ``g_triangulated_m_s2`` (the parabola fitted to the
+        triangulated track of the tracks found, for comparison) and ``cameras``.
+
+    Raises
+    ------
+    DetectionError
+        No falling ball found, or the object followed does not fall.
     """
     cams = [c for c in rig.names if c in spots_by_camera]
     reference = reference or (cams[0] if cams else "")

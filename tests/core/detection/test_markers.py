@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
+from saddlescope.core.detection import detect_blobs, initial_markers, track_markers
 from saddlescope.core.errors import DetectionError, InputError
-from saddlescope.core.markers import detect_blobs, initial_markers, track_markers
 
 SHAPE = (480, 640)
 
@@ -298,7 +298,7 @@ def test_a_row_entering_the_view_is_not_completed_with_a_look_alike(monkeypatch)
     assert seen[20:].all()
     assert np.nanmax(np.linalg.norm(tracks.xy_px - truth, axis=-1)) < 0.5  # never the D-ring
     # Taking the first passable row, the tracker would follow the D-ring for the rest of the clip.
-    monkeypatch.setattr("saddlescope.core.markers._row_runs_out_of_view", lambda pattern, shape: False)
+    monkeypatch.setattr("saddlescope.core.detection.tracking._row_runs_out_of_view", lambda pattern, shape: False)
     hasty = track_markers(frames(), n_markers=3, camera="middle", clip="motion", moving=True)
     assert np.nanmin(np.linalg.norm(hasty.xy_px[-1] - ring[-1], axis=-1)) < 1.0
 
