@@ -17,20 +17,17 @@ Thesis stages 3.4-3.6 and 8.2 (Bouguet's toolbox, done by hand there), automated
 is the reference (identity pose). Units: pixels in images, millimetres for board and poses.
 
 Modules, in the order of the stages: ``views`` (BoardView), ``refinement`` (sub-pixel corners),
-``detection`` (boards and corner finding), ``saddles`` and ``tracking`` (video), ``selection``,
-``intrinsics``, ``stereo``, ``projection`` (vectorised projection model), ``bundle_adjustment``,
-``checks`` (triangulation and metric quality), ``rig`` (the whole rig) and ``simulation`` (synthetic
-views and rendered boards).
+``boards`` (the board types: checkerboard, ChArUco, and their registry), ``detection`` (corner
+finding), ``saddles`` and ``tracking`` (video), ``selection``, ``intrinsics``, ``stereo``,
+``projection`` (vectorised projection model), ``bundle_adjustment``, ``checks`` (triangulation and
+metric quality), ``rig`` (the whole rig) and ``simulation`` (synthetic views and rendered boards).
 """
 
+from saddlescope.core.calibration.boards import make_board
+from saddlescope.core.calibration.boards.checkerboard import canonical_checkerboard_order
 from saddlescope.core.calibration.bundle_adjustment import bundle_adjust
 from saddlescope.core.calibration.checks import board_distance_errors, metric_checks, triangulate_dlt
-from saddlescope.core.calibration.detection import (
-    BoardFinder,
-    canonical_checkerboard_order,
-    find_board_corners,
-    make_board,
-)
+from saddlescope.core.calibration.detection import BoardFinder, find_board_corners
 from saddlescope.core.calibration.intrinsics import calibrate_intrinsics
 from saddlescope.core.calibration.rig import calibrate_rig, principal_point_common_shift
 from saddlescope.core.calibration.selection import select_instants

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
 
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.projection import (
     _camera_from_vector,
     _distort_project,
@@ -171,7 +172,7 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
         ``board_poses`` {instant: (6,) rvec and t_mm in the reference camera}.
     """
     names = list(cameras)
-    obj_all = board.object_points_mm()
+    obj_all = object_points_mm(board)
     for name in names:
         if not views_by_camera.get(name):
             raise CalibrationError(f"bundle adjustment: camera {name} has no board view")

@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.projection import _UNDISTORT_CRITERIA
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.errors import InputError
@@ -121,7 +122,7 @@ def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView
     """
     names = list(cameras or rig.cameras)
     cams = [rig.cameras[n] for n in names]
-    obj = board.object_points_mm()
+    obj = object_points_mm(board)
     cols = board.inner_corners[0]
     scales, fit_res, adj_err, d_err, d_true, reproj = [], [], [], [], [], []
     n_pts = 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.views import MIN_CORNERS, MIN_VIEWS, BoardView
 from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.types import Board, Camera
@@ -17,7 +18,7 @@ _CALIB_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-9)
 def _check_views(views: list[BoardView], board: Board, camera: str, clip: str | None, *,
                  min_views: int) -> list[BoardView]:
     where = f"{clip} clip of the {camera} camera" if clip else f"camera {camera}"
-    n_points = len(board.object_points_mm())
+    n_points = len(object_points_mm(board))
     good = []
     for v in views:
         corners = np.asarray(v.corners_px, np.float64)
@@ -77,7 +78,7 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
         No board, fewer than ``min_views`` views, or OpenCV failing to converge.
     """
     views = _check_views(views, board, camera, clip, min_views=min_views)
-    obj_all = board.object_points_mm().astype(np.float32)
+    obj_all = object_points_mm(board).astype(np.float32)
     dropped: list[int] = []
     w, h = (int(v) for v in image_size)
     start = (None, None) if guess is None else (np.array(guess.K, np.float64),

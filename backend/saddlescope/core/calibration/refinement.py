@@ -61,3 +61,28 @@ def _unscale(xy: np.ndarray, scale: float) -> np.ndarray:
 def _rescale(xy: np.ndarray, scale: float) -> np.ndarray:
     """The inverse of :func:`_unscale`."""
     return (np.asarray(xy, np.float64) + 0.5) * scale - 0.5
+
+
+def _search_downscaled(gray: np.ndarray, board: Board, max_width: int, find) -> tuple[tuple | None, bool]:
+    """``find`` (a grey frame -> (corners (N, 2), ids (N,)) or None) run on a frame, downscaled to
+    ``max_width`` when it is over 1.5 times wider; corners found downscaled are then refined at full
+    resolution.
+
+    Returns
+    -------
+    found : (corners_px, ids) in the frame, or None
+    refined_here : bool
+        Whether the corners were refined on the full-resolution frame.
+    """
+    scale = 1.0
+    small = gray
+    if gray.shape[1] > 1.5 * max_width:
+        scale = max_width / gray.shape[1]
+        small = cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    found = find(small)
+    if found is None:
+        return None, False
+    corners, ids = found
+    if scale == 1.0:
+        return (corners, ids), False
+    return (_refine_full_resolution(gray, _unscale(corners, scale), board, ids), ids), True

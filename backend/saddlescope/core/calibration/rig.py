@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
+from saddlescope.core.calibration.boards import board_type, object_points_mm
 from saddlescope.core.calibration.bundle_adjustment import _pose_of_view, bundle_adjust
 from saddlescope.core.calibration.checks import metric_checks
 from saddlescope.core.calibration.intrinsics import _choose_k3, calibrate_intrinsics
@@ -38,6 +39,57 @@ def _initial_poses(names, pairs, ref) -> dict[str, tuple[np.ndarray, np.ndarray]
     return poses
 
 
+def _board_poses(cameras, per_cam, obj_all) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The board pose (R (3, 3), t_mm (3,)) in the rig that each camera's view of one instant gives."""
+    poses = {}
+    for cam, v in per_cam.items():
+        c = cameras[cam]
+        ok, rvec, tvec = _pose_of_view(c, obj_all[v.ids], v.corners_px)
+        if ok:
+            Rb = c.R.T @ cv2.Rodrigues(rvec)[0]
+            poses[cam] = (Rb, c.R.T @ (tvec - c.t_mm))
+    return poses
+
+
+def _view_error_px(camera: Camera, obj_all: np.ndarray, view: BoardView, pose) -> float:
+    """R.m.s. reprojection error (px) of a view's corners for a board pose in the rig."""
+    Rb, tb = pose
+    pts = obj_all[view.ids] @ Rb.T + tb
+    proj = camera.project(pts)
+    return float(np.sqrt(np.mean(np.sum((proj - view.corners_px) ** 2, axis=1))))
+
+
+def _agreed_pose(cameras, per_cam, obj_all, poses, max_px):
+    """Of the cameras' board poses, the one most of their views agree with (None without poses)."""
+    best_pose, best_votes = None, -1
+    for pose in poses.values():
+        votes = sum(_view_error_px(cameras[c2], obj_all, v2, pose) < max_px for c2, v2 in per_cam.items())
+        if votes > best_votes:
+            best_pose, best_votes = pose, votes
+    return best_pose
+
+
+def _fix_instant(cameras, per_cam, board, obj_all, max_px) -> tuple[dict[str, BoardView], int, int]:
+    """The views of one instant kept (relabelled after a half turn where that fits the pose the other
+    cameras see), and how many were relabelled and dropped."""
+    best_pose = _agreed_pose(cameras, per_cam, obj_all, _board_poses(cameras, per_cam, obj_all), max_px)
+    kept: dict[str, BoardView] = {}
+    n_fixed = n_dropped = 0
+    for cam, v in per_cam.items():
+        if best_pose is None or _view_error_px(cameras[cam], obj_all, v, best_pose) < max_px:
+            kept[cam] = v
+            continue
+        turned_ids = board_type(board.kind).half_turn_ids(board, v.ids)
+        if turned_ids is not None:
+            flipped = BoardView(v.frame, v.corners_px, turned_ids)
+            if _view_error_px(cameras[cam], obj_all, flipped, best_pose) < max_px:
+                kept[cam] = flipped
+                n_fixed += 1
+                continue
+        n_dropped += 1
+    return kept, n_fixed, n_dropped
+
+
 def _fix_flipped_views(cameras, views_by_camera, board, *, max_px=20.0):
     """Relabel (180-degree) or drop views inconsistent with the board pose the other cameras see.
 
@@ -45,10 +97,7 @@ def _fix_flipped_views(cameras, views_by_camera, board, *, max_px=20.0):
     views from the initial rig and tries the rotated labels.
     """
     names = list(cameras)
-    obj_all = board.object_points_mm()
-    n = len(obj_all)
-    cols, rows = board.inner_corners
-    symmetric = board.kind == "checkerboard" and (cols + rows) % 2 == 0
+    obj_all = object_points_mm(board)
     by_inst: dict[int, dict[str, BoardView]] = {}
     for cam in names:
         for v in views_by_camera.get(cam, []):
@@ -56,41 +105,13 @@ def _fix_flipped_views(cameras, views_by_camera, board, *, max_px=20.0):
     out = {cam: [] for cam in names}
     n_fixed = n_dropped = 0
     for per_cam in by_inst.values():
-        if len(per_cam) < 2:
-            for cam, v in per_cam.items():
-                out[cam].append(v)
-            continue
-        poses = {}
-        for cam, v in per_cam.items():
-            c = cameras[cam]
-            ok, rvec, tvec = _pose_of_view(c, obj_all[v.ids], v.corners_px)
-            if ok:
-                Rb = c.R.T @ cv2.Rodrigues(rvec)[0]
-                poses[cam] = (Rb, c.R.T @ (tvec - c.t_mm))
-
-        def err_of(cam, v, pose):
-            Rb, tb = pose
-            pts = obj_all[v.ids] @ Rb.T + tb
-            proj = cameras[cam].project(pts)
-            return float(np.sqrt(np.mean(np.sum((proj - v.corners_px) ** 2, axis=1))))
-
-        # the pose most cameras agree with
-        best_pose, best_votes = None, -1
-        for pose in poses.values():
-            votes = sum(err_of(c2, v2, pose) < max_px for c2, v2 in per_cam.items())
-            if votes > best_votes:
-                best_pose, best_votes = pose, votes
-        for cam, v in per_cam.items():
-            if best_pose is None or err_of(cam, v, best_pose) < max_px:
-                out[cam].append(v)
-                continue
-            if symmetric:
-                flipped = BoardView(v.frame, v.corners_px, n - 1 - v.ids)
-                if err_of(cam, flipped, best_pose) < max_px:
-                    out[cam].append(flipped)
-                    n_fixed += 1
-                    continue
-            n_dropped += 1
+        kept = per_cam
+        if len(per_cam) >= 2:
+            kept, fixed, dropped = _fix_instant(cameras, per_cam, board, obj_all, max_px)
+            n_fixed += fixed
+            n_dropped += dropped
+        for cam, v in kept.items():
+            out[cam].append(v)
     for cam in names:
         out[cam].sort(key=lambda v: v.frame)
     return out, n_fixed, n_dropped

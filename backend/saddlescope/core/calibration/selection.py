@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.types import Board
 
@@ -18,7 +19,7 @@ def _guess_normal(view: BoardView, board: Board, image_size) -> np.ndarray:
     """Board normal in the camera from a PnP with a guessed K (f = image width): for pose diversity."""
     w, h = image_size
     K = np.array([[w, 0, w / 2], [0, w, h / 2], [0, 0, 1.0]])
-    obj = board.object_points_mm()[view.ids]
+    obj = object_points_mm(board)[view.ids]
     ok, rvec, _ = cv2.solvePnP(obj, view.corners_px, K, None, flags=cv2.SOLVEPNP_IPPE)
     if not ok:
         return np.array([0.0, 0.0, 1.0])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from saddlescope.core.calibration.detection import _cv_charuco, make_board
+from saddlescope.core.calibration.boards import board_type, checkerboard, make_board, object_points_mm
 from saddlescope.core.calibration.projection import _UNDISTORT_CRITERIA
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.types import Board, Camera, Rig
@@ -26,7 +26,7 @@ def simulate_board_views(rig: Rig, board: Board, board_rvecs: np.ndarray, board_
     -------
     dict name -> list of BoardView, frame = pose index
     """
-    obj = board.object_points_mm()
+    obj = object_points_mm(board)
     out: dict[str, list[BoardView]] = {n: [] for n in rig.cameras}
     ids = np.arange(len(obj))
     for k, (rv, t) in enumerate(zip(np.asarray(board_rvecs), np.asarray(board_t_mm), strict=True)):
@@ -54,7 +54,7 @@ def thesis_like_views(n_poses: int = 90, *, rng: np.random.Generator, noise_px: 
     -------
     rig (truth), board, views_by_camera, image_sizes
     """
-    board = board or make_board("checkerboard", (15, 8), 100.0)
+    board = board or make_board(checkerboard.KIND, (15, 8), 100.0)
     size = (640, 480)
     names = ("left", "middle", "right")
     cams = {}
@@ -90,7 +90,7 @@ def thesis_like_views(n_poses: int = 90, *, rng: np.random.Generator, noise_px: 
 
 
 def board_texture(board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray, float, np.ndarray]:
-    """Image of the board with a one-square white margin.
+    """Image of the board with a one-square white margin (its kind's texture), for printing and rendering.
 
     Returns
     -------
@@ -98,20 +98,7 @@ def board_texture(board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray,
     px_per_mm : float
     origin_px : ndarray (2,), texture pixel of board point (0, 0) (inner corner 0)
     """
-    cols, rows = board.inner_corners
-    sq = int(px_per_square)
-    if board.kind == "charuco":
-        size = ((cols + 1) * sq + 2 * sq, (rows + 1) * sq + 2 * sq)
-        tex = _cv_charuco(board).generateImage(size, marginSize=sq, borderBits=1)
-        origin = np.array([2 * sq, 2 * sq], np.float64)  # margin + first square
-    else:
-        tex = np.full(((rows + 3) * sq, (cols + 3) * sq), 255, np.uint8)
-        for j in range(rows + 1):
-            for i in range(cols + 1):
-                if (i + j) % 2 == 0:  # the square left of and above corner 0 is dark (canonical order)
-                    tex[(j + 1) * sq:(j + 2) * sq, (i + 1) * sq:(i + 2) * sq] = 0
-        origin = np.array([2 * sq, 2 * sq], np.float64)
-    return tex, sq / board.square_mm, origin - 0.5
+    return board_type(board.kind).texture(board, px_per_square=px_per_square)
 
 
 def render_board(board: Board, camera: Camera, board_rvec: np.ndarray, board_t_mm: np.ndarray, *,

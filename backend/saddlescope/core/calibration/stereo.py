@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.intrinsics import _CALIB_CRITERIA
 from saddlescope.core.calibration.views import MIN_CORNERS, BoardView
 from saddlescope.core.errors import CalibrationError
@@ -47,7 +48,7 @@ def stereo_extrinsics(views_a: list[BoardView], views_b: list[BoardView], cam_a:
     if len(shared) < min_shared:
         raise CalibrationError(f"cameras {cam_a.name} and {cam_b.name} see the board together in only "
                                f"{len(shared)} frame(s); need at least {min_shared}")
-    obj_all = board.object_points_mm().astype(np.float32)
+    obj_all = object_points_mm(board).astype(np.float32)
     obj = [obj_all[ids] for _, ids, _, _ in shared]
     img_a = [a.astype(np.float32).reshape(-1, 1, 2) for _, _, a, _ in shared]
     img_b = [b.astype(np.float32).reshape(-1, 1, 2) for _, _, _, b in shared]

@@ -8,7 +8,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from saddlescope.core.calibration.detection import BoardFinder, _checkerboard_corners, canonical_checkerboard_order
+from saddlescope.core.calibration.boards import board_type, object_points_mm
+from saddlescope.core.calibration.boards.checkerboard import (
+    CheckerboardFinder,
+    _checkerboard_corners,
+    canonical_checkerboard_order,
+)
+from saddlescope.core.calibration.detection import BoardFinder
 from saddlescope.core.calibration.refinement import _as_gray, _rescale, _subpix, _unscale
 from saddlescope.core.calibration.saddles import _grids_from_saddles, _saddle_clusters
 from saddlescope.core.calibration.views import BoardView
@@ -49,22 +55,23 @@ class BoardTracker:
 
     Parameters
     ----------
-    board : Board, a checkerboard
+    board : Board of a trackable kind (a checkerboard)
     max_width : int
-        As :class:`BoardFinder`.
+        As :class:`~saddlescope.core.calibration.detection.BoardFinder`.
     search_every : int
         Frames between whole-frame searches while the board is lost (half a second of video suits).
     """
 
     def __init__(self, board: Board, *, max_width: int = 1000, search_every: int = 15):
-        if board.kind != "checkerboard":
-            raise InputError("BoardTracker follows checkerboards; ChArUco boards are found frame by frame")
+        kind = board_type(board.kind)
+        if not kind.trackable:
+            raise InputError(f"BoardTracker follows checkerboards; {kind.label} boards are found frame by frame")
         self.board = board
         self.max_width = int(max_width)
         self.search_every = max(1, int(search_every))
-        self.finder = BoardFinder(board, max_width=max_width, thorough=False)
+        self.finder = CheckerboardFinder(board, max_width=max_width, thorough=False)
         self.ids = np.arange(board.inner_corners[0] * board.inner_corners[1])
-        self._obj = board.object_points_mm()[:, :2].astype(np.float64)
+        self._obj = object_points_mm(board)[:, :2].astype(np.float64)
         self.counts = {"tracked": 0, "tracked_back": 0, "found_from_saddles": 0, "found_near_saddles": 0,
                        "found_whole_frame": 0,
                        "skipped_moving": 0, "skipped_unchanged": 0, "whole_frame_searches": 0}
@@ -194,7 +201,7 @@ class BoardTracker:
 
         ``findChessboardCornersSB`` fails on squares of a few pixels, costing more than it takes to find a
         board, and also now and then on an upsampled crop: so search the crop upsampled 3x when the squares
-        are small, else as it is, then the other way. Corners are refined as :class:`BoardFinder` does
+        are small, else as it is, then the other way. Corners are refined as :class:`CheckerboardFinder` does
         (on the crop upsampled 2x if it had to be upsampled, else as it is).
         """
         if crop.shape[1] > 1.5 * self.max_width:  # a big board: searched downscaled, refined as it is
@@ -336,7 +343,7 @@ def detect_board_views(frames: Iterable[tuple[int, np.ndarray]], board: Board, *
                                  f"earlier frames {size[0]}x{size[1]} px")
             yield index, gray
 
-    if track and not thorough and board.kind == "checkerboard":
+    if track and not thorough and board_type(board.kind).trackable:
         tracker = BoardTracker(board, max_width=max_width, search_every=search_every)
         return list(tracker.views(checked())), size
     finder = BoardFinder(board, inverted=inverted, max_width=max_width, thorough=thorough)
