@@ -39,14 +39,16 @@ _TYPES: dict[str, BoardType] = {}
 
 
 def register(board_type: BoardType, *, replace: bool = False) -> BoardType:
-    """Make a board type known by its ``kind``; returns it.
+    """Make a board type known by its ``kind``; returns it (registering it again changes nothing).
 
     Raises
     ------
     InputError
-        Its kind is registered already (unless ``replace``).
+        Another type of that kind is registered already (unless ``replace``).
     """
     kind = board_type.kind
+    if _TYPES.get(kind) is board_type:
+        return board_type  # registered already: nothing changes
     if kind in _TYPES and not replace:
         raise InputError(f"board kind {kind!r} is registered already")
     if kind == DEFAULT_BOARD_KIND and kind not in _TYPES:
@@ -97,8 +99,11 @@ def board_from_meta(meta: Mapping[str, Any] | None) -> Board:
     """
     if not isinstance(meta, Mapping):
         raise InputError("ride.json has no 'board' section describing the calibration board")
+    kind = board_type(str(meta.get("kind", DEFAULT_BOARD_KIND)))
     try:
-        return board_type(str(meta.get("kind", DEFAULT_BOARD_KIND))).from_meta(meta)
+        return kind.from_meta(meta)
+    except InputError:
+        raise  # out of range: its message names the field
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"ride.json board section is incomplete or wrong: {exc}") from None
 
