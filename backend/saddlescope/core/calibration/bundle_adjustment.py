@@ -176,11 +176,60 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
     for name in names:
         if not views_by_camera.get(name):
             raise CalibrationError(f"bundle adjustment: camera {name} has no board view")
+    inst_pose = _initial_board_poses(cameras, views_by_camera, obj_all)
+    instants = sorted(inst_pose)
+    if not instants:
+        raise CalibrationError("bundle adjustment: no board pose could be initialised")
+    inst_index = {f: i for i, f in enumerate(instants)}
+    obs_cam, obs_inst, obs_pt, obs_xy = _observations(names, views_by_camera, inst_index)
 
-    # board pose per instant, initialised from the camera seeing most corners
+    C, I = len(names), len(instants)
+    cams = np.array([np.concatenate([_intr_vector(cameras[n]), cameras[n].rvec, cameras[n].t_mm])
+                     for n in names])
+    boards = np.array([inst_pose[f] for f in instants])
+    free = _free_parameters(names, fix_k3)
+
+    keep = np.ones(len(obs_cam), bool)
+    n_dropped = 0
+    iterations = 0
+    for _pass in range(2):
+        bundle = _Bundle(obj_all, obs_cam[keep], obs_inst[keep], obs_pt[keep], obs_xy[keep], C, I)
+        cams, boards, r, w, n_iterations = _levenberg_marquardt(bundle, cams, boards, free, loss=loss,
+                                                                f_scale_px=f_scale_px,
+                                                                max_iterations=max_iterations)
+        iterations += n_iterations
+        err = np.full(len(keep), np.inf)
+        err[keep] = np.hypot(r[:, 0], r[:, 1])
+        new_keep = keep & (err <= outlier_px)
+        if new_keep.sum() == keep.sum() or new_keep.sum() < 0.5 * keep.sum():
+            break
+        n_dropped = int((~new_keep).sum())
+        keep = new_keep
+
+    std = _camera_std(bundle, cams, boards, r, w, free)
+    out, pose_std, rms_by_cam = _refined_cameras(names, cameras, cams, std, bundle, r)
+    report = {
+        "rms_px": float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))),
+        "rms_px_by_camera": rms_by_cam,
+        "n_observations": int(keep.sum()),
+        "n_dropped": n_dropped,
+        "n_instants": I,
+        "iterations": iterations,
+        "pose_std": pose_std,
+        "board_poses": {f: boards[inst_index[f]].copy() for f in instants},
+    }
+    return out, report
+
+
+def _initial_board_poses(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, list[BoardView]],
+                         obj_all: np.ndarray) -> dict[int, np.ndarray]:
+    """Per instant, the board pose (rvec, t_mm) (6,) in the reference camera's frame.
+
+    From the camera seeing most of its corners; instants where its PnP fails are left out.
+    """
     inst_pose: dict[int, np.ndarray] = {}
     by_inst: dict[int, list[tuple[str, BoardView]]] = {}
-    for cam in names:
+    for cam in cameras:
         for v in views_by_camera.get(cam, []):
             by_inst.setdefault(v.frame, []).append((cam, v))
     for inst, entries in by_inst.items():
@@ -190,80 +239,110 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
         if ok:
             Rb = c.R.T @ cv2.Rodrigues(rvec)[0]
             inst_pose[inst] = np.concatenate([cv2.Rodrigues(Rb)[0].ravel(), c.R.T @ (tvec - c.t_mm)])
-    instants = sorted(inst_pose)
-    if not instants:
-        raise CalibrationError("bundle adjustment: no board pose could be initialised")
-    inst_index = {f: i for i, f in enumerate(instants)}
+    return inst_pose
+
+
+def _observations(names: list[str], views_by_camera: Mapping[str, list[BoardView]],
+                  inst_index: Mapping[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every corner seen at an initialised instant.
+
+    Returns its camera index, instant index and corner id (M,) each, and its pixel coordinates (M, 2).
+    """
     parts = [(ci, inst_index[v.frame], v) for ci, cam in enumerate(names)
              for v in views_by_camera.get(cam, []) if v.frame in inst_index]
     obs_cam = np.concatenate([np.full(len(v.ids), ci) for ci, _, v in parts])
     obs_inst = np.concatenate([np.full(len(v.ids), ii) for _, ii, v in parts])
     obs_pt = np.concatenate([v.ids for _, _, v in parts])
     obs_xy = np.concatenate([v.corners_px for _, _, v in parts])
+    return obs_cam, obs_inst, obs_pt, obs_xy
 
-    C, I = len(names), len(instants)
-    cams = np.array([np.concatenate([_intr_vector(cameras[n]), cameras[n].rvec, cameras[n].t_mm])
-                     for n in names])
-    boards = np.array([inst_pose[f] for f in instants])
-    free_mask = np.ones((C, _NCAM), bool)
+
+def _free_parameters(names: list[str], fix_k3: bool | Mapping[str, bool]) -> np.ndarray:
+    """Indices into the cameras' parameters (C * 15) that the adjustment may change.
+
+    Not the reference camera's pose, which defines the rig frame, nor a k3 kept at zero.
+    """
+    free_mask = np.ones((len(names), _NCAM), bool)
     free_mask[0, 9:] = False  # the reference camera defines the rig frame
     k3_fixed = fix_k3 if isinstance(fix_k3, Mapping) else {n: bool(fix_k3) for n in names}
     for i, n in enumerate(names):
         free_mask[i, 8] = not k3_fixed.get(n, True)
-    free = np.flatnonzero(free_mask.ravel())
+    return np.flatnonzero(free_mask.ravel())
 
-    keep = np.ones(len(obs_cam), bool)
-    n_dropped = 0
+
+def _levenberg_marquardt(bundle: _Bundle, cams: np.ndarray, boards: np.ndarray, free: np.ndarray, *,
+                         loss: str, f_scale_px: float, max_iterations: int):
+    """Robust Levenberg-Marquardt from cameras (C, 15) and board poses (I, 6).
+
+    Returns the refined cams and boards, the residuals (M, 2) px and weights (M,) there, and the number
+    of iterations.
+    """
+    r = bundle.residuals(cams, boards)
+    w, rho = _robust_weights(np.sum(r ** 2, axis=1), loss, f_scale_px)
+    cost = float(rho.sum())
+    lam = 1e-4
     iterations = 0
-    for _pass in range(2):
-        bundle = _Bundle(obj_all, obs_cam[keep], obs_inst[keep], obs_pt[keep], obs_xy[keep], C, I)
-        r = bundle.residuals(cams, boards)
-        w, rho = _robust_weights(np.sum(r ** 2, axis=1), loss, f_scale_px)
-        cost = float(rho.sum())
-        lam = 1e-4
-        for _ in range(max_iterations):
-            iterations += 1
-            A, B = bundle.jacobians(cams, boards, r)
-            U, V, W, gc, gb = bundle.normal_equations(A, B, r, w)
-            improved = False
-            for _try in range(10):
-                dc, db, _ = _schur_solve(U, V, W, gc, gb, free, lam)
-                c_new, b_new = cams + dc, boards + db
-                r_new = bundle.residuals(c_new, b_new)
-                w_new, rho_new = _robust_weights(np.sum(r_new ** 2, axis=1), loss, f_scale_px)
-                cost_new = float(rho_new.sum())
-                if np.isfinite(cost_new) and cost_new < cost:
-                    improved = True
-                    break
-                lam *= 10
-            if not improved:
-                break
-            rel = (cost - cost_new) / max(cost, 1e-300)
-            cams, boards, r, w, cost = c_new, b_new, r_new, w_new, cost_new
-            lam = max(lam / 10, 1e-9)
-            if rel < 1e-10:
-                break
-        err = np.full(len(keep), np.inf)
-        err[keep] = np.hypot(r[:, 0], r[:, 1])
-        new_keep = keep & (err <= outlier_px)
-        if new_keep.sum() == keep.sum() or new_keep.sum() < 0.5 * keep.sum():
+    for _ in range(max_iterations):
+        iterations += 1
+        A, B = bundle.jacobians(cams, boards, r)
+        normal = bundle.normal_equations(A, B, r, w)
+        step = _damped_step(bundle, normal, cams, boards, free, cost, lam, loss, f_scale_px)
+        if step is None:
             break
-        n_dropped = int((~new_keep).sum())
-        keep = new_keep
+        c_new, b_new, r_new, w_new, cost_new, lam = step
+        rel = (cost - cost_new) / max(cost, 1e-300)
+        cams, boards, r, w, cost = c_new, b_new, r_new, w_new, cost_new
+        lam = max(lam / 10, 1e-9)
+        if rel < 1e-10:
+            break
+    return cams, boards, r, w, iterations
 
-    # covariance of the camera parameters with the board poses marginalised: sigma^2 S^-1
+
+def _damped_step(bundle: _Bundle, normal, cams, boards, free, cost: float, lam: float, loss: str,
+                 f_scale_px: float):
+    """The first damped Gauss-Newton step that lowers the cost, or None.
+
+    The damping grows tenfold after each step that does not (at most ten tries). Returns cams (C, 15),
+    boards (I, 6), residuals (M, 2), weights (M,), cost and damping after the step.
+    """
+    U, V, W, gc, gb = normal
+    for _try in range(10):
+        dc, db, _ = _schur_solve(U, V, W, gc, gb, free, lam)
+        c_new, b_new = cams + dc, boards + db
+        r_new = bundle.residuals(c_new, b_new)
+        w_new, rho_new = _robust_weights(np.sum(r_new ** 2, axis=1), loss, f_scale_px)
+        cost_new = float(rho_new.sum())
+        if np.isfinite(cost_new) and cost_new < cost:
+            return c_new, b_new, r_new, w_new, cost_new, lam
+        lam *= 10
+    return None
+
+
+def _camera_std(bundle: _Bundle, cams: np.ndarray, boards: np.ndarray, r: np.ndarray, w: np.ndarray,
+                free: np.ndarray) -> np.ndarray:
+    """One standard deviation (C, 15) of the camera parameters.
+
+    From sigma^2 S^-1 with the board poses marginalised; 0 for fixed parameters, NaN where S is singular.
+    """
     A, B = bundle.jacobians(cams, boards, r)
     U, V, W, gc, gb = bundle.normal_equations(A, B, r, w)
     _, _, S = _schur_solve(U, V, W, gc, gb, free, 0.0)
-    dof = max(2 * len(r) - len(free) - 6 * I, 1)
+    dof = max(2 * len(r) - len(free) - 6 * bundle.I, 1)
     sigma2 = float(np.sum(w * np.sum(r ** 2, axis=1)) / dof)
-    std = np.zeros(C * _NCAM)
+    std = np.zeros(bundle.C * _NCAM)
     try:
         std[free] = np.sqrt(np.clip(np.diag(np.linalg.inv(S[np.ix_(free, free)])), 0, None) * sigma2)
     except np.linalg.LinAlgError:
         std[free] = np.nan
-    std = std.reshape(C, _NCAM)
+    return std.reshape(bundle.C, _NCAM)
 
+
+def _refined_cameras(names: list[str], cameras: Mapping[str, Camera], cams: np.ndarray, std: np.ndarray,
+                     bundle: _Bundle, r: np.ndarray):
+    """The refined cameras, the standard deviations of their poses, and their r.m.s. errors (px).
+
+    Pose standard deviations are (rvec (3,), t_mm (3,)) for every camera but the reference.
+    """
     out, pose_std, rms_by_cam = {}, {}, {}
     for ci, name in enumerate(names):
         sel = bundle.cam == ci
@@ -276,14 +355,4 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
                                         dist_std=s[4:9].copy())
         if ci > 0:
             pose_std[name] = (s[9:12].copy(), s[12:].copy())
-    report = {
-        "rms_px": float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))),
-        "rms_px_by_camera": rms_by_cam,
-        "n_observations": int(keep.sum()),
-        "n_dropped": n_dropped,
-        "n_instants": I,
-        "iterations": iterations,
-        "pose_std": pose_std,
-        "board_poses": {f: boards[inst_index[f]].copy() for f in instants},
-    }
-    return out, report
+    return out, pose_std, rms_by_cam

@@ -72,7 +72,7 @@ def triangulate_dlt(cameras: list[Camera], xy_px: np.ndarray) -> tuple[np.ndarra
 
 
 def _instant_points(views_by_camera, names):
-    """instant -> (ids (K,), xy (C, K, 2) with NaN)."""
+    """Corners per instant seen by two cameras or more: {instant: (ids (K,), xy (C, K, 2) with NaN)}."""
     frames = sorted({v.frame for n in names for v in views_by_camera.get(n, [])})
     by = {n: {v.frame: v for v in views_by_camera.get(n, [])} for n in names}
     out = {}

@@ -12,8 +12,10 @@ __all__ = ["BoardFinder", "find_board_corners"]
 
 
 class BoardFinder:
-    """Finds one board in grey frames with its kind's detector, which learns from frame to frame (where a
-    checkerboard was and at which size it was found, a ChArUco board's print polarity).
+    """Finds one board in grey frames with its kind's detector.
+
+    The detector learns from frame to frame: where a checkerboard was and at which size it was found,
+    a ChArUco board's print polarity.
 
     Parameters
     ----------

@@ -126,8 +126,10 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
 
 def _choose_k3(cam: Camera, report: dict, views: list[BoardView], board: Board, image_size, *,
                camera: str, clip: str | None, min_views: int) -> tuple[Camera, dict]:
-    """Keep k3 = 0 unless the views call for it: the free k3 must lower the Bayesian information
-    criterion of the reprojection residuals and stand three standard deviations from zero.
+    """Keep k3 = 0 unless the views call for it.
+
+    The free k3 must lower the Bayesian information criterion of the reprojection residuals and stand
+    three standard deviations from zero.
 
     A wide-angle lens whose k3 is fixed at zero bends the rest: on the synthetic wide rig (k3 about
     -0.02) the left camera's principal point came out 10 px off and its markers 50 mm aside. A narrow

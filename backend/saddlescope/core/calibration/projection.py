@@ -1,5 +1,8 @@
-"""Projection model (vectorised; OpenCV's 5-coefficient model, thesis eq. 3.4-3.10 with the
-standard tangential terms instead of the typo in eq. 3.8)."""
+"""Projection model, vectorised over observations.
+
+OpenCV's 5-coefficient model: thesis eq. 3.4-3.10, with the standard tangential terms instead of the
+typo in eq. 3.8.
+"""
 
 from __future__ import annotations
 

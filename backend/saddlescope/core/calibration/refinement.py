@@ -64,8 +64,10 @@ def _rescale(xy: np.ndarray, scale: float) -> np.ndarray:
 
 
 def _search_downscaled(gray: np.ndarray, board: Board, max_width: int, find) -> tuple[tuple | None, bool]:
-    """``find`` (a grey frame -> (corners (N, 2), ids (N,)) or None) run on a frame, downscaled to
-    ``max_width`` when it is over 1.5 times wider; corners found downscaled are then refined at full
+    """Run ``find`` on a frame, downscaled first when it is wide.
+
+    ``find`` maps a grey frame to (corners (N, 2), ids (N,)) or None. A frame over 1.5 times
+    ``max_width`` wide is downscaled to ``max_width``; corners found there are then refined at full
     resolution.
 
     Returns

@@ -70,8 +70,10 @@ def _agreed_pose(cameras, per_cam, obj_all, poses, max_px):
 
 
 def _fix_instant(cameras, per_cam, board, obj_all, max_px) -> tuple[dict[str, BoardView], int, int]:
-    """The views of one instant kept (relabelled after a half turn where that fits the pose the other
-    cameras see), and how many were relabelled and dropped."""
+    """The views of one instant that are kept, and how many were relabelled and dropped.
+
+    A view is relabelled after a half turn where that fits the pose the other cameras see.
+    """
     best_pose = _agreed_pose(cameras, per_cam, obj_all, _board_poses(cameras, per_cam, obj_all), max_px)
     kept: dict[str, BoardView] = {}
     n_fixed = n_dropped = 0
@@ -125,7 +127,8 @@ def principal_point_common_shift(single: Mapping[str, Camera], joint: Mapping[st
     each camera alone still finds its principal point within a few pixels, but in the joint
     adjustment a hundredth of a pixel of disagreement between the cameras' corners moved all three
     together by 10-40 px (50-60 fps synthetic thesis-rig rides), bending the markers' heights by
-    3-4 mm across the view. Each camera's own estimate scatters; their mean shift does not."""
+    3-4 mm across the view. Each camera's own estimate scatters; their mean shift does not.
+    """
     names = [n for n in joint if n in single]
     d = [np.asarray(joint[n].K)[:2, 2] - np.asarray(single[n].K)[:2, 2] for n in names]
     return np.mean(d, axis=0) if d else np.zeros(2)
@@ -172,16 +175,8 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     missing = [n for n in names if n not in image_sizes]
     if missing:
         raise InputError(f"image size missing for camera(s) {', '.join(missing)}")
-    intrinsics: dict[str, Camera] = {}
-    intr_reports: dict[str, dict] = {}
-    for name in names:
-        intrinsics[name], intr_reports[name] = calibrate_intrinsics(
-            views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
-            fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
-        if fix_k3 is None:
-            intrinsics[name], intr_reports[name] = _choose_k3(intrinsics[name], intr_reports[name],
-                                                              views_by_camera[name], board, image_sizes[name],
-                                                              camera=name, clip=clip, min_views=min_views)
+    intrinsics, intr_reports = _all_intrinsics(views_by_camera, board, image_sizes, fix_k3=fix_k3, clip=clip,
+                                               min_views=min_views)
     k3_fixed = {n: intr_reports[n]["fix_k3"] for n in names}
     # views kept by the intrinsic step (outlier views dropped)
     views = {n: [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]]
@@ -191,13 +186,7 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     if len(names) == 1:
         return Rig({names[0]: intrinsics[names[0]]}), report
 
-    pairs_cv: dict[tuple[str, str], dict] = {}
-    for a, b in itertools.combinations(names, 2):
-        try:
-            pairs_cv[(a, b)] = stereo_extrinsics(views[a], views[b], intrinsics[a], intrinsics[b], board,
-                                                 min_shared=min_shared)
-        except CalibrationError:
-            continue  # the pair may be linked through other cameras
+    pairs_cv = _stereo_pairs(views, intrinsics, board, min_shared=min_shared)
     init = _initial_poses(names, pairs_cv, names[0])
     cams = {n: Camera(n, intrinsics[n].K, intrinsics[n].dist, intrinsics[n].image_size, R=init[n][0],
                       t_mm=init[n][1], rms_px=intrinsics[n].rms_px, K_std=intrinsics[n].K_std,
@@ -217,15 +206,57 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
         p.update({f"check_{k}": v for k, v in per_pair.get(key, {}).items()})
     if report["bundle"] is not None:
         checks["bundle_rms_px"] = report["bundle"]["rms_px"]
-        shift = principal_point_common_shift(intrinsics, cams)
-        checks["principal_point_common_shift_px"] = float(np.hypot(*shift))
         limit = max_principal_point_shift * min(min(image_sizes[n]) for n in names)
-        if checks["principal_point_common_shift_px"] > limit:
-            flags.append(
-                f"the joint adjustment moved every camera's principal point by about "
-                f"{checks['principal_point_common_shift_px']:.0f} px (x {shift[0]:+.0f}, y {shift[1]:+.0f}) from where "
-                "each camera's own views put it: the board's positions do not tell the cameras' aim from their "
-                "principal points, so heights and depths may bend by millimetres across the view; carry the board "
-                "higher and lower and tilt it towards and away from the cameras")
+        checks["principal_point_common_shift_px"], flag = _principal_point_check(intrinsics, cams, limit)
+        if flag is not None:
+            flags.append(flag)
     report["per_pair_checks"] = per_pair
     return Rig(cams, checks=checks, flags=tuple(flags), pairs=pairs), report
+
+
+def _all_intrinsics(views_by_camera: Mapping[str, list[BoardView]], board: Board,
+                    image_sizes: Mapping[str, tuple[int, int]], *, fix_k3: bool | None, clip: str | None,
+                    min_views: int) -> tuple[dict[str, Camera], dict[str, dict]]:
+    """Each camera's intrinsics and report (:func:`calibrate_intrinsics`).
+
+    Where ``fix_k3`` is None, k3 is chosen per camera (:func:`_choose_k3`).
+    """
+    intrinsics: dict[str, Camera] = {}
+    intr_reports: dict[str, dict] = {}
+    for name in views_by_camera:
+        intrinsics[name], intr_reports[name] = calibrate_intrinsics(
+            views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
+            fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
+        if fix_k3 is None:
+            intrinsics[name], intr_reports[name] = _choose_k3(intrinsics[name], intr_reports[name],
+                                                              views_by_camera[name], board, image_sizes[name],
+                                                              camera=name, clip=clip, min_views=min_views)
+    return intrinsics, intr_reports
+
+
+def _stereo_pairs(views: Mapping[str, list[BoardView]], intrinsics: Mapping[str, Camera], board: Board, *,
+                  min_shared: int) -> dict[tuple[str, str], dict]:
+    """:func:`stereo_extrinsics` of every pair of cameras that see the board together often enough."""
+    pairs_cv: dict[tuple[str, str], dict] = {}
+    for a, b in itertools.combinations(list(views), 2):
+        try:
+            pairs_cv[(a, b)] = stereo_extrinsics(views[a], views[b], intrinsics[a], intrinsics[b], board,
+                                                 min_shared=min_shared)
+        except CalibrationError:
+            continue  # the pair may be linked through other cameras
+    return pairs_cv
+
+
+def _principal_point_check(single: Mapping[str, Camera], joint: Mapping[str, Camera],
+                           limit_px: float) -> tuple[float, str | None]:
+    """The principal points' common shift (px) by the joint adjustment, and a flag when over ``limit_px``."""
+    shift = principal_point_common_shift(single, joint)
+    shift_px = float(np.hypot(*shift))
+    if not shift_px > limit_px:
+        return shift_px, None
+    return shift_px, (
+        f"the joint adjustment moved every camera's principal point by about "
+        f"{shift_px:.0f} px (x {shift[0]:+.0f}, y {shift[1]:+.0f}) from where "
+        "each camera's own views put it: the board's positions do not tell the cameras' aim from their "
+        "principal points, so heights and depths may bend by millimetres across the view; carry the board "
+        "higher and lower and tilt it towards and away from the cameras")

@@ -25,8 +25,11 @@ class _Cluster:
 
 
 def _saddle_clusters(gray: np.ndarray, n_corners: int) -> list[_Cluster]:
-    """Dense clusters of strong saddle points (minus the Hessian determinant: checkerboard corners) that
-    may hold a board of ``n_corners`` corners, the largest first."""
+    """Dense clusters of strong saddle points that may hold a board of ``n_corners`` corners.
+
+    Saddle strength is minus the Hessian determinant (high at checkerboard corners); the largest cluster
+    comes first.
+    """
     g = cv2.GaussianBlur(gray.astype(np.float32), (0, 0), 1.0)
     xx = cv2.Sobel(g, cv2.CV_32F, 2, 0, ksize=3)
     yy = cv2.Sobel(g, cv2.CV_32F, 0, 2, ksize=3)
@@ -67,9 +70,11 @@ def _saddle_clusters(gray: np.ndarray, n_corners: int) -> list[_Cluster]:
 
 
 def _grids_from_saddles(cluster: _Cluster, inner_corners: tuple[int, int]) -> list[np.ndarray]:
-    """Candidate board corners (rows * cols, 2), row-major, from a lattice grown over a cluster's saddle
-    points from the one nearest its middle: every full cols x rows window of it (the lattice also takes
-    in the corners of the board's outer squares, and perhaps points beyond). The caller checks them.
+    """Candidate board corners (rows * cols, 2), row-major, from a lattice grown over a cluster's points.
+
+    The lattice grows from the saddle point nearest the cluster's middle; every full cols x rows window
+    of it is a candidate (the lattice also takes in the corners of the board's outer squares, and
+    perhaps points beyond). The caller checks them.
 
     Neighbours along the grid are about a step away, where the step (which perspective changes slowly)
     predicts them, and of the other polarity.

@@ -103,10 +103,23 @@ def board_texture(board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray,
 
 def render_board(board: Board, camera: Camera, board_rvec: np.ndarray, board_t_mm: np.ndarray, *,
                  background: int = 128, supersample: int = 2, px_per_square: int = 40) -> np.ndarray:
-    """Synthetic grey image (H, W) uint8 of the board seen by a camera (with its lens distortion).
+    """Synthetic grey image of the board seen by a camera (with its lens distortion).
 
-    The board pose is in the camera's frame: ``x_cam = R(board_rvec) @ X_board + board_t_mm``. For
-    tests, demos and benchmarks; anti-aliased by rendering ``supersample`` times larger.
+    For tests, demos and benchmarks; anti-aliased by rendering ``supersample`` times larger.
+
+    Parameters
+    ----------
+    board : Board
+        Drawn with its kind's texture (:func:`board_texture`).
+    camera : Camera
+    board_rvec, board_t_mm : ndarray of shape (3,)
+        The board pose in the camera's frame: ``x_cam = R(board_rvec) @ X_board + board_t_mm`` (mm).
+    background : int
+        Grey level round the board.
+
+    Returns
+    -------
+    ndarray of shape (H, W), uint8, the camera's image size
     """
     tex, px_per_mm, origin = board_texture(board, px_per_square=px_per_square)
     w, h = camera.image_size

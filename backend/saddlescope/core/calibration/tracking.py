@@ -78,7 +78,7 @@ class BoardTracker:
         self._failed: list[tuple[int, int, int, int]] = []  # boxes searched in vain in the frame before
 
     def views(self, frames: Iterable[tuple[int, np.ndarray]]) -> Iterable[BoardView]:
-        """Board views of ``(frame index, grey image)`` pairs, in frame order (a generator)."""
+        """Board views of ``(frame index, grey image of shape (H, W))`` pairs, in frame order (a generator)."""
         track: _Track | None = None
         prev: tuple[int, np.ndarray] | None = None  # the frame before, copied (decoders reuse buffers)
         last_box: tuple[slice, slice] | None = None  # round the board when last seen
@@ -187,8 +187,11 @@ class BoardTracker:
         return _unscale(_subpix(img, big, self.board, upsampled=scale != 1.0), scale)
 
     def _looks_like_board(self, gray: np.ndarray, corners: np.ndarray) -> bool:
-        """Every corner an x-junction of squares alternating as on the board (none on its edge), and all of
-        them on a plane's perspective image."""
+        """Whether the corners (N, 2) px look like the board.
+
+        Every corner an x-junction of squares alternating as on the board (none on its edge), and all
+        of them on a plane's perspective image.
+        """
         ratio, span = _square_checks(gray, corners, self.board.inner_corners)
         ratio = ratio * np.sign(np.median(ratio))
         if np.any(ratio < _MIN_SQUARE_RATIO) or np.any(span < 0.25 * np.median(span)):
@@ -252,8 +255,10 @@ def _local_spacing_px(corners: np.ndarray, inner_corners: tuple[int, int]) -> np
 
 def _square_checks(gray: np.ndarray, corners: np.ndarray, inner_corners: tuple[int, int]) -> tuple[np.ndarray,
                                                                                                    np.ndarray]:
-    """Per corner, from the grey levels at the centres of the four squares round it: (one diagonal's sum
-    minus the other's) / (their range), sign alternating along the grid, and that range.
+    """Per corner (N,), a contrast ratio of the four squares round it, and their grey-level range.
+
+    From the grey levels at the centres of the four squares: (one diagonal's sum minus the other's) /
+    (their range), its sign alternating along the grid.
 
     About +-2 everywhere on a board (the sign says which squares are dark); at most 1 where a corner
     lies on the board's edge (two of its "squares" are the margin), as after a shift by a whole square.
@@ -294,8 +299,11 @@ def _overlap(a, b) -> float:
 
 
 def _motion_px(before: np.ndarray, after: np.ndarray) -> float:
-    """Rough motion (px) of the picture between two crops: grey-level change over the mean gradient along a
-    random direction (a shift by d changes a pixel by about d times that gradient)."""
+    """Rough motion (px) of the picture between two crops (H, W).
+
+    The grey-level change over the mean gradient along a random direction (a shift by d changes a
+    pixel by about d times that gradient).
+    """
     a = cv2.GaussianBlur(before.astype(np.float32), (0, 0), 1.0)
     b = cv2.GaussianBlur(after.astype(np.float32), (0, 0), 1.0)
     gx = cv2.Sobel(b, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)

@@ -44,8 +44,10 @@ __all__ = [
 
 
 def _register_package_board_types() -> None:
-    """Register the ``BOARD_TYPE`` of every module of this package (by module name; the default kind
-    is listed first all the same)."""
+    """Register the ``BOARD_TYPE`` of every module of this package.
+
+    Modules are imported by name; :data:`BOARD_KINDS` lists the default kind first all the same.
+    """
     for module_info in pkgutil.iter_modules(__path__):
         module = importlib.import_module(f"{__name__}.{module_info.name}")
         if hasattr(module, "BOARD_TYPE"):

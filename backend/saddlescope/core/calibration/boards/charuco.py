@@ -42,8 +42,11 @@ class CharucoType:
     }
 
     def from_meta(self, meta: Mapping[str, Any]) -> Board:
-        """The validated board of a board section (kind, inner_corners, square_mm, dictionary, marker_mm,
-        legacy; a missing or None field takes its default)."""
+        """The validated board of a board section.
+
+        Fields: kind, inner_corners, square_mm, dictionary, marker_mm, legacy; a missing or None field
+        takes its default.
+        """
         inner_corners, square_mm = grid_from_meta(meta)
         dictionary = meta.get("dictionary") or _DEFAULT_DICTIONARY
         if not isinstance(getattr(cv2.aruco, dictionary, None), int):
@@ -93,8 +96,14 @@ class CharucoType:
         return cv_board
 
     def texture(self, board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray, float, np.ndarray]:
-        """Image (H, W) uint8 of the board with a one-square white margin, px per mm, and the pixel (2,)
-        of inner corner 0."""
+        """Image of the board with a one-square white margin.
+
+        Returns
+        -------
+        texture : ndarray of shape (H, W), uint8
+        px_per_mm : float
+        origin_px : ndarray of shape (2,), the texture pixel of inner corner 0
+        """
         cols, rows = board.inner_corners
         sq = int(px_per_square)
         size = ((cols + 1) * sq + 2 * sq, (rows + 1) * sq + 2 * sq)

@@ -48,8 +48,11 @@ class CheckerboardType:
         return CheckerboardFinder(board, max_width=max_width, thorough=thorough)
 
     def half_turn_ids(self, board: Board, ids: np.ndarray) -> np.ndarray | None:
-        """Ids counted from the opposite corner where cols + rows is even (the pattern is alike after a
-        half turn, :func:`canonical_checkerboard_order` cannot tell the ends apart); else None."""
+        """Ids (N,) counted from the opposite corner where cols + rows is even, else None.
+
+        A board with cols + rows even is alike after a half turn: :func:`canonical_checkerboard_order`
+        cannot tell its ends apart.
+        """
         cols, rows = board.inner_corners
         if (cols + rows) % 2 != 0:
             return None
@@ -60,8 +63,14 @@ class CheckerboardType:
         return None
 
     def texture(self, board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray, float, np.ndarray]:
-        """Image (H, W) uint8 of the board with a one-square white margin, px per mm, and the pixel (2,)
-        of inner corner 0."""
+        """Image of the board with a one-square white margin.
+
+        Returns
+        -------
+        texture : ndarray of shape (H, W), uint8
+        px_per_mm : float
+        origin_px : ndarray of shape (2,), the texture pixel of inner corner 0
+        """
         cols, rows = board.inner_corners
         sq = int(px_per_square)
         tex = np.full(((rows + 3) * sq, (cols + 3) * sq), 255, np.uint8)
