@@ -241,8 +241,11 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
 
 
 def _common_frames(sources: Mapping[str, str], sync, max_candidates: int) -> dict:
-    """How the sources' frames are paired: ``offsets`` (int frames per camera), ``first`` (the first
-    common frame), ``step`` (every k-th frame, about ``max_candidates`` of them) and ``sync_info``."""
+    """How the sources' frames are paired.
+
+    Returns ``offsets`` (int frames per camera), ``first`` (the first common frame), ``step`` (every
+    k-th frame, about ``max_candidates`` of them) and ``sync_info`` (for the report).
+    """
     probes = {cam: _probe(src, cam) for cam, src in sources.items()}
     fps = {c: p["fps"] for c, p in probes.items() if p["fps"]}
     if len(set(round(f, 3) for f in fps.values())) > 1:
@@ -554,7 +557,7 @@ def rig_from_caliscope_toml(path: str | Path) -> Rig:
 
 
 def board_from_caliscope_toml(path: str | Path) -> tuple[Board, bool]:
-    """caliscope's ``charuco.toml`` (or the ``[charuco]`` table of ``config.toml``) as (Board, inverted).
+    """The board of caliscope's ``charuco.toml`` (or the ``[charuco]`` table of ``config.toml``), and its polarity.
 
     ``columns`` x ``rows`` are squares; the square is ``square_size_override_cm`` when present, else
     ``board_width`` / ``columns`` in ``units``; markers are ``aruco_scale`` of a square.
