@@ -51,6 +51,8 @@ def _write_json(data: dict, out: str | None) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND  # lazily, as the commands
+
     p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -90,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
     s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
     s.add_argument("--square", type=float, required=True, help="square size in mm")
-    s.add_argument("--board", default="checkerboard", choices=["checkerboard", "charuco"])
+    s.add_argument("--board", default=DEFAULT_BOARD_KIND, choices=BOARD_KINDS, help="the board's kind")
     s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
     s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
     s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")

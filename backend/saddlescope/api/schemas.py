@@ -5,8 +5,9 @@ from __future__ import annotations
 import datetime as dt
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
 
+from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
 T = TypeVar("T")
@@ -191,12 +192,19 @@ class RiderOut(_Out):
 class BoardIn(_In):
     """ride.json's "board" (CONTRACTS section 1)."""
 
-    kind: Literal["checkerboard", "charuco"] = "checkerboard"
+    kind: str = Field(default=DEFAULT_BOARD_KIND, json_schema_extra=lambda s: s.update(enum=list(BOARD_KINDS)))
     inner_corners: tuple[Annotated[int, Field(ge=2, le=100)], Annotated[int, Field(ge=2, le=100)]]
     square_mm: float = Field(gt=0, le=10_000)
     dictionary: Annotated[str, StringConstraints(pattern=r"^DICT_[A-Z0-9_]+$", max_length=40)] | None = None
     marker_mm: float | None = Field(default=None, gt=0, le=10_000)
     legacy: bool | None = None
+
+    @field_validator("kind")
+    @classmethod
+    def _registered_kind(cls, kind: str) -> str:
+        if kind not in BOARD_KINDS:
+            raise ValueError(f"board kind {kind!r} is not one of {', '.join(BOARD_KINDS)}")
+        return kind
 
 
 class RigIn(_In):

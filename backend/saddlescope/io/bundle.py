@@ -23,9 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-import cv2
-
-from saddlescope.core.errors import BundleError
+from saddlescope.core.calibration.boards import board_from_meta
+from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.types import CLIP_KINDS, Board
 from saddlescope.io.result_schema import validate_ride_meta
 
@@ -313,15 +312,10 @@ def _clip_path(root: Path, rel: str, where: str) -> Path:
 
 
 def _board(meta: dict) -> Board:
-    b = meta["board"]
-    dictionary = b.get("dictionary")
-    if dictionary is not None and not isinstance(getattr(cv2.aruco, dictionary, None), int):
-        raise BundleError(f"{RIDE_JSON}: board.dictionary {dictionary!r} is not an OpenCV ArUco dictionary "
-                          "(e.g. DICT_4X4_50)")
-    marker = b.get("marker_mm")
-    return Board(kind=b["kind"], inner_corners=(int(b["inner_corners"][0]), int(b["inner_corners"][1])),
-                 square_mm=float(b["square_mm"]), dictionary=dictionary,
-                 marker_mm=float(marker) if marker is not None else None, legacy=bool(b.get("legacy", False)))
+    try:
+        return board_from_meta(meta["board"])
+    except InputError as exc:
+        raise BundleError(f"{RIDE_JSON}: {exc}") from None
 
 
 def _open_folder(root: Path, *, source: Path, temp_dir: Path | None = None) -> RideBundle:

@@ -32,13 +32,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from saddlescope.core.calibration import (
-    BoardFinder,
-    BoardView,
-    calibrate_rig,
-    make_board,
-    select_instants,
-)
+from saddlescope.core.calibration import BoardFinder, BoardView, calibrate_rig, select_instants
+from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND, board_to_meta, charuco, make_board
 from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
 from saddlescope.core.sync import flash_interval, offsets_from_intervals
 from saddlescope.core.types import Board, Camera, Rig
@@ -187,7 +182,7 @@ def _sync_offsets(sources: Mapping[str, str], probes: Mapping[str, dict], sync) 
 
 
 def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], square_mm: float,
-                      board_kind: str = "checkerboard", dictionary: str | None = None,
+                      board_kind: str = DEFAULT_BOARD_KIND, dictionary: str | None = None,
                       marker_mm: float | None = None, toml_out: str | Path | None = None,
                       fix_k3: bool | None = None, max_views: int = 60, max_candidates: int = 300,
                       sync: str | Mapping[str, float] = "auto", inverted: bool | None = None,
@@ -202,7 +197,8 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
         Inner corners of the board (OpenCV's pattern size). For ChArUco too: a board of 5 x 7 squares
         is pattern (4, 6).
     square_mm : float
-    board_kind : "checkerboard" or "charuco"; dictionary, marker_mm, inverted, legacy for ChArUco.
+    board_kind : one of :data:`~saddlescope.core.calibration.boards.BOARD_KINDS`; dictionary, marker_mm,
+        inverted, legacy for ChArUco.
     toml_out : path, optional
         Also write an anipose-style TOML (mm).
     max_views : int
@@ -228,6 +224,29 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
     board = make_board(board_kind, pattern, square_mm, dictionary=dictionary, marker_mm=marker_mm,
                        legacy=legacy)
     sources = {str(k): str(v) for k, v in sources.items()}
+    frames = _common_frames(sources, sync, max_candidates)
+    t_sync = time.perf_counter()
+    views, sizes, searched = _detect_sources(sources, board, frames, inverted=inverted, same_size=same_size)
+    t_detect = time.perf_counter()
+    chosen = set(select_instants(views, board, sizes, max_instants=max_views))
+    used = {cam: [v for v in vs if v.frame in chosen] for cam, vs in views.items()}
+    rig, report = calibrate_rig(used, board, sizes, fix_k3=fix_k3)
+    t_cal = time.perf_counter()
+
+    result = _calibration_result(rig, report, board, frames, views, searched)
+    result["timings_s"] = {"sync": t_sync - t0, "detection": t_detect - t_sync,
+                           "calibration": t_cal - t_detect, "total": time.perf_counter() - t0}
+    if toml_out:
+        write_anipose_toml(rig, toml_out)
+    return result
+
+
+def _common_frames(sources: Mapping[str, str], sync, max_candidates: int) -> dict:
+    """How the sources' frames are paired.
+
+    Returns ``offsets`` (int frames per camera), ``first`` (the first common frame), ``step`` (every
+    k-th frame, about ``max_candidates`` of them) and ``sync_info`` (for the report).
+    """
     probes = {cam: _probe(src, cam) for cam, src in sources.items()}
     fps = {c: p["fps"] for c, p in probes.items() if p["fps"]}
     if len(set(round(f, 3) for f in fps.values())) > 1:
@@ -241,50 +260,58 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
         raise SyncError("calibration clips do not overlap in time after applying the sync offsets "
                         f"{int_offsets}")
     step = max(1, math.ceil(n_common / max_candidates))
-    t_sync = time.perf_counter()
+    return {"offsets": int_offsets, "first": first, "step": step, "sync_info": sync_info}
 
+
+def _detect_sources(sources: Mapping[str, str], board: Board, frames: Mapping, *, inverted: bool | None,
+                    same_size: bool) -> tuple[dict[str, list[BoardView]], dict[str, tuple[int, int]], dict[str, int]]:
+    """Board views, image size and number of frames searched per camera, on the common frames.
+
+    Raises
+    ------
+    VideoError
+        A source without a readable frame.
+    CalibrationError
+        A camera that never sees the board.
+    InputError
+        Cameras of different image sizes where ``same_size``.
+    """
     views, sizes, searched = {}, {}, {}
+    offsets = frames["offsets"]
     for cam, src in sources.items():
         views[cam], size, searched[cam] = detect_source_views(
-            src, board, camera=cam, start=first + int_offsets[cam], step=step, key_offset=int_offsets[cam],
-            inverted=inverted)
+            src, board, camera=cam, start=frames["first"] + offsets[cam], step=frames["step"],
+            key_offset=offsets[cam], inverted=inverted)
         if size is None:
             raise VideoError(f"calibration clip of the {cam} camera: no frame could be read from {src}")
         sizes[cam] = size
         if not views[cam]:
-            raise CalibrationError(f"no calibration board ({board_kind} {pattern[0]}x{pattern[1]} inner "
+            cols, rows = board.inner_corners
+            raise CalibrationError(f"no calibration board ({board.kind} {cols}x{rows} inner "
                                    f"corners) found in the calibration clip of the {cam} camera ({src})")
     if same_size and len(set(sizes.values())) > 1:
         listing = ", ".join(f"{c} {w}x{h}" for c, (w, h) in sizes.items())
         raise InputError(f"calibration cameras have different image sizes ({listing}); the rig needs "
                          f"cameras of one resolution")
-    t_detect = time.perf_counter()
-    chosen = set(select_instants(views, board, sizes, max_instants=max_views))
-    used = {cam: [v for v in vs if v.frame in chosen] for cam, vs in views.items()}
-    rig, report = calibrate_rig(used, board, sizes, fix_k3=fix_k3)
-    t_cal = time.perf_counter()
+    return views, sizes, searched
 
+
+def _calibration_result(rig: Rig, report: dict, board: Board, frames: Mapping,
+                        views: Mapping[str, list[BoardView]], searched: Mapping[str, int]) -> dict:
+    """:func:`rig_to_dict` plus ``board``, ``sync``, ``views`` per camera and ``bundle``."""
     result = rig_to_dict(rig)
-    result["board"] = {"kind": board.kind, "inner_corners": list(board.inner_corners),
-                       "square_mm": board.square_mm}
-    if board.kind == "charuco":
-        result["board"].update({"dictionary": board.dictionary, "marker_mm": board.marker_mm,
-                                "legacy": board.legacy})
-    result["sync"] = {**sync_info, "frame_offsets": int_offsets, "frame_step": step}
+    result["board"] = board_to_meta(board)
+    result["sync"] = {**frames["sync_info"], "frame_offsets": frames["offsets"], "frame_step": frames["step"]}
     result["views"] = {
         cam: {"searched": searched[cam], "detected": len(views[cam]),
               "used": report["intrinsics"][cam]["n_views"],
               "dropped_frames": report["intrinsics"][cam]["dropped_frames"],
               "residual_std_px": report["intrinsics"][cam]["residual_std_px"],
               "intrinsic_rms_px": report["intrinsics"][cam]["rms_px"]}
-        for cam in sources}
+        for cam in views}
     if report["bundle"] is not None:
         keys = ("rms_px", "rms_px_by_camera", "n_observations", "n_dropped", "n_instants", "iterations")
         result["bundle"] = {k: report["bundle"][k] for k in keys}
-    result["timings_s"] = {"sync": t_sync - t0, "detection": t_detect - t_sync,
-                           "calibration": t_cal - t_detect, "total": time.perf_counter() - t0}
-    if toml_out:
-        write_anipose_toml(rig, toml_out)
     return result
 
 
@@ -454,7 +481,7 @@ def rig_from_caliscope_toml(path: str | Path) -> Rig:
 
 
 def board_from_caliscope_toml(path: str | Path) -> tuple[Board, bool]:
-    """caliscope's ``charuco.toml`` (or the ``[charuco]`` table of ``config.toml``) as (Board, inverted).
+    """The board of caliscope's ``charuco.toml`` (or the ``[charuco]`` table of ``config.toml``), and its polarity.
 
     ``columns`` x ``rows`` are squares; the square is ``square_size_override_cm`` when present, else
     ``board_width`` / ``columns`` in ``units``; markers are ``aruco_scale`` of a square.
@@ -468,7 +495,7 @@ def board_from_caliscope_toml(path: str | Path) -> tuple[Board, bool]:
         else:
             per_unit = {"inch": 25.4, "cm": 10.0, "mm": 1.0}[c.get("units", "inch")]
             square_mm = float(c["board_width"]) * per_unit / cols
-        board = make_board("charuco", (cols - 1, rows - 1), square_mm, dictionary=str(c["dictionary"]),
+        board = make_board(charuco.KIND, (cols - 1, rows - 1), square_mm, dictionary=str(c["dictionary"]),
                            marker_mm=float(c.get("aruco_scale", 0.75)) * square_mm)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{path}: not a caliscope ChArUco description ({exc})") from None

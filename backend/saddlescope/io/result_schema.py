@@ -13,6 +13,7 @@ from typing import Any
 
 import jsonschema
 
+from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems, board_type
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
@@ -117,6 +118,30 @@ _CLIP_SET = {"type": "object", "required": list(CAMERA_ROLES),
              "properties": {role: {"type": "string", "minLength": 1} for role in CAMERA_ROLES},
              "additionalProperties": False}
 
+def _board_schema() -> dict[str, Any]:
+    """ride.json's "board": a registered kind, the grid, and the fields each kind adds and needs."""
+    schema: dict[str, Any] = {
+        "type": "object",
+        "required": ["kind", "inner_corners", "square_mm"],
+        "properties": {
+            "kind": {"enum": BOARD_KINDS},  # the live list: a kind registered later is accepted too
+            "inner_corners": {"type": "array", "items": {"type": "integer", "minimum": 2},
+                              "minItems": 2, "maxItems": 2},
+            "square_mm": _POSITIVE,
+        },
+    }
+    rules = []
+    for kind in BOARD_KINDS:
+        own = board_type(kind).meta_schema
+        schema["properties"].update(own.get("properties", {}))
+        if own.get("required"):
+            rules.append({"if": {"properties": {"kind": {"const": kind}}},
+                          "then": {"required": list(own["required"])}})
+    if rules:
+        schema["allOf"] = rules
+    return schema
+
+
 RIDE_SCHEMA: dict[str, Any] = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
     "$id": "https://saddlescope.example/schemas/ride-1.json",
@@ -127,21 +152,7 @@ RIDE_SCHEMA: dict[str, Any] = {
         "format": {"const": RIDE_FORMAT},
         "cameras": {"type": "array", "items": {"enum": list(CAMERA_ROLES)}, "uniqueItems": True,
                     "minItems": len(CAMERA_ROLES), "maxItems": len(CAMERA_ROLES)},
-        "board": {
-            "type": "object",
-            "required": ["kind", "inner_corners", "square_mm"],
-            "properties": {
-                "kind": {"enum": ["checkerboard", "charuco"]},
-                "inner_corners": {"type": "array", "items": {"type": "integer", "minimum": 2},
-                                  "minItems": 2, "maxItems": 2},
-                "square_mm": _POSITIVE,
-                "dictionary": {"type": "string", "pattern": "^DICT_"},
-                "marker_mm": _POSITIVE,
-                "legacy": {"type": "boolean"},
-            },
-            "if": {"properties": {"kind": {"const": "charuco"}}},
-            "then": {"required": ["dictionary", "marker_mm"]},
-        },
+        "board": _board_schema(),
         "sync": {
             "type": "object",
             "required": ["method"],
@@ -310,11 +321,7 @@ def ride_problems(meta: Any) -> list[str]:
     problems += list(_non_finite(meta))
     if not isinstance(meta, dict):
         return problems
-    board = meta.get("board")
-    if isinstance(board, dict) and board.get("kind") == "charuco":
-        marker, square = board.get("marker_mm"), board.get("square_mm")
-        if isinstance(marker, int | float) and isinstance(square, int | float) and marker >= square:
-            problems.append(f"board.marker_mm ({marker}) must be smaller than board.square_mm ({square})")
+    problems += board_meta_problems(meta.get("board"))
     sync, clips = meta.get("sync"), meta.get("clips")
     if isinstance(sync, dict) and sync.get("method") == "offsets" and isinstance(clips, dict):
         offsets = sync.get("offsets") if isinstance(sync.get("offsets"), dict) else {}

@@ -12,10 +12,10 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import CalibrationError
 from saddlescope.core.pipeline import (
     PipelineParams,
-    board_from_meta,
     calibrate_from_clips,
     frame_clocks,
     synchronise,
@@ -67,7 +67,7 @@ def calibrate_clips(
         on_progress(0.2, "board views")
     rig, report = calibrate_from_clips(
         clips,
-        board_from_meta(meta),
+        board_from_meta(meta["board"]),
         offsets["calibration"],
         first_frame["calibration"],
         params or PipelineParams(),

@@ -7,8 +7,17 @@ import cv2
 import numpy as np
 import pytest
 
-from saddlescope.core import calibration as calib
-from saddlescope.core.calibration import BoardFinder, BoardTracker, detect_board_views, make_board, render_board
+from saddlescope.core.calibration import (
+    BoardFinder,
+    BoardTracker,
+    canonical_checkerboard_order,
+    detect_board_views,
+    make_board,
+    render_board,
+    saddles,
+    tracking,
+)
+from saddlescope.core.errors import InputError
 from saddlescope.core.types import Camera
 
 # the thesis rig's board and camera: squares of 4-5 px at 7.5 m (found on a 2x upsampled frame)
@@ -83,12 +92,12 @@ def test_square_checks_tell_a_shifted_grid():
     rng = np.random.default_rng(4)
     img = _frame(RVEC, T_FAR, rng)
     good = _truth(RVEC, T_FAR)
-    ratio, _ = calib._square_checks(img, good, BOARD.inner_corners)
+    ratio, _ = tracking._square_checks(img, good, BOARD.inner_corners)
     assert np.all(np.abs(ratio) > 1.6) and (np.all(ratio > 0) or np.all(ratio < 0))
     for di, dj in [(1, 0), (1, 1)]:
         shifted = _truth(RVEC, T_FAR + _square_shift(RVEC, di, dj))
-        r, _ = calib._square_checks(img, shifted, BOARD.inner_corners)
-        assert np.sum(r * np.sign(np.median(ratio)) < calib._MIN_SQUARE_RATIO) >= 11
+        r, _ = tracking._square_checks(img, shifted, BOARD.inner_corners)
+        assert np.sum(r * np.sign(np.median(ratio)) < tracking._MIN_SQUARE_RATIO) >= 11
 
 
 def test_a_lost_board_is_found_again_by_the_localizer():
@@ -111,13 +120,13 @@ def test_a_lost_board_is_found_again_by_the_localizer():
 def test_the_localizer_points_at_the_board():
     rng = np.random.default_rng(6)
     img = _frame(RVEC, T_FAR, rng)
-    clusters = calib._saddle_clusters(img, 132)
+    clusters = saddles._saddle_clusters(img, 132)
     truth = _truth(RVEC, T_FAR)
     x0, y0, x1, y1 = clusters[0].box
     assert x0 < truth[:, 0].min() and truth[:, 0].max() < x1 and y0 < truth[:, 1].min() and truth[:, 1].max() < y1
-    grids = calib._grids_from_saddles(clusters[0], BOARD.inner_corners)
+    grids = saddles._grids_from_saddles(clusters[0], BOARD.inner_corners)
     # one of the candidate windows is the board, up to the labelling canonical order fixes
-    ordered = [calib.canonical_checkerboard_order(img, g, BOARD.inner_corners) for g in grids]
+    ordered = [canonical_checkerboard_order(img, g, BOARD.inner_corners) for g in grids]
     assert min(_rms(g, truth) for g in ordered) < 0.7
 
 
@@ -128,10 +137,10 @@ def test_a_moving_board_is_not_searched_for(monkeypatch):
     frames = [(0, _frame(RVEC, T_FAR, rng)), (1, _frame(RVEC, T_FAR, rng))]
     frames += [(k, _frame(RVEC, T_FAR + (k - 1) * step, rng, blur_path=path)) for k in range(2, 7)]
     searched = []
-    real = calib._grids_from_saddles
-    monkeypatch.setattr(calib, "_grids_from_saddles", lambda *a: searched.append(1) or real(*a))
-    real_sb = calib._checkerboard_corners
-    monkeypatch.setattr(calib, "_checkerboard_corners", lambda *a, **k: searched.append(2) or real_sb(*a, **k))
+    real = saddles._grids_from_saddles
+    monkeypatch.setattr(tracking, "_grids_from_saddles", lambda *a: searched.append(1) or real(*a))
+    real_sb = tracking._checkerboard_corners
+    monkeypatch.setattr(tracking, "_checkerboard_corners", lambda *a, **k: searched.append(2) or real_sb(*a, **k))
     tracker = BoardTracker(BOARD)
     views = {v.frame: v for v in tracker.views(frames)}
     assert sorted(views) == [0, 1]
@@ -152,5 +161,5 @@ def test_detect_board_views_tracks_video_and_keeps_stills_and_charuco_per_frame(
     img = render_board(charuco, near, np.array([0.3, -0.2, 0.1]), np.array([-70.0, -50.0, 450.0]))
     found, _ = detect_board_views(iter([(0, img), (1, img)]), charuco)
     assert [len(v.ids) for v in found] == [12, 12]
-    with pytest.raises(calib.InputError, match="ChArUco"):
+    with pytest.raises(InputError, match="ChArUco"):
         BoardTracker(charuco)

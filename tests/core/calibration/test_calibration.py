@@ -172,13 +172,13 @@ def test_principal_points_moved_together_by_the_joint_adjustment_are_flagged(mon
     # tilt of the rig fit almost equally, and a hundredth of a pixel of disagreement between the
     # cameras moved all three by 10-40 px on 50-60 fps thesis-rig rides. Each camera alone stays put;
     # the rig is flagged when the joint solution leaves them all the same way.
-    import saddlescope.core.calibration as calibration
+    from saddlescope.core.calibration import rig as rig_module
 
     rng = np.random.default_rng(7)
     _, board, views, sizes = thesis_like_views(40, rng=rng, noise_px=0.1)
     clean, _ = calibrate_rig(views, board, sizes)
     assert clean.checks["principal_point_common_shift_px"] < 3.0 and clean.flags == ()
-    real_bundle = calibration.bundle_adjust
+    real_bundle = rig_module.bundle_adjust
 
     def drifting_bundle(cams, *args, dy_px, **kw):
         out, rep = real_bundle(cams, *args, **kw)
@@ -190,7 +190,7 @@ def test_principal_points_moved_together_by_the_joint_adjustment_are_flagged(mon
         return moved, rep
 
     for dy, flagged in ((-25.0, True), (-5.0, False)):
-        monkeypatch.setattr(calibration, "bundle_adjust",
+        monkeypatch.setattr(rig_module, "bundle_adjust",
                             lambda cams, *a, _dy=dy, **kw: drifting_bundle(cams, *a, dy_px=_dy, **kw))
         rig, _ = calibrate_rig(views, board, sizes)
         shift = rig.checks["principal_point_common_shift_px"]

@@ -1,0 +1,158 @@
+"""The ChArUco board: a checkerboard with ArUco markers in its white squares (normal, legacy or inverted print).
+
+Its corners are found frame by frame, each by its id: part of the board may be hidden. ``inner_corners``
+is (squares_x - 1, squares_y - 1); ``marker_mm`` defaults to 0.75 of the square (caliscope's
+``aruco_scale``), ``dictionary`` to ``DICT_4X4_50``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import cv2
+import numpy as np
+
+from saddlescope.core.calibration.boards.protocol import grid_from_meta, grid_meta
+from saddlescope.core.calibration.refinement import _search_downscaled
+from saddlescope.core.calibration.views import MIN_CORNERS
+from saddlescope.core.errors import InputError
+from saddlescope.core.types import Board
+
+__all__ = ["BOARD_TYPE", "KIND", "CharucoFinder", "CharucoType"]
+
+KIND = "charuco"
+_DEFAULT_DICTIONARY = "DICT_4X4_50"
+_DEFAULT_MARKER_SCALE = 0.75  # of the square
+
+
+class CharucoType:
+    """The ChArUco board (:class:`~saddlescope.core.calibration.boards.protocol.BoardType`)."""
+
+    kind = KIND
+    label = "ChArUco"
+    trackable = False
+    meta_schema: Mapping[str, Any] = {
+        "properties": {
+            "dictionary": {"type": "string", "pattern": "^DICT_"},
+            "marker_mm": {"type": "number", "exclusiveMinimum": 0},
+            "legacy": {"type": "boolean"},
+        },
+        "required": ["dictionary", "marker_mm"],
+    }
+
+    def from_meta(self, meta: Mapping[str, Any]) -> Board:
+        """The validated board of a board section.
+
+        Fields: kind, inner_corners, square_mm, dictionary, marker_mm, legacy; a missing or None field
+        takes its default.
+        """
+        inner_corners, square_mm = grid_from_meta(meta)
+        dictionary = meta.get("dictionary") or _DEFAULT_DICTIONARY
+        if not isinstance(getattr(cv2.aruco, dictionary, None), int):
+            raise InputError(f"board.dictionary {dictionary!r} is not an OpenCV ArUco dictionary "
+                             "(e.g. DICT_4X4_50, DICT_5X5_100)")
+        marker = meta.get("marker_mm")
+        marker_mm = _DEFAULT_MARKER_SCALE * square_mm if marker is None else float(marker)
+        if not 0 < marker_mm < square_mm:
+            raise InputError(f"ChArUco marker size {marker_mm} mm must be between 0 and the square "
+                             f"({square_mm} mm)")
+        return Board(self.kind, inner_corners, square_mm, dictionary=dictionary, marker_mm=marker_mm,
+                     legacy=bool(meta.get("legacy", False)))
+
+    def to_meta(self, board: Board) -> dict[str, Any]:
+        """The board section of a board."""
+        return {**grid_meta(board), "dictionary": board.dictionary, "marker_mm": board.marker_mm,
+                "legacy": board.legacy}
+
+    def meta_problems(self, meta: Mapping[str, Any]) -> list[str]:
+        """The markers must be smaller than the squares they sit in."""
+        marker, square = meta.get("marker_mm"), meta.get("square_mm")
+        if isinstance(marker, int | float) and isinstance(square, int | float) and marker >= square:
+            return [f"board.marker_mm ({marker}) must be smaller than board.square_mm ({square})"]
+        return []
+
+    def object_points_mm(self, board: Board) -> np.ndarray:
+        """Inner-corner coordinates, shape (cols*rows, 3) mm, indexed by OpenCV's ChArUco corner ids."""
+        return board.object_points_mm()
+
+    def detector(self, board: Board, *, inverted: bool | None = None, max_width: int = 1000,
+                 thorough: bool = True) -> CharucoFinder:
+        """A :class:`CharucoFinder` (one detector for still images and video: ``thorough`` is ignored)."""
+        return CharucoFinder(board, inverted=inverted, max_width=max_width)
+
+    def half_turn_ids(self, board: Board, ids: np.ndarray) -> np.ndarray | None:
+        """None: the markers tell the board's ends apart."""
+        return None
+
+    def cv_board(self, board: Board) -> cv2.aruco.CharucoBoard:
+        """OpenCV's ``CharucoBoard`` of the board (its squares are ``inner_corners`` + 1)."""
+        cols, rows = board.inner_corners
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary or _DEFAULT_DICTIONARY))
+        cv_board = cv2.aruco.CharucoBoard((cols + 1, rows + 1), float(board.square_mm),
+                                          float(board.marker_mm or _DEFAULT_MARKER_SCALE * board.square_mm),
+                                          dictionary)
+        cv_board.setLegacyPattern(bool(board.legacy))
+        return cv_board
+
+    def texture(self, board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray, float, np.ndarray]:
+        """Image of the board with a one-square white margin.
+
+        Returns
+        -------
+        texture : ndarray of shape (H, W), uint8
+        px_per_mm : float
+        origin_px : ndarray of shape (2,), the texture pixel of inner corner 0
+        """
+        cols, rows = board.inner_corners
+        sq = int(px_per_square)
+        size = ((cols + 1) * sq + 2 * sq, (rows + 1) * sq + 2 * sq)
+        tex = self.cv_board(board).generateImage(size, marginSize=sq, borderBits=1)
+        origin = np.array([2 * sq, 2 * sq], np.float64)  # margin + first square
+        return tex, sq / board.square_mm, origin - 0.5
+
+
+BOARD_TYPE = CharucoType()
+
+
+class CharucoFinder:
+    """Finds a ChArUco board in grey frames; remembers its print polarity once seen.
+
+    Parameters
+    ----------
+    board : Board
+    inverted : bool or None
+        Printed white-on-black (caliscope's ``inverted = true``); None tries both.
+    max_width : int
+        Frames wider than this are searched downscaled first, then refined at full resolution.
+    """
+
+    def __init__(self, board: Board, *, inverted: bool | None = None, max_width: int = 1000):
+        self.board = board
+        self.inverted = inverted
+        self.max_width = int(max_width)
+        self._cv_board = BOARD_TYPE.cv_board(board)
+        self._detector = cv2.aruco.CharucoDetector(self._cv_board)
+
+    def __call__(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Corners (N, 2) px and ids (N,) of the board in ``gray`` (H, W) uint8, or None."""
+        found, _ = _search_downscaled(gray, self.board, self.max_width, self._find)
+        return found
+
+    def _find(self, gray):
+        polarities = [self.inverted] if self.inverted is not None else [False, True]
+        for inverted in polarities:
+            found = self._find_charuco(255 - gray if inverted else gray)
+            if found is not None:
+                self.inverted = inverted
+                return found
+        return None
+
+    def _find_charuco(self, gray):
+        corners, ids, _, _ = self._detector.detectBoard(gray)
+        if ids is None or len(ids) < MIN_CORNERS:
+            return None
+        ids = ids.ravel().astype(np.int64)
+        if self._cv_board.checkCharucoCornersCollinear(ids.reshape(-1, 1).astype(np.int32)):
+            return None  # a line of corners says nothing about a plane's pose
+        return corners.reshape(-1, 2).astype(np.float64), ids

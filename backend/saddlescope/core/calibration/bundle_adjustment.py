@@ -1,0 +1,358 @@
+"""Bundle adjustment: all cameras and all board poses refined jointly."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import cv2
+import numpy as np
+from scipy.sparse import csr_matrix
+
+from saddlescope.core.calibration.boards import object_points_mm
+from saddlescope.core.calibration.projection import (
+    _camera_from_vector,
+    _distort_project,
+    _intr_vector,
+    _rotation_matrices,
+)
+from saddlescope.core.calibration.views import BoardView
+from saddlescope.core.errors import CalibrationError, InputError
+from saddlescope.core.types import Board, Camera
+
+__all__ = ["bundle_adjust"]
+
+
+def _pose_of_view(cam: Camera, view_obj, view_img):
+    ok, rvec, tvec = cv2.solvePnP(view_obj, view_img, cam.K, cam.dist, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        ok, rvec, tvec = cv2.solvePnP(view_obj, view_img, cam.K, cam.dist)
+    return ok, rvec.ravel(), tvec.ravel()
+
+
+def _robust_weights(sq_err: np.ndarray, loss: str, f_scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """IRLS weights rho'(s) and costs rho(s) of squared residual norms s (per observation)."""
+    z = sq_err / f_scale ** 2
+    if loss == "linear":
+        return np.ones_like(z), sq_err
+    if loss == "soft_l1":
+        root = np.sqrt(1 + z)
+        return 1 / root, 2 * f_scale ** 2 * (root - 1)
+    if loss == "huber":
+        r = np.sqrt(z)
+        w = np.where(r <= 1, 1.0, 1 / np.maximum(r, 1e-300))
+        return w, f_scale ** 2 * np.where(r <= 1, z, 2 * r - 1)
+    raise InputError(f"unknown bundle-adjustment loss {loss!r} (linear, soft_l1, huber)")
+
+
+_NCAM = 15  # per camera: fx fy cx cy k1 k2 p1 p2 k3 | rvec (3) t_mm (3)
+
+
+class _Bundle:
+    """Observations and the residual model of the joint bundle adjustment."""
+
+    def __init__(self, obj, obs_cam, obs_inst, obs_pt, obs_xy, n_cams, n_inst):
+        self.obj, self.cam, self.inst, self.pt, self.xy = obj, obs_cam, obs_inst, obs_pt, obs_xy
+        self.C, self.I = n_cams, n_inst
+        self.inst_onehot = csr_matrix((np.ones(len(obs_cam)), (obs_inst, np.arange(len(obs_cam)))),
+                                      shape=(n_inst, len(obs_cam)))
+        self.cam_onehot = csr_matrix((np.ones(len(obs_cam)), (obs_cam, np.arange(len(obs_cam)))),
+                                     shape=(n_cams, len(obs_cam)))
+        key = obs_cam * n_inst + obs_inst
+        self.pair_onehot = csr_matrix((np.ones(len(obs_cam)), (key, np.arange(len(obs_cam)))),
+                                      shape=(n_cams * n_inst, len(obs_cam)))
+
+    def board_points(self, boards: np.ndarray) -> np.ndarray:
+        """Corners in the reference frame (M, 3) for board poses (I, 6)."""
+        R = _rotation_matrices(boards[:, :3])
+        return np.einsum("mij,mj->mi", R[self.inst], self.obj[self.pt]) + boards[self.inst, 3:]
+
+    def camera_points(self, cams: np.ndarray, xr: np.ndarray) -> np.ndarray:
+        R = _rotation_matrices(cams[:, 9:12])
+        return np.einsum("mij,mj->mi", R[self.cam], xr) + cams[self.cam, 12:]
+
+    def project(self, cams: np.ndarray, xc: np.ndarray) -> np.ndarray:
+        return _distort_project(xc, cams[self.cam, :9]) - self.xy
+
+    def residuals(self, cams: np.ndarray, boards: np.ndarray) -> np.ndarray:
+        """(M, 2) px for cams (C, 15) and boards (I, 6)."""
+        return self.project(cams, self.camera_points(cams, self.board_points(boards)))
+
+    def jacobians(self, cams, boards, r0):
+        """Forward-difference blocks: A (M, 2, 15) w.r.t. the observing camera, B (M, 2, 6) board."""
+        M = len(self.cam)
+        A = np.empty((M, 2, _NCAM))
+        B = np.empty((M, 2, 6))
+        xr = self.board_points(boards)
+        xc = self.camera_points(cams, xr)
+        for k in range(_NCAM):
+            h = 1e-6 * np.maximum(np.abs(cams[:, k]), 1.0)
+            step = cams.copy()
+            step[:, k] += h
+            # intrinsics leave the camera-frame points alone; poses leave the board points alone
+            r = self.project(step, xc if k < 9 else self.camera_points(step, xr))
+            A[:, :, k] = (r - r0) / h[self.cam, None]
+        for k in range(6):
+            h = 1e-6 * np.maximum(np.abs(boards[:, k]), 1.0)
+            step = boards.copy()
+            step[:, k] += h
+            B[:, :, k] = (self.residuals(cams, step) - r0) / h[self.inst, None]
+        return A, B
+
+    def normal_equations(self, A, B, r, w):
+        """Blocks of J^T W J and J^T W r: U (C, 15, 15), V (I, 6, 6), W (C, I, 15, 6), gc, gb."""
+        Aw = A * w[:, None, None]
+        Bw = B * w[:, None, None]
+        M = len(w)
+        # U: one matrix product per camera (its observations stacked), cheaper than per-observation blocks
+        U = np.zeros((self.C, _NCAM, _NCAM))
+        for c in range(self.C):
+            sel = self.cam == c
+            U[c] = Aw[sel].reshape(-1, _NCAM).T @ A[sel].reshape(-1, _NCAM)
+        # V and W: per-observation outer products (two rows each), summed by instant / camera-instant
+        BtB = Bw[:, 0, :, None] * B[:, 0, None, :] + Bw[:, 1, :, None] * B[:, 1, None, :]
+        V = (self.inst_onehot @ BtB.reshape(M, -1)).reshape(self.I, 6, 6)
+        AtB = Aw[:, 0, :, None] * B[:, 0, None, :] + Aw[:, 1, :, None] * B[:, 1, None, :]
+        W = (self.pair_onehot @ AtB.reshape(M, -1)).reshape(self.C, self.I, _NCAM, 6)
+        gc = (self.cam_onehot @ (Aw[:, 0] * r[:, :1] + Aw[:, 1] * r[:, 1:])).reshape(self.C, _NCAM)
+        gb = (self.inst_onehot @ (Bw[:, 0] * r[:, :1] + Bw[:, 1] * r[:, 1:])).reshape(self.I, 6)
+        return U, V, W, gc, gb
+
+
+def _schur_solve(U, V, W, gc, gb, free, lam):
+    """Damped Gauss-Newton step by the Schur complement over the board poses.
+
+    Returns (dc (C, 15), db (I, 6), S) where S is the reduced camera system on the free parameters.
+    """
+    C, I = W.shape[:2]
+    n = C * _NCAM
+    Ufull = np.zeros((n, n))
+    for c in range(C):
+        Ufull[c * _NCAM:(c + 1) * _NCAM, c * _NCAM:(c + 1) * _NCAM] = U[c]
+    Vd = V + lam * np.einsum("ijj->ij", V)[:, :, None] * np.eye(6) + 1e-12 * np.eye(6)
+    Vinv = np.linalg.inv(Vd)
+    Wi = W.transpose(1, 0, 2, 3).reshape(I, n, 6)  # per instant, all cameras stacked
+    WV = np.einsum("iaj,ijk->iak", Wi, Vinv)
+    S = Ufull - np.einsum("iak,ibk->ab", WV, Wi)
+    rhs = -(gc.ravel() - np.einsum("iak,ik->a", WV, gb))
+    Sf = S[np.ix_(free, free)]
+    Sf = Sf + lam * np.diag(np.diag(Sf)) + 1e-12 * np.eye(len(free))
+    dc = np.zeros(n)
+    dc[free] = np.linalg.solve(Sf, rhs[free])
+    db = np.einsum("ijk,ik->ij", Vinv, -gb - np.einsum("iaj,a->ij", Wi, dc))
+    return dc.reshape(C, _NCAM), db, S
+
+
+def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, list[BoardView]],
+                  board: Board, *, fix_k3: bool | Mapping[str, bool] = True, loss: str = "soft_l1",
+                  f_scale_px: float = 1.0,
+                  outlier_px: float = 5.0, max_iterations: int = 60) -> tuple[dict[str, Camera], dict]:
+    """Refine all cameras (intrinsics, distortion, pose) and all board poses jointly.
+
+    The first camera is the reference (identity pose). Board poses are parameters per instant (a
+    frame key shared by all cameras). Each residual is a corner's reprojection error in px; the loss
+    is robust (``soft_l1`` or ``huber`` with scale ``f_scale_px``, solved by reweighting). The solver
+    is Levenberg-Marquardt on the normal equations with the board poses eliminated by the Schur
+    complement (the classic sparse bundle adjustment), so a step costs one small dense solve.
+
+    Parameters
+    ----------
+    cameras : dict name -> Camera
+        Initial values: intrinsics and poses relative to the first camera.
+    views_by_camera : dict name -> list of BoardView
+        Frame keys must be synchronised instants.
+    outlier_px : float
+        After a first pass, corners reprojecting worse than this are dropped and the fit repeated.
+
+    Returns
+    -------
+    cameras : dict name -> Camera, refined, with ``K_std``/``dist_std`` (one standard deviation) from
+        the Gauss-Newton covariance with the board poses marginalised
+    report : dict with ``rms_px`` (all), ``rms_px_by_camera``, ``n_observations``, ``n_dropped``,
+        ``n_instants``, ``iterations``, ``pose_std`` {camera: (rvec std (3,), t std mm (3,))},
+        ``board_poses`` {instant: (6,) rvec and t_mm in the reference camera}.
+    """
+    names = list(cameras)
+    obj_all = object_points_mm(board)
+    for name in names:
+        if not views_by_camera.get(name):
+            raise CalibrationError(f"bundle adjustment: camera {name} has no board view")
+    inst_pose = _initial_board_poses(cameras, views_by_camera, obj_all)
+    instants = sorted(inst_pose)
+    if not instants:
+        raise CalibrationError("bundle adjustment: no board pose could be initialised")
+    inst_index = {f: i for i, f in enumerate(instants)}
+    obs_cam, obs_inst, obs_pt, obs_xy = _observations(names, views_by_camera, inst_index)
+
+    C, I = len(names), len(instants)
+    cams = np.array([np.concatenate([_intr_vector(cameras[n]), cameras[n].rvec, cameras[n].t_mm])
+                     for n in names])
+    boards = np.array([inst_pose[f] for f in instants])
+    free = _free_parameters(names, fix_k3)
+
+    keep = np.ones(len(obs_cam), bool)
+    n_dropped = 0
+    iterations = 0
+    for _pass in range(2):
+        bundle = _Bundle(obj_all, obs_cam[keep], obs_inst[keep], obs_pt[keep], obs_xy[keep], C, I)
+        cams, boards, r, w, n_iterations = _levenberg_marquardt(bundle, cams, boards, free, loss=loss,
+                                                                f_scale_px=f_scale_px,
+                                                                max_iterations=max_iterations)
+        iterations += n_iterations
+        err = np.full(len(keep), np.inf)
+        err[keep] = np.hypot(r[:, 0], r[:, 1])
+        new_keep = keep & (err <= outlier_px)
+        if new_keep.sum() == keep.sum() or new_keep.sum() < 0.5 * keep.sum():
+            break
+        n_dropped = int((~new_keep).sum())
+        keep = new_keep
+
+    std = _camera_std(bundle, cams, boards, r, w, free)
+    out, pose_std, rms_by_cam = _refined_cameras(names, cameras, cams, std, bundle, r)
+    report = {
+        "rms_px": float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))),
+        "rms_px_by_camera": rms_by_cam,
+        "n_observations": int(keep.sum()),
+        "n_dropped": n_dropped,
+        "n_instants": I,
+        "iterations": iterations,
+        "pose_std": pose_std,
+        "board_poses": {f: boards[inst_index[f]].copy() for f in instants},
+    }
+    return out, report
+
+
+def _initial_board_poses(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, list[BoardView]],
+                         obj_all: np.ndarray) -> dict[int, np.ndarray]:
+    """Per instant, the board pose (rvec, t_mm) (6,) in the reference camera's frame.
+
+    From the camera seeing most of its corners; instants where its PnP fails are left out.
+    """
+    inst_pose: dict[int, np.ndarray] = {}
+    by_inst: dict[int, list[tuple[str, BoardView]]] = {}
+    for cam in cameras:
+        for v in views_by_camera.get(cam, []):
+            by_inst.setdefault(v.frame, []).append((cam, v))
+    for inst, entries in by_inst.items():
+        cam, v = max(entries, key=lambda e: len(e[1].ids))
+        c = cameras[cam]
+        ok, rvec, tvec = _pose_of_view(c, obj_all[v.ids], v.corners_px)
+        if ok:
+            Rb = c.R.T @ cv2.Rodrigues(rvec)[0]
+            inst_pose[inst] = np.concatenate([cv2.Rodrigues(Rb)[0].ravel(), c.R.T @ (tvec - c.t_mm)])
+    return inst_pose
+
+
+def _observations(names: list[str], views_by_camera: Mapping[str, list[BoardView]],
+                  inst_index: Mapping[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every corner seen at an initialised instant.
+
+    Returns its camera index, instant index and corner id (M,) each, and its pixel coordinates (M, 2).
+    """
+    parts = [(ci, inst_index[v.frame], v) for ci, cam in enumerate(names)
+             for v in views_by_camera.get(cam, []) if v.frame in inst_index]
+    obs_cam = np.concatenate([np.full(len(v.ids), ci) for ci, _, v in parts])
+    obs_inst = np.concatenate([np.full(len(v.ids), ii) for _, ii, v in parts])
+    obs_pt = np.concatenate([v.ids for _, _, v in parts])
+    obs_xy = np.concatenate([v.corners_px for _, _, v in parts])
+    return obs_cam, obs_inst, obs_pt, obs_xy
+
+
+def _free_parameters(names: list[str], fix_k3: bool | Mapping[str, bool]) -> np.ndarray:
+    """Indices into the cameras' parameters (C * 15) that the adjustment may change.
+
+    Not the reference camera's pose, which defines the rig frame, nor a k3 kept at zero.
+    """
+    free_mask = np.ones((len(names), _NCAM), bool)
+    free_mask[0, 9:] = False  # the reference camera defines the rig frame
+    k3_fixed = fix_k3 if isinstance(fix_k3, Mapping) else {n: bool(fix_k3) for n in names}
+    for i, n in enumerate(names):
+        free_mask[i, 8] = not k3_fixed.get(n, True)
+    return np.flatnonzero(free_mask.ravel())
+
+
+def _levenberg_marquardt(bundle: _Bundle, cams: np.ndarray, boards: np.ndarray, free: np.ndarray, *,
+                         loss: str, f_scale_px: float, max_iterations: int):
+    """Robust Levenberg-Marquardt from cameras (C, 15) and board poses (I, 6).
+
+    Returns the refined cams and boards, the residuals (M, 2) px and weights (M,) there, and the number
+    of iterations.
+    """
+    r = bundle.residuals(cams, boards)
+    w, rho = _robust_weights(np.sum(r ** 2, axis=1), loss, f_scale_px)
+    cost = float(rho.sum())
+    lam = 1e-4
+    iterations = 0
+    for _ in range(max_iterations):
+        iterations += 1
+        A, B = bundle.jacobians(cams, boards, r)
+        normal = bundle.normal_equations(A, B, r, w)
+        step = _damped_step(bundle, normal, cams, boards, free, cost, lam, loss, f_scale_px)
+        if step is None:
+            break
+        c_new, b_new, r_new, w_new, cost_new, lam = step
+        rel = (cost - cost_new) / max(cost, 1e-300)
+        cams, boards, r, w, cost = c_new, b_new, r_new, w_new, cost_new
+        lam = max(lam / 10, 1e-9)
+        if rel < 1e-10:
+            break
+    return cams, boards, r, w, iterations
+
+
+def _damped_step(bundle: _Bundle, normal, cams, boards, free, cost: float, lam: float, loss: str,
+                 f_scale_px: float):
+    """The first damped Gauss-Newton step that lowers the cost, or None.
+
+    The damping grows tenfold after each step that does not (at most ten tries). Returns cams (C, 15),
+    boards (I, 6), residuals (M, 2), weights (M,), cost and damping after the step.
+    """
+    U, V, W, gc, gb = normal
+    for _try in range(10):
+        dc, db, _ = _schur_solve(U, V, W, gc, gb, free, lam)
+        c_new, b_new = cams + dc, boards + db
+        r_new = bundle.residuals(c_new, b_new)
+        w_new, rho_new = _robust_weights(np.sum(r_new ** 2, axis=1), loss, f_scale_px)
+        cost_new = float(rho_new.sum())
+        if np.isfinite(cost_new) and cost_new < cost:
+            return c_new, b_new, r_new, w_new, cost_new, lam
+        lam *= 10
+    return None
+
+
+def _camera_std(bundle: _Bundle, cams: np.ndarray, boards: np.ndarray, r: np.ndarray, w: np.ndarray,
+                free: np.ndarray) -> np.ndarray:
+    """One standard deviation (C, 15) of the camera parameters.
+
+    From sigma^2 S^-1 with the board poses marginalised; 0 for fixed parameters, NaN where S is singular.
+    """
+    A, B = bundle.jacobians(cams, boards, r)
+    U, V, W, gc, gb = bundle.normal_equations(A, B, r, w)
+    _, _, S = _schur_solve(U, V, W, gc, gb, free, 0.0)
+    dof = max(2 * len(r) - len(free) - 6 * bundle.I, 1)
+    sigma2 = float(np.sum(w * np.sum(r ** 2, axis=1)) / dof)
+    std = np.zeros(bundle.C * _NCAM)
+    try:
+        std[free] = np.sqrt(np.clip(np.diag(np.linalg.inv(S[np.ix_(free, free)])), 0, None) * sigma2)
+    except np.linalg.LinAlgError:
+        std[free] = np.nan
+    return std.reshape(bundle.C, _NCAM)
+
+
+def _refined_cameras(names: list[str], cameras: Mapping[str, Camera], cams: np.ndarray, std: np.ndarray,
+                     bundle: _Bundle, r: np.ndarray):
+    """The refined cameras, the standard deviations of their poses, and their r.m.s. errors (px).
+
+    Pose standard deviations are (rvec (3,), t_mm (3,)) for every camera but the reference.
+    """
+    out, pose_std, rms_by_cam = {}, {}, {}
+    for ci, name in enumerate(names):
+        sel = bundle.cam == ci
+        rms_c = float(np.sqrt(np.mean(np.sum(r[sel] ** 2, axis=1)))) if sel.any() else float("nan")
+        rms_by_cam[name] = rms_c
+        s = std[ci]
+        K_std = np.array([[s[0], 0, s[2]], [0, s[1], s[3]], [0, 0, 0]])
+        out[name] = _camera_from_vector(name, cams[ci, :9], cams[ci, 9:12], cams[ci, 12:],
+                                        cameras[name].image_size, rms_px=rms_c, K_std=K_std,
+                                        dist_std=s[4:9].copy())
+        if ci > 0:
+            pose_std[name] = (s[9:12].copy(), s[12:].copy())
+    return out, pose_std, rms_by_cam

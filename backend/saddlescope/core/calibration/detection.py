@@ -1,0 +1,61 @@
+"""Corner detection of any registered board kind in still images and video frames."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from saddlescope.core.calibration.boards import board_type
+from saddlescope.core.calibration.refinement import _as_gray
+from saddlescope.core.types import Board
+
+__all__ = ["BoardFinder", "find_board_corners"]
+
+
+class BoardFinder:
+    """Finds one board in grey frames with its kind's detector.
+
+    The detector learns from frame to frame: where a checkerboard was and at which size it was found,
+    a ChArUco board's print polarity.
+
+    Parameters
+    ----------
+    board : Board
+    inverted : bool or None
+        ChArUco printed white-on-black (caliscope's ``inverted = true``); None tries both.
+    max_width : int
+        Frames wider than this are searched downscaled first, then refined at full resolution.
+    thorough : bool
+        Also try ``findChessboardCornersSB``'s exhaustive mode and the full classic detector (about a
+        second per frame without a board): right for a few still images; for video frames (many,
+        mostly alike) False keeps a frame to tens of milliseconds.
+    """
+
+    def __init__(self, board: Board, *, inverted: bool | None = None, max_width: int = 1000,
+                 thorough: bool = True):
+        self.board = board
+        self.detector = board_type(board.kind).detector(board, inverted=inverted, max_width=int(max_width),
+                                                        thorough=bool(thorough))
+
+    def __call__(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Corners (N, 2) px and ids (N,) of the board in ``gray`` (H, W) uint8 (or BGR), or None."""
+        return self.detector(_as_gray(gray))
+
+
+def find_board_corners(gray: np.ndarray, board: Board, *,
+                       inverted: bool | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """Board corners in one grey image.
+
+    Parameters
+    ----------
+    gray : ndarray of shape (H, W), uint8 (a colour (H, W, 3) BGR image is converted)
+    board : Board
+    inverted : bool or None
+        ChArUco print polarity; None tries normal then inverted.
+
+    Returns
+    -------
+    (corners_px, ids) with shapes (N, 2) and (N,), or None if the board is not found. Checkerboard
+    corners come in a canonical order (see
+    :func:`~saddlescope.core.calibration.boards.checkerboard.canonical_checkerboard_order`), all of them.
+    """
+    return BoardFinder(board, inverted=inverted)(gray)

@@ -1,0 +1,262 @@
+"""The whole rig: intrinsics, stereo pairs, chained poses, bundle adjustment and metric checks."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping
+
+import cv2
+import numpy as np
+
+from saddlescope.core.calibration.boards import board_type, object_points_mm
+from saddlescope.core.calibration.bundle_adjustment import _pose_of_view, bundle_adjust
+from saddlescope.core.calibration.checks import metric_checks
+from saddlescope.core.calibration.intrinsics import _choose_k3, calibrate_intrinsics
+from saddlescope.core.calibration.stereo import stereo_extrinsics
+from saddlescope.core.calibration.views import MIN_VIEWS, BoardView
+from saddlescope.core.errors import CalibrationError, InputError
+from saddlescope.core.types import Board, Camera, Rig
+
+__all__ = ["calibrate_rig", "principal_point_common_shift"]
+
+
+def _initial_poses(names, pairs, ref) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Chain pair poses from the reference along the pairs with most shared views (spanning tree)."""
+    poses = {ref: (np.eye(3), np.zeros(3))}
+    while len(poses) < len(names):
+        best = None
+        for (a, b), p in pairs.items():
+            for src, dst, R, t in ((a, b, p["R"], p["t_mm"]), (b, a, p["R"].T, -p["R"].T @ p["t_mm"])):
+                if src in poses and dst not in poses and (best is None or p["n_views"] > best[0]):
+                    best = (p["n_views"], src, dst, R, t)
+        if best is None:
+            missing = [n for n in names if n not in poses]
+            raise CalibrationError(f"camera(s) {', '.join(missing)} never see the board together with "
+                                   f"camera {ref} or a camera linked to it: cannot place them in the rig")
+        _, src, dst, R, t = best
+        Rs, ts = poses[src]
+        poses[dst] = (R @ Rs, R @ ts + t)
+    return poses
+
+
+def _board_poses(cameras, per_cam, obj_all) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The board pose (R (3, 3), t_mm (3,)) in the rig that each camera's view of one instant gives."""
+    poses = {}
+    for cam, v in per_cam.items():
+        c = cameras[cam]
+        ok, rvec, tvec = _pose_of_view(c, obj_all[v.ids], v.corners_px)
+        if ok:
+            Rb = c.R.T @ cv2.Rodrigues(rvec)[0]
+            poses[cam] = (Rb, c.R.T @ (tvec - c.t_mm))
+    return poses
+
+
+def _view_error_px(camera: Camera, obj_all: np.ndarray, view: BoardView, pose) -> float:
+    """R.m.s. reprojection error (px) of a view's corners for a board pose in the rig."""
+    Rb, tb = pose
+    pts = obj_all[view.ids] @ Rb.T + tb
+    proj = camera.project(pts)
+    return float(np.sqrt(np.mean(np.sum((proj - view.corners_px) ** 2, axis=1))))
+
+
+def _agreed_pose(cameras, per_cam, obj_all, poses, max_px):
+    """Of the cameras' board poses, the one most of their views agree with (None without poses)."""
+    best_pose, best_votes = None, -1
+    for pose in poses.values():
+        votes = sum(_view_error_px(cameras[c2], obj_all, v2, pose) < max_px for c2, v2 in per_cam.items())
+        if votes > best_votes:
+            best_pose, best_votes = pose, votes
+    return best_pose
+
+
+def _fix_instant(cameras, per_cam, board, obj_all, max_px) -> tuple[dict[str, BoardView], int, int]:
+    """The views of one instant that are kept, and how many were relabelled and dropped.
+
+    A view is relabelled after a half turn where that fits the pose the other cameras see.
+    """
+    best_pose = _agreed_pose(cameras, per_cam, obj_all, _board_poses(cameras, per_cam, obj_all), max_px)
+    kept: dict[str, BoardView] = {}
+    n_fixed = n_dropped = 0
+    for cam, v in per_cam.items():
+        if best_pose is None or _view_error_px(cameras[cam], obj_all, v, best_pose) < max_px:
+            kept[cam] = v
+            continue
+        turned_ids = board_type(board.kind).half_turn_ids(board, v.ids)
+        if turned_ids is not None:
+            flipped = BoardView(v.frame, v.corners_px, turned_ids)
+            if _view_error_px(cameras[cam], obj_all, flipped, best_pose) < max_px:
+                kept[cam] = flipped
+                n_fixed += 1
+                continue
+        n_dropped += 1
+    return kept, n_fixed, n_dropped
+
+
+def _fix_flipped_views(cameras, views_by_camera, board, *, max_px=20.0):
+    """Relabel (180-degree) or drop views inconsistent with the board pose the other cameras see.
+
+    Symmetric checkerboards can be labelled from the opposite corner in one camera; this finds such
+    views from the initial rig and tries the rotated labels.
+    """
+    names = list(cameras)
+    obj_all = object_points_mm(board)
+    by_inst: dict[int, dict[str, BoardView]] = {}
+    for cam in names:
+        for v in views_by_camera.get(cam, []):
+            by_inst.setdefault(v.frame, {})[cam] = v
+    out = {cam: [] for cam in names}
+    n_fixed = n_dropped = 0
+    for per_cam in by_inst.values():
+        kept = per_cam
+        if len(per_cam) >= 2:
+            kept, fixed, dropped = _fix_instant(cameras, per_cam, board, obj_all, max_px)
+            n_fixed += fixed
+            n_dropped += dropped
+        for cam, v in kept.items():
+            out[cam].append(v)
+    for cam in names:
+        out[cam].sort(key=lambda v: v.frame)
+    return out, n_fixed, n_dropped
+
+
+def principal_point_common_shift(single: Mapping[str, Camera], joint: Mapping[str, Camera]) -> np.ndarray:
+    """The mean over cameras of (joint - single-camera) principal point, (2,) px.
+
+    With the board held in a band across the images (a person carrying it at chest height) a common
+    shift of every principal point and a common tilt of the rig fit the views almost equally well:
+    each camera alone still finds its principal point within a few pixels, but in the joint
+    adjustment a hundredth of a pixel of disagreement between the cameras' corners moved all three
+    together by 10-40 px (50-60 fps synthetic thesis-rig rides), bending the markers' heights by
+    3-4 mm across the view. Each camera's own estimate scatters; their mean shift does not.
+    """
+    names = [n for n in joint if n in single]
+    d = [np.asarray(joint[n].K)[:2, 2] - np.asarray(single[n].K)[:2, 2] for n in names]
+    return np.mean(d, axis=0) if d else np.zeros(2)
+
+
+def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
+                  image_sizes: Mapping[str, tuple[int, int]], *, fix_k3: bool | None = None,
+                  bundle: bool = True, loss: str = "soft_l1", min_views: int = MIN_VIEWS, min_shared: int = 3,
+                  max_square_error_pct: float = 1.0, max_square_error_mm: float | None = None,
+                  max_distance_rms_mm: float | None = None, max_principal_point_shift: float = 0.02,
+                  clip: str | None = "calibration") -> tuple[Rig, dict]:
+    """Calibrate one or more cameras into a :class:`Rig` (first camera = reference, identity pose).
+
+    Steps: intrinsics per camera (:func:`calibrate_intrinsics`); stereo pairs for every pair of cameras
+    that see the board together (:func:`stereo_extrinsics`, thesis 3.5); initial poses chained from
+    the reference; joint bundle adjustment (:func:`bundle_adjust`); metric checks in mm
+    (:func:`metric_checks`), whose failures become ``Rig.flags``.
+
+    Parameters
+    ----------
+    views_by_camera : dict name -> list of BoardView
+        Frame keys are synchronised instants (apply the sync offsets before).
+    board : Board
+    image_sizes : dict name -> (width, height)
+    fix_k3 : bool or None
+        Keep k3 = 0 for every camera (True), fit it for every camera (False), or (None, default) fit
+        it for the cameras whose views call for it (:func:`_choose_k3`).
+    max_principal_point_shift : float
+        Flag the rig when the bundle adjustment moves all principal points together by more than
+        this fraction of the smaller image side (:func:`principal_point_common_shift`).
+
+    Returns
+    -------
+    rig : Rig
+        ``checks`` holds the metric numbers, ``flags`` their failures, ``pairs`` the stereo results
+        {"a-b": {"R", "t_mm", "rms_px", "n_views"}}.
+    report : dict
+        ``intrinsics`` {name: report}, ``bundle`` report (or None), ``per_pair_checks``,
+        ``n_relabelled_views``, ``n_dropped_views``.
+    """
+    names = list(views_by_camera)
+    if not names:
+        raise InputError("no cameras to calibrate")
+    missing = [n for n in names if n not in image_sizes]
+    if missing:
+        raise InputError(f"image size missing for camera(s) {', '.join(missing)}")
+    intrinsics, intr_reports = _all_intrinsics(views_by_camera, board, image_sizes, fix_k3=fix_k3, clip=clip,
+                                               min_views=min_views)
+    k3_fixed = {n: intr_reports[n]["fix_k3"] for n in names}
+    # views kept by the intrinsic step (outlier views dropped)
+    views = {n: [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]]
+             for n in names}
+    report: dict = {"intrinsics": intr_reports, "bundle": None, "per_pair_checks": {},
+                    "n_relabelled_views": 0, "n_dropped_views": 0}
+    if len(names) == 1:
+        return Rig({names[0]: intrinsics[names[0]]}), report
+
+    pairs_cv = _stereo_pairs(views, intrinsics, board, min_shared=min_shared)
+    init = _initial_poses(names, pairs_cv, names[0])
+    cams = {n: Camera(n, intrinsics[n].K, intrinsics[n].dist, intrinsics[n].image_size, R=init[n][0],
+                      t_mm=init[n][1], rms_px=intrinsics[n].rms_px, K_std=intrinsics[n].K_std,
+                      dist_std=intrinsics[n].dist_std) for n in names}
+    views, n_fixed, n_dropped = _fix_flipped_views(cams, views, board)
+    report["n_relabelled_views"], report["n_dropped_views"] = n_fixed, n_dropped
+    if bundle:
+        cams, report["bundle"] = bundle_adjust(cams, views, board, fix_k3=k3_fixed, loss=loss)
+    pairs = {}
+    for (a, b), p in pairs_cv.items():
+        pairs[f"{a}-{b}"] = {"R": p["R"], "t_mm": p["t_mm"], "rms_px": p["rms_px"], "n_views": p["n_views"]}
+    rig = Rig(cams, pairs=pairs)
+    checks, flags, per_pair = metric_checks(rig, views, board, max_square_error_pct=max_square_error_pct,
+                                            max_square_error_mm=max_square_error_mm,
+                                            max_distance_rms_mm=max_distance_rms_mm)
+    for key, p in pairs.items():
+        p.update({f"check_{k}": v for k, v in per_pair.get(key, {}).items()})
+    if report["bundle"] is not None:
+        checks["bundle_rms_px"] = report["bundle"]["rms_px"]
+        limit = max_principal_point_shift * min(min(image_sizes[n]) for n in names)
+        checks["principal_point_common_shift_px"], flag = _principal_point_check(intrinsics, cams, limit)
+        if flag is not None:
+            flags.append(flag)
+    report["per_pair_checks"] = per_pair
+    return Rig(cams, checks=checks, flags=tuple(flags), pairs=pairs), report
+
+
+def _all_intrinsics(views_by_camera: Mapping[str, list[BoardView]], board: Board,
+                    image_sizes: Mapping[str, tuple[int, int]], *, fix_k3: bool | None, clip: str | None,
+                    min_views: int) -> tuple[dict[str, Camera], dict[str, dict]]:
+    """Each camera's intrinsics and report (:func:`calibrate_intrinsics`).
+
+    Where ``fix_k3`` is None, k3 is chosen per camera (:func:`_choose_k3`).
+    """
+    intrinsics: dict[str, Camera] = {}
+    intr_reports: dict[str, dict] = {}
+    for name in views_by_camera:
+        intrinsics[name], intr_reports[name] = calibrate_intrinsics(
+            views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
+            fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
+        if fix_k3 is None:
+            intrinsics[name], intr_reports[name] = _choose_k3(intrinsics[name], intr_reports[name],
+                                                              views_by_camera[name], board, image_sizes[name],
+                                                              camera=name, clip=clip, min_views=min_views)
+    return intrinsics, intr_reports
+
+
+def _stereo_pairs(views: Mapping[str, list[BoardView]], intrinsics: Mapping[str, Camera], board: Board, *,
+                  min_shared: int) -> dict[tuple[str, str], dict]:
+    """:func:`stereo_extrinsics` of every pair of cameras that see the board together often enough."""
+    pairs_cv: dict[tuple[str, str], dict] = {}
+    for a, b in itertools.combinations(list(views), 2):
+        try:
+            pairs_cv[(a, b)] = stereo_extrinsics(views[a], views[b], intrinsics[a], intrinsics[b], board,
+                                                 min_shared=min_shared)
+        except CalibrationError:
+            continue  # the pair may be linked through other cameras
+    return pairs_cv
+
+
+def _principal_point_check(single: Mapping[str, Camera], joint: Mapping[str, Camera],
+                           limit_px: float) -> tuple[float, str | None]:
+    """The principal points' common shift (px) by the joint adjustment, and a flag when over ``limit_px``."""
+    shift = principal_point_common_shift(single, joint)
+    shift_px = float(np.hypot(*shift))
+    if not shift_px > limit_px:
+        return shift_px, None
+    return shift_px, (
+        f"the joint adjustment moved every camera's principal point by about "
+        f"{shift_px:.0f} px (x {shift[0]:+.0f}, y {shift[1]:+.0f}) from where "
+        "each camera's own views put it: the board's positions do not tell the cameras' aim from their "
+        "principal points, so heights and depths may bend by millimetres across the view; carry the board "
+        "higher and lower and tilt it towards and away from the cameras")

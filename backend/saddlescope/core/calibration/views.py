@@ -1,0 +1,29 @@
+"""Board views: the corners of a calibration board found in one frame of one camera."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["BoardView", "MIN_CORNERS", "MIN_VIEWS"]
+
+MIN_VIEWS = 6
+MIN_CORNERS = 6
+
+
+@dataclass(frozen=True)
+class BoardView:
+    """Board corners found in one frame of one camera.
+
+    frame : int
+        Frame index in the clip, or the common instant of a synchronised rig.
+    corners_px : ndarray of shape (N, 2)
+        Distorted pixel coordinates of the corners found.
+    ids : ndarray of shape (N,)
+        Index of each corner into ``board.object_points_mm()``.
+    """
+
+    frame: int
+    corners_px: np.ndarray
+    ids: np.ndarray
