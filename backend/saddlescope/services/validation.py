@@ -7,7 +7,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from saddlescope.core import calibration as calib
-from saddlescope.core.pipeline import board_from_meta, still_views, synchronise
+from saddlescope.core.calibration.boards import board_from_meta
+from saddlescope.core.pipeline import still_views, synchronise
 from saddlescope.core.types import Rig
 from saddlescope.core.validation import board_point_distances, detect_spots, measure_free_fall
 from saddlescope.io.bundle import open_bundle
@@ -26,7 +27,7 @@ def run_validation(bundle_path: Path | str, rig: Rig, *, board_points: dict | No
             spots = {c: detect_spots(clips.gray_frames("freefall", c, start=first["freefall"][c])) for c in cams}
             out["freefall"] = measure_free_fall(rig, spots, offsets["freefall"], clips.fps("freefall", cams[0]))
         if "board_distance" in kinds:
-            board = board_from_meta(bundle.meta)
+            board = board_from_meta(bundle.meta.get("board"))
             cols, rows = board.inner_corners
             points = board_points or {"A": (0, 0), "B": (cols - 1, 0), "C": (0, rows - 1), "D": (cols - 1, rows - 1)}
             views = {}

@@ -16,7 +16,6 @@ from saddlescope.core.pipeline.result import assemble_result, fits_document
 from saddlescope.core.pipeline.run import analyze_ride
 from saddlescope.core.pipeline.setup import (
     board_coverage,
-    board_from_meta,
     calibrate_from_clips,
     frame_clocks,
     still_views,
@@ -24,5 +23,5 @@ from saddlescope.core.pipeline.setup import (
 )
 
 __all__ = ["STAGE_WEIGHTS", "ClipReader", "PipelineParams", "Progress", "RideTracks", "analyze_ride",
-           "assemble_result", "board_coverage", "board_from_meta", "calibrate_from_clips", "depth_uncertainty",
+           "assemble_result", "board_coverage", "calibrate_from_clips", "depth_uncertainty",
            "detect_ride", "fits_document", "frame_clocks", "still_views", "synchronise"]

@@ -9,12 +9,13 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 
+from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import InputError
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.detection import depth_uncertainty, detect_ride, disagreement_flag
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.pipeline.result import assemble_result
-from saddlescope.core.pipeline.setup import board_from_meta, calibrate_from_clips, frame_clocks, synchronise
+from saddlescope.core.pipeline.setup import calibrate_from_clips, frame_clocks, synchronise
 from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
 from saddlescope.core.types import RideResult, Rig
 
@@ -72,7 +73,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     t0 = time.perf_counter()
     calib_report: dict = {}
     if rig is None:
-        rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta), offsets["calibration"],
+        rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
                                                  first_frame["calibration"], params, progress,
                                                  clocks=clocks.get("calibration"))
     progress.finish("calibration", t0)

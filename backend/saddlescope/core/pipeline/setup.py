@@ -15,28 +15,14 @@ import cv2
 import numpy as np
 
 from saddlescope.core import calibration as calib
-from saddlescope.core.errors import InputError, SyncError
+from saddlescope.core.errors import SyncError
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
 from saddlescope.core.types import Board, ImageTracks, Rig
 
-__all__ = ["board_coverage", "board_from_meta", "calibrate_from_clips", "frame_clocks", "outside_coverage",
+__all__ = ["board_coverage", "calibrate_from_clips", "frame_clocks", "outside_coverage",
            "still_views", "synchronise"]
-
-
-def board_from_meta(meta: Mapping) -> Board:
-    """The calibration board of ride.json's ``board`` section."""
-    spec = meta.get("board")
-    if not isinstance(spec, Mapping):
-        raise InputError("ride.json has no 'board' section describing the calibration board")
-    try:
-        cols, rows = (int(v) for v in spec["inner_corners"])
-        return calib.make_board(str(spec.get("kind", "checkerboard")), (cols, rows), float(spec["square_mm"]),
-                                dictionary=spec.get("dictionary"), marker_mm=spec.get("marker_mm"),
-                                legacy=bool(spec.get("legacy", False)))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"ride.json board section is incomplete or wrong: {exc}") from None
 
 
 def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict]:
