@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError, TriangulationError
-from saddlescope.core.fitting import fit_marker_kinematics
-from saddlescope.core.smoothing import regularize_depth
+from saddlescope.core.kinematics.fitting import fit_marker_kinematics
+from saddlescope.core.kinematics.smoothing import regularize_depth
 from saddlescope.core.synthetic_rig import make_rig
 from saddlescope.core.triangulation import position_uncertainty
 from saddlescope.core.types import Rig
@@ -107,7 +107,7 @@ def test_a_wild_sample_is_left_out_of_the_fits():
 
 
 def test_a_few_frames_of_look_alike_do_not_hide_the_stride():
-    from saddlescope.core.period import estimate_period
+    from saddlescope.core.kinematics.period import estimate_period
     from saddlescope.core.pipeline import _despiked
 
     t = np.arange(0, 3.0, 1 / 60)

@@ -13,7 +13,7 @@ import pytest
 
 from saddlescope.bench import exact_marker_floor
 from saddlescope.core import pipeline as P
-from saddlescope.core.registration import register_rigid
+from saddlescope.core.kinematics.registration import register_rigid
 from saddlescope.core.synthetic import saddle_truth_at
 
 pytestmark = pytest.mark.slow

@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 
 from conftest import IN_CI
-from saddlescope.core.fitting import fit_marker_kinematics
 from saddlescope.core.indicators import ride_indicators
+from saddlescope.core.kinematics import fit_marker_kinematics
 from saddlescope.core.pipeline import fits_document
 
 pytestmark = pytest.mark.browser

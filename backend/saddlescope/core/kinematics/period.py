@@ -16,6 +16,11 @@ import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
 
+__all__ = [
+    "estimate_period",
+    "analysis_window",
+]
+
 # A principal component counts if its amplitude is at least this fraction of the largest one.
 _COMPONENT_FRACTION = 0.1
 # A shorter candidate is kept if its score is within this margin of the best candidate's score.

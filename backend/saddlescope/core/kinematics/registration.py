@@ -16,6 +16,15 @@ import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
 
+__all__ = [
+    "Registration",
+    "layout_ratio",
+    "check_marker_layout",
+    "marker_model",
+    "register_rigid",
+    "broken_distance_samples",
+]
+
 
 @dataclass(frozen=True)
 class Registration:

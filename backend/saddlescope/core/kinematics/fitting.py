@@ -44,6 +44,18 @@ from scipy.stats import t as student_t
 
 from saddlescope.core.errors import InputError, KinematicsError
 
+__all__ = [
+    "CRITERIA",
+    "GoodnessOfFit",
+    "LinearFit",
+    "fit_linear",
+    "FourierFit",
+    "count_extrema",
+    "fit_fourier",
+    "MarkerKinematics",
+    "fit_marker_kinematics",
+]
+
 CRITERIA = ("aicc", "aicc_white", "bic", "adj_r2")
 
 

@@ -14,6 +14,16 @@ import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
 
+__all__ = [
+    "CAMERA_DOWN",
+    "MotionFrame",
+    "plumb_gravity",
+    "travel_velocity",
+    "motion_frame",
+    "to_motion_frame",
+    "vectors_to_motion_frame",
+]
+
 # Warn when the measured gravity is further than this from perpendicular to the travel.
 _PERPENDICULAR_TOL_DEG = 10.0
 # Left-camera image "down" in rig coordinates (OpenCV camera: x right, y down, z forward).

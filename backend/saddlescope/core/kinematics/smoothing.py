@@ -18,6 +18,13 @@ from scipy.interpolate import CubicSpline
 
 from saddlescope.core.errors import InputError
 
+__all__ = [
+    "span_points",
+    "rloess",
+    "bridge_gaps",
+    "regularize_depth",
+]
+
 # Rows of the (n_eval, k) neighbour arrays handled at once; bounds memory to ~ a few MB per array.
 _CHUNK_ELEMENTS = 2_000_000
 

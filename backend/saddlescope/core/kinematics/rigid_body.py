@@ -38,7 +38,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.registration import check_marker_layout
+from saddlescope.core.kinematics.registration import check_marker_layout
+
+__all__ = [
+    "VERSION_NAMES",
+    "ANGULAR_METHODS",
+    "AngularKinematics",
+    "PointKinematics",
+    "unobservable_axis",
+    "weak_axis_gain",
+    "omega_versions",
+    "alpha_versions",
+    "omega_least_squares",
+    "alpha_least_squares",
+    "plane_normal",
+    "singularity_index",
+    "angular_kinematics",
+    "body_frame",
+    "saddle_body_coordinates",
+    "saddle_point_kinematics",
+]
 
 # (reference marker i, other markers j, k) of versions 1-3 (thesis "ver1".."ver3").
 _VERSIONS = ((0, 1, 2), (1, 0, 2), (2, 0, 1))
@@ -387,7 +406,7 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
         ("lsq_wiener", needs ``raw``); or the mean of the kept versions (the thesis's choice;
         frames where all are excluded fall back to least squares).
     min_height_ratio : float, optional
-        Collinearity limit, see :func:`saddlescope.core.registration.check_marker_layout`.
+        Collinearity limit, see :func:`saddlescope.core.kinematics.registration.check_marker_layout`.
     raw : tuple of (r, v, a), optional
         Unregistered marker positions and their fitted velocities and accelerations, for "lsq_wiener".
 
