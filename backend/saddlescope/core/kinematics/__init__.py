@@ -6,22 +6,14 @@ The stages, in the order the pipeline runs them:
 - :mod:`.period`: the stride period and the analysis window of whole strides;
 - :mod:`.frames`: the motion reference frame (travel, gravity) and the change to it;
 - :mod:`.registration`: the static-shot marker model fitted rigidly to every frame;
-- :mod:`.fitting`: curve fits of every marker coordinate and their analytic derivatives;
+- :mod:`.curve_fits`, :mod:`.goodness_of_fit` and :mod:`.fitting`: curve fits of every marker
+  coordinate, their goodness of fit and uncertainty, and their analytic derivatives;
 - :mod:`.rigid_body`: angular velocity and acceleration of the marker triangle, and the
   kinematics of the invisible saddle point.
 """
 
-from saddlescope.core.kinematics.fitting import (
-    CRITERIA,
-    FourierFit,
-    GoodnessOfFit,
-    LinearFit,
-    MarkerKinematics,
-    count_extrema,
-    fit_fourier,
-    fit_linear,
-    fit_marker_kinematics,
-)
+from saddlescope.core.kinematics.curve_fits import FourierFit, LinearFit, count_extrema, fit_fourier, fit_linear
+from saddlescope.core.kinematics.fitting import MarkerKinematics, fit_marker_kinematics
 from saddlescope.core.kinematics.frames import (
     CAMERA_DOWN,
     MotionFrame,
@@ -31,6 +23,7 @@ from saddlescope.core.kinematics.frames import (
     travel_velocity,
     vectors_to_motion_frame,
 )
+from saddlescope.core.kinematics.goodness_of_fit import CRITERIA, GoodnessOfFit
 from saddlescope.core.kinematics.period import analysis_window, estimate_period
 from saddlescope.core.kinematics.registration import (
     Registration,
@@ -84,7 +77,7 @@ __all__ = [
     "marker_model",
     "register_rigid",
     "broken_distance_samples",
-    # fitting
+    # goodness of fit, curve fits and the fits of every marker
     "CRITERIA",
     "GoodnessOfFit",
     "LinearFit",
