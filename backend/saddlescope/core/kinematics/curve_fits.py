@@ -324,30 +324,12 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     FourierFit
     """
     t, y = _check_series(t, y, name)
-    if extra_orders < 0:
-        raise InputError(f"extra_orders must be >= 0, got {extra_orders}")
-    if trend_degree not in (0, 1, 2):
-        raise InputError(f"trend_degree must be 0, 1 or 2, got {trend_degree}")
-    if criterion not in CRITERIA:
-        raise InputError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
-    if not np.isfinite(period_s) or period_s <= 0:
-        raise InputError(f"period_s must be positive, got {period_s}")
+    _check_fourier_options(period_s, criterion, extra_orders, trend_degree)
     omega0 = 2 * np.pi / period_s
     n_poly = trend_degree + 1
-    extrema = None
-    if order is None:
-        extrema = count_extrema(t, y, period_s=period_s, prominence=prominence, trend_degree=trend_degree)
-        orders = [max(1, extrema // 2) + extra for extra in range(extra_orders + 1)]
-        if max_order is not None:
-            if max_order < 1:
-                raise InputError(f"max_order must be at least 1, got {max_order}")
-            orders = sorted({min(o, int(max_order)) for o in orders})
-        used_criterion = criterion
-    else:
-        if order < 1:
-            raise InputError(f"order must be at least 1, got {order}")
-        orders = [int(order)]
-        used_criterion = "given"
+    orders, used_criterion, extrema = _candidate_orders(
+        t, y, period_s=period_s, order=order, criterion=criterion, prominence=prominence,
+        extra_orders=extra_orders, trend_degree=trend_degree, max_order=max_order)
 
     def n_params(o):
         return n_poly + 2 * o + int(fit_omega)
@@ -357,15 +339,63 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     orders = [o for o in orders if t.size >= n_params(o) + 1]
     t0 = float(t.mean())
     tau = t - t0
-    fits = []
-    for o in orders:
-        coef, omega, resid, jac, flags = _fit_order(tau, y, omega0, o, fit_omega, name, trend_degree)
-        omega_free = fit_omega and not flags
-        n_lin = n_poly + 2 * o
-        se, half, cov, gof = _confidence(jac if omega_free else jac[:, :n_lin],
-                                         _goodness(y, resid, n_lin + int(omega_free)), resid, scale=float(np.std(y)))
-        fits.append((o, coef, omega, resid, gof, se, half, flags, omega_free, cov))
+    fits = [_fit_candidate(tau, y, omega0, o, fit_omega, name, trend_degree) for o in orders]
     best = fits[_choose(fits, criterion, n_poly)]
+    return _fourier_fit(best, fits, t0=t0, n_poly=n_poly, criterion=used_criterion, extrema=extrema)
+
+
+def _check_fourier_options(period_s: float, criterion: str, extra_orders: int, trend_degree: int) -> None:
+    """Raise InputError for an option :func:`fit_fourier` cannot use."""
+    if extra_orders < 0:
+        raise InputError(f"extra_orders must be >= 0, got {extra_orders}")
+    if trend_degree not in (0, 1, 2):
+        raise InputError(f"trend_degree must be 0, 1 or 2, got {trend_degree}")
+    if criterion not in CRITERIA:
+        raise InputError(f"criterion must be one of {CRITERIA}, got {criterion!r}")
+    if not np.isfinite(period_s) or period_s <= 0:
+        raise InputError(f"period_s must be positive, got {period_s}")
+
+
+def _candidate_orders(t: np.ndarray, y: np.ndarray, *, period_s: float, order: int | None, criterion: str,
+                      prominence: float, extra_orders: int, trend_degree: int, max_order: int | None
+                      ) -> tuple[list[int], str, int | None]:
+    """The orders to try, the criterion that chooses among them, and the extrema E counted per period.
+
+    A given ``order`` is the only candidate (criterion ``"given"``, E not counted); otherwise the
+    extrema rule's E/2 .. E/2 + ``extra_orders`` (eq. 5.24-5.33), capped at ``max_order``.
+    """
+    if order is not None:
+        if order < 1:
+            raise InputError(f"order must be at least 1, got {order}")
+        return [int(order)], "given", None
+    extrema = count_extrema(t, y, period_s=period_s, prominence=prominence, trend_degree=trend_degree)
+    orders = [max(1, extrema // 2) + extra for extra in range(extra_orders + 1)]
+    if max_order is not None:
+        if max_order < 1:
+            raise InputError(f"max_order must be at least 1, got {max_order}")
+        orders = sorted({min(o, int(max_order)) for o in orders})
+    return orders, criterion, extrema
+
+
+def _fit_candidate(tau: np.ndarray, y: np.ndarray, omega0: float, order: int, fit_omega: bool, name: str,
+                   trend_degree: int) -> tuple:
+    """One candidate order fitted, as the row :func:`_choose` ranks.
+
+    Returns ``(order, coef, omega, residuals, gof, se, half, flags, omega_free, (cov_ar1, cov_white))``;
+    ω counts as a parameter only where it was fitted (not where the fit fell back to the stride's).
+    """
+    n_poly = trend_degree + 1
+    coef, omega, resid, jac, flags = _fit_order(tau, y, omega0, order, fit_omega, name, trend_degree)
+    omega_free = fit_omega and not flags
+    n_lin = n_poly + 2 * order
+    se, half, cov, gof = _confidence(jac if omega_free else jac[:, :n_lin],
+                                     _goodness(y, resid, n_lin + int(omega_free)), resid, scale=float(np.std(y)))
+    return (order, coef, omega, resid, gof, se, half, flags, omega_free, cov)
+
+
+def _fourier_fit(best: tuple, fits: list, *, t0: float, n_poly: int, criterion: str, extrema: int | None
+                 ) -> FourierFit:
+    """The chosen candidate row (see :func:`_fit_candidate`) as a FourierFit, the others as its candidates."""
     o, coef, omega, resid, gof, se, half, flags, omega_free, _ = best
 
     def pack(v):
@@ -379,6 +409,6 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     candidates = tuple({"order": f[0], "omega_rad_s": f[2], **f[4].as_dict()} for f in fits)
     return FourierFit(a0=float(coef[0]), a=np.array(values["a"]), b=np.array(values["b"]),
                       omega_rad_s=float(omega), t0=t0, gof=gof, ci=ci, se=se_d, residuals=resid,
-                      omega_source="fitted" if omega_free else "fixed", criterion=used_criterion,
+                      omega_source="fitted" if omega_free else "fixed", criterion=criterion,
                       extrema_per_period=extrema, candidates=candidates, flags=flags,
                       trend=np.array(values["trend"]))

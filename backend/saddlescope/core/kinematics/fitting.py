@@ -117,6 +117,56 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
     -------
     MarkerKinematics
     """
+    t_s, xyz = _check_window(t_s, xyz_m, omega_from=omega_from, x_model=x_model)
+    n_mark = xyz.shape[1]
+    label = tuple(names[m] if names is not None and m < len(names) else f"marker {m + 1}" for m in range(n_mark))
+    how = _SeriesOptions(period_s=period_s, criterion=criterion, extra_orders=extra_orders,
+                         max_order=max_order, x_model=x_model, trend_degree=trend_degree, labels=label)
+    fits, xyz, rejected = _fit_markers(t_s, xyz, how, reject_sigma, reject_min_m)
+    whole = np.all(np.isfinite(xyz), axis=(1, 2))
+    if shared_order and n_mark > 1 and whole.sum() >= 8:
+        _share_centroid_order(fits, t_s, xyz, whole, how)
+    omega_per_fit = _free_omegas(fits, n_mark)
+    flags = rejected + [flag for f in fits.values() if isinstance(f, FourierFit) for flag in f.flags]
+    pooled = float("nan")
+    if common_omega:
+        pooled, pooling_flags = _pool_omega(fits, t_s, xyz, how, omega_from)
+        flags += pooling_flags
+    vel, acc = _derivatives(fits, t_s, xyz.shape)
+    return MarkerKinematics(t_s=t_s, fits_x=tuple(fits[m, 0] for m in range(n_mark)),
+                            fits_y=tuple(fits[m, 1] for m in range(n_mark)),
+                            fits_z=tuple(fits[m, 2] for m in range(n_mark)), velocity_m_s=vel,
+                            acceleration_m_s2=acc, omega_rad_s=pooled, omega_per_fit=omega_per_fit,
+                            flags=tuple(flags))
+
+
+@dataclass(frozen=True)
+class _SeriesOptions:
+    """What every marker's series are fitted with (options of :func:`fit_marker_kinematics`).
+
+    ``trend_degree`` is the y and z series' trend; ``labels`` names the markers for messages.
+    """
+
+    period_s: float
+    criterion: str
+    extra_orders: int
+    max_order: int | None
+    x_model: str
+    trend_degree: int
+    labels: tuple[str, ...]
+
+    @property
+    def axes(self) -> dict[int, int]:
+        """The Fourier-fitted axes (0 x, 1 y, 2 z) and their trend degree."""
+        axes = {1: self.trend_degree, 2: self.trend_degree}
+        return {0: 1, **axes} if self.x_model == "fourier" else axes
+
+
+_Fits = dict[tuple[int, int], LinearFit | FourierFit]
+
+
+def _check_window(t_s, xyz_m, *, omega_from: str, x_model: str) -> tuple[np.ndarray, np.ndarray]:
+    """The window's times (F,) and positions (F, M, 3) as float arrays; InputError for bad input."""
     t_s = np.asarray(t_s, dtype=np.float64)
     xyz = np.asarray(xyz_m, dtype=np.float64)
     if xyz.ndim != 3 or xyz.shape[2] != 3 or t_s.shape != (xyz.shape[0],):
@@ -126,96 +176,128 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
         raise InputError(f"omega_from must be 'vertical' or 'all', got {omega_from!r}")
     if x_model not in ("linear", "fourier"):
         raise InputError(f"x_model must be 'linear' or 'fourier', got {x_model!r}")
-    n_mark = xyz.shape[1]
-    label = [names[m] if names is not None and m < len(names) else f"marker {m + 1}" for m in range(n_mark)]
-    # Fourier-fitted axes and their trend degree.
-    axes = {1: trend_degree, 2: trend_degree}
-    if x_model == "fourier":
-        axes = {0: 1, **axes}
-    fits: dict[tuple[int, int], LinearFit | FourierFit] = {}
+    return t_s, xyz
 
-    def fit_marker(m: int) -> None:
-        if x_model == "linear":
-            fits[m, 0] = fit_linear(t_s, xyz[:, m, 0], name=f"{label[m]} x")
-        for c, degree in axes.items():
-            fits[m, c] = fit_fourier(t_s, xyz[:, m, c], period_s=period_s, criterion=criterion,
-                                     extra_orders=extra_orders, trend_degree=degree,
-                                     name=f"{label[m]} {'xyz'[c]}", max_order=max_order)
 
+def _fit_marker(fits: _Fits, m: int, t_s: np.ndarray, xyz: np.ndarray, how: _SeriesOptions) -> None:
+    """Fit marker ``m``'s three coordinates into ``fits[m, axis]``."""
+    if how.x_model == "linear":
+        fits[m, 0] = fit_linear(t_s, xyz[:, m, 0], name=f"{how.labels[m]} x")
+    for c, degree in how.axes.items():
+        fits[m, c] = fit_fourier(t_s, xyz[:, m, c], period_s=how.period_s, criterion=how.criterion,
+                                 extra_orders=how.extra_orders, trend_degree=degree,
+                                 name=f"{how.labels[m]} {'xyz'[c]}", max_order=how.max_order)
+
+
+def _wild_samples(t_s: np.ndarray, xyz_marker: np.ndarray, marker_fits: list, reject_sigma: float,
+                  reject_min_m: float) -> np.ndarray:
+    """Samples (F,) of one marker (F, 3) further from any of its three fits than the rejection bound."""
+    wild = np.zeros(xyz_marker.shape[0], dtype=bool)
+    for c in range(3):
+        r = xyz_marker[:, c] - marker_fits[c].evaluate(t_s)
+        fin = np.isfinite(r)
+        if fin.sum() < 5:
+            continue
+        scale = 1.4826 * float(np.median(np.abs(r[fin] - np.median(r[fin]))))
+        wild |= fin & (np.abs(r) > max(reject_sigma * scale, reject_min_m))
+    return wild
+
+
+def _fit_markers(t_s: np.ndarray, xyz: np.ndarray, how: _SeriesOptions, reject_sigma: float | None,
+                 reject_min_m: float) -> tuple[_Fits, np.ndarray, list[str]]:
+    """Every marker's fits, each refitted without its wild samples.
+
+    Returns the fits by (marker, axis), the positions with the wild samples NaN (a copy once any
+    is left out) and one message per marker that lost samples.
+    """
+    fits: _Fits = {}
     rejected: list[str] = []
-    for m in range(n_mark):
-        fit_marker(m)
+    for m in range(xyz.shape[1]):
+        _fit_marker(fits, m, t_s, xyz, how)
         if reject_sigma is None:
             continue
         # Outliers judged against the fit itself: unlike a local smoother it keeps the harmonics.
-        wild = np.zeros(xyz.shape[0], dtype=bool)
-        for c in range(3):
-            r = xyz[:, m, c] - fits[m, c].evaluate(t_s)
-            fin = np.isfinite(r)
-            if fin.sum() < 5:
-                continue
-            scale = 1.4826 * float(np.median(np.abs(r[fin] - np.median(r[fin]))))
-            wild |= fin & (np.abs(r) > max(reject_sigma * scale, reject_min_m))
+        wild = _wild_samples(t_s, xyz[:, m], [fits[m, c] for c in range(3)], reject_sigma, reject_min_m)
         if wild.any() and np.isfinite(xyz[~wild, m, 1]).sum() >= 0.8 * np.isfinite(xyz[:, m, 1]).sum():
             xyz = xyz.copy() if not rejected else xyz
             xyz[wild, m] = np.nan
-            rejected.append(f"{label[m]}: {int(wild.sum())} wild samples left out of its fits "
+            rejected.append(f"{how.labels[m]}: {int(wild.sum())} wild samples left out of its fits "
                             f"(beyond {reject_sigma:g} robust standard deviations)")
-            fit_marker(m)
-    whole = np.all(np.isfinite(xyz), axis=(1, 2))
-    if shared_order and n_mark > 1 and whole.sum() >= 8:
-        for c, degree in axes.items():
-            try:
-                order_c = fit_fourier(t_s[whole], xyz[whole, :, c].mean(axis=1), period_s=period_s,
-                                      criterion=criterion, extra_orders=extra_orders, trend_degree=degree,
-                                      name=f"markers' centroid {'xyz'[c]}", max_order=max_order).order
-            except KinematicsError:
-                continue
-            for m in range(n_mark):
-                own = fits[m, c]
-                if own.order < order_c:
-                    g = fit_fourier(t_s, xyz[:, m, c], period_s=period_s, order=order_c, trend_degree=degree,
-                                    name=f"{label[m]} {'xyz'[c]}")
-                    fits[m, c] = replace(g, criterion=f"{criterion} of the centroid", candidates=own.candidates,
-                                         extrema_per_period=own.extrema_per_period)
+            _fit_marker(fits, m, t_s, xyz, how)
+    return fits, xyz, rejected
+
+
+def _share_centroid_order(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, whole: np.ndarray,
+                          how: _SeriesOptions) -> None:
+    """Refit, at the order of the markers' centroid, every series whose own order is lower.
+
+    ``whole`` (F,) marks the samples where every marker is present (the centroid's samples).
+    """
+    for c, degree in how.axes.items():
+        try:
+            order_c = fit_fourier(t_s[whole], xyz[whole, :, c].mean(axis=1), period_s=how.period_s,
+                                  criterion=how.criterion, extra_orders=how.extra_orders, trend_degree=degree,
+                                  name=f"markers' centroid {'xyz'[c]}", max_order=how.max_order).order
+        except KinematicsError:
+            continue
+        for m in range(xyz.shape[1]):
+            own = fits[m, c]
+            if own.order < order_c:
+                g = fit_fourier(t_s, xyz[:, m, c], period_s=how.period_s, order=order_c, trend_degree=degree,
+                                name=f"{how.labels[m]} {'xyz'[c]}")
+                fits[m, c] = replace(g, criterion=f"{how.criterion} of the centroid", candidates=own.candidates,
+                                     extrema_per_period=own.extrema_per_period)
+
+
+def _pooled_fundamental(fits: _Fits, keys: list[tuple[int, int]], omega_from: str, period_s: float
+                        ) -> tuple[float, float, list[str]]:
+    """Inverse-variance weighted mean of the free fundamentals (rad/s), its standard error and a flag.
+
+    The series of ``keys`` whose ω has a standard error count (only the vertical ones where any
+    has, with ``omega_from="vertical"``); without any, the stride period's ω and a NaN error.
+    """
+    se = np.array([fits[k].se["omega_rad_s"] for k in keys])
+    omegas = np.array([fits[k].omega_rad_s for k in keys])
+    ok = np.isfinite(se) & (se > 0)
+    if omega_from == "vertical":
+        vertical = ok & np.array([c == 1 for _, c in keys])
+        ok = vertical if vertical.any() else ok
+    if ok.any():
+        w = 1.0 / se[ok] ** 2
+        return float(np.sum(w * omegas[ok]) / np.sum(w)), float(1.0 / np.sqrt(np.sum(w))), []
+    return 2 * np.pi / period_s, float("nan"), ["no fit determined the fundamental; used the stride period's"]
+
+
+def _pool_omega(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, how: _SeriesOptions, omega_from: str
+                ) -> tuple[float, list[str]]:
+    """Refit every Fourier series with the pooled fundamental; return it (rad/s) and any flag."""
+    keys = [k for k, f in fits.items() if isinstance(f, FourierFit)]
+    pooled, pooled_se, flags = _pooled_fundamental(fits, keys, omega_from, how.period_s)
+    for m, c in keys:
+        free = fits[m, c]
+        g = fit_fourier(t_s, xyz[:, m, c], period_s=2 * np.pi / pooled, order=free.order, fit_omega=False,
+                        trend_degree=how.axes[c], name=f"{how.labels[m]} {'xyz'[c]}")
+        half = student_t.ppf(0.975, max(g.gof.dfe, 1)) * pooled_se
+        fits[m, c] = _with_pooled_omega(g, free, pooled_se, half)
+    return pooled, flags
+
+def _free_omegas(fits: _Fits, n_mark: int) -> np.ndarray:
+    """The fundamental (rad/s) of each marker's and axis's Fourier fit, (M, 3); NaN for a line."""
     omega_per_fit = np.full((n_mark, 3), np.nan)
     for (m, c), f in fits.items():
         if isinstance(f, FourierFit):
             omega_per_fit[m, c] = f.omega_rad_s
-    flags = rejected + [flag for f in fits.values() if isinstance(f, FourierFit) for flag in f.flags]
-    pooled = float("nan")
-    if common_omega:
-        keys = [k for k, f in fits.items() if isinstance(f, FourierFit)]
-        se = np.array([fits[k].se["omega_rad_s"] for k in keys])
-        omegas = np.array([fits[k].omega_rad_s for k in keys])
-        ok = np.isfinite(se) & (se > 0)
-        if omega_from == "vertical":
-            vertical = ok & np.array([c == 1 for _, c in keys])
-            ok = vertical if vertical.any() else ok
-        if ok.any():
-            w = 1.0 / se[ok] ** 2
-            pooled = float(np.sum(w * omegas[ok]) / np.sum(w))
-            pooled_se = float(1.0 / np.sqrt(np.sum(w)))
-        else:
-            pooled = 2 * np.pi / period_s
-            pooled_se = float("nan")
-            flags.append("no fit determined the fundamental; used the stride period's")
-        for m, c in keys:
-            free = fits[m, c]
-            g = fit_fourier(t_s, xyz[:, m, c], period_s=2 * np.pi / pooled, order=free.order, fit_omega=False,
-                            trend_degree=axes[c], name=f"{label[m]} {'xyz'[c]}")
-            half = student_t.ppf(0.975, max(g.gof.dfe, 1)) * pooled_se
-            fits[m, c] = _with_pooled_omega(g, free, pooled_se, half)
-    vel = np.empty(xyz.shape)
-    acc = np.empty(xyz.shape)
+    return omega_per_fit
+
+
+def _derivatives(fits: _Fits, t_s: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities and accelerations (F, M, 3) of every fit at the window's times t_s (F,), analytic."""
+    vel = np.empty(shape)
+    acc = np.empty(shape)
     for (m, c), fit in fits.items():
         vel[:, m, c] = fit.evaluate(t_s, 1)
         acc[:, m, c] = fit.evaluate(t_s, 2)
-    return MarkerKinematics(t_s=t_s, fits_x=tuple(fits[m, 0] for m in range(n_mark)),
-                            fits_y=tuple(fits[m, 1] for m in range(n_mark)),
-                            fits_z=tuple(fits[m, 2] for m in range(n_mark)), velocity_m_s=vel,
-                            acceleration_m_s2=acc, omega_rad_s=pooled, omega_per_fit=omega_per_fit,
-                            flags=tuple(flags))
+    return vel, acc
 
 
 def _with_pooled_omega(fixed: FourierFit, free: FourierFit, pooled_se: float, half: float) -> FourierFit:
