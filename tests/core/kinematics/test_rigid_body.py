@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import KinematicsError
-from saddlescope.core.kinematics.rigid_body import (
+from saddlescope.core.kinematics import (
     VERSION_NAMES,
     alpha_versions,
     angular_kinematics,

@@ -8,8 +8,8 @@ The stages, in the order the pipeline runs them:
 - :mod:`.registration`: the static-shot marker model fitted rigidly to every frame;
 - :mod:`.curve_fits`, :mod:`.goodness_of_fit` and :mod:`.fitting`: curve fits of every marker
   coordinate, their goodness of fit and uncertainty, and their analytic derivatives;
-- :mod:`.rigid_body`: angular velocity and acceleration of the marker triangle, and the
-  kinematics of the invisible saddle point.
+- :mod:`.rigid_body`: angular velocity and acceleration of the marker triangle;
+- :mod:`.saddle_point`: position, velocity and acceleration of the invisible saddle point.
 """
 
 from saddlescope.core.kinematics.curve_fits import FourierFit, LinearFit, count_extrema, fit_fourier, fit_linear
@@ -37,19 +37,21 @@ from saddlescope.core.kinematics.rigid_body import (
     ANGULAR_METHODS,
     VERSION_NAMES,
     AngularKinematics,
-    PointKinematics,
     alpha_least_squares,
     alpha_versions,
     angular_kinematics,
-    body_frame,
     omega_least_squares,
     omega_versions,
     plane_normal,
-    saddle_body_coordinates,
-    saddle_point_kinematics,
     singularity_index,
     unobservable_axis,
     weak_axis_gain,
+)
+from saddlescope.core.kinematics.saddle_point import (
+    PointKinematics,
+    body_frame,
+    saddle_body_coordinates,
+    saddle_point_kinematics,
 )
 from saddlescope.core.kinematics.smoothing import bridge_gaps, regularize_depth, rloess, span_points
 
@@ -91,7 +93,6 @@ __all__ = [
     "VERSION_NAMES",
     "ANGULAR_METHODS",
     "AngularKinematics",
-    "PointKinematics",
     "unobservable_axis",
     "weak_axis_gain",
     "omega_versions",
@@ -101,6 +102,8 @@ __all__ = [
     "plane_normal",
     "singularity_index",
     "angular_kinematics",
+    # saddle point
+    "PointKinematics",
     "body_frame",
     "saddle_body_coordinates",
     "saddle_point_kinematics",

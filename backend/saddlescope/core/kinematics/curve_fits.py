@@ -62,7 +62,20 @@ class LinearFit:
     residuals: np.ndarray
 
     def evaluate(self, t, derivative: int = 0) -> np.ndarray:
-        """Value (0), velocity (1) or acceleration (2) at times ``t`` of any shape."""
+        """Value (0), velocity (1) or acceleration (2) of the line.
+
+        Parameters
+        ----------
+        t : ndarray of any shape
+            Times (s).
+        derivative : {0, 1, 2}
+            Which derivative.
+
+        Returns
+        -------
+        ndarray of the shape of ``t``
+            Values in the fitted units (per s, per s² for the derivatives).
+        """
         t = np.asarray(t, dtype=np.float64)
         if derivative == 0:
             return self.intercept + self.slope * (t - self.t0)
@@ -79,8 +92,13 @@ def fit_linear(t, y, *, name: str = "x") -> LinearFit:
     Parameters
     ----------
     t, y : ndarray of shape (n,)
+        Times (s) and values.
     name : str
         What is fitted, for error messages.
+
+    Returns
+    -------
+    LinearFit
     """
     t, y = _check_series(t, y, name)
     if t.size < 3:
@@ -141,14 +159,29 @@ class FourierFit:
 
     @property
     def order(self) -> int:
+        """Number of harmonics N."""
         return int(self.a.shape[0])
 
     @property
     def f0_hz(self) -> float:
+        """Fundamental frequency w / 2 pi (Hz)."""
         return self.omega_rad_s / (2 * np.pi)
 
     def evaluate(self, t, derivative: int = 0) -> np.ndarray:
-        """Value (0), velocity (1) or acceleration (2) at times ``t`` of any shape (analytic)."""
+        """Value (0), velocity (1) or acceleration (2) of the series, analytic.
+
+        Parameters
+        ----------
+        t : ndarray of any shape
+            Times (s).
+        derivative : {0, 1, 2}
+            Which derivative.
+
+        Returns
+        -------
+        ndarray of the shape of ``t``
+            Values in the fitted units (per s, per s² for the derivatives).
+        """
         if derivative not in (0, 1, 2):
             raise InputError(f"derivative must be 0, 1 or 2, got {derivative}")
         t = np.asarray(t, dtype=np.float64)
@@ -207,8 +240,13 @@ def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: 
     Parameters
     ----------
     t, y : ndarray of shape (n,)
+        Times (s) and values (NaN ignored).
     period_s : float
+        The period whose extrema are counted (the stride).
     prominence : float, optional
+        Smallest swing that counts, as a fraction of the peak-to-peak range.
+    max_order : int, optional
+        Highest harmonic of the smoothing series.
     trend_degree : int, optional
         Degree of a polynomial trend fitted alongside and left out of the count.
 

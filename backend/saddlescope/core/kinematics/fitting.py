@@ -50,7 +50,18 @@ class MarkerKinematics:
         return float(np.mean([f.slope if isinstance(f, LinearFit) else f.trend[0] for f in self.fits_x]))
 
     def position_m(self, t_s) -> np.ndarray:
-        """Every marker's fitted position (F, M, 3) at times t_s (s), from its x, y and z fits."""
+        """Every marker's fitted position from its x, y and z fits.
+
+        Parameters
+        ----------
+        t_s : ndarray of shape (F,)
+            Times (s).
+
+        Returns
+        -------
+        ndarray of shape (F, M, 3)
+            Positions (m), motion frame.
+        """
         t = np.asarray(t_s, dtype=np.float64)
         out = np.empty((t.size, len(self.fits_y), 3))
         for c, per_marker in enumerate((self.fits_x, self.fits_y, self.fits_z)):

@@ -60,6 +60,12 @@ class GoodnessOfFit:
         return self.n - self.n_params
 
     def as_dict(self) -> dict:
+        """The numbers as a JSON-able dict (with ``dfe``).
+
+        Returns
+        -------
+        dict of str -> float or int
+        """
         return {"sse": self.sse, "r2": self.r2, "adj_r2": self.adj_r2, "rmse": self.rmse, "n": self.n,
                 "n_params": self.n_params, "dfe": self.dfe, "aicc": self.aicc, "bic": self.bic,
                 "residual_lag1": self.residual_lag1, "noise_lag1": self.noise_lag1}
@@ -91,10 +97,13 @@ def _lag1(residuals: np.ndarray) -> float:
 
 
 def _noise_correlation(residual_lag1: float, jac: np.ndarray, bread: np.ndarray) -> float:
-    """The noise's lag-1 autocorrelation from a fit's residuals' (:func:`_lag1`), corrected for the bias
-    fitting puts into it (white noise's residuals have E[sum e_t e_t-1] = -s^2 tr(H L), H the hat matrix, L the
-    lag-1 shift: about -p / n for slow regressors), and clipped to [0, 0.98]: negative or no
-    correlation keeps the textbook intervals, so they are never narrower than MATLAB's."""
+    """The noise's lag-1 autocorrelation from a fit's residuals' (:func:`_lag1`).
+
+    Corrected for the bias fitting puts into it (white noise's residuals have E[sum e_t e_t-1] =
+    -s^2 tr(H L), H the hat matrix, L the lag-1 shift: about -p / n for slow regressors), and
+    clipped to [0, 0.98]: negative or no correlation keeps the textbook intervals, so they are never
+    narrower than MATLAB's. ``jac`` is the Jacobian (n, p), ``bread`` its (J'J)^-1 (p, p).
+    """
     n, p = jac.shape
     if n - p < 3:
         return 0.0
@@ -104,13 +113,16 @@ def _noise_correlation(residual_lag1: float, jac: np.ndarray, bread: np.ndarray)
 
 def _covariance(jac: np.ndarray, residuals: np.ndarray, residual_lag1: float, floor_var: float = 0.0
                 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Covariances (p, p) of least-squares parameters with Jacobian ``jac`` (n, p): the textbook
-    s^2 (J'J)^-1, s^2 = SSE / (n - p), and, from the ``residuals`` (n,) in sample order, the one for
-    AR(1) noise of lag-1 autocorrelation rho: the sandwich (J'J)^-1 J' Sigma J (J'J)^-1 with
-    Sigma_ij = s^2 rho^|i-j|. For a harmonic this is the noise's spectral density at its frequency,
-    which is what its coefficients scatter with. Sigma J is two exponential filters, forward and
-    back, so no n x n matrix is formed (a gap between samples counts as one sample step). ``floor_var``
-    (J'J)^-1 is added to both (keeps an exact fit's tests finite). Returns (AR(1), textbook, rho)."""
+    """Covariances (p, p) of least-squares parameters with Jacobian ``jac`` (n, p).
+
+    The textbook s^2 (J'J)^-1, s^2 = SSE / (n - p), and, from the ``residuals`` (n,) in sample
+    order, the one for AR(1) noise of lag-1 autocorrelation rho: the sandwich
+    (J'J)^-1 J' Sigma J (J'J)^-1 with Sigma_ij = s^2 rho^|i-j|. For a harmonic this is the noise's
+    spectral density at its frequency, which is what its coefficients scatter with. Sigma J is two
+    exponential filters, forward and back, so no n x n matrix is formed (a gap between samples
+    counts as one sample step). ``floor_var`` (J'J)^-1 is added to both (keeps an exact fit's tests
+    finite). Returns (AR(1), textbook, rho).
+    """
     n, p = jac.shape
     # QR of the Jacobian avoids squaring its condition number in J^T J.
     _, r = np.linalg.qr(jac)
@@ -131,13 +143,15 @@ def _covariance(jac: np.ndarray, residuals: np.ndarray, residual_lag1: float, fl
 
 def _confidence(jac: np.ndarray, gof: GoodnessOfFit, residuals: np.ndarray,
                 level: float = 0.95, scale: float = 0.0) -> tuple[np.ndarray, np.ndarray, tuple, GoodnessOfFit]:
-    """Standard errors, half-widths of the confidence intervals and the two covariances of
-    :func:`_covariance` for the parameters of Jacobian (n, p), and ``gof`` with the residuals' and
-    the noise's lag-1 autocorrelation filled in (see the module's note on correlated noise). Each
-    standard error is the larger of the two: the AR(1) model can put less noise at a high harmonic
-    than there is (smooth noise that is not AR(1)), and no interval here is narrower than MATLAB's.
-    ``scale`` is the data's r.m.s. about its mean: a variance of (1e-12 scale)^2 is the floor, as in
-    the criteria."""
+    """Standard errors and confidence intervals of the parameters of Jacobian (n, p).
+
+    Returns the standard errors (p,), the half-widths (p,) of the intervals, the two covariances
+    (p, p) of :func:`_covariance`, and ``gof`` with the residuals' and the noise's lag-1
+    autocorrelation filled in (see the module's note on correlated noise). Each standard error is
+    the larger of the two: the AR(1) model can put less noise at a high harmonic than there is
+    (smooth noise that is not AR(1)), and no interval here is narrower than MATLAB's. ``scale`` is
+    the data's r.m.s. about its mean: a variance of (1e-12 scale)^2 is the floor, as in the criteria.
+    """
     if gof.dfe <= 0:
         nan = np.full(jac.shape[1], np.nan)
         cov_nan = np.full((jac.shape[1],) * 2, np.nan)
@@ -158,12 +172,14 @@ def _penalty(n: int, p: int, criterion: str) -> float:
 
 
 def _choose(fits: list, criterion: str, n_poly: int) -> int:
-    """Index of the chosen candidate. ``fits`` rows are (order, coef, omega, resid, gof, se, half,
-    flags, omega_free, (cov_ar1, cov_white)), orders ascending. "aicc" and "bic" score the orders
-    as the criterion does, with the Wald statistic of the harmonics each step up adds in place of
-    that step's fall of n log SSE: the smaller of the statistics under the AR(1) and the textbook
-    covariance, so correlated noise does not pass for a harmonic, and white noise is judged as the
-    textbook criterion judges it."""
+    """Index of the chosen candidate order.
+
+    ``fits`` rows are (order, coef, omega, resid, gof, se, half, flags, omega_free, (cov_ar1,
+    cov_white)), orders ascending. "aicc" and "bic" score the orders as the criterion does, with the
+    Wald statistic of the harmonics each step up adds in place of that step's fall of n log SSE: the
+    smaller of the statistics under the AR(1) and the textbook covariance, so correlated noise does
+    not pass for a harmonic, and white noise is judged as the textbook criterion judges it.
+    """
     if len(fits) == 1:
         return 0
     if criterion in ("aicc_white", "adj_r2"):
