@@ -85,7 +85,7 @@ def saddle_truth_at(truth: dict, t_s: np.ndarray) -> dict:
 
 def _indicators(scene: Scene, harmonics: dict[str, tuple[np.ndarray, np.ndarray]], pp_m: float) -> dict:
     """Comfort indicators of the exact saddle-point accelerations over the window (all axes)."""
-    from saddlescope.core.indicators import ride_indicators
+    from saddlescope.core.vibration import ride_indicators
 
     f0 = scene.model.stride_hz
 

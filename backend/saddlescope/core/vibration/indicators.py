@@ -21,7 +21,7 @@ import numpy as np
 from scipy import stats
 
 from saddlescope.core.errors import InputError, VibrationError
-from saddlescope.core.vibration import (
+from saddlescope.core.vibration.weighting import (
     exposure_limits,
     harmonic_metrics,
     per_axis_exposure,
