@@ -41,8 +41,16 @@ def _as_sequence(seq, name: str) -> tuple[np.ndarray, bool]:
 def default_band(n: int, m: int) -> int:
     """Half-width of the Needleman-Wunsch band: the length difference plus a margin.
 
-    ``|n - m| + max(64, ceil(0.1 * max(n, m)))`` cells around the straight line from (0, 0) to
-    (n, m).
+    Parameters
+    ----------
+    n, m : int
+        Lengths of the two sequences.
+
+    Returns
+    -------
+    int
+        ``|n - m| + max(64, ceil(0.1 * max(n, m)))`` cells around the straight line from (0, 0)
+        to (n, m).
     """
     return abs(n - m) + max(64, int(np.ceil(0.1 * max(n, m))))
 
@@ -149,6 +157,17 @@ def needleman_wunsch(a, b, *, match: float = 1, mismatch: float = -1, gap: float
         raise InputError(f"cannot align an empty sequence (lengths {n} and {m})")
     if not all(np.isfinite(x) for x in (match, mismatch, gap)):
         raise InputError("match, mismatch and gap scores must be finite numbers")
+    lo, hi = _band_limits(n, m, band)
+    score, not_diag, not_up = _nw_fill(a_arr, b_arr, lo, hi, float(match), float(mismatch), float(gap))
+    al_a, al_b = _traceback(a_arr, b_arr, lo, not_diag, not_up)
+    if a_str and b_str:
+        return score, "".join("-" if c == GAP else chr(c) for c in al_a), \
+            "".join("-" if c == GAP else chr(c) for c in al_b)
+    return score, al_a, al_b
+
+
+def _band_limits(n: int, m: int, band: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """First and last column (n + 1,) of the band in each row of the score matrix."""
     r = default_band(n, m) if band is None else int(band)
     if r < 1:
         raise InputError(f"band must be at least 1 cell, got {band}")
@@ -157,8 +176,16 @@ def needleman_wunsch(a, b, *, match: float = 1, mismatch: float = -1, gap: float
     lo = np.clip(np.ceil(centre - r).astype(np.int64), 0, m)
     hi = np.clip(np.floor(centre + r).astype(np.int64), 0, m)
     lo[0], hi[-1] = 0, m
-    score, not_diag, not_up = _nw_fill(a_arr, b_arr, lo, hi, float(match), float(mismatch), float(gap))
+    return lo, hi
 
+
+def _traceback(a_arr: np.ndarray, b_arr: np.ndarray, lo: np.ndarray, not_diag: np.ndarray,
+               not_up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The aligned sequences, ``GAP`` in the gaps, traced back from the end through the band's bits.
+
+    Ties prefer a diagonal move, then a gap in ``b``, then a gap in ``a``.
+    """
+    n, m = a_arr.shape[0], b_arr.shape[0]
     out_a: list[int] = []
     out_b: list[int] = []
     i, j = n, m
@@ -183,18 +210,22 @@ def needleman_wunsch(a, b, *, match: float = 1, mismatch: float = -1, gap: float
             out_a.append(GAP)
             out_b.append(int(b_arr[j - 1]))
             j -= 1
-    al_a = np.array(out_a[::-1], dtype=np.int64)
-    al_b = np.array(out_b[::-1], dtype=np.int64)
-    if a_str and b_str:
-        return score, "".join("-" if c == GAP else chr(c) for c in al_a), \
-            "".join("-" if c == GAP else chr(c) for c in al_b)
-    return score, al_a, al_b
+    return np.array(out_a[::-1], dtype=np.int64), np.array(out_b[::-1], dtype=np.int64)
 
 
 def alignment_similarity(aligned_a, aligned_b) -> float:
     """Fraction of aligned positions holding the same symbol (dissertation Appendix B.1).
 
-    Identical alignments give 1; otherwise matches / alignment length (gaps count as positions).
+    Parameters
+    ----------
+    aligned_a, aligned_b : ndarray of shape (L,) or str
+        The aligned sequences of :func:`needleman_wunsch`.
+
+    Returns
+    -------
+    float
+        Matches / alignment length (gaps count as positions), in [0, 1]; 1 for identical
+        alignments.
     """
     x = np.asarray(list(aligned_a) if isinstance(aligned_a, str) else aligned_a)
     y = np.asarray(list(aligned_b) if isinstance(aligned_b, str) else aligned_b)

@@ -113,8 +113,10 @@ def maximal_matches(a, b, *, min_length: int = 2, max_pairs: int = 1_000_000
 
 
 def _preceding_two_nonzero(x: np.ndarray) -> np.ndarray:
-    """For each position p of ``[9, 9] + x`` (two imaginary non-zero elements), the index of the
-    second non-zero element before p (0 if there is none)."""
+    """Index of the second non-zero element before each position p of ``[9, 9] + x``.
+
+    The two 9s are the imaginary non-zero elements before every chain; 0 where there is none.
+    """
     ext = np.r_[9, 9, x]
     nz = np.flatnonzero(ext != 0)
     p = np.arange(ext.shape[0] + 1)
@@ -176,6 +178,24 @@ def shape_dissimilarity(a, b, *, min_length: int = 2, max_pairs: int = 1_000_000
         couple = {"i": 0, "j": 0, "length": m, "d_prime": 0.0, "nes": 2, "net": 2, "delta": 0}
         return (0.0, [couple]) if return_couples else 0.0
     i, j, length, _ = maximal_matches(a, b, min_length=min_length, max_pairs=max_pairs)
+    d_prime, nes, net, delta = _couple_scores(a, b, i, j, length)
+    order = np.lexsort((j, i, d_prime))
+    chosen, cover_a, cover_b = _choose_couples(order, i, j, length, nes, net, m, n)
+    chosen_arr = np.array(chosen, dtype=np.int64)
+    similar = float(d_prime[chosen_arr].sum()) if chosen else 0.0  # eq. 3
+    unmatched = (m + 2 - int(cover_a.sum())) + (n + 2 - int(cover_b.sum()))  # eq. 4
+    dissimilarity = (similar + unmatched) / (m + n + 4)  # eq. 5-6
+    if not return_couples:
+        return dissimilarity
+    couples = [{"i": int(i[c]), "j": int(j[c]), "length": int(length[c]), "d_prime": float(d_prime[c]),
+                "nes": int(nes[c]), "net": int(net[c]), "delta": int(delta[c])} for c in chosen]
+    return dissimilarity, couples
+
+
+def _couple_scores(a: np.ndarray, b: np.ndarray, i: np.ndarray, j: np.ndarray, length: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The d' (eq. 1-2), nes, net and Delta of each common couple (C,) at i in ``a``, j in ``b``."""
+    m, n = a.shape[0], b.shape[0]
     state_a = accumulated_directions(a)
     state_b = accumulated_directions(b)
     ls, lt = i + length, j + length
@@ -187,9 +207,16 @@ def shape_dissimilarity(a, b, *, min_length: int = 2, max_pairs: int = 1_000_000
     net = (j + 2) - pb[j + 2]
     d = disp + size + delta + np.abs(nes - net)  # eq. 1
     d[(i == 0) & (j == 0)] = 0.0  # S = T
-    d_prime = d / (m + n)  # eq. 2
-    order = np.lexsort((j, i, d_prime))
+    return d / (m + n), nes, net, delta  # eq. 2
 
+
+def _choose_couples(order: np.ndarray, i: np.ndarray, j: np.ndarray, length: np.ndarray, nes: np.ndarray,
+                    net: np.ndarray, m: int, n: int) -> tuple[list[int], np.ndarray, np.ndarray]:
+    """Couples taken in ``order`` unless their P lies inside an already chosen P (step 3).
+
+    Returns the chosen couples' indices and the elements of ``a`` (m + 2,) and ``b`` (n + 2,), two
+    imaginary ones first, that the chosen P's and their preceding elements cover.
+    """
     # max_end_x[p]: the furthest end of a chosen P that starts at or before p.
     max_end_a = np.full(m + 1, -1, dtype=np.int64)
     max_end_b = np.full(n + 1, -1, dtype=np.int64)
@@ -212,12 +239,4 @@ def shape_dissimilarity(a, b, *, min_length: int = 2, max_pairs: int = 1_000_000
             np.maximum(max_end_b[jb:], jb + lc, out=max_end_b[jb:])
             cover_a[ia + 2 - int(nes[c]): ia + 2 + lc] = True
             cover_b[jb + 2 - int(net[c]): jb + 2 + lc] = True
-    chosen_arr = np.array(chosen, dtype=np.int64)
-    similar = float(d_prime[chosen_arr].sum()) if chosen else 0.0  # eq. 3
-    unmatched = (m + 2 - int(cover_a.sum())) + (n + 2 - int(cover_b.sum()))  # eq. 4
-    dissimilarity = (similar + unmatched) / (m + n + 4)  # eq. 5-6
-    if not return_couples:
-        return dissimilarity
-    couples = [{"i": int(i[c]), "j": int(j[c]), "length": int(length[c]), "d_prime": float(d_prime[c]),
-                "nes": int(nes[c]), "net": int(net[c]), "delta": int(delta[c])} for c in chosen]
-    return dissimilarity, couples
+    return chosen, cover_a, cover_b
