@@ -52,6 +52,16 @@ def relative_comfort(allowed_a_h: float, allowed_b_h: float) -> float:
     for A and 3 h for B, B is 2 times as comfortable.  Note that the ratio depends on the
     criterion: A(8) times scale with (a_rms,A / a_rms,B)^2, VDV times with
     (VDV_A / VDV_B)^4.  See :data:`PASSIVE_SEATED_CAVEAT`.
+
+    Parameters
+    ----------
+    allowed_a_h, allowed_b_h : float
+        Allowed exposure times (h) or distances (km) of horses A and B.
+
+    Returns
+    -------
+    float
+        allowed_b / allowed_a.
     """
     a = _check_positive("allowed_a_h", allowed_a_h)
     b = _check_positive("allowed_b_h", allowed_b_h, allow_zero=True)
@@ -186,12 +196,42 @@ def summarize(rows: Iterable[Mapping], indicator: str, *, by: str,
 
 
 def compare_gaits(rows: Iterable[Mapping], indicator: str, *, horse: str) -> list[dict]:
-    """One horse across gaits (thesis Figs 8.29-8.32): :func:`summarize` by gait."""
+    """One horse across gaits (thesis Figs 8.29-8.32): :func:`summarize` by gait.
+
+    Parameters
+    ----------
+    rows : iterable of dict
+        Ride rows.
+    indicator : str
+        Indicator key.
+    horse : str
+        The horse compared.
+
+    Returns
+    -------
+    list of dict
+        As :func:`summarize`, one per gait.
+    """
     return summarize(rows, indicator, by="gait", where=lambda row: row.get("horse") == horse)
 
 
 def compare_horses(rows: Iterable[Mapping], indicator: str, *, gait: str) -> list[dict]:
-    """Horses within one gait (thesis 8.5.2): :func:`summarize` by horse."""
+    """Horses within one gait (thesis 8.5.2): :func:`summarize` by horse.
+
+    Parameters
+    ----------
+    rows : iterable of dict
+        Ride rows.
+    indicator : str
+        Indicator key.
+    gait : str
+        The gait compared in.
+
+    Returns
+    -------
+    list of dict
+        As :func:`summarize`, one per horse.
+    """
     return summarize(rows, indicator, by="horse", where=lambda row: row.get("gait") == gait)
 
 

@@ -144,7 +144,18 @@ _SUFFIX_UNITS = (("_kmh", "km/h"), ("_km", "km"), ("_hz", "Hz"), ("_h", "h"), ("
 
 
 def indicator_unit(key: str) -> str:
-    """Unit of an indicator key ("" if dimensionless or unknown)."""
+    """Unit of an indicator key, from :data:`INDICATORS` or else from its suffix.
+
+    Parameters
+    ----------
+    key : str
+        Indicator key.
+
+    Returns
+    -------
+    str
+        The unit ("" if dimensionless or unknown).
+    """
     if key in INDICATORS:
         return INDICATORS[key].unit
     for suffix, unit in _SUFFIX_UNITS:

@@ -209,7 +209,18 @@ def ride_indicators_sampled(acc_y_m_s2, fs_hz: float, *, speed_kmh: float, ampli
 
 
 def comfort_indicators(indicators: Mapping[str, float]) -> dict[str, float]:
-    """The thesis's eight comfort indicators (8.5, all W_b) picked out of an indicator dict."""
+    """The thesis's eight comfort indicators (8.5, all W_b) picked out of an indicator dict.
+
+    Parameters
+    ----------
+    indicators : dict of str -> float
+        A ride's indicators (:func:`ride_indicators`).
+
+    Returns
+    -------
+    dict of str -> float
+        The keys of :data:`COMFORT_INDICATORS`, in that order.
+    """
     missing = [key for key in COMFORT_INDICATORS if key not in indicators]
     if missing:
         raise InputError(f"indicators lack the comfort indicator(s) {', '.join(missing)}")
