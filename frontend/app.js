@@ -57,7 +57,7 @@ async function loadIndicatorInfo() {
     if (list) setIndicatorInfo(Object.fromEntries(list.map((item) => [item.key ?? item.name, item])));
     else setIndicatorInfo(answer?.indicators ?? answer);
   } catch (error) {
-    // The built-in table (a copy of core.indicators.INDICATORS) serves instead.
+    // The built-in table (a copy of saddlescope.core.vibration.INDICATORS) serves instead.
     console.info("indicator list not available from the server:", error.message);
   }
 }

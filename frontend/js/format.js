@@ -1,5 +1,5 @@
 // Numbers, units and indicator names for display. The indicator table mirrors
-// saddlescope.core.indicators.INDICATORS; the server's own list (GET /api/indicators) replaces it when offered.
+// saddlescope.core.vibration.INDICATORS; the server's own list (GET /api/indicators) replaces it when offered.
 
 export const GAITS = ["walk", "sitting_trot", "rising_trot", "canter"];
 
@@ -10,7 +10,7 @@ export const GAIT_LABELS = {
   canter: "canter",
 };
 
-// Shown with the exposure times, as in saddlescope.core.indicators.PASSIVE_SEATED_CAVEAT.
+// Shown with the exposure times, as in saddlescope.core.vibration.PASSIVE_SEATED_CAVEAT.
 export const PASSIVE_SEATED_CAVEAT =
   "The EU 2002/44/EC action and limit values assume a passive, seated person who takes no " +
   "counter-measures against the vibration. A rider compensates actively (the pelvis follows " +

@@ -4,7 +4,7 @@ The stand-in replaces `saddlescope.services.analysis.analyze_bundle` and the rig
 (`saddlescope.services.calibration.calibrate_clips`): the real pipeline takes minutes per ride on a
 2-core machine, these take milliseconds. The stand-in still opens and validates the bundle, reports
 progress through the stage callback and returns a complete result document whose indicators come
-from `saddlescope.core.indicators.ride_indicators` on an exact harmonic saddle motion (different
+from `saddlescope.core.vibration.ride_indicators` on an exact harmonic saddle motion (different
 per horse and gait, so rankings are not trivial). ``STANDIN_DELAY_S`` in the environment (or
 `STANDIN.delay_s`) makes the analysis stage last that long, reporting progress all the way (the
 worker-kill test needs a slow stage).
@@ -29,8 +29,8 @@ import numpy as np
 import pytest
 from integration_services import Api, add_member, new_club, sign_in  # noqa: F401 (the signed-in client)
 
-from saddlescope.core.indicators import ride_indicators
 from saddlescope.core.types import CAMERA_ROLES
+from saddlescope.core.vibration import ride_indicators
 
 GAIT_F0_HZ = {"walk": 1.8, "sitting_trot": 2.6, "rising_trot": 2.6, "canter": 1.7}
 GAIT_SPEED_KMH = {"walk": 6.0, "sitting_trot": 12.0, "rising_trot": 13.0, "canter": 19.0}

@@ -15,7 +15,7 @@ import pytest
 from api_helpers import Api, add_member, new_club, ride_json_with, standin_result, zip_folder
 from engines import ENGINES, open_env
 
-from saddlescope.core.indicators import COMFORT_INDICATORS, leaderboard
+from saddlescope.core.vibration import COMFORT_INDICATORS, leaderboard
 from saddlescope.io.mocap import read_mocap
 
 pg_database_url = integration_services.pg_database_url

@@ -117,7 +117,7 @@ def test_skin_models_slide_the_same_horse_differently():
 
 
 def test_the_triangle_layout_moves_only_the_middle_marker_of_the_same_horse():
-    from saddlescope.core.rigid_body import unobservable_axis
+    from saddlescope.core.kinematics.rigid_body import unobservable_axis
 
     rng = lambda: np.random.default_rng(5)  # noqa: E731
     thesis = sample_gait("canter", rng(), camera_side=1.0)  # the default

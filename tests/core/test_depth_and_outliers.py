@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.fitting import fit_marker_kinematics
-from saddlescope.core.smoothing import regularize_depth
+from saddlescope.core.kinematics.fitting import fit_marker_kinematics
+from saddlescope.core.kinematics.smoothing import regularize_depth
 
 PERIOD_S = 0.6
 T = np.arange(0, 2 * PERIOD_S + 1e-9, 1 / 30)
@@ -82,7 +82,7 @@ def test_a_wild_sample_is_left_out_of_the_fits():
 
 
 def test_a_few_frames_of_look_alike_do_not_hide_the_stride():
-    from saddlescope.core.period import estimate_period
+    from saddlescope.core.kinematics.period import estimate_period
     from saddlescope.core.saddle import _despiked
 
     t = np.arange(0, 3.0, 1 / 60)

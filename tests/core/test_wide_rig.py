@@ -14,8 +14,8 @@ import pytest
 from saddlescope.arena import saddle_truth_at
 from saddlescope.bench import exact_marker_floor
 from saddlescope.core import pipeline as P
+from saddlescope.core.kinematics.registration import register_rigid
 from saddlescope.core.pipeline import run
-from saddlescope.core.registration import register_rigid
 from saddlescope.io.result_document import result_to_document
 
 pytestmark = pytest.mark.slow

@@ -27,9 +27,9 @@ import numpy as np
 import pytest
 
 from conftest import IN_CI
-from saddlescope.core.fitting import fit_marker_kinematics
-from saddlescope.core.indicators import ride_indicators
+from saddlescope.core.kinematics import fit_marker_kinematics
 from saddlescope.core.pipeline import fits_document
+from saddlescope.core.vibration import ride_indicators
 
 pytestmark = pytest.mark.browser
 
@@ -80,7 +80,7 @@ def js_fmt(value: float, digits: int = 3) -> str:
 
 def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dict:
     """A result document (CONTRACTS section 2 plus the pipeline's extra sections) whose vertical
-    saddle acceleration is an exact Fourier series; indicators from `core.indicators`."""
+    saddle acceleration is an exact Fourier series; indicators from `core.vibration`."""
     f0 = STRIDE_HZ[gait]
     amps = [scale * a for a in BASE_AMPLITUDES_M_S2]
     duration_s = 2.0 / f0  # two strides, as in the thesis

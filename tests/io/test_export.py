@@ -11,7 +11,7 @@ import pytest
 from openpyxl import load_workbook
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.indicators import CONTRACT_KEYS, ride_indicators
+from saddlescope.core.vibration import CONTRACT_KEYS, ride_indicators
 from saddlescope.io import export
 
 

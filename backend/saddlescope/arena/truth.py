@@ -27,7 +27,7 @@ from saddlescope.arena.gait import (
 from saddlescope.arena.rig import SceneRig
 from saddlescope.arena.scene import Scene
 from saddlescope.core.errors import InputError
-from saddlescope.core.indicators import ride_indicators
+from saddlescope.core.vibration import ride_indicators
 
 __all__ = ["build_truth", "saddle_truth_at"]
 

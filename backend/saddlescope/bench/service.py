@@ -282,7 +282,7 @@ def fill_rides(
     returns the club's id."""
     from sqlalchemy import insert, select
 
-    from saddlescope.core.indicators import CONTRACT_KEYS
+    from saddlescope.core.vibration import CONTRACT_KEYS
 
     rng = np.random.default_rng(seed)
     engine = make_engine(database_url)

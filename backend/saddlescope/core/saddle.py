@@ -14,23 +14,30 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from saddlescope.core import frames as motion
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.fitting import MarkerKinematics, fit_marker_kinematics
-from saddlescope.core.frames import MotionFrame
-from saddlescope.core.indicators import ride_indicators
-from saddlescope.core.params import PipelineParams
-from saddlescope.core.period import analysis_window, estimate_period
-from saddlescope.core.registration import Registration, broken_distance_samples, marker_model, register_rigid
-from saddlescope.core.rigid_body import (
+from saddlescope.core.kinematics import (
     AngularKinematics,
+    MarkerKinematics,
+    MotionFrame,
     PointKinematics,
+    Registration,
+    analysis_window,
     angular_kinematics,
+    bridge_gaps,
+    broken_distance_samples,
+    estimate_period,
+    fit_marker_kinematics,
+    marker_model,
+    register_rigid,
+    regularize_depth,
+    rloess,
     saddle_body_coordinates,
     saddle_point_kinematics,
 )
-from saddlescope.core.smoothing import bridge_gaps, regularize_depth, rloess
+from saddlescope.core.kinematics import frames as motion
+from saddlescope.core.params import PipelineParams
 from saddlescope.core.types import MarkerTracks
+from saddlescope.core.vibration import ride_indicators
 
 __all__ = ["STRIDE_RANGE_HZ", "SaddleAnalysis", "identify_saddle_marker", "kinematics_indicators",
            "layout_mismatch_mm", "match_horse_markers", "pairwise_distances", "saddle_kinematics",

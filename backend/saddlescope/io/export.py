@@ -28,7 +28,7 @@ from openpyxl.styles import Font
 from openpyxl.utils import get_column_letter
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.indicators import (
+from saddlescope.core.vibration import (
     COMFORT_INDICATORS,
     CONTRACT_KEYS,
     INDICATORS,

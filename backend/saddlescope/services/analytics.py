@@ -1,5 +1,5 @@
 """Use cases of comparisons: a horse across gaits, horses within a gait, the club leaderboard, and the
-riders' grades against the indicators. The statistics are `saddlescope.core.indicators`'; this module
+riders' grades against the indicators. The statistics are `saddlescope.core.vibration`'; this module
 only fetches the club's rows (`AnalyticsRepository`) and names the horses by id as well."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.indicators import (
+from saddlescope.core.vibration import (
     COMFORT_INDICATORS,
     GAITS,
     INDICATORS,

@@ -18,7 +18,7 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.indicators import indicator_unit
+from saddlescope.core.vibration import indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideRepository
 from saddlescope.storage import Storage
 

@@ -25,7 +25,7 @@ from dtaidistance import dtw as dtai_dtw
 from dtaidistance import dtw_ndim as dtai_dtw_ndim
 
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.period import estimate_period
+from saddlescope.core.kinematics import estimate_period
 from saddlescope.core.similarity import (
     DEFAULT_CELLS,
     chain_code_3d,
@@ -108,7 +108,7 @@ def normalise_stride(xyz, *, period_samples: float | None = None, fps: float = 3
         Positions of one marker (or the saddle point) over the ride, sampled at ``fps``.
     period_samples : float, optional
         Stride period in samples; default estimated with
-        :func:`saddlescope.core.period.estimate_period` (which needs about two strides).
+        :func:`saddlescope.core.kinematics.estimate_period` (which needs about two strides).
     fps : float, optional
         Sampling rate, used only to estimate the period.
     n_samples : int, optional

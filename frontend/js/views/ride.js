@@ -11,7 +11,7 @@ import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
 import { poll } from "../poll.js";
 
-// Order of saddlescope.core.rigid_body.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
+// Order of saddlescope.core.kinematics.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
 const VERSION_NAMES = ["1,ver1", "2,ver1", "1,ver2", "2,ver2", "1,ver3", "2,ver3"];
 
 const MAIN_CARDS = [

@@ -10,7 +10,7 @@ from saddlescope.api.deps import ClubDep
 from saddlescope.api.routers.common import ERRORS
 from saddlescope.api.schemas import MAX_ID, ComparisonOut, Gait, IndicatorOut, LeaderboardOut
 from saddlescope.core.errors import InputError
-from saddlescope.core.indicators import COMFORT_INDICATORS, INDICATORS
+from saddlescope.core.vibration import COMFORT_INDICATORS, INDICATORS
 from saddlescope.services.analytics import club_leaderboard, horses_comparison
 
 router = APIRouter(tags=["comparisons"])

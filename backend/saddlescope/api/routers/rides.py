@@ -27,7 +27,7 @@ from saddlescope.api.schemas import (
     RideUpdate,
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
-from saddlescope.core.indicators import COMFORT_INDICATORS
+from saddlescope.core.vibration import COMFORT_INDICATORS
 from saddlescope.db.models import Ride, RideStatus
 from saddlescope.db.repositories import RideRepository
 from saddlescope.db.session import session_scope

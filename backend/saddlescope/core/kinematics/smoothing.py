@@ -18,6 +18,13 @@ from scipy.interpolate import CubicSpline
 
 from saddlescope.core.errors import InputError
 
+__all__ = [
+    "span_points",
+    "rloess",
+    "bridge_gaps",
+    "regularize_depth",
+]
+
 # Rows of the (n_eval, k) neighbour arrays handled at once; bounds memory to ~ a few MB per array.
 _CHUNK_ELEMENTS = 2_000_000
 
@@ -337,12 +344,27 @@ def regularize_depth(t, xyz_mm, origin_mm, axis, *, period_s: float, max_order: 
 
     Parameters
     ----------
-    t : (N,) s; xyz_mm : (N, M, 3) rig mm, finite; origin_mm : (3,) mean camera centre;
-    axis : (3,) the worst-fixed direction (roughly the viewing direction).
+    t : ndarray of shape (N,)
+        Sample times (s).
+    xyz_mm : ndarray of shape (N, M, 3)
+        Marker positions (rig mm), finite.
+    origin_mm : ndarray of shape (3,)
+        The mean camera centre (rig mm).
+    axis : ndarray of shape (3,)
+        The worst-fixed direction (roughly the viewing direction).
+    period_s : float
+        Stride period (s).
+    max_order : int, optional
+        Highest Fourier order tried.
+    trend_degree : int, optional
+        Degree of the polynomial trend of the depth.
 
     Returns
     -------
-    xyz_mm : (N, M, 3) the regularised points; orders : the Fourier order chosen per marker.
+    xyz_mm : ndarray of shape (N, M, 3)
+        The regularised points (rig mm).
+    orders : list of int
+        The Fourier order chosen per marker.
     """
     t = _as_time(t)
     xyz = np.asarray(xyz_mm, dtype=np.float64)

@@ -16,6 +16,15 @@ import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
 
+__all__ = [
+    "Registration",
+    "layout_ratio",
+    "check_marker_layout",
+    "marker_model",
+    "register_rigid",
+    "broken_distance_samples",
+]
+
 
 @dataclass(frozen=True)
 class Registration:
@@ -56,6 +65,12 @@ def layout_ratio(points) -> float:
     Parameters
     ----------
     points : ndarray of shape (M, 3)
+        Marker positions, M >= 3.
+
+    Returns
+    -------
+    ratio : float
+        0 for collinear markers, larger the further from a line.
     """
     p = np.asarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 3:
@@ -70,7 +85,22 @@ def layout_ratio(points) -> float:
 
 
 def check_marker_layout(points, *, min_height_ratio: float = 0.03, what: str = "the horse markers") -> float:
-    """Raise KinematicsError if the markers are (nearly) collinear; return :func:`layout_ratio`."""
+    """Raise KinematicsError if the markers are (nearly) collinear.
+
+    Parameters
+    ----------
+    points : ndarray of shape (M, 3)
+        Marker positions, M >= 3.
+    min_height_ratio : float, optional
+        Smallest :func:`layout_ratio` accepted.
+    what : str, optional
+        What the markers are, for the message.
+
+    Returns
+    -------
+    ratio : float
+        The layout's :func:`layout_ratio`.
+    """
     ratio = layout_ratio(points)
     if not ratio >= min_height_ratio:
         raise KinematicsError(

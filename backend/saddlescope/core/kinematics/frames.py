@@ -14,6 +14,16 @@ import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
 
+__all__ = [
+    "CAMERA_DOWN",
+    "MotionFrame",
+    "plumb_gravity",
+    "travel_velocity",
+    "motion_frame",
+    "to_motion_frame",
+    "vectors_to_motion_frame",
+]
+
 # Warn when the measured gravity is further than this from perpendicular to the travel.
 _PERPENDICULAR_TOL_DEG = 10.0
 # Left-camera image "down" in rig coordinates (OpenCV camera: x right, y down, z forward).
@@ -114,6 +124,7 @@ def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4, reject_sigm
     Parameters
     ----------
     t_s : ndarray of shape (F,)
+        Sample times (s).
     xyz_mm : ndarray of shape (F, 3)
         The marker's track (rig mm), NaN in gaps.
     period_s : float
@@ -128,6 +139,7 @@ def travel_velocity(t_s, xyz_mm, *, period_s: float, order: int = 4, reject_sigm
     Returns
     -------
     velocity_mm_s : ndarray of shape (3,)
+        Mean travel velocity (rig mm/s).
     """
     t = np.asarray(t_s, dtype=np.float64)
     track = _as_track(xyz_mm, "xyz_mm")
@@ -201,13 +213,37 @@ def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_
     finite = np.flatnonzero(np.all(np.isfinite(track), axis=1))
     if finite.size < 2:
         raise KinematicsError("the travel marker has fewer than two positions in the window")
+    u1, diagnostics = _travel_direction(track, finite, t_s, period_s)
+    g, source, warnings = _gravity(plumb_top_mm, plumb_bottom_mm, rig_down_hint, hint_name, diagnostics)
+    angle = float(np.degrees(np.arccos(np.clip(u1 @ g, -1.0, 1.0))))
+    if abs(angle - 90.0) > 80.0:
+        raise KinematicsError(f"gravity ({source}) is within {90 - abs(angle - 90):.1f} deg of the travel "
+                              "direction; the motion frame is undefined (check the plumb clip)")
+    if abs(angle - 90.0) > _PERPENDICULAR_TOL_DEG:
+        warnings.append(f"gravity ({source}) is {abs(angle - 90):.1f} deg from perpendicular to the travel: "
+                        "the horse was not on level ground, or the plumb or travel marker is wrong")
+    u3 = _unit(np.cross(u1, g))  # eq. 5.8
+    u2 = np.cross(u3, u1)  # eq. 5.9
+    R = np.vstack([u1, u2, u3])  # rows = axes: the transpose of R_CM of eq. 5.10
+    origin = track[finite[0]] if origin_mm is None else np.asarray(origin_mm, dtype=np.float64).reshape(3)
+    return MotionFrame(R=R, origin_mm=np.array(origin, dtype=np.float64), gravity_source=source,
+                       warnings=tuple(warnings), gravity_raw=g, travel_raw=u1,
+                       angle_travel_gravity_deg=angle, diagnostics=diagnostics)
+
+
+def _travel_direction(track: np.ndarray, finite: np.ndarray, t_s, period_s: float | None
+                      ) -> tuple[np.ndarray, dict]:
+    """Unit travel direction x (rig coordinates) of the track (F, 3), and its diagnostics.
+
+    ``finite`` holds the indices of the track's finite samples. With ``t_s`` and ``period_s`` the
+    direction is that of :func:`travel_velocity`, otherwise the net displacement (eq. 5.7).
+    """
     displacement = track[finite[-1]] - track[finite[0]]
     distance_mm = float(np.linalg.norm(displacement))
     spread_mm = float(np.max(np.linalg.norm(track[finite] - track[finite[0]], axis=1)))
     if distance_mm < 1e-6 or distance_mm < 0.05 * spread_mm:
         raise KinematicsError(f"the travel marker moved only {distance_mm:.1f} mm over the window; the "
                               "horse must travel to define the motion frame's x axis")
-    warnings: list[str] = []
     diagnostics: dict = {"travel_distance_mm": distance_mm}
     if t_s is not None and period_s is not None:
         velocity = travel_velocity(t_s, track, period_s=period_s)
@@ -217,6 +253,17 @@ def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_
     else:
         u1 = displacement / distance_mm  # eq. 5.7
         diagnostics["travel_method"] = "net_displacement"
+    return u1, diagnostics
+
+
+def _gravity(plumb_top_mm, plumb_bottom_mm, rig_down_hint, hint_name: str, diagnostics: dict
+             ) -> tuple[np.ndarray, str, list[str]]:
+    """Unit gravity (rig coordinates), its source and the warnings it calls for.
+
+    From the plumb markers (their diagnostics are added to ``diagnostics``), else the down hint,
+    else the left camera's image down direction.
+    """
+    warnings: list[str] = []
     if plumb_top_mm is not None and plumb_bottom_mm is not None:
         g, plumb_diag = plumb_gravity(plumb_top_mm, plumb_bottom_mm)
         diagnostics.update(plumb_diag)
@@ -237,20 +284,7 @@ def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_
                         "down direction (assumes a level camera); vertical results are approximate")
     if (plumb_top_mm is None) != (plumb_bottom_mm is None):
         warnings.append("only one plumb marker track was given; the plumb was ignored")
-    angle = float(np.degrees(np.arccos(np.clip(u1 @ g, -1.0, 1.0))))
-    if abs(angle - 90.0) > 80.0:
-        raise KinematicsError(f"gravity ({source}) is within {90 - abs(angle - 90):.1f} deg of the travel "
-                              "direction; the motion frame is undefined (check the plumb clip)")
-    if abs(angle - 90.0) > _PERPENDICULAR_TOL_DEG:
-        warnings.append(f"gravity ({source}) is {abs(angle - 90):.1f} deg from perpendicular to the travel: "
-                        "the horse was not on level ground, or the plumb or travel marker is wrong")
-    u3 = _unit(np.cross(u1, g))  # eq. 5.8
-    u2 = np.cross(u3, u1)  # eq. 5.9
-    R = np.vstack([u1, u2, u3])  # rows = axes: the transpose of R_CM of eq. 5.10
-    origin = track[finite[0]] if origin_mm is None else np.asarray(origin_mm, dtype=np.float64).reshape(3)
-    return MotionFrame(R=R, origin_mm=np.array(origin, dtype=np.float64), gravity_source=source,
-                       warnings=tuple(warnings), gravity_raw=g, travel_raw=u1,
-                       angle_travel_gravity_deg=angle, diagnostics=diagnostics)
+    return g, source, warnings
 
 
 def to_motion_frame(xyz_mm, frame: MotionFrame) -> np.ndarray:
@@ -276,7 +310,19 @@ def to_motion_frame(xyz_mm, frame: MotionFrame) -> np.ndarray:
 def vectors_to_motion_frame(vec_rig, frame: MotionFrame, *, scale: float = 1e-3) -> np.ndarray:
     """Rotate free vectors (directions, velocities) into the motion frame, no origin shift.
 
-    ``vec_rig`` has shape (..., 3); the result is ``scale * R @ v`` (default mm -> m).
+    Parameters
+    ----------
+    vec_rig : ndarray of shape (..., 3)
+        Vectors in rig coordinates.
+    frame : MotionFrame
+        The motion frame.
+    scale : float, optional
+        Unit factor (default mm -> m).
+
+    Returns
+    -------
+    ndarray of shape (..., 3)
+        ``scale * R @ v`` for each vector.
     """
     v = np.asarray(vec_rig, dtype=np.float64)
     if v.shape[-1] != 3:

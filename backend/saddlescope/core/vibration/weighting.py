@@ -1,4 +1,4 @@
-"""Whole-body vibration: frequency weightings and exposure metrics (thesis chapter 7).
+"""Whole-body vibration: the frequency weightings and their digital filters (thesis chapter 7).
 
 Weightings are the analog transfer functions of ISO 2631-1:1997 Annex A / ISO 8041 (and BS 6841
 for W_b), built from their published parameters as a product of four stages (s = j 2 pi f,
@@ -17,22 +17,22 @@ writing it, (1 + s/(Q5 w5) + (s/w5)^2) / (1 + s/(Q6 w6) + (s/w6)^2), needs the f
 normalised form, doubles W_k at low frequency.  The result reproduces ISO 2631-1 Table 3 to
 its printed precision when evaluated at the *nominal* one-third-octave frequencies (1.25,
 1.6, 2, ... Hz); at the exact frequencies 10^(n/10) the printed W_k differs by up to 2.5 %
-(tests/core/test_vibration.py).
+(tests/core/vibration/test_vibration.py).
 
 Sampled signals are weighted by a digital filter (:func:`weighting_sos`, a least-squares
 IIR design with the analog poles and zeros mapped exactly, z = exp(s T)), run at an internal
 rate of at least 500 Hz on the band-limited interpolation of the record
 (:func:`weight_signal`), so the weighted signal matches the analog response to better than
 0.2 % (complex, magnitude and phase) from 0.5 Hz up to 0.8 times the Nyquist frequency of
-the record at any rate from 25 Hz up.  Metrics: weighted r.m.s., peak, crest factor, VDV,
-MTVV, A(8), and times and distances to the EU 2002/44/EC action and limit values.
+the record at any rate from 25 Hz up.  The metrics of weighted signals are in
+:mod:`saddlescope.core.vibration.metrics`, the exposure limits in
+:mod:`saddlescope.core.vibration.exposure`.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,37 +41,13 @@ from scipy import signal
 from saddlescope.core.errors import VibrationError
 
 __all__ = [
-    "A8_ACTION_M_S2",
-    "A8_LIMIT_M_S2",
-    "VDV_ACTION_M_S175",
-    "VDV_LIMIT_M_S175",
-    "HORIZONTAL_FACTOR",
     "WEIGHTINGS",
     "WeightingParameters",
     "weighting_response",
     "weighting_sos",
     "digital_band_hz",
     "weight_signal",
-    "harmonic_metrics",
-    "weighted_rms",
-    "peak",
-    "crest_factor",
-    "vdv",
-    "mtvv",
-    "a8",
-    "sampled_metrics",
-    "exposure_limits",
-    "per_axis_exposure",
 ]
-
-# EU Physical Agents (Vibration) Directive 2002/44/EC, whole-body (thesis Table 7.2).
-A8_ACTION_M_S2 = 0.5
-A8_LIMIT_M_S2 = 1.15
-VDV_ACTION_M_S175 = 9.1
-VDV_LIMIT_M_S175 = 21.0
-# Directive and ISO 2631-1 health factor k for the horizontal axes of a seated person.
-HORIZONTAL_FACTOR = 1.4
-_REFERENCE_DAY_H = 8.0
 
 _INTERNAL_RATE_HZ = 500.0  # rate at which weight_signal runs its IIR filters
 _NUMERATOR_ORDER = 8  # free numerator order of the least-squares design
@@ -209,6 +185,13 @@ def digital_band_hz(name: str, fs_hz: float) -> tuple[float, float]:
     the analog response closer to Nyquist, where any real digital filter becomes real-valued.
     At 30 Hz sampling that is 7.5 Hz, at 60 Hz 15 Hz, at 120 Hz 30 Hz.  :func:`weight_signal`
     does better (up to 0.8 fs/2) by filtering at an internal rate.
+
+    Parameters
+    ----------
+    name : str
+        Weighting name ("Wk", "Wb", ...).
+    fs_hz : float
+        Sampling rate in Hz, >= 25.
 
     Returns
     -------
@@ -408,350 +391,3 @@ def weight_signal(a, fs_hz: float, name: str, *, transient: str = "periodic",
         return signal.sosfilt(weighting_sos(canonical, fs_hz), arr)
     dense, factor = _weight_internal(arr, fs_hz, canonical, transient, method)
     return dense[::factor].copy()
-
-
-# --------------------------------------------------------------------------------------------
-# Metrics of weighted signals
-
-
-def weighted_rms(aw) -> float:
-    """Root mean square of a weighted acceleration record (eq. 7.3-7.4), m/s^2."""
-    arr = _as_record(aw, "weighted acceleration")
-    return float(np.sqrt(np.mean(arr**2)))
-
-
-def peak(aw) -> float:
-    """Largest absolute sample of a record (eq. 7.5-7.6), m/s^2."""
-    arr = _as_record(aw, "weighted acceleration")
-    return float(np.max(np.abs(arr)))
-
-
-def crest_factor(aw) -> float:
-    """Weighted peak / weighted r.m.s. (eq. 7.7); NaN for a silent record."""
-    rms = weighted_rms(aw)
-    return float(peak(aw) / rms) if rms > 0 else math.nan
-
-
-def vdv(aw, fs_hz: float) -> float:
-    """Vibration dose value (integral of aw^4 dt)^(1/4) over the record (eq. 7.8-7.9), m/s^1.75."""
-    arr = _as_record(aw, "weighted acceleration")
-    if not (math.isfinite(fs_hz) and fs_hz > 0):
-        raise VibrationError(f"sampling rate must be positive, got {fs_hz!r}")
-    return float((np.sum(arr**4) / fs_hz) ** 0.25)
-
-
-def mtvv(aw, fs_hz: float, *, window_s: float = 1.0, periodic: bool = False) -> float:
-    """Maximum transient vibration value: the largest running r.m.s. (ISO 2631-1 6.3.1).
-
-    Linear (rectangular) integration over ``window_s`` (1 s in ISO 2631-1).  With
-    ``periodic=True`` the windows wrap around the record (a whole number of periods), so a
-    record shorter than the window is allowed.
-
-    Returns
-    -------
-    float
-        MTVV in m/s^2.
-    """
-    arr = _as_record(aw, "weighted acceleration")
-    if not (math.isfinite(fs_hz) and fs_hz > 0):
-        raise VibrationError(f"sampling rate must be positive, got {fs_hz!r}")
-    n_win = int(round(window_s * fs_hz))
-    if n_win < 1:
-        raise VibrationError(f"MTVV window {window_s} s is shorter than one sample")
-    sq = arr**2
-    if periodic:
-        reps = math.ceil(n_win / sq.size) + 1
-        sq = np.tile(sq, reps)[: arr.size + n_win - 1]
-    elif arr.size < n_win:
-        raise VibrationError(
-            f"MTVV needs a record of at least {window_s} s; this one lasts {arr.size / fs_hz:.3f} s"
-        )
-    csum = np.concatenate([[0.0], np.cumsum(sq)])
-    running = (csum[n_win:] - csum[:-n_win]) / n_win
-    return float(np.sqrt(max(running.max(), 0.0)))
-
-
-def a8(rms: float, exposure_h: float) -> float:
-    """Daily exposure A(8) = a_w,rms sqrt(T / 8 h) for ``exposure_h`` hours a day, m/s^2."""
-    _check_non_negative(rms=rms, exposure_h=exposure_h)
-    return float(rms * math.sqrt(exposure_h / _REFERENCE_DAY_H))
-
-
-def _check_non_negative(**values: float) -> None:
-    for key, value in values.items():
-        if not isinstance(value, int | float | np.floating | np.integer) or not math.isfinite(value):
-            raise VibrationError(f"{key} must be a finite number, got {value!r}")
-        if value < 0:
-            raise VibrationError(f"{key} must be >= 0, got {value}")
-
-
-def sampled_metrics(a, fs_hz: float, weighting: str | None, *, transient: str = "periodic",
-                    method: str = "iir") -> dict[str, float]:
-    """Weighted r.m.s., peak, crest factor, VDV and MTVV of a sampled record.
-
-    The metrics are evaluated on the weighted, band-limited interpolation of the record at
-    the internal rate (>= 500 Hz), not on the raw samples: at 30 Hz sampling the samples miss
-    the true peak and the fourth power in the VDV aliases, while the interpolation converges
-    to the continuous-time values (see tests).
-
-    Parameters
-    ----------
-    a : array_like of shape (n,)
-        Acceleration (m/s^2) sampled at ``fs_hz``.
-    fs_hz : float
-        Sampling rate (>= 25 Hz).
-    weighting : str or None
-        Weighting name, or None / "none" for unweighted.
-    transient, method
-        As in :func:`weight_signal` ("none" is not accepted here).
-
-    Returns
-    -------
-    dict
-        ``rms`` (m/s^2), ``peak`` (m/s^2), ``crest_factor``, ``vdv`` (m/s^1.75),
-        ``mtvv`` (m/s^2, 1 s running r.m.s.; wraps around for periodic records, NaN for
-        non-periodic records shorter than 1 s), ``duration_s``.
-    """
-    arr = _as_record(a)
-    _check_rate(fs_hz)
-    canonical = _weighting_name(weighting)
-    dense, factor = _weight_internal(arr, fs_hz, canonical, transient, method)
-    fs_dense = fs_hz * factor
-    duration_s = arr.size / fs_hz
-    rms = float(np.sqrt(np.mean(dense**2)))
-    pk = float(np.max(np.abs(dense)))
-    periodic = transient == "periodic"
-    try:
-        running = mtvv(dense, fs_dense, periodic=periodic)
-    except VibrationError:
-        running = math.nan
-    return {
-        "rms": rms,
-        "peak": pk,
-        "crest_factor": pk / rms if rms > 0 else math.nan,
-        "vdv": float((np.sum(dense**4) / fs_dense) ** 0.25),
-        "mtvv": running,
-        "duration_s": duration_s,
-    }
-
-
-# --------------------------------------------------------------------------------------------
-# Periodic signals given as Fourier series
-
-
-def _eval_series(t: np.ndarray, omega: np.ndarray, amp: np.ndarray, phase: np.ndarray,
-                 derivative: int = 0) -> np.ndarray:
-    """Sum_k amp_k d^n/dt^n cos(omega_k t + phase_k) at times t."""
-    arg = np.outer(t, omega) + phase
-    if derivative == 0:
-        terms = np.cos(arg)
-    elif derivative == 1:
-        terms = -np.sin(arg) * omega
-    else:
-        terms = -np.cos(arg) * omega**2
-    return terms @ amp
-
-
-def _series_peak(omega: np.ndarray, amp: np.ndarray, phase: np.ndarray, period_s: float,
-                 n_grid: int) -> float:
-    """Max |a(t)| over one period: dense grid, then Newton on a'(t) = 0 at the best maxima."""
-    t = np.arange(n_grid) * (period_s / n_grid)
-    values = np.abs(_eval_series(t, omega, amp, phase))
-    best = float(values.max())
-    local = np.flatnonzero((values >= np.roll(values, 1)) & (values >= np.roll(values, -1)))
-    candidates = local[np.argsort(values[local])[::-1][:4]]
-    for idx in candidates:
-        tk = np.array([t[idx]])
-        for _ in range(8):
-            d1 = _eval_series(tk, omega, amp, phase, 1)
-            d2 = _eval_series(tk, omega, amp, phase, 2)
-            if d2[0] == 0:
-                break
-            step = d1 / d2
-            # Stay inside the grid cell: Newton from a grid maximum needs only a small step.
-            step = np.clip(step, -period_s / n_grid, period_s / n_grid)
-            tk = tk - step
-            if abs(step[0]) < 1e-15 * period_s:
-                break
-        best = max(best, float(abs(_eval_series(tk, omega, amp, phase)[0])))
-    return best
-
-
-def harmonic_metrics(f0: float, amplitudes, phases, weighting: str | None,
-                     duration_s: float) -> dict[str, float]:
-    """Exact weighted metrics of a periodic acceleration given as a Fourier series.
-
-    a(t) = sum_k A_k cos(2 pi k f0 t + phi_k), k = 1, 2, ...  Each harmonic is multiplied by
-    the complex weighting response H(j 2 pi k f0), magnitude *and* phase (the thesis's eq.
-    7.1-7.2 multiply by a scalar, which gets peak, crest factor and VDV wrong).
-
-    Parameters
-    ----------
-    f0 : float
-        Fundamental frequency in Hz.
-    amplitudes : array_like of shape (K,)
-        A_k in m/s^2 for k = 1..K.
-    phases : array_like of shape (K,)
-        phi_k in rad.
-    weighting : str or None
-        "Wb", "Wk", ... or None / "none" for the unweighted signal.
-    duration_s : float
-        Analysed duration tau; must be a whole number of periods 1/f0 (relative tolerance 1e-6).
-
-    Returns
-    -------
-    dict
-        ``rms`` (m/s^2), ``peak`` (m/s^2, max |a_w|), ``crest_factor``, ``vdv``
-        (m/s^1.75, over duration_s), ``mtvv`` (m/s^2, largest 1 s running r.m.s. of the
-        periodic signal), ``n_periods``.  The r.m.s. is exact (Parseval); the VDV
-        integrates a_w^4 by the rectangle rule over 64 K samples per period, exact for the
-        trigonometric polynomial a_w^4 of degree 4K; the peak is refined by Newton steps.
-    """
-    amp = np.atleast_1d(np.asarray(amplitudes, dtype=float))
-    phase = np.atleast_1d(np.asarray(phases, dtype=float))
-    if amp.ndim != 1 or amp.size == 0:
-        raise VibrationError(f"amplitudes must be a non-empty 1-D sequence, got shape {amp.shape}")
-    if phase.shape != amp.shape:
-        raise VibrationError(
-            f"phases must match amplitudes: {phase.size} phases for {amp.size} harmonics"
-        )
-    if not (np.all(np.isfinite(amp)) and np.all(np.isfinite(phase))):
-        raise VibrationError("amplitudes and phases must be finite")
-    if not (isinstance(f0, int | float | np.floating | np.integer) and math.isfinite(f0) and f0 > 0):
-        raise VibrationError(f"fundamental frequency f0 must be a positive number of Hz, got {f0!r}")
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise VibrationError(f"duration_s must be positive, got {duration_s!r}")
-    n_periods_exact = duration_s * f0
-    n_periods = round(n_periods_exact)
-    if n_periods < 1 or abs(n_periods_exact - n_periods) > 1e-6 * max(n_periods_exact, 1.0):
-        raise VibrationError(
-            f"duration {duration_s} s is not a whole number of periods of {1 / f0:.6g} s "
-            f"(f0 = {f0} Hz gives {n_periods_exact:.6f} periods)"
-        )
-    canonical = _weighting_name(weighting)
-    k = np.arange(1, amp.size + 1)
-    if canonical is not None:
-        h = weighting_response(canonical, k * f0)
-        amp = amp * np.abs(h)
-        phase = phase + np.angle(h)
-    omega = 2 * np.pi * k * f0
-    period_s = 1.0 / f0
-    rms = float(np.sqrt(np.sum(amp**2) / 2))  # Parseval, no DC term
-    n_grid = max(64 * amp.size, 256)
-    t = np.arange(n_grid) * (period_s / n_grid)
-    a_grid = _eval_series(t, omega, amp, phase)
-    fourth_per_period = float(np.mean(a_grid**4) * period_s)
-    pk = _series_peak(omega, amp, phase, period_s, n_grid)
-    return {
-        "rms": rms,
-        "peak": pk,
-        "crest_factor": pk / rms if rms > 0 else math.nan,
-        "vdv": float((n_periods * fourth_per_period) ** 0.25),
-        "mtvv": mtvv(a_grid, n_grid * f0, periodic=True),
-        "n_periods": float(n_periods),
-    }
-
-
-# --------------------------------------------------------------------------------------------
-# Exposure
-
-
-def exposure_limits(rms: float, vdv: float, duration_s: float, speed_kmh: float) -> dict[str, float]:
-    """Times and distances to the EU 2002/44/EC whole-body action and limit values.
-
-    T_A(8) = 8 h (A8_threshold / a_w,rms)^2                      (eq. 7.10-7.13)
-    T_VDV  = tau (VDV_threshold / VDV)^4                           (eq. 7.14-7.17, corrected:
-             VDV grows with the fourth root of time; the thesis prints a linear ratio and uses
-             the action value for the limit)
-    D      = v_x,avg T                                             (eq. 7.18-7.25)
-
-    Parameters
-    ----------
-    rms : float
-        Weighted r.m.s. acceleration a_w,rms (m/s^2) over the analysed window.
-    vdv : float
-        VDV (m/s^1.75) of the analysed window.
-    duration_s : float
-        Duration tau of the analysed window (s) that produced ``vdv``.
-    speed_kmh : float
-        Average speed in the direction of travel (km/h).
-
-    Returns
-    -------
-    dict
-        ``t_a8_action_h``, ``t_a8_limit_h``, ``t_vdv_action_h``, ``t_vdv_limit_h`` (hours) and
-        ``d_a8_action_km``, ``d_a8_limit_km``, ``d_vdv_action_km``, ``d_vdv_limit_km`` (km).
-        Zero vibration gives infinite times.
-    """
-    _check_non_negative(rms=rms, vdv=vdv, duration_s=duration_s, speed_kmh=speed_kmh)
-    if duration_s == 0:
-        raise VibrationError("duration_s must be > 0 to scale a VDV to a daily exposure")
-
-    def a8_time(threshold: float) -> float:
-        return _REFERENCE_DAY_H * (threshold / rms) ** 2 if rms > 0 else math.inf
-
-    def vdv_time(threshold: float) -> float:
-        return duration_s * (threshold / vdv) ** 4 / 3600.0 if vdv > 0 else math.inf
-
-    times = {
-        "t_a8_action_h": a8_time(A8_ACTION_M_S2),
-        "t_a8_limit_h": a8_time(A8_LIMIT_M_S2),
-        "t_vdv_action_h": vdv_time(VDV_ACTION_M_S175),
-        "t_vdv_limit_h": vdv_time(VDV_LIMIT_M_S175),
-    }
-    out = dict(times)
-    for key, hours in times.items():
-        out["d" + key[1:-2] + "_km"] = speed_kmh * hours if speed_kmh > 0 else 0.0
-    return out
-
-
-def per_axis_exposure(rms_by_axis: Mapping[str, float], vdv_by_axis: Mapping[str, float],
-                      duration_s: float, speed_kmh: float, *, vertical_axis: str = "y",
-                      horizontal_factor: float = HORIZONTAL_FACTOR) -> dict:
-    """Exposure from several axes with the directive's worst-axis rule.
-
-    2002/44/EC (Annex, B.1) and ISO 2631-1 (7.2.3): the daily exposure is the highest of
-    1.4 a_wx, 1.4 a_wy, a_wz for a seated person (x, y horizontal with W_d, z vertical with
-    W_k); the same for the VDV.  In the thesis's motion frame the vertical axis is y.
-
-    Parameters
-    ----------
-    rms_by_axis, vdv_by_axis : mapping of axis name -> float
-        Weighted r.m.s. (m/s^2) and VDV (m/s^1.75) per axis, same axes in both.
-    duration_s, speed_kmh : float
-        As in :func:`exposure_limits`.
-    vertical_axis : str
-        Axis that takes factor 1; every other axis takes ``horizontal_factor``.
-
-    Returns
-    -------
-    dict
-        ``rms_effective`` and ``vdv_effective`` (axis -> value after the factor),
-        ``worst_axis_a8``, ``worst_axis_vdv`` (axis names), ``rms``, ``vdv`` (the worst
-        effective values) and the eight keys of :func:`exposure_limits` computed from them.
-    """
-    if set(rms_by_axis) != set(vdv_by_axis) or not rms_by_axis:
-        raise VibrationError(
-            f"per-axis r.m.s. and VDV must name the same axes, got {sorted(rms_by_axis)} and "
-            f"{sorted(vdv_by_axis)}"
-        )
-    if vertical_axis not in rms_by_axis:
-        raise VibrationError(f"vertical axis {vertical_axis!r} is not among {sorted(rms_by_axis)}")
-    factors = {axis: 1.0 if axis == vertical_axis else horizontal_factor for axis in rms_by_axis}
-    for axis in rms_by_axis:
-        _check_non_negative(**{f"rms_{axis}": rms_by_axis[axis], f"vdv_{axis}": vdv_by_axis[axis]})
-    rms_eff = {axis: factors[axis] * float(rms_by_axis[axis]) for axis in rms_by_axis}
-    vdv_eff = {axis: factors[axis] * float(vdv_by_axis[axis]) for axis in vdv_by_axis}
-    worst_a8 = max(rms_eff, key=rms_eff.__getitem__)
-    worst_vdv = max(vdv_eff, key=vdv_eff.__getitem__)
-    out: dict = {
-        "rms_effective": rms_eff,
-        "vdv_effective": vdv_eff,
-        "worst_axis_a8": worst_a8,
-        "worst_axis_vdv": worst_vdv,
-        "rms": rms_eff[worst_a8],
-        "vdv": vdv_eff[worst_vdv],
-    }
-    out.update(exposure_limits(rms_eff[worst_a8], vdv_eff[worst_vdv], duration_s, speed_kmh))
-    return out
-

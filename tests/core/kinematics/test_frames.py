@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.frames import motion_frame, plumb_gravity, to_motion_frame, vectors_to_motion_frame
+from saddlescope.core.kinematics.frames import motion_frame, plumb_gravity, to_motion_frame, vectors_to_motion_frame
 
 
 def _rotation(rx, ry, rz):
@@ -112,7 +112,7 @@ def test_bad_inputs():
 
 
 def test_travel_velocity_is_exact_for_a_window_that_is_not_whole_periods():
-    from saddlescope.core.frames import travel_velocity
+    from saddlescope.core.kinematics.frames import travel_velocity
 
     marker_rig = _to_rig(_marker_world_mm())
     window = marker_rig[:-3]  # 34 samples: not a whole number of periods
@@ -126,7 +126,7 @@ def test_travel_velocity_is_exact_for_a_window_that_is_not_whole_periods():
 
 
 def test_travel_velocity_leaves_out_a_look_alike_followed_for_a_few_frames():
-    from saddlescope.core.frames import travel_velocity
+    from saddlescope.core.kinematics.frames import travel_velocity
 
     marker_rig = _to_rig(_marker_world_mm()).copy()
     marker_rig[1:4] += [400.0, -300.0, 250.0]  # a look-alike near the start, as on a wide-rig trot

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.smoothing import bridge_gaps, rloess, span_points
+from saddlescope.core.kinematics.smoothing import bridge_gaps, rloess, span_points
 
 FPS = 30.0
 

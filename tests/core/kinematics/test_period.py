@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import KinematicsError
-from saddlescope.core.period import analysis_window, estimate_period
+from saddlescope.core.kinematics.period import analysis_window, estimate_period
 
 FPS = 30.0
 BODY_MM = np.array([[-250.0, 0.0, 0.0], [0.0, 30.0, 0.0], [250.0, -10.0, 0.0]])
@@ -120,7 +120,7 @@ def test_dominant_line_at_the_band_edge_stays_in_the_band():
     """A strong drift just below the band makes the band's first bin its largest; the parabola
     through that bin and the (higher) one outside the band must not move the line out of the band
     (a wide-rig canter's 0.51 Hz edge bin once read as 0.28 Hz and the stride was lost)."""
-    from saddlescope.core.period import _dominant_frequency
+    from saddlescope.core.kinematics.period import _dominant_frequency
 
     t = np.arange(0, 3.1, 1 / 60)
     drift = 200 * np.sin(2 * np.pi * 0.3 * t)

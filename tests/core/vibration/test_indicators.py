@@ -1,4 +1,4 @@
-"""Comfort indicators of a ride, comparisons and riders' grades (core.indicators)."""
+"""Comfort indicators of a ride, comparisons and riders' grades (core.vibration)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from saddlescope.core import indicators as ind
 from saddlescope.core import vibration as vib
 from saddlescope.core.errors import InputError, VibrationError
 
@@ -67,16 +66,16 @@ def _canter():
 
 
 def test_ride_indicators_has_every_contract_key_as_float():
-    out = ind.ride_indicators(**_canter())
-    assert set(ind.CONTRACT_KEYS) <= set(out)
+    out = vib.ride_indicators(**_canter())
+    assert set(vib.CONTRACT_KEYS) <= set(out)
     assert all(isinstance(v, float) for v in out.values())
-    assert set(ind.COMFORT_INDICATORS) <= set(out)
-    assert all(key in ind.INDICATORS for key in out)
+    assert set(vib.COMFORT_INDICATORS) <= set(out)
+    assert all(key in vib.INDICATORS for key in out)
 
 
 def test_ride_indicators_are_consistent_with_the_metrics():
     args = _canter()
-    out = ind.ride_indicators(**args)
+    out = vib.ride_indicators(**args)
     series = (args["f0_hz"], args["acc_y_amplitudes_m_s2"], args["acc_y_phases_rad"])
     wb = vib.harmonic_metrics(*series, "Wb", args["duration_s"])
     wk = vib.harmonic_metrics(*series, "Wk", args["duration_s"])
@@ -100,7 +99,7 @@ def test_horizontal_axes_and_worst_axis_rule():
     args = _canter()
     acc_x = {"amplitudes_m_s2": [4.0, 1.0], "phases_rad": [0.3, 0.0]}
     acc_z = {"amplitudes_m_s2": [0.8], "phases_rad": [0.0], "f0_hz": args["f0_hz"] / 2}
-    out = ind.ride_indicators(**args, acc_x=acc_x, acc_z=acc_z)
+    out = vib.ride_indicators(**args, acc_x=acc_x, acc_z=acc_z)
     wd_x = vib.harmonic_metrics(args["f0_hz"], [4.0, 1.0], [0.3, 0.0], "Wd", args["duration_s"])
     assert out["acc_x_wd_rms"] == wd_x["rms"]
     eff = {"x": 1.4 * wd_x["rms"], "y": out["acc_y_wk_rms"], "z": 1.4 * out["acc_z_wd_rms"]}
@@ -109,7 +108,7 @@ def test_horizontal_axes_and_worst_axis_rule():
     assert out["t_a8_limit_worst_h"] == pytest.approx(8 * (1.15 / worst) ** 2)
     assert out["t_a8_limit_worst_h"] < out["t_a8_limit_wk_h"]
     with pytest.raises(VibrationError, match="phases_rad"):
-        ind.ride_indicators(**args, acc_x={"amplitudes_m_s2": [1.0]})
+        vib.ride_indicators(**args, acc_x={"amplitudes_m_s2": [1.0]})
 
 
 def test_sampled_twin_agrees_with_harmonic_indicators_at_30_fps():
@@ -119,12 +118,12 @@ def test_sampled_twin_agrees_with_harmonic_indicators_at_30_fps():
     amps, phases = np.array(args["acc_y_amplitudes_m_s2"]), np.array(args["acc_y_phases_rad"])
     k = np.arange(1, 5)[:, None]
     a = np.sum(amps[:, None] * np.cos(2 * np.pi * args["f0_hz"] * k * t + phases[:, None]), axis=0)
-    exact = ind.ride_indicators(**args)
-    sampled = ind.ride_indicators_sampled(a, fs_hz, speed_kmh=args["speed_kmh"],
+    exact = vib.ride_indicators(**args)
+    sampled = vib.ride_indicators_sampled(a, fs_hz, speed_kmh=args["speed_kmh"],
                                           amplitude_y_m=args["amplitude_y_m"],
                                           stride_frequency_hz=args["stride_frequency_hz"])
     assert set(sampled) == set(exact)
-    for key in ind.CONTRACT_KEYS:
+    for key in vib.CONTRACT_KEYS:
         assert sampled[key] == pytest.approx(exact[key], rel=5e-3), key
 
 
@@ -136,18 +135,18 @@ def test_sampled_twin_agrees_with_harmonic_indicators_at_30_fps():
 ])
 def test_ride_indicators_validation(change, match):
     with pytest.raises(VibrationError, match=match):
-        ind.ride_indicators(**(_canter() | change))
+        vib.ride_indicators(**(_canter() | change))
 
 
 def test_comfort_indicators_and_units():
-    out = ind.comfort_indicators(ind.ride_indicators(**_canter()))
-    assert tuple(out) == ind.COMFORT_INDICATORS and len(out) == 8
-    assert ind.indicator_unit("t_a8_limit_wb_h") == "h"
-    assert ind.indicator_unit("vdv_y_wb") == "m/s^1.75"
-    assert ind.indicator_unit("something_kmh") == "km/h"
-    assert ind.INDICATORS["acc_y_wb_rms"].thesis_name == "acc_y_Wb_rms"
+    out = vib.comfort_indicators(vib.ride_indicators(**_canter()))
+    assert tuple(out) == vib.COMFORT_INDICATORS and len(out) == 8
+    assert vib.indicator_unit("t_a8_limit_wb_h") == "h"
+    assert vib.indicator_unit("vdv_y_wb") == "m/s^1.75"
+    assert vib.indicator_unit("something_kmh") == "km/h"
+    assert vib.INDICATORS["acc_y_wb_rms"].thesis_name == "acc_y_Wb_rms"
     with pytest.raises(InputError, match="acc_y_max"):
-        ind.comfort_indicators({"acc_y_wb_rms": 1.0})
+        vib.comfort_indicators({"acc_y_wb_rms": 1.0})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -169,7 +168,7 @@ def _rides():
 
 def test_compare_gaits_matches_numpy_statistics_in_gait_order():
     rows = _rides()
-    out = ind.compare_gaits(rows, "acc_y_wb_rms", horse="Horse 2")
+    out = vib.compare_gaits(rows, "acc_y_wb_rms", horse="Horse 2")
     assert [g["group"] for g in out] == ["walk", "sitting_trot", "canter"]
     for g in out:
         values = [r["acc_y_wb_rms"] for r in rows if r["horse"] == "Horse 2" and r["gait"] == g["group"]]
@@ -185,40 +184,40 @@ def test_compare_horses_reads_nested_indicators_and_skips_missing():
             {"horse": "B", "gait": "walk", "indicators": {"vdv_y_wb": None}},
             {"horse": "B", "gait": "walk", "vdv_y_wb": 2.0},
             {"horse": "C", "gait": "canter", "vdv_y_wb": 9.0}]
-    out = ind.compare_horses(rows, "vdv_y_wb", gait="walk")
+    out = vib.compare_horses(rows, "vdv_y_wb", gait="walk")
     assert [(g["group"], g["n"], g["mean"]) for g in out] == [("A", 2, 2.0), ("B", 1, 2.0)]
     assert math.isnan(out[1]["std"])
 
 
 def test_leaderboard_ranks_by_comfort_direction_with_ties():
     rows = _rides()
-    board = ind.leaderboard(rows, "acc_y_wb_rms", gait="canter")
+    board = vib.leaderboard(rows, "acc_y_wb_rms", gait="canter")
     assert [b["horse"] for b in board] == ["Horse 1", "Horse 2", "Horse 3"]  # lower r.m.s. first
     assert [b["rank"] for b in board] == [1, 2, 3] and all(b["n"] == 3 for b in board)
-    by_time = ind.leaderboard(rows, "t_a8_limit_wb_h", gait="canter")
+    by_time = vib.leaderboard(rows, "t_a8_limit_wb_h", gait="canter")
     assert [b["horse"] for b in by_time] == ["Horse 1", "Horse 2", "Horse 3"]  # longer time first
     assert by_time[0]["spread"] == pytest.approx(by_time[0]["max"] - by_time[0]["min"])
     tied = [{"horse": h, "gait": "walk", "vdv_y_wb": v} for h, v in [("A", 2.0), ("B", 1.0), ("C", 1.0)]]
-    assert [(b["rank"], b["horse"]) for b in ind.leaderboard(tied, "vdv_y_wb", gait="walk")] == \
+    assert [(b["rank"], b["horse"]) for b in vib.leaderboard(tied, "vdv_y_wb", gait="walk")] == \
         [(1, "B"), (1, "C"), (3, "A")]
     with pytest.raises(InputError, match="lower_is_better"):
-        ind.leaderboard(rows, "vel_x_avg_kmh", gait="walk")
-    fastest = ind.leaderboard(rows, "vel_x_avg_kmh", gait="walk", lower_is_better=False)
+        vib.leaderboard(rows, "vel_x_avg_kmh", gait="walk")
+    fastest = vib.leaderboard(rows, "vel_x_avg_kmh", gait="walk", lower_is_better=False)
     assert fastest[0]["mean"] >= fastest[-1]["mean"]
 
 
 def test_relative_comfort_as_in_thesis_8_5():
-    assert ind.relative_comfort(1.5, 3.0) == pytest.approx(2.0)
+    assert vib.relative_comfort(1.5, 3.0) == pytest.approx(2.0)
     rows = [{"horse": "A", "gait": "canter", "t_a8_limit_wb_h": 1.5},
             {"horse": "B", "gait": "canter", "t_a8_limit_wb_h": 3.0},
             {"horse": "B", "gait": "canter", "t_a8_limit_wb_h": 3.0}]
-    table = ind.relative_comfort_table(rows, gait="canter")
+    table = vib.relative_comfort_table(rows, gait="canter")
     assert table["reference_horse"] == "A"
     got = [(r["horse"], r["relative"], r["mean"]) for r in table["rows"]]
     assert got == [("B", 2.0, 3.0), ("A", 1.0, 1.5)]
     assert "passive" in table["caveat"]
     with pytest.raises(InputError, match="allowed times"):
-        ind.relative_comfort_table(rows, gait="canter", indicator="acc_y_wb_rms")
+        vib.relative_comfort_table(rows, gait="canter", indicator="acc_y_wb_rms")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -241,7 +240,7 @@ def _grade_rows():
 
 
 def test_average_grades_reproduce_table_8_8():
-    averages = ind.average_grades(_grade_rows())
+    averages = vib.average_grades(_grade_rows())
     for gait, expected in TABLE_8_8_AVG.items():
         got = {a["horse"]: a["grade"] for a in averages if a["gait"] == gait}
         assert [got[f"Horse {h}"] for h in range(1, 5)] == expected
@@ -249,7 +248,7 @@ def test_average_grades_reproduce_table_8_8():
     overall = [np.mean([a["grade"] for a in averages if a["horse"] == f"Horse {h}"]) for h in range(1, 5)]
     assert overall == [3, 4.4375, 4.375, 2.5]  # "overall avg ccw"
     with pytest.raises(InputError, match="1-5"):
-        ind.average_grades([{"horse": "H", "gait": "walk", "rider": "R", "grade": 6}])
+        vib.average_grades([{"horse": "H", "gait": "walk", "rider": "R", "grade": 6}])
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -257,7 +256,7 @@ def test_grade_correlation_matches_scipy(seed):
     rng = np.random.default_rng(seed)
     grades = rng.integers(1, 6, 16).astype(float)  # ties, as real grades have
     values = 5.0 - 0.6 * grades + rng.normal(0, 0.8, 16)
-    out = ind.grade_correlation(grades, values)
+    out = vib.grade_correlation(grades, values)
     pearson = stats.pearsonr(grades, values)
     spearman = stats.spearmanr(grades, values)
     assert out["n"] == 16
@@ -277,21 +276,21 @@ def test_grade_correlation_matches_scipy(seed):
 def test_grade_correlation_of_table_8_8_averages_against_an_indicator():
     grades = TABLE_8_8_AVG["canter"]
     rms = [3.9, 3.2, 3.0, 4.4]
-    out = ind.grade_correlation(grades, rms)
+    out = vib.grade_correlation(grades, rms)
     assert out["pearson_r"] == pytest.approx(stats.pearsonr(grades, rms).statistic)
     assert out["spearman_rho"] == pytest.approx(-1.0)
     assert out["spearman_p"] == 0.0 and out["n"] == 4
 
 
 def test_grade_correlation_degenerate_cases():
-    constant = ind.grade_correlation([3, 3, 3, 3], [1.0, 2.0, 3.0, 4.0])
+    constant = vib.grade_correlation([3, 3, 3, 3], [1.0, 2.0, 3.0, 4.0])
     assert math.isnan(constant["pearson_r"]) and math.isnan(constant["spearman_p"])
-    three = ind.grade_correlation([1, 2, 4], [3.0, 2.0, 2.5])
+    three = vib.grade_correlation([1, 2, 4], [3.0, 2.0, 2.5])
     assert math.isnan(three["pearson_ci_low"]) and not math.isnan(three["pearson_p"])
-    dropped = ind.grade_correlation([1, 2, np.nan, 4, 5], [1.0, 2.5, 3.0, np.nan, 4.0])
+    dropped = vib.grade_correlation([1, 2, np.nan, 4, 5], [1.0, 2.5, 3.0, np.nan, 4.0])
     assert dropped["n"] == 3
     with pytest.raises(InputError, match="paired"):
-        ind.grade_correlation([1, 2], [1.0])
+        vib.grade_correlation([1, 2], [1.0])
 
 
 def test_grades_vs_indicators_pairs_average_grade_with_mean_indicator():
@@ -300,7 +299,7 @@ def test_grades_vs_indicators_pairs_average_grade_with_mean_indicator():
     rides = [{"horse": h, "gait": "canter", "acc_y_wb_rms": v + d}
              for h, v in rms.items() for d in (-0.1, 0.1)]
     rides.append({"horse": "Horse 5", "gait": "canter", "acc_y_wb_rms": 1.0})  # never graded: left out
-    out = ind.grades_vs_indicators(grade_rows, rides, ["acc_y_wb_rms"], gait="canter")["acc_y_wb_rms"]
+    out = vib.grades_vs_indicators(grade_rows, rides, ["acc_y_wb_rms"], gait="canter")["acc_y_wb_rms"]
     assert out["n"] == 4 and out["expected_sign"] == -1
     assert [p["horse"] for p in out["points"]] == list(rms)
     assert [p["grade"] for p in out["points"]] == [2.75, 4.75, 5.0, 2.25]

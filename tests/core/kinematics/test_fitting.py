@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.fitting import count_extrema, fit_fourier, fit_linear, fit_marker_kinematics
+from saddlescope.core.kinematics import count_extrema, fit_fourier, fit_linear, fit_marker_kinematics
 
 PERIOD_S = 0.6
 W = 2 * np.pi / PERIOD_S

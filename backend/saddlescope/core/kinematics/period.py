@@ -16,6 +16,11 @@ import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
 
+__all__ = [
+    "estimate_period",
+    "analysis_window",
+]
+
 # A principal component counts if its amplitude is at least this fraction of the largest one.
 _COMPONENT_FRACTION = 0.1
 # A shorter candidate is kept if its score is within this margin of the best candidate's score.
@@ -151,47 +156,15 @@ def estimate_period(t_s, xyz, *, f_range_hz: tuple[float, float] = (0.5, 3.0), m
         If the record is too short, markers are missing most of the time or no periodic motion
         is found.
     """
-    xyz = np.asarray(xyz, dtype=np.float64)
-    if xyz.ndim != 3 or xyz.shape[2] != 3:
-        raise InputError(f"xyz must have shape (F, M, 3), got {xyz.shape}")
-    t_s = np.asarray(t_s, dtype=np.float64)
-    if t_s.shape != (xyz.shape[0],) or not np.all(np.isfinite(t_s)) or np.any(np.diff(t_s) <= 0):
-        raise InputError(f"t_s must be {xyz.shape[0]} strictly increasing finite times, "
-                         f"got shape {t_s.shape}")
-    f_lo, f_hi = (float(f) for f in f_range_hz)
-    if not 0 < f_lo < f_hi:
-        raise InputError(f"f_range_hz must be (low, high) with 0 < low < high, got {f_range_hz}")
+    t_s, xyz, f_lo, f_hi = _check_tracks(t_s, xyz, f_range_hz)
     duration_s = float(t_s[-1] - t_s[0])
     if duration_s < 2.0 / f_hi:
         raise KinematicsError(f"the ride lasts {duration_s:.2f} s, shorter than two periods even at the "
                               f"highest stride frequency considered ({f_hi:.2f} Hz)")
-    t, signals = _uniform_signals(t_s, xyz)
-    dt = float(t[1] - t[0])
-    x = _detrend(signals, t)
-    u, s, _ = np.linalg.svd(x, full_matrices=False)
-    if s[0] <= 0:
-        raise KinematicsError("the markers do not move relative to a straight line: no period to estimate")
-    keep = s >= _COMPONENT_FRACTION * s[0]
-    keep[6:] = False
-    comp = u[:, keep] * s[keep]
-    weights = s[keep]
+    comp, weights, dt = _principal_motions(t_s, xyz)
     nyquist = 0.5 / dt
     f_dom, freqs, power = _dominant_frequency(comp, dt, f_lo, min(max_harmonic * f_hi, 0.95 * nyquist))
-    candidates = []
-    for m in range(1, max_harmonic + 1):
-        period = m / f_dom
-        if not f_lo <= 1.0 / period <= f_hi:
-            continue
-        if period > 0.7 * duration_s:
-            continue  # too little overlap for a trustworthy comparison
-        p_best = _refine_lag(comp, period / dt, dt)
-        lag = int(round(p_best / dt))
-        if lag >= comp.shape[0] - 8:
-            continue
-        corr = _similarity(comp, lag)[0]
-        score = float(np.sum(weights * corr) / np.sum(weights))
-        candidates.append({"harmonic": m, "period_s": p_best, "score": score,
-                           "correlations": corr.tolist()})
+    candidates = _candidate_periods(comp, weights, dt, f_dom, f_lo, f_hi, duration_s, max_harmonic)
     if not candidates:
         raise KinematicsError(
             f"the dominant motion frequency {f_dom:.2f} Hz has no sub-harmonic inside the stride range "
@@ -211,6 +184,63 @@ def estimate_period(t_s, xyz, *, f_range_hz: tuple[float, float] = (0.5, 3.0), m
         "spectrum_power": power,
     }
     return chosen["period_s"], details
+
+
+def _check_tracks(t_s, xyz, f_range_hz) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Times (F,) and tracks (F, M, 3) as float arrays, and the stride band (Hz); InputError if bad."""
+    xyz = np.asarray(xyz, dtype=np.float64)
+    if xyz.ndim != 3 or xyz.shape[2] != 3:
+        raise InputError(f"xyz must have shape (F, M, 3), got {xyz.shape}")
+    t_s = np.asarray(t_s, dtype=np.float64)
+    if t_s.shape != (xyz.shape[0],) or not np.all(np.isfinite(t_s)) or np.any(np.diff(t_s) <= 0):
+        raise InputError(f"t_s must be {xyz.shape[0]} strictly increasing finite times, "
+                         f"got shape {t_s.shape}")
+    f_lo, f_hi = (float(f) for f in f_range_hz)
+    if not 0 < f_lo < f_hi:
+        raise InputError(f"f_range_hz must be (low, high) with 0 < low < high, got {f_range_hz}")
+    return t_s, xyz, f_lo, f_hi
+
+
+def _principal_motions(t_s: np.ndarray, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The tracks' principal components on a uniform grid, with the travel removed.
+
+    Returns the components (n, C) that count (at most six, each at least ``_COMPONENT_FRACTION`` of
+    the largest), their singular values (C,) as weights, and the grid step dt (s).
+    """
+    t, signals = _uniform_signals(t_s, xyz)
+    dt = float(t[1] - t[0])
+    x = _detrend(signals, t)
+    u, s, _ = np.linalg.svd(x, full_matrices=False)
+    if s[0] <= 0:
+        raise KinematicsError("the markers do not move relative to a straight line: no period to estimate")
+    keep = s >= _COMPONENT_FRACTION * s[0]
+    keep[6:] = False
+    return u[:, keep] * s[keep], s[keep], dt
+
+
+def _candidate_periods(comp: np.ndarray, weights: np.ndarray, dt: float, f_dom: float, f_lo: float,
+                       f_hi: float, duration_s: float, max_harmonic: int) -> list[dict]:
+    """The sub-harmonic periods m / f_dom inside the stride band, each refined and scored.
+
+    Each candidate is a dict of ``harmonic`` (m), ``period_s``, ``score`` (weighted similarity of the
+    components with themselves one period later) and ``correlations`` (per component).
+    """
+    candidates = []
+    for m in range(1, max_harmonic + 1):
+        period = m / f_dom
+        if not f_lo <= 1.0 / period <= f_hi:
+            continue
+        if period > 0.7 * duration_s:
+            continue  # too little overlap for a trustworthy comparison
+        p_best = _refine_lag(comp, period / dt, dt)
+        lag = int(round(p_best / dt))
+        if lag >= comp.shape[0] - 8:
+            continue
+        corr = _similarity(comp, lag)[0]
+        score = float(np.sum(weights * corr) / np.sum(weights))
+        candidates.append({"harmonic": m, "period_s": p_best, "score": score,
+                           "correlations": corr.tolist()})
+    return candidates
 
 
 def analysis_window(t_s, valid_mask, period_s: float, *, n_periods: int = 2,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import KinematicsError
-from saddlescope.core.rigid_body import (
+from saddlescope.core.kinematics import (
     VERSION_NAMES,
     alpha_versions,
     angular_kinematics,
@@ -187,10 +187,10 @@ def test_missing_static_saddle_raises():
 
 def test_stages_chain_recovers_saddle_acceleration():
     """Rig tracks -> period -> window -> motion frame -> registration -> fits -> angular -> S."""
-    from saddlescope.core.fitting import fit_marker_kinematics
-    from saddlescope.core.frames import motion_frame, to_motion_frame
-    from saddlescope.core.period import analysis_window, estimate_period
-    from saddlescope.core.registration import marker_model, register_rigid
+    from saddlescope.core.kinematics.fitting import fit_marker_kinematics
+    from saddlescope.core.kinematics.frames import motion_frame, to_motion_frame
+    from saddlescope.core.kinematics.period import analysis_window, estimate_period
+    from saddlescope.core.kinematics.registration import marker_model, register_rigid
 
     c, s = np.cos(0.5), np.sin(0.5)
     R_rw = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])  # rig <- world (world = true motion frame)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.registration import layout_ratio, marker_model, register_rigid
+from saddlescope.core.kinematics.registration import layout_ratio, marker_model, register_rigid
 
 MODEL_MM = np.array([[0.0, 0.0, 0.0], [500.0, 20.0, 0.0], [250.0, -150.0, 30.0]])
 
@@ -91,7 +91,7 @@ def test_layout_ratio_and_shapes():
 
 
 def test_look_alikes_that_break_the_marker_distances_are_found():
-    from saddlescope.core.registration import broken_distance_samples
+    from saddlescope.core.kinematics.registration import broken_distance_samples
 
     rng = np.random.default_rng(5)
     n = 120

@@ -10,8 +10,8 @@ import pytest
 
 from conftest import real_data_path
 from saddlescope.core.errors import InputError, MocapFileError
-from saddlescope.io import mocap
 from saddlescope.io.mocap import MocapData, read_mocap, write_c3d, write_trc
+from saddlescope.io.mocap import c3d as mocap_c3d
 
 EB015 = ("Eb015pi.c3d", "Eb015pr.c3d", "Eb015sr.c3d")
 BAD_FILES = ("Empty.c3d", "Empty.trc", "Truncated.trc", "badParameterOffset.c3d", "bad_parameter_section.c3d")
@@ -175,7 +175,7 @@ def test_c3d_bad_key_truncated_data_and_bad_offset(tmp_path):
 def test_a_crash_of_the_native_reader_becomes_an_error(tmp_path, monkeypatch):
     path = tmp_path / "ok.c3d"
     path.write_bytes(_small_c3d(tmp_path))
-    monkeypatch.setattr(mocap, "_EZC3D_CHILD", "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)")
+    monkeypatch.setattr(mocap_c3d, "_EZC3D_CHILD", "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)")
     with pytest.raises(MocapFileError, match="crashed"):
         read_mocap(path)
 

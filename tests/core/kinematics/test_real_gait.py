@@ -12,10 +12,10 @@ from scipy.signal import find_peaks
 
 from conftest import real_data_path
 from saddlescope.core.errors import KinematicsError
-from saddlescope.core.fitting import fit_marker_kinematics
-from saddlescope.core.frames import motion_frame, to_motion_frame
-from saddlescope.core.period import analysis_window, estimate_period
-from saddlescope.core.registration import marker_model, register_rigid
+from saddlescope.core.kinematics.fitting import fit_marker_kinematics
+from saddlescope.core.kinematics.frames import motion_frame, to_motion_frame
+from saddlescope.core.kinematics.period import analysis_window, estimate_period
+from saddlescope.core.kinematics.registration import marker_model, register_rigid
 from saddlescope.io.mocap import read_mocap
 
 pytestmark = pytest.mark.realdata

@@ -1,4 +1,4 @@
-"""Angular kinematics of the marker triangle and the invisible saddle point (thesis 6.1-6.4).
+"""Angular kinematics of the marker triangle (thesis 6.1-6.4).
 
 Angular velocity. For three markers the thesis writes v_i = v_j + ω × r_ji (r_ji: from marker j
 to marker i) for the two other markers j, k and solves the pair in closed form (eq. 6.3-6.4,
@@ -26,9 +26,7 @@ Angular acceleration (eq. 6.36-6.39): α × r_ji = a_i − a_j − ω × (ω × 
 the known vectors of eq. 6.38-6.39 as a_j + ω × (ω × r_ji), dropping a_i; the derivation
 (eq. 6.13-6.14 applied to eq. 6.36-6.37) gives K2 = a_j − a_i + ω × (ω × r_ji), used here.
 
-Saddle point S (eq. 6.41-6.55): body frame from markers 1-3, S's body coordinates from the
-static shot, its position during the ride, and v_S = v_i + ω × r_iS, a_S = a_i + α × r_iS +
-ω × (ω × r_iS) from each marker i, averaged, with their spread.
+The invisible saddle point follows from them in :mod:`saddlescope.core.kinematics.saddle_point`.
 """
 
 from __future__ import annotations
@@ -38,7 +36,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.registration import check_marker_layout
+from saddlescope.core.kinematics.registration import check_marker_layout
+
+__all__ = [
+    "VERSION_NAMES",
+    "ANGULAR_METHODS",
+    "AngularKinematics",
+    "unobservable_axis",
+    "weak_axis_gain",
+    "omega_versions",
+    "alpha_versions",
+    "omega_least_squares",
+    "alpha_least_squares",
+    "plane_normal",
+    "singularity_index",
+    "angular_kinematics",
+]
 
 # (reference marker i, other markers j, k) of versions 1-3 (thesis "ver1".."ver3").
 _VERSIONS = ((0, 1, 2), (1, 0, 2), (2, 0, 1))
@@ -102,29 +115,6 @@ class AngularKinematics:
         return float(np.median(s)) if s.size else float("nan")
 
 
-@dataclass(frozen=True)
-class PointKinematics:
-    """Kinematics of the invisible saddle point S in the motion frame.
-
-    position_m, velocity_m_s, acceleration_m_s2 : ndarray of shape (F, 3)
-        Position (eq. 6.48) and the mean over the three markers of eq. 6.54 / 6.55.
-    velocity_per_marker, acceleration_per_marker : ndarray of shape (F, 3, 3)
-        (frame, marker used, component).
-    velocity_spread, acceleration_spread : ndarray of shape (F,)
-        Largest distance of a per-marker estimate from the mean.
-    body_coordinates_m : ndarray of shape (3,)
-        S in the body frame (eq. 6.47).
-    """
-
-    position_m: np.ndarray
-    velocity_m_s: np.ndarray
-    acceleration_m_s2: np.ndarray
-    velocity_per_marker: np.ndarray
-    acceleration_per_marker: np.ndarray
-    velocity_spread: np.ndarray
-    acceleration_spread: np.ndarray
-    body_coordinates_m: np.ndarray
-
 
 def _check_triplet(x, name: str) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64)
@@ -177,9 +167,22 @@ def _skew_lsq(d: np.ndarray, rhs: np.ndarray, min_eig_ratio: float = 0.0, weak_g
 def unobservable_axis(r, *, min_eig_ratio: float) -> tuple[np.ndarray, float]:
     """The least observable rotation axis of the marker triangle and its eigenvalue ratio.
 
-    r : (F, 3, 3) -> (unit axis (3,), median ratio of the smallest to the largest eigenvalue of the
-    pairs' normal matrix). A ratio below ``min_eig_ratio`` means the angular velocity component about
-    that axis is not observable from the markers (they lie near a line along it)."""
+    Parameters
+    ----------
+    r : ndarray of shape (F, 3, 3)
+        Marker positions (frame, marker, xyz); frames with a missing marker are ignored.
+    min_eig_ratio : float
+        The ratio below which rotation about the axis counts as unobservable (for the caller).
+
+    Returns
+    -------
+    axis : ndarray of shape (3,)
+        Unit axis, in the frame of ``r``.
+    ratio : float
+        Median ratio of the smallest to the largest eigenvalue of the pairs' normal matrix. A ratio
+        below ``min_eig_ratio`` means the angular velocity component about that axis is not
+        observable from the markers (they lie near a line along it).
+    """
     r = _check_triplet(r, "r")
     d = _pair_differences(r)
     ok = np.all(np.isfinite(d), axis=(1, 2))
@@ -189,9 +192,11 @@ def unobservable_axis(r, *, min_eig_ratio: float) -> tuple[np.ndarray, float]:
 
 
 def _weak_component_and_noise(d: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame: the least-squares u's component along the weakest axis, and its noise variance
-    predicted from the fit's own residual (isotropic noise of std σ on each marker coordinate:
-    residual sum of squares over the pairs = 9 σ², weak-axis variance = 3 σ² / e_min)."""
+    """Per frame: the least-squares u's component along the weakest axis, and its noise variance.
+
+    The variance is predicted from the fit's own residual (isotropic noise of std σ on each marker
+    coordinate: residual sum of squares over the pairs = 9 σ², weak-axis variance = 3 σ² / e_min).
+    """
     normal = _pair_normal(d)
     b = np.sum(np.cross(d, rhs), axis=1)
     ok = np.all(np.isfinite(normal), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
@@ -211,7 +216,21 @@ def weak_axis_gain(r_raw, v_raw, a_raw, *, over_subtraction: float = 3.0) -> tup
     Registered markers are rigid by construction, so they hide how much of their rotation is skin
     motion. The raw fitted velocities and accelerations keep the non-rigid part: its size (the
     least-squares residual) predicts the noise of the weak-axis component, and the gain is
-    1 − noise power / measured power (0 when the component is no larger than its noise)."""
+    1 − noise power / measured power (0 when the component is no larger than its noise).
+
+    Parameters
+    ----------
+    r_raw, v_raw, a_raw : ndarray of shape (F, 3, 3)
+        Unregistered marker positions (m) and their fitted velocities (m/s) and accelerations
+        (m/s²), (frame, marker, xyz).
+    over_subtraction : float, optional
+        Factor on the predicted noise power (see the comment in the code).
+
+    Returns
+    -------
+    gain_omega, gain_alpha : float
+        Gains in [0, 1] on the weakest axis of ω and of α.
+    """
     r, v, a = (_check_triplet(x, n) for x, n in ((r_raw, "r"), (v_raw, "v"), (a_raw, "a")))
     d = _pair_differences(r)
     dv = _pair_differences(v)
@@ -290,7 +309,10 @@ def alpha_versions(r, a, omega) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    versions : ndarray of shape (F, 6, 3); conditioning : ndarray of shape (F, 6)
+    versions : ndarray of shape (F, 6, 3)
+        In the order of ``VERSION_NAMES`` (rad/s²); inf/NaN at exact singularities.
+    conditioning : ndarray of shape (F, 6)
+        |cos| between the two vectors of each denominator (0 = singular).
     """
     r = _check_triplet(r, "r")
     a = _check_triplet(a, "a")
@@ -309,7 +331,20 @@ def alpha_versions(r, a, omega) -> tuple[np.ndarray, np.ndarray]:
 def omega_least_squares(r, v, *, min_eig_ratio: float = 0.0, weak_gain: float | None = None) -> np.ndarray:
     """Angular velocity from all marker pairs: v_j − v_i = ω × (r_j − r_i), least squares per frame.
 
-    r, v : ndarray of shape (F, 3, 3) -> omega : ndarray of shape (F, 3).
+    Parameters
+    ----------
+    r, v : ndarray of shape (F, 3, 3)
+        Marker positions (m) and velocities (m/s), (frame, marker, xyz).
+    min_eig_ratio : float, optional
+        Rotation about an axis whose eigenvalue of the pairs' normal matrix is below this fraction
+        of the largest is left out (taken as zero).
+    weak_gain : float, optional
+        Gain on the component about the weakest axis (see :func:`weak_axis_gain`).
+
+    Returns
+    -------
+    omega : ndarray of shape (F, 3)
+        Angular velocity (rad/s); NaN where a marker is missing.
     """
     r = _check_triplet(r, "r")
     v = _check_triplet(v, "v")
@@ -322,7 +357,19 @@ def alpha_least_squares(r, a, omega, *, min_eig_ratio: float = 0.0, weak_gain: f
                         ) -> np.ndarray:
     """Angular acceleration from all pairs: a_j − a_i − ω × (ω × d) = α × d, d = r_j − r_i.
 
-    r, a : ndarray of shape (F, 3, 3); omega : (F, 3) -> alpha : ndarray of shape (F, 3).
+    Parameters
+    ----------
+    r, a : ndarray of shape (F, 3, 3)
+        Marker positions (m) and accelerations (m/s²), (frame, marker, xyz).
+    omega : ndarray of shape (F, 3)
+        Angular velocity (rad/s) of the centripetal terms.
+    min_eig_ratio, weak_gain : optional
+        As in :func:`omega_least_squares`.
+
+    Returns
+    -------
+    alpha : ndarray of shape (F, 3)
+        Angular acceleration (rad/s²).
     """
     r = _check_triplet(r, "r")
     a = _check_triplet(a, "a")
@@ -334,7 +381,17 @@ def alpha_least_squares(r, a, omega, *, min_eig_ratio: float = 0.0, weak_gain: f
 
 
 def plane_normal(r) -> np.ndarray:
-    """Unit normal of the markers' plane, n = r21 × r31 / |r21 × r31| (eq. 6.33); (F, 3, 3) -> (F, 3)."""
+    """Unit normal of the markers' plane, n = r21 × r31 / |r21 × r31| (eq. 6.33).
+
+    Parameters
+    ----------
+    r : ndarray of shape (F, 3, 3)
+        Marker positions (frame, marker, xyz).
+
+    Returns
+    -------
+    n : ndarray of shape (F, 3)
+    """
     r = _check_triplet(r, "r")
     c = np.cross(r[:, 0] - r[:, 1], r[:, 0] - r[:, 2])
     return c / np.linalg.norm(c, axis=1, keepdims=True)
@@ -343,7 +400,17 @@ def plane_normal(r) -> np.ndarray:
 def singularity_index(r, omega) -> np.ndarray:
     """|n · ω̂| per frame (eq. 6.35): 0 where the closed-form versions are singular.
 
-    r : (F, 3, 3); omega : (F, 3) -> (F,). NaN where ω = 0 (no rotation: nothing to resolve).
+    Parameters
+    ----------
+    r : ndarray of shape (F, 3, 3)
+        Marker positions (frame, marker, xyz).
+    omega : ndarray of shape (F, 3)
+        Angular velocity (rad/s).
+
+    Returns
+    -------
+    ndarray of shape (F,)
+        In [0, 1]; NaN where ω = 0 (no rotation: nothing to resolve).
     """
     n = plane_normal(r)
     w = np.asarray(omega, dtype=np.float64).reshape(-1, 3)
@@ -387,7 +454,7 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
         ("lsq_wiener", needs ``raw``); or the mean of the kept versions (the thesis's choice;
         frames where all are excluded fall back to least squares).
     min_height_ratio : float, optional
-        Collinearity limit, see :func:`saddlescope.core.registration.check_marker_layout`.
+        Collinearity limit, see :func:`saddlescope.core.kinematics.registration.check_marker_layout`.
     raw : tuple of (r, v, a), optional
         Unregistered marker positions and their fitted velocities and accelerations, for "lsq_wiener".
 
@@ -400,47 +467,13 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
     KinematicsError
         If the markers are (nearly) collinear.
     """
-    if method not in ANGULAR_METHODS:
-        raise InputError(f"method must be one of {', '.join(ANGULAR_METHODS)}, got {method!r}")
-    if method == "lsq_wiener" and raw is None:
-        raise InputError("method 'lsq_wiener' needs the unregistered markers' (r, v, a) as raw")
-    r = _check_triplet(r, "r")
-    v = _check_triplet(v, "v")
-    a = _check_triplet(a, "a")
-    if not (r.shape == v.shape == a.shape):
-        raise InputError(f"r, v and a must have the same shape, got {r.shape}, {v.shape}, {a.shape}")
-    finite = np.all(np.isfinite(r), axis=(1, 2))
-    if not finite.any():
-        raise KinematicsError("no frame has all three markers registered")
-    check_marker_layout(r[np.flatnonzero(finite)[0]], min_height_ratio=min_height_ratio)
-
+    r, v, a, finite = _check_body(r, v, a, method=method, raw=raw, min_height_ratio=min_height_ratio)
     w_lsq = omega_least_squares(r, v)
-    flags: list[str] = []
-    ratio_cut = 0.0
-    if method == "lsq_observable":
-        axis, ratio = unobservable_axis(r[finite], min_eig_ratio=observable_ratio)
-        if ratio < observable_ratio:
-            ratio_cut = observable_ratio
-            flags.append(f"the markers lie near a line (eigenvalue ratio {ratio:.3f} < {observable_ratio}): rotation "
-                         f"about it (axis {np.round(axis, 2).tolist()} in the motion frame) is not observable, "
-                         "so its component of ω and α is left out (taken as zero)")
-    gains = (None, None)
-    if method == "lsq_wiener":
-        gains = weak_axis_gain(*raw)
-        _, ratio = unobservable_axis(r[finite], min_eig_ratio=observable_ratio)
-        flags.append(f"rotation about the markers' weakest axis (eigenvalue ratio {ratio:.3f}) kept at "
-                     f"{gains[0]:.0%} in ω and {gains[1]:.0%} in α: the rest is what skin motion predicts")
+    ratio_cut, gains, flags = _weak_axis(r[finite], method, observable_ratio, raw)
     w_ver, w_cond = omega_versions(r, v)
     w_excl = ~(w_cond >= singularity_threshold)
     w_mean = _mean_kept(w_ver, w_excl)
-    if method == "lsq":
-        omega = w_lsq
-    elif method == "lsq_observable":
-        omega = omega_least_squares(r, v, min_eig_ratio=ratio_cut)
-    elif method == "lsq_wiener":
-        omega = omega_least_squares(r, v, weak_gain=gains[0])
-    else:
-        omega = np.where(np.isfinite(w_mean), w_mean, w_lsq)
+    omega = _final_omega(method, r, v, w_lsq, w_mean, ratio_cut, gains[0])
     a_lsq = alpha_least_squares(r, a, omega, min_eig_ratio=ratio_cut, weak_gain=gains[1])
     a_ver, a_cond = alpha_versions(r, a, omega)
     a_excl = ~(a_cond >= singularity_threshold)
@@ -448,19 +481,7 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
     alpha = a_lsq if method != "versions" else np.where(np.isfinite(a_mean), a_mean, a_lsq)
 
     sing = singularity_index(r, w_lsq)
-    valid = finite & np.isfinite(sing)
-    if valid.any():
-        med = float(np.median(sing[valid]))
-        if med < singularity_threshold:
-            flags.append(f"ω is nearly in the markers' plane (median |n·ω̂| = {med:.2f} < "
-                         f"{singularity_threshold}): the thesis's closed-form versions are near their "
-                         "singularity (eq. 6.35) and unreliable; the least-squares estimate is not affected")
-    for name, excl in (("ω", w_excl), ("α", a_excl)):
-        frac = excl[finite].mean(axis=0) if finite.any() else np.zeros(6)
-        shares = [f"{name}^{vname} {f:.0%}" for vname, f in zip(VERSION_NAMES, frac, strict=True) if f > 0]
-        if shares:  # one line per quantity: the share of frames each version was left out of
-            flags.append(f"{name} versions excluded near their singularity (conditioning below "
-                         f"{singularity_threshold}; share of frames): {', '.join(shares)}")
+    flags += _singularity_flags(sing, finite, w_excl, a_excl, singularity_threshold)
     if method == "versions":
         fallback = finite & ~np.all(np.isfinite(w_mean), axis=1)
         if fallback.any():
@@ -475,115 +496,80 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
         weak_axis_gain=gains if method == "lsq_wiener" else None)
 
 
-def body_frame(r) -> np.ndarray:
-    """Rotation body -> motion from markers 1-3 (eq. 6.41-6.45, 6.49-6.53).
+def _check_body(r, v, a, *, method: str, raw: tuple | None, min_height_ratio: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """r, v, a as (F, 3, 3) arrays and the frames (F,) with all three markers; raise on bad input.
 
-    r : ndarray of shape (F, 3, 3) or (3, 3) -> R_MB of shape (F, 3, 3) or (3, 3), columns
-    u1 (marker 1 -> 2), u2, u3 (normal).
+    KinematicsError if no frame has the three markers or they are (nearly) collinear.
     """
-    x = np.asarray(r, dtype=np.float64)
-    single = x.ndim == 2
-    x = _check_triplet(x, "r")
-    u1 = x[:, 1] - x[:, 0]
-    u1 = u1 / np.linalg.norm(u1, axis=1, keepdims=True)  # eq. 6.41
-    u2p = x[:, 2] - x[:, 0]
-    u2p = u2p / np.linalg.norm(u2p, axis=1, keepdims=True)  # eq. 6.42
-    u3 = np.cross(u1, u2p)
-    u3 = u3 / np.linalg.norm(u3, axis=1, keepdims=True)  # eq. 6.43
-    u2 = np.cross(u3, u1)  # eq. 6.44
-    R = np.stack([u1, u2, u3], axis=2)  # eq. 6.45: columns
-    return R[0] if single else R
-
-
-def saddle_body_coordinates(static_markers, static_saddle, *, min_height_ratio: float = 0.03) -> np.ndarray:
-    """S in the body frame from the static shot (eq. 6.47).
-
-    Parameters
-    ----------
-    static_markers : ndarray of shape (3, 3)
-        Markers 1-3 in the static shot (any frame, e.g. motion m or rig mm).
-    static_saddle : ndarray of shape (3,)
-        The saddle marker S in the same frame and units.
-
-    Returns
-    -------
-    r_BS : ndarray of shape (3,)
-        S relative to marker 1 in body axes (same units).
-    """
-    m = np.asarray(static_markers, dtype=np.float64)
-    s = np.asarray(static_saddle, dtype=np.float64).reshape(-1)
-    if m.shape != (3, 3) or s.shape != (3,):
-        raise InputError(f"static_markers must be (3, 3) and static_saddle (3,), got {m.shape} and {s.shape}")
-    if not (np.all(np.isfinite(m)) and np.all(np.isfinite(s))):
-        raise KinematicsError("the static shot lacks a horse marker or the saddle marker")
-    check_marker_layout(m, min_height_ratio=min_height_ratio, what="the static-shot markers")
-    return body_frame(m).T @ (s - m[0])
-
-
-def _position_with_weak_axis_shrunk(r: np.ndarray, rot: np.ndarray, r_bs: np.ndarray, gain: float,
-                                    position: np.ndarray) -> np.ndarray:
-    """S's position (eq. 6.48) with the rotation about the markers' weakest axis kept at ``gain`` of
-    its deviation from the mean orientation, as ω keeps it: the same depth noise that swamps roll
-    in ω makes the registered roll wander (on the thesis rig each marker's straight depth path
-    has its own slope, and 0.3 m above the row S drifted 6 cm in two strides). The rotation is
-    taken about the markers' centroid, the point they fix best."""
-    from scipy.spatial.transform import Rotation
-
-    ok = np.all(np.isfinite(rot), axis=(1, 2))
-    if ok.sum() < 2:
-        return position
-    f0 = int(np.flatnonzero(ok)[0])
-    body = rot[f0].T @ (r[f0] - r[f0, 0]).T  # markers in body coordinates (3, marker), constant
-    axis_b, _ = unobservable_axis(body.T[None], min_eig_ratio=0.0)  # the weakest axis, body coordinates
-    rots = Rotation.from_matrix(rot[ok])
-    mean = rots.mean()
-    phi = (mean.inv() * rots).as_rotvec()  # R(t) = R_mean exp([phi(t)]), phi in body coordinates
-    phi_w = phi @ axis_b
-    phi = phi + np.outer((gain - 1.0) * (phi_w - phi_w.mean()), axis_b)
-    rot_kept = (mean * Rotation.from_rotvec(phi)).as_matrix()
-    centroid_b = body.mean(axis=1)
-    out = position.copy()
-    out[ok] = r[ok].mean(axis=1) + np.einsum("fij,j->fi", rot_kept, r_bs - centroid_b)
-    return out
-
-
-def saddle_point_kinematics(r, v, a, angular: AngularKinematics, r_bs) -> PointKinematics:
-    """Position, velocity and acceleration of the invisible point S (eq. 6.48, 6.54-6.55).
-
-    Parameters
-    ----------
-    r, v, a : ndarray of shape (F, 3, 3)
-        Registered positions (m), velocities (m/s) and accelerations (m/s²) of markers 1-3.
-    angular : AngularKinematics
-        Its ``omega_rad_s`` and ``alpha_rad_s2`` are used.
-    r_bs : ndarray of shape (3,)
-        S in body coordinates (m), from :func:`saddle_body_coordinates`.
-
-    Returns
-    -------
-    PointKinematics
-    """
+    if method not in ANGULAR_METHODS:
+        raise InputError(f"method must be one of {', '.join(ANGULAR_METHODS)}, got {method!r}")
+    if method == "lsq_wiener" and raw is None:
+        raise InputError("method 'lsq_wiener' needs the unregistered markers' (r, v, a) as raw")
     r = _check_triplet(r, "r")
     v = _check_triplet(v, "v")
     a = _check_triplet(a, "a")
-    r_bs = np.asarray(r_bs, dtype=np.float64).reshape(3)
-    rot = body_frame(r)
-    position = np.einsum("fij,j->fi", rot, r_bs) + r[:, 0]  # eq. 6.48
-    gain = None if angular.weak_axis_gain is None else angular.weak_axis_gain[0]
-    if gain is not None and gain < 1.0:
-        position = _position_with_weak_axis_shrunk(r, rot, r_bs, gain, position)
-    w = angular.omega_rad_s
-    al = angular.alpha_rad_s2
-    r_is = position[:, None, :] - r  # (F, marker, 3): from marker i to S
-    w3 = np.broadcast_to(w[:, None, :], r_is.shape)
-    a3 = np.broadcast_to(al[:, None, :], r_is.shape)
-    v_per = v + np.cross(w3, r_is)  # eq. 6.54
-    a_per = a + np.cross(a3, r_is) + np.cross(w3, np.cross(w3, r_is))  # eq. 6.55
-    v_mean = v_per.mean(axis=1)
-    a_mean = a_per.mean(axis=1)
-    return PointKinematics(
-        position_m=position, velocity_m_s=v_mean, acceleration_m_s2=a_mean, velocity_per_marker=v_per,
-        acceleration_per_marker=a_per,
-        velocity_spread=np.linalg.norm(v_per - v_mean[:, None], axis=2).max(axis=1),
-        acceleration_spread=np.linalg.norm(a_per - a_mean[:, None], axis=2).max(axis=1),
-        body_coordinates_m=r_bs)
+    if not (r.shape == v.shape == a.shape):
+        raise InputError(f"r, v and a must have the same shape, got {r.shape}, {v.shape}, {a.shape}")
+    finite = np.all(np.isfinite(r), axis=(1, 2))
+    if not finite.any():
+        raise KinematicsError("no frame has all three markers registered")
+    check_marker_layout(r[np.flatnonzero(finite)[0]], min_height_ratio=min_height_ratio)
+    return r, v, a, finite
+
+
+def _weak_axis(r_finite: np.ndarray, method: str, observable_ratio: float, raw: tuple | None
+               ) -> tuple[float, tuple, list[str]]:
+    """How the markers' weakest rotation axis is treated, from the frames (F', 3, 3) with all markers.
+
+    Returns the eigenvalue ratio below which an axis is left out ("lsq_observable"; 0 keeps every
+    axis), the (ω, α) Wiener gains on that axis ("lsq_wiener"; else None) and the flags saying so.
+    """
+    flags: list[str] = []
+    ratio_cut = 0.0
+    if method == "lsq_observable":
+        axis, ratio = unobservable_axis(r_finite, min_eig_ratio=observable_ratio)
+        if ratio < observable_ratio:
+            ratio_cut = observable_ratio
+            flags.append(f"the markers lie near a line (eigenvalue ratio {ratio:.3f} < {observable_ratio}): rotation "
+                         f"about it (axis {np.round(axis, 2).tolist()} in the motion frame) is not observable, "
+                         "so its component of ω and α is left out (taken as zero)")
+    gains = (None, None)
+    if method == "lsq_wiener":
+        gains = weak_axis_gain(*raw)
+        _, ratio = unobservable_axis(r_finite, min_eig_ratio=observable_ratio)
+        flags.append(f"rotation about the markers' weakest axis (eigenvalue ratio {ratio:.3f}) kept at "
+                     f"{gains[0]:.0%} in ω and {gains[1]:.0%} in α: the rest is what skin motion predicts")
+    return ratio_cut, gains, flags
+
+
+def _final_omega(method: str, r: np.ndarray, v: np.ndarray, w_lsq: np.ndarray, w_mean: np.ndarray,
+                 ratio_cut: float, weak_gain: float | None) -> np.ndarray:
+    """The angular velocity (F, 3) the ``method`` of :func:`angular_kinematics` reports (rad/s)."""
+    if method == "lsq":
+        return w_lsq
+    if method == "lsq_observable":
+        return omega_least_squares(r, v, min_eig_ratio=ratio_cut)
+    if method == "lsq_wiener":
+        return omega_least_squares(r, v, weak_gain=weak_gain)
+    return np.where(np.isfinite(w_mean), w_mean, w_lsq)
+
+
+def _singularity_flags(sing: np.ndarray, finite: np.ndarray, w_excl: np.ndarray, a_excl: np.ndarray,
+                       threshold: float) -> list[str]:
+    """Flags for ω near the markers' plane (``sing`` (F,), eq. 6.35) and versions (F, 6) left out."""
+    flags = []
+    valid = finite & np.isfinite(sing)
+    if valid.any():
+        med = float(np.median(sing[valid]))
+        if med < threshold:
+            flags.append(f"ω is nearly in the markers' plane (median |n·ω̂| = {med:.2f} < "
+                         f"{threshold}): the thesis's closed-form versions are near their "
+                         "singularity (eq. 6.35) and unreliable; the least-squares estimate is not affected")
+    for name, excl in (("ω", w_excl), ("α", a_excl)):
+        frac = excl[finite].mean(axis=0) if finite.any() else np.zeros(6)
+        shares = [f"{name}^{vname} {f:.0%}" for vname, f in zip(VERSION_NAMES, frac, strict=True) if f > 0]
+        if shares:  # one line per quantity: the share of frames each version was left out of
+            flags.append(f"{name} versions excluded near their singularity (conditioning below "
+                         f"{threshold}; share of frames): {', '.join(shares)}")
+    return flags

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.rigid_body import angular_kinematics, unobservable_axis, weak_axis_gain
+from saddlescope.core.kinematics.rigid_body import angular_kinematics, unobservable_axis, weak_axis_gain
 
 
 def _row_motion(roll_amp: float, skin_mm: float, rng):
@@ -124,7 +124,7 @@ def test_a_wandering_roll_about_the_row_stays_out_of_the_saddle_position():
     gain 1 the position is eq. 6.48 unchanged."""
     from dataclasses import replace
 
-    from saddlescope.core.rigid_body import saddle_point_kinematics
+    from saddlescope.core.kinematics.saddle_point import saddle_point_kinematics
 
     rng = np.random.default_rng(3)
     r, v, a, _ = _row_motion(0.0, 0.0, rng)
