@@ -8,8 +8,9 @@ import pytest
 from sqlalchemy import text
 from sqlalchemy.exc import IntegrityError, StatementError
 
+from saddlescope.db.enums import JobStatus
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.db.models import Job, JobStatus
+from saddlescope.db.models import Job
 from saddlescope.db.repositories import (
     ClubRepository,
     GradeRepository,

@@ -135,7 +135,7 @@ def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dic
 
 def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) -> None:
     """Put a finished analysis in as the analyse stage would: result JSON in storage, row in the DB."""
-    from saddlescope.db.models import RideStatus
+    from saddlescope.db.enums import RideStatus
     from saddlescope.db.repositories import ResultRepository, RideRepository
     from saddlescope.db.session import make_engine, make_session_factory, session_scope
     from saddlescope.storage import Storage, stage_output_key

@@ -31,6 +31,7 @@ from sqlalchemy import (
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+from saddlescope.db.enums import JobStatus, RideStatus, Role, UploadStatus, UploadTarget
 
 # Stable constraint names, so Alembic migrations are the same on SQLite and PostgreSQL.
 NAMING_CONVENTION = {
@@ -63,34 +64,6 @@ class UTCDateTime(TypeDecorator):
         if value is None:
             return None
         return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
-
-
-class Role(enum.StrEnum):
-    MEMBER = "member"
-    ADMIN = "admin"
-
-
-class JobStatus(enum.StrEnum):
-    QUEUED = "queued"
-    RUNNING = "running"
-    DONE = "done"
-    FAILED = "failed"
-    CANCELLED = "cancelled"
-
-    @property
-    def finished(self) -> bool:
-        return self in (JobStatus.DONE, JobStatus.FAILED, JobStatus.CANCELLED)
-
-
-class RideStatus(enum.StrEnum):
-    NEW = "new"  # created, clips not all uploaded
-    READY = "ready"  # all clips present
-    PROCESSING = "processing"
-    ANALYSED = "analysed"
-    FAILED = "failed"
-
-
-RIDE_STATUSES = tuple(s.value for s in RideStatus)
 
 
 def _str_enum(values: tuple[str, ...] | type[enum.StrEnum], name: str, length: int = 16) -> Enum:
@@ -312,18 +285,6 @@ class Grade(TimestampMixin, Base):
     rider_id: Mapped[int] = mapped_column(ForeignKey("riders.id", ondelete="CASCADE"), index=True)
     grade: Mapped[int]
     comment: Mapped[str] = mapped_column(Text, default="")
-
-
-class UploadTarget(enum.StrEnum):
-    RIDE_CLIP = "ride_clip"
-    RIG_CLIP = "rig_clip"
-    BUNDLE = "bundle"
-
-
-class UploadStatus(enum.StrEnum):
-    OPEN = "open"  # bytes still arriving
-    FINALISED = "finalised"  # turned into a recording or a ride
-    FAILED = "failed"  # finalising refused it (the reason is in `error`)
 
 
 class Upload(Base):

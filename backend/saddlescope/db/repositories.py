@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 from sqlalchemy import ColumnElement, Select, delete, exists, func, select, update
 from sqlalchemy.orm import Session
 
+from saddlescope.db.enums import JobStatus, UploadStatus
 from saddlescope.db.models import (
     LEADERBOARD_COLUMNS,
     Base,
@@ -23,14 +24,12 @@ from saddlescope.db.models import (
     Grade,
     Horse,
     Job,
-    JobStatus,
     Recording,
     Result,
     Ride,
     Rider,
     Rig,
     Upload,
-    UploadStatus,
     User,
     utcnow,
 )

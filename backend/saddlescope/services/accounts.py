@@ -20,7 +20,8 @@ from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatc
 from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import InputError, SaddleScopeError
-from saddlescope.db.models import Club, Role, User
+from saddlescope.db.enums import Role
+from saddlescope.db.models import Club, User
 from saddlescope.db.repositories import ClubRepository, UserRepository
 from saddlescope.settings import Settings
 

@@ -13,7 +13,8 @@ from typing import Any
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import InputError
-from saddlescope.db.models import Job, JobStatus
+from saddlescope.db.enums import JobStatus
+from saddlescope.db.models import Job
 from saddlescope.db.repositories import JobRepository, RideRepository, RigRepository
 from saddlescope.db.session import session_scope
 from saddlescope.jobs import JobQueue, QueueUnavailable

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from saddlescope.db.models import RideStatus
+from saddlescope.db.enums import RideStatus
 from saddlescope.db.repositories import (
     ClubRepository,
     HorseRepository,

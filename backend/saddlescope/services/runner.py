@@ -20,7 +20,8 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import SaddleScopeError
-from saddlescope.db.models import JobStatus, utcnow
+from saddlescope.db.enums import JobStatus
+from saddlescope.db.models import utcnow
 from saddlescope.db.repositories import JobRepository, RideRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobKind, StageContext

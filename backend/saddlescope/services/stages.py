@@ -35,7 +35,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.models import RideStatus
+from saddlescope.db.enums import RideStatus
 from saddlescope.db.repositories import (
     RecordingRepository,
     ResultRepository,

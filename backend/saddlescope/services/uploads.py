@@ -17,7 +17,8 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.models import Recording, RideStatus, UploadStatus, UploadTarget
+from saddlescope.db.enums import RideStatus, UploadStatus, UploadTarget
+from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
     JobRepository,
     RecordingRepository,

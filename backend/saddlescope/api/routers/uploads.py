@@ -11,7 +11,7 @@ from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsD
 from saddlescope.api.routers.common import ERRORS
 from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
 from saddlescope.api.streaming import stream_chunk
-from saddlescope.db.models import UploadStatus
+from saddlescope.db.enums import UploadStatus
 from saddlescope.services.uploads import IncompleteUpload, create_upload, finalise_upload
 from saddlescope.storage import upload_key
 
