@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import InputError
 from saddlescope.core.indicators import indicator_unit
-from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideRepository
+from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
 from saddlescope.storage import Storage
 
 EXPORT_FORMATS = {
@@ -170,9 +170,9 @@ def result_view_json(
 
 
 def _ride_rows(
-    session: Session, ride_ids: list[int] | None, *, club_id: int, where=()
+    session: Session, ride_ids: list[int] | None, *, club_id: int, rides: RideFilter | None = None
 ) -> list[dict[str, Any]]:
-    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(where=where)
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(rides=rides)
     if ride_ids is not None:
         wanted = set(ride_ids)
         rows = [r for r in rows if r["ride_id"] in wanted]
@@ -245,8 +245,10 @@ def export_ride(
         return path.read_bytes(), f"{stem}-tracks.{fmt}"
 
 
-def export_rides(session: Session, fmt: str, *, club_id: int, where=()) -> tuple[bytes, str]:
+def export_rides(
+    session: Session, fmt: str, *, club_id: int, rides: RideFilter | None = None
+) -> tuple[bytes, str]:
     """Indicators of the club's analysed rides (matching the ride list filters) as CSV or xlsx."""
     if fmt not in TABLE_FORMATS:
         raise InputError(f"indicator tables are exported as {' or '.join(TABLE_FORMATS)}, not {fmt!r}")
-    return indicator_table_bytes(_ride_rows(session, None, club_id=club_id, where=where), fmt), f"rides.{fmt}"
+    return indicator_table_bytes(_ride_rows(session, None, club_id=club_id, rides=rides), fmt), f"rides.{fmt}"

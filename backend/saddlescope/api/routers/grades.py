@@ -24,8 +24,15 @@ def list_grades(
     gait: Gait | None = None,
 ) -> dict:
     """Grades, filtered by ride, rider, horse and gait; sort by grade, created_at, ride_id, rider_id, id."""
-    where = club.grades.filters(ride_id=ride_id, rider_id=rider_id, horse_id=horse_id, gait=gait)
-    page = club.grades.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    page = club.grades.list_page(
+        ride_id=ride_id,
+        rider_id=rider_id,
+        horse_id=horse_id,
+        gait=gait,
+        sort=paging.sort,
+        limit=paging.limit,
+        offset=paging.offset,
+    )
     return page_of(page, GradeOut.model_validate)
 
 

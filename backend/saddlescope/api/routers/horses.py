@@ -9,8 +9,6 @@ from fastapi import APIRouter, Query, Response, status
 from saddlescope.api.deps import AdminClubDep, ClubDep
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import HorseComparisonOut, HorseIn, HorseOut, HorseUpdate, Page
-from saddlescope.db.models import Horse
-from saddlescope.db.repositories import like_pattern
 from saddlescope.services.analytics import horse_comparison
 
 router = APIRouter(prefix="/horses", tags=["horses"])
@@ -23,8 +21,7 @@ def list_horses(
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's horses; sort by name (default), breed, birth_year, height_withers_m, created_at, id."""
-    where = [Horse.name.ilike(like_pattern(q), escape="\\")] if q else []
-    page = club.horses.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    page = club.horses.list_page(name_like=q, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, HorseOut.model_validate)
 
 

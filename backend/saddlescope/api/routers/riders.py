@@ -9,8 +9,6 @@ from fastapi import APIRouter, Query, Response, status
 from saddlescope.api.deps import AdminClubDep, ClubDep
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import Page, RiderIn, RiderOut, RiderUpdate
-from saddlescope.db.models import Rider
-from saddlescope.db.repositories import like_pattern
 
 router = APIRouter(prefix="/riders", tags=["riders"])
 
@@ -27,8 +25,7 @@ def list_riders(
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's riders; sort by name (default), created_at, id."""
-    where = [Rider.name.ilike(like_pattern(q), escape="\\")] if q else []
-    page = club.riders.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    page = club.riders.list_page(name_like=q, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, RiderOut.model_validate)
 
 

@@ -28,8 +28,8 @@ from saddlescope.api.schemas import (
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
 from saddlescope.core.indicators import COMFORT_INDICATORS
-from saddlescope.db.models import Ride, RideStatus
-from saddlescope.db.repositories import RideRepository
+from saddlescope.db.enums import RIDE_STATUSES
+from saddlescope.db.repositories import Ride, RideFilter, RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
@@ -40,7 +40,7 @@ from saddlescope.services.uploads import (
 )
 
 router = APIRouter(prefix="/rides", tags=["rides"])
-RideStatusName = Literal[tuple(s.value for s in RideStatus)]  # type: ignore[valid-type]
+RideStatusName = Literal[RIDE_STATUSES]  # type: ignore[valid-type]
 ExportFormat = Literal[tuple(EXPORT_FORMATS)]  # type: ignore[valid-type]
 
 
@@ -79,18 +79,6 @@ def ride_detail(club, ride: Ride) -> RideDetail:
     )
 
 
-def _filters(horse_id, rider_id, rig_id, gait, status_, date_from, date_to):
-    return RideRepository.filters(
-        horse_id=horse_id,
-        rider_id=rider_id,
-        rig_id=rig_id,
-        gait=gait,
-        status=status_,
-        date_from=date_from,
-        date_to=date_to,
-    )
-
-
 @router.get("", response_model=Page[RideOut], responses=ERRORS)
 def list_rides(
     club: ClubDep,
@@ -109,8 +97,16 @@ def list_rides(
     indicator with its own column (acc_y_wb_rms, acc_y_wk_rms, vdv_y_wb, vdv_y_wk, vel_x_avg_kmh,
     amplitude_y_m, stride_frequency_hz; rides without a result come last).
     """
-    where = _filters(horse_id, rider_id, rig_id, gait, status_, date_from, date_to)
-    page = club.rides.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    rides = RideFilter(
+        horse_id=horse_id,
+        rider_id=rider_id,
+        rig_id=rig_id,
+        gait=gait,
+        status=status_,
+        date_from=date_from,
+        date_to=date_to,
+    )
+    page = club.rides.list_page(rides, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     indicators = _indicators(club, [r.id for r in page.items])
     return page_of(page, lambda ride: ride_out(ride, indicators.get(ride.id)))
 
@@ -147,8 +143,10 @@ def export_many(
     date_to: dt.date | None = None,
 ) -> Response:
     """Indicators of the club's analysed rides (with the ride list's filters) as CSV or xlsx."""
-    where = _filters(horse_id, rider_id, rig_id, gait, None, date_from, date_to)
-    data, name = export_rides(club.session, fmt, club_id=club.club_id, where=where)
+    rides = RideFilter(
+        horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, gait=gait, date_from=date_from, date_to=date_to
+    )
+    data, name = export_rides(club.session, fmt, club_id=club.club_id, rides=rides)
     return download(data, name, EXPORT_FORMATS[fmt])
 
 

@@ -23,8 +23,7 @@ from saddlescope.api.schemas import (
     RigUpdate,
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI
-from saddlescope.db.models import Rig
-from saddlescope.db.repositories import like_pattern
+from saddlescope.db.repositories import Rig
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.uploads import (
@@ -55,8 +54,7 @@ def list_rigs(
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's rigs; sort by recorded_on (default, newest first), name, created_at, id."""
-    where = [Rig.name.ilike(like_pattern(q), escape="\\")] if q else []
-    page = club.rigs.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    page = club.rigs.list_page(name_like=q, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, rig_out)
 
 
