@@ -34,8 +34,7 @@ import numpy as np
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
-from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.enums import RideStatus
+from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.db.repositories import (
     RecordingRepository,
     ResultRepository,
@@ -43,6 +42,7 @@ from saddlescope.db.repositories import (
     RigRepository,
 )
 from saddlescope.db.session import session_scope
+from saddlescope.services.rides import ANALYSIS_JOB_KIND, complete_clip_sets, ride_clip_plan
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key, tree_digest
 
@@ -115,14 +115,11 @@ class Stage:
 
 @dataclass(frozen=True)
 class JobKind:
-    """An ordered list of stage names, plus the ride status to show while running and after."""
+    """An ordered list of stage names (a ride's status shows the outcome of its latest `analyze` job)."""
 
     name: str
     stages: tuple[str, ...]
     needs_ride: bool = False
-    ride_status_running: str | None = None
-    ride_status_done: str | None = None
-    ride_status_failed: str | None = None
     validate_payload: Callable[[dict[str, Any]], dict[str, Any]] | None = None
     description: str = ""
 
@@ -254,14 +251,6 @@ def _result_arrays(result: dict[str, Any]) -> dict[str, np.ndarray]:
     return arrays
 
 
-def _complete_sets(recordings) -> dict[str, dict[str, str]]:
-    """Clip kind -> camera -> storage key, for the kinds recorded by all three cameras."""
-    by_kind: dict[str, dict[str, str]] = {}
-    for r in recordings:
-        by_kind.setdefault(r.clip_kind, {})[r.camera_role] = r.path
-    return {kind: cams for kind, cams in by_kind.items() if set(CAMERA_ROLES) <= set(cams)}
-
-
 def ride_document(ride, rig, *, clips: dict[str, dict[str, str]],
                   calibration_file: str | None) -> dict[str, Any]:
     """ride.json (CONTRACTS section 1) of a ride assembled from stored clips."""
@@ -284,23 +273,6 @@ def ride_document(ride, rig, *, clips: dict[str, dict[str, str]],
     return doc
 
 
-def ride_clip_plan(ride_recordings, rig_recordings, *, rig_calibrated: bool) -> dict[str, dict[str, str]]:
-    """Which stored clip each camera of each kind comes from: the ride's own, else its rig's.
-
-    Raises `BundleError` naming what is missing (motion and static are required, and calibration
-    clips unless the rig is calibrated already).
-    """
-    own, shared = _complete_sets(ride_recordings), _complete_sets(rig_recordings)
-    plan = {kind: own.get(kind) or shared.get(kind) for kind in CLIP_KINDS}
-    missing = [kind for kind in ("static", "motion") if not plan[kind]]
-    if not plan["calibration"] and not rig_calibrated:
-        missing.insert(0, "calibration")
-    if missing:
-        raise BundleError(f"the clips of {' and '.join(missing)} are not all uploaded (each needs the left, "
-                          "middle and right cameras)")
-    return {kind: cams for kind, cams in plan.items() if cams}
-
-
 @stage("assemble", weight=0.5)
 def run_assemble(ctx: StageContext) -> None:
     """Put the ride's clips (and its rig's shared ones) together as a ride bundle."""
@@ -316,7 +288,7 @@ def run_assemble(ctx: StageContext) -> None:
         plan = ride_clip_plan(recordings.for_ride(ride_id), recordings.for_rig(rig.id) if rig else [],
                               rig_calibrated=bool(rig is not None and rig.calibration))
         calibration = dict(rig.calibration) if rig is not None and rig.calibration else None
-        if calibration is not None and plan.get("calibration") and plan["calibration"] == _complete_sets(
+        if calibration is not None and plan.get("calibration") and plan["calibration"] == complete_clip_sets(
                 recordings.for_rig(rig.id)).get("calibration"):
             # The rig's calibration replaces its clips: no need to carry them into every ride.
             plan.pop("calibration")
@@ -376,7 +348,7 @@ def run_calibrate(ctx: StageContext) -> None:
             ctx.outputs()
             (ctx.stage_dir(ctx.stage) / "source.json").write_text(json.dumps(note))
             return
-        rig_clips = _complete_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
+        rig_clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
         rig_id, board = rig.id, rig.board
         meta = dict(ride.meta or {})
     if rig_clips is not None:
@@ -405,7 +377,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
         raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
     with ctx.session() as session:
         rig = RigRepository(session).get(ctx.rig_id)
-        clips = _complete_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
+        clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
         board = rig.board
     if clips is None:
         raise CalibrationError(f"rig {ctx.rig_id}: the calibration clips of the left, middle and right "
@@ -457,10 +429,7 @@ define_job_kind(JobKind("selftest", ("selftest",), validate_payload=_selftest_pa
                         description="a few timed steps, no files: checks that workers pick up jobs"))
 define_job_kind(JobKind("probe", ("probe",),
                         description="read the clips of a ride or rig and record their sizes and checksums"))
-define_job_kind(JobKind("analyze", ("probe", "assemble", "calibrate", "analyze"), needs_ride=True,
-                        ride_status_running=RideStatus.PROCESSING.value,
-                        ride_status_done=RideStatus.ANALYSED.value,
-                        ride_status_failed=RideStatus.FAILED.value,
+define_job_kind(JobKind(ANALYSIS_JOB_KIND, ("probe", "assemble", "calibrate", "analyze"), needs_ride=True,
                         description="the whole pipeline on a ride: kinematics and vibration indicators"))
 define_job_kind(JobKind("calibrate_rig", ("probe", "calibrate_rig"),
                         description="calibrate a rig once from its three calibration clips (used by its "

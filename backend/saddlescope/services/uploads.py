@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.enums import RideStatus, UploadStatus, UploadTarget
+from saddlescope.db.enums import UploadStatus, UploadTarget
 from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
     JobRepository,
@@ -29,8 +29,7 @@ from saddlescope.db.repositories import (
 from saddlescope.db.session import session_scope
 from saddlescope.jobs import JobQueue
 from saddlescope.services.job_service import submit_job
-from saddlescope.services.rides import register_bundle
-from saddlescope.services.stages import ride_clip_plan
+from saddlescope.services.rides import refresh_ride_status, register_bundle, ride_clip_plan
 from saddlescope.storage import Storage, TooLarge, upload_key
 
 RIG_CLIP_KINDS = ("calibration", "plumb", "static")
@@ -180,6 +179,8 @@ def accept_clip(
                 )
                 if owner.kind == "rig" and clip_kind == "calibration":
                     RigRepository(session, club_id=owner.club_id).clear_calibration(owner.id)
+                if owner.kind == "ride":
+                    refresh_ride_status(session, owner.id)
                 recording_id = row.id
                 session.commit()
             except BaseException:
@@ -223,7 +224,6 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
                 return None  # not complete yet
             if jobs.active_for(ride_id=ride.id) is not None:
                 return None
-            RideRepository(session).set_status(ride.id, RideStatus.READY.value)
             kind, ids = "analyze", {"ride_id": ride.id}
     return submit_job(sessions, queue, kind=kind, club_id=owner.club_id, **ids)
 

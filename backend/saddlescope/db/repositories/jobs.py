@@ -119,9 +119,12 @@ class JobRepository(Repository):
             stmt = stmt.where(Job.kind == kind)
         return self.session.scalars(self._scoped(stmt).order_by(Job.id.desc())).first()
 
-    def latest_for_ride(self, ride_id: int) -> Job | None:
-        """Return the ride's newest job of any kind, or None."""
-        stmt = self._scoped(select(Job).where(Job.ride_id == ride_id)).order_by(Job.id.desc())
+    def latest_for_ride(self, ride_id: int, *, kind: str | None = None) -> Job | None:
+        """Return the ride's newest job (of `kind`; None: of any kind), or None."""
+        stmt = select(Job).where(Job.ride_id == ride_id)
+        if kind is not None:
+            stmt = stmt.where(Job.kind == kind)
+        stmt = self._scoped(stmt).order_by(Job.id.desc())
         return self.session.scalars(stmt).first()
 
     def touch(self, job_id: int) -> None:
