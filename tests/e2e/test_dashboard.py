@@ -149,7 +149,7 @@ def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) 
             ride = RideRepository(session).get(ride_id)
             ResultRepository(session).replace_for_ride(
                 club_id=ride.club_id, ride_id=ride_id, job_id=None, indicators=doc["indicators"],
-                quality=doc["quality"], result_key=result_key, arrays_key=None, code_version="test")
+                result_key=result_key, code_version="test")
             refresh_ride_status(session, ride_id)  # analysed: it has a result
     finally:
         engine.dispose()

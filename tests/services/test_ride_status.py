@@ -86,8 +86,7 @@ def test_a_ride_through_clips_jobs_and_results(sessions):
         second = JobRepository(s).add(kind="analyze", club_id=club.id, ride_id=ride_id).id
         JobRepository(s).mark_running(second, host="test", code_version="test")
         ResultRepository(s).replace_for_ride(
-            club_id=club.id, ride_id=ride_id, job_id=second, indicators={}, quality={}, result_key="r.json",
-            arrays_key=None,
+            club_id=club.id, ride_id=ride_id, job_id=second, indicators={}, result_key="r.json",
             code_version="test",
         )
         JobRepository(s).finish(second, JobStatus.DONE)

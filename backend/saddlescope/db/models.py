@@ -3,7 +3,7 @@
 Every club-owned table carries ``club_id`` so the repositories can scope each query to one club.
 Enumerations are stored as short strings with a CHECK constraint (portable across SQLite and
 PostgreSQL). Times are timezone-aware UTC. Large arrays never go in the database: results keep
-the storage key of a compressed ``.npz`` file.
+the storage key of their result document (JSON), plus the indicators a list or a ranking reads.
 """
 
 from __future__ import annotations
@@ -251,7 +251,6 @@ class Result(TimestampMixin, Base):
     ride_id: Mapped[int] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), unique=True)
     job_id: Mapped[int | None] = mapped_column(ForeignKey("jobs.id", ondelete="SET NULL"), index=True)
     indicators: Mapped[dict[str, Any]] = mapped_column(default=dict)
-    quality: Mapped[dict[str, Any]] = mapped_column(default=dict)
     # Leaderboard columns copied out of `indicators` so they can be indexed and sorted.
     acc_y_wb_rms: Mapped[float | None] = mapped_column(Float)
     acc_y_wk_rms: Mapped[float | None] = mapped_column(Float)
@@ -260,9 +259,8 @@ class Result(TimestampMixin, Base):
     vel_x_avg_kmh: Mapped[float | None] = mapped_column(Float)
     amplitude_y_m: Mapped[float | None] = mapped_column(Float)
     stride_frequency_hz: Mapped[float | None] = mapped_column(Float)
-    # Storage keys: the full result JSON (CONTRACTS section 2) and the compressed arrays.
+    # Storage key of the full result JSON (CONTRACTS section 2): series, quality flags, calibration.
     result_key: Mapped[str | None] = mapped_column(String(500))
-    arrays_key: Mapped[str | None] = mapped_column(String(500))
     code_version: Mapped[str | None] = mapped_column(String(64))
 
 

@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
@@ -238,19 +237,6 @@ def run_probe(ctx: StageContext) -> None:
     ctx.report(1.0, None)
 
 
-def _result_arrays(result: dict[str, Any]) -> dict[str, np.ndarray]:
-    """The result's time series as float arrays (saddle.* and angular.*) for the .npz file."""
-    arrays = {}
-    for group in ("saddle", "angular", "markers"):
-        for name, value in (result.get(group) or {}).items():
-            if isinstance(value, list) and value:
-                try:  # None (a missing sample) becomes NaN; lists of names are not arrays
-                    arrays[f"{group}.{name}"] = np.asarray(value, dtype=np.float64)
-                except (TypeError, ValueError):
-                    continue
-    return arrays
-
-
 def ride_document(ride, rig, *, clips: dict[str, dict[str, str]],
                   calibration_file: str | None) -> dict[str, Any]:
     """ride.json (CONTRACTS section 1) of a ride assembled from stored clips."""
@@ -414,14 +400,13 @@ def run_analyze(ctx: StageContext) -> None:
         rig_model = rig_from_calibration(calibration)
     result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model)
     ctx.outputs()
-    result_key, arrays_key = ctx.output_key("result.json"), ctx.output_key("arrays.npz")
+    # The result document is what the dashboard and the exports read (its series decimated on the way).
+    result_key = ctx.output_key("result.json")
     ctx.storage.write_bytes(result_key, json.dumps(result, allow_nan=False).encode())
-    ctx.storage.save_arrays(arrays_key, _result_arrays(result))
     with ctx.session() as session:
         ResultRepository(session).replace_for_ride(
             club_id=club_id, ride_id=ride_id, job_id=ctx.job_id, indicators=result.get("indicators", {}),
-            quality=result.get("quality", {}), result_key=result_key, arrays_key=arrays_key,
-            code_version=ctx.settings.resolved_code_version)
+            result_key=result_key, code_version=ctx.settings.resolved_code_version)
     ctx.report(1.0, None)
 
 

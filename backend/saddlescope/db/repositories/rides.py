@@ -186,8 +186,7 @@ class ResultRepository(Repository):
         return {ride_id: dict(indicators or {}) for ride_id, indicators in self.session.execute(stmt)}
 
     def replace_for_ride(self, *, club_id: int, ride_id: int, job_id: int | None, indicators: dict[str, Any],
-                         quality: dict[str, Any], result_key: str | None, arrays_key: str | None,
-                         code_version: str | None) -> Result:
+                         result_key: str | None, code_version: str | None) -> Result:
         """Store a ride's result, replacing the previous one (re-running a job is idempotent)."""
         result = self.for_ride(ride_id)
         if result is None:
@@ -195,9 +194,7 @@ class ResultRepository(Repository):
             self.session.add(result)
         result.job_id = job_id
         result.indicators = dict(indicators)
-        result.quality = dict(quality)
         result.result_key = result_key
-        result.arrays_key = arrays_key
         result.code_version = code_version
         result.created_at = utcnow()
         for name in LEADERBOARD_COLUMNS:
