@@ -435,7 +435,36 @@ class JobKindOut(BaseModel):
 # --- results and comparisons -------------------------------------------------------------------------
 
 
+class ResultSeries(BaseModel):
+    """The plotted series, every ``decimation.step``-th frame (vectors as [x, y, z] in the motion frame)."""
+
+    t_s: list[float]
+    position_m: list[Any] = Field(description="the saddle point S")
+    velocity_m_s: list[Any]
+    acceleration_m_s2: list[Any]
+    omega_rad_s: list[Any]
+    alpha_rad_s2: list[Any]
+    markers_position_m: list[Any] | None = Field(
+        default=None, description="per frame, [x, y, z] of each marker; when the result has the markers")
+    omega_versions_rad_s: list[Any] | None = Field(
+        default=None, description="per frame, omega from each marker pair; when the result has them")
+    omega_versions_excluded: list[Any] | None = Field(
+        default=None, description="per frame, which versions were left out of omega")
+    singularity_index_per_frame: list[Any] | None = Field(
+        default=None, description="per frame, how close the markers' geometry is to singular")
+
+
+class Decimation(BaseModel):
+    """How the series were thinned: every `step`-th of `samples` samples, for at most `max_points`."""
+
+    step: int
+    samples: int
+    max_points: int
+
+
 class ResultOut(BaseModel):
+    """A ride's result as the dashboard shows it (built by `saddlescope.services.results.view_of_document`)."""
+
     ride_id: int
     job_id: int | None
     code_version: str | None
@@ -448,13 +477,11 @@ class ResultOut(BaseModel):
     quality: dict[str, Any]
     calibration_checks: dict[str, Any]
     calibration_flags: list[Any]
-    series: dict[str, list[Any]] = Field(
-        description="t_s, position_m, velocity_m_s, acceleration_m_s2, omega_rad_s, alpha_rad_s2 (decimated)"
-    )
+    series: ResultSeries
     fits: dict[str, list[dict[str, Any]]] = Field(
         default_factory=dict,
         description="per axis x, y, z and marker: the curve fit's goodness of fit and 95 % intervals (thesis 5.5)")
-    decimation: dict[str, int]
+    decimation: Decimation
 
 
 class IndicatorOut(BaseModel):

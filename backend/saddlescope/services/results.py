@@ -38,6 +38,8 @@ SERIES = (
     ("omega_rad_s", "angular", "omega_rad_s"),
     ("alpha_rad_s2", "angular", "alpha_rad_s2"),
 )
+# Per-frame series of the angular kinematics, served when the result has them.
+ANGULAR_PER_FRAME = ("omega_versions_rad_s", "omega_versions_excluded", "singularity_index_per_frame")
 MARKER_LABELS = ("M1", "M2", "M3")
 SADDLE_LABEL = "S"
 
@@ -55,19 +57,31 @@ def decimate(values: list, step: int) -> list:
     return values[::step] if step > 1 else values
 
 
-def _view(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[str, Any]:
-    if max_points < 10:
-        raise InputError(f"max_points must be at least 10, got {max_points}")
-    n = len((doc.get("saddle") or {}).get("t_s") or [])
-    step = max(1, math.ceil(n / max_points))
+def _series(doc: dict[str, Any], step: int, n: int) -> dict[str, list]:
+    """The plotted series of the document, every `step`-th of its `n` samples."""
     series = {name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES}
     markers = doc.get("markers") or {}
     if markers.get("position_m"):
         series["markers_position_m"] = decimate(markers["position_m"], step)
     angular = doc.get("angular") or {}
-    for key in ("omega_versions_rad_s", "omega_versions_excluded", "singularity_index_per_frame"):
+    for key in ANGULAR_PER_FRAME:
         if isinstance(angular.get(key), list) and len(angular[key]) == n:  # per frame: decimated alike
             series[key] = decimate(angular[key], step)
+    return series
+
+
+def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[str, Any]:
+    """What the dashboard shows of result document `doc` (its shape is `saddlescope.api.schemas.ResultOut`).
+
+    `result` is the ride's result row (its job, code version and time). Series are decimated to at
+    most `max_points` samples; the indicators come with their units.
+    """
+    if max_points < 10:
+        raise InputError(f"max_points must be at least 10, got {max_points}")
+    n = len((doc.get("saddle") or {}).get("t_s") or [])
+    step = max(1, math.ceil(n / max_points))
+    series = _series(doc, step, n)
+    markers = doc.get("markers") or {}
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
     return {
@@ -107,7 +121,7 @@ def result_view(
     (``decimation.step``; the indicators are always computed from the full series).
     """
     result = _analysed(session, storage, ride_id, club_id)
-    return _view(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+    return view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
 
 
 class _BytesCache:
@@ -163,7 +177,7 @@ def result_view_json(
     ).hexdigest()[:32]
     data = _VIEWS.get(etag)
     if data is None:
-        view = _view(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+        view = view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
         data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
         _VIEWS.put(etag, data)
     return data, etag
