@@ -9,6 +9,18 @@ from pydantic import BaseModel, ConfigDict, Field, StringConstraints, model_vali
 
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
+__all__ = [
+    "BoardIn", "BundleUploaded", "CameraRole", "ClipKind", "ClipUploaded", "ClubCreate", "ClubCreated",
+    "ClubOut", "ComparisonOut", "CorrelationOut", "Decimation", "Direction", "Email", "ErrorOut", "Gait",
+    "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
+    "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
+    "JobKindOut", "JobOut", "LeaderboardEntry", "LeaderboardOut", "LoginIn", "MAX_ID", "MarkersIn", "MeOut",
+    "Name", "Offsets", "Page", "PartHealth", "Password", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
+    "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
+    "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SyncIn", "Text", "TokenOut", "UploadCreate",
+    "UploadOut", "UserCreate", "UserOut", "UserUpdate",
+]
+
 T = TypeVar("T")
 
 Gait = Literal[GAITS]  # type: ignore[valid-type]
@@ -56,6 +68,8 @@ class _Out(BaseModel):
 
 
 class Page(BaseModel, Generic[T]):
+    """One page of a list, and how many rows match in all."""
+
     items: list[T]
     total: int = Field(description="rows matching the filters (all pages)")
     limit: int
@@ -66,12 +80,16 @@ class Page(BaseModel, Generic[T]):
 
 
 class PartHealth(BaseModel):
+    """One part's health: ok or not, with what it said."""
+
     ok: bool
     status: Literal["ok", "error"]
     detail: str
 
 
 class HealthOut(BaseModel):
+    """Whether the service can work: the database, the job queue and the storage."""
+
     status: Literal["ok", "error"]
     mode: Literal["embedded", "celery"]
     version: str
@@ -79,6 +97,8 @@ class HealthOut(BaseModel):
 
 
 class ErrorOut(BaseModel):
+    """An error's reason, in words for the user."""
+
     detail: str
 
 
@@ -86,12 +106,16 @@ class ErrorOut(BaseModel):
 
 
 class ClubOut(_Out):
+    """A club."""
+
     id: int
     name: str
     created_at: dt.datetime
 
 
 class UserOut(_Out):
+    """A user of a club (an account; never its password)."""
+
     id: int
     club_id: int
     email: str
@@ -102,6 +126,8 @@ class UserOut(_Out):
 
 
 class ClubCreate(_In):
+    """A new club and its first user, who becomes its admin."""
+
     club_name: Name
     email: Email
     password: Password
@@ -109,16 +135,22 @@ class ClubCreate(_In):
 
 
 class ClubCreated(BaseModel):
+    """The club created, and its admin."""
+
     club: ClubOut
     user: UserOut
 
 
 class LoginIn(_In):
+    """An e-mail address and password to sign in with."""
+
     email: Email
     password: Annotated[str, StringConstraints(max_length=1024)]
 
 
 class TokenOut(BaseModel):
+    """A signed-in session: the bearer token (also set as a cookie) and the CSRF token to send with it."""
+
     access_token: str
     token_type: Literal["bearer"] = "bearer"
     expires_in: int = Field(description="seconds until the token (and the session cookie) expire")
@@ -127,11 +159,15 @@ class TokenOut(BaseModel):
 
 
 class MeOut(BaseModel):
+    """The signed-in user and their club."""
+
     user: UserOut
     club: ClubOut
 
 
 class UserCreate(_In):
+    """A new user of the club (admins only)."""
+
     email: Email
     password: Password
     display_name: Annotated[str, StringConstraints(max_length=200)] = ""
@@ -139,6 +175,8 @@ class UserCreate(_In):
 
 
 class UserUpdate(_In):
+    """Changes to a user (unset fields stay)."""
+
     display_name: Annotated[str, StringConstraints(max_length=200)] | None = None
     role: RoleName | None = None
     is_active: bool | None = None
@@ -149,6 +187,8 @@ class UserUpdate(_In):
 
 
 class HorseIn(_In):
+    """A new horse."""
+
     name: Name
     breed: Annotated[str, StringConstraints(max_length=200)] | None = None
     birth_year: int | None = Field(default=None, ge=1900, le=2100)
@@ -156,6 +196,8 @@ class HorseIn(_In):
 
 
 class HorseUpdate(_In):
+    """Changes to a horse (unset fields stay)."""
+
     name: Name | None = None
     breed: Annotated[str, StringConstraints(max_length=200)] | None = None
     birth_year: int | None = Field(default=None, ge=1900, le=2100)
@@ -163,6 +205,8 @@ class HorseUpdate(_In):
 
 
 class HorseOut(_Out):
+    """A horse of the club."""
+
     id: int
     name: str
     breed: str | None
@@ -172,16 +216,22 @@ class HorseOut(_Out):
 
 
 class RiderIn(_In):
+    """A new rider."""
+
     name: Name
     user_id: RefId | None = Field(default=None, description="the rider's own account, if any")
 
 
 class RiderUpdate(_In):
+    """Changes to a rider (unset fields stay)."""
+
     name: Name | None = None
     user_id: RefId | None = None
 
 
 class RiderOut(_Out):
+    """A rider of the club."""
+
     id: int
     name: str
     user_id: int | None
@@ -200,6 +250,8 @@ class BoardIn(_In):
 
 
 class RigIn(_In):
+    """A new rig: a day's three-camera set-up."""
+
     name: Name
     recorded_on: dt.date | None = None
     cameras: dict[CameraRole, dict[str, str]] = Field(
@@ -211,6 +263,8 @@ class RigIn(_In):
 
 
 class RigUpdate(_In):
+    """Changes to a rig (unset fields stay)."""
+
     name: Name | None = None
     recorded_on: dt.date | None = None
     cameras: dict[CameraRole, dict[str, str]] | None = None
@@ -218,6 +272,8 @@ class RigUpdate(_In):
 
 
 class RigOut(_Out):
+    """A rig, whether it is calibrated, and its calibration's quality flags."""
+
     id: int
     name: str
     recorded_on: dt.date | None
@@ -229,6 +285,8 @@ class RigOut(_Out):
 
 
 class RigDetail(RigOut):
+    """A rig with its calibration (the result format's ``calibration`` object)."""
+
     calibration: dict[str, Any] | None
 
 
@@ -236,6 +294,8 @@ class RigDetail(RigOut):
 
 
 class MarkersIn(_In):
+    """ride.json's "markers": how many markers on the horse, the plumb line and the saddle."""
+
     horse: int = Field(default=3, ge=3, le=10)
     plumb: int = Field(default=2, ge=0, le=10)
     saddle: int = Field(default=1, ge=0, le=10)
@@ -266,6 +326,8 @@ class RideMetaIn(_In):
 
 
 class RideIn(_In):
+    """A new ride (its clips are uploaded afterwards)."""
+
     horse_id: RefId
     rider_id: RefId
     rig_id: RefId | None = None
@@ -277,6 +339,8 @@ class RideIn(_In):
 
 
 class RideUpdate(_In):
+    """Changes to a ride (unset fields stay)."""
+
     horse_id: RefId | None = None
     rider_id: RefId | None = None
     rig_id: RefId | None = None
@@ -287,6 +351,8 @@ class RideUpdate(_In):
 
 
 class RecordingOut(_Out):
+    """A stored clip and what probing it found."""
+
     id: int
     ride_id: int | None
     rig_id: int | None
@@ -304,6 +370,8 @@ class RecordingOut(_Out):
 
 
 class RideOut(_Out):
+    """A ride in a list: its details, status and comfort indicators."""
+
     id: int
     horse_id: int
     rider_id: int
@@ -319,17 +387,23 @@ class RideOut(_Out):
 
 
 class RideDetail(RideOut):
+    """A ride with its ride.json sections, its clips and its latest job."""
+
     meta: dict[str, Any]
     recordings: list[RecordingOut]
     latest_job_id: int | None
 
 
 class ClipUploaded(BaseModel):
+    """The clip stored, and the job it started (if it completed a set)."""
+
     recording: RecordingOut
     job_id: int | None = Field(description="the job this upload started (the set of clips became complete)")
 
 
 class BundleUploaded(BaseModel):
+    """The ride a bundle became, and its analysis job."""
+
     ride: RideOut
     job_id: int
 
@@ -338,6 +412,8 @@ class BundleUploaded(BaseModel):
 
 
 class UploadCreate(_In):
+    """A resumable upload to start: what the file is for and how big it is."""
+
     target: Literal["ride_clip", "rig_clip", "bundle"]
     length_bytes: int = Field(ge=1, le=2**62, description="the file's total size")
     ride_id: RefId | None = None
@@ -350,6 +426,8 @@ class UploadCreate(_In):
 
 
 class UploadOut(_Out):
+    """A resumable upload's state (`offset_bytes` is where to resume)."""
+
     id: str
     target: str
     ride_id: int | None
@@ -370,6 +448,8 @@ class UploadOut(_Out):
 
 
 class GradeIn(_In):
+    """A rider's comfort grade of a ride."""
+
     ride_id: RefId
     rider_id: RefId
     grade: int = Field(ge=1, le=5, description="1 = very uncomfortable ... 5 = very comfortable")
@@ -377,11 +457,15 @@ class GradeIn(_In):
 
 
 class GradeUpdate(_In):
+    """Changes to a grade (unset fields stay)."""
+
     grade: int | None = Field(default=None, ge=1, le=5)
     comment: Text | None = None
 
 
 class GradeOut(_Out):
+    """A rider's comfort grade of a ride."""
+
     id: int
     ride_id: int
     rider_id: int
@@ -394,6 +478,8 @@ class GradeOut(_Out):
 
 
 class JobCreate(_In):
+    """A job to queue."""
+
     kind: str = Field(
         description="job kind, e.g. 'analyze', 'calibrate_rig', 'probe' or 'selftest'",
         examples=["probe"],
@@ -407,6 +493,8 @@ class JobCreate(_In):
 
 
 class JobOut(BaseModel):
+    """A job: its status, progress, per-stage timings and error."""
+
     id: int
     kind: str
     status: Literal["queued", "running", "done", "failed", "cancelled"]
@@ -426,6 +514,8 @@ class JobOut(BaseModel):
 
 
 class JobKindOut(BaseModel):
+    """A job kind this server runs, with its stages in order."""
+
     name: str
     stages: list[str]
     needs_ride: bool
@@ -485,6 +575,8 @@ class ResultOut(BaseModel):
 
 
 class IndicatorOut(BaseModel):
+    """What an indicator key means: unit, label, thesis name and which way is more comfortable."""
+
     key: str
     unit: str
     label: str
@@ -494,6 +586,8 @@ class IndicatorOut(BaseModel):
 
 
 class GroupStats(BaseModel):
+    """An indicator's statistics over the rides of one group."""
+
     group: str
     n: int
     mean: float | None
@@ -503,16 +597,22 @@ class GroupStats(BaseModel):
 
 
 class HorseGroupStats(GroupStats):
+    """An indicator's statistics over one horse's rides."""
+
     horse_id: int | None
     horse: str
 
 
 class GaitComparison(BaseModel):
+    """One indicator of one horse, per gait."""
+
     unit: str
     gaits: list[GroupStats]
 
 
 class HorseComparisonOut(BaseModel):
+    """One horse's indicators across gaits."""
+
     horse_id: int
     horse: str
     rides: int
@@ -520,17 +620,23 @@ class HorseComparisonOut(BaseModel):
 
 
 class HorsesInGait(BaseModel):
+    """One indicator within a gait, per horse."""
+
     unit: str
     horses: list[HorseGroupStats]
 
 
 class ComparisonOut(BaseModel):
+    """The club's horses compared within one gait."""
+
     gait: str
     rides: int
     indicators: dict[str, HorsesInGait]
 
 
 class LeaderboardEntry(BaseModel):
+    """One horse's place in a ranking."""
+
     rank: int
     horse_id: int | None
     horse: str
@@ -543,6 +649,8 @@ class LeaderboardEntry(BaseModel):
 
 
 class LeaderboardOut(BaseModel):
+    """The club's horses ranked in a gait by an indicator, most comfortable first."""
+
     gait: str
     indicator: str
     unit: str
@@ -552,6 +660,8 @@ class LeaderboardOut(BaseModel):
 
 
 class CorrelationOut(BaseModel):
+    """Riders' grades against the indicators."""
+
     gait: str | None
     grades: int
     indicators: dict[str, dict[str, Any]] = Field(

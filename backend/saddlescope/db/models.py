@@ -33,6 +33,11 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 from saddlescope.db.enums import JobStatus, RideStatus, Role, UploadStatus, UploadTarget
 
+__all__ = [
+    "Base", "Club", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION", "Recording", "Result",
+    "Ride", "Rider", "Rig", "TimestampMixin", "UTCDateTime", "Upload", "User", "utcnow",
+]
+
 # Stable constraint names, so Alembic migrations are the same on SQLite and PostgreSQL.
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -44,6 +49,7 @@ NAMING_CONVENTION = {
 
 
 def utcnow() -> dt.datetime:
+    """The current time, timezone-aware UTC (what every timestamp column stores)."""
     return dt.datetime.now(dt.UTC)
 
 
@@ -54,6 +60,7 @@ class UTCDateTime(TypeDecorator):
     cache_ok = True
 
     def process_bind_param(self, value: dt.datetime | None, dialect) -> dt.datetime | None:
+        """Refuse naive datetimes; store aware ones in UTC."""
         if value is None:
             return None
         if value.tzinfo is None:
@@ -61,6 +68,7 @@ class UTCDateTime(TypeDecorator):
         return value.astimezone(dt.UTC)
 
     def process_result_value(self, value: dt.datetime | None, dialect) -> dt.datetime | None:
+        """Read back an aware UTC datetime (SQLite returns naive ones)."""
         if value is None:
             return None
         return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
@@ -75,15 +83,21 @@ def _str_enum(values: tuple[str, ...] | type[enum.StrEnum], name: str, length: i
 
 
 class Base(DeclarativeBase):
+    """The models' base: stable constraint names, UTC timestamps, JSON for dicts and lists."""
+
     metadata = MetaData(naming_convention=NAMING_CONVENTION)
     type_annotation_map = {dt.datetime: UTCDateTime(), dict[str, Any]: JSON(), list[Any]: JSON()}
 
 
 class TimestampMixin:
+    """A ``created_at`` column, set when the row is added."""
+
     created_at: Mapped[dt.datetime] = mapped_column(default=utcnow)
 
 
 class Club(TimestampMixin, Base):
+    """A riding club: every other row belongs to one (its ``club_id``)."""
+
     __tablename__ = "clubs"
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -91,6 +105,8 @@ class Club(TimestampMixin, Base):
 
 
 class User(TimestampMixin, Base):
+    """An account of a club: a member, or an admin who also manages users."""
+
     __tablename__ = "users"
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -105,6 +121,8 @@ class User(TimestampMixin, Base):
 
 
 class Horse(TimestampMixin, Base):
+    """A horse of the club (names unique within the club)."""
+
     __tablename__ = "horses"
     __table_args__ = (
         UniqueConstraint("club_id", "name"),
@@ -121,6 +139,8 @@ class Horse(TimestampMixin, Base):
 
 
 class Rider(TimestampMixin, Base):
+    """A rider of the club, maybe with an account of their own (to grade rides)."""
+
     __tablename__ = "riders"
     __table_args__ = (UniqueConstraint("club_id", "name"),)
 
@@ -150,6 +170,8 @@ class Rig(TimestampMixin, Base):
 
 
 class Ride(TimestampMixin, Base):
+    """One ride: a horse, a rider, a gait and direction, and the clips of its recording."""
+
     __tablename__ = "rides"
     __table_args__ = (Index("ix_rides_club_id_gait", "club_id", "gait"),)
 
@@ -206,6 +228,8 @@ class Recording(TimestampMixin, Base):
 
 
 class Job(Base):
+    """A unit of background work (analysis, calibration, probe): its state, progress and timings."""
+
     __tablename__ = "jobs"
     __table_args__ = (
         CheckConstraint("progress >= 0 AND progress <= 1", name="progress_range"),

@@ -21,6 +21,11 @@ from saddlescope.jobs import JobQueue, QueueUnavailable
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stages import job_kind
 
+__all__ = [
+    "JobStateError", "cancel_job", "create_job", "get_job", "job_as_dict", "retry_job", "submit_job",
+    "wait_for_job",
+]
+
 
 def create_job(session: Session, *, kind: str, ride_id: int | None = None, rig_id: int | None = None,
                payload: dict[str, Any] | None = None, club_id: int | None = None) -> Job:

@@ -1,5 +1,4 @@
-"""Use cases of results: a ride's indicators and plotted series, and its exports
-(JSON, CSV, xlsx, C3D, TRC)."""
+"""Use cases of results: a ride's indicators and plotted series, and its exports (JSON, CSV, xlsx, C3D, TRC)."""
 
 from __future__ import annotations
 
@@ -21,6 +20,12 @@ from saddlescope.core.errors import InputError
 from saddlescope.core.indicators import indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
 from saddlescope.storage import Storage
+
+__all__ = [
+    "ANGULAR_PER_FRAME", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
+    "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document", "result_view",
+    "result_view_json", "tracks_mm", "view_of_document",
+]
 
 EXPORT_FORMATS = {
     "json": "application/json",
@@ -54,6 +59,7 @@ def result_document(session: Session, storage: Storage, ride_id: int, *, club_id
 
 
 def decimate(values: list, step: int) -> list:
+    """Every `step`-th item of `values` (all of them for a step of 1)."""
     return values[::step] if step > 1 else values
 
 
@@ -210,7 +216,22 @@ def indicator_table_bytes(rows: list[dict[str, Any]], fmt: str) -> bytes:
 
 
 def tracks_mm(doc: dict[str, Any]) -> tuple[tuple[str, ...], np.ndarray, float]:
-    """(labels, points of shape (F, M, 3) in mm, rate in Hz): the markers and the saddle point S."""
+    """The 3-D tracks of the markers and the saddle point S, for a motion-capture file.
+
+    Parameters
+    ----------
+    doc : dict
+        A result document (CONTRACTS section 2): ``saddle.position_m``, ``markers.position_m``, ``fps``.
+
+    Returns
+    -------
+    labels : tuple of str
+        The M track names: the markers' (``M1``, ...; when their tracks span every frame), then ``S``.
+    points_mm : ndarray of shape (F, M, 3)
+        Positions in the motion frame, mm (NaN where a marker was not seen).
+    rate_hz : float
+        Frames per second.
+    """
     saddle = doc.get("saddle") or {}
     position = saddle.get("position_m") or []
     if not position:

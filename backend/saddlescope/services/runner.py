@@ -29,6 +29,11 @@ from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobKind
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage
 
+__all__ = [
+    "HEARTBEAT_S", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs", "run_job",
+    "worker_host",
+]
+
 log = logging.getLogger(__name__)
 
 # Progress is written at most this often (plus at every stage boundary), to spare the database.
@@ -40,6 +45,7 @@ STALE_AFTER_S = 180.0
 
 
 def worker_host() -> str:
+    """The worker process as ``host:pid`` (recorded on the jobs it runs, to tell when it is gone)."""
     return f"{socket.gethostname()}:{os.getpid()}"
 
 

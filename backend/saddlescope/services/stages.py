@@ -45,6 +45,12 @@ from saddlescope.services.rides import ANALYSIS_JOB_KIND, complete_clip_sets, ri
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key, tree_digest
 
+__all__ = [
+    "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobKind", "STAGES", "Stage",
+    "StageContext", "StageUnavailable", "define_job_kind", "job_kind", "ride_document", "run_analyze",
+    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_probe", "run_selftest", "stage",
+]
+
 ASSEMBLED_BUNDLE = "bundle"  # folder name of the assembled ride bundle in the assemble stage's outputs
 DEFAULT_MARKERS = {"horse": 3, "plumb": 2, "saddle": 1}
 
@@ -92,7 +98,7 @@ class StageContext:
         raise InputError(f"stage {self.stage!r} of job {self.job_id} needs a ride or a rig, the job has none")
 
     def outputs(self) -> Path:
-        """This stage's own folder for the job's ride (or rig), emptied first (re-runs replace outputs)."""
+        """The current stage's own folder for the job's ride (or rig), emptied first (re-runs replace outputs)."""
         return self.storage.fresh_dir(self._stage_key(self.stage))
 
     def output_key(self, name: str) -> str:
@@ -106,6 +112,8 @@ class StageContext:
 
 @dataclass(frozen=True)
 class Stage:
+    """A registered stage: its function, its share of the progress bar and its description."""
+
     name: str
     run: Callable[[StageContext], None]
     weight: float = 1.0  # share of the job's progress bar, relative to the other stages
@@ -154,6 +162,7 @@ def define_job_kind(kind: JobKind) -> JobKind:
 
 
 def job_kind(name: str) -> JobKind:
+    """The registered job kind `name`; `InputError` naming the known ones otherwise."""
     try:
         return JOB_KINDS[name]
     except KeyError:

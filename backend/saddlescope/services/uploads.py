@@ -1,5 +1,7 @@
-"""Use cases of uploads: accept a clip (probe it, check it agrees with its set), a ride bundle, or a
-resumable upload; then start whatever processing the new clip makes possible.
+"""Use cases of uploads: accept a clip, a ride bundle or a resumable upload, then start what it allows.
+
+A clip is probed and checked against the other cameras' clips of its set; whatever processing the
+new clip makes possible is started.
 
 The bytes arrive elsewhere (the API streams them into storage with `Storage.writer`); these functions
 take the *staged* storage key of a complete file. A refused file is deleted and leaves every earlier
@@ -32,6 +34,12 @@ from saddlescope.services.job_service import submit_job
 from saddlescope.services.rides import refresh_ride_status, register_bundle, ride_clip_plan
 from saddlescope.storage import Storage, TooLarge, upload_key
 
+__all__ = [
+    "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
+    "accept_clip", "check_clip_slot", "clip_suffix", "create_upload", "finalise_upload", "find_owner",
+    "staging_key", "start_processing",
+]
+
 RIG_CLIP_KINDS = ("calibration", "plumb", "static")
 RIDE_CLIP_KINDS = CLIP_KINDS
 # Frame rates of one clip set may differ by rounding in the container (29.97 written as 30000/1001 ...).
@@ -49,9 +57,11 @@ class ClipOwner:
 
     @property
     def label(self) -> str:
+        """The owner in words (``ride 3``)."""
         return f"{self.kind} {self.id}"
 
     def where(self) -> dict[str, int | None]:
+        """The recording columns naming this owner (``ride_id`` and ``rig_id``)."""
         return (
             {"ride_id": self.id, "rig_id": None}
             if self.kind == "ride"

@@ -11,6 +11,8 @@ from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, chan
 from saddlescope.api.schemas import HorseComparisonOut, HorseIn, HorseOut, HorseUpdate, Page
 from saddlescope.services.analytics import horse_comparison
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/horses", tags=["horses"])
 
 
@@ -29,16 +31,19 @@ def list_horses(
     "", status_code=status.HTTP_201_CREATED, response_model=HorseOut, responses={**ERRORS, **CONFLICT}
 )
 def create_horse(body: HorseIn, club: ClubDep) -> HorseOut:
+    """Add a horse to the club (409 when the club has one of that name)."""
     return HorseOut.model_validate(club.horses.add(**body.model_dump()))
 
 
 @router.get("/{horse_id}", response_model=HorseOut, responses=ERRORS)
 def read_horse(horse_id: Id, club: ClubDep) -> HorseOut:
+    """A horse of the club."""
     return HorseOut.model_validate(club.horses.get(horse_id))
 
 
 @router.patch("/{horse_id}", response_model=HorseOut, responses={**ERRORS, **CONFLICT})
 def update_horse(horse_id: Id, body: HorseUpdate, club: ClubDep) -> HorseOut:
+    """Change a horse's details (a null breed, birth_year or height clears it)."""
     values = changes(body, nullable=("breed", "birth_year", "height_withers_m"))
     return HorseOut.model_validate(club.horses.update_fields(horse_id, **values))
 

@@ -15,11 +15,14 @@ from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, retry_job, submit_job
 from saddlescope.services.stages import JOB_KINDS
 
+__all__ = ["JobStatusName", "job_out", "router"]
+
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 JobStatusName = Literal["queued", "running", "done", "failed", "cancelled"]
 
 
 def job_out(job: Job) -> JobOut:
+    """The public view of a job."""
     return JobOut(**job_as_dict(job))
 
 

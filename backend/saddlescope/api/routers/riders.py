@@ -10,12 +10,15 @@ from saddlescope.api.deps import AdminClubDep, ClubDep
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import Page, RiderIn, RiderOut, RiderUpdate
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/riders", tags=["riders"])
 
 
 def _check_user(club, user_id: int | None) -> None:
+    """A rider's account must be a user of this club (404 otherwise)."""
     if user_id is not None:
-        club.users.get(user_id)  # a user of this club (404 otherwise)
+        club.users.get(user_id)
 
 
 @router.get("", response_model=Page[RiderOut], responses=ERRORS)
@@ -33,17 +36,20 @@ def list_riders(
     "", status_code=status.HTTP_201_CREATED, response_model=RiderOut, responses={**ERRORS, **CONFLICT}
 )
 def create_rider(body: RiderIn, club: ClubDep) -> RiderOut:
+    """Add a rider to the club, with their own account if they have one (409 for a name in use)."""
     _check_user(club, body.user_id)
     return RiderOut.model_validate(club.riders.add(name=body.name, user_id=body.user_id))
 
 
 @router.get("/{rider_id}", response_model=RiderOut, responses=ERRORS)
 def read_rider(rider_id: Id, club: ClubDep) -> RiderOut:
+    """A rider of the club."""
     return RiderOut.model_validate(club.riders.get(rider_id))
 
 
 @router.patch("/{rider_id}", response_model=RiderOut, responses={**ERRORS, **CONFLICT})
 def update_rider(rider_id: Id, body: RiderUpdate, club: ClubDep) -> RiderOut:
+    """Rename a rider or change their account (null: none)."""
     _check_user(club, body.user_id)
     return RiderOut.model_validate(
         club.riders.update_fields(rider_id, **changes(body, nullable=("user_id",)))

@@ -30,10 +30,13 @@ from saddlescope.services.uploads import (
     ClipOwner,
 )
 
+__all__ = ["rig_out", "router"]
+
 router = APIRouter(prefix="/rigs", tags=["rigs"])
 
 
 def rig_out(rig: Rig, *, detail: bool = False) -> RigOut:
+    """The list view of a rig, or (`detail`) the view with its calibration."""
     data = {
         "id": rig.id,
         "name": rig.name,
@@ -80,6 +83,7 @@ def read_rig(rig_id: Id, club: ClubDep) -> RigOut:
 
 @router.patch("/{rig_id}", response_model=RigOut, responses=ERRORS)
 def update_rig(rig_id: Id, body: RigUpdate, club: ClubDep) -> RigOut:
+    """Change a rig's details (a null recorded_on or board clears it)."""
     values = changes(body, nullable=("recorded_on", "board"))
     if "board" in values and values["board"] is not None:
         values["board"] = {k: v for k, v in values["board"].items() if v is not None}
@@ -97,6 +101,7 @@ def delete_rig(rig_id: Id, club: AdminClubDep, storage: StorageDep) -> Response:
 
 @router.get("/{rig_id}/clips", response_model=list[RecordingOut], responses=ERRORS)
 def list_rig_clips(rig_id: Id, club: ClubDep) -> list[RecordingOut]:
+    """The rig's clips (calibration, plumb and static; shared by its rides)."""
     club.rigs.get(rig_id)
     return [RecordingOut.model_validate(r) for r in club.recordings.for_rig(rig_id)]
 
@@ -118,10 +123,12 @@ async def upload_rig_clip(
     sessions: SessionFactoryDep,
     queue: QueueDep,
 ) -> ClipUploaded:
-    """Upload one camera's calibration, plumb or static clip of the rig (multipart field `file`, or the
-    raw bytes). It is probed at once; a clip that does not decode, or whose frame rate or size differs
-    from the other cameras' clips of the set, is refused (422) and any earlier clip stays. The third
-    calibration clip starts the rig's calibration job."""
+    """Upload one camera's calibration, plumb or static clip of the rig (multipart field `file`, or raw bytes).
+
+    It is probed at once; a clip that does not decode, or whose frame rate or size differs from the other
+    cameras' clips of the set, is refused (422) and any earlier clip stays. The third calibration clip
+    starts the rig's calibration job.
+    """
     await run_in_threadpool(club.rigs.get, rig_id)
     return await receive_clip(request, ClipOwner("rig", rig_id, club.club_id), clip_kind, camera, club=club,
                               settings=settings, storage=storage, sessions=sessions, queue=queue)
