@@ -83,7 +83,7 @@ class RideRepository(Repository):
         return self._page((rides or RideFilter()).where(), sort=sort, limit=limit, offset=offset, stmt=stmt)
 
     def set_status(self, ride_id: int, status: str) -> None:
-        """Store a ride's status."""
+        """Store a ride's status (derived by `saddlescope.services.rides.refresh_ride_status`, its one caller)."""
         self.session.execute(self._scoped_update(ride_id).values(status=status))
 
     def set_bundle_key(self, ride_id: int, bundle_key: str) -> None:
