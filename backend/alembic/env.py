@@ -13,6 +13,8 @@ from saddlescope.db.models import Base
 from saddlescope.db.session import make_engine
 from saddlescope.settings import get_settings
 
+__all__ = ["run_migrations_offline", "run_migrations_online"]
+
 config = context.config
 target_metadata = Base.metadata
 
@@ -35,12 +37,14 @@ def _configure(connection: Connection | None = None, url: str | None = None) -> 
 
 
 def run_migrations_offline() -> None:
+    """Write the migrations' SQL instead of running it (``alembic upgrade head --sql``)."""
     _configure(url=_database_url())
     with context.begin_transaction():
         context.run_migrations()
 
 
 def run_migrations_online() -> None:
+    """Run the migrations on the caller's connection, or on a new engine for the URL."""
     connection = config.attributes.get("connection")
     if connection is not None:
         _configure(connection)

@@ -10,17 +10,23 @@ Should `saddlescope analyze` itself fail on the tiny ride, both tests fail with 
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import subprocess
+import types
+import typing
 
 import integration_services
 import pytest
 from api_helpers import new_club, zip_folder
 from fastapi.testclient import TestClient
+from pydantic import BaseModel
 
 from conftest import PROJECT_ROOT
 from saddlescope.api import create_app
+from saddlescope.api.schemas import ResultOut
 from saddlescope.db.migrate import upgrade_to_head
+from saddlescope.services.results import view_of_document
 from saddlescope.settings import load_settings
 
 pg_database_url = integration_services.pg_database_url
@@ -53,6 +59,36 @@ def same_indicators(served: dict, expected: dict) -> None:
     for key, value in expected.items():
         # rel 1e-5: two runs of `saddlescope analyze` on one bundle differ by ~4e-7 (not bit for bit)
         assert served[key] == pytest.approx(value, rel=1e-5, abs=1e-9), key
+
+
+def _nested_model(annotation) -> type[BaseModel] | None:
+    """The pydantic model a field holds (also inside ``Model | None``), or None."""
+    for candidate in (annotation, *typing.get_args(annotation)):
+        if isinstance(candidate, type) and not typing.get_args(candidate) and issubclass(candidate, BaseModel):
+            return candidate
+    return None
+
+
+def shape_mismatches(view: dict, model: type[BaseModel], where: str) -> list[str]:
+    """Keys of `view` that `model` does not declare and fields of `model` that `view` lacks, recursively
+    into the nested objects the model declares as models."""
+    fields = model.model_fields
+    problems = [f"{where}.{key}: in the view, not in {model.__name__}" for key in sorted(set(view) - set(fields))]
+    problems += [f"{where}.{key}: in {model.__name__}, not in the view" for key in sorted(set(fields) - set(view))]
+    for name, field in fields.items():
+        nested = _nested_model(field.annotation)
+        if nested is not None and isinstance(view.get(name), dict):
+            problems += shape_mismatches(view[name], nested, f"{where}.{name}")
+    return problems
+
+
+def test_the_view_of_a_real_result_has_exactly_the_schemas_fields(reference):
+    """The view is built in services/results.py, its schema declared in api/schemas.py: adding a key to one
+    and not the other fails here (the real document has every optional series)."""
+    row = types.SimpleNamespace(job_id=7, code_version="test", created_at=dt.datetime.now(dt.UTC))
+    view = view_of_document(reference, row, ride_id=3, max_points=50)
+    assert shape_mismatches(view, ResultOut, "ResultOut") == []
+    ResultOut.model_validate(view)  # and the values have the declared types
 
 
 def test_embedded_bundle_upload_with_the_real_pipeline(reference, tiny_ride, tmp_path):

@@ -7,7 +7,7 @@ import pytest
 from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
-from sqlalchemy import Column, Integer, MetaData, String, Table, inspect
+from sqlalchemy import Column, Integer, MetaData, String, Table, inspect, text
 
 from saddlescope.db.migrate import alembic_config, current_revision, head_revision, upgrade_to_head
 from saddlescope.db.models import Base
@@ -82,3 +82,52 @@ def test_offline_sql_renders_for_postgresql():
 @pytest.mark.integration
 def test_postgresql_upgrade_head_matches_the_models(pg_database_url):
     check_upgrade_builds_the_models(pg_database_url)
+
+
+ANALYSED_RIDE_AT_0003 = [
+    "INSERT INTO clubs (id, name, created_at) VALUES (1, 'Club', CURRENT_TIMESTAMP)",
+    "INSERT INTO horses (id, club_id, name, created_at) VALUES (1, 1, 'Horse', CURRENT_TIMESTAMP)",
+    "INSERT INTO riders (id, club_id, name, created_at) VALUES (1, 1, 'Rider', CURRENT_TIMESTAMP)",
+    "INSERT INTO rides (id, club_id, horse_id, rider_id, gait, direction, status, notes, meta, created_at) "
+    "VALUES (1, 1, 1, 1, 'walk', 'CW', 'analysed', '', '{}', CURRENT_TIMESTAMP)",
+    "INSERT INTO results (id, club_id, ride_id, indicators, quality, result_key, arrays_key, acc_y_wb_rms, "
+    "created_at) VALUES (1, 1, 1, '{\"acc_y_wb_rms\": 2.5}', '{\"flags\": []}', 'rides/1/r.json', "
+    "'rides/1/arrays.npz', 2.5, CURRENT_TIMESTAMP)",
+]
+
+
+def check_0004_drops_the_unread_result_columns(database_url: str) -> None:
+    config = alembic_config(database_url)
+    upgrade_to_head(database_url)
+    command.downgrade(config, "0003")
+    engine = make_engine(database_url)
+    try:
+        with engine.begin() as conn:
+            for statement in ANALYSED_RIDE_AT_0003:
+                conn.execute(text(statement))
+        command.upgrade(config, "0004")
+        columns = {c["name"] for c in inspect(engine).get_columns("results")}
+        assert {"quality", "arrays_key"}.isdisjoint(columns) and {"indicators", "result_key"} <= columns
+        with engine.connect() as conn:  # the result itself is kept
+            assert conn.execute(text("SELECT result_key, acc_y_wb_rms FROM results")).all() == [
+                ("rides/1/r.json", 2.5)
+            ]
+        command.downgrade(config, "0003")
+        with engine.connect() as conn:
+            quality, arrays_key = conn.execute(text("SELECT quality, arrays_key FROM results")).one()
+        assert quality in ("{}", {}) and arrays_key is None
+        with engine.begin() as conn:
+            for table in ("results", "rides", "riders", "horses", "clubs"):
+                conn.execute(text(f"DELETE FROM {table}"))
+        upgrade_to_head(database_url)
+    finally:
+        engine.dispose()
+
+
+def test_sqlite_0004_drops_the_unread_result_columns_and_keeps_the_results(tmp_path):
+    check_0004_drops_the_unread_result_columns(f"sqlite:///{tmp_path / 'results.db'}")
+
+
+@pytest.mark.integration
+def test_postgresql_0004_drops_the_unread_result_columns_and_keeps_the_results(pg_database_url):
+    check_0004_drops_the_unread_result_columns(pg_database_url)

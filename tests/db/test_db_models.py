@@ -8,8 +8,9 @@ import pytest
 from sqlalchemy import text
 from sqlalchemy.exc import IntegrityError, StatementError
 
+from saddlescope.db.enums import JobStatus
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.db.models import Job, JobStatus
+from saddlescope.db.models import Job
 from saddlescope.db.repositories import (
     ClubRepository,
     GradeRepository,
@@ -185,9 +186,7 @@ def test_result_replaces_the_previous_one_and_fills_leaderboard_columns(sessions
             ride_id=ride_id,
             job_id=None,
             indicators={"acc_y_wb_rms": 2.0, "vel_x_avg_kmh": 19.5},
-            quality={},
             result_key=None,
-            arrays_key=None,
             code_version="v1",
         )
         second = results.replace_for_ride(
@@ -195,9 +194,7 @@ def test_result_replaces_the_previous_one_and_fills_leaderboard_columns(sessions
             ride_id=ride_id,
             job_id=None,
             indicators={"acc_y_wb_rms": 2.5, "vdv_y_wb": 4.0, "note": "x"},
-            quality={"ok": True},
             result_key="r.json",
-            arrays_key="a.npz",
             code_version="v2",
         )
         assert first.id == second.id

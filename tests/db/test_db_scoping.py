@@ -113,9 +113,7 @@ def test_the_leaderboard_values_come_from_the_clubs_results_only(sessions, two_c
                 ride_id=ids["ride"],
                 job_id=None,
                 indicators={"acc_y_wb_rms": value, "t_a8_limit_wb_h": 2 * value},
-                quality={},
                 result_key=None,
-                arrays_key=None,
                 code_version=None,
             )
         a = AnalyticsRepository(s, club_id=two_clubs["A"]["club"])

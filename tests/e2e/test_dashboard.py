@@ -135,9 +135,9 @@ def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dic
 
 def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) -> None:
     """Put a finished analysis in as the analyse stage would: result JSON in storage, row in the DB."""
-    from saddlescope.db.models import RideStatus
     from saddlescope.db.repositories import ResultRepository, RideRepository
     from saddlescope.db.session import make_engine, make_session_factory, session_scope
+    from saddlescope.services.rides import refresh_ride_status
     from saddlescope.storage import Storage, stage_output_key
 
     storage = Storage(storage_dir)
@@ -149,8 +149,8 @@ def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) 
             ride = RideRepository(session).get(ride_id)
             ResultRepository(session).replace_for_ride(
                 club_id=ride.club_id, ride_id=ride_id, job_id=None, indicators=doc["indicators"],
-                quality=doc["quality"], result_key=result_key, arrays_key=None, code_version="test")
-            RideRepository(session).set_status(ride_id, RideStatus.ANALYSED.value)
+                result_key=result_key, code_version="test")
+            refresh_ride_status(session, ride_id)  # analysed: it has a result
     finally:
         engine.dispose()
 

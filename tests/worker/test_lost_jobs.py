@@ -10,8 +10,9 @@ import sys
 
 import pytest
 
+from saddlescope.db.enums import JobStatus
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.db.models import Job, JobStatus
+from saddlescope.db.models import Job
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services import runner

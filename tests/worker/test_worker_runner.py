@@ -194,8 +194,9 @@ def test_analyze_stores_the_result_and_rerunning_replaces_it(settings, sessions,
         assert s.get(Ride, ride_id).status == "analysed"
     assert result.acc_y_wb_rms == pytest.approx(2.79) and result.vel_x_avg_kmh == pytest.approx(19.7)
     assert json.loads(storage.read_bytes(result.result_key))["indicators"] == FAKE_INDICATORS
-    arrays = storage.load_arrays(result.arrays_key)
-    np.testing.assert_array_equal(arrays["saddle.position_m"][:, 0], [0, 1, 2])
+    served = json.loads(storage.read_bytes(result.result_key))["saddle"]["position_m"]
+    np.testing.assert_array_equal(np.asarray(served)[:, 0], [0, 1, 2])
+    assert not storage.exists(result.result_key.replace("result.json", "arrays.npz"))  # not written: never read
     second = add_job(sessions, kind="analyze", ride_id=ride_id)
     assert run_job(second, settings=settings) == "done"
     with sessions() as s:

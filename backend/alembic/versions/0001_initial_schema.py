@@ -12,13 +12,16 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
+__all__ = ["branch_labels", "depends_on", "down_revision", "downgrade", "revision", "upgrade"]
+
 revision: str = "0001"
 down_revision: str | None = None
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
 
-def upgrade() -> None:
+def _create_clubs() -> None:
+    """The clubs."""
     op.create_table(
         "clubs",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -27,6 +30,10 @@ def upgrade() -> None:
         sa.PrimaryKeyConstraint("id", name=op.f("pk_clubs")),
         sa.UniqueConstraint("name", name=op.f("uq_clubs_name")),
     )
+
+
+def _create_horses() -> None:
+    """The club's horses."""
     op.create_table(
         "horses",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -48,6 +55,9 @@ def upgrade() -> None:
     )
     op.create_index(op.f("ix_horses_club_id"), "horses", ["club_id"], unique=False)
 
+
+def _create_rigs() -> None:
+    """The club's rigs (camera set-ups)."""
     op.create_table(
         "rigs",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -65,6 +75,9 @@ def upgrade() -> None:
     )
     op.create_index(op.f("ix_rigs_club_id"), "rigs", ["club_id"], unique=False)
 
+
+def _create_users() -> None:
+    """The club's users (accounts)."""
     op.create_table(
         "users",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -89,6 +102,9 @@ def upgrade() -> None:
     )
     op.create_index(op.f("ix_users_club_id"), "users", ["club_id"], unique=False)
 
+
+def _create_riders() -> None:
+    """The club's riders."""
     op.create_table(
         "riders",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -108,6 +124,9 @@ def upgrade() -> None:
     op.create_index(op.f("ix_riders_club_id"), "riders", ["club_id"], unique=False)
     op.create_index(op.f("ix_riders_user_id"), "riders", ["user_id"], unique=False)
 
+
+def _create_rides() -> None:
+    """The rides."""
     op.create_table(
         "rides",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -173,6 +192,9 @@ def upgrade() -> None:
     op.create_index(op.f("ix_rides_rider_id"), "rides", ["rider_id"], unique=False)
     op.create_index(op.f("ix_rides_rig_id"), "rides", ["rig_id"], unique=False)
 
+
+def _create_grades() -> None:
+    """Riders' comfort grades of rides."""
     op.create_table(
         "grades",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -199,6 +221,9 @@ def upgrade() -> None:
     op.create_index(op.f("ix_grades_ride_id"), "grades", ["ride_id"], unique=False)
     op.create_index(op.f("ix_grades_rider_id"), "grades", ["rider_id"], unique=False)
 
+
+def _create_jobs() -> None:
+    """Background jobs."""
     op.create_table(
         "jobs",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -250,6 +275,9 @@ def upgrade() -> None:
     op.create_index(op.f("ix_jobs_rig_id"), "jobs", ["rig_id"], unique=False)
     op.create_index("ix_jobs_status_created_at", "jobs", ["status", "created_at"], unique=False)
 
+
+def _create_recordings() -> None:
+    """The clips of rides and rigs."""
     op.create_table(
         "recordings",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -312,6 +340,9 @@ def upgrade() -> None:
     op.create_index(op.f("ix_recordings_ride_id"), "recordings", ["ride_id"], unique=False)
     op.create_index(op.f("ix_recordings_rig_id"), "recordings", ["rig_id"], unique=False)
 
+
+def _create_results() -> None:
+    """The rides' results."""
     op.create_table(
         "results",
         sa.Column("id", sa.Integer(), nullable=False),
@@ -350,7 +381,22 @@ def upgrade() -> None:
     op.create_index(op.f("ix_results_job_id"), "results", ["job_id"], unique=False)
 
 
+def upgrade() -> None:
+    """Create every table of the first schema."""
+    _create_clubs()
+    _create_horses()
+    _create_rigs()
+    _create_users()
+    _create_riders()
+    _create_rides()
+    _create_grades()
+    _create_jobs()
+    _create_recordings()
+    _create_results()
+
+
 def downgrade() -> None:
+    """Drop every table."""
     op.drop_index(op.f("ix_results_job_id"), table_name="results")
     op.drop_index("ix_results_club_id_vel_x_avg_kmh", table_name="results")
     op.drop_index("ix_results_club_id_vdv_y_wb", table_name="results")

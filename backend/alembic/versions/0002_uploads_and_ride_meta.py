@@ -12,6 +12,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
+__all__ = ["branch_labels", "depends_on", "down_revision", "downgrade", "revision", "upgrade"]
+
 revision: str = "0002"
 down_revision: str | None = "0001"
 branch_labels: str | Sequence[str] | None = None
@@ -23,6 +25,7 @@ def _enum(*values: str, name: str, length: int = 16) -> sa.Enum:
 
 
 def upgrade() -> None:
+    """Add uploads, a rig's board, a ride's meta and the clip facts."""
     with op.batch_alter_table("rigs") as batch:
         batch.add_column(sa.Column("board", sa.JSON(), nullable=True))
     # Existing rides get an empty object, then the default moves to the application (as for the others).
@@ -84,6 +87,7 @@ def upgrade() -> None:
 
 
 def downgrade() -> None:
+    """Remove what `upgrade` added."""
     for column in ("rig_id", "ride_id", "user_id", "club_id"):
         op.drop_index(op.f(f"ix_uploads_{column}"), table_name="uploads")
     op.drop_table("uploads")

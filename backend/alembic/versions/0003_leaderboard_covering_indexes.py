@@ -11,6 +11,10 @@ from collections.abc import Sequence
 
 from alembic import op
 
+__all__ = [
+    "COLUMNS", "OLD", "branch_labels", "depends_on", "down_revision", "downgrade", "revision", "upgrade",
+]
+
 revision: str = "0003"
 down_revision: str | None = "0002"
 branch_labels: str | Sequence[str] | None = None
@@ -29,6 +33,7 @@ OLD = ("acc_y_wb_rms", "vdv_y_wb", "vel_x_avg_kmh")
 
 
 def upgrade() -> None:
+    """Replace the (club, value) indexes by covering (club, ride, value) ones."""
     for name in OLD:  # (club, value) only: a ranking still had to read every wide row for its ride
         op.drop_index(f"ix_results_club_id_{name}", table_name="results")
     for name in COLUMNS:
@@ -38,6 +43,7 @@ def upgrade() -> None:
 
 
 def downgrade() -> None:
+    """Go back to the (club, value) indexes."""
     for name in COLUMNS:
         op.drop_index(f"ix_results_leaderboard_{name}", table_name="results")
     for name in OLD:

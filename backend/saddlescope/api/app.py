@@ -31,6 +31,8 @@ from saddlescope.services.uploads import IncompleteUpload
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage, TooLarge
 
+__all__ = ["ERROR_STATUS", "FRONTEND_DIR", "create_app"]
+
 log = logging.getLogger(__name__)
 
 FRONTEND_DIR = Path(__file__).resolve().parents[3] / "frontend"

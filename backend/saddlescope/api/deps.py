@@ -44,6 +44,12 @@ from saddlescope.services.queue import JobQueue
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage
 
+__all__ = [
+    "AdminClubDep", "CSRF_COOKIE", "CSRF_HEADER", "ClubDep", "ClubScope", "EngineDep", "PrincipalDep",
+    "QueueDep", "SAFE_METHODS", "SESSION_COOKIE", "SessionDep", "SessionFactoryDep", "SettingsDep",
+    "StorageDep",
+]
+
 SESSION_COOKIE = "saddlescope_session"
 CSRF_COOKIE = "saddlescope_csrf"
 CSRF_HEADER = "X-CSRF-Token"
@@ -132,9 +138,11 @@ class ClubScope:
 
     @property
     def club_id(self) -> int:
+        """The id of the signed-in user's club."""
         return self.principal.club_id
 
     def require_admin(self) -> None:
+        """Raise `Forbidden` unless the caller is an admin of the club."""
         require_admin(self.principal)
 
     def _repo(self, cls):
@@ -142,46 +150,57 @@ class ClubScope:
 
     @cached_property
     def users(self) -> UserRepository:
+        """The club's users."""
         return self._repo(UserRepository)
 
     @cached_property
     def horses(self) -> HorseRepository:
+        """The club's horses."""
         return self._repo(HorseRepository)
 
     @cached_property
     def riders(self) -> RiderRepository:
+        """The club's riders."""
         return self._repo(RiderRepository)
 
     @cached_property
     def rigs(self) -> RigRepository:
+        """The club's rigs."""
         return self._repo(RigRepository)
 
     @cached_property
     def rides(self) -> RideRepository:
+        """The club's rides."""
         return self._repo(RideRepository)
 
     @cached_property
     def recordings(self) -> RecordingRepository:
+        """The club's clips (recordings)."""
         return self._repo(RecordingRepository)
 
     @cached_property
     def jobs(self) -> JobRepository:
+        """The club's jobs."""
         return self._repo(JobRepository)
 
     @cached_property
     def results(self) -> ResultRepository:
+        """The club's results."""
         return self._repo(ResultRepository)
 
     @cached_property
     def grades(self) -> GradeRepository:
+        """The club's grades."""
         return self._repo(GradeRepository)
 
     @cached_property
     def uploads(self) -> UploadRepository:
+        """The club's resumable uploads."""
         return self._repo(UploadRepository)
 
     @cached_property
     def analytics(self) -> AnalyticsRepository:
+        """The club's read-only analytics queries."""
         return AnalyticsRepository(self.session, club_id=self.club_id)
 
 

@@ -10,6 +10,18 @@ from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_vali
 from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
+__all__ = [
+    "BoardIn", "BundleUploaded", "CameraRole", "ClipKind", "ClipUploaded", "ClubCreate", "ClubCreated",
+    "ClubOut", "ComparisonOut", "CorrelationOut", "Decimation", "Direction", "Email", "ErrorOut", "Gait",
+    "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
+    "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
+    "JobKindOut", "JobOut", "LeaderboardEntry", "LeaderboardOut", "LoginIn", "MAX_ID", "MarkersIn", "MeOut",
+    "Name", "Offsets", "Page", "PartHealth", "Password", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
+    "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
+    "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SyncIn", "Text", "TokenOut", "UploadCreate",
+    "UploadOut", "UserCreate", "UserOut", "UserUpdate",
+]
+
 T = TypeVar("T")
 
 Gait = Literal[GAITS]  # type: ignore[valid-type]
@@ -57,6 +69,8 @@ class _Out(BaseModel):
 
 
 class Page(BaseModel, Generic[T]):
+    """One page of a list, and how many rows match in all."""
+
     items: list[T]
     total: int = Field(description="rows matching the filters (all pages)")
     limit: int
@@ -67,12 +81,16 @@ class Page(BaseModel, Generic[T]):
 
 
 class PartHealth(BaseModel):
+    """One part's health: ok or not, with what it said."""
+
     ok: bool
     status: Literal["ok", "error"]
     detail: str
 
 
 class HealthOut(BaseModel):
+    """Whether the service can work: the database, the job queue and the storage."""
+
     status: Literal["ok", "error"]
     mode: Literal["embedded", "celery"]
     version: str
@@ -80,6 +98,8 @@ class HealthOut(BaseModel):
 
 
 class ErrorOut(BaseModel):
+    """An error's reason, in words for the user."""
+
     detail: str
 
 
@@ -87,12 +107,16 @@ class ErrorOut(BaseModel):
 
 
 class ClubOut(_Out):
+    """A club."""
+
     id: int
     name: str
     created_at: dt.datetime
 
 
 class UserOut(_Out):
+    """A user of a club (an account; never its password)."""
+
     id: int
     club_id: int
     email: str
@@ -103,6 +127,8 @@ class UserOut(_Out):
 
 
 class ClubCreate(_In):
+    """A new club and its first user, who becomes its admin."""
+
     club_name: Name
     email: Email
     password: Password
@@ -110,16 +136,22 @@ class ClubCreate(_In):
 
 
 class ClubCreated(BaseModel):
+    """The club created, and its admin."""
+
     club: ClubOut
     user: UserOut
 
 
 class LoginIn(_In):
+    """An e-mail address and password to sign in with."""
+
     email: Email
     password: Annotated[str, StringConstraints(max_length=1024)]
 
 
 class TokenOut(BaseModel):
+    """A signed-in session: the bearer token (also set as a cookie) and the CSRF token to send with it."""
+
     access_token: str
     token_type: Literal["bearer"] = "bearer"
     expires_in: int = Field(description="seconds until the token (and the session cookie) expire")
@@ -128,11 +160,15 @@ class TokenOut(BaseModel):
 
 
 class MeOut(BaseModel):
+    """The signed-in user and their club."""
+
     user: UserOut
     club: ClubOut
 
 
 class UserCreate(_In):
+    """A new user of the club (admins only)."""
+
     email: Email
     password: Password
     display_name: Annotated[str, StringConstraints(max_length=200)] = ""
@@ -140,6 +176,8 @@ class UserCreate(_In):
 
 
 class UserUpdate(_In):
+    """Changes to a user (unset fields stay)."""
+
     display_name: Annotated[str, StringConstraints(max_length=200)] | None = None
     role: RoleName | None = None
     is_active: bool | None = None
@@ -150,6 +188,8 @@ class UserUpdate(_In):
 
 
 class HorseIn(_In):
+    """A new horse."""
+
     name: Name
     breed: Annotated[str, StringConstraints(max_length=200)] | None = None
     birth_year: int | None = Field(default=None, ge=1900, le=2100)
@@ -157,6 +197,8 @@ class HorseIn(_In):
 
 
 class HorseUpdate(_In):
+    """Changes to a horse (unset fields stay)."""
+
     name: Name | None = None
     breed: Annotated[str, StringConstraints(max_length=200)] | None = None
     birth_year: int | None = Field(default=None, ge=1900, le=2100)
@@ -164,6 +206,8 @@ class HorseUpdate(_In):
 
 
 class HorseOut(_Out):
+    """A horse of the club."""
+
     id: int
     name: str
     breed: str | None
@@ -173,16 +217,22 @@ class HorseOut(_Out):
 
 
 class RiderIn(_In):
+    """A new rider."""
+
     name: Name
     user_id: RefId | None = Field(default=None, description="the rider's own account, if any")
 
 
 class RiderUpdate(_In):
+    """Changes to a rider (unset fields stay)."""
+
     name: Name | None = None
     user_id: RefId | None = None
 
 
 class RiderOut(_Out):
+    """A rider of the club."""
+
     id: int
     name: str
     user_id: int | None
@@ -208,6 +258,8 @@ class BoardIn(_In):
 
 
 class RigIn(_In):
+    """A new rig: a day's three-camera set-up."""
+
     name: Name
     recorded_on: dt.date | None = None
     cameras: dict[CameraRole, dict[str, str]] = Field(
@@ -219,6 +271,8 @@ class RigIn(_In):
 
 
 class RigUpdate(_In):
+    """Changes to a rig (unset fields stay)."""
+
     name: Name | None = None
     recorded_on: dt.date | None = None
     cameras: dict[CameraRole, dict[str, str]] | None = None
@@ -226,6 +280,8 @@ class RigUpdate(_In):
 
 
 class RigOut(_Out):
+    """A rig, whether it is calibrated, and its calibration's quality flags."""
+
     id: int
     name: str
     recorded_on: dt.date | None
@@ -237,6 +293,8 @@ class RigOut(_Out):
 
 
 class RigDetail(RigOut):
+    """A rig with its calibration (the result format's ``calibration`` object)."""
+
     calibration: dict[str, Any] | None
 
 
@@ -244,6 +302,8 @@ class RigDetail(RigOut):
 
 
 class MarkersIn(_In):
+    """ride.json's "markers": how many markers on the horse, the plumb line and the saddle."""
+
     horse: int = Field(default=3, ge=3, le=10)
     plumb: int = Field(default=2, ge=0, le=10)
     saddle: int = Field(default=1, ge=0, le=10)
@@ -274,6 +334,8 @@ class RideMetaIn(_In):
 
 
 class RideIn(_In):
+    """A new ride (its clips are uploaded afterwards)."""
+
     horse_id: RefId
     rider_id: RefId
     rig_id: RefId | None = None
@@ -285,6 +347,8 @@ class RideIn(_In):
 
 
 class RideUpdate(_In):
+    """Changes to a ride (unset fields stay)."""
+
     horse_id: RefId | None = None
     rider_id: RefId | None = None
     rig_id: RefId | None = None
@@ -295,6 +359,8 @@ class RideUpdate(_In):
 
 
 class RecordingOut(_Out):
+    """A stored clip and what probing it found."""
+
     id: int
     ride_id: int | None
     rig_id: int | None
@@ -312,6 +378,8 @@ class RecordingOut(_Out):
 
 
 class RideOut(_Out):
+    """A ride in a list: its details, status and comfort indicators."""
+
     id: int
     horse_id: int
     rider_id: int
@@ -327,17 +395,23 @@ class RideOut(_Out):
 
 
 class RideDetail(RideOut):
+    """A ride with its ride.json sections, its clips and its latest job."""
+
     meta: dict[str, Any]
     recordings: list[RecordingOut]
     latest_job_id: int | None
 
 
 class ClipUploaded(BaseModel):
+    """The clip stored, and the job it started (if it completed a set)."""
+
     recording: RecordingOut
     job_id: int | None = Field(description="the job this upload started (the set of clips became complete)")
 
 
 class BundleUploaded(BaseModel):
+    """The ride a bundle became, and its analysis job."""
+
     ride: RideOut
     job_id: int
 
@@ -346,6 +420,8 @@ class BundleUploaded(BaseModel):
 
 
 class UploadCreate(_In):
+    """A resumable upload to start: what the file is for and how big it is."""
+
     target: Literal["ride_clip", "rig_clip", "bundle"]
     length_bytes: int = Field(ge=1, le=2**62, description="the file's total size")
     ride_id: RefId | None = None
@@ -358,6 +434,8 @@ class UploadCreate(_In):
 
 
 class UploadOut(_Out):
+    """A resumable upload's state (`offset_bytes` is where to resume)."""
+
     id: str
     target: str
     ride_id: int | None
@@ -378,6 +456,8 @@ class UploadOut(_Out):
 
 
 class GradeIn(_In):
+    """A rider's comfort grade of a ride."""
+
     ride_id: RefId
     rider_id: RefId
     grade: int = Field(ge=1, le=5, description="1 = very uncomfortable ... 5 = very comfortable")
@@ -385,11 +465,15 @@ class GradeIn(_In):
 
 
 class GradeUpdate(_In):
+    """Changes to a grade (unset fields stay)."""
+
     grade: int | None = Field(default=None, ge=1, le=5)
     comment: Text | None = None
 
 
 class GradeOut(_Out):
+    """A rider's comfort grade of a ride."""
+
     id: int
     ride_id: int
     rider_id: int
@@ -402,6 +486,8 @@ class GradeOut(_Out):
 
 
 class JobCreate(_In):
+    """A job to queue."""
+
     kind: str = Field(
         description="job kind, e.g. 'analyze', 'calibrate_rig', 'probe' or 'selftest'",
         examples=["probe"],
@@ -415,6 +501,8 @@ class JobCreate(_In):
 
 
 class JobOut(BaseModel):
+    """A job: its status, progress, per-stage timings and error."""
+
     id: int
     kind: str
     status: Literal["queued", "running", "done", "failed", "cancelled"]
@@ -434,6 +522,8 @@ class JobOut(BaseModel):
 
 
 class JobKindOut(BaseModel):
+    """A job kind this server runs, with its stages in order."""
+
     name: str
     stages: list[str]
     needs_ride: bool
@@ -443,7 +533,36 @@ class JobKindOut(BaseModel):
 # --- results and comparisons -------------------------------------------------------------------------
 
 
+class ResultSeries(BaseModel):
+    """The plotted series, every ``decimation.step``-th frame (vectors as [x, y, z] in the motion frame)."""
+
+    t_s: list[float]
+    position_m: list[Any] = Field(description="the saddle point S")
+    velocity_m_s: list[Any]
+    acceleration_m_s2: list[Any]
+    omega_rad_s: list[Any]
+    alpha_rad_s2: list[Any]
+    markers_position_m: list[Any] | None = Field(
+        default=None, description="per frame, [x, y, z] of each marker; when the result has the markers")
+    omega_versions_rad_s: list[Any] | None = Field(
+        default=None, description="per frame, omega from each marker pair; when the result has them")
+    omega_versions_excluded: list[Any] | None = Field(
+        default=None, description="per frame, which versions were left out of omega")
+    singularity_index_per_frame: list[Any] | None = Field(
+        default=None, description="per frame, how close the markers' geometry is to singular")
+
+
+class Decimation(BaseModel):
+    """How the series were thinned: every `step`-th of `samples` samples, for at most `max_points`."""
+
+    step: int
+    samples: int
+    max_points: int
+
+
 class ResultOut(BaseModel):
+    """A ride's result as the dashboard shows it (built by `saddlescope.services.results.view_of_document`)."""
+
     ride_id: int
     job_id: int | None
     code_version: str | None
@@ -456,16 +575,16 @@ class ResultOut(BaseModel):
     quality: dict[str, Any]
     calibration_checks: dict[str, Any]
     calibration_flags: list[Any]
-    series: dict[str, list[Any]] = Field(
-        description="t_s, position_m, velocity_m_s, acceleration_m_s2, omega_rad_s, alpha_rad_s2 (decimated)"
-    )
+    series: ResultSeries
     fits: dict[str, list[dict[str, Any]]] = Field(
         default_factory=dict,
         description="per axis x, y, z and marker: the curve fit's goodness of fit and 95 % intervals (thesis 5.5)")
-    decimation: dict[str, int]
+    decimation: Decimation
 
 
 class IndicatorOut(BaseModel):
+    """What an indicator key means: unit, label, thesis name and which way is more comfortable."""
+
     key: str
     unit: str
     label: str
@@ -475,6 +594,8 @@ class IndicatorOut(BaseModel):
 
 
 class GroupStats(BaseModel):
+    """An indicator's statistics over the rides of one group."""
+
     group: str
     n: int
     mean: float | None
@@ -484,16 +605,22 @@ class GroupStats(BaseModel):
 
 
 class HorseGroupStats(GroupStats):
+    """An indicator's statistics over one horse's rides."""
+
     horse_id: int | None
     horse: str
 
 
 class GaitComparison(BaseModel):
+    """One indicator of one horse, per gait."""
+
     unit: str
     gaits: list[GroupStats]
 
 
 class HorseComparisonOut(BaseModel):
+    """One horse's indicators across gaits."""
+
     horse_id: int
     horse: str
     rides: int
@@ -501,17 +628,23 @@ class HorseComparisonOut(BaseModel):
 
 
 class HorsesInGait(BaseModel):
+    """One indicator within a gait, per horse."""
+
     unit: str
     horses: list[HorseGroupStats]
 
 
 class ComparisonOut(BaseModel):
+    """The club's horses compared within one gait."""
+
     gait: str
     rides: int
     indicators: dict[str, HorsesInGait]
 
 
 class LeaderboardEntry(BaseModel):
+    """One horse's place in a ranking."""
+
     rank: int
     horse_id: int | None
     horse: str
@@ -524,6 +657,8 @@ class LeaderboardEntry(BaseModel):
 
 
 class LeaderboardOut(BaseModel):
+    """The club's horses ranked in a gait by an indicator, most comfortable first."""
+
     gait: str
     indicator: str
     unit: str
@@ -533,6 +668,8 @@ class LeaderboardOut(BaseModel):
 
 
 class CorrelationOut(BaseModel):
+    """Riders' grades against the indicators."""
+
     gait: str | None
     grades: int
     indicators: dict[str, dict[str, Any]] = Field(

@@ -20,6 +20,11 @@ from starlette.requests import ClientDisconnect
 from saddlescope.core.errors import InputError
 from saddlescope.storage import AtomicWriter, Storage
 
+__all__ = [
+    "FILE_FIELD", "MAX_FIELD_BYTES", "StreamedUpload", "UPLOAD_OPENAPI", "UploadFormatError",
+    "WRITE_BATCH_BYTES", "stream_chunk", "stream_upload",
+]
+
 FILE_FIELD = "file"
 # Writes are batched to about this size: fewer thread hops than one per network chunk.
 WRITE_BATCH_BYTES = 1 << 20

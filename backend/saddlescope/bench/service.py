@@ -320,7 +320,6 @@ def fill_rides(
                         "club_id": club_id,
                         "ride_id": ride_id,
                         "indicators": indicators,
-                        "quality": {},
                         **{
                             k: indicators[k]
                             for k in (
@@ -466,9 +465,7 @@ def _analysed_ride(root: Path, database_url: str, samples: int) -> int:
                 ride_id=ride.id,
                 job_id=None,
                 indicators=document["indicators"],
-                quality={},
                 result_key=key,
-                arrays_key=None,
                 code_version="bench",
             )
             return ride.id

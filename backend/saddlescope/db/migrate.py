@@ -14,6 +14,8 @@ from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 from sqlalchemy import Engine
 
+__all__ = ["ALEMBIC_DIR", "alembic_config", "current_revision", "head_revision", "upgrade_to_head"]
+
 ALEMBIC_DIR = Path(__file__).resolve().parents[2] / "alembic"
 
 
@@ -34,9 +36,11 @@ def upgrade_to_head(database_url: str | None = None) -> None:
 
 
 def head_revision() -> str | None:
+    """The newest migration's revision."""
     return ScriptDirectory.from_config(alembic_config()).get_current_head()
 
 
 def current_revision(engine: Engine) -> str | None:
+    """The revision the database is at (None: not migrated yet)."""
     with engine.connect() as conn:
         return MigrationContext.configure(conn).get_current_revision()

@@ -3,7 +3,7 @@
 Every club-owned table carries ``club_id`` so the repositories can scope each query to one club.
 Enumerations are stored as short strings with a CHECK constraint (portable across SQLite and
 PostgreSQL). Times are timezone-aware UTC. Large arrays never go in the database: results keep
-the storage key of a compressed ``.npz`` file.
+the storage key of their result document (JSON), plus the indicators a list or a ranking reads.
 """
 
 from __future__ import annotations
@@ -31,6 +31,12 @@ from sqlalchemy import (
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+from saddlescope.db.enums import JobStatus, RideStatus, Role, UploadStatus, UploadTarget
+
+__all__ = [
+    "Base", "Club", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION", "Recording", "Result",
+    "Ride", "Rider", "Rig", "TimestampMixin", "UTCDateTime", "Upload", "User", "utcnow",
+]
 
 # Stable constraint names, so Alembic migrations are the same on SQLite and PostgreSQL.
 NAMING_CONVENTION = {
@@ -43,6 +49,7 @@ NAMING_CONVENTION = {
 
 
 def utcnow() -> dt.datetime:
+    """The current time, timezone-aware UTC (what every timestamp column stores)."""
     return dt.datetime.now(dt.UTC)
 
 
@@ -53,6 +60,7 @@ class UTCDateTime(TypeDecorator):
     cache_ok = True
 
     def process_bind_param(self, value: dt.datetime | None, dialect) -> dt.datetime | None:
+        """Refuse naive datetimes; store aware ones in UTC."""
         if value is None:
             return None
         if value.tzinfo is None:
@@ -60,37 +68,10 @@ class UTCDateTime(TypeDecorator):
         return value.astimezone(dt.UTC)
 
     def process_result_value(self, value: dt.datetime | None, dialect) -> dt.datetime | None:
+        """Read back an aware UTC datetime (SQLite returns naive ones)."""
         if value is None:
             return None
         return value.replace(tzinfo=dt.UTC) if value.tzinfo is None else value.astimezone(dt.UTC)
-
-
-class Role(enum.StrEnum):
-    MEMBER = "member"
-    ADMIN = "admin"
-
-
-class JobStatus(enum.StrEnum):
-    QUEUED = "queued"
-    RUNNING = "running"
-    DONE = "done"
-    FAILED = "failed"
-    CANCELLED = "cancelled"
-
-    @property
-    def finished(self) -> bool:
-        return self in (JobStatus.DONE, JobStatus.FAILED, JobStatus.CANCELLED)
-
-
-class RideStatus(enum.StrEnum):
-    NEW = "new"  # created, clips not all uploaded
-    READY = "ready"  # all clips present
-    PROCESSING = "processing"
-    ANALYSED = "analysed"
-    FAILED = "failed"
-
-
-RIDE_STATUSES = tuple(s.value for s in RideStatus)
 
 
 def _str_enum(values: tuple[str, ...] | type[enum.StrEnum], name: str, length: int = 16) -> Enum:
@@ -102,15 +83,21 @@ def _str_enum(values: tuple[str, ...] | type[enum.StrEnum], name: str, length: i
 
 
 class Base(DeclarativeBase):
+    """The models' base: stable constraint names, UTC timestamps, JSON for dicts and lists."""
+
     metadata = MetaData(naming_convention=NAMING_CONVENTION)
     type_annotation_map = {dt.datetime: UTCDateTime(), dict[str, Any]: JSON(), list[Any]: JSON()}
 
 
 class TimestampMixin:
+    """A ``created_at`` column, set when the row is added."""
+
     created_at: Mapped[dt.datetime] = mapped_column(default=utcnow)
 
 
 class Club(TimestampMixin, Base):
+    """A riding club: every other row belongs to one (its ``club_id``)."""
+
     __tablename__ = "clubs"
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -118,6 +105,8 @@ class Club(TimestampMixin, Base):
 
 
 class User(TimestampMixin, Base):
+    """An account of a club: a member, or an admin who also manages users."""
+
     __tablename__ = "users"
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -132,6 +121,8 @@ class User(TimestampMixin, Base):
 
 
 class Horse(TimestampMixin, Base):
+    """A horse of the club (names unique within the club)."""
+
     __tablename__ = "horses"
     __table_args__ = (
         UniqueConstraint("club_id", "name"),
@@ -148,6 +139,8 @@ class Horse(TimestampMixin, Base):
 
 
 class Rider(TimestampMixin, Base):
+    """A rider of the club, maybe with an account of their own (to grade rides)."""
+
     __tablename__ = "riders"
     __table_args__ = (UniqueConstraint("club_id", "name"),)
 
@@ -177,6 +170,8 @@ class Rig(TimestampMixin, Base):
 
 
 class Ride(TimestampMixin, Base):
+    """One ride: a horse, a rider, a gait and direction, and the clips of its recording."""
+
     __tablename__ = "rides"
     __table_args__ = (Index("ix_rides_club_id_gait", "club_id", "gait"),)
 
@@ -233,6 +228,8 @@ class Recording(TimestampMixin, Base):
 
 
 class Job(Base):
+    """A unit of background work (analysis, calibration, probe): its state, progress and timings."""
+
     __tablename__ = "jobs"
     __table_args__ = (
         CheckConstraint("progress >= 0 AND progress <= 1", name="progress_range"),
@@ -278,7 +275,6 @@ class Result(TimestampMixin, Base):
     ride_id: Mapped[int] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), unique=True)
     job_id: Mapped[int | None] = mapped_column(ForeignKey("jobs.id", ondelete="SET NULL"), index=True)
     indicators: Mapped[dict[str, Any]] = mapped_column(default=dict)
-    quality: Mapped[dict[str, Any]] = mapped_column(default=dict)
     # Leaderboard columns copied out of `indicators` so they can be indexed and sorted.
     acc_y_wb_rms: Mapped[float | None] = mapped_column(Float)
     acc_y_wk_rms: Mapped[float | None] = mapped_column(Float)
@@ -287,9 +283,8 @@ class Result(TimestampMixin, Base):
     vel_x_avg_kmh: Mapped[float | None] = mapped_column(Float)
     amplitude_y_m: Mapped[float | None] = mapped_column(Float)
     stride_frequency_hz: Mapped[float | None] = mapped_column(Float)
-    # Storage keys: the full result JSON (CONTRACTS section 2) and the compressed arrays.
+    # Storage key of the full result JSON (CONTRACTS section 2): series, quality flags, calibration.
     result_key: Mapped[str | None] = mapped_column(String(500))
-    arrays_key: Mapped[str | None] = mapped_column(String(500))
     code_version: Mapped[str | None] = mapped_column(String(64))
 
 
@@ -312,18 +307,6 @@ class Grade(TimestampMixin, Base):
     rider_id: Mapped[int] = mapped_column(ForeignKey("riders.id", ondelete="CASCADE"), index=True)
     grade: Mapped[int]
     comment: Mapped[str] = mapped_column(Text, default="")
-
-
-class UploadTarget(enum.StrEnum):
-    RIDE_CLIP = "ride_clip"
-    RIG_CLIP = "rig_clip"
-    BUNDLE = "bundle"
-
-
-class UploadStatus(enum.StrEnum):
-    OPEN = "open"  # bytes still arriving
-    FINALISED = "finalised"  # turned into a recording or a ride
-    FAILED = "failed"  # finalising refused it (the reason is in `error`)
 
 
 class Upload(Base):

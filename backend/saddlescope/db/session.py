@@ -14,6 +14,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import InputError
 
+__all__ = [
+    "engine_for", "make_engine", "make_session_factory", "ping", "session_factory_for", "session_scope",
+]
+
 
 def _parse_url(database_url: str) -> URL:
     try:
@@ -49,7 +53,7 @@ def make_engine(database_url: str, *, echo: bool = False) -> Engine:
 
 
 def make_session_factory(engine: Engine) -> sessionmaker[Session]:
-    # expire_on_commit=False: objects stay readable after commit (API responses, job bodies).
+    """Sessions on `engine` whose objects stay readable after commit (API responses, job bodies)."""
     return sessionmaker(bind=engine, expire_on_commit=False)
 
 
@@ -60,6 +64,7 @@ def engine_for(database_url: str) -> Engine:
 
 
 def session_factory_for(database_url: str) -> sessionmaker[Session]:
+    """Sessions on this process's engine for `database_url`."""
     return make_session_factory(engine_for(database_url))
 
 

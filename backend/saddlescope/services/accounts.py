@@ -20,9 +20,16 @@ from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatc
 from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import InputError, SaddleScopeError
-from saddlescope.db.models import Club, Role, User
+from saddlescope.db.enums import Role
+from saddlescope.db.models import Club, User
 from saddlescope.db.repositories import ClubRepository, UserRepository
 from saddlescope.settings import Settings
+
+__all__ = [
+    "AuthError", "Forbidden", "MIN_PASSWORD_LENGTH", "Principal", "TOKEN_ALGORITHM", "TOKEN_AUDIENCE",
+    "add_user", "authenticate", "check_email", "check_password", "create_club", "current_principal",
+    "hash_password", "issue_token", "read_token", "require_admin", "update_user", "verify_password",
+]
 
 TOKEN_ALGORITHM = "HS256"
 TOKEN_AUDIENCE = "saddlescope"
@@ -52,14 +59,17 @@ class Principal:
 
     @property
     def is_admin(self) -> bool:
+        """True for a club admin."""
         return self.role == Role.ADMIN.value
 
 
 def hash_password(password: str) -> str:
+    """The Argon2 hash of `password` (with its own salt), to store."""
     return _hasher.hash(password)
 
 
 def verify_password(password_hash: str, password: str) -> bool:
+    """True when `password` matches the stored hash (False also for a damaged hash)."""
     try:
         return _hasher.verify(password_hash, password)
     except (VerifyMismatchError, VerificationError, InvalidHashError):
@@ -67,6 +77,7 @@ def verify_password(password_hash: str, password: str) -> bool:
 
 
 def check_email(email: str) -> str:
+    """The address lower-cased and stripped; `InputError` when it is not an e-mail address."""
     email = email.strip().lower()
     if not _EMAIL.match(email) or len(email) > 320:
         raise InputError(f"{email!r} is not an e-mail address")
@@ -74,6 +85,7 @@ def check_email(email: str) -> str:
 
 
 def check_password(password: str) -> str:
+    """The password, if long enough (and not absurdly long); `InputError` otherwise."""
     if len(password) < MIN_PASSWORD_LENGTH:
         raise InputError(f"the password must have at least {MIN_PASSWORD_LENGTH} characters")
     if len(password) > 1024:
@@ -193,6 +205,7 @@ def current_principal(session: Session, principal: Principal) -> Principal:
 
 
 def require_admin(principal: Principal) -> None:
+    """Raise `Forbidden` unless the caller is a club admin."""
     if not principal.is_admin:
         raise Forbidden("only a club admin may do this")
 

@@ -1,6 +1,8 @@
-"""Use cases of comparisons: a horse across gaits, horses within a gait, the club leaderboard, and the
-riders' grades against the indicators. The statistics are `saddlescope.core.vibration`'; this module
-only fetches the club's rows (`AnalyticsRepository`) and names the horses by id as well."""
+"""Use cases of comparisons: a horse across gaits, horses within a gait, the leaderboard, grades vs indicators.
+
+The statistics are `saddlescope.core.vibration`'; this module only fetches the club's rows
+(`AnalyticsRepository`) and names the horses by id as well.
+"""
 
 from __future__ import annotations
 
@@ -23,14 +25,21 @@ from saddlescope.core.vibration import (
 )
 from saddlescope.db.repositories import AnalyticsRepository, GradeRepository, HorseRepository
 
+__all__ = [
+    "check_gait", "check_indicator", "club_leaderboard", "grade_correlation_report", "horse_comparison",
+    "horses_comparison",
+]
+
 
 def check_indicator(indicator: str) -> str:
+    """The indicator key, if known; `InputError` otherwise."""
     if indicator not in INDICATORS:
         raise InputError(f"unknown indicator {indicator!r}; GET /api/indicators lists them")
     return indicator
 
 
 def check_gait(gait: str) -> str:
+    """The gait, if known; `InputError` otherwise."""
     if gait not in GAITS:
         raise InputError(f"unknown gait {gait!r}; the gaits are {', '.join(GAITS)}")
     return gait

@@ -12,6 +12,8 @@ from saddlescope.db.session import ping
 from saddlescope.services.queue import JobQueue
 from saddlescope.storage import Storage
 
+__all__ = ["check_database", "check_queue", "check_storage", "health_report"]
+
 
 def check_database(engine: Engine) -> tuple[bool, str]:
     """Connect, run a query, and check the schema is at the newest migration."""
@@ -29,6 +31,7 @@ def check_database(engine: Engine) -> tuple[bool, str]:
 
 
 def check_storage(storage: Storage) -> tuple[bool, str]:
+    """Whether the storage folder can be written, with what was found."""
     try:
         return True, storage.check()
     except OSError as exc:
@@ -36,6 +39,7 @@ def check_storage(storage: Storage) -> tuple[bool, str]:
 
 
 def check_queue(queue: JobQueue) -> tuple[bool, str]:
+    """Whether the job queue (embedded pool or Celery broker) answers, with what it said."""
     return queue.health()
 
 

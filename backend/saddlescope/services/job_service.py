@@ -13,11 +13,18 @@ from typing import Any
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import InputError
-from saddlescope.db.models import Job, JobStatus
+from saddlescope.db.enums import JobStatus
+from saddlescope.db.models import Job
 from saddlescope.db.repositories import JobRepository, RideRepository, RigRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.queue import JobQueue, QueueUnavailable
+from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stages import job_kind
+
+__all__ = [
+    "JobStateError", "cancel_job", "create_job", "get_job", "job_as_dict", "retry_job", "submit_job",
+    "wait_for_job",
+]
 
 
 def create_job(session: Session, *, kind: str, ride_id: int | None = None, rig_id: int | None = None,
@@ -33,8 +40,9 @@ def create_job(session: Session, *, kind: str, ride_id: int | None = None, rig_i
         club_id = RideRepository(session, club_id=club_id).get(ride_id).club_id  # NotFound: 404
     if rig_id is not None:
         club_id = RigRepository(session, club_id=club_id).get(rig_id).club_id
-    return JobRepository(session).add(kind=kind, club_id=club_id, ride_id=ride_id, rig_id=rig_id,
-                                      payload=payload)
+    job = JobRepository(session).add(kind=kind, club_id=club_id, ride_id=ride_id, rig_id=rig_id, payload=payload)
+    refresh_ride_status(session, ride_id)
+    return job
 
 
 def submit_job(sessions: sessionmaker[Session], queue: JobQueue, *, kind: str, ride_id: int | None = None,
@@ -52,10 +60,17 @@ def submit_job(sessions: sessionmaker[Session], queue: JobQueue, *, kind: str, r
     try:
         queue.submit(job_id)
     except QueueUnavailable as exc:
-        with session_scope(sessions) as session:
-            JobRepository(session).fail_queued(job_id, error=str(exc))
+        _fail_queued(sessions, job_id, str(exc))
         raise
     return job_id
+
+
+def _fail_queued(sessions: sessionmaker[Session], job_id: int, error: str) -> None:
+    """Fail a job the queue refused (and show it on its ride)."""
+    with session_scope(sessions) as session:
+        jobs = JobRepository(session)
+        jobs.fail_queued(job_id, error=error)
+        refresh_ride_status(session, jobs.get(job_id).ride_id)
 
 
 def job_as_dict(job: Job) -> dict[str, Any]:
@@ -82,7 +97,9 @@ def cancel_job(session: Session, job_id: int, *, club_id: int | None = None) -> 
     repo.request_cancel(job_id)
     session.flush()
     session.expire_all()
-    return repo.get(job_id)
+    job = repo.get(job_id)
+    refresh_ride_status(session, job.ride_id)
+    return job
 
 
 def retry_job(sessions: sessionmaker[Session], queue: JobQueue, job_id: int, *,
@@ -94,11 +111,11 @@ def retry_job(sessions: sessionmaker[Session], queue: JobQueue, job_id: int, *,
         if not repo.requeue(job_id):
             raise JobStateError(
                 f"job {job_id} is {job.status}; only a failed or cancelled job can be retried")
+        refresh_ride_status(session, job.ride_id)
     try:
         queue.submit(job_id)
     except QueueUnavailable as exc:
-        with session_scope(sessions) as session:
-            JobRepository(session).fail_queued(job_id, error=str(exc))
+        _fail_queued(sessions, job_id, str(exc))
         raise
     return job_id
 

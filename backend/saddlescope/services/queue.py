@@ -143,13 +143,16 @@ class InlineQueue:
 
 def _mark_lost(settings: Settings, job_id: int) -> None:
     """Fail a job whose embedded worker process died, so it does not stay "running" forever."""
-    from saddlescope.db.models import JobStatus
+    from saddlescope.db.enums import JobStatus
     from saddlescope.db.repositories import JobRepository
     from saddlescope.db.session import session_factory_for, session_scope
+    from saddlescope.services.rides import refresh_ride_status
 
     with session_scope(session_factory_for(settings.database_url)) as session:
-        JobRepository(session).finish(job_id, JobStatus.FAILED,
-                                      error="its worker process died (out of memory or killed)")
+        jobs = JobRepository(session)
+        if jobs.finish(job_id, JobStatus.FAILED, error="its worker process died (out of memory or killed)"):
+            job = jobs.find(job_id)
+            refresh_ride_status(session, job.ride_id if job is not None else None)
 
 
 def celery_config(settings: Settings) -> dict:

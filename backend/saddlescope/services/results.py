@@ -1,5 +1,4 @@
-"""Use cases of results: a ride's indicators and plotted series, and its exports
-(JSON, CSV, xlsx, C3D, TRC)."""
+"""Use cases of results: a ride's indicators and plotted series, and its exports (JSON, CSV, xlsx, C3D, TRC)."""
 
 from __future__ import annotations
 
@@ -19,8 +18,14 @@ from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import indicator_unit
-from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideRepository
+from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
 from saddlescope.storage import Storage
+
+__all__ = [
+    "ANGULAR_PER_FRAME", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
+    "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document", "result_view",
+    "result_view_json", "tracks_mm", "view_of_document",
+]
 
 EXPORT_FORMATS = {
     "json": "application/json",
@@ -38,6 +43,8 @@ SERIES = (
     ("omega_rad_s", "angular", "omega_rad_s"),
     ("alpha_rad_s2", "angular", "alpha_rad_s2"),
 )
+# Per-frame series of the angular kinematics, served when the result has them.
+ANGULAR_PER_FRAME = ("omega_versions_rad_s", "omega_versions_excluded", "singularity_index_per_frame")
 MARKER_LABELS = ("M1", "M2", "M3")
 SADDLE_LABEL = "S"
 
@@ -52,22 +59,35 @@ def result_document(session: Session, storage: Storage, ride_id: int, *, club_id
 
 
 def decimate(values: list, step: int) -> list:
+    """Every `step`-th item of `values` (all of them for a step of 1)."""
     return values[::step] if step > 1 else values
 
 
-def _view(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[str, Any]:
-    if max_points < 10:
-        raise InputError(f"max_points must be at least 10, got {max_points}")
-    n = len((doc.get("saddle") or {}).get("t_s") or [])
-    step = max(1, math.ceil(n / max_points))
+def _series(doc: dict[str, Any], step: int, n: int) -> dict[str, list]:
+    """The plotted series of the document, every `step`-th of its `n` samples."""
     series = {name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES}
     markers = doc.get("markers") or {}
     if markers.get("position_m"):
         series["markers_position_m"] = decimate(markers["position_m"], step)
     angular = doc.get("angular") or {}
-    for key in ("omega_versions_rad_s", "omega_versions_excluded", "singularity_index_per_frame"):
+    for key in ANGULAR_PER_FRAME:
         if isinstance(angular.get(key), list) and len(angular[key]) == n:  # per frame: decimated alike
             series[key] = decimate(angular[key], step)
+    return series
+
+
+def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[str, Any]:
+    """What the dashboard shows of result document `doc` (its shape is `saddlescope.api.schemas.ResultOut`).
+
+    `result` is the ride's result row (its job, code version and time). Series are decimated to at
+    most `max_points` samples; the indicators come with their units.
+    """
+    if max_points < 10:
+        raise InputError(f"max_points must be at least 10, got {max_points}")
+    n = len((doc.get("saddle") or {}).get("t_s") or [])
+    step = max(1, math.ceil(n / max_points))
+    series = _series(doc, step, n)
+    markers = doc.get("markers") or {}
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
     return {
@@ -107,7 +127,7 @@ def result_view(
     (``decimation.step``; the indicators are always computed from the full series).
     """
     result = _analysed(session, storage, ride_id, club_id)
-    return _view(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+    return view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
 
 
 class _BytesCache:
@@ -163,16 +183,16 @@ def result_view_json(
     ).hexdigest()[:32]
     data = _VIEWS.get(etag)
     if data is None:
-        view = _view(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+        view = view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
         data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
         _VIEWS.put(etag, data)
     return data, etag
 
 
 def _ride_rows(
-    session: Session, ride_ids: list[int] | None, *, club_id: int, where=()
+    session: Session, ride_ids: list[int] | None, *, club_id: int, rides: RideFilter | None = None
 ) -> list[dict[str, Any]]:
-    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(where=where)
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(rides=rides)
     if ride_ids is not None:
         wanted = set(ride_ids)
         rows = [r for r in rows if r["ride_id"] in wanted]
@@ -196,7 +216,22 @@ def indicator_table_bytes(rows: list[dict[str, Any]], fmt: str) -> bytes:
 
 
 def tracks_mm(doc: dict[str, Any]) -> tuple[tuple[str, ...], np.ndarray, float]:
-    """(labels, points of shape (F, M, 3) in mm, rate in Hz): the markers and the saddle point S."""
+    """The 3-D tracks of the markers and the saddle point S, for a motion-capture file.
+
+    Parameters
+    ----------
+    doc : dict
+        A result document (CONTRACTS section 2): ``saddle.position_m``, ``markers.position_m``, ``fps``.
+
+    Returns
+    -------
+    labels : tuple of str
+        The M track names: the markers' (``M1``, ...; when their tracks span every frame), then ``S``.
+    points_mm : ndarray of shape (F, M, 3)
+        Positions in the motion frame, mm (NaN where a marker was not seen).
+    rate_hz : float
+        Frames per second.
+    """
     saddle = doc.get("saddle") or {}
     position = saddle.get("position_m") or []
     if not position:
@@ -245,8 +280,10 @@ def export_ride(
         return path.read_bytes(), f"{stem}-tracks.{fmt}"
 
 
-def export_rides(session: Session, fmt: str, *, club_id: int, where=()) -> tuple[bytes, str]:
+def export_rides(
+    session: Session, fmt: str, *, club_id: int, rides: RideFilter | None = None
+) -> tuple[bytes, str]:
     """Indicators of the club's analysed rides (matching the ride list filters) as CSV or xlsx."""
     if fmt not in TABLE_FORMATS:
         raise InputError(f"indicator tables are exported as {' or '.join(TABLE_FORMATS)}, not {fmt!r}")
-    return indicator_table_bytes(_ride_rows(session, None, club_id=club_id, where=where), fmt), f"rides.{fmt}"
+    return indicator_table_bytes(_ride_rows(session, None, club_id=club_id, rides=rides), fmt), f"rides.{fmt}"

@@ -1,23 +1,131 @@
-"""Registering rides: a ride bundle (CONTRACTS section 1) becomes rows plus stored clips."""
+"""Rides: registering one from a bundle, which clips make it complete, and its status.
+
+A ride's status is derived, never set: `refresh_ride_status` reads the ride's clips, its latest
+analysis job and its result, and stores what `ride_status` makes of them. Whatever changes one of
+those (a clip stored, a job created, started, finished, cancelled or queued again) calls it.
+"""
 
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Iterable
 from pathlib import Path
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from saddlescope.db.models import RideStatus
+from saddlescope.core.errors import BundleError
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
+from saddlescope.db.enums import JobStatus, RideStatus
 from saddlescope.db.repositories import (
     ClubRepository,
     HorseRepository,
+    JobRepository,
     RecordingRepository,
+    ResultRepository,
+    Ride,
     RideRepository,
     RiderRepository,
+    RigRepository,
 )
 from saddlescope.db.session import session_scope
 from saddlescope.io.bundle import RideBundle, open_bundle
 from saddlescope.storage import Storage, ride_bundle_key, tree_digest
+
+__all__ = [
+    "ANALYSIS_JOB_KIND",
+    "complete_clip_sets",
+    "refresh_ride_status",
+    "register_bundle",
+    "ride_clip_plan",
+    "ride_status",
+]
+
+# The job kind whose outcome is the ride's analysis (its status shows that job's).
+ANALYSIS_JOB_KIND = "analyze"
+
+
+def complete_clip_sets(recordings: Iterable) -> dict[str, dict[str, str]]:
+    """Clip kind -> camera -> storage key, for the kinds recorded by all three cameras."""
+    by_kind: dict[str, dict[str, str]] = {}
+    for r in recordings:
+        by_kind.setdefault(r.clip_kind, {})[r.camera_role] = r.path
+    return {kind: cams for kind, cams in by_kind.items() if set(CAMERA_ROLES) <= set(cams)}
+
+
+def ride_clip_plan(ride_recordings: Iterable, rig_recordings: Iterable, *,
+                   rig_calibrated: bool) -> dict[str, dict[str, str]]:
+    """Which stored clip each camera of each kind comes from: the ride's own, else its rig's.
+
+    Raises `BundleError` naming what is missing (motion and static are required, and calibration
+    clips unless the rig is calibrated already).
+    """
+    own, shared = complete_clip_sets(ride_recordings), complete_clip_sets(rig_recordings)
+    plan = {kind: own.get(kind) or shared.get(kind) for kind in CLIP_KINDS}
+    missing = [kind for kind in ("static", "motion") if not plan[kind]]
+    if not plan["calibration"] and not rig_calibrated:
+        missing.insert(0, "calibration")
+    if missing:
+        raise BundleError(f"the clips of {' and '.join(missing)} are not all uploaded (each needs the left, "
+                          "middle and right cameras)")
+    return {kind: cams for kind, cams in plan.items() if cams}
+
+
+def ride_status(*, clips_complete: bool, analysis: str | None, analysed: bool) -> RideStatus:
+    """The status a ride shows.
+
+    Parameters
+    ----------
+    clips_complete : bool
+        Every clip the analysis needs is stored (the ride's own, or its rig's shared ones).
+    analysis : str or None
+        Status of the ride's latest analysis job (None: never analysed).
+    analysed : bool
+        The ride has a stored result (of an earlier analysis, if the latest one is queued).
+
+    Returns
+    -------
+    RideStatus
+        ``processing`` while its analysis runs, ``failed`` when the latest analysis failed or was
+        cancelled, else ``analysed`` once it has a result, ``ready`` with all its clips, ``new``.
+    """
+    if analysis == JobStatus.RUNNING:
+        return RideStatus.PROCESSING
+    if analysis in (JobStatus.FAILED, JobStatus.CANCELLED):
+        return RideStatus.FAILED
+    if analysed:
+        return RideStatus.ANALYSED
+    return RideStatus.READY if clips_complete else RideStatus.NEW
+
+
+def _clips_complete(session: Session, ride: Ride) -> bool:
+    if ride.bundle_key is not None:
+        return True  # a registered bundle was checked whole by `open_bundle`
+    recordings = RecordingRepository(session)
+    rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
+    try:
+        ride_clip_plan(recordings.for_ride(ride.id), recordings.for_rig(rig.id) if rig else [],
+                       rig_calibrated=bool(rig is not None and rig.calibration))
+    except BundleError:
+        return False
+    return True
+
+
+def refresh_ride_status(session: Session, ride_id: int | None) -> str | None:
+    """Derive ride `ride_id`'s status from its clips, latest analysis job and result, and store it.
+
+    The one writer of a ride's status (in `session`'s transaction). Returns the status, or None
+    when there is no such ride (or no ride: `ride_id` None).
+    """
+    rides = RideRepository(session)
+    ride = rides.find(ride_id) if ride_id is not None else None
+    if ride is None:
+        return None
+    job = JobRepository(session).latest_for_ride(ride.id, kind=ANALYSIS_JOB_KIND)
+    status = ride_status(clips_complete=_clips_complete(session, ride), analysis=job.status if job else None,
+                         analysed=ResultRepository(session).for_ride(ride.id) is not None)
+    if ride.status != status.value:
+        rides.set_status(ride.id, status.value)
+    return status.value
 
 
 def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: Path | str, *,
@@ -37,26 +145,48 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
                          ridden_on=ridden_on)
 
 
-def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBundle, *,
-              club_name: str, club_id: int | None, rig_id: int | None, ridden_on: dt.date | None) -> int:
+def _add_ride(session: Session, bundle: RideBundle, *, club_name: str, club_id: int | None,
+              rig_id: int | None, ridden_on: dt.date | None) -> tuple[int, int]:
+    """Add the bundle's ride (and its horse and rider if new); returns (club id, ride id)."""
     meta = bundle.meta
     horse_meta = meta.get("horse") or {}
     rider_meta = meta.get("rider") or {}
+    if club_id is None:
+        club_id = ClubRepository(session).get_or_create(club_name).id
+    horse = HorseRepository(session, club_id=club_id).get_or_create(
+        name=str(horse_meta.get("name") or "Unnamed horse"),
+        breed=horse_meta.get("breed"), birth_year=horse_meta.get("birth_year"),
+        height_withers_m=horse_meta.get("height_m"))
+    rider = RiderRepository(session, club_id=club_id).get_or_create(
+        name=str(rider_meta.get("name") or "Unnamed rider"))
+    ride = RideRepository(session, club_id=club_id).add(
+        horse_id=horse.id, rider_id=rider.id, rig_id=rig_id, gait=meta["gait"],
+        direction=meta["direction"],
+        ridden_on=ridden_on or dt.datetime.now(dt.UTC).date(),
+        meta={k: meta[k] for k in ("board", "sync", "markers") if k in meta})
+    return club_id, ride.id
+
+
+def _add_recordings(session: Session, storage: Storage, bundle: RideBundle, *, club_id: int, ride_id: int,
+                    bundle_key: str) -> None:
+    """A recording row (size, sha256) for each clip of the bundle's standard sets, stored under `bundle_key`."""
+    recordings = RecordingRepository(session)
+    for kind, per_camera in bundle.clip_paths.items():
+        for role, source in per_camera.items():
+            key = f"{bundle_key}/{source.relative_to(bundle.root).as_posix()}"
+            if source.is_dir():
+                size_bytes, sha256 = tree_digest(storage.path(key))
+            else:
+                size_bytes, sha256 = storage.size(key), storage.sha256(key)
+            recordings.add(club_id=club_id, ride_id=ride_id, camera_role=role, clip_kind=kind,
+                           path=key, sha256=sha256, size_bytes=size_bytes)
+
+
+def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBundle, *,
+              club_name: str, club_id: int | None, rig_id: int | None, ridden_on: dt.date | None) -> int:
     with session_scope(sessions) as session:
-        if club_id is None:
-            club_id = ClubRepository(session).get_or_create(club_name).id
-        horse = HorseRepository(session, club_id=club_id).get_or_create(
-            name=str(horse_meta.get("name") or "Unnamed horse"),
-            breed=horse_meta.get("breed"), birth_year=horse_meta.get("birth_year"),
-            height_withers_m=horse_meta.get("height_m"))
-        rider = RiderRepository(session, club_id=club_id).get_or_create(
-            name=str(rider_meta.get("name") or "Unnamed rider"))
-        ride = RideRepository(session, club_id=club_id).add(
-            horse_id=horse.id, rider_id=rider.id, rig_id=rig_id, gait=meta["gait"],
-            direction=meta["direction"],
-            ridden_on=ridden_on or dt.datetime.now(dt.UTC).date(),
-            meta={k: meta[k] for k in ("board", "sync", "markers") if k in meta})
-        ride_id = ride.id
+        club_id, ride_id = _add_ride(session, bundle, club_name=club_name, club_id=club_id, rig_id=rig_id,
+                                     ridden_on=ridden_on)
     bundle_key = ride_bundle_key(ride_id)
     registered = False
     try:
@@ -64,19 +194,9 @@ def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBun
         # the stored copy is again a complete bundle the pipeline can open.
         storage.import_tree(bundle_key, bundle.root)
         with session_scope(sessions) as session:
-            recordings = RecordingRepository(session)
-            for kind, per_camera in bundle.clip_paths.items():
-                for role, source in per_camera.items():
-                    key = f"{bundle_key}/{source.relative_to(bundle.root).as_posix()}"
-                    if source.is_dir():
-                        size_bytes, sha256 = tree_digest(storage.path(key))
-                    else:
-                        size_bytes, sha256 = storage.size(key), storage.sha256(key)
-                    recordings.add(club_id=club_id, ride_id=ride_id, camera_role=role, clip_kind=kind,
-                                   path=key, sha256=sha256, size_bytes=size_bytes)
-            rides = RideRepository(session)
-            rides.set_bundle_key(ride_id, bundle_key)
-            rides.set_status(ride_id, RideStatus.READY.value)
+            _add_recordings(session, storage, bundle, club_id=club_id, ride_id=ride_id, bundle_key=bundle_key)
+            RideRepository(session).set_bundle_key(ride_id, bundle_key)
+            refresh_ride_status(session, ride_id)
         registered = True
     finally:
         if not registered:  # no half-registered ride: remove the row and the copied files

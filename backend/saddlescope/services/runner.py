@@ -20,12 +20,19 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import SaddleScopeError
-from saddlescope.db.models import JobStatus, utcnow
-from saddlescope.db.repositories import JobRepository, RideRepository
+from saddlescope.db.enums import JobStatus
+from saddlescope.db.models import utcnow
+from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
+from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobKind, StageContext
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage
+
+__all__ = [
+    "HEARTBEAT_S", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs", "run_job",
+    "worker_host",
+]
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +45,7 @@ STALE_AFTER_S = 180.0
 
 
 def worker_host() -> str:
+    """The worker process as ``host:pid`` (recorded on the jobs it runs, to tell when it is gone)."""
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
@@ -137,25 +145,25 @@ def recover_lost_jobs(sessions: sessionmaker[Session], submit, *,
     `submit(job_id)` hands a job to the queue. Returns the ids queued again.
     """
     with session_scope(sessions) as session:
-        candidates = [(job.id, job.host, job.updated_at) for job in JobRepository(session).running()]
+        candidates = [(job.id, job.ride_id, job.host, job.updated_at) for job in JobRepository(session).running()]
     recovered = []
-    for job_id, host, updated_at in candidates:
+    for job_id, ride_id, host, updated_at in candidates:
         if not job_is_lost(host, updated_at, stale_after_s=stale_after_s):
             continue
         with session_scope(sessions) as session:
             if not JobRepository(session).requeue_lost(job_id, host=host):
                 continue  # finished or taken over meanwhile
+            refresh_ride_status(session, ride_id)
         log.warning("job %s: its worker %s is gone; queued again", job_id, host)
         submit(job_id)
         recovered.append(job_id)
     return recovered
 
 
-def _set_ride_status(sessions: sessionmaker[Session], ride_id: int | None, status: str | None) -> None:
-    if ride_id is None or status is None:
-        return
-    with session_scope(sessions) as session:
-        RideRepository(session).set_status(ride_id, status)
+def _refresh_ride_status(sessions: sessionmaker[Session], ride_id: int | None) -> None:
+    if ride_id is not None:
+        with session_scope(sessions) as session:
+            refresh_ride_status(session, ride_id)
 
 
 def run_job(job_id: int, *, settings: Settings | None = None) -> str:
@@ -185,7 +193,7 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
             return job.status  # finished already (or cancelled before it started)
         club_id, ride_id, rig_id, payload = job.club_id, job.ride_id, job.rig_id, dict(job.payload or {})
 
-    _set_ride_status(sessions, ride_id, kind.ride_status_running)
+    _refresh_ride_status(sessions, ride_id)
     progress = _Progress(job_id, sessions, {name: STAGES[name].weight for name in kind.stages})
     timings: dict[str, float] = {}
     t_job = time.perf_counter()
@@ -196,14 +204,12 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
         with session_scope(sessions) as session:
             JobRepository(session).set_timings(job_id, timings)
 
-    def end(status: JobStatus, error: str | None, ride_status: str | None) -> str:
+    def end(status: JobStatus, error: str | None) -> str:
         save_timings()
         with session_scope(sessions) as session:
             finished = JobRepository(session).finish(job_id, status, error=error)
-        if finished:
-            _set_ride_status(sessions, ride_id, ride_status)
-            return status.value
-        return JobStatus.CANCELLED.value
+            refresh_ride_status(session, ride_id)
+        return status.value if finished else JobStatus.CANCELLED.value
 
     with _Heartbeat(job_id, sessions):
         try:
@@ -221,17 +227,16 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
                 save_timings()
         except JobCancelled:
             save_timings()
-            _set_ride_status(sessions, ride_id, kind.ride_status_failed)
+            _refresh_ride_status(sessions, ride_id)
             return JobStatus.CANCELLED.value
         except SaddleScopeError as exc:
-            return end(JobStatus.FAILED, f"{current}: {exc}", kind.ride_status_failed)
+            return end(JobStatus.FAILED, f"{current}: {exc}")
         except OperationalError:
             # The database went away: leave the job "running" so the worker's retry runs it again.
             raise
         except Exception as exc:
             # Record, then re-raise: the job must not stay "running" forever, and the worker's log
             # needs the traceback of a bug.
-            end(JobStatus.FAILED, f"{current}: internal error ({type(exc).__name__}: {exc})",
-                kind.ride_status_failed)
+            end(JobStatus.FAILED, f"{current}: internal error ({type(exc).__name__}: {exc})")
             raise
-        return end(JobStatus.DONE, None, kind.ride_status_done)
+        return end(JobStatus.DONE, None)

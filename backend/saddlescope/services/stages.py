@@ -30,12 +30,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
-from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.models import RideStatus
+from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.db.repositories import (
     RecordingRepository,
     ResultRepository,
@@ -43,8 +41,15 @@ from saddlescope.db.repositories import (
     RigRepository,
 )
 from saddlescope.db.session import session_scope
+from saddlescope.services.rides import ANALYSIS_JOB_KIND, complete_clip_sets, ride_clip_plan
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key, tree_digest
+
+__all__ = [
+    "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobKind", "STAGES", "Stage",
+    "StageContext", "StageUnavailable", "define_job_kind", "job_kind", "ride_document", "run_analyze",
+    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_probe", "run_selftest", "stage",
+]
 
 ASSEMBLED_BUNDLE = "bundle"  # folder name of the assembled ride bundle in the assemble stage's outputs
 DEFAULT_MARKERS = {"horse": 3, "plumb": 2, "saddle": 1}
@@ -93,7 +98,7 @@ class StageContext:
         raise InputError(f"stage {self.stage!r} of job {self.job_id} needs a ride or a rig, the job has none")
 
     def outputs(self) -> Path:
-        """This stage's own folder for the job's ride (or rig), emptied first (re-runs replace outputs)."""
+        """The current stage's own folder for the job's ride (or rig), emptied first (re-runs replace outputs)."""
         return self.storage.fresh_dir(self._stage_key(self.stage))
 
     def output_key(self, name: str) -> str:
@@ -107,6 +112,8 @@ class StageContext:
 
 @dataclass(frozen=True)
 class Stage:
+    """A registered stage: its function, its share of the progress bar and its description."""
+
     name: str
     run: Callable[[StageContext], None]
     weight: float = 1.0  # share of the job's progress bar, relative to the other stages
@@ -115,14 +122,11 @@ class Stage:
 
 @dataclass(frozen=True)
 class JobKind:
-    """An ordered list of stage names, plus the ride status to show while running and after."""
+    """An ordered list of stage names (a ride's status shows the outcome of its latest `analyze` job)."""
 
     name: str
     stages: tuple[str, ...]
     needs_ride: bool = False
-    ride_status_running: str | None = None
-    ride_status_done: str | None = None
-    ride_status_failed: str | None = None
     validate_payload: Callable[[dict[str, Any]], dict[str, Any]] | None = None
     description: str = ""
 
@@ -158,6 +162,7 @@ def define_job_kind(kind: JobKind) -> JobKind:
 
 
 def job_kind(name: str) -> JobKind:
+    """The registered job kind `name`; `InputError` naming the known ones otherwise."""
     try:
         return JOB_KINDS[name]
     except KeyError:
@@ -241,27 +246,6 @@ def run_probe(ctx: StageContext) -> None:
     ctx.report(1.0, None)
 
 
-def _result_arrays(result: dict[str, Any]) -> dict[str, np.ndarray]:
-    """The result's time series as float arrays (saddle.* and angular.*) for the .npz file."""
-    arrays = {}
-    for group in ("saddle", "angular", "markers"):
-        for name, value in (result.get(group) or {}).items():
-            if isinstance(value, list) and value:
-                try:  # None (a missing sample) becomes NaN; lists of names are not arrays
-                    arrays[f"{group}.{name}"] = np.asarray(value, dtype=np.float64)
-                except (TypeError, ValueError):
-                    continue
-    return arrays
-
-
-def _complete_sets(recordings) -> dict[str, dict[str, str]]:
-    """Clip kind -> camera -> storage key, for the kinds recorded by all three cameras."""
-    by_kind: dict[str, dict[str, str]] = {}
-    for r in recordings:
-        by_kind.setdefault(r.clip_kind, {})[r.camera_role] = r.path
-    return {kind: cams for kind, cams in by_kind.items() if set(CAMERA_ROLES) <= set(cams)}
-
-
 def ride_document(ride, rig, *, clips: dict[str, dict[str, str]],
                   calibration_file: str | None) -> dict[str, Any]:
     """ride.json (CONTRACTS section 1) of a ride assembled from stored clips."""
@@ -284,23 +268,6 @@ def ride_document(ride, rig, *, clips: dict[str, dict[str, str]],
     return doc
 
 
-def ride_clip_plan(ride_recordings, rig_recordings, *, rig_calibrated: bool) -> dict[str, dict[str, str]]:
-    """Which stored clip each camera of each kind comes from: the ride's own, else its rig's.
-
-    Raises `BundleError` naming what is missing (motion and static are required, and calibration
-    clips unless the rig is calibrated already).
-    """
-    own, shared = _complete_sets(ride_recordings), _complete_sets(rig_recordings)
-    plan = {kind: own.get(kind) or shared.get(kind) for kind in CLIP_KINDS}
-    missing = [kind for kind in ("static", "motion") if not plan[kind]]
-    if not plan["calibration"] and not rig_calibrated:
-        missing.insert(0, "calibration")
-    if missing:
-        raise BundleError(f"the clips of {' and '.join(missing)} are not all uploaded (each needs the left, "
-                          "middle and right cameras)")
-    return {kind: cams for kind, cams in plan.items() if cams}
-
-
 @stage("assemble", weight=0.5)
 def run_assemble(ctx: StageContext) -> None:
     """Put the ride's clips (and its rig's shared ones) together as a ride bundle."""
@@ -316,7 +283,7 @@ def run_assemble(ctx: StageContext) -> None:
         plan = ride_clip_plan(recordings.for_ride(ride_id), recordings.for_rig(rig.id) if rig else [],
                               rig_calibrated=bool(rig is not None and rig.calibration))
         calibration = dict(rig.calibration) if rig is not None and rig.calibration else None
-        if calibration is not None and plan.get("calibration") and plan["calibration"] == _complete_sets(
+        if calibration is not None and plan.get("calibration") and plan["calibration"] == complete_clip_sets(
                 recordings.for_rig(rig.id)).get("calibration"):
             # The rig's calibration replaces its clips: no need to carry them into every ride.
             plan.pop("calibration")
@@ -376,7 +343,7 @@ def run_calibrate(ctx: StageContext) -> None:
             ctx.outputs()
             (ctx.stage_dir(ctx.stage) / "source.json").write_text(json.dumps(note))
             return
-        rig_clips = _complete_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
+        rig_clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
         rig_id, board = rig.id, rig.board
         meta = dict(ride.meta or {})
     if rig_clips is not None:
@@ -405,7 +372,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
         raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
     with ctx.session() as session:
         rig = RigRepository(session).get(ctx.rig_id)
-        clips = _complete_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
+        clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
         board = rig.board
     if clips is None:
         raise CalibrationError(f"rig {ctx.rig_id}: the calibration clips of the left, middle and right "
@@ -442,14 +409,13 @@ def run_analyze(ctx: StageContext) -> None:
         rig_model = rig_from_calibration(calibration)
     result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model)
     ctx.outputs()
-    result_key, arrays_key = ctx.output_key("result.json"), ctx.output_key("arrays.npz")
+    # The result document is what the dashboard and the exports read (its series decimated on the way).
+    result_key = ctx.output_key("result.json")
     ctx.storage.write_bytes(result_key, json.dumps(result, allow_nan=False).encode())
-    ctx.storage.save_arrays(arrays_key, _result_arrays(result))
     with ctx.session() as session:
         ResultRepository(session).replace_for_ride(
             club_id=club_id, ride_id=ride_id, job_id=ctx.job_id, indicators=result.get("indicators", {}),
-            quality=result.get("quality", {}), result_key=result_key, arrays_key=arrays_key,
-            code_version=ctx.settings.resolved_code_version)
+            result_key=result_key, code_version=ctx.settings.resolved_code_version)
     ctx.report(1.0, None)
 
 
@@ -457,10 +423,7 @@ define_job_kind(JobKind("selftest", ("selftest",), validate_payload=_selftest_pa
                         description="a few timed steps, no files: checks that workers pick up jobs"))
 define_job_kind(JobKind("probe", ("probe",),
                         description="read the clips of a ride or rig and record their sizes and checksums"))
-define_job_kind(JobKind("analyze", ("probe", "assemble", "calibrate", "analyze"), needs_ride=True,
-                        ride_status_running=RideStatus.PROCESSING.value,
-                        ride_status_done=RideStatus.ANALYSED.value,
-                        ride_status_failed=RideStatus.FAILED.value,
+define_job_kind(JobKind(ANALYSIS_JOB_KIND, ("probe", "assemble", "calibrate", "analyze"), needs_ride=True,
                         description="the whole pipeline on a ride: kinematics and vibration indicators"))
 define_job_kind(JobKind("calibrate_rig", ("probe", "calibrate_rig"),
                         description="calibrate a rig once from its three calibration clips (used by its "

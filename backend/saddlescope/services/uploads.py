@@ -1,5 +1,7 @@
-"""Use cases of uploads: accept a clip (probe it, check it agrees with its set), a ride bundle, or a
-resumable upload; then start whatever processing the new clip makes possible.
+"""Use cases of uploads: accept a clip, a ride bundle or a resumable upload, then start what it allows.
+
+A clip is probed and checked against the other cameras' clips of its set; whatever processing the
+new clip makes possible is started.
 
 The bytes arrive elsewhere (the API streams them into storage with `Storage.writer`); these functions
 take the *staged* storage key of a complete file. A refused file is deleted and leaves every earlier
@@ -17,7 +19,8 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.models import Recording, RideStatus, UploadStatus, UploadTarget
+from saddlescope.db.enums import UploadStatus, UploadTarget
+from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
     JobRepository,
     RecordingRepository,
@@ -28,9 +31,14 @@ from saddlescope.db.repositories import (
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import submit_job
 from saddlescope.services.queue import JobQueue
-from saddlescope.services.rides import register_bundle
-from saddlescope.services.stages import ride_clip_plan
+from saddlescope.services.rides import refresh_ride_status, register_bundle, ride_clip_plan
 from saddlescope.storage import Storage, TooLarge, upload_key
+
+__all__ = [
+    "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
+    "accept_clip", "check_clip_slot", "clip_suffix", "create_upload", "finalise_upload", "find_owner",
+    "staging_key", "start_processing",
+]
 
 RIG_CLIP_KINDS = ("calibration", "plumb", "static")
 RIDE_CLIP_KINDS = CLIP_KINDS
@@ -49,9 +57,11 @@ class ClipOwner:
 
     @property
     def label(self) -> str:
+        """The owner in words (``ride 3``)."""
         return f"{self.kind} {self.id}"
 
     def where(self) -> dict[str, int | None]:
+        """The recording columns naming this owner (``ride_id`` and ``rig_id``)."""
         return (
             {"ride_id": self.id, "rig_id": None}
             if self.kind == "ride"
@@ -179,6 +189,8 @@ def accept_clip(
                 )
                 if owner.kind == "rig" and clip_kind == "calibration":
                     RigRepository(session, club_id=owner.club_id).clear_calibration(owner.id)
+                if owner.kind == "ride":
+                    refresh_ride_status(session, owner.id)
                 recording_id = row.id
                 session.commit()
             except BaseException:
@@ -222,7 +234,6 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
                 return None  # not complete yet
             if jobs.active_for(ride_id=ride.id) is not None:
                 return None
-            RideRepository(session).set_status(ride.id, RideStatus.READY.value)
             kind, ids = "analyze", {"ride_id": ride.id}
     return submit_job(sessions, queue, kind=kind, club_id=owner.club_id, **ids)
 

@@ -42,6 +42,8 @@ from saddlescope.services.accounts import (
     update_user,
 )
 
+__all__ = ["LOGIN_OPENAPI", "registration_open", "router"]
+
 router = APIRouter(tags=["accounts"])
 
 LOGIN_OPENAPI = {
@@ -204,6 +206,7 @@ def create_user(body: UserCreate, club: AdminClubDep) -> UserOut:
 
 @router.get("/users/{user_id}", response_model=UserOut, responses=ERRORS)
 def read_user(user_id: Id, club: AdminClubDep) -> UserOut:
+    """A user of the club (admins only)."""
     return UserOut.model_validate(club.users.get(user_id))
 
 

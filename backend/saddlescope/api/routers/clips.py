@@ -12,6 +12,8 @@ from saddlescope.db.repositories import RecordingRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.uploads import ClipOwner, accept_clip, check_clip_slot, staging_key, start_processing
 
+__all__ = ["UPLOAD_ERRORS", "receive_clip"]
+
 UPLOAD_ERRORS = {
     **ERRORS,
     413: {"model": ErrorOut, "description": "larger than the upload limit"},
@@ -21,8 +23,11 @@ UPLOAD_ERRORS = {
 
 async def receive_clip(request: Request, owner: ClipOwner, clip_kind: str, camera: str, *, club, settings,
                        storage, sessions, queue) -> ClipUploaded:
-    """Stream the body to staging (size limit enforced while streaming), then probe and store it in the
-    owner's clip slot (refused with the reason, the earlier clip kept), then start what it completes."""
+    """Receive one clip of a ride or a rig and start what it completes.
+
+    The body is streamed to staging (the size limit enforced while streaming), then probed and stored in
+    the owner's clip slot (refused with the reason, the earlier clip kept).
+    """
     check_clip_slot(owner, clip_kind, camera)
     club.session.rollback()  # end the read transaction: the upload may take minutes
     staged = await stream_upload(

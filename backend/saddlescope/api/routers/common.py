@@ -10,6 +10,11 @@ from fastapi.responses import Response
 
 from saddlescope.api.schemas import MAX_ID, ErrorOut
 
+__all__ = [
+    "CONFLICT", "ERRORS", "Id", "MAX_OFFSET", "Paging", "PagingDep", "QueryId", "changes", "download",
+    "page_of",
+]
+
 Id = Annotated[int, Path(ge=1, le=MAX_ID, description="the id (within your club)")]
 QueryId = Annotated[int | None, Query(ge=1, le=MAX_ID)]
 MAX_OFFSET = 10_000_000
@@ -26,6 +31,8 @@ CONFLICT = {409: {"model": ErrorOut, "description": "conflicts with existing dat
 
 @dataclass(frozen=True)
 class Paging:
+    """A list request's page (`limit` rows from `offset`) and sort field (``-`` first: descending)."""
+
     limit: int
     offset: int
     sort: str | None
@@ -58,6 +65,7 @@ def page_of(page, convert) -> dict:
 
 
 def download(data: bytes, filename: str, media_type: str) -> Response:
+    """A response that browsers save as file `filename`."""
     return Response(
         data, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
     )

@@ -13,6 +13,8 @@ from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import COMFORT_INDICATORS, INDICATORS
 from saddlescope.services.analytics import club_leaderboard, horses_comparison
 
+__all__ = ["router"]
+
 router = APIRouter(tags=["comparisons"])
 
 
@@ -54,8 +56,10 @@ def leaderboard(
     indicator: Annotated[str, Query(max_length=64)] = "acc_y_wb_rms",
     lower_is_better: bool | None = None,
 ) -> dict:
-    """The club's horses ranked in a gait by an indicator, most comfortable first, with the number of rides
-    behind each horse and their spread (max - min); ties share a rank."""
+    """The club's horses ranked in a gait by an indicator, most comfortable first.
+
+    With the number of rides behind each horse and their spread (max - min); ties share a rank.
+    """
     return club_leaderboard(
         club.session, club_id=club.club_id, gait=gait, indicator=indicator, lower_is_better=lower_is_better
     )

@@ -10,12 +10,15 @@ from saddlescope.api.deps import EngineDep, QueueDep, StorageDep
 from saddlescope.api.schemas import HealthOut
 from saddlescope.services.health import health_report
 
+__all__ = ["router"]
+
 router = APIRouter(tags=["health"])
 
 
 @router.get("/health", response_model=HealthOut,
             responses={503: {"model": HealthOut, "description": "a part is not ok"}})
 async def health(engine: EngineDep, queue: QueueDep, storage: StorageDep, response: Response) -> HealthOut:
+    """Whether the database, the job queue and the storage answer (503 when a part does not)."""
     # The checks block (sockets, disk); keep them off the event loop.
     report = await run_in_threadpool(health_report, engine, queue, storage)
     if report["status"] != "ok":

@@ -9,9 +9,9 @@ from fastapi import APIRouter, Query, Response, status
 from saddlescope.api.deps import AdminClubDep, ClubDep
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import HorseComparisonOut, HorseIn, HorseOut, HorseUpdate, Page
-from saddlescope.db.models import Horse
-from saddlescope.db.repositories import like_pattern
 from saddlescope.services.analytics import horse_comparison
+
+__all__ = ["router"]
 
 router = APIRouter(prefix="/horses", tags=["horses"])
 
@@ -23,8 +23,7 @@ def list_horses(
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's horses; sort by name (default), breed, birth_year, height_withers_m, created_at, id."""
-    where = [Horse.name.ilike(like_pattern(q), escape="\\")] if q else []
-    page = club.horses.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    page = club.horses.list_page(name_like=q, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, HorseOut.model_validate)
 
 
@@ -32,16 +31,19 @@ def list_horses(
     "", status_code=status.HTTP_201_CREATED, response_model=HorseOut, responses={**ERRORS, **CONFLICT}
 )
 def create_horse(body: HorseIn, club: ClubDep) -> HorseOut:
+    """Add a horse to the club (409 when the club has one of that name)."""
     return HorseOut.model_validate(club.horses.add(**body.model_dump()))
 
 
 @router.get("/{horse_id}", response_model=HorseOut, responses=ERRORS)
 def read_horse(horse_id: Id, club: ClubDep) -> HorseOut:
+    """A horse of the club."""
     return HorseOut.model_validate(club.horses.get(horse_id))
 
 
 @router.patch("/{horse_id}", response_model=HorseOut, responses={**ERRORS, **CONFLICT})
 def update_horse(horse_id: Id, body: HorseUpdate, club: ClubDep) -> HorseOut:
+    """Change a horse's details (a null breed, birth_year or height clears it)."""
     values = changes(body, nullable=("breed", "birth_year", "height_withers_m"))
     return HorseOut.model_validate(club.horses.update_fields(horse_id, **values))
 

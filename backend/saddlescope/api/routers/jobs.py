@@ -10,16 +10,19 @@ from starlette.concurrency import run_in_threadpool
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep
 from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, page_of
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
-from saddlescope.db.models import Job
+from saddlescope.db.repositories import Job
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, retry_job, submit_job
 from saddlescope.services.stages import JOB_KINDS
+
+__all__ = ["JobStatusName", "job_out", "router"]
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 JobStatusName = Literal["queued", "running", "done", "failed", "cancelled"]
 
 
 def job_out(job: Job) -> JobOut:
+    """The public view of a job."""
     return JobOut(**job_as_dict(job))
 
 
@@ -33,18 +36,14 @@ def list_jobs(
     kind: Annotated[str | None, Query(max_length=32)] = None,
 ) -> dict:
     """The club's jobs, newest first; filter by ride, rig, status and kind."""
-    where = [
-        column == value
-        for column, value in (
-            (Job.ride_id, ride_id),
-            (Job.rig_id, rig_id),
-            (Job.status, status_),
-            (Job.kind, kind),
-        )
-        if value is not None
-    ]
     page = club.jobs.list_page(
-        where=where, sort=paging.sort or "-id", limit=paging.limit, offset=paging.offset
+        ride_id=ride_id,
+        rig_id=rig_id,
+        status=status_,
+        kind=kind,
+        sort=paging.sort,
+        limit=paging.limit,
+        offset=paging.offset,
     )
     return page_of(page, job_out)
 

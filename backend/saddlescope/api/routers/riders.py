@@ -9,15 +9,16 @@ from fastapi import APIRouter, Query, Response, status
 from saddlescope.api.deps import AdminClubDep, ClubDep
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import Page, RiderIn, RiderOut, RiderUpdate
-from saddlescope.db.models import Rider
-from saddlescope.db.repositories import like_pattern
+
+__all__ = ["router"]
 
 router = APIRouter(prefix="/riders", tags=["riders"])
 
 
 def _check_user(club, user_id: int | None) -> None:
+    """A rider's account must be a user of this club (404 otherwise)."""
     if user_id is not None:
-        club.users.get(user_id)  # a user of this club (404 otherwise)
+        club.users.get(user_id)
 
 
 @router.get("", response_model=Page[RiderOut], responses=ERRORS)
@@ -27,8 +28,7 @@ def list_riders(
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's riders; sort by name (default), created_at, id."""
-    where = [Rider.name.ilike(like_pattern(q), escape="\\")] if q else []
-    page = club.riders.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    page = club.riders.list_page(name_like=q, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, RiderOut.model_validate)
 
 
@@ -36,17 +36,20 @@ def list_riders(
     "", status_code=status.HTTP_201_CREATED, response_model=RiderOut, responses={**ERRORS, **CONFLICT}
 )
 def create_rider(body: RiderIn, club: ClubDep) -> RiderOut:
+    """Add a rider to the club, with their own account if they have one (409 for a name in use)."""
     _check_user(club, body.user_id)
     return RiderOut.model_validate(club.riders.add(name=body.name, user_id=body.user_id))
 
 
 @router.get("/{rider_id}", response_model=RiderOut, responses=ERRORS)
 def read_rider(rider_id: Id, club: ClubDep) -> RiderOut:
+    """A rider of the club."""
     return RiderOut.model_validate(club.riders.get(rider_id))
 
 
 @router.patch("/{rider_id}", response_model=RiderOut, responses={**ERRORS, **CONFLICT})
 def update_rider(rider_id: Id, body: RiderUpdate, club: ClubDep) -> RiderOut:
+    """Rename a rider or change their account (null: none)."""
     _check_user(club, body.user_id)
     return RiderOut.model_validate(
         club.riders.update_fields(rider_id, **changes(body, nullable=("user_id",)))

@@ -28,8 +28,8 @@ from saddlescope.api.schemas import (
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
 from saddlescope.core.vibration import COMFORT_INDICATORS
-from saddlescope.db.models import Ride, RideStatus
-from saddlescope.db.repositories import RideRepository
+from saddlescope.db.enums import RIDE_STATUSES
+from saddlescope.db.repositories import Ride, RideFilter, RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
@@ -39,12 +39,15 @@ from saddlescope.services.uploads import (
     staging_key,
 )
 
+__all__ = ["ExportFormat", "RideStatusName", "ride_detail", "ride_out", "router"]
+
 router = APIRouter(prefix="/rides", tags=["rides"])
-RideStatusName = Literal[tuple(s.value for s in RideStatus)]  # type: ignore[valid-type]
+RideStatusName = Literal[RIDE_STATUSES]  # type: ignore[valid-type]
 ExportFormat = Literal[tuple(EXPORT_FORMATS)]  # type: ignore[valid-type]
 
 
 def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:
+    """The list view of a ride, with its comfort indicators when `result_indicators` are given."""
     indicators = None
     if result_indicators is not None:
         indicators = {k: result_indicators.get(k) for k in COMFORT_INDICATORS}
@@ -69,6 +72,7 @@ def _indicators(club, ride_ids: list[int]) -> dict[int, dict]:
 
 
 def ride_detail(club, ride: Ride) -> RideDetail:
+    """A ride with its clips and its latest job (read through the club's repositories)."""
     base = ride_out(ride, _indicators(club, [ride.id]).get(ride.id)).model_dump()
     latest = club.jobs.latest_for_ride(ride.id)
     return RideDetail(
@@ -76,18 +80,6 @@ def ride_detail(club, ride: Ride) -> RideDetail:
         meta=dict(ride.meta or {}),
         recordings=[RecordingOut.model_validate(r) for r in club.recordings.for_ride(ride.id)],
         latest_job_id=latest.id if latest else None,
-    )
-
-
-def _filters(horse_id, rider_id, rig_id, gait, status_, date_from, date_to):
-    return RideRepository.filters(
-        horse_id=horse_id,
-        rider_id=rider_id,
-        rig_id=rig_id,
-        gait=gait,
-        status=status_,
-        date_from=date_from,
-        date_to=date_to,
     )
 
 
@@ -109,16 +101,26 @@ def list_rides(
     indicator with its own column (acc_y_wb_rms, acc_y_wk_rms, vdv_y_wb, vdv_y_wk, vel_x_avg_kmh,
     amplitude_y_m, stride_frequency_hz; rides without a result come last).
     """
-    where = _filters(horse_id, rider_id, rig_id, gait, status_, date_from, date_to)
-    page = club.rides.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    rides = RideFilter(
+        horse_id=horse_id,
+        rider_id=rider_id,
+        rig_id=rig_id,
+        gait=gait,
+        status=status_,
+        date_from=date_from,
+        date_to=date_to,
+    )
+    page = club.rides.list_page(rides, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     indicators = _indicators(club, [r.id for r in page.items])
     return page_of(page, lambda ride: ride_out(ride, indicators.get(ride.id)))
 
 
 @router.post("", status_code=status.HTTP_201_CREATED, response_model=RideOut, responses=ERRORS)
 def create_ride(body: RideIn, club: ClubDep) -> RideOut:
-    """A ride to upload clips to (its motion clips; static, plumb and calibration come from its rig
-    unless uploaded for the ride)."""
+    """Create a ride to upload clips to.
+
+    Its motion clips; static, plumb and calibration come from its rig unless uploaded for the ride.
+    """
     meta = body.meta.model_dump(exclude_none=True) if body.meta is not None else {}
     ride = club.rides.add(
         horse_id=body.horse_id,
@@ -147,8 +149,10 @@ def export_many(
     date_to: dt.date | None = None,
 ) -> Response:
     """Indicators of the club's analysed rides (with the ride list's filters) as CSV or xlsx."""
-    where = _filters(horse_id, rider_id, rig_id, gait, None, date_from, date_to)
-    data, name = export_rides(club.session, fmt, club_id=club.club_id, where=where)
+    rides = RideFilter(
+        horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, gait=gait, date_from=date_from, date_to=date_to
+    )
+    data, name = export_rides(club.session, fmt, club_id=club.club_id, rides=rides)
     return download(data, name, EXPORT_FORMATS[fmt])
 
 
@@ -168,9 +172,12 @@ async def upload_bundle(
     queue: QueueDep,
     rig_id: QueryId = None,
 ) -> BundleUploaded:
-    """Upload a whole ride bundle as a zip (CONTRACTS section 1): ride.json and the clips. The horse and
-    rider are found or created by name; the analysis starts at once. Unsafe zips (``..`` paths, links,
-    zip bombs), an invalid ride.json (unknown gait or camera, ...) and missing clips are refused (422)."""
+    """Upload a whole ride bundle as a zip (CONTRACTS section 1): ride.json and the clips.
+
+    The horse and rider are found or created by name; the analysis starts at once. Unsafe zips (``..``
+    paths, links, zip bombs), an invalid ride.json (unknown gait or camera, ...) and missing clips are
+    refused (422).
+    """
     if rig_id is not None:
         await run_in_threadpool(club.rigs.get, rig_id)
     club_id = club.club_id
@@ -194,6 +201,7 @@ def read_ride(ride_id: Id, club: ClubDep) -> RideDetail:
 
 @router.patch("/{ride_id}", response_model=RideOut, responses=ERRORS)
 def update_ride(ride_id: Id, body: RideUpdate, club: ClubDep) -> RideOut:
+    """Change a ride's details (a null rig_id or ridden_on clears it)."""
     return ride_out(club.rides.update_fields(ride_id, **changes(body, nullable=("rig_id", "ridden_on"))))
 
 
@@ -209,6 +217,7 @@ def delete_ride(ride_id: Id, club: ClubDep, storage: StorageDep) -> Response:
 
 @router.get("/{ride_id}/clips", response_model=list[RecordingOut], responses=ERRORS)
 def list_ride_clips(ride_id: Id, club: ClubDep) -> list[RecordingOut]:
+    """The ride's own clips (its rig's shared clips are listed under the rig)."""
     club.rides.get(ride_id)
     return [RecordingOut.model_validate(r) for r in club.recordings.for_ride(ride_id)]
 
@@ -231,9 +240,11 @@ async def upload_ride_clip(
     queue: QueueDep,
 ) -> ClipUploaded:
     """Upload one camera's clip of the ride (usually `motion`; multipart field `file`, or the raw bytes).
+
     It is probed at once and refused (422, the earlier clip kept) if it does not decode or disagrees with
     the other cameras' clips of the set in frame rate or size. The clip that completes the ride starts
-    its analysis."""
+    its analysis.
+    """
     await run_in_threadpool(club.rides.get, ride_id)
     return await receive_clip(request, ClipOwner("ride", ride_id, club.club_id), clip_kind, camera, club=club,
                               settings=settings, storage=storage, sessions=sessions, queue=queue)
@@ -266,9 +277,11 @@ def read_result(
     request: Request,
     max_points: Annotated[int, Query(ge=10, le=100_000)] = 2000,
 ) -> Response:
-    """Indicators (with units), quality flags and the series the dashboard plots, decimated to at most
-    `max_points` samples. 404 until the ride is analysed. Sends an ETag: with ``If-None-Match`` an
-    unchanged result answers 304 without a body."""
+    """Indicators (with units), quality flags and the series the dashboard plots.
+
+    The series are decimated to at most `max_points` samples. 404 until the ride is analysed. Sends an
+    ETag: with ``If-None-Match`` an unchanged result answers 304 without a body.
+    """
     data, etag = result_view_json(club.session, storage, ride_id, club_id=club.club_id, max_points=max_points)
     headers = {"ETag": f'"{etag}"', "Cache-Control": "private, no-cache"}
     if request.headers.get("if-none-match") == headers["ETag"]:
@@ -292,7 +305,10 @@ def read_result(
     },
 )
 def export_one(ride_id: Id, fmt: ExportFormat, club: ClubDep, storage: StorageDep) -> Response:
-    """The ride's result as JSON (CONTRACTS section 2), its indicators as CSV or xlsx, or the 3-D tracks of
-    the markers and the saddle point S (motion frame, mm) as C3D or TRC."""
+    """Download the ride's result.
+
+    As JSON (CONTRACTS section 2), its indicators as CSV or xlsx, or the 3-D tracks of the markers and
+    the saddle point S (motion frame, mm) as C3D or TRC.
+    """
     data, name = export_ride(club.session, storage, ride_id, fmt, club_id=club.club_id)
     return download(data, name, EXPORT_FORMATS[fmt])

@@ -23,18 +23,20 @@ from saddlescope.api.schemas import (
     RigUpdate,
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI
-from saddlescope.db.models import Rig
-from saddlescope.db.repositories import like_pattern
+from saddlescope.db.repositories import Rig
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.uploads import (
     ClipOwner,
 )
 
+__all__ = ["rig_out", "router"]
+
 router = APIRouter(prefix="/rigs", tags=["rigs"])
 
 
 def rig_out(rig: Rig, *, detail: bool = False) -> RigOut:
+    """The list view of a rig, or (`detail`) the view with its calibration."""
     data = {
         "id": rig.id,
         "name": rig.name,
@@ -55,8 +57,7 @@ def list_rigs(
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's rigs; sort by recorded_on (default, newest first), name, created_at, id."""
-    where = [Rig.name.ilike(like_pattern(q), escape="\\")] if q else []
-    page = club.rigs.list_page(where=where, sort=paging.sort, limit=paging.limit, offset=paging.offset)
+    page = club.rigs.list_page(name_like=q, sort=paging.sort, limit=paging.limit, offset=paging.offset)
     return page_of(page, rig_out)
 
 
@@ -82,6 +83,7 @@ def read_rig(rig_id: Id, club: ClubDep) -> RigOut:
 
 @router.patch("/{rig_id}", response_model=RigOut, responses=ERRORS)
 def update_rig(rig_id: Id, body: RigUpdate, club: ClubDep) -> RigOut:
+    """Change a rig's details (a null recorded_on or board clears it)."""
     values = changes(body, nullable=("recorded_on", "board"))
     if "board" in values and values["board"] is not None:
         values["board"] = {k: v for k, v in values["board"].items() if v is not None}
@@ -99,6 +101,7 @@ def delete_rig(rig_id: Id, club: AdminClubDep, storage: StorageDep) -> Response:
 
 @router.get("/{rig_id}/clips", response_model=list[RecordingOut], responses=ERRORS)
 def list_rig_clips(rig_id: Id, club: ClubDep) -> list[RecordingOut]:
+    """The rig's clips (calibration, plumb and static; shared by its rides)."""
     club.rigs.get(rig_id)
     return [RecordingOut.model_validate(r) for r in club.recordings.for_rig(rig_id)]
 
@@ -120,10 +123,12 @@ async def upload_rig_clip(
     sessions: SessionFactoryDep,
     queue: QueueDep,
 ) -> ClipUploaded:
-    """Upload one camera's calibration, plumb or static clip of the rig (multipart field `file`, or the
-    raw bytes). It is probed at once; a clip that does not decode, or whose frame rate or size differs
-    from the other cameras' clips of the set, is refused (422) and any earlier clip stays. The third
-    calibration clip starts the rig's calibration job."""
+    """Upload one camera's calibration, plumb or static clip of the rig (multipart field `file`, or raw bytes).
+
+    It is probed at once; a clip that does not decode, or whose frame rate or size differs from the other
+    cameras' clips of the set, is refused (422) and any earlier clip stays. The third calibration clip
+    starts the rig's calibration job.
+    """
     await run_in_threadpool(club.rigs.get, rig_id)
     return await receive_clip(request, ClipOwner("rig", rig_id, club.club_id), clip_kind, camera, club=club,
                               settings=settings, storage=storage, sessions=sessions, queue=queue)

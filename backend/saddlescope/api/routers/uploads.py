@@ -11,9 +11,12 @@ from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsD
 from saddlescope.api.routers.common import ERRORS
 from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
 from saddlescope.api.streaming import stream_chunk
-from saddlescope.db.models import UploadStatus
+from saddlescope.db.enums import UploadStatus
+from saddlescope.db.repositories import Upload
 from saddlescope.services.uploads import IncompleteUpload, create_upload, finalise_upload
 from saddlescope.storage import upload_key
+
+__all__ = ["CHUNK_OPENAPI", "OffsetMismatch", "UploadId", "router"]
 
 router = APIRouter(prefix="/uploads", tags=["uploads"])
 UploadId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="the upload's id")]
@@ -29,7 +32,7 @@ class OffsetMismatch(IncompleteUpload):
     """A chunk's Upload-Offset is not where the upload stands (HTTP 409)."""
 
 
-def _headers(upload) -> dict[str, str]:
+def _headers(upload: Upload) -> dict[str, str]:
     return {
         "Upload-Offset": str(upload.offset_bytes),
         "Upload-Length": str(upload.length_bytes),
@@ -94,8 +97,11 @@ async def append(
     storage: StorageDep,
     upload_offset: Annotated[int, Header(alias="Upload-Offset", ge=0, le=2**62)],
 ) -> Response:
-    """Send the next chunk (the raw body) starting at byte `Upload-Offset`, which must equal the upload's
-    current offset (409 with the right one otherwise). Answers 204 with the new `Upload-Offset`."""
+    """Send the next chunk (the raw body) starting at byte `Upload-Offset`.
+
+    `Upload-Offset` must equal the upload's current offset (409 with the right one otherwise). Answers 204
+    with the new `Upload-Offset`.
+    """
     upload = await run_in_threadpool(club.uploads.get, upload_id)
     if upload.status != UploadStatus.OPEN.value:
         raise OffsetMismatch(f"upload {upload_id} is {upload.status}; it takes no more bytes")
@@ -125,8 +131,11 @@ async def append(
 async def finalize(
     upload_id: UploadId, club: ClubDep, storage: StorageDep, sessions: SessionFactoryDep, queue: QueueDep
 ) -> dict:
-    """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle); starts the
-    processing the new clips allow. Returns ``{"recording_id", "job_id"}`` or ``{"ride_id", "job_id"}``."""
+    """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle).
+
+    Starts the processing the new clips allow. Returns ``{"recording_id", "job_id"}`` or
+    ``{"ride_id", "job_id"}``.
+    """
     club_id = club.club_id
     club.session.rollback()
     return await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id)

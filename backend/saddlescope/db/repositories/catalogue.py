@@ -1,0 +1,152 @@
+"""The club's catalogue: its horses, riders and rigs (named things rides refer to)."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any
+
+from sqlalchemy import select, update
+
+from saddlescope.db.models import Horse, Ride, Rider, Rig
+from saddlescope.db.repositories.base import Conflict, Page, Repository, like_pattern
+
+__all__ = ["HorseRepository", "RiderRepository", "RigRepository"]
+
+
+class _Named(Repository):
+    """Rows with a name: listed by a part of it, and (horses, riders) unique by it within a club."""
+
+    def list_page(self, *, name_like: str | None = None, sort: str | None = None, limit: int = 50,
+                  offset: int = 0) -> Page:
+        """Return a page of the rows (of this club) whose name contains `name_like` (any letter case).
+
+        Sorted by `sort` (a field of `sort_fields`, or ``id``; ``-`` first for descending).
+        """
+        where = [self.model.name.ilike(like_pattern(name_like), escape="\\")] if name_like else []
+        return self._page(where, sort=sort, limit=limit, offset=offset)
+
+    def _check_name_free(self, name: str, *, club_id: int, exclude_id: int | None = None) -> None:
+        stmt = select(self.model.id).where(self.model.club_id == club_id, self.model.name == name)
+        if exclude_id is not None:
+            stmt = stmt.where(self.model.id != exclude_id)
+        if self.session.scalar(stmt) is not None:
+            raise Conflict(f"the club already has a {self.model.__tablename__[:-1]} named {name!r}")
+
+
+class HorseRepository(_Named):
+    """The club's horses (names unique within the club)."""
+
+    model = Horse
+    sort_fields = {"name": Horse.name, "breed": Horse.breed, "birth_year": Horse.birth_year,
+                   "height_withers_m": Horse.height_withers_m, "created_at": Horse.created_at}
+    default_sort = "name"
+
+    def add(self, *, club_id: int | None = None, name: str, breed: str | None = None,
+            birth_year: int | None = None, height_withers_m: float | None = None) -> Horse:
+        """Add a horse; `Conflict` when the club has one of that name."""
+        club_id = self._club_for_new(club_id)
+        self._check_name_free(name, club_id=club_id)
+        return self._add(Horse(club_id=club_id, name=name, breed=breed, birth_year=birth_year,
+                               height_withers_m=height_withers_m))
+
+    def update_fields(self, id_: int, **values: Any) -> Horse:
+        """Set columns of a horse; `Conflict` when renamed to a name the club uses."""
+        if "name" in values:
+            self._check_name_free(values["name"], club_id=self.get(id_).club_id, exclude_id=id_)
+        return super().update_fields(id_, **values)
+
+    def delete(self, horse_id: int) -> None:
+        """Delete a horse; `Conflict` while rides use it."""
+        horse = self.get(horse_id)
+        if self._in_use(Ride.horse_id, horse_id):
+            raise Conflict(f"horse {horse_id} ({horse.name}) still has rides; delete them first")
+        self.session.delete(horse)
+        self.session.flush()
+
+    def get_or_create(self, *, club_id: int | None = None, name: str, breed: str | None = None,
+                      birth_year: int | None = None, height_withers_m: float | None = None) -> Horse:
+        """Return the club's horse named `name`, added with these details if new."""
+        club_id = self._club_for_new(club_id)
+        horse = self.session.scalars(
+            select(Horse).where(Horse.club_id == club_id, Horse.name == name)).first()
+        if horse is None:
+            horse = self._add(Horse(club_id=club_id, name=name, breed=breed, birth_year=birth_year,
+                                    height_withers_m=height_withers_m))
+        return horse
+
+
+class RiderRepository(_Named):
+    """The club's riders (names unique within the club)."""
+
+    model = Rider
+    sort_fields = {"name": Rider.name, "created_at": Rider.created_at}
+    default_sort = "name"
+
+    def add(self, *, club_id: int | None = None, name: str, user_id: int | None = None) -> Rider:
+        """Add a rider; `Conflict` when the club has one of that name."""
+        club_id = self._club_for_new(club_id)
+        self._check_name_free(name, club_id=club_id)
+        return self._add(Rider(club_id=club_id, name=name, user_id=user_id))
+
+    def update_fields(self, id_: int, **values: Any) -> Rider:
+        """Set columns of a rider; `Conflict` when renamed to a name the club uses."""
+        if "name" in values:
+            self._check_name_free(values["name"], club_id=self.get(id_).club_id, exclude_id=id_)
+        return super().update_fields(id_, **values)
+
+    def delete(self, rider_id: int) -> None:
+        """Delete a rider; `Conflict` while rides use them."""
+        rider = self.get(rider_id)
+        if self._in_use(Ride.rider_id, rider_id):
+            raise Conflict(f"rider {rider_id} ({rider.name}) still has rides; delete them first")
+        self.session.delete(rider)
+        self.session.flush()
+
+    def get_or_create(self, *, club_id: int | None = None, name: str) -> Rider:
+        """Return the club's rider named `name`, added if new."""
+        club_id = self._club_for_new(club_id)
+        rider = self.session.scalars(
+            select(Rider).where(Rider.club_id == club_id, Rider.name == name)).first()
+        return rider or self._add(Rider(club_id=club_id, name=name))
+
+
+class RigRepository(_Named):
+    """The club's rigs (a day's three-camera set-up) and their calibrations."""
+
+    model = Rig
+    sort_fields = {"name": Rig.name, "recorded_on": Rig.recorded_on, "created_at": Rig.created_at}
+    default_sort = "-recorded_on"
+
+    def add(self, *, club_id: int | None = None, name: str, recorded_on: dt.date | None = None,
+            cameras: dict | None = None, board: dict | None = None) -> Rig:
+        """Add a rig (names need not be unique: the same set-up on another day)."""
+        return self._add(Rig(club_id=self._club_for_new(club_id), name=name, recorded_on=recorded_on,
+                             cameras=cameras or {}, board=board))
+
+    def set_calibration(self, rig_id: int, calibration: dict, quality: dict) -> None:
+        """Store a rig's calibration and its quality flags (replacing earlier ones)."""
+        rig = self.get(rig_id)
+        rig.calibration = calibration
+        rig.quality = quality
+        self.session.flush()
+
+    def set_calibration_if_missing(self, rig_id: int, calibration: dict, quality: dict) -> bool:
+        """Store a calibration unless the rig has one already (two jobs may race); True if stored."""
+        stmt = update(Rig).where(Rig.id == rig_id, Rig.calibration.is_(None)).values(
+            calibration=calibration, quality=quality)
+        if self.club_id is not None:
+            stmt = stmt.where(Rig.club_id == self.club_id)
+        return self.session.execute(stmt).rowcount == 1
+
+    def clear_calibration(self, rig_id: int) -> None:
+        """Forget a rig's calibration (its calibration clips changed)."""
+        self.get(rig_id)
+        self.session.execute(update(Rig).where(Rig.id == rig_id).values(calibration=None, quality=None))
+
+    def delete(self, rig_id: int) -> None:
+        """Delete a rig; `Conflict` while rides use it."""
+        rig = self.get(rig_id)
+        if self._in_use(Ride.rig_id, rig_id):
+            raise Conflict(f"rig {rig_id} ({rig.name}) is used by rides; delete them or move them first")
+        self.session.delete(rig)
+        self.session.flush()

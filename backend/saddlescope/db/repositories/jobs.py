@@ -1,0 +1,191 @@
+"""Jobs (their state, progress and timings) and resumable uploads: the rows the workers and uploaders race on.
+
+Their state changes are single conditional UPDATEs, so two workers, or two requests, never both win.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from sqlalchemy import select, update
+
+from saddlescope.db.enums import JobStatus, UploadStatus
+from saddlescope.db.models import Job, Upload, utcnow
+from saddlescope.db.repositories.base import Page, Repository
+
+__all__ = ["JobRepository", "UploadRepository"]
+
+_ACTIVE = (JobStatus.QUEUED.value, JobStatus.RUNNING.value)
+
+
+class JobRepository(Repository):
+    """Jobs and their progress. Progress writes are single UPDATEs so they stay cheap."""
+
+    model = Job
+    sort_fields = {"created_at": Job.created_at, "status": Job.status, "kind": Job.kind}
+    default_sort = "-id"
+
+    def add(self, *, kind: str, club_id: int | None = None, ride_id: int | None = None,
+            rig_id: int | None = None, payload: dict[str, Any] | None = None) -> Job:
+        """Add a queued job of `kind` for a ride or a rig (or neither: a system job)."""
+        return self._add(Job(kind=kind, club_id=self._club_for_new(club_id), ride_id=ride_id, rig_id=rig_id,
+                             payload=payload or {}, status=JobStatus.QUEUED.value, progress=0.0, timings={}))
+
+    def list_page(self, *, ride_id: int | None = None, rig_id: int | None = None, status: str | None = None,
+                  kind: str | None = None, sort: str | None = None, limit: int = 50, offset: int = 0) -> Page:
+        """Return a page of the jobs (of this club) of a ride, a rig, a status or a kind (None: any).
+
+        Newest first unless `sort` says otherwise.
+        """
+        where = [column == value
+                 for column, value in ((Job.ride_id, ride_id), (Job.rig_id, rig_id), (Job.status, status),
+                                       (Job.kind, kind))
+                 if value is not None]
+        return self._page(where, sort=sort, limit=limit, offset=offset)
+
+    def status_of(self, job_id: int) -> str | None:
+        """Return the job's status read now from the database (None: no such job)."""
+        return self.session.scalar(select(Job.status).where(Job.id == job_id))
+
+    def _set(self, job_id: int, **values: Any) -> None:
+        values.setdefault("updated_at", utcnow())
+        self.session.execute(update(Job).where(Job.id == job_id).values(**values))
+
+    def mark_running(self, job_id: int, *, host: str, code_version: str) -> bool:
+        """Start (or restart, after a lost worker) a queued or running job.
+
+        Clears the outcome of an earlier attempt. Returns False, changing nothing, when the job is
+        already finished (done, failed or cancelled), so a redelivered task does no work twice.
+        """
+        now = utcnow()
+        result = self.session.execute(
+            update(Job).where(Job.id == job_id, Job.status.in_(_ACTIVE)).values(
+                status=JobStatus.RUNNING.value, started_at=now, finished_at=None, error=None, progress=0.0,
+                stage=None, timings={}, host=host, code_version=code_version, attempts=Job.attempts + 1,
+                updated_at=now))
+        return result.rowcount == 1
+
+    def set_progress(self, job_id: int, progress: float, stage: str | None) -> None:
+        """Store a running job's progress (clipped to 0-1) and the stage it is in."""
+        self._set(job_id, progress=min(max(float(progress), 0.0), 1.0), stage=stage)
+
+    def set_timings(self, job_id: int, timings: dict[str, float]) -> None:
+        """Store the wall seconds of the job's finished stages."""
+        self._set(job_id, timings=dict(timings))
+
+    def finish(self, job_id: int, status: JobStatus, *, error: str | None = None) -> bool:
+        """End a running job; False when it was cancelled (or finished) meanwhile."""
+        values: dict[str, Any] = {"status": status.value, "finished_at": utcnow(), "error": error,
+                                  "updated_at": utcnow()}
+        if status is JobStatus.DONE:
+            values["progress"] = 1.0
+        result = self.session.execute(
+            update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value).values(**values))
+        return result.rowcount == 1
+
+    def fail_queued(self, job_id: int, *, error: str) -> bool:
+        """Fail a job that never started (e.g. the queue refused it)."""
+        result = self.session.execute(
+            update(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED.value).values(
+                status=JobStatus.FAILED.value, error=error, finished_at=utcnow(), updated_at=utcnow()))
+        return result.rowcount == 1
+
+    def request_cancel(self, job_id: int) -> bool:
+        """Cancel a queued or running job; a running one stops at its next progress report."""
+        result = self.session.execute(
+            update(Job).where(Job.id == job_id, Job.status.in_(_ACTIVE)).values(
+                status=JobStatus.CANCELLED.value, finished_at=utcnow(), updated_at=utcnow()))
+        return result.rowcount == 1
+
+    def requeue(self, job_id: int) -> bool:
+        """Put a failed or cancelled job back in the queue (its outcome cleared; attempts kept)."""
+        result = self.session.execute(
+            update(Job).where(Job.id == job_id, Job.status.in_((JobStatus.FAILED.value,
+                                                                 JobStatus.CANCELLED.value))).values(
+                status=JobStatus.QUEUED.value, error=None, finished_at=None, progress=0.0, stage=None,
+                updated_at=utcnow()))
+        return result.rowcount == 1
+
+    def active_for(self, *, ride_id: int | None = None, rig_id: int | None = None, kind: str | None = None
+                   ) -> Job | None:
+        """A queued or running job of this ride or rig (of this kind), if any."""
+        stmt = select(Job).where(Job.status.in_(_ACTIVE))
+        if ride_id is not None:
+            stmt = stmt.where(Job.ride_id == ride_id)
+        if rig_id is not None:
+            stmt = stmt.where(Job.rig_id == rig_id)
+        if kind is not None:
+            stmt = stmt.where(Job.kind == kind)
+        return self.session.scalars(self._scoped(stmt).order_by(Job.id.desc())).first()
+
+    def latest_for_ride(self, ride_id: int, *, kind: str | None = None) -> Job | None:
+        """Return the ride's newest job (of `kind`; None: of any kind), or None."""
+        stmt = select(Job).where(Job.ride_id == ride_id)
+        if kind is not None:
+            stmt = stmt.where(Job.kind == kind)
+        stmt = self._scoped(stmt).order_by(Job.id.desc())
+        return self.session.scalars(stmt).first()
+
+    def touch(self, job_id: int) -> None:
+        """A running job's heartbeat: its worker is alive."""
+        self.session.execute(update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value)
+                             .values(updated_at=utcnow()))
+
+    def requeue_lost(self, job_id: int, *, host: str | None) -> bool:
+        """Put a running job whose worker is gone back in the queue (only if still held by `host`)."""
+        stmt = update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value)
+        if host is not None:
+            stmt = stmt.where(Job.host == host)
+        result = self.session.execute(
+            stmt.values(status=JobStatus.QUEUED.value, stage=None, updated_at=utcnow()))
+        return result.rowcount == 1
+
+    def running(self) -> Sequence[Job]:
+        """Return the running jobs (of this club)."""
+        stmt = self._scoped(select(Job).where(Job.status == JobStatus.RUNNING.value))
+        return self.session.scalars(stmt).all()
+
+    def unfinished(self) -> Sequence[Job]:
+        """Return the queued and running jobs (of this club), oldest first."""
+        stmt = self._scoped(select(Job).where(Job.status.in_(_ACTIVE))).order_by(Job.id)
+        return self.session.scalars(stmt).all()
+
+
+
+class UploadRepository(Repository):
+    """Resumable uploads: bytes arrive at increasing offsets until the upload is finalised."""
+
+    model = Upload
+
+    def add(self, *, id_: str, club_id: int | None = None, user_id: int | None, target: str,
+            ride_id: int | None, rig_id: int | None, clip_kind: str | None, camera_role: str | None,
+            filename: str | None, length_bytes: int) -> Upload:
+        """Add an open upload of `length_bytes` bytes (`id_` is its unguessable id)."""
+        now = utcnow()
+        return self._add(Upload(id=id_, club_id=self._club_for_new(club_id), user_id=user_id, target=target,
+                                ride_id=ride_id, rig_id=rig_id, clip_kind=clip_kind, camera_role=camera_role,
+                                filename=filename, length_bytes=length_bytes, offset_bytes=0,
+                                status=UploadStatus.OPEN.value, outcome={}, created_at=now, updated_at=now))
+
+    def advance(self, upload_id: str, *, from_offset: int, to_offset: int) -> bool:
+        """Move the offset forward, only if nobody else moved it meanwhile (two PATCHes racing)."""
+        stmt = update(Upload).where(Upload.id == upload_id, Upload.offset_bytes == from_offset,
+                                    Upload.status == UploadStatus.OPEN.value).values(
+            offset_bytes=to_offset, updated_at=utcnow())
+        if self.club_id is not None:
+            stmt = stmt.where(Upload.club_id == self.club_id)
+        return self.session.execute(stmt).rowcount == 1
+
+    def close(self, upload_id: str, *, status: UploadStatus, error: str | None = None,
+              outcome: dict[str, Any] | None = None) -> None:
+        """End an upload: finalised (with what it made) or failed (with the reason)."""
+        row = self.get(upload_id)
+        row.status, row.error, row.outcome = status.value, error, dict(outcome or {})
+        row.updated_at = utcnow()
+        self.session.flush()
+
+    def delete(self, upload_id: str) -> None:
+        """Delete an upload's row (its bytes are the caller's to delete)."""
+        self.session.delete(self.get(upload_id))
+        self.session.flush()
