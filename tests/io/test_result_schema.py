@@ -9,8 +9,8 @@ import jsonschema
 import pytest
 
 from saddlescope.core.errors import BundleError, InputError
+from saddlescope.core.vibration import CONTRACT_KEYS
 from saddlescope.io.result_schema import (
-    INDICATOR_KEYS,
     result_schema,
     ride_schema,
     validate_result,
@@ -39,7 +39,7 @@ def _result(n=6):
                    "velocity_m_s": [[3.0, 0.0, 0.0]] * n, "acceleration_m_s2": [[0.0, None, 0.0]] * n},
         "angular": {"omega_rad_s": [[0.0, 0.1, 0.0]] * n, "alpha_rad_s2": [[0.0, 0.0, 0.0]] * n,
                     "singularity_index": 0.1},
-        "indicators": {key: 1.0 for key in INDICATOR_KEYS},
+        "indicators": {key: 1.0 for key in CONTRACT_KEYS},
         "quality": {"flags": []},
         "timings_s": {"total": 12.3, "detection": 4.0},
     }
@@ -79,7 +79,7 @@ def test_valid_result_passes_also_after_json_round_trip():
     validate_result(json.loads(json.dumps(doc)))
 
 
-@pytest.mark.parametrize("key", INDICATOR_KEYS)
+@pytest.mark.parametrize("key", CONTRACT_KEYS)
 def test_each_contract_indicator_is_required(key):
     doc = _result()
     del doc["indicators"][key]

@@ -34,7 +34,6 @@ from saddlescope.arena.content import (
     PlumbContent,
 )
 from saddlescope.arena.contracts import (
-    INDICATOR_KEYS,
     RESULT_KEYS,
     check_result_structure,
     ride_manifest,
@@ -193,7 +192,6 @@ __all__ = [
     "true_marker_pixels",
     "build_truth",
     "saddle_truth_at",
-    "INDICATOR_KEYS",
     "RESULT_KEYS",
     "check_result_structure",
     "ride_manifest",

@@ -11,8 +11,9 @@ import numpy as np
 from saddlescope.arena.content import BOARD, EXTRA_CLIPS
 from saddlescope.arena.scene import Scene
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
+from saddlescope.core.vibration import CONTRACT_KEYS
 
-__all__ = ["INDICATOR_KEYS", "RESULT_KEYS", "check_result_structure", "ride_manifest"]
+__all__ = ["RESULT_KEYS", "check_result_structure", "ride_manifest"]
 
 
 def ride_manifest(scene: Scene, *, suffix: str = ".mp4") -> dict:
@@ -58,14 +59,6 @@ RESULT_KEYS = (
     "quality",
     "timings_s",
 )
-INDICATOR_KEYS = (
-    "acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "acc_y_max", "crest_factor_y",
-    "t_a8_action_wb_h", "t_a8_action_wk_h", "t_a8_limit_wb_h", "t_a8_limit_wk_h",
-    "t_vdv_action_wb_h", "t_vdv_action_wk_h", "t_vdv_limit_wb_h", "t_vdv_limit_wk_h",
-    "d_a8_action_wb_km", "d_a8_action_wk_km", "d_a8_limit_wb_km", "d_a8_limit_wk_km",
-    "d_vdv_action_wb_km", "d_vdv_action_wk_km", "d_vdv_limit_wb_km", "d_vdv_limit_wk_km",
-    "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz",
-)  # fmt: skip
 
 
 def check_result_structure(result: dict, *, cameras=CAMERA_ROLES) -> list[str]:
@@ -100,5 +93,5 @@ def check_result_structure(result: dict, *, cameras=CAMERA_ROLES) -> list[str]:
             problems.append(f"angular.{key} is not ({n}, 3)")
     if not {"start_s", "duration_s"} <= set(result["window"]):
         problems.append("window lacks start_s or duration_s")
-    problems += [f"indicators.{k} missing" for k in INDICATOR_KEYS if k not in result["indicators"]]
+    problems += [f"indicators.{k} missing" for k in CONTRACT_KEYS if k not in result["indicators"]]
     return problems

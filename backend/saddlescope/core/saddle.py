@@ -65,10 +65,13 @@ def static_positions(tracks: MarkerTracks, what: str) -> np.ndarray:
 
 
 def _despiked(xyz: np.ndarray, dt_s: float, *, min_spike_mm: float = 30.0, window_s: float = 0.15) -> np.ndarray:
-    """A copy of finite tracks (F, M, 3) with short spikes (a look-alike taken for a marker for a few
+    """Tracks (F, M, 3) with short spikes replaced by the running median.
+
+    A copy of finite tracks (F, M, 3) with short spikes (a look-alike taken for a marker for a few
     frames) replaced by the running median over ``window_s``: one such spike (0.85 m for 4 frames) took
     a wide-rig trot's autocorrelation from 0.9 to 0.25. Spikes: beyond 5 robust standard deviations
-    and ``min_spike_mm``."""
+    and ``min_spike_mm``.
+    """
     from scipy.ndimage import median_filter
 
     size = max(5, 2 * int(round(window_s / dt_s / 2)) + 1)
@@ -104,8 +107,11 @@ def pairwise_distances(xyz: np.ndarray) -> np.ndarray:
 
 
 def layout_mismatch_mm(static_horse_mm: np.ndarray, motion_mm: np.ndarray) -> float:
-    """RMS difference (mm) between the static shot's horse-marker distances and the tracked ones'
-    (medians over the clip; label order does not matter). inf when no frame has all markers."""
+    """How far (RMS, mm) the tracked markers' distances are from the static shot's.
+
+    RMS difference (mm) between the static shot's horse-marker distances and the tracked ones'
+    (medians over the clip; label order does not matter). inf when no frame has all markers.
+    """
     full = np.all(np.isfinite(motion_mm), axis=(1, 2))
     if not full.any():
         return float("inf")
@@ -134,8 +140,11 @@ def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tupl
 
 
 def _orders_by_mismatch(static_mm: np.ndarray, orders, motion_mm: np.ndarray) -> list[tuple[float, list[int]]]:
-    """(RMS mismatch mm, order) for each order of static markers standing for motion markers 1..M:
-    the static shot's distances between them against the motion clip's median per-frame distances."""
+    """Score every order of static markers against the motion clip's distances.
+
+    (RMS mismatch mm, order) for each order of static markers standing for motion markers 1..M:
+    the static shot's distances between them against the motion clip's median per-frame distances.
+    """
     d_motion = np.nanmedian(pairwise_distances(motion_mm), axis=0)
     d_static = pairwise_distances(static_mm)
     return [(float(np.sqrt(np.nanmean((d_static[np.ix_(idx, idx)] - d_motion) ** 2))), idx)
@@ -150,7 +159,8 @@ def match_horse_markers(static_mm: np.ndarray, horse_idx: list[int], motion_mm: 
     saddle point's path (a wide-rig rising trot: 10.4 % vertical acceleration error with tracks good
     to a millimetre). The order whose per-frame distances match the static shot's is taken; where
     the layout is near-symmetric and two orders match, the one that keeps the horse nearest to its
-    static pose (smallest rotation from the static shot: the same side faces the cameras)."""
+    static pose (smallest rotation from the static shot: the same side faces the cameras).
+    """
     scored = _orders_by_mismatch(static_mm, itertools.permutations(horse_idx), motion_mm)
     best = min(score for score, _ in scored)
     close = [idx for score, idx in scored if score <= max(3.0, 2.0 * best)]
@@ -222,7 +232,8 @@ def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flag
                     ) -> tuple[np.ndarray, np.ndarray, list]:
     """The motion tracks (F, 3, 3) mm with broken samples dropped and short gaps bridged (5.2.1).
 
-    Returns (tracks, bridged frames (F,) bool, long gaps [(start_s, end_s)]); appends its flags."""
+    Returns (tracks, bridged frames (F,) bool, long gaps [(start_s, end_s)]); appends its flags.
+    """
     n_frames, n_markers, _ = xyz.shape
     if n_markers != 3:
         raise KinematicsError(f"the motion clip must track 3 horse markers, got {n_markers}")
@@ -258,8 +269,11 @@ def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flag
 
 
 def _gap_flags(t: np.ndarray, long_gaps: list) -> list[str]:
-    """A sentence for each long gap; at the record's ends the markers are not lost but not yet (or no
-    longer) in every view."""
+    """A sentence for each long gap in the markers' tracks.
+
+    A sentence for each long gap; at the record's ends the markers are not lost but not yet (or no
+    longer) in every view.
+    """
     dt_s = float(np.median(np.diff(t)))
     flags = []
     for start_s, end_s in long_gaps:
@@ -275,8 +289,11 @@ def _gap_flags(t: np.ndarray, long_gaps: list) -> list[str]:
 
 
 def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: str | None) -> _Span:
-    """The stride period and the analysed window within the longest stretch where every marker is
-    tracked (the horse crosses the view), and the span the fits see around it."""
+    """The stride period, the analysed window and the span the fits see.
+
+    The stride period and the analysed window within the longest stretch where every marker is
+    tracked (the horse crosses the view), and the span the fits see around it.
+    """
     valid = np.all(np.isfinite(xyz), axis=(1, 2))
     run0, run1 = _longest_run(valid)
     if run1 - run0 < 8:
@@ -302,8 +319,11 @@ def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: s
 
 def _smoothed(t_w: np.ndarray, xyz_w: np.ndarray, params: PipelineParams, period_s: float,
               depth: Mapping | None, flags: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """The fitted span's tracks (F, 3, 3) mm with a narrow rig's depth fitted smoothly and, when asked,
-    robust LOESS (5.2.2). Returns (smoothed tracks, frames (F,) with every marker)."""
+    """The fitted span's tracks, smoothed as the rig and the user ask.
+
+    The fitted span's tracks (F, 3, 3) mm with a narrow rig's depth fitted smoothly and, when asked,
+    robust LOESS (5.2.2). Returns (smoothed tracks, frames (F,) with every marker).
+    """
     n_markers = xyz_w.shape[1]
     if depth is not None and depth["anisotropy"] >= params.depth_anisotropy and np.all(np.isfinite(xyz_w)):
         # Narrow rig: the depth noise (systematic too: sub-frame sync, interpolation) leaks into
@@ -353,8 +373,11 @@ def _fit_markers(t_s: np.ndarray, xyz_m: np.ndarray, period_s: float, params: Pi
 
 def _register_static_model(xyz: np.ndarray, xyz_m: np.ndarray, static_all: np.ndarray, static_tracks: MarkerTracks,
                            horse_idx: list[int], frame: MotionFrame) -> tuple[float, Registration]:
-    """The static shot's horse markers registered to every frame (5.4), and how far (RMS of the
-    pairwise distances, mm) the tracked layout is from the static shot's."""
+    """Register the static shot's horse markers to every frame (5.4).
+
+    The static shot's horse markers registered to every frame (5.4), and how far (RMS of the
+    pairwise distances, mm) the tracked layout is from the static shot's.
+    """
     # per-frame distances, then their median (the median of each coordinate of a moving, bobbing
     # marker set is no one instant's layout: 118 mm off on a correctly tracked canter)
     d_motion = np.nanmedian(pairwise_distances(xyz), axis=0)
@@ -373,7 +396,8 @@ def _fitted_saddle_point(t_fit: np.ndarray, reg: Registration, xyz_m: np.ndarray
     """Fits (5.5), angular kinematics (6.1-6.2) and the saddle point (6.3-6.4) on the window.
 
     Returns (marker fits, registration, registered markers (F, 3, 3) m, angular kinematics, the saddle
-    point's kinematics, S in body coordinates (3,) m) on the window; appends its flags."""
+    point's kinematics, S in body coordinates (3,) m) on the window; appends its flags.
+    """
     period_s, in_win = span.period_s, span.in_window
     # Curve fitting (5.5): velocities and accelerations are analytic derivatives of the fits; what
     # follows is reported on the analysed window.
@@ -487,10 +511,13 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
 
 def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int, *, trend: bool = False
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Least-squares cosine series y ~ c0 + sum A_k cos(2 pi k f0 t + phi_k) at a known f0 (plus a
+    """Least-squares cosine series at a known fundamental.
+
+    Least-squares cosine series y ~ c0 + sum A_k cos(2 pi k f0 t + phi_k) at a known f0 (plus a
     straight line c1 t with ``trend``: a slope is no part of an oscillation).
 
-    Returns (A (order,), phi (order,), fitted y)."""
+    Returns (A (order,), phi (order,), fitted y).
+    """
     cols = [np.ones_like(t_s)] + ([t_s - t_s.mean()] if trend else [])
     for k in range(1, order + 1):
         w = 2 * np.pi * k * f0_hz * t_s
@@ -505,8 +532,11 @@ def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int, *, 
 
 def vertical_harmonics(t_s: np.ndarray, acc_y: np.ndarray, pos_y: np.ndarray, period_s: float,
                        fit_order: int) -> dict:
-    """Fourier form of the saddle point's vertical motion at the stride frequency (for the exact
-    harmonic weighting of the vibration stage) and its peak-to-peak displacement."""
+    """Fourier form of the saddle point's vertical motion at the stride frequency.
+
+    Fourier form of the saddle point's vertical motion at the stride frequency (for the exact
+    harmonic weighting of the vibration stage) and its peak-to-peak displacement.
+    """
     f0 = 1.0 / period_s
     max_order = max(1, (len(t_s) - 1) // 2 - 1)
     order = int(min(max_order, max(fit_order + 2, 4)))
@@ -525,8 +555,11 @@ def vertical_harmonics(t_s: np.ndarray, acc_y: np.ndarray, pos_y: np.ndarray, pe
 
 
 def kinematics_indicators(kin: SaddleAnalysis, params: PipelineParams) -> tuple[dict, dict]:
-    """The vertical harmonics of the saddle point and the rider's indicators (thesis 7, 8.5) from the
-    output of :func:`saddle_kinematics`."""
+    """The saddle point's vertical harmonics and the rider's indicators (thesis 7, 8.5).
+
+    The vertical harmonics of the saddle point and the rider's indicators (thesis 7, 8.5) from the
+    output of :func:`saddle_kinematics`.
+    """
     s = kin.saddle
     fit_order = max(f.order for f in kin.fits.fits_y)
     harm = vertical_harmonics(kin.t_s, s.acceleration_m_s2[:, 1], s.position_m[:, 1], kin.period_s,

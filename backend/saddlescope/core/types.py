@@ -14,6 +14,10 @@ import numpy as np
 
 from saddlescope.core.camera_model import undistort_normalized
 
+__all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "AnalysisWindow", "Board", "Camera", "HorseMarkers",
+           "ImageTracks", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig", "SaddleKinematics",
+           "SaddleRotation", "VerticalHarmonics"]
+
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
 CLIP_KINDS: tuple[str, ...] = ("calibration", "plumb", "static", "motion")
 GAITS: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter")
@@ -112,6 +116,7 @@ class Rig:
 
     @property
     def names(self) -> list[str]:
+        """The cameras' names, the reference (first, left) camera first."""
         return list(self.cameras)
 
 
@@ -246,8 +251,11 @@ class MotionFrameSummary:
 
 @dataclass(frozen=True)
 class VerticalHarmonics:
-    """S's vertical acceleration as a cosine series at the stride frequency f0 (thesis 7):
-    a(t) = Σ_k amplitudes_m_s2[k-1] cos(2π k f0 t + phases_rad[k-1])."""
+    """S's vertical acceleration as a cosine series at the stride frequency (thesis 7).
+
+    S's vertical acceleration as a cosine series at the stride frequency f0 (thesis 7):
+    a(t) = Σ_k amplitudes_m_s2[k-1] cos(2π k f0 t + phases_rad[k-1]).
+    """
 
     f0_hz: float
     amplitudes_m_s2: np.ndarray

@@ -258,6 +258,12 @@ class Job(Base):
     updated_at: Mapped[dt.datetime | None]
 
 
+# Indicators (keys of core.vibration.INDICATORS) copied out of a result's JSON into indexed columns,
+# so that leaderboards sort them in the database; every other indicator is ranked from the JSON.
+LEADERBOARD_COLUMNS = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "vel_x_avg_kmh",
+                       "amplitude_y_m", "stride_frequency_hz")
+
+
 class Result(TimestampMixin, Base):
     """The analysis of one ride; a re-run replaces it."""
 
@@ -265,9 +271,7 @@ class Result(TimestampMixin, Base):
     __table_args__ = (
         # Covering (club, ride, value): a leaderboard reads these narrow entries, never the wide rows
         # with their JSON (ten thousand rides ranked in milliseconds).
-        *(Index(f"ix_results_leaderboard_{name}", "club_id", "ride_id", name) for name in (
-            "acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "vel_x_avg_kmh", "amplitude_y_m",
-            "stride_frequency_hz")),
+        *(Index(f"ix_results_leaderboard_{name}", "club_id", "ride_id", name) for name in LEADERBOARD_COLUMNS),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -286,10 +290,6 @@ class Result(TimestampMixin, Base):
     # Storage key of the full result JSON (CONTRACTS section 2): series, quality flags, calibration.
     result_key: Mapped[str | None] = mapped_column(String(500))
     code_version: Mapped[str | None] = mapped_column(String(64))
-
-
-LEADERBOARD_COLUMNS = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "vel_x_avg_kmh",
-                       "amplitude_y_m", "stride_frequency_hz")
 
 
 class Grade(TimestampMixin, Base):

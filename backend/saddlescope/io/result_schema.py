@@ -16,23 +16,15 @@ import jsonschema
 from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems, board_type
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+from saddlescope.core.vibration import CONTRACT_KEYS
 
-__all__ = ["RESULT_FORMAT", "RIDE_FORMAT", "INDICATOR_KEYS", "result_schema", "ride_schema",
+__all__ = ["RESULT_FORMAT", "RIDE_FORMAT", "result_schema", "ride_schema",
            "result_problems", "ride_problems", "validate_result", "validate_ride_meta"]
 
 RESULT_FORMAT = "saddlescope.result/1"
 RIDE_FORMAT = "saddlescope.ride/1"
 MAX_LISTED_PROBLEMS = 5
 
-# CONTRACTS section 2: the thesis's Table 8.7 set, always present.
-INDICATOR_KEYS: tuple[str, ...] = (
-    "acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "acc_y_max", "crest_factor_y",
-    "t_a8_action_wb_h", "t_a8_action_wk_h", "t_a8_limit_wb_h", "t_a8_limit_wk_h",
-    "t_vdv_action_wb_h", "t_vdv_action_wk_h", "t_vdv_limit_wb_h", "t_vdv_limit_wk_h",
-    "d_a8_action_wb_km", "d_a8_action_wk_km", "d_a8_limit_wb_km", "d_a8_limit_wk_km",
-    "d_vdv_action_wb_km", "d_vdv_action_wk_km", "d_vdv_limit_wb_km", "d_vdv_limit_wk_km",
-    "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz",
-)
 
 _NUMBER = {"type": "number"}
 _POSITIVE = {"type": "number", "exclusiveMinimum": 0}
@@ -106,8 +98,8 @@ RESULT_SCHEMA: dict[str, Any] = {
             "properties": {"omega_rad_s": _SERIES3, "alpha_rad_s2": _SERIES3,
                            "singularity_index": {"type": ["number", "null"], "minimum": 0, "maximum": 1}},
         },
-        "indicators": {"type": "object", "required": list(INDICATOR_KEYS),
-                       "properties": {key: _NUMBER for key in INDICATOR_KEYS}},
+        "indicators": {"type": "object", "required": list(CONTRACT_KEYS),
+                       "properties": {key: _NUMBER for key in CONTRACT_KEYS}},
         "quality": {"type": "object"},
         "timings_s": {"type": "object", "required": ["total"],
                       "additionalProperties": _NON_NEGATIVE},

@@ -46,7 +46,8 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
     see the markers is left out while two others do (a plumb line hung at the end of the arena may be
     outside one camera's view): its failure is a flag, not the end of the analysis.
     ``start_xy`` {camera: (n, 2)} gives the markers' positions on each camera's first frame (found
-    with all cameras at once); a camera it leaves out is not used (with ``spare_cameras``)."""
+    with all cameras at once); a camera it leaves out is not used (with ``spare_cameras``).
+    """
     overrides = dict(params.detection.get(kind, {}))
     tracks = {}
     missed: dict[str, DetectionError] = {}
@@ -78,9 +79,12 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
 
 def still_start_positions(clips: ClipReader, rig: Rig, kind: str, first_frame: Mapping[str, int], n_markers: int
                           ) -> dict[str, np.ndarray] | None:
-    """Each camera's markers on its first frame of a still clip (``kind`` "plumb" or "static"), found
+    """Each camera's markers on its first frame of a still clip, found with all cameras at once.
+
+    Each camera's markers on its first frame of a still clip (``kind`` "plumb" or "static"), found
     with all cameras at once (:func:`find_plumb_multiview`, :func:`find_static_multiview`), or None
-    (then each camera searches alone)."""
+    (then each camera searches alone).
+    """
     if kind == "plumb" and n_markers != 2:
         return None
     frames = {}
@@ -114,8 +118,11 @@ def _plumb_lean_deg(plumb: MarkerTracks, rig: Rig) -> float:
 
 
 def _down_direction(plumb: MarkerTracks | None, cameras_down: np.ndarray) -> np.ndarray:
-    """Gravity in rig coordinates: from the plumb line where seen, else ``cameras_down`` (the cameras'
-    mean image down, :func:`camera_down`)."""
+    """Gravity in rig coordinates, shape (3,).
+
+    Gravity in rig coordinates: from the plumb line where seen, else ``cameras_down`` (the cameras'
+    mean image down, :func:`camera_down`).
+    """
     if plumb is not None:
         try:
             p = static_positions(plumb, "plumb")
@@ -187,7 +194,8 @@ class RideTracks:
     ``tracks3d`` maps clip kind ("plumb", "static", "motion") to its :class:`MarkerTracks`;
     ``motion2d`` holds each camera's image tracks of the ride; ``horse_idx`` the static shot's horse
     markers in the ride's label order and ``saddle_idx`` its saddle marker S; ``cameras_down`` (3,)
-    the cameras' mean image-down direction in rig coordinates."""
+    the cameras' mean image-down direction in rig coordinates.
+    """
 
     tracks3d: dict[str, MarkerTracks] = field(default_factory=dict)
     motion2d: dict[str, ImageTracks] = field(default_factory=dict)
@@ -246,8 +254,11 @@ def _detect_plumb(clips: ClipReader, rig: Rig, first_frame: Mapping, params: Pip
 def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapping, clocks: Mapping,
                   params: PipelineParams, n_horse: int, static_mm: np.ndarray, down: np.ndarray,
                   triangulate: _Triangulator, found: RideTracks) -> None:
-    """The horse markers through the ride, searched again with all cameras when what each camera
-    found does not keep the static shot's layout."""
+    """The horse markers through the ride, in every camera and in 3-D.
+
+    The horse markers through the ride, searched again with all cameras when what each camera
+    found does not keep the static shot's layout.
+    """
     motion2d, horse_idx, saddle_idx, searched_together = detect_motion(
         clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
         clocks=clocks.get("motion"))
@@ -300,7 +311,8 @@ def detect_ride(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapp
 
     ``offsets``, ``first_frame`` and ``clocks`` are :func:`~saddlescope.core.pipeline.setup.synchronise`'s
     and :func:`~saddlescope.core.pipeline.setup.frame_clocks`' per clip kind; ``calib_report`` the
-    calibration's report (its board coverage flags markers seen where the lens is extrapolated)."""
+    calibration's report (its board coverage flags markers seen where the lens is extrapolated).
+    """
     found = RideTracks()
     triangulate = _Triangulator(clips, rig, offsets, clocks, params)
     _detect_plumb(clips, rig, first_frame, params, n_plumb, triangulate, found)
@@ -334,9 +346,12 @@ def depth_uncertainty(rig: Rig, tracks: MarkerTracks) -> dict | None:
 
 
 def disagreement_flag(kind: str, tracks: MarkerTracks, *, share: float = 0.05) -> str | None:
-    """A flag when over ``share`` of a clip's triangulated samples reproject worse than 2 px and 8 times
+    """A flag when the cameras disagree on a clip's markers, else None.
+
+    A flag when over ``share`` of a clip's triangulated samples reproject worse than 2 px and 8 times
     the clip's median: the cameras saw different things there (one followed a look-alike, or the
-    synchronisation or calibration is off) and nothing could tell which camera was wrong."""
+    synchronisation or calibration is off) and nothing could tell which camera was wrong.
+    """
     if tracks.reprojection_error_px is None:
         return None
     err = np.asarray(tracks.reprojection_error_px, dtype=np.float64)

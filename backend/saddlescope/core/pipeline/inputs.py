@@ -24,15 +24,30 @@ STAGE_WEIGHTS: dict[str, float] = {"sync": 0.15, "calibration": 0.35, "detection
 class ClipReader(Protocol):
     """What the pipeline needs of a ride's clips (``saddlescope.io.clip_source.BundleClips``)."""
 
-    def has(self, kind: str) -> bool: ...
-    def cameras(self, kind: str) -> list[str]: ...
-    def fps(self, kind: str, camera: str) -> float: ...
-    def frame_count(self, kind: str, camera: str) -> int: ...
-    def image_size(self, kind: str, camera: str) -> tuple[int, int]: ...
-    def brightness(self, kind: str, camera: str) -> np.ndarray: ...
-    def frame_times(self, kind: str, camera: str) -> np.ndarray | None: ...
+    def has(self, kind: str) -> bool:
+        """Whether the ride has clip set ``kind`` ("calibration", "plumb", "static", "motion")."""
+
+    def cameras(self, kind: str) -> list[str]:
+        """The cameras of clip set ``kind``, the reference (left) camera first."""
+
+    def fps(self, kind: str, camera: str) -> float:
+        """The clip's nominal frame rate."""
+
+    def frame_count(self, kind: str, camera: str) -> int:
+        """The clip's number of frames."""
+
+    def image_size(self, kind: str, camera: str) -> tuple[int, int]:
+        """The clip's (width, height) in pixels."""
+
+    def brightness(self, kind: str, camera: str) -> np.ndarray:
+        """Each frame's mean brightness, shape (F,): the sync flash is found in it."""
+
+    def frame_times(self, kind: str, camera: str) -> np.ndarray | None:
+        """Each frame's timestamp (F,) s for a variable-rate clip (phones), None for an even one."""
+
     def gray_frames(self, kind: str, camera: str, start: int = 0, stop: int | None = None,
-                    step: int = 1) -> Iterator[tuple[int, np.ndarray]]: ...
+                    step: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+        """(frame index, grey image (H, W) uint8) from ``start`` to ``stop`` every ``step`` frames."""
 
 
 @dataclass

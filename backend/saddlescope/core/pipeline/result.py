@@ -47,8 +47,11 @@ def _track_quality(tracks: MarkerTracks) -> dict:
 
 def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str, MarkerTracks],
              flags: Sequence[str], input_flags: Sequence[str]) -> dict:
-    """The result's ``quality``: the flags (``input_flags`` first, e.g. the bundle's own warnings) and
-    the figures behind them."""
+    """The result's ``quality``: the flags and the figures behind them.
+
+    The result's ``quality``: the flags (``input_flags`` first, e.g. the bundle's own warnings) and
+    the figures behind them.
+    """
     s, ang, reg, frame = kin.saddle, kin.angular, kin.registration, kin.frame
     return {
         "flags": list(input_flags) + list(dict.fromkeys(list(rig.flags) + list(flags))),
@@ -85,7 +88,8 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
     """The :class:`RideResult` of a ride from its stages' outputs.
 
     ``flags`` are the stages' flags in order (rig flags are put first); ``harm`` is
-    :func:`~saddlescope.core.saddle.vertical_harmonics`' output; ``fps`` the motion clip's rate."""
+    :func:`~saddlescope.core.saddle.vertical_harmonics`' output; ``fps`` the motion clip's rate.
+    """
     s, fits, frame, t_s = kin.saddle, kin.fits, kin.frame, kin.t_s
     return RideResult(
         fps=fps, gait=meta.get("gait"), direction=meta.get("direction"), rig=rig,
@@ -118,9 +122,12 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
 
 
 def fits_document(fits) -> dict:
-    """The result's ``markers.fits``: per axis (x, y, z) and marker, the fit's kind, goodness of fit
+    """The result's ``markers.fits``: a summary of every marker's fit per axis.
+
+    The result's ``markers.fits``: per axis (x, y, z) and marker, the fit's kind, goodness of fit
     (SSE, R², adjusted R², RMSE, the residuals' and the noise's lag-1 autocorrelation), order,
-    fundamental, coefficients and their 95 % confidence intervals (thesis 5.5)."""
+    fundamental, coefficients and their 95 % confidence intervals (thesis 5.5).
+    """
     return {axis: [_fit_summary(f) for f in group]
             for axis, group in (("x", fits.fits_x), ("y", fits.fits_y), ("z", fits.fits_z))}
 

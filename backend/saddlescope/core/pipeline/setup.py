@@ -26,8 +26,11 @@ __all__ = ["board_coverage", "calibrate_from_clips", "frame_clocks", "outside_co
 
 
 def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict]:
-    """Frame offsets per clip kind and camera (relative to the first camera) and the first frame
-    after the flash in each camera's clip, where detection may start."""
+    """Frame offsets per clip kind and camera, and where detection may start.
+
+    Frame offsets per clip kind and camera (relative to the first camera) and the first frame
+    after the flash in each camera's clip, where detection may start.
+    """
     from concurrent.futures import ThreadPoolExecutor
 
     offsets: dict[str, dict[str, float]] = {}
@@ -64,7 +67,8 @@ def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
     Returns ``clocks[kind][camera] = (frame times (F,) s, anchor frame)`` for every camera of a clip
     set where one camera's frames are not evenly spaced (the even ones get their own even stamps),
     and a flag for each uneven clip. The anchor is the sync flash's onset: frame offsets are measured
-    there, so the nominal even clock is tied to the clip's timestamps at that frame."""
+    there, so the nominal even clock is tied to the clip's timestamps at that frame.
+    """
     clocks: dict[str, dict[str, tuple[np.ndarray, float]]] = {}
     flags: list[str] = []
     for kind in kinds:
@@ -93,8 +97,11 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
                          first_frame: Mapping[str, int], params: PipelineParams,
                          progress: Progress | None = None,
                          clocks: Mapping[str, tuple[np.ndarray, float]] | None = None) -> tuple[Rig, dict]:
-    """Board views from every camera's calibration clip, put on the first camera's clock, then
-    intrinsics, stereo pairs, bundle adjustment and metric checks (thesis 3.4-3.6, 8.2)."""
+    """Calibrate the rig from every camera's calibration clip.
+
+    Board views from every camera's calibration clip, put on the first camera's clock, then
+    intrinsics, stereo pairs, bundle adjustment and metric checks (thesis 3.4-3.6, 8.2).
+    """
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
     cams = clips.cameras("calibration")
@@ -179,7 +186,8 @@ def _average_holds(views_by_camera: Mapping[str, list], *, same_pose_px: float =
     sweep is many poses, a hold one). Averaging a hold's frames halves the corners' frame-to-frame
     noise without giving the bundle adjustment many copies of one pose to weigh (wide rig: markers
     4.6 mm RMS from 60 instants of any pose, 2.5 mm from every still instant, 2.3 mm from every pose
-    averaged)."""
+    averaged).
+    """
     by_frame: dict[int, dict] = {}
     for cam, views in views_by_camera.items():
         for v in views:
@@ -214,9 +222,12 @@ def _average_holds(views_by_camera: Mapping[str, list], *, same_pose_px: float =
 
 
 def still_views(views: list, step: int, max_motion_px: float = 0.5) -> list:
-    """Views of a board held still: its corners moved less than ``max_motion_px`` since the view
+    """Views of a board held still.
+
+    Views of a board held still: its corners moved less than ``max_motion_px`` since the view
     ``step`` frames before. A moving board is blurred, and the cameras' frames (whole frames apart
-    after rounding the sync offsets) would show it at different places."""
+    after rounding the sync offsets) would show it at different places.
+    """
     by_frame = {v.frame: v for v in views}
     still = []
     for v in views:
