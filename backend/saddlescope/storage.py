@@ -13,11 +13,9 @@ import io
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
-
-import numpy as np
 
 from saddlescope.core.errors import InputError
 
@@ -209,16 +207,6 @@ class Storage:
         target = self.path(key)
         target.mkdir(parents=True)
         return target
-
-    def save_arrays(self, key: str, arrays: Mapping[str, np.ndarray]) -> tuple[int, str]:
-        """Write arrays as one compressed ``.npz`` under `key`; (size, sha256)."""
-        buffer = io.BytesIO()
-        np.savez_compressed(buffer, **{name: np.asarray(a) for name, a in arrays.items()})
-        return self.write_bytes(key, buffer.getvalue())
-
-    def load_arrays(self, key: str) -> dict[str, np.ndarray]:
-        with np.load(self.path(key), allow_pickle=False) as data:
-            return {name: data[name] for name in data.files}
 
     def check(self) -> str:
         """Write, read and delete a probe file; returns a short description or raises OSError."""

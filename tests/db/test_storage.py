@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import io
 
-import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError
@@ -36,15 +35,6 @@ def test_upload_over_the_limit_keeps_nothing(storage):
         storage.write_stream("big.bin", io.BytesIO(b"x" * 5000), max_bytes=1000)
     assert not storage.exists("big.bin")
     assert list(storage.root.iterdir()) == []  # no temporary file left behind
-
-
-def test_arrays_round_trip_compressed(storage):
-    t_s = np.linspace(0, 1.2, 37)
-    position_m = np.random.default_rng(0).normal(size=(37, 3))
-    storage.save_arrays("results/1/arrays.npz", {"t_s": t_s, "position_m": position_m})
-    loaded = storage.load_arrays("results/1/arrays.npz")
-    np.testing.assert_array_equal(loaded["t_s"], t_s)
-    np.testing.assert_array_equal(loaded["position_m"], position_m)
 
 
 def test_fresh_dir_replaces_an_earlier_stage_output(storage):

@@ -102,7 +102,16 @@ def _on_window(fits, in_win: slice):
 
 
 def pairwise_distances(xyz: np.ndarray) -> np.ndarray:
-    """(..., M, 3) -> (..., M, M) distances between every pair of markers (per frame when 3-D)."""
+    """Distances between every pair of markers (per frame when given frames).
+
+    Parameters
+    ----------
+    xyz : ndarray of shape (..., M, 3)
+
+    Returns
+    -------
+    ndarray of shape (..., M, M)
+    """
     return np.linalg.norm(xyz[..., :, None, :] - xyz[..., None, :, :], axis=-1)
 
 
@@ -128,7 +137,17 @@ def identify_saddle_marker(static_mm: np.ndarray, motion_mm: np.ndarray) -> tupl
     horse markers. The triple whose distances best match the motion clip's (rigid body) is the horse
     markers, the remaining one S.
 
-    Returns (static indices of motion markers 1-3, static index of S, RMS distance mismatch in mm).
+    Parameters
+    ----------
+    static_mm : ndarray of shape (M, 3)
+        The static shot's markers (mm).
+    motion_mm : ndarray of shape (F, 3, 3)
+        The ride's tracked horse markers (mm), NaN where lost.
+
+    Returns
+    -------
+    tuple
+        (static indices of motion markers 1-3, static index of S, RMS distance mismatch in mm).
     """
     scored = _orders_by_mismatch(static_mm, itertools.permutations(range(static_mm.shape[0]), motion_mm.shape[1]),
                                  motion_mm)
@@ -160,6 +179,20 @@ def match_horse_markers(static_mm: np.ndarray, horse_idx: list[int], motion_mm: 
     to a millimetre). The order whose per-frame distances match the static shot's is taken; where
     the layout is near-symmetric and two orders match, the one that keeps the horse nearest to its
     static pose (smallest rotation from the static shot: the same side faces the cameras).
+
+    Parameters
+    ----------
+    static_mm : ndarray of shape (M, 3)
+        The static shot's markers (mm).
+    horse_idx : list of int
+        The static indices of the horse markers, in any order.
+    motion_mm : ndarray of shape (F, 3, 3)
+        The ride's tracked horse markers (mm).
+
+    Returns
+    -------
+    list of int
+        ``horse_idx`` reordered so that entry k is motion marker k + 1.
     """
     scored = _orders_by_mismatch(static_mm, itertools.permutations(horse_idx), motion_mm)
     best = min(score for score, _ in scored)
@@ -536,6 +569,21 @@ def vertical_harmonics(t_s: np.ndarray, acc_y: np.ndarray, pos_y: np.ndarray, pe
 
     Fourier form of the saddle point's vertical motion at the stride frequency (for the exact
     harmonic weighting of the vibration stage) and its peak-to-peak displacement.
+
+    Parameters
+    ----------
+    t_s, acc_y, pos_y : ndarray of shape (F,)
+        Times (s), vertical acceleration (m/s²) and position (m) of S over the window.
+    period_s : float
+        The stride period.
+    fit_order : int
+        The vertical fits' order: the series goes two orders beyond it (at least 4).
+
+    Returns
+    -------
+    dict
+        ``f0_hz``, ``amplitudes_m_s2`` and ``phases_rad`` (order,), ``order``, ``fit_rms_residual_m_s2``,
+        ``amplitude_y_m`` (peak to peak).
     """
     f0 = 1.0 / period_s
     max_order = max(1, (len(t_s) - 1) // 2 - 1)

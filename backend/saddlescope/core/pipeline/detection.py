@@ -47,6 +47,13 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
     outside one camera's view): its failure is a flag, not the end of the analysis.
     ``start_xy`` {camera: (n, 2)} gives the markers' positions on each camera's first frame (found
     with all cameras at once); a camera it leaves out is not used (with ``spare_cameras``).
+
+    Returns
+    -------
+    tracks : dict of camera -> ImageTracks
+        ``xy_px`` of shape (F, n_markers, 2) per camera, NaN where a marker was not found.
+    flags : list of str
+        A sentence per camera left out.
     """
     overrides = dict(params.detection.get(kind, {}))
     tracks = {}
@@ -84,6 +91,11 @@ def still_start_positions(clips: ClipReader, rig: Rig, kind: str, first_frame: M
     Each camera's markers on its first frame of a still clip (``kind`` "plumb" or "static"), found
     with all cameras at once (:func:`find_plumb_multiview`, :func:`find_static_multiview`), or None
     (then each camera searches alone).
+
+    Returns
+    -------
+    dict of camera -> ndarray of shape (n_markers, 2), or None
+        Pixel positions on each camera's first frame after the flash.
     """
     if kind == "plumb" and n_markers != 2:
         return None
@@ -149,8 +161,18 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     ``multiview`` skips the per-camera search (when what it found does not match the static shot).
     ``clocks`` (:func:`frame_clocks`) pairs the cameras' frames by their timestamps (phones).
 
-    Returns (tracks per camera, static indices of horse markers 1-3, static index of S, whether the
-    all-cameras search found the start).
+    Parameters
+    ----------
+    static_mm : ndarray of shape (M, 3)
+        The static shot's markers in rig coordinates (mm), the horse markers and S.
+    down : ndarray of shape (3,)
+        Gravity in rig coordinates (unit vector).
+
+    Returns
+    -------
+    tuple
+        (tracks per camera with ``xy_px`` of shape (F, n_horse, 2), static indices of horse markers
+        1-3, static index of S, whether the all-cameras search found the start).
     """
     cams = clips.cameras("motion")
     # The saddle marker sits on the saddle above the horse markers: the static marker farthest

@@ -101,6 +101,19 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
 
     Board views from every camera's calibration clip, put on the first camera's clock, then
     intrinsics, stereo pairs, bundle adjustment and metric checks (thesis 3.4-3.6, 8.2).
+
+    Parameters
+    ----------
+    offsets, first_frame : mapping of camera
+        The calibration clip's frame offsets against the first camera and first frame after the flash.
+    clocks : mapping of camera -> (ndarray of shape (F,), float), optional
+        Frame timestamps (s) and anchor frame of variable-rate clips (:func:`frame_clocks`).
+
+    Returns
+    -------
+    rig : Rig
+    report : dict
+        ``n_views`` and ``board_coverage`` (image hull, share of the image) per camera.
     """
     from concurrent.futures import ThreadPoolExecutor, as_completed
 

@@ -82,7 +82,7 @@ class CharucoType:
         return CharucoFinder(board, inverted=inverted, max_width=max_width)
 
     def half_turn_ids(self, board: Board, ids: np.ndarray) -> np.ndarray | None:
-        """None: the markers tell the board's ends apart."""
+        """None: the markers tell the board's ends apart (``ids`` of shape (N,) need no relabelling)."""
         return None
 
     def cv_board(self, board: Board) -> cv2.aruco.CharucoBoard:
