@@ -301,6 +301,77 @@ def most_similar_rides(tracks_by_ride: Mapping[Hashable, np.ndarray], *, method:
 
 
 # ----------------------------------------------------------------------------------------------
+# the product's interface: analysed rides (result documents) compared and ranked
+
+# Which tracks of a ride are compared: the saddle point S, one horse marker, or all of them.
+MARKER_SETS = ("saddle", "M1", "M2", "M3", "all")
+# One mean stride (speed and start drop out) or the whole analysed window.
+SPANS = ("stride", "window")
+
+
+def _document_tracks(doc: Mapping, markers: str) -> tuple[list[np.ndarray], float, float]:
+    """The tracks (each (N, 3) m, motion frame) of a result document's ``markers`` set, its sample
+    rate (Hz) and stride period (s)."""
+    if markers not in MARKER_SETS:
+        raise InputError(f"unknown marker set {markers!r}; choose one of {', '.join(MARKER_SETS)}")
+    try:
+        fps, period_s = float(doc["fps"]), float(doc["period_s"])
+        if markers == "saddle":
+            tracks = [np.asarray(doc["saddle"]["position_m"], dtype=np.float64)]
+        else:
+            xyz = np.asarray(doc["markers"]["position_m"], dtype=np.float64)
+            names = list(doc["markers"].get("names") or ["M1", "M2", "M3"])
+            tracks = [xyz[:, k] for k in range(xyz.shape[1])] if markers == "all" else [xyz[:, names.index(markers)]]
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise InputError(f"the result has no usable {markers!r} track ({exc})") from None
+    return tracks, fps, period_s
+
+
+def compare_ride_documents(doc_a: Mapping, doc_b: Mapping, *, markers: str = "saddle",
+                           span: str = "stride") -> dict:
+    """How alike two analysed rides move (result documents of CONTRACTS section 2).
+
+    Returns ``{"similarity": s in [0, 1] (1 = the same motion; the measure rides are ranked by),
+    "measure": its name, "measures": {name: value, ...}, "markers": ..., "span": ...}``.
+    """
+    if span not in SPANS:
+        raise InputError(f"unknown span {span!r}; choose one of {', '.join(SPANS)}")
+    tracks_a, fps_a, period_a = _document_tracks(doc_a, markers)
+    tracks_b, fps_b, period_b = _document_tracks(doc_b, markers)
+    sims, shapes = [], []
+    for xa, xb in zip(tracks_a, tracks_b, strict=True):
+        a = normalise_stride(xa, period_samples=period_a * fps_a, ride="a")
+        b = normalise_stride(xb, period_samples=period_b * fps_b, ride="b")
+        sim, shape, _ = stride_similarity_chaincode(a, b)
+        sims.append(sim)
+        shapes.append(shape)
+    similarity = float(np.mean(sims))
+    return {"similarity": similarity, "measure": "chain_code_nw",
+            "measures": {"chain_code_nw": similarity, "shape_dissimilarity": float(np.mean(shapes))},
+            "markers": markers, "span": span}
+
+
+def rank_rides(query: Mapping, candidates: Mapping[Hashable, Mapping], *, markers: str = "saddle",
+               span: str = "stride", top: int = 10) -> list[dict]:
+    """The ``top`` candidates most alike ``query`` (result documents), most alike first.
+
+    Each entry is :func:`compare_ride_documents`' answer with ``"ride"`` (the candidate's key) and
+    ``"rank"`` (1 = most alike). A candidate that cannot be compared is left out.
+    """
+    rows = []
+    for key, doc in candidates.items():
+        try:
+            rows.append({"ride": key, **compare_ride_documents(query, doc, markers=markers, span=span)})
+        except InputError:
+            continue
+    rows.sort(key=lambda r: -r["similarity"])
+    rows = rows[: max(1, int(top))]
+    for rank, row in enumerate(rows, start=1):
+        row["rank"] = rank
+    return rows
+
+
+# ----------------------------------------------------------------------------------------------
 # benchmarks (called by `saddlescope bench`)
 
 
