@@ -2,7 +2,8 @@
 
 - :mod:`.analysis`: the analysis itself (detection against decoding, calibration, whole rides against
   their footage, accuracy against the synthetic arena's exact answers, the exact-marker floor);
-- :mod:`.service`: the web service under load (uploads, leaderboards, concurrent readers).
+- :mod:`.service`: the web service under load (uploads, leaderboards, concurrent readers);
+- :mod:`.similarity`: motion similarity (retrieval on synthetic rides, ranking 1,000 rides, 10k-sample pairs).
 """
 
 from saddlescope.bench.analysis import (

@@ -290,13 +290,12 @@ def run_benchmarks(*, quick: bool = False) -> dict:
             out["accuracy_thesis_rigid_markers"] = accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,),
                                                             skin_motion="none")
         try:
-            from saddlescope.services.similarity import bench_chaincode_10k, bench_dtw_10k
+            from saddlescope.bench.similarity import run_similarity_benchmarks
         except ImportError:
             out["chaincode_10k_s"] = None
             out["dtw_10k_s"] = None
         else:
-            out["chaincode_10k_s"] = bench_chaincode_10k()
-            out["dtw_10k_s"] = bench_dtw_10k()
+            out.update(run_similarity_benchmarks(quick=quick))
         try:
             from saddlescope.bench import service as service_bench
         except ImportError:

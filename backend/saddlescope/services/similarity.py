@@ -19,27 +19,32 @@ from __future__ import annotations
 
 import time
 from collections.abc import Hashable, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 from dtaidistance import dtw as dtai_dtw
 from dtaidistance import dtw_ndim as dtai_dtw_ndim
 
-from saddlescope.core.errors import InputError, KinematicsError
-from saddlescope.core.kinematics import estimate_period
+from saddlescope.core.errors import InputError
 from saddlescope.core.similarity import (
     DEFAULT_CELLS,
+    DEFAULT_HARMONICS,
+    DEFAULT_STRIDE_SAMPLES,
+    RideStrides,
+    align_phase,
     chain_code_3d,
+    chain_measures,
     default_step,
     dtw_distance_reference,
+    kabsch_align,
+    noise_step,
     nw_similarity,
+    ride_strides,
     shape_dissimilarity,
+    time_normalise,
 )
 
 METHODS = ("dtw", "chaincode")
-# Samples of one normalised stride.
-DEFAULT_STRIDE_SAMPLES = 128
-# Harmonics of the stride frequency kept in a normalised stride.
-DEFAULT_HARMONICS = 8
 # dtaidistance sets dtw_cc to None when its C extension failed to build (try_import_c would print).
 _C_AVAILABLE = getattr(dtai_dtw, "dtw_cc", None) is not None
 
@@ -83,86 +88,17 @@ def dtw_distance(a, b, *, window: int | None = None) -> float:
     return float(dtai_dtw_ndim.distance_fast(x, y, window=window))
 
 
-def _track(xyz, ride) -> np.ndarray:
-    arr = np.asarray(xyz, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise InputError(f"ride {ride!r}: the track must be an (N, 3) array of positions, got shape "
-                         f"{np.shape(xyz)}")
-    if arr.shape[0] < 8:
-        raise InputError(f"ride {ride!r}: the track has {arr.shape[0]} samples; at least 8 are needed")
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
-        raise InputError(f"ride {ride!r}: the track contains NaN or infinite positions (first at sample "
-                         f"{bad}); bridge the gaps before comparing rides")
-    return arr
-
-
 def normalise_stride(xyz, *, period_samples: float | None = None, fps: float = 30.0,
                      n_samples: int = DEFAULT_STRIDE_SAMPLES, harmonics: int | None = DEFAULT_HARMONICS,
                      ride: Hashable = "track") -> np.ndarray:
-    """The mean stride of a track, without travel or mean, resampled to ``n_samples``.
+    """The mean stride (n_samples, 3) of a track (N, 3): :func:`saddlescope.core.similarity.ride_strides`.
 
-    Parameters
-    ----------
-    xyz : ndarray of shape (N, 3)
-        Positions of one marker (or the saddle point) over the ride, sampled at ``fps``.
-    period_samples : float, optional
-        Stride period in samples; default estimated with
-        :func:`saddlescope.core.kinematics.estimate_period` (which needs about two strides).
-    fps : float, optional
-        Sampling rate, used only to estimate the period.
-    n_samples : int, optional
-        Samples of the returned stride.
-    harmonics : int or None, optional
-        Keep only this many harmonics of the stride frequency (a truncated Fourier series, as the
-        thesis fits to one period in 5.5): measurement noise would otherwise dominate the chain
-        codes, whose grid cells are ~1/50 of the stride's extent. None keeps everything.
-    ride : hashable, optional
-        Name used in error messages.
-
-    Returns
-    -------
-    stride : ndarray of shape (n_samples, 3)
-        The detrended track folded on the stride period and averaged over all its whole strides,
-        sampled at ``k * period / n_samples``, k = 0..n_samples-1 (a closed loop: sample n_samples
-        would be sample 0 again), mean zero. It starts at the track's first sample.
+    The travel and the mean are removed, the track is folded on its stride period (estimated from
+    ``fps`` if not given), averaged over its whole strides and kept to ``harmonics`` harmonics; it
+    starts at the track's first sample.
     """
-    x = _track(xyz, ride)
-    n = x.shape[0]
-    if n_samples < 8:
-        raise InputError(f"n_samples must be at least 8, got {n_samples}")
-    idx = np.arange(n, dtype=np.float64)
-    # Remove the travel: a least-squares line per coordinate.
-    basis = np.column_stack([np.ones(n), idx - idx.mean()])
-    coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
-    x = x - basis @ coef
-    if period_samples is None:
-        if not np.isfinite(fps) or fps <= 0:
-            raise InputError(f"fps must be a positive sampling rate, got {fps}")
-        try:
-            period_s, _ = estimate_period(idx / fps, x[:, None, :])
-        except KinematicsError as exc:
-            raise InputError(f"ride {ride!r}: no stride period could be estimated ({exc}); pass "
-                             "period_samples") from exc
-        period_samples = period_s * fps
-    period_samples = float(period_samples)
-    if not np.isfinite(period_samples) or period_samples < 4:
-        raise InputError(f"ride {ride!r}: the stride period must be at least 4 samples, got {period_samples}")
-    if period_samples > n - 1:
-        raise InputError(f"ride {ride!r}: the track ({n} samples) is shorter than one stride "
-                         f"({period_samples:.1f} samples)")
-    if harmonics is not None and not 1 <= harmonics < n_samples // 2:
-        raise InputError(f"harmonics must be between 1 and {n_samples // 2 - 1}, got {harmonics}")
-    n_strides = int((n - 1) // period_samples)
-    tq = (np.arange(n_strides)[:, None] * period_samples
-          + np.arange(n_samples)[None, :] * (period_samples / n_samples)).ravel()
-    folded = np.column_stack([np.interp(tq, idx, x[:, k]) for k in range(3)])
-    stride = folded.reshape(n_strides, n_samples, 3).mean(axis=0)
-    if harmonics is not None:
-        spec = np.fft.rfft(stride, axis=0)
-        spec[harmonics + 1:] = 0.0
-        stride = np.fft.irfft(spec, n=n_samples, axis=0)
-    return stride - stride.mean(axis=0)
+    return ride_strides(xyz, period_samples=period_samples, fps=fps, n_samples=n_samples, harmonics=harmonics,
+                        ride=ride).mean
 
 
 def stride_distance_dtw(a, b, *, window: int | None = None) -> tuple[float, int]:
@@ -192,25 +128,25 @@ def stride_distance_dtw(a, b, *, window: int | None = None) -> tuple[float, int]
     return float(dists[best]), best
 
 
-def _best_cyclic_shift(a: np.ndarray, b: np.ndarray) -> int:
-    """Shift s maximising the circular cross-correlation of a with np.roll(b, -s) (all axes)."""
-    spec = np.sum(np.conj(np.fft.rfft(a, axis=0)) * np.fft.rfft(b, axis=0), axis=1)
-    return int(np.argmax(np.fft.irfft(spec, n=a.shape[0])))
+def stride_similarity_chaincode(a, b, *, cells: int = DEFAULT_CELLS, sigma_a: float = 0.0, sigma_b: float = 0.0,
+                                walk: str = "anchored") -> tuple[float, float, float]:
+    """Chain-code similarity of two closed strides (the mean strides of two rides).
 
-
-def stride_similarity_chaincode(a, b, *, cells: int = DEFAULT_CELLS) -> tuple[float, float, int]:
-    """Chain-code similarity of two closed strides.
-
-    Both loops are coded on one grid with a vertex at their common centre (the origin of the
-    normalised strides), so a different start phase does not move the grid; the start of ``b`` is
-    aligned to ``a`` by the circular cross-correlation of the positions first.
+    The start of ``b`` is aligned to ``a`` (circular cross-correlation, sub-sample Fourier shift),
+    both loops are coded on one grid with a vertex at their common centre, with the step
+    ``max(extent / cells, 4 sigma)`` (:func:`saddlescope.core.similarity.noise_step`), over a
+    second lap (:func:`saddlescope.core.similarity.closed_loop_chain`).
 
     Parameters
     ----------
     a, b : ndarray of shape (n, 3)
         Normalised strides (mean zero), same n.
     cells : int, optional
-        Grid: the larger stride's largest bounding-box side spans this many cells.
+        The larger stride's largest bounding-box side spans at most this many cells.
+    sigma_a, sigma_b : float, optional
+        Noise left in each stride (:attr:`saddlescope.core.similarity.RideStrides.sigma_mean_m`).
+    walk : {"anchored", "nearest"}, optional
+        The grid walk.
 
     Returns
     -------
@@ -218,23 +154,17 @@ def stride_similarity_chaincode(a, b, *, cells: int = DEFAULT_CELLS) -> tuple[fl
         The dissertation's Needleman-Wunsch similarity (matches / alignment length, in [0, 1]).
     shape_dissimilarity : float
         Bribiesca & Aguilar's D'.
-    shift : int
-        The shift s of ``np.roll(b, -s, axis=0)`` used.
+    shift : float
+        The phase shift (samples) applied to ``b``.
     """
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     if a.shape != b.shape:
         raise InputError(f"strides must have the same shape, got {a.shape} and {b.shape}")
-    step = default_step(a, b, cells=cells)
-    shift = _best_cyclic_shift(a, b)
-    rb = np.roll(b, -shift, axis=0)
-    origin = np.zeros(3)
-    ca = chain_code_3d(np.vstack([a, a[:1]]), step=step, origin=origin)
-    cb = chain_code_3d(np.vstack([rb, rb[:1]]), step=step, origin=origin)
-    if ca.size == 0 or cb.size == 0:
-        same = ca.size == cb.size
-        return (1.0 if same else 0.0), (0.0 if same else 1.0), shift
-    return float(nw_similarity(ca, cb)), float(shape_dissimilarity(ca, cb)), shift
+    rb, shift = align_phase(a, b)
+    step = noise_step([a, rb], [sigma_a, sigma_b], cells=cells)
+    res = chain_measures(a, rb, step=step, walk=walk)
+    return res["chain_code_nw"], res["shape_dissimilarity"], shift
 
 
 def most_similar_rides(tracks_by_ride: Mapping[Hashable, np.ndarray], *, method: str = "dtw", top: int = 5,
@@ -275,19 +205,20 @@ def most_similar_rides(tracks_by_ride: Mapping[Hashable, np.ndarray], *, method:
     if int(top) < 1:
         raise InputError(f"top must be at least 1, got {top}")
     periods = dict(periods or {})
-    strides = {rid: normalise_stride(xyz, period_samples=periods.get(rid), fps=fps, n_samples=n_samples,
-                                     harmonics=harmonics, ride=rid)
+    strides = {rid: ride_strides(xyz, period_samples=periods.get(rid), fps=fps, n_samples=n_samples,
+                                 harmonics=harmonics, ride=rid)
                for rid, xyz in tracks_by_ride.items()}
     ids = list(strides)
     pairs = []
     for p in range(len(ids)):
         for q in range(p + 1, len(ids)):
-            a, b = strides[ids[p]], strides[ids[q]]
+            sa, sb = strides[ids[p]], strides[ids[q]]
             if method == "dtw":
-                dist, shift = stride_distance_dtw(a, b)
+                dist, shift = stride_distance_dtw(sa.mean, sb.mean)
                 pairs.append({"rides": [ids[p], ids[q]], "method": method, "distance": dist, "shift": shift})
             else:
-                sim, shape, shift = stride_similarity_chaincode(a, b)
+                sim, shape, shift = stride_similarity_chaincode(sa.mean, sb.mean, sigma_a=sa.sigma_mean_m,
+                                                                sigma_b=sb.sigma_mean_m)
                 pairs.append({"rides": [ids[p], ids[q]], "method": method, "similarity": sim,
                               "shape_dissimilarity": shape, "shift": shift})
     if method == "dtw":
@@ -305,8 +236,30 @@ def most_similar_rides(tracks_by_ride: Mapping[Hashable, np.ndarray], *, method:
 
 # Which tracks of a ride are compared: the saddle point S, one horse marker, or all of them.
 MARKER_SETS = ("saddle", "M1", "M2", "M3", "all")
-# One mean stride (speed and start drop out) or the whole analysed window.
+# One mean stride (speed and start drop out) or the whole analysed window, stride by stride.
 SPANS = ("stride", "window")
+# Every measure reported, each a similarity in [0, 1] (1 = the same motion) except the dissimilarity.
+MEASURES = ("dtw", "chain_code_nw", "shape_similarity", "shape_dissimilarity")
+# The measure rides are ranked by (the "similarity" of every answer): chosen from the retrieval
+# benchmark of `saddlescope bench` (docs/similarity.md).
+RANKING_MEASURE = "dtw"
+# Canonical frames.
+FRAME_RIDE = "motion+stride_phase"
+FRAME_KABSCH = "kabsch"
+# DTW's Sakoe-Chiba window as a fraction of the samples compared.
+DTW_WINDOW_FRACTION = 0.1
+
+
+@dataclass(frozen=True)
+class RideSignature:
+    """What a ride contributes to any comparison, computed once per ride (and marker set, span).
+
+    ``tracks`` holds one :class:`saddlescope.core.similarity.RideStrides` per track of the marker set.
+    """
+
+    tracks: tuple[RideStrides, ...]
+    markers: str
+    span: str
 
 
 def _document_tracks(doc: Mapping, markers: str) -> tuple[list[np.ndarray], float, float]:
@@ -327,28 +280,137 @@ def _document_tracks(doc: Mapping, markers: str) -> tuple[list[np.ndarray], floa
     return tracks, fps, period_s
 
 
+def ride_signature(doc: Mapping, *, markers: str = "saddle", span: str = "stride") -> RideSignature:
+    """A result document's tracks of ``markers`` in stride phase (:func:`saddlescope.core.similarity.ride_strides`).
+
+    Compute it once per stored ride and compare signatures (:func:`compare_signatures`) to rank many.
+    """
+    if span not in SPANS:
+        raise InputError(f"unknown span {span!r}; choose one of {', '.join(SPANS)}")
+    tracks, fps, period_s = _document_tracks(doc, markers)
+    if not np.isfinite(period_s * fps) or period_s <= 0:
+        raise InputError(f"the result's stride period {period_s} s is not a usable period")
+    return RideSignature(tracks=tuple(ride_strides(x, period_samples=period_s * fps, ride="result")
+                                      for x in tracks), markers=markers, span=span)
+
+
+def _dtw_similarity(a: np.ndarray, b: np.ndarray) -> tuple[float, float, int]:
+    """DTW of two curves (n, 3) of one canonical frame: similarity in [0, 1], RMS distance, window.
+
+    ``similarity = 1 - DTW(a, b) / (|a| + |b|)`` with |.| the root of the summed squares about each
+    curve's mean: DTW is at most the Euclidean distance of the curves (the window holds the
+    diagonal), itself at most |a| + |b|. The distance is reported per sample (RMS).
+    """
+    window = max(2, int(np.ceil(DTW_WINDOW_FRACTION * max(a.shape[0], b.shape[0]))))
+    dist = dtw_distance(a, b, window=window)
+    norm = float(np.linalg.norm(a - a.mean(axis=0)) + np.linalg.norm(b - b.mean(axis=0)))
+    sim = 1.0 - dist / norm if norm > 0 else 1.0
+    return float(np.clip(sim, 0.0, 1.0)), dist / np.sqrt(max(a.shape[0], b.shape[0])), window
+
+
+def _pair_measures(a: np.ndarray, b: np.ndarray, sigma_a: float, sigma_b: float, *, closed: bool,
+                   only: str | None = None) -> dict:
+    """Every measure (or ``only`` one) of two curves already in one canonical frame."""
+    out: dict = {}
+    if only in (None, "dtw"):
+        out["dtw"], out["dtw_distance_m"], out["dtw_window"] = _dtw_similarity(a, b)
+    if only != "dtw":
+        step = noise_step([a, b], [sigma_a, sigma_b])
+        res = chain_measures(a, b, step=step, closed=closed)
+        out.update(chain_code_nw=res["chain_code_nw"], shape_dissimilarity=res["shape_dissimilarity"],
+                   shape_similarity=1.0 - res["shape_dissimilarity"], step_m=step,
+                   moves_a=res["moves_a"], moves_b=res["moves_b"])
+    return out
+
+
+def _stride_pairs(sa: RideStrides, sb: RideStrides, span: str) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """The curves compared for one track: the two mean strides, phase-aligned; for the window,
+    every stride of either ride against the other's mean stride."""
+    b_mean, _ = align_phase(sa.mean, sb.mean)
+    if span == "stride":
+        return [(sa.mean, b_mean, sa.sigma_mean_m, sb.sigma_mean_m)]
+    a_mean, _ = align_phase(sb.mean, sa.mean)
+    return ([(x, b_mean, sa.sigma_m, sb.sigma_mean_m) for x in sa.strides]
+            + [(a_mean, x, sa.sigma_mean_m, sb.sigma_m) for x in sb.strides])
+
+
+def compare_signatures(sig_a: RideSignature, sig_b: RideSignature, *, only: str | None = None) -> dict:
+    """:func:`compare_ride_documents` on precomputed signatures (``only``: one measure, for ranking)."""
+    if (sig_a.markers, sig_a.span) != (sig_b.markers, sig_b.span) or len(sig_a.tracks) != len(sig_b.tracks):
+        raise InputError("the two rides were prepared for different marker sets or spans")
+    rows = [_pair_measures(a, b, na, nb, closed=True, only=only)
+            for sa, sb in zip(sig_a.tracks, sig_b.tracks, strict=True)
+            for a, b, na, nb in _stride_pairs(sa, sb, sig_a.span)]
+    return _answer(rows, frame=FRAME_RIDE, markers=sig_a.markers, span=sig_a.span,
+                   noise_m=(max(t.sigma_m for t in sig_a.tracks), max(t.sigma_m for t in sig_b.tracks)))
+
+
+def _answer(rows: list[dict], *, frame: str, markers, span: str, noise_m: tuple[float, float],
+            extra: dict | None = None) -> dict:
+    """The comparison's answer: the means over ``rows`` of every measure, with frame and step."""
+    measures = {k: float(np.mean([r[k] for r in rows])) for k in MEASURES if k in rows[0]}
+    step_mm = 1e3 * max(r["step_m"] for r in rows) if "step_m" in rows[0] else None
+    details: dict = {}
+    if "dtw" in measures:
+        details["dtw"] = {"frame": frame, "window_samples": int(rows[0]["dtw_window"]),
+                          "distance_mm": 1e3 * float(np.mean([r["dtw_distance_m"] for r in rows]))}
+    for k in ("chain_code_nw", "shape_similarity", "shape_dissimilarity"):
+        if k in measures:
+            details[k] = {"frame": frame, "step_mm": step_mm, "walk": "anchored"}
+    ranking = RANKING_MEASURE if RANKING_MEASURE in measures else next(iter(measures))
+    out = {"similarity": measures[ranking], "measure": ranking, "measures": measures, "details": details,
+           "frame": frame, "step_mm": step_mm, "noise_mm": {"a": 1e3 * noise_m[0], "b": 1e3 * noise_m[1]},
+           "markers": markers, "span": span}
+    if "moves_a" in rows[0]:
+        out["moves"] = {"a": all(r["moves_a"] for r in rows), "b": all(r["moves_b"] for r in rows)}
+    out.update(extra or {})
+    return out
+
+
 def compare_ride_documents(doc_a: Mapping, doc_b: Mapping, *, markers: str = "saddle",
                            span: str = "stride") -> dict:
     """How alike two analysed rides move (result documents of CONTRACTS section 2).
 
-    Returns ``{"similarity": s in [0, 1] (1 = the same motion; the measure rides are ranked by),
-    "measure": its name, "measures": {name: value, ...}, "markers": ..., "span": ...}``.
+    Both are brought into the canonical frame of rides (the motion frame, travel and mean removed,
+    every stride resampled to stride phase; the second ride's mean stride aligned in phase to the
+    first's), then compared by DTW and by chain codes (anchored walk, noise-based step) of the mean
+    strides (``span="stride"``) or of every stride against the other ride's mean stride
+    (``span="window"``). Marker sets of several tracks average the measures over the tracks.
+
+    Returns
+    -------
+    dict
+        ``similarity`` in [0, 1] (1 = the same motion; the value of ``measure``, the measure rides
+        are ranked by, :data:`RANKING_MEASURE`), ``measure``, ``measures`` ({name: value} for
+        :data:`MEASURES`), ``details`` (per measure its ``frame`` and ``step_mm`` or DTW window and
+        distance), ``frame``, ``step_mm`` (the grid step of the chain codes), ``noise_mm`` ({a, b}:
+        the part of each ride's strides that does not repeat), ``moves`` ({a, b}: False for "no
+        motion"), ``markers`` and ``span``.
     """
     if span not in SPANS:
         raise InputError(f"unknown span {span!r}; choose one of {', '.join(SPANS)}")
-    tracks_a, fps_a, period_a = _document_tracks(doc_a, markers)
-    tracks_b, fps_b, period_b = _document_tracks(doc_b, markers)
-    sims, shapes = [], []
-    for xa, xb in zip(tracks_a, tracks_b, strict=True):
-        a = normalise_stride(xa, period_samples=period_a * fps_a, ride="a")
-        b = normalise_stride(xb, period_samples=period_b * fps_b, ride="b")
-        sim, shape, _ = stride_similarity_chaincode(a, b)
-        sims.append(sim)
-        shapes.append(shape)
-    similarity = float(np.mean(sims))
-    return {"similarity": similarity, "measure": "chain_code_nw",
-            "measures": {"chain_code_nw": similarity, "shape_dissimilarity": float(np.mean(shapes))},
-            "markers": markers, "span": span}
+    return compare_signatures(ride_signature(doc_a, markers=markers, span=span),
+                              ride_signature(doc_b, markers=markers, span=span))
+
+
+def rank_signatures(query: RideSignature, candidates: Mapping[Hashable, RideSignature], *,
+                    top: int = 10) -> list[dict]:
+    """The ``top`` candidates most alike ``query`` by :data:`RANKING_MEASURE`, most alike first.
+
+    Every candidate is scored by the ranking measure alone; the full comparison (every measure) is
+    computed for the ``top`` only. Entries as in :func:`rank_rides`.
+    """
+    scored = []
+    for key, sig in candidates.items():
+        try:
+            scored.append((compare_signatures(query, sig, only=RANKING_MEASURE)["similarity"], key))
+        except InputError:
+            continue
+    scored.sort(key=lambda r: -r[0])
+    rows = []
+    for rank, (_, key) in enumerate(scored[: max(1, int(top))], start=1):
+        rows.append({"ride": key, **compare_signatures(query, candidates[key]), "rank": rank})
+    return rows
 
 
 def rank_rides(query: Mapping, candidates: Mapping[Hashable, Mapping], *, markers: str = "saddle",
@@ -356,19 +418,61 @@ def rank_rides(query: Mapping, candidates: Mapping[Hashable, Mapping], *, marker
     """The ``top`` candidates most alike ``query`` (result documents), most alike first.
 
     Each entry is :func:`compare_ride_documents`' answer with ``"ride"`` (the candidate's key) and
-    ``"rank"`` (1 = most alike). A candidate that cannot be compared is left out.
+    ``"rank"`` (1 = most alike). A candidate that cannot be compared is left out. Each ride is put
+    into stride phase once (:func:`ride_signature`); a caller ranking often against the same stored
+    rides can keep their signatures and call :func:`rank_signatures`.
     """
-    rows = []
+    q = ride_signature(query, markers=markers, span=span)
+    sigs = {}
     for key, doc in candidates.items():
         try:
-            rows.append({"ride": key, **compare_ride_documents(query, doc, markers=markers, span=span)})
+            sigs[key] = ride_signature(doc, markers=markers, span=span)
         except InputError:
             continue
-    rows.sort(key=lambda r: -r["similarity"])
-    rows = rows[: max(1, int(top))]
-    for rank, row in enumerate(rows, start=1):
-        row["rank"] = rank
-    return rows
+    return rank_signatures(q, sigs, top=top)
+
+
+def compare_recordings(xyz_a, xyz_b, *, n_samples: int = 256, labels: list[str] | None = None) -> dict:
+    """How alike two motion-capture recordings of the same markers move (generic motion, any frame).
+
+    Both are resampled to ``n_samples`` over their length (speed drops out), the second is
+    rigidly aligned to the first (Kabsch, over all markers and samples; the residual is reported),
+    and each marker's curves are compared by DTW and by chain codes (anchored walk, noise-based
+    step); the measures are the means over the markers.
+
+    Parameters
+    ----------
+    xyz_a, xyz_b : ndarray of shape (N, M, 3), (K, M, 3)
+        The two recordings (same units, e.g. mm), gaps bridged.
+    n_samples : int, optional
+        Samples of the time-normalised recordings.
+    labels : list of str, optional
+        Marker names for the answer.
+
+    Returns
+    -------
+    dict
+        As :func:`compare_ride_documents`, with ``frame`` "kabsch", ``kabsch_residual_mm``, and
+        ``markers`` the labels. Positions are taken to be in mm.
+    """
+    a = np.asarray(xyz_a, dtype=np.float64)
+    b = np.asarray(xyz_b, dtype=np.float64)
+    for name, x in (("recording A", a), ("recording B", b)):
+        if x.ndim != 3 or x.shape[2] != 3:
+            raise InputError(f"{name} must be (N, M, 3) marker positions, got shape {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise InputError(f"{name} has gaps (NaN positions); bridge them before comparing")
+    if a.shape[1] != b.shape[1]:
+        raise InputError(f"recording A has {a.shape[1]} markers but recording B has {b.shape[1]}")
+    ra, sig_a = time_normalise(a, n_samples)
+    rb, sig_b = time_normalise(b, n_samples)
+    flat_b, _, residual = kabsch_align(ra.reshape(-1, 3), rb.reshape(-1, 3))
+    rb = flat_b.reshape(rb.shape)
+    rows = [_pair_measures(ra[:, k] / 1e3, rb[:, k] / 1e3, sig_a / 1e3, sig_b / 1e3, closed=False)
+            for k in range(a.shape[1])]
+    names = labels or [f"marker {k + 1}" for k in range(a.shape[1])]
+    return _answer(rows, frame=FRAME_KABSCH, markers=names, span="window", noise_m=(sig_a / 1e3, sig_b / 1e3),
+                   extra={"kabsch_residual_mm": residual})
 
 
 # ----------------------------------------------------------------------------------------------

@@ -80,9 +80,13 @@ def test_hand_made_3d_curve_and_reversal():
 
 def test_diagonal_moves_are_filled_in_the_order_the_line_crosses_the_planes():
     # From (0,0,0) to (3,1,0): the line crosses x = 0.5, x = 1.5, y = 0.5 (at t = 0.5), x = 2.5.
-    dirs, seg = grid_walk(np.array([[0.0, 0, 0], [3.0, 1.0, 0.0]]), step=1.0)
+    dirs, seg = grid_walk(np.array([[0.0, 0, 0], [3.0, 1.0, 0.0]]), step=1.0, walk="nearest")
     assert dirs.tolist() == [0, 0, 2, 0]
     assert seg.tolist() == [0, 0, 0, 0]
+    # The anchored walk steps at full steps: x = 1, 2, 3 and y = 1, the last two at once (t = 1);
+    # the tie is ordered by the smallest chain, straight on first.
+    dirs, seg = grid_walk(np.array([[0.0, 0, 0], [3.0, 1.0, 0.0]]), step=1.0)
+    assert dirs.tolist() == [0, 0, 0, 2]
 
 
 def test_helix_invariant_under_grid_rotations_and_translation():
@@ -95,7 +99,8 @@ def test_helix_invariant_under_grid_rotations_and_translation():
 
 
 def test_mirror_swaps_codes_1_and_3():
-    helix = _helix()
+    # (Away from exact ties, whose order is chosen by a rule that mirrors do not keep.)
+    helix = _helix()[:-1]
     ref = chain_code_3d(helix)
     assert np.any(ref == 1) or np.any(ref == 3)
     mirrored = chain_code_3d(helix * np.array([1.0, 1.0, -1.0]))
@@ -116,24 +121,27 @@ def test_centred_grid_makes_a_closed_loop_independent_of_its_start():
     loop = np.column_stack([np.cos(t), 0.52 * np.sin(2 * t + 0.2), 0.31 * np.sin(t)])
     step = default_step(loop)
     centre = loop.mean(axis=0)  # of the open loop: the closing sample would weigh one point twice
-    ref = chain_code_3d(np.vstack([loop, loop[:1]]), step=step, origin=centre)
-    ref_dirs, _ = grid_walk(np.vstack([loop, loop[:1]]), step=step, origin=centre)
+    # The nearest-vertex walk has no memory: one lap is the same lattice loop from any start (the
+    # anchored walk needs a lap to forget its start, see tests of closed_loop_chain).
+    ref = chain_code_3d(np.vstack([loop, loop[:1]]), step=step, origin=centre, walk="nearest")
+    ref_dirs, _ = grid_walk(np.vstack([loop, loop[:1]]), step=step, origin=centre, walk="nearest")
     for start in (45, 100, 250):
         rolled = np.roll(loop, -start, axis=0)
         closed = np.vstack([rolled, rolled[:1]])
         # The same closed lattice path, read from another vertex: a cyclic rotation of the steps.
-        dirs, _ = grid_walk(closed, step=step, origin=centre)
+        dirs, _ = grid_walk(closed, step=step, origin=centre, walk="nearest")
         shifts = [k for k in range(ref_dirs.size) if np.array_equal(np.roll(ref_dirs, -k), dirs)]
         assert len(shifts) == 1
         # Its chain code is the cyclic chain read from there, except before the first turn, where
         # u is still imaginary.
         k = shifts[0]
         cyclic = codes_from_steps(np.r_[ref_dirs, ref_dirs])[k: k + ref.size]
-        codes = chain_code_3d(closed, step=step, origin=centre)
+        codes = chain_code_3d(closed, step=step, origin=centre, walk="nearest")
         assert codes.size == ref.size
         assert np.count_nonzero(codes != cyclic) <= 1
         assert nw_similarity(codes, cyclic) > 0.99
-    assert np.array_equal(chain_code_3d(loop, origin="mean"), chain_code_3d(loop, origin=centre))
+    assert np.array_equal(chain_code_3d(loop, origin="mean", walk="nearest"),
+                          chain_code_3d(loop, origin=centre, walk="nearest"))
     with pytest.raises(InputError, match="origin"):
         chain_code_3d(loop, origin="median")
 

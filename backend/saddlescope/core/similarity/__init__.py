@@ -5,7 +5,11 @@ writes it as Bribiesca's chain code of *orthogonal direction changes*; two motio
 compared as strings, by Needleman-Wunsch global alignment and by the shape dissimilarity of
 Bribiesca & Aguilar, and, for reference, by dynamic time warping (DTW) of the raw samples.
 
-- :mod:`.chain_code`: the grid walk of a trajectory and its chain code;
+- :mod:`.chain_code`: the grid walk of a trajectory (the dissertation's anchored walk, or
+  nearest-vertex snapping) and its chain code;
+- :mod:`.canonical`: canonical frames (motion frame and stride phase; Kabsch) and the grid step
+  chosen from the measured noise;
+- :mod:`.measures`: chain-code measures of two curves in one canonical frame;
 - :mod:`.alignment`: Needleman-Wunsch alignment and its similarity;
 - :mod:`.shape`: maximal common sub-chains and the shape dissimilarity D';
 - :mod:`.dtw`: dynamic time warping (the plain numpy reference);
@@ -23,6 +27,19 @@ from saddlescope.core.similarity.alignment import (
     needleman_wunsch,
     nw_similarity,
 )
+from saddlescope.core.similarity.canonical import (
+    DEFAULT_HARMONICS,
+    DEFAULT_STRIDE_SAMPLES,
+    NOISE_STEPS,
+    RideStrides,
+    align_phase,
+    fourier_shift,
+    kabsch_align,
+    noise_of_track,
+    noise_step,
+    ride_strides,
+    time_normalise,
+)
 from saddlescope.core.similarity.chain_code import (
     CODE_BACK,
     CODE_CROSS,
@@ -32,6 +49,7 @@ from saddlescope.core.similarity.chain_code import (
     CODE_STILL,
     CODE_STRAIGHT,
     DEFAULT_CELLS,
+    WALKS,
     accumulated_directions,
     chain_code_3d,
     chain_to_path,
@@ -40,6 +58,7 @@ from saddlescope.core.similarity.chain_code import (
     grid_walk,
 )
 from saddlescope.core.similarity.dtw import dtw_distance_reference
+from saddlescope.core.similarity.measures import chain_measures, closed_loop_chain
 from saddlescope.core.similarity.shape import maximal_matches, shape_dissimilarity
 from saddlescope.core.similarity.trajectories import trajectory_similarity
 
@@ -53,6 +72,7 @@ __all__ = [
     "CODE_REVERSAL",
     "CODE_STILL",
     "DEFAULT_CELLS",
+    "WALKS",
     "default_step",
     "grid_walk",
     "codes_from_steps",
@@ -69,6 +89,21 @@ __all__ = [
     # shape
     "maximal_matches",
     "shape_dissimilarity",
+    # canonical frames and the noise-based step
+    "DEFAULT_STRIDE_SAMPLES",
+    "DEFAULT_HARMONICS",
+    "NOISE_STEPS",
+    "RideStrides",
+    "ride_strides",
+    "align_phase",
+    "fourier_shift",
+    "time_normalise",
+    "kabsch_align",
+    "noise_of_track",
+    "noise_step",
+    # measures of canonical curves
+    "closed_loop_chain",
+    "chain_measures",
     # dynamic time warping
     "dtw_distance_reference",
     # per marker subset and time window

@@ -1,11 +1,26 @@
 """Bribiesca's 3-D chain code of orthogonal direction changes of a trajectory (dissertation 1.4, App. A).
 
 Chain code (Bribiesca 2000, dissertation 1.4 and Appendix A)
-    The trajectory is walked on a grid of cell size ``step``: every time the polyline crosses a
-    mid-plane between two grid vertices the walk makes one unit step (+-x, +-y, +-z), in the order
-    in which the line crosses the planes (the dissertation's "which plane of the cube the line AB
-    intersected"). Each step ``w`` after the first is labelled relative to the current direction
-    ``v`` (the previous step) and ``u``, the direction before the last change of axis::
+    The trajectory is walked on a grid of cell size ``step``. Two walks are offered:
+
+    ``walk="anchored"`` (default, the dissertation's Appendix A)
+        The walker sits on a grid vertex (its anchor) and makes one unit step along an axis only
+        when the point has moved a *full* step away from the anchor along that axis ("if distance
+        between A and B < step size then '.'"). Each axis therefore has one step of hysteresis:
+        noise smaller than a step never turns into back-and-forth steps.
+    ``walk="nearest"`` (the first implementation, kept for comparison)
+        Every sample is snapped to its nearest vertex and a step is made whenever the polyline
+        crosses a mid-plane between two vertices; noise of a fraction of a step near a mid-plane
+        becomes steps forth and back.
+
+    Steps within one sample interval are ordered by where along the segment they occur (the
+    dissertation's "which plane of the cube the line AB intersected"). Exact ties (the line passing
+    through a cell edge or corner) are ordered so that the chain, read from the current reference
+    directions, is the smallest in lexicographic order; that rule only refers to relative
+    directions, so the 24 rotations of the grid give identical chains.
+
+    Each step ``w`` after the first is labelled relative to the current direction ``v`` (the
+    previous step) and ``u``, the direction before the last change of axis::
 
         0  w = v            (no change of direction)
         1  w = u x v
@@ -23,6 +38,8 @@ Chain code (Bribiesca 2000, dissertation 1.4 and Appendix A)
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from saddlescope.core.errors import InputError
@@ -37,6 +54,7 @@ __all__ = [
     "CODE_STILL",
     "DEFAULT_CELLS",
     "default_step",
+    "WALKS",
     "grid_walk",
     "codes_from_steps",
     "chain_code_3d",
@@ -52,6 +70,11 @@ CODE_NEG_CROSS = 3
 CODE_NEG_BACK = 4
 CODE_REVERSAL = 5
 CODE_STILL = 6
+# The grid walks: the dissertation's anchored walk (one step of hysteresis) and nearest-vertex snapping.
+WALKS = ("anchored", "nearest")
+# Tolerance (in steps) under which two crossings of one sample interval count as simultaneous, and
+# a coordinate as lying on a grid plane.
+_TIE_TOL = 1e-9
 # Default grid: the largest side of the trajectory's bounding box spans this many cells.
 DEFAULT_CELLS = 50
 
@@ -148,39 +171,9 @@ def _origin(xyz: np.ndarray, origin) -> np.ndarray:
     return o
 
 
-def grid_walk(xyz, *, step: float, origin=None) -> tuple[np.ndarray, np.ndarray]:
-    """Unit steps of the 6-connected grid walk that follows a trajectory.
-
-    Each sample is represented by its nearest grid vertex (by default the grid has a vertex at the
-    first sample, the dissertation's starting point A). Between two
-    samples the straight segment crosses the mid-planes between vertices; each crossing is one unit
-    step along that axis, and the steps are ordered by where along the segment they occur, which
-    fills diagonal moves axis by axis in the order the line itself takes. Only exact ties (the line
-    passing through a cell edge or corner) fall back to the order x, y, z.
-
-    Parameters
-    ----------
-    xyz : ndarray of shape (N, 3)
-        Positions.
-    step : float
-        Grid cell size, same units as ``xyz``.
-    origin : None, "mean" or array_like of shape (3,), optional
-        A grid vertex: the first sample (None), the centroid ("mean": the same grid whatever the
-        start of a closed curve) or a given point.
-
-    Returns
-    -------
-    dirs : ndarray of shape (K,), int64
-        Direction number of each step (0 +x, 1 -x, 2 +y, 3 -y, 4 +z, 5 -z).
-    segment : ndarray of shape (K,), int64
-        Index ``s`` of the sample interval (s, s + 1) in which each step is made.
-    """
-    xyz = _as_trajectory(xyz, "trajectory")
-    if not np.isfinite(step) or step <= 0:
-        raise InputError(f"the grid step must be a positive length, got {step}")
-    q = (xyz - _origin(xyz, origin)) / step
-    # rint is odd-symmetric (ties to even), so 90-degree rotations map vertices onto vertices exactly.
-    lat = np.rint(q).astype(np.int64)
+def _nearest_events(q: np.ndarray) -> tuple[list, list, list, list]:
+    """Mid-plane crossings of the nearest-vertex walk: per axis (segment, t, axis, negative)."""
+    lat = np.rint(q).astype(np.int64)  # rint is odd-symmetric: rotations map vertices onto vertices
     dl = np.diff(lat, axis=0)
     segs, ts, axes, negs = [], [], [], []
     for axis in range(3):
@@ -192,11 +185,123 @@ def grid_walk(xyz, *, step: float, origin=None) -> tuple[np.ndarray, np.ndarray]
         k = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
         sgn = np.sign(dl[seg, axis])
         plane = lat[seg, axis] + sgn * (k + 0.5)
-        t = (plane - q[seg, axis]) / (q[seg + 1, axis] - q[seg, axis])
         segs.append(seg)
-        ts.append(t)
+        ts.append((plane - q[seg, axis]) / (q[seg + 1, axis] - q[seg, axis]))
         axes.append(np.full(total, axis))
         negs.append(sgn < 0)
+    return segs, ts, axes, negs
+
+
+def _anchored_events(q: np.ndarray) -> tuple[list, list, list, list]:
+    """Full-step crossings of the anchored walk (Appendix A): per axis (segment, t, axis, negative).
+
+    Per axis the anchor ``a`` (a grid coordinate) moves only when the point reaches ``a + 1`` or
+    ``a - 1``; after every sample ``a`` lies in ``[floor(q), ceil(q)]`` (one step of hysteresis).
+    A segment is straight, so each axis moves monotonically along it and its steps cross the
+    planes ``a + 1, a + 2, ...`` (or ``a - 1, ...``) in turn.
+    """
+    snapped = np.where(np.abs(q - np.rint(q)) < _TIE_TOL, np.rint(q), q)
+    lo, hi = np.floor(snapped).astype(np.int64), np.ceil(snapped).astype(np.int64)
+    segs, ts, axes, negs = [], [], [], []
+    for axis in range(3):
+        lo_l, hi_l = lo[:, axis].tolist(), hi[:, axis].tolist()
+        anchor = [int(np.rint(snapped[0, axis]))]
+        a = anchor[0]
+        for k in range(1, q.shape[0]):
+            a = min(max(a, lo_l[k]), hi_l[k])  # the play operator: clip the anchor to the cell
+            anchor.append(a)
+        lat = np.asarray(anchor, dtype=np.int64)
+        dl = np.diff(lat)
+        cnt = np.abs(dl)
+        total = int(cnt.sum())
+        if total == 0:
+            continue
+        seg = np.repeat(np.arange(dl.shape[0]), cnt)
+        k = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        sgn = np.sign(dl[seg])
+        plane = lat[seg] + sgn * (k + 1)
+        segs.append(seg)
+        ts.append((plane - snapped[seg, axis]) / (snapped[seg + 1, axis] - snapped[seg, axis]))
+        axes.append(np.full(total, axis))
+        negs.append(sgn < 0)
+    return segs, ts, axes, negs
+
+
+def _state(dirs: list[int], end: int) -> list[int]:
+    """The steps that set the reference directions after ``dirs[:end]``: [u, v], [v] or []."""
+    if end == 0:
+        return []
+    v = dirs[end - 1]
+    for k in range(end - 2, -1, -1):
+        if dirs[k] // 2 != v // 2:
+            return [dirs[k], v]
+    return [v]
+
+
+def _resolve_ties(dirs: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Order each group of simultaneous steps so that the chain is lexicographically smallest.
+
+    The chain of a candidate order is read from the reference directions reached before the group
+    up to the next group of ties; it depends only on relative directions, so the choice is the same
+    for every rotation of the grid.
+    """
+    same = (seg[1:] == seg[:-1]) & (np.abs(t[1:] - t[:-1]) <= _TIE_TOL)
+    if not np.any(same):
+        return dirs
+    starts = np.flatnonzero(np.r_[True, ~same])
+    bounds = np.r_[starts, dirs.shape[0]]
+    groups = [(int(s0), int(s1)) for s0, s1 in zip(bounds[:-1], bounds[1:], strict=True) if s1 - s0 > 1]
+    out = dirs.tolist()
+    for g, (s0, s1) in enumerate(groups):
+        stop = groups[g + 1][0] if g + 1 < len(groups) else len(out)
+        context = _state(out, s0)
+        tail = out[s1:stop]
+        best = None
+        for perm in itertools.permutations(out[s0:s1]):
+            codes = codes_from_steps(np.array(context + list(perm) + tail, dtype=np.int64))
+            key = tuple(codes[max(len(context) - 1, 0):].tolist())
+            if best is None or key < best[0]:
+                best = (key, perm)
+        out[s0:s1] = list(best[1])
+    return np.asarray(out, dtype=np.int64)
+
+
+def grid_walk(xyz, *, step: float, origin=None, walk: str = "anchored") -> tuple[np.ndarray, np.ndarray]:
+    """Unit steps of the 6-connected grid walk that follows a trajectory.
+
+    The grid has a vertex at ``origin`` (by default the first sample, the dissertation's starting
+    point A). ``walk="anchored"`` steps along an axis only when the point is a full step away from
+    the current vertex (Appendix A; see the module docstring), ``walk="nearest"`` whenever it
+    crosses a mid-plane between vertices. Steps within a sample interval are ordered by where
+    along the segment they occur; exact ties are ordered by the relative-direction rule of the
+    module docstring, so the walk is the same for the 24 rotations of the grid.
+
+    Parameters
+    ----------
+    xyz : ndarray of shape (N, 3)
+        Positions.
+    step : float
+        Grid cell size, same units as ``xyz``.
+    origin : None, "mean" or array_like of shape (3,), optional
+        A grid vertex: the first sample (None), the centroid ("mean": the same grid whatever the
+        start of a closed curve) or a given point.
+    walk : {"anchored", "nearest"}, optional
+        The walk (:data:`WALKS`).
+
+    Returns
+    -------
+    dirs : ndarray of shape (K,), int64
+        Direction number of each step (0 +x, 1 -x, 2 +y, 3 -y, 4 +z, 5 -z).
+    segment : ndarray of shape (K,), int64
+        Index ``s`` of the sample interval (s, s + 1) in which each step is made.
+    """
+    xyz = _as_trajectory(xyz, "trajectory")
+    if not np.isfinite(step) or step <= 0:
+        raise InputError(f"the grid step must be a positive length, got {step}")
+    if walk not in WALKS:
+        raise InputError(f"unknown grid walk {walk!r}; choose one of {', '.join(WALKS)}")
+    q = (xyz - _origin(xyz, origin)) / step
+    segs, ts, axes, negs = (_anchored_events if walk == "anchored" else _nearest_events)(q)
     if not segs:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     seg = np.concatenate(segs)
@@ -205,7 +310,7 @@ def grid_walk(xyz, *, step: float, origin=None) -> tuple[np.ndarray, np.ndarray]
     neg = np.concatenate(negs)
     order = np.lexsort((axis, t, seg))
     dirs = 2 * axis[order] + neg[order].astype(np.int64)
-    return dirs, seg[order]
+    return _resolve_ties(dirs, seg[order], t[order]), seg[order]
 
 
 def codes_from_steps(dirs) -> np.ndarray:
@@ -249,7 +354,8 @@ def codes_from_steps(dirs) -> np.ndarray:
     return codes
 
 
-def chain_code_3d(xyz, *, step: float | None = None, origin=None, keep_still: bool = False) -> np.ndarray:
+def chain_code_3d(xyz, *, step: float | None = None, origin=None, keep_still: bool = False,
+                  walk: str = "anchored") -> np.ndarray:
     """Bribiesca's 3-D chain code of orthogonal direction changes of a trajectory.
 
     Parameters
@@ -266,6 +372,8 @@ def chain_code_3d(xyz, *, step: float | None = None, origin=None, keep_still: bo
         Insert :data:`CODE_STILL` (6) for every sample interval with no grid step, making a "timed"
         chain as the dissertation's Appendix A does with '.'. Off by default: the dissertation found
         that lack-of-motion elements inflate similarity and removed them.
+    walk : {"anchored", "nearest"}, optional
+        The grid walk (see :func:`grid_walk`); "anchored" is the dissertation's Appendix A.
 
     Returns
     -------
@@ -281,7 +389,7 @@ def chain_code_3d(xyz, *, step: float | None = None, origin=None, keep_still: bo
     xyz = _as_trajectory(xyz, "trajectory")
     if step is None:
         step = default_step(xyz)
-    dirs, seg = grid_walk(xyz, step=step, origin=origin)
+    dirs, seg = grid_walk(xyz, step=step, origin=origin, walk=walk)
     codes = codes_from_steps(dirs)
     if not keep_still:
         return codes
