@@ -122,3 +122,102 @@ def test_benchmarks_return_seconds():
     for bench in (bench_chaincode_10k, bench_dtw_10k):
         seconds = bench()
         assert np.isfinite(seconds) and seconds > 0
+
+
+# ---------------------------------------------------------------------------------------- the product's interface
+
+def _doc_with(doc: dict, saddle: np.ndarray, **extra) -> dict:
+    return {**doc, **extra, "saddle": {"position_m": saddle}}
+
+
+@pytest.fixture(scope="module")
+def trot():
+    from saddlescope.bench.similarity import synthetic_ride
+
+    return synthetic_ride(0, "sitting_trot", 0)
+
+
+def test_compare_reports_every_measure_with_frame_and_step(trot):
+    from saddlescope.services.similarity import MEASURES, RANKING_MEASURE, compare_ride_documents
+
+    res = compare_ride_documents(trot, trot)
+    assert res["measure"] == RANKING_MEASURE and res["similarity"] == res["measures"][RANKING_MEASURE]
+    assert res["similarity"] == pytest.approx(1.0)
+    assert set(res["measures"]) == set(MEASURES)
+    assert res["frame"] == "motion+stride_phase" and res["step_mm"] > 0
+    assert res["details"]["chain_code_nw"]["step_mm"] == res["step_mm"]
+    assert res["details"]["dtw"]["frame"] == res["frame"]
+    assert res["markers"] == "saddle" and res["span"] == "stride"
+    assert compare_ride_documents(trot, trot, span="window")["span"] == "window"
+
+
+def test_translated_later_started_and_time_stretched_copies_score_as_identical(trot):
+    from saddlescope.services.similarity import compare_ride_documents
+
+    x = np.asarray(trot["saddle"]["position_m"])
+    ident = compare_ride_documents(trot, trot)["measures"]
+    n, f = x.shape[0], 1.15
+    tq = np.arange(int((n - 1) * f)) / f
+    stretched = np.stack([np.interp(tq, np.arange(n), x[:, k]) for k in range(3)], axis=-1)
+    copies = {"translated": _doc_with(trot, x + np.array([5.0, -2.0, 3.0])),
+              "later": _doc_with(trot, x[17:]),
+              "stretched": _doc_with(trot, stretched, period_s=trot["period_s"] * f)}
+    for name, doc in copies.items():
+        got = compare_ride_documents(trot, doc)["measures"]
+        for m in ("dtw", "chain_code_nw", "shape_similarity"):
+            assert got[m] >= 0.95 * ident[m], (name, m, got[m], ident[m])
+
+
+def test_still_marker_is_no_motion(trot):
+    from saddlescope.services.similarity import compare_ride_documents
+
+    rng = np.random.default_rng(0)
+
+    def still_m1():
+        m = np.array(trot["markers"]["position_m"], dtype=float)
+        m[:, 0] = rng.normal(0.0, 5e-4, (m.shape[0], 3))  # 0.5 mm noise, no motion
+        return {**trot, "markers": {"names": ["M1", "M2", "M3"], "position_m": m}}
+
+    both = compare_ride_documents(still_m1(), still_m1(), markers="M1")
+    assert both["moves"] == {"a": False, "b": False} and both["similarity"] == 1.0
+    assert both["step_mm"] >= 1.0  # four noise deviations, not 1/50 of the noise's extent
+    one = compare_ride_documents(still_m1(), trot, markers="M1")
+    assert one["moves"] == {"a": False, "b": True} and one["similarity"] == 0.0
+
+
+def test_shape_dissimilarity_does_not_depend_on_the_recording_length():
+    from saddlescope.bench.similarity import synthetic_ride
+    from saddlescope.services.similarity import compare_ride_documents
+
+    d = [compare_ride_documents(synthetic_ride(3, "sitting_trot", 0, strides=k),
+                                synthetic_ride(3, "sitting_trot", 1, strides=k))["measures"]["shape_dissimilarity"]
+         for k in (5, 10, 20, 40)]
+    assert max(d) - min(d) < 0.02, d
+
+
+def test_rank_rides_finds_the_other_recording(trot):
+    from saddlescope.bench.similarity import synthetic_ride
+    from saddlescope.services.similarity import rank_rides
+
+    cands = {f"h{h}-{g}-{r}": synthetic_ride(h, g, r) for h in range(3) for g in ("walk", "sitting_trot")
+             for r in (0, 1)}
+    del cands["h0-sitting_trot-0"]
+    cands["broken"] = {"fps": 60.0}
+    rows = rank_rides(trot, cands, top=3)
+    assert [r["rank"] for r in rows] == [1, 2, 3]
+    assert rows[0]["ride"] == "h0-sitting_trot-1"
+    assert rows[0]["similarity"] >= rows[1]["similarity"] >= rows[2]["similarity"]
+    assert {"frame", "step_mm", "measures", "details"} <= set(rows[0])
+
+
+def test_generic_recordings_are_compared_in_a_kabsch_frame(trot):
+    from saddlescope.services.similarity import compare_recordings
+
+    a = np.asarray(trot["markers"]["position_m"]) * 1e3  # mm
+    q, _ = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))
+    res = compare_recordings(a, a @ q.T + np.array([100.0, -50.0, 2000.0]))
+    assert res["frame"] == "kabsch" and res["kabsch_residual_mm"] < 1e-6
+    assert res["similarity"] > 0.999 and res["measures"]["chain_code_nw"] > 0.95
+    with pytest.raises(InputError, match="markers"):
+        compare_recordings(a, a[:, :2])

@@ -70,26 +70,24 @@ def retrieval(*, horses: int = 6, gaits: tuple[str, ...] = GAITS, markers: str =
     t0 = time.perf_counter()
     sigs = [ride_signature(synthetic_ride(h, g, r), markers=markers) for h, g, r in keys]
     n = len(keys)
-    sims = {m: np.full((n, n), np.nan) for m in MEASURES}
-    for i in range(n):
-        for j in range(n):
-            if i != j:
-                res = compare_signatures(sigs[i], sigs[j])
-                for m in MEASURES:
-                    sims[m][i, j] = res["measures"][m]
+    measures = [m for m in MEASURES if m != "shape_dissimilarity"]  # = 1 - shape_similarity
+    sims = {m: np.full((n, n), np.nan) for m in measures}
+    for i in range(n):  # every measure is symmetric (either ride's strides against the other's mean)
+        for j in range(i + 1, n):
+            res = compare_signatures(sigs[i], sigs[j])
+            for m in measures:
+                sims[m][i, j] = sims[m][j, i] = res["measures"][m]
     seconds = time.perf_counter() - t0
-    sims["shape_dissimilarity"] = -sims["shape_dissimilarity"]  # higher = alike, for ranking
     partner = [keys.index((h, g, 1 - r)) for h, g, r in keys]
     iu, ju = np.triu_indices(n, 1)
     same = np.array([keys[i][:2] == keys[j][:2] for i, j in zip(iu, ju, strict=True)])
     other = np.array([keys[i][0] != keys[j][0] for i, j in zip(iu, ju, strict=True)])
     out: dict = {"rides": n, "horses": horses, "gaits": list(gaits), "markers": markers,
                  "noise_mm": NOISE_MM, "ranking_measure": RANKING_MEASURE, "seconds": seconds, "measures": {}}
-    for m in MEASURES:
+    for m in measures:
         s = np.where(np.isnan(sims[m]), -np.inf, sims[m])
         top1 = float(np.mean([int(np.argmax(s[i])) == partner[i] for i in range(n)]))
-        sym = 0.5 * (sims[m] + sims[m].T)
-        out["measures"][m] = {"top1": top1, "auc": _auc(sym[iu, ju][same], sym[iu, ju][other])}
+        out["measures"][m] = {"top1": top1, "auc": _auc(sims[m][iu, ju][same], sims[m][iu, ju][other])}
     return out
 
 

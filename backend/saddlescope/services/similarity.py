@@ -323,24 +323,51 @@ def _pair_measures(a: np.ndarray, b: np.ndarray, sigma_a: float, sigma_b: float,
     return out
 
 
-def _stride_pairs(sa: RideStrides, sb: RideStrides, span: str) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
-    """The curves compared for one track: the two mean strides, phase-aligned; for the window,
-    every stride of either ride against the other's mean stride."""
+def _stride_rows(sa: RideStrides, sb: RideStrides, span: str) -> list[dict]:
+    """The measures of one track. The chain codes compare every stride of either ride with the other
+    ride's mean stride (phase-aligned) and are averaged: a fixed length per comparison, so neither
+    NW nor D' depends on how long the recordings are. DTW compares the mean strides (``span=
+    "stride"``) or, like the chain codes, every stride (``span="window"``). The grid step is the
+    same for all: ``max(extent / 50, 4 sigma)`` with sigma the larger per-stride noise."""
     b_mean, _ = align_phase(sa.mean, sb.mean)
-    if span == "stride":
-        return [(sa.mean, b_mean, sa.sigma_mean_m, sb.sigma_mean_m)]
     a_mean, _ = align_phase(sb.mean, sa.mean)
-    return ([(x, b_mean, sa.sigma_m, sb.sigma_mean_m) for x in sa.strides]
-            + [(a_mean, x, sa.sigma_mean_m, sb.sigma_m) for x in sb.strides])
+    step = noise_step([sa.mean, sb.mean], [sa.sigma_m, sb.sigma_m])
+    row = {"step_m": step, "moves_a": sa.moves, "moves_b": sb.moves}
+    dist, _, window = _dtw_similarity(sa.mean, b_mean)
+    if not (sa.moves and sb.moves):  # "no motion" is alike only "no motion"
+        same = float(sa.moves == sb.moves)
+        return [{**row, "dtw": same, "dtw_distance_m": dist, "dtw_window": window, "chain_code_nw": same,
+                 "shape_dissimilarity": 1.0 - same, "shape_similarity": same}]
+    pairs = [(x, b_mean) for x in sa.strides] + [(a_mean, x) for x in sb.strides]
+    chains = [chain_measures(x, y, step=step) for x, y in pairs]
+    dtw = [_dtw_similarity(x, y) for x, y in pairs] if span == "window" else [_dtw_similarity(sa.mean, b_mean)]
+    shape = float(np.mean([c["shape_dissimilarity"] for c in chains]))
+    return [{**row, "dtw": float(np.mean([d[0] for d in dtw])), "dtw_distance_m": float(np.mean([d[1] for d in dtw])),
+             "dtw_window": dtw[0][2], "chain_code_nw": float(np.mean([c["chain_code_nw"] for c in chains])),
+             "shape_dissimilarity": shape, "shape_similarity": 1.0 - shape}]
+
+
+def _ranking_value(sa: RideStrides, sb: RideStrides) -> float:
+    """The ranking measure alone (DTW of the phase-aligned mean strides)."""
+    if not (sa.moves and sb.moves):
+        return float(sa.moves == sb.moves)
+    b_mean, _ = align_phase(sa.mean, sb.mean)
+    return _dtw_similarity(sa.mean, b_mean)[0]
 
 
 def compare_signatures(sig_a: RideSignature, sig_b: RideSignature, *, only: str | None = None) -> dict:
-    """:func:`compare_ride_documents` on precomputed signatures (``only``: one measure, for ranking)."""
+    """:func:`compare_ride_documents` on precomputed signatures.
+
+    ``only="dtw"`` returns just ``{"similarity": ...}`` of the ranking measure (for ranking many).
+    """
     if (sig_a.markers, sig_a.span) != (sig_b.markers, sig_b.span) or len(sig_a.tracks) != len(sig_b.tracks):
         raise InputError("the two rides were prepared for different marker sets or spans")
-    rows = [_pair_measures(a, b, na, nb, closed=True, only=only)
-            for sa, sb in zip(sig_a.tracks, sig_b.tracks, strict=True)
-            for a, b, na, nb in _stride_pairs(sa, sb, sig_a.span)]
+    pairs = list(zip(sig_a.tracks, sig_b.tracks, strict=True))
+    if only is not None:
+        if only != RANKING_MEASURE:
+            raise InputError(f"only the ranking measure {RANKING_MEASURE!r} can be computed alone")
+        return {"similarity": float(np.mean([_ranking_value(sa, sb) for sa, sb in pairs]))}
+    rows = [row for sa, sb in pairs for row in _stride_rows(sa, sb, sig_a.span)]
     return _answer(rows, frame=FRAME_RIDE, markers=sig_a.markers, span=sig_a.span,
                    noise_m=(max(t.sigma_m for t in sig_a.tracks), max(t.sigma_m for t in sig_b.tracks)))
 

@@ -14,9 +14,12 @@ brought into one canonical frame:
   (Kabsch, :func:`kabsch_align`), whose residual is reported.
 
 The grid step of the chain codes follows a stated rule from the measured noise
-(:func:`noise_step`): ``step = max(extent / 50, 4 sigma)``, sigma the noise left in the curves that
-are coded. A curve whose extent stays under one step in every axis makes no step of the anchored
-walk: it is reported as "no motion", not as a chain of noise.
+(:func:`noise_step`): ``step = max(extent / 50, 4 sigma)``; for rides sigma is the per-axis RMS of
+the strides about their mean stride (noise plus what does not repeat from stride to stride), which
+does not depend on how many strides were recorded; for generic recordings it is the white noise
+measured from second differences, reduced by the averaging of the time normalisation. A curve
+whose extent stays under one step in every axis makes no step of the anchored walk: it is
+reported as "no motion", not as a chain of noise.
 """
 
 from __future__ import annotations
@@ -62,7 +65,8 @@ class RideStrides:
         The mean stride (mean zero, truncated to its first harmonics), one closed loop: sample n
         would be sample 0 again.
     strides : ndarray of shape (S, n, 3)
-        Every whole stride, each resampled to n samples of stride phase, travel and mean removed.
+        Every whole stride, each resampled to n samples of stride phase, travel and mean removed,
+        truncated to the same harmonics as the mean stride.
     sigma_m : float
         Per-axis RMS of the strides about the mean stride: measurement noise plus the stride-to-stride
         variation, the part of the motion that does not repeat (same units as the track).
@@ -71,6 +75,14 @@ class RideStrides:
     mean: np.ndarray
     strides: np.ndarray
     sigma_m: float
+
+    @property
+    def moves(self) -> bool:
+        """False for "no motion" (the mean stride's extent under ``NOISE_STEPS`` noise deviations).
+
+        Such a stride would not make one step of the anchored walk on a grid of its own noise step.
+        """
+        return bool(np.ptp(self.mean, axis=0).max() >= NOISE_STEPS * self.sigma_m)
 
     @property
     def sigma_mean_m(self) -> float:
@@ -150,10 +162,12 @@ def ride_strides(xyz, *, period_samples: float | None = None, fps: float = 30.0,
     mean = strides.mean(axis=0)
     sigma = float(np.sqrt(np.mean((strides - mean) ** 2))) if n_strides > 1 else noise_of_track(x)
     if harmonics is not None:
-        spec = np.fft.rfft(mean, axis=0)
-        spec[harmonics + 1:] = 0.0
-        mean = np.fft.irfft(spec, n=n_samples, axis=0)
-    return RideStrides(mean=mean - mean.mean(axis=0), strides=strides, sigma_m=sigma)
+        spec = np.fft.rfft(np.concatenate([mean[None], strides]), axis=1)
+        spec[:, harmonics + 1:] = 0.0
+        smooth = np.fft.irfft(spec, n=n_samples, axis=1)
+        mean, strides = smooth[0], smooth[1:]
+    return RideStrides(mean=mean - mean.mean(axis=0), strides=strides - strides.mean(axis=1, keepdims=True),
+                       sigma_m=sigma)
 
 
 def fourier_shift(x: np.ndarray, shift: float) -> np.ndarray:

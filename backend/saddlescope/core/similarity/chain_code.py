@@ -243,7 +243,8 @@ def _resolve_ties(dirs: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarra
 
     The chain of a candidate order is read from the reference directions reached before the group
     up to the next group of ties; it depends only on relative directions, so the choice is the same
-    for every rotation of the grid.
+    for every rotation of the grid. Before the first turn (u still undefined) several orders can
+    code alike; they are then told apart by the next groups, resolved in turn.
     """
     same = (seg[1:] == seg[:-1]) & (np.abs(t[1:] - t[:-1]) <= _TIE_TOL)
     if not np.any(same):
@@ -252,18 +253,29 @@ def _resolve_ties(dirs: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarra
     bounds = np.r_[starts, dirs.shape[0]]
     groups = [(int(s0), int(s1)) for s0, s1 in zip(bounds[:-1], bounds[1:], strict=True) if s1 - s0 > 1]
     out = dirs.tolist()
-    for g, (s0, s1) in enumerate(groups):
-        stop = groups[g + 1][0] if g + 1 < len(groups) else len(out)
+    _resolve_groups(out, groups, 0, len(groups))
+    return np.asarray(out, dtype=np.int64)
+
+
+def _resolve_groups(out: list[int], groups: list[tuple[int, int]], g0: int, g_stop: int) -> None:
+    """Resolve ``groups[g0:g_stop]`` of ``out`` in place, in order (see :func:`_resolve_ties`)."""
+    for g in range(g0, min(g_stop, len(groups))):
+        s0, s1 = groups[g]
         context = _state(out, s0)
-        tail = out[s1:stop]
+        u_known = len(context) == 2
+        horizon = g + 1 if u_known else min(g + 4, len(groups))
+        stop = groups[horizon][0] if horizon < len(groups) else len(out)
         best = None
         for perm in itertools.permutations(out[s0:s1]):
-            codes = codes_from_steps(np.array(context + list(perm) + tail, dtype=np.int64))
+            trial = out[: stop] if u_known else list(out)
+            trial[s0:s1] = perm
+            if not u_known:
+                _resolve_groups(trial, groups, g + 1, horizon)
+            codes = codes_from_steps(np.array(context + trial[s0:stop], dtype=np.int64))
             key = tuple(codes[max(len(context) - 1, 0):].tolist())
             if best is None or key < best[0]:
                 best = (key, perm)
         out[s0:s1] = list(best[1])
-    return np.asarray(out, dtype=np.int64)
 
 
 def grid_walk(xyz, *, step: float, origin=None, walk: str = "anchored") -> tuple[np.ndarray, np.ndarray]:
