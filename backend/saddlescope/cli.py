@@ -103,6 +103,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("file")
     s.add_argument("--json", dest="json_out", default=None)
 
+    s = sub.add_parser("similar", help="how alike two analysed rides (result JSON) or two C3D/TRC recordings move")
+    s.add_argument("a", help="a result JSON of `saddlescope analyze`, or a C3D / TRC file")
+    s.add_argument("b", help="the same kind of file as A")
+    s.add_argument("--markers", default=None,
+                   help="C3D/TRC: the labels to compare, L1,L2,...; results: saddle, M1, M2, M3 or all")
+    s.add_argument("--up", default=None, choices=["x", "y", "z"],
+                   help="C3D/TRC: the vertical axis (the alignment then only turns about it)")
+    s.add_argument("--json", dest="json_out", default=None, help="also write the answer here")
+
     s = sub.add_parser("bench", help="performance benchmarks, ratios measured side by side")
     s.add_argument("--json", dest="json_out", default=None)
     s.add_argument("--quick", action="store_true", help="smaller inputs, for a smoke test")
@@ -139,6 +148,15 @@ def run(args: argparse.Namespace) -> int:
         from saddlescope.io.mocap import read_mocap
 
         _write_json(read_mocap(Path(args.file)).summary(), args.json_out)
+        return 0
+    if cmd == "similar":
+        from saddlescope.services.similarity import compare_files
+
+        markers = [m.strip() for m in args.markers.split(",") if m.strip()] if args.markers else None
+        result = compare_files(Path(args.a), Path(args.b), markers=markers, up=args.up)
+        _write_json(result, args.json_out)
+        if args.json_out:
+            print(json.dumps(result, indent=2))
         return 0
     if cmd == "bench":
         from saddlescope.bench import run_benchmarks

@@ -221,3 +221,40 @@ def test_generic_recordings_are_compared_in_a_kabsch_frame(trot):
     assert res["similarity"] > 0.999 and res["measures"]["chain_code_nw"] > 0.95
     with pytest.raises(InputError, match="markers"):
         compare_recordings(a, a[:, :2])
+
+
+def test_cli_similar_on_results_and_on_bad_input(trot, tmp_path, capsys):
+    import json
+
+    from saddlescope.bench.similarity import synthetic_ride
+    from saddlescope.cli import main
+
+    def dump(name, doc):
+        path = tmp_path / name
+        path.write_text(json.dumps({k: (v if not isinstance(v, dict) else
+                                        {kk: np.asarray(vv).tolist() for kk, vv in v.items()})
+                                    for k, v in doc.items()}))
+        return str(path)
+
+    a, b = dump("a.json", trot), dump("b.json", synthetic_ride(0, "sitting_trot", 1))
+    out = tmp_path / "out.json"
+    assert main(["similar", a, b, "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert res["similarity"] > 0.95 and res["frame"] == "motion+stride_phase"
+    assert all(d["frame"] for d in res["details"].values()) and res["step_mm"] > 0
+    capsys.readouterr()
+    assert main(["similar", a, str(tmp_path / "missing.c3d")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("saddlescope similar:") and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_cli_similar_on_motion_capture(real_data, capsys):
+    from saddlescope.cli import main
+
+    gait = real_data("c3d", "Gait.c3d")
+    assert main(["similar", str(gait), str(gait), "--markers", "LASI,RASI,VSAC", "--up", "z"]) == 0
+    import json
+
+    res = json.loads(capsys.readouterr().out)
+    assert res["frame"] == "kabsch" and res["kabsch_residual_mm"] < 1e-6 and res["similarity"] == 1.0
+    assert res["markers"] == ["LASI", "RASI", "VSAC"] and res["up"] == "z"

@@ -459,7 +459,8 @@ def rank_rides(query: Mapping, candidates: Mapping[Hashable, Mapping], *, marker
     return rank_signatures(q, sigs, top=top)
 
 
-def compare_recordings(xyz_a, xyz_b, *, n_samples: int = 256, labels: list[str] | None = None) -> dict:
+def compare_recordings(xyz_a, xyz_b, *, n_samples: int = 256, labels: list[str] | None = None,
+                       up: int | None = None) -> dict:
     """How alike two motion-capture recordings of the same markers move (generic motion, any frame).
 
     Both are resampled to ``n_samples`` over their length (speed drops out), the second is
@@ -475,6 +476,8 @@ def compare_recordings(xyz_a, xyz_b, *, n_samples: int = 256, labels: list[str] 
         Samples of the time-normalised recordings.
     labels : list of str, optional
         Marker names for the answer.
+    up : {None, 0, 1, 2}, optional
+        The vertical axis: the alignment may then only turn about it.
 
     Returns
     -------
@@ -493,13 +496,74 @@ def compare_recordings(xyz_a, xyz_b, *, n_samples: int = 256, labels: list[str] 
         raise InputError(f"recording A has {a.shape[1]} markers but recording B has {b.shape[1]}")
     ra, sig_a = time_normalise(a, n_samples)
     rb, sig_b = time_normalise(b, n_samples)
-    flat_b, _, residual = kabsch_align(ra.reshape(-1, 3), rb.reshape(-1, 3))
+    flat_b, _, residual = kabsch_align(ra.reshape(-1, 3), rb.reshape(-1, 3), up=up)
     rb = flat_b.reshape(rb.shape)
     rows = [_pair_measures(ra[:, k] / 1e3, rb[:, k] / 1e3, sig_a / 1e3, sig_b / 1e3, closed=False)
             for k in range(a.shape[1])]
     names = labels or [f"marker {k + 1}" for k in range(a.shape[1])]
     return _answer(rows, frame=FRAME_KABSCH, markers=names, span="window", noise_m=(sig_a / 1e3, sig_b / 1e3),
-                   extra={"kabsch_residual_mm": residual})
+                   extra={"kabsch_residual_mm": residual, "up": None if up is None else "xyz"[up]})
+
+
+def _bridged(points: np.ndarray, labels: list[str], source: str) -> np.ndarray:
+    """(F, M, 3) with gaps filled by linear interpolation; InputError for a marker never seen."""
+    out = points.copy()
+    for m, label in enumerate(labels):
+        seen = np.all(np.isfinite(out[:, m]), axis=1)
+        if seen.sum() < 2:
+            raise InputError(f"{source}: marker {label!r} is missing in almost every frame")
+        idx = np.arange(out.shape[0])
+        for k in range(3):
+            out[:, m, k] = np.interp(idx, idx[seen], out[seen, m, k])
+    return out
+
+
+def _load_side(path, markers: list[str] | None):
+    """A result document (dict) or a motion-capture recording ((F, M, 3) mm, labels)."""
+    import json
+    from pathlib import Path
+
+    from saddlescope.io.mocap import read_mocap
+
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{path.name} is not a readable result JSON ({exc})") from None
+        if not isinstance(doc, dict) or "saddle" not in doc:
+            raise InputError(f"{path.name} is not an analysed ride result (no saddle track)")
+        return doc
+    data = read_mocap(path)
+    labels = list(markers) if markers else list(data.labels)
+    missing = [lb for lb in labels if lb not in data.labels]
+    if missing:
+        raise InputError(f"{path.name} has no marker labelled {', '.join(missing)}; it has "
+                         f"{', '.join(data.labels[:12])}")
+    pts = np.stack([data.marker(lb) for lb in labels], axis=1) * (1e3 if data.units == "m" else 1.0)
+    return _bridged(pts, labels, path.name), labels
+
+
+def compare_files(path_a, path_b, *, markers: list[str] | None = None, up: str | None = None) -> dict:
+    """`saddlescope similar`: two analysed ride results (JSON) or two C3D / TRC recordings.
+
+    Results are compared with :func:`compare_ride_documents` (``markers``: one of
+    :data:`MARKER_SETS`, default the saddle point); recordings with :func:`compare_recordings`
+    (``markers``: the labels to compare, default those of A; ``up``: "x", "y" or "z").
+    """
+    if up is not None and up not in ("x", "y", "z"):
+        raise InputError(f"--up must be x, y or z, got {up!r}")
+    a, b = _load_side(path_a, markers), _load_side(path_b, markers)
+    if isinstance(a, dict) != isinstance(b, dict):
+        raise InputError("compare two analysed results or two motion-capture files, not one of each")
+    if isinstance(a, dict):
+        chosen = markers[0] if markers else "saddle"
+        if markers and len(markers) > 1:
+            raise InputError(f"for analysed results --markers names one set of {', '.join(MARKER_SETS)}")
+        return compare_ride_documents(a, b, markers=chosen)
+    if a[1] != b[1]:
+        raise InputError("the two recordings do not have the same markers; name them with --markers")
+    return compare_recordings(a[0], b[0], labels=a[1], up=None if up is None else "xyz".index(up))
 
 
 # ----------------------------------------------------------------------------------------------

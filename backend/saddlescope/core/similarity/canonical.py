@@ -221,13 +221,16 @@ def time_normalise(xyz, n_samples: int = 256) -> tuple[np.ndarray, float]:
     return out.reshape((n_samples,) + x.shape[1:]), sigma / float(np.sqrt(width))
 
 
-def kabsch_align(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def kabsch_align(a: np.ndarray, b: np.ndarray, *, up: int | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """The rotation and translation that best map ``b`` onto ``a`` (Kabsch), and the residual.
 
     Parameters
     ----------
     a, b : ndarray of shape (P, 3)
         Corresponding points (all samples of all markers).
+    up : {None, 0, 1, 2}, optional
+        The vertical axis: only turns about it are allowed (gravity keeps its direction); None
+        allows any rotation.
 
     Returns
     -------
@@ -240,9 +243,15 @@ def kabsch_align(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     """
     ca, cb = a.mean(axis=0), b.mean(axis=0)
     h = (b - cb).T @ (a - ca)
-    u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    if up is None:
+        u, _, vt = np.linalg.svd(h)
+        d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+        rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    else:  # a turn about the vertical axis only: the 2-D Kabsch of the horizontal plane
+        i, j = [k for k in range(3) if k != up]
+        angle = np.arctan2(h[i, j] - h[j, i], h[i, i] + h[j, j])
+        rot = np.eye(3)
+        rot[[i, i, j, j], [i, j, i, j]] = np.cos(angle), -np.sin(angle), np.sin(angle), np.cos(angle)
     aligned = (b - cb) @ rot.T + ca
     return aligned, rot, float(np.sqrt(np.mean(np.sum((aligned - a) ** 2, axis=1))))
 
