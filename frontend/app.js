@@ -15,6 +15,7 @@ import { mountLeaderboard } from "./js/views/leaderboard.js";
 import { mountLogin } from "./js/views/login.js";
 import { mountRide } from "./js/views/ride.js";
 import { mountRides } from "./js/views/rides.js";
+import { mountRidePair } from "./js/views/similar.js";
 import { mountUpload } from "./js/views/upload.js";
 
 route("/", mountHome, { title: "Overview" });
@@ -23,6 +24,7 @@ route("/horses", mountEntities("horses"), { title: "Horses" });
 route("/riders", mountEntities("riders"), { title: "Riders" });
 route("/rides", mountRides, { title: "Rides" });
 route("/rides/:id", mountRide, { title: "Ride" });
+route("/compare-rides/:a/:b", mountRidePair, { title: "Two rides compared" });
 route("/upload", mountUpload, { title: "Upload a ride" });
 route("/jobs", mountJobs, { title: "Jobs" });
 route("/compare", mountCompare, { title: "Compare" });

@@ -166,4 +166,61 @@ export function gradeScatter(div, points, { title, unit, label }) {
   return plotly().react(div, [trace], layout, CONFIG);
 }
 
+const PAIR_COLOURS = ["#1f5fa8", "#c2410c"];
+
+/**
+ * Two rides' saddle-point paths (travel and mean removed) and their mean strides, overlaid in 3-D.
+ * @param {number[][][]} pathsMm  two paths, each shape (M, 3), mm
+ * @param {{first_mm: number[][], second_mm: number[][]}|null} strides  mean strides, shape (n, 3) each
+ * @param {string[]} names  the two rides' names
+ */
+export function pairPaths3d(div, pathsMm, strides, names) {
+  if (!pathsMm?.length) return emptyChart(div, "These results have no saddle-point track.");
+  ready(div);
+  const line = (xyz, i, { closed = false, width = 2, opacity = 1, suffix = "" } = {}) => {
+    const rows = closed && xyz.length ? [...xyz, xyz[0]] : xyz;
+    return {
+      type: "scatter3d", mode: "lines", name: `${names[i]}${suffix}`, opacity,
+      x: column(rows, 0), y: column(rows, 2), z: column(rows, 1).map((v) => (v === null ? null : -v)),
+      line: { color: PAIR_COLOURS[i], width },
+      hovertemplate: "x %{x:.1f} mm, z %{y:.1f} mm, height %{z:.1f} mm<extra></extra>",
+    };
+  };
+  const traces = pathsMm.map((xyz, i) => line(xyz, i, { width: 1.5, opacity: strides ? 0.35 : 1, suffix: ", window" }));
+  if (strides) {
+    traces.push(line(strides.first_mm, 0, { closed: true, width: 6, suffix: ", stride" }));
+    traces.push(line(strides.second_mm, 1, { closed: true, width: 6, suffix: ", stride aligned" }));
+  }
+  const axis = (title) => ({ title: { text: title }, gridcolor: "#e6e9ee", zerolinecolor: "#c9ced6" });
+  const layout = {
+    font: FONT, paper_bgcolor: "rgba(0,0,0,0)", margin: { l: 0, r: 0, t: 8, b: 0 },
+    legend: { orientation: "h", x: 0, y: 0, yanchor: "top" },
+    scene: { xaxis: axis("travel x (mm)"), yaxis: axis("sideways z (mm)"), zaxis: axis("height −y (mm)"),
+             aspectmode: "data", camera: { eye: { x: 1.5, y: -1.5, z: 0.9 } } },
+  };
+  return plotly().react(div, traces, layout, CONFIG);
+}
+
+/**
+ * The vertical position of both mean strides over stride phase: the second before and after the
+ * phase shift that lines it up with the first.
+ */
+export function strideAlignmentChart(div, strides, names) {
+  if (!strides) return emptyChart(div, "A ride is shorter than one whole stride: no mean stride to align.");
+  ready(div);
+  const height = (xyz) => column(xyz, 1).map((v) => (v === null ? null : -v));
+  const traces = [
+    { type: "scatter", mode: "lines", name: names[0], x: strides.phase, y: height(strides.first_mm),
+      line: { color: PAIR_COLOURS[0], width: 2.5 } },
+    { type: "scatter", mode: "lines", name: `${names[1]}, aligned`, x: strides.phase, y: height(strides.second_mm),
+      line: { color: PAIR_COLOURS[1], width: 2.5 } },
+    { type: "scatter", mode: "lines", name: `${names[1]}, as recorded`, x: strides.phase,
+      y: height(strides.second_unaligned_mm), line: { color: PAIR_COLOURS[1], width: 1.2, dash: "dot" } },
+  ];
+  const layout = baseLayout("Height of S over one stride", "stride phase", "height −y (mm)");
+  layout.legend = { orientation: "h", x: 0, xanchor: "left", y: -0.25, yanchor: "top" };
+  layout.margin.b = 96;
+  return plotly().react(div, traces, layout, CONFIG);
+}
+
 export const COLOURS = AXIS_COLOURS;

@@ -93,6 +93,7 @@ def world(env, tmp_path_factory):
         "rider_id": rider["id"],
         "rig_id": rig["id"],
         "ride_id": ride["id"],
+        "other_id": ride["id"],
         "grade_id": grade["id"],
         "job_id": job["id"],
         "upload_id": upload["id"],

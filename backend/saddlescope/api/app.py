@@ -101,10 +101,11 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         riders,
         rides,
         rigs,
+        similarity,
         uploads,
     )
 
-    for module in (health, auth, horses, riders, rigs, rides, uploads, grades, comparisons, jobs):
+    for module in (health, auth, horses, riders, rigs, rides, uploads, grades, comparisons, similarity, jobs):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIR, html=True), name="frontend")

@@ -35,7 +35,7 @@ from saddlescope.db.enums import JobStatus, RideStatus, Role, UploadStatus, Uplo
 
 __all__ = [
     "Base", "Club", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION", "Recording", "Result",
-    "Ride", "Rider", "Rig", "TimestampMixin", "UTCDateTime", "Upload", "User", "utcnow",
+    "Ride", "Rider", "Rig", "SimilarityPair", "TimestampMixin", "UTCDateTime", "Upload", "User", "utcnow",
 ]
 
 # Stable constraint names, so Alembic migrations are the same on SQLite and PostgreSQL.
@@ -335,3 +335,36 @@ class Upload(Base):
     outcome: Mapped[dict[str, Any]] = mapped_column(default=dict)
     created_at: Mapped[dt.datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[dt.datetime] = mapped_column(default=utcnow)
+
+
+class SimilarityPair(TimestampMixin, Base):
+    """A cached comparison of two analysed rides (``services.similarity.compare_ride_documents``' answer).
+
+    One row per pair of rides (``ride_a_id < ride_b_id``), marker set and span. It is valid while both
+    rides keep the analysis it was computed from (``version_a``, ``version_b``: each result's code
+    version and time) and the similarity method keeps its version; a re-analysed ride's rows are
+    deleted when its result is replaced. ``similarity`` is NULL when the rides could not be compared
+    (``error`` says why).
+    """
+
+    __tablename__ = "similarity_pairs"
+    __table_args__ = (
+        UniqueConstraint("ride_a_id", "ride_b_id", "markers", "span"),
+        CheckConstraint("ride_a_id < ride_b_id", name="ordered"),
+        CheckConstraint("similarity IS NULL OR (similarity >= 0 AND similarity <= 1)", name="similarity_range"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    ride_a_id: Mapped[int] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
+    ride_b_id: Mapped[int] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
+    markers: Mapped[str] = mapped_column(String(16))
+    span: Mapped[str] = mapped_column(String(16))
+    version_a: Mapped[str] = mapped_column(String(100))
+    version_b: Mapped[str] = mapped_column(String(100))
+    method_version: Mapped[str] = mapped_column(String(100))
+    similarity: Mapped[float | None] = mapped_column(Float)
+    measure: Mapped[str | None] = mapped_column(String(64))
+    # The whole answer of compare_ride_documents (measures, frame, step, ...), JSON.
+    answer: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    error: Mapped[str | None] = mapped_column(Text)

@@ -48,7 +48,7 @@ from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key,
 __all__ = [
     "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobKind", "STAGES", "Stage",
     "StageContext", "StageUnavailable", "define_job_kind", "job_kind", "ride_document", "run_analyze",
-    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_probe", "run_selftest", "stage",
+    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_probe", "run_selftest", "run_similarity", "stage",
 ]
 
 ASSEMBLED_BUNDLE = "bundle"  # folder name of the assembled ride bundle in the assemble stage's outputs
@@ -419,12 +419,31 @@ def run_analyze(ctx: StageContext) -> None:
     ctx.report(1.0, None)
 
 
+def _similarity_payload(payload: dict[str, Any]) -> dict[str, Any]:
+    from saddlescope.services.likeness import similarity_payload
+
+    return similarity_payload(payload)
+
+
+@stage("similarity", weight=1.0)
+def run_similarity(ctx: StageContext) -> None:
+    """Compare the payload's pairs of analysed rides and cache each comparison (skipping cached ones)."""
+    from saddlescope.services.likeness import method_version, run_pairs_job
+
+    counts = run_pairs_job(ctx.sessions, ctx.storage, ctx.payload, club_id=ctx.club_id,
+                           version=method_version(ctx.settings), report=ctx.report)
+    ctx.report(1.0, f"{counts['computed']} compared, {counts['cached']} cached, {counts['gone']} gone")
+
+
 define_job_kind(JobKind("selftest", ("selftest",), validate_payload=_selftest_payload,
                         description="a few timed steps, no files: checks that workers pick up jobs"))
 define_job_kind(JobKind("probe", ("probe",),
                         description="read the clips of a ride or rig and record their sizes and checksums"))
 define_job_kind(JobKind(ANALYSIS_JOB_KIND, ("probe", "assemble", "calibrate", "analyze"), needs_ride=True,
                         description="the whole pipeline on a ride: kinematics and vibration indicators"))
+define_job_kind(JobKind("similarity", ("similarity",), validate_payload=_similarity_payload,
+                        description="compare pairs of analysed rides and cache the answers (the most-alike "
+                                    "lists and a horse's consistency read them)"))
 define_job_kind(JobKind("calibrate_rig", ("probe", "calibrate_rig"),
                         description="calibrate a rig once from its three calibration clips (used by its "
                                     "rides)"))

@@ -10,6 +10,7 @@ import {
 import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
 import { poll } from "../poll.js";
+import { mountAlikePanel } from "./similar.js";
 
 // Order of saddlescope.core.kinematics.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
 const VERSION_NAMES = ["1,ver1", "2,ver1", "1,ver2", "2,ver2", "1,ver3", "2,ver3"];
@@ -276,17 +277,20 @@ export async function mountRide(view, { id }) {
     " \u00b7 ", h("span", { class: `badge status-${ride.status}` }, ride.status));
   showMeta();
 
+  let stopAlike = null;
   async function loadResult() {
     const result = await get(`/api/rides/${rideId}/result`, { params: { max_points: 2000 } });
     state.replaceChildren();
     showResult(view, ride, result);
+    stopAlike?.();
+    stopAlike = mountAlikePanel(view, ride);
     await Promise.all([drawVersions(view, rideId, result), attachGradeForm(view, ride)]);
   }
 
   if (ride.status === "analysed") {
     try {
       await loadResult();
-      return undefined;
+      return () => stopAlike?.();
     } catch (error) {
       if (!(error instanceof ApiError) || error.status !== 404) {
         state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
@@ -343,5 +347,5 @@ export async function mountRide(view, { id }) {
     }
     return job.status === "queued" || job.status === "running" ? true : false;
   });
-  return () => poller.stop();
+  return () => { poller.stop(); stopAlike?.(); };
 }

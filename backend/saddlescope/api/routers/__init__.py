@@ -2,5 +2,5 @@
 
 __all__ = [
     "auth", "clips", "common", "comparisons", "grades", "health", "horses", "jobs", "riders", "rides", "rigs",
-    "uploads",
+    "similarity", "uploads",
 ]

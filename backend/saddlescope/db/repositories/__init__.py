@@ -23,8 +23,15 @@ from saddlescope.db.repositories.rides import (
     RideFilter,
     RideRepository,
 )
+from saddlescope.db.repositories.similarity import (
+    AnalysedRide,
+    SimilarityRepository,
+    analysis_version,
+    ordered_pair,
+)
 
 __all__ = [
+    "AnalysedRide",
     "AnalyticsRepository",
     "BadQuery",
     "ClubRepository",
@@ -44,8 +51,11 @@ __all__ = [
     "RiderRepository",
     "Rig",
     "RigRepository",
+    "SimilarityRepository",
     "Upload",
     "UploadRepository",
     "UserRepository",
+    "analysis_version",
     "like_pattern",
+    "ordered_pair",
 ]

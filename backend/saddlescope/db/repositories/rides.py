@@ -7,9 +7,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import ColumnElement, delete, select, update
+from sqlalchemy import ColumnElement, delete, or_, select, update
 
-from saddlescope.db.models import LEADERBOARD_COLUMNS, Grade, Horse, Recording, Result, Ride, Rider, utcnow
+from saddlescope.db.models import (
+    LEADERBOARD_COLUMNS,
+    Grade,
+    Horse,
+    Recording,
+    Result,
+    Ride,
+    Rider,
+    SimilarityPair,
+    utcnow,
+)
 from saddlescope.db.repositories.base import Page, Repository
 from saddlescope.db.repositories.catalogue import HorseRepository, RiderRepository, RigRepository
 
@@ -187,7 +197,13 @@ class ResultRepository(Repository):
 
     def replace_for_ride(self, *, club_id: int, ride_id: int, job_id: int | None, indicators: dict[str, Any],
                          result_key: str | None, code_version: str | None) -> Result:
-        """Store a ride's result, replacing the previous one (re-running a job is idempotent)."""
+        """Store a ride's result, replacing the previous one (re-running a job is idempotent).
+
+        The ride's cached comparisons with other rides are deleted: they were computed from the old
+        analysis.
+        """
+        self.session.execute(delete(SimilarityPair).where(
+            or_(SimilarityPair.ride_a_id == ride_id, SimilarityPair.ride_b_id == ride_id)))
         result = self.for_ride(ride_id)
         if result is None:
             result = Result(club_id=self._club_for_new(club_id), ride_id=ride_id)
