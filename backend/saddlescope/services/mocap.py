@@ -13,6 +13,7 @@ and the result document gets a ``source`` object naming the file and these choic
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -31,7 +32,7 @@ from saddlescope.io.mocap import MocapData, read_mocap
 from saddlescope.io.result_document import result_to_document
 from saddlescope.io.result_schema import result_problems
 
-__all__ = ["MocapChoice", "analyze_mocap", "analyze_mocap_file", "parse_up_axis"]
+__all__ = ["MocapChoice", "analyze_mocap", "analyze_mocap_file", "mocap_suffix", "parse_up_axis", "store_mocap_ride"]
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 _GRAVITY_HINT = "no plumb line: gravity taken as"
@@ -247,3 +248,78 @@ def analyze_mocap_file(path: str | Path, markers: Sequence[str], *, point: str |
     """
     choice = MocapChoice(tuple(markers), point, tuple(float(v) for v in offset_mm), up, strides, gait)
     return analyze_mocap(read_mocap(path), choice)
+
+
+_SUFFIXES = (".c3d", ".trc")
+
+
+def mocap_suffix(filename: str | None) -> str:
+    """The file type (".c3d" or ".trc") of an uploaded file's name, or an InputError saying what is accepted."""
+    suffix = Path(filename or "").suffix.lower()
+    if suffix not in _SUFFIXES:
+        raise InputError(f"the file {filename or '(no name)'!r} is not a motion-capture file: send a .c3d or .trc "
+                         "file (its name tells which)")
+    return suffix
+
+
+def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, choice: MocapChoice, *,
+                     club_id: int, ride: dict, code_version: str | None = None) -> int:
+    """Analyse an uploaded C3D or TRC file and store it as an analysed ride of the club.
+
+    Parameters
+    ----------
+    sessions : sessionmaker
+        The database's sessions.
+    storage : Storage
+        Files; the upload is at ``staged_key`` (removed here).
+    staged_key : str
+        Where the uploaded bytes are.
+    filename : str or None
+        The client's file name (its extension says C3D or TRC).
+    choice : MocapChoice
+        The markers, point, vertical and strides.
+    club_id : int
+        The club the ride belongs to.
+    ride : dict
+        ``horse_id``, ``rider_id``, ``gait``, ``direction``, ``ridden_on``, ``notes`` of the new ride.
+    code_version : str, optional
+        Stored with the result.
+
+    Returns
+    -------
+    int
+        The new ride's id. Nothing is stored when the file is refused (the error says why).
+    """
+    import shutil
+    import tempfile
+
+    from saddlescope.db.repositories import ResultRepository, RideRepository
+    from saddlescope.db.session import session_scope
+    from saddlescope.services.rides import refresh_ride_status
+
+    try:
+        suffix = mocap_suffix(filename)
+        name = Path(filename or "upload").stem[:80] or "upload"
+        with tempfile.TemporaryDirectory(prefix="mocap-") as tmp:
+            local = Path(tmp) / f"{name}{suffix}"
+            shutil.copyfile(storage.path(staged_key), local)
+            document = analyze_mocap(read_mocap(local), replace(choice, gait=choice.gait or ride.get("gait")))
+            data = local.read_bytes()
+    finally:
+        storage.delete(staged_key)
+    with session_scope(sessions) as session:
+        row = RideRepository(session, club_id=club_id).add(
+            horse_id=ride["horse_id"], rider_id=ride["rider_id"], gait=ride["gait"], direction=ride["direction"],
+            ridden_on=ride["ridden_on"], notes=ride.get("notes") or "", meta={"source": document["source"]})
+        ride_id = row.id
+    file_key = f"rides/{ride_id}/mocap/{name}{suffix}"
+    result_key = f"rides/{ride_id}/mocap/result.json"
+    storage.write_bytes(file_key, data)
+    document["source"]["stored_as"] = file_key
+    storage.write_bytes(result_key, json.dumps(document, allow_nan=False).encode())
+    with session_scope(sessions) as session:
+        ResultRepository(session).replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=None,
+                                                   indicators=document["indicators"], result_key=result_key,
+                                                   code_version=code_version)
+        refresh_ride_status(session, ride_id)
+    return ride_id
