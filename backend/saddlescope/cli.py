@@ -41,6 +41,21 @@ def _camera_source(text: str) -> tuple[str, str]:
     return name, source
 
 
+def _labels(text: str) -> tuple[str, ...]:
+    labels = tuple(s.strip() for s in text.split(","))
+    if len(labels) != 3 or not all(labels):
+        raise argparse.ArgumentTypeError(f"--markers takes three labels separated by commas, got {text!r}")
+    return labels
+
+
+def _offset(text: str) -> tuple[float, float, float]:
+    try:
+        dx, dy, dz = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--offset takes three numbers in mm, e.g. 0,-150,40, got {text!r}") from None
+    return dx, dy, dz
+
+
 def _write_json(data: dict, out: str | None) -> None:
     text = json.dumps(data, indent=2, allow_nan=False)
     if out:
@@ -99,7 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", dest="json_out", default=None)
     s.add_argument("--toml", dest="toml_out", default=None, help="also write an anipose-style TOML")
 
-    s = sub.add_parser("import", help="read a C3D or TRC motion-capture file")
+    s = sub.add_parser("import", help="read a C3D or TRC motion-capture file: its labels, rate, units, warnings")
     s.add_argument("file")
     s.add_argument("--json", dest="json_out", default=None)
 
@@ -111,6 +126,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--up", default=None, choices=["x", "y", "z"],
                    help="C3D/TRC: the vertical axis (the alignment then only turns about it)")
     s.add_argument("--json", dest="json_out", default=None, help="also write the answer here")
+
+    s = sub.add_parser("analyze-mocap", help="analyse a C3D or TRC file as a ride: three markers, a point")
+    s.add_argument("file")
+    s.add_argument("--markers", type=_labels, required=True, metavar="L1,L2,L3",
+                   help="the labels standing for the horse markers M1, M2, M3")
+    s.add_argument("--point", default=None, metavar="S", help="the label of the point to report (the saddle's)")
+    s.add_argument("--offset", type=_offset, default=(0.0, 0.0, 0.0), metavar="DX,DY,DZ",
+                   help="without --point: the point's offsets (mm) from the markers' centroid in their body "
+                        "frame (x from L1 to L2, z normal to the three markers' plane); default 0,0,0")
+    s.add_argument("--up", default=None, help="the lab's vertical axis: x, y, z or -x, ... (default: the file's "
+                                              "own, else z for C3D and y for TRC)")
+    s.add_argument("--strides", type=int, default=None, help="whole strides analysed (default 2)")
+    s.add_argument("--gait", default=None, choices=["walk", "sitting_trot", "rising_trot", "canter"])
+    s.add_argument("--json", dest="json_out", default=None, help="write the result here (else stdout)")
 
     s = sub.add_parser("bench", help="performance benchmarks, ratios measured side by side")
     s.add_argument("--json", dest="json_out", default=None)
@@ -157,6 +186,17 @@ def run(args: argparse.Namespace) -> int:
         _write_json(result, args.json_out)
         if args.json_out:
             print(json.dumps(result, indent=2))
+        return 0
+    if cmd == "analyze-mocap":
+        from saddlescope.services.mocap import analyze_mocap_file
+
+        result = analyze_mocap_file(Path(args.file), args.markers, point=args.point, offset_mm=args.offset,
+                                    up=args.up, strides=args.strides, gait=args.gait)
+        _write_json(result, args.json_out)
+        if args.json_out:
+            s, ind = result["source"], result["indicators"]
+            print(f"{s['file']}: period {result['period_s']:.3f} s, speed {ind['vel_x_avg_kmh']:.2f} km/h, "
+                  f"{s['up']} up; result in {args.json_out}", file=sys.stderr)
         return 0
     if cmd == "bench":
         from saddlescope.bench import run_benchmarks

@@ -98,6 +98,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         health,
         horses,
         jobs,
+        mocap,
         riders,
         rides,
         rigs,
@@ -105,7 +106,8 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         uploads,
     )
 
-    for module in (health, auth, horses, riders, rigs, rides, uploads, grades, comparisons, similarity, jobs):
+    for module in (health, auth, horses, riders, rigs, rides, mocap, uploads, grades, comparisons, similarity,
+                   jobs):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIR, html=True), name="frontend")

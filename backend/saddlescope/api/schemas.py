@@ -11,7 +11,7 @@ from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
 __all__ = [
-    "BoardIn", "BundleUploaded", "CameraRole", "ClipKind", "ClipUploaded", "ClubCreate", "ClubCreated",
+    "BoardIn", "BundleUploaded", "MocapRideOut", "CameraRole", "ClipKind", "ClipUploaded", "ClubCreate", "ClubCreated",
     "ClubOut", "ComparisonOut", "CorrelationOut", "Decimation", "Direction", "Email", "ErrorOut", "Gait",
     "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
     "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
@@ -414,6 +414,16 @@ class BundleUploaded(BaseModel):
 
     ride: RideOut
     job_id: int
+
+
+class MocapRideOut(BaseModel):
+    """The analysed ride a motion-capture file became: its period, indicators and what was chosen."""
+
+    ride: RideOut
+    period_s: float
+    indicators: dict[str, float]
+    flags: list[str]
+    source: dict[str, Any]
 
 
 # --- uploads (resumable) -----------------------------------------------------------------------------

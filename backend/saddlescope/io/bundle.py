@@ -402,3 +402,32 @@ def write_bundle_zip(bundle_dir: str | Path, zip_path: str | Path, *, validate: 
             zf.write(full, arcname, compress_type=method)
     os.replace(partial, zip_path)
     return zip_path
+
+
+def read_bundle_calibration(path: str | Path) -> tuple[Any, list[str]]:
+    """The rig of a bundle's ``calibration_file`` in mm, and notes on how its units were read.
+
+    A ``.json`` is SaddleScope's calibration object (mm); a ``.toml`` is anipose's, Pose2Sim's,
+    FreeMoCap's or caliscope's, each read in its own unit
+    (:func:`saddlescope.io.calibration_files.read_calibration_toml`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The calibration file.
+
+    Returns
+    -------
+    rig : Rig
+        The cameras, translations in mm.
+    notes : list of str
+        Sentences for the result's flags where the file did not state its unit.
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".toml":
+        from saddlescope.io.calibration_files import read_calibration_toml
+
+        return read_calibration_toml(path)
+    from saddlescope.io.rig_document import rig_from_dict
+
+    return rig_from_dict(_read_json(path, "calibration_file")), []

@@ -500,3 +500,58 @@ def board_from_caliscope_toml(path: str | Path) -> tuple[Board, bool]:
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{path}: not a caliscope ChArUco description ({exc})") from None
     return board, bool(c.get("inverted", False))
+
+
+def _toml_flavour(data: Mapping) -> str:
+    """"caliscope" (``[cameras.N]``, or ``[cam_N]`` with 3x3 rotations) or "anipose" (Rodrigues vectors)."""
+    if isinstance(data.get("cameras"), Mapping):
+        return "caliscope"
+    tables = [v for v in data.values() if isinstance(v, Mapping) and "matrix" in v]
+    if tables and all(np.asarray(t.get("rotation", [0, 0, 0]), dtype=object).size == 9 for t in tables):
+        return "caliscope"
+    return "anipose"
+
+
+def _camera_spread(rig: Rig) -> float:
+    """The largest distance between two camera centres, in the rig's translation unit."""
+    centres = [-(cam.R.T @ np.asarray(cam.t_mm, np.float64)) for cam in rig.cameras.values()]
+    return max((float(np.linalg.norm(a - b)) for a in centres for b in centres), default=0.0)
+
+
+def read_calibration_toml(path: str | Path, *, units: str | None = None) -> tuple[Rig, list[str]]:
+    """A calibration TOML of anipose, Pose2Sim, FreeMoCap or caliscope as a Rig in mm, with notes.
+
+    caliscope's files (``[cameras.N]`` or 3x3 rotations) are in metres. anipose-style files are in
+    ``units`` when given, else their ``[metadata] units``, else judged from the cameras' spread:
+    Pose2Sim's ``Calib.toml`` (metres, no units stated) puts cameras a few units apart, anipose's
+    (board squares in mm) hundreds to thousands: a spread under 50 is read as metres, with a note.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+    units : {"mm", "cm", "m"}, optional
+        The translations' unit of an anipose-style file.
+
+    Returns
+    -------
+    rig : Rig
+        Translations in mm, relative to the first camera.
+    notes : list of str
+        How the units were chosen where the file did not state them (for the result's flags).
+    """
+    data = _load_toml(path)
+    name = Path(path).name
+    if _toml_flavour(data) == "caliscope":
+        return rig_from_caliscope_toml(path), []
+    meta = data.get("metadata", {}) if isinstance(data.get("metadata"), Mapping) else {}
+    if units or meta.get("units"):
+        return read_anipose_toml(path, units=units), []
+    rig_mm = read_anipose_toml(path, units="mm")
+    spread = _camera_spread(rig_mm)
+    if 0 < spread < 50.0:
+        return (read_anipose_toml(path, units="m"),
+                [f"{name} states no units; its cameras are {spread:.2f} apart, so its translations were read "
+                 "as metres (Pose2Sim's unit); set calibration_units in ride.json if they are not"])
+    return rig_mm, [f"{name} states no units; its translations were read as mm (anipose's usual unit, the "
+                    f"cameras {spread:.0f} mm apart); set calibration_units in ride.json if they are not"]

@@ -14,15 +14,10 @@ from saddlescope.io.result_schema import validate_result
 
 
 def load_calibration_file(path: Path) -> Rig:
-    """A rig from an anipose-style TOML or our calibration JSON."""
-    from saddlescope.io.calibration_files import read_anipose_toml
-    from saddlescope.io.rig_document import rig_from_dict
+    """A rig from a calibration TOML (anipose, Pose2Sim, FreeMoCap, caliscope; each in its unit) or our JSON."""
+    from saddlescope.io.bundle import read_bundle_calibration
 
-    if path.suffix.lower() == ".toml":
-        return read_anipose_toml(path)
-    import json
-
-    return rig_from_dict(json.loads(path.read_text()))
+    return read_bundle_calibration(path)[0]
 
 
 def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None] | None = None,
@@ -30,10 +25,13 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
     """Open a ride bundle (folder or zip), run the pipeline, return the validated result document."""
     with open_bundle(Path(path)) as bundle:
         clips = BundleClips(bundle.clip_paths)
+        notes: list[str] = []
         if rig is None and bundle.calibration_file is not None:
-            rig = load_calibration_file(bundle.calibration_file)
+            from saddlescope.io.bundle import read_bundle_calibration
+
+            rig, notes = read_bundle_calibration(bundle.calibration_file)
         result = analyze_ride(clips, bundle.meta, params=params, rig=rig, on_progress=on_progress,
-                              input_flags=bundle.warnings)
+                              input_flags=list(bundle.warnings) + notes)
     document = result_to_document(result)
     validate_result(document)
     return document

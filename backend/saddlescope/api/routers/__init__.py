@@ -1,6 +1,6 @@
 """One router per resource (each module's `router`); `common` and `clips` hold what several of them share."""
 
 __all__ = [
-    "auth", "clips", "common", "comparisons", "grades", "health", "horses", "jobs", "riders", "rides", "rigs",
-    "similarity", "uploads",
+    "auth", "clips", "common", "comparisons", "grades", "health", "horses", "jobs", "mocap", "riders", "rides",
+    "rigs", "similarity", "uploads",
 ]

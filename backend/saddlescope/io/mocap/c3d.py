@@ -19,10 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from saddlescope.core.errors import InputError, MocapFileError
-from saddlescope.io.mocap.data import MocapData, _check_tracks, _normalise_units, _read_bytes
+from saddlescope.core.errors import MocapFileError
+from saddlescope.io.mocap.c3d_writer import write_c3d_file
+from saddlescope.io.mocap.data import MocapData, _normalise_units, _read_bytes
 
-__all__ = ["read_c3d", "write_c3d"]
+__all__ = ["distinct_labels", "read_c3d", "write_c3d"]
 
 _BLOCK = 512
 _PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
@@ -360,12 +361,71 @@ def read_c3d(path: str | Path) -> MocapData:
     else:
         xyz = _points_ezc3d(path, layout)
     xyz, units = _normalise_units(xyz, layout.units, path.name)
-    return MocapData(labels=layout.labels, rate_hz=layout.rate_hz, points=xyz, units=units,
-                     first_frame=layout.first_frame, source_format="c3d", source=path.name)
+    descriptions = _point_strings(layout.params, "DESCRIPTIONS", layout.n_points)
+    labels, warnings = distinct_labels(layout.labels, descriptions)
+    return MocapData(labels=labels, rate_hz=layout.rate_hz, points=xyz, units=units,
+                     first_frame=layout.first_frame, source_format="c3d", source=path.name,
+                     warnings=warnings, descriptions=descriptions, up_axis=_screen_up(layout.params))
 
 
-def write_c3d(path: str | Path, labels, points_mm: np.ndarray, rate_hz: float) -> Path:
-    """Write marker trajectories to a C3D file (Intel float format, units mm).
+def _point_strings(params: dict[tuple[str, str], _C3DParam], key: str, n_points: int) -> tuple[str, ...]:
+    """POINT:<key> (DESCRIPTIONS, ...) and its continuations <key>2, <key>3, ..., one per point."""
+    out: list[str] = []
+    for name in [key] + [f"{key}{i}" for i in range(2, 100)]:
+        if ("POINT", name) not in params:
+            break
+        out += _decode_strings(params[("POINT", name)])
+    return tuple(out[:n_points]) if len(out) >= n_points else ()
+
+
+def _screen_up(params: dict[tuple[str, str], _C3DParam]) -> str | None:
+    """The lab's vertical as the file states it: POINT:Y_SCREEN ("+Z" -> "+z"), else None."""
+    p = params.get(("POINT", "Y_SCREEN"))
+    text = (_decode_strings(p) or [""])[0].strip().lower() if p is not None else ""
+    return text if text in ("+x", "-x", "+y", "-y", "+z", "-z") else None
+
+
+def distinct_labels(labels, descriptions=()) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Labels made distinct where a file repeats one, and a warning naming the repeated ones.
+
+    Parameters
+    ----------
+    labels : sequence of str, length M
+        The labels as stored.
+    descriptions : sequence of str, length M, or empty
+        The points' descriptions (C3D POINT:DESCRIPTIONS).
+
+    Returns
+    -------
+    labels : tuple of str, length M
+        Every repeated label told apart by its description (``"RKNE (R.Knee.Medial)"``) where the
+        descriptions of its points differ, else by its rank (``"RKNE#2"``); other labels unchanged.
+    warnings : tuple of str
+        One sentence when labels repeat, else empty.
+    """
+    labels = list(labels)
+    repeated = [s for s in dict.fromkeys(labels) if labels.count(s) > 1]
+    if not repeated:
+        return tuple(labels), ()
+    for label in repeated:
+        where = [j for j, s in enumerate(labels) if s == label]
+        texts = [descriptions[j].strip() if len(descriptions) == len(labels) else "" for j in where]
+        by_description = all(texts) and len(set(texts)) == len(texts)
+        for rank, j in enumerate(where, start=1):
+            labels[j] = f"{label} ({texts[rank - 1]})" if by_description else f"{label}#{rank}"
+    taken = set()
+    for j, s in enumerate(labels):  # a made-up name may still meet a stored one
+        labels[j] = s if s not in taken else f"{s}#{j + 1}"
+        taken.add(labels[j])
+    names = ", ".join(repeated)
+    return tuple(labels), (f"labels used by more than one marker: {names}; told apart by their descriptions "
+                           "(POINT:DESCRIPTIONS) or rank, e.g. " + ", ".join(
+                               repr(s) for s in labels if s.startswith(repeated[0] + " (")
+                               or s.startswith(repeated[0] + "#")),)
+
+
+def write_c3d(path: str | Path, labels, points_mm: np.ndarray, rate_hz: float, *, descriptions=None) -> Path:
+    """Write marker trajectories to a C3D file (Intel float format, units mm), every frame kept.
 
     Parameters
     ----------
@@ -377,29 +437,13 @@ def write_c3d(path: str | Path, labels, points_mm: np.ndarray, rate_hz: float) -
         Positions in mm; NaN marks a missing marker (written with residual -1).
     rate_hz : float
         Sampling rate.
+    descriptions : sequence of str, length M, optional
+        The markers' descriptions (POINT:DESCRIPTIONS).
 
     Returns
     -------
     Path
-        The file written.
+        The file written; past 65,535 frames the true count is in TRIAL:ACTUAL_END_FIELD (see
+        :mod:`saddlescope.io.mocap.c3d_writer`).
     """
-    import ezc3d
-
-    labels, pts = _check_tracks(labels, points_mm, rate_hz)
-    if any(len(s) > 30 for s in labels):
-        raise InputError("C3D marker labels are limited to 30 characters")
-    path = Path(path)
-    n_frames, n_markers, _ = pts.shape
-    missing = np.isnan(pts).any(axis=2)  # (F, M)
-    c3d = ezc3d.c3d()
-    c3d["parameters"]["POINT"]["RATE"]["value"] = [float(rate_hz)]
-    c3d["parameters"]["POINT"]["LABELS"]["value"] = labels
-    c3d["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
-    block = np.ones((4, n_markers, n_frames))
-    block[:3] = np.transpose(np.where(missing[..., None], np.nan, pts), (2, 1, 0))
-    c3d["data"]["points"] = block
-    c3d["data"]["meta_points"] = {"residuals": np.where(missing.T, -1.0, 0.0)[None],
-                                  "camera_masks": np.zeros((7, n_markers, n_frames), dtype=bool)}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    c3d.write(str(path))
-    return path
+    return write_c3d_file(path, labels, points_mm, rate_hz, descriptions=descriptions)

@@ -40,6 +40,11 @@ class MocapData:
         File name, for messages.
     warnings : tuple of str
         What the reader tolerated in an inconsistent file (e.g. unnamed markers), for the user to see.
+    descriptions : tuple of str
+        The markers' descriptions where the file has them (C3D POINT:DESCRIPTIONS), else empty.
+    up_axis : str or None
+        The vertical axis the file states ("+z", "-y", ...; C3D POINT:Y_SCREEN, the screen's up
+        direction), None where it states none.
     """
 
     labels: tuple[str, ...]
@@ -50,6 +55,8 @@ class MocapData:
     source_format: str
     source: str = ""
     warnings: tuple[str, ...] = ()
+    descriptions: tuple[str, ...] = ()
+    up_axis: str | None = None
 
     @property
     def n_frames(self) -> int:
@@ -79,10 +86,37 @@ class MocapData:
         ndarray of shape (F, 3)
             Its positions in ``units`` (a view of ``points``), NaN where missing.
         """
-        try:
-            return self.points[:, self.labels.index(label)]
-        except ValueError:
-            raise InputError(f"{self.source or 'mocap data'}: no marker labelled {label!r}") from None
+        return self.points[:, self.index(label)]
+
+    def index(self, label: str) -> int:
+        """Column of the marker labelled ``label`` in ``points``.
+
+        Parameters
+        ----------
+        label : str
+            The marker's label; a label the file repeats is told apart by its description
+            (``"RKNE (R.Knee.Medial)"``), as :attr:`labels` lists it.
+
+        Returns
+        -------
+        int
+            Its index j in ``points[:, j]``.
+
+        Raises
+        ------
+        InputError
+            No such label (the message lists the labels that begin alike, e.g. a repeated label's
+            versions).
+        """
+        if label in self.labels:
+            return self.labels.index(label)
+        alike = [s for s in self.labels if s.startswith((label + " (", label + "#"))]
+        where = self.source or "mocap data"
+        if alike:
+            raise InputError(f"{where}: the label {label!r} is used by {len(alike)} markers; choose one of "
+                             + ", ".join(repr(s) for s in alike))
+        raise InputError(f"{where}: no marker labelled {label!r} (the file has {', '.join(self.labels[:12])}"
+                         + (", ..." if len(self.labels) > 12 else "") + ")")
 
     def summary(self) -> dict:
         """JSON-able description: format, labels, rate, frame and marker counts, units, first points.
@@ -91,8 +125,8 @@ class MocapData:
         -------
         dict
             ``format``, ``file``, ``labels``, ``rate_hz``, ``n_frames``, ``n_markers``, ``units``,
-            ``first_frame``, ``first_frame_points``, ``duration_s``, ``missing_fraction`` and
-            ``warnings``. ``first_frame_points`` maps the first few labels to their [x, y, z] in the
+            ``first_frame``, ``first_frame_points``, ``duration_s``, ``missing_fraction``,
+            ``warnings`` and ``up_axis``. ``first_frame_points`` maps the first few labels to their [x, y, z] in the
             first frame (None where missing there).
         """
         first: dict[str, list[float] | None] = {}
@@ -112,6 +146,7 @@ class MocapData:
             "duration_s": float(self.duration_s),
             "missing_fraction": float(np.mean(np.isnan(self.points[..., 0]))) if self.points.size else 0.0,
             "warnings": list(self.warnings),
+            "up_axis": self.up_axis,
         }
 
 

@@ -3,7 +3,7 @@
 TRC is the tab-separated text of Motion Analysis / OpenSim: a ``PathFileType`` line, a line of header
 keys (DataRate, CameraRate, NumFrames, NumMarkers, Units, ...), a line of their values, a line of
 ``Frame#  Time  name1 (tab) (tab) name2 ...``, a line of ``X1 Y1 Z1 X2 ...``, then one row per frame;
-an empty cell is a missing coordinate.
+an empty cell or ``NaN`` is a missing coordinate (the writer writes ``NaN``, so rows keep every column).
 """
 
 from __future__ import annotations
@@ -169,7 +169,10 @@ def _coordinate_cells(line: str, line_no: int, name: str, n_cols: int, cut_off: 
 
 def write_trc(path: str | Path, labels, points: np.ndarray, rate_hz: float, *, units: str = "mm",
               first_frame: int = 1) -> Path:
-    """Write marker trajectories to a TRC file (empty cells for missing markers).
+    """Write marker trajectories to a TRC file, every row with every column.
+
+    A missing coordinate is written ``NaN``, as OpenSim writes it: an empty cell at a row's end is
+    lost to readers that trim the line (OpenSim's TRC reader then refuses the row as too short).
 
     Parameters
     ----------
@@ -206,7 +209,7 @@ def write_trc(path: str | Path, labels, points: np.ndarray, rate_hz: float, *, u
            ""]
     flat = pts.reshape(n_frames, -1)
     for i in range(n_frames):
-        cells = ["" if math.isnan(v) else f"{v:.{digits}f}" for v in flat[i]]
+        cells = ["NaN" if math.isnan(v) else f"{v:.{digits}f}" for v in flat[i]]
         out.append(f"{first_frame + i}\t{i / rate_hz:.6f}\t" + "\t".join(cells))
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(out) + "\n", encoding="utf-8")
