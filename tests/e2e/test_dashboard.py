@@ -619,3 +619,48 @@ def test_ride_without_result_follows_its_analysis_and_offers_a_rerun(page, dashb
         with api_client(dashboard) as api:
             _ok(api.delete(f"/api/rides/{ride['id']}"), 204)
     assert page.console.unexpected() == []
+
+
+def _walking_triad_trc(path: Path) -> Path:
+    """A TRC (metres, y up as OpenSim writes) of three markers walking at 1.6 m/s, 0.9 s strides."""
+    from saddlescope.io.mocap import write_trc
+
+    t = np.arange(500) / 100.0
+    w = 2 * np.pi / 0.9
+    body = np.array([[0.25, 0.0, 0.1], [-0.25, 0.02, 0.1], [0.0, -0.08, -0.12]])
+    centre = np.stack([1.6 * t + 0.01 * np.sin(2 * w * t), 1.2 + 0.02 * np.cos(2 * w * t) + 0.005 * np.cos(w * t),
+                       0.01 * np.sin(w * t)], axis=1)
+    points = centre[:, None, :] + body[None] + np.random.default_rng(3).normal(0, 0.0003, (500, 3, 3))
+    return write_trc(path, ["A", "B", "C"], points, 100.0, units="m")
+
+
+def test_a_motion_capture_file_uploaded_in_the_browser_becomes_an_analysed_ride(page, dashboard, tmp_path):
+    sign_in(page)
+    trc = _walking_triad_trc(tmp_path / "lab-walk.trc")
+    page.goto("/#/upload")
+    page.get_by_label("A motion-capture file (C3D, TRC)").check()
+    assert page.locator("#up-rig").is_hidden() and page.locator("#up-mocap").is_visible()
+    page.select_option("#up-gait", "walk")
+    page.locator("#up-mocap").set_input_files(str(trc))
+    # a label the file does not have: the server's reason, word for word, and nothing stored
+    page.fill("#up-markers", "A,B,D")
+    page.get_by_role("button", name="Upload and analyse").click()
+    error = page.locator("[data-upload-form] [data-form-error]")
+    error.wait_for(state="visible")
+    assert "no marker labelled 'D'" in error.inner_text() and "HTTP 422" in error.inner_text()
+    page.fill("#up-markers", "A,B,C")
+    page.get_by_role("button", name="Upload and analyse").click()
+    page.wait_for_url("**/#/rides/*")
+    ride_id = int(page.url.rsplit("/", 1)[1])
+    ride = api_get(dashboard, f"/api/rides/{ride_id}")
+    assert ride["status"] == "analysed" and ride["meta"]["source"]["file"] == "lab-walk.trc"
+    page.locator("[data-ride-meta]", has_text="from the motion-capture file lab-walk.trc").wait_for()
+    result = api_get(dashboard, f"/api/rides/{ride_id}/result")
+    assert result["indicators"]["stride_frequency_hz"] == pytest.approx(1 / 0.9, rel=0.02)
+    page.screenshot(path="/tmp/dash_mocap_ride.png", full_page=True)
+    page.set_viewport_size({"width": 390, "height": 844})
+    page.goto("/#/upload")
+    page.get_by_label("A motion-capture file (C3D, TRC)").check()
+    assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
+    page.screenshot(path="/tmp/dash_mocap_upload_390.png", full_page=True)
+    assert page.console.unexpected(422) == []

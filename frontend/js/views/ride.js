@@ -274,6 +274,8 @@ export async function mountRide(view, { id }) {
   const showMeta = () => view.querySelector("[data-ride-meta]").replaceChildren(
     `Ride #${ride.id} \u00b7 rider ${rider} \u00b7 ${ride.direction === "CW" ? "clockwise" : "counter-clockwise"}`,
     ride.ridden_on ? ` \u00b7 ${ride.ridden_on}` : "",
+    // a motion-capture file analysed as a ride says so: no cameras, no calibration behind it
+    ride.meta?.source?.kind === "mocap" ? ` \u00b7 from the motion-capture file ${ride.meta.source.file}` : "",
     " \u00b7 ", h("span", { class: `badge status-${ride.status}` }, ride.status));
   showMeta();
 

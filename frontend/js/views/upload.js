@@ -1,7 +1,8 @@
 // Upload a ride: a bundle zip, or the clips one by one (motion clips, and static, plumb and
-// calibration clips unless a calibrated rig is chosen). Progress over all bytes, resumable.
+// calibration clips unless a calibrated rig is chosen), or a motion-capture file (C3D, TRC) analysed
+// at once. Progress over all bytes, resumable.
 
-import { ApiError, patch, post } from "../api.js";
+import { ApiError, patch, post, request } from "../api.js";
 import { announce, formValues, h, page, showError } from "../dom.js";
 import { fillOptions } from "../options.js";
 import { navigate } from "../router.js";
@@ -58,6 +59,8 @@ export async function mountUpload(view) {
       const field = form.elements[name].closest(".field");
       field.hidden = source() === "bundle";
     }
+    // A motion-capture file has no cameras to calibrate.
+    form.elements.rig_id.closest(".field").hidden = source() === "mocap";
   }
   for (const radio of form.querySelectorAll("[data-upload-source]")) radio.addEventListener("change", showSource);
   showSource();
@@ -128,6 +131,25 @@ export async function mountUpload(view) {
     return ride.id;
   }
 
+  async function uploadMocap(values) {
+    const input = form.elements.mocap;
+    if (!input.files.length) throw new Error("Please choose the C3D or TRC file.");
+    const labels = (values.markers || "").split(",").map((l) => l.trim()).filter(Boolean);
+    if (labels.length !== 3) throw new Error("Please name three marker labels for M1, M2 and M3, separated by commas.");
+    const file = input.files[0];
+    label.textContent = `Uploading and analysing ${file.name}`;
+    progress.removeAttribute("value");  // indeterminate: the file goes in one request, analysed on arrival
+    const answer = await request("POST", "/api/mocap", {
+      body: file, signal: controller.signal, headers: { "Content-Type": "application/octet-stream" },
+      params: {
+        horse_id: values.horse_id, rider_id: values.rider_id, gait: values.gait, direction: values.direction,
+        ridden_on: values.ridden_on, markers: labels.join(","), point: values.point, up: values.up,
+        strides: values.strides, filename: file.name,
+      },
+    });
+    return answer?.ride?.id;
+  }
+
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
     showError(form, null);
@@ -135,10 +157,11 @@ export async function mountUpload(view) {
     controller = new AbortController();
     setBusy(true, "Starting\u2026");
     try {
-      const rideId = source() === "bundle" ? await uploadBundle(values) : await uploadClips(values);
+      const upload = { bundle: uploadBundle, clips: uploadClips, mocap: uploadMocap }[source()];
+      const rideId = await upload(values);
       pendingRideId = null;
       setBusy(false, "Upload complete.");
-      announce("Upload complete; the analysis has been queued.");
+      announce(source() === "mocap" ? "Upload complete; the ride is analysed." : "Upload complete; the analysis has been queued.");
       navigate(rideId ? `/rides/${rideId}` : "/jobs");
     } catch (error) {
       setBusy(false);
