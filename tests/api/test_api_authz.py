@@ -161,6 +161,10 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
         kwargs = {"params": {"horse_id": ids["horse_id"]}}
     if path == "/api/comparison":
         kwargs = {"params": {"gait": "walk", "horses": str(ids["horse_id"])}}
+    if path == "/api/mocap":
+        kwargs = {"params": {"horse_id": ids["horse_id"], "rider_id": ids["rider_id"], "markers": "A,B,C",
+                             "filename": "lab.trc"},
+                  "content": b"PathFileType\t4\t(X/Y/Z)\tlab.trc\n"}
     if path in ("/api/leaderboard",):
         kwargs = {"params": {"gait": "walk"}}
     if path in ("/api/rides", "/api/grades", "/api/jobs") and method == "GET":
@@ -202,6 +206,7 @@ REFERENCES = {
     ("POST", "/api/uploads"),
     ("POST", "/api/riders"),
     ("POST", "/api/rides/bundle"),
+    ("POST", "/api/mocap"),
     ("GET", "/api/comparison"),
 }
 
