@@ -13,6 +13,7 @@ import io
 import os
 import shutil
 import tempfile
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
@@ -209,13 +210,19 @@ class Storage:
         return target
 
     def check(self) -> str:
-        """Write, read and delete a probe file; returns a short description or raises OSError."""
+        """Write, read and delete a probe file; returns a short description or raises OSError.
+
+        Each call has its own probe file, so concurrent checks (50 health probes at once) never
+        read or delete one another's.
+        """
         self.root.mkdir(parents=True, exist_ok=True)
-        probe = self.root / f".health-{os.getpid()}"
-        probe.write_bytes(b"ok")
-        if probe.read_bytes() != b"ok":
-            raise OSError(f"storage {self.root} returned different bytes than written")
-        probe.unlink()
+        probe = self.root / f".health-{os.getpid()}-{uuid.uuid4().hex}"
+        try:
+            probe.write_bytes(b"ok")
+            if probe.read_bytes() != b"ok":
+                raise OSError(f"storage {self.root} returned different bytes than written")
+        finally:
+            probe.unlink(missing_ok=True)
         free_gib = shutil.disk_usage(self.root).free / 1024**3
         return f"{self.root} writable, {free_gib:.1f} GiB free"
 

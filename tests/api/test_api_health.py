@@ -71,3 +71,17 @@ def test_missing_services_skip_or_fail_by_ci(monkeypatch):
     monkeypatch.setattr(integration_services, "IN_CI", True)
     with pytest.raises(pytest.fail.Exception, match="CI=true requires it"):
         integration_services.require_service("Redis", "connection refused")
+
+
+def test_concurrent_health_probes_never_fail_on_a_healthy_service(tmp_path):
+    # Issue 25 item 7: 50 probes at once used to share one probe file (".health-<pid>"), so one
+    # probe deleted the file another was reading and /api/health answered a false 503.
+    from concurrent.futures import ThreadPoolExecutor
+
+    settings = settings_for(tmp_path)
+    with TestClient(create_app(settings)) as client, ThreadPoolExecutor(max_workers=16) as pool:
+        answers = list(pool.map(lambda _: client.get("/api/health"), range(50)))
+    failed = [(r.status_code, r.json()["parts"]) for r in answers if r.status_code != 200]
+    assert not failed, failed
+    leftovers = [p.name for p in (tmp_path / "storage").iterdir() if p.name.startswith(".health")]
+    assert not leftovers, leftovers
