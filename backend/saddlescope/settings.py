@@ -55,6 +55,10 @@ class Settings(BaseSettings):
     # Longest a whole job (all its stages, one Celery task) may run; the broker's visibility timeout
     # is set above it so a slow but healthy job is never handed to a second worker.
     job_time_limit_s: int = Field(default=6 * 3600, gt=0)
+    # Workers look this often for lost jobs: running ones whose worker died, queued ones a broker
+    # forgot (restarted with nothing persisted) and queued longer than `requeue_after_s`.
+    recovery_interval_s: float = Field(default=60.0, gt=0)
+    requeue_after_s: float = Field(default=120.0, gt=0)
     # None: migrate to the newest schema at start-up in embedded mode only (a deployment runs the
     # one-shot `migrate` service instead).
     auto_migrate: bool | None = None

@@ -5,12 +5,12 @@ from __future__ import annotations
 import datetime as dt
 
 import pytest
-from sqlalchemy import text
+from sqlalchemy import text, update
 from sqlalchemy.exc import IntegrityError, StatementError
 
 from saddlescope.db.enums import JobStatus
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.db.models import Job
+from saddlescope.db.models import Job, utcnow
 from saddlescope.db.repositories import (
     ClubRepository,
     GradeRepository,
@@ -171,10 +171,16 @@ def test_restarting_a_running_job_clears_the_earlier_attempt(sessions):
         job_id = jobs.add(kind="selftest").id
         jobs.mark_running(job_id, host="h1", code_version="v")
         jobs.set_timings(job_id, {"selftest": 1.0})
-        assert jobs.mark_running(job_id, host="h2", code_version="v")  # lost worker: delivered again
+        # Issue 25 item 6: a copy re-sent after the broker lost its data must not start the job
+        # again while its worker is alive (heartbeat fresh by the database's clock) ...
+        assert not jobs.mark_running(job_id, host="h2", code_version="v", stale_after_s=180)
+        assert jobs.mark_running(job_id, host="h1", code_version="v", stale_after_s=180)  # a retry, same worker
+        s.execute(update(Job).where(Job.id == job_id).values(updated_at=utcnow() - dt.timedelta(hours=1)))
+        # ... but one whose heartbeat stopped is taken over: lost worker, delivered again
+        assert jobs.mark_running(job_id, host="h2", code_version="v", stale_after_s=180)
     with sessions() as s:
         job = s.get(Job, job_id)
-        assert (job.status, job.timings, job.host, job.attempts) == ("running", {}, "h2", 2)
+        assert (job.status, job.timings, job.host, job.attempts) == ("running", {}, "h2", 3)
 
 
 def test_result_replaces_the_previous_one_and_fills_leaderboard_columns(sessions, ride_ids):

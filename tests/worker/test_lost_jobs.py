@@ -94,3 +94,77 @@ def test_a_running_job_writes_a_heartbeat(setup, monkeypatch):
         job_id = JobRepository(s).add(kind="selftest", payload={"steps": 1, "delay_s": 0.6}).id
     assert run_job(job_id, settings=settings) == "done"
     assert len(beats) >= 3 and set(beats) == {job_id}
+
+
+def _age(sessions, job_id, seconds):
+    """Make a job's last heartbeat `seconds` old (by the database's clock, which the test shares)."""
+    from sqlalchemy import update
+
+    from saddlescope.db.models import utcnow
+
+    with session_scope(sessions) as s:
+        s.execute(update(Job).where(Job.id == job_id).values(updated_at=utcnow() - dt.timedelta(seconds=seconds)))
+
+
+def test_heartbeats_are_judged_by_the_database_clock_not_this_hosts(setup, monkeypatch):
+    # Issue 25 item 6: a host whose clock runs an hour ahead took every live job for lost.
+    from saddlescope.db.repositories import jobs as jobs_module
+
+    _, sessions = setup
+    with session_scope(sessions) as s:
+        job_id = JobRepository(s).add(kind="selftest").id
+        JobRepository(s).mark_running(job_id, host="other-machine:1", code_version="t")
+    ahead = dt.datetime.now(dt.UTC) + dt.timedelta(hours=1)
+    monkeypatch.setattr(runner, "utcnow", lambda: ahead)
+    monkeypatch.setattr(jobs_module, "utcnow", lambda: ahead)
+    assert recover_lost_jobs(sessions, lambda _: None) == []
+    with session_scope(sessions) as s:
+        assert s.get(Job, job_id).status == "running"
+
+
+def test_a_job_that_keeps_losing_its_worker_is_failed_with_the_reason(setup):
+    _, sessions = setup
+    with session_scope(sessions) as s:
+        jobs = JobRepository(s)
+        job_id = jobs.add(kind="selftest").id
+        for _ in range(runner.MAX_ATTEMPTS):
+            jobs.mark_running(job_id, host="other-machine:1", code_version="t")
+    _age(sessions, job_id, runner.STALE_AFTER_S + 60)
+    submitted: list[int] = []
+    assert recover_lost_jobs(sessions, submitted.append) == [] == submitted
+    with session_scope(sessions) as s:
+        job = s.get(Job, job_id)
+        assert job.status == "failed" and "stopped (last heartbeat" in job.error
+        assert f"attempt {runner.MAX_ATTEMPTS} of {runner.MAX_ATTEMPTS}" in job.error
+
+
+def test_queued_jobs_the_broker_forgot_are_sent_again_once(setup):
+    from saddlescope.services.runner import resend_queued_jobs
+
+    settings, sessions = setup
+    with session_scope(sessions) as s:
+        jobs = JobRepository(s)
+        held, forgotten, fresh, running = (jobs.add(kind="selftest", payload={"steps": 1, "delay_s": 0.0}).id
+                                           for _ in range(4))
+        jobs.mark_running(running, host="other-machine:1", code_version="t")
+    for job_id in (held, forgotten, running):
+        _age(sessions, job_id, 600)
+    sent: list[int] = []
+    assert resend_queued_jobs(sessions, sent.append, older_than_s=60, known={held}) == [forgotten] == sent
+    assert resend_queued_jobs(sessions, sent.append, older_than_s=60, known={held}) == []  # its wait starts over
+    # Sent twice anyway (two sweeps, a duplicate message): the job runs once.
+    assert run_job(forgotten, settings=settings) == "done"
+    assert run_job(forgotten, settings=settings) == "done"
+    with session_scope(sessions) as s:
+        assert s.get(Job, forgotten).attempts == 1
+
+
+def test_a_copy_of_a_job_running_on_a_live_worker_does_not_run_it_again(setup):
+    settings, sessions = setup
+    with session_scope(sessions) as s:
+        job_id = JobRepository(s).add(kind="selftest", payload={"steps": 1, "delay_s": 0.0}).id
+        JobRepository(s).mark_running(job_id, host="other-machine:1", code_version="t")
+    assert run_job(job_id, settings=settings) == "running"
+    with session_scope(sessions) as s:
+        job = s.get(Job, job_id)
+        assert (job.status, job.host, job.attempts) == ("running", "other-machine:1", 1)

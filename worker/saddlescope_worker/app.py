@@ -20,10 +20,6 @@ from saddlescope.settings import ConfigurationError, Settings, get_settings
 
 log = logging.getLogger(__name__)
 
-# How often a worker looks for jobs whose worker died (the first look is at start-up).
-RECOVERY_INTERVAL_S = 60.0
-
-
 def create_celery(settings: Settings) -> Celery:
     """A Celery app configured from `settings` (the broker URL must be set)."""
     app = Celery("saddlescope", include=["saddlescope_worker.tasks"])
@@ -47,25 +43,37 @@ _stop_recovery = threading.Event()
 
 
 def recover_once(settings: Settings | None = None) -> list[int]:
-    """Queue again the running jobs whose worker is gone (`saddlescope.services.runner.recover_lost_jobs`)."""
+    """Send again the jobs a dead worker or a forgetful broker lost; returns their ids.
+
+    Running jobs whose worker is gone (`saddlescope.services.runner.recover_lost_jobs`), and jobs
+    queued longer than ``requeue_after_s`` that the broker does not hold (a Redis restarted with
+    nothing persisted; `resend_queued_jobs`).
+    """
     from saddlescope.db.session import session_factory_for
-    from saddlescope.services.runner import recover_lost_jobs
+    from saddlescope.services.queue import broker_job_ids
+    from saddlescope.services.runner import recover_lost_jobs, resend_queued_jobs
 
     settings = settings or get_settings()
+    sessions = session_factory_for(settings.database_url)
 
     def submit(job_id: int) -> None:
         app.send_task(RUN_JOB_TASK, args=[job_id], queue=QUEUE_NAME)
 
-    return recover_lost_jobs(session_factory_for(settings.database_url), submit)
+    recovered = recover_lost_jobs(sessions, submit)
+    return recovered + resend_queued_jobs(sessions, submit, older_than_s=settings.requeue_after_s,
+                                          known=broker_job_ids(app))
 
 
 def _recovery_loop() -> None:
+    interval_s = get_settings().recovery_interval_s
     while True:
         try:
             recover_once()
         except SQLAlchemyError as exc:  # the database is down: try again at the next round
             log.warning("looking for lost jobs failed: %s", exc)
-        if _stop_recovery.wait(RECOVERY_INTERVAL_S):
+        except Exception:  # the broker is down or restarting: the loop must outlive it
+            log.exception("looking for lost jobs failed")
+        if _stop_recovery.wait(interval_s):
             return
 
 

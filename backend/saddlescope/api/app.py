@@ -42,7 +42,10 @@ def _resume_unfinished(app: FastAPI) -> None:
     """Embedded mode: jobs a stopped server left queued or running are run again (stages are idempotent)."""
     try:
         with session_scope(app.state.sessions) as session:
-            job_ids = [job.id for job in JobRepository(session).unfinished()]
+            jobs = JobRepository(session)
+            job_ids = [job.id for job in jobs.unfinished()]
+            for job in jobs.running():  # its runner was the stopped server's pool: back in the queue
+                jobs.requeue_lost(job.id, host=job.host)
     except SQLAlchemyError as exc:
         # Start anyway: /api/health then says what is wrong with the database.
         log.warning("cannot look for unfinished jobs: %s", exc)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import threading
+import time
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Protocol
@@ -27,6 +28,9 @@ log = logging.getLogger(__name__)
 
 RUN_JOB_TASK = "saddlescope.run_job"
 QUEUE_NAME = "saddlescope"
+# GET /api/jobs pings the workers at most this often, waiting this long for their answers.
+PING_CACHE_S = 10.0
+PING_TIMEOUT_S = 0.5
 
 
 class QueueUnavailable(SaddleScopeError):
@@ -195,6 +199,9 @@ class CeleryQueue:
         self.app.conf.broker_connection_timeout = 5
         self.app.conf.task_publish_retry_policy = {"max_retries": 2, "interval_start": 0.2,
                                                    "interval_step": 0.5, "interval_max": 1.0}
+        self._ping_lock = threading.Lock()
+        self._ping_at = -1e9
+        self._alive: int | None = None
 
     def submit(self, job_id: int) -> None:
         from kombu.exceptions import OperationalError
@@ -216,8 +223,57 @@ class CeleryQueue:
             return False, f"broker unreachable at {_redact(self.settings.broker_url)}: {exc}"
         return True, f"celery over {transport} at {_redact(self.settings.broker_url)}"
 
+    def workers_alive(self) -> int | None:
+        """How many workers answer a ping (None: the broker cannot be asked); cached a few seconds.
+
+        A worker running a job on the solo pool cannot answer; callers also look at the jobs'
+        heartbeats in the database before saying that no worker is alive.
+        """
+        with self._ping_lock:
+            now = time.monotonic()
+            if now - self._ping_at > PING_CACHE_S:
+                try:
+                    self._alive = len(self.app.control.ping(timeout=PING_TIMEOUT_S) or [])
+                except Exception as exc:  # noqa: BLE001 -- a broker down: not known, not "none"
+                    log.warning("cannot ping the workers: %s", exc)
+                    self._alive = None
+                self._ping_at = now
+            return self._alive
+
     def close(self) -> None:
         self.app.close()
+
+
+def broker_job_ids(app) -> set[int] | None:
+    """Ids of the jobs a Redis broker holds (waiting in the queue or delivered, not acknowledged).
+
+    None when that cannot be told (another transport, an unreadable message): the caller then
+    sends again every job queued for long, which is safe since a job starts once.
+    """
+    import base64
+    import json
+
+    held: set[int] = set()
+    try:
+        with app.connection_for_read() as conn:
+            if conn.transport.driver_type != "redis":
+                return None
+            client = conn.default_channel.client
+            raw = [m for key in client.scan_iter(match=f"{QUEUE_NAME}*") if client.type(key) == b"list"
+                   for m in client.lrange(key, 0, -1)]
+            raw += [json.dumps(json.loads(v)[0]).encode() for v in client.hvals("unacked")]
+        for message in raw:
+            envelope = json.loads(message)
+            if envelope.get("headers", {}).get("task") != RUN_JOB_TASK:
+                continue
+            body = envelope["body"]
+            if envelope.get("properties", {}).get("body_encoding") == "base64":
+                body = base64.b64decode(body)
+            held.add(int(json.loads(body)[0][0]))
+    except Exception as exc:  # noqa: BLE001 -- any doubt means "unknown", never "not held"
+        log.warning("cannot list the jobs the broker holds: %s", exc)
+        return None
+    return held
 
 
 def _redact(url: str | None) -> str:

@@ -30,8 +30,8 @@ from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage
 
 __all__ = [
-    "HEARTBEAT_S", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs", "run_job",
-    "worker_host",
+    "HEARTBEAT_S", "MAX_ATTEMPTS", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs",
+    "resend_queued_jobs", "run_job", "worker_gone", "worker_host",
 ]
 
 log = logging.getLogger(__name__)
@@ -42,6 +42,8 @@ PROGRESS_INTERVAL_S = 0.25
 HEARTBEAT_S = 10.0
 # ... so a job silent for this long has lost its worker and may be handed to another one.
 STALE_AFTER_S = 180.0
+# A job whose worker was lost this many times is failed with the reason instead of queued again.
+MAX_ATTEMPTS = 3
 
 
 def worker_host() -> str:
@@ -124,40 +126,83 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
-def job_is_lost(host: str | None, updated_at: dt.datetime | None, *, now: dt.datetime | None = None,
-                stale_after_s: float = STALE_AFTER_S) -> bool:
-    """True when a running job's worker is gone: a dead process on this machine, or no heartbeat for long."""
-    now = now or utcnow()
+def worker_gone(host: str | None, age_s: float | None, *, stale_after_s: float = STALE_AFTER_S) -> bool:
+    """True when a running job's worker is gone: a dead process on this machine, or no heartbeat for long.
+
+    `age_s` is the time since the job's last heartbeat, measured by the database's clock.
+    """
     if host and ":" in host:
         name, _, pid = host.rpartition(":")
         if name == socket.gethostname() and pid.isdigit() and int(pid) != os.getpid():
             if not _process_alive(int(pid)):
                 return True
-    return updated_at is None or (now - updated_at).total_seconds() > stale_after_s
+    return age_s is None or age_s > stale_after_s
 
 
-def recover_lost_jobs(sessions: sessionmaker[Session], submit, *,
-                      stale_after_s: float = STALE_AFTER_S) -> list[int]:
+def job_is_lost(host: str | None, updated_at: dt.datetime | None, *, now: dt.datetime | None = None,
+                stale_after_s: float = STALE_AFTER_S) -> bool:
+    """`worker_gone` from a heartbeat time and a clock (`now`; default this host's)."""
+    now = now or utcnow()
+    age_s = None if updated_at is None else (now - updated_at).total_seconds()
+    return worker_gone(host, age_s, stale_after_s=stale_after_s)
+
+
+def recover_lost_jobs(sessions: sessionmaker[Session], submit, *, stale_after_s: float = STALE_AFTER_S,
+                      max_attempts: int = MAX_ATTEMPTS) -> list[int]:
     """Queue again every running job whose worker died (killed, out of memory, machine lost).
 
     A worker calls this when it starts (and now and then), so a job interrupted by a killed worker
-    completes on the next one; its stages are idempotent, so re-running from the first is safe.
-    `submit(job_id)` hands a job to the queue. Returns the ids queued again.
+    completes on the next one; its stages are idempotent, so re-running from the first is safe. A
+    job that lost its worker `max_attempts` times is failed with the reason instead. Heartbeats
+    are judged by the database's clock. `submit(job_id)` hands a job to the queue. Returns the ids
+    queued again.
     """
     with session_scope(sessions) as session:
-        candidates = [(job.id, job.ride_id, job.host, job.updated_at) for job in JobRepository(session).running()]
+        candidates = JobRepository(session).running_with_age()
     recovered = []
-    for job_id, ride_id, host, updated_at in candidates:
-        if not job_is_lost(host, updated_at, stale_after_s=stale_after_s):
+    for job_id, ride_id, host, age_s, attempts in candidates:
+        if not worker_gone(host, age_s, stale_after_s=stale_after_s):
             continue
+        silent = "never" if age_s is None else f"{age_s:.0f} s ago"
         with session_scope(sessions) as session:
-            if not JobRepository(session).requeue_lost(job_id, host=host):
+            jobs = JobRepository(session)
+            if attempts >= max_attempts:
+                jobs.fail_lost(job_id, host=host, error=(
+                    f"its worker {host} stopped (last heartbeat {silent}) on attempt {attempts} of "
+                    f"{max_attempts}; not retried again"))
+                refresh_ride_status(session, ride_id)
+                log.error("job %s: its worker %s is gone, attempt %s: failed", job_id, host, attempts)
+                continue
+            if not jobs.requeue_lost(job_id, host=host):
                 continue  # finished or taken over meanwhile
             refresh_ride_status(session, ride_id)
-        log.warning("job %s: its worker %s is gone; queued again", job_id, host)
+        log.warning("job %s: its worker %s is gone (last heartbeat %s); queued again", job_id, host, silent)
         submit(job_id)
         recovered.append(job_id)
     return recovered
+
+
+def resend_queued_jobs(sessions: sessionmaker[Session], submit, *, older_than_s: float,
+                       known: set[int] | None = None) -> list[int]:
+    """Hand to the broker again the jobs queued longer than `older_than_s` that it does not hold.
+
+    A broker that lost its data (Redis restarted with nothing persisted) forgets queued jobs; the
+    database still has them. `known`: the job ids the broker holds (None: unknown, send them all,
+    which is safe: `run_job` starts a job once). Returns the ids sent again.
+    """
+    with session_scope(sessions) as session:
+        waiting = JobRepository(session).queued_longer_than(older_than_s)
+    resent = []
+    for job_id in waiting:
+        if known is not None and job_id in known:
+            continue
+        with session_scope(sessions) as session:
+            if not JobRepository(session).mark_resent(job_id):
+                continue  # started, finished or cancelled meanwhile
+        log.warning("job %s: queued for over %.0f s and not held by the broker; sent again", job_id, older_than_s)
+        submit(job_id)
+        resent.append(job_id)
+    return resent
 
 
 def _refresh_ride_status(sessions: sessionmaker[Session], ride_id: int | None) -> None:
@@ -184,13 +229,17 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
             return "missing"
         kind: JobKind | None = JOB_KINDS.get(job.kind)
         if kind is None:
-            if jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version):
+            if jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version,
+                                 stale_after_s=STALE_AFTER_S):
                 known = ", ".join(sorted(JOB_KINDS))
                 jobs.finish(job_id, JobStatus.FAILED,
                             error=f"unknown job kind {job.kind!r} (this worker knows {known})")
             return jobs.status_of(job_id) or "missing"
-        if not jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version):
-            return job.status  # finished already (or cancelled before it started)
+        if not jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version,
+                                 stale_after_s=STALE_AFTER_S):
+            # Finished already, cancelled before it started, or running on a live worker (a copy
+            # re-sent after the broker lost its data): never run twice at once.
+            return jobs.status_of(job_id) or job.status
         club_id, ride_id, rig_id, payload = job.club_id, job.ride_id, job.rig_id, dict(job.payload or {})
 
     _refresh_ride_status(sessions, ride_id)

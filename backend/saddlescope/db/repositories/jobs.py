@@ -8,15 +8,58 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from sqlalchemy import select, update
+from sqlalchemy import DateTime, Float, func, or_, select, update
+from sqlalchemy.ext.compiler import compiles
+from sqlalchemy.sql.expression import ColumnElement, FunctionElement
 
 from saddlescope.db.enums import JobStatus, UploadStatus
 from saddlescope.db.models import Job, Upload, utcnow
 from saddlescope.db.repositories.base import Page, Repository
 
-__all__ = ["JobRepository", "UploadRepository"]
+__all__ = ["JobRepository", "UploadRepository", "db_utcnow", "seconds_since"]
 
 _ACTIVE = (JobStatus.QUEUED.value, JobStatus.RUNNING.value)
+
+
+class db_utcnow(FunctionElement):  # noqa: N801 (a SQL function, named like one)
+    """The DATABASE's clock, so heartbeats are judged by one clock, not each host's."""
+
+    type = DateTime()
+    inherit_cache = True
+
+
+@compiles(db_utcnow, "postgresql")
+def _db_utcnow_pg(element, compiler, **kw) -> str:
+    return "statement_timestamp()"  # the columns are TIMESTAMP WITH TIME ZONE
+
+
+@compiles(db_utcnow)
+def _db_utcnow_sqlite(element, compiler, **kw) -> str:
+    # The format SQLAlchemy stores SQLite DateTimes in (microseconds, 6 digits).
+    return "(strftime('%Y-%m-%d %H:%M:%f', 'now') || '000')"
+
+
+class seconds_since(FunctionElement):  # noqa: N801
+    """Seconds from a timestamp column to the database's clock now."""
+
+    type = Float()
+    inherit_cache = True
+
+
+@compiles(seconds_since, "postgresql")
+def _seconds_since_pg(element, compiler, **kw) -> str:
+    column = compiler.process(element.clauses, **kw)
+    return f"EXTRACT(EPOCH FROM (statement_timestamp() - {column}))"
+
+
+@compiles(seconds_since)
+def _seconds_since_sqlite(element, compiler, **kw) -> str:
+    column = compiler.process(element.clauses, **kw)
+    return f"((julianday('now') - julianday({column})) * 86400.0)"
+
+
+def _heartbeat_age() -> ColumnElement[float]:
+    return seconds_since(func.coalesce(Job.updated_at, Job.created_at))
 
 
 class JobRepository(Repository):
@@ -30,7 +73,8 @@ class JobRepository(Repository):
             rig_id: int | None = None, payload: dict[str, Any] | None = None) -> Job:
         """Add a queued job of `kind` for a ride or a rig (or neither: a system job)."""
         return self._add(Job(kind=kind, club_id=self._club_for_new(club_id), ride_id=ride_id, rig_id=rig_id,
-                             payload=payload or {}, status=JobStatus.QUEUED.value, progress=0.0, timings={}))
+                             payload=payload or {}, status=JobStatus.QUEUED.value, progress=0.0, timings={},
+                             updated_at=db_utcnow()))
 
     def list_page(self, *, ride_id: int | None = None, rig_id: int | None = None, status: str | None = None,
                   kind: str | None = None, sort: str | None = None, limit: int = 50, offset: int = 0) -> Page:
@@ -49,21 +93,29 @@ class JobRepository(Repository):
         return self.session.scalar(select(Job.status).where(Job.id == job_id))
 
     def _set(self, job_id: int, **values: Any) -> None:
-        values.setdefault("updated_at", utcnow())
+        values.setdefault("updated_at", db_utcnow())
         self.session.execute(update(Job).where(Job.id == job_id).values(**values))
 
-    def mark_running(self, job_id: int, *, host: str, code_version: str) -> bool:
-        """Start (or restart, after a lost worker) a queued or running job.
+    def mark_running(self, job_id: int, *, host: str, code_version: str,
+                     stale_after_s: float | None = None) -> bool:
+        """Start a queued job (or restart a running one whose worker is gone).
 
         Clears the outcome of an earlier attempt. Returns False, changing nothing, when the job is
-        already finished (done, failed or cancelled), so a redelivered task does no work twice.
+        already finished (done, failed or cancelled), so a redelivered task does no work twice. With
+        `stale_after_s`, a running job is taken only from the same `host` (a retry) or when its
+        heartbeat is older than that by the database's clock: a job re-sent after a broker lost its
+        data never runs twice at once.
         """
-        now = utcnow()
+        active = Job.status.in_(_ACTIVE)
+        if stale_after_s is not None:
+            active = or_(Job.status == JobStatus.QUEUED.value,
+                         (Job.status == JobStatus.RUNNING.value)
+                         & or_(Job.host == host, Job.updated_at.is_(None), _heartbeat_age() > stale_after_s))
         result = self.session.execute(
-            update(Job).where(Job.id == job_id, Job.status.in_(_ACTIVE)).values(
-                status=JobStatus.RUNNING.value, started_at=now, finished_at=None, error=None, progress=0.0,
-                stage=None, timings={}, host=host, code_version=code_version, attempts=Job.attempts + 1,
-                updated_at=now))
+            update(Job).where(Job.id == job_id, active).values(
+                status=JobStatus.RUNNING.value, started_at=db_utcnow(), finished_at=None, error=None,
+                progress=0.0, stage=None, timings={}, host=host, code_version=code_version,
+                attempts=Job.attempts + 1, updated_at=db_utcnow()))
         return result.rowcount == 1
 
     def set_progress(self, job_id: int, progress: float, stage: str | None) -> None:
@@ -130,7 +182,7 @@ class JobRepository(Repository):
     def touch(self, job_id: int) -> None:
         """A running job's heartbeat: its worker is alive."""
         self.session.execute(update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value)
-                             .values(updated_at=utcnow()))
+                             .values(updated_at=db_utcnow()))
 
     def requeue_lost(self, job_id: int, *, host: str | None) -> bool:
         """Put a running job whose worker is gone back in the queue (only if still held by `host`)."""
@@ -138,8 +190,39 @@ class JobRepository(Repository):
         if host is not None:
             stmt = stmt.where(Job.host == host)
         result = self.session.execute(
-            stmt.values(status=JobStatus.QUEUED.value, stage=None, updated_at=utcnow()))
+            stmt.values(status=JobStatus.QUEUED.value, stage=None, updated_at=db_utcnow()))
         return result.rowcount == 1
+
+    def fail_lost(self, job_id: int, *, host: str | None, error: str) -> bool:
+        """Fail a running job whose worker is gone for good (only if still held by `host`)."""
+        stmt = update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value)
+        if host is not None:
+            stmt = stmt.where(Job.host == host)
+        result = self.session.execute(stmt.values(status=JobStatus.FAILED.value, error=error,
+                                                  finished_at=utcnow(), updated_at=db_utcnow()))
+        return result.rowcount == 1
+
+    def running_with_age(self) -> list[tuple[int, int | None, str | None, float | None, int]]:
+        """(id, ride_id, host, seconds since its heartbeat by the database's clock, attempts) of running jobs."""
+        stmt = self._scoped(select(Job.id, Job.ride_id, Job.host, _heartbeat_age(), Job.attempts)
+                            .where(Job.status == JobStatus.RUNNING.value)).order_by(Job.id)
+        return [tuple(row) for row in self.session.execute(stmt)]
+
+    def queued_longer_than(self, seconds: float) -> list[int]:
+        """Ids of the jobs queued (or last re-sent) more than `seconds` ago by the database's clock."""
+        stmt = self._scoped(select(Job.id).where(Job.status == JobStatus.QUEUED.value,
+                                                 _heartbeat_age() > seconds)).order_by(Job.id)
+        return list(self.session.scalars(stmt))
+
+    def mark_resent(self, job_id: int) -> bool:
+        """Note that a queued job was handed to the broker again (its wait starts over)."""
+        result = self.session.execute(update(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
+                                      .values(updated_at=db_utcnow()))
+        return result.rowcount == 1
+
+    def seconds_since_heartbeat(self, job_id: int) -> float | None:
+        """Seconds since the job's last heartbeat (or progress, or queuing), by the database's clock."""
+        return self.session.scalar(select(_heartbeat_age()).where(Job.id == job_id))
 
     def running(self) -> Sequence[Job]:
         """Return the running jobs (of this club)."""
