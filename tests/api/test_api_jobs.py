@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import time
 
 import integration_services
@@ -177,3 +178,51 @@ def test_an_embedded_server_resumes_jobs_a_stopped_server_left_unfinished(tmp_pa
             time.sleep(0.1)
     assert first.status == second.status == "done"
     assert (first.attempts, second.attempts) == (1, 2) and second.host != "old-server:1"
+
+
+class _NoWorkers:
+    """A Celery-like queue that takes jobs but has no worker alive (pings answered by nobody)."""
+
+    mode = "celery"
+
+    def submit(self, job_id: int) -> None:
+        pass
+
+    def health(self) -> tuple[bool, str]:
+        return True, "test: no workers"
+
+    def workers_alive(self) -> int:
+        return 0
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_job_says_it_waits_for_a_worker_when_none_is_alive(tmp_path):
+    # Issue 25 item 6: with no worker alive a job said "queued" (or "running") forever.
+    from sqlalchemy import update
+
+    from saddlescope.db.models import Job
+    from saddlescope.db.models import utcnow as now
+    from saddlescope.services.runner import STALE_AFTER_S
+
+    settings = load_settings(
+        database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "s"))
+    with TestClient(create_app(settings, queue=_NoWorkers())) as client:
+        api, _ = new_club(client)
+        queued = api.ok("POST", "/jobs", 201, json={"kind": "selftest"})["id"]
+        stopped = api.ok("POST", "/jobs", 201, json={"kind": "selftest"})["id"]
+        view = api.ok("GET", f"/jobs/{queued}")
+        assert view["status"] == "queued" and view["note"].startswith("waiting for a worker: no worker")
+        sessions = session_factory_for(settings.database_url)
+        with session_scope(sessions) as s:
+            JobRepository(s).mark_running(stopped, host="gone-machine:7", code_version="t")
+        # a worker beating on a job is alive even when it cannot answer a ping (solo pool)
+        assert api.ok("GET", f"/jobs/{queued}")["note"] is None
+        assert api.ok("GET", f"/jobs/{stopped}")["note"] is None
+        with session_scope(sessions) as s:
+            s.execute(update(Job).where(Job.id == stopped).values(
+                updated_at=now() - dt.timedelta(seconds=STALE_AFTER_S + 30)))
+        view = api.ok("GET", f"/jobs/{stopped}")
+        assert view["status"] == "running" and "gone-machine:7 sent no heartbeat for" in view["note"]
+        assert api.ok("GET", f"/jobs/{queued}")["note"].startswith("waiting for a worker")

@@ -529,6 +529,9 @@ class JobOut(BaseModel):
     created_at: dt.datetime
     started_at: dt.datetime | None
     finished_at: dt.datetime | None
+    note: str | None = Field(default=None, description=(
+        "what an unfinished job waits for, e.g. 'waiting for a worker: ...' when no worker is alive "
+        "or its worker stopped sending heartbeats"))
 
 
 class JobKindOut(BaseModel):

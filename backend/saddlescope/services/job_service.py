@@ -22,7 +22,7 @@ from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stages import job_kind
 
 __all__ = [
-    "JobStateError", "cancel_job", "create_job", "get_job", "job_as_dict", "retry_job", "submit_job",
+    "JobStateError", "cancel_job", "create_job", "get_job", "job_as_dict", "job_note", "retry_job", "submit_job",
     "wait_for_job",
 ]
 
@@ -81,8 +81,34 @@ def job_as_dict(job: Job) -> dict[str, Any]:
         "rig_id": job.rig_id,
         "payload": dict(job.payload or {}), "attempts": job.attempts, "code_version": job.code_version,
         "host": job.host, "created_at": job.created_at, "started_at": job.started_at,
-        "finished_at": job.finished_at,
+        "finished_at": job.finished_at, "note": None,
     }
+
+
+def job_note(session: Session, job: Job, queue: JobQueue) -> str | None:
+    """What an unfinished job is waiting for, when it is not simply progressing (None otherwise).
+
+    A running job whose heartbeat (by the database's clock) is older than the stale limit has lost
+    its worker; a queued job with no worker alive (no answer to a ping and no running job beating)
+    waits for one.
+    """
+    from saddlescope.services.runner import STALE_AFTER_S
+
+    jobs = JobRepository(session)
+    if job.status == JobStatus.RUNNING.value:
+        age_s = jobs.seconds_since_heartbeat(job.id)
+        if age_s is not None and age_s > STALE_AFTER_S:
+            return (f"waiting for a worker: its worker {job.host} sent no heartbeat for {age_s:.0f} s; "
+                    "it will be run again or failed with the reason")
+        return None
+    if job.status != JobStatus.QUEUED.value:
+        return None
+    workers_alive = getattr(queue, "workers_alive", None)
+    if workers_alive is None or workers_alive() != 0:
+        return None
+    if any(age is not None and age <= STALE_AFTER_S for *_, age, _ in jobs.running_with_age()):
+        return None  # a worker busy with another job (it cannot answer a ping meanwhile)
+    return "waiting for a worker: no worker is running; the job starts when one does"
 
 
 def get_job(session: Session, job_id: int, *, club_id: int | None = None) -> Job:

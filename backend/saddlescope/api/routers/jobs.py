@@ -12,7 +12,7 @@ from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, page_
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
 from saddlescope.db.repositories import Job
 from saddlescope.db.session import session_scope
-from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, retry_job, submit_job
+from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, job_note, retry_job, submit_job
 from saddlescope.services.stages import JOB_KINDS
 
 __all__ = ["JobStatusName", "job_out", "router"]
@@ -82,9 +82,13 @@ def kinds(club: ClubDep) -> list[JobKindOut]:
 
 
 @router.get("/{job_id}", response_model=JobOut, responses=ERRORS)
-def read(job_id: Id, club: ClubDep) -> JobOut:
-    """Status, stage, progress (0-1), per-stage timings and error of a job."""
-    return job_out(get_job(club.session, job_id, club_id=club.club_id))
+def read(job_id: Id, club: ClubDep, queue: QueueDep) -> JobOut:
+    """Status, stage, progress (0-1), per-stage timings and error of a job.
+
+    `note` says "waiting for a worker: ..." when no worker is alive or the job's worker stopped.
+    """
+    job = get_job(club.session, job_id, club_id=club.club_id)
+    return JobOut(**{**job_as_dict(job), "note": job_note(club.session, job, queue)})
 
 
 @router.post("/{job_id}/cancel", response_model=JobOut, responses=ERRORS)
