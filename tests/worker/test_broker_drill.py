@@ -110,3 +110,25 @@ def test_a_redis_restarted_empty_loses_no_job(pg_database_url, tmp_path):
     assert all(failed.values()), failed  # failed, always with a reason
     assert list(failed) == [job_ids[-1]] and "failed on request" in failed[job_ids[-1]]
     assert counts["done"] == JOBS - 1
+
+
+def test_the_sweep_sees_which_jobs_a_redis_broker_holds(tmp_path):
+    from saddlescope.services.queue import CeleryQueue, broker_job_ids
+
+    port = _free_port()
+    redis = _start_redis(port, tmp_path / "redis.log")
+    try:
+        settings = load_settings(database_url=f"sqlite:///{tmp_path / 'db.sqlite'}",
+                                 broker_url=f"redis://127.0.0.1:{port}/0", storage_dir=str(tmp_path / "s"),
+                                 secret_key=integration_services.TEST_SECRET)
+        queue = CeleryQueue(settings)
+        try:
+            assert broker_job_ids(queue.app) == set()
+            queue.submit(41)
+            queue.submit(42)
+            assert broker_job_ids(queue.app) == {41, 42}
+        finally:
+            queue.close()
+    finally:
+        stop_process(redis)
+    assert broker_job_ids(queue.app) is None  # broker gone: unknown, never "holds nothing"
