@@ -28,7 +28,7 @@ from saddlescope.services.accounts import AuthError, Forbidden
 from saddlescope.services.job_service import JobStateError
 from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.uploads import IncompleteUpload
-from saddlescope.settings import Settings, get_settings
+from saddlescope.settings import Settings, get_settings, with_embedded_secret
 from saddlescope.storage import Storage, TooLarge
 
 __all__ = ["ERROR_STATUS", "FRONTEND_DIR", "create_app"]
@@ -61,7 +61,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     whether anyone may create a club (POST /api/clubs); by default open in embedded mode and for
     the first club of a deployment (``settings.open_registration`` where the settings have it).
     """
-    settings = settings or get_settings()
+    settings = with_embedded_secret(settings or get_settings())
     if open_registration is None:
         open_registration = getattr(settings, "open_registration", None)
 

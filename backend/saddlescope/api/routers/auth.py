@@ -119,6 +119,18 @@ async def _credentials(request: Request) -> tuple[str, str]:
     return username, password
 
 
+def cookie_secure(request: Request, settings) -> bool:
+    """The cookies' Secure flag: the setting, or (auto) whether the request came over https.
+
+    The scheme is the one uvicorn settled after the forwarded headers of the trusted proxies
+    (``SADDLESCOPE_FORWARDED_ALLOW_IPS``), so a proxy on another host works too.
+    """
+    choice = getattr(settings, "cookie_secure", "auto")
+    if choice != "auto":
+        return choice == "true"
+    return request.url.scheme == "https"
+
+
 @router.post(
     "/auth/login",
     response_model=TokenOut,
@@ -143,7 +155,7 @@ async def login(
             )
 
     out = await run_in_threadpool(check)  # Argon2 takes tens of ms of CPU: off the event loop
-    secure = request.url.scheme == "https"
+    secure = cookie_secure(request, settings)
     response.set_cookie(
         SESSION_COOKIE,
         out.access_token,
