@@ -26,6 +26,7 @@ from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFo
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services.accounts import AuthError, Forbidden
 from saddlescope.services.job_service import JobStateError
+from saddlescope.services.login_guard import HashPool, HashPoolBusy, LoginThrottled, make_login_guard
 from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.uploads import IncompleteUpload
 from saddlescope.settings import Settings, get_settings, with_embedded_secret
@@ -76,6 +77,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
             yield
         finally:
             app.state.queue.close()
+            app.state.hash_pool.close()
             app.state.engine.dispose()
 
     app = FastAPI(title="SaddleScope", version=__version__, lifespan=lifespan, docs_url="/docs",
@@ -86,6 +88,8 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     app.state.sessions = make_session_factory(app.state.engine)
     app.state.storage = Storage(settings.storage_dir)
     app.state.open_registration = open_registration
+    app.state.login_guard = make_login_guard(settings)
+    app.state.hash_pool = HashPool(settings.hash_workers, settings.hash_queue)
     # Set here too so routes work when the lifespan is not run; the lifespan replaces it.
     app.state.queue = queue
 
@@ -128,6 +132,8 @@ ERROR_STATUS: dict[type[Exception], int] = {
     IncompleteUpload: status.HTTP_409_CONFLICT,
     JobStateError: status.HTTP_409_CONFLICT,
     QueueUnavailable: status.HTTP_503_SERVICE_UNAVAILABLE,
+    LoginThrottled: status.HTTP_429_TOO_MANY_REQUESTS,
+    HashPoolBusy: status.HTTP_503_SERVICE_UNAVAILABLE,
     SaddleScopeError: status.HTTP_422_UNPROCESSABLE_CONTENT,  # bad input: a clip, a bundle, a value
 }
 
@@ -145,6 +151,8 @@ def _add_error_handlers(app: FastAPI) -> None:
     def respond(code: int):
         async def handler(request: Request, exc: Exception) -> JSONResponse:
             headers = {"WWW-Authenticate": "Bearer"} if code == status.HTTP_401_UNAUTHORIZED else None
+            if getattr(exc, "retry_after_s", None):
+                headers = {"Retry-After": str(exc.retry_after_s)}
             return JSONResponse({"detail": str(exc)}, status_code=code, headers=headers)
 
         return handler

@@ -34,6 +34,7 @@ from saddlescope.core.errors import InputError
 from saddlescope.db.repositories import ClubRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.accounts import (
+    AuthError,
     Forbidden,
     add_user,
     authenticate,
@@ -135,7 +136,8 @@ def cookie_secure(request: Request, settings) -> bool:
     "/auth/login",
     response_model=TokenOut,
     openapi_extra=LOGIN_OPENAPI,
-    responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}},
+    responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}, 429: {"model": ErrorOut},
+               503: {"model": ErrorOut}},
 )
 async def login(
     request: Request, response: Response, settings: SettingsDep, sessions: SessionFactoryDep
@@ -145,6 +147,10 @@ async def login(
     Returns a bearer token and sets the session cookie (HttpOnly) and the CSRF cookie for the browser.
     """
     email, password = await _credentials(request)
+    guard = request.app.state.login_guard
+    address = request.client.host if request.client else ""
+    # Refused before the password is even looked at: the right password is no help while locked out.
+    await run_in_threadpool(guard.check, email, address)
 
     def check() -> TokenOut:
         with session_scope(sessions) as session:
@@ -154,7 +160,12 @@ async def login(
                 access_token=token, expires_in=lifetime_s, csrf_token=csrf, user=UserOut.model_validate(user)
             )
 
-    out = await run_in_threadpool(check)  # Argon2 takes tens of ms of CPU: off the event loop
+    try:
+        out = await request.app.state.hash_pool.run(check)  # Argon2: its own bounded pool
+    except AuthError:
+        await run_in_threadpool(guard.failed, email, address)
+        raise
+    await run_in_threadpool(guard.succeeded, email, address)
     secure = cookie_secure(request, settings)
     response.set_cookie(
         SESSION_COOKIE,
