@@ -8,6 +8,7 @@ from fastapi import APIRouter, Request, Response, status
 from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 
+from saddlescope.api.account_schemas import PasswordChange, PasswordResetIn, PasswordResetOut
 from saddlescope.api.deps import (
     CSRF_COOKIE,
     SESSION_COOKIE,
@@ -38,8 +39,12 @@ from saddlescope.services.accounts import (
     Forbidden,
     add_user,
     authenticate,
+    change_password,
+    consume_password_reset,
     create_club,
+    end_sessions,
     issue_token,
+    start_password_reset,
     update_user,
 )
 
@@ -195,6 +200,51 @@ def logout(response: Response) -> Response:
     response.delete_cookie(CSRF_COOKIE, path="/")
     response.status_code = status.HTTP_204_NO_CONTENT
     return response
+
+
+def _forget_browser(response: Response) -> Response:
+    response.delete_cookie(SESSION_COOKIE, path="/")
+    response.delete_cookie(CSRF_COOKIE, path="/")
+    response.status_code = status.HTTP_204_NO_CONTENT
+    return response
+
+
+@router.post("/auth/logout-everywhere", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
+def logout_everywhere(club: ClubDep, response: Response) -> Response:
+    """End every session of the signed-in user (all browsers and bearer tokens); sign in again after."""
+    end_sessions(club.users.get(club.principal.user_id))
+    return _forget_browser(response)
+
+
+@router.post("/auth/password", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
+def change_own_password(body: PasswordChange, club: ClubDep, response: Response) -> Response:
+    """Change your own password (the current one is needed); every session ends, sign in again."""
+    change_password(club.session, user_id=club.principal.user_id, current_password=body.current_password,
+                    new_password=body.new_password)
+    return _forget_browser(response)
+
+
+@router.post("/users/{user_id}/password-reset", status_code=status.HTTP_201_CREATED,
+             response_model=PasswordResetOut, responses=ERRORS)
+def reset_password(user_id: Id, club: AdminClubDep) -> PasswordResetOut:
+    """Reset a user's password (admins only): their sessions end and their old password stops working.
+
+    The answer holds a one-time token, shown only now, for the admin to hand to the user (no e-mail is
+    sent); it sets a new password through ``POST /api/auth/password-reset`` within 24 hours.
+    """
+    token, expires_at = start_password_reset(club.session, club_id=club.club_id, user_id=user_id)
+    return PasswordResetOut(
+        reset_token=token, expires_at=expires_at,
+        how='POST /api/auth/password-reset with {"token": "<this token>", "new_password": "..."}')
+
+
+@router.post("/auth/password-reset", status_code=status.HTTP_204_NO_CONTENT,
+             responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}})
+def use_password_reset(body: PasswordResetIn, sessions: SessionFactoryDep, response: Response) -> Response:
+    """Set a new password with the one-time token a club admin issued; then sign in with it."""
+    with session_scope(sessions) as session:
+        consume_password_reset(session, token=body.token, new_password=body.new_password)
+    return _forget_browser(response)
 
 
 @router.get("/auth/me", response_model=MeOut, responses=ERRORS)
