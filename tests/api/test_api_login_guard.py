@@ -88,3 +88,22 @@ def test_a_full_hash_pool_answers_busy_instead_of_queueing_without_end():
     finally:
         release.set()
         pool.close()
+
+
+def test_sign_in_and_registration_answer_503_while_the_hash_pool_is_full(env):
+    app = env.client.app
+    full, kept = HashPool(workers=1, queue=0), app.state.hash_pool
+    assert full._slots.acquire(blocking=False)  # every slot taken, as during a flood
+    app.state.hash_pool = full
+    try:
+        club = {"club_name": f"Busy club {env.engine}", "email": f"busy.{env.engine}@x.example",
+                "password": "long enough"}
+        for response in (env.client.post("/api/clubs", json=club),
+                         env.client.post("/api/auth/login", data={"username": club["email"], "password": "x"})):
+            assert response.status_code == 503, response.text
+            assert "busy" in response.json()["detail"] and int(response.headers["Retry-After"]) > 0
+        full._slots.release()
+        assert env.client.post("/api/clubs", json=club).status_code == 201
+    finally:
+        app.state.hash_pool = kept
+        full.close()

@@ -87,25 +87,29 @@ def registration_open(request: Request, sessions) -> bool:
     "/clubs",
     status_code=status.HTTP_201_CREATED,
     response_model=ClubCreated,
-    responses={403: {"model": ErrorOut}, 422: {"model": ErrorOut}, **CONFLICT},
+    responses={403: {"model": ErrorOut}, 422: {"model": ErrorOut}, 503: {"model": ErrorOut}, **CONFLICT},
 )
-def register_club(body: ClubCreate, request: Request, sessions: SessionFactoryDep) -> ClubCreated:
+async def register_club(body: ClubCreate, request: Request, sessions: SessionFactoryDep) -> ClubCreated:
     """Create a club and its first user, an admin.
 
     Open in embedded mode (no broker: a laptop or a club's own small server) and for the first club
     of a deployment; closed otherwise unless the server was started with open registration.
     """
-    if not registration_open(request, sessions):
-        raise Forbidden("registration of new clubs is closed on this server; ask its operator")
-    with session_scope(sessions) as session:
-        club, user = create_club(
-            session,
-            club_name=body.club_name,
-            email=body.email,
-            password=body.password,
-            display_name=body.display_name,
-        )
-        return ClubCreated(club=ClubOut.model_validate(club), user=UserOut.model_validate(user))
+
+    def create() -> ClubCreated:
+        if not registration_open(request, sessions):
+            raise Forbidden("registration of new clubs is closed on this server; ask its operator")
+        with session_scope(sessions) as session:
+            club, user = create_club(
+                session,
+                club_name=body.club_name,
+                email=body.email,
+                password=body.password,
+                display_name=body.display_name,
+            )
+            return ClubCreated(club=ClubOut.model_validate(club), user=UserOut.model_validate(user))
+
+    return await request.app.state.hash_pool.run(create)  # Argon2 in its bounded pool (a public route)
 
 
 async def _credentials(request: Request) -> tuple[str, str]:
@@ -240,10 +244,16 @@ def reset_password(user_id: Id, club: AdminClubDep) -> PasswordResetOut:
 
 @router.post("/auth/password-reset", status_code=status.HTTP_204_NO_CONTENT,
              responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}})
-def use_password_reset(body: PasswordResetIn, sessions: SessionFactoryDep, response: Response) -> Response:
+async def use_password_reset(
+    body: PasswordResetIn, request: Request, sessions: SessionFactoryDep, response: Response
+) -> Response:
     """Set a new password with the one-time token a club admin issued; then sign in with it."""
-    with session_scope(sessions) as session:
-        consume_password_reset(session, token=body.token, new_password=body.new_password)
+
+    def consume() -> None:
+        with session_scope(sessions) as session:
+            consume_password_reset(session, token=body.token, new_password=body.new_password)
+
+    await request.app.state.hash_pool.run(consume)  # Argon2 in its bounded pool (a public route)
     return _forget_browser(response)
 
 
