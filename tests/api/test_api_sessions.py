@@ -91,3 +91,14 @@ def test_a_token_without_the_session_version_is_refused_after_a_logout_everywher
     assert jwt.decode(token, options={"verify_signature": False})["sv"] == 0
     admin.request("POST", "/auth/logout-everywhere")
     assert Api(env.client, token).get("/auth/me").status_code == 401
+
+
+def test_guessing_the_current_password_locks_it_like_a_sign_in(env):
+    admin, _ = new_club(env.client, password="the real one 1")
+    for i in range(env.settings.login_max_failures):
+        wrong = admin.request("POST", "/auth/password",
+                              json={"current_password": f"guess number {i}", "new_password": "taken over 1"})
+        assert wrong.status_code == 422
+    right = admin.request("POST", "/auth/password",
+                          json={"current_password": "the real one 1", "new_password": "taken over 1"})
+    assert right.status_code == 429 and "locked" in right.json()["detail"] and right.headers["Retry-After"]

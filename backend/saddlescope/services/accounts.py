@@ -30,7 +30,7 @@ from saddlescope.settings import Settings
 
 __all__ = [
     "AuthError", "Forbidden", "MIN_PASSWORD_LENGTH", "Principal", "RESET_LIFETIME", "TOKEN_ALGORITHM",
-    "TOKEN_AUDIENCE", "add_user", "authenticate", "change_password", "check_email", "check_password",
+    "TOKEN_AUDIENCE", "WrongPassword", "add_user", "authenticate", "change_password", "check_email", "check_password",
     "consume_password_reset", "create_club", "current_principal", "end_sessions", "hash_password",
     "issue_token", "read_token", "require_admin", "start_password_reset", "update_user", "verify_password",
 ]
@@ -51,6 +51,10 @@ class AuthError(SaddleScopeError):
 
 class Forbidden(SaddleScopeError):
     """Signed in, but the role does not allow this (HTTP 403)."""
+
+
+class WrongPassword(InputError):
+    """The current password given to change it is wrong (HTTP 422)."""
 
 
 @dataclass(frozen=True)
@@ -265,7 +269,7 @@ def change_password(session: Session, *, user_id: int, current_password: str, ne
     """The signed-in user's own change: the current password must match; every session ends."""
     user = UserRepository(session).get(user_id)
     if not verify_password(user.password_hash, current_password):
-        raise InputError("the current password is wrong")
+        raise WrongPassword("the current password is wrong")
     user.password_hash = hash_password(check_password(new_password))
     end_sessions(user)
     session.flush()

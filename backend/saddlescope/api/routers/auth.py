@@ -37,6 +37,7 @@ from saddlescope.db.session import session_scope
 from saddlescope.services.accounts import (
     AuthError,
     Forbidden,
+    WrongPassword,
     add_user,
     authenticate,
     change_password,
@@ -221,10 +222,20 @@ def logout_everywhere(club: ClubDep, response: Response) -> Response:
 
 
 @router.post("/auth/password", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
-def change_own_password(body: PasswordChange, club: ClubDep, response: Response) -> Response:
-    """Change your own password (the current one is needed); every session ends, sign in again."""
-    change_password(club.session, user_id=club.principal.user_id, current_password=body.current_password,
-                    new_password=body.new_password)
+def change_own_password(body: PasswordChange, club: ClubDep, request: Request, response: Response) -> Response:
+    """Change your own password (the current one is needed); every session ends, sign in again.
+
+    A wrong current password counts as a failed sign-in (a stolen session cannot guess it unhindered).
+    """
+    guard, email = request.app.state.login_guard, club.users.get(club.principal.user_id).email
+    address = request.client.host if request.client else ""
+    guard.check(email, address)
+    try:
+        change_password(club.session, user_id=club.principal.user_id, current_password=body.current_password,
+                        new_password=body.new_password)
+    except WrongPassword:
+        guard.failed(email, address)
+        raise
     return _forget_browser(response)
 
 
