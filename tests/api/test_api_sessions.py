@@ -102,3 +102,14 @@ def test_guessing_the_current_password_locks_it_like_a_sign_in(env):
     right = admin.request("POST", "/auth/password",
                           json={"current_password": "the real one 1", "new_password": "taken over 1"})
     assert right.status_code == 429 and "locked" in right.json()["detail"] and right.headers["Retry-After"]
+
+
+def test_a_newer_reset_cancels_the_earlier_token(env):
+    admin, _ = new_club(env.client)
+    _, user = add_member(admin)
+    first = admin.ok("POST", f"/users/{user['id']}/password-reset", 201)["reset_token"]
+    second = admin.ok("POST", f"/users/{user['id']}/password-reset", 201)["reset_token"]
+    stale = env.client.post("/api/auth/password-reset", json={"token": first, "new_password": "from the old link"})
+    assert stale.status_code == 401
+    fresh = env.client.post("/api/auth/password-reset", json={"token": second, "new_password": "from the new link"})
+    assert fresh.status_code == 204

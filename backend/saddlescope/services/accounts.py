@@ -293,6 +293,7 @@ def start_password_reset(
     user = users.get(user_id)
     token = secrets.token_urlsafe(32)
     expires_at = now + RESET_LIFETIME
+    users.end_resets(user.id, now)  # an earlier token of this user stops working
     users.add_reset(user, token_hash=_reset_hash(token), expires_at=expires_at)
     user.password_hash = "!reset:" + secrets.token_hex(16)  # matches no password
     end_sessions(user)
@@ -310,8 +311,8 @@ def consume_password_reset(
     if reset is None or reset.used_at is not None or reset.expires_at <= now or not reset.user.is_active:
         raise AuthError("this password reset link is invalid, already used or expired; ask a club admin "
                         "for a new one")
-    reset.used_at = now
     user = reset.user
+    UserRepository(session).end_resets(user.id, now)  # this one and any other outstanding
     user.password_hash = hash_password(new_password)
     end_sessions(user)
     session.flush()

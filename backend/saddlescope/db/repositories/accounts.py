@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import datetime as dt
 
-from sqlalchemy import Select, func, select
+from sqlalchemy import Select, func, select, update
 
 from saddlescope.db.models import Club, PasswordReset, User
 from saddlescope.db.repositories.base import Conflict, Repository
@@ -70,3 +70,8 @@ class UserRepository(Repository):
     def reset_by_hash(self, token_hash: str) -> PasswordReset | None:
         """Return the password reset with this token hash (any club: the token is the credential)."""
         return self.session.scalars(select(PasswordReset).where(PasswordReset.token_hash == token_hash)).first()
+
+    def end_resets(self, user_id: int, now: dt.datetime) -> None:
+        """Mark every unused password reset of the user as used (a newer one, or a new password, wins)."""
+        self.session.execute(update(PasswordReset).where(PasswordReset.user_id == user_id,
+                                                         PasswordReset.used_at.is_(None)).values(used_at=now))
