@@ -12,5 +12,7 @@ def serve(host: str = "127.0.0.1", port: int = 8000, *, settings: Settings | Non
     # Imported here: the web layer sits above the services (only this entry point needs it).
     from saddlescope.api.app import create_app
 
-    app = create_app(settings or get_settings())
-    uvicorn.run(app, host=host, port=port, log_level="info", proxy_headers=True, timeout_graceful_shutdown=10)
+    settings = settings or get_settings()
+    app = create_app(settings)
+    uvicorn.run(app, host=host, port=port, log_level="info", proxy_headers=True,
+                forwarded_allow_ips=settings.forwarded_allow_ips, timeout_graceful_shutdown=10)

@@ -14,15 +14,27 @@ Every variable starts with ``SADDLESCOPE_``:
     Largest accepted upload (default 4 GiB).
 ``SADDLESCOPE_SECRET_KEY``
     Signs tokens and session cookies. The built-in default is refused outside embedded mode.
+    In embedded mode, left unset, a random secret is generated on first start and kept in
+    ``secret_key`` beside the storage directory (mode 0600). A weak secret (short, or of too few
+    different characters) is refused at start-up.
 ``SADDLESCOPE_TOKEN_LIFETIME_S``
     How long an access token stays valid (default 12 h).
+``SADDLESCOPE_COOKIE_SECURE``
+    ``auto`` (default: Secure when the request came over https, after the forwarded headers of the
+    trusted proxies ``SADDLESCOPE_FORWARDED_ALLOW_IPS``), ``true`` or ``false``.
+``SADDLESCOPE_LOGIN_MAX_FAILURES`` / ``SADDLESCOPE_LOGIN_LOCKOUT_S``
+    Failed sign-ins per account (and, times four, per client address) before sign-in is locked for
+    the lock-out time.
 """
 
 from __future__ import annotations
 
 import functools
+import os
+import secrets
 import subprocess
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field, SecretStr, ValidationError, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -33,6 +45,8 @@ from saddlescope.core.errors import SaddleScopeError
 # A development-only secret: fine on a laptop where nothing is exposed, refused with a broker.
 DEFAULT_SECRET_KEY = "saddlescope-embedded-development-secret-change-me"
 GIB = 1024**3
+MIN_SECRET_LENGTH = 16
+MIN_SECRET_DISTINCT = 8
 
 
 class ConfigurationError(SaddleScopeError):
@@ -50,6 +64,16 @@ class Settings(BaseSettings):
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
     secret_key: SecretStr = SecretStr(DEFAULT_SECRET_KEY)
     token_lifetime_s: int = Field(default=12 * 3600, gt=0)
+    # Where the generated embedded secret is kept (default: ``secret_key`` beside the storage dir).
+    secret_key_file: Path | None = None
+    cookie_secure: Literal["auto", "true", "false"] = "auto"
+    # Proxies whose X-Forwarded-Proto/For are believed (uvicorn's forwarded_allow_ips).
+    forwarded_allow_ips: str = "127.0.0.1"
+    login_max_failures: int = Field(default=10, ge=1)
+    login_lockout_s: int = Field(default=15 * 60, ge=1)
+    # Argon2 runs in its own small pool; more waiting sign-ins than the queue holds get 503.
+    hash_workers: int = Field(default=2, ge=1, le=32)
+    hash_queue: int = Field(default=16, ge=1)
     # Processes of the embedded runner; 1 keeps a laptop responsive while a ride is analysed.
     embedded_workers: int = Field(default=1, ge=1, le=64)
     # Longest a whole job (all its stages, one Celery task) may run; the broker's visibility timeout
@@ -74,8 +98,13 @@ class Settings(BaseSettings):
             raise ValueError(
                 "SADDLESCOPE_SECRET_KEY must be set to your own random value when SADDLESCOPE_BROKER_URL "
                 "is set (the built-in development secret is only accepted in embedded mode)")
-        if len(self.secret_key.get_secret_value()) < 16:
-            raise ValueError("SADDLESCOPE_SECRET_KEY is too short (at least 16 characters)")
+        secret = self.secret_key.get_secret_value()
+        if len(secret) < MIN_SECRET_LENGTH:
+            raise ValueError(f"SADDLESCOPE_SECRET_KEY is too short (at least {MIN_SECRET_LENGTH} characters)")
+        if len(set(secret)) < MIN_SECRET_DISTINCT:
+            raise ValueError(
+                f"SADDLESCOPE_SECRET_KEY is too weak (it has fewer than {MIN_SECRET_DISTINCT} different "
+                "characters); use a random value, e.g. `python -c 'import secrets; print(secrets.token_urlsafe(32))'`")
         if not self.database_url.strip():
             raise ValueError("SADDLESCOPE_DATABASE_URL is empty")
         return self
@@ -84,6 +113,16 @@ class Settings(BaseSettings):
     def embedded(self) -> bool:
         """True when no broker is configured: jobs run in a local process pool."""
         return self.broker_url is None
+
+    @property
+    def uses_default_secret(self) -> bool:
+        """True while the built-in development secret is in place (embedded mode, not yet resolved)."""
+        return self.secret_key.get_secret_value() == DEFAULT_SECRET_KEY
+
+    @property
+    def resolved_secret_key_file(self) -> Path:
+        """The file of the generated embedded secret."""
+        return self.secret_key_file or self.storage_dir.parent / "secret_key"
 
     @property
     def migrate_on_start(self) -> bool:
@@ -124,6 +163,30 @@ def load_settings(**overrides) -> Settings:
                 "Value error, ")
             for err in exc.errors())
         raise ConfigurationError(f"invalid settings: {details}") from None
+
+
+def with_embedded_secret(settings: Settings) -> Settings:
+    """`settings` with the built-in secret replaced by this installation's own (embedded mode).
+
+    The first start writes a random secret to `Settings.resolved_secret_key_file` (mode 0600); later
+    starts read it back, so sign-ins survive a restart and no two installations share a key.
+    """
+    if not settings.uses_default_secret:
+        return settings
+    path = settings.resolved_secret_key_file
+    try:
+        secret = path.read_text(encoding="utf-8").strip() if path.exists() else ""
+        if not secret:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            secret = secrets.token_urlsafe(48)
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+            with os.fdopen(fd, "w", encoding="utf-8") as handle:
+                handle.write(secret + "\n")
+        os.chmod(path, 0o600)
+    except OSError as exc:
+        raise ConfigurationError(f"cannot read or create the secret key file {path}: {exc}; set "
+                                 "SADDLESCOPE_SECRET_KEY instead") from None
+    return load_settings(**{**settings.model_dump(), "secret_key": secret})
 
 
 @functools.cache

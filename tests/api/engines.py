@@ -19,7 +19,7 @@ from fastapi.testclient import TestClient
 from conftest import PROJECT_ROOT
 from saddlescope.api import create_app
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.settings import Settings, load_settings
+from saddlescope.settings import Settings, load_settings, with_embedded_secret
 
 MAX_UPLOAD_BYTES = 16 * 1024**2
 ENGINES = ["embedded", pytest.param("celery", marks=[pytest.mark.integration, pytest.mark.slow])]
@@ -45,7 +45,8 @@ def open_env(request, tmp_path_factory, *, worker: bool = True, **overrides):
     root = tmp_path_factory.mktemp(f"api-{request.param}")
     common = dict(storage_dir=str(root / "storage"), max_upload_bytes=MAX_UPLOAD_BYTES, **overrides)
     if request.param == "embedded":
-        settings = load_settings(database_url=f"sqlite:///{root / 'db.sqlite'}", **common)
+        # The secret the app will sign with (embedded mode generates its own beside the storage).
+        settings = with_embedded_secret(load_settings(database_url=f"sqlite:///{root / 'db.sqlite'}", **common))
         queue = ThreadQueue(settings)
         with (
             standin_installed(),

@@ -69,3 +69,46 @@ def test_invalid_settings_name_the_problem(overrides, message):
 def test_visibility_timeout_outlasts_the_longest_job():
     s = load_settings(job_time_limit_s=3600)
     assert s.visibility_timeout_s > 3600
+
+
+@pytest.mark.parametrize("secret", ["a" * 16, "abababababababababab", "0123456"])
+def test_weak_secrets_are_refused_at_start_up(secret):
+    with pytest.raises(ConfigurationError, match="SADDLESCOPE_SECRET_KEY is too (weak|short)"):
+        load_settings(broker_url="redis://redis:6379/0", secret_key=secret)
+
+
+def test_embedded_mode_generates_and_keeps_its_own_secret(tmp_path):
+    import stat
+
+    from saddlescope.settings import with_embedded_secret
+
+    settings = load_settings(storage_dir=str(tmp_path / "var" / "storage"))
+    first = with_embedded_secret(settings)
+    secret = first.secret_key.get_secret_value()
+    assert secret != DEFAULT_SECRET_KEY and len(secret) >= 32
+    path = tmp_path / "var" / "secret_key"
+    assert path.read_text().strip() == secret
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert with_embedded_secret(settings).secret_key.get_secret_value() == secret  # reused on restart
+    other = with_embedded_secret(load_settings(storage_dir=str(tmp_path / "other" / "storage")))
+    assert other.secret_key.get_secret_value() != secret
+
+
+def test_the_app_never_signs_with_the_public_default_secret(tmp_path):
+    from saddlescope.api import create_app
+
+    app = create_app(load_settings(storage_dir=str(tmp_path / "storage"),
+                                   database_url=f"sqlite:///{tmp_path / 'db.sqlite'}"))
+    assert app.state.settings.secret_key.get_secret_value() != DEFAULT_SECRET_KEY
+
+
+@pytest.mark.parametrize(("choice", "scheme", "secure"),
+                         [("auto", "http", False), ("auto", "https", True), ("true", "http", True),
+                          ("false", "https", False)])
+def test_the_cookie_secure_flag_follows_the_setting_not_the_proxy_address(choice, scheme, secure):
+    from types import SimpleNamespace
+
+    from saddlescope.api.routers.auth import cookie_secure
+
+    request = SimpleNamespace(url=SimpleNamespace(scheme=scheme))
+    assert cookie_secure(request, load_settings(cookie_secure=choice)) is secure

@@ -26,9 +26,10 @@ from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFo
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services.accounts import AuthError, Forbidden
 from saddlescope.services.job_service import JobStateError
+from saddlescope.services.login_guard import HashPool, HashPoolBusy, LoginThrottled, make_login_guard
 from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.uploads import IncompleteUpload
-from saddlescope.settings import Settings, get_settings
+from saddlescope.settings import Settings, get_settings, with_embedded_secret
 from saddlescope.storage import Storage, TooLarge
 
 __all__ = ["ERROR_STATUS", "FRONTEND_DIR", "create_app"]
@@ -64,7 +65,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     whether anyone may create a club (POST /api/clubs); by default open in embedded mode and for
     the first club of a deployment (``settings.open_registration`` where the settings have it).
     """
-    settings = settings or get_settings()
+    settings = with_embedded_secret(settings or get_settings())
     if open_registration is None:
         open_registration = getattr(settings, "open_registration", None)
 
@@ -79,6 +80,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
             yield
         finally:
             app.state.queue.close()
+            app.state.hash_pool.close()
             app.state.engine.dispose()
 
     app = FastAPI(title="SaddleScope", version=__version__, lifespan=lifespan, docs_url="/docs",
@@ -89,6 +91,8 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     app.state.sessions = make_session_factory(app.state.engine)
     app.state.storage = Storage(settings.storage_dir)
     app.state.open_registration = open_registration
+    app.state.login_guard = make_login_guard(settings)
+    app.state.hash_pool = HashPool(settings.hash_workers, settings.hash_queue)
     # Set here too so routes work when the lifespan is not run; the lifespan replaces it.
     app.state.queue = queue
 
@@ -131,6 +135,8 @@ ERROR_STATUS: dict[type[Exception], int] = {
     IncompleteUpload: status.HTTP_409_CONFLICT,
     JobStateError: status.HTTP_409_CONFLICT,
     QueueUnavailable: status.HTTP_503_SERVICE_UNAVAILABLE,
+    LoginThrottled: status.HTTP_429_TOO_MANY_REQUESTS,
+    HashPoolBusy: status.HTTP_503_SERVICE_UNAVAILABLE,
     SaddleScopeError: status.HTTP_422_UNPROCESSABLE_CONTENT,  # bad input: a clip, a bundle, a value
 }
 
@@ -148,6 +154,8 @@ def _add_error_handlers(app: FastAPI) -> None:
     def respond(code: int):
         async def handler(request: Request, exc: Exception) -> JSONResponse:
             headers = {"WWW-Authenticate": "Bearer"} if code == status.HTTP_401_UNAUTHORIZED else None
+            if getattr(exc, "retry_after_s", None):
+                headers = {"Retry-After": str(exc.retry_after_s)}
             return JSONResponse({"detail": str(exc)}, status_code=code, headers=headers)
 
         return handler

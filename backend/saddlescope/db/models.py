@@ -34,7 +34,8 @@ from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 from saddlescope.db.enums import JobStatus, RideStatus, Role, UploadStatus, UploadTarget
 
 __all__ = [
-    "Base", "Club", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION", "Recording", "Result",
+    "Base", "Club", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION", "PasswordReset",
+    "Recording", "Result",
     "Ride", "Rider", "Rig", "SimilarityPair", "TimestampMixin", "UTCDateTime", "Upload", "User", "utcnow",
 ]
 
@@ -116,8 +117,24 @@ class User(TimestampMixin, Base):
     password_hash: Mapped[str] = mapped_column(String(255))
     role: Mapped[str] = mapped_column(_str_enum(Role, "user_role"), default=Role.MEMBER.value)
     is_active: Mapped[bool] = mapped_column(default=True)
+    # In every token; bumped by logout-everywhere and password changes, so older tokens stop working.
+    session_version: Mapped[int] = mapped_column(default=0, server_default="0")
 
     club: Mapped[Club] = relationship()
+
+
+class PasswordReset(TimestampMixin, Base):
+    """A one-time password reset an admin issued: only the SHA-256 of its token is kept."""
+
+    __tablename__ = "password_resets"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
+    token_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    expires_at: Mapped[dt.datetime]
+    used_at: Mapped[dt.datetime | None]
+
+    user: Mapped[User] = relationship()
 
 
 class Horse(TimestampMixin, Base):

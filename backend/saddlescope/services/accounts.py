@@ -4,6 +4,9 @@ Passwords are hashed with Argon2id (argon2-cffi's defaults). An access token is 
 with ``SADDLESCOPE_SECRET_KEY``) naming the user, their club and role, and carrying a random CSRF
 token: the browser gets the same token as an HttpOnly session cookie and must echo the CSRF token in a
 header on unsafe requests (`saddlescope.api.deps`).
+
+A token also carries the user's session version (``sv``): signing out everywhere, changing the password
+and an admin's password reset bump it, so every older token is refused from then on.
 """
 
 from __future__ import annotations
@@ -26,14 +29,16 @@ from saddlescope.db.repositories import ClubRepository, UserRepository
 from saddlescope.settings import Settings
 
 __all__ = [
-    "AuthError", "Forbidden", "MIN_PASSWORD_LENGTH", "Principal", "TOKEN_ALGORITHM", "TOKEN_AUDIENCE",
-    "add_user", "authenticate", "check_email", "check_password", "create_club", "current_principal",
-    "hash_password", "issue_token", "read_token", "require_admin", "update_user", "verify_password",
+    "AuthError", "Forbidden", "MIN_PASSWORD_LENGTH", "Principal", "RESET_LIFETIME", "TOKEN_ALGORITHM",
+    "TOKEN_AUDIENCE", "WrongPassword", "add_user", "authenticate", "change_password", "check_email", "check_password",
+    "consume_password_reset", "create_club", "current_principal", "end_sessions", "hash_password",
+    "issue_token", "read_token", "require_admin", "start_password_reset", "update_user", "verify_password",
 ]
 
 TOKEN_ALGORITHM = "HS256"
 TOKEN_AUDIENCE = "saddlescope"
 MIN_PASSWORD_LENGTH = 8
+RESET_LIFETIME = dt.timedelta(hours=24)
 _EMAIL = re.compile(r"^[^@\s]+@[^@\s]+\.[^@\s]+$")
 _hasher = PasswordHasher()
 # Verifying against this when the e-mail is unknown keeps sign-in time the same either way.
@@ -48,6 +53,10 @@ class Forbidden(SaddleScopeError):
     """Signed in, but the role does not allow this (HTTP 403)."""
 
 
+class WrongPassword(InputError):
+    """The current password given to change it is wrong (HTTP 422)."""
+
+
 @dataclass(frozen=True)
 class Principal:
     """Who is calling: the signed-in user, their club and role (from a verified token)."""
@@ -56,6 +65,7 @@ class Principal:
     club_id: int
     role: str
     csrf: str
+    session_version: int = 0
 
     @property
     def is_admin(self) -> bool:
@@ -160,6 +170,7 @@ def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = Non
         "club": user.club_id,
         "role": user.role,
         "csrf": csrf,
+        "sv": int(user.session_version or 0),
         "aud": TOKEN_AUDIENCE,
         "iat": now,
         "exp": now + dt.timedelta(seconds=lifetime_s),
@@ -188,6 +199,7 @@ def read_token(token: str, settings: Settings) -> Principal:
             club_id=int(claims["club"]),
             role=str(claims["role"]),
             csrf=str(claims["csrf"]),
+            session_version=int(claims.get("sv", 0)),
         )
     except (KeyError, TypeError, ValueError):
         raise AuthError("invalid access token; sign in again") from None
@@ -201,7 +213,10 @@ def current_principal(session: Session, principal: Principal) -> Principal:
     user = session.get(User, principal.user_id)
     if user is None or not user.is_active or user.club_id != principal.club_id:
         raise AuthError("this account no longer exists or was deactivated; sign in again")
-    return Principal(user.id, user.club_id, user.role, principal.csrf)
+    if (user.session_version or 0) != principal.session_version:
+        raise AuthError("this sign-in was ended (signed out everywhere, or the password was changed or "
+                        "reset); sign in again")
+    return Principal(user.id, user.club_id, user.role, principal.csrf, principal.session_version)
 
 
 def require_admin(principal: Principal) -> None:
@@ -238,7 +253,67 @@ def update_user(
         user.is_active = is_active
     if password is not None:
         user.password_hash = hash_password(check_password(password))
+        end_sessions(user)
     if display_name is not None:
         user.display_name = display_name.strip()
+    session.flush()
+    return user
+
+
+def end_sessions(user: User) -> None:
+    """Make every token issued to `user` so far invalid (bumps the session version)."""
+    user.session_version = (user.session_version or 0) + 1
+
+
+def change_password(session: Session, *, user_id: int, current_password: str, new_password: str) -> User:
+    """The signed-in user's own change: the current password must match; every session ends."""
+    user = UserRepository(session).get(user_id)
+    if not verify_password(user.password_hash, current_password):
+        raise WrongPassword("the current password is wrong")
+    user.password_hash = hash_password(check_password(new_password))
+    end_sessions(user)
+    session.flush()
+    return user
+
+
+def _reset_hash(token: str) -> str:
+    return hashlib.sha256(b"saddlescope-password-reset-v1\0" + token.encode()).hexdigest()
+
+
+def start_password_reset(
+    session: Session, *, club_id: int, user_id: int, now: dt.datetime | None = None
+) -> tuple[str, dt.datetime]:
+    """An admin resets a user of the club: (one-time token, its expiry).
+
+    The user's sessions end and the old password stops working at once; the token (shown once to the
+    admin, stored only as a hash) sets a new one through `consume_password_reset`.
+    """
+    now = now or dt.datetime.now(dt.UTC)
+    users = UserRepository(session, club_id=club_id)
+    user = users.get(user_id)
+    token = secrets.token_urlsafe(32)
+    expires_at = now + RESET_LIFETIME
+    users.end_resets(user.id, now)  # an earlier token of this user stops working
+    users.add_reset(user, token_hash=_reset_hash(token), expires_at=expires_at)
+    user.password_hash = "!reset:" + secrets.token_hex(16)  # matches no password
+    end_sessions(user)
+    session.flush()
+    return token, expires_at
+
+
+def consume_password_reset(
+    session: Session, *, token: str, new_password: str, now: dt.datetime | None = None
+) -> User:
+    """Set a new password with a reset token (once, before it expires); `AuthError` otherwise."""
+    now = now or dt.datetime.now(dt.UTC)
+    check_password(new_password)
+    reset = UserRepository(session).reset_by_hash(_reset_hash(token or ""))
+    if reset is None or reset.used_at is not None or reset.expires_at <= now or not reset.user.is_active:
+        raise AuthError("this password reset link is invalid, already used or expired; ask a club admin "
+                        "for a new one")
+    user = reset.user
+    UserRepository(session).end_resets(user.id, now)  # this one and any other outstanding
+    user.password_hash = hash_password(new_password)
+    end_sessions(user)
     session.flush()
     return user

@@ -8,6 +8,7 @@ from fastapi import APIRouter, Request, Response, status
 from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 
+from saddlescope.api.account_schemas import PasswordChange, PasswordResetIn, PasswordResetOut
 from saddlescope.api.deps import (
     CSRF_COOKIE,
     SESSION_COOKIE,
@@ -34,11 +35,17 @@ from saddlescope.core.errors import InputError
 from saddlescope.db.repositories import ClubRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.accounts import (
+    AuthError,
     Forbidden,
+    WrongPassword,
     add_user,
     authenticate,
+    change_password,
+    consume_password_reset,
     create_club,
+    end_sessions,
     issue_token,
+    start_password_reset,
     update_user,
 )
 
@@ -81,25 +88,29 @@ def registration_open(request: Request, sessions) -> bool:
     "/clubs",
     status_code=status.HTTP_201_CREATED,
     response_model=ClubCreated,
-    responses={403: {"model": ErrorOut}, 422: {"model": ErrorOut}, **CONFLICT},
+    responses={403: {"model": ErrorOut}, 422: {"model": ErrorOut}, 503: {"model": ErrorOut}, **CONFLICT},
 )
-def register_club(body: ClubCreate, request: Request, sessions: SessionFactoryDep) -> ClubCreated:
+async def register_club(body: ClubCreate, request: Request, sessions: SessionFactoryDep) -> ClubCreated:
     """Create a club and its first user, an admin.
 
     Open in embedded mode (no broker: a laptop or a club's own small server) and for the first club
     of a deployment; closed otherwise unless the server was started with open registration.
     """
-    if not registration_open(request, sessions):
-        raise Forbidden("registration of new clubs is closed on this server; ask its operator")
-    with session_scope(sessions) as session:
-        club, user = create_club(
-            session,
-            club_name=body.club_name,
-            email=body.email,
-            password=body.password,
-            display_name=body.display_name,
-        )
-        return ClubCreated(club=ClubOut.model_validate(club), user=UserOut.model_validate(user))
+
+    def create() -> ClubCreated:
+        if not registration_open(request, sessions):
+            raise Forbidden("registration of new clubs is closed on this server; ask its operator")
+        with session_scope(sessions) as session:
+            club, user = create_club(
+                session,
+                club_name=body.club_name,
+                email=body.email,
+                password=body.password,
+                display_name=body.display_name,
+            )
+            return ClubCreated(club=ClubOut.model_validate(club), user=UserOut.model_validate(user))
+
+    return await request.app.state.hash_pool.run(create)  # Argon2 in its bounded pool (a public route)
 
 
 async def _credentials(request: Request) -> tuple[str, str]:
@@ -119,11 +130,24 @@ async def _credentials(request: Request) -> tuple[str, str]:
     return username, password
 
 
+def cookie_secure(request: Request, settings) -> bool:
+    """The cookies' Secure flag: the setting, or (auto) whether the request came over https.
+
+    The scheme is the one uvicorn settled after the forwarded headers of the trusted proxies
+    (``SADDLESCOPE_FORWARDED_ALLOW_IPS``), so a proxy on another host works too.
+    """
+    choice = getattr(settings, "cookie_secure", "auto")
+    if choice != "auto":
+        return choice == "true"
+    return request.url.scheme == "https"
+
+
 @router.post(
     "/auth/login",
     response_model=TokenOut,
     openapi_extra=LOGIN_OPENAPI,
-    responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}},
+    responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}, 429: {"model": ErrorOut},
+               503: {"model": ErrorOut}},
 )
 async def login(
     request: Request, response: Response, settings: SettingsDep, sessions: SessionFactoryDep
@@ -133,6 +157,10 @@ async def login(
     Returns a bearer token and sets the session cookie (HttpOnly) and the CSRF cookie for the browser.
     """
     email, password = await _credentials(request)
+    guard = request.app.state.login_guard
+    address = request.client.host if request.client else ""
+    # Refused before the password is even looked at: the right password is no help while locked out.
+    await run_in_threadpool(guard.check, email, address)
 
     def check() -> TokenOut:
         with session_scope(sessions) as session:
@@ -142,8 +170,13 @@ async def login(
                 access_token=token, expires_in=lifetime_s, csrf_token=csrf, user=UserOut.model_validate(user)
             )
 
-    out = await run_in_threadpool(check)  # Argon2 takes tens of ms of CPU: off the event loop
-    secure = request.url.scheme == "https"
+    try:
+        out = await request.app.state.hash_pool.run(check)  # Argon2: its own bounded pool
+    except AuthError:
+        await run_in_threadpool(guard.failed, email, address)
+        raise
+    await run_in_threadpool(guard.succeeded, email, address)
+    secure = cookie_secure(request, settings)
     response.set_cookie(
         SESSION_COOKIE,
         out.access_token,
@@ -172,6 +205,67 @@ def logout(response: Response) -> Response:
     response.delete_cookie(CSRF_COOKIE, path="/")
     response.status_code = status.HTTP_204_NO_CONTENT
     return response
+
+
+def _forget_browser(response: Response) -> Response:
+    response.delete_cookie(SESSION_COOKIE, path="/")
+    response.delete_cookie(CSRF_COOKIE, path="/")
+    response.status_code = status.HTTP_204_NO_CONTENT
+    return response
+
+
+@router.post("/auth/logout-everywhere", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
+def logout_everywhere(club: ClubDep, response: Response) -> Response:
+    """End every session of the signed-in user (all browsers and bearer tokens); sign in again after."""
+    end_sessions(club.users.get(club.principal.user_id))
+    return _forget_browser(response)
+
+
+@router.post("/auth/password", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
+def change_own_password(body: PasswordChange, club: ClubDep, request: Request, response: Response) -> Response:
+    """Change your own password (the current one is needed); every session ends, sign in again.
+
+    A wrong current password counts as a failed sign-in (a stolen session cannot guess it unhindered).
+    """
+    guard, email = request.app.state.login_guard, club.users.get(club.principal.user_id).email
+    address = request.client.host if request.client else ""
+    guard.check(email, address)
+    try:
+        change_password(club.session, user_id=club.principal.user_id, current_password=body.current_password,
+                        new_password=body.new_password)
+    except WrongPassword:
+        guard.failed(email, address)
+        raise
+    return _forget_browser(response)
+
+
+@router.post("/users/{user_id}/password-reset", status_code=status.HTTP_201_CREATED,
+             response_model=PasswordResetOut, responses=ERRORS)
+def reset_password(user_id: Id, club: AdminClubDep) -> PasswordResetOut:
+    """Reset a user's password (admins only): their sessions end and their old password stops working.
+
+    The answer holds a one-time token, shown only now, for the admin to hand to the user (no e-mail is
+    sent); it sets a new password through ``POST /api/auth/password-reset`` within 24 hours.
+    """
+    token, expires_at = start_password_reset(club.session, club_id=club.club_id, user_id=user_id)
+    return PasswordResetOut(
+        reset_token=token, expires_at=expires_at,
+        how='POST /api/auth/password-reset with {"token": "<this token>", "new_password": "..."}')
+
+
+@router.post("/auth/password-reset", status_code=status.HTTP_204_NO_CONTENT,
+             responses={401: {"model": ErrorOut}, 422: {"model": ErrorOut}})
+async def use_password_reset(
+    body: PasswordResetIn, request: Request, sessions: SessionFactoryDep, response: Response
+) -> Response:
+    """Set a new password with the one-time token a club admin issued; then sign in with it."""
+
+    def consume() -> None:
+        with session_scope(sessions) as session:
+            consume_password_reset(session, token=body.token, new_password=body.new_password)
+
+    await request.app.state.hash_pool.run(consume)  # Argon2 in its bounded pool (a public route)
+    return _forget_browser(response)
 
 
 @router.get("/auth/me", response_model=MeOut, responses=ERRORS)

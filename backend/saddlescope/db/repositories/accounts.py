@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from sqlalchemy import Select, func, select
+import datetime as dt
 
-from saddlescope.db.models import Club, User
+from sqlalchemy import Select, func, select, update
+
+from saddlescope.db.models import Club, PasswordReset, User
 from saddlescope.db.repositories.base import Conflict, Repository
 
 __all__ = ["ClubRepository", "UserRepository"]
@@ -51,7 +53,8 @@ class UserRepository(Repository):
         """Add an active user; `Conflict` when the e-mail address is taken."""
         email = email.strip().lower()
         if self.by_email(email) is not None:
-            raise Conflict(f"a user with the e-mail address {email!r} already exists")
+            # One answer whether the address is in this club or another: it names no other club's user.
+            raise Conflict("this e-mail address cannot be used for a new account; choose another one")
         return self._add(User(club_id=self._club_for_new(club_id), email=email, password_hash=password_hash,
                               display_name=display_name, role=role, is_active=True))
 
@@ -59,3 +62,16 @@ class UserRepository(Repository):
         """Return the number of active admins (of this club)."""
         stmt = self._scoped(select(func.count(User.id)).where(User.role == "admin", User.is_active.is_(True)))
         return int(self.session.scalar(stmt) or 0)
+
+    def add_reset(self, user: User, *, token_hash: str, expires_at: dt.datetime) -> PasswordReset:
+        """Record a one-time password reset for `user` (of this club), by the SHA-256 of its token."""
+        return self._add(PasswordReset(user_id=user.id, token_hash=token_hash, expires_at=expires_at))
+
+    def reset_by_hash(self, token_hash: str) -> PasswordReset | None:
+        """Return the password reset with this token hash (any club: the token is the credential)."""
+        return self.session.scalars(select(PasswordReset).where(PasswordReset.token_hash == token_hash)).first()
+
+    def end_resets(self, user_id: int, now: dt.datetime) -> None:
+        """Mark every unused password reset of the user as used (a newer one, or a new password, wins)."""
+        self.session.execute(update(PasswordReset).where(PasswordReset.user_id == user_id,
+                                                         PasswordReset.used_at.is_(None)).values(used_at=now))
