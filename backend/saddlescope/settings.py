@@ -48,6 +48,8 @@ class Settings(BaseSettings):
     broker_url: str | None = None
     storage_dir: Path = Path("./var/storage")
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
+    # Largest JSON request body (uploads are streamed as raw bytes or multipart, not JSON).
+    max_json_body_bytes: int = Field(default=2 * 1024**2, gt=0)
     secret_key: SecretStr = SecretStr(DEFAULT_SECRET_KEY)
     token_lifetime_s: int = Field(default=12 * 3600, gt=0)
     # Processes of the embedded runner; 1 keeps a laptop responsive while a ride is analysed.

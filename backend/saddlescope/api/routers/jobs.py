@@ -12,6 +12,7 @@ from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, page_
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
 from saddlescope.db.repositories import Job
 from saddlescope.db.session import session_scope
+from saddlescope.services.accounts import Forbidden
 from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, retry_job, submit_job
 from saddlescope.services.stages import JOB_KINDS
 
@@ -55,7 +56,9 @@ def list_jobs(
     responses={**ERRORS, 503: {"model": ErrorOut}},
 )
 async def create(body: JobCreate, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
-    """Create a job and hand it to a worker (embedded pool or Celery)."""
+    """Create a job and hand it to a worker (embedded pool or Celery); selftest jobs are for admins."""
+    if body.kind == "selftest" and not club.principal.is_admin:
+        raise Forbidden("only a club admin may start a selftest job")
     club_id = club.club_id
     club.session.rollback()
     job_id = await run_in_threadpool(

@@ -1,0 +1,72 @@
+"""Issue 25, data hardening: payloads that cannot be stored, oversized bodies, retried chunks, padded bundles."""
+
+from __future__ import annotations
+
+import integration_services
+import pytest
+from api_helpers import add_member, new_club
+from engines import ENGINES, open_env
+
+from saddlescope.db.repositories import JobRepository
+from saddlescope.db.session import session_factory_for, session_scope
+
+pg_database_url = integration_services.pg_database_url
+redis_url = integration_services.redis_url
+
+
+@pytest.fixture(scope="module", params=ENGINES)
+def env(request, tmp_path_factory):
+    yield from open_env(request, tmp_path_factory, worker=False)
+
+
+@pytest.fixture(scope="module")
+def club(env):
+    api, account = new_club(env.client)
+    member, _ = add_member(api)
+    return {"api": api, "member": member, "account": account}
+
+
+def test_a_lone_surrogate_in_a_job_payload_is_refused_and_the_job_list_stays_readable(env, club):
+    api = club["api"]
+    body = b'{"kind": "probe", "payload": {"note": "\\ud800"}}'
+    response = api.post("/jobs", content=body, headers={"Content-Type": "application/json"})
+    assert response.status_code == 422, response.text
+    assert "surrogate" in response.json()["detail"]
+    keyed = b'{"kind": "probe", "payload": {"\\udfff": 1}}'
+    response = api.post("/jobs", content=keyed, headers={"Content-Type": "application/json"})
+    assert response.status_code == 422, response.text
+    assert api.get("/jobs").status_code == 200
+
+
+def test_the_job_list_survives_a_stored_payload_that_cannot_be_encoded(env, club):
+    if env.engine != "embedded":
+        pytest.skip("PostgreSQL cannot store a lone surrogate; SQLite can")
+    sessions = session_factory_for(env.settings.database_url)
+    with session_scope(sessions) as session:
+        job = JobRepository(session).add(
+            kind="probe", club_id=club["account"]["club"]["id"], payload={"note": "\ud800", "ok": 1}
+        )
+        job_id = job.id
+    listed = club["api"].get("/jobs")
+    assert listed.status_code == 200, listed.text
+    one = club["api"].ok("GET", f"/jobs/{job_id}")
+    assert one["payload"]["ok"] == 1 and "\ud800" not in one["payload"]["note"]
+
+
+def test_a_job_payload_over_the_size_limit_is_refused_with_the_reason(env, club):
+    response = club["api"].post("/jobs", json={"kind": "probe", "payload": {"pad": "x" * 1_100_000}})
+    assert response.status_code == 422, response.text
+    assert "payload" in response.json()["detail"] and "bytes" in response.json()["detail"]
+
+
+def test_a_json_body_over_the_limit_is_refused_with_413(env, club):
+    big = b'{"name": "' + b"x" * (3 * 1024**2) + b'"}'
+    response = club["api"].post("/horses", content=big, headers={"Content-Type": "application/json"})
+    assert response.status_code == 413, response.text
+    assert "JSON body" in response.json()["detail"]
+
+
+def test_selftest_jobs_are_for_admins(env, club):
+    response = club["member"].post("/jobs", json={"kind": "selftest", "payload": {"steps": 1}})
+    assert response.status_code == 403, response.text
+    assert "selftest" in response.json()["detail"]
