@@ -7,8 +7,10 @@ import pytest
 from api_helpers import add_member, new_club
 from engines import ENGINES, open_env
 
-from saddlescope.db.repositories import JobRepository
+from saddlescope.api.routers import uploads as uploads_router
+from saddlescope.db.repositories import JobRepository, UploadRepository
 from saddlescope.db.session import session_factory_for, session_scope
+from saddlescope.storage import Storage, upload_key
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
@@ -70,3 +72,59 @@ def test_selftest_jobs_are_for_admins(env, club):
     response = club["member"].post("/jobs", json={"kind": "selftest", "payload": {"steps": 1}})
     assert response.status_code == 403, response.text
     assert "selftest" in response.json()["detail"]
+
+
+def _open_upload(api, length: int, tag: str) -> str:
+    horse = api.ok("POST", "/horses", 201, json={"name": f"Chunky {tag}"})
+    rider = api.ok("POST", "/riders", 201, json={"name": f"Retry {tag}"})
+    ride = api.ok(
+        "POST",
+        "/rides",
+        201,
+        json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk", "direction": "CW"},
+    )
+    body = {"target": "ride_clip", "ride_id": ride["id"], "clip_kind": "motion", "camera": "left",
+            "length_bytes": length, "filename": "left.avi"}
+    return api.ok("POST", "/uploads", 201, json=body)["id"]
+
+
+def _send(api, upload_id: str, offset: int, chunk: bytes):
+    headers = {"Upload-Offset": str(offset), "Content-Type": "application/offset+octet-stream"}
+    return api.patch(f"/uploads/{upload_id}", content=chunk, headers=headers)
+
+
+def test_a_retried_chunk_is_verified_and_never_overwrites_acknowledged_bytes(env, club):
+    api = club["api"]
+    upload_id = _open_upload(api, 12, "retried")
+    stored = Storage(env.settings.storage_dir)
+    assert _send(api, upload_id, 0, b"abcdef").status_code == 204
+    again = _send(api, upload_id, 0, b"abcdef")  # the answer was lost; the client sends it again
+    assert again.status_code == 204, again.text
+    assert again.headers["Upload-Offset"] == "6"
+    other = _send(api, upload_id, 0, b"XXXXXX")
+    assert other.status_code == 409, other.text
+    assert "offset 6" in other.json()["detail"]
+    assert stored.read_bytes(upload_key(upload_id))[:6] == b"abcdef"
+    assert api.ok("GET", f"/uploads/{upload_id}")["offset_bytes"] == 6
+
+
+def test_a_chunk_racing_an_acknowledged_one_cannot_overwrite_it(env, club, monkeypatch):
+    """Request B passed the offset check at 0; request A's chunk at 0 is acknowledged; then B's bytes come."""
+    api = club["api"]
+    upload_id = _open_upload(api, 12, "raced")
+    real = uploads_router.stream_chunk
+
+    async def late(request, storage, key, **kwargs):
+        sessions = session_factory_for(env.settings.database_url)
+        storage.write_bytes(upload_key(upload_id), b"abcdef")  # A: written ...
+        with session_scope(sessions) as session:  # ... and acknowledged
+            assert UploadRepository(session).advance(upload_id, from_offset=0, to_offset=6)
+        return await real(request, storage, key, **kwargs)
+
+    monkeypatch.setattr(uploads_router, "stream_chunk", late)
+    response = _send(api, upload_id, 0, b"XXXXXX")
+    monkeypatch.setattr(uploads_router, "stream_chunk", real)
+    assert response.status_code == 409, response.text
+    assert Storage(env.settings.storage_dir).read_bytes(upload_key(upload_id)) == b"abcdef"
+    assert _send(api, upload_id, 6, b"ghijkl").status_code == 204
+    assert Storage(env.settings.storage_dir).read_bytes(upload_key(upload_id)) == b"abcdefghijkl"

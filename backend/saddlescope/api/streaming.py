@@ -209,25 +209,28 @@ async def stream_upload(request: Request, storage: Storage, key: str, *, max_byt
 
 
 async def stream_chunk(request: Request, storage: Storage, key: str, *, offset: int, limit: int) -> int:
-    """Write the raw body of a resumable-upload PATCH into `key` from `offset`; returns the new offset.
+    """Write the raw body of a resumable-upload PATCH meant for byte `offset` into a new file `key`.
 
-    Bytes that arrived before a dropped connection are kept (the client resumes from the returned offset);
-    more than `limit` bytes in total raise `TooLarge`.
+    Returns how many bytes came. Bytes that arrived before a dropped connection are kept (the client
+    resumes from the offset it is told); more than `limit` bytes in total raise `TooLarge`.
     """
     from saddlescope.storage import TooLarge
 
-    handle = await run_in_threadpool(storage.open_at, key, offset)
-    end = offset
+    writer = storage.writer(key)
+    size = 0
     try:
         async for chunk in request.stream():
-            if end + len(chunk) > limit:
+            if offset + size + len(chunk) > limit:
                 raise TooLarge(
-                    f"more bytes than the {limit} announced for this upload (offset {end} + {len(chunk)})"
+                    f"more bytes than the {limit} announced for this upload (offset {offset + size} + "
+                    f"{len(chunk)})"
                 )
-            await run_in_threadpool(handle.write, chunk)
-            end += len(chunk)
+            await _drain(writer, chunk)
+            size += len(chunk)
     except ClientDisconnect:
         pass  # keep what came; the client asks for the offset and resumes
-    finally:
-        await run_in_threadpool(handle.close)
-    return end
+    except BaseException:
+        writer.abort()
+        raise
+    await run_in_threadpool(writer.commit)
+    return size

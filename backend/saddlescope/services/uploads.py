@@ -10,6 +10,7 @@ clip, recording and ride as it was.
 
 from __future__ import annotations
 
+import os
 import re
 import secrets
 from dataclasses import dataclass
@@ -36,7 +37,7 @@ from saddlescope.storage import Storage, TooLarge, upload_key
 
 __all__ = [
     "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
-    "accept_clip", "check_clip_slot", "clip_suffix", "create_upload", "finalise_upload", "find_owner",
+    "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "finalise_upload", "find_owner",
     "staging_key", "start_processing",
 ]
 
@@ -379,3 +380,47 @@ def finalise_upload(
 
 class IncompleteUpload(InputError):
     """A resumable upload is finalised before all its bytes arrived (HTTP 409)."""
+
+
+def _append(storage: Storage, key: str, at: int, staged_key: str, skip: int) -> None:
+    """Write `staged_key` from byte `skip` onwards into `key` from byte `at` (anything after `at` dropped)."""
+    with storage.open(staged_key) as src, storage.open_at(key, at) as out:
+        src.seek(skip)
+        while block := src.read(1 << 20):
+            out.write(block)
+        out.flush()
+        os.fsync(out.fileno())
+
+
+def commit_chunk(session: Session, storage: Storage, upload_id: str, *, offset: int, staged_key: str,
+                 size: int, club_id: int | None = None) -> int:
+    """Add a PATCH's `size` bytes (stored under `staged_key`) meant for byte `offset`; returns the new offset.
+
+    Bytes already acknowledged are never rewritten: where the chunk overlaps them (a retried PATCH) it
+    must equal them byte for byte, else `IncompleteUpload` (409) names the server's offset. Only the part
+    past the current offset is appended, and the offset moves in the same locked step.
+    """
+    key = upload_key(upload_id)
+    with storage.locked(key):
+        session.rollback()  # read the offset as it is now, under the lock
+        uploads = UploadRepository(session, club_id=club_id)
+        upload = uploads.get(upload_id)
+        current = upload.offset_bytes
+        if upload.status != UploadStatus.OPEN.value:
+            raise IncompleteUpload(f"upload {upload_id} is {upload.status}; it takes no more bytes")
+        if offset > current:
+            raise IncompleteUpload(f"Upload-Offset {offset} is past the upload's offset {current}; "
+                                   f"resume from {current}")
+        overlap = min(offset + size, current) - offset
+        if overlap > 0 and not storage.same_bytes(key, offset, staged_key, overlap):
+            raise IncompleteUpload(
+                f"the chunk at Upload-Offset {offset} differs from the bytes already received there; "
+                f"acknowledged bytes are never rewritten: the upload is at offset {current}, resume from {current}"
+            )
+        if offset + size <= current:
+            return current  # a retry of bytes already here: nothing to do
+        _append(storage, key, current, staged_key, overlap)
+        if not uploads.advance(upload_id, from_offset=current, to_offset=offset + size):
+            raise IncompleteUpload(f"upload {upload_id} moved on meanwhile; ask for its offset")
+        session.commit()
+        return offset + size

@@ -13,8 +13,8 @@ from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
-from saddlescope.services.uploads import IncompleteUpload, create_upload, finalise_upload
-from saddlescope.storage import upload_key
+from saddlescope.services.uploads import IncompleteUpload, commit_chunk, create_upload, finalise_upload
+from saddlescope.storage import upload_chunk_key, upload_key
 
 __all__ = ["CHUNK_OPENAPI", "OffsetMismatch", "UploadId", "router"]
 
@@ -99,26 +99,28 @@ async def append(
 ) -> Response:
     """Send the next chunk (the raw body) starting at byte `Upload-Offset`.
 
-    `Upload-Offset` must equal the upload's current offset (409 with the right one otherwise). Answers 204
-    with the new `Upload-Offset`.
+    `Upload-Offset` must be the upload's current offset; a retried chunk at an earlier offset is accepted
+    when it equals the bytes already received there (answering the current offset), else 409 with the
+    server's offset. Acknowledged bytes are never rewritten. Answers 204 with the new `Upload-Offset`.
     """
     upload = await run_in_threadpool(club.uploads.get, upload_id)
     if upload.status != UploadStatus.OPEN.value:
         raise OffsetMismatch(f"upload {upload_id} is {upload.status}; it takes no more bytes")
-    if upload_offset != upload.offset_bytes:
+    if upload_offset > upload.offset_bytes:
         raise OffsetMismatch(
             f"Upload-Offset {upload_offset} does not match the upload's offset "
             f"{upload.offset_bytes}; resume from {upload.offset_bytes}"
         )
-    start, length = upload.offset_bytes, upload.length_bytes
+    length, staged = upload.length_bytes, upload_chunk_key(upload_id)
     club.session.rollback()  # no transaction open while the bytes arrive
-    end = await stream_chunk(request, storage, upload_key(upload_id), offset=start, limit=length)
-    moved = await run_in_threadpool(club.uploads.advance, upload_id, from_offset=start, to_offset=end)
-    if not moved:
-        raise OffsetMismatch(
-            f"upload {upload_id} moved on meanwhile (another request sent bytes); ask for its offset"
+    try:
+        size = await stream_chunk(request, storage, staged, offset=upload_offset, limit=length)
+        end = await run_in_threadpool(
+            commit_chunk, club.session, storage, upload_id, offset=upload_offset, staged_key=staged,
+            size=size, club_id=club.club_id,
         )
-    await run_in_threadpool(club.session.commit)
+    finally:
+        await run_in_threadpool(storage.delete, staged)
     return Response(
         status_code=status.HTTP_204_NO_CONTENT,
         headers={"Upload-Offset": str(end), "Upload-Length": str(length)},
