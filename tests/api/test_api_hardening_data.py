@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import sys
+
 import integration_services
 import pytest
-from api_helpers import add_member, new_club
+from api_helpers import add_member, new_club, zip_folder
 from engines import ENGINES, open_env
+from integration_services import write_tiny_bundle
 
 from saddlescope.api.routers import uploads as uploads_router
-from saddlescope.db.repositories import JobRepository, UploadRepository
+from saddlescope.db.repositories import JobRepository, ResultRepository, UploadRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.storage import Storage, upload_key
 
@@ -128,3 +131,37 @@ def test_a_chunk_racing_an_acknowledged_one_cannot_overwrite_it(env, club, monke
     assert Storage(env.settings.storage_dir).read_bytes(upload_key(upload_id)) == b"abcdef"
     assert _send(api, upload_id, 6, b"ghijkl").status_code == 204
     assert Storage(env.settings.storage_dir).read_bytes(upload_key(upload_id)) == b"abcdefghijkl"
+
+
+def test_a_failed_re_analysis_leaves_the_old_result_readable(env, club, tmp_path, monkeypatch):
+    if env.engine != "embedded":
+        pytest.skip("jobs run in this process only in embedded mode (no worker here)")
+    api = club["api"]
+    data = zip_folder(write_tiny_bundle(tmp_path / "bundle"))
+    created = api.ok("POST", "/rides/bundle", 201, files={"file": ("ride.zip", data, "application/zip")})
+    ride_id = created["ride"]["id"]
+    assert api.wait_job(created["job_id"])[0]["status"] == "done"
+    before = api.get(f"/rides/{ride_id}/export/json").json()
+    analysis = sys.modules["saddlescope.services.analysis"]
+    first = analysis.analyze_bundle
+
+    def changed(*args, **kwargs):  # the re-analysis gives other numbers
+        result = first(*args, **kwargs)
+        result["indicators"] = {k: v * 2 if isinstance(v, float) else v for k, v in result["indicators"].items()}
+        return result
+
+    seen_during: list[dict] = []
+
+    def refuse(self, **kwargs):
+        seen_during.append(api.get(f"/rides/{ride_id}/export/json").json())  # new document stored, not committed
+        raise RuntimeError("the database went away while committing the new result")
+
+    monkeypatch.setattr(analysis, "analyze_bundle", changed)
+    monkeypatch.setattr(ResultRepository, "replace_for_ride", refuse)
+    job = api.ok("POST", "/jobs", 201, json={"kind": "analyze", "ride_id": ride_id})
+    assert api.wait_job(job["id"])[0]["status"] == "failed"
+    assert seen_during == [before]  # readers saw the committed result while the new one was being stored
+    assert api.get(f"/rides/{ride_id}/export/json").json() == before
+    keys = [k for k in Storage(env.settings.storage_dir).iter_keys(f"rides/{ride_id}") if "result" in k]
+    assert len(keys) == 1, keys  # the refused new document was removed
+
