@@ -50,6 +50,8 @@ class Settings(BaseSettings):
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
     # Largest JSON request body (uploads are streamed as raw bytes or multipart, not JSON).
     max_json_body_bytes: int = Field(default=2 * 1024**2, gt=0)
+    # An open resumable upload that receives nothing for this long is removed with its bytes.
+    upload_expiry_s: int = Field(default=24 * 3600, gt=0)
     secret_key: SecretStr = SecretStr(DEFAULT_SECRET_KEY)
     token_lifetime_s: int = Field(default=12 * 3600, gt=0)
     # Processes of the embedded runner; 1 keeps a laptop responsive while a ride is analysed.

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import datetime as dt
+import re
 import sys
 
 import integration_services
@@ -9,10 +11,14 @@ import pytest
 from api_helpers import add_member, new_club, zip_folder
 from engines import ENGINES, open_env
 from integration_services import write_tiny_bundle
+from sqlalchemy import update
 
+from conftest import PROJECT_ROOT
 from saddlescope.api.routers import uploads as uploads_router
+from saddlescope.db.models import Upload, utcnow
 from saddlescope.db.repositories import JobRepository, ResultRepository, UploadRepository
 from saddlescope.db.session import session_factory_for, session_scope
+from saddlescope.services.permissions import PERMISSIONS
 from saddlescope.storage import Storage, upload_key
 
 pg_database_url = integration_services.pg_database_url
@@ -165,3 +171,96 @@ def test_a_failed_re_analysis_leaves_the_old_result_readable(env, club, tmp_path
     keys = [k for k in Storage(env.settings.storage_dir).iter_keys(f"rides/{ride_id}") if "result" in k]
     assert len(keys) == 1, keys  # the refused new document was removed
 
+
+def test_a_refused_bundle_is_named_by_the_users_file_not_the_staging_file(env, club, tmp_path):
+    data = zip_folder(write_tiny_bundle(tmp_path / "bundle"), extra={"../../evil.txt": b"owned"})
+    response = club["api"].post("/rides/bundle", files={"file": ("my ride.zip", data, "application/zip")})
+    assert response.status_code == 422, response.text
+    detail = response.json()["detail"]
+    assert detail.startswith("my ride.zip: ") and "'..' component" in detail, detail
+    assert "incoming" not in detail and not re.search(r"[0-9a-f]{24}", detail), detail
+
+
+def test_the_same_bundle_twice_in_a_club_names_the_existing_ride(env, club, tmp_path):
+    data = zip_folder(write_tiny_bundle(tmp_path / "bundle"), extra={"notes.txt": b"Tuesday's ride"})
+    api = club["api"]
+    first = api.ok("POST", "/rides/bundle", 201, files={"file": ("tuesday.zip", data, "application/zip")})
+    rides = api.ok("GET", "/rides")["total"]
+    again = api.post("/rides/bundle", files={"file": ("tuesday again.zip", data, "application/zip")})
+    assert again.status_code == 409, again.text
+    assert f"ride {first['ride']['id']}" in again.json()["detail"]
+    assert "tuesday again.zip" in again.json()["detail"]
+    assert api.ok("GET", "/rides")["total"] == rides
+    other, _ = new_club(env.client)  # another club may upload the same bundle
+    assert other.post("/rides/bundle", files={"file": ("t.zip", data, "application/zip")}).status_code == 201
+
+
+def test_a_5000_character_file_name_is_refused_naming_the_field(env, club):
+    api = club["api"]
+    horse = api.ok("POST", "/horses", 201, json={"name": "Long names"})
+    rider = api.ok("POST", "/riders", 201, json={"name": "Long names"})
+    ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
+                                               "direction": "CW"})
+    long = "n" * 5000
+    clip = api.put(f"/rides/{ride['id']}/clips/motion/left", files={"file": (f"{long}.avi", b"x" * 100)})
+    assert clip.status_code == 422 and "the file name, are too long" in clip.json()["detail"], clip.text
+    clip = api.put(f"/rides/{ride['id']}/clips/motion/left", files={"file": ("n" * 300 + ".avi", b"x" * 100)})
+    assert clip.status_code == 422, clip.text
+    assert "file name" in clip.json()["detail"] and "255" in clip.json()["detail"]
+    raw = api.put(f"/rides/{ride['id']}/clips/motion/left", content=b"x" * 100, headers={"X-Filename": long})
+    assert raw.status_code == 422 and "file name" in raw.json()["detail"], raw.text
+    for path, body in [("/horses", {"name": long}), ("/riders", {"name": long}), ("/rigs", {"name": long})]:
+        response = api.post(path, json=body)
+        assert response.status_code == 422 and "body.name" in response.json()["detail"], response.text
+    upload = api.post("/uploads", json={"target": "ride_clip", "ride_id": ride["id"], "clip_kind": "motion",
+                                        "camera": "left", "length_bytes": 10, "filename": long})
+    assert upload.status_code == 422 and "body.filename" in upload.json()["detail"], upload.text
+
+
+def test_an_open_upload_expires_and_uploads_go_with_their_ride(env, club):
+    api, storage = club["api"], Storage(env.settings.storage_dir)
+    stale = _open_upload(api, 12, "stale")
+    assert _send(api, stale, 0, b"abc").status_code == 204
+    with session_scope(session_factory_for(env.settings.database_url)) as session:
+        long_ago = utcnow() - dt.timedelta(seconds=env.settings.upload_expiry_s + 3600)
+        session.execute(update(Upload).where(Upload.id == stale).values(updated_at=long_ago))
+    fresh = _open_upload(api, 12, "fresh")  # starting an upload removes the expired ones
+    assert api.get(f"/uploads/{stale}").status_code == 404
+    assert not storage.exists(upload_key(stale))
+    assert _send(api, fresh, 0, b"abc").status_code == 204
+    ride_id = api.ok("GET", f"/uploads/{fresh}")["ride_id"]
+    assert api.delete(f"/rides/{ride_id}").status_code == 204
+    assert not storage.exists(upload_key(fresh))
+    assert not [k for k in storage.iter_keys("uploads") if fresh in k or stale in k]
+
+
+def test_the_permissions_page_is_the_table_the_api_enforces():
+    page = (PROJECT_ROOT / "docs" / "permissions.md").read_text()
+    rows = re.findall(r"^\| `([a-z_.]+)` \| (member|owner|admin) \| (.+?) \|$", page, flags=re.M)
+    assert {action: (who, what) for action, who, what in rows} == PERMISSIONS
+    assert len(rows) == len(PERMISSIONS)
+
+
+def test_a_member_may_not_delete_others_rides_cancel_their_jobs_or_change_a_rigs_board(env, club):
+    admin, member = club["api"], club["member"]
+    horse = admin.ok("POST", "/horses", 201, json={"name": "Shared"})
+    rider = admin.ok("POST", "/riders", 201, json={"name": "Shared"})
+    body = {"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk", "direction": "CW"}
+    admins_ride = admin.ok("POST", "/rides", 201, json=body)
+    assert admin.ok("GET", f"/rides/{admins_ride['id']}")["meta"] == {}  # who made it is not shown
+    refused = member.delete(f"/rides/{admins_ride['id']}")
+    assert refused.status_code == 403 and "ride.delete" in refused.json()["detail"], refused.text
+    job = admin.ok("POST", "/jobs", 201, json={"kind": "probe", "ride_id": admins_ride["id"]})
+    cancel = member.post(f"/jobs/{job['id']}/cancel")
+    assert cancel.status_code == 403 and "job.cancel" in cancel.json()["detail"], cancel.text
+    rig = admin.ok("POST", "/rigs", 201, json={"name": "Arena rig"})
+    new_board = {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 25}
+    board = member.patch(f"/rigs/{rig['id']}", json={"board": new_board})
+    assert board.status_code == 403 and "rig.change_board" in board.json()["detail"], board.text
+    assert member.patch(f"/rigs/{rig['id']}", json={"name": "Arena rig 2"}).status_code == 200
+
+    own = member.ok("POST", "/rides", 201, json=body)
+    own_job = member.ok("POST", "/jobs", 201, json={"kind": "probe", "ride_id": own["id"]})
+    assert member.post(f"/jobs/{own_job['id']}/cancel").status_code == 200
+    assert member.delete(f"/rides/{own['id']}").status_code == 204
+    assert admin.delete(f"/rides/{admins_ride['id']}").status_code == 204

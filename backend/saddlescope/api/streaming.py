@@ -48,6 +48,9 @@ UPLOAD_OPENAPI = {
 }
 
 
+MAX_FILENAME_CHARS = 255  # what a recording or an upload keeps of the user's file name
+
+
 class UploadFormatError(InputError):
     """The request body is not an upload we understand (no file field, broken multipart)."""
 
@@ -176,7 +179,8 @@ async def stream_upload(request: Request, storage: Storage, key: str, *, max_byt
                 try:
                     parser.write(chunk)
                 except MultipartParseError as exc:
-                    raise UploadFormatError(f"the multipart body is broken: {exc}") from None
+                    hint = " (a part's headers, e.g. the file name, are too long)" if "header" in str(exc) else ""
+                    raise UploadFormatError(f"the multipart body is broken: {exc}{hint}") from None
                 if state.pending_bytes >= WRITE_BATCH_BYTES:
                     await _drain(writer, state.take())
             try:
@@ -198,6 +202,9 @@ async def stream_upload(request: Request, storage: Storage, key: str, *, max_byt
                     batch, batch_bytes = [], 0
             await _drain(writer, b"".join(batch))
             filename, fields = request.headers.get("x-filename") or request.query_params.get("filename"), {}
+        if filename is not None and len(filename) > MAX_FILENAME_CHARS:
+            raise UploadFormatError(f"the file name has {len(filename)} characters; a file name may have at most "
+                                    f"{MAX_FILENAME_CHARS}")
         size, sha256 = await run_in_threadpool(writer.commit)
     except ClientDisconnect:
         writer.abort()

@@ -10,6 +10,7 @@ clip, recording and ride as it was.
 
 from __future__ import annotations
 
+import datetime as dt
 import os
 import re
 import secrets
@@ -23,6 +24,7 @@ from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.enums import UploadStatus, UploadTarget
 from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
+    Conflict,
     JobRepository,
     RecordingRepository,
     RideRepository,
@@ -37,8 +39,8 @@ from saddlescope.storage import Storage, TooLarge, upload_key
 
 __all__ = [
     "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
-    "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "finalise_upload", "find_owner",
-    "staging_key", "start_processing",
+    "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "expire_uploads",
+    "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
 ]
 
 RIG_CLIP_KINDS = ("calibration", "plumb", "static")
@@ -247,17 +249,33 @@ def accept_bundle(
     *,
     club_id: int,
     rig_id: int | None = None,
+    filename: str | None = None,
+    user_id: int | None = None,
 ) -> tuple[int, int]:
     """Register a staged ride bundle zip as a ride of the club and start its analysis; (ride id, job id).
 
     `saddlescope.io.bundle.open_bundle` refuses unsafe zips (``..`` paths, links, bombs), a missing or
-    invalid ride.json (unknown gait, camera roles, ...) and missing clips, as a `BundleError`.
+    invalid ride.json (unknown gait, camera roles, ...) and missing clips, as a `BundleError` naming the
+    user's file (`filename`), not the staging file. The same bundle (same sha256) uploaded again in the
+    club is a `Conflict` naming the ride it already is.
     """
+    shown = filename or "the bundle"
     try:
-        if rig_id is not None:
-            with session_scope(sessions) as session:
+        sha256 = storage.sha256(staged_key)
+        with session_scope(sessions) as session:
+            if rig_id is not None:
                 RigRepository(session, club_id=club_id).get(rig_id)
-        ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id)
+            existing = RideRepository(session, club_id=club_id).with_bundle_sha256(sha256)
+        if existing is not None:
+            raise Conflict(f"{shown}: this bundle (the same content) was already uploaded as ride {existing}; "
+                           "open that ride, or delete it first to upload the bundle again")
+        try:
+            ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id)
+        except BundleError as exc:
+            path = storage.path(staged_key)
+            raise BundleError(str(exc).replace(str(path), shown).replace(path.name, shown)) from None
+        with session_scope(sessions) as session:
+            RideRepository(session, club_id=club_id).note(ride_id, _bundle_sha256=sha256, _created_by=user_id)
     finally:
         storage.delete(staged_key)
     job_id = submit_job(sessions, queue, kind="analyze", ride_id=ride_id, club_id=club_id)
@@ -333,7 +351,7 @@ def finalise_upload(
                 f"upload {upload_id} has {upload.offset_bytes} of its {upload.length_bytes} "
                 "bytes; send the rest first"
             )
-        target, ride_id, rig_id = upload.target, upload.ride_id, upload.rig_id
+        target, ride_id, rig_id, user_id = upload.target, upload.ride_id, upload.rig_id, upload.user_id
         clip_kind, camera, filename, size = (
             upload.clip_kind,
             upload.camera_role,
@@ -344,7 +362,8 @@ def finalise_upload(
     storage.move(upload_key(upload_id), staged)
     try:
         if target == UploadTarget.BUNDLE:
-            new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id)
+            new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
+                                             filename=filename, user_id=user_id)
             outcome = {"ride_id": new_ride, "job_id": job_id}
         else:
             owner = ClipOwner(
@@ -424,3 +443,29 @@ def commit_chunk(session: Session, storage: Storage, upload_id: str, *, offset: 
             raise IncompleteUpload(f"upload {upload_id} moved on meanwhile; ask for its offset")
         session.commit()
         return offset + size
+
+
+def remove_upload_files(storage: Storage, upload_ids: list[str]) -> None:
+    """Delete the bytes of uploads: their collected file and any chunk still being checked."""
+    for upload_id in upload_ids:
+        storage.delete(upload_key(upload_id))
+    if upload_ids and storage.exists("uploads"):
+        prefixes = tuple(f"uploads/{upload_id}.chunk-" for upload_id in upload_ids)
+        for key in list(storage.iter_keys("uploads")):
+            if key.startswith(prefixes):
+                storage.delete(key)
+
+
+def expire_uploads(session: Session, storage: Storage, *, max_age_s: float,
+                   now: dt.datetime | None = None) -> list[str]:
+    """Remove open uploads (of every club) that received nothing for `max_age_s`, with their files.
+
+    Commits `session`. Returns the ids removed.
+    """
+    before = (now or dt.datetime.now(dt.UTC)) - dt.timedelta(seconds=max_age_s)
+    uploads = UploadRepository(session)
+    expired = uploads.open_since_before(before)
+    uploads.delete_ids(expired)
+    session.commit()
+    remove_upload_files(storage, expired)
+    return expired

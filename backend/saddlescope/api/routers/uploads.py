@@ -13,7 +13,13 @@ from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
-from saddlescope.services.uploads import IncompleteUpload, commit_chunk, create_upload, finalise_upload
+from saddlescope.services.uploads import (
+    IncompleteUpload,
+    commit_chunk,
+    create_upload,
+    expire_uploads,
+    finalise_upload,
+)
 from saddlescope.storage import upload_chunk_key, upload_key
 
 __all__ = ["CHUNK_OPENAPI", "OffsetMismatch", "UploadId", "router"]
@@ -46,8 +52,14 @@ def _headers(upload: Upload) -> dict[str, str]:
     response_model=UploadOut,
     responses={**ERRORS, 413: {"model": ErrorOut}},
 )
-def create(body: UploadCreate, club: ClubDep, settings: SettingsDep, response: Response) -> UploadOut:
-    """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then PATCH its bytes."""
+def create(
+    body: UploadCreate, club: ClubDep, settings: SettingsDep, storage: StorageDep, response: Response
+) -> UploadOut:
+    """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then PATCH its bytes.
+
+    An open upload that receives nothing for `upload_expiry_s` (24 h by default) is removed with its bytes.
+    """
+    expire_uploads(club.session, storage, max_age_s=settings.upload_expiry_s)
     upload = create_upload(
         club.session,
         club_id=club.club_id,
