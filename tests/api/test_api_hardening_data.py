@@ -218,15 +218,17 @@ def test_a_5000_character_file_name_is_refused_naming_the_field(env, club):
 
 
 def test_an_open_upload_expires_and_uploads_go_with_their_ride(env, club):
+    """Expired uploads are removed when any upload is started, resumed or finalised."""
     api, storage = club["api"], Storage(env.settings.storage_dir)
     stale = _open_upload(api, 12, "stale")
     assert _send(api, stale, 0, b"abc").status_code == 204
     with session_scope(session_factory_for(env.settings.database_url)) as session:
         long_ago = utcnow() - dt.timedelta(seconds=env.settings.upload_expiry_s + 3600)
         session.execute(update(Upload).where(Upload.id == stale).values(updated_at=long_ago))
-    fresh = _open_upload(api, 12, "fresh")  # starting an upload removes the expired ones
-    assert api.get(f"/uploads/{stale}").status_code == 404
+    late = _send(api, stale, 3, b"def")  # resuming an expired upload: it is gone
+    assert late.status_code == 404, late.text
     assert not storage.exists(upload_key(stale))
+    fresh = _open_upload(api, 12, "fresh")
     assert _send(api, fresh, 0, b"abc").status_code == 204
     ride_id = api.ok("GET", f"/uploads/{fresh}")["ride_id"]
     assert api.delete(f"/rides/{ride_id}").status_code == 204

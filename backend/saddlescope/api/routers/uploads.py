@@ -108,13 +108,16 @@ async def append(
     club: ClubDep,
     storage: StorageDep,
     upload_offset: Annotated[int, Header(alias="Upload-Offset", ge=0, le=2**62)],
+    settings: SettingsDep,
 ) -> Response:
     """Send the next chunk (the raw body) starting at byte `Upload-Offset`.
 
     `Upload-Offset` must be the upload's current offset; a retried chunk at an earlier offset is accepted
     when it equals the bytes already received there (answering the current offset), else 409 with the
     server's offset. Acknowledged bytes are never rewritten. Answers 204 with the new `Upload-Offset`.
+    An expired upload is gone (404).
     """
+    await run_in_threadpool(expire_uploads, club.session, storage, max_age_s=settings.upload_expiry_s)
     upload = await run_in_threadpool(club.uploads.get, upload_id)
     if upload.status != UploadStatus.OPEN.value:
         raise OffsetMismatch(f"upload {upload_id} is {upload.status}; it takes no more bytes")
@@ -143,13 +146,19 @@ async def append(
     "/{upload_id}/finalize", responses={**ERRORS, 409: {"model": ErrorOut}, 503: {"model": ErrorOut}}
 )
 async def finalize(
-    upload_id: UploadId, club: ClubDep, storage: StorageDep, sessions: SessionFactoryDep, queue: QueueDep
+    upload_id: UploadId,
+    club: ClubDep,
+    storage: StorageDep,
+    sessions: SessionFactoryDep,
+    queue: QueueDep,
+    settings: SettingsDep,
 ) -> dict:
     """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle).
 
     Starts the processing the new clips allow. Returns ``{"recording_id", "job_id"}`` or
-    ``{"ride_id", "job_id"}``.
+    ``{"ride_id", "job_id"}``. An expired upload is gone (404).
     """
+    await run_in_threadpool(expire_uploads, club.session, storage, max_age_s=settings.upload_expiry_s)
     club_id = club.club_id
     club.session.rollback()
     return await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id)
