@@ -62,6 +62,10 @@ class Settings(BaseSettings):
     broker_url: str | None = None
     storage_dir: Path = Path("./var/storage")
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
+    # Largest JSON request body (uploads are streamed as raw bytes or multipart, not JSON).
+    max_json_body_bytes: int = Field(default=2 * 1024**2, gt=0)
+    # An open resumable upload that receives nothing for this long is removed with its bytes.
+    upload_expiry_s: int = Field(default=24 * 3600, gt=0)
     secret_key: SecretStr = SecretStr(DEFAULT_SECRET_KEY)
     token_lifetime_s: int = Field(default=12 * 3600, gt=0)
     # Where the generated embedded secret is kept (default: ``secret_key`` beside the storage dir).

@@ -8,6 +8,7 @@ reader never sees half a file.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import io
 import os
@@ -15,6 +16,7 @@ import shutil
 import tempfile
 import uuid
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO
 
@@ -40,6 +42,13 @@ def rig_stage_output_key(rig_id: int, stage: str) -> str:
 def upload_key(upload_id: str) -> str:
     """Where the bytes of a resumable upload collect until it is finalised."""
     return f"uploads/{upload_id}.part"
+
+
+def upload_chunk_key(upload_id: str) -> str:
+    """A fresh key for one PATCH's bytes of a resumable upload, before they are checked and appended."""
+    import secrets
+
+    return f"uploads/{upload_id}.chunk-{secrets.token_hex(8)}"
 
 
 class TooLarge(InputError):
@@ -162,6 +171,30 @@ class Storage:
         handle.seek(offset)
         handle.truncate()
         return handle
+
+    @contextmanager
+    def locked(self, key: str) -> Iterator[None]:
+        """Hold an exclusive lock on file `key` (created if absent) across processes of this host."""
+        path = self.path(key)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "ab") as handle:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+
+    def same_bytes(self, key: str, offset: int, other_key: str, length: int) -> bool:
+        """Whether `length` bytes of `key` from `offset` equal the first `length` bytes of `other_key`."""
+        with self.open(key) as ours, self.open(other_key) as theirs:
+            ours.seek(offset)
+            while length > 0:
+                size = min(length, CHUNK_BYTES)
+                mine = ours.read(size)
+                if len(mine) != size or mine != theirs.read(size):
+                    return False
+                length -= size
+        return True
 
     def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
         return self.write_stream(key, io.BytesIO(data))

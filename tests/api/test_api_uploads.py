@@ -74,8 +74,10 @@ def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club
     head = api.request("HEAD", f"/uploads/{upload['id']}")
     assert head.status_code == 200 and head.headers["Upload-Offset"] == str(third)
     assert head.headers["Upload-Length"] == str(len(data))
-    stale = send(api, upload["id"], 0, data[:third])  # a retry of the first chunk
-    assert stale.status_code == 409 and f"resume from {third}" in stale.json()["detail"]
+    stale = send(api, upload["id"], 0, data[:third])  # a retry of the first chunk: the same bytes
+    assert stale.status_code == 204 and stale.headers["Upload-Offset"] == str(third)
+    other = send(api, upload["id"], 0, b"\xff" * third)  # other bytes where some were acknowledged
+    assert other.status_code == 409 and f"resume from {third}" in other.json()["detail"]
     early = api.post(f"/uploads/{upload['id']}/finalize")
     assert early.status_code == 409 and f"has {third} of its {len(data)} bytes" in early.json()["detail"]
 

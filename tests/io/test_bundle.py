@@ -342,3 +342,34 @@ def test_write_bundle_zip_refuses_invalid_or_non_bundles(tmp_path):
     with pytest.raises(BundleError, match="direction 'sideways'"):
         write_bundle_zip(root, tmp_path / "x.zip")
     assert not (tmp_path / "x.zip").exists()
+
+
+def _padded(zip_path: Path, count: int, size: int, members: dict[str, bytes]) -> Path:
+    """Many members each just under the per-member ratio check (1 MiB) of zeros: padding, not a video."""
+    with zipfile.ZipFile(zip_path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+        for i in range(count):
+            zf.writestr(f"padding/{i:05d}.png", bytes(size))
+    return zip_path
+
+
+def test_a_padded_bundle_is_refused_by_its_total_against_the_archive_size(tmp_path):
+    zip_path = _padded(tmp_path / "padded.zip", 300, 1024**2 - 1, _bundle_members())
+    assert zip_path.stat().st_size < 2 * 1024**2  # ~300 MB unpacked from well under 2 MB
+    out = tmp_path / "out"
+    with pytest.raises(BundleError, match=r"padded.zip: unpacks to \d+ MB, \d+ times its [\d.]+ MB compressed size"):
+        open_bundle(zip_path, extract_to=out)
+    assert not any(out.rglob("*.png"))  # refused before a member was written
+
+
+def test_a_bundle_of_many_empty_members_is_refused_by_count_against_the_archive_size(tmp_path):
+    zip_path = _padded(tmp_path / "many.zip", 3000, 0, _bundle_members())
+    with pytest.raises(BundleError, match=r"many.zip: 30\d\d members in a \d+ kB archive"):
+        open_bundle(zip_path)
+
+
+def test_an_ordinary_bundle_with_small_members_still_opens(tmp_path):
+    zip_path = _zip_with(tmp_path / "ride.zip", _bundle_members())
+    with open_bundle(zip_path) as bundle:
+        assert bundle.meta

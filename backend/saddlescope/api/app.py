@@ -20,6 +20,7 @@ from sqlalchemy.exc import DataError, IntegrityError, SQLAlchemyError
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope import __version__
+from saddlescope.api.limits import JsonBodyLimit
 from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFound
@@ -97,6 +98,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     app.state.queue = queue
 
     _add_error_handlers(app)
+    app.add_middleware(JsonBodyLimit, max_bytes=settings.max_json_body_bytes)
 
     from saddlescope.api.routers import (
         auth,

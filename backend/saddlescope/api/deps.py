@@ -40,6 +40,7 @@ from saddlescope.services.accounts import (
     read_token,
     require_admin,
 )
+from saddlescope.services.permissions import require as require_permission
 from saddlescope.services.queue import JobQueue
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage
@@ -144,6 +145,10 @@ class ClubScope:
     def require_admin(self) -> None:
         """Raise `Forbidden` unless the caller is an admin of the club."""
         require_admin(self.principal)
+
+    def require(self, action: str, *, owner_id: int | None = None) -> None:
+        """Raise `Forbidden` unless the caller may do `action` (the table in services/permissions.py)."""
+        require_permission(self.principal, action, owner_id=owner_id)
 
     def _repo(self, cls):
         return cls(self.session, club_id=self.club_id)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import datetime as dt
+import json
+import re
 from typing import Annotated, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
@@ -40,11 +42,19 @@ MAX_ID = 2_147_483_647
 RefId = Annotated[int, Field(ge=1, le=MAX_ID)]
 
 
+_SURROGATE = re.compile("[\ud800-\udfff]")
+# A job's options are small; the largest (a similarity job's 50,000 pairs) fits well under this.
+MAX_JOB_PAYLOAD_BYTES = 1024**2
+
+
 def _nul_free(value: Any, where: str = "body") -> None:
-    """Refuse NUL characters anywhere in a body: PostgreSQL cannot store them in text."""
+    """Refuse NUL characters and lone UTF-16 surrogates anywhere in a body: neither can be stored as text."""
     if isinstance(value, str):
         if "\x00" in value:
             raise ValueError(f"{where}: text may not contain the NUL character")
+        if _SURROGATE.search(value):
+            raise ValueError(f"{where}: text may not contain a lone UTF-16 surrogate (e.g. \\ud800); "
+                             "it is not valid Unicode")
     elif isinstance(value, dict):
         for key, item in value.items():
             _nul_free(key, where)
@@ -506,8 +516,19 @@ class JobCreate(_In):
     ride_id: RefId | None = Field(default=None, description="the ride to work on (probe, analyze)")
     rig_id: RefId | None = Field(default=None, description="the rig to work on (probe, calibrate_rig)")
     payload: dict[str, Any] = Field(
-        default_factory=dict, description="kind-specific options, e.g. {'steps': 5} for selftest"
+        default_factory=dict,
+        description=f"kind-specific options, e.g. {{'steps': 5}} for selftest (at most {MAX_JOB_PAYLOAD_BYTES} "
+        "bytes as JSON)",
     )
+
+    @field_validator("payload")
+    @classmethod
+    def _bounded(cls, payload: dict[str, Any]) -> dict[str, Any]:
+        size = len(json.dumps(payload, separators=(",", ":")).encode())
+        if size > MAX_JOB_PAYLOAD_BYTES:
+            raise ValueError(f"the job payload is {size} bytes as JSON, more than the limit of "
+                             f"{MAX_JOB_PAYLOAD_BYTES} bytes")
+        return payload
 
 
 class JobOut(BaseModel):

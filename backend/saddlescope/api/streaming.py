@@ -48,6 +48,9 @@ UPLOAD_OPENAPI = {
 }
 
 
+MAX_FILENAME_CHARS = 255  # what a recording or an upload keeps of the user's file name
+
+
 class UploadFormatError(InputError):
     """The request body is not an upload we understand (no file field, broken multipart)."""
 
@@ -176,7 +179,8 @@ async def stream_upload(request: Request, storage: Storage, key: str, *, max_byt
                 try:
                     parser.write(chunk)
                 except MultipartParseError as exc:
-                    raise UploadFormatError(f"the multipart body is broken: {exc}") from None
+                    hint = " (a part's headers, e.g. the file name, are too long)" if "header" in str(exc) else ""
+                    raise UploadFormatError(f"the multipart body is broken: {exc}{hint}") from None
                 if state.pending_bytes >= WRITE_BATCH_BYTES:
                     await _drain(writer, state.take())
             try:
@@ -198,6 +202,9 @@ async def stream_upload(request: Request, storage: Storage, key: str, *, max_byt
                     batch, batch_bytes = [], 0
             await _drain(writer, b"".join(batch))
             filename, fields = request.headers.get("x-filename") or request.query_params.get("filename"), {}
+        if filename is not None and len(filename) > MAX_FILENAME_CHARS:
+            raise UploadFormatError(f"the file name has {len(filename)} characters; a file name may have at most "
+                                    f"{MAX_FILENAME_CHARS}")
         size, sha256 = await run_in_threadpool(writer.commit)
     except ClientDisconnect:
         writer.abort()
@@ -209,25 +216,28 @@ async def stream_upload(request: Request, storage: Storage, key: str, *, max_byt
 
 
 async def stream_chunk(request: Request, storage: Storage, key: str, *, offset: int, limit: int) -> int:
-    """Write the raw body of a resumable-upload PATCH into `key` from `offset`; returns the new offset.
+    """Write the raw body of a resumable-upload PATCH meant for byte `offset` into a new file `key`.
 
-    Bytes that arrived before a dropped connection are kept (the client resumes from the returned offset);
-    more than `limit` bytes in total raise `TooLarge`.
+    Returns how many bytes came. Bytes that arrived before a dropped connection are kept (the client
+    resumes from the offset it is told); more than `limit` bytes in total raise `TooLarge`.
     """
     from saddlescope.storage import TooLarge
 
-    handle = await run_in_threadpool(storage.open_at, key, offset)
-    end = offset
+    writer = storage.writer(key)
+    size = 0
     try:
         async for chunk in request.stream():
-            if end + len(chunk) > limit:
+            if offset + size + len(chunk) > limit:
                 raise TooLarge(
-                    f"more bytes than the {limit} announced for this upload (offset {end} + {len(chunk)})"
+                    f"more bytes than the {limit} announced for this upload (offset {offset + size} + "
+                    f"{len(chunk)})"
                 )
-            await run_in_threadpool(handle.write, chunk)
-            end += len(chunk)
+            await _drain(writer, chunk)
+            size += len(chunk)
     except ClientDisconnect:
         pass  # keep what came; the client asks for the offset and resumes
-    finally:
-        await run_in_threadpool(handle.close)
-    return end
+    except BaseException:
+        writer.abort()
+        raise
+    await run_in_threadpool(writer.commit)
+    return size

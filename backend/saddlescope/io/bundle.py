@@ -36,6 +36,12 @@ MAX_FILES = 50_000  # 12 clips of numbered images at 30 fps: over 2 minutes each
 MAX_BYTES = 8 * 1024**3
 MAX_RATIO = 200.0  # video and images barely compress; zeros compress ~1000:1
 _RATIO_MIN_BYTES = 1024**2  # tiny members (ride.json) may compress well without being bombs
+# The whole archive, too: many members each under _RATIO_MIN_BYTES of padding must not fill the disk.
+MAX_TOTAL_RATIO = 20.0
+_TOTAL_RATIO_MIN_BYTES = 64 * 1024**2  # a bundle unpacking to less may compress as it likes
+# A real member (a frame, a clip) takes at least a kB in the archive; empty padding members take ~100 B.
+_MEMBERS_FREE = 1000
+_ARCHIVE_BYTES_PER_MEMBER = 1024
 _MAX_JSON_BYTES = 16 * 1024**2
 _CHUNK = 1024**2
 _IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm"})
@@ -204,8 +210,23 @@ def _member_parts(info: zipfile.ZipInfo, zip_name: str) -> tuple[str, ...]:
     return parts
 
 
+def _check_totals(infos: list[zipfile.ZipInfo], zip_name: str, archive_bytes: int | None) -> None:
+    """Refuse padding: more members, or more bytes unpacked, than an archive of this size can honestly hold."""
+    if archive_bytes is None:
+        return
+    allowed = _MEMBERS_FREE + archive_bytes // _ARCHIVE_BYTES_PER_MEMBER
+    if len(infos) > allowed:
+        raise BundleError(f"{zip_name}: {len(infos)} members in a {archive_bytes / 1e3:.0f} kB archive, more "
+                          f"than the {allowed} such an archive may hold (padding?)")
+    total = sum(info.file_size for info in infos)
+    if total > _TOTAL_RATIO_MIN_BYTES and total > MAX_TOTAL_RATIO * max(archive_bytes, 1):
+        raise BundleError(f"{zip_name}: unpacks to {total / 1e6:.0f} MB, {total / max(archive_bytes, 1):.0f} "
+                          f"times its {archive_bytes / 1e6:.1f} MB compressed size (the limit is "
+                          f"{MAX_TOTAL_RATIO:.0f} times; padding or a zip bomb?)")
+
+
 def _check_zip(zf: zipfile.ZipFile, zip_name: str, *, max_files: int, max_bytes: int,
-               max_ratio: float) -> list[tuple[zipfile.ZipInfo, tuple[str, ...]]]:
+               max_ratio: float, archive_bytes: int | None = None) -> list[tuple[zipfile.ZipInfo, tuple[str, ...]]]:
     """Vet every member before anything is written."""
     infos = zf.infolist()
     if len(infos) > max_files:
@@ -238,6 +259,7 @@ def _check_zip(zf: zipfile.ZipFile, zip_name: str, *, max_files: int, max_bytes:
                               f"{info.file_size / max(info.compress_size, 1):.0f}:1, over the limit of "
                               f"{max_ratio:.0f}:1 (a zip bomb?)")
         members.append((info, parts))
+    _check_totals(infos, zip_name, archive_bytes)
     return members
 
 
@@ -245,7 +267,8 @@ def _extract_zip(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, 
     name = zip_path.name
     try:
         with zipfile.ZipFile(zip_path) as zf:
-            members = _check_zip(zf, name, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio)
+            members = _check_zip(zf, name, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio,
+                                 archive_bytes=zip_path.stat().st_size)
             written_total = 0
             for info, parts in members:
                 target = dest.joinpath(*parts)

@@ -73,13 +73,24 @@ def _fail_queued(sessions: sessionmaker[Session], job_id: int, error: str) -> No
         refresh_ride_status(session, jobs.get(job_id).ride_id)
 
 
+def _printable(value: Any) -> Any:
+    """`value` with any text that is not valid Unicode (a lone surrogate) repaired, so it can be sent as JSON."""
+    if isinstance(value, str):
+        return value.encode("utf-8", "replace").decode("utf-8")
+    if isinstance(value, dict):
+        return {_printable(k): _printable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_printable(v) for v in value]
+    return value
+
+
 def job_as_dict(job: Job) -> dict[str, Any]:
-    """The public view of a job (what GET /api/jobs/{id} returns)."""
+    """The public view of a job (what GET /api/jobs/{id} returns); stored text that cannot be sent is repaired."""
     return {
-        "id": job.id, "kind": job.kind, "status": job.status, "stage": job.stage, "progress": job.progress,
-        "timings_s": dict(job.timings or {}), "error": job.error, "ride_id": job.ride_id,
-        "rig_id": job.rig_id,
-        "payload": dict(job.payload or {}), "attempts": job.attempts, "code_version": job.code_version,
+        "id": job.id, "kind": job.kind, "status": job.status, "stage": _printable(job.stage),
+        "progress": job.progress, "timings_s": dict(job.timings or {}), "error": _printable(job.error),
+        "ride_id": job.ride_id, "rig_id": job.rig_id,
+        "payload": _printable(dict(job.payload or {})), "attempts": job.attempts, "code_version": job.code_version,
         "host": job.host, "created_at": job.created_at, "started_at": job.started_at,
         "finished_at": job.finished_at, "note": None,
     }

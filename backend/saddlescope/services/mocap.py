@@ -310,7 +310,8 @@ def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, c
     with session_scope(sessions) as session:
         row = RideRepository(session, club_id=club_id).add(
             horse_id=ride["horse_id"], rider_id=ride["rider_id"], gait=ride["gait"], direction=ride["direction"],
-            ridden_on=ride["ridden_on"], notes=ride.get("notes") or "", meta={"source": document["source"]})
+            ridden_on=ride["ridden_on"], notes=ride.get("notes") or "",
+            meta={"source": document["source"], "_created_by": ride.get("created_by")})
         ride_id = row.id
     file_key = f"rides/{ride_id}/mocap/{name}{suffix}"
     result_key = f"rides/{ride_id}/mocap/result.json"

@@ -7,6 +7,7 @@ import hashlib
 import io
 import json
 import math
+import secrets
 import tempfile
 import threading
 from collections import OrderedDict
@@ -14,17 +15,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
+from saddlescope.db.session import session_scope
 from saddlescope.storage import Storage
 
 __all__ = [
     "ANGULAR_PER_FRAME", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
-    "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document", "result_view",
-    "result_view_json", "tracks_mm", "view_of_document",
+    "commit_result", "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document",
+    "result_view", "result_view_json", "tracks_mm", "view_of_document",
 ]
 
 EXPORT_FORMATS = {
@@ -287,3 +289,29 @@ def export_rides(
     if fmt not in TABLE_FORMATS:
         raise InputError(f"indicator tables are exported as {' or '.join(TABLE_FORMATS)}, not {fmt!r}")
     return indicator_table_bytes(_ride_rows(session, None, club_id=club_id, rides=rides), fmt), f"rides.{fmt}"
+
+
+def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id: int, ride_id: int,
+                  job_id: int | None, document: dict[str, Any], code_version: str | None) -> str:
+    """Store a ride's new result document and make it the ride's result atomically; returns its key.
+
+    The document goes under a new key first; the result row is swapped to it in one transaction; only
+    then is the previous document deleted. Until the commit readers get the old result, and a failed
+    commit leaves it (and removes the new document).
+    """
+    key = f"rides/{ride_id}/results/{secrets.token_hex(8)}.json"
+    storage.write_bytes(key, json.dumps(document, allow_nan=False).encode())
+    try:
+        with session_scope(sessions) as session:
+            results = ResultRepository(session)
+            old = results.for_ride(ride_id)
+            old_key = old.result_key if old is not None else None
+            results.replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=job_id,
+                                     indicators=document.get("indicators", {}), result_key=key,
+                                     code_version=code_version)
+    except BaseException:
+        storage.delete(key)
+        raise
+    if old_key and old_key != key:
+        storage.delete(old_key)
+    return key

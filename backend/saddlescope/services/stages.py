@@ -36,7 +36,6 @@ from saddlescope.core.errors import BundleError, CalibrationError, InputError, S
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.db.repositories import (
     RecordingRepository,
-    ResultRepository,
     RideRepository,
     RigRepository,
 )
@@ -408,14 +407,12 @@ def run_analyze(ctx: StageContext) -> None:
 
         rig_model = rig_from_calibration(calibration)
     result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model)
-    ctx.outputs()
-    # The result document is what the dashboard and the exports read (its series decimated on the way).
-    result_key = ctx.output_key("result.json")
-    ctx.storage.write_bytes(result_key, json.dumps(result, allow_nan=False).encode())
-    with ctx.session() as session:
-        ResultRepository(session).replace_for_ride(
-            club_id=club_id, ride_id=ride_id, job_id=ctx.job_id, indicators=result.get("indicators", {}),
-            result_key=result_key, code_version=ctx.settings.resolved_code_version)
+    # The result document is what the dashboard and the exports read (its series decimated on the way);
+    # it replaces the previous one atomically (the old one stays readable until the new one is committed).
+    from saddlescope.services.results import commit_result
+
+    commit_result(ctx.sessions, ctx.storage, club_id=club_id, ride_id=ride_id, job_id=ctx.job_id,
+                  document=result, code_version=ctx.settings.resolved_code_version)
     ctx.report(1.0, None)
 
 

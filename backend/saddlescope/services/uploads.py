@@ -10,6 +10,8 @@ clip, recording and ride as it was.
 
 from __future__ import annotations
 
+import datetime as dt
+import os
 import re
 import secrets
 from dataclasses import dataclass
@@ -22,6 +24,7 @@ from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.enums import UploadStatus, UploadTarget
 from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
+    Conflict,
     JobRepository,
     RecordingRepository,
     RideRepository,
@@ -36,8 +39,8 @@ from saddlescope.storage import Storage, TooLarge, upload_key
 
 __all__ = [
     "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
-    "accept_clip", "check_clip_slot", "clip_suffix", "create_upload", "finalise_upload", "find_owner",
-    "staging_key", "start_processing",
+    "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "expire_uploads",
+    "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
 ]
 
 RIG_CLIP_KINDS = ("calibration", "plumb", "static")
@@ -246,17 +249,33 @@ def accept_bundle(
     *,
     club_id: int,
     rig_id: int | None = None,
+    filename: str | None = None,
+    user_id: int | None = None,
 ) -> tuple[int, int]:
     """Register a staged ride bundle zip as a ride of the club and start its analysis; (ride id, job id).
 
     `saddlescope.io.bundle.open_bundle` refuses unsafe zips (``..`` paths, links, bombs), a missing or
-    invalid ride.json (unknown gait, camera roles, ...) and missing clips, as a `BundleError`.
+    invalid ride.json (unknown gait, camera roles, ...) and missing clips, as a `BundleError` naming the
+    user's file (`filename`), not the staging file. The same bundle (same sha256) uploaded again in the
+    club is a `Conflict` naming the ride it already is.
     """
+    shown = filename or "the bundle"
     try:
-        if rig_id is not None:
-            with session_scope(sessions) as session:
+        sha256 = storage.sha256(staged_key)
+        with session_scope(sessions) as session:
+            if rig_id is not None:
                 RigRepository(session, club_id=club_id).get(rig_id)
-        ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id)
+            existing = RideRepository(session, club_id=club_id).with_bundle_sha256(sha256)
+        if existing is not None:
+            raise Conflict(f"{shown}: this bundle (the same content) was already uploaded as ride {existing}; "
+                           "open that ride, or delete it first to upload the bundle again")
+        try:
+            ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id)
+        except BundleError as exc:
+            path = storage.path(staged_key)
+            raise BundleError(str(exc).replace(str(path), shown).replace(path.name, shown)) from None
+        with session_scope(sessions) as session:
+            RideRepository(session, club_id=club_id).note(ride_id, _bundle_sha256=sha256, _created_by=user_id)
     finally:
         storage.delete(staged_key)
     job_id = submit_job(sessions, queue, kind="analyze", ride_id=ride_id, club_id=club_id)
@@ -332,7 +351,7 @@ def finalise_upload(
                 f"upload {upload_id} has {upload.offset_bytes} of its {upload.length_bytes} "
                 "bytes; send the rest first"
             )
-        target, ride_id, rig_id = upload.target, upload.ride_id, upload.rig_id
+        target, ride_id, rig_id, user_id = upload.target, upload.ride_id, upload.rig_id, upload.user_id
         clip_kind, camera, filename, size = (
             upload.clip_kind,
             upload.camera_role,
@@ -343,7 +362,8 @@ def finalise_upload(
     storage.move(upload_key(upload_id), staged)
     try:
         if target == UploadTarget.BUNDLE:
-            new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id)
+            new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
+                                             filename=filename, user_id=user_id)
             outcome = {"ride_id": new_ride, "job_id": job_id}
         else:
             owner = ClipOwner(
@@ -379,3 +399,73 @@ def finalise_upload(
 
 class IncompleteUpload(InputError):
     """A resumable upload is finalised before all its bytes arrived (HTTP 409)."""
+
+
+def _append(storage: Storage, key: str, at: int, staged_key: str, skip: int) -> None:
+    """Write `staged_key` from byte `skip` onwards into `key` from byte `at` (anything after `at` dropped)."""
+    with storage.open(staged_key) as src, storage.open_at(key, at) as out:
+        src.seek(skip)
+        while block := src.read(1 << 20):
+            out.write(block)
+        out.flush()
+        os.fsync(out.fileno())
+
+
+def commit_chunk(session: Session, storage: Storage, upload_id: str, *, offset: int, staged_key: str,
+                 size: int, club_id: int | None = None) -> int:
+    """Add a PATCH's `size` bytes (stored under `staged_key`) meant for byte `offset`; returns the new offset.
+
+    Bytes already acknowledged are never rewritten: where the chunk overlaps them (a retried PATCH) it
+    must equal them byte for byte, else `IncompleteUpload` (409) names the server's offset. Only the part
+    past the current offset is appended, and the offset moves in the same locked step.
+    """
+    key = upload_key(upload_id)
+    with storage.locked(key):
+        session.rollback()  # read the offset as it is now, under the lock
+        uploads = UploadRepository(session, club_id=club_id)
+        upload = uploads.get(upload_id)
+        current = upload.offset_bytes
+        if upload.status != UploadStatus.OPEN.value:
+            raise IncompleteUpload(f"upload {upload_id} is {upload.status}; it takes no more bytes")
+        if offset > current:
+            raise IncompleteUpload(f"Upload-Offset {offset} is past the upload's offset {current}; "
+                                   f"resume from {current}")
+        overlap = min(offset + size, current) - offset
+        if overlap > 0 and not storage.same_bytes(key, offset, staged_key, overlap):
+            raise IncompleteUpload(
+                f"the chunk at Upload-Offset {offset} differs from the bytes already received there; "
+                f"acknowledged bytes are never rewritten: the upload is at offset {current}, resume from {current}"
+            )
+        if offset + size <= current:
+            return current  # a retry of bytes already here: nothing to do
+        _append(storage, key, current, staged_key, overlap)
+        if not uploads.advance(upload_id, from_offset=current, to_offset=offset + size):
+            raise IncompleteUpload(f"upload {upload_id} moved on meanwhile; ask for its offset")
+        session.commit()
+        return offset + size
+
+
+def remove_upload_files(storage: Storage, upload_ids: list[str]) -> None:
+    """Delete the bytes of uploads: their collected file and any chunk still being checked."""
+    for upload_id in upload_ids:
+        storage.delete(upload_key(upload_id))
+    if upload_ids and storage.exists("uploads"):
+        prefixes = tuple(f"uploads/{upload_id}.chunk-" for upload_id in upload_ids)
+        for key in list(storage.iter_keys("uploads")):
+            if key.startswith(prefixes):
+                storage.delete(key)
+
+
+def expire_uploads(session: Session, storage: Storage, *, max_age_s: float,
+                   now: dt.datetime | None = None) -> list[str]:
+    """Remove open uploads (of every club) that received nothing for `max_age_s`, with their files.
+
+    Commits `session`. Returns the ids removed.
+    """
+    before = (now or dt.datetime.now(dt.UTC)) - dt.timedelta(seconds=max_age_s)
+    uploads = UploadRepository(session)
+    expired = uploads.open_since_before(before)
+    uploads.delete_ids(expired)
+    session.commit()
+    remove_upload_files(storage, expired)
+    return expired

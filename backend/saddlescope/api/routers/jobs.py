@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, Query, status
 from starlette.concurrency import run_in_threadpool
 
-from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep
+from saddlescope.api.deps import ClubDep, ClubScope, QueueDep, SessionFactoryDep
 from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, page_of
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
 from saddlescope.db.repositories import Job
@@ -24,6 +24,12 @@ JobStatusName = Literal["queued", "running", "done", "failed", "cancelled"]
 def job_out(job: Job) -> JobOut:
     """The public view of a job."""
     return JobOut(**job_as_dict(job))
+
+
+def _ride_owner(club: ClubScope, job_id: int) -> int | None:
+    """Who made the job's ride (None for a job without a ride, or a ride whose maker is not recorded)."""
+    ride_id = get_job(club.session, job_id, club_id=club.club_id).ride_id
+    return club.rides.creator_of(ride_id) if ride_id is not None else None
 
 
 @router.get("", response_model=Page[JobOut], responses=ERRORS)
@@ -55,7 +61,9 @@ def list_jobs(
     responses={**ERRORS, 503: {"model": ErrorOut}},
 )
 async def create(body: JobCreate, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
-    """Create a job and hand it to a worker (embedded pool or Celery)."""
+    """Create a job and hand it to a worker (embedded pool or Celery); selftest jobs are for admins."""
+    if body.kind == "selftest":
+        club.require("job.selftest")
     club_id = club.club_id
     club.session.rollback()
     job_id = await run_in_threadpool(
@@ -93,7 +101,11 @@ def read(job_id: Id, club: ClubDep, queue: QueueDep) -> JobOut:
 
 @router.post("/{job_id}/cancel", response_model=JobOut, responses=ERRORS)
 def cancel(job_id: Id, club: ClubDep) -> JobOut:
-    """Cancel a queued or running job (a running one stops at its next progress report)."""
+    """Cancel a queued or running job (a running one stops at its next progress report).
+
+    An admin, or the member who made the job's ride (docs/permissions.md).
+    """
+    club.require("job.cancel", owner_id=_ride_owner(club, job_id))
     return job_out(cancel_job(club.session, job_id, club_id=club.club_id))
 
 
@@ -107,7 +119,8 @@ def cancel(job_id: Id, club: ClubDep) -> JobOut:
     },
 )
 async def retry(job_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
-    """Run a failed or cancelled job again (same id; the uploads were kept)."""
+    """Run a failed or cancelled job again (same id; the uploads were kept); an admin or the ride's maker."""
+    club.require("job.retry", owner_id=_ride_owner(club, job_id))
     club_id = club.club_id
     club.session.rollback()
     await run_in_threadpool(retry_job, sessions, queue, job_id, club_id=club_id)

@@ -81,7 +81,8 @@ async def upload_mocap(
     club.session.rollback()
     staged = await stream_upload(request, storage, staging_key(club_id), max_bytes=settings.max_upload_bytes)
     ride = {"horse_id": horse_id, "rider_id": rider_id, "gait": gait, "direction": direction,
-            "ridden_on": ridden_on or dt.datetime.now(dt.UTC).date(), "notes": notes}
+            "ridden_on": ridden_on or dt.datetime.now(dt.UTC).date(), "notes": notes,
+            "created_by": club.principal.user_id}
     ride_id = await run_in_threadpool(
         store_mocap_ride, sessions, storage, staged.key, staged.filename or filename, choice, club_id=club_id,
         ride=ride, code_version=settings.resolved_code_version)

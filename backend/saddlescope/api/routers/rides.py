@@ -36,6 +36,7 @@ from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rid
 from saddlescope.services.uploads import (
     ClipOwner,
     accept_bundle,
+    remove_upload_files,
     staging_key,
 )
 
@@ -77,7 +78,7 @@ def ride_detail(club, ride: Ride) -> RideDetail:
     latest = club.jobs.latest_for_ride(ride.id)
     return RideDetail(
         **base,
-        meta=dict(ride.meta or {}),
+        meta={k: v for k, v in dict(ride.meta or {}).items() if not k.startswith("_")},
         recordings=[RecordingOut.model_validate(r) for r in club.recordings.for_ride(ride.id)],
         latest_job_id=latest.id if latest else None,
     )
@@ -130,7 +131,7 @@ def create_ride(body: RideIn, club: ClubDep) -> RideOut:
         direction=body.direction,
         ridden_on=body.ridden_on or dt.datetime.now(dt.UTC).date(),
         notes=body.notes,
-        meta=meta,
+        meta={**meta, "_created_by": club.principal.user_id},
     )
     return ride_out(ride)
 
@@ -161,7 +162,7 @@ def export_many(
     status_code=status.HTTP_201_CREATED,
     response_model=BundleUploaded,
     openapi_extra=UPLOAD_OPENAPI,
-    responses=UPLOAD_ERRORS,
+    responses={**UPLOAD_ERRORS, 409: {"model": ErrorOut, "description": "the same bundle is already a ride"}},
 )
 async def upload_bundle(
     request: Request,
@@ -176,7 +177,7 @@ async def upload_bundle(
 
     The horse and rider are found or created by name; the analysis starts at once. Unsafe zips (``..``
     paths, links, zip bombs), an invalid ride.json (unknown gait or camera, ...) and missing clips are
-    refused (422).
+    refused (422), naming the uploaded file; the same bundle again in the club is 409 naming its ride.
     """
     if rig_id is not None:
         await run_in_threadpool(club.rigs.get, rig_id)
@@ -186,7 +187,8 @@ async def upload_bundle(
         request, storage, staging_key(club_id, "bundle.zip"), max_bytes=settings.max_upload_bytes
     )
     ride_id, job_id = await run_in_threadpool(
-        accept_bundle, sessions, storage, queue, staged.key, club_id=club_id, rig_id=rig_id
+        accept_bundle, sessions, storage, queue, staged.key, club_id=club_id, rig_id=rig_id,
+        filename=staged.filename, user_id=club.principal.user_id,
     )
     with session_scope(sessions) as session:
         ride = RideRepository(session, club_id=club_id).get(ride_id)
@@ -207,11 +209,13 @@ def update_ride(ride_id: Id, body: RideUpdate, club: ClubDep) -> RideOut:
 
 @router.delete("/{ride_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
 def delete_ride(ride_id: Id, club: ClubDep, storage: StorageDep) -> Response:
-    """Delete a ride with its clips, jobs, result and grades."""
-    club.rides.get(ride_id)
+    """Delete a ride with its clips, jobs, result, grades and uploads (an admin or the ride's maker)."""
+    club.require("ride.delete", owner_id=club.rides.creator_of(ride_id))
+    uploads = club.uploads.ids_of(ride_id=ride_id)
     club.rides.delete(ride_id)
     club.session.commit()
     storage.delete(f"rides/{ride_id}")
+    remove_upload_files(storage, uploads)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

@@ -28,6 +28,7 @@ from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.uploads import (
     ClipOwner,
+    remove_upload_files,
 )
 
 __all__ = ["rig_out", "router"]
@@ -85,6 +86,8 @@ def read_rig(rig_id: Id, club: ClubDep) -> RigOut:
 def update_rig(rig_id: Id, body: RigUpdate, club: ClubDep) -> RigOut:
     """Change a rig's details (a null recorded_on or board clears it)."""
     values = changes(body, nullable=("recorded_on", "board"))
+    if "board" in values:
+        club.require("rig.change_board")
     if "board" in values and values["board"] is not None:
         values["board"] = {k: v for k, v in values["board"].items() if v is not None}
     return rig_out(club.rigs.update_fields(rig_id, **values))
@@ -93,9 +96,11 @@ def update_rig(rig_id: Id, body: RigUpdate, club: ClubDep) -> RigOut:
 @router.delete("/{rig_id}", status_code=status.HTTP_204_NO_CONTENT, responses={**ERRORS, **CONFLICT})
 def delete_rig(rig_id: Id, club: AdminClubDep, storage: StorageDep) -> Response:
     """Delete a rig no ride uses, with its clips (admins only; 409 while rides use it)."""
+    uploads = club.uploads.ids_of(rig_id=rig_id)
     club.rigs.delete(rig_id)
     club.session.commit()
     storage.delete(f"rigs/{rig_id}")
+    remove_upload_files(storage, uploads)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 

@@ -13,8 +13,14 @@ from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
-from saddlescope.services.uploads import IncompleteUpload, create_upload, finalise_upload
-from saddlescope.storage import upload_key
+from saddlescope.services.uploads import (
+    IncompleteUpload,
+    commit_chunk,
+    create_upload,
+    expire_uploads,
+    finalise_upload,
+)
+from saddlescope.storage import upload_chunk_key, upload_key
 
 __all__ = ["CHUNK_OPENAPI", "OffsetMismatch", "UploadId", "router"]
 
@@ -46,8 +52,14 @@ def _headers(upload: Upload) -> dict[str, str]:
     response_model=UploadOut,
     responses={**ERRORS, 413: {"model": ErrorOut}},
 )
-def create(body: UploadCreate, club: ClubDep, settings: SettingsDep, response: Response) -> UploadOut:
-    """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then PATCH its bytes."""
+def create(
+    body: UploadCreate, club: ClubDep, settings: SettingsDep, storage: StorageDep, response: Response
+) -> UploadOut:
+    """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then PATCH its bytes.
+
+    An open upload that receives nothing for `upload_expiry_s` (24 h by default) is removed with its bytes.
+    """
+    expire_uploads(club.session, storage, max_age_s=settings.upload_expiry_s)
     upload = create_upload(
         club.session,
         club_id=club.club_id,
@@ -96,29 +108,34 @@ async def append(
     club: ClubDep,
     storage: StorageDep,
     upload_offset: Annotated[int, Header(alias="Upload-Offset", ge=0, le=2**62)],
+    settings: SettingsDep,
 ) -> Response:
     """Send the next chunk (the raw body) starting at byte `Upload-Offset`.
 
-    `Upload-Offset` must equal the upload's current offset (409 with the right one otherwise). Answers 204
-    with the new `Upload-Offset`.
+    `Upload-Offset` must be the upload's current offset; a retried chunk at an earlier offset is accepted
+    when it equals the bytes already received there (answering the current offset), else 409 with the
+    server's offset. Acknowledged bytes are never rewritten. Answers 204 with the new `Upload-Offset`.
+    An expired upload is gone (404).
     """
+    await run_in_threadpool(expire_uploads, club.session, storage, max_age_s=settings.upload_expiry_s)
     upload = await run_in_threadpool(club.uploads.get, upload_id)
     if upload.status != UploadStatus.OPEN.value:
         raise OffsetMismatch(f"upload {upload_id} is {upload.status}; it takes no more bytes")
-    if upload_offset != upload.offset_bytes:
+    if upload_offset > upload.offset_bytes:
         raise OffsetMismatch(
             f"Upload-Offset {upload_offset} does not match the upload's offset "
             f"{upload.offset_bytes}; resume from {upload.offset_bytes}"
         )
-    start, length = upload.offset_bytes, upload.length_bytes
+    length, staged = upload.length_bytes, upload_chunk_key(upload_id)
     club.session.rollback()  # no transaction open while the bytes arrive
-    end = await stream_chunk(request, storage, upload_key(upload_id), offset=start, limit=length)
-    moved = await run_in_threadpool(club.uploads.advance, upload_id, from_offset=start, to_offset=end)
-    if not moved:
-        raise OffsetMismatch(
-            f"upload {upload_id} moved on meanwhile (another request sent bytes); ask for its offset"
+    try:
+        size = await stream_chunk(request, storage, staged, offset=upload_offset, limit=length)
+        end = await run_in_threadpool(
+            commit_chunk, club.session, storage, upload_id, offset=upload_offset, staged_key=staged,
+            size=size, club_id=club.club_id,
         )
-    await run_in_threadpool(club.session.commit)
+    finally:
+        await run_in_threadpool(storage.delete, staged)
     return Response(
         status_code=status.HTTP_204_NO_CONTENT,
         headers={"Upload-Offset": str(end), "Upload-Length": str(length)},
@@ -129,13 +146,19 @@ async def append(
     "/{upload_id}/finalize", responses={**ERRORS, 409: {"model": ErrorOut}, 503: {"model": ErrorOut}}
 )
 async def finalize(
-    upload_id: UploadId, club: ClubDep, storage: StorageDep, sessions: SessionFactoryDep, queue: QueueDep
+    upload_id: UploadId,
+    club: ClubDep,
+    storage: StorageDep,
+    sessions: SessionFactoryDep,
+    queue: QueueDep,
+    settings: SettingsDep,
 ) -> dict:
     """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle).
 
     Starts the processing the new clips allow. Returns ``{"recording_id", "job_id"}`` or
-    ``{"ride_id", "job_id"}``.
+    ``{"ride_id", "job_id"}``. An expired upload is gone (404).
     """
+    await run_in_threadpool(expire_uploads, club.session, storage, max_age_s=settings.upload_expiry_s)
     club_id = club.club_id
     club.session.rollback()
     return await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id)

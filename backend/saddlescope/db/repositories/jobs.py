@@ -5,10 +5,11 @@ Their state changes are single conditional UPDATEs, so two workers, or two reque
 
 from __future__ import annotations
 
+import datetime as dt
 from collections.abc import Sequence
 from typing import Any
 
-from sqlalchemy import DateTime, Float, func, or_, select, update
+from sqlalchemy import DateTime, Float, delete, func, or_, select, update
 from sqlalchemy.ext.compiler import compiles
 from sqlalchemy.sql.expression import ColumnElement, FunctionElement
 
@@ -267,6 +268,25 @@ class UploadRepository(Repository):
         row.status, row.error, row.outcome = status.value, error, dict(outcome or {})
         row.updated_at = utcnow()
         self.session.flush()
+
+    def ids_of(self, *, ride_id: int | None = None, rig_id: int | None = None) -> list[str]:
+        """The ids of the uploads (any status) of a ride or of a rig."""
+        column, value = (Upload.ride_id, ride_id) if ride_id is not None else (Upload.rig_id, rig_id)
+        return list(self.session.scalars(self._scoped(select(Upload.id).where(column == value))))
+
+    def open_since_before(self, before: dt.datetime) -> list[str]:
+        """The ids of the open uploads (of this club, or all) that last moved before `before`."""
+        stmt = select(Upload.id).where(Upload.status == UploadStatus.OPEN.value, Upload.updated_at < before)
+        return list(self.session.scalars(self._scoped(stmt)))
+
+    def delete_ids(self, upload_ids: Sequence[str]) -> None:
+        """Delete uploads' rows by id (their bytes are the caller's to delete)."""
+        if upload_ids:
+            self.session.execute(self._scoped_delete().where(Upload.id.in_(list(upload_ids))))
+
+    def _scoped_delete(self):
+        stmt = delete(Upload)
+        return stmt.where(Upload.club_id == self.club_id) if self.club_id is not None else stmt
 
     def delete(self, upload_id: str) -> None:
         """Delete an upload's row (its bytes are the caller's to delete)."""

@@ -96,6 +96,22 @@ class RideRepository(Repository):
         """Store a ride's status (derived by `saddlescope.services.rides.refresh_ride_status`, its one caller)."""
         self.session.execute(self._scoped_update(ride_id).values(status=status))
 
+    def with_bundle_sha256(self, sha256: str) -> int | None:
+        """The id of the club's ride registered from a bundle with this content hash, if any."""
+        stmt = self._scoped(select(Ride.id).where(Ride.meta["_bundle_sha256"].as_string() == sha256))
+        return self.session.scalars(stmt.order_by(Ride.id)).first()
+
+    def note(self, ride_id: int, **values: Any) -> None:
+        """Keep internal facts of a ride (keys starting with '_', not shown) in its meta."""
+        ride = self.get(ride_id)
+        ride.meta = {**dict(ride.meta or {}), **values}
+        self.session.flush()
+
+    def creator_of(self, ride_id: int) -> int | None:
+        """The id of the user who made the ride (None when not recorded)."""
+        value = dict(self.get(ride_id).meta or {}).get("_created_by")
+        return value if isinstance(value, int) else None
+
     def set_bundle_key(self, ride_id: int, bundle_key: str) -> None:
         """Store where the ride's bundle (ride.json and clips) lives in storage."""
         self.session.execute(self._scoped_update(ride_id).values(bundle_key=bundle_key))
