@@ -9,7 +9,8 @@
 - :mod:`.reader`: :func:`read_mocap`, the reader chosen by the file's extension.
 """
 
-from saddlescope.io.mocap.c3d import read_c3d, write_c3d
+from saddlescope.io.mocap.c3d import read_c3d
+from saddlescope.io.mocap.c3d_writer import write_c3d
 from saddlescope.io.mocap.data import MocapData
 from saddlescope.io.mocap.reader import read_mocap
 from saddlescope.io.mocap.trc import read_trc, write_trc

@@ -20,10 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from saddlescope.core.errors import MocapFileError
-from saddlescope.io.mocap.c3d_writer import write_c3d_file
 from saddlescope.io.mocap.data import MocapData, _normalise_units, _read_bytes
 
-__all__ = ["distinct_labels", "read_c3d", "write_c3d"]
+__all__ = ["distinct_labels", "read_c3d"]
 
 _BLOCK = 512
 _PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
@@ -422,28 +421,3 @@ def distinct_labels(labels, descriptions=()) -> tuple[tuple[str, ...], tuple[str
                            "(POINT:DESCRIPTIONS) or rank, e.g. " + ", ".join(
                                repr(s) for s in labels if s.startswith(repeated[0] + " (")
                                or s.startswith(repeated[0] + "#")),)
-
-
-def write_c3d(path: str | Path, labels, points_mm: np.ndarray, rate_hz: float, *, descriptions=None) -> Path:
-    """Write marker trajectories to a C3D file (Intel float format, units mm), every frame kept.
-
-    Parameters
-    ----------
-    path : path-like
-        Output file.
-    labels : sequence of str, length M
-        Marker names (C3D keeps at most 30 characters each).
-    points_mm : ndarray of shape (F, M, 3)
-        Positions in mm; NaN marks a missing marker (written with residual -1).
-    rate_hz : float
-        Sampling rate.
-    descriptions : sequence of str, length M, optional
-        The markers' descriptions (POINT:DESCRIPTIONS).
-
-    Returns
-    -------
-    Path
-        The file written; past 65,535 frames the true count is in TRIAL:ACTUAL_END_FIELD (see
-        :mod:`saddlescope.io.mocap.c3d_writer`).
-    """
-    return write_c3d_file(path, labels, points_mm, rate_hz, descriptions=descriptions)

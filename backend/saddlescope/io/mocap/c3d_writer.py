@@ -20,7 +20,7 @@ import numpy as np
 from saddlescope.core.errors import InputError
 from saddlescope.io.mocap.data import _check_tracks
 
-__all__ = ["C3D_MAX_FRAMES", "C3D_MAX_LABEL", "write_c3d_file"]
+__all__ = ["C3D_MAX_FRAMES", "C3D_MAX_LABEL", "write_c3d"]
 
 _BLOCK = 512
 _INTEL = 84
@@ -93,7 +93,7 @@ def _parameter_section(labels, descriptions, n_frames: int, rate_hz: float, data
     return b"".join(records)
 
 
-def write_c3d_file(path: str | Path, labels, points_mm: np.ndarray, rate_hz: float, *,
+def write_c3d(path: str | Path, labels, points_mm: np.ndarray, rate_hz: float, *,
                    descriptions=None) -> Path:
     """Write marker trajectories to an Intel float C3D file, every frame readable by every reader.
 
