@@ -18,6 +18,23 @@ export function session() {
   return current;
 }
 
+/**
+ * Whether the signed-in user may do `action` (the names of docs/permissions.md, e.g. "ride.delete").
+ * Rules "own" need `ownerId`, the id of the user who made the thing. Pages hide the controls this
+ * answers false for, so a member never sees a button that the API would answer with 403.
+ */
+export function can(action, ownerId = null) {
+  const grant = current?.permissions?.[action];
+  if (grant === "all") return true;
+  if (grant === "own") return ownerId != null && ownerId === current.user.id;
+  return false;
+}
+
+/** True for a club admin. */
+export function isAdmin() {
+  return current?.user?.role === "admin";
+}
+
 function hasSessionCookies() {
   // The CSRF cookie is readable and set together with the (HttpOnly) session cookie.
   return document.cookie.split(";").some((part) => part.trim().startsWith("saddlescope_csrf="));

@@ -174,6 +174,11 @@ class MeOut(BaseModel):
 
     user: UserOut
     club: ClubOut
+    permissions: dict[str, str] = Field(
+        default_factory=dict,
+        description="per action of docs/permissions.md what this user may do: 'all' (any such thing), "
+        "'own' (only what they made) or 'none'; the dashboard hides controls the user may not use",
+    )
 
 
 class UserCreate(_In):

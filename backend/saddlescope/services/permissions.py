@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from saddlescope.services.accounts import Forbidden, Principal
 
-__all__ = ["ADMIN", "MEMBER", "OWNER", "PERMISSIONS", "allowed", "require"]
+__all__ = ["ADMIN", "MEMBER", "OWNER", "PERMISSIONS", "allowed", "grants", "require"]
 
 MEMBER, OWNER, ADMIN = "member", "owner", "admin"
 
@@ -38,6 +38,17 @@ def allowed(principal: Principal, action: str, *, owner_id: int | None = None) -
     if rule == MEMBER or principal.is_admin:
         return True
     return rule == OWNER and owner_id is not None and owner_id == principal.user_id
+
+
+def grants(principal: Principal) -> dict[str, str]:
+    """Per action what `principal` may do: "all", "own" (only what they made) or "none"."""
+    out = {}
+    for action, (rule, _what) in PERMISSIONS.items():
+        if rule == MEMBER or principal.is_admin:
+            out[action] = "all"
+        else:
+            out[action] = "own" if rule == OWNER else "none"
+    return out
 
 
 def require(principal: Principal, action: str, *, owner_id: int | None = None) -> None:

@@ -48,6 +48,7 @@ from saddlescope.services.accounts import (
     start_password_reset,
     update_user,
 )
+from saddlescope.services.permissions import grants
 
 __all__ = ["LOGIN_OPENAPI", "registration_open", "router"]
 
@@ -272,7 +273,8 @@ async def use_password_reset(
 def me(club: ClubDep) -> MeOut:
     """The signed-in user and their club."""
     user = club.users.get(club.principal.user_id)
-    return MeOut(user=UserOut.model_validate(user), club=ClubOut.model_validate(user.club))
+    return MeOut(user=UserOut.model_validate(user), club=ClubOut.model_validate(user.club),
+                 permissions=grants(club.principal))
 
 
 @router.get("/users", response_model=Page[UserOut], responses=ERRORS)
