@@ -1,8 +1,9 @@
-// One horse across gaits, and horses within a gait: bars of the mean with std and min-max spread.
+// One horse across gaits, and horses within a gait: bars of the mean with std and min-max spread, each
+// saying how many rides stand behind it.
 
 import { get } from "../api.js";
 import { page, showError } from "../dom.js";
-import { spreadBarChart } from "../charts.js";
+import { countedBarChart, GAIT_COLOURS } from "../horse-charts.js";
 import { GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
@@ -29,7 +30,8 @@ export async function mountCompare(view, _params, query) {
         .sort((a, b) => GAITS.indexOf(a.group ?? a.gait) - GAITS.indexOf(b.group ?? b.gait));
       const info = indicatorInfoOf(indicator);
       const horse = horseForm.elements.horse_id.selectedOptions[0]?.textContent ?? "";
-      spreadBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait" });
+      countedBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait",
+                                            colours: groups.map((g) => GAIT_COLOURS[g.group ?? g.gait] ?? "#1f5fa8") });
     } catch (error) {
       showError(section, error);
     }
@@ -43,7 +45,7 @@ export async function mountCompare(view, _params, query) {
       showError(section, null);
       const groups = groupsOf(answer, indicator).map((g) => ({ ...g, label: g.horse ?? g.group }));
       const info = indicatorInfoOf(indicator);
-      spreadBarChart(gaitChart, groups, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "horse" });
+      countedBarChart(gaitChart, groups, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "horse" });
     } catch (error) {
       showError(section, error);
     }
