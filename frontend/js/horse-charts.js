@@ -37,7 +37,7 @@ function clearEmpty(div) {
  * in the hover; the orange range is smallest to largest ride. The legend names both.
  * @param {{label: string, n: number, mean: number, std: number, min: number, max: number}[]} groups
  */
-export function countedBarChart(div, groups, { title, unit, xTitle, colours = null }) {
+export function countedBarChart(div, groups, { title, unit, xTitle }) {
   const shown = (groups || []).filter((g) => Number.isFinite(g.mean));
   if (!shown.length) return emptyChart(div, "No analysed rides to compare yet.");
   clearEmpty(div);
@@ -45,7 +45,7 @@ export function countedBarChart(div, groups, { title, unit, xTitle, colours = nu
   const unitText = unit ? ` ${unit}` : "";
   const bars = {
     type: "bar", name: "mean \u00b1 SD (n = rides)", x: labels, y: shown.map((g) => g.mean),
-    marker: { color: colours ? shown.map((g, i) => colours[i]) : "#1f5fa8" },
+    marker: { color: "#1f5fa8" },
     error_y: { type: "data", array: shown.map((g) => (Number.isFinite(g.std) ? g.std : 0)), visible: true,
                color: "#1d2630", thickness: 1.5, width: 6 },
     customdata: shown.map((g) => [g.n, Number.isFinite(g.std) ? g.std : null]),
@@ -55,7 +55,7 @@ export function countedBarChart(div, groups, { title, unit, xTitle, colours = nu
     hovertemplate: `%{x}: mean %{y:.4g}${unitText} \u00b1 %{customdata[1]:.3g} over %{customdata[0]} rides<extra></extra>`,
   };
   const range = {
-    type: "scatter", mode: "markers", name: "smallest \u2013 largest ride", x: labels,
+    type: "scatter", mode: "markers", name: "smallest \u2013 largest ride", x: labels, showlegend: false,
     y: shown.map((g) => (g.min + g.max) / 2), marker: { color: "rgba(0,0,0,0)", size: 1 },
     error_y: { type: "data", symmetric: false, visible: true, color: "#c2410c", thickness: 1, width: 14,
                array: shown.map((g) => g.max - (g.min + g.max) / 2),

@@ -3,7 +3,7 @@
 
 import { get } from "../api.js";
 import { page, showError } from "../dom.js";
-import { countedBarChart, GAIT_COLOURS } from "../horse-charts.js";
+import { countedBarChart } from "../horse-charts.js";
 import { GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
@@ -30,8 +30,7 @@ export async function mountCompare(view, _params, query) {
         .sort((a, b) => GAITS.indexOf(a.group ?? a.gait) - GAITS.indexOf(b.group ?? b.gait));
       const info = indicatorInfoOf(indicator);
       const horse = horseForm.elements.horse_id.selectedOptions[0]?.textContent ?? "";
-      countedBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait",
-                                            colours: groups.map((g) => GAIT_COLOURS[g.group ?? g.gait] ?? "#1f5fa8") });
+      countedBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait" });
     } catch (error) {
       showError(section, error);
     }

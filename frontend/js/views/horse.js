@@ -4,7 +4,7 @@
 
 import { get, itemsOf, patch } from "../api.js";
 import { busy, h, page, showError } from "../dom.js";
-import { countedBarChart, GAIT_COLOURS, trendChart } from "../horse-charts.js";
+import { countedBarChart, trendChart } from "../horse-charts.js";
 import { fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { can } from "../session.js";
@@ -122,8 +122,7 @@ function setUpGaits(view, horseId, onCounts) {
         .sort((a, b) => GAITS.indexOf(a.gait) - GAITS.indexOf(b.gait));
       onCounts?.(groups);
       const info = indicatorInfoOf(indicator);
-      countedBarChart(chart, groups, { title: labelText(info.label), unit: prettyUnit(info.unit), xTitle: "gait",
-                                       colours: groups.map((g) => GAIT_COLOURS[g.gait] ?? "#1f5fa8") });
+      countedBarChart(chart, groups, { title: labelText(info.label), unit: prettyUnit(info.unit), xTitle: "gait" });
     } catch (error) {
       if (current()) showError(section, error);
     }
@@ -157,6 +156,8 @@ function setUpTrend(view, horseId) {
 function differenceCell(row) {
   const pct = row.difference_percent;
   if (!Number.isFinite(pct)) return h("td", { class: "num" }, "\u2013");
+  // Below 0.05 % the two rides agree to the digits shown (rounding noise reads as 0 %).
+  if (Math.abs(pct) < 0.05) return h("td", { class: "num", dataset: { value: pct, difference: "" } }, "0 %");
   // Which way is more comfortable decides the colour; indicators without a direction stay neutral.
   const better = row.better === "lower" ? pct < 0 : row.better === "higher" ? pct > 0 : null;
   const cls = `num${pct === 0 || better === null ? "" : better ? " better" : " worse"}`;
@@ -191,10 +192,10 @@ async function setUpPair(view, horseId) {
       if (!current()) return;
       showError(section, null);
       table.tBodies[0].replaceChildren(...pair.indicators.map((row) => h("tr", { dataset: { key: row.key } },
-        h("th", { scope: "row" }, labelText(row.label)),
+        h("th", { scope: "row" }, labelText(row.label),
+          row.unit ? h("span", { class: "unit", dataset: { unit: "" } }, prettyUnit(row.unit)) : null),
         h("td", { class: "num", dataset: { value: row.a ?? "" } }, fmt(row.a)),
         h("td", { class: "num", dataset: { value: row.b ?? "" } }, fmt(row.b)),
-        h("td", {}, prettyUnit(row.unit) || "\u2013"),
         differenceCell(row))));
       table.hidden = false;
     } catch (error) {
