@@ -119,7 +119,8 @@ export function gradeGaitScatter(div, points, { title, unit, label }) {
   const traces = GAITS.filter((gait) => points.some((p) => p.gait === gait)).map((gait) => {
     const mine = points.filter((p) => p.gait === gait);
     return {
-      type: "scatter", mode: "markers", name: gaitLabel(gait), x: mine.map((p) => p.value), y: mine.map((p) => p.grade),
+      type: "scatter", mode: "markers+text", name: gaitLabel(gait), x: mine.map((p) => p.value), y: mine.map((p) => p.grade),
+      text: mine.map((p) => p.horse), textposition: "top center", textfont: { size: 11, color: "#1d2630" },
       customdata: mine.map((p) => [p.horse, (p.riders || []).join(", ") || "\u2013", days(p), p.rides ?? ""]),
       marker: { size: 12, color: GAIT_COLOURS[gait], line: { color: "#fff", width: 1 } },
       hovertemplate: `<b>%{customdata[0]}</b>, ${gaitLabel(gait)}<br>%{x:.4g}${unitText} over %{customdata[3]} rides, ` +
