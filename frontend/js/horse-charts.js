@@ -19,10 +19,22 @@ function layout(title, xTitle, yTitle, extra = {}) {
     plot_bgcolor: "#ffffff",
     xaxis: { title: { text: xTitle }, gridcolor: "#e6e9ee", automargin: true },
     yaxis: { title: { text: yTitle }, gridcolor: "#e6e9ee", zerolinecolor: "#c9ced6", automargin: true },
-    legend: { orientation: "h", x: 0, xanchor: "left", y: -0.2, yanchor: "top" },
+    // Below everything, in the container's own space, so it never covers the x-axis title on a phone.
+    legend: { orientation: "h", x: 0, xanchor: "left", yref: "container", y: 0, yanchor: "bottom" },
     hovermode: "closest",
     ...extra,
   };
+}
+
+/** Break a long axis title into lines of at most `width` characters (Plotly does not wrap). */
+function wrapped(text, width = 34) {
+  const lines = [];
+  for (const word of String(text).split(" ")) {
+    const last = lines.length ? lines[lines.length - 1] : null;
+    if (last !== null && `${last} ${word}`.length <= width) lines[lines.length - 1] = `${last} ${word}`;
+    else lines.push(word);
+  }
+  return lines.join("<br>");
 }
 
 function clearEmpty(div) {
@@ -103,7 +115,6 @@ export function trendChart(div, points, { title, unit, gait }) {
   const xaxisType = dated ? "date" : "category";
   const chartLayout = layout(title, dated ? "date ridden" : "ride", unit ? `${unit}` : "", { hovermode: "closest" });
   chartLayout.xaxis.type = xaxisType;
-  chartLayout.margin.b = 80;
   return window.Plotly.react(div, traces, chartLayout, CONFIG);
 }
 
@@ -127,11 +138,10 @@ export function gradeGaitScatter(div, points, { title, unit, label }) {
         "average grade %{y:.2f}<br>graded by %{customdata[1]}<br>ridden %{customdata[2]}<extra></extra>",
     };
   });
-  const xTitle = unit ? `${label} (${unit})` : label;
+  const xTitle = wrapped(unit ? `${label} (${unit})` : label);
   const chartLayout = layout(title, xTitle, "riders' average grade (1\u20135)", { showlegend: true });
   chartLayout.legend.title = { text: "gait " };
   chartLayout.yaxis.range = [0.5, 5.5];
   chartLayout.yaxis.dtick = 1;
-  chartLayout.margin.b = 80;
   return window.Plotly.react(div, traces, chartLayout, CONFIG);
 }

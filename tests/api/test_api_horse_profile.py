@@ -142,3 +142,14 @@ def test_a_height_in_hands_is_understood_and_a_bare_number_explains_the_unit(wor
     member, _ = add_member(a)
     assert member.ok("PATCH", f"/horses/{horse}", json={"height_withers_m": "16 hh"})["height_withers_m"] == \
         pytest.approx(64 * 0.0254)
+
+
+def test_grade_points_name_the_horse_riders_rides_and_dates(world):
+    a = world["a"]
+    rider = a.ok("GET", "/riders")["items"][0]
+    a.ok("POST", "/grades", 201, json={"ride_id": world["canter"][0], "rider_id": rider["id"], "grade": 4})
+    points = a.ok("GET", "/grades/correlation", params={"gait": "canter", "indicator": "acc_y_wb_rms"})[
+        "indicators"]["acc_y_wb_rms"]["points"]
+    assert points == [{"horse": "Tango", "gait": "canter", "grade": 4.0, "value": pytest.approx(
+        statistics.mean(CANTER_WB_RMS)), "horse_id": world["tango"]["id"], "riders": ["Rider R"],
+        "rides": len(CANTER_WB_RMS), "first_date": CANTER_DATES[0], "last_date": CANTER_DATES[-1]}]
