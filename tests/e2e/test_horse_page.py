@@ -160,6 +160,8 @@ def test_the_horse_page_shows_trend_band_gait_counts_and_a_ride_pair(page, serve
     assert row.locator("[data-difference]").inner_text() == f"+{js_fmt(want['difference_percent'], 2)} %"
     assert "worse" in row.locator("[data-difference]").get_attribute("class")  # rougher is less comfortable
     assert table.locator("[data-difference]").count() == len(served["pair"]["indicators"])
+    motion = page.locator("[data-pair-motion-link]")
+    assert motion.get_attribute("href") == f"#/compare-rides/{served['canter'][-2]}/{served['canter'][-1]}"
 
     # Rides, ten to a page, newest first, each linking to its ride page.
     rides = page.locator("[data-horse-rides] tbody tr")
@@ -197,6 +199,8 @@ def test_compare_grades_and_leaderboard_say_how_many_rides_and_fit_a_phone(page,
     page.wait_for_function("document.querySelector('[data-chart=\"compare-gait\"]')?.data?.[0]?.x?.length === 3")
     assert page.eval_on_selector('[data-chart="compare-horse"]', "el => el.data[0].text") == [
         f"n = {len(WALK_SCALES)}", f"n = {len(CANTER_SCALES)}"]
+    horse_page = page.locator("[data-compare-horse-page] a")
+    assert horse_page.get_attribute("href") == f"#/horses/{served['horses']['Tango']}"
     texts = page.eval_on_selector('[data-chart="compare-gait"]', "el => el.data[0].text")
     assert sorted(texts) == ["n = 1", "n = 1", f"n = {len(CANTER_SCALES)}"]
     _fits_phone(page, "compare")

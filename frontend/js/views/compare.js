@@ -19,7 +19,10 @@ export async function mountCompare(view, _params, query) {
 
   const byHorse = onFormChange(horseForm, async ({ horse_id: horseId, indicator }, current) => {
     const section = horseForm.closest("section");
+    const horsePage = section.querySelector("[data-compare-horse-page]");
+    horsePage.hidden = !horseId;
     if (!horseId) return;
+    horsePage.querySelector("a").href = `#/horses/${horseId}`;
     try {
       const answer = await get(`/api/horses/${horseId}/comparison`, { params: { indicator } });
       if (!current()) return;

@@ -198,6 +198,8 @@ async function setUpPair(view, horseId) {
         h("td", { class: "num", dataset: { value: row.b ?? "" } }, fmt(row.b)),
         differenceCell(row))));
       table.hidden = false;
+      view.querySelector("[data-pair-motion-link]").href = `#/compare-rides/${a}/${b}`;
+      view.querySelector("[data-pair-motion]").hidden = false;
     } catch (error) {
       if (current()) showError(section, error);
     }
