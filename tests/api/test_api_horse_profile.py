@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import statistics
 
+import integration_services
 import pytest
 from api_helpers import add_member, new_club
-from engines import open_env
+from engines import ENGINES, open_env
 from similarity_docs import store_document
 
 # Tango's canter rides in the order they were ridden; they are uploaded out of order (UPLOAD_ORDER) so
@@ -17,6 +18,9 @@ from similarity_docs import store_document
 CANTER_WB_RMS = [1.0, 1.2, 0.9, 1.1, 1.05, 2.0]
 CANTER_DATES = ["2026-01-05", "2026-01-12", "2026-01-19", "2026-01-26", "2026-02-02", "2026-02-09"]
 UPLOAD_ORDER = [2, 0, 1, 3, 5, 4]
+
+pg_database_url = integration_services.pg_database_url
+redis_url = integration_services.redis_url
 
 
 def _doc(wb_rms: float, gait: str = "canter") -> dict:
@@ -26,7 +30,7 @@ def _doc(wb_rms: float, gait: str = "canter") -> dict:
             "quality": {"flags": []}}
 
 
-@pytest.fixture(scope="module", params=["embedded"])
+@pytest.fixture(scope="module", params=ENGINES)
 def env(request, tmp_path_factory):
     yield from open_env(request, tmp_path_factory)
 
