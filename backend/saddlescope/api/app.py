@@ -105,6 +105,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         comparisons,
         grades,
         health,
+        horse_profile,
         horses,
         jobs,
         mocap,
@@ -115,8 +116,8 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         uploads,
     )
 
-    for module in (health, auth, horses, riders, rigs, rides, mocap, uploads, grades, comparisons, similarity,
-                   jobs):
+    for module in (health, auth, horses, horse_profile, riders, rigs, rides, mocap, uploads, grades, comparisons,
+                   similarity, jobs):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIR, html=True), name="frontend")

@@ -9,6 +9,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
 
+from saddlescope.api.horse_height import HeightWithersM
 from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
@@ -208,7 +209,7 @@ class HorseIn(_In):
     name: Name
     breed: Annotated[str, StringConstraints(max_length=200)] | None = None
     birth_year: int | None = Field(default=None, ge=1900, le=2100)
-    height_withers_m: float | None = Field(default=None, gt=0.5, lt=2.5)
+    height_withers_m: HeightWithersM = None
 
 
 class HorseUpdate(_In):
@@ -217,7 +218,7 @@ class HorseUpdate(_In):
     name: Name | None = None
     breed: Annotated[str, StringConstraints(max_length=200)] | None = None
     birth_year: int | None = Field(default=None, ge=1900, le=2100)
-    height_withers_m: float | None = Field(default=None, gt=0.5, lt=2.5)
+    height_withers_m: HeightWithersM = None
 
 
 class HorseOut(_Out):

@@ -147,6 +147,8 @@ def grade_correlation_report(
     grade_rows = GradeRepository(session, club_id=club_id).grade_rows(gait=gait)
     rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait)
     report = grades_vs_indicators(grade_rows, rows, indicators, gait=gait)
+    for r in report.values():
+        r["points"] = _described_points(r["points"], grade_rows, rows)
     return {
         "gait": gait,
         "grades": len(grade_rows),
@@ -159,3 +161,28 @@ def grade_correlation_report(
             for ind, r in report.items()
         },
     }
+
+
+def _described_points(points: Sequence[dict[str, Any]], grade_rows: Sequence[dict[str, Any]],
+                      rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each horse-gait point with what a hover names: the horse's id, the riders who graded it, the
+    number of analysed rides behind its mean and their first and last day (ISO dates, None: undated)."""
+    riders: dict[tuple[str, str], set[str]] = {}
+    for g in grade_rows:
+        riders.setdefault((g["horse"], g["gait"]), set()).add(g["rider"])
+    rides: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for row in rows:
+        rides.setdefault((row["horse"], row["gait"]), []).append(row)
+    described = []
+    for p in points:
+        behind = rides.get((p["horse"], p["gait"]), [])
+        dates = sorted(row["date"] for row in behind if row["date"] is not None)
+        described.append({
+            **p,
+            "horse_id": behind[0]["horse_id"] if behind else None,
+            "riders": sorted(riders.get((p["horse"], p["gait"]), ())),
+            "rides": len(behind),
+            "first_date": dates[0].isoformat() if dates else None,
+            "last_date": dates[-1].isoformat() if dates else None,
+        })
+    return described

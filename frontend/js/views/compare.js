@@ -1,8 +1,9 @@
-// One horse across gaits, and horses within a gait: bars of the mean with std and min-max spread.
+// One horse across gaits, and horses within a gait: bars of the mean with std and min-max spread, each
+// saying how many rides stand behind it.
 
 import { get } from "../api.js";
 import { page, showError } from "../dom.js";
-import { spreadBarChart } from "../charts.js";
+import { countedBarChart } from "../horse-charts.js";
 import { GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
@@ -18,7 +19,10 @@ export async function mountCompare(view, _params, query) {
 
   const byHorse = onFormChange(horseForm, async ({ horse_id: horseId, indicator }, current) => {
     const section = horseForm.closest("section");
+    const horsePage = section.querySelector("[data-compare-horse-page]");
+    horsePage.hidden = !horseId;
     if (!horseId) return;
+    horsePage.querySelector("a").href = `#/horses/${horseId}`;
     try {
       const answer = await get(`/api/horses/${horseId}/comparison`, { params: { indicator } });
       if (!current()) return;
@@ -29,7 +33,7 @@ export async function mountCompare(view, _params, query) {
         .sort((a, b) => GAITS.indexOf(a.group ?? a.gait) - GAITS.indexOf(b.group ?? b.gait));
       const info = indicatorInfoOf(indicator);
       const horse = horseForm.elements.horse_id.selectedOptions[0]?.textContent ?? "";
-      spreadBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait" });
+      countedBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait" });
     } catch (error) {
       showError(section, error);
     }
@@ -43,7 +47,7 @@ export async function mountCompare(view, _params, query) {
       showError(section, null);
       const groups = groupsOf(answer, indicator).map((g) => ({ ...g, label: g.horse ?? g.group }));
       const info = indicatorInfoOf(indicator);
-      spreadBarChart(gaitChart, groups, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "horse" });
+      countedBarChart(gaitChart, groups, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "horse" });
     } catch (error) {
       showError(section, error);
     }

@@ -2,7 +2,7 @@
 
 import { get } from "../api.js";
 import { h, page, showError } from "../dom.js";
-import { gradeScatter } from "../charts.js";
+import { gradeGaitScatter } from "../horse-charts.js";
 import { fmt, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { forIndicator, onFormChange } from "./analysis-common.js";
@@ -42,6 +42,6 @@ export async function mountGrades(view) {
       stat("Spearman \u03c1", `${fmt(rho, 2)}${interval(c.spearman_ci_low, c.spearman_ci_high)}`, "spearman"),
       stat("Expected sign", c.expected_sign === -1 ? "negative (lower is more comfortable)"
         : c.expected_sign === 1 ? "positive (higher is more comfortable)" : "none", "expected"));
-    gradeScatter(chart, c.points || [], { title: labelText(info.label), unit: prettyUnit(info.unit), label: labelText(info.label) });
+    gradeGaitScatter(chart, c.points || [], { title: labelText(info.label), unit: prettyUnit(info.unit), label: labelText(info.label) });
   });
 }

@@ -35,7 +35,7 @@ export async function mountLeaderboard(view, _params, query) {
       `${(answer.better ?? info.better) === "higher" ? "higher" : "lower"} is more comfortable.`;
     table.tBodies[0].replaceChildren(...rows.map((row) => h("tr", { dataset: { horse: row.horse } },
       h("td", { class: "rank" }, String(row.rank)),
-      h("th", { scope: "row" }, row.horse_id ? h("a", { href: `#/compare?horse=${row.horse_id}` }, row.horse) : row.horse),
+      h("th", { scope: "row" }, row.horse_id ? h("a", { href: `#/horses/${row.horse_id}` }, row.horse) : row.horse),
       h("td", { class: "num" }, String(row.n)),
       h("td", { class: "num", dataset: { value: row.mean } }, fmt(row.mean)),
       h("td", { class: "num" }, fmt(row.std)),

@@ -1,0 +1,82 @@
+"""Query enums and response bodies of the horse page's routes (`saddlescope.api.routers.horse_profile`)."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from saddlescope.api.schemas import Gait
+from saddlescope.core.vibration import INDICATORS
+
+__all__ = ["Band", "IndicatorKey", "PairIndicator", "PairOut", "PairRide", "TrendOut", "TrendPoint"]
+
+# Every indicator key a result holds (core.vibration.INDICATORS): an unknown one is a 422 naming them.
+IndicatorKey = Literal[tuple(INDICATORS)]  # type: ignore[valid-type]
+
+
+class Band(BaseModel):
+    """The horse's own normal band: mean ± 2 SD over its earlier rides in the gait."""
+
+    n: int = Field(description="earlier rides behind the band")
+    mean: float
+    sd: float = Field(description="sample standard deviation of the earlier rides")
+    low: float = Field(description="mean - 2 SD")
+    high: float = Field(description="mean + 2 SD")
+
+
+class TrendPoint(BaseModel):
+    """One analysed ride on the trend, with the band of the rides before it."""
+
+    ride_id: int
+    date: dt.date | None = Field(description="the day ridden (None: not recorded)")
+    rider: str
+    value: float | None
+    band: Band | None = Field(description="None while the horse has fewer earlier rides than the minimum")
+    outside: bool | None = Field(description="the value lies outside the band (None: no band)")
+
+
+class TrendOut(BaseModel):
+    """One indicator of one horse in one gait over its rides, oldest first."""
+
+    horse_id: int
+    horse: str
+    gait: Gait
+    indicator: str
+    unit: str
+    label: str
+    min_rides_for_band: int
+    points: list[TrendPoint]
+
+
+class PairRide(BaseModel):
+    """One of the two rides compared."""
+
+    ride_id: int
+    date: dt.date | None
+    gait: Gait
+    rider: str
+
+
+class PairIndicator(BaseModel):
+    """An indicator of both rides and the second's % difference from the first."""
+
+    key: str
+    label: str
+    unit: str
+    better: Literal["lower", "higher"] | None
+    a: float | None
+    b: float | None
+    difference_percent: float | None = Field(description="(b - a) / |a| × 100; None where a is 0 or missing")
+
+
+class PairOut(BaseModel):
+    """Two analysed rides of one horse side by side."""
+
+    horse_id: int
+    horse: str
+    a: PairRide
+    b: PairRide
+    b_is_later: bool
+    indicators: list[PairIndicator]

@@ -1,0 +1,238 @@
+// The horse page (#/horses/:id): its profile (editable by members), its rides page by page, its
+// indicators across gaits (thesis Figs 8.29-8.32), a trend per gait against the horse's own normal
+// band, and any two of its rides side by side with the % difference of each indicator.
+
+import { get, itemsOf, patch } from "../api.js";
+import { busy, h, page, showError } from "../dom.js";
+import { countedBarChart, trendChart } from "../horse-charts.js";
+import { fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
+import { fillOptions } from "../options.js";
+import { can } from "../session.js";
+import { groupsOf, onFormChange } from "./analysis-common.js";
+
+const RIDES_PER_PAGE = 10;
+const INCH_M = 0.0254;
+
+/** 1.5748 -> "15.2 hh": hands, and inches after the point (0-3). */
+export function handsText(heightM) {
+  const inches = Math.round(heightM / INCH_M);
+  return `${Math.floor(inches / 4)}.${inches % 4} hh`;
+}
+
+function heightText(heightM) {
+  return Number.isFinite(heightM) ? `${heightM.toFixed(2)} m (${handsText(heightM)})` : "\u2013";
+}
+
+function rideLabel(ride) {
+  return `${ride.ridden_on ?? "undated"} \u00b7 ${gaitLabel(ride.gait)} \u00b7 #${ride.id}`;
+}
+
+function showProfile(view, horse) {
+  view.querySelector("[data-horse-name]").textContent = horse.name;
+  document.title = `${horse.name} \u2013 SaddleScope`;
+  const item = (term, value, key) => h("div", {}, h("dt", {}, term), h("dd", { dataset: { profile: key } }, value));
+  view.querySelector("[data-horse-profile]").replaceChildren(
+    item("Breed", horse.breed || "\u2013", "breed"),
+    item("Born", horse.birth_year ? String(horse.birth_year) : "\u2013", "birth_year"),
+    item("Height at the withers", heightText(horse.height_withers_m), "height"));
+}
+
+function setUpProfileForm(view, horse, onSaved) {
+  const form = view.querySelector("[data-horse-form]");
+  if (!can(form.dataset.permission)) return; // stays hidden: the API would answer 403
+  form.hidden = false;
+  const fill = (current) => {
+    form.elements.name.value = current.name;
+    form.elements.breed.value = current.breed ?? "";
+    form.elements.birth_year.value = current.birth_year ?? "";
+    form.elements.height_withers_m.value = Number.isFinite(current.height_withers_m) ? current.height_withers_m.toFixed(2) : "";
+  };
+  fill(horse);
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    const saved = form.querySelector("[data-horse-saved]");
+    saved.textContent = "";
+    const text = (name) => form.elements[name].value.trim();
+    const body = {
+      name: text("name"),
+      breed: text("breed") || null,
+      birth_year: text("birth_year") ? Number.parseInt(text("birth_year"), 10) : null,
+      // Sent as typed: the API understands "1.62", "162 cm" and "15.2 hh" and explains anything else.
+      height_withers_m: text("height_withers_m") || null,
+    };
+    busy(form, async () => {
+      try {
+        const updated = await patch(`/api/horses/${horse.id}`, body);
+        showError(form, null);
+        fill(updated);
+        onSaved(updated);
+        saved.textContent = "Saved.";
+      } catch (error) {
+        showError(form, error);
+      }
+    });
+  });
+}
+
+function rideRow(ride, riders) {
+  const wb = ride.indicators?.acc_y_wb_rms;
+  return h("tr", { dataset: { rideId: ride.id } },
+    h("td", {}, h("a", { href: `#/rides/${ride.id}` }, ride.ridden_on ?? `ride #${ride.id}`)),
+    h("td", {}, gaitLabel(ride.gait)),
+    h("td", {}, riders.get(ride.rider_id) ?? `rider ${ride.rider_id}`),
+    h("td", {}, ride.status),
+    h("td", { class: "num", dataset: { value: wb ?? "" } }, fmt(wb)));
+}
+
+function setUpRides(view, horseId, riders) {
+  const table = view.querySelector("[data-horse-rides]");
+  const empty = view.querySelector("[data-horse-rides-empty]");
+  const prev = view.querySelector("[data-page-prev]");
+  const next = view.querySelector("[data-page-next]");
+  const info = view.querySelector("[data-page-info]");
+  let offset = 0;
+  const load = async () => {
+    const answer = await get("/api/rides", { params: { horse_id: horseId, limit: RIDES_PER_PAGE, offset, sort: "-ridden_on" } });
+    const rides = itemsOf(answer);
+    const total = answer.total ?? rides.length;
+    table.tBodies[0].replaceChildren(...rides.map((ride) => rideRow(ride, riders)));
+    table.hidden = !rides.length;
+    empty.hidden = rides.length > 0;
+    info.textContent = total ? `${offset + 1}\u2013${offset + rides.length} of ${total}` : "";
+    prev.disabled = offset === 0;
+    next.disabled = offset + rides.length >= total;
+    prev.hidden = next.hidden = total <= RIDES_PER_PAGE;
+  };
+  prev.addEventListener("click", () => { offset = Math.max(0, offset - RIDES_PER_PAGE); load(); });
+  next.addEventListener("click", () => { offset += RIDES_PER_PAGE; load(); });
+  return load();
+}
+
+function setUpGaits(view, horseId, onCounts) {
+  const form = view.querySelector("[data-horse-gaits-form]");
+  const chart = view.querySelector('[data-chart="horse-gaits"]');
+  const section = form.closest("section");
+  return onFormChange(form, async ({ indicator }, current) => {
+    try {
+      const answer = await get(`/api/horses/${horseId}/comparison`, { params: { indicator } });
+      if (!current()) return;
+      showError(section, null);
+      const groups = groupsOf(answer, indicator)
+        .map((g) => ({ ...g, gait: g.group ?? g.gait, label: gaitLabel(g.group ?? g.gait) }))
+        .sort((a, b) => GAITS.indexOf(a.gait) - GAITS.indexOf(b.gait));
+      onCounts?.(groups);
+      const info = indicatorInfoOf(indicator);
+      countedBarChart(chart, groups, { title: labelText(info.label), unit: prettyUnit(info.unit), xTitle: "gait" });
+    } catch (error) {
+      if (current()) showError(section, error);
+    }
+  });
+}
+
+function setUpTrend(view, horseId) {
+  const form = view.querySelector("[data-horse-trend-form]");
+  const chart = view.querySelector('[data-chart="horse-trend"]');
+  const note = view.querySelector("[data-trend-note]");
+  const section = form.closest("section");
+  return onFormChange(form, async ({ gait, indicator }, current) => {
+    try {
+      const trend = await get(`/api/horses/${horseId}/trend`, { params: { gait, indicator } });
+      if (!current()) return;
+      showError(section, null);
+      const info = indicatorInfoOf(indicator);
+      trendChart(chart, trend.points, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), gait });
+      const n = trend.points.length;
+      const banded = trend.points.filter((p) => p.band).length;
+      const outside = trend.points.filter((p) => p.outside).length;
+      note.textContent = !n ? "" : banded
+        ? `${n} rides in ${gaitLabel(gait)}; ${outside} of the ${banded} with a band lie outside it.`
+        : `${n} ride${n === 1 ? "" : "s"} in ${gaitLabel(gait)}: the band appears once ${trend.min_rides_for_band} earlier rides exist.`;
+    } catch (error) {
+      if (current()) showError(section, error);
+    }
+  });
+}
+
+function differenceCell(row) {
+  const pct = row.difference_percent;
+  if (!Number.isFinite(pct)) return h("td", { class: "num" }, "\u2013");
+  // Below 0.05 % the two rides agree to the digits shown (rounding noise reads as 0 %).
+  if (Math.abs(pct) < 0.05) return h("td", { class: "num", dataset: { value: pct, difference: "" } }, "0 %");
+  // Which way is more comfortable decides the colour; indicators without a direction stay neutral.
+  const better = row.better === "lower" ? pct < 0 : row.better === "higher" ? pct > 0 : null;
+  const cls = `num${pct === 0 || better === null ? "" : better ? " better" : " worse"}`;
+  const sign = pct > 0 ? "+" : "";
+  return h("td", { class: cls, dataset: { value: pct, difference: "" } }, `${sign}${fmt(pct, 2)} %`);
+}
+
+async function setUpPair(view, horseId) {
+  const form = view.querySelector("[data-horse-pair-form]");
+  const table = view.querySelector("[data-pair-table]");
+  const empty = view.querySelector("[data-pair-empty]");
+  const section = form.closest("section");
+  const rides = itemsOf(await get("/api/rides", { params: { horse_id: horseId, status: "analysed", limit: 500, sort: "-ridden_on" } }));
+  const options = rides.map((ride) => h("option", { value: ride.id }, rideLabel(ride)));
+  form.elements.a.replaceChildren(...options.map((o) => o.cloneNode(true)));
+  form.elements.b.replaceChildren(...options);
+  if (rides.length < 2) {
+    form.hidden = true;
+    empty.hidden = false;
+    return;
+  }
+  form.elements.a.value = String(rides[1].id); // the second newest against the newest
+  form.elements.b.value = String(rides[0].id);
+  await onFormChange(form, async ({ a, b }, current) => {
+    if (a === b) {
+      showError(section, "Choose two different rides.");
+      table.hidden = true;
+      return;
+    }
+    try {
+      const pair = await get(`/api/horses/${horseId}/ride-pair`, { params: { a, b } });
+      if (!current()) return;
+      showError(section, null);
+      table.tBodies[0].replaceChildren(...pair.indicators.map((row) => h("tr", { dataset: { key: row.key } },
+        h("th", { scope: "row" }, labelText(row.label),
+          row.unit ? h("span", { class: "unit", dataset: { unit: "" } }, prettyUnit(row.unit)) : null),
+        h("td", { class: "num", dataset: { value: row.a ?? "" } }, fmt(row.a)),
+        h("td", { class: "num", dataset: { value: row.b ?? "" } }, fmt(row.b)),
+        differenceCell(row))));
+      table.hidden = false;
+      view.querySelector("[data-pair-motion-link]").href = `#/compare-rides/${a}/${b}`;
+      view.querySelector("[data-pair-motion]").hidden = false;
+    } catch (error) {
+      if (current()) showError(section, error);
+    }
+  });
+}
+
+export async function mountHorse(view, params) {
+  view.append(page("horse"));
+  const horseId = params.id;
+  let horse;
+  try {
+    horse = await get(`/api/horses/${horseId}`);
+  } catch (error) {
+    view.querySelector("[data-horse-name]").textContent = "Horse not found";
+    showError(view.querySelector("[data-horse-page-error]"), error);
+    for (const panel of view.querySelectorAll("section.panel")) panel.hidden = true;
+    return;
+  }
+  showProfile(view, horse);
+  setUpProfileForm(view, horse, (updated) => showProfile(view, updated));
+  const [riders] = await Promise.all([
+    get("/api/riders", { params: { limit: 500 } }).then((answer) => new Map(itemsOf(answer).map((r) => [r.id, r.name]))),
+    fillOptions(view),
+  ]);
+  const trendForm = view.querySelector("[data-horse-trend-form]");
+  // The trend starts in the gait this horse has most rides in.
+  const chooseGait = (groups) => {
+    const most = [...groups].sort((x, y) => (y.n ?? 0) - (x.n ?? 0))[0];
+    if (most?.gait && !trendForm.dataset.chosen) {
+      trendForm.elements.gait.value = most.gait;
+      trendForm.dataset.chosen = "yes";
+    }
+  };
+  await Promise.all([setUpRides(view, horseId, riders), setUpGaits(view, horseId, chooseGait)]);
+  await Promise.all([setUpTrend(view, horseId), setUpPair(view, horseId)]);
+}
