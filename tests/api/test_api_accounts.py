@@ -106,7 +106,7 @@ def test_admins_manage_users_and_roles_apply_at_once(env):
     lonely = admin.patch(f"/users/{account['user']['id']}", json={"role": "member"})
     assert lonely.status_code == 200  # another admin remains
     last = member.patch(f"/users/{user['id']}", json={"role": "member"})
-    assert last.status_code == 422 and "at least one active admin" in last.json()["detail"]
+    assert last.status_code == 409 and "at least one active admin" in last.json()["detail"]
 
     member.ok("PATCH", f"/users/{account['user']['id']}", json={"is_active": False})
     gone = admin.get("/horses")
