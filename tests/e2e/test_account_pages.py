@@ -155,7 +155,7 @@ def test_a_club_admin_brings_in_a_member_who_sets_and_changes_a_password(served)
     member.locator("#reset-new").fill("ben's own password")
     member.locator("#reset-repeat").fill("ben's other password")
     member.get_by_role("button", name="Set password").click()
-    assert "differ" in member.locator("[data-reset-form] [data-form-error]").inner_text()
+    member.locator("[data-reset-form] [data-form-error]").filter(has_text="differ").wait_for()
     member.locator("#reset-repeat").fill("ben's own password")
     member.get_by_role("button", name="Set password").click()
     member.locator("[data-reset-done]").wait_for(state="visible")
@@ -165,7 +165,7 @@ def test_a_club_admin_brings_in_a_member_who_sets_and_changes_a_password(served)
     member.locator("#reset-new").fill("another password")
     member.locator("#reset-repeat").fill("another password")
     member.get_by_role("button", name="Set password").click()
-    assert "already used" in member.locator("[data-reset-form] [data-form-error]").inner_text()
+    member.locator("[data-reset-form] [data-form-error]").filter(has_text="already used").wait_for()
 
     # Signed in, the member sees one health line, no details, and no members section or admin control.
     sign_in_page(member, MEMBER["email"], "ben's own password")
@@ -249,5 +249,21 @@ def test_members_are_paged_and_the_phone_menu_works_by_keyboard(served):
     tab.get_by_role("button", name="Next").click()
     info.filter(has_text="21\u201322 of 22").wait_for()
     assert tab.locator("[data-members-table] tbody tr").count() == 2
+
+    # With a horse, a rider and rides (no rig yet) the overview still shows the rig step, the rest
+    # ticked, and its rides table scrolls inside its own box on a phone.
+    with httpx.Client(base_url=served["base"], timeout=30, headers=api.headers) as api:
+        horse = _ok(api.post("/api/horses", json={"name": "Comet"}))["id"]
+        rider = _ok(api.post("/api/riders", json={"name": "Rider A"}))["id"]
+        for gait in ("walk", "canter"):
+            _ok(api.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": gait,
+                                             "direction": "CW"}))
+    tab.goto("/#/")
+    loaded(tab, "Overview")
+    tab.locator("[data-ride-table] tbody tr").first.wait_for()
+    steps = tab.locator("[data-getting-started]")
+    assert steps.is_visible()
+    assert [s.get_attribute("data-step") for s in steps.locator("li.done").all()] == ["horse", "ride"]
+    shoot(tab, "overview-with-rides")
     assert tab.console.unexpected() == []
     tab.context.close()
