@@ -146,7 +146,8 @@ class Members {
       type: "button", class: `link-button${user.is_active ? " danger" : ""}`, "data-permission": MANAGE,
       onclick: () => this.change(user, { is_active: !user.is_active }),
     }, user.is_active ? "Disable" : "Enable");
-    const reset = isMe ? null : h("button", {
+    // Not for yourself (change it above) nor a disabled account (a reset link only works when active).
+    const reset = isMe || !user.is_active ? null : h("button", {
       type: "button", class: "link-button", "data-permission": MANAGE, onclick: () => this.issueReset(user),
     }, "Reset link");
     return h("tr", { dataset: { userId: user.id, email: user.email } },
