@@ -122,6 +122,24 @@ def test_admins_manage_users_and_roles_apply_at_once(env):
     )
 
 
+def test_the_last_admin_can_neither_demote_nor_disable_themselves_and_members_manage_no_one(env):
+    admin, account = new_club(env.client)
+    member, user = add_member(admin)
+    me = account["user"]["id"]
+    for change in ({"role": "member"}, {"is_active": False}):
+        refused = admin.patch(f"/users/{me}", json=change)
+        assert refused.status_code == 409, refused.text
+        assert "last active admin" in refused.json()["detail"] and "make another member an admin" in (
+            refused.json()["detail"])
+    mine = admin.ok("GET", f"/users/{me}")
+    assert mine["role"] == "admin" and mine["is_active"]  # nothing was changed
+    for method, path in (("GET", "/users"), ("GET", f"/users/{me}"), ("POST", f"/users/{me}/password-reset"),
+                         ("PATCH", f"/users/{user['id']}"), ("GET", "/health/details")):
+        answer = member.request(method, path, json={"role": "admin"} if method == "PATCH" else None)
+        assert answer.status_code == 403, (method, path, answer.text)
+    assert admin.ok("GET", f"/users/{user['id']}")["role"] == "member"
+
+
 def test_an_expired_token_is_refused(env):
     _, account = new_club(env.client)
     with session_factory_for(env.settings.database_url)() as session:
