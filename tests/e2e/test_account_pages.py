@@ -210,6 +210,20 @@ def test_a_club_admin_brings_in_a_member_who_sets_and_changes_a_password(served)
     row.filter(has_text="active").wait_for()
     assert api_status(served, MEMBER["email"], "ben's newer password") == 200
 
+    # With a second admin, an admin may step down: the members section goes at once.
+    row.get_by_label(f"Role of {MEMBER['display_name']}").select_option("admin")
+    admin.locator("[data-announcer]").filter(has_text=f"{MEMBER['display_name']} changed.").wait_for(state="attached")
+    mine.get_by_label(f"Role of {ADMIN['display_name']}").select_option("member")
+    admin.locator("[data-members]").wait_for(state="detached")
+    loaded(admin, "Your account")
+    assert admin.locator("[data-permission]").count() == 0
+    with httpx.Client(base_url=served["base"], timeout=30) as api:  # Ben, now an admin, gives it back
+        token = _ok(api.post("/api/auth/login", json={"email": MEMBER["email"], "password": "ben's newer password"}))
+        api.cookies.clear()
+        api.headers["Authorization"] = f"Bearer {token['access_token']}"
+        anna = next(u for u in _ok(api.get("/api/users"))["items"] if u["email"] == ADMIN["email"])
+        _ok(api.patch(f"/api/users/{anna['id']}", json={"role": "admin"}))
+
     assert admin.console.unexpected(409) == []
     assert member.console.unexpected(401) == []
     admin.context.close()

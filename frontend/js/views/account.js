@@ -4,7 +4,7 @@
 import { get, patch, post } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { navigate } from "../router.js";
-import { can, changePassword, session, signOutEverywhere } from "../session.js";
+import { can, changePassword, refreshSession, session, signOutEverywhere } from "../session.js";
 
 const MEMBERS_PER_PAGE = 20;
 const MANAGE = "user.manage";
@@ -178,7 +178,8 @@ class Members {
     }
     announce(`${name} changed.`);
     if (losingOwnRights) {
-      navigate("/account"); // the page without the members section, as the server now sees us
+      await refreshSession(); // the role (and its permissions) as the server now sees us
+      navigate("/account"); // the page without the members section
       return;
     }
     await this.load();
