@@ -6,6 +6,7 @@ import { setIndicatorInfo } from "./js/format.js";
 import { checkHealth } from "./js/health.js";
 import { currentPath, navigate, render, route } from "./js/router.js";
 import { onSessionChange, refreshSession, session, signOut } from "./js/session.js";
+import { mountAccount } from "./js/views/account.js";
 import { mountCompare } from "./js/views/compare.js";
 import { mountEntities } from "./js/views/entities.js";
 import { mountGrades } from "./js/views/grades.js";
@@ -16,6 +17,7 @@ import { mountLeaderboard } from "./js/views/leaderboard.js";
 import { mountLogin } from "./js/views/login.js";
 import { mountRide } from "./js/views/ride.js";
 import { mountRides } from "./js/views/rides.js";
+import { mountResetPassword } from "./js/views/reset-password.js";
 import { mountRidePair } from "./js/views/similar.js";
 import { mountUpload } from "./js/views/upload.js";
 
@@ -32,6 +34,8 @@ route("/jobs", mountJobs, { title: "Jobs" });
 route("/compare", mountCompare, { title: "Compare" });
 route("/leaderboard", mountLeaderboard, { title: "Leaderboard" });
 route("/grades", mountGrades, { title: "Grades" });
+route("/account", mountAccount, { title: "Your account" });
+route("/reset-password", mountResetPassword, { title: "Set a new password", auth: false });
 
 const view = document.querySelector("[data-view]");
 
@@ -44,14 +48,38 @@ function notFound(el) {
   el.append(page("not-found"));
 }
 
+// Pages anyone may open: a session ending there does not send the user to sign in.
+const OPEN_PAGES = new Set(["/login", "/reset-password"]);
+
 function showAccount(current) {
   const name = document.querySelector("[data-account-name]");
   const login = document.querySelector("[data-account-login]");
   const logout = document.querySelector("[data-account-logout]");
   name.textContent = current ? `${current.user.display_name || current.user.email}${current.club ? ` \u00b7 ${current.club.name}` : ""}` : "";
+  name.hidden = !current;
   login.hidden = Boolean(current);
   logout.hidden = !current;
   document.querySelector("[data-nav]").hidden = !current;
+  document.querySelector("[data-nav-toggle]").hidden = !current;
+  document.querySelector(".site-header").toggleAttribute("data-signed-in", Boolean(current));
+}
+
+/** The phone menu: the button folds the nav and the account links open and shut (Escape shuts it). */
+function setUpMenu() {
+  const header = document.querySelector(".site-header");
+  const toggle = header.querySelector("[data-nav-toggle]");
+  const setOpen = (open) => {
+    header.toggleAttribute("data-nav-open", open);
+    toggle.setAttribute("aria-expanded", String(open));
+  };
+  toggle.addEventListener("click", () => setOpen(!header.hasAttribute("data-nav-open")));
+  header.addEventListener("keydown", (event) => {
+    if (event.key === "Escape" && header.hasAttribute("data-nav-open")) {
+      setOpen(false);
+      toggle.focus();
+    }
+  });
+  window.addEventListener("hashchange", () => setOpen(false)); // a link was followed
 }
 
 async function loadIndicatorInfo() {
@@ -71,11 +99,12 @@ async function start() {
     await signOut();
     navigate("/login");
   });
+  setUpMenu();
   let previous = null;
   onSessionChange((current) => {
     showAccount(current);
     // Signed out (or the session expired) while on a page that needs it: back to sign-in.
-    if (previous && !current && currentPath().path !== "/login") {
+    if (previous && !current && !OPEN_PAGES.has(currentPath().path)) {
       navigate(`/login?next=${encodeURIComponent(currentPath().path)}`);
     }
     previous = current;

@@ -1,6 +1,10 @@
-// /api/health: the footer badge on every page and the table on the overview ([data-health-*] hooks).
+// Service health: the footer badge on every page and the panel on the overview ([data-health-*] hooks).
+// Everyone sees one line ("Service OK" / "Service degraded: <reason>") from the public /api/health;
+// club admins also get each part's detail (versions, queue, storage folder) from /api/health/details.
 
+import { get } from "./api.js";
 import { h } from "./dom.js";
+import { isAdmin } from "./session.js";
 
 async function fetchHealth() {
   // 503 still carries the report (a part is not ok), so read the body whatever the status.
@@ -8,31 +12,43 @@ async function fetchHealth() {
   return response.json();
 }
 
+const PART_NAMES = { database: "Database", broker: "Job queue", storage: "File storage" };
+
 function row(name, part) {
   return h("tr", { dataset: { part: name } },
-    h("td", {}, name),
-    h("td", { class: part.ok ? "ok" : "error" }, part.ok ? "ok" : "error"),
+    h("th", { scope: "row" }, PART_NAMES[name] ?? name),
+    h("td", { class: part.ok ? "ok" : "error" }, part.ok ? "ok" : "not ok"),
     h("td", {}, part.detail));
+}
+
+async function showDetails(root) {
+  const box = root.querySelector("[data-health-details]");
+  if (!box) return;
+  if (!isAdmin()) {
+    box.hidden = true;
+    root.querySelector("[data-health-table]").tBodies[0].replaceChildren();
+    return;
+  }
+  const details = await get("/api/health/details");
+  root.querySelector("[data-health-version]").textContent =
+    `SaddleScope ${details.version}, jobs run ${details.mode === "celery" ? "on Celery workers" : "on this server (embedded)"}.`;
+  root.querySelector("[data-health-table]").tBodies[0].replaceChildren(
+    ...Object.entries(details.parts).map(([name, part]) => row(name, part)));
+  box.hidden = false;
 }
 
 export async function checkHealth(root = document) {
   const summary = root.querySelector("[data-health-summary]");
-  const table = root.querySelector("[data-health-table]");
   const badge = document.querySelector("[data-health-badge]");
   if (summary) summary.textContent = "Checking\u2026";
   try {
     const health = await fetchHealth();
-    const text = `SaddleScope ${health.version} (${health.mode} mode): ` +
-      (health.status === "ok" ? "all parts ok" : "some parts are not ok");
-    if (table) {
-      table.tBodies[0].replaceChildren(...Object.entries(health.parts).map(([name, part]) => row(name, part)));
-      table.hidden = false;
-    }
     for (const el of [summary, badge]) {
       if (!el) continue;
-      el.textContent = el === badge ? `Server ${health.status === "ok" ? "ok" : "has a problem"} \u00b7 v${health.version} \u00b7 ${health.mode}` : text;
+      el.textContent = health.summary ?? (health.status === "ok" ? "Service OK" : "Service degraded");
       el.dataset.status = health.status;
     }
+    if (summary) await showDetails(root);
   } catch (error) {
     for (const el of [summary, badge]) {
       if (!el) continue;

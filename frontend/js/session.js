@@ -81,6 +81,34 @@ export async function signOut() {
   }
 }
 
+/**
+ * Change the signed-in user's password. The server ends every session of the account (other browsers
+ * and phones too); this browser signs straight back in with the new password so the user carries on.
+ * Resolves to true when signed in again, false when the user must sign in by hand.
+ */
+export async function changePassword(currentPassword, newPassword) {
+  const email = current?.user?.email;
+  await post("/api/auth/password", { current_password: currentPassword, new_password: newPassword });
+  setCsrfToken(null);
+  try {
+    await signIn(email, newPassword);
+    return Boolean(current);
+  } catch (error) {
+    console.info("signing back in after the password change failed:", error.message);
+    current = null;
+    changed();
+    return false;
+  }
+}
+
+/** End every session of the signed-in user (all browsers, phones and tokens), this one included. */
+export async function signOutEverywhere() {
+  await post("/api/auth/logout-everywhere");
+  setCsrfToken(null);
+  current = null;
+  changed();
+}
+
 // A 401 anywhere means the session is gone: forget it so the pages send the user to sign in.
 onUnauthorised(() => {
   if (current) {

@@ -106,7 +106,7 @@ def test_admins_manage_users_and_roles_apply_at_once(env):
     lonely = admin.patch(f"/users/{account['user']['id']}", json={"role": "member"})
     assert lonely.status_code == 200  # another admin remains
     last = member.patch(f"/users/{user['id']}", json={"role": "member"})
-    assert last.status_code == 422 and "at least one active admin" in last.json()["detail"]
+    assert last.status_code == 409 and "at least one active admin" in last.json()["detail"]
 
     member.ok("PATCH", f"/users/{account['user']['id']}", json={"is_active": False})
     gone = admin.get("/horses")
@@ -120,6 +120,24 @@ def test_admins_manage_users_and_roles_apply_at_once(env):
     assert (
         sign_in(env.client, user["email"], "a new password").ok("GET", "/auth/me")["user"]["id"] == user["id"]
     )
+
+
+def test_the_last_admin_can_neither_demote_nor_disable_themselves_and_members_manage_no_one(env):
+    admin, account = new_club(env.client)
+    member, user = add_member(admin)
+    me = account["user"]["id"]
+    for change in ({"role": "member"}, {"is_active": False}):
+        refused = admin.patch(f"/users/{me}", json=change)
+        assert refused.status_code == 409, refused.text
+        assert "last active admin" in refused.json()["detail"] and "make another member an admin" in (
+            refused.json()["detail"])
+    mine = admin.ok("GET", f"/users/{me}")
+    assert mine["role"] == "admin" and mine["is_active"]  # nothing was changed
+    for method, path in (("GET", "/users"), ("GET", f"/users/{me}"), ("POST", f"/users/{me}/password-reset"),
+                         ("PATCH", f"/users/{user['id']}"), ("GET", "/health/details")):
+        answer = member.request(method, path, json={"role": "admin"} if method == "PATCH" else None)
+        assert answer.status_code == 403, (method, path, answer.text)
+    assert admin.ok("GET", f"/users/{user['id']}")["role"] == "member"
 
 
 def test_an_expired_token_is_refused(env):

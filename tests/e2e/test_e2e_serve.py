@@ -60,8 +60,15 @@ def sign_up(base: str) -> dict[str, str]:
     return {"Authorization": f"Bearer {login.json()['access_token']}"}
 
 
-def run_job_over_http(base: str, body: dict, timeout_s: float = 60.0) -> dict:
-    headers = sign_up(base)
+def health_details(base: str, headers: dict[str, str]) -> dict:
+    """The admins' health answer (paths, versions, mode); the public one says only ok or degraded."""
+    response = httpx.get(f"{base}/api/health/details", headers=headers, timeout=10)
+    assert response.status_code == 200, response.text
+    return response.json()
+
+
+def run_job_over_http(base: str, body: dict, timeout_s: float = 60.0, headers: dict | None = None) -> dict:
+    headers = headers or sign_up(base)
     assert httpx.post(f"{base}/api/jobs", json=body, timeout=10).status_code == 401  # not signed in
     created = httpx.post(f"{base}/api/jobs", json=body, headers=headers, timeout=10)
     assert created.status_code == 201, created.text
@@ -92,8 +99,12 @@ def test_serve_answers_health_with_every_part_ok_and_runs_a_job(tmp_path):
             "broker": "ok",
             "storage": "ok",
         }
-        assert health["mode"] == "embedded" and health["parts"]["broker"]["detail"].startswith("embedded")
-        job = run_job_over_http(base, {"kind": "selftest", "payload": {"steps": 4, "delay_s": 0.05}})
+        assert health["summary"] == "Service OK" and "mode" not in health
+        headers = sign_up(base)
+        details = health_details(base, headers)
+        assert details["mode"] == "embedded" and details["parts"]["broker"]["detail"].startswith("embedded")
+        job = run_job_over_http(base, {"kind": "selftest", "payload": {"steps": 4, "delay_s": 0.05}},
+                                headers=headers)
         assert job["status"] == "done" and job["progress"] == 1.0 and job["timings_s"]["selftest"] >= 0.2
         page = httpx.get(f"{base}/", timeout=10)
         assert page.status_code == 200 and "<title>SaddleScope</title>" in page.text
@@ -124,12 +135,15 @@ def test_serve_with_saddlescope_workers_on_postgresql_and_redis(
             assert time.monotonic() < deadline, worker_log.read_text()[-3000:]
             time.sleep(0.2)
         health = wait_healthy(base, server, serve_log)
-        assert health["http_status"] == 200 and health["mode"] == "celery", health
+        assert health["http_status"] == 200 and health["summary"] == "Service OK", health
+        headers = sign_up(base)
+        assert health_details(base, headers)["mode"] == "celery"
         integration_services.report_service(
             request.config,
             f"`saddlescope serve` + `saddlescope worker` processes (pids {server.pid}, {worker.pid})",
         )
-        job = run_job_over_http(base, {"kind": "selftest", "payload": {"steps": 3, "delay_s": 0.05}})
+        job = run_job_over_http(base, {"kind": "selftest", "payload": {"steps": 3, "delay_s": 0.05}},
+                                headers=headers)
         assert job["status"] == "done" and set(job["timings_s"]) == {"selftest", "total"}, job
     finally:
         integration_services.stop_process(server)

@@ -23,6 +23,7 @@ __all__ = [
     "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
     "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SyncIn", "Text", "TokenOut", "UploadCreate",
     "UploadOut", "UserCreate", "UserOut", "UserUpdate",
+    "HealthSummaryOut", "PartState",  # the public health answer (accounts area)
 ]
 
 T = TypeVar("T")
@@ -100,12 +101,28 @@ class PartHealth(BaseModel):
 
 
 class HealthOut(BaseModel):
-    """Whether the service can work: the database, the job queue and the storage."""
+    """Whether the service can work: the database, the job queue and the storage (admins: details)."""
 
     status: Literal["ok", "error"]
+    summary: str = Field(description='"Service OK" or "Service degraded: <what a club cannot do now>"')
     mode: Literal["embedded", "celery"]
     version: str
     parts: dict[str, PartHealth] = Field(description="database, broker and storage")
+
+
+class PartState(BaseModel):
+    """One part's health without its detail (what anyone may see)."""
+
+    ok: bool
+    status: Literal["ok", "error"]
+
+
+class HealthSummaryOut(BaseModel):
+    """The public health answer: one line and each part ok or not; no paths, versions or addresses."""
+
+    status: Literal["ok", "error"]
+    summary: str = Field(description='"Service OK" or "Service degraded: <what a club cannot do now>"')
+    parts: dict[str, PartState] = Field(description="database, broker and storage: ok or not")
 
 
 class ErrorOut(BaseModel):

@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 from saddlescope.core.errors import InputError, SaddleScopeError
 from saddlescope.db.enums import Role
 from saddlescope.db.models import Club, User
-from saddlescope.db.repositories import ClubRepository, UserRepository
+from saddlescope.db.repositories import ClubRepository, Conflict, UserRepository
 from saddlescope.settings import Settings
 
 __all__ = [
@@ -246,7 +246,11 @@ def update_user(
         and ((role is not None and role != Role.ADMIN.value) or is_active is False)
     )
     if losing_admin and users.count_admins() <= 1:
-        raise InputError("the club must keep at least one active admin")
+        # 409: the request is well formed, the club's state refuses it (a club without an admin could
+        # never add a member or reset a password again).
+        raise Conflict(f"{user.display_name or user.email} is the club's last active admin and cannot be "
+                       "made a member or disabled: the club must keep at least one active admin; make "
+                       "another member an admin first")
     if role is not None:
         user.role = role
     if is_active is not None:

@@ -12,7 +12,7 @@ from saddlescope.db.session import ping
 from saddlescope.services.queue import JobQueue
 from saddlescope.storage import Storage
 
-__all__ = ["check_database", "check_queue", "check_storage", "health_report"]
+__all__ = ["PART_TROUBLE", "check_database", "check_queue", "check_storage", "health_report", "public_report"]
 
 
 def check_database(engine: Engine) -> tuple[bool, str]:
@@ -51,3 +51,24 @@ def health_report(engine: Engine, queue: JobQueue, storage: Storage) -> dict[str
         parts[name] = {"ok": ok, "status": "ok" if ok else "error", "detail": detail}
     return {"status": "ok" if all(p["ok"] for p in parts.values()) else "error", "mode": queue.mode,
             "parts": parts}
+
+
+# What a part being down means for a club, in its words (the public answer names no path or version).
+PART_TROUBLE = {
+    "database": "the database does not answer or is not up to date, so nothing can be shown or saved",
+    "broker": "the job queue does not answer, so new analyses cannot start",
+    "storage": "the file storage cannot be written, so clips cannot be uploaded",
+}
+
+
+def public_report(report: dict[str, Any]) -> dict[str, Any]:
+    """What anyone may see: ok or degraded in one line, each part ok or not; no paths, versions or mode.
+
+    The details (the storage folder, the database server's version, the broker's address) help an
+    attacker more than a member, so they stay in ``/api/health/details`` for admins.
+    """
+    down = [name for name, part in report["parts"].items() if not part["ok"]]
+    summary = ("Service OK" if not down
+               else "Service degraded: " + "; ".join(PART_TROUBLE.get(name, f"{name} is not ok") for name in down))
+    parts = {name: {"ok": part["ok"], "status": part["status"]} for name, part in report["parts"].items()}
+    return {"status": report["status"], "summary": summary, "parts": parts}

@@ -306,7 +306,7 @@ def read_user(user_id: Id, club: AdminClubDep) -> UserOut:
     return UserOut.model_validate(club.users.get(user_id))
 
 
-@router.patch("/users/{user_id}", response_model=UserOut, responses=ERRORS)
+@router.patch("/users/{user_id}", response_model=UserOut, responses={**ERRORS, **CONFLICT})
 def change_user(user_id: Id, body: UserUpdate, club: AdminClubDep) -> UserOut:
     """Change a user's role, name or password, or deactivate them (admins only; one admin always stays)."""
     user = update_user(

@@ -1,4 +1,4 @@
-"""GET /api/health: database, broker and storage, each ok or error with a detail."""
+"""GET /api/health (anyone: ok or degraded in one line) and /api/health/details (admins: paths, versions)."""
 
 from __future__ import annotations
 
@@ -6,21 +6,38 @@ from fastapi import APIRouter, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope import __version__
-from saddlescope.api.deps import EngineDep, QueueDep, StorageDep
-from saddlescope.api.schemas import HealthOut
-from saddlescope.services.health import health_report
+from saddlescope.api.deps import AdminClubDep, EngineDep, QueueDep, StorageDep
+from saddlescope.api.routers.common import ERRORS
+from saddlescope.api.schemas import HealthOut, HealthSummaryOut
+from saddlescope.services.health import health_report, public_report
 
 __all__ = ["router"]
 
 router = APIRouter(tags=["health"])
 
 
-@router.get("/health", response_model=HealthOut,
-            responses={503: {"model": HealthOut, "description": "a part is not ok"}})
-async def health(engine: EngineDep, queue: QueueDep, storage: StorageDep, response: Response) -> HealthOut:
-    """Whether the database, the job queue and the storage answer (503 when a part does not)."""
+@router.get("/health", response_model=HealthSummaryOut,
+            responses={503: {"model": HealthSummaryOut, "description": "a part is not ok"}})
+async def health(engine: EngineDep, queue: QueueDep, storage: StorageDep, response: Response) -> HealthSummaryOut:
+    """Whether the database, the job queue and the storage answer (503 when a part does not).
+
+    No sign-in needed (load balancers probe it), so it says only ok or not: the storage folder, the
+    versions and the broker's address are in ``/api/health/details``, for club admins.
+    """
     # The checks block (sockets, disk); keep them off the event loop.
     report = await run_in_threadpool(health_report, engine, queue, storage)
     if report["status"] != "ok":
         response.status_code = status.HTTP_503_SERVICE_UNAVAILABLE
-    return HealthOut(version=__version__, **report)
+    return HealthSummaryOut(**public_report(report))
+
+
+@router.get("/health/details", response_model=HealthOut, responses=ERRORS)
+async def health_details(
+    club: AdminClubDep, engine: EngineDep, queue: QueueDep, storage: StorageDep
+) -> HealthOut:
+    """Each part with what it said: database version and schema revision, queue mode, storage folder.
+
+    Admins only. Answers 200 whatever the parts say (``status`` tells): the question was answered.
+    """
+    report = await run_in_threadpool(health_report, engine, queue, storage)
+    return HealthOut(version=__version__, summary=public_report(report)["summary"], **report)

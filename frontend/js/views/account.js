@@ -1,0 +1,265 @@
+// Your account: change the password, sign out everywhere; club admins also manage the members
+// (add, role, disable/enable, a one-time password-reset link to hand over: no mail server needed).
+
+import { get, patch, post } from "../api.js";
+import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { navigate } from "../router.js";
+import { can, changePassword, refreshSession, session, signOutEverywhere } from "../session.js";
+
+const MEMBERS_PER_PAGE = 20;
+const MANAGE = "user.manage";
+
+function passwordProblem(password, repeat) {
+  if (!password || password.length < 8) return "The new password needs at least 8 characters.";
+  if (password !== repeat) return "The two new passwords differ; type the same one twice.";
+  return null;
+}
+
+function attachPasswordForm(view) {
+  const form = view.querySelector("[data-password-form]");
+  const ok = form.querySelector("[data-form-ok]");
+  form.addEventListener("submit", async (event) => {
+    event.preventDefault();
+    ok.hidden = true;
+    const values = formValues(form);
+    const problem = !values.current_password ? "Type your current password."
+      : passwordProblem(form.elements.new_password.value, form.elements.repeat_password.value);
+    showError(form, problem);
+    if (problem) return;
+    let stillSignedIn;
+    try {
+      stillSignedIn = await busy(form, () => changePassword(form.elements.current_password.value,
+        form.elements.new_password.value));
+    } catch (error) {
+      showError(form, error);
+      return;
+    }
+    form.reset();
+    if (!stillSignedIn) {
+      navigate("/login");
+      return;
+    }
+    ok.textContent = "Password changed. Your other browsers and phones are signed out.";
+    ok.hidden = false;
+    announce(ok.textContent);
+  });
+}
+
+function attachSignOutEverywhere(view) {
+  const box = view.querySelector("[data-everywhere]");
+  box.querySelector("[data-sign-out-everywhere]").addEventListener("click", async () => {
+    if (!window.confirm("Sign out on every browser and phone, this one too?")) return;
+    try {
+      await signOutEverywhere();
+    } catch (error) {
+      showError(box, error);
+      return;
+    }
+    announce("Signed out everywhere.");
+    navigate("/login");
+  });
+}
+
+/** "<origin>/#/reset-password?token=..." : what the admin hands to the member. */
+function resetLink(token) {
+  const base = `${window.location.origin}${window.location.pathname}`;
+  return `${base}#/reset-password?token=${encodeURIComponent(token)}`;
+}
+
+async function copyText(input) {
+  try {
+    await navigator.clipboard.writeText(input.value);
+    return true;
+  } catch {
+    // No clipboard permission (plain http, older browsers): select it so Ctrl+C works.
+    input.focus();
+    input.select();
+    return document.execCommand?.("copy") ?? false;
+  }
+}
+
+class Members {
+  constructor(view) {
+    this.section = view.querySelector("[data-members]");
+    this.table = this.section.querySelector("[data-members-table]");
+    this.error = this.section.querySelector("[data-members-error]");
+    this.pager = this.section.querySelector("[data-members-pager]");
+    this.resetBox = this.section.querySelector("[data-reset-box]");
+    this.offset = 0;
+    this.total = 0;
+    this.me = session()?.user?.id;
+  }
+
+  attach() {
+    this.section.hidden = false;
+    this.pager.querySelector('[data-page="prev"]').addEventListener("click", () => this.turn(-1));
+    this.pager.querySelector('[data-page="next"]').addEventListener("click", () => this.turn(1));
+    this.resetBox.querySelector("[data-reset-copy]").addEventListener("click", async (event) => {
+      const copied = await copyText(this.resetBox.querySelector("[data-reset-link]"));
+      event.target.textContent = copied ? "Copied" : "Select and copy it";
+      announce(copied ? "Link copied." : "Select the link and copy it.");
+    });
+    this.attachAddForm();
+    return this.load();
+  }
+
+  showError(error) {
+    this.error.textContent = error ? (typeof error === "string" ? error : error.message) : "";
+    this.error.hidden = !error;
+  }
+
+  turn(step) {
+    this.offset = Math.max(0, this.offset + step * MEMBERS_PER_PAGE);
+    return this.load();
+  }
+
+  async load() {
+    let answer;
+    try {
+      answer = await get("/api/users", { params: { limit: MEMBERS_PER_PAGE, offset: this.offset, sort: "email" } });
+    } catch (error) {
+      this.showError(error);
+      return;
+    }
+    this.total = answer.total;
+    if (!answer.items.length && this.offset > 0) {
+      this.offset = 0;
+      await this.load();
+      return;
+    }
+    this.table.tBodies[0].replaceChildren(...answer.items.map((user) => this.row(user)));
+    const last = Math.min(this.offset + answer.items.length, this.total);
+    this.pager.querySelector("[data-page-info]").textContent = `${this.offset + 1}\u2013${last} of ${this.total}`;
+    this.pager.querySelector('[data-page="prev"]').disabled = this.offset === 0;
+    this.pager.querySelector('[data-page="next"]').disabled = last >= this.total;
+    this.pager.hidden = this.total <= MEMBERS_PER_PAGE;
+  }
+
+  row(user) {
+    const name = user.display_name || user.email;
+    const isMe = user.id === this.me;
+    const role = h("select", { "aria-label": `Role of ${name}`, "data-permission": MANAGE, dataset: { role: user.id } },
+      h("option", { value: "member", selected: user.role === "member" }, "Member"),
+      h("option", { value: "admin", selected: user.role === "admin" }, "Admin"));
+    role.addEventListener("change", () => this.change(user, { role: role.value }, role));
+    const toggle = h("button", {
+      type: "button", class: `link-button${user.is_active ? " danger" : ""}`, "data-permission": MANAGE,
+      onclick: () => this.change(user, { is_active: !user.is_active }),
+    }, user.is_active ? "Disable" : "Enable");
+    // Not for yourself (change it above) nor a disabled account (a reset link only works when active).
+    const reset = isMe || !user.is_active ? null : h("button", {
+      type: "button", class: "link-button", "data-permission": MANAGE, onclick: () => this.issueReset(user),
+    }, "Reset link");
+    return h("tr", { dataset: { userId: user.id, email: user.email } },
+      h("th", { scope: "row" }, user.display_name || "\u2014", isMe ? h("span", { class: "hint" }, " (you)") : null),
+      h("td", { class: "email" }, user.email),
+      h("td", {}, role),
+      h("td", {}, h("span", { class: `badge ${user.is_active ? "status-done" : "status-failed"}` },
+        user.is_active ? "active" : "disabled")),
+      h("td", { class: "actions" }, toggle, reset));
+  }
+
+  async change(user, changes, control = null) {
+    const name = user.display_name || user.email;
+    const losingOwnRights = user.id === this.me && (changes.role === "member" || changes.is_active === false);
+    if (losingOwnRights && !window.confirm("You will no longer be an admin of the club. Go on?")) {
+      if (control) control.value = user.role;
+      return;
+    }
+    if (changes.is_active === false && user.id !== this.me
+        && !window.confirm(`Disable ${name}? They are signed out at once and cannot sign in until enabled.`)) return;
+    this.showError(null);
+    try {
+      await patch(`/api/users/${user.id}`, changes);
+    } catch (error) {
+      if (control) control.value = user.role; // refused (e.g. the last admin): show what is stored
+      this.showError(error);
+      return;
+    }
+    announce(`${name} changed.`);
+    if (losingOwnRights) {
+      await refreshSession(); // the role (and its permissions) as the server now sees us
+      navigate("/account"); // the page without the members section
+      return;
+    }
+    await this.load();
+  }
+
+  async issueReset(user, { fresh = false } = {}) {
+    const name = user.display_name || user.email;
+    if (!fresh && !window.confirm(`Make a one-time link for ${name}? Their current password stops working now.`)) return;
+    this.showError(null);
+    let answer;
+    try {
+      answer = await post(`/api/users/${user.id}/password-reset`);
+    } catch (error) {
+      this.showError(error);
+      return;
+    }
+    const link = this.resetBox.querySelector("[data-reset-link]");
+    link.value = resetLink(answer.reset_token);
+    this.resetBox.querySelector("[data-reset-for]").textContent = fresh
+      ? `${name} was added. Give them this link to set their password (it is shown only now):`
+      : `One-time link for ${name} (shown only now; give it to them):`;
+    this.resetBox.querySelector("[data-reset-expiry]").textContent =
+      `It works once, until ${new Date(answer.expires_at).toLocaleString()}.`;
+    this.resetBox.querySelector("[data-reset-copy]").textContent = "Copy link";
+    this.resetBox.hidden = false;
+    link.focus();
+    link.select();
+  }
+
+  attachAddForm() {
+    const form = this.section.querySelector("[data-add-member]");
+    const passwordField = form.querySelector("[data-initial-password]");
+    for (const radio of form.elements.first_sign_in) {
+      radio.addEventListener("change", () => { passwordField.hidden = form.elements.first_sign_in.value !== "password"; });
+    }
+    form.addEventListener("submit", (event) => {
+      event.preventDefault();
+      this.add(form, passwordField);
+    });
+  }
+
+  async add(form, passwordField) {
+    const values = formValues(form);
+    const byLink = values.first_sign_in === "link";
+    let problem = values.email ? null : "Type the member's e-mail address.";
+    if (!problem && !byLink) problem = passwordProblem(values.password, values.password);
+    showError(form, problem);
+    if (problem) return;
+    // With a link, the account gets a random password nobody knows; the reset link replaces it.
+    const password = byLink ? randomPassword() : values.password;
+    let user;
+    try {
+      user = await busy(form, () => post("/api/users", {
+        email: values.email, display_name: values.display_name ?? "", role: values.role, password,
+      }));
+    } catch (error) {
+      showError(form, error);
+      return;
+    }
+    form.reset();
+    passwordField.hidden = true;
+    announce(`${user.email} added.`);
+    if (byLink) await this.issueReset(user, { fresh: true });
+    await this.load();
+  }
+}
+
+function randomPassword() {
+  const bytes = crypto.getRandomValues(new Uint8Array(24));
+  return Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
+}
+
+export async function mountAccount(view) {
+  view.append(page("account"));
+  const me = session();
+  view.querySelector("[data-account-who]").textContent = me
+    ? `${me.user.display_name ? `${me.user.display_name}, ` : ""}${me.user.email} \u00b7 ${me.user.role === "admin" ? "admin" : "member"} of ${me.club?.name ?? "your club"}`
+    : "";
+  attachPasswordForm(view);
+  attachSignOutEverywhere(view);
+  if (can(MANAGE)) await new Members(view).attach();
+  else view.querySelector("[data-members]").remove(); // members never get the admins' controls at all
+}
