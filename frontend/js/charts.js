@@ -234,17 +234,27 @@ function lineType(n) {
 
 /**
  * Marker tracks and the saddle point S in 3-D, equal aspect (metres in the motion frame).
- * Plotted as travel x, sideways z and height −y so "up" is up on the screen.
+ * Plotted as x less S's steady travel, sideways z and height −y so "up" is up on the screen.
+ * @param {number[]} tS  shape (N,), s
  * @param {number[][][]|null} markers  shape (N, M, 3), m
  * @param {number[][]} saddle  shape (N, 3), m
  */
-export function tracks3dChart(div, markers, saddle, { names = ["M1", "M2", "M3"] } = {}) {
+export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "M3"] } = {}) {
   if (!saddle?.length) return emptyChart(div, "This result has no saddle-point track.");
   ready(div);
   const colours = ["#1f5fa8", "#2f855a", "#7c3aed"];
+  // S's steady travel (least-squares line of its x over time) is taken out of every track: at equal
+  // scale metres of travel would flatten the centimetres of motion into a line.
+  const xs = column(saddle, 0);
+  const ok = (tS || []).map((t, i) => [t, xs[i]]).filter(([t, x]) => Number.isFinite(t) && Number.isFinite(x));
+  const tMean = ok.reduce((a, [t]) => a + t, 0) / (ok.length || 1);
+  const xMean = ok.reduce((a, [, x]) => a + x, 0) / (ok.length || 1);
+  const slope = ok.reduce((a, [t, x]) => a + (t - tMean) * (x - xMean), 0)
+    / (ok.reduce((a, [t]) => a + (t - tMean) ** 2, 0) || 1);
+  const travel = (i) => (Number.isFinite(tS?.[i]) ? xMean + slope * (tS[i] - tMean) : 0);
   const trace = (rows, name, colour, width) => ({
-    type: "scatter3d", mode: "lines", name, x: column(rows, 0), y: column(rows, 2),
-    z: column(rows, 1).map((v) => (v === null ? null : -v)), line: { color: colour, width },
+    type: "scatter3d", mode: "lines", name, x: column(rows, 0).map((v, i) => (v === null ? null : v - travel(i))),
+    y: column(rows, 2), z: column(rows, 1).map((v) => (v === null ? null : -v)), line: { color: colour, width },
     hovertemplate: `${name}: x %{x:.3f} m, z %{y:.3f} m, height %{z:.3f} m<extra></extra>`,
   });
   const traces = [];
@@ -258,8 +268,8 @@ export function tracks3dChart(div, markers, saddle, { names = ["M1", "M2", "M3"]
   const layout = {
     font: FONT, paper_bgcolor: "rgba(0,0,0,0)", margin: { l: 0, r: 0, t: 8, b: 0 },
     legend: { orientation: "h", x: 0, y: 1, yanchor: "bottom" },
-    scene: { xaxis: axis("travel x (m)"), yaxis: axis("sideways z (m)"), zaxis: axis("height −y (m)"),
-             aspectmode: "data", camera: { eye: { x: 1.2, y: -1.8, z: 0.8 } } },
+    scene: { xaxis: axis("x − steady travel (m)"), yaxis: axis("sideways z (m)"), zaxis: axis("height −y (m)"),
+             aspectmode: "data", camera: { eye: { x: 1.4, y: -2.0, z: 0.9 } } },
   };
   return plotly().react(div, traces, layout, CONFIG);
 }
@@ -292,6 +302,10 @@ export function fitChart(div, tS, measured, fitted, residual, { title, unit, col
     yaxis2: { title: { text: "residual" }, domain: [0, 0.26], gridcolor: "#e6e9ee", automargin: true,
               zeroline: true, zerolinecolor: "#c9ced6" },
   });
+  // one time axis under the residual panel; the legend under the chart, clear of the title
+  if (residual?.length) layout.xaxis.anchor = "y2";
+  layout.legend = { orientation: "h", x: 0, xanchor: "left", y: -0.2, yanchor: "top" };
+  layout.margin.b = 80;
   return plotly().react(div, traces, layout, CONFIG);
 }
 
@@ -309,8 +323,10 @@ export function weightedChart(div, tS, unweighted, wb, wk) {
     line("W_b (BS 6841)", wb, "#1f5fa8"),
     ...(wk?.length ? [line("W_k (ISO 2631-1)", wk, "#2f855a")] : []),
   ];
-  return plotly().react(div, traces,
-    baseLayout("Weighted vertical acceleration at the saddle", "time (s)", "m/s²"), CONFIG);
+  const layout = baseLayout("Weighted vertical acceleration at the saddle", "time (s)", "m/s²");
+  layout.legend = { orientation: "h", x: 0, xanchor: "left", y: -0.3, yanchor: "top" };
+  layout.margin.b = 96;
+  return plotly().react(div, traces, layout, CONFIG);
 }
 
 /** Harmonic spectrum: amplitude of each harmonic k·f0, unweighted and weighted (bars). */
@@ -325,5 +341,7 @@ export function spectrumChart(div, spectrum) {
   const layout = baseLayout(`Harmonics of the stride (f0 = ${spectrum.f0_hz.toFixed(2)} Hz)`, "harmonic",
     "amplitude (m/s²)", { hovermode: "closest", barmode: "group", bargap: 0.25 });
   layout.xaxis.tickangle = -30;
+  layout.legend = { orientation: "h", x: 1, xanchor: "right", y: 1.0, yanchor: "bottom" };
+  layout.margin.t = 56;
   return plotly().react(div, traces, layout, CONFIG);
 }

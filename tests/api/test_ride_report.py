@@ -99,14 +99,15 @@ def test_the_report_names_the_ride_and_reads_the_last_ride_against_its_normal_ba
     assert response.status_code == 200 and response.headers["content-type"].startswith("text/html")
     page = response.text
     for text in ("Bella", "Anna", "canter", "2026-03-29", "<svg", "Analysis version test",
-                 "n = 4", "above", "Move the middle marker"):
+                 "n = 4", "above", "Move the middle marker", "has 4 earlier analysed rides"):
         assert text in page, text
     assert "eigenvalue" not in page.split("<main")[1].split("<footer")[0].replace("detail", "")
 
 
 def test_the_first_ride_has_no_band_yet(club):
     page = club["api"].get(f"/rides/{club['rides'][0]}/report").text
-    assert "not enough earlier rides (0 of 4 needed)" in page
+    assert page.count("not enough earlier rides") == 10  # every indicator row
+    assert "this horse has 0 earlier analysed rides in canter" in page
 
 
 @pytest.mark.slow  # WeasyPrint loads its fonts: about 10 s the first time

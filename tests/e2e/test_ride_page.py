@@ -120,7 +120,7 @@ def test_the_ride_page_draws_every_chart_and_says_its_quality_in_plain_words(pag
 
     # quality: the jargon becomes advice; the expert's sentence stays behind a toggle
     notes = page.locator("[data-quality-notes] li")
-    assert notes.count() == 3
+    assert notes.count() == 2  # the two rotation flags ask for the same thing: one line, two details
     assert "10 cm below" in page.locator('[data-quality-notes] [data-code="rotation.weak_axis"]').inner_text()
     assert not page.locator("[data-detail]").first.is_visible()  # folded away
     details = page.locator("[data-detail]").all_text_contents()

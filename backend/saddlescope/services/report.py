@@ -87,9 +87,9 @@ def _label_html(label: str) -> str:
     return html.escape(label).replace("W_b", "W<sub>b</sub>").replace("W_k", "W<sub>k</sub>")
 
 
-def _band_cell(key: str, value: Any, band: dict[str, Any] | None, earlier: int) -> str:
+def _band_cell(key: str, value: Any, band: dict[str, Any] | None) -> str:
     if band is None:
-        return (f'<span class="hint">not enough earlier rides ({earlier} of {MIN_RIDES_FOR_BAND} needed)</span>')
+        return '<span class="hint">not enough earlier rides</span>'
     span = f"{_value_text(key, band['low'])} – {_value_text(key, band['high'])} (n = {band['n']})"
     if not isinstance(value, int | float):
         return html.escape(span)
@@ -140,15 +140,16 @@ def stride_chart_svg(doc: dict[str, Any], *, width: int = 680, height: int = 210
         f'<text x="{(left + width - right) / 2}" y="{height - 3}" text-anchor="middle">time in the stride (s)</text>'
         f'<text x="11" y="{upper + (height - upper - lower) / 2}" text-anchor="middle" '
         f'transform="rotate(-90 11 {upper + (height - upper - lower) / 2})">m/s²</text>'
-        f'<text x="{width - right}" y="{upper + 8}" text-anchor="end" fill="#1f5fa8">— W_b-weighted</text>'
+        f'<text x="{width - right}" y="{upper + 8}" text-anchor="end" fill="#1f5fa8">— Wb-weighted</text>'
         f'<text x="{width - right}" y="{upper + 20}" text-anchor="end">- - unweighted</text>'
         "</svg>")
     caption = (f"One stride of {period:.2f} s ({harm['f0_hz']:.2f} strides per second), from the ride's "
-               f"{len(amps)} harmonics; weighted with BS 6841 W_b as the comfort indicators are.")
+               f"{len(amps)} harmonics; weighted with BS 6841 Wb as the comfort indicators are.")
     return svg, caption
 
 
-def _indicator_rows(session: Session, ride, doc: dict[str, Any], club_id: int) -> str:
+def _indicator_rows(session: Session, ride, doc: dict[str, Any], club_id: int) -> tuple[str, int]:
+    """The indicator table's rows, and how many analysed rides of the horse in this gait came before."""
     history = horse_history(session, club_id=club_id, horse_id=ride.horse_id, gait=ride.gait)
     keys = [key for key, _ in REPORT_INDICATORS]
     bands = normal_bands_before(history, ride.id, keys)
@@ -159,8 +160,8 @@ def _indicator_rows(session: Session, ride, doc: dict[str, Any], club_id: int) -
         value = indicators.get(key)
         rows.append(f'      <tr data-indicator="{key}"><td>{_label_html(label)}</td>'
                     f'<td class="num">{html.escape(_value_text(key, value))}</td>'
-                    f"<td>{_band_cell(key, value, bands.get(key), earlier)}</td></tr>")
-    return "\n".join(rows)
+                    f"<td>{_band_cell(key, value, bands.get(key))}</td></tr>")
+    return "\n".join(rows), earlier
 
 
 def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
@@ -170,10 +171,10 @@ def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
     _, summary = quality_summary({"flags": flags})
     if not notes:
         return '    <li><span class="sev sev-ok">OK</span>Nothing to report.</li>', summary
-    # one line per kind of note keeps the page to one sheet however many flags a ride has
+    # one line per piece of advice keeps the page to one sheet however many flags a ride has
     seen: dict[str, dict[str, Any]] = {}
     for note in notes:
-        seen.setdefault(note["code"], {**note, "count": 0})["count"] += 1
+        seen.setdefault(note["message"], {**note, "count": 0})["count"] += 1
     shown = list(seen.values())[:6]
     rows = []
     for n in shown:
@@ -197,6 +198,7 @@ def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_i
     period = doc.get("period_s")
     chart, caption = stride_chart_svg(doc)
     quality_rows, summary = _quality_rows(doc)
+    indicator_rows, earlier = _indicator_rows(session, ride, doc, club_id)
     esc = html.escape
     return TEMPLATE.substitute(
         ride_id=ride.id, horse=esc(horse.name), horse_details=esc(f"{horse.name}{f' ({details})' if details else ''}"),
@@ -205,7 +207,9 @@ def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_i
         date=esc(ride.ridden_on.isoformat() if ride.ridden_on else "date not given"),
         strides=f"{strides} whole stride{'s' if strides != 1 else ''}" if strides else "–",
         stride_text=f"{_number(period)} s" if isinstance(period, int | float) else "–",
-        indicator_rows=_indicator_rows(session, ride, doc, club_id), chart=chart, chart_caption=esc(caption),
+        indicator_rows=indicator_rows, chart=chart, chart_caption=esc(caption),
+        earlier=f"{earlier} earlier analysed ride{'' if earlier == 1 else 's'}",
+        min_rides=MIN_RIDES_FOR_BAND,
         quality_summary=esc(summary.rstrip(".").lower() if summary.startswith("The") else summary.rstrip(".")),
         quality_rows=quality_rows, caveat=esc(PASSIVE_SEATED_CAVEAT.split(":")[0] + "."),
         version=esc(result.code_version or "unknown"),

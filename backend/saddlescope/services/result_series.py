@@ -78,6 +78,9 @@ def fitted_saddle_series(doc: dict[str, Any]) -> dict[str, list]:
     # measured velocity and acceleration: central differences of the measured positions
     velocity = np.gradient(position, t, axis=0)
     acceleration = np.gradient(velocity, t, axis=0)
+    # one-sided differences at the window's ends are no measurement of the curve: left out
+    velocity[[0, -1]] = np.nan
+    acceleration[[0, 1, -2, -1]] = np.nan
     for quantity, unit, measured in (("velocity", "m_s", velocity), ("acceleration", "m_s2", acceleration)):
         out[f"{quantity}_measured_{unit}"] = _rows(measured)
         stored = _array(saddle.get(f"{quantity}_{unit}"), 3)  # the fits' derivatives, as the result has them

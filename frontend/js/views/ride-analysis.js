@@ -33,12 +33,19 @@ export function showQuality(view, result) {
   line.className = `quality-summary severity-${summary.severity}`;
   line.replaceChildren(h("span", { class: `severity severity-${summary.severity}` },
     SEVERITY_WORDS[summary.severity] ?? summary.severity), " ", summary.message || "");
-  view.querySelector("[data-quality-notes]").replaceChildren(...(notes.length
-    ? notes.map((note) => h("li", { class: `quality-note severity-${note.severity}`, dataset: { code: note.code } },
+  // flags that ask for the same thing are one line, with each expert sentence behind its toggle
+  const groups = new Map();
+  for (const note of notes) {
+    if (!groups.has(note.message)) groups.set(note.message, { ...note, details: [] });
+    groups.get(note.message).details.push(note.detail);
+  }
+  view.querySelector("[data-quality-notes]").replaceChildren(...(groups.size
+    ? [...groups.values()].map((note) => h("li", { class: `quality-note severity-${note.severity}`,
+                                                    dataset: { code: note.code } },
       h("span", { class: `severity severity-${note.severity}` }, SEVERITY_WORDS[note.severity] ?? note.severity),
       " ", h("span", { class: "note-message" }, note.message),
       h("details", { class: "note-detail" }, h("summary", {}, "Expert detail"),
-        h("p", { "data-detail": "" }, note.detail))))
+        ...note.details.map((detail) => h("p", { "data-detail": "" }, detail)))))
     : [h("li", { class: "no-flags" }, "No quality warnings.")]));
 }
 
@@ -73,7 +80,8 @@ function drawFits(view, series, quantity) {
 /** Draw the 3-D tracks, the per-axis fits (with a quantity switch), the weighted acceleration and spectrum. */
 export function drawAnalysis(view, result) {
   const series = result.series || {};
-  tracks3dChart(view.querySelector('[data-chart="tracks3d"]'), series.markers_position_m, series.position_m);
+  tracks3dChart(view.querySelector('[data-chart="tracks3d"]'), series.t_s, series.markers_position_m,
+    series.position_m);
   const select = view.querySelector("[data-fit-quantity]");
   select.replaceChildren(...Object.entries(QUANTITIES).map(([key, q]) => h("option", { value: key }, q.label)));
   select.addEventListener("change", () => drawFits(view, series, select.value));

@@ -134,7 +134,7 @@ function intervalNotes(view, fits) {
     const cardEl = view.querySelector(`[data-indicator="${key}"]`);
     if (cardEl) cardEl.append(h("p", { class: "card-note card-ci", dataset: { ci: key } }, text));
   };
-  if (speed) put("vel_x_avg_kmh", `95 % interval ${fmt(speed[1] * 3.6)}\u2013${fmt(speed[2] * 3.6)} km/h`);
+  if (speed) put("vel_x_avg_kmh", `95 % interval ${fmt(speed[1] * 3.6, 4)}\u2013${fmt(speed[2] * 3.6, 4)} km/h`);
   if (stride) put("stride_frequency_hz", `95 % interval ${fmt(stride[1], 4)}\u2013${fmt(stride[2], 4)} Hz`);
 }
 
