@@ -10,6 +10,7 @@ import {
 import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
 import { poll } from "../poll.js";
+import { can } from "../session.js";
 import { drawAnalysis, showQuality } from "./ride-analysis.js";
 import { mountAlikePanel } from "./similar.js";
 
@@ -267,7 +268,7 @@ function showResult(view, ride, result) {
   drawAnalysis(view, result);
 }
 
-function showJob(state, job, onRetry) {
+function showJob(state, job, onRetry, ownerId) {
   const { percent, stage, text } = jobProgressText(job);
   const ended = job.status === "failed" || job.status === "cancelled";
   state.replaceChildren(
@@ -277,7 +278,10 @@ function showJob(state, job, onRetry) {
                       "aria-valuetext": `${percent} percent${stage ? `, ${stage}` : ""}` }),
       h("span", { class: "job-progress-text", "data-job-progress": "" }, text)),
     job.error ? h("p", { class: "form-error" }, job.error) : null,
-    ended ? h("button", { type: "button", onclick: onRetry }, "Run the analysis again") : null);
+    // retrying is for the ride's maker or an admin: others are not shown a button that would answer 403
+    ended && can("job.retry", ownerId) ? h("button", { type: "button", onclick: onRetry,
+                                                       "data-permission": "job.retry" }, "Run the analysis again")
+      : null);
 }
 
 export async function mountRide(view, { id }) {
@@ -362,7 +366,7 @@ export async function mountRide(view, { id }) {
         event.target.disabled = false;
         state.append(h("p", { class: "form-error", role: "alert" }, err.message));
       }
-    });
+    }, ride.created_by_id ?? ride.created_by ?? null);
     if (job.status === "done") {
       announce("Analysis finished.");
       try {
