@@ -224,3 +224,124 @@ export function strideAlignmentChart(div, strides, names) {
 }
 
 export const COLOURS = AXIS_COLOURS;
+
+// ----------------------------------------------------------------------------- ride page (fits, 3-D, vibration)
+
+// WebGL lines only where SVG gets slow: thousands of points per trace.
+function lineType(n) {
+  return n > 3000 ? "scattergl" : "scatter";
+}
+
+/**
+ * Marker tracks and the saddle point S in 3-D, equal aspect (metres in the motion frame).
+ * Plotted as x less S's steady travel, sideways z and height −y so "up" is up on the screen.
+ * @param {number[]} tS  shape (N,), s
+ * @param {number[][][]|null} markers  shape (N, M, 3), m
+ * @param {number[][]} saddle  shape (N, 3), m
+ */
+export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "M3"] } = {}) {
+  if (!saddle?.length) return emptyChart(div, "This result has no saddle-point track.");
+  ready(div);
+  const colours = ["#1f5fa8", "#2f855a", "#7c3aed"];
+  // S's steady travel (least-squares line of its x over time) is taken out of every track: at equal
+  // scale metres of travel would flatten the centimetres of motion into a line.
+  const xs = column(saddle, 0);
+  const ok = (tS || []).map((t, i) => [t, xs[i]]).filter(([t, x]) => Number.isFinite(t) && Number.isFinite(x));
+  const tMean = ok.reduce((a, [t]) => a + t, 0) / (ok.length || 1);
+  const xMean = ok.reduce((a, [, x]) => a + x, 0) / (ok.length || 1);
+  const slope = ok.reduce((a, [t, x]) => a + (t - tMean) * (x - xMean), 0)
+    / (ok.reduce((a, [t]) => a + (t - tMean) ** 2, 0) || 1);
+  const travel = (i) => (Number.isFinite(tS?.[i]) ? xMean + slope * (tS[i] - tMean) : 0);
+  const trace = (rows, name, colour, width) => ({
+    type: "scatter3d", mode: "lines", name, x: column(rows, 0).map((v, i) => (v === null ? null : v - travel(i))),
+    y: column(rows, 2), z: column(rows, 1).map((v) => (v === null ? null : -v)), line: { color: colour, width },
+    hovertemplate: `${name}: x %{x:.3f} m, z %{y:.3f} m, height %{z:.3f} m<extra></extra>`,
+  });
+  const traces = [];
+  const nMarkers = Array.isArray(markers?.[0]) ? markers[0].length : 0;
+  for (let m = 0; m < nMarkers; m += 1) {
+    traces.push(trace(markers.map((frame) => frame?.[m] ?? [null, null, null]), names[m] ?? `M${m + 1}`,
+      colours[m % colours.length], 3));
+  }
+  traces.push(trace(saddle, "saddle point S", "#c2410c", 6));
+  const axis = (title) => ({ title: { text: title }, gridcolor: "#e6e9ee", zerolinecolor: "#c9ced6" });
+  const layout = {
+    font: FONT, paper_bgcolor: "rgba(0,0,0,0)", margin: { l: 0, r: 0, t: 8, b: 0 },
+    legend: { orientation: "h", x: 0, y: 1, yanchor: "bottom" },
+    scene: { xaxis: axis("x − steady travel (m)"), yaxis: axis("sideways z (m)"), zaxis: axis("height −y (m)"),
+             aspectmode: "data", camera: { eye: { x: 1.4, y: -2.0, z: 0.9 } } },
+  };
+  return plotly().react(div, traces, layout, CONFIG);
+}
+
+/**
+ * One axis of S: the measured samples, the fitted curve over them and, below, the residual.
+ * @param {number[]} tS  shape (N,)
+ * @param {number[]|null} measured  shape (N,)
+ * @param {number[]} fitted  shape (N,)
+ * @param {number[]|null} residual  shape (N,)
+ */
+export function fitChart(div, tS, measured, fitted, residual, { title, unit, colour = "#1f5fa8" }) {
+  if (!tS?.length || !fitted?.length) return emptyChart(div, `${title}: no data in this result.`);
+  ready(div);
+  const type = lineType(tS.length);
+  const traces = [];
+  if (measured?.length) {
+    traces.push({ type, mode: "markers", name: "measured", x: tS, y: measured,
+                  marker: { color: "#9aa3ae", size: 4 }, hovertemplate: `%{y:.4g} ${unit}` });
+  }
+  traces.push({ type, mode: "lines", name: "fitted", x: tS, y: fitted, line: { color: colour, width: 2.2 },
+                hovertemplate: `%{y:.4g} ${unit}` });
+  if (residual?.length) {
+    traces.push({ type, mode: "lines", name: "residual", x: tS, y: residual, xaxis: "x", yaxis: "y2",
+                  line: { color: "#c2410c", width: 1.2 }, hovertemplate: `%{y:.3g} ${unit}` });
+  }
+  const layout = baseLayout(title, "time (s)", unit, {
+    yaxis: { title: { text: unit }, domain: residual?.length ? [0.36, 1] : [0, 1], gridcolor: "#e6e9ee",
+             automargin: true, zeroline: false },
+    yaxis2: { title: { text: "residual" }, domain: [0, 0.26], gridcolor: "#e6e9ee", automargin: true,
+              zeroline: true, zerolinecolor: "#c9ced6" },
+  });
+  // one time axis under the residual panel; the legend under the chart, clear of the title
+  if (residual?.length) layout.xaxis.anchor = "y2";
+  layout.legend = { orientation: "h", x: 0, xanchor: "left", y: -0.2, yanchor: "top" };
+  layout.margin.b = 80;
+  return plotly().react(div, traces, layout, CONFIG);
+}
+
+/**
+ * The vertical acceleration of S over time: unweighted and weighted with W_b and W_k.
+ */
+export function weightedChart(div, tS, unweighted, wb, wk) {
+  if (!tS?.length || !wb?.length) return emptyChart(div, "This result has no vertical acceleration to weight.");
+  ready(div);
+  const type = lineType(tS.length);
+  const line = (name, y, colour, extra = {}) => ({ type, mode: "lines", name, x: tS, y,
+    line: { color: colour, width: 2, ...extra }, hovertemplate: "%{y:.3g} m/s²" });
+  const traces = [
+    ...(unweighted?.length ? [line("unweighted", unweighted, "#9aa3ae", { dash: "dot", width: 1.5 })] : []),
+    line("W_b (BS 6841)", wb, "#1f5fa8"),
+    ...(wk?.length ? [line("W_k (ISO 2631-1)", wk, "#2f855a")] : []),
+  ];
+  const layout = baseLayout("Weighted vertical acceleration at the saddle", "time (s)", "m/s²");
+  layout.legend = { orientation: "h", x: 0, xanchor: "left", y: -0.3, yanchor: "top" };
+  layout.margin.b = 96;
+  return plotly().react(div, traces, layout, CONFIG);
+}
+
+/** Harmonic spectrum: amplitude of each harmonic k·f0, unweighted and weighted (bars). */
+export function spectrumChart(div, spectrum) {
+  if (!spectrum?.frequency_hz?.length) return emptyChart(div, "This result has no harmonic spectrum.");
+  ready(div);
+  const labels = spectrum.frequency_hz.map((f, i) => `${i + 1}·f0 (${f.toFixed(2)} Hz)`);
+  const bar = (name, y, colour) => ({ type: "bar", name, x: labels, y, marker: { color: colour },
+                                      hovertemplate: `%{x}: %{y:.3g} m/s²<extra>${name}</extra>` });
+  const traces = [bar("unweighted", spectrum.amplitude_m_s2, "#9aa3ae"),
+    bar("W_b", spectrum.amplitude_wb_m_s2, "#1f5fa8"), bar("W_k", spectrum.amplitude_wk_m_s2, "#2f855a")];
+  const layout = baseLayout(`Harmonics of the stride (f0 = ${spectrum.f0_hz.toFixed(2)} Hz)`, "harmonic",
+    "amplitude (m/s²)", { hovermode: "closest", barmode: "group", bargap: 0.25 });
+  layout.xaxis.tickangle = -30;
+  layout.legend = { orientation: "h", x: 1, xanchor: "right", y: 1.0, yanchor: "bottom" };
+  layout.margin.t = 56;
+  return plotly().react(div, traces, layout, CONFIG);
+}

@@ -127,3 +127,35 @@ export function fmtUnit(value, unit, digits = 3) {
 export function gaitLabel(gait) {
   return GAIT_LABELS[gait] || gait || "";
 }
+
+/**
+ * A time in hours as a rider says it: 2.083 -> "2 h 05 min", 0.2 -> "12 min", 0.011 -> "40 s".
+ * The same words as the report (saddlescope.services.report.duration_text).
+ */
+export function durationText(hours) {
+  if (hours === null || hours === undefined || hours === "") return "\u2013";
+  const h = Number(hours);
+  if (Number.isNaN(h) || h < 0) return "\u2013";
+  if (h === Infinity) return "no limit";
+  const seconds = Math.round(h * 3600);
+  if (seconds < 60) return `${seconds} s`;
+  const minutes = Math.round(h * 60);
+  if (minutes < 60) return `${minutes} min`;
+  if (h >= 100) return `${Math.round(h).toLocaleString("en")} h`;
+  return `${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
+}
+
+// A job's stage names in plain words, where the job does not carry its own stage_label.
+const STAGE_WORDS = {
+  probe: "checking the clips", assemble: "gathering the clips", calibrate: "calibrating the cameras",
+  analyze: "analysing the ride", analyse: "analysing the ride", similarity: "comparing rides",
+  selftest: "self-test", queued: "waiting in the queue",
+};
+
+/** "42 % – analysing the ride" for a job ({progress_percent?, progress?, stage_label?, stage?}); never "null". */
+export function jobProgressText(job) {
+  const raw = job?.progress_percent ?? (Number.isFinite(job?.progress) ? job.progress * 100 : null);
+  const percent = Number.isFinite(Number(raw)) && raw !== null ? Math.max(0, Math.min(100, Math.round(Number(raw)))) : 0;
+  const stage = job?.stage_label || STAGE_WORDS[job?.stage] || (job?.stage ? String(job.stage).replaceAll("_", " ") : "");
+  return { percent, stage, text: stage ? `${percent} % \u2013 ${stage}` : `${percent} %` };
+}

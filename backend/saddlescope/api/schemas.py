@@ -19,9 +19,11 @@ __all__ = [
     "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
     "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
     "JobKindOut", "JobOut", "LeaderboardEntry", "LeaderboardOut", "LoginIn", "MAX_ID", "MarkersIn", "MeOut",
-    "Name", "Offsets", "Page", "PartHealth", "Password", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
+    "Name", "Offsets", "Page", "PartHealth", "Password", "QualityNoteOut",
+    "QualitySummaryOut", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
     "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
-    "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SyncIn", "Text", "TokenOut", "UploadCreate",
+    "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SpectrumOut",
+    "SyncIn", "Text", "TokenOut", "UploadCreate",
     "UploadOut", "UserCreate", "UserOut", "UserUpdate",
     "HealthSummaryOut", "PartState",  # the public health answer (accounts area)
 ]
@@ -607,6 +609,47 @@ class ResultSeries(BaseModel):
         default=None, description="per frame, which versions were left out of omega")
     singularity_index_per_frame: list[Any] | None = Field(
         default=None, description="per frame, how close the markers' geometry is to singular")
+    position_fitted_m: list[Any] | None = Field(
+        default=None, description="S's position from a Fourier (or straight-line) fit per axis")
+    position_residual_m: list[Any] | None = Field(default=None, description="measured minus fitted position")
+    velocity_measured_m_s: list[Any] | None = Field(
+        default=None, description="central differences of the measured positions")
+    velocity_residual_m_s: list[Any] | None = Field(
+        default=None, description="measured minus fitted velocity (the result's velocity_m_s)")
+    acceleration_measured_m_s2: list[Any] | None = Field(
+        default=None, description="second differences of the measured positions")
+    acceleration_residual_m_s2: list[Any] | None = Field(
+        default=None, description="measured minus fitted acceleration (the result's acceleration_m_s2)")
+    acc_y_wb_m_s2: list[Any] | None = Field(
+        default=None, description="vertical acceleration weighted with W_b (BS 6841), exact per harmonic")
+    acc_y_wk_m_s2: list[Any] | None = Field(
+        default=None, description="vertical acceleration weighted with W_k (ISO 2631-1), exact per harmonic")
+
+
+class QualityNoteOut(BaseModel):
+    """One quality flag in plain words (`saddlescope.services.quality_notes`)."""
+
+    code: str = Field(description="the kind of flag, e.g. rotation.weak_axis")
+    severity: Literal["ok", "check", "problem"]
+    message: str = Field(description="one sentence a club can act on")
+    detail: str = Field(description="the pipeline's own flag, with its numbers")
+
+
+class QualitySummaryOut(BaseModel):
+    """The worst severity among a result's flags and one line saying it."""
+
+    severity: Literal["ok", "check", "problem"]
+    message: str
+
+
+class SpectrumOut(BaseModel):
+    """S's vertical acceleration as harmonics of the stride frequency f0 (bars at k·f0), m/s² amplitudes."""
+
+    f0_hz: float
+    frequency_hz: list[float]
+    amplitude_m_s2: list[float | None]
+    amplitude_wb_m_s2: list[float | None]
+    amplitude_wk_m_s2: list[float | None]
 
 
 class Decimation(BaseModel):
@@ -630,6 +673,11 @@ class ResultOut(BaseModel):
     indicators: dict[str, float | None]
     units: dict[str, str]
     quality: dict[str, Any]
+    quality_notes: list[QualityNoteOut] = Field(
+        default_factory=list, description="the flags in plain words, most serious first")
+    quality_summary: QualitySummaryOut
+    strides_analysed: int | None = Field(description="whole strides in the analysed window")
+    spectrum: SpectrumOut | None
     calibration_checks: dict[str, Any]
     calibration_flags: list[Any]
     series: ResultSeries

@@ -21,12 +21,14 @@ from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
 from saddlescope.db.session import session_scope
+from saddlescope.services.quality_notes import quality_notes, quality_summary
+from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
 from saddlescope.storage import Storage
 
 __all__ = [
-    "ANGULAR_PER_FRAME", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
+    "ANGULAR_PER_FRAME", "DERIVED_SERIES", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
     "commit_result", "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document",
-    "result_view", "result_view_json", "tracks_mm", "view_of_document",
+    "analysed_result", "result_view", "result_view_json", "tracks_mm", "view_of_document",
 ]
 
 EXPORT_FORMATS = {
@@ -44,6 +46,12 @@ SERIES = (
     ("acceleration_m_s2", "saddle", "acceleration_m_s2"),
     ("omega_rad_s", "angular", "omega_rad_s"),
     ("alpha_rad_s2", "angular", "alpha_rad_s2"),
+)
+# S's fitted position, measured velocity and acceleration and the residuals (services/result_series.py),
+# and the weighted vertical acceleration: always in the view, None when the result cannot give them.
+DERIVED_SERIES = (
+    "position_fitted_m", "position_residual_m", "velocity_measured_m_s", "velocity_residual_m_s",
+    "acceleration_measured_m_s2", "acceleration_residual_m_s2", "acc_y_wb_m_s2", "acc_y_wk_m_s2",
 )
 # Per-frame series of the angular kinematics, served when the result has them.
 ANGULAR_PER_FRAME = ("omega_versions_rad_s", "omega_versions_excluded", "singularity_index_per_frame")
@@ -75,6 +83,12 @@ def _series(doc: dict[str, Any], step: int, n: int) -> dict[str, list]:
     for key in ANGULAR_PER_FRAME:
         if isinstance(angular.get(key), list) and len(angular[key]) == n:  # per frame: decimated alike
             series[key] = decimate(angular[key], step)
+    derived = {name: decimate(values, step) for name, values in fitted_saddle_series(doc).items()
+               if isinstance(values, list) and len(values) == n}
+    weighted, _ = weighted_series(doc, series["t_s"])  # exact per harmonic: computed at the drawn times only
+    derived.update(weighted)
+    for name in DERIVED_SERIES:
+        series[name] = derived.get(name)
     return series
 
 
@@ -92,6 +106,10 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
     markers = doc.get("markers") or {}
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
+    quality = doc.get("quality") or {}
+    # the rig's flags are usually among the quality flags already: each once
+    flags = list(dict.fromkeys([str(f) for f in [*(quality.get("flags") or []), *(calibration.get("flags") or [])]]))
+    severity, summary = quality_summary({"flags": flags})
     return {
         "ride_id": ride_id,
         "job_id": result.job_id,
@@ -102,7 +120,12 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "window": doc.get("window"),
         "indicators": indicators,
         "units": {key: indicator_unit(key) for key in indicators},
-        "quality": doc.get("quality") or {},
+        "quality": quality,
+        # every flag in plain words (services/quality_notes.py): what the page and the report say
+        "quality_notes": quality_notes(flags),
+        "quality_summary": {"severity": severity, "message": summary},
+        "strides_analysed": strides_analysed(doc),
+        "spectrum": weighted_series(doc, [])[1],
         "calibration_checks": calibration.get("checks") or {},
         "calibration_flags": calibration.get("flags") or [],
         "series": series,
@@ -110,6 +133,11 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "fits": markers.get("fits") or {},
         "decimation": {"step": step, "samples": n, "max_points": max_points},
     }
+
+
+def analysed_result(session: Session, storage: Storage, ride_id: int, *, club_id: int):
+    """The result row of an analysed ride of the club (NotFound until it has one)."""
+    return _analysed(session, storage, ride_id, club_id)
 
 
 def _analysed(session: Session, storage: Storage, ride_id: int, club_id: int):

@@ -5,11 +5,13 @@ import { ApiError, get, itemsOf, post } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { emptyChart, versionsChart, xyzChart } from "../charts.js";
 import {
-  PASSIVE_SEATED_CAVEAT, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
+  PASSIVE_SEATED_CAVEAT, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
 } from "../format.js";
 import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
 import { poll } from "../poll.js";
+import { can } from "../session.js";
+import { drawAnalysis, showQuality } from "./ride-analysis.js";
 import { mountAlikePanel } from "./similar.js";
 
 // Order of saddlescope.core.kinematics.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
@@ -64,8 +66,9 @@ function exposureRows(result) {
   const ind = result.indicators || {};
   return THRESHOLDS.map(({ basis, level, label, value }) => h("tr", { dataset: { threshold: `${basis}_${level}` } },
     h("th", { scope: "row" }, label, h("span", { class: "hint" }, ` (${value})`)),
-    ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `t_${basis}_${level}_${w}_h` } },
-      fmt(ind[`t_${basis}_${level}_${w}_h`]))),
+    ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `t_${basis}_${level}_${w}_h` },
+                                         "data-value": ind[`t_${basis}_${level}_${w}_h`] ?? "" },
+      durationText(ind[`t_${basis}_${level}_${w}_h`]))),
     ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `d_${basis}_${level}_${w}_km` } },
       fmt(ind[`d_${basis}_${level}_${w}_km`])))));
 }
@@ -96,23 +99,44 @@ function mean(values) {
 
 // The stride frequency and the average speed with their 95 % intervals, from the curve fits (thesis
 // 5.5): the markers share one fundamental; the speed is the mean slope of their x fits.
-function fitFacts(fits) {
-  const facts = [];
+function fitIntervals(fits) {
+  const out = {};
   const y = (fits.y || []).find((f) => Array.isArray(f.ci95?.omega_rad_s));
   if (y && Number.isFinite(y.omega_rad_s)) {
     const [lo, hi] = y.ci95.omega_rad_s.map((w) => w / (2 * Math.PI));
-    facts.push(["Stride frequency (95 % CI)",
-      `${fmt(y.omega_rad_s / (2 * Math.PI), 4)} Hz (${fmt(lo, 4)}\u2013${fmt(hi, 4)})`]);
+    out.stride = [y.omega_rad_s / (2 * Math.PI), lo, hi];
   }
   const speeds = (fits.x || []).map((f) => (f.kind === "LinearFit"
     ? [f.slope, f.ci95?.slope] : [f.trend?.[0], f.ci95?.trend?.[0]]));
   const speed = mean(speeds.map(([v]) => v));
   const lo = mean(speeds.map(([, ci]) => ci?.[0]));
   const hi = mean(speeds.map(([, ci]) => ci?.[1]));
-  if (speed !== null && lo !== null && hi !== null) {
-    facts.push(["Average speed (95 % CI)", `${fmt(speed, 4)} m/s (${fmt(lo, 4)}\u2013${fmt(hi, 4)})`]);
+  if (speed !== null && lo !== null && hi !== null) out.speed = [speed, lo, hi];
+  return out;
+}
+
+function fitFacts(fits) {
+  const { stride, speed } = fitIntervals(fits);
+  const facts = [];
+  if (stride) {
+    facts.push(["Stride frequency (95 % CI)",
+      `${fmt(stride[0], 4)} Hz (${fmt(stride[1], 4)}\u2013${fmt(stride[2], 4)})`]);
+  }
+  if (speed) {
+    facts.push(["Average speed (95 % CI)", `${fmt(speed[0], 4)} m/s (${fmt(speed[1], 4)}\u2013${fmt(speed[2], 4)})`]);
   }
   return facts.flatMap(([term, value]) => [h("dt", {}, term), h("dd", {}, value)]);
+}
+
+// The 95 % intervals under the cards of the indicators that have one (speed in km/h, stride in Hz).
+function intervalNotes(view, fits) {
+  const { stride, speed } = fitIntervals(fits);
+  const put = (key, text) => {
+    const cardEl = view.querySelector(`[data-indicator="${key}"]`);
+    if (cardEl) cardEl.append(h("p", { class: "card-note card-ci", dataset: { ci: key } }, text));
+  };
+  if (speed) put("vel_x_avg_kmh", `95 % interval ${fmt(speed[1] * 3.6, 4)}\u2013${fmt(speed[2] * 3.6, 4)} km/h`);
+  if (stride) put("stride_frequency_hz", `95 % interval ${fmt(stride[1], 4)}\u2013${fmt(stride[2], 4)} Hz`);
 }
 
 function fitRows(fits) {
@@ -227,10 +251,7 @@ function showResult(view, ride, result) {
   view.querySelector("[data-exposure-table] tbody").replaceChildren(...exposureRows(result));
   view.querySelector("[data-caveat]").textContent = result.caveat ?? PASSIVE_SEATED_CAVEAT;
   view.querySelector("[data-quality-facts]").replaceChildren(...qualityFacts(result));
-  const flags = result.quality?.flags || [];
-  view.querySelector("[data-quality-flags]").replaceChildren(...(flags.length
-    ? flags.map((flag) => h("li", { class: "flag" }, flag))
-    : [h("li", { class: "no-flags" }, "No quality warnings.")]));
+  showQuality(view, result);
   const fits = result.fits || {};
   const fitsPanel = view.querySelector("[data-fits]");
   fitsPanel.hidden = !Object.keys(fits).length;
@@ -238,19 +259,29 @@ function showResult(view, ride, result) {
   view.querySelector("[data-fit-table] tbody").replaceChildren(...fitRows(fits));
   view.querySelector("[data-exports]").replaceChildren(...EXPORTS.map((e) => h("li", {},
     h("a", { href: `/api/rides/${ride.id}/export/${e.fmt}`, download: "", dataset: { export: e.fmt } }, e.text))));
+  intervalNotes(view, fits);
+  for (const [hook, suffix] of [["[data-report-link]", "report"], ["[data-report-pdf]", "report.pdf"]]) {
+    view.querySelector(hook).href = `/api/rides/${ride.id}/${suffix}`;
+  }
   box.hidden = false;
   drawSeries(view, result.series || {});
+  drawAnalysis(view, result);
 }
 
-function showJob(state, job, onRetry) {
-  const percent = Math.round((job.progress ?? 0) * 100);
+function showJob(state, job, onRetry, ownerId) {
+  const { percent, stage, text } = jobProgressText(job);
   const ended = job.status === "failed" || job.status === "cancelled";
   state.replaceChildren(
-    h("p", {}, `Analysis job #${job.id}: ${job.status}${job.stage ? ` \u2013 ${job.stage}` : ""}`),
-    h("progress", { max: "1", value: String(job.progress ?? 0), "aria-label": "Analysis progress",
-                    "aria-valuetext": `${percent} percent` }),
+    h("p", {}, `Analysis job #${job.id}: ${job.status}${stage ? ` \u2013 ${stage}` : ""}`),
+    h("div", { class: "job-progress" },
+      h("progress", { max: "100", value: String(percent), "aria-label": "Analysis progress",
+                      "aria-valuetext": `${percent} percent${stage ? `, ${stage}` : ""}` }),
+      h("span", { class: "job-progress-text", "data-job-progress": "" }, text)),
     job.error ? h("p", { class: "form-error" }, job.error) : null,
-    ended ? h("button", { type: "button", onclick: onRetry }, "Run the analysis again") : null);
+    // retrying is for the ride's maker or an admin: others are not shown a button that would answer 403
+    ended && can("job.retry", ownerId) ? h("button", { type: "button", onclick: onRetry,
+                                                       "data-permission": "job.retry" }, "Run the analysis again")
+      : null);
 }
 
 export async function mountRide(view, { id }) {
@@ -335,7 +366,7 @@ export async function mountRide(view, { id }) {
         event.target.disabled = false;
         state.append(h("p", { class: "form-error", role: "alert" }, err.message));
       }
-    });
+    }, ride.created_by_id ?? ride.created_by ?? null);
     if (job.status === "done") {
       announce("Analysis finished.");
       try {

@@ -1,0 +1,224 @@
+"""The one-page ride report for a vet or a trainer: HTML that prints to one A4 sheet, and its PDF.
+
+Horse, rider, date and gait; the main indicators with units against the horse's own normal band
+(`services.normal_band`); one chart drawn here as inline SVG (the W_b-weighted vertical acceleration
+over one stride, so it prints sharp without JavaScript); the quality in plain words
+(`services.quality_notes`); the analysis version. The PDF is the same HTML laid out by WeasyPrint.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import html
+import math
+from pathlib import Path
+from string import Template
+from typing import Any
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from saddlescope.core.vibration import INDICATORS, PASSIVE_SEATED_CAVEAT
+from saddlescope.db.repositories import RideRepository
+from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, horse_history, normal_bands_before
+from saddlescope.services.quality_notes import quality_notes, quality_summary
+from saddlescope.services.result_series import strides_analysed, vertical_harmonics_of, weighted_series
+from saddlescope.services.results import analysed_result, result_document
+from saddlescope.storage import Storage
+
+__all__ = ["REPORT_INDICATORS", "duration_text", "ride_report_html", "ride_report_pdf", "stride_chart_svg"]
+
+TEMPLATE = Template((Path(__file__).parent / "templates" / "ride_report.html").read_text(encoding="utf-8"))
+# The indicators a vet or trainer reads first (the thesis's comfort indicators and the W_k twins).
+REPORT_INDICATORS = (
+    ("acc_y_wb_rms", "Vertical acceleration, W_b r.m.s."),
+    ("acc_y_wk_rms", "Vertical acceleration, W_k r.m.s."),
+    ("vdv_y_wb", "Vibration dose value, W_b"),
+    ("acc_y_max", "Peak vertical acceleration (unweighted)"),
+    ("crest_factor_y", "Crest factor (W_b peak / r.m.s.)"),
+    ("t_a8_limit_wb_h", "Riding time to the A(8) limit value (W_b)"),
+    ("t_vdv_limit_wb_h", "Riding time to the VDV limit value (W_b)"),
+    ("vel_x_avg_kmh", "Average speed"),
+    ("amplitude_y_m", "Vertical movement of the saddle (peak to peak)"),
+    ("stride_frequency_hz", "Stride frequency"),
+)
+_UNITS = {"m/s^2": "m/s²", "m/s^1.75": "m/s¹·⁷⁵"}
+GAIT_WORDS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "rising trot", "canter": "canter"}
+
+
+def duration_text(hours: float | None) -> str:
+    """A time in hours as a rider says it: "2 h 05 min", "12 min", "40 s" ("–" when unknown)."""
+    if hours is None or not isinstance(hours, int | float) or math.isnan(hours) or hours < 0:
+        return "–"
+    if math.isinf(hours):
+        return "no limit"
+    seconds = round(hours * 3600)
+    if seconds < 60:
+        return f"{seconds} s"
+    minutes = round(hours * 60)
+    if minutes < 60:
+        return f"{minutes} min"
+    if hours >= 100:
+        return f"{hours:,.0f} h"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+def _number(value: Any, digits: int = 3) -> str:
+    """`digits` significant digits, as the dashboard's `fmt`."""
+    if not isinstance(value, int | float) or not math.isfinite(value):
+        return "–"
+    if value == 0:
+        return "0"
+    magnitude = math.floor(math.log10(abs(value)))
+    decimals = max(0, digits - 1 - magnitude)
+    return f"{value:.{decimals}f}"
+
+
+def _value_text(key: str, value: Any) -> str:
+    if key.endswith("_h"):
+        return duration_text(value)
+    if key == "amplitude_y_m" and isinstance(value, int | float):
+        return f"{_number(value * 100)} cm"
+    unit = _UNITS.get(INDICATORS[key].unit, INDICATORS[key].unit) if key in INDICATORS else ""
+    return f"{_number(value)} {unit}".strip()
+
+
+def _label_html(label: str) -> str:
+    return html.escape(label).replace("W_b", "W<sub>b</sub>").replace("W_k", "W<sub>k</sub>")
+
+
+def _band_cell(key: str, value: Any, band: dict[str, Any] | None) -> str:
+    if band is None:
+        return '<span class="hint">not enough earlier rides</span>'
+    span = f"{_value_text(key, band['low'])} – {_value_text(key, band['high'])} (n = {band['n']})"
+    if not isinstance(value, int | float):
+        return html.escape(span)
+    where = "within" if band["low"] <= value <= band["high"] else "above" if value > band["high"] else "below"
+    css = "band-in" if where == "within" else "band-out"
+    return f'{html.escape(span)} <span class="{css}">{where}</span>'
+
+
+def stride_chart_svg(doc: dict[str, Any], *, width: int = 680, height: int = 210) -> tuple[str, str]:
+    """Inline SVG of S's vertical acceleration over one stride, unweighted and W_b-weighted; and a caption."""
+    harm = vertical_harmonics_of(doc)
+    if harm is None or not harm["f0_hz"] > 0:
+        return "<p class=\"hint\">This result has no vertical track to draw.</p>", ""
+    period = 1.0 / harm["f0_hz"]
+    t = np.linspace(0.0, period, 241)
+    amps, phases = np.asarray(harm["amplitudes_m_s2"]), np.asarray(harm["phases_rad"])
+    k = np.arange(1, len(amps) + 1)[:, None]
+    raw = (amps[:, None] * np.cos(2 * np.pi * k * harm["f0_hz"] * t + phases[:, None])).sum(axis=0)
+    weighted = np.asarray(weighted_series(doc, t.tolist())[0]["acc_y_wb_m_s2"], dtype=float)
+    top = float(max(np.abs(raw).max(), np.abs(weighted).max(), 0.1)) * 1.1
+    left, right, upper, lower = 48, 12, 12, 30
+    sx = (width - left - right) / period
+    sy = (height - upper - lower) / (2 * top)
+
+    def path(y: np.ndarray) -> str:
+        return " ".join(f"{'M' if i == 0 else 'L'}{left + ti * sx:.1f},{upper + (top - yi) * sy:.1f}"
+                        for i, (ti, yi) in enumerate(zip(t, y, strict=True)))
+
+    step = 10 ** math.floor(math.log10(top))
+    step = step * 2 if top / step > 4 else step
+    grid = []
+    for v in np.arange(-math.floor(top / step) * step, top, step):
+        y = upper + (top - v) * sy
+        grid.append(f'<line x1="{left}" x2="{width - right}" y1="{y:.1f}" y2="{y:.1f}" stroke="#e6e9ee"/>'
+                    f'<text x="{left - 4}" y="{y + 3:.1f}" text-anchor="end">{v:g}</text>')
+    for frac in (0, 0.25, 0.5, 0.75, 1.0):
+        x = left + frac * period * sx
+        grid.append(f'<text x="{x:.1f}" y="{height - lower + 13}" text-anchor="middle">{frac * period:.2f}</text>')
+    svg = (
+        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {height}" role="img" '
+        f'aria-label="Vertical acceleration at the saddle over one stride" font-size="10" '
+        f'font-family="DejaVu Sans, Arial, sans-serif" fill="#4a5563">'
+        + "".join(grid)
+        + f'<line x1="{left}" x2="{width - right}" y1="{upper + top * sy:.1f}" y2="{upper + top * sy:.1f}" '
+        f'stroke="#9aa3ae"/>'
+        f'<path d="{path(raw)}" fill="none" stroke="#9aa3ae" stroke-width="1.4" stroke-dasharray="4 3"/>'
+        f'<path d="{path(weighted)}" fill="none" stroke="#1f5fa8" stroke-width="2.2"/>'
+        f'<text x="{(left + width - right) / 2}" y="{height - 3}" text-anchor="middle">time in the stride (s)</text>'
+        f'<text x="11" y="{upper + (height - upper - lower) / 2}" text-anchor="middle" '
+        f'transform="rotate(-90 11 {upper + (height - upper - lower) / 2})">m/s²</text>'
+        f'<text x="{width - right}" y="{upper + 8}" text-anchor="end" fill="#1f5fa8">— Wb-weighted</text>'
+        f'<text x="{width - right}" y="{upper + 20}" text-anchor="end">- - unweighted</text>'
+        "</svg>")
+    caption = (f"One stride of {period:.2f} s ({harm['f0_hz']:.2f} strides per second), from the ride's "
+               f"{len(amps)} harmonics; weighted with BS 6841 Wb as the comfort indicators are.")
+    return svg, caption
+
+
+def _indicator_rows(session: Session, ride, doc: dict[str, Any], club_id: int) -> tuple[str, int]:
+    """The indicator table's rows, and how many analysed rides of the horse in this gait came before."""
+    history = horse_history(session, club_id=club_id, horse_id=ride.horse_id, gait=ride.gait)
+    keys = [key for key, _ in REPORT_INDICATORS]
+    bands = normal_bands_before(history, ride.id, keys)
+    earlier = next((i for i, row in enumerate(history) if row["ride_id"] == ride.id), len(history))
+    indicators = doc.get("indicators") or {}
+    rows = []
+    for key, label in REPORT_INDICATORS:
+        value = indicators.get(key)
+        rows.append(f'      <tr data-indicator="{key}"><td>{_label_html(label)}</td>'
+                    f'<td class="num">{html.escape(_value_text(key, value))}</td>'
+                    f"<td>{_band_cell(key, value, bands.get(key))}</td></tr>")
+    return "\n".join(rows), earlier
+
+
+def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
+    quality = doc.get("quality") or {}
+    flags = list(dict.fromkeys(str(f) for f in quality.get("flags") or []))
+    notes = quality_notes(flags)
+    _, summary = quality_summary({"flags": flags})
+    if not notes:
+        return '    <li><span class="sev sev-ok">OK</span>Nothing to report.</li>', summary
+    # one line per piece of advice keeps the page to one sheet however many flags a ride has
+    seen: dict[str, dict[str, Any]] = {}
+    for note in notes:
+        seen.setdefault(note["message"], {**note, "count": 0})["count"] += 1
+    shown = list(seen.values())[:6]
+    rows = []
+    for n in shown:
+        times = f" ({n['count']} times)" if n["count"] > 1 else ""
+        badge = f'<span class="sev sev-{n["severity"]}">{n["severity"].upper()}</span>'
+        rows.append(f'    <li data-note="{n["code"]}">{badge}{html.escape(n["message"])}{times}</li>')
+    if len(seen) > len(shown):
+        rows.append(f'    <li class="hint">{len(seen) - len(shown)} more on the ride page.</li>')
+    return "\n".join(rows), summary
+
+
+def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_id: int) -> str:
+    """The report of an analysed ride of the club as one HTML page (404 until it is analysed)."""
+    ride = RideRepository(session, club_id=club_id).get(ride_id)
+    result = analysed_result(session, storage, ride_id, club_id=club_id)
+    doc = result_document(session, storage, ride_id, club_id=club_id)
+    horse = ride.horse
+    details = ", ".join(str(p) for p in (horse.breed, f"born {horse.birth_year}" if horse.birth_year else None) if p)
+    gait = GAIT_WORDS.get(ride.gait, ride.gait)
+    strides = strides_analysed(doc)
+    period = doc.get("period_s")
+    chart, caption = stride_chart_svg(doc)
+    quality_rows, summary = _quality_rows(doc)
+    indicator_rows, earlier = _indicator_rows(session, ride, doc, club_id)
+    esc = html.escape
+    return TEMPLATE.substitute(
+        ride_id=ride.id, horse=esc(horse.name), horse_details=esc(f"{horse.name}{f' ({details})' if details else ''}"),
+        rider=esc(ride.rider.name), gait=esc(gait),
+        direction="clockwise" if ride.direction == "CW" else "counter-clockwise",
+        date=esc(ride.ridden_on.isoformat() if ride.ridden_on else "date not given"),
+        strides=f"{strides} whole stride{'s' if strides != 1 else ''}" if strides else "–",
+        stride_text=f"{_number(period)} s" if isinstance(period, int | float) else "–",
+        indicator_rows=indicator_rows, chart=chart, chart_caption=esc(caption),
+        earlier=f"{earlier} earlier analysed ride{'' if earlier == 1 else 's'}",
+        min_rides=MIN_RIDES_FOR_BAND,
+        quality_summary=esc(summary.rstrip(".").lower() if summary.startswith("The") else summary.rstrip(".")),
+        quality_rows=quality_rows, caveat=esc(PASSIVE_SEATED_CAVEAT.split(":")[0] + "."),
+        version=esc(result.code_version or "unknown"),
+        result_time=esc(result.created_at.strftime("%Y-%m-%d %H:%M") if result.created_at else "–"),
+        now=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"))
+
+
+def ride_report_pdf(session: Session, storage: Storage, ride_id: int, *, club_id: int) -> bytes:
+    """The report as an A4 PDF, laid out by WeasyPrint from the same HTML."""
+    from weasyprint import HTML  # imported here: it loads pango, which only the PDF needs
+
+    return HTML(string=ride_report_html(session, storage, ride_id, club_id=club_id)).write_pdf()
