@@ -108,6 +108,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         horses,
         jobs,
         mocap,
+        readiness,
         riders,
         rides,
         rigs,
@@ -116,7 +117,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     )
 
     for module in (health, auth, horses, riders, rigs, rides, mocap, uploads, grades, comparisons, similarity,
-                   jobs):
+                   jobs, readiness):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIR, html=True), name="frontend")
