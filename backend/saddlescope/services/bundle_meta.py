@@ -60,7 +60,8 @@ def read_bundle_meta(session: Session, zip_path: Path, *, club_id: int, shown: s
         with zipfile.ZipFile(zip_path) as zf:
             meta = _ride_json(zf, shown)
     except (zipfile.BadZipFile, OSError):
-        raise BundleError(f"{shown} is not a zip file (a ride bundle is a .zip of ride.json and the clips)") from None
+        # Word for word what finalising the same file says (`io.bundle.open_bundle`).
+        raise BundleError(f"{shown}: a ride bundle must be a folder or a .zip archive") from None
     horse_name, rider_name = _named(meta, "horse"), _named(meta, "rider")
     horse_id = rider_id = None
     if horse_name:
