@@ -7,11 +7,12 @@ import { h } from "./dom.js";
 
 export const CAMERAS = ["left", "middle", "right"];
 export const CLIP_WORDS = {
-  calibration: "calibration clip (the board moved through the view)",
-  plumb: "plumb-line clip",
-  static: "static clip (horse standing still, saddle marker visible)",
-  motion: "motion clip (the ride)",
+  calibration: ["calibration", "the board moved through the view"],
+  plumb: ["plumb-line", "the plumb line hanging still"],
+  static: ["static", "horse standing still, saddle marker visible"],
+  motion: ["motion", "the ride"],
 };
+const clipsOf = (kind, plural = false) => `${CLIP_WORDS[kind][0]} clip${plural ? "s" : ""} (${CLIP_WORDS[kind][1]})`;
 
 const and = (names) => (names.length === 1 ? names[0] : `${names.slice(0, -1).join(", ")} and ${names.at(-1)}`);
 const lacking = (have) => CAMERAS.filter((c) => !have.has(c));
@@ -23,10 +24,11 @@ function camerasOf(clips, kind) {
 function clipSentences(kind, own, shared, where) {
   if (!lacking(own).length || !lacking(shared).length) return [];
   const have = own.size ? own : shared;
-  if (!have.size) return [`The ${CLIP_WORDS[kind]}s of the left, middle and right cameras are missing; upload them ${where}.`];
+  if (!have.size) return [`The ${clipsOf(kind, true)} of the left, middle and right cameras are missing; upload them ${where}.`];
   const gap = lacking(have);
   const sorted = [...have].sort();
-  return [`The ${CLIP_WORDS[kind]} of the ${and(gap)} camera${gap.length > 1 ? "s" : ""} is missing (there ${sorted.length === 1 ? "is" : "are"} only the ${and(sorted)} one${sorted.length > 1 ? "s" : ""}); upload it ${where}.`];
+  const many = gap.length > 1;
+  return [`The ${clipsOf(kind, many)} of the ${and(gap)} camera${many ? "s" : ""} ${many ? "are" : "is"} missing (there ${sorted.length === 1 ? "is" : "are"} only the ${and(sorted)} one${sorted.length > 1 ? "s" : ""}); upload ${many ? "them" : "it"} ${where}.`];
 }
 
 /**

@@ -95,7 +95,7 @@ def test_a_ride_without_a_rig_is_told_to_choose_one_and_an_incomplete_ride_can_b
     upload(api, clip(folder, "m-left"), target="ride_clip", ride_id=ride["id"], clip_kind="motion", camera="left")
     missing = api.ok("GET", f"/rides/{ride['id']}/readiness")["missing"]
     assert missing[0].startswith("No camera rig is chosen")
-    assert any("motion clip (the ride) of the middle and right cameras is missing" in m for m in missing)
+    assert any("motion clips (the ride) of the middle and right cameras are missing" in m for m in missing)
     assert api.delete(f"/rides/{ride['id']}").status_code == 204  # an incomplete ride is deletable
     assert api.get(f"/rides/{ride['id']}/readiness").status_code == 404
 
@@ -210,4 +210,5 @@ def test_the_calibration_report_says_quality_and_where_the_board_never_was(env, 
     assert left["sentence"].startswith("The board never reached the top edge, top-right corner")
     assert left["corners_px"] == left_third and left["area_fraction"] == pytest.approx(0.26)
     assert report["coverage"]["middle"]["missed"] == []
-    assert report["coverage"]["right"]["missed"] is None and "calibrate again" in report["coverage"]["right"]["sentence"]
+    right = report["coverage"]["right"]
+    assert right["missed"] is None and "calibrate again" in right["sentence"]

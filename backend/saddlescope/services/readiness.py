@@ -16,13 +16,18 @@ from saddlescope.db.repositories import RecordingRepository, RideRepository, Rig
 
 __all__ = ["CLIP_WORDS", "RideNotReady", "missing_for_ride", "require_ready"]
 
-# What each clip set is, in the words the upload page uses.
+# What each clip set is, in the words the upload page uses: (name, what it shows).
 CLIP_WORDS = {
-    "calibration": "calibration clip (the board moved through the view)",
-    "plumb": "plumb-line clip",
-    "static": "static clip (horse standing still, saddle marker visible)",
-    "motion": "motion clip (the ride)",
+    "calibration": ("calibration", "the board moved through the view"),
+    "plumb": ("plumb-line", "the plumb line hanging still"),
+    "static": ("static", "horse standing still, saddle marker visible"),
+    "motion": ("motion", "the ride"),
 }
+
+
+def _clips(kind: str, *, plural: bool = False) -> str:
+    name, what = CLIP_WORDS[kind]
+    return f"{name} clip{'s' if plural else ''} ({what})"
 
 
 class RideNotReady(InputError):
@@ -55,10 +60,11 @@ def _clip_sentences(kind: str, own: set[str], shared: set[str], *, where: str) -
     have = own or shared
     lacking = _missing_cameras(have)
     if have:
-        return [f"The {CLIP_WORDS[kind]} of the {_and(lacking)} camera{'s' if len(lacking) > 1 else ''} "
-                f"is missing (there {'is' if len(have) == 1 else 'are'} only the {_and(sorted(have))} "
-                f"one{'s' if len(have) > 1 else ''}); upload it {where}."]
-    return [f"The {CLIP_WORDS[kind]}s of the left, middle and right cameras are missing; upload them {where}."]
+        many = len(lacking) > 1
+        return [f"The {_clips(kind, plural=many)} of the {_and(lacking)} camera{'s' if many else ''} "
+                f"{'are' if many else 'is'} missing (there {'is' if len(have) == 1 else 'are'} only the "
+                f"{_and(sorted(have))} one{'s' if len(have) > 1 else ''}); upload {'them' if many else 'it'} {where}."]
+    return [f"The {_clips(kind, plural=True)} of the left, middle and right cameras are missing; upload them {where}."]
 
 
 def _calibration_sentences(rig, own: set[str], shared: set[str]) -> list[str]:
