@@ -233,9 +233,12 @@ function wireBoardEdit(root, rig, reload) {
 }
 
 export async function mountRig(view, params) {
-  view.append(page("rig"));
-  const root = view;
+  // Its own box: uploads and polls finishing after the user left look into it, not into the next page.
+  const root = h("div", { class: "rig-page" });
+  root.append(page("rig"));
+  view.append(root);
   const rigId = Number(params.id);
+  let gone = false;
   let rig = await get(`/api/rigs/${rigId}`);
   let clips = [];
   let poller = null;
@@ -243,14 +246,18 @@ export async function mountRig(view, params) {
   root.querySelector("[data-rig-date]").textContent = rig.recorded_on ? `Recorded on ${rig.recorded_on}` : "";
 
   async function refreshCalibration() {
+    if (gone) return false;
     const report = await get(`/api/rigs/${rigId}/calibration-report`);
     rig = await get(`/api/rigs/${rigId}`);
+    if (gone) return false;
     showCalibration(root, rig, clips, report);
     return report.calibrating;
   }
   async function reload() {
+    if (gone) return;
     rig = await get(`/api/rigs/${rigId}`);
     clips = await get(`/api/rigs/${rigId}/clips`);
+    if (gone) return;
     await showBoard(root, rig);
     showClips(root, rig, clips, reload);
     poller?.stop?.();
@@ -286,5 +293,8 @@ export async function mountRig(view, params) {
     }
   });
   await reload();
-  return () => poller?.stop?.();
+  return () => {
+    gone = true;
+    poller?.stop?.();
+  };
 }
