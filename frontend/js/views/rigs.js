@@ -243,6 +243,7 @@ export async function mountRig(view, params) {
   let clips = [];
   let poller = null;
   root.querySelector("[data-rig-name]").textContent = rig.name;
+  root.querySelector("[data-upload-with-rig]").href = `#/upload?rig=${rigId}`;
   root.querySelector("[data-rig-date]").textContent = rig.recorded_on ? `Recorded on ${rig.recorded_on}` : "";
 
   async function refreshCalibration() {

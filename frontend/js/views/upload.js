@@ -317,6 +317,7 @@ export async function mountUpload(view, _params, query) {
       for (const radio of form.querySelectorAll("[data-upload-source]")) radio.disabled = radio.value !== "clips";
       view.querySelector("h1").textContent = `Complete ride ${completing}`;
     }
+    if (!completing && query?.get?.("rig")) form.elements.rig_id.value = query.get("rig");  // from a rig page
     form.querySelector("[data-clip-cards]").append(...clipCards(storedClips));
     showSource();
     await loadRig();
