@@ -10,6 +10,7 @@ import sys
 
 import httpx
 import integration_services
+import numpy as np
 import pytest
 from test_dashboard import (
     CHROMIUM,
@@ -59,10 +60,37 @@ def served(tmp_path_factory):
         _ok(api.post("/api/users", json={"email": MEMBER_EMAIL, "password": MEMBER_PASSWORD, "role": "member"}), 201)
         horse = _ok(api.post("/api/horses", json={"name": "Bella"}))["id"]
         rider = _ok(api.post("/api/riders", json={"name": "Anna"}))["id"]
-        yield {"base": base, "api": api, "root": root, "horse": horse, "rider": rider, "playwright": sync_playwright}
+        calibrated = _ok(api.post("/api/rigs", json={"name": "Outdoor arena", "board": {
+            "kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0}}))["id"]
+        store_calibration(database_url, calibrated)
+        yield {"base": base, "api": api, "root": root, "horse": horse, "rider": rider, "calibrated": calibrated,
+               "playwright": sync_playwright}
         api.close()
     finally:
         integration_services.stop_process(proc)
+
+
+def store_calibration(database_url: str, rig_id: int) -> None:
+    """A calibration as the calibrate_rig job stores it, the board having stayed in the left of the
+    left camera's image (as a calibration job would have found it)."""
+    from saddlescope.db.repositories import RigRepository
+    from saddlescope.db.session import make_engine, make_session_factory, session_scope
+
+    rng = np.random.default_rng(5)
+    size = (1280, 720)
+    reach = {"left": (0.0, 0.55), "middle": (0.0, 1.0), "right": (0.2, 1.0)}
+    corners = {cam: np.column_stack([rng.uniform(a * size[0], b * size[0], 400), rng.uniform(0, size[1], 400)])
+               .round(1).tolist() for cam, (a, b) in reach.items()}
+    cameras = {cam: {"K": [[900.0, 0, 640], [0, 900.0, 360], [0, 0, 1]], "dist": [0.0] * 5, "image_size": list(size),
+                     "rms_px": rms} for cam, rms in (("left", 0.31), ("middle", 0.24), ("right", 0.42))}
+    calibration = {"cameras": cameras, "extrinsics": {}, "checks": {"board_square_error_mm": 0.38}, "flags": [],
+                   "pairs": {}, "n_views": {c: 24 for c in cameras}, "board_corners_px": corners}
+    engine = make_engine(database_url)
+    try:
+        with session_scope(make_session_factory(engine)) as session:
+            RigRepository(session).set_calibration(rig_id, calibration, {"flags": []})
+    finally:
+        engine.dispose()
 
 
 @pytest.fixture(scope="module")
@@ -116,7 +144,7 @@ def shoot(page, name: str) -> None:
 
 def test_a_rig_with_its_board_then_its_calibration_clips_one_by_one(page, served):
     page.goto("/#/rigs")
-    page.get_by_text("No rigs yet").wait_for()
+    page.get_by_role("link", name="Outdoor arena").wait_for()  # the list shows the club's rigs
     form = page.locator("[data-rig-form]")
     form.get_by_label("Name").fill("Indoor arena")
     form.get_by_label("Inner corners across").fill("5")
@@ -228,3 +256,20 @@ def test_a_member_sees_no_board_change_or_delete(browser, served):
         assert tab.console.unexpected() == []
     finally:
         tab.context.close()
+
+
+def test_a_calibrated_rig_says_its_quality_and_where_the_board_has_been(page, served):
+    page.goto(f"/#/rigs/{served['calibrated']}")
+    pictures = page.locator("[data-coverage] svg.coverage")
+    pictures.first.wait_for()
+    assert pictures.count() == 3
+    assert page.locator("[data-coverage] svg.coverage circle").count() == 1200  # every corner kept is drawn
+    words = page.locator("[data-calibration-words]").inner_text()
+    assert "Reprojection error 0.42 px (worst camera): good" in words
+    assert "Board squares rebuilt within 0.38 mm: good" in words
+    captions = page.locator("[data-coverage] figcaption").all_inner_texts()
+    assert any("never reached the top-right corner" in c and "left camera" in c for c in captions), captions
+    assert any("reached every part of the middle camera" in c for c in captions), captions
+    assert page.locator("[data-calibration-status]").inner_text().startswith("Calibrated")
+    shoot(page, "rig-calibrated")
+    assert page.console.unexpected() == []
