@@ -159,6 +159,11 @@ def test_a_rig_with_its_board_then_its_calibration_clips_one_by_one(page, served
     # 5 x 4 inner corners: 6 x 5 squares of 30 mm and a one-square margin: 240 x 210 mm.
     assert (board.get_attribute("width"), board.get_attribute("height")) == ("240mm", "210mm")
     assert "it must measure 30 mm" in page.locator("[data-board-note]").inner_text()
+    # Printed (print stylesheet), the board keeps its size in mm: 240 mm is 907 CSS px at 96 px per inch.
+    page.emulate_media(media="print")
+    printed_px = page.evaluate("document.querySelector('[data-board-image] svg').getBoundingClientRect().width")
+    page.emulate_media(media="screen")
+    assert printed_px == pytest.approx(240 / 25.4 * 96, abs=1)
     assert page.locator("[data-board-form]").is_visible()  # the admin may change the board
 
     for camera in ("left", "middle"):
@@ -210,7 +215,8 @@ def test_the_upload_form_names_what_is_missing_before_sending(page, served):
     page.get_by_label("Clips one by one").check()
     page.locator("main:not([aria-busy])").wait_for()
     page.select_option("#up-rig", str(rig_id))
-    page.wait_for_function("document.querySelector('[data-readiness-list]').textContent.includes('static clip')")
+    page.wait_for_function("(t => t.includes('static clip') && !t.includes('No camera rig'))"
+                           "(document.querySelector('[data-readiness-list]').textContent)")
     assert "calibration" not in page.locator("[data-readiness-list]").inner_text()
     assert page.console.unexpected() == []
 

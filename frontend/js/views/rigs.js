@@ -163,6 +163,15 @@ function coveragePicture(camera, entry) {
   const svg = svgEl("svg", { viewBox: `0 0 ${w} ${h_}`, role: "img", class: "coverage",
     "aria-label": `Where the board was in the ${camera} camera's image` });
   svg.append(svgEl("rect", { x: 0, y: 0, width: w, height: h_, class: "coverage-frame" }));
+  // The ninths of the image no corner reached, tinted: where distances are least certain.
+  if (entry.missed) {
+    const reached = new Set((entry.corners_px || []).map(([x, y]) => `${Math.min(2, Math.floor((3 * y) / h_))},${Math.min(2, Math.floor((3 * x) / w))}`));
+    for (let r = 0; r < 3; r += 1) {
+      for (let c = 0; c < 3; c += 1) {
+        if (!reached.has(`${r},${c}`)) svg.append(svgEl("rect", { x: (c * w) / 3, y: (r * h_) / 3, width: w / 3, height: h_ / 3, class: "coverage-missed" }));
+      }
+    }
+  }
   for (const f of [1, 2]) {
     svg.append(svgEl("line", { x1: (f * w) / 3, y1: 0, x2: (f * w) / 3, y2: h_, class: "coverage-grid" }));
     svg.append(svgEl("line", { x1: 0, y1: (f * h_) / 3, x2: w, y2: (f * h_) / 3, class: "coverage-grid" }));
