@@ -47,7 +47,8 @@ export function missingBeforeUpload({ rideClips, rig, rigClips = [] }) {
     if (!rig.calibrated && lacking(own).length && lacking(shared).length) {
       const have = own.size ? own : shared;
       if (have.size) {
-        missing.push(`The rig \u201c${rig.name}\u201d is not calibrated: its calibration clips come from only ${have.size} camera${have.size > 1 ? "s" : ""} (${and([...have].sort())}); upload the ${and(lacking(have))} camera's calibration clip on the rig page.`);
+        const [whose, where] = own.size ? ["the ride's", "with the ride"] : ["its", "on the rig page"];
+        missing.push(`The rig \u201c${rig.name}\u201d is not calibrated: ${whose} calibration clips come from only ${have.size} camera${have.size > 1 ? "s" : ""} (${and([...have].sort())}); upload the ${and(lacking(have))} camera's calibration clip ${where}.`);
       } else {
         missing.push(`The rig \u201c${rig.name}\u201d is not calibrated and has no calibration clips: upload the calibration clips of its three cameras on the rig page.`);
       }

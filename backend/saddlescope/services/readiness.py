@@ -80,9 +80,10 @@ def _calibration_sentences(rig, own: set[str], shared: set[str]) -> list[str]:
     have = own or shared
     if have:
         lacking = _missing_cameras(have)
-        out.append(f"The rig \u201c{rig.name}\u201d is not calibrated: its calibration clips come from only "
+        whose, where = ("the ride's", "with the ride") if own else ("its", "on the rig page")
+        out.append(f"The rig \u201c{rig.name}\u201d is not calibrated: {whose} calibration clips come from only "
                    f"{len(have)} camera{'s' if len(have) > 1 else ''} ({_and(sorted(have))}); upload the "
-                   f"{_and(lacking)} camera's calibration clip on the rig page.")
+                   f"{_and(lacking)} camera's calibration clip {where}.")
     else:
         out.append(f"The rig \u201c{rig.name}\u201d is not calibrated and has no calibration clips: upload "
                    "the calibration clips of its three cameras on the rig page.")
