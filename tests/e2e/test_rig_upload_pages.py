@@ -279,3 +279,40 @@ def test_a_calibrated_rig_says_its_quality_and_where_the_board_has_been(page, se
     assert page.locator("[data-calibration-status]").inner_text().startswith("Calibrated")
     shoot(page, "rig-calibrated")
     assert page.console.unexpected() == []
+
+
+def test_an_incomplete_ride_says_what_is_missing_and_is_completed_on_the_upload_page(page, served):
+    rig_id = served.get("rig_id")
+    if rig_id is None:
+        pytest.skip("needs the rig of the first test")
+    api = served["api"]
+    ride = _ok(api.post("/api/rides", json={"horse_id": served["horse"], "rider_id": served["rider"],
+                                            "gait": "walk", "direction": "CW", "rig_id": rig_id}))
+    for camera in ("left", "middle", "right"):
+        data = tiny_clip(served, f"api-motion-{camera}")["buffer"]
+        _ok(api.put(f"/api/rides/{ride['id']}/clips/motion/{camera}",
+                    files={"file": (f"{camera}.avi", data, "video/x-msvideo")}))
+    page.goto("/#/rides")
+    # The module the ride page mounts for an incomplete ride.
+    shown = page.evaluate("""async (id) => {
+        const m = await import('/js/ride-readiness.js');
+        const box = document.createElement('div');
+        document.querySelector('main').append(box);
+        const answer = await m.mountReadiness(box, id);
+        return [answer.ready, box.textContent, box.querySelector('a').getAttribute('href')];
+    }""", ride["id"])
+    assert shown[0] is False and "static clips (horse standing still" in shown[1]
+    assert shown[2] == f"#/upload?ride={ride['id']}"
+
+    page.goto(f"/#/upload?ride={ride['id']}")
+    page.get_by_role("heading", name=f"Complete ride {ride['id']}").wait_for()
+    page.wait_for_function("document.querySelector('[data-readiness-list]').textContent.includes('static clips')")
+    assert "motion" not in page.locator("[data-readiness-list]").inner_text()  # stored already
+    for camera in ("left", "middle", "right"):
+        page.locator(f"#clip-static-{camera}").set_input_files(tiny_clip(served, f"static-{camera}"))
+    page.locator("[data-readiness]").wait_for(state="hidden")
+    page.get_by_role("button", name="Upload and analyse").click()
+    page.wait_for_url(f"**/#/rides/{ride['id']}")
+    jobs = _ok(api.get("/api/jobs", params={"ride_id": ride["id"]}))
+    assert jobs["total"] == 1  # complete now: its analysis was queued
+    assert _ok(api.get(f"/api/rides/{ride['id']}/readiness")) == {"ready": True, "missing": []}
