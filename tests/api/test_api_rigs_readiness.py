@@ -109,8 +109,9 @@ def test_a_bundle_only_prefills_and_the_ride_takes_the_forms_choices(env, club, 
     assert (meta["gait"], meta["direction"]) == ("walk", "CCW")
     assert api.ok("GET", "/rides")["total"] == 0  # reading the meta creates nothing
 
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Sunday rig", "board": BOARD})
     chosen = {"horse_id": club["horse"]["id"], "rider_id": club["rider"]["id"], "gait": "canter",
-              "direction": "CW", "ridden_on": "2026-05-03", "notes": "new saddle"}
+              "direction": "CW", "ridden_on": "2026-05-03", "notes": "new saddle", "rig_id": rig["id"]}
     done = api.ok("POST", f"/uploads/{staged['id']}/finalize", json=chosen)
     ride = api.ok("GET", f"/rides/{done['ride_id']}")
     assert {k: ride[k] for k in chosen} == chosen

@@ -366,6 +366,12 @@ def finalise_upload(
             upload.filename,
             upload.length_bytes,
         )
+    chosen = dict(chosen or {})
+    if target == UploadTarget.BUNDLE and chosen.get("rig_id") is not None:
+        rig_id = chosen.pop("rig_id")  # the rig chosen in the form when the ride was confirmed
+        with session_scope(sessions) as session:
+            RigRepository(session, club_id=club_id).get(rig_id)  # before the bytes move: a 404 keeps them
+    chosen.pop("rig_id", None)
     staged = staging_key(club_id, filename)
     storage.move(upload_key(upload_id), staged)
     try:

@@ -196,6 +196,7 @@ export async function mountUpload(view, _params, query) {
     const details = { gait: values.gait, direction: values.direction, ridden_on: values.ridden_on || null, notes: values.notes || "" };
     if (values.horse_id && values.horse_id !== FROM_BUNDLE) details.horse_id = Number(values.horse_id);
     if (values.rider_id && values.rider_id !== FROM_BUNDLE) details.rider_id = Number(values.rider_id);
+    if (values.rig_id) details.rig_id = Number(values.rig_id);
     return details;
   }
 

@@ -46,6 +46,7 @@ class BundleChoice(_In):
     direction: Direction | None = None
     ridden_on: dt.date | None = None
     notes: Text | None = None
+    rig_id: RefId | None = Field(default=None, description="the rig the ride uses (over the one named at creation)")
 
 
 class OffsetMismatch(IncompleteUpload):
