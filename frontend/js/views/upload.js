@@ -182,6 +182,7 @@ export async function mountUpload(view, _params, query) {
         throw error;
       }
       stagedBundle = { upload, file };
+      label.textContent = `${file.name} uploaded`;
       setBusy(false, "Uploaded; check the details, then press \u201cUpload and analyse\u201d.");
     } catch (error) {
       bundleError = error;
