@@ -18,6 +18,7 @@ import { mountLogin } from "./js/views/login.js";
 import { mountRide } from "./js/views/ride.js";
 import { mountRides } from "./js/views/rides.js";
 import { mountResetPassword } from "./js/views/reset-password.js";
+import { mountRig, mountRigs } from "./js/views/rigs.js";
 import { mountRidePair } from "./js/views/similar.js";
 import { mountUpload } from "./js/views/upload.js";
 
@@ -30,6 +31,8 @@ route("/rides", mountRides, { title: "Rides" });
 route("/rides/:id", mountRide, { title: "Ride" });
 route("/compare-rides/:a/:b", mountRidePair, { title: "Two rides compared" });
 route("/upload", mountUpload, { title: "Upload a ride" });
+route("/rigs", mountRigs, { title: "Rigs" });
+route("/rigs/:id", mountRig, { title: "Rig" });
 route("/jobs", mountJobs, { title: "Jobs" });
 route("/compare", mountCompare, { title: "Compare" });
 route("/leaderboard", mountLeaderboard, { title: "Leaderboard" });

@@ -68,9 +68,10 @@ async function sendChunk(id, file, offset, signal) {
 
 /**
  * Upload `file` to `target` ({target: "bundle"|"ride_clip"|"rig_clip", ride_id?, rig_id?, clip_kind?, camera?}).
- * `onProgress(sentBytes)` after each chunk. Resolves to the finalize answer.
+ * `onProgress(sentBytes)` after each chunk. Resolves to the finalize answer (with `finalize: false`: to
+ * the complete, not yet finalised upload {id, key}; finish it with `finalizeUpload`).
  */
-export async function uploadResumable(file, target, { onProgress, signal } = {}) {
+export async function uploadResumable(file, target, { onProgress, signal, finalize = true, body = {} } = {}) {
   const upload = await openUpload(file, target);
   let offset = upload.offset;
   onProgress?.(offset);
@@ -89,8 +90,17 @@ export async function uploadResumable(file, target, { onProgress, signal } = {})
       offset = serverOffset(state);
     }
   }
+  if (!finalize) return { id: upload.id, key: upload.key };
+  return finalizeUpload(upload, body, { signal });
+}
+
+/**
+ * Finalise a complete upload ({id, key} from `uploadResumable(..., {finalize: false})`) with `body`
+ * (a bundle: the ride's horse_id, rider_id, gait, direction, ridden_on, notes as the user confirmed them).
+ */
+export async function finalizeUpload(upload, body = {}, { signal } = {}) {
   try {
-    const result = await post(`/api/uploads/${upload.id}/finalize`, {}, { signal });
+    const result = await post(`/api/uploads/${upload.id}/finalize`, body, { signal });
     window.localStorage.removeItem(upload.key);
     return result;
   } catch (error) {

@@ -519,13 +519,17 @@ def test_every_page_renders_without_console_errors(page, dashboard):
 def test_clips_one_by_one_show_the_probe_reason_and_a_retry_reuses_the_ride(page, dashboard):
     sign_in(page)
     rides_before = api_get(dashboard, "/api/rides")["total"]
+    with api_client(dashboard) as api:  # a rig with its board: a ride of clips needs one
+        rig = _ok(api.post("/api/rigs", json={"name": "Probe rig", "board": {
+            "kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0}}))
     page.goto("/#/upload")
     page.get_by_label("Clips one by one").check()
     page.locator("main:not([aria-busy])").wait_for()
     page.select_option("#up-horse", label="Comet")
     page.select_option("#up-gait", "walk")
+    page.select_option("#up-rig", str(rig["id"]))
     not_a_video = b"\x00 not a video \x00" * 64
-    for kind in ("motion", "calibration"):
+    for kind in ("motion", "static", "calibration"):
         for camera in ("left", "middle", "right"):
             page.locator(f"#clip-{kind}-{camera}").set_input_files(
                 files=[{"name": f"{kind}-{camera}.mp4", "mimeType": "video/mp4", "buffer": not_a_video}])
@@ -541,6 +545,7 @@ def test_clips_one_by_one_show_the_probe_reason_and_a_retry_reuses_the_ride(page
     assert (new_ride["horse_id"], new_ride["gait"]) == (dashboard["horses"]["Comet"], "walk")
     with api_client(dashboard) as api:  # leave the other tests the rides they seeded
         _ok(api.delete(f"/api/rides/{new_ride['id']}"), 204)
+        _ok(api.delete(f"/api/rigs/{rig['id']}"), 204)
     assert page.console.unexpected(422) == []
 
 

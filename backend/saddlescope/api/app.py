@@ -109,6 +109,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         horses,
         jobs,
         mocap,
+        readiness,
         reports,
         riders,
         rides,
@@ -117,8 +118,8 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         uploads,
     )
 
-    for module in (health, auth, horses, horse_profile, riders, rigs, rides, mocap, uploads, grades, comparisons,
-                   similarity, jobs, reports):
+    for module in (health, auth, horses, horse_profile, riders, rigs, rides, readiness, mocap, uploads, grades,
+                   comparisons, similarity, jobs, reports):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", StaticFiles(directory=FRONTEND_DIR, html=True), name="frontend")

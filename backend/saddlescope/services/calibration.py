@@ -75,6 +75,9 @@ def calibrate_clips(
     )
     calibration = rig_to_dict(rig)
     calibration["n_views"] = report.get("n_views")
+    # Where the board has been in each image (the distortion is only known there): the rig page draws it.
+    calibration["board_coverage"] = report.get("board_coverage")
+    calibration["board_corners_px"] = report.get("board_corners_px")
     calibration["sync"] = {"calibration": {c: float(v) for c, v in offsets["calibration"].items()}}
     return calibration
 

@@ -8,8 +8,9 @@ those (a clip stored, a job created, started, finished, cancelled or queued agai
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any
 
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -130,7 +131,7 @@ def refresh_ride_status(session: Session, ride_id: int | None) -> str | None:
 
 def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: Path | str, *,
                     club_name: str = "Demo club", club_id: int | None = None, rig_id: int | None = None,
-                    ridden_on: dt.date | None = None) -> int:
+                    ridden_on: dt.date | None = None, chosen: Mapping[str, Any] | None = None) -> int:
     """Create a ride (and its horse and rider if new) from a bundle; returns the ride id.
 
     `bundle` is a folder or a zip (validated by `saddlescope.io.bundle.open_bundle`, which raises
@@ -138,31 +139,34 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
     ``rides/<id>/bundle`` with their own relative paths, and each clip of the four standard sets
     becomes a recording row with its size and sha256. The ride belongs to club `club_id`, or to the
     club named `club_name` (created if new) when no id is given; `rig_id` (a rig of that club)
-    makes the ride use, or calibrate, that rig's calibration.
+    makes the ride use, or calibrate, that rig's calibration. `chosen` holds what the user chose at
+    upload (horse_id, rider_id, gait, direction, ridden_on, notes): each one given wins over ride.json,
+    which only fills what is not given (a horse or rider named in ride.json is added when no id is).
     """
     with open_bundle(bundle) as opened:
         return _register(sessions, storage, opened, club_name=club_name, club_id=club_id, rig_id=rig_id,
-                         ridden_on=ridden_on)
+                         ridden_on=ridden_on, chosen=dict(chosen or {}))
 
 
 def _add_ride(session: Session, bundle: RideBundle, *, club_name: str, club_id: int | None,
-              rig_id: int | None, ridden_on: dt.date | None) -> tuple[int, int]:
-    """Add the bundle's ride (and its horse and rider if new); returns (club id, ride id)."""
+              rig_id: int | None, ridden_on: dt.date | None, chosen: dict[str, Any]) -> tuple[int, int]:
+    """Add the bundle's ride (and its horse and rider if new and not chosen); returns (club id, ride id)."""
     meta = bundle.meta
     horse_meta = meta.get("horse") or {}
     rider_meta = meta.get("rider") or {}
     if club_id is None:
         club_id = ClubRepository(session).get_or_create(club_name).id
-    horse = HorseRepository(session, club_id=club_id).get_or_create(
+    horse_id = chosen.get("horse_id") or HorseRepository(session, club_id=club_id).get_or_create(
         name=str(horse_meta.get("name") or "Unnamed horse"),
         breed=horse_meta.get("breed"), birth_year=horse_meta.get("birth_year"),
-        height_withers_m=horse_meta.get("height_m"))
-    rider = RiderRepository(session, club_id=club_id).get_or_create(
-        name=str(rider_meta.get("name") or "Unnamed rider"))
+        height_withers_m=horse_meta.get("height_m")).id
+    rider_id = chosen.get("rider_id") or RiderRepository(session, club_id=club_id).get_or_create(
+        name=str(rider_meta.get("name") or "Unnamed rider")).id
     ride = RideRepository(session, club_id=club_id).add(
-        horse_id=horse.id, rider_id=rider.id, rig_id=rig_id, gait=meta["gait"],
-        direction=meta["direction"],
-        ridden_on=ridden_on or dt.datetime.now(dt.UTC).date(),
+        horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, gait=chosen.get("gait") or meta["gait"],
+        direction=chosen.get("direction") or meta["direction"],
+        ridden_on=chosen.get("ridden_on") or ridden_on or dt.datetime.now(dt.UTC).date(),
+        notes=chosen.get("notes") or "",
         meta={k: meta[k] for k in ("board", "sync", "markers") if k in meta})
     return club_id, ride.id
 
@@ -183,10 +187,11 @@ def _add_recordings(session: Session, storage: Storage, bundle: RideBundle, *, c
 
 
 def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBundle, *,
-              club_name: str, club_id: int | None, rig_id: int | None, ridden_on: dt.date | None) -> int:
+              club_name: str, club_id: int | None, rig_id: int | None, ridden_on: dt.date | None,
+              chosen: dict[str, Any]) -> int:
     with session_scope(sessions) as session:
         club_id, ride_id = _add_ride(session, bundle, club_name=club_name, club_id=club_id, rig_id=rig_id,
-                                     ridden_on=ridden_on)
+                                     ridden_on=ridden_on, chosen=chosen)
     bundle_key = ride_bundle_key(ride_id)
     registered = False
     try:

@@ -34,13 +34,14 @@ from saddlescope.db.repositories import (
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import submit_job
 from saddlescope.services.queue import JobQueue
+from saddlescope.services.readiness import missing_for_ride
 from saddlescope.services.rides import refresh_ride_status, register_bundle, ride_clip_plan
 from saddlescope.storage import Storage, TooLarge, upload_key
 
 __all__ = [
     "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
     "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "expire_uploads",
-    "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
+    "bundle_meta", "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
 ]
 
 RIG_CLIP_KINDS = ("calibration", "plumb", "static")
@@ -235,6 +236,8 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
                 )
             except (BundleError, InputError):
                 return None  # not complete yet
+            if missing_for_ride(session, ride.id, club_id=owner.club_id):
+                return None  # it would stop at a missing board or a partial clip set: never queue it
             if jobs.active_for(ride_id=ride.id) is not None:
                 return None
             kind, ids = "analyze", {"ride_id": ride.id}
@@ -251,13 +254,15 @@ def accept_bundle(
     rig_id: int | None = None,
     filename: str | None = None,
     user_id: int | None = None,
+    chosen: dict[str, Any] | None = None,
 ) -> tuple[int, int]:
     """Register a staged ride bundle zip as a ride of the club and start its analysis; (ride id, job id).
 
     `saddlescope.io.bundle.open_bundle` refuses unsafe zips (``..`` paths, links, bombs), a missing or
     invalid ride.json (unknown gait, camera roles, ...) and missing clips, as a `BundleError` naming the
     user's file (`filename`), not the staging file. The same bundle (same sha256) uploaded again in the
-    club is a `Conflict` naming the ride it already is.
+    club is a `Conflict` naming the ride it already is. `chosen`: what the user chose at upload
+    (horse_id, rider_id, gait, direction, ridden_on, notes), winning over the bundle's ride.json.
     """
     shown = filename or "the bundle"
     try:
@@ -270,7 +275,8 @@ def accept_bundle(
             raise Conflict(f"{shown}: this bundle (the same content) was already uploaded as ride {existing}; "
                            "open that ride, or delete it first to upload the bundle again")
         try:
-            ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id)
+            ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id,
+                                      chosen=chosen)
         except BundleError as exc:
             path = storage.path(staged_key)
             raise BundleError(str(exc).replace(str(path), shown).replace(path.name, shown)) from None
@@ -336,10 +342,12 @@ def create_upload(
 
 
 def finalise_upload(
-    sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str, *, club_id: int
+    sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str, *, club_id: int,
+    chosen: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Turn a complete resumable upload into a recording (and maybe a job) or a ride; returns the outcome.
 
+    `chosen` (a bundle only): the ride's details chosen at upload, over the bundle's ride.json.
     A refused file marks the upload failed with the reason (and the error is raised again).
     """
     with session_scope(sessions) as session:
@@ -358,12 +366,18 @@ def finalise_upload(
             upload.filename,
             upload.length_bytes,
         )
+    chosen = dict(chosen or {})
+    if target == UploadTarget.BUNDLE and chosen.get("rig_id") is not None:
+        rig_id = chosen.pop("rig_id")  # the rig chosen in the form when the ride was confirmed
+        with session_scope(sessions) as session:
+            RigRepository(session, club_id=club_id).get(rig_id)  # before the bytes move: a 404 keeps them
+    chosen.pop("rig_id", None)
     staged = staging_key(club_id, filename)
     storage.move(upload_key(upload_id), staged)
     try:
         if target == UploadTarget.BUNDLE:
             new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
-                                             filename=filename, user_id=user_id)
+                                             filename=filename, user_id=user_id, chosen=chosen)
             outcome = {"ride_id": new_ride, "job_id": job_id}
         else:
             owner = ClipOwner(
@@ -384,6 +398,10 @@ def finalise_upload(
             )
             job_id = start_processing(sessions, queue, owner)
             outcome = {"recording_id": recording_id, "job_id": job_id}
+            if owner.kind == "ride" and job_id is None:
+                with session_scope(sessions) as session:
+                    # Said with the clip, so the page never reports "queued" for a ride that cannot run.
+                    outcome["missing"] = missing_for_ride(session, owner.id, club_id=club_id)
     except SaddleScopeError as exc:
         with session_scope(sessions) as session:
             UploadRepository(session, club_id=club_id).close(
@@ -395,6 +413,24 @@ def finalise_upload(
             upload_id, status=UploadStatus.FINALISED, outcome=outcome
         )
     return outcome
+
+
+def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: int) -> dict[str, Any]:
+    """What a complete, not yet finalised bundle upload's ride.json says, to pre-fill the upload form.
+
+    Only ride.json is read (the whole bundle is checked when it is finalised). The horse and rider are
+    matched by name among the club's (``id`` None when the club has no such horse or rider yet).
+    """
+    from saddlescope.services.bundle_meta import read_bundle_meta
+
+    upload = UploadRepository(session, club_id=club_id).get(upload_id)
+    if upload.target != UploadTarget.BUNDLE:
+        raise InputError(f"upload {upload_id} is a clip, not a ride bundle")
+    if upload.status != UploadStatus.OPEN.value or upload.offset_bytes != upload.length_bytes:
+        raise IncompleteUpload(f"upload {upload_id} is not a complete open upload "
+                               f"({upload.offset_bytes} of {upload.length_bytes} bytes, {upload.status})")
+    return read_bundle_meta(session, storage.path(upload_key(upload_id)), club_id=club_id,
+                            shown=upload.filename or "the bundle")
 
 
 class IncompleteUpload(InputError):

@@ -32,6 +32,7 @@ from saddlescope.db.enums import RIDE_STATUSES
 from saddlescope.db.repositories import Ride, RideFilter, RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
+from saddlescope.services.readiness import require_ready
 from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
 from saddlescope.services.uploads import (
     ClipOwner,
@@ -261,8 +262,11 @@ async def upload_ride_clip(
     responses={**ERRORS, 503: {"model": ErrorOut}},
 )
 async def analyze_ride(ride_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
-    """(Re)start the ride's analysis (an `analyze` job: probe, assemble, calibrate, analyze)."""
-    await run_in_threadpool(club.rides.get, ride_id)
+    """(Re)start the ride's analysis (an `analyze` job: probe, assemble, calibrate, analyze).
+
+    A ride that cannot run (a clip or setting missing) is refused (422) naming what is missing.
+    """
+    await run_in_threadpool(require_ready, club.session, ride_id, club_id=club.club_id)
     club.session.rollback()
     job_id = await run_in_threadpool(
         submit_job, sessions, queue, kind="analyze", ride_id=ride_id, club_id=club.club_id

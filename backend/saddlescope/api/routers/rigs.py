@@ -23,9 +23,10 @@ from saddlescope.api.schemas import (
     RigUpdate,
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI
-from saddlescope.db.repositories import Rig
+from saddlescope.db.repositories import NotFound, Rig
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
+from saddlescope.services.rig_views import board_svg, calibration_words, coverage_words
 from saddlescope.services.uploads import (
     ClipOwner,
     remove_upload_files,
@@ -154,3 +155,30 @@ async def calibrate_rig(rig_id: Id, club: ClubDep, sessions: SessionFactoryDep, 
     )
     with session_scope(sessions) as session:
         return JobOut(**job_as_dict(get_job(session, job_id)))
+
+
+@router.get(
+    "/{rig_id}/board.svg",
+    response_class=Response,
+    responses={**ERRORS, 200: {"content": {"image/svg+xml": {}}, "description": "the board at true scale"}},
+)
+def rig_board_svg(rig_id: Id, club: ClubDep) -> Response:
+    """The rig's calibration board to print: an SVG sized in mm (print at 100 %); 404 without a board."""
+    rig = club.rigs.get(rig_id)
+    if not rig.board:
+        raise NotFound(f"rig {rig_id} ({rig.name}) has no board described yet")
+    return Response(board_svg(rig.board), media_type="image/svg+xml",
+                    headers={"Content-Disposition": f'inline; filename="rig-{rig_id}-board.svg"'})
+
+
+@router.get("/{rig_id}/calibration-report", responses=ERRORS)
+def rig_calibration_report(rig_id: Id, club: ClubDep) -> dict:
+    """The calibration in plain words, and per camera where in the image the board has been.
+
+    ``quality``: reprojection px and board square error mm, each with a verdict; ``coverage``: per camera
+    the board corners seen, their hull and the parts of the image the board never reached.
+    """
+    rig = club.rigs.get(rig_id)
+    job = club.jobs.active_for(rig_id=rig_id, kind="calibrate_rig")
+    return {"quality": calibration_words(rig.calibration), "coverage": coverage_words(rig.calibration),
+            "calibrating": job is not None}

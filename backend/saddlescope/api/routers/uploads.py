@@ -2,19 +2,22 @@
 
 from __future__ import annotations
 
+import datetime as dt
 from typing import Annotated
 
-from fastapi import APIRouter, Header, Path, Request, Response, status
+from fastapi import APIRouter, Body, Header, Path, Request, Response, status
+from pydantic import Field
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
 from saddlescope.api.routers.common import ERRORS
-from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
+from saddlescope.api.schemas import Direction, ErrorOut, Gait, RefId, Text, UploadCreate, UploadOut, _In
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
 from saddlescope.services.uploads import (
     IncompleteUpload,
+    bundle_meta,
     commit_chunk,
     create_upload,
     expire_uploads,
@@ -32,6 +35,18 @@ CHUNK_OPENAPI = {
         "content": {"application/offset+octet-stream": {"schema": {"type": "string", "format": "binary"}}},
     }
 }
+
+
+class BundleChoice(_In):
+    """What the user chose for a bundle's ride at upload; each given field wins over ride.json."""
+
+    horse_id: RefId | None = Field(default=None, description="None: the horse ride.json names (added if new)")
+    rider_id: RefId | None = Field(default=None, description="None: the rider ride.json names (added if new)")
+    gait: Gait | None = None
+    direction: Direction | None = None
+    ridden_on: dt.date | None = None
+    notes: Text | None = None
+    rig_id: RefId | None = Field(default=None, description="the rig the ride uses (over the one named at creation)")
 
 
 class OffsetMismatch(IncompleteUpload):
@@ -152,16 +167,30 @@ async def finalize(
     sessions: SessionFactoryDep,
     queue: QueueDep,
     settings: SettingsDep,
+    body: Annotated[BundleChoice | None, Body()] = None,
 ) -> dict:
     """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle).
 
-    Starts the processing the new clips allow. Returns ``{"recording_id", "job_id"}`` or
-    ``{"ride_id", "job_id"}``. An expired upload is gone (404).
+    Starts the processing the new clips allow. Returns ``{"recording_id", "job_id"}`` (with ``missing``:
+    what the ride still needs, when no job started) or ``{"ride_id", "job_id"}``. A bundle's ride takes
+    the body's horse, rider, gait, direction, date and notes where given. An expired upload is gone (404).
     """
     await run_in_threadpool(expire_uploads, club.session, storage, max_age_s=settings.upload_expiry_s)
     club_id = club.club_id
     club.session.rollback()
-    return await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id)
+    chosen = body.model_dump(exclude_none=True) if body is not None else None
+    return await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id,
+                                   chosen=chosen)
+
+
+@router.get("/{upload_id}/bundle-meta", responses={**ERRORS, 409: {"model": ErrorOut}})
+def read_bundle_meta(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> dict:
+    """A complete bundle upload's ride.json, to pre-fill the form before finalising (nothing is created).
+
+    ``horse`` and ``rider`` give the name ride.json uses and the id of the club's horse or rider of that
+    name (None: not in the club). 409 until every byte has arrived.
+    """
+    return bundle_meta(club.session, storage, upload_id, club_id=club.club_id)
 
 
 @router.delete("/{upload_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)

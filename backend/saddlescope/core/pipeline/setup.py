@@ -21,7 +21,7 @@ from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
 from saddlescope.core.types import Board, ImageTracks, Rig
 
-__all__ = ["board_coverage", "calibrate_from_clips", "frame_clocks", "outside_coverage",
+__all__ = ["board_corner_sample", "board_coverage", "calibrate_from_clips", "frame_clocks", "outside_coverage",
            "still_views", "synchronise"]
 
 
@@ -160,7 +160,22 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
                                       max_square_error_pct=params.max_square_error_pct)
     report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
     report["board_coverage"] = {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v}
+    report["board_corners_px"] = {c: board_corner_sample(v) for c, v in views_by_camera.items() if v}
     return rig, report
+
+
+def board_corner_sample(views: list, *, max_points: int = 1500) -> list[list[float]]:
+    """The board corners of the views used, evenly thinned to at most ``max_points`` (for a coverage picture).
+
+    Returns
+    -------
+    list of [x_px, y_px], rounded to 0.1 px.
+    """
+    pts = np.concatenate([np.asarray(v.corners_px, dtype=np.float64).reshape(-1, 2) for v in views])
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if len(pts) > max_points:
+        pts = pts[np.linspace(0, len(pts) - 1, max_points).astype(int)]
+    return pts.round(1).tolist()
 
 
 def board_coverage(views: list, image_size: tuple[int, int]) -> dict:

@@ -1,0 +1,23 @@
+"""Whether a ride can be analysed now, and what is missing (for the upload form and the ride page)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from saddlescope.api.deps import ClubDep
+from saddlescope.api.routers.common import ERRORS, Id
+from saddlescope.services.readiness import missing_for_ride
+
+__all__ = ["router"]
+
+router = APIRouter(prefix="/rides", tags=["rides"])
+
+
+@router.get("/{ride_id}/readiness", responses=ERRORS)
+def ride_readiness(ride_id: Id, club: ClubDep) -> dict:
+    """``{"ready": bool, "missing": [sentence, ...]}``: every clip or setting the ride still needs.
+
+    The same sentences the API gives when it refuses to analyse the ride (422).
+    """
+    missing = missing_for_ride(club.session, ride_id, club_id=club.club_id)
+    return {"ready": not missing, "missing": missing}

@@ -1,0 +1,83 @@
+"""Read a ride bundle zip's ride.json only, to pre-fill the upload form the user then confirms.
+
+The bundle's horse, rider, gait and direction are suggestions: the ride is filed under what the
+form sends at finalise (`services.uploads.finalise_upload`'s ``chosen``), never under the zip's
+horse unless the user kept it.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from saddlescope.core.errors import BundleError
+from saddlescope.db.models import Horse, Rider
+
+__all__ = ["MAX_RIDE_JSON_BYTES", "read_bundle_meta"]
+
+MAX_RIDE_JSON_BYTES = 1024**2  # a ride.json is a few kB; more is not a ride.json
+
+
+def _ride_json(zf: zipfile.ZipFile, shown: str) -> dict[str, Any]:
+    """ride.json at the zip's top, or inside its single top folder (zips often nest one)."""
+    candidates = [i for i in zf.infolist() if PurePosixPath(i.filename).name == "ride.json"
+                  and len(PurePosixPath(i.filename).parts) <= 2 and not i.is_dir()]
+    if not candidates:
+        raise BundleError(f"{shown}: no ride.json (is this a ride bundle?)")
+    info = min(candidates, key=lambda i: len(PurePosixPath(i.filename).parts))
+    if info.file_size > MAX_RIDE_JSON_BYTES:
+        raise BundleError(f"{shown}: ride.json is {info.file_size} bytes; a ride.json is a few kB")
+    try:
+        meta = json.loads(zf.read(info).decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise BundleError(f"{shown}: ride.json is not valid JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise BundleError(f"{shown}: ride.json is not a JSON object")
+    return meta
+
+
+def _named(meta: dict[str, Any], key: str) -> str | None:
+    value = meta.get(key)
+    name = value.get("name") if isinstance(value, dict) else None
+    return name.strip()[:200] if isinstance(name, str) and name.strip() else None
+
+
+def read_bundle_meta(session: Session, zip_path: Path, *, club_id: int, shown: str) -> dict[str, Any]:
+    """The form's suggestions from a bundle zip's ride.json.
+
+    Returns
+    -------
+    dict
+        ``horse`` and ``rider`` ({"name", "id"}: id of the club's horse or rider of that name, or
+        None), ``gait``, ``direction``, ``ridden_on`` (ride.json's ``date`` if any) and ``notes``.
+    """
+    try:
+        with zipfile.ZipFile(zip_path) as zf:
+            meta = _ride_json(zf, shown)
+    except (zipfile.BadZipFile, OSError):
+        # Word for word what finalising the same file says (`io.bundle.open_bundle`).
+        raise BundleError(f"{shown}: a ride bundle must be a folder or a .zip archive") from None
+    horse_name, rider_name = _named(meta, "horse"), _named(meta, "rider")
+    horse_id = rider_id = None
+    if horse_name:
+        horse_id = session.scalars(select(Horse.id).where(Horse.club_id == club_id, Horse.name == horse_name)).first()
+    if rider_name:
+        rider_id = session.scalars(select(Rider.id).where(Rider.club_id == club_id, Rider.name == rider_name)).first()
+
+    def text(key: str) -> str | None:
+        value = meta.get(key)
+        return value if isinstance(value, str) else None
+
+    return {
+        "horse": {"name": horse_name, "id": horse_id},
+        "rider": {"name": rider_name, "id": rider_id},
+        "gait": text("gait"),
+        "direction": text("direction"),
+        "ridden_on": text("date") or text("ridden_on"),
+        "notes": text("notes") or "",
+    }

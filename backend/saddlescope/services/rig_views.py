@@ -1,0 +1,139 @@
+"""What the rig page shows: the board to print at true scale, the calibration in plain words, coverage.
+
+The printable board is the board type's own texture (`BoardType.texture`, the same image the arena
+renders), wrapped in an SVG whose width and height are in millimetres, so a browser printing at
+100 % gives squares of exactly ``square_mm``.
+"""
+
+from __future__ import annotations
+
+import base64
+from collections.abc import Mapping
+from typing import Any
+
+import cv2
+import numpy as np
+
+from saddlescope.core.calibration.boards import board_from_meta, board_type
+from saddlescope.core.errors import InputError
+
+__all__ = ["board_svg", "board_svg_size_mm", "calibration_words", "coverage_words"]
+
+_PX_PER_SQUARE = 48
+
+
+def board_svg_size_mm(board_meta: Mapping[str, Any]) -> tuple[float, float]:
+    """Printed width and height (mm) of the board's SVG: its squares plus a one-square white margin."""
+    board = board_from_meta(dict(board_meta))
+    texture, px_per_mm, _ = board_type(board.kind).texture(board, px_per_square=4)
+    return texture.shape[1] / px_per_mm, texture.shape[0] / px_per_mm
+
+
+def board_svg(board_meta: Mapping[str, Any]) -> str:
+    """The board as an SVG document at true scale (``width``/``height`` in mm, ``viewBox`` in mm).
+
+    Raises
+    ------
+    InputError
+        The board section is not a valid board.
+    """
+    try:
+        board = board_from_meta(dict(board_meta))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"the rig's board is not a valid board: {exc}") from None
+    texture, px_per_mm, _ = board_type(board.kind).texture(board, px_per_square=_PX_PER_SQUARE)
+    ok, png = cv2.imencode(".png", np.ascontiguousarray(texture))
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
+        raise InputError("the board image could not be drawn")
+    width_mm, height_mm = texture.shape[1] / px_per_mm, texture.shape[0] / px_per_mm
+    cols, rows = board.inner_corners
+    title = (f"{board_type(board.kind).label} board, {cols} x {rows} inner corners, squares of "
+             f"{board.square_mm:g} mm")
+    data = base64.b64encode(png.tobytes()).decode("ascii")
+    return (
+        f'<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" '
+        f'width="{width_mm:g}mm" height="{height_mm:g}mm" viewBox="0 0 {width_mm:g} {height_mm:g}" '
+        f'role="img" aria-label="{title}">'
+        f"<title>{title}</title>"
+        f'<image x="0" y="0" width="{width_mm:g}" height="{height_mm:g}" preserveAspectRatio="none" '
+        f'style="image-rendering:pixelated" href="data:image/png;base64,{data}"/>'
+        "</svg>"
+    )
+
+
+def _grade(value: float | None, good: float, fair: float) -> str | None:
+    if value is None or not np.isfinite(value):
+        return None
+    return "good" if value <= good else "fair" if value <= fair else "poor"
+
+
+def calibration_words(calibration: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The calibration's quality in plain words: reprojection error (px), board square error (mm).
+
+    Thresholds: a reprojection r.m.s. under 0.5 px is good, under 1 px fair (a phone video's corner
+    noise); squares rebuilt within 0.5 mm good, within 1 mm fair (CONTRACTS' 1 mm board check).
+    """
+    if not calibration:
+        return {"calibrated": False, "sentences": ["Not calibrated yet."]}
+    cams = calibration.get("cameras") or {}
+    rms = [float(c["rms_px"]) for c in cams.values() if isinstance(c.get("rms_px"), int | float)]
+    reproj = max(rms) if rms else None
+    square = (calibration.get("checks") or {}).get("board_square_error_mm")
+    square = float(square) if isinstance(square, int | float) else None
+    sentences = []
+    grade = _grade(reproj, 0.5, 1.0)
+    if grade:
+        sentences.append(
+            f"Reprojection error {reproj:.2f} px (worst camera): "
+            + {"good": "good, the corners fit the lens model closely.",
+               "fair": "fair; usable, but sharper, slower board movement would help.",
+               "poor": "poor: the board was blurred or badly lit; film the calibration again."}[grade])
+    sq_grade = _grade(square, 0.5, 1.0)
+    if sq_grade:
+        sentences.append(
+            f"Board squares rebuilt within {square:.2f} mm: "
+            + {"good": "good, distances are measured accurately.",
+               "fair": "fair; distances are within a millimetre.",
+               "poor": "poor: check the square size typed for the board, and that the print was at 100 %."}[sq_grade])
+    flags = list(calibration.get("flags") or [])
+    return {"calibrated": True, "reprojection_px": reproj, "board_square_error_mm": square,
+            "reprojection_grade": grade, "square_grade": sq_grade, "flags": flags,
+            "n_views": calibration.get("n_views"), "sentences": sentences}
+
+
+_REGIONS = [["top-left corner", "top edge", "top-right corner"],
+            ["left edge", "centre", "right edge"],
+            ["bottom-left corner", "bottom edge", "bottom-right corner"]]
+
+
+def coverage_words(calibration: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """Per camera: image size, board corners seen (px), hull, share of the image, regions never reached.
+
+    The image is cut in 3 x 3 parts; a part no corner reached is named in the sentence.
+    """
+    if not calibration:
+        return {}
+    corners = calibration.get("board_corners_px") or {}
+    coverage = calibration.get("board_coverage") or {}
+    out = {}
+    for name, cam in (calibration.get("cameras") or {}).items():
+        w, h = (cam.get("image_size") or [0, 0])[:2]
+        pts = np.asarray(corners.get(name) or [], dtype=np.float64).reshape(-1, 2)
+        entry: dict[str, Any] = {"image_size": [w, h], "corners_px": pts.tolist(),
+                                 "hull_px": (coverage.get(name) or {}).get("hull_px"),
+                                 "area_fraction": (coverage.get(name) or {}).get("area_fraction")}
+        if len(pts) and w and h:
+            cells = {(min(int(3 * y / h), 2), min(int(3 * x / w), 2)) for x, y in pts}
+            missed = [_REGIONS[r][c] for r in range(3) for c in range(3) if (r, c) not in cells]
+            entry["missed"] = missed
+            entry["sentence"] = (
+                f"The board reached every part of the {name} camera's image." if not missed else
+                f"The board never reached the {', '.join(missed[:-1]) + ' and ' if len(missed) > 1 else ''}"
+                f"{missed[-1]} of the {name} camera's image: distances measured there are less certain; "
+                "carry the board there when you film the calibration again.")
+        else:
+            entry["missed"] = None
+            entry["sentence"] = (f"Where the board was in the {name} camera's image is not stored for this "
+                                 "calibration; calibrate again to see it.")
+        out[name] = entry
+    return out

@@ -1,0 +1,310 @@
+// Rigs: the club's three-camera set-ups. #/rigs lists them with "add a rig" (name and its calibration
+// board); #/rigs/:id is one rig: the board to print at true scale, its calibration, plumb and static
+// clips per camera (resumable uploads), the calibration's quality in plain words and, per camera,
+// where in the image the board has been.
+
+import { del, get, itemsOf, patch, post, request } from "../api.js";
+import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { poll } from "../poll.js";
+import { navigate } from "../router.js";
+import { can } from "../session.js";
+import { uploadResumable } from "../uploader.js";
+
+export const CAMERAS = ["left", "middle", "right"];
+const RIG_CLIPS = [
+  { kind: "calibration", label: "Calibration (board moved through the view)" },
+  { kind: "plumb", label: "Plumb line" },
+  { kind: "static", label: "Static (horse standing still)" },
+];
+
+export function boardText(board) {
+  if (!board) return "no board described";
+  const [cols, rows] = board.inner_corners;
+  const kind = board.kind === "charuco" ? "ChArUco" : "checkerboard";
+  const extra = board.kind === "charuco" ? `, markers ${board.marker_mm ?? "0.75 \u00d7 square"} mm, ${board.dictionary ?? "DICT_4X4_50"}` : "";
+  return `${kind}, ${cols} \u00d7 ${rows} inner corners, squares ${board.square_mm} mm${extra}`;
+}
+
+/** The board section of a board form (kind, cols, rows, square_mm, marker_mm, dictionary). */
+function boardFrom(values) {
+  const board = {
+    kind: values.kind || "checkerboard",
+    inner_corners: [Number(values.cols), Number(values.rows)],
+    square_mm: Number(values.square_mm),
+  };
+  if (board.kind === "charuco") {
+    if (values.marker_mm) board.marker_mm = Number(values.marker_mm);
+    if (values.dictionary) board.dictionary = values.dictionary;
+  }
+  if (!(board.inner_corners[0] >= 2 && board.inner_corners[1] >= 2)) throw new Error("The board needs at least 2 \u00d7 2 inner corners.");
+  if (!(board.square_mm > 0)) throw new Error("Give the size of one square in millimetres.");
+  return board;
+}
+
+function wireBoardKind(form) {
+  const show = () => {
+    const charuco = form.elements.kind.value === "charuco";
+    for (const el of form.querySelectorAll("[data-charuco-only]")) el.hidden = !charuco;
+  };
+  form.elements.kind.addEventListener("change", show);
+  show();
+}
+
+// ------------------------------------------------------------------------------------------- list
+
+export async function mountRigs(view) {
+  view.append(page("rigs"));
+  const body = view.querySelector("[data-rig-rows]");
+  const form = view.querySelector("[data-rig-form]");
+  wireBoardKind(form);
+  form.hidden = !can("rig.create");
+  const rigs = itemsOf(await get("/api/rigs", { params: { limit: 500 } }));
+  body.replaceChildren(...(rigs.length ? rigs.map((rig) => h("tr", {},
+    h("th", { scope: "row" }, h("a", { href: `#/rigs/${rig.id}` }, rig.name)),
+    h("td", {}, rig.recorded_on || ""),
+    h("td", {}, boardText(rig.board)),
+    h("td", {}, h("span", { class: `status status-${rig.calibrated ? "done" : "queued"}` },
+      rig.calibrated ? "calibrated" : "not calibrated")),
+  )) : [h("tr", {}, h("td", { colspan: 4, class: "hint" }, "No rigs yet: add the rig your cameras form below."))]));
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    showError(form, null);
+    busy(form, async () => {
+      try {
+        const values = formValues(form);
+        if (!values.name) throw new Error("Give the rig a name (e.g. \u201cIndoor arena, three phones\u201d).");
+        const rig = await post("/api/rigs", {
+          name: values.name, ...(values.recorded_on ? { recorded_on: values.recorded_on } : {}), board: boardFrom(values),
+        });
+        announce(`Rig ${rig.name} added.`);
+        navigate(`/rigs/${rig.id}`);
+      } catch (error) {
+        showError(form, error);
+      }
+    });
+  });
+}
+
+// ------------------------------------------------------------------------------------------- one rig
+
+async function showBoard(root, rig) {
+  const box = root.querySelector("[data-board-image]");
+  const note = root.querySelector("[data-board-note]");
+  root.querySelector("[data-board-text]").textContent = boardText(rig.board);
+  if (!rig.board) {
+    box.replaceChildren(h("p", { class: "hint" }, "No board described yet."));
+    note.hidden = true;
+    return;
+  }
+  const text = await request("GET", `/api/rigs/${rig.id}/board.svg`, { headers: { Accept: "image/svg+xml" } });
+  const svg = new DOMParser().parseFromString(String(text), "image/svg+xml").documentElement;
+  // Printed at these sizes (print stylesheet); on screen it shrinks to the page.
+  box.style.setProperty("--board-width", svg.getAttribute("width"));
+  box.style.setProperty("--board-height", svg.getAttribute("height"));
+  box.replaceChildren(document.importNode(svg, true));
+  note.hidden = false;
+  note.querySelector("[data-square-mm]").textContent = `${rig.board.square_mm} mm`;
+}
+
+function clipCell(rig, clip, kind, camera, onUploaded) {
+  const id = `rig-clip-${kind}-${camera}`;
+  const input = h("input", { id, type: "file", accept: "video/*,.mp4,.mov,.avi,.mkv", dataset: { rigClip: `${kind}-${camera}` } });
+  const status = h("span", { class: "hint", "aria-live": "polite" },
+    clip ? `${clip.original_filename || "uploaded"} \u00b7 ${clip.width}\u00d7${clip.height} px, ${Number(clip.fps).toFixed(1)} fps` : "not uploaded");
+  const error = h("p", { class: "form-error", role: "alert", hidden: true });
+  input.addEventListener("change", async () => {
+    if (!input.files.length) return;
+    const file = input.files[0];
+    error.hidden = true;
+    input.disabled = true;
+    try {
+      status.textContent = "uploading\u2026";
+      await uploadResumable(file, { target: "rig_clip", rig_id: rig.id, clip_kind: kind, camera }, {
+        onProgress: (sent) => { status.textContent = `uploading ${Math.floor((100 * sent) / Math.max(file.size, 1))} %`; },
+      });
+      announce(`The ${kind} clip of the ${camera} camera is uploaded.`);
+      await onUploaded();
+    } catch (e) {
+      error.textContent = e.message;
+      error.hidden = false;
+      status.textContent = clip ? "the earlier clip is kept" : "not uploaded";
+    } finally {
+      input.disabled = false;
+      input.value = "";
+    }
+  });
+  return h("div", { class: "rig-clip", dataset: { clipKind: kind, camera } },
+    h("label", { for: id }, RIG_CLIPS.find((c) => c.kind === kind).label), status,
+    h("span", { "data-permission": "rig.create" }, input), error);
+}
+
+function showClips(root, rig, clips, refresh) {
+  const box = root.querySelector("[data-rig-clips]");
+  const uploadAllowed = can("rig.create");
+  box.replaceChildren(...CAMERAS.map((camera) => h("section", { class: "camera-card", "aria-label": `${camera} camera` },
+    h("h3", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera`),
+    ...RIG_CLIPS.map(({ kind }) => {
+      const cell = clipCell(rig, clips.find((c) => c.clip_kind === kind && c.camera_role === camera), kind, camera, refresh);
+      if (!uploadAllowed) cell.querySelector("[data-permission]").remove();
+      return cell;
+    }))));
+}
+
+const SVG_NS = "http://www.w3.org/2000/svg";
+function svgEl(tag, attrs) {
+  const el = document.createElementNS(SVG_NS, tag);
+  for (const [k, v] of Object.entries(attrs)) el.setAttribute(k, v);
+  return el;
+}
+
+/** One camera's image frame with the board corners seen (dots) and their hull. */
+function coveragePicture(camera, entry) {
+  const [w, h_] = entry.image_size;
+  const svg = svgEl("svg", { viewBox: `0 0 ${w} ${h_}`, role: "img", class: "coverage",
+    "aria-label": `Where the board was in the ${camera} camera's image` });
+  svg.append(svgEl("rect", { x: 0, y: 0, width: w, height: h_, class: "coverage-frame" }));
+  // The ninths of the image no corner reached, tinted: where distances are least certain.
+  if (entry.missed) {
+    const reached = new Set((entry.corners_px || []).map(([x, y]) => `${Math.min(2, Math.floor((3 * y) / h_))},${Math.min(2, Math.floor((3 * x) / w))}`));
+    for (let r = 0; r < 3; r += 1) {
+      for (let c = 0; c < 3; c += 1) {
+        if (!reached.has(`${r},${c}`)) svg.append(svgEl("rect", { x: (c * w) / 3, y: (r * h_) / 3, width: w / 3, height: h_ / 3, class: "coverage-missed" }));
+      }
+    }
+  }
+  for (const f of [1, 2]) {
+    svg.append(svgEl("line", { x1: (f * w) / 3, y1: 0, x2: (f * w) / 3, y2: h_, class: "coverage-grid" }));
+    svg.append(svgEl("line", { x1: 0, y1: (f * h_) / 3, x2: w, y2: (f * h_) / 3, class: "coverage-grid" }));
+  }
+  if (entry.hull_px?.length) {
+    svg.append(svgEl("polygon", { points: entry.hull_px.map(([x, y]) => `${x},${y}`).join(" "), class: "coverage-hull" }));
+  }
+  const r = Math.max(w, h_) / 250;
+  for (const [x, y] of entry.corners_px || []) svg.append(svgEl("circle", { cx: x, cy: y, r, class: "coverage-dot" }));
+  return svg;
+}
+
+function calibrationMissing(rig, clips) {
+  const missing = [];
+  if (!rig.board) missing.push("The rig has no calibration board described.");
+  const have = clips.filter((c) => c.clip_kind === "calibration").map((c) => c.camera_role);
+  const lacking = CAMERAS.filter((c) => !have.includes(c));
+  if (lacking.length) missing.push(`The calibration clip of the ${lacking.join(" and ")} camera${lacking.length > 1 ? "s is" : " is"} missing.`);
+  return missing;
+}
+
+function showCalibration(root, rig, clips, report) {
+  const status = root.querySelector("[data-calibration-status]");
+  const words = root.querySelector("[data-calibration-words]");
+  const flags = root.querySelector("[data-calibration-flags]");
+  const coverage = root.querySelector("[data-coverage]");
+  const missing = calibrationMissing(rig, clips);
+  const q = report.quality;
+  if (report.calibrating) status.textContent = "Calibrating now\u2026 (this page updates by itself)";
+  else if (q.calibrated) status.textContent = "Calibrated: rides of this rig reuse this calibration.";
+  else if (missing.length) status.textContent = `Not calibrated yet. ${missing.join(" ")}`;
+  else status.textContent = "Not calibrated yet: the calibration has not run or did not succeed (see Jobs); start it again below.";
+  words.replaceChildren(...(q.calibrated ? q.sentences : []).map((s) => h("li", {}, s)));
+  flags.replaceChildren(...(q.flags || []).map((f) => h("li", { class: "flag" }, f)));
+  coverage.replaceChildren(...Object.entries(report.coverage || {}).map(([camera, entry]) => h("figure", { class: "coverage-figure" },
+    coveragePicture(camera, entry), h("figcaption", {}, h("strong", {}, `${camera}: `), entry.sentence))));
+  const again = root.querySelector("[data-calibrate]");
+  again.hidden = !can("ride.analyse") || report.calibrating || missing.length > 0;
+  again.textContent = q.calibrated ? "Calibrate again" : "Calibrate now";
+}
+
+function wireBoardEdit(root, rig, reload) {
+  const form = root.querySelector("[data-board-form]");
+  form.hidden = !can("rig.change_board");
+  if (form.hidden) return;
+  wireBoardKind(form);
+  if (rig.board) {
+    form.elements.kind.value = rig.board.kind;
+    [form.elements.cols.value, form.elements.rows.value] = rig.board.inner_corners;
+    form.elements.square_mm.value = rig.board.square_mm;
+    if (rig.board.marker_mm) form.elements.marker_mm.value = rig.board.marker_mm;
+    if (rig.board.dictionary) form.elements.dictionary.value = rig.board.dictionary;
+    form.elements.kind.dispatchEvent(new Event("change"));
+  }
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    showError(form, null);
+    busy(form, async () => {
+      try {
+        await patch(`/api/rigs/${rig.id}`, { board: boardFrom(formValues(form)) });
+        announce("Board changed.");
+        await reload();
+      } catch (error) {
+        showError(form, error);
+      }
+    });
+  });
+}
+
+export async function mountRig(view, params) {
+  // Its own box: uploads and polls finishing after the user left look into it, not into the next page.
+  const root = h("div", { class: "rig-page" });
+  root.append(page("rig"));
+  view.append(root);
+  const rigId = Number(params.id);
+  let gone = false;
+  let rig = await get(`/api/rigs/${rigId}`);
+  let clips = [];
+  let poller = null;
+  root.querySelector("[data-rig-name]").textContent = rig.name;
+  root.querySelector("[data-upload-with-rig]").href = `#/upload?rig=${rigId}`;
+  root.querySelector("[data-rig-date]").textContent = rig.recorded_on ? `Recorded on ${rig.recorded_on}` : "";
+
+  async function refreshCalibration() {
+    if (gone) return false;
+    const report = await get(`/api/rigs/${rigId}/calibration-report`);
+    rig = await get(`/api/rigs/${rigId}`);
+    if (gone) return false;
+    showCalibration(root, rig, clips, report);
+    return report.calibrating;
+  }
+  async function reload() {
+    if (gone) return;
+    rig = await get(`/api/rigs/${rigId}`);
+    clips = await get(`/api/rigs/${rigId}/clips`);
+    if (gone) return;
+    await showBoard(root, rig);
+    showClips(root, rig, clips, reload);
+    poller?.stop?.();
+    poller = poll(refreshCalibration, { intervalMs: 3000 });
+  }
+  wireBoardEdit(root, rig, reload);
+  root.querySelector("[data-print-board]").addEventListener("click", () => {
+    document.body.classList.add("printing-board");
+    window.addEventListener("afterprint", () => document.body.classList.remove("printing-board"), { once: true });
+    window.print();
+  });
+  root.querySelector("[data-calibrate]").addEventListener("click", async (event) => {
+    const button = event.currentTarget;
+    button.disabled = true;
+    try {
+      await post(`/api/rigs/${rigId}/calibrate`, {});
+      await reload();
+    } catch (error) {
+      showError(root.querySelector("[data-calibration-panel]"), error);
+    } finally {
+      button.disabled = false;
+    }
+  });
+  const remove = root.querySelector("[data-rig-delete]");
+  remove.hidden = !can("rig.delete");
+  remove.addEventListener("click", async () => {
+    if (!window.confirm(`Delete the rig \u201c${rig.name}\u201d with its clips and calibration?`)) return;
+    try {
+      await del(`/api/rigs/${rigId}`);
+      navigate("/rigs");
+    } catch (error) {
+      showError(root.querySelector("[data-rig-header]"), error);
+    }
+  });
+  await reload();
+  return () => {
+    gone = true;
+    poller?.stop?.();
+  };
+}
