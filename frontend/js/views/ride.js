@@ -13,6 +13,7 @@ import { poll } from "../poll.js";
 import { can } from "../session.js";
 import { drawAnalysis, showQuality } from "./ride-analysis.js";
 import { mountAlikePanel } from "./similar.js";
+import { mountReadiness } from "../ride-readiness.js";
 
 // Order of saddlescope.core.kinematics.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
 const VERSION_NAMES = ["1,ver1", "2,ver1", "1,ver2", "2,ver2", "1,ver3", "2,ver3"];
@@ -309,6 +310,11 @@ export async function mountRide(view, { id }) {
     ride.meta?.source?.kind === "mocap" ? ` \u00b7 from the motion-capture file ${ride.meta.source.file}` : "",
     " \u00b7 ", h("span", { class: `badge status-${ride.status}` }, ride.status));
   showMeta();
+  // A ride still missing clips says what it lacks (and where to add it) instead of an empty page.
+  if (ride.status === "new" && ride.meta?.source?.kind !== "mocap") {
+    const slot = view.querySelector("[data-readiness-slot]");
+    if (slot) mountReadiness(slot, rideId).catch((error) => console.info("readiness not available:", error.message));
+  }
 
   let stopAlike = null;
   async function loadResult() {
