@@ -6,14 +6,16 @@ detection"``, ``"probe: motion/left"``); this one table says each in words a clu
 
 from __future__ import annotations
 
+from saddlescope.core.types import CAMERA_ROLES
+
 __all__ = ["STAGE_LABELS", "STEP_LABELS", "progress_percent", "stage_label"]
 
 # Stage names (services/stages.py) -> what the job is doing.
 STAGE_LABELS: dict[str, str] = {
     "probe": "Checking the clips",
     "assemble": "Putting the clips together",
-    "calibrate": "Finding the calibration board",
-    "calibrate_rig": "Calibrating the cameras",
+    "calibrate": "Calibrating the cameras",
+    "calibrate_rig": "Calibrating the rig's cameras",
     "analyze": "Analysing the ride",
     "similarity": "Comparing rides",
     "selftest": "Testing the workers",
@@ -49,8 +51,8 @@ def stage_label(stage: str | None, status: str) -> str:
     label = STAGE_LABELS.get(name, name.replace("_", " ").capitalize())
     if detail:
         step = STEP_LABELS.get(detail)
-        if step is None and "/" in detail:  # a clip: "motion/left"
-            kind, _, camera = detail.partition("/")
+        kind, _, camera = detail.partition("/")
+        if step is None and camera in CAMERA_ROLES:  # a clip: "motion/left"
             step = f"{kind} clip of the {camera} camera"
         label = f"{label}: {step or detail}"
     return label

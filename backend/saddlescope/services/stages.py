@@ -388,6 +388,15 @@ def run_calibrate_rig(ctx: StageContext) -> None:
     _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
 
 
+def _edited_settings(bundle: Path, settings: dict[str, str]) -> dict[str, str]:
+    """The ride's settings its bundle's ride.json says otherwise (edited after the upload)."""
+    try:
+        meta = json.loads((Path(bundle) / "ride.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        meta = {}
+    return {name: value for name, value in settings.items() if meta.get(name) != value}
+
+
 @stage("analyze", weight=20.0)
 def run_analyze(ctx: StageContext) -> None:
     """Run the whole pipeline on the ride's bundle and store its result (replacing an earlier one)."""
@@ -413,8 +422,9 @@ def run_analyze(ctx: StageContext) -> None:
         from saddlescope.services.calibration import rig_from_calibration
 
         rig_model = rig_from_calibration(calibration)
+    changed = _edited_settings(path, settings)
     result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model,
-                            meta_overrides=settings)
+                            **({"meta_overrides": changed} if changed else {}))
     # The result document is what the dashboard and the exports read (its series decimated on the way);
     # it replaces the previous one atomically (the old one stays readable until the new one is committed).
     from saddlescope.services.results import commit_result

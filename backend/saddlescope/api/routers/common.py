@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import StrEnum
@@ -71,16 +72,22 @@ def sort_enum(name: str, fields: Iterable[str]) -> type[StrEnum]:
 def paging_sorted_by(sort_values: type[StrEnum], default: str):
     """A paging dependency whose `sort` is one of `sort_values` (an enum the OpenAPI shows)."""
 
-    def dependency(
-        limit: Annotated[int, Query(ge=1, le=500, description="rows per page")] = 50,
-        offset: Annotated[int, Query(ge=0, le=MAX_OFFSET, description="rows to skip")] = 0,
-        sort: Annotated[
-            sort_values | None,  # type: ignore[valid-type]
-            Query(description=f"field to sort by, '-field' for descending (default {default})"),
-        ] = None,
-    ) -> Paging:
+    def dependency(limit: int, offset: int, sort: StrEnum | None) -> Paging:
         return Paging(limit, offset, sort.value if sort is not None else None)
 
+    # Annotations built here, not written (this module's annotations are strings FastAPI resolves by name).
+    sort_type = Annotated[
+        sort_values | None,  # type: ignore[valid-type]
+        Query(description=f"field to sort by, '-field' for descending (default {default})"),
+    ]
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    dependency.__signature__ = inspect.Signature([  # type: ignore[attr-defined]
+        inspect.Parameter("limit", keyword, default=50,
+                          annotation=Annotated[int, Query(ge=1, le=500, description="rows per page")]),
+        inspect.Parameter("offset", keyword, default=0,
+                          annotation=Annotated[int, Query(ge=0, le=MAX_OFFSET, description="rows to skip")]),
+        inspect.Parameter("sort", keyword, default=None, annotation=sort_type),
+    ])
     return Annotated[Paging, Depends(dependency)]
 
 
