@@ -20,7 +20,7 @@ function percentOf(job) {
 function progressCell(job) {
   const percent = percentOf(job);
   return h("td", { class: "progress-cell" },
-    h("progress", { max: "100", value: String(percent), "aria-label": `Job ${job.id} progress`,
+    h("progress", { max: "1", value: String(job.progress ?? 0), "aria-label": `Job ${job.id} progress`,
                     "aria-valuetext": `${percent} percent` }),
     h("span", { class: "num", "data-job-percent": true }, ` ${percent}\u00a0%`));
 }
