@@ -11,6 +11,8 @@ chromium driven by Playwright; skipped without it (fails under CI=true), as test
 from __future__ import annotations
 
 import subprocess
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
@@ -57,7 +59,7 @@ def server(tmp_path_factory):
         proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
                                 env=env, stdout=log, stderr=subprocess.STDOUT)
     try:
-        _wait_healthy(base, proc, log_path)
+        _wait_healthy(base, proc, log_path, timeout_s=240)  # a busy machine starts slowly
         yield {"base": base, **_seed(base, database_url, storage_dir)}
     finally:
         integration_services.stop_process(proc)
@@ -105,7 +107,8 @@ def _page(browser, server, *, email=EMAIL, password=PASSWORD, width=1280):
     tab = context.new_page()
     tab.console = Console()
     tab.console.attach(tab)
-    tab.set_default_timeout(15_000)
+    tab.set_default_timeout(30_000)
+    tab.set_default_navigation_timeout(60_000)
     answer = context.request.post("/api/auth/login", data={"email": email, "password": password})
     assert answer.ok, answer.text()
     return tab
@@ -118,12 +121,14 @@ def admin_page(browser, server):
     tab.context.close()
 
 
-def api(server) -> httpx.Client:
-    client = httpx.Client(base_url=server["base"], timeout=30)
-    token = _ok(client.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
-    client.cookies.clear()
-    client.headers["Authorization"] = f"Bearer {token}"
-    return client
+@contextmanager
+def api(server) -> Iterator[httpx.Client]:
+    """A client of the server signed in as the admin with a bearer token (no cookies, so no CSRF)."""
+    with httpx.Client(base_url=server["base"], timeout=30) as client:
+        token = _ok(client.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
+        client.cookies.clear()
+        client.headers["Authorization"] = f"Bearer {token}"
+        yield client
 
 
 def _range_text(page) -> str:
