@@ -15,6 +15,15 @@ from saddlescope.db.session import make_engine
 pg_database_url = integration_services.pg_database_url
 
 
+ROWS = [
+    "INSERT INTO clubs (id, name, created_at) VALUES (1, 'Club', CURRENT_TIMESTAMP)",
+    "INSERT INTO horses (id, club_id, name, created_at) VALUES (1, 1, 'H', CURRENT_TIMESTAMP)",
+    "INSERT INTO riders (id, club_id, name, created_at) VALUES (1, 1, 'R', CURRENT_TIMESTAMP)",
+    "INSERT INTO rides (id, club_id, horse_id, rider_id, gait, direction, status, notes, meta, created_at) "
+    "VALUES (1, 1, 1, 1, 'walk', 'CW', 'new', '', '{}', CURRENT_TIMESTAMP)",
+]
+
+
 def _indexes_of_0007() -> dict:
     spec = importlib.util.find_spec("saddlescope")
     from pathlib import Path
@@ -36,11 +45,8 @@ def check_0007_up_and_down(database_url: str) -> None:
     engine = make_engine(database_url)
     try:
         with engine.begin() as conn:
-            conn.execute(text("INSERT INTO clubs (id, name, created_at) VALUES (1, 'Club', CURRENT_TIMESTAMP)"))
-            conn.execute(text("INSERT INTO horses (id, club_id, name, created_at) VALUES (1, 1, 'H', CURRENT_TIMESTAMP)"))
-            conn.execute(text("INSERT INTO riders (id, club_id, name, created_at) VALUES (1, 1, 'R', CURRENT_TIMESTAMP)"))
-            conn.execute(text("INSERT INTO rides (id, club_id, horse_id, rider_id, gait, direction, status, notes, "
-                              "meta, created_at) VALUES (1, 1, 1, 1, 'walk', 'CW', 'new', '', '{}', CURRENT_TIMESTAMP)"))
+            for statement in ROWS:
+                conn.execute(text(statement))
         for name, (table, _) in indexes.items():
             assert name in _index_names(engine, table), f"{name} missing after upgrade"
         command.downgrade(alembic_config(database_url), "0006")

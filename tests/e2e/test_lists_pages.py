@@ -295,4 +295,4 @@ def test_jobs_horses_and_riders_pages_page_and_filter(admin_page, server):
     page.locator("[data-entity-table] tbody tr").first.wait_for()
     assert page.locator("[data-entity-table] tbody tr th").all_inner_texts() == ["Rider C", "Rider B", "Rider A"]
     _shoot(page, "riders")
-    assert page.console.unexpected() == []
+    assert page.console.unexpected(409) == []  # the refused horse deletion only

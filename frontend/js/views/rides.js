@@ -31,6 +31,7 @@ export async function mountRides(view, params, query) {
     });
     editSlot.prepend(h("button", { type: "button", class: "link-button close", "data-ride-edit-close": true,
                                    onclick: () => updateQuery({ edit: null }) }, "Close"));
+    editSlot.scrollIntoView({ block: "start" });
   }
 
   async function remove(ride) {
