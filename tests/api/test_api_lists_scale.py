@@ -45,7 +45,7 @@ def club(env):
         with engine.begin() as conn:
             conn.execute(text(
                 "INSERT INTO rides (club_id, horse_id, rider_id, gait, direction, status, notes, meta, ridden_on, "
-                "created_at) SELECT :club, (ARRAY[:horses])[1 + i % 20], (ARRAY[:riders])[1 + i % 10], "
+                "created_at) SELECT :club, (CAST(:horses AS int[]))[1 + i % 20], (CAST(:riders AS int[]))[1 + i % 10], "
                 "(ARRAY['walk','sitting_trot','rising_trot','canter'])[1 + (i / 7) % 4], "
                 "CASE WHEN i % 2 = 0 THEN 'CW' ELSE 'CCW' END, "
                 "(ARRAY['new','ready','analysed','failed'])[1 + (i / 3) % 4], '', '{}', "
