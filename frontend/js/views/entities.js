@@ -35,6 +35,9 @@ export function mountEntities(kindName) {
     const state = listState(query ?? new URLSearchParams(), { filters: ["q"], sort: "name" });
     const pagerSlot = view.querySelector("[data-entity-pager]");
     const tableWrap = view.querySelector(".table-wrap");
+    // Errors of the list (a refused deletion) show above it, not in the add form.
+    const listPanel = tableWrap.closest(".panel");
+    listPanel.querySelector("h2").after(h("p", { class: "form-error", role: "alert", "data-form-error": true, hidden: true }));
     const table = view.querySelector("[data-entity-table]");
     const empty = view.querySelector("[data-entity-empty]");
     const form = view.querySelector("[data-entity-form]");
@@ -82,13 +85,14 @@ export function mountEntities(kindName) {
 
     async function remove(item) {
       if (!window.confirm(`Delete ${kind.noun} ${item.name}?`)) return;
+      showError(listPanel, null);
       try {
         await del(`${kind.url}/${item.id}`);
         announce(`${capitalised(kind.noun)} ${item.name} deleted.`);
         if (editing?.id === item.id) setEditing(null);
         await load();
       } catch (error) {
-        showError(form, error); // e.g. 409: rides still use it
+        showError(listPanel, error); // e.g. 409: rides still use it, saying how many
       }
     }
 
@@ -119,7 +123,7 @@ export function mountEntities(kindName) {
     try {
       await load();
     } catch (error) {
-      showError(form, error);
+      showError(listPanel, error);
     }
   };
 }
