@@ -121,12 +121,12 @@ def standin_calibration(size: tuple[int, int] = (640, 480)) -> dict:
     }
 
 
-def standin_analyze_bundle(path, on_progress=None, rig=None, params=None):
+def standin_analyze_bundle(path, on_progress=None, rig=None, params=None, meta_overrides=None):
     from saddlescope.io.bundle import open_bundle
 
     STANDIN.calls += 1
     with open_bundle(Path(path)) as bundle:
-        meta = dict(bundle.meta)
+        meta = {**bundle.meta, **(meta_overrides or {})}
     steps = max(1, int(STANDIN.delay_s / 0.1))
     for i in range(steps):
         if STANDIN.delay_s:

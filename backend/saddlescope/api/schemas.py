@@ -427,6 +427,9 @@ class RideOut(_Out):
     from_bundle: bool
     indicators: dict[str, float | None] | None = Field(description="the comfort indicators once analysed")
     created_at: dt.datetime
+    created_by: int | None = Field(default=None, description="the user who made the ride (None: not recorded)")
+    result_outdated_by: list[str] = Field(default_factory=list, description=(
+        "details changed since the shown result was computed (e.g. ['gait']): re-analyse to update it"))
 
 
 class RideDetail(RideOut):
@@ -578,6 +581,10 @@ class JobOut(BaseModel):
     note: str | None = Field(default=None, description=(
         "what an unfinished job waits for, e.g. 'waiting for a worker: ...' when no worker is alive "
         "or its worker stopped sending heartbeats"))
+    progress_percent: int = Field(default=0, ge=0, le=100, description="progress as a whole percentage")
+    stage_label: str = Field(default="", description="what the job is doing, in plain words")
+    owner_id: int | None = Field(default=None, description=(
+        "the user who made the job's ride (may cancel and retry it); None: admins only"))
 
 
 class JobKindOut(BaseModel):

@@ -190,7 +190,15 @@ class Ride(TimestampMixin, Base):
     """One ride: a horse, a rider, a gait and direction, and the clips of its recording."""
 
     __tablename__ = "rides"
-    __table_args__ = (Index("ix_rides_club_id_gait", "club_id", "gait"),)
+    __table_args__ = (
+        Index("ix_rides_club_id_gait", "club_id", "gait"),
+        # The rides list's filters and sorts (migration 0007_lists).
+        Index("ix_rides_club_ridden_on", "club_id", "ridden_on", "id"),
+        Index("ix_rides_club_created_at", "club_id", "created_at"),
+        Index("ix_rides_club_horse_ridden_on", "club_id", "horse_id", "ridden_on"),
+        Index("ix_rides_club_rider_ridden_on", "club_id", "rider_id", "ridden_on"),
+        Index("ix_rides_club_status_ridden_on", "club_id", "status", "ridden_on"),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
@@ -251,6 +259,10 @@ class Job(Base):
     __table_args__ = (
         CheckConstraint("progress >= 0 AND progress <= 1", name="progress_range"),
         Index("ix_jobs_status_created_at", "status", "created_at"),
+        # The jobs list's filters, newest first (migration 0007_lists).
+        Index("ix_jobs_club_id_id", "club_id", "id"),
+        Index("ix_jobs_club_status_id", "club_id", "status", "id"),
+        Index("ix_jobs_club_kind_id", "club_id", "kind", "id"),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)

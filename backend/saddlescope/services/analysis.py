@@ -21,8 +21,12 @@ def load_calibration_file(path: Path) -> Rig:
 
 
 def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None] | None = None,
-                   params: PipelineParams | None = None, rig: Rig | None = None) -> dict:
-    """Open a ride bundle (folder or zip), run the pipeline, return the validated result document."""
+                   params: PipelineParams | None = None, rig: Rig | None = None,
+                   meta_overrides: dict | None = None) -> dict:
+    """Open a ride bundle (folder or zip), run the pipeline, return the validated result document.
+
+    `meta_overrides` replace keys of the bundle's ride.json (a ride's gait edited after upload).
+    """
     with open_bundle(Path(path)) as bundle:
         clips = BundleClips(bundle.clip_paths)
         notes: list[str] = []
@@ -30,7 +34,8 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
             from saddlescope.io.bundle import read_bundle_calibration
 
             rig, notes = read_bundle_calibration(bundle.calibration_file)
-        result = analyze_ride(clips, bundle.meta, params=params, rig=rig, on_progress=on_progress,
+        meta = {**bundle.meta, **(meta_overrides or {})}
+        result = analyze_ride(clips, meta, params=params, rig=rig, on_progress=on_progress,
                               input_flags=list(bundle.warnings) + notes)
     document = result_to_document(result)
     validate_result(document)

@@ -19,6 +19,7 @@ from saddlescope.db.repositories import JobRepository, RideRepository, RigReposi
 from saddlescope.db.session import session_scope
 from saddlescope.services.queue import JobQueue, QueueUnavailable
 from saddlescope.services.rides import refresh_ride_status
+from saddlescope.services.stage_labels import progress_percent, stage_label
 from saddlescope.services.stages import job_kind
 
 __all__ = [
@@ -93,6 +94,8 @@ def job_as_dict(job: Job) -> dict[str, Any]:
         "payload": _printable(dict(job.payload or {})), "attempts": job.attempts, "code_version": job.code_version,
         "host": job.host, "created_at": job.created_at, "started_at": job.started_at,
         "finished_at": job.finished_at, "note": None,
+        "progress_percent": progress_percent(job.progress, job.status),
+        "stage_label": stage_label(_printable(job.stage), job.status),
     }
 
 

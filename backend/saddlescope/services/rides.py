@@ -34,6 +34,11 @@ from saddlescope.storage import Storage, ride_bundle_key, tree_digest
 
 __all__ = [
     "ANALYSIS_JOB_KIND",
+    "RESULT_SETTINGS",
+    "analysed_settings",
+    "outdated_result_settings",
+    "note_analysed_settings",
+    "update_ride_details",
     "complete_clip_sets",
     "refresh_ride_status",
     "register_bundle",
@@ -43,6 +48,38 @@ __all__ = [
 
 # The job kind whose outcome is the ride's analysis (its status shows that job's).
 ANALYSIS_JOB_KIND = "analyze"
+
+# The ride's details the pipeline reads (ride.json): the gait guides the fit of the strides and both
+# are written into the result. Horse, rider, date and notes only label the result.
+RESULT_SETTINGS = ("gait", "direction")
+_ANALYSED_AS = "_analysed_as"  # meta key: the RESULT_SETTINGS the current result was computed with
+
+
+def analysed_settings(ride: Ride) -> dict[str, str]:
+    """The ride's RESULT_SETTINGS now, as its next analysis will read them."""
+    return {name: getattr(ride, name) for name in RESULT_SETTINGS}
+
+
+def outdated_result_settings(ride: Ride) -> list[str]:
+    """The settings changed since the ride's result was computed (empty: the result is current)."""
+    analysed = dict(ride.meta or {}).get(_ANALYSED_AS) or {}
+    return [name for name in RESULT_SETTINGS
+            if name in analysed and analysed[name] != getattr(ride, name)]
+
+
+def update_ride_details(session: Session, ride_id: int, *, club_id: int | None, **values) -> Ride:
+    """Change a ride's details; if it has a result, remember what that result was computed with."""
+    rides = RideRepository(session, club_id=club_id)
+    ride = rides.get(ride_id)
+    meta = dict(ride.meta or {})
+    if _ANALYSED_AS not in meta and ResultRepository(session).for_ride(ride_id) is not None:
+        rides.note(ride_id, **{_ANALYSED_AS: analysed_settings(ride)})
+    return rides.update_fields(ride_id, **values)
+
+
+def note_analysed_settings(session: Session, ride_id: int, settings: dict[str, str]) -> None:
+    """Record the settings a new result was computed with (the analyze stage, after storing it)."""
+    RideRepository(session).note(ride_id, **{_ANALYSED_AS: dict(settings)})
 
 
 def complete_clip_sets(recordings: Iterable) -> dict[str, dict[str, str]]:

@@ -40,7 +40,13 @@ from saddlescope.db.repositories import (
     RigRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.services.rides import ANALYSIS_JOB_KIND, complete_clip_sets, ride_clip_plan
+from saddlescope.services.rides import (
+    ANALYSIS_JOB_KIND,
+    analysed_settings,
+    complete_clip_sets,
+    note_analysed_settings,
+    ride_clip_plan,
+)
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key, tree_digest
 
@@ -382,6 +388,15 @@ def run_calibrate_rig(ctx: StageContext) -> None:
     _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
 
 
+def _edited_settings(bundle: Path, settings: dict[str, str]) -> dict[str, str]:
+    """The ride's settings its bundle's ride.json says otherwise (edited after the upload)."""
+    try:
+        meta = json.loads((Path(bundle) / "ride.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        meta = {}
+    return {name: value for name, value in settings.items() if meta.get(name) != value}
+
+
 @stage("analyze", weight=20.0)
 def run_analyze(ctx: StageContext) -> None:
     """Run the whole pipeline on the ride's bundle and store its result (replacing an earlier one)."""
@@ -401,18 +416,23 @@ def run_analyze(ctx: StageContext) -> None:
         if ride.bundle_key is None and not (ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE).is_dir():
             raise BundleError(f"ride {ride_id} has no ride bundle in storage (register its clips first)")
         path = _bundle_path(ctx, ride)
+        settings = analysed_settings(ride)  # a bundle's ride.json may say otherwise: the ride's own win
     rig_model = None
     if calibration is not None:
         from saddlescope.services.calibration import rig_from_calibration
 
         rig_model = rig_from_calibration(calibration)
-    result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model)
+    changed = _edited_settings(path, settings)
+    result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model,
+                            **({"meta_overrides": changed} if changed else {}))
     # The result document is what the dashboard and the exports read (its series decimated on the way);
     # it replaces the previous one atomically (the old one stays readable until the new one is committed).
     from saddlescope.services.results import commit_result
 
     commit_result(ctx.sessions, ctx.storage, club_id=club_id, ride_id=ride_id, job_id=ctx.job_id,
                   document=result, code_version=ctx.settings.resolved_code_version)
+    with ctx.session() as session:
+        note_analysed_settings(session, ride_id, settings)
     ctx.report(1.0, None)
 
 

@@ -1,14 +1,18 @@
-// Horses and riders: a list with edit buttons next to a form that adds or edits one.
+// Horses and riders: a list searched, sorted and paged by the server (state in the URL:
+// #/horses?q=bra&page=2), with edit buttons, next to a form that adds or edits one. Delete is for
+// admins only (horse.delete), so nobody else sees it. A horse's name opens its page (#/horses/:id).
 
 import { del, get, itemsOf, patch, post } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { fmt } from "../format.js";
+import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
+import { can } from "../session.js";
 
 const KINDS = {
   horses: {
     url: "/api/horses",
     noun: "horse",
-    columns: [(x) => x.name, (x) => x.breed ?? "", (x) => x.birth_year ?? "",
+    columns: [(x) => h("a", { href: `#/horses/${x.id}` }, x.name), (x) => x.breed ?? "", (x) => x.birth_year ?? "",
               (x) => (x.height_withers_m ? fmt(x.height_withers_m) : "")],
     fields: ["name", "breed", "birth_year", "height_withers_m"],
   },
@@ -25,9 +29,15 @@ function capitalised(word) {
 }
 
 export function mountEntities(kindName) {
-  return async (view) => {
+  return async (view, params, query) => {
     const kind = KINDS[kindName];
     view.append(page(kindName));
+    const state = listState(query ?? new URLSearchParams(), { filters: ["q"], sort: "name" });
+    const pagerSlot = view.querySelector("[data-entity-pager]");
+    const tableWrap = view.querySelector(".table-wrap");
+    // Errors of the list (a refused deletion) show above it, not in the add form.
+    const listPanel = tableWrap.closest(".panel");
+    listPanel.querySelector("h2").after(h("p", { class: "form-error", role: "alert", "data-form-error": true, hidden: true }));
     const table = view.querySelector("[data-entity-table]");
     const empty = view.querySelector("[data-entity-empty]");
     const form = view.querySelector("[data-entity-form]");
@@ -51,29 +61,38 @@ export function mountEntities(kindName) {
       if (item) form.elements.name.focus();
     }
 
+    function actions(item) {
+      const cell = h("td", { class: "actions" },
+        h("button", { type: "button", class: "link-button", "aria-label": `Edit ${item.name}`,
+                      onclick: () => setEditing(item) }, "Edit"));
+      if (can("horse.delete")) { // admins only (the same permission covers riders)
+        cell.append(h("button", { type: "button", class: "link-button danger", "data-permission": "horse.delete",
+                                  "aria-label": `Delete ${item.name}`, onclick: () => remove(item) }, "Delete"));
+      }
+      return cell;
+    }
+
     async function load() {
-      const items = itemsOf(await get(kind.url, { params: { limit: 500 } }))
-        .sort((a, b) => a.name.localeCompare(b.name));
+      const answer = await get(kind.url, { params: apiParams(state) });
+      const items = itemsOf(answer);
       table.tBodies[0].replaceChildren(...items.map((item) => h("tr", { dataset: { id: item.id } },
         ...kind.columns.map((col, i) => (i === 0 ? h("th", { scope: "row" }, col(item)) : h("td", {}, col(item)))),
-        h("td", { class: "actions" },
-          h("button", { type: "button", class: "link-button", "aria-label": `Edit ${item.name}`,
-                        onclick: () => setEditing(item) }, "Edit"),
-          h("button", { type: "button", class: "link-button danger", "aria-label": `Delete ${item.name}`,
-                        onclick: () => remove(item) }, "Delete")))));
-      table.hidden = !items.length;
+        actions(item))));
+      tableWrap.hidden = !items.length;
       empty.hidden = items.length > 0;
+      pagerSlot.replaceChildren(pager(answer, state, { noun: kindName }));
     }
 
     async function remove(item) {
       if (!window.confirm(`Delete ${kind.noun} ${item.name}?`)) return;
+      showError(listPanel, null);
       try {
         await del(`${kind.url}/${item.id}`);
         announce(`${capitalised(kind.noun)} ${item.name} deleted.`);
         if (editing?.id === item.id) setEditing(null);
         await load();
       } catch (error) {
-        showError(form, error); // e.g. 409: rides still use it
+        showError(listPanel, error); // e.g. 409: rides still use it, saying how many
       }
     }
 
@@ -99,11 +118,12 @@ export function mountEntities(kindName) {
       }
     });
     cancel.addEventListener("click", () => setEditing(null));
+    bindFilterForm(view.querySelector("[data-entity-filter]"), state);
 
     try {
       await load();
     } catch (error) {
-      showError(form, error);
+      showError(listPanel, error);
     }
   };
 }

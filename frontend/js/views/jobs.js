@@ -1,25 +1,56 @@
-// Jobs with live progress: polled while any is queued or running; cancel and retry.
+// Jobs: filtered and paged by the server (state in the URL: #/jobs?status=failed&page=2), progress as a
+// percentage with what the job is doing in plain words, "waiting for a worker" notes shown
+// prominently, polled while any job on the page is queued or running. Cancel and retry are shown only
+// to those allowed (the ride's maker and admins: can("job.cancel", owner)).
 
 import { get, itemsOf, post } from "../api.js";
 import { announce, formatDate, h, page, showError } from "../dom.js";
+import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
 import { poll } from "../poll.js";
+import { can } from "../session.js";
 
 const UNFINISHED = new Set(["queued", "running"]);
+const FILTERS = ["status", "kind", "ride_id"];
+
+function percentOf(job) {
+  if (Number.isFinite(job.progress_percent)) return job.progress_percent;
+  return Math.round((job.progress ?? 0) * 100);
+}
 
 function progressCell(job) {
-  const percent = Math.round((job.progress ?? 0) * 100);
+  const percent = percentOf(job);
   return h("td", { class: "progress-cell" },
     h("progress", { max: "1", value: String(job.progress ?? 0), "aria-label": `Job ${job.id} progress`,
                     "aria-valuetext": `${percent} percent` }),
-    h("span", { class: "num" }, ` ${percent} %`));
+    h("span", { class: "num", "data-job-percent": true }, ` ${percent}\u00a0%`));
 }
 
-export async function mountJobs(view) {
+function doingCell(job) {
+  const label = job.stage_label || job.stage || "";
+  return h("td", { class: "stage" },
+    h("span", { "data-job-stage": true }, label),
+    job.note && UNFINISHED.has(job.status) ? h("strong", { class: "job-note", role: "status", "data-job-note": true }, job.note) : null,
+    job.error ? h("span", { class: "error" }, job.error) : null);
+}
+
+async function fillKinds(select) {
+  try {
+    const kinds = await get("/api/jobs/kinds");
+    select.append(...kinds.map((kind) => h("option", { value: kind.name }, kind.name.replace(/_/g, " "))));
+  } catch (error) {
+    console.info("job kinds not available:", error.message);
+  }
+}
+
+export async function mountJobs(view, params, query) {
   view.append(page("jobs"));
-  const panel = view.querySelector(".panel");
+  const state = listState(query, { filters: FILTERS, sort: "-id" });
+  const form = view.querySelector("[data-jobs-filter]");
+  const panel = view.querySelector("[data-jobs-table]").closest(".panel");
   const table = view.querySelector("[data-jobs-table]");
   const empty = view.querySelector("[data-jobs-empty]");
   const note = view.querySelector("[data-jobs-note]");
+  const pagerSlot = view.querySelector("[data-jobs-pager]");
   panel.prepend(h("p", { class: "form-error", role: "alert", "data-form-error": true, hidden: true }));
   const lastStatus = new Map();
 
@@ -27,54 +58,64 @@ export async function mountJobs(view) {
     try {
       await post(`/api/jobs/${job.id}/${action}`);
       announce(`Job ${job.id}: ${action} requested.`);
-      poller.now();
+      poller.restart();
     } catch (error) {
       showError(panel, error);
     }
   }
 
+  function actionButton(job, action, label) {
+    return h("button", { type: "button", class: "link-button", "data-permission": `job.${action}`,
+                         onclick: () => act(job, action), "aria-label": `${label} job ${job.id}` }, label);
+  }
+
   function row(job) {
     const actions = [];
-    if (UNFINISHED.has(job.status)) {
-      actions.push(h("button", { type: "button", class: "link-button", onclick: () => act(job, "cancel"),
-                                 "aria-label": `Cancel job ${job.id}` }, "Cancel"));
-    } else if (job.status === "failed" || job.status === "cancelled") {
-      actions.push(h("button", { type: "button", class: "link-button", onclick: () => act(job, "retry"),
-                                 "aria-label": `Retry job ${job.id}` }, "Retry"));
+    if (UNFINISHED.has(job.status) && can("job.cancel", job.owner_id)) actions.push(actionButton(job, "cancel", "Cancel"));
+    if ((job.status === "failed" || job.status === "cancelled") && can("job.retry", job.owner_id)) {
+      actions.push(actionButton(job, "retry", "Retry"));
     }
     return h("tr", { dataset: { jobId: job.id, status: job.status } },
       h("td", {}, `#${job.id}`),
-      h("td", {}, job.kind),
+      h("td", {}, job.kind.replace(/_/g, " ")),
       h("td", {}, job.ride_id ? h("a", { href: `#/rides/${job.ride_id}` }, `#${job.ride_id}`) : "\u2013"),
       h("td", {}, h("span", { class: `badge status-${job.status}` }, job.status)),
       progressCell(job),
-      h("td", { class: "stage" }, job.error ? h("span", { class: "error" }, job.error) : job.stage ?? ""),
-      h("td", {}, formatDate(job.created_at)),
+      doingCell(job),
+      h("td", { class: "nowrap" }, formatDate(job.created_at)),
       h("td", { class: "actions" }, ...actions));
   }
 
   async function refresh() {
-    let jobs;
+    let answer;
     try {
-      jobs = itemsOf(await get("/api/jobs", { params: { limit: 100 } })).sort((a, b) => b.id - a.id);
+      answer = await get("/api/jobs", { params: apiParams(state) });
       showError(panel, null);
     } catch (error) {
       showError(panel, error);
       return true; // keep trying: the server may be restarting
     }
+    const jobs = itemsOf(answer);
     table.tBodies[0].replaceChildren(...jobs.map(row));
-    table.hidden = !jobs.length;
+    table.closest(".table-wrap").hidden = !jobs.length;
     empty.hidden = jobs.length > 0;
+    pagerSlot.replaceChildren(pager(answer, state, { noun: "jobs" }));
     for (const job of jobs) {
       const before = lastStatus.get(job.id);
       if (before && before !== job.status) announce(`Job ${job.id} is ${job.status}.`);
       lastStatus.set(job.id, job.status);
     }
-    const active = jobs.filter((job) => UNFINISHED.has(job.status)).length;
-    note.textContent = active ? `${active} job${active > 1 ? "s" : ""} in progress; updating live.` : "No job in progress.";
-    return active > 0 ? true : 10000; // a new job may start elsewhere: keep looking, slowly
+    const active = jobs.filter((job) => UNFINISHED.has(job.status));
+    const waiting = active.find((job) => job.note);
+    note.classList.toggle("warning", Boolean(waiting));
+    note.textContent = waiting ? `Job #${waiting.id} is ${waiting.note}.`
+      : active.length ? `${active.length} job${active.length > 1 ? "s" : ""} in progress; updating live.`
+        : "No job in progress on this page.";
+    return active.length > 0 ? true : 10000; // a new job may start elsewhere: keep looking, slowly
   }
 
+  await fillKinds(form.querySelector("[data-jobs-kinds]"));
+  bindFilterForm(form, state);
   const poller = poll(refresh);
   return () => poller.stop();
 }

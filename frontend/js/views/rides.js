@@ -1,9 +1,80 @@
-// All rides of the club.
+// All rides of the club: filtered, sorted and paged by the server, the state in the URL
+// (#/rides?horse_id=3&gait=canter&page=2&sort=-ridden_on); "Edit" opens the ride's details above
+// the list (&edit=12), Delete (its maker and admins only) asks first.
 
-import { page } from "../dom.js";
-import { attachRideTable } from "../ride-table.js";
+import { get, itemsOf } from "../api.js";
+import { h, page, showError } from "../dom.js";
+import { nameLookups, horseName } from "../lookups.js";
+import { fillOptions } from "../options.js";
+import { apiParams, bindFilterForm, listState, pager, updateQuery } from "../pager.js";
+import { deleteRideWithConfirmation, mountRideEdit } from "../ride-edit.js";
+import { rideTable, rideTitle } from "../ride-table.js";
 
-export async function mountRides(view) {
+const FILTERS = ["horse_id", "rider_id", "gait", "status", "date_from", "date_to"];
+
+export async function mountRides(view, params, query) {
   view.append(page("rides"));
-  await Promise.all([...view.querySelectorAll("[data-ride-table]")].map(attachRideTable));
+  const state = listState(query, { filters: FILTERS, sort: "-ridden_on" });
+  const form = view.querySelector("[data-rides-filter]");
+  const list = view.querySelector("[data-rides-list]");
+  const pagerSlot = view.querySelector("[data-rides-pager]");
+  const editSlot = view.querySelector("[data-ride-edit-slot]");
+  const panel = list.closest(".panel");
+  let lookups = null;
+
+  async function openEditor(ride) {
+    editSlot.hidden = false;
+    await mountRideEdit(editSlot, ride, {
+      horseName: (r) => horseName(r, lookups),
+      onSaved: () => load(),
+      onDeleted: () => updateQuery({ edit: null }),
+    });
+    editSlot.prepend(h("button", { type: "button", class: "link-button close", "data-ride-edit-close": true,
+                                   onclick: () => updateQuery({ edit: null }) }, "Close"));
+    editSlot.scrollIntoView({ block: "start" });
+  }
+
+  async function remove(ride) {
+    try {
+      if (await deleteRideWithConfirmation(ride, rideTitle(ride, lookups).replace(/^#/, "ride #"))) await load();
+    } catch (error) {
+      showError(panel, error);
+    }
+  }
+
+  async function load() {
+    let answer;
+    try {
+      [answer, lookups] = await Promise.all([get("/api/rides", { params: apiParams(state) }), lookups ?? nameLookups()]);
+      showError(panel, null);
+    } catch (error) {
+      showError(panel, error);
+      return;
+    }
+    const items = itemsOf(answer);
+    const filtered = FILTERS.some((name) => state.filters[name] !== "");
+    list.replaceChildren(items.length ? rideTable(items, lookups, {
+      onEdit: (ride) => updateQuery({ edit: ride.id }),
+      onDelete: remove,
+    }) : h("p", { class: "empty" }, filtered ? "No ride matches these filters. " : "No rides yet. ",
+      filtered ? h("button", { type: "button", class: "link-button", onclick: () => form.querySelector("[data-filter-clear]").click() },
+        "Clear the filters") : h("a", { href: "#/upload" }, "Upload the first one"), "."));
+    pagerSlot.replaceChildren(pager(answer, state, { noun: "rides" }));
+  }
+
+  try {
+    await fillOptions(form);
+  } catch (error) {
+    showError(panel, error);
+  }
+  bindFilterForm(form, state);
+  await load();
+  const editId = Number.parseInt(query.get("edit"), 10);
+  if (editId > 0) {
+    try {
+      await openEditor(await get(`/api/rides/${editId}`));
+    } catch (error) {
+      showError(panel, error);
+    }
+  }
 }

@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Iterable
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Annotated
 
 from fastapi import Depends, Path, Query
 from fastapi.responses import Response
 
 from saddlescope.api.schemas import MAX_ID, ErrorOut
+from saddlescope.core.vibration import INDICATORS
 
 __all__ = [
-    "CONFLICT", "ERRORS", "Id", "MAX_OFFSET", "Paging", "PagingDep", "QueryId", "changes", "download",
-    "page_of",
+    "CONFLICT", "ERRORS", "Id", "IndicatorKey", "MAX_OFFSET", "Paging", "PagingDep", "QueryId", "changes",
+    "download", "page_of", "paging_sorted_by", "sort_enum",
 ]
 
 Id = Annotated[int, Path(ge=1, le=MAX_ID, description="the id (within your club)")]
@@ -52,6 +56,39 @@ def _paging(
 
 
 PagingDep = Annotated[Paging, Depends(_paging)]
+
+# Every indicator key of the result (CONTRACTS section 2 and more): the OpenAPI lists them.
+IndicatorKey = StrEnum("IndicatorKey", [(key, key) for key in INDICATORS])
+
+
+def sort_enum(name: str, fields: Iterable[str]) -> type[StrEnum]:
+    """The sort values of a list: each field ascending and, with ``-`` first, descending."""
+    members = []
+    for field in dict.fromkeys(["id", *fields]):
+        members += [(field, field), (f"desc_{field}", f"-{field}")]
+    return StrEnum(name, members)
+
+
+def paging_sorted_by(sort_values: type[StrEnum], default: str):
+    """A paging dependency whose `sort` is one of `sort_values` (an enum the OpenAPI shows)."""
+
+    def dependency(limit: int, offset: int, sort: StrEnum | None) -> Paging:
+        return Paging(limit, offset, sort.value if sort is not None else None)
+
+    # Annotations built here, not written (this module's annotations are strings FastAPI resolves by name).
+    sort_type = Annotated[
+        sort_values | None,  # type: ignore[valid-type]
+        Query(description=f"field to sort by, '-field' for descending (default {default})"),
+    ]
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    dependency.__signature__ = inspect.Signature([  # type: ignore[attr-defined]
+        inspect.Parameter("limit", keyword, default=50,
+                          annotation=Annotated[int, Query(ge=1, le=500, description="rows per page")]),
+        inspect.Parameter("offset", keyword, default=0,
+                          annotation=Annotated[int, Query(ge=0, le=MAX_OFFSET, description="rows to skip")]),
+        inspect.Parameter("sort", keyword, default=None, annotation=sort_type),
+    ])
+    return Annotated[Paging, Depends(dependency)]
 
 
 def page_of(page, convert) -> dict:

@@ -7,19 +7,31 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response, status
 
 from saddlescope.api.deps import AdminClubDep, ClubDep
-from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
+from saddlescope.api.routers.common import (
+    CONFLICT,
+    ERRORS,
+    Id,
+    IndicatorKey,
+    changes,
+    page_of,
+    paging_sorted_by,
+    sort_enum,
+)
 from saddlescope.api.schemas import HorseComparisonOut, HorseIn, HorseOut, HorseUpdate, Page
+from saddlescope.db.repositories import HorseRepository
 from saddlescope.services.analytics import horse_comparison
 
-__all__ = ["router"]
+__all__ = ["HorseSort", "router"]
 
 router = APIRouter(prefix="/horses", tags=["horses"])
+HorseSort = sort_enum("HorseSort", HorseRepository.sort_fields)
+HorsePaging = paging_sorted_by(HorseSort, "name")
 
 
 @router.get("", response_model=Page[HorseOut], responses=ERRORS)
 def list_horses(
     club: ClubDep,
-    paging: PagingDep,
+    paging: HorsePaging,
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's horses; sort by name (default), breed, birth_year, height_withers_m, created_at, id."""
@@ -60,9 +72,10 @@ def compare_gaits(
     horse_id: Id,
     club: ClubDep,
     indicator: Annotated[
-        list[str] | None,
+        list[IndicatorKey] | None,
         Query(max_length=64, description="indicator keys (repeat); default the eight comfort indicators"),
     ] = None,
 ) -> dict:
     """One horse's indicators across gaits (thesis Figs 8.29-8.32): n, mean, std, min, max per gait."""
-    return horse_comparison(club.session, horse_id, club_id=club.club_id, indicators=indicator)
+    keys = [str(key) for key in indicator] if indicator else None
+    return horse_comparison(club.session, horse_id, club_id=club.club_id, indicators=keys)

@@ -8,22 +8,43 @@ from fastapi import APIRouter, Query, status
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, ClubScope, QueueDep, SessionFactoryDep
-from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, page_of
+from saddlescope.api.routers.common import ERRORS, Id, QueryId, page_of, paging_sorted_by, sort_enum
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
-from saddlescope.db.repositories import Job
+from saddlescope.db.repositories import Job, JobRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, job_note, retry_job, submit_job
 from saddlescope.services.stages import JOB_KINDS
 
-__all__ = ["JobStatusName", "job_out", "router"]
+__all__ = ["JobKindName", "JobSort", "JobStatusName", "job_out", "router"]
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 JobStatusName = Literal["queued", "running", "done", "failed", "cancelled"]
+JobKindName = Literal[tuple(JOB_KINDS)]  # type: ignore[valid-type]
+JobSort = sort_enum("JobSort", JobRepository.sort_fields)
+JobPaging = paging_sorted_by(JobSort, "-id")
 
 
-def job_out(job: Job) -> JobOut:
-    """The public view of a job."""
-    return JobOut(**job_as_dict(job))
+def job_out(job: Job, owner_id: int | None = None) -> JobOut:
+    """The public view of a job (`owner_id`: who made its ride, who may cancel and retry it)."""
+    return JobOut(**{**job_as_dict(job), "owner_id": owner_id})
+
+
+class _AskOnce:
+    """The queue, asked at most once per request whether workers are alive (a ping takes time)."""
+
+    def __init__(self, queue) -> None:
+        self._queue = queue
+        self._alive: list = []
+
+    def workers_alive(self):
+        if not self._alive:
+            ask = getattr(self._queue, "workers_alive", None)
+            self._alive.append(ask() if ask is not None else None)
+        return self._alive[0]
+
+
+def _owners(club: ClubScope, jobs) -> dict[int, int | None]:
+    return club.rides.creators_of([job.ride_id for job in jobs if job.ride_id is not None])
 
 
 def _ride_owner(club: ClubScope, job_id: int) -> int | None:
@@ -35,13 +56,18 @@ def _ride_owner(club: ClubScope, job_id: int) -> int | None:
 @router.get("", response_model=Page[JobOut], responses=ERRORS)
 def list_jobs(
     club: ClubDep,
-    paging: PagingDep,
+    queue: QueueDep,
+    paging: JobPaging,
     ride_id: QueryId = None,
     rig_id: QueryId = None,
     status_: Annotated[JobStatusName | None, Query(alias="status")] = None,
-    kind: Annotated[str | None, Query(max_length=32)] = None,
+    kind: JobKindName | None = None,
 ) -> dict:
-    """The club's jobs, newest first; filter by ride, rig, status and kind."""
+    """The club's jobs, newest first; filter by ride, rig, status and kind.
+
+    Each says how far it is (`progress_percent`, `stage_label` in plain words) and, while queued or
+    running, what it waits for (`note`, e.g. "waiting for a worker: ...").
+    """
     page = club.jobs.list_page(
         ride_id=ride_id,
         rig_id=rig_id,
@@ -51,7 +77,11 @@ def list_jobs(
         limit=paging.limit,
         offset=paging.offset,
     )
-    return page_of(page, job_out)
+    owners = _owners(club, page.items)
+    asked = _AskOnce(queue)
+    notes = {job.id: job_note(club.session, job, asked) for job in page.items if job.status in ("queued", "running")}
+    return page_of(page, lambda job: JobOut(**{**job_as_dict(job), "owner_id": owners.get(job.ride_id),
+                                               "note": notes.get(job.id)}))
 
 
 @router.post(
@@ -96,7 +126,8 @@ def read(job_id: Id, club: ClubDep, queue: QueueDep) -> JobOut:
     `note` says "waiting for a worker: ..." when no worker is alive or the job's worker stopped.
     """
     job = get_job(club.session, job_id, club_id=club.club_id)
-    return JobOut(**{**job_as_dict(job), "note": job_note(club.session, job, queue)})
+    owner = club.rides.creator_of(job.ride_id) if job.ride_id is not None else None
+    return JobOut(**{**job_as_dict(job), "note": job_note(club.session, job, queue), "owner_id": owner})
 
 
 @router.post("/{job_id}/cancel", response_model=JobOut, responses=ERRORS)
@@ -105,8 +136,9 @@ def cancel(job_id: Id, club: ClubDep) -> JobOut:
 
     An admin, or the member who made the job's ride (docs/permissions.md).
     """
-    club.require("job.cancel", owner_id=_ride_owner(club, job_id))
-    return job_out(cancel_job(club.session, job_id, club_id=club.club_id))
+    owner = _ride_owner(club, job_id)
+    club.require("job.cancel", owner_id=owner)
+    return job_out(cancel_job(club.session, job_id, club_id=club.club_id), owner)
 
 
 @router.post(
@@ -120,9 +152,10 @@ def cancel(job_id: Id, club: ClubDep) -> JobOut:
 )
 async def retry(job_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
     """Run a failed or cancelled job again (same id; the uploads were kept); an admin or the ride's maker."""
-    club.require("job.retry", owner_id=_ride_owner(club, job_id))
+    owner = _ride_owner(club, job_id)
+    club.require("job.retry", owner_id=owner)
     club_id = club.club_id
     club.session.rollback()
     await run_in_threadpool(retry_job, sessions, queue, job_id, club_id=club_id)
     with session_scope(sessions) as session:
-        return job_out(get_job(session, job_id))
+        return job_out(get_job(session, job_id), owner)

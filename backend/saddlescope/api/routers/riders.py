@@ -7,12 +7,15 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response, status
 
 from saddlescope.api.deps import AdminClubDep, ClubDep
-from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
+from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, changes, page_of, paging_sorted_by, sort_enum
 from saddlescope.api.schemas import Page, RiderIn, RiderOut, RiderUpdate
+from saddlescope.db.repositories import RiderRepository
 
-__all__ = ["router"]
+__all__ = ["RiderSort", "router"]
 
 router = APIRouter(prefix="/riders", tags=["riders"])
+RiderSort = sort_enum("RiderSort", RiderRepository.sort_fields)
+RiderPaging = paging_sorted_by(RiderSort, "name")
 
 
 def _check_user(club, user_id: int | None) -> None:
@@ -24,7 +27,7 @@ def _check_user(club, user_id: int | None) -> None:
 @router.get("", response_model=Page[RiderOut], responses=ERRORS)
 def list_riders(
     club: ClubDep,
-    paging: PagingDep,
+    paging: RiderPaging,
     q: Annotated[str | None, Query(max_length=200, description="name contains")] = None,
 ) -> dict:
     """The club's riders; sort by name (default), created_at, id."""

@@ -10,7 +10,16 @@ from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
 from saddlescope.api.routers.clips import UPLOAD_ERRORS, receive_clip
-from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, changes, download, page_of
+from saddlescope.api.routers.common import (
+    ERRORS,
+    Id,
+    QueryId,
+    changes,
+    download,
+    page_of,
+    paging_sorted_by,
+    sort_enum,
+)
 from saddlescope.api.schemas import (
     BundleUploaded,
     CameraRole,
@@ -34,6 +43,7 @@ from saddlescope.db.session import session_scope
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.readiness import require_ready
 from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
+from saddlescope.services.rides import outdated_result_settings, update_ride_details
 from saddlescope.services.uploads import (
     ClipOwner,
     accept_bundle,
@@ -41,11 +51,13 @@ from saddlescope.services.uploads import (
     staging_key,
 )
 
-__all__ = ["ExportFormat", "RideStatusName", "ride_detail", "ride_out", "router"]
+__all__ = ["ExportFormat", "RideSort", "RideStatusName", "ride_detail", "ride_out", "router"]
 
 router = APIRouter(prefix="/rides", tags=["rides"])
 RideStatusName = Literal[RIDE_STATUSES]  # type: ignore[valid-type]
 ExportFormat = Literal[tuple(EXPORT_FORMATS)]  # type: ignore[valid-type]
+RideSort = sort_enum("RideSort", RideRepository.sort_fields)
+RidePaging = paging_sorted_by(RideSort, "-ridden_on")
 
 
 def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:
@@ -66,7 +78,14 @@ def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:
         from_bundle=ride.bundle_key is not None,
         indicators=indicators,
         created_at=ride.created_at,
+        created_by=_made_by(ride),
+        result_outdated_by=outdated_result_settings(ride),
     )
+
+
+def _made_by(ride: Ride) -> int | None:
+    value = dict(ride.meta or {}).get("_created_by")
+    return value if isinstance(value, int) else None
 
 
 def _indicators(club, ride_ids: list[int]) -> dict[int, dict]:
@@ -88,7 +107,7 @@ def ride_detail(club, ride: Ride) -> RideDetail:
 @router.get("", response_model=Page[RideOut], responses=ERRORS)
 def list_rides(
     club: ClubDep,
-    paging: PagingDep,
+    paging: RidePaging,
     horse_id: QueryId = None,
     rider_id: QueryId = None,
     rig_id: QueryId = None,
@@ -204,8 +223,14 @@ def read_ride(ride_id: Id, club: ClubDep) -> RideDetail:
 
 @router.patch("/{ride_id}", response_model=RideOut, responses=ERRORS)
 def update_ride(ride_id: Id, body: RideUpdate, club: ClubDep) -> RideOut:
-    """Change a ride's details (a null rig_id or ridden_on clears it)."""
-    return ride_out(club.rides.update_fields(ride_id, **changes(body, nullable=("rig_id", "ridden_on"))))
+    """Change a ride's details (a null rig_id or ridden_on clears it).
+
+    A changed gait or direction makes the shown result outdated (`result_outdated_by`) until the ride
+    is analysed again (POST /api/rides/{id}/analyze).
+    """
+    values = changes(body, nullable=("rig_id", "ridden_on"))
+    ride = update_ride_details(club.session, ride_id, club_id=club.club_id, **values)
+    return ride_out(ride, _indicators(club, [ride.id]).get(ride.id))
 
 
 @router.delete("/{ride_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)

@@ -99,10 +99,15 @@ class Repository:
         return [ordered.nulls_last(), self.model.id.desc() if sort.startswith("-") else self.model.id.asc()]
 
     def _page(self, where: Sequence[ColumnElement[bool]] = (), *, sort: str | None, limit: int, offset: int,
-              stmt: Select | None = None) -> Page:
-        """Rows of `stmt` matching `where` (in this club), `limit` of them from `offset`, and their total."""
+              stmt: Select | None = None, count_stmt: Select | None = None) -> Page:
+        """Rows of `stmt` matching `where` (in this club), `limit` of them from `offset`, and their total.
+
+        `count_stmt` (default `stmt`) is counted instead, when it matches the same rows more cheaply.
+        """
         stmt = self._scoped(stmt if stmt is not None else select(self.model)).where(*where)
-        total = self.session.scalar(select(func.count()).select_from(stmt.order_by(None).subquery()))
+        counted = self._scoped(count_stmt).where(*where) if count_stmt is not None else stmt
+        total = self.session.scalar(
+            select(func.count()).select_from(counted.order_by(None).with_only_columns(self.model.id).subquery()))
         rows = self.session.scalars(stmt.order_by(*self._order(sort)).limit(limit).offset(offset)).all()
         return Page(rows, int(total or 0), limit, offset)
 

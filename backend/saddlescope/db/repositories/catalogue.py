@@ -5,7 +5,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any
 
-from sqlalchemy import select, update
+from sqlalchemy import func, select, update
 
 from saddlescope.db.models import Horse, Ride, Rider, Rig
 from saddlescope.db.repositories.base import Conflict, Page, Repository, like_pattern
@@ -24,6 +24,14 @@ class _Named(Repository):
         """
         where = [self.model.name.ilike(like_pattern(name_like), escape="\\")] if name_like else []
         return self._page(where, sort=sort, limit=limit, offset=offset)
+
+    def _refuse_while_ridden(self, column, row, noun: str) -> None:
+        """`Conflict` saying how many rides use `row` and what to do, when any do."""
+        count = self.session.scalar(select(func.count()).select_from(Ride).where(column == row.id)) or 0
+        if count:
+            rides = "1 ride" if count == 1 else f"{count} rides"
+            raise Conflict(f"{noun} {row.name!r} still has {rides}; delete those rides first, or edit them to "
+                           f"use another {noun} (the Rides page filters by {noun})")
 
     def _check_name_free(self, name: str, *, club_id: int, exclude_id: int | None = None) -> None:
         stmt = select(self.model.id).where(self.model.club_id == club_id, self.model.name == name)
@@ -58,8 +66,7 @@ class HorseRepository(_Named):
     def delete(self, horse_id: int) -> None:
         """Delete a horse; `Conflict` while rides use it."""
         horse = self.get(horse_id)
-        if self._in_use(Ride.horse_id, horse_id):
-            raise Conflict(f"horse {horse_id} ({horse.name}) still has rides; delete them first")
+        self._refuse_while_ridden(Ride.horse_id, horse, "horse")
         self.session.delete(horse)
         self.session.flush()
 
@@ -97,8 +104,7 @@ class RiderRepository(_Named):
     def delete(self, rider_id: int) -> None:
         """Delete a rider; `Conflict` while rides use them."""
         rider = self.get(rider_id)
-        if self._in_use(Ride.rider_id, rider_id):
-            raise Conflict(f"rider {rider_id} ({rider.name}) still has rides; delete them first")
+        self._refuse_while_ridden(Ride.rider_id, rider, "rider")
         self.session.delete(rider)
         self.session.flush()
 

@@ -58,6 +58,7 @@ class RideRepository(Repository):
     model = Ride
     sort_fields = {"ridden_on": Ride.ridden_on, "created_at": Ride.created_at, "gait": Ride.gait,
                    "status": Ride.status, "horse_id": Ride.horse_id, "rider_id": Ride.rider_id,
+                   "direction": Ride.direction,
                    **{name: getattr(Result, name) for name in LEADERBOARD_COLUMNS}}
     default_sort = "-ridden_on"
 
@@ -88,9 +89,12 @@ class RideRepository(Repository):
 
         `sort` is a ride field or an indicator with its own column; rides without a result come last.
         """
-        # Outer join: rides sort by their result's indicators.
-        stmt = select(Ride).outerjoin(Result, Result.ride_id == Ride.id)
-        return self._page((rides or RideFilter()).where(), sort=sort, limit=limit, offset=offset, stmt=stmt)
+        # Outer join only to sort by a result's indicator: the count and the other sorts stay on the
+        # rides table and its (club_id, ...) indexes.
+        by_result = (sort or "").removeprefix("-") in LEADERBOARD_COLUMNS
+        stmt = select(Ride).outerjoin(Result, Result.ride_id == Ride.id) if by_result else None
+        return self._page((rides or RideFilter()).where(), sort=sort, limit=limit, offset=offset, stmt=stmt,
+                          count_stmt=select(Ride))
 
     def set_status(self, ride_id: int, status: str) -> None:
         """Store a ride's status (derived by `saddlescope.services.rides.refresh_ride_status`, its one caller)."""
@@ -111,6 +115,14 @@ class RideRepository(Repository):
         """The id of the user who made the ride (None when not recorded)."""
         value = dict(self.get(ride_id).meta or {}).get("_created_by")
         return value if isinstance(value, int) else None
+
+    def creators_of(self, ride_ids: Sequence[int]) -> dict[int, int | None]:
+        """Ride id -> the id of the user who made it (None when not recorded), for the rides (of this club)."""
+        if not ride_ids:
+            return {}
+        stmt = self._scoped(select(Ride.id, Ride.meta).where(Ride.id.in_(set(ride_ids))))
+        made_by = {ride_id: dict(meta or {}).get("_created_by") for ride_id, meta in self.session.execute(stmt)}
+        return {ride_id: value if isinstance(value, int) else None for ride_id, value in made_by.items()}
 
     def set_bundle_key(self, ride_id: int, bundle_key: str) -> None:
         """Store where the ride's bundle (ride.json and clips) lives in storage."""
