@@ -14,6 +14,8 @@ import { can } from "../session.js";
 import { drawAnalysis, showQuality } from "./ride-analysis.js";
 import { mountAlikePanel } from "./similar.js";
 import { mountReadiness } from "../ride-readiness.js";
+import { mountRideEdit } from "../ride-edit.js";
+import { navigate, render } from "../router.js";
 
 // Order of saddlescope.core.kinematics.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
 const VERSION_NAMES = ["1,ver1", "2,ver1", "1,ver2", "2,ver2", "1,ver3", "2,ver3"];
@@ -314,6 +316,18 @@ export async function mountRide(view, { id }) {
   if (ride.status === "new" && ride.meta?.source?.kind !== "mocap") {
     const slot = view.querySelector("[data-readiness-slot]");
     if (slot) mountReadiness(slot, rideId).catch((error) => console.info("readiness not available:", error.message));
+  }
+
+  // Details (horse, rider, gait, direction, date, notes) editable in place; re-analysis offered where a
+  // change alters the result; delete for the ride's maker or an admin.
+  const editSlot = view.querySelector("[data-ride-edit-slot]");
+  if (editSlot && can("ride.create")) {
+    mountRideEdit(editSlot, ride, {
+      horseName: () => horse,
+      onSaved: () => render(),
+      onDeleted: () => navigate("/rides"),
+      onReanalyse: () => render(),
+    }).catch((error) => console.warn("ride details form failed:", error.message));
   }
 
   let stopAlike = null;
