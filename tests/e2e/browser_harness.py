@@ -98,8 +98,9 @@ class Served:
 
 
 @contextmanager
-def serve_fresh(root: Path) -> Iterator[Served]:
-    """`saddlescope serve` on a free port with an empty SQLite database and storage under `root`."""
+def serve_fresh(root: Path, startup_timeout_s: float = 180.0) -> Iterator[Served]:
+    """`saddlescope serve` on a free port with an empty SQLite database and storage under `root`
+    (a generous start-up time: the machine running the tests may be busy)."""
     database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
     storage_dir = root / "var" / "storage"
     env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
@@ -110,7 +111,7 @@ def serve_fresh(root: Path) -> Iterator[Served]:
         proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
                                 env=env, stdout=log, stderr=subprocess.STDOUT)
     try:
-        wait_healthy(base, proc, log_path)
+        wait_healthy(base, proc, log_path, startup_timeout_s)
         yield Served(base, database_url, storage_dir, log_path, proc)
     finally:
         integration_services.stop_process(proc)
@@ -134,17 +135,24 @@ def horizontal_overflow_px(page) -> int:
 
 
 def widest_elements(page, limit: int = 5) -> list[str]:
-    """The elements reaching furthest past the window's right edge (to name the culprit)."""
+    """The elements reaching furthest past the window's right edge (to name the culprit); those inside
+    a box that scrolls or clips (overflow-x other than visible) are left out: they do not widen the page."""
     return page.evaluate(
-        """(limit) => [...document.querySelectorAll('body *')]
-             .map(el => [el, el.getBoundingClientRect().right])
-             .filter(([el, right]) => right > window.innerWidth + 1 && el.offsetParent !== null)
-             .sort((a, b) => b[1] - a[1]).slice(0, limit)
-             .map(([el, right]) => {
-               const cls = typeof el.className === 'string' && el.className.trim()
-                 ? '.' + el.className.trim().split(/\\s+/).join('.') : '';
-               return `${el.tagName.toLowerCase()}${el.id ? '#' + el.id : ''}${cls} right=${Math.round(right)}px`;
-             })""", limit)
+        """(limit) => {
+             const clipped = (el) => {
+               if (['absolute', 'fixed'].includes(getComputedStyle(el).position)) return false;  // may escape
+               for (let p = el.parentElement; p && p !== document.body; p = p.parentElement)
+                 if (getComputedStyle(p).overflowX !== 'visible') return true;
+               return false; };
+             return [...document.querySelectorAll('body *')]
+               .map(el => [el, el.getBoundingClientRect().right])
+               .filter(([el, right]) => right > window.innerWidth + 1 && el.offsetParent !== null && !clipped(el))
+               .sort((a, b) => b[1] - a[1]).slice(0, limit)
+               .map(([el, right]) => {
+                 const cls = typeof el.className === 'string' && el.className.trim()
+                   ? '.' + el.className.trim().split(/\\s+/).join('.') : '';
+                 return `${el.tagName.toLowerCase()}${el.id ? '#' + el.id : ''}${cls} right=${Math.round(right)}px`;
+               }); }""", limit)
 
 
 def assert_no_horizontal_scroll(page) -> None:

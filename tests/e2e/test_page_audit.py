@@ -20,6 +20,7 @@ All problems of all pages are collected and reported together, page by page.
 from __future__ import annotations
 
 import re
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -171,7 +172,7 @@ def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
     email, password, name = ADMIN
     _ok(httpx.post(f"{base}/api/clubs", json={"club_name": "Audit Riding Club", "email": email,
                                               "password": password, "display_name": name}, timeout=30))
-    with _client(base, email, password) as admin:
+    with closing(_client(base, email, password)) as admin:
         member = _ok(admin.post("/api/users", json={"email": MEMBER[0], "password": MEMBER[1],
                                                     "display_name": MEMBER[2], "role": "member"}))
         rider = _ok(admin.post("/api/riders", json={"name": "Anna"}))["id"]
@@ -186,7 +187,7 @@ def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
             rides.append(ride)
         _ok(admin.post("/api/grades", json={"ride_id": rides[0], "rider_id": rider, "grade": 4}))
         job = _ok(admin.post("/api/jobs", json={"kind": "selftest", "payload": {"steps": 1, "fail": True}}))["id"]
-    with _client(base, MEMBER[0], MEMBER[1]) as as_member:
+    with closing(_client(base, MEMBER[0], MEMBER[1])) as as_member:
         own_ride = _ok(as_member.post("/api/rides", json={"horse_id": horse, "rider_id": rider,
                                                           "gait": "canter", "direction": "CW"}))["id"]
     store_result(database_url, storage_dir, own_ride, result_document(scale=1.2, gait="canter", rng=rng))
@@ -243,25 +244,50 @@ RISKY_BUTTONS_JS = """(pattern) => [...document.querySelectorAll(
     .filter(b => new RegExp(pattern, 'i').test(b.text))"""
 
 READY_JS = """() => { const v = document.querySelector('[data-view]');
-    return v && !v.hasAttribute('aria-busy') && v.children.length > 0; }"""
+    return v && !v.hasAttribute('aria-busy') && v.children.length > 0 && !v.querySelector('[data-audit-stale]'); }"""
 
 
-def _open(page, base: str, path: str) -> None:
-    """A fresh load of the page (so its console errors are its own), then until its data is in."""
-    page.goto("about:blank")
-    page.goto(f"{base}/#{path}")
+class InFlight:
+    """The page's requests not yet answered (to wait until a page has its data and drew it)."""
+
+    def __init__(self, page) -> None:
+        self.open: set = set()
+        page.on("request", lambda request: self.open.add(request))
+        page.on("requestfinished", lambda request: self.open.discard(request))
+        page.on("requestfailed", lambda request: self.open.discard(request))
+
+    def wait_quiet(self, page, quiet_ms: int = 300, timeout_ms: int = 5_000) -> None:
+        """Until no request has been open for `quiet_ms` (a page that polls gets `timeout_ms` at most)."""
+        waited = quiet = 0
+        while quiet < quiet_ms and waited < timeout_ms:
+            page.wait_for_timeout(50)
+            waited += 50
+            quiet = quiet + 50 if not self.open else 0
+
+
+def _open(page, base: str, path: str, in_flight: InFlight) -> None:
+    """Go to the page as a user does (the hash changes; the dashboard is loaded once per role and
+    width) and wait until it rendered and its requests are answered. A marker in the old view tells
+    the old page from the new one: the router empties the view before it mounts the next page."""
+    url = f"{base}/#{path}"
+    if page.url == url:  # the same hash again (a new width): no hashchange, so load it afresh
+        page.reload()
+    else:
+        if page.url.startswith(base):
+            page.evaluate("() => { const i = document.createElement('i'); i.hidden = true;"
+                          " i.setAttribute('data-audit-stale', '');"
+                          " document.querySelector('[data-view]')?.append(i); }")
+        page.goto(url)
     page.wait_for_function(READY_JS)
-    try:
-        page.wait_for_load_state("networkidle", timeout=5_000)
-    except Exception:  # a page that polls may never be idle for long; its first data is in by now
-        pass
+    in_flight.wait_quiet(page)
 
 
-def _audit(page, errors: list[str], base: str, visit: Visit, role: str, width: int, me: dict | None) -> None:
+def _audit(page, errors: list[str], in_flight: InFlight, base: str, visit: Visit, role: str, width: int,
+           me: dict | None) -> None:
     where = f"{visit.path} as {role} at {width} px"
     errors.clear()
     try:
-        _open(page, base, visit.path)
+        _open(page, base, visit.path, in_flight)
     except Exception as exc:  # a page that never finishes loading is a finding, not the end of the audit
         visit.problems.append(f"{where}: did not finish loading ({str(exc).splitlines()[0]})")
         screenshot(page, f"{role}-{visit.name}")
@@ -294,8 +320,9 @@ def test_every_page_as_admin_and_member_on_desktop_and_phone(club):
         for role, account in (("signed-out", None), ("admin", ADMIN), ("member", MEMBER)):
             context = browser.new_context(base_url=club["base"], viewport={"width": WIDTHS_PX[0], "height": 900})
             page = context.new_page()
-            page.set_default_timeout(15_000)
-            errors = console_errors(page)
+            page.set_default_timeout(30_000)
+            page.set_default_navigation_timeout(90_000)  # the first load parses Plotly: slow on a busy machine
+            errors, in_flight = console_errors(page), InFlight(page)
             me = None
             if account is not None:
                 sign_in(page, account[0], account[1])
@@ -304,7 +331,7 @@ def test_every_page_as_admin_and_member_on_desktop_and_phone(club):
                 page.set_viewport_size({"width": width, "height": 900 if width > 600 else 844})
                 for visit in signed_in if account else signed_out:
                     if visit.name != "unfillable":
-                        _audit(page, errors, club["base"], visit, role, width, me)
+                        _audit(page, errors, in_flight, club["base"], visit, role, width, me)
             context.close()
     finally:
         browser.close()
