@@ -32,3 +32,16 @@ def test_without_postgresql_the_benchmark_uses_sqlite_and_says_why(monkeypatch, 
         assert url.startswith("sqlite:///") and database.startswith("SQLite (PostgreSQL not reachable")
         with create_engine(url).connect() as conn:  # migrated, with the bench club
             assert conn.execute(text("select name from clubs")).scalars().all() == ["Bench club"]
+
+
+def test_saddlescope_bench_puts_the_three_times_at_the_top_of_its_json(monkeypatch):
+    import saddlescope.bench as bench
+
+    monkeypatch.setattr(bench._analysis, "run_benchmarks", lambda quick: {"calibration_3cams_s": 1.0})
+    monkeypatch.setattr(bench, "run_dashboard_benchmarks", lambda quick: {
+        "tti_rides_list_s": 0.4, "tti_leaderboard_s": 0.5, "tti_ride_page_s": None, "database": "SQLite",
+        "skipped": None})
+    out = bench.run_benchmarks(quick=True)
+    assert (out["tti_rides_list_s"], out["tti_leaderboard_s"], out["tti_ride_page_s"]) == (0.4, 0.5, None)
+    assert out["calibration_3cams_s"] == 1.0 and out["dashboard"]["database"] == "SQLite"
+    assert not set(bench.TTI_KEYS) & set(out["dashboard"])

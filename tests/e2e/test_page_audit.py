@@ -154,6 +154,18 @@ def test_permission_problems_follow_the_members_grants():
     assert permission_problems(controls[:1] + controls[2:3], [], grants, user_id=7, page_owner_id=None) == []
 
 
+def test_without_axe_core_the_audit_skips_and_under_ci_it_fails(monkeypatch, tmp_path):
+    import browser_harness
+
+    monkeypatch.setattr(browser_harness, "AXE_JS", tmp_path / "no-axe.min.js")
+    monkeypatch.setattr(browser_harness, "IN_CI", False)
+    with pytest.raises(pytest.skip.Exception, match="make install"):
+        browser_harness.require_axe()
+    monkeypatch.setattr(browser_harness, "IN_CI", True)
+    with pytest.raises(pytest.fail.Exception, match="required under CI"):
+        browser_harness.require_axe()
+
+
 # ----------------------------------------------------------------------------- a seeded club
 
 
