@@ -14,17 +14,17 @@ from __future__ import annotations
 import json
 import math
 import re
-import socket
-import subprocess
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import browser_harness
 import httpx
-import integration_services
 import numpy as np
 import pytest
+from browser_harness import CHROMIUM, CHROMIUM_ARGS, SADDLESCOPE  # noqa: F401 (test_similarity_pages)
+from browser_harness import free_port as _free_port  # noqa: F401
+from browser_harness import wait_healthy as _wait_healthy  # noqa: F401
 
 from conftest import IN_CI
 from saddlescope.core.kinematics import fit_marker_kinematics
@@ -34,10 +34,6 @@ from saddlescope.services.report import duration_text
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                 "--disable-background-networking"]
-SADDLESCOPE = str(integration_services.VENV_BIN / "saddlescope")
 EMAIL, PASSWORD = "coach@example.org", "correct horse battery"
 CLUB = "Test Riding Club"
 
@@ -52,20 +48,12 @@ FPS = 30.0
 
 
 def _fail_or_skip(reason: str) -> None:
-    if IN_CI:
-        pytest.fail(f"{reason} (required under CI)")
-    pytest.skip(reason)
+    browser_harness.fail_or_skip(reason, in_ci=IN_CI)
 
 
 def _require_browser():
-    if not CHROMIUM.exists():
-        _fail_or_skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) "
-                      "to run the dashboard's browser tests")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        _fail_or_skip("the python package playwright is not installed")
-    return sync_playwright
+    # CHROMIUM and IN_CI are looked up here, at call time, so a test can point them elsewhere.
+    return browser_harness.require_browser(CHROMIUM, in_ci=IN_CI)
 
 
 def js_fmt(value: float, digits: int = 3) -> str:
@@ -159,25 +147,6 @@ def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) 
 # ----------------------------------------------------------------------------- fixtures
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _wait_healthy(base: str, proc: subprocess.Popen, log_path: Path, timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            pytest.fail(f"saddlescope serve exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}")
-        try:
-            if httpx.get(f"{base}/api/health", timeout=5).status_code in (200, 503):
-                return
-        except httpx.TransportError:
-            time.sleep(0.2)
-    pytest.fail(f"saddlescope serve did not answer within {timeout_s} s:\n{log_path.read_text()[-3000:]}")
-
-
 def _ok(response: httpx.Response, *codes: int) -> dict:
     assert response.status_code in (codes or (200, 201)), f"{response.request.url}: {response.text}"
     return response.json() if response.content else {}
@@ -191,22 +160,9 @@ def sync_playwright_factory():
 @pytest.fixture(scope="module")
 def dashboard(sync_playwright_factory, tmp_path_factory):
     """A seeded `saddlescope serve`: yields base URL, ids of what was seeded and the expected numbers."""
-    root = tmp_path_factory.mktemp("dashboard")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
-    storage_dir = root / "var" / "storage"
-    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        _wait_healthy(base, proc, log_path)
-        seeded = _seed(base, database_url, storage_dir)
-        yield {"base": base, "log": log_path, **seeded}
-    finally:
-        integration_services.stop_process(proc)
+    with browser_harness.serve_fresh(tmp_path_factory.mktemp("dashboard")) as served:
+        seeded = _seed(served.base, served.database_url, served.storage_dir)
+        yield {"base": served.base, "log": served.log, **seeded}
 
 
 def _seed(base: str, database_url: str, storage_dir: Path) -> dict:

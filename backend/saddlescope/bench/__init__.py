@@ -3,9 +3,12 @@
 - :mod:`.analysis`: the analysis itself (detection against decoding, calibration, whole rides against
   their footage, accuracy against the synthetic arena's exact answers, the exact-marker floor);
 - :mod:`.service`: the web service under load (uploads, leaderboards, concurrent readers);
-- :mod:`.similarity`: motion similarity (retrieval on synthetic rides, ranking 1,000 rides, 10k-sample pairs).
+- :mod:`.similarity`: motion similarity (retrieval on synthetic rides, ranking 1,000 rides, 10k-sample pairs);
+- :mod:`.dashboard`: the dashboard's time to interactive in Chromium with 10,000 rides (rides list,
+  leaderboard, a ride page with 10,000 samples per curve).
 """
 
+from saddlescope.bench import analysis as _analysis
 from saddlescope.bench.analysis import (
     accuracy,
     analysis_vs_footage,
@@ -14,8 +17,22 @@ from saddlescope.bench.analysis import (
     exact_marker_floor,
     indicator_errors_pct,
     kinematics_floor,
-    run_benchmarks,
 )
+from saddlescope.bench.dashboard import dashboard_tti, run_dashboard_benchmarks
 
-__all__ = ["accuracy", "analysis_vs_footage", "calibration_3cams", "detection_vs_decode", "exact_marker_floor",
-           "indicator_errors_pct", "kinematics_floor", "run_benchmarks"]
+TTI_KEYS = ("tti_rides_list_s", "tti_leaderboard_s", "tti_ride_page_s")
+
+
+def run_benchmarks(*, quick: bool = False) -> dict:
+    """Every benchmark (`analysis.run_benchmarks`), then the dashboard's: its three times to interactive
+    as top-level keys (None where Chromium is absent, with the reason in ``dashboard["skipped"]``)."""
+    out = _analysis.run_benchmarks(quick=quick)
+    dashboard = run_dashboard_benchmarks(quick=quick)
+    out.update({key: dashboard[key] for key in TTI_KEYS})
+    out["dashboard"] = {k: v for k, v in dashboard.items() if k not in TTI_KEYS}
+    return out
+
+
+__all__ = ["TTI_KEYS", "accuracy", "analysis_vs_footage", "calibration_3cams", "dashboard_tti", "detection_vs_decode",
+           "exact_marker_floor", "indicator_errors_pct", "kinematics_floor", "run_benchmarks",
+           "run_dashboard_benchmarks"]

@@ -1,0 +1,222 @@
+"""The browser tests' shared harness: a fresh `saddlescope serve`, Debian's chromium, and page checks.
+
+- `serve_fresh(root)`: a real `saddlescope serve` (embedded mode) on a free port with an EMPTY
+  SQLite database and storage in `root`; yields a `Served` (base URL, database URL, storage, log).
+- `require_browser()`: Playwright's `sync_playwright`, or a skip with the reason (a failure under
+  CI=true) where /usr/bin/chromium or playwright is missing; `launch_chromium(manager)` starts it.
+- Page checks: `console_errors(page)` (a live list of console errors and uncaught exceptions),
+  `assert_no_horizontal_scroll(page)`, `axe_violations(page)` (axe-core from the npm registry,
+  installed by `make install` into .cache/npm), `screenshot(page, name)`, `sign_in(page, ...)`,
+  `plotly_traces(page, selector)` and `visible_permission_controls(page)`.
+
+No browser and no npm package is ever downloaded by the tests themselves.
+"""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import httpx
+import integration_services
+import pytest
+
+from conftest import IN_CI, PROJECT_ROOT
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                 "--disable-background-networking"]
+SADDLESCOPE = str(integration_services.VENV_BIN / "saddlescope")
+AXE_VERSION = "4.10.3"  # the Makefile's AXE_VERSION
+AXE_JS = PROJECT_ROOT / ".cache" / "npm" / "node_modules" / "axe-core" / "axe.min.js"
+AXE_RULE_SETS = ["wcag2a", "wcag2aa", "best-practice"]
+SCREENSHOTS = PROJECT_ROOT / "var" / "test-artifacts" / "screenshots"
+PHONE_WIDTH_PX = 390
+
+
+def fail_or_skip(reason: str, *, in_ci: bool | None = None) -> None:
+    """Skip with the reason; under CI=true a missing tool is a failure instead."""
+    if IN_CI if in_ci is None else in_ci:
+        pytest.fail(f"{reason} (required under CI)")
+    pytest.skip(reason)
+
+
+def require_browser(chromium: Path = CHROMIUM, *, in_ci: bool | None = None):
+    """Playwright's `sync_playwright`, or skip (fail under CI) naming what is missing."""
+    if not chromium.exists():
+        fail_or_skip(f"{chromium} is missing: install Debian's chromium (apt-get install chromium) "
+                     "to run the dashboard's browser tests", in_ci=in_ci)
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        fail_or_skip("the python package playwright is not installed", in_ci=in_ci)
+    return sync_playwright
+
+
+def launch_chromium(manager, *extra_args: str):
+    """Debian's chromium, headless, through a started Playwright `manager`."""
+    return manager.chromium.launch(executable_path=str(CHROMIUM), args=[*CHROMIUM_ARGS, *extra_args])
+
+
+# ----------------------------------------------------------------------------- a fresh server
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_healthy(base: str, proc: subprocess.Popen, log_path: Path, timeout_s: float = 60.0) -> None:
+    """Wait until the server answers /api/health (200 or 503); fail with its log if it dies or hangs."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"saddlescope serve exited with {proc.returncode}:\n{log_path.read_text()[-3000:]}")
+        try:
+            if httpx.get(f"{base}/api/health", timeout=5).status_code in (200, 503):
+                return
+        except httpx.TransportError:
+            time.sleep(0.2)
+    pytest.fail(f"saddlescope serve did not answer within {timeout_s} s:\n{log_path.read_text()[-3000:]}")
+
+
+@dataclass(frozen=True)
+class Served:
+    """A running `saddlescope serve` of a test."""
+
+    base: str
+    database_url: str
+    storage_dir: Path
+    log: Path
+    process: subprocess.Popen
+
+
+@contextmanager
+def serve_fresh(root: Path, startup_timeout_s: float = 180.0) -> Iterator[Served]:
+    """`saddlescope serve` on a free port with an empty SQLite database and storage under `root`
+    (a generous start-up time: the machine running the tests may be busy)."""
+    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
+    storage_dir = root / "var" / "storage"
+    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    log_path = root / "serve.log"
+    with log_path.open("wb") as log:
+        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
+                                env=env, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        wait_healthy(base, proc, log_path, startup_timeout_s)
+        yield Served(base, database_url, storage_dir, log_path, proc)
+    finally:
+        integration_services.stop_process(proc)
+
+
+# ----------------------------------------------------------------------------- page checks
+
+
+def console_errors(page) -> list[str]:
+    """A list that fills with the page's console errors and uncaught exceptions from now on
+    (clear it with `.clear()` between pages)."""
+    errors: list[str] = []
+    page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
+    page.on("pageerror", lambda exc: errors.append(f"uncaught: {exc}"))
+    return errors
+
+
+def horizontal_overflow_px(page) -> int:
+    """How far the document is wider than the window (0 when nothing scrolls sideways)."""
+    return page.evaluate("Math.max(0, document.documentElement.scrollWidth - window.innerWidth)")
+
+
+def widest_elements(page, limit: int = 5) -> list[str]:
+    """The elements reaching furthest past the window's right edge (to name the culprit); those inside
+    a box that scrolls or clips (overflow-x other than visible) are left out: they do not widen the page."""
+    return page.evaluate(
+        """(limit) => {
+             const clipped = (el) => {
+               if (['absolute', 'fixed'].includes(getComputedStyle(el).position)) return false;  // may escape
+               for (let p = el.parentElement; p && p !== document.body; p = p.parentElement)
+                 if (getComputedStyle(p).overflowX !== 'visible') return true;
+               return false; };
+             return [...document.querySelectorAll('body *')]
+               .map(el => [el, el.getBoundingClientRect().right])
+               .filter(([el, right]) => right > window.innerWidth + 1 && el.offsetParent !== null && !clipped(el))
+               .sort((a, b) => b[1] - a[1]).slice(0, limit)
+               .map(([el, right]) => {
+                 const cls = typeof el.className === 'string' && el.className.trim()
+                   ? '.' + el.className.trim().split(/\\s+/).join('.') : '';
+                 return `${el.tagName.toLowerCase()}${el.id ? '#' + el.id : ''}${cls} right=${Math.round(right)}px`;
+               }); }""", limit)
+
+
+def assert_no_horizontal_scroll(page) -> None:
+    """At the page's width nothing may scroll sideways: scrollWidth <= innerWidth."""
+    over = horizontal_overflow_px(page)
+    assert over == 0, f"{page.url} scrolls {over} px sideways at {page.viewport_size['width']} px: " \
+                      f"{widest_elements(page)}"
+
+
+def require_axe() -> Path:
+    """axe.min.js from the checkout's npm cache, or skip (fail under CI) saying how to get it."""
+    if not AXE_JS.exists():
+        fail_or_skip(f"axe-core is not installed at {AXE_JS}: run `make install` (it runs "
+                     f"`npm install --prefix .cache/npm axe-core@{AXE_VERSION}`; needs npm)")
+    return AXE_JS
+
+
+def axe_violations(page, impacts: tuple[str, ...] = ("serious", "critical")) -> list[dict]:
+    """axe-core's violations of WCAG 2 A/AA and best practice with one of `impacts`, each as
+    {id, impact, help, nodes: [target selector, ...]} (axe is injected once per document)."""
+    if not page.evaluate("typeof window.axe !== 'undefined'"):
+        page.add_script_tag(path=str(require_axe()))
+    found = page.evaluate("(sets) => axe.run(document, {runOnly: sets}).then(r => r.violations.map(v => "
+                          "({id: v.id, impact: v.impact, help: v.help,"
+                          "  nodes: v.nodes.map(n => n.target.join(' '))})))", AXE_RULE_SETS)
+    return [v for v in found if v["impact"] in impacts]
+
+
+def screenshot(page, name: str) -> Path:
+    """A full-page PNG at var/test-artifacts/screenshots/<name>-<width>.png."""
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    path = SCREENSHOTS / f"{name}-{page.viewport_size['width']}.png"
+    page.screenshot(path=str(path), full_page=True)
+    return path
+
+
+def sign_in(page, email: str, password: str) -> None:
+    """Sign in through the page context's own API client (the session cookies are the page's)."""
+    answer = page.context.request.post("/api/auth/login", data={"email": email, "password": password})
+    assert answer.ok, answer.text()
+
+
+def plotly_traces(page, selector: str) -> list[dict]:
+    """The traces Plotly drew in `selector` (its `el.data`): type, name and number of points each."""
+    return page.eval_on_selector(
+        selector,
+        "el => (el.data || []).map(t => ({type: t.type || 'scatter', name: t.name ?? null,"
+        " n: (t.y || t.z || t.values || t.x || []).length}))")
+
+
+def visible_permission_controls(page) -> list[dict]:
+    """Visible elements carrying data-permission="<action>": action, owner id (from the closest
+    [data-owner-id], else None), tag and text, so a test can check each against the role."""
+    return page.evaluate(
+        """() => [...document.querySelectorAll('[data-permission]')]
+             .filter(el => el.checkVisibility ? el.checkVisibility() : el.offsetParent !== null)
+             .map(el => ({action: el.dataset.permission,
+                          owner_id: el.closest('[data-owner-id]')?.dataset.ownerId ?? null,
+                          tag: el.tagName.toLowerCase(),
+                          text: (el.innerText || el.value || el.getAttribute('aria-label') || '').trim()}))""")
+
+
+__all__ = ["AXE_JS", "CHROMIUM", "CHROMIUM_ARGS", "PHONE_WIDTH_PX", "SADDLESCOPE", "SCREENSHOTS", "Served",
+           "assert_no_horizontal_scroll", "axe_violations", "console_errors", "fail_or_skip", "free_port",
+           "horizontal_overflow_px", "launch_chromium", "plotly_traces", "require_axe", "require_browser",
+           "screenshot", "serve_fresh", "sign_in", "visible_permission_controls", "wait_healthy",
+           "widest_elements"]
