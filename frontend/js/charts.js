@@ -11,10 +11,44 @@ const CONFIG = {
   toImageButtonOptions: { format: "png", scale: 2 },
 };
 
+// The pinned local Plotly (vendor/README.md) is 4.6 MB of script: it is loaded on the first chart, so
+// pages without charts (lists, forms) are interactive without parsing it, and fetched once per version
+// (the server marks vendor/ immutable).
+const PLOTLY_SRC = "vendor/plotly-3.7.0.min.js";
+let loading = null;
+
+/** Load Plotly once; resolves to `window.Plotly`. */
+export function loadPlotly() {
+  if (window.Plotly) return Promise.resolve(window.Plotly);
+  if (!loading) {
+    loading = new Promise((resolve, reject) => {
+      const script = document.createElement("script");
+      script.src = PLOTLY_SRC;
+      script.async = true;
+      script.onload = () => (window.Plotly ? resolve(window.Plotly)
+        : reject(new Error("The chart library (vendor/plotly) did not load.")));
+      script.onerror = () => {
+        loading = null; // a later chart tries again (e.g. after a network hiccup)
+        reject(new Error("The chart library (vendor/plotly) did not load."));
+      };
+      document.head.append(script);
+    });
+  }
+  return loading;
+}
+
+/** `Plotly.react`, once Plotly is loaded: resolves to the chart's div, as Plotly.react does. */
+export function react(div, traces, layout, config) {
+  return loadPlotly().then((lib) => lib.react(div, traces, layout, config));
+}
+
 function plotly() {
-  const lib = window.Plotly;
-  if (!lib) throw new Error("The chart library (vendor/plotly) did not load.");
-  return lib;
+  return {
+    react,
+    purge(div) {
+      if (window.Plotly) window.Plotly.purge(div); // nothing to purge before Plotly drew anything
+    },
+  };
 }
 
 function baseLayout(title, xTitle, yTitle, extra = {}) {

@@ -1,7 +1,7 @@
 // Charts of the horse page, compare and grades: bars that say how many rides stand behind them, a
 // trend with the horse's own normal band, and the grades scatter coloured by gait. Plotly.react only.
 
-import { emptyChart } from "./charts.js";
+import { emptyChart, react } from "./charts.js";
 import { GAITS, gaitLabel } from "./format.js";
 
 const FONT = { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 12, color: "#1d2630" };
@@ -75,7 +75,7 @@ export function countedBarChart(div, groups, { title, unit, xTitle }) {
     hoverinfo: "skip",
   };
   const yTitle = unit ? `mean (${unit})` : "mean";
-  return window.Plotly.react(div, [bars, range], layout(title, xTitle, yTitle, { bargap: 0.4, showlegend: true }), CONFIG);
+  return react(div, [bars, range], layout(title, xTitle, yTitle, { bargap: 0.4, showlegend: true }), CONFIG);
 }
 
 /**
@@ -115,7 +115,7 @@ export function trendChart(div, points, { title, unit, gait }) {
   const xaxisType = dated ? "date" : "category";
   const chartLayout = layout(title, dated ? "date ridden" : "ride", unit ? `${unit}` : "", { hovermode: "closest" });
   chartLayout.xaxis.type = xaxisType;
-  return window.Plotly.react(div, traces, chartLayout, CONFIG);
+  return react(div, traces, chartLayout, CONFIG);
 }
 
 /**
@@ -143,5 +143,5 @@ export function gradeGaitScatter(div, points, { title, unit, label }) {
   chartLayout.legend.title = { text: "gait " };
   chartLayout.yaxis.range = [0.5, 5.5];
   chartLayout.yaxis.dtick = 1;
-  return window.Plotly.react(div, traces, chartLayout, CONFIG);
+  return react(div, traces, chartLayout, CONFIG);
 }

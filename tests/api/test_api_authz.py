@@ -168,6 +168,10 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
         kwargs = {"params": {"horse_id": ids["horse_id"], "rider_id": ids["rider_id"], "markers": "A,B,C",
                              "filename": "lab.trc"},
                   "content": b"PathFileType\t4\t(X/Y/Z)\tlab.trc\n"}
+    if path == "/api/horses/{horse_id}/ride-pair":
+        kwargs = {"params": {"a": ids["ride_id"], "b": ids["ride_id"]}}
+    if path == "/api/horses/{horse_id}/trend":
+        kwargs = {"params": {"gait": "walk"}}
     if path in ("/api/leaderboard",):
         kwargs = {"params": {"gait": "walk"}}
     if path in ("/api/rides", "/api/grades", "/api/jobs") and method == "GET":

@@ -15,12 +15,12 @@ from pathlib import Path
 from fastapi import FastAPI, Request, status
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from fastapi.staticfiles import StaticFiles
 from sqlalchemy.exc import DataError, IntegrityError, SQLAlchemyError
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope import __version__
 from saddlescope.api.limits import JsonBodyLimit
+from saddlescope.api.static import DashboardFiles
 from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFound
@@ -122,7 +122,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
                    comparisons, similarity, jobs, reports):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
-        app.mount("/", StaticFiles(directory=FRONTEND_DIR, html=True), name="frontend")
+        app.mount("/", DashboardFiles(directory=FRONTEND_DIR, html=True), name="frontend")
     else:
         log.warning("no dashboard: %s does not exist", FRONTEND_DIR)
     return app
