@@ -39,7 +39,7 @@ function actionsCell(ride, lookups, actions) {
 }
 
 export function rideTable(items, lookups, actions = null) {
-  const body = items.map((ride) => h("tr", { dataset: { rideId: ride.id } },
+  const body = items.map((ride) => h("tr", { dataset: { rideId: ride.id, ownerId: ride.created_by ?? "" } },
     h("td", {}, h("a", { href: `#/rides/${ride.id}` }, `#${ride.id}`)),
     h("td", {}, h("a", { href: `#/horses/${ride.horse_id}` }, horseName(ride, lookups))),
     h("td", {}, riderName(ride, lookups)),

@@ -51,11 +51,11 @@ ADMIN = ("secretary@audit.example", "audit admin password", "Secretary")
 MEMBER = ("rider@audit.example", "audit member password", "Young rider")
 WIDTHS_PX = (1280, PHONE_WIDTH_PX)
 # Words of buttons that need more than a member's rights, and the actions that could allow them.
-RISKY_BUTTON = re.compile(r"delete|remove|disable|change role|cancel|retry|board", re.I)
+RISKY_BUTTON = re.compile(r"delete|remove|disable|change role|cancel|retry|change (the )?board", re.I)
 RISKY_ACTIONS = {
     "delete": ("ride.delete", "horse.delete", "rig.delete"), "remove": ("ride.delete", "horse.delete", "rig.delete"),
     "disable": ("user.manage",), "change role": ("user.manage",), "cancel": ("job.cancel",),
-    "retry": ("job.retry",), "board": ("rig.change_board",),
+    "retry": ("job.retry",), "change board": ("rig.change_board",), "change the board": ("rig.change_board",),
 }
 # Query strings a page needs to show something (the token is refused on submit only).
 ROUTE_QUERY = {"/reset-password": "?token=audit-not-a-real-token"}
