@@ -7,6 +7,7 @@ at ``/``.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -37,6 +38,7 @@ __all__ = ["ERROR_STATUS", "FRONTEND_DIR", "create_app"]
 
 log = logging.getLogger(__name__)
 
+REQUEST_SESSIONS = 16  # below the 40 request threads, so a request holding a connection finds a thread
 FRONTEND_DIR = Path(__file__).resolve().parents[3] / "frontend"
 
 
@@ -72,6 +74,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        app.state.db_slots = asyncio.Semaphore(REQUEST_SESSIONS)  # bound to this server's event loop
         if settings.migrate_on_start:
             await run_in_threadpool(upgrade_to_head, settings.database_url)
         app.state.queue = queue or make_queue(settings)
@@ -88,7 +91,11 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
                   openapi_url="/openapi.json",
                   description="Saddle kinematics and rider whole-body vibration from three ordinary cameras.")
     app.state.settings = settings
-    app.state.engine = make_engine(settings.database_url)
+    # Requests with a database session at once (api/deps.py `_session`); the engine keeps a connection
+    # for each, and for the hash pool's and job runner's sessions besides.
+    app.state.db_slots = asyncio.Semaphore(REQUEST_SESSIONS)
+    app.state.engine = make_engine(settings.database_url,
+                                   pool_size=REQUEST_SESSIONS + settings.hash_workers + 4)
     app.state.sessions = make_session_factory(app.state.engine)
     app.state.storage = Storage(settings.storage_dir)
     app.state.open_registration = open_registration
