@@ -68,14 +68,23 @@ def test_an_admin_setting_a_password_hashes_on_the_pool(env, argon2_threads):
 def test_changing_ones_own_password_checks_and_hashes_on_the_pool(env, argon2_threads):
     admin, account = new_club(env.client, password="the old password")
     argon2_threads.clear()
-    wrong = admin.post("/auth/password", json={"current_password": "not it", "new_password": "a new password"})
+    wrong = admin.post(
+        "/auth/password", json={"current_password": "not it", "new_password": "a new password"}
+    )
     assert wrong.status_code == 422, wrong.text
-    admin.ok("POST", "/auth/password", 204,
-             json={"current_password": "the old password", "new_password": "a new password"})
+    admin.ok(
+        "POST",
+        "/auth/password",
+        204,
+        json={"current_password": "the old password", "new_password": "a new password"},
+    )
     _off_the_request_threads(argon2_threads)
-    assert env.client.post(
-        "/api/auth/login", data={"username": account["email"], "password": "a new password"}
-    ).status_code == 200
+    assert (
+        env.client.post(
+            "/api/auth/login", data={"username": account["email"], "password": "a new password"}
+        ).status_code
+        == 200
+    )
     env.client.cookies.clear()
 
 

@@ -22,8 +22,11 @@ from saddlescope.settings import load_settings, with_embedded_secret
 
 @pytest.fixture
 def app(tmp_path):
-    settings = with_embedded_secret(load_settings(
-        database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "storage")))
+    settings = with_embedded_secret(
+        load_settings(
+            database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "storage")
+        )
+    )
     with standin_installed():
         yield create_app(settings, queue=ThreadQueue(settings), open_registration=True)
 
@@ -44,14 +47,21 @@ def test_more_readers_than_threads_and_connections_do_not_stall(app):
             anyio.to_thread.current_default_thread_limiter().total_tokens = threads
             transport = httpx.ASGITransport(app=app)
             async with httpx.AsyncClient(transport=transport, base_url="http://club") as client:
-                await client.post("/api/clubs", json={
-                    "club_name": "Busy", "email": "busy@club.example", "password": "busy password 1"})
+                await client.post(
+                    "/api/clubs",
+                    json={"club_name": "Busy", "email": "busy@club.example", "password": "busy password 1"},
+                )
                 login = await client.post(
-                    "/api/auth/login", data={"username": "busy@club.example", "password": "busy password 1"})
+                    "/api/auth/login", data={"username": "busy@club.example", "password": "busy password 1"}
+                )
                 headers = {"Authorization": f"Bearer {login.json()['access_token']}"}
                 t0 = time.monotonic()
                 answers = await asyncio.gather(
-                    *(asyncio.wait_for(client.get("/api/auth/me", headers=headers), 20) for _ in range(clients)))
+                    *(
+                        asyncio.wait_for(client.get("/api/auth/me", headers=headers), 20)
+                        for _ in range(clients)
+                    )
+                )
                 return [a.status_code for a in answers], time.monotonic() - t0
 
     statuses, seconds = asyncio.run(run())
