@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -100,7 +101,10 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     app.state.storage = Storage(settings.storage_dir)
     app.state.open_registration = open_registration
     app.state.login_guard = make_login_guard(settings)
-    app.state.hash_pool = HashPool(settings.hash_workers, settings.hash_queue)
+    # Each Argon2 check uses several cores (4 lanes): at most one per two cores, or a sign-in flood takes
+    # the CPU from every reader.
+    hash_workers = min(settings.hash_workers, max(1, (os.cpu_count() or 2) // 2))
+    app.state.hash_pool = HashPool(hash_workers, settings.hash_queue)
     # Set here too so routes work when the lifespan is not run; the lifespan replaces it.
     app.state.queue = queue
 
