@@ -256,3 +256,15 @@ def test_the_corpus_is_refused_with_reasons_and_the_other_clubs_ride_is_intact(e
             )
     assert not wrong, f"{len(wrong)} of {len(CORPUS)} cases:\n" + "\n".join(wrong)
     assert fingerprint(env, world) == before
+
+
+def test_a_bundle_whose_video_is_broken_fails_its_job_with_the_reason(env, world):
+    """A bundle is registered without decoding its clips; the analysis job's probe then refuses the clip."""
+    before = fingerprint(env, world)
+    broken = zip_folder(world["bundle"], rewrite={"motion/left.avi": b"not a video at all\n" * 200})
+    api = world["api"]
+    created = api.ok("POST", "/rides/bundle", 201, files={"file": ("broken.zip", broken, "application/zip")})
+    job, _ = api.wait_job(created["job_id"], timeout_s=120)
+    assert job["status"] == "failed", job
+    assert "not a usable video" in job["error"] and "Traceback" not in job["error"], job["error"]
+    assert fingerprint(env, world) == before

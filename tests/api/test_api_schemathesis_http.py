@@ -20,7 +20,7 @@ from schemathesis.specs.openapi.checks import response_schema_conformance, statu
 
 from saddlescope.bench.service import bench_server, prepare_database
 
-MAX_EXAMPLES = 10
+MAX_EXAMPLES = 20
 CHECKS = [not_a_server_error, status_code_conformance, response_schema_conformance]
 ENDING = ("/api/auth/logout-everywhere", "/api/auth/password", "/api/users/{user_id}/password-reset")
 schemathesis.serializer.alias("application/offset+octet-stream", "application/octet-stream")
