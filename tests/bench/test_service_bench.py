@@ -53,7 +53,9 @@ def test_a_real_video_upload_is_accepted_and_measured(tmp_path):
     out = service_bench.upload_memory(video=video)
     assert out["status"] == 200 and out["real_video"] and out["size_mb"] >= 8, out
     assert out["samples"] > 0 and out["growth_mb"] is not None
-    table = service_bench.load_table({"load": {
+    from saddlescope.bench.load import load_table
+
+    table = load_table({"load": {
         "readers": {"requests": 1, "errors": 0, "p50_ms": 1.0, "p95_ms": 2.0, "p99_ms": 3.0},
         "readers_with_login_flood": {"requests": 1, "errors": 0, "p50_ms": 1.0, "p95_ms": 2.0, "p99_ms": 3.0},
         "p95_ratio_flood_vs_plain": 1.0, "login_flood": {"requests": 5, "share_429": 0.8}, "note": None},

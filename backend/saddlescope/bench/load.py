@@ -4,6 +4,7 @@
   while a job runs, then (b) the same readers while `flood_clients` clients send wrong passwords to the
   sign-in as fast as they can. Readers' errors and p50/p95/p99 of both, the ratio of the p95s (goal:
   within 2x), and the flood's share answered 429.
+- `run_all(quick=...)`: every service benchmark (`bench.service`) and the two above, with a table.
 - `real_video(path, size_bytes)`: a real MJPEG AVI of about `size_bytes` (noise frames, which JPEG
   cannot shrink), the video a large-upload benchmark sends so the server accepts it as a video.
 """
@@ -11,6 +12,8 @@
 from __future__ import annotations
 
 import asyncio
+import os
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -18,9 +21,20 @@ from typing import Any
 import httpx
 import numpy as np
 
-from saddlescope.bench.service import _analysed_ride, _percentiles, _scratch, _start_job, bench_server, prepare_database
+from saddlescope.bench.service import (
+    MIB,
+    _analysed_ride,
+    _percentiles,
+    _scratch,
+    _start_job,
+    bench_server,
+    concurrent_reads,
+    leaderboard_latency,
+    prepare_database,
+    upload_memory,
+)
 
-__all__ = ["readers_and_login_flood", "real_video"]
+__all__ = ["load_table", "readers_and_login_flood", "real_video", "run_all"]
 
 
 def real_video(path: Path, size_bytes: int, *, fps: int = 30, size: tuple[int, int] = (1280, 720)) -> Path:
@@ -136,3 +150,49 @@ def readers_and_login_flood(duration_s: float = 60.0, *, clients: int = 50, floo
         "ok": plain["errors"] == 0 and with_flood["errors"] == 0 and ratio is not None and ratio <= 2.0
         and (flood["share_429"] or 0) > 0.5,
     }
+
+
+def run_all(*, quick: bool = False) -> dict[str, Any]:
+    """The service benchmarks (quick: 64 MiB uploads, 2,000 rides, readers for 5 s instead of 60 s).
+
+    `load`: 50 readers while a job runs (an analysis of a synthetic ride; quick: a selftest job), then the
+    same with 40 clients flooding the sign-in (`bench.load`); `upload_memory_real_video`: a 1 GB real
+    video uploaded (quick: 64 MiB). A table of the load figures goes to stderr.
+    """
+    out: dict[str, Any] = {"load_avg_start": list(os.getloadavg())}
+    out["upload_memory"] = upload_memory(64 * MIB if quick else 1024**3)
+    with _scratch("saddlescope-bench-video-") as root:
+        video = real_video(root / "big.avi", 64 * MIB if quick else 10**9)
+        out["upload_memory_real_video"] = upload_memory(video=video)
+        bundle = None
+        if not quick:
+            from saddlescope.io.synth_writer import write_ride_bundle
+
+            bundle = write_ride_bundle(root / "ride", gait="canter", seed=7, duration_s=6.0)
+        out["load"] = readers_and_login_flood(5.0 if quick else 60.0, job_bundle=bundle, quick=quick)
+    out["leaderboard"] = leaderboard_latency(2_000 if quick else 10_000, repeats=20 if quick else 100)
+    out["concurrent_reads"] = concurrent_reads(3.0 if quick else 30.0, clients=10 if quick else 50)
+    out["load_avg_end"] = list(os.getloadavg())
+    print(load_table(out), file=sys.stderr)
+    return out
+
+
+def load_table(out: dict[str, Any]) -> str:
+    """The load figures of `run_all` as a plain table."""
+    load, up = out["load"], out["upload_memory_real_video"]
+    rows = [("", "requests", "errors", "p50 ms", "p95 ms", "p99 ms")]
+    for name, part in (("readers, job running", load["readers"]),
+                       ("readers + login flood", load["readers_with_login_flood"])):
+        rows.append((name, str(part["requests"]), str(part["errors"]),
+                     *(f"{part[k]:.0f}" if part[k] is not None else "-" for k in ("p50_ms", "p95_ms", "p99_ms"))))
+    lines = ["  ".join(f"{c:>22}" if i == 0 else f"{c:>9}" for i, c in enumerate(r)) for r in rows]
+    ratio = load["p95_ratio_flood_vs_plain"]
+    share = load["login_flood"]["share_429"]
+    lines.append(f"p95 with flood / without: {ratio:.2f} (goal <= 2)" if ratio else "p95 ratio: -")
+    lines.append(f"login flood: {load['login_flood']['requests']} requests, "
+                 f"{100 * (share or 0):.1f} % answered 429")
+    lines.append(f"upload of a real video ({up['size_mb']:.0f} MiB): status {up['status']}, "
+                 f"API memory growth {up['growth_mb']:.1f} MB (goal < 100)")
+    if load.get("note"):
+        lines.append(load["note"])
+    return "\n".join(lines)

@@ -6,7 +6,7 @@
   (the service function) and over HTTP against a real server.
 - `concurrent_reads`: many clients (50) read a ride's result for a while (30 s) while a job runs;
   errors and latency percentiles.
-- `run_all(quick=...)`: all three; quick mode uses small sizes and a few seconds.
+- `bench.load.run_all(quick=...)`: these and the load figures; quick mode uses small sizes and a few seconds.
 
 Every server runs in embedded mode in a throw-away folder (SQLite, storage), so nothing of the user's
 data is touched. Timings are wall times on a shared machine: read them next to the load average.
@@ -197,6 +197,15 @@ def _multipart(total: int, chunk: int, boundary: str) -> Iterator[bytes]:
     yield f"\r\n--{boundary}--\r\n".encode()
 
 
+def _upload_body(video: Path | None, mode: str, size_bytes: int, chunk_bytes: int) -> tuple[Iterator[bytes], str]:
+    if video is not None:
+        return _file_chunks(Path(video), chunk_bytes), "application/octet-stream"
+    if mode == "multipart":
+        boundary = secrets.token_hex(12)
+        return _multipart(size_bytes, chunk_bytes, boundary), f"multipart/form-data; boundary={boundary}"
+    return _generated_bytes(size_bytes, chunk_bytes), "application/octet-stream"
+
+
 def upload_memory(
     size_bytes: int = 1024**3,
     *,
@@ -246,16 +255,7 @@ def upload_memory(
 
             sampler = threading.Thread(target=sample, daemon=True)
             sampler.start()
-            boundary = secrets.token_hex(12)
-            if video is not None:
-                body, content_type = _file_chunks(Path(video), chunk_bytes), "application/octet-stream"
-            elif mode == "multipart":
-                body, content_type = (
-                    _multipart(size_bytes, chunk_bytes, boundary),
-                    f"multipart/form-data; boundary={boundary}",
-                )
-            else:
-                body, content_type = _generated_bytes(size_bytes, chunk_bytes), "application/octet-stream"
+            body, content_type = _upload_body(video, mode, size_bytes, chunk_bytes)
             t0 = time.perf_counter()
             response = httpx.put(
                 f"{server.base_url}/api/rides/{ride['id']}/clips/motion/left",
@@ -585,63 +585,10 @@ def _start_job(server: BenchServer, bundle: Path | None, duration_s: float) -> i
     return created.json()["job_id"]
 
 
-# --- all ---------------------------------------------------------------------------------------------
-
-
-def run_all(*, quick: bool = False) -> dict[str, Any]:
-    """The service benchmarks (quick: 64 MiB uploads, 2,000 rides, readers for 5 s instead of 60 s).
-
-    `load`: 50 readers while a job runs (an analysis of a synthetic ride; quick: a selftest job), then the
-    same with 40 clients flooding the sign-in (`bench.load`); `upload_memory_real_video`: a 1 GB real
-    video uploaded (quick: 64 MiB). A table of the load figures goes to stderr.
-    """
-    from saddlescope.bench.load import readers_and_login_flood, real_video
-
-    out: dict[str, Any] = {"load_avg_start": list(os.getloadavg())}
-    out["upload_memory"] = upload_memory(64 * MIB if quick else 1024**3)
-    with _scratch("saddlescope-bench-video-") as root:
-        video = real_video(root / "big.avi", 64 * MIB if quick else 10**9)
-        out["upload_memory_real_video"] = upload_memory(video=video)
-        bundle = None
-        if not quick:
-            from saddlescope.io.synth_writer import write_ride_bundle
-
-            bundle = write_ride_bundle(root / "ride", gait="canter", seed=7, duration_s=6.0)
-        out["load"] = readers_and_login_flood(5.0 if quick else 60.0, job_bundle=bundle, quick=quick)
-    out["leaderboard"] = leaderboard_latency(2_000 if quick else 10_000, repeats=20 if quick else 100)
-    out["concurrent_reads"] = concurrent_reads(3.0 if quick else 30.0, clients=10 if quick else 50)
-    out["load_avg_end"] = list(os.getloadavg())
-    print(load_table(out), file=sys.stderr)
-    return out
-
-
-def load_table(out: dict[str, Any]) -> str:
-    """The load figures of `run_all` as a plain table."""
-    load, up = out["load"], out["upload_memory_real_video"]
-    rows = [("", "requests", "errors", "p50 ms", "p95 ms", "p99 ms")]
-    for name, part in (("readers, job running", load["readers"]),
-                       ("readers + login flood", load["readers_with_login_flood"])):
-        rows.append((name, str(part["requests"]), str(part["errors"]),
-                     *(f"{part[k]:.0f}" if part[k] is not None else "-" for k in ("p50_ms", "p95_ms", "p99_ms"))))
-    lines = ["  ".join(f"{c:>22}" if i == 0 else f"{c:>9}" for i, c in enumerate(r)) for r in rows]
-    ratio = load["p95_ratio_flood_vs_plain"]
-    share = load["login_flood"]["share_429"]
-    lines.append(f"p95 with flood / without: {ratio:.2f} (goal <= 2)" if ratio else "p95 ratio: -")
-    lines.append(f"login flood: {load['login_flood']['requests']} requests, "
-                 f"{100 * (share or 0):.1f} % answered 429")
-    lines.append(f"upload of a real video ({up['size_mb']:.0f} MiB): status {up['status']}, "
-                 f"API memory growth {up['growth_mb']:.1f} MB (goal < 100)")
-    if load.get("note"):
-        lines.append(load["note"])
-    return "\n".join(lines)
-
-
 __all__ = [
     "upload_memory",
     "leaderboard_latency",
     "concurrent_reads",
-    "run_all",
-    "load_table",
     "bench_server",
     "fill_rides",
     "rss_bytes",
