@@ -8,9 +8,6 @@ routes that end the admin's sessions run last. `MAX_EXAMPLES` per operation keep
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
-
 import httpx
 import pytest
 import schemathesis
@@ -29,8 +26,8 @@ pytestmark = [pytest.mark.slow]
 
 
 @pytest.fixture(scope="module")
-def served():
-    root = Path(tempfile.mkdtemp(prefix="saddlescope-schemathesis-http-"))
+def served(tmp_path_factory):
+    root = tmp_path_factory.mktemp("schemathesis-http")
     with bench_server(root, prepare_database(root), max_upload_bytes=4 * 1024**2) as server:
         base = server.base_url
         account = {"club_name": "Fuzz club", "email": "fuzz@club.example", "password": "fuzz password 1"}
