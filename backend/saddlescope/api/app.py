@@ -7,7 +7,9 @@ at ``/``.
 
 from __future__ import annotations
 
+import asyncio
 import logging
+import os
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -37,6 +39,7 @@ __all__ = ["ERROR_STATUS", "FRONTEND_DIR", "create_app"]
 
 log = logging.getLogger(__name__)
 
+REQUEST_SESSIONS = 16  # below the 40 request threads, so a request holding a connection finds a thread
 FRONTEND_DIR = Path(__file__).resolve().parents[3] / "frontend"
 
 
@@ -72,6 +75,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        app.state.db_slots = asyncio.Semaphore(REQUEST_SESSIONS)  # bound to this server's event loop
         if settings.migrate_on_start:
             await run_in_threadpool(upgrade_to_head, settings.database_url)
         app.state.queue = queue or make_queue(settings)
@@ -88,12 +92,19 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
                   openapi_url="/openapi.json",
                   description="Saddle kinematics and rider whole-body vibration from three ordinary cameras.")
     app.state.settings = settings
-    app.state.engine = make_engine(settings.database_url)
+    # Requests with a database session at once (api/deps.py `_session`); the engine keeps a connection
+    # for each, and for the hash pool's and job runner's sessions besides.
+    app.state.db_slots = asyncio.Semaphore(REQUEST_SESSIONS)
+    app.state.engine = make_engine(settings.database_url,
+                                   pool_size=REQUEST_SESSIONS + settings.hash_workers + 4)
     app.state.sessions = make_session_factory(app.state.engine)
     app.state.storage = Storage(settings.storage_dir)
     app.state.open_registration = open_registration
     app.state.login_guard = make_login_guard(settings)
-    app.state.hash_pool = HashPool(settings.hash_workers, settings.hash_queue)
+    # Each Argon2 check uses several cores (4 lanes): at most one per two cores, or a sign-in flood takes
+    # the CPU from every reader.
+    hash_workers = min(settings.hash_workers, max(1, (os.cpu_count() or 2) // 2))
+    app.state.hash_pool = HashPool(hash_workers, settings.hash_queue)
     # Set here too so routes work when the lifespan is not run; the lifespan replaces it.
     app.state.queue = queue
 

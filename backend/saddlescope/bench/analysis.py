@@ -297,7 +297,7 @@ def run_benchmarks(*, quick: bool = False) -> dict:
         else:
             out.update(run_similarity_benchmarks(quick=quick))
         try:
-            from saddlescope.bench import service as service_bench
+            from saddlescope.bench import load as service_bench
         except ImportError:
             pass
         else:

@@ -39,17 +39,24 @@ def _on_sqlite_connect(dbapi_connection, connection_record) -> None:
     cursor.close()
 
 
-def make_engine(database_url: str, *, echo: bool = False) -> Engine:
-    """An engine for `database_url`; creates the folder of a SQLite file if needed."""
+def make_engine(database_url: str, *, echo: bool = False, pool_size: int | None = None) -> Engine:
+    """An engine for `database_url`; creates the folder of a SQLite file if needed.
+
+    `pool_size`: connections kept open (default SQLAlchemy's 5, plus 10 more on demand); the API sizes
+    it to the sessions it lets run at once.
+    """
     url = _parse_url(database_url)
+    pool = {"pool_size": pool_size, "max_overflow": 10} if pool_size else {}
     if url.get_backend_name() == "sqlite":
         if url.database and url.database != ":memory:" and not url.database.startswith("file:"):
             Path(url.database).expanduser().parent.mkdir(parents=True, exist_ok=True)
-        engine = create_engine(url, echo=echo, connect_args={"check_same_thread": False})
+        in_memory = not url.database or url.database == ":memory:"
+        engine = create_engine(url, echo=echo, connect_args={"check_same_thread": False},
+                               **({} if in_memory else pool))
         event.listen(engine, "connect", _on_sqlite_connect)
         return engine
     # pre_ping: a worker idle for hours must not fail on a connection the server closed.
-    return create_engine(url, echo=echo, pool_pre_ping=True)
+    return create_engine(url, echo=echo, pool_pre_ping=True, **pool)
 
 
 def make_session_factory(engine: Engine) -> sessionmaker[Session]:

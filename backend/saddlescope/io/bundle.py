@@ -295,11 +295,28 @@ def _extract_zip(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, 
 # ----------------------------------------------------------------------------------------- folder
 
 
+def _storable_text(value: Any, where: str) -> None:
+    """Refuse a lone UTF-16 surrogate ("\\ud800" in JSON) or NUL in any text: no database can store it."""
+    if isinstance(value, str):
+        if "\x00" in value or any("\ud800" <= c <= "\udfff" for c in value):
+            raise BundleError(f"{where}: text may not contain a NUL character or a lone UTF-16 surrogate "
+                              "(e.g. \\ud800); it is not valid Unicode")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            _storable_text(key, where)
+            _storable_text(item, f"{where} {key}")
+    elif isinstance(value, list):
+        for item in value:
+            _storable_text(item, where)
+
+
 def _read_json(path: Path, label: str) -> Any:
     if path.stat().st_size > _MAX_JSON_BYTES:
         raise BundleError(f"{label}: {path.stat().st_size / 1e6:.0f} MB is too large for a JSON side file")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        value = json.loads(path.read_text(encoding="utf-8"))
+        _storable_text(value, label)
+        return value
     except UnicodeDecodeError as exc:
         raise BundleError(f"{label}: not UTF-8 text ({exc.reason})") from exc
     except json.JSONDecodeError as exc:

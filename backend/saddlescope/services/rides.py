@@ -185,12 +185,19 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
                          ridden_on=ridden_on, chosen=dict(chosen or {}))
 
 
+MAX_NAME_CHARS = 200
+
+
 def _add_ride(session: Session, bundle: RideBundle, *, club_name: str, club_id: int | None,
               rig_id: int | None, ridden_on: dt.date | None, chosen: dict[str, Any]) -> tuple[int, int]:
     """Add the bundle's ride (and its horse and rider if new and not chosen); returns (club id, ride id)."""
     meta = bundle.meta
     horse_meta = meta.get("horse") or {}
     rider_meta = meta.get("rider") or {}
+    for who, part in (("horse", horse_meta), ("rider", rider_meta)):
+        if len(str(part.get("name") or "")) > MAX_NAME_CHARS:  # the API's limit for a name
+            raise BundleError(f"ride.json: {who}.name is {len(str(part['name']))} characters long; "
+                              f"a name has at most {MAX_NAME_CHARS}")
     if club_id is None:
         club_id = ClubRepository(session).get_or_create(club_name).id
     horse_id = chosen.get("horse_id") or HorseRepository(session, club_id=club_id).get_or_create(

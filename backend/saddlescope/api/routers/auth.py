@@ -223,19 +223,23 @@ def logout_everywhere(club: ClubDep, response: Response) -> Response:
 
 
 @router.post("/auth/password", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
-def change_own_password(body: PasswordChange, club: ClubDep, request: Request, response: Response) -> Response:
+async def change_own_password(
+    body: PasswordChange, club: ClubDep, request: Request, response: Response
+) -> Response:
     """Change your own password (the current one is needed); every session ends, sign in again.
 
     A wrong current password counts as a failed sign-in (a stolen session cannot guess it unhindered).
     """
-    guard, email = request.app.state.login_guard, club.users.get(club.principal.user_id).email
+    guard = request.app.state.login_guard
+    email = (await run_in_threadpool(club.users.get, club.principal.user_id)).email
     address = request.client.host if request.client else ""
-    guard.check(email, address)
+    await run_in_threadpool(guard.check, email, address)
     try:
-        change_password(club.session, user_id=club.principal.user_id, current_password=body.current_password,
-                        new_password=body.new_password)
+        await request.app.state.hash_pool.run(  # Argon2 verify + hash: its bounded pool
+            lambda: change_password(club.session, user_id=club.principal.user_id,
+                                    current_password=body.current_password, new_password=body.new_password))
     except WrongPassword:
-        guard.failed(email, address)
+        await run_in_threadpool(guard.failed, email, address)
         raise
     return _forget_browser(response)
 
@@ -287,16 +291,11 @@ def list_users(club: AdminClubDep, paging: PagingDep) -> dict:
 @router.post(
     "/users", status_code=status.HTTP_201_CREATED, response_model=UserOut, responses={**ERRORS, **CONFLICT}
 )
-def create_user(body: UserCreate, club: AdminClubDep) -> UserOut:
+async def create_user(body: UserCreate, club: AdminClubDep, request: Request) -> UserOut:
     """Add a user to the club (admins only); they sign in with this e-mail and password."""
-    user = add_user(
-        club.session,
-        club_id=club.club_id,
-        email=body.email,
-        password=body.password,
-        display_name=body.display_name,
-        role=body.role,
-    )
+    user = await request.app.state.hash_pool.run(  # Argon2: its bounded pool, not the request threads
+        lambda: add_user(club.session, club_id=club.club_id, email=body.email, password=body.password,
+                         display_name=body.display_name, role=body.role))
     return UserOut.model_validate(user)
 
 
@@ -307,9 +306,10 @@ def read_user(user_id: Id, club: AdminClubDep) -> UserOut:
 
 
 @router.patch("/users/{user_id}", response_model=UserOut, responses={**ERRORS, **CONFLICT})
-def change_user(user_id: Id, body: UserUpdate, club: AdminClubDep) -> UserOut:
+async def change_user(user_id: Id, body: UserUpdate, club: AdminClubDep, request: Request) -> UserOut:
     """Change a user's role, name or password, or deactivate them (admins only; one admin always stays)."""
-    user = update_user(
-        club.session, club_id=club.club_id, user_id=user_id, **body.model_dump(exclude_unset=True)
-    )
+    changes = body.model_dump(exclude_unset=True)
+    # A new password means Argon2: its bounded pool; other changes stay on the request threads.
+    run = request.app.state.hash_pool.run if changes.get("password") is not None else run_in_threadpool
+    user = await run(lambda: update_user(club.session, club_id=club.club_id, user_id=user_id, **changes))
     return UserOut.model_validate(user)
