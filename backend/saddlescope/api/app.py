@@ -162,7 +162,12 @@ def _validation_message(exc: RequestValidationError) -> str:
     parts = []
     for err in exc.errors()[:5]:
         where = ".".join(str(p) for p in err.get("loc", ()))
-        parts.append(f"{where}: {err.get('msg', 'invalid')}".removeprefix(": "))
+        message = err.get("msg", "invalid")
+        if err.get("type") == "enum":  # name the refused value first; the indicators' list is long
+            field = str(err["loc"][-1]) if err.get("loc") else "value"
+            hint = "GET /api/indicators lists them" if field == "indicator" else message
+            message = f"unknown {field} {err.get('input')!r}; {hint}"
+        parts.append(f"{where}: {message}".removeprefix(": "))
     return "; ".join(parts) or "invalid request"
 
 

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from saddlescope.api.deps import ClubDep
-from saddlescope.api.routers.common import ERRORS
+from saddlescope.api.routers.common import ERRORS, IndicatorKey
 from saddlescope.api.schemas import MAX_ID, ComparisonOut, Gait, IndicatorOut, LeaderboardOut
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import COMFORT_INDICATORS, INDICATORS
@@ -39,13 +39,14 @@ def compare_horses(
         Query(max_length=2000, pattern=r"^[0-9, ]*$", description="comma-separated horse ids; default all"),
     ] = None,
     indicator: Annotated[
-        list[str] | None,
-        Query(max_length=64, description="indicator keys (repeat); default the eight comfort indicators"),
+        list[IndicatorKey] | None,
+        Query(description="indicator keys (repeat); default the eight comfort indicators"),
     ] = None,
 ) -> dict:
     """Horses within one gait (thesis 8.5.2): per indicator and horse n, mean, std, min and max."""
+    keys = [str(key) for key in indicator] if indicator else None
     return horses_comparison(
-        club.session, club_id=club.club_id, gait=gait, horse_ids=_horse_ids(horses), indicators=indicator
+        club.session, club_id=club.club_id, gait=gait, horse_ids=_horse_ids(horses), indicators=keys
     )
 
 
@@ -53,7 +54,7 @@ def compare_horses(
 def leaderboard(
     club: ClubDep,
     gait: Gait,
-    indicator: Annotated[str, Query(max_length=64)] = "acc_y_wb_rms",
+    indicator: IndicatorKey = IndicatorKey("acc_y_wb_rms"),
     lower_is_better: bool | None = None,
 ) -> dict:
     """The club's horses ranked in a gait by an indicator, most comfortable first.
@@ -61,7 +62,7 @@ def leaderboard(
     With the number of rides behind each horse and their spread (max - min); ties share a rank.
     """
     return club_leaderboard(
-        club.session, club_id=club.club_id, gait=gait, indicator=indicator, lower_is_better=lower_is_better
+        club.session, club_id=club.club_id, gait=gait, indicator=str(indicator), lower_is_better=lower_is_better
     )
 
 

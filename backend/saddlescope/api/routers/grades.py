@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response, status
 
 from saddlescope.api.deps import ClubDep
-from saddlescope.api.routers.common import ERRORS, Id, PagingDep, QueryId, changes, page_of
+from saddlescope.api.routers.common import ERRORS, Id, IndicatorKey, PagingDep, QueryId, changes, page_of
 from saddlescope.api.schemas import CorrelationOut, Gait, GradeIn, GradeOut, GradeUpdate, Page
 from saddlescope.services.analytics import grade_correlation_report
 
@@ -57,15 +57,16 @@ def correlation(
     club: ClubDep,
     gait: Gait | None = None,
     indicator: Annotated[
-        list[str] | None,
-        Query(max_length=64, description="indicator keys (repeat); default the eight comfort indicators"),
+        list[IndicatorKey] | None,
+        Query(description="indicator keys (repeat); default the eight comfort indicators"),
     ] = None,
 ) -> dict:
     """Riders' average grade per horse and gait against the mean indicator (thesis Figs 8.33-8.36).
 
     Pearson and Spearman coefficients with p values and 95 % intervals, and the points behind them.
     """
-    return grade_correlation_report(club.session, club_id=club.club_id, gait=gait, indicators=indicator)
+    keys = [str(key) for key in indicator] if indicator else None
+    return grade_correlation_report(club.session, club_id=club.club_id, gait=gait, indicators=keys)
 
 
 @router.get("/{grade_id}", response_model=GradeOut, responses=ERRORS)
