@@ -6,39 +6,35 @@ import { setIndicatorInfo } from "./js/format.js";
 import { checkHealth } from "./js/health.js";
 import { currentPath, navigate, render, route } from "./js/router.js";
 import { onSessionChange, refreshSession, session, signOut } from "./js/session.js";
-import { mountAccount } from "./js/views/account.js";
-import { mountCompare } from "./js/views/compare.js";
-import { mountEntities } from "./js/views/entities.js";
-import { mountGrades } from "./js/views/grades.js";
-import { mountHome } from "./js/views/home.js";
-import { mountHorse } from "./js/views/horse.js";
-import { mountJobs } from "./js/views/jobs.js";
-import { mountLeaderboard } from "./js/views/leaderboard.js";
-import { mountLogin } from "./js/views/login.js";
-import { mountRide } from "./js/views/ride.js";
-import { mountRides } from "./js/views/rides.js";
-import { mountResetPassword } from "./js/views/reset-password.js";
-import { mountRig, mountRigs } from "./js/views/rigs.js";
-import { mountRidePair } from "./js/views/similar.js";
-import { mountUpload } from "./js/views/upload.js";
 
-route("/", mountHome, { title: "Overview" });
-route("/login", mountLogin, { title: "Sign in", auth: false });
-route("/horses", mountEntities("horses"), { title: "Horses" });
-route("/horses/:id", mountHorse, { title: "Horse" });
-route("/riders", mountEntities("riders"), { title: "Riders" });
-route("/rides", mountRides, { title: "Rides" });
-route("/rides/:id", mountRide, { title: "Ride" });
-route("/compare-rides/:a/:b", mountRidePair, { title: "Two rides compared" });
-route("/upload", mountUpload, { title: "Upload a ride" });
-route("/rigs", mountRigs, { title: "Rigs" });
-route("/rigs/:id", mountRig, { title: "Rig" });
-route("/jobs", mountJobs, { title: "Jobs" });
-route("/compare", mountCompare, { title: "Compare" });
-route("/leaderboard", mountLeaderboard, { title: "Leaderboard" });
-route("/grades", mountGrades, { title: "Grades" });
-route("/account", mountAccount, { title: "Your account" });
-route("/reset-password", mountResetPassword, { title: "Set a new password", auth: false });
+/**
+ * A page's module, loaded on its first visit (start-up fetches only the shell, not every page's code):
+ * `mountX` of the module, or `mountX(...args)` for pages made by a factory.
+ */
+function lazy(load, name, ...args) {
+  return async (view, params, query) => {
+    const mount = (await load())[name];
+    return (args.length ? mount(...args) : mount)(view, params, query);
+  };
+}
+
+route("/", lazy(() => import("./js/views/home.js"), "mountHome"), { title: "Overview" });
+route("/login", lazy(() => import("./js/views/login.js"), "mountLogin"), { title: "Sign in", auth: false });
+route("/horses", lazy(() => import("./js/views/entities.js"), "mountEntities", "horses"), { title: "Horses" });
+route("/horses/:id", lazy(() => import("./js/views/horse.js"), "mountHorse"), { title: "Horse" });
+route("/riders", lazy(() => import("./js/views/entities.js"), "mountEntities", "riders"), { title: "Riders" });
+route("/rides", lazy(() => import("./js/views/rides.js"), "mountRides"), { title: "Rides" });
+route("/rides/:id", lazy(() => import("./js/views/ride.js"), "mountRide"), { title: "Ride" });
+route("/compare-rides/:a/:b", lazy(() => import("./js/views/similar.js"), "mountRidePair"), { title: "Two rides compared" });
+route("/upload", lazy(() => import("./js/views/upload.js"), "mountUpload"), { title: "Upload a ride" });
+route("/rigs", lazy(() => import("./js/views/rigs.js"), "mountRigs"), { title: "Rigs" });
+route("/rigs/:id", lazy(() => import("./js/views/rigs.js"), "mountRig"), { title: "Rig" });
+route("/jobs", lazy(() => import("./js/views/jobs.js"), "mountJobs"), { title: "Jobs" });
+route("/compare", lazy(() => import("./js/views/compare.js"), "mountCompare"), { title: "Compare" });
+route("/leaderboard", lazy(() => import("./js/views/leaderboard.js"), "mountLeaderboard"), { title: "Leaderboard" });
+route("/grades", lazy(() => import("./js/views/grades.js"), "mountGrades"), { title: "Grades" });
+route("/account", lazy(() => import("./js/views/account.js"), "mountAccount"), { title: "Your account" });
+route("/reset-password", lazy(() => import("./js/views/reset-password.js"), "mountResetPassword"), { title: "Set a new password", auth: false });
 
 const view = document.querySelector("[data-view]");
 

@@ -7,8 +7,10 @@ import { countedBarChart } from "../horse-charts.js";
 import { GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
+import { loadPlotly } from "../charts.js";
 
 export async function mountCompare(view, _params, query) {
+  loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("compare"));
   const horseForm = view.querySelector('[data-compare-form="horse"]');
   const gaitForm = view.querySelector('[data-compare-form="gait"]');

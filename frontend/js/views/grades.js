@@ -6,6 +6,7 @@ import { gradeGaitScatter } from "../horse-charts.js";
 import { fmt, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { forIndicator, onFormChange } from "./analysis-common.js";
+import { loadPlotly } from "../charts.js";
 
 function stat(term, value, key) {
   return h("div", {}, h("dt", {}, term), h("dd", { dataset: { stat: key } }, value));
@@ -16,6 +17,7 @@ function interval(low, high) {
 }
 
 export async function mountGrades(view) {
+  loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("grades"));
   const form = view.querySelector("[data-grades-form]");
   const section = form.closest("section");

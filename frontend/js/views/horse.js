@@ -9,6 +9,7 @@ import { fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from ".
 import { fillOptions } from "../options.js";
 import { can } from "../session.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
+import { loadPlotly } from "../charts.js";
 
 const RIDES_PER_PAGE = 10;
 const INCH_M = 0.0254;
@@ -207,6 +208,7 @@ async function setUpPair(view, horseId) {
 }
 
 export async function mountHorse(view, params) {
+  loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("horse"));
   const horseId = params.id;
   let horse;

@@ -3,7 +3,7 @@
 
 import { ApiError, get, itemsOf, post } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
-import { emptyChart, versionsChart, xyzChart } from "../charts.js";
+import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import {
   PASSIVE_SEATED_CAVEAT, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
 } from "../format.js";
@@ -288,6 +288,7 @@ function showJob(state, job, onRetry, ownerId) {
 }
 
 export async function mountRide(view, { id }) {
+  loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("ride"));
   const rideId = Number(id);
   const state = view.querySelector("[data-ride-state]");

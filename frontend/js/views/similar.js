@@ -3,7 +3,7 @@
 
 import { get } from "../api.js";
 import { announce, h, page } from "../dom.js";
-import { emptyChart, pairPaths3d, strideAlignmentChart } from "../charts.js";
+import { emptyChart, loadPlotly, pairPaths3d, strideAlignmentChart } from "../charts.js";
 import { fmt, gaitLabel } from "../format.js";
 import { poll } from "../poll.js";
 
@@ -118,6 +118,7 @@ function facts(pair) {
 
 /** The pair view: #/compare-rides/:a/:b?markers=...&span=... */
 export async function mountRidePair(view, { a, b }, query) {
+  loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("ride-pair"));
   const form = view.querySelector("[data-pair-form]");
   const state = view.querySelector("[data-pair-state]");
