@@ -7,7 +7,7 @@ fresh `saddlescope serve` (embedded: SQLite and the in-process job runner), thro
  5. add a horse and a rider on their pages;       6. upload the ride's motion clips one by one on #/upload;
  7. watch the analysis job reach done;            8. the ride page draws every chart (Plotly data, points);
  9. earlier canter rides seeded through the API / db: the horse page's trend has the horse's band;
-10. the report prints (page.pdf, A4) on exactly one page;
+10. the report prints (page.pdf, A4) on exactly one page, and so does the server's own PDF of it;
 11. the ride's gait edited on the ride page and re-analysed (to done);
 12. a ride deleted from the rides list after its confirmation dialog, and gone from the list.
 
@@ -298,6 +298,9 @@ def _journey(tab, served, meta, folder) -> None:
     (SHOTS / "journey-10-report.pdf").write_bytes(pdf)  # the printed report, kept with the screenshots
     (SHOTS / "journey-10-report.html").write_text(tab.content())
     assert len(pypdf.PdfReader(io.BytesIO(pdf)).pages) == 1
+    served_pdf = api.get(f"/api/rides/{ride_id}/report.pdf", timeout=120)  # the server's own PDF (WeasyPrint)
+    assert served_pdf.status_code == 200 and served_pdf.headers["content-type"].startswith("application/pdf")
+    assert len(pypdf.PdfReader(io.BytesIO(served_pdf.content)).pages) == 1
     _page_step(tab, "10-report")
 
     # 11. The gait corrected on the ride page, then re-analysed.
