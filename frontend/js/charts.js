@@ -303,7 +303,7 @@ export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "
     font: FONT, paper_bgcolor: "rgba(0,0,0,0)", margin: { l: 0, r: 0, t: 8, b: 0 },
     legend: { orientation: "h", x: 0, y: 1, yanchor: "bottom" },
     scene: { xaxis: axis("x − steady travel (m)"), yaxis: axis("sideways z (m)"), zaxis: axis("height −y (m)"),
-             aspectmode: "data", camera: { eye: { x: 1.4, y: -2.0, z: 0.9 } } },
+             aspectmode: "data", camera: { eye: { x: 1.9, y: -2.7, z: 1.2 } } },  // far enough that S stays in view
   };
   return plotly().react(div, traces, layout, CONFIG);
 }

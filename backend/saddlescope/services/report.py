@@ -196,7 +196,7 @@ def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_i
     gait = GAIT_WORDS.get(ride.gait, ride.gait)
     strides = strides_analysed(doc)
     period = doc.get("period_s")
-    chart, caption = stride_chart_svg(doc)
+    chart, caption = stride_chart_svg(doc, width=340, height=180)  # half the sheet: beside the quality notes
     quality_rows, summary = _quality_rows(doc)
     indicator_rows, earlier = _indicator_rows(session, ride, doc, club_id)
     esc = html.escape

@@ -297,10 +297,12 @@ export async function mountRide(view, { id }) {
   try {
     [ride, lookups] = await Promise.all([get(`/api/rides/${rideId}`), nameLookups()]);
   } catch (error) {
+    if (!state.isConnected) return undefined; // left meanwhile: `view` holds another page now
     view.querySelector("[data-ride-title]").textContent = `Ride #${id}`;
     state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
     return undefined;
   }
+  if (!state.isConnected) return undefined; // left while the ride loaded: `view` holds another page now
   const horse = horseName(ride, lookups);
   const rider = riderName(ride, lookups);
   view.querySelector("[data-ride-crumb]").textContent = `#${ride.id}`;
@@ -334,6 +336,7 @@ export async function mountRide(view, { id }) {
   let stopAlike = null;
   async function loadResult() {
     const result = await get(`/api/rides/${rideId}/result`, { params: { max_points: 2000 } });
+    if (!state.isConnected) return;
     state.replaceChildren();
     showResult(view, ride, result);
     stopAlike?.();
