@@ -29,7 +29,7 @@ CORPUS: list[tuple[str, str, str, object, int, str]] = [
     ("horse-json-array", "POST", "/horses", ("raw", b"[1, 2, 3]", "application/json"), 422, "body"),
     ("horse-unknown-field", "POST", "/horses", {"json": {"name": "Bay", "colour": "bay"}}, 422, "colour"),
     ("horse-duplicate", "POST", "/horses", {"json": {"name": "Steady"}}, 409, "already has a horse named 'Steady'"),
-    ("horse-with-rides-delete", "DELETE", "/horses/{horse}", None, 409, "still has rides"),
+    ("horse-with-rides-delete", "DELETE", "/horses/{horse}", None, 409, "still has 1 ride; delete those rides first"),
     ("horse-id-text", "GET", "/horses/abc", None, 422, "horse_id"),
     ("horse-id-huge", "GET", "/horses/99999999999999999999999", None, 422, "horse_id"),
     ("horse-id-negative", "GET", "/horses/-1", None, 422, "horse_id"),
@@ -63,7 +63,7 @@ CORPUS: list[tuple[str, str, str, object, int, str]] = [
     ("login-no-password", "POST", "/auth/login", ("form", {"username": "someone@club.example"}), 422, "password"),
     ("user-role-emperor", "POST", "/users", {"json": {"email": "emperor@club.example", "password": "a good password", "role": "emperor"}}, 422, "body.role"),
     # --- list parameters ---------------------------------------------------------------------------------
-    ("rides-sort-price", "GET", "/rides?sort=-price", None, 422, "cannot sort by 'price'"),
+    ("rides-sort-price", "GET", "/rides?sort=-price", None, 422, "unknown sort '-price'"),
     ("rides-limit-negative", "GET", "/rides?limit=-1", None, 422, "limit"),
     ("rides-limit-huge", "GET", "/rides?limit=100000000", None, 422, "limit"),
     ("rides-offset-negative", "GET", "/rides?offset=-5", None, 422, "offset"),
