@@ -306,6 +306,7 @@ def _journey(tab, served, meta, folder) -> None:
     # 11. The gait corrected on the ride page, then re-analysed.
     tab.goto(f"/#/rides/{ride_id}")
     tab.locator("[data-result]").wait_for(state="visible", timeout=60_000)
+    tab.locator(".ride-edit-box > summary").click()  # the details form is folded under one line
     edit = tab.locator("[data-ride-edit-form]")
     edit.wait_for()
     edit.locator('select[name="gait"]').select_option("rising_trot")
@@ -327,7 +328,7 @@ def _journey(tab, served, meta, folder) -> None:
     tab.reload()  # (the same address: goto would not load the page again)
     tab.locator("[data-result]").wait_for(state="visible", timeout=60_000)
     _wait_for_charts(tab)
-    tab.locator("[data-ride-edit-form]").wait_for()
+    tab.locator("[data-ride-edit-form]").wait_for(state="attached")  # folded again: nothing outdated
     tab.wait_for_function("document.querySelector('[data-ride-edit-form] select[name=gait]').value === 'rising_trot'")
     assert tab.locator("[data-ride-edit-outdated]").is_hidden()  # the result is from the new details now
     assert "rising trot" in tab.locator("h1").inner_text()

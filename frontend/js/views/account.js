@@ -142,7 +142,8 @@ class Members {
       h("option", { value: "member", selected: user.role === "member" }, "Member"),
       h("option", { value: "admin", selected: user.role === "admin" }, "Admin"));
     role.addEventListener("change", () => this.change(user, { role: role.value }, role));
-    const toggle = h("button", {
+    // Never yourself: an admin who disabled their own account would be signed out on the spot.
+    const toggle = isMe ? null : h("button", {
       type: "button", class: `link-button${user.is_active ? " danger" : ""}`, "data-permission": MANAGE,
       onclick: () => this.change(user, { is_active: !user.is_active }),
     }, user.is_active ? "Disable" : "Enable");

@@ -5,7 +5,7 @@
 import { get, itemsOf, patch } from "../api.js";
 import { busy, h, page, showError } from "../dom.js";
 import { countedBarChart, trendChart } from "../horse-charts.js";
-import { fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
+import { durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { can } from "../session.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
@@ -195,8 +195,8 @@ async function setUpPair(view, horseId) {
       table.tBodies[0].replaceChildren(...pair.indicators.map((row) => h("tr", { dataset: { key: row.key } },
         h("th", { scope: "row" }, labelText(row.label),
           row.unit ? h("span", { class: "unit", dataset: { unit: "" } }, prettyUnit(row.unit)) : null),
-        h("td", { class: "num", dataset: { value: row.a ?? "" } }, fmt(row.a)),
-        h("td", { class: "num", dataset: { value: row.b ?? "" } }, fmt(row.b)),
+        h("td", { class: "num", dataset: { value: row.a ?? "" } }, pairValue(row.a, row.unit)),
+        h("td", { class: "num", dataset: { value: row.b ?? "" } }, pairValue(row.b, row.unit)),
         differenceCell(row))));
       table.hidden = false;
       view.querySelector("[data-pair-motion-link]").href = `#/compare-rides/${a}/${b}`;
@@ -205,6 +205,11 @@ async function setUpPair(view, horseId) {
       if (current()) showError(section, error);
     }
   });
+}
+
+/** A value of the pair table: exposure times as "2 h 05 min", the rest with three digits. */
+function pairValue(value, unit) {
+  return unit === "h" && Number.isFinite(value) ? durationText(value) : fmt(value);
 }
 
 export async function mountHorse(view, params) {

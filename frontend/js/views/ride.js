@@ -323,9 +323,14 @@ export async function mountRide(view, { id }) {
 
   // Details (horse, rider, gait, direction, date, notes) editable in place; re-analysis offered where a
   // change alters the result; delete for the ride's maker or an admin.
+  // Folded away under one line so the results come first; open when the shown result is outdated.
   const editSlot = view.querySelector("[data-ride-edit-slot]");
   if (editSlot && can("ride.create")) {
-    mountRideEdit(editSlot, ride, {
+    const form = h("div");
+    editSlot.replaceChildren(h("details", { class: "ride-edit-box", open: Boolean(ride.result_outdated_by?.length) },
+      h("summary", {}, can("ride.delete", ride.created_by) ? "Edit the ride's details or delete it"
+        : "Edit the ride's details"), form));
+    mountRideEdit(form, ride, {
       horseName: () => horse,
       onSaved: () => render(),
       onDeleted: () => navigate("/rides"),
