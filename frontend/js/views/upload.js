@@ -28,7 +28,8 @@ function clipCards(stored) {
       const id = `clip-${set.kind}-${camera}`;
       const have = stored.some((c) => c.kind === set.kind && c.camera === camera);
       return h("div", { class: "field" },
-        h("label", { for: id }, set.label, have ? h("span", { class: "hint" }, " (stored)") : null),
+        h("label", { for: id }, set.label, have ? h("span", { class: "hint" }, " (stored)") : null,
+          h("span", { class: "hint", dataset: { rigHint: "" } })),
         h("input", { id, type: "file", accept: "video/*,.mp4,.mov,.avi,.mkv", dataset: { clipKind: set.kind, camera } }));
     })));
 }
@@ -82,7 +83,19 @@ export async function mountUpload(view, _params, query) {
     const rig = rigs.find((r) => r.id === id) || null;
     const clips = rig ? (await get(`/api/rigs/${rig.id}/clips`)).map((c) => ({ kind: c.clip_kind, camera: c.camera_role })) : [];
     rigInfo = { rig, clips };
+    markRigClips();
     checkReadiness();
+  }
+
+  // Clips the chosen rig already holds need not be sent again: say so beside each file field.
+  function markRigClips() {
+    for (const input of form.querySelectorAll("input[data-clip-kind]")) {
+      const { clipKind, camera } = input.dataset;
+      const fromRig = rigInfo.clips.some((c) => c.kind === clipKind && c.camera === camera)
+        || (clipKind === "calibration" && rigInfo.rig?.calibrated);
+      const hint = input.closest(".field")?.querySelector("[data-rig-hint]");
+      if (hint) hint.textContent = fromRig ? " – the rig has it: only to replace it for this ride" : "";
+    }
   }
 
   function missingNow() {
