@@ -280,6 +280,9 @@ function showJob(state, job, onRetry, ownerId) {
       h("progress", { max: "100", value: String(percent), "aria-label": "Analysis progress",
                       "aria-valuetext": `${percent} percent${stage ? `, ${stage}` : ""}` }),
       h("span", { class: "job-progress-text", "data-job-progress": "" }, text)),
+    // "waiting for a worker ...": the job cannot move until one is running (said, not left to guess)
+    job.note && !ended && job.status !== "done" ? h("p", { class: "job-note", role: "status", "data-job-note": "" },
+      `This job is ${job.note}.`) : null,
     job.error ? h("p", { class: "form-error" }, job.error) : null,
     // retrying is for the ride's maker or an admin: others are not shown a button that would answer 403
     ended && can("job.retry", ownerId) ? h("button", { type: "button", onclick: onRetry,
