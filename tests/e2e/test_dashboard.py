@@ -284,7 +284,7 @@ def test_login_flow_shows_the_servers_reason_then_signs_in(page, dashboard):
     page.get_by_role("heading", level=1, name="Rides").wait_for()
     assert CLUB in page.locator("[data-account-name]").inner_text()
     assert page.locator("[data-nav] a[aria-current=page]").inner_text() == "Rides"
-    rows = page.locator("[data-ride-table] tbody tr")
+    rows = page.locator("[data-rides-table] tbody tr")
     rows.first.wait_for()
     assert rows.count() == api_get(dashboard, "/api/rides")["total"]
 
@@ -461,12 +461,12 @@ def test_every_page_renders_without_console_errors(page, dashboard):
     page.set_viewport_size({"width": 1280, "height": 900})
     # The horses page: add one through the form, then edit it.
     page.goto("/#/horses")
-    page.get_by_label("Name").fill("Echo")
+    page.get_by_label("Name", exact=True).fill("Echo")
     page.get_by_label("Birth year").fill("2012")
     page.get_by_role("button", name="Add horse").click()
     page.locator('[data-entity-table] tbody th:text-is("Echo")').wait_for()
     page.get_by_role("button", name="Edit Echo").click()
-    page.get_by_label("Name").fill("Echo II")
+    page.get_by_label("Name", exact=True).fill("Echo II")
     page.get_by_role("button", name="Save changes").click()
     page.locator('[data-entity-table] tbody th:text-is("Echo II")').wait_for()
     assert page.console.unexpected() == []
@@ -559,7 +559,7 @@ def test_without_chromium_the_tests_skip_and_under_ci_they_fail(monkeypatch, tmp
         module._require_browser()
 
 
-def test_ride_without_result_follows_its_analysis_and_offers_a_rerun(page, dashboard):
+def test_a_ride_without_clips_says_what_is_missing_and_is_never_queued(page, dashboard):
     sign_in(page)
     with api_client(dashboard) as api:
         ride = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Dancer"],
@@ -567,22 +567,26 @@ def test_ride_without_result_follows_its_analysis_and_offers_a_rerun(page, dashb
                                                 "direction": "CW"}))
     try:
         page.goto(f"/#/rides/{ride['id']}")
-        state = page.locator("[data-ride-state]")
+        # The page lists what the ride still needs, with the way to add it.
+        readiness = page.locator("[data-readiness-slot] .readiness")
+        readiness.wait_for()
+        assert "missing" in readiness.inner_text()
+        assert readiness.get_by_role("link", name="Add the missing clips on the upload page").is_visible()
+        # Asking anyway is refused with the same reason; nothing is queued that could not run.
         page.get_by_role("button", name="Analyse now").click()
-        # A ride without clips: the job fails at once; the page shows the job's own error.
-        state.locator(".form-error").wait_for()
-        job_id = api_get(dashboard, f"/api/rides/{ride['id']}")["latest_job_id"]
-        job = api_get(dashboard, f"/api/jobs/{job_id}")
-        assert job["status"] == "failed" and state.locator(".form-error").inner_text() == job["error"]
-        page.get_by_role("button", name="Run the analysis again").click()
-        page.wait_for_function(
-            f"fetch('/api/jobs/{job_id}').then(r => r.json()).then(j => j.attempts >= 2 && j.status === 'failed')")
-        state.get_by_role("button", name="Run the analysis again").wait_for()
+        error = page.locator("[data-ride-state] .form-error")
+        error.wait_for()
+        with api_client(dashboard) as api:
+            refusal = api.post(f"/api/rides/{ride['id']}/analyze")
+            assert refusal.status_code == 422
+            assert error.inner_text() == refusal.json()["detail"]
+            assert _ok(api.get("/api/jobs", params={"ride_id": ride["id"]}))["total"] == 0
+        assert api_get(dashboard, f"/api/rides/{ride['id']}")["latest_job_id"] is None
         assert page.locator("[data-result]").is_hidden()
     finally:
         with api_client(dashboard) as api:
             _ok(api.delete(f"/api/rides/{ride['id']}"), 204)
-    assert page.console.unexpected() == []
+    assert page.console.unexpected(422) == []
 
 
 def _walking_triad_trc(path: Path) -> Path:
