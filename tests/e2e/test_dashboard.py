@@ -464,11 +464,11 @@ def test_every_page_renders_without_console_errors(page, dashboard):
     page.get_by_label("Name", exact=True).fill("Echo")
     page.get_by_label("Birth year").fill("2012")
     page.get_by_role("button", name="Add horse").click()
-    page.locator('[data-entity-table] tbody th:text-is("Echo")').wait_for()
+    page.locator('[data-entity-table] tbody th a:text-is("Echo")').wait_for()
     page.get_by_role("button", name="Edit Echo").click()
     page.get_by_label("Name", exact=True).fill("Echo II")
     page.get_by_role("button", name="Save changes").click()
-    page.locator('[data-entity-table] tbody th:text-is("Echo II")').wait_for()
+    page.locator('[data-entity-table] tbody th a:text-is("Echo II")').wait_for()
     assert page.console.unexpected() == []
 
 
