@@ -276,7 +276,8 @@ def test_jobs_horses_and_riders_pages_page_and_filter(admin_page, server):
     page.locator("#jobs-kind").select_option("selftest")
     page.wait_for_url("**kind=selftest**")
     page.wait_for_function(  # the filtered page has replaced the first one
-        "[...document.querySelectorAll('[data-jobs-table] tbody tr td:nth-child(2)')].some(td => td.innerText === 'selftest')")
+        "[...document.querySelectorAll('[data-jobs-table] tbody tr td:nth-child(2)')]"
+        ".some(td => td.innerText === 'selftest')")
     kinds = page.locator("[data-jobs-table] tbody tr td:nth-child(2)").all_inner_texts()
     assert kinds and set(kinds) == {"selftest"}
     _shoot(page, "jobs")
