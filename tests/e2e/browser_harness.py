@@ -215,8 +215,23 @@ def visible_permission_controls(page) -> list[dict]:
                           text: (el.innerText || el.value || el.getAttribute('aria-label') || '').trim()}))""")
 
 
+def shoot_both_widths(page, name: str) -> None:
+    """Screenshots at 1280 and 390 px (`SCREENSHOTS/<name>-<width>.png`); at 390 px nothing may scroll
+    sideways. The page is left at 1280 px."""
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    page.set_viewport_size({"width": 1280, "height": 900})
+    page.screenshot(path=str(SCREENSHOTS / f"{name}-1280.png"), full_page=True)
+    page.set_viewport_size({"width": 390, "height": 844})
+    page.wait_for_timeout(200)
+    widths = page.evaluate("[document.documentElement.scrollWidth, window.innerWidth]")
+    page.screenshot(path=str(SCREENSHOTS / f"{name}-390.png"), full_page=True)
+    assert widths[0] <= widths[1], f"{name} scrolls sideways at 390 px: {widths}"
+    page.set_viewport_size({"width": 1280, "height": 900})
+
+
 __all__ = ["AXE_JS", "CHROMIUM", "CHROMIUM_ARGS", "PHONE_WIDTH_PX", "SADDLESCOPE", "SCREENSHOTS", "Served",
-           "assert_no_horizontal_scroll", "axe_violations", "console_errors", "fail_or_skip", "free_port",
+           "shoot_both_widths", "assert_no_horizontal_scroll", "axe_violations", "console_errors",
+           "fail_or_skip", "free_port",
            "horizontal_overflow_px", "launch_chromium", "plotly_traces", "require_axe", "require_browser",
            "screenshot", "serve_fresh", "sign_in", "visible_permission_controls", "wait_healthy",
            "widest_elements"]

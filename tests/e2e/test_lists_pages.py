@@ -19,6 +19,7 @@ import httpx
 import integration_services
 import numpy as np
 import pytest
+from browser_harness import shoot_both_widths
 from test_dashboard import (
     CHROMIUM,
     CHROMIUM_ARGS,
@@ -34,11 +35,8 @@ from test_dashboard import (
     store_result,
 )
 
-from conftest import PROJECT_ROOT
-
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-SCREENSHOTS = PROJECT_ROOT / "var" / "test-artifacts" / "screenshots"
 MEMBER_EMAIL, MEMBER_PASSWORD = "member@example.org", "member password 1"
 HORSES = ("Bella", "Comet", "Dancer", "Echo")
 GAITS = ("walk", "sitting_trot", "rising_trot", "canter")
@@ -136,16 +134,7 @@ def _range_text(page) -> str:
 
 
 def _shoot(page, name: str) -> None:
-    """Screenshots at 1280 and 390 px; at 390 px the page must not scroll sideways."""
-    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-    page.set_viewport_size({"width": 1280, "height": 900})
-    page.screenshot(path=str(SCREENSHOTS / f"lists-{name}-1280.png"), full_page=True)
-    page.set_viewport_size({"width": 390, "height": 844})
-    page.wait_for_timeout(200)
-    widths = page.evaluate("[document.documentElement.scrollWidth, window.innerWidth]")
-    page.screenshot(path=str(SCREENSHOTS / f"lists-{name}-390.png"), full_page=True)
-    assert widths[0] <= widths[1], f"{name}: the page is {widths[0]} px wide at 390 px"
-    page.set_viewport_size({"width": 1280, "height": 900})
+    shoot_both_widths(page, f"lists-{name}")
 
 
 def test_rides_list_pages_filters_sorts_and_keeps_its_state_in_the_url(admin_page, server):

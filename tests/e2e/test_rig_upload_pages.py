@@ -12,6 +12,7 @@ import httpx
 import integration_services
 import numpy as np
 import pytest
+from browser_harness import shoot_both_widths
 from test_dashboard import (
     CHROMIUM,
     CHROMIUM_ARGS,
@@ -129,17 +130,7 @@ def tiny_clip(served, name: str) -> dict:
     return {"name": path.name, "mimeType": "video/x-msvideo", "buffer": path.read_bytes()}
 
 
-def shoot(page, name: str) -> None:
-    """Screenshots at 1280 and 390 px; at 390 px nothing may scroll sideways."""
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page.set_viewport_size({"width": 1280, "height": 900})
-    page.screenshot(path=str(SHOTS / f"{name}-1280.png"), full_page=True)
-    page.set_viewport_size({"width": 390, "height": 844})
-    page.wait_for_timeout(200)
-    widths = page.evaluate("[document.documentElement.scrollWidth, window.innerWidth]")
-    page.screenshot(path=str(SHOTS / f"{name}-390.png"), full_page=True)
-    assert widths[0] <= widths[1], f"{name} scrolls sideways at 390 px: {widths}"
-    page.set_viewport_size({"width": 1280, "height": 900})
+shoot = shoot_both_widths  # the journey test imports it by this name
 
 
 def test_a_rig_with_its_board_then_its_calibration_clips_one_by_one(page, served):
