@@ -222,7 +222,11 @@ def shoot_both_widths(page, name: str) -> None:
     page.set_viewport_size({"width": 1280, "height": 900})
     page.screenshot(path=str(SCREENSHOTS / f"{name}-1280.png"), full_page=True)
     page.set_viewport_size({"width": 390, "height": 844})
-    page.wait_for_timeout(200)
+    # charts re-lay themselves out on the resize event (debounced): give them up to 3 s to settle
+    try:
+        page.wait_for_function("document.documentElement.scrollWidth <= window.innerWidth", timeout=3_000)
+    except Exception:  # noqa: BLE001 - the assertion below reports the widths
+        pass
     widths = page.evaluate("[document.documentElement.scrollWidth, window.innerWidth]")
     page.screenshot(path=str(SCREENSHOTS / f"{name}-390.png"), full_page=True)
     assert widths[0] <= widths[1], f"{name} scrolls sideways at 390 px: {widths}"
