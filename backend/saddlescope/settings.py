@@ -61,6 +61,10 @@ class Settings(BaseSettings):
     database_url: str = "sqlite:///./var/saddlescope.db"
     broker_url: str | None = None
     storage_dir: Path = Path("./var/storage")
+    # Where clips and results live: unset, a path or file://PATH keeps the folder tree (storage_dir);
+    # s3://BUCKET[/PREFIX] an S3-compatible object store (credentials: AWS_ACCESS_KEY_ID / _SECRET_ACCESS_KEY).
+    storage_url: str | None = None
+    s3_endpoint_url: str | None = None  # e.g. http://127.0.0.1:8333 (SeaweedFS, MinIO); None: AWS
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
     # Largest JSON request body (uploads are streamed as raw bytes or multipart, not JSON).
     max_json_body_bytes: int = Field(default=2 * 1024**2, gt=0)

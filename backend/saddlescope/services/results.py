@@ -6,6 +6,7 @@ import datetime as dt
 import hashlib
 import io
 import json
+import logging
 import math
 import secrets
 import tempfile
@@ -30,6 +31,8 @@ __all__ = [
     "commit_result", "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document",
     "analysed_result", "result_view", "result_view_json", "tracks_mm", "view_of_document",
 ]
+
+log = logging.getLogger(__name__)
 
 EXPORT_FORMATS = {
     "json": "application/json",
@@ -320,17 +323,29 @@ def export_rides(
 
 
 def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id: int, ride_id: int,
-                  job_id: int | None, document: dict[str, Any], code_version: str | None) -> str:
+                  job_id: int | None, document: dict[str, Any], code_version: str | None,
+                  attempt: int | None = None, host: str | None = None) -> str:
     """Store a ride's new result document and make it the ride's result atomically; returns its key.
 
-    The document goes under a new key first; the result row is swapped to it in one transaction; only
-    then is the previous document deleted. Until the commit readers get the old result, and a failed
-    commit leaves it (and removes the new document).
+    The document goes under a new key (naming the job and its attempt) first; the result row is
+    swapped to it in one transaction; only then is the previous document deleted. Until the commit
+    readers get the old result, and a failed commit leaves it (and removes the new document). With
+    `attempt` and `host`, the swap happens only while that attempt still holds job `job_id` (its row
+    locked until the commit); a stale worker's result is refused (`JobFenced`) and its document removed.
     """
-    key = f"rides/{ride_id}/results/{secrets.token_hex(8)}.json"
+    from saddlescope.db.repositories import JobRepository
+    from saddlescope.services.stages import JobFenced
+
+    run = f"{job_id}-{attempt}-" if job_id is not None and attempt is not None else ""
+    key = f"rides/{ride_id}/results/{run}{secrets.token_hex(8)}.json"
     storage.write_bytes(key, json.dumps(document, allow_nan=False).encode())
     try:
         with session_scope(sessions) as session:
+            if job_id is not None and attempt is not None and host is not None and not JobRepository(
+                    session).hold(job_id, attempt=attempt, host=host):
+                log.warning("job %s: result of attempt %s on %s refused: the job was taken over", job_id,
+                            attempt, host)
+                raise JobFenced(job_id, attempt)
             results = ResultRepository(session)
             old = results.for_ride(ride_id)
             old_key = old.result_key if old is not None else None

@@ -25,12 +25,12 @@ from saddlescope.db.models import utcnow
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.rides import refresh_ride_status
-from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobKind, StageContext
+from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobFenced, JobKind, StageContext
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage
 
 __all__ = [
-    "HEARTBEAT_S", "MAX_ATTEMPTS", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs",
+    "FENCED", "HEARTBEAT_S", "MAX_ATTEMPTS", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs",
     "resend_queued_jobs", "run_job", "worker_gone", "worker_host",
 ]
 
@@ -44,6 +44,8 @@ HEARTBEAT_S = 10.0
 STALE_AFTER_S = 180.0
 # A job whose worker was lost this many times is failed with the reason instead of queued again.
 MAX_ATTEMPTS = 3
+# What `run_job` returns when its attempt was fenced out (another worker took the job over).
+FENCED = "fenced"
 
 
 def worker_host() -> str:
@@ -51,11 +53,26 @@ def worker_host() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
+@dataclass(frozen=True)
+class _Fence:
+    """The run of a job this process holds: its attempt and host guard every write of the job's state."""
+
+    job_id: int
+    attempt: int
+    host: str
+
+    def refused(self, what: str) -> JobFenced:
+        """Log and return the error that stops a stale run (another worker took the job over)."""
+        log.warning("job %s: %s of attempt %s on %s refused: the job was taken over by another attempt",
+                    self.job_id, what, self.attempt, self.host)
+        return JobFenced(self.job_id, self.attempt)
+
+
 @dataclass
 class _Progress:
     """Maps a stage's own 0-1 progress onto the job's bar and writes it, throttled."""
 
-    job_id: int
+    fence: _Fence
     sessions: sessionmaker[Session]
     weights: dict[str, float]
     done_weight: float = 0.0
@@ -81,31 +98,44 @@ class _Progress:
         fraction = min(max(float(fraction), 0.0), 1.0)
         overall = (self.done_weight + fraction * self.weights[self.stage]) / self.total
         label = self.stage if not detail else f"{self.stage}: {detail}"
+        fence = self.fence
         with session_scope(self.sessions) as session:
             repo = JobRepository(session)
-            if repo.status_of(self.job_id) == JobStatus.CANCELLED.value:
-                raise JobCancelled(self.job_id)
-            repo.set_progress(self.job_id, min(overall, 0.999), label[:64])
+            if repo.set_progress(fence.job_id, min(overall, 0.999), label[:64], attempt=fence.attempt,
+                                 host=fence.host):
+                return
+            if repo.status_of(fence.job_id) == JobStatus.CANCELLED.value:
+                raise JobCancelled(fence.job_id)
+        raise fence.refused("a progress report")
 
     def __call__(self, fraction: float, detail: str | None = None) -> None:
         self.write(fraction, detail, force=fraction >= 1.0)
 
 
 class _Heartbeat:
-    """A daemon thread touching the job row every `HEARTBEAT_S` while its stages run."""
+    """A daemon thread touching the job row every `HEARTBEAT_S` while its stages run.
 
-    def __init__(self, job_id: int, sessions: sessionmaker[Session], interval_s: float = HEARTBEAT_S) -> None:
-        self.job_id, self.sessions, self.interval_s = job_id, sessions, interval_s
+    It stops beating once its attempt is fenced out (the next progress report then stops the stages).
+    """
+
+    def __init__(self, fence: _Fence, sessions: sessionmaker[Session], interval_s: float = HEARTBEAT_S) -> None:
+        self.fence, self.sessions, self.interval_s = fence, sessions, interval_s
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"job-{job_id}-heartbeat", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=f"job-{fence.job_id}-heartbeat", daemon=True)
 
     def _run(self) -> None:
+        fence = self.fence
         while not self._stop.wait(self.interval_s):
             try:
                 with session_scope(self.sessions) as session:
-                    JobRepository(session).touch(self.job_id)
+                    beating = JobRepository(session).touch(fence.job_id, attempt=fence.attempt, host=fence.host)
             except OperationalError as exc:  # the database blinked; the next beat tries again
-                log.warning("job %s: heartbeat not written (%s)", self.job_id, exc)
+                log.warning("job %s: heartbeat not written (%s)", fence.job_id, exc)
+                continue
+            if not beating:  # finished, cancelled or taken over: nothing left to keep alive
+                log.info("job %s: heartbeat of attempt %s stopped (the job is no longer this attempt's)",
+                         fence.job_id, fence.attempt)
+                return
 
     def __enter__(self) -> _Heartbeat:
         self._thread.start()
@@ -235,15 +265,18 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
                 jobs.finish(job_id, JobStatus.FAILED,
                             error=f"unknown job kind {job.kind!r} (this worker knows {known})")
             return jobs.status_of(job_id) or "missing"
-        if not jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version,
-                                 stale_after_s=STALE_AFTER_S):
+        host = worker_host()
+        attempt = jobs.mark_running(job_id, host=host, code_version=settings.resolved_code_version,
+                                    stale_after_s=STALE_AFTER_S)
+        if attempt is None:
             # Finished already, cancelled before it started, or running on a live worker (a copy
             # re-sent after the broker lost its data): never run twice at once.
             return jobs.status_of(job_id) or job.status
         club_id, ride_id, rig_id, payload = job.club_id, job.ride_id, job.rig_id, dict(job.payload or {})
+    fence = _Fence(job_id, attempt, host)
 
     _refresh_ride_status(sessions, ride_id)
-    progress = _Progress(job_id, sessions, {name: STAGES[name].weight for name in kind.stages})
+    progress = _Progress(fence, sessions, {name: STAGES[name].weight for name in kind.stages})
     timings: dict[str, float] = {}
     t_job = time.perf_counter()
     current = kind.stages[0]
@@ -251,20 +284,26 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
     def save_timings() -> None:
         timings["total"] = round(time.perf_counter() - t_job, 4)
         with session_scope(sessions) as session:
-            JobRepository(session).set_timings(job_id, timings)
+            JobRepository(session).set_timings(job_id, timings, attempt=fence.attempt, host=fence.host)
 
     def end(status: JobStatus, error: str | None) -> str:
         save_timings()
         with session_scope(sessions) as session:
-            finished = JobRepository(session).finish(job_id, status, error=error)
+            jobs = JobRepository(session)
+            if not jobs.finish(job_id, status, error=error, attempt=fence.attempt, host=fence.host):
+                if jobs.status_of(job_id) == JobStatus.CANCELLED.value:
+                    return JobStatus.CANCELLED.value
+                fence.refused(f"the outcome {status.value!r}")
+                return FENCED
             refresh_ride_status(session, ride_id)
-        return status.value if finished else JobStatus.CANCELLED.value
+        return status.value
 
-    with _Heartbeat(job_id, sessions):
+    with _Heartbeat(fence, sessions):
         try:
             for current in kind.stages:
                 progress.start(current)
-                ctx = StageContext(job_id=job_id, kind=kind.name, stage=current, club_id=club_id,
+                ctx = StageContext(job_id=job_id, attempt=attempt, host=host, kind=kind.name, stage=current,
+                                   club_id=club_id,
                                    ride_id=ride_id, rig_id=rig_id, payload=payload, settings=settings,
                                    storage=storage, sessions=sessions, report=progress)
                 t_stage = time.perf_counter()
@@ -274,6 +313,8 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
                     timings[current] = round(time.perf_counter() - t_stage, 4)
                 progress.finish()
                 save_timings()
+        except JobFenced:
+            return FENCED  # another worker runs the job now: leave its row and outputs alone
         except JobCancelled:
             save_timings()
             _refresh_ride_status(sessions, ride_id)

@@ -51,7 +51,7 @@ from saddlescope.settings import Settings
 from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key, tree_digest
 
 __all__ = [
-    "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobKind", "STAGES", "Stage",
+    "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobFenced", "JobKind", "STAGES", "Stage",
     "StageContext", "StageUnavailable", "define_job_kind", "job_kind", "ride_document", "run_analyze",
     "run_assemble", "run_calibrate", "run_calibrate_rig", "run_probe", "run_selftest", "run_similarity", "stage",
 ]
@@ -68,11 +68,21 @@ class JobCancelled(Exception):
     """Raised inside a stage (at a progress report) when the job was cancelled meanwhile."""
 
 
+class JobFenced(Exception):
+    """Raised when this run's attempt no longer holds its job (another worker took it over): stop, write nothing."""
+
+    def __init__(self, job_id: int, attempt: int) -> None:
+        super().__init__(f"job {job_id}: attempt {attempt} was taken over by a newer attempt")
+        self.job_id, self.attempt = job_id, attempt
+
+
 @dataclass
 class StageContext:
     """What a stage may use. `report` writes progress and raises `JobCancelled` when cancelled."""
 
     job_id: int
+    attempt: int  # with `host`, the fence on every write of the job's outputs (`commit_result`)
+    host: str
     kind: str
     stage: str
     club_id: int | None
@@ -430,7 +440,8 @@ def run_analyze(ctx: StageContext) -> None:
     from saddlescope.services.results import commit_result
 
     commit_result(ctx.sessions, ctx.storage, club_id=club_id, ride_id=ride_id, job_id=ctx.job_id,
-                  document=result, code_version=ctx.settings.resolved_code_version)
+                  document=result, code_version=ctx.settings.resolved_code_version,
+                  attempt=ctx.attempt, host=ctx.host)
     with ctx.session() as session:
         note_analysed_settings(session, ride_id, settings)
     ctx.report(1.0, None)

@@ -20,6 +20,8 @@ from saddlescope.db.repositories.base import Page, Repository
 __all__ = ["JobRepository", "UploadRepository", "db_utcnow", "seconds_since"]
 
 _ACTIVE = (JobStatus.QUEUED.value, JobStatus.RUNNING.value)
+# A running job silent this long (by the database's clock) has lost its worker (services.runner.STALE_AFTER_S).
+STALE_AFTER_S = 180.0
 
 
 class db_utcnow(FunctionElement):  # noqa: N801 (a SQL function, named like one)
@@ -98,44 +100,65 @@ class JobRepository(Repository):
         self.session.execute(update(Job).where(Job.id == job_id).values(**values))
 
     def mark_running(self, job_id: int, *, host: str, code_version: str,
-                     stale_after_s: float | None = None) -> bool:
-        """Start a queued job (or restart a running one whose worker is gone).
+                     stale_after_s: float = STALE_AFTER_S) -> int | None:
+        """Start a queued job (or take over a running one whose worker is gone); returns its new attempt.
 
-        Clears the outcome of an earlier attempt. Returns False, changing nothing, when the job is
-        already finished (done, failed or cancelled), so a redelivered task does no work twice. With
-        `stale_after_s`, a running job is taken only from the same `host` (a retry) or when its
-        heartbeat is older than that by the database's clock: a job re-sent after a broker lost its
-        data never runs twice at once.
+        Clears the outcome of an earlier attempt. Returns None, changing nothing, when the job is
+        finished (done, failed or cancelled), so a redelivered task does no work twice, and when it
+        is running on another live worker: a running job is taken only from the same `host` (a retry
+        in the same process) or when its heartbeat is older than `stale_after_s` by the database's
+        clock. The attempt number returned fences the writes of this run (`set_progress`, `touch`,
+        `finish`, `hold`): once another worker has taken the job over, they are refused.
         """
-        active = Job.status.in_(_ACTIVE)
-        if stale_after_s is not None:
-            active = or_(Job.status == JobStatus.QUEUED.value,
-                         (Job.status == JobStatus.RUNNING.value)
-                         & or_(Job.host == host, Job.updated_at.is_(None), _heartbeat_age() > stale_after_s))
-        result = self.session.execute(
+        active = or_(Job.status == JobStatus.QUEUED.value,
+                     (Job.status == JobStatus.RUNNING.value)
+                     & or_(Job.host == host, Job.updated_at.is_(None), _heartbeat_age() > stale_after_s))
+        attempt = self.session.scalar(
             update(Job).where(Job.id == job_id, active).values(
                 status=JobStatus.RUNNING.value, started_at=db_utcnow(), finished_at=None, error=None,
                 progress=0.0, stage=None, timings={}, host=host, code_version=code_version,
-                attempts=Job.attempts + 1, updated_at=db_utcnow()))
-        return result.rowcount == 1
+                attempts=Job.attempts + 1, updated_at=db_utcnow()).returning(Job.attempts))
+        return attempt
 
-    def set_progress(self, job_id: int, progress: float, stage: str | None) -> None:
-        """Store a running job's progress (clipped to 0-1) and the stage it is in."""
-        self._set(job_id, progress=min(max(float(progress), 0.0), 1.0), stage=stage)
+    def _fenced(self, job_id: int, attempt: int | None, host: str | None, **values: Any) -> bool:
+        """One UPDATE of a running job, only while it is still attempt `attempt` on `host` (None: any)."""
+        stmt = update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value)
+        if attempt is not None:
+            stmt = stmt.where(Job.attempts == attempt)
+        if host is not None:
+            stmt = stmt.where(Job.host == host)
+        values.setdefault("updated_at", db_utcnow())
+        return self.session.execute(stmt.values(**values)).rowcount == 1
 
-    def set_timings(self, job_id: int, timings: dict[str, float]) -> None:
-        """Store the wall seconds of the job's finished stages."""
-        self._set(job_id, timings=dict(timings))
+    def set_progress(self, job_id: int, progress: float, stage: str | None, *, attempt: int | None = None,
+                     host: str | None = None) -> bool:
+        """Store a running job's progress (clipped to 0-1) and the stage it is in.
 
-    def finish(self, job_id: int, status: JobStatus, *, error: str | None = None) -> bool:
-        """End a running job; False when it was cancelled (or finished) meanwhile."""
-        values: dict[str, Any] = {"status": status.value, "finished_at": utcnow(), "error": error,
-                                  "updated_at": utcnow()}
+        False (nothing written) when the job is no longer running as `attempt` on `host`.
+        """
+        return self._fenced(job_id, attempt, host, progress=min(max(float(progress), 0.0), 1.0), stage=stage)
+
+    def set_timings(self, job_id: int, timings: dict[str, float], *, attempt: int | None = None,
+                    host: str | None = None) -> bool:
+        """Store the wall seconds of the job's stages; False when another attempt has taken the job over.
+
+        Not limited to running jobs: a cancelled run's timings are worth seeing too.
+        """
+        stmt = update(Job).where(Job.id == job_id)
+        if attempt is not None:
+            stmt = stmt.where(Job.attempts == attempt)
+        if host is not None:
+            stmt = stmt.where(Job.host == host)
+        return self.session.execute(stmt.values(timings=dict(timings), updated_at=db_utcnow())).rowcount == 1
+
+    def finish(self, job_id: int, status: JobStatus, *, error: str | None = None, attempt: int | None = None,
+               host: str | None = None) -> bool:
+        """End a running job; False when it was cancelled, finished or taken over by another attempt meanwhile."""
+        values: dict[str, Any] = {"status": status.value, "finished_at": db_utcnow(), "error": error,
+                                  "updated_at": db_utcnow()}
         if status is JobStatus.DONE:
             values["progress"] = 1.0
-        result = self.session.execute(
-            update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value).values(**values))
-        return result.rowcount == 1
+        return self._fenced(job_id, attempt, host, **values)
 
     def fail_queued(self, job_id: int, *, error: str) -> bool:
         """Fail a job that never started (e.g. the queue refused it)."""
@@ -180,10 +203,17 @@ class JobRepository(Repository):
         stmt = self._scoped(stmt).order_by(Job.id.desc())
         return self.session.scalars(stmt).first()
 
-    def touch(self, job_id: int) -> None:
-        """A running job's heartbeat: its worker is alive."""
-        self.session.execute(update(Job).where(Job.id == job_id, Job.status == JobStatus.RUNNING.value)
-                             .values(updated_at=db_utcnow()))
+    def touch(self, job_id: int, *, attempt: int | None = None, host: str | None = None) -> bool:
+        """A running job's heartbeat (its worker is alive); False when `attempt` on `host` no longer holds it."""
+        return self._fenced(job_id, attempt, host)
+
+    def hold(self, job_id: int, *, attempt: int, host: str) -> bool:
+        """Lock the job's row for this transaction if `attempt` on `host` still runs it (a fence for outputs).
+
+        Written as an UPDATE (a heartbeat), so the row stays locked until the caller's commit: a
+        worker taking the job over waits for it, and after it the stale attempt's `hold` is False.
+        """
+        return self._fenced(job_id, attempt, host)
 
     def requeue_lost(self, job_id: int, *, host: str | None) -> bool:
         """Put a running job whose worker is gone back in the queue (only if still held by `host`)."""

@@ -1,9 +1,8 @@
-"""Where uploaded videos and result arrays live: a folder tree addressed by storage keys.
+"""The filesystem store (the embedded default): a folder tree addressed by storage keys.
 
-A *key* is a relative POSIX path such as ``rides/12/bundle/motion/left.mp4``; the database stores
-keys, never absolute paths, so the storage root can move (or become an S3-compatible bucket later
-behind the same methods). Writes go to a temporary file first and are renamed into place, so a
-reader never sees half a file.
+Writes go to a temporary file first and are renamed into place, so a reader never sees half a
+file. Beyond the `Storage` interface it offers what only a local disk can: paths, hard links,
+writes at an offset and file locks (the streamed resumable uploads of embedded mode use them).
 """
 
 from __future__ import annotations
@@ -22,33 +21,9 @@ from typing import BinaryIO
 
 from saddlescope.core.errors import InputError
 
+__all__ = ["CHUNK_BYTES", "AtomicWriter", "FileStorage", "TooLarge", "sha256_file", "tree_digest"]
+
 CHUNK_BYTES = 1 << 20
-
-
-def ride_bundle_key(ride_id: int) -> str:
-    return f"rides/{ride_id}/bundle"
-
-
-def stage_output_key(ride_id: int, stage: str) -> str:
-    """The folder a pipeline stage owns for one ride; re-running the stage replaces it."""
-    return f"rides/{ride_id}/stages/{stage}"
-
-
-def rig_stage_output_key(rig_id: int, stage: str) -> str:
-    """The folder a stage of a rig's job owns (e.g. its calibration)."""
-    return f"rigs/{rig_id}/stages/{stage}"
-
-
-def upload_key(upload_id: str) -> str:
-    """Where the bytes of a resumable upload collect until it is finalised."""
-    return f"uploads/{upload_id}.part"
-
-
-def upload_chunk_key(upload_id: str) -> str:
-    """A fresh key for one PATCH's bytes of a resumable upload, before they are checked and appended."""
-    import secrets
-
-    return f"uploads/{upload_id}.chunk-{secrets.token_hex(8)}"
 
 
 class TooLarge(InputError):
@@ -63,7 +38,7 @@ class AtomicWriter:
     an oversized upload is refused while it streams, not after.
     """
 
-    def __init__(self, storage: Storage, key: str, *, max_bytes: int | None = None) -> None:
+    def __init__(self, storage: FileStorage, key: str, *, max_bytes: int | None = None) -> None:
         self.key = key
         self.target = storage.path(key)
         self.target.parent.mkdir(parents=True, exist_ok=True)
@@ -106,14 +81,27 @@ class AtomicWriter:
             self.abort()
 
 
-class Storage:
+class FileStorage:
     """A filesystem store rooted at `root` (created on first use)."""
+
+    kind = "file"
+    local = True  # keys are files on this machine: `path` works
 
     def __init__(self, root: Path | str) -> None:
         self.root = Path(root).expanduser().resolve()
 
     def __repr__(self) -> str:
-        return f"Storage({str(self.root)!r})"
+        return f"FileStorage({str(self.root)!r})"
+
+    def describe(self) -> str:
+        return str(self.root)
+
+    def fetch(self, key: str, target: Path | str) -> Path:
+        """Put the file (or folder) `key` at local `target` (a hard link where possible); returns `target`."""
+        if not self.exists(key):
+            raise FileNotFoundError(f"{key} is not in storage")
+        self.link_or_copy(key, Path(target))
+        return Path(target)
 
     def path(self, key: str) -> Path:
         """The absolute path of `key`; refuses keys that would leave the root."""

@@ -1,0 +1,269 @@
+"""S3-compatible object storage (AWS S3, SeaweedFS, MinIO, ...) through boto3.
+
+Every key lives under ``PREFIX/`` in one bucket. Large writes stream as multipart uploads of
+`PART_BYTES` parts (memory stays at one part, whatever the file's size) and become visible only
+when completed, so a reader never sees half an object. Nothing here touches the local disk except
+`fetch`, which a stage calls to get a clip onto its own scratch folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from saddlescope.core.errors import InputError
+from saddlescope.storage.files import CHUNK_BYTES, TooLarge
+
+__all__ = ["PART_BYTES", "S3Storage", "S3Writer", "parse_s3_url"]
+
+# S3's smallest part (but the last) is 5 MiB; 8 MiB parts keep a 4 GiB clip well under its 10,000 parts.
+PART_BYTES = 8 * 1024**2
+
+
+def parse_s3_url(url: str) -> tuple[str, str]:
+    """``s3://BUCKET[/PREFIX]`` as (bucket, prefix without slashes at either end)."""
+    if not url.startswith("s3://"):
+        raise InputError(f"storage URL {url!r} is not an s3://BUCKET[/PREFIX] URL")
+    bucket, _, prefix = url.removeprefix("s3://").partition("/")
+    if not bucket:
+        raise InputError(f"storage URL {url!r} names no bucket (s3://BUCKET[/PREFIX])")
+    return bucket, prefix.strip("/")
+
+
+def _check_key(key: str) -> str:
+    parts = key.split("/")
+    if not key or "\\" in key or "\0" in key or any(part in ("", ".", "..") for part in parts):
+        raise InputError(f"storage key {key!r} must be a relative path without '..', '.' or '//'")
+    return key
+
+
+class S3Writer:
+    """Chunks streamed to one object as a multipart upload, hashed and counted on the way.
+
+    `commit` completes the upload (the object appears whole); `abort` (or an exception in a
+    ``with`` block) aborts it, and the store keeps nothing. More than `max_bytes` raises `TooLarge`.
+    """
+
+    def __init__(self, storage: S3Storage, key: str, *, max_bytes: int | None = None) -> None:
+        self.storage, self.key, self.max_bytes = storage, key, max_bytes
+        self.size = 0
+        self._digest = hashlib.sha256()
+        self._buffer = bytearray()
+        self._upload_id: str | None = None
+        self._parts: list[dict[str, Any]] = []
+        self._done = False
+
+    def write(self, chunk: bytes) -> None:
+        self.size += len(chunk)
+        if self.max_bytes is not None and self.size > self.max_bytes:
+            self.abort()
+            raise TooLarge(f"{self.key.rsplit('/', 1)[-1]}: larger than the upload limit of "
+                           f"{self.max_bytes} bytes ({self.max_bytes / 1024**2:.0f} MiB)")
+        self._digest.update(chunk)
+        self._buffer += chunk
+        while len(self._buffer) >= PART_BYTES:
+            self._send_part(bytes(self._buffer[:PART_BYTES]))
+            del self._buffer[:PART_BYTES]
+
+    def _send_part(self, data: bytes) -> None:
+        s3, bucket, name = self.storage.client, self.storage.bucket, self.storage.object_name(self.key)
+        if self._upload_id is None:
+            self._upload_id = s3.create_multipart_upload(Bucket=bucket, Key=name)["UploadId"]
+        number = len(self._parts) + 1
+        etag = s3.upload_part(Bucket=bucket, Key=name, UploadId=self._upload_id, PartNumber=number,
+                              Body=data)["ETag"]
+        self._parts.append({"PartNumber": number, "ETag": etag})
+
+    @property
+    def sha256(self) -> str:
+        return self._digest.hexdigest()
+
+    def commit(self) -> tuple[int, str]:
+        """Make the object visible under `key`; returns (size in bytes, sha256 hex)."""
+        s3, bucket, name = self.storage.client, self.storage.bucket, self.storage.object_name(self.key)
+        if self._upload_id is None:  # small: one PUT
+            s3.put_object(Bucket=bucket, Key=name, Body=bytes(self._buffer))
+        else:
+            if self._buffer:
+                self._send_part(bytes(self._buffer))
+            s3.complete_multipart_upload(Bucket=bucket, Key=name, UploadId=self._upload_id,
+                                         MultipartUpload={"Parts": self._parts})
+        self._buffer.clear()
+        self._done = True
+        return self.size, self.sha256
+
+    def abort(self) -> None:
+        if self._upload_id is not None and not self._done:
+            self.storage.client.abort_multipart_upload(Bucket=self.storage.bucket,
+                                                       Key=self.storage.object_name(self.key),
+                                                       UploadId=self._upload_id)
+        self._buffer.clear()
+        self._done = True
+
+    def __enter__(self) -> S3Writer:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if not self._done:
+            self.abort()
+
+
+class S3Storage:
+    """Keys as objects ``PREFIX/key`` in `bucket` of an S3-compatible store."""
+
+    kind = "s3"
+    local = False
+
+    def __init__(self, bucket: str, prefix: str = "", *, endpoint_url: str | None = None,
+                 client: Any | None = None) -> None:
+        if client is None:
+            import boto3
+            from botocore.config import Config
+
+            # Path-style addressing: SeaweedFS and MinIO serve buckets under the endpoint's path.
+            client = boto3.client("s3", endpoint_url=endpoint_url,
+                                  config=Config(s3={"addressing_style": "path"}, retries={"max_attempts": 3}))
+        self.client, self.bucket, self.prefix, self.endpoint_url = client, bucket, prefix.strip("/"), endpoint_url
+
+    @classmethod
+    def from_url(cls, url: str, *, endpoint_url: str | None = None) -> S3Storage:
+        bucket, prefix = parse_s3_url(url)
+        return cls(bucket, prefix, endpoint_url=endpoint_url)
+
+    def __repr__(self) -> str:
+        return f"S3Storage({self.describe()!r})"
+
+    def describe(self) -> str:
+        where = f" at {self.endpoint_url}" if self.endpoint_url else ""
+        return f"s3://{self.bucket}/{self.prefix}{where}".replace(f"{self.bucket}/ at", f"{self.bucket} at")
+
+    def object_name(self, key: str) -> str:
+        _check_key(key)
+        return f"{self.prefix}/{key}" if self.prefix else key
+
+    def _key_of(self, name: str) -> str:
+        return name[len(self.prefix) + 1:] if self.prefix else name
+
+    def _head(self, key: str) -> dict[str, Any] | None:
+        from botocore.exceptions import ClientError
+
+        try:
+            return self.client.head_object(Bucket=self.bucket, Key=self.object_name(key))
+        except ClientError as exc:
+            if exc.response.get("Error", {}).get("Code") in ("404", "NoSuchKey", "NotFound"):
+                return None
+            raise
+
+    def exists(self, key: str) -> bool:
+        """Whether `key` is an object, or the folder of one."""
+        return self._head(key) is not None or next(self.iter_keys(key), None) is not None
+
+    def size(self, key: str) -> int:
+        head = self._head(key)
+        if head is None:
+            raise FileNotFoundError(f"{key} is not in storage")
+        return int(head["ContentLength"])
+
+    def open(self, key: str) -> BinaryIO:
+        """A stream of the object's bytes (read it in chunks; close it)."""
+        from botocore.exceptions import ClientError
+
+        try:
+            return self.client.get_object(Bucket=self.bucket, Key=self.object_name(key))["Body"]
+        except ClientError as exc:
+            if exc.response.get("Error", {}).get("Code") in ("404", "NoSuchKey"):
+                raise FileNotFoundError(f"{key} is not in storage") from None
+            raise
+
+    def writer(self, key: str, *, max_bytes: int | None = None) -> S3Writer:
+        return S3Writer(self, _check_key(key), max_bytes=max_bytes)
+
+    def write_stream(self, key: str, stream: BinaryIO, *, max_bytes: int | None = None) -> tuple[int, str]:
+        with self.writer(key, max_bytes=max_bytes) as out:
+            while chunk := stream.read(CHUNK_BYTES):
+                out.write(chunk)
+            return out.commit()
+
+    def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
+        return self.write_stream(key, io.BytesIO(data))
+
+    def read_bytes(self, key: str) -> bytes:
+        with self.open(key) as body:
+            return body.read()
+
+    def import_file(self, key: str, source: Path | str) -> tuple[int, str]:
+        with Path(source).open("rb") as stream:
+            return self.write_stream(key, stream)
+
+    def import_tree(self, key: str, source: Path | str) -> None:
+        source = Path(source)
+        for file in sorted(p for p in source.rglob("*") if p.is_file()):
+            self.import_file(f"{key}/{file.relative_to(source).as_posix()}", file)
+
+    def fetch(self, key: str, target: Path | str) -> Path:
+        """Download the object (or every object of the folder) `key` to local `target`; returns `target`."""
+        target = Path(target)
+        if self._head(key) is not None:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            self.client.download_file(self.bucket, self.object_name(key), str(target))
+            return target
+        found = False
+        for inner in self.iter_keys(key):
+            found = True
+            local = target.joinpath(*inner[len(key) + 1:].split("/"))
+            local.parent.mkdir(parents=True, exist_ok=True)
+            self.client.download_file(self.bucket, self.object_name(inner), str(local))
+        if not found:
+            raise FileNotFoundError(f"{key} is not in storage")
+        return target
+
+    def move(self, source_key: str, target_key: str) -> None:
+        """Copy then delete (S3 has no rename); the managed copy handles objects over 5 GiB."""
+        self.client.copy({"Bucket": self.bucket, "Key": self.object_name(source_key)}, self.bucket,
+                         self.object_name(target_key))
+        self.client.delete_object(Bucket=self.bucket, Key=self.object_name(source_key))
+
+    def sha256(self, key: str) -> str:
+        digest = hashlib.sha256()
+        with self.open(key) as body:
+            while chunk := body.read(CHUNK_BYTES):
+                digest.update(chunk)
+        return digest.hexdigest()
+
+    def iter_keys(self, prefix: str) -> Iterator[str]:
+        """Every key under the folder `prefix` (or `prefix` itself when it is an object), sorted."""
+        if self._head(prefix) is not None:
+            yield prefix
+            return
+        pages = self.client.get_paginator("list_objects_v2").paginate(
+            Bucket=self.bucket, Prefix=self.object_name(prefix) + "/")
+        keys = [self._key_of(item["Key"]) for page in pages for item in page.get("Contents", [])]
+        yield from sorted(keys)
+
+    def delete(self, prefix: str) -> None:
+        """Remove an object or a whole folder (no error when absent)."""
+        names = [self.object_name(prefix)] + [self.object_name(k) for k in self.iter_keys(prefix) if k != prefix]
+        for start in range(0, len(names), 1000):  # DeleteObjects takes at most 1000 keys
+            self.client.delete_objects(Bucket=self.bucket, Delete={
+                "Objects": [{"Key": name} for name in names[start:start + 1000]], "Quiet": True})
+
+    def check(self) -> str:
+        """Reach the bucket and write, read and delete a probe object; returns a description or raises OSError."""
+        from botocore.exceptions import BotoCoreError, ClientError
+
+        probe = f".health/{uuid.uuid4().hex}"
+        try:
+            self.client.head_bucket(Bucket=self.bucket)
+            self.write_bytes(probe, b"ok")
+            try:
+                if self.read_bytes(probe) != b"ok":
+                    raise OSError(f"{self.describe()} returned different bytes than written")
+            finally:
+                self.client.delete_object(Bucket=self.bucket, Key=self.object_name(probe))
+        except (BotoCoreError, ClientError) as exc:
+            raise OSError(f"{type(exc).__name__}: {exc}") from None
+        return f"{self.describe()} writable"
