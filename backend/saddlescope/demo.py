@@ -21,7 +21,7 @@ from saddlescope.services.job_service import submit_job, wait_for_job
 from saddlescope.services.queue import JobQueue, make_queue
 from saddlescope.services.rides import register_bundle
 from saddlescope.settings import Settings, get_settings
-from saddlescope.storage import Storage
+from saddlescope.storage import Storage, open_storage
 
 DEMO_BUNDLE = Path("var/demo/ride")
 DEMO_CLUB = "Demo club"
@@ -87,7 +87,7 @@ def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
     settings = settings or get_settings()
     upgrade_to_head(settings.database_url)
     sessions = session_factory_for(settings.database_url)
-    storage = Storage(settings.storage_dir)
+    storage = open_storage(settings)
 
     bundle = ensure_demo_bundle(bundle)
     ride_id = _demo_ride_id(sessions, storage, bundle)

@@ -52,10 +52,10 @@ def store_document(database_url: str, storage_dir: Path | str, ride_id: int, doc
     from saddlescope.db.repositories import ResultRepository, RideRepository
     from saddlescope.db.session import make_engine, make_session_factory, session_scope
     from saddlescope.services.rides import refresh_ride_status
-    from saddlescope.storage import Storage, stage_output_key
+    from saddlescope.storage import FileStorage, stage_output_key
 
     key = f"{stage_output_key(ride_id, 'analyze')}/result.json"
-    Storage(storage_dir).write_bytes(key, json.dumps(doc, allow_nan=False).encode())
+    FileStorage(storage_dir).write_bytes(key, json.dumps(doc, allow_nan=False).encode())
     engine = make_engine(database_url)
     try:
         with session_scope(make_session_factory(engine)) as session:

@@ -12,7 +12,7 @@ from api_helpers import new_club, zip_folder
 from engines import ENGINES, MAX_UPLOAD_BYTES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
-from saddlescope.storage import Storage
+from saddlescope.storage import open_storage
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
@@ -54,7 +54,7 @@ def state(env, setup) -> tuple:
     api, ride = setup["api"], setup["ride"]
     clips = api.ok("GET", f"/rides/{ride['id']}/clips")
     recordings = sorted((r["clip_kind"], r["camera_role"], r["sha256"]) for r in clips)
-    storage = Storage(env.settings.storage_dir)
+    storage = open_storage(env.settings)
     files = [k for k in storage.iter_keys("rides") if "/clips/" in k]
     leftovers = [k for k in storage.iter_keys("incoming")] if storage.exists("incoming") else []
     return recordings, api.ok("GET", "/rides")["total"], sorted(files), leftovers

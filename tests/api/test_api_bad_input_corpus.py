@@ -22,7 +22,7 @@ from sqlalchemy import select
 
 from saddlescope.db.models import Base
 from saddlescope.db.session import make_engine
-from saddlescope.storage import Storage
+from saddlescope.storage import open_storage
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
@@ -190,7 +190,7 @@ def fingerprint(env, world) -> dict[str, str]:
                 out[f"rows {name}"] = str(len(rows))
     finally:
         engine.dispose()
-    root = Storage(env.settings.storage_dir).path("rides") / str(other_ride)
+    root = open_storage(env.settings).path("rides") / str(other_ride)
     for path in sorted(p for p in root.rglob("*") if p.is_file()):
         out[f"file {path.relative_to(root)}"] = hashlib.sha256(path.read_bytes()).hexdigest()
     return out

@@ -19,7 +19,7 @@ from saddlescope.db.models import Upload, utcnow
 from saddlescope.db.repositories import JobRepository, ResultRepository, UploadRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.permissions import PERMISSIONS
-from saddlescope.storage import Storage, upload_key
+from saddlescope.storage import open_storage, upload_key
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
@@ -105,7 +105,7 @@ def _send(api, upload_id: str, offset: int, chunk: bytes):
 def test_a_retried_chunk_is_verified_and_never_overwrites_acknowledged_bytes(env, club):
     api = club["api"]
     upload_id = _open_upload(api, 12, "retried")
-    stored = Storage(env.settings.storage_dir)
+    stored = open_storage(env.settings)
     assert _send(api, upload_id, 0, b"abcdef").status_code == 204
     again = _send(api, upload_id, 0, b"abcdef")  # the answer was lost; the client sends it again
     assert again.status_code == 204, again.text
@@ -134,9 +134,9 @@ def test_a_chunk_racing_an_acknowledged_one_cannot_overwrite_it(env, club, monke
     response = _send(api, upload_id, 0, b"XXXXXX")
     monkeypatch.setattr(uploads_router, "stream_chunk", real)
     assert response.status_code == 409, response.text
-    assert Storage(env.settings.storage_dir).read_bytes(upload_key(upload_id)) == b"abcdef"
+    assert open_storage(env.settings).read_bytes(upload_key(upload_id)) == b"abcdef"
     assert _send(api, upload_id, 6, b"ghijkl").status_code == 204
-    assert Storage(env.settings.storage_dir).read_bytes(upload_key(upload_id)) == b"abcdefghijkl"
+    assert open_storage(env.settings).read_bytes(upload_key(upload_id)) == b"abcdefghijkl"
 
 
 def test_a_failed_re_analysis_leaves_the_old_result_readable(env, club, tmp_path, monkeypatch):
@@ -168,7 +168,7 @@ def test_a_failed_re_analysis_leaves_the_old_result_readable(env, club, tmp_path
     assert api.wait_job(job["id"])[0]["status"] == "failed"
     assert seen_during == [before]  # readers saw the committed result while the new one was being stored
     assert api.get(f"/rides/{ride_id}/export/json").json() == before
-    keys = [k for k in Storage(env.settings.storage_dir).iter_keys(f"rides/{ride_id}") if "result" in k]
+    keys = [k for k in open_storage(env.settings).iter_keys(f"rides/{ride_id}") if "result" in k]
     assert len(keys) == 1, keys  # the refused new document was removed
 
 
@@ -219,7 +219,7 @@ def test_a_5000_character_file_name_is_refused_naming_the_field(env, club):
 
 def test_an_open_upload_expires_and_uploads_go_with_their_ride(env, club):
     """Expired uploads are removed when any upload is started, resumed or finalised."""
-    api, storage = club["api"], Storage(env.settings.storage_dir)
+    api, storage = club["api"], open_storage(env.settings)
     stale = _open_upload(api, 12, "stale")
     assert _send(api, stale, 0, b"abc").status_code == 204
     with session_scope(session_factory_for(env.settings.database_url)) as session:

@@ -16,7 +16,7 @@ from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.rides import register_bundle
 from saddlescope.settings import load_settings
-from saddlescope.storage import Storage
+from saddlescope.storage import open_storage
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,7 @@ def env(tmp_path_factory):
         api, account = new_club(client)
         ride_id = register_bundle(
             session_factory_for(settings.database_url),
-            Storage(settings.storage_dir),
+            open_storage(settings),
             integration_services.write_tiny_bundle(root / "bundle"),
             club_id=account["club"]["id"],
         )

@@ -13,7 +13,7 @@ from integration_services import write_tiny_bundle, write_tiny_clip
 
 from saddlescope.db.repositories import RigRepository
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.storage import Storage
+from saddlescope.storage import open_storage
 
 
 @pytest.fixture(scope="module", params=["embedded"])
@@ -135,7 +135,7 @@ def test_a_refused_bundle_leaves_nothing_behind(env, club, tmp_path):
     meta = json.loads((folder / "ride.json").read_text())
     meta["clips"]["motion"]["right"] = "motion/missing.avi"
     data = zip_folder(folder, rewrite={"ride.json": json.dumps(meta).encode()})
-    storage = Storage(env.settings.storage_dir)
+    storage = open_storage(env.settings)
 
     def stored() -> set[str]:
         return {k for top in ("rides", "incoming", "uploads") if storage.exists(top) for k in storage.iter_keys(top)}

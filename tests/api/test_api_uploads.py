@@ -10,7 +10,7 @@ from api_helpers import new_club, zip_folder
 from engines import ENGINES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
-from saddlescope.storage import Storage, upload_key
+from saddlescope.storage import open_storage, upload_key
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
@@ -98,7 +98,7 @@ def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club
     done = api.ok("GET", f"/uploads/{upload['id']}")
     assert done["status"] == "finalised" and done["outcome"] == outcome
     assert send(api, upload["id"], len(data), b"more").status_code == 409
-    assert not Storage(env.settings.storage_dir).exists(upload_key(upload["id"]))
+    assert not open_storage(env.settings).exists(upload_key(upload["id"]))
 
 
 def test_a_refused_file_marks_the_upload_failed_with_the_reason(env, club):
@@ -119,7 +119,7 @@ def test_abandon_and_bad_requests(env, club):
     assert send(api, upload["id"], 0, b"01234").status_code == 204
     assert api.delete(f"/uploads/{upload['id']}").status_code == 204
     assert api.get(f"/uploads/{upload['id']}").status_code == 404
-    assert not Storage(env.settings.storage_dir).exists(upload_key(upload["id"]))
+    assert not open_storage(env.settings).exists(upload_key(upload["id"]))
     assert api.get("/uploads/not-an-upload-id").status_code == 422
     missing_offset = api.patch(f"/uploads/{'0' * 32}", content=b"x")
     assert missing_offset.status_code == 422 and "Upload-Offset" in missing_offset.json()["detail"]

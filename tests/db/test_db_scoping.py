@@ -26,7 +26,7 @@ from saddlescope.db.repositories import (
     RigRepository,
 )
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.storage import Storage, TooLarge
+from saddlescope.storage import FileStorage, TooLarge
 
 
 @pytest.fixture
@@ -192,7 +192,7 @@ def test_existing_rides_migrate_to_the_newest_schema(tmp_path):
 def test_the_atomic_writer_hashes_counts_and_refuses_past_its_limit(tmp_path):
     import hashlib
 
-    storage = Storage(tmp_path / "s")
+    storage = FileStorage(tmp_path / "s")
     with storage.writer("a/clip.mp4", max_bytes=10) as out:
         out.write(b"01234")
         out.write(b"56789")

@@ -127,9 +127,9 @@ def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) 
     from saddlescope.db.repositories import ResultRepository, RideRepository
     from saddlescope.db.session import make_engine, make_session_factory, session_scope
     from saddlescope.services.rides import refresh_ride_status
-    from saddlescope.storage import Storage, stage_output_key
+    from saddlescope.storage import FileStorage, stage_output_key
 
-    storage = Storage(storage_dir)
+    storage = FileStorage(storage_dir)
     result_key = f"{stage_output_key(ride_id, 'analyze')}/result.json"
     storage.write_bytes(result_key, json.dumps(doc, allow_nan=False).encode())
     engine = make_engine(database_url)

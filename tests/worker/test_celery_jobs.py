@@ -14,7 +14,7 @@ from saddlescope.db.session import session_factory_for
 from saddlescope.services.queue import CeleryQueue
 from saddlescope.services.rides import register_bundle
 from saddlescope.settings import load_settings
-from saddlescope.storage import Storage
+from saddlescope.storage import open_storage
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
@@ -35,7 +35,7 @@ def api(celery_worker, tmp_path_factory):
     with TestClient(create_app(settings, open_registration=True)) as client:
         api, account = new_club(client)
         ride_id = register_bundle(
-            session_factory_for(settings.database_url), Storage(settings.storage_dir), bundle,
+            session_factory_for(settings.database_url), open_storage(settings), bundle,
             club_id=account["club"]["id"],
         )
         yield api, ride_id, celery_worker

@@ -11,7 +11,7 @@ from saddlescope.db.models import Horse, Recording, Ride
 from saddlescope.db.session import session_factory_for
 from saddlescope.io.bundle import open_bundle, write_bundle_zip
 from saddlescope.services.rides import register_bundle
-from saddlescope.storage import Storage
+from saddlescope.storage import FileStorage
 
 
 @pytest.fixture
@@ -20,7 +20,7 @@ def env(tmp_path):
     upgrade_to_head(url)
     bundle = integration_services.write_tiny_bundle(tmp_path / "bundle", gait="sitting_trot")
     (bundle / "truth.json").write_text("{}")
-    return session_factory_for(url), Storage(tmp_path / "storage"), bundle
+    return session_factory_for(url), FileStorage(tmp_path / "storage"), bundle
 
 
 def test_folder_bundle_becomes_a_ride_with_twelve_recordings(env):

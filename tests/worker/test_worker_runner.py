@@ -24,7 +24,7 @@ from saddlescope.services.queue import InlineQueue
 from saddlescope.services.rides import register_bundle
 from saddlescope.services.runner import run_job
 from saddlescope.settings import load_settings
-from saddlescope.storage import Storage
+from saddlescope.storage import open_storage
 
 FAKE_INDICATORS = {
     "acc_y_wb_rms": 2.79,
@@ -54,7 +54,7 @@ def sessions(settings):
 @pytest.fixture
 def ride_id(settings, sessions, tmp_path):
     bundle = integration_services.write_tiny_bundle(tmp_path / "bundle")
-    return register_bundle(sessions, Storage(settings.storage_dir), bundle, club_name="Test club")
+    return register_bundle(sessions, open_storage(settings), bundle, club_name="Test club")
 
 
 @pytest.fixture
@@ -157,7 +157,7 @@ def test_cancelling_stops_a_running_job_at_its_next_progress_report(settings, se
 
 
 def test_probe_records_each_clips_size_checksum_and_format(settings, sessions, ride_id):
-    storage = Storage(settings.storage_dir)
+    storage = open_storage(settings)
     job_id = add_job(sessions, kind="probe", ride_id=ride_id)
     assert run_job(job_id, settings=settings) == "done", job_row(sessions, job_id).error
     with sessions() as s:
@@ -176,7 +176,7 @@ def test_probe_names_a_clip_missing_from_storage(settings, sessions, ride_id):
         key = (
             s.query(Recording).filter_by(ride_id=ride_id, clip_kind="static", camera_role="middle").one().path
         )
-    Storage(settings.storage_dir).delete(key)
+    open_storage(settings).delete(key)
     job_id = add_job(sessions, kind="probe", ride_id=ride_id)
     assert run_job(job_id, settings=settings) == "failed"
     assert job_row(sessions, job_id).error == (
@@ -185,7 +185,7 @@ def test_probe_names_a_clip_missing_from_storage(settings, sessions, ride_id):
 
 
 def test_analyze_stores_the_result_and_rerunning_replaces_it(settings, sessions, ride_id, fake_analysis):
-    storage = Storage(settings.storage_dir)
+    storage = open_storage(settings)
     first = add_job(sessions, kind="analyze", ride_id=ride_id)
     assert run_job(first, settings=settings) == "done", job_row(sessions, first).error
     assert set(job_row(sessions, first).timings) == {"probe", "assemble", "calibrate", "analyze", "total"}

@@ -33,7 +33,7 @@ from saddlescope.services.login_guard import HashPool, HashPoolBusy, LoginThrott
 from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.uploads import IncompleteUpload
 from saddlescope.settings import Settings, get_settings, with_embedded_secret
-from saddlescope.storage import Storage, TooLarge
+from saddlescope.storage import TooLarge, open_storage
 
 __all__ = ["ERROR_STATUS", "FRONTEND_DIR", "create_app"]
 
@@ -98,7 +98,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     app.state.engine = make_engine(settings.database_url,
                                    pool_size=REQUEST_SESSIONS + settings.hash_workers + 4)
     app.state.sessions = make_session_factory(app.state.engine)
-    app.state.storage = Storage(settings.storage_dir)
+    app.state.storage = open_storage(settings)
     app.state.open_registration = open_registration
     app.state.login_guard = make_login_guard(settings)
     # Each Argon2 check uses several cores (4 lanes): at most one per two cores, or a sign-in flood takes

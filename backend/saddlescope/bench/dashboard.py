@@ -142,9 +142,9 @@ def bench_database(root: Path) -> Iterator[tuple[str, str]]:
 def _add_omega_versions(root: Path, ride_id: int) -> None:
     """Give the bench ride's stored result the six versions of omega a real analysis writes (the
     service bench's document has none), so the ride page draws every chart it has."""
-    from saddlescope.storage import Storage, stage_output_key
+    from saddlescope.storage import FileStorage, stage_output_key
 
-    storage = Storage(root / "storage")
+    storage = FileStorage(root / "storage")
     key = f"{stage_output_key(ride_id, 'analyze')}/result.json"
     document = json.loads(storage.read_bytes(key))
     omega = np.asarray(document["angular"]["omega_rad_s"])

@@ -449,7 +449,7 @@ def _analysed_ride(root: Path, database_url: str, samples: int) -> int:
     from sqlalchemy import select
 
     from saddlescope.db.repositories import ResultRepository
-    from saddlescope.storage import Storage, stage_output_key
+    from saddlescope.storage import FileStorage, stage_output_key
 
     engine = make_engine(database_url)
     try:
@@ -473,7 +473,7 @@ def _analysed_ride(root: Path, database_url: str, samples: int) -> int:
             session.flush()
             key = f"{stage_output_key(ride.id, 'analyze')}/result.json"
             document = _synthetic_result(samples)
-            Storage(root / "storage").write_bytes(key, json.dumps(document).encode())
+            FileStorage(root / "storage").write_bytes(key, json.dumps(document).encode())
             ResultRepository(session).replace_for_ride(
                 club_id=club_id,
                 ride_id=ride.id,

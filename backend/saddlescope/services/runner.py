@@ -27,7 +27,7 @@ from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobFenced, JobKind, StageContext
 from saddlescope.settings import Settings, get_settings
-from saddlescope.storage import Storage
+from saddlescope.storage import open_storage
 
 __all__ = [
     "FENCED", "HEARTBEAT_S", "MAX_ATTEMPTS", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs",
@@ -249,7 +249,7 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
     """
     settings = settings or get_settings()
     sessions = session_factory_for(settings.database_url)
-    storage = Storage(settings.storage_dir)
+    storage = open_storage(settings)
 
     with session_scope(sessions) as session:
         jobs = JobRepository(session)
