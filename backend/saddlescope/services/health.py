@@ -31,11 +31,11 @@ def check_database(engine: Engine) -> tuple[bool, str]:
 
 
 def check_storage(storage: Storage) -> tuple[bool, str]:
-    """Whether the storage folder can be written, with what was found."""
+    """Whether the store (the folder, or the S3 bucket) can be written and read, with what was found."""
     try:
         return True, storage.check()
     except OSError as exc:
-        return False, f"{storage.root}: {exc}"
+        return False, f"{storage.describe()}: {exc}"
 
 
 def check_queue(queue: JobQueue) -> tuple[bool, str]:
@@ -57,7 +57,7 @@ def health_report(engine: Engine, queue: JobQueue, storage: Storage) -> dict[str
 PART_TROUBLE = {
     "database": "the database does not answer or is not up to date, so nothing can be shown or saved",
     "broker": "the job queue does not answer, so new analyses cannot start",
-    "storage": "the file storage cannot be written, so clips cannot be uploaded",
+    "storage": "the file storage (folder or bucket) cannot be written, so clips cannot be uploaded",
 }
 
 

@@ -30,7 +30,7 @@ from saddlescope.db.repositories import (
 )
 from saddlescope.db.session import session_scope
 from saddlescope.io.bundle import RideBundle, open_bundle
-from saddlescope.storage import Storage, ride_bundle_key, tree_digest
+from saddlescope.storage import Storage, ride_bundle_key, sha256_file, tree_digest
 
 __all__ = [
     "ANALYSIS_JOB_KIND",
@@ -222,10 +222,11 @@ def _add_recordings(session: Session, storage: Storage, bundle: RideBundle, *, c
     for kind, per_camera in bundle.clip_paths.items():
         for role, source in per_camera.items():
             key = f"{bundle_key}/{source.relative_to(bundle.root).as_posix()}"
+            # The local bundle's bytes, just copied to `key` (any back end): no second read of the stored copy.
             if source.is_dir():
-                size_bytes, sha256 = tree_digest(storage.path(key))
+                size_bytes, sha256 = tree_digest(source)
             else:
-                size_bytes, sha256 = storage.size(key), storage.sha256(key)
+                size_bytes, sha256 = source.stat().st_size, sha256_file(source)
             recordings.add(club_id=club_id, ride_id=ride_id, camera_role=role, clip_kind=kind,
                            path=key, sha256=sha256, size_bytes=size_bytes)
 

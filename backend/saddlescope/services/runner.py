@@ -11,10 +11,15 @@ from __future__ import annotations
 import datetime as dt
 import logging
 import os
+import shutil
 import socket
+import tempfile
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
@@ -241,6 +246,14 @@ def _refresh_ride_status(sessions: sessionmaker[Session], ride_id: int | None) -
             refresh_ride_status(session, ride_id)
 
 
+@contextmanager
+def _removed_after(folder: Path) -> Iterator[Path]:
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def run_job(job_id: int, *, settings: Settings | None = None) -> str:
     """Run job `job_id` to its end; returns its final status (done, failed, cancelled, ...).
 
@@ -298,14 +311,16 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
             refresh_ride_status(session, ride_id)
         return status.value
 
-    with _Heartbeat(fence, sessions):
+    # This run's own local folder: the stages fetch their inputs into it and write their outputs in it.
+    scratch = Path(tempfile.mkdtemp(prefix=f"saddlescope-job{job_id}-attempt{attempt}-"))
+    with _Heartbeat(fence, sessions), _removed_after(scratch):
         try:
             for current in kind.stages:
                 progress.start(current)
                 ctx = StageContext(job_id=job_id, attempt=attempt, host=host, kind=kind.name, stage=current,
                                    club_id=club_id,
                                    ride_id=ride_id, rig_id=rig_id, payload=payload, settings=settings,
-                                   storage=storage, sessions=sessions, report=progress)
+                                   storage=storage, sessions=sessions, report=progress, scratch=scratch)
                 t_stage = time.perf_counter()
                 try:
                     STAGES[current].run(ctx)

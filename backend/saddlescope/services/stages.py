@@ -1,15 +1,18 @@
 """The stage registry: what each job kind runs, in which order.
 
 A *stage* is a function ``run(ctx: StageContext) -> None`` that reads its inputs (database rows,
-stored clips, the folders of earlier stages) and writes only its own outputs: its folder under
-``rides/<id>/stages/<name>`` (`StageContext.outputs`, emptied before each run) and the rows it owns.
-Re-running a stage therefore replaces exactly what it made before (idempotent jobs).
+stored clips fetched with `StageContext.fetch`, the folders of earlier stages of the same run) and
+writes only its own outputs: its folder in the run's scratch folder (`StageContext.outputs`, emptied
+before each run; local to the worker and removed when the job ends) and, through fenced writes
+(`commit_result`), the rows and stored documents it owns, under keys naming the job and its attempt.
+Re-running a stage therefore replaces exactly what it made before (idempotent jobs), and nothing in a
+stage assumes the API's filesystem: with object storage, the worker fetches what it reads.
 
 A *job kind* is an ordered list of stages. To add a pipeline stage::
 
     @stage("triangulate", weight=3.0)
     def triangulate(ctx: StageContext) -> None:
-        tracks = ctx.stage_dir("detect") / "tracks.npz"   # an earlier stage's output
+        tracks = ctx.stage_dir("detect") / "tracks.npz"   # an earlier stage's output (same run)
         ...
         ctx.report(0.5, "pair left-right")                # progress within this stage
         np.savez(ctx.outputs() / "points.npz", ...)
@@ -21,8 +24,11 @@ Stages never see Celery: the same functions run in a Celery worker and in the em
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import shutil
+import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -35,6 +41,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.db.repositories import (
+    JobRepository,
     RecordingRepository,
     RideRepository,
     RigRepository,
@@ -48,7 +55,7 @@ from saddlescope.services.rides import (
     ride_clip_plan,
 )
 from saddlescope.settings import Settings
-from saddlescope.storage import Storage, rig_stage_output_key, stage_output_key, tree_digest
+from saddlescope.storage import Storage, sha256_file, tree_digest
 
 __all__ = [
     "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobFenced", "JobKind", "STAGES", "Stage",
@@ -93,6 +100,8 @@ class StageContext:
     storage: Storage
     sessions: sessionmaker[Session]
     report: Callable[[float, str | None], None] = field(repr=False)
+    # This run's own local folder (one per job attempt): fetched inputs and the stages' outputs.
+    scratch: Path = field(default_factory=lambda: Path(tempfile.mkdtemp(prefix="saddlescope-stage-")))
 
     @contextmanager
     def session(self) -> Iterator[Session]:
@@ -100,29 +109,48 @@ class StageContext:
         with session_scope(self.sessions) as session:
             yield session
 
+    def hold(self, session: Session) -> None:
+        """Fence: lock the job's row in `session` while this attempt runs it; `JobFenced` once another does.
+
+        Call it first in the transaction that writes a stage's lasting outputs (rows shared beyond the job).
+        """
+        if not JobRepository(session).hold(self.job_id, attempt=self.attempt, host=self.host):
+            import logging
+
+            logging.getLogger(__name__).warning(
+                "job %s: %s's write of attempt %s on %s refused: the job was taken over", self.job_id,
+                self.stage, self.attempt, self.host)
+            raise JobFenced(self.job_id, self.attempt)
+
     def _require_ride(self) -> int:
         if self.ride_id is None:
             raise InputError(f"stage {self.stage!r} of job {self.job_id} needs a ride, the job has none")
         return self.ride_id
 
-    def _stage_key(self, stage: str) -> str:
-        if self.ride_id is not None:
-            return stage_output_key(self.ride_id, stage)
-        if self.rig_id is not None:
-            return rig_stage_output_key(self.rig_id, stage)
-        raise InputError(f"stage {self.stage!r} of job {self.job_id} needs a ride or a rig, the job has none")
-
     def outputs(self) -> Path:
-        """The current stage's own folder for the job's ride (or rig), emptied first (re-runs replace outputs)."""
-        return self.storage.fresh_dir(self._stage_key(self.stage))
-
-    def output_key(self, name: str) -> str:
-        """Storage key of file `name` in this stage's folder."""
-        return f"{self._stage_key(self.stage)}/{name}"
+        """The current stage's own folder in this run's scratch, emptied first (re-runs replace outputs)."""
+        folder = self.stage_dir(self.stage)
+        if folder.exists():
+            shutil.rmtree(folder)
+        folder.mkdir(parents=True)
+        return folder
 
     def stage_dir(self, stage: str) -> Path:
-        """The folder an earlier stage wrote for this ride or rig (read it, never write it)."""
-        return self.storage.path(self._stage_key(stage))
+        """The folder stage `stage` writes in this run's scratch (an earlier stage's: read it, never write it)."""
+        if not stage or "/" in stage or stage.startswith("."):
+            raise InputError(f"stage name {stage!r} cannot name a folder")
+        return self.scratch / "stages" / stage
+
+    def fetch(self, key: str) -> Path:
+        """A stored file (or folder) on this worker's disk, in this run's scratch (fetched once per run)."""
+        # One folder per key (a bundle fetched whole never mixes with its clips fetched one by one).
+        target = self.scratch / "inputs" / hashlib.sha256(key.encode()).hexdigest()[:16] / key.rsplit("/", 1)[-1]
+        if not target.exists():
+            try:
+                self.storage.fetch(key, target)
+            except FileNotFoundError:
+                raise BundleError(f"{key.rsplit('/', 1)[-1]} is missing from storage ({key})") from None
+        return target
 
 
 @dataclass(frozen=True)
@@ -229,14 +257,14 @@ def run_probe(ctx: StageContext) -> None:
     probed: dict[str, list] = {}
     for i, (recording_id, key, clip_kind, camera_role) in enumerate(clips):
         ctx.report(i / len(clips), f"{clip_kind}/{camera_role}")
-        path = ctx.storage.path(key)
-        if not path.exists():
+        if not ctx.storage.exists(key):
             raise BundleError(f"{owner}: {clip_kind} clip of the {camera_role} camera is missing from "
                               f"storage ({key})")
+        path = ctx.fetch(key)
         if path.is_dir():
             size_bytes, sha256 = tree_digest(path)
         else:
-            size_bytes, sha256 = path.stat().st_size, ctx.storage.sha256(key)
+            size_bytes, sha256 = path.stat().st_size, sha256_file(path)
         try:
             info = probe_video(path)
         except VideoError as exc:
@@ -290,8 +318,7 @@ def run_assemble(ctx: StageContext) -> None:
     with ctx.session() as session:
         ride = RideRepository(session).get(ride_id)
         if ride.bundle_key is not None:
-            ctx.outputs()
-            (ctx.stage_dir(ctx.stage) / "source.json").write_text(json.dumps({"bundle_key": ride.bundle_key}))
+            (ctx.outputs() / "source.json").write_text(json.dumps({"bundle_key": ride.bundle_key}))
             return
         rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
         recordings = RecordingRepository(session)
@@ -310,7 +337,7 @@ def run_assemble(ctx: StageContext) -> None:
     folder.mkdir()
     for i, (kind, cams) in enumerate(plan.items()):
         for role, key in cams.items():
-            ctx.storage.link_or_copy(key, folder / clips[kind][role])
+            ctx.storage.fetch(key, folder / clips[kind][role])
         ctx.report((i + 1) / (len(plan) + 1), kind)
     if "calibration" not in plan:
         (folder / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
@@ -320,7 +347,7 @@ def run_assemble(ctx: StageContext) -> None:
 
 def _bundle_path(ctx: StageContext, ride) -> Path:
     if ride.bundle_key is not None:
-        return ctx.storage.path(ride.bundle_key)
+        return ctx.fetch(ride.bundle_key)
     folder = ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE
     if not (folder / "ride.json").is_file():
         raise BundleError(f"ride {ride.id}: its clips were not assembled into a bundle (run the assemble "
@@ -336,6 +363,7 @@ def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path],
     out = ctx.outputs()
     (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
     with ctx.session() as session:
+        ctx.hold(session)
         rigs = RigRepository(session)
         if replace:
             rigs.set_calibration(rig_id, calibration, calibration_quality(calibration))
@@ -355,8 +383,7 @@ def run_calibrate(ctx: StageContext) -> None:
         if rig is None or rig.calibration:
             note = {"source": "ride" if rig is None else "rig", "rig_id": rig.id if rig else None,
                     "reused": rig is not None}
-            ctx.outputs()
-            (ctx.stage_dir(ctx.stage) / "source.json").write_text(json.dumps(note))
+            (ctx.outputs() / "source.json").write_text(json.dumps(note))
             return
         rig_clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
         rig_id, board = rig.id, rig.board
@@ -364,7 +391,7 @@ def run_calibrate(ctx: StageContext) -> None:
     if rig_clips is not None:
         if not board:
             raise CalibrationError(f"rig {rig_id} has no 'board' (the calibration board its clips show)")
-        paths = {role: ctx.storage.path(key) for role, key in rig_clips.items()}
+        paths = {role: ctx.fetch(key) for role, key in rig_clips.items()}
         _calibrate_and_store(ctx, rig_id, paths, board, meta.get("sync"), replace=False)
         return
     # A ride bundle uploaded for a rig without calibration clips: the bundle's own clips calibrate the rig.
@@ -394,7 +421,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
                                "cameras are not all uploaded")
     if not board:
         raise CalibrationError(f"rig {ctx.rig_id} has no 'board' (the calibration board its clips show)")
-    paths = {role: ctx.storage.path(key) for role, key in clips.items()}
+    paths = {role: ctx.fetch(key) for role, key in clips.items()}
     _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
 
 
