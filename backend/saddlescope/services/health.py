@@ -57,7 +57,7 @@ def health_report(engine: Engine, queue: JobQueue, storage: Storage) -> dict[str
 PART_TROUBLE = {
     "database": "the database does not answer or is not up to date, so nothing can be shown or saved",
     "broker": "the job queue does not answer, so new analyses cannot start",
-    "storage": "the file storage (folder or bucket) cannot be written, so clips cannot be uploaded",
+    "storage": "the file storage cannot be written, so clips cannot be uploaded",
 }
 
 
