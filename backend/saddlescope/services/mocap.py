@@ -290,7 +290,6 @@ def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, c
     int
         The new ride's id. Nothing is stored when the file is refused (the error says why).
     """
-    import shutil
     import tempfile
 
     from saddlescope.db.repositories import ResultRepository, RideRepository
@@ -302,7 +301,7 @@ def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, c
         name = Path(filename or "upload").stem[:80] or "upload"
         with tempfile.TemporaryDirectory(prefix="mocap-") as tmp:
             local = Path(tmp) / f"{name}{suffix}"
-            shutil.copyfile(storage.path(staged_key), local)
+            storage.fetch(staged_key, local)
             document = analyze_mocap(read_mocap(local), replace(choice, gait=choice.gait or ride.get("gait")))
             data = local.read_bytes()
     finally:

@@ -11,10 +11,13 @@ clip, recording and ride as it was.
 from __future__ import annotations
 
 import datetime as dt
-import os
 import re
 import secrets
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -150,7 +153,8 @@ def accept_clip(
         if size_bytes == 0:
             raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera is an empty file")
         try:
-            info = probe_video(storage.path(staged_key))
+            # On object storage the worker's probe stage reads the clip (the API keeps no video bytes).
+            info = probe_video(storage.path(staged_key)) if storage.local else None
         except VideoError as exc:
             name = filename or "the upload"
             # The staging path means nothing to the user (and says where storage lives): name the file.
@@ -172,7 +176,8 @@ def accept_clip(
                 )
                 if r.clip_kind == clip_kind
             ]
-            _agreement(owner, clip_kind, camera, info, others)
+            if info is not None:
+                _agreement(owner, clip_kind, camera, info, others)
             previous = next((r.path for r in others if r.camera_role == camera), None)
             storage.move(staged_key, final_key)
             try:
@@ -184,11 +189,7 @@ def accept_clip(
                     path=final_key,
                     sha256=sha256,
                     size_bytes=size_bytes,
-                    fps=info.fps,
-                    frame_count=info.frame_count,
-                    width=info.width,
-                    height=info.height,
-                    codec=info.codec,
+                    **_probed(info),
                     original_filename=filename,
                 )
                 if owner.kind == "rig" and clip_kind == "calibration":
@@ -206,6 +207,12 @@ def accept_clip(
     if previous is not None and previous != final_key:
         storage.delete(previous)  # after the commit: a failed upload never loses the earlier clip
     return recording_id
+
+
+def _probed(info) -> dict[str, Any]:
+    """A recording's probe columns from `probe_video`'s answer (None: not probed yet, the probe stage will)."""
+    names = ("fps", "frame_count", "width", "height", "codec")
+    return {name: getattr(info, name) if info is not None else None for name in names}
 
 
 def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: ClipOwner) -> int | None:
@@ -274,18 +281,31 @@ def accept_bundle(
         if existing is not None:
             raise Conflict(f"{shown}: this bundle (the same content) was already uploaded as ride {existing}; "
                            "open that ride, or delete it first to upload the bundle again")
-        try:
-            ride_id = register_bundle(sessions, storage, storage.path(staged_key), club_id=club_id, rig_id=rig_id,
-                                      chosen=chosen)
-        except BundleError as exc:
-            path = storage.path(staged_key)
-            raise BundleError(str(exc).replace(str(path), shown).replace(path.name, shown)) from None
+        with _local_file(storage, staged_key) as path:
+            try:
+                ride_id = register_bundle(sessions, storage, path, club_id=club_id, rig_id=rig_id, chosen=chosen)
+            except BundleError as exc:
+                raise BundleError(str(exc).replace(str(path), shown).replace(path.name, shown)) from None
         with session_scope(sessions) as session:
             RideRepository(session, club_id=club_id).note(ride_id, _bundle_sha256=sha256, _created_by=user_id)
     finally:
         storage.delete(staged_key)
     job_id = submit_job(sessions, queue, kind="analyze", ride_id=ride_id, club_id=club_id)
     return ride_id, job_id
+
+
+@contextmanager
+def _local_file(storage: Storage, key: str) -> Iterator[Path]:
+    """A stored file as a local path: the file itself on a local store, else a temporary copy.
+
+    Only a bundle zip takes this path on object storage (it is unpacked to be registered); moving that
+    unpacking to a worker stage is issue 26 part 2.
+    """
+    if storage.local:
+        yield storage.path(key)
+        return
+    with tempfile.TemporaryDirectory(prefix="saddlescope-bundle-") as tmp:
+        yield storage.fetch(key, Path(tmp) / key.rsplit("/", 1)[-1])
 
 
 # --- resumable uploads --------------------------------------------------------------------------------
@@ -373,7 +393,7 @@ def finalise_upload(
             RigRepository(session, club_id=club_id).get(rig_id)  # before the bytes move: a 404 keeps them
     chosen.pop("rig_id", None)
     staged = staging_key(club_id, filename)
-    storage.move(upload_key(upload_id), staged)
+    storage.seal(upload_key(upload_id), staged)
     try:
         if target == UploadTarget.BUNDLE:
             new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
@@ -429,22 +449,30 @@ def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: 
     if upload.status != UploadStatus.OPEN.value or upload.offset_bytes != upload.length_bytes:
         raise IncompleteUpload(f"upload {upload_id} is not a complete open upload "
                                f"({upload.offset_bytes} of {upload.length_bytes} bytes, {upload.status})")
-    return read_bundle_meta(session, storage.path(upload_key(upload_id)), club_id=club_id,
-                            shown=upload.filename or "the bundle")
+    with storage.open_seekable(upload_key(upload_id)) as zip_stream:  # only ride.json is read, by ranges
+        return read_bundle_meta(session, zip_stream, club_id=club_id, shown=upload.filename or "the bundle")
 
 
 class IncompleteUpload(InputError):
     """A resumable upload is finalised before all its bytes arrived (HTTP 409)."""
 
 
-def _append(storage: Storage, key: str, at: int, staged_key: str, skip: int) -> None:
-    """Write `staged_key` from byte `skip` onwards into `key` from byte `at` (anything after `at` dropped)."""
-    with storage.open(staged_key) as src, storage.open_at(key, at) as out:
-        src.seek(skip)
-        while block := src.read(1 << 20):
-            out.write(block)
-        out.flush()
-        os.fsync(out.fileno())
+@contextmanager
+def _upload_locked(session: Session, storage: Storage, upload_id: str, *, club_id: int | None) -> Iterator[None]:
+    """Hold the upload against other chunks: a file lock on this host's disk, the row's lock in the database
+    otherwise (API replicas on several hosts share only the database and the bucket)."""
+    if storage.local:
+        with storage.locked(upload_key(upload_id)):
+            session.rollback()  # read the offset as it is now, under the lock
+            yield
+        return
+    session.rollback()
+    UploadRepository(session, club_id=club_id).lock(upload_id)  # until this transaction ends
+    try:
+        yield
+    finally:
+        if session.in_transaction():
+            session.rollback()  # refused: let the next chunk in
 
 
 def commit_chunk(session: Session, storage: Storage, upload_id: str, *, offset: int, staged_key: str,
@@ -456,8 +484,7 @@ def commit_chunk(session: Session, storage: Storage, upload_id: str, *, offset: 
     past the current offset is appended, and the offset moves in the same locked step.
     """
     key = upload_key(upload_id)
-    with storage.locked(key):
-        session.rollback()  # read the offset as it is now, under the lock
+    with _upload_locked(session, storage, upload_id, club_id=club_id):
         uploads = UploadRepository(session, club_id=club_id)
         upload = uploads.get(upload_id)
         current = upload.offset_bytes
@@ -474,7 +501,7 @@ def commit_chunk(session: Session, storage: Storage, upload_id: str, *, offset: 
             )
         if offset + size <= current:
             return current  # a retry of bytes already here: nothing to do
-        _append(storage, key, current, staged_key, overlap)
+        storage.append_from(key, current, staged_key, overlap)
         if not uploads.advance(upload_id, from_offset=current, to_offset=offset + size):
             raise IncompleteUpload(f"upload {upload_id} moved on meanwhile; ask for its offset")
         session.commit()

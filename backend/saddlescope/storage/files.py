@@ -160,6 +160,23 @@ class FileStorage:
         handle.truncate()
         return handle
 
+    def open_seekable(self, key: str) -> BinaryIO:
+        """`key` as a seekable stream (the file itself)."""
+        return self.open(key)
+
+    def append_from(self, key: str, at: int, source_key: str, skip: int) -> None:
+        """Write `source_key` from byte `skip` on into `key` from byte `at` (anything after `at` dropped)."""
+        with self.open(source_key) as src, self.open_at(key, at) as out:
+            src.seek(skip)
+            while block := src.read(CHUNK_BYTES):
+                out.write(block)
+            out.flush()
+            os.fsync(out.fileno())
+
+    def seal(self, key: str, target_key: str) -> None:
+        """Make the collected bytes of `key` the file `target_key` (a rename)."""
+        self.move(key, target_key)
+
     @contextmanager
     def locked(self, key: str) -> Iterator[None]:
         """Hold an exclusive lock on file `key` (created if absent) across processes of this host."""

@@ -112,6 +112,47 @@ class S3Writer:
             self.abort()
 
 
+class _RangeReader(io.RawIOBase):
+    """A seekable read-only view of objects laid end to end (one object, or an upload's parts), by ranged GETs."""
+
+    def __init__(self, storage: S3Storage, segments: list[tuple[str, int]]) -> None:
+        self.storage, self.segments = storage, segments  # (object name, size) in order
+        self.length = sum(size for _, size in segments)
+        self.position = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def seek(self, offset: int, whence: int = io.SEEK_SET) -> int:
+        base = {io.SEEK_SET: 0, io.SEEK_CUR: self.position, io.SEEK_END: self.length}[whence]
+        self.position = max(0, base + offset)
+        return self.position
+
+    def tell(self) -> int:
+        return self.position
+
+    def readinto(self, buffer) -> int:
+        wanted = min(len(buffer), self.length - self.position)
+        if wanted <= 0:
+            return 0
+        start = 0
+        for name, size in self.segments:
+            if self.position < start + size:
+                inner = self.position - start
+                count = min(wanted, size - inner)
+                body = self.storage.client.get_object(Bucket=self.storage.bucket, Key=name,
+                                                      Range=f"bytes={inner}-{inner + count - 1}")["Body"]
+                data = body.read()
+                buffer[:len(data)] = data
+                self.position += len(data)
+                return len(data)
+            start += size
+        return 0
+
+
 class S3Storage:
     """Keys as objects ``PREFIX/key`` in `bucket` of an S3-compatible store."""
 
@@ -203,6 +244,70 @@ class S3Storage:
         source = Path(source)
         for file in sorted(p for p in source.rglob("*") if p.is_file()):
             self.import_file(f"{key}/{file.relative_to(source).as_posix()}", file)
+
+    # --- resumable uploads: the bytes collect as part objects ``KEY/<start offset, 20 digits>`` --------
+
+    def _segments(self, key: str) -> list[tuple[str, int]]:
+        """(object name, size) of `key`: itself when it is an object, else its part objects in order."""
+        head = self._head(key)
+        if head is not None:
+            return [(self.object_name(key), int(head["ContentLength"]))]
+        pages = self.client.get_paginator("list_objects_v2").paginate(
+            Bucket=self.bucket, Prefix=self.object_name(key) + "/")
+        items = sorted((item["Key"], int(item["Size"])) for page in pages for item in page.get("Contents", []))
+        if not items:
+            raise FileNotFoundError(f"{key} is not in storage")
+        return items
+
+    def open_seekable(self, key: str) -> BinaryIO:
+        """`key` (an object, or an upload's parts read as one file) as a seekable stream, read by ranges.
+
+        For readers that jump about (a zip's directory at its end): nothing is copied to local disk.
+        """
+        return io.BufferedReader(_RangeReader(self, self._segments(key)), buffer_size=CHUNK_BYTES)
+
+    def same_bytes(self, key: str, offset: int, other_key: str, length: int) -> bool:
+        """Whether `length` bytes of `key` from `offset` equal the first `length` bytes of `other_key`."""
+        with self.open_seekable(key) as ours, self.open(other_key) as theirs:
+            ours.seek(offset)
+            while length > 0:
+                size = min(length, CHUNK_BYTES)
+                mine = ours.read(size)
+                if len(mine) != size or mine != theirs.read(size):
+                    return False
+                length -= size
+        return True
+
+    def append_from(self, key: str, at: int, source_key: str, skip: int) -> None:
+        """Add `source_key` from its byte `skip` on as the part of `key` starting at byte `at`.
+
+        Parts at or after `at` (left by a chunk that was never acknowledged) are dropped first. With
+        nothing to skip the part is a server-side copy; its bytes never pass through this process.
+        """
+        for name, _ in self._parts_from(key, at):
+            self.client.delete_object(Bucket=self.bucket, Key=name)
+        part = f"{key}/{at:020d}"
+        if skip == 0:
+            self.client.copy({"Bucket": self.bucket, "Key": self.object_name(source_key)}, self.bucket,
+                             self.object_name(part))
+            return
+        with self.open_seekable(source_key) as source:
+            source.seek(skip)
+            self.write_stream(part, source)
+
+    def _parts_from(self, key: str, at: int) -> list[tuple[str, int]]:
+        try:
+            segments = self._segments(key)
+        except FileNotFoundError:
+            return []
+        return [(name, size) for name, size in segments if name.rsplit("/", 1)[-1].isdigit()
+                and int(name.rsplit("/", 1)[-1]) >= at]
+
+    def seal(self, key: str, target_key: str) -> None:
+        """Make the collected bytes of `key` one object `target_key` (streamed part by part), then drop `key`."""
+        with self.open_seekable(key) as source:
+            self.write_stream(target_key, source)
+        self.delete(key)
 
     def fetch(self, key: str, target: Path | str) -> Path:
         """Download the object (or every object of the folder) `key` to local `target`; returns `target`."""

@@ -282,6 +282,13 @@ class UploadRepository(Repository):
                                 filename=filename, length_bytes=length_bytes, offset_bytes=0,
                                 status=UploadStatus.OPEN.value, outcome={}, created_at=now, updated_at=now))
 
+    def lock(self, upload_id: str) -> bool:
+        """Lock the upload's row until this transaction ends (a no-op UPDATE: PostgreSQL and SQLite alike)."""
+        stmt = update(Upload).where(Upload.id == upload_id)
+        if self.club_id is not None:
+            stmt = stmt.where(Upload.club_id == self.club_id)
+        return self.session.execute(stmt.values(offset_bytes=Upload.offset_bytes)).rowcount == 1
+
     def advance(self, upload_id: str, *, from_offset: int, to_offset: int) -> bool:
         """Move the offset forward, only if nobody else moved it meanwhile (two PATCHes racing)."""
         stmt = update(Upload).where(Upload.id == upload_id, Upload.offset_bytes == from_offset,
