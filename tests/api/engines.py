@@ -7,6 +7,7 @@ Without the services the celery variant skips (fails under CI=true), as the othe
 
 from __future__ import annotations
 
+import contextlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,8 +41,41 @@ def standin_worker_env(delay_s: float = 0.0) -> dict[str, str]:
     return {"PYTHONPATH": path, "STANDIN_DELAY_S": str(delay_s)}
 
 
+@dataclass
+class _Param:
+    """`request` with another `param` (an engine variant run as its base engine)."""
+
+    request: object
+    param: str
+
+    def getfixturevalue(self, name: str):
+        return self.request.getfixturevalue(name)
+
+
+@contextlib.contextmanager
+def s3_storage_env(request, settings: dict):
+    """Point `settings` (overrides) at a fresh bucket of the session's SeaweedFS (`tests/s3_server.py`), with its
+    credentials in the environment (boto3 reads them there) while the block runs."""
+    server = request.getfixturevalue("s3_server")
+    settings.update(storage_url=f"s3://{server.new_bucket('api')}/club-data", s3_endpoint_url=server.endpoint_url)
+    saved = {name: os.environ.get(name) for name in server.environ()}
+    os.environ.update(server.environ())
+    try:
+        yield server
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
 def open_env(request, tmp_path_factory, *, worker: bool = True, **overrides):
     """Yield an `Env` for ``request.param`` ("embedded" or "celery"), torn down after the module."""
+    if request.param == "embedded-s3":  # embedded, its clips and results in a bucket of a real SeaweedFS
+        with s3_storage_env(request, overrides):
+            yield from open_env(_Param(request, "embedded"), tmp_path_factory, worker=worker, **overrides)
+        return
     root = tmp_path_factory.mktemp(f"api-{request.param}")
     common = dict(storage_dir=str(root / "storage"), max_upload_bytes=MAX_UPLOAD_BYTES, **overrides)
     if request.param == "embedded":

@@ -1,24 +1,46 @@
-"""Resumable uploads (tus-like) and the streamed upload path: offsets, resuming, finalising, refusals."""
+"""Resumable uploads (tus-like) and the streamed upload path: offsets, resuming, finalising, refusals.
+
+On both storage back ends: the folder tree, and a bucket of a real SeaweedFS ("embedded-s3"), where the
+API keeps no byte of a video on its own disk and the worker's probe stage reads the clips.
+"""
 
 from __future__ import annotations
 
 import hashlib
+import tempfile
+import time
 
 import integration_services
 import pytest
+import s3_server as s3_server_module
 from api_helpers import new_club, zip_folder
 from engines import ENGINES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
-from saddlescope.storage import open_storage, upload_key
+from saddlescope.storage import FileStorage, open_storage, upload_key
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
+s3_server = s3_server_module.s3_server
 
 
-@pytest.fixture(scope="module", params=ENGINES)
+@pytest.fixture(scope="module", params=[*ENGINES, "embedded-s3"])
 def env(request, tmp_path_factory):
     yield from open_env(request, tmp_path_factory, worker=False)
+
+
+def on_s3(env) -> bool:
+    return env.settings.storage_url is not None and env.settings.storage_url.startswith("s3://")
+
+
+def job_outcome(api, job_id: int, timeout_s: float = 60.0) -> dict:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        job = api.ok("GET", f"/jobs/{job_id}")
+        if job["status"] in ("done", "failed", "cancelled"):
+            return job
+        time.sleep(0.05)
+    pytest.fail(f"job {job_id} not finished after {timeout_s} s")
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +115,12 @@ def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club
     assert outcome["job_id"] is None  # one camera of three: nothing to start yet
     clip = next(r for r in api.ok("GET", f"/rides/{ride['id']}/clips") if r["id"] == outcome["recording_id"])
     assert clip["sha256"] == hashlib.sha256(data).hexdigest() and clip["size_bytes"] == len(data)
+    if on_s3(env):  # probed by the worker, not by the API: its probe job fills these in
+        assert (clip["frame_count"], clip["fps"], clip["width"], clip["height"]) == (None, None, None, None)
+        job = api.ok("POST", "/jobs", 201, json={"kind": "probe", "ride_id": ride["id"]})
+        assert job_outcome(api, job["id"])["status"] == "done"
+        clip = next(r for r in api.ok("GET", f"/rides/{ride['id']}/clips") if r["id"] == outcome["recording_id"])
+        assert clip["sha256"] == hashlib.sha256(data).hexdigest()
     assert (clip["frame_count"], clip["fps"], clip["width"], clip["height"]) == (12, 30.0, 64, 48)
     assert clip["original_filename"] == "left.avi"
     done = api.ok("GET", f"/uploads/{upload['id']}")
@@ -107,6 +135,13 @@ def test_a_refused_file_marks_the_upload_failed_with_the_reason(env, club):
     upload = start(api, ride["id"], data, camera="middle")
     assert send(api, upload["id"], 0, data).status_code == 204
     response = api.post(f"/uploads/{upload['id']}/finalize")
+    if on_s3(env):  # the API cannot read it without keeping it: the worker's probe refuses it, with the reason
+        assert response.status_code == 200
+        job = api.ok("POST", "/jobs", 201, json={"kind": "probe", "ride_id": ride["id"]})
+        failed = job_outcome(api, job["id"])
+        assert failed["status"] == "failed" and "middle camera (middle-" in failed["error"]
+        assert "is not a usable video" in failed["error"]
+        return
     assert response.status_code == 422 and "(middle.avi) is not a usable video" in response.json()["detail"]
     failed = api.ok("GET", f"/uploads/{upload['id']}")
     assert failed["status"] == "failed" and "not a usable video" in failed["error"]
@@ -188,3 +223,37 @@ def test_raw_and_multipart_uploads_store_the_same_bytes(env, club):
     )
     no_file = api.put(f"/rides/{ride['id']}/clips/static/right", files={"other": ("x.avi", data)})
     assert no_file.status_code == 422 and "no 'file' field" in no_file.json()["detail"]
+
+
+def test_on_object_storage_the_api_keeps_no_video_byte_on_its_disk(env, club, monkeypatch):
+    if not on_s3(env):
+        pytest.skip("a check of the object-storage back end (the folder tree keeps clips on disk by design)")
+    api, ride = club["api"], club["ride"]
+    data = write_tiny_clip(club["folder"] / "private.avi", frames=10).read_bytes()
+    local_files: list[str] = []  # every temporary file or folder, or local store, the API opens meanwhile
+    for name in ("mkstemp", "mkdtemp", "NamedTemporaryFile", "TemporaryFile", "SpooledTemporaryFile"):
+        real = getattr(tempfile, name)
+        monkeypatch.setattr(tempfile, name, lambda *a, _real=real, _name=name, **k: (
+            local_files.append(_name), _real(*a, **k))[1])
+    monkeypatch.setattr(FileStorage, "__init__", lambda self, root: local_files.append(f"FileStorage({root})"))
+    upload = start(api, ride["id"], data, camera="right", clip_kind="plumb")
+    half = len(data) // 2
+    assert send(api, upload["id"], 0, data[:half]).status_code == 204
+    assert send(api, upload["id"], 0, data[:half]).status_code == 204  # a retried chunk: idempotent
+    assert send(api, upload["id"], half, data[half:]).status_code == 204
+    resumable = api.ok("POST", f"/uploads/{upload['id']}/finalize")
+    direct = api.ok("PUT", f"/rides/{ride['id']}/clips/static/right", content=data,
+                    headers={"Content-Type": "video/x-msvideo", "X-Filename": "direct.avi"})
+    assert local_files == []
+    # The API's own data folder holds the database and its secret, never a clip; the bucket has both clips.
+    stored = [p for p in env.settings.storage_dir.parent.rglob("*") if p.is_file()]
+    assert all(p.name.startswith(("db.sqlite", "secret_key")) for p in stored), stored
+    assert not env.settings.storage_dir.exists()
+    bucket = open_storage(env.settings)
+    keys = [k for k in bucket.iter_keys(f"rides/{ride['id']}/clips")]
+    assert any(k.startswith(f"rides/{ride['id']}/clips/plumb/right-") for k in keys)
+    assert any(k.startswith(f"rides/{ride['id']}/clips/static/right-") for k in keys)
+    sha = hashlib.sha256(data).hexdigest()
+    clips = {r["id"]: r for r in api.ok("GET", f"/rides/{ride['id']}/clips")}
+    assert clips[resumable["recording_id"]]["sha256"] == clips[direct["recording"]["id"]]["sha256"] == sha
+    assert not list(bucket.iter_keys("uploads"))  # the parts and chunks are gone
