@@ -166,7 +166,7 @@ def test_two_workers_racing_to_store_one_jobs_result_leave_one_result(setup, cap
     with session_scope(sessions) as s:
         assert s.scalar(select(func.count()).select_from(Result).where(Result.ride_id == ride_id)) == 1
         result = s.scalars(select(Result).where(Result.ride_id == ride_id)).one()
-        assert (result.result_key, result.acc_y_wb_rms) == (key, 2.0)
+        assert (result.result_key, result.acc_y_wb_rms, result.job_attempt) == (key, 2.0, second)
     # The stale attempt's document was removed again: only the stored result's remains.
     assert list(storage.iter_keys(f"rides/{ride_id}/results")) == [key]
     assert any("refused" in r.getMessage() for r in caplog.records)

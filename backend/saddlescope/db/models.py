@@ -307,6 +307,8 @@ class Result(TimestampMixin, Base):
     club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
     ride_id: Mapped[int] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), unique=True)
     job_id: Mapped[int | None] = mapped_column(ForeignKey("jobs.id", ondelete="SET NULL"), index=True)
+    # Which attempt of the job stored this result (its writes are fenced by it; migration 0008_fencing).
+    job_attempt: Mapped[int | None]
     indicators: Mapped[dict[str, Any]] = mapped_column(default=dict)
     # Leaderboard columns copied out of `indicators` so they can be indexed and sorted.
     acc_y_wb_rms: Mapped[float | None] = mapped_column(Float)

@@ -351,7 +351,7 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
             old_key = old.result_key if old is not None else None
             results.replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=job_id,
                                      indicators=document.get("indicators", {}), result_key=key,
-                                     code_version=code_version)
+                                     code_version=code_version, job_attempt=attempt)
     except BaseException:
         storage.delete(key)
         raise

@@ -224,7 +224,8 @@ class ResultRepository(Repository):
         return {ride_id: dict(indicators or {}) for ride_id, indicators in self.session.execute(stmt)}
 
     def replace_for_ride(self, *, club_id: int, ride_id: int, job_id: int | None, indicators: dict[str, Any],
-                         result_key: str | None, code_version: str | None) -> Result:
+                         result_key: str | None, code_version: str | None, job_attempt: int | None = None
+                         ) -> Result:
         """Store a ride's result, replacing the previous one (re-running a job is idempotent).
 
         The ride's cached comparisons with other rides are deleted: they were computed from the old
@@ -236,7 +237,7 @@ class ResultRepository(Repository):
         if result is None:
             result = Result(club_id=self._club_for_new(club_id), ride_id=ride_id)
             self.session.add(result)
-        result.job_id = job_id
+        result.job_id, result.job_attempt = job_id, job_attempt
         result.indicators = dict(indicators)
         result.result_key = result_key
         result.code_version = code_version
