@@ -334,7 +334,7 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
     locked until the commit); a stale worker's result is refused (`JobFenced`) and its document removed.
     """
     from saddlescope.db.repositories import JobRepository
-    from saddlescope.services.stages import JobFenced
+    from saddlescope.services.fencing import JobFenced
 
     run = f"{job_id}-{attempt}-" if job_id is not None and attempt is not None else ""
     key = f"rides/{ride_id}/results/{run}{secrets.token_hex(8)}.json"

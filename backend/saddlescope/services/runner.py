@@ -254,39 +254,72 @@ def _removed_after(folder: Path) -> Iterator[Path]:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def run_job(job_id: int, *, settings: Settings | None = None) -> str:
-    """Run job `job_id` to its end; returns its final status (done, failed, cancelled, ...).
+@dataclass(frozen=True)
+class _Claimed:
+    """A job this process now runs: its fence and what its stages need."""
 
-    Errors a user can cause (`SaddleScopeError`) end the job as failed with their message. Any
-    other error is recorded the same way and then re-raised, so the worker logs its traceback.
-    """
-    settings = settings or get_settings()
-    sessions = session_factory_for(settings.database_url)
-    storage = open_storage(settings)
+    fence: _Fence
+    kind: JobKind
+    club_id: int | None
+    ride_id: int | None
+    rig_id: int | None
+    payload: dict
 
+
+def _claim(sessions: sessionmaker[Session], settings: Settings, job_id: int) -> _Claimed | str:
+    """Start job `job_id` as this process's next attempt; its status instead when it is not to run here."""
     with session_scope(sessions) as session:
         jobs = JobRepository(session)
         job = jobs.find(job_id)
         if job is None:
             log.warning("job %s does not exist (deleted?); nothing to run", job_id)
             return "missing"
+        host, version = worker_host(), settings.resolved_code_version
         kind: JobKind | None = JOB_KINDS.get(job.kind)
         if kind is None:
-            if jobs.mark_running(job_id, host=worker_host(), code_version=settings.resolved_code_version,
-                                 stale_after_s=STALE_AFTER_S):
+            if jobs.mark_running(job_id, host=host, code_version=version, stale_after_s=STALE_AFTER_S):
                 known = ", ".join(sorted(JOB_KINDS))
                 jobs.finish(job_id, JobStatus.FAILED,
                             error=f"unknown job kind {job.kind!r} (this worker knows {known})")
             return jobs.status_of(job_id) or "missing"
-        host = worker_host()
-        attempt = jobs.mark_running(job_id, host=host, code_version=settings.resolved_code_version,
-                                    stale_after_s=STALE_AFTER_S)
+        attempt = jobs.mark_running(job_id, host=host, code_version=version, stale_after_s=STALE_AFTER_S)
         if attempt is None:
             # Finished already, cancelled before it started, or running on a live worker (a copy
             # re-sent after the broker lost its data): never run twice at once.
             return jobs.status_of(job_id) or job.status
-        club_id, ride_id, rig_id, payload = job.club_id, job.ride_id, job.rig_id, dict(job.payload or {})
-    fence = _Fence(job_id, attempt, host)
+        return _Claimed(_Fence(job_id, attempt, host), kind, job.club_id, job.ride_id, job.rig_id,
+                        dict(job.payload or {}))
+
+
+def _end(sessions: sessionmaker[Session], fence: _Fence, ride_id: int | None, status: JobStatus,
+         error: str | None) -> str:
+    """Write the run's outcome, fenced: a cancelled job stays cancelled, a job taken over is left alone."""
+    with session_scope(sessions) as session:
+        jobs = JobRepository(session)
+        if not jobs.finish(fence.job_id, status, error=error, attempt=fence.attempt, host=fence.host):
+            if jobs.status_of(fence.job_id) == JobStatus.CANCELLED.value:
+                return JobStatus.CANCELLED.value
+            fence.refused(f"the outcome {status.value!r}")
+            return FENCED
+        refresh_ride_status(session, ride_id)
+    return status.value
+
+
+def run_job(job_id: int, *, settings: Settings | None = None) -> str:
+    """Run job `job_id` to its end; returns its final status (done, failed, cancelled, fenced, ...).
+
+    Errors a user can cause (`SaddleScopeError`) end the job as failed with their message. Any
+    other error is recorded the same way and then re-raised, so the worker logs its traceback.
+    Every write is fenced by this run's attempt: once another worker took the job over, the run
+    stops at its next write and returns `FENCED`, leaving the job alone.
+    """
+    settings = settings or get_settings()
+    sessions = session_factory_for(settings.database_url)
+    storage = open_storage(settings)
+    claimed = _claim(sessions, settings, job_id)
+    if isinstance(claimed, str):
+        return claimed
+    fence, kind, ride_id = claimed.fence, claimed.kind, claimed.ride_id
 
     _refresh_ride_status(sessions, ride_id)
     progress = _Progress(fence, sessions, {name: STAGES[name].weight for name in kind.stages})
@@ -301,26 +334,18 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
 
     def end(status: JobStatus, error: str | None) -> str:
         save_timings()
-        with session_scope(sessions) as session:
-            jobs = JobRepository(session)
-            if not jobs.finish(job_id, status, error=error, attempt=fence.attempt, host=fence.host):
-                if jobs.status_of(job_id) == JobStatus.CANCELLED.value:
-                    return JobStatus.CANCELLED.value
-                fence.refused(f"the outcome {status.value!r}")
-                return FENCED
-            refresh_ride_status(session, ride_id)
-        return status.value
+        return _end(sessions, fence, ride_id, status, error)
 
     # This run's own local folder: the stages fetch their inputs into it and write their outputs in it.
-    scratch = Path(tempfile.mkdtemp(prefix=f"saddlescope-job{job_id}-attempt{attempt}-"))
+    scratch = Path(tempfile.mkdtemp(prefix=f"saddlescope-job{job_id}-attempt{fence.attempt}-"))
     with _Heartbeat(fence, sessions), _removed_after(scratch):
         try:
             for current in kind.stages:
                 progress.start(current)
-                ctx = StageContext(job_id=job_id, attempt=attempt, host=host, kind=kind.name, stage=current,
-                                   club_id=club_id,
-                                   ride_id=ride_id, rig_id=rig_id, payload=payload, settings=settings,
-                                   storage=storage, sessions=sessions, report=progress, scratch=scratch)
+                ctx = StageContext(job_id=job_id, attempt=fence.attempt, host=fence.host, kind=kind.name,
+                                   stage=current, club_id=claimed.club_id, ride_id=ride_id, rig_id=claimed.rig_id,
+                                   payload=claimed.payload, settings=settings, storage=storage,
+                                   sessions=sessions, report=progress, scratch=scratch)
                 t_stage = time.perf_counter()
                 try:
                     STAGES[current].run(ctx)

@@ -47,6 +47,7 @@ from saddlescope.db.repositories import (
     RigRepository,
 )
 from saddlescope.db.session import session_scope
+from saddlescope.services.fencing import JobFenced
 from saddlescope.services.rides import (
     ANALYSIS_JOB_KIND,
     analysed_settings,
@@ -73,14 +74,6 @@ class StageUnavailable(SaddleScopeError):
 
 class JobCancelled(Exception):
     """Raised inside a stage (at a progress report) when the job was cancelled meanwhile."""
-
-
-class JobFenced(Exception):
-    """Raised when this run's attempt no longer holds its job (another worker took it over): stop, write nothing."""
-
-    def __init__(self, job_id: int, attempt: int) -> None:
-        super().__init__(f"job {job_id}: attempt {attempt} was taken over by a newer attempt")
-        self.job_id, self.attempt = job_id, attempt
 
 
 @dataclass
