@@ -72,9 +72,10 @@ def s3_storage_env(request, settings: dict):
 
 def open_env(request, tmp_path_factory, *, worker: bool = True, **overrides):
     """Yield an `Env` for ``request.param`` ("embedded" or "celery"), torn down after the module."""
-    if request.param == "embedded-s3":  # embedded, its clips and results in a bucket of a real SeaweedFS
+    if request.param in ("embedded-s3", "celery-s3"):  # clips and results in a bucket of a real SeaweedFS
         with s3_storage_env(request, overrides):
-            yield from open_env(_Param(request, "embedded"), tmp_path_factory, worker=worker, **overrides)
+            base = request.param.removesuffix("-s3")
+            yield from open_env(_Param(request, base), tmp_path_factory, worker=worker, **overrides)
         return
     root = tmp_path_factory.mktemp(f"api-{request.param}")
     common = dict(storage_dir=str(root / "storage"), max_upload_bytes=MAX_UPLOAD_BYTES, **overrides)
@@ -98,14 +99,20 @@ def open_env(request, tmp_path_factory, *, worker: bool = True, **overrides):
         **common,
     )
     log_path = root / "worker.log"
+    worker_disk, worker_env = Path(settings.storage_dir), standin_worker_env()
+    if settings.storage_url:  # object storage: the worker shares no folder with the API, only the bucket
+        worker_disk = root / "worker-own-disk"
+        worker_env.update(SADDLESCOPE_STORAGE_URL=settings.storage_url,
+                          SADDLESCOPE_S3_ENDPOINT_URL=settings.s3_endpoint_url or "",
+                          **{k: v for k, v in os.environ.items() if k.startswith("AWS_")})
     if worker:
         with integration_services.run_celery_worker(
             database_url=database_url,
             broker_url=broker_url,
-            storage_dir=Path(settings.storage_dir),
+            storage_dir=worker_disk,
             log_path=log_path,
             app="standin_worker",
-            extra_env=standin_worker_env(),
+            extra_env=worker_env,
             config=request.config,
         ) as proc:
             with TestClient(create_app(settings, open_registration=True)) as client:

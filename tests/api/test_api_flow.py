@@ -28,7 +28,8 @@ s3_server = s3_server_module.s3_server
 STAGES = {"probe", "assemble", "calibrate", "analyze", "total"}
 
 
-@pytest.fixture(scope="module", params=[*ENGINES, "embedded-s3"])
+@pytest.fixture(scope="module", params=[
+    *ENGINES, "embedded-s3", pytest.param("celery-s3", marks=[pytest.mark.integration, pytest.mark.slow])])
 def env(request, tmp_path_factory):
     yield from open_env(request, tmp_path_factory)
 

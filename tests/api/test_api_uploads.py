@@ -7,6 +7,7 @@ API keeps no byte of a video on its own disk and the worker's probe stage reads 
 from __future__ import annotations
 
 import hashlib
+import json
 import tempfile
 import time
 
@@ -187,13 +188,18 @@ def test_abandon_and_bad_requests(env, club):
 
 def test_a_bundle_as_a_resumable_upload_becomes_a_ride_with_a_job(env, club):
     api = club["api"]
-    data = zip_folder(write_tiny_bundle(club["folder"] / "bundle"))
+    folder = write_tiny_bundle(club["folder"] / "bundle")
+    data = zip_folder(folder)
     upload = api.ok(
         "POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data), "filename": "ride.zip"}
     )
     step = 7000
     for offset in range(0, len(data), step):
         assert send(api, upload["id"], offset, data[offset : offset + step]).status_code == 204
+    # The form's suggestions come from ride.json inside the zip (on S3: read by ranges from its parts).
+    meta = api.ok("GET", f"/uploads/{upload['id']}/bundle-meta")
+    ride_json = json.loads((folder / "ride.json").read_text())
+    assert (meta["gait"], meta["horse"]["name"]) == (ride_json["gait"], ride_json["horse"]["name"])
     outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")
     ride = api.ok("GET", f"/rides/{outcome['ride_id']}")
     assert (
