@@ -51,6 +51,10 @@ class _Param:
     def getfixturevalue(self, name: str):
         return self.request.getfixturevalue(name)
 
+    @property
+    def config(self):
+        return self.request.config
+
 
 @contextlib.contextmanager
 def s3_storage_env(request, settings: dict):
