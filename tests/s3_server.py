@@ -4,7 +4,8 @@
 named, so parallel runs and other services never collide), with its own data folder and credentials,
 waits until the S3 gateway answers, and stops it at the end of the session. Where `weed` is not
 installed its tests skip with the reason; under CI=true they fail instead (CI must run them).
-Import it into a conftest or a test module by assignment (``s3_server = s3_server_module.s3_server``).
+Import it into a test module by assignment (``s3_server = s3_server_module.s3_server``); however many
+modules do, one server serves the whole session.
 """
 
 from __future__ import annotations
@@ -23,8 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import IN_CI
-
+IN_CI = os.environ.get("CI", "").lower() in {"1", "true", "yes"}  # as tests/conftest.py reads it
 HOST = "127.0.0.1"
 START_TIMEOUT_S = 60.0
 # The `weed mini` ports, each set explicitly (their defaults, and "port + 10000" for gRPC, collide).
@@ -134,8 +134,18 @@ def running_weed(data_dir: Path):
             proc.wait()
 
 
+_SHARED: dict[str, S3Server] = {}
+
+
 @pytest.fixture(scope="session")
-def s3_server(tmp_path_factory):
-    """A SeaweedFS S3 server for the whole test session (see the module's docstring)."""
-    with running_weed(tmp_path_factory.mktemp("seaweedfs")) as server:
-        yield server
+def s3_server(tmp_path_factory, request):
+    """The session's SeaweedFS S3 server (see the module's docstring).
+
+    One server for the whole run however many conftests import this fixture: the first use starts it,
+    and it stops when the test session ends.
+    """
+    if "server" not in _SHARED:
+        stack = contextlib.ExitStack()
+        _SHARED["server"] = stack.enter_context(running_weed(tmp_path_factory.mktemp("seaweedfs")))
+        request.config.add_cleanup(lambda: (_SHARED.clear(), stack.close()))
+    return _SHARED["server"]

@@ -65,6 +65,9 @@ class Settings(BaseSettings):
     # s3://BUCKET[/PREFIX] an S3-compatible object store (credentials: AWS_ACCESS_KEY_ID / _SECRET_ACCESS_KEY).
     storage_url: str | None = None
     s3_endpoint_url: str | None = None  # e.g. http://127.0.0.1:8333 (SeaweedFS, MinIO); None: AWS
+    # Resumable uploads sent by the client straight to the bucket (pre-signed part URLs); None: whenever
+    # the storage is a bucket. False keeps them streaming through the API (PATCH chunks).
+    direct_uploads: bool | None = None
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
     # Largest JSON request body (uploads are streamed as raw bytes or multipart, not JSON).
     max_json_body_bytes: int = Field(default=2 * 1024**2, gt=0)

@@ -20,10 +20,11 @@ from engines import ENGINES, open_env
 from saddlescope.core.vibration import COMFORT_INDICATORS, leaderboard
 from saddlescope.io.mocap import read_mocap
 
+s3_server = s3_server_module.s3_server  # one SeaweedFS for the session (tests/s3_server.py)
+
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
 tiny_ride = integration_services.tiny_ride
-s3_server = s3_server_module.s3_server
 
 STAGES = {"probe", "assemble", "calibrate", "analyze", "total"}
 

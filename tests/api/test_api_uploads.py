@@ -20,14 +20,16 @@ from integration_services import write_tiny_bundle, write_tiny_clip
 
 from saddlescope.storage import FileStorage, open_storage, upload_key
 
+s3_server = s3_server_module.s3_server  # one SeaweedFS for the session (tests/s3_server.py)
+
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
-s3_server = s3_server_module.s3_server
 
 
 @pytest.fixture(scope="module", params=[*ENGINES, "embedded-s3"])
 def env(request, tmp_path_factory):
-    yield from open_env(request, tmp_path_factory, worker=False)
+    # The streamed transport on every back end (direct uploads to the bucket: test_api_direct_uploads.py).
+    yield from open_env(request, tmp_path_factory, worker=False, direct_uploads=False)
 
 
 def on_s3(env) -> bool:

@@ -22,7 +22,7 @@ from saddlescope.storage import (
 )
 from saddlescope.storage.s3 import PART_BYTES
 
-s3_server = s3_server_module.s3_server
+s3_server = s3_server_module.s3_server  # one SeaweedFS for the session (tests/s3_server.py)
 
 BACK_ENDS = ["file", "s3"]
 

@@ -35,11 +35,12 @@ from saddlescope.db.repositories import (
     UploadRepository,
 )
 from saddlescope.db.session import session_scope
+from saddlescope.services.direct_uploads import check_parts, is_direct
 from saddlescope.services.job_service import submit_job
 from saddlescope.services.queue import JobQueue
 from saddlescope.services.readiness import missing_for_ride
 from saddlescope.services.rides import refresh_ride_status, register_bundle, ride_clip_plan
-from saddlescope.storage import Storage, TooLarge, upload_key
+from saddlescope.storage import Storage, TooLarge, direct_upload_key, upload_key
 
 __all__ = [
     "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
@@ -370,11 +371,12 @@ def finalise_upload(
     `chosen` (a bundle only): the ride's details chosen at upload, over the bundle's ride.json.
     A refused file marks the upload failed with the reason (and the error is raised again).
     """
+    direct = is_direct(storage, upload_id)
     with session_scope(sessions) as session:
         upload = UploadRepository(session, club_id=club_id).get(upload_id)
         if upload.status != UploadStatus.OPEN.value:
             raise InputError(f"upload {upload_id} is already {upload.status}")
-        if upload.offset_bytes != upload.length_bytes:
+        if not direct and upload.offset_bytes != upload.length_bytes:
             raise IncompleteUpload(
                 f"upload {upload_id} has {upload.offset_bytes} of its {upload.length_bytes} "
                 "bytes; send the rest first"
@@ -393,7 +395,11 @@ def finalise_upload(
             RigRepository(session, club_id=club_id).get(rig_id)  # before the bytes move: a 404 keeps them
     chosen.pop("rig_id", None)
     staged = staging_key(club_id, filename)
-    storage.seal(upload_key(upload_id), staged)
+    if direct:  # the client sent the parts to the bucket: join them (409 naming the missing ones)
+        check_parts(storage, upload_id, size)
+        storage.move(direct_upload_key(upload_id), staged)
+    else:
+        storage.seal(upload_key(upload_id), staged)
     try:
         if target == UploadTarget.BUNDLE:
             new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
@@ -512,6 +518,9 @@ def remove_upload_files(storage: Storage, upload_ids: list[str]) -> None:
     """Delete the bytes of uploads: their collected file and any chunk still being checked."""
     for upload_id in upload_ids:
         storage.delete(upload_key(upload_id))
+        if storage.kind == "s3":  # a direct upload's parts, and its object if it was joined
+            storage.abort_direct(direct_upload_key(upload_id))
+            storage.delete(direct_upload_key(upload_id))
     if upload_ids and storage.exists("uploads"):
         prefixes = tuple(f"uploads/{upload_id}.chunk-" for upload_id in upload_ids)
         for key in list(storage.iter_keys("uploads")):

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from saddlescope.storage.base import Storage, StorageWriter
 from saddlescope.storage.files import CHUNK_BYTES, AtomicWriter, FileStorage, TooLarge, sha256_file, tree_digest
 from saddlescope.storage.keys import (
+    direct_upload_key,
     ride_bundle_key,
     rig_stage_output_key,
     stage_output_key,
@@ -26,6 +27,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CHUNK_BYTES", "AtomicWriter", "FileStorage", "S3Storage", "Storage", "StorageWriter", "TooLarge",
+    "direct_upload_key",
     "open_storage", "parse_s3_url", "rig_stage_output_key", "ride_bundle_key", "sha256_file", "stage_output_key",
     "storage_for_url", "tree_digest", "upload_chunk_key", "upload_key",
 ]

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import secrets
 
-__all__ = ["rig_stage_output_key", "ride_bundle_key", "stage_output_key", "upload_chunk_key", "upload_key"]
+__all__ = [
+    "direct_upload_key", "rig_stage_output_key", "ride_bundle_key", "stage_output_key", "upload_chunk_key",
+    "upload_key",
+]
 
 
 def ride_bundle_key(ride_id: int) -> str:
@@ -33,3 +36,8 @@ def upload_key(upload_id: str) -> str:
 def upload_chunk_key(upload_id: str) -> str:
     """A fresh key for one PATCH's bytes of a resumable upload, before they are checked and appended."""
     return f"uploads/{upload_id}.chunk-{secrets.token_hex(8)}"
+
+
+def direct_upload_key(upload_id: str) -> str:
+    """The object a direct upload's parts (sent by the client straight to the bucket) become."""
+    return f"uploads/{upload_id}.direct"

@@ -166,8 +166,10 @@ class S3Storage:
             from botocore.config import Config
 
             # Path-style addressing: SeaweedFS and MinIO serve buckets under the endpoint's path.
-            client = boto3.client("s3", endpoint_url=endpoint_url,
-                                  config=Config(s3={"addressing_style": "path"}, retries={"max_attempts": 3}))
+            # Its own session: credentials are read from the environment now, not from a process-wide cache.
+            client = boto3.session.Session().client(
+                "s3", endpoint_url=endpoint_url,
+                config=Config(s3={"addressing_style": "path"}, retries={"max_attempts": 3}))
         self.client, self.bucket, self.prefix, self.endpoint_url = client, bucket, prefix.strip("/"), endpoint_url
 
     @classmethod
@@ -308,6 +310,49 @@ class S3Storage:
         with self.open_seekable(key) as source:
             self.write_stream(target_key, source)
         self.delete(key)
+
+    # --- direct uploads: the browser sends parts straight to the store with pre-signed URLs ---------
+
+    def start_direct(self, key: str) -> str:
+        """Open a multipart upload of `key` the client will fill; returns its S3 upload id."""
+        return self.client.create_multipart_upload(Bucket=self.bucket, Key=self.object_name(key))["UploadId"]
+
+    def direct_id(self, key: str) -> str | None:
+        """The S3 upload id of the open multipart upload of `key` (None: none open)."""
+        found = self.client.list_multipart_uploads(Bucket=self.bucket, Prefix=self.object_name(key))
+        ids = [u["UploadId"] for u in found.get("Uploads", []) if u["Key"] == self.object_name(key)]
+        return ids[-1] if ids else None
+
+    def part_url(self, key: str, direct_id: str, number: int, *, expires_s: int) -> str:
+        """A pre-signed PUT URL for part `number` (1-based) of the multipart upload `direct_id`."""
+        return self.client.generate_presigned_url(
+            "upload_part", ExpiresIn=expires_s,
+            Params={"Bucket": self.bucket, "Key": self.object_name(key), "UploadId": direct_id,
+                    "PartNumber": number})
+
+    def direct_parts(self, key: str, direct_id: str) -> list[dict[str, Any]]:
+        """The parts that arrived: ``{"number", "size", "etag"}`` in part order."""
+        parts: list[dict[str, Any]] = []
+        marker = 0
+        while True:
+            page = self.client.list_parts(Bucket=self.bucket, Key=self.object_name(key), UploadId=direct_id,
+                                          PartNumberMarker=marker)
+            parts += [{"number": p["PartNumber"], "size": int(p["Size"]), "etag": p["ETag"]}
+                      for p in page.get("Parts", [])]
+            if not page.get("IsTruncated"):
+                return sorted(parts, key=lambda p: p["number"])
+            marker = page["NextPartNumberMarker"]
+
+    def complete_direct(self, key: str, direct_id: str, parts: list[dict[str, Any]]) -> None:
+        """Join the parts into the object `key` (it appears whole)."""
+        self.client.complete_multipart_upload(
+            Bucket=self.bucket, Key=self.object_name(key), UploadId=direct_id,
+            MultipartUpload={"Parts": [{"PartNumber": p["number"], "ETag": p["etag"]} for p in parts]})
+
+    def abort_direct(self, key: str) -> None:
+        """Abort every open multipart upload of `key` (its parts are removed); no error when none."""
+        while (direct_id := self.direct_id(key)) is not None:
+            self.client.abort_multipart_upload(Bucket=self.bucket, Key=self.object_name(key), UploadId=direct_id)
 
     def fetch(self, key: str, target: Path | str) -> Path:
         """Download the object (or every object of the folder) `key` to local `target`; returns `target`."""

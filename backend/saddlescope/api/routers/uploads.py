@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, Header, Path, Request, Response, status
 from pydantic import Field
@@ -15,6 +15,16 @@ from saddlescope.api.schemas import Direction, ErrorOut, Gait, RefId, Text, Uplo
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
+from saddlescope.services.direct_uploads import (
+    MAX_URLS,
+    S3_PARTS,
+    STREAM,
+    is_direct,
+    part_urls,
+    parts_state,
+    start_direct,
+    transport_for,
+)
 from saddlescope.services.uploads import (
     IncompleteUpload,
     bundle_meta,
@@ -22,8 +32,9 @@ from saddlescope.services.uploads import (
     create_upload,
     expire_uploads,
     finalise_upload,
+    remove_upload_files,
 )
-from saddlescope.storage import upload_chunk_key, upload_key
+from saddlescope.storage import upload_chunk_key
 
 __all__ = ["CHUNK_OPENAPI", "OffsetMismatch", "UploadId", "router"]
 
@@ -61,18 +72,38 @@ def _headers(upload: Upload) -> dict[str, str]:
     }
 
 
+class UploadCreatedOut(UploadOut):
+    """A new upload, and how to send its bytes.
+
+    ``stream``: PATCH chunks to the API; ``s3-parts``: PUT parts of `part_bytes` straight to the bucket,
+    to the URLs from ``POST /uploads/{id}/parts``.
+    """
+
+    transport: Literal["stream", "s3-parts"] = "stream"
+    part_bytes: int | None = None
+    parts_total: int | None = None
+
+
+class PartNumbers(_In):
+    """The parts (1-based) of a direct upload to sign URLs for."""
+
+    numbers: list[Annotated[int, Field(ge=1, le=10_000)]] = Field(min_length=1, max_length=MAX_URLS)
+
+
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
-    response_model=UploadOut,
+    response_model=UploadCreatedOut,
     responses={**ERRORS, 413: {"model": ErrorOut}},
 )
 def create(
     body: UploadCreate, club: ClubDep, settings: SettingsDep, storage: StorageDep, response: Response
-) -> UploadOut:
-    """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then PATCH its bytes.
+) -> UploadCreatedOut:
+    """Start a resumable upload of a ride's or rig's clip, or of a ride bundle zip; then send its bytes.
 
-    An open upload that receives nothing for `upload_expiry_s` (24 h by default) is removed with its bytes.
+    `transport` says how: ``stream`` (PATCH chunks here) or, on object storage, ``s3-parts`` (PUT parts
+    of `part_bytes` straight to the bucket, to URLs from ``POST /uploads/{id}/parts``). An open upload that
+    receives nothing for `upload_expiry_s` (24 h by default) is removed with its bytes.
     """
     expire_uploads(club.session, storage, max_age_s=settings.upload_expiry_s)
     upload = create_upload(
@@ -88,9 +119,24 @@ def create(
         camera=body.camera,
         filename=body.filename,
     )
+    sending = {"transport": STREAM}
+    if transport_for(storage, settings) == S3_PARTS:
+        sending = start_direct(storage, upload.id, upload.length_bytes)
     response.headers["Location"] = f"/api/uploads/{upload.id}"
     response.headers.update(_headers(upload))
-    return UploadOut.model_validate(upload)
+    return UploadCreatedOut.model_validate({**UploadOut.model_validate(upload).model_dump(), **sending})
+
+
+@router.post("/{upload_id}/parts", responses={**ERRORS, 409: {"model": ErrorOut}})
+def sign_parts(upload_id: UploadId, body: PartNumbers, club: ClubDep, storage: StorageDep) -> dict:
+    """Pre-signed URLs to PUT parts `numbers` of a direct upload to (``{"urls": {"1": url}, "expires_s"}``)."""
+    return part_urls(club.session, storage, upload_id, body.numbers, club_id=club.club_id)
+
+
+@router.get("/{upload_id}/parts", responses=ERRORS)
+def read_parts(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> dict:
+    """Which parts of a direct upload arrived (resume by sending the others) and the bytes in order."""
+    return parts_state(club.session, storage, upload_id, club_id=club.club_id)
 
 
 @router.get("/{upload_id}", response_model=UploadOut, responses=ERRORS)
@@ -141,6 +187,9 @@ async def append(
             f"Upload-Offset {upload_offset} does not match the upload's offset "
             f"{upload.offset_bytes}; resume from {upload.offset_bytes}"
         )
+    if await run_in_threadpool(is_direct, storage, upload_id):
+        raise OffsetMismatch(f"upload {upload_id} is sent to the bucket directly: PUT its parts to the URLs "
+                             "from POST /api/uploads/{id}/parts")
     length, staged = upload.length_bytes, upload_chunk_key(upload_id)
     club.session.rollback()  # no transaction open while the bytes arrive
     try:
@@ -198,5 +247,5 @@ def abandon(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> Response
     """Abandon an upload and delete its bytes."""
     club.uploads.delete(upload_id)
     club.session.commit()
-    storage.delete(upload_key(upload_id))
+    remove_upload_files(storage, [upload_id])
     return Response(status_code=status.HTTP_204_NO_CONTENT)

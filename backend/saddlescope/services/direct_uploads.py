@@ -1,0 +1,121 @@
+"""Direct uploads (issue 26 part 2): on object storage the client sends a resumable upload's bytes
+straight to the bucket, as the parts of an S3 multipart upload, with URLs the API pre-signs; the API
+only signs, says which parts arrived, and joins them when the upload is finalised. No byte of the
+file passes through the API on the way in.
+
+The embedded mode (a folder tree) keeps the streamed upload (PATCH chunks through the API); the
+client is told which way to send when it creates the upload (`transport`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy.orm import Session
+
+from saddlescope.core.errors import InputError
+from saddlescope.db.enums import UploadStatus
+from saddlescope.db.repositories import Conflict, UploadRepository
+from saddlescope.settings import Settings
+from saddlescope.storage import Storage, direct_upload_key
+
+__all__ = [
+    "DIRECT_PART_BYTES", "DirectUploadError", "MAX_URLS", "PART_URL_EXPIRY_S", "STREAM", "S3_PARTS", "check_parts",
+    "is_direct", "part_count", "part_urls", "parts_state", "start_direct", "transport_for",
+]
+
+STREAM, S3_PARTS = "stream", "s3-parts"
+# 16 MiB parts: S3's smallest (but the last) is 5 MiB, and a 4 GiB clip stays at 256 of its 10,000 parts.
+DIRECT_PART_BYTES = 16 * 1024**2
+PART_URL_EXPIRY_S = 3600
+MAX_URLS = 100  # part URLs signed per request
+
+
+class DirectUploadError(Conflict):
+    """A direct upload's parts are not (yet) what its length needs (HTTP 409)."""
+
+
+def transport_for(storage: Storage, settings: Settings) -> str:
+    """How a new resumable upload's bytes travel: straight to the bucket, or streamed through the API."""
+    if storage.kind == "s3" and settings.direct_uploads is not False:
+        return S3_PARTS
+    return STREAM
+
+
+def part_count(length_bytes: int) -> int:
+    """How many parts of `DIRECT_PART_BYTES` (the last one shorter) a file of `length_bytes` takes."""
+    return max(1, -(-length_bytes // DIRECT_PART_BYTES))
+
+
+def start_direct(storage: Storage, upload_id: str, length_bytes: int) -> dict[str, Any]:
+    """Open the bucket's multipart upload for a new upload; returns what the client needs to send it."""
+    storage.start_direct(direct_upload_key(upload_id))
+    return {"transport": S3_PARTS, "part_bytes": DIRECT_PART_BYTES, "parts_total": part_count(length_bytes)}
+
+
+def is_direct(storage: Storage, upload_id: str) -> bool:
+    """Whether the upload's bytes go straight to the bucket (its multipart upload is open)."""
+    return storage.kind == "s3" and storage.direct_id(direct_upload_key(upload_id)) is not None
+
+
+def _open_direct(session: Session, storage: Storage, upload_id: str, club_id: int | None):
+    upload = UploadRepository(session, club_id=club_id).get(upload_id)  # NotFound: 404
+    if upload.status != UploadStatus.OPEN.value:
+        raise DirectUploadError(f"upload {upload_id} is {upload.status}; it takes no more bytes")
+    direct_id = storage.direct_id(direct_upload_key(upload_id)) if storage.kind == "s3" else None
+    return upload, direct_id
+
+
+def part_urls(session: Session, storage: Storage, upload_id: str, numbers: list[int], *,
+              club_id: int | None) -> dict[str, Any]:
+    """Pre-signed PUT URLs for parts `numbers` (1-based) of a direct upload."""
+    upload, direct_id = _open_direct(session, storage, upload_id, club_id)
+    if direct_id is None:
+        raise DirectUploadError(f"upload {upload_id} is not sent to the bucket directly; PATCH its chunks")
+    total = part_count(upload.length_bytes)
+    if not numbers or len(numbers) > MAX_URLS:
+        raise InputError(f"ask for 1 to {MAX_URLS} part numbers at a time, got {len(numbers)}")
+    wrong = [n for n in numbers if not 1 <= n <= total]
+    if wrong:
+        raise InputError(f"upload {upload_id} has parts 1 to {total}; no part {wrong[0]}")
+    key = direct_upload_key(upload_id)
+    return {"urls": {str(n): storage.part_url(key, direct_id, n, expires_s=PART_URL_EXPIRY_S) for n in numbers},
+            "expires_s": PART_URL_EXPIRY_S, "part_bytes": DIRECT_PART_BYTES}
+
+
+def _expected_size(number: int, length_bytes: int) -> int:
+    return min(DIRECT_PART_BYTES, length_bytes - (number - 1) * DIRECT_PART_BYTES)
+
+
+def parts_state(session: Session, storage: Storage, upload_id: str, *, club_id: int | None) -> dict[str, Any]:
+    """Which parts arrived (a part of the wrong size counts as missing: send it again) and the bytes in order."""
+    upload, direct_id = _open_direct(session, storage, upload_id, club_id)
+    if direct_id is None:
+        return {"transport": STREAM, "parts": [], "offset_bytes": upload.offset_bytes}
+    arrived = storage.direct_parts(direct_upload_key(upload_id), direct_id)
+    good = [p for p in arrived if p["size"] == _expected_size(p["number"], upload.length_bytes)]
+    numbers = {p["number"] for p in good}
+    in_order = 0
+    while in_order + 1 in numbers:
+        in_order += 1
+    return {"transport": S3_PARTS, "part_bytes": DIRECT_PART_BYTES, "parts_total": part_count(upload.length_bytes),
+            "parts": [{"number": p["number"], "size": p["size"]} for p in good],
+            "offset_bytes": sum(p["size"] for p in good if p["number"] <= in_order)}
+
+
+def check_parts(storage: Storage, upload_id: str, length_bytes: int) -> None:
+    """Join a direct upload's parts into its object; `DirectUploadError` (409) naming what is missing."""
+    key = direct_upload_key(upload_id)
+    direct_id = storage.direct_id(key)
+    if direct_id is None:
+        raise DirectUploadError(f"upload {upload_id} has no open parts in the bucket")
+    parts = {p["number"]: p for p in storage.direct_parts(key, direct_id)}
+    total = part_count(length_bytes)
+    missing = [n for n in range(1, total + 1)
+               if n not in parts or parts[n]["size"] != _expected_size(n, length_bytes)]
+    if missing:
+        have = sum(parts[n]["size"] for n in parts if n not in missing and n <= total)
+        raise DirectUploadError(
+            f"upload {upload_id} has {have} of its {length_bytes} bytes; send part(s) "
+            f"{', '.join(map(str, missing[:10]))}{' ...' if len(missing) > 10 else ''} first")
+    storage.complete_direct(key, direct_id, [parts[n] for n in range(1, total + 1)])

@@ -1,0 +1,116 @@
+"""Direct uploads on object storage (issue 26 part 2): the client PUTs a resumable upload's parts straight
+to the bucket (a real SeaweedFS) with URLs the API pre-signs, asks which parts arrived to resume, and
+the API joins them at finalise; no byte of the file passes through the API."""
+
+from __future__ import annotations
+
+import hashlib
+import tempfile
+
+import httpx
+import pytest
+import s3_server as s3_server_module
+from api_helpers import new_club
+from engines import open_env
+from integration_services import write_tiny_clip
+
+from saddlescope.services import direct_uploads
+from saddlescope.storage import direct_upload_key, open_storage
+
+s3_server = s3_server_module.s3_server  # one SeaweedFS for the session (tests/s3_server.py)
+
+PART_BYTES = 5 * 1024**2  # S3's smallest part but the last: three parts for the test's 12 MiB
+
+
+@pytest.fixture(scope="module", params=["embedded-s3"])
+def env(request, tmp_path_factory):
+    yield from open_env(request, tmp_path_factory, worker=False)
+
+
+@pytest.fixture(autouse=True)
+def small_parts(monkeypatch):
+    monkeypatch.setattr(direct_uploads, "DIRECT_PART_BYTES", PART_BYTES)
+
+
+@pytest.fixture(scope="module")
+def club(env, tmp_path_factory):
+    api, _ = new_club(env.client)
+    horse = api.ok("POST", "/horses", 201, json={"name": "Direct"})
+    rider = api.ok("POST", "/riders", 201, json={"name": "Direct"})
+    ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
+                                              "direction": "CW"})
+    return {"api": api, "ride": ride, "folder": tmp_path_factory.mktemp("direct")}
+
+
+def start(api, ride_id: int, size: int, camera: str) -> dict:
+    return api.ok("POST", "/uploads", 201, json={
+        "target": "ride_clip", "ride_id": ride_id, "clip_kind": "motion", "camera": camera, "length_bytes": size,
+        "filename": f"{camera}.avi"})
+
+
+def put_part(api, upload_id: str, number: int, data: bytes) -> int:
+    url = api.ok("POST", f"/uploads/{upload_id}/parts", json={"numbers": [number]})["urls"][str(number)]
+    assert url.startswith("http://127.0.0.1:")  # the bucket's address, not the API's
+    return httpx.put(url, content=data[(number - 1) * PART_BYTES:number * PART_BYTES], timeout=60).status_code
+
+
+def test_parts_go_to_the_bucket_resume_and_finalise_into_a_recording(env, club, monkeypatch):
+    api, ride = club["api"], club["ride"]
+    data = bytes(range(256)) * (12 * 1024**2 // 256)  # 12 MiB: parts of 5, 5 and 2 MiB
+    local: list[str] = []
+    for name in ("mkstemp", "mkdtemp", "NamedTemporaryFile", "TemporaryFile", "SpooledTemporaryFile"):
+        real = getattr(tempfile, name)
+        monkeypatch.setattr(tempfile, name, lambda *a, _r=real, _n=name, **k: (local.append(_n), _r(*a, **k))[1])
+    upload = start(api, ride["id"], len(data), "left")
+    assert (upload["transport"], upload["part_bytes"], upload["parts_total"]) == ("s3-parts", PART_BYTES, 3)
+    streamed = api.patch(f"/uploads/{upload['id']}", content=b"x",
+                         headers={"Upload-Offset": "0", "Content-Type": "application/offset+octet-stream"})
+    assert streamed.status_code == 409 and "PUT its parts" in streamed.json()["detail"]
+
+    assert put_part(api, upload["id"], 1, data) == 200
+    assert put_part(api, upload["id"], 3, data) == 200  # out of order is fine
+    state = api.ok("GET", f"/uploads/{upload['id']}/parts")  # the connection dropped: what arrived?
+    assert [p["number"] for p in state["parts"]] == [1, 3] and state["offset_bytes"] == PART_BYTES
+    early = api.post(f"/uploads/{upload['id']}/finalize")
+    assert early.status_code == 409 and "send part(s) 2 first" in early.json()["detail"]
+    assert put_part(api, upload["id"], 1, data) == 200  # a retried part: the same bytes again
+    assert put_part(api, upload["id"], 2, data) == 200
+    bad = api.post(f"/uploads/{upload['id']}/parts", json={"numbers": [4]})
+    assert bad.status_code == 422 and "has parts 1 to 3" in bad.json()["detail"]
+
+    outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")
+    clip = next(r for r in api.ok("GET", f"/rides/{ride['id']}/clips") if r["id"] == outcome["recording_id"])
+    assert clip["sha256"] == hashlib.sha256(data).hexdigest() and clip["size_bytes"] == len(data)
+    assert local == []  # nothing on the API's disk
+    storage = open_storage(env.settings)
+    assert storage.direct_id(direct_upload_key(upload["id"])) is None
+    assert not list(storage.iter_keys("uploads"))
+
+
+def test_a_wrong_sized_part_is_asked_for_again_and_an_abandoned_upload_leaves_nothing(env, club):
+    api, ride = club["api"], club["ride"]
+    data = b"z" * (PART_BYTES + 100)
+    upload = start(api, ride["id"], len(data), "middle")
+    url = api.ok("POST", f"/uploads/{upload['id']}/parts", json={"numbers": [1]})["urls"]["1"]
+    assert httpx.put(url, content=data[:1000], timeout=60).status_code == 200  # a cut-off part
+    assert api.ok("GET", f"/uploads/{upload['id']}/parts")["parts"] == []  # counted as missing
+    assert api.delete(f"/uploads/{upload['id']}").status_code == 204
+    storage = open_storage(env.settings)
+    assert storage.direct_id(direct_upload_key(upload["id"])) is None  # its parts are gone from the bucket
+
+
+def test_a_real_clip_sent_directly_is_probed_by_the_worker(env, club):
+    api, first = club["api"], club["ride"]
+    ride = api.ok("POST", "/rides", 201, json={"horse_id": first["horse_id"], "rider_id": first["rider_id"],
+                                              "gait": "walk", "direction": "CCW"})
+    data = write_tiny_clip(club["folder"] / "right.avi", frames=9).read_bytes()
+    upload = start(api, ride["id"], len(data), "right")
+    assert upload["parts_total"] == 1 and put_part(api, upload["id"], 1, data) == 200
+    outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")
+    clip = next(r for r in api.ok("GET", f"/rides/{ride['id']}/clips") if r["id"] == outcome["recording_id"])
+    assert clip["fps"] is None  # the API never read it
+    job = api.ok("POST", "/jobs", 201, json={"kind": "probe", "ride_id": ride["id"]})
+    done, _ = api.wait_job(job["id"])
+    assert done["status"] == "done", done["error"]
+    clip = next(r for r in api.ok("GET", f"/rides/{ride['id']}/clips") if r["id"] == outcome["recording_id"])
+    assert (clip["frame_count"], clip["fps"], clip["sha256"]) == (9, 30.0, hashlib.sha256(data).hexdigest())
