@@ -1,5 +1,7 @@
-// Resumable uploads (the server's tus-like /api/uploads): create, send chunks with Upload-Offset,
-// resume from the server's offset after a dropped connection or a reload, then finalize.
+// Resumable uploads (the server's tus-like /api/uploads): create, send the bytes the way the server says
+// (`transport`): "stream", chunks with Upload-Offset to the API; "s3-parts", parts PUT straight to the
+// object store with URLs the API signs. Resume after a dropped connection or a reload from what the
+// server has (its offset, or the parts that arrived), then finalize.
 
 import { ApiError, del, get, post, request } from "./api.js";
 
@@ -34,7 +36,10 @@ async function openUpload(file, target) {
   if (known) {
     try {
       const state = await get(`/api/uploads/${known}`);
-      if (state && Number(state.length_bytes) === file.size) return { id: state.id ?? known, offset: serverOffset(state), key };
+      if (state && Number(state.length_bytes) === file.size) {
+        const parts = await get(`/api/uploads/${known}/parts`);
+        return { id: state.id ?? known, offset: serverOffset(parts ?? state), key, ...parts };
+      }
     } catch (error) {
       if (!(error instanceof ApiError) || error.status >= 500 || error.status === 0) throw error;
       // 404/410: the server forgot it; start again.
@@ -43,7 +48,44 @@ async function openUpload(file, target) {
   }
   const created = await post("/api/uploads", { ...target, length_bytes: file.size, filename: file.name });
   window.localStorage.setItem(key, String(created.id));
-  return { id: created.id, offset: serverOffset(created), key };
+  return { id: created.id, offset: serverOffset(created), key, transport: created.transport,
+    part_bytes: created.part_bytes, parts_total: created.parts_total, parts: [] };
+}
+
+/** PUT part `number` of `file` to the object store, at a URL the API signs for it. */
+async function sendPart(upload, file, number, signal) {
+  const { urls } = await post(`/api/uploads/${upload.id}/parts`, { numbers: [number] }, { signal });
+  const start = (number - 1) * upload.part_bytes;
+  let response;
+  try {
+    response = await fetch(urls[String(number)], { method: "PUT", body: file.slice(start, start + upload.part_bytes), signal });
+  } catch (error) {
+    if (error.name === "AbortError") throw error;
+    throw new ApiError(0, `Cannot reach the file store (${error.message}).`, null);
+  }
+  if (!response.ok) throw new ApiError(response.status >= 500 ? response.status : 0, `The file store refused part ${number} (${response.status}).`, null);
+}
+
+/** Send the parts the store does not have yet; a part that fails is retried (a fresh URL each time). */
+async function sendParts(upload, file, { onProgress, signal }) {
+  const have = new Set((upload.parts || []).map((part) => part.number));
+  let sent = (upload.parts || []).reduce((sum, part) => sum + part.size, 0);
+  onProgress?.(sent);
+  for (let number = 1; number <= upload.parts_total; number += 1) {
+    if (have.has(number)) continue;
+    for (let failures = 0; ; failures += 1) {
+      try {
+        await sendPart(upload, file, number, signal);
+        break;
+      } catch (error) {
+        const transient = error instanceof ApiError && (error.status === 0 || error.status >= 500);
+        if (!transient || failures >= RETRIES || signal?.aborted) throw error;
+        await sleep(500 * 2 ** (failures + 1), signal);
+      }
+    }
+    sent += Math.min(upload.part_bytes, file.size - (number - 1) * upload.part_bytes);
+    onProgress?.(sent);
+  }
 }
 
 async function sendChunk(id, file, offset, signal) {
@@ -73,6 +115,11 @@ async function sendChunk(id, file, offset, signal) {
  */
 export async function uploadResumable(file, target, { onProgress, signal, finalize = true, body = {} } = {}) {
   const upload = await openUpload(file, target);
+  if (upload.transport === "s3-parts") {
+    await sendParts(upload, file, { onProgress, signal });
+    if (!finalize) return { id: upload.id, key: upload.key };
+    return finalizeUpload(upload, body, { signal });
+  }
   let offset = upload.offset;
   onProgress?.(offset);
   let failures = 0;
