@@ -232,9 +232,7 @@ def upload_memory(
     size_bytes : int
         Upload size (default 1 GiB).
     mode : {"multipart", "raw"}
-        A browser-style multipart form, or the raw bytes as the body.
-    extra_env : dict, optional
-        More settings for the server, e.g. ``SADDLESCOPE_STORAGE_URL=s3://...`` to measure object storage.
+        A browser-style multipart form, or the raw bytes as the body (`extra_env`: more server settings).
     """
     if video is not None:
         size_bytes, mode = Path(video).stat().st_size, "raw"
