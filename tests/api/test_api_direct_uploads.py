@@ -114,3 +114,10 @@ def test_a_real_clip_sent_directly_is_probed_by_the_worker(env, club):
     assert done["status"] == "done", done["error"]
     clip = next(r for r in api.ok("GET", f"/rides/{ride['id']}/clips") if r["id"] == outcome["recording_id"])
     assert (clip["frame_count"], clip["fps"], clip["sha256"]) == (9, 30.0, hashlib.sha256(data).hexdigest())
+
+
+def test_health_checks_the_bucket(env, club):
+    storage = club["api"].ok("GET", "/health/details")["parts"]["storage"]
+    bucket = env.settings.storage_url.removeprefix("s3://").split("/")[0]
+    assert storage["ok"] and storage["detail"].startswith(f"s3://{bucket}/club-data")
+    assert "writable" in storage["detail"]
