@@ -99,6 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--variable-frame-rate", action="store_true",
                    help="the middle and right cameras record like phones: jittered frame intervals and "
                         "dropped frames, each frame stamped with its instant")
+    s.add_argument("--no-flash", action="store_true",
+                   help="no sync flash in the clips: the cameras are synchronised from the markers' motion")
 
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
     s.add_argument("ride")
@@ -156,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
         path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,
                                  size=args.size, fps=args.fps, duration_s=args.duration,
                                  options=RenderOptions(skin_motion=args.skin, marker_layout=args.layout,
-                                                       variable_frame_rate=args.variable_frame_rate))
+                                                       variable_frame_rate=args.variable_frame_rate,
+                                                       flash=not args.no_flash))
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":
