@@ -105,6 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
     s.add_argument("ride")
     s.add_argument("--json", dest="json_out", default=None, help="write the result here (else stdout)")
+    s.add_argument("--sync", default=None, choices=["flash", "motion"],
+                   help="how the cameras are synchronised (default: ride.json's; without a flash the markers' "
+                        "motion is used anyway)")
 
     s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
     s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
@@ -165,7 +168,8 @@ def run(args: argparse.Namespace) -> int:
     if cmd == "analyze":
         from saddlescope.services.analysis import analyze_bundle
 
-        result = analyze_bundle(Path(args.ride), on_progress=_print_progress)
+        overrides = {"sync": {"method": args.sync}} if args.sync else None
+        result = analyze_bundle(Path(args.ride), on_progress=_print_progress, meta_overrides=overrides)
         _write_json(result, args.json_out)
         return 0
     if cmd == "calibrate":

@@ -21,9 +21,9 @@ Uncertainty: the cost S(o) = sum of Huber losses of the reprojection residuals (
 quadratic at its minimum, S ~ S_min + 1/2 d^T H d; with residual variance sigma^2 = 2 S_min / (n - p)
 (n residuals, p = 3 per triangulated point + the offsets) the offsets' covariance is sigma^2 H^-1
 (Gauss-Newton). Residuals correlated over frames make it a lower bound. Without a rig (the
-calibration clip, whose board is held still while it is photographed) the offsets come from the
-speed correlation alone, its peak placed between frames by a parabola, and the uncertainty from the
-peak's curvature.
+calibration clip, whose board is held still while it is photographed, so whole frames suffice) the
+offsets come from the speed correlation alone, its peak placed between frames by a parabola; their
+uncertainty is the peak's curvature and at least a whole frame's rounding, 1/sqrt(12) frame.
 """
 
 from __future__ import annotations
@@ -46,6 +46,7 @@ __all__ = ["MotionSync", "image_speed", "motion_offsets", "speed_correlation", "
 
 MIN_SPEED_PX = 1.0  # px/frame: markers moving less than this (90th percentile) give no motion to sync on
 MIN_OVERLAP_FRAMES = 12  # frames where both cameras' speeds are known, at the least
+MAX_GAP_FRAMES = 3  # gaps of a track bridged for its image speed
 HUBER_PX = 2.0  # residuals beyond this count linearly (a marker mistracked for a frame)
 
 
@@ -75,7 +76,30 @@ def _nominal_xy(track: ImageTracks, n_frames: int, fps: float,
     if clock is not None:
         times, anchor = clock
         frames = clip_frames_at(frames, times, anchor, fps)
-    return resample_tracks(track, frames, kind="linear", frame_times_s=times)
+    return _bridge_gaps(resample_tracks(track, frames, kind="linear", frame_times_s=times))
+
+
+def _bridge_gaps(xy: np.ndarray, max_gap: int = MAX_GAP_FRAMES) -> np.ndarray:
+    """Gaps of up to ``max_gap`` frames inside each marker's track filled linearly, shape as ``xy`` (F, M, 2).
+
+    A blurred board is not found while it moves (the frames the board's motion is in), a marker
+    is hidden for a frame or two: the step across the gap is spread over it.
+    """
+    out = xy.copy()
+    k = np.arange(xy.shape[0])
+    for m in range(xy.shape[1]):
+        ok = np.all(np.isfinite(xy[:, m]), axis=1)
+        if ok.sum() < 2:
+            continue
+        seen = k[ok]
+        # the length of the gap each missing frame sits in (from the previous to the next seen frame)
+        nxt = np.searchsorted(seen, k)
+        inside = (~ok) & (nxt > 0) & (nxt < seen.size)
+        gap = np.where(inside, seen[np.clip(nxt, 0, seen.size - 1)] - seen[np.clip(nxt - 1, 0, seen.size - 1)] - 1, 0)
+        fill = inside & (gap <= max_gap)
+        for d in range(2):
+            out[fill, m, d] = np.interp(k[fill], seen, xy[ok, m, d])
+    return out
 
 
 def image_speed(xy_px: np.ndarray) -> np.ndarray:
@@ -98,14 +122,14 @@ def image_speed(xy_px: np.ndarray) -> np.ndarray:
 
 
 def _speed_changes(speed: np.ndarray, *, window: int) -> np.ndarray:
-    """Relative changes of the image speed: log speed minus its running mean over ``window`` samples.
+    """Relative changes of the image speed: log(1 + speed / 1 px) minus its running mean over ``window`` samples.
 
-    The log takes out each view's scale (distance, focal length); the running mean the slow change of
-    scale as the horse crosses each view (perspective), which differs from camera to camera and would
-    otherwise outweigh the stride's speed changes that all cameras share.
+    The log takes out each view's scale (distance, focal length) of a moving horse, while a board
+    held still (speed 0) stays finite; the running mean takes out the slow change of scale as the
+    horse crosses each view (perspective), which differs from camera to camera and would otherwise
+    outweigh the stride's speed changes that all cameras share.
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v = np.log(np.where(speed > 0, speed, np.nan))
+    v = np.log1p(np.asarray(speed, dtype=np.float64))
     ok = np.isfinite(v)
     kernel = np.ones(window)
     total = np.convolve(np.where(ok, v, 0.0), kernel, mode="same")
@@ -341,9 +365,11 @@ def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | 
         for c in others:
             lags, ncc = found[c][1], found[c][2]
             offsets[c], curv = _parabola_peak(lags, ncc, candidates[c][0])
-            # the correlation's drop per frame^2 against its noise: 1 / sqrt(n) per sample
+            # the peak's own spread (the correlation's drop per frame^2 against its 1 / sqrt(n) noise) and
+            # the parabola's: between frames it is only a rough guess, so never better than a whole
+            # frame's rounding (1 / sqrt(12))
             n = max(np.isfinite(speeds[c]).sum(), 1)
-            sigma[c] = float(np.sqrt((1.0 / n) / curv)) if curv > 0 else 0.5
+            sigma[c] = float(np.sqrt((1.0 / n) / curv + 1.0 / 12.0)) if curv > 0 else 0.5
         return MotionSync(offsets, sigma, None, int(len(speeds[reference])), candidates)
     missing = [c for c in cams if c not in rig.cameras]
     if missing:
