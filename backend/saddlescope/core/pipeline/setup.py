@@ -35,10 +35,18 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
     """Frame offsets per clip kind and camera, and where detection may start.
 
     Frame offsets per clip kind and camera (relative to the first camera) and the first frame
-    after the flash in each camera's clip, where detection may start. A clip set without a flash
-    gets offsets 0 here; :func:`synchronise_clips` tells which clip sets still need their motion.
+    after the flash in each camera's clip, where detection may start.
+
+    Raises
+    ------
+    SyncError
+        A clip set without a flash (and not still): :func:`synchronise_clips` and the motion then
+        synchronise it, which this function's callers do not do.
     """
-    offsets, first_frame, _ = synchronise_clips(clips, meta, kinds)
+    offsets, first_frame, methods = synchronise_clips(clips, meta, kinds)
+    pending = [k for k in kinds if methods.get(k) == "motion"]
+    if pending:
+        raise SyncError(methods["reasons"][pending[0]])
     return offsets, first_frame
 
 
