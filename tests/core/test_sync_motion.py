@@ -171,3 +171,112 @@ def test_one_camera_is_refused():
     tracks = _tracks(rig, {"left": 0.0, "middle": 1.0, "right": 2.0})
     with pytest.raises(SyncError, match="two cameras"):
         motion_offsets({"left": tracks["left"]}, FPS, rig=rig)
+
+
+class _Clips:
+    """A ClipReader of brightness curves only: a flash in the clip sets named in ``flashed``."""
+
+    def __init__(self, flashed=(), fps=None, decode=True):
+        self.flashed, self.fps_of, self.decode = set(flashed), dict(fps or {}), decode
+
+    def cameras(self, kind):
+        return ["left", "middle", "right"]
+
+    def fps(self, kind, camera):
+        return self.fps_of.get(camera, 30.0)
+
+    def frame_times(self, kind, camera):
+        return None
+
+    def brightness(self, kind, camera):
+        assert self.decode, "a ride synchronised from motion decodes no brightness"
+        rng = np.random.default_rng(len(kind) + len(camera))
+        b = 80 + rng.normal(0, 0.3, 120)
+        if kind in self.flashed:
+            b[40 + len(camera): 45 + len(camera)] += 40
+        return b
+
+
+def test_clip_sets_without_a_flash_are_left_to_their_motion():
+    from saddlescope.core.pipeline.setup import synchronise, synchronise_clips
+
+    kinds = ["calibration", "plumb", "static", "motion"]
+    offsets, first, methods = synchronise_clips(_Clips(flashed=["calibration"]), {"sync": {"method": "flash"}}, kinds)
+    assert methods["calibration"] == "flash" and first["calibration"]["left"] > 40
+    assert methods["plumb"] == methods["static"] == "still" and methods["motion"] == "motion"
+    assert "no sync flash found in the motion clip" in methods["reasons"]["motion"]
+    assert offsets["motion"] == {"left": 0.0, "middle": 0.0, "right": 0.0} and first["motion"]["right"] == 0
+    with pytest.raises(SyncError, match="no sync flash found in the motion clip"):
+        synchronise(_Clips(flashed=["calibration"]), {"sync": {"method": "flash"}}, kinds)  # callers without motion
+
+
+def test_sync_by_choice_decodes_no_brightness_and_checks_frame_rates():
+    from saddlescope.core.pipeline.setup import synchronise_clips
+
+    _, _, methods = synchronise_clips(_Clips(decode=False), {"sync": {"method": "motion"}}, ["static", "motion"])
+    assert methods["static"] == "still" and methods["motion"] == "motion"
+    with pytest.raises(SyncError, match="equal frame rates"):
+        synchronise_clips(_Clips(decode=False, fps={"right": 25.0}), {"sync": {"method": "motion"}}, ["motion"])
+
+
+# --------------------------------------------------------------------------------------------------
+# The whole pipeline on arena rides: one filmed without a flash, one with a flash analysed both ways
+# --------------------------------------------------------------------------------------------------
+
+def _ride(tmp_path_factory, name: str, *, flash: bool):
+    from saddlescope.arena import RenderOptions
+    from saddlescope.io.synth_writer import write_ride_bundle
+
+    out = tmp_path_factory.mktemp(name) / "canter"
+    write_ride_bundle(out, gait="canter", seed=23, rig="thesis", duration_s=3.0, extras=False,
+                      options=RenderOptions(flash=flash))
+    return out
+
+
+@pytest.fixture(scope="module")
+def no_flash_ride(tmp_path_factory):
+    import json
+
+    from saddlescope.services.analysis import analyze_bundle
+
+    ride = _ride(tmp_path_factory, "no_flash", flash=False)
+    # ride.json says "flash" as a club's default would: no flash is found, and the motion takes over
+    result = analyze_bundle(ride, meta_overrides={"sync": {"method": "flash"}})
+    return result, json.loads((ride / "truth.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def both_ways(tmp_path_factory):
+    from saddlescope.services.analysis import analyze_bundle
+
+    ride = _ride(tmp_path_factory, "flash", flash=True)
+    return analyze_bundle(ride), analyze_bundle(ride, meta_overrides={"sync": {"method": "motion"}})
+
+
+@pytest.mark.slow
+def test_a_ride_without_a_flash_is_synchronised_from_its_motion(no_flash_ride):
+    result, truth = no_flash_ride
+    sync = result["quality"]["sync"]
+    assert sync["motion"]["method"] == "motion" and "no sync flash found" in sync["motion"]["reason"]
+    assert sync["calibration"]["method"] == "motion" and sync["static"]["method"] == "still"
+    for cam, off in truth["sync"]["motion"].items():
+        assert abs(result["sync"]["motion"][cam] - off) < 0.1, (cam, result["sync"]["motion"], truth["sync"]["motion"])
+        assert sync["motion"]["sigma_frames"][cam] < 0.1
+    for cam, off in truth["sync"]["calibration"].items():  # the board's: to the nearest frame
+        assert abs(result["sync"]["calibration"][cam] - off) < 1.0
+    assert any(f.startswith("the motion clip was synchronised from the markers' motion")
+               for f in result["quality"]["flags"])
+    assert abs(result["indicators"]["vel_x_avg_kmh"] / truth["truth"]["speed_kmh"] - 1) < 0.01
+    assert abs(result["indicators"]["stride_frequency_hz"] * truth["period_s"] - 1) < 0.01
+
+
+@pytest.mark.slow
+def test_motion_sync_gives_the_flash_syncs_result(both_ways):
+    by_flash, by_motion = both_ways
+    assert by_flash["quality"]["sync"]["motion"]["method"] == "flash"
+    assert by_motion["quality"]["sync"]["motion"]["method"] == "motion"
+    for cam, off in by_flash["sync"]["motion"].items():
+        assert abs(by_motion["sync"]["motion"][cam] - off) < 0.1
+    for key in ("acc_y_wb_rms", "vel_x_avg_kmh", "stride_frequency_hz"):
+        a, b = by_motion["indicators"][key], by_flash["indicators"][key]
+        assert abs(a / b - 1) < 0.02, (key, a, b)

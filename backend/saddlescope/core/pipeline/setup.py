@@ -73,15 +73,16 @@ def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tup
         decoded = dict(zip(jobs, pool.map(lambda job: clips.brightness(*job), jobs), strict=True))
     for kind in kinds:
         cams = clips.cameras(kind)
-        if by_motion:
-            _without_flash(kind, cams, offsets, first_frame, methods, "the ride asks for sync from motion")
-            continue
         fps = {c: clips.fps(kind, c) for c in cams}
-        known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
-        brightness = {c: decoded[kind, c] for c in cams}
         # a variable-rate clip's nominal rate comes from its stamps (a short clip's to a few tenths of
         # a percent); its frames are then placed by their stamps, not by the rate
         rel_tol = 0.01 if any(clips.frame_times(kind, c) is not None for c in cams) else 1e-3
+        if by_motion:
+            _same_rates(kind, fps, rel_tol)  # offsets in frames, as with the flash
+            _without_flash(kind, cams, offsets, first_frame, methods, "the ride asks for sync from motion")
+            continue
+        known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
+        brightness = {c: decoded[kind, c] for c in cams}
         if known is None:
             try:
                 offsets[kind] = clip_offsets(brightness, fps, clip=kind, fps_rel_tol=rel_tol)
@@ -103,6 +104,17 @@ def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tup
                     raise
                 first_frame[kind][c] = 0  # known offsets: the clip need not hold a flash
     return offsets, first_frame, methods
+
+
+def _same_rates(kind: str, fps: Mapping[str, float], rel_tol: float) -> None:
+    """Refuse cameras at different nominal frame rates (offsets count frames), as the flash does."""
+    ref, f0 = next(iter(fps.items()))
+    for cam, f in fps.items():
+        if not (np.isfinite(f) and f > 0):
+            raise SyncError(f"{kind} clip of the {cam} camera: frame rate {f} is not positive")
+        if abs(f - f0) > rel_tol * f0:
+            raise SyncError(f"{kind} clip: the {cam} camera runs at {f:g} fps but the {ref} camera at {f0:g} fps; "
+                            "frame offsets need equal frame rates")
 
 
 def _without_flash(kind: str, cams: list[str], offsets: dict, first_frame: dict, methods: dict, reason: str) -> None:
