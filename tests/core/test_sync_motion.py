@@ -162,8 +162,16 @@ def test_unrelated_motion_is_refused_with_a_reason():
     rng = np.random.default_rng(9)
     walk = np.cumsum(rng.normal(0, 3, (75, 3, 2)), axis=0) + 900  # the right camera followed something else
     tracks["right"] = ImageTracks("right", walk, np.arange(75))
-    with pytest.raises(SyncError, match="matches|half a frame"):
+    with pytest.raises(SyncError, match="matches|half a frame|other offsets"):
         motion_offsets(tracks, FPS, rig=rig)
+
+
+def test_two_cameras_a_stride_apart_are_refused_not_guessed():
+    """Two cameras check only the epipolar constraint, which the markers meet a stride away too."""
+    rig = _rig()
+    tracks = _tracks(rig, {"left": 0.0, "middle": 4.37, "right": -2.81})
+    with pytest.raises(SyncError, match="about as well at other offsets"):
+        motion_offsets({c: tracks[c] for c in ("left", "right")}, FPS, rig=rig)
 
 
 def test_one_camera_is_refused():

@@ -48,6 +48,7 @@ MIN_SPEED_PX = 1.0  # px/frame: markers moving less than this (90th percentile) 
 MIN_OVERLAP_FRAMES = 12  # frames where both cameras' speeds are known, at the least
 MAX_GAP_FRAMES = 3  # gaps of a track bridged for its image speed
 HUBER_PX = 2.0  # residuals beyond this count linearly (a marker mistracked for a frame)
+AMBIGUOUS_COST_RATIO = 4.0  # a rival offset's cost within this factor of the best's: the offset is ambiguous
 
 
 @dataclass(frozen=True)
@@ -382,27 +383,42 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
     """Step 2 of the module docstring: the best whole-frame combination, refined, with its covariance."""
     cons = _Consistency(rig, tracks, reference, fps, clocks)
     others = list(candidates)
-    best: tuple[float, dict[str, float]] | None = None
+    scored = []
     for combo in itertools.product(*(candidates[c] for c in others)):
         trial = dict(zip(others, map(float, combo), strict=True))
         _match_labels(cons, trial, n_instants=4)  # enough to rank the combinations
         s, n, _ = cons.cost(trial)
-        if n and (best is None or s / n < best[0]):
-            best = (s / n, trial)
-    if best is None:
+        if n:
+            scored.append((s / n, trial))
+    if not scored:
         raise SyncError(f"no sync flash, and the {clip} clip's markers are never seen by two cameras at once "
                         "at any offset the motion suggests")
-    start = best[1]
-    _match_labels(cons, start)
+    scored.sort(key=lambda item: item[0])
+    start = scored[0][1]
 
     def objective(v: np.ndarray) -> float:
         s, n, _ = cons.cost(dict(zip(others, v, strict=True)))
         return s / max(n, 1)
 
-    x0 = np.array([start[c] for c in others])
-    fit = minimize(objective, x0, method="Powell", bounds=[(v - 1.5, v + 1.5) for v in x0],
-                   options={"xtol": 1e-3, "ftol": 1e-9})
-    x = np.asarray(fit.x, dtype=np.float64)
+    def polish(trial: Mapping[str, float]) -> tuple[np.ndarray, float]:
+        _match_labels(cons, trial)
+        x0 = np.array([trial[c] for c in others])
+        fit = minimize(objective, x0, method="Powell", bounds=[(v - 1.5, v + 1.5) for v in x0],
+                       options={"xtol": 1e-3, "ftol": 1e-9})
+        return np.asarray(fit.x, dtype=np.float64), float(fit.fun)
+
+    # the best combination a stride or more away, refined too: if it is nearly as consistent, the
+    # cameras cannot tell the strides apart (two cameras see only the epipolar constraint)
+    rival = next((t for _, t in scored[1:] if max(abs(t[c] - start[c]) for c in others) > 1.5), None)
+    if rival is not None:
+        rival_x, rival_cost = polish(rival)
+    x, best_cost = polish(start)
+    if rival is not None and rival_cost < AMBIGUOUS_COST_RATIO * best_cost:
+        far = ", ".join(f"{c} {x[i]:+.1f} or {rival_x[i]:+.1f}" for i, c in enumerate(others))
+        raise SyncError(f"no sync flash, and the markers' motion fits the {clip} clip's cameras about as well at "
+                        f"other offsets ({far} frames): the {len(cons.cams)} cameras cannot tell them apart (a "
+                        "stride apart with two cameras, or markers that do not move alike in every camera); "
+                        "film a flash, or give the offsets in ride.json")
     offsets = {reference: 0.0, **dict(zip(others, map(float, x), strict=True))}
     s_min, n_res, n_points = cons.cost(offsets)
     sigma = _curvature_sigma(cons, others, x, s_min, n_res, n_points)
