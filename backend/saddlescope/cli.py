@@ -99,10 +99,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--variable-frame-rate", action="store_true",
                    help="the middle and right cameras record like phones: jittered frame intervals and "
                         "dropped frames, each frame stamped with its instant")
+    s.add_argument("--no-flash", action="store_true",
+                   help="no sync flash in the clips: the cameras are synchronised from the markers' motion")
 
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
     s.add_argument("ride")
     s.add_argument("--json", dest="json_out", default=None, help="write the result here (else stdout)")
+    s.add_argument("--sync", default=None, choices=["flash", "motion"],
+                   help="how the cameras are synchronised (default: ride.json's; without a flash the markers' "
+                        "motion is used anyway)")
 
     s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
     s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
@@ -156,13 +161,15 @@ def run(args: argparse.Namespace) -> int:
         path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,
                                  size=args.size, fps=args.fps, duration_s=args.duration,
                                  options=RenderOptions(skin_motion=args.skin, marker_layout=args.layout,
-                                                       variable_frame_rate=args.variable_frame_rate))
+                                                       variable_frame_rate=args.variable_frame_rate,
+                                                       flash=not args.no_flash))
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":
         from saddlescope.services.analysis import analyze_bundle
 
-        result = analyze_bundle(Path(args.ride), on_progress=_print_progress)
+        overrides = {"sync": {"method": args.sync}} if args.sync else None
+        result = analyze_bundle(Path(args.ride), on_progress=_print_progress, meta_overrides=overrides)
         _write_json(result, args.json_out)
         return 0
     if cmd == "calibrate":

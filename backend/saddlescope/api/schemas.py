@@ -348,9 +348,9 @@ Offsets = dict[CameraRole, Annotated[float, Field(ge=-1e6, le=1e6)]]
 
 
 class SyncIn(_In):
-    """ride.json's "sync": the flash (default), or known frame offsets per clip kind and camera."""
+    """ride.json's "sync": the flash (default), the markers' motion, or known frame offsets per clip kind and camera."""
 
-    method: Literal["flash", "offsets"] = "flash"
+    method: Literal["flash", "motion", "offsets"] = "flash"
     offsets: dict[ClipKind, Offsets] | None = None
 
     @model_validator(mode="after")

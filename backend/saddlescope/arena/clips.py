@@ -86,6 +86,7 @@ def render_clip_frames(
     times = timing.frame_times(camera)
     stop = len(times) if stop is None else min(int(stop), len(times))
     flash = flash_fraction(times, scene.rig.exposure_s, timing.flash_on_s, timing.flash_off_s, timing.flash_ramp_s)
+    flash = flash if scene.options.flash else np.zeros_like(flash)  # the scene's lamp, whatever ``options`` says
     clip_no, cam_no = ALL_CLIPS.index(kind), CAMERA_ROLES.index(camera)
     rendered = np.asarray(content.rendered, bool)
     bank = noise_bank(np.random.default_rng([scene.seed, 0x5ADD1E, clip_no, cam_no]), frame_shape(view))

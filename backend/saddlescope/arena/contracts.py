@@ -30,7 +30,7 @@ def ride_manifest(scene: Scene, *, suffix: str = ".mp4") -> dict:
             "inner_corners": list(BOARD.inner_corners),
             "square_mm": BOARD.square_mm,
         },
-        "sync": {"method": "flash"},
+        "sync": {"method": "flash" if scene.options.flash else "motion"},
         "markers": {"horse": 3, "plumb": 2, "saddle": 1},
         "horse": scene.meta["horse"],
         "rider": scene.meta["rider"],

@@ -61,6 +61,9 @@ class RenderOptions:
     # the middle and right cameras record at a variable frame rate, as phones do (jittered frame
     # intervals, dropped frames; the clips carry each frame's timestamp)
     variable_frame_rate: bool = False
+    # a sync lamp flashes at the start of every clip; False films a ride without one (the cameras are
+    # then synchronised from the markers' own motion, with the same unknown sub-frame offsets)
+    flash: bool = True
 
 
 @dataclass(frozen=True)

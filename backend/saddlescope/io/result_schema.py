@@ -149,7 +149,7 @@ RIDE_SCHEMA: dict[str, Any] = {
             "type": "object",
             "required": ["method"],
             "properties": {
-                "method": {"enum": ["flash", "offsets"]},
+                "method": {"enum": ["flash", "offsets", "motion"]},
                 "offsets": {"type": "object", "properties": {kind: _OFFSETS for kind in CLIP_KINDS},
                             "additionalProperties": _OFFSETS},
             },

@@ -18,7 +18,7 @@ from saddlescope.core.pipeline import (
     PipelineParams,
     calibrate_from_clips,
     frame_clocks,
-    synchronise,
+    synchronise_clips,
 )
 from saddlescope.core.types import CAMERA_ROLES, Rig
 from saddlescope.io.clip_source import BundleClips
@@ -61,7 +61,7 @@ def calibrate_clips(
     clips = BundleClips({"calibration": {role: Path(paths[role]) for role in CAMERA_ROLES}})
     if on_progress is not None:
         on_progress(0.0, "sync")
-    offsets, first_frame = synchronise(clips, meta, ["calibration"])
+    offsets, first_frame, methods = synchronise_clips(clips, meta, ["calibration"])
     clocks, _ = frame_clocks(clips, ["calibration"])
     if on_progress is not None:
         on_progress(0.2, "board views")
@@ -72,7 +72,10 @@ def calibrate_clips(
         first_frame["calibration"],
         params or PipelineParams(),
         clocks=clocks.get("calibration"),
+        sync_from_board=methods["calibration"] == "motion",  # no flash: the board's motion
     )
+    if "sync" in report:
+        offsets["calibration"] = report.pop("sync").offsets
     calibration = rig_to_dict(rig)
     calibration["n_views"] = report.get("n_views")
     # Where the board has been in each image (the distortion is only known there): the rig page draws it.

@@ -56,6 +56,11 @@ _TABLE: tuple[tuple[str, str, Severity, str], ...] = (
     # clips and synchronisation (core/pipeline)
     ("video.variable_frame_rate", r"the .+ clip of the .+ camera has a variable frame rate", "ok",
      "The phone varied its frame rate and this was corrected; lock the frame rate in the camera app if you can."),
+    ("sync.motion_uncertain", r"the .+ clip was synchronised from .+ motion \(no sync flash\), uncertain", "check",
+     "The cameras were matched in time from the horse's motion, less surely than usual: film a flash at the "
+     "start of each clip."),
+    ("sync.motion", r"the .+ clip was synchronised from .+ motion \(no sync flash\)", "ok",
+     "No flash was seen, so the cameras were matched in time from the horse's or the board's motion; nothing to do."),
     ("tracking.two_cameras_only", r"the .+ clip was triangulated from the .+ cameras only", "check",
      "One camera lost the markers in this clip: check that all three cameras see every marker throughout."),
     ("tracking.cameras_disagree", r"the cameras disagree on the .+ clip's markers", "check",

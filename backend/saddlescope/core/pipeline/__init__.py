@@ -20,8 +20,10 @@ from saddlescope.core.pipeline.setup import (
     frame_clocks,
     still_views,
     synchronise,
+    synchronise_clips,
 )
 
 __all__ = ["STAGE_WEIGHTS", "ClipReader", "PipelineParams", "Progress", "RideTracks", "analyze_ride",
            "assemble_result", "board_coverage", "calibrate_from_clips", "depth_uncertainty",
-           "detect_ride", "fits_document", "frame_clocks", "still_views", "synchronise"]
+           "detect_ride", "fits_document", "frame_clocks", "still_views", "synchronise",
+           "synchronise_clips"]

@@ -15,7 +15,14 @@ from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.detection import depth_uncertainty, detect_ride, disagreement_flag
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.pipeline.result import assemble_result
-from saddlescope.core.pipeline.setup import calibrate_from_clips, frame_clocks, synchronise
+from saddlescope.core.pipeline.setup import (
+    calibrate_from_clips,
+    frame_clocks,
+    motion_sync,
+    sync_flag,
+    sync_quality,
+    synchronise_clips,
+)
 from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
 from saddlescope.core.types import RideResult, Rig
 
@@ -66,17 +73,29 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
 
     t0 = time.perf_counter()
     progress.stage("sync", 0.0)
-    offsets, first_frame = synchronise(clips, meta, kinds)
+    offsets, first_frame, methods = synchronise_clips(clips, meta, kinds)
     clocks, clock_flags = frame_clocks(clips, kinds)
     progress.finish("sync", t0)
 
     t0 = time.perf_counter()
     calib_report: dict = {}
+    synced: dict = {}  # clip kind -> MotionSync, for the clip sets synchronised from motion
     if rig is None:
         rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
                                                  first_frame["calibration"], params, progress,
-                                                 clocks=clocks.get("calibration"))
+                                                 clocks=clocks.get("calibration"),
+                                                 sync_from_board=methods.get("calibration") == "motion")
+        if "sync" in calib_report:
+            synced["calibration"] = calib_report.pop("sync")
     progress.finish("calibration", t0)
+    if methods.get("motion") == "motion":  # no flash: the markers' motion, with the rig just calibrated
+        t0 = time.perf_counter()
+        synced["motion"] = motion_sync(clips, rig, "motion", int(markers.get("horse", 3)), params,
+                                       clocks=clocks.get("motion"))
+        progress.timings_s["sync_motion"] = round(time.perf_counter() - t0, 4)
+    for kind, found_sync in synced.items():
+        offsets[kind] = dict(found_sync.offsets)
+        clock_flags.append(sync_flag(kind, found_sync))
 
     t0 = time.perf_counter()
     found = detect_ride(clips, rig, offsets, first_frame, clocks, params, calib_report, progress,
@@ -99,5 +118,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.finish("indicators", t0)
     progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
     fps = float(clips.fps("motion", clips.cameras("motion")[0]))
-    return assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps, progress.timings_s,
-                           params, flags, input_flags)
+    result = assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps, progress.timings_s,
+                             params, flags, input_flags)
+    result.quality["sync"] = sync_quality(kinds, methods, synced)
+    return result

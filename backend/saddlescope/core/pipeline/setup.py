@@ -15,14 +15,20 @@ import cv2
 import numpy as np
 
 from saddlescope.core import calibration as calib
-from saddlescope.core.errors import SyncError
+from saddlescope.core.detection import track_markers
+from saddlescope.core.errors import DetectionError, SyncError
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
+from saddlescope.core.sync_motion import MotionSync, motion_offsets
 from saddlescope.core.types import Board, ImageTracks, Rig
 
-__all__ = ["board_corner_sample", "board_coverage", "calibrate_from_clips", "frame_clocks", "outside_coverage",
-           "still_views", "synchronise"]
+__all__ = ["SYNC_METHODS", "board_corner_sample", "board_coverage", "calibrate_from_clips", "frame_clocks",
+           "motion_sync", "outside_coverage", "still_views", "sync_flag", "sync_quality", "synchronise",
+           "synchronise_clips"]
+
+
+SYNC_METHODS = ("flash", "offsets", "motion")
 
 
 def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict]:
@@ -30,25 +36,64 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
 
     Frame offsets per clip kind and camera (relative to the first camera) and the first frame
     after the flash in each camera's clip, where detection may start.
+
+    Raises
+    ------
+    SyncError
+        A clip set without a flash (and not still): :func:`synchronise_clips` and the motion then
+        synchronise it, which this function's callers do not do.
+    """
+    offsets, first_frame, methods = synchronise_clips(clips, meta, kinds)
+    pending = [k for k in kinds if methods.get(k) == "motion"]
+    if pending:
+        raise SyncError(methods["reasons"][pending[0]])
+    return offsets, first_frame
+
+
+def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict, dict]:
+    """:func:`synchronise`, and how each clip set is (to be) synchronised.
+
+    ``sync.method`` "flash" (default) finds the flash in every clip; a clip set where it is not found
+    falls back to its markers' motion. "motion" does not look for a flash. Returns ``methods[kind]``:
+    "flash" or "offsets" (done), "motion" (the motion clip: from its markers once the rig is known,
+    :func:`motion_sync`; the calibration clip: from the board, :func:`calibrate_from_clips`), or
+    "still" (the plumb and static clips without a flash: their markers stand still, so frames pair up
+    whatever the offset, taken as 0); ``methods["reasons"][kind]`` why a flash was not used.
     """
     from concurrent.futures import ThreadPoolExecutor
 
     offsets: dict[str, dict[str, float]] = {}
     first_frame: dict[str, dict[str, int]] = {}
+    methods: dict = {"reasons": {}}
     sync_spec = meta.get("sync") or {"method": "flash"}
+    by_motion = isinstance(sync_spec, Mapping) and sync_spec.get("method") == "motion"
     # Every clip is decoded for its brightness: in threads (the decoder releases the GIL), in order.
-    jobs = [(kind, c) for kind in kinds for c in clips.cameras(kind)]
+    jobs = [] if by_motion else [(kind, c) for kind in kinds for c in clips.cameras(kind)]
     with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
         decoded = dict(zip(jobs, pool.map(lambda job: clips.brightness(*job), jobs), strict=True))
     for kind in kinds:
         cams = clips.cameras(kind)
         fps = {c: clips.fps(kind, c) for c in cams}
-        known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
-        brightness = {c: decoded[kind, c] for c in cams}
         # a variable-rate clip's nominal rate comes from its stamps (a short clip's to a few tenths of
         # a percent); its frames are then placed by their stamps, not by the rate
         rel_tol = 0.01 if any(clips.frame_times(kind, c) is not None for c in cams) else 1e-3
-        offsets[kind] = known if known is not None else clip_offsets(brightness, fps, clip=kind, fps_rel_tol=rel_tol)
+        if by_motion:
+            _same_rates(kind, fps, rel_tol)  # offsets in frames, as with the flash
+            _without_flash(kind, cams, offsets, first_frame, methods, "the ride asks for sync from motion")
+            continue
+        known = offsets_from_spec(sync_spec, clip=kind, cameras=cams)
+        brightness = {c: decoded[kind, c] for c in cams}
+        if known is None:
+            try:
+                offsets[kind] = clip_offsets(brightness, fps, clip=kind, fps_rel_tol=rel_tol)
+            except SyncError as exc:
+                if "no sync flash" not in str(exc):
+                    raise  # frame rates, clip lengths: no other sync would help
+                _without_flash(kind, cams, offsets, first_frame, methods, str(exc))
+                continue
+        else:
+            offsets[kind] = known
+        methods[kind] = "flash" if known is None else "offsets"
         first_frame[kind] = {}
         for c in cams:
             try:
@@ -58,7 +103,85 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
                 if known is None:
                     raise
                 first_frame[kind][c] = 0  # known offsets: the clip need not hold a flash
-    return offsets, first_frame
+    return offsets, first_frame, methods
+
+
+def _same_rates(kind: str, fps: Mapping[str, float], rel_tol: float) -> None:
+    """Refuse cameras at different nominal frame rates (offsets count frames), as the flash does."""
+    ref, f0 = next(iter(fps.items()))
+    for cam, f in fps.items():
+        if not (np.isfinite(f) and f > 0):
+            raise SyncError(f"{kind} clip of the {cam} camera: frame rate {f} is not positive")
+        if abs(f - f0) > rel_tol * f0:
+            raise SyncError(f"{kind} clip: the {cam} camera runs at {f:g} fps but the {ref} camera at {f0:g} fps; "
+                            "frame offsets need equal frame rates")
+
+
+def _without_flash(kind: str, cams: list[str], offsets: dict, first_frame: dict, methods: dict, reason: str) -> None:
+    """A clip set synchronised without a flash: offsets 0 until its motion gives them."""
+    offsets[kind] = {c: 0.0 for c in cams}
+    first_frame[kind] = {c: 0 for c in cams}
+    methods[kind] = "still" if kind in ("plumb", "static") else "motion"
+    methods["reasons"][kind] = reason
+
+
+def motion_sync(clips: ClipReader, rig: Rig, kind: str, n_markers: int, params: PipelineParams,
+                clocks: Mapping[str, tuple[np.ndarray, float]] | None = None) -> MotionSync:
+    """Offsets of a clip set without a flash from its markers' motion, with the calibrated rig.
+
+    Each camera tracks the moving markers by itself (as :func:`~saddlescope.core.pipeline.detection.detect_motion`
+    first does), then :func:`~saddlescope.core.sync_motion.motion_offsets` cross-correlates their image
+    speeds and refines the offsets by triangulation consistency.
+
+    Raises
+    ------
+    SyncError
+        A camera that does not find the markers, or motion that does not fix the offsets.
+    """
+    cams = clips.cameras(kind)
+    overrides = {k: v for k, v in params.detection.get(kind, {}).items() if not isinstance(v, Mapping)}
+    tracks = {}
+    for c in cams:
+        try:
+            tracks[c] = track_markers(clips.gray_frames(kind, c), n_markers=n_markers, camera=c, clip=kind,
+                                      **{"moving": True, **overrides})
+        except DetectionError as exc:
+            raise SyncError(f"no sync flash in the {kind} clip, and its markers' motion cannot synchronise the "
+                            f"cameras: {exc}") from exc
+    return motion_offsets(tracks, clips.fps(kind, cams[0]), rig=rig, clocks=clocks, clip=kind)
+
+
+def sync_quality(kinds: list[str], methods: Mapping, synced: Mapping[str, MotionSync]) -> dict:
+    """The result's ``quality.sync``: per clip set its method and, from motion, the offsets' uncertainty.
+
+    ``{kind: {"method": "flash" | "offsets" | "motion" | "still", "sigma_frames": {camera: frames},
+    "rms_px": ..., "reason": why no flash}}`` (the last three only where they apply).
+    """
+    out = {}
+    for kind in kinds:
+        entry: dict = {"method": methods.get(kind, "flash")}
+        if kind in synced:
+            entry["sigma_frames"] = {c: round(float(v), 4) for c, v in synced[kind].sigma_frames.items()}
+            if synced[kind].rms_px is not None:
+                entry["rms_px"] = round(float(synced[kind].rms_px), 4)
+        if kind in methods.get("reasons", {}):
+            entry["reason"] = methods["reasons"][kind]
+        out[kind] = entry
+    return out
+
+
+def sync_flag(kind: str, found: MotionSync) -> str:
+    """The flag sentence of a clip set synchronised from motion (quality notes match it)."""
+    what = "the board's" if kind == "calibration" else "the markers'"
+    others = [c for c in found.offsets if found.sigma_frames.get(c, 0.0) > 0 or found.offsets[c] != 0.0]
+    parts = ", ".join(f"{c} {found.offsets[c]:+.2f} ± {found.sigma_frames[c]:.2f}" for c in others)
+    worst = max((found.sigma_frames[c] for c in others), default=0.0)
+    if kind == "calibration":  # only still views of the board are used: whole frames suffice
+        verdict = "to the nearest frame" if worst < 0.5 else "uncertain"
+    else:
+        verdict = "uncertain" if worst > 0.1 else "within a tenth of a frame"
+    return (f"the {kind} clip was synchronised from {what} motion (no sync flash), {verdict}: offsets "
+            f"{parts} frames")
 
 
 def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
@@ -96,7 +219,8 @@ def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
 def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, float],
                          first_frame: Mapping[str, int], params: PipelineParams,
                          progress: Progress | None = None,
-                         clocks: Mapping[str, tuple[np.ndarray, float]] | None = None) -> tuple[Rig, dict]:
+                         clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
+                         sync_from_board: bool = False) -> tuple[Rig, dict]:
     """Calibrate the rig from every camera's calibration clip.
 
     Board views from every camera's calibration clip, put on the first camera's clock, then
@@ -108,12 +232,17 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         The calibration clip's frame offsets against the first camera and first frame after the flash.
     clocks : mapping of camera -> (ndarray of shape (F,), float), optional
         Frame timestamps (s) and anchor frame of variable-rate clips (:func:`frame_clocks`).
+    sync_from_board : bool
+        The clip holds no flash: ``offsets`` are found from the board's motion (its corners' image
+        speed, :func:`~saddlescope.core.sync_motion.motion_offsets` without a rig) once every camera's
+        views are found; whole frames matter here, as only still views are used.
 
     Returns
     -------
     rig : Rig
     report : dict
-        ``n_views`` and ``board_coverage`` (image hull, share of the image) per camera.
+        ``n_views`` and ``board_coverage`` (image hull, share of the image) per camera; with
+        ``sync_from_board`` also ``sync`` (:class:`~saddlescope.core.sync_motion.MotionSync`).
     """
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
@@ -130,14 +259,16 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         start = max(0, base + int(round(offsets.get(cam, 0.0))))
         views, size = calib.detect_board_views(
             clips.gray_frames("calibration", cam, start=start, step=step), board, search_every=search_every)
+        return views, size or clips.image_size("calibration", cam)
+
+    def on_reference_clock(cam: str, views: list) -> list:
         # frame k of this camera shows the instant of frame k - offset of the first camera (for a
         # variable-rate clip, k counted on its nominal clock: a dropped frame shifts the rest)
         views = still_views(views, step) if params.still_board_only else views
         frames = np.array([v.frame for v in views], dtype=np.float64)
         if cam in (clocks or {}) and views:
             frames = nominal_frames_of(frames, clocks[cam][0], clocks[cam][1], fps)
-        return ([replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)],
-                size or clips.image_size("calibration", cam))
+        return [replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)]
 
     # One thread per camera: decoding (PyAV) and the board search (OpenCV) release the GIL. Each camera's
     # views depend on its clip alone, so the result does not depend on the threads' timing; progress is
@@ -149,7 +280,12 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
             if progress is not None:
                 progress.stage("calibration", 0.6 * done / len(cams))
     found = {cam: job.result() for job, cam in jobs.items()}
-    views_by_camera = {cam: found[cam][0] for cam in cams}
+    board_sync = None
+    if sync_from_board:
+        board_sync = motion_offsets({c: board_track(found[c][0], board) for c in cams}, fps, clocks=clocks,
+                                    clip="calibration")
+        offsets = board_sync.offsets
+    views_by_camera = {cam: on_reference_clock(cam, found[cam][0]) for cam in cams}
     sizes = {cam: found[cam][1] for cam in cams}
     if len(cams) > 1:
         views_by_camera = _average_holds(views_by_camera)
@@ -161,7 +297,24 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
     report["board_coverage"] = {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v}
     report["board_corners_px"] = {c: board_corner_sample(v) for c, v in views_by_camera.items() if v}
+    if board_sync is not None:
+        report["sync"] = board_sync
     return rig, report
+
+
+def board_track(views: list, board: Board) -> ImageTracks:
+    """A camera's board views as tracks of every board corner, (F, N corners, 2), NaN where not found.
+
+    Its image speed (:func:`~saddlescope.core.sync_motion.image_speed`: the mean over the corners found
+    in both frames) is the board's motion, unaffected by corners coming and going.
+    """
+    n = len(board.object_points_mm())
+    frames = np.array(sorted({int(v.frame) for v in views}), dtype=np.int64)
+    xy = np.full((frames.size, n, 2), np.nan)
+    row = {int(f): i for i, f in enumerate(frames)}
+    for v in views:
+        xy[row[int(v.frame)], np.asarray(v.ids, dtype=np.int64)] = np.asarray(v.corners_px, dtype=np.float64)
+    return ImageTracks("board", xy, frames)
 
 
 def board_corner_sample(views: list, *, max_points: int = 1500) -> list[list[float]]:

@@ -1,0 +1,459 @@
+"""Synchronisation without a flash: the cameras' offsets from the markers' own motion.
+
+Phones are not genlocked and a club may have no flash. Two steps find the offsets (same convention
+as :mod:`saddlescope.core.sync`: the instant of the reference camera's frame k is camera c's frame
+k + o_c; for a variable-rate clip o_c counts nominal frames from clip frame 0):
+
+1. **Whole frames, from image speed.** Each camera's image speed s_c(k) = mean over its markers of
+   |x(k+1) - x(k)| (px/frame; a board's corners play the markers' part) differs between views by
+   little more than a scale, so the normalised cross-correlation of s_c against the reference's over
+   every candidate lag finds the offset to a frame, up to whole strides: a periodic gait repeats its
+   speed every stride, so every correlation peak within ``keep_peak`` of the best is a candidate
+   (a camera seeing only part of the crossing may peak higher a stride away than at its offset).
+2. **Sub-frame, from triangulation consistency** (when a calibrated rig is given). For offsets o,
+   every camera's track is sampled at the reference's frames shifted by o_c (cubic, as
+   :func:`~saddlescope.core.triangulation.resample_tracks`), each marker is triangulated (linear
+   DLT in ideal normalised coordinates) and reprojected. A wrong offset moves a marker along its
+   path in one camera only, which no 3-D point explains; the candidates' whole-frame combinations
+   are ranked by that cost, and the best is refined to a fraction of a frame by minimising it.
+
+Uncertainty: the cost S(o) = sum of Huber losses of the reprojection residuals (px) is near-
+quadratic at its minimum, S ~ S_min + 1/2 d^T H d; with residual variance sigma^2 = 2 S_min / (n - p)
+(n residuals, p = 3 per triangulated point + the offsets) the offsets' covariance is sigma^2 H^-1
+(Gauss-Newton). Residuals correlated over frames make it a lower bound. Without a rig (the
+calibration clip, whose board is held still while it is photographed, so whole frames suffice) the
+offsets come from the speed correlation alone, its peak placed between frames by a parabola; their
+uncertainty is the peak's curvature and at least a whole frame's rounding, 1/sqrt(12) frame.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from saddlescope.core.camera_model import undistort_normalized
+from saddlescope.core.errors import SyncError
+from saddlescope.core.sync import clip_frames_at
+from saddlescope.core.triangulation import resample_tracks
+from saddlescope.core.triangulation.matching import match_markers_across_cameras
+from saddlescope.core.types import ImageTracks, Rig
+
+__all__ = ["MotionSync", "image_speed", "motion_offsets", "speed_correlation", "speed_offset_candidates"]
+
+MIN_SPEED_PX = 1.0  # px/frame: markers moving less than this (90th percentile) give no motion to sync on
+MIN_OVERLAP_FRAMES = 12  # frames where both cameras' speeds are known, at the least
+MAX_GAP_FRAMES = 3  # gaps of a track bridged for its image speed
+HUBER_PX = 2.0  # residuals beyond this count linearly (a marker mistracked for a frame)
+AMBIGUOUS_COST_RATIO = 4.0  # a rival offset's cost within this factor of the best's: the offset is ambiguous
+
+
+@dataclass(frozen=True)
+class MotionSync:
+    """Offsets of every camera from the markers' motion, with their uncertainty.
+
+    ``offsets`` and ``sigma_frames`` map camera -> frames (the reference 0); ``method`` is
+    "motion"; ``rms_px`` the r.m.s. reprojection residual at the chosen offsets (None without a
+    rig); ``candidates`` the whole-frame offsets tried per camera; ``n_frames`` the reference frames
+    that took part.
+    """
+
+    offsets: dict[str, float]
+    sigma_frames: dict[str, float]
+    rms_px: float | None = None
+    n_frames: int = 0
+    candidates: dict[str, list[int]] = field(default_factory=dict)
+    method: str = "motion"
+
+
+def _nominal_xy(track: ImageTracks, n_frames: int, fps: float,
+                clock: tuple[np.ndarray, float] | None) -> np.ndarray:
+    """A camera's tracks on its nominal even clock, frames 0..n_frames-1, shape (n_frames, M, 2)."""
+    frames = np.arange(n_frames, dtype=np.float64)
+    times = None
+    if clock is not None:
+        times, anchor = clock
+        frames = clip_frames_at(frames, times, anchor, fps)
+    return _bridge_gaps(resample_tracks(track, frames, kind="linear", frame_times_s=times))
+
+
+def _bridge_gaps(xy: np.ndarray, max_gap: int = MAX_GAP_FRAMES) -> np.ndarray:
+    """Gaps of up to ``max_gap`` frames inside each marker's track filled linearly, shape as ``xy`` (F, M, 2).
+
+    A blurred board is not found while it moves (the frames the board's motion is in), a marker
+    is hidden for a frame or two: the step across the gap is spread over it.
+    """
+    out = xy.copy()
+    k = np.arange(xy.shape[0])
+    for m in range(xy.shape[1]):
+        ok = np.all(np.isfinite(xy[:, m]), axis=1)
+        if ok.sum() < 2:
+            continue
+        seen = k[ok]
+        # the length of the gap each missing frame sits in (from the previous to the next seen frame)
+        nxt = np.searchsorted(seen, k)
+        inside = (~ok) & (nxt > 0) & (nxt < seen.size)
+        gap = np.where(inside, seen[np.clip(nxt, 0, seen.size - 1)] - seen[np.clip(nxt - 1, 0, seen.size - 1)] - 1, 0)
+        fill = inside & (gap <= max_gap)
+        for d in range(2):
+            out[fill, m, d] = np.interp(k[fill], seen, xy[ok, m, d])
+    return out
+
+
+def image_speed(xy_px: np.ndarray) -> np.ndarray:
+    """Image speed of a camera's markers, px/frame, shape (F - 1,): sample k is frames k to k+1.
+
+    The mean over the markers seen in both frames of |x(k+1) - x(k)|; NaN where none was.
+
+    Parameters
+    ----------
+    xy_px : ndarray of shape (F, M, 2)
+        Marker positions on an even clock, NaN in gaps.
+    """
+    xy = np.asarray(xy_px, dtype=np.float64)
+    if xy.ndim != 3 or xy.shape[-1] != 2:
+        raise SyncError(f"marker tracks must have shape (F, M, 2), got {xy.shape}")
+    step = np.linalg.norm(np.diff(xy, axis=0), axis=-1)  # (F-1, M), NaN where a marker is missing
+    seen = np.isfinite(step)
+    with np.errstate(invalid="ignore"):
+        return np.where(seen.any(axis=1), np.nansum(np.where(seen, step, 0.0), axis=1) / seen.sum(axis=1), np.nan)
+
+
+def _speed_changes(speed: np.ndarray, *, window: int) -> np.ndarray:
+    """Relative changes of the image speed: log(1 + speed / 1 px) minus its running mean over ``window`` samples.
+
+    The log takes out each view's scale (distance, focal length) of a moving horse, while a board
+    held still (speed 0) stays finite; the running mean takes out the slow change of scale as the
+    horse crosses each view (perspective), which differs from camera to camera and would otherwise
+    outweigh the stride's speed changes that all cameras share.
+    """
+    v = np.log1p(np.asarray(speed, dtype=np.float64))
+    ok = np.isfinite(v)
+    kernel = np.ones(window)
+    total = np.convolve(np.where(ok, v, 0.0), kernel, mode="same")
+    count = np.convolve(ok.astype(np.float64), kernel, mode="same")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        trend = total / count
+    return np.where(ok & (count >= window / 2), v - trend, np.nan)
+
+
+def speed_correlation(ref_speed: np.ndarray, cam_speed: np.ndarray, lags: np.ndarray, *,
+                      min_overlap: int = MIN_OVERLAP_FRAMES) -> np.ndarray:
+    """Normalised cross-correlation of two image-speed curves at integer lags, shape (L,).
+
+    Lag L pairs reference sample k with camera sample k + L (NaN where fewer than ``min_overlap``
+    samples are known in both, or either is constant there).
+    """
+    a = np.asarray(ref_speed, dtype=np.float64)
+    b = np.asarray(cam_speed, dtype=np.float64)
+    out = np.full(len(lags), np.nan)
+    for i, lag in enumerate(np.asarray(lags, dtype=np.int64)):
+        lo, hi = max(0, -lag), min(len(a), len(b) - lag)
+        if hi - lo < min_overlap:
+            continue
+        x, y = a[lo:hi], b[lo + lag: hi + lag]
+        ok = np.isfinite(x) & np.isfinite(y)
+        if ok.sum() < min_overlap:
+            continue
+        x, y = x[ok] - x[ok].mean(), y[ok] - y[ok].mean()
+        den = np.sqrt(np.sum(x * x) * np.sum(y * y))
+        if den > 0:
+            out[i] = float(np.sum(x * y) / den)
+    return out
+
+
+def _peaks(lags: np.ndarray, ncc: np.ndarray, keep_peak: float, max_candidates: int) -> list[int]:
+    """The lags of the correlation's local maxima within ``keep_peak`` of the best, best first."""
+    c = np.where(np.isfinite(ncc), ncc, -np.inf)
+    best = float(c.max())
+    left = np.concatenate([[-np.inf], c[:-1]])
+    right = np.concatenate([c[1:], [-np.inf]])
+    is_peak = (c >= left) & (c >= right) & (c >= best - keep_peak) & np.isfinite(ncc) & (c > 0)
+    order = np.argsort(-c[is_peak])
+    return [int(v) for v in lags[is_peak][order][:max_candidates]]
+
+
+def _parabola_peak(lags: np.ndarray, ncc: np.ndarray, lag: int) -> tuple[float, float]:
+    """The correlation peak at ``lag`` placed between frames by a parabola, and its curvature (> 0)."""
+    i = int(np.flatnonzero(lags == lag)[0])
+    if i == 0 or i == len(lags) - 1 or not np.all(np.isfinite(ncc[i - 1: i + 2])):
+        return float(lag), 0.0
+    ym, y0, yp = ncc[i - 1: i + 2]
+    curv = float(ym - 2 * y0 + yp)
+    if curv >= 0:
+        return float(lag), 0.0
+    return float(lag + np.clip(0.5 * (ym - yp) / curv, -0.5, 0.5)), -curv
+
+
+def speed_offset_candidates(speeds: Mapping[str, np.ndarray], *, reference: str, max_lag: int,
+                            keep_peak: float = 0.5, max_candidates: int = 6, min_ncc: float = 0.3,
+                            clip: str = "motion") -> dict[str, tuple[list[int], np.ndarray, np.ndarray]]:
+    """Whole-frame offset candidates of every camera from its image speed against the reference's.
+
+    Returns
+    -------
+    dict camera -> (candidate lags best first, lags (L,), correlation (L,)); the reference's is ([0], ...).
+
+    Raises
+    ------
+    SyncError
+        A camera whose speed correlates with the reference's at no lag.
+    """
+    out: dict[str, tuple[list[int], np.ndarray, np.ndarray]] = {}
+    lags = np.arange(-max_lag, max_lag + 1)
+    for cam, s in speeds.items():
+        if cam == reference:
+            out[cam] = ([0], lags, np.full(len(lags), np.nan))
+            continue
+        # a short overlap correlates well by chance: at least half the shorter curve's known samples
+        overlap = max(MIN_OVERLAP_FRAMES, int(0.5 * min(np.isfinite(speeds[reference]).sum(), np.isfinite(s).sum())))
+        ncc = speed_correlation(speeds[reference], s, lags, min_overlap=overlap)
+        if not np.any(np.isfinite(ncc)) or np.nanmax(ncc) < min_ncc:
+            best = np.nanmax(ncc) if np.any(np.isfinite(ncc)) else float("nan")
+            raise SyncError(f"no sync flash, and the markers' motion in the {cam} camera's {clip} clip matches "
+                            f"the {reference} camera's at no offset within {max_lag} frames (best "
+                            f"correlation {best:.2f}, under {min_ncc:g}): the cameras may not see the same "
+                            "motion at the same time; film a flash, or give the offsets in ride.json")
+        out[cam] = (_peaks(lags, ncc, keep_peak, max_candidates), lags, ncc)
+    return out
+
+
+class _Consistency:
+    """Triangulation consistency of the cameras' tracks at trial offsets (module docstring, step 2)."""
+
+    def __init__(self, rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: float,
+                 clocks: Mapping[str, tuple[np.ndarray, float]]):
+        self.cams = list(tracks)
+        self.reference, self.fps, self.clocks = reference, fps, clocks
+        self.ref_frames = np.asarray(tracks[reference].frame_index, dtype=np.float64)
+        self.tracks_px = dict(tracks)
+        self.focal = {c: float(np.mean(np.diag(rig.cameras[c].K)[:2])) for c in self.cams}
+        self.P = {c: np.hstack([rig.cameras[c].R, np.reshape(rig.cameras[c].t_mm, (3, 1))]) for c in self.cams}
+        self.rig = rig
+        self.set_labels({c: np.arange(np.asarray(tracks[c].xy_px).shape[1]) for c in self.cams})
+
+    def set_labels(self, perms: Mapping[str, np.ndarray]) -> None:
+        """Reorder each camera's markers to the reference's labels; tracks in ideal normalised coordinates."""
+        self.norm = {}
+        for c in self.cams:
+            tr = self.tracks_px[c]
+            xy = np.asarray(tr.xy_px, dtype=np.float64)[:, perms[c]]
+            self.norm[c] = ImageTracks(c, undistort_normalized(self.rig.cameras[c], xy), tr.frame_index)
+
+    def sampled(self, offsets: Mapping[str, float], *, pixels: bool = False) -> dict[str, np.ndarray]:
+        """Every camera's markers at the reference's frames, (F, M, 2), with the trial offsets."""
+        out = {}
+        for c in self.cams:
+            wanted = self.ref_frames + float(offsets.get(c, 0.0))
+            times = None
+            if c in self.clocks:
+                times, anchor = self.clocks[c]
+                wanted = clip_frames_at(wanted, times, anchor, self.fps)
+            src = self.tracks_px[c] if pixels else self.norm[c]
+            out[c] = resample_tracks(src, wanted, frame_times_s=times)
+        return out
+
+    def residuals(self, offsets: Mapping[str, float]) -> tuple[np.ndarray, int]:
+        """Reprojection residuals (px) of every marker seen by two cameras or more, and how many points."""
+        xy = self.sampled(offsets)
+        obs = np.stack([xy[c].reshape(-1, 2) for c in self.cams])  # (C, N, 2)
+        seen = np.all(np.isfinite(obs), axis=2)  # (C, N)
+        use = seen.sum(axis=0) >= 2
+        if not use.any():
+            return np.empty(0), 0
+        obs, seen = obs[:, use], seen[:, use]
+        P = np.stack([self.P[c] for c in self.cams])  # (C, 3, 4)
+        # linear DLT: x P3 - P1 = 0, y P3 - P2 = 0 for every camera that saw the point
+        o = np.nan_to_num(obs)
+        rows_x = o[..., 0:1] * P[:, None, 2, :] - P[:, None, 0, :]  # (C, N, 4)
+        rows_y = o[..., 1:2] * P[:, None, 2, :] - P[:, None, 1, :]
+        A = np.concatenate([rows_x, rows_y], axis=0) * np.concatenate([seen, seen])[..., None]  # (2C, N, 4)
+        _, _, vt = np.linalg.svd(np.transpose(A, (1, 0, 2)))
+        X = vt[:, -1, :]  # (N, 4)
+        X = X[:, :3] / X[:, 3:4]
+        res = []
+        for i, c in enumerate(self.cams):
+            xc = X @ self.P[c][:, :3].T + self.P[c][:, 3]
+            proj = xc[:, :2] / xc[:, 2:3]
+            r = np.linalg.norm(proj - obs[i], axis=1) * self.focal[c]
+            res.append(r[seen[i]])
+        return np.concatenate(res), int(use.sum())
+
+    def cost(self, offsets: Mapping[str, float]) -> tuple[float, int, int]:
+        """Sum of Huber losses (px^2), residuals and points."""
+        r, n_points = self.residuals(offsets)
+        if r.size == 0:
+            return np.inf, 0, 0
+        loss = np.where(r <= HUBER_PX, 0.5 * r * r, HUBER_PX * (r - 0.5 * HUBER_PX))
+        return float(loss.sum()), int(r.size), n_points
+
+
+def _match_labels(cons: _Consistency, offsets: Mapping[str, float], n_instants: int = 12) -> None:
+    """The cameras' marker labels matched at trial offsets (as triangulate_tracks does)."""
+    cons.set_labels({c: np.arange(np.asarray(cons.tracks_px[c].xy_px).shape[1]) for c in cons.cams})
+    xy = cons.sampled(offsets, pixels=True)
+    full = np.all(np.stack([np.all(np.isfinite(v), axis=(1, 2)) for v in xy.values()]), axis=0)
+    hits = np.flatnonzero(full)
+    if hits.size == 0 or np.asarray(cons.tracks_px[cons.reference].xy_px).shape[1] < 2:
+        return
+    pick = hits[np.unique(np.linspace(0, hits.size - 1, min(hits.size, n_instants)).round().astype(int))]
+    cons.set_labels(match_markers_across_cameras(cons.rig, {c: xy[c][pick] for c in cons.cams},
+                                                 reference=cons.reference))
+
+
+def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | None = None,
+                   reference: str | None = None, clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
+                   max_offset_s: float = 2.0, clip: str = "motion") -> MotionSync:
+    """Offsets of every camera against the reference from the markers' motion (module docstring).
+
+    Parameters
+    ----------
+    tracks : dict camera -> ImageTracks
+        Each camera's 2-D tracks of the same markers (labels need not agree), in its own clip frames.
+    fps : float
+        Nominal frame rate (equal in every camera, as for the flash).
+    rig : Rig, optional
+        The calibrated rig: offsets refined to a fraction of a frame by triangulation consistency.
+        Without it, whole-frame offsets from image speed with a parabolic sub-frame estimate.
+    reference : str, optional
+        Camera whose offset is 0 (default the first).
+    clocks : dict camera -> (frame times (F,) s, anchor frame), optional
+        Variable-rate clips' timestamps (:func:`saddlescope.core.pipeline.setup.frame_clocks`).
+    max_offset_s : float
+        Largest offset looked for, seconds either way.
+    clip : str
+        Clip kind named in errors.
+
+    Raises
+    ------
+    SyncError
+        Fewer than two cameras, no motion, no matching motion, or an offset the cost cannot fix.
+    """
+    cams = list(tracks)
+    if len(cams) < 2:
+        raise SyncError(f"{clip} clip: motion synchronisation needs two cameras or more, got {len(cams)}")
+    reference = reference or cams[0]
+    if reference not in tracks:
+        raise SyncError(f"{clip} clip: reference camera {reference} has no marker tracks")
+    cams = [reference] + [c for c in cams if c != reference]
+    if not (np.isfinite(fps) and fps > 0):
+        raise SyncError(f"{clip} clip: frame rate {fps} is not positive")
+    clocks = dict(clocks or {})
+    speeds = {}
+    for c in cams:
+        fi = np.asarray(tracks[c].frame_index)
+        if fi.size < MIN_OVERLAP_FRAMES:
+            raise SyncError(f"no sync flash and too little motion to synchronise the {clip} clip: the {c} camera "
+                            f"tracked the markers on {fi.size} frame(s), at least {MIN_OVERLAP_FRAMES} are needed")
+        raw = image_speed(_nominal_xy(tracks[c], int(fi.max()) + 1, fps, clocks.get(c)))
+        # the 90th percentile: a board held still between moves moves in a quarter of the frames
+        moving = float(np.nanpercentile(raw, 90)) if np.isfinite(raw).sum() >= MIN_OVERLAP_FRAMES else 0.0
+        if moving < MIN_SPEED_PX:
+            raise SyncError(f"no sync flash and not enough motion to synchronise the {clip} clip: the {c} "
+                            f"camera's markers moved {moving:.2f} px/frame (90th percentile; at least {MIN_SPEED_PX:g} "
+                            f"over {MIN_OVERLAP_FRAMES} frames is needed); film a flash, or give the offsets "
+                            "in ride.json")
+        speeds[c] = _speed_changes(raw, window=max(3, int(round(fps))))
+    max_lag = max(1, int(round(max_offset_s * fps)))
+    found = speed_offset_candidates(speeds, reference=reference, max_lag=max_lag, clip=clip)
+    others = cams[1:]
+    candidates = {c: found[c][0] for c in others}
+    if rig is None:
+        offsets, sigma = {reference: 0.0}, {reference: 0.0}
+        for c in others:
+            lags, ncc = found[c][1], found[c][2]
+            offsets[c], curv = _parabola_peak(lags, ncc, candidates[c][0])
+            # the peak's own spread (the correlation's drop per frame^2 against its 1 / sqrt(n) noise) and
+            # the parabola's: between frames it is only a rough guess, so never better than a whole
+            # frame's rounding (1 / sqrt(12))
+            n = max(np.isfinite(speeds[c]).sum(), 1)
+            sigma[c] = float(np.sqrt((1.0 / n) / curv + 1.0 / 12.0)) if curv > 0 else 0.5
+        return MotionSync(offsets, sigma, None, int(len(speeds[reference])), candidates)
+    missing = [c for c in cams if c not in rig.cameras]
+    if missing:
+        raise SyncError(f"{clip} clip: camera(s) {', '.join(missing)} are not in the calibration")
+    return _refine(rig, {c: tracks[c] for c in cams}, reference, fps, clocks, candidates, clip)
+
+
+def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: float,
+            clocks: Mapping, candidates: Mapping[str, list[int]], clip: str) -> MotionSync:
+    """Step 2 of the module docstring: the best whole-frame combination, refined, with its covariance."""
+    cons = _Consistency(rig, tracks, reference, fps, clocks)
+    others = list(candidates)
+    scored = []
+    for combo in itertools.product(*(candidates[c] for c in others)):
+        trial = dict(zip(others, map(float, combo), strict=True))
+        _match_labels(cons, trial, n_instants=4)  # enough to rank the combinations
+        s, n, _ = cons.cost(trial)
+        if n:
+            scored.append((s / n, trial))
+    if not scored:
+        raise SyncError(f"no sync flash, and the {clip} clip's markers are never seen by two cameras at once "
+                        "at any offset the motion suggests")
+    scored.sort(key=lambda item: item[0])
+    start = scored[0][1]
+
+    def objective(v: np.ndarray) -> float:
+        s, n, _ = cons.cost(dict(zip(others, v, strict=True)))
+        return s / max(n, 1)
+
+    def polish(trial: Mapping[str, float]) -> tuple[np.ndarray, float]:
+        _match_labels(cons, trial)
+        x0 = np.array([trial[c] for c in others])
+        fit = minimize(objective, x0, method="Powell", bounds=[(v - 1.5, v + 1.5) for v in x0],
+                       options={"xtol": 1e-3, "ftol": 1e-9})
+        return np.asarray(fit.x, dtype=np.float64), float(fit.fun)
+
+    # the best combination a stride or more away, refined too: if it is nearly as consistent, the
+    # cameras cannot tell the strides apart (two cameras see only the epipolar constraint)
+    rival = next((t for _, t in scored[1:] if max(abs(t[c] - start[c]) for c in others) > 1.5), None)
+    if rival is not None:
+        rival_x, rival_cost = polish(rival)
+    x, best_cost = polish(start)
+    if rival is not None and rival_cost < AMBIGUOUS_COST_RATIO * best_cost:
+        far = ", ".join(f"{c} {x[i]:+.1f} or {rival_x[i]:+.1f}" for i, c in enumerate(others))
+        raise SyncError(f"no sync flash, and the markers' motion fits the {clip} clip's cameras about as well at "
+                        f"other offsets ({far} frames): the {len(cons.cams)} cameras cannot tell them apart (a "
+                        "stride apart with two cameras, or markers that do not move alike in every camera); "
+                        "film a flash, or give the offsets in ride.json")
+    offsets = {reference: 0.0, **dict(zip(others, map(float, x), strict=True))}
+    s_min, n_res, n_points = cons.cost(offsets)
+    sigma = _curvature_sigma(cons, others, x, s_min, n_res, n_points)
+    r, _ = cons.residuals(offsets)
+    bad = [c for c in others if not np.isfinite(sigma[c]) or sigma[c] > 0.5]
+    if bad:
+        raise SyncError(f"no sync flash, and the markers' motion does not fix the {clip} clip's offset of the "
+                        f"{' and '.join(bad)} camera(s) to half a frame (uncertainty "
+                        f"{', '.join(f'{sigma[c]:.2f}' for c in bad)} frames): the markers move too little or "
+                        "too evenly; film a flash, or give the offsets in ride.json")
+    return MotionSync(offsets, {reference: 0.0, **sigma}, float(np.sqrt(np.mean(r * r))),
+                      int(len(cons.ref_frames)), {c: list(v) for c, v in candidates.items()})
+
+
+def _curvature_sigma(cons: _Consistency, others: list[str], x: np.ndarray, s_min: float, n_res: int,
+                     n_points: int, h: float = 0.2) -> dict[str, float]:
+    """One standard deviation of each offset from the cost's Hessian (module docstring)."""
+    def s_at(v: np.ndarray) -> float:
+        return cons.cost(dict(zip(others, v, strict=True)))[0]
+
+    p = len(others)
+    H = np.zeros((p, p))
+    e = np.eye(p) * h
+    for i in range(p):
+        for j in range(i, p):
+            if i == j:
+                H[i, i] = (s_at(x + e[i]) - 2 * s_min + s_at(x - e[i])) / h**2
+            else:
+                H[i, j] = H[j, i] = (s_at(x + e[i] + e[j]) - s_at(x + e[i] - e[j]) - s_at(x - e[i] + e[j])
+                                     + s_at(x - e[i] - e[j])) / (4 * h * h)
+    dof = max(n_res - 3 * n_points - p, 1)
+    var_res = 2.0 * s_min / dof
+    try:
+        cov = var_res * np.linalg.inv(H)
+        diag = np.diag(cov)
+    except np.linalg.LinAlgError:
+        diag = np.full(p, np.inf)
+    return {c: float(np.sqrt(d)) if d > 0 else float("inf") for c, d in zip(others, diag, strict=True)}
