@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from saddlescope.core.detection.refine import _refine
+from saddlescope.core.detection.refine import _above, _refine
 from saddlescope.core.errors import InputError
 
 __all__ = ["detect_blobs"]
@@ -68,29 +68,21 @@ def _empty_blobs() -> _Blobs:
 
 
 def _label(win: np.ndarray, threshold: float):
-    if win.dtype == np.uint8:
-        _, binary = cv2.threshold(win, min(float(threshold), 255.0), 1, cv2.THRESH_BINARY)
-    else:
-        binary = (win > threshold).view(np.uint8)
-    return cv2.connectedComponentsWithStats(binary, connectivity=8, ltype=cv2.CV_32S)
+    return cv2.connectedComponentsWithStats(_above(win, threshold), connectivity=8, ltype=cv2.CV_32S)
 
 
-def _centroids(win: np.ndarray, labels: np.ndarray, stats: np.ndarray, keep: np.ndarray, offset,
-               pad_px: int) -> _Blobs:
-    """Sub-pixel centroids (see :func:`_refine`) of the components ``keep``, in full-image pixels."""
-    out = np.empty((keep.size, 4))
-    # Blobs of similar size share one stack of patches (one big blob must not inflate every patch).
-    size = np.maximum(stats[keep, cv2.CC_STAT_WIDTH], stats[keep, cv2.CC_STAT_HEIGHT])
-    bucket = np.ceil(np.log2(np.maximum(size, 1))).astype(int)
-    for b in np.unique(bucket):
-        sel = np.flatnonzero(bucket == b)
-        out[sel] = _refine(win, labels, keep[sel], stats[keep[sel], :4], pad_px)
-    xy = out[:, :2] + np.asarray(offset, dtype=np.float64)
+def _centroids(gray: np.ndarray, labels: np.ndarray, stats: np.ndarray, keep: np.ndarray, offset,
+               pad_px: int, threshold: float) -> _Blobs:
+    """Sub-pixel centroids (see :func:`_refine`) of components of a window, in full-image pixels.
+
+    ``keep`` are components of the window at ``offset`` (x0, y0) of ``gray``, labelled at ``threshold``.
+    """
+    out = _refine(gray, labels, keep, stats[keep, :4], pad_px, threshold, offset)
     area = stats[keep, cv2.CC_STAT_AREA].astype(np.float64)
     w, h = stats[keep, cv2.CC_STAT_WIDTH], stats[keep, cv2.CC_STAT_HEIGHT]
     fill = area / (w * h)
     aspect = np.maximum(w, h) / np.minimum(w, h)
-    return _Blobs(xy, area, out[:, 2].copy(), out[:, 3].copy(), fill, aspect)
+    return _Blobs(out[:, :2].copy(), area, out[:, 2].copy(), out[:, 3].copy(), fill, aspect)
 
 
 def _roi_bounds(roi, shape) -> tuple[int, int, int, int]:
@@ -112,7 +104,7 @@ def _detect(gray: np.ndarray, threshold: float, area_range_px, roi=None, pad_px:
     area = stats[1:n, cv2.CC_STAT_AREA]
     lo, hi = area_range_px
     keep = np.flatnonzero((area >= lo) & (area <= hi)) + 1
-    return _centroids(win, labels, stats, keep, (x0, y0), pad_px)
+    return _centroids(gray, labels, stats, keep, (x0, y0), pad_px, threshold)
 
 
 def detect_blobs(gray: np.ndarray, *, threshold: float, area_range_px: tuple[float, float] = (1, np.inf),
@@ -218,7 +210,7 @@ def _all_blobs(gray: np.ndarray, threshold: float, area_range_px, max_candidates
         cy = np.clip((cents[keep, 1] / 8).astype(int), 0, ch - 1)
         rank = np.argsort(-(mean - scene.coarse[cy, cx]))  # standing out most from the surroundings
         keep = np.sort(keep[rank[:max_candidates]])
-    blobs = _centroids(win, labels, stats, keep, (x0, y0), pad_px)
+    blobs = _centroids(gray, labels, stats, keep, (x0, y0), pad_px, threshold)
     return blobs.take(np.flatnonzero(blobs.contrast >= scene.min_contrast))
 
 
