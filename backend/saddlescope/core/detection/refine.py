@@ -31,6 +31,13 @@ def _above(gray: np.ndarray, threshold: float) -> np.ndarray:
     return (gray > threshold).view(np.uint8)
 
 
+def _below_or_at(gray: np.ndarray, threshold: float) -> np.ndarray:
+    """1 - :func:`_above`: the free pixels, outside every blob."""
+    if gray.dtype == np.uint8:
+        return cv2.threshold(gray, min(float(threshold), 255.0), 1, cv2.THRESH_BINARY_INV)[1]
+    return (gray <= threshold).view(np.uint8)
+
+
 def _refine(gray: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.ndarray, pad_px: int,
             threshold: float, origin=(0, 0), ring_gap_px: int = 2) -> np.ndarray:
     """Intensity-weighted centroids of components ``ids`` of a labelled window of ``gray``.
@@ -79,19 +86,19 @@ def _refine(gray: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.nda
         patch = grey.astype(np.float32)
         own = np.zeros(patch.shape, np.uint8)
         own[y - Y0:y - Y0 + h, x - X0:x - X0 + w] = labels[by:by + h, bx:bx + w] == ids[k]
-        free = 1 - _above(grey, threshold)
+        free = _below_or_at(grey, threshold)
         opened = _opened(patch, side)
         top = patch - opened
-        # The top-hat of pure noise is positive: remove its level, measured on the free ring.
+        # The top-hat of pure noise is positive: remove its level, measured on the free ring (an empty
+        # ring: cv2.mean gives 0).
         ring = np.zeros(patch.shape, np.uint8)
         cv2.rectangle(ring, (max(x - g, 0) - X0, max(y - g, 0) - Y0),
                       (min(x + w + g, W) - 1 - X0, min(y + h + g, H) - 1 - Y0), 1, 1)
-        ring &= free
-        floor = cv2.mean(top, mask=ring)[0] if ring.any() else 0.0
+        floor = np.float32(cv2.mean(top, mask=ring & free)[0])
         # Weights only near the blob: a thin bright line through the marker, such as a plumb line,
         # survives the opening and must not pull the centroid along itself.
         keep = cv2.dilate(own, _square(2 * pad + 1)) & (own | free)
-        wts = np.maximum(top - np.float32(floor), np.float32(0.0))
+        wts = cv2.threshold(top - floor, 0.0, 0.0, cv2.THRESH_TOZERO)[1]  # max(top - floor, 0)
         wts *= keep
         m = cv2.moments(wts)
         if m["m00"] > 0:
