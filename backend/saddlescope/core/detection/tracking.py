@@ -1,7 +1,9 @@
 """Markers detected and followed through one camera's clip: :func:`track_markers` (thesis 4.5).
 
-Search: the first frame on which all markers are visible is searched whole (:mod:`.pattern`). Track:
-later frames only inside a window around the markers' prediction (:mod:`.tracker`). A pattern not
+Search: the first frame on which all markers are visible is searched whole (:mod:`.pattern`); frames
+1280 px wide or more are searched shrunk 2x first, then at full resolution only around the pattern that
+shows there. Track: later frames only inside a window around the markers' prediction (:mod:`.tracker`),
+with no work on the whole frame. A pattern not
 followed over its first frames was not the markers, and the search goes on; after a loss the search
 resumes every few frames and a re-found pattern keeps the old labels.
 
