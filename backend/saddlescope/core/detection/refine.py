@@ -56,8 +56,8 @@ def _refine(gray: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.nda
     Parameters
     ----------
     gray : ndarray of shape (H, W)
-        The whole grey image (or any view of it that holds the window).
-    labels : ndarray of shape (h, w), int32
+        The whole grey image; the patches may reach beyond the window.
+    labels : ndarray of shape (h, w), uint16 or int32
         Component labels of the window whose top-left pixel is ``origin`` (x0, y0) in ``gray``.
     ids : ndarray of shape (K,), int
     boxes : ndarray of shape (K, 4), int
