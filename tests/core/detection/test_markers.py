@@ -382,3 +382,92 @@ def test_a_still_start_lost_over_its_first_frames_is_looked_for_there_again():
     assert seen[5:].all()
     np.testing.assert_allclose(tracks.xy_px[5:, 0], np.broadcast_to(top, (15, 2)), atol=0.3)
     np.testing.assert_allclose(tracks.xy_px[5:, 1], np.broadcast_to(bottom, (15, 2)), atol=0.3)
+
+
+# --------------------------------------------------------------------------------------------------
+# Search at 1080p: the frame shrunk first, full resolution around what it shows
+# --------------------------------------------------------------------------------------------------
+
+HD = (1080, 1920)
+HD_ROW = np.array([[0.0, 0.0], [96.0, 6.0], [189.0, -3.0]])  # the row of ROW, seen three times closer
+
+
+def hd_frame(centre, *, rng, radius=3.0, hidden=(), glints=True):
+    """A 1920x1080 frame: the horse markers around ``centre``, and a still row of smaller glints."""
+    blobs = [marker(p, radius=radius, amplitude=190.0, sigma=1.2) for m, p in enumerate(centre + HD_ROW)
+             if m not in hidden]
+    if glints:
+        blobs += [marker((1500.0 + 70.0 * k, 200.0 + 4.0 * k), radius=0.6 * radius, amplitude=150.0) for k in range(3)]
+    return render(blobs, background=np.full(HD, 60.0), shape=HD, noise=1.5, rng=rng)
+
+
+@pytest.mark.parametrize("radius", [3.0, 1.2])  # markers 6 px across (3 px shrunk), and too small to shrink
+def test_the_shrunk_search_finds_what_the_full_resolution_search_finds(radius):
+    from saddlescope.core.detection.blobs import _scene
+    from saddlescope.core.detection.pattern import _find_pattern_coarse_first
+
+    frame = hd_frame(np.array([700.3, 540.6]), rng=np.random.default_rng(2), radius=radius)
+    full = initial_markers(frame, 3)
+    kw = dict(threshold=None, area_range_px=None, first_frame_xy=None, layout="row", max_candidates=24,
+              ambiguity_margin=0.03, exclude_xy=None, roi=None, pad_px=2, where="")
+    shrunk_first = _find_pattern_coarse_first(frame, 3, scene=_scene(frame), **kw)
+    np.testing.assert_allclose(shrunk_first.xy_px, full.xy_px, atol=1e-6)
+    np.testing.assert_array_equal(shrunk_first.area_px, full.area_px)
+    assert shrunk_first.threshold == full.threshold
+    assert np.abs(full.xy_px - (np.array([700.3, 540.6]) + HD_ROW)).max() < 0.1
+
+
+def test_a_marker_occluded_mid_clip_at_1080p_is_followed_again(monkeypatch):
+    # A row crossing a 1080p view past a still row of glints: marker 2 hidden on frames 10-17 (a
+    # rider's boot), all three on frames 30-41 (a pole); while hidden the search looks at the shrunk
+    # frame first, among what moves.
+    rng = np.random.default_rng(5)
+    k = np.arange(56)
+    centre = np.column_stack([300.0 + 14.0 * k, 500.0 + 30.0 * np.sin(2 * np.pi * k / 30)])
+    truth = centre[:, None, :] + HD_ROW[None]
+
+    def frames():
+        for f in range(len(k)):
+            hidden = (1,) if 10 <= f < 18 else (0, 1, 2) if 30 <= f < 42 else ()
+            yield f, hd_frame(centre[f], rng=rng, hidden=hidden)
+
+    from saddlescope.core.detection import pattern
+
+    searched = []
+
+    def spy(gray, n, **kw):
+        searched.append(gray.shape)
+        return find(gray, n, **kw)
+
+    find = pattern._find_pattern
+    monkeypatch.setattr(pattern, "_find_pattern", spy)
+    tracks = track_markers(frames(), n_markers=3, camera="left", clip="motion", moving=True)
+    assert any(shape != HD for shape in searched)  # the shrunk frame (of what moved) was searched
+    gaps = np.isnan(tracks.xy_px[..., 0])
+    assert not gaps[2:10].any()  # found on the second frame: the first shows nothing moving yet
+    assert gaps[10:18, 1].all() and not gaps[10:18, [0, 2]].any()  # the other two followed meanwhile
+    assert not gaps[18:30].any()                                      # marker 2 found again at once
+    assert gaps[30:42].all() and not gaps[45:].any()                  # all found again within 3 frames
+    err = np.linalg.norm(tracks.xy_px - truth, axis=-1)
+    assert np.nanmax(err) < 0.1  # the same labels, sub-pixel
+
+
+@pytest.mark.slow
+def test_tracked_centroids_equal_whole_frame_centroids_on_arena_frames():
+    """The tracker labels only a window around the markers' prediction; each centroid is refined on a
+    patch of the whole image, so it equals the whole frame's detection at the same threshold."""
+    from saddlescope.arena import build_scene, render_clip_frames
+
+    scene = build_scene(gait="canter", seed=3, rig="thesis", duration_s=4.0, calibration_poses=4, extras=False)
+    frames = list(render_clip_frames(scene, "left", "motion", start=12))  # after the flash
+    first = initial_markers(frames[0], 3)
+    tracks = track_markers(iter(enumerate(frames)), n_markers=3, threshold=first.threshold,
+                           area_range_px=first.area_range_px)
+    compared = 0
+    for f, frame in enumerate(frames):
+        xy, _, _ = detect_blobs(frame, threshold=first.threshold, area_range_px=first.area_range_px)
+        for p in tracks.xy_px[f][np.isfinite(tracks.xy_px[f, :, 0])]:
+            d = np.linalg.norm(xy - p, axis=1)
+            assert d.min() < 0.01, f"frame {f}: tracked {p}, whole frame {xy[np.argmin(d)]}"
+            compared += 1
+    assert compared >= 250  # of 108 frames' 3 markers (some hidden)

@@ -8,7 +8,7 @@ product for look-alikes (Fig. 4.13). A marker that is not found is a gap (NaN), 
 
 - :mod:`.blobs`: thresholding, labelling and the candidate filters (:func:`detect_blobs`);
   :mod:`.refine`: intensity-weighted sub-pixel centroids over a local background (< 0.01 px on
-  clean discs).
+  clean discs), each on its own patch of the whole image (a window's centroids equal the whole frame's).
 - :mod:`.pattern`: the most plausible labelled marker set on one frame (:func:`initial_markers`).
 - :mod:`.tracker` and :mod:`.tracking`: following the markers through a clip (:func:`track_markers`):
   constant-velocity prediction, a window around it, the best assignment of blobs to markers; flashes

@@ -13,6 +13,7 @@ import itertools
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from saddlescope.core.detection.blobs import (
@@ -258,6 +259,53 @@ def _find_pattern(gray, n, *, threshold, area_range_px, first_frame_xy, layout, 
     if threshold is not None:
         return pattern
     return _retune(gray, pattern, fixed_area=area_range_px is not None, pad_px=pad_px)
+
+
+# The whole-frame search starts on the frame shrunk this many times where frames are at least
+# _COARSE_MIN_WIDTH_PX wide (1080p: markers some 6 px across stay 3 px, as at 640x480), then looks
+# again at full resolution only around what it found: a fourth of the labelling work.
+_COARSE_FACTOR = 2
+_COARSE_MIN_WIDTH_PX = 1280
+
+
+def _find_pattern_coarse_first(gray, n, *, threshold, area_range_px, first_frame_xy, layout, max_candidates,
+                               ambiguity_margin, exclude_xy, roi, pad_px, where, scene: _Scene) -> MarkerPattern:
+    """:func:`_find_pattern` on a shrunk frame first, then at full resolution around what it found.
+
+    The pattern returned is always one found at full resolution, so its centroids, areas and threshold
+    are those a full-resolution search gives the same blobs. The full-resolution search of the whole
+    ``roi`` (or frame) runs only when the shrunk frame shows no pattern or the one it shows is not
+    found again at full resolution. Given positions or a given threshold search at full resolution at once.
+    """
+    kwargs = dict(threshold=threshold, area_range_px=area_range_px, first_frame_xy=first_frame_xy, layout=layout,
+                  max_candidates=max_candidates, ambiguity_margin=ambiguity_margin, pad_px=pad_px, where=where)
+    f = _COARSE_FACTOR
+    x0, y0, x1, y1 = _roi_bounds(roi, gray.shape)
+    cx0, cy0 = x0 - x0 % f, y0 - y0 % f  # whole cells of f x f pixels
+    w, h = (x1 - cx0) // f, (y1 - cy0) // f
+    if gray.shape[1] < _COARSE_MIN_WIDTH_PX or first_frame_xy is not None or threshold is not None or min(w, h) < 8:
+        return _find_pattern(gray, n, exclude_xy=exclude_xy, roi=roi, scene=scene, **kwargs)
+    small = cv2.resize(gray[cy0:cy0 + f * h, cx0:cx0 + f * w], (w, h), interpolation=cv2.INTER_AREA)
+    # pixel centres of an f x f area average: full = f * small + offset
+    offset = np.array([cx0 + 0.5 * (f - 1), cy0 + 0.5 * (f - 1)])
+    lo, hi = area_range_px or _default_area_range(gray.shape)
+    exclude = None if exclude_xy is None else (np.asarray(exclude_xy, dtype=np.float64).reshape(-1, 2) - offset) / f
+    try:
+        coarse = _find_pattern(small, n, threshold=None, area_range_px=(max(1.0, lo / f ** 2), hi / f ** 2),
+                               first_frame_xy=None, layout=layout, max_candidates=max_candidates,
+                               ambiguity_margin=ambiguity_margin, exclude_xy=exclude, roi=None, pad_px=pad_px,
+                               where=where, scene=_scene(small))
+    except DetectionError:  # markers too small to see shrunk, or look-alikes as plausible there
+        return _find_pattern(gray, n, exclude_xy=exclude_xy, roi=roi, scene=scene, **kwargs)
+    xy = coarse.xy_px * f + offset
+    # Around the pattern: a few diameters, enough for each blob's refinement patch and its neighbours.
+    margin = 4.0 * f * max(coarse.diameter_px, 2.0) + 8.0
+    around = (max(x0, math.floor(xy[:, 0].min() - margin)), max(y0, math.floor(xy[:, 1].min() - margin)),
+              min(x1, math.ceil(xy[:, 0].max() + margin) + 1), min(y1, math.ceil(xy[:, 1].max() + margin) + 1))
+    try:
+        return _find_pattern(gray, n, exclude_xy=exclude_xy, roi=around, scene=scene, **kwargs)
+    except DetectionError:
+        return _find_pattern(gray, n, exclude_xy=exclude_xy, roi=roi, scene=scene, **kwargs)
 
 
 def _pattern_near(gray, n, xy0, scene, search_range, area_range_px, max_candidates, pad_px, where):

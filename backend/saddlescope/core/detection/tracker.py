@@ -195,14 +195,14 @@ class _Tracker:
         bgs: list = []
         if marks:
             ids = keep[[combo[m] for m in marks]]
-            out = _refine(win, labels, ids, stats[ids, :4], self.pad).tolist()
+            out = _refine(gray, labels, ids, stats[ids, :4], self.pad, self.threshold, (x0, y0)).tolist()
             for m, c, (cx, cy, peak, bg) in zip(marks, ids.tolist(), out, strict=True):
                 bx, by, bw, bh = (int(v) for v in stats[c, :4])
                 if bx + x0 == 0 or by + y0 == 0 or bx + x0 + bw == self.W or by + y0 + bh == self.H:
                     # Cut by the image border: part of the marker is outside, its centroid is not the
                     # marker's centre. A gap, not a biased point (the prediction still follows it).
                     continue
-                found[m] = [cx + x0, cy + y0]
+                found[m] = [cx, cy]
                 areas[m] = float(stats[c, cv2.CC_STAT_AREA])
                 peaks.append(peak)
                 bgs.append(bg)

@@ -1,7 +1,9 @@
 """Markers detected and followed through one camera's clip: :func:`track_markers` (thesis 4.5).
 
-Search: the first frame on which all markers are visible is searched whole (:mod:`.pattern`). Track:
-later frames only inside a window around the markers' prediction (:mod:`.tracker`). A pattern not
+Search: the first frame on which all markers are visible is searched whole (:mod:`.pattern`); frames
+1280 px wide or more are searched shrunk 2x first, then at full resolution only around the pattern that
+shows there. Track: later frames only inside a window around the markers' prediction (:mod:`.tracker`),
+with no work on the whole frame. A pattern not
 followed over its first frames was not the markers, and the search goes on; after a loss the search
 resumes every few frames and a re-found pattern keeps the old labels.
 
@@ -22,7 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from saddlescope.core.detection.blobs import _bright_spots, _check_gray, _coarse, _moving_roi, _Scene, _scene, _where
-from saddlescope.core.detection.pattern import MarkerPattern, _default_area_range, _default_layout, _find_pattern
+from saddlescope.core.detection.pattern import (
+    MarkerPattern,
+    _default_area_range,
+    _default_layout,
+    _find_pattern_coarse_first,
+)
 from saddlescope.core.detection.tracker import _Tracker
 from saddlescope.core.errors import DetectionError, InputError
 from saddlescope.core.types import ImageTracks
@@ -236,10 +243,10 @@ class _ClipRun:
         # followed: a start lost over its first frames is looked for there again, not among glints.
         look_near_start = opt.first_frame_xy is not None and (
             not self.ever_found or (not opt.moving and not self.confirmed))
-        pattern = _find_pattern(gray, opt.n, threshold=opt.threshold, area_range_px=opt.area_range_px,
-                                first_frame_xy=opt.first_frame_xy if look_near_start else None, layout=opt.layout,
-                                max_candidates=24, ambiguity_margin=0.03, exclude_xy=exclude, roi=roi,
-                                pad_px=opt.pad_px, where=opt.where, scene=self.scene)
+        pattern = _find_pattern_coarse_first(
+            gray, opt.n, threshold=opt.threshold, area_range_px=opt.area_range_px,
+            first_frame_xy=opt.first_frame_xy if look_near_start else None, layout=opt.layout, max_candidates=24,
+            ambiguity_margin=0.03, exclude_xy=exclude, roi=roi, pad_px=opt.pad_px, where=opt.where, scene=self.scene)
         if opt.moving and not look_near_start and opt.layout == "row" and _row_runs_out_of_view(pattern, gray.shape):
             # The horse is entering (or leaving) the view: a marker of the row may still be outside
             # it, and a look-alike moving with the horse (a D-ring) would stand in for it; the tracker
