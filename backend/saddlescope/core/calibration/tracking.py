@@ -177,6 +177,7 @@ class BoardTracker:
             self.counts["finer_searches"] += 1
             at = max(1, int(round(factor / 1.5)))
             clusters = _saddle_clusters(_shrunk_by(gray, at), len(self.ids))
+        regions = []  # (box, spacing) where the grid was not grown: searched by SB after every grid was tried
         for cluster in clusters[:2]:
             x0, y0 = np.maximum(np.floor(_unscale(cluster.box[:2], 1.0 / at)), 0).astype(int)
             x1, y1 = np.minimum(np.ceil(_unscale(cluster.box[2:], 1.0 / at)), [w, h]).astype(int)
@@ -201,8 +202,11 @@ class BoardTracker:
             sub = max(1, int(spacing // _FINE_SPACING_PX))
             if sub < at:
                 fine = _saddle_clusters(_shrunk_by(crop, sub), len(self.ids))
-                if fine:
-                    grid_cluster, grid_factor, origin = fine[0], sub, np.array([x0, y0], np.float64)
+                if not fine:  # the board's corners would be saddles here too: no board
+                    self._failed.append(box)
+                    continue
+                grid_cluster, grid_factor, origin = fine[0], sub, np.array([x0, y0], np.float64)
+                spacing = fine[0].spacing * sub
             for grid in _grids_from_saddles(grid_cluster, self.board.inner_corners):
                 grid = _unscale(grid, 1.0 / grid_factor) + origin
                 if self._looks_like_board(gray, grid):
@@ -214,11 +218,13 @@ class BoardTracker:
                     break
             if max(x1 - x0, y1 - y0) > 3 * (max(self.board.inner_corners) + 5) * spacing:
                 continue  # far larger than a board of such squares: a textured background, not worth SB
-            found = self._find_in(crop, spacing)
+            regions.append((box, spacing))
+        for (x0, y0, x1, y1), spacing in regions:
+            found = self._find_in(gray[y0:y1, x0:x1], spacing)
             if found is not None:
                 self.counts["found_near_saddles"] += 1
                 return self._state(gray, found[0] + [x0, y0], found[1]), False
-            self._failed.append(box)
+            self._failed.append((x0, y0, x1, y1))
         return None, moving
 
     def _refined(self, crop: np.ndarray, corners: np.ndarray, scale: float) -> np.ndarray:
