@@ -93,46 +93,37 @@ class BoardTracker:
         """Board views of ``(frame index, grey image of shape (H, W))`` pairs, in frame order (a generator)."""
         track: _Track | None = None
         prev: tuple[int, np.ndarray] | None = None  # the frame before, copied (decoders reuse buffers)
-        prev_small: np.ndarray | None = None  # the frame before shrunk (None: not shrunk, it was tracked)
-        last_box: tuple[slice, slice] | None = None  # of the shrunk frame, round the board when last seen
+        last_box: tuple[slice, slice] | None = None  # round the board when last seen
         lost_for = 0  # frames since the board was last seen
         since_search = self.search_every  # frames since the board was seen or the whole frame searched
         for index, gray in frames:
             gray = _as_gray(gray)
             found = self._follow(gray, track) if track is not None else None
-            small = None  # the frame shrunk, where a lost board is looked for
             if found is not None:
                 self.counts["tracked"] += 1
+            # motion is measured at full size (a shrunk frame's noise over its weaker gradients overstates it)
+            elif (prev is not None and last_box is not None and lost_for < self.search_every
+                  and _motion_px(prev[1][last_box], gray[last_box]) > _MOVING_PX):
+                self.counts["skipped_moving"] += 1  # the board is being moved away: wait until it is still
             else:
-                small, factor = _shrunk(gray, self.coarse_width_px)
-                if prev is not None and prev_small is None:
-                    prev_small = _shrunk(prev[1], self.coarse_width_px)[0]
-                # a shift of d px in the frame is one of d / factor px in the shrunk frames
-                if (prev is not None and last_box is not None and lost_for < self.search_every
-                        and _motion_px(prev_small[last_box], small[last_box]) * factor > _MOVING_PX):
-                    self.counts["skipped_moving"] += 1  # the board is being moved away: wait until it is still
-                else:
-                    found, near_moving = self._search_near_saddles(gray, small, factor, prev_small)
-                    if found is None and not near_moving and since_search >= self.search_every:
-                        found = self._search_whole(gray)
-                        since_search = 0
-                    if found is not None and prev is not None and lost_for > 0:
-                        back = self._follow(prev[1], found)  # the frame before may show it still too
-                        if back is not None:
-                            self.counts["tracked_back"] += 1
-                            yield BoardView(prev[0], back.corners, self.ids.copy())
+                found, near_moving = self._search_near_saddles(gray, None if prev is None else prev[1])
+                if found is None and not near_moving and since_search >= self.search_every:
+                    found = self._search_whole(gray)
+                    since_search = 0
+                if found is not None and prev is not None and lost_for > 0:
+                    back = self._follow(prev[1], found)  # the frame before may show it still too
+                    if back is not None:
+                        self.counts["tracked_back"] += 1
+                        yield BoardView(prev[0], back.corners, self.ids.copy())
             if found is not None:
                 since_search = lost_for = 0
-                factor = _shrink_factor(gray.shape[1], self.coarse_width_px)
-                last_box = _box_round(_rescale(found.corners, 1.0 / factor),
-                                      (gray.shape[0] // factor, gray.shape[1] // factor))
+                last_box = _box_round(found.corners, gray.shape)
                 yield BoardView(int(index), found.corners, self.ids.copy())
             else:
                 since_search += 1
                 lost_for += 1
             track = found
             prev = (int(index), gray.copy())
-            prev_small = small
 
     def _state(self, gray: np.ndarray, corners: np.ndarray, scale: float) -> _Track:
         ratio, _ = _square_checks(gray, corners, self.board.inner_corners)
@@ -161,14 +152,14 @@ class BoardTracker:
             return None
         return _Track(new, up, track.sign, track.fit_rms)
 
-    def _search_near_saddles(self, gray: np.ndarray, small: np.ndarray, factor: int,
-                             prev_small: np.ndarray | None) -> tuple[_Track | None, bool]:
+    def _search_near_saddles(self, gray: np.ndarray, prev: np.ndarray | None) -> tuple[_Track | None, bool]:
         """The board searched for where saddle points cluster; also whether such a region was moving.
 
-        ``small`` is ``gray`` shrunk by a whole ``factor`` (:func:`_shrunk`), ``prev_small`` the frame before
-        shrunk alike (None for the first frame): saddle points and motion are looked for there.
+        Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_shrunk`), motion against
+        the frame before (``prev``, None for the first frame) at full size.
         """
         h, w = gray.shape
+        small, factor = _shrunk(gray, self.coarse_width_px)
         moving = False
         failed, self._failed = self._failed, []
         clusters, at = _saddle_clusters(small, len(self.ids)), factor
@@ -182,9 +173,7 @@ class BoardTracker:
             x0, y0 = np.maximum(np.floor(_unscale(cluster.box[:2], 1.0 / at)), 0).astype(int)
             x1, y1 = np.minimum(np.ceil(_unscale(cluster.box[2:], 1.0 / at)), [w, h]).astype(int)
             crop = gray[y0:y1, x0:x1]
-            sy, sx = slice(y0 // factor, -(-y1 // factor)), slice(x0 // factor, -(-x1 // factor))
-            # a shift of d px in the frame is one of d / factor px in the shrunk frames
-            motion = np.inf if prev_small is None else _motion_px(prev_small[sy, sx], small[sy, sx]) * factor
+            motion = np.inf if prev is None else _motion_px(prev[y0:y1, x0:x1], crop)
             if np.isfinite(motion) and motion > _MOVING_PX:
                 moving = True
                 self.counts["skipped_moving"] += 1
