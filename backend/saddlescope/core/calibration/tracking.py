@@ -51,11 +51,12 @@ class BoardTracker:
     still alternate as on the board (a board shifted by a whole square leaves corners on its edge, which
     the move test cannot see) and they fit a board-to-image homography about as well as when found.
 
-    A lost board is looked for where strong saddle points (x-junctions) cluster in the frame shrunk to about
-    ``coarse_width_px`` wide, and only while that region, and the one where the board was last seen, are not
-    moving between the shrunk frames (a moving board is blurred, and only boards held still are used): the
-    board's grid is grown over the saddle points and refined at full resolution, else
-    ``findChessboardCornersSB`` searches the region. The whole frame is searched every ``search_every``
+    A lost board is looked for where strong saddle points (x-junctions) cluster in the frame shrunk by a whole
+    factor to about ``coarse_width_px`` wide (cheaply first), and only while that region, and the one where the
+    board was last seen, are not moving (a moving board is blurred, and only boards held still are used): the
+    board's grid is grown over the region's saddle points, looked at again less shrunk where its squares are a
+    few pixels, and refined at full resolution (precisely second), else ``findChessboardCornersSB`` searches
+    the region. The whole frame is searched every ``search_every``
     frames at most, so that boards the localizer misses are still found. A board found again is also
     tracked back into the frame before.
 
