@@ -40,7 +40,8 @@ def calibration_stage_s(ride: Path, *, repeats: int = 1) -> dict:
     -------
     dict with ``calibration_s``, ``decode_s`` (every frame of every camera's calibration clip once),
     ``calibration_vs_decode`` (their ratio), ``frames``, ``image_size`` [w, h], ``n_views`` per camera and
-    the calibration's ``focal_px`` per camera (to see that a faster stage found the same rig).
+    the calibration's ``focal_px`` and its standard error ``focal_std_px`` per camera (to see that a faster
+    stage found the same rig).
     """
     from saddlescope.core.calibration.boards import board_from_meta
     from saddlescope.core.params import PipelineParams
@@ -73,6 +74,8 @@ def calibration_stage_s(ride: Path, *, repeats: int = 1) -> dict:
             "image_size": list(clips.image_size("calibration", cams[0])),
             "n_views": report["n_views"],
             "focal_px": {c: round(float(cam.K[0, 0]), 2) for c, cam in rig.cameras.items()},
+            "focal_std_px": {c: None if cam.K_std is None else round(float(cam.K_std[0, 0]), 3)
+                             for c, cam in rig.cameras.items()},
         })
     return out
 
