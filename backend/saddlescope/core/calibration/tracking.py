@@ -27,6 +27,11 @@ _TRACK_MAX_MOVE = 0.25  # of a corner's square spacing: moving further it may ha
 _TRACK_MAX_FIT_GROWTH = 1.5  # r.m.s. distance of tracked corners from a board homography, over that when found
 _MOVING_PX = 1.0  # board motion between frames above which a lost board is not searched for (still < 0.5 px)
 _MIN_SQUARE_RATIO = 1.4  # of _square_checks: about 2 at a board's corner, at most 1 on its edge
+# A lost board is looked for on the frame shrunk by a whole factor to about this width (block averages: a
+# fraction of the cost of a 1000 px search at 1080p, and an exact pixel grid); its corners are then refined
+# at full resolution.
+COARSE_WIDTH_PX = 640
+_FINE_SPACING_PX = 8.0  # squares smaller than this in the shrunk frame: their saddles found again less shrunk
 
 
 @dataclass(frozen=True)
@@ -46,10 +51,12 @@ class BoardTracker:
     still alternate as on the board (a board shifted by a whole square leaves corners on its edge, which
     the move test cannot see) and they fit a board-to-image homography about as well as when found.
 
-    A lost board is looked for where strong saddle points (x-junctions) cluster, and only while that
-    region, and the one where the board was last seen, are not moving (a moving board is blurred, and only
-    boards held still are used): the board's grid is grown over the saddle points, else
-    ``findChessboardCornersSB`` searches the region. The whole frame is searched every ``search_every``
+    A lost board is looked for where strong saddle points (x-junctions) cluster in the frame shrunk by a whole
+    factor to about ``coarse_width_px`` wide (cheaply first), and only while that region, and the one where the
+    board was last seen, are not moving (a moving board is blurred, and only boards held still are used): the
+    board's grid is grown over the region's saddle points, looked at again less shrunk where its squares are a
+    few pixels, and refined at full resolution (precisely second), else ``findChessboardCornersSB`` searches
+    the region. The whole frame is searched every ``search_every``
     frames at most, so that boards the localizer misses are still found. A board found again is also
     tracked back into the frame before.
 
@@ -60,21 +67,27 @@ class BoardTracker:
         As :class:`~saddlescope.core.calibration.detection.BoardFinder`.
     search_every : int
         Frames between whole-frame searches while the board is lost (half a second of video suits).
+    coarse_width_px : int
+        About the width of the shrunk frame the lost board's saddle points are looked for in.
     """
 
-    def __init__(self, board: Board, *, max_width: int = 1000, search_every: int = 15):
+    def __init__(self, board: Board, *, max_width: int = 1000, search_every: int = 15,
+                 coarse_width_px: int = COARSE_WIDTH_PX):
         kind = board_type(board.kind)
         if not kind.trackable:
             raise InputError(f"BoardTracker follows checkerboards; {kind.label} boards are found frame by frame")
         self.board = board
         self.max_width = int(max_width)
         self.search_every = max(1, int(search_every))
+        if coarse_width_px < 64:
+            raise InputError(f"coarse_width_px {coarse_width_px} is too small to find a board in (at least 64)")
+        self.coarse_width_px = int(coarse_width_px)
         self.finder = CheckerboardFinder(board, max_width=max_width, thorough=False)
         self.ids = np.arange(board.inner_corners[0] * board.inner_corners[1])
         self._obj = object_points_mm(board)[:, :2].astype(np.float64)
         self.counts = {"tracked": 0, "tracked_back": 0, "found_from_saddles": 0, "found_near_saddles": 0,
                        "found_whole_frame": 0,
-                       "skipped_moving": 0, "skipped_unchanged": 0, "whole_frame_searches": 0}
+                       "skipped_moving": 0, "skipped_unchanged": 0, "whole_frame_searches": 0, "finer_searches": 0}
         self._failed: list[tuple[int, int, int, int]] = []  # boxes searched in vain in the frame before
 
     def views(self, frames: Iterable[tuple[int, np.ndarray]]) -> Iterable[BoardView]:
@@ -89,6 +102,7 @@ class BoardTracker:
             found = self._follow(gray, track) if track is not None else None
             if found is not None:
                 self.counts["tracked"] += 1
+            # motion is measured at full size (a shrunk frame's noise over its weaker gradients overstates it)
             elif (prev is not None and last_box is not None and lost_for < self.search_every
                   and _motion_px(prev[1][last_box], gray[last_box]) > _MOVING_PX):
                 self.counts["skipped_moving"] += 1  # the board is being moved away: wait until it is still
@@ -140,15 +154,25 @@ class BoardTracker:
         return _Track(new, up, track.sign, track.fit_rms)
 
     def _search_near_saddles(self, gray: np.ndarray, prev: np.ndarray | None) -> tuple[_Track | None, bool]:
-        """The board searched for where saddle points cluster; also whether such a region was moving."""
+        """The board searched for where saddle points cluster; also whether such a region was moving.
+
+        Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_shrunk`), motion against
+        the frame before (``prev``, None for the first frame) at full size.
+        """
         h, w = gray.shape
-        scale = self.max_width / w if w > 1.5 * self.max_width else 1.0
-        small = gray if scale == 1.0 else cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+        small, factor = _shrunk(gray, self.coarse_width_px)
         moving = False
         failed, self._failed = self._failed, []
-        for cluster in _saddle_clusters(small, len(self.ids))[:2]:
-            x0, y0 = np.maximum(np.floor(_unscale(cluster.box[:2], scale)), 0).astype(int)
-            x1, y1 = np.minimum(np.ceil(_unscale(cluster.box[2:], scale)), [w, h]).astype(int)
+        clusters, at = _saddle_clusters(small, len(self.ids)), factor
+        if not clusters and factor > 1:
+            # a far board's squares are a pixel or two in the shrunk frame: look again, shrunk less
+            self.counts["finer_searches"] += 1
+            at = max(1, int(round(factor / 1.5)))
+            clusters = _saddle_clusters(_shrunk_by(gray, at), len(self.ids))
+        regions = []  # (box, spacing) where the grid was not grown: searched by SB after every grid was tried
+        for cluster in clusters[:2]:
+            x0, y0 = np.maximum(np.floor(_unscale(cluster.box[:2], 1.0 / at)), 0).astype(int)
+            x1, y1 = np.minimum(np.ceil(_unscale(cluster.box[2:], 1.0 / at)), [w, h]).astype(int)
             crop = gray[y0:y1, x0:x1]
             motion = np.inf if prev is None else _motion_px(prev[y0:y1, x0:x1], crop)
             if np.isfinite(motion) and motion > _MOVING_PX:
@@ -161,9 +185,20 @@ class BoardTracker:
                 self._failed.append(box)
                 self.counts["skipped_unchanged"] += 1
                 continue
-            spacing = cluster.spacing / scale
-            for grid in _grids_from_saddles(cluster, self.board.inner_corners):
-                grid = _unscale(grid, scale)
+            spacing = cluster.spacing * at
+            # squares of a few px in the shrunk frame give a grid too rough to grow: look at the saddles of
+            # the region again, shrunk less (the region is a small part of the frame)
+            grid_cluster, grid_factor, origin = cluster, at, np.zeros(2)
+            sub = max(1, int(spacing // _FINE_SPACING_PX))
+            if sub < at:
+                fine = _saddle_clusters(_shrunk_by(crop, sub), len(self.ids))
+                if not fine:  # the board's corners would be saddles here too: no board
+                    self._failed.append(box)
+                    continue
+                grid_cluster, grid_factor, origin = fine[0], sub, np.array([x0, y0], np.float64)
+                spacing = fine[0].spacing * sub
+            for grid in _grids_from_saddles(grid_cluster, self.board.inner_corners):
+                grid = _unscale(grid, 1.0 / grid_factor) + origin
                 if self._looks_like_board(gray, grid):
                     refine = 2.0 if spacing < 6 else 1.0
                     corners = self._refined(crop, grid - [x0, y0], refine) + [x0, y0]
@@ -173,11 +208,13 @@ class BoardTracker:
                     break
             if max(x1 - x0, y1 - y0) > 3 * (max(self.board.inner_corners) + 5) * spacing:
                 continue  # far larger than a board of such squares: a textured background, not worth SB
-            found = self._find_in(crop, spacing)
+            regions.append((box, spacing))
+        for (x0, y0, x1, y1), spacing in regions:
+            found = self._find_in(gray[y0:y1, x0:x1], spacing)
             if found is not None:
                 self.counts["found_near_saddles"] += 1
                 return self._state(gray, found[0] + [x0, y0], found[1]), False
-            self._failed.append(box)
+            self._failed.append((x0, y0, x1, y1))
         return None, moving
 
     def _refined(self, crop: np.ndarray, corners: np.ndarray, scale: float) -> np.ndarray:
@@ -228,6 +265,30 @@ class BoardTracker:
             return None
         self.counts["found_whole_frame"] += 1
         return self._state(gray, found[0], self.finder.refine_scale)
+
+
+def _shrink_factor(width_px: int, coarse_width_px: int) -> int:
+    """The whole factor that shrinks a frame ``width_px`` wide to about ``coarse_width_px`` (1: not at all)."""
+    return max(1, int(round(width_px / coarse_width_px)))
+
+
+def _shrunk(gray: np.ndarray, coarse_width_px: int) -> tuple[np.ndarray, int]:
+    """The frame (H, W) shrunk by a whole factor to about ``coarse_width_px`` wide, and the factor.
+
+    Each pixel is the mean of a factor x factor block (the last rows and columns that do not fill a block
+    are dropped): pixel i of the shrunk frame is centred on pixel (i + 0.5) * factor - 0.5 of the frame,
+    as :func:`~saddlescope.core.calibration.refinement._unscale` maps it back.
+    """
+    factor = _shrink_factor(gray.shape[1], coarse_width_px)
+    return _shrunk_by(gray, factor), factor
+
+
+def _shrunk_by(gray: np.ndarray, factor: int) -> np.ndarray:
+    """The frame (H, W) shrunk by a whole ``factor``, as :func:`_shrunk` does."""
+    if factor == 1:
+        return gray
+    h, w = gray.shape[0] // factor, gray.shape[1] // factor
+    return cv2.resize(gray[:h * factor, :w * factor], (w, h), interpolation=cv2.INTER_AREA)
 
 
 def _homography_rms(obj_xy: np.ndarray, img_xy: np.ndarray) -> float:

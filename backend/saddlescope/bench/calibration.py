@@ -1,0 +1,101 @@
+"""The calibration stage's time against decoding its clips once, side by side in one run (issue 28).
+
+The stage (board views in every camera's calibration clip, intrinsics, pairs, bundle adjustment) and
+decoding every frame of those clips once with PyAV (single thread, no conversion: the limit) are timed in
+alternation, best of ``repeats``, so that the machine's load hits both alike. Only the pipeline's public
+functions are used, so that the same function times an older checkout's stage too (``python -m
+saddlescope.bench.calibration RIDE ...`` with that checkout on the path) for a before/after ratio.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["calibration_stage_s", "calibration_vs_decode"]
+
+
+def _decode_once(paths: list[Path]) -> int:
+    """Decode every frame of every clip once (PyAV, one thread, no conversion); the number of frames."""
+    import av
+
+    frames = 0
+    for path in paths:
+        with av.open(str(path)) as container:
+            stream = container.streams.video[0]
+            stream.thread_type = "NONE"
+            for _ in container.decode(stream):
+                frames += 1
+    return frames
+
+
+def calibration_stage_s(ride: Path, *, repeats: int = 1) -> dict:
+    """Best wall time (s) of the calibration stage of a ride bundle and of decoding its calibration clips.
+
+    The clips are synchronised once beforehand (that is the sync stage's time, not this one's).
+
+    Returns
+    -------
+    dict with ``calibration_s``, ``decode_s`` (every frame of every camera's calibration clip once),
+    ``calibration_vs_decode`` (their ratio), ``frames``, ``image_size`` [w, h], ``n_views`` per camera and
+    the calibration's ``focal_px`` and its standard error ``focal_std_px`` per camera (to see that a faster
+    stage found the same rig).
+    """
+    from saddlescope.core.calibration.boards import board_from_meta
+    from saddlescope.core.params import PipelineParams
+    from saddlescope.core.pipeline.setup import calibrate_from_clips, synchronise
+    from saddlescope.io.bundle import open_bundle
+    from saddlescope.io.clip_source import BundleClips
+
+    with open_bundle(Path(ride)) as bundle:
+        clips = BundleClips(bundle.clip_paths)
+        meta = bundle.meta
+        offsets, first_frame = synchronise(clips, meta, ["calibration"])
+        board = board_from_meta(meta.get("board"))
+        cams = clips.cameras("calibration")
+        paths = [Path(clips.path("calibration", c)) for c in cams]
+        params = PipelineParams()
+        best = {"calibration": float("inf"), "decode": float("inf")}
+        out: dict = {}
+        for _ in range(max(1, int(repeats))):
+            t0 = time.perf_counter()
+            rig, report = calibrate_from_clips(clips, board, offsets["calibration"], first_frame["calibration"],
+                                               params)
+            best["calibration"] = min(best["calibration"], time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            out["frames"] = _decode_once(paths)
+            best["decode"] = min(best["decode"], time.perf_counter() - t0)
+        out.update({
+            "calibration_s": round(best["calibration"], 3),
+            "decode_s": round(best["decode"], 3),
+            "calibration_vs_decode": round(best["calibration"] / best["decode"], 3),
+            "image_size": list(clips.image_size("calibration", cams[0])),
+            "n_views": report["n_views"],
+            "focal_px": {c: round(float(cam.K[0, 0]), 2) for c, cam in rig.cameras.items()},
+            "focal_std_px": {c: None if cam.K_std is None else round(float(cam.K_std[0, 0]), 3)
+                             for c, cam in rig.cameras.items()},
+        })
+    return out
+
+
+def calibration_vs_decode(tmp: Path, *, rig: str, quick: bool = False, repeats: int = 2) -> dict:
+    """The calibration stage of a synthetic ride of ``rig`` ("thesis": 640x480, "wide": 1920x1080 at 60 fps).
+
+    Returns :func:`calibration_stage_s`'s dict, its keys suffixed with the frame size (e.g.
+    ``calibration_vs_decode_1920x1080``) where they are times or ratios, for ``saddlescope bench --json``.
+    """
+    from saddlescope.io.synth_writer import write_ride_bundle
+
+    ride = Path(tmp) / f"calibration_{rig}"
+    write_ride_bundle(ride, gait="canter", seed=1, rig=rig, extras=False,
+                      **({"duration_s": 3.0, "calibration_poses": 40} if quick else {}))
+    found = calibration_stage_s(ride, repeats=repeats)
+    w, h = found["image_size"]
+    return {(f"{k}_{w}x{h}" if k in ("calibration_s", "decode_s", "calibration_vs_decode") else k): v
+            for k, v in found.items()}
+
+
+if __name__ == "__main__":  # python -m saddlescope.bench.calibration RIDE [REPEATS]: one line of JSON
+    print(json.dumps(calibration_stage_s(Path(sys.argv[1]), repeats=int(sys.argv[2]) if len(sys.argv) > 2 else 1)))
