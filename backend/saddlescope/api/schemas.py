@@ -678,6 +678,8 @@ class ResultOut(BaseModel):
     period_s: float | None
     window: dict[str, Any] | None
     indicators: dict[str, float | None]
+    indicators_interval_95: dict[str, list[float | None]] = Field(
+        default_factory=dict, description="95 % interval [low, high] per indicator; null: unbounded")
     units: dict[str, str]
     quality: dict[str, Any]
     quality_notes: list[QualityNoteOut] = Field(
@@ -766,6 +768,18 @@ class LeaderboardEntry(BaseModel):
     min: float | None
     max: float | None
     spread: float | None = Field(description="max - min over the horse's rides")
+    uncertain_rides: int = Field(0, description="rides behind the mean that are too uncertain for a decision")
+
+
+class UncertainRide(BaseModel):
+    """A ride too uncertain for a decision: its W_b r.m.s. interval is too wide (docs/accuracy.md)."""
+
+    ride_id: int
+    horse_id: int | None
+    horse: str
+    value: float | None
+    reason: str
+    included: bool = Field(description="whether it counts in the ranking (include_uncertain)")
 
 
 class LeaderboardOut(BaseModel):
@@ -777,6 +791,9 @@ class LeaderboardOut(BaseModel):
     better: Literal["lower", "higher"]
     rides: int
     entries: list[LeaderboardEntry]
+    include_uncertain: bool = False
+    uncertain: list[UncertainRide] = Field(default_factory=list,
+                                           description="rides too uncertain for a decision, with the reason")
 
 
 class CorrelationOut(BaseModel):

@@ -151,7 +151,7 @@ def with_intervals(result: RideResult) -> RideResult:
     quality = dict(result.quality)
     flags = [f for f in quality.get("flags", []) if not str(f).startswith(_TOO_UNCERTAIN)]
     if reason:
-        flags.append(f"{_TOO_UNCERTAIN}: {reason}; it is left out of leaderboards unless asked for")
+        flags.append(f"too uncertain for a decision: {reason}; it is left out of leaderboards unless asked for")
     quality["flags"] = flags
     quality["decision"] = {"too_uncertain": reason is not None, "reason": reason}
     quality["interval_sources"] = {"gain": sources["gain"], "gain_parts": dict(sources["gain_parts"]),
