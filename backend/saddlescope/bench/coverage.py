@@ -181,8 +181,20 @@ def coverage_table(rows: Sequence[dict], keys: Sequence[str] | None = None) -> d
     }
 
 
-def run_coverage(tmp: Path, *, quick: bool = False, rides: Sequence[CoverageRide] | None = None) -> dict:
-    """The coverage table over :data:`COVERAGE_RIDES` (``quick``: the first 4), analysed in ``tmp``."""
+def run_coverage(tmp: Path | None = None, *, quick: bool = False, rides: Sequence[CoverageRide] | None = None
+                 ) -> dict:
+    """The coverage table over :data:`COVERAGE_RIDES` (``quick``: the first 4), analysed in ``tmp``.
+
+    Without ``tmp`` a temporary folder is made and removed. 40 rides take about an hour on two cores.
+    """
+    import tempfile
+
     chosen = tuple(rides) if rides is not None else (COVERAGE_RIDES[:4] if quick else COVERAGE_RIDES)
-    folders = run_rides(chosen, Path(tmp) / "coverage")
-    return coverage_table(coverage_rows(folders, recompute=False))
+    own = tmp is None
+    work = Path(tempfile.mkdtemp(prefix="saddlescope-coverage-")) if own else Path(tmp) / "coverage"
+    try:
+        folders = run_rides(chosen, work)
+        return coverage_table(coverage_rows(folders, recompute=False))
+    finally:
+        if own:
+            shutil.rmtree(work, ignore_errors=True)
