@@ -100,7 +100,7 @@ def run_rides(rides: Iterable[CoverageRide], out_dir: Path, *, keep_clips: bool 
 
 
 def truth_indicators(result: dict, truth: dict) -> dict:
-    """truth.json's indicators on the result's analysed duration (VDV and VDV times scale with it)."""
+    """truth.json's indicators on the result's analysed duration (the VDV scales with it)."""
     ref = dict(truth.get("indicators", {}))
     analysed_s = result["period_s"] * round(result["window"]["duration_s"] / result["period_s"])
     ratio = analysed_s / float(truth["window"]["duration_s"])
@@ -110,8 +110,8 @@ def truth_indicators(result: dict, truth: dict) -> dict:
             continue
         if key.startswith("vdv_"):
             value = value * ratio ** 0.25  # VDV^4 grows with the duration of a periodic signal
-        elif key.startswith(("t_vdv_", "d_vdv_")):
-            value = value / ratio  # T = tau (VDV_threshold / VDV)^4 = threshold^4 / (VDV^4 / tau)
+        # (T_VDV = τ (VDV_threshold / VDV)^4 = VDV_threshold^4 / (VDV^4 / τ): the same for any whole
+        # number of periods, as are the r.m.s., peaks and the A(8) times)
         out[key] = float(value)
     return out
 
