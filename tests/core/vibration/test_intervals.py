@@ -3,6 +3,8 @@ its intervals cover the truth at the stated rate when the noise model holds, and
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -127,6 +129,10 @@ def test_interval_sources_reads_what_the_result_knows():
     np.testing.assert_allclose(src["harmonic_m_s2"][:3], 0.0004 / 1.959963984540054 * (k * omega) ** 2, rtol=1e-6)
     assert np.all(src["harmonic_m_s2"][3:] == 0)  # beyond the fits' order
     assert interval_sources(result, depth_anisotropy=2.0)["gain_parts"]["depth_roll"] == 0.0
+    # one camera cannot fix depth at all; motion capture (no cameras) measures positions directly
+    assert interval_sources(result)["gain_parts"]["depth_roll"] > 0
+    mocap = replace(result, rig=Rig(cameras={}))
+    assert interval_sources(mocap)["gain_parts"]["depth_roll"] == 0.0
     # the share read from an older result's flag sentence when the number is absent
     old = _result(outside=None, flags=["the left camera saw the markers outside the region the calibration board "
                                        "covered in 31 % of its detections: its lens distortion is extrapolated"])

@@ -31,7 +31,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from saddlescope.core.errors import VibrationError
+from saddlescope.core.errors import TriangulationError, VibrationError
 from saddlescope.core.vibration.exposure import A8_ACTION_M_S2, A8_LIMIT_M_S2, VDV_ACTION_M_S175, VDV_LIMIT_M_S175
 from saddlescope.core.vibration.weighting import weighting_response
 
@@ -175,10 +175,12 @@ def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
     scale = float(checks.get("board_square_error_pct", 0.0) or 0.0) / 100
     acc_rms = float(np.sqrt(np.sum(amps ** 2) / 2))
     spread = float(q.get("saddle_acceleration_spread_m_s2_median") or 0.0) / max(acc_rms, 1e-9)
-    if depth_anisotropy is None:
+    if depth_anisotropy is None and not result.rig.cameras:
+        depth_anisotropy = 1.0  # motion capture: positions measured directly, no camera geometry
+    elif depth_anisotropy is None:
         try:
             depth_anisotropy = float(position_uncertainty(result.rig, result.motion_frame.origin_mm)["anisotropy"])
-        except Exception:  # noqa: BLE001 - a rig whose cameras cannot fix the point: treated as depth-poor
+        except TriangulationError:  # cameras that cannot fix the point: depth-poor
             depth_anisotropy = math.inf
     outside = _outside_board_share(q)
     parts = {"calibration_scale": scale, "omega_versions": FLOORS["omega_spread"] * spread,
