@@ -10,6 +10,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
 
 from saddlescope.api.horse_height import HeightWithersM
+from saddlescope.api.leaderboard_schemas import LeaderboardEntry, LeaderboardOut, UncertainRide
 from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
@@ -19,7 +20,7 @@ __all__ = [
     "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
     "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
     "JobKindOut", "JobOut", "LeaderboardEntry", "LeaderboardOut", "LoginIn", "MAX_ID", "MarkersIn", "MeOut",
-    "Name", "Offsets", "Page", "PartHealth", "Password", "QualityNoteOut",
+    "UncertainRide", "Name", "Offsets", "Page", "PartHealth", "Password", "QualityNoteOut",
     "QualitySummaryOut", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
     "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
     "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SpectrumOut",
@@ -754,46 +755,6 @@ class ComparisonOut(BaseModel):
     gait: str
     rides: int
     indicators: dict[str, HorsesInGait]
-
-
-class LeaderboardEntry(BaseModel):
-    """One horse's place in a ranking."""
-
-    rank: int
-    horse_id: int | None
-    horse: str
-    n: int = Field(description="rides behind the mean")
-    mean: float | None
-    std: float | None
-    min: float | None
-    max: float | None
-    spread: float | None = Field(description="max - min over the horse's rides")
-    uncertain_rides: int = Field(0, description="rides behind the mean that are too uncertain for a decision")
-
-
-class UncertainRide(BaseModel):
-    """A ride too uncertain for a decision: its W_b r.m.s. interval is too wide (docs/accuracy.md)."""
-
-    ride_id: int
-    horse_id: int | None
-    horse: str
-    value: float | None
-    reason: str
-    included: bool = Field(description="whether it counts in the ranking (include_uncertain)")
-
-
-class LeaderboardOut(BaseModel):
-    """The club's horses ranked in a gait by an indicator, most comfortable first."""
-
-    gait: str
-    indicator: str
-    unit: str
-    better: Literal["lower", "higher"]
-    rides: int
-    entries: list[LeaderboardEntry]
-    include_uncertain: bool = False
-    uncertain: list[UncertainRide] = Field(default_factory=list,
-                                           description="rides too uncertain for a decision, with the reason")
 
 
 class CorrelationOut(BaseModel):
