@@ -63,7 +63,8 @@ function card(result, { key, title, note }) {
       h("span", { "data-value": value ?? "" }, fmt(value)),
       unit ? h("span", { class: "card-unit" }, ` ${prettyUnit(unit)}`) : null),
     intervalText(result, key) ? h("p", { class: "card-note card-ci", dataset: { ci: key } },
-      intervalText(result, key)) : null,
+      // as the fits' intervals were shown: "95 % interval 14.1–14.3 km/h"
+      `95 % interval ${intervalText(result, key).slice("95 %: ".length)}${unit ? ` ${prettyUnit(unit)}` : ""}`) : null,
     note ? h("p", { class: "card-note" }, labelFragment(note)) : null);
 }
 
