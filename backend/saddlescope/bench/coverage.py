@@ -176,9 +176,17 @@ def coverage_table(rows: Sequence[dict], keys: Sequence[str] | None = None) -> d
         "marked_too_uncertain": [r["ride"] for r in ok if r["uncertain"]],
         "marked_too_uncertain_pct": 100.0 * float(np.mean([bool(r["uncertain"]) for r in ok])) if ok else None,
         "acc_y_wb_rms_max_abs_error_pct_not_marked": float(max(map(abs, kept))) if kept else None,
-        "acc_y_wb_rms_errors_pct": {r["ride"]: round(e, 2) for r, e in wb},
+        # per ride: the W_b r.m.s. error and its interval's half-width (% of the value), and the verdict
+        "per_ride": [{"ride": r["ride"], "acc_y_wb_rms_error_pct": round(e, 2),
+                      "acc_y_wb_rms_half_width_pct": round(_half_width_pct(r, "acc_y_wb_rms"), 2),
+                      "too_uncertain": r["uncertain"]} for r, e in wb],
         "speed_max_abs_error_pct": float(max(map(abs, speed))) if speed else None,
     }
+
+
+def _half_width_pct(row: dict, key: str) -> float:
+    lo, hi = row["intervals"][key]
+    return 50.0 * (hi - lo) / abs(row["values"][key])
 
 
 def run_coverage(tmp: Path | None = None, *, quick: bool = False, rides: Sequence[CoverageRide] | None = None
