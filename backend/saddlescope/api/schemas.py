@@ -10,6 +10,7 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
 
 from saddlescope.api.horse_height import HeightWithersM
+from saddlescope.api.leaderboard_schemas import LeaderboardEntry, LeaderboardOut, UncertainRide
 from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
@@ -19,7 +20,7 @@ __all__ = [
     "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
     "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
     "JobKindOut", "JobOut", "LeaderboardEntry", "LeaderboardOut", "LoginIn", "MAX_ID", "MarkersIn", "MeOut",
-    "Name", "Offsets", "Page", "PartHealth", "Password", "QualityNoteOut",
+    "UncertainRide", "Name", "Offsets", "Page", "PartHealth", "Password", "QualityNoteOut",
     "QualitySummaryOut", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
     "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
     "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SpectrumOut",
@@ -678,6 +679,8 @@ class ResultOut(BaseModel):
     period_s: float | None
     window: dict[str, Any] | None
     indicators: dict[str, float | None]
+    indicators_interval_95: dict[str, list[float | None]] = Field(
+        default_factory=dict, description="95 % interval [low, high] per indicator; null: unbounded")
     units: dict[str, str]
     quality: dict[str, Any]
     quality_notes: list[QualityNoteOut] = Field(
@@ -752,31 +755,6 @@ class ComparisonOut(BaseModel):
     gait: str
     rides: int
     indicators: dict[str, HorsesInGait]
-
-
-class LeaderboardEntry(BaseModel):
-    """One horse's place in a ranking."""
-
-    rank: int
-    horse_id: int | None
-    horse: str
-    n: int = Field(description="rides behind the mean")
-    mean: float | None
-    std: float | None
-    min: float | None
-    max: float | None
-    spread: float | None = Field(description="max - min over the horse's rides")
-
-
-class LeaderboardOut(BaseModel):
-    """The club's horses ranked in a gait by an indicator, most comfortable first."""
-
-    gait: str
-    indicator: str
-    unit: str
-    better: Literal["lower", "higher"]
-    rides: int
-    entries: list[LeaderboardEntry]
 
 
 class CorrelationOut(BaseModel):

@@ -18,6 +18,7 @@ from saddlescope.bench.analysis import (
     indicator_errors_pct,
     kinematics_floor,
 )
+from saddlescope.bench.coverage import run_coverage
 from saddlescope.bench.dashboard import dashboard_tti, run_dashboard_benchmarks
 
 TTI_KEYS = ("tti_rides_list_s", "tti_leaderboard_s", "tti_ride_page_s")
@@ -27,6 +28,7 @@ def run_benchmarks(*, quick: bool = False) -> dict:
     """Every benchmark (`analysis.run_benchmarks`), then the dashboard's: its three times to interactive
     as top-level keys (None where Chromium is absent, with the reason in ``dashboard["skipped"]``)."""
     out = _analysis.run_benchmarks(quick=quick)
+    out["coverage"] = run_coverage(quick=quick)  # issue 27: do the 95 % intervals hold the truth?
     dashboard = run_dashboard_benchmarks(quick=quick)
     out.update({key: dashboard[key] for key in TTI_KEYS})
     out["dashboard"] = {k: v for k, v in dashboard.items() if k not in TTI_KEYS}

@@ -269,7 +269,8 @@ class RideResult:
     ``rig`` is the calibration used (computed from the ride's clips, or reused);
     ``calibration_views`` and ``board_coverage_fraction`` per camera are set when it was computed.
     ``sync_offsets[kind][camera]`` are frame offsets against the first camera; ``indicators`` the
-    rider's comfort indicators; ``quality`` the checks and flags (sentences) a user reads.
+    rider's comfort indicators, ``indicators_interval_95`` their 95 % intervals; ``quality`` the checks
+    and flags (sentences) a user reads.
     """
 
     fps: float
@@ -290,6 +291,8 @@ class RideResult:
     timings_s: dict[str, float]
     calibration_views: dict[str, int] | None = None
     board_coverage_fraction: dict[str, float] | None = None
+    # 95 % interval (low, high) per indicator (core.vibration.intervals); None on results made before them
+    indicators_interval_95: dict[str, tuple[float, float]] | None = None
 
     @property
     def flags(self) -> list[str]:

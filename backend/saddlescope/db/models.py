@@ -318,6 +318,9 @@ class Result(TimestampMixin, Base):
     vel_x_avg_kmh: Mapped[float | None] = mapped_column(Float)
     amplitude_y_m: Mapped[float | None] = mapped_column(Float)
     stride_frequency_hz: Mapped[float | None] = mapped_column(Float)
+    # Why the ride is too uncertain for a decision (quality.decision.reason), None when it is not:
+    # such rides stay out of leaderboards unless asked for (issue 27, migration 0009_intervals).
+    uncertain_reason: Mapped[str | None] = mapped_column(Text)
     # Storage key of the full result JSON (CONTRACTS section 2): series, quality flags, calibration.
     result_key: Mapped[str | None] = mapped_column(String(500))
     code_version: Mapped[str | None] = mapped_column(String(64))

@@ -96,10 +96,14 @@ def result_to_document(result: RideResult) -> dict[str, Any]:
                                "amplitudes_m_s2": rounded_list(result.vertical_harmonics.amplitudes_m_s2),
                                "phases_rad": rounded_list(result.vertical_harmonics.phases_rad)},
         "indicators": dict(result.indicators),
+        "indicators_interval_95": ({k: [float(lo), float(hi)] for k, (lo, hi) in result.indicators_interval_95.items()}
+                                   if result.indicators_interval_95 is not None else None),
         "quality": result.quality,
         "params": dict(result.params),
         "timings_s": dict(result.timings_s),
     }
+    if doc["indicators_interval_95"] is None:  # a result made before intervals: the key stays out
+        del doc["indicators_interval_95"]
     return _nan_to_none(doc)
 
 
@@ -156,4 +160,13 @@ def result_from_document(doc: Mapping[str, Any]) -> RideResult:
         timings_s=dict(doc.get("timings_s") or {}),
         calibration_views=cal.get("n_views"),
         board_coverage_fraction=cal.get("board_coverage_fraction"),
+        indicators_interval_95=_intervals(doc.get("indicators_interval_95")),
     )
+
+
+def _intervals(doc_intervals: Any) -> dict[str, tuple[float, float]] | None:
+    """The document's ``indicators_interval_95`` as (low, high) tuples, null as an unbounded end."""
+    if not isinstance(doc_intervals, Mapping):
+        return None
+    return {k: (-math.inf if lo is None else float(lo), math.inf if hi is None else float(hi))
+            for k, (lo, hi) in doc_intervals.items()}

@@ -100,6 +100,10 @@ RESULT_SCHEMA: dict[str, Any] = {
         },
         "indicators": {"type": "object", "required": list(CONTRACT_KEYS),
                        "properties": {key: _NUMBER for key in CONTRACT_KEYS}},
+        # 95 % interval [low, high] beside each indicator (issue 27); null: unbounded (an infinite time)
+        "indicators_interval_95": {"type": "object",
+                                   "additionalProperties": {"type": "array", "items": {"type": ["number", "null"]},
+                                                            "minItems": 2, "maxItems": 2}},
         "quality": {"type": "object"},
         "timings_s": {"type": "object", "required": ["total"],
                       "additionalProperties": _NON_NEGATIVE},
@@ -285,11 +289,32 @@ def result_problems(doc: Any) -> list[str]:
                 # Angular series may be empty where the rigid-body stage could not run.
                 if isinstance(arr, list) and len(arr) != len(t_s) and not (group == "angular" and not arr):
                     problems.append(f"{group}.{key} has {len(arr)} samples but saddle.t_s has {len(t_s)}")
+        problems += _interval_problems(doc)
         saddle = doc.get("saddle")
         if isinstance(saddle, dict) and isinstance(saddle.get("t_s"), list):
             t_s = [t for t in saddle["t_s"] if isinstance(t, int | float)]
             if any(b <= a for a, b in zip(t_s, t_s[1:], strict=False)):
                 problems.append("saddle.t_s must increase strictly")
+    return problems
+
+
+def _interval_problems(doc: dict) -> list[str]:
+    """An interval must hold its indicator (low <= value <= high) and belong to a reported indicator."""
+    intervals, indicators = doc.get("indicators_interval_95"), doc.get("indicators")
+    if not isinstance(intervals, dict) or not isinstance(indicators, dict):
+        return []
+    problems = []
+    for key, pair in intervals.items():
+        if key not in indicators:
+            problems.append(f"indicators_interval_95.{key} has no indicator {key}")
+            continue
+        if not (isinstance(pair, list) and len(pair) == 2):
+            continue
+        lo, hi, value = pair[0], pair[1], indicators[key]
+        if not all(isinstance(v, int | float | None) for v in (lo, hi)) or not isinstance(value, int | float):
+            continue
+        if (lo is not None and lo > value * (1 + 1e-9) + 1e-12) or (hi is not None and hi < value * (1 - 1e-9) - 1e-12):
+            problems.append(f"indicators_interval_95.{key} [{lo}, {hi}] does not hold the indicator's value {value}")
     return problems
 
 

@@ -111,21 +111,29 @@ def horses_comparison(
 
 
 def club_leaderboard(
-    session: Session, *, club_id: int, gait: str, indicator: str, lower_is_better: bool | None = None
+    session: Session, *, club_id: int, gait: str, indicator: str, lower_is_better: bool | None = None,
+    include_uncertain: bool = False,
 ) -> dict[str, Any]:
     """The club's horses ranked in one gait by one indicator, most comfortable first.
 
-    Each entry: rank, horse id and name, ``n`` (rides behind it), mean, std, min, max and spread.
+    Each entry: rank, horse id and name, ``n`` (rides behind it), mean, std, min, max and spread, and
+    ``uncertain_rides`` (how many of them are too uncertain for a decision). Rides too uncertain for a
+    decision (their W_b r.m.s. interval too wide; ``docs/accuracy.md``) are left out of the ranking
+    unless ``include_uncertain``; either way they are listed in ``uncertain`` with their reason.
     Only the indicator's column is read (indexed for the usual ones), so it stays fast over many rides.
     """
     check_gait(gait)
     check_indicator(indicator)
     if lower_is_better is None and INDICATORS[indicator].better is None:
         raise InputError(f"{indicator!r} has no comfort direction; pass lower_is_better=true or false")
-    values = AnalyticsRepository(session, club_id=club_id).indicator_values(indicator, gait=gait)
-    ids = {name: horse_id for horse_id, name, _ in values}
-    rows = [{"horse": name, "gait": gait, indicator: value} for _, name, value in values]
+    values = AnalyticsRepository(session, club_id=club_id).marked_indicator_values(indicator, gait=gait)
+    ids = {name: horse_id for horse_id, name, *_ in values}
+    kept = [v for v in values if include_uncertain or v[4] is None]
+    rows = [{"horse": name, "gait": gait, indicator: value} for _, name, value, _, _ in kept]
     ranking = leaderboard(rows, indicator, gait=gait, lower_is_better=lower_is_better)
+    marked: dict[str, int] = {}
+    for _, name, _, _, reason in kept:
+        marked[name] = marked.get(name, 0) + (reason is not None)
     lower = lower_is_better if lower_is_better is not None else INDICATORS[indicator].better == "lower"
     return {
         "gait": gait,
@@ -133,7 +141,12 @@ def club_leaderboard(
         "unit": indicator_unit(indicator),
         "better": "lower" if lower else "higher",
         "rides": sum(r["n"] for r in ranking),
-        "entries": [{"horse_id": ids.get(r["horse"]), **_clean(r)} for r in ranking],
+        "include_uncertain": include_uncertain,
+        "entries": [{"horse_id": ids.get(r["horse"]), **_clean(r), "uncertain_rides": marked.get(r["horse"], 0)}
+                    for r in ranking],
+        "uncertain": [{"ride_id": ride_id, "horse_id": horse_id, "horse": name, "value": _finite(value),
+                       "reason": reason, "included": include_uncertain}
+                      for horse_id, name, value, ride_id, reason in values if reason is not None],
     }
 
 

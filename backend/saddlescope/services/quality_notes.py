@@ -97,6 +97,9 @@ _TABLE: tuple[tuple[str, str, Severity, str], ...] = (
      "Film a plumb line before the ride; until then keep the left camera level."),
     ("gravity.lab_vertical", r"gravity along the lab's vertical", "ok",
      "The motion-capture lab's vertical was used as gravity; nothing to do."),
+    # the indicators' intervals (core/vibration/intervals.py, docs/accuracy.md)
+    ("indicators.too_uncertain", r"too uncertain for a decision", "problem",
+     "Do not compare or rank this ride (leaderboards leave it out); fix what the other notes say and ride again."),
     # curve fits (core/kinematics)
     ("fit.wild_samples", r".+: \d+ wild samples left out of its fits", "ok",
      "A few stray samples of one marker were left out of its curve; nothing to do unless it repeats."),

@@ -155,13 +155,34 @@ def _indicator_rows(session: Session, ride, doc: dict[str, Any], club_id: int) -
     bands = normal_bands_before(history, ride.id, keys)
     earlier = next((i for i, row in enumerate(history) if row["ride_id"] == ride.id), len(history))
     indicators = doc.get("indicators") or {}
+    intervals = doc.get("indicators_interval_95") or {}
     rows = []
     for key, label in REPORT_INDICATORS:
         value = indicators.get(key)
+        ci = _interval_html(key, intervals.get(key))
         rows.append(f'      <tr data-indicator="{key}"><td>{_label_html(label)}</td>'
-                    f'<td class="num">{html.escape(_value_text(key, value))}</td>'
+                    f'<td class="num">{html.escape(_value_text(key, value))}{ci}</td>'
                     f"<td>{_band_cell(key, value, bands.get(key))}</td></tr>")
     return "\n".join(rows), earlier
+
+
+def _interval_html(key: str, pair: Any) -> str:
+    """The indicator's 95 % interval under its value ("95 %: 1.10–1.41 m/s²"), or nothing without one."""
+    if not isinstance(pair, list | tuple) or len(pair) != 2:
+        return ""
+    lo, hi = ("–∞" if pair[0] is None else _value_text(key, pair[0]), "∞" if pair[1] is None else
+              _value_text(key, pair[1]))
+    return f'<span class="ci" data-ci="{key}">95 %: {html.escape(lo)} – {html.escape(hi)}</span>'
+
+
+def _decision_html(doc: dict[str, Any]) -> str:
+    """A ride too uncertain for a decision says so above its numbers (docs/accuracy.md)."""
+    decision = (doc.get("quality") or {}).get("decision") or {}
+    if not decision.get("too_uncertain"):
+        return ""
+    return (f'  <p class="decision" data-decision="too-uncertain"><strong>Too uncertain for a decision:</strong> '
+            f"{html.escape(str(decision.get('reason')))}. Do not compare or rank this ride; leaderboards leave it "
+            "out.</p>")
 
 
 def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
@@ -207,7 +228,7 @@ def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_i
         date=esc(ride.ridden_on.isoformat() if ride.ridden_on else "date not given"),
         strides=f"{strides} whole stride{'s' if strides != 1 else ''}" if strides else "–",
         stride_text=f"{_number(period)} s" if isinstance(period, int | float) else "–",
-        indicator_rows=indicator_rows, chart=chart, chart_caption=esc(caption),
+        indicator_rows=indicator_rows, decision=_decision_html(doc), chart=chart, chart_caption=esc(caption),
         earlier=f"{earlier} earlier analysed ride{'' if earlier == 1 else 's'}",
         min_rides=MIN_RIDES_FOR_BAND,
         quality_summary=esc(summary.rstrip(".").lower() if summary.startswith("The") else summary.rstrip(".")),

@@ -122,6 +122,8 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "period_s": doc.get("period_s"),
         "window": doc.get("window"),
         "indicators": indicators,
+        # 95 % intervals beside the indicators (issue 27; absent from results made before them)
+        "indicators_interval_95": dict(doc.get("indicators_interval_95") or {}),
         "units": {key: indicator_unit(key) for key in indicators},
         "quality": quality,
         # every flag in plain words (services/quality_notes.py): what the page and the report say
@@ -351,7 +353,9 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
             old_key = old.result_key if old is not None else None
             results.replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=job_id,
                                      indicators=document.get("indicators", {}), result_key=key,
-                                     code_version=code_version, job_attempt=attempt)
+                                     code_version=code_version, job_attempt=attempt,
+                                     uncertain_reason=((document.get("quality") or {}).get("decision") or {}).get(
+                                         "reason"))
     except BaseException:
         storage.delete(key)
         raise

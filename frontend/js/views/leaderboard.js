@@ -16,11 +16,16 @@ export async function mountLeaderboard(view, _params, query) {
   await fillOptions(view);
   for (const name of ["gait", "indicator"]) if (query.get(name)) form.elements[name].value = query.get(name);
 
-  await onFormChange(form, async ({ gait, indicator }, current) => {
+  const uncertainBox = view.querySelector("[data-leaderboard-uncertain]");
+  if (query.get("include_uncertain") === "true") form.elements.include_uncertain.checked = true;
+
+  await onFormChange(form, async ({ gait, indicator, include_uncertain: includeUncertain }, current) => {
     let answer;
     let rows;
     try {
-      answer = await get("/api/leaderboard", { params: { gait, indicator } });
+      const params = { gait, indicator };
+      if (includeUncertain) params.include_uncertain = "true";
+      answer = await get("/api/leaderboard", { params });
       rows = groupsOf(answer, indicator);
     } catch (error) {
       if (current()) showError(section, error);
@@ -35,7 +40,9 @@ export async function mountLeaderboard(view, _params, query) {
       `${(answer.better ?? info.better) === "higher" ? "higher" : "lower"} is more comfortable.`;
     table.tBodies[0].replaceChildren(...rows.map((row) => h("tr", { dataset: { horse: row.horse } },
       h("td", { class: "rank" }, String(row.rank)),
-      h("th", { scope: "row" }, row.horse_id ? h("a", { href: `#/horses/${row.horse_id}` }, row.horse) : row.horse),
+      h("th", { scope: "row" }, row.horse_id ? h("a", { href: `#/horses/${row.horse_id}` }, row.horse) : row.horse,
+        row.uncertain_rides ? h("span", { class: "uncertain-mark", title: "includes rides too uncertain for a decision" },
+          ` (${row.uncertain_rides} uncertain)`) : ""),
       h("td", { class: "num" }, String(row.n)),
       h("td", { class: "num", dataset: { value: row.mean } }, fmt(row.mean)),
       h("td", { class: "num" }, fmt(row.std)),
@@ -43,5 +50,20 @@ export async function mountLeaderboard(view, _params, query) {
       h("td", { class: "num" }, fmt(row.max)))));
     table.hidden = !rows.length;
     empty.hidden = rows.length > 0;
+    showUncertain(uncertainBox, answer.uncertain ?? [], Boolean(includeUncertain), unit);
   });
+}
+
+// Rides too uncertain for a decision: shown, marked, with the reason (issue 27); left out of the
+// ranking unless the box is ticked.
+function showUncertain(box, rides, included, unit) {
+  box.hidden = !rides.length;
+  if (!rides.length) return;
+  box.querySelector("[data-uncertain-note]").textContent = included
+    ? `${rides.length} ride(s) below are too uncertain for a decision; they are counted in the ranking above.`
+    : `${rides.length} ride(s) below are too uncertain for a decision and are left out of the ranking above.`;
+  box.querySelector("[data-uncertain-list]").replaceChildren(...rides.map((ride) => h("li",
+    { dataset: { uncertainRide: ride.ride_id } },
+    h("a", { href: `#/rides/${ride.ride_id}` }, `${ride.horse}, ride ${ride.ride_id}`),
+    `: ${fmt(ride.value)}${unit ? ` ${unit}` : ""} (${ride.reason})`)));
 }

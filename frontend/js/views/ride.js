@@ -62,7 +62,27 @@ function card(result, { key, title, note }) {
     h("p", { class: "card-value" },
       h("span", { "data-value": value ?? "" }, fmt(value)),
       unit ? h("span", { class: "card-unit" }, ` ${prettyUnit(unit)}`) : null),
+    intervalText(result, key) ? h("p", { class: "card-note card-ci", dataset: { ci: key } },
+      // as the fits' intervals were shown: "95 % interval 14.1–14.3 km/h"
+      `95 % interval ${intervalText(result, key).slice("95 %: ".length)}${unit ? ` ${prettyUnit(unit)}` : ""}`) : null,
     note ? h("p", { class: "card-note" }, labelFragment(note)) : null);
+}
+
+// "95 %: 1.10–1.41" from the result's indicators_interval_95 (issue 27), or null without one.
+function intervalText(result, key, digits) {
+  const pair = result.indicators_interval_95?.[key];
+  if (!Array.isArray(pair)) return null;
+  const end = (v, open) => (v === null || v === undefined ? open : fmt(v, digits));
+  return `95 %: ${end(pair[0], "−∞")}–${end(pair[1], "∞")}`;
+}
+
+// A ride too uncertain for a decision says so above its numbers (docs/accuracy.md).
+function decisionNote(result) {
+  const decision = result.quality?.decision;
+  if (!decision?.too_uncertain) return null;
+  return h("p", { class: "decision-uncertain", role: "note", dataset: { decision: "too-uncertain" } },
+    h("strong", {}, "Too uncertain for a decision: "),
+    `${decision.reason}. Do not compare or rank this ride; leaderboards leave it out.`);
 }
 
 function exposureRows(result) {
@@ -71,9 +91,21 @@ function exposureRows(result) {
     h("th", { scope: "row" }, label, h("span", { class: "hint" }, ` (${value})`)),
     ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `t_${basis}_${level}_${w}_h` },
                                          "data-value": ind[`t_${basis}_${level}_${w}_h`] ?? "" },
-      durationText(ind[`t_${basis}_${level}_${w}_h`]))),
+      durationText(ind[`t_${basis}_${level}_${w}_h`]), timeInterval(result, `t_${basis}_${level}_${w}_h`))),
     ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `d_${basis}_${level}_${w}_km` } },
-      fmt(ind[`d_${basis}_${level}_${w}_km`])))));
+      fmt(ind[`d_${basis}_${level}_${w}_km`]), smallInterval(result, `d_${basis}_${level}_${w}_km`)))));
+}
+
+function timeInterval(result, key) {
+  const pair = result.indicators_interval_95?.[key];
+  if (!Array.isArray(pair)) return null;
+  const end = (v) => (v === null || v === undefined ? "∞" : durationText(v));
+  return h("span", { class: "ci-small", dataset: { ci: key } }, ` (95 %: ${end(pair[0])}–${end(pair[1])})`);
+}
+
+function smallInterval(result, key) {
+  const text = intervalText(result, key);
+  return text ? h("span", { class: "ci-small", dataset: { ci: key } }, ` (${text})`) : null;
 }
 
 function qualityFacts(result) {
@@ -135,6 +167,8 @@ function fitFacts(fits) {
 function intervalNotes(view, fits) {
   const { stride, speed } = fitIntervals(fits);
   const put = (key, text) => {
+    // a result with indicators_interval_95 already shows the interval under the card
+    if (view.querySelector(`[data-ci="${key}"]`)) return;
     const cardEl = view.querySelector(`[data-indicator="${key}"]`);
     if (cardEl) cardEl.append(h("p", { class: "card-note card-ci", dataset: { ci: key } }, text));
   };
@@ -249,6 +283,7 @@ function attachGradeForm(view, ride) {
 function showResult(view, ride, result) {
   const box = view.querySelector("[data-result]");
   view.querySelector("[data-indicator-cards]").replaceChildren(
+    ...[decisionNote(result)].filter(Boolean),
     h("div", { class: "card-group" }, ...MAIN_CARDS.map((c) => card(result, c))),
     h("div", { class: "card-group secondary" }, ...RIDE_CARDS.map((c) => card(result, c))));
   view.querySelector("[data-exposure-table] tbody").replaceChildren(...exposureRows(result));

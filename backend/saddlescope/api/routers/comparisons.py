@@ -56,13 +56,18 @@ def leaderboard(
     gait: Gait,
     indicator: IndicatorKey = IndicatorKey("acc_y_wb_rms"),
     lower_is_better: bool | None = None,
+    include_uncertain: Annotated[
+        bool, Query(description="rank rides too uncertain for a decision too (they are marked either way)")
+    ] = False,
 ) -> dict:
     """The club's horses ranked in a gait by an indicator, most comfortable first.
 
-    With the number of rides behind each horse and their spread (max - min); ties share a rank.
+    With the number of rides behind each horse and their spread (max - min); ties share a rank. Rides
+    too uncertain for a decision are left out unless ``include_uncertain``, and listed with the reason.
     """
     return club_leaderboard(
-        club.session, club_id=club.club_id, gait=gait, indicator=str(indicator), lower_is_better=lower_is_better
+        club.session, club_id=club.club_id, gait=gait, indicator=str(indicator), lower_is_better=lower_is_better,
+        include_uncertain=include_uncertain,
     )
 
 

@@ -6,11 +6,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from saddlescope.core.params import PipelineParams
-from saddlescope.core.pipeline.detection import RideTracks
+from saddlescope.core.pipeline.detection import RideTracks, depth_uncertainty
+from saddlescope.core.pipeline.setup import outside_coverage
 from saddlescope.core.saddle import SaddleAnalysis
 from saddlescope.core.types import (
     AnalysisWindow,
@@ -23,8 +25,9 @@ from saddlescope.core.types import (
     SaddleRotation,
     VerticalHarmonics,
 )
+from saddlescope.core.vibration.intervals import decision_uncertainty, interval_sources, ride_intervals
 
-__all__ = ["assemble_result", "fits_document", "rounded_list"]
+__all__ = ["assemble_result", "fits_document", "rounded_list", "with_intervals"]
 
 
 def rounded_list(x) -> list:
@@ -45,8 +48,16 @@ def _track_quality(tracks: MarkerTracks) -> dict:
     return out
 
 
+def _outside_board(motion2d, calib_report: Mapping | None) -> dict[str, float]:
+    """Per camera, the share of its marker detections outside the region the calibration board covered."""
+    if not motion2d or not calib_report or not calib_report.get("board_coverage"):
+        return {}
+    return {cam: float(share) for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items()}
+
+
 def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str, MarkerTracks],
-             flags: Sequence[str], input_flags: Sequence[str]) -> dict:
+             flags: Sequence[str], input_flags: Sequence[str], found_motion2d=None,
+             calib_report: Mapping | None = None, depth: Mapping | None = None) -> dict:
     """The result's ``quality``: the flags and the figures behind them.
 
     The result's ``quality``: the flags (``input_flags`` first, e.g. the bundle's own warnings) and
@@ -70,6 +81,10 @@ def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str
         "period_estimate_s": kin.period_estimate_s,
         # the frames the fits saw (the window's harmonics are estimated from every tracked stride)
         "fitted_frames": {"start_frame": int(kin.fitted[0]), "frames": int(kin.fitted[1] - kin.fitted[0])},
+        # what the indicators' intervals read (core.vibration.intervals): where the lens was extrapolated
+        # and how much worse than image position the rig fixes depth at the markers
+        "markers_outside_board_fraction": _outside_board(found_motion2d, calib_report),
+        "depth_anisotropy": (depth or {}).get("anisotropy"),
     }
 
 
@@ -91,7 +106,7 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
     :func:`~saddlescope.core.saddle.vertical_harmonics`' output; ``fps`` the motion clip's rate.
     """
     s, fits, frame, t_s = kin.saddle, kin.fits, kin.frame, kin.t_s
-    return RideResult(
+    result = RideResult(
         fps=fps, gait=meta.get("gait"), direction=meta.get("direction"), rig=rig,
         sync_offsets={kind: {c: float(v) for c, v in off.items()} for kind, off in offsets.items()},
         period_s=kin.period_s,
@@ -109,7 +124,9 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
         vertical_harmonics=VerticalHarmonics(f0_hz=harm["f0_hz"], amplitudes_m_s2=harm["amplitudes_m_s2"],
                                              phases_rad=harm["phases_rad"]),
         indicators={k: float(v) for k, v in indicators.items()},
-        quality=_quality(rig, kin, harm, found.tracks3d, flags, input_flags),
+        quality=_quality(rig, kin, harm, found.tracks3d, flags, input_flags, found.motion2d,
+                         calib_report, depth_uncertainty(rig, found.tracks3d["motion"])
+                         if "motion" in found.tracks3d else None),
         params={"n_periods": params.n_periods, "triangulation": params.triangulation,
                 "smoothing_span": params.smoothing_span, "angular_method": params.angular_method,
                 "x_model": params.x_model, "omega_from": params.omega_from, "fit_span": params.fit_span,
@@ -119,6 +136,31 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
         board_coverage_fraction=({c: v["area_fraction"] for c, v in calib_report.get("board_coverage", {}).items()}
                                  if calib_report else None),
     )
+    return with_intervals(result)
+
+
+def with_intervals(result: RideResult) -> RideResult:
+    """``result`` with its indicators' 95 % intervals, and the too-uncertain verdict in its quality.
+
+    The verdict (:func:`~saddlescope.core.vibration.intervals.decision_uncertainty`) joins the flags as a
+    sentence and ``quality["decision"]``; the noise model's parts go to ``quality["interval_sources"]``.
+    """
+    sources = interval_sources(result, depth_anisotropy=result.quality.get("depth_anisotropy"))
+    intervals = ride_intervals(result, sources=sources)
+    reason = decision_uncertainty(result.indicators, intervals)
+    quality = dict(result.quality)
+    flags = [f for f in quality.get("flags", []) if not str(f).startswith(_TOO_UNCERTAIN)]
+    if reason:
+        flags.append(f"too uncertain for a decision: {reason}; it is left out of leaderboards unless asked for")
+    quality["flags"] = flags
+    quality["decision"] = {"too_uncertain": reason is not None, "reason": reason}
+    quality["interval_sources"] = {"gain": sources["gain"], "gain_parts": dict(sources["gain_parts"]),
+                                   "harmonic_m_s2": [float(v) for v in sources["harmonic_m_s2"]],
+                                   "shape": sources["shape"], "f0": sources["f0"], "speed": sources["speed"]}
+    return replace(result, quality=quality, indicators_interval_95=intervals)
+
+
+_TOO_UNCERTAIN = "too uncertain for a decision"
 
 
 def fits_document(fits) -> dict:

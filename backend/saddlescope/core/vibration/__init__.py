@@ -5,6 +5,7 @@
 - :mod:`.exposure`: A(8) and the EU 2002/44/EC action and limit values;
 - :mod:`.indicator_keys`: the indicator keys, their units and meaning (:data:`INDICATORS`);
 - :mod:`.indicators`: the comfort indicators of one ride;
+- :mod:`.intervals`: their 95 % intervals and whether a ride is too uncertain for a decision;
 - :mod:`.comparisons`: relative comfort, comparisons, leaderboards and riders' grades.
 
 ``weighting_response``, ``harmonic_metrics`` and ``exposure_limits`` are imported from here by
@@ -42,6 +43,13 @@ from saddlescope.core.vibration.indicator_keys import (
     indicator_unit,
 )
 from saddlescope.core.vibration.indicators import comfort_indicators, ride_indicators, ride_indicators_sampled
+from saddlescope.core.vibration.intervals import (
+    INTERVAL_KEYS,
+    bootstrap_indicators,
+    decision_uncertainty,
+    interval_sources,
+    ride_intervals,
+)
 from saddlescope.core.vibration.metrics import (
     crest_factor,
     harmonic_metrics,
@@ -97,6 +105,12 @@ __all__ = [
     "ride_indicators",
     "ride_indicators_sampled",
     "comfort_indicators",
+    # 95 % intervals
+    "INTERVAL_KEYS",
+    "bootstrap_indicators",
+    "decision_uncertainty",
+    "interval_sources",
+    "ride_intervals",
     # comparisons
     "relative_comfort",
     "relative_comfort_table",

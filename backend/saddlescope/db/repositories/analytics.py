@@ -55,6 +55,16 @@ class AnalyticsRepository:
             rows.append(row)
         return rows
 
+    def marked_indicator_values(self, indicator: str, *, gait: str
+                                ) -> list[tuple[int, str, float | None, int, str | None]]:
+        """As :meth:`indicator_values`, with each ride's id and why it is too uncertain (None: it is not)."""
+        value = (getattr(Result, indicator) if indicator in LEADERBOARD_COLUMNS
+                 else Result.indicators[indicator].as_float())
+        stmt = (select(Horse.id, Horse.name, value, Ride.id, Result.uncertain_reason).select_from(Result)
+                .join(Ride, Ride.id == Result.ride_id).join(Horse, Horse.id == Ride.horse_id)
+                .where(Result.club_id == self.club_id, Ride.gait == gait))
+        return [tuple(row) for row in self.session.execute(stmt)]
+
     def indicator_values(self, indicator: str, *, gait: str) -> list[tuple[int, str, float | None]]:
         """Return (horse id, horse name, value) of every analysed ride in `gait`: the least a ranking needs.
 

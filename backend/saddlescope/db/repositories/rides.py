@@ -224,12 +224,12 @@ class ResultRepository(Repository):
         return {ride_id: dict(indicators or {}) for ride_id, indicators in self.session.execute(stmt)}
 
     def replace_for_ride(self, *, club_id: int, ride_id: int, job_id: int | None, indicators: dict[str, Any],
-                         result_key: str | None, code_version: str | None, job_attempt: int | None = None
-                         ) -> Result:
+                         result_key: str | None, code_version: str | None, job_attempt: int | None = None,
+                         uncertain_reason: str | None = None) -> Result:
         """Store a ride's result, replacing the previous one (re-running a job is idempotent).
 
         The ride's cached comparisons with other rides are deleted: they were computed from the old
-        analysis.
+        analysis. ``uncertain_reason``: why the ride is too uncertain for a decision (None: it is not).
         """
         self.session.execute(delete(SimilarityPair).where(
             or_(SimilarityPair.ride_a_id == ride_id, SimilarityPair.ride_b_id == ride_id)))
@@ -241,6 +241,7 @@ class ResultRepository(Repository):
         result.indicators = dict(indicators)
         result.result_key = result_key
         result.code_version = code_version
+        result.uncertain_reason = uncertain_reason
         result.created_at = utcnow()
         for name in LEADERBOARD_COLUMNS:
             value = indicators.get(name)

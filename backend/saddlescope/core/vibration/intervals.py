@@ -1,0 +1,386 @@
+"""95 % intervals on a ride's indicators, and whether a ride is too uncertain for a decision (issue 27).
+
+What the result already knows is turned into a noise model of the saddle point's vertical
+harmonics, the stride frequency and the speed (:func:`interval_sources`), and carried through the
+indicators by a seeded parametric bootstrap (:func:`bootstrap_indicators`): the nonlinear ones
+(VDV, crest factor, peaks, daily times and distances) get their interval from the draws'
+percentiles, not from a linearisation.
+
+The noise model, per draw (standard deviations; all relative unless said):
+
+- one gain common to every harmonic and to the displacement, from the calibration's scale
+  (``board_square_error_pct``), the spread of the saddle point's acceleration over the thesis's ω
+  versions, the roll a rig that fixes depth poorly cannot see (SCIENCE.md, the weak axis), lens
+  distortion extrapolated beyond the board's region, and the skin-motion floor (the markers'
+  sliding, which no rigid body fitted to them removes; ``bench.analysis.kinematics_floor``);
+- per harmonic, complex: the markers' Fourier fits' coefficient covariance under correlated noise
+  (their 95 % confidence intervals, ``kinematics.fitting``) carried to the acceleration by (kω)²,
+  plus a shape floor (skin motion bends each harmonic on its own);
+- the fundamental from the fits' ω interval; the speed from the travel fit's slope interval and
+  the calibration's scale.
+
+The floors (``FLOORS``) were set on arena rides of seeds 1001-1099 and checked on seeds 2001-2099
+(``saddlescope bench``, key ``coverage``; ``docs/accuracy.md``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+
+import numpy as np
+
+from saddlescope.core.errors import TriangulationError, VibrationError
+from saddlescope.core.vibration.exposure import A8_ACTION_M_S2, A8_LIMIT_M_S2, VDV_ACTION_M_S175, VDV_LIMIT_M_S175
+from saddlescope.core.vibration.weighting import weighting_response
+
+__all__ = ["COMFORT_BAND_EDGES_M_S2", "FLOORS", "INTERVAL_KEYS", "MAX_HALF_WIDTH_FRACTION", "SKIN_FLOORS",
+           "bootstrap_indicators",
+           "decision_uncertainty", "interval_sources", "ride_intervals"]
+
+INTERVAL_KEYS: tuple[str, ...] = (
+    "acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "acc_y_max", "crest_factor_y", "crest_factor_y_wk",
+    "acc_y_wb_peak", "acc_y_wk_peak", "acc_y_rms",
+    *(f"{kind}_{basis}_{level}_{w}_{unit}" for kind, unit in (("t", "h"), ("d", "km")) for basis in ("a8", "vdv")
+      for level in ("action", "limit") for w in ("wb", "wk")),
+    "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz")
+
+# One-sigma floors (fractions), set on the build rides (see the module note)
+FLOORS: dict[str, float] = {
+    "depth_roll": 0.01,       # roll lost where the rig fixes depth this badly (params.depth_anisotropy)
+    # times the squared share of detections where the lens is extrapolated: a few % just outside the
+    # board's region cost little, a third of the crossing (issue 27's wide-rig canter: +44 %) a lot
+    "outside_board": 0.5,
+    "omega_spread": 0.2,      # per (median spread of S's acceleration over the ω versions / its r.m.s.)
+    "fit_inflation": 1.0,     # the markers' fit noise carried to S (lever arm, rotation)
+    "f0": 0.0005,             # the stride period's own floor (the window's edges)
+    "speed": 0.002,           # the travel direction's tilt and the window's edges
+}
+
+# The skin-motion floor per gait: (gain, harmonic shape). The gain is half the worst W_b r.m.s. error of
+# exact markers over seeds 1001-1006 (`bench.analysis.kinematics_floor`, thesis rig: walk 6.2 %, sitting
+# trot 3.4 %, rising trot 3.2 %, canter 2.5 %); the shape (each harmonic on its own, complex) is set so
+# that it moves the r.m.s. less than the gain does and the crest factor as the build rides showed.
+SKIN_FLOORS: dict[str, tuple[float, float]] = {
+    "walk": (0.031, 0.04), "sitting_trot": (0.017, 0.02), "rising_trot": (0.016, 0.02), "canter": (0.013, 0.04)}
+
+# A ride is too uncertain for a decision when its W_b r.m.s. interval's half-width exceeds this share
+# of the value. Such an interval spans a ratio of at most 1.1 / 0.9 = 1.22, less than between any two
+# adjacent edges of ISO 2631-1's comfort bands (Annex C.2.3; their lower edges below, m/s²: not
+# uncomfortable < 0.315 < a little < 0.5 < fairly < 0.8 < uncomfortable < 1.25 < very < 2.0 <
+# extremely uncomfortable): an interval narrow enough never straddles more than one band edge.
+MAX_HALF_WIDTH_FRACTION = 0.10
+COMFORT_BAND_EDGES_M_S2: tuple[float, ...] = (0.315, 0.5, 0.8, 1.25, 2.0)
+
+_Z95 = 1.959963984540054
+_DEPTH_ANISOTROPY = 5.0  # PipelineParams.depth_anisotropy's default
+_OUTSIDE_FLAG = re.compile(r"outside the region the calibration board covered in (\d+(?:\.\d+)?) %")
+
+
+def _half_width_sigma(ci) -> float:
+    """One sigma from a [low, high] 95 % interval (NaN when absent)."""
+    try:
+        lo, hi = float(ci[0]), float(ci[1])
+    except (TypeError, ValueError, IndexError):
+        return math.nan
+    return (hi - lo) / (2 * _Z95) if math.isfinite(lo) and math.isfinite(hi) else math.nan
+
+
+def _fit_harmonic_sigma(fits_y: list, n_harmonics: int, omega: float) -> np.ndarray:
+    """Per harmonic k, the std (m/s²) of the cosine and sine coefficients of a marker's vertical acceleration.
+
+    From each marker's vertical fit: its coefficients' 95 % intervals (correlated noise accounted
+    for) times (kω)²; root mean square over the markers; zero beyond the fits' order.
+    """
+    per_marker = []
+    for fit in fits_y:
+        ci = fit.get("ci95") or {}
+        sig = [np.nanmean([_half_width_sigma(a), _half_width_sigma(b)])
+               for a, b in zip(ci.get("a", []), ci.get("b", []), strict=False)]
+        per_marker.append(sig)
+    pos = np.full(n_harmonics, np.nan)
+    if per_marker:
+        order = max(len(s) for s in per_marker)
+        padded = np.full((len(per_marker), order), np.nan)
+        for i, s in enumerate(per_marker):
+            padded[i, :len(s)] = s
+        with np.errstate(invalid="ignore"):
+            rms = np.sqrt(np.nanmean(padded ** 2, axis=0)) if order else np.array([])
+        pos[:min(order, n_harmonics)] = rms[:n_harmonics]
+    # beyond the fits' order S's harmonics come from products of the fitted ones (the rotation terms),
+    # whose noise is counted there
+    pos = np.where(np.isfinite(pos), pos, 0.0)
+    k = np.arange(1, n_harmonics + 1)
+    return pos * (k * omega) ** 2
+
+
+def _relative_sigma(fits: list, key: str, value_of) -> float:
+    """Median relative one-sigma of a fitted quantity over the markers' fits (NaN when none)."""
+    out = []
+    for fit in fits:
+        ci = (fit.get("ci95") or {}).get(key)
+        value = value_of(fit)
+        if ci is None or value is None or not value:
+            continue
+        ci = ci[0] if isinstance(ci[0], list) else ci
+        out.append(abs(_half_width_sigma(ci) / value))
+    return float(np.nanmedian(out)) if out else math.nan
+
+
+def _outside_board_share(quality: Mapping) -> float:
+    """The largest share of a camera's detections outside the board's region (lens extrapolated)."""
+    shares = quality.get("markers_outside_board_fraction")
+    if isinstance(shares, Mapping) and shares:
+        return float(max(shares.values()))
+    # results written before the share was a number hold it in the flag's sentence only
+    found = [float(m.group(1)) / 100 for f in quality.get("flags", []) if (m := _OUTSIDE_FLAG.search(str(f)))]
+    return max(found, default=0.0)
+
+
+def _speed_sigma(fits_x: list) -> float:
+    """Relative one-sigma of the average speed from the travel fits (slope, or a Fourier fit's trend)."""
+    def slope(fit):
+        if "trend" in fit and fit["trend"]:
+            return fit["trend"][0]
+        return fit.get("slope")
+    sig_trend = _relative_sigma(fits_x, "trend", slope)
+    return sig_trend if math.isfinite(sig_trend) else _relative_sigma(fits_x, "slope", slope)
+
+
+def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
+    """The noise model's standard deviations for one ride, from what its result knows.
+
+    Parameters
+    ----------
+    result : RideResult
+    depth_anisotropy : float, optional
+        How many times worse the rig fixes depth than image position at the markers; computed from
+        the rig at the motion frame's origin when not given.
+
+    Returns
+    -------
+    dict
+        ``gain`` (relative, common to the harmonics and the displacement) with its parts in
+        ``gain_parts``, ``harmonic_m_s2`` (K,) the per-harmonic coefficient std, ``shape`` (relative, per
+        harmonic), ``f0`` and ``speed`` (relative).
+    """
+    from saddlescope.core.triangulation.uncertainty import position_uncertainty
+
+    q, vh = result.quality, result.vertical_harmonics
+    fits = result.markers.fits or {}
+    amps = np.asarray(vh.amplitudes_m_s2, dtype=float)
+    omega = 2 * np.pi * float(vh.f0_hz)
+    checks = result.rig.checks or {}
+    scale = float(checks.get("board_square_error_pct", 0.0) or 0.0) / 100
+    acc_rms = float(np.sqrt(np.sum(amps ** 2) / 2))
+    spread = float(q.get("saddle_acceleration_spread_m_s2_median") or 0.0) / max(acc_rms, 1e-9)
+    if depth_anisotropy is None and not result.rig.cameras:
+        depth_anisotropy = 1.0  # motion capture: positions measured directly, no camera geometry
+    elif depth_anisotropy is None:
+        try:
+            depth_anisotropy = float(position_uncertainty(result.rig, result.motion_frame.origin_mm)["anisotropy"])
+        except TriangulationError:  # cameras that cannot fix the point: depth-poor
+            depth_anisotropy = math.inf
+    outside = _outside_board_share(q)
+    parts = {"calibration_scale": scale, "omega_versions": FLOORS["omega_spread"] * spread,
+             "depth_roll": FLOORS["depth_roll"] if depth_anisotropy >= _DEPTH_ANISOTROPY else 0.0,
+             "lens_extrapolated": FLOORS["outside_board"] * outside ** 2}
+    # an unknown gait takes the widest floor
+    skin_gain, shape = SKIN_FLOORS.get(result.gait or "", max(SKIN_FLOORS.values()))
+    parts["skin_motion"] = skin_gain
+    f0_sig = _relative_sigma(fits.get("y", []), "omega_rad_s", lambda f: f.get("omega_rad_s"))
+    speed_fit = _speed_sigma(fits.get("x", []))
+    return {
+        "gain": float(np.sqrt(sum(v ** 2 for v in parts.values()))), "gain_parts": parts,
+        "harmonic_m_s2": FLOORS["fit_inflation"] * _fit_harmonic_sigma(fits.get("y", []), amps.size, omega),
+        "shape": shape,
+        "f0": float(np.hypot(f0_sig if math.isfinite(f0_sig) else 0.0, FLOORS["f0"])),
+        "speed": float(np.sqrt((speed_fit if math.isfinite(speed_fit) else 0.0) ** 2 + scale ** 2
+                               + FLOORS["speed"] ** 2)),
+        "depth_anisotropy": depth_anisotropy, "outside_board_share": outside,
+    }
+
+
+def _series_metrics(f0: np.ndarray, coef: np.ndarray, weighting: str | None, n_periods: int) -> dict:
+    """r.m.s., peak and VDV of periodic series, one per row.
+
+    f0 : (D,) Hz; coef : (D, K) complex, a(t) = Re Σ_k coef_k e^{i2πkf0t}; VDV over ``n_periods``.
+    """
+    k = np.arange(1, coef.shape[1] + 1)
+    if weighting is not None:
+        coef = coef * weighting_response(weighting, f0[:, None] * k[None, :])
+    rms = np.sqrt(np.sum(np.abs(coef) ** 2, axis=1) / 2)  # Parseval
+    n_grid = max(64 * coef.shape[1], 256)
+    theta = 2 * np.pi * np.arange(n_grid) / n_grid
+    a = _real_series(coef, k, theta)
+    a2 = a * a
+    return {"rms": rms, "peak": _grid_peak(np.abs(a)), "vdv": (n_periods * np.mean(a2 * a2, axis=1) / f0) ** 0.25}
+
+
+def _real_series(coef: np.ndarray, k: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Re Σ_k coef_k e^{ikθ} per row, (D, N): real products (a complex matmul is ten times slower)."""
+    arg = np.outer(k, theta)
+    return coef.real @ np.cos(arg) - coef.imag @ np.sin(arg)
+
+
+def _grid_peak(y: np.ndarray) -> np.ndarray:
+    """Each row's maximum of a periodic grid, refined by the parabola through it and its neighbours."""
+    i = np.argmax(y, axis=1)
+    rows = np.arange(y.shape[0])
+    n = y.shape[1]
+    y0, ym, yp = y[rows, i], y[rows, (i - 1) % n], y[rows, (i + 1) % n]
+    curv = ym - 2 * y0 + yp
+    with np.errstate(divide="ignore", invalid="ignore"):
+        peak = y0 - (ym - yp) ** 2 / (8 * curv)
+    return np.where(curv < 0, np.maximum(peak, y0), y0)
+
+
+def _check_bootstrap(f0_hz: float, amps: np.ndarray, phases: np.ndarray, n_periods: int, draws: int,
+                     sources: Mapping) -> None:
+    """Refuse inputs the bootstrap cannot use, each with what was expected."""
+    if amps.ndim != 1 or amps.size == 0 or phases.shape != amps.shape:
+        raise VibrationError(f"amplitudes and phases must be 1-D of one length, got shapes {amps.shape} and "
+                             f"{phases.shape}")
+    if not (np.all(np.isfinite(amps)) and np.all(np.isfinite(phases))):
+        raise VibrationError("amplitudes and phases must be finite")
+    if not (isinstance(f0_hz, int | float | np.floating) and math.isfinite(f0_hz) and f0_hz > 0):
+        raise VibrationError(f"f0_hz must be a positive number of Hz, got {f0_hz!r}")
+    if int(n_periods) < 1 or int(draws) < 10:
+        raise VibrationError(f"n_periods must be >= 1 and draws >= 10, got {n_periods} and {draws}")
+    missing = {"f0", "gain", "speed", "shape", "harmonic_m_s2"} - set(sources)
+    if missing:
+        raise VibrationError(f"sources lack {', '.join(sorted(missing))} (see interval_sources)")
+    if np.shape(sources["harmonic_m_s2"]) != amps.shape:
+        raise VibrationError(f"sources['harmonic_m_s2'] has shape {np.shape(sources['harmonic_m_s2'])}, the "
+                             f"harmonics {amps.shape}")
+
+
+def bootstrap_indicators(*, f0_hz: float, amplitudes_m_s2, phases_rad, n_periods: int, speed_kmh: float,
+                         amplitude_y_m: float, sources: Mapping, draws: int = 400,
+                         rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Every key of :data:`INTERVAL_KEYS` for ``draws`` draws of the noise model (row 0: the estimate).
+
+    Parameters
+    ----------
+    f0_hz : float
+        The vertical series' fundamental (the stride frequency).
+    amplitudes_m_s2, phases_rad : array_like of shape (K,)
+        S's vertical acceleration a(t) = Σ A_k cos(2πk f0 t + φ_k).
+    n_periods : int
+        Periods in the analysed window (VDV).
+    speed_kmh, amplitude_y_m : float
+        The estimates of the average speed and the peak-to-peak displacement.
+    sources : mapping
+        :func:`interval_sources`.
+    draws : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    dict of str -> ndarray of shape (draws + 1,)
+    """
+    amps = np.atleast_1d(np.asarray(amplitudes_m_s2, dtype=float))
+    phases = np.atleast_1d(np.asarray(phases_rad, dtype=float))
+    _check_bootstrap(f0_hz, amps, phases, n_periods, draws, sources)
+    coef0 = amps * np.exp(1j * phases)
+    n_k = coef0.size
+    z = rng.standard_normal((draws, 4 + 4 * n_k))
+    zero = np.zeros((1, z.shape[1]))
+    z = np.vstack([zero, z])
+    f0 = f0_hz * (1 + sources["f0"] * z[:, 0])
+    gain = 1 + sources["gain"] * z[:, 1]
+    speed = speed_kmh * (1 + sources["speed"] * z[:, 2])
+    shape = sources["shape"] * (z[:, 4:4 + n_k] + 1j * z[:, 4 + n_k:4 + 2 * n_k]) / np.sqrt(2)
+    sig_k = np.asarray(sources["harmonic_m_s2"], dtype=float)[None, :]
+    noise = sig_k * (z[:, 4 + 2 * n_k:4 + 3 * n_k] + 1j * z[:, 4 + 3 * n_k:4 + 4 * n_k])
+    # a cos + b sin with a, b of std σ: the complex coefficient a - ib
+    coef = coef0[None, :] * (gain[:, None] + shape) + noise
+    m = {w: _series_metrics(f0, coef, w, n_periods) for w in ("Wb", "Wk", None)}
+    out = {"acc_y_wb_rms": m["Wb"]["rms"], "acc_y_wk_rms": m["Wk"]["rms"], "vdv_y_wb": m["Wb"]["vdv"],
+           "vdv_y_wk": m["Wk"]["vdv"], "acc_y_max": m[None]["peak"], "acc_y_rms": m[None]["rms"],
+           "crest_factor_y": m["Wb"]["peak"] / m["Wb"]["rms"], "crest_factor_y_wk": m["Wk"]["peak"] / m["Wk"]["rms"],
+           "acc_y_wb_peak": m["Wb"]["peak"], "acc_y_wk_peak": m["Wk"]["peak"]}
+    duration_s = n_periods / f0
+    thresholds = {"a8": {"action": A8_ACTION_M_S2, "limit": A8_LIMIT_M_S2},
+                  "vdv": {"action": VDV_ACTION_M_S175, "limit": VDV_LIMIT_M_S175}}
+    for w in ("wb", "wk"):
+        met = m["Wb" if w == "wb" else "Wk"]
+        for level in ("action", "limit"):
+            t_a8 = 8.0 * (thresholds["a8"][level] / met["rms"]) ** 2  # eq. 7.10-7.13
+            t_vdv = duration_s * (thresholds["vdv"][level] / met["vdv"]) ** 4 / 3600  # corrected eq. 7.14-7.17
+            out[f"t_a8_{level}_{w}_h"], out[f"t_vdv_{level}_{w}_h"] = t_a8, t_vdv
+            out[f"d_a8_{level}_{w}_km"], out[f"d_vdv_{level}_{w}_km"] = speed * t_a8, speed * t_vdv  # eq. 7.18-7.25
+    out["vel_x_avg_kmh"] = speed
+    out["stride_frequency_hz"] = f0
+    # the displacement: the drawn acceleration integrated twice, relative to the estimate's own
+    k = np.arange(1, n_k + 1)
+    pos = _real_series(-coef / (k * 2 * np.pi * f0[:, None]) ** 2, k, np.linspace(0, 2 * np.pi, 512, endpoint=False))
+    p2p = pos.max(axis=1) - pos.min(axis=1)
+    out["amplitude_y_m"] = amplitude_y_m * p2p / p2p[0] if p2p[0] > 0 else np.full_like(p2p, amplitude_y_m)
+    return out
+
+
+def ride_intervals(result, *, draws: int = 400, seed: int = 0, sources: Mapping | None = None
+                   ) -> dict[str, tuple[float, float]]:
+    """The 95 % interval (2.5th and 97.5th percentiles of the bootstrap) of every indicator of a ride.
+
+    Parameters
+    ----------
+    result : RideResult
+    draws : int
+        Bootstrap draws (400: the percentiles' own scatter is ~3 % of the width).
+    seed : int
+        The draws are seeded: the same result gives the same intervals.
+    sources : mapping, optional
+        :func:`interval_sources` (computed when not given).
+
+    Returns
+    -------
+    dict of str -> (low, high)
+        For the keys of :data:`INTERVAL_KEYS` the result's indicators hold.
+    """
+    vh, ind = result.vertical_harmonics, result.indicators
+    n_periods = int(result.params.get("n_periods") or round(ind.get("duration_s", 0) * vh.f0_hz) or 2)
+    sources = sources if sources is not None else interval_sources(result)
+    samples = bootstrap_indicators(f0_hz=float(vh.f0_hz), amplitudes_m_s2=vh.amplitudes_m_s2,
+                                   phases_rad=vh.phases_rad, n_periods=n_periods,
+                                   speed_kmh=float(ind["vel_x_avg_kmh"]), amplitude_y_m=float(ind["amplitude_y_m"]),
+                                   sources=sources, draws=draws, rng=np.random.default_rng(seed))
+    out = {}
+    for key in INTERVAL_KEYS:
+        if key not in ind or not math.isfinite(float(ind[key])):
+            continue
+        draws_k = samples[key][1:]
+        draws_k = draws_k[np.isfinite(draws_k)]
+        if draws_k.size:
+            lo, hi = np.percentile(draws_k, [2.5, 97.5])
+            # the estimate itself stays inside (percentiles of a skewed few hundred draws can miss it)
+            out[key] = (float(min(lo, ind[key])), float(max(hi, ind[key])))
+    return out
+
+
+def _band(value: float) -> int:
+    return int(np.searchsorted(COMFORT_BAND_EDGES_M_S2, value, side="right"))
+
+
+def decision_uncertainty(indicators: Mapping[str, float], intervals: Mapping[str, tuple[float, float]]
+                         ) -> str | None:
+    """Why a ride is too uncertain for a decision (a sentence), or None when it is not.
+
+    The rule (``docs/accuracy.md``): the W_b r.m.s.'s 95 % interval's half-width exceeds
+    :data:`MAX_HALF_WIDTH_FRACTION` of the value (narrower intervals never span more than one ISO 2631-1
+    comfort band edge, :data:`COMFORT_BAND_EDGES_M_S2`; checked again here for a changed threshold).
+    """
+    if "acc_y_wb_rms" not in intervals or "acc_y_wb_rms" not in indicators:
+        return "the W_b r.m.s. has no interval, so its uncertainty is unknown"
+    value = float(indicators["acc_y_wb_rms"])
+    lo, hi = intervals["acc_y_wb_rms"]
+    half = 0.5 * (hi - lo) / value if value > 0 else math.inf
+    if half > MAX_HALF_WIDTH_FRACTION:
+        return (f"the W_b r.m.s. is known only to ±{100 * half:.0f} % (95 % interval {lo:.2f}-{hi:.2f} m/s²; "
+                f"a decision needs ±{100 * MAX_HALF_WIDTH_FRACTION:.0f} %)")
+    if _band(hi) - _band(lo) > 1:
+        return (f"the W_b r.m.s.'s 95 % interval {lo:.2f}-{hi:.2f} m/s² spans more than one ISO 2631-1 comfort "
+                "band")
+    return None

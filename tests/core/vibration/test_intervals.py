@@ -1,0 +1,217 @@
+"""The indicators' 95 % intervals (core/vibration/intervals.py): the bootstrap reproduces the indicators,
+its intervals cover the truth at the stated rate when the noise model holds, and the too-uncertain rule."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from saddlescope.core.errors import VibrationError
+from saddlescope.core.types import (
+    AnalysisWindow,
+    Camera,
+    HorseMarkers,
+    MotionFrameSummary,
+    RideResult,
+    Rig,
+    SaddleKinematics,
+    SaddleRotation,
+    VerticalHarmonics,
+)
+from saddlescope.core.vibration import ride_indicators
+from saddlescope.core.vibration.intervals import (
+    COMFORT_BAND_EDGES_M_S2,
+    INTERVAL_KEYS,
+    MAX_HALF_WIDTH_FRACTION,
+    bootstrap_indicators,
+    decision_uncertainty,
+    interval_sources,
+    ride_intervals,
+)
+
+# a canter's vertical acceleration of S (m/s²), as the arena's rides give it
+F0_HZ = 1.68
+AMPS = np.array([12.9, 1.6, 2.0, 1.3, 0.05])
+PHASES = np.array([-0.71, 1.65, 3.11, 2.90, -2.03])
+ZERO = {"f0": 0.0, "gain": 0.0, "speed": 0.0, "shape": 0.0, "harmonic_m_s2": np.zeros(5)}
+
+
+def _indicators(amps=AMPS, phases=PHASES, f0=F0_HZ, speed_kmh=14.2, amplitude_y_m=0.23):
+    return ride_indicators(f0_hz=f0, acc_y_amplitudes_m_s2=amps, acc_y_phases_rad=phases, duration_s=2 / f0,
+                           speed_kmh=speed_kmh, amplitude_y_m=amplitude_y_m, stride_frequency_hz=f0)
+
+
+def _draws(sources, *, amps=AMPS, phases=PHASES, draws=400, seed=0):
+    return bootstrap_indicators(f0_hz=F0_HZ, amplitudes_m_s2=amps, phases_rad=phases, n_periods=2, speed_kmh=14.2,
+                                amplitude_y_m=0.23, sources=sources, draws=draws, rng=np.random.default_rng(seed))
+
+
+def test_the_bootstraps_first_row_is_the_indicators_themselves():
+    ind = _indicators()
+    row0 = {k: v[0] for k, v in _draws(ZERO, draws=10).items()}
+    for key in INTERVAL_KEYS:
+        # peaks on a 320-point grid against Newton-refined ones: a few parts in 10^4
+        assert row0[key] == pytest.approx(ind[key], rel=2e-4), key
+
+
+def test_without_noise_every_interval_is_the_value():
+    samples = _draws(ZERO, draws=20)
+    for key in INTERVAL_KEYS:
+        assert np.ptp(samples[key]) == pytest.approx(0.0, abs=1e-9 * abs(samples[key][0])), key
+
+
+def test_a_common_gain_moves_rms_and_vdv_alike_and_leaves_the_crest_factor():
+    samples = _draws({**ZERO, "gain": 0.05})
+    rel = samples["acc_y_wb_rms"] / samples["acc_y_wb_rms"][0]
+    assert np.std(rel) == pytest.approx(0.05, rel=0.15)
+    np.testing.assert_allclose(samples["vdv_y_wb"] / samples["vdv_y_wb"][0], rel, rtol=1e-9)
+    np.testing.assert_allclose(samples["crest_factor_y"], samples["crest_factor_y"][0], rtol=1e-9)
+    # T_A(8) goes with 1/rms², T_VDV with 1/VDV^4 (eq. 7.10-7.17)
+    np.testing.assert_allclose(samples["t_a8_action_wb_h"] / samples["t_a8_action_wb_h"][0], rel ** -2, rtol=1e-9)
+    np.testing.assert_allclose(samples["t_vdv_action_wb_h"] / samples["t_vdv_action_wb_h"][0], rel ** -4, rtol=1e-9)
+
+
+def test_the_intervals_cover_the_truth_95_percent_of_the_time_when_the_noise_model_holds():
+    """Measurements drawn from the model around a known truth: the intervals made from each measurement
+    must hold the truth in 90-99 % of 150 trials (the nonlinear indicators included)."""
+    rng = np.random.default_rng(11)
+    sources = {"f0": 0.002, "gain": 0.04, "speed": 0.005, "shape": 0.03, "harmonic_m_s2": np.full(5, 0.15)}
+    truth = _indicators()
+    keys = ("acc_y_wb_rms", "vdv_y_wb", "crest_factor_y", "acc_y_max", "t_vdv_action_wb_h", "amplitude_y_m")
+    hits = {k: 0 for k in keys}
+    trials = 150
+    for trial in range(trials):
+        # one measurement: the truth seen through the noise model
+        coef = AMPS * np.exp(1j * PHASES)
+        z = rng.standard_normal(3 + 4 * AMPS.size)
+        c = (coef * (1 + sources["gain"] * z[0] + sources["shape"] * (z[3:8] + 1j * z[8:13]) / np.sqrt(2))
+             + 0.15 * (z[13:18] + 1j * z[18:23]))
+        f0 = F0_HZ * (1 + sources["f0"] * z[1])
+        est = {"amps": np.abs(c), "phases": np.angle(c), "f0": f0}
+        samples = bootstrap_indicators(f0_hz=est["f0"], amplitudes_m_s2=est["amps"], phases_rad=est["phases"],
+                                       n_periods=2, speed_kmh=14.2, amplitude_y_m=0.23, sources=sources, draws=200,
+                                       rng=np.random.default_rng(trial))
+        for k in keys:
+            lo, hi = np.percentile(samples[k][1:], [2.5, 97.5])
+            hits[k] += lo <= truth[k] <= hi
+    for k in keys:
+        # the displacement's truth here is the estimate's own scale (0.23 m): it checks the spread only
+        if k == "amplitude_y_m":
+            continue
+        assert 0.90 <= hits[k] / trials <= 0.99, (k, hits[k] / trials)
+
+
+def test_the_same_result_gives_the_same_intervals_and_the_estimate_lies_inside():
+    result = _result()
+    sources = {**ZERO, "gain": 0.03, "f0": 0.001, "speed": 0.004, "harmonic_m_s2": np.full(5, 0.05)}
+    a = ride_intervals(result, sources=sources)
+    b = ride_intervals(result, sources=sources)
+    assert a == b
+    assert set(a) == set(INTERVAL_KEYS)
+    for key, (lo, hi) in a.items():
+        assert lo <= result.indicators[key] <= hi, key
+        assert lo < hi, key
+
+
+def test_interval_sources_reads_what_the_result_knows():
+    result = _result(square_error_pct=0.5, outside={"left": 0.4, "middle": 0.02})
+    src = interval_sources(result, depth_anisotropy=40.0)
+    parts = src["gain_parts"]
+    assert parts["calibration_scale"] == pytest.approx(0.005)
+    assert parts["depth_roll"] > 0  # depth 40 times worse than image position: roll unseen
+    assert parts["lens_extrapolated"] == pytest.approx(0.08)  # 40 % of one camera's detections outside, squared
+    assert src["gain"] >= parts["lens_extrapolated"]
+    # the fits' 95 % half-width 0.0004 m of each coefficient, times (kω)²
+    omega = 2 * np.pi * F0_HZ
+    k = np.arange(1, 4)
+    np.testing.assert_allclose(src["harmonic_m_s2"][:3], 0.0004 / 1.959963984540054 * (k * omega) ** 2, rtol=1e-6)
+    assert np.all(src["harmonic_m_s2"][3:] == 0)  # beyond the fits' order
+    assert interval_sources(result, depth_anisotropy=2.0)["gain_parts"]["depth_roll"] == 0.0
+    # one camera cannot fix depth at all; motion capture (no cameras) measures positions directly
+    assert interval_sources(result)["gain_parts"]["depth_roll"] > 0
+    mocap = replace(result, rig=Rig(cameras={}))
+    assert interval_sources(mocap)["gain_parts"]["depth_roll"] == 0.0
+    # the share read from an older result's flag sentence when the number is absent
+    old = _result(outside=None, flags=["the left camera saw the markers outside the region the calibration board "
+                                       "covered in 31 % of its detections: its lens distortion is extrapolated"])
+    assert interval_sources(old, depth_anisotropy=2.0)["outside_board_share"] == pytest.approx(0.31)
+
+
+def test_a_ride_with_much_of_its_crossing_beyond_the_board_is_too_uncertain():
+    result = _result(outside={"left": 0.4})
+    intervals = ride_intervals(result, sources=interval_sources(result, depth_anisotropy=2.0))
+    reason = decision_uncertainty(result.indicators, intervals)
+    assert reason is not None and "W_b r.m.s. is known only to" in reason
+    good = _result(outside={"left": 0.02})
+    assert decision_uncertainty(good.indicators, ride_intervals(
+        good, sources=interval_sources(good, depth_anisotropy=2.0))) is None
+
+
+def test_the_too_uncertain_rule():
+    ind = {"acc_y_wb_rms": 1.0}
+    edge = MAX_HALF_WIDTH_FRACTION
+    assert decision_uncertainty(ind, {"acc_y_wb_rms": (1 - 0.9 * edge, 1 + 0.9 * edge)}) is None
+    assert "±11 %" in decision_uncertainty(ind, {"acc_y_wb_rms": (1 - 1.1 * edge, 1 + 1.1 * edge)})
+    assert "no interval" in decision_uncertainty({"acc_y_wb_rms": 1.0}, {})
+
+
+def test_an_interval_narrow_enough_never_spans_more_than_one_comfort_band():
+    """docs/accuracy.md: the width rule implies the band rule, since a ±10 % interval spans a ratio of
+    1.1 / 0.9 and ISO 2631-1's band edges two apart differ by more."""
+    edges = np.array(COMFORT_BAND_EDGES_M_S2)
+    widest = (1 + MAX_HALF_WIDTH_FRACTION) / (1 - MAX_HALF_WIDTH_FRACTION)
+    assert np.all(edges[2:] / edges[:-2] > widest)
+    assert np.all(edges[1:] / edges[:-1] > widest)  # it spans at most one edge
+
+
+def test_bad_input_is_refused_with_what_was_expected():
+    with pytest.raises(VibrationError, match="one length"):
+        _draws(ZERO, amps=AMPS[:3])
+    with pytest.raises(VibrationError, match="draws >= 10"):
+        _draws(ZERO, draws=3)
+    with pytest.raises(VibrationError, match="sources lack gain"):
+        _draws({k: v for k, v in ZERO.items() if k != "gain"})
+    with pytest.raises(VibrationError, match="harmonic_m_s2"):
+        _draws({**ZERO, "harmonic_m_s2": np.zeros(2)})
+
+
+def _fit_y(order: int = 3, half_width_m: float = 0.0004) -> dict:
+    a = [0.01] * order
+    return {"kind": "FourierFit", "omega_rad_s": 2 * np.pi * F0_HZ, "a": a, "b": a, "trend": [0.0],
+            "ci95": {"a": [[v - half_width_m, v + half_width_m] for v in a],
+                     "b": [[v - half_width_m, v + half_width_m] for v in a],
+                     "omega_rad_s": [2 * np.pi * F0_HZ * 0.999, 2 * np.pi * F0_HZ * 1.001]}}
+
+
+def _fit_x(speed_m_s: float = 3.95) -> dict:
+    return {"kind": "FourierFit", "trend": [speed_m_s], "ci95": {"trend": [[speed_m_s - 0.005, speed_m_s + 0.005]]}}
+
+
+def _result(*, square_error_pct: float = 0.2, outside: dict | None = None, flags: list | None = None) -> RideResult:
+    n = 8
+    cam = Camera("left", np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]]), np.zeros(5), (640, 480))
+    quality = {"flags": list(flags or []), "saddle_acceleration_spread_m_s2_median": 0.1}
+    if outside is not None:
+        quality["markers_outside_board_fraction"] = outside
+    rng = np.random.default_rng(0)
+    return RideResult(
+        fps=30.0, gait="canter", direction="CCW",
+        rig=Rig(cameras={"left": cam}, checks={"board_square_error_pct": square_error_pct}),
+        sync_offsets={"motion": {"left": 0.0}}, period_s=1 / F0_HZ,
+        window=AnalysisWindow(start_s=1.0, duration_s=2 / F0_HZ, start_frame=30, frames=n),
+        saddle=SaddleKinematics(t_s=np.arange(n) / 30, position_m=rng.normal(size=(n, 3)),
+                                velocity_m_s=rng.normal(size=(n, 3)), acceleration_m_s2=rng.normal(size=(n, 3)),
+                                acceleration_spread_m_s2=np.full(n, 0.1), body_coordinates_m=np.zeros(3)),
+        angular=SaddleRotation(omega_rad_s=np.zeros((n, 3)), alpha_rad_s2=np.zeros((n, 3)), singularity_index=0.5,
+                               singularity_index_per_frame=np.zeros(n), omega_versions_rad_s=np.zeros((n, 6, 3)),
+                               omega_versions_excluded=np.zeros((n, 6), bool), omega_spread_rad_s=np.zeros((n, 3)),
+                               method="lsq_wiener"),
+        markers=HorseMarkers(names=("M1", "M2", "M3"), position_m=np.zeros((n, 3, 3)), velocity_m_s=np.zeros((n, 3, 3)),
+                             acceleration_m_s2=np.zeros((n, 3, 3)), rigidity_residual_mm=np.zeros(n),
+                             fits={"x": [_fit_x()] * 3, "y": [_fit_y()] * 3, "z": []}),
+        motion_frame=MotionFrameSummary(R_rig_to_motion=np.eye(3), origin_mm=np.array([0.0, 0.0, 7000.0]),
+                                        gravity_source="plumb"),
+        vertical_harmonics=VerticalHarmonics(f0_hz=F0_HZ, amplitudes_m_s2=AMPS, phases_rad=PHASES),
+        indicators=_indicators(), quality=quality, params={"n_periods": 2}, timings_s={"total": 1.0})

@@ -1,0 +1,46 @@
+"""The ride page and the report in Debian's chromium show each indicator's 95 % interval, and a ride too
+uncertain for a decision says so above its numbers (issue 27). The seeded server and browser are
+tests/e2e/test_ride_page.py's (imported, not copied)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import test_dashboard
+import test_ride_page
+from test_dashboard import _ok, api_client, result_document, sign_in, store_result
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+sync_playwright_factory = test_dashboard.sync_playwright_factory
+browser = test_dashboard.browser
+page = test_dashboard.page
+dashboard = test_ride_page.dashboard
+
+REASON = "the W_b r.m.s. is known only to ±14 % (95 % interval 3.52-4.63 m/s²; a decision needs ±10 %)"
+
+
+def test_intervals_and_the_too_uncertain_verdict_are_shown(page, dashboard):
+    doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(12))
+    value = doc["indicators"]["acc_y_wb_rms"]
+    doc["indicators_interval_95"] = {"acc_y_wb_rms": [0.86 * value, 1.13 * value],
+                                     "t_a8_action_wb_h": [0.5 * doc["indicators"]["t_a8_action_wb_h"], None]}
+    doc["quality"]["decision"] = {"too_uncertain": True, "reason": REASON}
+    doc["quality"]["flags"] += [f"too uncertain for a decision: {REASON}; it is left out of leaderboards unless "
+                                "asked for"]
+    with api_client(dashboard) as api:
+        created = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Bella"],
+                                                   "rider_id": dashboard["riders"][0], "gait": "canter",
+                                                   "direction": "CW", "ridden_on": "2026-05-03"}))
+    store_result(dashboard["database_url"], dashboard["storage_dir"], created["id"], doc)
+    sign_in(page)
+    page.goto(f"/#/rides/{created['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    card = page.locator('[data-ci="acc_y_wb_rms"]').inner_text()
+    assert card.startswith("95 % interval ") and "m/s" in card
+    assert "∞" in page.locator('[data-ci="t_a8_action_wb_h"]').inner_text()
+    assert "Too uncertain for a decision" in page.locator('[data-decision="too-uncertain"]').inner_text()
+    assert page.locator('[data-quality-notes] [data-code="indicators.too_uncertain"]').count() == 1
+    page.goto(f"/api/rides/{created['id']}/report")
+    assert "Too uncertain for a decision" in page.locator('[data-decision="too-uncertain"]').inner_text()
+    assert page.locator('[data-ci="acc_y_wb_rms"]').inner_text().startswith("95 %: ")
