@@ -65,23 +65,8 @@ def _write_json(data: dict, out: str | None) -> None:
         print(text)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND  # lazily, as the commands
-
-    p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    s = sub.add_parser("demo", help="make a synthetic ride if none exists, process it, serve the dashboard")
-    s.add_argument("--no-serve", action="store_true", help="process, print the indicators as JSON, exit")
-    s.add_argument("--host", default="127.0.0.1")
-    s.add_argument("--port", type=int, default=8000)
-
-    s = sub.add_parser("serve", help="the API and the dashboard")
-    s.add_argument("--host", default="127.0.0.1")
-    s.add_argument("--port", type=int, default=8000)
-
-    sub.add_parser("worker", help="a Celery worker (needs SADDLESCOPE_BROKER_URL)")
-
+def _add_synth_parser(sub) -> None:
+    """`saddlescope synth`: its options (the arena's rigs, gaits, skin, frame clocks, flash)."""
     s = sub.add_parser("synth", help="write a synthetic ride bundle with truth.json")
     s.add_argument("out", help="output folder")
     s.add_argument("--gait", default="canter", choices=["walk", "sitting_trot", "rising_trot", "canter"])
@@ -101,6 +86,26 @@ def build_parser() -> argparse.ArgumentParser:
                         "dropped frames, each frame stamped with its instant")
     s.add_argument("--no-flash", action="store_true",
                    help="no sync flash in the clips: the cameras are synchronised from the markers' motion")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND  # lazily, as the commands
+
+    p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    s = sub.add_parser("demo", help="make a synthetic ride if none exists, process it, serve the dashboard")
+    s.add_argument("--no-serve", action="store_true", help="process, print the indicators as JSON, exit")
+    s.add_argument("--host", default="127.0.0.1")
+    s.add_argument("--port", type=int, default=8000)
+
+    s = sub.add_parser("serve", help="the API and the dashboard")
+    s.add_argument("--host", default="127.0.0.1")
+    s.add_argument("--port", type=int, default=8000)
+
+    sub.add_parser("worker", help="a Celery worker (needs SADDLESCOPE_BROKER_URL)")
+
+    _add_synth_parser(sub)
 
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
     s.add_argument("ride")

@@ -40,6 +40,15 @@ def _clip_kinds(clips: ClipReader, rig: Rig | None) -> list[str]:
     return [k for k in kinds if k != "calibration"] if rig is not None else kinds
 
 
+def _motion_clip_sync(clips: ClipReader, rig: Rig, n_horse: int, params: PipelineParams, clocks: Mapping,
+                      progress: Progress):
+    """The motion clip's offsets from the markers' own motion (no flash), timed as ``sync_motion``."""
+    t0 = time.perf_counter()
+    found = motion_sync(clips, rig, "motion", n_horse, params, clocks=clocks.get("motion"))
+    progress.timings_s["sync_motion"] = round(time.perf_counter() - t0, 4)
+    return found
+
+
 def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
                  rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
                  input_flags: Sequence[str] = ()) -> RideResult:
@@ -89,10 +98,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
             synced["calibration"] = calib_report.pop("sync")
     progress.finish("calibration", t0)
     if methods.get("motion") == "motion":  # no flash: the markers' motion, with the rig just calibrated
-        t0 = time.perf_counter()
-        synced["motion"] = motion_sync(clips, rig, "motion", int(markers.get("horse", 3)), params,
-                                       clocks=clocks.get("motion"))
-        progress.timings_s["sync_motion"] = round(time.perf_counter() - t0, 4)
+        synced["motion"] = _motion_clip_sync(clips, rig, int(markers.get("horse", 3)), params, clocks, progress)
     for kind, found_sync in synced.items():
         offsets[kind] = dict(found_sync.offsets)
         clock_flags.append(sync_flag(kind, found_sync))

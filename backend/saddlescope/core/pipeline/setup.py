@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 
 import cv2
@@ -244,8 +244,6 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         ``n_views`` and ``board_coverage`` (image hull, share of the image) per camera; with
         ``sync_from_board`` also ``sync`` (:class:`~saddlescope.core.sync_motion.MotionSync`).
     """
-    from concurrent.futures import ThreadPoolExecutor, as_completed
-
     cams = clips.cameras("calibration")
     fps = clips.fps("calibration", cams[0])
     # The board is tracked from frame to frame, which costs little: look at every frame by default (sampling
@@ -273,13 +271,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     # One thread per camera: decoding (PyAV) and the board search (OpenCV) release the GIL. Each camera's
     # views depend on its clip alone, so the result does not depend on the threads' timing; progress is
     # reported from this thread.
-    with ThreadPoolExecutor(max_workers=len(cams)) as pool:
-        jobs = {pool.submit(board_views, cam): cam for cam in cams}
-        for done, job in enumerate(as_completed(jobs), 1):
-            job.result()
-            if progress is not None:
-                progress.stage("calibration", 0.6 * done / len(cams))
-    found = {cam: job.result() for job, cam in jobs.items()}
+    found = _per_camera_in_threads(cams, board_views, progress)
     board_sync = None
     if sync_from_board:
         board_sync = motion_offsets({c: board_track(found[c][0], board) for c in cams}, fps, clocks=clocks,
@@ -300,6 +292,19 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     if board_sync is not None:
         report["sync"] = board_sync
     return rig, report
+
+
+def _per_camera_in_threads(cams: list[str], work: Callable[[str], tuple], progress: Progress | None) -> dict:
+    """``work(cam)`` for every camera in a pool of one thread per camera, reporting progress from this thread."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    with ThreadPoolExecutor(max_workers=len(cams)) as pool:
+        jobs = {pool.submit(work, cam): cam for cam in cams}
+        for done, job in enumerate(as_completed(jobs), 1):
+            job.result()
+            if progress is not None:
+                progress.stage("calibration", 0.6 * done / len(cams))
+    return {cam: job.result() for job, cam in jobs.items()}
 
 
 def board_track(views: list, board: Board) -> ImageTracks:
