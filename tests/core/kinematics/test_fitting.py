@@ -225,6 +225,7 @@ def test_trend_and_fourier_x_model():
     assert np.all(linear.acceleration_m_s2[:, :, 0] == 0.0)  # the thesis's straight line
 
 
+@pytest.mark.slow
 def test_the_markers_share_the_order_their_centroid_needs():
     """A canter's fourth harmonic is under a millimetre yet weighs in the acceleration (k² = 16):
     each marker's series drops it in its own noise, the markers' centroid (noise averaged over three)
