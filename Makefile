@@ -46,10 +46,11 @@ lint: install
 	$(BIN)/ruff check backend worker tests
 	$(BIN)/lint-imports --config pyproject.toml
 
-# Two pytest-xdist workers, each test file whole on one worker (--dist loadfile): a module's server,
-# ride or database is built once. On the 2-core machine the two overlap one test's waiting (servers,
-# browser, broker, PostgreSQL) with another's computing. TEST_WORKERS=0 runs in one process.
-TEST_WORKERS ?= 2
+# TEST_WORKERS=2: two pytest-xdist workers, each test file whole on one worker (--dist loadfile: a
+# module's server, ride or database is built once), to overlap one test's waiting (servers, browser,
+# broker) with another's computing. One process by default: on a busy shared machine two workers
+# measured slower (no idle core to fill); measure both on the CI machine before changing it.
+TEST_WORKERS ?= 0
 
 test: install system-deps lint
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
