@@ -25,3 +25,25 @@ def real_data_path(*parts: str) -> Path:
 @pytest.fixture
 def real_data():
     return real_data_path
+
+
+# --- pytest-xdist (`make test` runs the suite on two workers, --dist loadfile) ------------------------
+# Each worker collects the services its tests used (integration_services.report_service); they are
+# handed to the controller, whose terminal summary names them as a single-process run does.
+
+_SERVICES_KEY = "saddlescope_services"
+
+
+def pytest_sessionfinish(session):
+    config = session.config
+    if hasattr(config, "workeroutput"):  # an xdist worker
+        plugin = config.pluginmanager.get_plugin("saddlescope-service-report")
+        config.workeroutput[_SERVICES_KEY] = list(plugin.lines) if plugin is not None else []
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    from integration_services import report_service
+
+    for line in getattr(node, "workeroutput", {}).get(_SERVICES_KEY, []):
+        report_service(node.config, line)

@@ -9,13 +9,16 @@ not collide, and a summary at the end of the run names the services the tests re
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
 import secrets
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -252,14 +255,31 @@ def celery_worker(request, pg_database_url, redis_url, tmp_path_factory):
 # --- a tiny synthetic ride (real H.264 clips with markers, flash, board) ----------------------------
 
 
+def built_once_per_run(tmp_path_factory, name: str, build: Callable[[Path], object]) -> Path:
+    """The folder `<run's temp root>/<name>`, made by `build(folder)` for the first test asking for it.
+
+    A session fixture assigned into several modules is a fixture of each module (pytest runs it once
+    per module), and each pytest-xdist worker is a session of its own: the folder is shared through
+    the run's temporary root under a lock instead. Tests must treat it as read-only."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # xdist: the run's root
+    folder, done = root / name, root / f"{name}.built"
+    with (root / f"{name}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # another worker may be building it: wait for it
+        if not done.exists():
+            shutil.rmtree(folder, ignore_errors=True)  # a build that failed half-way
+            build(folder)
+            done.touch()
+    return folder
+
+
 @pytest.fixture(scope="session")
 def tiny_ride(tmp_path_factory) -> Path:
-    """A short synthetic ride bundle (2.5 s, 20 calibration poses, no extras), written once per session."""
+    """A short synthetic ride bundle (2.5 s, 20 calibration poses, no extras), written once per run."""
     from saddlescope.io.synth_writer import write_ride_bundle
 
-    folder = tmp_path_factory.mktemp("tiny-ride") / "ride"
-    write_ride_bundle(folder, gait="canter", seed=3, duration_s=2.5, calibration_poses=20, extras=False)
-    return folder
+    return built_once_per_run(tmp_path_factory, "tiny-ride", lambda folder: write_ride_bundle(
+        folder / "ride", gait="canter", seed=3, duration_s=2.5, calibration_poses=20, extras=False)) / "ride"
 
 
 # --- tiny inputs ----------------------------------------------------------------------------------

@@ -4,12 +4,13 @@ rides, whose clips came out too short for two strides), and a perfect analysis r
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
 
 from saddlescope import bench
-from saddlescope.arena import build_scene, build_truth
+from saddlescope.arena import RenderOptions, build_scene, build_truth
 
 
 def test_every_ride_of_the_accuracy_loop_gets_the_clip_length_asked_for(monkeypatch, tmp_path):
@@ -17,8 +18,9 @@ def test_every_ride_of_the_accuracy_loop_gets_the_clip_length_asked_for(monkeypa
 
     def write_ride_bundle(ride, *, gait, seed, rig, duration_s=None, extras=True, options=None):
         asked.append((gait, duration_s))
-        scene = build_scene(gait=gait, seed=seed, rig=rig, duration_s=duration_s, extras=False,
-                            calibration_poses=4, options=options)
+        # nothing is rendered here: no textured backgrounds (truth.json does not depend on them)
+        scene = build_scene(gait=gait, seed=seed, rig=rig, duration_s=duration_s, extras=False, calibration_poses=4,
+                            options=dataclasses.replace(options or RenderOptions(), textured_background=False))
         ride.mkdir(parents=True)
         (ride / "truth.json").write_text(json.dumps(build_truth(scene)))
         return ride

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from saddlescope.bench.similarity import _auc, retrieval, synthetic_ride
 
@@ -19,6 +20,7 @@ def test_recordings_differ_in_start_length_and_pace_but_not_in_horse():
     assert abs(a["period_s"] / b["period_s"] - 1) < 0.2
 
 
+@pytest.mark.slow
 def test_small_retrieval_reports_every_measure_side_by_side():
     res = retrieval(horses=2, gaits=("walk", "canter"))
     assert res["rides"] == 8 and res["ranking_measure"] == "dtw"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
@@ -194,11 +195,7 @@ def test_a_marker_lost_at_the_acceleration_peak_costs_nothing(lost_marker):
     # saddle's vertical acceleration peaks: the gap is bridged for the registration but neither the
     # fits nor the travel direction take the bridged samples as measurements (before: 10.8 % error
     # with marker 1 lost, its bridged peak tilted the x axis; 7.2 % with marker 2).
-    from saddlescope.arena import RenderOptions, build_scene, build_truth
-
-    scene = build_scene(gait="canter", seed=7, rig="thesis", extras=False, calibration_poses=4,
-                        options=RenderOptions(skin_motion="none"))
-    truth = json.loads(json.dumps(build_truth(scene)))
+    truth = json.loads(_rigid_marker_truth_json("canter", 7))
     tt, fps = truth["truth"], truth["fps"]
     marks = {k: np.asarray(tt["markers_3d_mm"][k], float) for k in ("motion", "static", "plumb")}
     first, last = tt["clips"]["motion"]["markers_in_view_left_frames"]
@@ -221,14 +218,21 @@ def test_a_marker_lost_at_the_acceleration_peak_costs_nothing(lost_marker):
     assert err < 0.01
 
 
-def _exact_marker_ride(gait: str, seed: int):
-    """Exact markers of a synthetic thesis-rig ride without skin motion: (truth, frames, tracks of the
-    motion, static and plumb clips as arrays)."""
+@functools.cache
+def _rigid_marker_truth_json(gait: str, seed: int) -> str:
+    """truth.json of a synthetic thesis-rig ride without skin motion, drawn once per gait and seed
+    (each caller loads its own copy); no textured backgrounds: truth.json does not depend on them."""
     from saddlescope.arena import RenderOptions, build_scene, build_truth
 
     scene = build_scene(gait=gait, seed=seed, rig="thesis", extras=False, calibration_poses=4,
-                        options=RenderOptions(skin_motion="none"))
-    truth = json.loads(json.dumps(build_truth(scene)))
+                        options=RenderOptions(skin_motion="none", textured_background=False))
+    return json.dumps(build_truth(scene))
+
+
+def _exact_marker_ride(gait: str, seed: int):
+    """Exact markers of a synthetic thesis-rig ride without skin motion: (truth, frames, tracks of the
+    motion, static and plumb clips as arrays)."""
+    truth = json.loads(_rigid_marker_truth_json(gait, seed))
     marks = {k: np.asarray(truth["truth"]["markers_3d_mm"][k], float) for k in ("motion", "static", "plumb")}
     first, last = truth["truth"]["clips"]["motion"]["markers_in_view_left_frames"]
     return truth, np.arange(first, last + 1), marks

@@ -51,6 +51,7 @@ def _rms(a, b):
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
 
 
+@pytest.mark.slow
 def test_tracking_follows_a_slowly_moving_board_as_accurately_as_detection():
     rng = np.random.default_rng(1)
     # 0.2 px a frame to the right and a slow turn: still enough for tracking, never re-detected

@@ -167,6 +167,7 @@ def test_synthetic_thesis_rig_ninety_poses():
     assert abs(np.linalg.norm(rig.pairs["left-right"]["t_mm"]) - baseline_mm) < 5
 
 
+@pytest.mark.slow
 def test_principal_points_moved_together_by_the_joint_adjustment_are_flagged(monkeypatch):
     # Board held in a band across the images: a common shift of every principal point and a common
     # tilt of the rig fit almost equally, and a hundredth of a pixel of disagreement between the
@@ -323,6 +324,7 @@ def test_bad_corner_ids_are_rejected():
         calibrate_intrinsics(bad, board, (640, 480), camera="left")
 
 
+@pytest.mark.slow
 def test_an_action_camera_lens_gets_its_k3_from_a_board_in_the_middle_of_the_view():
     # 90-degree lenses 5.5 m from the track, 1920x1080, strong barrel distortion; the 0.6 m board
     # covers the middle of each view, as a club would move it. From OpenCV's distortion-free

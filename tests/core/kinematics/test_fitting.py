@@ -109,6 +109,7 @@ def test_confidence_intervals_cover_the_truth_when_the_noise_is_correlated():
     assert np.mean(lag1) == pytest.approx(0.5, abs=0.05)
 
 
+@pytest.mark.slow
 def test_correlated_noise_does_not_pass_for_a_harmonic():
     """A walk's vertical (second harmonic) with noise correlated over frames: the textbook AICc
     takes a third harmonic made of noise about a third of the time, the default one seldom more
@@ -225,6 +226,7 @@ def test_trend_and_fourier_x_model():
     assert np.all(linear.acceleration_m_s2[:, :, 0] == 0.0)  # the thesis's straight line
 
 
+@pytest.mark.slow
 def test_the_markers_share_the_order_their_centroid_needs():
     """A canter's fourth harmonic is under a millimetre yet weighs in the acceleration (k² = 16):
     each marker's series drops it in its own noise, the markers' centroid (noise averaged over three)

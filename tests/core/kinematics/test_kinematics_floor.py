@@ -16,6 +16,7 @@ from saddlescope.bench import kinematics_floor
 BOUNDS = {"walk": (13.0, 12.0), "sitting_trot": (4.5, 4.0), "rising_trot": (4.5, 4.0), "canter": (6.5, 5.5)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rig", ["thesis", "wide"])
 def test_exact_markers_give_the_saddle_within_the_skin_motion_floor(rig):
     floor = kinematics_floor(rig=rig, seeds=(1, 2, 3))
@@ -40,6 +41,7 @@ def test_exact_markers_give_the_saddle_within_the_skin_motion_floor(rig):
 NOISE_BOUNDS = {"walk": (6.5, 4.5), "sitting_trot": (3.0, 2.0), "rising_trot": (3.0, 2.0), "canter": (3.5, 3.5)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rig", ["thesis", "wide"])
 def test_skin_noise_alone_is_rejected_far_better_than_stride_locked_sliding(rig):
     # Random sliding is what registration and the fits average out; what is locked to the stride
@@ -51,6 +53,7 @@ def test_skin_noise_alone_is_rejected_far_better_than_stride_locked_sliding(rig)
         assert floor[gait]["acc_y_rms_error_pct_mean"] < 0.6 * BOUNDS[gait][0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rig", ["thesis", "wide"])
 def test_markers_fixed_to_the_saddle_give_the_exact_answer(rig):
     # No skin motion: every stage from the markers to the indicators is exact up to the fits'
@@ -69,6 +72,7 @@ def test_markers_fixed_to_the_saddle_give_the_exact_answer(rig):
             assert 1.5 < row["acc_y_rms_error_pct_rig_mean"] < 6.0, (gait, row)
 
 
+@pytest.mark.slow
 def test_fitting_every_tracked_stride_beats_the_window_alone():
     # Skin wobble that is not locked to the stride averages out over more strides (walk, where it
     # weighs most against the gentle vertical motion).
@@ -82,6 +86,7 @@ def test_fitting_every_tracked_stride_beats_the_window_alone():
     assert err["run"] < 0.9 * err["window"]
 
 
+@pytest.mark.slow
 def test_a_marker_set_below_the_row_fixes_the_roll_that_random_sliding_hides():
     # The README's advice: one marker about 10 cm below the line of the others. With random sliding
     # only, the near row reads part of its roll from the noise and the Wiener gain drops real roll

@@ -153,7 +153,8 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
     assert np.sqrt(np.mean((acc - exact) ** 2)) < 0.10 * np.sqrt(np.mean(exact ** 2))
 
 
-def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, monkeypatch):
+@pytest.mark.slow
+def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, analysed, monkeypatch):
     # A club re-taped the lowest marker 12 cm further along after filming the static shot: the tracked
     # triangle no longer matches the static one and no search finds one that does. The ride is still
     # measured, and the result says what to check.
@@ -171,12 +172,14 @@ def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, monkeypatch
 
     monkeypatch.setattr(detection, "static_positions", moved)
     monkeypatch.setattr(S, "static_positions", moved)
-    result = analyze_bundle(short_ride)
+    # the same ride's calibration, from the CLI's analysis: what is under test comes after it
+    result = analyze_bundle(short_ride, rig=rig_from_dict(analysed[0]["calibration"]))
     flags = " ".join(result["quality"]["flags"])
     assert "off the static shot's marker distances and no closer triangle was found" in flags
     assert "found again with all cameras" not in flags
 
 
+@pytest.mark.slow
 def test_a_plumb_line_leaning_far_from_the_cameras_vertical_is_not_taken_for_gravity(short_ride, analysed,
                                                                                       monkeypatch):
     # One camera took the end of the plumb's string for its lower marker: triangulated, the line leans
@@ -198,13 +201,14 @@ def test_a_plumb_line_leaning_far_from_the_cameras_vertical_is_not_taken_for_gra
     from saddlescope.services.analysis import analyze_bundle
 
     monkeypatch.setattr(detection, "triangulate_tracks", leaning)
-    result = analyze_bundle(short_ride)
+    result = analyze_bundle(short_ride, rig=rig_from_dict(analysed[0]["calibration"]))  # calibration as analysed
     flags = " ".join(result["quality"]["flags"])
     assert "plumb clip not used: the plumb line found leans" in flags
     assert result["quality"]["gravity_source"] != "plumb"
     assert result["quality"]["angle_travel_gravity_deg"] == pytest.approx(90.0, abs=5.0)
 
 
+@pytest.mark.slow
 def test_a_plumb_line_one_camera_cannot_see_is_triangulated_from_the_other_two(short_ride, analysed):
     # The plumb line hangs at the end of the arena, outside the right camera's view (its markers are
     # erased from that camera's frames; the sync flash is still seen). Gravity comes from the left and

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pytest
 
 from saddlescope.core.similarity import (
     chain_code_3d,
@@ -36,6 +37,7 @@ def test_corner_ties_give_the_same_chain_for_a_quarter_turn():
         assert np.array_equal(chain_code_3d(path @ quarter.T, step=1.0, walk=walk), ref)
 
 
+@pytest.mark.slow
 def test_lattice_walk_with_many_ties_is_the_same_under_the_24_grid_rotations():
     rng = np.random.default_rng(4)
     path = np.cumsum(rng.integers(-1, 2, size=(300, 3)), axis=0).astype(float)  # diagonal moves: ties
