@@ -25,6 +25,9 @@ Every variable starts with ``SADDLESCOPE_``:
 ``SADDLESCOPE_LOGIN_MAX_FAILURES`` / ``SADDLESCOPE_LOGIN_LOCKOUT_S``
     Failed sign-ins per account (and, times four, per client address) before sign-in is locked for
     the lock-out time.
+``SADDLESCOPE_WORKER_THREADS``
+    Threads one analysis may use (its camera threads, PyAV's decoders, OpenCV). Unset: the CPUs the
+    worker's cgroup quota gives it (``io.threads.default_worker_threads``), never the host's core count.
 """
 
 from __future__ import annotations
@@ -100,6 +103,8 @@ class Settings(BaseSettings):
     # POST /api/clubs open to anyone (None: open in embedded mode and for a deployment's first club)
     open_registration: bool | None = None
     code_version: str | None = None
+    # Threads of one analysis (None: the cgroup's CPU quota, see `resolved_worker_threads`).
+    worker_threads: int | None = Field(default=None, ge=1, le=256)
 
     @model_validator(mode="after")
     def _check(self) -> Settings:
@@ -143,6 +148,13 @@ class Settings(BaseSettings):
     def visibility_timeout_s(self) -> int:
         """Broker visibility timeout: longer than the longest job, hence than any stage (plus margin)."""
         return int(self.job_time_limit_s * 1.25) + 600
+
+    @property
+    def resolved_worker_threads(self) -> int:
+        """The analysis's thread budget: the setting, else the CPUs the worker's cgroup allows."""
+        from saddlescope.io.threads import default_worker_threads
+
+        return self.worker_threads or default_worker_threads()
 
     @property
     def resolved_code_version(self) -> str:

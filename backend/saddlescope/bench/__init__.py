@@ -1,7 +1,9 @@
 """`saddlescope bench`: speed and accuracy measured as ratios taken side by side in one run.
 
-- :mod:`.analysis`: the analysis itself (detection against decoding, calibration, whole rides against
-  their footage, accuracy against the synthetic arena's exact answers, the exact-marker floor);
+- :mod:`.analysis`: the analysis itself (detection against decoding, whole rides against decoding their
+  clips once at 640x480 and 1080p60 with each stage's share, rides per core-hour, a 2160p30 ride's peak
+  memory, calibration, whole rides against their footage, accuracy against the synthetic arena's exact
+  answers, the exact-marker floor);
 - :mod:`.service`: the web service under load (uploads, leaderboards, concurrent readers);
 - :mod:`.similarity`: motion similarity (retrieval on synthetic rides, ranking 1,000 rides, 10k-sample pairs);
 - :mod:`.dashboard`: the dashboard's time to interactive in Chromium with 10,000 rides (rides list,
@@ -11,12 +13,17 @@
 from saddlescope.bench import analysis as _analysis
 from saddlescope.bench.analysis import (
     accuracy,
+    analysis_vs_decode,
     analysis_vs_footage,
     calibration_3cams,
+    decode_once,
     detection_vs_decode,
     exact_marker_floor,
     indicator_errors_pct,
     kinematics_floor,
+    peak_rss_analysis,
+    speed_keys,
+    speed_rides,
 )
 from saddlescope.bench.coverage import run_coverage
 from saddlescope.bench.dashboard import dashboard_tti, run_dashboard_benchmarks
@@ -35,6 +42,6 @@ def run_benchmarks(*, quick: bool = False) -> dict:
     return out
 
 
-__all__ = ["TTI_KEYS", "accuracy", "analysis_vs_footage", "calibration_3cams", "dashboard_tti", "detection_vs_decode",
-           "exact_marker_floor", "indicator_errors_pct", "kinematics_floor", "run_benchmarks",
-           "run_dashboard_benchmarks"]
+__all__ = ["TTI_KEYS", "accuracy", "analysis_vs_decode", "analysis_vs_footage", "calibration_3cams", "dashboard_tti",
+           "decode_once", "detection_vs_decode", "exact_marker_floor", "indicator_errors_pct", "kinematics_floor",
+           "peak_rss_analysis", "run_benchmarks", "run_dashboard_benchmarks", "speed_keys", "speed_rides"]

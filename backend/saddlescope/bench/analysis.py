@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import platform
+import resource
 import shutil
 import tempfile
 import time
@@ -101,10 +102,11 @@ def analysis_vs_footage(tmp: Path, *, quick: bool) -> dict:
     from saddlescope.io.video import probe_video
     from saddlescope.services.analysis import analyze_bundle
 
-    ride = tmp / "ride"
+    ride = tmp / "speed_640x480"  # the ride speed_rides analysed, when it ran first (same arguments)
     t0 = time.perf_counter()
     kwargs = {"duration_s": 3.0, "calibration_poses": 40} if quick else {}
-    write_ride_bundle(ride, gait="canter", seed=1, rig="thesis", extras=False, **kwargs)
+    if not (ride / "ride.json").exists():
+        write_ride_bundle(ride, gait="canter", seed=1, rig="thesis", extras=False, **kwargs)
     synth_s = time.perf_counter() - t0
     per_set: dict[str, float] = {}
     all_clips = 0.0
@@ -119,6 +121,146 @@ def analysis_vs_footage(tmp: Path, *, quick: bool) -> dict:
     return {"ratio": wall / footage, "ratio_vs_all_camera_clips": wall / all_clips, "analysis_s": wall,
             "footage_s": footage, "all_camera_clips_s": all_clips, "synth_s": synth_s,
             "stage_timings_s": result.get("timings_s", {})}
+
+
+RIDE_KINDS = ("calibration", "plumb", "static", "motion")
+
+
+def decode_once(ride: Path, kinds=RIDE_KINDS, *, threads: int = 1) -> dict:
+    """Decode every frame of every clip of a ride once with PyAV: one thread, no conversion (the limit).
+
+    Returns ``seconds`` (wall), ``frames`` and ``clip_s`` (the clips' summed duration). ``threads`` > 1:
+    FFmpeg's frame and slice threads, to see what threaded decoding buys.
+    """
+    import av
+
+    frames = 0
+    clip_s = 0.0
+    t0 = time.perf_counter()
+    for clip in sorted(p for kind in kinds for p in (ride / kind).glob("*.mp4")):
+        with av.open(str(clip)) as container:
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            stream.thread_count = threads
+            n = sum(1 for _ in container.decode(stream))
+            frames += n
+            clip_s += n / float(stream.average_rate)
+    return {"seconds": time.perf_counter() - t0, "frames": frames, "clip_s": clip_s}
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and its threads so far (user + system)."""
+    use = resource.getrusage(resource.RUSAGE_SELF)
+    return use.ru_utime + use.ru_stime
+
+
+def analysis_vs_decode(ride: Path, *, shared_by: int = 10) -> dict:
+    """The whole analysis of ``ride`` against decoding its clips once, side by side, and its CPU cost.
+
+    ``ratio``: analysis wall time / decode_once_s; ``stage_vs_decode``: each stage's time
+    (``timings_s``) as a multiple of decode_once_s; ``vs_clip_duration``: analysis wall time / the
+    summed duration of every clip analysed. ``rides_per_core_hour``: 3600 / (cpu(calibration) /
+    ``shared_by`` + cpu(the ride with that calibration given)), CPU seconds from getrusage.
+    """
+    from saddlescope.io.rig_document import rig_from_dict
+    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.settings import get_settings
+
+    decode = decode_once(ride)
+    c0, t0 = _cpu_s(), time.perf_counter()
+    result = analyze_bundle(ride)
+    wall, cpu_whole = time.perf_counter() - t0, _cpu_s() - c0
+    decode_again = decode_once(ride)  # the limit on both sides of the analysis: load drifts hit both
+    decode_s = min(decode["seconds"], decode_again["seconds"])
+    budget = get_settings().resolved_worker_threads
+    threaded_s = decode_once(ride, threads=budget)["seconds"] if budget > 1 else decode_s
+    c0 = _cpu_s()
+    analyze_bundle(ride, rig=rig_from_dict(result["calibration"]))
+    cpu_ride = _cpu_s() - c0
+    cpu_calibration = max(0.0, cpu_whole - cpu_ride)
+    timings = dict(result.get("timings_s", {}))
+    return {"ratio": wall / decode_s, "analysis_s": wall, "decode_once_s": decode_s,
+            "decode_once_s_runs": [decode["seconds"], decode_again["seconds"]], "frames": decode["frames"],
+            "decode_threads": budget, "decode_threaded_s": threaded_s, "decode_thread_speedup": decode_s / threaded_s,
+            "clip_duration_s": decode["clip_s"], "vs_clip_duration": wall / decode["clip_s"],
+            "timings_s": timings, "stage_vs_decode": {k: v / decode_s for k, v in timings.items()},
+            "cpu_s": cpu_whole, "cpu_ride_without_calibration_s": cpu_ride, "cpu_calibration_s": cpu_calibration,
+            "rides_per_core_hour": 3600.0 / (cpu_calibration / shared_by + cpu_ride),
+            "calibration_shared_by": shared_by}
+
+
+_RSS_CHILD = """
+import resource, sys
+from saddlescope.services.analysis import analyze_bundle
+analyze_bundle(sys.argv[1])
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def peak_rss_analysis(ride: Path) -> dict:
+    """Peak resident memory (MB) of the whole analysis of ``ride`` in a child process (getrusage)."""
+    import subprocess
+    import sys
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    t0 = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", _RSS_CHILD, str(ride)], capture_output=True, text=True,
+                         check=False, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    wall = time.perf_counter() - t0
+    if out.returncode != 0:
+        tail = (out.stderr.strip().splitlines() or ["no output"])[-1]
+        return {"error": f"the analysis failed (exit {out.returncode}): {tail}"}
+    # the child's own peak (KB on Linux); RUSAGE_CHILDREN is the largest child's so far
+    peak_kb = max(int(out.stdout.strip().splitlines()[-1]), 0)
+    return {"peak_rss_mb": peak_kb / 1024.0, "children_peak_rss_mb": max(before, resource.getrusage(
+        resource.RUSAGE_CHILDREN).ru_maxrss) / 1024.0, "analysis_s": wall}
+
+
+def speed_rides(tmp: Path, *, quick: bool) -> dict:
+    """#28's keys: analysis against decoding once at 640x480 and 1920x1080@60, whole analysis against the
+    clips' duration, rides per core-hour and the peak memory of a 2160p@30 ride."""
+    from saddlescope.io.synth_writer import write_ride_bundle
+
+    out: dict = {}
+    small = {"duration_s": 3.0, "calibration_poses": 40} if quick else {}
+    rides = {"640x480": {"rig": "thesis", **small},  # the ride of analysis_vs_footage
+             "1920x1080": {"rig": "wide", **({"duration_s": 2.5, "calibration_poses": 30} if quick else {})}}
+    for name, kwargs in rides.items():
+        ride = tmp / f"speed_{name}"
+        try:
+            write_ride_bundle(ride, gait="canter", seed=1, extras=False, **kwargs)
+            out[name] = analysis_vs_decode(ride)
+        except Exception as exc:  # noqa: BLE001 - a benchmark reports every failure and goes on
+            out[name] = {"error": f"{type(exc).__name__}: {exc}"}
+        out[name]["ride"] = {k: v for k, v in kwargs.items()}
+    if not quick:
+        ride = tmp / "speed_3840x2160"
+        try:
+            write_ride_bundle(ride, gait="canter", seed=1, extras=False, rig="wide", size=(3840, 2160), fps=30.0,
+                              duration_s=3.0, calibration_poses=40)
+            out["3840x2160"] = peak_rss_analysis(ride)
+        except Exception as exc:  # noqa: BLE001
+            out["3840x2160"] = {"error": f"{type(exc).__name__}: {exc}"}
+        shutil.rmtree(ride, ignore_errors=True)
+    return out
+
+
+def speed_keys(speed: dict) -> dict:
+    """The top-level keys of ``bench --json`` from :func:`speed_rides` (None where a ride failed or was skipped)."""
+    def get(ride: str, key: str):
+        return speed.get(ride, {}).get(key)
+
+    out = {"decode_once_s": get("1920x1080", "decode_once_s"), "analysis_s": get("1920x1080", "analysis_s")}
+    for name in ("640x480", "1920x1080"):
+        out[f"decode_once_s_{name}"] = get(name, "decode_once_s")
+        out[f"analysis_s_{name}"] = get(name, "analysis_s")
+        out[f"analysis_vs_decode_{name}"] = get(name, "ratio")
+        out[f"stages_vs_decode_{name}"] = get(name, "stage_vs_decode")
+    out["whole_analysis_vs_clip_duration_1920x1080"] = get("1920x1080", "vs_clip_duration")
+    out["rides_per_core_hour_1920x1080"] = get("1920x1080", "rides_per_core_hour")
+    out["rides_per_core_hour_640x480"] = get("640x480", "rides_per_core_hour")
+    out["peak_rss_mb_2160p30"] = get("3840x2160", "peak_rss_mb")
+    return out
 
 
 def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, ...],
@@ -281,7 +423,10 @@ def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_tro
 def run_benchmarks(*, quick: bool = False) -> dict:
     """Every benchmark; keys of CONTRACTS section 3 first."""
     repeats = 2 if quick else 3
-    out: dict = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+    from saddlescope.settings import get_settings
+
+    out: dict = {"machine": {"cpus": os.cpu_count(), "worker_threads": get_settings().resolved_worker_threads,
+                             "python": platform.python_version(),
                              "load_avg_start": list(os.getloadavg())}}
     tmp = Path(tempfile.mkdtemp(prefix="saddlescope-bench-"))
     try:
@@ -293,6 +438,9 @@ def run_benchmarks(*, quick: bool = False) -> dict:
         cal = calibration_3cams(1 if quick else 2)
         out["calibration_3cams_s"] = cal["seconds"]
         out["detail_calibration"] = cal
+        speed = speed_rides(tmp, quick=quick)
+        out.update(speed_keys(speed))
+        out["detail_speed"] = speed
         ana = analysis_vs_footage(tmp, quick=quick)
         out["analysis_vs_footage"] = ana["ratio"]
         out["detail_analysis"] = ana

@@ -56,3 +56,6 @@ class PipelineParams:
     # account, "aicc_white" is the textbook AICc
     criterion: str = "aicc"
     detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
+    # threads the analysis may use in all (camera threads, decoders, OpenCV); None: one per camera as
+    # before, OpenCV's own default. The services set it from SADDLESCOPE_WORKER_THREADS (cgroup quota).
+    threads: int | None = None

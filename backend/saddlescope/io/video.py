@@ -98,22 +98,17 @@ def _open(path: Path):
 def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo:
     """Check a clip decodes and read its fps, frame count and resolution.
 
-    The frame count is counted from the packets when the container does not state it, and the last
-    frames are decoded, so a truncated file is caught here rather than half-way through a job.
+    The frames are counted from the demuxed packets (no decoding: reading a clip's packets costs a
+    small fraction of decoding them), and the last group of pictures is decoded, so a truncated file
+    is caught here rather than half-way through a job. Where the packets cannot stand for the frames
+    (no timestamps, or a count that disagrees with the container's), every frame is decoded instead.
     ``fps_hint`` is used for image folders (default 30).
     """
     path = Path(path)
     if not path.exists():
         raise VideoError(f"{path}: file not found")
     if path.is_dir():
-        files = _image_files(path)
-        if not files:
-            raise VideoError(f"{path}: folder holds no numbered images ({', '.join(sorted(IMAGE_SUFFIXES))})")
-        first = cv2.imread(str(files[0]), cv2.IMREAD_GRAYSCALE)
-        if first is None:
-            raise VideoError(f"{files[0]}: not a readable image")
-        fps = float(fps_hint or 30.0)
-        return VideoInfo(path, fps, len(files), first.shape[1], first.shape[0], "images", len(files) / fps)
+        return _probe_images(path, fps_hint)
     if path.stat().st_size == 0:
         raise VideoError(f"{path}: empty file (0 bytes)")
     with _open(path) as container:
@@ -124,21 +119,12 @@ def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo
         if not rate or float(rate) <= 0:
             raise VideoError(f"{path}: frame rate unknown")
         fps = float(rate)
-        width, height = stream.codec_context.width, stream.codec_context.height
         codec = stream.codec_context.name
-        n_decoded = 0
-        times: list[float | None] = []
-        try:
-            for frame in container.decode(stream):
-                n_decoded += 1
-                width, height = frame.width, frame.height
-                times.append(frame.time)
-        except (av.error.FFmpegError, ValueError) as exc:
-            if n_decoded == 0:
-                raise VideoError(f"{path}: no frame decodes ({exc})") from None
-            raise VideoError(f"{path}: truncated or corrupt after frame {n_decoded} ({exc})") from None
-    if n_decoded == 0:
-        raise VideoError(f"{path}: no frame decodes (empty or truncated video)")
+        counted = _count_packets(container, stream, path)
+    if counted is None:
+        n_frames, (width, height), times = _decode_all(path)
+    else:
+        n_frames, (width, height), times = counted
     if width <= 0 or height <= 0:
         raise VideoError(f"{path}: frame size unknown")
     frame_times = None
@@ -150,9 +136,98 @@ def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo
             variable, fps = frame_clock(frame_times, fps)
         else:
             frame_times = None
-    duration = float(frame_times[-1] - frame_times[0]) + 1.0 / fps if variable else n_decoded / fps
-    return VideoInfo(path, fps, n_decoded, int(width), int(height), codec, duration,
+    duration = float(frame_times[-1] - frame_times[0]) + 1.0 / fps if variable else n_frames / fps
+    return VideoInfo(path, fps, n_frames, int(width), int(height), codec, duration,
                      variable_frame_rate=variable, frame_times_s=frame_times)
+
+
+def _probe_images(path: Path, fps_hint: float | None) -> VideoInfo:
+    files = _image_files(path)
+    if not files:
+        raise VideoError(f"{path}: folder holds no numbered images ({', '.join(sorted(IMAGE_SUFFIXES))})")
+    first = cv2.imread(str(files[0]), cv2.IMREAD_GRAYSCALE)
+    if first is None:
+        raise VideoError(f"{files[0]}: not a readable image")
+    fps = float(fps_hint or 30.0)
+    return VideoInfo(path, fps, len(files), first.shape[1], first.shape[0], "images", len(files) / fps)
+
+
+def _count_packets(container, stream, path: Path, *,
+                   max_tail_s: float = 2.0) -> tuple[int, tuple[int, int], list[float]] | None:
+    """Frame count, size and presentation times (s) from the packets, the last GOP decoded; None: decode all.
+
+    One packet is one frame for the codecs phones and cameras write (H.264, HEVC, MJPEG, ...); the
+    container's own count, where it states one, must agree, and every packet must carry a timestamp.
+    A packet cut short by the end of the file is flagged corrupt by the demuxer. The last GOP is decoded
+    when it is at most ``max_tail_s`` long (phones: a keyframe every second or two); a longer one
+    (a synthetic clip's single GOP) would cost a whole decode, so then only its first frame is.
+    """
+    pts: list[int] = []
+    last_key = -1  # index (decode order) of the last keyframe packet
+    try:
+        for packet in container.demux(stream):
+            if packet.size == 0 and packet.pts is None:
+                continue  # the demuxer's flush packet
+            if packet.pts is None:
+                return None
+            if packet.is_corrupt:
+                raise VideoError(f"{path}: truncated or corrupt at frame {len(pts)} (a packet is cut short)")
+            if packet.is_keyframe:
+                last_key = len(pts)
+            pts.append(int(packet.pts))
+    except (av.error.FFmpegError, ValueError) as exc:
+        if not pts:
+            raise VideoError(f"{path}: no frame decodes ({exc})") from None
+        raise VideoError(f"{path}: truncated or corrupt after frame {len(pts)} ({exc})") from None
+    if not pts:
+        raise VideoError(f"{path}: no frame decodes (empty or truncated video)")
+    stated = int(stream.frames or 0)
+    if (stated and stated != len(pts)) or last_key < 0 or len(set(pts)) != len(pts) or stream.time_base is None:
+        return None
+    # the last group of pictures decoded from its keyframe: a cut-off or corrupt tail fails here
+    # (an open GOP's leading pictures, shown before the keyframe, need the GOP before it: not counted)
+    key_pts = pts[last_key]
+    tail = sum(p >= key_pts for p in pts[last_key:])
+    rate = float(stream.average_rate or stream.guessed_rate or 30)
+    if tail > max_tail_s * rate:
+        key_pts, tail = min(pts), 1
+    size = (0, 0)
+    n_tail = 0
+    try:
+        container.seek(key_pts, stream=stream, backward=True, any_frame=False)
+        for frame in container.decode(stream):
+            if frame.pts is not None and frame.pts >= key_pts:
+                n_tail += 1
+                size = (frame.width, frame.height)
+                if n_tail >= tail:
+                    break
+    except (av.error.FFmpegError, ValueError) as exc:
+        raise VideoError(f"{path}: truncated or corrupt near the end ({exc})") from None
+    if n_tail < tail:
+        raise VideoError(f"{path}: truncated or corrupt: only {n_tail} of the last {tail} frames decode")
+    base = float(stream.time_base)
+    return len(pts), size, [p * base for p in sorted(pts)]
+
+
+def _decode_all(path: Path) -> tuple[int, tuple[int, int], list[float | None]]:
+    """Frame count, size and presentation times from decoding every frame (clips without usable packets)."""
+    n_decoded = 0
+    size = (0, 0)
+    times: list[float | None] = []
+    with _open(path) as container:
+        stream = container.streams.video[0]
+        try:
+            for frame in container.decode(stream):
+                n_decoded += 1
+                size = (frame.width, frame.height)
+                times.append(frame.time)
+        except (av.error.FFmpegError, ValueError) as exc:
+            if n_decoded == 0:
+                raise VideoError(f"{path}: no frame decodes ({exc})") from None
+            raise VideoError(f"{path}: truncated or corrupt after frame {n_decoded} ({exc})") from None
+    if n_decoded == 0:
+        raise VideoError(f"{path}: no frame decodes (empty or truncated video)")
+    return n_decoded, size, times
 
 
 def _luma(frame) -> np.ndarray:
@@ -166,9 +241,11 @@ def _luma(frame) -> np.ndarray:
 
 
 def iter_gray_frames(path: Path | str, start: int = 0, stop: int | None = None,
-                     step: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+                     step: int = 1, *, threads: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """Yield (frame index, grey frame of shape (H, W), uint8) for frames start, start+step, ... < stop.
 
+    ``threads``: FFmpeg's decoder threads (frame and slice threading); None lets FFmpeg choose (one
+    per host core, which a container's CPU quota does not limit), 1 decodes in this thread alone.
     The yielded array may be a view into the decoder's buffer: copy it to keep it past the next
     iteration.
     """
@@ -188,6 +265,8 @@ def iter_gray_frames(path: Path | str, start: int = 0, stop: int | None = None,
             raise VideoError(f"{path}: has no video stream")
         stream = container.streams.video[0]
         stream.thread_type = "AUTO"
+        if threads is not None:
+            stream.thread_count = max(1, int(threads))
         index = -1
         try:
             for frame in container.decode(stream):

@@ -27,8 +27,15 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
 
     `meta_overrides` replace keys of the bundle's ride.json (a ride's gait edited after upload).
     """
+    params = params or PipelineParams()
+    if params.threads is None:  # the worker's budget (SADDLESCOPE_WORKER_THREADS, else its cgroup quota)
+        from dataclasses import replace
+
+        from saddlescope.settings import get_settings
+
+        params = replace(params, threads=get_settings().resolved_worker_threads)
     with open_bundle(Path(path)) as bundle:
-        clips = BundleClips(bundle.clip_paths)
+        clips = BundleClips(bundle.clip_paths, threads=params.threads)
         notes: list[str] = []
         if rig is None and bundle.calibration_file is not None:
             from saddlescope.io.bundle import read_bundle_calibration

@@ -34,7 +34,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -57,6 +57,9 @@ from saddlescope.services.rides import (
 )
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage, sha256_file, tree_digest
+
+if TYPE_CHECKING:
+    from saddlescope.io.video import VideoInfo
 
 __all__ = [
     "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobFenced", "JobKind", "STAGES", "Stage",
@@ -229,6 +232,29 @@ def run_selftest(ctx: StageContext) -> None:
         raise InputError(f"selftest job {ctx.job_id} failed on request (payload fail=true)")
 
 
+def _recorded_probe(recording) -> tuple[int, VideoInfo] | None:
+    """(size in bytes, clip facts) a recording was probed with (at upload, or by an earlier job), or None."""
+    from saddlescope.io.video import VideoInfo
+
+    r = recording
+    if r.probed_at is None or not r.sha256 or r.size_bytes is None or None in (r.fps, r.frame_count, r.width,
+                                                                               r.height):
+        return None
+    return r.size_bytes, VideoInfo(Path(r.path), float(r.fps), int(r.frame_count), int(r.width), int(r.height),
+                                   r.codec or "", r.frame_count / r.fps if r.fps else 0.0)
+
+
+def _stored_file_size(storage, key: str) -> int | None:
+    """The stored clip's size in bytes, or None where it is a folder of images (or cannot be sized)."""
+    path_of = getattr(storage, "path", None)  # the folder tree: a folder of images has no single size
+    if path_of is not None and path_of(key).is_dir():
+        return None
+    try:
+        return int(storage.size(key))
+    except (OSError, ValueError, KeyError, IsADirectoryError):
+        return None
+
+
 @stage("probe", weight=1.0)
 def run_probe(ctx: StageContext) -> None:
     """Read every clip of the ride (or rig): size, sha256, fps, frame count and frame size."""
@@ -244,15 +270,19 @@ def run_probe(ctx: StageContext) -> None:
             owner = f"rig {ctx.rig_id}"
         else:
             raise InputError(f"probe job {ctx.job_id} names neither a ride nor a rig")
-        clips = [(r.id, r.path, r.clip_kind, r.camera_role) for r in recordings]
+        clips = [(r.id, r.path, r.clip_kind, r.camera_role, _recorded_probe(r)) for r in recordings]
     if not clips:
         raise BundleError(f"{owner} has no recordings to probe")
     probed: dict[str, list] = {}
-    for i, (recording_id, key, clip_kind, camera_role) in enumerate(clips):
+    for i, (recording_id, key, clip_kind, camera_role, recorded) in enumerate(clips):
         ctx.report(i / len(clips), f"{clip_kind}/{camera_role}")
         if not ctx.storage.exists(key):
             raise BundleError(f"{owner}: {clip_kind} clip of the {camera_role} camera is missing from "
                               f"storage ({key})")
+        if recorded is not None and _stored_file_size(ctx.storage, key) == recorded[0]:
+            # probed and hashed when it was uploaded (the key names its checksum): not fetched nor read again
+            probed.setdefault(clip_kind, []).append((camera_role, recorded[1]))
+            continue
         path = ctx.fetch(key)
         if path.is_dir():
             size_bytes, sha256 = tree_digest(path)

@@ -40,7 +40,10 @@ class ClipReader(Protocol):
         """The clip's (width, height) in pixels."""
 
     def brightness(self, kind: str, camera: str) -> np.ndarray:
-        """Each frame's mean brightness, shape (F,): the sync flash is found in it."""
+        """Each frame's mean brightness, shape (F,): the sync flash is found in it.
+
+        It may cover only the first F' <= F frames: up to a settled stretch after the flash.
+        """
 
     def frame_times(self, kind: str, camera: str) -> np.ndarray | None:
         """Each frame's timestamp (F,) s for a variable-rate clip (phones), None for an even one."""

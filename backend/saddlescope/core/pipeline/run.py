@@ -9,6 +9,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 
+import cv2
+
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import InputError
 from saddlescope.core.params import PipelineParams
@@ -75,6 +77,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         ``saddlescope.io.result_document.result_to_document`` writes it as CONTRACTS section 2.
     """
     params = params or PipelineParams()
+    if params.threads is not None:
+        cv2.setNumThreads(params.threads)  # OpenCV's own pool (process-wide) within the worker's budget
     progress = Progress(on_progress)
     t_start = time.perf_counter()
     kinds = _clip_kinds(clips, rig)
@@ -82,7 +86,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
 
     t0 = time.perf_counter()
     progress.stage("sync", 0.0)
-    offsets, first_frame, methods = synchronise_clips(clips, meta, kinds)
+    offsets, first_frame, methods = synchronise_clips(clips, meta, kinds, threads=params.threads)
     clocks, clock_flags = frame_clocks(clips, kinds)
     progress.finish("sync", t0)
 

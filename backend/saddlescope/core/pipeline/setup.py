@@ -7,7 +7,6 @@ first camera's clock; stage 1 (calibration) is skipped when a stored calibration
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 
@@ -31,11 +30,13 @@ __all__ = ["SYNC_METHODS", "board_corner_sample", "board_coverage", "calibrate_f
 SYNC_METHODS = ("flash", "offsets", "motion")
 
 
-def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict]:
+def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str], *,
+                threads: int | None = None) -> tuple[dict, dict]:
     """Frame offsets per clip kind and camera, and where detection may start.
 
     Frame offsets per clip kind and camera (relative to the first camera) and the first frame
-    after the flash in each camera's clip, where detection may start.
+    after the flash in each camera's clip, where detection may start. ``threads``: the analysis's
+    thread budget (``PipelineParams.threads``; None: one thread per camera of a clip set).
 
     Raises
     ------
@@ -43,14 +44,15 @@ def synchronise(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dic
         A clip set without a flash (and not still): :func:`synchronise_clips` and the motion then
         synchronise it, which this function's callers do not do.
     """
-    offsets, first_frame, methods = synchronise_clips(clips, meta, kinds)
+    offsets, first_frame, methods = synchronise_clips(clips, meta, kinds, threads=threads)
     pending = [k for k in kinds if methods.get(k) == "motion"]
     if pending:
         raise SyncError(methods["reasons"][pending[0]])
     return offsets, first_frame
 
 
-def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tuple[dict, dict, dict]:
+def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str], *,
+                      threads: int | None = None) -> tuple[dict, dict, dict]:
     """:func:`synchronise`, and how each clip set is (to be) synchronised.
 
     ``sync.method`` "flash" (default) finds the flash in every clip; a clip set where it is not found
@@ -67,9 +69,11 @@ def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str]) -> tup
     methods: dict = {"reasons": {}}
     sync_spec = meta.get("sync") or {"method": "flash"}
     by_motion = isinstance(sync_spec, Mapping) and sync_spec.get("method") == "motion"
-    # Every clip is decoded for its brightness: in threads (the decoder releases the GIL), in order.
+    # Every clip's brightness (up to its flash) is decoded in threads (the decoder releases the GIL), in
+    # order; never more threads than the budget (the clip reader splits it among its open decoders).
     jobs = [] if by_motion else [(kind, c) for kind in kinds for c in clips.cameras(kind)]
-    with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), os.cpu_count() or 1))) as pool:
+    budget = threads or max(len(clips.cameras(kind)) for kind in kinds)
+    with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), budget))) as pool:
         decoded = dict(zip(jobs, pool.map(lambda job: clips.brightness(*job), jobs), strict=True))
     for kind in kinds:
         cams = clips.cameras(kind)

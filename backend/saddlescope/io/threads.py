@@ -1,0 +1,64 @@
+"""How many threads a worker may use: the CPUs its container is given, not the machine's.
+
+``os.cpu_count()`` counts the host's cores; a worker in a container limited to two CPUs that starts a
+thread per host core (and FFmpeg's decoder as many again) only queues them behind each other. The
+budget is the cgroup's CPU quota (v2 ``cpu.max``, v1 ``cpu.cfs_quota_us / cpu.cfs_period_us``), else
+the CPUs this process may run on (``os.sched_getaffinity``), rounded up and at least one.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+__all__ = ["cgroup_cpu_quota", "default_worker_threads"]
+
+CGROUP_ROOT = Path("/sys/fs/cgroup")
+
+
+def _read(path: Path) -> str | None:
+    try:
+        return path.read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def cgroup_cpu_quota(root: Path = CGROUP_ROOT) -> float | None:
+    """CPUs the cgroup's quota allows (e.g. 1.5), or None when there is no quota ("max", -1 or no cgroup)."""
+    v2 = _read(root / "cpu.max")  # "<quota> <period>" or "max <period>"
+    if v2 is not None:
+        parts = v2.split()
+        if len(parts) == 2 and parts[0] != "max":
+            try:
+                quota, period = int(parts[0]), int(parts[1])
+            except ValueError:
+                return None
+            return quota / period if quota > 0 and period > 0 else None
+        return None
+    for base in (root / "cpu", root / "cpu,cpuacct", root):
+        quota_s, period_s = _read(base / "cpu.cfs_quota_us"), _read(base / "cpu.cfs_period_us")
+        if quota_s is None or period_s is None:
+            continue
+        try:
+            quota, period = int(quota_s), int(period_s)
+        except ValueError:
+            return None
+        return quota / period if quota > 0 and period > 0 else None
+    return None
+
+
+def _affinity_cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not Linux: no affinity mask to read
+        return 1
+
+
+def default_worker_threads(root: Path = CGROUP_ROOT) -> int:
+    """The thread budget when none is set: the cgroup quota rounded up, capped by the CPUs allowed, >= 1."""
+    cpus = _affinity_cpus()
+    quota = cgroup_cpu_quota(root)
+    if quota is not None:
+        cpus = min(cpus, math.ceil(quota))
+    return max(1, cpus)

@@ -1,0 +1,59 @@
+"""The probe stage reads a clip once: a clip probed and hashed before (at upload, or by an earlier job)
+is not decoded or hashed again while its size is unchanged (issue 28)."""
+
+from __future__ import annotations
+
+import integration_services
+import pytest
+
+from saddlescope.db.migrate import upgrade_to_head
+from saddlescope.db.models import Job, Recording
+from saddlescope.db.session import session_factory_for, session_scope
+from saddlescope.services.job_service import create_job
+from saddlescope.services.rides import register_bundle
+from saddlescope.services.runner import run_job
+from saddlescope.settings import load_settings
+from saddlescope.storage import Storage
+
+
+@pytest.fixture
+def probed_ride(tmp_path):
+    settings = load_settings(database_url=f"sqlite:///{tmp_path / 'db.sqlite'}",
+                             storage_dir=str(tmp_path / "storage"))
+    upgrade_to_head(settings.database_url)
+    sessions = session_factory_for(settings.database_url)
+    bundle = integration_services.write_tiny_bundle(tmp_path / "bundle")
+    ride_id = register_bundle(sessions, Storage(settings.storage_dir), bundle, club_name="Test club")
+    first = _probe_job(sessions, ride_id)
+    assert run_job(first, settings=settings) == "done"
+    return settings, sessions, ride_id
+
+
+def _probe_job(sessions, ride_id) -> int:
+    with session_scope(sessions) as s:
+        return create_job(s, kind="probe", ride_id=ride_id).id
+
+
+def test_a_probed_clip_is_not_decoded_or_hashed_again(probed_ride, monkeypatch):
+    settings, sessions, ride_id = probed_ride
+    read: list[str] = []
+    import saddlescope.io.video as video
+
+    real_probe = video.probe_video
+    monkeypatch.setattr(video, "probe_video", lambda path, **kw: read.append(str(path)) or real_probe(path, **kw))
+    real_sha = Storage.sha256
+    monkeypatch.setattr(Storage, "sha256", lambda self, key: read.append(key) or real_sha(self, key))
+    job_id = _probe_job(sessions, ride_id)
+    assert run_job(job_id, settings=settings) == "done"
+    with sessions() as s:
+        videos = [r for r in s.query(Recording).filter_by(ride_id=ride_id).all() if r.clip_kind != "plumb"]
+        assert s.get(Job, job_id).status == "done"
+    # only the image folders (plumb: no upload checksum to reuse, and no decoding) are read again
+    assert read and all("/plumb/" in path for path in read)
+    read.clear()
+    # a clip whose bytes changed since (its size differs) is read again
+    storage = Storage(settings.storage_dir)
+    changed = storage.path(videos[0].path)
+    changed.write_bytes(changed.read_bytes() + b"\0" * 16)
+    assert run_job(_probe_job(sessions, ride_id), settings=settings) in ("done", "failed")
+    assert [path for path in read if "/plumb/" not in path] == [videos[0].path, str(changed)]  # hashed, probed
