@@ -3,6 +3,8 @@ is not decoded or hashed again while its size is unchanged (issue 28)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import integration_services
 import pytest
 
@@ -13,7 +15,7 @@ from saddlescope.services.job_service import create_job
 from saddlescope.services.rides import register_bundle
 from saddlescope.services.runner import run_job
 from saddlescope.settings import load_settings
-from saddlescope.storage import Storage
+from saddlescope.storage import FileStorage as Storage
 
 
 @pytest.fixture
@@ -41,19 +43,24 @@ def test_a_probed_clip_is_not_decoded_or_hashed_again(probed_ride, monkeypatch):
 
     real_probe = video.probe_video
     monkeypatch.setattr(video, "probe_video", lambda path, **kw: read.append(str(path)) or real_probe(path, **kw))
-    real_sha = Storage.sha256
-    monkeypatch.setattr(Storage, "sha256", lambda self, key: read.append(key) or real_sha(self, key))
+    import saddlescope.services.stages as stages
+
+    real_sha = stages.sha256_file
+    monkeypatch.setattr(stages, "sha256_file", lambda path: read.append(str(path)) or real_sha(path))
     job_id = _probe_job(sessions, ride_id)
     assert run_job(job_id, settings=settings) == "done"
     with sessions() as s:
         videos = [r for r in s.query(Recording).filter_by(ride_id=ride_id).all() if r.clip_kind != "plumb"]
+        plumb_folders = s.query(Recording).filter_by(ride_id=ride_id, clip_kind="plumb").count()
         assert s.get(Job, job_id).status == "done"
-    # only the image folders (plumb: no upload checksum to reuse, and no decoding) are read again
-    assert read and all("/plumb/" in path for path in read)
+    # only the image folders (plumb: no upload checksum to reuse) are read again: no video file is
+    # fetched, hashed or probed
+    assert len(read) == plumb_folders and all(Path(p).suffix == "" for p in read)
     read.clear()
-    # a clip whose bytes changed since (its size differs) is read again
+    # a clip whose bytes changed since (its size differs) is read again: hashed and probed
     storage = Storage(settings.storage_dir)
     changed = storage.path(videos[0].path)
     changed.write_bytes(changed.read_bytes() + b"\0" * 16)
     assert run_job(_probe_job(sessions, ride_id), settings=settings) in ("done", "failed")
-    assert [path for path in read if "/plumb/" not in path] == [videos[0].path, str(changed)]  # hashed, probed
+    again = [p for p in read if Path(p).suffix]
+    assert [Path(p).name for p in again] == [changed.name, changed.name]

@@ -51,6 +51,13 @@ def _motion_clip_sync(clips: ClipReader, rig: Rig, n_horse: int, params: Pipelin
     return found
 
 
+def _within_thread_budget(params: PipelineParams) -> PipelineParams:
+    """Keep OpenCV's own pool (process-wide) within the worker's thread budget, where one is given."""
+    if params.threads is not None:
+        cv2.setNumThreads(params.threads)
+    return params
+
+
 def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
                  rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
                  input_flags: Sequence[str] = ()) -> RideResult:
@@ -76,9 +83,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     RideResult
         ``saddlescope.io.result_document.result_to_document`` writes it as CONTRACTS section 2.
     """
-    params = params or PipelineParams()
-    if params.threads is not None:
-        cv2.setNumThreads(params.threads)  # OpenCV's own pool (process-wide) within the worker's budget
+    params = _within_thread_budget(params or PipelineParams())
     progress = Progress(on_progress)
     t_start = time.perf_counter()
     kinds = _clip_kinds(clips, rig)
