@@ -251,7 +251,7 @@ def wide_partial_rig(
         exposure_s=1.0 / 500.0,
         ground_y_m=1.45,
         wall_z_m=6.0,
-        volume_half_m=np.array([1.4, 0.4, 0.35]),
+        volume_half_m=np.array([1.6, 0.4, 0.35]),
         marker_diameter_mm=50.0,
         window_min_views=2,
     )
