@@ -45,7 +45,7 @@ def test_inside_the_reach_the_fitted_model_is_used_unchanged():
     np.testing.assert_array_equal(none, undistort_normalized(cam, xy[:1] + 300))
 
 
-def test_beyond_the_reach_the_tangent_is_continuous_monotonic_and_far_closer_to_the_lens():
+def test_beyond_the_reach_the_continuation_is_continuous_monotonic_and_far_closer_to_the_lens():
     cam = _camera(FITTED_DIST)
     x = np.linspace(330.0, 639.0, 300)
     xy = np.column_stack([x, np.full_like(x, 200.0)])  # a marker crossing to the image's right edge
@@ -54,11 +54,12 @@ def test_beyond_the_reach_the_tangent_is_continuous_monotonic_and_far_closer_to_
     radius = np.linalg.norm(limited, axis=1)
     assert np.all(np.diff(radius) > 0)  # never folds back
     step = np.abs(np.diff(radius)) * K[0, 0]
-    assert step.max() < 3 * np.median(step)  # no jump where the tangent takes over
+    assert step.max() < 3 * np.median(step)  # no jump where the continuation takes over
     raw = _ray_error_px(undistort_normalized(cam, xy), xy)
     ours = _ray_error_px(limited, xy)
-    # the polynomial fitted to the middle band bends the edge rays by tens of pixels; the tangent by a few
-    assert raw[-1] > 50 and ours[-1] < 0.25 * raw[-1]
+    # the polynomial fitted to the middle band folds and sends the edge rays anywhere; k1 alone from the
+    # reach misses the true lens by about a dozen pixels at the very edge
+    assert raw[-1] > 50 and ours[-1] < 15.0
     assert np.max(ours) < 0.25 * np.max(raw)
 
 
@@ -66,7 +67,7 @@ def test_reach_radius_and_board_reach():
     cam = _camera(FITTED_DIST)
     r_t, rho_t, slope = reach_radius(cam, REACH_PX)
     assert rho_t == pytest.approx(1.1 * REACH_PX / K[0, 0], rel=1e-3)
-    assert 0.2 <= slope < 1.0 and r_t > rho_t  # barrel: distorted radius below the ideal one
+    assert slope == pytest.approx(1 + 3 * FITTED_DIST[0] * r_t**2) and r_t > rho_t  # barrel: r_d < r
     hull = [[320.0 + 111.0, 180.0], [320.0, 180.0 - 50.0], [250.0, 200.0]]
     assert board_reach_px(cam, hull) == pytest.approx(111.0)
     rig = Rig({"middle": cam})
@@ -90,7 +91,7 @@ def test_two_camera_points_at_the_image_edges_keep_their_depth():
     raw_mm = np.linalg.norm(raw - X, axis=1)
     ours_mm = np.linalg.norm(ours - X, axis=1)
     assert np.all(views == 2) and np.all(np.isfinite(err))
-    # the extrapolated polynomial folds: metres off in depth; the tangent leaves decimetres at the very
-    # edges (the lens is unknown there), which the kinematics' rigidity checks then see
+    # the extrapolated polynomial folds: metres off in depth; the continuation leaves centimetres, up
+    # to two decimetres at the very edges (the lens is unknown there)
     assert np.nanmedian(raw_mm) > 1000
-    assert np.median(ours_mm) < 0.5 * np.nanmedian(raw_mm) and np.max(ours_mm) < 0.3 * np.nanmax(raw_mm)
+    assert np.median(ours_mm) < 100.0 and np.max(ours_mm) < 250.0
