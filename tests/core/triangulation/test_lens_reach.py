@@ -95,3 +95,39 @@ def test_two_camera_points_at_the_image_edges_keep_their_depth():
     # to two decimetres at the very edges (the lens is unknown there)
     assert np.nanmedian(raw_mm) > 1000
     assert np.median(ours_mm) < 100.0 and np.max(ours_mm) < 250.0
+
+
+def test_a_camera_leaving_the_view_leaves_no_step_in_the_track():
+    """Three cameras 1.8 m apart at 6 m; the right one's calibration is a little off (its principal point
+    4 px out), and it loses the marker half way along the crossing. Each camera set then sees the marker
+    somewhere else: the full set's track steps where the right camera leaves, unless each reduced set's
+    offset from the full set, measured where both saw the marker, is taken off."""
+    from saddlescope.core.triangulation import triangulate_tracks
+    from saddlescope.core.types import ImageTracks
+
+    cams = {}
+    for name, x_mm in (("left", -1800.0), ("middle", 0.0), ("right", 1800.0)):
+        R = cv2.Rodrigues(np.array([0.0, np.arctan2(x_mm, 6000.0), 0.0]))[0]  # turned in towards the track
+        cams[name] = Camera(name, K.copy(), np.zeros(5), (640, 360), R, -R @ np.array([x_mm, 0.0, 0.0]))
+    true_rig = Rig(cams)
+    off = cams["right"].K.copy()
+    off[0, 2] += 4.0
+    right = cams["right"]
+    used_rig = Rig({**cams, "right": Camera("right", off, np.zeros(5), (640, 360), right.R, right.t_mm)})
+    n = 60
+    X = np.column_stack([np.linspace(-600.0, 600.0, n), 100.0 * np.sin(np.linspace(0, 6, n)), np.full(n, 6000.0)])
+    tracks = {}
+    for name, cam in true_rig.cameras.items():
+        xy = cam.project(X)[:, None, :].copy()
+        if name == "right":
+            xy[n // 2:] = np.nan  # the right camera loses the marker half way
+        tracks[name] = ImageTracks(name, xy, np.arange(n))
+
+    def step_mm(**kw) -> float:
+        tr = triangulate_tracks(used_rig, tracks, {}, 50.0, match_labels=False, **kw)
+        err = tr.xyz_mm[:, 0] - X
+        return float(np.linalg.norm(err[n // 2] - err[n // 2 - 1]))
+
+    plain, continuous = step_mm(), step_mm(camera_set_bias=True)
+    assert plain > 20.0  # 4 px over 1.8 m baselines: centimetres between the camera sets
+    assert continuous < 0.1 * plain

@@ -235,8 +235,11 @@ class _Triangulator:
     def __init__(self, clips: ClipReader, rig: Rig, offsets: Mapping, clocks: Mapping, params: PipelineParams,
                  lens_reach_px: Mapping[str, float] | None = None):
         self.rig, self.offsets, self.clocks, self.params = rig, offsets, clocks, params
-        # issue 27 (wt-arena-rigs): beyond the board's reach the lens model is not extrapolated
-        self.extra = {"lens_reach_px": dict(lens_reach_px)} if lens_reach_px and params.triangulation == "nview" else {}
+        # issue 27 (wt-arena-rigs): beyond the board's reach the lens model is not extrapolated, and the
+        # ride's track has no step where a camera enters or leaves
+        nview = params.triangulation == "nview"
+        self.extra = {"lens_reach_px": dict(lens_reach_px)} if lens_reach_px and nview else {}
+        self.motion_extra = {"camera_set_bias": True} if nview else {}
         self.fps = {kind: clips.fps(kind, clips.cameras(kind)[0]) for kind in ("static", "motion", "plumb")
                     if clips.has(kind)}
         self.seconds = 0.0
@@ -246,7 +249,8 @@ class _Triangulator:
         started = time.perf_counter()
         out = triangulate_tracks(self.rig, tracks2d, self.offsets[kind], self.fps[kind],
                                  method=self.params.triangulation, names=tuple(f"M{i + 1}" for i in range(n)),
-                                 match_labels=True, clocks=self.clocks.get(kind), **self.extra)
+                                 match_labels=True, clocks=self.clocks.get(kind), **self.extra,
+                                 **(self.motion_extra if kind == "motion" else {}))
         self.seconds += time.perf_counter() - started
         return out
 
