@@ -17,7 +17,7 @@ from saddlescope.core.triangulation import (
 )
 from saddlescope.core.types import Camera, Rig
 
-# The arena's wide_partial seed 2 middle camera (640x360): the true lens, and what a board carried
+# The arena's wide_partial seed 0 middle camera (640x360): the true lens, and what a board carried
 # through the middle band of the volume (reaching 111 px from the centre) made of it.
 K = np.array([[441.0, 0.0, 320.0], [0.0, 441.0, 180.0], [0.0, 0.0, 1.0]])
 TRUE_DIST = np.array([-0.2219, 0.0712, -0.0012, 0.0007, 0.0])

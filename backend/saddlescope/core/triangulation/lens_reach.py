@@ -2,11 +2,11 @@
 
 k1, k2 (and k3) are fitted to the board's corners only. Beyond the image radius the board reached,
 the radial polynomial is a guess that grows with r^5: on a wide rig whose board was carried through
-the middle band of the volume only (arena ``wide_partial``, board reaching 111 of the middle camera's
-320 px), the fitted k2 came out -0.60 against a true +0.06; the model then bent a ray at the image
-edge by 120-250 px and folded back on itself at r = 0.87. Two-camera points there were off by
-hundreds of millimetres in depth with sub-pixel reprojection errors (two views leave one redundant
-equation), and the saddle's weighted r.m.s. came out +86 % (docs/accuracy.md).
+the middle band of the volume only (arena ``wide_partial`` seed 0, board reaching about 100 of the
+middle camera's 320 px), the fitted k2 came out -0.60 against a true +0.07; the model then bent a ray
+at the image edge by 120-250 px and folded back on itself at r = 0.87. Two-camera points there were
+off by hundreds of millimetres in depth with sub-pixel reprojection errors (two views leave one
+redundant equation), and the saddle's weighted r.m.s. came out +86 % on seed 2 (docs/accuracy.md).
 
 Beyond the reach (with ``_REACH_MARGIN``), the radial map r_d(r) is continued from the fitted model's
 value at the reach with k1 alone, the lowest-order radial term, which a band of the image does fix
