@@ -24,6 +24,14 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _speed_range(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in text.split("-"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"speed must look like 4-6 (m/s), got {text!r}") from None
+    return lo, hi
+
+
 def _pattern(text: str) -> tuple[int, int]:
     try:
         c, r = (int(v) for v in text.lower().split("x"))
@@ -74,7 +82,11 @@ def _add_synth_parser(sub) -> None:
     s.add_argument("--size", type=_size, default=None, help="WxH, overrides the rig's resolution")
     s.add_argument("--fps", type=float, default=None, help="overrides the rig's frame rate")
     s.add_argument("--duration", type=float, default=None, help="motion clip length in seconds")
-    s.add_argument("--rig", default="thesis", choices=["thesis", "wide"])
+    s.add_argument("--rig", default="thesis", choices=["thesis", "wide", "wide_partial"],
+                   help="wide_partial: 1280x720 cameras 1.8 m apart whose side cameras see part of the crossing")
+    s.add_argument("--board-band", type=float, default=None,
+                   help="carry the calibration board only through this central share (0-1] of the volume")
+    s.add_argument("--speed", type=_speed_range, default=None, help="LO-HI m/s, overrides the gait's speed band")
     s.add_argument("--skin", default="stride_locked", choices=["stride_locked", "noise", "none"],
                    help="the markers' skin sliding: locked to the stride (default, as on a real flank), "
                         "small random noise only, or none (markers fixed to the saddle body)")
@@ -165,6 +177,7 @@ def run(args: argparse.Namespace) -> int:
 
         path = write_ride_bundle(Path(args.out), gait=args.gait, seed=args.seed, rig=args.rig,
                                  size=args.size, fps=args.fps, duration_s=args.duration,
+                                 board_band=args.board_band, speed_range_m_s=args.speed,
                                  options=RenderOptions(skin_motion=args.skin, marker_layout=args.layout,
                                                        variable_frame_rate=args.variable_frame_rate,
                                                        flash=not args.no_flash))

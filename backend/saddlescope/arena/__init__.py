@@ -4,7 +4,7 @@ It renders with the science core's camera model and imports core; the core never
 (import-linter). Modules, from the bottom up:
 
 - ``timing``: clip clocks, camera start offsets, the sync flash, phone frame-rate jitter;
-- ``rig``: the thesis and wide camera rigs in the arena;
+- ``rig``: the thesis, wide and wide_partial camera rigs in the arena;
 - ``gait``: the saddle body's exact motion as Fourier series, markers and skin sliding;
 - ``render``: frame drawing (background, blobs, board, flash, noise) and per-camera views;
 - ``content``: what the cameras film (horse and rider, board, plumb line, ball);
@@ -68,6 +68,7 @@ from saddlescope.arena.placement import (
     place_standing_horse,
     sample_board_poses,
     visible_everywhere,
+    visible_in,
 )
 from saddlescope.arena.render import (
     CameraView,
@@ -92,6 +93,7 @@ from saddlescope.arena.rig import (
     make_rig,
     normalized_pixel_grid,
     thesis_rig,
+    wide_partial_rig,
     wide_rig,
 )
 from saddlescope.arena.scene import (
@@ -128,6 +130,7 @@ __all__ = [
     "make_rig",
     "normalized_pixel_grid",
     "thesis_rig",
+    "wide_partial_rig",
     "wide_rig",
     "CHANNELS",
     "GAIT_RANGES",
@@ -180,6 +183,7 @@ __all__ = [
     "place_standing_horse",
     "sample_board_poses",
     "visible_everywhere",
+    "visible_in",
     "HOLD_FRAMES",
     "MIN_MOTION_S",
     "MOVE_FRAMES",

@@ -32,6 +32,7 @@ __all__ = [
     "place_standing_horse",
     "sample_board_poses",
     "visible_everywhere",
+    "visible_in",
 ]
 
 
@@ -53,6 +54,19 @@ def visible_everywhere(views: dict[str, CameraView], pts_w: np.ndarray, margin_p
     for view in views.values():
         ok &= np.all(view.inside(view.project(pts_w), margin_px), axis=1)
     return ok
+
+
+def visible_in(views: dict[str, CameraView], pts_w: np.ndarray, min_views: int, margin_px: float = 10.0
+               ) -> np.ndarray:
+    """Where every point is inside at least ``min_views`` images (the same ones for all points), shape (T,).
+
+    ``pts_w`` (T, M, 3) world points (m); with ``min_views`` = the number of cameras this is
+    :func:`visible_everywhere`.
+    """
+    seen = np.zeros(pts_w.shape[0], int)
+    for view in views.values():
+        seen += np.all(view.inside(view.project(pts_w), margin_px), axis=1)
+    return seen >= int(min_views)
 
 
 def out_of_view(views: dict[str, CameraView], pts_w: np.ndarray, margin_px: float = 12.0) -> bool:

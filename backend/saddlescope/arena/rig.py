@@ -16,9 +16,9 @@ import numpy as np
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, Camera
 
-__all__ = ["RIGS", "SceneRig", "make_rig", "normalized_pixel_grid", "thesis_rig", "wide_rig"]
+__all__ = ["RIGS", "SceneRig", "make_rig", "normalized_pixel_grid", "thesis_rig", "wide_partial_rig", "wide_rig"]
 
-RIGS: tuple[str, ...] = ("thesis", "wide")
+RIGS: tuple[str, ...] = ("thesis", "wide", "wide_partial")
 
 
 def _rotvec(rx: float, ry: float, rz: float) -> np.ndarray:
@@ -57,6 +57,9 @@ class SceneRig:
     wall_z_m: float
     volume_half_m: np.ndarray
     marker_diameter_mm: float = 30.0
+    # cameras that must see every marker for the truth's analysis window: 3 = all (the horse crosses
+    # the common view), 2 = any two (side cameras see only part of the crossing)
+    window_min_views: int = 3
 
     def world_to_rig_mm(self, x_world_m: np.ndarray) -> np.ndarray:
         """World points (..., 3) m -> rig points (..., 3) mm."""
@@ -205,16 +208,67 @@ def wide_rig(
     )
 
 
+def wide_partial_rig(
+    rng: np.random.Generator, *, size: tuple[int, int] | None = None, fps: float | None = None
+) -> SceneRig:
+    """A club's wide rig that nobody tuned (issue 27): 1280x720 at 50 fps, cameras 1.8 m apart at ~6 m.
+
+    The middle camera sees the whole crossing; each side camera, nearer or farther and higher or lower
+    than the middle one, about two thirds of it (the three see only the middle third together). Wider
+    lenses than the "wide" rig's, with strong barrel distortion that the markers meet near the image
+    corners, where a board carried through the common view never went.
+    """
+    intr = {}
+    # left nearer and lower, right farther and higher: different heights and distances
+    layout = {"left": (-1.8, 5.5, 0.35), "middle": (0.0, 6.0, 0.15), "right": (1.8, 6.6, -0.1)}
+    for role in CAMERA_ROLES:
+        f = {"left": 1080.0, "middle": 900.0, "right": 1160.0}[role] + rng.normal(0.0, 10.0)
+        k = np.array([[f, 0.0, 640.0 + rng.normal(0, 5)], [0.0, f, 360.0 + rng.normal(0, 5)], [0, 0, 1.0]])
+        dist = np.array(
+            [
+                -0.22 + rng.normal(0, 0.01),
+                0.06 + rng.normal(0, 0.005),
+                rng.normal(0, 5e-4),
+                rng.normal(0, 5e-4),
+                0.0,  # k3 = 0 keeps r (1 + k1 r^2 + k2 r^4) monotonic at any angle: nothing folds into view
+            ]
+        )
+        intr[role] = (k, dist, (1280, 720))
+    poses = {}
+    for role in CAMERA_ROLES:
+        x, dist_m, y = layout[role]
+        c = np.array([x + rng.normal(0, 0.05), y + rng.normal(0, 0.03), -dist_m + rng.normal(0, 0.05)])
+        # side cameras turned in hardly at all (0-2 degrees), so they miss the far third of the crossing
+        aim_x = x - np.sign(x) * dist_m * np.tan(np.deg2rad(rng.uniform(0.0, 2.0)))
+        aim = np.array([aim_x, 0.15 + rng.normal(0, 0.05), 0.0])
+        poses[role] = (_look_at(c, aim, roll_rad=np.deg2rad(rng.uniform(-1.5, 1.5))), c)
+    return _assemble(
+        "wide_partial",
+        poses,
+        intr,
+        size,
+        fps=float(fps or 50.0),
+        exposure_s=1.0 / 500.0,
+        ground_y_m=1.45,
+        wall_z_m=6.0,
+        volume_half_m=np.array([1.6, 0.4, 0.35]),
+        marker_diameter_mm=50.0,
+        window_min_views=2,
+    )
+
+
 def make_rig(
     name: str, rng: np.random.Generator, *, size: tuple[int, int] | None = None, fps: float | None = None
 ) -> SceneRig:
-    """The rig called ``name`` ("thesis" or "wide")."""
+    """The rig called ``name`` ("thesis", "wide" or "wide_partial")."""
     if fps is not None and not (1.0 <= float(fps) <= 1000.0):
         raise InputError(f"frame rate {fps} fps is outside 1-1000 fps")
     if name == "thesis":
         return thesis_rig(rng, size=size, fps=fps)
     if name == "wide":
         return wide_rig(rng, size=size, fps=fps)
+    if name == "wide_partial":
+        return wide_partial_rig(rng, size=size, fps=fps)
     raise InputError(f"unknown rig {name!r}; expected one of {', '.join(RIGS)}")
 
 

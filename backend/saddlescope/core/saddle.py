@@ -321,23 +321,52 @@ def _gap_flags(t: np.ndarray, long_gaps: list) -> list[str]:
     return flags
 
 
-def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: str | None) -> _Span:
+def _planar_period(t: np.ndarray, xyz: np.ndarray, valid: np.ndarray, span: tuple[int, int], dt_s: float,
+                   f_range: tuple[float, float]) -> tuple[float, dict]:
+    """:func:`estimate_period` on the frames ``span`` [start, stop) of the tracks with depth set to 0."""
+    a, b = span
+    planar = _despiked(np.where(valid[a:b, None, None], xyz[a:b], np.nan), dt_s)
+    planar[..., 2] = 0.0
+    return estimate_period(t[a:b], planar, f_range_hz=f_range)
+
+
+def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: str | None,
+                 flags: list[str] | None = None) -> _Span:
     """The stride period, the analysed window and the span the fits see.
 
     The stride period and the analysed window within the longest stretch where every marker is
-    tracked (the horse crosses the view), and the span the fits see around it.
+    tracked (the horse crosses the view; a stretch seen by two cameras counts as much as one seen by
+    three), and the span the fits see around it. A stretch too short for ``params.n_periods`` strides
+    but holding at least one is analysed on the whole strides it holds (flagged): the indicators are
+    those of the fitted periodic motion over ``n_periods`` strides either way.
     """
     valid = np.all(np.isfinite(xyz), axis=(1, 2))
     run0, run1 = _longest_run(valid)
     if run1 - run0 < 8:
         raise KinematicsError(f"the markers are tracked together for at most {run1 - run0} consecutive frames; "
                               "the ride cannot be analysed")
+    dt_s = float(np.median(np.diff(t[run0:run1])))
     # Period from the image-plane coordinates of the left camera: depth is the noisiest direction
     # when the cameras stand close together (thesis rig).
-    planar = _despiked(xyz[run0:run1], float(np.median(np.diff(t[run0:run1]))))
-    planar[..., 2] = 0.0
-    period_s, period_info = estimate_period(t[run0:run1], planar, f_range_hz=STRIDE_RANGE_HZ.get(gait, (0.5, 3.0)))
-    i0, i1 = analysis_window(t[run0:run1], valid[run0:run1], period_s, n_periods=params.n_periods)
+    f_range = STRIDE_RANGE_HZ.get(gait, (0.5, 3.0))
+    try:
+        period_s, period_info = _planar_period(t, xyz, valid, (run0, run1), dt_s, f_range)
+    except KinematicsError:
+        # Too short a run for a period: every tracked frame from the first to the last (gaps
+        # interpolated) holds more strides than the run alone (a 0.97 s run was refused for its period).
+        first, last = np.flatnonzero(valid)[[0, -1]]
+        if (first, last + 1) == (run0, run1):
+            raise
+        period_s, period_info = _planar_period(t, xyz, valid, (first, last + 1), dt_s, f_range)
+    n_periods = int(params.n_periods)
+    whole = int(np.floor((run1 - run0) * dt_s / period_s + 1e-9))
+    if 1 <= whole < n_periods:
+        flags_ = flags if flags is not None else []
+        flags_.append(f"the markers were tracked together for {(run1 - run0) * dt_s:.2f} s, {_count(whole, 'stride')} "
+                      f"of {period_s:.2f} s: the fits saw {_count(whole, 'stride')}, not {n_periods}, and the "
+                      f"indicators are those of the fitted motion over {n_periods} strides")
+        n_periods = whole
+    i0, i1 = analysis_window(t[run0:run1], valid[run0:run1], period_s, n_periods=n_periods)
     i0, i1 = i0 + run0, i1 + run0
     # The fits see every tracked frame around the window ("run"), the thesis only the window: more
     # strides average out camera noise and skin wobble that is not locked to the stride.
@@ -345,7 +374,7 @@ def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: s
         raise InputError(f"fit_span must be 'run' or 'window', got {params.fit_span!r}")
     f0_, f1_ = i0, i1
     if params.fit_span == "run":
-        margin = int(round(params.fit_margin_periods * period_s / float(np.median(np.diff(t[run0:run1])))))
+        margin = int(round(params.fit_margin_periods * period_s / dt_s))
         f0_, f1_ = max(run0, i0 - margin), min(run1, i1 + margin)
     return _Span((run0, run1), (i0, i1), (f0_, f1_), period_s, period_info)
 
@@ -509,7 +538,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     flags: list[str] = []
     xyz, bridged_frames, long_gaps = _checked_tracks(
         t, np.asarray(motion_tracks.xyz_mm, dtype=np.float64), params, flags)
-    span = _stride_span(t, xyz, params, gait)
+    span = _stride_span(t, xyz, params, gait, flags)
     period_s, win, in_win = span.period_s, span.fit_slice, span.in_window
     t_w = t[win]
     smooth, ok_w = _smoothed(t_w, xyz[win], params, period_s, depth, flags)

@@ -32,6 +32,8 @@ def write_ride_bundle(
     extras: bool = True,
     crf: int = 20,
     options: RenderOptions | None = None,
+    board_band: float | None = None,
+    speed_range_m_s: tuple[float, float] | None = None,
     on_progress=None,
 ) -> Path:
     """Render and write a synthetic ride bundle into ``out_dir``; returns out_dir.
@@ -39,7 +41,9 @@ def write_ride_bundle(
     Writes ride.json, truth.json and {calibration, plumb, static, motion}/{left, middle, right}.mp4,
     plus freefall/ and board_distance/ when ``extras`` (listed in ride.json "extra_clips").
     ``calibration_poses`` (default 90, as the thesis) and ``extras=False`` make small bundles for
-    tests; ``on_progress(fraction, stage)`` is called after each clip.
+    tests; ``board_band`` and ``speed_range_m_s`` are :func:`~saddlescope.arena.build_scene`'s (a
+    board carried only through the middle of the volume, a faster canter); ``on_progress(fraction,
+    stage)`` is called after each clip.
     """
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
@@ -54,6 +58,8 @@ def write_ride_bundle(
         calibration_poses=calibration_poses,
         extras=extras,
         options=options,
+        board_band=board_band,
+        speed_range_m_s=speed_range_m_s,
     )
     out_dir.mkdir(parents=True, exist_ok=True)
     manifest = ride_manifest(scene)

@@ -30,7 +30,7 @@ from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.pipeline.setup import outside_coverage
 from saddlescope.core.saddle import layout_mismatch_mm, match_horse_markers, static_positions
 from saddlescope.core.sync import clip_frames_at
-from saddlescope.core.triangulation import position_uncertainty, triangulate_tracks
+from saddlescope.core.triangulation import position_uncertainty, reach_by_camera, triangulate_tracks
 from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
 
 __all__ = ["RideTracks", "depth_uncertainty", "detect_clip", "detect_motion", "detect_ride",
@@ -232,8 +232,14 @@ class RideTracks:
 class _Triangulator:
     """Triangulates a clip's image tracks with the ride's rig, offsets and clocks, timing itself."""
 
-    def __init__(self, clips: ClipReader, rig: Rig, offsets: Mapping, clocks: Mapping, params: PipelineParams):
+    def __init__(self, clips: ClipReader, rig: Rig, offsets: Mapping, clocks: Mapping, params: PipelineParams,
+                 lens_reach_px: Mapping[str, float] | None = None):
         self.rig, self.offsets, self.clocks, self.params = rig, offsets, clocks, params
+        # issue 27 (wt-arena-rigs): beyond the board's reach the lens model is not extrapolated, and the
+        # ride's track has no step where a camera enters or leaves
+        nview = params.triangulation == "nview"
+        self.extra = {"lens_reach_px": dict(lens_reach_px)} if lens_reach_px and nview else {}
+        self.motion_extra = {"camera_set_bias": True} if nview else {}
         self.fps = {kind: clips.fps(kind, clips.cameras(kind)[0]) for kind in ("static", "motion", "plumb")
                     if clips.has(kind)}
         self.seconds = 0.0
@@ -243,7 +249,8 @@ class _Triangulator:
         started = time.perf_counter()
         out = triangulate_tracks(self.rig, tracks2d, self.offsets[kind], self.fps[kind],
                                  method=self.params.triangulation, names=tuple(f"M{i + 1}" for i in range(n)),
-                                 match_labels=True, clocks=self.clocks.get(kind))
+                                 match_labels=True, clocks=self.clocks.get(kind), **self.extra,
+                                 **(self.motion_extra if kind == "motion" else {}))
         self.seconds += time.perf_counter() - started
         return out
 
@@ -336,7 +343,8 @@ def detect_ride(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapp
     calibration's report (its board coverage flags markers seen where the lens is extrapolated).
     """
     found = RideTracks()
-    triangulate = _Triangulator(clips, rig, offsets, clocks, params)
+    triangulate = _Triangulator(clips, rig, offsets, clocks, params,
+                                lens_reach_px=reach_by_camera(rig, calib_report.get("board_coverage")))
     _detect_plumb(clips, rig, first_frame, params, n_plumb, triangulate, found)
     progress.stage("detection", 0.2)
     static2d, static_flags = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params,

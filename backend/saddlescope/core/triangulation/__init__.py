@@ -14,10 +14,17 @@ in millimetres in rig coordinates (the left camera's frame, ``x_cam = R @ x_left
 :func:`triangulate_tracks` (:mod:`.tracks`) resamples each camera's 2-D tracks onto the left camera's
 frame times with the sub-frame synchronisation offsets, matches the cameras' marker labels
 (:mod:`.matching`), then triangulates them into ``MarkerTracks``. :func:`position_uncertainty`
-(:mod:`.uncertainty`) tells how well a rig fixes a point. The camera model itself (projection,
+(:mod:`.uncertainty`) tells how well a rig fixes a point; :mod:`.lens_reach` limits the lens model's
+extrapolation beyond the image radius the calibration board reached. The camera model itself (projection,
 distortion and its inverse) is :mod:`saddlescope.core.camera_model`.
 """
 
+from saddlescope.core.triangulation.lens_reach import (
+    board_reach_px,
+    reach_by_camera,
+    reach_radius,
+    undistort_within_reach,
+)
 from saddlescope.core.triangulation.matching import match_markers_across_cameras
 from saddlescope.core.triangulation.nview import triangulate_nview
 from saddlescope.core.triangulation.pairs import triangulate_thesis_pairs
@@ -26,6 +33,10 @@ from saddlescope.core.triangulation.tracks import resample_tracks, triangulate_t
 from saddlescope.core.triangulation.uncertainty import position_uncertainty
 
 __all__ = [
+    "board_reach_px",
+    "reach_by_camera",
+    "reach_radius",
+    "undistort_within_reach",
     "reprojection_errors",
     "triangulate_nview",
     "triangulate_thesis_pairs",

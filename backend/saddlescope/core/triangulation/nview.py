@@ -13,7 +13,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from saddlescope.core.camera_model import project_points, undistort_normalized
+from saddlescope.core.camera_model import project_points
+from saddlescope.core.triangulation.lens_reach import reach_radius, undistort_within_reach
 from saddlescope.core.triangulation.reprojection import _camera, _rms_over, _stack_views
 from saddlescope.core.types import Rig
 
@@ -23,14 +24,22 @@ __all__ = ["triangulate_nview"]
 class _Views:
     """Per-camera arrays for the vectorised solver: poses, K's 2x2 part, normalised observations."""
 
-    def __init__(self, rig: Rig, names: Sequence[str], obs_px: np.ndarray):
+    def __init__(self, rig: Rig, names: Sequence[str], obs_px: np.ndarray,
+                 lens_reach_px: Mapping[str, float] | None = None):
         self.names = list(names)
         self.cameras = [_camera(rig, n) for n in names]
         self.R = np.stack([np.asarray(c.R, dtype=np.float64) for c in self.cameras])          # (C, 3, 3)
         self.t = np.stack([np.asarray(c.t_mm, dtype=np.float64).reshape(3) for c in self.cameras])
         self.A = np.stack([np.asarray(c.K, dtype=np.float64)[:2, :2] for c in self.cameras])  # (C, 2, 2)
         self.obs_px = obs_px                                                                   # (C, P, 2)
-        self.obs_n = np.stack([undistort_normalized(c, o) for c, o in zip(self.cameras, obs_px, strict=True)])
+        reach = {n: lens_reach_px[n] for n in self.names if n in (lens_reach_px or {})}
+        limited = [undistort_within_reach(c, o, reach.get(n)) for n, c, o in zip(self.names, self.cameras, obs_px,
+                                                                                  strict=True)]
+        self.obs_n = np.stack([xy for xy, _ in limited])
+        self.beyond = np.stack([b for _, b in limited])  # (C, P): seen beyond the board's reach
+        # the tangent there turns ideal-pixel residuals into (about) distorted ones
+        self.slope = np.array([reach_radius(c, reach[n])[2] if n in reach else 1.0
+                               for n, c in zip(self.names, self.cameras, strict=True)])
         self.seen = np.all(np.isfinite(self.obs_n), axis=-1)                                  # (C, P)
         # Centre and scale the unknowns (camera centres ~ 0..1e3 mm, points ~ 1e3..1e4 mm) for the DLT.
         centres = -np.einsum("cji,cj->ci", self.R, self.t)
@@ -122,15 +131,26 @@ class _Views:
         return X
 
     def errors_px(self, X: np.ndarray) -> np.ndarray:
-        """Reprojection error of each camera and point in distorted pixels, shape (C, P)."""
-        return np.stack([np.linalg.norm(project_points(c, X) - o, axis=-1)
-                         for c, o in zip(self.cameras, self.obs_px, strict=True)])
+        """Reprojection error of each camera and point in distorted pixels, shape (C, P).
+
+        Beyond the board's reach the lens model is not the fitted polynomial but its tangent: there the
+        error is measured on that model (ideal pixels times the tangent's slope).
+        """
+        err = np.stack([np.linalg.norm(project_points(c, X) - o, axis=-1)
+                        for c, o in zip(self.cameras, self.obs_px, strict=True)])
+        if self.beyond.any():
+            xc = np.einsum("cij,pj->cpi", self.R, X) + self.t[:, None, :]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                res = np.einsum("cij,cpj->cpi", self.A, xc[..., :2] / xc[..., 2:3] - self.obs_n)
+            ideal = np.linalg.norm(res, axis=-1) * self.slope[:, None]
+            err = np.where(self.beyond, ideal, err)
+        return err
 
 
 
 def triangulate_nview(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *, refine_iterations: int = 8,
                       outlier_ratio: float = 3.0, outlier_px: float = 2.0, outlier_sigmas: float = 5.0,
-                      reject_outliers: bool = True,
+                      reject_outliers: bool = True, lens_reach_px: Mapping[str, float] | None = None,
                       return_used: bool = False):
     """N-view least-squares triangulation with per-point reprojection error and outlier rejection.
 
@@ -160,6 +180,12 @@ def triangulate_nview(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *, refin
     outlier_ratio, outlier_px, outlier_sigmas : float, keyword-only
         The rejection rule above.
     reject_outliers : bool, keyword-only
+    lens_reach_px : dict of camera name -> float, keyword-only
+        How far from the principal point (px) the calibration board reached in each camera
+        (:func:`~saddlescope.core.triangulation.lens_reach.board_reach_px`): beyond it the lens model
+        is continued by its tangent instead of extrapolating the polynomial
+        (:func:`~saddlescope.core.triangulation.lens_reach.undistort_within_reach`). None: the fitted
+        model everywhere.
     return_used : bool, keyword-only
         Also return the boolean mask of the cameras used, shape (C, ...), in ``xy_by_camera``'s order.
 
@@ -175,10 +201,7 @@ def triangulate_nview(rig: Rig, xy_by_camera: Mapping[str, np.ndarray], *, refin
         Only with ``return_used=True``.
     """
     names, shape, obs = _stack_views(rig, xy_by_camera)
-    views = _Views(rig, names, obs)
-    use = views.seen.copy()
-    names, shape, obs = _stack_views(rig, xy_by_camera)
-    views = _Views(rig, names, obs)
+    views = _Views(rig, names, obs, lens_reach_px)
     use = views.seen.copy()
     X = views.solve(use, refine_iterations)
     err = views.errors_px(X)
@@ -267,4 +290,5 @@ def _subset(views: _Views, cols: np.ndarray) -> _Views:
     sub.obs_px = views.obs_px[:, cols]
     sub.obs_n = views.obs_n[:, cols]
     sub.seen = views.seen[:, cols]
+    sub.beyond = views.beyond[:, cols]
     return sub

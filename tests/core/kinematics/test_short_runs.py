@@ -1,0 +1,68 @@
+"""Crossings shorter than the window asks for (issue 27): a run just under two strides, or one cut in two,
+is analysed on the whole strides it holds, not refused (core/saddle.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from saddlescope.core import saddle as S
+from saddlescope.core.errors import KinematicsError
+from saddlescope.core.params import PipelineParams
+from saddlescope.core.types import MarkerTracks
+
+FPS, F0 = 30.0, 1.6  # 18.75 frames a stride
+
+
+def _rigid_ride(n_frames: int, lost: np.ndarray | None = None) -> tuple[MarkerTracks, MarkerTracks]:
+    """Three markers of a rigid body bobbing and pitching at F0 while it travels at 4 m/s (mm), and its static shot."""
+    t = np.arange(n_frames) / FPS
+    model = np.array([[0.0, 0.0, 0.0], [200.0, 10.0, 0.0], [400.0, -60.0, 5.0]])
+    w = 2 * np.pi * F0 * t
+    origin = np.stack([4000.0 * t, 60 * np.sin(w) + 15 * np.cos(2 * w), 7000 + 10 * np.sin(w)], axis=1)
+    ang = 0.05 * np.sin(w)
+    R = np.zeros((n_frames, 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = np.cos(ang), -np.sin(ang), np.sin(ang), np.cos(ang), 1
+    xyz = np.einsum("fij,mj->fmi", R, model) + origin[:, None, :]
+    if lost is not None:
+        xyz[lost] = np.nan
+    static = np.concatenate([model, [[150.0, -330.0, -150.0]]])[None].repeat(5, axis=0) + [0, 0, 7000]
+    return MarkerTracks(("M1", "M2", "M3"), t, xyz), MarkerTracks(("M1", "M2", "M3", "S"), t[:5], static)
+
+
+def _analyse(motion, static):
+    kin = S.saddle_kinematics(motion, static, None, PipelineParams(), horse_idx=[0, 1, 2], saddle_idx=3,
+                              gait="canter")
+    return kin, S.kinematics_indicators(kin, PipelineParams())[1]
+
+
+def test_a_run_just_under_two_strides_is_analysed_on_one():
+    long_kin, long_ind = _analyse(*_rigid_ride(150))
+    kin, ind = _analyse(*_rigid_ride(33))  # 1.1 s: 1.76 strides, refused before for two
+    assert kin.period_s == pytest.approx(1 / F0, rel=0.01)
+    i0, i1 = kin.window
+    assert i1 - i0 == round(FPS / F0)  # one whole stride
+    assert any("1 stride, not 2" in f for f in kin.flags)
+    # the indicators are those of the same periodic motion over two strides
+    for key in ("acc_y_wb_rms", "vdv_y_wb", "vel_x_avg_kmh", "stride_frequency_hz"):
+        assert ind[key] == pytest.approx(long_ind[key], rel=0.03), key
+
+
+def test_a_crossing_cut_in_two_borrows_every_tracked_frame_for_its_period():
+    lost = np.zeros((61, 3), dtype=bool)
+    lost[26:35] = True  # 0.3 s lost in the middle: two runs of 0.87 s, each too short for a period alone
+    motion, static = _rigid_ride(61, lost)
+    valid = np.all(np.isfinite(motion.xyz_mm), axis=(1, 2))
+    with pytest.raises(KinematicsError):  # either run alone gives no period
+        S._planar_period(motion.t_s, motion.xyz_mm, valid, (0, 26), 1 / FPS, S.STRIDE_RANGE_HZ["canter"])
+    kin, ind = _analyse(motion, static)
+    assert kin.period_s == pytest.approx(1 / F0, rel=0.01)
+    assert ind["stride_frequency_hz"] == pytest.approx(F0, rel=0.01)
+    assert any("1 stride, not 2" in f for f in kin.flags)
+
+
+def test_less_than_one_stride_together_is_still_refused():
+    lost = np.zeros((66, 3), dtype=bool)
+    lost[12:20] = lost[30:38] = lost[48:56] = True  # runs of about half a stride, gaps too long to bridge
+    with pytest.raises(KinematicsError):
+        _analyse(*_rigid_ride(66, lost))
