@@ -22,8 +22,10 @@ def load_calibration_file(path: Path) -> Rig:
 
 def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None] | None = None,
                    params: PipelineParams | None = None, rig: Rig | None = None,
-                   meta_overrides: dict | None = None) -> dict:
+                   meta_overrides: dict | None = None, rig_report: dict | None = None) -> dict:
     """Open a ride bundle (folder or zip), run the pipeline, return the validated result document.
+
+    `rig_report`: a reused rig calibration's `n_views` and `board_coverage` (where its board has been).
 
     `meta_overrides` replace keys of the bundle's ride.json (a ride's gait edited after upload).
     """
@@ -43,7 +45,7 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
             rig, notes = read_bundle_calibration(bundle.calibration_file)
         meta = {**bundle.meta, **(meta_overrides or {})}
         result = analyze_ride(clips, meta, params=params, rig=rig, on_progress=on_progress,
-                              input_flags=list(bundle.warnings) + notes)
+                              input_flags=list(bundle.warnings) + notes, rig_report=rig_report)
     document = result_to_document(result)
     validate_result(document)
     return document

@@ -483,7 +483,9 @@ def run_analyze(ctx: StageContext) -> None:
 
         rig_model = rig_from_calibration(calibration)
     changed = _edited_settings(path, settings)
-    result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model,
+    # where the rig's board has been: the lens model is held to it and markers outside it are flagged (issue 27)
+    rig_report = {k: calibration[k] for k in ("n_views", "board_coverage") if calibration and calibration.get(k)}
+    result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model, rig_report=rig_report,
                             **({"meta_overrides": changed} if changed else {}))
     # The result document is what the dashboard and the exports read (its series decimated on the way);
     # it replaces the previous one atomically (the old one stays readable until the new one is committed).

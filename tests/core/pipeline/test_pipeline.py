@@ -246,3 +246,31 @@ def test_cameras_disagreeing_on_a_stretch_of_the_ride_are_flagged():
     err[120:180, 2] = rng.uniform(8.0, 20.0, 60)  # one camera followed a D-ring for a second
     flag = disagreement_flag("motion", MarkerTracks(tracks.names, tracks.t_s, tracks.xyz_mm, err))
     assert flag is not None and "motion clip" in flag and "7 %" in flag and "look-alike" in flag
+
+
+@pytest.mark.slow
+def test_a_reused_rig_keeps_where_its_board_has_been(short_ride, analysed):
+    # A club's rides reuse the rig's stored calibration (issue 27): its board coverage comes along, so the
+    # lens model is still held to the board's reach and markers outside the board's region are still counted.
+    from saddlescope.io.bundle import open_bundle
+    from saddlescope.io.clip_source import BundleClips
+
+    result, _ = analysed
+    rig = rig_from_dict(result["calibration"])
+    # a board that only ever covered a small square in the middle of each image
+    cams = result["calibration"]["cameras"]
+    coverage = {}
+    for cam, c in cams.items():
+        w, h = c["image_size"]
+        x0, x1, y0, y1 = 0.45 * w, 0.55 * w, 0.45 * h, 0.55 * h
+        coverage[cam] = {"hull_px": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]], "area_fraction": 0.01}
+    with open_bundle(short_ride) as bundle:
+        plain = result_to_document(P.analyze_ride(BundleClips(bundle.clip_paths), bundle.meta, rig=rig))
+        held = result_to_document(P.analyze_ride(BundleClips(bundle.clip_paths), bundle.meta, rig=rig,
+                                                 rig_report={"n_views": {c: 40 for c in cams},
+                                                             "board_coverage": coverage}))
+    assert not plain["quality"].get("markers_outside_board_fraction")
+    outside = held["quality"]["markers_outside_board_fraction"]
+    assert set(outside) == set(cams) and min(outside.values()) > 0.5
+    assert held["calibration"]["board_coverage_fraction"] == {c: 0.01 for c in cams}
+    assert any("board" in flag for flag in held["quality"]["flags"])

@@ -60,7 +60,7 @@ def _within_thread_budget(params: PipelineParams) -> PipelineParams:
 
 def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
                  rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
-                 input_flags: Sequence[str] = ()) -> RideResult:
+                 input_flags: Sequence[str] = (), rig_report: Mapping | None = None) -> RideResult:
     """Run every stage on one ride.
 
     Parameters
@@ -72,7 +72,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     params : PipelineParams, optional
         The user's choices (defaults: the thesis's, where it was right).
     rig : Rig, optional
-        A calibration to reuse (e.g. the rig's, computed once for every ride of that day).
+        A calibration to reuse (e.g. the rig's, computed once for every ride of that day); ``rig_report``
+        its ``n_views`` and ``board_coverage``, so that the lens limit and board-region checks still apply.
     on_progress : callable(fraction, stage), optional
         Called as each stage advances, ``fraction`` of the whole analysis in [0, 1].
     input_flags : sequence of str, optional
@@ -96,7 +97,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.finish("sync", t0)
 
     t0 = time.perf_counter()
-    calib_report: dict = {}
+    calib_report: dict = dict(rig_report or {}) if rig is not None else {}
     synced: dict = {}  # clip kind -> MotionSync, for the clip sets synchronised from motion
     if rig is None:
         rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
