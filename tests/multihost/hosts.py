@@ -66,10 +66,14 @@ class Cluster:
     services: dict[str, netns.Service] = field(default_factory=dict)
     workers: dict[str, netns.Service] = field(default_factory=dict)
     pg_host: str = "pg"
+    pg_root: Path | None = None  # the PostgreSQL data folders (owned by `postgres`, outside pytest's tmp)
 
     @property
     def database_url(self) -> str:
-        return f"postgresql+psycopg://postgres@{self.network.address(self.pg_host)}:{netns.PG_PORT}/postgres"
+        return self.database_url_on(self.pg_host)
+
+    def database_url_on(self, host: str) -> str:
+        return f"postgresql+psycopg://postgres@{self.network.address(host)}:{netns.PG_PORT}/postgres"
 
     @property
     def broker_url(self) -> str:
@@ -133,12 +137,17 @@ class Cluster:
         self.workers[host] = service
         return service
 
+    def stop_workers(self) -> None:
+        for service in self.workers.values():
+            service.stop(timeout_s=15)
+        self.workers.clear()
+
     def http(self) -> NsHttp:
         return NsHttp(self.client, self.api_url)
 
-    def sql(self, statement: str, **params) -> list[tuple]:
-        """Rows of a query on the current primary, run from the client host."""
-        return self.client.call(_sql, self.database_url, statement, params)
+    def sql(self, statement: str, *, host: str | None = None, **params) -> list[tuple]:
+        """Rows of a query on the current primary (or on `host`'s server), run from the client host."""
+        return self.client.call(_sql, self.database_url_on(host or self.pg_host), statement, params)
 
     def teardown(self) -> None:
         for service in [*self.workers.values(), *reversed(list(self.services.values()))]:

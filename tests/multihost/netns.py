@@ -184,12 +184,13 @@ class Service:
     proc: subprocess.Popen
     log_path: Path
     port: int
+    stop_signal: int = signal.SIGTERM
 
     def stop(self, *, kill: bool = False, timeout_s: float = 20.0) -> None:
         if self.proc.poll() is not None:
             return
         with contextlib.suppress(ProcessLookupError):
-            os.killpg(self.proc.pid, signal.SIGKILL if kill else signal.SIGTERM)
+            os.killpg(self.proc.pid, signal.SIGKILL if kill else self.stop_signal)
         try:
             self.proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
@@ -247,7 +248,22 @@ def start_postgres(network: Network, host: str, data_dir: Path, *, init: bool = 
                                  "-c", "max_wal_senders=4", "-c", "hot_standby=on"],
                  log_path=log_path, user="postgres")
     wait_for_port(network.address(host), PG_PORT, proc, log_path, f"PostgreSQL on {host}", network.ns("client"))
-    return Service("postgres", host, proc, log_path, PG_PORT)
+    # SIGINT: PostgreSQL's fast shutdown (SIGTERM would wait for every client to leave).
+    return Service("postgres", host, proc, log_path, PG_PORT, stop_signal=signal.SIGINT)
+
+
+def start_replica(network: Network, host: str, data_dir: Path, primary: str) -> Service:
+    """A streaming replica of `primary`'s cluster on `host` (`pg_basebackup -R`: it starts as a standby)."""
+    bindir = postgres_bin()
+    run("ip", "netns", "exec", network.ns(host), "runuser", "-u", "postgres", "--", str(bindir / "pg_basebackup"),
+        "-h", network.address(primary), "-p", str(PG_PORT), "-U", "postgres", "-D", str(data_dir), "-R",
+        "-X", "stream", "--no-sync", timeout_s=120)
+    return start_postgres(network, host, data_dir, init=False)
+
+
+def promote(data_dir: Path) -> None:
+    run("runuser", "-u", "postgres", "--", str(postgres_bin() / "pg_ctl"), "promote", "-w", "-D", str(data_dir),
+        timeout_s=60)
 
 
 def start_redis(network: Network, host: str, folder: Path) -> Service:
