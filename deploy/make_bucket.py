@@ -9,6 +9,7 @@ from saddlescope.storage.s3 import S3Storage
 
 
 def main() -> int:
+    """Make the bucket once; 0 when it is there (made now or before)."""
     settings = get_settings()
     url = settings.storage_url or ""
     if not url.startswith("s3://"):
