@@ -78,16 +78,6 @@ def test_secrets_are_required_not_defaulted():
             load(env)
 
 
-def test_only_the_proxy_has_a_host_port(compose):
-    services = compose["services"]
-    assert services["proxy"]["ports"], "the proxy publishes the service"
-    assert "ports" not in services["api"], "a fixed host port on the API would forbid --scale api=N"
-    assert "container_name" not in services["api"] and "container_name" not in services["worker"]
-    assert "ports" not in services["worker"]
-    for name in ("postgres", "redis"):
-        assert "ports" not in services[name], f"{name} must not be reachable from outside"
-
-
 def _named_volumes(service: dict) -> set[str]:
     out = set()
     for volume in service.get("volumes", []):
@@ -96,25 +86,52 @@ def _named_volumes(service: dict) -> set[str]:
     return out
 
 
-def test_api_and_workers_share_no_volume_and_use_the_object_store(compose):
-    api, worker = compose["services"]["api"], compose["services"]["worker"]
-    assert not (_named_volumes(api) & _named_volumes(worker))
-    assert not _named_volumes(api) and not _named_volumes(worker), "clips travel through the bucket only"
-    for service in (api, worker):
-        env = service["environment"]
-        assert env["SADDLESCOPE_STORAGE_URL"].startswith("s3://")
-        assert env["SADDLESCOPE_S3_ENDPOINT_URL"] == "http://seaweedfs:8333"
-    assert "SADDLESCOPE_STORAGE_DIR" not in api["environment"]
+def shape_problems(compose: dict) -> list[str]:
+    """What the production shape forbids, each as a sentence (empty: the file has the shape)."""
+    services, problems = compose["services"], []
+    if not services["proxy"].get("ports"):
+        problems.append("the proxy publishes no port")
+    for name in ("api", "worker", "postgres", "redis"):
+        if services[name].get("ports"):
+            problems.append(f"{name} has a host port (the API's would forbid --scale api=N)")
+    for name in ("api", "worker"):
+        if "container_name" in services[name]:
+            problems.append(f"{name} has a container_name (forbids --scale)")
+    api, worker = services["api"], services["worker"]
+    if _named_volumes(api) or _named_volumes(worker):
+        problems.append(f"API or worker volumes: {_named_volumes(api) | _named_volumes(worker)} "
+                        "(clips travel through the bucket only)")
+    for name, service in (("api", api), ("worker", worker)):
+        env = service.get("environment", {})
+        if not str(env.get("SADDLESCOPE_STORAGE_URL", "")).startswith("s3://"):
+            problems.append(f"{name} does not store in the bucket (SADDLESCOPE_STORAGE_URL)")
+    command = services["redis"].get("command", [])
+    if "--appendonly" not in command or command[command.index("--appendonly") + 1] != "yes":
+        problems.append("redis is not append-only")
+    problems += [f"{name} has no healthcheck" for name, service in services.items() if not service.get("healthcheck")]
+    return problems
 
 
-def test_redis_is_append_only(compose):
-    command = compose["services"]["redis"]["command"]
-    assert command[command.index("--appendonly") + 1] == "yes"
+def test_the_file_has_the_production_shape(compose):
+    assert shape_problems(compose) == []
 
 
-def test_every_service_has_a_healthcheck(compose):
-    missing = [name for name, service in compose["services"].items() if not service.get("healthcheck")]
-    assert not missing, f"services without a healthcheck: {missing}"
+@pytest.mark.parametrize("breakage, expected", [
+    (lambda c: c["services"]["api"].update(ports=["8000:8000"]), "api has a host port"),
+    (lambda c: c["services"]["worker"].update(volumes=["storage:/data"]), "API or worker volumes"),
+    (lambda c: c["services"]["redis"].update(command=["redis-server"]), "redis is not append-only"),
+    (lambda c: c["services"]["seaweedfs"].pop("healthcheck"), "seaweedfs has no healthcheck"),
+    (lambda c: c["services"]["api"]["environment"].update(SADDLESCOPE_STORAGE_URL="/data"), "api does not store"),
+])
+def test_the_shape_check_catches_each_breakage(compose, breakage, expected):
+    broken = json.loads(json.dumps(compose))
+    breakage(broken)
+    assert any(p.startswith(expected) for p in shape_problems(broken)), shape_problems(broken)
+
+
+def test_the_api_reaches_the_store_by_its_service_name(compose):
+    for name in ("api", "worker"):
+        assert compose["services"][name]["environment"]["SADDLESCOPE_S3_ENDPOINT_URL"] == "http://seaweedfs:8333"
 
 
 def test_workers_have_pinned_threads_and_a_cpu_limit(compose):
