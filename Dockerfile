@@ -24,6 +24,7 @@ COPY alembic.ini ./
 COPY backend ./backend
 COPY worker ./worker
 COPY frontend ./frontend
+COPY deploy ./deploy
 RUN pip install --no-deps -e .
 
 ARG CODE_VERSION=""

@@ -30,13 +30,20 @@ $(AXE_STAMP):
 
 install: $(STAMP) $(AXE_STAMP)
 
-# Debian's chromium for the dashboard's browser tests (never a downloaded browser).
+# Debian's chromium for the dashboard's browser tests (never a downloaded browser); Debian's haproxy for
+# the proxy tests (tests/deploy).
 system-deps:
 	@if [ ! -x /usr/bin/chromium ]; then \
 	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null; then \
 	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null) \
 	      || echo "note: could not install chromium; browser tests will skip (fail under CI)"; \
 	  else echo "note: /usr/bin/chromium missing; browser tests will skip (fail under CI)"; fi; \
+	fi
+	@if ! command -v haproxy >/dev/null; then \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null; then \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq haproxy >/dev/null) \
+	      || echo "note: could not install haproxy; the proxy tests will skip (fail under CI)"; \
+	  else echo "note: haproxy missing; the proxy tests will skip (fail under CI)"; fi; \
 	fi
 
 demo: install

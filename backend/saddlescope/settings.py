@@ -68,6 +68,9 @@ class Settings(BaseSettings):
     # s3://BUCKET[/PREFIX] an S3-compatible object store (credentials: AWS_ACCESS_KEY_ID / _SECRET_ACCESS_KEY).
     storage_url: str | None = None
     s3_endpoint_url: str | None = None  # e.g. http://127.0.0.1:8333 (SeaweedFS, MinIO); None: AWS
+    # The store's address as the browser reaches it, for pre-signed part URLs (direct uploads) when the
+    # servers reach it by another name (a compose network's http://seaweedfs:8333); None: s3_endpoint_url.
+    s3_public_endpoint_url: str | None = None
     # Resumable uploads sent by the client straight to the bucket (pre-signed part URLs); None: whenever
     # the storage is a bucket. False keeps them streaming through the API (PATCH chunks).
     direct_uploads: bool | None = None

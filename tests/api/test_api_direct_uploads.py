@@ -43,9 +43,16 @@ def club(env, tmp_path_factory):
 
 
 def start(api, ride_id: int, size: int, camera: str) -> dict:
-    return api.ok("POST", "/uploads", 201, json={
-        "target": "ride_clip", "ride_id": ride_id, "clip_kind": "motion", "camera": camera, "length_bytes": size,
-        "filename": f"{camera}.avi"})
+    return api.ok("POST", "/uploads", 201, json=_upload_request(ride_id, size, camera))
+
+
+def start_raw(api, ride_id: int, size: int, camera: str):
+    return api.post("/uploads", json=_upload_request(ride_id, size, camera))
+
+
+def _upload_request(ride_id: int, size: int, camera: str) -> dict:
+    return {"target": "ride_clip", "ride_id": ride_id, "clip_kind": "motion", "camera": camera,
+            "length_bytes": size, "filename": f"{camera}.avi"}
 
 
 def put_part(api, upload_id: str, number: int, data: bytes) -> int:
@@ -121,3 +128,41 @@ def test_health_checks_the_bucket(env, club):
     bucket = env.settings.storage_url.removeprefix("s3://").split("/")[0]
     assert storage["ok"] and storage["detail"].startswith(f"s3://{bucket}/club-data")
     assert "writable" in storage["detail"]
+
+
+def _dead_endpoint() -> str:
+    import socket
+
+    with socket.socket() as sock:  # a port nobody listens on once closed
+        sock.bind(("127.0.0.1", 0))
+        return f"http://127.0.0.1:{sock.getsockname()[1]}"
+
+
+def test_a_store_that_does_not_answer_is_a_503_with_the_reason(env, club, monkeypatch):
+    from saddlescope.storage import S3Storage
+
+    bucket = env.settings.storage_url.removeprefix("s3://").split("/")[0]
+    app = env.client.app
+    monkeypatch.setattr(app.state, "storage", S3Storage(bucket, "club-data", endpoint_url=_dead_endpoint()))
+    response = start_raw(club["api"], club["ride"]["id"], 1000, "left")
+    assert response.status_code == 503, response.text
+    detail = response.json()["detail"]
+    assert detail.startswith("the file store is not answering") and "try again" in detail
+    assert response.headers.get("Retry-After") == "10"
+
+
+def test_part_urls_carry_the_public_endpoint(env, club):
+    from saddlescope.storage import S3Storage
+
+    bucket = env.settings.storage_url.removeprefix("s3://").split("/")[0]
+    inside = env.settings.s3_endpoint_url
+    storage = S3Storage(bucket, "club-data", endpoint_url=inside, public_endpoint_url="https://files.example.org")
+    key = direct_upload_key("public-endpoint-check")
+    direct_id = storage.start_direct(key)  # over the inside address
+    try:
+        url = storage.part_url(key, direct_id, 1, expires_s=60)
+        assert url.startswith(f"https://files.example.org/{bucket}/club-data/") and "Signature=" in url
+        same = S3Storage(bucket, "club-data", endpoint_url=inside).part_url(key, direct_id, 1, expires_s=60)
+        assert same.startswith(f"{inside}/{bucket}/")  # unset: the servers' own address
+    finally:
+        storage.abort_direct(key)

@@ -33,7 +33,7 @@ from saddlescope.services.login_guard import HashPool, HashPoolBusy, LoginThrott
 from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.uploads import IncompleteUpload
 from saddlescope.settings import Settings, get_settings, with_embedded_secret
-from saddlescope.storage import TooLarge, open_storage
+from saddlescope.storage import StoreUnavailable, TooLarge, open_storage
 
 __all__ = ["ERROR_STATUS", "FRONTEND_DIR", "create_app"]
 
@@ -153,6 +153,7 @@ ERROR_STATUS: dict[type[Exception], int] = {
     QueueUnavailable: status.HTTP_503_SERVICE_UNAVAILABLE,
     LoginThrottled: status.HTTP_429_TOO_MANY_REQUESTS,
     HashPoolBusy: status.HTTP_503_SERVICE_UNAVAILABLE,
+    StoreUnavailable: status.HTTP_503_SERVICE_UNAVAILABLE,  # the object store does not answer
     SaddleScopeError: status.HTTP_422_UNPROCESSABLE_CONTENT,  # bad input: a clip, a bundle, a value
 }
 

@@ -15,10 +15,10 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from saddlescope.core.errors import InputError
+from saddlescope.core.errors import InputError, SaddleScopeError
 from saddlescope.storage.files import CHUNK_BYTES, TooLarge
 
-__all__ = ["PART_BYTES", "S3Storage", "S3Writer", "parse_s3_url"]
+__all__ = ["PART_BYTES", "S3Storage", "S3Writer", "StoreUnavailable", "parse_s3_url"]
 
 # S3's smallest part (but the last) is 5 MiB; 8 MiB parts keep a 4 GiB clip well under its 10,000 parts.
 PART_BYTES = 8 * 1024**2
@@ -153,29 +153,86 @@ class _RangeReader(io.RawIOBase):
         return 0
 
 
+def _new_client(endpoint_url: str | None) -> Any:
+    import boto3
+    from botocore.config import Config
+
+    # Path-style addressing: SeaweedFS and MinIO serve buckets under the endpoint's path.
+    # Its own session: credentials are read from the environment now, not from a process-wide cache.
+    return boto3.session.Session().client(
+        "s3", endpoint_url=endpoint_url, config=Config(s3={"addressing_style": "path"}, retries={"max_attempts": 3}))
+
+
+class StoreUnavailable(SaddleScopeError, OSError):
+    """The object store does not answer (connection refused or reset, time-out, a 5xx after botocore's retries).
+
+    The API answers it with 503 and this reason; in a job it is a passing failure worth retrying, unlike a
+    missing key or a refused request, which stay botocore's `ClientError`.
+    """
+
+    retryable = True
+    retry_after_s = 10
+
+
+def _unavailable(exc: Exception) -> bool:
+    from botocore.exceptions import ClientError, ConnectionError, HTTPClientError
+
+    if isinstance(exc, (ConnectionError, HTTPClientError)):  # refused, reset, connect/read time-outs
+        return True
+    if isinstance(exc, ClientError):
+        code = exc.response.get("ResponseMetadata", {}).get("HTTPStatusCode") or 0
+        return code >= 500 or exc.response.get("Error", {}).get("Code") in ("SlowDown", "ServiceUnavailable")
+    return False
+
+
+class _GuardedClient:
+    """A boto3 S3 client whose calls raise `StoreUnavailable` (with a reason a person reads) when the store
+    does not answer; every other error passes unchanged (a 404 is still `ClientError`)."""
+
+    def __init__(self, client: Any, where: str) -> None:
+        self._client, self._where = client, where
+
+    def __getattr__(self, name: str) -> Any:
+        attr = getattr(self._client, name)
+        if not callable(attr) or name in ("generate_presigned_url", "get_paginator", "can_paginate"):
+            return attr
+
+        def call(*args, **kwargs):
+            try:
+                return attr(*args, **kwargs)
+            except Exception as exc:
+                if _unavailable(exc):
+                    raise StoreUnavailable(f"the file store is not answering ({self._where}: "
+                                           f"{type(exc).__name__}: {exc}); try again in a moment") from exc
+                raise
+        return call
+
+
 class S3Storage:
-    """Keys as objects ``PREFIX/key`` in `bucket` of an S3-compatible store."""
+    """Keys as objects ``PREFIX/key`` in `bucket` of an S3-compatible store.
+
+    `public_endpoint_url`: the store's address as the browser reaches it, for pre-signed part URLs
+    (``SADDLESCOPE_S3_PUBLIC_ENDPOINT_URL``; None: `endpoint_url`). A signature covers the host, so
+    those URLs are signed by a client of that endpoint; no request goes to it from here.
+    """
 
     kind = "s3"
     local = False
 
     def __init__(self, bucket: str, prefix: str = "", *, endpoint_url: str | None = None,
-                 client: Any | None = None) -> None:
+                 client: Any | None = None, public_endpoint_url: str | None = None) -> None:
         if client is None:
-            import boto3
-            from botocore.config import Config
-
-            # Path-style addressing: SeaweedFS and MinIO serve buckets under the endpoint's path.
-            # Its own session: credentials are read from the environment now, not from a process-wide cache.
-            client = boto3.session.Session().client(
-                "s3", endpoint_url=endpoint_url,
-                config=Config(s3={"addressing_style": "path"}, retries={"max_attempts": 3}))
-        self.client, self.bucket, self.prefix, self.endpoint_url = client, bucket, prefix.strip("/"), endpoint_url
+            client = _new_client(endpoint_url)
+        self.bucket, self.prefix, self.endpoint_url = bucket, prefix.strip("/"), endpoint_url
+        self.client = _GuardedClient(client, self.describe())
+        self.public_endpoint_url = public_endpoint_url
+        self._signer = _new_client(public_endpoint_url) if public_endpoint_url else self.client
 
     @classmethod
-    def from_url(cls, url: str, *, endpoint_url: str | None = None) -> S3Storage:
+    def from_url(cls, url: str, *, endpoint_url: str | None = None,
+                 public_endpoint_url: str | None = None) -> S3Storage:
         bucket, prefix = parse_s3_url(url)
-        return cls(bucket, prefix, endpoint_url=endpoint_url)
+        return cls(bucket, prefix, endpoint_url=endpoint_url, public_endpoint_url=public_endpoint_url)
 
     def __repr__(self) -> str:
         return f"S3Storage({self.describe()!r})"
@@ -325,7 +382,7 @@ class S3Storage:
 
     def part_url(self, key: str, direct_id: str, number: int, *, expires_s: int) -> str:
         """A pre-signed PUT URL for part `number` (1-based) of the multipart upload `direct_id`."""
-        return self.client.generate_presigned_url(
+        return self._signer.generate_presigned_url(
             "upload_part", ExpiresIn=expires_s,
             Params={"Bucket": self.bucket, "Key": self.object_name(key), "UploadId": direct_id,
                     "PartNumber": number})
