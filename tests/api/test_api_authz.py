@@ -132,6 +132,8 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
             "camera": "left",
             "length_bytes": 10,
         }
+    elif path == "/api/uploads/{upload_id}/parts" and method == "POST":
+        body = {"numbers": [1]}
     elif path == "/api/riders" and method == "POST":
         body = {"name": "Someone", "user_id": ids["user_id"]}
     elif (

@@ -90,7 +90,14 @@ class EmbeddedQueue:
         if future.cancelled():
             return
         exc = future.exception()
-        if isinstance(exc, BrokenProcessPool):
+        from saddlescope.services.runner import RETRY, STORE_RETRY_S
+
+        if exc is None and future.result() == RETRY:
+            # the file store did not answer: the runner queued the job again; run it after a pause
+            timer = threading.Timer(STORE_RETRY_S, self._resubmit, (job_id,))
+            timer.daemon = True
+            timer.start()
+        elif isinstance(exc, BrokenProcessPool):
             # A child died (out of memory, killed): the job row still says "running".
             log.error("job %s: its worker process died (%s); the pool will be restarted", job_id, exc)
             with self._lock:
@@ -98,6 +105,12 @@ class EmbeddedQueue:
             _mark_lost(self.settings, job_id)
         elif exc is not None:
             log.error("job %s failed with an internal error", job_id, exc_info=exc)
+
+    def _resubmit(self, job_id: int) -> None:
+        try:
+            self.submit(job_id)
+        except QueueUnavailable as exc:  # the server is closing: the job stays queued, as after a restart
+            log.warning("job %s not run again: %s", job_id, exc)
 
     @property
     def pending(self) -> int:
@@ -134,9 +147,10 @@ class InlineQueue:
         self.settings = settings
 
     def submit(self, job_id: int) -> None:
-        from saddlescope.services.runner import run_job
+        from saddlescope.services.runner import RETRY, STORE_RETRY_S, run_job
 
-        run_job(job_id, settings=self.settings)
+        while run_job(job_id, settings=self.settings) == RETRY:  # the runner bounds the attempts
+            time.sleep(STORE_RETRY_S)
 
     def health(self) -> tuple[bool, str]:
         return True, "embedded: jobs run inline in the calling process"

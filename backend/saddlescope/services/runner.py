@@ -32,11 +32,11 @@ from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobFenced, JobKind, StageContext
 from saddlescope.settings import Settings, get_settings
-from saddlescope.storage import open_storage
+from saddlescope.storage import StoreUnavailable, open_storage
 
 __all__ = [
     "FENCED", "HEARTBEAT_S", "MAX_ATTEMPTS", "PROGRESS_INTERVAL_S", "STALE_AFTER_S", "job_is_lost", "recover_lost_jobs",
-    "resend_queued_jobs", "run_job", "worker_gone", "worker_host",
+    "resend_queued_jobs", "run_job", "worker_gone", "worker_host", "RETRY", "STORE_ATTEMPTS", "STORE_RETRY_S",
 ]
 
 log = logging.getLogger(__name__)
@@ -51,6 +51,11 @@ STALE_AFTER_S = 180.0
 MAX_ATTEMPTS = 3
 # What `run_job` returns when its attempt was fenced out (another worker took the job over).
 FENCED = "fenced"
+# What `run_job` returns when the file store did not answer: the job is queued again, to be run after
+# STORE_RETRY_S (Celery's retry; the embedded pool's timer), at most STORE_ATTEMPTS attempts in all.
+RETRY = "retry"
+STORE_RETRY_S = 10.0
+STORE_ATTEMPTS = 6
 
 
 def worker_host() -> str:
@@ -291,6 +296,24 @@ def _claim(sessions: sessionmaker[Session], settings: Settings, job_id: int) -> 
                         dict(job.payload or {}))
 
 
+def _store_unavailable(sessions: sessionmaker[Session], fence: _Fence, ride_id: int | None, reason: str) -> str:
+    """The file store did not answer: a passing failure.
+
+    Queue the job again with the reason (`RETRY`), or fail it with the reason after `STORE_ATTEMPTS` attempts.
+    """
+    if fence.attempt >= STORE_ATTEMPTS:
+        return _end(sessions, fence, ride_id, JobStatus.FAILED,
+                    f"{reason} (gave up after {fence.attempt} attempts; start the analysis again later)")
+    with session_scope(sessions) as session:
+        if not JobRepository(session).retry_later(fence.job_id, reason=f"waiting to try again: {reason}",
+                                                  attempt=fence.attempt, host=fence.host):
+            fence.refused("a retry after the file store did not answer")
+            return FENCED
+        refresh_ride_status(session, ride_id)
+    log.warning("job %s: %s; queued again (attempt %s of %s)", fence.job_id, reason, fence.attempt, STORE_ATTEMPTS)
+    return RETRY
+
+
 def _end(sessions: sessionmaker[Session], fence: _Fence, ride_id: int | None, status: JobStatus,
          error: str | None) -> str:
     """Write the run's outcome, fenced: a cancelled job stays cancelled, a job taken over is left alone."""
@@ -355,6 +378,9 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
                 save_timings()
         except JobFenced:
             return FENCED  # another worker runs the job now: leave its row and outputs alone
+        except StoreUnavailable as exc:
+            save_timings()
+            return _store_unavailable(sessions, fence, ride_id, f"{current}: {exc}")
         except JobCancelled:
             save_timings()
             _refresh_ride_status(sessions, ride_id)

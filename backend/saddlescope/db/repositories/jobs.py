@@ -160,6 +160,14 @@ class JobRepository(Repository):
             values["progress"] = 1.0
         return self._fenced(job_id, attempt, host, **values)
 
+    def retry_later(self, job_id: int, *, reason: str, attempt: int | None = None, host: str | None = None) -> bool:
+        """Put a running job back in the queue after a passing failure (the file store did not answer).
+
+        The reason is shown meanwhile; fenced like `finish`. Its attempts are kept: they bound the retries.
+        """
+        return self._fenced(job_id, attempt, host, status=JobStatus.QUEUED.value, error=reason, progress=0.0,
+                            stage=None, finished_at=None)
+
     def fail_queued(self, job_id: int, *, error: str) -> bool:
         """Fail a job that never started (e.g. the queue refused it)."""
         result = self.session.execute(
