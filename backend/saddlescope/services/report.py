@@ -196,7 +196,9 @@ def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
     seen: dict[str, dict[str, Any]] = {}
     for note in notes:
         seen.setdefault(note["message"], {**note, "count": 0})["count"] += 1
-    shown = list(seen.values())[:6]
+    # the most serious first; five lines leave room for the intervals and the verdict on the one sheet
+    rank = {"problem": 0, "check": 1, "ok": 2}
+    shown = sorted(seen.values(), key=lambda n: rank.get(n["severity"], 1))[:5]
     rows = []
     for n in shown:
         times = f" ({n['count']} times)" if n["count"] > 1 else ""
