@@ -48,7 +48,7 @@ def _opencv_pair(board_obj, cam_a, cam_b, va, vb):
     return out[0], out[5], out[6].ravel()
 
 
-@pytest.mark.parametrize("n_views", [5, 60])
+@pytest.mark.parametrize("n_views", [5, 60, 90])  # OpenCV's own below 60 shared views, the sparse solver from 60
 def test_the_pair_matches_opencv_stereo_calibrate(n_views):
     board, obj, cam_a, cam_b, va, vb, R_true, t_true = _pair_views(n_views, noise_px=0.2)
     got = stereo_extrinsics(va, vb, cam_a, cam_b, board)
@@ -60,8 +60,9 @@ def test_the_pair_matches_opencv_stereo_calibrate(n_views):
     assert np.linalg.norm(got["t_mm"] - t_true) < 5.0  # and near the truth
 
 
-def test_exact_corners_give_the_exact_pose():
-    board, _, cam_a, cam_b, va, vb, R_true, t_true = _pair_views(12, noise_px=0.0, seed=3)
+@pytest.mark.parametrize("n_views", [12, 70])  # OpenCV's solver below 60 shared views, the sparse one from 60
+def test_exact_corners_give_the_exact_pose(n_views):
+    board, _, cam_a, cam_b, va, vb, R_true, t_true = _pair_views(n_views, noise_px=0.0, seed=3)
     got = stereo_extrinsics(va, vb, cam_a, cam_b, board)
     assert got["rms_px"] < 1e-3
     assert np.linalg.norm(got["t_mm"] - t_true) < 1e-2

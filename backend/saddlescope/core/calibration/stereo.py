@@ -7,12 +7,15 @@ import numpy as np
 
 from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.bundle_adjustment import _NCAM, _Bundle, _levenberg_marquardt, _pose_of_view
+from saddlescope.core.calibration.intrinsics import _CALIB_CRITERIA
 from saddlescope.core.calibration.projection import _intr_vector
 from saddlescope.core.calibration.views import MIN_CORNERS, BoardView
 from saddlescope.core.errors import CalibrationError
 from saddlescope.core.types import Board, Camera
 
 __all__ = ["stereo_extrinsics"]
+
+SPARSE_STEREO_MIN_VIEWS = 60  # shared views from which the sparse solver is used
 
 
 def _shared(views_a: list[BoardView], views_b: list[BoardView]):
@@ -51,7 +54,10 @@ def stereo_extrinsics(views_a: list[BoardView], views_b: list[BoardView], cam_a:
                                f"{len(shared)} frame(s); need at least {min_shared}")
     obj_all = object_points_mm(board).astype(np.float64)
     try:
-        R, t_mm, rms = _stereo_fit(shared, obj_all, cam_a, cam_b)
+        # OpenCV's dense solve is cheaper for few views; its O(views^3) overtakes near 50 (measured: 40 views
+        # 0.05 vs 0.08 CPU-s, 80 views 0.21 vs 0.09, 150 views 0.85 vs 0.22)
+        fit = _stereo_opencv if len(shared) < SPARSE_STEREO_MIN_VIEWS else _stereo_fit
+        R, t_mm, rms = fit(shared, obj_all, cam_a, cam_b)
     except (cv2.error, np.linalg.LinAlgError) as exc:
         raise CalibrationError(f"stereo calibration of {cam_a.name}-{cam_b.name} failed: "
                                f"{str(exc).strip().splitlines()[-1]}") from None
@@ -59,6 +65,16 @@ def stereo_extrinsics(views_a: list[BoardView], views_b: list[BoardView], cam_a:
         raise CalibrationError(f"stereo calibration of {cam_a.name}-{cam_b.name} failed: a shared view's board "
                                "pose could not be found")
     return {"R": R, "t_mm": t_mm, "rms_px": rms, "n_views": len(shared), "frames": [int(f) for f, _, _, _ in shared]}
+
+
+def _stereo_opencv(shared, obj_all: np.ndarray, cam_a: Camera, cam_b: Camera):
+    """(R, t_mm, RMS px) from ``cv2.stereoCalibrate`` with CALIB_FIX_INTRINSIC."""
+    obj = [obj_all[ids].astype(np.float32) for _, ids, _, _ in shared]
+    img_a = [a.astype(np.float32).reshape(-1, 1, 2) for _, _, a, _ in shared]
+    img_b = [b.astype(np.float32).reshape(-1, 1, 2) for _, _, _, b in shared]
+    out = cv2.stereoCalibrate(obj, img_a, img_b, cam_a.K, cam_a.dist, cam_b.K, cam_b.dist,
+                              tuple(cam_a.image_size), flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CALIB_CRITERIA)
+    return np.asarray(out[5], np.float64), np.asarray(out[6], np.float64).ravel(), float(out[0])
 
 
 def _stereo_fit(shared, obj_all: np.ndarray, cam_a: Camera, cam_b: Camera):
