@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Mapping
 
 import cv2
 import numpy as np
@@ -222,46 +221,30 @@ def _all_intrinsics(views_by_camera: Mapping[str, list[BoardView]], board: Board
 
     Where ``fix_k3`` is None, k3 is chosen per camera (:func:`_choose_k3`).
     """
-    def one(name: str) -> tuple[Camera, dict]:
-        cam, rep = calibrate_intrinsics(views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
-                                        fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
+    intrinsics: dict[str, Camera] = {}
+    intr_reports: dict[str, dict] = {}
+    for name in views_by_camera:
+        intrinsics[name], intr_reports[name] = calibrate_intrinsics(
+            views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
+            fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
         if fix_k3 is None:
-            cam, rep = _choose_k3(cam, rep, views_by_camera[name], board, image_sizes[name], camera=name,
-                                  clip=clip, min_views=min_views)
-        return cam, rep
-
-    found = _in_threads(one, list(views_by_camera))
-    return {n: found[n][0] for n in found}, {n: found[n][1] for n in found}
-
-
-def _in_threads(work: Callable, jobs: list) -> dict:
-    """``work(job)`` for every job, several at once within OpenCV's thread budget, keyed by job.
-
-    OpenCV's solvers release the GIL and run their Levenberg-Marquardt loops in the calling thread, so
-    the cameras' (or pairs') fits overlap on a multi-core worker. ``cv2.getNumThreads()`` is the
-    worker's budget (the pipeline sets it). Each job depends on its own views alone: the results do
-    not depend on the threads' timing. The first error, in the jobs' order, is raised.
-    """
-    workers = max(1, min(len(jobs), cv2.getNumThreads()))
-    if workers == 1:
-        return {job: work(job) for job in jobs}
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(work, job) for job in jobs]
-    return {job: f.result() for job, f in zip(jobs, futures, strict=True)}
+            intrinsics[name], intr_reports[name] = _choose_k3(intrinsics[name], intr_reports[name],
+                                                              views_by_camera[name], board, image_sizes[name],
+                                                              camera=name, clip=clip, min_views=min_views)
+    return intrinsics, intr_reports
 
 
 def _stereo_pairs(views: Mapping[str, list[BoardView]], intrinsics: Mapping[str, Camera], board: Board, *,
                   min_shared: int) -> dict[tuple[str, str], dict]:
     """:func:`stereo_extrinsics` of every pair of cameras that see the board together often enough."""
-    def one(pair: tuple[str, str]) -> dict | None:
-        a, b = pair
+    pairs_cv: dict[tuple[str, str], dict] = {}
+    for a, b in itertools.combinations(list(views), 2):
         try:
-            return stereo_extrinsics(views[a], views[b], intrinsics[a], intrinsics[b], board, min_shared=min_shared)
+            pairs_cv[(a, b)] = stereo_extrinsics(views[a], views[b], intrinsics[a], intrinsics[b], board,
+                                                 min_shared=min_shared)
         except CalibrationError:
-            return None  # the pair may be linked through other cameras
-
-    found = _in_threads(one, list(itertools.combinations(list(views), 2)))
-    return {pair: p for pair, p in found.items() if p is not None}
+            continue  # the pair may be linked through other cameras
+    return pairs_cv
 
 
 def _principal_point_check(single: Mapping[str, Camera], joint: Mapping[str, Camera],
