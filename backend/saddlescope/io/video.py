@@ -267,17 +267,88 @@ def iter_gray_frames(path: Path | str, start: int = 0, stop: int | None = None,
         stream.thread_type = "AUTO"
         if threads is not None:
             stream.thread_count = max(1, int(threads))
-        index = -1
-        try:
-            for frame in container.decode(stream):
-                index += 1
-                if index < start or (index - start) % step:
-                    continue
-                if stop is not None and index >= stop:
-                    break
-                yield index, _luma(frame)
-        except (av.error.FFmpegError, ValueError) as exc:
-            raise VideoError(f"{path}: decoding failed after frame {index} ({exc})") from None
+        plan = _seek_plan(path, start) if start > 0 else None
+        if plan is None:
+            yield from _decode_from_start(container, stream, path, start, stop, step)
+        else:
+            yield from _decode_from_key(container, stream, path, start, stop, step, *plan)
+
+
+def _decode_from_start(container, stream, path: Path, start: int, stop: int | None,
+                       step: int) -> Iterator[tuple[int, np.ndarray]]:
+    """Frames counted from the clip's first (every frame before ``start`` decoded and dropped)."""
+    index = -1
+    try:
+        for frame in container.decode(stream):
+            index += 1
+            if index < start or (index - start) % step:
+                continue
+            if stop is not None and index >= stop:
+                break
+            yield index, _luma(frame)
+    except (av.error.FFmpegError, ValueError) as exc:
+        raise VideoError(f"{path}: decoding failed after frame {index} ({exc})") from None
+
+
+def _seek_plan(path: Path, start: int) -> tuple[int, list[int]] | None:
+    """(keyframe pts to seek to, every frame's pts in display order) for decoding from frame ``start``;
+    None when the packets cannot index the frames exactly (then decode from the first frame).
+
+    Read from the packets alone (no decoding): one packet per frame with a timestamp, the same rule
+    as :func:`probe_video`. The keyframe is the last one shown at or before frame ``start``. The packets
+    are read through a container of their own, so the decoding one stays at the clip's start.
+    """
+    pts: list[int] = []
+    keys: list[int] = []
+    try:
+        with _open(path) as container:
+            stream = container.streams.video[0]
+            for packet in container.demux(stream):
+                if packet.size == 0 and packet.pts is None:
+                    continue  # the demuxer's flush packet
+                if packet.pts is None or packet.is_corrupt:
+                    return None
+                pts.append(int(packet.pts))
+                if packet.is_keyframe:
+                    keys.append(int(packet.pts))
+            stated = int(stream.frames or 0)
+    except (av.error.FFmpegError, ValueError, VideoError):
+        return None
+    if not pts or len(set(pts)) != len(pts) or (stated and stated != len(pts)) or start >= len(pts):
+        return None
+    pts.sort()
+    target = pts[start]
+    before = [k for k in keys if k <= target]
+    if not before or max(before) == pts[0]:
+        return None  # the only keyframe before it is the first frame: decoding from the start is the same
+    return max(before), pts
+
+
+def _decode_from_key(container, stream, path: Path, start: int, stop: int | None, step: int,
+                     key_pts: int, pts: list[int]) -> Iterator[tuple[int, np.ndarray]]:
+    """Frames from ``start`` on, decoding from the keyframe before it (the frames before that are not
+    decoded twice); each frame's index is its timestamp's rank among all the packets'."""
+    rank = {p: i for i, p in enumerate(pts)}
+    expected = start
+    try:
+        container.seek(key_pts, stream=stream, backward=True, any_frame=False)
+        for frame in container.decode(stream):
+            if frame.pts is None or frame.pts not in rank:
+                raise VideoError(f"{path}: a frame decoded after seeking has no timestamp of the clip's packets "
+                                 f"(pts {frame.pts})")
+            index = rank[frame.pts]
+            if index < expected:
+                continue  # before the start frame (or an open GOP's leading picture)
+            if index != expected:
+                raise VideoError(f"{path}: frame {expected} is missing after seeking (got frame {index})")
+            expected += 1
+            if stop is not None and index >= stop:
+                break
+            if (index - start) % step:
+                continue
+            yield index, _luma(frame)
+    except (av.error.FFmpegError, ValueError) as exc:
+        raise VideoError(f"{path}: decoding failed after frame {expected - 1} ({exc})") from None
 
 
 def read_gray_frames(path: Path | str, indices) -> dict[int, np.ndarray]:

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,7 +35,7 @@ from saddlescope.core.triangulation import position_uncertainty, reach_by_camera
 from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
 
 __all__ = ["RideTracks", "depth_uncertainty", "detect_clip", "detect_motion", "detect_ride",
-           "disagreement_flag", "still_start_positions"]
+           "disagreement_flag", "per_camera", "still_start_positions"]
 
 
 def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mapping[str, int],
@@ -56,11 +57,11 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
         A sentence per camera left out.
     """
     overrides = dict(params.detection.get(kind, {}))
-    tracks = {}
+    common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
     missed: dict[str, DetectionError] = {}
+    jobs: dict[str, dict] = {}  # camera -> its keyword arguments to track_markers
     for cam in clips.cameras(kind):
-        cam_overrides = overrides.pop(cam, {}) if isinstance(overrides.get(cam), Mapping) else {}
-        common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
+        cam_overrides = overrides.get(cam, {}) if isinstance(overrides.get(cam), Mapping) else {}
         if start_xy is not None and "first_frame_xy" not in {**common, **cam_overrides}:
             if cam not in start_xy:
                 if spare_cameras:
@@ -70,18 +71,49 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
                     continue
             else:
                 cam_overrides = {**cam_overrides, "first_frame_xy": start_xy[cam]}
-        try:
-            tracks[cam] = track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)),
-                                        n_markers=n_markers, camera=cam, clip=kind, **common, **cam_overrides)
-        except DetectionError as exc:
+        jobs[cam] = {**common, **cam_overrides}
+
+    def track(cam: str) -> ImageTracks:
+        return track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)), n_markers=n_markers,
+                             camera=cam, clip=kind, **jobs[cam])
+
+    tracks = {}
+    for cam, got in per_camera(list(jobs), track, params.threads).items():
+        if isinstance(got, DetectionError):
             if not spare_cameras:
-                raise
-            missed[cam] = exc
+                raise got
+            missed[cam] = got
+        else:
+            tracks[cam] = got
+    missed = {cam: missed[cam] for cam in clips.cameras(kind) if cam in missed}  # in the cameras' order
     if len(tracks) < 2 and missed:
         raise next(iter(missed.values()))
     flags = [f"the {kind} clip was triangulated from the {' and '.join(tracks)} cameras only: {exc}"
              for exc in missed.values()]
     return tracks, flags
+
+
+def per_camera(cams: list[str], work: Callable[[str], ImageTracks], threads: int | None
+               ) -> dict[str, ImageTracks | DetectionError]:
+    """``work(cam)`` for every camera, cameras in parallel within the thread budget.
+
+    Decoding (PyAV) and the marker search (OpenCV, numpy) release the GIL for most of a frame. Each
+    camera's tracks depend on its own clip alone, so the result does not depend on the threads'
+    timing. At most ``threads`` cameras at once (None: all), each with one decoder and one frame in
+    hand, so memory stays bounded by the budget, not the number of cameras. A camera whose markers
+    are not found maps to its DetectionError; any other error is raised.
+    """
+    def guarded(cam: str) -> ImageTracks | DetectionError:
+        try:
+            return work(cam)
+        except DetectionError as exc:
+            return exc
+
+    workers = max(1, min(len(cams), threads or len(cams)))
+    if workers == 1:
+        return {cam: guarded(cam) for cam in cams}
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return dict(zip(cams, pool.map(guarded, cams), strict=True))
 
 
 def still_start_positions(clips: ClipReader, rig: Rig, kind: str, first_frame: Mapping[str, int], n_markers: int
@@ -185,10 +217,12 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     if not multiview:
         try:
             # First choice: each camera finds the markers by itself among what moves (glints stand still).
-            tracks = {c: track_markers(clips.gray_frames("motion", c, start=first_frame.get(c, 0)),
-                                       n_markers=n_horse, camera=c, clip="motion", **{"moving": True, **overrides})
-                      for c in cams}
-            return tracks, horse_idx, (rest[0] if rest else None), False
+            tracks = per_camera(cams, lambda c: track_markers(
+                clips.gray_frames("motion", c, start=first_frame.get(c, 0)), n_markers=n_horse, camera=c,
+                clip="motion", **{"moving": True, **overrides}), params.threads)
+            failed = [got for got in tracks.values() if isinstance(got, DetectionError)]
+            if not failed:
+                return tracks, horse_idx, (rest[0] if rest else None), False
         except DetectionError:
             pass
     # Then all cameras together: the first instant where they agree on the static shot's triangle.
@@ -203,9 +237,12 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     position = stamped_position if clocks else None
     _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last,
                                       frame_position=position)
-    tracks = {c: track_markers(clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse,
-                               camera=c, clip="motion", first_frame_xy=found["xy"][c], **overrides)
-              for c in cams}
+    tracks = per_camera(cams, lambda c: track_markers(
+        clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse, camera=c, clip="motion",
+        first_frame_xy=found["xy"][c], **overrides), params.threads)
+    for got in tracks.values():
+        if isinstance(got, DetectionError):
+            raise got
     return tracks, horse_idx, (rest[0] if rest else None), True
 
 
