@@ -121,7 +121,7 @@ def standin_calibration(size: tuple[int, int] = (640, 480)) -> dict:
     }
 
 
-def standin_analyze_bundle(path, on_progress=None, rig=None, params=None, meta_overrides=None):
+def standin_analyze_bundle(path, on_progress=None, rig=None, params=None, meta_overrides=None, rig_report=None):
     from saddlescope.io.bundle import open_bundle
 
     STANDIN.calls += 1

@@ -43,7 +43,7 @@ def load_compose() -> dict:
     return yaml.safe_load(COMPOSE.read_text())
 
 
-def test_compose_file_has_the_five_services_wired_together(request):
+def test_compose_file_has_its_services_wired_together(request):
     model = load_compose()
     how = (
         "`docker compose config`"
@@ -52,21 +52,25 @@ def test_compose_file_has_the_five_services_wired_together(request):
     )
     integration_services.report_service(request.config, f"docker-compose.yml validated by {how}")
     services = model["services"]
-    assert set(services) == {"api", "worker", "redis", "postgres", "migrate"}
-    assert services["migrate"]["command"] == ["alembic", "upgrade", "head"]
+    assert set(services) == {"proxy", "api", "worker", "redis", "postgres", "seaweedfs", "migrate"}
+    assert services["migrate"]["command"][-1].startswith("alembic upgrade head")
     for name in ("api", "worker"):
         depends = services[name]["depends_on"]
         assert depends["migrate"]["condition"] == "service_completed_successfully"
         assert depends["redis"]["condition"] == "service_healthy"
-        assert any(str(v).endswith("/data/storage") for v in _volumes(services[name])), name
+        assert not _volumes(services[name]), name  # no shared folder: clips and results live in the bucket
     assert services["migrate"]["depends_on"]["postgres"]["condition"] == "service_healthy"
-    # a scalable worker: no fixed name, no published port
-    assert "container_name" not in services["worker"] and "ports" not in services["worker"]
+    assert services["migrate"]["depends_on"]["seaweedfs"]["condition"] == "service_healthy"
+    # scalable API replicas and workers: no fixed name, no published port (the proxy publishes one)
+    for name in ("api", "worker"):
+        assert "container_name" not in services[name] and "ports" not in services[name], name
+    assert services["proxy"].get("ports")
     assert services["worker"]["command"] == ["saddlescope", "worker"]
     for name in ("api", "worker", "migrate"):
         env = services[name]["environment"]
         assert env["SADDLESCOPE_DATABASE_URL"].startswith("postgresql+psycopg://")
         assert env["SADDLESCOPE_BROKER_URL"].startswith("redis://redis:6379")
+        assert env["SADDLESCOPE_STORAGE_URL"].startswith("s3://")
         assert "SADDLESCOPE_SECRET_KEY" in env
 
 

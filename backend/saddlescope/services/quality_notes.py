@@ -105,6 +105,8 @@ _TABLE: tuple[tuple[str, str, Severity, str], ...] = (
      "A few stray samples of one marker were left out of its curve; nothing to do unless it repeats."),
     ("fit.fundamental_drift", r".+: the fitted fundamental \(", "check",
      "One marker's curve did not follow the stride rhythm: check its residuals below and that it was tracked cleanly."),
+    ("fit.short_crossing", r"the markers were tracked together for .+ the fits saw", "check",
+     "The cameras saw too few strides together: film a longer straight line in all cameras' view."),
     ("fit.no_fundamental", r"no fit determined the fundamental", "check",
      "The stride rhythm came from the stride period only: film at least two clean strides at an even pace."),
     # rotation of the back (core/kinematics/rigid_body.py)
