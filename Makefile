@@ -55,7 +55,7 @@ lint: install
 
 # Two pytest-xdist workers, each test file whole on one worker (--dist loadfile: a module's server, ride
 # or database is built once), overlapping one test's waiting (servers, browser, broker) with another's
-# computing: the whole suite ran in 28 min with two workers on a loaded 2-core machine, against about
+# computing: the whole suite ran in 15 min with two workers on a quiet 2-core machine (28 loaded), against about
 # 41 min in one process. TEST_WORKERS=0 runs everything in one process.
 TEST_WORKERS ?= 2
 
