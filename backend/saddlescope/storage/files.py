@@ -21,13 +21,24 @@ from typing import BinaryIO
 
 from saddlescope.core.errors import InputError
 
-__all__ = ["CHUNK_BYTES", "AtomicWriter", "FileStorage", "TooLarge", "sha256_file", "tree_digest"]
+__all__ = ["CHUNK_BYTES", "AtomicWriter", "FileStorage", "TooLarge", "same_prefix", "sha256_file", "tree_digest"]
 
 CHUNK_BYTES = 1 << 20
 
 
 class TooLarge(InputError):
     """An upload exceeds the size limit (HTTP 413)."""
+
+
+def same_prefix(ours: BinaryIO, theirs: BinaryIO, length: int) -> bool:
+    """Whether the next `length` bytes of both streams are equal, read a chunk at a time."""
+    while length > 0:
+        size = min(length, CHUNK_BYTES)
+        mine = ours.read(size)
+        if len(mine) != size or mine != theirs.read(size):
+            return False
+        length -= size
+    return True
 
 
 class AtomicWriter:
@@ -193,13 +204,7 @@ class FileStorage:
         """Whether `length` bytes of `key` from `offset` equal the first `length` bytes of `other_key`."""
         with self.open(key) as ours, self.open(other_key) as theirs:
             ours.seek(offset)
-            while length > 0:
-                size = min(length, CHUNK_BYTES)
-                mine = ours.read(size)
-                if len(mine) != size or mine != theirs.read(size):
-                    return False
-                length -= size
-        return True
+            return same_prefix(ours, theirs, length)
 
     def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
         return self.write_stream(key, io.BytesIO(data))

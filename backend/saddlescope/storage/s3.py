@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from saddlescope.core.errors import InputError, SaddleScopeError
-from saddlescope.storage.files import CHUNK_BYTES, TooLarge
+from saddlescope.storage.files import CHUNK_BYTES, TooLarge, same_prefix
 
 __all__ = ["PART_BYTES", "S3Storage", "S3Writer", "StoreUnavailable", "parse_s3_url"]
 
@@ -329,13 +329,7 @@ class S3Storage:
         """Whether `length` bytes of `key` from `offset` equal the first `length` bytes of `other_key`."""
         with self.open_seekable(key) as ours, self.open(other_key) as theirs:
             ours.seek(offset)
-            while length > 0:
-                size = min(length, CHUNK_BYTES)
-                mine = ours.read(size)
-                if len(mine) != size or mine != theirs.read(size):
-                    return False
-                length -= size
-        return True
+            return same_prefix(ours, theirs, length)
 
     def append_from(self, key: str, at: int, source_key: str, skip: int) -> None:
         """Add `source_key` from its byte `skip` on as the part of `key` starting at byte `at`.
