@@ -51,13 +51,17 @@ export async function render({ view, guard, notFound } = renderOptions) {
     cleanup = null;
   }
   const count = ++renderCount;
-  view.replaceChildren();
+  // Each render mounts into a root of its own: a slower, older mount that finishes late then fills a
+  // detached root instead of appending a second copy of a page to the view.
+  const root = document.createElement("div");
+  root.className = "page-root";
+  view.replaceChildren(root);
   view.setAttribute("aria-busy", "true");
   markNav(path);
   const mount = found ? found.route.mount : notFound;
   document.title = found?.route.title ? `${found.route.title} \u2013 SaddleScope` : "SaddleScope";
   try {
-    const result = await mount(view, found ? found.params : {}, query);
+    const result = await mount(root, found ? found.params : {}, query);
     if (count !== renderCount) {
       if (typeof result === "function") result(); // a newer page was rendered meanwhile
       return;

@@ -307,3 +307,17 @@ def test_an_incomplete_ride_says_what_is_missing_and_is_completed_on_the_upload_
     jobs = _ok(api.get("/api/jobs", params={"ride_id": ride["id"]}))
     assert jobs["total"] == 1  # complete now: its analysis was queued
     assert _ok(api.get(f"/api/rides/{ride['id']}/readiness")) == {"ready": True, "missing": []}
+
+
+def test_two_renders_that_overlap_leave_one_page(page, served):
+    """A hashchange queued while the app starts renders the page twice at once: the older mount, when it
+    finishes late, must fill a detached root, not append a second form to the view (the CI failure of
+    stop 30: two readiness lists on the upload page)."""
+    page.goto("/#/upload")
+    page.locator("[data-upload-form]").wait_for()
+    forms = page.evaluate("""async () => {
+        const router = await import('/js/router.js');
+        await Promise.all([router.render(), router.render(), router.render()]);
+        return document.querySelectorAll('main [data-upload-form]').length;
+    }""")
+    assert forms == 1

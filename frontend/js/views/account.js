@@ -177,13 +177,16 @@ class Members {
       this.showError(error);
       return;
     }
-    announce(`${name} changed.`);
     if (losingOwnRights) {
+      announce(`${name} changed.`);
       await refreshSession(); // the role (and its permissions) as the server now sees us
       navigate("/account"); // the page without the members section
       return;
     }
+    // Announce once the table shows the change: a next change must not race this reload (which, after
+    // the admin stepped down meanwhile, would be refused).
     await this.load();
+    announce(`${name} changed.`);
   }
 
   async issueReset(user, { fresh = false } = {}) {
