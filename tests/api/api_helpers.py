@@ -236,6 +236,26 @@ def zip_folder(folder: Path, *, rewrite: dict | None = None, extra: dict | None 
     return buffer.getvalue()
 
 
+def zip_members(members: dict[str, bytes], *, deflate: bool = True) -> bytes:
+    """A zip of the given members (name -> bytes)."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED if deflate else zipfile.ZIP_STORED) as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    return buffer.getvalue()
+
+
+def zip_bomb() -> bytes:
+    """A small zip whose one clip inflates to 20 MiB of zeros (a compression ratio no video has)."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("ride.json", b"{}")
+        with zf.open("motion/left.mp4", "w", force_zip64=True) as member:
+            for _ in range(20):
+                member.write(b"\x00" * (1 << 20))
+    return buffer.getvalue()
+
+
 def ride_json_with(folder: Path, **changes) -> bytes:
     import json
 

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import io
 import json
-import zipfile
 
 import integration_services
 import pytest
-from api_helpers import new_club, zip_folder
+from api_helpers import new_club, zip_bomb, zip_folder, zip_members
 from engines import ENGINES, MAX_UPLOAD_BYTES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
@@ -161,24 +159,6 @@ def test_a_file_over_the_size_limit_is_refused_while_streaming(env, setup):
     assert state(env, setup) == before
 
 
-def zip_bytes(members: dict[str, bytes]) -> bytes:
-    buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
-        for name, data in members.items():
-            zf.writestr(name, data)
-    return buffer.getvalue()
-
-
-def bomb() -> bytes:
-    buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
-        zf.writestr("ride.json", b"{}")
-        with zf.open("motion/left.mp4", "w", force_zip64=True) as member:
-            for _ in range(20):
-                member.write(b"\x00" * (1 << 20))
-    return buffer.getvalue()
-
-
 def bundle_with(setup, **changes) -> bytes:
     folder = setup["bundle"]
     meta = json.loads((folder / "ride.json").read_text())
@@ -190,7 +170,7 @@ def bundle_with(setup, **changes) -> bytes:
     ("make", "reasons"),
     [
         (lambda s: zip_folder(s["bundle"], extra={"../../evil.txt": b"owned"}), ["'..' component"]),
-        (lambda s: bomb(), ["compresses", "zip bomb"]),
+        (lambda s: zip_bomb(), ["compresses", "zip bomb"]),
         (lambda s: bundle_with(s, gait="gallop"), ["ride.json", "gait", "gallop"]),
         (lambda s: bundle_with(s, cameras=["left", "middle", "top"]), ["ride.json", "top"]),
         (
@@ -211,7 +191,7 @@ def bundle_with(setup, **changes) -> bytes:
             lambda s: b"PK\x03\x04 this is not really a zip",
             ["a ride bundle must be a folder or a .zip archive"],
         ),
-        (lambda s: zip_bytes({"notes.txt": b"hello"}), ["no ride.json"]),
+        (lambda s: zip_members({"notes.txt": b"hello"}), ["no ride.json"]),
     ],
 )
 def test_a_bad_bundle_is_refused_with_the_reason_and_nothing_is_registered(env, setup, make, reasons):

@@ -8,13 +8,11 @@ corpus as before it.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
-import zipfile
 
 import integration_services
 import pytest
-from api_helpers import zip_folder
+from api_helpers import zip_bomb, zip_folder, zip_members
 from bad_input_corpus import CORPUS, LONG
 from engines import ENGINES, MAX_UPLOAD_BYTES, open_env
 from integration_services import add_member, new_club, write_tiny_bundle, write_tiny_clip
@@ -38,24 +36,6 @@ def env(request, tmp_path_factory):
 
 def _clip(folder, name, **kw) -> bytes:
     return write_tiny_clip(folder / name, **kw).read_bytes()
-
-
-def _zip(members: dict[str, bytes], *, deflate: bool = True) -> bytes:
-    buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED if deflate else zipfile.ZIP_STORED) as zf:
-        for name, data in members.items():
-            zf.writestr(name, data)
-    return buffer.getvalue()
-
-
-def _bomb() -> bytes:
-    buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
-        zf.writestr("ride.json", b"{}")
-        with zf.open("motion/left.mp4", "w", force_zip64=True) as member:
-            for _ in range(20):
-                member.write(b"\x00" * (1 << 20))
-    return buffer.getvalue()
 
 
 def _padded(bundle) -> bytes:
@@ -94,10 +74,10 @@ CLIPS = {
 }
 BUNDLES = {
     "zip_slip": lambda b: zip_folder(b, extra={"../../evil.txt": b"owned"}),
-    "bomb": lambda b: _bomb(),
+    "bomb": lambda b: zip_bomb(),
     "padded": lambda b: _padded(b),
     "not_zip": lambda b: b"PK\x03\x04 this is not really a zip",
-    "no_ride_json": lambda b: _zip({"notes.txt": b"hello"}),
+    "no_ride_json": lambda b: zip_members({"notes.txt": b"hello"}),
     "ride_json_broken": lambda b: zip_folder(b, rewrite={"ride.json": b'{"format": "saddlescope.ride/1", '}),
     "gait_gallop": lambda b: _meta_bundle(b, _set(gait="gallop")),
     "camera_top": lambda b: _meta_bundle(b, _set(cameras=["left", "middle", "top"])),

@@ -98,12 +98,15 @@ class Served:
 
 
 @contextmanager
-def serve_fresh(root: Path, startup_timeout_s: float = 180.0) -> Iterator[Served]:
+def serve_fresh(root: Path, startup_timeout_s: float = 240.0, extra_env: dict[str, str] | None = None
+                ) -> Iterator[Served]:
     """`saddlescope serve` on a free port with an empty SQLite database and storage under `root`
-    (a generous start-up time: the machine running the tests may be busy)."""
+    (a generous start-up time: the machine running the tests may be busy); `extra_env` adds to or
+    overrides its environment (e.g. object storage)."""
     database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
     storage_dir = root / "var" / "storage"
     env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
+    env.update(extra_env or {})
     port = free_port()
     base = f"http://127.0.0.1:{port}"
     log_path = root / "serve.log"
@@ -115,6 +118,37 @@ def serve_fresh(root: Path, startup_timeout_s: float = 180.0) -> Iterator[Served
         yield Served(base, database_url, storage_dir, log_path, proc)
     finally:
         integration_services.stop_process(proc)
+
+
+@contextmanager
+def chromium_for_module(sync_playwright=None, extra_args: tuple[str, ...] = ()) -> Iterator:
+    """Debian's chromium for a module's tests (skip, or fail under CI, where it is missing)."""
+    manager = (sync_playwright or require_browser())().start()
+    try:
+        chromium = launch_chromium(manager, *extra_args)
+        try:
+            yield chromium
+        finally:
+            chromium.close()
+    finally:
+        manager.stop()
+
+
+def new_club_admin(base: str, *, club_name: str, email: str, password: str, display_name: str | None = None
+                   ) -> httpx.Client:
+    """Found a club on a fresh server and return a bearer-token client of its admin (no cookies, so
+    no CSRF token is needed). The caller closes it."""
+    api = httpx.Client(base_url=base, timeout=30)
+    founding = {"club_name": club_name, "email": email, "password": password}
+    if display_name is not None:
+        founding["display_name"] = display_name
+    created = api.post("/api/clubs", json=founding)
+    assert created.status_code == 201, created.text
+    login = api.post("/api/auth/login", json={"email": email, "password": password})
+    assert login.status_code == 200, login.text
+    api.cookies.clear()
+    api.headers["Authorization"] = f"Bearer {login.json()['access_token']}"
+    return api
 
 
 # ----------------------------------------------------------------------------- page checks
@@ -234,8 +268,7 @@ def shoot_both_widths(page, name: str) -> None:
 
 
 __all__ = ["AXE_JS", "CHROMIUM", "CHROMIUM_ARGS", "PHONE_WIDTH_PX", "SADDLESCOPE", "SCREENSHOTS", "Served",
-           "shoot_both_widths", "assert_no_horizontal_scroll", "axe_violations", "console_errors",
-           "fail_or_skip", "free_port",
-           "horizontal_overflow_px", "launch_chromium", "plotly_traces", "require_axe", "require_browser",
-           "screenshot", "serve_fresh", "sign_in", "visible_permission_controls", "wait_healthy",
-           "widest_elements"]
+           "assert_no_horizontal_scroll", "axe_violations", "chromium_for_module", "console_errors",
+           "fail_or_skip", "free_port", "horizontal_overflow_px", "launch_chromium", "new_club_admin",
+           "plotly_traces", "require_axe", "require_browser", "screenshot", "serve_fresh", "shoot_both_widths",
+           "sign_in", "visible_permission_controls", "wait_healthy", "widest_elements"]

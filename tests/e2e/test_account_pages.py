@@ -9,21 +9,10 @@ Playwright, started with the helpers of tests/e2e/test_dashboard.py; skipped wit
 
 from __future__ import annotations
 
-import subprocess
-
 import httpx
-import integration_services
 import pytest
-from test_dashboard import (
-    CHROMIUM,
-    CHROMIUM_ARGS,
-    SADDLESCOPE,
-    Console,
-    _free_port,
-    _ok,
-    _require_browser,
-    _wait_healthy,
-)
+from browser_harness import chromium_for_module, serve_fresh
+from test_dashboard import Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
 
@@ -41,25 +30,9 @@ DESKTOP = {"width": 1280, "height": 900}
 def served(tmp_path_factory):
     """An empty `saddlescope serve`: its base URL and storage folder."""
     sync_playwright = _require_browser()
-    root = tmp_path_factory.mktemp("account-pages")
-    storage_dir = root / "var" / "storage"
-    env = integration_services.service_env(database_url=f"sqlite:///{root / 'var' / 'db.sqlite'}",
-                                           storage_dir=storage_dir)
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    manager = sync_playwright().start()
-    chromium = manager.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-    try:
-        _wait_healthy(base, proc, log_path)
-        yield {"base": base, "storage": str(storage_dir), "browser": chromium}
-    finally:
-        chromium.close()
-        manager.stop()
-        integration_services.stop_process(proc)
+    with serve_fresh(tmp_path_factory.mktemp("account-pages")) as server, \
+            chromium_for_module(sync_playwright) as chromium:
+        yield {"base": server.base, "storage": str(server.storage_dir), "browser": chromium}
 
 
 def new_tab(served, viewport=DESKTOP):

@@ -20,22 +20,17 @@ from __future__ import annotations
 
 import io
 import json
-import subprocess
 import time
 
 import httpx
 import integration_services
 import numpy as np
 import pytest
+from browser_harness import chromium_for_module, serve_fresh
 from test_dashboard import (
-    CHROMIUM,
-    CHROMIUM_ARGS,
-    SADDLESCOPE,
     Console,
-    _free_port,
     _ok,
     _require_browser,
-    _wait_healthy,
     result_document,
     store_result,
 )
@@ -58,26 +53,9 @@ EARLIER = ["2026-10-01", "2026-10-08", "2026-10-15", "2026-10-22", "2026-10-29"]
 def served(tmp_path_factory):
     """An empty club-less `saddlescope serve` and a chromium for the module."""
     sync_playwright = _require_browser()
-    root = tmp_path_factory.mktemp("journey")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
-    storage_dir = root / "var" / "storage"
-    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    manager = sync_playwright().start()
-    chromium = manager.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-    try:
-        _wait_healthy(base, proc, log_path, timeout_s=120.0)
-        yield {"base": base, "database_url": database_url, "storage_dir": storage_dir, "browser": chromium,
-               "log": log_path}
-    finally:
-        chromium.close()
-        manager.stop()
-        integration_services.stop_process(proc)
+    with serve_fresh(tmp_path_factory.mktemp("journey")) as server, chromium_for_module(sync_playwright) as chromium:
+        yield {"base": server.base, "database_url": server.database_url, "storage_dir": server.storage_dir,
+               "browser": chromium, "log": server.log}
 
 
 def _api(served) -> httpx.Client:

@@ -22,9 +22,7 @@ import browser_harness
 import httpx
 import numpy as np
 import pytest
-from browser_harness import CHROMIUM, CHROMIUM_ARGS, SADDLESCOPE  # noqa: F401 (test_similarity_pages)
-from browser_harness import free_port as _free_port  # noqa: F401
-from browser_harness import wait_healthy as _wait_healthy  # noqa: F401
+from browser_harness import CHROMIUM, CHROMIUM_ARGS, new_club_admin
 
 from conftest import IN_CI
 from saddlescope.core.kinematics import fit_marker_kinematics
@@ -167,12 +165,7 @@ def dashboard(sync_playwright_factory, tmp_path_factory):
 
 def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
     rng = np.random.default_rng(7)
-    with httpx.Client(base_url=base, timeout=30) as api:
-        _ok(api.post("/api/clubs", json={"club_name": CLUB, "email": EMAIL, "password": PASSWORD,
-                                         "display_name": "Coach"}))
-        login = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))
-        api.headers["Authorization"] = f"Bearer {login['access_token']}"
-        api.cookies.clear()  # bearer only: no CSRF needed
+    with new_club_admin(base, club_name=CLUB, email=EMAIL, password=PASSWORD, display_name="Coach") as api:
         riders = [_ok(api.post("/api/riders", json={"name": name}))["id"] for name in ("Rider A", "Rider B")]
         horses, rides, docs = {}, [], {}
         for name, (scale, n_canter) in HORSES.items():

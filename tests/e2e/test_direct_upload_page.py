@@ -4,13 +4,10 @@ and the API keeps no byte of the clip."""
 
 from __future__ import annotations
 
-import subprocess
-
-import httpx
-import integration_services
 import pytest
 import s3_server as s3_server_module
-from test_dashboard import EMAIL, PASSWORD, SADDLESCOPE, _free_port, _ok, _require_browser, _wait_healthy
+from browser_harness import chromium_for_module, new_club_admin, serve_fresh
+from test_dashboard import EMAIL, PASSWORD, _ok, _require_browser
 from test_rig_upload_pages import open_page, tiny_clip
 
 from saddlescope.storage import S3Storage
@@ -25,44 +22,20 @@ def served(tmp_path_factory, s3_server):
     """A `saddlescope serve` whose clips live in a fresh bucket, with a club and a rig with a board."""
     sync_playwright = _require_browser()
     root = tmp_path_factory.mktemp("direct-pages")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
     bucket = s3_server.new_bucket("pages")
-    env = integration_services.service_env(database_url=database_url, storage_dir=root / "var" / "storage")
-    env.update(s3_server.environ(), SADDLESCOPE_STORAGE_URL=f"s3://{bucket}/club")
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        _wait_healthy(base, proc, log_path)
-        api = httpx.Client(base_url=base, timeout=30)
-        _ok(api.post("/api/clubs", json={"club_name": "Bucket Club", "email": EMAIL, "password": PASSWORD,
-                                         "display_name": "Secretary"}))
-        token = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
-        api.cookies.clear()
-        api.headers["Authorization"] = f"Bearer {token}"
+    bucket_env = {**s3_server.environ(), "SADDLESCOPE_STORAGE_URL": f"s3://{bucket}/club"}
+    with serve_fresh(root, extra_env=bucket_env) as server, new_club_admin(
+            server.base, club_name="Bucket Club", email=EMAIL, password=PASSWORD, display_name="Secretary") as api:
         rig = _ok(api.post("/api/rigs", json={"name": "Bucket arena", "board": {
             "kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0}}))["id"]
-        yield {"base": base, "api": api, "root": root, "rig": rig, "playwright": sync_playwright,
-               "bucket": bucket, "log": log_path}
-        api.close()
-    finally:
-        integration_services.stop_process(proc)
+        yield {"base": server.base, "api": api, "root": root, "rig": rig, "playwright": sync_playwright,
+               "bucket": bucket, "log": server.log}
 
 
 @pytest.fixture(scope="module")
 def browser(served):
-    from test_dashboard import CHROMIUM, CHROMIUM_ARGS
-
-    manager = served["playwright"]().start()
-    chromium = manager.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-    try:
+    with chromium_for_module(served["playwright"]) as chromium:
         yield chromium
-    finally:
-        chromium.close()
-        manager.stop()
 
 
 def test_a_clip_goes_from_the_page_straight_to_the_bucket(browser, served, s3_server, monkeypatch):

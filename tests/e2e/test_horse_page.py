@@ -9,12 +9,9 @@ var/test-artifacts/screenshots/.
 
 from __future__ import annotations
 
-import subprocess
-
-import httpx
-import integration_services
 import numpy as np
 import pytest
+from browser_harness import new_club_admin, serve_fresh
 from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
     EMAIL,
     PASSWORD,
@@ -43,30 +40,13 @@ WALK_SCALES = [1.0, 1.1, 0.9]
 
 @pytest.fixture(scope="module")
 def served(sync_playwright_factory, tmp_path_factory):  # noqa: F811 (the imported fixture)
-    root = tmp_path_factory.mktemp("horse-page")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
-    storage_dir = root / "var" / "storage"
-    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        _wait_healthy(base, proc, log_path)
-        yield {"base": base, **_seed(base, database_url, storage_dir)}
-    finally:
-        integration_services.stop_process(proc)
+    with serve_fresh(tmp_path_factory.mktemp("horse-page")) as server:
+        yield {"base": server.base, **_seed(server.base, server.database_url, server.storage_dir)}
 
 
 def _seed(base: str, database_url: str, storage_dir) -> dict:
     rng = np.random.default_rng(11)
-    with httpx.Client(base_url=base, timeout=30) as api:
-        _ok(api.post("/api/clubs", json={"club_name": "Horse Page Club", "email": EMAIL, "password": PASSWORD}))
-        token = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
-        api.cookies.clear()
-        api.headers["Authorization"] = f"Bearer {token}"
+    with new_club_admin(base, club_name="Horse Page Club", email=EMAIL, password=PASSWORD) as api:
         rider = _ok(api.post("/api/riders", json={"name": "Rider A"}))["id"]
         horses = {name: _ok(api.post("/api/horses", json={"name": name, "breed": "KWPN"}))["id"]
                   for name in ("Tango", "Bella", "Comet")}

@@ -10,27 +10,20 @@ chromium driven by Playwright; skipped without it (fails under CI=true), as test
 
 from __future__ import annotations
 
-import subprocess
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
-import integration_services
 import numpy as np
 import pytest
-from browser_harness import shoot_both_widths
+from browser_harness import chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
 from test_dashboard import (
-    CHROMIUM,
-    CHROMIUM_ARGS,
     EMAIL,
     PASSWORD,
-    SADDLESCOPE,
     Console,
-    _free_port,
     _ok,
     _require_browser,
-    _wait_healthy,
     result_document,
     store_result,
 )
@@ -46,29 +39,12 @@ N_RIDES = 120
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     _require_browser()
-    root = tmp_path_factory.mktemp("lists")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
-    storage_dir = root / "var" / "storage"
-    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        _wait_healthy(base, proc, log_path, timeout_s=240)  # a busy machine starts slowly
-        yield {"base": base, **_seed(base, database_url, storage_dir)}
-    finally:
-        integration_services.stop_process(proc)
+    with serve_fresh(tmp_path_factory.mktemp("lists")) as server:
+        yield {"base": server.base, **_seed(server.base, server.database_url, server.storage_dir)}
 
 
 def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
-    with httpx.Client(base_url=base, timeout=30) as api:
-        _ok(api.post("/api/clubs", json={"club_name": "Lists Club", "email": EMAIL, "password": PASSWORD}))
-        login = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))
-        api.headers["Authorization"] = f"Bearer {login['access_token']}"
-        api.cookies.clear()
+    with new_club_admin(base, club_name="Lists Club", email=EMAIL, password=PASSWORD) as api:
         member = _ok(api.post("/api/users", json={"email": MEMBER_EMAIL, "password": MEMBER_PASSWORD,
                                                   "role": "member"}))
         horses = [_ok(api.post("/api/horses", json={"name": name}))["id"] for name in HORSES]
@@ -91,13 +67,8 @@ def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
 
 @pytest.fixture(scope="module")
 def browser():
-    manager = _require_browser()().start()
-    chromium = manager.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-    try:
+    with chromium_for_module() as chromium:
         yield chromium
-    finally:
-        chromium.close()
-        manager.stop()
 
 
 def _page(browser, server, *, email=EMAIL, password=PASSWORD, width=1280):

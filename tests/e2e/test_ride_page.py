@@ -9,18 +9,14 @@ one ride whose result also holds the markers' tracks (for the 3-D view) and a ro
 from __future__ import annotations
 
 import io
-import subprocess
 
-import integration_services
 import numpy as np
 import pytest
 import test_dashboard
+from browser_harness import serve_fresh
 from test_dashboard import (
-    SADDLESCOPE,
-    _free_port,
     _ok,
     _seed,
-    _wait_healthy,
     api_client,
     result_document,
     sign_in,
@@ -49,21 +45,9 @@ MARKERS_IN_LINE = ("the markers lie near a line (eigenvalue ratio 0.004 < 0.01):
 @pytest.fixture(scope="module")
 def dashboard(sync_playwright_factory, tmp_path_factory):
     """test_dashboard's seeded server, with more time to start (a loaded machine imports slowly)."""
-    root = tmp_path_factory.mktemp("ridepage")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
-    storage_dir = root / "var" / "storage"
-    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        _wait_healthy(base, proc, log_path, timeout_s=240.0)
-        yield {"base": base, "log": log_path, "storage_dir": storage_dir, **_seed(base, database_url, storage_dir)}
-    finally:
-        integration_services.stop_process(proc)
+    with serve_fresh(tmp_path_factory.mktemp("ridepage")) as server:
+        yield {"base": server.base, "log": server.log, "storage_dir": server.storage_dir,
+               **_seed(server.base, server.database_url, server.storage_dir)}
 
 
 @pytest.fixture(scope="module")

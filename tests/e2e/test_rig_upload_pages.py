@@ -5,26 +5,13 @@ var/test-artifacts/screenshots/."""
 
 from __future__ import annotations
 
-import subprocess
 import sys
 
-import httpx
 import integration_services
 import numpy as np
 import pytest
-from browser_harness import shoot_both_widths
-from test_dashboard import (
-    CHROMIUM,
-    CHROMIUM_ARGS,
-    EMAIL,
-    PASSWORD,
-    SADDLESCOPE,
-    Console,
-    _free_port,
-    _ok,
-    _require_browser,
-    _wait_healthy,
-)
+from browser_harness import chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
+from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
 
@@ -42,33 +29,16 @@ def served(tmp_path_factory):
     """An empty club on a fresh `saddlescope serve` (embedded: jobs run in the server), with one horse."""
     sync_playwright = _require_browser()
     root = tmp_path_factory.mktemp("rig-pages")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
-    env = integration_services.service_env(database_url=database_url, storage_dir=root / "var" / "storage")
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        _wait_healthy(base, proc, log_path)
-        api = httpx.Client(base_url=base, timeout=30)
-        _ok(api.post("/api/clubs", json={"club_name": "Rig Riding Club", "email": EMAIL, "password": PASSWORD,
-                                         "display_name": "Secretary"}))
-        token = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
-        api.cookies.clear()
-        api.headers["Authorization"] = f"Bearer {token}"
+    with serve_fresh(root) as server, new_club_admin(server.base, club_name="Rig Riding Club", email=EMAIL,
+                                                     password=PASSWORD, display_name="Secretary") as api:
         _ok(api.post("/api/users", json={"email": MEMBER_EMAIL, "password": MEMBER_PASSWORD, "role": "member"}), 201)
         horse = _ok(api.post("/api/horses", json={"name": "Bella"}))["id"]
         rider = _ok(api.post("/api/riders", json={"name": "Anna"}))["id"]
         calibrated = _ok(api.post("/api/rigs", json={"name": "Outdoor arena", "board": {
             "kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0}}))["id"]
-        store_calibration(database_url, calibrated)
-        yield {"base": base, "api": api, "root": root, "horse": horse, "rider": rider, "calibrated": calibrated,
-               "playwright": sync_playwright}
-        api.close()
-    finally:
-        integration_services.stop_process(proc)
+        store_calibration(server.database_url, calibrated)
+        yield {"base": server.base, "api": api, "root": root, "horse": horse, "rider": rider,
+               "calibrated": calibrated, "playwright": sync_playwright}
 
 
 def store_calibration(database_url: str, rig_id: int) -> None:
@@ -96,13 +66,8 @@ def store_calibration(database_url: str, rig_id: int) -> None:
 
 @pytest.fixture(scope="module")
 def browser(served):
-    manager = served["playwright"]().start()
-    chromium = manager.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-    try:
+    with chromium_for_module(served["playwright"]) as chromium:
         yield chromium
-    finally:
-        chromium.close()
-        manager.stop()
 
 
 def open_page(browser, served, email=EMAIL, password=PASSWORD, width=1280):

@@ -8,24 +8,11 @@ CI=true), as tests/e2e/test_dashboard.py.
 
 from __future__ import annotations
 
-import subprocess
 import sys
 
-import httpx
-import integration_services
 import pytest
-from test_dashboard import (
-    CHROMIUM,
-    CHROMIUM_ARGS,
-    EMAIL,
-    PASSWORD,
-    SADDLESCOPE,
-    Console,
-    _free_port,
-    _ok,
-    _require_browser,
-    _wait_healthy,
-)
+from browser_harness import chromium_for_module, new_club_admin, serve_fresh
+from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
 
@@ -43,49 +30,27 @@ WEBGL_ARGS = ["--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
 def served(tmp_path_factory):
     """A seeded `saddlescope serve`: base URL and the rides by (horse, recording)."""
     sync_playwright = _require_browser()
-    root = tmp_path_factory.mktemp("similarity-pages")
-    database_url = f"sqlite:///{root / 'var' / 'db.sqlite'}"
-    storage_dir = root / "var" / "storage"
-    env = integration_services.service_env(database_url=database_url, storage_dir=storage_dir)
-    port = _free_port()
-    base = f"http://127.0.0.1:{port}"
-    log_path = root / "serve.log"
-    with log_path.open("wb") as log:
-        proc = subprocess.Popen([SADDLESCOPE, "serve", "--host", "127.0.0.1", "--port", str(port)], cwd=root,
-                                env=env, stdout=log, stderr=subprocess.STDOUT)
-    try:
-        _wait_healthy(base, proc, log_path)
+    with serve_fresh(tmp_path_factory.mktemp("similarity-pages")) as server, new_club_admin(
+            server.base, club_name="Similar Riding Club", email=EMAIL, password=PASSWORD,
+            display_name="Coach") as api:
         rides = {}
-        with httpx.Client(base_url=base, timeout=30) as api:
-            _ok(api.post("/api/clubs", json={"club_name": "Similar Riding Club", "email": EMAIL,
-                                             "password": PASSWORD, "display_name": "Coach"}))
-            token = _ok(api.post("/api/auth/login", json={"email": EMAIL, "password": PASSWORD}))["access_token"]
-            api.cookies.clear()
-            api.headers["Authorization"] = f"Bearer {token}"
-            rider = _ok(api.post("/api/riders", json={"name": "Rider"}))["id"]
-            for i, name in enumerate(HORSES):
-                horse = _ok(api.post("/api/horses", json={"name": name}))["id"]
-                for recording in range(2):
-                    ride = _ok(api.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": "canter",
-                                                            "direction": "CCW",
-                                                            "ridden_on": f"2026-0{recording + 3}-1{i}"}))["id"]
-                    doc = motion_document(name, "canter", recording=recording)
-                    store_document(database_url, storage_dir, ride, doc)
-                    rides[(name, recording)] = ride
-        yield {"base": base, "rides": rides, "log": log_path, "playwright": sync_playwright}
-    finally:
-        integration_services.stop_process(proc)
+        rider = _ok(api.post("/api/riders", json={"name": "Rider"}))["id"]
+        for i, name in enumerate(HORSES):
+            horse = _ok(api.post("/api/horses", json={"name": name}))["id"]
+            for recording in range(2):
+                ride = _ok(api.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": "canter",
+                                                        "direction": "CCW",
+                                                        "ridden_on": f"2026-0{recording + 3}-1{i}"}))["id"]
+                doc = motion_document(name, "canter", recording=recording)
+                store_document(server.database_url, server.storage_dir, ride, doc)
+                rides[(name, recording)] = ride
+        yield {"base": server.base, "rides": rides, "log": server.log, "playwright": sync_playwright}
 
 
 @pytest.fixture(scope="module")
 def browser(served):
-    manager = served["playwright"]().start()
-    chromium = manager.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS + WEBGL_ARGS)
-    try:
+    with chromium_for_module(served["playwright"], tuple(WEBGL_ARGS)) as chromium:
         yield chromium
-    finally:
-        chromium.close()
-        manager.stop()
 
 
 @pytest.fixture

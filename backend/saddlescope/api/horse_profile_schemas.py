@@ -8,12 +8,8 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 from saddlescope.api.schemas import Gait
-from saddlescope.core.vibration import INDICATORS
 
-__all__ = ["Band", "IndicatorKey", "PairIndicator", "PairOut", "PairRide", "TrendOut", "TrendPoint"]
-
-# Every indicator key a result holds (core.vibration.INDICATORS): an unknown one is a 422 naming them.
-IndicatorKey = Literal[tuple(INDICATORS)]  # type: ignore[valid-type]
+__all__ = ["Band", "PairIndicator", "PairOut", "PairRide", "TrendOut", "TrendPoint"]
 
 
 class Band(BaseModel):

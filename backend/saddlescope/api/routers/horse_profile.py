@@ -10,8 +10,8 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from saddlescope.api.deps import ClubDep
-from saddlescope.api.horse_profile_schemas import IndicatorKey, PairOut, TrendOut
-from saddlescope.api.routers.common import CONFLICT, ERRORS, Id
+from saddlescope.api.horse_profile_schemas import PairOut, TrendOut
+from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, IndicatorKey
 from saddlescope.api.schemas import MAX_ID, Gait
 from saddlescope.services.horse_profile import horse_trend, ride_pair
 
@@ -23,7 +23,7 @@ RideQuery = Annotated[int, Query(ge=1, le=MAX_ID, description="a ride id of this
 
 
 @router.get("/{horse_id}/trend", response_model=TrendOut, responses=ERRORS)
-def trend(horse_id: Id, club: ClubDep, gait: Gait, indicator: IndicatorKey = "acc_y_wb_rms") -> dict:
+def trend(horse_id: Id, club: ClubDep, gait: Gait, indicator: IndicatorKey = IndicatorKey("acc_y_wb_rms")) -> dict:
     """One indicator of the horse in one gait over its analysed rides, oldest first.
 
     Every ride carries the horse's own normal band of the rides BEFORE it (mean ± 2 SD, once there are
