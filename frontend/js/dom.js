@@ -18,11 +18,30 @@ export function h(tag, attrs = {}, ...children) {
   return el;
 }
 
-/** A fresh copy of <template id="page-NAME">. */
+/** A fresh copy of <template id="page-NAME">, its shared parts filled in. */
 export function page(name) {
   const template = document.getElementById(`page-${name}`);
   if (!template) throw new Error(`no template page-${name}`);
-  return template.content.cloneNode(true);
+  const copy = template.content.cloneNode(true);
+  fillParts(copy);
+  return copy;
+}
+
+// Markup several forms share lives once, in <template id="part-NAME">: each placeholder
+// <div data-part="NAME" data-id-prefix="P"> is replaced by a copy whose "PART-" ids start with P.
+function fillParts(root) {
+  for (const slot of root.querySelectorAll("[data-part]")) {
+    const template = document.getElementById(`part-${slot.dataset.part}`);
+    if (!template) throw new Error(`no template part-${slot.dataset.part}`);
+    const part = template.content.cloneNode(true);
+    for (const el of part.querySelectorAll("[id], [for], [aria-describedby]")) {
+      for (const attr of ["id", "for", "aria-describedby"]) {
+        const value = el.getAttribute(attr);
+        if (value) el.setAttribute(attr, value.replaceAll("PART-", `${slot.dataset.idPrefix}-`));
+      }
+    }
+    slot.replaceWith(part);
+  }
 }
 
 /** Say something to screen-reader users without moving focus. */
