@@ -5,9 +5,11 @@ import by that name. A test module takes the fixture by assignment (``cluster = 
 
 Hosts (network namespaces, `netns.py`): ``pg`` (PostgreSQL), ``redis`` (Redis, append-only), ``s3``
 (SeaweedFS), ``api`` (`saddlescope serve`), ``w1`` and ``w2`` (Celery workers running the stand-in
-analysis of the API tests, made slow on demand), ``client`` (where the test's own HTTP and SQL clients
-live). Every host has its own folders; nothing is shared but the network. Under CI=true the set-up
-must run (root is available); elsewhere it skips with the reason where namespaces cannot be made.
+analysis of the API tests, made slow on demand), ``api2`` and ``api3`` (API replicas a drill starts),
+``client`` (where the test's own HTTP and SQL clients live). Each host has its own SADDLESCOPE_HOST_NAME
+(the namespaces share the machine's host name and pids) and the stale time is `STALE_AFTER_S`. Every
+host has its own folders; nothing is shared but the network. Under CI=true the set-up must run (root is
+available); elsewhere it skips with the reason where namespaces cannot be made.
 """
 
 from __future__ import annotations
