@@ -25,6 +25,14 @@ Every variable starts with ``SADDLESCOPE_``:
 ``SADDLESCOPE_LOGIN_MAX_FAILURES`` / ``SADDLESCOPE_LOGIN_LOCKOUT_S``
     Failed sign-ins per account (and, times four, per client address) before sign-in is locked for
     the lock-out time.
+``SADDLESCOPE_STALE_AFTER_S`` / ``SADDLESCOPE_HEARTBEAT_S``
+    A running job silent this long (no heartbeat, by the database's clock) has lost its worker and is
+    run again by another (default 180 s); its worker beats this often (default: 10 s, or a quarter of the
+    stale time when that is shorter).
+``SADDLESCOPE_HOST_NAME``
+    This machine's name in a job's ``host:pid`` (default the host name); it must differ between hosts
+    that share a host name but not their processes, since a job of this host whose process is gone is lost
+    at once.
 ``SADDLESCOPE_WORKER_THREADS``
     Threads one analysis may use (its camera threads, PyAV's decoders, OpenCV). Unset: the CPUs the
     worker's cgroup quota gives it (``io.threads.default_worker_threads``), never the host's core count.
@@ -35,6 +43,7 @@ from __future__ import annotations
 import functools
 import os
 import secrets
+import socket
 import subprocess
 from pathlib import Path
 from typing import Literal
@@ -100,6 +109,12 @@ class Settings(BaseSettings):
     # forgot (restarted with nothing persisted) and queued longer than `requeue_after_s`.
     recovery_interval_s: float = Field(default=60.0, gt=0)
     requeue_after_s: float = Field(default=120.0, gt=0)
+    # A running job without a heartbeat for this long (database clock) is handed to another worker;
+    # heartbeats come every `heartbeat_s` (None: 10 s, or a quarter of the stale time when shorter).
+    stale_after_s: float = Field(default=180.0, gt=0)
+    heartbeat_s: float | None = Field(default=None, gt=0)
+    # This machine's name in a job's host:pid (None: socket.gethostname()).
+    host_name: str | None = Field(default=None, min_length=1, max_length=200, pattern=r"^[^:\s]+$")
     # None: migrate to the newest schema at start-up in embedded mode only (a deployment runs the
     # one-shot `migrate` service instead).
     auto_migrate: bool | None = None
@@ -124,6 +139,10 @@ class Settings(BaseSettings):
             raise ValueError(
                 f"SADDLESCOPE_SECRET_KEY is too weak (it has fewer than {MIN_SECRET_DISTINCT} different "
                 "characters); use a random value, e.g. `python -c 'import secrets; print(secrets.token_urlsafe(32))'`")
+        if self.heartbeat_s is not None and self.heartbeat_s * 2 > self.stale_after_s:
+            raise ValueError(
+                f"SADDLESCOPE_HEARTBEAT_S ({self.heartbeat_s:g} s) must be at most half of SADDLESCOPE_STALE_AFTER_S "
+                f"({self.stale_after_s:g} s), or a live worker's job would be taken for lost")
         if not self.database_url.strip():
             raise ValueError("SADDLESCOPE_DATABASE_URL is empty")
         return self
@@ -151,6 +170,16 @@ class Settings(BaseSettings):
     def visibility_timeout_s(self) -> int:
         """Broker visibility timeout: longer than the longest job, hence than any stage (plus margin)."""
         return int(self.job_time_limit_s * 1.25) + 600
+
+    @property
+    def resolved_heartbeat_s(self) -> float:
+        """How often a running job's worker writes its heartbeat."""
+        return self.heartbeat_s if self.heartbeat_s is not None else min(10.0, self.stale_after_s / 4)
+
+    @property
+    def resolved_host_name(self) -> str:
+        """This machine's name in the ``host:pid`` a job records."""
+        return self.host_name or socket.gethostname()
 
     @property
     def resolved_worker_threads(self) -> int:

@@ -5,9 +5,11 @@ import by that name. A test module takes the fixture by assignment (``cluster = 
 
 Hosts (network namespaces, `netns.py`): ``pg`` (PostgreSQL), ``redis`` (Redis, append-only), ``s3``
 (SeaweedFS), ``api`` (`saddlescope serve`), ``w1`` and ``w2`` (Celery workers running the stand-in
-analysis of the API tests, made slow on demand), ``client`` (where the test's own HTTP and SQL clients
-live). Every host has its own folders; nothing is shared but the network. Under CI=true the set-up
-must run (root is available); elsewhere it skips with the reason where namespaces cannot be made.
+analysis of the API tests, made slow on demand), ``api2`` and ``api3`` (API replicas a drill starts),
+``client`` (where the test's own HTTP and SQL clients live). Each host has its own SADDLESCOPE_HOST_NAME
+(the namespaces share the machine's host name and pids) and the stale time is `STALE_AFTER_S`. Every
+host has its own folders; nothing is shared but the network. Under CI=true the set-up must run (root is
+available); elsewhere it skips with the reason where namespaces cannot be made.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ TEST_SECRET = integration_services.TEST_SECRET
 IN_CI = os.environ.get("CI", "").lower() in {"1", "true", "yes"}  # as tests/conftest.py reads it
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 READY_TIMEOUT_S = 90.0
+# Short, so a cut-off worker loses its job within seconds (production: 180 s); heartbeats every 1.5 s.
+STALE_AFTER_S = 6.0
 
 
 class NsHttp:
@@ -85,7 +89,10 @@ class Cluster:
 
     @property
     def api_url(self) -> str:
-        return f"http://{self.network.address('api')}:{netns.API_PORT}"
+        return self.api_url_on("api")
+
+    def api_url_on(self, host: str, port: int = netns.API_PORT) -> str:
+        return f"http://{self.network.address(host)}:{port}"
 
     def env(self, host: str, **extra: str) -> dict[str, str]:
         """A SaddleScope process's environment on `host`: its own storage folder, the bucket, the services."""
@@ -97,21 +104,24 @@ class Cluster:
             AWS_ACCESS_KEY_ID=self.s3_keys[0], AWS_SECRET_ACCESS_KEY=self.s3_keys[1], AWS_DEFAULT_REGION="us-east-1",
             SADDLESCOPE_OPEN_REGISTRATION="true", SADDLESCOPE_RECOVERY_INTERVAL_S="2",
             SADDLESCOPE_REQUEUE_AFTER_S="4", SADDLESCOPE_WORKER_THREADS="1",
+            # Every host its own name: the namespaces share the machine's host name and its pids.
+            SADDLESCOPE_HOST_NAME=host, SADDLESCOPE_STALE_AFTER_S=str(STALE_AFTER_S),
             PYTHONPATH=os.pathsep.join([str(tests / "api"), str(tests), os.environ.get("PYTHONPATH", "")]),
             TMPDIR=str(self.root / host / "tmp"))
         (self.root / host / "tmp").mkdir(parents=True, exist_ok=True)
         env.update(extra)
         return env
 
-    def start_api(self) -> netns.Service:
-        log_path = self.root / "api" / "api.log"
-        proc = netns.spawn(self.network, "api", [sys.executable, "-m", "saddlescope.cli", "serve", "--host",
-                                                 self.network.address("api"), "--port", str(netns.API_PORT)],
-                           log_path=log_path, env=self.env("api"), cwd=PROJECT_ROOT)
-        service = netns.Service("api", "api", proc, log_path, netns.API_PORT)
-        self.services["api"] = service
+    def start_api(self, host: str = "api", **extra_env: str) -> netns.Service:
+        """`saddlescope serve` on `host` (registered as the service named `host`); waits until healthy."""
+        log_path = self.root / host / "api.log"
+        proc = netns.spawn(self.network, host, [sys.executable, "-m", "saddlescope.cli", "serve", "--host",
+                                                self.network.address(host), "--port", str(netns.API_PORT)],
+                           log_path=log_path, env=self.env(host, **extra_env), cwd=PROJECT_ROOT)
+        service = netns.Service("api", host, proc, log_path, netns.API_PORT)
+        self.services[host] = service
         deadline = time.monotonic() + READY_TIMEOUT_S
-        while self.client.call(_health, self.api_url) != 200:
+        while self.client.call(_health, self.api_url_on(host)) != 200:
             if proc.poll() is not None or time.monotonic() > deadline:
                 pytest.fail(f"the API did not answer /api/health in {READY_TIMEOUT_S:.0f} s "
                             f"(exit {proc.poll()}); its log ends:\n{netns.tail(log_path)}")
@@ -142,8 +152,20 @@ class Cluster:
             service.stop(timeout_s=15)
         self.workers.clear()
 
-    def http(self) -> NsHttp:
-        return NsHttp(self.client, self.api_url)
+    def http(self, host: str = "api", thread: netns.NetnsThread | None = None) -> NsHttp:
+        """An HTTP client of the API on `host`, run from the client host (on `thread`, else the shared one)."""
+        return NsHttp(thread or self.client, self.api_url_on(host))
+
+    def restart_store(self) -> netns.Service:
+        """SeaweedFS started again on its host with its folder (the bucket and what it holds survive)."""
+        service = netns.start_weed(self.network, "s3", self.root / "s3", *self.s3_keys)
+        self.services["s3"] = service
+        return service
+
+    def s3(self, fn_name: str, **kwargs):
+        """One S3 call (`fn_name` of a boto3 client, e.g. head_object) on the bucket, from the client host."""
+        return self.client.call(_s3_call, self.s3_endpoint_url, self.s3_keys, fn_name,
+                                {"Bucket": self.bucket, **kwargs})
 
     def sql(self, statement: str, *, host: str | None = None, **params) -> list[tuple]:
         """Rows of a query on the current primary (or on `host`'s server), run from the client host."""
@@ -173,14 +195,23 @@ def _sql(url: str, statement: str, params: dict) -> list[tuple]:
         engine.dispose()
 
 
-def _make_bucket(endpoint_url: str, keys: tuple[str, str], name: str, timeout_s: float) -> None:
+def _s3_client(endpoint_url: str, keys: tuple[str, str]):
     import boto3
     from botocore.config import Config
+
+    return boto3.client("s3", endpoint_url=endpoint_url, aws_access_key_id=keys[0], aws_secret_access_key=keys[1],
+                        region_name="us-east-1", config=Config(retries={"max_attempts": 1}, connect_timeout=2,
+                                                                 read_timeout=5, s3={"addressing_style": "path"}))
+
+
+def _s3_call(endpoint_url: str, keys: tuple[str, str], fn_name: str, kwargs: dict):
+    return getattr(_s3_client(endpoint_url, keys), fn_name)(**kwargs)
+
+
+def _make_bucket(endpoint_url: str, keys: tuple[str, str], name: str, timeout_s: float) -> None:
     from botocore.exceptions import BotoCoreError, ClientError
 
-    client = boto3.client("s3", endpoint_url=endpoint_url, aws_access_key_id=keys[0], aws_secret_access_key=keys[1],
-                          region_name="us-east-1", config=Config(retries={"max_attempts": 1}, connect_timeout=2,
-                                                                   read_timeout=5, s3={"addressing_style": "path"}))
+    client = _s3_client(endpoint_url, keys)
     deadline = time.monotonic() + timeout_s
     while True:
         try:

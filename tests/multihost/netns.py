@@ -27,7 +27,8 @@ from pathlib import Path
 
 SUBNET_PREFIX = "10.226.0"  # a private /24 that exists only inside the test's namespaces
 CLONE_NEWNET = 0x40000000  # <sched.h>
-ADDRESSES = {"api": 10, "w1": 11, "w2": 12, "pg": 20, "pg2": 21, "redis": 30, "s3": 40, "client": 50}
+ADDRESSES = {"api": 10, "w1": 11, "w2": 12, "api2": 13, "api3": 14, "pg": 20, "pg2": 21, "redis": 30, "s3": 40,
+             "client": 50}
 VENV_BIN = Path(sys.executable).parent
 
 
@@ -118,7 +119,11 @@ class NetnsThread:
             os.close(fd)
 
     def call(self, fn, *args, timeout_s: float | None = 300.0, **kwargs):
-        return self._pool.submit(fn, *args, **kwargs).result(timeout=timeout_s)
+        return self.submit(fn, *args, **kwargs).result(timeout=timeout_s)
+
+    def submit(self, fn, *args, **kwargs) -> concurrent.futures.Future:
+        """Start fn there without waiting for it (a request in flight while the test does something else)."""
+        return self._pool.submit(fn, *args, **kwargs)
 
     def close(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
@@ -245,7 +250,10 @@ def start_postgres(network: Network, host: str, data_dir: Path, *, init: bool = 
     proc = spawn(network, host, [str(bindir / "postgres"), "-D", str(data_dir), "-c",
                                  f"listen_addresses={network.address(host)}", "-p", str(PG_PORT),
                                  "-k", str(socket_dir), "-c", "fsync=off", "-c", "wal_level=replica",
-                                 "-c", "max_wal_senders=4", "-c", "hot_standby=on"],
+                                 "-c", "max_wal_senders=4", "-c", "hot_standby=on",
+                                 # A worker cut off inside a transaction must not keep the job's row
+                                 # locked until TCP gives up (15 min): the server ends such a session.
+                                 "-c", "idle_in_transaction_session_timeout=15s"],
                  log_path=log_path, user="postgres")
     wait_for_port(network.address(host), PG_PORT, proc, log_path, f"PostgreSQL on {host}", network.ns("client"))
     # SIGINT: PostgreSQL's fast shutdown (SIGTERM would wait for every client to leave).

@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import signal
+import threading
 import time
 import zipfile
 from pathlib import Path
 
 import hosts
+import httpx
 import integration_services
 import netns
 import pytest
@@ -58,13 +61,15 @@ def new_bundle(tmp_path_factory):
     """`new_bundle()`: the zip of a tiny ride bundle unlike any other (an upload of the same bytes is refused)."""
     made = iter(range(10**6))
 
-    def make() -> bytes:
+    def make(padding_bytes: int = 0) -> bytes:
         n = next(made)
         folder = tmp_path_factory.mktemp("bundle") / "ride"
         integration_services.write_tiny_bundle(folder)
         meta = json.loads((folder / "ride.json").read_text())
         meta["rider"]["name"] = f"Rider {n}"  # another rider: other bytes, another ride
         (folder / "ride.json").write_text(json.dumps(meta))
+        if padding_bytes:  # a file ride.json does not name, to make the zip span several upload parts
+            (folder / "padding.bin").write_bytes(os.urandom(padding_bytes))
         return zip_folder(folder)
 
     return make
@@ -126,6 +131,39 @@ def test_drill_a_worker_killed_mid_stage_its_job_completes_on_the_other_host(clu
     http.close()
 
 
+def test_drill_b_a_worker_cut_off_and_healed_is_fenced_out_and_the_ride_keeps_one_result(cluster, new_bundle):
+    cluster.stop_workers()
+    first = cluster.start_worker("w1", delay_s=8.0)
+    http = cluster.http()
+    api, _ = integration_services.new_club(http)
+    ride_id, job_id = _upload(api, new_bundle())
+    _wait_running_in_analyze(api, job_id)
+    cluster.network.link("w1", up=False)  # cut off mid-stage: its heartbeats and writes reach nobody
+    try:
+        second = cluster.start_worker("w2", delay_s=1.0)
+        job, _ = api.wait_job(job_id, timeout_s=JOB_TIMEOUT_S)  # w2 finds it silent past the stale time
+    finally:
+        cluster.network.link("w1", up=True)  # healed: w1 carries on where it stood
+    assert job["status"] == "done", job["error"]
+    assert job["attempts"] == 2 and job["host"] == f"w2:{second.proc.pid}", job
+    refused = f"of attempt 1 on w1:{first.proc.pid} refused"
+    _wait(lambda: refused in first.log_path.read_text(errors="replace"), 120,
+          "the healed worker w1 logging its stale write refused")
+    assert first.proc.poll() is None  # fenced out, not crashed: it takes other jobs again
+    after = api.ok("GET", f"/jobs/{job_id}")
+    assert (after["status"], after["attempts"], after["host"], after["error"]) == ("done", 2, job["host"], None)
+    assert cluster.sql("SELECT job_attempt FROM results WHERE ride_id = :r", r=ride_id) == [(2,)]
+    # w2's document is where its result row points, and w1 left no document of its own beside it
+    listed = cluster.s3("list_objects_v2", Prefix=f"club-data/rides/{ride_id}/results/").get("Contents", [])
+    assert [o["Key"].rpartition("/")[2][:len(f"{job_id}-2-")] for o in listed] == [f"{job_id}-2-"], listed
+    assert api.ok("GET", f"/rides/{ride_id}/result")["indicators"]
+    counts = _counts(cluster, [ride_id])
+    _print_counts("drill (b) worker cut off and healed", counts)
+    print(f"the healed worker's late write: ...{refused}: the job was taken over by another attempt")
+    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    http.close()
+
+
 def test_drill_c_the_broker_restarted_new_rides_get_503_and_nothing_is_lost(cluster, new_bundle):
     cluster.stop_workers()
     cluster.start_worker("w1", delay_s=2.0)
@@ -158,6 +196,139 @@ def _wait(condition, timeout_s: float, what: str, interval_s: float = 0.3):
         assert time.monotonic() < deadline, f"{what}: not within {timeout_s:.0f} s"
         time.sleep(interval_s)
     return value
+
+
+def _put(cluster, url: str, data: bytes) -> int:
+    """PUT a part straight to the store (a pre-signed URL), from the client host."""
+    return cluster.client.call(httpx.put, url, content=data, timeout=60).status_code
+
+
+def _store_down_answer(response) -> str:
+    """The reason of a 503 the API answers while the store is down (checked: 503, Retry-After)."""
+    assert response.status_code == 503, response.text
+    assert response.headers.get("Retry-After") == "10", response.headers
+    reason = response.json()["detail"]
+    assert reason.startswith("the file store is not answering") and "try again" in reason, reason
+    return reason
+
+
+def test_drill_d_the_store_stopped_during_an_upload_the_client_resumes_and_finishes(cluster, new_bundle):
+    cluster.stop_workers()
+    cluster.start_worker("w1", delay_s=0.5)
+    http = cluster.http()
+    api, _ = integration_services.new_club(http)
+    data = new_bundle(padding_bytes=17 * 1024**2)  # two parts of the 16 MiB the API asks for
+    upload = api.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data),
+                                                   "filename": "ride.zip"})
+    assert (upload["transport"], upload["parts_total"]) == ("s3-parts", 2), upload
+    upload_id, part = upload["id"], upload["part_bytes"]
+    urls = api.ok("POST", f"/uploads/{upload_id}/parts", json={"numbers": [1, 2]})["urls"]
+    assert _put(cluster, urls["1"], data[:part]) == 200
+    cluster.services["s3"].stop()
+    with pytest.raises(httpx.TransportError):  # the second part does not reach the store
+        _put(cluster, urls["2"], data[part:])
+    reason = _store_down_answer(api.get(f"/uploads/{upload_id}/parts"))  # "what arrived?": 503, the reason
+    _store_down_answer(api.post(f"/uploads/{upload_id}/finalize"))
+    cluster.restart_store()
+    state = api.ok("GET", f"/uploads/{upload_id}/parts")
+    assert [p["number"] for p in state["parts"]] == [1], state  # nothing lost: part 1 is still there
+    assert _put(cluster, urls["2"], data[part:]) == 200  # resumed: only the missing part is sent
+    outcome = api.ok("POST", f"/uploads/{upload_id}/finalize")
+    job, _ = api.wait_job(outcome["job_id"], timeout_s=JOB_TIMEOUT_S)
+    assert job["status"] == "done", job["error"]
+    assert api.ok("GET", f"/rides/{outcome['ride_id']}/result")["indicators"]
+    counts = _counts(cluster, [outcome["ride_id"]])
+    _print_counts("drill (d) store stopped during an upload", counts)
+    print(f"asked while the store was down: 503, Retry-After 10, {reason!r}")
+    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    http.close()
+
+
+def test_drill_d_the_store_stopped_during_a_job_it_waits_with_the_reason_then_succeeds(cluster, new_bundle):
+    cluster.stop_workers()
+    cluster.start_worker("w1", delay_s=4.0)
+    http = cluster.http()
+    api, _ = integration_services.new_club(http)
+    ride_id, job_id = _upload(api, new_bundle())
+    _wait_running_in_analyze(api, job_id)  # its bundle fetched; its result not yet stored
+    cluster.services["s3"].stop()
+    try:
+        waiting = _wait(lambda: (job := api.ok("GET", f"/jobs/{job_id}"))["status"] == "queued" and job, 60,
+                        "the job put back in the queue while the store is down")
+    finally:
+        cluster.restart_store()
+    assert waiting["error"].startswith("waiting to try again: analyze: the file store is not answering"), waiting
+    job, _ = api.wait_job(job_id, timeout_s=JOB_TIMEOUT_S)
+    assert job["status"] == "done" and job["error"] is None, job
+    assert job["attempts"] >= 2, job
+    assert api.ok("GET", f"/rides/{ride_id}/result")["indicators"]
+    counts = _counts(cluster, [ride_id])
+    _print_counts("drill (d) store stopped during a job", counts)
+    print(f"the job while the store was down: {waiting['status']}, {waiting['error']!r}; "
+          f"done after {job['attempts']} attempts")
+    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    http.close()
+
+
+def _patch(api, upload_id: str, offset: int, content):
+    return api.patch(f"/uploads/{upload_id}", content=content,
+                     headers={"Upload-Offset": str(offset), "Content-Type": "application/offset+octet-stream"})
+
+
+def test_an_api_replica_killed_mid_upload_the_client_resumes_on_the_other(cluster, new_bundle):
+    cluster.stop_workers()
+    cluster.start_worker("w1", delay_s=0.5)
+    streamed = {"SADDLESCOPE_DIRECT_UPLOADS": "false"}  # the bytes pass through the replicas
+    replicas = [cluster.start_api("api2", **streamed), cluster.start_api("api3", **streamed)]
+    sender = netns.NetnsThread(cluster.network.ns("client"))  # sends the chunk that is cut short
+    try:
+        api1, _ = integration_services.new_club(cluster.http("api2", thread=sender))
+        api2 = integration_services.Api(cluster.http("api3"))
+        api2.headers = dict(api1.headers)  # one secret: a token of one replica is good on the other
+        ride_id, job_id = _upload_across_a_killed_replica(api1, api2, replicas[0], new_bundle())
+        job, _ = api2.wait_job(job_id, timeout_s=JOB_TIMEOUT_S)
+        assert job["status"] == "done", job["error"]
+        assert api2.ok("GET", f"/rides/{ride_id}/result")["indicators"]
+    finally:
+        for service in replicas:
+            service.stop(kill=True)
+            cluster.services.pop(service.host, None)
+        sender.close()
+    counts = _counts(cluster, [ride_id])
+    _print_counts("replica killed mid-upload", counts)
+    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+
+
+def _upload_across_a_killed_replica(api1, api2, first, data: bytes) -> tuple[int, int]:
+    """A third of the bundle to replica 1; SIGKILL it while the next chunk arrives; the rest to replica 2."""
+    upload = api1.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data),
+                                                    "filename": "ride.zip"})
+    assert upload["transport"] == "stream", upload
+    upload_id, third = upload["id"], len(data) // 3
+    assert _patch(api1, upload_id, 0, data[:third]).status_code == 204
+    arriving, killed = threading.Event(), threading.Event()
+
+    def chunk():
+        yield data[third:third + 4096]
+        arriving.set()
+        killed.wait(30)
+        yield data[third + 4096:2 * third]
+
+    # Sent on the client host's second thread (the httpx client itself, not `api1`, whose calls wait on it).
+    headers = {**api1.headers, "Upload-Offset": str(third), "Content-Type": "application/offset+octet-stream"}
+    in_flight = api1.client.thread.submit(api1.client.http.request, "PATCH", f"/api/uploads/{upload_id}",
+                                          content=chunk(), headers=headers)
+    assert arriving.wait(30)
+    first.stop(kill=True)  # SIGKILL with the chunk half sent
+    killed.set()
+    with pytest.raises(httpx.TransportError):
+        in_flight.result(timeout=60)
+    resume = api2.request("HEAD", f"/uploads/{upload_id}")
+    assert resume.status_code == 200 and int(resume.headers["Upload-Offset"]) == third  # the cut chunk: not kept
+    assert _patch(api2, upload_id, third, data[third:]).status_code == 204
+    outcome = api2.ok("POST", f"/uploads/{upload_id}/finalize")
+    print(f"\nreplica 1 killed at byte {third + 4096} of {len(data)}; replica 2 resumed from {third}")
+    return outcome["ride_id"], outcome["job_id"]
 
 
 def test_drill_e_postgresql_primary_stopped_and_a_replica_promoted_loses_no_ride(cluster, new_bundle):

@@ -79,8 +79,7 @@ def test_recovery_queues_lost_jobs_again_and_leaves_the_others(setup, dead_pid, 
 
 def test_a_running_job_writes_a_heartbeat(setup, monkeypatch):
     settings, sessions = setup
-    monkeypatch.setattr(runner, "HEARTBEAT_S", 0.1)
-    monkeypatch.setattr(runner._Heartbeat.__init__, "__defaults__", (0.1,))
+    settings = settings.model_copy(update={"heartbeat_s": 0.1})  # SADDLESCOPE_HEARTBEAT_S
     beats = []
     real_touch = JobRepository.touch
 
@@ -168,3 +167,37 @@ def test_a_copy_of_a_job_running_on_a_live_worker_does_not_run_it_again(setup):
     with session_scope(sessions) as s:
         job = s.get(Job, job_id)
         assert (job.status, job.host, job.attempts) == ("running", "other-machine:1", 1)
+
+
+def test_each_host_has_its_own_name_and_only_its_own_pids_are_looked_up(dead_pid):
+    # Hosts that share a host name but not their processes (network namespaces, cloned machines) are
+    # told apart by SADDLESCOPE_HOST_NAME; another host's dead-looking pid says nothing here.
+    w1 = load_settings(host_name="w1")
+    assert runner.worker_host(w1).rpartition(":")[0] == "w1"
+    fresh = NOW - dt.timedelta(seconds=5)
+    assert job_is_lost(f"w1:{dead_pid}", fresh, now=NOW, here="w1")
+    assert not job_is_lost(f"w1:{dead_pid}", fresh, now=NOW, here="w2")
+    assert not job_is_lost(f"{socket.gethostname()}:{dead_pid}", fresh, now=NOW, here="w2")
+    assert load_settings().resolved_host_name == socket.gethostname()
+
+
+def test_the_stale_time_is_a_setting_and_recovery_uses_it(setup):
+    _, sessions = setup
+    quick = load_settings(stale_after_s=3)
+    assert quick.stale_after_s == 3 and quick.resolved_heartbeat_s == 0.75  # a quarter of it
+    assert load_settings().resolved_heartbeat_s == runner.HEARTBEAT_S
+    with session_scope(sessions) as s:
+        job_id = JobRepository(s).add(kind="selftest").id
+        JobRepository(s).mark_running(job_id, host="other-machine:1", code_version="t")
+    _age(sessions, job_id, 10)
+    assert recover_lost_jobs(sessions, lambda _: None) == []  # 10 s is nothing against the default 180 s
+    assert recover_lost_jobs(sessions, lambda _: None, stale_after_s=quick.stale_after_s) == [job_id]
+
+
+def test_a_heartbeat_too_slow_for_the_stale_time_is_refused():
+    from saddlescope.settings import ConfigurationError
+
+    with pytest.raises(ConfigurationError, match="HEARTBEAT_S .* at most half of SADDLESCOPE_STALE_AFTER_S"):
+        load_settings(stale_after_s=10, heartbeat_s=8)
+    with pytest.raises(ConfigurationError, match="host_name"):
+        load_settings(host_name="w1:7")

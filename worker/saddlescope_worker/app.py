@@ -59,7 +59,8 @@ def recover_once(settings: Settings | None = None) -> list[int]:
     def submit(job_id: int) -> None:
         app.send_task(RUN_JOB_TASK, args=[job_id], queue=QUEUE_NAME)
 
-    recovered = recover_lost_jobs(sessions, submit)
+    recovered = recover_lost_jobs(sessions, submit, stale_after_s=settings.stale_after_s,
+                                  here=settings.resolved_host_name)
     return recovered + resend_queued_jobs(sessions, submit, older_than_s=settings.requeue_after_s,
                                           known=broker_job_ids(app))
 

@@ -21,6 +21,7 @@ from saddlescope.services.queue import JobQueue, QueueUnavailable
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stage_labels import progress_percent, stage_label
 from saddlescope.services.stages import job_kind
+from saddlescope.settings import get_settings
 
 __all__ = [
     "JobStateError", "cancel_job", "create_job", "get_job", "job_as_dict", "job_note", "retry_job", "submit_job",
@@ -99,19 +100,19 @@ def job_as_dict(job: Job) -> dict[str, Any]:
     }
 
 
-def job_note(session: Session, job: Job, queue: JobQueue) -> str | None:
+def job_note(session: Session, job: Job, queue: JobQueue, *, stale_after_s: float | None = None) -> str | None:
     """What an unfinished job is waiting for, when it is not simply progressing (None otherwise).
 
-    A running job whose heartbeat (by the database's clock) is older than the stale limit has lost
-    its worker; a queued job with no worker alive (no answer to a ping and no running job beating)
-    waits for one.
+    A running job whose heartbeat (by the database's clock) is older than the stale limit
+    (`stale_after_s`; None: the setting SADDLESCOPE_STALE_AFTER_S) has lost its worker; a queued job
+    with no worker alive (no answer to a ping and no running job beating) waits for one.
     """
-    from saddlescope.services.runner import STALE_AFTER_S
-
+    if stale_after_s is None:
+        stale_after_s = get_settings().stale_after_s
     jobs = JobRepository(session)
     if job.status == JobStatus.RUNNING.value:
         age_s = jobs.seconds_since_heartbeat(job.id)
-        if age_s is not None and age_s > STALE_AFTER_S:
+        if age_s is not None and age_s > stale_after_s:
             return (f"waiting for a worker: its worker {job.host} sent no heartbeat for {age_s:.0f} s; "
                     "it will be run again or failed with the reason")
         return None
@@ -120,7 +121,7 @@ def job_note(session: Session, job: Job, queue: JobQueue) -> str | None:
     workers_alive = getattr(queue, "workers_alive", None)
     if workers_alive is None or workers_alive() != 0:
         return None
-    if any(age is not None and age <= STALE_AFTER_S for *_, age, _ in jobs.running_with_age()):
+    if any(age is not None and age <= stale_after_s for *_, age, _ in jobs.running_with_age()):
         return None  # a worker busy with another job (it cannot answer a ping meanwhile)
     return "waiting for a worker: no worker is running; the job starts when one does"
 

@@ -12,7 +12,6 @@ import datetime as dt
 import logging
 import os
 import shutil
-import socket
 import tempfile
 import threading
 import time
@@ -45,7 +44,8 @@ log = logging.getLogger(__name__)
 PROGRESS_INTERVAL_S = 0.25
 # A running job's worker writes a heartbeat this often, even while a stage reports no progress ...
 HEARTBEAT_S = 10.0
-# ... so a job silent for this long has lost its worker and may be handed to another one.
+# ... so a job silent for this long has lost its worker and may be handed to another one. Both are the
+# defaults of the settings `heartbeat_s` and `stale_after_s` (SADDLESCOPE_HEARTBEAT_S, _STALE_AFTER_S).
 STALE_AFTER_S = 180.0
 # A job whose worker was lost this many times is failed with the reason instead of queued again.
 MAX_ATTEMPTS = 3
@@ -58,9 +58,16 @@ STORE_RETRY_S = 10.0
 STORE_ATTEMPTS = 6
 
 
-def worker_host() -> str:
-    """The worker process as ``host:pid`` (recorded on the jobs it runs, to tell when it is gone)."""
-    return f"{socket.gethostname()}:{os.getpid()}"
+def worker_host(settings: Settings | None = None) -> str:
+    """The worker process as ``host:pid`` (recorded on the jobs it runs, to tell when it is gone).
+
+    The host is `Settings.resolved_host_name` (SADDLESCOPE_HOST_NAME, else the machine's host name).
+    """
+    return f"{_host_name(settings)}:{os.getpid()}"
+
+
+def _host_name(settings: Settings | None) -> str:
+    return (settings or get_settings()).resolved_host_name
 
 
 @dataclass(frozen=True)
@@ -166,42 +173,46 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
-def worker_gone(host: str | None, age_s: float | None, *, stale_after_s: float = STALE_AFTER_S) -> bool:
+def worker_gone(host: str | None, age_s: float | None, *, stale_after_s: float = STALE_AFTER_S,
+                here: str | None = None) -> bool:
     """True when a running job's worker is gone: a dead process on this machine, or no heartbeat for long.
 
-    `age_s` is the time since the job's last heartbeat, measured by the database's clock.
+    `age_s` is the time since the job's last heartbeat, measured by the database's clock. `here`: this
+    machine's name (default `worker_host`'s); only a job of this machine has its process looked up, as
+    another machine's pids mean nothing here.
     """
     if host and ":" in host:
         name, _, pid = host.rpartition(":")
-        if name == socket.gethostname() and pid.isdigit() and int(pid) != os.getpid():
+        if name == (here or _host_name(None)) and pid.isdigit() and int(pid) != os.getpid():
             if not _process_alive(int(pid)):
                 return True
     return age_s is None or age_s > stale_after_s
 
 
 def job_is_lost(host: str | None, updated_at: dt.datetime | None, *, now: dt.datetime | None = None,
-                stale_after_s: float = STALE_AFTER_S) -> bool:
+                stale_after_s: float = STALE_AFTER_S, here: str | None = None) -> bool:
     """`worker_gone` from a heartbeat time and a clock (`now`; default this host's)."""
     now = now or utcnow()
     age_s = None if updated_at is None else (now - updated_at).total_seconds()
-    return worker_gone(host, age_s, stale_after_s=stale_after_s)
+    return worker_gone(host, age_s, stale_after_s=stale_after_s, here=here)
 
 
 def recover_lost_jobs(sessions: sessionmaker[Session], submit, *, stale_after_s: float = STALE_AFTER_S,
-                      max_attempts: int = MAX_ATTEMPTS) -> list[int]:
+                      max_attempts: int = MAX_ATTEMPTS, here: str | None = None) -> list[int]:
     """Queue again every running job whose worker died (killed, out of memory, machine lost).
 
     A worker calls this when it starts (and now and then), so a job interrupted by a killed worker
     completes on the next one; its stages are idempotent, so re-running from the first is safe. A
     job that lost its worker `max_attempts` times is failed with the reason instead. Heartbeats
-    are judged by the database's clock. `submit(job_id)` hands a job to the queue. Returns the ids
+    are judged by the database's clock against `stale_after_s` (a worker passes its setting); `here` is
+    this machine's name (see `worker_gone`). `submit(job_id)` hands a job to the queue. Returns the ids
     queued again.
     """
     with session_scope(sessions) as session:
         candidates = JobRepository(session).running_with_age()
     recovered = []
     for job_id, ride_id, host, age_s, attempts in candidates:
-        if not worker_gone(host, age_s, stale_after_s=stale_after_s):
+        if not worker_gone(host, age_s, stale_after_s=stale_after_s, here=here):
             continue
         silent = "never" if age_s is None else f"{age_s:.0f} s ago"
         with session_scope(sessions) as session:
@@ -279,15 +290,15 @@ def _claim(sessions: sessionmaker[Session], settings: Settings, job_id: int) -> 
         if job is None:
             log.warning("job %s does not exist (deleted?); nothing to run", job_id)
             return "missing"
-        host, version = worker_host(), settings.resolved_code_version
+        host, version, stale_after_s = worker_host(settings), settings.resolved_code_version, settings.stale_after_s
         kind: JobKind | None = JOB_KINDS.get(job.kind)
         if kind is None:
-            if jobs.mark_running(job_id, host=host, code_version=version, stale_after_s=STALE_AFTER_S):
+            if jobs.mark_running(job_id, host=host, code_version=version, stale_after_s=stale_after_s):
                 known = ", ".join(sorted(JOB_KINDS))
                 jobs.finish(job_id, JobStatus.FAILED,
                             error=f"unknown job kind {job.kind!r} (this worker knows {known})")
             return jobs.status_of(job_id) or "missing"
-        attempt = jobs.mark_running(job_id, host=host, code_version=version, stale_after_s=STALE_AFTER_S)
+        attempt = jobs.mark_running(job_id, host=host, code_version=version, stale_after_s=stale_after_s)
         if attempt is None:
             # Finished already, cancelled before it started, or running on a live worker (a copy
             # re-sent after the broker lost its data): never run twice at once.
@@ -361,7 +372,7 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
 
     # This run's own local folder: the stages fetch their inputs into it and write their outputs in it.
     scratch = Path(tempfile.mkdtemp(prefix=f"saddlescope-job{job_id}-attempt{fence.attempt}-"))
-    with _Heartbeat(fence, sessions), _removed_after(scratch):
+    with _Heartbeat(fence, sessions, settings.resolved_heartbeat_s), _removed_after(scratch):
         try:
             for current in kind.stages:
                 progress.start(current)
