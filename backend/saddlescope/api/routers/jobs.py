@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, Query, status
 from starlette.concurrency import run_in_threadpool
 
-from saddlescope.api.deps import ClubDep, ClubScope, QueueDep, SessionFactoryDep
+from saddlescope.api.deps import ClubDep, ClubScope, QueueDep, SessionFactoryDep, SettingsDep
 from saddlescope.api.routers.common import ERRORS, Id, QueryId, page_of, paging_sorted_by, sort_enum
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
 from saddlescope.db.repositories import Job, JobRepository
@@ -57,6 +57,7 @@ def _ride_owner(club: ClubScope, job_id: int) -> int | None:
 def list_jobs(
     club: ClubDep,
     queue: QueueDep,
+    settings: SettingsDep,
     paging: JobPaging,
     ride_id: QueryId = None,
     rig_id: QueryId = None,
@@ -79,7 +80,8 @@ def list_jobs(
     )
     owners = _owners(club, page.items)
     asked = _AskOnce(queue)
-    notes = {job.id: job_note(club.session, job, asked) for job in page.items if job.status in ("queued", "running")}
+    notes = {job.id: job_note(club.session, job, asked, stale_after_s=settings.stale_after_s)
+             for job in page.items if job.status in ("queued", "running")}
     return page_of(page, lambda job: JobOut(**{**job_as_dict(job), "owner_id": owners.get(job.ride_id),
                                                "note": notes.get(job.id)}))
 
@@ -120,14 +122,15 @@ def kinds(club: ClubDep) -> list[JobKindOut]:
 
 
 @router.get("/{job_id}", response_model=JobOut, responses=ERRORS)
-def read(job_id: Id, club: ClubDep, queue: QueueDep) -> JobOut:
+def read(job_id: Id, club: ClubDep, queue: QueueDep, settings: SettingsDep) -> JobOut:
     """Status, stage, progress (0-1), per-stage timings and error of a job.
 
     `note` says "waiting for a worker: ..." when no worker is alive or the job's worker stopped.
     """
     job = get_job(club.session, job_id, club_id=club.club_id)
     owner = club.rides.creator_of(job.ride_id) if job.ride_id is not None else None
-    return JobOut(**{**job_as_dict(job), "note": job_note(club.session, job, queue), "owner_id": owner})
+    note = job_note(club.session, job, queue, stale_after_s=settings.stale_after_s)
+    return JobOut(**{**job_as_dict(job), "note": note, "owner_id": owner})
 
 
 @router.post("/{job_id}/cancel", response_model=JobOut, responses=ERRORS)
