@@ -15,11 +15,8 @@ from browser_harness import new_club_admin, serve_fresh
 from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
     EMAIL,
     PASSWORD,
-    SADDLESCOPE,
     Console,
-    _free_port,
     _ok,
-    _wait_healthy,
     browser,
     js_fmt,
     result_document,
