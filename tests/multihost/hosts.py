@@ -128,11 +128,13 @@ class Cluster:
             time.sleep(0.3)
         return service
 
-    def start_worker(self, host: str, *, delay_s: float = 0.0) -> netns.Service:
-        """A Celery worker (solo pool, the stand-in analysis taking `delay_s`) on `host`; waits until ready."""
+    def start_worker(self, host: str, *, delay_s: float = 0.0, real: bool = False) -> netns.Service:
+        """A Celery worker (solo pool) on `host`, waiting until ready: the stand-in analysis taking `delay_s`
+        (the drills time their faults on it), or with `real` SaddleScope's own worker and pipeline."""
         log_path = self.root / host / "worker.log"
         start = log_path.stat().st_size if log_path.exists() else 0
-        args = [str(netns.VENV_BIN / "celery"), "-A", "standin_worker", "worker", "--pool=solo", "-c", "1",
+        app = "saddlescope_worker.app" if real else "standin_worker"
+        args = [str(netns.VENV_BIN / "celery"), "-A", app, "worker", "--pool=solo", "-c", "1",
                 "-Q", "saddlescope", "-n", f"ssmh-{host}-{secrets.token_hex(2)}@%h", "--loglevel=INFO",
                 "--without-gossip", "--without-mingle", "--without-heartbeat"]
         proc = netns.spawn(self.network, host, args, log_path=log_path,

@@ -27,6 +27,8 @@ cluster = hosts.cluster
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 JOB_TIMEOUT_S = 120.0
+REAL_PIPELINE_TIMEOUT_S = 900.0  # the real analysis of a 2.5 s ride with its calibration, on a loaded machine
+tiny_ride = integration_services.tiny_ride  # the session fixture: a 2.5 s canter bundle folder
 
 
 def _upload(api, bundle_zip: bytes) -> tuple[int, int]:
@@ -94,6 +96,28 @@ def test_rides_uploaded_to_the_api_host_are_analysed_by_workers_on_two_other_hos
     # `ip netns exec` execs the worker, so its pid is the one recorded on the job (host:pid).
     assert pids <= worker_pids, (pids, worker_pids)
     assert counts["results stored"] == 4 and counts["duplicates"] == 0 and counts["lost rides"] == 0
+    http.close()
+
+
+def test_a_real_ride_is_analysed_by_the_real_pipeline_on_a_worker_host(cluster, tiny_ride):
+    """The drills run a stand-in analysis (they time their faults on it); this one ride goes through
+    SaddleScope's own worker and every stage, its clips only in the bucket on the store's host."""
+    cluster.stop_workers()
+    worker = cluster.start_worker("w1", real=True)
+    http = cluster.http()
+    api, _ = integration_services.new_club(http)
+    ride_id, job_id = _upload(api, zip_folder(tiny_ride))
+    job, _ = api.wait_job(job_id, timeout_s=REAL_PIPELINE_TIMEOUT_S)
+    assert job["status"] == "done", job["error"]
+    assert job["host"] == f"w1:{worker.proc.pid}", job
+    result = api.ok("GET", f"/rides/{ride_id}/result")
+    truth = json.loads((tiny_ride / "truth.json").read_text())
+    speed_kmh = result["indicators"]["vel_x_avg_kmh"]
+    assert speed_kmh == pytest.approx(truth["indicators"]["vel_x_avg_kmh"], rel=0.02), (speed_kmh, truth)
+    counts = _counts(cluster, [ride_id])
+    _print_counts("real pipeline", counts)
+    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    cluster.stop_workers()
     http.close()
 
 
