@@ -318,12 +318,13 @@ class S3Storage:
             raise FileNotFoundError(f"{key} is not in storage")
         return items
 
-    def open_seekable(self, key: str) -> BinaryIO:
+    def open_seekable(self, key: str, *, block_bytes: int = CHUNK_BYTES) -> BinaryIO:
         """`key` (an object, or an upload's parts read as one file) as a seekable stream, read by ranges.
 
-        For readers that jump about (a zip's directory at its end): nothing is copied to local disk.
+        For readers that jump about (a zip's directory at its end): nothing is copied to local disk. Each
+        ranged GET fetches at least `block_bytes` (held in memory); a seek within them costs no request.
         """
-        return io.BufferedReader(_RangeReader(self, self._segments(key)), buffer_size=CHUNK_BYTES)
+        return io.BufferedReader(_RangeReader(self, self._segments(key)), buffer_size=block_bytes)
 
     def same_bytes(self, key: str, offset: int, other_key: str, length: int) -> bool:
         """Whether `length` bytes of `key` from `offset` equal the first `length` bytes of `other_key`."""
