@@ -15,6 +15,7 @@ import integration_services
 import pytest
 import s3_server as s3_server_module
 from api_helpers import new_club, zip_folder
+from disk_watch import HeldQueue, bundle_clip_digests, queue_of, watching_local_writes
 from engines import ENGINES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
@@ -265,3 +266,35 @@ def test_on_object_storage_the_api_keeps_no_video_byte_on_its_disk(env, club, mo
     clips = {r["id"]: r for r in api.ok("GET", f"/rides/{ride['id']}/clips")}
     assert clips[resumable["recording_id"]]["sha256"] == clips[direct["recording"]["id"]]["sha256"] == sha
     assert not list(bucket.iter_keys("uploads"))  # the parts and chunks are gone
+
+
+def bundle_recordings(api, ride_id: int) -> dict[tuple[str, str], tuple[int, str]]:
+    ride = api.ok("GET", f"/rides/{ride_id}")
+    return {(r["clip_kind"], r["camera_role"]): (r["size_bytes"], r["sha256"]) for r in ride["recordings"]}
+
+
+def test_on_object_storage_a_bundle_never_touches_the_apis_disk(env, club):
+    if not on_s3(env):
+        pytest.skip("a check of the object-storage back end (the folder tree unpacks bundles on disk by design)")
+    api = club["api"]
+    folders = {gait: write_tiny_bundle(club["folder"] / f"watched-{gait}", gait=gait)
+               for gait in ("rising_trot", "canter")}
+    zips = {gait: zip_folder(folder) for gait, folder in folders.items()}
+    # No job runs (the worker has a disk of its own): what the API alone writes.
+    with queue_of(env.client.app, HeldQueue()) as held, watching_local_writes() as writes:
+        upload = api.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(zips["rising_trot"]),
+                                                       "filename": "trot.zip"})
+        for offset in range(0, len(zips["rising_trot"]), 50_000):
+            assert send(api, upload["id"], offset, zips["rising_trot"][offset:offset + 50_000]).status_code == 204
+        resumable = api.ok("POST", f"/uploads/{upload['id']}/finalize")
+        oneshot = api.ok("POST", "/rides/bundle", 201,
+                         files={"file": ("canter.zip", zips["canter"], "application/zip")})
+    # Not one file opened for writing, not one folder made: the zips were read in place in the bucket.
+    assert writes == []
+    assert held.jobs == [resumable["job_id"], oneshot["job_id"]]
+    bucket = open_storage(env.settings)
+    for gait, ride_id in (("rising_trot", resumable["ride_id"]), ("canter", oneshot["ride"]["id"])):
+        assert bundle_recordings(api, ride_id) == bundle_clip_digests(folders[gait])
+        stored = {k.removeprefix(f"rides/{ride_id}/bundle/") for k in bucket.iter_keys(f"rides/{ride_id}/bundle")}
+        assert stored == {p.relative_to(folders[gait]).as_posix() for p in folders[gait].rglob("*") if p.is_file()}
+    assert not list(bucket.iter_keys("incoming")) and not list(bucket.iter_keys("uploads"))
