@@ -472,9 +472,18 @@ def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: 
     """
     from saddlescope.services.bundle_meta import read_bundle_meta
 
-    upload = UploadRepository(session, club_id=club_id).get(upload_id)
+    uploads = UploadRepository(session, club_id=club_id)
+    upload = uploads.get(upload_id)
     if upload.target != UploadTarget.BUNDLE:
         raise InputError(f"upload {upload_id} is a clip, not a ride bundle")
+    if upload.status == UploadStatus.OPEN.value and is_direct(storage, upload_id):
+        # Parts of an unfinished multipart upload cannot be read: join them (409 naming any missing) into
+        # the upload's own key. From then on it is an upload whose bytes all arrived, finalised as a streamed one.
+        check_parts(storage, upload_id, upload.length_bytes)
+        storage.move(direct_upload_key(upload_id), upload_key(upload_id))
+        uploads.advance(upload_id, from_offset=upload.offset_bytes, to_offset=upload.length_bytes)
+        session.commit()
+        upload = uploads.get(upload_id)
     if upload.status != UploadStatus.OPEN.value or upload.offset_bytes != upload.length_bytes:
         raise IncompleteUpload(f"upload {upload_id} is not a complete open upload "
                                f"({upload.offset_bytes} of {upload.length_bytes} bytes, {upload.status})")

@@ -358,7 +358,13 @@ class S3Storage:
                 and int(name.rsplit("/", 1)[-1]) >= at]
 
     def seal(self, key: str, target_key: str) -> None:
-        """Make the collected bytes of `key` one object `target_key` (streamed part by part), then drop `key`."""
+        """Make the collected bytes of `key` one object `target_key` (streamed part by part), then drop `key`.
+
+        Bytes that are one object already (a joined direct upload) are moved by the store, not through here.
+        """
+        if self._head(key) is not None:
+            self.move(key, target_key)
+            return
         with self.open_seekable(key) as source:
             self.write_stream(target_key, source)
         self.delete(key)
