@@ -387,7 +387,8 @@ def finalise_upload(
     """Turn a complete resumable upload into a recording (and maybe a job) or a ride; returns the outcome.
 
     `chosen` (a bundle only): the ride's details chosen at upload, over the bundle's ride.json.
-    A refused file marks the upload failed with the reason (and the error is raised again).
+    A refused file marks the upload failed with the reason (and the error is raised again); a bundle whose
+    analysis the job queue refuses leaves no ride, and its upload open and complete, to be finalised again.
     """
     direct = is_direct(storage, upload_id)
     with session_scope(sessions) as session:
@@ -430,23 +431,8 @@ def finalise_upload(
                 ride_id if target == UploadTarget.RIDE_CLIP else rig_id,
                 club_id,
             )
-            recording_id = accept_clip(
-                sessions,
-                storage,
-                owner,
-                clip_kind,
-                camera,
-                staged,
-                size_bytes=size,
-                sha256=storage.sha256(staged),
-                filename=filename,
-            )
-            job_id = start_processing(sessions, queue, owner)
-            outcome = {"recording_id": recording_id, "job_id": job_id}
-            if owner.kind == "ride" and job_id is None:
-                with session_scope(sessions) as session:
-                    # Said with the clip, so the page never reports "queued" for a ride that cannot run.
-                    outcome["missing"] = missing_for_ride(session, owner.id, club_id=club_id)
+            outcome = _finalise_clip(sessions, storage, queue, owner, clip_kind, camera, staged, size=size,
+                                     filename=filename)
     except SaddleScopeError as exc:
         with session_scope(sessions) as session:
             uploads = UploadRepository(session, club_id=club_id)
@@ -461,6 +447,20 @@ def finalise_upload(
         UploadRepository(session, club_id=club_id).close(
             upload_id, status=UploadStatus.FINALISED, outcome=outcome
         )
+    return outcome
+
+
+def _finalise_clip(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, owner: ClipOwner,
+                   clip_kind: str, camera: str, staged: str, *, size: int, filename: str | None) -> dict[str, Any]:
+    """`accept_clip` of a finalised upload's staged clip, then the processing it allows; the upload's outcome."""
+    recording_id = accept_clip(sessions, storage, owner, clip_kind, camera, staged, size_bytes=size,
+                               sha256=storage.sha256(staged), filename=filename)
+    job_id = start_processing(sessions, queue, owner)
+    outcome = {"recording_id": recording_id, "job_id": job_id}
+    if owner.kind == "ride" and job_id is None:
+        with session_scope(sessions) as session:
+            # Said with the clip, so the page never reports "queued" for a ride that cannot run.
+            outcome["missing"] = missing_for_ride(session, owner.id, club_id=owner.club_id)
     return outcome
 
 
