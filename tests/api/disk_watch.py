@@ -3,7 +3,8 @@
 Python's audit events see every file opened for writing (``open``, ``os.open``, so also `tempfile` and
 any library) and every folder made, from any thread. The hook is installed once per process (audit
 hooks cannot be removed) and records only while a `watching_local_writes` block runs. Jobs a test's
-embedded queue runs in threads of its own (``run_job``) are workers, not the API: they are left out.
+embedded queue runs in threads of its own (``run_job``) are workers, not the API: they are left out
+(and `queue_of` waits for them, as their downloads run in boto3's threads).
 """
 
 from __future__ import annotations
@@ -73,7 +74,13 @@ class HeldQueue:
 
 @contextlib.contextmanager
 def queue_of(app, queue) -> Iterator[object]:
-    """The app's job queue is `queue` while the block runs (then the one it had)."""
+    """The app's job queue is `queue` while the block runs (then the one it had).
+
+    Jobs the old queue runs in threads of this process (`api_helpers.ThreadQueue`) are waited for first:
+    a worker's downloads (in threads of boto3's own) are no writes of the API.
+    """
+    for thread in getattr(app.state.queue, "threads", []):
+        thread.join(timeout=120)
     saved, app.state.queue = app.state.queue, queue
     try:
         yield queue
