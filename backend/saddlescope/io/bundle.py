@@ -325,6 +325,10 @@ class _ZipTree:
                     self.children[parts[:depth - 1]].add(parts[:depth])
             if not info.is_dir():
                 self.children[parts[:-1]].add(parts)
+        clash = next((parts for parts in self.files if parts in self.children), None)
+        if clash is not None:  # unpacking would fail to make the folder (or the file) there
+            raise BundleError(f"{name}: cannot be extracted (member {'/'.join(clash)!r} is both a file and a "
+                              "folder)")
 
 
 class ZipMember:
