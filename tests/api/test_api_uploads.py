@@ -1,7 +1,8 @@
 """Resumable uploads (tus-like) and the streamed upload path: offsets, resuming, finalising, refusals.
 
 On both storage back ends: the folder tree, and a bucket of a real SeaweedFS ("embedded-s3"), where the
-API keeps no byte of a video on its own disk and the worker's probe stage reads the clips.
+API keeps no byte of a video on its own disk (a clip, or a bundle zip read in place) and the worker's probe
+stage reads the clips. A broken bundle gets the same reason on both back ends and leaves nothing.
 """
 
 from __future__ import annotations
