@@ -5,14 +5,16 @@ the API joins them at finalise; no byte of the file passes through the API."""
 from __future__ import annotations
 
 import hashlib
+import os
 import tempfile
 
 import httpx
 import pytest
 import s3_server as s3_server_module
-from api_helpers import new_club
+from api_helpers import new_club, zip_folder
+from disk_watch import HeldQueue, bundle_clip_digests, queue_of, watching_local_writes
 from engines import open_env
-from integration_services import write_tiny_clip
+from integration_services import write_tiny_bundle, write_tiny_clip
 
 from saddlescope.services import direct_uploads
 from saddlescope.storage import direct_upload_key, open_storage
@@ -138,13 +140,17 @@ def _dead_endpoint() -> str:
         return f"http://127.0.0.1:{sock.getsockname()[1]}"
 
 
-def test_a_store_that_does_not_answer_is_a_503_with_the_reason(env, club, monkeypatch):
+def test_a_store_that_does_not_answer_is_a_503_with_the_reason(env, club):
     from saddlescope.storage import S3Storage
 
     bucket = env.settings.storage_url.removeprefix("s3://").split("/")[0]
-    app = env.client.app
-    monkeypatch.setattr(app.state, "storage", S3Storage(bucket, "club-data", endpoint_url=_dead_endpoint()))
-    response = start_raw(club["api"], club["ride"]["id"], 1000, "left")
+    state = env.client.app.state
+    # Swapped by hand: pytest's monkeypatch does not put a starlette `State` attribute back (it deletes it).
+    saved, state.storage = state.storage, S3Storage(bucket, "club-data", endpoint_url=_dead_endpoint())
+    try:
+        response = start_raw(club["api"], club["ride"]["id"], 1000, "left")
+    finally:
+        state.storage = saved
     assert response.status_code == 503, response.text
     detail = response.json()["detail"]
     assert detail.startswith("the file store is not answering") and "try again" in detail
@@ -166,3 +172,30 @@ def test_part_urls_carry_the_public_endpoint(env, club):
         assert same.startswith(f"{inside}/{bucket}/")  # unset: the servers' own address
     finally:
         storage.abort_direct(key)
+
+
+def test_a_bundle_sent_directly_is_read_in_the_bucket_never_on_the_apis_disk(env, club):
+    api = club["api"]
+    folder = write_tiny_bundle(club["folder"] / "bundle", gait="canter")
+    (folder / "extra").mkdir()
+    (folder / "extra" / "noise.bin").write_bytes(os.urandom(11 * 1024**2))  # the zip spans three parts
+    data = zip_folder(folder)
+    with queue_of(env.client.app, HeldQueue()) as held, watching_local_writes() as writes:
+        upload = api.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data),
+                                                       "filename": "canter.zip"})
+        assert (upload["transport"], upload["parts_total"]) == ("s3-parts", 3)
+        assert [put_part(api, upload["id"], number, data) for number in (1, 2, 3)] == [200] * 3
+        meta = api.ok("GET", f"/uploads/{upload['id']}/bundle-meta")  # the dashboard pre-fills its form
+        outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize", json={"gait": "walk"})
+    assert writes == []  # not one local file opened for writing, not one folder made
+    assert (meta["gait"], meta["horse"]["name"]) == ("canter", "Horse 2")
+    assert held.jobs == [outcome["job_id"]]
+    ride = api.ok("GET", f"/rides/{outcome['ride_id']}")
+    assert ride["gait"] == "walk"  # chosen in the form, over ride.json
+    assert {(r["clip_kind"], r["camera_role"]): (r["size_bytes"], r["sha256"])
+            for r in ride["recordings"]} == bundle_clip_digests(folder)
+    storage = open_storage(env.settings)
+    stored = {k.removeprefix(f"rides/{ride['id']}/bundle/") for k in storage.iter_keys(f"rides/{ride['id']}/bundle")}
+    assert stored == {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
+    assert storage.direct_id(direct_upload_key(upload["id"])) is None
+    assert not list(storage.iter_keys("uploads")) and not list(storage.iter_keys("incoming"))

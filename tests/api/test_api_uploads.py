@@ -1,20 +1,24 @@
 """Resumable uploads (tus-like) and the streamed upload path: offsets, resuming, finalising, refusals.
 
 On both storage back ends: the folder tree, and a bucket of a real SeaweedFS ("embedded-s3"), where the
-API keeps no byte of a video on its own disk and the worker's probe stage reads the clips.
+API keeps no byte of a video on its own disk (a clip, or a bundle zip read in place) and the worker's probe
+stage reads the clips. A broken bundle gets the same reason on both back ends and leaves nothing.
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import tempfile
 import time
+import zipfile
 
 import integration_services
 import pytest
 import s3_server as s3_server_module
 from api_helpers import new_club, zip_folder
+from disk_watch import HeldQueue, bundle_clip_digests, queue_of, watching_local_writes
 from engines import ENGINES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
@@ -265,3 +269,95 @@ def test_on_object_storage_the_api_keeps_no_video_byte_on_its_disk(env, club, mo
     clips = {r["id"]: r for r in api.ok("GET", f"/rides/{ride['id']}/clips")}
     assert clips[resumable["recording_id"]]["sha256"] == clips[direct["recording"]["id"]]["sha256"] == sha
     assert not list(bucket.iter_keys("uploads"))  # the parts and chunks are gone
+
+
+def bundle_recordings(api, ride_id: int) -> dict[tuple[str, str], tuple[int, str]]:
+    ride = api.ok("GET", f"/rides/{ride_id}")
+    return {(r["clip_kind"], r["camera_role"]): (r["size_bytes"], r["sha256"]) for r in ride["recordings"]}
+
+
+def test_on_object_storage_a_bundle_never_touches_the_apis_disk(env, club):
+    if not on_s3(env):
+        pytest.skip("a check of the object-storage back end (the folder tree unpacks bundles on disk by design)")
+    api = club["api"]
+    folders = {gait: write_tiny_bundle(club["folder"] / f"watched-{gait}", gait=gait)
+               for gait in ("rising_trot", "canter")}
+    zips = {gait: zip_folder(folder) for gait, folder in folders.items()}
+    # No job runs (the worker has a disk of its own): what the API alone writes.
+    with queue_of(env.client.app, HeldQueue()) as held, watching_local_writes() as writes:
+        upload = api.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(zips["rising_trot"]),
+                                                       "filename": "trot.zip"})
+        for offset in range(0, len(zips["rising_trot"]), 50_000):
+            assert send(api, upload["id"], offset, zips["rising_trot"][offset:offset + 50_000]).status_code == 204
+        resumable = api.ok("POST", f"/uploads/{upload['id']}/finalize")
+        oneshot = api.ok("POST", "/rides/bundle", 201,
+                         files={"file": ("canter.zip", zips["canter"], "application/zip")})
+    # Not one file opened for writing, not one folder made: the zips were read in place in the bucket.
+    assert writes == []
+    assert held.jobs == [resumable["job_id"], oneshot["job_id"]]
+    bucket = open_storage(env.settings)
+    for gait, ride_id in (("rising_trot", resumable["ride_id"]), ("canter", oneshot["ride"]["id"])):
+        assert bundle_recordings(api, ride_id) == bundle_clip_digests(folders[gait])
+        stored = {k.removeprefix(f"rides/{ride_id}/bundle/") for k in bucket.iter_keys(f"rides/{ride_id}/bundle")}
+        assert stored == {p.relative_to(folders[gait]).as_posix() for p in folders[gait].rglob("*") if p.is_file()}
+    assert not list(bucket.iter_keys("incoming")) and not list(bucket.iter_keys("uploads"))
+
+
+def _zip_without(data: bytes, name: str) -> bytes:
+    out = io.BytesIO()
+    with zipfile.ZipFile(io.BytesIO(data)) as source, zipfile.ZipFile(out, "w") as target:
+        for info in source.infolist():
+            if info.filename != name:
+                target.writestr(info, source.read(info))
+    return out.getvalue()
+
+
+def _zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:
+    """`data` (a zip of stored members) with one byte inside member `name` changed: its CRC no longer matches."""
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        info = zf.getinfo(name)
+    at = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra) + info.compress_size // 2
+    return data[:at] + bytes([data[at] ^ 0xFF]) + data[at + 1:]
+
+
+def bad_bundle_zips(folder) -> dict[str, tuple[bytes, str]]:
+    """Broken bundles and the exact reason each gets, the same on both storage back ends."""
+    ride_json = json.loads((folder / "ride.json").read_text())
+    good = zip_folder(folder)
+    # A new horse: registered before the broken member is met on object storage, and taken back with the ride.
+    new_horse = zip_folder(folder, rewrite={"ride.json": json.dumps({**ride_json, "horse": {"name": "Only in a zip"}})})
+    return {
+        "not a zip": (b"this is a video, honest\n" * 500, "ride.zip: a ride bundle must be a folder or a .zip archive"),
+        "no ride.json": (_zip_without(good, "ride.json"), "ride.zip: no ride.json (is this a ride bundle?)"),
+        "escaping member": (zip_folder(folder, extra={"../../escape.avi": b"x" * 100}),
+                            "ride.zip: member '../../escape.avi' has a '..' component (it would be written "
+                            "outside the bundle)"),
+        "truncated": (good[:len(good) * 2 // 3], "ride.zip: a ride bundle must be a folder or a .zip archive"),
+        "corrupt member": (_zip_with_a_flipped_byte(new_horse, "motion/left.avi"),
+                           "ride.zip: corrupt or unsupported zip archive (Bad CRC-32 for file 'motion/left.avi')"),
+    }
+
+
+def test_a_broken_bundle_gets_the_same_reason_on_both_back_ends_and_leaves_nothing(env, club):
+    api = club["api"]
+    cases = bad_bundle_zips(write_tiny_bundle(club["folder"] / "broken", gait="sitting_trot"))
+    rides_before = {r["id"] for r in api.ok("GET", "/rides", params={"limit": 500})["items"]}
+    horses_before = {h["name"] for h in api.ok("GET", "/horses", params={"limit": 500})["items"]}
+    upload_ids = []
+    for what, (data, reason) in cases.items():
+        oneshot = api.post("/rides/bundle", files={"file": ("ride.zip", data, "application/zip")})
+        assert (oneshot.status_code, oneshot.json()["detail"]) == (422, reason), what
+        upload = api.ok("POST", "/uploads", 201, json={"target": "bundle", "length_bytes": len(data),
+                                                       "filename": "ride.zip"})
+        upload_ids.append(upload["id"])
+        assert send(api, upload["id"], 0, data).status_code == 204
+        finalised = api.post(f"/uploads/{upload['id']}/finalize")
+        assert (finalised.status_code, finalised.json()["detail"]) == (422, reason), what
+        assert (api.ok("GET", f"/uploads/{upload['id']}")["status"], what) == ("failed", what)
+    assert {r["id"] for r in api.ok("GET", "/rides", params={"limit": 500})["items"]} == rides_before
+    assert {h["name"] for h in api.ok("GET", "/horses", params={"limit": 500})["items"]} == horses_before
+    # Nothing in the store: no staged zip, no upload's bytes, no file of a ride taken back.
+    store = open_storage(env.settings)
+    keys = [k for prefix in ("incoming", "uploads", "rides") if store.exists(prefix) for k in store.iter_keys(prefix)]
+    assert not [k for k in keys if k.startswith(("incoming/", *(f"uploads/{u}" for u in upload_ids)))]
+    assert not [k for k in keys if k.startswith("rides/") and int(k.split("/")[1]) > max(rides_before, default=0)]

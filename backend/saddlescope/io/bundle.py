@@ -6,6 +6,9 @@ archives with too many members, and archives that unpack to more than a size lim
 suspicious compression ratio (zip bombs). Every refusal is a :class:`BundleError` naming the file and
 the field or member at fault.
 
+``open_zip_stream(stream, name)`` opens a zip read through a seekable stream (a bucket's object read by
+ranges) without unpacking it: the same checks and messages, and `zip_bundle_files` streams its members.
+
 ``write_bundle_zip(bundle_dir, zip_path)`` writes the zip a ride export or an upload uses.
 """
 
@@ -19,16 +22,21 @@ import stat
 import tempfile
 import zipfile
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
-from typing import Any
+from types import SimpleNamespace
+from typing import Any, BinaryIO
 
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.types import CLIP_KINDS, Board
 from saddlescope.io.result_schema import validate_ride_meta
 
-__all__ = ["RideBundle", "open_bundle", "write_bundle_zip", "MAX_FILES", "MAX_BYTES", "MAX_RATIO"]
+__all__ = [
+    "RideBundle", "ZipMember", "open_bundle", "open_zip_stream", "write_bundle_zip", "zip_bundle_files", "MAX_FILES",
+    "MAX_BYTES", "MAX_RATIO",
+]
 
 RIDE_JSON = "ride.json"
 TRUTH_JSON = "truth.json"
@@ -86,6 +94,7 @@ class RideBundle:
     warnings: tuple[str, ...] = ()
     source: Path | None = None
     temp_dir: Path | None = field(default=None, repr=False)
+    archive: zipfile.ZipFile | None = field(default=None, repr=False)  # a zip read in place (`open_zip_stream`)
 
     @property
     def gait(self) -> str:
@@ -127,7 +136,9 @@ class RideBundle:
         return per_camera[camera]
 
     def close(self) -> None:
-        """Remove the temporary folder a zip was extracted to (a folder bundle is left alone)."""
+        """Remove the temporary folder a zip was extracted to, or close the zip read in place."""
+        if self.archive is not None:
+            self.archive.close()
         if self.temp_dir is not None:
             shutil.rmtree(self.temp_dir, ignore_errors=True)
 
@@ -263,6 +274,9 @@ def _check_zip(zf: zipfile.ZipFile, zip_name: str, *, max_files: int, max_bytes:
     return members
 
 
+_ZIP_ERRORS = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError)
+
+
 def _extract_zip(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, max_ratio: float) -> None:
     name = zip_path.name
     try:
@@ -286,10 +300,173 @@ def _extract_zip(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, 
                             raise BundleError(f"{name}: member {info.filename!r} unpacks to more than its "
                                               "header says (a zip bomb?)")
                         out.write(chunk)
-    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as exc:
+    except _ZIP_ERRORS as exc:
         raise BundleError(f"{name}: corrupt or unsupported zip archive ({exc})") from exc
     except OSError as exc:
         raise BundleError(f"{name}: cannot be extracted ({exc.strerror or exc})") from exc
+
+
+# ------------------------------------------------------------------------------- zip read in place
+
+
+class _ZipTree:
+    """The folders and files a zip's vetted members would unpack to (folders implied by their paths)."""
+
+    def __init__(self, zf: zipfile.ZipFile, name: str,
+                 members: list[tuple[zipfile.ZipInfo, tuple[str, ...]]]) -> None:
+        self.zf, self.name = zf, name
+        self.files = {parts: info for info, parts in members if not info.is_dir()}
+        self.children: dict[tuple[str, ...], set[tuple[str, ...]]] = {(): set()}
+        for info, parts in members:
+            upto = len(parts) if info.is_dir() else len(parts) - 1
+            for depth in range(upto + 1):
+                self.children.setdefault(parts[:depth], set())
+                if depth:
+                    self.children[parts[:depth - 1]].add(parts[:depth])
+            if not info.is_dir():
+                self.children[parts[:-1]].add(parts)
+        clash = next((parts for parts in self.files if parts in self.children), None)
+        if clash is not None:  # unpacking would fail to make the folder (or the file) there
+            raise BundleError(f"{name}: cannot be extracted (member {'/'.join(clash)!r} is both a file and a "
+                              "folder)")
+
+
+class ZipMember:
+    """A file or folder inside a zip read in place, answering the few `Path` questions a bundle's checks ask.
+
+    What `open_bundle` would find in the unpacked folder, read from the zip's directory instead.
+    """
+
+    def __init__(self, tree: _ZipTree, parts: tuple[str, ...]) -> None:
+        self.tree, self.parts = tree, parts
+
+    def __truediv__(self, name: str) -> ZipMember:
+        return self.joinpath(name)
+
+    def joinpath(self, *names: str) -> ZipMember:
+        more = tuple(p for name in names for p in str(name).split("/") if p not in ("", "."))
+        return ZipMember(self.tree, self.parts + more)
+
+    @property
+    def name(self) -> str:
+        return self.parts[-1] if self.parts else ""
+
+    @property
+    def suffix(self) -> str:
+        return PurePosixPath(self.name).suffix if self.parts else ""
+
+    @property
+    def stem(self) -> str:
+        return PurePosixPath(self.name).stem if self.parts else ""
+
+    @property
+    def info(self) -> zipfile.ZipInfo:
+        return self.tree.files[self.parts]
+
+    def is_file(self) -> bool:
+        return self.parts in self.tree.files
+
+    def is_dir(self) -> bool:
+        return self.parts in self.tree.children and not self.is_file()
+
+    def exists(self) -> bool:
+        return self.is_file() or self.is_dir()
+
+    def iterdir(self) -> list[ZipMember]:
+        return [ZipMember(self.tree, parts) for parts in sorted(self.tree.children.get(self.parts, ()))]
+
+    def stat(self) -> SimpleNamespace:
+        return SimpleNamespace(st_size=self.info.file_size if self.is_file() else 0)
+
+    def read_bytes(self) -> bytes:
+        return self.tree.zf.read(self.info)
+
+    def read_text(self, encoding: str = "utf-8") -> str:
+        return self.read_bytes().decode(encoding)
+
+    def resolve(self) -> ZipMember:
+        return self  # a zip holds no links (`_check_zip` refuses them)
+
+    def is_relative_to(self, other: ZipMember) -> bool:
+        return self.parts[:len(other.parts)] == other.parts
+
+    def relative_to(self, other: ZipMember) -> PurePosixPath:
+        if not self.is_relative_to(other):
+            raise ValueError(f"{self} is not inside {other}")
+        return PurePosixPath(*self.parts[len(other.parts):])
+
+    def files_below(self) -> list[ZipMember]:
+        """Every file inside this folder, in path order (the order `tree_digest` reads an unpacked folder)."""
+        depth = len(self.parts)
+        return [ZipMember(self.tree, parts) for parts in sorted(self.tree.files) if parts[:depth] == self.parts]
+
+    def __str__(self) -> str:
+        return "/".join((self.tree.name, *self.parts))
+
+    def __repr__(self) -> str:
+        return f"ZipMember({str(self)!r})"
+
+
+def open_zip_stream(stream: BinaryIO, name: str, *, max_files: int = MAX_FILES, max_bytes: int = MAX_BYTES,
+                    max_ratio: float = MAX_RATIO) -> RideBundle:
+    """Open and validate a ride bundle zip read through a seekable `stream`, without unpacking it.
+
+    The checks and messages of `open_bundle` for a zip, naming it `name`. The bundle's root and clip paths
+    are `ZipMember`s; `zip_bundle_files` reads their bytes. Closing the bundle closes the zip (not `stream`).
+
+    Raises
+    ------
+    BundleError
+        As `open_bundle` does for the same zip.
+    """
+    if not zipfile.is_zipfile(stream):
+        raise BundleError(f"{name}: a ride bundle must be a folder or a .zip archive")
+    archive_bytes = stream.seek(0, os.SEEK_END)
+    stream.seek(0)
+    zf = None
+    try:
+        zf = zipfile.ZipFile(stream)
+        members = _check_zip(zf, name, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio,
+                             archive_bytes=archive_bytes)
+        root = _find_root(ZipMember(_ZipTree(zf, name, members), ()), label=name)
+        return _open_folder(root, source=None, archive=zf)  # type: ignore[arg-type]
+    except BaseException as exc:
+        if zf is not None:
+            zf.close()
+        if isinstance(exc, _ZIP_ERRORS):
+            raise BundleError(f"{name}: corrupt or unsupported zip archive ({exc})") from exc
+        raise
+
+
+def zip_bundle_files(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> Iterator[tuple[ZipMember, Iterator[bytes]]]:
+    """Each file under the root of a bundle from `open_zip_stream`, in path order, with its bytes in chunks.
+
+    Read a file's chunks before taking the next file. Bytes that disagree with the member's header or CRC
+    are a `BundleError`, as when `open_bundle` unpacks the zip.
+    """
+    root = bundle.root
+    if bundle.archive is None or not isinstance(root, ZipMember):
+        raise ValueError("zip_bundle_files reads a bundle opened by open_zip_stream")
+    archive, name = bundle.archive, root.tree.name
+    total = 0
+
+    def chunks(info: zipfile.ZipInfo) -> Iterator[bytes]:
+        nonlocal total
+        written = 0
+        try:
+            with archive.open(info) as source:
+                while chunk := source.read(_CHUNK):
+                    written += len(chunk)
+                    total += len(chunk)
+                    if written > info.file_size or total > max_bytes:  # headers can lie about sizes
+                        raise BundleError(f"{name}: member {info.filename!r} unpacks to more than its "
+                                          "header says (a zip bomb?)")
+                    yield chunk
+        except _ZIP_ERRORS as exc:
+            raise BundleError(f"{name}: corrupt or unsupported zip archive ({exc})") from exc
+
+    for member in root.files_below():
+        yield member, chunks(member.info)
 
 
 # ----------------------------------------------------------------------------------------- folder
@@ -358,7 +535,8 @@ def _board(meta: dict) -> Board:
         raise BundleError(f"{RIDE_JSON}: {exc}") from None
 
 
-def _open_folder(root: Path, *, source: Path, temp_dir: Path | None = None) -> RideBundle:
+def _open_folder(root: Path, *, source: Path | None, temp_dir: Path | None = None,
+                 archive: zipfile.ZipFile | None = None) -> RideBundle:
     ride_json = root / RIDE_JSON
     if not ride_json.is_file():
         raise BundleError(f"{root}: no {RIDE_JSON} (is this a ride bundle?)")
@@ -393,7 +571,7 @@ def _open_folder(root: Path, *, source: Path, temp_dir: Path | None = None) -> R
 
     return RideBundle(root=root, meta=meta, board=_board(meta), clip_paths=clip_paths, truth=truth,
                       extra_clip_paths=extra, calibration_file=calibration_file, warnings=tuple(warnings),
-                      source=source, temp_dir=temp_dir)
+                      source=source, temp_dir=temp_dir, archive=archive)
 
 
 # ----------------------------------------------------------------------------------------- writer

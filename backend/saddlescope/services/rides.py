@@ -8,15 +8,18 @@ those (a clip stored, a job created, started, finished, cancelled or queued agai
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
+from sqlalchemy import delete, exists, select
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.enums import JobStatus, RideStatus
+from saddlescope.db.models import Horse, Rider
 from saddlescope.db.repositories import (
     ClubRepository,
     HorseRepository,
@@ -29,7 +32,7 @@ from saddlescope.db.repositories import (
     RigRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.io.bundle import RideBundle, open_bundle
+from saddlescope.io.bundle import RideBundle, open_bundle, open_zip_stream, zip_bundle_files
 from saddlescope.storage import Storage, ride_bundle_key, sha256_file, tree_digest
 
 __all__ = [
@@ -42,6 +45,7 @@ __all__ = [
     "complete_clip_sets",
     "refresh_ride_status",
     "register_bundle",
+    "remove_bundle_ride",
     "ride_clip_plan",
     "ride_status",
 ]
@@ -166,13 +170,16 @@ def refresh_ride_status(session: Session, ride_id: int | None) -> str | None:
     return status.value
 
 
-def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: Path | str, *,
+def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: Path | str | BinaryIO, *,
                     club_name: str = "Demo club", club_id: int | None = None, rig_id: int | None = None,
-                    ridden_on: dt.date | None = None, chosen: Mapping[str, Any] | None = None) -> int:
+                    ridden_on: dt.date | None = None, chosen: Mapping[str, Any] | None = None,
+                    name: str = "the bundle") -> int:
     """Create a ride (and its horse and rider if new) from a bundle; returns the ride id.
 
     `bundle` is a folder or a zip (validated by `saddlescope.io.bundle.open_bundle`, which raises
-    `BundleError` naming what is wrong). Its files are copied into storage under
+    `BundleError` naming what is wrong), or a seekable stream of a zip named `name` in errors (a bucket's
+    object read by ranges: `open_zip_stream` checks it in place and its members are copied one by one,
+    nothing on this machine's disk). Its files are copied into storage under
     ``rides/<id>/bundle`` with their own relative paths, and each clip of the four standard sets
     becomes a recording row with its size and sha256. The ride belongs to club `club_id`, or to the
     club named `club_name` (created if new) when no id is given; `rig_id` (a rig of that club)
@@ -180,12 +187,24 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
     upload (horse_id, rider_id, gait, direction, ridden_on, notes): each one given wins over ride.json,
     which only fills what is not given (a horse or rider named in ride.json is added when no id is).
     """
-    with open_bundle(bundle) as opened:
+    opened = open_bundle(bundle) if isinstance(bundle, str | Path) else open_zip_stream(bundle, name)
+    with opened:
         return _register(sessions, storage, opened, club_name=club_name, club_id=club_id, rig_id=rig_id,
                          ridden_on=ridden_on, chosen=dict(chosen or {}))
 
 
 MAX_NAME_CHARS = 200
+_ADDED = "_bundle_added"  # meta key: the horse and rider the ride's registration added (removed with it)
+
+
+def _get_or_add(session: Session, who: str, club_id: int, name: str, added: dict[str, int], **details) -> int:
+    """The club's horse or rider (`who`) named `name`, added if new (then noted in `added`)."""
+    model, repository = (Horse, HorseRepository) if who == "horse" else (Rider, RiderRepository)
+    new = session.scalar(select(model.id).where(model.club_id == club_id, model.name == name)) is None
+    row_id = repository(session, club_id=club_id).get_or_create(name=name, **details).id
+    if new:
+        added[who] = row_id
+    return row_id
 
 
 def _add_ride(session: Session, bundle: RideBundle, *, club_name: str, club_id: int | None,
@@ -200,35 +219,64 @@ def _add_ride(session: Session, bundle: RideBundle, *, club_name: str, club_id: 
                               f"a name has at most {MAX_NAME_CHARS}")
     if club_id is None:
         club_id = ClubRepository(session).get_or_create(club_name).id
-    horse_id = chosen.get("horse_id") or HorseRepository(session, club_id=club_id).get_or_create(
-        name=str(horse_meta.get("name") or "Unnamed horse"),
+    added: dict[str, int] = {}
+    horse_id = chosen.get("horse_id") or _get_or_add(
+        session, "horse", club_id, str(horse_meta.get("name") or "Unnamed horse"), added,
         breed=horse_meta.get("breed"), birth_year=horse_meta.get("birth_year"),
-        height_withers_m=horse_meta.get("height_m")).id
-    rider_id = chosen.get("rider_id") or RiderRepository(session, club_id=club_id).get_or_create(
-        name=str(rider_meta.get("name") or "Unnamed rider")).id
+        height_withers_m=horse_meta.get("height_m"))
+    rider_id = chosen.get("rider_id") or _get_or_add(
+        session, "rider", club_id, str(rider_meta.get("name") or "Unnamed rider"), added)
     ride = RideRepository(session, club_id=club_id).add(
         horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, gait=chosen.get("gait") or meta["gait"],
         direction=chosen.get("direction") or meta["direction"],
         ridden_on=chosen.get("ridden_on") or ridden_on or dt.datetime.now(dt.UTC).date(),
         notes=chosen.get("notes") or "",
-        meta={k: meta[k] for k in ("board", "sync", "markers") if k in meta})
+        meta={**{k: meta[k] for k in ("board", "sync", "markers") if k in meta}, **({_ADDED: added} if added else {})})
     return club_id, ride.id
 
 
-def _add_recordings(session: Session, storage: Storage, bundle: RideBundle, *, club_id: int, ride_id: int,
-                    bundle_key: str) -> None:
+def _store_files(storage: Storage, bundle: RideBundle, bundle_key: str) -> dict[str, tuple[int, str]]:
+    """Copy every file of the bundle under `bundle_key`; returns each clip's (size, sha256) by its bundle path.
+
+    A folder is imported whole; a zip read in place (object storage) is copied member by member, each
+    streamed from the zip in the bucket to its own object. Either way the digests come from the bytes
+    copied: no second read of the stored copy.
+    """
+    clips = {source.relative_to(bundle.root).as_posix(): source
+             for per_camera in bundle.clip_paths.values() for source in per_camera.values()}
+    if bundle.archive is None:
+        storage.import_tree(bundle_key, bundle.root)
+        return {rel: tree_digest(source) if source.is_dir() else (source.stat().st_size, sha256_file(source))
+                for rel, source in clips.items()}
+    # A clip of numbered images: `tree_digest` of its folder, fed as its files stream past in path order.
+    folders = {rel: [0, hashlib.sha256()] for rel, source in clips.items() if source.is_dir()}
+    digests: dict[str, tuple[int, str]] = {}
+    for member, chunks in zip_bundle_files(bundle):
+        rel = member.relative_to(bundle.root).as_posix()
+        inside = [(folder, state) for folder, state in folders.items() if rel.startswith(folder + "/")]
+        for folder, state in inside:
+            state[1].update(rel[len(folder) + 1:].encode() + b"\0")
+        with storage.writer(f"{bundle_key}/{rel}") as out:
+            for chunk in chunks:
+                out.write(chunk)
+                for _, state in inside:
+                    state[0] += len(chunk)
+                    state[1].update(chunk)
+            digests[rel] = out.commit()
+    digests.update({folder: (size, digest.hexdigest()) for folder, (size, digest) in folders.items()})
+    return {rel: digests[rel] for rel in clips}
+
+
+def _add_recordings(session: Session, bundle: RideBundle, digests: dict[str, tuple[int, str]], *, club_id: int,
+                    ride_id: int, bundle_key: str) -> None:
     """A recording row (size, sha256) for each clip of the bundle's standard sets, stored under `bundle_key`."""
     recordings = RecordingRepository(session)
     for kind, per_camera in bundle.clip_paths.items():
         for role, source in per_camera.items():
-            key = f"{bundle_key}/{source.relative_to(bundle.root).as_posix()}"
-            # The local bundle's bytes, just copied to `key` (any back end): no second read of the stored copy.
-            if source.is_dir():
-                size_bytes, sha256 = tree_digest(source)
-            else:
-                size_bytes, sha256 = source.stat().st_size, sha256_file(source)
+            rel = source.relative_to(bundle.root).as_posix()
+            size_bytes, sha256 = digests[rel]
             recordings.add(club_id=club_id, ride_id=ride_id, camera_role=role, clip_kind=kind,
-                           path=key, sha256=sha256, size_bytes=size_bytes)
+                           path=f"{bundle_key}/{rel}", sha256=sha256, size_bytes=size_bytes)
 
 
 def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBundle, *,
@@ -242,15 +290,30 @@ def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBun
     try:
         # The whole folder, extras included (truth.json, extra clip sets, a calibration file), so
         # the stored copy is again a complete bundle the pipeline can open.
-        storage.import_tree(bundle_key, bundle.root)
+        digests = _store_files(storage, bundle, bundle_key)
         with session_scope(sessions) as session:
-            _add_recordings(session, storage, bundle, club_id=club_id, ride_id=ride_id, bundle_key=bundle_key)
+            _add_recordings(session, bundle, digests, club_id=club_id, ride_id=ride_id, bundle_key=bundle_key)
             RideRepository(session).set_bundle_key(ride_id, bundle_key)
             refresh_ride_status(session, ride_id)
         registered = True
     finally:
-        if not registered:  # no half-registered ride: remove the row and the copied files
-            storage.delete(f"rides/{ride_id}")
-            with session_scope(sessions) as session:
-                RideRepository(session).delete(ride_id)
+        if not registered:  # no half-registered ride: remove the rows and the copied files
+            remove_bundle_ride(sessions, storage, ride_id)
     return ride_id
+
+
+def remove_bundle_ride(sessions: sessionmaker[Session], storage: Storage, ride_id: int) -> None:
+    """Take back a ride just registered from a bundle (refused, or its job could not be queued).
+
+    Its rows go (recordings and jobs with it), then its stored files; so do the horse and rider its
+    registration added, unless another ride uses them meanwhile. Nothing that existed before is touched.
+    """
+    with session_scope(sessions) as session:
+        ride = RideRepository(session).find(ride_id)
+        added = dict(dict(ride.meta or {}).get(_ADDED) or {}) if ride is not None else {}
+        RideRepository(session).delete(ride_id)
+        for who, model, column in (("horse", Horse, Ride.horse_id), ("rider", Rider, Ride.rider_id)):
+            row_id = added.get(who)
+            if row_id is not None:
+                session.execute(delete(model).where(model.id == row_id, ~exists().where(column == row_id)))
+    storage.delete(f"rides/{ride_id}")

@@ -13,11 +13,9 @@ from __future__ import annotations
 import datetime as dt
 import re
 import secrets
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -37,13 +35,14 @@ from saddlescope.db.repositories import (
 from saddlescope.db.session import session_scope
 from saddlescope.services.direct_uploads import check_parts, is_direct
 from saddlescope.services.job_service import submit_job
-from saddlescope.services.queue import JobQueue
+from saddlescope.services.queue import JobQueue, QueueUnavailable
 from saddlescope.services.readiness import missing_for_ride
-from saddlescope.services.rides import refresh_ride_status, register_bundle, ride_clip_plan
+from saddlescope.services.rides import refresh_ride_status, register_bundle, remove_bundle_ride, ride_clip_plan
 from saddlescope.storage import Storage, TooLarge, direct_upload_key, upload_key
 
 __all__ = [
-    "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS", "accept_bundle",
+    "BUNDLE_BLOCK_BYTES", "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS",
+    "accept_bundle",
     "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "expire_uploads",
     "bundle_meta", "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
 ]
@@ -252,6 +251,10 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
     return submit_job(sessions, queue, kind=kind, club_id=owner.club_id, **ids)
 
 
+# A bundle zip in a bucket is read in place by ranged GETs of this size (few requests, bounded memory).
+BUNDLE_BLOCK_BYTES = 8 * 1024**2
+
+
 def accept_bundle(
     sessions: sessionmaker[Session],
     storage: Storage,
@@ -263,6 +266,7 @@ def accept_bundle(
     filename: str | None = None,
     user_id: int | None = None,
     chosen: dict[str, Any] | None = None,
+    return_to: str | None = None,
 ) -> tuple[int, int]:
     """Register a staged ride bundle zip as a ride of the club and start its analysis; (ride id, job id).
 
@@ -271,8 +275,14 @@ def accept_bundle(
     user's file (`filename`), not the staging file. The same bundle (same sha256) uploaded again in the
     club is a `Conflict` naming the ride it already is. `chosen`: what the user chose at upload
     (horse_id, rider_id, gait, direction, ridden_on, notes), winning over the bundle's ride.json.
+
+    When the job queue refuses the analysis (`QueueUnavailable`, HTTP 503) the ride is taken back with its
+    files and the horse and rider it added: a 503 leaves no ride without an analysis, and sending the same
+    bundle again is no conflict. The zip then goes back to `return_to` (a resumable upload's key: finalising
+    again needs no new upload); without it, or on any other refusal, the staged zip is deleted.
     """
     shown = filename or "the bundle"
+    give_back = False
     try:
         sha256 = storage.sha256(staged_key)
         with session_scope(sessions) as session:
@@ -282,31 +292,39 @@ def accept_bundle(
         if existing is not None:
             raise Conflict(f"{shown}: this bundle (the same content) was already uploaded as ride {existing}; "
                            "open that ride, or delete it first to upload the bundle again")
-        with _local_file(storage, staged_key) as path:
-            try:
-                ride_id = register_bundle(sessions, storage, path, club_id=club_id, rig_id=rig_id, chosen=chosen)
-            except BundleError as exc:
-                raise BundleError(str(exc).replace(str(path), shown).replace(path.name, shown)) from None
-        with session_scope(sessions) as session:
-            RideRepository(session, club_id=club_id).note(ride_id, _bundle_sha256=sha256, _created_by=user_id)
+        ride_id = _register_staged(sessions, storage, staged_key, shown, club_id=club_id, rig_id=rig_id,
+                                   chosen=chosen)
+        try:
+            with session_scope(sessions) as session:
+                RideRepository(session, club_id=club_id).note(ride_id, _bundle_sha256=sha256, _created_by=user_id)
+            job_id = submit_job(sessions, queue, kind="analyze", ride_id=ride_id, club_id=club_id)
+        except BaseException as exc:
+            remove_bundle_ride(sessions, storage, ride_id)
+            if not isinstance(exc, QueueUnavailable):
+                raise
+            give_back = return_to is not None
+            again = "your upload is kept: finalise it again" if give_back else "send the bundle again"
+            raise QueueUnavailable(f"{shown}: {exc}; no ride was made from it, {again} in a moment") from None
     finally:
-        storage.delete(staged_key)
-    job_id = submit_job(sessions, queue, kind="analyze", ride_id=ride_id, club_id=club_id)
+        if give_back:
+            storage.move(staged_key, return_to)
+        else:
+            storage.delete(staged_key)
     return ride_id, job_id
 
 
-@contextmanager
-def _local_file(storage: Storage, key: str) -> Iterator[Path]:
-    """A stored file as a local path: the file itself on a local store, else a temporary copy.
-
-    Only a bundle zip takes this path on object storage (it is unpacked to be registered); moving that
-    unpacking to a worker stage is issue 26 part 2.
-    """
-    if storage.local:
-        yield storage.path(key)
-        return
-    with tempfile.TemporaryDirectory(prefix="saddlescope-bundle-") as tmp:
-        yield storage.fetch(key, Path(tmp) / key.rsplit("/", 1)[-1])
+def _register_staged(sessions: sessionmaker[Session], storage: Storage, staged_key: str, shown: str,
+                     **options: Any) -> int:
+    """`register_bundle` of the staged zip; errors name the user's file (`shown`), not the staging key."""
+    if not storage.local:
+        # Read in place by ranges and copied member by member: no byte of it on this machine's disk.
+        with storage.open_seekable(staged_key, block_bytes=BUNDLE_BLOCK_BYTES) as stream:
+            return register_bundle(sessions, storage, stream, name=shown, **options)
+    path = storage.path(staged_key)
+    try:
+        return register_bundle(sessions, storage, path, **options)
+    except BundleError as exc:
+        raise BundleError(str(exc).replace(str(path), shown).replace(path.name, shown)) from None
 
 
 # --- resumable uploads --------------------------------------------------------------------------------
@@ -369,7 +387,8 @@ def finalise_upload(
     """Turn a complete resumable upload into a recording (and maybe a job) or a ride; returns the outcome.
 
     `chosen` (a bundle only): the ride's details chosen at upload, over the bundle's ride.json.
-    A refused file marks the upload failed with the reason (and the error is raised again).
+    A refused file marks the upload failed with the reason (and the error is raised again); a bundle whose
+    analysis the job queue refuses leaves no ride, and its upload open and complete, to be finalised again.
     """
     direct = is_direct(storage, upload_id)
     with session_scope(sessions) as session:
@@ -403,7 +422,8 @@ def finalise_upload(
     try:
         if target == UploadTarget.BUNDLE:
             new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
-                                             filename=filename, user_id=user_id, chosen=chosen)
+                                             filename=filename, user_id=user_id, chosen=chosen,
+                                             return_to=upload_key(upload_id))
             outcome = {"ride_id": new_ride, "job_id": job_id}
         else:
             owner = ClipOwner(
@@ -411,33 +431,36 @@ def finalise_upload(
                 ride_id if target == UploadTarget.RIDE_CLIP else rig_id,
                 club_id,
             )
-            recording_id = accept_clip(
-                sessions,
-                storage,
-                owner,
-                clip_kind,
-                camera,
-                staged,
-                size_bytes=size,
-                sha256=storage.sha256(staged),
-                filename=filename,
-            )
-            job_id = start_processing(sessions, queue, owner)
-            outcome = {"recording_id": recording_id, "job_id": job_id}
-            if owner.kind == "ride" and job_id is None:
-                with session_scope(sessions) as session:
-                    # Said with the clip, so the page never reports "queued" for a ride that cannot run.
-                    outcome["missing"] = missing_for_ride(session, owner.id, club_id=club_id)
+            outcome = _finalise_clip(sessions, storage, queue, owner, clip_kind, camera, staged, size=size,
+                                     filename=filename)
     except SaddleScopeError as exc:
         with session_scope(sessions) as session:
-            UploadRepository(session, club_id=club_id).close(
-                upload_id, status=UploadStatus.FAILED, error=str(exc)
-            )
+            uploads = UploadRepository(session, club_id=club_id)
+            if isinstance(exc, QueueUnavailable) and target == UploadTarget.BUNDLE:
+                # The zip went back to the upload's key, whole (`accept_bundle`): the upload stays open,
+                # complete, to be finalised again once the queue answers (a direct one now as a streamed one).
+                uploads.advance(upload_id, from_offset=uploads.get(upload_id).offset_bytes, to_offset=size)
+            else:
+                uploads.close(upload_id, status=UploadStatus.FAILED, error=str(exc))
         raise
     with session_scope(sessions) as session:
         UploadRepository(session, club_id=club_id).close(
             upload_id, status=UploadStatus.FINALISED, outcome=outcome
         )
+    return outcome
+
+
+def _finalise_clip(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, owner: ClipOwner,
+                   clip_kind: str, camera: str, staged: str, *, size: int, filename: str | None) -> dict[str, Any]:
+    """`accept_clip` of a finalised upload's staged clip, then the processing it allows; the upload's outcome."""
+    recording_id = accept_clip(sessions, storage, owner, clip_kind, camera, staged, size_bytes=size,
+                               sha256=storage.sha256(staged), filename=filename)
+    job_id = start_processing(sessions, queue, owner)
+    outcome = {"recording_id": recording_id, "job_id": job_id}
+    if owner.kind == "ride" and job_id is None:
+        with session_scope(sessions) as session:
+            # Said with the clip, so the page never reports "queued" for a ride that cannot run.
+            outcome["missing"] = missing_for_ride(session, owner.id, club_id=owner.club_id)
     return outcome
 
 
@@ -449,9 +472,18 @@ def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: 
     """
     from saddlescope.services.bundle_meta import read_bundle_meta
 
-    upload = UploadRepository(session, club_id=club_id).get(upload_id)
+    uploads = UploadRepository(session, club_id=club_id)
+    upload = uploads.get(upload_id)
     if upload.target != UploadTarget.BUNDLE:
         raise InputError(f"upload {upload_id} is a clip, not a ride bundle")
+    if upload.status == UploadStatus.OPEN.value and is_direct(storage, upload_id):
+        # Parts of an unfinished multipart upload cannot be read: join them (409 naming any missing) into
+        # the upload's own key. From then on it is an upload whose bytes all arrived, finalised as a streamed one.
+        check_parts(storage, upload_id, upload.length_bytes)
+        storage.move(direct_upload_key(upload_id), upload_key(upload_id))
+        uploads.advance(upload_id, from_offset=upload.offset_bytes, to_offset=upload.length_bytes)
+        session.commit()
+        upload = uploads.get(upload_id)
     if upload.status != UploadStatus.OPEN.value or upload.offset_bytes != upload.length_bytes:
         raise IncompleteUpload(f"upload {upload_id} is not a complete open upload "
                                f"({upload.offset_bytes} of {upload.length_bytes} bytes, {upload.status})")

@@ -171,8 +171,8 @@ class FileStorage:
         handle.truncate()
         return handle
 
-    def open_seekable(self, key: str) -> BinaryIO:
-        """`key` as a seekable stream (the file itself)."""
+    def open_seekable(self, key: str, *, block_bytes: int = CHUNK_BYTES) -> BinaryIO:
+        """`key` as a seekable stream (the file itself; `block_bytes` matters to a remote store only)."""
         return self.open(key)
 
     def append_from(self, key: str, at: int, source_key: str, skip: int) -> None:

@@ -318,12 +318,13 @@ class S3Storage:
             raise FileNotFoundError(f"{key} is not in storage")
         return items
 
-    def open_seekable(self, key: str) -> BinaryIO:
+    def open_seekable(self, key: str, *, block_bytes: int = CHUNK_BYTES) -> BinaryIO:
         """`key` (an object, or an upload's parts read as one file) as a seekable stream, read by ranges.
 
-        For readers that jump about (a zip's directory at its end): nothing is copied to local disk.
+        For readers that jump about (a zip's directory at its end): nothing is copied to local disk. Each
+        ranged GET fetches at least `block_bytes` (held in memory); a seek within them costs no request.
         """
-        return io.BufferedReader(_RangeReader(self, self._segments(key)), buffer_size=CHUNK_BYTES)
+        return io.BufferedReader(_RangeReader(self, self._segments(key)), buffer_size=block_bytes)
 
     def same_bytes(self, key: str, offset: int, other_key: str, length: int) -> bool:
         """Whether `length` bytes of `key` from `offset` equal the first `length` bytes of `other_key`."""
@@ -357,7 +358,13 @@ class S3Storage:
                 and int(name.rsplit("/", 1)[-1]) >= at]
 
     def seal(self, key: str, target_key: str) -> None:
-        """Make the collected bytes of `key` one object `target_key` (streamed part by part), then drop `key`."""
+        """Make the collected bytes of `key` one object `target_key` (streamed part by part), then drop `key`.
+
+        Bytes that are one object already (a joined direct upload) are moved by the store, not through here.
+        """
+        if self._head(key) is not None:
+            self.move(key, target_key)
+            return
         with self.open_seekable(key) as source:
             self.write_stream(target_key, source)
         self.delete(key)
