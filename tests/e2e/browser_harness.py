@@ -134,21 +134,22 @@ def chromium_for_module(sync_playwright=None, extra_args: tuple[str, ...] = ()) 
         manager.stop()
 
 
+@contextmanager
 def new_club_admin(base: str, *, club_name: str, email: str, password: str, display_name: str | None = None
-                   ) -> httpx.Client:
-    """Found a club on a fresh server and return a bearer-token client of its admin (no cookies, so
-    no CSRF token is needed). The caller closes it."""
-    api = httpx.Client(base_url=base, timeout=30)
+                   ) -> Iterator[httpx.Client]:
+    """Found a club on a fresh server; yields a bearer-token client of its admin (no cookies, so no
+    CSRF token is needed), closed at the end."""
     founding = {"club_name": club_name, "email": email, "password": password}
     if display_name is not None:
         founding["display_name"] = display_name
-    created = api.post("/api/clubs", json=founding)
-    assert created.status_code == 201, created.text
-    login = api.post("/api/auth/login", json={"email": email, "password": password})
-    assert login.status_code == 200, login.text
-    api.cookies.clear()
-    api.headers["Authorization"] = f"Bearer {login.json()['access_token']}"
-    return api
+    with httpx.Client(base_url=base, timeout=30) as api:
+        created = api.post("/api/clubs", json=founding)
+        assert created.status_code == 201, created.text
+        login = api.post("/api/auth/login", json={"email": email, "password": password})
+        assert login.status_code == 200, login.text
+        api.cookies.clear()
+        api.headers["Authorization"] = f"Bearer {login.json()['access_token']}"
+        yield api
 
 
 # ----------------------------------------------------------------------------- page checks

@@ -207,6 +207,7 @@ def test_drill_c_the_broker_restarted_new_rides_get_503_and_nothing_is_lost(clus
     assert refused.status_code == 503, refused.text
     reason = refused.json()["detail"]
     assert "broker" in reason and "unreachable" in reason, reason
+    assert api.ok("GET", "/rides")["total"] == len(rides)  # the refused bundle left no ride behind
     cluster.services["redis"] = netns.start_redis(cluster.network, "redis", cluster.root / "redis")
     jobs = [api.wait_job(job_id, timeout_s=JOB_TIMEOUT_S)[0] for _, job_id in rides]
     assert all(job["status"] == "done" for job in jobs), [(job["id"], job["status"], job["error"]) for job in jobs]
