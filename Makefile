@@ -28,7 +28,21 @@ $(AXE_STAMP):
 	    || echo "note: could not install axe-core with npm; the page audit will skip (fail under CI)"; \
 	else echo "note: npm missing; the page audit will skip (fail under CI)"; fi
 
-install: $(STAMP) $(AXE_STAMP)
+# The compose CLI from PyPI (docker-compose 1.29.2: its `config` needs no Docker daemon) for the check of
+# docker-compose.yml, in a venv of its own: it pins PyYAML<6 (built here with Cython<3, having no wheel for
+# this Python) and jsonschema<4, which the project's venv must not take. Stamped; a failure only notes.
+COMPOSE_VENV  := .cache/compose-venv
+COMPOSE_STAMP := $(COMPOSE_VENV)/.docker-compose-1.29.2
+
+$(COMPOSE_STAMP):
+	@($(PYTHON) -m venv $(COMPOSE_VENV) \
+	  && $(COMPOSE_VENV)/bin/pip install --quiet "cython<3" wheel setuptools \
+	  && $(COMPOSE_VENV)/bin/pip install --quiet --no-build-isolation "pyyaml==5.4.1" \
+	  && $(COMPOSE_VENV)/bin/pip install --quiet "docker-compose==1.29.2" \
+	  && touch $(COMPOSE_STAMP)) \
+	  || echo "note: could not install docker-compose 1.29.2; the compose file check will skip (fail under CI)"
+
+install: $(STAMP) $(AXE_STAMP) $(COMPOSE_STAMP)
 
 # Debian's chromium for the dashboard's browser tests (never a downloaded browser); Debian's haproxy for
 # the proxy tests (tests/deploy).
