@@ -117,6 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("worker", help="a Celery worker (needs SADDLESCOPE_BROKER_URL)")
 
+    s = sub.add_parser("sweep", help="remove abandoned uploads and partial writes (workers do it hourly)")
+    s.add_argument("--older-than-h", type=float, default=None,
+                   help="left untouched this many hours (default: SADDLESCOPE_UPLOAD_EXPIRY_S)")
+
     _add_synth_parser(sub)
 
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
@@ -231,6 +235,14 @@ def run(args: argparse.Namespace) -> int:
         if args.json_out:
             print(json.dumps(result, indent=2))
         return 0
+    if cmd in ("demo", "serve", "worker", "sweep"):
+        return _run_service(args)
+    raise AssertionError(cmd)
+
+
+def _run_service(args: argparse.Namespace) -> int:
+    """The commands of the service itself: demo, serve, worker, sweep."""
+    cmd = args.command
     if cmd == "demo":
         from saddlescope.demo import run_demo
 
@@ -240,11 +252,21 @@ def run(args: argparse.Namespace) -> int:
 
         serve(host=args.host, port=args.port)
         return 0
-    if cmd == "worker":
-        from saddlescope_worker.app import run_worker
+    if cmd == "sweep":
+        from saddlescope.db.session import session_factory_for
+        from saddlescope.services.uploads import sweep_abandoned
+        from saddlescope.settings import get_settings
+        from saddlescope.storage import open_storage
 
-        return run_worker()
-    raise AssertionError(cmd)
+        settings = get_settings()
+        max_age_s = args.older_than_h * 3600 if args.older_than_h is not None else settings.upload_expiry_s
+        swept = sweep_abandoned(session_factory_for(settings.database_url), open_storage(settings),
+                                max_age_s=max_age_s)
+        print(", ".join(f"{what}: {n}" for what, n in swept.items()))
+        return 0
+    from saddlescope_worker.app import run_worker
+
+    return run_worker()
 
 
 def _print_progress(fraction: float, stage: str) -> None:

@@ -108,6 +108,8 @@ class Settings(BaseSettings):
     # Workers look this often for lost jobs: running ones whose worker died, queued ones a broker
     # forgot (restarted with nothing persisted) and queued longer than `requeue_after_s`.
     recovery_interval_s: float = Field(default=60.0, gt=0)
+    # How often each worker sweeps abandoned uploads and partial writes (`services.uploads.sweep_abandoned`)
+    sweep_interval_s: float = Field(default=3600.0, gt=0)
     requeue_after_s: float = Field(default=120.0, gt=0)
     # A running job without a heartbeat for this long (database clock) is handed to another worker;
     # heartbeats come every `heartbeat_s` (None: 10 s, or a quarter of the stale time when shorter).

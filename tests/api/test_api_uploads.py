@@ -7,6 +7,7 @@ stage reads the clips. A broken bundle gets the same reason on both back ends an
 
 from __future__ import annotations
 
+import datetime as dt
 import hashlib
 import io
 import json
@@ -361,3 +362,39 @@ def test_a_broken_bundle_gets_the_same_reason_on_both_back_ends_and_leaves_nothi
     keys = [k for prefix in ("incoming", "uploads", "rides") if store.exists(prefix) for k in store.iter_keys(prefix)]
     assert not [k for k in keys if k.startswith(("incoming/", *(f"uploads/{u}" for u in upload_ids)))]
     assert not [k for k in keys if k.startswith("rides/") and int(k.split("/")[1]) > max(rides_before, default=0)]
+
+
+def _wind_back(env, upload_id: str, hours: float) -> None:
+    """Make an upload look untouched for `hours` (its row's last move)."""
+    from sqlalchemy import create_engine, text
+
+    engine = create_engine(env.settings.database_url)
+    with engine.begin() as connection:
+        connection.execute(text("UPDATE uploads SET updated_at = updated_at - :age WHERE id = :id")
+                           if engine.dialect.name == "postgresql" else
+                           text("UPDATE uploads SET updated_at = datetime(updated_at, :age) WHERE id = :id"),
+                           {"age": dt.timedelta(hours=hours) if engine.dialect.name == "postgresql"
+                            else f"-{hours} hours", "id": upload_id})
+    engine.dispose()
+
+
+def test_the_sweep_removes_an_abandoned_upload_and_keeps_a_live_one(env, club):
+    """What a club gave up on goes with its bytes after `upload_expiry_s`; an upload still moving stays.
+    The sweep is what every worker runs hourly and `saddlescope sweep` runs by hand."""
+    from saddlescope.db.session import session_factory_for
+    from saddlescope.services.uploads import sweep_abandoned
+
+    api, ride = club["api"], club["ride"]
+    data = write_tiny_clip(club["folder"] / "sweep.avi", frames=8).read_bytes()
+    given_up, live = start(api, ride["id"], data, camera="middle"), start(api, ride["id"], data, camera="right")
+    for upload in (given_up, live):
+        assert send(api, upload["id"], 0, data[:1000]).status_code == 204
+    storage = open_storage(env.settings)
+    _wind_back(env, given_up["id"], hours=25)
+    swept = sweep_abandoned(session_factory_for(env.settings.database_url), storage,
+                            max_age_s=env.settings.upload_expiry_s)
+    assert swept["expired uploads"] == 1, swept
+    assert api.get(f"/uploads/{given_up['id']}").status_code == 404
+    assert not any(key.startswith(f"uploads/{given_up['id']}") for key in storage.iter_keys("uploads"))
+    assert api.ok("GET", f"/uploads/{live['id']}")["offset_bytes"] == 1000  # still resumable
+    assert send(api, live["id"], 1000, data[1000:]).status_code == 204

@@ -179,3 +179,54 @@ def test_the_storage_url_chooses_the_back_end(tmp_path):
     for bad in ("s3://", "ftp://host/x"):
         with pytest.raises((InputError, ValueError), match="s3://BUCKET"):
             storage_for_url(bad)
+
+
+def _start_partial_write(storage: Storage, key: str) -> None:
+    """A write begun and never finished (a process killed mid-write): a folder's temporary file, or a
+    multipart upload with one part in the bucket."""
+    if isinstance(storage, FileStorage):
+        writer = storage.writer(key)
+        writer.write(b"half a clip")
+        writer._out.close()  # the process "dies": neither commit nor abort
+        return
+    name = storage.object_name(key)
+    upload_id = storage.client.create_multipart_upload(Bucket=storage.bucket, Key=name)["UploadId"]
+    storage.client.upload_part(Bucket=storage.bucket, Key=name, UploadId=upload_id, PartNumber=1,
+                               Body=b"half a clip")
+
+
+def _age(storage: Storage, seconds: float) -> None:
+    """Make every file of a folder store look `seconds` old (a bucket's clock cannot be wound back: its
+    tests wait instead)."""
+    import os
+    import time
+
+    if isinstance(storage, FileStorage):
+        then = time.time() - seconds
+        for path in storage.root.rglob("*"):
+            os.utime(path, (then, then))
+    else:
+        time.sleep(2.0)
+
+
+def test_partial_writes_and_stale_staged_files_are_swept_by_age_only(storage):
+    storage.write_bytes("incoming/1/old.mp4", b"staged and forgotten")
+    _start_partial_write(storage, "rides/1/clips/motion/left.mp4")
+    # Younger than the limit: a write still going on, a request still being checked, all kept.
+    assert storage.sweep_partial_writes(older_than_s=3600) == 0
+    assert storage.stale_keys("incoming", older_than_s=3600) == []
+    _age(storage, 7200)
+    limit_s = 3600 if isinstance(storage, FileStorage) else 1.0
+    assert storage.stale_keys("incoming", older_than_s=limit_s) == ["incoming/1/old.mp4"]
+    assert storage.sweep_partial_writes(older_than_s=limit_s) == 1
+    storage.delete("incoming/1/old.mp4")
+    assert _no_leftovers(storage)
+    assert storage.sweep_partial_writes(older_than_s=limit_s) == 0  # nothing left to sweep, no error
+
+
+def test_a_committed_file_is_never_swept(storage):
+    storage.write_bytes("rides/1/clips/motion/left.mp4", b"a whole clip")
+    _age(storage, 7200)
+    limit_s = 3600 if isinstance(storage, FileStorage) else 1.0
+    assert storage.sweep_partial_writes(older_than_s=limit_s) == 0
+    assert storage.read_bytes("rides/1/clips/motion/left.mp4") == b"a whole clip"

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 
 from celery import Celery
 from celery.signals import worker_ready, worker_shutdown
@@ -65,16 +66,35 @@ def recover_once(settings: Settings | None = None) -> list[int]:
                                           known=broker_job_ids(app))
 
 
+def sweep_once(settings: Settings | None = None) -> dict[str, int]:
+    """Remove abandoned uploads and partial writes (`saddlescope.services.uploads.sweep_abandoned`)."""
+    from saddlescope.db.session import session_factory_for
+    from saddlescope.services.uploads import sweep_abandoned
+    from saddlescope.storage import open_storage
+
+    settings = settings or get_settings()
+    swept = sweep_abandoned(session_factory_for(settings.database_url), open_storage(settings),
+                            max_age_s=settings.upload_expiry_s)
+    if any(swept.values()):
+        log.info("swept what was abandoned for %.0f h: %s", settings.upload_expiry_s / 3600,
+                 ", ".join(f"{what} {n}" for what, n in swept.items()))
+    return swept
+
+
 def _recovery_loop() -> None:
-    interval_s = get_settings().recovery_interval_s
+    settings = get_settings()
+    next_sweep = time.monotonic()  # a sweep at start, then one per sweep_interval_s
     while True:
         try:
             recover_once()
+            if time.monotonic() >= next_sweep:
+                next_sweep = time.monotonic() + settings.sweep_interval_s
+                sweep_once()
         except SQLAlchemyError as exc:  # the database is down: try again at the next round
             log.warning("looking for lost jobs failed: %s", exc)
-        except Exception:  # the broker is down or restarting: the loop must outlive it
-            log.exception("looking for lost jobs failed")
-        if _stop_recovery.wait(interval_s):
+        except Exception:  # the broker or the store is down or restarting: the loop must outlive it
+            log.exception("looking for lost jobs or sweeping failed")
+        if _stop_recovery.wait(settings.recovery_interval_s):
             return
 
 

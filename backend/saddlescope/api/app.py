@@ -31,7 +31,7 @@ from saddlescope.services.accounts import AuthError, Forbidden
 from saddlescope.services.job_service import JobStateError
 from saddlescope.services.login_guard import HashPool, HashPoolBusy, LoginThrottled, make_login_guard
 from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
-from saddlescope.services.uploads import IncompleteUpload
+from saddlescope.services.uploads import IncompleteUpload, sweep_abandoned
 from saddlescope.settings import Settings, get_settings, with_embedded_secret
 from saddlescope.storage import StoreUnavailable, TooLarge, open_storage
 
@@ -58,6 +58,15 @@ def _resume_unfinished(app: FastAPI) -> None:
     for job_id in job_ids:
         log.info("resuming job %s left unfinished by an earlier server", job_id)
         app.state.queue.submit(job_id)
+    # No worker sweeps in embedded mode: what a stopped server left half-written goes at its next start.
+    try:
+        swept = sweep_abandoned(app.state.sessions, app.state.storage,
+                                max_age_s=app.state.settings.upload_expiry_s)
+    except (SQLAlchemyError, OSError) as exc:
+        log.warning("cannot sweep abandoned uploads: %s", exc)
+        return
+    if any(swept.values()):
+        log.info("swept what was abandoned: %s", ", ".join(f"{what} {n}" for what, n in swept.items()))
 
 
 def create_app(settings: Settings | None = None, *, queue: JobQueue | None = None,

@@ -45,6 +45,7 @@ __all__ = [
     "accept_bundle",
     "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "expire_uploads",
     "bundle_meta", "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
+    "sweep_abandoned",
 ]
 
 RIG_CLIP_KINDS = ("calibration", "plumb", "static")
@@ -558,6 +559,23 @@ def remove_upload_files(storage: Storage, upload_ids: list[str]) -> None:
         for key in list(storage.iter_keys("uploads")):
             if key.startswith(prefixes):
                 storage.delete(key)
+
+
+def sweep_abandoned(sessions: sessionmaker[Session], storage: Storage, *, max_age_s: float) -> dict[str, int]:
+    """Remove what was left behind for `max_age_s`: open uploads nothing arrived for (with their bytes),
+    staged files of a request that never finished (`incoming/`, an API process killed mid-upload), and
+    partial writes (a store's multipart uploads given up, a folder's temporary files). Returns the counts.
+
+    Run by every worker once per `sweep_interval_s` and by `saddlescope sweep`; safe to run anywhere, at
+    once, repeatedly: an upload still receiving bytes is younger than the limit and kept.
+    """
+    with session_scope(sessions) as session:
+        expired = expire_uploads(session, storage, max_age_s=max_age_s)
+    staged = storage.stale_keys("incoming", older_than_s=max_age_s)
+    for key in staged:
+        storage.delete(key)
+    partial = storage.sweep_partial_writes(older_than_s=max_age_s)
+    return {"expired uploads": len(expired), "staged files": len(staged), "partial writes": partial}
 
 
 def expire_uploads(session: Session, storage: Storage, *, max_age_s: float,

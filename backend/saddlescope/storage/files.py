@@ -13,6 +13,7 @@ import io
 import os
 import shutil
 import tempfile
+import time
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -244,6 +245,33 @@ class FileStorage:
             shutil.rmtree(target)
         else:
             target.unlink(missing_ok=True)
+
+    def stale_keys(self, prefix: str, *, older_than_s: float) -> list[str]:
+        """The keys under the folder `prefix` last written more than `older_than_s` ago."""
+        cutoff = time.time() - older_than_s
+        stale = []
+        for key in self.iter_keys(prefix):
+            try:
+                if self.path(key).stat().st_mtime < cutoff:
+                    stale.append(key)
+            except FileNotFoundError:  # removed meanwhile
+                continue
+        return stale
+
+    def sweep_partial_writes(self, *, older_than_s: float) -> int:
+        """Remove the temporary files of writes never committed nor aborted (a process killed while
+        writing: `AtomicWriter`'s ".part-" files) untouched for `older_than_s`; returns how many."""
+        if not self.root.exists():
+            return 0
+        cutoff, removed = time.time() - older_than_s, 0
+        for tmp in self.root.rglob(".part-*"):
+            try:
+                if tmp.is_file() and tmp.stat().st_mtime < cutoff:
+                    tmp.unlink()
+                    removed += 1
+            except FileNotFoundError:
+                continue
+        return removed
 
     def fresh_dir(self, key: str) -> Path:
         """An empty folder at `key`, replacing whatever an earlier run left there."""

@@ -8,6 +8,7 @@ when completed, so a reader never sees half an object. Nothing here touches the 
 
 from __future__ import annotations
 
+import datetime as dt
 import hashlib
 import io
 import uuid
@@ -411,6 +412,32 @@ class S3Storage:
         """Abort every open multipart upload of `key` (its parts are removed); no error when none."""
         while (direct_id := self.direct_id(key)) is not None:
             self.client.abort_multipart_upload(Bucket=self.bucket, Key=self.object_name(key), UploadId=direct_id)
+
+    def stale_keys(self, prefix: str, *, older_than_s: float) -> list[str]:
+        """The objects under the folder `prefix` last written more than `older_than_s` ago (the
+        store's clock)."""
+        cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
+        pages = self.client.get_paginator("list_objects_v2").paginate(
+            Bucket=self.bucket, Prefix=self.object_name(prefix) + "/")
+        return sorted(self._key_of(item["Key"]) for page in pages for item in page.get("Contents", [])
+                      if item["LastModified"] < cutoff)
+
+    def sweep_partial_writes(self, *, older_than_s: float) -> int:
+        """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s`
+        (a browser's direct upload given up, a process killed mid-write); their parts go. The rule a
+        bucket's lifecycle "abort incomplete multipart uploads" would apply, on any S3 store."""
+        cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
+        pages = self.client.get_paginator("list_multipart_uploads").paginate(
+            Bucket=self.bucket, Prefix=f"{self.prefix}/" if self.prefix else "")
+        aborted = 0
+        for upload in (u for page in pages for u in page.get("Uploads", []) if u["Initiated"] < cutoff):
+            parts = self.client.list_parts(Bucket=self.bucket, Key=upload["Key"],
+                                           UploadId=upload["UploadId"]).get("Parts", [])
+            if max([upload["Initiated"], *(part["LastModified"] for part in parts)]) < cutoff:
+                self.client.abort_multipart_upload(Bucket=self.bucket, Key=upload["Key"],
+                                                   UploadId=upload["UploadId"])
+                aborted += 1
+        return aborted
 
     def fetch(self, key: str, target: Path | str) -> Path:
         """Download the object (or every object of the folder) `key` to local `target`; returns `target`."""
