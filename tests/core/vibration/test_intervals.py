@@ -25,6 +25,7 @@ from saddlescope.core.vibration.intervals import (
     COMFORT_BAND_EDGES_M_S2,
     INTERVAL_KEYS,
     MAX_HALF_WIDTH_FRACTION,
+    SKIN_FLOORS,
     bootstrap_indicators,
     decision_uncertainty,
     interval_sources,
@@ -71,6 +72,29 @@ def test_a_common_gain_moves_rms_and_vdv_alike_and_leaves_the_crest_factor():
     # T_A(8) goes with 1/rms², T_VDV with 1/VDV^4 (eq. 7.10-7.17)
     np.testing.assert_allclose(samples["t_a8_action_wb_h"] / samples["t_a8_action_wb_h"][0], rel ** -2, rtol=1e-9)
     np.testing.assert_allclose(samples["t_vdv_action_wb_h"] / samples["t_vdv_action_wb_h"][0], rel ** -4, rtol=1e-9)
+
+
+def test_the_peak_floor_widens_the_crest_factors_and_weighted_peaks_only():
+    """The weighted peak is a tail statistic: skin motion moves it more than the harmonics' shape floor
+    can (SKIN_FLOORS' third term). It widens the crest factors and W_b/W_k peaks, not the r.m.s., VDV
+    or the unweighted peak."""
+    base = {**ZERO, "shape": 0.02}
+    without, with_peak = _draws(base), _draws({**base, "peak": 0.03})
+    for key in ("crest_factor_y", "crest_factor_y_wk", "acc_y_wb_peak", "acc_y_wk_peak"):
+        assert np.std(np.log(with_peak[key])) > 1.5 * np.std(np.log(without[key])), key
+    for key in ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "acc_y_max", "amplitude_y_m"):
+        np.testing.assert_allclose(with_peak[key], without[key], rtol=1e-12, err_msg=key)
+    np.testing.assert_allclose(with_peak["crest_factor_y"] * with_peak["acc_y_wb_rms"], with_peak["acc_y_wb_peak"],
+                               rtol=1e-12)
+
+
+def test_every_gait_has_a_peak_floor_and_an_unknown_gait_the_widest():
+    src = {g: interval_sources(replace(_result(), gait=g), depth_anisotropy=2.0) for g in SKIN_FLOORS}
+    for gait, (_gain, shape, peak) in SKIN_FLOORS.items():
+        assert src[gait]["peak"] == peak > 0 and src[gait]["shape"] == shape
+    # an unknown gait takes the widest floors
+    assert interval_sources(replace(_result(), gait=None), depth_anisotropy=2.0)["peak"] == max(
+        p for _, _, p in SKIN_FLOORS.values())
 
 
 def test_the_intervals_cover_the_truth_95_percent_of_the_time_when_the_noise_model_holds():
