@@ -90,11 +90,23 @@ def test_the_peak_floor_widens_the_crest_factors_and_weighted_peaks_only():
 
 def test_every_gait_has_a_peak_floor_and_an_unknown_gait_the_widest():
     src = {g: interval_sources(replace(_result(), gait=g), depth_anisotropy=2.0) for g in SKIN_FLOORS}
-    for gait, (_gain, shape, peak) in SKIN_FLOORS.items():
+    for gait, (_gain, shape, peak, displacement) in SKIN_FLOORS.items():
         assert src[gait]["peak"] == peak > 0 and src[gait]["shape"] == shape
+        assert src[gait]["displacement"] == displacement
     # an unknown gait takes the widest floors
-    assert interval_sources(replace(_result(), gait=None), depth_anisotropy=2.0)["peak"] == max(
-        p for _, _, p in SKIN_FLOORS.values())
+    unknown = interval_sources(replace(_result(), gait=None), depth_anisotropy=2.0)
+    assert unknown["peak"] == max(f[2] for f in SKIN_FLOORS.values())
+    assert unknown["displacement"] == max(f[3] for f in SKIN_FLOORS.values())
+
+
+def test_the_displacement_floor_widens_the_amplitude_only_and_keeps_the_other_draws():
+    base = {**ZERO, "gain": 0.02, "shape": 0.02}
+    without, with_disp = _draws(base), _draws({**base, "displacement": 0.05})
+    rel = with_disp["amplitude_y_m"] / without["amplitude_y_m"]
+    assert rel[0] == 1.0 and np.std(rel) == pytest.approx(0.05, rel=0.15)
+    for key in INTERVAL_KEYS:
+        if key != "amplitude_y_m":
+            np.testing.assert_array_equal(with_disp[key], without[key], err_msg=key)
 
 
 def test_the_intervals_cover_the_truth_95_percent_of_the_time_when_the_noise_model_holds():
