@@ -1,15 +1,19 @@
 """`saddlescope bench`'s coverage table: do the 95 % intervals contain the truth (issue 27)?
 
-Synthetic rides from the arena (a table easy to extend: one :class:`CoverageRide` a row, rigs,
-gaits, resolutions, frame rates, calibration poses; partial views and rides without a flash join
-as the arena learns them) are analysed like any ride; each result's ``indicators_interval_95`` is
+Synthetic rides from the arena (a table easy to extend: one :class:`CoverageRide` a row: rigs, gaits,
+resolutions, frame rates, calibration poses, partial views with the board through the middle only,
+rides without a flash) are analysed like any ride; each result's ``indicators_interval_95`` is
 checked against the ride's ``truth.json``. Per indicator: the share of rides whose interval holds
 the truth (goal 90-98 %) and the median interval width (% of the value). Beside it: the W_b r.m.s.
 error on every ride not marked too uncertain (goal within 10 %), the share so marked (goal <= 1 in
-10) and the speed error (goal within 1 %).
+10), the speed error (goal within 1 %), the motion sync's offsets against the arena's on the rides
+without a flash (goal within 0.1 frame) and, on rides analysed with both syncs, how far the motion
+sync's indicators are from the flash's (goal within 2 %).
 
 The rides' seeds (2001-2099) are used by no test and not by the rides the interval's noise floors
-were set on (seeds 1001-1099, :data:`BUILD_RIDES`).
+were set on (seeds 1001-1099, :data:`BUILD_RIDES` and :data:`BUILD_RIDES_PARTIAL_NO_FLASH`).
+``python -m saddlescope.bench.coverage --out DIR`` runs the table alone and keeps every ride's
+documents, so that the intervals can be recomputed later with another model (``--table-only``).
 """
 
 from __future__ import annotations
@@ -291,7 +295,8 @@ def run_coverage(tmp: Path | None = None, *, quick: bool = False, rides: Sequenc
                  ) -> dict:
     """The coverage table over :data:`COVERAGE_RIDES` (``quick``: the first 4), analysed in ``tmp``.
 
-    Without ``tmp`` a temporary folder is made and removed. 40 rides take about an hour on two cores.
+    Without ``tmp`` a temporary folder is made and removed. The 50 rides take about 2.5 hours on two
+    shared cores (1.5-3 minutes a ride; the wide_partial canters about 4).
     """
     import tempfile
 
