@@ -175,6 +175,22 @@ def test_interval_sources_reads_what_the_result_knows():
     assert interval_sources(old, depth_anisotropy=2.0)["outside_board_share"] == pytest.approx(0.31)
 
 
+def test_a_lens_extrapolated_crossing_widens_the_speed_and_a_motion_that_is_not_periodic_the_gain_and_peaks():
+    inside, outside = _result(outside={"left": 0.02}), _result(outside={"left": 0.7})
+    s_in, s_out = (interval_sources(r, depth_anisotropy=2.0) for r in (inside, outside))
+    # the scale where the lens is extrapolated is the lens's: 0.01 x 0.7² on the speed
+    assert s_out["speed"] ** 2 - s_in["speed"] ** 2 == pytest.approx((0.01 * 0.49) ** 2 - (0.01 * 0.0004) ** 2)
+    assert s_in["gain_parts"]["not_periodic"] == 0.0
+    # S's vertical acceleration 30 % off its harmonic series (r.m.s.): a reconstruction that broke
+    amps = np.asarray(inside.vertical_harmonics.amplitudes_m_s2)
+    broken = replace(inside, quality={**inside.quality,
+                                      "vertical_harmonic_fit_rms_m_s2": 0.3 * np.sqrt(np.sum(amps ** 2) / 2)})
+    s_broken = interval_sources(broken, depth_anisotropy=2.0)
+    assert s_broken["gain_parts"]["not_periodic"] == pytest.approx(0.3)
+    assert s_broken["gain"] > 0.3 and s_broken["peak"] == pytest.approx(np.hypot(0.3, SKIN_FLOORS["canter"][2]))
+    assert decision_uncertainty(broken.indicators, ride_intervals(broken, sources=s_broken)) is not None
+
+
 def test_a_ride_with_much_of_its_crossing_beyond_the_board_is_too_uncertain():
     result = _result(outside={"left": 0.4})
     intervals = ride_intervals(result, sources=interval_sources(result, depth_anisotropy=2.0))

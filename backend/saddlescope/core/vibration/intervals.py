@@ -12,15 +12,17 @@ The noise model, per draw (standard deviations; all relative unless said):
   (``board_square_error_pct``), the spread of the saddle point's acceleration over the thesis's ω
   versions, the roll a rig that fixes depth poorly cannot see (SCIENCE.md, the weak axis), lens
   distortion extrapolated beyond the board's region, and the skin-motion floor (the markers'
-  sliding, which no rigid body fitted to them removes; ``bench.analysis.kinematics_floor``);
+  sliding, which no rigid body fitted to them removes; ``bench.analysis.kinematics_floor``), and the
+  share of the saddle point's vertical acceleration that is not its harmonic series (a broken
+  reconstruction: the indicators describe a periodic motion that is not there);
 - per harmonic, complex: the markers' Fourier fits' coefficient covariance under correlated noise
   (their 95 % confidence intervals, ``kinematics.fitting``) carried to the acceleration by (kω)²,
   plus a shape floor (skin motion bends each harmonic on its own);
 - the weighted peaks (and so the crest factors) and the peak-to-peak displacement each get a floor of
   their own per gait (``SKIN_FLOORS``): they are tail statistics, moved by skin motion more than
   moving each harmonic a little can account for (exact markers, seeds 1001-1040);
-- the fundamental from the fits' ω interval; the speed from the travel fit's slope interval and
-  the calibration's scale.
+- the fundamental from the fits' ω interval; the speed from the travel fit's slope interval, the
+  calibration's scale and, where the lens is extrapolated, the lens's.
 
 The floors (``FLOORS``) were set on arena rides of seeds 1001-1099 and checked on seeds 2001-2099
 (``saddlescope bench``, key ``coverage``; ``docs/accuracy.md``).
@@ -59,6 +61,16 @@ FLOORS: dict[str, float] = {
     "fit_inflation": 1.0,     # the markers' fit noise carried to S (lever arm, rotation)
     "f0": 0.0005,             # the stride period's own floor (the window's edges)
     "speed": 0.002,           # the travel direction's tilt and the window's edges
+    # the speed's, times the squared share of detections where the lens is extrapolated: the scale
+    # there is the lens's, not the board's (wide_partial canters of seeds 1013-1016, shares 0.6-0.7:
+    # speed 0.3-0.9 % low, r.m.s. 0.63 %, against 0.25-0.57 % from the fit and the board's scale)
+    "speed_outside_board": 0.01,
+    # times the r.m.s. residual of S's vertical acceleration about its harmonic series, relative to the
+    # series' r.m.s.: the part of the motion that is not the periodic motion the indicators describe.
+    # One for one, in the gain and the weighted peaks: on the build rides it is below 0.002 but on
+    # one wide_partial canter of four (seed 1014), 0.36, whose W_b r.m.s. came out 3.0 times the
+    # truth and crest factor 37 % high (a reconstruction broken by the extrapolated lens)
+    "not_periodic": 1.0,
 }
 
 # The skin-motion floor per gait: (gain, harmonic shape, weighted peak, displacement). The gain is half
@@ -201,15 +213,17 @@ def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
     widest = tuple(max(parts) for parts in zip(*SKIN_FLOORS.values(), strict=True))
     skin_gain, shape, skin_peak, skin_disp = SKIN_FLOORS.get(result.gait or "", widest)
     parts["skin_motion"] = skin_gain
+    residual = float(q.get("vertical_harmonic_fit_rms_m_s2") or 0.0) / max(acc_rms, 1e-9)
+    parts["not_periodic"] = FLOORS["not_periodic"] * residual
     f0_sig = _relative_sigma(fits.get("y", []), "omega_rad_s", lambda f: f.get("omega_rad_s"))
     speed_fit = _speed_sigma(fits.get("x", []))
     return {
         "gain": float(np.sqrt(sum(v ** 2 for v in parts.values()))), "gain_parts": parts,
         "harmonic_m_s2": FLOORS["fit_inflation"] * _fit_harmonic_sigma(fits.get("y", []), amps.size, omega),
-        "shape": shape, "peak": skin_peak, "displacement": skin_disp,
+        "shape": shape, "peak": float(np.hypot(skin_peak, parts["not_periodic"])), "displacement": skin_disp,
         "f0": float(np.hypot(f0_sig if math.isfinite(f0_sig) else 0.0, FLOORS["f0"])),
         "speed": float(np.sqrt((speed_fit if math.isfinite(speed_fit) else 0.0) ** 2 + scale ** 2
-                               + FLOORS["speed"] ** 2)),
+                               + FLOORS["speed"] ** 2 + (FLOORS["speed_outside_board"] * outside ** 2) ** 2)),
         "depth_anisotropy": depth_anisotropy, "outside_board_share": outside,
     }
 
