@@ -9,10 +9,13 @@ import pytest
 
 from saddlescope.bench.coverage import (
     BUILD_RIDES,
+    BUILD_RIDES_PARTIAL_NO_FLASH,
     COVERAGE_RIDES,
     coverage_rows,
     coverage_table,
+    motion_vs_flash,
     run_rides,
+    sync_check,
     truth_indicators,
 )
 from saddlescope.core.types import GAITS
@@ -22,13 +25,22 @@ def test_the_ride_table_is_varied_and_its_seeds_are_its_own():
     assert len(COVERAGE_RIDES) >= 40
     assert len({r.name for r in COVERAGE_RIDES}) == len(COVERAGE_RIDES)
     assert {r.gait for r in COVERAGE_RIDES} == set(GAITS)
-    assert {r.rig for r in COVERAGE_RIDES} == {"thesis", "wide"}
+    assert {r.rig for r in COVERAGE_RIDES} == {"thesis", "wide", "wide_partial"}
     assert len({r.size for r in COVERAGE_RIDES}) >= 3 and len({r.fps for r in COVERAGE_RIDES}) >= 3
     # every set-up meets every gait
     assert len({(r.rig, r.size, r.fps, r.gait) for r in COVERAGE_RIDES}) >= 20
+    # partial views with the board through the middle only, fast canters, rides without a flash, and
+    # rides analysed with both syncs
+    partial = [r for r in COVERAGE_RIDES if r.rig == "wide_partial"]
+    assert len(partial) >= 4 and all(r.board_band and r.speed_range_m_s == (4.0, 6.0) for r in partial)
+    no_flash = [r for r in COVERAGE_RIDES if not r.flash]
+    assert len(no_flash) >= 4 and {r.rig for r in no_flash} == {"thesis", "wide"}
+    assert any(r.motion_sync_too and r.flash for r in COVERAGE_RIDES)
     # checked on seeds the floors were not set on, and no test uses (they use seeds below 100)
-    check, build = {r.seed for r in COVERAGE_RIDES}, {r.seed for r in BUILD_RIDES}
-    assert not check & build and min(check | build) > 1000
+    check = {r.seed for r in COVERAGE_RIDES}
+    build = {r.seed for r in BUILD_RIDES + BUILD_RIDES_PARTIAL_NO_FLASH}
+    assert len(check) == len(COVERAGE_RIDES) and not check & build and min(check | build) > 1000
+    assert max(check) <= 2060 and max(build) < 2000
 
 
 def test_the_truth_is_taken_on_the_analysed_duration():
@@ -62,6 +74,39 @@ def test_the_table_counts_coverage_width_and_the_marked_rides():
     assert table["acc_y_wb_rms_max_abs_error_pct_not_marked"] == pytest.approx(100 * (1 - 4.0 / 4.5))
     assert table["speed_max_abs_error_pct"] == pytest.approx(100 * (1 - 14.0 / 14.1))
     assert table["failed"] == ["d: KinematicsError: no stride"] and table["analysed"] == 3
+
+
+def _doc(offsets, method, **indicators):
+    return {"sync": {"motion": offsets}, "quality": {"sync": {"motion": {"method": method}}},
+            "indicators": indicators}
+
+
+def test_sync_offsets_are_checked_against_the_arena_relative_to_the_first_camera():
+    truth = {"sync": {"motion": {"left": 0.0, "middle": 3.25, "right": -7.5}}}
+    # the result's reference camera is the left one; an error on the right camera only
+    doc = _doc({"left": 0.0, "middle": 3.3, "right": -7.42}, "motion")
+    check = sync_check(doc, truth)
+    assert check["method"] == "motion" and check["offset_error_frames"] == pytest.approx(0.08)
+    # a common shift of every camera is no error (offsets are relative)
+    assert sync_check(_doc({"left": 1.0, "middle": 4.25, "right": -6.5}, "flash"), truth)[
+        "offset_error_frames"] == pytest.approx(0.0)
+    assert sync_check({"sync": {}}, truth)["offset_error_frames"] is None
+
+
+def test_motion_sync_is_compared_with_the_flash_on_one_ride():
+    truth = {"sync": {"motion": {"left": 0.0, "middle": 2.0}}}
+    flash = _doc({"left": 0.0, "middle": 2.01}, "flash", acc_y_wb_rms=2.0, vel_x_avg_kmh=14.0)
+    motion = _doc({"left": 0.0, "middle": 1.95}, "motion", acc_y_wb_rms=2.03, vel_x_avg_kmh=14.0)
+    out = motion_vs_flash(motion, flash, truth)
+    assert out["offset_error_frames"] == pytest.approx(0.05) and out["flash_offset_error_frames"] == pytest.approx(0.01)
+    assert out["indicator_diff_pct"] == {"acc_y_wb_rms": pytest.approx(1.5), "vel_x_avg_kmh": 0.0}
+    assert out["max_abs_diff_pct"] == pytest.approx(1.5)
+    rows = [{**_row("a", 2.0, 2.0, 1.9, 2.1), "sync": {"method": "motion", "offset_error_frames": 0.04}},
+            {**_row("b", 2.0, 2.0, 1.9, 2.1), "sync": {"method": "flash", "offset_error_frames": 0.01},
+             "motion_sync": out}]
+    table = coverage_table(rows, keys=("acc_y_wb_rms",))
+    assert [r["ride"] for r in table["no_flash"]] == ["a"] and table["no_flash_max_offset_error_frames"] == 0.04
+    assert table["motion_vs_flash_max_abs_diff_pct"] == pytest.approx(1.5)
 
 
 @pytest.mark.slow

@@ -25,6 +25,7 @@ from saddlescope.core.vibration.intervals import (
     COMFORT_BAND_EDGES_M_S2,
     INTERVAL_KEYS,
     MAX_HALF_WIDTH_FRACTION,
+    SKIN_FLOORS,
     bootstrap_indicators,
     decision_uncertainty,
     interval_sources,
@@ -71,6 +72,41 @@ def test_a_common_gain_moves_rms_and_vdv_alike_and_leaves_the_crest_factor():
     # T_A(8) goes with 1/rms², T_VDV with 1/VDV^4 (eq. 7.10-7.17)
     np.testing.assert_allclose(samples["t_a8_action_wb_h"] / samples["t_a8_action_wb_h"][0], rel ** -2, rtol=1e-9)
     np.testing.assert_allclose(samples["t_vdv_action_wb_h"] / samples["t_vdv_action_wb_h"][0], rel ** -4, rtol=1e-9)
+
+
+def test_the_peak_floor_widens_the_crest_factors_and_weighted_peaks_only():
+    """The weighted peak is a tail statistic: skin motion moves it more than the harmonics' shape floor
+    can (SKIN_FLOORS' third term). It widens the crest factors and W_b/W_k peaks, not the r.m.s., VDV
+    or the unweighted peak."""
+    base = {**ZERO, "shape": 0.02}
+    without, with_peak = _draws(base), _draws({**base, "peak": 0.03})
+    for key in ("crest_factor_y", "crest_factor_y_wk", "acc_y_wb_peak", "acc_y_wk_peak"):
+        assert np.std(np.log(with_peak[key])) > 1.5 * np.std(np.log(without[key])), key
+    for key in ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "acc_y_max", "amplitude_y_m"):
+        np.testing.assert_allclose(with_peak[key], without[key], rtol=1e-12, err_msg=key)
+    np.testing.assert_allclose(with_peak["crest_factor_y"] * with_peak["acc_y_wb_rms"], with_peak["acc_y_wb_peak"],
+                               rtol=1e-12)
+
+
+def test_every_gait_has_a_peak_floor_and_an_unknown_gait_the_widest():
+    src = {g: interval_sources(replace(_result(), gait=g), depth_anisotropy=2.0) for g in SKIN_FLOORS}
+    for gait, (_gain, shape, peak, displacement) in SKIN_FLOORS.items():
+        assert src[gait]["peak"] == peak > 0 and src[gait]["shape"] == shape
+        assert src[gait]["displacement"] == displacement
+    # an unknown gait takes the widest floors
+    unknown = interval_sources(replace(_result(), gait=None), depth_anisotropy=2.0)
+    assert unknown["peak"] == max(f[2] for f in SKIN_FLOORS.values())
+    assert unknown["displacement"] == max(f[3] for f in SKIN_FLOORS.values())
+
+
+def test_the_displacement_floor_widens_the_amplitude_only_and_keeps_the_other_draws():
+    base = {**ZERO, "gain": 0.02, "shape": 0.02}
+    without, with_disp = _draws(base), _draws({**base, "displacement": 0.05})
+    rel = with_disp["amplitude_y_m"] / without["amplitude_y_m"]
+    assert rel[0] == 1.0 and np.std(rel) == pytest.approx(0.05, rel=0.15)
+    for key in INTERVAL_KEYS:
+        if key != "amplitude_y_m":
+            np.testing.assert_array_equal(with_disp[key], without[key], err_msg=key)
 
 
 def test_the_intervals_cover_the_truth_95_percent_of_the_time_when_the_noise_model_holds():
@@ -137,6 +173,22 @@ def test_interval_sources_reads_what_the_result_knows():
     old = _result(outside=None, flags=["the left camera saw the markers outside the region the calibration board "
                                        "covered in 31 % of its detections: its lens distortion is extrapolated"])
     assert interval_sources(old, depth_anisotropy=2.0)["outside_board_share"] == pytest.approx(0.31)
+
+
+def test_a_lens_extrapolated_crossing_widens_the_speed_and_a_motion_that_is_not_periodic_the_gain_and_peaks():
+    inside, outside = _result(outside={"left": 0.02}), _result(outside={"left": 0.7})
+    s_in, s_out = (interval_sources(r, depth_anisotropy=2.0) for r in (inside, outside))
+    # the scale where the lens is extrapolated is the lens's: 0.01 x 0.7² on the speed
+    assert s_out["speed"] ** 2 - s_in["speed"] ** 2 == pytest.approx((0.01 * 0.49) ** 2 - (0.01 * 0.0004) ** 2)
+    assert s_in["gain_parts"]["not_periodic"] == 0.0
+    # S's vertical acceleration 30 % off its harmonic series (r.m.s.): a reconstruction that broke
+    amps = np.asarray(inside.vertical_harmonics.amplitudes_m_s2)
+    broken = replace(inside, quality={**inside.quality,
+                                      "vertical_harmonic_fit_rms_m_s2": 0.3 * np.sqrt(np.sum(amps ** 2) / 2)})
+    s_broken = interval_sources(broken, depth_anisotropy=2.0)
+    assert s_broken["gain_parts"]["not_periodic"] == pytest.approx(0.3)
+    assert s_broken["gain"] > 0.3 and s_broken["peak"] == pytest.approx(np.hypot(0.3, SKIN_FLOORS["canter"][2]))
+    assert decision_uncertainty(broken.indicators, ride_intervals(broken, sources=s_broken)) is not None
 
 
 def test_a_ride_with_much_of_its_crossing_beyond_the_board_is_too_uncertain():
