@@ -156,7 +156,9 @@ def with_intervals(result: RideResult) -> RideResult:
     quality["decision"] = {"too_uncertain": reason is not None, "reason": reason}
     quality["interval_sources"] = {"gain": sources["gain"], "gain_parts": dict(sources["gain_parts"]),
                                    "harmonic_m_s2": [float(v) for v in sources["harmonic_m_s2"]],
-                                   "shape": sources["shape"], "f0": sources["f0"], "speed": sources["speed"]}
+                                   "shape": sources["shape"], "f0": sources["f0"], "speed": sources["speed"],
+                                   "peak": float(sources.get("peak", 0.0)),
+                                   "displacement": float(sources.get("displacement", 0.0))}
     return replace(result, quality=quality, indicators_interval_95=intervals)
 
 
