@@ -30,14 +30,16 @@ def test_decode_once_decodes_every_frame_of_every_clip(tmp_path):
 
 
 def test_speed_keys_name_every_ride_and_say_none_where_one_failed():
-    speed = {"640x480": {"ratio": 3.0, "decode_once_s": 1.0, "analysis_s": 3.0, "rides_per_core_hour": 90.0,
-                         "stage_vs_decode": {"sync": 0.5}},
+    speed = {"640x480": {"ratio": 3.0, "ratio_cpu": 2.5, "decode_once_s": 1.0, "analysis_s": 3.0,
+                         "rides_per_core_hour": 90.0, "stage_vs_decode": {"sync": 0.5}},
              "1920x1080": {"error": "SyncError: no flash"}}
     keys = bench.speed_keys(speed)
     for name in ("640x480", "1920x1080"):
         for key in ("analysis_vs_decode_", "decode_once_s_", "analysis_s_", "stages_vs_decode_"):
             assert key + name in keys
     assert keys["analysis_vs_decode_640x480"] == 3.0
+    assert keys["analysis_vs_decode_cpu_640x480"] == 2.5  # beside the wall-time ratio: steadier under load
+    assert keys["analysis_vs_decode_cpu_1920x1080"] is None
     assert keys["stages_vs_decode_640x480"] == {"sync": 0.5}
     assert keys["analysis_vs_decode_1920x1080"] is None
     assert keys["whole_analysis_vs_clip_duration_1920x1080"] is None
@@ -62,6 +64,7 @@ def test_analysis_against_decoding_once_on_a_short_thesis_ride(tmp_path):
     out = bench.analysis_vs_decode(ride)
     assert out["ratio"] == pytest.approx(out["analysis_s"] / out["decode_once_s"])
     assert out["decode_once_s"] == min(out["decode_once_s_runs"])
+    assert out["ratio_cpu"] == pytest.approx(out["cpu_s"] / out["decode_once_cpu_s"]) and out["decode_once_cpu_s"] > 0
     assert set(out["stage_vs_decode"]) >= {"sync", "calibration", "detection", "total"}
     assert out["stage_vs_decode"]["total"] == pytest.approx(out["timings_s"]["total"] / out["decode_once_s"])
     # the ride without its calibration costs less CPU than with it, and a core-hour holds some rides

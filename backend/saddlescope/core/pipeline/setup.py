@@ -272,10 +272,10 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
             frames = nominal_frames_of(frames, clocks[cam][0], clocks[cam][1], fps)
         return [replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)]
 
-    # One thread per camera: decoding (PyAV) and the board search (OpenCV) release the GIL. Each camera's
-    # views depend on its clip alone, so the result does not depend on the threads' timing; progress is
-    # reported from this thread.
-    found = _per_camera_in_threads(cams, board_views, progress)
+    # Cameras in parallel within the thread budget: decoding (PyAV) and the board search (OpenCV) release the
+    # GIL. Each camera's views depend on its clip alone, so the result does not depend on the threads' timing;
+    # progress is reported from this thread.
+    found = _per_camera_in_threads(cams, board_views, progress, params.threads)
     board_sync = None
     if sync_from_board:
         board_sync = motion_offsets({c: board_track(found[c][0], board) for c in cams}, fps, clocks=clocks,
@@ -298,11 +298,23 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     return rig, report
 
 
-def _per_camera_in_threads(cams: list[str], work: Callable[[str], tuple], progress: Progress | None) -> dict:
-    """``work(cam)`` for every camera in a pool of one thread per camera, reporting progress from this thread."""
+def _per_camera_in_threads(cams: list[str], work: Callable[[str], tuple], progress: Progress | None,
+                           threads: int | None = None) -> dict:
+    """``work(cam)`` for every camera, at most ``threads`` cameras at once (None: one thread per camera).
+
+    Progress is reported from this thread. With a budget of one thread the cameras run here, one after another.
+    """
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
-    with ThreadPoolExecutor(max_workers=len(cams)) as pool:
+    workers = max(1, min(len(cams), threads or len(cams)))
+    if workers == 1:
+        out = {}
+        for done, cam in enumerate(cams, 1):
+            out[cam] = work(cam)
+            if progress is not None:
+                progress.stage("calibration", 0.6 * done / len(cams))
+        return out
+    with ThreadPoolExecutor(max_workers=workers) as pool:
         jobs = {pool.submit(work, cam): cam for cam in cams}
         for done, job in enumerate(as_completed(jobs), 1):
             job.result()
