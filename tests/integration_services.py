@@ -299,6 +299,17 @@ def write_tiny_clip(
     return path
 
 
+def zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:
+    """`data` (a zip of stored members) with one byte inside member `name` changed: its CRC no longer matches."""
+    import io
+    import zipfile
+
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        info = zf.getinfo(name)
+    at = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra) + info.compress_size // 2
+    return data[:at] + bytes([data[at] ^ 0xFF]) + data[at + 1:]
+
+
 def write_tiny_bundle(folder: Path, *, gait: str = "walk", frames: int = 5) -> Path:
     """A ride bundle (CONTRACTS section 1) of tiny clips; the plumb clips are image folders."""
     clips: dict[str, dict[str, str]] = {}

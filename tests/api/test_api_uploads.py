@@ -21,7 +21,7 @@ import s3_server as s3_server_module
 from api_helpers import new_club, zip_folder
 from disk_watch import HeldQueue, bundle_clip_digests, queue_of, watching_local_writes
 from engines import ENGINES, open_env
-from integration_services import write_tiny_bundle, write_tiny_clip
+from integration_services import write_tiny_bundle, write_tiny_clip, zip_with_a_flipped_byte
 
 from saddlescope.storage import FileStorage, open_storage, upload_key
 
@@ -313,14 +313,6 @@ def _zip_without(data: bytes, name: str) -> bytes:
     return out.getvalue()
 
 
-def _zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:
-    """`data` (a zip of stored members) with one byte inside member `name` changed: its CRC no longer matches."""
-    with zipfile.ZipFile(io.BytesIO(data)) as zf:
-        info = zf.getinfo(name)
-    at = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra) + info.compress_size // 2
-    return data[:at] + bytes([data[at] ^ 0xFF]) + data[at + 1:]
-
-
 def bad_bundle_zips(folder) -> dict[str, tuple[bytes, str]]:
     """Broken bundles and the exact reason each gets, the same on both storage back ends."""
     ride_json = json.loads((folder / "ride.json").read_text())
@@ -334,7 +326,7 @@ def bad_bundle_zips(folder) -> dict[str, tuple[bytes, str]]:
                             "ride.zip: member '../../escape.avi' has a '..' component (it would be written "
                             "outside the bundle)"),
         "truncated": (good[:len(good) * 2 // 3], "ride.zip: a ride bundle must be a folder or a .zip archive"),
-        "corrupt member": (_zip_with_a_flipped_byte(new_horse, "motion/left.avi"),
+        "corrupt member": (zip_with_a_flipped_byte(new_horse, "motion/left.avi"),
                            "ride.zip: corrupt or unsupported zip archive (Bad CRC-32 for file 'motion/left.avi')"),
     }
 

@@ -11,6 +11,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from integration_services import zip_with_a_flipped_byte
 
 from saddlescope.core.errors import BundleError
 from saddlescope.io.bundle import open_bundle, open_zip_stream, zip_bundle_files
@@ -52,13 +53,6 @@ def _zip(members: dict[str, bytes], infos: tuple[zipfile.ZipInfo, ...] = ()) -> 
     return buffer.getvalue()
 
 
-def _flipped(data: bytes, name: str) -> bytes:
-    with zipfile.ZipFile(io.BytesIO(data)) as zf:
-        info = zf.getinfo(name)
-    at = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra) + info.compress_size // 2
-    return data[:at] + bytes([data[at] ^ 0xFF]) + data[at + 1:]
-
-
 def _link() -> zipfile.ZipInfo:
     info = zipfile.ZipInfo("motion/evil.mp4")
     info.create_system, info.external_attr = 3, (stat.S_IFLNK | 0o777) << 16
@@ -92,7 +86,7 @@ CASES = {
     "empty clip": _zip({**_members(), "motion/left.mp4": b""}),
     "image folder without numbers": _zip({**{k: v for k, v in _members().items() if not k.startswith("plumb/left/")},
                                           "plumb/left/cover.png": b"x" * 100}),
-    "corrupt member": _flipped(GOOD, "motion/left.mp4"),
+    "corrupt member": zip_with_a_flipped_byte(GOOD, "motion/left.mp4"),
     "zip bomb": _bomb(),
 }
 

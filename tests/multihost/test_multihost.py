@@ -50,6 +50,14 @@ def _print_counts(what: str, counts: dict[str, int]) -> None:
     print(f"\nmulti-host {what}: " + ", ".join(f"{name} {n}" for name, n in counts.items()))
 
 
+def _every_ride_once(cluster, what: str, ride_ids: list[int]) -> None:
+    """Print the counts, then require one result per ride: no duplicate, no ride lost."""
+    counts = _counts(cluster, ride_ids)
+    _print_counts(what, counts)
+    n = len(ride_ids)
+    assert counts == {"rides submitted": n, "results stored": n, "duplicates": 0, "lost rides": 0}, counts
+
+
 def zip_folder(folder: Path) -> bytes:
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED) as archive:
@@ -91,11 +99,9 @@ def test_rides_uploaded_to_the_api_host_are_analysed_by_workers_on_two_other_hos
         assert result["indicators"], result
     pids = {job["host"].rpartition(":")[2] for job in jobs}
     worker_pids = {str(cluster.workers[host].proc.pid) for host in ("w1", "w2")}
-    counts = _counts(cluster, [ride_id for ride_id, _ in rides])
-    _print_counts("flow", counts)
+    _every_ride_once(cluster, "flow", [ride_id for ride_id, _ in rides])
     # `ip netns exec` execs the worker, so its pid is the one recorded on the job (host:pid).
     assert pids <= worker_pids, (pids, worker_pids)
-    assert counts["results stored"] == 4 and counts["duplicates"] == 0 and counts["lost rides"] == 0
     http.close()
 
 
@@ -114,9 +120,7 @@ def test_a_real_ride_is_analysed_by_the_real_pipeline_on_a_worker_host(cluster, 
     truth = json.loads((tiny_ride / "truth.json").read_text())
     speed_kmh = result["indicators"]["vel_x_avg_kmh"]
     assert speed_kmh == pytest.approx(truth["indicators"]["vel_x_avg_kmh"], rel=0.02), (speed_kmh, truth)
-    counts = _counts(cluster, [ride_id])
-    _print_counts("real pipeline", counts)
-    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "real pipeline", [ride_id])
     cluster.stop_workers()
     http.close()
 
@@ -148,9 +152,7 @@ def test_drill_a_worker_killed_mid_stage_its_job_completes_on_the_other_host(clu
     assert job["status"] == "done", job["error"]
     assert job["attempts"] == 2 and job["host"].endswith(f":{second.proc.pid}"), job
     assert api.ok("GET", f"/rides/{ride_id}/result")["indicators"]
-    counts = _counts(cluster, [ride_id])
-    _print_counts("drill (a) worker killed", counts)
-    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "drill (a) worker killed", [ride_id])
     assert "queued again" in second.log_path.read_text()
     http.close()
 
@@ -186,10 +188,8 @@ def test_drill_b_a_worker_cut_off_and_healed_is_fenced_out_and_the_ride_keeps_on
     listed = cluster.s3("list_objects_v2", Prefix=f"club-data/rides/{ride_id}/results/").get("Contents", [])
     assert [o["Key"].rpartition("/")[2][:len(f"{job_id}-2-")] for o in listed] == [f"{job_id}-2-"], listed
     assert api.ok("GET", f"/rides/{ride_id}/result")["indicators"]
-    counts = _counts(cluster, [ride_id])
-    _print_counts("drill (b) worker cut off and healed", counts)
     print(f"the healed worker's late write: {fenced_by} (the job was taken over by another attempt)")
-    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "drill (b) worker cut off and healed", [ride_id])
     http.close()
 
 
@@ -213,10 +213,8 @@ def test_drill_c_the_broker_restarted_new_rides_get_503_and_nothing_is_lost(clus
     assert all(job["status"] == "done" for job in jobs), [(job["id"], job["status"], job["error"]) for job in jobs]
     after = _upload(api, new_bundle())  # the broker back: submissions are taken again
     assert api.wait_job(after[1], timeout_s=JOB_TIMEOUT_S)[0]["status"] == "done"
-    counts = _counts(cluster, [ride_id for ride_id, _ in [*rides, after]])
-    _print_counts("drill (c) broker restarted", counts)
     print(f"refused while the broker was down: 503 {reason!r}")
-    assert counts == {"rides submitted": 5, "results stored": 5, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "drill (c) broker restarted", [ride_id for ride_id, _ in [*rides, after]])
     http.close()
 
 
@@ -267,10 +265,8 @@ def test_drill_d_the_store_stopped_during_an_upload_the_client_resumes_and_finis
     job, _ = api.wait_job(outcome["job_id"], timeout_s=JOB_TIMEOUT_S)
     assert job["status"] == "done", job["error"]
     assert api.ok("GET", f"/rides/{outcome['ride_id']}/result")["indicators"]
-    counts = _counts(cluster, [outcome["ride_id"]])
-    _print_counts("drill (d) store stopped during an upload", counts)
     print(f"asked while the store was down: 503, Retry-After 10, {reason!r}")
-    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "drill (d) store stopped during an upload", [outcome["ride_id"]])
     http.close()
 
 
@@ -292,11 +288,9 @@ def test_drill_d_the_store_stopped_during_a_job_it_waits_with_the_reason_then_su
     assert job["status"] == "done" and job["error"] is None, job
     assert job["attempts"] >= 2, job
     assert api.ok("GET", f"/rides/{ride_id}/result")["indicators"]
-    counts = _counts(cluster, [ride_id])
-    _print_counts("drill (d) store stopped during a job", counts)
     print(f"the job while the store was down: {waiting['status']}, {waiting['error']!r}; "
           f"done after {job['attempts']} attempts")
-    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "drill (d) store stopped during a job", [ride_id])
     http.close()
 
 
@@ -324,9 +318,7 @@ def test_an_api_replica_killed_mid_upload_the_client_resumes_on_the_other(cluste
             service.stop(kill=True)
             cluster.services.pop(service.host, None)
         sender.close()
-    counts = _counts(cluster, [ride_id])
-    _print_counts("replica killed mid-upload", counts)
-    assert counts == {"rides submitted": 1, "results stored": 1, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "replica killed mid-upload", [ride_id])
 
 
 def _upload_across_a_killed_replica(api1, api2, first, data: bytes) -> tuple[int, int]:
@@ -389,7 +381,5 @@ def test_drill_e_postgresql_primary_stopped_and_a_replica_promoted_loses_no_ride
     rides = [ride_id for ride_id, _ in [*done, waiting, after]]
     for ride_id in rides:
         assert api.ok("GET", f"/rides/{ride_id}/result")["indicators"]
-    counts = _counts(cluster, rides)
-    _print_counts("drill (e) PostgreSQL fail-over", counts)
-    assert counts == {"rides submitted": 4, "results stored": 4, "duplicates": 0, "lost rides": 0}
+    _every_ride_once(cluster, "drill (e) PostgreSQL fail-over", rides)
     http.close()
