@@ -160,7 +160,16 @@ class Members {
       h("td", { class: "actions" }, toggle, reset));
   }
 
-  async change(user, changes, control = null) {
+  change(user, changes, control = null) {
+    // One change at a time: the next waits until the table shows the last one (had the admin dropped
+    // their own rights meanwhile, that reload would be refused).
+    this.changing = (this.changing ?? Promise.resolve())
+      .then(() => this.applyChange(user, changes, control))
+      .catch((error) => this.showError(error));
+    return this.changing;
+  }
+
+  async applyChange(user, changes, control = null) {
     const name = user.display_name || user.email;
     const losingOwnRights = user.id === this.me && (changes.role === "member" || changes.is_active === false);
     if (losingOwnRights && !window.confirm("You will no longer be an admin of the club. Go on?")) {
