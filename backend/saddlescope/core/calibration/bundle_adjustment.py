@@ -6,7 +6,6 @@ from collections.abc import Mapping
 
 import cv2
 import numpy as np
-from scipy.sparse import csr_matrix
 
 from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.projection import (
@@ -53,13 +52,28 @@ class _Bundle:
     def __init__(self, obj, obs_cam, obs_inst, obs_pt, obs_xy, n_cams, n_inst):
         self.obj, self.cam, self.inst, self.pt, self.xy = obj, obs_cam, obs_inst, obs_pt, obs_xy
         self.C, self.I = n_cams, n_inst
-        self.inst_onehot = csr_matrix((np.ones(len(obs_cam)), (obs_inst, np.arange(len(obs_cam)))),
-                                      shape=(n_inst, len(obs_cam)))
-        self.cam_onehot = csr_matrix((np.ones(len(obs_cam)), (obs_cam, np.arange(len(obs_cam)))),
-                                     shape=(n_cams, len(obs_cam)))
-        key = obs_cam * n_inst + obs_inst
-        self.pair_onehot = csr_matrix((np.ones(len(obs_cam)), (key, np.arange(len(obs_cam)))),
-                                      shape=(n_cams * n_inst, len(obs_cam)))
+        self._views()
+
+    def _views(self) -> None:
+        """The observations grouped by view (one camera at one instant), padded to the largest view.
+
+        The normal equations' blocks are sums over each view's corners: as one batched matrix product per
+        block over (views, 2 x corners) arrays they cost a fraction of per-corner outer products summed
+        through sparse matrices (the joint adjustment's step was mostly that).
+        """
+        key = self.cam.astype(np.int64) * self.I + self.inst
+        order = np.argsort(key, kind="stable")
+        keys, start, count = np.unique(key[order], return_index=True, return_counts=True)
+        self.view_cam, self.view_inst = keys // self.I, keys % self.I
+        slot = np.arange(count.max())
+        take = start[:, None] + slot[None, :]
+        self.view_mask = slot[None, :] < count[:, None]  # (P, L): a real corner, not padding
+        self.view_obs = order[np.where(self.view_mask, take, 0)]  # (P, L) observation index (padding: any)
+
+    def _by_view(self, X: np.ndarray) -> np.ndarray:
+        """Per-observation rows X (M, 2, k) as (P, 2 L, k), zero in the padding."""
+        Xp = X[self.view_obs] * self.view_mask[:, :, None, None]
+        return Xp.reshape(len(Xp), -1, X.shape[-1])
 
     def board_points(self, boards: np.ndarray) -> np.ndarray:
         """Corners in the reference frame (M, 3) for board poses (I, 6)."""
@@ -101,20 +115,25 @@ class _Bundle:
     def normal_equations(self, A, B, r, w):
         """Blocks of J^T W J and J^T W r: U (C, 15, 15), V (I, 6, 6), W (C, I, 15, 6), gc, gb."""
         Aw = A * w[:, None, None]
-        Bw = B * w[:, None, None]
-        M = len(w)
-        # U: one matrix product per camera (its observations stacked), cheaper than per-observation blocks
+        # U: one matrix product per camera (its observations stacked)
         U = np.zeros((self.C, _NCAM, _NCAM))
+        gc = np.zeros((self.C, _NCAM))
         for c in range(self.C):
             sel = self.cam == c
             U[c] = Aw[sel].reshape(-1, _NCAM).T @ A[sel].reshape(-1, _NCAM)
-        # V and W: per-observation outer products (two rows each), summed by instant / camera-instant
-        BtB = Bw[:, 0, :, None] * B[:, 0, None, :] + Bw[:, 1, :, None] * B[:, 1, None, :]
-        V = (self.inst_onehot @ BtB.reshape(M, -1)).reshape(self.I, 6, 6)
-        AtB = Aw[:, 0, :, None] * B[:, 0, None, :] + Aw[:, 1, :, None] * B[:, 1, None, :]
-        W = (self.pair_onehot @ AtB.reshape(M, -1)).reshape(self.C, self.I, _NCAM, 6)
-        gc = (self.cam_onehot @ (Aw[:, 0] * r[:, :1] + Aw[:, 1] * r[:, 1:])).reshape(self.C, _NCAM)
-        gb = (self.inst_onehot @ (Bw[:, 0] * r[:, :1] + Bw[:, 1] * r[:, 1:])).reshape(self.I, 6)
+            gc[c] = Aw[sel].reshape(-1, _NCAM).T @ r[sel].ravel()
+        # V, W and gb: per view (camera, instant), one batched product over its corners' rows
+        Bp, Bwp = self._by_view(B), self._by_view(B * w[:, None, None])
+        Awp, rp = self._by_view(Aw), self._by_view(r[:, :, None])
+        BtB = Bwp.transpose(0, 2, 1) @ Bp
+        AtB = Awp.transpose(0, 2, 1) @ Bp
+        Btr = (Bwp.transpose(0, 2, 1) @ rp)[:, :, 0]
+        V = np.zeros((self.I, 6, 6))
+        np.add.at(V, self.view_inst, BtB)
+        W = np.zeros((self.C, self.I, _NCAM, 6))
+        W[self.view_cam, self.view_inst] = AtB  # one view per camera and instant
+        gb = np.zeros((self.I, 6))
+        np.add.at(gb, self.view_inst, Btr)
         return U, V, W, gc, gb
 
 

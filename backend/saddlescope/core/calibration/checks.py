@@ -88,6 +88,21 @@ def _instant_points(views_by_camera, names):
     return out
 
 
+def _triangulated_instants(cams: list[Camera], points: Mapping[int, tuple[np.ndarray, np.ndarray]]):
+    """(ids, xyz (K, 3) mm, reprojection error (K,) px) per instant of :func:`_instant_points`.
+
+    Every instant's corners in one :func:`triangulate_dlt` (each point is triangulated on its own): one call
+    per instant cost more in its per-call work (undistortion, projection) than in the triangulation.
+    """
+    parts = list(points.values())
+    if not parts:
+        return
+    xyz, err = triangulate_dlt(cams, np.concatenate([xy for _, xy in parts], axis=1))
+    bounds = np.cumsum([0] + [len(ids) for ids, _ in parts])
+    for (ids, _), lo, hi in zip(parts, bounds[:-1], bounds[1:], strict=True):
+        yield ids, xyz[lo:hi], err[lo:hi]
+
+
 def _similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray]:
     """Scale s and residuals (K, 3) of the best dst ~ s R src + t (Umeyama's closed form)."""
     mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
@@ -126,8 +141,7 @@ def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView
     cols = board.inner_corners[0]
     scales, fit_res, adj_err, d_err, d_true, reproj = [], [], [], [], [], []
     n_pts = 0
-    for ids, xy in _instant_points(views_by_camera, names).values():
-        xyz, err = triangulate_dlt(cams, xy)
+    for ids, xyz, err in _triangulated_instants(cams, _instant_points(views_by_camera, names)):
         ok = np.isfinite(xyz[:, 0])
         if ok.sum() < 4:
             continue
