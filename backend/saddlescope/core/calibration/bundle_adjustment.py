@@ -157,21 +157,18 @@ class _Bundle:
 
     def normal_equations(self, A, B, r, w):
         """Blocks of J^T W J and J^T W r: U (C, 15, 15), V (I, 6, 6), W (C, I, 15, 6), gc, gb."""
-        Aw = A * w[:, None, None]
-        # U: one matrix product per camera (its observations stacked)
+        # every block is a sum over each view's (camera, instant) corners: one batched product per block over
+        # the views' rows, gathered once (boolean selections per camera and outer products per corner cost more)
+        X = self._by_view(np.concatenate([A * w[:, None, None], A, B * w[:, None, None], B, r[:, :, None]], axis=2))
+        Awp, Ap, Bwp = X[:, :, :_NCAM], X[:, :, _NCAM:2 * _NCAM], X[:, :, 2 * _NCAM:2 * _NCAM + 6]
+        Bp, rp = X[:, :, 2 * _NCAM + 6:-1], X[:, :, -1:]
+        AwT, BwT = Awp.transpose(0, 2, 1), Bwp.transpose(0, 2, 1)
         U = np.zeros((self.C, _NCAM, _NCAM))
+        np.add.at(U, self.view_cam, AwT @ Ap)
         gc = np.zeros((self.C, _NCAM))
-        for c in range(self.C):
-            sel = self.cam == c
-            U[c] = Aw[sel].reshape(-1, _NCAM).T @ A[sel].reshape(-1, _NCAM)
-            gc[c] = Aw[sel].reshape(-1, _NCAM).T @ r[sel].ravel()
-        # V, W and gb: per view (camera, instant), one batched product over its corners' rows (one gather)
-        Bw = B * w[:, None, None]
-        X = self._by_view(np.concatenate([Aw, Bw, B, r[:, :, None]], axis=2))
-        Awp, Bwp, Bp, rp = X[:, :, :_NCAM], X[:, :, _NCAM:_NCAM + 6], X[:, :, _NCAM + 6:-1], X[:, :, -1:]
-        BwT = Bwp.transpose(0, 2, 1)
+        np.add.at(gc, self.view_cam, (AwT @ rp)[:, :, 0])
         BtB = BwT @ Bp
-        AtB = Awp.transpose(0, 2, 1) @ Bp
+        AtB = AwT @ Bp
         Btr = (BwT @ rp)[:, :, 0]
         V = np.zeros((self.I, 6, 6))
         np.add.at(V, self.view_inst, BtB)
