@@ -15,7 +15,10 @@ from saddlescope.core.types import Board, Camera
 
 __all__ = ["stereo_extrinsics"]
 
-SPARSE_STEREO_MIN_VIEWS = 60  # shared views from which the sparse solver is used
+# shared views from which the sparse solver is used: with the adjustment's analytic Jacobians and per-view
+# normal equations it costs about OpenCV's from 30 views and less above (50 views, 1080p wide rig: 0.07-0.09
+# CPU-s a pair against OpenCV's 0.10-0.75, whose threads spin on a loaded machine), the pose the same to 0.004 mm
+SPARSE_STEREO_MIN_VIEWS = 30
 
 
 def _shared(views_a: list[BoardView], views_b: list[BoardView]):
@@ -54,8 +57,7 @@ def stereo_extrinsics(views_a: list[BoardView], views_b: list[BoardView], cam_a:
                                f"{len(shared)} frame(s); need at least {min_shared}")
     obj_all = object_points_mm(board).astype(np.float64)
     try:
-        # OpenCV's dense solve is cheaper for few views; its O(views^3) overtakes near 50 (measured: 40 views
-        # 0.05 vs 0.08 CPU-s, 80 views 0.21 vs 0.09, 150 views 0.85 vs 0.22)
+        # OpenCV's dense solve is cheaper for few views; its O(views^3) overtakes near 30 (SPARSE_STEREO_MIN_VIEWS)
         fit = _stereo_opencv if len(shared) < SPARSE_STEREO_MIN_VIEWS else _stereo_fit
         R, t_mm, rms = fit(shared, obj_all, cam_a, cam_b)
     except (cv2.error, np.linalg.LinAlgError) as exc:
