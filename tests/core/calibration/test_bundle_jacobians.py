@@ -1,14 +1,20 @@
 """The bundle adjustment's analytic Jacobians and per-view normal equations against plain references."""
 
 import numpy as np
+import pytest
 
 from saddlescope.core.calibration.bundle_adjustment import _NCAM, _Bundle
 
 
-def _random_bundle(rng, n_cams=2, n_inst=4, n_obs=90):
+def _random_bundle(rng, n_cams=2, n_inst=4, n_obs=90, in_order=False):
     obj = np.c_[rng.uniform(0, 300, (24, 2)), np.zeros(24)]
-    # observations in shuffled order, several cameras and instants: views are not contiguous
-    cam, inst = rng.integers(0, n_cams, n_obs), rng.integers(0, n_inst, n_obs)
+    if in_order:  # whole views one after another, all of one size (the adjustment reshapes them)
+        per_view = n_obs // (n_cams * n_inst)
+        cam = np.repeat(np.arange(n_cams), n_inst * per_view)
+        inst = np.tile(np.repeat(np.arange(n_inst), per_view), n_cams)
+        n_obs = len(cam)
+    else:  # observations in shuffled order: views are not contiguous, and of different sizes
+        cam, inst = rng.integers(0, n_cams, n_obs), rng.integers(0, n_inst, n_obs)
     bundle = _Bundle(obj, cam, inst, rng.integers(0, 24, n_obs), rng.normal(0, 1, (n_obs, 2)), n_cams, n_inst)
     cams = np.zeros((n_cams, _NCAM))
     cams[:, :4] = [1400, 1410, 960, 540]
@@ -40,9 +46,11 @@ def test_analytic_jacobians_match_central_differences():
         assert np.allclose(B[:, :, k], fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max() + 1e-9), k
 
 
-def test_per_view_normal_equations_equal_the_dense_products():
+@pytest.mark.parametrize("in_order", [False, True])
+def test_per_view_normal_equations_equal_the_dense_products(in_order):
     rng = np.random.default_rng(1)
-    bundle, cams, boards = _random_bundle(rng, n_cams=3, n_inst=5, n_obs=150)
+    bundle, cams, boards = _random_bundle(rng, n_cams=3, n_inst=5, n_obs=150, in_order=in_order)
+    assert bundle._in_order == in_order
     A, B = bundle.jacobians(cams, boards)
     r = bundle.residuals(cams, boards)
     w = rng.uniform(0.2, 1.0, len(r))

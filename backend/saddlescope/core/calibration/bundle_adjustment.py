@@ -107,9 +107,13 @@ class _Bundle:
         take = start[:, None] + slot[None, :]
         self.view_mask = slot[None, :] < count[:, None]  # (P, L): a real corner, not padding
         self.view_obs = order[np.where(self.view_mask, take, 0)]  # (P, L) observation index (padding: any)
+        # views one after another and all of one size (whole boards, the usual case): a reshape, no gather
+        self._in_order = bool(self.view_mask.all() and np.array_equal(self.view_obs.ravel(), np.arange(len(key))))
 
     def _by_view(self, X: np.ndarray) -> np.ndarray:
         """Per-observation rows X (M, 2, k) as (P, 2 L, k), zero in the padding."""
+        if self._in_order:
+            return X.reshape(len(self.view_obs), -1, X.shape[-1])
         Xp = X[self.view_obs] * self.view_mask[:, :, None, None]
         return Xp.reshape(len(Xp), -1, X.shape[-1])
 
@@ -158,10 +162,9 @@ class _Bundle:
     def normal_equations(self, A, B, r, w):
         """Blocks of J^T W J and J^T W r: U (C, 15, 15), V (I, 6, 6), W (C, I, 15, 6), gc, gb."""
         # every block is a sum over each view's (camera, instant) corners: one batched product per block over
-        # the views' rows, gathered once (boolean selections per camera and outer products per corner cost more)
-        X = self._by_view(np.concatenate([A * w[:, None, None], A, B * w[:, None, None], B, r[:, :, None]], axis=2))
-        Awp, Ap, Bwp = X[:, :, :_NCAM], X[:, :, _NCAM:2 * _NCAM], X[:, :, 2 * _NCAM:2 * _NCAM + 6]
-        Bp, rp = X[:, :, 2 * _NCAM + 6:-1], X[:, :, -1:]
+        # the views' rows (boolean selections per camera and outer products per corner cost more)
+        Awp, Ap, Bwp, Bp, rp = (self._by_view(X) for X in (A * w[:, None, None], A, B * w[:, None, None], B,
+                                                           r[:, :, None]))
         AwT, BwT = Awp.transpose(0, 2, 1), Bwp.transpose(0, 2, 1)
         U = np.zeros((self.C, _NCAM, _NCAM))
         np.add.at(U, self.view_cam, AwT @ Ap)
