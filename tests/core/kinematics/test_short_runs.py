@@ -66,3 +66,43 @@ def test_less_than_one_stride_together_is_still_refused():
     lost[12:20] = lost[30:38] = lost[48:56] = True  # runs of about half a stride, gaps too long to bridge
     with pytest.raises(KinematicsError):
         _analyse(*_rigid_ride(66, lost))
+
+
+def _guessed_depth_at_the_ends(sound: slice, n_frames: int = 80):
+    """The rigid ride with its ends' depth guessed (issue 27, seed 1014): outside ``sound`` each marker drifts
+    in depth and along the track, smoothly and by its own amount (two cameras, one beyond its board's reach)."""
+    from saddlescope.core.triangulation import ReachCheckedTracks
+
+    motion, static = _rigid_ride(n_frames)
+    guessed = np.ones(n_frames, dtype=bool)
+    guessed[sound] = False
+    # frames from the sound stretch: the lens error grows with the image radius, so towards the ends
+    away = np.where(guessed, np.minimum(np.abs(np.arange(n_frames) - sound.start),
+                                        np.abs(np.arange(n_frames) - (sound.stop - 1))), 0) / FPS
+    xyz = motion.xyz_mm.copy()
+    for m, gain in enumerate((1.0, 0.6, 0.3)):  # seed 1014: 0.1-0.8 m in depth, 10-30 mm in height
+        xyz[:, m, 2] -= gain * 800.0 * away ** 2
+        xyz[:, m, 0] += gain * 300.0 * away ** 2
+        xyz[:, m, 1] += gain * 30.0 * away
+    mask = np.repeat(guessed[:, None], 3, axis=1)
+    return (ReachCheckedTracks(motion.names, motion.t_s, xyz, lens_extrapolated=mask),
+            MarkerTracks(motion.names, motion.t_s, xyz), static)
+
+
+def test_samples_whose_depth_rests_on_a_guessed_lens_are_left_out_when_a_stride_remains():
+    _, clean = _analyse(*_rigid_ride(80))
+    marked, unmarked, static = _guessed_depth_at_the_ends(slice(14, 66))  # 1.73 s sound: 2.8 strides
+    kin, ind = _analyse(marked, static)
+    blind, _ = _analyse(unmarked, static)
+    assert blind.fitted[0] < 14 and blind.fitted[1] > 66  # unmarked, the guessed ends are fitted too
+    for key in ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vel_x_avg_kmh", "stride_frequency_hz"):
+        assert ind[key] == pytest.approx(clean[key], rel=0.03), key
+    assert 14 <= kin.fitted[0] and kin.fitted[1] <= 66
+    assert any("the lens model extrapolated there; the analysis used the 1.73 s" in f for f in kin.flags)
+
+
+def test_a_guessed_lens_over_all_but_part_of_a_stride_is_said_in_plain_words():
+    marked, unmarked, static = _guessed_depth_at_the_ends(slice(33, 48))  # 0.5 s sound: under a stride
+    kin, _ = _analyse(marked, static)
+    assert kin.fitted == _analyse(unmarked, static)[0].fitted  # nothing better to analyse: the run stays
+    assert any("the rest holds less than a stride: the saddle point's motion may be broken" in f for f in kin.flags)
