@@ -84,8 +84,8 @@ def _guessed_depth_at_the_ends(sound: slice, n_frames: int = 80):
         xyz[:, m, 2] -= gain * 800.0 * away ** 2
         xyz[:, m, 0] += gain * 300.0 * away ** 2
         xyz[:, m, 1] += gain * 30.0 * away
-    mask = np.repeat(guessed[:, None], 3, axis=1)
-    return (ReachCheckedTracks(motion.names, motion.t_s, xyz, lens_extrapolated=mask),
+    beyond_px = np.repeat(200.0 * away[:, None], 3, axis=1)  # farther beyond the board's reach, farther off
+    return (ReachCheckedTracks(motion.names, motion.t_s, xyz, lens_extrapolation_px=beyond_px),
             MarkerTracks(motion.names, motion.t_s, xyz), static)
 
 
@@ -101,8 +101,31 @@ def test_samples_whose_depth_rests_on_a_guessed_lens_are_left_out_when_a_stride_
     assert any("the lens model extrapolated there; the analysis used the 1.73 s" in f for f in kin.flags)
 
 
-def test_a_guessed_lens_over_all_but_part_of_a_stride_is_said_in_plain_words():
-    marked, unmarked, static = _guessed_depth_at_the_ends(slice(33, 48))  # 0.5 s sound: under a stride
+def test_under_a_stride_without_a_guessed_lens_the_least_extrapolated_frames_next_to_it_complete_one():
+    marked, unmarked, static = _guessed_depth_at_the_ends(slice(33, 45))  # 0.4 s sound: under a stride
     kin, _ = _analyse(marked, static)
-    assert kin.fitted == _analyse(unmarked, static)[0].fitted  # nothing better to analyse: the run stays
-    assert any("the rest holds less than a stride: the saddle point's motion may be broken" in f for f in kin.flags)
+    # 19 frames (a stride of 18.75) centred on the sound stretch: the nearest guessed frames on each side
+    assert kin.fitted in ((29, 48), (30, 49))
+    assert kin.fitted != _analyse(unmarked, static)[0].fitted
+    assert any("px beyond the board's reach (a stride needs them)" in f for f in kin.flags)
+
+
+def test_a_run_under_a_stride_with_a_guessed_lens_is_said_in_plain_words():
+    lost = np.ones((80, 3), dtype=bool)
+    lost[20:60] = False  # 1.33 s tracked, of which only the middle 0.4 s is sound...
+    motion, static = _rigid_ride(80, lost)
+    beyond_px = np.zeros((80, 3))
+    beyond_px[20:34] = beyond_px[46:60] = 50.0
+    from saddlescope.core.triangulation import ReachCheckedTracks
+
+    marked = ReachCheckedTracks(motion.names, motion.t_s, motion.xyz_mm, lens_extrapolation_px=beyond_px)
+    valid = np.all(np.isfinite(motion.xyz_mm), axis=(1, 2))
+    flags = []
+    # ... and the run (20-60) is cut to 16 frames, under a stride (18.75): it stays, said in plain words
+    run = S._run_off_guessed_lens(motion.t_s, valid & (np.arange(80) < 36), (20, 36), 1 / F0,
+                                  beyond_px.max(axis=1), flags)
+    assert run == (20, 36)
+    assert any("the run holds less than a stride without them: the saddle point's motion may be broken" in f
+               for f in flags)
+    kin, _ = _analyse(marked, static)  # the whole run holds two strides: analysed on the least extrapolated
+    assert 20 <= kin.fitted[0] and kin.fitted[1] <= 60 and kin.fitted[1] - kin.fitted[0] < 40

@@ -45,6 +45,9 @@ def test_two_view_samples_with_a_camera_beyond_its_reach_are_marked():
         beyond_middle = np.abs(X[:, 0]) > 1.1 * middle_reach_px / K[0, 0] * 6000.0
         # marked: two views, one of them beyond its reach; three views check each other; within reach is sound
         assert np.array_equal(out.lens_extrapolated[:, 0], two_views & beyond_middle)
+        px = out.lens_extrapolation_px[two_views & beyond_middle, 0]
+        expected_px = 441.0 * np.abs(X[two_views & beyond_middle, 0]) / 6000.0 - 1.1 * middle_reach_px
+        np.testing.assert_allclose(px, expected_px, atol=0.25)  # how far beyond (reach_radius: a 0.22 px grid)
         np.testing.assert_allclose(out.xyz_mm, plain.xyz_mm, atol=1e-6)  # the marking moves no sample
         cases |= {"3 views beyond"} if np.any(~two_views & beyond_middle) else set()
         cases |= {"2 views within"} if np.any(two_views & ~beyond_middle) else set()

@@ -15,7 +15,7 @@ import numpy as np
 
 from saddlescope.core.errors import InputError, TriangulationError
 from saddlescope.core.sync import clip_frames_at
-from saddlescope.core.triangulation.lens_reach import undistort_within_reach
+from saddlescope.core.triangulation.lens_reach import reach_radius
 from saddlescope.core.triangulation.matching import match_markers_across_cameras
 from saddlescope.core.triangulation.nview import triangulate_nview
 from saddlescope.core.triangulation.pairs import triangulate_thesis_pairs
@@ -28,14 +28,21 @@ __all__ = ["ReachCheckedTracks", "resample_tracks", "triangulate_tracks"]
 class ReachCheckedTracks(MarkerTracks):
     """:class:`MarkerTracks` that also say where a sample's depth rests on an extrapolated lens.
 
-    ``lens_extrapolated`` (F, M) bool: triangulated from two cameras, one of which saw the marker
-    beyond its calibration board's reach (:func:`~saddlescope.core.triangulation.lens_reach.
-    undistort_within_reach`). Two views leave one redundant equation, blind along the epipolar line,
-    so nothing in the sample tells a guessed lens from a right one: on a band-calibrated
-    ``wide_partial`` canter such samples were 0.1-0.8 m off in depth with sub-pixel reprojection errors.
+    ``lens_extrapolation_px`` (F, M): for a sample triangulated from two cameras, how far (px of image
+    radius) the farthest of them saw the marker beyond its calibration board's reach (with the margin
+    of :func:`~saddlescope.core.triangulation.lens_reach.undistort_within_reach`); 0 for a sample that
+    three cameras fix, or two within their reach. Two views leave one redundant equation, blind along
+    the epipolar line, so nothing in the sample tells a guessed lens from a right one: on
+    band-calibrated ``wide_partial`` canters such samples were 0.1-0.8 m off in depth with sub-pixel
+    reprojection errors, the more the farther beyond the reach.
     """
 
-    lens_extrapolated: np.ndarray | None = None
+    lens_extrapolation_px: np.ndarray | None = None
+
+    @property
+    def lens_extrapolated(self) -> np.ndarray | None:
+        """(F, M) bool: the sample's depth rests on a lens model extrapolated beyond the board's reach."""
+        return None if self.lens_extrapolation_px is None else self.lens_extrapolation_px > 0
 
 
 def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cubic",
@@ -197,22 +204,32 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     if used is None or not reach:
         return MarkerTracks(names=tuple(names), t_s=ref_frames / fps, xyz_mm=X, reprojection_error_px=err,
                             views=views)
+    beyond_px = _two_view_extrapolation_px(rig, xy, used, views, reach)
     return ReachCheckedTracks(names=tuple(names), t_s=ref_frames / fps, xyz_mm=X, reprojection_error_px=err,
-                              views=views, lens_extrapolated=_two_views_one_extrapolated(rig, xy, used, views, reach))
+                              views=views, lens_extrapolation_px=beyond_px)
 
 
-def _two_views_one_extrapolated(rig: Rig, xy: Mapping[str, np.ndarray], used: np.ndarray, views: np.ndarray,
-                                reach_px: Mapping[str, float]) -> np.ndarray:
-    """(F, M) samples triangulated from two cameras, one of which saw the marker beyond its lens reach.
+def _two_view_extrapolation_px(rig: Rig, xy: Mapping[str, np.ndarray], used: np.ndarray, views: np.ndarray,
+                               reach_px: Mapping[str, float]) -> np.ndarray:
+    """(F, M) how far (px) beyond its lens reach the farthest camera of a two-camera sample saw the marker.
 
     ``used`` (C, F, M) the cameras used, in ``xy``'s order. A third camera checks the other two (its
-    ray crosses the epipolar line), so three-view samples are not marked.
+    ray crosses the epipolar line), so three-view samples get 0, as do samples within every reach.
     """
-    beyond = np.zeros(views.shape, dtype=bool)
+    beyond_px = np.zeros(views.shape)
     for i, cam in enumerate(xy):
-        if reach_px.get(cam) is not None:
-            beyond |= used[i] & undistort_within_reach(rig.cameras[cam], xy[cam], reach_px[cam])[1]
-    return beyond & (views == 2)
+        if reach_px.get(cam) is None:
+            continue
+        camera = rig.cameras[cam]
+        K = np.asarray(camera.K, dtype=np.float64)
+        f_px = float(np.sqrt(K[0, 0] * K[1, 1]))
+        rho_t = reach_radius(camera, reach_px[cam])[1]  # where undistort_within_reach's continuation starts
+        kinv = np.linalg.inv(K)
+        obs = np.asarray(xy[cam], dtype=np.float64) @ kinv[:2, :2].T + kinv[:2, 2]  # distorted normalised
+        with np.errstate(invalid="ignore"):
+            out_px = np.where(used[i], np.fmax(np.linalg.norm(obs, axis=-1) - rho_t, 0.0) * f_px, 0.0)
+        beyond_px = np.fmax(beyond_px, np.nan_to_num(out_px))
+    return np.where(views == 2, beyond_px, 0.0)
 
 
 _SET_BIAS_FRAMES = 5  # the offset of a camera set is the median over this many nearest shared frames
