@@ -553,7 +553,10 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     Parameters
     ----------
     motion_tracks : MarkerTracks
-        The three horse markers through the ride, ``xyz_mm`` of shape (F, 3, 3).
+        The three horse markers through the ride, ``xyz_mm`` of shape (F, 3, 3). A
+        :class:`~saddlescope.core.triangulation.ReachCheckedTracks` also says where their depth rests
+        on a guessed lens: those frames give the period but not the window or the fits, while a stride
+        remains (:func:`_run_off_guessed_lens`).
     static_tracks : MarkerTracks
         The standing horse's markers and the saddle marker, ``xyz_mm`` of shape (G, 4, 3).
     plumb_tracks : MarkerTracks or None

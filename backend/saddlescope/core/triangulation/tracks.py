@@ -183,6 +183,8 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     MarkerTracks
         ``xyz_mm`` (F, M, 3), ``reprojection_error_px`` (F, M), ``views`` (F, M), ``t_s`` (F,) with F
         the reference camera's tracked frames.
+        With "nview" and ``lens_reach_px``: :class:`ReachCheckedTracks`, which also say how far beyond
+        a camera's lens reach each two-camera sample was seen (its depth rests on a guessed lens there).
     """
     _, reference, M = _check_tracks(tracks, method, fps, reference)
     ref_frames = np.asarray(tracks[reference].frame_index, dtype=np.float64)
