@@ -330,8 +330,47 @@ def _planar_period(t: np.ndarray, xyz: np.ndarray, valid: np.ndarray, span: tupl
     return estimate_period(t[a:b], planar, f_range_hz=f_range)
 
 
+def _run_off_guessed_lens(t: np.ndarray, valid: np.ndarray, run: tuple[int, int], period_s: float,
+                          beyond_px: np.ndarray | None, flags: list[str]) -> tuple[int, int]:
+    """The run to analyse: the longest stretch whose depth does not rest on a guessed lens.
+
+    ``beyond_px`` (F,) how far beyond its calibration board's reach a camera of a two-camera sample saw
+    a marker (:class:`~saddlescope.core.triangulation.ReachCheckedTracks`; 0: three cameras or the
+    board's region fix every marker). Such samples were 0.1-0.8 m off in depth on band-calibrated
+    partial-view canters, smoothly but differently per marker, and the saddle point's W_b r.m.s. came
+    out two to four times the truth. The stretch without them is analysed; when it holds less than a
+    stride, it grows by the least extrapolated frames next to it until it holds one (the lens error
+    grows with the distance beyond the reach); when the run holds less than a stride, the run stays
+    and the user is told the result may be broken.
+    """
+    if beyond_px is None or not np.any(beyond_px[run[0]:run[1]] > 0):
+        return run
+    dt_s = float(np.median(np.diff(t[run[0]:run[1]])))
+    guessed = np.flatnonzero(beyond_px[run[0]:run[1]] > 0) + run[0]
+    what = (f"markers seen by two cameras only, one of them outside the region its calibration board covered, "
+            f"in {_count(guessed.size, 'frame')} from {t[guessed[0]]:.2f} s to {t[guessed[-1]]:.2f} s: their "
+            "depth rests on the lens model extrapolated there")
+    i0, i1 = (i + run[0] for i in _longest_run((valid & (beyond_px <= 0))[run[0]:run[1]]))
+    if i1 == i0:  # no sound frame: start from the least extrapolated
+        i0 = i1 = run[0] + int(np.argmin(beyond_px[run[0]:run[1]]))
+    need = int(np.ceil(period_s / dt_s - 1e-9))
+    while i1 - i0 < need:
+        before = beyond_px[i0 - 1] if i0 > run[0] else np.inf
+        after = beyond_px[i1] if i1 < run[1] else np.inf
+        if not np.isfinite(min(before, after)):
+            flags.append(f"{what}, and the run holds less than a stride without them: the saddle point's motion "
+                         "may be broken (move the board to the edges of every camera's view)")
+            return run
+        i0, i1 = (i0 - 1, i1) if before <= after else (i0, i1 + 1)
+    worst = float(np.max(beyond_px[i0:i1]))
+    flags.append(f"{what}; the analysis used the {(i1 - i0) * dt_s:.2f} s from {t[i0]:.2f} s to {t[i1 - 1]:.2f} s"
+                 + (f", at most {worst:.0f} px beyond the board's reach (a stride needs them)" if worst > 0 else
+                    " where three cameras or the board's region fix them"))
+    return i0, i1
+
+
 def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: str | None,
-                 flags: list[str] | None = None) -> _Span:
+                 flags: list[str] | None = None, beyond_px: np.ndarray | None = None) -> _Span:
     """The stride period, the analysed window and the span the fits see.
 
     The stride period and the analysed window within the longest stretch where every marker is
@@ -358,10 +397,13 @@ def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: s
         if (first, last + 1) == (run0, run1):
             raise
         period_s, period_info = _planar_period(t, xyz, valid, (first, last + 1), dt_s, f_range)
+    flags_ = flags if flags is not None else []
+    # the period from every tracked frame (the image-plane motion is periodic even where depth is
+    # guessed); the window and the fits only where depth is not
+    run0, run1 = _run_off_guessed_lens(t, valid, (run0, run1), period_s, beyond_px, flags_)
     n_periods = int(params.n_periods)
     whole = int(np.floor((run1 - run0) * dt_s / period_s + 1e-9))
     if 1 <= whole < n_periods:
-        flags_ = flags if flags is not None else []
         flags_.append(f"the markers were tracked together for {(run1 - run0) * dt_s:.2f} s, {_count(whole, 'stride')} "
                       f"of {period_s:.2f} s: the fits saw {_count(whole, 'stride')}, not {n_periods}, and the "
                       f"indicators are those of the fitted motion over {n_periods} strides")
@@ -511,7 +553,10 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     Parameters
     ----------
     motion_tracks : MarkerTracks
-        The three horse markers through the ride, ``xyz_mm`` of shape (F, 3, 3).
+        The three horse markers through the ride, ``xyz_mm`` of shape (F, 3, 3). A
+        :class:`~saddlescope.core.triangulation.ReachCheckedTracks` also says where their depth rests
+        on a guessed lens: those frames give the period but not the window or the fits, while a stride
+        remains (:func:`_run_off_guessed_lens`).
     static_tracks : MarkerTracks
         The standing horse's markers and the saddle marker, ``xyz_mm`` of shape (G, 4, 3).
     plumb_tracks : MarkerTracks or None
@@ -538,7 +583,9 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     flags: list[str] = []
     xyz, bridged_frames, long_gaps = _checked_tracks(
         t, np.asarray(motion_tracks.xyz_mm, dtype=np.float64), params, flags)
-    span = _stride_span(t, xyz, params, gait, flags)
+    beyond_px = getattr(motion_tracks, "lens_extrapolation_px", None)  # ReachCheckedTracks
+    span = _stride_span(t, xyz, params, gait, flags,
+                        beyond_px=None if beyond_px is None else np.max(beyond_px, axis=1))
     period_s, win, in_win = span.period_s, span.fit_slice, span.in_window
     t_w = t[win]
     smooth, ok_w = _smoothed(t_w, xyz[win], params, period_s, depth, flags)

@@ -29,7 +29,7 @@ from saddlescope.core.triangulation.matching import match_markers_across_cameras
 from saddlescope.core.triangulation.nview import triangulate_nview
 from saddlescope.core.triangulation.pairs import triangulate_thesis_pairs
 from saddlescope.core.triangulation.reprojection import reprojection_errors
-from saddlescope.core.triangulation.tracks import resample_tracks, triangulate_tracks
+from saddlescope.core.triangulation.tracks import ReachCheckedTracks, resample_tracks, triangulate_tracks
 from saddlescope.core.triangulation.uncertainty import position_uncertainty
 
 __all__ = [
@@ -41,6 +41,7 @@ __all__ = [
     "triangulate_nview",
     "triangulate_thesis_pairs",
     "match_markers_across_cameras",
+    "ReachCheckedTracks",
     "resample_tracks",
     "triangulate_tracks",
     "position_uncertainty",

@@ -9,17 +9,40 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from saddlescope.core.errors import InputError, TriangulationError
 from saddlescope.core.sync import clip_frames_at
+from saddlescope.core.triangulation.lens_reach import reach_radius
 from saddlescope.core.triangulation.matching import match_markers_across_cameras
 from saddlescope.core.triangulation.nview import triangulate_nview
 from saddlescope.core.triangulation.pairs import triangulate_thesis_pairs
 from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
 
-__all__ = ["resample_tracks", "triangulate_tracks"]
+__all__ = ["ReachCheckedTracks", "resample_tracks", "triangulate_tracks"]
+
+
+@dataclass(frozen=True)
+class ReachCheckedTracks(MarkerTracks):
+    """:class:`MarkerTracks` that also say where a sample's depth rests on an extrapolated lens.
+
+    ``lens_extrapolation_px`` (F, M): for a sample triangulated from two cameras, how far (px of image
+    radius) the farthest of them saw the marker beyond its calibration board's reach (with the margin
+    of :func:`~saddlescope.core.triangulation.lens_reach.undistort_within_reach`); 0 for a sample that
+    three cameras fix, or two within their reach. Two views leave one redundant equation, blind along
+    the epipolar line, so nothing in the sample tells a guessed lens from a right one: on
+    band-calibrated ``wide_partial`` canters such samples were 0.1-0.8 m off in depth with sub-pixel
+    reprojection errors, the more the farther beyond the reach.
+    """
+
+    lens_extrapolation_px: np.ndarray | None = None
+
+    @property
+    def lens_extrapolated(self) -> np.ndarray | None:
+        """(F, M) bool: the sample's depth rests on a lens model extrapolated beyond the board's reach."""
+        return None if self.lens_extrapolation_px is None else self.lens_extrapolation_px > 0
 
 
 def resample_tracks(tracks: ImageTracks, frames: np.ndarray, *, kind: str = "cubic",
@@ -160,24 +183,55 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     MarkerTracks
         ``xyz_mm`` (F, M, 3), ``reprojection_error_px`` (F, M), ``views`` (F, M), ``t_s`` (F,) with F
         the reference camera's tracked frames.
+        With "nview" and ``lens_reach_px``: :class:`ReachCheckedTracks`, which also say how far beyond
+        a camera's lens reach each two-camera sample was seen (its depth rests on a guessed lens there).
     """
     _, reference, M = _check_tracks(tracks, method, fps, reference)
     ref_frames = np.asarray(tracks[reference].frame_index, dtype=np.float64)
     xy = _on_reference_clock(tracks, offsets_frames, reference, ref_frames, fps, interpolation, clocks or {})
     if match_labels and M > 1:
         xy = _labels_of_reference(rig, xy, reference)
+    used = None
     if method == "nview" and camera_set_bias:
-        X, err, views = _nview_without_set_steps(rig, xy, **kwargs)
+        X, err, views, used = _nview_without_set_steps(rig, xy, **kwargs)
     elif method == "nview":
-        X, err, views = triangulate_nview(rig, xy, **kwargs)
+        X, err, views, used = triangulate_nview(rig, xy, return_used=True, **kwargs)
     else:
         X, err, views = triangulate_thesis_pairs(rig, xy, **kwargs)
     if names is None:
         names = tuple(str(i + 1) for i in range(M))
     elif len(names) != M:
         raise InputError(f"{len(names)} marker names given for {M} markers")
-    return MarkerTracks(names=tuple(names), t_s=ref_frames / fps, xyz_mm=X, reprojection_error_px=err,
-                        views=views)
+    reach = kwargs.get("lens_reach_px")
+    if used is None or not reach:
+        return MarkerTracks(names=tuple(names), t_s=ref_frames / fps, xyz_mm=X, reprojection_error_px=err,
+                            views=views)
+    beyond_px = _two_view_extrapolation_px(rig, xy, used, views, reach)
+    return ReachCheckedTracks(names=tuple(names), t_s=ref_frames / fps, xyz_mm=X, reprojection_error_px=err,
+                              views=views, lens_extrapolation_px=beyond_px)
+
+
+def _two_view_extrapolation_px(rig: Rig, xy: Mapping[str, np.ndarray], used: np.ndarray, views: np.ndarray,
+                               reach_px: Mapping[str, float]) -> np.ndarray:
+    """(F, M) how far (px) beyond its lens reach the farthest camera of a two-camera sample saw the marker.
+
+    ``used`` (C, F, M) the cameras used, in ``xy``'s order. A third camera checks the other two (its
+    ray crosses the epipolar line), so three-view samples get 0, as do samples within every reach.
+    """
+    beyond_px = np.zeros(views.shape)
+    for i, cam in enumerate(xy):
+        if reach_px.get(cam) is None:
+            continue
+        camera = rig.cameras[cam]
+        K = np.asarray(camera.K, dtype=np.float64)
+        f_px = float(np.sqrt(K[0, 0] * K[1, 1]))
+        rho_t = reach_radius(camera, reach_px[cam])[1]  # where undistort_within_reach's continuation starts
+        kinv = np.linalg.inv(K)
+        obs = np.asarray(xy[cam], dtype=np.float64) @ kinv[:2, :2].T + kinv[:2, 2]  # distorted normalised
+        with np.errstate(invalid="ignore"):
+            out_px = np.where(used[i], np.fmax(np.linalg.norm(obs, axis=-1) - rho_t, 0.0) * f_px, 0.0)
+        beyond_px = np.fmax(beyond_px, np.nan_to_num(out_px))
+    return np.where(views == 2, beyond_px, 0.0)
 
 
 _SET_BIAS_FRAMES = 5  # the offset of a camera set is the median over this many nearest shared frames
@@ -194,13 +248,13 @@ def _nview_without_set_steps(rig: Rig, xy: Mapping[str, np.ndarray], **kwargs):
     set's offset from the full solution, the median over the ``_SET_BIAS_FRAMES`` nearest frames
     that had both (the offset at the switch, so the step goes; its drift beyond stays).
 
-    Returns (xyz_mm (F, M, 3), reprojection_error_px (F, M), views (F, M)).
+    Returns (xyz_mm (F, M, 3), reprojection_error_px (F, M), views (F, M), cameras used (C, F, M)).
     """
     X, err, views, used = triangulate_nview(rig, xy, return_used=True, **kwargs)
     cams = list(xy)
     n_cams = len(cams)
     if n_cams < 3:
-        return X, err, views
+        return X, err, views, used
     full = views == n_cams  # (F, M)
     centres = np.stack([rig.cameras[c].center_mm for c in cams])
     depth_mm = float(np.nanmedian(np.linalg.norm(X[full] - centres.mean(axis=0), axis=-1))) if full.any() else np.nan
@@ -229,7 +283,7 @@ def _nview_without_set_steps(rig: Rig, xy: Mapping[str, np.ndarray], **kwargs):
             t_ok, d_ok = t_full[ok], diff[ok]
             for f in np.flatnonzero(this_set):
                 X[f, m] -= np.median(d_ok[np.argsort(np.abs(t_ok - f))[:_SET_BIAS_FRAMES]], axis=0)
-    return X, err, views
+    return X, err, views, used
 
 
 def _check_tracks(tracks: Mapping[str, ImageTracks], method: str, fps: float,
