@@ -52,6 +52,9 @@ def test_the_truth_is_taken_on_the_analysed_duration():
     assert t["vdv_y_wb"] == pytest.approx(5.0 * 2 ** 0.25)
     # T_VDV = τ (9.1 / VDV)^4 with VDV^4 growing as τ: the same for any whole number of periods
     assert t["t_vdv_action_wb_h"] == 0.01 and t["d_vdv_action_wb_km"] == 0.2
+    # a window of one stride on a partial view: the indicators still span params.n_periods strides
+    short = {"period_s": 0.5, "window": {"duration_s": 0.5}, "params": {"n_periods": 2}}
+    assert truth_indicators(short, truth)["vdv_y_wb"] == pytest.approx(5.0)
 
 
 def _row(name, value, truth, lo, hi, *, uncertain=None, speed=(14.0, 14.0)):

@@ -157,7 +157,8 @@ def test_interval_sources_reads_what_the_result_knows():
     parts = src["gain_parts"]
     assert parts["calibration_scale"] == pytest.approx(0.005)
     assert parts["depth_roll"] > 0  # depth 40 times worse than image position: roll unseen
-    assert parts["lens_extrapolated"] == pytest.approx(0.08)  # 40 % of one camera's detections outside, squared
+    # 40 % of one camera's detections outside, squared, times the floor (0.08: 1.3 %)
+    assert parts["lens_extrapolated"] == pytest.approx(0.08 * 0.4 ** 2)
     assert src["gain"] >= parts["lens_extrapolated"]
     # the fits' 95 % half-width 0.0004 m of each coefficient, times (kω)²
     omega = 2 * np.pi * F0_HZ
@@ -169,6 +170,10 @@ def test_interval_sources_reads_what_the_result_knows():
     assert interval_sources(result)["gain_parts"]["depth_roll"] > 0
     mocap = replace(result, rig=Rig(cameras={}))
     assert interval_sources(mocap)["gain_parts"]["depth_roll"] == 0.0
+    # a window of fewer strides than the indicators span: the stride frequency's floor is ten times wider
+    one_stride = replace(result, window=replace(result.window, duration_s=1 / F0_HZ))
+    assert interval_sources(one_stride, depth_anisotropy=2.0)["f0"] == pytest.approx(
+        np.hypot(_f0_fit_part(src), 0.005), rel=1e-6)
     # the share read from an older result's flag sentence when the number is absent
     old = _result(outside=None, flags=["the left camera saw the markers outside the region the calibration board "
                                        "covered in 31 % of its detections: its lens distortion is extrapolated"])
@@ -192,7 +197,8 @@ def test_a_lens_extrapolated_crossing_widens_the_speed_and_a_motion_that_is_not_
 
 
 def test_a_ride_with_much_of_its_crossing_beyond_the_board_is_too_uncertain():
-    result = _result(outside={"left": 0.4})
+    # the whole crossing where the lens is extrapolated: 8 % of gain (a third of it: under 1 %)
+    result = _result(outside={"left": 1.0})
     intervals = ride_intervals(result, sources=interval_sources(result, depth_anisotropy=2.0))
     reason = decision_uncertainty(result.indicators, intervals)
     assert reason is not None and "W_b r.m.s. is known only to" in reason
@@ -239,6 +245,11 @@ def _fit_y(order: int = 3, half_width_m: float = 0.0004) -> dict:
 
 def _fit_x(speed_m_s: float = 3.95) -> dict:
     return {"kind": "FourierFit", "trend": [speed_m_s], "ci95": {"trend": [[speed_m_s - 0.005, speed_m_s + 0.005]]}}
+
+
+def _f0_fit_part(src: dict) -> float:
+    """The fits' own part of the stride frequency's sigma (the floor taken out)."""
+    return float(np.sqrt(max(src["f0"] ** 2 - 0.0005 ** 2, 0.0)))
 
 
 def _result(*, square_error_pct: float = 0.2, outside: dict | None = None, flags: list | None = None) -> RideResult:

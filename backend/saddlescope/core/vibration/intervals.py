@@ -55,11 +55,19 @@ INTERVAL_KEYS: tuple[str, ...] = (
 FLOORS: dict[str, float] = {
     "depth_roll": 0.01,       # roll lost where the rig fixes depth this badly (params.depth_anisotropy)
     # times the squared share of detections where the lens is extrapolated: a few % just outside the
-    # board's region cost little, a third of the crossing (issue 27's wide-rig canter: +44 %) a lot
-    "outside_board": 0.5,
+    # board's region cost little, a third of the crossing a lot. Fitted (maximum likelihood) on the
+    # wide_partial canters of build seeds 1013-1016 and 0-11 (bands 0.6-1.0, shares 0.58-0.73) once
+    # samples whose depth rests on the extrapolated lens are left out of the analysis
+    # (core.saddle._run_off_guessed_lens): W_b r.m.s. errors r.m.s. 4.0 % (worst 9.8 %), 3.6 % of it
+    # the lens's. (Before that fix one canter in four broke, +200-400 %, and this was 0.5.)
+    "outside_board": 0.08,
     "omega_spread": 0.2,      # per (median spread of S's acceleration over the ω versions / its r.m.s.)
     "fit_inflation": 1.0,     # the markers' fit noise carried to S (lever arm, rotation)
     "f0": 0.0005,             # the stride period's own floor (the window's edges)
+    # the same where the fits saw fewer strides than the indicators span (a partial view analysed on one
+    # stride): the wide_partial build canters' stride frequency r.m.s. 0.48 % off (worst 1.2 %), where
+    # the fits' own ω interval said 0.1-0.2 %
+    "f0_short": 0.005,
     "speed": 0.002,           # the travel direction's tilt and the window's edges
     # the speed's, times the squared share of detections where the lens is extrapolated: the scale
     # there is the lens's, not the board's (wide_partial canters of seeds 1013-1016, shares 0.6-0.7:
@@ -171,6 +179,13 @@ def _speed_sigma(fits_x: list) -> float:
     return sig_trend if math.isfinite(sig_trend) else _relative_sigma(fits_x, "slope", slope)
 
 
+def _fewer_strides_fitted(result) -> bool:
+    """Whether the analysed window held fewer strides than the indicators span (``params.n_periods``)."""
+    n_periods = int((result.params or {}).get("n_periods") or 2)
+    period_s = float(result.period_s or 0.0)
+    return period_s > 0 and round(float(result.window.duration_s) / period_s) < n_periods
+
+
 def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
     """The noise model's standard deviations for one ride, from what its result knows.
 
@@ -221,7 +236,8 @@ def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
         "gain": float(np.sqrt(sum(v ** 2 for v in parts.values()))), "gain_parts": parts,
         "harmonic_m_s2": FLOORS["fit_inflation"] * _fit_harmonic_sigma(fits.get("y", []), amps.size, omega),
         "shape": shape, "peak": float(np.hypot(skin_peak, parts["not_periodic"])), "displacement": skin_disp,
-        "f0": float(np.hypot(f0_sig if math.isfinite(f0_sig) else 0.0, FLOORS["f0"])),
+        "f0": float(np.hypot(f0_sig if math.isfinite(f0_sig) else 0.0,
+                             FLOORS["f0_short"] if _fewer_strides_fitted(result) else FLOORS["f0"])),
         "speed": float(np.sqrt((speed_fit if math.isfinite(speed_fit) else 0.0) ** 2 + scale ** 2
                                + FLOORS["speed"] ** 2 + (FLOORS["speed_outside_board"] * outside ** 2) ** 2)),
         "depth_anisotropy": depth_anisotropy, "outside_board_share": outside,
