@@ -202,6 +202,15 @@ def test_a_ride_with_much_of_its_crossing_beyond_the_board_is_too_uncertain():
     intervals = ride_intervals(result, sources=interval_sources(result, depth_anisotropy=2.0))
     reason = decision_uncertainty(result.indicators, intervals)
     assert reason is not None and "W_b r.m.s. is known only to" in reason
+    # the verdict names the largest part, in a club's words
+    sources = interval_sources(result, depth_anisotropy=2.0)
+    named = decision_uncertainty(result.indicators, intervals, sources)
+    assert named.startswith(reason) and "where the calibration board never went" in named
+    walk = replace(result, gait="walk", quality={**result.quality, "markers_outside_board_fraction": {}})
+    walk_sources = interval_sources(walk, depth_anisotropy=2.0)
+    assert max(walk_sources["gain_parts"], key=walk_sources["gain_parts"].get) == "skin_motion"
+    verdict = decision_uncertainty(walk.indicators, ride_intervals(walk, sources=walk_sources), walk_sources)
+    assert verdict is not None and "sliding on the skin" in verdict
     good = _result(outside={"left": 0.02})
     assert decision_uncertainty(good.indicators, ride_intervals(
         good, sources=interval_sources(good, depth_anisotropy=2.0))) is None

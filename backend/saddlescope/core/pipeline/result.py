@@ -147,7 +147,7 @@ def with_intervals(result: RideResult) -> RideResult:
     """
     sources = interval_sources(result, depth_anisotropy=result.quality.get("depth_anisotropy"))
     intervals = ride_intervals(result, sources=sources)
-    reason = decision_uncertainty(result.indicators, intervals)
+    reason = decision_uncertainty(result.indicators, intervals, sources)
     quality = dict(result.quality)
     flags = [f for f in quality.get("flags", []) if not str(f).startswith(_TOO_UNCERTAIN)]
     if reason:
