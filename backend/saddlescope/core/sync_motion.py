@@ -49,6 +49,7 @@ MIN_OVERLAP_FRAMES = 12  # frames where both cameras' speeds are known, at the l
 MAX_GAP_FRAMES = 3  # gaps of a track bridged for its image speed
 HUBER_PX = 2.0  # residuals beyond this count linearly (a marker mistracked for a frame)
 AMBIGUOUS_COST_RATIO = 4.0  # a rival offset's cost within this factor of the best's: the offset is ambiguous
+MAX_RIVALS = 3  # combinations a stride or more from the best refined to see whether they stay apart
 
 
 @dataclass(frozen=True)
@@ -256,14 +257,18 @@ class _Consistency:
             out[c] = resample_tracks(src, wanted, frame_times_s=times)
         return out
 
-    def residuals(self, offsets: Mapping[str, float]) -> tuple[np.ndarray, int]:
-        """Reprojection residuals (px) of every marker seen by two cameras or more, and how many points."""
+    def residual_table(self, offsets: Mapping[str, float]) -> np.ndarray:
+        """Reprojection residual (px) of every camera's view of every reference (frame, marker), (C, F * M).
+
+        NaN where the camera did not see it or fewer than two cameras did (nothing to triangulate).
+        """
         xy = self.sampled(offsets)
         obs = np.stack([xy[c].reshape(-1, 2) for c in self.cams])  # (C, N, 2)
         seen = np.all(np.isfinite(obs), axis=2)  # (C, N)
         use = seen.sum(axis=0) >= 2
+        out = np.full(seen.shape, np.nan)
         if not use.any():
-            return np.empty(0), 0
+            return out
         obs, seen = obs[:, use], seen[:, use]
         P = np.stack([self.P[c] for c in self.cams])  # (C, 3, 4)
         # linear DLT: x P3 - P1 = 0, y P3 - P2 = 0 for every camera that saw the point
@@ -274,21 +279,29 @@ class _Consistency:
         _, _, vt = np.linalg.svd(np.transpose(A, (1, 0, 2)))
         X = vt[:, -1, :]  # (N, 4)
         X = X[:, :3] / X[:, 3:4]
-        res = []
         for i, c in enumerate(self.cams):
             xc = X @ self.P[c][:, :3].T + self.P[c][:, 3]
             proj = xc[:, :2] / xc[:, 2:3]
             r = np.linalg.norm(proj - obs[i], axis=1) * self.focal[c]
-            res.append(r[seen[i]])
-        return np.concatenate(res), int(use.sum())
+            out[i, np.flatnonzero(use)] = np.where(seen[i], r, np.nan)
+        return out
+
+    def residuals(self, offsets: Mapping[str, float]) -> tuple[np.ndarray, int]:
+        """Reprojection residuals (px) of every marker seen by two cameras or more, and how many points."""
+        table = self.residual_table(offsets)
+        return table[np.isfinite(table)], int(np.any(np.isfinite(table), axis=0).sum())
 
     def cost(self, offsets: Mapping[str, float]) -> tuple[float, int, int]:
         """Sum of Huber losses (px^2), residuals and points."""
         r, n_points = self.residuals(offsets)
         if r.size == 0:
             return np.inf, 0, 0
-        loss = np.where(r <= HUBER_PX, 0.5 * r * r, HUBER_PX * (r - 0.5 * HUBER_PX))
-        return float(loss.sum()), int(r.size), n_points
+        return float(_huber(r).sum()), int(r.size), n_points
+
+
+def _huber(r_px: np.ndarray) -> np.ndarray:
+    """Huber loss of residual norms (px^2): 1/2 r^2 within HUBER_PX, linear beyond."""
+    return np.where(r_px <= HUBER_PX, 0.5 * r_px * r_px, HUBER_PX * (r_px - 0.5 * HUBER_PX))
 
 
 def _match_labels(cons: _Consistency, offsets: Mapping[str, float], n_instants: int = 12) -> None:
@@ -407,21 +420,25 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
                        options={"xtol": 1e-3, "ftol": 1e-9})
         return np.asarray(fit.x, dtype=np.float64), float(fit.fun)
 
-    # the best combination a stride or more away, refined too: if it is nearly as consistent, the
-    # cameras cannot tell the strides apart (two cameras see only the epipolar constraint)
-    rival = next((t for _, t in scored[1:] if max(abs(t[c] - start[c]) for c in others) > 1.5), None)
-    if rival is not None:
-        rival_x, rival_cost = polish(rival)
     x, best_cost = polish(start)
-    if rival is not None and rival_cost < AMBIGUOUS_COST_RATIO * best_cost:
+    # the best combinations a stride or more away, refined too: if one stays away and is nearly as
+    # consistent, the cameras cannot tell the strides apart (two cameras see only the epipolar
+    # constraint); one that comes back to the best's minimum is the same answer, not a rival
+    rival_x, rival_cost = None, np.inf
+    far_starts = [t for _, t in scored[1:] if max(abs(t[c] - start[c]) for c in others) > 1.5]
+    for trial in far_starts[:MAX_RIVALS]:
+        tx, tc = polish(trial)
+        if np.max(np.abs(tx - x)) > 1.0 and tc < rival_cost:
+            rival_x, rival_cost = tx, tc
+    _match_labels(cons, dict(zip(others, x, strict=True)))
+    if rival_x is not None and rival_cost < AMBIGUOUS_COST_RATIO * best_cost:
         far = ", ".join(f"{c} {x[i]:+.1f} or {rival_x[i]:+.1f}" for i, c in enumerate(others))
         raise SyncError(f"no sync flash, and the markers' motion fits the {clip} clip's cameras about as well at "
                         f"other offsets ({far} frames): the {len(cons.cams)} cameras cannot tell them apart (a "
                         "stride apart with two cameras, or markers that do not move alike in every camera); "
                         "film a flash, or give the offsets in ride.json")
     offsets = {reference: 0.0, **dict(zip(others, map(float, x), strict=True))}
-    s_min, n_res, n_points = cons.cost(offsets)
-    sigma = _curvature_sigma(cons, others, x, s_min, n_res, n_points)
+    sigma = _offset_sigma(cons, others, x)
     r, _ = cons.residuals(offsets)
     bad = [c for c in others if not np.isfinite(sigma[c]) or sigma[c] > 0.5]
     if bad:
@@ -433,27 +450,38 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
                       int(len(cons.ref_frames)), {c: list(v) for c, v in candidates.items()})
 
 
-def _curvature_sigma(cons: _Consistency, others: list[str], x: np.ndarray, s_min: float, n_res: int,
-                     n_points: int, h: float = 0.2) -> dict[str, float]:
-    """One standard deviation of each offset from the cost's Hessian (module docstring)."""
-    def s_at(v: np.ndarray) -> float:
-        return cons.cost(dict(zip(others, v, strict=True)))[0]
+def _offset_sigma(cons: _Consistency, others: list[str], x: np.ndarray, h: float = 0.2) -> dict[str, float]:
+    """One standard deviation of each offset, sqrt(diag(sum r^2 H^-1)) (module docstring); inf where H is not positive.
 
+    H is the cost's Hessian by central differences of step ``h`` frames, on the residuals present at
+    every step (a marker entering the view between two steps is no change of the cost).
+    """
     p = len(others)
-    H = np.zeros((p, p))
     e = np.eye(p) * h
+    steps = [np.zeros(p)] + [s * e[i] for i in range(p) for s in (1, -1)]
+    steps += [si * e[i] + sj * e[j] for i in range(p) for j in range(i + 1, p) for si in (1, -1) for sj in (1, -1)]
+    tables = [cons.residual_table(dict(zip(others, x + d, strict=True))) for d in steps]
+    common = np.all(np.isfinite(np.stack(tables)), axis=0)
+    if not common.any():
+        return {c: float("inf") for c in others}
+    loss = {tuple(np.round(d / h).astype(int)): float(_huber(t[common]).sum())
+            for d, t in zip(steps, tables, strict=True)}
+
+    def at(*moves: tuple[int, int]) -> float:
+        key = np.zeros(p, dtype=int)
+        for i, sign in moves:
+            key[i] += sign
+        return loss[tuple(key)]
+
+    H = np.zeros((p, p))
     for i in range(p):
-        for j in range(i, p):
-            if i == j:
-                H[i, i] = (s_at(x + e[i]) - 2 * s_min + s_at(x - e[i])) / h**2
-            else:
-                H[i, j] = H[j, i] = (s_at(x + e[i] + e[j]) - s_at(x + e[i] - e[j]) - s_at(x - e[i] + e[j])
-                                     + s_at(x - e[i] - e[j])) / (4 * h * h)
-    dof = max(n_res - 3 * n_points - p, 1)
-    var_res = 2.0 * s_min / dof
-    try:
-        cov = var_res * np.linalg.inv(H)
-        diag = np.diag(cov)
-    except np.linalg.LinAlgError:
-        diag = np.full(p, np.inf)
+        H[i, i] = (at((i, 1)) - 2 * at() + at((i, -1))) / h**2
+        for j in range(i + 1, p):
+            H[i, j] = H[j, i] = (at((i, 1), (j, 1)) - at((i, 1), (j, -1)) - at((i, -1), (j, 1))
+                                 + at((i, -1), (j, -1))) / (4 * h * h)
+    if np.any(np.linalg.eigvalsh(H) <= 0):
+        return {c: float("inf") for c in others}
+    # every residual's error taken as shared over the crossing (calibration and tracking biases persist):
+    # sum r^2 rather than sum r^2 / dof, which the arena's rides show far too small (module docstring)
+    diag = np.diag(np.sum(tables[0][common] ** 2) * np.linalg.inv(H))
     return {c: float(np.sqrt(d)) if d > 0 else float("inf") for c, d in zip(others, diag, strict=True)}
