@@ -18,12 +18,19 @@ k + o_c; for a variable-rate clip o_c counts nominal frames from clip frame 0):
    are ranked by that cost, and the best is refined to a fraction of a frame by minimising it.
 
 Uncertainty: the cost S(o) = sum of Huber losses of the reprojection residuals (px) is near-
-quadratic at its minimum, S ~ S_min + 1/2 d^T H d; with residual variance sigma^2 = 2 S_min / (n - p)
-(n residuals, p = 3 per triangulated point + the offsets) the offsets' covariance is sigma^2 H^-1
-(Gauss-Newton). Residuals correlated over frames make it a lower bound. Without a rig (the
-calibration clip, whose board is held still while it is photographed, so whole frames suffice) the
-offsets come from the speed correlation alone, its peak placed between frames by a parabola; their
-uncertainty is the peak's curvature and at least a whole frame's rounding, 1/sqrt(12) frame.
+quadratic at its minimum, S ~ S_min + 1/2 d^T H d (H by central differences on the residuals present
+at every step). The offsets' covariance is (sum r^2) H^-1: every residual's error taken as shared
+over the crossing (the calibration's and the tracking's errors persist for many frames), an upper
+bound (about 5-10 times the errors on the arena's rides); errors independent from one block of
+frames to the next would give far less than the errors found (0.03 and 0.07 frame against 0.10 and
+0.20 on a walk of the wide rig, blocks of 0.5 s). On the wide rig the cameras' centres and the track lie nearly in one
+plane: the horse's horizontal motion then stays in the cameras' epipolar planes and, while its
+velocity keeps its direction, shifts of the three clocks in one combination (the middle camera's
+at about the mean of the outer two's) leave every ray meeting; only the markers' vertical motion
+fixes it, little at a walk, and such a ride's offsets are refused rather than guessed. Without a rig
+(the calibration clip, whose board is held still while it is photographed, so whole frames suffice)
+the offsets come from the speed correlation alone, its peak placed between frames by a parabola;
+their uncertainty is the peak's curvature and at least a whole frame's rounding, 1/sqrt(12) frame.
 """
 
 from __future__ import annotations
@@ -444,8 +451,9 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
     if bad:
         raise SyncError(f"no sync flash, and the markers' motion does not fix the {clip} clip's offset of the "
                         f"{' and '.join(bad)} camera(s) to half a frame (uncertainty "
-                        f"{', '.join(f'{sigma[c]:.2f}' for c in bad)} frames): the markers move too little or "
-                        "too evenly; film a flash, or give the offsets in ride.json")
+                        f"{', '.join(f'{sigma[c]:.2f}' for c in bad)} frames): the markers move too little, too "
+                        "evenly, or (cameras at the markers' height) too little up and down; film a flash, or "
+                        "give the offsets in ride.json")
     return MotionSync(offsets, {reference: 0.0, **sigma}, float(np.sqrt(np.mean(r * r))),
                       int(len(cons.ref_frames)), {c: list(v) for c, v in candidates.items()})
 
