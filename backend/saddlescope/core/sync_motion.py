@@ -57,7 +57,7 @@ MAX_GAP_FRAMES = 3  # gaps of a track bridged for its image speed
 HUBER_PX = 2.0  # residuals beyond this count linearly (a marker mistracked for a frame)
 AMBIGUOUS_COST_RATIO = 4.0  # a rival offset's cost within this factor of the best's: the offset is ambiguous
 SMOOTH_FRAMES = 1.0  # Gaussian smoothing of every track before resampling, frames (see _smoothed)
-MAX_RIVALS = 3  # combinations a stride or more from the best refined to see whether they stay apart
+MAX_RIVALS = 4  # combinations a stride or more from the best whole-frame one also refined
 
 
 @dataclass(frozen=True)
@@ -234,11 +234,11 @@ class _Consistency:
     """Triangulation consistency of the cameras' tracks at trial offsets (module docstring, step 2)."""
 
     def __init__(self, rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: float,
-                 clocks: Mapping[str, tuple[np.ndarray, float]]):
+                 clocks: Mapping[str, tuple[np.ndarray, float]], smooth_frames: float = SMOOTH_FRAMES):
         self.cams = list(tracks)
         self.reference, self.fps, self.clocks = reference, fps, clocks
         self.ref_frames = np.asarray(tracks[reference].frame_index, dtype=np.float64)
-        self.tracks_px = {c: _smoothed(tr) for c, tr in tracks.items()}
+        self.tracks_px = {c: _smoothed(tr, smooth_frames) for c, tr in tracks.items()}
         self.focal = {c: float(np.mean(np.diag(rig.cameras[c].K)[:2])) for c in self.cams}
         self.P = {c: np.hstack([rig.cameras[c].R, np.reshape(rig.cameras[c].t_mm, (3, 1))]) for c in self.cams}
         self.rig = rig
@@ -246,7 +246,7 @@ class _Consistency:
 
     def set_labels(self, perms: Mapping[str, np.ndarray]) -> None:
         """Reorder each camera's markers to the reference's labels; tracks in ideal normalised coordinates."""
-        self.norm = {}
+        self.norm, self.perms = {}, dict(perms)
         for c in self.cams:
             tr = self.tracks_px[c]
             xy = np.asarray(tr.xy_px, dtype=np.float64)[:, perms[c]]
@@ -454,16 +454,15 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
                        options={"xtol": 1e-3, "ftol": 1e-9})
         return np.asarray(fit.x, dtype=np.float64), float(fit.fun)
 
-    x, best_cost = polish(start)
-    # the best combinations a stride or more away, refined too: if one stays away and is nearly as
-    # consistent, the cameras cannot tell the strides apart (two cameras see only the epipolar
-    # constraint); one that comes back to the best's minimum is the same answer, not a rival
-    rival_x, rival_cost = None, np.inf
-    far_starts = [t for _, t in scored[1:] if max(abs(t[c] - start[c]) for c in others) > 1.5]
-    for trial in far_starts[:MAX_RIVALS]:
-        tx, tc = polish(trial)
-        if np.max(np.abs(tx - x)) > 1.0 and tc < rival_cost:
-            rival_x, rival_cost = tx, tc
+    # the best combinations a stride or more apart refined too, the most consistent kept: a camera that sees
+    # the markers with only one other at some offset meets just the epipolar constraint there, which the
+    # wide rig's horizontal motion nearly always does, so an offset a stride off can rank first in whole
+    # frames; if a refined rival stays away and is nearly as consistent, the cameras cannot tell the
+    # strides apart; one that comes back to within a frame of the best is the same answer, not a rival
+    starts = [start] + [t for _, t in scored[1:] if max(abs(t[c] - start[c]) for c in others) > 1.5][:MAX_RIVALS]
+    refined = sorted((polish(t) for t in starts), key=lambda item: item[1])
+    x, best_cost = refined[0]
+    rival_x, rival_cost = next(((tx, tc) for tx, tc in refined[1:] if np.max(np.abs(tx - x)) > 1.0), (None, np.inf))
     _match_labels(cons, dict(zip(others, x, strict=True)))
     if rival_x is not None and rival_cost < AMBIGUOUS_COST_RATIO * best_cost:
         far = ", ".join(f"{c} {x[i]:+.1f} or {rival_x[i]:+.1f}" for i, c in enumerate(others))
@@ -473,7 +472,9 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
                         "film a flash, or give the offsets in ride.json")
     x = _newton(cons, others, x)
     offsets = {reference: 0.0, **dict(zip(others, map(float, x), strict=True))}
-    sigma = _offset_sigma(cons, others, x)
+    less = _Consistency(rig, tracks, reference, fps, clocks, smooth_frames=0.5 * SMOOTH_FRAMES)
+    less.set_labels(cons.perms)
+    sigma = _offset_sigma(cons, others, x, _newton(less, others, x), lag_frames=max(1, int(round(0.25 * fps))))
     r, _ = cons.residuals(offsets)
     bad = [c for c in others if not np.isfinite(sigma[c]) or sigma[c] > 0.5]
     if bad:
@@ -487,35 +488,38 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
 
 
 def _local_quadratic(cons: _Consistency, others: list[str], x: np.ndarray,
-                     h: float = 0.2) -> tuple[np.ndarray, np.ndarray, float]:
-    """The cost's gradient and Hessian at offsets ``x`` by central differences of step ``h`` frames, and sum r^2.
+                     h: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
+    """The cost's gradient per reference frame (F, p) and Hessian (p, p) at offsets ``x``, by central differences.
 
-    Only the residuals present at every step count: a marker entering the view between two steps is
-    no change of the cost (the cost per residual that the whole-frame search uses jumps there).
+    Steps of ``h`` frames; only the residuals present at every step count: a marker entering the view
+    between two steps is no change of the cost (the cost per residual of the whole-frame search jumps there).
     """
     p = len(others)
     e = np.eye(p) * h
     steps = [np.zeros(p)] + [s * e[i] for i in range(p) for s in (1, -1)]
     steps += [si * e[i] + sj * e[j] for i in range(p) for j in range(i + 1, p) for si in (1, -1) for sj in (1, -1)]
     tables = [cons.residual_table(dict(zip(others, x + d, strict=True))) for d in steps]
-    common = np.all(np.isfinite(np.stack(tables)), axis=0)
-    loss = {tuple(np.round(d / h).astype(int)): float(_huber(t[common]).sum())
-            for d, t in zip(steps, tables, strict=True)}
+    common = np.all(np.isfinite(np.stack(tables)), axis=0)  # (C, F * M)
+    n_frames = len(cons.ref_frames)
+    frame = np.arange(common.shape[1]) // max(common.shape[1] // max(n_frames, 1), 1)
+    loss = {tuple(np.round(d / h).astype(int)): np.bincount(
+        frame, weights=np.where(common, _huber(np.nan_to_num(t)), 0.0).sum(axis=0), minlength=n_frames)
+        for d, t in zip(steps, tables, strict=True)}
 
-    def at(*moves: tuple[int, int]) -> float:
+    def at(*moves: tuple[int, int]) -> np.ndarray:
         key = np.zeros(p, dtype=int)
         for i, sign in moves:
             key[i] += sign
         return loss[tuple(key)]
 
-    grad, H = np.zeros(p), np.zeros((p, p))
+    grad, H = np.zeros((n_frames, p)), np.zeros((p, p))
     for i in range(p):
-        grad[i] = (at((i, 1)) - at((i, -1))) / (2 * h)
-        H[i, i] = (at((i, 1)) - 2 * at() + at((i, -1))) / h**2
+        grad[:, i] = (at((i, 1)) - at((i, -1))) / (2 * h)
+        H[i, i] = float(np.sum(at((i, 1)) - 2 * at() + at((i, -1)))) / h**2
         for j in range(i + 1, p):
-            H[i, j] = H[j, i] = (at((i, 1), (j, 1)) - at((i, 1), (j, -1)) - at((i, -1), (j, 1))
-                                 + at((i, -1), (j, -1))) / (4 * h * h)
-    return grad, H, float(np.sum(tables[0][common] ** 2))
+            H[i, j] = H[j, i] = float(np.sum(at((i, 1), (j, 1)) - at((i, 1), (j, -1)) - at((i, -1), (j, 1))
+                                             + at((i, -1), (j, -1)))) / (4 * h * h)
+    return grad, H
 
 
 def _newton(cons: _Consistency, others: list[str], x: np.ndarray, max_steps: int = 8) -> np.ndarray:
@@ -526,10 +530,10 @@ def _newton(cons: _Consistency, others: list[str], x: np.ndarray, max_steps: int
     exact tracks they stopped a quarter of a frame from the minimum.
     """
     for _ in range(max_steps):
-        grad, H, _ = _local_quadratic(cons, others, x)
+        grad, H = _local_quadratic(cons, others, x)
         if np.any(np.linalg.eigvalsh(H) <= 0):
             break
-        step = -np.linalg.solve(H, grad)
+        step = -np.linalg.solve(H, grad.sum(axis=0))
         step *= min(1.0, 1.0 / max(float(np.max(np.abs(step))), 1e-12))
         x = x + step
         if np.max(np.abs(step)) < 1e-3:
@@ -537,12 +541,24 @@ def _newton(cons: _Consistency, others: list[str], x: np.ndarray, max_steps: int
     return x
 
 
-def _offset_sigma(cons: _Consistency, others: list[str], x: np.ndarray) -> dict[str, float]:
-    """One standard deviation of each offset, sqrt(diag(sum r^2 H^-1)) (module docstring); inf if H is not positive."""
-    _, H, sum_r2 = _local_quadratic(cons, others, x)
-    if sum_r2 == 0 or np.any(np.linalg.eigvalsh(H) <= 0):
+def _offset_sigma(cons: _Consistency, others: list[str], x: np.ndarray, x_less_smoothed: np.ndarray,
+                  lag_frames: int) -> dict[str, float]:
+    """One standard deviation of each offset (module docstring); inf where the cost's Hessian is not positive.
+
+    The tracking noise's share H^-1 V H^-1, V the long-run covariance of the cost's gradient over the
+    reference's frames (Bartlett weights to ``lag_frames``: smoothed tracks' errors are correlated over
+    a few frames); and the method's: the smoothing's own pull on the offsets, which grows as its width
+    squared, so 4/3 of how far they move with half the smoothing (``x_less_smoothed``).
+    """
+    grad, H = _local_quadratic(cons, others, x)
+    if grad.shape[0] < 2 or np.any(np.linalg.eigvalsh(H) <= 0):
         return {c: float("inf") for c in others}
-    # every residual's error taken as shared over the crossing (calibration and tracking biases persist):
-    # sum r^2 rather than sum r^2 / dof, which the arena's rides show far too small (module docstring)
-    diag = np.diag(sum_r2 * np.linalg.inv(H))
-    return {c: float(np.sqrt(d)) if d > 0 else float("inf") for c, d in zip(others, diag, strict=True)}
+    g = grad - grad.mean(axis=0)  # the gradient's sum is ~0 at the minimum
+    V = g.T @ g
+    for k in range(1, min(lag_frames, g.shape[0] - 1) + 1):
+        lagged = g[k:].T @ g[:-k]
+        V += (1.0 - k / (lag_frames + 1.0)) * (lagged + lagged.T)
+    H_inv = np.linalg.inv(H)
+    noise = np.diag(H_inv @ V @ H_inv)
+    method = (4.0 / 3.0 * (np.asarray(x) - np.asarray(x_less_smoothed))) ** 2
+    return {c: float(np.sqrt(v)) for c, v in zip(others, np.maximum(noise, 0.0) + method, strict=True)}
