@@ -308,12 +308,15 @@ class _Consistency:
         table = self.residual_table(offsets)
         return table[np.isfinite(table)], int(np.any(np.isfinite(table), axis=0).sum())
 
-    def cost(self, offsets: Mapping[str, float]) -> tuple[float, int, int]:
-        """Sum of Huber losses (px^2), residuals and points."""
-        r, n_points = self.residuals(offsets)
+    def cost(self, offsets: Mapping[str, float], *, all_cameras: bool = False) -> tuple[float, int, int]:
+        """Sum of Huber losses (px^2), residuals and points (``all_cameras``: of the points every camera saw)."""
+        table = self.residual_table(offsets)
+        if all_cameras:
+            table = table[:, np.all(np.isfinite(table), axis=0)]
+        r = table[np.isfinite(table)]
         if r.size == 0:
             return np.inf, 0, 0
-        return float(_huber(r).sum()), int(r.size), n_points
+        return float(_huber(r).sum()), int(r.size), int(np.any(np.isfinite(table), axis=0).sum())
 
 
 def _huber(r_px: np.ndarray) -> np.ndarray:
@@ -439,13 +442,19 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
     """Step 2 of the module docstring: the best whole-frame combination, refined, with its covariance."""
     cons = _Consistency(rig, tracks, reference, fps, clocks)
     others = list(candidates)
-    scored = []
-    for combo in itertools.product(*(candidates[c] for c in others)):
-        trial = dict(zip(others, map(float, combo), strict=True))
-        _match_labels(cons, trial, n_instants=4)  # enough to rank the combinations
-        s, n, _ = cons.cost(trial)
-        if n:
-            scored.append((s / n, trial))
+    # With three cameras or more, combinations are judged on the points every camera saw: a point seen by
+    # two meets only the epipolar constraint, which the wide rig's horizontal motion meets at nearly any
+    # offset, so a combination whose cameras hardly see the markers together would otherwise look best.
+    for all_cameras in ([True, False] if len(cons.cams) >= 3 else [False]):
+        scored = []
+        for combo in itertools.product(*(candidates[c] for c in others)):
+            trial = dict(zip(others, map(float, combo), strict=True))
+            _match_labels(cons, trial, n_instants=4)  # enough to rank the combinations
+            s, n, n_points = cons.cost(trial, all_cameras=all_cameras)
+            if n and n_points >= MIN_OVERLAP_FRAMES:
+                scored.append((s / n, trial))
+        if scored:
+            break
     if not scored:
         raise SyncError(f"no sync flash, and the {clip} clip's markers are never seen by two cameras at once "
                         "at any offset the motion suggests")
@@ -453,7 +462,7 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
     start = scored[0][1]
 
     def objective(v: np.ndarray) -> float:
-        s, n, _ = cons.cost(dict(zip(others, v, strict=True)))
+        s, n, _ = cons.cost(dict(zip(others, v, strict=True)), all_cameras=all_cameras)
         return s / max(n, 1)
 
     def polish(trial: Mapping[str, float]) -> tuple[np.ndarray, float]:
