@@ -488,6 +488,9 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
                         f"other offsets ({far} frames): the {len(cons.cams)} cameras cannot tell them apart (a "
                         "stride apart with two cameras, or markers that do not move alike in every camera); "
                         "film a flash, or give the offsets in ride.json")
+    if all_cameras:  # then refined on every point seen twice or more, from the chosen combination
+        all_cameras = False
+        x, _ = polish(dict(zip(others, x, strict=True)))
     x = _newton(cons, others, x)
     offsets = {reference: 0.0, **dict(zip(others, map(float, x), strict=True))}
     less = _Consistency(rig, tracks, reference, fps, clocks, smooth_frames=0.5 * SMOOTH_FRAMES)
