@@ -338,3 +338,22 @@ def test_a_wide_rig_walk_without_a_flash_is_synchronised_to_a_tenth_of_a_frame(t
         error = (found.offsets[cam] - found.offsets["left"]) - (true[cam] - true["left"])
         assert abs(error) < 0.1, (cam, found.offsets, true)
         assert found.sigma_frames[cam] < 0.1, found.sigma_frames
+
+
+def test_a_board_moved_by_equal_steps_is_placed_by_the_moves_directions():
+    """Held three frame periods and moved in one by steps of one size: its speed repeats every four
+    frames, so only the moves' directions (the same in cameras side by side) place the cameras."""
+    rng = np.random.default_rng(8)
+    angle = rng.uniform(0, 2 * np.pi, 60)
+    poses = 500 + np.cumsum(40.0 * np.stack([np.cos(angle), np.sin(angle)], axis=1), axis=0)
+    offsets = {"left": 0.0, "middle": 5.3, "right": -3.0}
+    tracks = {}
+    for i, (cam, o) in enumerate(offsets.items()):
+        t = (np.arange(200) - o) / FPS
+        period = 4 / FPS
+        j = np.clip(np.floor(t / period).astype(int), 0, 58)
+        moving = np.clip((t / period - j - 0.75) / 0.25, 0, 1)
+        xy = (1.0 + 0.2 * i) * (poses[j] + moving[:, None] * (poses[j + 1] - poses[j]))[:, None, :]
+        tracks[cam] = ImageTracks(cam, xy + rng.normal(0, 0.2, xy.shape), np.arange(200))
+    found = motion_offsets(tracks, FPS)
+    assert abs(found.offsets["middle"] - 5.3) < 0.5 and abs(found.offsets["right"] + 3.0) < 0.5, found.offsets

@@ -58,7 +58,8 @@ from saddlescope.core.triangulation import resample_tracks
 from saddlescope.core.triangulation.matching import match_markers_across_cameras
 from saddlescope.core.types import ImageTracks, Rig
 
-__all__ = ["MotionSync", "image_speed", "motion_offsets", "speed_correlation", "speed_offset_candidates"]
+__all__ = ["MotionSync", "board_velocity", "image_speed", "motion_offsets", "speed_correlation",
+           "speed_offset_candidates"]
 
 MIN_SPEED_PX = 1.0  # px/frame: markers moving less than this (90th percentile) give no motion to sync on
 MIN_OVERLAP_FRAMES = 12  # frames where both cameras' speeds are known, at the least
@@ -138,6 +139,23 @@ def image_speed(xy_px: np.ndarray) -> np.ndarray:
     seen = np.isfinite(step)
     with np.errstate(invalid="ignore"):
         return np.where(seen.any(axis=1), np.nansum(np.where(seen, step, 0.0), axis=1) / seen.sum(axis=1), np.nan)
+
+
+def board_velocity(xy_px: np.ndarray) -> np.ndarray:
+    """Signed image velocity of a board, px/frame, shape (F - 1, 2): the mean step of its corners seen in both frames.
+
+    The calibration clip's board is held still three frame periods and moved in one, so its image
+    speed repeats every four frames and the moves' sizes alone match the cameras' clocks poorly (a wide-
+    rig clip, seed 8, was placed 28 and 36 frames off). The moves' directions tell them apart: cameras
+    side by side and upright see a move to the right or down as one, whatever their distance and angle.
+    NaN where no corner was seen in both frames.
+    """
+    xy = np.asarray(xy_px, dtype=np.float64)
+    step = np.diff(xy, axis=0)  # (F-1, N, 2)
+    seen = np.all(np.isfinite(step), axis=2)
+    count = seen.sum(axis=1)[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, np.where(seen[..., None], step, 0.0).sum(axis=1) / count, np.nan)
 
 
 def _speed_changes(speed: np.ndarray, *, window: int) -> np.ndarray:
@@ -227,8 +245,14 @@ def speed_offset_candidates(speeds: Mapping[str, np.ndarray], *, reference: str,
             out[cam] = ([0], lags, np.full(len(lags), np.nan))
             continue
         # a short overlap correlates well by chance: at least half the shorter curve's known samples
-        overlap = max(MIN_OVERLAP_FRAMES, int(0.5 * min(np.isfinite(speeds[reference]).sum(), np.isfinite(s).sum())))
-        ncc = speed_correlation(speeds[reference], s, lags, min_overlap=overlap)
+        ref_curves, curves = np.asarray(speeds[reference]), np.asarray(s)
+        if curves.ndim == 1:
+            ref_curves, curves = ref_curves[:, None], curves[:, None]
+        known = min(np.isfinite(ref_curves[:, 0]).sum(), np.isfinite(curves[:, 0]).sum())
+        overlap = max(MIN_OVERLAP_FRAMES, int(0.5 * known))
+        # several curves per camera (a board's velocity across and down the image): their mean correlation
+        ncc = np.mean([speed_correlation(ref_curves[:, i], curves[:, i], lags, min_overlap=overlap)
+                       for i in range(curves.shape[1])], axis=0)
         if not np.any(np.isfinite(ncc)) or np.nanmax(ncc) < min_ncc:
             best = np.nanmax(ncc) if np.any(np.isfinite(ncc)) else float("nan")
             raise SyncError(f"no sync flash, and the markers' motion in the {cam} camera's {clip} clip matches "
@@ -415,7 +439,10 @@ def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | 
                             f"camera's markers moved {moving:.2f} px/frame (90th percentile; at least {MIN_SPEED_PX:g} "
                             f"over {MIN_OVERLAP_FRAMES} frames is needed); film a flash, or give the offsets "
                             "in ride.json")
-        speeds[c] = _speed_changes(raw, window=max(3, int(round(fps))))
+        if rig is None:  # a board: its signed velocity (board_velocity)
+            speeds[c] = board_velocity(_nominal_xy(tracks[c], int(fi.max()) + 1, fps, clocks.get(c)))
+        else:
+            speeds[c] = _speed_changes(raw, window=max(3, int(round(fps))))
     max_lag = max(1, int(round(max_offset_s * fps)))
     found = speed_offset_candidates(speeds, reference=reference, max_lag=max_lag, clip=clip)
     others = cams[1:]
@@ -428,7 +455,7 @@ def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | 
             # the peak's own spread (the correlation's drop per frame^2 against its 1 / sqrt(n) noise) and
             # the parabola's: between frames it is only a rough guess, so never better than a whole
             # frame's rounding (1 / sqrt(12))
-            n = max(np.isfinite(speeds[c]).sum(), 1)
+            n = max(np.isfinite(np.reshape(speeds[c], (len(speeds[c]), -1))[:, 0]).sum(), 1)
             sigma[c] = float(np.sqrt((1.0 / n) / curv + 1.0 / 12.0)) if curv > 0 else 0.5
         return MotionSync(offsets, sigma, None, int(len(speeds[reference])), candidates)
     missing = [c for c in cams if c not in rig.cameras]
