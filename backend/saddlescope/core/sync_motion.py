@@ -37,8 +37,9 @@ is H^-1 V H^-1, V the long-run covariance of g_k (Bartlett weights over a quarte
 smoothed errors are correlated over a few frames); to it is added the smoothing's own pull (it grows
 as the smoothing's width squared: 4/3 of the offsets' move with half the smoothing). An offset not
 fixed to half a frame is refused. Without a rig (the calibration clip, whose board is held still
-while it is photographed, so whole frames suffice) the offsets come from the speed correlation
-alone, its peak placed between frames by a parabola; their uncertainty is the peak's curvature and
+while it is photographed, so whole frames suffice) the offsets come from the correlation alone, of
+the board's signed velocity across and down the image (:func:`board_velocity`) rather than its
+speed, its peak placed between frames by a parabola; their uncertainty is the peak's curvature and
 at least a whole frame's rounding, 1/sqrt(12) frame.
 """
 
