@@ -68,6 +68,8 @@ MAX_GAP_FRAMES = 3  # gaps of a track bridged for its image speed
 HUBER_PX = 2.0  # residuals beyond this count linearly (a marker mistracked for a frame)
 AMBIGUOUS_COST_RATIO = 4.0  # a rival offset's cost within this factor of the best's: the offset is ambiguous
 SMOOTH_FRAMES = 1.0  # Gaussian smoothing of every track before resampling, frames (see _smoothed)
+MAX_CANDIDATES = 12  # correlation peaks kept per camera (with a rig: the combinations are ranked first)
+MAX_COMBINATIONS = 36  # whole-frame combinations triangulated, the best by pairwise speed correlation
 MAX_RIVALS = 4  # combinations a stride or more from the best whole-frame one also refined
 
 
@@ -445,7 +447,8 @@ def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | 
         else:
             speeds[c] = _speed_changes(raw, window=max(3, int(round(fps))))
     max_lag = max(1, int(round(max_offset_s * fps)))
-    found = speed_offset_candidates(speeds, reference=reference, max_lag=max_lag, clip=clip)
+    found = speed_offset_candidates(speeds, reference=reference, max_lag=max_lag, clip=clip,
+                                    max_candidates=MAX_CANDIDATES if rig is not None else 6)
     others = cams[1:]
     candidates = {c: found[c][0] for c in others}
     if rig is None:
@@ -462,11 +465,37 @@ def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | 
     missing = [c for c in cams if c not in rig.cameras]
     if missing:
         raise SyncError(f"{clip} clip: camera(s) {', '.join(missing)} are not in the calibration")
-    return _refine(rig, {c: tracks[c] for c in cams}, reference, fps, clocks, candidates, clip)
+    combos = _pairwise_ranked(candidates, speeds, max_lag)
+    return _refine(rig, {c: tracks[c] for c in cams}, reference, fps, clocks, candidates, combos, clip)
 
 
-def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: float,
-            clocks: Mapping, candidates: Mapping[str, list[int]], clip: str) -> MotionSync:
+def _pairwise_ranked(candidates: Mapping[str, list[int]], speeds: Mapping[str, np.ndarray],
+                     max_lag: int) -> list[tuple[int, ...]]:
+    """The candidates' whole-frame combinations, the ``MAX_COMBINATIONS`` whose speeds agree best pair by pair.
+
+    A walk's speed changes correlate weakly and a stride apart nearly as well: the true lag against the
+    reference was as far down as a camera's tenth peak. So each camera keeps more peaks, and a combination
+    is ranked by the sum of the correlations of every pair of cameras at the lags it implies (between two
+    cameras other than the reference, the difference of their offsets): fewer to triangulate.
+    """
+    others = list(candidates)
+    lags = np.arange(-2 * max_lag, 2 * max_lag + 1)
+    ref = next(c for c in speeds if c not in candidates)
+    pair = {}
+    for a, b in itertools.combinations([ref, *others], 2):
+        known = min(np.isfinite(speeds[a]).sum(), np.isfinite(speeds[b]).sum())
+        ncc = speed_correlation(speeds[a], speeds[b], lags, min_overlap=max(MIN_OVERLAP_FRAMES, int(0.5 * known)))
+        pair[a, b] = dict(zip(lags.tolist(), np.nan_to_num(ncc, nan=-1.0).tolist(), strict=True))
+    scored = []
+    for combo in itertools.product(*(candidates[c] for c in others)):
+        at = {ref: 0, **dict(zip(others, combo, strict=True))}
+        scored.append((-sum(pair[a, b].get(at[b] - at[a], -1.0) for a, b in pair), combo))
+    scored.sort()
+    return [combo for _, combo in scored[:MAX_COMBINATIONS]]
+
+
+def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: float, clocks: Mapping,
+            candidates: Mapping[str, list[int]], combos: list[tuple[int, ...]], clip: str) -> MotionSync:
     """Step 2 of the module docstring: the best whole-frame combination, refined, with its covariance."""
     cons = _Consistency(rig, tracks, reference, fps, clocks)
     others = list(candidates)
@@ -475,7 +504,7 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
     # offset, so a combination whose cameras hardly see the markers together would otherwise look best.
     for all_cameras in ([True, False] if len(cons.cams) >= 3 else [False]):
         scored = []
-        for combo in itertools.product(*(candidates[c] for c in others)):
+        for combo in combos:
             trial = dict(zip(others, map(float, combo), strict=True))
             _match_labels(cons, trial, n_instants=4)  # enough to rank the combinations
             s, n, n_points = cons.cost(trial, all_cameras=all_cameras)
@@ -504,12 +533,14 @@ def _refine(rig: Rig, tracks: Mapping[str, ImageTracks], reference: str, fps: fl
     # the markers with only one other at some offset meets just the epipolar constraint there, which the
     # wide rig's horizontal motion nearly always does, so an offset a stride off can rank first in whole
     # frames; if a refined rival stays away and is nearly as consistent, the cameras cannot tell the
-    # strides apart; one that comes back to within a frame of the best is the same answer, not a rival
+    # strides apart; one in the best's valley is the same answer, not a rival
     starts = [start] + [t for _, t in scored[1:] if max(abs(t[c] - start[c]) for c in others) > 1.5][:MAX_RIVALS]
     refined = sorted((polish(t) for t in starts), key=lambda item: item[1])
     x, best_cost = refined[0]
-    rival_x, rival_cost = next(((tx, tc) for tx, tc in refined[1:] if np.max(np.abs(tx - x)) > 1.0), (None, np.inf))
     _match_labels(cons, dict(zip(others, x, strict=True)))
+    # a rival the cost joins to the best without rising between them lies in the same valley
+    rival_x, rival_cost = next(((tx, tc) for tx, tc in refined[1:]
+                                if objective(0.5 * (x + tx)) > max(best_cost, tc)), (None, np.inf))
     if rival_x is not None and rival_cost < AMBIGUOUS_COST_RATIO * best_cost:
         far = ", ".join(f"{c} {x[i]:+.1f} or {rival_x[i]:+.1f}" for i, c in enumerate(others))
         raise SyncError(f"no sync flash, and the markers' motion fits the {clip} clip's cameras about as well at "
