@@ -10,15 +10,18 @@ k + o_c; for a variable-rate clip o_c counts nominal frames from clip frame 0):
    every candidate lag finds the offset to a frame, up to whole strides: a periodic gait repeats its
    speed every stride, so every correlation peak within ``keep_peak`` of the best is a candidate
    (a camera seeing only part of the crossing may peak higher a stride away than at its offset).
+   With a rig, ``MAX_CANDIDATES`` peaks per camera, and their combinations ranked by how well every
+   pair of cameras' speeds agree at the lags they imply (a walk's true lag can be a tenth peak).
 2. **Sub-frame, from triangulation consistency** (when a calibrated rig is given). Every camera's
    track is smoothed by the same Gaussian (``SMOOTH_FRAMES``); for offsets o it is sampled at the
    reference's frames shifted by o_c (cubic, as :func:`~saddlescope.core.triangulation.resample_tracks`),
    each marker is triangulated (linear DLT in ideal normalised coordinates) and reprojected. A wrong
    offset moves a marker along its path in one camera only, which no 3-D point explains; the
-   candidates' whole-frame combinations are ranked by that cost, the best and the best ones a stride
-   or more away are refined (Powell, within 1.5 frames), the most consistent is kept and finished by
-   Newton steps on the cost's local quadratic. A rival that stays a stride away at a cost within
-   ``AMBIGUOUS_COST_RATIO`` of the best's is refused as ambiguous.
+   best ``MAX_COMBINATIONS`` combinations are ranked by that cost (with three cameras or more, on the
+   points every camera saw: two views of the wide rig's horizontal motion agree at nearly any
+   offset), the best and the best ones a stride or more away are refined (Powell, within 1.5
+   frames), the most consistent is kept and finished by Newton steps on the cost's local quadratic. A rival that the cost does not join to the best
+   without a rise, at a cost within ``AMBIGUOUS_COST_RATIO`` of the best's, is refused as ambiguous.
 
 Why smooth: white tracking noise resampled between frames is averaged with its neighbours' and so
 smaller at half a frame than at a whole one, which pulls the offsets towards half frames wherever the
