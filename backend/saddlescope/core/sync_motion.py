@@ -20,8 +20,9 @@ k + o_c; for a variable-rate clip o_c counts nominal frames from clip frame 0):
    best ``MAX_COMBINATIONS`` combinations are ranked by that cost (with three cameras or more, on the
    points every camera saw: two views of the wide rig's horizontal motion agree at nearly any
    offset), the best and the best ones a stride or more away are refined (Powell, within 1.5
-   frames), the most consistent is kept and finished by Newton steps on the cost's local quadratic. A rival that the cost does not join to the best
-   without a rise, at a cost within ``AMBIGUOUS_COST_RATIO`` of the best's, is refused as ambiguous.
+   frames), the most consistent is kept and finished by Newton steps on the cost's local quadratic.
+   A rival that the cost does not join to the best without a rise, at a cost within
+   ``AMBIGUOUS_COST_RATIO`` of the best's, is refused as ambiguous.
 
 Why smooth: white tracking noise resampled between frames is averaged with its neighbours' and so
 smaller at half a frame than at a whole one, which pulls the offsets towards half frames wherever the
