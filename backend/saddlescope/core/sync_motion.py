@@ -33,12 +33,13 @@ one combination (the middle camera's at about the mean of the outer two's) leave
 only the markers' vertical motion fixes it. On a wide-rig walk's exact tracks with 0.09 px of white
 noise that pull was 0.3 frame unsmoothed, 0.05 with 1 frame of smoothing; the same smoothing in every
 camera delays every clock alike, but bends fast motion a little (0.01 frame on a 30 fps rising trot's
-exact tracks).
+exact tracks). Variable-rate clips are not smoothed: over their uneven instants it bent the motion more.
 
 Uncertainty: with g_k the cost's gradient from the reference's frame k and H its Hessian (central
 differences on the residuals present at every step), the tracking noise's covariance of the offsets
 is H^-1 V H^-1, V the long-run covariance of g_k (Bartlett weights over a quarter of a second: the
-smoothed errors are correlated over a few frames); to it is added the smoothing's own pull (it grows
+smoothed errors are correlated over a few frames), and never less than Gauss-Newton's with the
+residuals independent once per smoothing width; to it is added the smoothing's own pull (it grows
 as the smoothing's width squared: 4/3 of the offsets' move with half the smoothing). An offset not
 fixed to half a frame is refused. Without a rig (the calibration clip, whose board is held still
 while it is photographed, so whole frames suffice) the offsets come from the correlation alone, of
