@@ -32,8 +32,8 @@ _MIN_SQUARE_RATIO = 1.4  # of _square_checks: about 2 at a board's corner, at mo
 # at full resolution.
 COARSE_WIDTH_PX = 640
 _FINE_SPACING_PX = 8.0  # squares smaller than this in the shrunk frame: their saddles found again less shrunk
-# While the board last seen had squares of at least this in a frame shrunk further (to about half the coarse
-# width), a lost board is first looked for there: its saddles are still found (640x480 rides: squares of 4 px
+# While the board last seen had squares of at least this in a frame shrunk twice as far (to about half the
+# coarse width), a lost board is first looked for there: its saddles are still found (640x480 rides: squares of 4 px
 # found as well at half size, at a quarter of the cost); a board come back smaller is looked for less shrunk.
 _MIN_COARSE_SQUARE_PX = 2.0
 
@@ -165,11 +165,24 @@ class BoardTracker:
         Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_shrunk`), motion against
         the frame before (``prev``, None for the first frame) at full size.
         """
+        failed, self._failed = self._failed, []
+        base = _shrink_factor(gray.shape[1], self.coarse_width_px)
+        factor = _coarse_factor(gray.shape[1], self.coarse_width_px, self._last_spacing_px)
+        found, moving = self._search_shrunk(gray, prev, factor, failed)
+        if found is None and factor > base:
+            # squares smaller than when last seen (further away) may be lost in the further shrunk frame, and
+            # the noise's saddles there found instead (a region of noise looks as if moving)
+            self._failed = []
+            found, moving = self._search_shrunk(gray, prev, base, failed)
+        return found, moving
+
+    def _search_shrunk(self, gray: np.ndarray, prev: np.ndarray | None, factor: int,
+                       failed: list[tuple[int, int, int, int]]) -> tuple[_Track | None, bool]:
+        """:meth:`_search_near_saddles` with the saddle points first looked for on ``gray`` shrunk by ``factor``;
+        ``failed``: the boxes searched in vain in the frame before."""
         h, w = gray.shape
-        factor = _coarse_factor(w, self.coarse_width_px, self._last_spacing_px)
         small = _shrunk_by(gray, factor)
         moving = False
-        failed, self._failed = self._failed, []
         clusters, at = _saddle_clusters(small, len(self.ids)), factor
         if not clusters and factor > 1:
             # a far board's squares are a pixel or two in the shrunk frame: look again, shrunk less
@@ -281,12 +294,15 @@ def _shrink_factor(width_px: int, coarse_width_px: int) -> int:
 
 def _coarse_factor(width_px: int, coarse_width_px: int, last_spacing_px: float | None) -> int:
     """The whole factor a lost board's saddles are first looked for at: shrunk to about ``coarse_width_px``
-    wide, or further (to about half that) while the squares last seen stay ``_MIN_COARSE_SQUARE_PX``."""
+    wide, or twice as far while the squares last seen stay ``_MIN_COARSE_SQUARE_PX`` there.
+
+    Only twice as far or not at all: shrinking less further saves less than the searches repeated less shrunk
+    (when the further shrunk frame shows no board, as a moving one) cost.
+    """
     factor = _shrink_factor(width_px, coarse_width_px)
-    if last_spacing_px is None:
-        return factor
-    further = min(_shrink_factor(width_px, coarse_width_px // 2), int(last_spacing_px / _MIN_COARSE_SQUARE_PX))
-    return max(factor, further)
+    if last_spacing_px is not None and last_spacing_px / (2 * factor) >= _MIN_COARSE_SQUARE_PX:
+        return 2 * factor
+    return factor
 
 
 def _shrunk(gray: np.ndarray, coarse_width_px: int) -> tuple[np.ndarray, int]:
