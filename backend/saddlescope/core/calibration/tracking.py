@@ -162,8 +162,9 @@ class BoardTracker:
     def _search_near_saddles(self, gray: np.ndarray, prev: np.ndarray | None) -> tuple[_Track | None, bool]:
         """The board searched for where saddle points cluster; also whether such a region was moving.
 
-        Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_shrunk`), motion against
-        the frame before (``prev``, None for the first frame) at full size.
+        Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_coarse_factor`; where that
+        finds nothing, as :func:`_shrunk` shrinks it), motion against the frame before (``prev``, None for the
+        first frame) at full size.
         """
         failed, self._failed = self._failed, []
         base = _shrink_factor(gray.shape[1], self.coarse_width_px)
@@ -178,8 +179,10 @@ class BoardTracker:
 
     def _search_shrunk(self, gray: np.ndarray, prev: np.ndarray | None, factor: int,
                        failed: list[tuple[int, int, int, int]]) -> tuple[_Track | None, bool]:
-        """:meth:`_search_near_saddles` with the saddle points first looked for on ``gray`` shrunk by ``factor``;
-        ``failed``: the boxes searched in vain in the frame before."""
+        """:meth:`_search_near_saddles` with saddle points first looked for on ``gray`` shrunk by ``factor``.
+
+        ``failed``: the boxes searched in vain in the frame before.
+        """
         h, w = gray.shape
         small = _shrunk_by(gray, factor)
         moving = False
@@ -293,10 +296,10 @@ def _shrink_factor(width_px: int, coarse_width_px: int) -> int:
 
 
 def _coarse_factor(width_px: int, coarse_width_px: int, last_spacing_px: float | None) -> int:
-    """The whole factor a lost board's saddles are first looked for at: shrunk to about ``coarse_width_px``
-    wide, or twice as far while the squares last seen stay ``_MIN_COARSE_SQUARE_PX`` there.
+    """The whole factor a lost board's saddle points are first looked for at.
 
-    Only twice as far or not at all: shrinking less further saves less than the searches repeated less shrunk
+    Shrunk to about ``coarse_width_px`` wide, or twice as far while the squares last seen stay
+    ``_MIN_COARSE_SQUARE_PX`` there. Only twice as far or not at all: shrinking less further saves less than the searches repeated less shrunk
     (when the further shrunk frame shows no board, as a moving one) cost.
     """
     factor = _shrink_factor(width_px, coarse_width_px)
