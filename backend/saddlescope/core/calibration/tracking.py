@@ -299,8 +299,9 @@ def _coarse_factor(width_px: int, coarse_width_px: int, last_spacing_px: float |
     """The whole factor a lost board's saddle points are first looked for at.
 
     Shrunk to about ``coarse_width_px`` wide, or twice as far while the squares last seen stay
-    ``_MIN_COARSE_SQUARE_PX`` there. Only twice as far or not at all: shrinking less further saves less than the searches repeated less shrunk
-    (when the further shrunk frame shows no board, as a moving one) cost.
+    ``_MIN_COARSE_SQUARE_PX`` there. Only twice as far or not at all: shrinking less further saves less
+    than the searches repeated less shrunk (when the further shrunk frame shows no board, as a moving
+    one) cost.
     """
     factor = _shrink_factor(width_px, coarse_width_px)
     if last_spacing_px is not None and last_spacing_px / (2 * factor) >= _MIN_COARSE_SQUARE_PX:
