@@ -214,3 +214,41 @@ def test_the_coarse_search_finds_the_same_corners_as_a_full_size_search():
     print(f"coarse against full-size search: mean corner difference {np.mean(diff):.4f} px "
           f"(largest view {np.max(diff):.4f} px)")
     assert np.mean(diff) < 0.05
+
+
+# issue 28: a lost board's first saddle search on a frame shrunk further while the squares last seen allow
+def test_the_coarse_factor_follows_the_squares_last_seen():
+    assert tracking._coarse_factor(640, 640, None) == 1  # nothing seen yet: the usual coarse width
+    assert tracking._coarse_factor(640, 640, 4.3) == 2  # 640x480 ride: squares of 2 px at half size
+    assert tracking._coarse_factor(640, 640, 3.9) == 1  # under 2 px there: as before
+    assert tracking._coarse_factor(1920, 640, 12.0) == 6  # 1080p: twice as far while squares stay 2 px
+    assert tracking._coarse_factor(1920, 640, 8.4) == 3  # or not at all
+
+
+def _lost_and_back(t_back, monkeypatch):
+    """Views of a board seen, lost for four blank frames and back at ``t_back``; the shapes searched."""
+    rng = np.random.default_rng(21)
+    blank = np.clip(128 + rng.normal(0, 1.5, (480, 640)), 0, 255).astype(np.uint8)
+    rv_b = np.radians([-10.0, 25.0, -5.0])
+    frames = [(0, _frame(RVEC, T_FAR, rng)), (1, _frame(RVEC, T_FAR, rng))]
+    frames += [(k, blank.copy()) for k in range(2, 6)]
+    frames += [(k, _frame(rv_b, t_back, rng)) for k in range(6, 8)]
+    shapes = []
+    real = tracking._saddle_clusters
+    monkeypatch.setattr(tracking, "_saddle_clusters", lambda img, n: shapes.append(img.shape) or real(img, n))
+    views = {v.frame: v.corners_px for v in BoardTracker(BOARD, search_every=1000).views(frames)}
+    return views, shapes, _truth(rv_b, t_back)
+
+
+def test_a_board_back_at_its_size_is_found_on_the_half_size_frame(monkeypatch):
+    views, shapes, truth = _lost_and_back(np.array([100.0, -100.0, 7000.0]), monkeypatch)
+    assert sorted(views) == [0, 1, 6, 7]
+    assert (240, 320) in shapes  # squares of about 5 px when last seen: searched at half size
+    assert max(_rms(views[k], truth) for k in (6, 7)) < 0.2
+
+
+def test_a_board_back_smaller_is_found_less_shrunk(monkeypatch):
+    views, shapes, truth = _lost_and_back(np.array([300.0, -200.0, 11000.0]), monkeypatch)  # squares ~3 px
+    assert sorted(views) == [0, 1, 6, 7]
+    assert (240, 320) in shapes and (480, 640) in shapes  # tried at half size, found at full size
+    assert max(_rms(views[k], truth) for k in (6, 7)) < 0.25

@@ -32,6 +32,10 @@ _MIN_SQUARE_RATIO = 1.4  # of _square_checks: about 2 at a board's corner, at mo
 # at full resolution.
 COARSE_WIDTH_PX = 640
 _FINE_SPACING_PX = 8.0  # squares smaller than this in the shrunk frame: their saddles found again less shrunk
+# While the board last seen had squares of at least this in a frame shrunk twice as far (to about half the
+# coarse width), a lost board is first looked for there: its saddles are still found (640x480 rides: squares of 4 px
+# found as well at half size, at a quarter of the cost); a board come back smaller is looked for less shrunk.
+_MIN_COARSE_SQUARE_PX = 2.0
 
 
 @dataclass(frozen=True)
@@ -89,6 +93,7 @@ class BoardTracker:
                        "found_whole_frame": 0,
                        "skipped_moving": 0, "skipped_unchanged": 0, "whole_frame_searches": 0, "finer_searches": 0}
         self._failed: list[tuple[int, int, int, int]] = []  # boxes searched in vain in the frame before
+        self._last_spacing_px: float | None = None  # median square of the board when last seen
 
     def views(self, frames: Iterable[tuple[int, np.ndarray]]) -> Iterable[BoardView]:
         """Board views of ``(frame index, grey image of shape (H, W))`` pairs, in frame order (a generator)."""
@@ -127,6 +132,7 @@ class BoardTracker:
             prev = (int(index), gray.copy())
 
     def _state(self, gray: np.ndarray, corners: np.ndarray, scale: float) -> _Track:
+        self._last_spacing_px = float(np.median(_local_spacing_px(corners, self.board.inner_corners)))
         ratio, _ = _square_checks(gray, corners, self.board.inner_corners)
         return _Track(corners, float(scale), 1.0 if np.median(ratio) >= 0 else -1.0,
                       _homography_rms(self._obj, corners))
@@ -156,13 +162,30 @@ class BoardTracker:
     def _search_near_saddles(self, gray: np.ndarray, prev: np.ndarray | None) -> tuple[_Track | None, bool]:
         """The board searched for where saddle points cluster; also whether such a region was moving.
 
-        Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_shrunk`), motion against
-        the frame before (``prev``, None for the first frame) at full size.
+        Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_coarse_factor`; where that
+        finds nothing, as :func:`_shrunk` shrinks it), motion against the frame before (``prev``, None for the
+        first frame) at full size.
+        """
+        failed, self._failed = self._failed, []
+        base = _shrink_factor(gray.shape[1], self.coarse_width_px)
+        factor = _coarse_factor(gray.shape[1], self.coarse_width_px, self._last_spacing_px)
+        found, moving = self._search_shrunk(gray, prev, factor, failed)
+        if found is None and factor > base:
+            # squares smaller than when last seen (further away) may be lost in the further shrunk frame, and
+            # the noise's saddles there found instead (a region of noise looks as if moving)
+            self._failed = []
+            found, moving = self._search_shrunk(gray, prev, base, failed)
+        return found, moving
+
+    def _search_shrunk(self, gray: np.ndarray, prev: np.ndarray | None, factor: int,
+                       failed: list[tuple[int, int, int, int]]) -> tuple[_Track | None, bool]:
+        """:meth:`_search_near_saddles` with saddle points first looked for on ``gray`` shrunk by ``factor``.
+
+        ``failed``: the boxes searched in vain in the frame before.
         """
         h, w = gray.shape
-        small, factor = _shrunk(gray, self.coarse_width_px)
+        small = _shrunk_by(gray, factor)
         moving = False
-        failed, self._failed = self._failed, []
         clusters, at = _saddle_clusters(small, len(self.ids)), factor
         if not clusters and factor > 1:
             # a far board's squares are a pixel or two in the shrunk frame: look again, shrunk less
@@ -270,6 +293,20 @@ class BoardTracker:
 def _shrink_factor(width_px: int, coarse_width_px: int) -> int:
     """The whole factor that shrinks a frame ``width_px`` wide to about ``coarse_width_px`` (1: not at all)."""
     return max(1, int(round(width_px / coarse_width_px)))
+
+
+def _coarse_factor(width_px: int, coarse_width_px: int, last_spacing_px: float | None) -> int:
+    """The whole factor a lost board's saddle points are first looked for at.
+
+    Shrunk to about ``coarse_width_px`` wide, or twice as far while the squares last seen stay
+    ``_MIN_COARSE_SQUARE_PX`` there. Only twice as far or not at all: shrinking less further saves less
+    than the searches repeated less shrunk (when the further shrunk frame shows no board, as a moving
+    one) cost.
+    """
+    factor = _shrink_factor(width_px, coarse_width_px)
+    if last_spacing_px is not None and last_spacing_px / (2 * factor) >= _MIN_COARSE_SQUARE_PX:
+        return 2 * factor
+    return factor
 
 
 def _shrunk(gray: np.ndarray, coarse_width_px: int) -> tuple[np.ndarray, int]:
