@@ -432,8 +432,8 @@ def _band(value: float) -> int:
 
 # what each part of the common gain is, in a club's words (the largest one is named in the verdict)
 _GAIN_PART_WORDS = {
-    "skin_motion": "the markers sliding on the skin, which no camera can remove (at the walk it alone is "
-                   "±10 %: a walk is never known well enough to rank)",
+    "skin_motion": "the markers sliding on the skin, which no camera can remove (at the walk this alone is "
+                   "about ±10 %, against the walk's small motion)",
     "lens_extrapolated": "the markers being seen where the calibration board never went (carry the board to "
                          "the edges of every camera's view)",
     "omega_versions": "the saddle's rotation being poorly fixed by the three markers (spread them further apart)",
