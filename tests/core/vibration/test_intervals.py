@@ -183,8 +183,8 @@ def test_interval_sources_reads_what_the_result_knows():
 def test_a_lens_extrapolated_crossing_widens_the_speed_and_a_motion_that_is_not_periodic_the_gain_and_peaks():
     inside, outside = _result(outside={"left": 0.02}), _result(outside={"left": 0.7})
     s_in, s_out = (interval_sources(r, depth_anisotropy=2.0) for r in (inside, outside))
-    # the scale where the lens is extrapolated is the lens's: 0.01 x 0.7² on the speed
-    assert s_out["speed"] ** 2 - s_in["speed"] ** 2 == pytest.approx((0.01 * 0.49) ** 2 - (0.01 * 0.0004) ** 2)
+    # the scale where the lens is extrapolated is the lens's: 0.001 x 0.7² on the speed
+    assert s_out["speed"] ** 2 - s_in["speed"] ** 2 == pytest.approx((0.001 * 0.49) ** 2 - (0.001 * 0.0004) ** 2)
     assert s_in["gain_parts"]["not_periodic"] == 0.0
     # S's vertical acceleration 30 % off its harmonic series (r.m.s.): a reconstruction that broke
     amps = np.asarray(inside.vertical_harmonics.amplitudes_m_s2)
