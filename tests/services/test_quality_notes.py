@@ -127,3 +127,16 @@ def test_an_unknown_flag_still_gets_a_note_and_the_summary_names_the_worst():
     assert quality_summary({"flags": ["markers lost from 1.00 s to 1.10 s"]})[0] == "check"
     assert quality_summary(None)[0] == "ok"
     assert quality_summary({"flags": ["the markers kept the static shot's layout only to 30 mm"]})[0] == "problem"
+
+
+def test_the_guessed_depth_flags_built_from_a_variable_have_their_notes():
+    """core/saddle.py builds these two from one sentence held in a variable, which the source scan above
+    does not read: a partial view whose ends were left out (check) or could not be (problem)."""
+    what = ("markers seen by two cameras only, one of them outside the region its calibration board covered, in "
+            "51 frames from 1.14 s to 2.86 s: their depth rests on the lens model extrapolated there")
+    left_out = note_for(f"{what}; the analysis used the 0.72 s from 1.66 s to 2.36 s where three cameras or the "
+                        "board's region fix them")
+    broken = note_for(f"{what}, and the run holds less than a stride without them: the saddle point's motion may be "
+                      "broken (move the board to the edges of every camera's view)")
+    assert (left_out.code, left_out.severity) == ("calibration.guessed_depth", "check")
+    assert (broken.code, broken.severity) == ("calibration.guessed_depth_broken", "problem")
