@@ -52,7 +52,7 @@ _TABLE: tuple[tuple[str, str, Severity, str], ...] = (
     # two-camera samples whose depth rests on the lens extrapolated beyond the board (core/saddle.py): the
     # broken case first, both sentences start alike
     ("calibration.guessed_depth_broken", r".*the run holds less than a stride without them", "problem",
-     "Much of the crossing was seen where the board never went, so the numbers may be wrong; calibrate to the corners."),
+     "Much of the crossing was seen where the board never went, so the numbers may be wrong; calibrate again."),
     ("calibration.guessed_depth", r"markers seen by two cameras only, one of them outside the region", "check",
      "The crossing's ends, seen where the board never went, were left out; carry the board to every view's corners."),
     ("calibration.coverage", r"the .+ camera saw the markers outside the region the calibration board", "check",
