@@ -11,6 +11,7 @@ from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.projection import (
     _camera_from_vector,
     _distort_project,
+    _distorted,
     _intr_vector,
     _rotation_matrices,
 )
@@ -58,14 +59,9 @@ def _rotations_with_derivatives(rvecs: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def _projection_derivatives(xc: np.ndarray, intr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Derivatives of :func:`_distort_project`'s pixels (M, 2): w.r.t. the intrinsics (M, 2, 9), the point (M, 2, 3)."""
-    z = xc[:, 2]
-    x, y = xc[:, 0] / z, xc[:, 1] / z
+    x, y, r2, radial, xd, yd = _distorted(xc, intr)
     fx, fy, _, _, k1, k2, p1, p2, k3 = intr.T
-    r2 = x * x + y * y
-    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-    J = np.zeros((len(z), 2, 9))
+    J = np.zeros((len(x), 2, 9))
     J[:, 0, 0], J[:, 1, 1], J[:, 0, 2], J[:, 1, 3] = xd, yd, 1.0, 1.0
     for k, rk in ((4, r2), (5, r2 * r2), (8, r2 * r2 * r2)):
         J[:, 0, k], J[:, 1, k] = fx * x * rk, fy * y * rk
@@ -78,6 +74,7 @@ def _projection_derivatives(xc: np.ndarray, intr: np.ndarray) -> tuple[np.ndarra
     dyd_dy = radial + y * y * d_radial + 6 * p1 * y + 2 * p2 * x
     D = np.stack([np.stack([fx * dxd_dx, fx * dxd_dy], axis=1), np.stack([fy * dyd_dx, fy * dyd_dy], axis=1)],
                  axis=1)  # (M, 2, 2): pixels by normalised coordinates
+    z = xc[:, 2]
     P = np.zeros((len(z), 2, 3))
     P[:, 0, 0] = P[:, 1, 1] = 1 / z
     P[:, 0, 2], P[:, 1, 2] = -x / z, -y / z

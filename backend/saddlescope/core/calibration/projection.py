@@ -30,15 +30,25 @@ def _rotation_matrices(rvecs: np.ndarray) -> np.ndarray:
     return R
 
 
-def _distort_project(xc: np.ndarray, intr: np.ndarray) -> np.ndarray:
-    """Camera-frame points (M, 3) -> distorted px (M, 2); intr (M, 9) = fx fy cx cy k1 k2 p1 p2 k3."""
+def _distorted(xc: np.ndarray, intr: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The Brown-Conrady model on camera-frame points (M, 3); intr (M, 9) = fx fy cx cy k1 k2 p1 p2 k3.
+
+    Returns the ideal normalised x, y, r², the radial factor and the distorted normalised xd, yd (each (M,)).
+    """
     z = xc[:, 2]
     x, y = xc[:, 0] / z, xc[:, 1] / z
-    fx, fy, cx, cy, k1, k2, p1, p2, k3 = intr.T
+    _, _, _, _, k1, k2, p1, p2, k3 = intr.T
     r2 = x * x + y * y
     radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
     xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
     yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return x, y, r2, radial, xd, yd
+
+
+def _distort_project(xc: np.ndarray, intr: np.ndarray) -> np.ndarray:
+    """Camera-frame points (M, 3) -> distorted px (M, 2); intr (M, 9) = fx fy cx cy k1 k2 p1 p2 k3."""
+    *_, xd, yd = _distorted(xc, intr)
+    fx, fy, cx, cy = intr[:, :4].T
     return np.column_stack([fx * xd + cx, fy * yd + cy])
 
 
