@@ -185,11 +185,12 @@ def _hd_frame(rvec, t, rng):
 def test_a_shrunk_frame_maps_back_onto_the_frame():
     img = np.zeros((1080, 1921), np.uint8)  # a column that does not fill a block is dropped
     img[600:603, 900:903] = 255  # one 3x3 block of the shrunk frame
-    small, factor = tracking._shrunk(img, tracking.COARSE_WIDTH_PX)
+    factor = tracking._shrink_factor(img.shape[1], tracking.COARSE_WIDTH_PX)
+    small = tracking._shrunk_by(img, factor)
     assert factor == 3 and small.shape == (360, 640)
     y, x = np.unravel_index(np.argmax(small), small.shape)
     assert small[y, x] == 255 and np.allclose(tracking._unscale(np.array([x, y]), 1 / 3), [901, 601])
-    assert tracking._shrunk(img[:480, :640], tracking.COARSE_WIDTH_PX)[1] == 1  # 640x480: searched as it is
+    assert tracking._shrink_factor(640, tracking.COARSE_WIDTH_PX) == 1  # 640x480: searched as it is
     with pytest.raises(InputError, match="coarse_width_px"):
         BoardTracker(BOARD, coarse_width_px=10)
 

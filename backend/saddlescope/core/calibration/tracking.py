@@ -163,7 +163,7 @@ class BoardTracker:
         """The board searched for where saddle points cluster; also whether such a region was moving.
 
         Saddle points are looked for in ``gray`` shrunk by a whole factor (:func:`_coarse_factor`; where that
-        finds nothing, as :func:`_shrunk` shrinks it), motion against the frame before (``prev``, None for the
+        finds nothing, by :func:`_shrink_factor`), motion against the frame before (``prev``, None for the
         first frame) at full size.
         """
         failed, self._failed = self._failed, []
@@ -309,19 +309,13 @@ def _coarse_factor(width_px: int, coarse_width_px: int, last_spacing_px: float |
     return factor
 
 
-def _shrunk(gray: np.ndarray, coarse_width_px: int) -> tuple[np.ndarray, int]:
-    """The frame (H, W) shrunk by a whole factor to about ``coarse_width_px`` wide, and the factor.
+def _shrunk_by(gray: np.ndarray, factor: int) -> np.ndarray:
+    """The frame (H, W) shrunk by a whole ``factor`` (:func:`_shrink_factor`, :func:`_coarse_factor`).
 
     Each pixel is the mean of a factor x factor block (the last rows and columns that do not fill a block
     are dropped): pixel i of the shrunk frame is centred on pixel (i + 0.5) * factor - 0.5 of the frame,
     as :func:`~saddlescope.core.calibration.refinement._unscale` maps it back.
     """
-    factor = _shrink_factor(gray.shape[1], coarse_width_px)
-    return _shrunk_by(gray, factor), factor
-
-
-def _shrunk_by(gray: np.ndarray, factor: int) -> np.ndarray:
-    """The frame (H, W) shrunk by a whole ``factor``, as :func:`_shrunk` does."""
     if factor == 1:
         return gray
     h, w = gray.shape[0] // factor, gray.shape[1] // factor
