@@ -187,10 +187,15 @@ def _speed_sigma(fits_x: list) -> float:
 
 
 def _fewer_strides_fitted(result) -> bool:
-    """Whether the analysed window held fewer strides than the indicators span (``params.n_periods``)."""
-    n_periods = int((result.params or {}).get("n_periods") or 2)
+    """Whether the analysed window held fewer strides than the indicators span (:func:`_indicator_strides`)."""
     period_s = float(result.period_s or 0.0)
-    return period_s > 0 and round(float(result.window.duration_s) / period_s) < n_periods
+    return period_s > 0 and round(float(result.window.duration_s) / period_s) < _indicator_strides(result)
+
+
+def _indicator_strides(result) -> int:
+    """How many strides the indicators span: ``params.n_periods``, else their duration's, else 2."""
+    ind, vh = result.indicators, result.vertical_harmonics
+    return int((result.params or {}).get("n_periods") or round(ind.get("duration_s", 0) * vh.f0_hz) or 2)
 
 
 def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
@@ -398,7 +403,7 @@ def ride_intervals(result, *, draws: int = 400, seed: int = 0, sources: Mapping 
         For the keys of :data:`INTERVAL_KEYS` the result's indicators hold.
     """
     vh, ind = result.vertical_harmonics, result.indicators
-    n_periods = int(result.params.get("n_periods") or round(ind.get("duration_s", 0) * vh.f0_hz) or 2)
+    n_periods = _indicator_strides(result)
     sources = sources if sources is not None else interval_sources(result)
     samples = bootstrap_indicators(f0_hz=float(vh.f0_hz), amplitudes_m_s2=vh.amplitudes_m_s2,
                                    phases_rad=vh.phases_rad, n_periods=n_periods,
