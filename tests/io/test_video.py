@@ -100,3 +100,17 @@ def test_a_phones_variable_frame_rate_is_read_from_the_timestamps(tmp_path):
     assert "variable_frame_rate" not in info.as_dict()
     with pytest.raises(InputError, match="increase"):
         write_h264(tmp_path / "bad.mp4", frames[:3], fps=30.0, frame_times_s=[0.0, 0.1, 0.1])
+
+
+def test_the_analysis_probe_reads_packets_only_and_still_refuses_a_cut_file(tmp_path):
+    """decode_tail=False (the analysis's clip reader) gives what the full probe gives, without decoding."""
+    path = tmp_path / "clip.mp4"
+    _write_clip(path, n=40, size=(176, 144))
+    full, packets = probe_video(path), probe_video(path, decode_tail=False)
+    assert (packets.fps, packets.frame_count, packets.width, packets.height) == (
+        full.fps, full.frame_count, full.width, full.height) == (30.0, 40, 176, 144)
+    np.testing.assert_array_equal(packets.frame_times_s, full.frame_times_s)
+    truncated = tmp_path / "cut.mp4"
+    truncated.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    with pytest.raises(VideoError, match="cut.mp4"):
+        probe_video(truncated, decode_tail=False)

@@ -88,7 +88,7 @@ class BundleClips:
 
     def _probe(self, kind: str, camera: str) -> VideoInfo:
         try:
-            return probe_video(self.path(kind, camera), fps_hint=self.fps_hint)
+            return probe_video(self.path(kind, camera), fps_hint=self.fps_hint, decode_tail=False)
         except VideoError as exc:
             raise VideoError(f"{kind} clip of the {camera} camera: {exc}") from None
 

@@ -95,7 +95,7 @@ def _open(path: Path):
         raise VideoError(f"{path}: not a readable video ({exc.__class__.__name__}: {exc})") from None
 
 
-def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo:
+def probe_video(path: Path | str, *, fps_hint: float | None = None, decode_tail: bool = True) -> VideoInfo:
     """Check a clip decodes and read its fps, frame count and resolution.
 
     The frames are counted from the demuxed packets (no decoding: reading a clip's packets costs a
@@ -103,6 +103,11 @@ def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo
     is caught here rather than half-way through a job. Where the packets cannot stand for the frames
     (no timestamps, or a count that disagrees with the container's), every frame is decoded instead.
     ``fps_hint`` is used for image folders (default 30).
+
+    ``decode_tail=False`` skips decoding the last group of pictures (the size is then the stream's): for
+    the analysis, whose clips were checked so when they were uploaded and which decodes every frame
+    anyway. A phone clip's last GOP is one or two seconds of frames: decoding it for every clip of a
+    ride cost a quarter of decoding the ride once (issue 28). A cut-off packet is still caught here.
     """
     path = Path(path)
     if not path.exists():
@@ -120,7 +125,7 @@ def probe_video(path: Path | str, *, fps_hint: float | None = None) -> VideoInfo
             raise VideoError(f"{path}: frame rate unknown")
         fps = float(rate)
         codec = stream.codec_context.name
-        counted = _count_packets(container, stream, path)
+        counted = _count_packets(container, stream, path, decode_tail=decode_tail)
     if counted is None:
         n_frames, (width, height), times = _decode_all(path)
     else:
@@ -152,8 +157,8 @@ def _probe_images(path: Path, fps_hint: float | None) -> VideoInfo:
     return VideoInfo(path, fps, len(files), first.shape[1], first.shape[0], "images", len(files) / fps)
 
 
-def _count_packets(container, stream, path: Path, *,
-                   max_tail_s: float = 2.0) -> tuple[int, tuple[int, int], list[float]] | None:
+def _count_packets(container, stream, path: Path, *, max_tail_s: float = 2.0,
+                   decode_tail: bool = True) -> tuple[int, tuple[int, int], list[float]] | None:
     """Frame count, size and presentation times (s) from the packets, the last GOP decoded; None: decode all.
 
     One packet is one frame for the codecs phones and cameras write (H.264, HEVC, MJPEG, ...); the
@@ -184,6 +189,11 @@ def _count_packets(container, stream, path: Path, *,
     stated = int(stream.frames or 0)
     if (stated and stated != len(pts)) or last_key < 0 or len(set(pts)) != len(pts) or stream.time_base is None:
         return None
+    base = float(stream.time_base)
+    if not decode_tail:
+        size = (int(stream.codec_context.width or 0), int(stream.codec_context.height or 0))
+        if size[0] > 0 and size[1] > 0:
+            return len(pts), size, [p * base for p in sorted(pts)]
     # the last group of pictures decoded from its keyframe: a cut-off or corrupt tail fails here
     # (an open GOP's leading pictures, shown before the keyframe, need the GOP before it: not counted)
     key_pts = pts[last_key]
@@ -205,7 +215,6 @@ def _count_packets(container, stream, path: Path, *,
         raise VideoError(f"{path}: truncated or corrupt near the end ({exc})") from None
     if n_tail < tail:
         raise VideoError(f"{path}: truncated or corrupt: only {n_tail} of the last {tail} frames decode")
-    base = float(stream.time_base)
     return len(pts), size, [p * base for p in sorted(pts)]
 
 

@@ -31,7 +31,10 @@ def test_per_camera_keeps_order_errors_and_the_budget():
     assert list(got) == ["a", "b", "c", "d"]
     assert got["a"] == "A" and got["d"] == "D"
     assert isinstance(got["b"], DetectionError) and "no markers in b" in str(got["b"])
-    assert peak[0] == 2  # never more cameras at once than the budget
+    assert peak[0] == 4  # every camera at once, up to twice the budget (they share its cores)
+    peak[0] = 0
+    per_camera(list("abcdef"), work, 2)
+    assert peak[0] == 4  # never more than twice the budget
     peak[0] = 0
     per_camera(["a", "c"], work, 1)
     assert peak[0] == 1

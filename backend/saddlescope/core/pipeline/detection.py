@@ -27,7 +27,7 @@ from saddlescope.core.detection import (
 )
 from saddlescope.core.errors import DetectionError, KinematicsError, TriangulationError
 from saddlescope.core.params import PipelineParams
-from saddlescope.core.pipeline.inputs import ClipReader, Progress
+from saddlescope.core.pipeline.inputs import ClipReader, Progress, cameras_at_once
 from saddlescope.core.pipeline.setup import outside_coverage
 from saddlescope.core.saddle import layout_mismatch_mm, match_horse_markers, static_positions
 from saddlescope.core.sync import clip_frames_at
@@ -99,8 +99,9 @@ def per_camera(cams: list[str], work: Callable[[str], ImageTracks], threads: int
 
     Decoding (PyAV) and the marker search (OpenCV, numpy) release the GIL for most of a frame. Each
     camera's tracks depend on its own clip alone, so the result does not depend on the threads'
-    timing. At most ``threads`` cameras at once (None: all), each with one decoder and one frame in
-    hand, so memory stays bounded by the budget, not the number of cameras. A camera whose markers
+    timing. Cameras at once: :func:`~saddlescope.core.pipeline.inputs.cameras_at_once` (all three
+    cameras on a budget of two), each with one decoder and one frame in hand, so memory stays bounded
+    by the budget. A camera whose markers
     are not found maps to its DetectionError; any other error is raised.
     """
     def guarded(cam: str) -> ImageTracks | DetectionError:
@@ -109,7 +110,7 @@ def per_camera(cams: list[str], work: Callable[[str], ImageTracks], threads: int
         except DetectionError as exc:
             return exc
 
-    workers = max(1, min(len(cams), threads or len(cams)))
+    workers = cameras_at_once(len(cams), threads)
     if workers == 1:
         return {cam: guarded(cam) for cam in cams}
     with ThreadPoolExecutor(max_workers=workers) as pool:

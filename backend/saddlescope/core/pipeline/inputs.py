@@ -14,11 +14,25 @@ from typing import Protocol
 
 import numpy as np
 
-__all__ = ["STAGE_WEIGHTS", "ClipReader", "Progress"]
+__all__ = ["STAGE_WEIGHTS", "ClipReader", "Progress", "cameras_at_once"]
 
 # Share of the total progress each stage reports (rough wall-time shares on the thesis rig).
 STAGE_WEIGHTS: dict[str, float] = {"sync": 0.15, "calibration": 0.35, "detection": 0.3,
                                    "triangulation": 0.05, "kinematics": 0.1, "indicators": 0.05}
+
+
+def cameras_at_once(n_cameras: int, threads: int | None) -> int:
+    """How many cameras' passes (decoder and search, one thread each) run at once within a thread budget.
+
+    Every camera at once where the budget has more than one thread, up to twice the budget: three
+    cameras on two cores then share them and finish together, where two at a time left the third to run
+    alone on one core (makespan 1.5 against 2 cameras' time; issue 28). The threads cannot use more CPU
+    than the budget's cores; memory stays bounded by the budget (a decoder and a frame per camera).
+    A budget of one runs them one after another; None (no budget) runs every camera at once.
+    """
+    if threads is None:
+        return max(1, n_cameras)
+    return 1 if threads <= 1 else max(1, min(n_cameras, 2 * threads))
 
 
 class ClipReader(Protocol):

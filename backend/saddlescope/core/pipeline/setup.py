@@ -17,7 +17,7 @@ from saddlescope.core import calibration as calib
 from saddlescope.core.detection import track_markers
 from saddlescope.core.errors import DetectionError, SyncError
 from saddlescope.core.params import PipelineParams
-from saddlescope.core.pipeline.inputs import ClipReader, Progress
+from saddlescope.core.pipeline.inputs import ClipReader, Progress, cameras_at_once
 from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
 from saddlescope.core.sync_motion import MotionSync, motion_offsets
 from saddlescope.core.types import Board, ImageTracks, Rig
@@ -300,13 +300,13 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
 
 def _per_camera_in_threads(cams: list[str], work: Callable[[str], tuple], progress: Progress | None,
                            threads: int | None = None) -> dict:
-    """``work(cam)`` for every camera, at most ``threads`` cameras at once (None: one thread per camera).
+    """``work(cam)`` for every camera, :func:`~saddlescope.core.pipeline.inputs.cameras_at_once` at once.
 
     Progress is reported from this thread. With a budget of one thread the cameras run here, one after another.
     """
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
-    workers = max(1, min(len(cams), threads or len(cams)))
+    workers = cameras_at_once(len(cams), threads)
     if workers == 1:
         out = {}
         for done, cam in enumerate(cams, 1):
