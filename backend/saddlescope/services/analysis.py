@@ -11,6 +11,7 @@ from saddlescope.io.bundle import open_bundle
 from saddlescope.io.clip_source import BundleClips
 from saddlescope.io.result_document import result_to_document
 from saddlescope.io.result_schema import validate_result
+from saddlescope.io.threads import single_threaded_numerics
 
 
 def load_calibration_file(path: Path) -> Rig:
@@ -36,7 +37,7 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
         from saddlescope.settings import get_settings
 
         params = replace(params, threads=get_settings().resolved_worker_threads)
-    with open_bundle(Path(path)) as bundle:
+    with open_bundle(Path(path)) as bundle, single_threaded_numerics():
         clips = BundleClips(bundle.clip_paths, threads=params.threads)
         notes: list[str] = []
         if rig is None and bundle.calibration_file is not None:

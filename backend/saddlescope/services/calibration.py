@@ -23,6 +23,7 @@ from saddlescope.core.pipeline import (
 from saddlescope.core.types import CAMERA_ROLES, Rig
 from saddlescope.io.clip_source import BundleClips
 from saddlescope.io.rig_document import rig_from_dict, rig_to_dict
+from saddlescope.io.threads import single_threaded_numerics
 
 
 def calibrate_clips(
@@ -61,19 +62,20 @@ def calibrate_clips(
     clips = BundleClips({"calibration": {role: Path(paths[role]) for role in CAMERA_ROLES}})
     if on_progress is not None:
         on_progress(0.0, "sync")
-    offsets, first_frame, methods = synchronise_clips(clips, meta, ["calibration"])
-    clocks, _ = frame_clocks(clips, ["calibration"])
-    if on_progress is not None:
-        on_progress(0.2, "board views")
-    rig, report = calibrate_from_clips(
-        clips,
-        board_from_meta(meta["board"]),
-        offsets["calibration"],
-        first_frame["calibration"],
-        params or PipelineParams(),
-        clocks=clocks.get("calibration"),
-        sync_from_board=methods["calibration"] == "motion",  # no flash: the board's motion
-    )
+    with single_threaded_numerics():
+        offsets, first_frame, methods = synchronise_clips(clips, meta, ["calibration"])
+        clocks, _ = frame_clocks(clips, ["calibration"])
+        if on_progress is not None:
+            on_progress(0.2, "board views")
+        rig, report = calibrate_from_clips(
+            clips,
+            board_from_meta(meta["board"]),
+            offsets["calibration"],
+            first_frame["calibration"],
+            params or PipelineParams(),
+            clocks=clocks.get("calibration"),
+            sync_from_board=methods["calibration"] == "motion",  # no flash: the board's motion
+        )
     if "sync" in report:
         offsets["calibration"] = report.pop("sync").offsets
     calibration = rig_to_dict(rig)

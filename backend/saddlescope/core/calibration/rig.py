@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
@@ -139,7 +140,7 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
                   bundle: bool = True, loss: str = "soft_l1", min_views: int = MIN_VIEWS, min_shared: int = 3,
                   max_square_error_pct: float = 1.0, max_square_error_mm: float | None = None,
                   max_distance_rms_mm: float | None = None, max_principal_point_shift: float = 0.02,
-                  clip: str | None = "calibration") -> tuple[Rig, dict]:
+                  clip: str | None = "calibration", threads: int | None = 1) -> tuple[Rig, dict]:
     """Calibrate one or more cameras into a :class:`Rig` (first camera = reference, identity pose).
 
     Steps: intrinsics per camera (:func:`calibrate_intrinsics`); stereo pairs for every pair of cameras
@@ -159,6 +160,10 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     max_principal_point_shift : float
         Flag the rig when the bundle adjustment moves all principal points together by more than
         this fraction of the smaller image side (:func:`principal_point_common_shift`).
+    threads : int or None
+        The cameras' intrinsics and the pairs' poses are fitted this many at once (OpenCV releases the
+        GIL; each fit depends on its own views alone, so the rig does not depend on the threads' timing).
+        None: all at once.
 
     Returns
     -------
@@ -176,7 +181,7 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     if missing:
         raise InputError(f"image size missing for camera(s) {', '.join(missing)}")
     intrinsics, intr_reports = _all_intrinsics(views_by_camera, board, image_sizes, fix_k3=fix_k3, clip=clip,
-                                               min_views=min_views)
+                                               min_views=min_views, threads=threads)
     k3_fixed = {n: intr_reports[n]["fix_k3"] for n in names}
     # views kept by the intrinsic step (outlier views dropped)
     views = {n: [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]]
@@ -186,7 +191,7 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     if len(names) == 1:
         return Rig({names[0]: intrinsics[names[0]]}), report
 
-    pairs_cv = _stereo_pairs(views, intrinsics, board, min_shared=min_shared)
+    pairs_cv = _stereo_pairs(views, intrinsics, board, min_shared=min_shared, threads=threads)
     init = _initial_poses(names, pairs_cv, names[0])
     cams = {n: Camera(n, intrinsics[n].K, intrinsics[n].dist, intrinsics[n].image_size, R=init[n][0],
                       t_mm=init[n][1], rms_px=intrinsics[n].rms_px, K_std=intrinsics[n].K_std,
@@ -216,22 +221,30 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
 
 def _all_intrinsics(views_by_camera: Mapping[str, list[BoardView]], board: Board,
                     image_sizes: Mapping[str, tuple[int, int]], *, fix_k3: bool | None, clip: str | None,
-                    min_views: int) -> tuple[dict[str, Camera], dict[str, dict]]:
-    """Each camera's intrinsics and report (:func:`calibrate_intrinsics`).
+                    min_views: int, threads: int | None = 1) -> tuple[dict[str, Camera], dict[str, dict]]:
+    """Each camera's intrinsics and report (:func:`calibrate_intrinsics`), ``threads`` cameras at once.
 
     Where ``fix_k3`` is None, k3 is chosen per camera (:func:`_choose_k3`).
     """
-    intrinsics: dict[str, Camera] = {}
-    intr_reports: dict[str, dict] = {}
-    for name in views_by_camera:
-        intrinsics[name], intr_reports[name] = calibrate_intrinsics(
-            views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
-            fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
+    def one(name: str) -> tuple[Camera, dict]:
+        cam, rep = calibrate_intrinsics(views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
+                                        fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
         if fix_k3 is None:
-            intrinsics[name], intr_reports[name] = _choose_k3(intrinsics[name], intr_reports[name],
-                                                              views_by_camera[name], board, image_sizes[name],
-                                                              camera=name, clip=clip, min_views=min_views)
-    return intrinsics, intr_reports
+            cam, rep = _choose_k3(cam, rep, views_by_camera[name], board, image_sizes[name], camera=name,
+                                  clip=clip, min_views=min_views)
+        return cam, rep
+
+    fitted = _in_threads(list(views_by_camera), one, threads)
+    return {n: c for n, (c, _) in fitted.items()}, {n: r for n, (_, r) in fitted.items()}
+
+
+def _in_threads(keys: list, work: Callable, threads: int | None) -> dict:
+    """``{key: work(key)}`` in ``keys``' order, ``threads`` at once (None: all); the first error is raised."""
+    workers = len(keys) if threads is None else max(1, min(len(keys), threads))
+    if workers <= 1:
+        return {k: work(k) for k in keys}
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return dict(zip(keys, pool.map(work, keys), strict=True))
 
 
 STEREO_MAX_VIEWS = 50  # shared instants a pair's pose is fitted from (evenly spread through the clip)
@@ -247,22 +260,25 @@ def _spread(shared_a: list[BoardView], shared_b: list[BoardView], most: int) -> 
 
 
 def _stereo_pairs(views: Mapping[str, list[BoardView]], intrinsics: Mapping[str, Camera], board: Board, *,
-                  min_shared: int, max_views: int = STEREO_MAX_VIEWS) -> dict[tuple[str, str], dict]:
+                  min_shared: int, max_views: int = STEREO_MAX_VIEWS,
+                  threads: int | None = 1) -> dict[tuple[str, str], dict]:
     """:func:`stereo_extrinsics` of every pair of cameras that see the board together often enough.
 
     A pair's pose only starts the bundle adjustment (which then fits every view of every camera), so it is
     fitted from at most ``max_views`` shared instants spread through the clip: on a default synthetic
     ride's 150 instants the three pairs cost 6 CPU-s, two fifths of the calibration's solve, and the
-    adjusted rig is the same.
+    adjusted rig is the same. ``threads`` pairs at once.
     """
-    pairs_cv: dict[tuple[str, str], dict] = {}
-    for a, b in itertools.combinations(list(views), 2):
+    def one(pair: tuple[str, str]) -> dict | None:
+        a, b = pair
         try:
-            pairs_cv[(a, b)] = stereo_extrinsics(*_spread(views[a], views[b], max_views), intrinsics[a],
-                                                 intrinsics[b], board, min_shared=min_shared)
+            return stereo_extrinsics(*_spread(views[a], views[b], max_views), intrinsics[a], intrinsics[b], board,
+                                     min_shared=min_shared)
         except CalibrationError:
-            continue  # the pair may be linked through other cameras
-    return pairs_cv
+            return None  # the pair may be linked through other cameras
+
+    fitted = _in_threads(list(itertools.combinations(list(views), 2)), one, threads)
+    return {pair: p for pair, p in fitted.items() if p is not None}
 
 
 def _principal_point_check(single: Mapping[str, Camera], joint: Mapping[str, Camera],

@@ -289,7 +289,8 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
                                          max_instants=params.max_calibration_instants))
         views_by_camera = {c: [v for v in vs if v.frame in keep] for c, vs in views_by_camera.items()}
     rig, report = calib.calibrate_rig(views_by_camera, board, sizes,
-                                      max_square_error_pct=params.max_square_error_pct)
+                                      max_square_error_pct=params.max_square_error_pct,
+                                      threads=cameras_at_once(len(cams), params.threads))
     report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
     report["board_coverage"] = {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v}
     report["board_corners_px"] = {c: board_corner_sample(v) for c, v in views_by_camera.items() if v}
