@@ -4,16 +4,21 @@ The core never opens files; this adapter gives it grey frames, brightness curves
 probing each clip once (from its packets, no decoding) and caching what it learns per clip.
 
 The sync flash is filmed at the start of a clip set, so a clip's brightness is read only until its
-flash has been found and followed by a settled stretch (:func:`brightness_until_flash`): the stages
-after sync start decoding after the flash, and the frames before it are the only ones decoded twice.
-Decoder threads come out of the analysis's thread budget, shared by the clips decoded at once.
+flash has been found and followed by a settled stretch (:func:`brightness_until_flash`). The stages
+after sync start after the flash: so that they do not decode the clip's start again, the sync pass
+hands its open decoder over, with the frames it read after the flash (a :class:`_Handoff`, within a
+memory budget shared by every clip; a clip over the budget is decoded again from its start or its
+keyframe). Decoder threads come out of the analysis's thread budget, shared by the clips decoded at once.
 """
 
 from __future__ import annotations
 
+import math
 import threading
+from collections import deque
 from collections.abc import Iterator
 from contextlib import closing, contextmanager
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
@@ -23,13 +28,20 @@ from saddlescope.core.errors import SyncError, VideoError
 from saddlescope.core.sync import MIN_FRAMES, flash_interval
 from saddlescope.io.video import VideoInfo, iter_gray_frames, probe_video
 
-__all__ = ["BundleClips", "brightness_until_flash"]
+__all__ = ["HANDOFF_BUDGET_MB", "BundleClips", "brightness_until_flash"]
 
 BRIGHTNESS_DOWNSCALE = 8  # every 8th pixel of every 8th row: the mean of a 1080p frame from 32k samples
+# Frames the sync passes may keep for the next pass of their clips, all clips together: 1080p60 clips
+# keep 40-90 MB each (their frames from the flash's end to where the sync pass stopped), 640x480 ones a
+# tenth of that; a 2160p clip up to 270 MB while its sync pass reads, so with this budget one at a time.
+HANDOFF_BUDGET_MB = 384.0
 
 
-def brightness_until_flash(frames, fps: float, *, clip: str, camera: str, min_s: float = 1.0,
-                           settle_s: float = 0.5, check_every_s: float = 0.25) -> np.ndarray:
+SYNC_MIN_S, SYNC_SETTLE_S, SYNC_CHECK_EVERY_S = 1.0, 0.5, 0.25
+
+
+def brightness_until_flash(frames, fps: float, *, clip: str, camera: str, min_s: float = SYNC_MIN_S,
+                           settle_s: float = SYNC_SETTLE_S, check_every_s: float = SYNC_CHECK_EVERY_S) -> np.ndarray:
     """Mean brightness of each frame (F',) from ``frames`` ((index, grey image) from frame 0), read until
     the sync flash is found (:func:`saddlescope.core.sync.flash_interval`) with ``settle_s`` of frames
     after its end, and at least ``min_s`` read; the whole clip when no flash is found (known offsets).
@@ -54,14 +66,36 @@ def brightness_until_flash(frames, fps: float, *, clip: str, camera: str, min_s:
     return np.asarray(values, dtype=np.float64)
 
 
+@dataclass
+class _Handoff:
+    """A clip's open decoder where its sync pass stopped, and the frames that pass read after the flash."""
+
+    frames: list[tuple[int, np.ndarray]]  # (index, grey image copy), consecutive indices
+    rest: Iterator[tuple[int, np.ndarray]]  # the decoder, yielding from frames[-1][0] + 1 on
+    nbytes: int
+
+    def close(self) -> None:
+        close = getattr(self.rest, "close", None)  # a generator (a peek's frames have none)
+        if close is not None:
+            close()
+
+
+def _frames_kept(fps: float) -> int:
+    """Frames a sync pass may have read since the flash ended (what the next pass starts after): it stops
+    at least ``min_s`` in and at most a check interval after the flash has settled."""
+    return int(math.ceil(max(SYNC_MIN_S, SYNC_SETTLE_S + SYNC_CHECK_EVERY_S) * fps)) + 2
+
+
 class BundleClips:
     """Clip reader over ``paths[kind][camera] -> Path`` (a video file or an image folder)."""
 
     def __init__(self, paths: dict[str, dict[str, Path]], *, fps_hint: float | None = None,
-                 threads: int | None = None, whole_clip_brightness: bool = False):
+                 threads: int | None = None, whole_clip_brightness: bool = False,
+                 handoff_budget_mb: float = HANDOFF_BUDGET_MB):
         """``threads``: the decoders' share of the thread budget (None: FFmpeg's choice); the clips
         decoded at once split it. ``whole_clip_brightness``: read every frame's brightness, not only
-        up to the flash."""
+        up to the flash. ``handoff_budget_mb``: the frames sync passes keep for the next pass (0: none).
+        :meth:`close` (or ``with``) closes the decoders of hand-overs not taken up."""
         self.paths = {kind: {cam: Path(p) for cam, p in cams.items()} for kind, cams in paths.items()}
         self.fps_hint = fps_hint
         self.threads = threads
@@ -70,6 +104,22 @@ class BundleClips:
         self._brightness = cache(self._mean_brightness)
         self._lock = threading.Lock()
         self._open_decoders = 0
+        self._handoff_budget = float(handoff_budget_mb) * 1e6
+        self._handoff_bytes = 0.0  # kept or reserved by sync passes reading now
+        self._handoffs: dict[tuple[str, str], _Handoff] = {}
+
+    def __enter__(self) -> BundleClips:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Close the decoders handed over by sync passes and not taken up (their frames are dropped)."""
+        with self._lock:
+            handoffs, self._handoffs, self._handoff_bytes = list(self._handoffs.values()), {}, 0.0
+        for handoff in handoffs:
+            handoff.close()
 
     def kinds(self) -> list[str]:
         return list(self.paths)
@@ -124,6 +174,31 @@ class BundleClips:
 
     def gray_frames(self, kind: str, camera: str, start: int = 0, stop: int | None = None,
                     step: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+        handoff = self._take_handoff(kind, camera, start, stop)
+        if handoff is not None:
+            yield from _from_handoff(handoff, start, stop, step)
+            return
+        yield from self._decoded(kind, camera, start, stop, step)
+
+    def _take_handoff(self, kind: str, camera: str, start: int, stop: int | None) -> _Handoff | None:
+        """The sync pass's hand-over when it can serve frames ``start``-``stop``; a request within its
+        frames (a peek at the first frame) leaves it for the next pass, an earlier start drops it."""
+        with self._lock:
+            handoff = self._handoffs.get((kind, camera))
+            if handoff is None:
+                return None
+            first, last = handoff.frames[0][0], handoff.frames[-1][0]
+            if start >= first and stop is not None and stop <= last + 1:
+                return _Handoff([f for f in handoff.frames if start <= f[0] < stop], iter(()), 0)
+            del self._handoffs[(kind, camera)]
+            self._handoff_bytes -= handoff.nbytes
+        if start < first:
+            handoff.close()
+            return None
+        return handoff
+
+    def _decoded(self, kind: str, camera: str, start: int, stop: int | None,
+                 step: int) -> Iterator[tuple[int, np.ndarray]]:
         with self._decoder_threads() as threads:
             try:
                 yield from iter_gray_frames(self.path(kind, camera), start=start, stop=stop, step=step,
@@ -132,13 +207,70 @@ class BundleClips:
                 raise VideoError(f"{kind} clip of the {camera} camera: {exc}") from None
 
     def _mean_brightness(self, kind: str, camera: str) -> np.ndarray:
-        with closing(self.gray_frames(kind, camera)) as frames:  # closes the decoder when read only in part
-            if self.whole_clip_brightness:
+        if self.whole_clip_brightness:
+            with closing(self._decoded(kind, camera, 0, None, 1)) as frames:
                 return np.asarray([float(img[::BRIGHTNESS_DOWNSCALE, ::BRIGHTNESS_DOWNSCALE].mean())
                                    for _, img in frames], dtype=np.float64)
-            return brightness_until_flash(frames, self.fps(kind, camera), clip=kind, camera=camera)
+        fps = self.fps(kind, camera)
+        width, height = self.image_size(kind, camera)
+        reserved = _frames_kept(fps) * float(width * height)
+        with self._lock:  # room to keep this pass's last frames for the next pass?
+            keep = self._handoff_bytes + reserved <= self._handoff_budget
+            if keep:
+                self._handoff_bytes += reserved
+        frames = self._decoded(kind, camera, 0, None, 1)
+        kept: deque = deque(maxlen=_frames_kept(fps) if keep else 0)
+
+        def tapped() -> Iterator[tuple[int, np.ndarray]]:
+            for index, img in frames:
+                if keep:
+                    kept.append((index, img.copy()))  # the decoder reuses its buffers
+                yield index, img
+
+        nbytes = 0
+        try:
+            values = brightness_until_flash(tapped(), fps, clip=kind, camera=camera)
+            handoff = self._handoff_after_flash(values, kept, frames, kind, camera) if keep else None
+            if handoff is not None:
+                nbytes = handoff.nbytes
+                with self._lock:
+                    self._handoffs[(kind, camera)] = handoff
+            return values
+        finally:
+            with self._lock:
+                self._handoff_bytes -= reserved - nbytes
+            if not nbytes:
+                frames.close()
+
+    def _handoff_after_flash(self, values: np.ndarray, kept: deque, frames, kind: str,
+                             camera: str) -> _Handoff | None:
+        """The frames read after the flash's end, and the open decoder; None where there is nothing to hand
+        over (no flash, the whole clip read, or the frames after the flash not all kept)."""
+        if not kept or len(values) >= self.frame_count(kind, camera):
+            return None
+        try:
+            _, end = flash_interval(values, clip=kind, camera=camera)
+        except SyncError:
+            return None
+        after = [f for f in kept if f[0] > end]
+        if not after or after[0][0] > int(math.ceil(end)) + 1:
+            return None  # the next pass starts before the frames kept
+        return _Handoff(after, frames, sum(img.nbytes for _, img in after))
 
     def brightness(self, kind: str, camera: str) -> np.ndarray:
         """Each frame's mean grey level (F',) up to the settled end of the sync flash (the whole clip
         when it holds none, or with ``whole_clip_brightness``); cached per clip."""
         return self._brightness(kind, camera)
+
+
+def _from_handoff(handoff: _Handoff, start: int, stop: int | None, step: int) -> Iterator[tuple[int, np.ndarray]]:
+    """Frames ``start``, ``start + step``, ... < ``stop`` from a hand-over: its frames, then its decoder's."""
+    try:
+        for source in (handoff.frames, handoff.rest):
+            for index, img in source:
+                if stop is not None and index >= stop:
+                    return
+                if index >= start and not (index - start) % step:
+                    yield index, img
+    finally:
+        handoff.close()

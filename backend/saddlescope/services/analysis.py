@@ -37,8 +37,8 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
         from saddlescope.settings import get_settings
 
         params = replace(params, threads=get_settings().resolved_worker_threads)
-    with open_bundle(Path(path)) as bundle, single_threaded_numerics():
-        clips = BundleClips(bundle.clip_paths, threads=params.threads)
+    with (open_bundle(Path(path)) as bundle, single_threaded_numerics(),
+          BundleClips(bundle.clip_paths, threads=params.threads) as clips):
         notes: list[str] = []
         if rig is None and bundle.calibration_file is not None:
             from saddlescope.io.bundle import read_bundle_calibration

@@ -135,9 +135,9 @@ def still_start_positions(clips: ClipReader, rig: Rig, kind: str, first_frame: M
     frames = {}
     for cam in clips.cameras(kind):
         if cam in rig.cameras:
-            for _, gray in clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)):
+            start = first_frame.get(cam, 0)
+            for _, gray in clips.gray_frames(kind, cam, start=start, stop=start + 1):
                 frames[cam] = gray.copy()
-                break
     if len(frames) < 2:
         return None
     found = (find_plumb_multiview(rig, frames) if kind == "plumb"
