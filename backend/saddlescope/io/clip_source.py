@@ -216,8 +216,9 @@ class BundleClips:
         reserved = _frames_kept(fps) * float(width * height)
         with self._lock:  # room to keep this pass's last frames for the next pass?
             keep = self._handoff_bytes + reserved <= self._handoff_budget
-            if keep:
-                self._handoff_bytes += reserved
+            if not keep:
+                reserved = 0.0
+            self._handoff_bytes += reserved
         frames = self._decoded(kind, camera, 0, None, 1)
         kept: deque = deque(maxlen=_frames_kept(fps) if keep else 0)
 
