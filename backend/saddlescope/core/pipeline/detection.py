@@ -8,8 +8,9 @@ the saddle marker S. Detection and triangulation interleave, so each is timed ap
 from __future__ import annotations
 
 import math
+import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -34,7 +35,7 @@ from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.triangulation import position_uncertainty, reach_by_camera, triangulate_tracks
 from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
 
-__all__ = ["RideTracks", "depth_uncertainty", "detect_clip", "detect_motion", "detect_ride",
+__all__ = ["EarlyMotionTracks", "RideTracks", "depth_uncertainty", "detect_clip", "detect_motion", "detect_ride",
            "disagreement_flag", "per_camera", "still_start_positions"]
 
 
@@ -180,9 +181,74 @@ def _down_direction(plumb: MarkerTracks | None, cameras_down: np.ndarray) -> np.
     return cameras_down
 
 
+def _motion_overrides(params: PipelineParams) -> dict:
+    """The user's detection settings for the motion clip that apply to every camera."""
+    return {k: v for k, v in params.detection.get("motion", {}).items() if not isinstance(v, Mapping)}
+
+
+class _Cancelled(Exception):
+    """The analysis stopped (an earlier stage failed) while the motion clip was tracked ahead."""
+
+
+def motion_tracks_alone(clips: ClipReader, first_frame: Mapping[str, int], params: PipelineParams, n_horse: int,
+                        stop: threading.Event | None = None) -> dict[str, ImageTracks | DetectionError]:
+    """Each camera's horse markers found by itself among what moves (no rig needed), per :func:`per_camera`.
+
+    ``stop``, once set, ends the tracking at the next frame (raising a private exception).
+    """
+    overrides = _motion_overrides(params)
+
+    def frames(cam: str) -> Iterator[tuple[int, np.ndarray]]:
+        for item in clips.gray_frames("motion", cam, start=first_frame.get(cam, 0)):
+            if stop is not None and stop.is_set():
+                raise _Cancelled
+            yield item
+
+    return per_camera(clips.cameras("motion"), lambda c: track_markers(
+        frames(c), n_markers=n_horse, camera=c, clip="motion", **{"moving": True, **overrides}), params.threads)
+
+
+class EarlyMotionTracks:
+    """:func:`motion_tracks_alone` in a background thread, started while the calibration's solve runs.
+
+    The solve (intrinsics, stereo pairs, bundle adjustment, metric checks) keeps about one core busy for
+    seconds; the motion clip's per-camera tracking needs no rig, so it fills the other core meanwhile
+    (default 1080p60 ride: it was a fifth of the analysis's wall time, issue 28). Its result is what
+    :func:`detect_motion` would have computed, camera by camera from its own clip.
+    """
+
+    def __init__(self, clips: ClipReader, first_frame: Mapping[str, int], params: PipelineParams, n_horse: int):
+        self._args = (clips, first_frame, params, n_horse)
+        self._stop = threading.Event()
+        self._pool: ThreadPoolExecutor | None = None
+        self._future = None
+
+    def start(self) -> None:
+        """Start tracking (once)."""
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="early-motion")
+            self._future = self._pool.submit(motion_tracks_alone, *self._args, stop=self._stop)
+
+    def result(self) -> dict[str, ImageTracks | DetectionError] | None:
+        """The tracks (waiting for them); None if never started. Errors other than a missed marker are raised."""
+        if self._pool is None or self._future is None:
+            return None
+        try:
+            return self._future.result()
+        finally:
+            self._pool.shutdown(wait=True)
+
+    def cancel(self) -> None:
+        """Stop the tracking at its next frame and wait for its thread (the analysis failed before using it)."""
+        if self._pool is not None:
+            self._stop.set()
+            self._pool.shutdown(wait=True)
+
+
 def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
                   first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray,
                   multiview: bool = False, clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
+                  alone: Mapping[str, ImageTracks | DetectionError] | None = None,
                   ) -> tuple[dict[str, ImageTracks], list[int], int | None, bool]:
     """Track the horse markers through the motion clip of every camera.
 
@@ -193,6 +259,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
 
     ``multiview`` skips the per-camera search (when what it found does not match the static shot).
     ``clocks`` (:func:`frame_clocks`) pairs the cameras' frames by their timestamps (phones).
+    ``alone``: the per-camera search's result when it was run already (:class:`EarlyMotionTracks`).
 
     Parameters
     ----------
@@ -214,13 +281,11 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     order = [int(i) for i in np.argsort(height)]
     horse_idx = sorted(order[:n_horse])
     rest = [i for i in range(static_mm.shape[0]) if i not in horse_idx]
-    overrides = {k: v for k, v in params.detection.get("motion", {}).items() if not isinstance(v, Mapping)}
+    overrides = _motion_overrides(params)
     if not multiview:
         try:
             # First choice: each camera finds the markers by itself among what moves (glints stand still).
-            tracks = per_camera(cams, lambda c: track_markers(
-                clips.gray_frames("motion", c, start=first_frame.get(c, 0)), n_markers=n_horse, camera=c,
-                clip="motion", **{"moving": True, **overrides}), params.threads)
+            tracks = dict(alone) if alone is not None else motion_tracks_alone(clips, first_frame, params, n_horse)
             failed = [got for got in tracks.values() if isinstance(got, DetectionError)]
             if not failed:
                 return tracks, horse_idx, (rest[0] if rest else None), False
@@ -320,7 +385,8 @@ def _detect_plumb(clips: ClipReader, rig: Rig, first_frame: Mapping, params: Pip
 
 def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapping, clocks: Mapping,
                   params: PipelineParams, n_horse: int, static_mm: np.ndarray, down: np.ndarray,
-                  triangulate: _Triangulator, found: RideTracks) -> None:
+                  triangulate: _Triangulator, found: RideTracks,
+                  alone: Mapping[str, ImageTracks | DetectionError] | None = None) -> None:
     """The horse markers through the ride, in every camera and in 3-D.
 
     The horse markers through the ride, searched again with all cameras when what each camera
@@ -328,7 +394,7 @@ def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Ma
     """
     motion2d, horse_idx, saddle_idx, searched_together = detect_motion(
         clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
-        clocks=clocks.get("motion"))
+        clocks=clocks.get("motion"), alone=alone)
     found.tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
     found_mm = layout_mismatch_mm(static_mm[horse_idx], found.tracks3d["motion"].xyz_mm)
     if found_mm > params.max_layout_mismatch_mm:
@@ -373,12 +439,14 @@ def _coverage_flags(motion2d: Mapping[str, ImageTracks], calib_report: Mapping) 
 
 def detect_ride(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapping, clocks: Mapping,
                 params: PipelineParams, calib_report: Mapping, progress: Progress, *,
-                n_horse: int, n_saddle: int, n_plumb: int) -> RideTracks:
+                n_horse: int, n_saddle: int, n_plumb: int,
+                early_motion: EarlyMotionTracks | None = None) -> RideTracks:
     """Stages 3-4: the plumb line, the standing horse and the ride's markers, in 3-D.
 
     ``offsets``, ``first_frame`` and ``clocks`` are :func:`~saddlescope.core.pipeline.setup.synchronise`'s
     and :func:`~saddlescope.core.pipeline.setup.frame_clocks`' per clip kind; ``calib_report`` the
-    calibration's report (its board coverage flags markers seen where the lens is extrapolated).
+    calibration's report (its board coverage flags markers seen where the lens is extrapolated);
+    ``early_motion`` the motion clip's per-camera tracks started during the calibration, if they were.
     """
     found = RideTracks()
     triangulate = _Triangulator(clips, rig, offsets, clocks, params,
@@ -395,7 +463,9 @@ def detect_ride(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapp
     static_mm = static_positions(found.tracks3d["static"], "static")
     found.cameras_down = camera_down(rig)
     down = _down_direction(found.tracks3d.get("plumb"), found.cameras_down)
-    _detect_horse(clips, rig, offsets, first_frame, clocks, params, n_horse, static_mm, down, triangulate, found)
+    alone = early_motion.result() if early_motion is not None else None
+    _detect_horse(clips, rig, offsets, first_frame, clocks, params, n_horse, static_mm, down, triangulate, found,
+                  alone=alone)
     found.flags.extend(_coverage_flags(found.motion2d, calib_report))
     found.triangulation_s = triangulate.seconds
     return found

@@ -14,7 +14,7 @@ import cv2
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import InputError
 from saddlescope.core.params import PipelineParams
-from saddlescope.core.pipeline.detection import depth_uncertainty, detect_ride, disagreement_flag
+from saddlescope.core.pipeline.detection import EarlyMotionTracks, depth_uncertainty, detect_ride, disagreement_flag
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.pipeline.result import assemble_result
 from saddlescope.core.pipeline.setup import (
@@ -99,24 +99,34 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     t0 = time.perf_counter()
     calib_report: dict = dict(rig_report or {}) if rig is not None else {}
     synced: dict = {}  # clip kind -> MotionSync, for the clip sets synchronised from motion
-    if rig is None:
-        rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
-                                                 first_frame["calibration"], params, progress,
-                                                 clocks=clocks.get("calibration"),
-                                                 sync_from_board=methods.get("calibration") == "motion")
-        if "sync" in calib_report:
-            synced["calibration"] = calib_report.pop("sync")
-    progress.finish("calibration", t0)
-    if methods.get("motion") == "motion":  # no flash: the markers' motion, with the rig just calibrated
-        synced["motion"] = _motion_clip_sync(clips, rig, int(markers.get("horse", 3)), params, clocks, progress)
-    for kind, found_sync in synced.items():
-        offsets[kind] = dict(found_sync.offsets)
-        clock_flags.append(sync_flag(kind, found_sync))
+    # While the calibration's solve keeps one core busy, the motion clip's markers are tracked camera by
+    # camera (that needs no rig), where the flash (or given offsets) placed its start
+    early = (EarlyMotionTracks(clips, first_frame["motion"], params, int(markers.get("horse", 3)))
+             if rig is None and methods.get("motion") in ("flash", "offsets") and (params.threads or 2) > 1 else None)
+    try:
+        if rig is None:
+            rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
+                                                     first_frame["calibration"], params, progress,
+                                                     clocks=clocks.get("calibration"),
+                                                     sync_from_board=methods.get("calibration") == "motion",
+                                                     on_views_found=early.start if early is not None else None)
+            if "sync" in calib_report:
+                synced["calibration"] = calib_report.pop("sync")
+        progress.finish("calibration", t0)
+        if methods.get("motion") == "motion":  # no flash: the markers' motion, with the rig just calibrated
+            synced["motion"] = _motion_clip_sync(clips, rig, int(markers.get("horse", 3)), params, clocks, progress)
+        for kind, found_sync in synced.items():
+            offsets[kind] = dict(found_sync.offsets)
+            clock_flags.append(sync_flag(kind, found_sync))
 
-    t0 = time.perf_counter()
-    found = detect_ride(clips, rig, offsets, first_frame, clocks, params, calib_report, progress,
-                        n_horse=int(markers.get("horse", 3)), n_saddle=int(markers.get("saddle", 1)),
-                        n_plumb=int(markers.get("plumb", 2)))
+        t0 = time.perf_counter()
+        found = detect_ride(clips, rig, offsets, first_frame, clocks, params, calib_report, progress,
+                            n_horse=int(markers.get("horse", 3)), n_saddle=int(markers.get("saddle", 1)),
+                            n_plumb=int(markers.get("plumb", 2)), early_motion=early)
+    except BaseException:
+        if early is not None:
+            early.cancel()
+        raise
     progress.finish("detection", t0, seconds=time.perf_counter() - t0 - found.triangulation_s)
     progress.finish("triangulation", t0, seconds=found.triangulation_s)
 

@@ -224,7 +224,8 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
                          first_frame: Mapping[str, int], params: PipelineParams,
                          progress: Progress | None = None,
                          clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
-                         sync_from_board: bool = False) -> tuple[Rig, dict]:
+                         sync_from_board: bool = False,
+                         on_views_found: Callable[[], None] | None = None) -> tuple[Rig, dict]:
     """Calibrate the rig from every camera's calibration clip.
 
     Board views from every camera's calibration clip, put on the first camera's clock, then
@@ -240,6 +241,9 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         The clip holds no flash: ``offsets`` are found from the board's motion (its corners' image
         speed, :func:`~saddlescope.core.sync_motion.motion_offsets` without a rig) once every camera's
         views are found; whole frames matter here, as only still views are used.
+    on_views_found : callable, optional
+        Called once every camera's board views are found, before the solve (which keeps about one core
+        busy): the analysis starts work that needs no rig then.
 
     Returns
     -------
@@ -276,6 +280,8 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     # GIL. Each camera's views depend on its clip alone, so the result does not depend on the threads' timing;
     # progress is reported from this thread.
     found = _per_camera_in_threads(cams, board_views, progress, params.threads)
+    if on_views_found is not None:
+        on_views_found()
     board_sync = None
     if sync_from_board:
         board_sync = motion_offsets({c: board_track(found[c][0], board) for c in cams}, fps, clocks=clocks,
