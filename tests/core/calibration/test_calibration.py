@@ -276,6 +276,27 @@ def test_board_distance_errors_zero_for_truth():
     assert np.abs(errs["distance_errors_mm"]).max() < 1e-3 and np.allclose(errs["scales"], 1, atol=1e-6)
 
 
+def test_board_distance_errors_skip_a_line_of_corners_and_keep_neighbours_within_an_instant():
+    from dataclasses import replace
+
+    rng = np.random.default_rng(5)
+    board = make_board("checkerboard", (8, 6), 30.0)
+    rig = _small_rig(rng)
+    views = simulate_board_views(rig, board, *_random_poses(4, rng, board=board), noise_px=0.0, rng=rng)
+    full = board_distance_errors(rig, views, board)
+    # one instant shows a single row of corners (no plane), another three corners (too few): both skipped
+    line, few = sorted({v.frame for v in views["c0"]})[:2]
+    cut = {c: [replace(v, ids=v.ids[:8], corners_px=v.corners_px[:8]) if v.frame == line
+               else replace(v, ids=v.ids[:3], corners_px=v.corners_px[:3]) if v.frame == few else v for v in vs]
+           for c, vs in views.items()}
+    errs = board_distance_errors(rig, cut, board)
+    assert full["n_instants"] == 4 and errs["n_instants"] == 2 and errs["n_points"] == 2 * 48
+    # 7 x 6 horizontal and 8 x 5 vertical neighbours per whole board; none across two instants
+    assert full["adjacent_errors_mm"].size == 4 * (7 * 6 + 8 * 5) and errs["adjacent_errors_mm"].size == 2 * 82
+    assert np.abs(full["adjacent_errors_mm"]).max() < 1e-3
+    assert full["distance_errors_mm"].size == 4 * 48 * 47 // 2
+
+
 def test_select_instants_spreads_views():
     rng = np.random.default_rng(8)
     board = make_board("checkerboard", (8, 6), 30.0)

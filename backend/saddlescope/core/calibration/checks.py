@@ -88,35 +88,6 @@ def _instant_points(views_by_camera, names):
     return out
 
 
-def _triangulated_instants(cams: list[Camera], points: Mapping[int, tuple[np.ndarray, np.ndarray]]):
-    """(ids, xyz (K, 3) mm, reprojection error (K,) px) per instant of :func:`_instant_points`.
-
-    Every instant's corners in one :func:`triangulate_dlt` (each point is triangulated on its own): one call
-    per instant cost more in its per-call work (undistortion, projection) than in the triangulation.
-    """
-    parts = list(points.values())
-    if not parts:
-        return
-    xyz, err = triangulate_dlt(cams, np.concatenate([xy for _, xy in parts], axis=1))
-    bounds = np.cumsum([0] + [len(ids) for ids, _ in parts])
-    for (ids, _), lo, hi in zip(parts, bounds[:-1], bounds[1:], strict=True):
-        yield ids, xyz[lo:hi], err[lo:hi]
-
-
-def _similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray]:
-    """Scale s and residuals (K, 3) of the best dst ~ s R src + t (Umeyama's closed form)."""
-    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
-    a, b = src - mu_s, dst - mu_d
-    U, sv, Vt = np.linalg.svd(b.T @ a / len(src))
-    d = np.ones(3)
-    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
-        d[-1] = -1
-    R = U @ np.diag(d) @ Vt
-    var_a = np.mean(np.sum(a ** 2, axis=1))
-    s = float(np.sum(sv * d) / var_a)
-    return s, b - s * a @ R.T
-
-
 def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView]], board: Board, *,
                           cameras: list[str] | None = None, max_pair_corners: int = 60) -> dict:
     """Metric errors of the triangulated board (thesis Table 8.5, for every corner pair).
@@ -139,40 +110,82 @@ def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView
     cams = [rig.cameras[n] for n in names]
     obj = object_points_mm(board)
     cols = board.inner_corners[0]
-    scales, fit_res, adj_err, d_err, d_true, reproj = [], [], [], [], [], []
-    n_pts = 0
-    for ids, xyz, err in _triangulated_instants(cams, _instant_points(views_by_camera, names)):
-        ok = np.isfinite(xyz[:, 0])
-        if ok.sum() < 4:
-            continue
-        ids, xyz = ids[ok], xyz[ok]
-        rows_cols = np.column_stack(np.divmod(ids, cols))
-        if np.linalg.matrix_rank(rows_cols - rows_cols.mean(axis=0)) < 2:
-            continue  # collinear corners fix no plane
-        s, res = _similarity_fit(obj[ids], xyz)
-        scales.append(s)
-        fit_res.append(np.linalg.norm(res, axis=1))
-        reproj.append(err[ok])
-        n_pts += len(ids)
-        # neighbours: all of them
-        pos = {int(k): n for n, k in enumerate(ids)}
-        right = [(pos[k], pos[k + 1]) for k in pos if (k % cols) + 1 < cols and k + 1 in pos]
-        below = [(pos[k], pos[k + cols]) for k in pos if k + cols in pos]
-        nb = np.array(right + below, dtype=np.int64).reshape(-1, 2)
-        adj_err.append(np.linalg.norm(xyz[nb[:, 0]] - xyz[nb[:, 1]], axis=1) - board.square_mm)
-        # all pairs among at most max_pair_corners evenly spread corners (a large board has 10^5 pairs)
-        sub = np.unique(np.linspace(0, len(ids) - 1, min(len(ids), max_pair_corners)).round().astype(int))
+    points = _instant_points(views_by_camera, names)
+    empty = {"scales": np.zeros(0), "fit_residuals_mm": np.zeros(0), "adjacent_errors_mm": np.zeros(0),
+             "distance_errors_mm": np.zeros(0), "true_distances_mm": np.zeros(0),
+             "reprojection_error_px": np.zeros(0), "n_instants": 0, "n_points": 0}
+    if not points:
+        return empty
+    # Every instant's corners at once (one triangulation, per-instant sums by bincount, one batched SVD):
+    # the instant-by-instant loop cost more in numpy's per-call work than in the arithmetic (issue 28).
+    parts = list(points.values())
+    xyz, err = triangulate_dlt(cams, np.concatenate([xy for _, xy in parts], axis=1))
+    ids = np.concatenate([i for i, _ in parts]).astype(np.int64)
+    inst = np.repeat(np.arange(len(parts)), [len(i) for i, _ in parts])
+    ok = np.isfinite(xyz[:, 0])
+    ids, xyz, err, inst = ids[ok], xyz[ok], err[ok], inst[ok]
+    n_inst = len(parts)
+    n = np.bincount(inst, minlength=n_inst).astype(np.float64)
+    # collinear corners fix no plane: the grid positions' 2 x 2 scatter is singular (exact in integers)
+    r, c = (v.astype(np.float64) for v in np.divmod(ids, cols))
+    sums = {k: np.bincount(inst, weights=w, minlength=n_inst)
+            for k, w in (("r", r), ("c", c), ("rr", r * r), ("cc", c * c), ("rc", r * c))}
+    det = ((n * sums["rr"] - sums["r"] ** 2) * (n * sums["cc"] - sums["c"] ** 2)
+           - (n * sums["rc"] - sums["r"] * sums["c"]) ** 2)
+    valid = (n >= 4) & (det != 0)
+    keep = valid[inst]
+    ids, xyz, err, inst = ids[keep], xyz[keep], err[keep], inst[keep]
+    if not ids.size:
+        return empty
+    used = np.flatnonzero(valid)  # the instants checked, in order
+    inst = np.searchsorted(used, inst)  # 0..I-1
+    I = used.size
+    count = n[used]
+    starts = np.concatenate([[0], np.cumsum(count).astype(np.int64)[:-1]])
+    src, dst = obj[ids], xyz
+    # Umeyama's closed form per instant: dst ~ s R src + t (R from the SVD of the cross-covariance)
+    mu_s = np.stack([np.bincount(inst, weights=src[:, k], minlength=I) for k in range(3)], axis=1) / count[:, None]
+    mu_d = np.stack([np.bincount(inst, weights=dst[:, k], minlength=I) for k in range(3)], axis=1) / count[:, None]
+    a, b = src - mu_s[inst], dst - mu_d[inst]
+    cov = np.add.reduceat(b[:, :, None] * a[:, None, :], starts, axis=0) / count[:, None, None]
+    U, sv, Vt = np.linalg.svd(cov)
+    d = np.ones((I, 3))
+    d[np.linalg.det(U) * np.linalg.det(Vt) < 0, -1] = -1
+    R = U @ (d[:, :, None] * Vt)
+    var_a = np.bincount(inst, weights=np.sum(a ** 2, axis=1), minlength=I) / count
+    scales = np.sum(sv * d, axis=1) / var_a
+    res = b - scales[inst, None] * np.einsum("kj,kij->ki", a, R[inst])
+    # neighbours: all of them, per instant the right-hand ones then the lower ones (corner order)
+    key = inst * (obj.shape[0] + cols + 1) + ids  # room for a corner's lower neighbour within its instant
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+
+    def partner(step: int, allowed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        at = np.searchsorted(sorted_key, key + step)
+        at = np.minimum(at, sorted_key.size - 1)
+        has = allowed & (sorted_key[at] == key + step)
+        return np.flatnonzero(has), order[at[has]]
+
+    right_p, right_q = partner(1, (ids % cols) + 1 < cols)
+    below_p, below_q = partner(cols, np.ones(ids.size, bool))
+    p = np.concatenate([right_p, below_p])
+    q = np.concatenate([right_q, below_q])
+    kind = np.concatenate([np.zeros(right_p.size, int), np.ones(below_p.size, int)])
+    nb = np.lexsort((ids[p], kind, inst[p]))
+    adjacent = np.linalg.norm(xyz[p[nb]] - xyz[q[nb]], axis=1) - board.square_mm
+    # all pairs among at most max_pair_corners evenly spread corners of each instant (a large board has 10^5)
+    pair_i, pair_j = [], []
+    for lo, k in zip(starts.tolist(), count.astype(np.int64).tolist(), strict=True):
+        sub = np.unique(np.linspace(0, k - 1, min(k, max_pair_corners)).round().astype(int))
         iu, ju = np.triu_indices(len(sub), 1)
-        iu, ju = sub[iu], sub[ju]
-        meas = np.linalg.norm(xyz[iu] - xyz[ju], axis=1)
-        true = np.linalg.norm(obj[ids[iu]] - obj[ids[ju]], axis=1)
-        d_err.append(meas - true)
-        d_true.append(true)
-    cat = lambda parts: np.concatenate(parts) if parts else np.zeros(0)
-    return {"scales": np.asarray(scales), "fit_residuals_mm": cat(fit_res),
-            "adjacent_errors_mm": cat(adj_err),
-            "distance_errors_mm": cat(d_err), "true_distances_mm": cat(d_true),
-            "reprojection_error_px": cat(reproj), "n_instants": len(scales), "n_points": n_pts}
+        pair_i.append(lo + sub[iu])
+        pair_j.append(lo + sub[ju])
+    pi, pj = np.concatenate(pair_i), np.concatenate(pair_j)
+    meas = np.linalg.norm(xyz[pi] - xyz[pj], axis=1)
+    true = np.linalg.norm(obj[ids[pi]] - obj[ids[pj]], axis=1)
+    return {"scales": scales, "fit_residuals_mm": np.linalg.norm(res, axis=1), "adjacent_errors_mm": adjacent,
+            "distance_errors_mm": meas - true, "true_distances_mm": true, "reprojection_error_px": err,
+            "n_instants": int(I), "n_points": int(ids.size)}
 
 
 def _summary(err: np.ndarray, prefix: str) -> dict[str, float]:
