@@ -116,3 +116,13 @@ def test_motion_tracked_ahead_is_what_detection_would_track_and_can_be_cancelled
     served = endless.served
     time.sleep(0.1)
     assert endless.served == served > 0
+    # as the analysis uses it: a stage failing before detection takes the tracks stops them too
+    endless = _MovingDots(n_frames=None, delay_s=0.002)
+    with pytest.raises(RuntimeError, match="calibration failed"):
+        with EarlyMotionTracks(endless, first, params, 3) as early:
+            early.start()
+            time.sleep(0.1)
+            raise RuntimeError("calibration failed")
+    served = endless.served
+    time.sleep(0.1)
+    assert endless.served == served > 0

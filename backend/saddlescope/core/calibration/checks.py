@@ -107,7 +107,6 @@ def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView
     ``reprojection_error_px`` (P,), ``n_instants``, ``n_points``.
     """
     names = list(cameras or rig.cameras)
-    cams = [rig.cameras[n] for n in names]
     obj = object_points_mm(board)
     cols = board.inner_corners[0]
     points = _instant_points(views_by_camera, names)
@@ -119,60 +118,23 @@ def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView
     # Every instant's corners at once (one triangulation, per-instant sums by bincount, one batched SVD):
     # the instant-by-instant loop cost more in numpy's per-call work than in the arithmetic (issue 28).
     parts = list(points.values())
-    xyz, err = triangulate_dlt(cams, np.concatenate([xy for _, xy in parts], axis=1))
+    xyz, err = triangulate_dlt([rig.cameras[n] for n in names], np.concatenate([xy for _, xy in parts], axis=1))
     ids = np.concatenate([i for i, _ in parts]).astype(np.int64)
     inst = np.repeat(np.arange(len(parts)), [len(i) for i, _ in parts])
     ok = np.isfinite(xyz[:, 0])
     ids, xyz, err, inst = ids[ok], xyz[ok], err[ok], inst[ok]
-    n_inst = len(parts)
-    n = np.bincount(inst, minlength=n_inst).astype(np.float64)
-    # collinear corners fix no plane: the grid positions' 2 x 2 scatter is singular (exact in integers)
-    r, c = (v.astype(np.float64) for v in np.divmod(ids, cols))
-    sums = {k: np.bincount(inst, weights=w, minlength=n_inst)
-            for k, w in (("r", r), ("c", c), ("rr", r * r), ("cc", c * c), ("rc", r * c))}
-    det = ((n * sums["rr"] - sums["r"] ** 2) * (n * sums["cc"] - sums["c"] ** 2)
-           - (n * sums["rc"] - sums["r"] * sums["c"]) ** 2)
-    valid = (n >= 4) & (det != 0)
+    valid = _plane_instants(ids, inst, len(parts), cols)
     keep = valid[inst]
     ids, xyz, err, inst = ids[keep], xyz[keep], err[keep], inst[keep]
     if not ids.size:
         return empty
     used = np.flatnonzero(valid)  # the instants checked, in order
     inst = np.searchsorted(used, inst)  # 0..I-1
-    I = used.size
-    count = n[used]
+    count = np.bincount(inst, minlength=used.size).astype(np.float64)
     starts = np.concatenate([[0], np.cumsum(count).astype(np.int64)[:-1]])
-    src, dst = obj[ids], xyz
-    # Umeyama's closed form per instant: dst ~ s R src + t (R from the SVD of the cross-covariance)
-    mu_s = np.stack([np.bincount(inst, weights=src[:, k], minlength=I) for k in range(3)], axis=1) / count[:, None]
-    mu_d = np.stack([np.bincount(inst, weights=dst[:, k], minlength=I) for k in range(3)], axis=1) / count[:, None]
-    a, b = src - mu_s[inst], dst - mu_d[inst]
-    cov = np.add.reduceat(b[:, :, None] * a[:, None, :], starts, axis=0) / count[:, None, None]
-    U, sv, Vt = np.linalg.svd(cov)
-    d = np.ones((I, 3))
-    d[np.linalg.det(U) * np.linalg.det(Vt) < 0, -1] = -1
-    R = U @ (d[:, :, None] * Vt)
-    var_a = np.bincount(inst, weights=np.sum(a ** 2, axis=1), minlength=I) / count
-    scales = np.sum(sv * d, axis=1) / var_a
-    res = b - scales[inst, None] * np.einsum("kj,kij->ki", a, R[inst])
-    # neighbours: all of them, per instant the right-hand ones then the lower ones (corner order)
-    key = inst * (obj.shape[0] + cols + 1) + ids  # room for a corner's lower neighbour within its instant
-    order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
-
-    def partner(step: int, allowed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        at = np.searchsorted(sorted_key, key + step)
-        at = np.minimum(at, sorted_key.size - 1)
-        has = allowed & (sorted_key[at] == key + step)
-        return np.flatnonzero(has), order[at[has]]
-
-    right_p, right_q = partner(1, (ids % cols) + 1 < cols)
-    below_p, below_q = partner(cols, np.ones(ids.size, bool))
-    p = np.concatenate([right_p, below_p])
-    q = np.concatenate([right_q, below_q])
-    kind = np.concatenate([np.zeros(right_p.size, int), np.ones(below_p.size, int)])
-    nb = np.lexsort((ids[p], kind, inst[p]))
-    adjacent = np.linalg.norm(xyz[p[nb]] - xyz[q[nb]], axis=1) - board.square_mm
+    scales, res = _board_fits(obj[ids], xyz, inst, count, starts)
+    p, q = _neighbours(ids, inst, cols, obj.shape[0])
+    adjacent = np.linalg.norm(xyz[p] - xyz[q], axis=1) - board.square_mm
     # all pairs among at most max_pair_corners evenly spread corners of each instant (a large board has 10^5)
     pair_i, pair_j = [], []
     for lo, k in zip(starts.tolist(), count.astype(np.int64).tolist(), strict=True):
@@ -185,7 +147,64 @@ def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView
     true = np.linalg.norm(obj[ids[pi]] - obj[ids[pj]], axis=1)
     return {"scales": scales, "fit_residuals_mm": np.linalg.norm(res, axis=1), "adjacent_errors_mm": adjacent,
             "distance_errors_mm": meas - true, "true_distances_mm": true, "reprojection_error_px": err,
-            "n_instants": int(I), "n_points": int(ids.size)}
+            "n_instants": int(used.size), "n_points": int(ids.size)}
+
+
+def _plane_instants(ids: np.ndarray, inst: np.ndarray, n_inst: int, cols: int) -> np.ndarray:
+    """Per instant (n_inst,), whether its corners fix a plane: four or more, not all on one line.
+
+    Collinear corners leave the grid positions' 2 x 2 scatter singular (exact in integers).
+    """
+    n = np.bincount(inst, minlength=n_inst).astype(np.float64)
+    r, c = (v.astype(np.float64) for v in np.divmod(ids, cols))
+    sums = {k: np.bincount(inst, weights=w, minlength=n_inst)
+            for k, w in (("r", r), ("c", c), ("rr", r * r), ("cc", c * c), ("rc", r * c))}
+    det = ((n * sums["rr"] - sums["r"] ** 2) * (n * sums["cc"] - sums["c"] ** 2)
+           - (n * sums["rc"] - sums["r"] * sums["c"]) ** 2)
+    return (n >= 4) & (det != 0)
+
+
+def _board_fits(src: np.ndarray, dst: np.ndarray, inst: np.ndarray, count: np.ndarray,
+                starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Umeyama's closed form per instant, dst ~ s R src + t: scales (I,) and residuals (P, 3) mm.
+
+    Points are grouped by instant (``inst`` ascending, ``count`` each, from ``starts``); R comes from the
+    SVD of each instant's cross-covariance, all instants in one batched call.
+    """
+    n_inst = count.size
+    mu_s = np.stack([np.bincount(inst, weights=src[:, k], minlength=n_inst) for k in range(3)], axis=1) / count[:, None]
+    mu_d = np.stack([np.bincount(inst, weights=dst[:, k], minlength=n_inst) for k in range(3)], axis=1) / count[:, None]
+    a, b = src - mu_s[inst], dst - mu_d[inst]
+    cov = np.add.reduceat(b[:, :, None] * a[:, None, :], starts, axis=0) / count[:, None, None]
+    U, sv, Vt = np.linalg.svd(cov)
+    d = np.ones((n_inst, 3))
+    d[np.linalg.det(U) * np.linalg.det(Vt) < 0, -1] = -1
+    R = U @ (d[:, :, None] * Vt)
+    var_a = np.bincount(inst, weights=np.sum(a ** 2, axis=1), minlength=n_inst) / count
+    scales = np.sum(sv * d, axis=1) / var_a
+    return scales, b - scales[inst, None] * np.einsum("kj,kij->ki", a, R[inst])
+
+
+def _neighbours(ids: np.ndarray, inst: np.ndarray, cols: int, n_corners: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (p, q) of neighbouring corners seen at the same instant.
+
+    Per instant the right-hand neighbours come first, then the lower ones, each in corner order.
+    """
+    key = inst * (n_corners + cols + 1) + ids  # room for a corner's lower neighbour within its instant
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+
+    def partner(step: int, allowed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        at = np.minimum(np.searchsorted(sorted_key, key + step), sorted_key.size - 1)
+        has = allowed & (sorted_key[at] == key + step)
+        return np.flatnonzero(has), order[at[has]]
+
+    right_p, right_q = partner(1, (ids % cols) + 1 < cols)
+    below_p, below_q = partner(cols, np.ones(ids.size, bool))
+    p, q = np.concatenate([right_p, below_p]), np.concatenate([right_q, below_q])
+    kind = np.concatenate([np.zeros(right_p.size, int), np.ones(below_p.size, int)])
+    nb = np.lexsort((ids[p], kind, inst[p]))
+    return p[nb], q[nb]
 
 
 def _summary(err: np.ndarray, prefix: str) -> dict[str, float]:

@@ -161,9 +161,7 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
         Flag the rig when the bundle adjustment moves all principal points together by more than
         this fraction of the smaller image side (:func:`principal_point_common_shift`).
     threads : int or None
-        The cameras' intrinsics and the pairs' poses are fitted this many at once (OpenCV releases the
-        GIL; each fit depends on its own views alone, so the rig does not depend on the threads' timing).
-        None: all at once.
+        Intrinsics and pairs fitted this many at once (None: all); each fit uses its own views alone.
 
     Returns
     -------

@@ -244,6 +244,13 @@ class EarlyMotionTracks:
             self._stop.set()
             self._pool.shutdown(wait=True)
 
+    def __enter__(self) -> EarlyMotionTracks:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:  # an error before detection took the tracks: stop tracking for nothing
+            self.cancel()
+
 
 def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: int, offsets: Mapping[str, float],
                   first_frame: Mapping[str, int], params: PipelineParams, *, down: np.ndarray,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import nullcontext
 
 import cv2
 
@@ -49,6 +50,31 @@ def _motion_clip_sync(clips: ClipReader, rig: Rig, n_horse: int, params: Pipelin
     found = motion_sync(clips, rig, "motion", n_horse, params, clocks=clocks.get("motion"))
     progress.timings_s["sync_motion"] = round(time.perf_counter() - t0, 4)
     return found
+
+
+def _early_motion(clips: ClipReader, rig: Rig | None, methods: Mapping, first_frame: Mapping, params: PipelineParams,
+                  n_horse: int) -> EarlyMotionTracks | None:
+    """The motion clip's markers, tracked ahead while the calibration's solve keeps one core busy; None where not.
+
+    Camera by camera needs no rig; the clip starts where the flash (or given offsets) placed it.
+    """
+    if rig is not None or methods.get("motion") not in ("flash", "offsets") or (params.threads or 2) <= 1:
+        return None
+    return EarlyMotionTracks(clips, first_frame["motion"], params, n_horse)
+
+
+def _calibrate(clips: ClipReader, meta: Mapping, offsets: Mapping, first_frame: Mapping, methods: Mapping,
+               clocks: Mapping, params: PipelineParams, progress: Progress,
+               early: EarlyMotionTracks | None) -> tuple[Rig, dict, dict]:
+    """The rig from the calibration clips, its report, and the clip's sync where the board gave it.
+
+    The sync comes as ``{"calibration": MotionSync}`` (else empty); ``early`` starts once the views are found.
+    """
+    rig, report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
+                                       first_frame["calibration"], params, progress, clocks=clocks.get("calibration"),
+                                       sync_from_board=methods.get("calibration") == "motion",
+                                       on_views_found=early.start if early is not None else None)
+    return rig, report, ({"calibration": report.pop("sync")} if "sync" in report else {})
 
 
 def _within_thread_budget(params: PipelineParams) -> PipelineParams:
@@ -99,34 +125,22 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     t0 = time.perf_counter()
     calib_report: dict = dict(rig_report or {}) if rig is not None else {}
     synced: dict = {}  # clip kind -> MotionSync, for the clip sets synchronised from motion
-    # While the calibration's solve keeps one core busy, the motion clip's markers are tracked camera by
-    # camera (that needs no rig), where the flash (or given offsets) placed its start
-    early = (EarlyMotionTracks(clips, first_frame["motion"], params, int(markers.get("horse", 3)))
-             if rig is None and methods.get("motion") in ("flash", "offsets") and (params.threads or 2) > 1 else None)
-    try:
+    n_horse = int(markers.get("horse", 3))
+    early = _early_motion(clips, rig, methods, first_frame, params, n_horse)
+    with early if early is not None else nullcontext():  # cancelled if a stage fails before detection
         if rig is None:
-            rig, calib_report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
-                                                     first_frame["calibration"], params, progress,
-                                                     clocks=clocks.get("calibration"),
-                                                     sync_from_board=methods.get("calibration") == "motion",
-                                                     on_views_found=early.start if early is not None else None)
-            if "sync" in calib_report:
-                synced["calibration"] = calib_report.pop("sync")
+            rig, calib_report, synced = _calibrate(clips, meta, offsets, first_frame, methods, clocks, params,
+                                                   progress, early)
         progress.finish("calibration", t0)
         if methods.get("motion") == "motion":  # no flash: the markers' motion, with the rig just calibrated
-            synced["motion"] = _motion_clip_sync(clips, rig, int(markers.get("horse", 3)), params, clocks, progress)
+            synced["motion"] = _motion_clip_sync(clips, rig, n_horse, params, clocks, progress)
         for kind, found_sync in synced.items():
             offsets[kind] = dict(found_sync.offsets)
             clock_flags.append(sync_flag(kind, found_sync))
-
         t0 = time.perf_counter()
-        found = detect_ride(clips, rig, offsets, first_frame, clocks, params, calib_report, progress,
-                            n_horse=int(markers.get("horse", 3)), n_saddle=int(markers.get("saddle", 1)),
-                            n_plumb=int(markers.get("plumb", 2)), early_motion=early)
-    except BaseException:
-        if early is not None:
-            early.cancel()
-        raise
+        found = detect_ride(clips, rig, offsets, first_frame, clocks, params, calib_report, progress, n_horse=n_horse,
+                            n_saddle=int(markers.get("saddle", 1)), n_plumb=int(markers.get("plumb", 2)),
+                            early_motion=early)
     progress.finish("detection", t0, seconds=time.perf_counter() - t0 - found.triangulation_s)
     progress.finish("triangulation", t0, seconds=found.triangulation_s)
 

@@ -222,10 +222,9 @@ def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
 
 def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, float],
                          first_frame: Mapping[str, int], params: PipelineParams,
-                         progress: Progress | None = None,
-                         clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
-                         sync_from_board: bool = False,
-                         on_views_found: Callable[[], None] | None = None) -> tuple[Rig, dict]:
+                         progress: Progress | None = None, clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
+                         sync_from_board: bool = False, on_views_found: Callable[[], None] | None = None
+                         ) -> tuple[Rig, dict]:
     """Calibrate the rig from every camera's calibration clip.
 
     Board views from every camera's calibration clip, put on the first camera's clock, then
@@ -242,8 +241,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         speed, :func:`~saddlescope.core.sync_motion.motion_offsets` without a rig) once every camera's
         views are found; whole frames matter here, as only still views are used.
     on_views_found : callable, optional
-        Called once every camera's board views are found, before the solve (which keeps about one core
-        busy): the analysis starts work that needs no rig then.
+        Called once the board views are found, before the solve: work that needs no rig starts then.
 
     Returns
     -------
@@ -294,8 +292,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         keep = set(calib.select_instants(views_by_camera, board, sizes,
                                          max_instants=params.max_calibration_instants))
         views_by_camera = {c: [v for v in vs if v.frame in keep] for c, vs in views_by_camera.items()}
-    rig, report = calib.calibrate_rig(views_by_camera, board, sizes,
-                                      max_square_error_pct=params.max_square_error_pct,
+    rig, report = calib.calibrate_rig(views_by_camera, board, sizes, max_square_error_pct=params.max_square_error_pct,
                                       threads=cameras_at_once(len(cams), params.threads))
     report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
     report["board_coverage"] = {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v}
