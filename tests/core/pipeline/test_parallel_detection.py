@@ -15,26 +15,30 @@ from saddlescope.core.pipeline.detection import detect_clip, per_camera
 def test_per_camera_keeps_order_errors_and_the_budget():
     running, peak = [0], [0]
     lock = threading.Lock()
+    together = threading.Barrier(4, timeout=30)  # passes only when four cameras run at once
 
     def work(cam):
         with lock:
             running[0] += 1
             peak[0] = max(peak[0], running[0])
-        time.sleep(0.05)  # long enough for the pool's threads to overlap
+        if together is not None:
+            together.wait()
+        else:
+            time.sleep(0.05)  # long enough for the pool's threads to overlap
         with lock:
             running[0] -= 1
         if cam == "b":
             raise DetectionError("no markers in b")
         return cam.upper()
 
-    got = per_camera(["a", "b", "c", "d"], work, 2)
+    got = per_camera(["a", "b", "c", "d"], work, 2)  # every camera at once, up to twice the budget
     assert list(got) == ["a", "b", "c", "d"]
     assert got["a"] == "A" and got["d"] == "D"
     assert isinstance(got["b"], DetectionError) and "no markers in b" in str(got["b"])
-    assert peak[0] == 4  # every camera at once, up to twice the budget (they share its cores)
+    together = None
     peak[0] = 0
-    per_camera(list("abcdef"), work, 2)
-    assert peak[0] == 4  # never more than twice the budget
+    per_camera(list("acefgh"), work, 2)
+    assert peak[0] <= 4  # never more than twice the budget
     peak[0] = 0
     per_camera(["a", "c"], work, 1)
     assert peak[0] == 1
