@@ -212,6 +212,8 @@ def test_a_bundle_as_a_resumable_upload_becomes_a_ride_with_a_job(env, club):
     assert (
         ride["from_bundle"] and len(ride["recordings"]) == 12 and ride["latest_job_id"] == outcome["job_id"]
     )
+    if env.engine == "embedded":  # its job runs in a thread here: to its end, before a later test watches the disk
+        assert job_outcome(api, outcome["job_id"], timeout_s=300)["status"] in ("done", "failed")
 
 
 def test_raw_and_multipart_uploads_store_the_same_bytes(env, club):
