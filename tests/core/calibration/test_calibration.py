@@ -57,6 +57,15 @@ def _random_poses(n, rng, *, centre_mm=(75.0, 0.0, 700.0), board=None):
     return np.array(rvecs), np.array(ts)
 
 
+def _board_scene(seed: int, n_poses: int, noise_px: float, *, n_cams: int = 2):
+    """A checkerboard, a small rig and its simulated views of `n_poses` random board poses."""
+    rng = np.random.default_rng(seed)
+    board = make_board("checkerboard", (8, 6), 30.0)
+    rig = _small_rig(rng, n_cams=n_cams)
+    views = simulate_board_views(rig, board, *_random_poses(n_poses, rng, board=board), noise_px=noise_px, rng=rng)
+    return board, rig, views
+
+
 # ---------------------------------------------------------------- detection
 
 
@@ -201,10 +210,7 @@ def test_principal_points_moved_together_by_the_joint_adjustment_are_flagged(mon
 
 
 def test_bundle_adjustment_recovers_a_disturbed_rig():
-    rng = np.random.default_rng(3)
-    board = make_board("checkerboard", (8, 6), 30.0)
-    truth = _small_rig(rng, n_cams=3)
-    views = simulate_board_views(truth, board, *_random_poses(25, rng, board=board), noise_px=0.05, rng=rng)
+    board, truth, views = _board_scene(3, 25, 0.05, n_cams=3)
     start = {}
     for n, c in truth.cameras.items():
         R = c.R if n == "c0" else cv2.Rodrigues(np.array([0.02, -0.01, 0.01]))[0] @ c.R
@@ -225,10 +231,7 @@ def test_bundle_adjustment_recovers_a_disturbed_rig():
 
 
 def test_stereo_pair_matches_truth_and_needs_shared_views():
-    rng = np.random.default_rng(5)
-    board = make_board("checkerboard", (8, 6), 30.0)
-    truth = _small_rig(rng)
-    views = simulate_board_views(truth, board, *_random_poses(15, rng, board=board), noise_px=0.05, rng=rng)
+    board, truth, views = _board_scene(5, 15, 0.05)
     a, b = truth.cameras["c0"], truth.cameras["c1"]
     pair = stereo_extrinsics(views["c0"], views["c1"], a, b, board)
     assert np.linalg.norm(pair["t_mm"] - b.t_mm) < 1.0 and _angle_deg(pair["R"], b.R) < 0.05
@@ -237,10 +240,7 @@ def test_stereo_pair_matches_truth_and_needs_shared_views():
 
 
 def test_metric_check_flags_a_wrongly_scaled_rig():
-    rng = np.random.default_rng(11)
-    board = make_board("checkerboard", (8, 6), 30.0)
-    truth = _small_rig(rng)
-    views = simulate_board_views(truth, board, *_random_poses(10, rng, board=board), noise_px=0.02, rng=rng)
+    board, truth, views = _board_scene(11, 10, 0.02)
     checks, flags, pairs = metric_checks(truth, views, board)
     assert checks["board_square_error_pct"] < 0.2 and flags == []
     assert checks["corner_distance_error_rms_mm"] < 0.5 and "c0-c1" in pairs
@@ -267,10 +267,7 @@ def test_triangulate_dlt_exact_without_noise_and_nan_where_unseen():
 
 
 def test_board_distance_errors_zero_for_truth():
-    rng = np.random.default_rng(4)
-    board = make_board("checkerboard", (8, 6), 30.0)
-    rig = _small_rig(rng)
-    views = simulate_board_views(rig, board, *_random_poses(5, rng, board=board), noise_px=0.0, rng=rng)
+    board, rig, views = _board_scene(4, 5, 0.0)
     errs = board_distance_errors(rig, views, board)
     assert errs["n_instants"] == 5
     assert np.abs(errs["distance_errors_mm"]).max() < 1e-3 and np.allclose(errs["scales"], 1, atol=1e-6)
@@ -279,10 +276,7 @@ def test_board_distance_errors_zero_for_truth():
 def test_board_distance_errors_skip_a_line_of_corners_and_keep_neighbours_within_an_instant():
     from dataclasses import replace
 
-    rng = np.random.default_rng(5)
-    board = make_board("checkerboard", (8, 6), 30.0)
-    rig = _small_rig(rng)
-    views = simulate_board_views(rig, board, *_random_poses(4, rng, board=board), noise_px=0.0, rng=rng)
+    board, rig, views = _board_scene(5, 4, 0.0)
     full = board_distance_errors(rig, views, board)
     # one instant shows a single row of corners (no plane), another three corners (too few): both skipped
     line, few = sorted({v.frame for v in views["c0"]})[:2]
@@ -327,10 +321,7 @@ def test_no_board_and_too_few_views_name_the_camera():
 
 
 def test_calibrate_rig_names_the_unlinked_camera():
-    rng = np.random.default_rng(6)
-    board = make_board("checkerboard", (8, 6), 30.0)
-    rig = _small_rig(rng)
-    views = simulate_board_views(rig, board, *_random_poses(16, rng, board=board), noise_px=0.05, rng=rng)
+    board, rig, views = _board_scene(6, 16, 0.05)
     # c1 sees the board only at instants c0 does not
     c0 = [v for v in views["c0"] if v.frame < 8]
     c1 = [v for v in views["c1"] if v.frame >= 8]
