@@ -72,3 +72,26 @@ def test_the_budget_bounds_what_the_sync_passes_keep(tmp_path):
     _clip(dark, 40)
     with BundleClips({"motion": {"left": dark}}) as clips:
         assert len(clips.brightness("motion", "left")) == 40 and not clips._handoffs
+
+
+def test_close_during_a_sync_pass_leaves_that_pass_its_reservation(tmp_path):
+    paths = {cam: tmp_path / f"{cam}.mp4" for cam in ("left", "middle")}
+    for path in paths.values():
+        _clip(path, 90, flash=(10, 13))
+    clips = BundleClips({"motion": paths})
+    clips.brightness("motion", "left")
+    decoded = clips._decoded
+
+    def closed_midway(kind, camera, start, stop, step):  # the analysis ends while the middle clip is read
+        for n, frame in enumerate(decoded(kind, camera, start, stop, step)):
+            if n == 5:
+                clips.close()
+            yield frame
+
+    clips._decoded = closed_midway
+    clips.brightness("motion", "middle")
+    live = sum(handoff.nbytes for handoff in clips._handoffs.values())
+    assert ("motion", "left") not in clips._handoffs and clips._handoff_bytes == live > 0
+    clips._decoded = decoded
+    clips.close()
+    assert not clips._handoffs and clips._handoff_bytes == 0 and clips._open_decoders == 0

@@ -116,8 +116,9 @@ class BundleClips:
 
     def close(self) -> None:
         """Close the decoders handed over by sync passes and not taken up (their frames are dropped)."""
-        with self._lock:
-            handoffs, self._handoffs, self._handoff_bytes = list(self._handoffs.values()), {}, 0.0
+        with self._lock:  # a sync pass still reading keeps its reservation (it releases it itself)
+            handoffs, self._handoffs = list(self._handoffs.values()), {}
+            self._handoff_bytes -= sum(handoff.nbytes for handoff in handoffs)
         for handoff in handoffs:
             handoff.close()
 
