@@ -107,6 +107,7 @@ class BundleClips:
         self._handoff_budget = float(handoff_budget_mb) * 1e6
         self._handoff_bytes = 0.0  # kept or reserved by sync passes reading now
         self._handoffs: dict[tuple[str, str], _Handoff] = {}
+        self._closed = False  # after close(), a pass still reading hands nothing over
 
     def __enter__(self) -> BundleClips:
         return self
@@ -117,7 +118,7 @@ class BundleClips:
     def close(self) -> None:
         """Close the decoders handed over by sync passes and not taken up (their frames are dropped)."""
         with self._lock:  # a sync pass still reading keeps its reservation (it releases it itself)
-            handoffs, self._handoffs = list(self._handoffs.values()), {}
+            handoffs, self._handoffs, self._closed = list(self._handoffs.values()), {}, True
             self._handoff_bytes -= sum(handoff.nbytes for handoff in handoffs)
         for handoff in handoffs:
             handoff.close()
@@ -234,9 +235,10 @@ class BundleClips:
             values = brightness_until_flash(tapped(), fps, clip=kind, camera=camera)
             handoff = self._handoff_after_flash(values, kept, frames, kind, camera) if keep else None
             if handoff is not None:
-                nbytes = handoff.nbytes
                 with self._lock:
-                    self._handoffs[(kind, camera)] = handoff
+                    if not self._closed:
+                        nbytes = handoff.nbytes
+                        self._handoffs[(kind, camera)] = handoff
             return values
         finally:
             with self._lock:

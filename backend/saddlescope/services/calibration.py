@@ -59,10 +59,10 @@ def calibrate_clips(
     if missing:
         raise CalibrationError(f"no calibration clip of the {', '.join(missing)} camera")
     meta = {"board": dict(board), "sync": dict(sync or {"method": "flash"})}
-    clips = BundleClips({"calibration": {role: Path(paths[role]) for role in CAMERA_ROLES}})
     if on_progress is not None:
         on_progress(0.0, "sync")
-    with single_threaded_numerics():
+    clips = BundleClips({"calibration": {role: Path(paths[role]) for role in CAMERA_ROLES}})
+    with clips, single_threaded_numerics():  # a hand-over no pass took up is closed at the end
         offsets, first_frame, methods = synchronise_clips(clips, meta, ["calibration"])
         clocks, _ = frame_clocks(clips, ["calibration"])
         if on_progress is not None:

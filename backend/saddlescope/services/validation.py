@@ -18,8 +18,7 @@ from saddlescope.io.clip_source import BundleClips
 def run_validation(bundle_path: Path | str, rig: Rig, *, board_points: dict | None = None) -> dict:
     """Free-fall gravity and board point distances from the bundle's ``extra_clips`` (those present)."""
     out: dict = {}
-    with open_bundle(Path(bundle_path)) as bundle:
-        clips = BundleClips(bundle.extra_clip_paths)
+    with open_bundle(Path(bundle_path)) as bundle, BundleClips(bundle.extra_clip_paths) as clips:
         kinds = [k for k in ("freefall", "board_distance") if clips.has(k)]
         offsets, first = synchronise(clips, {"sync": {"method": "flash"}}, kinds)
         if "freefall" in kinds:
