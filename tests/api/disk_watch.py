@@ -18,17 +18,20 @@ from pathlib import Path
 
 from saddlescope.storage import sha256_file, tree_digest
 
-__all__ = ["HeldQueue", "bundle_clip_digests", "queue_of", "watching_local_writes"]
+__all__ = ["HeldQueue", "bundle_clip_digests", "in_a_job_thread", "queue_of", "watching_local_writes"]
 
 _WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_APPEND | os.O_TRUNC
 _records: list[list[str]] = []  # the lists of the blocks watching now
 _installed = False
 
 
+def in_a_job_thread() -> bool:
+    """Whether the caller runs a job of the embedded queue (a worker's own disk, not the API's)."""
+    return "run_job" in threading.current_thread().name
+
+
 def _audit(event: str, args: tuple) -> None:
-    if not _records or event not in ("open", "os.mkdir"):
-        return
-    if "run_job" in threading.current_thread().name:  # a job of the embedded queue: a worker's own disk
+    if not _records or event not in ("open", "os.mkdir") or in_a_job_thread():
         return
     path = args[0]
     if isinstance(path, int):  # an open file descriptor, opened (and recorded) before

@@ -12,7 +12,6 @@ import hashlib
 import io
 import json
 import tempfile
-import threading
 import time
 import zipfile
 
@@ -20,7 +19,7 @@ import integration_services
 import pytest
 import s3_server as s3_server_module
 from api_helpers import new_club, zip_folder
-from disk_watch import HeldQueue, bundle_clip_digests, queue_of, watching_local_writes
+from disk_watch import HeldQueue, bundle_clip_digests, in_a_job_thread, queue_of, watching_local_writes
 from engines import ENGINES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip, zip_with_a_flipped_byte
 
@@ -247,14 +246,10 @@ def test_on_object_storage_the_api_keeps_no_video_byte_on_its_disk(env, club, mo
     api, ride = club["api"], club["ride"]
     data = write_tiny_clip(club["folder"] / "private.avi", frames=10).read_bytes()
     local_files: list[str] = []  # every temporary file or folder, or local store, the API opens meanwhile
-
-    def api_side(name: str) -> list[str]:  # a job of the embedded queue (a "run_job" thread) is a worker's disk
-        return [] if "run_job" in threading.current_thread().name else [name]
-
     for name in ("mkstemp", "mkdtemp", "NamedTemporaryFile", "TemporaryFile", "SpooledTemporaryFile"):
         real = getattr(tempfile, name)
         monkeypatch.setattr(tempfile, name, lambda *a, _real=real, _name=name, **k: (
-            local_files.extend(api_side(_name)), _real(*a, **k))[1])
+            local_files.extend([] if in_a_job_thread() else [_name]), _real(*a, **k))[1])
     monkeypatch.setattr(FileStorage, "__init__", lambda self, root: local_files.append(f"FileStorage({root})"))
     upload = start(api, ride["id"], data, camera="right", clip_kind="plumb")
     half = len(data) // 2

@@ -61,8 +61,8 @@ def calibrate_clips(
     meta = {"board": dict(board), "sync": dict(sync or {"method": "flash"})}
     if on_progress is not None:
         on_progress(0.0, "sync")
-    clips = BundleClips({"calibration": {role: Path(paths[role]) for role in CAMERA_ROLES}})
-    with clips, single_threaded_numerics():  # a hand-over no pass took up is closed at the end
+    with (BundleClips({"calibration": {role: Path(paths[role]) for role in CAMERA_ROLES}}) as clips,
+          single_threaded_numerics()):  # a hand-over no pass took up is closed at the end
         offsets, first_frame, methods = synchronise_clips(clips, meta, ["calibration"])
         clocks, _ = frame_clocks(clips, ["calibration"])
         if on_progress is not None:
