@@ -150,6 +150,11 @@ def board_distance_errors(rig: Rig, views_by_camera: Mapping[str, list[BoardView
             "n_instants": int(used.size), "n_points": int(ids.size)}
 
 
+def _per_instant_sums(values: np.ndarray, inst: np.ndarray, n_inst: int) -> np.ndarray:
+    """Column sums (n_inst, k) of ``values`` (P, k) over the points of each instant."""
+    return np.stack([np.bincount(inst, weights=v, minlength=n_inst) for v in values.T], axis=1)
+
+
 def _plane_instants(ids: np.ndarray, inst: np.ndarray, n_inst: int, cols: int) -> np.ndarray:
     """Per instant (n_inst,), whether its corners fix a plane: four or more, not all on one line.
 
@@ -157,10 +162,8 @@ def _plane_instants(ids: np.ndarray, inst: np.ndarray, n_inst: int, cols: int) -
     """
     n = np.bincount(inst, minlength=n_inst).astype(np.float64)
     r, c = (v.astype(np.float64) for v in np.divmod(ids, cols))
-    sums = {k: np.bincount(inst, weights=w, minlength=n_inst)
-            for k, w in (("r", r), ("c", c), ("rr", r * r), ("cc", c * c), ("rc", r * c))}
-    det = ((n * sums["rr"] - sums["r"] ** 2) * (n * sums["cc"] - sums["c"] ** 2)
-           - (n * sums["rc"] - sums["r"] * sums["c"]) ** 2)
+    s_r, s_c, s_rr, s_cc, s_rc = _per_instant_sums(np.column_stack([r, c, r * r, c * c, r * c]), inst, n_inst).T
+    det = (n * s_rr - s_r ** 2) * (n * s_cc - s_c ** 2) - (n * s_rc - s_r * s_c) ** 2
     return (n >= 4) & (det != 0)
 
 
@@ -172,15 +175,15 @@ def _board_fits(src: np.ndarray, dst: np.ndarray, inst: np.ndarray, count: np.nd
     SVD of each instant's cross-covariance, all instants in one batched call.
     """
     n_inst = count.size
-    mu_s = np.stack([np.bincount(inst, weights=src[:, k], minlength=n_inst) for k in range(3)], axis=1) / count[:, None]
-    mu_d = np.stack([np.bincount(inst, weights=dst[:, k], minlength=n_inst) for k in range(3)], axis=1) / count[:, None]
+    mu_s = _per_instant_sums(src, inst, n_inst) / count[:, None]
+    mu_d = _per_instant_sums(dst, inst, n_inst) / count[:, None]
     a, b = src - mu_s[inst], dst - mu_d[inst]
     cov = np.add.reduceat(b[:, :, None] * a[:, None, :], starts, axis=0) / count[:, None, None]
     U, sv, Vt = np.linalg.svd(cov)
     d = np.ones((n_inst, 3))
     d[np.linalg.det(U) * np.linalg.det(Vt) < 0, -1] = -1
     R = U @ (d[:, :, None] * Vt)
-    var_a = np.bincount(inst, weights=np.sum(a ** 2, axis=1), minlength=n_inst) / count
+    var_a = _per_instant_sums(np.sum(a ** 2, axis=1)[:, None], inst, n_inst)[:, 0] / count
     scales = np.sum(sv * d, axis=1) / var_a
     return scales, b - scales[inst, None] * np.einsum("kj,kij->ki", a, R[inst])
 
