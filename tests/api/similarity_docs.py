@@ -9,7 +9,6 @@ pipeline.
 
 from __future__ import annotations
 
-import json
 import zlib
 from pathlib import Path
 
@@ -49,20 +48,17 @@ def motion_document(horse: str, gait: str, *, recording: int = 0, strides: int =
 def store_document(database_url: str, storage_dir: Path | str, ride_id: int, doc: dict, *,
                    code_version: str = "test") -> None:
     """Put a finished analysis in as the analyse stage does: result JSON in storage, row in the database."""
-    from saddlescope.db.repositories import ResultRepository, RideRepository
+    from saddlescope.db.repositories import RideRepository
     from saddlescope.db.session import make_engine, make_session_factory, session_scope
-    from saddlescope.services.rides import refresh_ride_status
-    from saddlescope.storage import FileStorage, stage_output_key
+    from saddlescope.services.results import commit_result
+    from saddlescope.storage import FileStorage
 
-    key = f"{stage_output_key(ride_id, 'analyze')}/result.json"
-    FileStorage(storage_dir).write_bytes(key, json.dumps(doc, allow_nan=False).encode())
     engine = make_engine(database_url)
     try:
-        with session_scope(make_session_factory(engine)) as session:
-            ride = RideRepository(session).get(ride_id)
-            ResultRepository(session).replace_for_ride(club_id=ride.club_id, ride_id=ride_id, job_id=None,
-                                                       indicators=doc["indicators"], result_key=key,
-                                                       code_version=code_version)
-            refresh_ride_status(session, ride_id)
+        sessions = make_session_factory(engine)
+        with session_scope(sessions) as session:
+            club_id = RideRepository(session).get(ride_id).club_id
+        commit_result(sessions, FileStorage(storage_dir), club_id=club_id, ride_id=ride_id, job_id=None,
+                      document=doc, code_version=code_version)
     finally:
         engine.dispose()

@@ -193,7 +193,7 @@ def test_result_replaces_the_previous_one_and_fills_leaderboard_columns(sessions
             job_id=None,
             indicators={"acc_y_wb_rms": 2.0, "vel_x_avg_kmh": 19.5},
             result_key=None,
-            code_version="v1",
+            code_version="v1", uncertain_reason=None,
         )
         second = results.replace_for_ride(
             club_id=club_id,
@@ -201,7 +201,7 @@ def test_result_replaces_the_previous_one_and_fills_leaderboard_columns(sessions
             job_id=None,
             indicators={"acc_y_wb_rms": 2.5, "vdv_y_wb": 4.0, "note": "x"},
             result_key="r.json",
-            code_version="v2",
+            code_version="v2", uncertain_reason=None,
         )
         assert first.id == second.id
     with sessions() as s:

@@ -114,7 +114,7 @@ def test_the_leaderboard_values_come_from_the_clubs_results_only(sessions, two_c
                 job_id=None,
                 indicators={"acc_y_wb_rms": value, "t_a8_limit_wb_h": 2 * value},
                 result_key=None,
-                code_version=None,
+                code_version=None, uncertain_reason=None,
             )
         a = AnalyticsRepository(s, club_id=two_clubs["A"]["club"])
         assert a.indicator_values("acc_y_wb_rms", gait="walk") == [(two_clubs["A"]["horse"], "Horse A", 1.5)]

@@ -122,22 +122,18 @@ def result_document(*, scale: float, gait: str, rng: np.random.Generator) -> dic
 
 def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) -> None:
     """Put a finished analysis in as the analyse stage would: result JSON in storage, row in the DB."""
-    from saddlescope.db.repositories import ResultRepository, RideRepository
+    from saddlescope.db.repositories import RideRepository
     from saddlescope.db.session import make_engine, make_session_factory, session_scope
-    from saddlescope.services.rides import refresh_ride_status
-    from saddlescope.storage import FileStorage, stage_output_key
+    from saddlescope.services.results import commit_result
+    from saddlescope.storage import FileStorage
 
-    storage = FileStorage(storage_dir)
-    result_key = f"{stage_output_key(ride_id, 'analyze')}/result.json"
-    storage.write_bytes(result_key, json.dumps(doc, allow_nan=False).encode())
     engine = make_engine(database_url)
     try:
-        with session_scope(make_session_factory(engine)) as session:
-            ride = RideRepository(session).get(ride_id)
-            ResultRepository(session).replace_for_ride(
-                club_id=ride.club_id, ride_id=ride_id, job_id=None, indicators=doc["indicators"],
-                result_key=result_key, code_version="test")
-            refresh_ride_status(session, ride_id)  # analysed: it has a result
+        sessions = make_session_factory(engine)
+        with session_scope(sessions) as session:
+            club_id = RideRepository(session).get(ride_id).club_id
+        commit_result(sessions, FileStorage(storage_dir), club_id=club_id, ride_id=ride_id, job_id=None,
+                      document=doc, code_version="test")
     finally:
         engine.dispose()
 

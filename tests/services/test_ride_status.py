@@ -87,7 +87,7 @@ def test_a_ride_through_clips_jobs_and_results(sessions):
         JobRepository(s).mark_running(second, host="test", code_version="test")
         ResultRepository(s).replace_for_ride(
             club_id=club.id, ride_id=ride_id, job_id=second, indicators={}, result_key="r.json",
-            code_version="test",
+            code_version="test", uncertain_reason=None,
         )
         JobRepository(s).finish(second, JobStatus.DONE)
     assert _status(sessions, ride_id) == "analysed"

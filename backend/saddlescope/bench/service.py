@@ -39,6 +39,7 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Club, Horse, Result, Ride, Rider
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services.accounts import create_club
+from saddlescope.services.results import uncertain_reason_of
 
 MIB = 1024**2
 PASSWORD = "benchmark password"
@@ -487,6 +488,7 @@ def _analysed_ride(root: Path, database_url: str, samples: int) -> int:
                 indicators=document["indicators"],
                 result_key=key,
                 code_version="bench",
+                uncertain_reason=uncertain_reason_of(document),
             )
             return ride.id
     finally:

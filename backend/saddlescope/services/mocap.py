@@ -13,7 +13,6 @@ and the result document gets a ``source`` object naming the file and these choic
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -292,9 +291,9 @@ def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, c
     """
     import tempfile
 
-    from saddlescope.db.repositories import ResultRepository, RideRepository
+    from saddlescope.db.repositories import RideRepository
     from saddlescope.db.session import session_scope
-    from saddlescope.services.rides import refresh_ride_status
+    from saddlescope.services.results import commit_result
 
     try:
         suffix = mocap_suffix(filename)
@@ -313,13 +312,9 @@ def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, c
             meta={"source": document["source"], "_created_by": ride.get("created_by")})
         ride_id = row.id
     file_key = f"rides/{ride_id}/mocap/{name}{suffix}"
-    result_key = f"rides/{ride_id}/mocap/result.json"
     storage.write_bytes(file_key, data)
     document["source"]["stored_as"] = file_key
-    storage.write_bytes(result_key, json.dumps(document, allow_nan=False).encode())
-    with session_scope(sessions) as session:
-        ResultRepository(session).replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=None,
-                                                   indicators=document["indicators"], result_key=result_key,
-                                                   code_version=code_version)
-        refresh_ride_status(session, ride_id)
+    # the one writer of results: the indicators' columns and the too-uncertain verdict derived as for video
+    commit_result(sessions, storage, club_id=club_id, ride_id=ride_id, job_id=None, document=document,
+                  code_version=code_version)
     return ride_id

@@ -12,6 +12,7 @@ import secrets
 import tempfile
 import threading
 from collections import OrderedDict
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -24,12 +25,13 @@ from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRep
 from saddlescope.db.session import session_scope
 from saddlescope.services.quality_notes import quality_notes, quality_summary
 from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
+from saddlescope.services.rides import refresh_ride_status
 from saddlescope.storage import Storage
 
 __all__ = [
     "ANGULAR_PER_FRAME", "DERIVED_SERIES", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
     "commit_result", "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document",
-    "analysed_result", "result_view", "result_view_json", "tracks_mm", "view_of_document",
+    "analysed_result", "result_view", "result_view_json", "tracks_mm", "uncertain_reason_of", "view_of_document",
 ]
 
 log = logging.getLogger(__name__)
@@ -324,6 +326,17 @@ def export_rides(
     return indicator_table_bytes(_ride_rows(session, None, club_id=club_id, rides=rides), fmt), f"rides.{fmt}"
 
 
+def uncertain_reason_of(document: Mapping[str, Any]) -> str | None:
+    """Why a result document's ride is too uncertain for a decision (``quality.decision.reason``), or None.
+
+    The one place the verdict is read from a document: the result row's ``uncertain_reason`` (what the
+    leaderboards filter on) is derived from it by :func:`commit_result`, the one writer of results.
+    """
+    decision = (document.get("quality") or {}).get("decision") or {}
+    reason = decision.get("reason") if decision.get("too_uncertain", decision.get("reason") is not None) else None
+    return str(reason) if reason else None
+
+
 def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id: int, ride_id: int,
                   job_id: int | None, document: dict[str, Any], code_version: str | None,
                   attempt: int | None = None, host: str | None = None) -> str:
@@ -334,6 +347,10 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
     readers get the old result, and a failed commit leaves it (and removes the new document). With
     `attempt` and `host`, the swap happens only while that attempt still holds job `job_id` (its row
     locked until the commit); a stale worker's result is refused (`JobFenced`) and its document removed.
+
+    This is the one writer of results: an analysed clip set, a re-analysis and a motion-capture file all
+    store theirs here, so the indicators' columns and the too-uncertain verdict are derived in one place
+    (:func:`uncertain_reason_of`) and the ride's status is refreshed in the same transaction.
     """
     from saddlescope.db.repositories import JobRepository
     from saddlescope.services.fencing import JobFenced
@@ -354,8 +371,8 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
             results.replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=job_id,
                                      indicators=document.get("indicators", {}), result_key=key,
                                      code_version=code_version, job_attempt=attempt,
-                                     uncertain_reason=((document.get("quality") or {}).get("decision") or {}).get(
-                                         "reason"))
+                                     uncertain_reason=uncertain_reason_of(document))
+            refresh_ride_status(session, ride_id)
     except BaseException:
         storage.delete(key)
         raise

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import datetime as dt
-import json
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Request, status
@@ -18,6 +17,7 @@ from saddlescope.core.errors import InputError
 from saddlescope.db.repositories import RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.mocap import MocapChoice, store_mocap_ride
+from saddlescope.services.results import result_document
 from saddlescope.services.uploads import staging_key
 
 __all__ = ["router"]
@@ -86,10 +86,8 @@ async def upload_mocap(
     ride_id = await run_in_threadpool(
         store_mocap_ride, sessions, storage, staged.key, staged.filename or filename, choice, club_id=club_id,
         ride=ride, code_version=settings.resolved_code_version)
-    doc = await run_in_threadpool(storage.read_bytes, f"rides/{ride_id}/mocap/result.json")
-
-    document = json.loads(doc)
     with session_scope(sessions) as session:
+        document = result_document(session, storage, ride_id, club_id=club_id)
         row = RideRepository(session, club_id=club_id).get(ride_id)
         return MocapRideOut(ride=ride_out(row, document["indicators"]), period_s=document["period_s"],
                             indicators=document["indicators"], flags=document["quality"].get("flags", []),

@@ -224,12 +224,14 @@ class ResultRepository(Repository):
         return {ride_id: dict(indicators or {}) for ride_id, indicators in self.session.execute(stmt)}
 
     def replace_for_ride(self, *, club_id: int, ride_id: int, job_id: int | None, indicators: dict[str, Any],
-                         result_key: str | None, code_version: str | None, job_attempt: int | None = None,
-                         uncertain_reason: str | None = None) -> Result:
+                         result_key: str | None, code_version: str | None, uncertain_reason: str | None,
+                         job_attempt: int | None = None) -> Result:
         """Store a ride's result, replacing the previous one (re-running a job is idempotent).
 
         The ride's cached comparisons with other rides are deleted: they were computed from the old
-        analysis. ``uncertain_reason``: why the ride is too uncertain for a decision (None: it is not).
+        analysis. ``uncertain_reason``: why the ride is too uncertain for a decision (None: it is not);
+        required, so no writer can leave the verdict out (``services.results.commit_result`` derives it
+        from the document).
         """
         self.session.execute(delete(SimilarityPair).where(
             or_(SimilarityPair.ride_a_id == ride_id, SimilarityPair.ride_b_id == ride_id)))
