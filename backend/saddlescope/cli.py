@@ -170,6 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("bench", help="performance benchmarks, ratios measured side by side")
     s.add_argument("--json", dest="json_out", default=None)
     s.add_argument("--quick", action="store_true", help="smaller inputs, for a smoke test")
+    s.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
+                   help="measure these sections alone, with a whole run's keys: detection, calibration, speed, "
+                        "footage, floor, accuracy, similarity, service, coverage, dashboard")
     return p
 
 
@@ -228,9 +231,14 @@ def run(args: argparse.Namespace) -> int:
                   f"{s['up']} up; result in {args.json_out}", file=sys.stderr)
         return 0
     if cmd == "bench":
-        from saddlescope.bench import run_benchmarks
+        from saddlescope.bench import run_benchmarks, sections_named
 
-        result = run_benchmarks(quick=args.quick)
+        try:
+            sections_named(args.only)
+        except ValueError as exc:
+            print(f"saddlescope bench: {exc}", file=sys.stderr)
+            return 2
+        result = run_benchmarks(quick=args.quick, only=args.only)
         _write_json(result, args.json_out)
         if args.json_out:
             print(json.dumps(result, indent=2))

@@ -7,10 +7,8 @@ in the same run (best of a few repeats), or an absolute time with the load avera
 from __future__ import annotations
 
 import os
-import platform
 import resource
 import shutil
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -431,52 +429,48 @@ def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_tro
     return out
 
 
-def run_benchmarks(*, quick: bool = False) -> dict:
-    """Every benchmark; keys of CONTRACTS section 3 first."""
-    repeats = 2 if quick else 3
-    from saddlescope.settings import get_settings
+def _repeats(quick: bool) -> int:
+    return 2 if quick else 3
 
-    out: dict = {"machine": {"cpus": os.cpu_count(), "worker_threads": get_settings().resolved_worker_threads,
-                             "python": platform.python_version(),
-                             "load_avg_start": list(os.getloadavg())}}
-    tmp = Path(tempfile.mkdtemp(prefix="saddlescope-bench-"))
-    try:
-        d640 = detection_vs_decode("thesis", duration_s=3.0 if quick else 6.0, repeats=repeats, tmp=tmp)
-        out["detection_vs_decode_640x480"] = d640["ratio"]
-        d1080 = detection_vs_decode("wide", duration_s=2.0 if quick else 4.0, repeats=repeats, tmp=tmp)
-        out["detection_vs_decode_1920x1080"] = d1080["ratio"]
-        out["detail_detection"] = {"640x480": d640, "1920x1080": d1080}
-        cal = calibration_3cams(1 if quick else 2)
-        out["calibration_3cams_s"] = cal["seconds"]
-        out["detail_calibration"] = cal
-        speed = speed_rides(tmp, quick=quick)
-        out.update(speed_keys(speed))
-        out["detail_speed"] = speed
-        ana = analysis_vs_footage(tmp, quick=quick)
-        out["analysis_vs_footage"] = ana["ratio"]
-        out["detail_analysis"] = ana
-        out["kinematics_floor_thesis"] = kinematics_floor(rig="thesis", seeds=(1, 2) if quick else (1, 2, 3, 4, 5, 6))
-        if not quick:
-            gaits = ("walk", "sitting_trot", "rising_trot", "canter")
-            out["accuracy_thesis"] = accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,))
-            # the same horses with markers fixed to the saddle body: what the cameras and the stages
-            # cost without any skin motion (the floor is then zero)
-            out["accuracy_thesis_rigid_markers"] = accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,),
-                                                            skin_motion="none")
-        try:
-            from saddlescope.bench.similarity import run_similarity_benchmarks
-        except ImportError:
-            out["chaincode_10k_s"] = None
-            out["dtw_10k_s"] = None
-        else:
-            out.update(run_similarity_benchmarks(quick=quick))
-        try:
-            from saddlescope.bench import load as service_bench
-        except ImportError:
-            pass
-        else:
-            out["service"] = service_bench.run_all(quick=quick)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    out["machine"]["load_avg_end"] = list(os.getloadavg())
-    return out
+
+def detection_section(tmp: Path, quick: bool) -> dict:
+    """Marker detection against decoding the same clips, at 640x480 and 1920x1080."""
+    d640 = detection_vs_decode("thesis", duration_s=3.0 if quick else 6.0, repeats=_repeats(quick), tmp=tmp)
+    d1080 = detection_vs_decode("wide", duration_s=2.0 if quick else 4.0, repeats=_repeats(quick), tmp=tmp)
+    return {"detection_vs_decode_640x480": d640["ratio"], "detection_vs_decode_1920x1080": d1080["ratio"],
+            "detail_detection": {"640x480": d640, "1920x1080": d1080}}
+
+
+def calibration_section(tmp: Path, quick: bool) -> dict:
+    """The three cameras' calibration from their board clips."""
+    cal = calibration_3cams(1 if quick else 2)
+    return {"calibration_3cams_s": cal["seconds"], "detail_calibration": cal}
+
+
+def speed_section(tmp: Path, quick: bool) -> dict:
+    """Whole rides against decoding their clips once, each stage's share, rides per core-hour, peak memory."""
+    speed = speed_rides(tmp, quick=quick)
+    return {**speed_keys(speed), "detail_speed": speed}
+
+
+def footage_section(tmp: Path, quick: bool) -> dict:
+    """Whole rides against the length of their footage."""
+    ana = analysis_vs_footage(tmp, quick=quick)
+    return {"analysis_vs_footage": ana["ratio"], "detail_analysis": ana}
+
+
+def floor_section(tmp: Path, quick: bool) -> dict:
+    """The exact-marker floor of the kinematics on the thesis rig (nothing rendered)."""
+    return {"kinematics_floor_thesis": kinematics_floor(rig="thesis", seeds=(1, 2) if quick else (1, 2, 3, 4, 5, 6))}
+
+
+def accuracy_section(tmp: Path, quick: bool) -> dict:
+    """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the
+    saddle body (what the cameras and the stages cost without any skin motion: the floor is then zero).
+    Skipped (no keys) in quick mode."""
+    if quick:
+        return {}
+    gaits = ("walk", "sitting_trot", "rising_trot", "canter")
+    return {"accuracy_thesis": accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,)),
+            "accuracy_thesis_rigid_markers": accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,),
+                                                      skin_motion="none")}
