@@ -63,7 +63,8 @@ def test_an_unknown_code_or_an_empty_detail_is_a_programming_error():
         Finding("tracking.lots", "markers lost")
     with pytest.raises(ValueError, match="needs its detail"):
         Finding("tracking.lost", " ")
-    nan = Finding("tracking.lost", "markers lost from 1.00 s to 1.20 s", {"gap_start_s": 1.0, "gap_end_s": float("nan")})
+    nan = Finding("tracking.lost", "markers lost from 1.00 s to 1.20 s",
+                  {"gap_start_s": 1.0, "gap_end_s": float("nan")})
     assert dict(nan.values) == {"gap_start_s": 1.0}  # a number not determined is left out, not stored as NaN
 
 

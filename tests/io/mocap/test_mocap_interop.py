@@ -97,8 +97,8 @@ def test_c3d_past_65535_frames_every_reader_gets_every_frame(tmp_path):
 
 def test_repeated_labels_get_their_descriptions_or_rank():
     labels, warnings = distinct_labels(["A", "K", "K", "B"], ["x", "Knee", "Knee medial", "y"])
-    assert labels == ("A", "K (Knee)", "K (Knee medial)", "B") and [w.code for w in warnings] == ["mocap.repeated_labels"]
-    assert "K" in warnings[0].detail
+    assert labels == ("A", "K (Knee)", "K (Knee medial)", "B")
+    assert [w.code for w in warnings] == ["mocap.repeated_labels"] and "K" in warnings[0].detail
     labels, _ = distinct_labels(["K", "K"], ["", ""])
     assert labels == ("K#1", "K#2")
     assert distinct_labels(["A", "B"]) == (("A", "B"), ())
