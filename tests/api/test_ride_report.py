@@ -19,6 +19,8 @@ from fastapi.testclient import TestClient
 
 from conftest import PROJECT_ROOT
 from saddlescope.api import create_app
+from saddlescope.core.findings import Finding
+from saddlescope.io.findings_document import findings_to_list
 from saddlescope.services.report import duration_text
 from saddlescope.settings import load_settings
 
@@ -46,6 +48,9 @@ def club(tmp_path_factory):
                 "ridden_on": (dt.date(2026, 3, 1) + dt.timedelta(days=7 * i)).isoformat()})
             doc = result_document(scale=scale, gait="canter", rng=rng)
             doc["quality"]["flags"].append(WEAK_AXIS)
+            if i == 1:  # stored as this version writes it: the findings as data beside their sentences
+                doc["quality"]["findings"] = findings_to_list(
+                    [Finding("tracking.lost", doc["quality"]["flags"][0]), Finding("rotation.weak_axis", WEAK_AXIS)])
             store_result(database_url, root / "storage", ride["id"], doc)
             rides.append(ride["id"])
         unanalysed = api.ok("POST", "/rides", 201, json={
@@ -62,6 +67,13 @@ def test_the_result_says_its_quality_in_plain_words_with_the_expert_detail(club)
     assert notes["rotation.weak_axis"]["detail"] == WEAK_AXIS
     assert result["quality_summary"]["severity"] == "check"
     assert result["strides_analysed"] == 2
+
+
+def test_a_result_with_findings_as_data_gives_the_notes_of_one_with_sentences_only(club):
+    old, new = (club["api"].ok("GET", f"/rides/{ride}/result") for ride in club["rides"][:2])
+    assert "findings" not in old["quality"] and [f["code"] for f in new["quality"]["findings"]] == [
+        "tracking.lost", "rotation.weak_axis"]
+    assert new["quality_notes"] == old["quality_notes"] and new["quality_summary"] == old["quality_summary"]
 
 
 def test_the_result_serves_fitted_curves_residuals_and_weighted_acceleration(club):

@@ -294,8 +294,9 @@ def test_a_ride_without_a_flash_is_synchronised_from_its_motion(no_flash_ride):
         assert sync["motion"]["sigma_frames"][cam] < 0.1
     for cam, off in truth["sync"]["calibration"].items():  # the board's: to the nearest frame
         assert abs(result["sync"]["calibration"][cam] - off) < 1.0
-    assert any(f.startswith("the motion clip was synchronised from the markers' motion")
-               for f in result["quality"]["flags"])
+    assert any(f["code"] == "sync.motion" and f["detail"].startswith("the motion clip was synchronised from the "
+                                                                       "markers' motion")
+               for f in result["quality"]["findings"])
     assert abs(result["indicators"]["vel_x_avg_kmh"] / truth["truth"]["speed_kmh"] - 1) < 0.01
     assert abs(result["indicators"]["stride_frequency_hz"] * truth["period_s"] - 1) < 0.01
 

@@ -179,7 +179,7 @@ def _rig_with_extras():
                       K_std=np.diag([0.3, 0.3, 0.0]), dist_std=np.full(5, 0.001))
             for n, c in rig.cameras.items()}
     pairs = {"left-right": {"R": cams["right"].R, "t_mm": cams["right"].t_mm, "rms_px": 0.21, "n_views": 12}}
-    return Rig(cams, checks={"board_square_error_mm": 0.1}, flags=("a flag",), pairs=pairs)
+    return Rig(cams, checks={"board_square_error_mm": 0.1}, pairs=pairs)
 
 
 @pytest.mark.parametrize("units", ["mm", "m"])

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError
+from saddlescope.core.findings import Finding
 from saddlescope.core.types import (
     AnalysisWindow,
     Camera,
@@ -32,8 +33,13 @@ def _rig() -> Rig:
             "right": Camera("right", K, np.zeros(5), (640, 480), R=right_R, t_mm=np.array([-500.0, 0, 300]),
                             rms_px=0.2)}
     pairs = {"left-right": {"R": right_R, "t_mm": cams["right"].t_mm, "rms_px": 0.21, "n_views": 12}}
-    return Rig(cams, checks={"board_square_error_mm": np.float64(0.1), "views": np.int64(40)}, flags=("a flag",),
+    return Rig(cams, checks={"board_square_error_mm": np.float64(0.1), "views": np.int64(40)}, flags=(SQUARES,),
                pairs=pairs)
+
+
+SQUARES = Finding("calibration.square_error", "reconstructed board squares are off by 0.40 mm RMS",
+                  {"square_error_mm": 0.4})
+LOST = Finding("tracking.lost", "markers lost from 1.00 s to 1.20 s", {"gap_start_s": 1.0, "gap_end_s": 1.2})
 
 
 def test_rig_dict_round_trip_is_json():
@@ -48,7 +54,9 @@ def test_rig_dict_round_trip_is_json():
         assert np.allclose(a.K, b.K) and np.allclose(a.R, b.R) and np.allclose(a.t_mm, b.t_mm)
         assert b.rms_px == 0.2
     assert np.allclose(back.cameras["left"].K_std, rig.cameras["left"].K_std)
-    assert back.flags == ("a flag",)
+    assert back.flags == (SQUARES,)  # code, detail and values
+    assert d["flags"] == [SQUARES.detail]  # the sentences still written for readers of the first format
+    assert d["findings"][0]["severity"] == "problem" and d["findings"][0]["stage"] == "calibration"
     assert np.allclose(back.pairs["left-right"]["t_mm"], rig.cameras["right"].t_mm)
     with pytest.raises(InputError, match="camera right has no extrinsics"):
         rig_from_dict({"cameras": d["cameras"], "extrinsics": {}})
@@ -80,7 +88,7 @@ def _result(rng: np.random.Generator, *, calibrated: bool) -> RideResult:
                                         gravity_source="plumb"),
         vertical_harmonics=VerticalHarmonics(f0_hz=1.6, amplitudes_m_s2=rng.random(4), phases_rad=rng.random(4)),
         indicators={"acc_y_wb_rms": 4.5, "t_a8_action_wb_h": float("inf")},
-        quality={"flags": ["a flag", "another"], "singularity_index_median": np.float64(0.4)},
+        quality={"singularity_index_median": np.float64(0.4)}, findings=(SQUARES, LOST),
         params={"n_periods": 2}, timings_s={"total": 1.5},
         calibration_views={"left": 40, "right": 38} if calibrated else None,
         board_coverage_fraction={"left": 0.4, "right": 0.5} if calibrated else None)
@@ -99,5 +107,18 @@ def test_result_document_round_trip(calibrated):
     assert np.isnan(back.saddle.acceleration_m_s2[2, 1])
     assert np.allclose(back.saddle.position_m, result.saddle.position_m, atol=1e-9)
     assert np.array_equal(back.angular.omega_versions_excluded, result.angular.omega_versions_excluded)
-    assert back.rig.names == ["left", "right"] and back.flags == ["a flag", "another"]
+    assert back.rig.names == ["left", "right"] and back.findings == (SQUARES, LOST)
+    assert doc["quality"]["flags"] == [SQUARES.detail, LOST.detail]
+    assert [f["code"] for f in doc["quality"]["findings"]] == ["calibration.square_error", "tracking.lost"]
     assert result_to_document(back) == doc  # written again, byte for byte the same document
+
+
+def test_a_calibration_stored_with_sentences_only_reads_back_as_coded_findings():
+    """A rig calibration stored before findings were data (``flags`` only) keeps its codes."""
+    d = rig_to_dict(_rig())
+    del d["findings"]
+    d["flags"] = ["the joint adjustment moved every camera's principal point by about 9 px (x +9, y -1) from where",
+                  "something a later version will not say"]
+    back = rig_from_dict(d)
+    assert [f.code for f in back.flags] == ["calibration.principal_point", "other"]
+    assert [f.detail for f in back.flags] == d["flags"] and all(not f.values for f in back.flags)

@@ -42,7 +42,7 @@ def test_pose2sim_calib_toml_is_read_in_metres(tmp_path, keep_units):
         np.testing.assert_allclose(back.cameras[name].t_mm, cam.t_mm, atol=1e-6)
     assert bool(notes) is not keep_units
     if notes:
-        assert "read as metres" in notes[0]
+        assert notes[0].code == "calibration.units_guessed" and "read as metres" in notes[0].detail
     np.testing.assert_allclose(load_calibration_file(path).cameras["cam_1"].t_mm, rig.cameras["cam_1"].t_mm,
                                atol=1e-6)
 
@@ -54,4 +54,4 @@ def test_anipose_toml_in_mm_without_units_stays_mm(tmp_path):
     path.write_text("\n".join(ln for ln in path.read_text().splitlines() if not ln.startswith("units")))
     back, notes = read_bundle_calibration(path)
     np.testing.assert_allclose(back.cameras["cam_2"].t_mm, rig.cameras["cam_2"].t_mm, atol=1e-6)
-    assert "read as mm" in notes[0]
+    assert notes[0].code == "calibration.units_guessed" and "read as mm" in notes[0].detail

@@ -30,6 +30,8 @@ def test_a_trc_in_metres_with_y_up_gives_its_stride_and_speed(tmp_path):
     assert doc["period_s"] == pytest.approx(0.9, rel=0.02)
     assert doc["indicators"]["vel_x_avg_kmh"] / 3.6 == pytest.approx(1.6, rel=0.02)
     assert doc["motion_frame"]["gravity_source"] == "lab_vertical"
+    codes = [f["code"] for f in doc["quality"]["findings"]]
+    assert "gravity.from_hint" not in codes and "gravity.lab_vertical" in codes
     assert not any("no plumb line" in f for f in doc["quality"]["flags"])
 
 

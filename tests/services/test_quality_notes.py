@@ -1,142 +1,130 @@
-"""Every flag sentence the pipeline can raise has a plain-language note (services/quality_notes.py).
+"""Findings as data (issue 34): one table of kinds, every code raised somewhere, old sentences still read.
 
-The flags are free sentences with numbers in them, made in many places (core, io). This test reads the
-source: every string or f-string appended to, assigned to or returned as a flag, warning or note is
-rendered with placeholder numbers and must match an entry of the table (not the catch-all). A new flag
-without a note fails here, naming the file and line.
+The analysis raises :class:`~saddlescope.core.findings.Finding` values by code; the plain-language note
+is the table's entry for that code (services/quality_notes.py). Results stored before findings were data
+hold sentences only: ``legacy_flags.json`` lists sentences of every kind the analysis wrote then (the
+old source's flags rendered with placeholder numbers, scanned at commit 4dc2726) with the code the old
+regular expressions gave each; the legacy reader must keep giving those codes.
 """
 
 from __future__ import annotations
 
 import ast
+import json
 from pathlib import Path
 
 import pytest
 
-from saddlescope.services.quality_notes import NOTES, SEVERITIES, note_for, quality_notes, quality_summary
+from saddlescope.core.findings import FINDING_KINDS, SEVERITIES, Finding
+from saddlescope.io.legacy_flags import finding_from_sentence
+from saddlescope.services.quality_notes import NOTES, document_findings, quality_notes, quality_summary
 
 PACKAGE = Path(__file__).resolve().parents[2] / "backend" / "saddlescope"
-# where flags are made; arena/ (the synthetic arena's own checks) and the API are not the pipeline
-SOURCES = ("core", "io", "services/mocap.py", "services/analysis.py")
-# files whose "notes" and "problems" are not flags: a spreadsheet's notes sheet, a document's refusals
-NOT_FLAGS = {"io/export.py", "io/result_schema.py"}
-WORDS = ("flag", "warning", "notes", "problem", "rejected")
+LEGACY = json.loads((Path(__file__).with_name("legacy_flags.json")).read_text(encoding="utf-8"))
+# the readers of stored findings build them from a code held in a variable
+READERS = {"io/legacy_flags.py", "io/findings_document.py"}
 
 
-def _render(node: ast.AST, filler: str) -> str | None:
+def _finding_calls() -> list[tuple[str, ast.Call]]:
+    """(file:line, call) of every ``Finding(...)`` in the package's source."""
+    calls = []
+    for file in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(file.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "Finding":
+                calls.append((f"{file.relative_to(PACKAGE)}:{node.lineno}", node))
+    return calls
+
+
+def _literals(node: ast.AST | None) -> list[str]:
+    """The codes a code argument names: a string, or both branches of a conditional."""
     if isinstance(node, ast.Constant) and isinstance(node.value, str):
-        return node.value
-    if isinstance(node, ast.JoinedStr):
-        return "".join(v.value if isinstance(v, ast.Constant) else filler for v in node.values)
-    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
-        left, right = _render(node.left, filler), _render(node.right, filler)
-        return None if left is None or right is None else left + right
-    return None
+        return [node.value]
+    if isinstance(node, ast.IfExp):
+        return _literals(node.body) + _literals(node.orelse)
+    return []
 
 
-def _named(node: ast.AST) -> str:
-    name = node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else ""
-    return name.lower()
+def _codes_named(call: ast.Call) -> list[str]:
+    return _literals(call.args[0] if call.args else next((k.value for k in call.keywords if k.arg == "code"), None))
 
 
-def _strings(node: ast.AST):
-    """String-like nodes inside a flag's expression (lists, tuples, conditionals, comprehensions)."""
-    if isinstance(node, ast.Constant | ast.JoinedStr | ast.BinOp):
-        yield node
-    elif isinstance(node, ast.List | ast.Tuple):
-        for elt in node.elts:
-            yield from _strings(elt)
-    elif isinstance(node, ast.IfExp):
-        yield from _strings(node.body)
-        yield from _strings(node.orelse)
-    elif isinstance(node, ast.ListComp):
-        yield from _strings(node.elt)
+def test_every_kind_has_a_severity_a_stage_and_one_actionable_sentence():
+    for code, kind in FINDING_KINDS.items():
+        finding = Finding(code, f"an expert's sentence about {code}", {"share_pct": 12.0})
+        assert (finding.severity, finding.stage, str(finding)) == (kind.severity, kind.stage, finding.detail)
+        assert finding.severity in SEVERITIES and finding.stage
+        assert kind.advice.endswith(".") and kind.advice.count(". ") == 0, kind.advice
+        assert len(kind.advice) <= 140, code
+        assert NOTES[code].message == kind.advice and NOTES[code].severity == kind.severity
 
 
-def _flag_nodes(tree: ast.AST):
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "append":
-            if any(w in _named(node.func.value) for w in WORDS):
-                yield from _strings(node.args[0])
-        elif isinstance(node, ast.Assign | ast.AugAssign | ast.AnnAssign):
-            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
-            if node.value is not None and any(any(w in _named(t) for w in WORDS) for t in targets):
-                yield from _strings(node.value)
-        elif isinstance(node, ast.FunctionDef):
-            doc = (ast.get_docstring(node) or "").lower()
-            if any(w in node.name.lower() or w in doc for w in ("flag", "notes")):  # returns its flag or notes
-                for ret in ast.walk(node):
-                    if isinstance(ret, ast.Return) and ret.value is not None:
-                        yield from _strings(ret.value)
+def test_an_unknown_code_or_an_empty_detail_is_a_programming_error():
+    with pytest.raises(ValueError, match="unknown finding code 'tracking.lots'"):
+        Finding("tracking.lots", "markers lost")
+    with pytest.raises(ValueError, match="needs its detail"):
+        Finding("tracking.lost", " ")
+    nan = Finding("tracking.lost", "markers lost from 1.00 s to 1.20 s",
+                  {"gap_start_s": 1.0, "gap_end_s": float("nan")})
+    assert dict(nan.values) == {"gap_start_s": 1.0}  # a number not determined is left out, not stored as NaN
 
 
-def pipeline_flags() -> list[tuple[str, str]]:
-    """(file:line, the flag rendered with numbers for its placeholders) for every flag in the source."""
-    found = []
-    for source in SOURCES:
-        path = PACKAGE / source
-        for file in sorted([path] if path.is_file() else path.rglob("*.py")):
-            if str(file.relative_to(PACKAGE)) in NOT_FLAGS:
-                continue
-            for node in _flag_nodes(ast.parse(file.read_text())):
-                text = _render(node, "12")
-                # short strings (dictionary keys, unit names) are not sentences a user reads
-                if text and len(text) > 12 and " " in text:
-                    found.append((f"{file.relative_to(PACKAGE)}:{node.lineno}", text))
-    return found
+def test_every_finding_in_the_source_names_a_code_of_the_table_and_every_code_is_raised():
+    raised: dict[str, list[str]] = {}
+    for where, call in _finding_calls():
+        codes = _codes_named(call)
+        if not codes:
+            assert any(where.startswith(reader + ":") for reader in READERS), f"{where}: Finding without a literal code"
+        for code in codes:
+            assert code in FINDING_KINDS, f"{where}: Finding({code!r}) is not in saddlescope.core.findings' table"
+            raised.setdefault(code, []).append(where)
+    assert set(raised) >= {"sync.motion", "sync.motion_uncertain", "calibration.units_guessed", "mocap.extra_cells"}
+    assert set(FINDING_KINDS) == set(raised), set(FINDING_KINDS) ^ set(raised)
+    # "other" only where a stored document is read: a sentence no old pattern knows, a code from a later version
+    assert {w.split(":")[0] for w in raised["other"]} <= READERS
+    assert finding_from_sentence("something new happened").code == "other"
 
 
-def test_the_source_scan_finds_the_flags_of_every_stage():
-    texts = " | ".join(text for _, text in pipeline_flags())
-    for known in ("eigenvalue ratio", "stride orders", "principal point", "wild samples", "no plumb clips",
-                  "cameras disagree", "no fit determined the fundamental", "states no units"):
-        assert known in texts, f"the scan missed the flag about {known!r}"
+@pytest.mark.parametrize(("sentence", "code"), LEGACY, ids=[code for _, code in LEGACY])
+def test_an_old_sentence_gets_the_code_it_was_shown_with(sentence, code):
+    assert finding_from_sentence(sentence).code == code
 
 
-@pytest.mark.parametrize(("where", "flag"), pipeline_flags(), ids=lambda v: v if ":" in v else None)
-def test_every_pipeline_flag_has_a_plain_language_note(where, flag):
-    note = note_for(flag)
-    assert note.code != "other", f"{where}: no entry in services/quality_notes.py for the flag {flag!r}"
+def test_an_old_document_with_sentences_only_gives_the_notes_it_gave_before():
+    old = {"quality": {"flags": [s for s, _ in LEGACY]}, "calibration": {"flags": [LEGACY[0][0]]}}
+    notes = quality_notes(document_findings(old))
+    assert sorted((n["code"], n["detail"]) for n in notes) == sorted((c, s) for s, c in LEGACY)
+    rank = {s: i for i, s in enumerate(reversed(SEVERITIES))}
+    assert [rank[n["severity"]] for n in notes] == sorted(rank[n["severity"]] for n in notes)  # most serious first
+    assert all(n["message"] == NOTES[n["code"]].message for n in notes)
 
 
-def test_every_note_has_a_severity_and_one_actionable_sentence():
-    for note in NOTES.values():
-        assert note.severity in SEVERITIES
-        assert note.message.endswith(".") and note.message.count(". ") == 0, note.message
-        assert len(note.message) <= 140, note.code
+def test_a_new_document_is_read_by_its_codes_not_its_sentences():
+    """A stored finding's code decides its note even where its sentence would match another pattern."""
+    doc = {"quality": {"flags": ["markers lost from 0.40 s to 0.47 s"],
+                       "findings": [{"code": "tracking.lost_all_along", "severity": "problem", "stage": "kinematics",
+                                     "detail": "markers lost from 0.40 s to 0.47 s", "values": {"gap_start_s": 0.4}}]}}
+    [note] = quality_notes(document_findings(doc))
+    assert (note["code"], note["severity"]) == ("tracking.lost_all_along", "problem")
+    assert quality_summary(document_findings(doc))[0] == "problem"
 
 
 def test_the_issues_jargon_reads_as_advice_with_the_expert_detail_kept():
-    weak = ("rotation about the markers' weakest axis (eigenvalue ratio 0.026) kept at 0% in ω and 0% in α: "
-            "the rest is what skin motion predicts")
-    depth = ("the rig fixes depth 9 times worse than image position: each marker's depth was fitted with a "
-             "straight path across the view (stride orders [0, 0, 0]); lateral sway ...")
-    notes = quality_notes([weak, depth, "markers lost from 0.40 s to 0.47 s", "no board was seen by two "
-                           "cameras at once: the rig's metric accuracy is unchecked"])
+    weak = Finding("rotation.weak_axis", "rotation about the markers' weakest axis (eigenvalue ratio 0.026) kept at "
+                   "0% in ω and 0% in α: the rest is what skin motion predicts", {"eigenvalue_ratio": 0.026})
+    notes = quality_notes([weak, Finding("rig.weak_depth", "the rig fixes depth 9 times worse"),
+                           Finding("tracking.lost", "markers lost from 0.40 s to 0.47 s"),
+                           Finding("calibration.no_shared_view", "no board was seen by two cameras at once")])
     assert [n["severity"] for n in notes] == ["problem", "check", "check", "check"]  # most serious first
     by_code = {n["code"]: n for n in notes}
     assert "10 cm below" in by_code["rotation.weak_axis"]["message"]
-    assert by_code["rotation.weak_axis"]["detail"] == weak
+    assert by_code["rotation.weak_axis"]["detail"] == weak.detail
     assert "eigenvalue" not in by_code["rotation.weak_axis"]["message"]
-    assert by_code["tracking.lost"]["severity"] == "check"
 
 
-def test_an_unknown_flag_still_gets_a_note_and_the_summary_names_the_worst():
-    assert note_for("something new happened").code == "other"
-    assert quality_summary({"flags": []})[0] == "ok"
-    assert quality_summary({"flags": ["markers lost from 1.00 s to 1.10 s"]})[0] == "check"
-    assert quality_summary(None)[0] == "ok"
-    assert quality_summary({"flags": ["the markers kept the static shot's layout only to 30 mm"]})[0] == "problem"
-
-
-def test_the_guessed_depth_flags_built_from_a_variable_have_their_notes():
-    """core/saddle.py builds these two from one sentence held in a variable, which the source scan above
-    does not read: a partial view whose ends were left out (check) or could not be (problem)."""
-    what = ("markers seen by two cameras only, one of them outside the region its calibration board covered, in "
-            "51 frames from 1.14 s to 2.86 s: their depth rests on the lens model extrapolated there")
-    left_out = note_for(f"{what}; the analysis used the 0.72 s from 1.66 s to 2.36 s where three cameras or the "
-                        "board's region fix them")
-    broken = note_for(f"{what}, and the run holds less than a stride without them: the saddle point's motion may be "
-                      "broken (move the board to the edges of every camera's view)")
-    assert (left_out.code, left_out.severity) == ("calibration.guessed_depth", "check")
-    assert (broken.code, broken.severity) == ("calibration.guessed_depth_broken", "problem")
+def test_the_summary_names_the_worst():
+    assert quality_summary([])[0] == "ok"
+    assert quality_summary([Finding("tracking.gaps_bridged", "3 frames with a short marker gap bridged")])[0] == "ok"
+    assert quality_summary([Finding("tracking.lost", "markers lost from 1.00 s to 1.10 s")])[0] == "check"
+    assert quality_summary([Finding("tracking.lost", "markers lost"),
+                            Finding("markers.rigidity", "the markers kept the static shot's layout only to 30 mm")]
+                           )[0] == "problem"

@@ -635,12 +635,12 @@ class ResultSeries(BaseModel):
 
 
 class QualityNoteOut(BaseModel):
-    """One quality flag in plain words (`saddlescope.services.quality_notes`)."""
+    """One finding of the analysis in plain words (`saddlescope.services.quality_notes`)."""
 
-    code: str = Field(description="the kind of flag, e.g. rotation.weak_axis")
+    code: str = Field(description="the kind of finding, e.g. rotation.weak_axis (saddlescope.core.findings)")
     severity: Literal["ok", "check", "problem"]
     message: str = Field(description="one sentence a club can act on")
-    detail: str = Field(description="the pipeline's own flag, with its numbers")
+    detail: str = Field(description="the pipeline's own sentence, with its numbers")
 
 
 class QualitySummaryOut(BaseModel):

@@ -15,6 +15,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.findings import Finding
 from saddlescope.core.kinematics import (
     AngularKinematics,
     MarkerKinematics,
@@ -236,7 +237,7 @@ class SaddleAnalysis:
     markers_m: np.ndarray
     static_mismatch_mm: float
     r_bs_m: np.ndarray
-    flags: tuple[str, ...]
+    flags: tuple[Finding, ...]
     long_gaps: list
 
 
@@ -261,7 +262,7 @@ class _Span:
         return slice(self.window[0] - self.fitted[0], self.window[1] - self.fitted[0])
 
 
-def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flags: list[str]
+def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flags: list[Finding]
                     ) -> tuple[np.ndarray, np.ndarray, list]:
     """The motion tracks (F, 3, 3) mm with broken samples dropped and short gaps bridged (5.2.1).
 
@@ -288,36 +289,47 @@ def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flag
     broken = broken_distance_samples(xyz)
     if broken.any():
         xyz = np.where(broken[..., None], np.nan, xyz)
-        flags.append(f"{_count(broken.sum(), 'marker sample')} in {_count(broken.any(axis=1).sum(), 'frame')} "
-                     "broke the markers' distances (a look-alike taken for a marker) and were dropped")
+        flags.append(Finding("tracking.dropped_samples",
+                             f"{_count(broken.sum(), 'marker sample')} in {_count(broken.any(axis=1).sum(), 'frame')} "
+                             "broke the markers' distances (a look-alike taken for a marker) and were dropped",
+                             {"samples": int(broken.sum()), "frames": int(broken.any(axis=1).sum())}))
     # Short gaps bridged (and flagged), long ones reported (5.2.1).
     filled, filled_mask, long_gaps = bridge_gaps(t, xyz.reshape(n_frames, -1), max_gap_s=params.max_gap_s)
     xyz = filled.reshape(n_frames, n_markers, 3)
     bridged_frames = np.any(filled_mask.reshape(n_frames, -1), axis=1)
     if bridged_frames.any():
-        flags.append(f"{_count(bridged_frames.sum(), 'frame')} with a short marker gap bridged (for the "
-                     "registration; the fits use measured frames only and give the positions there)")
+        flags.append(Finding("tracking.gaps_bridged",
+                             f"{_count(bridged_frames.sum(), 'frame')} with a short marker gap bridged (for the "
+                             "registration; the fits use measured frames only and give the positions there)",
+                             {"frames": int(bridged_frames.sum())}))
     flags.extend(_gap_flags(t, long_gaps))
     return xyz, bridged_frames, long_gaps
 
 
-def _gap_flags(t: np.ndarray, long_gaps: list) -> list[str]:
-    """A sentence for each long gap in the markers' tracks.
+def _gap_flags(t: np.ndarray, long_gaps: list) -> list[Finding]:
+    """A finding for each long gap in the markers' tracks.
 
-    A sentence for each long gap; at the record's ends the markers are not lost but not yet (or no
+    A finding for each long gap; at the record's ends the markers are not lost but not yet (or no
     longer) in every view.
     """
     dt_s = float(np.median(np.diff(t)))
     flags = []
     for start_s, end_s in long_gaps:
+        gap = {"gap_start_s": start_s, "gap_end_s": end_s}
         if start_s <= t[0] < t[-1] <= end_s:
-            flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s (one or another, all along)")
+            flags.append(Finding("tracking.lost_all_along",
+                                 f"markers lost from {start_s:.2f} s to {end_s:.2f} s (one or another, all along)",
+                                 gap))
         elif start_s <= t[0]:
-            flags.append(f"markers not all in view before {end_s + dt_s:.2f} s (the record starts at {t[0]:.2f} s)")
+            flags.append(Finding("tracking.not_in_view_at_start",
+                                 f"markers not all in view before {end_s + dt_s:.2f} s (the record starts at "
+                                 f"{t[0]:.2f} s)", {"in_view_from_s": end_s + dt_s}))
         elif end_s >= t[-1]:
-            flags.append(f"markers not all in view after {start_s - dt_s:.2f} s (the record ends at {t[-1]:.2f} s)")
+            flags.append(Finding("tracking.not_in_view_at_end",
+                                 f"markers not all in view after {start_s - dt_s:.2f} s (the record ends at "
+                                 f"{t[-1]:.2f} s)", {"in_view_until_s": start_s - dt_s}))
         else:
-            flags.append(f"markers lost from {start_s:.2f} s to {end_s:.2f} s")
+            flags.append(Finding("tracking.lost", f"markers lost from {start_s:.2f} s to {end_s:.2f} s", gap))
     return flags
 
 
@@ -331,7 +343,7 @@ def _planar_period(t: np.ndarray, xyz: np.ndarray, valid: np.ndarray, span: tupl
 
 
 def _run_off_guessed_lens(t: np.ndarray, valid: np.ndarray, run: tuple[int, int], period_s: float,
-                          beyond_px: np.ndarray | None, flags: list[str]) -> tuple[int, int]:
+                          beyond_px: np.ndarray | None, flags: list[Finding]) -> tuple[int, int]:
     """The run to analyse: the longest stretch whose depth does not rest on a guessed lens.
 
     ``beyond_px`` (F,) how far beyond its calibration board's reach a camera of a two-camera sample saw
@@ -358,19 +370,24 @@ def _run_off_guessed_lens(t: np.ndarray, valid: np.ndarray, run: tuple[int, int]
         before = beyond_px[i0 - 1] if i0 > run[0] else np.inf
         after = beyond_px[i1] if i1 < run[1] else np.inf
         if not np.isfinite(min(before, after)):
-            flags.append(f"{what}, and the run holds less than a stride without them: the saddle point's motion "
-                         "may be broken (move the board to the edges of every camera's view)")
+            flags.append(Finding("calibration.guessed_depth_broken",
+                                 f"{what}, and the run holds less than a stride without them: the saddle point's "
+                                 "motion may be broken (move the board to the edges of every camera's view)",
+                                 {"frames": guessed.size}))
             return run
         i0, i1 = (i0 - 1, i1) if before <= after else (i0, i1 + 1)
     worst = float(np.max(beyond_px[i0:i1]))
-    flags.append(f"{what}; the analysis used the {(i1 - i0) * dt_s:.2f} s from {t[i0]:.2f} s to {t[i1 - 1]:.2f} s"
-                 + (f", at most {worst:.0f} px beyond the board's reach (a stride needs them)" if worst > 0 else
-                    " where three cameras or the board's region fix them"))
+    flags.append(Finding("calibration.guessed_depth",
+                         f"{what}; the analysis used the {(i1 - i0) * dt_s:.2f} s from {t[i0]:.2f} s to "
+                         f"{t[i1 - 1]:.2f} s"
+                         + (f", at most {worst:.0f} px beyond the board's reach (a stride needs them)" if worst > 0
+                            else " where three cameras or the board's region fix them"),
+                         {"frames": guessed.size, "used_s": (i1 - i0) * dt_s, "beyond_reach_px_max": worst}))
     return i0, i1
 
 
 def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: str | None,
-                 flags: list[str] | None = None, beyond_px: np.ndarray | None = None) -> _Span:
+                 flags: list[Finding] | None = None, beyond_px: np.ndarray | None = None) -> _Span:
     """The stride period, the analysed window and the span the fits see.
 
     The stride period and the analysed window within the longest stretch where every marker is
@@ -404,9 +421,12 @@ def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: s
     n_periods = int(params.n_periods)
     whole = int(np.floor((run1 - run0) * dt_s / period_s + 1e-9))
     if 1 <= whole < n_periods:
-        flags_.append(f"the markers were tracked together for {(run1 - run0) * dt_s:.2f} s, {_count(whole, 'stride')} "
-                      f"of {period_s:.2f} s: the fits saw {_count(whole, 'stride')}, not {n_periods}, and the "
-                      f"indicators are those of the fitted motion over {n_periods} strides")
+        flags_.append(Finding("fit.short_crossing",
+                              f"the markers were tracked together for {(run1 - run0) * dt_s:.2f} s, "
+                              f"{_count(whole, 'stride')} of {period_s:.2f} s: the fits saw {_count(whole, 'stride')}, "
+                              f"not {n_periods}, and the indicators are those of the fitted motion over {n_periods} "
+                              "strides", {"tracked_s": (run1 - run0) * dt_s, "period_s": period_s,
+                                          "strides_fitted": whole, "strides_asked": n_periods}))
         n_periods = whole
     i0, i1 = analysis_window(t[run0:run1], valid[run0:run1], period_s, n_periods=n_periods)
     i0, i1 = i0 + run0, i1 + run0
@@ -422,7 +442,7 @@ def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: s
 
 
 def _smoothed(t_w: np.ndarray, xyz_w: np.ndarray, params: PipelineParams, period_s: float,
-              depth: Mapping | None, flags: list[str]) -> tuple[np.ndarray, np.ndarray]:
+              depth: Mapping | None, flags: list[Finding]) -> tuple[np.ndarray, np.ndarray]:
     """The fitted span's tracks, smoothed as the rig and the user ask.
 
     The fitted span's tracks (F, 3, 3) mm with a narrow rig's depth fitted smoothly and, when asked,
@@ -435,11 +455,13 @@ def _smoothed(t_w: np.ndarray, xyz_w: np.ndarray, params: PipelineParams, period
         # marker's rays and fit its depth with the straight path across the view.
         xyz_w, depth_orders = regularize_depth(t_w, xyz_w, depth["ray_origin_mm"], depth["worst_axis"],
                                                period_s=period_s, max_order=params.depth_max_order)
-        flags.append(f"the rig fixes depth {depth['anisotropy']:.0f} times worse than image position: each "
-                     "marker's depth was fitted with a straight path across the view (stride orders "
-                     f"{depth_orders}); lateral sway and roll are not measured by this rig (both move the markers "
-                     "in depth), so the saddle point misses its roll times its sideways offset from the markers "
-                     "(a few % of the vertical acceleration; cameras 2-3 m apart see it)")
+        flags.append(Finding("rig.weak_depth",
+                             f"the rig fixes depth {depth['anisotropy']:.0f} times worse than image position: each "
+                             "marker's depth was fitted with a straight path across the view (stride orders "
+                             f"{depth_orders}); lateral sway and roll are not measured by this rig (both move the "
+                             "markers in depth), so the saddle point misses its roll times its sideways offset from "
+                             "the markers (a few % of the vertical acceleration; cameras 2-3 m apart see it)",
+                             {"depth_anisotropy": depth["anisotropy"]}))
     # Robust LOESS on every coordinate in the window (5.2.2), as the thesis did, when asked. Not by
     # default: its local quadratic spans >= 5 samples (a sixth of a second at 30 fps) and flattens
     # the stride's higher harmonics (noiseless rides lose 2-13 % of the vertical acceleration's
@@ -496,7 +518,7 @@ def _register_static_model(xyz: np.ndarray, xyz_m: np.ndarray, static_all: np.nd
 
 def _fitted_saddle_point(t_fit: np.ndarray, reg: Registration, xyz_m: np.ndarray, bridged_fit: np.ndarray,
                          span: _Span, static_all: np.ndarray, horse_idx: list[int], saddle_idx: int,
-                         frame: MotionFrame, params: PipelineParams, flags: list[str]):
+                         frame: MotionFrame, params: PipelineParams, flags: list[Finding]):
     """Fits (5.5), angular kinematics (6.1-6.2) and the saddle point (6.3-6.4) on the window.
 
     Returns (marker fits, registration, registered markers (F, 3, 3) m, angular kinematics, the saddle
@@ -514,9 +536,12 @@ def _fitted_saddle_point(t_fit: np.ndarray, reg: Registration, xyz_m: np.ndarray
     reg = Registration(*(getattr(reg, f.name)[in_win] for f in fields(reg)))
     rigidity_mm = float(np.nanmedian(reg.rms_residual) * 1e3)
     if rigidity_mm > params.max_rigidity_residual_mm:
-        flags.append(f"the markers kept the static shot's layout only to {rigidity_mm:.0f} mm (median rigidity "
-                     "residual; skin motion leaves a few mm): a look-alike was tracked, a marker moved after the "
-                     "static shot, or the static shot is of another set-up; the saddle point is unreliable")
+        flags.append(Finding("markers.rigidity",
+                             f"the markers kept the static shot's layout only to {rigidity_mm:.0f} mm (median "
+                             "rigidity residual; skin motion leaves a few mm): a look-alike was tracked, a marker "
+                             "moved after the static shot, or the static shot is of another set-up; the saddle point "
+                             "is unreliable", {"rigidity_residual_mm": rigidity_mm,
+                                               "limit_mm": params.max_rigidity_residual_mm}))
     r = reg.registered
     t_win = t_fit[in_win]
     bridged_w = bridged_fit[in_win]
@@ -580,7 +605,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     SaddleAnalysis
     """
     t = np.asarray(motion_tracks.t_s, dtype=np.float64)
-    flags: list[str] = []
+    flags: list[Finding] = []
     xyz, bridged_frames, long_gaps = _checked_tracks(
         t, np.asarray(motion_tracks.xyz_mm, dtype=np.float64), params, flags)
     beyond_px = getattr(motion_tracks, "lens_extrapolation_px", None)  # ReachCheckedTracks

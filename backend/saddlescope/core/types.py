@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core.camera_model import undistort_normalized
+from saddlescope.core.findings import Finding
 
 __all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "AnalysisWindow", "Board", "Camera", "HorseMarkers",
            "ImageTracks", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig", "SaddleKinematics",
@@ -105,13 +106,13 @@ class Camera:
 class Rig:
     """Calibrated cameras keyed by role (left, middle, right, or any names for other rigs).
 
-    ``checks`` holds metric quality numbers (e.g. ``board_square_error_mm``); ``flags`` lists
-    human-readable warnings (e.g. a metric error over its threshold).
+    ``checks`` holds metric quality numbers (e.g. ``board_square_error_mm``); ``flags`` lists the
+    calibration's findings (e.g. a metric error over its threshold, :mod:`saddlescope.core.findings`).
     """
 
     cameras: dict[str, Camera]
     checks: dict[str, float] = field(default_factory=dict)
-    flags: tuple[str, ...] = ()
+    flags: tuple[Finding, ...] = ()
     pairs: dict[str, dict] = field(default_factory=dict)
 
     @property
@@ -270,7 +271,8 @@ class RideResult:
     ``calibration_views`` and ``board_coverage_fraction`` per camera are set when it was computed.
     ``sync_offsets[kind][camera]`` are frame offsets against the first camera; ``indicators`` the
     rider's comfort indicators, ``indicators_interval_95`` their 95 % intervals; ``quality`` the checks
-    and flags (sentences) a user reads.
+    and the figures behind them; ``findings`` what the stages found worth saying, in the order they
+    raised it (the rig's and the input's first).
     """
 
     fps: float
@@ -293,8 +295,9 @@ class RideResult:
     board_coverage_fraction: dict[str, float] | None = None
     # 95 % interval (low, high) per indicator (core.vibration.intervals); None on results made before them
     indicators_interval_95: dict[str, tuple[float, float]] | None = None
+    findings: tuple[Finding, ...] = ()
 
     @property
     def flags(self) -> list[str]:
-        """The result's quality flags, in the order the stages raised them."""
-        return list(self.quality.get("flags", []))
+        """The findings' expert sentences, in the order the stages raised them."""
+        return [f.detail for f in self.findings]

@@ -30,6 +30,7 @@ from typing import Any, BinaryIO
 
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import BundleError, InputError
+from saddlescope.core.findings import Finding
 from saddlescope.core.types import CLIP_KINDS, Board
 from saddlescope.io.result_schema import validate_ride_meta
 
@@ -78,7 +79,7 @@ class RideBundle:
         ``extra_clips`` of ``ride.json``: name -> camera -> path.
     calibration_file : Path or None
         A rig TOML/JSON to use instead of the calibration clips.
-    warnings : tuple of str
+    warnings : tuple of Finding
         Things that are allowed but worth telling the user (no plumb clips).
     source : Path or None
         The folder or zip that was opened.
@@ -91,7 +92,7 @@ class RideBundle:
     truth: dict | None = None
     extra_clip_paths: dict[str, dict[str, Path]] = field(default_factory=dict)
     calibration_file: Path | None = None
-    warnings: tuple[str, ...] = ()
+    warnings: tuple[Finding, ...] = ()
     source: Path | None = None
     temp_dir: Path | None = field(default=None, repr=False)
     archive: zipfile.ZipFile | None = field(default=None, repr=False)  # a zip read in place (`open_zip_stream`)
@@ -559,9 +560,10 @@ def _open_folder(root: Path, *, source: Path | None, temp_dir: Path | None = Non
             raise BundleError(f"{RIDE_JSON}: calibration_file {meta['calibration_file']!r} must be a "
                               ".toml or .json rig file")
 
-    warnings = []
+    warnings: list[Finding] = []
     if "plumb" not in clip_paths:
-        warnings.append("no plumb clips: the vertical (gravity) cannot be measured from a plumb line")
+        warnings.append(Finding("plumb.missing",
+                                "no plumb clips: the vertical (gravity) cannot be measured from a plumb line"))
 
     truth = None
     if (root / TRUTH_JSON).is_file():
@@ -622,7 +624,7 @@ def write_bundle_zip(bundle_dir: str | Path, zip_path: str | Path, *, validate: 
     return zip_path
 
 
-def read_bundle_calibration(path: str | Path) -> tuple[Any, list[str]]:
+def read_bundle_calibration(path: str | Path) -> tuple[Any, list[Finding]]:
     """The rig of a bundle's ``calibration_file`` in mm, and notes on how its units were read.
 
     A ``.json`` is SaddleScope's calibration object (mm); a ``.toml`` is anipose's, Pose2Sim's,
@@ -638,8 +640,8 @@ def read_bundle_calibration(path: str | Path) -> tuple[Any, list[str]]:
     -------
     rig : Rig
         The cameras, translations in mm.
-    notes : list of str
-        Sentences for the result's flags where the file did not state its unit.
+    notes : list of Finding
+        For the result's findings, where the file did not state its unit.
     """
     path = Path(path)
     if path.suffix.lower() == ".toml":

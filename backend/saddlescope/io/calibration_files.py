@@ -35,6 +35,7 @@ import numpy as np
 from saddlescope.core.calibration import BoardFinder, BoardView, calibrate_rig, select_instants
 from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND, board_to_meta, charuco, make_board
 from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
+from saddlescope.core.findings import Finding
 from saddlescope.core.sync import flash_interval, offsets_from_intervals
 from saddlescope.core.types import Board, Camera, Rig
 from saddlescope.io.rig_document import checked_matrix, distortion5, rig_to_dict
@@ -518,7 +519,7 @@ def _camera_spread(rig: Rig) -> float:
     return max((float(np.linalg.norm(a - b)) for a in centres for b in centres), default=0.0)
 
 
-def read_calibration_toml(path: str | Path, *, units: str | None = None) -> tuple[Rig, list[str]]:
+def read_calibration_toml(path: str | Path, *, units: str | None = None) -> tuple[Rig, list[Finding]]:
     """A calibration TOML of anipose, Pose2Sim, FreeMoCap or caliscope as a Rig in mm, with notes.
 
     caliscope's files (``[cameras.N]`` or 3x3 rotations) are in metres. anipose-style files are in
@@ -537,8 +538,8 @@ def read_calibration_toml(path: str | Path, *, units: str | None = None) -> tupl
     -------
     rig : Rig
         Translations in mm, relative to the first camera.
-    notes : list of str
-        How the units were chosen where the file did not state them (for the result's flags).
+    notes : list of Finding
+        How the units were chosen where the file did not state them (``calibration.units_guessed``).
     """
     data = _load_toml(path)
     name = Path(path).name
@@ -551,7 +552,11 @@ def read_calibration_toml(path: str | Path, *, units: str | None = None) -> tupl
     spread = _camera_spread(rig_mm)
     if 0 < spread < 50.0:
         return (read_anipose_toml(path, units="m"),
-                [f"{name} states no units; its cameras are {spread:.2f} apart, so its translations were read "
-                 "as metres (Pose2Sim's unit); set calibration_units in ride.json if they are not"])
-    return rig_mm, [f"{name} states no units; its translations were read as mm (anipose's usual unit, the "
-                    f"cameras {spread:.0f} mm apart); set calibration_units in ride.json if they are not"]
+                [Finding("calibration.units_guessed",
+                         f"{name} states no units; its cameras are {spread:.2f} apart, so its translations were "
+                         "read as metres (Pose2Sim's unit); set calibration_units in ride.json if they are not",
+                         {"camera_spread": spread})])
+    return rig_mm, [Finding("calibration.units_guessed",
+                            f"{name} states no units; its translations were read as mm (anipose's usual unit, the "
+                            f"cameras {spread:.0f} mm apart); set calibration_units in ride.json if they are not",
+                            {"camera_spread_mm": spread})]

@@ -23,6 +23,7 @@ from saddlescope.core.types import (
     SaddleRotation,
     VerticalHarmonics,
 )
+from saddlescope.io.findings_document import findings_of, findings_to_list
 from saddlescope.io.result_schema import RESULT_FORMAT
 from saddlescope.io.rig_document import rig_from_dict, rig_to_dict
 
@@ -98,7 +99,8 @@ def result_to_document(result: RideResult) -> dict[str, Any]:
         "indicators": dict(result.indicators),
         "indicators_interval_95": ({k: [float(lo), float(hi)] for k, (lo, hi) in result.indicators_interval_95.items()}
                                    if result.indicators_interval_95 is not None else None),
-        "quality": result.quality,
+        # the findings as data, and their details as the first format's sentences (``flags``)
+        "quality": {**result.quality, "flags": result.flags, "findings": findings_to_list(result.findings)},
         "params": dict(result.params),
         "timings_s": dict(result.timings_s),
     }
@@ -155,12 +157,13 @@ def result_from_document(doc: Mapping[str, Any]) -> RideResult:
                                              amplitudes_m_s2=_array(vh["amplitudes_m_s2"]),
                                              phases_rad=_array(vh["phases_rad"])),
         indicators={k: _number(v) for k, v in doc["indicators"].items()},
-        quality=dict(doc.get("quality") or {}),
+        quality={k: v for k, v in (doc.get("quality") or {}).items() if k not in ("flags", "findings")},
         params=dict(doc.get("params") or {}),
         timings_s=dict(doc.get("timings_s") or {}),
         calibration_views=cal.get("n_views"),
         board_coverage_fraction=cal.get("board_coverage_fraction"),
         indicators_interval_95=_intervals(doc.get("indicators_interval_95")),
+        findings=tuple(findings_of(doc.get("quality"))),
     )
 
 

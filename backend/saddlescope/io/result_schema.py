@@ -15,6 +15,7 @@ import jsonschema
 
 from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems, board_type
 from saddlescope.core.errors import BundleError, InputError
+from saddlescope.core.findings import FINDING_KINDS, SEVERITIES
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 from saddlescope.core.vibration import CONTRACT_KEYS
 
@@ -56,6 +57,14 @@ _CAMERA = {
 }
 _POSE = {"type": "object", "required": ["R", "t_mm"],
          "properties": {"R": _matrix(3, 3), "t_mm": _vector(3)}}
+# A finding as stored (saddlescope.io.findings_document): results made before findings were data have
+# ``flags`` (sentences) only, so the key stays optional and the format's version is unchanged
+_FINDINGS = {"type": "array", "items": {
+    "type": "object", "required": ["code", "severity", "stage", "detail"],
+    "properties": {"code": {"enum": list(FINDING_KINDS)}, "severity": {"enum": list(SEVERITIES)},
+                   "stage": {"type": "string"}, "detail": {"type": "string", "minLength": 1},
+                   "values": {"type": "object", "additionalProperties": _NUMBER}}}}
+_FLAGS = {"type": "array", "items": {"type": "string"}}
 _OFFSETS = {"type": "object", "required": list(CAMERA_ROLES),
             "properties": {role: _NUMBER for role in CAMERA_ROLES},
             "additionalProperties": False}
@@ -79,6 +88,8 @@ RESULT_SCHEMA: dict[str, Any] = {
                 "extrinsics": {"type": "object", "required": [r for r in CAMERA_ROLES if r != "left"],
                                "additionalProperties": _POSE},
                 "checks": {"type": "object", "additionalProperties": {"type": ["number", "null"]}},
+                "flags": _FLAGS,
+                "findings": _FINDINGS,
             },
         },
         "sync": {"type": "object", "required": ["motion"],
@@ -104,7 +115,7 @@ RESULT_SCHEMA: dict[str, Any] = {
         "indicators_interval_95": {"type": "object",
                                    "additionalProperties": {"type": "array", "items": {"type": ["number", "null"]},
                                                             "minItems": 2, "maxItems": 2}},
-        "quality": {"type": "object"},
+        "quality": {"type": "object", "properties": {"flags": _FLAGS, "findings": _FINDINGS}},
         "timings_s": {"type": "object", "required": ["total"],
                       "additionalProperties": _NON_NEGATIVE},
     },

@@ -13,6 +13,7 @@ import numpy as np
 
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import Camera, Rig
+from saddlescope.io.findings_document import findings_of, findings_to_list
 
 __all__ = ["checked_matrix", "distortion5", "rig_from_dict", "rig_to_dict"]
 
@@ -27,7 +28,8 @@ def rig_to_dict(rig: Rig) -> dict:
 
     ``cameras``: K, dist (k1, k2, p1, p2, k3), image_size [w, h], rms_px, K_std, dist_std;
     ``extrinsics`` of every camera but the first: R, t_mm (``x_cam = R @ x_first + t_mm``);
-    ``checks``, ``flags`` and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}.
+    ``checks``, ``findings`` (:mod:`saddlescope.io.findings_document`), ``flags`` (their details, for readers
+    of the first format) and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}.
     """
     names = rig.names
     cameras: dict[str, dict] = {}
@@ -44,7 +46,8 @@ def rig_to_dict(rig: Rig) -> dict:
     for key, p in rig.pairs.items():
         pairs[key] = {k: (_lst(v) if isinstance(v, np.ndarray) else v) for k, v in p.items()}
     checks = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in rig.checks.items()}
-    return {"cameras": cameras, "extrinsics": extrinsics, "checks": checks, "flags": list(rig.flags), "pairs": pairs}
+    return {"cameras": cameras, "extrinsics": extrinsics, "checks": checks, "flags": [f.detail for f in rig.flags],
+            "findings": findings_to_list(rig.flags), "pairs": pairs}
 
 
 def checked_matrix(value, shape: tuple[int, ...], what: str) -> np.ndarray:
@@ -92,4 +95,4 @@ def rig_from_dict(d: Mapping) -> Rig:
     pairs = {}
     for key, p in (d.get("pairs") or {}).items():
         pairs[key] = {k: (np.asarray(v, np.float64) if k in ("R", "t_mm") else v) for k, v in p.items()}
-    return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(d.get("flags") or ()), pairs=pairs)
+    return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(findings_of(d)), pairs=pairs)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+from saddlescope.core.findings import Finding
 from saddlescope.core.pipeline import PipelineParams, analyze_ride
 from saddlescope.core.types import Rig
 from saddlescope.io.bundle import open_bundle
@@ -39,7 +40,7 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
         params = replace(params, threads=get_settings().resolved_worker_threads)
     with (open_bundle(Path(path)) as bundle, single_threaded_numerics(),
           BundleClips(bundle.clip_paths, threads=params.threads) as clips):
-        notes: list[str] = []
+        notes: list[Finding] = []
         if rig is None and bundle.calibration_file is not None:
             from saddlescope.io.bundle import read_bundle_calibration
 

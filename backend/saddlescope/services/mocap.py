@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.findings import Finding
 from saddlescope.core.kinematics.saddle_point import body_frame
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.detection import RideTracks
@@ -34,7 +35,6 @@ from saddlescope.io.result_schema import result_problems
 __all__ = ["MocapChoice", "analyze_mocap", "analyze_mocap_file", "mocap_suffix", "parse_up_axis", "store_mocap_ride"]
 
 _AXES = {"x": 0, "y": 1, "z": 2}
-_GRAVITY_HINT = "no plumb line: gravity taken as"
 
 
 @dataclass(frozen=True)
@@ -195,8 +195,9 @@ def analyze_mocap(data: MocapData, choice: MocapChoice, *, params: PipelineParam
     except KinematicsError as exc:
         hint = " (or analyse fewer strides)" if "shorter than" in str(exc) else ""
         raise KinematicsError(f"{data.source}: {exc}{hint}") from None
-    gravity = f"gravity along the lab's vertical, {up} up ({up_reason})"
-    kin = replace(kin, flags=tuple(f for f in kin.flags if not f.startswith(_GRAVITY_HINT)),
+    gravity = Finding("gravity.lab_vertical", f"gravity along the lab's vertical, {up} up ({up_reason})")
+    # the lab's vertical is gravity: the down hint's finding does not apply
+    kin = replace(kin, flags=tuple(f for f in kin.flags if f.code != "gravity.from_hint"),
                   frame=replace(kin.frame, gravity_source="lab_vertical"))
     timings = {"kinematics": round(time.perf_counter() - t0, 4)}
     t0 = time.perf_counter()
@@ -212,7 +213,7 @@ def analyze_mocap(data: MocapData, choice: MocapChoice, *, params: PipelineParam
         "kind": "mocap", "format": data.source_format, "file": data.source, "markers": list(choice.markers),
         "point": choice.point, "point_definition": point_text, "point_body_mm": [float(v) for v in body_mm],
         "up": up, "up_reason": up_reason, "units": data.units, "rate_hz": float(data.rate_hz),
-        "frames": data.n_frames, "warnings": list(data.warnings)}
+        "frames": data.n_frames, "warnings": [str(w) for w in data.warnings]}
     document["quality"]["calibration_ok"] = None  # no cameras
     _validate(document)
     return document

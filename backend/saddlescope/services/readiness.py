@@ -105,8 +105,9 @@ def missing_for_ride(session: Session, ride_id: int, *, club_id: int | None = No
     own = _cameras_by_kind(recordings.for_ride(ride.id))
     shared = _cameras_by_kind(recordings.for_rig(rig.id)) if rig is not None else {}
     missing = _calibration_sentences(rig, own.get("calibration", set()), shared.get("calibration", set()))
-    if (ride.meta or {}).get("board") and missing and missing[0].startswith("No camera rig"):
-        # A ride of the API may describe its board itself; it then calibrates from its own clips.
+    if rig is None and (ride.meta or {}).get("board"):
+        # A ride of the API may describe its board itself; it then calibrates from its own clips (the
+        # choice rests on there being no rig, not on the wording of the sentence saying so).
         missing = _clip_sentences("calibration", own.get("calibration", set()), set(), where="with the ride")
     where = "with the ride on the upload page" if rig is None else "with the ride, or on the rig page"
     missing += _clip_sentences("static", own.get("static", set()), shared.get("static", set()), where=where)

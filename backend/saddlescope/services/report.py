@@ -20,6 +20,7 @@ from sqlalchemy.orm import Session
 
 from saddlescope.core.vibration import INDICATORS, PASSIVE_SEATED_CAVEAT
 from saddlescope.db.repositories import RideRepository
+from saddlescope.io.findings_document import findings_of
 from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, horse_history, normal_bands_before
 from saddlescope.services.quality_notes import quality_notes, quality_summary
 from saddlescope.services.result_series import strides_analysed, vertical_harmonics_of, weighted_series
@@ -186,10 +187,9 @@ def _decision_html(doc: dict[str, Any]) -> str:
 
 
 def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
-    quality = doc.get("quality") or {}
-    flags = list(dict.fromkeys(str(f) for f in quality.get("flags") or []))
-    notes = quality_notes(flags)
-    _, summary = quality_summary({"flags": flags})
+    findings = list(dict.fromkeys(findings_of(doc.get("quality"))))
+    notes = quality_notes(findings)
+    _, summary = quality_summary(findings)
     if not notes:
         return '    <li><span class="sev sev-ok">OK</span>Nothing to report.</li>', summary
     # one line per piece of advice keeps the page to one sheet however many flags a ride has

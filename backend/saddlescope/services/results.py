@@ -23,7 +23,7 @@ from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.quality_notes import quality_notes, quality_summary
+from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
 from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.storage import Storage
@@ -112,9 +112,9 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
     quality = doc.get("quality") or {}
-    # the rig's flags are usually among the quality flags already: each once
-    flags = list(dict.fromkeys([str(f) for f in [*(quality.get("flags") or []), *(calibration.get("flags") or [])]]))
-    severity, summary = quality_summary({"flags": flags})
+    # the rig's findings are usually among the result's already: each once
+    findings = document_findings(doc)
+    severity, summary = quality_summary(findings)
     return {
         "ride_id": ride_id,
         "job_id": result.job_id,
@@ -129,7 +129,7 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "units": {key: indicator_unit(key) for key in indicators},
         "quality": quality,
         # every flag in plain words (services/quality_notes.py): what the page and the report say
-        "quality_notes": quality_notes(flags),
+        "quality_notes": quality_notes(findings),
         "quality_summary": {"severity": severity, "message": summary},
         "strides_analysed": strides_analysed(doc),
         "spectrum": weighted_series(doc, [])[1],

@@ -205,7 +205,7 @@ def test_principal_points_moved_together_by_the_joint_adjustment_are_flagged(mon
         rig, _ = calibrate_rig(views, board, sizes)
         shift = rig.checks["principal_point_common_shift_px"]
         assert abs(shift - abs(dy)) < 3.0 + clean.checks["principal_point_common_shift_px"], shift
-        assert any("principal point" in f for f in rig.flags) is flagged, rig.flags
+        assert ("calibration.principal_point" in [f.code for f in rig.flags]) is flagged, rig.flags
     assert principal_point_common_shift({"a": clean.cameras["left"]}, {"a": clean.cameras["left"]}).tolist() == [0, 0]
 
 
@@ -249,9 +249,11 @@ def test_metric_check_flags_a_wrongly_scaled_rig():
                                                          t_mm=c1.t_mm * 1.05)})
     checks, flags, _ = metric_checks(wrong, views, board)
     assert abs(checks["board_scale_error_pct"] - 5.0) < 1.0
-    assert len(flags) == 1 and "recalibrate" in flags[0] and "1 %" in flags[0]
+    assert [f.code for f in flags] == ["calibration.square_error"]
+    assert "recalibrate" in flags[0].detail and flags[0].values["limit_pct"] == 1.0
+    assert flags[0].values["square_error_pct"] == pytest.approx(checks["board_square_error_pct"])
     _, flags, _ = metric_checks(truth, views, board, max_distance_rms_mm=0.001)
-    assert any("distances between triangulated board corners" in f for f in flags)
+    assert "calibration.corner_distances" in [f.code for f in flags]
 
 
 def test_triangulate_dlt_exact_without_noise_and_nan_where_unseen():

@@ -76,17 +76,18 @@ def test_steep_ground_warns():
     tilt = np.deg2rad(15.0)
     frame = motion_frame(marker_rig, plumb_top_mm=_to_rig(np.zeros(3)),
                          plumb_bottom_mm=_to_rig(np.array([np.sin(tilt), np.cos(tilt), 0.0]) * 1000))
-    assert any("from perpendicular" in w for w in frame.warnings)
+    assert [w.code for w in frame.warnings] == ["gravity.tilted"]
+    assert frame.warnings[0].values["off_perpendicular_deg"] == pytest.approx(15.0, abs=0.5)
 
 
 def test_without_plumb_uses_hint_or_camera_down_with_a_warning():
     marker_rig = _to_rig(_marker_world_mm())
     frame = motion_frame(marker_rig, rig_down_hint=R_RW[:, 1] + np.array([0.01, 0.0, 0.0]))
-    assert frame.gravity_source == "hint" and any("no plumb" in w for w in frame.warnings)
+    assert frame.gravity_source == "hint" and [w.code for w in frame.warnings] == ["gravity.from_hint"]
     np.testing.assert_allclose(frame.R[1], R_RW[:, 1], atol=0.02)
     frame = motion_frame(marker_rig)
     assert frame.gravity_source == "camera_down"
-    assert any("level camera" in w for w in frame.warnings)
+    assert [w.code for w in frame.warnings] == ["gravity.from_camera"]
 
 
 def test_vectors_rotate_without_origin():

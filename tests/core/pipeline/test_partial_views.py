@@ -59,8 +59,7 @@ def test_partial_view_canter_with_the_lens_extrapolated_is_within_ten_percent(ex
     result, truth = extrapolated
     err = _errors_pct(result, truth)
     print("wide_partial seed 2:", {k: round(v, 1) for k, v in err.items()})
-    flags = " ".join(result["quality"]["flags"])
-    assert "outside the region the calibration board covered" in flags  # the user is told
+    assert "calibration.coverage" in [f["code"] for f in result["quality"]["findings"]]  # the user is told
     assert abs(err["acc_y_wb_rms"]) < 10.0 and abs(err["acc_y_wk_rms"]) < 10.0
     assert abs(err["vel_x_avg_kmh"]) < 1.0 and abs(err["stride_frequency_hz"]) < 1.0
 
@@ -77,7 +76,6 @@ def test_a_canter_whose_ends_rest_on_a_guessed_lens_is_analysed_where_they_do_no
     result, truth = guessed_ends
     err = _errors_pct(result, truth)
     print("wide_partial seed 5, band 0.8:", {k: round(v, 1) for k, v in err.items()}, result["window"])
-    assert any("their depth rests on the lens model extrapolated there; the analysis used the" in f
-               for f in result["quality"]["flags"])
+    assert "calibration.guessed_depth" in [f["code"] for f in result["quality"]["findings"]]
     assert abs(err["acc_y_wb_rms"]) < 5.0 and abs(err["acc_y_wk_rms"]) < 5.0
     assert abs(err["vel_x_avg_kmh"]) < 1.0 and abs(err["stride_frequency_hz"]) < 1.0

@@ -13,6 +13,7 @@ import pytest
 from saddlescope.arena import saddle_truth_at
 from saddlescope.core import pipeline as P
 from saddlescope.core import saddle as S
+from saddlescope.core.findings import FINDING_KINDS
 from saddlescope.core.pipeline.detection import disagreement_flag
 from saddlescope.core.types import MarkerTracks
 from saddlescope.io.result_document import result_to_document
@@ -62,6 +63,23 @@ def test_analyze_cli_gives_a_valid_result_close_to_truth(analysed):
     err = np.sqrt(np.mean((acc[:, 1] - exact["acceleration_m_s2"][:, 1]) ** 2))
     rms = np.sqrt(np.mean(exact["acceleration_m_s2"][:, 1] ** 2))
     print(f"thesis rig: vertical acceleration error {err:.2f} m/s2 = {100 * err / rms:.0f} % of r.m.s. {rms:.2f}")
+
+
+@pytest.mark.slow
+def test_the_result_stores_its_findings_as_codes_with_their_sentences(analysed):
+    result, _ = analysed
+    findings = result["quality"]["findings"]
+    codes = [f["code"] for f in findings]
+    assert "rotation.weak_axis" in codes  # the default angular method always says how it treated roll
+    for f in findings:
+        kind = FINDING_KINDS[f["code"]]
+        assert (f["severity"], f["stage"]) == (kind.severity, kind.stage) and f["detail"]
+        assert all(isinstance(v, float) for v in f["values"].values())
+    weak = findings[codes.index("rotation.weak_axis")]
+    assert {"eigenvalue_ratio", "omega_kept_pct", "alpha_kept_pct"} <= set(weak["values"])
+    assert result["quality"]["flags"] == [f["detail"] for f in findings]  # the first format's sentences
+    assert [f["code"] for f in result["calibration"]["findings"]] == [
+        c for c in codes if c.startswith("calibration.") and FINDING_KINDS[c].stage == "calibration"]
 
 
 @pytest.mark.slow
@@ -138,10 +156,9 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
                              extras=False, options=RenderOptions(variable_frame_rate=True))
     result = analyze_bundle(ride)
     truth = json.loads((ride / "truth.json").read_text())
-    flags = " ".join(result["quality"]["flags"])
-    for cam in ("middle", "right"):
-        assert f"the motion clip of the {cam} camera has a variable frame rate" in flags
-    assert "the motion clip of the left camera has a variable" not in flags
+    variable = [f["detail"].split(" camera")[0] for f in result["quality"]["findings"]
+                if f["code"] == "video.variable_frame_rate" and f["detail"].startswith("the motion clip")]
+    assert variable == [f"the motion clip of the {cam}" for cam in ("middle", "right")]
     assert result["fps"] == pytest.approx(30.0)
     for cam, off in truth["sync"]["motion"].items():
         assert abs(result["sync"]["motion"][cam] - off) < 0.1, cam
@@ -174,9 +191,8 @@ def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, analysed, m
     monkeypatch.setattr(S, "static_positions", moved)
     # the same ride's calibration, from the CLI's analysis: what is under test comes after it
     result = analyze_bundle(short_ride, rig=rig_from_dict(analysed[0]["calibration"]))
-    flags = " ".join(result["quality"]["flags"])
-    assert "off the static shot's marker distances and no closer triangle was found" in flags
-    assert "found again with all cameras" not in flags
+    codes = [f["code"] for f in result["quality"]["findings"]]
+    assert "tracking.lookalike" in codes and "tracking.lookalike_recovered" not in codes
 
 
 @pytest.mark.slow
@@ -202,8 +218,7 @@ def test_a_plumb_line_leaning_far_from_the_cameras_vertical_is_not_taken_for_gra
 
     monkeypatch.setattr(detection, "triangulate_tracks", leaning)
     result = analyze_bundle(short_ride, rig=rig_from_dict(analysed[0]["calibration"]))  # calibration as analysed
-    flags = " ".join(result["quality"]["flags"])
-    assert "plumb clip not used: the plumb line found leans" in flags
+    assert "plumb.leaning" in [f["code"] for f in result["quality"]["findings"]]
     assert result["quality"]["gravity_source"] != "plumb"
     assert result["quality"]["angle_travel_gravity_deg"] == pytest.approx(90.0, abs=5.0)
 
@@ -230,8 +245,8 @@ def test_a_plumb_line_one_camera_cannot_see_is_triangulated_from_the_other_two(s
         with pytest.raises(DetectionError):
             detect_clip(clips, "plumb", 2, {}, P.PipelineParams())
         blind = result_to_document(P.analyze_ride(clips, bundle.meta, rig=rig))
-    flags = " ".join(blind["quality"]["flags"])
-    assert "the plumb clip was triangulated from the left and middle cameras only" in flags
+    assert any(f["code"] == "tracking.two_cameras_only" and "the plumb clip was triangulated from the left and "
+               "middle cameras only" in f["detail"] for f in blind["quality"]["findings"])
     assert blind["quality"]["gravity_source"] == result["quality"]["gravity_source"] == "plumb"
     assert blind["quality"]["angle_travel_gravity_deg"] == pytest.approx(
         result["quality"]["angle_travel_gravity_deg"], abs=0.3)
@@ -245,7 +260,9 @@ def test_cameras_disagreeing_on_a_stretch_of_the_ride_are_flagged():
     assert disagreement_flag("motion", tracks) is None
     err[120:180, 2] = rng.uniform(8.0, 20.0, 60)  # one camera followed a D-ring for a second
     flag = disagreement_flag("motion", MarkerTracks(tracks.names, tracks.t_s, tracks.xyz_mm, err))
-    assert flag is not None and "motion clip" in flag and "7 %" in flag and "look-alike" in flag
+    assert flag is not None and flag.code == "tracking.cameras_disagree" and flag.values["share_pct"] == pytest.approx(
+        20.0 / 3 * 1.0, abs=0.5)
+    assert "motion clip" in flag.detail and "7 %" in flag.detail and "look-alike" in flag.detail
 
 
 @pytest.mark.slow
@@ -273,4 +290,4 @@ def test_a_reused_rig_keeps_where_its_board_has_been(short_ride, analysed):
     outside = held["quality"]["markers_outside_board_fraction"]
     assert set(outside) == set(cams) and min(outside.values()) > 0.5
     assert held["calibration"]["board_coverage_fraction"] == {c: 0.01 for c in cams}
-    assert any("board" in flag for flag in held["quality"]["flags"])
+    assert "calibration.coverage" in [f["code"] for f in held["quality"]["findings"]]

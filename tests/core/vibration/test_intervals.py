@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import VibrationError
+from saddlescope.core.findings import Finding
 from saddlescope.core.types import (
     AnalysisWindow,
     Camera,
@@ -31,6 +32,7 @@ from saddlescope.core.vibration.intervals import (
     interval_sources,
     ride_intervals,
 )
+from saddlescope.io.legacy_flags import findings_from_sentences
 
 # a canter's vertical acceleration of S (m/s²), as the arena's rides give it
 F0_HZ = 1.68
@@ -174,9 +176,13 @@ def test_interval_sources_reads_what_the_result_knows():
     one_stride = replace(result, window=replace(result.window, duration_s=1 / F0_HZ))
     assert interval_sources(one_stride, depth_anisotropy=2.0)["f0"] == pytest.approx(
         np.hypot(_f0_fit_part(src), 0.005), rel=1e-6)
-    # the share read from an older result's flag sentence when the number is absent
-    old = _result(outside=None, flags=["the left camera saw the markers outside the region the calibration board "
-                                       "covered in 31 % of its detections: its lens distortion is extrapolated"])
+    # without the per-camera shares, the coverage finding's number; an older result's (its sentence read
+    # back without values by the legacy reader) gives it in its sentence only
+    sentence = ("the left camera saw the markers outside the region the calibration board covered in 31 % of its "
+                "detections: its lens distortion is extrapolated")
+    coded = _result(outside=None, findings=(Finding("calibration.coverage", sentence, {"outside_share_pct": 27.0}),))
+    assert interval_sources(coded, depth_anisotropy=2.0)["outside_board_share"] == pytest.approx(0.27)
+    old = _result(outside=None, findings=tuple(findings_from_sentences([sentence])))
     assert interval_sources(old, depth_anisotropy=2.0)["outside_board_share"] == pytest.approx(0.31)
 
 
@@ -261,10 +267,10 @@ def _f0_fit_part(src: dict) -> float:
     return float(np.sqrt(max(src["f0"] ** 2 - 0.0005 ** 2, 0.0)))
 
 
-def _result(*, square_error_pct: float = 0.2, outside: dict | None = None, flags: list | None = None) -> RideResult:
+def _result(*, square_error_pct: float = 0.2, outside: dict | None = None, findings: tuple = ()) -> RideResult:
     n = 8
     cam = Camera("left", np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]]), np.zeros(5), (640, 480))
-    quality = {"flags": list(flags or []), "saddle_acceleration_spread_m_s2_median": 0.1}
+    quality = {"saddle_acceleration_spread_m_s2_median": 0.1}
     if outside is not None:
         quality["markers_outside_board_fraction"] = outside
     rng = np.random.default_rng(0)
@@ -286,4 +292,5 @@ def _result(*, square_error_pct: float = 0.2, outside: dict | None = None, flags
         motion_frame=MotionFrameSummary(R_rig_to_motion=np.eye(3), origin_mm=np.array([0.0, 0.0, 7000.0]),
                                         gravity_source="plumb"),
         vertical_harmonics=VerticalHarmonics(f0_hz=F0_HZ, amplitudes_m_s2=AMPS, phases_rad=PHASES),
-        indicators=_indicators(), quality=quality, params={"n_periods": 2}, timings_s={"total": 1.0})
+        indicators=_indicators(), quality=quality, params={"n_periods": 2}, timings_s={"total": 1.0},
+        findings=findings)

@@ -97,7 +97,8 @@ def test_c3d_past_65535_frames_every_reader_gets_every_frame(tmp_path):
 
 def test_repeated_labels_get_their_descriptions_or_rank():
     labels, warnings = distinct_labels(["A", "K", "K", "B"], ["x", "Knee", "Knee medial", "y"])
-    assert labels == ("A", "K (Knee)", "K (Knee medial)", "B") and "K" in warnings[0]
+    assert labels == ("A", "K (Knee)", "K (Knee medial)", "B")
+    assert [w.code for w in warnings] == ["mocap.repeated_labels"] and "K" in warnings[0].detail
     labels, _ = distinct_labels(["K", "K"], ["", ""])
     assert labels == ("K#1", "K#2")
     assert distinct_labels(["A", "B"]) == (("A", "B"), ())
@@ -106,7 +107,7 @@ def test_repeated_labels_get_their_descriptions_or_rank():
 @pytest.mark.realdata
 def test_gait_c3d_repeated_labels_warned_and_told_apart():
     data = read_mocap(real_data_path("c3d", "Gait.c3d"))
-    assert any("RKNE, RANK, LKNE, LANK, RFOO, LFOO" in w for w in data.warnings)
+    assert any("RKNE, RANK, LKNE, LANK, RFOO, LFOO" in w.detail for w in data.warnings)
     assert "RKNE (R.Knee)" in data.labels and "RKNE (R.Knee.Medial)" in data.labels
     assert len(set(data.labels)) == data.n_markers == 33
     assert data.up_axis == "+z"

@@ -12,6 +12,7 @@ from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.projection import _UNDISTORT_CRITERIA
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.errors import InputError
+from saddlescope.core.findings import Finding
 from saddlescope.core.types import Board, Camera, Rig
 
 __all__ = ["board_distance_errors", "metric_checks", "triangulate_dlt"]
@@ -233,8 +234,8 @@ def metric_checks(rig: Rig, views_by_camera: Mapping[str, list[BoardView]], boar
         ``corner_distance_error_{mean,rms,max}_mm`` (all corner pairs within an instant);
         ``corner_distance_error_pct`` (RMS error / RMS true distance); ``triangulation_rms_px``;
         ``check_instants``; ``check_points``.
-    flags : list of str
-        A sentence per threshold exceeded: square error over ``max_square_error_pct`` percent or over
+    flags : list of Finding
+        A finding per threshold exceeded: square error over ``max_square_error_pct`` percent or over
         ``max_square_error_mm``; corner-distance RMS over ``max_distance_rms_mm`` (None: not checked,
         since on a narrow-baseline rig it is dominated by each corner's depth noise, not the
         calibration).
@@ -266,20 +267,26 @@ def metric_checks(rig: Rig, views_by_camera: Mapping[str, list[BoardView]], boar
     checks = numbers(board_distance_errors(rig, views_by_camera, board))
     per_pair = {f"{a}-{b}": numbers(board_distance_errors(rig, views_by_camera, board, cameras=[a, b]))
                 for a, b in itertools.combinations(names, 2)}
-    flags: list[str] = []
+    flags: list[Finding] = []
     if "board_square_error_mm" not in checks:
-        flags.append("no board was seen by two cameras at once: the rig's metric accuracy is unchecked")
+        flags.append(Finding("calibration.no_shared_view",
+                             "no board was seen by two cameras at once: the rig's metric accuracy is unchecked"))
         return checks, flags, per_pair
     sq_mm, sq_pct = checks["board_square_error_mm"], checks["board_square_error_pct"]
     if sq_pct > max_square_error_pct or (max_square_error_mm is not None and sq_mm > max_square_error_mm):
         limit = f"{max_square_error_pct:g} %"
         if max_square_error_mm is not None:
             limit += f" / {max_square_error_mm:g} mm"
-        flags.append(f"reconstructed board squares are off by {sq_mm:.2f} mm RMS ({sq_pct:.2f} % of "
-                     f"{board.square_mm:g} mm, over the {limit} limit): recalibrate before trusting "
-                     f"distances")
+        flags.append(Finding("calibration.square_error",
+                             f"reconstructed board squares are off by {sq_mm:.2f} mm RMS ({sq_pct:.2f} % of "
+                             f"{board.square_mm:g} mm, over the {limit} limit): recalibrate before trusting "
+                             f"distances",
+                             {"square_error_mm": sq_mm, "square_error_pct": sq_pct,
+                              "limit_pct": max_square_error_pct, "square_mm": board.square_mm}))
     rms = checks.get("corner_distance_error_rms_mm", 0.0)
     if max_distance_rms_mm is not None and rms > max_distance_rms_mm:
-        flags.append(f"distances between triangulated board corners are off by {rms:.2f} mm RMS, over the "
-                     f"{max_distance_rms_mm:g} mm limit")
+        flags.append(Finding("calibration.corner_distances",
+                             f"distances between triangulated board corners are off by {rms:.2f} mm RMS, over "
+                             f"the {max_distance_rms_mm:g} mm limit",
+                             {"distance_error_rms_mm": rms, "limit_mm": max_distance_rms_mm}))
     return checks, flags, per_pair

@@ -16,6 +16,7 @@ from saddlescope.core.calibration.intrinsics import _choose_k3, calibrate_intrin
 from saddlescope.core.calibration.stereo import stereo_extrinsics
 from saddlescope.core.calibration.views import MIN_VIEWS, BoardView
 from saddlescope.core.errors import CalibrationError, InputError
+from saddlescope.core.findings import Finding
 from saddlescope.core.types import Board, Camera, Rig
 
 __all__ = ["calibrate_rig", "principal_point_common_shift"]
@@ -280,15 +281,16 @@ def _stereo_pairs(views: Mapping[str, list[BoardView]], intrinsics: Mapping[str,
 
 
 def _principal_point_check(single: Mapping[str, Camera], joint: Mapping[str, Camera],
-                           limit_px: float) -> tuple[float, str | None]:
+                           limit_px: float) -> tuple[float, Finding | None]:
     """The principal points' common shift (px) by the joint adjustment, and a flag when over ``limit_px``."""
     shift = principal_point_common_shift(single, joint)
     shift_px = float(np.hypot(*shift))
     if not shift_px > limit_px:
         return shift_px, None
-    return shift_px, (
+    return shift_px, Finding("calibration.principal_point", (
         f"the joint adjustment moved every camera's principal point by about "
         f"{shift_px:.0f} px (x {shift[0]:+.0f}, y {shift[1]:+.0f}) from where "
         "each camera's own views put it: the board's positions do not tell the cameras' aim from their "
         "principal points, so heights and depths may bend by millimetres across the view; carry the board "
-        "higher and lower and tilt it towards and away from the cameras")
+        "higher and lower and tilt it towards and away from the cameras"),
+        {"shift_px": shift_px, "shift_x_px": float(shift[0]), "shift_y_px": float(shift[1]), "limit_px": limit_px})

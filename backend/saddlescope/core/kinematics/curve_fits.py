@@ -24,6 +24,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.findings import Finding
 from saddlescope.core.kinematics.goodness_of_fit import CRITERIA, GoodnessOfFit, _choose, _confidence, _goodness
 
 __all__ = [
@@ -154,7 +155,7 @@ class FourierFit:
     criterion: str = "given"
     extrema_per_period: int | None = None
     candidates: tuple = ()
-    flags: tuple[str, ...] = field(default_factory=tuple)
+    flags: tuple[Finding, ...] = field(default_factory=tuple)
     trend: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
@@ -290,7 +291,7 @@ def count_extrema(t, y, *, period_s: float, prominence: float = 0.1, max_order: 
 
 def _fit_order(tau: np.ndarray, y: np.ndarray, omega0: float, order: int, fit_omega: bool,
                name: str, trend_degree: int
-               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, tuple[str, ...]]:
+               ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, tuple[Finding, ...]]:
     """Coefficients [a0, trend_1..trend_D, a_1..a_N, b_1..b_N], omega, residuals, Jacobian, flags."""
     n_poly = trend_degree + 1
     design = _design(tau, omega0, order, trend_degree)
@@ -313,11 +314,13 @@ def _fit_order(tau: np.ndarray, y: np.ndarray, omega0: float, order: int, fit_om
     p0 = np.concatenate([coef, [omega0]])
     res = least_squares(residual, p0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-15, ftol=1e-15,
                         gtol=1e-15, max_nfev=2000)
-    flags: tuple[str, ...] = ()
+    flags: tuple[Finding, ...] = ()
     omega = float(res.x[-1])
     if not (0.8 * omega0 <= omega <= 1.25 * omega0) or not res.success:
-        flags = (f"{name}: the fitted fundamental ({omega / (2 * np.pi):.3f} Hz) left the neighbourhood of "
-                 f"the stride frequency ({omega0 / (2 * np.pi):.3f} Hz); kept the stride frequency",)
+        flags = (Finding("fit.fundamental_drift",
+                         f"{name}: the fitted fundamental ({omega / (2 * np.pi):.3f} Hz) left the neighbourhood of "
+                         f"the stride frequency ({omega0 / (2 * np.pi):.3f} Hz); kept the stride frequency",
+                         {"fitted_hz": omega / (2 * np.pi), "stride_hz": omega0 / (2 * np.pi)}),)
         return coef, omega0, y - design @ coef, design, flags
     return res.x[:-1], omega, residual(res.x), jacobian(res.x), flags
 

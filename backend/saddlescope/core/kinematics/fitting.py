@@ -13,6 +13,7 @@ import numpy as np
 from scipy.stats import t as student_t
 
 from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.findings import Finding
 from saddlescope.core.kinematics.curve_fits import FourierFit, LinearFit, fit_fourier, fit_linear
 
 __all__ = [
@@ -31,7 +32,7 @@ class MarkerKinematics:
     omega_rad_s : float, the common fundamental (pooled) or NaN when each fit kept its own;
     omega_per_fit : ndarray of shape (M, 3), the free fundamental of each axis's Fourier fit
     (NaN for a linear x);
-    flags : tuple of str.
+    flags : tuple of Finding.
     """
 
     t_s: np.ndarray
@@ -42,7 +43,7 @@ class MarkerKinematics:
     acceleration_m_s2: np.ndarray
     omega_rad_s: float
     omega_per_fit: np.ndarray
-    flags: tuple[str, ...] = ()
+    flags: tuple[Finding, ...] = ()
 
     @property
     def average_speed_m_s(self) -> float:
@@ -215,14 +216,14 @@ def _wild_samples(t_s: np.ndarray, xyz_marker: np.ndarray, marker_fits: list, re
 
 
 def _fit_markers(t_s: np.ndarray, xyz: np.ndarray, how: _SeriesOptions, reject_sigma: float | None,
-                 reject_min_m: float) -> tuple[_Fits, np.ndarray, list[str]]:
+                 reject_min_m: float) -> tuple[_Fits, np.ndarray, list[Finding]]:
     """Every marker's fits, each refitted without its wild samples.
 
     Returns the fits by (marker, axis), the positions with the wild samples NaN (a copy once any
     is left out) and one message per marker that lost samples.
     """
     fits: _Fits = {}
-    rejected: list[str] = []
+    rejected: list[Finding] = []
     for m in range(xyz.shape[1]):
         _fit_marker(fits, m, t_s, xyz, how)
         if reject_sigma is None:
@@ -232,8 +233,10 @@ def _fit_markers(t_s: np.ndarray, xyz: np.ndarray, how: _SeriesOptions, reject_s
         if wild.any() and np.isfinite(xyz[~wild, m, 1]).sum() >= 0.8 * np.isfinite(xyz[:, m, 1]).sum():
             xyz = xyz.copy() if not rejected else xyz
             xyz[wild, m] = np.nan
-            rejected.append(f"{how.labels[m]}: {int(wild.sum())} wild samples left out of its fits "
-                            f"(beyond {reject_sigma:g} robust standard deviations)")
+            rejected.append(Finding("fit.wild_samples",
+                                    f"{how.labels[m]}: {int(wild.sum())} wild samples left out of its fits "
+                                    f"(beyond {reject_sigma:g} robust standard deviations)",
+                                    {"samples": int(wild.sum()), "limit_sigma": reject_sigma}))
             _fit_marker(fits, m, t_s, xyz, how)
     return fits, xyz, rejected
 
@@ -261,7 +264,7 @@ def _share_centroid_order(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, whole: 
 
 
 def _pooled_fundamental(fits: _Fits, keys: list[tuple[int, int]], omega_from: str, period_s: float
-                        ) -> tuple[float, float, list[str]]:
+                        ) -> tuple[float, float, list[Finding]]:
     """Inverse-variance weighted mean of the free fundamentals (rad/s), its standard error and a flag.
 
     The series of ``keys`` whose ω has a standard error count (only the vertical ones where any
@@ -276,11 +279,12 @@ def _pooled_fundamental(fits: _Fits, keys: list[tuple[int, int]], omega_from: st
     if ok.any():
         w = 1.0 / se[ok] ** 2
         return float(np.sum(w * omegas[ok]) / np.sum(w)), float(1.0 / np.sqrt(np.sum(w))), []
-    return 2 * np.pi / period_s, float("nan"), ["no fit determined the fundamental; used the stride period's"]
+    return 2 * np.pi / period_s, float("nan"), [
+        Finding("fit.no_fundamental", "no fit determined the fundamental; used the stride period's")]
 
 
 def _pool_omega(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, how: _SeriesOptions, omega_from: str
-                ) -> tuple[float, list[str]]:
+                ) -> tuple[float, list[Finding]]:
     """Refit every Fourier series with the pooled fundamental; return it (rad/s) and any flag."""
     keys = [k for k, f in fits.items() if isinstance(f, FourierFit)]
     pooled, pooled_se, flags = _pooled_fundamental(fits, keys, omega_from, how.period_s)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.findings import Finding
 
 __all__ = [
     "CAMERA_DOWN",
@@ -42,8 +43,8 @@ class MotionFrame:
     gravity_source : str
         ``"plumb"``, ``"hint"`` (the caller's down direction, e.g. from the rig) or
         ``"camera_down"`` (the left camera's image y axis: a level camera is assumed).
-    warnings : tuple of str
-        Human-readable warnings (no plumb, plumb far from perpendicular to the travel, ...).
+    warnings : tuple of Finding
+        What the frame's construction found (no plumb, plumb far from perpendicular to the travel, ...).
     gravity_raw : ndarray of shape (3,)
         The unit gravity estimate before orthogonalisation, rig coordinates.
     travel_raw : ndarray of shape (3,)
@@ -57,7 +58,7 @@ class MotionFrame:
     R: np.ndarray
     origin_mm: np.ndarray
     gravity_source: str
-    warnings: tuple[str, ...] = ()
+    warnings: tuple[Finding, ...] = ()
     gravity_raw: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     travel_raw: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     angle_travel_gravity_deg: float = float("nan")
@@ -220,8 +221,10 @@ def motion_frame(travel_xyz_mm, *, plumb_top_mm=None, plumb_bottom_mm=None, rig_
         raise KinematicsError(f"gravity ({source}) is within {90 - abs(angle - 90):.1f} deg of the travel "
                               "direction; the motion frame is undefined (check the plumb clip)")
     if abs(angle - 90.0) > _PERPENDICULAR_TOL_DEG:
-        warnings.append(f"gravity ({source}) is {abs(angle - 90):.1f} deg from perpendicular to the travel: "
-                        "the horse was not on level ground, or the plumb or travel marker is wrong")
+        warnings.append(Finding("gravity.tilted",
+                                f"gravity ({source}) is {abs(angle - 90):.1f} deg from perpendicular to the travel: "
+                                "the horse was not on level ground, or the plumb or travel marker is wrong",
+                                {"off_perpendicular_deg": abs(angle - 90)}))
     u3 = _unit(np.cross(u1, g))  # eq. 5.8
     u2 = np.cross(u3, u1)  # eq. 5.9
     R = np.vstack([u1, u2, u3])  # rows = axes: the transpose of R_CM of eq. 5.10
@@ -257,13 +260,13 @@ def _travel_direction(track: np.ndarray, finite: np.ndarray, t_s, period_s: floa
 
 
 def _gravity(plumb_top_mm, plumb_bottom_mm, rig_down_hint, hint_name: str, diagnostics: dict
-             ) -> tuple[np.ndarray, str, list[str]]:
+             ) -> tuple[np.ndarray, str, list[Finding]]:
     """Unit gravity (rig coordinates), its source and the warnings it calls for.
 
     From the plumb markers (their diagnostics are added to ``diagnostics``), else the down hint,
     else the left camera's image down direction.
     """
-    warnings: list[str] = []
+    warnings: list[Finding] = []
     if plumb_top_mm is not None and plumb_bottom_mm is not None:
         g, plumb_diag = plumb_gravity(plumb_top_mm, plumb_bottom_mm)
         diagnostics.update(plumb_diag)
@@ -274,16 +277,18 @@ def _gravity(plumb_top_mm, plumb_bottom_mm, rig_down_hint, hint_name: str, diagn
             raise InputError(f"rig_down_hint must be a non-zero 3-vector, got {rig_down_hint!r}")
         g = _unit(g)
         source = "hint"
-        warnings.append(f"no plumb line: gravity taken as {hint_name} (each degree it is off mixes 1.7 % "
-                        "of the horizontal motion into the vertical); film a plumb line for exact vertical "
-                        "results")
+        warnings.append(Finding("gravity.from_hint",
+                                f"no plumb line: gravity taken as {hint_name} (each degree it is off mixes 1.7 % "
+                                "of the horizontal motion into the vertical); film a plumb line for exact vertical "
+                                "results"))
     else:
         g = CAMERA_DOWN.copy()
         source = "camera_down"
-        warnings.append("no plumb clip and no down hint: gravity taken as the left camera's image "
-                        "down direction (assumes a level camera); vertical results are approximate")
+        warnings.append(Finding("gravity.from_camera",
+                                "no plumb clip and no down hint: gravity taken as the left camera's image "
+                                "down direction (assumes a level camera); vertical results are approximate"))
     if (plumb_top_mm is None) != (plumb_bottom_mm is None):
-        warnings.append("only one plumb marker track was given; the plumb was ignored")
+        warnings.append(Finding("plumb.one_marker", "only one plumb marker track was given; the plumb was ignored"))
     return g, source, warnings
 
 

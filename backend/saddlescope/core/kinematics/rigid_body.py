@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from saddlescope.core.errors import InputError, KinematicsError
+from saddlescope.core.findings import Finding
 from saddlescope.core.kinematics.registration import check_marker_layout
 
 __all__ = [
@@ -85,7 +86,7 @@ class AngularKinematics:
         Unit normal n of the markers' plane (eq. 6.33).
     method : str
         ``"lsq"``, ``"lsq_observable"``, ``"lsq_wiener"`` or ``"versions"``.
-    flags : tuple of str
+    flags : tuple of Finding
     weak_axis_gain : tuple of float or None
         (ω, α) gains on the weakest rotation axis (``"lsq_wiener"`` only).
     """
@@ -105,7 +106,7 @@ class AngularKinematics:
     alpha_spread: np.ndarray
     normal: np.ndarray
     method: str
-    flags: tuple[str, ...] = ()
+    flags: tuple[Finding, ...] = ()
     weak_axis_gain: tuple[float, float] | None = None
 
     @property
@@ -485,8 +486,9 @@ def angular_kinematics(r, v, a, *, singularity_threshold: float = 0.2, method: s
     if method == "versions":
         fallback = finite & ~np.all(np.isfinite(w_mean), axis=1)
         if fallback.any():
-            flags.append(f"all ω versions excluded in {fallback[finite].mean():.0%} of frames; least "
-                         "squares used there")
+            flags.append(Finding("rotation.all_versions_excluded",
+                                 f"all ω versions excluded in {fallback[finite].mean():.0%} of frames; least "
+                                 "squares used there", {"share_pct": 100 * float(fallback[finite].mean())}))
     return AngularKinematics(
         omega_rad_s=omega, alpha_rad_s2=alpha, omega_lsq=w_lsq, alpha_lsq=a_lsq,
         omega_versions=w_ver, alpha_versions=a_ver, omega_versions_mean=w_mean, alpha_versions_mean=a_mean,
@@ -519,27 +521,32 @@ def _check_body(r, v, a, *, method: str, raw: tuple | None, min_height_ratio: fl
 
 
 def _weak_axis(r_finite: np.ndarray, method: str, observable_ratio: float, raw: tuple | None
-               ) -> tuple[float, tuple, list[str]]:
+               ) -> tuple[float, tuple, list[Finding]]:
     """How the markers' weakest rotation axis is treated, from the frames (F', 3, 3) with all markers.
 
     Returns the eigenvalue ratio below which an axis is left out ("lsq_observable"; 0 keeps every
     axis), the (ω, α) Wiener gains on that axis ("lsq_wiener"; else None) and the flags saying so.
     """
-    flags: list[str] = []
+    flags: list[Finding] = []
     ratio_cut = 0.0
     if method == "lsq_observable":
         axis, ratio = unobservable_axis(r_finite, min_eig_ratio=observable_ratio)
         if ratio < observable_ratio:
             ratio_cut = observable_ratio
-            flags.append(f"the markers lie near a line (eigenvalue ratio {ratio:.3f} < {observable_ratio}): rotation "
-                         f"about it (axis {np.round(axis, 2).tolist()} in the motion frame) is not observable, "
-                         "so its component of ω and α is left out (taken as zero)")
+            flags.append(Finding("rotation.markers_in_line",
+                                 f"the markers lie near a line (eigenvalue ratio {ratio:.3f} < {observable_ratio}): "
+                                 f"rotation about it (axis {np.round(axis, 2).tolist()} in the motion frame) is not "
+                                 "observable, so its component of ω and α is left out (taken as zero)",
+                                 {"eigenvalue_ratio": ratio, "limit_ratio": observable_ratio}))
     gains = (None, None)
     if method == "lsq_wiener":
         gains = weak_axis_gain(*raw)
         _, ratio = unobservable_axis(r_finite, min_eig_ratio=observable_ratio)
-        flags.append(f"rotation about the markers' weakest axis (eigenvalue ratio {ratio:.3f}) kept at "
-                     f"{gains[0]:.0%} in ω and {gains[1]:.0%} in α: the rest is what skin motion predicts")
+        flags.append(Finding("rotation.weak_axis",
+                             f"rotation about the markers' weakest axis (eigenvalue ratio {ratio:.3f}) kept at "
+                             f"{gains[0]:.0%} in ω and {gains[1]:.0%} in α: the rest is what skin motion predicts",
+                             {"eigenvalue_ratio": ratio, "omega_kept_pct": 100 * gains[0],
+                              "alpha_kept_pct": 100 * gains[1]}))
     return ratio_cut, gains, flags
 
 
@@ -556,20 +563,25 @@ def _final_omega(method: str, r: np.ndarray, v: np.ndarray, w_lsq: np.ndarray, w
 
 
 def _singularity_flags(sing: np.ndarray, finite: np.ndarray, w_excl: np.ndarray, a_excl: np.ndarray,
-                       threshold: float) -> list[str]:
-    """Flags for ω near the markers' plane (``sing`` (F,), eq. 6.35) and versions (F, 6) left out."""
+                       threshold: float) -> list[Finding]:
+    """Findings for ω near the markers' plane (``sing`` (F,), eq. 6.35) and versions (F, 6) left out."""
     flags = []
     valid = finite & np.isfinite(sing)
     if valid.any():
         med = float(np.median(sing[valid]))
         if med < threshold:
-            flags.append(f"ω is nearly in the markers' plane (median |n·ω̂| = {med:.2f} < "
-                         f"{threshold}): the thesis's closed-form versions are near their "
-                         "singularity (eq. 6.35) and unreliable; the least-squares estimate is not affected")
+            flags.append(Finding("rotation.near_singularity",
+                                 f"ω is nearly in the markers' plane (median |n·ω̂| = {med:.2f} < {threshold}): the "
+                                 "thesis's closed-form versions are near their singularity (eq. 6.35) and "
+                                 "unreliable; the least-squares estimate is not affected",
+                                 {"singularity_index_median": med, "limit": threshold}))
     for name, excl in (("ω", w_excl), ("α", a_excl)):
         frac = excl[finite].mean(axis=0) if finite.any() else np.zeros(6)
         shares = [f"{name}^{vname} {f:.0%}" for vname, f in zip(VERSION_NAMES, frac, strict=True) if f > 0]
         if shares:  # one line per quantity: the share of frames each version was left out of
-            flags.append(f"{name} versions excluded near their singularity (conditioning below "
-                         f"{threshold}; share of frames): {', '.join(shares)}")
+            flags.append(Finding("rotation.versions_excluded",
+                                 f"{name} versions excluded near their singularity (conditioning below "
+                                 f"{threshold}; share of frames): {', '.join(shares)}",
+                                 {f"{vname.replace(',', '_')}_excluded_pct": 100 * float(f)
+                                  for vname, f in zip(VERSION_NAMES, frac, strict=True) if f > 0}))
     return flags

@@ -27,6 +27,7 @@ from saddlescope.core.detection import (
     track_markers,
 )
 from saddlescope.core.errors import DetectionError, KinematicsError, TriangulationError
+from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress, cameras_at_once
 from saddlescope.core.pipeline.setup import outside_coverage
@@ -41,7 +42,7 @@ __all__ = ["EarlyMotionTracks", "RideTracks", "depth_uncertainty", "detect_clip"
 
 def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mapping[str, int],
                 params: PipelineParams, *, spare_cameras: bool = False,
-                start_xy: Mapping[str, np.ndarray] | None = None) -> tuple[dict[str, ImageTracks], list[str]]:
+                start_xy: Mapping[str, np.ndarray] | None = None) -> tuple[dict[str, ImageTracks], list[Finding]]:
     """2-D marker tracks of every camera of one clip set (thesis 4.5), and flags.
 
     With ``spare_cameras`` (still scenes: the plumb line, the standing horse) a camera that does not
@@ -54,8 +55,8 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
     -------
     tracks : dict of camera -> ImageTracks
         ``xy_px`` of shape (F, n_markers, 2) per camera, NaN where a marker was not found.
-    flags : list of str
-        A sentence per camera left out.
+    flags : list of Finding
+        One per camera left out.
     """
     overrides = dict(params.detection.get(kind, {}))
     common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
@@ -89,7 +90,8 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
     missed = {cam: missed[cam] for cam in clips.cameras(kind) if cam in missed}  # in the cameras' order
     if len(tracks) < 2 and missed:
         raise next(iter(missed.values()))
-    flags = [f"the {kind} clip was triangulated from the {' and '.join(tracks)} cameras only: {exc}"
+    flags = [Finding("tracking.two_cameras_only",
+                     f"the {kind} clip was triangulated from the {' and '.join(tracks)} cameras only: {exc}")
              for exc in missed.values()]
     return tracks, flags
 
@@ -334,8 +336,8 @@ class RideTracks:
     horse_idx: list[int] = field(default_factory=list)
     saddle_idx: int | None = None
     cameras_down: np.ndarray | None = None
-    plumb_problem: str | None = None
-    flags: list[str] = field(default_factory=list)
+    plumb_findings: list[Finding] = field(default_factory=list)  # why the plumb clip is not (fully) used
+    flags: list[Finding] = field(default_factory=list)
     triangulation_s: float = 0.0
 
 
@@ -369,7 +371,7 @@ def _detect_plumb(clips: ClipReader, rig: Rig, first_frame: Mapping, params: Pip
                   triangulate: _Triangulator, found: RideTracks) -> None:
     """The plumb line's markers (gravity), or why the plumb clip is not used."""
     if not clips.has("plumb"):
-        found.plumb_problem = "no plumb clip"
+        found.plumb_findings = [Finding("plumb.missing", "no plumb clip")]
         return
     try:
         plumb2d, plumb_flags = detect_clip(clips, "plumb", n_plumb, first_frame["plumb"], params,
@@ -377,17 +379,19 @@ def _detect_plumb(clips: ClipReader, rig: Rig, first_frame: Mapping, params: Pip
                                            start_xy=still_start_positions(clips, rig, "plumb",
                                                                           first_frame["plumb"], n_plumb))
         found.tracks3d["plumb"] = triangulate("plumb", plumb2d, n_plumb)
-        found.plumb_problem = "; ".join(plumb_flags) or None
+        found.plumb_findings = list(plumb_flags)
         lean_deg = _plumb_lean_deg(found.tracks3d["plumb"], rig)
         if lean_deg > params.max_plumb_lean_deg:
             # A plumb line hangs along gravity and cameras stand roughly level: this is not one (a
             # marker taken at the string's end put gravity 62 degrees off on a thesis-rig ride).
             del found.tracks3d["plumb"]
-            found.plumb_problem = (f"plumb clip not used: the plumb line found leans {lean_deg:.0f} degrees from "
-                                   f"the cameras' vertical (more than {params.max_plumb_lean_deg:.0f}): its markers "
-                                   "were not found (check that every camera sees both plumb markers)")
+            found.plumb_findings = [Finding(
+                "plumb.leaning",
+                f"plumb clip not used: the plumb line found leans {lean_deg:.0f} degrees from the cameras' vertical "
+                f"(more than {params.max_plumb_lean_deg:.0f}): its markers were not found (check that every camera "
+                "sees both plumb markers)", {"lean_deg": lean_deg, "limit_deg": params.max_plumb_lean_deg})]
     except (DetectionError, TriangulationError, KinematicsError) as exc:
-        found.plumb_problem = f"plumb clip not used: {exc}"
+        found.plumb_findings = [Finding("plumb.not_used", f"plumb clip not used: {exc}")]
 
 
 def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapping, clocks: Mapping,
@@ -419,28 +423,34 @@ def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Ma
             except (DetectionError, TriangulationError):
                 pass
         if again_mm < found_mm:
-            found.flags.append(f"the moving spots each camera found were {found_mm:.0f} mm RMS off the static "
-                               f"shot's marker distances (a look-alike moving with the horse); the markers were "
-                               f"found again with all cameras and the static layout ({again_mm:.0f} mm)")
+            found.flags.append(Finding(
+                "tracking.lookalike_recovered",
+                f"the moving spots each camera found were {found_mm:.0f} mm RMS off the static shot's marker "
+                f"distances (a look-alike moving with the horse); the markers were found again with all cameras "
+                f"and the static layout ({again_mm:.0f} mm)", {"mismatch_mm": found_mm, "mismatch_again_mm": again_mm}))
             motion2d, horse_idx, saddle_idx, found.tracks3d["motion"] = again2d, again_h, again_s, again
         else:
-            found.flags.append(f"the tracked markers are {found_mm:.0f} mm RMS off the static shot's marker "
-                               "distances and no closer triangle was found: a look-alike may have been tracked, or "
-                               "a marker moved between the static shot and the ride (check both clips)")
+            found.flags.append(Finding(
+                "tracking.lookalike",
+                f"the tracked markers are {found_mm:.0f} mm RMS off the static shot's marker distances and no "
+                "closer triangle was found: a look-alike may have been tracked, or a marker moved between the "
+                "static shot and the ride (check both clips)", {"mismatch_mm": found_mm}))
     found.motion2d = motion2d
     found.horse_idx = match_horse_markers(static_mm, horse_idx, found.tracks3d["motion"].xyz_mm)
     found.saddle_idx = saddle_idx
 
 
-def _coverage_flags(motion2d: Mapping[str, ImageTracks], calib_report: Mapping) -> list[str]:
-    """A flag per camera that saw the markers outside the region the calibration board covered."""
+def _coverage_flags(motion2d: Mapping[str, ImageTracks], calib_report: Mapping) -> list[Finding]:
+    """A finding per camera that saw the markers outside the region the calibration board covered."""
     flags = []
     if calib_report.get("board_coverage"):
         for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items():
             if share > 0.05:
-                flags.append(f"the {cam} camera saw the markers outside the region the calibration board "
-                             f"covered in {100 * share:.0f} % of its detections: its lens distortion is "
-                             "extrapolated there (move the board to the edges of every camera's view)")
+                flags.append(Finding("calibration.coverage",
+                                     f"the {cam} camera saw the markers outside the region the calibration board "
+                                     f"covered in {100 * share:.0f} % of its detections: its lens distortion is "
+                                     "extrapolated there (move the board to the edges of every camera's view)",
+                                     {"outside_share_pct": 100 * share}))
     return flags
 
 
@@ -490,8 +500,8 @@ def depth_uncertainty(rig: Rig, tracks: MarkerTracks) -> dict | None:
         return None
 
 
-def disagreement_flag(kind: str, tracks: MarkerTracks, *, share: float = 0.05) -> str | None:
-    """A flag when the cameras disagree on a clip's markers, else None.
+def disagreement_flag(kind: str, tracks: MarkerTracks, *, share: float = 0.05) -> Finding | None:
+    """A finding when the cameras disagree on a clip's markers, else None.
 
     A flag when over ``share`` of a clip's triangulated samples reproject worse than 2 px and 8 times
     the clip's median: the cameras saw different things there (one followed a look-alike, or the
@@ -508,6 +518,8 @@ def disagreement_flag(kind: str, tracks: MarkerTracks, *, share: float = 0.05) -
     bad = float(np.mean(err > limit))
     if bad <= share:
         return None
-    return (f"the cameras disagree on the {kind} clip's markers by more than {limit:.1f} px in {100 * bad:.0f} % "
-            f"of the triangulated samples (median {median:.2f} px): a camera may have followed a look-alike there, "
-            "or the synchronisation or calibration is off (check the cameras' tracks)")
+    return Finding("tracking.cameras_disagree",
+                   f"the cameras disagree on the {kind} clip's markers by more than {limit:.1f} px in "
+                   f"{100 * bad:.0f} % of the triangulated samples (median {median:.2f} px): a camera may have "
+                   "followed a look-alike there, or the synchronisation or calibration is off (check the cameras' "
+                   "tracks)", {"limit_px": limit, "share_pct": 100 * bad, "median_px": median})

@@ -10,6 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.detection import RideTracks, depth_uncertainty
 from saddlescope.core.pipeline.setup import outside_coverage
@@ -55,17 +56,16 @@ def _outside_board(motion2d, calib_report: Mapping | None) -> dict[str, float]:
     return {cam: float(share) for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items()}
 
 
-def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str, MarkerTracks],
-             flags: Sequence[str], input_flags: Sequence[str], found_motion2d=None,
-             calib_report: Mapping | None = None, depth: Mapping | None = None) -> dict:
-    """The result's ``quality``: the flags and the figures behind them.
+def _findings(rig: Rig, flags: Sequence[Finding], input_flags: Sequence[Finding]) -> tuple[Finding, ...]:
+    """The result's findings: the input's first, then the rig's and the stages', each once."""
+    return tuple(input_flags) + tuple(dict.fromkeys([*rig.flags, *flags]))
 
-    The result's ``quality``: the flags (``input_flags`` first, e.g. the bundle's own warnings) and
-    the figures behind them.
-    """
+
+def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str, MarkerTracks],
+             found_motion2d=None, calib_report: Mapping | None = None, depth: Mapping | None = None) -> dict:
+    """The result's ``quality``: the checks and the figures behind the findings."""
     s, ang, reg, frame = kin.saddle, kin.angular, kin.registration, kin.frame
     return {
-        "flags": list(input_flags) + list(dict.fromkeys(list(rig.flags) + list(flags))),
         "calibration_ok": not rig.flags,
         "gravity_source": frame.gravity_source,
         "angle_travel_gravity_deg": frame.angle_travel_gravity_deg,
@@ -99,10 +99,11 @@ def _rotation(kin: SaddleAnalysis) -> SaddleRotation:
 
 def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Mapping, found: RideTracks,
                     kin: SaddleAnalysis, harm: Mapping, indicators: Mapping, fps: float, timings_s: Mapping,
-                    params: PipelineParams, flags: Sequence[str], input_flags: Sequence[str] = ()) -> RideResult:
+                    params: PipelineParams, flags: Sequence[Finding],
+                    input_flags: Sequence[Finding] = ()) -> RideResult:
     """The :class:`RideResult` of a ride from its stages' outputs.
 
-    ``flags`` are the stages' flags in order (rig flags are put first); ``harm`` is
+    ``flags`` are the stages' findings in order (the input's, then the rig's, are put first); ``harm`` is
     :func:`~saddlescope.core.saddle.vertical_harmonics`' output; ``fps`` the motion clip's rate.
     """
     s, fits, frame, t_s = kin.saddle, kin.fits, kin.frame, kin.t_s
@@ -124,9 +125,9 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
         vertical_harmonics=VerticalHarmonics(f0_hz=harm["f0_hz"], amplitudes_m_s2=harm["amplitudes_m_s2"],
                                              phases_rad=harm["phases_rad"]),
         indicators={k: float(v) for k, v in indicators.items()},
-        quality=_quality(rig, kin, harm, found.tracks3d, flags, input_flags, found.motion2d,
-                         calib_report, depth_uncertainty(rig, found.tracks3d["motion"])
-                         if "motion" in found.tracks3d else None),
+        quality=_quality(rig, kin, harm, found.tracks3d, found.motion2d, calib_report,
+                         depth_uncertainty(rig, found.tracks3d["motion"]) if "motion" in found.tracks3d else None),
+        findings=_findings(rig, flags, input_flags),
         params={"n_periods": params.n_periods, "triangulation": params.triangulation,
                 "smoothing_span": params.smoothing_span, "angular_method": params.angular_method,
                 "x_model": params.x_model, "omega_from": params.omega_from, "fit_span": params.fit_span,
@@ -142,27 +143,26 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
 def with_intervals(result: RideResult) -> RideResult:
     """``result`` with its indicators' 95 % intervals, and the too-uncertain verdict in its quality.
 
-    The verdict (:func:`~saddlescope.core.vibration.intervals.decision_uncertainty`) joins the flags as a
-    sentence and ``quality["decision"]``; the noise model's parts go to ``quality["interval_sources"]``.
+    The verdict (:func:`~saddlescope.core.vibration.intervals.decision_uncertainty`) joins the findings
+    (``indicators.too_uncertain``) and ``quality["decision"]``; the noise model's parts go to
+    ``quality["interval_sources"]``.
     """
     sources = interval_sources(result, depth_anisotropy=result.quality.get("depth_anisotropy"))
     intervals = ride_intervals(result, sources=sources)
     reason = decision_uncertainty(result.indicators, intervals, sources)
     quality = dict(result.quality)
-    flags = [f for f in quality.get("flags", []) if not str(f).startswith(_TOO_UNCERTAIN)]
+    findings = [f for f in result.findings if f.code != "indicators.too_uncertain"]
     if reason:
-        flags.append(f"too uncertain for a decision: {reason}; it is left out of leaderboards unless asked for")
-    quality["flags"] = flags
+        findings.append(Finding("indicators.too_uncertain",
+                                f"too uncertain for a decision: {reason}; it is left out of leaderboards unless "
+                                "asked for"))
     quality["decision"] = {"too_uncertain": reason is not None, "reason": reason}
     quality["interval_sources"] = {"gain": sources["gain"], "gain_parts": dict(sources["gain_parts"]),
                                    "harmonic_m_s2": [float(v) for v in sources["harmonic_m_s2"]],
                                    "shape": sources["shape"], "f0": sources["f0"], "speed": sources["speed"],
                                    "peak": float(sources.get("peak", 0.0)),
                                    "displacement": float(sources.get("displacement", 0.0))}
-    return replace(result, quality=quality, indicators_interval_95=intervals)
-
-
-_TOO_UNCERTAIN = "too uncertain for a decision"
+    return replace(result, quality=quality, indicators_interval_95=intervals, findings=tuple(findings))
 
 
 def fits_document(fits) -> dict:

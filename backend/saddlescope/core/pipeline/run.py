@@ -14,6 +14,7 @@ import cv2
 
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import InputError
+from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.detection import EarlyMotionTracks, depth_uncertainty, detect_ride, disagreement_flag
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
@@ -86,7 +87,7 @@ def _within_thread_budget(params: PipelineParams) -> PipelineParams:
 
 def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
                  rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
-                 input_flags: Sequence[str] = (), rig_report: Mapping | None = None) -> RideResult:
+                 input_flags: Sequence[Finding] = (), rig_report: Mapping | None = None) -> RideResult:
     """Run every stage on one ride.
 
     Parameters
@@ -102,8 +103,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         its ``n_views`` and ``board_coverage``, so that the lens limit and board-region checks still apply.
     on_progress : callable(fraction, stage), optional
         Called as each stage advances, ``fraction`` of the whole analysis in [0, 1].
-    input_flags : sequence of str, optional
-        Warnings about the input (e.g. the bundle's), put first among the result's flags.
+    input_flags : sequence of Finding, optional
+        What reading the input found (e.g. the bundle's), put first among the result's findings.
 
     Returns
     -------
@@ -149,8 +150,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                             horse_idx=found.horse_idx, saddle_idx=found.saddle_idx, gait=meta.get("gait"),
                             depth=depth_uncertainty(rig, found.tracks3d["motion"]), down_hint=found.cameras_down)
     disagreements = [f for kind, tr in found.tracks3d.items() if (f := disagreement_flag(kind, tr))]
-    flags = (clock_flags + found.flags + disagreements + ([found.plumb_problem] if found.plumb_problem else [])
-             + list(kin.flags))
+    flags = clock_flags + found.flags + disagreements + found.plumb_findings + list(kin.flags)
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()

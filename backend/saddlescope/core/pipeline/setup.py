@@ -16,6 +16,7 @@ import numpy as np
 from saddlescope.core import calibration as calib
 from saddlescope.core.detection import track_markers
 from saddlescope.core.errors import DetectionError, SyncError
+from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress, cameras_at_once
 from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
@@ -174,8 +175,8 @@ def sync_quality(kinds: list[str], methods: Mapping, synced: Mapping[str, Motion
     return out
 
 
-def sync_flag(kind: str, found: MotionSync) -> str:
-    """The flag sentence of a clip set synchronised from motion (quality notes match it)."""
+def sync_flag(kind: str, found: MotionSync) -> Finding:
+    """The finding of a clip set synchronised from motion (``sync.motion``, or ``sync.motion_uncertain``)."""
     what = "the board's" if kind == "calibration" else "the markers'"
     others = [c for c in found.offsets if found.sigma_frames.get(c, 0.0) > 0 or found.offsets[c] != 0.0]
     parts = ", ".join(f"{c} {found.offsets[c]:+.2f} ± {found.sigma_frames[c]:.2f}" for c in others)
@@ -184,20 +185,21 @@ def sync_flag(kind: str, found: MotionSync) -> str:
         verdict = "to the nearest frame" if worst < 0.5 else "uncertain"
     else:
         verdict = "uncertain" if worst > 0.1 else "within a tenth of a frame"
-    return (f"the {kind} clip was synchronised from {what} motion (no sync flash), {verdict}: offsets "
-            f"{parts} frames")
+    return Finding("sync.motion_uncertain" if verdict == "uncertain" else "sync.motion",
+                   f"the {kind} clip was synchronised from {what} motion (no sync flash), {verdict}: offsets "
+                   f"{parts} frames", {"worst_sigma_frames": worst})
 
 
-def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
+def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[Finding]]:
     """The timestamps of variable-rate clips (phones) and the frame where each was synchronised.
 
     Returns ``clocks[kind][camera] = (frame times (F,) s, anchor frame)`` for every camera of a clip
     set where one camera's frames are not evenly spaced (the even ones get their own even stamps),
-    and a flag for each uneven clip. The anchor is the sync flash's onset: frame offsets are measured
+    and a finding for each uneven clip. The anchor is the sync flash's onset: frame offsets are measured
     there, so the nominal even clock is tied to the clip's timestamps at that frame.
     """
     clocks: dict[str, dict[str, tuple[np.ndarray, float]]] = {}
-    flags: list[str] = []
+    flags: list[Finding] = []
     for kind in kinds:
         stamped = {cam: clips.frame_times(kind, cam) for cam in clips.cameras(kind)}
         if all(times is None for times in stamped.values()):
@@ -209,9 +211,13 @@ def frame_clocks(clips: ClipReader, kinds: list[str]) -> tuple[dict, list[str]]:
                 times = np.arange(clips.frame_count(kind, cam)) / clips.fps(kind, cam)
             else:
                 dt_ms = np.diff(times) * 1000.0
-                flags.append(f"the {kind} clip of the {cam} camera has a variable frame rate (frames "
-                             f"{dt_ms.min():.1f}-{dt_ms.max():.1f} ms apart, nominal "
-                             f"{1000.0 / clips.fps(kind, cam):.1f} ms): its frames are placed at their timestamps")
+                nominal_ms = 1000.0 / clips.fps(kind, cam)
+                flags.append(Finding("video.variable_frame_rate",
+                                     f"the {kind} clip of the {cam} camera has a variable frame rate (frames "
+                                     f"{dt_ms.min():.1f}-{dt_ms.max():.1f} ms apart, nominal {nominal_ms:.1f} ms): "
+                                     "its frames are placed at their timestamps",
+                                     {"interval_min_ms": float(dt_ms.min()), "interval_max_ms": float(dt_ms.max()),
+                                      "nominal_interval_ms": nominal_ms}))
             try:
                 anchor, _ = flash_interval(clips.brightness(kind, cam), clip=kind, camera=cam)
             except SyncError:

@@ -166,13 +166,21 @@ def _relative_sigma(fits: list, key: str, value_of) -> float:
     return float(np.nanmedian(out)) if out else math.nan
 
 
-def _outside_board_share(quality: Mapping) -> float:
+def _outside_board_share(result) -> float:
     """The largest share of a camera's detections outside the board's region (lens extrapolated)."""
-    shares = quality.get("markers_outside_board_fraction")
+    shares = result.quality.get("markers_outside_board_fraction")
     if isinstance(shares, Mapping) and shares:
         return float(max(shares.values()))
-    # results written before the share was a number hold it in the flag's sentence only
-    found = [float(m.group(1)) / 100 for f in quality.get("flags", []) if (m := _OUTSIDE_FLAG.search(str(f)))]
+    found = []
+    for f in result.findings:
+        if f.code != "calibration.coverage":
+            continue
+        if "outside_share_pct" in f.values:
+            found.append(f.values["outside_share_pct"] / 100)
+        # results written before the share was a number hold it in the sentence only (read back by
+        # saddlescope.io.legacy_flags, without values)
+        elif m := _OUTSIDE_FLAG.search(f.detail):
+            found.append(float(m.group(1)) / 100)
     return max(found, default=0.0)
 
 
@@ -232,7 +240,7 @@ def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
             depth_anisotropy = float(position_uncertainty(result.rig, result.motion_frame.origin_mm)["anisotropy"])
         except TriangulationError:  # cameras that cannot fix the point: depth-poor
             depth_anisotropy = math.inf
-    outside = _outside_board_share(q)
+    outside = _outside_board_share(result)
     parts = {"calibration_scale": scale, "omega_versions": FLOORS["omega_spread"] * spread,
              "depth_roll": FLOORS["depth_roll"] if depth_anisotropy >= _DEPTH_ANISOTROPY else 0.0,
              "lens_extrapolated": FLOORS["outside_board"] * outside ** 2}

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from saddlescope.core.errors import MocapFileError
+from saddlescope.core.findings import Finding
 from saddlescope.io.mocap.data import MocapData, _normalise_units, _read_bytes
 
 __all__ = ["distinct_labels", "read_c3d"]
@@ -399,8 +400,8 @@ def distinct_labels(labels, descriptions=()) -> tuple[tuple[str, ...], tuple[str
     labels : tuple of str, length M
         Every repeated label told apart by its description (``"RKNE (R.Knee.Medial)"``) where the
         descriptions of its points differ, else by its rank (``"RKNE#2"``); other labels unchanged.
-    warnings : tuple of str
-        One sentence when labels repeat, else empty.
+    warnings : tuple of Finding
+        One (``mocap.repeated_labels``) when labels repeat, else empty.
     """
     labels = list(labels)
     repeated = [s for s in dict.fromkeys(labels) if labels.count(s) > 1]
@@ -417,7 +418,7 @@ def distinct_labels(labels, descriptions=()) -> tuple[tuple[str, ...], tuple[str
         labels[j] = s if s not in taken else f"{s}#{j + 1}"
         taken.add(labels[j])
     names = ", ".join(repeated)
-    return tuple(labels), (f"labels used by more than one marker: {names}; told apart by their descriptions "
-                           "(POINT:DESCRIPTIONS) or rank, e.g. " + ", ".join(
-                               repr(s) for s in labels if s.startswith(repeated[0] + " (")
-                               or s.startswith(repeated[0] + "#")),)
+    example = ", ".join(repr(s) for s in labels if s.startswith((repeated[0] + " (", repeated[0] + "#")))
+    return tuple(labels), (Finding("mocap.repeated_labels",
+                                   f"labels used by more than one marker: {names}; told apart by their descriptions "
+                                   f"(POINT:DESCRIPTIONS) or rank, e.g. {example}", {"labels": len(repeated)}),)

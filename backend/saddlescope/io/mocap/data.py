@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from saddlescope.core.errors import InputError, MocapFileError
+from saddlescope.core.findings import Finding
 
 __all__ = ["MocapData"]
 
@@ -38,7 +39,7 @@ class MocapData:
         Format the data came from.
     source : str
         File name, for messages.
-    warnings : tuple of str
+    warnings : tuple of Finding
         What the reader tolerated in an inconsistent file (e.g. unnamed markers), for the user to see.
     descriptions : tuple of str
         The markers' descriptions where the file has them (C3D POINT:DESCRIPTIONS), else empty.
@@ -54,7 +55,7 @@ class MocapData:
     first_frame: int
     source_format: str
     source: str = ""
-    warnings: tuple[str, ...] = ()
+    warnings: tuple[Finding, ...] = ()
     descriptions: tuple[str, ...] = ()
     up_axis: str | None = None
 
@@ -145,7 +146,7 @@ class MocapData:
             "first_frame_points": first,
             "duration_s": float(self.duration_s),
             "missing_fraction": float(np.mean(np.isnan(self.points[..., 0]))) if self.points.size else 0.0,
-            "warnings": list(self.warnings),
+            "warnings": [str(w) for w in self.warnings],
             "up_axis": self.up_axis,
         }
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from saddlescope.core.errors import InputError, MocapFileError
+from saddlescope.core.findings import Finding
 from saddlescope.io.mocap.data import MocapData, _check_tracks, _normalise_units, _read_bytes
 
 __all__ = ["read_trc", "write_trc"]
@@ -82,15 +83,15 @@ def _trc_header(lines: list[str], name: str) -> tuple[float, int, int, str, list
     if not (math.isfinite(rate_hz) and rate_hz > 0) or n_frames < 0 or n_markers < 0:
         raise MocapFileError(f"{name}: bad TRC header: DataRate {rate_hz}, NumFrames {n_frames}, "
                              f"NumMarkers {n_markers}")
-    warnings: list[str] = []
+    warnings: list[Finding] = []
     units = header.get("Units", "")
     if not units:
-        warnings.append("no Units in the header; assumed mm")
+        warnings.append(Finding("mocap.no_units", "no Units in the header; assumed mm"))
         units = "mm"
     return rate_hz, n_frames, n_markers, units, warnings
 
 
-def _trc_labels(name_line: str, n_markers: int, name: str, warnings: list[str]) -> tuple[str, ...]:
+def _trc_labels(name_line: str, n_markers: int, name: str, warnings: list[Finding]) -> tuple[str, ...]:
     """Marker labels of line 4; markers it does not name are labelled ``M034`` ... (with a warning)."""
     name_fields = name_line.split("\t")
     if len(name_fields) < 2 or name_fields[0].strip() != "Frame#":
@@ -100,12 +101,14 @@ def _trc_labels(name_line: str, n_markers: int, name: str, warnings: list[str]) 
         raise MocapFileError(f"{name}: line 4 names {len(named)} markers but the header declares {n_markers}")
     labels = tuple(named) + tuple(f"M{j + 1:03d}" for j in range(len(named), n_markers))
     if len(named) < n_markers:
-        warnings.append(f"the header declares {n_markers} markers but line 4 names {len(named)}; the others "
-                        f"are labelled {labels[len(named)]}..{labels[-1]}")
+        warnings.append(Finding("mocap.marker_names",
+                                f"the header declares {n_markers} markers but line 4 names {len(named)}; the others "
+                                f"are labelled {labels[len(named)]}..{labels[-1]}",
+                                {"markers_declared": n_markers, "markers_named": len(named)}))
     return labels
 
 
-def _trc_rows(body: list[str], text: str, name: str, n_frames: int, n_markers: int, warnings: list[str]
+def _trc_rows(body: list[str], text: str, name: str, n_frames: int, n_markers: int, warnings: list[Finding]
               ) -> tuple[np.ndarray, int]:
     """Points (NumFrames, NumMarkers, 3) of the data rows (``body``: line 6 on) and the first frame number."""
     n_cols = 3 * n_markers
@@ -140,10 +143,12 @@ def _trc_rows(body: list[str], text: str, name: str, n_frames: int, n_markers: i
         raise MocapFileError(f"{name}: truncated: the header declares {n_frames} frames but the file holds "
                              f"{row}")
     if short_rows:
-        warnings.append(f"{short_rows} rows stop before the last declared marker; their trailing markers "
-                        "are missing")
+        warnings.append(Finding("mocap.short_rows", f"{short_rows} rows stop before the last declared marker; their "
+                                "trailing markers are missing", {"rows": short_rows}))
     if extra_rows:
-        warnings.append(f"{extra_rows} rows hold cells beyond the {n_markers} declared markers; ignored")
+        warnings.append(Finding("mocap.extra_cells",
+                                f"{extra_rows} rows hold cells beyond the {n_markers} declared markers; ignored",
+                                {"rows": extra_rows, "markers_declared": n_markers}))
     return points, first_frame
 
 
