@@ -34,7 +34,12 @@ PING_TIMEOUT_S = 0.5
 
 
 class QueueUnavailable(SaddleScopeError):
-    """The job could not be handed to a worker (broker unreachable, pool shut down)."""
+    """The job could not be handed to a worker (broker unreachable, pool shut down): HTTP 503.
+
+    `retry_after_s` is sent as the answer's Retry-After: a broker restarting is back within seconds.
+    """
+
+    retry_after_s = 10
 
 
 class JobQueue(Protocol):
@@ -224,7 +229,7 @@ class CeleryQueue:
             self.app.send_task(RUN_JOB_TASK, args=[job_id], queue=QUEUE_NAME)
         except OperationalError as exc:
             raise QueueUnavailable(
-                f"the job broker is unreachable, job {job_id} was not queued: {exc}") from None
+                f"the job broker is unreachable, nothing was queued (job {job_id} was not kept): {exc}") from None
 
     def health(self) -> tuple[bool, str]:
         from kombu.exceptions import OperationalError

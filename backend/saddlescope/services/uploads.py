@@ -152,7 +152,7 @@ def accept_clip(
     Returns the recording id. Raises `VideoError` (unusable video, or disagreeing with the other cameras
     of its set) or `InputError`; the staged file is deleted either way, earlier clips are untouched.
     """
-    from saddlescope.io.video import probe_video
+    from saddlescope.io.video import probe_video, too_short_for
 
     try:
         check_clip_slot(owner, clip_kind, camera)
@@ -169,6 +169,9 @@ def accept_clip(
                 f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable "
                 f"video: {reason}"
             ) from None
+        if info is not None and (short := too_short_for(clip_kind, info)):
+            raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera "
+                             f"({filename or 'the upload'}) is too short: {short}")
         final_key = (
             f"{owner.kind}s/{owner.id}/clips/{clip_kind}/{camera}-{sha256[:12]}"
             f"{clip_suffix(filename, '.video')}"

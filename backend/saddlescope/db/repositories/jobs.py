@@ -175,6 +175,12 @@ class JobRepository(Repository):
                 status=JobStatus.FAILED.value, error=error, finished_at=utcnow(), updated_at=utcnow()))
         return result.rowcount == 1
 
+    def discard_unstarted(self, job_id: int) -> bool:
+        """Delete a job that is queued and was never started (the queue refused it as it was created)."""
+        result = self.session.execute(delete(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED.value,
+                                                        Job.attempts == 0, Job.started_at.is_(None)))
+        return result.rowcount == 1
+
     def request_cancel(self, job_id: int) -> bool:
         """Cancel a queued or running job; a running one stops at its next progress report."""
         result = self.session.execute(
