@@ -190,6 +190,7 @@ def celery_config(settings: Settings) -> dict:
         "task_acks_late": True,  # a job whose worker died is delivered again ...
         "task_reject_on_worker_lost": True,  # ... also when the worker process was killed
         "worker_prefetch_multiplier": 1,  # long tasks: never hoard jobs another worker could run
+        # Minutes: a killed worker's task comes back soon; the fencing keeps a healthy job's copy from running.
         "broker_transport_options": {"visibility_timeout": settings.visibility_timeout_s},
         "broker_connection_retry_on_startup": True,
         # Soft limit: raised inside the task, so the job is recorded as failed; hard limit just after.
