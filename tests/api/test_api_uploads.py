@@ -438,3 +438,30 @@ def test_concurrent_finalises_of_a_bundle_make_one_ride(env, club):
     assert api.ok("POST", f"/uploads/{upload['id']}/finalize") == outcomes[0]
     if env.engine == "embedded":
         assert job_outcome(api, outcomes[0]["job_id"], timeout_s=300)["status"] in ("done", "failed")
+
+
+def test_a_finalise_still_running_after_the_wait_answers_409_and_a_dead_one_is_swept(env, club, monkeypatch):
+    """Another request holds the upload (its row says finalising): after `FINALISE_WAIT_S` the answer is 409
+    with Retry-After, never 500; a finalise whose process died leaves the claim to the sweep."""
+    from sqlalchemy import create_engine, text
+
+    from saddlescope.db.session import session_factory_for
+    from saddlescope.services import uploads as uploads_service
+
+    api, ride = club["api"], club["ride"]
+    data = write_tiny_clip(club["folder"] / "held.avi", frames=8).read_bytes()
+    upload = start(api, ride["id"], data, camera="middle")
+    assert send(api, upload["id"], 0, data).status_code == 204
+    engine = create_engine(env.settings.database_url)
+    with engine.begin() as connection:  # what a finalise in another process did first
+        connection.execute(text("UPDATE uploads SET status = 'finalising' WHERE id = :id"), {"id": upload["id"]})
+    engine.dispose()
+    monkeypatch.setattr(uploads_service, "FINALISE_WAIT_S", 0.3)
+    held = api.post(f"/uploads/{upload['id']}/finalize")
+    assert held.status_code == 409 and held.headers["Retry-After"] == "5", held.text
+    assert "is being finalised by an earlier request" in held.json()["detail"]
+    assert api.ok("GET", f"/uploads/{upload['id']}")["status"] == "finalising"
+    _wind_back(env, upload["id"], hours=25)
+    swept = uploads_service.sweep_abandoned(session_factory_for(env.settings.database_url),
+                                            open_storage(env.settings), max_age_s=env.settings.upload_expiry_s)
+    assert swept["expired uploads"] >= 1 and api.get(f"/uploads/{upload['id']}").status_code == 404
