@@ -304,4 +304,5 @@ def test_members_ride_json_does_not_name_are_never_unpacked_nor_stored(env, club
     bundle_bytes = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
     assert not [k for k in keys if "/padding/" in k or "/notes/" in k], keys
     assert stored_bytes <= bundle_bytes + 1024**2, (stored_bytes, bundle_bytes)  # the ride's files, not 316 MiB
-    assert club["api"].wait_job(response.json()["job_id"])[0]["status"] == "done"
+    if env.engine == "embedded":  # its job runs in this process (no worker in this module's celery variant)
+        assert club["api"].wait_job(response.json()["job_id"])[0]["status"] == "done"
