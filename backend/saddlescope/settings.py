@@ -102,9 +102,12 @@ class Settings(BaseSettings):
     hash_queue: int = Field(default=16, ge=1)
     # Processes of the embedded runner; 1 keeps a laptop responsive while a ride is analysed.
     embedded_workers: int = Field(default=1, ge=1, le=64)
-    # Longest a whole job (all its stages, one Celery task) may run; the broker's visibility timeout
-    # is set above it so a slow but healthy job is never handed to a second worker.
+    # Longest a whole job (all its stages, one Celery task) may run.
     job_time_limit_s: int = Field(default=6 * 3600, gt=0)
+    # How long the broker keeps a delivered, unacknowledged task before handing it out again (None: twice
+    # `stale_after_s`, at least 5 min). A killed worker's task is re-delivered within this; a slow but
+    # healthy job's copy is refused by the fencing (its heartbeat is fresh), so a job never runs twice.
+    broker_visibility_timeout_s: int | None = Field(default=None, ge=10)
     # Workers look this often for lost jobs: running ones whose worker died, queued ones a broker
     # forgot (restarted with nothing persisted) and queued longer than `requeue_after_s`.
     recovery_interval_s: float = Field(default=60.0, gt=0)
@@ -170,8 +173,11 @@ class Settings(BaseSettings):
 
     @property
     def visibility_timeout_s(self) -> int:
-        """Broker visibility timeout: longer than the longest job, hence than any stage (plus margin)."""
-        return int(self.job_time_limit_s * 1.25) + 600
+        """Broker visibility timeout: past the stale time, so a re-delivered task finds its dead worker's
+        heartbeat stale and takes the job over (`JobRepository.mark_running`); minutes, not hours."""
+        if self.broker_visibility_timeout_s is not None:
+            return self.broker_visibility_timeout_s
+        return max(300, int(2 * self.stale_after_s))
 
     @property
     def resolved_heartbeat_s(self) -> float:

@@ -44,6 +44,22 @@ def _padded(bundle) -> bytes:
     return zip_folder(bundle, extra=pads)
 
 
+def _clip_images_of_zeros(bundle) -> bytes:
+    """Issue 39 item 9: padding inside clip folders ride.json names (numbered "images" of zeros, deflated, each
+    under the per-member ratio check), and an unnamed incompressible member so the archive-wide ratio passes."""
+    import io
+    import os
+    import zipfile
+
+    buffer = io.BytesIO(zip_folder(bundle))
+    with zipfile.ZipFile(buffer, "a", zipfile.ZIP_DEFLATED) as zf:
+        for role in ("left", "middle", "right"):
+            for i in range(24):
+                zf.writestr(f"plumb/{role}/{100 + i:04d}.png", bytes(1024**2 - 1))
+        zf.writestr("notes/filler.bin", os.urandom(4 * 1024**2), compress_type=zipfile.ZIP_STORED)
+    return buffer.getvalue()
+
+
 def _meta_bundle(bundle, change) -> bytes:
     meta = json.loads((bundle / "ride.json").read_text())
     change(meta)
@@ -71,6 +87,7 @@ CLIPS = {
     "big": lambda f: _clip(f, "big.avi", frames=6, size=(80, 60)),
     "zeros": lambda f: b"\x00" * 5000,
     "huge": lambda f: b"\x00" * (MAX_UPLOAD_BYTES + 1),
+    "one_frame": lambda f: _clip(f, "still.avi", frames=1),
 }
 BUNDLES = {
     "zip_slip": lambda b: zip_folder(b, extra={"../../evil.txt": b"owned"}),
@@ -87,6 +104,7 @@ BUNDLES = {
     "horse_name_surrogate": lambda b: _meta_bundle(b, _horse(name="\ud800")),
     "height_negative": lambda b: _meta_bundle(b, _horse(height_m=-1.7)),
     "missing_clip": lambda b: _meta_bundle(b, _missing),
+    "clip_images_zeros": _clip_images_of_zeros,
 }
 
 

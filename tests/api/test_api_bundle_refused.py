@@ -97,6 +97,7 @@ def test_a_bundle_the_queue_refuses_is_a_503_that_leaves_no_ride(refusing):
     data = zip_folder(refusing.folder)
     refused = refusing.api.post("/rides/bundle", files={"file": ("ride.zip", data, "application/zip")})
     assert refused.status_code == 503, refused.text
+    assert refused.headers["Retry-After"] == "10"  # issue 39 item 8: when to ask again
     detail = refused.json()["detail"]
     assert detail.startswith("ride.zip: ") and REFUSALS[refusing.engine] in detail
     assert detail.endswith("no ride was made from it, send the bundle again in a moment")
@@ -123,3 +124,19 @@ def test_a_refused_resumable_bundle_keeps_its_upload_to_finalise_again(refusing)
     assert api.ok("GET", f"/uploads/{upload['id']}")["status"] == "finalised"
     store = open_storage(refusing.settings)
     assert not [k for prefix in ("uploads", "incoming") if store.exists(prefix) for k in store.iter_keys(prefix)]
+
+
+def test_a_job_the_queue_refuses_is_a_503_with_retry_after_and_leaves_no_job_row(refusing):
+    # Issue 39 item 8: the refused job stayed as a row "failed" with 0 attempts, and no Retry-After.
+    api = refusing.api
+    horse = api.ok("POST", "/horses", 201, json={"name": "Waiting"})
+    rider = api.ok("POST", "/riders", 201, json={"name": "Patient"})
+    ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
+                                                "direction": "CW"})
+    refused = api.post("/jobs", json={"kind": "probe", "ride_id": ride["id"]})
+    assert refused.status_code == 503, refused.text
+    assert refused.headers["Retry-After"] == "10" and REFUSALS[refusing.engine] in refused.json()["detail"]
+    with session_factory_for(refusing.settings.database_url)() as session:
+        assert session.query(Job).count() == 0
+    assert api.ok("GET", "/jobs")["total"] == 0
+    assert api.ok("GET", f"/rides/{ride['id']}")["latest_job_id"] is None

@@ -266,3 +266,43 @@ def test_a_member_may_not_delete_others_rides_cancel_their_jobs_or_change_a_rigs
     assert member.post(f"/jobs/{own_job['id']}/cancel").status_code == 200
     assert member.delete(f"/rides/{own['id']}").status_code == 204
     assert admin.delete(f"/rides/{admins_ride['id']}").status_code == 204
+
+
+def _padded_beyond_its_clips(folder, padding_members: int = 300) -> bytes:
+    """A real ride bundle plus `padding_members` members of 1 MiB of zeros (deflated: ~1 kB each) that ride.json
+    does not name, and an incompressible unnamed member so the whole archive passes the archive-wide ratio
+    check (issue 39 item 9: 201 and 316 MiB stored), within the tests' 16 MiB upload limit."""
+    import io
+    import os
+    import zipfile
+
+    from engines import MAX_UPLOAD_BYTES
+
+    base = zip_folder(folder)
+    buffer = io.BytesIO(base)
+    with zipfile.ZipFile(buffer, "a", zipfile.ZIP_DEFLATED) as zf:
+        for i in range(padding_members):
+            zf.writestr(f"padding/{i:03d}.bin", bytes(1024**2))
+        # Archive-wide: (bytes unpacked) / (archive bytes) just under 20 (`MAX_TOTAL_RATIO`).
+        unpacked = padding_members * 1024**2
+        filler = int((unpacked - 19 * (len(base) + padding_members * 1100)) / 19) + 1
+        zf.writestr("notes/filler.bin", os.urandom(max(filler, 0) + 200_000), compress_type=zipfile.ZIP_STORED)
+    data = buffer.getvalue()
+    assert len(data) < MAX_UPLOAD_BYTES, len(data)
+    return data
+
+
+def test_members_ride_json_does_not_name_are_never_unpacked_nor_stored(env, club, tmp_path):
+    folder = write_tiny_bundle(tmp_path / "bundle")
+    data = _padded_beyond_its_clips(folder)
+    response = club["api"].post("/rides/bundle", files={"file": ("padded ride.zip", data, "application/zip")})
+    assert response.status_code == 201, response.text
+    storage = open_storage(env.settings)
+    ride_id = response.json()["ride"]["id"]
+    keys = list(storage.iter_keys(f"rides/{ride_id}"))
+    stored_bytes = sum(storage.path(key).stat().st_size for key in keys)
+    bundle_bytes = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+    assert not [k for k in keys if "/padding/" in k or "/notes/" in k], keys
+    assert stored_bytes <= bundle_bytes + 1024**2, (stored_bytes, bundle_bytes)  # the ride's files, not 316 MiB
+    if env.engine == "embedded":  # its job runs in this process (no worker in this module's celery variant)
+        assert club["api"].wait_job(response.json()["job_id"])[0]["status"] == "done"

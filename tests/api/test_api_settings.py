@@ -66,9 +66,12 @@ def test_invalid_settings_name_the_problem(overrides, message):
         load_settings(**overrides)
 
 
-def test_visibility_timeout_outlasts_the_longest_job():
-    s = load_settings(job_time_limit_s=3600)
-    assert s.visibility_timeout_s > 3600
+def test_visibility_timeout_is_minutes_past_the_stale_time():
+    # Issue 39 item 11: it was longer than the longest job (over 6 h): a killed worker's task waited that long.
+    s = load_settings(job_time_limit_s=6 * 3600)
+    assert s.stale_after_s < s.visibility_timeout_s <= 600
+    assert load_settings(stale_after_s=600).visibility_timeout_s == 1200
+    assert load_settings(broker_visibility_timeout_s=30).visibility_timeout_s == 30
 
 
 @pytest.mark.parametrize("secret", ["a" * 16, "abababababababababab", "0123456"])

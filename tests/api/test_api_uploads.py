@@ -392,3 +392,76 @@ def test_the_sweep_removes_an_abandoned_upload_and_keeps_a_live_one(env, club):
     assert not any(key.startswith(f"uploads/{given_up['id']}") for key in storage.iter_keys("uploads"))
     assert api.ok("GET", f"/uploads/{live['id']}")["offset_bytes"] == 1000  # still resumable
     assert send(api, live["id"], 1000, data[1000:]).status_code == 204
+
+
+def _finalise_at_once(api, upload_id: str, times: int = 12) -> list:
+    """`times` finalises of one upload sent together (a client retrying a slow finalise, several tabs)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=times) as pool:
+        return list(pool.map(lambda _: api.post(f"/uploads/{upload_id}/finalize"), range(times)))
+
+
+def test_concurrent_finalises_of_a_clip_answer_one_outcome_never_500(env, club):
+    # Issue 39 item 3: the "still open" check and the move were not atomic: [200, 500, 500, 500].
+    api, ride = club["api"], club["ride"]
+    data = write_tiny_clip(club["folder"] / "twelve.avi", frames=10).read_bytes()
+    upload = start(api, ride["id"], data, camera="left")
+    assert send(api, upload["id"], 0, data).status_code == 204
+    answers = _finalise_at_once(api, upload["id"])
+    codes = sorted(r.status_code for r in answers)
+    assert set(codes) <= {200, 409} and codes.count(200) >= 1, [(r.status_code, r.text) for r in answers]
+    outcomes = [r.json() for r in answers if r.status_code == 200]
+    assert all(o == outcomes[0] for o in outcomes), outcomes
+    assert all(str(ride["id"]) in r.json()["detail"] or "being finalised" in r.json()["detail"]
+               for r in answers if r.status_code == 409)
+    # A retry after the end answers the same outcome; one clip stored, with the right bytes.
+    assert api.ok("POST", f"/uploads/{upload['id']}/finalize") == outcomes[0]
+    assert api.ok("GET", f"/uploads/{upload['id']}")["status"] == "finalised"
+    clips = [c for c in api.ok("GET", f"/rides/{ride['id']}/clips") if c["id"] == outcomes[0]["recording_id"]]
+    assert len(clips) == 1 and clips[0]["sha256"] == hashlib.sha256(data).hexdigest()
+
+
+def test_concurrent_finalises_of_a_bundle_make_one_ride(env, club):
+    api = club["api"]
+    data = zip_folder(write_tiny_bundle(club["folder"] / "bundle-twelve", gait="canter", frames=6))
+    upload = api.ok("POST", "/uploads", 201,
+                    json={"target": "bundle", "length_bytes": len(data), "filename": "twelve.zip"})
+    assert send(api, upload["id"], 0, data).status_code == 204
+    rides_before = api.ok("GET", "/rides")["total"]
+    answers = _finalise_at_once(api, upload["id"])
+    assert {r.status_code for r in answers} <= {200, 409}, [(r.status_code, r.text) for r in answers]
+    outcomes = [r.json() for r in answers if r.status_code == 200]
+    assert outcomes and all(o == outcomes[0] for o in outcomes), outcomes
+    assert api.ok("GET", "/rides")["total"] == rides_before + 1  # one ride made, whoever answered
+    assert api.ok("GET", f"/rides/{outcomes[0]['ride_id']}")["from_bundle"]
+    assert api.ok("POST", f"/uploads/{upload['id']}/finalize") == outcomes[0]
+    if env.engine == "embedded":
+        assert job_outcome(api, outcomes[0]["job_id"], timeout_s=300)["status"] in ("done", "failed")
+
+
+def test_a_finalise_still_running_after_the_wait_answers_409_and_a_dead_one_is_swept(env, club, monkeypatch):
+    """Another request holds the upload (its row says finalising): after `FINALISE_WAIT_S` the answer is 409
+    with Retry-After, never 500; a finalise whose process died leaves the claim to the sweep."""
+    from sqlalchemy import create_engine, text
+
+    from saddlescope.db.session import session_factory_for
+    from saddlescope.services import uploads as uploads_service
+
+    api, ride = club["api"], club["ride"]
+    data = write_tiny_clip(club["folder"] / "held.avi", frames=8).read_bytes()
+    upload = start(api, ride["id"], data, camera="middle")
+    assert send(api, upload["id"], 0, data).status_code == 204
+    engine = create_engine(env.settings.database_url)
+    with engine.begin() as connection:  # what a finalise in another process did first
+        connection.execute(text("UPDATE uploads SET status = 'finalising' WHERE id = :id"), {"id": upload["id"]})
+    engine.dispose()
+    monkeypatch.setattr(uploads_service, "FINALISE_WAIT_S", 0.3)
+    held = api.post(f"/uploads/{upload['id']}/finalize")
+    assert held.status_code == 409 and held.headers["Retry-After"] == "5", held.text
+    assert "is being finalised by an earlier request" in held.json()["detail"]
+    assert api.ok("GET", f"/uploads/{upload['id']}")["status"] == "finalising"
+    _wind_back(env, upload["id"], hours=25)
+    swept = uploads_service.sweep_abandoned(session_factory_for(env.settings.database_url),
+                                            open_storage(env.settings), max_age_s=env.settings.upload_expiry_s)
+    assert swept["expired uploads"] >= 1 and api.get(f"/uploads/{upload['id']}").status_code == 404

@@ -318,13 +318,15 @@ def test_zip_bomb_by_compression_ratio(tmp_path):
 
 
 def test_lying_header_is_caught_while_extracting(tmp_path, monkeypatch):
-    zip_path = _zip_with(tmp_path / "ride.zip", {**_bundle_members(), "motion/big.mp4": b"y" * 5000})
+    members = _bundle_members()
+    clip = _meta()["clips"]["motion"]["left"]  # a member ride.json names: it is unpacked
+    zip_path = _zip_with(tmp_path / "ride.zip", {**members, clip: b"y" * 5000})
     real_check = bundle_mod._check_zip
 
     def shrink_sizes(zf, *args, **kwargs):
         members = real_check(zf, *args, **kwargs)
         for info, _ in members:
-            if info.filename == "motion/big.mp4":
+            if info.filename == clip:
                 info.file_size = 10  # what a forged header would claim
         return members
 
@@ -373,3 +375,41 @@ def test_an_ordinary_bundle_with_small_members_still_opens(tmp_path):
     zip_path = _zip_with(tmp_path / "ride.zip", _bundle_members())
     with open_bundle(zip_path) as bundle:
         assert bundle.meta
+
+
+def test_only_the_members_ride_json_names_are_unpacked(tmp_path):
+    # Issue 39 item 9: members the bundle does not use (padding, notes, an older take) were unpacked anyway.
+    import io
+
+    from saddlescope.io.bundle import open_zip_stream, zip_bundle_files
+
+    members = {**_bundle_members(), "truth.json": b'{"format": "saddlescope.result/1"}',
+               "notes/readme.txt": b"hello", "padding/000.bin": bytes(1024**2), "motion/left-old.mp4": b"older take"}
+    zip_path = _zip_with(tmp_path / "ride.zip", members)
+    named = sorted(["ride.json", "truth.json", *(rel for cams in _meta()["clips"].values() for rel in cams.values())])
+    out = tmp_path / "out"
+    with open_bundle(zip_path, extract_to=out) as bundle:
+        assert bundle.truth is not None
+        assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()) == named
+    with open_zip_stream(io.BytesIO(zip_path.read_bytes()), "ride.zip") as bundle:  # a bucket's zip read in place
+        assert sorted(member.relative_to(bundle.root).as_posix() for member, _ in zip_bundle_files(bundle)) == named
+
+
+def test_clip_images_of_zeros_are_refused_by_the_ratio_of_what_would_be_unpacked(tmp_path):
+    """Padding inside a clip folder ride.json names: numbered "images" of zeros, each under the per-member
+    check, with an unnamed incompressible member so the archive-wide ratio passes."""
+    meta = _meta(kinds=("calibration", "static", "motion"))
+    meta["clips"]["plumb"] = {role: f"plumb/{role}" for role in ROLES}
+    zip_path = tmp_path / "padded clips.zip"
+    with zipfile.ZipFile(zip_path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in _bundle_members(meta).items():
+            if not name.startswith("plumb/"):
+                zf.writestr(name, data)
+        for role in ROLES:
+            for i in range(24):
+                zf.writestr(f"plumb/{role}/{i + 1:04d}.png", bytes(1024**2 - 1))
+        zf.writestr("notes/filler.bin", os.urandom(4 * 1024**2), compress_type=zipfile.ZIP_STORED)
+    out = tmp_path / "out"
+    with pytest.raises(BundleError, match=r"padded clips.zip: the clips ride.json names unpack to \d+ MB, \d+ times"):
+        open_bundle(zip_path, extract_to=out)
+    assert not any(p.is_file() for p in out.rglob("*"))  # refused before a member was written

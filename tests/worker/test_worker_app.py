@@ -21,7 +21,7 @@ def test_long_task_settings():
     assert conf.task_acks_late and conf.task_reject_on_worker_lost
     assert conf.worker_prefetch_multiplier == 1
     assert conf.task_serializer == "json" and conf.accept_content == ["json"]
-    assert conf.broker_transport_options["visibility_timeout"] > conf.task_time_limit > 7200
+    assert settings.stale_after_s < conf.broker_transport_options["visibility_timeout"] <= 600 < conf.task_time_limit
     assert conf.task_default_queue == QUEUE_NAME
 
 

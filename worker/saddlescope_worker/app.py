@@ -2,8 +2,9 @@
 
 Long, CPU-heavy jobs: late acknowledgement and rejection on a lost worker (a crashed job is run
 again, stages are idempotent), prefetch 1 (a busy worker never hoards jobs), JSON only, and a
-broker visibility timeout longer than the longest job. One task runs one whole job; a task never
-waits on another task.
+broker visibility timeout of minutes (a killed worker's task is delivered again soon; a copy of a
+healthy long job is refused by the fencing while its heartbeat is fresh). One task runs one whole job;
+a task never waits on another task.
 """
 
 from __future__ import annotations

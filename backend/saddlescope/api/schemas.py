@@ -11,7 +11,8 @@ from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_vali
 
 from saddlescope.api.horse_height import HeightWithersM
 from saddlescope.api.leaderboard_schemas import LeaderboardEntry, LeaderboardOut, UncertainRide
-from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND
+from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND, board_from_meta
+from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
 __all__ = [
@@ -292,13 +293,28 @@ class BoardIn(_In):
             raise ValueError(f"board kind {kind!r} is not one of {', '.join(BOARD_KINDS)}")
         return kind
 
+    @model_validator(mode="after")
+    def _a_board_its_type_can_make(self) -> BoardIn:
+        # The board type's own checks (a ChArUco dictionary OpenCV knows, markers inside their squares) at
+        # creation, not first when board.svg or a calibration job reads it.
+        try:
+            board_from_meta(self.model_dump(exclude_none=True))
+        except InputError as exc:
+            raise ValueError(str(exc)) from None
+        return self
+
+
+# A camera's details (model, serial, lens, ...): a few short texts, not a store for anything else.
+_DetailName = Annotated[str, StringConstraints(min_length=1, max_length=40)]
+CameraDetails = Annotated[dict[_DetailName, Annotated[str, StringConstraints(max_length=200)]], Field(max_length=20)]
+
 
 class RigIn(_In):
     """A new rig: a day's three-camera set-up."""
 
     name: Name
     recorded_on: dt.date | None = None
-    cameras: dict[CameraRole, dict[str, str]] = Field(
+    cameras: dict[CameraRole, CameraDetails] = Field(
         default_factory=dict, description="model, serial, ... of each camera"
     )
     board: BoardIn | None = Field(
@@ -311,7 +327,7 @@ class RigUpdate(_In):
 
     name: Name | None = None
     recorded_on: dt.date | None = None
-    cameras: dict[CameraRole, dict[str, str]] | None = None
+    cameras: dict[CameraRole, CameraDetails] | None = None
     board: BoardIn | None = None
 
 
@@ -509,14 +525,15 @@ class GradeIn(_In):
 
     ride_id: RefId
     rider_id: RefId
-    grade: int = Field(ge=1, le=5, description="1 = very uncomfortable ... 5 = very comfortable")
+    # strict: JSON true is no grade (a lax int would store it as 1)
+    grade: int = Field(ge=1, le=5, strict=True, description="1 = very uncomfortable ... 5 = very comfortable")
     comment: Text = ""
 
 
 class GradeUpdate(_In):
     """Changes to a grade (unset fields stay)."""
 
-    grade: int | None = Field(default=None, ge=1, le=5)
+    grade: int | None = Field(default=None, ge=1, le=5, strict=True)
     comment: Text | None = None
 
 

@@ -58,5 +58,6 @@ class UploadStatus(enum.StrEnum):
     """Where a resumable upload stands."""
 
     OPEN = "open"  # bytes still arriving
+    FINALISING = "finalising"  # one finalise request holds it (claimed atomically) while making its clip or ride
     FINALISED = "finalised"  # turned into a recording or a ride
     FAILED = "failed"  # finalising refused it (the reason is in `error`)

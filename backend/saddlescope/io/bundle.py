@@ -1,10 +1,11 @@
 """Ride bundles (CONTRACTS section 1): open a folder or a .zip, validate ``ride.json``, find the clips.
 
-``open_bundle(path)`` returns a :class:`RideBundle` whose clip paths all exist. A zip is extracted into a
-temporary folder first, refusing members that would escape it (absolute paths, ``..``, symlinks),
-archives with too many members, and archives that unpack to more than a size limit or at a
-suspicious compression ratio (zip bombs). Every refusal is a :class:`BundleError` naming the file and
-the field or member at fault.
+``open_bundle(path)`` returns a :class:`RideBundle` whose clip paths all exist. A zip is checked in place,
+then only the members its ride.json uses are extracted into a temporary folder (`used_members`: members
+nothing names are never unpacked), refusing members that would escape it (absolute paths, ``..``,
+symlinks), archives with too many members, and archives or used members that unpack to more than a size
+limit or at a suspicious compression ratio (zip bombs, padding). Every refusal is a :class:`BundleError`
+naming the file and the field or member at fault.
 
 ``open_zip_stream(stream, name)`` opens a zip read through a seekable stream (a bucket's object read by
 ranges) without unpacking it: the same checks and messages, and `zip_bundle_files` streams its members.
@@ -35,7 +36,8 @@ from saddlescope.core.types import CLIP_KINDS, Board
 from saddlescope.io.result_schema import validate_ride_meta
 
 __all__ = [
-    "RideBundle", "ZipMember", "open_bundle", "open_zip_stream", "write_bundle_zip", "zip_bundle_files", "MAX_FILES",
+    "RideBundle", "ZipMember", "open_bundle", "open_zip_stream", "used_members", "write_bundle_zip", "zip_bundle_files",
+    "MAX_FILES",
     "MAX_BYTES", "MAX_RATIO",
 ]
 
@@ -190,7 +192,7 @@ def open_bundle(path: str | Path, *, extract_to: str | Path | None = None, max_f
         dest.mkdir(parents=True, exist_ok=True)
         temp_dir = None
     try:
-        _extract_zip(path, dest, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio)
+        _extract_used(path, dest, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio)
         return _open_folder(_find_root(dest, label=path.name), source=path, temp_dir=temp_dir)
     except BaseException:
         if temp_dir is not None:
@@ -278,18 +280,19 @@ def _check_zip(zf: zipfile.ZipFile, zip_name: str, *, max_files: int, max_bytes:
 _ZIP_ERRORS = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError)
 
 
-def _extract_zip(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, max_ratio: float) -> None:
+def _extract_used(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, max_ratio: float) -> None:
+    """Unpack the members the bundle uses (`used_members`), checked in place first; nothing else is written."""
     name = zip_path.name
     try:
         with zipfile.ZipFile(zip_path) as zf:
             members = _check_zip(zf, name, max_files=max_files, max_bytes=max_bytes, max_ratio=max_ratio,
                                  archive_bytes=zip_path.stat().st_size)
+            root = _find_root(ZipMember(_ZipTree(zf, name, members), ()), label=name)
+            in_place = _open_folder(root, source=None)  # type: ignore[arg-type]
             written_total = 0
-            for info, parts in members:
-                target = dest.joinpath(*parts)
-                if info.is_dir():
-                    target.mkdir(parents=True, exist_ok=True)
-                    continue
+            for member in used_members(in_place, max_bytes=max_bytes):
+                info = member.info
+                target = dest.joinpath(*member.parts)
                 target.parent.mkdir(parents=True, exist_ok=True)
                 written = 0
                 with zf.open(info) as src, open(target, "wb") as out:
@@ -305,6 +308,46 @@ def _extract_zip(zip_path: Path, dest: Path, *, max_files: int, max_bytes: int, 
         raise BundleError(f"{name}: corrupt or unsupported zip archive ({exc})") from exc
     except OSError as exc:
         raise BundleError(f"{name}: cannot be extracted ({exc.strerror or exc})") from exc
+
+
+def used_members(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> list[ZipMember]:
+    """The files of a zip bundle checked in place that its ride.json uses, in path order, size-checked.
+
+    ride.json, truth.json, the calibration file, each clip file and the images of each clip folder: a
+    member nothing names (padding, notes, a second copy) is never unpacked nor stored. Together they may
+    unpack to at most `max_bytes`, and, past `_TOTAL_RATIO_MIN_BYTES`, to at most `MAX_TOTAL_RATIO` times
+    their compressed size (video and images barely compress; padding of zeros does ~1000:1).
+    """
+    root = bundle.root
+    if not isinstance(root, ZipMember):
+        raise ValueError("used_members reads a zip bundle checked in place")
+    files: dict[tuple[str, ...], ZipMember] = {}
+    named = [root / RIDE_JSON, root / TRUTH_JSON, bundle.calibration_file,
+             *(path for sets in (bundle.clip_paths, bundle.extra_clip_paths)
+               for per_camera in sets.values() for path in per_camera.values())]
+    for path in named:
+        if not isinstance(path, ZipMember) or not path.exists():
+            continue
+        inside = [path] if path.is_file() else [
+            image for image in path.iterdir() if image.is_file() and image.suffix.lower() in _IMAGE_SUFFIXES]
+        files.update((member.parts, member) for member in inside)
+    used = [files[parts] for parts in sorted(files)]
+    _check_unpacked(used, root.tree.name, max_bytes=max_bytes)
+    return used
+
+
+def _check_unpacked(used: list[ZipMember], zip_name: str, *, max_bytes: int) -> None:
+    """Refuse used members that unpack to more than `max_bytes`, or to padding (a compression ratio no
+    video or image has, counted over all of them: many small members of zeros are padding too)."""
+    unpacked = sum(member.info.file_size for member in used)
+    packed = max(sum(member.info.compress_size for member in used), 1)
+    if unpacked > max_bytes:
+        raise BundleError(f"{zip_name}: the clips ride.json names unpack to {unpacked / 1e6:.0f} MB, more "
+                             f"than the limit of {max_bytes / 1e6:.0f} MB")
+    if unpacked > _TOTAL_RATIO_MIN_BYTES and unpacked > MAX_TOTAL_RATIO * packed:
+        raise BundleError(f"{zip_name}: the clips ride.json names unpack to {unpacked / 1e6:.0f} MB, "
+                          f"{unpacked / packed:.0f} times their {packed / 1e6:.1f} MB compressed size (the "
+                          f"limit is {MAX_TOTAL_RATIO:.0f} times: video and images barely compress; padding?)")
 
 
 # ------------------------------------------------------------------------------- zip read in place
@@ -440,7 +483,7 @@ def open_zip_stream(stream: BinaryIO, name: str, *, max_files: int = MAX_FILES, 
 
 
 def zip_bundle_files(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> Iterator[tuple[ZipMember, Iterator[bytes]]]:
-    """Each file under the root of a bundle from `open_zip_stream`, in path order, with its bytes in chunks.
+    """Each file a bundle from `open_zip_stream` uses (`used_members`), in path order, with its bytes in chunks.
 
     Read a file's chunks before taking the next file. Bytes that disagree with the member's header or CRC
     are a `BundleError`, as when `open_bundle` unpacks the zip.
@@ -466,7 +509,7 @@ def zip_bundle_files(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> Itera
         except _ZIP_ERRORS as exc:
             raise BundleError(f"{name}: corrupt or unsupported zip archive ({exc})") from exc
 
-    for member in root.files_below():
+    for member in used_members(bundle, max_bytes=max_bytes):
         yield member, chunks(member.info)
 
 

@@ -22,6 +22,9 @@ IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".pp
 _PLANAR_LUMA = {"yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "yuvj444p", "nv12", "nv21", "gray",
                 "yuv420p10le"}
 
+# A motion clip of one image is a still, not a ride: no motion to measure (refused when it is uploaded).
+MIN_MOTION_FRAMES = 2
+
 
 @dataclass(frozen=True)
 class VideoInfo:
@@ -93,6 +96,14 @@ def _open(path: Path):
         return av.open(str(path), mode="r")
     except (av.error.FFmpegError, OSError, UnicodeDecodeError) as exc:
         raise VideoError(f"{path}: not a readable video ({exc.__class__.__name__}: {exc})") from None
+
+
+def too_short_for(clip_kind: str, info: VideoInfo) -> str | None:
+    """Why a clip is too short for its kind, in words (None: long enough)."""
+    if clip_kind == "motion" and info.frame_count < MIN_MOTION_FRAMES:
+        return (f"it has {info.frame_count} frame(s); a motion clip needs at least {MIN_MOTION_FRAMES} "
+                "(a video of the horse moving, not a still)")
+    return None
 
 
 def probe_video(path: Path | str, *, fps_hint: float | None = None, decode_tail: bool = True) -> VideoInfo:

@@ -52,7 +52,8 @@ def submit_job(sessions: sessionmaker[Session], queue: JobQueue, *, kind: str, r
                club_id: int | None = None) -> int:
     """Create a job, commit it, then hand it to a worker; returns its id.
 
-    If the queue refuses it, the job is marked failed (with the reason) and `QueueUnavailable`
+    If the queue refuses it, the job row is taken back (no job that never ran is left "failed" with no
+    attempt; the caller answers 503 with Retry-After and the club asks again) and `QueueUnavailable`
     is raised.
     """
     with session_scope(sessions) as session:
@@ -61,10 +62,19 @@ def submit_job(sessions: sessionmaker[Session], queue: JobQueue, *, kind: str, r
     # Committed above: a fast worker must find the row.
     try:
         queue.submit(job_id)
-    except QueueUnavailable as exc:
-        _fail_queued(sessions, job_id, str(exc))
+    except QueueUnavailable:
+        _take_back(sessions, job_id)
         raise
     return job_id
+
+
+def _take_back(sessions: sessionmaker[Session], job_id: int) -> None:
+    """Remove a new job the queue refused, while it is still queued and never started."""
+    with session_scope(sessions) as session:
+        jobs = JobRepository(session)
+        ride_id = jobs.get(job_id).ride_id
+        jobs.discard_unstarted(job_id)
+        refresh_ride_status(session, ride_id)
 
 
 def _fail_queued(sessions: sessionmaker[Session], job_id: int, error: str) -> None:

@@ -34,7 +34,12 @@ PING_TIMEOUT_S = 0.5
 
 
 class QueueUnavailable(SaddleScopeError):
-    """The job could not be handed to a worker (broker unreachable, pool shut down)."""
+    """The job could not be handed to a worker (broker unreachable, pool shut down): HTTP 503.
+
+    `retry_after_s` is sent as the answer's Retry-After: a broker restarting is back within seconds.
+    """
+
+    retry_after_s = 10
 
 
 class JobQueue(Protocol):
@@ -185,6 +190,7 @@ def celery_config(settings: Settings) -> dict:
         "task_acks_late": True,  # a job whose worker died is delivered again ...
         "task_reject_on_worker_lost": True,  # ... also when the worker process was killed
         "worker_prefetch_multiplier": 1,  # long tasks: never hoard jobs another worker could run
+        # Minutes: a killed worker's task comes back soon; the fencing keeps a healthy job's copy from running.
         "broker_transport_options": {"visibility_timeout": settings.visibility_timeout_s},
         "broker_connection_retry_on_startup": True,
         # Soft limit: raised inside the task, so the job is recorded as failed; hard limit just after.
@@ -224,7 +230,7 @@ class CeleryQueue:
             self.app.send_task(RUN_JOB_TASK, args=[job_id], queue=QUEUE_NAME)
         except OperationalError as exc:
             raise QueueUnavailable(
-                f"the job broker is unreachable, job {job_id} was not queued: {exc}") from None
+                f"the job broker is unreachable, nothing was queued (job {job_id} was not kept): {exc}") from None
 
     def health(self) -> tuple[bool, str]:
         from kombu.exceptions import OperationalError

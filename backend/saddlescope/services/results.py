@@ -12,15 +12,16 @@ import secrets
 import tempfile
 import threading
 from collections import OrderedDict
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import indicator_unit
+from saddlescope.db.models import Result
 from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
@@ -66,11 +67,7 @@ SADDLE_LABEL = "S"
 
 def result_document(session: Session, storage: Storage, ride_id: int, *, club_id: int) -> dict[str, Any]:
     """The full stored result document (CONTRACTS section 2) of an analysed ride of the club."""
-    RideRepository(session, club_id=club_id).get(ride_id)
-    result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
-    if result is None or result.result_key is None or not storage.exists(result.result_key):
-        raise NotFound(f"ride {ride_id} has no result yet (it has not been analysed)")
-    return json.loads(storage.read_bytes(result.result_key))
+    return _read_analysed(session, ride_id, club_id, lambda result: json.loads(storage.read_bytes(result.result_key)))
 
 
 def decimate(values: list, step: int) -> list:
@@ -144,15 +141,34 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
 
 def analysed_result(session: Session, storage: Storage, ride_id: int, *, club_id: int):
     """The result row of an analysed ride of the club (NotFound until it has one)."""
-    return _analysed(session, storage, ride_id, club_id)
+
+    def stored(result):
+        if not storage.exists(result.result_key):
+            raise FileNotFoundError(result.result_key)
+        return result
+
+    return _read_analysed(session, ride_id, club_id, stored)
 
 
-def _analysed(session: Session, storage: Storage, ride_id: int, club_id: int):
-    RideRepository(session, club_id=club_id).get(ride_id)
-    result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
-    if result is None or result.result_key is None or not storage.exists(result.result_key):
-        raise NotFound(f"ride {ride_id} has no result yet (it has not been analysed)")
-    return result
+# A re-analysis writes its document under a new key, swaps the row to it in one transaction and deletes
+# the old document after the commit (`commit_result`), so a reader that read the row just before the swap
+# may find its key gone: it reads the row again (the new result). A few times: re-analyses in a row.
+_SWAPPED_READS = 5
+T = TypeVar("T")
+
+
+def _read_analysed(session: Session, ride_id: int, club_id: int, read: Callable[[Result], T]) -> T:
+    """`read` of the ride's result row (raising `FileNotFoundError` when its document is gone meanwhile)."""
+    for _ in range(_SWAPPED_READS):
+        RideRepository(session, club_id=club_id).get(ride_id)
+        result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
+        if result is None or result.result_key is None:
+            break
+        try:
+            return read(result)
+        except FileNotFoundError:
+            session.rollback()  # a new snapshot (SQLite) and no cached row: see the swap's commit
+    raise NotFound(f"ride {ride_id} has no result yet (it has not been analysed)")
 
 
 def result_view(
@@ -163,8 +179,8 @@ def result_view(
     Series are taken every ``step``-th sample so that none has more than `max_points` samples
     (``decimation.step``; the indicators are always computed from the full series).
     """
-    result = _analysed(session, storage, ride_id, club_id)
-    return view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+    return _read_analysed(session, ride_id, club_id, lambda result: view_of_document(
+        json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points))
 
 
 class _BytesCache:
@@ -214,16 +230,19 @@ def result_view_json(
     cached per result and `max_points`, so many readers of one ride cost a database lookup each, not
     a parse and an encoding of the whole result document.
     """
-    result = _analysed(session, storage, ride_id, club_id)
-    etag = hashlib.sha256(
-        f"{result.id}|{result.result_key}|{result.created_at.isoformat()}|{max_points}".encode()
-    ).hexdigest()[:32]
-    data = _VIEWS.get(etag)
-    if data is None:
-        view = view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
-        data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
-        _VIEWS.put(etag, data)
-    return data, etag
+
+    def encoded(result) -> tuple[bytes, str]:
+        etag = hashlib.sha256(
+            f"{result.id}|{result.result_key}|{result.created_at.isoformat()}|{max_points}".encode()
+        ).hexdigest()[:32]
+        data = _VIEWS.get(etag)
+        if data is None:
+            view = view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+            data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
+            _VIEWS.put(etag, data)
+        return data, etag
+
+    return _read_analysed(session, ride_id, club_id, encoded)
 
 
 def _ride_rows(

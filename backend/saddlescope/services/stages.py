@@ -258,7 +258,7 @@ def _stored_file_size(storage, key: str) -> int | None:
 @stage("probe", weight=1.0)
 def run_probe(ctx: StageContext) -> None:
     """Read every clip of the ride (or rig): size, sha256, fps, frame count and frame size."""
-    from saddlescope.io.video import probe_video
+    from saddlescope.io.video import probe_video, too_short_for
 
     with ctx.session() as session:
         repo = RecordingRepository(session)
@@ -295,6 +295,9 @@ def run_probe(ctx: StageContext) -> None:
             reason = str(exc).replace(str(path), name).removeprefix(f"{name}: ")
             raise VideoError(f"{owner}: the {clip_kind} clip of the {camera_role} camera ({name}) is not a "
                              f"usable video: {reason}") from None
+        if short := too_short_for(clip_kind, info):  # on object storage the API could not probe it
+            raise VideoError(f"{owner}: the {clip_kind} clip of the {camera_role} camera "
+                             f"({key.rsplit('/', 1)[-1]}) is too short: {short}")
         probed.setdefault(clip_kind, []).append((camera_role, info))
         with ctx.session() as session:
             RecordingRepository(session).set_probe(recording_id, sha256=sha256, size_bytes=size_bytes,

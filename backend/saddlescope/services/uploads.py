@@ -11,8 +11,10 @@ clip, recording and ride as it was.
 from __future__ import annotations
 
 import datetime as dt
+import logging
 import re
 import secrets
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -27,6 +29,7 @@ from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
     Conflict,
     JobRepository,
+    NotFound,
     RecordingRepository,
     RideRepository,
     RigRepository,
@@ -44,6 +47,7 @@ __all__ = [
     "BUNDLE_BLOCK_BYTES", "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS",
     "accept_bundle",
     "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "expire_uploads",
+    "FINALISE_WAIT_S", "FinaliseInProgress",
     "bundle_meta", "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
     "sweep_abandoned",
 ]
@@ -52,6 +56,7 @@ RIG_CLIP_KINDS = ("calibration", "plumb", "static")
 RIDE_CLIP_KINDS = CLIP_KINDS
 # Frame rates of one clip set may differ by rounding in the container (29.97 written as 30000/1001 ...).
 FPS_TOLERANCE = 0.005
+log = logging.getLogger(__name__)
 _SUFFIX = re.compile(r"^\.[a-z0-9]{1,8}$")
 
 
@@ -147,7 +152,7 @@ def accept_clip(
     Returns the recording id. Raises `VideoError` (unusable video, or disagreeing with the other cameras
     of its set) or `InputError`; the staged file is deleted either way, earlier clips are untouched.
     """
-    from saddlescope.io.video import probe_video
+    from saddlescope.io.video import probe_video, too_short_for
 
     try:
         check_clip_slot(owner, clip_kind, camera)
@@ -164,6 +169,9 @@ def accept_clip(
                 f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable "
                 f"video: {reason}"
             ) from None
+        if info is not None and (short := too_short_for(clip_kind, info)):
+            raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera "
+                             f"({filename or 'the upload'}) is too short: {short}")
         final_key = (
             f"{owner.kind}s/{owner.id}/clips/{clip_kind}/{camera}-{sha256[:12]}"
             f"{clip_suffix(filename, '.video')}"
@@ -381,6 +389,75 @@ def create_upload(
     )
 
 
+# A finalise finding another one at work waits this long for its outcome, then answers 409 (ask again).
+FINALISE_WAIT_S = 60.0
+_FINALISE_POLL_S = 0.1
+
+
+@dataclass(frozen=True)
+class _ClaimedUpload:
+    """What finalising needs of an upload this request claimed (its row now says ``finalising``)."""
+
+    target: str
+    ride_id: int | None
+    rig_id: int | None
+    user_id: int | None
+    clip_kind: str | None
+    camera: str | None
+    filename: str | None
+    length_bytes: int
+    offset_bytes: int
+    direct: bool
+
+
+def _claim_or_outcome(sessions: sessionmaker[Session], storage: Storage, upload_id: str, *,
+                      club_id: int) -> _ClaimedUpload | dict[str, Any]:
+    """Claim the open upload for this request, or the outcome of the request that finalised it.
+
+    The "still open" check and the claim are one conditional UPDATE (`UploadRepository.claim`), so of
+    concurrent finalises exactly one moves the bytes; the others wait for its outcome and answer it.
+    """
+    deadline = time.monotonic() + FINALISE_WAIT_S
+    while True:
+        with session_scope(sessions) as session:
+            uploads = UploadRepository(session, club_id=club_id)
+            upload = uploads.get(upload_id)
+            if upload.status == UploadStatus.FINALISED.value:
+                return dict(upload.outcome)  # finalised already (a retry): the same answer
+            if upload.status == UploadStatus.FAILED.value:
+                raise InputError(f"upload {upload_id} was refused when it was finalised: {upload.error}")
+            if upload.status == UploadStatus.OPEN.value:
+                direct = is_direct(storage, upload_id)
+                if not direct and upload.offset_bytes != upload.length_bytes:
+                    raise IncompleteUpload(f"upload {upload_id} has {upload.offset_bytes} of its "
+                                           f"{upload.length_bytes} bytes; send the rest first")
+                claimed = _ClaimedUpload(upload.target, upload.ride_id, upload.rig_id, upload.user_id,
+                                         upload.clip_kind, upload.camera_role, upload.filename,
+                                         upload.length_bytes, upload.offset_bytes, direct)
+                if uploads.claim(upload_id):
+                    session.commit()
+                    return claimed
+        if time.monotonic() >= deadline:
+            raise FinaliseInProgress(f"upload {upload_id} is being finalised by an earlier request; ask again "
+                                     "in a moment (GET /api/uploads/{id} shows its outcome)")
+        time.sleep(_FINALISE_POLL_S)
+
+
+def _end_claim(sessions: sessionmaker[Session], upload_id: str, *, club_id: int, reopen_at: int | None = None,
+               error: str | None = None) -> None:
+    """Give the claimed upload back open at byte `reopen_at`, or mark it failed with `error`."""
+    try:
+        with session_scope(sessions) as session:
+            uploads = UploadRepository(session, club_id=club_id)
+            if reopen_at is not None:
+                uploads.reopen(upload_id, offset_bytes=reopen_at)
+            else:
+                uploads.close(upload_id, status=UploadStatus.FAILED, error=error)
+            session.commit()
+    except Exception:  # the database is away: the first error is the one to answer; the sweep ends the claim
+        log.exception("upload %s: could not end its finalising", upload_id)
+
+
 def finalise_upload(
     sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str, *, club_id: int,
     chosen: dict[str, Any] | None = None,
@@ -390,65 +467,65 @@ def finalise_upload(
     `chosen` (a bundle only): the ride's details chosen at upload, over the bundle's ride.json.
     A refused file marks the upload failed with the reason (and the error is raised again); a bundle whose
     analysis the job queue refuses leaves no ride, and its upload open and complete, to be finalised again.
+    Idempotent: a finalise of a finalised upload answers its outcome; concurrent ones wait for the one that
+    claimed it and answer its outcome (or 409 `FinaliseInProgress` if it takes over `FINALISE_WAIT_S`).
     """
-    direct = is_direct(storage, upload_id)
-    with session_scope(sessions) as session:
-        upload = UploadRepository(session, club_id=club_id).get(upload_id)
-        if upload.status != UploadStatus.OPEN.value:
-            raise InputError(f"upload {upload_id} is already {upload.status}")
-        if not direct and upload.offset_bytes != upload.length_bytes:
-            raise IncompleteUpload(
-                f"upload {upload_id} has {upload.offset_bytes} of its {upload.length_bytes} "
-                "bytes; send the rest first"
-            )
-        target, ride_id, rig_id, user_id = upload.target, upload.ride_id, upload.rig_id, upload.user_id
-        clip_kind, camera, filename, size = (
-            upload.clip_kind,
-            upload.camera_role,
-            upload.filename,
-            upload.length_bytes,
-        )
-    chosen = dict(chosen or {})
-    if target == UploadTarget.BUNDLE and chosen.get("rig_id") is not None:
-        rig_id = chosen.pop("rig_id")  # the rig chosen in the form when the ride was confirmed
-        with session_scope(sessions) as session:
-            RigRepository(session, club_id=club_id).get(rig_id)  # before the bytes move: a 404 keeps them
-    chosen.pop("rig_id", None)
-    staged = staging_key(club_id, filename)
-    if direct:  # the client sent the parts to the bucket: join them (409 naming the missing ones)
-        check_parts(storage, upload_id, size)
-        storage.move(direct_upload_key(upload_id), staged)
-    else:
-        storage.seal(upload_key(upload_id), staged)
+    claimed = _claim_or_outcome(sessions, storage, upload_id, club_id=club_id)
+    if isinstance(claimed, dict):
+        return claimed
+    target, rig_id, size = claimed.target, claimed.rig_id, claimed.length_bytes
+    staged = staging_key(club_id, claimed.filename)
     try:
-        if target == UploadTarget.BUNDLE:
-            new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
-                                             filename=filename, user_id=user_id, chosen=chosen,
-                                             return_to=upload_key(upload_id))
-            outcome = {"ride_id": new_ride, "job_id": job_id}
+        chosen = dict(chosen or {})
+        if target == UploadTarget.BUNDLE and chosen.get("rig_id") is not None:
+            rig_id = chosen.pop("rig_id")  # the rig chosen in the form when the ride was confirmed
+            with session_scope(sessions) as session:
+                RigRepository(session, club_id=club_id).get(rig_id)  # before the bytes move: a 404 keeps them
+        chosen.pop("rig_id", None)
+        if claimed.direct:  # the client sent the parts to the bucket: join them (409 naming the missing ones)
+            check_parts(storage, upload_id, size)
+            storage.move(direct_upload_key(upload_id), staged)
         else:
-            owner = ClipOwner(
-                "ride" if target == UploadTarget.RIDE_CLIP else "rig",
-                ride_id if target == UploadTarget.RIDE_CLIP else rig_id,
-                club_id,
-            )
-            outcome = _finalise_clip(sessions, storage, queue, owner, clip_kind, camera, staged, size=size,
-                                     filename=filename)
-    except SaddleScopeError as exc:
-        with session_scope(sessions) as session:
-            uploads = UploadRepository(session, club_id=club_id)
-            if isinstance(exc, QueueUnavailable) and target == UploadTarget.BUNDLE:
-                # The zip went back to the upload's key, whole (`accept_bundle`): the upload stays open,
-                # complete, to be finalised again once the queue answers (a direct one now as a streamed one).
-                uploads.advance(upload_id, from_offset=uploads.get(upload_id).offset_bytes, to_offset=size)
-            else:
-                uploads.close(upload_id, status=UploadStatus.FAILED, error=str(exc))
+            storage.seal(upload_key(upload_id), staged)
+    except BaseException:
+        _end_claim(sessions, upload_id, club_id=club_id, reopen_at=claimed.offset_bytes)  # bytes not used yet
+        raise
+    try:
+        outcome = _finalise_staged(sessions, storage, queue, upload_id, claimed, staged, club_id=club_id,
+                                   rig_id=rig_id, chosen=chosen)
+    except QueueUnavailable as exc:
+        # A bundle's zip went back to the upload's key, whole (`accept_bundle`): the upload is open again,
+        # complete, to be finalised again once the queue answers (a direct one now as a streamed one).
+        again = size if target == UploadTarget.BUNDLE else None
+        _end_claim(sessions, upload_id, club_id=club_id, reopen_at=again, error=str(exc))
+        raise
+    except (SaddleScopeError, Conflict, NotFound) as exc:
+        _end_claim(sessions, upload_id, club_id=club_id, error=str(exc))
+        raise
+    except BaseException:
+        _end_claim(sessions, upload_id, club_id=club_id,
+                   error="finalising stopped on a server error; upload the file again")
         raise
     with session_scope(sessions) as session:
         UploadRepository(session, club_id=club_id).close(
             upload_id, status=UploadStatus.FINALISED, outcome=outcome
         )
     return outcome
+
+
+def _finalise_staged(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str,
+                     claimed: _ClaimedUpload, staged: str, *, club_id: int, rig_id: int | None,
+                     chosen: dict[str, Any]) -> dict[str, Any]:
+    """The clip or ride a claimed upload's staged bytes make; the upload's outcome."""
+    if claimed.target == UploadTarget.BUNDLE:
+        new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
+                                         filename=claimed.filename, user_id=claimed.user_id, chosen=chosen,
+                                         return_to=upload_key(upload_id))
+        return {"ride_id": new_ride, "job_id": job_id}
+    ride_clip = claimed.target == UploadTarget.RIDE_CLIP
+    owner = ClipOwner("ride" if ride_clip else "rig", claimed.ride_id if ride_clip else rig_id, club_id)
+    return _finalise_clip(sessions, storage, queue, owner, claimed.clip_kind, claimed.camera, staged,
+                          size=claimed.length_bytes, filename=claimed.filename)
 
 
 def _finalise_clip(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, owner: ClipOwner,
@@ -494,6 +571,12 @@ def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: 
 
 class IncompleteUpload(InputError):
     """A resumable upload is finalised before all its bytes arrived (HTTP 409)."""
+
+
+class FinaliseInProgress(IncompleteUpload):
+    """Another request is finalising the upload and has not finished yet (HTTP 409; ask again)."""
+
+    retry_after_s = 5
 
 
 @contextmanager

@@ -175,6 +175,12 @@ class JobRepository(Repository):
                 status=JobStatus.FAILED.value, error=error, finished_at=utcnow(), updated_at=utcnow()))
         return result.rowcount == 1
 
+    def discard_unstarted(self, job_id: int) -> bool:
+        """Delete a job that is queued and was never started (the queue refused it as it was created)."""
+        result = self.session.execute(delete(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED.value,
+                                                        Job.attempts == 0, Job.started_at.is_(None)))
+        return result.rowcount == 1
+
     def request_cancel(self, job_id: int) -> bool:
         """Cancel a queued or running job; a running one stops at its next progress report."""
         result = self.session.execute(
@@ -306,6 +312,23 @@ class UploadRepository(Repository):
             stmt = stmt.where(Upload.club_id == self.club_id)
         return self.session.execute(stmt).rowcount == 1
 
+    def claim(self, upload_id: str) -> bool:
+        """Mark an open upload finalising, only if it still is open (one conditional UPDATE).
+
+        True for the one caller that claimed it; a concurrent finalise gets False.
+        """
+        stmt = update(Upload).where(Upload.id == upload_id, Upload.status == UploadStatus.OPEN.value).values(
+            status=UploadStatus.FINALISING.value, updated_at=utcnow())
+        if self.club_id is not None:
+            stmt = stmt.where(Upload.club_id == self.club_id)
+        return self.session.execute(stmt).rowcount == 1
+
+    def reopen(self, upload_id: str, *, offset_bytes: int) -> None:
+        """Give a claimed upload back, open at `offset_bytes` (its finalising stopped before using its bytes)."""
+        row = self.get(upload_id)
+        row.status, row.offset_bytes, row.updated_at = UploadStatus.OPEN.value, offset_bytes, utcnow()
+        self.session.flush()
+
     def close(self, upload_id: str, *, status: UploadStatus, error: str | None = None,
               outcome: dict[str, Any] | None = None) -> None:
         """End an upload: finalised (with what it made) or failed (with the reason)."""
@@ -320,8 +343,12 @@ class UploadRepository(Repository):
         return list(self.session.scalars(self._scoped(select(Upload.id).where(column == value))))
 
     def open_since_before(self, before: dt.datetime) -> list[str]:
-        """The ids of the open uploads (of this club, or all) that last moved before `before`."""
-        stmt = select(Upload.id).where(Upload.status == UploadStatus.OPEN.value, Upload.updated_at < before)
+        """The ids of the open uploads (of this club, or all) that last moved before `before`.
+
+        Finalising ones too: a finalise whose process died (its staged bytes are swept).
+        """
+        unfinished = (UploadStatus.OPEN.value, UploadStatus.FINALISING.value)
+        stmt = select(Upload.id).where(Upload.status.in_(unfinished), Upload.updated_at < before)
         return list(self.session.scalars(self._scoped(stmt)))
 
     def delete_ids(self, upload_ids: Sequence[str]) -> None:

@@ -19,10 +19,13 @@ from saddlescope.core.calibration.views import MIN_CORNERS
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import Board
 
-__all__ = ["BOARD_TYPE", "KIND", "CharucoFinder", "CharucoType"]
+__all__ = ["ARUCO_DICTIONARIES", "BOARD_TYPE", "KIND", "CharucoFinder", "CharucoType"]
 
 KIND = "charuco"
 _DEFAULT_DICTIONARY = "DICT_4X4_50"
+# The ArUco dictionaries this OpenCV knows (the names its `cv2.aruco` module gives them).
+ARUCO_DICTIONARIES = tuple(sorted(name for name in dir(cv2.aruco)
+                                  if name.startswith("DICT_") and isinstance(getattr(cv2.aruco, name), int)))
 _DEFAULT_MARKER_SCALE = 0.75  # of the square
 
 
@@ -49,9 +52,9 @@ class CharucoType:
         """
         inner_corners, square_mm = grid_from_meta(meta)
         dictionary = meta.get("dictionary") or _DEFAULT_DICTIONARY
-        if not isinstance(getattr(cv2.aruco, dictionary, None), int):
-            raise InputError(f"board.dictionary {dictionary!r} is not an OpenCV ArUco dictionary "
-                             "(e.g. DICT_4X4_50, DICT_5X5_100)")
+        if dictionary not in ARUCO_DICTIONARIES:
+            raise InputError(f"board.dictionary {dictionary!r} is not an OpenCV ArUco dictionary; the "
+                             f"dictionaries are {', '.join(ARUCO_DICTIONARIES)}")
         marker = meta.get("marker_mm")
         marker_mm = _DEFAULT_MARKER_SCALE * square_mm if marker is None else float(marker)
         if not 0 < marker_mm < square_mm:
