@@ -64,6 +64,30 @@ def _offset(text: str) -> tuple[float, float, float]:
     return dx, dy, dz
 
 
+def _similar(args) -> int:
+    """`saddlescope similar`: one pair's answer, or the matrix of every pair of many recordings."""
+    from saddlescope.io.mocap.labels import parse_label_map
+    from saddlescope.services import similarity
+
+    markers = [m.strip() for m in args.markers.split(",") if m.strip()] if args.markers else None
+    label_map = parse_label_map(args.label_map)
+    paths = [Path(f) for f in args.files]
+    if len(paths) == 2 and not any(p.is_dir() for p in paths):
+        result = similarity.compare_files(paths[0], paths[1], markers=markers, up=args.up, label_map=label_map,
+                                          alignment=args.alignment)
+    else:
+        result = similarity.similarity_matrix(similarity.recording_paths(paths), markers=markers, up=args.up,
+                                              label_map=label_map)
+        if args.csv_out:
+            similarity.write_matrix_csv(result, args.csv_out)
+        if args.png_out:
+            similarity.write_matrix_png(result, args.png_out)
+    _write_json(result, args.json_out)
+    if args.json_out:
+        print(json.dumps(result, indent=2))
+    return 0
+
+
 def _write_json(data: dict, out: str | None) -> None:
     text = json.dumps(data, indent=2, allow_nan=False)
     if out:
@@ -144,14 +168,21 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("file")
     s.add_argument("--json", dest="json_out", default=None)
 
-    s = sub.add_parser("similar", help="how alike two analysed rides (result JSON) or two C3D/TRC recordings move")
-    s.add_argument("a", help="a result JSON of `saddlescope analyze`, or a C3D / TRC file")
-    s.add_argument("b", help="the same kind of file as A")
+    s = sub.add_parser("similar", help="how alike two analysed rides (result JSON) or C3D/TRC recordings move; "
+                                       "over more recordings or a folder, the matrix of every pair")
+    s.add_argument("files", nargs="+", metavar="FILE",
+                   help="two result JSONs of `saddlescope analyze`, or C3D / TRC files or folders of them")
     s.add_argument("--markers", default=None,
                    help="C3D/TRC: the labels to compare, L1,L2,...; results: saddle, M1, M2, M3 or all")
+    s.add_argument("--map", dest="label_map", action="append", default=None, metavar="A=B",
+                   help="C3D/TRC: label A of the first file is label B of the second (repeatable)")
     s.add_argument("--up", default=None, choices=["x", "y", "z"],
                    help="C3D/TRC: the vertical axis (the alignment then only turns about it)")
+    s.add_argument("--alignment", default=None, choices=["cycle_phase", "subsequence_dtw"],
+                   help="C3D/TRC pair: force the time alignment (default: cycle phase where both are periodic)")
     s.add_argument("--json", dest="json_out", default=None, help="also write the answer here")
+    s.add_argument("--csv", dest="csv_out", default=None, help="many recordings: write the matrix as CSV")
+    s.add_argument("--png", dest="png_out", default=None, help="many recordings: write the matrix as a heat map")
 
     s = sub.add_parser("analyze-mocap", help="analyse a C3D or TRC file as a ride: three markers, a point")
     s.add_argument("file")
@@ -208,14 +239,7 @@ def run(args: argparse.Namespace) -> int:
         _write_json(read_mocap(Path(args.file)).summary(), args.json_out)
         return 0
     if cmd == "similar":
-        from saddlescope.services.similarity import compare_files
-
-        markers = [m.strip() for m in args.markers.split(",") if m.strip()] if args.markers else None
-        result = compare_files(Path(args.a), Path(args.b), markers=markers, up=args.up)
-        _write_json(result, args.json_out)
-        if args.json_out:
-            print(json.dumps(result, indent=2))
-        return 0
+        return _similar(args)
     if cmd == "analyze-mocap":
         from saddlescope.services.mocap import analyze_mocap_file
 

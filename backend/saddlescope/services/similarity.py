@@ -25,7 +25,7 @@ import numpy as np
 from dtaidistance import dtw as dtai_dtw
 from dtaidistance import dtw_ndim as dtai_dtw_ndim
 
-from saddlescope.core.errors import InputError
+from saddlescope.core.errors import InputError, KinematicsError, MocapFileError
 from saddlescope.core.similarity import (
     DEFAULT_CELLS,
     DEFAULT_HARMONICS,
@@ -461,7 +461,7 @@ def rank_rides(query: Mapping, candidates: Mapping[Hashable, Mapping], *, marker
 
 def compare_recordings(xyz_a, xyz_b, *, rate_a_hz: float = 100.0, rate_b_hz: float | None = None,
                        labels: list[str] | None = None, up: int | None = None, alignment: str | None = None,
-                       notes: tuple[str, ...] = ()) -> dict:
+                       notes: tuple[str, ...] = (), only: str | None = None) -> dict:
     """How alike two motion-capture recordings of the same markers move (generic motion, any frame).
 
     Both are aligned in time and space first (:func:`saddlescope.core.similarity.align_recordings`:
@@ -483,6 +483,8 @@ def compare_recordings(xyz_a, xyz_b, *, rate_a_hz: float = 100.0, rate_b_hz: flo
         Force one (default: cycle phase where both are periodic).
     notes : tuple of str, optional
         What was left out or matched on the way (labels), passed to the answer.
+    only : {None, "dtw"}, optional
+        ``"dtw"``: the ranking measure alone (no chain codes), for ranking many.
 
     Returns
     -------
@@ -496,8 +498,10 @@ def compare_recordings(xyz_a, xyz_b, *, rate_a_hz: float = 100.0, rate_b_hz: flo
                                alignment=alignment)
     n_markers = aligned.a.shape[1]
     names = list(labels) if labels else [f"marker {k + 1}" for k in range(n_markers)]
+    if only is not None and only != RANKING_MEASURE:
+        raise InputError(f"only the ranking measure {RANKING_MEASURE!r} can be computed alone")
     rows = [_pair_measures(aligned.a[:, k] / 1e3, aligned.b[:, k] / 1e3, aligned.sigma_a / 1e3,
-                           aligned.sigma_b / 1e3, closed=aligned.closed) for k in range(n_markers)]
+                           aligned.sigma_b / 1e3, closed=aligned.closed, only=only) for k in range(n_markers)]
     frame = f"{aligned.alignment}+kabsch"
     extra = {"alignment": _alignment_summary(aligned), "kabsch_residual_mm": aligned.rotation_residual_mm,
              "up": None if up is None else "xyz"[up], "differences": _differences(aligned, rows, names),
@@ -645,6 +649,119 @@ def compare_files(path_a, path_b, *, markers: list[str] | None = None, up: str |
         return compare_recordings(xa, xb, rate_a_hz=data_a.rate_hz, rate_b_hz=data_b.rate_hz, labels=labels,
                                   up=None if up is None else "xyz".index(up), alignment=alignment,
                                   notes=tuple(notes))
+
+
+MOCAP_SUFFIXES = (".c3d", ".trc")
+
+
+def recording_paths(items) -> list:
+    """The recordings named: files, and the C3D / TRC files of any folder (sorted by name)."""
+    from pathlib import Path
+
+    out = []
+    for item in items:
+        path = Path(item)
+        if path.is_dir():
+            out += sorted(p for p in path.iterdir() if p.suffix.lower() in MOCAP_SUFFIXES and p.is_file())
+        else:
+            out.append(path)
+    return out
+
+
+def similarity_matrix(paths, *, markers: list[str] | None = None, up: str | None = None,
+                      label_map: dict[str, str] | None = None) -> dict:
+    """`saddlescope similar` over many recordings: the ranking measure of every pair.
+
+    Each file is read once; each pair is matched (labels, aliases, ``label_map``), aligned in time and
+    space and scored by :data:`RANKING_MEASURE` (the full measures are for a pair:
+    :func:`compare_files`). A file that cannot be read, or a pair that cannot be compared, gets None
+    and a note with the reason.
+
+    Returns
+    -------
+    dict
+        ``files`` (names), ``measure``, ``similarity`` (list of rows, 1 on the diagonal, None where a
+        pair cannot be compared), ``alignment`` (per pair the method, same layout) and ``notes``.
+    """
+    from saddlescope.io.mocap import read_mocap
+
+    if up is not None and up not in ("x", "y", "z"):
+        raise InputError(f"--up must be x, y or z, got {up!r}")
+    paths = list(paths)
+    if len(paths) < 2:
+        raise InputError("at least two recordings are needed for a matrix (name files or a folder)")
+    data, notes = [], []
+    for path in paths:
+        try:
+            data.append(read_mocap(path))
+        except (InputError, MocapFileError) as exc:
+            data.append(None)
+            notes.append(str(exc))
+    n = len(paths)
+    sim = [[1.0 if i == j and data[i] is not None else None for j in range(n)] for i in range(n)]
+    how = [[None] * n for _ in range(n)]
+    with single_threaded_numerics():
+        for i in range(n):
+            for j in range(i + 1, n):
+                if data[i] is None or data[j] is None:
+                    continue
+                try:
+                    xa, xb, labels, _ = _matched_recordings(data[i], data[j], markers, label_map)
+                    res = compare_recordings(xa, xb, rate_a_hz=data[i].rate_hz, rate_b_hz=data[j].rate_hz,
+                                             labels=labels, up=None if up is None else "xyz".index(up),
+                                             only=RANKING_MEASURE)
+                except (InputError, KinematicsError) as exc:
+                    notes.append(f"{paths[i].name} - {paths[j].name}: {exc}")
+                    continue
+                sim[i][j] = sim[j][i] = float(res["similarity"])
+                how[i][j] = how[j][i] = res["alignment"]["method"]
+    return {"files": [p.name for p in paths], "measure": RANKING_MEASURE, "similarity": sim,
+            "alignment": how, "notes": notes}
+
+
+def write_matrix_csv(matrix: dict, path) -> None:
+    """The matrix as CSV: a header row of file names, then one row per file (empty: not compared)."""
+    import csv
+    from pathlib import Path
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        out = csv.writer(fh)
+        out.writerow(["file"] + matrix["files"])
+        for name, row in zip(matrix["files"], matrix["similarity"], strict=True):
+            out.writerow([name] + ["" if v is None else f"{v:.4f}" for v in row])
+
+
+def write_matrix_png(matrix: dict, path) -> None:
+    """The matrix as a heat map (OpenCV): dark red alike, pale unlike, grey not compared; names on the
+    rows, numbers (columns) on top; the colour scale spans the off-diagonal values."""
+    from pathlib import Path
+
+    import cv2
+
+    sim = np.array([[np.nan if v is None else v for v in row] for row in matrix["similarity"]], dtype=np.float64)
+    n = sim.shape[0]
+    off = sim[~np.eye(n, dtype=bool)]
+    off = off[np.isfinite(off)]
+    lo, hi = (float(off.min()), float(off.max())) if off.size else (0.0, 1.0)
+    cell, left, top = 40, 12 + 9 * max(len(f"{k + 1} {name}") for k, name in enumerate(matrix["files"])), 30
+    img = np.full((top + n * cell + 30, left + n * cell + 10, 3), 255, np.uint8)
+    scaled = np.clip((sim - lo) / (hi - lo if hi > lo else 1.0), 0.0, 1.0)
+    colours = cv2.applyColorMap(np.uint8(255 * (1.0 - np.nan_to_num(scaled))).reshape(-1, 1), cv2.COLORMAP_HOT)
+    for i in range(n):
+        cv2.putText(img, f"{i + 1} {matrix['files'][i]}", (4, top + i * cell + 25), cv2.FONT_HERSHEY_SIMPLEX,
+                    0.4, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(img, str(i + 1), (left + i * cell + 12, top - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+        for j in range(n):
+            colour = (200, 200, 200) if not np.isfinite(sim[i, j]) else tuple(int(c) for c in colours[i * n + j, 0])
+            x0, y0 = left + j * cell, top + i * cell
+            cv2.rectangle(img, (x0, y0), (x0 + cell - 1, y0 + cell - 1), colour, -1)
+    cv2.putText(img, f"{matrix['measure']}: white {lo:.3f} ... dark {hi:.3f}", (4, top + n * cell + 20),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), img):
+        raise InputError(f"{Path(path).name}: the heat map cannot be written (use a .png name)")
 
 
 # ----------------------------------------------------------------------------------------------

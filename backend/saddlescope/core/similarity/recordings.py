@@ -184,8 +184,8 @@ def _refined_span(q: np.ndarray, s: np.ndarray, start: float, end: float, half_w
     offsets = np.linspace(-half_width, half_width, 9)
     for ds in offsets:
         for de in offsets:
-            st, en = start + ds, end + de
-            if en - st < 4 or st < 0 or en > s.shape[0] - 1:
+            st, en = max(0.0, start + ds), min(s.shape[0] - 1.0, end + de)  # the ends themselves are candidates
+            if en - st < 4:
                 continue
             seg = _resample(s, n_samples, st, en)
             cost = float(np.sum((seg - seg.mean(axis=(0, 1)) - target) ** 2))
