@@ -30,15 +30,17 @@ from saddlescope.core.similarity import (
     DEFAULT_CELLS,
     DEFAULT_HARMONICS,
     DEFAULT_STRIDE_SAMPLES,
+    RecordingSignature,
     RideStrides,
     align_phase,
-    align_recordings,
+    align_signatures,
     chain_code_3d,
     chain_measures,
     default_step,
     dtw_distance_reference,
     noise_step,
     nw_similarity,
+    recording_signature,
     ride_strides,
     shape_dissimilarity,
     stretch_differences,
@@ -494,14 +496,31 @@ def compare_recordings(xyz_a, xyz_b, *, rate_a_hz: float = 100.0, rate_b_hz: flo
         ``kabsch_residual_mm``, ``differences`` (per marker and per stretch, mm), ``notes``, and
         ``markers`` the labels.
     """
-    aligned = align_recordings(xyz_a, rate_a_hz, xyz_b, rate_a_hz if rate_b_hz is None else rate_b_hz, up=up,
-                               alignment=alignment)
-    n_markers = aligned.a.shape[1]
-    names = list(labels) if labels else [f"marker {k + 1}" for k in range(n_markers)]
+    sig_a = recording_signature(xyz_a, rate_a_hz, name="recording A")
+    sig_b = recording_signature(xyz_b, rate_a_hz if rate_b_hz is None else rate_b_hz, name="recording B")
+    return compare_recording_signatures(sig_a, sig_b, labels=labels, up=up, alignment=alignment, notes=notes,
+                                        only=only)
+
+
+def compare_recording_signatures(sig_a: RecordingSignature, sig_b: RecordingSignature, *,
+                                 labels: list[str] | None = None, up: int | None = None,
+                                 alignment: str | None = None, notes: tuple[str, ...] = (),
+                                 only: str | None = None) -> dict:
+    """:func:`compare_recordings` on precomputed signatures (:func:`saddlescope.core.similarity.recording_signature`).
+
+    ``only="dtw"`` returns ``{"similarity", "alignment"}`` of the ranking measure alone: one DTW of
+    all markers' aligned curves at once (for ranking many).
+    """
     if only is not None and only != RANKING_MEASURE:
         raise InputError(f"only the ranking measure {RANKING_MEASURE!r} can be computed alone")
+    aligned = align_signatures(sig_a, sig_b, up=up, alignment=alignment)
+    n_markers = aligned.a.shape[1]
+    if only is not None:
+        flat_a, flat_b = aligned.a.reshape(aligned.a.shape[0], -1), aligned.b.reshape(aligned.b.shape[0], -1)
+        return {"similarity": _dtw_similarity(flat_a, flat_b)[0], "alignment": _alignment_summary(aligned)}
+    names = list(labels) if labels else [f"marker {k + 1}" for k in range(n_markers)]
     rows = [_pair_measures(aligned.a[:, k] / 1e3, aligned.b[:, k] / 1e3, aligned.sigma_a / 1e3,
-                           aligned.sigma_b / 1e3, closed=aligned.closed, only=only) for k in range(n_markers)]
+                           aligned.sigma_b / 1e3, closed=aligned.closed) for k in range(n_markers)]
     frame = f"{aligned.alignment}+kabsch"
     extra = {"alignment": _alignment_summary(aligned), "kabsch_residual_mm": aligned.rotation_residual_mm,
              "up": None if up is None else "xyz"[up], "differences": _differences(aligned, rows, names),

@@ -63,7 +63,10 @@ from saddlescope.core.similarity.measures import chain_measures, closed_loop_cha
 from saddlescope.core.similarity.recordings import (
     ALIGNMENTS,
     AlignedRecordings,
+    RecordingSignature,
     align_recordings,
+    align_signatures,
+    recording_signature,
     remove_progression,
     stretch_differences,
 )
@@ -115,7 +118,10 @@ __all__ = [
     # recordings aligned in time and space
     "ALIGNMENTS",
     "AlignedRecordings",
+    "RecordingSignature",
     "align_recordings",
+    "align_signatures",
+    "recording_signature",
     "remove_progression",
     "stretch_differences",
     # dynamic time warping

@@ -33,7 +33,8 @@ from saddlescope.core.errors import InputError, KinematicsError
 from saddlescope.core.kinematics import estimate_period
 from saddlescope.core.similarity.canonical import DEFAULT_HARMONICS, kabsch_align, noise_of_track
 
-__all__ = ["ALIGNMENTS", "AlignedRecordings", "align_recordings", "remove_progression", "stretch_differences"]
+__all__ = ["ALIGNMENTS", "AlignedRecordings", "RecordingSignature", "align_recordings", "align_signatures",
+           "recording_signature", "remove_progression", "stretch_differences"]
 
 ALIGNMENTS = ("cycle_phase", "subsequence_dtw")
 # Samples of one mean cycle (cycle phase) or of the matched stretch.
@@ -122,39 +123,50 @@ def _cycles(x: np.ndarray, period: float, n_samples: int) -> tuple[np.ndarray, n
     return cyc, mean - mean.mean(axis=(0, 1)), sigma
 
 
+# Shifts whose cross-covariance has the largest Frobenius norm, given the exact Kabsch score.
+_PHASE_CANDIDATES = 8
+
+
 def _best_phase_and_turn(a: np.ndarray, b: np.ndarray, up: int | None) -> tuple[int, np.ndarray, float]:
     """The cyclic shift s and rotation R that best map ``roll(b, -s)`` onto ``a`` (both (n, M, 3)).
 
-    Every shift's Kabsch at once, from the circular cross-covariances (9 FFTs); both are centred.
+    Every shift's cross-covariance at once (9 FFTs); both are centred. The Kabsch score (the sum of
+    singular values, the smallest signed) is exact for the shifts of largest Frobenius norm, which
+    bounds it within a factor sqrt(3): the best shift is among them in practice, and a pair costs
+    a few SVDs instead of n.
     """
     n = a.shape[0]
     fa, fb = np.fft.rfft(a, axis=0), np.fft.rfft(b, axis=0)
     # h[s, i, j] = sum_t sum_m b[t + s, m, i] a[t, m, j]
     h = np.fft.irfft(np.einsum("fmi,fmj->fij", fb, np.conj(fa)), n=n, axis=0)
-    if up is None:
-        u, sv, vt = np.linalg.svd(h)
-        d = np.sign(np.linalg.det(np.transpose(vt, (0, 2, 1)) @ np.transpose(u, (0, 2, 1))))
-        score = sv[:, 0] + sv[:, 1] + np.where(d < 0, -1.0, 1.0) * sv[:, 2]
-    else:
+    if up is not None:
         i, j = [k for k in range(3) if k != up]
-        score = np.hypot(h[:, i, j] - h[:, j, i], h[:, i, i] + h[:, j, j]) + h[:, up, up]
-    s = int(np.argmax(score))
-    b_rolled = np.roll(b, -s, axis=0)
-    _, rot, residual = kabsch_align(a.reshape(-1, 3), b_rolled.reshape(-1, 3), up=up)
-    return s, rot, residual
+        s = int(np.argmax(np.hypot(h[:, i, j] - h[:, j, i], h[:, i, i] + h[:, j, j]) + h[:, up, up]))
+        _, rot, residual = kabsch_align(a.reshape(-1, 3), np.roll(b, -s, axis=0).reshape(-1, 3), up=up)
+        return s, rot, residual
+    cand = np.argsort(-np.sum(h * h, axis=(1, 2)))[:_PHASE_CANDIDATES]
+    u, sv, vt = np.linalg.svd(h[cand])
+    d = np.sign(np.linalg.det(h[cand]))
+    d[d == 0] = 1.0
+    score = sv[:, 0] + sv[:, 1] + d * sv[:, 2]
+    k = int(np.argmax(score))
+    rot = vt[k].T @ np.diag([1.0, 1.0, d[k]]) @ u[k].T
+    residual = np.sqrt(max(0.0, (np.sum(a * a) + np.sum(b * b) - 2.0 * score[k]) / (a.shape[0] * a.shape[1])))
+    return int(cand[k]), rot, float(residual)
 
 
-def _cycle_phase(xa, xb, pa, pb, rates, up, n_samples) -> AlignedRecordings:
-    cyc_a, mean_a, sig_a = _cycles(xa, pa, n_samples)
-    cyc_b, mean_b, sig_b = _cycles(xb, pb, n_samples)
+def _cycle_phase(cycles_a, cycles_b, periods, lengths, rates, up) -> AlignedRecordings:
+    """Both mean cycles in one phase and frame: B's shifted and turned onto A's."""
+    (cyc_a, mean_a, sig_a), (cyc_b, mean_b, sig_b) = cycles_a, cycles_b
+    n_samples = mean_a.shape[0]
     shift, rot, residual = _best_phase_and_turn(mean_a, mean_b, up)
     mean_b = np.roll(mean_b, -shift, axis=0) @ rot.T
-    dur_a, dur_b = xa.shape[0] / rates[0], xb.shape[0] / rates[1]
     return AlignedRecordings(
         alignment="cycle_phase", a=mean_a, b=mean_b - mean_b.mean(axis=(0, 1)),
         sigma_a=sig_a / np.sqrt(cyc_a.shape[0]), sigma_b=sig_b / np.sqrt(cyc_b.shape[0]), closed=True,
-        span_a_s=(0.0, dur_a), span_b_s=(0.0, dur_b), period_s=(pa / rates[0], pb / rates[1]),
-        cycles=(cyc_a.shape[0], cyc_b.shape[0]), phase_shift=shift / n_samples, rotation_residual_mm=residual)
+        span_a_s=(0.0, lengths[0] / rates[0]), span_b_s=(0.0, lengths[1] / rates[1]),
+        period_s=(periods[0] / rates[0], periods[1] / rates[1]), cycles=(cyc_a.shape[0], cyc_b.shape[0]),
+        phase_shift=shift / n_samples, rotation_residual_mm=residual)
 
 
 def _interp_rows(x: np.ndarray, tq: np.ndarray) -> np.ndarray:
@@ -235,6 +247,88 @@ def _subsequence(xa, xb, rates, up, n_samples) -> AlignedRecordings:
                              rotation_residual_mm=residual)
 
 
+@dataclass(frozen=True)
+class RecordingSignature:
+    """What a recording brings to every comparison, computed once (ranking many reuses it).
+
+    Attributes
+    ----------
+    x : ndarray of shape (N, M, 3)
+        The positions (mm) without the progression.
+    rate_hz : float
+        Sampling rate.
+    period : float or None
+        Cycle period in samples where the recording is periodic with at least ``MIN_CYCLES``
+        whole cycles, else None.
+    cycles : tuple (ndarray (S, n, M, 3), ndarray (n, M, 3), float) or None
+        Its cycles, mean cycle and scatter (:func:`_cycles`) where periodic.
+    """
+
+    x: np.ndarray
+    rate_hz: float
+    period: float | None
+    cycles: tuple | None
+
+
+def _check_recording(name: str, x: np.ndarray, rate: float) -> None:
+    if x.ndim != 3 or x.shape[2] != 3:
+        raise InputError(f"{name} must be (N, M, 3) marker positions, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise InputError(f"{name} has gaps (NaN positions); bridge them before comparing")
+    if x.shape[0] < 8:
+        raise InputError(f"{name} has {x.shape[0]} samples; at least 8 are needed")
+    if not (np.isfinite(rate) and rate > 0):
+        raise InputError(f"{name}: the sampling rate must be positive, got {rate}")
+
+
+def recording_signature(xyz, rate_hz: float, *, n_samples: int = RECORDING_SAMPLES,
+                        f_range_hz: tuple[float, float] = (0.5, 3.0), name: str = "the recording"
+                        ) -> RecordingSignature:
+    """A recording without its progression, with its cycles where it is periodic (module docstring)."""
+    x = np.asarray(xyz, dtype=np.float64)
+    _check_recording(name, x, rate_hz)
+    x = remove_progression(x)
+    found = _period(x, float(rate_hz), f_range_hz)
+    if found is None or found[1] < MIN_PERIODIC_SCORE or x.shape[0] - 1 < MIN_CYCLES * found[0]:
+        return RecordingSignature(x=x, rate_hz=float(rate_hz), period=None, cycles=None)
+    return RecordingSignature(x=x, rate_hz=float(rate_hz), period=found[0], cycles=_cycles(x, found[0], n_samples))
+
+
+def align_signatures(sig_a: RecordingSignature, sig_b: RecordingSignature, *, up: int | None = None,
+                     n_samples: int = RECORDING_SAMPLES, alignment: str | None = None) -> AlignedRecordings:
+    """:func:`align_recordings` on precomputed signatures.
+
+    Both periodic: cycle phase. One periodic and the other at least one of its cycles long (in
+    seconds; a cropped copy): the other is cut into cycles of the same duration and put in cycle
+    phase too. Otherwise subsequence DTW.
+    """
+    if sig_a.x.shape[1] != sig_b.x.shape[1]:
+        raise InputError(f"recording A has {sig_a.x.shape[1]} markers but recording B has {sig_b.x.shape[1]}")
+    if alignment is not None and alignment not in ALIGNMENTS:
+        raise InputError(f"unknown alignment {alignment!r}; choose one of {', '.join(ALIGNMENTS)}")
+    rates = (sig_a.rate_hz, sig_b.rate_hz)
+    if alignment != "subsequence_dtw":
+        cyc_a, cyc_b, pa, pb = sig_a.cycles, sig_b.cycles, sig_a.period, sig_b.period
+        if pa is not None and pb is not None and not 0.8 < (pa / rates[0]) / (pb / rates[1]) < 1.25:
+            # one found a sub-harmonic (a trot's vertical beats twice a stride): the longer period is the
+            # stride, used for the other too where it holds one
+            if pa / rates[0] > pb / rates[1]:
+                cyc_b, pb = None, None
+            else:
+                cyc_a, pa = None, None
+        if cyc_a is not None and cyc_b is None and sig_b.x.shape[0] - 1 >= pa * rates[1] / rates[0]:
+            pb = pa * rates[1] / rates[0]
+            cyc_b = _cycles(sig_b.x, pb, n_samples)
+        elif cyc_b is not None and cyc_a is None and sig_a.x.shape[0] - 1 >= pb * rates[0] / rates[1]:
+            pa = pb * rates[0] / rates[1]
+            cyc_a = _cycles(sig_a.x, pa, n_samples)
+        if cyc_a is not None and cyc_b is not None and cyc_a[1].shape[0] == cyc_b[1].shape[0] == n_samples:
+            return _cycle_phase(cyc_a, cyc_b, (pa, pb), (sig_a.x.shape[0], sig_b.x.shape[0]), rates, up)
+        if alignment == "cycle_phase":
+            raise InputError("no cycle period was found in the recordings; they cannot be put in cycle phase")
+    return _subsequence(sig_a.x, sig_b.x, rates, up, n_samples)
+
+
 def align_recordings(xyz_a, rate_a_hz: float, xyz_b, rate_b_hz: float, *, up: int | None = None,
                      n_samples: int = RECORDING_SAMPLES, f_range_hz: tuple[float, float] = (0.5, 3.0),
                      alignment: str | None = None) -> AlignedRecordings:
@@ -253,38 +347,17 @@ def align_recordings(xyz_a, rate_a_hz: float, xyz_b, rate_b_hz: float, *, up: in
     f_range_hz : (float, float), optional
         Plausible cycle frequencies.
     alignment : {None, "cycle_phase", "subsequence_dtw"}, optional
-        Force one; None: cycle phase where both recordings are periodic, else subsequence DTW.
+        Force one; None: cycle phase where the recordings are periodic, else subsequence DTW.
 
     Returns
     -------
     AlignedRecordings
     """
-    a = np.asarray(xyz_a, dtype=np.float64)
-    b = np.asarray(xyz_b, dtype=np.float64)
-    for name, x, rate in (("recording A", a, rate_a_hz), ("recording B", b, rate_b_hz)):
-        if x.ndim != 3 or x.shape[2] != 3:
-            raise InputError(f"{name} must be (N, M, 3) marker positions, got shape {x.shape}")
-        if not np.all(np.isfinite(x)):
-            raise InputError(f"{name} has gaps (NaN positions); bridge them before comparing")
-        if x.shape[0] < 8:
-            raise InputError(f"{name} has {x.shape[0]} samples; at least 8 are needed")
-        if not (np.isfinite(rate) and rate > 0):
-            raise InputError(f"{name}: the sampling rate must be positive, got {rate}")
-    if a.shape[1] != b.shape[1]:
-        raise InputError(f"recording A has {a.shape[1]} markers but recording B has {b.shape[1]}")
     if alignment is not None and alignment not in ALIGNMENTS:
         raise InputError(f"unknown alignment {alignment!r}; choose one of {', '.join(ALIGNMENTS)}")
-    xa, xb = remove_progression(a), remove_progression(b)
-    rates = (float(rate_a_hz), float(rate_b_hz))
-    if alignment != "subsequence_dtw":
-        pa, pb = _period(xa, rates[0], f_range_hz), _period(xb, rates[1], f_range_hz)
-        periodic = all(p is not None and p[1] >= MIN_PERIODIC_SCORE and x.shape[0] - 1 >= MIN_CYCLES * p[0]
-                       for p, x in ((pa, xa), (pb, xb)))
-        if periodic or (alignment == "cycle_phase" and pa is not None and pb is not None):
-            return _cycle_phase(xa, xb, pa[0], pb[0], rates, up, n_samples)
-        if alignment == "cycle_phase":
-            raise InputError("no cycle period was found in both recordings; they cannot be put in cycle phase")
-    return _subsequence(xa, xb, rates, up, n_samples)
+    sig_a = recording_signature(xyz_a, rate_a_hz, n_samples=n_samples, f_range_hz=f_range_hz, name="recording A")
+    sig_b = recording_signature(xyz_b, rate_b_hz, n_samples=n_samples, f_range_hz=f_range_hz, name="recording B")
+    return align_signatures(sig_a, sig_b, up=up, n_samples=n_samples, alignment=alignment)
 
 
 def stretch_differences(aligned: AlignedRecordings, n_stretches: int = 10) -> tuple[np.ndarray, np.ndarray]:
