@@ -185,25 +185,31 @@ def _resample(x: np.ndarray, n_out: int, start: float = 0.0, end: float | None =
 
 def _refined_span(q: np.ndarray, s: np.ndarray, start: float, end: float, half_width: float, n_samples: int
                   ) -> tuple[float, float]:
-    """The span of ``s`` near ``start``..``end`` whose resampling lies closest to ``q``'s.
+    """The span of ``s`` near ``start``..``end`` whose resampling best fits ``q``'s, turned freely.
 
-    Both are (N, M, 3) at full rate, ``q`` already turned into ``s``'s frame; start and end move by
-    at most ``half_width`` samples (a 9 x 9 grid).
+    Both are (N, M, 3) at full rate; start and end move by at most ``half_width`` samples (a 9 x 9
+    grid). Every candidate, like ``q``, has its own travel removed and is scored by its Kabsch
+    residual, all at once (batched 3 x 3 SVDs).
     """
-    target = _resample(q, n_samples)
-    target = target - target.mean(axis=(0, 1))
-    best = (np.inf, start, end)
+    target = remove_progression(_resample(q, n_samples))
     offsets = np.linspace(-half_width, half_width, 9)
-    for ds in offsets:
-        for de in offsets:
-            st, en = max(0.0, start + ds), min(s.shape[0] - 1.0, end + de)  # the ends themselves are candidates
-            if en - st < 4:
-                continue
-            seg = _resample(s, n_samples, st, en)
-            cost = float(np.sum((seg - seg.mean(axis=(0, 1)) - target) ** 2))
-            if cost < best[0]:
-                best = (cost, st, en)
-    return best[1], best[2]
+    st = np.clip(start + offsets[:, None] + 0.0 * offsets[None, :], 0.0, s.shape[0] - 1.0).ravel()
+    en = np.clip(end + 0.0 * offsets[:, None] + offsets[None, :], 0.0, s.shape[0] - 1.0).ravel()
+    ok = en - st >= 4  # the ends themselves are candidates
+    st, en = st[ok], en[ok]
+    frac = np.linspace(0.0, 1.0, n_samples)
+    segs = _interp_rows(s, (st[:, None] + (en - st)[:, None] * frac[None, :]).ravel())
+    segs = segs.reshape((st.size, n_samples) + s.shape[1:])
+    # each candidate without its own straight-line travel, as the target (a walk's speed varies)
+    basis = np.column_stack([np.ones(n_samples), frac - 0.5])
+    trend = basis @ np.linalg.pinv(basis)  # (n, n): the least-squares line through a series
+    segs = segs - np.einsum("uv,cvi->cui", trend, segs.mean(axis=2))[:, :, None, :]
+    h = np.einsum("cnmi,nmj->cij", segs, target)
+    sv = np.linalg.svd(h, compute_uv=False)
+    d = np.where(np.linalg.det(h) < 0, -1.0, 1.0)
+    cost = np.sum(segs * segs, axis=(1, 2, 3)) - 2.0 * (sv[:, 0] + sv[:, 1] + d * sv[:, 2])
+    k = int(np.argmin(cost))
+    return float(st[k]), float(en[k])
 
 
 def _subsequence(xa, xb, rates, up, n_samples) -> AlignedRecordings:
@@ -230,7 +236,8 @@ def _subsequence(xa, xb, rates, up, n_samples) -> AlignedRecordings:
     scale = (s.shape[0] - 1) / max(1, s_small.shape[0] - 1)
     turned_q = (q - q.mean(axis=(0, 1))) @ rot_q.T
     st, en = _refined_span(turned_q, s, start * scale, end * scale, 1.5 * scale, n_samples)
-    st, en = _refined_span(turned_q, s, st, en, 0.375 * scale, n_samples)  # to a tenth of a coarse step
+    for width in (0.375 * scale, 0.1 * scale):  # to a fortieth of a coarse step
+        st, en = _refined_span(turned_q, s, st, en, width, n_samples)
     # the travel again, over the same stretch of motion in both (a walk's speed is not constant)
     seg_q = remove_progression(_resample(q, n_samples))
     seg_s = remove_progression(_resample(s, n_samples, st, en))
