@@ -124,9 +124,27 @@ def _add_synth_parser(sub) -> None:
                    help="no sync flash in the clips: the cameras are synchronised from the markers' motion")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND  # lazily, as the commands
+class _BoardKinds:
+    """The calibration board kinds, imported only when `calibrate` checks or lists them.
 
+    The registry fills as the board modules import, and they pull OpenCV and scipy in: 3 s of every
+    command's start-up (`saddlescope --help` included) before this was lazy.
+    """
+
+    @staticmethod
+    def _kinds() -> list[str]:
+        from saddlescope.core.calibration.boards import BOARD_KINDS
+
+        return BOARD_KINDS
+
+    def __contains__(self, kind: object) -> bool:
+        return kind in self._kinds()
+
+    def __iter__(self):
+        return iter(self._kinds())
+
+
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -157,7 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
     s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
     s.add_argument("--square", type=float, required=True, help="square size in mm")
-    s.add_argument("--board", default=DEFAULT_BOARD_KIND, choices=BOARD_KINDS, help="the board's kind")
+    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND",  # a metavar: no listing at start
+                   help="the board's kind (default checkerboard; an unknown one gets the list)")
     s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
     s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
     s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")
@@ -228,8 +247,10 @@ def run(args: argparse.Namespace) -> int:
     if cmd == "calibrate":
         from saddlescope.io.calibration_files import calibrate_sources
 
+        from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND
+
         result = calibrate_sources(dict(args.camera), pattern=args.pattern, square_mm=args.square,
-                                   board_kind=args.board, dictionary=args.dictionary,
+                                   board_kind=args.board or DEFAULT_BOARD_KIND, dictionary=args.dictionary,
                                    marker_mm=args.marker, toml_out=args.toml_out)
         _write_json(result, args.json_out)
         return 0
