@@ -66,6 +66,7 @@ def _offset(text: str) -> tuple[float, float, float]:
 
 def _similar(args) -> int:
     """`saddlescope similar`: one pair's answer, or the matrix of every pair of many recordings."""
+    from saddlescope.io import similarity_matrix as matrix_files
     from saddlescope.io.mocap.labels import parse_label_map
     from saddlescope.services import similarity
 
@@ -76,12 +77,12 @@ def _similar(args) -> int:
         result = similarity.compare_files(paths[0], paths[1], markers=markers, up=args.up, label_map=label_map,
                                           alignment=args.alignment)
     else:
-        result = similarity.similarity_matrix(similarity.recording_paths(paths), markers=markers, up=args.up,
+        result = similarity.similarity_matrix(matrix_files.recording_paths(paths), markers=markers, up=args.up,
                                               label_map=label_map)
         if args.csv_out:
-            similarity.write_matrix_csv(result, args.csv_out)
+            matrix_files.write_matrix_csv(result, args.csv_out)
         if args.png_out:
-            similarity.write_matrix_png(result, args.png_out)
+            matrix_files.write_matrix_png(result, args.png_out)
     _write_json(result, args.json_out)
     if args.json_out:
         print(json.dumps(result, indent=2))
@@ -245,9 +246,8 @@ def run(args: argparse.Namespace) -> int:
         _write_json(result, args.json_out)
         return 0
     if cmd == "calibrate":
-        from saddlescope.io.calibration_files import calibrate_sources
-
         from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND
+        from saddlescope.io.calibration_files import calibrate_sources
 
         result = calibrate_sources(dict(args.camera), pattern=args.pattern, square_mm=args.square,
                                    board_kind=args.board or DEFAULT_BOARD_KIND, dictionary=args.dictionary,
