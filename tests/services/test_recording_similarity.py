@@ -115,3 +115,18 @@ def test_many_recordings_give_the_matrix_csv_and_heat_map(tmp_path, capsys):
     # a list of files works as a folder does
     assert main(["similar", str(folder / "h1_a.trc"), str(folder / "h1_b.trc"), str(folder / "h2_a.trc")]) == 0
     assert json.loads(capsys.readouterr().out)["files"] == ["h1_a.trc", "h1_b.trc", "h2_a.trc"]
+
+
+def test_rides_differences_find_the_marker_and_stretch_that_differ():
+    from saddlescope.bench.similarity import synthetic_ride
+    from saddlescope.services.similarity import compare_ride_documents
+
+    doc = synthetic_ride(0, "sitting_trot", 0, strides=10.0)
+    other = {**doc, "markers": {**doc["markers"], "position_m": np.array(doc["markers"]["position_m"], copy=True)}}
+    n = len(other["markers"]["position_m"])
+    phase = (np.arange(n) / (doc["period_s"] * doc["fps"])) % 1.0
+    other["markers"]["position_m"][:, 1, 1] += np.where((phase > 0.5) & (phase < 0.6), 0.02, 0.0)  # M2, 20 mm
+    diff = compare_ride_documents(doc, other, markers="all")["differences"]
+    assert diff["most_different_marker"] == "M2" and diff["most_different_stretch"] == 5
+    same = compare_ride_documents(doc, doc, markers="all")["differences"]
+    assert max(m["rms_mm"] for m in same["per_marker"]) < 1e-6

@@ -248,6 +248,8 @@ MEASURES = ("dtw", "chain_code_nw", "shape_similarity", "shape_dissimilarity")
 RANKING_MEASURE = "dtw"
 # Canonical frames.
 FRAME_RIDE = "motion+stride_phase"
+# Stretches of the stride or cycle (or of the matched recording) the differences are reported over.
+DIFFERENCE_STRETCHES = 10
 # DTW's Sakoe-Chiba window as a fraction of the samples compared.
 DTW_WINDOW_FRACTION = 0.1
 
@@ -370,8 +372,13 @@ def compare_signatures(sig_a: RideSignature, sig_b: RideSignature, *, only: str 
             raise InputError(f"only the ranking measure {RANKING_MEASURE!r} can be computed alone")
         return {"similarity": float(np.mean([_ranking_value(sa, sb) for sa, sb in pairs]))}
     rows = [row for sa, sb in pairs for row in _stride_rows(sa, sb, sig_a.span)]
+    means_a = np.stack([sa.mean for sa, _ in pairs], axis=1) * 1e3
+    means_b = np.stack([align_phase(sa.mean, sb.mean)[0] for sa, sb in pairs], axis=1) * 1e3
+    names = ["M1", "M2", "M3"] if sig_a.markers == "all" else [sig_a.markers]
+    differences = _differences(means_a, means_b, [r["dtw"] for r in rows], names, "stride phase")
     return _answer(rows, frame=FRAME_RIDE, markers=sig_a.markers, span=sig_a.span,
-                   noise_m=(max(t.sigma_m for t in sig_a.tracks), max(t.sigma_m for t in sig_b.tracks)))
+                   noise_m=(max(t.sigma_m for t in sig_a.tracks), max(t.sigma_m for t in sig_b.tracks)),
+                   extra={"differences": differences})
 
 
 def _answer(rows: list[dict], *, frame: str, markers, span: str, noise_m: tuple[float, float],
@@ -522,9 +529,10 @@ def compare_recording_signatures(sig_a: RecordingSignature, sig_b: RecordingSign
     rows = [_pair_measures(aligned.a[:, k] / 1e3, aligned.b[:, k] / 1e3, aligned.sigma_a / 1e3,
                            aligned.sigma_b / 1e3, closed=aligned.closed) for k in range(n_markers)]
     frame = f"{aligned.alignment}+kabsch"
+    differences = _differences(aligned.a, aligned.b, [r["dtw"] for r in rows], names,
+                               "cycle phase" if aligned.closed else "matched stretch of A")
     extra = {"alignment": _alignment_summary(aligned), "kabsch_residual_mm": aligned.rotation_residual_mm,
-             "up": None if up is None else "xyz"[up], "differences": _differences(aligned, rows, names),
-             "notes": list(notes)}
+             "up": None if up is None else "xyz"[up], "differences": differences, "notes": list(notes)}
     return _answer(rows, frame=frame, markers=names, span="cycle" if aligned.closed else "window",
                    noise_m=(aligned.sigma_a / 1e3, aligned.sigma_b / 1e3), extra=extra)
 
@@ -538,22 +546,17 @@ def _alignment_summary(aligned) -> dict:
     return out
 
 
-# Stretches of the cycle (or of the matched recording) the differences are reported over.
-DIFFERENCE_STRETCHES = 10
-
-
-def _differences(aligned, rows: list[dict], names: list[str]) -> dict:
+def _differences(a_mm: np.ndarray, b_mm: np.ndarray, dtws: list[float], names: list[str], time_base: str) -> dict:
     """Where the motions differ (the dissertation's spatial and temporal analysis): per marker its
     RMS distance and DTW similarity, per stretch of the time base the RMS distance (mm)."""
-    per_stretch, per_marker = stretch_differences(aligned, DIFFERENCE_STRETCHES)
+    per_stretch, per_marker = stretch_differences(a_mm, b_mm, DIFFERENCE_STRETCHES)
     overall = np.sqrt(np.mean(per_stretch ** 2, axis=0))
-    markers = [{"marker": name, "rms_mm": float(per_marker[k]), "dtw": float(rows[k]["dtw"]),
+    markers = [{"marker": name, "rms_mm": float(per_marker[k]), "dtw": float(dtws[k]),
                 "per_stretch_mm": [float(v) for v in per_stretch[k]]} for k, name in enumerate(names)]
-    worst = int(np.argmax(per_marker))
-    return {"time_base": "cycle phase" if aligned.closed else "matched stretch of A",
-            "stretches": DIFFERENCE_STRETCHES, "per_marker": markers,
+    return {"time_base": time_base, "stretches": DIFFERENCE_STRETCHES, "per_marker": markers,
             "per_stretch_mm": [float(v) for v in overall],
-            "most_different_marker": names[worst], "most_different_stretch": int(np.argmax(overall))}
+            "most_different_marker": names[int(np.argmax(per_marker))],
+            "most_different_stretch": int(np.argmax(overall))}
 
 
 # A marker seen in fewer than this share of a recording's frames is left out of a comparison.

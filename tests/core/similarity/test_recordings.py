@@ -115,7 +115,9 @@ def test_differences_say_which_marker_and_which_stretch():
     bump = np.where((phase > 0.6) & (phase < 0.7), 30.0, 0.0)  # marker 2 lifted in 60-70 % of the cycle
     b[:, 2, 1] += bump
     al = align_recordings(a, RATE, b, RATE, up=1)
-    per_stretch, per_marker = stretch_differences(al, 10)
+    per_stretch, per_marker = stretch_differences(al.a, al.b, 10)
     assert int(np.argmax(per_marker)) == 2
     assert int(np.argmax(per_stretch[2])) == 6
     assert per_stretch[2, 6] > 5 * np.median(per_stretch[2])
+    with pytest.raises(InputError, match="one shape"):
+        stretch_differences(al.a, al.b[:, :2])

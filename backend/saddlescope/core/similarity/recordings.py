@@ -151,8 +151,9 @@ def _best_phase_and_turn(a: np.ndarray, b: np.ndarray, up: int | None) -> tuple[
     score = sv[:, 0] + sv[:, 1] + d * sv[:, 2]
     k = int(np.argmax(score))
     rot = vt[k].T @ np.diag([1.0, 1.0, d[k]]) @ u[k].T
-    residual = np.sqrt(max(0.0, (np.sum(a * a) + np.sum(b * b) - 2.0 * score[k]) / (a.shape[0] * a.shape[1])))
-    return int(cand[k]), rot, float(residual)
+    shift = int(cand[k])
+    moved = np.roll(b, -shift, axis=0) @ rot.T
+    return shift, rot, float(np.sqrt(np.mean(np.sum((moved - a) ** 2, axis=2))))
 
 
 def _cycle_phase(cycles_a, cycles_b, periods, lengths, rates, up) -> AlignedRecordings:
@@ -367,18 +368,29 @@ def align_recordings(xyz_a, rate_a_hz: float, xyz_b, rate_b_hz: float, *, up: in
     return align_signatures(sig_a, sig_b, up=up, n_samples=n_samples, alignment=alignment)
 
 
-def stretch_differences(aligned: AlignedRecordings, n_stretches: int = 10) -> tuple[np.ndarray, np.ndarray]:
-    """Where the two motions differ: RMS distance (mm) per marker and per stretch of the time base.
+def stretch_differences(a: np.ndarray, b: np.ndarray, n_stretches: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Where two aligned motions differ: RMS distance per marker and per stretch of the time base.
+
+    Parameters
+    ----------
+    a, b : ndarray of shape (n, M, 3)
+        Curves on one time base and in one frame (:class:`AlignedRecordings`' ``a`` and ``b``, or two
+        rides' phase-aligned mean strides).
+    n_stretches : int, optional
+        The time base is cut into this many equal stretches (of the cycle, or of the matched span).
 
     Returns
     -------
     per_stretch : ndarray of shape (M, n_stretches)
-        RMS distance of each marker's aligned curves over each 1 / n_stretches of the cycle (or of
-        the matched stretch).
+        RMS distance of each marker's curves over each stretch (units of the positions).
     per_marker : ndarray of shape (M,)
         RMS distance over the whole time base.
     """
-    d2 = np.sum((aligned.a - aligned.b) ** 2, axis=2)  # (n, M)
+    if a.shape != b.shape or a.ndim != 3 or a.shape[2] != 3:
+        raise InputError(f"aligned curves must be two (n, M, 3) arrays of one shape, got {a.shape} and {b.shape}")
+    if not 1 <= n_stretches <= a.shape[0]:
+        raise InputError(f"n_stretches must be between 1 and {a.shape[0]}, got {n_stretches}")
+    d2 = np.sum((a - b) ** 2, axis=2)  # (n, M)
     bins = np.array_split(np.arange(d2.shape[0]), n_stretches)
     per_stretch = np.stack([np.sqrt(d2[idx].mean(axis=0)) for idx in bins], axis=1)
     return per_stretch, np.sqrt(d2.mean(axis=0))
