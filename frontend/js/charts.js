@@ -270,13 +270,14 @@ export function differencesStrip(div, differences) {
   const y = differences.per_marker.map((m) => m.marker);
   const traces = [{
     type: "heatmap", x, y, z: differences.per_marker.map((m) => m.per_stretch_mm), zmin: 0,
-    colorscale: "YlOrRd", colorbar: { title: { text: "mm" }, thickness: 12 },
+    colorscale: "YlOrRd", reversescale: true, colorbar: { title: { text: "mm" }, thickness: 12 }, // dark = far apart
     hovertemplate: "%{y}, %{x} of the stride: %{z:.1f} mm<extra></extra>",
   }];
   const layout = baseLayout("Distance per track and stretch of the stride", "stride phase", "");
   layout.hovermode = "closest";
   layout.height = 150 + 36 * y.length;
   layout.yaxis = { ...layout.yaxis, zeroline: false, autorange: "reversed" };
+  div.style.height = `${layout.height}px`; // one row per track, not a chart's usual height
   return plotly().react(div, traces, layout, CONFIG);
 }
 
