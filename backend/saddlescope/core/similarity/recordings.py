@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from dtaidistance import dtw as dtai_dtw
 from dtaidistance.subsequence.dtw import subsequence_alignment
 
 from saddlescope.core.errors import InputError, KinematicsError
@@ -45,6 +46,8 @@ MIN_PERIODIC_SCORE = 0.6
 MIN_CYCLES = 2
 # The subsequence search runs at this many samples per second at most (speed).
 SEARCH_RATE_HZ = 25.0
+# dtaidistance's C code where its extension was built (else its Python code, slower, same answer).
+_DTAI_C = getattr(dtai_dtw, "dtw_cc", None) is not None
 
 
 @dataclass(frozen=True)
@@ -228,7 +231,7 @@ def _subsequence(xa, xb, rates, up, n_samples) -> AlignedRecordings:
     for _ in range(2):
         qq = (q_small - q_small.mean(axis=(0, 1))) @ rot_q.T
         ss = s_small - s_small[start:end + 1].mean(axis=(0, 1))
-        sa = subsequence_alignment(qq.reshape(qq.shape[0], -1), ss.reshape(ss.shape[0], -1), use_c=True)
+        sa = subsequence_alignment(qq.reshape(qq.shape[0], -1), ss.reshape(ss.shape[0], -1), use_c=_DTAI_C)
         match = sa.best_match()
         start, end = int(match.segment[0]), int(match.segment[1])
         matched_q = _resample(q_small, 64)
