@@ -207,8 +207,9 @@ def _refined_span(q: np.ndarray, s: np.ndarray, start: float, end: float, half_w
     # each candidate without its own straight-line travel, as the target (a walk's speed varies)
     basis = np.column_stack([np.ones(n_samples), frac - 0.5])
     trend = basis @ np.linalg.pinv(basis)  # (n, n): the least-squares line through a series
-    segs = segs - np.einsum("uv,cvi->cui", trend, segs.mean(axis=2))[:, :, None, :]
-    h = np.einsum("cnmi,nmj->cij", segs, target)
+    segs = segs - np.matmul(trend, segs.mean(axis=2))[:, :, None, :]
+    flat = segs.reshape(st.size, -1, 3)
+    h = np.matmul(flat.transpose(0, 2, 1), target.reshape(-1, 3))  # (c, 3, 3) cross-covariances
     sv = np.linalg.svd(h, compute_uv=False)
     d = np.where(np.linalg.det(h) < 0, -1.0, 1.0)
     cost = np.sum(segs * segs, axis=(1, 2, 3)) - 2.0 * (sv[:, 0] + sv[:, 1] + d * sv[:, 2])
