@@ -64,6 +64,31 @@ def _offset(text: str) -> tuple[float, float, float]:
     return dx, dy, dz
 
 
+def _similar(args) -> int:
+    """`saddlescope similar`: one pair's answer, or the matrix of every pair of many recordings."""
+    from saddlescope.io import similarity_matrix as matrix_files
+    from saddlescope.io.mocap.labels import parse_label_map
+    from saddlescope.services import similarity
+
+    markers = [m.strip() for m in args.markers.split(",") if m.strip()] if args.markers else None
+    label_map = parse_label_map(args.label_map)
+    paths = [Path(f) for f in args.files]
+    if len(paths) == 2 and not any(p.is_dir() for p in paths):
+        result = similarity.compare_files(paths[0], paths[1], markers=markers, up=args.up, label_map=label_map,
+                                          alignment=args.alignment)
+    else:
+        result = similarity.similarity_matrix(matrix_files.recording_paths(paths), markers=markers, up=args.up,
+                                              label_map=label_map)
+        if args.csv_out:
+            matrix_files.write_matrix_csv(result, args.csv_out)
+        if args.png_out:
+            matrix_files.write_matrix_png(result, args.png_out)
+    _write_json(result, args.json_out)
+    if args.json_out:
+        print(json.dumps(result, indent=2))
+    return 0
+
+
 def _write_json(data: dict, out: str | None) -> None:
     text = json.dumps(data, indent=2, allow_nan=False)
     if out:
@@ -100,9 +125,27 @@ def _add_synth_parser(sub) -> None:
                    help="no sync flash in the clips: the cameras are synchronised from the markers' motion")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND  # lazily, as the commands
+class _BoardKinds:
+    """The calibration board kinds, imported only when `calibrate` checks or lists them.
 
+    The registry fills as the board modules import, and they pull OpenCV and scipy in: 3 s of every
+    command's start-up (`saddlescope --help` included) before this was lazy.
+    """
+
+    @staticmethod
+    def _kinds() -> list[str]:
+        from saddlescope.core.calibration.boards import BOARD_KINDS
+
+        return BOARD_KINDS
+
+    def __contains__(self, kind: object) -> bool:
+        return kind in self._kinds()
+
+    def __iter__(self):
+        return iter(self._kinds())
+
+
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -133,7 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
     s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
     s.add_argument("--square", type=float, required=True, help="square size in mm")
-    s.add_argument("--board", default=DEFAULT_BOARD_KIND, choices=BOARD_KINDS, help="the board's kind")
+    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND",  # a metavar: no listing at start
+                   help="the board's kind (default checkerboard; an unknown one gets the list)")
     s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
     s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
     s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")
@@ -144,14 +188,21 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("file")
     s.add_argument("--json", dest="json_out", default=None)
 
-    s = sub.add_parser("similar", help="how alike two analysed rides (result JSON) or two C3D/TRC recordings move")
-    s.add_argument("a", help="a result JSON of `saddlescope analyze`, or a C3D / TRC file")
-    s.add_argument("b", help="the same kind of file as A")
+    s = sub.add_parser("similar", help="how alike two analysed rides (result JSON) or C3D/TRC recordings move; "
+                                       "over more recordings or a folder, the matrix of every pair")
+    s.add_argument("files", nargs="+", metavar="FILE",
+                   help="two result JSONs of `saddlescope analyze`, or C3D / TRC files or folders of them")
     s.add_argument("--markers", default=None,
                    help="C3D/TRC: the labels to compare, L1,L2,...; results: saddle, M1, M2, M3 or all")
+    s.add_argument("--map", dest="label_map", action="append", default=None, metavar="A=B",
+                   help="C3D/TRC: label A of the first file is label B of the second (repeatable)")
     s.add_argument("--up", default=None, choices=["x", "y", "z"],
                    help="C3D/TRC: the vertical axis (the alignment then only turns about it)")
+    s.add_argument("--alignment", default=None, choices=["cycle_phase", "subsequence_dtw"],
+                   help="C3D/TRC pair: force the time alignment (default: cycle phase where both are periodic)")
     s.add_argument("--json", dest="json_out", default=None, help="also write the answer here")
+    s.add_argument("--csv", dest="csv_out", default=None, help="many recordings: write the matrix as CSV")
+    s.add_argument("--png", dest="png_out", default=None, help="many recordings: write the matrix as a heat map")
 
     s = sub.add_parser("analyze-mocap", help="analyse a C3D or TRC file as a ride: three markers, a point")
     s.add_argument("file")
@@ -198,10 +249,11 @@ def run(args: argparse.Namespace) -> int:
         _write_json(result, args.json_out)
         return 0
     if cmd == "calibrate":
+        from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND
         from saddlescope.io.calibration_files import calibrate_sources
 
         result = calibrate_sources(dict(args.camera), pattern=args.pattern, square_mm=args.square,
-                                   board_kind=args.board, dictionary=args.dictionary,
+                                   board_kind=args.board or DEFAULT_BOARD_KIND, dictionary=args.dictionary,
                                    marker_mm=args.marker, toml_out=args.toml_out)
         _write_json(result, args.json_out)
         return 0
@@ -211,14 +263,7 @@ def run(args: argparse.Namespace) -> int:
         _write_json(read_mocap(Path(args.file)).summary(), args.json_out)
         return 0
     if cmd == "similar":
-        from saddlescope.services.similarity import compare_files
-
-        markers = [m.strip() for m in args.markers.split(",") if m.strip()] if args.markers else None
-        result = compare_files(Path(args.a), Path(args.b), markers=markers, up=args.up)
-        _write_json(result, args.json_out)
-        if args.json_out:
-            print(json.dumps(result, indent=2))
-        return 0
+        return _similar(args)
     if cmd == "analyze-mocap":
         from saddlescope.services.mocap import analyze_mocap_file
 

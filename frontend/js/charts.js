@@ -257,6 +257,30 @@ export function strideAlignmentChart(div, strides, names) {
   return plotly().react(div, traces, layout, CONFIG);
 }
 
+/**
+ * Where two rides differ: a heat strip of the RMS distance (mm) per track and per stretch of the stride.
+ * @param {HTMLElement} div
+ * @param {object|null} differences  the pair answer's `differences` (per_marker[].per_stretch_mm)
+ */
+export function differencesStrip(div, differences) {
+  if (!differences?.per_marker?.length) return emptyChart(div, "The rides could not be compared: no differences.");
+  ready(div);
+  const n = differences.stretches;
+  const x = Array.from({ length: n }, (_, k) => `${Math.round((k / n) * 100)}-${Math.round(((k + 1) / n) * 100)} %`);
+  const y = differences.per_marker.map((m) => m.marker);
+  const traces = [{
+    type: "heatmap", x, y, z: differences.per_marker.map((m) => m.per_stretch_mm), zmin: 0,
+    colorscale: "YlOrRd", reversescale: true, colorbar: { title: { text: "mm" }, thickness: 12 }, // dark = far apart
+    hovertemplate: "%{y}, %{x} of the stride: %{z:.1f} mm<extra></extra>",
+  }];
+  const layout = baseLayout("Distance per track and stretch of the stride", "stride phase", "");
+  layout.hovermode = "closest";
+  layout.height = 150 + 36 * y.length;
+  layout.yaxis = { ...layout.yaxis, zeroline: false, autorange: "reversed" };
+  div.style.height = `${layout.height}px`; // one row per track, not a chart's usual height
+  return plotly().react(div, traces, layout, CONFIG);
+}
+
 export const COLOURS = AXIS_COLOURS;
 
 // ----------------------------------------------------------------------------- ride page (fits, 3-D, vibration)

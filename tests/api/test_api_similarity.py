@@ -123,6 +123,18 @@ def test_two_rides_compared_with_the_paths_and_the_aligned_strides(world):
     assert listed["items"][0]["similarity"] == pytest.approx(pair["similarity"])
 
 
+def test_the_pair_answer_says_which_marker_and_which_stretch_of_the_stride_differ(world):
+    a, rides = world["a"], world["rides"]
+    one, two = rides[("Cedar", "canter", 0)], rides[("Birch", "canter", 1)]
+    pair = a.ok("GET", f"/rides/{one}/similar/{two}", params={"markers": "all"})
+    diff = pair["differences"]
+    assert diff["time_base"] == "stride phase" and diff["stretches"] == 10
+    assert [m["marker"] for m in diff["per_marker"]] == ["M1", "M2", "M3"]
+    assert all(len(m["per_stretch_mm"]) == 10 and m["rms_mm"] > 0 for m in diff["per_marker"])
+    assert diff["most_different_marker"] in {"M1", "M2", "M3"} and 0 <= diff["most_different_stretch"] < 10
+    assert pair["comparison"]["differences"] == diff
+
+
 def test_a_horses_consistency_per_gait(world):
     a, horses, rides = world["a"], world["horses"], world["rides"]
     answer = a.ok("GET", f"/horses/{horses['Ash']}/consistency")

@@ -127,6 +127,13 @@ def test_the_pair_view_overlays_both_paths_in_3d_and_shows_the_alignment(page, s
     assert page.locator("h1").inner_text() == "Birch and Cedar compared"
     shown = page.locator('[data-fact="Similarity"]').inner_text()
     assert abs(float(shown) - api["similarity"]) < 0.001
+    # where they differ: a heat strip per track and tenth of the stride, the API's numbers
+    page.wait_for_function("document.querySelector('[data-chart=\"pair-differences\"]')?.data?.length === 1")
+    strip = page.eval_on_selector('[data-chart="pair-differences"]', "el => ({type: el.data[0].type, y: el.data[0].y,"
+                                  " z: el.data[0].z})")
+    assert strip["type"] == "heatmap" and strip["y"] == ["saddle"]
+    assert strip["z"][0] == pytest.approx(api["differences"]["per_marker"][0]["per_stretch_mm"])
+    assert page.locator('[data-fact="Differ most"]').inner_text().startswith("saddle, ")
     page.screenshot(path="/tmp/sim_pair_1280.png", full_page=True)
     page.set_viewport_size({"width": 390, "height": 844})
     page.wait_for_timeout(1000)  # Plotly redraws the charts for the narrow window

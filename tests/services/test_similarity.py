@@ -210,14 +210,15 @@ def test_rank_rides_finds_the_other_recording(trot):
     assert {"frame", "step_mm", "measures", "details"} <= set(rows[0])
 
 
-def test_generic_recordings_are_compared_in_a_kabsch_frame(trot):
+def test_generic_recordings_are_compared_in_cycle_phase_and_a_kabsch_frame(trot):
     from saddlescope.services.similarity import compare_recordings
 
     a = np.asarray(trot["markers"]["position_m"]) * 1e3  # mm
     q, _ = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))
     q *= np.sign(np.linalg.det(q))
-    res = compare_recordings(a, a @ q.T + np.array([100.0, -50.0, 2000.0]))
-    assert res["frame"] == "kabsch" and res["kabsch_residual_mm"] < 1e-6
+    res = compare_recordings(a, a @ q.T + np.array([100.0, -50.0, 2000.0]), rate_a_hz=float(trot["fps"]))
+    assert res["frame"] == "cycle_phase+kabsch" and res["kabsch_residual_mm"] < 1e-6
+    assert res["alignment"]["method"] == "cycle_phase" and res["alignment"]["phase_shift"] == 0.0
     assert res["similarity"] > 0.999 and res["measures"]["chain_code_nw"] > 0.95
     with pytest.raises(InputError, match="markers"):
         compare_recordings(a, a[:, :2])
@@ -256,5 +257,6 @@ def test_cli_similar_on_motion_capture(real_data, capsys):
     import json
 
     res = json.loads(capsys.readouterr().out)
-    assert res["frame"] == "kabsch" and res["kabsch_residual_mm"] < 1e-6 and res["similarity"] == 1.0
+    assert res["frame"].endswith("+kabsch") and res["kabsch_residual_mm"] < 1e-6
+    assert res["similarity"] == pytest.approx(1.0, abs=1e-9)
     assert res["markers"] == ["LASI", "RASI", "VSAC"] and res["up"] == "z"

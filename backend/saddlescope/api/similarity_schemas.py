@@ -11,8 +11,9 @@ from saddlescope.api.schemas import Gait, JobOut
 from saddlescope.services.similarity import MARKER_SETS, SPANS
 
 __all__ = [
-    "AlikeEntry", "AlikeOut", "ConsistencyGait", "ConsistencyOut", "ConsistencyRide", "GaitScope", "MarkerSet",
-    "NotComparable", "PairOut", "PairView", "PendingOut", "RideSummary", "Span", "StridesView",
+    "AlikeEntry", "AlikeOut", "ConsistencyGait", "ConsistencyOut", "ConsistencyRide", "Differences", "GaitScope",
+    "MarkerDifference", "MarkerSet", "NotComparable", "PairOut", "PairView", "PendingOut", "RideSummary", "Span",
+    "StridesView",
 ]
 
 MarkerSet = Literal[MARKER_SETS]  # type: ignore[valid-type]
@@ -91,6 +92,26 @@ class PairView(BaseModel):
     reason: str | None
 
 
+class MarkerDifference(BaseModel):
+    """How far one track of the first ride is from the second's once both are in stride phase."""
+
+    marker: str = Field(description="saddle, M1, M2 or M3")
+    rms_mm: float = Field(ge=0, description="RMS distance of the phase-aligned mean strides")
+    dtw: float = Field(ge=0, le=1, description="the track's DTW similarity (1 = the same motion)")
+    per_stretch_mm: list[float] = Field(description="RMS distance in each stretch of the stride, in order")
+
+
+class Differences(BaseModel):
+    """Where the two motions differ: per track (spatial) and per stretch of the stride (temporal)."""
+
+    time_base: str = Field(description="what the stretches cut: 'stride phase' for rides")
+    stretches: int = Field(ge=1, description="equal stretches of the stride, the first from the first ride's start")
+    per_marker: list[MarkerDifference]
+    per_stretch_mm: list[float] = Field(description="RMS distance over the tracks in each stretch")
+    most_different_marker: str
+    most_different_stretch: int = Field(ge=0, description="index into per_stretch_mm")
+
+
 class PairOut(BaseModel):
     """Two rides compared."""
 
@@ -103,6 +124,8 @@ class PairOut(BaseModel):
     measures: dict[str, Any]
     reason: str | None = Field(description="why the rides could not be compared")
     comparison: dict[str, Any] = Field(description="the similarity method's whole answer")
+    differences: Differences | None = Field(
+        default=None, description="where the motions differ; null when not comparable or cached by an older method")
     method_version: str
     view: PairView
 

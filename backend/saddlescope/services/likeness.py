@@ -213,6 +213,7 @@ def compare_pair(session: Session, storage: Storage, ride_id: int, other_id: int
         "rides": [ride_summary(first), ride_summary(second)], "markers": markers, "span": span, "cached": cached,
         "similarity": row.similarity, "measure": row.measure, "measures": (row.answer or {}).get("measures") or {},
         "reason": row.error, "comparison": dict(row.answer or {}), "method_version": version,
+        "differences": (row.answer or {}).get("differences"),
         "view": pair_paths(docs[first.ride_id], docs[second.ride_id]),
     }
 

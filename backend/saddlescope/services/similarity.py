@@ -25,24 +25,27 @@ import numpy as np
 from dtaidistance import dtw as dtai_dtw
 from dtaidistance import dtw_ndim as dtai_dtw_ndim
 
-from saddlescope.core.errors import InputError
+from saddlescope.core.errors import InputError, KinematicsError, MocapFileError
 from saddlescope.core.similarity import (
     DEFAULT_CELLS,
     DEFAULT_HARMONICS,
     DEFAULT_STRIDE_SAMPLES,
+    RecordingSignature,
     RideStrides,
     align_phase,
+    align_signatures,
     chain_code_3d,
     chain_measures,
     default_step,
     dtw_distance_reference,
-    kabsch_align,
     noise_step,
     nw_similarity,
+    recording_signature,
     ride_strides,
     shape_dissimilarity,
-    time_normalise,
+    stretch_differences,
 )
+from saddlescope.io.threads import single_threaded_numerics
 
 METHODS = ("dtw", "chaincode")
 # dtaidistance sets dtw_cc to None when its C extension failed to build (try_import_c would print).
@@ -245,7 +248,8 @@ MEASURES = ("dtw", "chain_code_nw", "shape_similarity", "shape_dissimilarity")
 RANKING_MEASURE = "dtw"
 # Canonical frames.
 FRAME_RIDE = "motion+stride_phase"
-FRAME_KABSCH = "kabsch"
+# Stretches of the stride or cycle (or of the matched recording) the differences are reported over.
+DIFFERENCE_STRETCHES = 10
 # DTW's Sakoe-Chiba window as a fraction of the samples compared.
 DTW_WINDOW_FRACTION = 0.1
 
@@ -368,8 +372,13 @@ def compare_signatures(sig_a: RideSignature, sig_b: RideSignature, *, only: str 
             raise InputError(f"only the ranking measure {RANKING_MEASURE!r} can be computed alone")
         return {"similarity": float(np.mean([_ranking_value(sa, sb) for sa, sb in pairs]))}
     rows = [row for sa, sb in pairs for row in _stride_rows(sa, sb, sig_a.span)]
+    means_a = np.stack([sa.mean for sa, _ in pairs], axis=1) * 1e3
+    means_b = np.stack([align_phase(sa.mean, sb.mean)[0] for sa, sb in pairs], axis=1) * 1e3
+    names = ["M1", "M2", "M3"] if sig_a.markers == "all" else [sig_a.markers]
+    differences = _differences(means_a, means_b, [r["dtw"] for r in rows], names, "stride phase")
     return _answer(rows, frame=FRAME_RIDE, markers=sig_a.markers, span=sig_a.span,
-                   noise_m=(max(t.sigma_m for t in sig_a.tracks), max(t.sigma_m for t in sig_b.tracks)))
+                   noise_m=(max(t.sigma_m for t in sig_a.tracks), max(t.sigma_m for t in sig_b.tracks)),
+                   extra={"differences": differences})
 
 
 def _answer(rows: list[dict], *, frame: str, markers, span: str, noise_m: tuple[float, float],
@@ -459,111 +468,260 @@ def rank_rides(query: Mapping, candidates: Mapping[Hashable, Mapping], *, marker
     return rank_signatures(q, sigs, top=top)
 
 
-def compare_recordings(xyz_a, xyz_b, *, n_samples: int = 256, labels: list[str] | None = None,
-                       up: int | None = None) -> dict:
+def compare_recordings(xyz_a, xyz_b, *, rate_a_hz: float = 100.0, rate_b_hz: float | None = None,
+                       labels: list[str] | None = None, up: int | None = None, alignment: str | None = None,
+                       notes: tuple[str, ...] = (), only: str | None = None) -> dict:
     """How alike two motion-capture recordings of the same markers move (generic motion, any frame).
 
-    Both are resampled to ``n_samples`` over their length (speed drops out), the second is
-    rigidly aligned to the first (Kabsch, over all markers and samples; the residual is reported),
-    and each marker's curves are compared by DTW and by chain codes (anchored walk, noise-based
-    step); the measures are the means over the markers.
+    Both are aligned in time and space first (:func:`saddlescope.core.similarity.align_recordings`:
+    progression removed; periodic recordings in cycle phase, others by subsequence DTW; B turned and
+    moved onto A), then each marker's aligned curves are compared by DTW and by chain codes
+    (anchored walk, noise-based step); the measures are the means over the markers.
 
     Parameters
     ----------
     xyz_a, xyz_b : ndarray of shape (N, M, 3), (K, M, 3)
-        The two recordings (same units, e.g. mm), gaps bridged.
-    n_samples : int, optional
-        Samples of the time-normalised recordings.
+        The two recordings (mm), gaps bridged, the same markers in the same order.
+    rate_a_hz, rate_b_hz : float, optional
+        Sampling rates (B's default A's).
     labels : list of str, optional
         Marker names for the answer.
     up : {None, 0, 1, 2}, optional
         The vertical axis: the alignment may then only turn about it.
+    alignment : {None, "cycle_phase", "subsequence_dtw"}, optional
+        Force one (default: cycle phase where both are periodic).
+    notes : tuple of str, optional
+        What was left out or matched on the way (labels), passed to the answer.
+    only : {None, "dtw"}, optional
+        ``"dtw"``: the ranking measure alone (no chain codes), for ranking many.
 
     Returns
     -------
     dict
-        As :func:`compare_ride_documents`, with ``frame`` "kabsch", ``kabsch_residual_mm``, and
-        ``markers`` the labels. Positions are taken to be in mm.
+        As :func:`compare_ride_documents`, with ``frame`` (the alignment plus "kabsch"),
+        ``alignment`` (method, periods, cycles, phase shift, the compared span of each),
+        ``kabsch_residual_mm``, ``differences`` (per marker and per stretch, mm), ``notes``, and
+        ``markers`` the labels.
     """
-    a = np.asarray(xyz_a, dtype=np.float64)
-    b = np.asarray(xyz_b, dtype=np.float64)
-    for name, x in (("recording A", a), ("recording B", b)):
-        if x.ndim != 3 or x.shape[2] != 3:
-            raise InputError(f"{name} must be (N, M, 3) marker positions, got shape {x.shape}")
-        if not np.all(np.isfinite(x)):
-            raise InputError(f"{name} has gaps (NaN positions); bridge them before comparing")
-    if a.shape[1] != b.shape[1]:
-        raise InputError(f"recording A has {a.shape[1]} markers but recording B has {b.shape[1]}")
-    ra, sig_a = time_normalise(a, n_samples)
-    rb, sig_b = time_normalise(b, n_samples)
-    flat_b, _, residual = kabsch_align(ra.reshape(-1, 3), rb.reshape(-1, 3), up=up)
-    rb = flat_b.reshape(rb.shape)
-    rows = [_pair_measures(ra[:, k] / 1e3, rb[:, k] / 1e3, sig_a / 1e3, sig_b / 1e3, closed=False)
-            for k in range(a.shape[1])]
-    names = labels or [f"marker {k + 1}" for k in range(a.shape[1])]
-    return _answer(rows, frame=FRAME_KABSCH, markers=names, span="window", noise_m=(sig_a / 1e3, sig_b / 1e3),
-                   extra={"kabsch_residual_mm": residual, "up": None if up is None else "xyz"[up]})
+    sig_a = recording_signature(xyz_a, rate_a_hz, name="recording A")
+    sig_b = recording_signature(xyz_b, rate_a_hz if rate_b_hz is None else rate_b_hz, name="recording B")
+    return compare_recording_signatures(sig_a, sig_b, labels=labels, up=up, alignment=alignment, notes=notes,
+                                        only=only)
+
+
+def compare_recording_signatures(sig_a: RecordingSignature, sig_b: RecordingSignature, *,
+                                 labels: list[str] | None = None, up: int | None = None,
+                                 alignment: str | None = None, notes: tuple[str, ...] = (),
+                                 only: str | None = None) -> dict:
+    """:func:`compare_recordings` on precomputed signatures (:func:`saddlescope.core.similarity.recording_signature`).
+
+    ``only="dtw"`` returns ``{"similarity", "alignment"}`` of the ranking measure alone: one DTW of
+    all markers' aligned curves at once (for ranking many).
+    """
+    if only is not None and only != RANKING_MEASURE:
+        raise InputError(f"only the ranking measure {RANKING_MEASURE!r} can be computed alone")
+    aligned = align_signatures(sig_a, sig_b, up=up, alignment=alignment)
+    n_markers = aligned.a.shape[1]
+    if only is not None:
+        flat_a, flat_b = aligned.a.reshape(aligned.a.shape[0], -1), aligned.b.reshape(aligned.b.shape[0], -1)
+        return {"similarity": _dtw_similarity(flat_a, flat_b)[0], "alignment": _alignment_summary(aligned)}
+    names = list(labels) if labels else [f"marker {k + 1}" for k in range(n_markers)]
+    rows = [_pair_measures(aligned.a[:, k] / 1e3, aligned.b[:, k] / 1e3, aligned.sigma_a / 1e3,
+                           aligned.sigma_b / 1e3, closed=aligned.closed) for k in range(n_markers)]
+    frame = f"{aligned.alignment}+kabsch"
+    differences = _differences(aligned.a, aligned.b, [r["dtw"] for r in rows], names,
+                               "cycle phase" if aligned.closed else "matched stretch of A")
+    extra = {"alignment": _alignment_summary(aligned), "kabsch_residual_mm": aligned.rotation_residual_mm,
+             "up": None if up is None else "xyz"[up], "differences": differences, "notes": list(notes)}
+    return _answer(rows, frame=frame, markers=names, span="cycle" if aligned.closed else "window",
+                   noise_m=(aligned.sigma_a / 1e3, aligned.sigma_b / 1e3), extra=extra)
+
+
+def _alignment_summary(aligned) -> dict:
+    """The answer's ``alignment``: which alignment was used and what it found."""
+    out = {"method": aligned.alignment, "span_a_s": [round(v, 4) for v in aligned.span_a_s],
+           "span_b_s": [round(v, 4) for v in aligned.span_b_s], "samples": int(aligned.a.shape[0])}
+    if aligned.period_s is not None:
+        out.update(period_s=list(aligned.period_s), cycles=list(aligned.cycles), phase_shift=aligned.phase_shift)
+    return out
+
+
+def _differences(a_mm: np.ndarray, b_mm: np.ndarray, dtws: list[float], names: list[str], time_base: str) -> dict:
+    """Where the motions differ (the dissertation's spatial and temporal analysis): per marker its
+    RMS distance and DTW similarity, per stretch of the time base the RMS distance (mm)."""
+    per_stretch, per_marker = stretch_differences(a_mm, b_mm, DIFFERENCE_STRETCHES)
+    overall = np.sqrt(np.mean(per_stretch ** 2, axis=0))
+    markers = [{"marker": name, "rms_mm": float(per_marker[k]), "dtw": float(dtws[k]),
+                "per_stretch_mm": [float(v) for v in per_stretch[k]]} for k, name in enumerate(names)]
+    return {"time_base": time_base, "stretches": DIFFERENCE_STRETCHES, "per_marker": markers,
+            "per_stretch_mm": [float(v) for v in overall],
+            "most_different_marker": names[int(np.argmax(per_marker))],
+            "most_different_stretch": int(np.argmax(overall))}
+
+
+# A marker seen in fewer than this share of a recording's frames is left out of a comparison.
+MIN_SEEN_FRACTION = 0.2
+
+
+def _seen_span(points: np.ndarray) -> tuple[int, int]:
+    """First and last frame where every marker of ``points`` (F, M, 3) is seen."""
+    all_seen = np.all(np.isfinite(points), axis=(1, 2))
+    idx = np.flatnonzero(all_seen)
+    return (int(idx[0]), int(idx[-1])) if idx.size else (0, -1)
 
 
 def _bridged(points: np.ndarray, labels: list[str], source: str) -> np.ndarray:
-    """(F, M, 3) with gaps filled by linear interpolation; InputError for a marker never seen."""
+    """(F, M, 3) with gaps filled by linear interpolation (call on frames where every marker is seen
+    at both ends)."""
     out = points.copy()
+    idx = np.arange(out.shape[0])
     for m, label in enumerate(labels):
         seen = np.all(np.isfinite(out[:, m]), axis=1)
         if seen.sum() < 2:
             raise InputError(f"{source}: marker {label!r} is missing in almost every frame")
-        idx = np.arange(out.shape[0])
         for k in range(3):
             out[:, m, k] = np.interp(idx, idx[seen], out[seen, m, k])
     return out
 
 
-def _load_side(path, markers: list[str] | None):
-    """A result document (dict) or a motion-capture recording ((F, M, 3) mm, labels)."""
+def _load_result(path) -> dict:
     import json
+
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path.name} is not a readable result JSON ({exc})") from None
+    if not isinstance(doc, dict) or "saddle" not in doc:
+        raise InputError(f"{path.name} is not an analysed ride result (no saddle track)")
+    return doc
+
+
+def _matched_recordings(data_a, data_b, markers: list[str] | None, label_map: dict[str, str] | None):
+    """Both recordings' positions (mm) for the markers they share, gaps bridged, each cut to the
+    frames where all of them are seen; the labels (A's) and the notes of what was matched or left out."""
+    from saddlescope.io.mocap.labels import match_labels
+
+    match = match_labels(data_a.labels, data_b.labels, user_map=label_map, wanted=markers)
+    notes = []
+    if match.by_alias:
+        notes.append("matched by marker-set aliases: " + ", ".join(f"{a}={b}" for a, b in match.by_alias))
+    if match.unmatched_a and markers:
+        raise InputError(f"{data_b.source} has no marker labelled {', '.join(match.unmatched_a)} (nor an "
+                         "alias of it); name the pair with --map A=B")
+    pairs = []
+    for a, b in match.pairs:
+        seen = [float(np.mean(np.all(np.isfinite(d.marker(x)), axis=1))) for d, x in ((data_a, a), (data_b, b))]
+        if min(seen) < MIN_SEEN_FRACTION:
+            where = data_a.source if seen[0] < seen[1] else data_b.source
+            notes.append(f"{a} left out: seen in {100 * min(seen):.0f} % of {where}'s frames")
+        else:
+            pairs.append((a, b))
+    if not pairs:
+        raise InputError(f"{data_a.source} and {data_b.source} share no marker seen in both (labels "
+                         f"{', '.join(data_a.labels[:6])} ... and {', '.join(data_b.labels[:6])} ...); "
+                         "name pairs with --map A=B")
+    sides = []
+    for data, col in ((data_a, 0), (data_b, 1)):
+        scale = 1e3 if data.units == "m" else 1.0
+        pts = np.stack([data.marker(p[col]) for p in pairs], axis=1) * scale
+        first, last = _seen_span(pts)
+        if last - first < 8:
+            raise InputError(f"{data.source}: the markers {', '.join(p[col] for p in pairs[:6])} are seen "
+                             "together in fewer than 8 frames")
+        if first > 0 or last < pts.shape[0] - 1:
+            notes.append(f"{data.source}: frames {first + data.first_frame}-{last + data.first_frame} compared "
+                         "(where every compared marker is seen)")
+        sides.append(_bridged(pts[first:last + 1], [p[col] for p in pairs], data.source))
+    if match.unmatched_a and not markers:
+        more = " ..." if len(match.unmatched_a) > 8 else ""
+        notes.append(f"{len(match.unmatched_a)} marker(s) of {data_a.source} without a partner in "
+                     f"{data_b.source}: {', '.join(match.unmatched_a[:8])}{more}")
+    return sides[0], sides[1], [p[0] for p in pairs], notes
+
+
+def compare_files(path_a, path_b, *, markers: list[str] | None = None, up: str | None = None,
+                  label_map: dict[str, str] | None = None, alignment: str | None = None) -> dict:
+    """`saddlescope similar`: two analysed ride results (JSON) or two C3D / TRC recordings.
+
+    Results are compared with :func:`compare_ride_documents` (``markers``: one of
+    :data:`MARKER_SETS`, default the saddle point); recordings with :func:`compare_recordings` on the
+    markers both files have (``markers``: only these labels of A; labels matched by name, by
+    marker-set alias or by ``label_map`` {label in A: label in B}; a marker seen in under 20 % of
+    either file's frames left out with a note; ``up``: "x", "y" or "z").
+    """
     from pathlib import Path
 
     from saddlescope.io.mocap import read_mocap
 
-    path = Path(path)
-    if path.suffix.lower() == ".json":
-        try:
-            doc = json.loads(path.read_text())
-        except (OSError, ValueError) as exc:
-            raise InputError(f"{path.name} is not a readable result JSON ({exc})") from None
-        if not isinstance(doc, dict) or "saddle" not in doc:
-            raise InputError(f"{path.name} is not an analysed ride result (no saddle track)")
-        return doc
-    data = read_mocap(path)
-    labels = list(markers) if markers else list(data.labels)
-    missing = [lb for lb in labels if lb not in data.labels]
-    if missing:
-        raise InputError(f"{path.name} has no marker labelled {', '.join(missing)}; it has "
-                         f"{', '.join(data.labels[:12])}")
-    pts = np.stack([data.marker(lb) for lb in labels], axis=1) * (1e3 if data.units == "m" else 1.0)
-    return _bridged(pts, labels, path.name), labels
-
-
-def compare_files(path_a, path_b, *, markers: list[str] | None = None, up: str | None = None) -> dict:
-    """`saddlescope similar`: two analysed ride results (JSON) or two C3D / TRC recordings.
-
-    Results are compared with :func:`compare_ride_documents` (``markers``: one of
-    :data:`MARKER_SETS`, default the saddle point); recordings with :func:`compare_recordings`
-    (``markers``: the labels to compare, default those of A; ``up``: "x", "y" or "z").
-    """
     if up is not None and up not in ("x", "y", "z"):
         raise InputError(f"--up must be x, y or z, got {up!r}")
-    a, b = _load_side(path_a, markers), _load_side(path_b, markers)
-    if isinstance(a, dict) != isinstance(b, dict):
+    path_a, path_b = Path(path_a), Path(path_b)
+    is_result = [p.suffix.lower() == ".json" for p in (path_a, path_b)]
+    if is_result[0] != is_result[1]:
         raise InputError("compare two analysed results or two motion-capture files, not one of each")
-    if isinstance(a, dict):
+    if is_result[0]:
+        a, b = _load_result(path_a), _load_result(path_b)
         chosen = markers[0] if markers else "saddle"
         if markers and len(markers) > 1:
             raise InputError(f"for analysed results --markers names one set of {', '.join(MARKER_SETS)}")
         return compare_ride_documents(a, b, markers=chosen)
-    if a[1] != b[1]:
-        raise InputError("the two recordings do not have the same markers; name them with --markers")
-    return compare_recordings(a[0], b[0], labels=a[1], up=None if up is None else "xyz".index(up))
+    data_a, data_b = read_mocap(path_a), read_mocap(path_b)
+    xa, xb, labels, notes = _matched_recordings(data_a, data_b, markers, label_map)
+    with single_threaded_numerics():  # small matrices: BLAS threads only queue behind each other
+        return compare_recordings(xa, xb, rate_a_hz=data_a.rate_hz, rate_b_hz=data_b.rate_hz, labels=labels,
+                                  up=None if up is None else "xyz".index(up), alignment=alignment,
+                                  notes=tuple(notes))
+
+
+def similarity_matrix(paths, *, markers: list[str] | None = None, up: str | None = None,
+                      label_map: dict[str, str] | None = None) -> dict:
+    """`saddlescope similar` over many recordings: the ranking measure of every pair.
+
+    Each file is read once; each pair is matched (labels, aliases, ``label_map``), aligned in time and
+    space and scored by :data:`RANKING_MEASURE` (the full measures are for a pair:
+    :func:`compare_files`). A file that cannot be read, or a pair that cannot be compared, gets None
+    and a note with the reason.
+
+    Returns
+    -------
+    dict
+        ``files`` (names), ``measure``, ``similarity`` (list of rows, 1 on the diagonal, None where a
+        pair cannot be compared), ``alignment`` (per pair the method, same layout) and ``notes``.
+    """
+    from saddlescope.io.mocap import read_mocap
+
+    if up is not None and up not in ("x", "y", "z"):
+        raise InputError(f"--up must be x, y or z, got {up!r}")
+    paths = list(paths)
+    if len(paths) < 2:
+        raise InputError("at least two recordings are needed for a matrix (name files or a folder)")
+    data, notes = [], []
+    for path in paths:
+        try:
+            data.append(read_mocap(path))
+        except (InputError, MocapFileError) as exc:
+            data.append(None)
+            notes.append(str(exc))
+    n = len(paths)
+    sim = [[1.0 if i == j and data[i] is not None else None for j in range(n)] for i in range(n)]
+    how = [[None] * n for _ in range(n)]
+    with single_threaded_numerics():
+        for i in range(n):
+            for j in range(i + 1, n):
+                if data[i] is None or data[j] is None:
+                    continue
+                try:
+                    xa, xb, labels, _ = _matched_recordings(data[i], data[j], markers, label_map)
+                    res = compare_recordings(xa, xb, rate_a_hz=data[i].rate_hz, rate_b_hz=data[j].rate_hz,
+                                             labels=labels, up=None if up is None else "xyz".index(up),
+                                             only=RANKING_MEASURE)
+                except (InputError, KinematicsError) as exc:
+                    notes.append(f"{paths[i].name} - {paths[j].name}: {exc}")
+                    continue
+                sim[i][j] = sim[j][i] = float(res["similarity"])
+                how[i][j] = how[j][i] = res["alignment"]["method"]
+    return {"files": [p.name for p in paths], "measure": RANKING_MEASURE, "similarity": sim,
+            "alignment": how, "notes": notes}
 
 
 # ----------------------------------------------------------------------------------------------

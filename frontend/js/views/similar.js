@@ -3,7 +3,7 @@
 
 import { get } from "../api.js";
 import { announce, h, page } from "../dom.js";
-import { emptyChart, loadPlotly, pairPaths3d, strideAlignmentChart } from "../charts.js";
+import { differencesStrip, emptyChart, loadPlotly, pairPaths3d, strideAlignmentChart } from "../charts.js";
 import { fmt, gaitLabel } from "../format.js";
 import { poll } from "../poll.js";
 
@@ -112,6 +112,12 @@ function facts(pair) {
     if (typeof value === "number") rows.push([name.replaceAll("_", " "), fmt(value)]);
   }
   if (pair.view?.strides) rows.push(["Phase shift of the second stride", `${fmt(pair.view.strides.shift_phase * 100, 3)} % of a stride`]);
+  const diff = pair.differences;
+  if (diff) {
+    const k = diff.most_different_stretch;
+    const stretch = `${Math.round((k / diff.stretches) * 100)}-${Math.round(((k + 1) / diff.stretches) * 100)} %`;
+    rows.push(["Differ most", `${diff.most_different_marker}, ${stretch} of the stride`]);
+  }
   if (pair.reason) rows.push(["Why not comparable", pair.reason]);
   return rows.flatMap(([term, value]) => [h("dt", {}, term), h("dd", { dataset: { fact: term } }, String(value))]);
 }
@@ -128,6 +134,7 @@ export async function mountRidePair(view, { a, b }, query) {
   view.querySelector("[data-pair-back]").textContent = `#${a}`;
   const paths = view.querySelector('[data-chart="pair-paths"]');
   const alignment = view.querySelector('[data-chart="pair-alignment"]');
+  const differences = view.querySelector('[data-chart="pair-differences"]');
 
   async function load() {
     state.replaceChildren(h("p", {}, "Comparing\u2026"));
@@ -140,6 +147,7 @@ export async function mountRidePair(view, { a, b }, query) {
       view.querySelector("[data-pair-facts]").replaceChildren();
       emptyChart(paths, "No comparison.");
       emptyChart(alignment, "No comparison.");
+      emptyChart(differences, "No comparison.");
       return;
     }
     const names = pair.rides.map(rideName);
@@ -151,6 +159,7 @@ export async function mountRidePair(view, { a, b }, query) {
     state.replaceChildren(h("p", { class: "hint" }, pair.cached ? "From the comparison cache." : "Compared just now."));
     pairPaths3d(paths, pair.view.paths_mm, pair.view.strides, short);
     strideAlignmentChart(alignment, pair.view.strides, short);
+    differencesStrip(differences, pair.differences);
   }
 
   form.addEventListener("change", load);

@@ -11,7 +11,6 @@ import pytest
 from conftest import real_data_path
 from saddlescope.core.errors import InputError, MocapFileError
 from saddlescope.io.mocap import MocapData, read_mocap, write_c3d, write_trc
-from saddlescope.io.mocap import c3d as mocap_c3d
 
 EB015 = ("Eb015pi.c3d", "Eb015pr.c3d", "Eb015sr.c3d")
 BAD_FILES = ("Empty.c3d", "Empty.trc", "Truncated.trc", "badParameterOffset.c3d", "bad_parameter_section.c3d")
@@ -71,6 +70,43 @@ def test_gait_c3d_and_trc():
     both = np.isfinite(dist)
     assert both.sum() > 5000
     assert np.median(dist[both]) < 2.0
+
+
+# What the ``c3d`` package reads (BTK samples with faulty headers included), with the repairs noted:
+# name -> (frames, markers, rate Hz, a note that must be there or None).
+READ_BY_LIBRARIES = {
+    "dynamic.C3D": (296, 34, 100.0, "POINT:DATA_START is missing"),
+    "standing.C3D": (200, 38, 100.0, "POINT:RATE is missing"),
+    "Dance.c3d": (499, 40, 65.053, "POINT:FRAMES says 500 frames"),
+    "golfswing.c3d": (514, 29, 107.527, "POINT:DATA_START is 0"),
+    "Gait.c3d": (487, 33, 100.0, None),
+    "PiG_Motion3_FF.c3d": (293, 97, 100.0, None),
+    "PiG_Calibration3_FF.c3d": (95, 66, 100.0, None),
+}
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("name", sorted(READ_BY_LIBRARIES))
+def test_every_file_a_well_kept_reader_reads_is_read(name):
+    frames, markers, rate, note = READ_BY_LIBRARIES[name]
+    data = read_mocap(real_data_path("c3d", name))
+    assert (data.n_frames, data.n_markers) == (frames, markers)
+    assert data.rate_hz == pytest.approx(rate, abs=1e-3)
+    assert len(set(data.labels)) == markers
+    seen = np.isfinite(data.points).all(axis=2)
+    assert seen.mean() > 0.3
+    assert np.nanmax(np.abs(data.points)) < 1e5  # millimetres of a lab, not garbage
+    if note:
+        assert any(w.startswith(note) for w in data.warnings), data.warnings
+
+
+@pytest.mark.realdata
+@pytest.mark.parametrize("name", ["dynamic.C3D", "standing.C3D", "Dance.c3d", "golfswing.c3d"])
+def test_repaired_files_give_smooth_trajectories(name):
+    # A wrong layout (data start, word size, scale) reads noise: ezc3d 1.5 gives dynamic.C3D a median
+    # |second difference| of ~1 m per frame. A body marker at 65-108 Hz moves a few mm per frame.
+    points = read_mocap(real_data_path("c3d", name)).points
+    assert np.nanmedian(np.abs(np.diff(points, 2, axis=0))) < 3.0
 
 
 @pytest.mark.realdata
@@ -168,16 +204,8 @@ def test_c3d_bad_key_truncated_data_and_bad_offset(tmp_path):
     corrupt = bytearray(raw)
     struct.pack_into("<h", corrupt, p0 + 4 + 2 + name_len, 30000)
     bad.write_bytes(bytes(corrupt))
-    with pytest.raises(MocapFileError, match="bad parameter offset 30000"):
+    with pytest.raises(MocapFileError, match="parameter section is corrupt"):
         read_mocap(bad)
-
-
-def test_a_crash_of_the_native_reader_becomes_an_error(tmp_path, monkeypatch):
-    path = tmp_path / "ok.c3d"
-    path.write_bytes(_small_c3d(tmp_path))
-    monkeypatch.setattr(mocap_c3d, "_EZC3D_CHILD", "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)")
-    with pytest.raises(MocapFileError, match="crashed"):
-        read_mocap(path)
 
 
 @pytest.mark.realdata

@@ -10,50 +10,62 @@ The stages, in the order the pipeline runs them:
   coordinate, their goodness of fit and uncertainty, and their analytic derivatives;
 - :mod:`.rigid_body`: angular velocity and acceleration of the marker triangle;
 - :mod:`.saddle_point`: position, velocity and acceleration of the invisible saddle point.
+
+The names are imported on first use (PEP 562): ``estimate_period`` (numpy only) then does not pull
+scipy's signal, stats and optimize in for a command that needs only the period.
 """
 
-from saddlescope.core.kinematics.curve_fits import FourierFit, LinearFit, count_extrema, fit_fourier, fit_linear
-from saddlescope.core.kinematics.fitting import MarkerKinematics, fit_marker_kinematics
-from saddlescope.core.kinematics.frames import (
-    CAMERA_DOWN,
-    MotionFrame,
-    motion_frame,
-    plumb_gravity,
-    to_motion_frame,
-    travel_velocity,
-    vectors_to_motion_frame,
-)
-from saddlescope.core.kinematics.goodness_of_fit import CRITERIA, GoodnessOfFit
-from saddlescope.core.kinematics.period import analysis_window, estimate_period
-from saddlescope.core.kinematics.registration import (
-    Registration,
-    broken_distance_samples,
-    check_marker_layout,
-    layout_ratio,
-    marker_model,
-    register_rigid,
-)
-from saddlescope.core.kinematics.rigid_body import (
-    ANGULAR_METHODS,
-    VERSION_NAMES,
-    AngularKinematics,
-    alpha_least_squares,
-    alpha_versions,
-    angular_kinematics,
-    omega_least_squares,
-    omega_versions,
-    plane_normal,
-    singularity_index,
-    unobservable_axis,
-    weak_axis_gain,
-)
-from saddlescope.core.kinematics.saddle_point import (
-    PointKinematics,
-    body_frame,
-    saddle_body_coordinates,
-    saddle_point_kinematics,
-)
-from saddlescope.core.kinematics.smoothing import bridge_gaps, regularize_depth, rloess, span_points
+from __future__ import annotations
+
+import importlib
+
+# name -> the submodule defining it
+_WHERE = {
+    "span_points": "smoothing",
+    "rloess": "smoothing",
+    "bridge_gaps": "smoothing",
+    "regularize_depth": "smoothing",
+    "estimate_period": "period",
+    "analysis_window": "period",
+    "CAMERA_DOWN": "frames",
+    "MotionFrame": "frames",
+    "plumb_gravity": "frames",
+    "travel_velocity": "frames",
+    "motion_frame": "frames",
+    "to_motion_frame": "frames",
+    "vectors_to_motion_frame": "frames",
+    "Registration": "registration",
+    "layout_ratio": "registration",
+    "check_marker_layout": "registration",
+    "marker_model": "registration",
+    "register_rigid": "registration",
+    "broken_distance_samples": "registration",
+    "CRITERIA": "goodness_of_fit",
+    "GoodnessOfFit": "goodness_of_fit",
+    "LinearFit": "curve_fits",
+    "fit_linear": "curve_fits",
+    "FourierFit": "curve_fits",
+    "count_extrema": "curve_fits",
+    "fit_fourier": "curve_fits",
+    "MarkerKinematics": "fitting",
+    "fit_marker_kinematics": "fitting",
+    "VERSION_NAMES": "rigid_body",
+    "ANGULAR_METHODS": "rigid_body",
+    "AngularKinematics": "rigid_body",
+    "unobservable_axis": "rigid_body",
+    "weak_axis_gain": "rigid_body",
+    "omega_versions": "rigid_body",
+    "alpha_versions": "rigid_body",
+    "omega_least_squares": "rigid_body",
+    "alpha_least_squares": "rigid_body",
+    "plane_normal": "rigid_body",
+    "singularity_index": "rigid_body",
+    "angular_kinematics": "rigid_body",
+    "PointKinematics": "saddle_point",
+    "body_frame": "saddle_point",
+    "saddle_body_coordinates": "saddle_point",
+    "saddle_point_kinematics": "saddle_point",
+}
 
 __all__ = [
     # smoothing
@@ -108,3 +120,16 @@ __all__ = [
     "saddle_body_coordinates",
     "saddle_point_kinematics",
 ]
+
+
+def __getattr__(name: str):
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

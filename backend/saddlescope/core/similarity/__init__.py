@@ -12,6 +12,7 @@ Bribiesca & Aguilar, and, for reference, by dynamic time warping (DTW) of the ra
 - :mod:`.measures`: chain-code measures of two curves in one canonical frame;
 - :mod:`.alignment`: Needleman-Wunsch alignment and its similarity;
 - :mod:`.shape`: maximal common sub-chains and the shape dissimilarity D';
+- :mod:`.recordings`: two recordings aligned in time (cycle phase or subsequence DTW) and space;
 - :mod:`.dtw`: dynamic time warping (the plain numpy reference);
 - :mod:`.trajectories`: all of them per marker subset and time window.
 
@@ -59,6 +60,16 @@ from saddlescope.core.similarity.chain_code import (
 )
 from saddlescope.core.similarity.dtw import dtw_distance_reference
 from saddlescope.core.similarity.measures import chain_measures, closed_loop_chain
+from saddlescope.core.similarity.recordings import (
+    ALIGNMENTS,
+    AlignedRecordings,
+    RecordingSignature,
+    align_recordings,
+    align_signatures,
+    recording_signature,
+    remove_progression,
+    stretch_differences,
+)
 from saddlescope.core.similarity.shape import maximal_matches, shape_dissimilarity
 from saddlescope.core.similarity.trajectories import trajectory_similarity
 
@@ -104,6 +115,15 @@ __all__ = [
     # measures of canonical curves
     "closed_loop_chain",
     "chain_measures",
+    # recordings aligned in time and space
+    "ALIGNMENTS",
+    "AlignedRecordings",
+    "RecordingSignature",
+    "align_recordings",
+    "align_signatures",
+    "recording_signature",
+    "remove_progression",
+    "stretch_differences",
     # dynamic time warping
     "dtw_distance_reference",
     # per marker subset and time window

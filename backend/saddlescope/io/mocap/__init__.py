@@ -4,7 +4,7 @@
 (F, M, 3) with NaN where a marker is missing, units ('mm' or 'm') and the first frame number.
 
 - :mod:`.data`: :class:`MocapData` and what the readers and writers share;
-- :mod:`.c3d`: C3D, walked and validated here before ezc3d reads it;
+- :mod:`.c3d`: C3D, read with the ``c3d`` package (what it repaired said as notes);
 - :mod:`.trc`: the TRC text format;
 - :mod:`.reader`: :func:`read_mocap`, the reader chosen by the file's extension.
 """

@@ -1,22 +1,23 @@
-"""C3D files: the header and parameter section walked and validated here, the points read with ezc3d.
+"""C3D files read with the ``c3d`` package (pure Python and numpy), with what it repaired said as notes.
 
-C3D files are read with ezc3d. Before ezc3d sees a file its header and parameter section are walked
-here record by record (every offset checked against the file size), because a C++ reader can crash or
-read garbage on a corrupt pointer; a file that fails the walk gets a :class:`MocapFileError` naming
-what is wrong. ezc3d does not read the SGI/MIPS (big-endian) flavour of C3D, so those files are read
-here from the validated parameters with numpy.
+The ``c3d`` package reads every flavour (Intel, DEC and SGI/MIPS processors; integer and float
+points) and files with faulty headers that well-kept readers tolerate: a missing or zero
+POINT:DATA_START (the header's data block is used), missing POINT:SCALE / POINT:RATE (the header's
+values), repeated labels, zero-length description strings. Being pure Python it cannot crash the
+process on a corrupt file (ezc3d, native code, had to run in a child process for that, and it does
+not read MIPS files nor the PhoeniX files of BTK's sample13). What stays ours: the one-sentence
+errors for files no reader can read (empty, not C3D, truncated, corrupt parameter section), the
+notes naming what was repaired, telling repeated labels apart and the file's stated vertical.
 """
 
 from __future__ import annotations
 
 import math
-import struct
-import subprocess
-import sys
-import tempfile
-from dataclasses import dataclass
+import re
+import warnings
 from pathlib import Path
 
+import c3d as c3d_lib
 import numpy as np
 
 from saddlescope.core.errors import MocapFileError
@@ -26,77 +27,58 @@ from saddlescope.io.mocap.data import MocapData, _normalise_units, _read_bytes
 __all__ = ["distinct_labels", "read_c3d"]
 
 _BLOCK = 512
-_PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
-_PARAM_BYTES = {-1: 1, 1: 1, 2: 2, 4: 4}
+_C3D_KEY = 0x50
+# Library warnings that say nothing the user needs, or that our own notes say in plain words.
+_QUIET = ("missing parameter", "no analog data", "inconsistent data block", "no pointer available",
+          "reached end of file")  # the last: our own note or error says it
 
 
-@dataclass(frozen=True)
-class _C3DParam:
-    type_code: int  # -1 char, 1 byte, 2 int16, 4 float
-    dims: tuple[int, ...]
-    raw: bytes
+def _open(data: bytes, handle, name: str):
+    """The ``c3d`` package's reader on the open file, or a MocapFileError saying why not."""
+    if len(data) < _BLOCK:
+        raise MocapFileError(f"{name}: {len(data)} bytes is too short for a C3D header (needs {_BLOCK})")
+    if data[1] != _C3D_KEY:
+        raise MocapFileError(f"{name}: not a C3D file (header key byte is 0x{data[1]:02x}, expected 0x50)")
+    try:
+        reader = c3d_lib.Reader(handle)
+    except Exception as exc:  # noqa: BLE001 - any failure of the parameter walk is a corrupt file
+        raise MocapFileError(f"{name}: not a readable C3D file: its parameter section is corrupt "
+                             f"({_reason(exc)})") from None
+    if reader.get("POINT:USED") is None:
+        # The library stops at a record whose offset points out of the section: nothing names the points.
+        raise MocapFileError(f"{name}: not a readable C3D file: its parameter section is corrupt "
+                             "(no POINT:USED parameter can be reached)")
+    return reader
 
 
-@dataclass(frozen=True)
-class _C3DLayout:
-    """What the header and parameter walk established about a C3D file."""
-
-    processor: str
-    n_points: int
-    analog_per_frame: int
-    first_frame: int
-    n_frames: int
-    scale: float
-    rate_hz: float
-    data_start: int  # byte offset
-    labels: tuple[str, ...]
-    units: str
-    params: dict[tuple[str, str], _C3DParam]
+def _reason(exc: Exception) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text[:160]
 
 
-class _C3DCodec:
-    """Integer and float decoding for one processor type (Intel, DEC, MIPS)."""
-
-    def __init__(self, processor: str):
-        self.processor = processor
-        self.endian = ">" if processor == "mips" else "<"
-
-    def int16(self, raw: bytes, offset: int = 0) -> int:
-        return struct.unpack_from(self.endian + "h", raw, offset)[0]
-
-    def uint16(self, raw: bytes, offset: int = 0) -> int:
-        return struct.unpack_from(self.endian + "H", raw, offset)[0]
-
-    def float32(self, raw: bytes, offset: int = 0) -> float:
-        b = raw[offset:offset + 4]
-        if self.processor == "dec":
-            # DEC F_floating: 16-bit words swapped against IEEE little-endian, exponent bias 2 higher.
-            return struct.unpack("<f", b[2:4] + b[0:2])[0] / 4.0
-        return struct.unpack(self.endian + "f", b)[0]
+def _number(reader, key: str) -> float | None:
+    """A numeric parameter's first value, None where the file does not have it."""
+    p = reader.get(key)
+    if p is None or p.bytes_per_element == -1 or not p.bytes:
+        return None
+    return float(p.float_value if p.bytes_per_element == 4 else p.int16_value)
 
 
-def _decode_param(codec: _C3DCodec, p: _C3DParam) -> list:
-    """Values of a numeric parameter as a flat list (column-major, as stored)."""
-    n = len(p.raw) // abs(p.type_code)
-    if p.type_code == 1:
-        return list(struct.unpack(f"{n}b", p.raw))
-    if p.type_code == 2:
-        return [codec.int16(p.raw, 2 * i) for i in range(n)]
-    if p.type_code == 4:
-        return [codec.float32(p.raw, 4 * i) for i in range(n)]
-    raise ValueError("character parameter")
-
-
-def _decode_strings(p: _C3DParam) -> list[str]:
-    """A character parameter as a list of strings (first dimension is the string length)."""
-    if p.type_code != -1:
-        return []
-    if len(p.dims) <= 1:
-        return [_clean(p.raw)]
-    width = p.dims[0]
-    if width == 0:
-        return []
-    return [_clean(p.raw[i:i + width]) for i in range(0, len(p.raw), width)]
+def _strings(reader, key: str) -> list[str]:
+    """A character parameter as stripped strings (``KEY``, ``KEY2``, ... continued), [] if absent."""
+    out: list[str] = []
+    for name in [key] + [f"{key}{i}" for i in range(2, 100)]:
+        p = reader.get(name)
+        if p is None:
+            break
+        if p.bytes_per_element != -1:
+            return out
+        if len(p.dimensions) <= 1:
+            out.append(_clean(p.bytes))
+        elif p.dimensions[0] > 0:
+            width = p.dimensions[0]
+            out += [_clean(p.bytes[i:i + width]) for i in range(0, len(p.bytes), width)]
+    return out
 
 
 def _clean(raw: bytes) -> str:
@@ -104,235 +86,53 @@ def _clean(raw: bytes) -> str:
     return raw.decode("latin-1").replace("\x00", " ").strip()
 
 
-def _walk_c3d(data: bytes, name: str) -> _C3DLayout:
-    """Validate the C3D header and parameter section; return the layout of the point data.
-
-    Every record offset is checked to stay inside the parameter section and move forward, so a corrupt
-    file gives a clear error instead of a crash in a native reader.
-    """
-    size = len(data)
-    if size < _BLOCK:
-        raise MocapFileError(f"{name}: {size} bytes is too short for a C3D header (needs {_BLOCK})")
-    if data[1] != 0x50:
-        raise MocapFileError(f"{name}: not a C3D file (header key byte is 0x{data[1]:02x}, expected 0x50)")
-    param_block = data[0]
-    p0 = (param_block - 1) * _BLOCK
-    if param_block < 2 or p0 + 4 > size:
-        raise MocapFileError(f"{name}: bad parameter section pointer (block {param_block}) in the C3D header")
-    processor_code = data[p0 + 3]
-    if processor_code not in _PROCESSORS:
-        raise MocapFileError(f"{name}: unknown C3D processor type {processor_code} at the start of the "
-                             "parameter section (expected 84 Intel, 85 DEC or 86 MIPS)")
-    codec = _C3DCodec(_PROCESSORS[processor_code])
-    n_blocks = data[p0 + 2]
-    # Some writers miscount the blocks; the file end is the hard limit.
-    p_end = min(size, p0 + max(n_blocks, 1) * _BLOCK) if n_blocks else size
-    params = _walk_parameters(data, name, codec, p0, p_end)
-    return _point_layout(data, name, codec, params, param_block)
+def _repairs(reader) -> list[str]:
+    """What the header and parameters disagree on or lack, and what was used instead."""
+    header = reader.header
+    notes = []
+    start = _number(reader, "POINT:DATA_START")
+    if start is None or start <= 1:
+        what = "missing" if start is None else f"{start:.0f}"
+        notes.append(f"POINT:DATA_START is {what}; the header's data block {header.data_block} was used")
+    elif int(start) != header.data_block:
+        notes.append(f"POINT:DATA_START ({start:.0f}) and the header's data block ({header.data_block}) "
+                     "disagree; the header's was used")
+    if _number(reader, "POINT:SCALE") is None:
+        notes.append(f"POINT:SCALE is missing; the header's scale ({header.scale_factor:g}) was used")
+    if _number(reader, "POINT:RATE") is None:
+        notes.append(f"POINT:RATE is missing; the header's rate ({header.frame_rate:g} Hz) was used")
+    if reader.get("POINT:UNITS") is None:
+        notes.append("POINT:UNITS is missing; millimetres assumed (the C3D default)")
+    return notes
 
 
-def _walk_parameters(data: bytes, name: str, codec: _C3DCodec, p0: int, p_end: int
-                     ) -> dict[tuple[str, str], _C3DParam]:
-    """The parameters of the section at bytes ``p0``-``p_end``, by (group name, parameter name)."""
-    groups: dict[int, str] = {}
-    pending: list[tuple[int, str, _C3DParam]] = []
-    pos = p0 + 4
-    while pos + 2 <= p_end:
-        name_len = struct.unpack_from("b", data, pos)[0]
-        if name_len == 0:
-            break
-        group_id, rec_name, offset, body, next_pos = _record_head(data, name, codec, pos, p0, p_end)
-        if group_id < 0:
-            if body + 1 > next_pos or body + 1 + data[body] > next_pos:
-                raise MocapFileError(f"{name}: group {rec_name!r} overruns its record at byte {pos}")
-            groups[-group_id] = rec_name.upper()
-        else:
-            pending.append((group_id, rec_name.upper(), _parameter_body(data, name, rec_name, pos, body, next_pos)))
-        if not offset:
-            break
-        pos = next_pos
-
-    params: dict[tuple[str, str], _C3DParam] = {}
-    for group_id, pname, param in pending:
-        if group_id not in groups:
-            raise MocapFileError(f"{name}: parameter {pname!r} belongs to group {group_id}, which the "
-                                 "parameter section does not define")
-        params[(groups[group_id], pname)] = param
-    if "POINT" not in groups.values():
-        raise MocapFileError(f"{name}: the parameter section has no POINT group")
-    return params
-
-
-def _record_head(data: bytes, name: str, codec: _C3DCodec, pos: int, p0: int, p_end: int
-                 ) -> tuple[int, str, int, int, int]:
-    """Group id, name, offset to the next record, body start and next position of the record at ``pos``."""
-    name_len = struct.unpack_from("b", data, pos)[0]
-    group_id = struct.unpack_from("b", data, pos + 1)[0]
-    n = abs(name_len)
-    head_end = pos + 2 + n + 2
-    if group_id == 0 or head_end > p_end:
-        raise MocapFileError(f"{name}: corrupt parameter record at byte {pos} (group id {group_id}, "
-                             f"name length {n})")
-    rec_name = data[pos + 2:pos + 2 + n].decode("latin-1")
-    if not all(33 <= ord(c) < 127 for c in rec_name):
-        raise MocapFileError(f"{name}: corrupt parameter record name {rec_name[:32]!r} at byte {pos}")
-    offset = codec.int16(data, pos + 2 + n)
-    body = pos + 2 + n + 2
-    next_pos = pos + 2 + n + offset if offset else p_end
-    if offset and (offset < 2 or next_pos > p_end):
-        raise MocapFileError(f"{name}: bad parameter offset {offset} for {rec_name!r} at byte {pos} "
-                             f"(points outside the parameter section, bytes {p0}-{p_end})")
-    return group_id, rec_name, offset, body, next_pos
-
-
-def _parameter_body(data: bytes, name: str, rec_name: str, pos: int, body: int, next_pos: int) -> _C3DParam:
-    """Type, dimensions and raw values of the parameter whose body starts at ``body``."""
-    if body + 2 > next_pos:
-        raise MocapFileError(f"{name}: parameter {rec_name!r} overruns its record at byte {pos}")
-    type_code = struct.unpack_from("b", data, body)[0]
-    n_dims = data[body + 1]
-    if type_code not in _PARAM_BYTES or n_dims > 7:
-        raise MocapFileError(f"{name}: parameter {rec_name!r} has a bad type ({type_code}) or "
-                             f"dimension count ({n_dims}) at byte {pos}")
-    dims = tuple(data[body + 2:body + 2 + n_dims])
-    n_values = math.prod(dims) if n_dims else 1
-    raw_start = body + 2 + n_dims
-    raw_end = raw_start + n_values * _PARAM_BYTES[type_code]
-    if raw_end + 1 > next_pos or raw_end + 1 + data[raw_end] > next_pos:
-        raise MocapFileError(f"{name}: parameter {rec_name!r} overruns its record at byte {pos} "
-                             f"(declares {n_values} values of {_PARAM_BYTES[type_code]} bytes)")
-    return _C3DParam(type_code, dims, bytes(data[raw_start:raw_end]))
-
-
-def _point_layout(data: bytes, name: str, codec: _C3DCodec, params: dict[tuple[str, str], _C3DParam],
-                  param_block: int) -> _C3DLayout:
-    """The point data's layout from the header, where the POINT parameters do not override it."""
-    size = len(data)
-    p0 = (param_block - 1) * _BLOCK
-
-    def number(group: str, pname: str, default: float | None) -> float | None:
-        p = params.get((group, pname))
-        if p is None or p.type_code == -1 or not p.raw:
-            return default
-        return float(_decode_param(codec, p)[0])
-
-    h_points = codec.uint16(data, 2)
-    h_analog = codec.uint16(data, 4)
-    h_first = codec.uint16(data, 6)
-    h_scale = codec.float32(data, 12)
-    h_data_block = codec.uint16(data, 16)
-    h_rate = codec.float32(data, 20)
-
-    n_points = int(number("POINT", "USED", h_points))
-    if n_points < 0 or n_points != h_points:
-        raise MocapFileError(f"{name}: POINT:USED ({n_points}) disagrees with the header point count "
-                             f"({h_points})")
-    n_frames = _frame_count(data, codec, params)
-    scale = number("POINT", "SCALE", h_scale)
-    rate = number("POINT", "RATE", h_rate)
-    if not (rate and math.isfinite(rate) and rate > 0):
-        raise MocapFileError(f"{name}: the point rate ({rate}) is not a positive number")
-    if not (scale and math.isfinite(scale)):
-        raise MocapFileError(f"{name}: the point scale factor ({scale}) is zero or not a number")
-    data_block = int(number("POINT", "DATA_START", h_data_block) or h_data_block)
-    data_start = (data_block - 1) * _BLOCK
-    if data_block < 2 or data_start <= p0 or data_start > size:
-        raise MocapFileError(f"{name}: bad data start block {data_block} (file has {size // _BLOCK} blocks, "
-                             f"parameters start at block {param_block})")
-    value_bytes = 4 if scale < 0 else 2
-    frame_bytes = (4 * n_points + h_analog) * value_bytes
-    if data_start + n_frames * frame_bytes > size:
-        have = max(0, (size - data_start) // frame_bytes) if frame_bytes else 0
-        raise MocapFileError(f"{name}: truncated: the header declares {n_frames} frames but the file holds "
-                             f"only {have}")
-    labels, units = _labels_and_units(params, n_points)
-    return _C3DLayout(codec.processor, n_points, h_analog, h_first, n_frames, float(scale), float(rate),
-                      data_start, labels, units, params)
-
-
-def _frame_count(data: bytes, codec: _C3DCodec, params: dict[tuple[str, str], _C3DParam]) -> int:
-    """Number of frames: from the header's first and last frame, or TRIAL:ACTUAL_END_FIELD past 65535."""
-    h_first = codec.uint16(data, 6)
-    h_last = codec.uint16(data, 8)
-    n_frames = h_last - h_first + 1 if h_last >= h_first else 0
-    actual_end = params.get(("TRIAL", "ACTUAL_END_FIELD"))
-    if h_last == 65535 and actual_end is not None and actual_end.type_code == 2:
-        # More than 65535 frames: the true end is stored as two 16-bit words.
-        lo, hi = (v & 0xFFFF for v in _decode_param(codec, actual_end)[:2])
-        n_frames = lo + (hi << 16) - h_first + 1
-    return n_frames
-
-
-def _labels_and_units(params: dict[tuple[str, str], _C3DParam], n_points: int) -> tuple[tuple[str, ...], str]:
-    """Point labels (POINT:LABELS, LABELS2, ...; unnamed points get ``point<j>``) and the length unit."""
-    labels: list[str] = []
-    for key in ["LABELS"] + [f"LABELS{i}" for i in range(2, 100)]:
-        if ("POINT", key) not in params:
-            break
-        labels += _decode_strings(params[("POINT", key)])
-    labels = labels[:n_points]
-    # Unnamed points still need distinct names.
-    labels += [f"point{j + 1}" for j in range(len(labels), n_points)]
-    units_list = _decode_strings(params[("POINT", "UNITS")]) if ("POINT", "UNITS") in params else []
-    units = (units_list[0] if units_list else "").strip() or "mm"  # the C3D default
-    return tuple(labels), units
-
-
-def _points_numpy(data: bytes, layout: _C3DLayout) -> np.ndarray:
-    """Point data of a validated C3D file, decoded here (used for MIPS, which ezc3d does not read)."""
-    is_float = layout.scale < 0
-    if layout.processor == "dec" and is_float:
-        raise MocapFileError("DEC float point data must be read with ezc3d")
-    dtype = np.dtype("f4" if is_float else "i2").newbyteorder(">" if layout.processor == "mips" else "<")
-    per_frame = 4 * layout.n_points + layout.analog_per_frame
-    values = np.frombuffer(data, dtype=dtype, count=layout.n_frames * per_frame, offset=layout.data_start)
-    values = values.reshape(layout.n_frames, per_frame)[:, :4 * layout.n_points]
-    values = values.reshape(layout.n_frames, layout.n_points, 4).astype(np.float64)
-    xyz = values[..., :3] if is_float else values[..., :3] * layout.scale
-    # Negative 4th word = invalid point (C3D residual convention).
-    xyz[values[..., 3] < 0] = np.nan
-    return xyz
-
-
-# ezc3d runs in a child process: it is native code and can crash (SIGSEGV) on a corrupt file that
-# passes the parameter walk, which would take a web worker down with it.
-_EZC3D_CHILD = """
-import sys
-import numpy as np
-import ezc3d
-c3d = ezc3d.c3d(sys.argv[1], extract_forceplat_data=False)
-np.savez(sys.argv[2], points=np.asarray(c3d["data"]["points"], dtype=np.float64),
-         residuals=np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64))
-"""
-_EZC3D_TIMEOUT_S = 120.0
-
-
-def _points_ezc3d(path: Path, layout: _C3DLayout) -> np.ndarray:
-    with tempfile.TemporaryDirectory(prefix="saddlescope-c3d-") as tmp:
-        out = Path(tmp) / "points.npz"
-        try:
-            proc = subprocess.run([sys.executable, "-c", _EZC3D_CHILD, str(path), str(out)],
-                                  capture_output=True, text=True, timeout=_EZC3D_TIMEOUT_S, check=False)
-        except subprocess.TimeoutExpired as exc:
-            raise MocapFileError(f"{path.name}: reading the C3D data took over {_EZC3D_TIMEOUT_S:.0f} s; "
-                                 "the file is probably malformed") from exc
-        if proc.returncode < 0:
-            raise MocapFileError(f"{path.name}: the C3D reader crashed on this file "
-                                 f"(signal {-proc.returncode}); the file is malformed")
-        if proc.returncode != 0 or not out.is_file():
-            lines = [ln for ln in proc.stderr.strip().splitlines() if ln.strip()]
-            reason = lines[-1] if lines else f"exit status {proc.returncode}"
-            raise MocapFileError(f"{path.name}: not a readable C3D file ({reason})")
-        with np.load(out) as npz:
-            pts = npz["points"]  # (4, M, F)
-            residuals = npz["residuals"]  # (1, M, F)
-    if pts.shape[1:] != (layout.n_points, layout.n_frames):
-        raise MocapFileError(f"{path.name}: ezc3d read {pts.shape[1]} markers x {pts.shape[2]} frames, the "
-                             f"header declares {layout.n_points} x {layout.n_frames}")
-    xyz = np.ascontiguousarray(np.transpose(pts[:3], (2, 1, 0)))
-    if residuals.size:
-        xyz[residuals[0].T < 0] = np.nan
-    return xyz
+def _points(reader, name: str, n_bytes: int) -> tuple[np.ndarray, list[str]]:
+    """(F, M, 3) positions, NaN where the residual is negative (an invalid point), and a note when the
+    file holds fewer frames than POINT:FRAMES says but as many as its header's last frame."""
+    declared = int(reader.frame_count)
+    bytes_per_word = 4 if reader.point_scale < 0 else 2
+    frame_bytes = max(1, (4 * int(reader.point_used) + int(reader.analog_used) * int(reader.analog_per_frame))
+                      * bytes_per_word)
+    room = max(0, n_bytes - (int(reader.header.data_block) - 1) * _BLOCK) // frame_bytes
+    out = np.full((min(declared, room), int(reader.point_used), 3), np.nan)
+    n = 0
+    try:
+        for n, (_, pts, _) in enumerate(reader.read_frames(copy=False, analog_transform=False), start=1):
+            if n > out.shape[0]:
+                n -= 1
+                break
+            valid = pts[:, 3] >= 0
+            out[n - 1][valid] = pts[valid, :3]
+    except Exception as exc:  # noqa: BLE001 - corrupt point data
+        raise MocapFileError(f"{name}: the point data cannot be read ({_reason(exc)})") from None
+    if n == declared:
+        return out, []
+    header_frames = int(reader.header.last_frame) - int(reader.header.first_frame) + 1
+    if 0 < header_frames <= n:  # POINT:FRAMES counts one more than the header and the file hold
+        return out[:header_frames], [f"POINT:FRAMES says {declared} frames, the header and the file hold "
+                                     f"{header_frames}; those were read"]
+    raise MocapFileError(f"{name}: truncated: the header declares {declared} frames but the file holds "
+                         f"only {n}")
 
 
 def read_c3d(path: str | Path) -> MocapData:
@@ -346,43 +146,49 @@ def read_c3d(path: str | Path) -> MocapData:
     Returns
     -------
     MocapData
-        points of shape (F, M, 3), NaN where the residual is negative (invalid point).
+        points of shape (F, M, 3), NaN where the residual is negative (invalid point); ``warnings``
+        names what the reader repaired (a missing POINT:DATA_START, SCALE, RATE, repeated labels).
 
     Raises
     ------
     MocapFileError
-        Empty, truncated or malformed file (bad header, parameter offsets or sections).
+        Empty, too short, truncated or malformed file (not C3D, corrupt parameter section).
     """
     path = Path(path)
     data = _read_bytes(path)
-    layout = _walk_c3d(data, path.name)
-    if layout.processor == "mips":
-        xyz = _points_numpy(data, layout)
-    else:
-        xyz = _points_ezc3d(path, layout)
-    xyz, units = _normalise_units(xyz, layout.units, path.name)
-    descriptions = _point_strings(layout.params, "DESCRIPTIONS", layout.n_points)
-    labels, warnings = distinct_labels(layout.labels, descriptions)
-    return MocapData(labels=labels, rate_hz=layout.rate_hz, points=xyz, units=units,
-                     first_frame=layout.first_frame, source_format="c3d", source=path.name,
-                     warnings=warnings, descriptions=descriptions, up_axis=_screen_up(layout.params))
+    with warnings.catch_warnings(record=True) as caught, path.open("rb") as handle:
+        warnings.simplefilter("always")
+        reader = _open(data, handle, path.name)
+        rate = float(reader.point_rate)
+        if not (math.isfinite(rate) and rate > 0):
+            raise MocapFileError(f"{path.name}: the point rate ({rate}) is not a positive number")
+        if not (math.isfinite(reader.point_scale) and reader.point_scale != 0):
+            raise MocapFileError(f"{path.name}: the point scale factor ({reader.point_scale}) is zero or not a number")
+        xyz, short = _points(reader, path.name, len(data))
+    notes = _repairs(reader) + short + [_library_note(w) for w in caught if _library_note(w)]
+    units = (_strings(reader, "POINT:UNITS") or [""])[0] or "mm"  # the C3D default
+    xyz, units = _normalise_units(xyz, units, path.name)
+    n_points = xyz.shape[1]
+    labels = _strings(reader, "POINT:LABELS")[:n_points]
+    labels += [f"point{j + 1}" for j in range(len(labels), n_points)]  # unnamed points still need names
+    labels = [s or f"point{j + 1}" for j, s in enumerate(labels)]
+    described = _strings(reader, "POINT:DESCRIPTIONS")
+    descriptions = tuple(described[:n_points]) if len(described) >= n_points else ()
+    labels, repeated = distinct_labels(labels, descriptions)
+    return MocapData(labels=labels, rate_hz=rate, points=xyz, units=units, first_frame=int(reader.first_frame),
+                     source_format="c3d", source=path.name, warnings=tuple(notes) + repeated,
+                     descriptions=descriptions, up_axis=_screen_up(reader))
 
 
-def _point_strings(params: dict[tuple[str, str], _C3DParam], key: str, n_points: int) -> tuple[str, ...]:
-    """POINT:<key> (DESCRIPTIONS, ...) and its continuations <key>2, <key>3, ..., one per point."""
-    out: list[str] = []
-    for name in [key] + [f"{key}{i}" for i in range(2, 100)]:
-        if ("POINT", name) not in params:
-            break
-        out += _decode_strings(params[("POINT", name)])
-    return tuple(out[:n_points]) if len(out) >= n_points else ()
+def _library_note(w: warnings.WarningMessage) -> str | None:
+    text = " ".join(str(w.message).split())
+    return None if not text or text.lower().startswith(_QUIET) else f"C3D reader: {text}"
 
 
-def _screen_up(params: dict[tuple[str, str], _C3DParam]) -> str | None:
+def _screen_up(reader) -> str | None:
     """The lab's vertical as the file states it: POINT:Y_SCREEN ("+Z" -> "+z"), else None."""
-    p = params.get(("POINT", "Y_SCREEN"))
-    text = (_decode_strings(p) or [""])[0].strip().lower() if p is not None else ""
-    return text if text in ("+x", "-x", "+y", "-y", "+z", "-z") else None
+    text = (_strings(reader, "POINT:Y_SCREEN") or [""])[0].strip().lower()
+    return text if re.fullmatch(r"[+-][xyz]", text) else None
 
 
 def distinct_labels(labels, descriptions=()) -> tuple[tuple[str, ...], tuple[str, ...]]:
