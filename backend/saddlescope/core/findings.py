@@ -132,6 +132,10 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
      "Some frames of the file hold more values than markers; they were ignored."),
     ("mocap.repeated_labels", "check", "input",
      "Give every marker its own label in the motion-capture software; repeated ones were told apart."),
+    ("mocap.header_repaired", "ok", "input",
+     "The file's header missed or contradicted a value that was taken from the file itself; nothing to do."),
+    ("mocap.reader_note", "check", "input",
+     "The C3D reader noted something unusual in the file; check its trajectories if the numbers look wrong."),
     # a sentence of a result stored before findings were data that no legacy pattern recognises
     ("other", "check", "unknown", "The analysis noted something unusual; the detail says what."),
 )
