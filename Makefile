@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test install system-deps lint clean
+.PHONY: demo test test-fast install system-deps lint clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -75,6 +75,14 @@ TEST_WORKERS ?= 2
 
 test: install system-deps lint
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
+
+# The inner loop: every test but the slow ones (whole rendered rides), the browser's and those needing
+# PostgreSQL, Redis, a Celery worker or an S3 server (markers slow, browser, integration). `make test` runs
+# everything, and is what CI runs.
+FAST_TESTS := not slow and not browser and not integration
+
+test-fast: install
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile -m "$(FAST_TESTS)"
 
 clean:
 	rm -rf $(VENV) var .cache/npm

@@ -24,6 +24,10 @@ from saddlescope.settings import Settings, load_settings, with_embedded_secret
 
 MAX_UPLOAD_BYTES = 16 * 1024**2
 ENGINES = ["embedded", pytest.param("celery", marks=[pytest.mark.integration, pytest.mark.slow])]
+# A bucket of a real SeaweedFS (tests/s3_server.py): a server of its own, so an integration test (`make test`
+# runs it; `make test-fast` leaves it out).
+EMBEDDED_S3 = pytest.param("embedded-s3", marks=pytest.mark.integration)
+CELERY_S3 = pytest.param("celery-s3", marks=[pytest.mark.integration, pytest.mark.slow])
 
 
 @dataclass

@@ -45,7 +45,8 @@ def closed_embedded_queue(settings) -> EmbeddedQueue:
     return queue
 
 
-@pytest.fixture(params=["embedded-file", "embedded-s3", "celery-file", "celery-s3"])
+@pytest.fixture(params=["embedded-file", *(pytest.param(p, marks=pytest.mark.integration)
+                                           for p in ("embedded-s3", "celery-file", "celery-s3"))])
 def refusing(request, tmp_path, monkeypatch):
     engine, store = request.param.split("-")
     overrides = {"database_url": f"sqlite:///{tmp_path / 'db.sqlite'}", "storage_dir": str(tmp_path / "storage"),

@@ -13,7 +13,7 @@ import pytest
 import s3_server as s3_server_module
 from api_helpers import new_club, zip_folder
 from disk_watch import HeldQueue, bundle_clip_digests, queue_of, watching_local_writes
-from engines import open_env
+from engines import EMBEDDED_S3, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
 from saddlescope.services import direct_uploads
@@ -24,7 +24,7 @@ s3_server = s3_server_module.s3_server  # one SeaweedFS for the session (tests/s
 PART_BYTES = 5 * 1024**2  # S3's smallest part but the last: three parts for the test's 12 MiB
 
 
-@pytest.fixture(scope="module", params=["embedded-s3"])
+@pytest.fixture(scope="module", params=[EMBEDDED_S3])
 def env(request, tmp_path_factory):
     yield from open_env(request, tmp_path_factory, worker=False)
 

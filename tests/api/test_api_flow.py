@@ -15,7 +15,7 @@ import openpyxl
 import pytest
 import s3_server as s3_server_module
 from api_helpers import Api, add_member, new_club, ride_json_with, standin_result, zip_folder
-from engines import ENGINES, open_env
+from engines import CELERY_S3, EMBEDDED_S3, ENGINES, open_env
 
 from saddlescope.core.vibration import COMFORT_INDICATORS, leaderboard
 from saddlescope.io.mocap import read_mocap
@@ -30,7 +30,7 @@ STAGES = {"probe", "assemble", "calibrate", "analyze", "total"}
 
 
 @pytest.fixture(scope="module", params=[
-    *ENGINES, "embedded-s3", pytest.param("celery-s3", marks=[pytest.mark.integration, pytest.mark.slow])])
+    *ENGINES, EMBEDDED_S3, CELERY_S3])
 def env(request, tmp_path_factory):
     yield from open_env(request, tmp_path_factory)
 

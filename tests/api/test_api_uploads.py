@@ -20,7 +20,7 @@ import pytest
 import s3_server as s3_server_module
 from api_helpers import new_club, zip_folder
 from disk_watch import HeldQueue, bundle_clip_digests, in_a_job_thread, queue_of, watching_local_writes
-from engines import ENGINES, open_env
+from engines import EMBEDDED_S3, ENGINES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip, zip_with_a_flipped_byte
 
 from saddlescope.storage import FileStorage, open_storage, upload_key
@@ -31,7 +31,7 @@ pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
 
 
-@pytest.fixture(scope="module", params=[*ENGINES, "embedded-s3"])
+@pytest.fixture(scope="module", params=[*ENGINES, EMBEDDED_S3])
 def env(request, tmp_path_factory):
     # The streamed transport on every back end (direct uploads to the bucket: test_api_direct_uploads.py).
     yield from open_env(request, tmp_path_factory, worker=False, direct_uploads=False)
