@@ -84,6 +84,8 @@ class Settings(BaseSettings):
     # the storage is a bucket. False keeps them streaming through the API (PATCH chunks).
     direct_uploads: bool | None = None
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
+    # Below this much free space on the storage folder's disk /api/health says the storage is "degraded".
+    storage_min_free_bytes: int = Field(default=GIB, ge=0)
     # Largest JSON request body (uploads are streamed as raw bytes or multipart, not JSON).
     max_json_body_bytes: int = Field(default=2 * 1024**2, gt=0)
     # An open resumable upload that receives nothing for this long is removed with its bytes.
