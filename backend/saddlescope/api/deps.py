@@ -47,8 +47,8 @@ from saddlescope.storage import Storage
 
 __all__ = [
     "AdminClubDep", "CSRF_COOKIE", "CSRF_HEADER", "ClubDep", "ClubScope", "EngineDep", "PrincipalDep",
-    "QueueDep", "SAFE_METHODS", "SESSION_COOKIE", "SessionDep", "SessionFactoryDep", "SettingsDep",
-    "StorageDep",
+    "OptionalBearerDep", "QueueDep", "SAFE_METHODS", "SESSION_COOKIE", "SessionDep", "SessionFactoryDep", "SettingsDep",
+    "StorageDep", "check_csrf",
 ]
 
 SESSION_COOKIE = "saddlescope_session"
@@ -135,20 +135,27 @@ def _principal(
                 "sign in with the browser"
             )
         principal = read_token(cookie, settings)
-        if request.method not in SAFE_METHODS:
-            # Double submit: a page on another site can make the browser send the cookie, but it cannot
-            # read our CSRF cookie to copy it into the header. Comparing with the token signed into the
-            # session also defeats a CSRF cookie planted by a sibling domain.
-            header = request.headers.get(CSRF_HEADER, "")
-            if not header or not hmac.compare_digest(header, principal.csrf):
-                raise Forbidden(
-                    f"missing or wrong {CSRF_HEADER} header (copy the {CSRF_COOKIE} cookie into it "
-                    "on every POST, PUT, PATCH and DELETE)"
-                )
+        check_csrf(request, principal)
     return current_principal(session, principal)
 
 
+def check_csrf(request: Request, principal: Principal) -> None:
+    """For a caller signed in by the cookie: an unsafe method needs the CSRF header (`Forbidden`)."""
+    if request.method in SAFE_METHODS:
+        return
+    # Double submit: a page on another site can make the browser send the cookie, but it cannot
+    # read our CSRF cookie to copy it into the header. Comparing with the token signed into the
+    # session also defeats a CSRF cookie planted by a sibling domain.
+    header = request.headers.get(CSRF_HEADER, "")
+    if not header or not hmac.compare_digest(header, principal.csrf):
+        raise Forbidden(
+            f"missing or wrong {CSRF_HEADER} header (copy the {CSRF_COOKIE} cookie into it "
+            "on every POST, PUT, PATCH and DELETE)"
+        )
+
+
 PrincipalDep = Annotated[Principal, Depends(_principal)]
+OptionalBearerDep = Annotated[str | None, Depends(oauth2_scheme)]
 
 
 @dataclass

@@ -14,8 +14,11 @@ from saddlescope.api.deps import (
     SESSION_COOKIE,
     AdminClubDep,
     ClubDep,
+    OptionalBearerDep,
+    SessionDep,
     SessionFactoryDep,
     SettingsDep,
+    check_csrf,
 )
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, page_of
 from saddlescope.api.schemas import (
@@ -44,7 +47,9 @@ from saddlescope.services.accounts import (
     consume_password_reset,
     create_club,
     end_sessions,
+    end_sign_in,
     issue_token,
+    read_token,
     start_password_reset,
     update_user,
 )
@@ -199,13 +204,26 @@ async def login(
     return out
 
 
-@router.post("/auth/logout", status_code=status.HTTP_204_NO_CONTENT)
-def logout(response: Response) -> Response:
-    """Forget the browser's session (clears both cookies). A bearer token simply expires."""
-    response.delete_cookie(SESSION_COOKIE, path="/")
-    response.delete_cookie(CSRF_COOKIE, path="/")
-    response.status_code = status.HTTP_204_NO_CONTENT
-    return response
+@router.post("/auth/logout", status_code=status.HTTP_204_NO_CONTENT,
+             responses={403: {"model": ErrorOut, "description": "signed in by the cookie, without the CSRF header"}})
+def logout(request: Request, response: Response, settings: SettingsDep, session: SessionDep,
+           bearer: OptionalBearerDep) -> Response:
+    """Sign out: this sign-in's token is refused from now on, and the browser's cookies are cleared.
+
+    The bearer token and the browser's cookie of one sign-in are the same token: both end. Other sign-ins
+    of the user go on (logout-everywhere ends them). By the cookie it needs the CSRF header, as every state
+    change does; a missing, expired or invalid token has nothing to end (the cookies are cleared anyway).
+    """
+    token = bearer or request.cookies.get(SESSION_COOKIE)
+    try:
+        principal = read_token(token, settings) if token else None
+    except AuthError:
+        principal = None
+    if principal is not None:
+        if not bearer:
+            check_csrf(request, principal)
+        end_sign_in(session, principal)
+    return _forget_browser(response)
 
 
 def _forget_browser(response: Response) -> Response:
