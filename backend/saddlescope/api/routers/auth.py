@@ -19,6 +19,7 @@ from saddlescope.api.deps import (
     SessionFactoryDep,
     SettingsDep,
     check_csrf,
+    client_address,
 )
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, page_of
 from saddlescope.api.schemas import (
@@ -164,7 +165,7 @@ async def login(
     """
     email, password = await _credentials(request)
     guard = request.app.state.login_guard
-    address = request.client.host if request.client else ""
+    address = client_address(request)
     # Refused before the password is even looked at: the right password is no help while locked out.
     await run_in_threadpool(guard.check, email, address)
 
@@ -250,7 +251,7 @@ async def change_own_password(
     """
     guard = request.app.state.login_guard
     email = (await run_in_threadpool(club.users.get, club.principal.user_id)).email
-    address = request.client.host if request.client else ""
+    address = client_address(request)
     await run_in_threadpool(guard.check, email, address)
     try:
         await request.app.state.hash_pool.run(  # Argon2 verify + hash: its bounded pool
