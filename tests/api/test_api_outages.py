@@ -13,8 +13,6 @@ import hashlib
 import io
 import os
 import socket
-import tempfile
-import types
 import zipfile
 from pathlib import Path
 
@@ -23,14 +21,13 @@ import kombu.exceptions
 import pytest
 import redis.exceptions
 import sqlalchemy.exc
-from api_helpers import new_club
+from api_helpers import FullDisk, new_club
 from fastapi.testclient import TestClient
 
 from saddlescope.api import create_app
 from saddlescope.api.outages import BROKER_DOWN, DATABASE_DOWN, DISK_FULL, STORE_DOWN, outage_of
 from saddlescope.db.session import make_engine, make_session_factory
 from saddlescope.settings import load_settings
-from saddlescope.storage import files as storage_files
 
 
 def settings_for(tmp_path, **overrides):
@@ -56,26 +53,9 @@ def app_client(tmp_path):
         yield client, api
 
 
-class FullDisk:
-    """While `full`, every file the folder store's writer opens is /dev/full: writes fail with ENOSPC."""
-
-    def __init__(self) -> None:
-        self.full = False
-
-    def mkstemp(self, *args, **kwargs):
-        fd, name = tempfile.mkstemp(*args, **kwargs)
-        if self.full:
-            full = os.open("/dev/full", os.O_WRONLY)
-            os.dup2(full, fd)  # the temporary file exists (and must be removed); its bytes go nowhere
-            os.close(full)
-        return fd, name
-
-
 @pytest.fixture
 def full_disk(monkeypatch):
-    disk = FullDisk()
-    monkeypatch.setattr(storage_files, "tempfile", types.SimpleNamespace(mkstemp=disk.mkstemp))
-    return disk
+    return FullDisk().install(monkeypatch)
 
 
 def new_ride(api, name: str) -> dict:
@@ -167,15 +147,18 @@ def test_a_full_disk_refuses_uploads_with_507_and_leaves_nothing_half_written(ap
     bundle = io.BytesIO()
     with zipfile.ZipFile(bundle, "w") as zf:
         zf.writestr("ride.json", "{}")
-    resumable = api.ok("POST", "/uploads", 201, json={
-        "target": "ride_clip", "ride_id": ride["id"], "clip_kind": "motion", "camera": "left",
-        "length_bytes": 300_000, "filename": "left.avi"})
+    resumable, small = (api.ok("POST", "/uploads", 201, json={
+        "target": "ride_clip", "ride_id": ride["id"], "clip_kind": "motion", "camera": camera,
+        "length_bytes": 300_000, "filename": f"{camera}.avi"}) for camera in ("left", "right"))
     full_disk.full = True
     refused = {
         "clip": upload_clip(api, ride["id"], os.urandom(300_000)),
         "bundle": api.post("/rides/bundle", files={"file": ("ride.zip", bundle.getvalue(), "application/zip")}),
         "chunk": api.patch(f"/uploads/{resumable['id']}", content=os.urandom(300_000),
                            headers={"Upload-Offset": "0", "Content-Type": "application/offset+octet-stream"}),
+        # Small enough to stay in the file's buffer: the disk says no only when it is closed.
+        "small chunk": api.patch(f"/uploads/{small['id']}", content=b"0123456789",
+                                 headers={"Upload-Offset": "0", "Content-Type": "application/offset+octet-stream"}),
     }
     full_disk.full = False
     for what, response in refused.items():
