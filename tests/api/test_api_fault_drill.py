@@ -131,18 +131,19 @@ def walk_every_route(api, ids: dict, tiny) -> dict[tuple[str, str], int]:
         where = f"{method} {path} -> {response.status_code} {response.text[:300]}"
         assert response.status_code < 500 or response.status_code in (503, 507), where
         if response.status_code in (503, 507) and method != "HEAD":
-            detail = response.json()["detail"]
+            body = response.json()
+            detail = body["summary"] if path == "/api/health" else body["detail"]  # health: its one line
             assert isinstance(detail, str) and len(detail) > 20 and "Traceback" not in detail, where
         if response.status_code == 503 and path != "/api/health":
-            assert int(response.headers["Retry-After"]) > 0, where
+            assert int(response.headers.get("Retry-After", 0)) > 0, where
         answers[(method, path)] = response.status_code
     return answers
 
 
-def still_works(api, tiny) -> None:
+def still_works(api, tiny, fault: str) -> None:
     """New requests succeed once the part is back: rows, a clip's bytes, a job on the broker."""
-    horse = api.ok("POST", "/horses", 201, json={"name": "After the fault"})
-    rider = api.ok("POST", "/riders", 201, json={"name": "After the fault"})
+    horse = api.ok("POST", "/horses", 201, json={"name": f"After the {fault} fault"})
+    rider = api.ok("POST", "/riders", 201, json={"name": f"After the {fault} fault"})
     ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
                                                "direction": "CW"})
     api.ok("PUT", f"/rides/{ride['id']}/clips/motion/middle", 200,
@@ -185,7 +186,7 @@ def test_database_broker_and_store_stopped_in_turn(tmp_path, pg_database_url, s3
                 finally:
                     start()
                 assert snapshot(api, direct, kept) == before, fault
-                still_works(api, tiny)
+                still_works(api, tiny, fault)
     refused = {fault: sum(code in (503, 507) for code in answers.values()) for fault, answers in seen.items()}
     routes = len(seen["database"])
     # The database is behind nearly every route; the broker behind starting jobs; the store behind clips.
@@ -214,7 +215,7 @@ def test_a_full_disk(tmp_path, pg_database_url, tiny, monkeypatch):
                 disk.full = False
             assert snapshot(api, storage, kept) == before
             assert not [p for p in storage.root.rglob(".part-*")]  # nothing half-written
-            still_works(api, tiny)
+            still_works(api, tiny, "disk")
     full = {route for route, code in answers.items() if code == 507}
     assert {("PUT", "/api/rides/{ride_id}/clips/{clip_kind}/{camera}"), ("POST", "/api/rides/bundle"),
             ("PATCH", "/api/uploads/{upload_id}")} <= full, answers

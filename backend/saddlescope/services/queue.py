@@ -34,7 +34,9 @@ PING_TIMEOUT_S = 0.5
 
 
 class QueueUnavailable(SaddleScopeError):
-    """The job could not be handed to a worker (broker unreachable, pool shut down)."""
+    """The job could not be handed to a worker (broker unreachable, pool shut down): HTTP 503."""
+
+    retry_after_s = 60  # the Retry-After of the 503: a broker restart takes about that long
 
 
 class JobQueue(Protocol):
