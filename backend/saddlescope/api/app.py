@@ -23,6 +23,7 @@ from starlette.concurrency import run_in_threadpool
 from saddlescope import __version__
 from saddlescope.api.limits import JsonBodyLimit
 from saddlescope.api.outages import DISK_FULL, add_outage_handlers, disk_full
+from saddlescope.api.security_headers import SecurityHeaders
 from saddlescope.api.static import DashboardFiles
 from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
@@ -120,6 +121,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
 
     _add_error_handlers(app)
     app.add_middleware(JsonBodyLimit, max_bytes=settings.max_json_body_bytes)
+    app.add_middleware(SecurityHeaders, settings=settings)  # outermost of ours: on every answer
 
     from saddlescope.api.routers import (
         auth,
