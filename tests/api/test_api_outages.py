@@ -195,3 +195,26 @@ def test_health_says_storage_is_degraded_below_the_free_space_threshold(tmp_path
     with TestClient(create_app(settings_for(tmp_path))) as client:  # the default threshold: 1 GiB
         storage = client.get("/api/health").json()["parts"]["storage"]
         assert storage["status"] == "ok" and storage["free_bytes"] > 2**30
+
+
+SECURITY_HEADERS = ("content-security-policy", "x-frame-options", "x-content-type-options", "referrer-policy",
+                    "permissions-policy")
+
+
+def test_every_kind_of_answer_carries_the_browser_security_headers(app_client, tmp_path):
+    client, api = app_client
+    answers = {"dashboard": client.get("/"), "script": client.get("/app.js"), "api": api.get("/horses"),
+               "not found": api.get("/horses/999999"), "signed out": client.get("/api/rides"),
+               "invalid": api.post("/horses", json={}), "docs": client.get("/docs")}
+    for what, answer in answers.items():
+        assert not [h for h in SECURITY_HEADERS if h not in answer.headers], (what, answer.headers)
+        assert answer.headers["x-frame-options"] == "DENY" and answer.headers["x-content-type-options"] == "nosniff"
+        assert "frame-ancestors 'none'" in answer.headers["content-security-policy"], what
+    assert "script-src 'self';" in answers["dashboard"].headers["content-security-policy"]
+    assert "cdn.jsdelivr.net" in answers["docs"].headers["content-security-policy"]  # FastAPI's Swagger UI
+    bucket = settings_for(tmp_path, storage_url="s3://club/data", s3_endpoint_url="http://seaweedfs:8333",
+                          s3_public_endpoint_url="https://files.club.example")
+    from saddlescope.api.security_headers import headers_for
+
+    policy = dict(headers_for(bucket))[b"content-security-policy"].decode()
+    assert "connect-src 'self' https://files.club.example;" in policy  # direct uploads PUT parts there
