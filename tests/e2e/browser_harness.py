@@ -261,7 +261,7 @@ def shoot_both_widths(page, name: str) -> None:
     page.set_viewport_size({"width": 390, "height": 844})
     # charts re-lay themselves out on the resize event (debounced): give them up to 3 s to settle
     try:
-        page.wait_for_function("document.documentElement.scrollWidth <= window.innerWidth", timeout=3_000)
+        page.wait_for_function("() => document.documentElement.scrollWidth <= window.innerWidth", timeout=3_000)
     except Exception:  # noqa: BLE001 - the assertion below reports the widths
         pass
     widths = page.evaluate("[document.documentElement.scrollWidth, window.innerWidth]")
