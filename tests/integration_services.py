@@ -15,6 +15,7 @@ import os
 import secrets
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -138,6 +139,39 @@ def redis_url(request):
     finally:
         client.flushdb()
         client.close()
+
+
+@contextlib.contextmanager
+def own_redis_server(folder: Path):
+    """A redis-server of the caller's own on a free port (to stop it without stopping others' Redis):
+    yields ``(process, url)``; terminated at the end."""
+    import redis
+
+    binary = shutil.which("redis-server")
+    if binary is None:
+        require_service("redis-server", "the redis-server program is not installed")
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    proc = subprocess.Popen([binary, "--port", str(port), "--bind", "127.0.0.1", "--save", "", "--appendonly",
+                             "no", "--dir", str(folder)], stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    url = f"redis://127.0.0.1:{port}/0"
+    client = redis.Redis.from_url(url, socket_connect_timeout=1)
+    try:
+        for _ in range(200):  # wait until it answers (no timing asserted)
+            try:
+                client.ping()
+                break
+            except redis.ConnectionError:
+                if proc.poll() is not None:
+                    require_service("redis-server", f"exited with {proc.returncode}")
+                time.sleep(0.05)
+        yield proc, url
+    finally:
+        client.close()
+        if proc.poll() is None:
+            proc.terminate()
+            proc.wait(timeout=10)
 
 
 # --- a real Celery worker -------------------------------------------------------------------------

@@ -84,6 +84,8 @@ class Settings(BaseSettings):
     # the storage is a bucket. False keeps them streaming through the API (PATCH chunks).
     direct_uploads: bool | None = None
     max_upload_bytes: int = Field(default=4 * GIB, gt=0)
+    # Below this much free space on the storage folder's disk /api/health says the storage is "degraded".
+    storage_min_free_bytes: int = Field(default=GIB, ge=0)
     # Largest JSON request body (uploads are streamed as raw bytes or multipart, not JSON).
     max_json_body_bytes: int = Field(default=2 * 1024**2, gt=0)
     # An open resumable upload that receives nothing for this long is removed with its bytes.
@@ -95,8 +97,13 @@ class Settings(BaseSettings):
     cookie_secure: Literal["auto", "true", "false"] = "auto"
     # Proxies whose X-Forwarded-Proto/For are believed (uvicorn's forwarded_allow_ips).
     forwarded_allow_ips: str = "127.0.0.1"
+    # Sign-in back-off (services/login_guard.py): after this many wrong passwords for one account from
+    # one address, a wait of `login_backoff_s` doubling with each further one up to `login_lockout_s`;
+    # counts expire `login_window_s` after their first failure. An address gets 4 times as many.
     login_max_failures: int = Field(default=10, ge=1)
+    login_backoff_s: int = Field(default=30, ge=1)
     login_lockout_s: int = Field(default=15 * 60, ge=1)
+    login_window_s: int = Field(default=3600, ge=1)
     # Argon2 runs in its own small pool; more waiting sign-ins than the queue holds get 503.
     hash_workers: int = Field(default=2, ge=1, le=32)
     hash_queue: int = Field(default=16, ge=1)

@@ -17,6 +17,7 @@ import io
 import math
 import os
 import sys
+import tempfile
 import threading
 import time
 import types
@@ -267,3 +268,25 @@ def ride_json_with(folder: Path, **changes) -> bytes:
 
 def finite(value) -> bool:
     return isinstance(value, int | float) and math.isfinite(value)
+
+
+class FullDisk:
+    """While `full`, every file the folder store's writer opens is /dev/full: writes fail with ENOSPC."""
+
+    def __init__(self) -> None:
+        self.full = False
+
+    def install(self, monkeypatch) -> FullDisk:
+        """Make the folder store's writers open their files through `mkstemp` (undone by `monkeypatch`)."""
+        from saddlescope.storage import files
+
+        monkeypatch.setattr(files, "tempfile", types.SimpleNamespace(mkstemp=self.mkstemp))
+        return self
+
+    def mkstemp(self, *args, **kwargs):
+        fd, name = tempfile.mkstemp(*args, **kwargs)
+        if self.full:
+            full = os.open("/dev/full", os.O_WRONLY)
+            os.dup2(full, fd)  # the temporary file exists (and must be removed); its bytes go nowhere
+            os.close(full)
+        return fd, name

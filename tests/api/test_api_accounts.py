@@ -84,7 +84,7 @@ def test_the_browser_session_cookie_needs_the_csrf_header_on_unsafe_methods(env)
         assert wrong.status_code == 403
         made = client.post("/api/horses", json={"name": "Genuine"}, headers={"X-CSRF-Token": csrf})
         assert made.status_code == 201
-        out = client.post("/api/auth/logout")
+        out = client.post("/api/auth/logout", headers={"X-CSRF-Token": csrf})  # a state change too
         assert out.status_code == 204 and not client.cookies.get("saddlescope_session")
         assert client.get("/api/horses").status_code == 401
     finally:

@@ -8,8 +8,9 @@ import json
 
 import integration_services
 import pytest
-from api_helpers import Api, add_member, new_club, zip_folder
+from api_helpers import Api, add_member, new_club
 from engines import ENGINES, open_env
+from route_walk import api_routes, call_kwargs, fill
 
 pg_database_url = integration_services.pg_database_url
 redis_url = integration_services.redis_url
@@ -24,18 +25,6 @@ PUBLIC = {
 # Own-club routes that end the caller's sessions: checked signed out only (they would sign B out).
 ENDS_SESSIONS = {("POST", "/api/auth/logout-everywhere")}
 SECRET = "Zanzibar-Secret"  # in every name club A owns: it must never show up in club B's answers
-
-
-def api_routes(app) -> list[tuple[str, str]]:
-    """(method, path) of every route under /api (FastAPI includes routers lazily: walk them)."""
-    out = []
-    for route in app.routes:
-        if hasattr(route, "original_router"):
-            prefix = route.include_context.prefix
-            out += [(m, prefix + r.path) for r in route.original_router.routes for m in r.methods]
-        elif getattr(route, "path", "").startswith("/api"):
-            out += [(m, route.path) for m in route.methods]
-    return sorted((m, p) for m, p in out if m != "HEAD" or p.startswith("/api/uploads"))
 
 
 @pytest.fixture(scope="module", params=ENGINES)
@@ -113,79 +102,6 @@ def world(env, tmp_path_factory):
         "a_admin_id": account["user"]["id"],
         "tiny": integration_services.write_tiny_bundle(tmp_path_factory.mktemp("authz") / "ride"),
     }
-
-
-def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
-    """A request that would succeed for club A itself (valid body), pointing at club A's things."""
-    body: dict | None = None
-    if path == "/api/rides" and method == "POST":
-        body = {"horse_id": ids["horse_id"], "rider_id": ids["rider_id"], "gait": "walk", "direction": "CW"}
-    elif path == "/api/grades" and method == "POST":
-        body = {"ride_id": ids["ride_id"], "rider_id": ids["rider_id"], "grade": 4}
-    elif path == "/api/jobs" and method == "POST":
-        body = {"kind": "probe", "ride_id": ids["ride_id"]}
-    elif path == "/api/uploads" and method == "POST":
-        body = {
-            "target": "ride_clip",
-            "ride_id": ids["ride_id"],
-            "clip_kind": "motion",
-            "camera": "left",
-            "length_bytes": 10,
-        }
-    elif path == "/api/uploads/{upload_id}/parts" and method == "POST":
-        body = {"numbers": [1]}
-    elif path == "/api/riders" and method == "POST":
-        body = {"name": "Someone", "user_id": ids["user_id"]}
-    elif (
-        path in ("/api/horses/{horse_id}", "/api/riders/{rider_id}", "/api/rigs/{rig_id}")
-        and method == "PATCH"
-    ):
-        body = {"name": "Renamed"}
-    elif path == "/api/rides/{ride_id}" and method == "PATCH":
-        body = {"notes": "changed"}
-    elif path == "/api/grades/{grade_id}" and method == "PATCH":
-        body = {"grade": 1}
-    elif path == "/api/users/{user_id}" and method == "PATCH":
-        body = {"display_name": "Renamed"}
-    elif path == "/api/users" and method == "POST":
-        body = {"email": "intruder@b.example", "password": "password 123"}
-    kwargs: dict = {"json": body} if body is not None else {}
-    if path.endswith("/clips/{clip_kind}/{camera}"):
-        kwargs = {"files": {"file": ("left.avi", (tiny / "motion/left.avi").read_bytes(), "video/x-msvideo")}}
-    if path == "/api/rides/bundle":
-        kwargs = {
-            "files": {"file": ("ride.zip", zip_folder(tiny), "application/zip")},
-            "params": {"rig_id": ids["rig_id"]},
-        }
-    if path == "/api/uploads/{upload_id}" and method == "PATCH":
-        kwargs = {
-            "content": b"0123456789",
-            "headers": {"Upload-Offset": "0", "Content-Type": "application/offset+octet-stream"},
-        }
-    if path.startswith("/api/rides/export/"):
-        kwargs = {"params": {"horse_id": ids["horse_id"]}}
-    if path == "/api/comparison":
-        kwargs = {"params": {"gait": "walk", "horses": str(ids["horse_id"])}}
-    if path == "/api/mocap":
-        kwargs = {"params": {"horse_id": ids["horse_id"], "rider_id": ids["rider_id"], "markers": "A,B,C",
-                             "filename": "lab.trc"},
-                  "content": b"PathFileType\t4\t(X/Y/Z)\tlab.trc\n"}
-    if path == "/api/horses/{horse_id}/ride-pair":
-        kwargs = {"params": {"a": ids["ride_id"], "b": ids["ride_id"]}}
-    if path == "/api/horses/{horse_id}/trend":
-        kwargs = {"params": {"gait": "walk"}}
-    if path in ("/api/leaderboard",):
-        kwargs = {"params": {"gait": "walk"}}
-    if path in ("/api/rides", "/api/grades", "/api/jobs") and method == "GET":
-        kwargs = {
-            "params": {"ride_id": ids["ride_id"]} if path != "/api/rides" else {"horse_id": ids["horse_id"]}
-        }
-    return kwargs
-
-
-def fill(path: str, ids: dict) -> str:
-    """The route's path with club A's ids, relative to /api (as `Api` calls take them)."""
-    return path.format(**ids).removeprefix("/api")
 
 
 # Routes that touch no other club's row by construction: they answer for the caller's own club.

@@ -113,3 +113,32 @@ def test_a_newer_reset_cancels_the_earlier_token(env):
     assert stale.status_code == 401
     fresh = env.client.post("/api/auth/password-reset", json={"token": second, "new_password": "from the new link"})
     assert fresh.status_code == 204
+
+
+def test_signing_out_ends_that_sign_ins_bearer_token_and_no_other(env):
+    admin, account = new_club(env.client)
+    other = sign_in(env.client, account["email"], account["password"])
+    assert admin.request("POST", "/auth/logout").status_code == 204
+    refused = admin.get("/auth/me")
+    assert refused.status_code == 401 and "signed out" in refused.json()["detail"]
+    assert other.get("/auth/me").status_code == 200  # another browser or script stays signed in
+    assert admin.request("POST", "/auth/logout").status_code == 204  # twice: nothing more to end
+
+
+def test_signing_out_by_the_cookie_needs_the_csrf_header_and_ends_the_token(env):
+    client = env.client
+    _, account = new_club(client)
+    login = client.post("/api/auth/login", data={"username": account["email"], "password": account["password"]})
+    token, csrf = login.json()["access_token"], login.json()["csrf_token"]
+    try:
+        forged = client.post("/api/auth/logout")  # what a page on another site could make the browser send
+        assert forged.status_code == 403 and "X-CSRF-Token" in forged.json()["detail"]
+        assert client.cookies.get("saddlescope_session") and client.get("/api/auth/me").status_code == 200
+        out = client.post("/api/auth/logout", headers={"X-CSRF-Token": csrf})
+        assert out.status_code == 204 and not client.cookies.get("saddlescope_session")
+    finally:
+        client.cookies.clear()
+    # The same sign-in's token as a bearer (a script that copied it) is dead too, not just the cookie.
+    refused = Api(client, token).get("/auth/me")
+    assert refused.status_code == 401 and "signed out" in refused.json()["detail"]
+    assert client.post("/api/auth/logout").status_code == 204  # no cookie, no token: nothing to end

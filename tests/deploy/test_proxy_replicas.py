@@ -145,6 +145,23 @@ def test_requests_reach_both_replicas(deployed):
     assert served_by == {"api-1", "api-2"}
 
 
+SECURITY_HEADERS = ("content-security-policy", "x-frame-options", "x-content-type-options", "referrer-policy",
+                    "permissions-policy")
+
+
+def test_every_answer_carries_the_browser_security_headers(deployed):
+    with _client(deployed) as client:
+        own, api = client.get("/proxy-health"), client.get("/api/health")  # the proxy's own; the API's
+    for answer in (own, api):
+        assert answer.status_code == 200
+        assert not [h for h in SECURITY_HEADERS if h not in answer.headers], answer.headers
+        assert answer.headers["x-frame-options"] == "DENY"
+        assert "frame-ancestors 'none'" in answer.headers["content-security-policy"]
+    assert own.headers["content-security-policy"] == "default-src 'none'; frame-ancestors 'none'"
+    assert "script-src 'self'" in api.headers["content-security-policy"]  # the API's own policy kept
+    assert len(api.headers.get_list("content-security-policy")) == 1
+
+
 def test_cookies_are_secure_behind_the_proxy_and_forwarded_headers_from_others_are_ignored(deployed):
     _signed_in(deployed).close()  # the club exists
     with _client(deployed) as client:

@@ -171,8 +171,9 @@ def _journey(tab, served, meta, folder) -> None:
         calibrate.click()  # not started by the upload: start it as the page offers
     job = _wait_job(api, served, rig_id=rig_id)
     assert job["kind"].startswith("calibrat"), job
-    tab.wait_for_function("document.querySelector('[data-calibration-status]').textContent.startsWith('Calibrated')",
-                          timeout=60_000)
+    tab.wait_for_function(
+        "() => document.querySelector('[data-calibration-status]').textContent.startsWith('Calibrated')",
+        timeout=60_000)
     tab.locator("[data-calibration-words] li").first.wait_for()
     # The plumb and static clips belong to the rig too (the rides filmed with it reuse them).
     for kind in ("plumb", "static"):
@@ -212,7 +213,7 @@ def _journey(tab, served, meta, folder) -> None:
     tab.select_option("#up-rider", label=RIDER)
     tab.select_option("#up-gait", meta["gait"])
     tab.select_option("#up-direction", meta["direction"])
-    tab.wait_for_function("document.querySelector('[data-readiness-list]').textContent.includes('motion')")
+    tab.wait_for_function("() => document.querySelector('[data-readiness-list]').textContent.includes('motion')")
     for camera in ("left", "middle", "right"):
         tab.locator(f"#clip-motion-{camera}").set_input_files(_clip(folder / meta["clips"]["motion"][camera]))
     tab.locator("[data-readiness]").wait_for(state="hidden")  # nothing missing: the rig has the rest
@@ -258,7 +259,7 @@ def _journey(tab, served, meta, folder) -> None:
         earlier.append(seeded)
     tab.goto(f"/#/horses/{horse_id}")
     tab.get_by_role("heading", level=1, name=HORSE).wait_for()
-    tab.wait_for_function("document.querySelector('[data-chart=\"horse-trend\"]')?.data !== undefined")
+    tab.wait_for_function("() => document.querySelector('[data-chart=\"horse-trend\"]')?.data !== undefined")
     assert tab.locator("#hp-trend-gait").input_value() == "canter"
     traces = tab.eval_on_selector('[data-chart="horse-trend"]',
                                   "el => el.data.map(t => ({name: t.name, y: t.y, fill: t.fill || null}))")
@@ -307,7 +308,9 @@ def _journey(tab, served, meta, folder) -> None:
     tab.locator("[data-result]").wait_for(state="visible", timeout=60_000)
     _wait_for_charts(tab)
     tab.locator("[data-ride-edit-form]").wait_for(state="attached")  # folded again: nothing outdated
-    tab.wait_for_function("document.querySelector('[data-ride-edit-form] select[name=gait]').value === 'rising_trot'")
+    tab.wait_for_function(
+        "() => "
+        "document.querySelector('[data-ride-edit-form] select[name=gait]').value === 'rising_trot'")
     assert tab.locator("[data-ride-edit-outdated]").is_hidden()  # the result is from the new details now
     assert "rising trot" in tab.locator("h1").inner_text()
     _page_step(tab, "11-ride-reanalysed")

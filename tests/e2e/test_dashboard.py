@@ -324,7 +324,7 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     speed = np.mean([f["trend"][0] for f in fits["x"]])
     assert f"{js_fmt(speed, 4)} m/s" in facts and abs(speed - SPEED_KMH["canter"] / 3.6) < 0.01
 
-    page.wait_for_function("document.querySelector('[data-chart=\"versions\"]').data !== undefined")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"versions\"]').data !== undefined")
     for name in ("position", "velocity", "acceleration", "omega", "alpha"):
         traces = chart_traces(page, name)
         assert [t["name"] for t in traces] == ["x", "y", "z"], name
@@ -366,7 +366,7 @@ def test_leaderboard_ranks_the_most_comfortable_horse_first(page, dashboard):
 
     # A higher-is-better indicator turns the order round: the gentlest horse can be ridden longest.
     page.select_option("#lb-ind", "t_a8_limit_wb_h")
-    page.wait_for_function("document.querySelector('[data-leaderboard-note]').textContent.includes('higher')")
+    page.wait_for_function("() => document.querySelector('[data-leaderboard-note]').textContent.includes('higher')")
     assert rows.nth(0).locator("th").inner_text() == "Bella"
     page.screenshot(path="/tmp/dash_leaderboard.png", full_page=True)
     assert page.console.unexpected() == []
@@ -428,18 +428,18 @@ def test_every_page_renders_without_console_errors(page, dashboard):
         page.screenshot(path=f"/tmp/dash_page{path.split('?')[0].replace('/', '_')}.png", full_page=True)
     # The comparison charts and the grades scatter are drawn from the seeded rides.
     page.goto(f"/#/compare?horse={bella}")
-    page.wait_for_function("document.querySelector('[data-chart=\"compare-gait\"]').data !== undefined")
-    page.wait_for_function("document.querySelector('[data-chart=\"compare-horse\"]').data !== undefined")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"compare-gait\"]').data !== undefined")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"compare-horse\"]').data !== undefined")
     assert page.eval_on_selector('[data-chart="compare-horse"]', "el => el.data[0].x") == ["walk", "canter"]
     assert page.eval_on_selector('[data-chart="compare-gait"]', "el => el.data[0].x") == ["Bella"]  # walk
     page.select_option("#cmp-gait", "canter")
-    page.wait_for_function("document.querySelector('[data-chart=\"compare-gait\"]').data[0].x.length === 3")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"compare-gait\"]').data[0].x.length === 3")
     horses_in_canter = page.eval_on_selector('[data-chart="compare-gait"]', "el => el.data[0].x")
     assert horses_in_canter == ["Bella", "Comet", "Dancer"]
     page.screenshot(path="/tmp/dash_compare.png", full_page=True)
     page.goto("/#/grades")
     page.select_option("#gr-gait", "canter")
-    page.wait_for_function("document.querySelector('[data-stat=\"n\"]')?.textContent === '3'")
+    page.wait_for_function("() => document.querySelector('[data-stat=\"n\"]')?.textContent === '3'")
     assert page.eval_on_selector('[data-chart="grades"]', "el => el.data[0].y") == [5, 3, 2]
     page.screenshot(path="/tmp/dash_grades.png", full_page=True)
     # A phone-sized window: the result page still reads (screenshot for a look).

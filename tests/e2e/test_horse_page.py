@@ -81,7 +81,7 @@ def page(browser, served):  # noqa: F811 (the imported fixture)
 
 
 def _drawn(page, name: str) -> None:
-    page.wait_for_function(f"document.querySelector('[data-chart=\"{name}\"]')?.data !== undefined")
+    page.wait_for_function(f"() => document.querySelector('[data-chart=\"{name}\"]')?.data !== undefined")
 
 
 def _fits_phone(page, name: str) -> None:
@@ -173,7 +173,7 @@ def test_compare_grades_and_leaderboard_say_how_many_rides_and_fit_a_phone(page,
     page.goto(f"/#/compare?horse={served['horses']['Tango']}")
     _drawn(page, "compare-horse")
     page.select_option("#cmp-gait", "canter")
-    page.wait_for_function("document.querySelector('[data-chart=\"compare-gait\"]')?.data?.[0]?.x?.length === 3")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"compare-gait\"]')?.data?.[0]?.x?.length === 3")
     assert page.eval_on_selector('[data-chart="compare-horse"]', "el => el.data[0].text") == [
         f"n = {len(WALK_SCALES)}", f"n = {len(CANTER_SCALES)}"]
     horse_page = page.locator("[data-compare-horse-page] a")

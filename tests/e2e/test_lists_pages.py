@@ -143,7 +143,7 @@ def test_rides_list_pages_filters_sorts_and_keeps_its_state_in_the_url(admin_pag
     assert page.locator("[data-rides-table] tbody tr td:nth-child(6)").all_inner_texts() == dates
 
     page.go_back()  # before the sort: newest first again, still canter
-    page.wait_for_function("!location.hash.includes('sort=ridden_on')")
+    page.wait_for_function("() => !location.hash.includes('sort=ridden_on')")
     page.locator("[data-rides-table] tbody tr").first.wait_for()
     newest = page.locator("[data-rides-table] tbody tr td:nth-child(6)").first.inner_text()
     assert newest == max(r["ridden_on"] for r in server["rides"] if r["gait"] == "canter")
@@ -158,7 +158,7 @@ def test_a_rides_gait_is_edited_and_reanalysis_offered(admin_page, server):
     page.locator(f'[data-ride-edit="{ride["id"]}"]').click()
     form = page.locator("[data-ride-edit-form]")
     form.wait_for()
-    page.wait_for_function("document.querySelector('#ride-edit-gait').value === 'canter'")
+    page.wait_for_function("() => document.querySelector('#ride-edit-gait').value === 'canter'")
     page.locator("#ride-edit-gait").select_option("walk")
     page.locator("#ride-edit-notes").fill("it was a walk")
     page.locator("[data-ride-edit-save]").click()
@@ -236,7 +236,7 @@ def test_jobs_horses_and_riders_pages_page_and_filter(admin_page, server):
     page.locator("#jobs-kind").select_option("selftest")
     page.wait_for_url("**kind=selftest**")
     page.wait_for_function(  # the filtered page has replaced the first one
-        "[...document.querySelectorAll('[data-jobs-table] tbody tr td:nth-child(2)')]"
+        "() => [...document.querySelectorAll('[data-jobs-table] tbody tr td:nth-child(2)')]"
         ".some(td => td.innerText === 'selftest')")
     kinds = page.locator("[data-jobs-table] tbody tr td:nth-child(2)").all_inner_texts()
     assert kinds and set(kinds) == {"selftest"}

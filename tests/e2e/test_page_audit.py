@@ -351,3 +351,58 @@ def test_every_page_as_admin_and_member_on_desktop_and_phone(club):
     problems = [p for visit in signed_out + signed_in for p in visit.problems]
     pages = ", ".join(v.path for v in signed_out + signed_in)
     assert not problems, f"{len(problems)} problems on the dashboard's pages ({pages}):\n" + "\n".join(problems)
+
+
+# ----------------------------------------------------------------------------- the browser's security headers
+
+SECURITY_HEADERS = ("content-security-policy", "x-frame-options", "x-content-type-options", "referrer-policy",
+                    "permissions-policy")
+# Recorded from the first script of every document on: what the Content-Security-Policy refused.
+CSP_RECORDER = """window.__cspViolations = [];
+document.addEventListener('securitypolicyviolation', (e) => window.__cspViolations.push(
+  `${e.violatedDirective} refused ${e.blockedURI || 'inline'} (${e.sourceFile}:${e.lineNumber})`));"""
+
+
+def test_pages_run_under_the_content_security_policy_and_cannot_be_framed(club):
+    base, ride = club["base"], club["ids"]["rides"][0]
+    with closing(_client(base, *ADMIN[:2])) as admin:
+        answers = {path: admin.get(path) for path in ("/", "/app.js", "/style.css", "/api/health", "/api/rides",
+                                                       f"/api/rides/{ride}/report", "/api/rides/999999")}
+    for path, answer in answers.items():
+        missing = [h for h in SECURITY_HEADERS if h not in answer.headers]
+        assert not missing, f"{path} ({answer.status_code}) lacks {missing}"
+        assert "frame-ancestors 'none'" in answer.headers["content-security-policy"], path
+        directives = dict(d.strip().split(" ", 1) for d in answer.headers["content-security-policy"].split(";"))
+        assert "unsafe" not in directives.get("script-src", "'none'"), path  # no inline script, no eval
+        assert answer.headers["x-frame-options"] == "DENY" and answer.headers["x-content-type-options"] == "nosniff"
+    manager = require_browser()().start()
+    browser = launch_chromium(manager)
+    try:
+        context = browser.new_context(base_url=base, viewport={"width": 1280, "height": 900})
+        context.add_init_script(CSP_RECORDER)
+        page = context.new_page()
+        page.set_default_navigation_timeout(90_000)
+        errors, in_flight = console_errors(page), InFlight(page)
+        sign_in(page, ADMIN[0], ADMIN[1])
+        problems, charts = [], 0
+        for path in ("/", "/rides", f"/rides/{ride}", f"/horses/{club['ids']['horses'][0]}", "/upload",
+                     f"/rigs/{club['ids']['rigs'][0]}", "/leaderboard"):
+            errors.clear()
+            _open(page, base, path, in_flight)
+            problems += [f"{path}: {v}" for v in page.evaluate("window.__cspViolations")]
+            problems += [f"{path}: console: {e}" for e in errors]
+            charts += page.evaluate("document.querySelectorAll('.js-plotly-plot').length")
+        page.goto(f"{base}/api/rides/{ride}/report")  # the cookie signs it in
+        problems += [f"report: {v}" for v in page.evaluate("window.__cspViolations")]
+        assert page.evaluate("getComputedStyle(document.body).fontFamily").startswith('"DejaVu Sans"')  # styled
+        # A page of another origin framing the dashboard gets Chromium's error page, not the signed-in page.
+        page.goto("about:blank")
+        page.set_content(f'<iframe src="{base}/#/rides" width="800" height="600"></iframe>', wait_until="load")
+        framed = page.frames[1]
+        assert framed.url.startswith("chrome-error://"), framed.url
+        context.close()
+    finally:
+        browser.close()
+        manager.stop()
+    assert charts > 0, "the ride's page drew no Plotly chart"
+    assert not problems, "\n".join(problems)

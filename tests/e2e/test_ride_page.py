@@ -98,7 +98,7 @@ def test_the_ride_page_draws_every_chart_and_says_its_quality_in_plain_words(pag
     names = page.eval_on_selector('[data-chart="fit-y"]', "el => el.data.map(t => [t.name, t.y.length])")
     assert names == [["measured", n], ["fitted", n], ["residual", n]]
     page.select_option("[data-fit-quantity]", "acceleration")
-    page.wait_for_function("document.querySelector('[data-chart=\"fit-y\"]').layout.title.text.startsWith('Acc')")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"fit-y\"]').layout.title.text.startsWith('Acc')")
     fitted = page.eval_on_selector('[data-chart="fit-y"]', "el => el.data[1].y")
     np.testing.assert_allclose(fitted, np.asarray(ride["doc"]["saddle"]["acceleration_m_s2"])[:, 1], rtol=1e-12)
 

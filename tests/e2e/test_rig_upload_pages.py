@@ -127,7 +127,9 @@ def test_a_rig_with_its_board_then_its_calibration_clips_one_by_one(page, served
         card = page.locator(f'.rig-clip[data-clip-kind="calibration"][data-camera="{camera}"]')
         card.get_by_text(f"cal-{camera}.avi").wait_for()
     status = page.locator("[data-calibration-status]")
-    page.wait_for_function("document.querySelector('[data-calibration-status]').textContent.includes('right camera')")
+    page.wait_for_function(
+        "() => "
+        "document.querySelector('[data-calibration-status]').textContent.includes('right camera')")
     assert "The calibration clip of the right camera is missing." in status.inner_text()
     shoot(page, "rig")
 
@@ -149,13 +151,15 @@ def test_the_upload_form_names_what_is_missing_before_sending(page, served):
     page.locator("main:not([aria-busy])").wait_for()
     page.select_option("#up-rig", str(rig_id))
     missing = page.locator("[data-readiness]")
-    page.wait_for_function("document.querySelector('[data-readiness-list]').textContent.includes('only 2 cameras')")
+    page.wait_for_function(
+        "() => "
+        "document.querySelector('[data-readiness-list]').textContent.includes('only 2 cameras')")
     text = missing.inner_text()
     assert "calibration clips come from only 2 cameras (left and middle); upload the right camera's" in text
     assert "motion clips (the ride) of the left, middle and right cameras are missing" in text
     for camera in ("left", "middle", "right"):
         page.locator(f"#clip-motion-{camera}").set_input_files(tiny_clip(served, f"motion-{camera}"))
-    page.wait_for_function("!document.querySelector('[data-readiness-list]').textContent.includes('motion clip')")
+    page.wait_for_function("() => !document.querySelector('[data-readiness-list]').textContent.includes('motion clip')")
     page.get_by_role("button", name="Upload and analyse").click()
     error = page.locator("[data-upload-form] [data-form-error]")
     error.wait_for(state="visible")
@@ -171,7 +175,7 @@ def test_the_upload_form_names_what_is_missing_before_sending(page, served):
     page.get_by_label("Clips one by one").check()
     page.locator("main:not([aria-busy])").wait_for()
     page.select_option("#up-rig", str(rig_id))
-    page.wait_for_function("(t => t.includes('static clip') && !t.includes('No camera rig'))"
+    page.wait_for_function("() => (t => t.includes('static clip') && !t.includes('No camera rig'))"
                            "(document.querySelector('[data-readiness-list]').textContent)")
     assert "calibration" not in page.locator("[data-readiness-list]").inner_text()
     assert page.console.unexpected() == []
@@ -262,7 +266,7 @@ def test_an_incomplete_ride_says_what_is_missing_and_is_completed_on_the_upload_
 
     page.goto(f"/#/upload?ride={ride['id']}")
     page.get_by_role("heading", name=f"Complete ride {ride['id']}").wait_for()
-    page.wait_for_function("document.querySelector('[data-readiness-list]').textContent.includes('static clips')")
+    page.wait_for_function("() => document.querySelector('[data-readiness-list]').textContent.includes('static clips')")
     assert "motion" not in page.locator("[data-readiness-list]").inner_text()  # stored already
     for camera in ("left", "middle", "right"):
         page.locator(f"#clip-static-{camera}").set_input_files(tiny_clip(served, f"static-{camera}"))

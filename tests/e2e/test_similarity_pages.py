@@ -111,8 +111,8 @@ def test_the_pair_view_overlays_both_paths_in_3d_and_shows_the_alignment(page, s
     rides = served["rides"]
     a, b = rides[("Birch", 0)], rides[("Cedar", 1)]
     page.goto(f"/#/compare-rides/{a}/{b}?markers=saddle&span=stride")
-    page.wait_for_function("document.querySelector('[data-chart=\"pair-paths\"]')?.data?.length === 4")
-    page.wait_for_function("document.querySelector('[data-chart=\"pair-alignment\"]')?.data?.length === 3")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"pair-paths\"]')?.data?.length === 4")
+    page.wait_for_function("() => document.querySelector('[data-chart=\"pair-alignment\"]')?.data?.length === 3")
     api = page.context.request.get(f"/api/rides/{a}/similar/{b}").json()
     traces = page.eval_on_selector('[data-chart="pair-paths"]',
                                    "el => el.data.map(t => ({type: t.type, n: t.x.length, name: t.name}))")

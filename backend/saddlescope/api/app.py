@@ -22,6 +22,8 @@ from starlette.concurrency import run_in_threadpool
 
 from saddlescope import __version__
 from saddlescope.api.limits import JsonBodyLimit
+from saddlescope.api.outages import DISK_FULL, add_outage_handlers, disk_full
+from saddlescope.api.security_headers import SecurityHeaders
 from saddlescope.api.static import DashboardFiles
 from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
@@ -119,6 +121,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
 
     _add_error_handlers(app)
     app.add_middleware(JsonBodyLimit, max_bytes=settings.max_json_body_bytes)
+    app.add_middleware(SecurityHeaders, settings=settings)  # outermost of ours: on every answer
 
     from saddlescope.api.routers import (
         auth,
@@ -184,6 +187,8 @@ def _validation_message(exc: RequestValidationError) -> str:
 def _add_error_handlers(app: FastAPI) -> None:
     def respond(code: int):
         async def handler(request: Request, exc: Exception) -> JSONResponse:
+            if disk_full(exc):  # e.g. a bundle that could not be unpacked for want of space: not bad input
+                return DISK_FULL.response()
             headers = {"WWW-Authenticate": "Bearer"} if code == status.HTTP_401_UNAUTHORIZED else None
             if getattr(exc, "retry_after_s", None):
                 headers = {"Retry-After": str(exc.retry_after_s)}
@@ -193,6 +198,8 @@ def _add_error_handlers(app: FastAPI) -> None:
 
     for error, code in ERROR_STATUS.items():
         app.add_exception_handler(error, respond(code))
+    # A database, broker or store that does not answer: 503; a full disk: 507 (api/outages.py).
+    add_outage_handlers(app)
 
     @app.exception_handler(RequestValidationError)
     async def invalid_request(request: Request, exc: RequestValidationError) -> JSONResponse:

@@ -8,6 +8,7 @@ club with every repository already confined to it, so a route cannot reach anoth
 from __future__ import annotations
 
 import hmac
+import ipaddress
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from functools import cached_property
@@ -47,8 +48,8 @@ from saddlescope.storage import Storage
 
 __all__ = [
     "AdminClubDep", "CSRF_COOKIE", "CSRF_HEADER", "ClubDep", "ClubScope", "EngineDep", "PrincipalDep",
-    "QueueDep", "SAFE_METHODS", "SESSION_COOKIE", "SessionDep", "SessionFactoryDep", "SettingsDep",
-    "StorageDep",
+    "OptionalBearerDep", "QueueDep", "SAFE_METHODS", "SESSION_COOKIE", "SessionDep", "SessionFactoryDep", "SettingsDep",
+    "StorageDep", "check_csrf", "client_address",
 ]
 
 SESSION_COOKIE = "saddlescope_session"
@@ -102,6 +103,43 @@ async def _session(request: Request) -> AsyncIterator[Session]:
         await run_in_threadpool(_finish, session, True)
 
 
+def _trusted(address: str, trusted: str) -> bool:
+    """Whether `address` is one of the proxies `trusted` names (comma-separated addresses or networks, or *)."""
+    entries = [entry.strip() for entry in trusted.split(",") if entry.strip()]
+    if "*" in entries:
+        return True
+    try:
+        ip = ipaddress.ip_address(address)
+    except ValueError:
+        return address in entries  # a name such as "testclient" or a unix socket path
+    for entry in entries:
+        try:
+            if ip in ipaddress.ip_network(entry, strict=False):
+                return True
+        except ValueError:
+            continue
+    return False
+
+
+def client_address(request: Request) -> str:
+    """The caller's address, for counting failed sign-ins.
+
+    The peer, or when the peer is a trusted proxy (``SADDLESCOPE_FORWARDED_ALLOW_IPS``) the nearest
+    address in ``X-Forwarded-For`` that is not itself a trusted proxy. Behind uvicorn (`saddlescope
+    serve`) the peer is already that address; this keeps the counting right under any other server too.
+    The header from an untrusted peer is ignored (anyone can send it).
+    """
+    peer = request.client.host if request.client else ""
+    trusted = request.app.state.settings.forwarded_allow_ips
+    if not peer or not _trusted(peer, trusted):
+        return peer
+    hops = [hop.strip() for hop in request.headers.get("x-forwarded-for", "").split(",") if hop.strip()]
+    for hop in reversed(hops):  # the proxies append: read from the nearest back
+        if not _trusted(hop, trusted):
+            return hop
+    return hops[0] if hops else peer
+
+
 def _storage(request: Request) -> Storage:
     return request.app.state.storage
 
@@ -135,20 +173,27 @@ def _principal(
                 "sign in with the browser"
             )
         principal = read_token(cookie, settings)
-        if request.method not in SAFE_METHODS:
-            # Double submit: a page on another site can make the browser send the cookie, but it cannot
-            # read our CSRF cookie to copy it into the header. Comparing with the token signed into the
-            # session also defeats a CSRF cookie planted by a sibling domain.
-            header = request.headers.get(CSRF_HEADER, "")
-            if not header or not hmac.compare_digest(header, principal.csrf):
-                raise Forbidden(
-                    f"missing or wrong {CSRF_HEADER} header (copy the {CSRF_COOKIE} cookie into it "
-                    "on every POST, PUT, PATCH and DELETE)"
-                )
+        check_csrf(request, principal)
     return current_principal(session, principal)
 
 
+def check_csrf(request: Request, principal: Principal) -> None:
+    """For a caller signed in by the cookie: an unsafe method needs the CSRF header (`Forbidden`)."""
+    if request.method in SAFE_METHODS:
+        return
+    # Double submit: a page on another site can make the browser send the cookie, but it cannot
+    # read our CSRF cookie to copy it into the header. Comparing with the token signed into the
+    # session also defeats a CSRF cookie planted by a sibling domain.
+    header = request.headers.get(CSRF_HEADER, "")
+    if not header or not hmac.compare_digest(header, principal.csrf):
+        raise Forbidden(
+            f"missing or wrong {CSRF_HEADER} header (copy the {CSRF_COOKIE} cookie into it "
+            "on every POST, PUT, PATCH and DELETE)"
+        )
+
+
 PrincipalDep = Annotated[Principal, Depends(_principal)]
+OptionalBearerDep = Annotated[str | None, Depends(oauth2_scheme)]
 
 
 @dataclass

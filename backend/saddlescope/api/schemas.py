@@ -100,14 +100,15 @@ class PartHealth(BaseModel):
     """One part's health: ok or not, with what it said."""
 
     ok: bool
-    status: Literal["ok", "error"]
+    status: Literal["ok", "degraded", "error"]
     detail: str
+    free_bytes: int | None = Field(default=None, description="storage only: free bytes of the folder's disk")
 
 
 class HealthOut(BaseModel):
     """Whether the service can work: the database, the job queue and the storage (admins: details)."""
 
-    status: Literal["ok", "error"]
+    status: Literal["ok", "degraded", "error"]
     summary: str = Field(description='"Service OK" or "Service degraded: <what a club cannot do now>"')
     mode: Literal["embedded", "celery"]
     version: str
@@ -118,13 +119,14 @@ class PartState(BaseModel):
     """One part's health without its detail (what anyone may see)."""
 
     ok: bool
-    status: Literal["ok", "error"]
+    status: Literal["ok", "degraded", "error"]
+    free_bytes: int | None = Field(default=None, description="storage only: free bytes of the folder's disk")
 
 
 class HealthSummaryOut(BaseModel):
     """The public health answer: one line and each part ok or not; no paths, versions or addresses."""
 
-    status: Literal["ok", "error"]
+    status: Literal["ok", "degraded", "error"]
     summary: str = Field(description='"Service OK" or "Service degraded: <what a club cannot do now>"')
     parts: dict[str, PartState] = Field(description="database, broker and storage: ok or not")
 

@@ -34,9 +34,9 @@ from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 from saddlescope.db.enums import JobStatus, RideStatus, Role, UploadStatus, UploadTarget
 
 __all__ = [
-    "Base", "Club", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION", "PasswordReset",
-    "Recording", "Result",
-    "Ride", "Rider", "Rig", "SimilarityPair", "TimestampMixin", "UTCDateTime", "Upload", "User", "utcnow",
+    "Base", "Club", "EndedSignIn", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION",
+    "PasswordReset", "Recording", "Result", "Ride", "Rider", "Rig", "SimilarityPair", "TimestampMixin",
+    "UTCDateTime", "Upload", "User", "utcnow",
 ]
 
 # Stable constraint names, so Alembic migrations are the same on SQLite and PostgreSQL.
@@ -135,6 +135,16 @@ class PasswordReset(TimestampMixin, Base):
     used_at: Mapped[dt.datetime | None]
 
     user: Mapped[User] = relationship()
+
+
+class EndedSignIn(Base):
+    """A signed-out sign-in: its token (cookie and bearer alike) is refused until it would have expired."""
+
+    __tablename__ = "ended_sign_ins"
+
+    sign_in_id: Mapped[str] = mapped_column(String(64), primary_key=True)  # the token's ``sid`` claim
+    user_id: Mapped[int] = mapped_column(ForeignKey("users.id", ondelete="CASCADE"), index=True)
+    expires_at: Mapped[dt.datetime] = mapped_column(index=True)  # the token's expiry: then the row may go
 
 
 class Horse(TimestampMixin, Base):

@@ -6,7 +6,9 @@ token: the browser gets the same token as an HttpOnly session cookie and must ec
 header on unsafe requests (`saddlescope.api.deps`).
 
 A token also carries the user's session version (``sv``): signing out everywhere, changing the password
-and an admin's password reset bump it, so every older token is refused from then on.
+and an admin's password reset bump it, so every older token is refused from then on. And it carries its
+sign-in's random id (``sid``): signing out (`end_sign_in`) keeps that id in ``ended_sign_ins`` until the
+token would have expired, so that one token (cookie or bearer) is refused and other sign-ins go on.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import datetime as dt
 import hashlib
 import re
 import secrets
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jwt
 from argon2 import PasswordHasher
@@ -24,14 +26,14 @@ from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import InputError, SaddleScopeError
 from saddlescope.db.enums import Role
-from saddlescope.db.models import Club, User
+from saddlescope.db.models import Club, EndedSignIn, User
 from saddlescope.db.repositories import ClubRepository, Conflict, UserRepository
 from saddlescope.settings import Settings
 
 __all__ = [
     "AuthError", "Forbidden", "MIN_PASSWORD_LENGTH", "Principal", "RESET_LIFETIME", "TOKEN_ALGORITHM",
     "TOKEN_AUDIENCE", "WrongPassword", "add_user", "authenticate", "change_password", "check_email", "check_password",
-    "consume_password_reset", "create_club", "current_principal", "end_sessions", "hash_password",
+    "consume_password_reset", "create_club", "current_principal", "end_sessions", "end_sign_in", "hash_password",
     "issue_token", "read_token", "require_admin", "start_password_reset", "update_user", "verify_password",
 ]
 
@@ -66,6 +68,8 @@ class Principal:
     role: str
     csrf: str
     session_version: int = 0
+    sign_in_id: str | None = None  # the token's ``sid`` (None: a token issued before sign-ins had ids)
+    expires_at: dt.datetime | None = None
 
     @property
     def is_admin(self) -> bool:
@@ -171,6 +175,7 @@ def issue_token(user: User, settings: Settings, *, now: dt.datetime | None = Non
         "role": user.role,
         "csrf": csrf,
         "sv": int(user.session_version or 0),
+        "sid": secrets.token_urlsafe(24),
         "aud": TOKEN_AUDIENCE,
         "iat": now,
         "exp": now + dt.timedelta(seconds=lifetime_s),
@@ -200,6 +205,8 @@ def read_token(token: str, settings: Settings) -> Principal:
             role=str(claims["role"]),
             csrf=str(claims["csrf"]),
             session_version=int(claims.get("sv", 0)),
+            sign_in_id=str(claims["sid"]) if claims.get("sid") is not None else None,
+            expires_at=dt.datetime.fromtimestamp(int(claims["exp"]), dt.UTC),
         )
     except (KeyError, TypeError, ValueError):
         raise AuthError("invalid access token; sign in again") from None
@@ -216,7 +223,9 @@ def current_principal(session: Session, principal: Principal) -> Principal:
     if (user.session_version or 0) != principal.session_version:
         raise AuthError("this sign-in was ended (signed out everywhere, or the password was changed or "
                         "reset); sign in again")
-    return Principal(user.id, user.club_id, user.role, principal.csrf, principal.session_version)
+    if principal.sign_in_id is not None and session.get(EndedSignIn, principal.sign_in_id) is not None:
+        raise AuthError("this sign-in was ended (signed out); sign in again")
+    return replace(principal, role=user.role)
 
 
 def require_admin(principal: Principal) -> None:
@@ -262,6 +271,21 @@ def update_user(
         user.display_name = display_name.strip()
     session.flush()
     return user
+
+
+def end_sign_in(session: Session, principal: Principal, *, now: dt.datetime | None = None) -> None:
+    """Sign out this one sign-in: its token is refused from now on (others of the user go on).
+
+    Ended sign-ins whose tokens have expired anyway are forgotten on the way.
+    """
+    now = now or dt.datetime.now(dt.UTC)
+    session.query(EndedSignIn).filter(EndedSignIn.expires_at < now).delete(synchronize_session=False)
+    if principal.sign_in_id is None or principal.expires_at is None:
+        return  # a token from before sign-ins had ids: it expires as before
+    if session.get(EndedSignIn, principal.sign_in_id) is None:
+        session.add(EndedSignIn(sign_in_id=principal.sign_in_id, user_id=principal.user_id,
+                                expires_at=principal.expires_at))
+    session.flush()
 
 
 def end_sessions(user: User) -> None:

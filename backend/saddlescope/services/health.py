@@ -1,7 +1,13 @@
-"""Health checks of the parts a server needs: database, job broker, storage."""
+"""Health checks of the parts a server needs: database, job broker, storage.
+
+A part is "ok", "degraded" (it works, but not for long: the storage folder's disk nearly full) or "error".
+Only an error makes the whole service "error" (503, so a load balancer stops sending requests); a
+degraded part makes it "degraded" with 200, since reading still works.
+"""
 
 from __future__ import annotations
 
+import shutil
 from typing import Any
 
 from sqlalchemy import Engine
@@ -12,7 +18,8 @@ from saddlescope.db.session import ping
 from saddlescope.services.queue import JobQueue
 from saddlescope.storage import Storage
 
-__all__ = ["PART_TROUBLE", "check_database", "check_queue", "check_storage", "health_report", "public_report"]
+__all__ = ["PART_TROUBLE", "STORAGE_LOW", "check_database", "check_queue", "check_storage", "health_report",
+           "public_report", "storage_free_bytes"]
 
 
 def check_database(engine: Engine) -> tuple[bool, str]:
@@ -30,12 +37,31 @@ def check_database(engine: Engine) -> tuple[bool, str]:
     return True, f"{engine.dialect.name} {version}, schema at revision {revision}"
 
 
-def check_storage(storage: Storage) -> tuple[bool, str]:
-    """Whether the store (the folder, or the S3 bucket) can be written and read, with what was found."""
+def storage_free_bytes(storage: Storage) -> int | None:
+    """Free bytes on the disk of a folder store (None for a bucket: its space is the provider's)."""
+    if not storage.local:
+        return None
     try:
-        return True, storage.check()
+        return shutil.disk_usage(storage.root).free
+    except OSError:
+        return None
+
+
+def check_storage(storage: Storage, min_free_bytes: int = 0) -> tuple[str, str, int | None]:
+    """(status, what was found, free bytes): whether the store can be written and read, and has room.
+
+    "degraded" when the folder's disk has less than `min_free_bytes` free: uploads and results will soon
+    be refused (507) though everything stored can still be read.
+    """
+    try:
+        detail = storage.check()
     except OSError as exc:
-        return False, f"{storage.describe()}: {exc}"
+        return "error", f"{storage.describe()}: {exc}", storage_free_bytes(storage)
+    free_bytes = storage_free_bytes(storage)
+    if free_bytes is not None and free_bytes < min_free_bytes:
+        return "degraded", (f"{storage.describe()}: only {free_bytes / 1024**2:.0f} MiB free, below the "
+                            f"{min_free_bytes / 1024**2:.0f} MiB of SADDLESCOPE_STORAGE_MIN_FREE_BYTES"), free_bytes
+    return "ok", detail, free_bytes
 
 
 def check_queue(queue: JobQueue) -> tuple[bool, str]:
@@ -43,14 +69,19 @@ def check_queue(queue: JobQueue) -> tuple[bool, str]:
     return queue.health()
 
 
-def health_report(engine: Engine, queue: JobQueue, storage: Storage) -> dict[str, Any]:
-    """``{"status": "ok"|"error", "parts": {name: {"ok", "detail"}}}``."""
+def _overall(statuses: list[str]) -> str:
+    return "error" if "error" in statuses else "degraded" if "degraded" in statuses else "ok"
+
+
+def health_report(engine: Engine, queue: JobQueue, storage: Storage, *, min_free_bytes: int = 0) -> dict[str, Any]:
+    """``{"status": "ok"|"degraded"|"error", "parts": {name: {"ok", "status", "detail"}}}``; the storage
+    part also has ``free_bytes`` (None for a bucket)."""
     parts = {}
-    for name, (ok, detail) in (("database", check_database(engine)), ("broker", check_queue(queue)),
-                               ("storage", check_storage(storage))):
+    for name, (ok, detail) in (("database", check_database(engine)), ("broker", check_queue(queue))):
         parts[name] = {"ok": ok, "status": "ok" if ok else "error", "detail": detail}
-    return {"status": "ok" if all(p["ok"] for p in parts.values()) else "error", "mode": queue.mode,
-            "parts": parts}
+    state, detail, free_bytes = check_storage(storage, min_free_bytes)
+    parts["storage"] = {"ok": state == "ok", "status": state, "detail": detail, "free_bytes": free_bytes}
+    return {"status": _overall([p["status"] for p in parts.values()]), "mode": queue.mode, "parts": parts}
 
 
 # What a part being down means for a club, in its words (the public answer names no path or version).
@@ -59,6 +90,7 @@ PART_TROUBLE = {
     "broker": "the job queue does not answer, so new analyses cannot start",
     "storage": "the file storage cannot be written, so clips cannot be uploaded",
 }
+STORAGE_LOW = "the file storage is nearly full, so uploads and new results may be refused"
 
 
 def public_report(report: dict[str, Any]) -> dict[str, Any]:
@@ -67,8 +99,9 @@ def public_report(report: dict[str, Any]) -> dict[str, Any]:
     The details (the storage folder, the database server's version, the broker's address) help an
     attacker more than a member, so they stay in ``/api/health/details`` for admins.
     """
-    down = [name for name, part in report["parts"].items() if not part["ok"]]
-    summary = ("Service OK" if not down
-               else "Service degraded: " + "; ".join(PART_TROUBLE.get(name, f"{name} is not ok") for name in down))
-    parts = {name: {"ok": part["ok"], "status": part["status"]} for name, part in report["parts"].items()}
+    troubles = [STORAGE_LOW if part["status"] == "degraded" else PART_TROUBLE.get(name, f"{name} is not ok")
+                 for name, part in report["parts"].items() if not part["ok"]]
+    summary = "Service OK" if not troubles else "Service degraded: " + "; ".join(troubles)
+    parts = {name: {key: part[key] for key in ("ok", "status", "free_bytes") if key in part}
+             for name, part in report["parts"].items()}
     return {"status": report["status"], "summary": summary, "parts": parts}

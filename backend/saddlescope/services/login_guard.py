@@ -1,9 +1,18 @@
-"""Sign-in under abuse: failed-attempt counters (per account and per client address) and Argon2's pool.
+"""Sign-in under abuse: failed-attempt counters that stop a guesser without locking others out, and
+Argon2's pool.
+
+Failures are counted per (account, client address) pair and per client address. A pair that has failed
+``max_failures`` times waits a back-off before its next try: ``backoff_s``, doubling with each further
+failure, at most ``lockout_s``. An address with ``ADDRESS_FACTOR`` times as many failures (over any
+accounts) waits its own back-off, but only for accounts that have already failed from it: the right
+password of an account that has not failed from that address is never refused, and an address that
+has not failed is never refused because someone else guessed (a club behind one router keeps signing
+in while one person guesses). Tries refused during a back-off are not counted, and counts expire
+``window_s`` after a pair's or address's first failure (a fixed window: it does not restart on each
+failure), so an owner is never locked out for longer than one back-off.
 
 The counters live in Redis when the service runs with a broker (every API process sees the same
-numbers) and in memory in embedded mode. After ``max_failures`` wrong passwords for one account (or four
-times as many from one address) sign-in is refused with `LoginThrottled` until ``lockout_s`` after the
-last failure, even with the right password. A counter key holds a hash of the e-mail, never the address.
+numbers) and in memory in embedded mode. A counter key holds a hash of the e-mail and the address.
 
 Password hashing takes tens of milliseconds of CPU, so it runs in a small pool of its own with a bounded
 queue (`HashPool`): a flood of sign-ins is answered `HashPoolBusy` (503) instead of stalling every route.
@@ -19,16 +28,18 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Protocol, TypeVar
 
 from saddlescope.core.errors import SaddleScopeError
 
-__all__ = ["HashPool", "HashPoolBusy", "LoginGuard", "LoginThrottled", "MemoryCounters", "RedisCounters",
-           "make_login_guard"]
+__all__ = ["Failures", "HashPool", "HashPoolBusy", "LoginGuard", "LoginThrottled", "MemoryCounters",
+           "RedisCounters", "make_login_guard"]
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 ADDRESS_FACTOR = 4
+MAX_DOUBLINGS = 20  # 2**20 times the first back-off is far beyond any lockout_s: no overflow
 
 
 class LoginThrottled(SaddleScopeError):
@@ -45,15 +56,27 @@ class HashPoolBusy(SaddleScopeError):
     retry_after_s = 5
 
 
-class Counters(Protocol):
-    """Failure counters that expire ``window_s`` after their last increment."""
+@dataclass(frozen=True)
+class Failures:
+    """Failures counted under one key: how many, and when the last one was (s, the counters' clock)."""
 
-    def get(self, key: str) -> tuple[int, int]:
-        """(count, seconds until it expires); (0, 0) when absent."""
+    count: int = 0
+    last_s: float = 0.0
+
+
+class Counters(Protocol):
+    """Failure counters; a key's count expires ``window_s`` after its first failure."""
+
+    def now(self) -> float:
+        """The clock `Failures.last_s` is read on (s)."""
         ...
 
-    def incr(self, key: str, window_s: int) -> int:
-        """Add one failure and restart the window; the new count."""
+    def get(self, key: str) -> Failures:
+        """The failures counted under `key` (none when absent or expired)."""
+        ...
+
+    def add(self, key: str, window_s: int) -> Failures:
+        """Count one failure now; a new key's window starts (an existing key's window is kept)."""
         ...
 
     def clear(self, key: str) -> None:
@@ -67,28 +90,33 @@ class MemoryCounters:
     def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._clock = clock
         self._lock = threading.Lock()
-        self._data: dict[str, tuple[int, float]] = {}
+        self._data: dict[str, tuple[Failures, float]] = {}  # key: (failures, end of its window)
 
-    def get(self, key: str) -> tuple[int, int]:
-        """(count, seconds until it expires); (0, 0) when absent."""
+    def now(self) -> float:
+        """This process's clock (monotonic by default)."""
+        return self._clock()
+
+    def get(self, key: str) -> Failures:
+        """The failures counted under `key` (none when absent or expired)."""
         with self._lock:
-            count, until = self._data.get(key, (0, 0.0))
-            left = until - self._clock()
-            if left <= 0:
+            failures, until = self._data.get(key, (Failures(), 0.0))
+            if until <= self._clock():
                 self._data.pop(key, None)
-                return 0, 0
-            return count, max(1, math.ceil(left))
+                return Failures()
+            return failures
 
-    def incr(self, key: str, window_s: int) -> int:
-        """Add one failure and restart the window; the new count."""
+    def add(self, key: str, window_s: int) -> Failures:
+        """Count one failure now; a new key's window starts (an existing key's window is kept)."""
         with self._lock:
             now = self._clock()
             if len(self._data) > 100_000:  # bounded memory: drop what has expired
                 self._data = {k: v for k, v in self._data.items() if v[1] > now}
-            count, until = self._data.get(key, (0, 0.0))
-            count = (count if until > now else 0) + 1
-            self._data[key] = (count, now + window_s)
-            return count
+            failures, until = self._data.get(key, (Failures(), 0.0))
+            if until <= now:
+                failures, until = Failures(), now + window_s
+            failures = Failures(failures.count + 1, now)
+            self._data[key] = (failures, until)
+            return failures
 
     def clear(self, key: str) -> None:
         """Forget the key."""
@@ -97,7 +125,10 @@ class MemoryCounters:
 
 
 class RedisCounters:
-    """Counters shared by every API process through Redis (falls back to memory while it is down)."""
+    """Counters shared by every API process through Redis (falls back to memory while it is down).
+
+    A key is a hash ``{count, last}``; its expiry is set by the first failure only (``EXPIRE ... NX``).
+    """
 
     def __init__(self, url: str, *, prefix: str = "saddlescope:login:") -> None:
         import redis
@@ -105,7 +136,7 @@ class RedisCounters:
         self._redis = redis.Redis.from_url(url, socket_timeout=2, socket_connect_timeout=2)
         self._errors = (redis.RedisError, OSError)
         self._prefix = prefix
-        self._fallback = MemoryCounters()
+        self._fallback = MemoryCounters(clock=time.time)
 
     def _run(self, fn: Callable[[], T], fallback: Callable[[], T]) -> T:
         try:
@@ -114,26 +145,29 @@ class RedisCounters:
             log.warning("sign-in counters: Redis unavailable (%s); counting in this process meanwhile", exc)
             return fallback()
 
-    def get(self, key: str) -> tuple[int, int]:
-        """(count, seconds until it expires); (0, 0) when absent."""
-        def read() -> tuple[int, int]:
-            pipe = self._redis.pipeline()
-            pipe.get(self._prefix + key)
-            pipe.ttl(self._prefix + key)
-            value, ttl = pipe.execute()
-            return (int(value), max(int(ttl), 1)) if value is not None else (0, 0)
+    def now(self) -> float:
+        """Wall-clock time (every API process stamps failures with its own; they agree to NTP's accuracy)."""
+        return time.time()
+
+    def get(self, key: str) -> Failures:
+        """The failures counted under `key` (none when absent or expired)."""
+        def read() -> Failures:
+            count, last = self._redis.hmget(self._prefix + key, "count", "last")
+            return Failures(int(count), float(last)) if count is not None and last is not None else Failures()
 
         return self._run(read, lambda: self._fallback.get(key))
 
-    def incr(self, key: str, window_s: int) -> int:
-        """Add one failure and restart the window; the new count."""
-        def write() -> int:
+    def add(self, key: str, window_s: int) -> Failures:
+        """Count one failure now; a new key's window starts (an existing key's window is kept)."""
+        def write() -> Failures:
+            now = self.now()
             pipe = self._redis.pipeline()
-            pipe.incr(self._prefix + key)
-            pipe.expire(self._prefix + key, window_s)
-            return int(pipe.execute()[0])
+            pipe.hincrby(self._prefix + key, "count", 1)
+            pipe.hset(self._prefix + key, "last", repr(now))
+            pipe.expire(self._prefix + key, window_s, nx=True)
+            return Failures(int(pipe.execute()[0]), now)
 
-        return self._run(write, lambda: self._fallback.incr(key, window_s))
+        return self._run(write, lambda: self._fallback.add(key, window_s))
 
     def clear(self, key: str) -> None:
         """Forget the key."""
@@ -146,38 +180,54 @@ def _minutes(seconds: int) -> str:
 
 
 class LoginGuard:
-    """Counts failed sign-ins per account and per client address and refuses sign-in past the limit."""
+    """Back-offs per (account, address) pair, then per address for accounts that failed from it."""
 
-    def __init__(self, counters: Counters, *, max_failures: int, lockout_s: int) -> None:
+    def __init__(self, counters: Counters, *, max_failures: int, lockout_s: int, backoff_s: int = 30,
+                 window_s: int | None = None) -> None:
         self.counters = counters
         self.max_failures = max_failures
-        self.lockout_s = lockout_s
+        self.lockout_s = lockout_s  # the longest back-off
+        self.backoff_s = min(backoff_s, lockout_s)  # the first back-off
+        self.window_s = max(window_s or 0, lockout_s)
 
     @staticmethod
     def _keys(email: str, address: str) -> tuple[str, str]:
-        account = hashlib.sha256(email.strip().lower().encode()).hexdigest()[:32]
-        return f"account:{account}", f"address:{address or 'unknown'}"
+        account = email.strip().lower().encode()
+        where = (address or "unknown").encode()
+        pair = hashlib.sha256(account + b"\0" + where).hexdigest()[:32]
+        return f"pair:{pair}", f"address:{hashlib.sha256(where).hexdigest()[:32]}"
+
+    def _wait_s(self, failures: Failures, free: int) -> int:
+        """Seconds still to wait after `failures`, when `free` failures come without a back-off."""
+        if failures.count < free:
+            return 0
+        doublings = min(failures.count - free, MAX_DOUBLINGS)
+        backoff_s = min(self.lockout_s, self.backoff_s * 2**doublings)
+        return max(0, math.ceil(failures.last_s + backoff_s - self.counters.now()))
 
     def check(self, email: str, address: str) -> None:
-        """Raise `LoginThrottled` when this account or this address is locked out."""
-        account, client = self._keys(email, address)
-        count, left = self.counters.get(account)
-        if count >= self.max_failures:
+        """Raise `LoginThrottled` while this account is backed off from this address."""
+        pair, client = self._keys(email, address)
+        failed_here = self.counters.get(pair)
+        left = self._wait_s(failed_here, self.max_failures)
+        if left:
             raise LoginThrottled(
-                f"too many wrong passwords for this account: sign-in is locked for {_minutes(left)}; "
-                "try again later or ask a club admin to reset the password", left)
-        count, left = self.counters.get(client)
-        if count >= self.max_failures * ADDRESS_FACTOR:
+                f"too many wrong passwords for this account from your network address: sign-in is locked for "
+                f"{_minutes(left)}; try again later or ask a club admin to reset the password", left)
+        if failed_here.count == 0:
+            return  # the address's limit never refuses an account that has not failed from it
+        left = self._wait_s(self.counters.get(client), self.max_failures * ADDRESS_FACTOR)
+        if left:
             raise LoginThrottled(
                 f"too many failed sign-ins from your network address: try again in {_minutes(left)}", left)
 
     def failed(self, email: str, address: str) -> None:
-        """Count a failed sign-in against the account and the address."""
+        """Count a failed sign-in against the account at this address, and against the address."""
         for key in self._keys(email, address):
-            self.counters.incr(key, self.lockout_s)
+            self.counters.add(key, self.window_s)
 
     def succeeded(self, email: str, address: str) -> None:
-        """A successful sign-in clears the account's count (the address keeps its own)."""
+        """A successful sign-in clears the pair's count (the address keeps its own)."""
         self.counters.clear(self._keys(email, address)[0])
 
 
@@ -209,4 +259,5 @@ def make_login_guard(settings) -> LoginGuard:
     """Redis counters when the broker is Redis (a deployment), memory counters otherwise."""
     url = settings.broker_url or ""
     counters: Counters = RedisCounters(url) if url.startswith(("redis://", "rediss://")) else MemoryCounters()
-    return LoginGuard(counters, max_failures=settings.login_max_failures, lockout_s=settings.login_lockout_s)
+    return LoginGuard(counters, max_failures=settings.login_max_failures, lockout_s=settings.login_lockout_s,
+                      backoff_s=settings.login_backoff_s, window_s=settings.login_window_s)

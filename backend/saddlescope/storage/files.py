@@ -75,9 +75,16 @@ class AtomicWriter:
         return self._digest.hexdigest()
 
     def commit(self) -> tuple[int, str]:
-        """Move the bytes into place under `key`; returns (size in bytes, sha256 hex)."""
-        self._out.close()
-        self._tmp.replace(self.target)
+        """Move the bytes into place under `key`; returns (size in bytes, sha256 hex).
+
+        A failure (the last buffered bytes meet a full disk at close) removes the temporary file too.
+        """
+        try:
+            self._out.close()
+            self._tmp.replace(self.target)
+        except BaseException:
+            self.abort()
+            raise
         return self.size, self.sha256
 
     def abort(self) -> None:

@@ -14,8 +14,12 @@ from saddlescope.api.deps import (
     SESSION_COOKIE,
     AdminClubDep,
     ClubDep,
+    OptionalBearerDep,
+    SessionDep,
     SessionFactoryDep,
     SettingsDep,
+    check_csrf,
+    client_address,
 )
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, page_of
 from saddlescope.api.schemas import (
@@ -44,7 +48,9 @@ from saddlescope.services.accounts import (
     consume_password_reset,
     create_club,
     end_sessions,
+    end_sign_in,
     issue_token,
+    read_token,
     start_password_reset,
     update_user,
 )
@@ -159,7 +165,7 @@ async def login(
     """
     email, password = await _credentials(request)
     guard = request.app.state.login_guard
-    address = request.client.host if request.client else ""
+    address = client_address(request)
     # Refused before the password is even looked at: the right password is no help while locked out.
     await run_in_threadpool(guard.check, email, address)
 
@@ -199,13 +205,26 @@ async def login(
     return out
 
 
-@router.post("/auth/logout", status_code=status.HTTP_204_NO_CONTENT)
-def logout(response: Response) -> Response:
-    """Forget the browser's session (clears both cookies). A bearer token simply expires."""
-    response.delete_cookie(SESSION_COOKIE, path="/")
-    response.delete_cookie(CSRF_COOKIE, path="/")
-    response.status_code = status.HTTP_204_NO_CONTENT
-    return response
+@router.post("/auth/logout", status_code=status.HTTP_204_NO_CONTENT,
+             responses={403: {"model": ErrorOut, "description": "signed in by the cookie, without the CSRF header"}})
+def logout(request: Request, response: Response, settings: SettingsDep, session: SessionDep,
+           bearer: OptionalBearerDep) -> Response:
+    """Sign out: this sign-in's token is refused from now on, and the browser's cookies are cleared.
+
+    The bearer token and the browser's cookie of one sign-in are the same token: both end. Other sign-ins
+    of the user go on (logout-everywhere ends them). By the cookie it needs the CSRF header, as every state
+    change does; a missing, expired or invalid token has nothing to end (the cookies are cleared anyway).
+    """
+    token = bearer or request.cookies.get(SESSION_COOKIE)
+    try:
+        principal = read_token(token, settings) if token else None
+    except AuthError:
+        principal = None
+    if principal is not None:
+        if not bearer:
+            check_csrf(request, principal)
+        end_sign_in(session, principal)
+    return _forget_browser(response)
 
 
 def _forget_browser(response: Response) -> Response:
@@ -232,7 +251,7 @@ async def change_own_password(
     """
     guard = request.app.state.login_guard
     email = (await run_in_threadpool(club.users.get, club.principal.user_id)).email
-    address = request.client.host if request.client else ""
+    address = client_address(request)
     await run_in_threadpool(guard.check, email, address)
     try:
         await request.app.state.hash_pool.run(  # Argon2 verify + hash: its bounded pool
