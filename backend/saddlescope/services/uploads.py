@@ -135,6 +135,32 @@ def _agreement(owner: ClipOwner, clip_kind: str, camera: str, info, others: list
             )
 
 
+def _probe_staged(storage: Storage, owner: ClipOwner, clip_kind: str, camera: str, staged_key: str, *,
+                  size_bytes: int, filename: str | None):
+    """The staged clip's `VideoInfo` (None on object storage, where the worker's probe stage reads it).
+
+    Raises `VideoError` naming the owner, the clip and the user's file (never the staging path) for an
+    empty, unreadable or too short clip.
+    """
+    from saddlescope.io.video import probe_video, too_short_for
+
+    name = filename or "the upload"
+    if size_bytes == 0:
+        raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera is an empty file")
+    try:
+        # On object storage the worker's probe stage reads the clip (the API keeps no video bytes).
+        info = probe_video(storage.path(staged_key)) if storage.local else None
+    except VideoError as exc:
+        # The staging path means nothing to the user (and says where storage lives): name the file.
+        reason = str(exc).replace(str(storage.path(staged_key)), name).removeprefix(f"{name}: ")
+        raise VideoError(
+            f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable video: {reason}"
+        ) from None
+    if info is not None and (short := too_short_for(clip_kind, info)):
+        raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is too short: {short}")
+    return info
+
+
 def accept_clip(
     sessions: sessionmaker[Session],
     storage: Storage,
@@ -152,26 +178,9 @@ def accept_clip(
     Returns the recording id. Raises `VideoError` (unusable video, or disagreeing with the other cameras
     of its set) or `InputError`; the staged file is deleted either way, earlier clips are untouched.
     """
-    from saddlescope.io.video import probe_video, too_short_for
-
     try:
         check_clip_slot(owner, clip_kind, camera)
-        if size_bytes == 0:
-            raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera is an empty file")
-        try:
-            # On object storage the worker's probe stage reads the clip (the API keeps no video bytes).
-            info = probe_video(storage.path(staged_key)) if storage.local else None
-        except VideoError as exc:
-            name = filename or "the upload"
-            # The staging path means nothing to the user (and says where storage lives): name the file.
-            reason = str(exc).replace(str(storage.path(staged_key)), name).removeprefix(f"{name}: ")
-            raise VideoError(
-                f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable "
-                f"video: {reason}"
-            ) from None
-        if info is not None and (short := too_short_for(clip_kind, info)):
-            raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera "
-                             f"({filename or 'the upload'}) is too short: {short}")
+        info = _probe_staged(storage, owner, clip_kind, camera, staged_key, size_bytes=size_bytes, filename=filename)
         final_key = (
             f"{owner.kind}s/{owner.id}/clips/{clip_kind}/{camera}-{sha256[:12]}"
             f"{clip_suffix(filename, '.video')}"

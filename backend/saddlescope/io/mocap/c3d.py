@@ -165,7 +165,7 @@ def read_c3d(path: str | Path) -> MocapData:
         if not (math.isfinite(reader.point_scale) and reader.point_scale != 0):
             raise MocapFileError(f"{path.name}: the point scale factor ({reader.point_scale}) is zero or not a number")
         xyz, short = _points(reader, path.name, len(data))
-    notes = [Finding("mocap.header_repaired", f"{path.name}: {text}") for text in _repairs(reader) + short]
+    notes = [Finding("mocap.header_repaired", text) for text in _repairs(reader) + short]
     notes += [Finding("mocap.reader_note", note) for w in caught if (note := _library_note(w))]
     units = (_strings(reader, "POINT:UNITS") or [""])[0] or "mm"  # the C3D default
     xyz, units = _normalise_units(xyz, units, path.name)
