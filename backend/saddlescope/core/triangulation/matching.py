@@ -131,4 +131,5 @@ def _best_permutations(cost: np.ndarray, M: int, n_others: int) -> list[np.ndarr
         if totals[j] < best_total - 1e-9:
             best_total = float(totals[j])
             best = [perms[p1]] + [perms[rest_idx[j, k]] for k in range(n_others - 1)]
+    assert best is not None  # the costs are finite (capped), so some combination beats inf
     return best
