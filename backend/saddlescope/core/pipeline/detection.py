@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from types import TracebackType
 from typing import Any, cast
 
 import numpy as np
@@ -180,7 +181,8 @@ def _down_direction(plumb: MarkerTracks | None, cameras_down: np.ndarray) -> np.
         if p is not None and p.shape[0] >= 2:
             g = p[1] - p[0]
             g = g / np.linalg.norm(g)
-            return g if g[1] > 0 else -g
+            down: np.ndarray = g if g[1] > 0 else -g
+            return down
     return cameras_down
 
 
@@ -250,7 +252,8 @@ class EarlyMotionTracks:
     def __enter__(self) -> EarlyMotionTracks:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         if exc_type is not None:  # an error before detection took the tracks: stop tracking for nothing
             self.cancel()
 

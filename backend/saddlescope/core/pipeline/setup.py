@@ -361,7 +361,8 @@ def board_corner_sample(views: list, *, max_points: int = 1500) -> list[list[flo
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     if len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, max_points).astype(int)]
-    return pts.round(1).tolist()
+    rounded: list[list[float]] = pts.round(1).tolist()
+    return rounded
 
 
 def board_coverage(views: list, image_size: tuple[int, int]) -> dict:

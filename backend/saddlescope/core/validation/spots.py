@@ -143,7 +143,8 @@ class _Track:
         f = np.asarray(self.frames[-3:], dtype=np.float64) - self.frames[-1]
         p = np.asarray(self.xy[-3:])
         if f.size == 1:
-            return p[-1]
+            last: np.ndarray = p[-1]
+            return last
         coef = np.polyfit(f, p, deg=min(2, f.size - 1))
         dt = frame - self.frames[-1]
         return np.array([np.polyval(coef[:, 0], dt), np.polyval(coef[:, 1], dt)])

@@ -345,7 +345,8 @@ def _pearson(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.clip((dx @ dy) / denom, -1.0, 1.0))
 
 
-def grade_correlation(grades, values, *, confidence: float = 0.95) -> dict[str, float]:
+def grade_correlation(grades: Sequence[float], values: Sequence[float], *,
+                      confidence: float = 0.95) -> dict[str, float]:
     """Pearson and Spearman correlation of riders' grades with an indicator.
 
     Parameters
