@@ -277,8 +277,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         # variable-rate clip, k counted on its nominal clock: a dropped frame shifts the rest)
         views = still_views(views, step) if params.still_board_only else views
         frames = np.array([v.frame for v in views], dtype=np.float64)
-        cam_clock = (clocks or {}).get(cam)
-        if cam_clock is not None and views:
+        if (cam_clock := (clocks or {}).get(cam)) is not None and views:
             frames = nominal_frames_of(frames, cam_clock[0], cam_clock[1], fps)
         return [replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)]
 
