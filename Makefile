@@ -66,6 +66,7 @@ demo: install
 lint: install
 	$(BIN)/ruff check backend worker tests
 	$(BIN)/lint-imports --config pyproject.toml
+	$(BIN)/mypy  # [tool.mypy] in pyproject.toml: the saddlescope package, the core strict
 
 # Two pytest-xdist workers, each test file whole on one worker (--dist loadfile: a module's server, ride
 # or database is built once), overlapping one test's waiting (servers, browser, broker) with another's

@@ -34,11 +34,22 @@ class CameraModel(Protocol):
     ndarray of shape (3,) mapping rig coordinates in mm into the camera's.
     """
 
-    name: str
-    K: np.ndarray
-    dist: np.ndarray
-    R: np.ndarray
-    t_mm: np.ndarray
+    # Read-only properties: a frozen dataclass (Camera) satisfies them.
+    @property
+    def name(self) -> str:
+        """Camera name."""
+    @property
+    def K(self) -> np.ndarray:
+        """Intrinsic matrix (3, 3)."""
+    @property
+    def dist(self) -> np.ndarray:
+        """Distortion coefficients (5,)."""
+    @property
+    def R(self) -> np.ndarray:
+        """Rotation rig -> camera (3, 3)."""
+    @property
+    def t_mm(self) -> np.ndarray:
+        """Translation rig -> camera in mm (3,)."""
 
 
 def _dist5(camera: CameraModel) -> np.ndarray:

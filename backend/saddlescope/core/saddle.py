@@ -404,7 +404,7 @@ def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: s
     dt_s = float(np.median(np.diff(t[run0:run1])))
     # Period from the image-plane coordinates of the left camera: depth is the noisiest direction
     # when the cameras stand close together (thesis rig).
-    f_range = STRIDE_RANGE_HZ.get(gait, (0.5, 3.0))
+    f_range = STRIDE_RANGE_HZ.get(gait or "", (0.5, 3.0))
     try:
         period_s, period_info = _planar_period(t, xyz, valid, (run0, run1), dt_s, f_range)
     except KinematicsError:

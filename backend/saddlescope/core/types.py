@@ -52,12 +52,14 @@ class Camera:
     @property
     def projection_matrix(self) -> np.ndarray:
         """P = K [R | t], shape (3, 4), for undistorted pixel coordinates."""
-        return self.K @ np.hstack([self.R, np.reshape(self.t_mm, (3, 1))])
+        P: np.ndarray = self.K @ np.hstack([self.R, np.reshape(self.t_mm, (3, 1))])
+        return P
 
     @property
     def center_mm(self) -> np.ndarray:
         """Camera centre in rig coordinates, shape (3,)."""
-        return -self.R.T @ np.reshape(self.t_mm, 3)
+        center: np.ndarray = -self.R.T @ np.reshape(self.t_mm, 3)
+        return center
 
     def project(self, points_mm: np.ndarray) -> np.ndarray:
         """Project rig points to distorted pixels with OpenCV's ``projectPoints``.

@@ -220,7 +220,7 @@ def _summary(err: np.ndarray, prefix: str) -> dict[str, float]:
 
 def metric_checks(rig: Rig, views_by_camera: Mapping[str, list[BoardView]], board: Board, *,
                   max_square_error_pct: float = 1.0, max_square_error_mm: float | None = None,
-                  max_distance_rms_mm: float | None = None) -> tuple[dict[str, float], list[str], dict]:
+                  max_distance_rms_mm: float | None = None) -> tuple[dict[str, float], list[Finding], dict]:
     """Metric quality of a rig in mm (thesis Table 8.5), overall and per camera pair.
 
     Returns

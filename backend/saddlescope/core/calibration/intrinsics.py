@@ -88,7 +88,7 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
         obj = [obj_all[v.ids] for v in views]
         img = [v.corners_px.astype(np.float32).reshape(-1, 1, 2) for v in views]
         try:
-            rms, K, dist, rvecs, tvecs, std_intr, _, per_view = cv2.calibrateCameraExtended(
+            rms, K, dist, rvecs, tvecs, std_intr, _, per_view = cv2.calibrateCameraExtended(  # type: ignore[call-overload]  # cv2's stubs: None K/dist are allowed
                 obj, img, (w, h), *start, flags=flags, criteria=_CALIB_CRITERIA)
         except cv2.error as exc:
             raise CalibrationError(f"calibration of camera {camera} failed in OpenCV: "

@@ -20,7 +20,7 @@ def _as_gray(img: np.ndarray) -> np.ndarray:
     if img.ndim != 2:
         raise InputError(f"expected a grey image of shape (H, W), got shape {img.shape}")
     if img.dtype != np.uint8:
-        img = cv2.normalize(img, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+        img = cv2.normalize(img, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)  # type: ignore[call-overload]  # cv2's stubs: dst=None is allowed
     return img
 
 
@@ -28,9 +28,9 @@ def _min_spacing_px(corners: np.ndarray, board: Board, ids: np.ndarray) -> float
     cols, rows = board.inner_corners
     grid = np.full((cols * rows, 2), np.nan)
     grid[np.asarray(ids, dtype=np.int64)] = corners
-    grid = grid.reshape(rows, cols, 2)
-    d = np.concatenate([np.linalg.norm(np.diff(grid, axis=1), axis=2).ravel(),
-                        np.linalg.norm(np.diff(grid, axis=0), axis=2).ravel()])
+    grid3 = grid.reshape(rows, cols, 2)
+    d = np.concatenate([np.linalg.norm(np.diff(grid3, axis=1), axis=2).ravel(),
+                        np.linalg.norm(np.diff(grid3, axis=0), axis=2).ravel()])
     d = d[np.isfinite(d)]
     return float(d.min()) if len(d) else 10.0
 

@@ -62,7 +62,7 @@ def select_instants(views_by_camera: Mapping[str, list[BoardView]], board: Board
     if len(candidates) <= max_instants:
         return candidates
     n_cells = grid[0] * grid[1]
-    covered = {cam: set() for cam in views_by_camera}
+    covered: dict[str, set[int]] = {cam: set() for cam in views_by_camera}
     # per instant and camera: the largest |cos| of the angle to the normals chosen so far (None: none yet),
     # kept up to date as instants are chosen rather than recomputed for every candidate at every step
     max_cos: dict[int, dict[str, float | None]] = {inst: dict.fromkeys(cells[inst]) for inst in candidates}
@@ -79,6 +79,7 @@ def select_instants(views_by_camera: Mapping[str, list[BoardView]], board: Board
                 score += diversity_weight * min(ang, 30.0) / 30.0
             if score > best_score:
                 best, best_score = inst, score
+        assert best is not None  # remaining is not empty and every score beats -1
         chosen.append(best)
         remaining.discard(best)
         for cam, c in cells[best].items():

@@ -39,7 +39,7 @@ def _below_or_at(gray: np.ndarray, threshold: float) -> np.ndarray:
 
 
 def _refine(gray: np.ndarray, labels: np.ndarray, ids: np.ndarray, boxes: np.ndarray, pad_px: int,
-            threshold: float, origin=(0, 0), ring_gap_px: int = 2) -> np.ndarray:
+            threshold: float, origin: tuple[int, int] = (0, 0), ring_gap_px: int = 2) -> np.ndarray:
     """Intensity-weighted centroids of components ``ids`` of a labelled window of ``gray``.
 
     Weights are grey minus the local background inside each component's bounding box dilated by

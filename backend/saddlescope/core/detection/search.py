@@ -187,7 +187,7 @@ def consistent_points(rig: Rig, spots: Mapping[str, np.ndarray], *, max_error_px
     xyz, err = triangulate_nview(sub_rig, xy, reject_outliers=False)[:2]
     ok = np.flatnonzero(np.isfinite(err) & (err < max_error_px))
     # A spot belongs to at most one 3-D point: keep the best-fitting points first.
-    taken = [set() for _ in cams]
+    taken: list[set[int]] = [set() for _ in cams]
     keep = []
     for i in ok[np.argsort(err[ok])]:
         if all(idx[i, c] not in taken[c] for c in range(len(cams))):
@@ -228,7 +228,7 @@ def triangle_candidates(rig: Rig, spots: Mapping[str, np.ndarray], model_mm: np.
     scale = float(np.mean([d_model[a, b] for a, b in pairs]))
     tol = tol_mm if tol_mm is not None else max(6.0, 0.06 * scale)
     d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
-    best = (np.inf, None)
+    best: tuple[float, tuple[int, ...] | None] = (np.inf, None)
     for perm in itertools.permutations(range(len(pts)), m):
         e = np.array([d[perm[a], perm[b]] - d_model[a, b] for a, b in pairs])
         rms = float(np.sqrt(np.mean(e ** 2)))
@@ -302,11 +302,13 @@ def find_markers_multiview(rig: Rig, frame_at: Callable[[str, int], np.ndarray |
             if best is not None:
                 xy = {}
                 for c, pts in best[1].items():
-                    here = bright_spots(frame_at(c, nearest[c]), max_spots=max_spots)
+                    frame = frame_at(c, nearest[c])
+                    assert frame is not None  # nearest[c] is a frame read above
+                    here = bright_spots(frame, max_spots=max_spots)
                     if len(here):
                         d = np.linalg.norm(pts[:, None] - here[None], axis=2)
                         j = np.argmin(d, axis=1)
-                        close = d[np.arange(len(pts)), j] < 0.05 * frame_at(c, nearest[c]).shape[1]
+                        close = d[np.arange(len(pts)), j] < 0.05 * frame.shape[1]
                         pts = np.where(close[:, None], here[j], pts)
                     xy[c] = pts
                 return k, {"xy": xy, "frames": nearest, "model": best[0], "rms_mm": best[2]}

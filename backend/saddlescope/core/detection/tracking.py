@@ -115,7 +115,8 @@ def _window_size(window_px, where: str) -> tuple[int, int] | None:
     if window_px is None:
         return None
     if np.isscalar(window_px):
-        window_px = (int(window_px), int(window_px))
+        side_px = int(window_px)  # type: ignore[arg-type]  # a number here; np.isscalar's guard also admits str
+        window_px = (side_px, side_px)
     else:
         window_px = tuple(int(v) for v in window_px)
     if len(window_px) != 2 or min(window_px) < 3:
@@ -167,7 +168,8 @@ class _ClipRun:
         self.scene_age = 0
         self.previous: np.ndarray | None = None        # moving mode: the previous frame (a copy) ...
         self.previous_coarse: np.ndarray | None = None  # ... and its 8x-shrunk version
-        self.vec_ref = None               # vectors between markers when they were last tracked
+        # vectors between markers when they were last tracked
+        self.vec_ref: list[list[tuple[float, float]]] | None = None
 
     def feed(self, index, gray: np.ndarray) -> None:
         """Take the next frame (index, grey frame (H, W)): follow the markers, or search for them."""
@@ -184,6 +186,7 @@ class _ClipRun:
         become gaps) or the markers are lost.
         """
         opt, tracker = self.opt, self.tracker
+        assert tracker is not None  # feed() follows only with a tracker
         if gray.shape != (tracker.H, tracker.W):
             raise InputError(f"{opt.where}frame {index} has shape {gray.shape}, earlier frames "
                              f"{(tracker.H, tracker.W)}")
@@ -236,6 +239,7 @@ class _ClipRun:
     def _find(self, gray: np.ndarray, coarse: np.ndarray) -> MarkerPattern:
         """The marker pattern on this frame (:func:`_find_pattern`), or DetectionError."""
         opt = self.opt
+        assert self.scene is not None  # feed() made it
         roi = exclude = None
         if opt.moving:
             roi, exclude = self._moving_search_area(gray, coarse)
@@ -262,6 +266,7 @@ class _ClipRun:
         that were there before.
         """
         opt, scene = self.opt, self.scene
+        assert scene is not None  # feed() made it
         if self.previous_coarse is None or self.previous_coarse.shape != coarse.shape:
             raise DetectionError(f"{opt.where}needs a second frame to tell moving markers from still "
                                  "glints")
@@ -269,6 +274,7 @@ class _ClipRun:
         if roi is None:
             raise DetectionError(f"{opt.where}nothing moves")
         span = opt.area_range_px or _default_area_range(gray.shape)
+        assert self.previous is not None  # kept with previous_coarse, checked above
         return roi, _bright_spots(self.previous, scene.levels, span, roi)
 
     def _start(self, pattern: MarkerPattern, shape: tuple[int, int]) -> None:

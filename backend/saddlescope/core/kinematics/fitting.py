@@ -8,6 +8,7 @@ the fits' fundamentals are pooled, and the markers share the order their centroi
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 from scipy.stats import t as student_t
@@ -255,7 +256,7 @@ def _share_centroid_order(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, whole: 
         except KinematicsError:
             continue
         for m in range(xyz.shape[1]):
-            own = fits[m, c]
+            own = cast(FourierFit, fits[m, c])  # the keys of the Fourier series
             if own.order < order_c:
                 g = fit_fourier(t_s, xyz[:, m, c], period_s=how.period_s, order=order_c, trend_degree=degree,
                                 name=f"{how.labels[m]} {'xyz'[c]}")
@@ -270,8 +271,9 @@ def _pooled_fundamental(fits: _Fits, keys: list[tuple[int, int]], omega_from: st
     The series of ``keys`` whose ω has a standard error count (only the vertical ones where any
     has, with ``omega_from="vertical"``); without any, the stride period's ω and a NaN error.
     """
-    se = np.array([fits[k].se["omega_rad_s"] for k in keys])
-    omegas = np.array([fits[k].omega_rad_s for k in keys])
+    fourier = [cast(FourierFit, fits[k]) for k in keys]  # keys name Fourier series only
+    se = np.array([f.se["omega_rad_s"] for f in fourier])
+    omegas = np.array([f.omega_rad_s for f in fourier])
     ok = np.isfinite(se) & (se > 0)
     if omega_from == "vertical":
         vertical = ok & np.array([c == 1 for _, c in keys])
@@ -289,7 +291,7 @@ def _pool_omega(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, how: _SeriesOptio
     keys = [k for k, f in fits.items() if isinstance(f, FourierFit)]
     pooled, pooled_se, flags = _pooled_fundamental(fits, keys, omega_from, how.period_s)
     for m, c in keys:
-        free = fits[m, c]
+        free = cast(FourierFit, fits[m, c])  # keys name Fourier series only
         g = fit_fourier(t_s, xyz[:, m, c], period_s=2 * np.pi / pooled, order=free.order, fit_omega=False,
                         trend_degree=how.axes[c], name=f"{how.labels[m]} {'xyz'[c]}")
         half = student_t.ppf(0.975, max(g.gof.dfe, 1)) * pooled_se

@@ -538,15 +538,16 @@ def _weak_axis(r_finite: np.ndarray, method: str, observable_ratio: float, raw: 
                                  f"rotation about it (axis {np.round(axis, 2).tolist()} in the motion frame) is not "
                                  "observable, so its component of ω and α is left out (taken as zero)",
                                  {"eigenvalue_ratio": ratio, "limit_ratio": observable_ratio}))
-    gains = (None, None)
+    gains: tuple[float, float] | tuple[None, None] = (None, None)
     if method == "lsq_wiener":
-        gains = weak_axis_gain(*raw)
+        assert raw is not None  # _check_body required it for this method
+        omega_gain, alpha_gain = gains = weak_axis_gain(*raw)
         _, ratio = unobservable_axis(r_finite, min_eig_ratio=observable_ratio)
         flags.append(Finding("rotation.weak_axis",
                              f"rotation about the markers' weakest axis (eigenvalue ratio {ratio:.3f}) kept at "
-                             f"{gains[0]:.0%} in ω and {gains[1]:.0%} in α: the rest is what skin motion predicts",
-                             {"eigenvalue_ratio": ratio, "omega_kept_pct": 100 * gains[0],
-                              "alpha_kept_pct": 100 * gains[1]}))
+                             f"{omega_gain:.0%} in ω and {alpha_gain:.0%} in α: the rest is what skin motion predicts",
+                             {"eigenvalue_ratio": ratio, "omega_kept_pct": 100 * omega_gain,
+                              "alpha_kept_pct": 100 * alpha_gain}))
     return ratio_cut, gains, flags
 
 

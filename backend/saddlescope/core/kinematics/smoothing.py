@@ -307,7 +307,7 @@ def bridge_gaps(t, y, *, max_gap_s: float, span: float = 0.10, iterations: int =
         runs = _nan_runs(missing)
         if not runs:
             continue
-        fill_idx = []
+        fill_idx: list[int] = []
         for first, last in runs:
             duration_s = (last - first + 1) * dt
             interior = first > 0 and last < n - 1
@@ -401,6 +401,7 @@ def regularize_depth(t, xyz_mm, origin_mm, axis, *, period_s: float, max_order: 
             bic = n * np.log(max(rss, 1e-300) / n) + design.shape[1] * np.log(n)
             if best is None or bic < best[0]:
                 best = (bic, order, fitted)
+        assert best is not None  # designs is never empty
         _, order, fitted = best
         orders.append(order)
         out[:, m] = np.asarray(origin_mm, dtype=np.float64) + rel[:, m] * (fitted / rng[:, m])[:, None]

@@ -11,8 +11,10 @@ import math
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Any, cast
 
 import numpy as np
 
@@ -179,7 +181,8 @@ def _down_direction(plumb: MarkerTracks | None, cameras_down: np.ndarray) -> np.
         if p is not None and p.shape[0] >= 2:
             g = p[1] - p[0]
             g = g / np.linalg.norm(g)
-            return g if g[1] > 0 else -g
+            down: np.ndarray = g if g[1] > 0 else -g
+            return down
     return cameras_down
 
 
@@ -223,7 +226,7 @@ class EarlyMotionTracks:
         self._args = (clips, first_frame, params, n_horse)
         self._stop = threading.Event()
         self._pool: ThreadPoolExecutor | None = None
-        self._future = None
+        self._future: Future[dict[str, ImageTracks | DetectionError]] | None = None
 
     def start(self) -> None:
         """Start tracking (once)."""
@@ -249,7 +252,8 @@ class EarlyMotionTracks:
     def __enter__(self) -> EarlyMotionTracks:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         if exc_type is not None:  # an error before detection took the tracks: stop tracking for nothing
             self.cancel()
 
@@ -297,7 +301,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
             tracks = dict(alone) if alone is not None else motion_tracks_alone(clips, first_frame, params, n_horse)
             failed = [got for got in tracks.values() if isinstance(got, DetectionError)]
             if not failed:
-                return tracks, horse_idx, (rest[0] if rest else None), False
+                return cast(dict[str, ImageTracks], tracks), horse_idx, (rest[0] if rest else None), False
         except DetectionError:
             pass
     # Then all cameras together: the first instant where they agree on the static shot's triangle.
@@ -307,6 +311,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     fps = clips.fps("motion", cams[0])
 
     def stamped_position(cam: str, k: int) -> float:  # the camera's frame at reference frame k's instant
+        assert clocks is not None  # used only with clocks (below)
         times, anchor = clocks[cam]
         return float(clip_frames_at(np.array([k + offsets.get(cam, 0.0)]), times, anchor, fps)[0])
     position = stamped_position if clocks else None
@@ -318,7 +323,7 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     for got in tracks.values():
         if isinstance(got, DetectionError):
             raise got
-    return tracks, horse_idx, (rest[0] if rest else None), True
+    return cast(dict[str, ImageTracks], tracks), horse_idx, (rest[0] if rest else None), True
 
 
 @dataclass
@@ -350,8 +355,8 @@ class _Triangulator:
         # issue 27 (wt-arena-rigs): beyond the board's reach the lens model is not extrapolated, and the
         # ride's track has no step where a camera enters or leaves
         nview = params.triangulation == "nview"
-        self.extra = {"lens_reach_px": dict(lens_reach_px)} if lens_reach_px and nview else {}
-        self.motion_extra = {"camera_set_bias": True} if nview else {}
+        self.extra: dict[str, Any] = {"lens_reach_px": dict(lens_reach_px)} if lens_reach_px and nview else {}
+        self.motion_extra: dict[str, Any] = {"camera_set_bias": True} if nview else {}
         self.fps = {kind: clips.fps(kind, clips.cameras(kind)[0]) for kind in ("static", "motion", "plumb")
                     if clips.has(kind)}
         self.seconds = 0.0

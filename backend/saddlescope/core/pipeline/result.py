@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -177,7 +178,7 @@ def fits_document(fits) -> dict:
 
 
 def _fit_summary(fit) -> dict:
-    out = {"kind": type(fit).__name__}
+    out: dict[str, Any] = {"kind": type(fit).__name__}
     gof = getattr(fit, "gof", None)
     if gof is not None:
         out.update({k: (float(v) if isinstance(v, int | float | np.floating) else v)

@@ -167,8 +167,9 @@ def sync_quality(kinds: list[str], methods: Mapping, synced: Mapping[str, Motion
         entry: dict = {"method": methods.get(kind, "flash")}
         if kind in synced:
             entry["sigma_frames"] = {c: round(float(v), 4) for c, v in synced[kind].sigma_frames.items()}
-            if synced[kind].rms_px is not None:
-                entry["rms_px"] = round(float(synced[kind].rms_px), 4)
+            rms_px = synced[kind].rms_px
+            if rms_px is not None:
+                entry["rms_px"] = round(float(rms_px), 4)
         if kind in methods.get("reasons", {}):
             entry["reason"] = methods["reasons"][kind]
         out[kind] = entry
@@ -276,8 +277,8 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         # variable-rate clip, k counted on its nominal clock: a dropped frame shifts the rest)
         views = still_views(views, step) if params.still_board_only else views
         frames = np.array([v.frame for v in views], dtype=np.float64)
-        if cam in (clocks or {}) and views:
-            frames = nominal_frames_of(frames, clocks[cam][0], clocks[cam][1], fps)
+        if (cam_clock := (clocks or {}).get(cam)) is not None and views:
+            frames = nominal_frames_of(frames, cam_clock[0], cam_clock[1], fps)
         return [replace(v, frame=int(round(k - offsets.get(cam, 0.0)))) for v, k in zip(views, frames, strict=True)]
 
     # Cameras in parallel within the thread budget: decoding (PyAV) and the board search (OpenCV) release the
@@ -359,7 +360,8 @@ def board_corner_sample(views: list, *, max_points: int = 1500) -> list[list[flo
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     if len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, max_points).astype(int)]
-    return pts.round(1).tolist()
+    rounded: list[list[float]] = pts.round(1).tolist()
+    return rounded
 
 
 def board_coverage(views: list, image_size: tuple[int, int]) -> dict:

@@ -5,6 +5,8 @@ A banded, row-vectorised dynamic programme (see :func:`needleman_wunsch`).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from saddlescope.core.errors import InputError
@@ -56,7 +58,7 @@ def default_band(n: int, m: int) -> int:
 
 
 def _nw_fill(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, match: float,
-             mismatch: float, gap: float) -> tuple[float, np.ndarray]:
+             mismatch: float, gap: float) -> tuple[float, np.ndarray, np.ndarray]:
     """Banded score matrix, row by row; returns the score and the traceback bits per band cell.
 
     Rows are stored with a one-cell offset (column j at index j + 1) so that index 0 is a permanent
@@ -65,6 +67,8 @@ def _nw_fill(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, match
     n, m = a.shape[0], b.shape[0]
     scale = max(abs(match), abs(mismatch), abs(gap))
     exact = all(float(x).is_integer() for x in (match, mismatch, gap)) and scale * (n + m + 2) < 2 ** 28
+    dtype: Any  # np.int32 or np.float64: numpy's stubs cannot type arithmetic on either
+    neg: float
     if exact:
         dtype, neg, tol = np.int32, -(2 ** 30), 0.0  # integer scores: exact and twice as fast
     else:

@@ -275,6 +275,7 @@ def _resolve_groups(out: list[int], groups: list[tuple[int, int]], g0: int, g_st
             key = tuple(codes[max(len(context) - 1, 0):].tolist())
             if best is None or key < best[0]:
                 best = (key, perm)
+        assert best is not None  # the loop above ran at least once
         out[s0:s1] = list(best[1])
 
 

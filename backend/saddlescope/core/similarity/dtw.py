@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from saddlescope.core.errors import InputError
 
@@ -11,7 +12,7 @@ __all__ = [
 ]
 
 
-def _as_series(x, name: str) -> np.ndarray:
+def _as_series(x: ArrayLike, name: str) -> np.ndarray:
     arr = np.asarray(x, dtype=np.float64)
     if arr.ndim == 1:
         arr = arr[:, None]
@@ -22,7 +23,7 @@ def _as_series(x, name: str) -> np.ndarray:
     return arr
 
 
-def dtw_distance_reference(a, b, *, window: int | None = None) -> float:
+def dtw_distance_reference(a: ArrayLike, b: ArrayLike, *, window: int | None = None) -> float:
     """Dynamic time warping distance, plain numpy (the reference for tests and small inputs).
 
     ``DTW^2(i, j) = |a_i - b_j|^2 + min(DTW^2(i-1, j-1), DTW^2(i-1, j), DTW^2(i, j-1))`` (dissertation

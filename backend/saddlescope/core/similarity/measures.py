@@ -84,12 +84,12 @@ def chain_measures(a, b, *, step: float, closed: bool = True, walk: str = "ancho
         moves_a, moves_b = ca.size > 0, cb.size > 0
     else:
         origin = np.asarray(a, dtype=np.float64).mean(axis=0)
-        ca, cb = (_open_chain(x, step, origin, walk) for x in (a, b))
-        moves_a, moves_b = ca is not None, cb is not None
-        ca = ca if ca is not None else np.zeros(0, dtype=np.int8)
-        cb = cb if cb is not None else np.zeros(0, dtype=np.int8)
-    out = {"chain_length_a": int(ca.size), "chain_length_b": int(cb.size), "moves_a": bool(moves_a),
-           "moves_b": bool(moves_b)}
+        open_a, open_b = (_open_chain(x, step, origin, walk) for x in (a, b))
+        moves_a, moves_b = open_a is not None, open_b is not None
+        ca = open_a if open_a is not None else np.zeros(0, dtype=np.int8)
+        cb = open_b if open_b is not None else np.zeros(0, dtype=np.int8)
+    out: dict[str, float | bool] = {"chain_length_a": int(ca.size), "chain_length_b": int(cb.size),
+                                    "moves_a": bool(moves_a), "moves_b": bool(moves_b)}
     if ca.size == 0 or cb.size == 0:
         same = (ca.size == 0) == (cb.size == 0) and moves_a == moves_b
         out.update(chain_code_nw=1.0 if same else 0.0, shape_dissimilarity=0.0 if same else 1.0)

@@ -328,10 +328,11 @@ def align_signatures(sig_a: RecordingSignature, sig_b: RecordingSignature, *, up
                 cyc_b, pb = None, None
             else:
                 cyc_a, pa = None, None
-        if cyc_a is not None and cyc_b is None and sig_b.x.shape[0] - 1 >= pa * rates[1] / rates[0]:
+        if cyc_a is not None and pa is not None and cyc_b is None and sig_b.x.shape[0] - 1 >= pa * rates[1] / rates[0]:
             pb = pa * rates[1] / rates[0]
             cyc_b = _cycles(sig_b.x, pb, n_samples)
-        elif cyc_b is not None and cyc_a is None and sig_a.x.shape[0] - 1 >= pb * rates[0] / rates[1]:
+        elif (cyc_b is not None and pb is not None and cyc_a is None
+              and sig_a.x.shape[0] - 1 >= pb * rates[0] / rates[1]):
             pa = pb * rates[0] / rates[1]
             cyc_a = _cycles(sig_a.x, pa, n_samples)
         if cyc_a is not None and cyc_b is not None and cyc_a[1].shape[0] == cyc_b[1].shape[0] == n_samples:

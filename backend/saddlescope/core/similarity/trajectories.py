@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -139,14 +140,14 @@ def trajectory_similarity(xyz_a, xyz_b, *, markers=None, window=None, step: floa
             raise InputError(f"marker {k}: {exc}") from exc
 
     keys = ("nw_similarity", "shape_dissimilarity", "shape_similarity", "dtw")
-    out_windows = []
+    out_windows: list[dict[str, Any]] = []
     for start, stop in windows:
         per_marker = {}
         for k in used:
             xa, xb = a[start:stop, k], b[start:stop, k]
             ca = chain_code_3d(xa, step=steps[k])
             cb = chain_code_3d(xb, step=steps[k])
-            entry = {"chain_length_a": int(ca.size), "chain_length_b": int(cb.size)}
+            entry: dict[str, float] = {"chain_length_a": int(ca.size), "chain_length_b": int(cb.size)}
             entry.update(_pair_scores(ca, cb, nw_scores, band))
             entry["shape_similarity"] = 1.0 - entry["shape_dissimilarity"]
             entry["dtw"] = float(dtw(xa, xb))

@@ -71,7 +71,7 @@ def reach_radius(camera, reach_px: float) -> tuple[float, float, float]:
     rd = _radial(dist, r)
     rising = np.flatnonzero(np.diff(rd) <= 0)
     end = int(rising[0]) if rising.size else r.size - 1
-    i = int(min(np.searchsorted(rd[: end + 1], rho_t), end))
+    i = min(int(np.searchsorted(rd[: end + 1], rho_t)), end)
     r_t = float(r[i])
     return r_t, float(rd[i]), float(max(1 + 3 * dist[0] * r_t * r_t, _MIN_SLOPE))
 

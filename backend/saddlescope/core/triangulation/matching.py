@@ -108,7 +108,8 @@ def _tuple_costs(rig: Rig, arrays: Mapping[str, np.ndarray], order: Sequence[str
     # A tuple with a missing detection costs nothing extra: the gap stays a gap either way.
     cost = np.where(nviews < len(order), np.where(np.isfinite(rms) & ~behind, np.minimum(rms, cap_px), 0.0),
                     cost)
-    return cost.sum(axis=0).reshape((M,) * len(order))
+    summed: np.ndarray = cost.sum(axis=0).reshape((M,) * len(order))
+    return summed
 
 
 def _best_permutations(cost: np.ndarray, M: int, n_others: int) -> list[np.ndarray]:
@@ -131,4 +132,5 @@ def _best_permutations(cost: np.ndarray, M: int, n_others: int) -> list[np.ndarr
         if totals[j] < best_total - 1e-9:
             best_total = float(totals[j])
             best = [perms[p1]] + [perms[rest_idx[j, k]] for k in range(n_others - 1)]
+    assert best is not None  # the costs are finite (capped), so some combination beats inf
     return best

@@ -32,7 +32,8 @@ class _Views:
         self.t = np.stack([np.asarray(c.t_mm, dtype=np.float64).reshape(3) for c in self.cameras])
         self.A = np.stack([np.asarray(c.K, dtype=np.float64)[:2, :2] for c in self.cameras])  # (C, 2, 2)
         self.obs_px = obs_px                                                                   # (C, P, 2)
-        reach = {n: lens_reach_px[n] for n in self.names if n in (lens_reach_px or {})}
+        reach_given = lens_reach_px or {}
+        reach = {n: reach_given[n] for n in self.names if n in reach_given}
         limited = [undistort_within_reach(c, o, reach.get(n)) for n, c, o in zip(self.names, self.cameras, obs_px,
                                                                                   strict=True)]
         self.obs_n = np.stack([xy for xy, _ in limited])

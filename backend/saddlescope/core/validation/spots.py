@@ -59,7 +59,7 @@ def bright_spots(gray: np.ndarray, *, max_spots: int = 40, min_contrast: float =
         dyy = cv2.Sobel(g, cv2.CV_32F, 0, 2, ksize=3)
         dxy = cv2.Sobel(g, cv2.CV_32F, 1, 1, ksize=3)
         # minus the larger Hessian eigenvalue, times sigma^2 (the 3x3 Sobel kernels sum to 4)
-        root = cv2.magnitude(cv2.subtract(dxx, dyy), cv2.multiply(dxy, 2.0))
+        root = cv2.magnitude(cv2.subtract(dxx, dyy), cv2.multiply(dxy, 2.0))  # type: ignore[call-overload]  # cv2's stubs lack the scalar form
         weak = cv2.addWeighted(cv2.add(dxx, dyy), -0.125 * s * s, root, -0.125 * s * s, 0)
         better = weak > strength
         np.copyto(strength, weak, where=better)
@@ -143,7 +143,8 @@ class _Track:
         f = np.asarray(self.frames[-3:], dtype=np.float64) - self.frames[-1]
         p = np.asarray(self.xy[-3:])
         if f.size == 1:
-            return p[-1]
+            last: np.ndarray = p[-1]
+            return last
         coef = np.polyfit(f, p, deg=min(2, f.size - 1))
         dt = frame - self.frames[-1]
         return np.array([np.polyval(coef[:, 0], dt), np.polyval(coef[:, 1], dt)])
@@ -197,7 +198,7 @@ def link_spots(spots: Spots, *, camera: str = "", first_step_px: float = 40.0, g
             active[i].xy.append(xy[j])
             taken_track.add(i)
             taken_spot.add(j)
-        going = []
+        going: list[_Track] = []
         for tr in active:
             (going if index - tr.frames[-1] <= max_gap else done).append(tr)
         active = going + [_Track(index, xy[j]) for j in range(len(xy)) if j not in taken_spot]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -260,7 +261,7 @@ def leaderboard(rows: Iterable[Mapping], indicator: str, *, gait: str,
     lower = _better(indicator, lower_is_better)
     groups = compare_horses(rows, indicator, gait=gait)
     groups.sort(key=lambda g: (g["mean"] if lower else -g["mean"], g["group"]))
-    out = []
+    out: list[dict[str, Any]] = []
     for i, g in enumerate(groups):
         tied = out and out[-1]["mean"] == g["mean"]
         out.append({
@@ -344,7 +345,8 @@ def _pearson(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.clip((dx @ dy) / denom, -1.0, 1.0))
 
 
-def grade_correlation(grades, values, *, confidence: float = 0.95) -> dict[str, float]:
+def grade_correlation(grades: Sequence[float], values: Sequence[float], *,
+                      confidence: float = 0.95) -> dict[str, float]:
     """Pearson and Spearman correlation of riders' grades with an indicator.
 
     Parameters
@@ -433,7 +435,7 @@ def grades_vs_indicators(grade_rows: Iterable[Mapping], indicator_rows: Iterable
         result: dict = grade_correlation([p["grade"] for p in points], [p["value"] for p in points],
                                          confidence=confidence)
         better = INDICATORS.get(indicator, IndicatorInfo("", "")).better
-        result["expected_sign"] = {"lower": -1, "higher": 1}.get(better, 0)
+        result["expected_sign"] = {"lower": -1, "higher": 1}.get(better or "", 0)
         result["points"] = points
         out[indicator] = result
     return out

@@ -436,7 +436,7 @@ def _largest_part(sources: Mapping | None) -> str:
     known = {k: float(v) for k, v in parts.items() if k in _GAIN_PART_WORDS and v}
     if not known:
         return ""
-    return f", mostly from {_GAIN_PART_WORDS[max(known, key=known.get)]}"
+    return f", mostly from {_GAIN_PART_WORDS[max(known, key=lambda part: known[part])]}"
 
 
 def _band(value: float) -> int:
