@@ -338,7 +338,8 @@ def used_members(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> list[ZipM
 
 def _check_unpacked(used: list[ZipMember], zip_name: str, *, max_bytes: int) -> None:
     """Refuse used members that unpack to more than `max_bytes`, or to padding (a compression ratio no
-    video or image has, counted over all of them: many small members of zeros are padding too)."""
+    video or image has, counted over all of them: many small members of zeros are padding too).
+    """
     unpacked = sum(member.info.file_size for member in used)
     packed = max(sum(member.info.compress_size for member in used), 1)
     if unpacked > max_bytes:

@@ -82,7 +82,8 @@ class _Handoff:
 
 def _frames_kept(fps: float) -> int:
     """Frames a sync pass may have read since the flash ended (what the next pass starts after): it stops
-    at least ``min_s`` in and at most a check interval after the flash has settled."""
+    at least ``min_s`` in and at most a check interval after the flash has settled.
+    """
     return int(math.ceil(max(SYNC_MIN_S, SYNC_SETTLE_S + SYNC_CHECK_EVERY_S) * fps)) + 2
 
 
@@ -95,7 +96,8 @@ class BundleClips:
         """``threads``: the decoders' share of the thread budget (None: FFmpeg's choice); the clips
         decoded at once split it. ``whole_clip_brightness``: read every frame's brightness, not only
         up to the flash. ``handoff_budget_mb``: the frames sync passes keep for the next pass (0: none).
-        :meth:`close` (or ``with``) closes the decoders of hand-overs not taken up."""
+        :meth:`close` (or ``with``) closes the decoders of hand-overs not taken up.
+        """
         self.paths = {kind: {cam: Path(p) for cam, p in cams.items()} for kind, cams in paths.items()}
         self.fps_hint = fps_hint
         self.threads = threads
@@ -184,7 +186,8 @@ class BundleClips:
 
     def _take_handoff(self, kind: str, camera: str, start: int, stop: int | None) -> _Handoff | None:
         """The sync pass's hand-over when it can serve frames ``start``-``stop``; a request within its
-        frames (a peek at the first frame) leaves it for the next pass, an earlier start drops it."""
+        frames (a peek at the first frame) leaves it for the next pass, an earlier start drops it.
+        """
         with self._lock:
             handoff = self._handoffs.get((kind, camera))
             if handoff is None:
@@ -249,7 +252,8 @@ class BundleClips:
     def _handoff_after_flash(self, values: np.ndarray, kept: deque, frames, kind: str,
                              camera: str) -> _Handoff | None:
         """The frames read after the flash's end, and the open decoder; None where there is nothing to hand
-        over (no flash, the whole clip read, or the frames after the flash not all kept)."""
+        over (no flash, the whole clip read, or the frames after the flash not all kept).
+        """
         if not kept or len(values) >= self.frame_count(kind, camera):
             return None
         try:
@@ -263,7 +267,8 @@ class BundleClips:
 
     def brightness(self, kind: str, camera: str) -> np.ndarray:
         """Each frame's mean grey level (F',) up to the settled end of the sync flash (the whole clip
-        when it holds none, or with ``whole_clip_brightness``); cached per clip."""
+        when it holds none, or with ``whole_clip_brightness``); cached per clip.
+        """
         return self._brightness(kind, camera)
 
 

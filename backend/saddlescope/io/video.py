@@ -67,7 +67,8 @@ def frame_clock(times_s, average_fps: float) -> tuple[bool, float]:
     the nominal rate counts frame slots: each interval is a whole number of median intervals (a drop
     is two), and the slope of the stamps over their slots is the nominal interval (jittered stamps
     average out: 60 frames tell 30 from 29.97 fps). Within 0.02 % of a standard rate the
-    rate is that one, so that cameras set alike report the same number."""
+    rate is that one, so that cameras set alike report the same number.
+    """
     t = np.asarray(times_s, dtype=np.float64)
     if t.size < 3:
         return False, average_fps
@@ -347,7 +348,8 @@ def _seek_plan(path: Path, start: int) -> tuple[int, list[int]] | None:
 def _decode_from_key(container, stream, path: Path, start: int, stop: int | None, step: int,
                      key_pts: int, pts: list[int]) -> Iterator[tuple[int, np.ndarray]]:
     """Frames from ``start`` on, decoding from the keyframe before it (the frames before that are not
-    decoded twice); each frame's index is its timestamp's rank among all the packets'."""
+    decoded twice); each frame's index is its timestamp's rank among all the packets'.
+    """
     rank = {p: i for i, p in enumerate(pts)}
     expected = start
     try:

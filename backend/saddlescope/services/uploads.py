@@ -582,7 +582,8 @@ class FinaliseInProgress(IncompleteUpload):
 @contextmanager
 def _upload_locked(session: Session, storage: Storage, upload_id: str, *, club_id: int | None) -> Iterator[None]:
     """Hold the upload against other chunks: a file lock on this host's disk, the row's lock in the database
-    otherwise (API replicas on several hosts share only the database and the bucket)."""
+    otherwise (API replicas on several hosts share only the database and the bucket).
+    """
     if storage.local:
         with storage.locked(upload_key(upload_id)):
             session.rollback()  # read the offset as it is now, under the lock

@@ -1,5 +1,6 @@
 """Use case: the thesis's validation experiments on a ride bundle's extra clips (free fall, board
-distances), with the rig of that ride."""
+distances), with the rig of that ride.
+"""
 
 from __future__ import annotations
 

@@ -260,7 +260,8 @@ class FileStorage:
 
     def sweep_partial_writes(self, *, older_than_s: float) -> int:
         """Remove the temporary files of writes never committed nor aborted (a process killed while
-        writing: `AtomicWriter`'s ".part-" files) untouched for `older_than_s`; returns how many."""
+        writing: `AtomicWriter`'s ".part-" files) untouched for `older_than_s`; returns how many.
+        """
         if not self.root.exists():
             return 0
         cutoff, removed = time.time() - older_than_s, 0

@@ -188,7 +188,8 @@ def _unavailable(exc: Exception) -> bool:
 
 class _GuardedClient:
     """A boto3 S3 client whose calls raise `StoreUnavailable` (with a reason a person reads) when the store
-    does not answer; every other error passes unchanged (a 404 is still `ClientError`)."""
+    does not answer; every other error passes unchanged (a 404 is still `ClientError`).
+    """
 
     def __init__(self, client: Any, where: str) -> None:
         self._client, self._where = client, where
@@ -415,7 +416,8 @@ class S3Storage:
 
     def stale_keys(self, prefix: str, *, older_than_s: float) -> list[str]:
         """The objects under the folder `prefix` last written more than `older_than_s` ago (the
-        store's clock)."""
+        store's clock).
+        """
         cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
         pages = self.client.get_paginator("list_objects_v2").paginate(
             Bucket=self.bucket, Prefix=self.object_name(prefix) + "/")
@@ -425,7 +427,8 @@ class S3Storage:
     def sweep_partial_writes(self, *, older_than_s: float) -> int:
         """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s`
         (a browser's direct upload given up, a process killed mid-write); their parts go. The rule a
-        bucket's lifecycle "abort incomplete multipart uploads" would apply, on any S3 store."""
+        bucket's lifecycle "abort incomplete multipart uploads" would apply, on any S3 store.
+        """
         cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
         pages = self.client.get_paginator("list_multipart_uploads").paginate(
             Bucket=self.bucket, Prefix=f"{self.prefix}/" if self.prefix else "")
