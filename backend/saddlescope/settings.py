@@ -173,8 +173,10 @@ class Settings(BaseSettings):
 
     @property
     def visibility_timeout_s(self) -> int:
-        """Broker visibility timeout: past the stale time, so a re-delivered task finds its dead worker's
-        heartbeat stale and takes the job over (`JobRepository.mark_running`); minutes, not hours.
+        """Broker visibility timeout.
+
+        Past the stale time, so a re-delivered task finds its dead worker's heartbeat stale and takes the job
+        over (`JobRepository.mark_running`); minutes, not hours.
         """
         if self.broker_visibility_timeout_s is not None:
             return self.broker_visibility_timeout_s

@@ -37,8 +37,9 @@ def _alternate(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, 
 
 
 def _motion_clip(tmp: Path, rig: str, duration_s: float) -> tuple[Path, int, int]:
-    """Encode one camera's motion clip of a synthetic ride; returns (path, first frame after the
-    flash, number of frames).
+    """Encode one camera's motion clip of a synthetic ride.
+
+    Returns (path, first frame after the flash, number of frames).
     """
     from saddlescope.arena import build_scene, render_clip_frames
     from saddlescope.io.video_writer import write_h264
@@ -277,10 +278,12 @@ def speed_keys(speed: dict) -> dict:
 def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, ...],
              duration_s: float | None = None, skin_motion: str = "stride_locked",
              marker_layout: str = "thesis") -> list[dict]:
-    """Pipeline results against truth.json: saddle position, vertical acceleration, speed, period and
-    indicator errors per synthetic ride (issues 5 and 6). ``skin_motion`` is the arena's skin model:
-    with "none" the markers are fixed to the saddle body, so the errors are the cameras' and the
-    stages' alone. ``marker_layout`` is the markers' layout on the flank (arena.gait.MARKER_LAYOUTS).
+    """Pipeline results against truth.json.
+
+    Saddle position, vertical acceleration, speed, period and indicator errors per synthetic ride (issues 5 and 6).
+    ``skin_motion`` is the arena's skin model: with "none" the markers are fixed to the saddle body, so the errors
+    are the cameras' and the stages' alone. ``marker_layout`` is the markers' layout on the flank
+    (arena.gait.MARKER_LAYOUTS).
     """
     from saddlescope.arena import RenderOptions, saddle_truth_at
     from saddlescope.io.synth_writer import write_ride_bundle
@@ -340,8 +343,9 @@ def indicator_errors_pct(indicators: dict, duration_s: float, truth: dict,
 
 
 def exact_marker_floor(truth: dict, params=None) -> dict | None:
-    """The kinematics and indicator stages fed with the exact marker positions of truth.json: what
-    the markers' skin motion alone costs, the floor under any measurement (no cameras involved).
+    """The kinematics and indicator stages fed with the exact marker positions of truth.json.
+
+    What the markers' skin motion alone costs, the floor under any measurement (no cameras involved).
 
     Returns the vertical acceleration error (% of its r.m.s.) and the errors (%) of ``acc_y_wb_rms``
     and ``vdv_y_wb``, or None for a truth without exact markers. ``acc_y_rms_error_pct_rig`` is the
@@ -401,11 +405,11 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
 def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter"),
                      seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6), skin_motion: str = "stride_locked",
                      params=None, marker_layout: str = "thesis") -> dict:
-    """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each): per gait the
-    mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors.
-    ``skin_motion`` is the arena's skin model (arena.gait.SKIN_MODELS); with "none" the markers
-    are fixed to the saddle body and the stages should be exact. ``marker_layout``: see
-    arena.gait.MARKER_LAYOUTS.
+    """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each).
+
+    Per gait the mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors. ``skin_motion``
+    is the arena's skin model (arena.gait.SKIN_MODELS); with "none" the markers are fixed to the saddle body and the
+    stages should be exact. ``marker_layout``: see arena.gait.MARKER_LAYOUTS.
     """
     import json
 
@@ -471,8 +475,8 @@ def floor_section(tmp: Path, quick: bool) -> dict:
 
 
 def accuracy_section(tmp: Path, quick: bool) -> dict:
-    """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the
-    saddle body (what the cameras and the stages cost without any skin motion: the floor is then zero).
+    """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the saddle body (what the cameras and the stages cost without any skin motion: the floor is then zero).
+
     Skipped (no keys) in quick mode.
     """
     if quick:

@@ -203,8 +203,10 @@ PLOTLY_LOAD_JS = """() => new Promise((resolve, reject) => {
 
 
 def _plotly_load_s(context, base: str, repeats: int) -> float:
-    """The floor under every page with a chart: parsing and running the 4.6 MB Plotly bundle once, from
-    the browser's cache as the measured pages have it (median of `repeats`).
+    """The floor under every page with a chart.
+
+    Parsing and running the 4.6 MB Plotly bundle once, from the browser's cache as the measured pages have it
+    (median of `repeats`).
     """
     samples = []
     for _ in range(repeats):

@@ -120,9 +120,10 @@ def _random_turn(rng: np.random.Generator) -> np.ndarray:
 
 
 def synthetic_recording(subject: int, recording: int, *, gait: str = "sitting_trot") -> np.ndarray:
-    """One motion-capture recording (N, 4, 3) mm at 100 Hz of one horse (the three markers and the
-    saddle point): another start, 2-6 cycles, speed +-5 %, 0.5 mm noise, a random rotation and a
-    translation of the lab frame for every recording.
+    """One motion-capture recording (N, 4, 3) mm at 100 Hz of one horse (the three markers and the saddle point).
+
+    Another start, 2-6 cycles, speed +-5 %, 0.5 mm noise, a random rotation and a translation of the lab frame for
+    every recording.
     """
     model = sample_gait(gait, np.random.default_rng(1000 + subject), camera_side=1.0)
     rng = np.random.default_rng([subject, 77, recording])

@@ -43,8 +43,10 @@ def write_matrix_csv(matrix: dict, path) -> None:
 
 
 def write_matrix_png(matrix: dict, path) -> None:
-    """The matrix as a heat map (OpenCV): dark red alike, pale unlike, grey not compared; names on the
-    rows, numbers (columns) on top; the colour scale spans the off-diagonal values.
+    """The matrix as a heat map (OpenCV).
+
+    Dark red alike, pale unlike, grey not compared; names on the rows, numbers (columns) on top; the colour scale
+    spans the off-diagonal values.
     """
     import cv2
 

@@ -312,7 +312,8 @@ def _decode_from_start(container, stream, path: Path, start: int, stop: int | No
 
 
 def _seek_plan(path: Path, start: int) -> tuple[int, list[int]] | None:
-    """(keyframe pts to seek to, every frame's pts in display order) for decoding from frame ``start``;
+    """(keyframe pts to seek to, every frame's pts in display order) for decoding from frame ``start``.
+
     None when the packets cannot index the frames exactly (then decode from the first frame).
 
     Read from the packets alone (no decoding): one packet per frame with a timestamp, the same rule
@@ -347,8 +348,9 @@ def _seek_plan(path: Path, start: int) -> tuple[int, list[int]] | None:
 
 def _decode_from_key(container, stream, path: Path, start: int, stop: int | None, step: int,
                      key_pts: int, pts: list[int]) -> Iterator[tuple[int, np.ndarray]]:
-    """Frames from ``start`` on, decoding from the keyframe before it (the frames before that are not
-    decoded twice); each frame's index is its timestamp's rank among all the packets'.
+    """Frames from ``start`` on, decoding from the keyframe before it (the frames before that are not decoded twice).
+
+    Each frame's index is its timestamp's rank among all the packets'.
     """
     rank = {p: i for i, p in enumerate(pts)}
     expected = start

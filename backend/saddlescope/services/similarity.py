@@ -329,11 +329,12 @@ def _pair_measures(a: np.ndarray, b: np.ndarray, sigma_a: float, sigma_b: float,
 
 
 def _stride_rows(sa: RideStrides, sb: RideStrides, span: str) -> list[dict]:
-    """The measures of one track. The chain codes compare every stride of either ride with the other
-    ride's mean stride (phase-aligned) and are averaged: a fixed length per comparison, so neither
-    NW nor D' depends on how long the recordings are. DTW compares the mean strides (``span=
-    "stride"``) or, like the chain codes, every stride (``span="window"``). The grid step is the
-    same for all: ``max(extent / 50, 4 sigma)`` with sigma the larger per-stride noise.
+    """The measures of one track.
+
+    The chain codes compare every stride of either ride with the other ride's mean stride (phase-aligned) and are
+    averaged: a fixed length per comparison, so neither NW nor D' depends on how long the recordings are. DTW
+    compares the mean strides (``span= "stride"``) or, like the chain codes, every stride (``span="window"``). The
+    grid step is the same for all: ``max(extent / 50, 4 sigma)`` with sigma the larger per-stride noise.
     """
     b_mean, _ = align_phase(sa.mean, sb.mean)
     a_mean, _ = align_phase(sb.mean, sa.mean)
@@ -549,8 +550,9 @@ def _alignment_summary(aligned) -> dict:
 
 
 def _differences(a_mm: np.ndarray, b_mm: np.ndarray, dtws: list[float], names: list[str], time_base: str) -> dict:
-    """Where the motions differ (the dissertation's spatial and temporal analysis): per marker its
-    RMS distance and DTW similarity, per stretch of the time base the RMS distance (mm).
+    """Where the motions differ (the dissertation's spatial and temporal analysis).
+
+    Per marker its RMS distance and DTW similarity, per stretch of the time base the RMS distance (mm).
     """
     per_stretch, per_marker = stretch_differences(a_mm, b_mm, DIFFERENCE_STRETCHES)
     overall = np.sqrt(np.mean(per_stretch ** 2, axis=0))
@@ -601,8 +603,9 @@ def _load_result(path) -> dict:
 
 
 def _matched_recordings(data_a, data_b, markers: list[str] | None, label_map: dict[str, str] | None):
-    """Both recordings' positions (mm) for the markers they share, gaps bridged, each cut to the
-    frames where all of them are seen; the labels (A's) and the notes of what was matched or left out.
+    """Both recordings' positions (mm) for the markers they share, gaps bridged, each cut to the frames where all of them are seen.
+
+    The labels (A's) and the notes of what was matched or left out.
     """
     from saddlescope.io.mocap.labels import match_labels
 

@@ -187,8 +187,9 @@ def _unavailable(exc: Exception) -> bool:
 
 
 class _GuardedClient:
-    """A boto3 S3 client whose calls raise `StoreUnavailable` (with a reason a person reads) when the store
-    does not answer; every other error passes unchanged (a 404 is still `ClientError`).
+    """A boto3 S3 client whose calls raise `StoreUnavailable` (with a reason a person reads) when the store does not answer.
+
+    Every other error passes unchanged (a 404 is still `ClientError`).
     """
 
     def __init__(self, client: Any, where: str) -> None:
@@ -425,9 +426,10 @@ class S3Storage:
                       if item["LastModified"] < cutoff)
 
     def sweep_partial_writes(self, *, older_than_s: float) -> int:
-        """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s`
-        (a browser's direct upload given up, a process killed mid-write); their parts go. The rule a
-        bucket's lifecycle "abort incomplete multipart uploads" would apply, on any S3 store.
+        """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s` (a browser's direct upload given up, a process killed mid-write).
+
+        Their parts go. The rule a bucket's lifecycle "abort incomplete multipart uploads" would apply, on any
+        S3 store.
         """
         cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
         pages = self.client.get_paginator("list_multipart_uploads").paginate(
