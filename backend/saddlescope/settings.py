@@ -189,7 +189,7 @@ class Settings(BaseSettings):
 
     @property
     def resolved_host_name(self) -> str:
-        """This machine's name in the ``host:pid`` a job records."""
+        """The machine's name in the ``host:pid`` a job records."""
         return self.host_name or socket.gethostname()
 
     @property

@@ -225,8 +225,10 @@ def peak_rss_analysis(ride: Path) -> dict:
 
 
 def speed_rides(tmp: Path, *, quick: bool) -> dict:
-    """#28's keys: analysis against decoding once at 640x480 and 1920x1080@60, whole analysis against the
-    clips' duration, rides per core-hour and the peak memory of a 2160p@30 ride.
+    """Issue 28's speed keys.
+
+    Analysis against decoding once at 640x480 and 1920x1080@60, whole analysis against the clips' duration,
+    rides per core-hour and the peak memory of a 2160p@30 ride.
     """
     from saddlescope.io.synth_writer import write_ride_bundle
 
@@ -475,8 +477,9 @@ def floor_section(tmp: Path, quick: bool) -> dict:
 
 
 def accuracy_section(tmp: Path, quick: bool) -> dict:
-    """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the saddle body (what the cameras and the stages cost without any skin motion: the floor is then zero).
+    """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the saddle body.
 
+    The fixed markers show what the cameras and the stages cost without any skin motion (the floor is then zero).
     Skipped (no keys) in quick mode.
     """
     if quick:

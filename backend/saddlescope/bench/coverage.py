@@ -1,4 +1,4 @@
-"""`saddlescope bench`'s coverage table: do the 95 % intervals contain the truth (issue 27)?
+"""`saddlescope bench`'s coverage table: whether the 95 % intervals contain the truth (issue 27).
 
 Synthetic rides from the arena (a table easy to extend: one :class:`CoverageRide` a row: rigs, gaits,
 resolutions, frame rates, calibration poses, partial views with the board through the middle only,

@@ -140,8 +140,9 @@ def bench_database(root: Path) -> Iterator[tuple[str, str]]:
 
 
 def _add_omega_versions(root: Path, ride_id: int) -> None:
-    """Give the bench ride's stored result the six versions of omega a real analysis writes (the
-    service bench's document has none), so the ride page draws every chart it has.
+    """Give the bench ride's stored result the six versions of omega a real analysis writes.
+
+    The service bench's document has none; with them the ride page draws every chart it has.
     """
     from saddlescope.storage import FileStorage, stage_output_key
 

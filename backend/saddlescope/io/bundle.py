@@ -337,8 +337,10 @@ def used_members(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> list[ZipM
 
 
 def _check_unpacked(used: list[ZipMember], zip_name: str, *, max_bytes: int) -> None:
-    """Refuse used members that unpack to more than `max_bytes`, or to padding (a compression ratio no
-    video or image has, counted over all of them: many small members of zeros are padding too).
+    """Refuse used members that unpack to more than `max_bytes`, or to padding.
+
+    Padding is a compression ratio no video or image has, counted over all of them: many small members of
+    zeros are padding too.
     """
     unpacked = sum(member.info.file_size for member in used)
     packed = max(sum(member.info.compress_size for member in used), 1)
@@ -518,7 +520,7 @@ def zip_bundle_files(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> Itera
 
 
 def _storable_text(value: Any, where: str) -> None:
-    """Refuse a lone UTF-16 surrogate ("\\ud800" in JSON) or NUL in any text: no database can store it."""
+    r"""Refuse a lone UTF-16 surrogate ("\\ud800" in JSON) or NUL in any text: no database can store it."""
     if isinstance(value, str):
         if "\x00" in value or any("\ud800" <= c <= "\udfff" for c in value):
             raise BundleError(f"{where}: text may not contain a NUL character or a lone UTF-16 surrogate "

@@ -42,8 +42,10 @@ SYNC_MIN_S, SYNC_SETTLE_S, SYNC_CHECK_EVERY_S = 1.0, 0.5, 0.25
 
 def brightness_until_flash(frames, fps: float, *, clip: str, camera: str, min_s: float = SYNC_MIN_S,
                            settle_s: float = SYNC_SETTLE_S, check_every_s: float = SYNC_CHECK_EVERY_S) -> np.ndarray:
-    """Mean brightness of each frame (F',) from ``frames`` ((index, grey image) from frame 0), read until the sync flash is found (:func:`saddlescope.core.sync.flash_interval`) with ``settle_s`` of frames after its end, and at least ``min_s`` read.
+    """Mean brightness of each frame (F',) from ``frames`` ((index, grey image) from frame 0).
 
+    Read until the sync flash is found (:func:`saddlescope.core.sync.flash_interval`) with ``settle_s`` of frames
+    after its end, and at least ``min_s`` read.
     The whole clip when no flash is found (known offsets).
 
     A flash is looked for every ``check_every_s``; the first bright interval that passes the flash
@@ -168,7 +170,7 @@ class BundleClips:
 
     @contextmanager
     def _decoder_threads(self) -> Iterator[int | None]:
-        """This decoder's share of the budget: the budget over the decoders open now (this one too)."""
+        """The decoder's share of the budget: the budget over the decoders open now (this one too)."""
         with self._lock:
             self._open_decoders += 1
             share = None if self.threads is None else max(1, self.threads // self._open_decoders)
@@ -272,9 +274,9 @@ class BundleClips:
         return _Handoff(after, frames, sum(img.nbytes for _, img in after))
 
     def brightness(self, kind: str, camera: str) -> np.ndarray:
-        """Each frame's mean grey level (F',) up to the settled end of the sync flash (the whole clip when it holds none, or with ``whole_clip_brightness``).
+        """Each frame's mean grey level (F',) up to the settled end of the sync flash.
 
-        Cached per clip.
+        The whole clip when it holds none, or with ``whole_clip_brightness``. Cached per clip.
         """
         return self._brightness(kind, camera)
 

@@ -267,8 +267,9 @@ class RideSignature:
 
 
 def _document_tracks(doc: Mapping, markers: str) -> tuple[list[np.ndarray], float, float]:
-    """The tracks (each (N, 3) m, motion frame) of a result document's ``markers`` set, its sample
-    rate (Hz) and stride period (s).
+    """The tracks of a result document's ``markers`` set, its sample rate (Hz) and stride period (s).
+
+    Each track is (N, 3) m, motion frame.
     """
     if markers not in MARKER_SETS:
         raise InputError(f"unknown marker set {markers!r}; choose one of {', '.join(MARKER_SETS)}")
@@ -576,8 +577,9 @@ def _seen_span(points: np.ndarray) -> tuple[int, int]:
 
 
 def _bridged(points: np.ndarray, labels: list[str], source: str) -> np.ndarray:
-    """(F, M, 3) with gaps filled by linear interpolation (call on frames where every marker is seen
-    at both ends).
+    """(F, M, 3) with gaps filled by linear interpolation.
+
+    Call on frames where every marker is seen at both ends.
     """
     out = points.copy()
     idx = np.arange(out.shape[0])
@@ -603,8 +605,9 @@ def _load_result(path) -> dict:
 
 
 def _matched_recordings(data_a, data_b, markers: list[str] | None, label_map: dict[str, str] | None):
-    """Both recordings' positions (mm) for the markers they share, gaps bridged, each cut to the frames where all of them are seen.
+    """Both recordings' positions (mm) for the markers they share, gaps bridged.
 
+    Each is cut to the frames where all of them are seen.
     The labels (A's) and the notes of what was matched or left out.
     """
     from saddlescope.io.mocap.labels import match_labels

@@ -259,8 +259,9 @@ class FileStorage:
         return stale
 
     def sweep_partial_writes(self, *, older_than_s: float) -> int:
-        """Remove the temporary files of writes never committed nor aborted (a process killed while writing: `AtomicWriter`'s ".part-" files) untouched for `older_than_s`.
+        """Remove the temporary files of writes never committed nor aborted, untouched for `older_than_s`.
 
+        A process killed while writing leaves `AtomicWriter`'s ".part-" files.
         Returns how many.
         """
         if not self.root.exists():

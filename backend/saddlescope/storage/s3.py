@@ -187,7 +187,9 @@ def _unavailable(exc: Exception) -> bool:
 
 
 class _GuardedClient:
-    """A boto3 S3 client whose calls raise `StoreUnavailable` (with a reason a person reads) when the store does not answer.
+    """A boto3 S3 client whose calls raise `StoreUnavailable` when the store does not answer.
+
+    The error carries a reason a person reads.
 
     Every other error passes unchanged (a 404 is still `ClientError`).
     """
@@ -416,8 +418,9 @@ class S3Storage:
             self.client.abort_multipart_upload(Bucket=self.bucket, Key=self.object_name(key), UploadId=direct_id)
 
     def stale_keys(self, prefix: str, *, older_than_s: float) -> list[str]:
-        """The objects under the folder `prefix` last written more than `older_than_s` ago (the
-        store's clock).
+        """The objects under the folder `prefix` last written more than `older_than_s` ago.
+
+        Ages are by the store's clock.
         """
         cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
         pages = self.client.get_paginator("list_objects_v2").paginate(
@@ -426,8 +429,9 @@ class S3Storage:
                       if item["LastModified"] < cutoff)
 
     def sweep_partial_writes(self, *, older_than_s: float) -> int:
-        """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s` (a browser's direct upload given up, a process killed mid-write).
+        """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s`.
 
+        A browser's direct upload given up, a process killed mid-write.
         Their parts go. The rule a bucket's lifecycle "abort incomplete multipart uploads" would apply, on any
         S3 store.
         """
