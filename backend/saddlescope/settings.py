@@ -169,6 +169,7 @@ class Settings(BaseSettings):
 
     @property
     def migrate_on_start(self) -> bool:
+        """Whether the server upgrades the database schema on start (by default: embedded mode only)."""
         return self.embedded if self.auto_migrate is None else self.auto_migrate
 
     @property
@@ -201,6 +202,7 @@ class Settings(BaseSettings):
 
     @property
     def resolved_code_version(self) -> str:
+        """The code version a result records: the setting, else the installed package's."""
         return self.code_version or _code_version()
 
 

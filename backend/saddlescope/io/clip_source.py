@@ -130,15 +130,19 @@ class BundleClips:
             handoff.close()
 
     def kinds(self) -> list[str]:
+        """The clip sets there are (the ride's and the extra ones)."""
         return list(self.paths)
 
     def cameras(self, kind: str) -> list[str]:
+        """The cameras with a clip of `kind`."""
         return list(self.paths.get(kind, {}))
 
     def has(self, kind: str) -> bool:
+        """Whether there is any clip of `kind`."""
         return bool(self.paths.get(kind))
 
     def path(self, kind: str, camera: str) -> Path:
+        """The file of the `kind` clip of `camera`; `VideoError` when there is none."""
         try:
             return self.paths[kind][camera]
         except KeyError:
@@ -151,9 +155,11 @@ class BundleClips:
             raise VideoError(f"{kind} clip of the {camera} camera: {exc}") from None
 
     def info(self, kind: str, camera: str) -> VideoInfo:
+        """The clip's container facts (probed once, cached)."""
         return self._info(kind, camera)
 
     def fps(self, kind: str, camera: str) -> float:
+        """The clip's frame rate (Hz)."""
         return self.info(kind, camera).fps
 
     def frame_times(self, kind: str, camera: str) -> np.ndarray | None:
@@ -162,9 +168,11 @@ class BundleClips:
         return info.frame_times_s if info.variable_frame_rate else None
 
     def frame_count(self, kind: str, camera: str) -> int:
+        """The clip's number of frames."""
         return self.info(kind, camera).frame_count
 
     def image_size(self, kind: str, camera: str) -> tuple[int, int]:
+        """The clip's (width, height) in pixels."""
         info = self.info(kind, camera)
         return info.width, info.height
 
@@ -182,6 +190,10 @@ class BundleClips:
 
     def gray_frames(self, kind: str, camera: str, start: int = 0, stop: int | None = None,
                     step: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+        """Grey frames ``(index, image)`` of one clip from `start` to `stop` (the end when None) every `step`.
+
+        Frames the sync pass already read are served from its hand-over rather than decoded again.
+        """
         handoff = self._take_handoff(kind, camera, start, stop)
         if handoff is not None:
             yield from _from_handoff(handoff, start, stop, step)

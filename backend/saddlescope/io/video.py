@@ -43,6 +43,7 @@ class VideoInfo:
     frame_times_s: np.ndarray | None = field(default=None, compare=False, repr=False)  # (frame_count,)
 
     def as_dict(self) -> dict:
+        """The facts as a JSON-ready document (frame times left out)."""
         out = {"path": str(self.path), "fps": self.fps, "frame_count": self.frame_count,
                "width": self.width, "height": self.height, "codec": self.codec,
                "duration_s": self.duration_s}

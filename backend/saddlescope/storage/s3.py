@@ -59,6 +59,7 @@ class S3Writer:
         self._done = False
 
     def write(self, chunk: bytes) -> None:
+        """Add `chunk`, sending a part whenever enough are buffered; `TooLarge` past `max_bytes`."""
         self.size += len(chunk)
         if self.max_bytes is not None and self.size > self.max_bytes:
             self.abort()
@@ -81,6 +82,7 @@ class S3Writer:
 
     @property
     def sha256(self) -> str:
+        """The sha256 (hex) of the bytes written so far."""
         return self._digest.hexdigest()
 
     def commit(self) -> tuple[int, str]:
@@ -98,6 +100,7 @@ class S3Writer:
         return self.size, self.sha256
 
     def abort(self) -> None:
+        """Abort the multipart upload and drop the buffer; nothing appears under `key`."""
         if self._upload_id is not None and not self._done:
             self.storage.client.abort_multipart_upload(Bucket=self.storage.bucket,
                                                        Key=self.storage.object_name(self.key),
@@ -236,6 +239,7 @@ class S3Storage:
     @classmethod
     def from_url(cls, url: str, *, endpoint_url: str | None = None,
                  public_endpoint_url: str | None = None) -> S3Storage:
+        """The store an ``s3://bucket/prefix`` URL names."""
         bucket, prefix = parse_s3_url(url)
         return cls(bucket, prefix, endpoint_url=endpoint_url, public_endpoint_url=public_endpoint_url)
 
@@ -243,10 +247,12 @@ class S3Storage:
         return f"S3Storage({self.describe()!r})"
 
     def describe(self) -> str:
+        """The bucket URL, with its endpoint when not AWS's."""
         where = f" at {self.endpoint_url}" if self.endpoint_url else ""
         return f"s3://{self.bucket}/{self.prefix}{where}".replace(f"{self.bucket}/ at", f"{self.bucket} at")
 
     def object_name(self, key: str) -> str:
+        """The object name of `key` in the bucket (under the store's prefix)."""
         _check_key(key)
         return f"{self.prefix}/{key}" if self.prefix else key
 
@@ -268,6 +274,7 @@ class S3Storage:
         return self._head(key) is not None or next(self.iter_keys(key), None) is not None
 
     def size(self, key: str) -> int:
+        """The size in bytes of the object under `key`."""
         head = self._head(key)
         if head is None:
             raise FileNotFoundError(f"{key} is not in storage")
@@ -285,26 +292,32 @@ class S3Storage:
             raise
 
     def writer(self, key: str, *, max_bytes: int | None = None) -> S3Writer:
+        """A writer for `key` that sends the object in parts; `TooLarge` past `max_bytes`."""
         return S3Writer(self, _check_key(key), max_bytes=max_bytes)
 
     def write_stream(self, key: str, stream: BinaryIO, *, max_bytes: int | None = None) -> tuple[int, str]:
+        """Store `stream` under `key`; returns (size in bytes, sha256 hex)."""
         with self.writer(key, max_bytes=max_bytes) as out:
             while chunk := stream.read(CHUNK_BYTES):
                 out.write(chunk)
             return out.commit()
 
     def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
+        """Store `data` under `key`; returns (size in bytes, sha256 hex)."""
         return self.write_stream(key, io.BytesIO(data))
 
     def read_bytes(self, key: str) -> bytes:
+        """The bytes of the object under `key`."""
         with self.open(key) as body:
             return body.read()
 
     def import_file(self, key: str, source: Path | str) -> tuple[int, str]:
+        """Store the local file `source` under `key`; returns (size in bytes, sha256 hex)."""
         with Path(source).open("rb") as stream:
             return self.write_stream(key, stream)
 
     def import_tree(self, key: str, source: Path | str) -> None:
+        """Store the local folder `source` under the folder `key`."""
         source = Path(source)
         for file in sorted(p for p in source.rglob("*") if p.is_file()):
             self.import_file(f"{key}/{file.relative_to(source).as_posix()}", file)
@@ -472,6 +485,7 @@ class S3Storage:
         self.client.delete_object(Bucket=self.bucket, Key=self.object_name(source_key))
 
     def sha256(self, key: str) -> str:
+        """The sha256 (hex) of the object under `key`."""
         digest = hashlib.sha256()
         with self.open(key) as body:
             while chunk := body.read(CHUNK_BYTES):
