@@ -202,7 +202,7 @@ class Settings(BaseSettings):
 
     @property
     def resolved_code_version(self) -> str:
-        """The code version a result records: the setting, else the installed package's."""
+        """The code version a job records: the setting, else the package version (with the git commit in a checkout)."""
         return self.code_version or _code_version()
 
 

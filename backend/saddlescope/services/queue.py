@@ -133,7 +133,7 @@ class EmbeddedQueue:
                       f"{self.pending} job(s) pending")
 
     def close(self) -> None:
-        """Stop the local pool once the running jobs end."""
+        """Stop the local pool: jobs not started are cancelled, running ones are not waited for."""
         with self._lock:
             pool, self._pool = self._pool, None
         if pool is not None:

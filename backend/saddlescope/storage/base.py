@@ -87,17 +87,17 @@ class Storage(Protocol):
         """Remove the file or folder under `prefix`."""
 
     def check(self) -> str:
-        """Read and write a probe; returns what a person reads of the store's state."""
+        """Write, read and delete a probe; returns a short description of the store."""
 
     # Resumable uploads: bytes collected at offsets under one key, then sealed into a file.
     def open_seekable(self, key: str, *, block_bytes: int = ...) -> BinaryIO:
         """The resumable upload's bytes under `key`, opened to write at any offset."""
 
     def same_bytes(self, key: str, offset: int, other_key: str, length: int) -> bool:
-        """Whether `length` bytes from `offset` of `key` equal those of `other_key` at the same offset."""
+        """Whether `length` bytes of `key` from `offset` equal the first `length` bytes of `other_key`."""
 
     def append_from(self, key: str, at: int, source_key: str, skip: int) -> None:
-        """Append the bytes of `source_key` after its first `skip` to `key` at offset `at`."""
+        """Write `source_key` from byte `skip` on into `key` from byte `at` (anything after `at` dropped)."""
 
     def seal(self, key: str, target_key: str) -> None:
         """Turn the resumable upload under `key` into the file under `target_key`."""
