@@ -83,7 +83,7 @@ class EmbeddedQueue:
             return self._pool
 
     def submit(self, job_id: int) -> None:
-        """Keep job `job_id` to run in the local pool."""
+        """Run job `job_id` in the local process pool; `QueueUnavailable` when the pool cannot take it."""
         try:
             future = self._executor().submit(_run_in_child, job_id, self.settings)
         except (RuntimeError, BrokenProcessPool) as exc:
