@@ -146,6 +146,7 @@ class _BoardKinds:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``saddlescope`` command's argument parser, one sub-command per task."""
     p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -228,6 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the sub-command `args` names; returns the process's exit status."""
     cmd = args.command
     if cmd == "synth":
         from saddlescope.arena import RenderOptions
@@ -327,6 +329,7 @@ def _print_progress(fraction: float, stage: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``saddlescope``: parse `argv` (the command line when None) and run; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
         return run(args)

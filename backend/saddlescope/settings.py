@@ -176,12 +176,16 @@ class Settings(BaseSettings):
 
     @property
     def migrate_on_start(self) -> bool:
+        """Whether the server upgrades the database schema on start (by default: embedded mode only)."""
         return self.embedded if self.auto_migrate is None else self.auto_migrate
 
     @property
     def visibility_timeout_s(self) -> int:
-        """Broker visibility timeout: past the stale time, so a re-delivered task finds its dead worker's
-        heartbeat stale and takes the job over (`JobRepository.mark_running`); minutes, not hours."""
+        """Broker visibility timeout.
+
+        Past the stale time, so a re-delivered task finds its dead worker's heartbeat stale and takes the job
+        over (`JobRepository.mark_running`); minutes, not hours.
+        """
         if self.broker_visibility_timeout_s is not None:
             return self.broker_visibility_timeout_s
         return max(300, int(2 * self.stale_after_s))
@@ -193,7 +197,7 @@ class Settings(BaseSettings):
 
     @property
     def resolved_host_name(self) -> str:
-        """This machine's name in the ``host:pid`` a job records."""
+        """The machine's name in the ``host:pid`` a job records."""
         return self.host_name or socket.gethostname()
 
     @property
@@ -205,6 +209,7 @@ class Settings(BaseSettings):
 
     @property
     def resolved_code_version(self) -> str:
+        """The code version a job records: the setting, else the package version (with the git commit in a checkout)."""
         return self.code_version or _code_version()
 
 

@@ -70,8 +70,10 @@ def _coverage(tmp: Path, quick: bool) -> dict:
 
 
 def _dashboard(tmp: Path, quick: bool) -> dict:
-    """The dashboard's three times to interactive as top-level keys (None where Chromium is absent, with
-    the reason in ``dashboard["skipped"]``), the rest under ``dashboard``."""
+    """The dashboard's three times to interactive as top-level keys, the rest under ``dashboard``.
+
+    The times are None where Chromium is absent, with the reason in ``dashboard["skipped"]``.
+    """
     dashboard = run_dashboard_benchmarks(quick=quick)
     return {**{key: dashboard[key] for key in TTI_KEYS},
             "dashboard": {k: v for k, v in dashboard.items() if k not in TTI_KEYS}}

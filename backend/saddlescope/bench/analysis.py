@@ -37,8 +37,10 @@ def _alternate(fns: dict[str, Callable[[], object]], repeats: int) -> dict[str, 
 
 
 def _motion_clip(tmp: Path, rig: str, duration_s: float) -> tuple[Path, int, int]:
-    """Encode one camera's motion clip of a synthetic ride; returns (path, first frame after the
-    flash, number of frames)."""
+    """Encode one camera's motion clip of a synthetic ride.
+
+    Returns (path, first frame after the flash, number of frames).
+    """
     from saddlescope.arena import build_scene, render_clip_frames
     from saddlescope.io.video_writer import write_h264
 
@@ -223,8 +225,11 @@ def peak_rss_analysis(ride: Path) -> dict:
 
 
 def speed_rides(tmp: Path, *, quick: bool) -> dict:
-    """#28's keys: analysis against decoding once at 640x480 and 1920x1080@60, whole analysis against the
-    clips' duration, rides per core-hour and the peak memory of a 2160p@30 ride."""
+    """Issue 28's speed keys.
+
+    Analysis against decoding once at 640x480 and 1920x1080@60, whole analysis against the clips' duration,
+    rides per core-hour and the peak memory of a 2160p@30 ride.
+    """
     from saddlescope.io.synth_writer import write_ride_bundle
 
     out: dict = {}
@@ -275,10 +280,13 @@ def speed_keys(speed: dict) -> dict:
 def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, ...],
              duration_s: float | None = None, skin_motion: str = "stride_locked",
              marker_layout: str = "thesis") -> list[dict]:
-    """Pipeline results against truth.json: saddle position, vertical acceleration, speed, period and
-    indicator errors per synthetic ride (issues 5 and 6). ``skin_motion`` is the arena's skin model:
-    with "none" the markers are fixed to the saddle body, so the errors are the cameras' and the
-    stages' alone. ``marker_layout`` is the markers' layout on the flank (arena.gait.MARKER_LAYOUTS)."""
+    """Pipeline results against truth.json.
+
+    Saddle position, vertical acceleration, speed, period and indicator errors per synthetic ride (issues 5 and 6).
+    ``skin_motion`` is the arena's skin model: with "none" the markers are fixed to the saddle body, so the errors
+    are the cameras' and the stages' alone. ``marker_layout`` is the markers' layout on the flank
+    (arena.gait.MARKER_LAYOUTS).
+    """
     from saddlescope.arena import RenderOptions, saddle_truth_at
     from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.services.analysis import analyze_bundle
@@ -328,7 +336,8 @@ def indicator_errors_pct(indicators: dict, duration_s: float, truth: dict,
     VDV grows with the fourth root of the analysed duration; a synthetic ride whose view holds too
     few frames for two strides with margins has a one-stride truth window while the pipeline may
     still fit two, so the truth's VDV is taken at the result's duration (whole periods of a periodic
-    signal: VDV^4 is proportional to the duration)."""
+    signal: VDV^4 is proportional to the duration).
+    """
     ref = truth.get("indicators", {})
     vdv_scale = (duration_s / float(truth["window"]["duration_s"])) ** 0.25
     return {f"{k}_error_pct": 100 * (indicators[k] / (ref[k] * (vdv_scale if k.startswith("vdv_") else 1.0)) - 1)
@@ -336,8 +345,9 @@ def indicator_errors_pct(indicators: dict, duration_s: float, truth: dict,
 
 
 def exact_marker_floor(truth: dict, params=None) -> dict | None:
-    """The kinematics and indicator stages fed with the exact marker positions of truth.json: what
-    the markers' skin motion alone costs, the floor under any measurement (no cameras involved).
+    """The kinematics and indicator stages fed with the exact marker positions of truth.json.
+
+    What the markers' skin motion alone costs, the floor under any measurement (no cameras involved).
 
     Returns the vertical acceleration error (% of its r.m.s.) and the errors (%) of ``acc_y_wb_rms``
     and ``vdv_y_wb``, or None for a truth without exact markers. ``acc_y_rms_error_pct_rig`` is the
@@ -346,7 +356,8 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
     about the travel direction, which moves the markers mostly in depth, is lost to it (equal to the
     first where the rig fixes depth well). ``acc_y_skin_common_mode_pct`` is the vertical
     acceleration of the sliding the three markers share (their mean), which no rigid body fitted to
-    the markers can tell from the body's motion: the part of the floor no method removes."""
+    the markers can tell from the body's motion: the part of the floor no method removes.
+    """
     from saddlescope.arena import GaitModel, saddle_truth_at
     from saddlescope.core.pipeline import PipelineParams, depth_uncertainty
     from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
@@ -396,11 +407,12 @@ def exact_marker_floor(truth: dict, params=None) -> dict | None:
 def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter"),
                      seeds: tuple[int, ...] = (1, 2, 3, 4, 5, 6), skin_motion: str = "stride_locked",
                      params=None, marker_layout: str = "thesis") -> dict:
-    """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each): per gait the
-    mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors.
-    ``skin_motion`` is the arena's skin model (arena.gait.SKIN_MODELS); with "none" the markers
-    are fixed to the saddle body and the stages should be exact. ``marker_layout``: see
-    arena.gait.MARKER_LAYOUTS."""
+    """:func:`exact_marker_floor` over synthetic rides (nothing rendered, a second each).
+
+    Per gait the mean and worst vertical acceleration error and the worst W_b r.m.s. and VDV errors. ``skin_motion``
+    is the arena's skin model (arena.gait.SKIN_MODELS); with "none" the markers are fixed to the saddle body and the
+    stages should be exact. ``marker_layout``: see arena.gait.MARKER_LAYOUTS.
+    """
     import json
 
     from saddlescope.arena import RenderOptions, build_scene, build_truth
@@ -465,9 +477,11 @@ def floor_section(tmp: Path, quick: bool) -> dict:
 
 
 def accuracy_section(tmp: Path, quick: bool) -> dict:
-    """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the
-    saddle body (what the cameras and the stages cost without any skin motion: the floor is then zero).
-    Skipped (no keys) in quick mode."""
+    """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the saddle body.
+
+    The fixed markers show what the cameras and the stages cost without any skin motion (the floor is then zero).
+    Skipped (no keys) in quick mode.
+    """
     if quick:
         return {}
     gaits = ("walk", "sitting_trot", "rising_trot", "canter")

@@ -1,4 +1,4 @@
-"""`saddlescope bench`'s coverage table: do the 95 % intervals contain the truth (issue 27)?
+"""`saddlescope bench`'s coverage table: whether the 95 % intervals contain the truth (issue 27).
 
 Synthetic rides from the arena (a table easy to extend: one :class:`CoverageRide` a row: rigs, gaits,
 resolutions, frame rates, calibration poses, partial views with the board through the middle only,
@@ -78,9 +78,12 @@ def _rides(first_seed: int, n: int) -> tuple[CoverageRide, ...]:
 
 
 def _partial_and_no_flash(first_seed: int) -> tuple[CoverageRide, ...]:
-    """Rigs nobody tuned for: 4 canters at 4-6 m/s on the wide rig with partial views and the board
-    through its middle only (two bands), 4 rides without a flash (thesis and wide rigs, two gaits each)
-    and 2 rides with a flash also synchronised from motion (the two syncs side by side)."""
+    """Rigs nobody tuned for.
+
+    4 canters at 4-6 m/s on the wide rig with partial views and the board through its middle only (two bands), 4
+    rides without a flash (thesis and wide rigs, two gaits each) and 2 rides with a flash also synchronised from
+    motion (the two syncs side by side).
+    """
     partial = tuple(CoverageRide(rig="wide_partial", gait="canter", seed=first_seed + i, board_band=band,
                                  speed_range_m_s=(4.0, 6.0), calibration_poses=30)
                     for i, band in enumerate((0.6, 0.8, 0.6, 0.8)))
@@ -225,8 +228,10 @@ def sync_check(doc: dict, truth: dict, kind: str = "motion") -> dict:
 
 
 def motion_vs_flash(motion_doc: dict, flash_doc: dict, truth: dict) -> dict:
-    """One ride synchronised from its markers' motion against the same ride synchronised by its flash:
-    the offsets' error of each against the arena and the indicators' differences (% of the flash's)."""
+    """One ride synchronised from its markers' motion against the same ride synchronised by its flash.
+
+    The offsets' error of each against the arena and the indicators' differences (% of the flash's).
+    """
     diffs = {k: 100.0 * (motion_doc["indicators"][k] / flash_doc["indicators"][k] - 1) for k in SYNC_COMPARED_KEYS
              if flash_doc["indicators"].get(k) and motion_doc["indicators"].get(k) is not None}
     return {"offset_error_frames": sync_check(motion_doc, truth)["offset_error_frames"],
@@ -237,8 +242,11 @@ def motion_vs_flash(motion_doc: dict, flash_doc: dict, truth: dict) -> dict:
 
 
 def coverage_table(rows: Sequence[dict], keys: Sequence[str] | None = None) -> dict:
-    """The coverage table: per indicator the share of rides whose interval holds the truth and the
-    median width; the W_b r.m.s. error on rides not marked too uncertain, the share marked, speed."""
+    """The coverage table.
+
+    Per indicator the share of rides whose interval holds the truth and the median width; the W_b r.m.s. error on
+    rides not marked too uncertain, the share marked, speed.
+    """
     from saddlescope.core.vibration.intervals import INTERVAL_KEYS
 
     ok = [r for r in rows if "error" not in r]
@@ -276,8 +284,10 @@ def coverage_table(rows: Sequence[dict], keys: Sequence[str] | None = None) -> d
 
 
 def _sync_summary(ok: Sequence[dict]) -> dict:
-    """The rides synchronised from motion (no flash): their offsets' error; the rides analysed with both
-    syncs: how far apart the results are."""
+    """The rides synchronised from motion (no flash).
+
+    Their offsets' error; the rides analysed with both syncs: how far apart the results are.
+    """
     moved = [(r["ride"], r["sync"]) for r in ok if (r.get("sync") or {}).get("method") == "motion"]
     errors = [s["offset_error_frames"] for _, s in moved if s["offset_error_frames"] is not None]
     both = [(r["ride"], r["motion_sync"]) for r in ok if "motion_sync" in r]
@@ -320,9 +330,11 @@ _RIDE_SETS = {"coverage": lambda: COVERAGE_RIDES, "build": lambda: BUILD_RIDES,
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m saddlescope.bench.coverage --out DIR``: the coverage part of ``saddlescope bench`` alone,
-    keeping every ride's documents in DIR (a stopped run resumes; ``--table-only`` recomputes the
-    intervals of the rides done with the current model and writes the table)."""
+    """``python -m saddlescope.bench.coverage --out DIR``.
+
+    The coverage part of ``saddlescope bench`` alone, keeping every ride's documents in DIR (a stopped run resumes;
+    ``--table-only`` recomputes the intervals of the rides done with the current model and writes the table).
+    """
     import argparse
     import sys
     import time

@@ -140,8 +140,10 @@ def bench_database(root: Path) -> Iterator[tuple[str, str]]:
 
 
 def _add_omega_versions(root: Path, ride_id: int) -> None:
-    """Give the bench ride's stored result the six versions of omega a real analysis writes (the
-    service bench's document has none), so the ride page draws every chart it has."""
+    """Give the bench ride's stored result the six versions of omega a real analysis writes.
+
+    The service bench's document has none; with them the ride page draws every chart it has.
+    """
     from saddlescope.storage import FileStorage, stage_output_key
 
     storage = FileStorage(root / "storage")
@@ -202,8 +204,11 @@ PLOTLY_LOAD_JS = """() => new Promise((resolve, reject) => {
 
 
 def _plotly_load_s(context, base: str, repeats: int) -> float:
-    """The floor under every page with a chart: parsing and running the 4.6 MB Plotly bundle once, from
-    the browser's cache as the measured pages have it (median of `repeats`)."""
+    """The floor under every page with a chart.
+
+    Parsing and running the 4.6 MB Plotly bundle once, from the browser's cache as the measured pages have it
+    (median of `repeats`).
+    """
     samples = []
     for _ in range(repeats):
         page = context.new_page()

@@ -299,8 +299,10 @@ def upload_memory(
 def fill_rides(
     database_url: str, n_rides: int, *, n_horses: int = 60, gaits: tuple[str, ...] = GAITS, seed: int = 0
 ) -> int:
-    """Add `n_rides` analysed rides (indicators drawn at random, gaits among `gaits`) to the bench club;
-    returns the club's id."""
+    """Add `n_rides` analysed rides (indicators drawn at random, gaits among `gaits`) to the bench club.
+
+    Returns the club's id.
+    """
     from sqlalchemy import insert, select
 
     from saddlescope.core.vibration import CONTRACT_KEYS

@@ -28,8 +28,11 @@ _TO_MOTION = np.diag([1.0, -1.0, -1.0])
 
 def synthetic_ride(horse: int, gait: str, recording: int, *, strides: float | None = None,
                    noise_mm: float = NOISE_MM) -> dict:
-    """A result-like document of one recording of one horse's gait (``fps``, ``period_s``,
-    ``saddle.position_m`` (N, 3) and ``markers.position_m`` (N, 3, 3), m, motion frame)."""
+    """A result-like document of one recording of one horse's gait.
+
+    It holds ``fps``, ``period_s``, ``saddle.position_m`` (N, 3) and ``markers.position_m`` (N, 3, 3), in m,
+    motion frame.
+    """
     model = sample_gait(gait, np.random.default_rng(1000 + horse), camera_side=1.0)
     rng = np.random.default_rng([horse, GAITS.index(gait) if gait in GAITS else 9, recording])
     pace = float(rng.uniform(0.92, 1.08))
@@ -119,9 +122,11 @@ def _random_turn(rng: np.random.Generator) -> np.ndarray:
 
 
 def synthetic_recording(subject: int, recording: int, *, gait: str = "sitting_trot") -> np.ndarray:
-    """One motion-capture recording (N, 4, 3) mm at 100 Hz of one horse (the three markers and the
-    saddle point): another start, 2-6 cycles, speed +-5 %, 0.5 mm noise, a random rotation and a
-    translation of the lab frame for every recording."""
+    """One motion-capture recording (N, 4, 3) mm at 100 Hz of one horse (the three markers and the saddle point).
+
+    Another start, 2-6 cycles, speed +-5 %, 0.5 mm noise, a random rotation and a translation of the lab frame for
+    every recording.
+    """
     model = sample_gait(gait, np.random.default_rng(1000 + subject), camera_side=1.0)
     rng = np.random.default_rng([subject, 77, recording])
     pace = float(rng.uniform(0.95, 1.05))
@@ -135,8 +140,10 @@ def synthetic_recording(subject: int, recording: int, *, gait: str = "sitting_tr
 
 
 def _pair_cost(sig_a, sig_b) -> tuple[float, float]:
-    """Seconds of one ranking comparison of two recordings' signatures (best of 5), and of dtaidistance's
-    DTW of the same two recordings' arrays (N, 3M) (best of 5)."""
+    """Seconds of one ranking comparison of two recordings' signatures, and of one DTW of their arrays.
+
+    The DTW is dtaidistance's over the two recordings' arrays (N, 3M); both times are the best of 5.
+    """
     from dtaidistance import dtw_ndim
 
     from saddlescope.services.similarity import RANKING_MEASURE, compare_recording_signatures

@@ -101,14 +101,17 @@ class RideBundle:
 
     @property
     def gait(self) -> str:
+        """The ride's gait, as meta.json names it."""
         return self.meta["gait"]
 
     @property
     def direction(self) -> str:
+        """The ride's direction on the circle, as meta.json names it."""
         return self.meta["direction"]
 
     @property
     def sync_method(self) -> str:
+        """How the clips are synchronised (``sync.method`` of meta.json)."""
         return self.meta["sync"]["method"]
 
     def sync_offsets(self, kind: str) -> dict[str, float] | None:
@@ -119,6 +122,7 @@ class RideBundle:
         return {role: float(v) for role, v in offsets.items()} if offsets is not None else None
 
     def has_clips(self, kind: str) -> bool:
+        """Whether the bundle holds clips of `kind` (the ride's or an extra set)."""
         return kind in self.clip_paths or kind in self.extra_clip_paths
 
     def clip(self, kind: str, camera: str) -> Path:
@@ -337,8 +341,11 @@ def used_members(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> list[ZipM
 
 
 def _check_unpacked(used: list[ZipMember], zip_name: str, *, max_bytes: int) -> None:
-    """Refuse used members that unpack to more than `max_bytes`, or to padding (a compression ratio no
-    video or image has, counted over all of them: many small members of zeros are padding too)."""
+    """Refuse used members that unpack to more than `max_bytes`, or to padding.
+
+    Padding is a compression ratio no video or image has, counted over all of them: many small members of
+    zeros are padding too.
+    """
     unpacked = sum(member.info.file_size for member in used)
     packed = max(sum(member.info.compress_size for member in used), 1)
     if unpacked > max_bytes:
@@ -388,53 +395,68 @@ class ZipMember:
         return self.joinpath(name)
 
     def joinpath(self, *names: str) -> ZipMember:
+        """The member under this one at the path `names`."""
         more = tuple(p for name in names for p in str(name).split("/") if p not in ("", "."))
         return ZipMember(self.tree, self.parts + more)
 
     @property
     def name(self) -> str:
+        """The member's last path component."""
         return self.parts[-1] if self.parts else ""
 
     @property
     def suffix(self) -> str:
+        """The last component's extension, dot included."""
         return PurePosixPath(self.name).suffix if self.parts else ""
 
     @property
     def stem(self) -> str:
+        """The last component without its extension."""
         return PurePosixPath(self.name).stem if self.parts else ""
 
     @property
     def info(self) -> zipfile.ZipInfo:
+        """The zip's entry for this member."""
         return self.tree.files[self.parts]
 
     def is_file(self) -> bool:
+        """Whether the member is a file in the zip."""
         return self.parts in self.tree.files
 
     def is_dir(self) -> bool:
+        """Whether the member is a folder in the zip (an entry or a prefix of one)."""
         return self.parts in self.tree.children and not self.is_file()
 
     def exists(self) -> bool:
+        """Whether the member is in the zip, as a file or a folder."""
         return self.is_file() or self.is_dir()
 
     def iterdir(self) -> list[ZipMember]:
+        """The members directly under this folder."""
         return [ZipMember(self.tree, parts) for parts in sorted(self.tree.children.get(self.parts, ()))]
 
     def stat(self) -> SimpleNamespace:
+        """The member's size, as ``os.stat_result.st_size`` would give it."""
         return SimpleNamespace(st_size=self.info.file_size if self.is_file() else 0)
 
     def read_bytes(self) -> bytes:
+        """The member's bytes, unpacked."""
         return self.tree.zf.read(self.info)
 
     def read_text(self, encoding: str = "utf-8") -> str:
+        """The member's text, decoded with `encoding`."""
         return self.read_bytes().decode(encoding)
 
     def resolve(self) -> ZipMember:
+        """The member itself: a zip has no links to follow."""
         return self  # a zip holds no links (`_check_zip` refuses them)
 
     def is_relative_to(self, other: ZipMember) -> bool:
+        """Whether this member is `other` or lies under it."""
         return self.parts[:len(other.parts)] == other.parts
 
     def relative_to(self, other: ZipMember) -> PurePosixPath:
+        """The member's path relative to `other`."""
         if not self.is_relative_to(other):
             raise ValueError(f"{self} is not inside {other}")
         return PurePosixPath(*self.parts[len(other.parts):])
@@ -517,7 +539,7 @@ def zip_bundle_files(bundle: RideBundle, *, max_bytes: int = MAX_BYTES) -> Itera
 
 
 def _storable_text(value: Any, where: str) -> None:
-    """Refuse a lone UTF-16 surrogate ("\\ud800" in JSON) or NUL in any text: no database can store it."""
+    r"""Refuse a lone UTF-16 surrogate ("\\ud800" in JSON) or NUL in any text: no database can store it."""
     if isinstance(value, str):
         if "\x00" in value or any("\ud800" <= c <= "\udfff" for c in value):
             raise BundleError(f"{where}: text may not contain a NUL character or a lone UTF-16 surrogate "

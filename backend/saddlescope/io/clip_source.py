@@ -42,9 +42,11 @@ SYNC_MIN_S, SYNC_SETTLE_S, SYNC_CHECK_EVERY_S = 1.0, 0.5, 0.25
 
 def brightness_until_flash(frames, fps: float, *, clip: str, camera: str, min_s: float = SYNC_MIN_S,
                            settle_s: float = SYNC_SETTLE_S, check_every_s: float = SYNC_CHECK_EVERY_S) -> np.ndarray:
-    """Mean brightness of each frame (F',) from ``frames`` ((index, grey image) from frame 0), read until
-    the sync flash is found (:func:`saddlescope.core.sync.flash_interval`) with ``settle_s`` of frames
-    after its end, and at least ``min_s`` read; the whole clip when no flash is found (known offsets).
+    """Mean brightness of each frame (F',) from ``frames`` ((index, grey image) from frame 0).
+
+    Read until the sync flash is found (:func:`saddlescope.core.sync.flash_interval`) with ``settle_s`` of frames
+    after its end, and at least ``min_s`` read.
+    The whole clip when no flash is found (known offsets).
 
     A flash is looked for every ``check_every_s``; the first bright interval that passes the flash
     detector's tests wins, where the whole clip would give the largest rise: a sync flash is filmed
@@ -81,8 +83,10 @@ class _Handoff:
 
 
 def _frames_kept(fps: float) -> int:
-    """Frames a sync pass may have read since the flash ended (what the next pass starts after): it stops
-    at least ``min_s`` in and at most a check interval after the flash has settled."""
+    """Frames a sync pass may have read since the flash ended (what the next pass starts after).
+
+    It stops at least ``min_s`` in and at most a check interval after the flash has settled.
+    """
     return int(math.ceil(max(SYNC_MIN_S, SYNC_SETTLE_S + SYNC_CHECK_EVERY_S) * fps)) + 2
 
 
@@ -92,10 +96,12 @@ class BundleClips:
     def __init__(self, paths: dict[str, dict[str, Path]], *, fps_hint: float | None = None,
                  threads: int | None = None, whole_clip_brightness: bool = False,
                  handoff_budget_mb: float = HANDOFF_BUDGET_MB):
-        """``threads``: the decoders' share of the thread budget (None: FFmpeg's choice); the clips
-        decoded at once split it. ``whole_clip_brightness``: read every frame's brightness, not only
+        """``threads``: the decoders' share of the thread budget (None: FFmpeg's choice).
+
+        The clips decoded at once split it. ``whole_clip_brightness``: read every frame's brightness, not only
         up to the flash. ``handoff_budget_mb``: the frames sync passes keep for the next pass (0: none).
-        :meth:`close` (or ``with``) closes the decoders of hand-overs not taken up."""
+        :meth:`close` (or ``with``) closes the decoders of hand-overs not taken up.
+        """
         self.paths = {kind: {cam: Path(p) for cam, p in cams.items()} for kind, cams in paths.items()}
         self.fps_hint = fps_hint
         self.threads = threads
@@ -124,15 +130,19 @@ class BundleClips:
             handoff.close()
 
     def kinds(self) -> list[str]:
+        """The clip sets there are (the ride's and the extra ones)."""
         return list(self.paths)
 
     def cameras(self, kind: str) -> list[str]:
+        """The cameras with a clip of `kind`."""
         return list(self.paths.get(kind, {}))
 
     def has(self, kind: str) -> bool:
+        """Whether there is any clip of `kind`."""
         return bool(self.paths.get(kind))
 
     def path(self, kind: str, camera: str) -> Path:
+        """The file of the `kind` clip of `camera`; `VideoError` when there is none."""
         try:
             return self.paths[kind][camera]
         except KeyError:
@@ -145,9 +155,11 @@ class BundleClips:
             raise VideoError(f"{kind} clip of the {camera} camera: {exc}") from None
 
     def info(self, kind: str, camera: str) -> VideoInfo:
+        """The clip's container facts (probed once, cached)."""
         return self._info(kind, camera)
 
     def fps(self, kind: str, camera: str) -> float:
+        """The clip's frame rate (Hz)."""
         return self.info(kind, camera).fps
 
     def frame_times(self, kind: str, camera: str) -> np.ndarray | None:
@@ -156,15 +168,17 @@ class BundleClips:
         return info.frame_times_s if info.variable_frame_rate else None
 
     def frame_count(self, kind: str, camera: str) -> int:
+        """The clip's number of frames."""
         return self.info(kind, camera).frame_count
 
     def image_size(self, kind: str, camera: str) -> tuple[int, int]:
+        """The clip's (width, height) in pixels."""
         info = self.info(kind, camera)
         return info.width, info.height
 
     @contextmanager
     def _decoder_threads(self) -> Iterator[int | None]:
-        """This decoder's share of the budget: the budget over the decoders open now (this one too)."""
+        """The decoder's share of the budget: the budget over the decoders open now (this one too)."""
         with self._lock:
             self._open_decoders += 1
             share = None if self.threads is None else max(1, self.threads // self._open_decoders)
@@ -176,6 +190,10 @@ class BundleClips:
 
     def gray_frames(self, kind: str, camera: str, start: int = 0, stop: int | None = None,
                     step: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+        """Grey frames ``(index, image)`` of one clip from `start` to `stop` (the end when None) every `step`.
+
+        Frames the sync pass already read are served from its hand-over rather than decoded again.
+        """
         handoff = self._take_handoff(kind, camera, start, stop)
         if handoff is not None:
             yield from _from_handoff(handoff, start, stop, step)
@@ -183,8 +201,11 @@ class BundleClips:
         yield from self._decoded(kind, camera, start, stop, step)
 
     def _take_handoff(self, kind: str, camera: str, start: int, stop: int | None) -> _Handoff | None:
-        """The sync pass's hand-over when it can serve frames ``start``-``stop``; a request within its
-        frames (a peek at the first frame) leaves it for the next pass, an earlier start drops it."""
+        """The sync pass's hand-over when it can serve frames ``start``-``stop``.
+
+        A request within its frames (a peek at the first frame) leaves it for the next pass, an earlier start
+        drops it.
+        """
         with self._lock:
             handoff = self._handoffs.get((kind, camera))
             if handoff is None:
@@ -248,8 +269,11 @@ class BundleClips:
 
     def _handoff_after_flash(self, values: np.ndarray, kept: deque, frames, kind: str,
                              camera: str) -> _Handoff | None:
-        """The frames read after the flash's end, and the open decoder; None where there is nothing to hand
-        over (no flash, the whole clip read, or the frames after the flash not all kept)."""
+        """The frames read after the flash's end, and the open decoder.
+
+        None where there is nothing to hand over (no flash, the whole clip read, or the frames after the flash
+        not all kept).
+        """
         if not kept or len(values) >= self.frame_count(kind, camera):
             return None
         try:
@@ -262,8 +286,10 @@ class BundleClips:
         return _Handoff(after, frames, sum(img.nbytes for _, img in after))
 
     def brightness(self, kind: str, camera: str) -> np.ndarray:
-        """Each frame's mean grey level (F',) up to the settled end of the sync flash (the whole clip
-        when it holds none, or with ``whole_clip_brightness``); cached per clip."""
+        """Each frame's mean grey level (F',) up to the settled end of the sync flash.
+
+        The whole clip when it holds none, or with ``whole_clip_brightness``. Cached per clip.
+        """
         return self._brightness(kind, camera)
 
 

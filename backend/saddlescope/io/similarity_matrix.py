@@ -43,8 +43,11 @@ def write_matrix_csv(matrix: dict, path) -> None:
 
 
 def write_matrix_png(matrix: dict, path) -> None:
-    """The matrix as a heat map (OpenCV): dark red alike, pale unlike, grey not compared; names on the
-    rows, numbers (columns) on top; the colour scale spans the off-diagonal values."""
+    """The matrix as a heat map (OpenCV).
+
+    Dark red alike, pale unlike, grey not compared; names on the rows, numbers (columns) on top; the colour scale
+    spans the off-diagonal values.
+    """
     import cv2
 
     sim = np.array([[np.nan if v is None else v for v in row] for row in matrix["similarity"]], dtype=np.float64)

@@ -68,7 +68,7 @@ def default_worker_threads(root: Path = CGROUP_ROOT) -> int:
 
 @contextmanager
 def single_threaded_numerics() -> Iterator[None]:
-    """numpy's BLAS (and any OpenMP pool) at one thread while an analysis runs.
+    """Numpy's BLAS (and any OpenMP pool) at one thread while an analysis runs.
 
     The analysis's threads are its cameras, each decoding and searching its own clip; a BLAS call in
     each of them starting a thread per core on top only makes them wait for each other, spinning. The

@@ -43,6 +43,7 @@ class VideoInfo:
     frame_times_s: np.ndarray | None = field(default=None, compare=False, repr=False)  # (frame_count,)
 
     def as_dict(self) -> dict:
+        """The facts as a JSON-ready document (frame times left out)."""
         out = {"path": str(self.path), "fps": self.fps, "frame_count": self.frame_count,
                "width": self.width, "height": self.height, "codec": self.codec,
                "duration_s": self.duration_s}
@@ -67,7 +68,8 @@ def frame_clock(times_s, average_fps: float) -> tuple[bool, float]:
     the nominal rate counts frame slots: each interval is a whole number of median intervals (a drop
     is two), and the slope of the stamps over their slots is the nominal interval (jittered stamps
     average out: 60 frames tell 30 from 29.97 fps). Within 0.02 % of a standard rate the
-    rate is that one, so that cameras set alike report the same number."""
+    rate is that one, so that cameras set alike report the same number.
+    """
     t = np.asarray(times_s, dtype=np.float64)
     if t.size < 3:
         return False, average_fps
@@ -178,6 +180,31 @@ def _count_packets(container, stream, path: Path, *, max_tail_s: float = 2.0,
     when it is at most ``max_tail_s`` long (phones: a keyframe every second or two); a longer one
     (a synthetic clip's single GOP) would cost a whole decode, so then only its first frame is.
     """
+    packets = _packet_pts(container, stream, path)
+    if packets is None:
+        return None
+    pts, last_key = packets
+    stated = int(stream.frames or 0)
+    if (stated and stated != len(pts)) or last_key < 0 or len(set(pts)) != len(pts) or stream.time_base is None:
+        return None
+    base = float(stream.time_base)
+    if not decode_tail:
+        size = (int(stream.codec_context.width or 0), int(stream.codec_context.height or 0))
+        if size[0] > 0 and size[1] > 0:
+            return len(pts), size, [p * base for p in sorted(pts)]
+    # the last group of pictures decoded from its keyframe: a cut-off or corrupt tail fails here
+    # (an open GOP's leading pictures, shown before the keyframe, need the GOP before it: not counted)
+    key_pts = pts[last_key]
+    tail = sum(p >= key_pts for p in pts[last_key:])
+    rate = float(stream.average_rate or stream.guessed_rate or 30)
+    if tail > max_tail_s * rate:
+        key_pts, tail = min(pts), 1
+    size = _decode_tail(container, stream, path, key_pts, tail)
+    return len(pts), size, [p * base for p in sorted(pts)]
+
+
+def _packet_pts(container, stream, path: Path) -> tuple[list[int], int] | None:
+    """Each packet's timestamp (decode order) and the index of the last keyframe; None: a packet has none."""
     pts: list[int] = []
     last_key = -1  # index (decode order) of the last keyframe packet
     try:
@@ -197,21 +224,11 @@ def _count_packets(container, stream, path: Path, *, max_tail_s: float = 2.0,
         raise VideoError(f"{path}: truncated or corrupt after frame {len(pts)} ({exc})") from None
     if not pts:
         raise VideoError(f"{path}: no frame decodes (empty or truncated video)")
-    stated = int(stream.frames or 0)
-    if (stated and stated != len(pts)) or last_key < 0 or len(set(pts)) != len(pts) or stream.time_base is None:
-        return None
-    base = float(stream.time_base)
-    if not decode_tail:
-        size = (int(stream.codec_context.width or 0), int(stream.codec_context.height or 0))
-        if size[0] > 0 and size[1] > 0:
-            return len(pts), size, [p * base for p in sorted(pts)]
-    # the last group of pictures decoded from its keyframe: a cut-off or corrupt tail fails here
-    # (an open GOP's leading pictures, shown before the keyframe, need the GOP before it: not counted)
-    key_pts = pts[last_key]
-    tail = sum(p >= key_pts for p in pts[last_key:])
-    rate = float(stream.average_rate or stream.guessed_rate or 30)
-    if tail > max_tail_s * rate:
-        key_pts, tail = min(pts), 1
+    return pts, last_key
+
+
+def _decode_tail(container, stream, path: Path, key_pts: int, tail: int) -> tuple[int, int]:
+    """The frame size, from decoding the `tail` frames from the keyframe at `key_pts`; `VideoError` if fewer decode."""
     size = (0, 0)
     n_tail = 0
     try:
@@ -226,7 +243,7 @@ def _count_packets(container, stream, path: Path, *, max_tail_s: float = 2.0,
         raise VideoError(f"{path}: truncated or corrupt near the end ({exc})") from None
     if n_tail < tail:
         raise VideoError(f"{path}: truncated or corrupt: only {n_tail} of the last {tail} frames decode")
-    return len(pts), size, [p * base for p in sorted(pts)]
+    return size
 
 
 def _decode_all(path: Path) -> tuple[int, tuple[int, int], list[float | None]]:
@@ -311,7 +328,8 @@ def _decode_from_start(container, stream, path: Path, start: int, stop: int | No
 
 
 def _seek_plan(path: Path, start: int) -> tuple[int, list[int]] | None:
-    """(keyframe pts to seek to, every frame's pts in display order) for decoding from frame ``start``;
+    """(keyframe pts to seek to, every frame's pts in display order) for decoding from frame ``start``.
+
     None when the packets cannot index the frames exactly (then decode from the first frame).
 
     Read from the packets alone (no decoding): one packet per frame with a timestamp, the same rule
@@ -346,8 +364,10 @@ def _seek_plan(path: Path, start: int) -> tuple[int, list[int]] | None:
 
 def _decode_from_key(container, stream, path: Path, start: int, stop: int | None, step: int,
                      key_pts: int, pts: list[int]) -> Iterator[tuple[int, np.ndarray]]:
-    """Frames from ``start`` on, decoding from the keyframe before it (the frames before that are not
-    decoded twice); each frame's index is its timestamp's rank among all the packets'."""
+    """Frames from ``start`` on, decoding from the keyframe before it (the frames before that are not decoded twice).
+
+    Each frame's index is its timestamp's rank among all the packets'.
+    """
     rank = {p: i for i, p in enumerate(pts)}
     expected = start
     try:

@@ -44,14 +44,7 @@ def write_h264(
     path = Path(path)
     if not 0 <= int(crf) <= 51:
         raise InputError(f"crf must be 0-51, got {crf}")
-    ticks = None
-    if frame_times_s is not None:
-        t = np.asarray(frame_times_s, dtype=np.float64)
-        if t.ndim != 1 or t.size == 0:
-            raise InputError(f"{path.name}: frame times must be one list of instants")
-        ticks = np.round((t - t[0]) / float(_VFR_TIME_BASE)).astype(np.int64)
-        if np.any(np.diff(ticks) <= 0):
-            raise InputError(f"{path.name}: frame times must increase")
+    ticks = _frame_ticks(path, frame_times_s)
     n = 0
     try:
         with av.open(str(path), mode="w") as container:
@@ -64,15 +57,8 @@ def write_h264(
                     )
                 h, w = img.shape
                 if stream is None:
-                    if h % 2 or w % 2:
-                        raise InputError(f"{path.name}: frame size {w}x{h} must be even for yuv420p")
-                    stream = container.add_stream("libx264", rate=fps_fraction(fps))
-                    stream.width, stream.height = w, h
-                    stream.pix_fmt = "yuv420p"
-                    stream.options = {"crf": str(int(crf)), "preset": preset}
-                    if ticks is not None:
-                        stream.codec_context.time_base = _VFR_TIME_BASE
-                        stream.time_base = _VFR_TIME_BASE
+                    stream = _add_h264_stream(container, path, (w, h), fps=fps, crf=crf, preset=preset,
+                                              variable_rate=ticks is not None)
                 elif (w, h) != (stream.width, stream.height):
                     raise InputError(
                         f"{path.name}: frame {n} is {w}x{h}, expected {stream.width}x{stream.height}"
@@ -94,3 +80,35 @@ def write_h264(
     except (av.error.FFmpegError, OSError) as exc:
         raise VideoError(f"{path}: could not write video ({exc})") from None
     return n
+
+
+def _frame_ticks(path: Path, frame_times_s: Sequence[float] | None) -> np.ndarray | None:
+    """Each frame's timestamp on the 90 kHz clock, relative to the first; None for an even rate."""
+    if frame_times_s is None:
+        return None
+    t = np.asarray(frame_times_s, dtype=np.float64)
+    if t.ndim != 1 or t.size == 0:
+        raise InputError(f"{path.name}: frame times must be one list of instants")
+    ticks = np.round((t - t[0]) / float(_VFR_TIME_BASE)).astype(np.int64)
+    if np.any(np.diff(ticks) <= 0):
+        raise InputError(f"{path.name}: frame times must increase")
+    return ticks
+
+
+def _add_h264_stream(container, path: Path, size: tuple[int, int], *, fps: float, crf: int, preset: str,
+                     variable_rate: bool):
+    """The clip's libx264 stream for frames of `size` (width, height, both even).
+
+    With `variable_rate` its clock is the 90 kHz one the frame times are stamped on.
+    """
+    w, h = size
+    if h % 2 or w % 2:
+        raise InputError(f"{path.name}: frame size {w}x{h} must be even for yuv420p")
+    stream = container.add_stream("libx264", rate=fps_fraction(fps))
+    stream.width, stream.height = w, h
+    stream.pix_fmt = "yuv420p"
+    stream.options = {"crf": str(int(crf)), "preset": preset}
+    if variable_rate:
+        stream.codec_context.time_base = _VFR_TIME_BASE
+        stream.time_base = _VFR_TIME_BASE
+    return stream

@@ -178,8 +178,11 @@ def grade_correlation_report(
 
 def _described_points(points: Sequence[dict[str, Any]], grade_rows: Sequence[dict[str, Any]],
                       rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Each horse-gait point with what a hover names: the horse's id, the riders who graded it, the
-    number of analysed rides behind its mean and their first and last day (ISO dates, None: undated)."""
+    """Each horse-gait point with what a hover names.
+
+    The horse's id, the riders who graded it, the number of analysed rides behind its mean and their first and last
+    day (ISO dates, None: undated).
+    """
     riders: dict[tuple[str, str], set[str]] = {}
     for g in grade_rows:
         riders.setdefault((g["horse"], g["gait"]), set()).add(g["rider"])

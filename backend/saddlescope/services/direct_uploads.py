@@ -1,8 +1,9 @@
-"""Direct uploads (issue 26 part 2): on object storage the client sends a resumable upload's bytes
-straight to the bucket, as the parts of an S3 multipart upload, with URLs the API pre-signs; the API
-signs, says which parts arrived, and joins them when the upload is finalised. No byte of the file
-passes through the API on the way in; finalising still reads the joined object once, streamed, for
-its sha256 (moving that to the worker's probe stage is left to do).
+"""Direct uploads (issue 26 part 2).
+
+On object storage the client sends a resumable upload's bytes straight to the bucket, as the parts of an S3 multipart
+upload, with URLs the API pre-signs; the API signs, says which parts arrived, and joins them when the upload is
+finalised. No byte of the file passes through the API on the way in; finalising still reads the joined object once,
+streamed, for its sha256 (moving that to the worker's probe stage is left to do).
 
 The embedded mode (a folder tree) keeps the streamed upload (PATCH chunks through the API); the
 client is told which way to send when it creates the upload (`transport`).

@@ -1,5 +1,6 @@
-"""Use cases of the horse page: one indicator's trend over dates with the horse's own normal band, and
-two of its rides side by side.
+"""Use cases of the horse page.
+
+One indicator's trend over dates with the horse's own normal band, and two of its rides side by side.
 
 The band of every ride is `services.normal_band`'s: mean ± 2 SD of the same horse's EARLIER analysed
 rides in the same gait, present once there are at least `MIN_RIDES_FOR_BAND` of them. A ride outside

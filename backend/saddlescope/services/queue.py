@@ -43,6 +43,8 @@ class QueueUnavailable(SaddleScopeError):
 
 
 class JobQueue(Protocol):
+    """Where submitted jobs go to be run: a pool in this process, inline, or a Celery broker."""
+
     mode: str
 
     def submit(self, job_id: int) -> None:
@@ -81,6 +83,7 @@ class EmbeddedQueue:
             return self._pool
 
     def submit(self, job_id: int) -> None:
+        """Run job `job_id` in the local process pool; `QueueUnavailable` when the pool cannot take it."""
         try:
             future = self._executor().submit(_run_in_child, job_id, self.settings)
         except (RuntimeError, BrokenProcessPool) as exc:
@@ -119,15 +122,18 @@ class EmbeddedQueue:
 
     @property
     def pending(self) -> int:
+        """Jobs submitted and not finished."""
         with self._lock:
             return len(self._pending)
 
     def health(self) -> tuple[bool, str]:
+        """(healthy, what a person reads) of the local pool."""
         workers = self.settings.embedded_workers
         return True, (f"embedded: local pool of {workers} process{'es' if workers > 1 else ''}, "
                       f"{self.pending} job(s) pending")
 
     def close(self) -> None:
+        """Stop the local pool: jobs not started are cancelled, running ones are not waited for."""
         with self._lock:
             pool, self._pool = self._pool, None
         if pool is not None:
@@ -152,15 +158,18 @@ class InlineQueue:
         self.settings = settings
 
     def submit(self, job_id: int) -> None:
+        """Run job `job_id` now, in the calling process, retrying while the store is unavailable."""
         from saddlescope.services.runner import RETRY, STORE_RETRY_S, run_job
 
         while run_job(job_id, settings=self.settings) == RETRY:  # the runner bounds the attempts
             time.sleep(STORE_RETRY_S)
 
     def health(self) -> tuple[bool, str]:
+        """(healthy, what a person reads): always healthy."""
         return True, "embedded: jobs run inline in the calling process"
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -224,6 +233,7 @@ class CeleryQueue:
         self._alive: int | None = None
 
     def submit(self, job_id: int) -> None:
+        """Send job `job_id` to the broker; `QueueUnavailable` when it does not answer."""
         from kombu.exceptions import OperationalError
 
         try:
@@ -233,6 +243,7 @@ class CeleryQueue:
                 f"the job broker is unreachable, nothing was queued (job {job_id} was not kept): {exc}") from None
 
     def health(self) -> tuple[bool, str]:
+        """(healthy, what a person reads) of the broker and its workers."""
         from kombu.exceptions import OperationalError
 
         try:
@@ -261,6 +272,7 @@ class CeleryQueue:
             return self._alive
 
     def close(self) -> None:
+        """Release the broker's connections."""
         self.app.close()
 
 

@@ -267,8 +267,10 @@ class RideSignature:
 
 
 def _document_tracks(doc: Mapping, markers: str) -> tuple[list[np.ndarray], float, float]:
-    """The tracks (each (N, 3) m, motion frame) of a result document's ``markers`` set, its sample
-    rate (Hz) and stride period (s)."""
+    """The tracks of a result document's ``markers`` set, its sample rate (Hz) and stride period (s).
+
+    Each track is (N, 3) m, motion frame.
+    """
     if markers not in MARKER_SETS:
         raise InputError(f"unknown marker set {markers!r}; choose one of {', '.join(MARKER_SETS)}")
     try:
@@ -328,11 +330,13 @@ def _pair_measures(a: np.ndarray, b: np.ndarray, sigma_a: float, sigma_b: float,
 
 
 def _stride_rows(sa: RideStrides, sb: RideStrides, span: str) -> list[dict]:
-    """The measures of one track. The chain codes compare every stride of either ride with the other
-    ride's mean stride (phase-aligned) and are averaged: a fixed length per comparison, so neither
-    NW nor D' depends on how long the recordings are. DTW compares the mean strides (``span=
-    "stride"``) or, like the chain codes, every stride (``span="window"``). The grid step is the
-    same for all: ``max(extent / 50, 4 sigma)`` with sigma the larger per-stride noise."""
+    """The measures of one track.
+
+    The chain codes compare every stride of either ride with the other ride's mean stride (phase-aligned) and are
+    averaged: a fixed length per comparison, so neither NW nor D' depends on how long the recordings are. DTW
+    compares the mean strides (``span= "stride"``) or, like the chain codes, every stride (``span="window"``). The
+    grid step is the same for all: ``max(extent / 50, 4 sigma)`` with sigma the larger per-stride noise.
+    """
     b_mean, _ = align_phase(sa.mean, sb.mean)
     a_mean, _ = align_phase(sb.mean, sa.mean)
     step = noise_step([sa.mean, sb.mean], [sa.sigma_m, sb.sigma_m])
@@ -547,8 +551,10 @@ def _alignment_summary(aligned) -> dict:
 
 
 def _differences(a_mm: np.ndarray, b_mm: np.ndarray, dtws: list[float], names: list[str], time_base: str) -> dict:
-    """Where the motions differ (the dissertation's spatial and temporal analysis): per marker its
-    RMS distance and DTW similarity, per stretch of the time base the RMS distance (mm)."""
+    """Where the motions differ (the dissertation's spatial and temporal analysis).
+
+    Per marker its RMS distance and DTW similarity, per stretch of the time base the RMS distance (mm).
+    """
     per_stretch, per_marker = stretch_differences(a_mm, b_mm, DIFFERENCE_STRETCHES)
     overall = np.sqrt(np.mean(per_stretch ** 2, axis=0))
     markers = [{"marker": name, "rms_mm": float(per_marker[k]), "dtw": float(dtws[k]),
@@ -571,8 +577,10 @@ def _seen_span(points: np.ndarray) -> tuple[int, int]:
 
 
 def _bridged(points: np.ndarray, labels: list[str], source: str) -> np.ndarray:
-    """(F, M, 3) with gaps filled by linear interpolation (call on frames where every marker is seen
-    at both ends)."""
+    """(F, M, 3) with gaps filled by linear interpolation.
+
+    Call on frames where every marker is seen at both ends.
+    """
     out = points.copy()
     idx = np.arange(out.shape[0])
     for m, label in enumerate(labels):
@@ -597,8 +605,11 @@ def _load_result(path) -> dict:
 
 
 def _matched_recordings(data_a, data_b, markers: list[str] | None, label_map: dict[str, str] | None):
-    """Both recordings' positions (mm) for the markers they share, gaps bridged, each cut to the
-    frames where all of them are seen; the labels (A's) and the notes of what was matched or left out."""
+    """Both recordings' positions (mm) for the markers they share, gaps bridged.
+
+    Each is cut to the frames where all of them are seen.
+    The labels (A's) and the notes of what was matched or left out.
+    """
     from saddlescope.io.mocap.labels import match_labels
 
     match = match_labels(data_a.labels, data_b.labels, user_map=label_map, wanted=markers)

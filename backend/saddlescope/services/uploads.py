@@ -590,8 +590,11 @@ class FinaliseInProgress(IncompleteUpload):
 
 @contextmanager
 def _upload_locked(session: Session, storage: Storage, upload_id: str, *, club_id: int | None) -> Iterator[None]:
-    """Hold the upload against other chunks: a file lock on this host's disk, the row's lock in the database
-    otherwise (API replicas on several hosts share only the database and the bucket)."""
+    """Hold the upload against other chunks.
+
+    A file lock on this host's disk, the row's lock in the database otherwise (API replicas on several hosts share
+    only the database and the bucket).
+    """
     if storage.local:
         with storage.locked(upload_key(upload_id)):
             session.rollback()  # read the offset as it is now, under the lock
@@ -654,9 +657,11 @@ def remove_upload_files(storage: Storage, upload_ids: list[str]) -> None:
 
 
 def sweep_abandoned(sessions: sessionmaker[Session], storage: Storage, *, max_age_s: float) -> dict[str, int]:
-    """Remove what was left behind for `max_age_s`: open uploads nothing arrived for (with their bytes),
-    staged files of a request that never finished (`incoming/`, an API process killed mid-upload), and
-    partial writes (a store's multipart uploads given up, a folder's temporary files). Returns the counts.
+    """Remove what was left behind for `max_age_s`.
+
+    Open uploads nothing arrived for (with their bytes), staged files of a request that never finished (`incoming/`,
+    an API process killed mid-upload), and partial writes (a store's multipart uploads given up, a folder's
+    temporary files). Returns the counts.
 
     Run by every worker once per `sweep_interval_s` and by `saddlescope sweep`; safe to run anywhere, at
     once, repeatedly: an upload still receiving bytes is younger than the limit and kept.

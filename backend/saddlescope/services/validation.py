@@ -1,5 +1,7 @@
-"""Use case: the thesis's validation experiments on a ride bundle's extra clips (free fall, board
-distances), with the rig of that ride."""
+"""Use case: the thesis's validation experiments on a ride bundle's extra clips.
+
+The clips are the free fall and the board distances, measured with the rig of that ride.
+"""
 
 from __future__ import annotations
 

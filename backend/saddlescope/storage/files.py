@@ -62,6 +62,7 @@ class AtomicWriter:
         self._out = os.fdopen(fd, "wb")
 
     def write(self, chunk: bytes) -> None:
+        """Add `chunk` to the temporary file; `TooLarge` (and the bytes dropped) past `max_bytes`."""
         self.size += len(chunk)
         if self.max_bytes is not None and self.size > self.max_bytes:
             self.abort()
@@ -72,6 +73,7 @@ class AtomicWriter:
 
     @property
     def sha256(self) -> str:
+        """The sha256 (hex) of the bytes written so far."""
         return self._digest.hexdigest()
 
     def commit(self) -> tuple[int, str]:
@@ -88,6 +90,7 @@ class AtomicWriter:
         return self.size, self.sha256
 
     def abort(self) -> None:
+        """Drop the temporary file; nothing appears under `key`."""
         if not self._out.closed:
             self._out.close()
         self._tmp.unlink(missing_ok=True)
@@ -113,6 +116,7 @@ class FileStorage:
         return f"FileStorage({str(self.root)!r})"
 
     def describe(self) -> str:
+        """The store's folder."""
         return str(self.root)
 
     def fetch(self, key: str, target: Path | str) -> Path:
@@ -130,12 +134,15 @@ class FileStorage:
         return self.root.joinpath(*parts)
 
     def exists(self, key: str) -> bool:
+        """Whether a file is stored under `key`."""
         return self.path(key).exists()
 
     def size(self, key: str) -> int:
+        """The size in bytes of the file under `key`."""
         return self.path(key).stat().st_size
 
     def open(self, key: str) -> BinaryIO:
+        """The file under `key`, opened for reading."""
         return self.path(key).open("rb")
 
     def writer(self, key: str, *, max_bytes: int | None = None) -> AtomicWriter:
@@ -215,9 +222,11 @@ class FileStorage:
             return same_prefix(ours, theirs, length)
 
     def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
+        """Store `data` under `key`; returns (size in bytes, sha256 hex)."""
         return self.write_stream(key, io.BytesIO(data))
 
     def read_bytes(self, key: str) -> bytes:
+        """The bytes of the file under `key`."""
         return self.path(key).read_bytes()
 
     def import_file(self, key: str, source: Path | str) -> tuple[int, str]:
@@ -233,6 +242,7 @@ class FileStorage:
             self.import_file(f"{key}/{file.relative_to(source).as_posix()}", file)
 
     def sha256(self, key: str) -> str:
+        """The sha256 (hex) of the file under `key`."""
         return sha256_file(self.path(key))
 
     def iter_keys(self, prefix: str) -> Iterator[str]:
@@ -266,8 +276,11 @@ class FileStorage:
         return stale
 
     def sweep_partial_writes(self, *, older_than_s: float) -> int:
-        """Remove the temporary files of writes never committed nor aborted (a process killed while
-        writing: `AtomicWriter`'s ".part-" files) untouched for `older_than_s`; returns how many."""
+        """Remove the temporary files of writes never committed nor aborted, untouched for `older_than_s`.
+
+        A process killed while writing leaves `AtomicWriter`'s ".part-" files.
+        Returns how many.
+        """
         if not self.root.exists():
             return 0
         cutoff, removed = time.time() - older_than_s, 0
@@ -306,6 +319,7 @@ class FileStorage:
 
 
 def sha256_file(path: Path | str) -> str:
+    """The sha256 (hex) of the file at `path`."""
     digest = hashlib.sha256()
     with Path(path).open("rb") as stream:
         while chunk := stream.read(CHUNK_BYTES):

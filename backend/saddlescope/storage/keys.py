@@ -15,6 +15,7 @@ __all__ = [
 
 
 def ride_bundle_key(ride_id: int) -> str:
+    """The key of ride `ride_id`'s uploaded bundle."""
     return f"rides/{ride_id}/bundle"
 
 

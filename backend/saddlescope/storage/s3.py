@@ -59,6 +59,7 @@ class S3Writer:
         self._done = False
 
     def write(self, chunk: bytes) -> None:
+        """Add `chunk`, sending a part whenever enough are buffered; `TooLarge` past `max_bytes`."""
         self.size += len(chunk)
         if self.max_bytes is not None and self.size > self.max_bytes:
             self.abort()
@@ -81,6 +82,7 @@ class S3Writer:
 
     @property
     def sha256(self) -> str:
+        """The sha256 (hex) of the bytes written so far."""
         return self._digest.hexdigest()
 
     def commit(self) -> tuple[int, str]:
@@ -98,6 +100,7 @@ class S3Writer:
         return self.size, self.sha256
 
     def abort(self) -> None:
+        """Abort the multipart upload and drop the buffer; nothing appears under `key`."""
         if self._upload_id is not None and not self._done:
             self.storage.client.abort_multipart_upload(Bucket=self.storage.bucket,
                                                        Key=self.storage.object_name(self.key),
@@ -187,8 +190,12 @@ def _unavailable(exc: Exception) -> bool:
 
 
 class _GuardedClient:
-    """A boto3 S3 client whose calls raise `StoreUnavailable` (with a reason a person reads) when the store
-    does not answer; every other error passes unchanged (a 404 is still `ClientError`)."""
+    """A boto3 S3 client whose calls raise `StoreUnavailable` when the store does not answer.
+
+    The error carries a reason a person reads.
+
+    Every other error passes unchanged (a 404 is still `ClientError`).
+    """
 
     def __init__(self, client: Any, where: str) -> None:
         self._client, self._where = client, where
@@ -232,6 +239,7 @@ class S3Storage:
     @classmethod
     def from_url(cls, url: str, *, endpoint_url: str | None = None,
                  public_endpoint_url: str | None = None) -> S3Storage:
+        """The store an ``s3://bucket/prefix`` URL names."""
         bucket, prefix = parse_s3_url(url)
         return cls(bucket, prefix, endpoint_url=endpoint_url, public_endpoint_url=public_endpoint_url)
 
@@ -239,10 +247,12 @@ class S3Storage:
         return f"S3Storage({self.describe()!r})"
 
     def describe(self) -> str:
+        """The bucket URL, with its endpoint when not AWS's."""
         where = f" at {self.endpoint_url}" if self.endpoint_url else ""
         return f"s3://{self.bucket}/{self.prefix}{where}".replace(f"{self.bucket}/ at", f"{self.bucket} at")
 
     def object_name(self, key: str) -> str:
+        """The object name of `key` in the bucket (under the store's prefix)."""
         _check_key(key)
         return f"{self.prefix}/{key}" if self.prefix else key
 
@@ -264,6 +274,7 @@ class S3Storage:
         return self._head(key) is not None or next(self.iter_keys(key), None) is not None
 
     def size(self, key: str) -> int:
+        """The size in bytes of the object under `key`."""
         head = self._head(key)
         if head is None:
             raise FileNotFoundError(f"{key} is not in storage")
@@ -281,26 +292,32 @@ class S3Storage:
             raise
 
     def writer(self, key: str, *, max_bytes: int | None = None) -> S3Writer:
+        """A writer for `key` that sends the object in parts; `TooLarge` past `max_bytes`."""
         return S3Writer(self, _check_key(key), max_bytes=max_bytes)
 
     def write_stream(self, key: str, stream: BinaryIO, *, max_bytes: int | None = None) -> tuple[int, str]:
+        """Store `stream` under `key`; returns (size in bytes, sha256 hex)."""
         with self.writer(key, max_bytes=max_bytes) as out:
             while chunk := stream.read(CHUNK_BYTES):
                 out.write(chunk)
             return out.commit()
 
     def write_bytes(self, key: str, data: bytes) -> tuple[int, str]:
+        """Store `data` under `key`; returns (size in bytes, sha256 hex)."""
         return self.write_stream(key, io.BytesIO(data))
 
     def read_bytes(self, key: str) -> bytes:
+        """The bytes of the object under `key`."""
         with self.open(key) as body:
             return body.read()
 
     def import_file(self, key: str, source: Path | str) -> tuple[int, str]:
+        """Store the local file `source` under `key`; returns (size in bytes, sha256 hex)."""
         with Path(source).open("rb") as stream:
             return self.write_stream(key, stream)
 
     def import_tree(self, key: str, source: Path | str) -> None:
+        """Store the local folder `source` under the folder `key`."""
         source = Path(source)
         for file in sorted(p for p in source.rglob("*") if p.is_file()):
             self.import_file(f"{key}/{file.relative_to(source).as_posix()}", file)
@@ -414,8 +431,10 @@ class S3Storage:
             self.client.abort_multipart_upload(Bucket=self.bucket, Key=self.object_name(key), UploadId=direct_id)
 
     def stale_keys(self, prefix: str, *, older_than_s: float) -> list[str]:
-        """The objects under the folder `prefix` last written more than `older_than_s` ago (the
-        store's clock)."""
+        """The objects under the folder `prefix` last written more than `older_than_s` ago.
+
+        Ages are by the store's clock.
+        """
         cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
         pages = self.client.get_paginator("list_objects_v2").paginate(
             Bucket=self.bucket, Prefix=self.object_name(prefix) + "/")
@@ -423,9 +442,12 @@ class S3Storage:
                       if item["LastModified"] < cutoff)
 
     def sweep_partial_writes(self, *, older_than_s: float) -> int:
-        """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s`
-        (a browser's direct upload given up, a process killed mid-write); their parts go. The rule a
-        bucket's lifecycle "abort incomplete multipart uploads" would apply, on any S3 store."""
+        """Abort the multipart uploads under this store's prefix with no part sent for `older_than_s`.
+
+        A browser's direct upload given up, a process killed mid-write.
+        Their parts go. The rule a bucket's lifecycle "abort incomplete multipart uploads" would apply, on any
+        S3 store.
+        """
         cutoff = dt.datetime.now(dt.UTC) - dt.timedelta(seconds=older_than_s)
         pages = self.client.get_paginator("list_multipart_uploads").paginate(
             Bucket=self.bucket, Prefix=f"{self.prefix}/" if self.prefix else "")
@@ -463,6 +485,7 @@ class S3Storage:
         self.client.delete_object(Bucket=self.bucket, Key=self.object_name(source_key))
 
     def sha256(self, key: str) -> str:
+        """The sha256 (hex) of the object under `key`."""
         digest = hashlib.sha256()
         with self.open(key) as body:
             while chunk := body.read(CHUNK_BYTES):

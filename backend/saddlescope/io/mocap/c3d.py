@@ -107,8 +107,10 @@ def _repairs(reader) -> list[str]:
 
 
 def _points(reader, name: str, n_bytes: int) -> tuple[np.ndarray, list[str]]:
-    """(F, M, 3) positions, NaN where the residual is negative (an invalid point), and a note when the
-    file holds fewer frames than POINT:FRAMES says but as many as its header's last frame."""
+    """(F, M, 3) positions, NaN where the residual is negative (an invalid point), and a note or None.
+
+    The note says the file holds fewer frames than POINT:FRAMES says but as many as its header's last frame.
+    """
     declared = int(reader.frame_count)
     bytes_per_word = 4 if reader.point_scale < 0 else 2
     frame_bytes = max(1, (4 * int(reader.point_used) + int(reader.analog_used) * int(reader.analog_per_frame))
