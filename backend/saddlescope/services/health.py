@@ -16,7 +16,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from saddlescope.db.migrate import current_revision, head_revision
 from saddlescope.db.session import ping
 from saddlescope.services.queue import JobQueue
-from saddlescope.storage import Storage
+from saddlescope.storage import FileStorage, Storage
 
 __all__ = ["PART_TROUBLE", "STORAGE_LOW", "check_database", "check_queue", "check_storage", "health_report",
            "public_report", "storage_free_bytes"]
@@ -39,7 +39,7 @@ def check_database(engine: Engine) -> tuple[bool, str]:
 
 def storage_free_bytes(storage: Storage) -> int | None:
     """Free bytes on the disk of a folder store (None for a bucket: its space is the provider's)."""
-    if not storage.local:
+    if not isinstance(storage, FileStorage):
         return None
     try:
         return shutil.disk_usage(storage.root).free
@@ -74,9 +74,11 @@ def _overall(statuses: list[str]) -> str:
 
 
 def health_report(engine: Engine, queue: JobQueue, storage: Storage, *, min_free_bytes: int = 0) -> dict[str, Any]:
-    """``{"status": "ok"|"degraded"|"error", "parts": {name: {"ok", "status", "detail"}}}``; the storage
-    part also has ``free_bytes`` (None for a bucket)."""
-    parts = {}
+    """``{"status": "ok"|"degraded"|"error", "parts": {name: {"ok", "status", "detail"}}}``.
+
+    The storage part also has ``free_bytes`` (None for a bucket).
+    """
+    parts: dict[str, dict[str, Any]] = {}
     for name, (ok, detail) in (("database", check_database(engine)), ("broker", check_queue(queue))):
         parts[name] = {"ok": ok, "status": "ok" if ok else "error", "detail": detail}
     state, detail, free_bytes = check_storage(storage, min_free_bytes)

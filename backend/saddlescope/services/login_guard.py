@@ -1,5 +1,6 @@
-"""Sign-in under abuse: failed-attempt counters that stop a guesser without locking others out, and
-Argon2's pool.
+"""Sign-in under abuse: failed-attempt counters that stop a guesser without locking others out.
+
+Argon2's pool is here too.
 
 Failures are counted per (account, client address) pair and per client address. A pair that has failed
 ``max_failures`` times waits a back-off before its next try: ``backoff_s``, doubling with each further
@@ -93,7 +94,7 @@ class MemoryCounters:
         self._data: dict[str, tuple[Failures, float]] = {}  # key: (failures, end of its window)
 
     def now(self) -> float:
-        """This process's clock (monotonic by default)."""
+        """The clock of this process (monotonic by default)."""
         return self._clock()
 
     def get(self, key: str) -> Failures:
