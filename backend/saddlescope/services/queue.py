@@ -200,7 +200,11 @@ def celery_config(settings: Settings) -> dict:
         "task_reject_on_worker_lost": True,  # ... also when the worker process was killed
         "worker_prefetch_multiplier": 1,  # long tasks: never hoard jobs another worker could run
         # Minutes: a killed worker's task comes back soon; the fencing keeps a healthy job's copy from running.
-        "broker_transport_options": {"visibility_timeout": settings.visibility_timeout_s},
+        # kombu sweeps unacknowledged tasks back only every interval x throttle seconds (100 s by default):
+        # a sweep on every idle poll of at most a third of the timeout makes "soon" mean the timeout.
+        "broker_transport_options": {"visibility_timeout": settings.visibility_timeout_s,
+                                     "unacked_restore_interval": max(1, min(10, settings.visibility_timeout_s // 3)),
+                                     "unacked_restore_throttle": 1},
         "broker_connection_retry_on_startup": True,
         # Soft limit: raised inside the task, so the job is recorded as failed; hard limit just after.
         "task_soft_time_limit": settings.job_time_limit_s,
