@@ -2,7 +2,7 @@
 // directive (with the passive-seated caveat), quality flags, kinematics charts, grade form, exports.
 
 import { ApiError, get, itemsOf, post } from "../api.js";
-import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { announce, busy, fill, formValues, h, page, showError } from "../dom.js";
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import {
   PASSIVE_SEATED_CAVEAT, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
@@ -309,7 +309,7 @@ function showResult(view, ride, result) {
 function showJob(state, job, onRetry, ownerId) {
   const { percent, stage, text } = jobProgressText(job);
   const ended = job.status === "failed" || job.status === "cancelled";
-  state.replaceChildren(
+  fill(state,
     h("p", {}, `Analysis job #${job.id}: ${job.status}${stage ? ` \u2013 ${stage}` : ""}`),
     h("div", { class: "job-progress" },
       h("progress", { max: "100", value: String(percent), "aria-label": "Analysis progress",
