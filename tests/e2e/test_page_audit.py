@@ -7,12 +7,13 @@ its `:params` filled with the ids of what was seeded (by the path segment before
 cannot fill fails the audit, naming it, so a new page is never skipped silently. Routes registered
 with `auth: false` (sign-in, password reset) are audited signed out.
 
-On every page: no console error, no "null" / "undefined" / "NaN" in its text, no sideways scroll at
-390 px, no serious or critical axe-core violation (WCAG 2 A/AA and best practice), a screenshot in var/test-artifacts/screenshots/. For the
-member also: every visible `[data-permission]` control is one their `/api/auth/me` permissions allow
-("all", or "own" on a thing they made: the control's closest `[data-owner-id]`, else the page's own
-thing), and, without relying on that attribute, no visible button reading like delete / remove /
-disable / change role / cancel / retry / board unless the member holds such a right.
+On every page: no console error, no "null" / "undefined" / "NaN" in its text, no sideways scroll at 390 px, no
+serious or critical axe-core violation (WCAG 2 A/AA and best practice), a screenshot in
+var/test-artifacts/screenshots/. For the member also: every visible `[data-permission]` control is one their
+`/api/auth/me` permissions allow ("all", or "own" on a thing they made: the control's closest
+`[data-owner-id]`, else the page's own thing), and, without relying on that attribute, no visible button
+reading like delete / remove / disable / change role / cancel / retry / board unless the member holds such a
+right.
 
 All problems of all pages are collected and reported together, page by page.
 """
