@@ -129,16 +129,15 @@ export function gaitLabel(gait) {
 }
 
 /**
- * A time in hours as a rider says it: 2.083 -> "2 h 05 min", 0.2 -> "12 min", 0.011 -> "40 s".
- * The same words as the report (saddlescope.services.report.duration_text).
+ * A time in hours as a rider says it: 2.083 -> "2 h 05 min", 0.2 -> "12 min", 0.011 -> "under a minute"
+ * (no seconds: the times are estimates). The same words as the report (saddlescope.services.report.duration_text).
  */
 export function durationText(hours) {
   if (hours === null || hours === undefined || hours === "") return "\u2013";
   const h = Number(hours);
   if (Number.isNaN(h) || h < 0) return "\u2013";
   if (h === Infinity) return "no limit";
-  const seconds = Math.round(h * 3600);
-  if (seconds < 60) return `${seconds} s`;
+  if (h * 60 < 1) return "under a minute";
   const minutes = Math.round(h * 60);
   if (minutes < 60) return `${minutes} min`;
   if (h >= 100) return `${Math.round(h).toLocaleString("en")} h`;

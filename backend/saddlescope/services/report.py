@@ -48,15 +48,17 @@ GAIT_WORDS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "ri
 
 
 def duration_text(hours: float | None) -> str:
-    """A time in hours as a rider says it: "2 h 05 min", "12 min", "40 s" ("–" when unknown)."""
+    """A time in hours as a rider says it: "2 h 05 min", "12 min", "under a minute" ("–" when unknown).
+
+    Seconds are not given: the exposure times are estimates, so "55 s" would claim a precision they lack.
+    The dashboard's `durationText` (frontend/js/format.js) says the same words."""
     if hours is None or not isinstance(hours, int | float) or math.isnan(hours) or hours < 0:
         return "–"
     if math.isinf(hours):
         return "no limit"
-    seconds = round(hours * 3600)
-    if seconds < 60:
-        return f"{seconds} s"
     minutes = round(hours * 60)
+    if hours * 60 < 1:
+        return "under a minute"
     if minutes < 60:
         return f"{minutes} min"
     if hours >= 100:
@@ -173,6 +175,8 @@ def _interval_html(key: str, pair: Any) -> str:
         return ""
     lo, hi = ("–∞" if pair[0] is None else _value_text(key, pair[0]), "∞" if pair[1] is None else
               _value_text(key, pair[1]))
+    if lo == hi:  # an interval that reads as one value says nothing the value does not
+        return ""
     return f'<span class="ci" data-ci="{key}">95 %: {html.escape(lo)} – {html.escape(hi)}</span>'
 
 

@@ -100,6 +100,7 @@ function timeInterval(result, key) {
   const pair = result.indicators_interval_95?.[key];
   if (!Array.isArray(pair)) return null;
   const end = (v) => (v === null || v === undefined ? "∞" : durationText(v));
+  if (end(pair[0]) === end(pair[1])) return null; // "1 min–1 min" says nothing the value does not
   return h("span", { class: "ci-small", dataset: { ci: key } }, ` (95 %: ${end(pair[0])}–${end(pair[1])})`);
 }
 
