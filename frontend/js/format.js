@@ -144,6 +144,25 @@ export function durationText(hours) {
   return `${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
 }
 
+/**
+ * A riding distance in km as a rider says it: 0.00416 -> "about 4 m", 0.416 -> "about 420 m", 1.23 -> "about 1.2 km"
+ * (two significant digits: the distances are estimates). The same words as saddlescope.services.report.distance_text.
+ */
+export function distanceText(km) {
+  if (km === null || km === undefined || km === "") return "\u2013";
+  const d = Number(km);
+  if (Number.isNaN(d) || d < 0) return "\u2013";
+  if (d === Infinity) return "no limit";
+  const twoDigits = (v) => {
+    const rounded = Number(v.toPrecision(2));
+    return rounded >= 10 ? Math.round(rounded).toLocaleString("en") : String(rounded);
+  };
+  if (d * 1000 < 1) return "under a metre";
+  if (d * 1000 < 10) return `about ${Math.round(d * 1000)} m`;
+  if (d * 1000 < 1000) return `about ${twoDigits(d * 1000)} m`;
+  return `about ${twoDigits(d)} km`;
+}
+
 // A job's stage names in plain words, where the job does not carry its own stage_label.
 const STAGE_WORDS = {
   probe: "checking the clips", assemble: "gathering the clips", calibrate: "calibrating the cameras",

@@ -5,7 +5,7 @@ import { ApiError, get, itemsOf, post } from "../api.js";
 import { announce, busy, fill, formValues, h, page, showError } from "../dom.js";
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import {
-  PASSIVE_SEATED_CAVEAT, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
+  PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
 } from "../format.js";
 import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
@@ -93,7 +93,7 @@ function exposureRows(result) {
                                          "data-value": ind[`t_${basis}_${level}_${w}_h`] ?? "" },
       durationText(ind[`t_${basis}_${level}_${w}_h`]), timeInterval(result, `t_${basis}_${level}_${w}_h`))),
     ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `d_${basis}_${level}_${w}_km` } },
-      fmt(ind[`d_${basis}_${level}_${w}_km`]), smallInterval(result, `d_${basis}_${level}_${w}_km`)))));
+      distanceText(ind[`d_${basis}_${level}_${w}_km`]), distanceInterval(result, `d_${basis}_${level}_${w}_km`)))));
 }
 
 function timeInterval(result, key) {
@@ -104,9 +104,12 @@ function timeInterval(result, key) {
   return h("span", { class: "ci-small", dataset: { ci: key } }, ` (95 %: ${end(pair[0])}–${end(pair[1])})`);
 }
 
-function smallInterval(result, key) {
-  const text = intervalText(result, key);
-  return text ? h("span", { class: "ci-small", dataset: { ci: key } }, ` (${text})`) : null;
+function distanceInterval(result, key) {
+  const pair = result.indicators_interval_95?.[key];
+  if (!Array.isArray(pair)) return null;
+  const end = (v) => (v === null || v === undefined ? "∞" : distanceText(v));
+  if (end(pair[0]) === end(pair[1])) return null; // "about 4 m–about 4 m" says nothing the value does not
+  return h("span", { class: "ci-small", dataset: { ci: key } }, ` (95 %: ${end(pair[0])}–${end(pair[1])})`);
 }
 
 function qualityFacts(result) {
