@@ -322,7 +322,9 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     assert lo < STRIDE_HZ["canter"] < hi
     assert f"{js_fmt(f0, 4)} Hz ({js_fmt(lo, 4)}\u2013{js_fmt(hi, 4)})" in facts
     speed = np.mean([f["trend"][0] for f in fits["x"]])
-    assert f"{js_fmt(speed, 4)} m/s" in facts and abs(speed - SPEED_KMH["canter"] / 3.6) < 0.01
+    # km/h as on the speed card (issue #37: one unit per quantity on a page)
+    assert f"{js_fmt(speed * 3.6, 3)} km/h" in facts and abs(speed - SPEED_KMH["canter"] / 3.6) < 0.01
+    assert " m/s " not in facts
 
     page.wait_for_function("document.querySelector('[data-chart=\"versions\"]').data !== undefined")
     for name in ("position", "velocity", "acceleration", "omega", "alpha"):

@@ -162,7 +162,9 @@ function fitFacts(fits) {
       `${fmt(stride[0], 4)} Hz (${fmt(stride[1], 4)}\u2013${fmt(stride[2], 4)})`]);
   }
   if (speed) {
-    facts.push(["Average speed (95 % CI)", `${fmt(speed[0], 4)} m/s (${fmt(speed[1], 4)}\u2013${fmt(speed[2], 4)})`]);
+    // km/h as on the speed card: one unit per quantity on a page (the fits give m/s)
+    const kmh = speed.map((v) => fmt(v * 3.6, 3));
+    facts.push(["Average speed (95 % CI)", `${kmh[0]} km/h (${kmh[1]}\u2013${kmh[2]})`]);
   }
   return facts.flatMap(([term, value]) => [h("dt", {}, term), h("dd", {}, value)]);
 }
