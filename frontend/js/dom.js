@@ -18,6 +18,13 @@ export function h(tag, attrs = {}, ...children) {
   return el;
 }
 
+/** Replace `el`'s children, skipping absent parts (null / undefined / false), as h() does: the DOM's own
+ *  replaceChildren would show them as the words "null" or "undefined". */
+export function fill(el, ...children) {
+  el.replaceChildren(...children.flat().filter((c) => c !== undefined && c !== null && c !== false));
+  return el;
+}
+
 /** A fresh copy of <template id="page-NAME">, its shared parts filled in. */
 export function page(name) {
   const template = document.getElementById(`page-${name}`);

@@ -129,20 +129,38 @@ export function gaitLabel(gait) {
 }
 
 /**
- * A time in hours as a rider says it: 2.083 -> "2 h 05 min", 0.2 -> "12 min", 0.011 -> "40 s".
- * The same words as the report (saddlescope.services.report.duration_text).
+ * A time in hours as a rider says it: 2.083 -> "2 h 05 min", 0.2 -> "12 min", 0.011 -> "under a minute"
+ * (no seconds: the times are estimates). The same words as the report (saddlescope.services.report.duration_text).
  */
 export function durationText(hours) {
   if (hours === null || hours === undefined || hours === "") return "\u2013";
   const h = Number(hours);
   if (Number.isNaN(h) || h < 0) return "\u2013";
   if (h === Infinity) return "no limit";
-  const seconds = Math.round(h * 3600);
-  if (seconds < 60) return `${seconds} s`;
+  if (h * 60 < 1) return "under a minute";
   const minutes = Math.round(h * 60);
   if (minutes < 60) return `${minutes} min`;
   if (h >= 100) return `${Math.round(h).toLocaleString("en")} h`;
   return `${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
+}
+
+/**
+ * A riding distance in km as a rider says it: 0.00416 -> "about 4 m", 0.416 -> "about 420 m", 1.23 -> "about 1.2 km"
+ * (two significant digits: the distances are estimates). The same words as saddlescope.services.report.distance_text.
+ */
+export function distanceText(km) {
+  if (km === null || km === undefined || km === "") return "\u2013";
+  const d = Number(km);
+  if (Number.isNaN(d) || d < 0) return "\u2013";
+  if (d === Infinity) return "no limit";
+  const twoDigits = (v) => {
+    const rounded = Number(v.toPrecision(2));
+    return rounded >= 10 ? Math.round(rounded).toLocaleString("en") : String(rounded);
+  };
+  if (d * 1000 < 1) return "under a metre";
+  if (d * 1000 < 10) return `about ${Math.round(d * 1000)} m`;
+  if (d * 1000 < 1000) return `about ${twoDigits(d * 1000)} m`;
+  return `about ${twoDigits(d)} km`;
 }
 
 // A job's stage names in plain words, where the job does not carry its own stage_label.

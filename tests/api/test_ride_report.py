@@ -144,7 +144,8 @@ def test_a_ride_without_a_result_has_no_report_yet(club):
 
 
 @pytest.mark.parametrize(("hours", "text"), [
-    (2 + 5 / 60, "2 h 05 min"), (0.2, "12 min"), (40 / 3600, "40 s"), (0.000241, "1 s"), (None, "–"),
+    (2 + 5 / 60, "2 h 05 min"), (0.2, "12 min"), (40 / 3600, "under a minute"), (0.000241, "under a minute"),
+    (59.6 / 3600, "under a minute"), (61 / 3600, "1 min"), (None, "–"),
     (float("inf"), "no limit"), (1234.0, "1,234 h"),
 ])
 def test_exposure_times_read_in_hours_minutes_and_seconds(hours, text):

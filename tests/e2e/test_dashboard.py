@@ -28,7 +28,7 @@ from conftest import IN_CI
 from saddlescope.core.kinematics import fit_marker_kinematics
 from saddlescope.core.pipeline import fits_document
 from saddlescope.core.vibration import ride_indicators
-from saddlescope.services.report import duration_text
+from saddlescope.services.report import distance_text, duration_text
 
 pytestmark = pytest.mark.browser
 
@@ -302,8 +302,8 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     for key in ("t_a8_action_wb_h", "t_a8_limit_wk_h", "t_vdv_limit_wb_h", "d_a8_limit_wb_km",
                 "d_vdv_action_wk_km"):
         cell = page.locator(f'[data-exposure-table] td[data-key="{key}"]')
-        # times as a rider says them ("2 h 05 min", "12 min"), distances in km
-        assert cell.inner_text() == (duration_text(ind[key]) if key.endswith("_h") else js_fmt(ind[key])), key
+        # times and distances as a rider says them ("2 h 05 min", "12 min", "about 420 m")
+        assert cell.inner_text() == (duration_text(ind[key]) if key.endswith("_h") else distance_text(ind[key])), key
     assert "passive, seated person" in page.locator("[data-caveat]").inner_text()
     # each flag in plain words, the pipeline's own sentence kept as the expert detail
     assert page.locator("[data-quality-notes] [data-detail]").all_text_contents() == doc["quality"]["flags"]
@@ -322,7 +322,9 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     assert lo < STRIDE_HZ["canter"] < hi
     assert f"{js_fmt(f0, 4)} Hz ({js_fmt(lo, 4)}\u2013{js_fmt(hi, 4)})" in facts
     speed = np.mean([f["trend"][0] for f in fits["x"]])
-    assert f"{js_fmt(speed, 4)} m/s" in facts and abs(speed - SPEED_KMH["canter"] / 3.6) < 0.01
+    # km/h as on the speed card (issue #37: one unit per quantity on a page)
+    assert f"{js_fmt(speed * 3.6, 3)} km/h" in facts and abs(speed - SPEED_KMH["canter"] / 3.6) < 0.01
+    assert " m/s " not in facts
 
     page.wait_for_function("() => document.querySelector('[data-chart=\"versions\"]').data !== undefined")
     for name in ("position", "velocity", "acceleration", "omega", "alpha"):

@@ -26,6 +26,7 @@ from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory 
 )
 
 from conftest import PROJECT_ROOT
+from saddlescope.services.report import distance_text, duration_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -137,6 +138,12 @@ def test_the_horse_page_shows_trend_band_gait_counts_and_a_ride_pair(page, serve
     assert row.locator("[data-difference]").inner_text() == f"+{js_fmt(want['difference_percent'], 2)} %"
     assert "worse" in row.locator("[data-difference]").get_attribute("class")  # rougher is less comfortable
     assert table.locator("[data-difference]").count() == len(served["pair"]["indicators"])
+    # issue #37: no "h" beside "12 min", no "0.00416" beside "km": times and distances say their own unit
+    for key, words in (("t_a8_limit_wb_h", duration_text), ("d_a8_limit_wb_km", distance_text)):
+        want = next(r for r in served["pair"]["indicators"] if r["key"] == key)
+        timed = table.locator(f'tr[data-key="{key}"]')
+        assert timed.locator("[data-unit]").count() == 0, key
+        assert timed.locator("td").nth(0).inner_text() == words(want["a"]), key
     motion = page.locator("[data-pair-motion-link]")
     assert motion.get_attribute("href") == f"#/compare-rides/{served['canter'][-2]}/{served['canter'][-1]}"
 

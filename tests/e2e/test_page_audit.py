@@ -7,12 +7,13 @@ its `:params` filled with the ids of what was seeded (by the path segment before
 cannot fill fails the audit, naming it, so a new page is never skipped silently. Routes registered
 with `auth: false` (sign-in, password reset) are audited signed out.
 
-On every page: no console error, no sideways scroll at 390 px, no serious or critical axe-core
-violation (WCAG 2 A/AA and best practice), a screenshot in var/test-artifacts/screenshots/. For the
-member also: every visible `[data-permission]` control is one their `/api/auth/me` permissions allow
-("all", or "own" on a thing they made: the control's closest `[data-owner-id]`, else the page's own
-thing), and, without relying on that attribute, no visible button reading like delete / remove /
-disable / change role / cancel / retry / board unless the member holds such a right.
+On every page: no console error, no "null" / "undefined" / "NaN" in its text, no sideways scroll at 390 px, no
+serious or critical axe-core violation (WCAG 2 A/AA and best practice), a screenshot in
+var/test-artifacts/screenshots/. For the member also: every visible `[data-permission]` control is one their
+`/api/auth/me` permissions allow ("all", or "own" on a thing they made: the control's closest
+`[data-owner-id]`, else the page's own thing), and, without relying on that attribute, no visible button
+reading like delete / remove / disable / change role / cancel / retry / board unless the member holds such a
+right.
 
 All problems of all pages are collected and reported together, page by page.
 """
@@ -41,6 +42,7 @@ from browser_harness import (
     visible_permission_controls,
 )
 from test_dashboard import _ok, result_document, store_result
+from test_no_null_text import VISIBLE_TEXT_JS, missing_words
 
 from conftest import PROJECT_ROOT
 
@@ -199,6 +201,11 @@ def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
             rides.append(ride)
         _ok(admin.post("/api/grades", json={"ride_id": rides[0], "rider_id": rider, "grade": 4}))
         job = _ok(admin.post("/api/jobs", json={"kind": "selftest", "payload": {"steps": 1, "fail": True}}))["id"]
+        # a ride whose analysis is queued or running (its page shows the job's progress)
+        waiting_ride = _ok(admin.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": "sitting_trot",
+                                                          "direction": "CW"}))["id"]
+        _ok(admin.post("/api/jobs", json={"kind": "selftest", "ride_id": waiting_ride,
+                                          "payload": {"steps": 1000, "delay_s": 5}}))
     with closing(_client(base, MEMBER[0], MEMBER[1])) as as_member:
         own_ride = _ok(as_member.post("/api/rides", json={"horse_id": horse, "rider_id": rider,
                                                           "gait": "canter", "direction": "CW"}))["id"]
@@ -206,7 +213,7 @@ def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
     return {
         "ids": {"rides": rides, "compare-rides": [rides[0], own_ride], "horses": [horse], "riders": [rider],
                 "rigs": [rig], "jobs": [job], "users": [member["id"]]},
-        "member_ride": own_ride, "member_id": member["id"],
+        "member_ride": own_ride, "member_id": member["id"], "waiting_ride": waiting_ride,
     }
 
 
@@ -245,6 +252,8 @@ def _visits(routes: list[Route], club: dict) -> list[Visit]:
         if route.pattern.startswith("/rides/:"):  # the member's own ride too: "own" controls show there
             own = path.replace(f"/{club['ids']['rides'][0]}", f"/{club['member_ride']}", 1)
             visits.append(Visit(own + query, f"{name}-own", owner_id=club["member_id"]))
+            waiting = path.replace(f"/{club['ids']['rides'][0]}", f"/{club['waiting_ride']}", 1)
+            visits.append(Visit(waiting + query, f"{name}-waiting"))
     return visits
 
 
@@ -308,6 +317,7 @@ def _audit(page, errors: list[str], in_flight: InFlight, base: str, visit: Visit
         visit.problems.append(f"{where}: sent to the sign-in page")
     screenshot(page, f"{role}-{visit.name}")
     visit.problems += [f"{where}: console: {e}" for e in errors]
+    visit.problems += [f"{where}: shows {line!r}" for line in missing_words(page.evaluate(VISIBLE_TEXT_JS))]
     if width == PHONE_WIDTH_PX:
         try:
             assert_no_horizontal_scroll(page)

@@ -10,6 +10,8 @@ import test_dashboard
 import test_ride_page
 from test_dashboard import _ok, api_client, result_document, sign_in, store_result
 
+from saddlescope.services.report import distance_text, duration_text
+
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 sync_playwright_factory = test_dashboard.sync_playwright_factory
@@ -44,3 +46,44 @@ def test_intervals_and_the_too_uncertain_verdict_are_shown(page, dashboard):
     page.goto(f"/api/rides/{created['id']}/report")
     assert "Too uncertain for a decision" in page.locator('[data-decision="too-uncertain"]').inner_text()
     assert page.locator('[data-ci="acc_y_wb_rms"]').inner_text().startswith("95 %: ")
+
+
+def test_a_short_riding_time_reads_under_a_minute_without_an_interval_that_says_the_same(page, dashboard):
+    """Issue #37: "1 s (95 %: 1 s–1 s)" read as absurd; an interval whose ends read alike is left out."""
+    doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(13))
+    doc["indicators"]["t_a8_limit_wb_h"] = 0.00025
+    doc["indicators_interval_95"] = {"t_a8_limit_wb_h": [0.0002, 0.0003],
+                                     "t_a8_action_wb_h": [0.5 * doc["indicators"]["t_a8_action_wb_h"], None]}
+    with api_client(dashboard) as api:
+        created = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Bella"],
+                                                   "rider_id": dashboard["riders"][0], "gait": "canter",
+                                                   "direction": "CW", "ridden_on": "2026-05-04"}))
+    store_result(dashboard["database_url"], dashboard["storage_dir"], created["id"], doc)
+    sign_in(page)
+    page.goto(f"/#/rides/{created['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    assert page.locator('td[data-key="t_a8_limit_wb_h"]').inner_text() == "under a minute"
+    assert page.locator('[data-ci="t_a8_action_wb_h"]').count() == 1  # a real interval is still shown
+    words = "(hours) => import('/js/format.js').then(m => hours.map(m.durationText))"
+    hours = [None, 0.0001, 59 / 3600, 61 / 3600, 0.2, 2 + 5 / 60, 1234.0]
+    assert page.evaluate(words, hours) == [duration_text(h) for h in hours]  # the page and the report agree
+    page.goto(f"/api/rides/{created['id']}/report")
+    assert page.locator('[data-ci="t_a8_limit_wb_h"]').count() == 0
+
+
+def test_distances_read_in_metres_or_km_as_the_report_words_them(page, dashboard):
+    """Issue #37: "0.00416 km" read as absurd; the page and the report's `distance_text` say the same."""
+    doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(14))
+    doc["indicators"]["d_a8_limit_wb_km"] = 0.00416
+    with api_client(dashboard) as api:
+        created = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Bella"],
+                                                   "rider_id": dashboard["riders"][0], "gait": "canter",
+                                                   "direction": "CW", "ridden_on": "2026-05-05"}))
+    store_result(dashboard["database_url"], dashboard["storage_dir"], created["id"], doc)
+    sign_in(page)
+    page.goto(f"/#/rides/{created['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    assert page.locator('td[data-key="d_a8_limit_wb_km"]').inner_text() == "about 4 m"
+    words = "(km) => import('/js/format.js').then(m => km.map(m.distanceText))"
+    km = [None, 0.0004, 0.00416, 0.04, 0.416, 1.234, 15.6, 1234.0]
+    assert page.evaluate(words, km) == [distance_text(d) for d in km]

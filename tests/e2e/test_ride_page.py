@@ -1,5 +1,5 @@
 """The ride page and the one-page report in Debian's chromium: every chart drawn with Plotly data, the
-quality in plain words, exposure times in h / min / s, the job's progress in words, no horizontal
+quality in plain words, exposure times in h / min ("under a minute"), the job's progress in words, no horizontal
 scrolling at 390 px, and the report printed by the browser as exactly one A4 page.
 
 The seeded server and browser are tests/e2e/test_dashboard.py's (imported, not copied); this module adds

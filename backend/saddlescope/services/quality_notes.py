@@ -54,11 +54,19 @@ def quality_notes(findings: Iterable[Finding]) -> list[dict[str, str]]:
 
 
 def quality_summary(findings: Iterable[Finding]) -> tuple[Severity, str]:
-    """The overall severity of ``findings`` and one line saying it."""
-    severities = [f.severity for f in findings]
-    counts = {s: severities.count(s) for s in SEVERITIES}
+    """The overall severity of ``findings`` and one line saying it.
+
+    The points are counted as the ride page and the report list them: one per piece of advice (findings
+    that ask for the same thing are one line there), so "6 points to check" sits over six lines."""
+    lines = {NOTES[f.code].message: f.severity for f in findings}
+    counts = {s: list(lines.values()).count(s) for s in SEVERITIES}
     if counts["problem"]:
-        return "problem", f"{counts['problem']} problem(s) found: the numbers they concern are not to be trusted."
+        found = _counted(counts["problem"], "problem", "problems")
+        return "problem", f"{found} found: the numbers they concern are not to be trusted."
     if counts["check"]:
-        return "check", f"{counts['check']} point(s) to check; the main results stand."
+        return "check", f"{_counted(counts['check'], 'point', 'points')} to check; the main results stand."
     return "ok", "The recording and the analysis look good."
+
+
+def _counted(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"

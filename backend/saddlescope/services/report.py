@@ -27,7 +27,9 @@ from saddlescope.services.result_series import strides_analysed, vertical_harmon
 from saddlescope.services.results import analysed_result, result_document
 from saddlescope.storage import Storage
 
-__all__ = ["REPORT_INDICATORS", "duration_text", "ride_report_html", "ride_report_pdf", "stride_chart_svg"]
+__all__ = [
+    "REPORT_INDICATORS", "distance_text", "duration_text", "ride_report_html", "ride_report_pdf", "stride_chart_svg",
+]
 
 TEMPLATE = Template((Path(__file__).parent / "templates" / "ride_report.html").read_text(encoding="utf-8"))
 # The indicators a vet or trainer reads first (the thesis's comfort indicators and the W_k twins).
@@ -48,20 +50,47 @@ GAIT_WORDS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "ri
 
 
 def duration_text(hours: float | None) -> str:
-    """A time in hours as a rider says it: "2 h 05 min", "12 min", "40 s" ("–" when unknown)."""
+    """A time in hours as a rider says it: "2 h 05 min", "12 min", "under a minute" ("–" when unknown).
+
+    Seconds are not given: the exposure times are estimates, so "55 s" would claim a precision they lack.
+    The dashboard's `durationText` (frontend/js/format.js) says the same words."""
     if hours is None or not isinstance(hours, int | float) or math.isnan(hours) or hours < 0:
         return "–"
     if math.isinf(hours):
         return "no limit"
-    seconds = round(hours * 3600)
-    if seconds < 60:
-        return f"{seconds} s"
     minutes = round(hours * 60)
+    if hours * 60 < 1:
+        return "under a minute"
     if minutes < 60:
         return f"{minutes} min"
     if hours >= 100:
         return f"{hours:,.0f} h"
     return f"{minutes // 60} h {minutes % 60:02d} min"
+
+
+def distance_text(km: float | None) -> str:
+    """A riding distance as a rider says it: "about 4 m", "about 420 m", "about 1.2 km" ("–" when unknown).
+
+    Two significant digits: the distances are estimates, so "0.00416 km" would claim a precision they lack.
+    The dashboard's `distanceText` (frontend/js/format.js) says the same words."""
+    if km is None or not isinstance(km, int | float) or math.isnan(km) or km < 0:
+        return "–"
+    if math.isinf(km):
+        return "no limit"
+    metres = km * 1000
+    if metres < 1:
+        return "under a metre"
+    if metres < 10:
+        return f"about {round(metres)} m"
+    if metres < 1000:
+        return f"about {_two_digits(metres)} m"
+    return f"about {_two_digits(km)} km"
+
+
+def _two_digits(value: float) -> str:
+    """`value` (>= 1) to two significant digits without trailing zeros: 4.16 -> "4.2", 416 -> "420"."""
+    rounded = float(f"{value:.2g}")
+    return f"{rounded:,.0f}" if rounded >= 10 else f"{rounded:g}"
 
 
 def _number(value: Any, digits: int = 3) -> str:
@@ -173,6 +202,8 @@ def _interval_html(key: str, pair: Any) -> str:
         return ""
     lo, hi = ("–∞" if pair[0] is None else _value_text(key, pair[0]), "∞" if pair[1] is None else
               _value_text(key, pair[1]))
+    if lo == hi:  # an interval that reads as one value says nothing the value does not
+        return ""
     return f'<span class="ci" data-ci="{key}">95 %: {html.escape(lo)} – {html.escape(hi)}</span>'
 
 

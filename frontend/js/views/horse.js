@@ -5,7 +5,7 @@
 import { get, itemsOf, patch } from "../api.js";
 import { busy, h, page, showError } from "../dom.js";
 import { countedBarChart, trendChart } from "../horse-charts.js";
-import { durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
+import { distanceText, durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { can } from "../session.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
@@ -194,7 +194,9 @@ async function setUpPair(view, horseId) {
       showError(section, null);
       table.tBodies[0].replaceChildren(...pair.indicators.map((row) => h("tr", { dataset: { key: row.key } },
         h("th", { scope: "row" }, labelText(row.label),
-          row.unit ? h("span", { class: "unit", dataset: { unit: "" } }, prettyUnit(row.unit)) : null),
+          // times and distances say their own units ("12 min", "about 40 m"): an "h" beside them misleads
+          row.unit && !SAYS_ITS_UNIT.has(row.unit) ? h("span", { class: "unit", dataset: { unit: "" } },
+            prettyUnit(row.unit)) : null),
         h("td", { class: "num", dataset: { value: row.a ?? "" } }, pairValue(row.a, row.unit)),
         h("td", { class: "num", dataset: { value: row.b ?? "" } }, pairValue(row.b, row.unit)),
         differenceCell(row))));
@@ -207,9 +209,13 @@ async function setUpPair(view, horseId) {
   });
 }
 
-/** A value of the pair table: exposure times as "2 h 05 min", the rest with three digits. */
+const SAYS_ITS_UNIT = new Set(["h", "km"]);
+
+/** A value of the pair table: exposure times as "2 h 05 min", distances as "about 40 m", the rest with three digits. */
 function pairValue(value, unit) {
-  return unit === "h" && Number.isFinite(value) ? durationText(value) : fmt(value);
+  if (unit === "h" && Number.isFinite(value)) return durationText(value);
+  if (unit === "km" && Number.isFinite(value)) return distanceText(value);
+  return fmt(value);
 }
 
 export async function mountHorse(view, params) {

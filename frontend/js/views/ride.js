@@ -2,10 +2,10 @@
 // directive (with the passive-seated caveat), quality flags, kinematics charts, grade form, exports.
 
 import { ApiError, get, itemsOf, post } from "../api.js";
-import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { announce, busy, fill, formValues, h, page, showError } from "../dom.js";
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import {
-  PASSIVE_SEATED_CAVEAT, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
+  PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
 } from "../format.js";
 import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
@@ -93,19 +93,23 @@ function exposureRows(result) {
                                          "data-value": ind[`t_${basis}_${level}_${w}_h`] ?? "" },
       durationText(ind[`t_${basis}_${level}_${w}_h`]), timeInterval(result, `t_${basis}_${level}_${w}_h`))),
     ...["wb", "wk"].map((w) => h("td", { class: "num", dataset: { key: `d_${basis}_${level}_${w}_km` } },
-      fmt(ind[`d_${basis}_${level}_${w}_km`]), smallInterval(result, `d_${basis}_${level}_${w}_km`)))));
+      distanceText(ind[`d_${basis}_${level}_${w}_km`]), distanceInterval(result, `d_${basis}_${level}_${w}_km`)))));
 }
 
 function timeInterval(result, key) {
   const pair = result.indicators_interval_95?.[key];
   if (!Array.isArray(pair)) return null;
   const end = (v) => (v === null || v === undefined ? "∞" : durationText(v));
+  if (end(pair[0]) === end(pair[1])) return null; // "1 min–1 min" says nothing the value does not
   return h("span", { class: "ci-small", dataset: { ci: key } }, ` (95 %: ${end(pair[0])}–${end(pair[1])})`);
 }
 
-function smallInterval(result, key) {
-  const text = intervalText(result, key);
-  return text ? h("span", { class: "ci-small", dataset: { ci: key } }, ` (${text})`) : null;
+function distanceInterval(result, key) {
+  const pair = result.indicators_interval_95?.[key];
+  if (!Array.isArray(pair)) return null;
+  const end = (v) => (v === null || v === undefined ? "∞" : distanceText(v));
+  if (end(pair[0]) === end(pair[1])) return null; // "about 4 m–about 4 m" says nothing the value does not
+  return h("span", { class: "ci-small", dataset: { ci: key } }, ` (95 %: ${end(pair[0])}–${end(pair[1])})`);
 }
 
 function qualityFacts(result) {
@@ -158,7 +162,9 @@ function fitFacts(fits) {
       `${fmt(stride[0], 4)} Hz (${fmt(stride[1], 4)}\u2013${fmt(stride[2], 4)})`]);
   }
   if (speed) {
-    facts.push(["Average speed (95 % CI)", `${fmt(speed[0], 4)} m/s (${fmt(speed[1], 4)}\u2013${fmt(speed[2], 4)})`]);
+    // km/h as on the speed card: one unit per quantity on a page (the fits give m/s)
+    const kmh = speed.map((v) => fmt(v * 3.6, 3));
+    facts.push(["Average speed (95 % CI)", `${kmh[0]} km/h (${kmh[1]}\u2013${kmh[2]})`]);
   }
   return facts.flatMap(([term, value]) => [h("dt", {}, term), h("dd", {}, value)]);
 }
@@ -309,7 +315,7 @@ function showResult(view, ride, result) {
 function showJob(state, job, onRetry, ownerId) {
   const { percent, stage, text } = jobProgressText(job);
   const ended = job.status === "failed" || job.status === "cancelled";
-  state.replaceChildren(
+  fill(state,
     h("p", {}, `Analysis job #${job.id}: ${job.status}${stage ? ` \u2013 ${stage}` : ""}`),
     h("div", { class: "job-progress" },
       h("progress", { max: "100", value: String(percent), "aria-label": "Analysis progress",

@@ -1,0 +1,70 @@
+"""No page shows the words "null", "undefined" or "NaN" (issue #37): a value the page did not have
+must read as nothing, or as words, never as JavaScript's name for "missing".
+
+A small club on a fresh server: one ride with an analysis job that is queued or running (a long
+selftest job tied to the ride) and the main lists; each page's visible text is scanned in Debian's
+chromium. The full page tour (test_page_audit.py) runs the same scan on every page.
+"""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from browser_harness import chromium_for_module, new_club_admin, screenshot, serve_fresh, sign_in
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+ADMIN = ("secretary@nulls.example", "nulls admin password")
+# JavaScript's words for a missing value, alone or glued together ("nullnullnull" is what
+# replaceChildren(null, null, null) shows); not inside other words ("annulled", "Nullarbor")
+MISSING_WORDS = re.compile(r"(?<![A-Za-z])(?:null|undefined|NaN)+(?![A-Za-z])")
+VISIBLE_TEXT_JS = "() => (document.querySelector('main') || document.body).innerText"
+
+
+def missing_words(text: str) -> list[str]:
+    """The lines of `text` that show null / undefined / NaN."""
+    return [line.strip() for line in text.splitlines() if MISSING_WORDS.search(line)]
+
+
+def test_missing_words_are_found_alone_or_glued_but_not_inside_words():
+    text = "Analysis job #3: queued\nnullnullnull\nHorse: Nullarbor, annulled\nspeed NaN km/h\nundefined"
+    assert missing_words(text) == ["nullnullnull", "speed NaN km/h", "undefined"]
+
+
+@pytest.fixture(scope="module")
+def club(tmp_path_factory):
+    with serve_fresh(tmp_path_factory.mktemp("nulls")) as served:
+        with new_club_admin(served.base, club_name="Null Check Club", email=ADMIN[0], password=ADMIN[1]) as api:
+            horse = api.post("/api/horses", json={"name": "Bramble"}).json()["id"]
+            rider = api.post("/api/riders", json={"name": "Anna"}).json()["id"]
+            ride = api.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": "sitting_trot",
+                                                "direction": "CW"})
+            assert ride.status_code == 201, ride.text
+            ride_id = ride.json()["id"]
+            # a job that stays queued (no worker) or running (1000 steps of 5 s) while the page is open
+            job = api.post("/api/jobs", json={"kind": "selftest", "ride_id": ride_id,
+                                              "payload": {"steps": 1000, "delay_s": 5}})
+            assert job.status_code in (200, 201, 202), job.text
+        yield {"base": served.base, "ride": ride_id}
+
+
+def test_no_page_shows_null_undefined_or_nan(club):
+    paths = [f"/rides/{club['ride']}", "/", "/rides", "/horses", "/riders", "/jobs", "/rigs", "/grades",
+             "/leaderboard", "/account"]
+    found = []
+    with chromium_for_module() as chromium:
+        context = chromium.new_context(base_url=club["base"], viewport={"width": 1280, "height": 900})
+        page = context.new_page()
+        sign_in(page, *ADMIN)
+        for path in paths:
+            page.goto(f"{club['base']}/#{path}")
+            page.wait_for_function("() => { const v = document.querySelector('[data-view]');"
+                                   " return v && !v.hasAttribute('aria-busy') && v.children.length > 0; }")
+            if path.startswith("/rides/"):
+                page.wait_for_selector("[data-job-progress]")
+            page.wait_for_load_state("networkidle")
+            found += [f"{path}: {line!r}" for line in missing_words(page.evaluate(VISIBLE_TEXT_JS))]
+            screenshot(page, f"no-null{path.replace('/', '-') or '-overview'}")
+        context.close()
+    assert not found, "pages show JavaScript's words for a missing value:\n" + "\n".join(found)
