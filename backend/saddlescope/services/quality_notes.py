@@ -57,7 +57,8 @@ def quality_summary(findings: Iterable[Finding]) -> tuple[Severity, str]:
     """The overall severity of ``findings`` and one line saying it.
 
     The points are counted as the ride page and the report list them: one per piece of advice (findings
-    that ask for the same thing are one line there), so "6 points to check" sits over six lines."""
+    that ask for the same thing are one line there), so "6 points to check" sits over six lines.
+    """
     lines = {NOTES[f.code].message: f.severity for f in findings}
     counts = {s: list(lines.values()).count(s) for s in SEVERITIES}
     if counts["problem"]:

@@ -53,7 +53,8 @@ def duration_text(hours: float | None) -> str:
     """A time in hours as a rider says it: "2 h 05 min", "12 min", "under a minute" ("–" when unknown).
 
     Seconds are not given: the exposure times are estimates, so "55 s" would claim a precision they lack.
-    The dashboard's `durationText` (frontend/js/format.js) says the same words."""
+    The dashboard's `durationText` (frontend/js/format.js) says the same words.
+    """
     if hours is None or not isinstance(hours, int | float) or math.isnan(hours) or hours < 0:
         return "–"
     if math.isinf(hours):
@@ -72,7 +73,8 @@ def distance_text(km: float | None) -> str:
     """A riding distance as a rider says it: "about 4 m", "about 420 m", "about 1.2 km" ("–" when unknown).
 
     Two significant digits: the distances are estimates, so "0.00416 km" would claim a precision they lack.
-    The dashboard's `distanceText` (frontend/js/format.js) says the same words."""
+    The dashboard's `distanceText` (frontend/js/format.js) says the same words.
+    """
     if km is None or not isinstance(km, int | float) or math.isnan(km) or km < 0:
         return "–"
     if math.isinf(km):
