@@ -145,6 +145,11 @@ class _BoardKinds:
         return iter(self._kinds())
 
 
+# `saddlescope bench --only`'s choices (bench.SECTION_NAMES, named here so the parser imports no numpy)
+_BENCH_SECTIONS = ("detection", "calibration", "speed", "footage", "floor", "accuracy", "similarity", "service",
+                   "coverage", "dashboard")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``saddlescope`` command's argument parser, one sub-command per task."""
     p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
@@ -222,9 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("bench", help="performance benchmarks, ratios measured side by side")
     s.add_argument("--json", dest="json_out", default=None)
     s.add_argument("--quick", action="store_true", help="smaller inputs, for a smoke test")
-    s.add_argument("--only", default=None, metavar="SECTION[,SECTION]",
-                   help="measure these sections alone, with a whole run's keys: detection, calibration, speed, "
-                        "footage, floor, accuracy, similarity, service, coverage, dashboard")
+    s.add_argument("--only", metavar="SECTION[,SECTION]", help=f"measure these alone: {', '.join(_BENCH_SECTIONS)}")
     return p
 
 

@@ -39,6 +39,12 @@ def test_a_whole_run_is_every_section(monkeypatch):
     assert all(out[f"{name}_key"] == 1.0 for name in bench.SECTION_NAMES)
 
 
+def test_the_command_names_the_sections_the_bench_has():
+    from saddlescope import cli
+
+    assert cli._BENCH_SECTIONS == bench.SECTION_NAMES
+
+
 def test_an_unknown_section_is_refused_naming_the_sections():
     with pytest.raises(ValueError, match="no benchmark section 'sped': choose from detection, calibration"):
         bench.sections_named("speed,sped")
