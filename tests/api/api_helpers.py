@@ -32,6 +32,19 @@ from integration_services import Api, add_member, new_club, sign_in  # noqa: F40
 
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.core.vibration import ride_indicators
+from saddlescope.settings import Settings, load_settings
+
+
+def settings_for(tmp_path: Path, **overrides) -> Settings:
+    """Embedded settings in `tmp_path` (SQLite, a folder store, a test secret), with `overrides`."""
+    values = {
+        "database_url": f"sqlite:///{tmp_path / 'db.sqlite'}",
+        "storage_dir": str(tmp_path / "storage"),
+        "secret_key": "a-test-secret-of-enough-length",
+    }
+    values.update(overrides)
+    return load_settings(**values)
+
 
 GAIT_F0_HZ = {"walk": 1.8, "sitting_trot": 2.6, "rising_trot": 2.6, "canter": 1.7}
 GAIT_SPEED_KMH = {"walk": 6.0, "sitting_trot": 12.0, "rising_trot": 13.0, "canter": 19.0}

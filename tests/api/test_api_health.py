@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import integration_services
 import pytest
-from api_helpers import add_member, new_club
+from api_helpers import add_member, new_club, settings_for
 from fastapi.testclient import TestClient
 
 from saddlescope.api import create_app
@@ -13,19 +13,8 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job
 from saddlescope.db.session import engine_for, session_factory_for
 from saddlescope.services.health import check_database
-from saddlescope.settings import load_settings
 
 DEAD_BROKER = "redis://127.0.0.1:1/0"  # port 1: nothing listens there
-
-
-def settings_for(tmp_path, **overrides):
-    values = {
-        "database_url": f"sqlite:///{tmp_path / 'db.sqlite'}",
-        "storage_dir": str(tmp_path / "storage"),
-        "secret_key": "a-test-secret-of-enough-length",
-    }
-    values.update(overrides)
-    return load_settings(**values)
 
 
 def test_unreachable_broker_is_reported_and_refuses_jobs(tmp_path):

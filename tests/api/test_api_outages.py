@@ -21,23 +21,12 @@ import kombu.exceptions
 import pytest
 import redis.exceptions
 import sqlalchemy.exc
-from api_helpers import FullDisk, new_club
+from api_helpers import FullDisk, new_club, settings_for
 from fastapi.testclient import TestClient
 
 from saddlescope.api import create_app
 from saddlescope.api.outages import BROKER_DOWN, DATABASE_DOWN, DISK_FULL, STORE_DOWN, outage_of
 from saddlescope.db.session import make_engine, make_session_factory
-from saddlescope.settings import load_settings
-
-
-def settings_for(tmp_path, **overrides):
-    values = {
-        "database_url": f"sqlite:///{tmp_path / 'db.sqlite'}",
-        "storage_dir": str(tmp_path / "storage"),
-        "secret_key": "a-test-secret-of-enough-length",
-    }
-    values.update(overrides)
-    return load_settings(**values)
 
 
 def dead_port() -> int:

@@ -22,6 +22,19 @@ dashboard = test_ride_page.dashboard
 REASON = "the W_b r.m.s. is known only to ±14 % (95 % interval 3.52-4.63 m/s²; a decision needs ±10 %)"
 
 
+def _open_ride_page(page, dashboard, doc: dict, *, ridden_on: str) -> dict:
+    """A new canter of Bella's with `doc` as its stored result, opened signed in; the ride as created."""
+    with api_client(dashboard) as api:
+        created = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Bella"],
+                                                   "rider_id": dashboard["riders"][0], "gait": "canter",
+                                                   "direction": "CW", "ridden_on": ridden_on}))
+    store_result(dashboard["database_url"], dashboard["storage_dir"], created["id"], doc)
+    sign_in(page)
+    page.goto(f"/#/rides/{created['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    return created
+
+
 def test_intervals_and_the_too_uncertain_verdict_are_shown(page, dashboard):
     doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(12))
     value = doc["indicators"]["acc_y_wb_rms"]
@@ -30,14 +43,7 @@ def test_intervals_and_the_too_uncertain_verdict_are_shown(page, dashboard):
     doc["quality"]["decision"] = {"too_uncertain": True, "reason": REASON}
     doc["quality"]["flags"] += [f"too uncertain for a decision: {REASON}; it is left out of leaderboards unless "
                                 "asked for"]
-    with api_client(dashboard) as api:
-        created = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Bella"],
-                                                   "rider_id": dashboard["riders"][0], "gait": "canter",
-                                                   "direction": "CW", "ridden_on": "2026-05-03"}))
-    store_result(dashboard["database_url"], dashboard["storage_dir"], created["id"], doc)
-    sign_in(page)
-    page.goto(f"/#/rides/{created['id']}")
-    page.locator("[data-result]").wait_for(state="visible")
+    created = _open_ride_page(page, dashboard, doc, ridden_on="2026-05-03")
     card = page.locator('[data-ci="acc_y_wb_rms"]').inner_text()
     assert card.startswith("95 % interval ") and "m/s" in card
     assert "∞" in page.locator('[data-ci="t_a8_action_wb_h"]').inner_text()
@@ -54,14 +60,7 @@ def test_a_short_riding_time_reads_under_a_minute_without_an_interval_that_says_
     doc["indicators"]["t_a8_limit_wb_h"] = 0.00025
     doc["indicators_interval_95"] = {"t_a8_limit_wb_h": [0.0002, 0.0003],
                                      "t_a8_action_wb_h": [0.5 * doc["indicators"]["t_a8_action_wb_h"], None]}
-    with api_client(dashboard) as api:
-        created = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Bella"],
-                                                   "rider_id": dashboard["riders"][0], "gait": "canter",
-                                                   "direction": "CW", "ridden_on": "2026-05-04"}))
-    store_result(dashboard["database_url"], dashboard["storage_dir"], created["id"], doc)
-    sign_in(page)
-    page.goto(f"/#/rides/{created['id']}")
-    page.locator("[data-result]").wait_for(state="visible")
+    created = _open_ride_page(page, dashboard, doc, ridden_on="2026-05-04")
     assert page.locator('td[data-key="t_a8_limit_wb_h"]').inner_text() == "under a minute"
     assert page.locator('[data-ci="t_a8_action_wb_h"]').count() == 1  # a real interval is still shown
     words = "(hours) => import('/js/format.js').then(m => hours.map(m.durationText))"
@@ -75,14 +74,7 @@ def test_distances_read_in_metres_or_km_as_the_report_words_them(page, dashboard
     """Issue #37: "0.00416 km" read as absurd; the page and the report's `distance_text` say the same."""
     doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(14))
     doc["indicators"]["d_a8_limit_wb_km"] = 0.00416
-    with api_client(dashboard) as api:
-        created = _ok(api.post("/api/rides", json={"horse_id": dashboard["horses"]["Bella"],
-                                                   "rider_id": dashboard["riders"][0], "gait": "canter",
-                                                   "direction": "CW", "ridden_on": "2026-05-05"}))
-    store_result(dashboard["database_url"], dashboard["storage_dir"], created["id"], doc)
-    sign_in(page)
-    page.goto(f"/#/rides/{created['id']}")
-    page.locator("[data-result]").wait_for(state="visible")
+    _open_ride_page(page, dashboard, doc, ridden_on="2026-05-05")
     assert page.locator('td[data-key="d_a8_limit_wb_km"]').inner_text() == "about 4 m"
     words = "(km) => import('/js/format.js').then(m => km.map(m.distanceText))"
     km = [None, 0.0004, 0.00416, 0.04, 0.416, 1.234, 15.6, 1234.0]
