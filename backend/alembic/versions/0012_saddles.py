@@ -1,5 +1,7 @@
 """Saddles and riders' weight (issue 37, item 3): a club's saddles, the saddle and pad of each ride, weights.
 
+Also an index of clips by content hash: the same clips never make two rides (issue 37, item 4).
+
 A ride may name the saddle the horse wore (``rides.saddle_id``, a saddle of the club: deleting a saddle
 that rides use is refused) and the pad (free text); riders have a usual weight and each ride the
 rider's weight that day (kg, 20-200; a new ride copies the rider's). Existing rides have none of these.
@@ -57,10 +59,13 @@ def upgrade() -> None:
             "rider_weight_range", "rider_weight_kg IS NULL OR (rider_weight_kg >= 20 AND rider_weight_kg <= 200)")
         batch.create_index(op.f("ix_rides_saddle_id"), ["saddle_id"])
         batch.create_index("ix_rides_club_saddle_ridden_on", ["club_id", "saddle_id", "ridden_on"])
+    # A clip's content hash is looked up on every upload (the same clips never make two rides).
+    op.create_index("ix_recordings_club_sha256", "recordings", ["club_id", "sha256"])
 
 
 def downgrade() -> None:
     """Drop the columns and the saddles table (the saddles recorded are lost)."""
+    op.drop_index("ix_recordings_club_sha256", table_name="recordings")
     with op.batch_alter_table("rides") as batch:
         batch.drop_index("ix_rides_club_saddle_ridden_on")
         batch.drop_index(op.f("ix_rides_saddle_id"))

@@ -137,12 +137,13 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         riders,
         rides,
         rigs,
+        saddles,
         similarity,
         uploads,
     )
 
     for module in (health, auth, horses, horse_profile, riders, rigs, rides, readiness, mocap, uploads, grades,
-                   comparisons, similarity, jobs, reports):
+                   comparisons, similarity, jobs, reports, saddles):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", DashboardFiles(directory=FRONTEND_DIR, html=True), name="frontend")

@@ -280,6 +280,8 @@ class Recording(TimestampMixin, Base):
         UniqueConstraint("rig_id", "clip_kind", "camera_role"),
         CheckConstraint("ride_id IS NOT NULL OR rig_id IS NOT NULL", name="owner"),
         CheckConstraint("size_bytes IS NULL OR size_bytes >= 0", name="size_bytes"),
+        # The same clip never makes two rides: looked up by content (migration 0012_saddles).
+        Index("ix_recordings_club_sha256", "club_id", "sha256"),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)
