@@ -146,6 +146,7 @@ class ErrorOut(BaseModel):
     """An error's reason, in words for the user."""
 
     detail: str
+    ride_id: int | None = Field(default=None, description="409 for clips uploaded again: the ride they already are")
 
 
 # --- accounts ----------------------------------------------------------------------------------------

@@ -21,6 +21,7 @@ from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.enums import JobStatus, RideStatus
 from saddlescope.db.models import Horse, Rider
 from saddlescope.db.repositories import (
+    Conflict,
     ClubRepository,
     HorseRepository,
     JobRepository,
@@ -37,6 +38,8 @@ from saddlescope.storage import Storage, ride_bundle_key, sha256_file, tree_dige
 
 __all__ = [
     "ANALYSIS_JOB_KIND",
+    "DuplicateClips",
+    "duplicate_message",
     "RESULT_SETTINGS",
     "analysed_settings",
     "outdated_result_settings",
@@ -170,6 +173,31 @@ def refresh_ride_status(session: Session, ride_id: int | None) -> str | None:
     return status.value
 
 
+class DuplicateClips(Conflict):
+    """The clips uploaded are already a ride of the club (the same content): answered with that ride (409)."""
+
+    def __init__(self, message: str, *, existing_ride_id: int) -> None:
+        super().__init__(message)
+        self.existing_ride_id = existing_ride_id
+
+
+def duplicate_message(what: str, existing_ride_id: int) -> str:
+    """The sentence a second upload of the same clips answers with."""
+    return (f"{what} already uploaded as ride {existing_ride_id} (the same motion clip, byte for byte); no new "
+            f"ride was made: open ride {existing_ride_id}, or delete it first to upload these clips again")
+
+
+def _refuse_known_clips(sessions: sessionmaker[Session], bundle: RideBundle, digests: dict[str, tuple[int, str]], *,
+                        club_id: int, ride_id: int, name: str) -> None:
+    """`DuplicateClips` when a motion clip of the bundle is already a clip of another ride of the club."""
+    hashes = [digests[source.relative_to(bundle.root).as_posix()][1]
+              for source in (bundle.clip_paths.get("motion") or {}).values()]
+    with session_scope(sessions) as session:
+        existing = RecordingRepository(session, club_id=club_id).ride_with_clip(hashes, exclude_ride_id=ride_id)
+    if existing is not None:
+        raise DuplicateClips(duplicate_message(f"{name}: its clips were", existing), existing_ride_id=existing)
+
+
 def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: Path | str | BinaryIO, *,
                     club_name: str = "Demo club", club_id: int | None = None, rig_id: int | None = None,
                     ridden_on: dt.date | None = None, chosen: Mapping[str, Any] | None = None,
@@ -190,7 +218,7 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
     opened = open_bundle(bundle) if isinstance(bundle, str | Path) else open_zip_stream(bundle, name)
     with opened:
         return _register(sessions, storage, opened, club_name=club_name, club_id=club_id, rig_id=rig_id,
-                         ridden_on=ridden_on, chosen=dict(chosen or {}))
+                         ridden_on=ridden_on, chosen=dict(chosen or {}), name=name)
 
 
 MAX_NAME_CHARS = 200
@@ -281,7 +309,7 @@ def _add_recordings(session: Session, bundle: RideBundle, digests: dict[str, tup
 
 def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBundle, *,
               club_name: str, club_id: int | None, rig_id: int | None, ridden_on: dt.date | None,
-              chosen: dict[str, Any]) -> int:
+              chosen: dict[str, Any], name: str = "the bundle") -> int:
     with session_scope(sessions) as session:
         club_id, ride_id = _add_ride(session, bundle, club_name=club_name, club_id=club_id, rig_id=rig_id,
                                      ridden_on=ridden_on, chosen=chosen)
@@ -291,6 +319,7 @@ def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBun
         # The whole folder, extras included (truth.json, extra clip sets, a calibration file), so
         # the stored copy is again a complete bundle the pipeline can open.
         digests = _store_files(storage, bundle, bundle_key)
+        _refuse_known_clips(sessions, bundle, digests, club_id=club_id, ride_id=ride_id, name=name)
         with session_scope(sessions) as session:
             _add_recordings(session, bundle, digests, club_id=club_id, ride_id=ride_id, bundle_key=bundle_key)
             RideRepository(session).set_bundle_key(ride_id, bundle_key)
