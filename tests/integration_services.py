@@ -337,7 +337,6 @@ def write_tiny_clip(
 def zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:
     """`data` (a zip of stored members) with one byte inside member `name` changed: its CRC no longer matches."""
     import io
-import itertools
     import zipfile
 
     with zipfile.ZipFile(io.BytesIO(data)) as zf:
