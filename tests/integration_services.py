@@ -334,6 +334,18 @@ def write_tiny_clip(
     return path
 
 
+def mp4_with_a_free_box(source: Path, dest: Path, note: str) -> Path:
+    """`source` (an MP4) with a trailing ISO BMFF ``free`` box holding `note`: the same video, other bytes.
+
+    Every reader skips ``free`` boxes, so it decodes frame for frame as `source`; its content hash is its own
+    (the same clips never make two rides of a club, so a test's second ride needs clips of its own).
+    """
+    payload = note.encode()
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_bytes(source.read_bytes() + (8 + len(payload)).to_bytes(4, "big") + b"free" + payload)
+    return dest
+
+
 def zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:
     """`data` (a zip of stored members) with one byte inside member `name` changed: its CRC no longer matches."""
     import io

@@ -18,8 +18,8 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.enums import JobStatus, RideStatus
-from saddlescope.db.models import Horse, Rider
+from saddlescope.db.enums import JobStatus, RideStatus, SaddleType
+from saddlescope.db.models import Horse, Rider, Saddle
 from saddlescope.db.repositories import (
     Conflict,
     ClubRepository,
@@ -31,6 +31,7 @@ from saddlescope.db.repositories import (
     RideRepository,
     RiderRepository,
     RigRepository,
+    SaddleRepository,
 )
 from saddlescope.db.session import session_scope
 from saddlescope.io.bundle import RideBundle, open_bundle, open_zip_stream, zip_bundle_files
@@ -254,13 +255,35 @@ def _add_ride(session: Session, bundle: RideBundle, *, club_name: str, club_id: 
         height_withers_m=horse_meta.get("height_m"))
     rider_id = chosen.get("rider_id") or _get_or_add(
         session, "rider", club_id, str(rider_meta.get("name") or "Unnamed rider"), added)
+    saddle_id = chosen.get("saddle_id") or _bundle_saddle(session, meta.get("saddle"), club_id, added)
     ride = RideRepository(session, club_id=club_id).add(
         horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, gait=chosen.get("gait") or meta["gait"],
         direction=chosen.get("direction") or meta["direction"],
         ridden_on=chosen.get("ridden_on") or ridden_on or dt.datetime.now(dt.UTC).date(),
         notes=chosen.get("notes") or "",
-        meta={**{k: meta[k] for k in ("board", "sync", "markers") if k in meta}, **({_ADDED: added} if added else {})})
+        meta={**{k: meta[k] for k in ("board", "sync", "markers") if k in meta}, **({_ADDED: added} if added else {})},
+        saddle_id=saddle_id, pad=chosen.get("pad") or meta.get("pad") or None,
+        rider_weight_kg=chosen.get("rider_weight_kg") or rider_meta.get("weight_kg"))
     return club_id, ride.id
+
+
+def _bundle_saddle(session: Session, saddle_meta: Mapping[str, Any] | None, club_id: int,
+                   added: dict[str, int]) -> int | None:
+    """The club's saddle ride.json names (`saddle.name`), added with its details if new; None without one."""
+    if not saddle_meta:
+        return None
+    kind = saddle_meta.get("type")
+    if kind is not None and kind not in {t.value for t in SaddleType}:
+        raise BundleError(f"ride.json: saddle.type {kind!r} is not one of {', '.join(t.value for t in SaddleType)}")
+    saddles = SaddleRepository(session, club_id=club_id)
+    name = str(saddle_meta["name"]).strip()
+    found = saddles.find_by_name(name)
+    if found is not None:
+        return found.id
+    saddle = saddles.add(name=name, maker=saddle_meta.get("maker"), saddle_type=kind,
+                         tree_width=saddle_meta.get("tree_width"))
+    added["saddle"] = saddle.id
+    return saddle.id
 
 
 def _store_files(storage: Storage, bundle: RideBundle, bundle_key: str) -> dict[str, tuple[int, str]]:
@@ -334,14 +357,15 @@ def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBun
 def remove_bundle_ride(sessions: sessionmaker[Session], storage: Storage, ride_id: int) -> None:
     """Take back a ride just registered from a bundle (refused, or its job could not be queued).
 
-    Its rows go (recordings and jobs with it), then its stored files; so do the horse and rider its
+    Its rows go (recordings and jobs with it), then its stored files; so do the horse, rider and saddle its
     registration added, unless another ride uses them meanwhile. Nothing that existed before is touched.
     """
     with session_scope(sessions) as session:
         ride = RideRepository(session).find(ride_id)
         added = dict(dict(ride.meta or {}).get(_ADDED) or {}) if ride is not None else {}
         RideRepository(session).delete(ride_id)
-        for who, model, column in (("horse", Horse, Ride.horse_id), ("rider", Rider, Ride.rider_id)):
+        for who, model, column in (("horse", Horse, Ride.horse_id), ("rider", Rider, Ride.rider_id),
+                                   ("saddle", Saddle, Ride.saddle_id)):
             row_id = added.get(who)
             if row_id is not None:
                 session.execute(delete(model).where(model.id == row_id, ~exists().where(column == row_id)))
