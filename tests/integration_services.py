@@ -340,10 +340,15 @@ def mp4_with_a_free_box(source: Path, dest: Path, note: str) -> Path:
     Every reader skips ``free`` boxes, so it decodes frame for frame as `source`; its content hash is its own
     (the same clips never make two rides of a club, so a test's second ride needs clips of its own).
     """
-    payload = note.encode()
     dest.parent.mkdir(parents=True, exist_ok=True)
-    dest.write_bytes(source.read_bytes() + (8 + len(payload)).to_bytes(4, "big") + b"free" + payload)
+    dest.write_bytes(source.read_bytes() + free_box(note))
     return dest
+
+
+def free_box(note: str) -> bytes:
+    """An ISO BMFF ``free`` box holding `note` (MP4 readers skip it wherever it is)."""
+    payload = note.encode()
+    return (8 + len(payload)).to_bytes(4, "big") + b"free" + payload
 
 
 def zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:

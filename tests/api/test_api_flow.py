@@ -14,7 +14,7 @@ import numpy as np
 import openpyxl
 import pytest
 import s3_server as s3_server_module
-from api_helpers import Api, add_member, new_club, ride_json_with, standin_result, zip_folder
+from api_helpers import Api, add_member, another_take, new_club, ride_json_with, standin_result, zip_folder
 from engines import CELERY_S3, EMBEDDED_S3, ENGINES, open_env
 from integration_services import mp4_with_a_free_box
 
@@ -222,10 +222,11 @@ def test_comparisons_leaderboard_and_grades(env, tiny_ride):
         ("Ajax", "walk", "Rider A"),
     ]
     rides = []
-    for horse, gait, rider in plan:
+    for number, (horse, gait, rider) in enumerate(plan):
         data = zip_folder(
             tiny_ride,
             rewrite={
+                **another_take(tiny_ride, f"take {number}"),
                 "ride.json": ride_json_with(
                     tiny_ride, horse={"name": horse}, rider={"name": rider}, gait=gait
                 )
@@ -327,7 +328,8 @@ def test_cancel_retry_and_a_failed_stage_keeps_the_uploads(env, admin, tiny_ride
     assert refused.status_code == 409 and "only a failed or cancelled job" in refused.json()["detail"]
 
     data = zip_folder(
-        tiny_ride, rewrite={"ride.json": ride_json_with(tiny_ride, horse={"name": "Failing Fox"})}
+        tiny_ride, rewrite={**another_take(tiny_ride, "failing take"),
+                            "ride.json": ride_json_with(tiny_ride, horse={"name": "Failing Fox"})}
     )
     created = upload_zip(admin, data)
     failed, _ = admin.wait_job(created["job_id"])

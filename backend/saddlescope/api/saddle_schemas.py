@@ -31,7 +31,7 @@ class SaddleIn(_In):
 
 
 class SaddleUpdate(_In):
-    """Changes to a saddle (unset fields stay; null clears maker, type or tree width)."""
+    """Changes to a saddle (unset fields stay; null clears maker, type, tree width or notes)."""
 
     name: Name | None = None
     maker: Maker | None = None

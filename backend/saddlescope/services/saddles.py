@@ -44,13 +44,13 @@ def _stats(rows: Sequence[dict[str, Any]], keys: Sequence[str]) -> dict[str, dic
 
 
 def _number(value: float, unit: str) -> str:
-    unit_text = {"m/s^2": "m/s²"}.get(unit, unit)
+    unit_text = {"m/s^2": "m/s²", "m/s^1.75": "m/s¹·⁷⁵"}.get(unit, unit)
     return f"{value:.3g} {unit_text}".strip()
 
 
 def difference_sentence(key: str, first: str, second: str, difference: Any) -> str:
     """The comparison of saddle `second` against `first` in words (`difference`: a `GroupDifference` or None)."""
-    label = INDICATORS[key].label
+    label = INDICATORS[key].label.replace("W_", "W")  # "W_b" as the page writes it: Wb
     label = label[:1].upper() + label[1:]
     if difference is None:
         return f"{label}: {first} and {second} cannot be compared yet; each saddle needs at least two rides."
@@ -65,7 +65,8 @@ def difference_sentence(key: str, first: str, second: str, difference: Any) -> s
     verdict = "" if better is None else (
         f" {second} is the more comfortable here." if (word == "lower") == (better == "lower")
         else f" {first} is the more comfortable here.")
-    return (f"{label}: {second} is {size} {word} than {first} ({interval}, Welch p = {difference.p_value:.2g}): "
+    p_text = "p < 0.001" if difference.p_value < 0.001 else f"p = {difference.p_value:.2g}"
+    return (f"{label}: {second} is {size} {word} than {first} ({interval}, Welch {p_text}): "
             f"more than the uncertainty.{verdict}")
 
 

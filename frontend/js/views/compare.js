@@ -18,6 +18,7 @@ export async function mountCompare(view, _params, query) {
   const gaitChart = view.querySelector('[data-chart="compare-gait"]');
   await fillOptions(view);
   if (query.get("horse")) horseForm.elements.horse_id.value = query.get("horse");
+  if (query.get("saddle_id")) gaitForm.elements.saddle_id.value = query.get("saddle_id");
 
   const byHorse = onFormChange(horseForm, async ({ horse_id: horseId, indicator }, current) => {
     const section = horseForm.closest("section");
@@ -41,10 +42,12 @@ export async function mountCompare(view, _params, query) {
     }
   });
 
-  const byGait = onFormChange(gaitForm, async ({ gait, indicator }, current) => {
+  const byGait = onFormChange(gaitForm, async ({ gait, indicator, saddle_id: saddleId }, current) => {
     const section = gaitForm.closest("section");
     try {
-      const answer = await get("/api/comparison", { params: { gait, indicator } });
+      const params = { gait, indicator };
+      if (saddleId) params.saddle_id = saddleId;
+      const answer = await get("/api/comparison", { params });
       if (!current()) return;
       showError(section, null);
       const groups = groupsOf(answer, indicator).map((g) => ({ ...g, label: g.horse ?? g.group }));

@@ -67,9 +67,12 @@ def read_saddle(saddle_id: Id, club: ClubDep) -> SaddleOut:
 
 @router.patch("/saddles/{saddle_id}", response_model=SaddleOut, responses={**ERRORS, **CONFLICT})
 def update_saddle(saddle_id: Id, body: SaddleUpdate, club: ClubDep) -> SaddleOut:
-    """Change a saddle's details (null clears the maker, type or tree width)."""
+    """Change a saddle's details (null clears the maker, type, tree width or notes)."""
     club.require("saddle.create")
-    saddle = club.saddles.update_fields(saddle_id, **changes(body, nullable=("maker", "saddle_type", "tree_width")))
+    values = changes(body, nullable=("maker", "saddle_type", "tree_width", "notes"))
+    if "notes" in values and values["notes"] is None:
+        values["notes"] = ""  # cleared notes: none
+    saddle = club.saddles.update_fields(saddle_id, **values)
     return _out(saddle, club.saddles.ride_counts([saddle_id]).get(saddle_id, 0))
 
 
