@@ -107,7 +107,8 @@ def test_a_horses_saddles_compared_beyond_the_uncertainty(env):
     assert (diff["saddle_a"], diff["saddle_b"]) == ("New treeless", "Old GP")
     assert diff["exceeds_uncertainty"] is True and 0 < diff["low"] < diff["difference"] < diff["high"]
     assert diff["difference"] == pytest.approx(0.4) and diff["p_value"] < 0.01
-    assert "more than the uncertainty" in diff["sentence"] and "New treeless is the more comfortable" in diff["sentence"]
+    assert "more than the uncertainty" in diff["sentence"]
+    assert "New treeless is the more comfortable" in diff["sentence"]
     assert "Welch" in answer["method"]
     # asked for, the uncertain ride counts
     included = api.ok("GET", f"/horses/{horse_id}/saddles", params={"gait": "canter", "include_uncertain": True})

@@ -36,4 +36,6 @@ def _schema(minimum: float, maximum: float) -> dict[str, Any]:
             "description": "the rider's weight in kg (20-200); null: not recorded"}
 
 
-RiderWeightKg = Annotated[float | None, AfterValidator(check_weight_kg), WithJsonSchema(_schema(*RIDER_WEIGHT_RANGE_KG))]
+RiderWeightKg = Annotated[
+    float | None, AfterValidator(check_weight_kg), WithJsonSchema(_schema(*RIDER_WEIGHT_RANGE_KG))
+]

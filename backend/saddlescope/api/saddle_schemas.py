@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Annotated, Literal
+from typing import Annotated
 
 from pydantic import BaseModel, Field, StringConstraints
 
@@ -12,10 +12,9 @@ from saddlescope.db.enums import SaddleType
 
 __all__ = [
     "HorseSaddlesOut", "MeanWithInterval", "SaddleAcrossHorsesOut", "SaddleDifference", "SaddleHorseStats",
-    "SaddleIn", "SaddleOut", "SaddleRide", "SaddleStats", "SaddleTypeName", "SaddleUpdate",
+    "SaddleIn", "SaddleOut", "SaddleRide", "SaddleStats", "SaddleUpdate",
 ]
 
-SaddleTypeName = Literal[tuple(t.value for t in SaddleType)]  # type: ignore[valid-type]
 Maker = Annotated[str, StringConstraints(strip_whitespace=True, max_length=200)]
 TreeWidth = Annotated[str, StringConstraints(strip_whitespace=True, max_length=40)]
 
@@ -25,7 +24,7 @@ class SaddleIn(_In):
 
     name: Name
     maker: Maker | None = None
-    saddle_type: SaddleTypeName | None = Field(default=None, description="gp, dressage, jump, treeless, ...")
+    saddle_type: SaddleType | None = Field(default=None, description="gp, dressage, jump, treeless, ...")
     tree_width: TreeWidth | None = Field(default=None, description='as the maker states it ("medium", "32 cm")')
     notes: Text = ""
 
@@ -35,7 +34,7 @@ class SaddleUpdate(_In):
 
     name: Name | None = None
     maker: Maker | None = None
-    saddle_type: SaddleTypeName | None = None
+    saddle_type: SaddleType | None = None
     tree_width: TreeWidth | None = None
     notes: Text | None = None
 

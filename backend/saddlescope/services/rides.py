@@ -21,8 +21,8 @@ from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
 from saddlescope.db.enums import JobStatus, RideStatus, SaddleType
 from saddlescope.db.models import Horse, Rider, Saddle
 from saddlescope.db.repositories import (
-    Conflict,
     ClubRepository,
+    Conflict,
     HorseRepository,
     JobRepository,
     RecordingRepository,

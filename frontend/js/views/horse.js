@@ -184,10 +184,16 @@ function setUpSaddles(view, horseId) {
       h("td", { class: "num" }, String(row.rides)),
       ...keys.map((key) => h("td", { class: "num", dataset: { key } }, meanIntervalText(row.indicators[key]))))));
     table.hidden = !answer.saddles.length;
-    // The headline comparison first: W_b r.m.s. of each pair, then the others.
-    const ordered = [...answer.differences].sort((a, b) => keys.indexOf(a.indicator) - keys.indexOf(b.indicator));
-    verdicts.replaceChildren(...ordered.map((d) => h("li", {
-      dataset: { indicator: d.indicator, exceeds: String(d.exceeds_uncertainty ?? "unknown") } }, d.sentence)));
+    // The headline comparison (the first indicator, W_b r.m.s.) of each pair; the others folded below it.
+    const item = (d) => h("li", { dataset: { indicator: d.indicator, exceeds: String(d.exceeds_uncertainty ?? "unknown") } },
+      d.sentence);
+    const headline = answer.differences.filter((d) => d.indicator === keys[0]);
+    const others = answer.differences.filter((d) => d.indicator !== keys[0]);
+    verdicts.replaceChildren(...headline.map(item));
+    if (others.length) {
+      verdicts.append(h("li", { class: "more" }, h("details", {}, h("summary", {}, "The other indicators"),
+        h("ul", {}, ...others.map(item)))));
+    }
     const notes = [];
     if (answer.saddles.length < 2) {
       notes.push(answer.saddles.length

@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import APIRouter, Query, Response, status
 
 from saddlescope.api.deps import ClubDep
-from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, IndicatorKey, changes, paging_sorted_by, sort_enum
+from saddlescope.api.routers.common import (
+    CONFLICT,
+    ERRORS,
+    Id,
+    IndicatorKey,
+    Paging,
+    changes,
+    paging_sorted_by,
+    sort_enum,
+)
 from saddlescope.api.saddle_schemas import (
     HorseSaddlesOut,
     SaddleAcrossHorsesOut,
@@ -23,7 +32,13 @@ __all__ = ["SaddleSort", "router"]
 
 router = APIRouter(tags=["saddles"])
 SaddleSort = sort_enum("SaddleSort", SaddleRepository.sort_fields)
-SaddlePaging = paging_sorted_by(SaddleSort, "name")
+if TYPE_CHECKING:
+    SaddlePaging = Paging
+else:  # the paging dependency with the saddles' sort fields (an Annotated built at import)
+    SaddlePaging = paging_sorted_by(SaddleSort, "name")
+# The shared tables typed as FastAPI's `responses` wants them.
+_ERRORS: dict[int | str, dict[str, Any]] = {code: dict(spec) for code, spec in ERRORS.items()}
+_CONFLICTS: dict[int | str, dict[str, Any]] = {code: dict(spec) for code, spec in {**ERRORS, **CONFLICT}.items()}
 Indicators = Annotated[
     list[IndicatorKey] | None,
     Query(max_length=16, description="indicator keys (repeat); default W_b and W_k r.m.s. and VDV"),
@@ -37,7 +52,7 @@ def _out(saddle: Saddle, rides: int) -> SaddleOut:
     return SaddleOut.model_validate(saddle).model_copy(update={"rides": rides})
 
 
-@router.get("/saddles", response_model=Page[SaddleOut], responses=ERRORS)
+@router.get("/saddles", response_model=Page[SaddleOut], responses=_ERRORS)
 def list_saddles(
     club: ClubDep,
     paging: SaddlePaging,
@@ -51,7 +66,7 @@ def list_saddles(
 
 
 @router.post(
-    "/saddles", status_code=status.HTTP_201_CREATED, response_model=SaddleOut, responses={**ERRORS, **CONFLICT}
+    "/saddles", status_code=status.HTTP_201_CREATED, response_model=SaddleOut, responses=_CONFLICTS
 )
 def create_saddle(body: SaddleIn, club: ClubDep) -> SaddleOut:
     """Add a saddle to the club (409 when the club has one of that name)."""
@@ -59,13 +74,13 @@ def create_saddle(body: SaddleIn, club: ClubDep) -> SaddleOut:
     return _out(club.saddles.add(**body.model_dump()), 0)
 
 
-@router.get("/saddles/{saddle_id}", response_model=SaddleOut, responses=ERRORS)
+@router.get("/saddles/{saddle_id}", response_model=SaddleOut, responses=_ERRORS)
 def read_saddle(saddle_id: Id, club: ClubDep) -> SaddleOut:
     """A saddle of the club."""
     return _out(club.saddles.get(saddle_id), club.saddles.ride_counts([saddle_id]).get(saddle_id, 0))
 
 
-@router.patch("/saddles/{saddle_id}", response_model=SaddleOut, responses={**ERRORS, **CONFLICT})
+@router.patch("/saddles/{saddle_id}", response_model=SaddleOut, responses=_CONFLICTS)
 def update_saddle(saddle_id: Id, body: SaddleUpdate, club: ClubDep) -> SaddleOut:
     """Change a saddle's details (null clears the maker, type, tree width or notes)."""
     club.require("saddle.create")
@@ -76,7 +91,7 @@ def update_saddle(saddle_id: Id, body: SaddleUpdate, club: ClubDep) -> SaddleOut
     return _out(saddle, club.saddles.ride_counts([saddle_id]).get(saddle_id, 0))
 
 
-@router.delete("/saddles/{saddle_id}", status_code=status.HTTP_204_NO_CONTENT, responses={**ERRORS, **CONFLICT})
+@router.delete("/saddles/{saddle_id}", status_code=status.HTTP_204_NO_CONTENT, responses=_CONFLICTS)
 def delete_saddle(saddle_id: Id, club: ClubDep) -> Response:
     """Delete a saddle no ride uses (admins only; 409 while rides name it)."""
     club.require("saddle.delete")
@@ -84,7 +99,7 @@ def delete_saddle(saddle_id: Id, club: ClubDep) -> Response:
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
-@router.get("/saddles/{saddle_id}/across-horses", response_model=SaddleAcrossHorsesOut, responses=ERRORS)
+@router.get("/saddles/{saddle_id}/across-horses", response_model=SaddleAcrossHorsesOut, responses=_ERRORS)
 def across_horses(saddle_id: Id, club: ClubDep, gait: Gait | None = None, indicator: Indicators = None,
                   include_uncertain: IncludeUncertain = False) -> dict:
     """The saddle's analysed rides (newest first) and per horse and gait the rides, means and 95 % intervals."""
@@ -95,7 +110,7 @@ def across_horses(saddle_id: Id, club: ClubDep, gait: Gait | None = None, indica
     return answer
 
 
-@router.get("/horses/{horse_id}/saddles", response_model=HorseSaddlesOut, responses=ERRORS)
+@router.get("/horses/{horse_id}/saddles", response_model=HorseSaddlesOut, responses=_ERRORS)
 def compare_saddles(horse_id: Id, club: ClubDep, gait: Gait, indicator: Indicators = None,
                     include_uncertain: IncludeUncertain = False) -> dict:
     """The horse's saddles in one gait: per saddle n, mean and 95 % interval; each pair compared (Welch).
