@@ -8,6 +8,7 @@ never ranked or averaged unless asked, on every path.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from api_helpers import zip_folder
 from engines import open_env
@@ -180,3 +181,47 @@ def test_a_bundle_then_the_same_clips_one_by_one_make_one_ride(env, tmp_path):
     # the same zip again: the same answer
     same = api.post("/rides/bundle", files={"file": ("ride.zip", zip_folder(folder), "application/zip")})
     assert same.status_code == 409 and same.json()["ride_id"] == first["ride"]["id"]
+
+
+def _cantering_trc(path, *, noise_m: float):
+    """Three markers on a body cantering at 3 m/s (0.7 s strides) for 3 s, with Gaussian noise of `noise_m`."""
+    from saddlescope.io.mocap import write_trc
+
+    t = np.arange(300) / 100.0
+    w = 2 * np.pi / 0.7
+    body = np.array([[0.25, 0.0, 0.1], [-0.25, 0.02, 0.1], [0.0, -0.08, -0.12]])
+    centre = np.stack([3.0 * t, 1.2 + 0.03 * np.cos(w * t) + 0.01 * np.cos(2 * w * t), 0.01 * np.sin(w * t)], axis=1)
+    points = centre[:, None, :] + body[None] + np.random.default_rng(3).normal(0, noise_m, (len(t), 3, 3))
+    return write_trc(path, ["A", "B", "C"], points, 100.0, units="m")
+
+
+def test_a_too_uncertain_motion_capture_ride_is_not_ranked_anywhere(env, tmp_path):
+    api, _ = new_club(env.client)
+    rider = api.ok("POST", "/riders", 201, json={"name": "Lab rider", "weight_kg": 72})["id"]
+    saddle = api.ok("POST", "/saddles", 201, json={"name": "Lab saddle"})["id"]
+    rides = {}
+    for name, noise_m in (("Noisy", 0.01), ("Clean", 0.0003)):
+        horse = api.ok("POST", "/horses", 201, json={"name": name})["id"]
+        trc = _cantering_trc(tmp_path / f"{name}.trc", noise_m=noise_m)
+        created = api.ok("POST", "/mocap", 201, content=trc.read_bytes(),
+                         headers={"Content-Type": "application/octet-stream"},
+                         params={"horse_id": horse, "rider_id": rider, "markers": "A,B,C", "gait": "canter",
+                                 "offset_mm": "0,50,0", "filename": trc.name, "saddle_id": saddle})
+        rides[name] = (horse, created["ride"])
+    noisy_horse, noisy_ride = rides["Noisy"]
+    assert (noisy_ride["saddle_id"], noisy_ride["rider_weight_kg"]) == (saddle, 72)
+    board = api.ok("GET", "/leaderboard", params={"gait": "canter"})
+    assert [e["horse"] for e in board["entries"]] == ["Clean"]
+    assert [u["ride_id"] for u in board["uncertain"]] == [noisy_ride["id"]]
+    assert [e["horse"] for e in api.ok("GET", "/leaderboard", params={"gait": "canter", "saddle_id": saddle})[
+        "entries"]] == ["Clean"]
+    compare = api.ok("GET", "/comparison", params={"gait": "canter"})
+    assert [h["horse"] for h in compare["indicators"]["acc_y_wb_rms"]["horses"]] == ["Clean"]
+    assert api.ok("GET", f"/horses/{noisy_horse}/comparison")["rides"] == 0
+    assert api.ok("GET", f"/horses/{noisy_horse}/trend", params={"gait": "canter"})["points"] == []
+    across = api.ok("GET", f"/saddles/{saddle}/across-horses")
+    assert [h["horse"] for h in across["horses"]] == ["Clean"] and len(across["rides"]) == 2  # listed, marked
+    refused = api.ok("POST", "/mocap", 422, content=b"x", headers={"Content-Type": "application/octet-stream"},
+                     params={"horse_id": noisy_horse, "rider_id": rider, "markers": "A,B,C", "filename": "x.trc",
+                             "rider_weight_kg": 500})
+    assert "between 20 and 200" in refused["detail"]
