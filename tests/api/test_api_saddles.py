@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from api_helpers import zip_folder
+from api_helpers import ride_json_with, zip_folder
 from engines import open_env
 from integration_services import add_member, new_club, write_tiny_bundle
 
@@ -225,3 +225,30 @@ def test_a_too_uncertain_motion_capture_ride_is_not_ranked_anywhere(env, tmp_pat
                      params={"horse_id": noisy_horse, "rider_id": rider, "markers": "A,B,C", "filename": "x.trc",
                              "rider_weight_kg": 500})
     assert "between 20 and 200" in refused["detail"]
+
+
+def test_a_bundles_ride_json_names_the_saddle_pad_and_weight(env, tmp_path):
+    api, _ = new_club(env.client)
+    known = api.ok("POST", "/saddles", 201, json={"name": "Club GP"})["id"]
+    folder = write_tiny_bundle(tmp_path / "with-saddle")
+    meta = {"saddle": {"name": "Club GP"}, "pad": "gel pad", "rider": {"name": "Dora", "weight_kg": 58.5}}
+    data = zip_folder(folder, rewrite={"ride.json": ride_json_with(folder, **meta)})
+    ride = api.ok("POST", "/rides/bundle", 201, files={"file": ("ride.zip", data, "application/zip")})["ride"]
+    assert (ride["saddle_id"], ride["pad"], ride["rider_weight_kg"]) == (known, "gel pad", 58.5)
+    # a saddle new to the club is added with its details; a weight out of range is refused naming the field
+    other = write_tiny_bundle(tmp_path / "new-saddle")
+    data = zip_folder(other, rewrite={"ride.json": ride_json_with(
+        other, saddle={"name": "Borrowed treeless", "type": "treeless", "tree_width": "wide"})})
+    ride = api.ok("POST", "/rides/bundle", 201, files={"file": ("ride.zip", data, "application/zip")})["ride"]
+    added = api.ok("GET", f"/saddles/{ride['saddle_id']}")
+    assert (added["name"], added["saddle_type"], added["tree_width"], added["rides"]) == (
+        "Borrowed treeless", "treeless", "wide", 1)
+    third = write_tiny_bundle(tmp_path / "heavy")
+    data = zip_folder(third, rewrite={"ride.json": ride_json_with(third, rider={"name": "X", "weight_kg": 400})})
+    refused = api.ok("POST", "/rides/bundle", 422, files={"file": ("ride.zip", data, "application/zip")})
+    assert "weight_kg" in refused["detail"]
+    bad_type = write_tiny_bundle(tmp_path / "bad-type")
+    data = zip_folder(bad_type, rewrite={"ride.json": ride_json_with(bad_type, saddle={"name": "Y", "type": "racing"})})
+    refused = api.ok("POST", "/rides/bundle", 422, files={"file": ("ride.zip", data, "application/zip")})
+    assert "saddle.type 'racing' is not one of" in refused["detail"]
+    assert api.ok("GET", "/saddles")["total"] == 2  # nothing left of the refused bundles

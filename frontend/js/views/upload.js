@@ -159,7 +159,10 @@ export async function mountUpload(view, _params, query) {
   }
 
   function prefill(meta) {
-    const notes = [prefillEntity(form.elements.horse_id, meta.horse, "horse"), prefillEntity(form.elements.rider_id, meta.rider, "rider")];
+    const notes = [prefillEntity(form.elements.horse_id, meta.horse, "horse"), prefillEntity(form.elements.rider_id, meta.rider, "rider"),
+      prefillEntity(form.elements.saddle_id, meta.saddle, "saddle")];
+    if (meta.pad && !form.elements.pad.value) form.elements.pad.value = meta.pad;
+    if (Number.isFinite(meta.rider_weight_kg) && !form.elements.rider_weight_kg.value) form.elements.rider_weight_kg.value = meta.rider_weight_kg;
     if (meta.gait) form.elements.gait.value = meta.gait;
     if (meta.direction) form.elements.direction.value = meta.direction;
     if (meta.ridden_on) form.elements.ridden_on.value = meta.ridden_on;
@@ -218,7 +221,7 @@ export async function mountUpload(view, _params, query) {
   // The saddle, pad and rider's weight chosen (left out when empty: the bundle's, or the rider's weight).
   function saddleDetails(values) {
     const details = {};
-    if (values.saddle_id) details.saddle_id = Number(values.saddle_id);
+    if (values.saddle_id && values.saddle_id !== FROM_BUNDLE) details.saddle_id = Number(values.saddle_id);
     if (values.pad) details.pad = values.pad;
     if (Number.isFinite(values.rider_weight_kg)) details.rider_weight_kg = values.rider_weight_kg;
     return details;
