@@ -44,6 +44,7 @@ def _seed(base: str, database_url: str, storage_dir) -> dict:
         horse = _ok(api.post("/api/horses", json={"name": "Tango"}))["id"]
         saddles = {name: _ok(api.post("/api/saddles", json={"name": name, "saddle_type": kind, "maker": "Maker"}))["id"]
                    for name, kind in (("Old GP", "gp"), ("New treeless", "treeless"))}
+        rides = []
         for name, scales in (("Old GP", OLD_SCALES), ("New treeless", NEW_SCALES)):
             for i, scale in enumerate(scales):
                 ride_id = _ok(api.post("/api/rides", json={
@@ -51,8 +52,9 @@ def _seed(base: str, database_url: str, storage_dir) -> dict:
                     "ridden_on": f"2026-03-{1 + i + (10 if name == 'Old GP' else 0):02d}", "saddle_id": saddles[name],
                     "pad": "half pad"}))["id"]
                 store_result(database_url, storage_dir, ride_id, result_document(scale=scale, gait="canter", rng=rng))
+                rides.append(ride_id)
         answer = _ok(api.get(f"/api/horses/{horse}/saddles", params={"gait": "canter"}))
-    return {"horse": horse, "saddles": saddles, "answer": answer}
+    return {"horse": horse, "saddles": saddles, "answer": answer, "rides": rides}
 
 
 @pytest.fixture
@@ -106,4 +108,17 @@ def test_a_horse_page_compares_its_two_saddles_beyond_the_uncertainty(page, serv
     page.locator("[data-leaderboard-table] tbody tr").first.wait_for()
     assert page.locator("#lb-saddle").input_value() == str(served["saddles"]["New treeless"])
     assert page.locator("[data-leaderboard-table] tbody tr td").nth(1).inner_text() == "3"
-    assert page.console.unexpected() == []
+
+    # A ride names its saddle, pad and the rider's weight (copied from the rider), editable in its details
+    page.goto(f"/#/rides/{served['rides'][0]}")
+    saddle_line = page.locator("[data-ride-saddle]")
+    saddle_line.wait_for()
+    assert saddle_line.inner_text() == "Saddle Old GP, pad: half pad \u00b7 rider's weight 68 kg"
+    page.locator(".ride-edit-box summary").click()
+    assert page.locator("#ride-edit-saddle").input_value() == str(served["saddles"]["Old GP"])
+    assert page.locator("#ride-edit-weight").input_value() == "68"
+    page.select_option("#ride-edit-saddle", str(served["saddles"]["New treeless"]))
+    page.fill("#ride-edit-weight", "250")
+    page.locator("[data-ride-edit-save]").click()
+    page.get_by_text("between 20 and 200").wait_for()  # the server's reason, in words
+    assert page.console.unexpected(422) == []

@@ -23,7 +23,7 @@ const KINDS = {
   riders: {
     url: "/api/riders",
     noun: "rider",
-    columns: [(x) => x.name, (x) => (Number.isFinite(x.weight_kg) ? fmt(x.weight_kg) : "\u2013")],
+    columns: [(x) => x.name, (x) => (Number.isFinite(x.weight_kg) ? `${Number(x.weight_kg.toFixed(1))}` : "\u2013")],
     fields: ["name", "weight_kg"],
     deletePermission: "horse.delete", // the same permission covers riders
   },
