@@ -19,11 +19,20 @@ from saddlescope.core.vibration import INDICATORS, indicator_unit, mean_interval
 from saddlescope.db.repositories import AnalyticsRepository, HorseRepository, RideFilter, SaddleRepository
 from saddlescope.services.analytics import check_gait, check_indicator
 
-__all__ = ["METHOD", "SADDLE_INDICATORS", "difference_sentence", "horse_saddles", "saddle_across_horses"]
+__all__ = ["METHOD", "SADDLE_INDICATORS", "SHORT_LABELS", "difference_sentence", "horse_saddles",
+           "saddle_across_horses"]
 
 # What a saddle fitter compares first: the vertical comfort of the seat (W_b, the standard's seated
 # weighting, then W_k) as r.m.s. and as VDV (which weighs the jolts).
 SADDLE_INDICATORS = ("acc_y_wb_rms", "vdv_y_wb", "acc_y_wk_rms", "vdv_y_wk")
+# Their short names, as the ride page's table and the README name them (W_b: BS 6841, W_k: ISO 2631-1).
+SHORT_LABELS = {"acc_y_wb_rms": "W_b r.m.s.", "vdv_y_wb": "VDV W_b", "acc_y_wk_rms": "W_k r.m.s.",
+                "vdv_y_wk": "VDV W_k"}
+
+
+def _label(key: str) -> str:
+    """An indicator's short name where it has one, else its label."""
+    return SHORT_LABELS.get(key) or INDICATORS[key].label
 METHOD = ("Each saddle's mean has a 95 % interval from the spread of its rides (Student's t). Two saddles "
           "differ beyond the uncertainty when the 95 % interval of the difference of their means, by "
           "Welch's t-test (unequal spreads), does not include zero. Each needs at least two rides.")
@@ -50,7 +59,7 @@ def _number(value: float, unit: str) -> str:
 
 def difference_sentence(key: str, first: str, second: str, difference: Any) -> str:
     """The comparison of saddle `second` against `first` in words (`difference`: a `GroupDifference` or None)."""
-    label = INDICATORS[key].label.replace("W_", "W")  # "W_b" as the page writes it: Wb
+    label = _label(key).replace("W_", "W")  # "W_b" as the page writes it: Wb
     label = label[:1].upper() + label[1:]
     if difference is None:
         return f"{label}: {first} and {second} cannot be compared yet; each saddle needs at least two rides."
@@ -112,7 +121,7 @@ def horse_saddles(session: Session, horse_id: int, *, club_id: int, gait: str,
         "horse_id": horse.id, "horse": horse.name, "gait": gait, "include_uncertain": include_uncertain,
         "uncertain_left_out": left_out, "without_saddle": sum(row["saddle_id"] is None for row in rows),
         "units": {key: indicator_unit(key) for key in keys},
-        "labels": {key: INDICATORS[key].label for key in keys},
+        "labels": {key: _label(key) for key in keys},
         "saddles": saddles, "differences": _differences(groups, names, keys), "method": METHOD,
     }
 
@@ -143,7 +152,7 @@ def saddle_across_horses(session: Session, saddle_id: int, *, club_id: int, gait
         "saddle": saddle, "rides_total": saddles.ride_counts([saddle_id]).get(saddle_id, 0),
         "gait": gait, "include_uncertain": include_uncertain,
         "units": {key: indicator_unit(key) for key in keys},
-        "labels": {key: INDICATORS[key].label for key in keys},
+        "labels": {key: _label(key) for key in keys},
         "rides": [{"ride_id": row["ride_id"], "date": row["date"], "horse_id": row["horse_id"], "horse": row["horse"],
                    "rider": row["rider"], "gait": row["gait"], "uncertain_reason": row["uncertain_reason"],
                    "indicators": {key: _value(row, key) for key in keys}}
