@@ -368,10 +368,10 @@ _bundles_written = itertools.count()
 def write_tiny_bundle(folder: Path, *, gait: str = "walk", frames: int = 5) -> Path:
     """A ride bundle (CONTRACTS section 1) of tiny clips; the plumb clips are image folders.
 
-    Each bundle's motion clips are its own (a shade no other bundle of this run has, up to 120 bundles):
-    the same motion clips never make two rides of a club.
+    Each bundle's motion clips are its own (a shade no other bundle of this run has, up to 120 bundles, nor
+    a plain `write_tiny_clip`): the same motion clips never make two rides of a club.
     """
-    shade = next(_bundles_written) % 120
+    shade = 1 + next(_bundles_written) % 120  # never 0: unlike any plain `write_tiny_clip`
     clips: dict[str, dict[str, str]] = {}
     for kind in ("calibration", "plumb", "static", "motion"):
         clips[kind] = {}
