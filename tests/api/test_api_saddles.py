@@ -176,7 +176,8 @@ def test_a_bundle_then_the_same_clips_one_by_one_make_one_ride(env, tmp_path):
     again = _clip_by_clip_ride(api, folder)
     answer = _put_motion(api, again["id"], folder, "middle")
     assert answer.status_code == 409, answer.text
-    assert answer.json()["ride_id"] == first["ride"]["id"] and "no new ride was made" in answer.json()["detail"]
+    assert answer.json()["ride_id"] == first["ride"]["id"]
+    assert f"it was not stored with ride {again['id']}" in answer.json()["detail"]
     assert api.ok("GET", f"/rides/{again['id']}")["recordings"] == []  # nothing stored on the second ride
     # the same zip again: the same answer
     same = api.post("/rides/bundle", files={"file": ("ride.zip", zip_folder(folder), "application/zip")})

@@ -182,10 +182,10 @@ class DuplicateClips(Conflict):
         self.existing_ride_id = existing_ride_id
 
 
-def duplicate_message(what: str, existing_ride_id: int) -> str:
-    """The sentence a second upload of the same clips answers with."""
-    return (f"{what} already uploaded as ride {existing_ride_id} (the same motion clip, byte for byte); no new "
-            f"ride was made: open ride {existing_ride_id}, or delete it first to upload these clips again")
+def duplicate_message(what: str, existing_ride_id: int, *, kept: str = "no new ride was made") -> str:
+    """The sentence a second upload of the same clips answers with (`kept`: what became of the upload)."""
+    return (f"{what} already uploaded as ride {existing_ride_id} (the same motion clip, byte for byte); {kept}: "
+            f"open ride {existing_ride_id}, or delete it first to upload these clips again")
 
 
 def _refuse_known_clips(sessions: sessionmaker[Session], bundle: RideBundle, digests: dict[str, tuple[int, str]], *,

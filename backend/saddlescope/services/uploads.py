@@ -245,8 +245,9 @@ def _refuse_known_clip(recordings: RecordingRepository, owner: ClipOwner, clip_k
         return
     existing = recordings.ride_with_clip([sha256], exclude_ride_id=owner.id)
     if existing is not None:
-        what = f"{owner.label}: the motion clip of the {camera} camera ({filename or 'the upload'}) was"
-        raise DuplicateClips(duplicate_message(what, existing), existing_ride_id=existing)
+        what = f"the motion clip of the {camera} camera ({filename or 'the upload'}) was"
+        raise DuplicateClips(duplicate_message(what, existing, kept=f"it was not stored with {owner.label}"),
+                             existing_ride_id=existing)
 
 
 def _probed(info) -> dict[str, Any]:

@@ -190,7 +190,8 @@ def export_many(
     status_code=status.HTTP_201_CREATED,
     response_model=BundleUploaded,
     openapi_extra=UPLOAD_OPENAPI,
-    responses={**UPLOAD_ERRORS, 409: {"model": ErrorOut, "description": "the same bundle is already a ride"}},
+    responses={**UPLOAD_ERRORS, 409: {"model": ErrorOut, "description": (
+        "the same bundle, or its motion clips, already a ride of the club: `ride_id` names it")}},
 )
 async def upload_bundle(
     request: Request,
@@ -264,7 +265,8 @@ def list_ride_clips(ride_id: Id, club: ClubDep) -> list[RecordingOut]:
     "/{ride_id}/clips/{clip_kind}/{camera}",
     response_model=ClipUploaded,
     openapi_extra=UPLOAD_OPENAPI,
-    responses=UPLOAD_ERRORS,
+    responses={**UPLOAD_ERRORS, 409: {"model": ErrorOut, "description": (
+        "this motion clip (the same bytes) is already another ride's: `ride_id` names it")}},
 )
 async def upload_ride_clip(
     ride_id: Id,
