@@ -126,6 +126,10 @@ function setUpGaits(view, horseId, onCounts) {
       onCounts?.(groups);
       const info = indicatorInfoOf(indicator);
       countedBarChart(chart, groups, { title: labelText(info.label), unit: prettyUnit(info.unit), xTitle: "gait" });
+      const left = answer.uncertain_left_out ?? 0;
+      const note = section.querySelector("[data-gaits-left-out]");
+      note.textContent = left ? `${left} ride${left === 1 ? " is" : "s are"} too uncertain for a decision and left out.` : "";
+      note.hidden = !left;
     } catch (error) {
       if (current()) showError(section, error);
     }

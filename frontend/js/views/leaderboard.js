@@ -51,6 +51,9 @@ export async function mountLeaderboard(view, _params, query) {
       h("td", { class: "num" }, fmt(row.max)))));
     table.hidden = !rows.length;
     empty.hidden = rows.length > 0;
+    const saddle = saddleId ? form.elements.saddle_id.selectedOptions[0]?.textContent : null;
+    empty.textContent = saddle ? `No analysed rides in this gait in the saddle ${saddle} yet.`
+      : "No analysed rides in this gait yet.";
     showUncertain(uncertainBox, answer.uncertain ?? [], Boolean(includeUncertain), unit);
   });
 }
