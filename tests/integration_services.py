@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import itertools
 import json
 import os
 import secrets
@@ -320,17 +321,34 @@ def tiny_ride(tmp_path_factory) -> Path:
 
 
 def write_tiny_clip(
-    path: Path, *, frames: int = 5, size: tuple[int, int] = (64, 48), fps: float = 30.0
+    path: Path, *, frames: int = 5, size: tuple[int, int] = (64, 48), fps: float = 30.0, shade: int = 0
 ) -> Path:
-    """A real (MJPEG AVI) video of `frames` grey frames of `size` (w, h) px."""
+    """A real (MJPEG AVI) video of `frames` grey frames of `size` (w, h) px (`shade` brightens them all)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
     if not writer.isOpened():
         raise RuntimeError(f"OpenCV cannot write {path}")
     for i in range(frames):
-        writer.write(np.full((size[1], size[0], 3), 40 + 10 * i, np.uint8))
+        writer.write(np.full((size[1], size[0], 3), min(255, 40 + 10 * i + shade), np.uint8))
     writer.release()
     return path
+
+
+def mp4_with_a_free_box(source: Path, dest: Path, note: str) -> Path:
+    """`source` (an MP4) with a trailing ISO BMFF ``free`` box holding `note`: the same video, other bytes.
+
+    Every reader skips ``free`` boxes, so it decodes frame for frame as `source`; its content hash is its own
+    (the same clips never make two rides of a club, so a test's second ride needs clips of its own).
+    """
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_bytes(source.read_bytes() + free_box(note))
+    return dest
+
+
+def free_box(note: str) -> bytes:
+    """An ISO BMFF ``free`` box holding `note` (MP4 readers skip it wherever it is)."""
+    payload = note.encode()
+    return (8 + len(payload)).to_bytes(4, "big") + b"free" + payload
 
 
 def zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:
@@ -344,8 +362,16 @@ def zip_with_a_flipped_byte(data: bytes, name: str) -> bytes:
     return data[:at] + bytes([data[at] ^ 0xFF]) + data[at + 1:]
 
 
+_bundles_written = itertools.count()
+
+
 def write_tiny_bundle(folder: Path, *, gait: str = "walk", frames: int = 5) -> Path:
-    """A ride bundle (CONTRACTS section 1) of tiny clips; the plumb clips are image folders."""
+    """A ride bundle (CONTRACTS section 1) of tiny clips; the plumb clips are image folders.
+
+    Each bundle's motion clips are its own (a shade no other bundle of this run has, up to 120 bundles, nor
+    a plain `write_tiny_clip`): the same motion clips never make two rides of a club.
+    """
+    shade = 1 + next(_bundles_written) % 120  # never 0: unlike any plain `write_tiny_clip`
     clips: dict[str, dict[str, str]] = {}
     for kind in ("calibration", "plumb", "static", "motion"):
         clips[kind] = {}
@@ -357,7 +383,7 @@ def write_tiny_bundle(folder: Path, *, gait: str = "walk", frames: int = 5) -> P
                     cv2.imwrite(str(folder / rel / f"{i + 1:04d}.png"), np.full((48, 64), 30 * i, np.uint8))
             else:
                 rel = f"{kind}/{role}.avi"
-                write_tiny_clip(folder / rel, frames=frames)
+                write_tiny_clip(folder / rel, frames=frames, shade=shade if kind == "motion" else 0)
             clips[kind][role] = rel
     meta = {
         "format": "saddlescope.ride/1",

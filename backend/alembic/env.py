@@ -54,6 +54,12 @@ def run_migrations_online() -> None:
     engine = make_engine(_database_url())
     try:
         with engine.connect() as conn:
+            if conn.dialect.name == "sqlite":
+                # A batch rebuild drops and recreates a table; with foreign keys enforced, dropping a table
+                # that others reference (rides, riders) deletes their rows by ON DELETE CASCADE, or fails.
+                # The pragma only takes effect outside a transaction, so before the migrations' one.
+                conn.exec_driver_sql("PRAGMA foreign_keys=OFF")
+                conn.commit()
             _configure(conn)
             with context.begin_transaction():
                 context.run_migrations()

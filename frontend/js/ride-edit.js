@@ -1,4 +1,5 @@
-// A ride's details after upload: horse, rider, gait, direction, date and notes, saved with PATCH; when
+// A ride's details after upload: horse, rider, gait, direction, date, saddle, pad, rider's weight and
+// notes, saved with PATCH; when
 // a change alters what the analysis computes (gait, direction: the pipeline reads them) the result
 // shown is said to be from the old details and "Re-analyse now" is offered. Deleting the ride asks
 // first, naming it. The ride page calls mountRideEdit in its <section data-ride-edit-slot>.
@@ -11,7 +12,10 @@ import { can } from "./session.js";
 
 // The details the analysis reads (saddlescope.services.rides.RESULT_SETTINGS), in words.
 const SETTING_WORDS = { gait: "gait", direction: "direction" };
-const FIELDS = ["horse_id", "rider_id", "gait", "direction", "ridden_on", "notes"];
+const FIELDS = ["horse_id", "rider_id", "gait", "direction", "ridden_on", "saddle_id", "pad", "rider_weight_kg", "notes"];
+// Fields a cleared box sends as null (not recorded), and those sent as numbers.
+const CLEARABLE = new Set(["ridden_on", "saddle_id", "pad", "rider_weight_kg"]);
+const INTEGERS = new Set(["horse_id", "rider_id", "saddle_id"]);
 
 function part(name) {
   const template = document.getElementById(`part-${name}`);
@@ -107,8 +111,9 @@ export async function mountRideEdit(container, ride, { onSaved, onDeleted, onRea
       const raw = el.value.trim();
       const before = current[name] ?? "";
       if (raw === String(before)) continue;
-      if (name === "horse_id" || name === "rider_id") values[name] = Number.parseInt(raw, 10);
-      else if (name === "ridden_on") values[name] = raw || null; // cleared: no date
+      if (!raw && CLEARABLE.has(name)) values[name] = null; // cleared: not recorded
+      else if (INTEGERS.has(name)) values[name] = Number.parseInt(raw, 10);
+      else if (name === "rider_weight_kg") values[name] = Number.parseFloat(raw);
       else values[name] = raw;
     }
     if (!Object.keys(values).length) {

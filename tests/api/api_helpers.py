@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from integration_services import Api, add_member, new_club, sign_in  # noqa: F401 (the signed-in client)
+from integration_services import Api, add_member, free_box, new_club, sign_in  # noqa: F401 (the signed-in client)
 
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.core.vibration import ride_indicators
@@ -248,6 +248,15 @@ def zip_folder(folder: Path, *, rewrite: dict | None = None, extra: dict | None 
         for name, data in (extra or {}).items():
             zf.writestr(name, data)
     return buffer.getvalue()
+
+
+def another_take(folder: Path, note: str) -> dict[str, bytes]:
+    """`zip_folder` rewrites giving the bundle's MP4 motion clips other bytes (a trailing ISO BMFF ``free``
+    box holding `note`; every reader skips it): the same ride, filmed "again", since the same clips never
+    make two rides of a club.
+    """
+    return {path.relative_to(folder).as_posix(): path.read_bytes() + free_box(note)
+            for path in sorted((folder / "motion").glob("*.mp4"))}
 
 
 def zip_members(members: dict[str, bytes], *, deflate: bool = True) -> bytes:

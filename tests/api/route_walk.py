@@ -46,7 +46,7 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
     elif path == "/api/riders" and method == "POST":
         body = {"name": "Someone", "user_id": ids["user_id"]}
     elif (
-        path in ("/api/horses/{horse_id}", "/api/riders/{rider_id}", "/api/rigs/{rig_id}")
+        path in ("/api/horses/{horse_id}", "/api/riders/{rider_id}", "/api/rigs/{rig_id}", "/api/saddles/{saddle_id}")
         and method == "PATCH"
     ):
         body = {"name": "Renamed"}
@@ -73,6 +73,8 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
         }
     if path.startswith("/api/rides/export/"):
         kwargs = {"params": {"horse_id": ids["horse_id"]}}
+    if path == "/api/horses/{horse_id}/saddles":
+        kwargs = {"params": {"gait": "walk"}}
     if path == "/api/comparison":
         kwargs = {"params": {"gait": "walk", "horses": str(ids["horse_id"])}}
     if path == "/api/mocap":

@@ -45,6 +45,7 @@ def world(env, tmp_path_factory):
         201,
         json={"name": f"{SECRET} rig", "board": {"inner_corners": [9, 6], "square_mm": 50}},
     )
+    saddle = a.ok("POST", "/saddles", 201, json={"name": f"{SECRET} saddle", "notes": SECRET})
     ride = a.ok(
         "POST",
         "/rides",
@@ -53,6 +54,7 @@ def world(env, tmp_path_factory):
             "horse_id": horse["id"],
             "rider_id": rider["id"],
             "rig_id": rig["id"],
+            "saddle_id": saddle["id"],
             "gait": "walk",
             "direction": "CW",
             "notes": SECRET,
@@ -84,6 +86,7 @@ def world(env, tmp_path_factory):
         "horse_id": horse["id"],
         "rider_id": rider["id"],
         "rig_id": rig["id"],
+        "saddle_id": saddle["id"],
         "ride_id": ride["id"],
         "other_id": ride["id"],
         "grade_id": grade["id"],
@@ -112,6 +115,8 @@ OWN_CLUB = {
     ("GET", "/api/indicators"),
     ("GET", "/api/jobs/kinds"),
     ("POST", "/api/horses"),
+    ("POST", "/api/saddles"),
+    ("GET", "/api/saddles"),
     ("POST", "/api/rigs"),
     ("GET", "/api/horses"),
     ("GET", "/api/riders"),

@@ -14,8 +14,9 @@ import numpy as np
 import openpyxl
 import pytest
 import s3_server as s3_server_module
-from api_helpers import Api, add_member, new_club, ride_json_with, standin_result, zip_folder
+from api_helpers import Api, add_member, another_take, new_club, ride_json_with, standin_result, zip_folder
 from engines import CELERY_S3, EMBEDDED_S3, ENGINES, open_env
+from integration_services import mp4_with_a_free_box
 
 from saddlescope.core.vibration import COMFORT_INDICATORS, leaderboard
 from saddlescope.io.mocap import read_mocap
@@ -136,7 +137,7 @@ def upload_clip(api: Api, owner: str, owner_id: int, kind: str, camera: str, pat
     )
 
 
-def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admin, tiny_ride):
+def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admin, tiny_ride, tmp_path):
     board = json.loads((tiny_ride / "ride.json").read_text())["board"]
     rig = admin.ok(
         "POST", "/rigs", 201, json={"name": "Arena, Monday", "recorded_on": "2026-05-04", "board": board}
@@ -185,10 +186,12 @@ def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admi
             },
         )
         assert ride["status"] == "new"
+        # The second ride's clips are another take's bytes (the same clips never make two rides).
+        takes = {camera: mp4_with_a_free_box(tiny_ride / f"motion/{camera}.mp4",
+                                             tmp_path / direction / f"{camera}.mp4", f"take {direction}")
+                 for camera in ("left", "middle", "right")}
         jobs = [
-            upload_clip(admin, "rides", ride["id"], "motion", camera, tiny_ride / f"motion/{camera}.mp4")[
-                "job_id"
-            ]
+            upload_clip(admin, "rides", ride["id"], "motion", camera, takes[camera])["job_id"]
             for camera in ("left", "middle", "right")
         ]
         assert jobs[:2] == [None, None] and jobs[2] is not None
@@ -219,10 +222,11 @@ def test_comparisons_leaderboard_and_grades(env, tiny_ride):
         ("Ajax", "walk", "Rider A"),
     ]
     rides = []
-    for horse, gait, rider in plan:
+    for number, (horse, gait, rider) in enumerate(plan):
         data = zip_folder(
             tiny_ride,
             rewrite={
+                **another_take(tiny_ride, f"take {number}"),
                 "ride.json": ride_json_with(
                     tiny_ride, horse={"name": horse}, rider={"name": rider}, gait=gait
                 )
@@ -324,7 +328,8 @@ def test_cancel_retry_and_a_failed_stage_keeps_the_uploads(env, admin, tiny_ride
     assert refused.status_code == 409 and "only a failed or cancelled job" in refused.json()["detail"]
 
     data = zip_folder(
-        tiny_ride, rewrite={"ride.json": ride_json_with(tiny_ride, horse={"name": "Failing Fox"})}
+        tiny_ride, rewrite={**another_take(tiny_ride, "failing take"),
+                            "ride.json": ride_json_with(tiny_ride, horse={"name": "Failing Fox"})}
     )
     created = upload_zip(admin, data)
     failed, _ = admin.wait_job(created["job_id"])

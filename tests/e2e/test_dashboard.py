@@ -420,7 +420,7 @@ def test_every_page_renders_without_console_errors(page, dashboard):
     bella = dashboard["horses"]["Bella"]
     pages = {
         "/": "Overview", "/rides": "Rides", "/upload": "Upload a ride", "/jobs": "Jobs", "/horses": "Horses",
-        "/riders": "Riders", f"/compare?horse={bella}": "Compare", "/leaderboard": "Leaderboard",
+        "/riders": "Riders", "/saddles": "Saddles", f"/compare?horse={bella}": "Compare", "/leaderboard": "Leaderboard",
         "/grades": "Riders' grades against the indicators",
     }
     for path, heading in pages.items():

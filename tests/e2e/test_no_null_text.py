@@ -38,20 +38,21 @@ def club(tmp_path_factory):
         with new_club_admin(served.base, club_name="Null Check Club", email=ADMIN[0], password=ADMIN[1]) as api:
             horse = api.post("/api/horses", json={"name": "Bramble"}).json()["id"]
             rider = api.post("/api/riders", json={"name": "Anna"}).json()["id"]
+            saddle = api.post("/api/saddles", json={"name": "Old GP"}).json()["id"]  # no maker, type or width
             ride = api.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": "sitting_trot",
-                                                "direction": "CW"})
+                                                "direction": "CW", "saddle_id": saddle})
             assert ride.status_code == 201, ride.text
             ride_id = ride.json()["id"]
             # a job that stays queued (no worker) or running (1000 steps of 5 s) while the page is open
             job = api.post("/api/jobs", json={"kind": "selftest", "ride_id": ride_id,
                                               "payload": {"steps": 1000, "delay_s": 5}})
             assert job.status_code in (200, 201, 202), job.text
-        yield {"base": served.base, "ride": ride_id}
+        yield {"base": served.base, "ride": ride_id, "horse": horse, "saddle": saddle}
 
 
 def test_no_page_shows_null_undefined_or_nan(club):
     paths = [f"/rides/{club['ride']}", "/", "/rides", "/horses", "/riders", "/jobs", "/rigs", "/grades",
-             "/leaderboard", "/account"]
+             "/leaderboard", "/account", "/saddles", f"/saddles/{club['saddle']}", f"/horses/{club['horse']}"]
     found = []
     with chromium_for_module() as chromium:
         context = chromium.new_context(base_url=club["base"], viewport={"width": 1280, "height": 900})

@@ -191,12 +191,13 @@ def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
                                                     "display_name": MEMBER[2], "role": "member"}))
         rider = _ok(admin.post("/api/riders", json={"name": "Anna"}))["id"]
         horse = _ok(admin.post("/api/horses", json={"name": "Bella", "breed": "Dutch"}))["id"]
+        saddle = _ok(admin.post("/api/saddles", json={"name": "Bella's GP", "saddle_type": "gp"}))["id"]
         rig = _ok(admin.post("/api/rigs", json={"name": "Arena rig", "board": {
             "inner_corners": [9, 6], "square_mm": 25.0}}))["id"]
         rides = []
         for gait in ("canter", "walk"):
             ride = _ok(admin.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": gait,
-                                                      "direction": "CCW"}))["id"]
+                                                      "direction": "CCW", "saddle_id": saddle}))["id"]
             store_result(database_url, storage_dir, ride, result_document(scale=1.0, gait=gait, rng=rng))
             rides.append(ride)
         _ok(admin.post("/api/grades", json={"ride_id": rides[0], "rider_id": rider, "grade": 4}))
@@ -212,7 +213,7 @@ def _seed(base: str, database_url: str, storage_dir: Path) -> dict:
     store_result(database_url, storage_dir, own_ride, result_document(scale=1.2, gait="canter", rng=rng))
     return {
         "ids": {"rides": rides, "compare-rides": [rides[0], own_ride], "horses": [horse], "riders": [rider],
-                "rigs": [rig], "jobs": [job], "users": [member["id"]]},
+                "saddles": [saddle], "rigs": [rig], "jobs": [job], "users": [member["id"]]},
         "member_ride": own_ride, "member_id": member["id"], "waiting_ride": waiting_ride,
     }
 

@@ -290,3 +290,33 @@ def test_two_renders_that_overlap_leave_one_page(page, served):
         return document.querySelectorAll('main [data-upload-form]').length;
     }""")
     assert forms == 1
+
+
+def test_the_same_clips_as_a_bundle_then_one_by_one_make_one_ride(page, served):
+    """Issue 37: the second upload answers with the ride the clips already are, and leaves no empty ride."""
+    api = served["api"]
+    folder = integration_services.write_tiny_bundle(served["root"] / "twice")
+    first = _ok(api.post("/api/rides/bundle", files={"file": ("twice.zip", zip_folder(folder), "application/zip")}),
+                201)["ride"]
+    rides_before = _ok(api.get("/api/rides"))["total"]
+    page.goto("/#/upload")
+    page.get_by_label("Clips one by one").check()
+    page.locator("main:not([aria-busy])").wait_for()
+    page.select_option("#up-rig", str(served["calibrated"]))
+    page.select_option("#up-horse", label="Bella")
+    page.select_option("#up-rider", label="Anna")
+    for kind in ("static", "motion"):  # the rig's calibration serves
+        for camera in ("left", "middle", "right"):
+            page.locator(f"#clip-{kind}-{camera}").set_input_files(
+                {"name": f"{camera}.avi", "mimeType": "video/x-msvideo",
+                 "buffer": (folder / f"{kind}/{camera}.avi").read_bytes()})
+    page.locator("[data-readiness]").wait_for(state="hidden")
+    page.get_by_role("button", name="Upload and analyse").click()
+    existing = page.locator("[data-upload-form] [data-existing-ride]")
+    existing.wait_for()
+    assert existing.get_attribute("href") == f"#/rides/{first['id']}"
+    error = page.locator("[data-upload-form] [data-form-error]").inner_text()
+    assert f"already uploaded as ride {first['id']}" in error
+    assert _ok(api.get("/api/rides"))["total"] == rides_before  # the ride made for the clips was taken back
+    shoot(page, "upload-same-clips")
+    assert page.console.unexpected(409) == []

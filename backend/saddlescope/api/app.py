@@ -137,12 +137,13 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         riders,
         rides,
         rigs,
+        saddles,
         similarity,
         uploads,
     )
 
     for module in (health, auth, horses, horse_profile, riders, rigs, rides, readiness, mocap, uploads, grades,
-                   comparisons, similarity, jobs, reports):
+                   comparisons, similarity, jobs, reports, saddles):
         app.include_router(module.router, prefix="/api")
     if FRONTEND_DIR.is_dir():
         app.mount("/", DashboardFiles(directory=FRONTEND_DIR, html=True), name="frontend")
@@ -192,7 +193,10 @@ def _add_error_handlers(app: FastAPI) -> None:
             headers = {"WWW-Authenticate": "Bearer"} if code == status.HTTP_401_UNAUTHORIZED else None
             if getattr(exc, "retry_after_s", None):
                 headers = {"Retry-After": str(exc.retry_after_s)}
-            return JSONResponse({"detail": str(exc)}, status_code=code, headers=headers)
+            body: dict[str, object] = {"detail": str(exc)}
+            if isinstance(existing := getattr(exc, "existing_ride_id", None), int):
+                body["ride_id"] = existing  # the same clips again: the ride they already are
+            return JSONResponse(body, status_code=code, headers=headers)
 
         return handler
 

@@ -30,6 +30,7 @@ from saddlescope.db.repositories import (
     RideRepository,
     RiderRepository,
     RigRepository,
+    SaddleRepository,
     UploadRepository,
     UserRepository,
 )
@@ -233,6 +234,11 @@ class ClubScope:
     def riders(self) -> RiderRepository:
         """The club's riders."""
         return self._repo(RiderRepository)
+
+    @cached_property
+    def saddles(self) -> SaddleRepository:
+        """The club's saddles."""
+        return self._repo(SaddleRepository)
 
     @cached_property
     def rigs(self) -> RigRepository:

@@ -31,6 +31,8 @@ class TrendPoint(BaseModel):
     value: float | None
     band: Band | None = Field(description="None while the horse has fewer earlier rides than the minimum")
     outside: bool | None = Field(description="the value lies outside the band (None: no band)")
+    uncertain_reason: str | None = Field(default=None, description=(
+        "why the ride is too uncertain for a decision (only with include_uncertain; None: it is not)"))
 
 
 class TrendOut(BaseModel):
@@ -43,6 +45,7 @@ class TrendOut(BaseModel):
     unit: str
     label: str
     min_rides_for_band: int
+    uncertain_left_out: int = Field(default=0, description="rides too uncertain for a decision, not shown")
     points: list[TrendPoint]
 
 

@@ -45,4 +45,5 @@ class LeaderboardOut(BaseModel):
     rides: int
     entries: list[LeaderboardEntry]
     include_uncertain: bool = False
+    saddle_id: int | None = Field(default=None, description="only rides in this saddle (None: all)")
     uncertain: list[UncertainRide] = Field(default_factory=list, description="rides too uncertain, with the reason")

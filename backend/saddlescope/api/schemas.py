@@ -9,8 +9,18 @@ from typing import Annotated, Any, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
 
+from saddlescope.api.comparison_schemas import (
+    ComparisonOut,
+    CorrelationOut,
+    GaitComparison,
+    GroupStats,
+    HorseComparisonOut,
+    HorseGroupStats,
+    HorsesInGait,
+)
 from saddlescope.api.horse_height import HeightWithersM
 from saddlescope.api.leaderboard_schemas import LeaderboardEntry, LeaderboardOut, UncertainRide
+from saddlescope.api.rider_weight import RiderWeightKg
 from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND, board_from_meta
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
@@ -24,7 +34,7 @@ __all__ = [
     "UncertainRide", "Name", "Offsets", "Page", "PartHealth", "Password", "QualityNoteOut",
     "QualitySummaryOut", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
     "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
-    "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SpectrumOut",
+    "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SpectrumOut", "Pad",
     "SyncIn", "Text", "TokenOut", "UploadCreate",
     "UploadOut", "UserCreate", "UserOut", "UserUpdate",
     "HealthSummaryOut", "PartState",  # the public health answer (accounts area)
@@ -39,6 +49,7 @@ ClipKind = Literal[CLIP_KINDS]  # type: ignore[valid-type]
 RoleName = Literal["admin", "member"]
 Name = Annotated[str, StringConstraints(strip_whitespace=True, min_length=1, max_length=200)]
 Text = Annotated[str, StringConstraints(max_length=10_000)]
+Pad = Annotated[str, StringConstraints(strip_whitespace=True, max_length=200)]
 Email = Annotated[str, StringConstraints(strip_whitespace=True, min_length=3, max_length=320)]
 Password = Annotated[str, StringConstraints(min_length=8, max_length=1024)]
 
@@ -135,6 +146,7 @@ class ErrorOut(BaseModel):
     """An error's reason, in words for the user."""
 
     detail: str
+    ride_id: int | None = Field(default=None, description="409 for clips uploaded again: the ride they already are")
 
 
 # --- accounts ----------------------------------------------------------------------------------------
@@ -260,6 +272,7 @@ class RiderIn(_In):
 
     name: Name
     user_id: RefId | None = Field(default=None, description="the rider's own account, if any")
+    weight_kg: RiderWeightKg = None
 
 
 class RiderUpdate(_In):
@@ -267,6 +280,7 @@ class RiderUpdate(_In):
 
     name: Name | None = None
     user_id: RefId | None = None
+    weight_kg: RiderWeightKg = None
 
 
 class RiderOut(_Out):
@@ -275,6 +289,7 @@ class RiderOut(_Out):
     id: int
     name: str
     user_id: int | None
+    weight_kg: float | None = None
     created_at: dt.datetime
 
 
@@ -398,6 +413,9 @@ class RideIn(_In):
     ridden_on: dt.date | None = None
     notes: Text = ""
     meta: RideMetaIn | None = None
+    saddle_id: RefId | None = Field(default=None, description="the club's saddle the horse wore")
+    pad: Pad | None = None
+    rider_weight_kg: RiderWeightKg = Field(default=None, description="kg; default: the rider's weight")
 
 
 class RideUpdate(_In):
@@ -410,6 +428,9 @@ class RideUpdate(_In):
     direction: Direction | None = None
     ridden_on: dt.date | None = None
     notes: Text | None = None
+    saddle_id: RefId | None = Field(default=None, description="null: no saddle recorded")
+    pad: Pad | None = None
+    rider_weight_kg: RiderWeightKg = None
 
 
 class RecordingOut(_Out):
@@ -443,6 +464,9 @@ class RideOut(_Out):
     ridden_on: dt.date | None
     status: str
     notes: str
+    saddle_id: int | None = None
+    pad: str | None = None
+    rider_weight_kg: float | None = None
     from_bundle: bool
     indicators: dict[str, float | None] | None = Field(description="the comfort indicators once analysed")
     created_at: dt.datetime
@@ -725,62 +749,3 @@ class IndicatorOut(BaseModel):
     thesis_name: str | None
     better: Literal["lower", "higher"] | None
     comfort: bool = Field(description="one of the thesis's eight comfort indicators")
-
-
-class GroupStats(BaseModel):
-    """An indicator's statistics over the rides of one group."""
-
-    group: str
-    n: int
-    mean: float | None
-    std: float | None
-    min: float | None
-    max: float | None
-
-
-class HorseGroupStats(GroupStats):
-    """An indicator's statistics over one horse's rides."""
-
-    horse_id: int | None
-    horse: str
-
-
-class GaitComparison(BaseModel):
-    """One indicator of one horse, per gait."""
-
-    unit: str
-    gaits: list[GroupStats]
-
-
-class HorseComparisonOut(BaseModel):
-    """One horse's indicators across gaits."""
-
-    horse_id: int
-    horse: str
-    rides: int
-    indicators: dict[str, GaitComparison]
-
-
-class HorsesInGait(BaseModel):
-    """One indicator within a gait, per horse."""
-
-    unit: str
-    horses: list[HorseGroupStats]
-
-
-class ComparisonOut(BaseModel):
-    """The club's horses compared within one gait."""
-
-    gait: str
-    rides: int
-    indicators: dict[str, HorsesInGait]
-
-
-class CorrelationOut(BaseModel):
-    """Riders' grades against the indicators."""
-
-    gait: str | None
-    grades: int
-    indicators: dict[str, dict[str, Any]] = Field(
-        description="per indicator: n, pearson_r, pearson_p, spearman_rho, intervals, expected_sign, points"
-    )

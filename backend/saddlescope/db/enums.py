@@ -8,7 +8,11 @@ from __future__ import annotations
 
 import enum
 
-__all__ = ["RIDE_STATUSES", "JobStatus", "RideStatus", "Role", "UploadStatus", "UploadTarget"]
+__all__ = ["RIDE_STATUSES", "RIDER_WEIGHT_RANGE_KG", "JobStatus", "RideStatus", "Role", "SaddleType", "UploadStatus",
+           "UploadTarget"]
+
+# A rider's weight in kg is believed between these (a child on a pony to a heavy adult); outside: a typo.
+RIDER_WEIGHT_RANGE_KG = (20.0, 200.0)
 
 
 class Role(enum.StrEnum):
@@ -61,3 +65,15 @@ class UploadStatus(enum.StrEnum):
     FINALISING = "finalising"  # one finalise request holds it (claimed atomically) while making its clip or ride
     FINALISED = "finalised"  # turned into a recording or a ride
     FAILED = "failed"  # finalising refused it (the reason is in `error`)
+
+
+class SaddleType(enum.StrEnum):
+    """What kind of saddle it is, as a saddle fitter names it."""
+
+    GP = "gp"  # general purpose
+    DRESSAGE = "dressage"
+    JUMP = "jump"
+    TREELESS = "treeless"
+    ENDURANCE = "endurance"
+    WESTERN = "western"
+    OTHER = "other"

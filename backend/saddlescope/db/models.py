@@ -31,11 +31,19 @@ from sqlalchemy import (
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
-from saddlescope.db.enums import JobStatus, RideStatus, Role, UploadStatus, UploadTarget
+from saddlescope.db.enums import (
+    RIDER_WEIGHT_RANGE_KG,
+    JobStatus,
+    RideStatus,
+    Role,
+    SaddleType,
+    UploadStatus,
+    UploadTarget,
+)
 
 __all__ = [
     "Base", "Club", "EndedSignIn", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION",
-    "PasswordReset", "Recording", "Result", "Ride", "Rider", "Rig", "SimilarityPair", "TimestampMixin",
+    "PasswordReset", "Recording", "Result", "Ride", "Rider", "Rig", "Saddle", "SimilarityPair", "TimestampMixin",
     "UTCDateTime", "Upload", "User", "utcnow",
 ]
 
@@ -165,17 +173,42 @@ class Horse(TimestampMixin, Base):
     height_withers_m: Mapped[float | None] = mapped_column(Float)
 
 
+_LOW_KG, _HIGH_KG = RIDER_WEIGHT_RANGE_KG
+
+
 class Rider(TimestampMixin, Base):
     """A rider of the club, maybe with an account of their own (to grade rides)."""
 
     __tablename__ = "riders"
-    __table_args__ = (UniqueConstraint("club_id", "name"),)
+    __table_args__ = (
+        UniqueConstraint("club_id", "name"),
+        CheckConstraint(f"weight_kg IS NULL OR (weight_kg >= {_LOW_KG:g} AND weight_kg <= {_HIGH_KG:g})",
+                        name="weight_range"),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
     name: Mapped[str] = mapped_column(String(200))
     # A rider may also log in (to grade rides); riders without accounts are fine.
     user_id: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"), index=True)
+    # The rider's usual weight (kg); a new ride copies it (migration 0012_saddles).
+    weight_kg: Mapped[float | None] = mapped_column(Float)
+
+
+class Saddle(TimestampMixin, Base):
+    """A saddle of the club (names unique within the club): what a ride's horse wore (migration 0012_saddles)."""
+
+    __tablename__ = "saddles"
+    __table_args__ = (UniqueConstraint("club_id", "name"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    name: Mapped[str] = mapped_column(String(200))
+    maker: Mapped[str | None] = mapped_column(String(200))
+    saddle_type: Mapped[str | None] = mapped_column(_str_enum(SaddleType, "saddle_type"))
+    # As the maker or fitter states it ("medium", "32 cm", "MW"): no one unit across makers.
+    tree_width: Mapped[str | None] = mapped_column(String(40))
+    notes: Mapped[str] = mapped_column(Text, default="")
 
 
 class Rig(TimestampMixin, Base):
@@ -208,6 +241,9 @@ class Ride(TimestampMixin, Base):
         Index("ix_rides_club_horse_ridden_on", "club_id", "horse_id", "ridden_on"),
         Index("ix_rides_club_rider_ridden_on", "club_id", "rider_id", "ridden_on"),
         Index("ix_rides_club_status_ridden_on", "club_id", "status", "ridden_on"),
+        Index("ix_rides_club_saddle_ridden_on", "club_id", "saddle_id", "ridden_on"),
+        CheckConstraint(f"rider_weight_kg IS NULL OR (rider_weight_kg >= {_LOW_KG:g} AND rider_weight_kg <= "
+                        f"{_HIGH_KG:g})", name="rider_weight_range"),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)
@@ -215,6 +251,10 @@ class Ride(TimestampMixin, Base):
     horse_id: Mapped[int] = mapped_column(ForeignKey("horses.id", ondelete="RESTRICT"), index=True)
     rider_id: Mapped[int] = mapped_column(ForeignKey("riders.id", ondelete="RESTRICT"), index=True)
     rig_id: Mapped[int | None] = mapped_column(ForeignKey("rigs.id", ondelete="SET NULL"), index=True)
+    # The saddle and pad the horse wore, and the rider's weight that day (migration 0012_saddles).
+    saddle_id: Mapped[int | None] = mapped_column(ForeignKey("saddles.id", ondelete="RESTRICT"), index=True)
+    pad: Mapped[str | None] = mapped_column(String(200))
+    rider_weight_kg: Mapped[float | None] = mapped_column(Float)
     gait: Mapped[str] = mapped_column(_str_enum(GAITS, "gait"))
     direction: Mapped[str] = mapped_column(_str_enum(DIRECTIONS, "direction", length=4))
     ridden_on: Mapped[dt.date | None] = mapped_column(Date)
@@ -227,6 +267,7 @@ class Ride(TimestampMixin, Base):
 
     horse: Mapped[Horse] = relationship()
     rider: Mapped[Rider] = relationship()
+    saddle: Mapped[Saddle | None] = relationship()
     recordings: Mapped[list[Recording]] = relationship(back_populates="ride", order_by="Recording.id")
 
 
@@ -239,6 +280,8 @@ class Recording(TimestampMixin, Base):
         UniqueConstraint("rig_id", "clip_kind", "camera_role"),
         CheckConstraint("ride_id IS NOT NULL OR rig_id IS NOT NULL", name="owner"),
         CheckConstraint("size_bytes IS NULL OR size_bytes >= 0", name="size_bytes"),
+        # The same clip never makes two rides: looked up by content (migration 0012_saddles).
+        Index("ix_recordings_club_sha256", "club_id", "sha256"),
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)

@@ -180,7 +180,17 @@ RIDE_SCHEMA: dict[str, Any] = {
                   "properties": {"name": {"type": "string"}, "breed": {"type": ["string", "null"]},
                                  "birth_year": {"type": ["integer", "null"], "minimum": 1900},
                                  "height_m": {"type": ["number", "null"], "exclusiveMinimum": 0}}},
-        "rider": {"type": "object", "properties": {"name": {"type": "string"}}},
+        # A rider's weight that day in kg (the range of db.enums.RIDER_WEIGHT_RANGE_KG: a typo or pounds outside).
+        "rider": {"type": "object", "properties": {"name": {"type": "string"},
+                                                    "weight_kg": {"type": ["number", "null"], "minimum": 20,
+                                                                  "maximum": 200}}},
+        # The saddle the horse wore (found by name among the club's saddles, added if new) and the pad.
+        "saddle": {"type": "object", "required": ["name"],
+                   "properties": {"name": {"type": "string", "minLength": 1, "maxLength": 200},
+                                  "maker": {"type": ["string", "null"], "maxLength": 200},
+                                  "type": {"type": ["string", "null"]},
+                                  "tree_width": {"type": ["string", "null"], "maxLength": 40}}},
+        "pad": {"type": ["string", "null"], "maxLength": 200},
         "gait": {"enum": list(GAITS)},
         "direction": {"enum": list(DIRECTIONS)},
         "clips": {

@@ -23,7 +23,13 @@ from saddlescope.core.vibration import (
     indicator_unit,
     leaderboard,
 )
-from saddlescope.db.repositories import AnalyticsRepository, GradeRepository, HorseRepository
+from saddlescope.db.repositories import (
+    AnalyticsRepository,
+    GradeRepository,
+    HorseRepository,
+    RideFilter,
+    SaddleRepository,
+)
 
 __all__ = [
     "check_gait", "check_indicator", "club_leaderboard", "grade_correlation_report", "horse_comparison",
@@ -54,17 +60,32 @@ def _clean(stats: dict[str, Any]) -> dict[str, Any]:
     return {k: (_finite(v) if isinstance(v, float) else v) for k, v in stats.items()}
 
 
+def _uncertain_apart(rows: list[dict[str, Any]], include_uncertain: bool) -> tuple[list[dict[str, Any]], int]:
+    """The rows to average (too uncertain ones only when asked) and how many were left out."""
+    if include_uncertain:
+        return rows, 0
+    kept = [row for row in rows if row.get("uncertain_reason") is None]
+    return kept, len(rows) - len(kept)
+
+
 def horse_comparison(
-    session: Session, horse_id: int, *, club_id: int, indicators: Sequence[str] | None = None
+    session: Session, horse_id: int, *, club_id: int, indicators: Sequence[str] | None = None,
+    include_uncertain: bool = False,
 ) -> dict[str, Any]:
-    """One horse across gaits (thesis Figs 8.29-8.32): per indicator, per gait n, mean, std, min, max."""
+    """One horse across gaits (thesis Figs 8.29-8.32): per indicator, per gait n, mean, std, min, max.
+
+    Rides too uncertain for a decision are left out unless `include_uncertain` (counted in
+    ``uncertain_left_out``).
+    """
     horse = HorseRepository(session, club_id=club_id).get(horse_id)
     indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
-    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(horse_ids=[horse_id])
+    rows, left_out = _uncertain_apart(
+        AnalyticsRepository(session, club_id=club_id).indicator_rows(horse_ids=[horse_id]), include_uncertain)
     return {
         "horse_id": horse.id,
         "horse": horse.name,
         "rides": len(rows),
+        "uncertain_left_out": left_out,
         "indicators": {
             ind: {
                 "unit": indicator_unit(ind),
@@ -82,8 +103,14 @@ def horses_comparison(
     gait: str,
     horse_ids: Sequence[int] | None = None,
     indicators: Sequence[str] | None = None,
+    saddle_id: int | None = None,
+    include_uncertain: bool = False,
 ) -> dict[str, Any]:
-    """Horses within one gait (thesis 8.5.2): per indicator, per horse n, mean, std, min, max."""
+    """Horses within one gait (thesis 8.5.2): per indicator, per horse n, mean, std, min, max.
+
+    `saddle_id`: only rides in that saddle of the club. Rides too uncertain for a decision are left out
+    unless `include_uncertain` (counted in ``uncertain_left_out``).
+    """
     check_gait(gait)
     indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
     analytics = AnalyticsRepository(session, club_id=club_id)
@@ -92,11 +119,16 @@ def horses_comparison(
         unknown = sorted(set(horse_ids) - set(names))
         if unknown:
             raise InputError(f"no horse {', '.join(map(str, unknown))} in this club")
-    rows = analytics.indicator_rows(gait=gait, horse_ids=horse_ids or None)
+    if saddle_id is not None:
+        SaddleRepository(session, club_id=club_id).get(saddle_id)  # another club's saddle: not found
+    rows, left_out = _uncertain_apart(analytics.indicator_rows(
+        gait=gait, horse_ids=horse_ids or None, rides=RideFilter(saddle_id=saddle_id)), include_uncertain)
     ids = {row["horse"]: row["horse_id"] for row in rows}
     return {
         "gait": gait,
+        "saddle_id": saddle_id,
         "rides": len(rows),
+        "uncertain_left_out": left_out,
         "indicators": {
             ind: {
                 "unit": indicator_unit(ind),
@@ -112,9 +144,9 @@ def horses_comparison(
 
 def club_leaderboard(
     session: Session, *, club_id: int, gait: str, indicator: str, lower_is_better: bool | None = None,
-    include_uncertain: bool = False,
+    include_uncertain: bool = False, saddle_id: int | None = None,
 ) -> dict[str, Any]:
-    """The club's horses ranked in one gait by one indicator, most comfortable first.
+    """The club's horses ranked in one gait by one indicator, most comfortable first (`saddle_id`: in that saddle).
 
     Each entry: rank, horse id and name, ``n`` (rides behind it), mean, std, min, max and spread, and
     ``uncertain_rides`` (how many of them are too uncertain for a decision). Rides too uncertain for a
@@ -126,7 +158,10 @@ def club_leaderboard(
     check_indicator(indicator)
     if lower_is_better is None and INDICATORS[indicator].better is None:
         raise InputError(f"{indicator!r} has no comfort direction; pass lower_is_better=true or false")
-    values = AnalyticsRepository(session, club_id=club_id).marked_indicator_values(indicator, gait=gait)
+    if saddle_id is not None:
+        SaddleRepository(session, club_id=club_id).get(saddle_id)  # another club's saddle: not found
+    values = AnalyticsRepository(session, club_id=club_id).marked_indicator_values(indicator, gait=gait,
+                                                                                    saddle_id=saddle_id)
     ids = {name: horse_id for horse_id, name, *_ in values}
     kept = [v for v in values if include_uncertain or v[4] is None]
     rows = [{"horse": name, "gait": gait, indicator: value} for _, name, value, _, _ in kept]
@@ -142,6 +177,7 @@ def club_leaderboard(
         "better": "lower" if lower else "higher",
         "rides": sum(r["n"] for r in ranking),
         "include_uncertain": include_uncertain,
+        "saddle_id": saddle_id,
         "entries": [{"horse_id": ids.get(r["horse"]), **_clean(r), "uncertain_rides": marked.get(r["horse"], 0)}
                     for r in ranking],
         "uncertain": [{"ride_id": ride_id, "horse_id": horse_id, "horse": name, "value": _finite(value),
@@ -158,7 +194,7 @@ def grade_correlation_report(
         check_gait(gait)
     indicators = [check_indicator(i) for i in (indicators or COMFORT_INDICATORS)]
     grade_rows = GradeRepository(session, club_id=club_id).grade_rows(gait=gait)
-    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait)
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait, include_uncertain=False)
     report = grades_vs_indicators(grade_rows, rows, indicators, gait=gait)
     for r in report.values():
         r["points"] = _described_points(r["points"], grade_rows, rows)

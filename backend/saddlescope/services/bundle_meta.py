@@ -16,7 +16,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from saddlescope.core.errors import BundleError
-from saddlescope.db.models import Horse, Rider
+from saddlescope.db.models import Horse, Rider, Saddle
 
 __all__ = ["MAX_RIDE_JSON_BYTES", "read_bundle_meta"]
 
@@ -53,8 +53,9 @@ def read_bundle_meta(session: Session, zip_path: Path, *, club_id: int, shown: s
     Returns
     -------
     dict
-        ``horse`` and ``rider`` ({"name", "id"}: id of the club's horse or rider of that name, or
-        None), ``gait``, ``direction``, ``ridden_on`` (ride.json's ``date`` if any) and ``notes``.
+        ``horse``, ``rider`` and ``saddle`` ({"name", "id"}: id of the club's horse, rider or saddle of
+        that name, or None), ``gait``, ``direction``, ``ridden_on`` (ride.json's ``date`` if any),
+        ``notes``, ``pad`` and ``rider_weight_kg``.
     """
     try:
         with zipfile.ZipFile(zip_path) as zf:
@@ -62,7 +63,12 @@ def read_bundle_meta(session: Session, zip_path: Path, *, club_id: int, shown: s
     except (zipfile.BadZipFile, OSError):
         # Word for word what finalising the same file says (`io.bundle.open_bundle`).
         raise BundleError(f"{shown}: a ride bundle must be a folder or a .zip archive") from None
-    horse_name, rider_name = _named(meta, "horse"), _named(meta, "rider")
+    horse_name, rider_name, saddle_name = _named(meta, "horse"), _named(meta, "rider"), _named(meta, "saddle")
+    saddle_id = None
+    if saddle_name:
+        saddle_id = session.scalars(select(Saddle.id).where(Saddle.club_id == club_id,
+                                                            Saddle.name == saddle_name)).first()
+    weight = (meta.get("rider") or {}).get("weight_kg") if isinstance(meta.get("rider"), dict) else None
     horse_id = rider_id = None
     if horse_name:
         horse_id = session.scalars(select(Horse.id).where(Horse.club_id == club_id, Horse.name == horse_name)).first()
@@ -80,4 +86,7 @@ def read_bundle_meta(session: Session, zip_path: Path, *, club_id: int, shown: s
         "direction": text("direction"),
         "ridden_on": text("date") or text("ridden_on"),
         "notes": text("notes") or "",
+        "saddle": {"name": saddle_name, "id": saddle_id},
+        "pad": text("pad"),
+        "rider_weight_kg": weight if isinstance(weight, int | float) and not isinstance(weight, bool) else None,
     }

@@ -35,27 +35,35 @@ def _finite(value: Any) -> float | None:
     return float(value) if isinstance(value, int | float) and math.isfinite(value) else None
 
 
-def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, indicator: str) -> dict[str, Any]:
+def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, indicator: str,
+                include_uncertain: bool = False) -> dict[str, Any]:
     """One indicator of one horse in one gait over its rides, oldest first, each with its normal band.
 
     Each point: ``ride_id``, ``date``, ``rider``, ``value``, ``band`` (``{n, mean, sd, low, high}`` of
-    the earlier rides, or None while fewer than `MIN_RIDES_FOR_BAND`) and ``outside`` (True/False
-    against the band, None without one).
+    the earlier rides, or None while fewer than `MIN_RIDES_FOR_BAND`), ``outside`` (True/False
+    against the band, None without one) and ``uncertain_reason``. Rides too uncertain for a decision
+    are points only when `include_uncertain` (counted in ``uncertain_left_out`` otherwise) and never
+    enter a band.
     """
     check_gait(gait)
     check_indicator(indicator)
     horse = HorseRepository(session, club_id=club_id).get(horse_id)
-    history = horse_history(session, club_id=club_id, horse_id=horse_id, gait=gait)
-    points, earlier = [], []
+    history = horse_history(session, club_id=club_id, horse_id=horse_id, gait=gait, include_uncertain=True)
+    points, earlier, left_out = [], [], 0
     for row in history:  # already in ride_order_key order
+        reason = row.get("uncertain_reason")
+        if reason is not None and not include_uncertain:
+            left_out += 1
+            continue
         value = _finite((row.get("indicators") or {}).get(indicator))
         band = band_of(earlier)
         outside = None
         if band is not None and value is not None:
             outside = not band["low"] <= value <= band["high"]
         points.append({"ride_id": row["ride_id"], "date": row["date"], "rider": row["rider"], "value": value,
-                       "band": band, "outside": outside})
-        earlier.append(value)
+                       "band": band, "outside": outside, "uncertain_reason": reason})
+        if reason is None:
+            earlier.append(value)
     return {
         "horse_id": horse.id,
         "horse": horse.name,
@@ -64,6 +72,7 @@ def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, ind
         "unit": indicator_unit(indicator),
         "label": INDICATORS[indicator].label,
         "min_rides_for_band": MIN_RIDES_FOR_BAND,
+        "uncertain_left_out": left_out,
         "points": points,
     }
 

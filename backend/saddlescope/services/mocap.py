@@ -310,7 +310,8 @@ def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, c
         row = RideRepository(session, club_id=club_id).add(
             horse_id=ride["horse_id"], rider_id=ride["rider_id"], gait=ride["gait"], direction=ride["direction"],
             ridden_on=ride["ridden_on"], notes=ride.get("notes") or "",
-            meta={"source": document["source"], "_created_by": ride.get("created_by")})
+            meta={"source": document["source"], "_created_by": ride.get("created_by")},
+            saddle_id=ride.get("saddle_id"), pad=ride.get("pad"), rider_weight_kg=ride.get("rider_weight_kg"))
         ride_id = row.id
     file_key = f"rides/{ride_id}/mocap/{name}{suffix}"
     storage.write_bytes(file_key, data)

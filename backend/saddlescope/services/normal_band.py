@@ -39,13 +39,15 @@ def ride_order_key(row: dict[str, Any]) -> tuple[dt.date, int]:
 
 
 def horse_history(session: Session, *, club_id: int, horse_id: int, gait: str | None = None,
-                  ) -> list[dict[str, Any]]:
+                  include_uncertain: bool = False) -> list[dict[str, Any]]:
     """Every analysed ride of the horse (in `gait`; None: all), oldest first, with all its indicators.
 
     Rows are those of `AnalyticsRepository.indicator_rows`: ``ride_id``, ``horse_id``, ``horse``,
-    ``rider``, ``gait``, ``date`` and ``indicators``.
+    ``rider``, ``gait``, ``date``, ``uncertain_reason`` and ``indicators``. Rides too uncertain for a
+    decision are left out unless `include_uncertain`: they never widen or shift a band.
     """
-    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait, horse_ids=[horse_id])
+    rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait, horse_ids=[horse_id],
+                                                                        include_uncertain=include_uncertain)
     return sorted(rows, key=ride_order_key)
 
 

@@ -25,6 +25,8 @@ PERMISSIONS: dict[str, tuple[str, str]] = {
     "grade.create": (MEMBER, "grade a ride"),
     "horse.create": (MEMBER, "add or rename a horse or a rider"),
     "horse.delete": (ADMIN, "delete a horse or a rider"),
+    "saddle.create": (MEMBER, "add or change a saddle of the club"),
+    "saddle.delete": (ADMIN, "delete a saddle no ride uses"),
     "rig.create": (MEMBER, "add a rig and upload its calibration clips"),
     "rig.change_board": (ADMIN, "change a rig's calibration board"),
     "rig.delete": (ADMIN, "delete a rig"),

@@ -18,10 +18,11 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.enums import JobStatus, RideStatus
-from saddlescope.db.models import Horse, Rider
+from saddlescope.db.enums import JobStatus, RideStatus, SaddleType
+from saddlescope.db.models import Horse, Rider, Saddle
 from saddlescope.db.repositories import (
     ClubRepository,
+    Conflict,
     HorseRepository,
     JobRepository,
     RecordingRepository,
@@ -30,6 +31,7 @@ from saddlescope.db.repositories import (
     RideRepository,
     RiderRepository,
     RigRepository,
+    SaddleRepository,
 )
 from saddlescope.db.session import session_scope
 from saddlescope.io.bundle import RideBundle, open_bundle, open_zip_stream, zip_bundle_files
@@ -37,6 +39,8 @@ from saddlescope.storage import Storage, ride_bundle_key, sha256_file, tree_dige
 
 __all__ = [
     "ANALYSIS_JOB_KIND",
+    "DuplicateClips",
+    "duplicate_message",
     "RESULT_SETTINGS",
     "analysed_settings",
     "outdated_result_settings",
@@ -170,6 +174,31 @@ def refresh_ride_status(session: Session, ride_id: int | None) -> str | None:
     return status.value
 
 
+class DuplicateClips(Conflict):
+    """The clips uploaded are already a ride of the club (the same content): answered with that ride (409)."""
+
+    def __init__(self, message: str, *, existing_ride_id: int) -> None:
+        super().__init__(message)
+        self.existing_ride_id = existing_ride_id
+
+
+def duplicate_message(what: str, existing_ride_id: int, *, kept: str = "no new ride was made") -> str:
+    """The sentence a second upload of the same clips answers with (`kept`: what became of the upload)."""
+    return (f"{what} already uploaded as ride {existing_ride_id} (the same motion clip, byte for byte); {kept}: "
+            f"open ride {existing_ride_id}, or delete it first to upload these clips again")
+
+
+def _refuse_known_clips(sessions: sessionmaker[Session], bundle: RideBundle, digests: dict[str, tuple[int, str]], *,
+                        club_id: int, ride_id: int, name: str) -> None:
+    """`DuplicateClips` when a motion clip of the bundle is already a clip of another ride of the club."""
+    hashes = [digests[source.relative_to(bundle.root).as_posix()][1]
+              for source in (bundle.clip_paths.get("motion") or {}).values()]
+    with session_scope(sessions) as session:
+        existing = RecordingRepository(session, club_id=club_id).ride_with_clip(hashes, exclude_ride_id=ride_id)
+    if existing is not None:
+        raise DuplicateClips(duplicate_message(f"{name}: its clips were", existing), existing_ride_id=existing)
+
+
 def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: Path | str | BinaryIO, *,
                     club_name: str = "Demo club", club_id: int | None = None, rig_id: int | None = None,
                     ridden_on: dt.date | None = None, chosen: Mapping[str, Any] | None = None,
@@ -190,7 +219,7 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
     opened = open_bundle(bundle) if isinstance(bundle, str | Path) else open_zip_stream(bundle, name)
     with opened:
         return _register(sessions, storage, opened, club_name=club_name, club_id=club_id, rig_id=rig_id,
-                         ridden_on=ridden_on, chosen=dict(chosen or {}))
+                         ridden_on=ridden_on, chosen=dict(chosen or {}), name=name)
 
 
 MAX_NAME_CHARS = 200
@@ -226,13 +255,35 @@ def _add_ride(session: Session, bundle: RideBundle, *, club_name: str, club_id: 
         height_withers_m=horse_meta.get("height_m"))
     rider_id = chosen.get("rider_id") or _get_or_add(
         session, "rider", club_id, str(rider_meta.get("name") or "Unnamed rider"), added)
+    saddle_id = chosen.get("saddle_id") or _bundle_saddle(session, meta.get("saddle"), club_id, added)
     ride = RideRepository(session, club_id=club_id).add(
         horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, gait=chosen.get("gait") or meta["gait"],
         direction=chosen.get("direction") or meta["direction"],
         ridden_on=chosen.get("ridden_on") or ridden_on or dt.datetime.now(dt.UTC).date(),
         notes=chosen.get("notes") or "",
-        meta={**{k: meta[k] for k in ("board", "sync", "markers") if k in meta}, **({_ADDED: added} if added else {})})
+        meta={**{k: meta[k] for k in ("board", "sync", "markers") if k in meta}, **({_ADDED: added} if added else {})},
+        saddle_id=saddle_id, pad=chosen.get("pad") or meta.get("pad") or None,
+        rider_weight_kg=chosen.get("rider_weight_kg") or rider_meta.get("weight_kg"))
     return club_id, ride.id
+
+
+def _bundle_saddle(session: Session, saddle_meta: Mapping[str, Any] | None, club_id: int,
+                   added: dict[str, int]) -> int | None:
+    """The club's saddle ride.json names (`saddle.name`), added with its details if new; None without one."""
+    if not saddle_meta:
+        return None
+    kind = saddle_meta.get("type")
+    if kind is not None and kind not in {t.value for t in SaddleType}:
+        raise BundleError(f"ride.json: saddle.type {kind!r} is not one of {', '.join(t.value for t in SaddleType)}")
+    saddles = SaddleRepository(session, club_id=club_id)
+    name = str(saddle_meta["name"]).strip()
+    found = saddles.find_by_name(name)
+    if found is not None:
+        return found.id
+    saddle = saddles.add(name=name, maker=saddle_meta.get("maker"), saddle_type=kind,
+                         tree_width=saddle_meta.get("tree_width"))
+    added["saddle"] = saddle.id
+    return saddle.id
 
 
 def _store_files(storage: Storage, bundle: RideBundle, bundle_key: str) -> dict[str, tuple[int, str]]:
@@ -281,7 +332,7 @@ def _add_recordings(session: Session, bundle: RideBundle, digests: dict[str, tup
 
 def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBundle, *,
               club_name: str, club_id: int | None, rig_id: int | None, ridden_on: dt.date | None,
-              chosen: dict[str, Any]) -> int:
+              chosen: dict[str, Any], name: str = "the bundle") -> int:
     with session_scope(sessions) as session:
         club_id, ride_id = _add_ride(session, bundle, club_name=club_name, club_id=club_id, rig_id=rig_id,
                                      ridden_on=ridden_on, chosen=chosen)
@@ -291,6 +342,7 @@ def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBun
         # The whole folder, extras included (truth.json, extra clip sets, a calibration file), so
         # the stored copy is again a complete bundle the pipeline can open.
         digests = _store_files(storage, bundle, bundle_key)
+        _refuse_known_clips(sessions, bundle, digests, club_id=club_id, ride_id=ride_id, name=name)
         with session_scope(sessions) as session:
             _add_recordings(session, bundle, digests, club_id=club_id, ride_id=ride_id, bundle_key=bundle_key)
             RideRepository(session).set_bundle_key(ride_id, bundle_key)
@@ -305,14 +357,15 @@ def _register(sessions: sessionmaker[Session], storage: Storage, bundle: RideBun
 def remove_bundle_ride(sessions: sessionmaker[Session], storage: Storage, ride_id: int) -> None:
     """Take back a ride just registered from a bundle (refused, or its job could not be queued).
 
-    Its rows go (recordings and jobs with it), then its stored files; so do the horse and rider its
+    Its rows go (recordings and jobs with it), then its stored files; so do the horse, rider and saddle its
     registration added, unless another ride uses them meanwhile. Nothing that existed before is touched.
     """
     with session_scope(sessions) as session:
         ride = RideRepository(session).find(ride_id)
         added = dict(dict(ride.meta or {}).get(_ADDED) or {}) if ride is not None else {}
         RideRepository(session).delete(ride_id)
-        for who, model, column in (("horse", Horse, Ride.horse_id), ("rider", Rider, Ride.rider_id)):
+        for who, model, column in (("horse", Horse, Ride.horse_id), ("rider", Rider, Ride.rider_id),
+                                   ("saddle", Saddle, Ride.saddle_id)):
             row_id = added.get(who)
             if row_id is not None:
                 session.execute(delete(model).where(model.id == row_id, ~exists().where(column == row_id)))

@@ -40,7 +40,14 @@ from saddlescope.services.direct_uploads import check_parts, is_direct
 from saddlescope.services.job_service import submit_job
 from saddlescope.services.queue import JobQueue, QueueUnavailable
 from saddlescope.services.readiness import missing_for_ride
-from saddlescope.services.rides import refresh_ride_status, register_bundle, remove_bundle_ride, ride_clip_plan
+from saddlescope.services.rides import (
+    DuplicateClips,
+    duplicate_message,
+    refresh_ride_status,
+    register_bundle,
+    remove_bundle_ride,
+    ride_clip_plan,
+)
 from saddlescope.storage import Storage, TooLarge, direct_upload_key, upload_key
 
 __all__ = [
@@ -196,6 +203,7 @@ def accept_clip(
             ]
             if info is not None:
                 _agreement(owner, clip_kind, camera, info, others)
+            _refuse_known_clip(recordings, owner, clip_kind, camera, sha256, filename)
             previous = next((r.path for r in others if r.camera_role == camera), None)
             storage.move(staged_key, final_key)
             try:
@@ -225,6 +233,21 @@ def accept_clip(
     if previous is not None and previous != final_key:
         storage.delete(previous)  # after the commit: a failed upload never loses the earlier clip
     return recording_id
+
+
+def _refuse_known_clip(recordings: RecordingRepository, owner: ClipOwner, clip_kind: str, camera: str,
+                       sha256: str, filename: str | None) -> None:
+    """`DuplicateClips` when this motion clip is already a clip of another ride of the club (same bytes).
+
+    Only motion clips: a day's calibration, plumb and static clips are rightly shared by its rides.
+    """
+    if owner.kind != "ride" or clip_kind != "motion":
+        return
+    existing = recordings.ride_with_clip([sha256], exclude_ride_id=owner.id)
+    if existing is not None:
+        what = f"the motion clip of the {camera} camera ({filename or 'the upload'}) was"
+        raise DuplicateClips(duplicate_message(what, existing, kept=f"it was not stored with {owner.label}"),
+                             existing_ride_id=existing)
 
 
 def _probed(info) -> dict[str, Any]:
@@ -308,8 +331,8 @@ def accept_bundle(
                 RigRepository(session, club_id=club_id).get(rig_id)
             existing = RideRepository(session, club_id=club_id).with_bundle_sha256(sha256)
         if existing is not None:
-            raise Conflict(f"{shown}: this bundle (the same content) was already uploaded as ride {existing}; "
-                           "open that ride, or delete it first to upload the bundle again")
+            raise DuplicateClips(duplicate_message(f"{shown}: this bundle (the same content) was", existing),
+                                 existing_ride_id=existing)
         ride_id = _register_staged(sessions, storage, staged_key, shown, club_id=club_id, rig_id=rig_id,
                                    chosen=chosen)
         try:

@@ -1,11 +1,14 @@
-// Horses and riders: a list searched, sorted and paged by the server (state in the URL:
+// Horses, riders and saddles: a list searched, sorted and paged by the server (state in the URL:
 // #/horses?q=bra&page=2), with edit buttons, next to a form that adds or edits one. Delete is for
-// admins only (horse.delete), so nobody else sees it. A horse's name opens its page (#/horses/:id).
+// admins only (horse.delete, saddle.delete), so nobody else sees it. A horse's name opens its page
+// (#/horses/:id), a saddle's its page across horses (#/saddles/:id).
 
 import { del, get, itemsOf, patch, post } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { fmt } from "../format.js";
+import { fillOptions } from "../options.js";
 import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
+import { saddleTypeText } from "../saddle-words.js";
 import { can } from "../session.js";
 
 const KINDS = {
@@ -15,12 +18,22 @@ const KINDS = {
     columns: [(x) => h("a", { href: `#/horses/${x.id}` }, x.name), (x) => x.breed ?? "", (x) => x.birth_year ?? "",
               (x) => (x.height_withers_m ? fmt(x.height_withers_m) : "")],
     fields: ["name", "breed", "birth_year", "height_withers_m"],
+    deletePermission: "horse.delete",
   },
   riders: {
     url: "/api/riders",
     noun: "rider",
-    columns: [(x) => x.name],
-    fields: ["name"],
+    columns: [(x) => x.name, (x) => (Number.isFinite(x.weight_kg) ? `${Number(x.weight_kg.toFixed(1))}` : "\u2013")],
+    fields: ["name", "weight_kg"],
+    deletePermission: "horse.delete", // the same permission covers riders
+  },
+  saddles: {
+    url: "/api/saddles",
+    noun: "saddle",
+    columns: [(x) => h("a", { href: `#/saddles/${x.id}` }, x.name), (x) => x.maker ?? "", (x) => saddleTypeText(x.saddle_type),
+              (x) => x.tree_width ?? "", (x) => String(x.rides ?? 0)],
+    fields: ["name", "maker", "saddle_type", "tree_width", "notes"],
+    deletePermission: "saddle.delete",
   },
 };
 
@@ -65,8 +78,8 @@ export function mountEntities(kindName) {
       const cell = h("td", { class: "actions" },
         h("button", { type: "button", class: "link-button", "aria-label": `Edit ${item.name}`,
                       onclick: () => setEditing(item) }, "Edit"));
-      if (can("horse.delete")) { // admins only (the same permission covers riders)
-        cell.append(h("button", { type: "button", class: "link-button danger", "data-permission": "horse.delete",
+      if (can(kind.deletePermission)) { // admins only
+        cell.append(h("button", { type: "button", class: "link-button danger", "data-permission": kind.deletePermission,
                                   "aria-label": `Delete ${item.name}`, onclick: () => remove(item) }, "Delete"));
       }
       return cell;
@@ -118,6 +131,7 @@ export function mountEntities(kindName) {
       }
     });
     cancel.addEventListener("click", () => setEditing(null));
+    await fillOptions(form).catch((error) => showError(form, error)); // the saddle types
     bindFilterForm(view.querySelector("[data-entity-filter]"), state);
 
     try {

@@ -1,6 +1,7 @@
 // The horse page (#/horses/:id): its profile (editable by members), its rides page by page, its
 // indicators across gaits (thesis Figs 8.29-8.32), a trend per gait against the horse's own normal
-// band, and any two of its rides side by side with the % difference of each indicator.
+// band, its saddles compared (mean and 95 % interval per saddle, and in words whether two differ
+// beyond the uncertainty), and any two of its rides side by side with the % difference of each indicator.
 
 import { get, itemsOf, patch } from "../api.js";
 import { busy, h, page, showError } from "../dom.js";
@@ -9,6 +10,7 @@ import { distanceText, durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, lab
 import { fillOptions } from "../options.js";
 import { can } from "../session.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
+import { meanIntervalText } from "../saddle-words.js";
 import { loadPlotly } from "../charts.js";
 
 const RIDES_PER_PAGE = 10;
@@ -124,6 +126,10 @@ function setUpGaits(view, horseId, onCounts) {
       onCounts?.(groups);
       const info = indicatorInfoOf(indicator);
       countedBarChart(chart, groups, { title: labelText(info.label), unit: prettyUnit(info.unit), xTitle: "gait" });
+      const left = answer.uncertain_left_out ?? 0;
+      const note = section.querySelector("[data-gaits-left-out]");
+      note.textContent = left ? `${left} ride${left === 1 ? " is" : "s are"} too uncertain for a decision and left out.` : "";
+      note.hidden = !left;
     } catch (error) {
       if (current()) showError(section, error);
     }
@@ -145,12 +151,64 @@ function setUpTrend(view, horseId) {
       const n = trend.points.length;
       const banded = trend.points.filter((p) => p.band).length;
       const outside = trend.points.filter((p) => p.outside).length;
-      note.textContent = !n ? "" : banded
+      const left = trend.uncertain_left_out ?? 0;
+      const leftText = left ? ` ${left} ride${left === 1 ? " is" : "s are"} too uncertain for a decision and not shown.` : "";
+      note.textContent = (!n ? "" : banded
         ? `${n} rides in ${gaitLabel(gait)}; ${outside} of the ${banded} with a band lie outside it.`
-        : `${n} ride${n === 1 ? "" : "s"} in ${gaitLabel(gait)}: the band appears once ${trend.min_rides_for_band} earlier rides exist.`;
+        : `${n} ride${n === 1 ? "" : "s"} in ${gaitLabel(gait)}: the band appears once ${trend.min_rides_for_band} earlier rides exist.`) + leftText;
     } catch (error) {
       if (current()) showError(section, error);
     }
+  });
+}
+
+function setUpSaddles(view, horseId) {
+  const form = view.querySelector("[data-horse-saddles-form]");
+  const table = view.querySelector("[data-saddles-table]");
+  const verdicts = view.querySelector("[data-saddles-verdicts]");
+  const empty = view.querySelector("[data-saddles-empty]");
+  const method = view.querySelector("[data-saddles-method]");
+  const section = form.closest("section");
+  return onFormChange(form, async ({ gait }, current) => {
+    let answer;
+    try {
+      answer = await get(`/api/horses/${horseId}/saddles`, { params: { gait } });
+    } catch (error) {
+      if (current()) showError(section, error);
+      return;
+    }
+    if (!current()) return;
+    showError(section, null);
+    const keys = Object.keys(answer.labels);
+    table.tHead.rows[0].replaceChildren(h("th", { scope: "col" }, "Saddle"), h("th", { scope: "col", class: "num" }, "Rides"),
+      ...keys.map((key) => h("th", { scope: "col", class: "num" },
+        `${labelText(answer.labels[key])} (${prettyUnit(answer.units[key])})`)));
+    table.tBodies[0].replaceChildren(...answer.saddles.map((row) => h("tr", { dataset: { saddleId: row.saddle_id } },
+      h("th", { scope: "row" }, h("a", { href: `#/saddles/${row.saddle_id}` }, row.saddle)),
+      h("td", { class: "num" }, String(row.rides)),
+      ...keys.map((key) => h("td", { class: "num", dataset: { key } }, meanIntervalText(row.indicators[key]))))));
+    table.hidden = !answer.saddles.length;
+    // The headline comparison (the first indicator, W_b r.m.s.) of each pair; the others folded below it.
+    const item = (d) => h("li", { dataset: { indicator: d.indicator, exceeds: String(d.exceeds_uncertainty ?? "unknown") } },
+      d.sentence);
+    const headline = answer.differences.filter((d) => d.indicator === keys[0]);
+    const others = answer.differences.filter((d) => d.indicator !== keys[0]);
+    verdicts.replaceChildren(...headline.map(item));
+    if (others.length) {
+      verdicts.append(h("li", { class: "more" }, h("details", {}, h("summary", {}, "The other indicators"),
+        h("ul", {}, ...others.map(item)))));
+    }
+    const notes = [];
+    if (answer.saddles.length < 2) {
+      notes.push(answer.saddles.length
+        ? `Only one saddle recorded on this horse in ${gaitLabel(gait)}: record the saddle of each ride to compare.`
+        : `No analysed ride of this horse in ${gaitLabel(gait)} names its saddle yet: set it in a ride's details.`);
+    }
+    if (answer.without_saddle) notes.push(`${answer.without_saddle} analysed ride${answer.without_saddle === 1 ? "" : "s"} without a saddle recorded.`);
+    if (answer.uncertain_left_out) notes.push(`${answer.uncertain_left_out} ride${answer.uncertain_left_out === 1 ? " is" : "s are"} too uncertain for a decision and not counted.`);
+    empty.textContent = notes.join(" ");
+    empty.hidden = !notes.length;
+    method.textContent = `In brackets: the 95 % interval of each mean. ${answer.method}`;
   });
 }
 
@@ -247,5 +305,7 @@ export async function mountHorse(view, params) {
     }
   };
   await Promise.all([setUpRides(view, horseId, riders), setUpGaits(view, horseId, chooseGait)]);
-  await Promise.all([setUpTrend(view, horseId), setUpPair(view, horseId)]);
+  const saddlesForm = view.querySelector("[data-horse-saddles-form]");
+  saddlesForm.elements.gait.value = trendForm.elements.gait.value; // the gait it has most rides in
+  await Promise.all([setUpTrend(view, horseId), setUpSaddles(view, horseId), setUpPair(view, horseId)]);
 }

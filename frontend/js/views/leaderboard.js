@@ -14,16 +14,17 @@ export async function mountLeaderboard(view, _params, query) {
   const note = view.querySelector("[data-leaderboard-note]");
   const section = form.closest("section");
   await fillOptions(view);
-  for (const name of ["gait", "indicator"]) if (query.get(name)) form.elements[name].value = query.get(name);
+  for (const name of ["gait", "indicator", "saddle_id"]) if (query.get(name)) form.elements[name].value = query.get(name);
 
   const uncertainBox = view.querySelector("[data-leaderboard-uncertain]");
   if (query.get("include_uncertain") === "true") form.elements.include_uncertain.checked = true;
 
-  await onFormChange(form, async ({ gait, indicator, include_uncertain: includeUncertain }, current) => {
+  await onFormChange(form, async ({ gait, indicator, include_uncertain: includeUncertain, saddle_id: saddleId }, current) => {
     let answer;
     let rows;
     try {
       const params = { gait, indicator };
+      if (saddleId) params.saddle_id = saddleId;
       if (includeUncertain) params.include_uncertain = "true";
       answer = await get("/api/leaderboard", { params });
       rows = groupsOf(answer, indicator);
@@ -50,6 +51,9 @@ export async function mountLeaderboard(view, _params, query) {
       h("td", { class: "num" }, fmt(row.max)))));
     table.hidden = !rows.length;
     empty.hidden = rows.length > 0;
+    const saddle = saddleId ? form.elements.saddle_id.selectedOptions[0]?.textContent : null;
+    empty.textContent = saddle ? `No analysed rides in this gait in the saddle ${saddle} yet.`
+      : "No analysed rides in this gait yet.";
     showUncertain(uncertainBox, answer.uncertain ?? [], Boolean(includeUncertain), unit);
   });
 }

@@ -331,6 +331,17 @@ function showJob(state, job, onRetry, ownerId) {
       : null);
 }
 
+/** The saddle, pad and rider's weight of the ride, under its details line (a saddle links to its page). */
+async function showSaddle(view, ride) {
+  if (ride.saddle_id == null && !ride.pad && ride.rider_weight_kg == null) return;
+  const saddle = ride.saddle_id == null ? null : await get(`/api/saddles/${ride.saddle_id}`);
+  const parts = [];
+  if (saddle) parts.push("Saddle ", h("a", { href: `#/saddles/${saddle.id}` }, saddle.name));
+  if (ride.pad) parts.push(parts.length ? `, pad: ${ride.pad}` : `Pad: ${ride.pad}`);
+  if (ride.rider_weight_kg != null) parts.push(`${parts.length ? " \u00b7 " : ""}rider's weight ${Number(ride.rider_weight_kg.toFixed(1))} kg`);
+  view.querySelector("[data-ride-meta]")?.after(h("p", { class: "hint", "data-ride-saddle": true }, ...parts));
+}
+
 export async function mountRide(view, { id }) {
   loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("ride"));
@@ -359,6 +370,7 @@ export async function mountRide(view, { id }) {
     ride.meta?.source?.kind === "mocap" ? ` \u00b7 from the motion-capture file ${ride.meta.source.file}` : "",
     " \u00b7 ", h("span", { class: `badge status-${ride.status}` }, ride.status));
   showMeta();
+  showSaddle(view, ride).catch((error) => console.info("saddle not shown:", error.message));
   // A ride still missing clips says what it lacks (and where to add it) instead of an empty page.
   if (ride.status === "new" && ride.meta?.source?.kind !== "mocap") {
     const slot = view.querySelector("[data-readiness-slot]");

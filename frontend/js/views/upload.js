@@ -159,7 +159,10 @@ export async function mountUpload(view, _params, query) {
   }
 
   function prefill(meta) {
-    const notes = [prefillEntity(form.elements.horse_id, meta.horse, "horse"), prefillEntity(form.elements.rider_id, meta.rider, "rider")];
+    const notes = [prefillEntity(form.elements.horse_id, meta.horse, "horse"), prefillEntity(form.elements.rider_id, meta.rider, "rider"),
+      prefillEntity(form.elements.saddle_id, meta.saddle, "saddle")];
+    if (meta.pad && !form.elements.pad.value) form.elements.pad.value = meta.pad;
+    if (Number.isFinite(meta.rider_weight_kg) && !form.elements.rider_weight_kg.value) form.elements.rider_weight_kg.value = meta.rider_weight_kg;
     if (meta.gait) form.elements.gait.value = meta.gait;
     if (meta.direction) form.elements.direction.value = meta.direction;
     if (meta.ridden_on) form.elements.ridden_on.value = meta.ridden_on;
@@ -211,6 +214,16 @@ export async function mountUpload(view, _params, query) {
     if (values.horse_id && values.horse_id !== FROM_BUNDLE) details.horse_id = Number(values.horse_id);
     if (values.rider_id && values.rider_id !== FROM_BUNDLE) details.rider_id = Number(values.rider_id);
     if (values.rig_id) details.rig_id = Number(values.rig_id);
+    Object.assign(details, saddleDetails(values));
+    return details;
+  }
+
+  // The saddle, pad and rider's weight chosen (left out when empty: the bundle's, or the rider's weight).
+  function saddleDetails(values) {
+    const details = {};
+    if (values.saddle_id && values.saddle_id !== FROM_BUNDLE) details.saddle_id = Number(values.saddle_id);
+    if (values.pad) details.pad = values.pad;
+    if (Number.isFinite(values.rider_weight_kg)) details.rider_weight_kg = values.rider_weight_kg;
     return details;
   }
 
@@ -238,7 +251,7 @@ export async function mountUpload(view, _params, query) {
     const fields = {
       horse_id: Number(values.horse_id), rider_id: Number(values.rider_id), gait: values.gait,
       direction: values.direction, rig_id: Number(values.rig_id), ridden_on: values.ridden_on || null,
-      notes: values.notes || "",
+      notes: values.notes || "", ...saddleDetails(values),
     };
     // After a failed attempt the ride exists already: send the clips to it again instead of a new one.
     const ride = pendingRideId ? (completing === pendingRideId ? { id: pendingRideId } : await patch(`/api/rides/${pendingRideId}`, fields))
@@ -279,7 +292,7 @@ export async function mountUpload(view, _params, query) {
       params: {
         horse_id: values.horse_id, rider_id: values.rider_id, gait: values.gait, direction: values.direction,
         ridden_on: values.ridden_on, markers: labels.join(","), point: values.point, up: values.up,
-        strides: values.strides, filename: file.name,
+        strides: values.strides, filename: file.name, ...saddleDetails(values),
       },
     });
     return answer?.ride?.id;
@@ -307,8 +320,24 @@ export async function mountUpload(view, _params, query) {
       setBusy(false);
       progressBox.hidden = true;
       showError(form, error.name === "AbortError" ? "Upload cancelled." : reason(error));
+      if (error instanceof ApiError && Number.isInteger(error.body?.ride_id)) await sameClipsAgain(error.body.ride_id);
     }
   });
+
+  // The same clips again (409 naming the ride they already are): the empty ride just made for them goes,
+  // and the error links to the existing one.
+  async function sameClipsAgain(existing) {
+    if (pendingRideId && pendingRideId !== completing && pendingRideId !== existing) {
+      try {
+        await del(`/api/rides/${pendingRideId}`);
+        pendingRideId = null;
+      } catch {
+        // kept: the member may not delete it (the error above still names the existing ride)
+      }
+    }
+    form.querySelector("[data-form-error]").append(" ", h("a", { href: `#/rides/${existing}`, "data-existing-ride": existing },
+      `Open ride ${existing}`));
+  }
 
   cancel.addEventListener("click", async () => {
     controller?.abort();

@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from saddlescope.api.deps import ClubDep
-from saddlescope.api.routers.common import ERRORS, IndicatorKey
+from saddlescope.api.routers.common import ERRORS, IndicatorKey, QueryId
 from saddlescope.api.schemas import MAX_ID, ComparisonOut, Gait, IndicatorOut, LeaderboardOut
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import COMFORT_INDICATORS, INDICATORS
@@ -42,11 +42,20 @@ def compare_horses(
         list[IndicatorKey] | None,
         Query(description="indicator keys (repeat); default the eight comfort indicators"),
     ] = None,
+    saddle_id: QueryId = None,
+    include_uncertain: Annotated[
+        bool, Query(description="average rides too uncertain for a decision too (left out and counted otherwise)")
+    ] = False,
 ) -> dict:
-    """Horses within one gait (thesis 8.5.2): per indicator and horse n, mean, std, min and max."""
+    """Horses within one gait (thesis 8.5.2): per indicator and horse n, mean, std, min and max.
+
+    Rides too uncertain for a decision are left out unless ``include_uncertain`` (``uncertain_left_out``
+    counts them); ``saddle_id`` keeps the rides in that saddle.
+    """
     keys = [str(key) for key in indicator] if indicator else None
     return horses_comparison(
-        club.session, club_id=club.club_id, gait=gait, horse_ids=_horse_ids(horses), indicators=keys
+        club.session, club_id=club.club_id, gait=gait, horse_ids=_horse_ids(horses), indicators=keys,
+        saddle_id=saddle_id, include_uncertain=include_uncertain,
     )
 
 
@@ -59,6 +68,7 @@ def leaderboard(
     include_uncertain: Annotated[
         bool, Query(description="rank rides too uncertain for a decision too (they are marked either way)")
     ] = False,
+    saddle_id: QueryId = None,
 ) -> dict:
     """The club's horses ranked in a gait by an indicator, most comfortable first.
 
@@ -67,7 +77,7 @@ def leaderboard(
     """
     return club_leaderboard(
         club.session, club_id=club.club_id, gait=gait, indicator=str(indicator), lower_is_better=lower_is_better,
-        include_uncertain=include_uncertain,
+        include_uncertain=include_uncertain, saddle_id=saddle_id,
     )
 
 

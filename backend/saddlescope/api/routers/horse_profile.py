@@ -23,13 +23,23 @@ RideQuery = Annotated[int, Query(ge=1, le=MAX_ID, description="a ride id of this
 
 
 @router.get("/{horse_id}/trend", response_model=TrendOut, responses=ERRORS)
-def trend(horse_id: Id, club: ClubDep, gait: Gait, indicator: IndicatorKey = IndicatorKey("acc_y_wb_rms")) -> dict:
+def trend(
+    horse_id: Id,
+    club: ClubDep,
+    gait: Gait,
+    indicator: IndicatorKey = IndicatorKey("acc_y_wb_rms"),
+    include_uncertain: Annotated[
+        bool, Query(description="show rides too uncertain for a decision too (never in a band)")
+    ] = False,
+) -> dict:
     """One indicator of the horse in one gait over its analysed rides, oldest first.
 
     Every ride carries the horse's own normal band of the rides BEFORE it (mean ± 2 SD, once there are
-    at least four) and whether it lies outside.
+    at least four) and whether it lies outside. Rides too uncertain for a decision are left out (and
+    counted) unless ``include_uncertain``; they never enter a band.
     """
-    return horse_trend(club.session, horse_id, club_id=club.club_id, gait=gait, indicator=indicator)
+    return horse_trend(club.session, horse_id, club_id=club.club_id, gait=gait, indicator=indicator,
+                       include_uncertain=include_uncertain)
 
 
 @router.get("/{horse_id}/ride-pair", response_model=PairOut, responses={**ERRORS, **CONFLICT})

@@ -75,7 +75,11 @@ def compare_gaits(
         list[IndicatorKey] | None,
         Query(max_length=64, description="indicator keys (repeat); default the eight comfort indicators"),
     ] = None,
+    include_uncertain: Annotated[
+        bool, Query(description="average rides too uncertain for a decision too (left out and counted otherwise)")
+    ] = False,
 ) -> dict:
     """One horse's indicators across gaits (thesis Figs 8.29-8.32): n, mean, std, min, max per gait."""
     keys = [str(key) for key in indicator] if indicator else None
-    return horse_comparison(club.session, horse_id, club_id=club.club_id, indicators=keys)
+    return horse_comparison(club.session, horse_id, club_id=club.club_id, indicators=keys,
+                            include_uncertain=include_uncertain)

@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query, Request, status
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, SessionFactoryDep, SettingsDep, StorageDep
+from saddlescope.api.rider_weight import check_weight_kg
 from saddlescope.api.routers.common import ERRORS
 from saddlescope.api.routers.rides import ride_out
 from saddlescope.api.schemas import Direction, ErrorOut, Gait, MocapRideOut
@@ -67,6 +68,9 @@ async def upload_mocap(
     filename: Annotated[str | None, Query(max_length=255, description="the file's name (raw body)")] = None,
     ridden_on: dt.date | None = None,
     notes: Annotated[str, Query(max_length=2000)] = "",
+    saddle_id: Annotated[int | None, Query(ge=1, le=2**31 - 1, description="the club's saddle the horse wore")] = None,
+    pad: Annotated[str | None, Query(max_length=200)] = None,
+    rider_weight_kg: Annotated[float | None, Query(description="kg, 20-200; default: the rider's weight")] = None,
 ) -> MocapRideOut:
     """Upload a C3D or TRC file (raw body with `filename`, or multipart `file`) and analyse it as a ride.
 
@@ -77,12 +81,19 @@ async def upload_mocap(
     choice = _choice(markers, point, offset_mm, up, strides, gait)
     await run_in_threadpool(club.horses.get, horse_id)
     await run_in_threadpool(club.riders.get, rider_id)
+    if saddle_id is not None:
+        await run_in_threadpool(club.saddles.get, saddle_id)  # before the bytes: another club's is not found
+    try:
+        check_weight_kg(rider_weight_kg)
+    except ValueError as exc:
+        raise InputError(f"rider_weight_kg: {exc}") from None
     club_id = club.club_id
     club.session.rollback()
     staged = await stream_upload(request, storage, staging_key(club_id), max_bytes=settings.max_upload_bytes)
     ride = {"horse_id": horse_id, "rider_id": rider_id, "gait": gait, "direction": direction,
             "ridden_on": ridden_on or dt.datetime.now(dt.UTC).date(), "notes": notes,
-            "created_by": club.principal.user_id}
+            "created_by": club.principal.user_id, "saddle_id": saddle_id, "pad": pad or None,
+            "rider_weight_kg": rider_weight_kg}
     ride_id = await run_in_threadpool(
         store_mocap_ride, sessions, storage, staged.key, staged.filename or filename, choice, club_id=club_id,
         ride=ride, code_version=settings.resolved_code_version)

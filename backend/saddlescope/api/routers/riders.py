@@ -41,7 +41,7 @@ def list_riders(
 def create_rider(body: RiderIn, club: ClubDep) -> RiderOut:
     """Add a rider to the club, with their own account if they have one (409 for a name in use)."""
     _check_user(club, body.user_id)
-    return RiderOut.model_validate(club.riders.add(name=body.name, user_id=body.user_id))
+    return RiderOut.model_validate(club.riders.add(name=body.name, user_id=body.user_id, weight_kg=body.weight_kg))
 
 
 @router.get("/{rider_id}", response_model=RiderOut, responses=ERRORS)
@@ -52,10 +52,10 @@ def read_rider(rider_id: Id, club: ClubDep) -> RiderOut:
 
 @router.patch("/{rider_id}", response_model=RiderOut, responses={**ERRORS, **CONFLICT})
 def update_rider(rider_id: Id, body: RiderUpdate, club: ClubDep) -> RiderOut:
-    """Rename a rider or change their account (null: none)."""
+    """Rename a rider, change their account (null: none) or their usual weight in kg (null: not recorded)."""
     _check_user(club, body.user_id)
     return RiderOut.model_validate(
-        club.riders.update_fields(rider_id, **changes(body, nullable=("user_id",)))
+        club.riders.update_fields(rider_id, **changes(body, nullable=("user_id", "weight_kg")))
     )
 
 

@@ -75,6 +75,9 @@ def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:
         ridden_on=ride.ridden_on,
         status=ride.status,
         notes=ride.notes,
+        saddle_id=ride.saddle_id,
+        pad=ride.pad,
+        rider_weight_kg=ride.rider_weight_kg,
         from_bundle=ride.bundle_key is not None,
         indicators=indicators,
         created_at=ride.created_at,
@@ -111,6 +114,7 @@ def list_rides(
     horse_id: QueryId = None,
     rider_id: QueryId = None,
     rig_id: QueryId = None,
+    saddle_id: QueryId = None,
     gait: Gait | None = None,
     status_: Annotated[RideStatusName | None, Query(alias="status")] = None,
     date_from: dt.date | None = None,
@@ -126,6 +130,7 @@ def list_rides(
         horse_id=horse_id,
         rider_id=rider_id,
         rig_id=rig_id,
+        saddle_id=saddle_id,
         gait=gait,
         status=status_,
         date_from=date_from,
@@ -152,6 +157,9 @@ def create_ride(body: RideIn, club: ClubDep) -> RideOut:
         ridden_on=body.ridden_on or dt.datetime.now(dt.UTC).date(),
         notes=body.notes,
         meta={**meta, "_created_by": club.principal.user_id},
+        saddle_id=body.saddle_id,
+        pad=body.pad or None,
+        rider_weight_kg=body.rider_weight_kg,
     )
     return ride_out(ride)
 
@@ -182,7 +190,8 @@ def export_many(
     status_code=status.HTTP_201_CREATED,
     response_model=BundleUploaded,
     openapi_extra=UPLOAD_OPENAPI,
-    responses={**UPLOAD_ERRORS, 409: {"model": ErrorOut, "description": "the same bundle is already a ride"}},
+    responses={**UPLOAD_ERRORS, 409: {"model": ErrorOut, "description": (
+        "the same bundle, or its motion clips, already a ride of the club: `ride_id` names it")}},
 )
 async def upload_bundle(
     request: Request,
@@ -228,7 +237,7 @@ def update_ride(ride_id: Id, body: RideUpdate, club: ClubDep) -> RideOut:
     A changed gait or direction makes the shown result outdated (`result_outdated_by`) until the ride
     is analysed again (POST /api/rides/{id}/analyze).
     """
-    values = changes(body, nullable=("rig_id", "ridden_on"))
+    values = changes(body, nullable=("rig_id", "ridden_on", "saddle_id", "pad", "rider_weight_kg"))
     ride = update_ride_details(club.session, ride_id, club_id=club.club_id, **values)
     return ride_out(ride, _indicators(club, [ride.id]).get(ride.id))
 
@@ -256,7 +265,8 @@ def list_ride_clips(ride_id: Id, club: ClubDep) -> list[RecordingOut]:
     "/{ride_id}/clips/{clip_kind}/{camera}",
     response_model=ClipUploaded,
     openapi_extra=UPLOAD_OPENAPI,
-    responses=UPLOAD_ERRORS,
+    responses={**UPLOAD_ERRORS, 409: {"model": ErrorOut, "description": (
+        "this motion clip (the same bytes) is already another ride's: `ride_id` names it")}},
 )
 async def upload_ride_clip(
     ride_id: Id,

@@ -10,8 +10,9 @@ from pydantic import Field
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
+from saddlescope.api.rider_weight import RiderWeightKg
 from saddlescope.api.routers.common import ERRORS
-from saddlescope.api.schemas import Direction, ErrorOut, Gait, RefId, Text, UploadCreate, UploadOut, _In
+from saddlescope.api.schemas import Direction, ErrorOut, Gait, Pad, RefId, Text, UploadCreate, UploadOut, _In
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
@@ -58,6 +59,9 @@ class BundleChoice(_In):
     ridden_on: dt.date | None = None
     notes: Text | None = None
     rig_id: RefId | None = Field(default=None, description="the rig the ride uses (over the one named at creation)")
+    saddle_id: RefId | None = Field(default=None, description="the club's saddle (None: the one ride.json names)")
+    pad: Pad | None = None
+    rider_weight_kg: RiderWeightKg = Field(default=None, description="kg; default: ride.json's, else the rider's")
 
 
 class OffsetMismatch(IncompleteUpload):

@@ -6,7 +6,8 @@
 - :mod:`.indicator_keys`: the indicator keys, their units and meaning (:data:`INDICATORS`);
 - :mod:`.indicators`: the comfort indicators of one ride;
 - :mod:`.intervals`: their 95 % intervals and whether a ride is too uncertain for a decision;
-- :mod:`.comparisons`: relative comfort, comparisons, leaderboards and riders' grades.
+- :mod:`.comparisons`: relative comfort, comparisons, leaderboards and riders' grades;
+- :mod:`.group_difference`: a group's mean interval and whether two groups differ beyond it (Welch).
 
 ``weighting_response``, ``harmonic_metrics`` and ``exposure_limits`` are imported from here by
 outside code: their path and signatures are fixed.
@@ -32,6 +33,12 @@ from saddlescope.core.vibration.exposure import (
     a8,
     exposure_limits,
     per_axis_exposure,
+)
+from saddlescope.core.vibration.group_difference import (
+    GroupDifference,
+    MeanInterval,
+    mean_interval,
+    welch_difference,
 )
 from saddlescope.core.vibration.indicator_keys import (
     COMFORT_INDICATORS,
@@ -121,4 +128,9 @@ __all__ = [
     "average_grades",
     "grade_correlation",
     "grades_vs_indicators",
+    # two groups of rides
+    "GroupDifference",
+    "MeanInterval",
+    "mean_interval",
+    "welch_difference",
 ]

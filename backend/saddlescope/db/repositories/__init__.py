@@ -10,11 +10,11 @@ rows returned. The row classes are re-exported here as the repositories' return 
 annotations.
 """
 
-from saddlescope.db.models import Job, Ride, Rig, Upload
+from saddlescope.db.models import Job, Ride, Rig, Saddle, Upload
 from saddlescope.db.repositories.accounts import ClubRepository, UserRepository
 from saddlescope.db.repositories.analytics import AnalyticsRepository
 from saddlescope.db.repositories.base import BadQuery, Conflict, NotFound, Page, Repository, like_pattern
-from saddlescope.db.repositories.catalogue import HorseRepository, RiderRepository, RigRepository
+from saddlescope.db.repositories.catalogue import HorseRepository, RiderRepository, RigRepository, SaddleRepository
 from saddlescope.db.repositories.jobs import JobRepository, UploadRepository
 from saddlescope.db.repositories.rides import (
     GradeRepository,
@@ -50,7 +50,9 @@ __all__ = [
     "RideRepository",
     "RiderRepository",
     "Rig",
+    "Saddle",
     "RigRepository",
+    "SaddleRepository",
     "SimilarityRepository",
     "Upload",
     "UploadRepository",

@@ -1,4 +1,4 @@
-"""The club's catalogue: its horses, riders and rigs (named things rides refer to)."""
+"""The club's catalogue: its horses, riders, saddles and rigs (named things rides refer to)."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from typing import Any
 
 from sqlalchemy import func, select, update
 
-from saddlescope.db.models import Horse, Ride, Rider, Rig
+from saddlescope.db.models import Horse, Ride, Rider, Rig, Saddle
 from saddlescope.db.repositories.base import Conflict, Page, Repository, like_pattern
 
-__all__ = ["HorseRepository", "RiderRepository", "RigRepository"]
+__all__ = ["HorseRepository", "RiderRepository", "RigRepository", "SaddleRepository"]
 
 
 class _Named(Repository):
@@ -89,11 +89,12 @@ class RiderRepository(_Named):
     sort_fields = {"name": Rider.name, "created_at": Rider.created_at}
     default_sort = "name"
 
-    def add(self, *, club_id: int | None = None, name: str, user_id: int | None = None) -> Rider:
+    def add(self, *, club_id: int | None = None, name: str, user_id: int | None = None,
+            weight_kg: float | None = None) -> Rider:
         """Add a rider; `Conflict` when the club has one of that name."""
         club_id = self._club_for_new(club_id)
         self._check_name_free(name, club_id=club_id)
-        return self._add(Rider(club_id=club_id, name=name, user_id=user_id))
+        return self._add(Rider(club_id=club_id, name=name, user_id=user_id, weight_kg=weight_kg))
 
     def update_fields(self, id_: int, **values: Any) -> Rider:
         """Set columns of a rider; `Conflict` when renamed to a name the club uses."""
@@ -114,6 +115,50 @@ class RiderRepository(_Named):
         rider = self.session.scalars(
             select(Rider).where(Rider.club_id == club_id, Rider.name == name)).first()
         return rider or self._add(Rider(club_id=club_id, name=name))
+
+
+class SaddleRepository(_Named):
+    """The club's saddles (names unique within the club)."""
+
+    model = Saddle
+    sort_fields = {"name": Saddle.name, "maker": Saddle.maker, "saddle_type": Saddle.saddle_type,
+                   "created_at": Saddle.created_at}
+    default_sort = "name"
+
+    def add(self, *, club_id: int | None = None, name: str, maker: str | None = None,
+            saddle_type: str | None = None, tree_width: str | None = None, notes: str = "") -> Saddle:
+        """Add a saddle; `Conflict` when the club has one of that name."""
+        club_id = self._club_for_new(club_id)
+        self._check_name_free(name, club_id=club_id)
+        return self._add(Saddle(club_id=club_id, name=name, maker=maker, saddle_type=saddle_type,
+                                tree_width=tree_width, notes=notes))
+
+    def update_fields(self, id_: int, **values: Any) -> Saddle:
+        """Set columns of a saddle; `Conflict` when renamed to a name the club uses."""
+        if "name" in values:
+            self._check_name_free(values["name"], club_id=self.get(id_).club_id, exclude_id=id_)
+        return super().update_fields(id_, **values)
+
+    def delete(self, saddle_id: int) -> None:
+        """Delete a saddle; `Conflict` while rides use it."""
+        saddle = self.get(saddle_id)
+        self._refuse_while_ridden(Ride.saddle_id, saddle, "saddle")
+        self.session.delete(saddle)
+        self.session.flush()
+
+    def find_by_name(self, name: str) -> Saddle | None:
+        """The club's saddle named `name` exactly, or None."""
+        return self.session.scalars(self._scoped(select(Saddle).where(Saddle.name == name))).first()
+
+    def ride_counts(self, saddle_ids: list[int]) -> dict[int, int]:
+        """Saddle id -> how many of the club's rides name it (saddles without rides are left out)."""
+        if not saddle_ids:
+            return {}
+        stmt = (select(Ride.saddle_id, func.count()).where(Ride.saddle_id.in_(saddle_ids))
+                .group_by(Ride.saddle_id))
+        if self.club_id is not None:
+            stmt = stmt.where(Ride.club_id == self.club_id)
+        return {int(sid): int(n) for sid, n in self.session.execute(stmt)}
 
 
 class RigRepository(_Named):

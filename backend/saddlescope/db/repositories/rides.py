@@ -21,7 +21,7 @@ from saddlescope.db.models import (
     utcnow,
 )
 from saddlescope.db.repositories.base import Page, Repository
-from saddlescope.db.repositories.catalogue import HorseRepository, RiderRepository, RigRepository
+from saddlescope.db.repositories.catalogue import HorseRepository, RiderRepository, RigRepository, SaddleRepository
 
 __all__ = ["GradeRepository", "RecordingRepository", "ResultRepository", "RideFilter", "RideRepository"]
 
@@ -33,6 +33,7 @@ class RideFilter:
     horse_id: int | None = None
     rider_id: int | None = None
     rig_id: int | None = None
+    saddle_id: int | None = None
     gait: str | None = None
     status: str | None = None
     date_from: dt.date | None = None
@@ -43,7 +44,8 @@ class RideFilter:
         where: list[ColumnElement[bool]] = [
             column == value
             for column, value in ((Ride.horse_id, self.horse_id), (Ride.rider_id, self.rider_id),
-                                  (Ride.rig_id, self.rig_id), (Ride.gait, self.gait), (Ride.status, self.status))
+                                  (Ride.rig_id, self.rig_id), (Ride.saddle_id, self.saddle_id), (Ride.gait, self.gait),
+                                  (Ride.status, self.status))
             if value is not None]
         if self.date_from is not None:
             where.append(Ride.ridden_on >= self.date_from)
@@ -58,29 +60,39 @@ class RideRepository(Repository):
     model = Ride
     sort_fields = {"ridden_on": Ride.ridden_on, "created_at": Ride.created_at, "gait": Ride.gait,
                    "status": Ride.status, "horse_id": Ride.horse_id, "rider_id": Ride.rider_id,
-                   "direction": Ride.direction,
+                   "direction": Ride.direction, "saddle_id": Ride.saddle_id,
+                   "rider_weight_kg": Ride.rider_weight_kg,
                    **{name: getattr(Result, name) for name in LEADERBOARD_COLUMNS}}
     default_sort = "-ridden_on"
 
-    def _check_references(self, *, horse_id: int | None, rider_id: int | None, rig_id: int | None) -> None:
-        """Horse, rider and rig must exist in this club (another club's ids are not found)."""
-        for repo, id_ in ((HorseRepository, horse_id), (RiderRepository, rider_id), (RigRepository, rig_id)):
+    def _check_references(self, *, horse_id: int | None, rider_id: int | None, rig_id: int | None,
+                          saddle_id: int | None = None) -> None:
+        """Horse, rider, rig and saddle must exist in this club (another club's ids are not found)."""
+        for repo, id_ in ((HorseRepository, horse_id), (RiderRepository, rider_id), (RigRepository, rig_id),
+                          (SaddleRepository, saddle_id)):
             if id_ is not None:
                 repo(self.session, club_id=self.club_id).get(id_)
 
     def add(self, *, club_id: int | None = None, horse_id: int, rider_id: int, gait: str, direction: str,
             rig_id: int | None = None, ridden_on: dt.date | None = None, notes: str = "",
-            meta: dict | None = None) -> Ride:
-        """Add a ride; its horse, rider and rig must be the club's (`NotFound` otherwise)."""
-        self._check_references(horse_id=horse_id, rider_id=rider_id, rig_id=rig_id)
+            meta: dict | None = None, saddle_id: int | None = None, pad: str | None = None,
+            rider_weight_kg: float | None = None) -> Ride:
+        """Add a ride; its horse, rider, rig and saddle must be the club's (`NotFound` otherwise).
+
+        Without `rider_weight_kg` the ride takes the rider's usual weight (None when not recorded).
+        """
+        self._check_references(horse_id=horse_id, rider_id=rider_id, rig_id=rig_id, saddle_id=saddle_id)
+        if rider_weight_kg is None:
+            rider_weight_kg = RiderRepository(self.session, club_id=self.club_id).get(rider_id).weight_kg
         return self._add(Ride(club_id=self._club_for_new(club_id), horse_id=horse_id, rider_id=rider_id,
                               rig_id=rig_id, gait=gait, direction=direction, ridden_on=ridden_on,
-                              notes=notes, meta=meta or {}))
+                              notes=notes, meta=meta or {}, saddle_id=saddle_id, pad=pad,
+                              rider_weight_kg=rider_weight_kg))
 
     def update_fields(self, id_: int, **values: Any) -> Ride:
-        """Set columns of a ride; a new horse, rider or rig must be the club's."""
+        """Set columns of a ride; a new horse, rider, rig or saddle must be the club's."""
         self._check_references(horse_id=values.get("horse_id"), rider_id=values.get("rider_id"),
-                                rig_id=values.get("rig_id"))
+                                rig_id=values.get("rig_id"), saddle_id=values.get("saddle_id"))
         return super().update_fields(id_, **values)
 
     def list_page(self, rides: RideFilter | None = None, *, sort: str | None = None, limit: int = 50,
@@ -166,6 +178,18 @@ class RecordingRepository(Repository):
         """Return the ride's own clips, oldest first."""
         stmt = self._scoped(select(Recording).where(Recording.ride_id == ride_id)).order_by(Recording.id)
         return self.session.scalars(stmt).all()
+
+    def ride_with_clip(self, sha256s: Sequence[str], *, clip_kind: str = "motion",
+                       exclude_ride_id: int | None = None) -> int | None:
+        """The id of the club's oldest ride holding a `clip_kind` clip with one of these content hashes, if any."""
+        wanted = [h for h in sha256s if h]
+        if not wanted:
+            return None
+        stmt = self._scoped(select(Recording.ride_id).where(
+            Recording.ride_id.is_not(None), Recording.clip_kind == clip_kind, Recording.sha256.in_(wanted)))
+        if exclude_ride_id is not None:
+            stmt = stmt.where(Recording.ride_id != exclude_ride_id)
+        return self.session.scalars(stmt.order_by(Recording.ride_id).limit(1)).first()
 
     def for_rig(self, rig_id: int) -> Sequence[Recording]:
         """Return the rig's clips (shared by its rides), oldest first."""

@@ -1,0 +1,26 @@
+// Saddles in words: their types as a fitter names them, and a mean with its 95 % interval.
+
+import { fmt } from "./format.js";
+
+/** The saddle types the API knows (saddlescope.db.enums.SaddleType), in words. */
+export const SADDLE_TYPES = {
+  gp: "general purpose",
+  dressage: "dressage",
+  jump: "jumping",
+  treeless: "treeless",
+  endurance: "endurance",
+  western: "western",
+  other: "other",
+};
+
+export function saddleTypeText(type) {
+  return SADDLE_TYPES[type] ?? "\u2013";
+}
+
+/** "0.812 (0.701–0.923)": a mean and its 95 % interval; a single ride has no interval ("0.812, one ride"). */
+export function meanIntervalText(stats) {
+  if (!stats || !Number.isFinite(stats.mean)) return "\u2013";
+  if (!Number.isFinite(stats.low) || !Number.isFinite(stats.high)) return `${fmt(stats.mean)} (one ride: no interval)`;
+  // The saddle's indicators (r.m.s., VDV) are never negative: a t interval of few rides may reach below 0.
+  return `${fmt(stats.mean)} (${fmt(Math.max(0, stats.low))}\u2013${fmt(stats.high)})`;
+}
