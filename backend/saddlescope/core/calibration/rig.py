@@ -295,8 +295,8 @@ def _adjust_with_lens_choice(cams: dict[str, Camera], intrinsics: Mapping[str, C
             out[n] = replace(out[n], K_std=intrinsics[n].K_std, dist_std=intrinsics[n].dist_std)
     models = {n: replace(m, joint=n not in held, reason=_lens_reason(n, m, choice.get(n)))
               for n, m in models.items()}
-    return out, bundle_report, models, choice, [_lens_finding(n, models[n], choice.get(n), first[n], out[n])
-                                                for n in names]
+    return out, bundle_report, models, choice, [_lens_finding(n, models[n], choice[n], first[n], out[n])
+                                                for n in held]
 
 
 def _lens_reason(name: str, model: LensModel, test: dict | None) -> str:
@@ -314,17 +314,18 @@ def _lens_reason(name: str, model: LensModel, test: dict | None) -> str:
             f"(its own fit {test['own_views_rms_px']:.2f} px over {test['n_views']} views): kept")
 
 
-def _lens_finding(name: str, model: LensModel, test: dict | None, joint: Camera, final: Camera) -> Finding:
-    """A ``calibration.lens_model`` finding: which lens parameters the camera's calibration fitted, and why."""
-    values = {"n_lens_parameters": float(model.n_intrinsics), "given": float(model.given),
-              "joint": float(model.joint), "focal_x_px": float(final.K[0, 0]), "focal_y_px": float(final.K[1, 1])}
-    if test is not None:
-        values.update({"own_views_rms_px": test["own_views_rms_px"], "joint_lens_rms_px": test["joint_lens_rms_px"],
-                       "n_views": float(test["n_views"]), "bic_own": test["bic_own"], "bic_joint": test["bic_joint"]})
-    if not model.joint and not model.given:
-        values["joint_focal_x_px"] = float(joint.K[0, 0])
-        values["joint_focal_y_px"] = float(joint.K[1, 1])
-    return Finding("calibration.lens_model", f"camera {name}: lens {model.label}; {model.reason}", values)
+def _lens_finding(name: str, model: LensModel, test: dict, joint: Camera, final: Camera) -> Finding:
+    """A ``calibration.lens_model`` finding for a camera whose lens the joint adjustment was not allowed to bend."""
+    values = {"n_lens_parameters": float(model.n_intrinsics), "focal_x_px": float(final.K[0, 0]),
+              "focal_y_px": float(final.K[1, 1]), "joint_focal_x_px": float(joint.K[0, 0]),
+              "joint_focal_y_px": float(joint.K[1, 1]), "own_views_rms_px": test["own_views_rms_px"],
+              "joint_lens_rms_px": test["joint_lens_rms_px"], "n_views": float(test["n_views"]),
+              "bic_own": test["bic_own"], "bic_joint": test["bic_joint"]}
+    return Finding("calibration.lens_model", (
+        f"camera {name}: the joint adjustment of all cameras would have made its focal length "
+        f"{joint.K[0, 0]:.0f}/{joint.K[1, 1]:.0f} px, which fits its own views with {test['joint_lens_rms_px']:.2f} px "
+        f"against {test['own_views_rms_px']:.2f} px for its own lens ({final.K[0, 0]:.0f}/{final.K[1, 1]:.0f} px): "
+        "its own lens was kept and only its pose adjusted with the other cameras"), values)
 
 
 def _all_intrinsics(views_by_camera: Mapping[str, list[BoardView]], board: Board,
