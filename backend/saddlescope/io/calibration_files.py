@@ -655,7 +655,8 @@ def intrinsics_for_cameras(specs: list[tuple[str, str]], cameras: list[str]) -> 
         lenses = read_intrinsics(file)
         if name:
             if name not in cameras:
-                raise InputError(f"--intrinsics {name}={file}: there is no camera {name} (cameras: {', '.join(cameras)})")
+                raise InputError(f"--intrinsics {name}={file}: there is no camera {name} "
+                                 f"(cameras: {', '.join(cameras)})")
             lens = lenses.get(name) or (next(iter(lenses.values())) if len(lenses) == 1 else None)
             if lens is None:
                 raise InputError(f"{file} has no camera {name} (it has {', '.join(lenses)}): name one with a lens "

@@ -35,7 +35,7 @@ def rig_to_dict(rig: Rig) -> dict:
     names = rig.names
     cameras: dict[str, dict] = {}
     for name, cam in rig.cameras.items():
-        entry = {"K": _lst(cam.K), "dist": _lst(distortion5(cam.dist, f"camera {name} dist")),
+        entry: dict[str, object] = {"K": _lst(cam.K), "dist": _lst(distortion5(cam.dist, f"camera {name} dist")),
                  "image_size": [int(cam.image_size[0]), int(cam.image_size[1])], "rms_px": cam.rms_px}
         if cam.K_std is not None:
             entry["K_std"] = _lst(cam.K_std)

@@ -60,7 +60,8 @@ def _three_cameras_one_late(late_by: float, seed: int = 1):
                                (640, 480), t_mm=np.array([-100.0 * i, 0, 0])) for i in range(3)})
     half = np.array([3.5 * 30, 2.5 * 30, 0])
     rvecs = np.radians(np.column_stack([rng.uniform(-30, 30, 40), rng.uniform(-30, 30, 40), rng.uniform(-15, 15, 40)]))
-    centres = np.column_stack([100 + rng.uniform(-100, 100, 40), rng.uniform(-70, 70, 40), 800 + rng.uniform(-100, 150, 40)])
+    centres = np.column_stack([100 + rng.uniform(-100, 100, 40), rng.uniform(-70, 70, 40),
+                               800 + rng.uniform(-100, 150, 40)])
     ts = centres - np.einsum("nij,j->ni", np.array([cv2.Rodrigues(r)[0] for r in rvecs]), half)
     views = simulate_board_views(rig, board, rvecs, ts, noise_px=0.1, rng=rng)
     eye = rig.cameras["c1"].center_mm

@@ -260,7 +260,8 @@ def _joint_lens_test(own_report: dict, joint_report: dict, n_intrinsics: int) ->
             "held": bool(n_views >= JOINT_LENS_MIN_VIEWS and bic_own < bic_joint)}
 
 
-def _adjust_with_lens_choice(cams: dict[str, Camera], intrinsics: Mapping[str, Camera], intr_reports: Mapping[str, dict],
+def _adjust_with_lens_choice(cams: dict[str, Camera], intrinsics: Mapping[str, Camera],
+                             intr_reports: Mapping[str, dict],
                              views: Mapping[str, list[BoardView]], views_by_camera: Mapping[str, list[BoardView]],
                              board: Board, models: dict[str, LensModel], *, loss: str, clip: str | None):
     """The joint adjustment, repeated with the lens of each camera whose own views reject the joint one held.
