@@ -34,6 +34,7 @@ import numpy as np
 
 from saddlescope.core.calibration import BoardFinder, BoardView, calibrate_rig, select_instants
 from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND, board_to_meta, charuco, make_board
+from saddlescope.core.calibration.detection import squares_hint
 from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
 from saddlescope.core.findings import Finding
 from saddlescope.core.sync import flash_interval, offsets_from_intervals
@@ -301,33 +302,15 @@ def _detect_sources(sources: Mapping[str, str], board: Board, frames: Mapping, *
     return views, sizes, searched
 
 
-SQUARES_HINT_FRAMES = 60  # frames of a clip searched for the board one corner smaller (the failure path only)
-
-
 def _squares_hint(source: str, board: Board, camera: str, frames: Mapping, *, inverted: bool | None) -> str:
-    """The sentence to add where the pattern was given in squares, not inner corners; else "".
-
-    A board of C x R squares has (C - 1) x (R - 1) inner corners (OpenCV's pattern size, and what caliscope's
-    ``columns`` and ``rows`` are not). Where the board one corner smaller in each direction is found in the
-    clip, that is the pattern to use.
-    """
-    cols, rows = board.inner_corners
-    if cols < 3 or rows < 3:
-        return ""
-    smaller = Board(board.kind, (cols - 1, rows - 1), board.square_mm, dictionary=board.dictionary,
-                    marker_mm=board.marker_mm, legacy=board.legacy)
+    """"; " and :func:`~saddlescope.core.calibration.detection.squares_hint` on a fifth of the candidate frames."""
     try:
-        step = 5 * int(frames["step"])  # a fifth of the candidate frames, spread through the clip
-        finder = BoardFinder(smaller, inverted=inverted, thorough=False)
-        for n, (_, gray) in enumerate(iter_source_frames(source, camera=camera, start=int(frames["first"]), step=step)):
-            if n >= SQUARES_HINT_FRAMES:
-                break
-            if finder(gray) is not None:
-                return (f"; this board has {cols}x{rows} squares, i.e. {cols - 1}x{rows - 1} inner corners: "
-                        f"use --pattern {cols - 1}x{rows - 1} (the pattern counts inner corners, not squares)")
-    except (VideoError, InputError, CalibrationError):
+        grays = (gray for _, gray in iter_source_frames(source, camera=camera, start=int(frames["first"]),
+                                                        step=5 * int(frames["step"])))
+        hint = squares_hint(grays, board, inverted=inverted)
+    except (VideoError, InputError):
         return ""
-    return ""
+    return f"; {hint}" if hint else ""
 
 
 def _calibration_result(rig: Rig, report: dict, board: Board, frames: Mapping,

@@ -197,7 +197,8 @@ def _given_intrinsics(views: list[BoardView], board: Board, given: Camera, *, ca
     res = np.concatenate(residuals)
     rms = float(np.sqrt(np.mean(np.sum(res ** 2, axis=1))))
     cam = Camera(camera, np.array(given.K, np.float64), np.asarray(given.dist, np.float64).ravel()[:5].copy(),
-                 (int(given.image_size[0]), int(given.image_size[1])), rms_px=rms, K_std=np.zeros((3, 3)), dist_std=np.zeros(5))
+                 (int(given.image_size[0]), int(given.image_size[1])), rms_px=rms, K_std=np.zeros((3, 3)),
+                 dist_std=np.zeros(5))
     return cam, {"rms_px": rms, "residual_std_px": res.std(axis=0).tolist(), "per_view_rms_px": per_view,
                  "dropped_frames": [], "n_views": len(kept), "n_points": int(len(res)), "fix_k3": not model.k3,
                  "poses": poses}
