@@ -176,7 +176,8 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
         {"a-b": {"R", "t_mm", "rms_px", "n_views"}}.
     report : dict
         ``intrinsics`` {name: report}, ``bundle`` report (or None), ``per_pair_checks``,
-        ``n_relabelled_views``, ``n_dropped_views``, ``lens_choice`` {name: :func:`_joint_lens_test`'s numbers}.
+        ``n_relabelled_views``, ``n_dropped_views``, ``n_partial_views`` {name: views of 4-5 corners used for
+        the board's pose}, ``lens_choice`` {name: :func:`_joint_lens_test`'s numbers}.
 
     Each camera's lens comes from the joint adjustment unless its own views reject it
     (:func:`_joint_lens_test`); ``rig.lens_models`` and a ``calibration.lens_model`` finding per camera say which.
