@@ -383,3 +383,19 @@ def test_measure_offsets_known_and_flash(tmp_path):
     right = _write_video(tmp_path / "r.avi", base[:14] + [lit] * 3 + base[:13])
     assert measure_offsets({"left": left, "right": right}, clip="plumb") == pytest.approx(
         {"left": 0.0, "right": 4.0}, abs=0.05)
+
+
+def test_a_ride_whose_board_is_described_in_squares_is_told_the_inner_corners(tmp_path):
+    """The rig page's and a ride's path (core.pipeline.calibrate_from_clips) answer as the command does."""
+    from saddlescope.core.params import PipelineParams
+    from saddlescope.core.pipeline.setup import calibrate_from_clips
+    from saddlescope.io.clip_source import BundleClips
+
+    rig = _truth_rig()
+    poses = _poses(4, np.random.default_rng(3))
+    paths = {n: _write_video(tmp_path / f"{n}.avi", _frames(cam, poses)) for n, cam in rig.cameras.items()}
+    squares = make_board("checkerboard", (8, 7), 30.0)  # BOARD's 8x7 squares typed as its pattern
+    with BundleClips({"calibration": paths}) as clips, pytest.raises(
+            CalibrationError, match=r"calibration clip of the left camera; this board has 8x7 squares, i\.e\. "
+                                    r"7x6 inner corners"):
+        calibrate_from_clips(clips, squares, {n: 0.0 for n in paths}, {n: 0 for n in paths}, PipelineParams())
