@@ -41,6 +41,12 @@ def _pattern(text: str) -> tuple[int, int]:
     return c, r
 
 
+def _intrinsics_source(text: str) -> tuple[str, str]:
+    """``NAME=FILE`` or ``FILE`` of --intrinsics (NAME "" for every camera the file names)."""
+    name, sep, file = text.partition("=")
+    return (name, file) if sep and name and file else ("", text)
+
+
 def _camera_source(text: str) -> tuple[str, str]:
     name, sep, source = text.partition("=")
     if not sep or not name or not source:
@@ -189,6 +195,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")
     s.add_argument("--json", dest="json_out", default=None)
     s.add_argument("--toml", dest="toml_out", default=None, help="also write an anipose-style TOML")
+    s.add_argument("--intrinsics", type=_intrinsics_source, action="append", default=[], metavar="[NAME=]FILE",
+                   help="known intrinsics (an earlier calibration's JSON or TOML, anipose / caliscope, or a lens "
+                        "profile JSON): held, only the poses fitted; NAME= picks the camera")
 
     s = sub.add_parser("import", help="read a C3D or TRC motion-capture file: its labels, rate, units, warnings")
     s.add_argument("file")
@@ -255,11 +264,13 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if cmd == "calibrate":
         from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND
-        from saddlescope.io.calibration_files import calibrate_sources
+        from saddlescope.io.calibration_files import calibrate_sources, intrinsics_for_cameras
 
-        result = calibrate_sources(dict(args.camera), pattern=args.pattern, square_mm=args.square,
+        cameras = dict(args.camera)
+        result = calibrate_sources(cameras, pattern=args.pattern, square_mm=args.square,
                                    board_kind=args.board or DEFAULT_BOARD_KIND, dictionary=args.dictionary,
-                                   marker_mm=args.marker, toml_out=args.toml_out)
+                                   marker_mm=args.marker, toml_out=args.toml_out,
+                                   intrinsics=intrinsics_for_cameras(args.intrinsics, list(cameras)) or None)
         _write_json(result, args.json_out)
         return 0
     if cmd == "import":

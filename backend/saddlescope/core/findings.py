@@ -45,6 +45,8 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
      "Calibrate again so that at least two cameras see the board at the same moment; distances are unchecked."),
     ("calibration.square_error", "problem", "calibration", _CALIBRATE_AGAIN),
     ("calibration.corner_distances", "problem", "calibration", _CALIBRATE_AGAIN),
+    ("calibration.lens_model", "check", "calibration",
+     "Next calibration, carry the board to the edges and corners of this camera's view so its own views fix its lens."),
     ("calibration.principal_point", "check", "calibration",
      "Next calibration, carry the board higher and lower and tilt it towards and away from the cameras."),
     # two-camera samples whose depth rests on the lens extrapolated beyond the board (core/saddle.py)

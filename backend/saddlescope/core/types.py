@@ -16,7 +16,7 @@ from saddlescope.core.camera_model import undistort_normalized
 from saddlescope.core.findings import Finding
 
 __all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "AnalysisWindow", "Board", "Camera", "HorseMarkers",
-           "ImageTracks", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig", "SaddleKinematics",
+           "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig", "SaddleKinematics",
            "SaddleRotation", "VerticalHarmonics"]
 
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
@@ -105,17 +105,59 @@ class Camera:
 
 
 @dataclass(frozen=True)
+class LensModel:
+    """Which of a camera's lens parameters a calibration fitted; the others are held fixed.
+
+    The full model is OpenCV's: fx, fy, cx, cy, k1, k2, p1, p2, k3. Where a camera's views do not pin a
+    parameter down it is fixed instead: fx = fy (square pixels, ``equal_focal``), the principal point at
+    the image centre (``principal_point`` False), no tangential term (``tangential`` False), k3 = 0
+    (``k3`` False). ``given``: the intrinsics came from elsewhere (an earlier calibration, a lens
+    profile) and only the pose was fitted. ``joint``: the joint adjustment of all cameras refined the
+    lens (False: the lens is the camera's own views' fit, held while the rig's poses were adjusted).
+    ``reason`` says in words why this model was chosen.
+    """
+
+    equal_focal: bool = False
+    principal_point: bool = True
+    tangential: bool = True
+    k3: bool = False
+    given: bool = False
+    joint: bool = True
+    reason: str = ""
+
+    @property
+    def n_intrinsics(self) -> int:
+        """The number of intrinsic parameters fitted (focal, principal point, k1, k2, tangential, k3)."""
+        if self.given:
+            return 0
+        return (1 if self.equal_focal else 2) + 2 * self.principal_point + 2 + 2 * self.tangential + self.k3
+
+    @property
+    def label(self) -> str:
+        """The model in a few words, e.g. "fx=fy, centre, k1 k2"."""
+        if self.given:
+            return "given"
+        parts = ["fx=fy" if self.equal_focal else "fx fy", "cx cy" if self.principal_point else "centre",
+                 "k1 k2" + (" k3" if self.k3 else "")]
+        if self.tangential:
+            parts.append("p1 p2")
+        return ", ".join(parts) + ("" if self.joint else "; own views, held")
+
+
+@dataclass(frozen=True)
 class Rig:
     """Calibrated cameras keyed by role (left, middle, right, or any names for other rigs).
 
     ``checks`` holds metric quality numbers (e.g. ``board_square_error_mm``); ``flags`` lists the
-    calibration's findings (e.g. a metric error over its threshold, :mod:`saddlescope.core.findings`).
+    calibration's findings (e.g. a metric error over its threshold, :mod:`saddlescope.core.findings`);
+    ``lens_models`` which lens parameters each camera's calibration fitted (empty where unknown).
     """
 
     cameras: dict[str, Camera]
     checks: dict[str, float] = field(default_factory=dict)
     flags: tuple[Finding, ...] = ()
     pairs: dict[str, dict] = field(default_factory=dict)
+    lens_models: dict[str, LensModel] = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:

@@ -34,6 +34,7 @@ import numpy as np
 
 from saddlescope.core.calibration import BoardFinder, BoardView, calibrate_rig, select_instants
 from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND, board_to_meta, charuco, make_board
+from saddlescope.core.calibration.detection import squares_hint
 from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
 from saddlescope.core.findings import Finding
 from saddlescope.core.sync import flash_interval, offsets_from_intervals
@@ -187,7 +188,8 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
                       marker_mm: float | None = None, toml_out: str | Path | None = None,
                       fix_k3: bool | None = None, max_views: int = 60, max_candidates: int = 300,
                       sync: str | Mapping[str, float] = "auto", inverted: bool | None = None,
-                      legacy: bool = False, same_size: bool = True) -> dict:
+                      legacy: bool = False, same_size: bool = True,
+                      intrinsics: Mapping[str, Camera] | None = None) -> dict:
     """Calibrate cameras from their sources; the body of ``saddlescope calibrate``.
 
     Parameters
@@ -211,13 +213,15 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
         one, takes the clips as already synchronised. Image globs are paired by their sorted order.
     same_size : bool
         Require every camera to have the same image size (SaddleScope's three identical cameras).
+    intrinsics : dict camera name -> Camera, optional
+        Known intrinsics of some cameras (:func:`read_intrinsics`): held, only those cameras' poses fitted.
 
     Returns
     -------
     dict
-        :func:`rig_to_dict` (``cameras``, ``extrinsics``, ``checks``, ``flags``, ``pairs``) plus ``board``,
-        ``sync``, ``views`` (per camera: searched, detected, used, dropped frames, residual std) and
-        ``timings_s``.
+        :func:`rig_to_dict` (``cameras`` with each ``lens_model``, ``extrinsics``, ``checks``, ``flags``,
+        ``pairs``) plus ``board``, ``sync``, ``views`` (per camera: searched, detected, used, partial, dropped
+        frames, residual std) and ``timings_s``.
     """
     t0 = time.perf_counter()
     if not sources:
@@ -231,7 +235,7 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
     t_detect = time.perf_counter()
     chosen = set(select_instants(views, board, sizes, max_instants=max_views))
     used = {cam: [v for v in vs if v.frame in chosen] for cam, vs in views.items()}
-    rig, report = calibrate_rig(used, board, sizes, fix_k3=fix_k3)
+    rig, report = calibrate_rig(used, board, sizes, fix_k3=fix_k3, given_intrinsics=intrinsics)
     t_cal = time.perf_counter()
 
     result = _calibration_result(rig, report, board, frames, views, searched)
@@ -289,12 +293,24 @@ def _detect_sources(sources: Mapping[str, str], board: Board, frames: Mapping, *
         if not views[cam]:
             cols, rows = board.inner_corners
             raise CalibrationError(f"no calibration board ({board.kind} {cols}x{rows} inner "
-                                   f"corners) found in the calibration clip of the {cam} camera ({src})")
+                                   f"corners) found in the calibration clip of the {cam} camera ({src})"
+                                   + _squares_hint(src, board, cam, frames, inverted=inverted))
     if same_size and len(set(sizes.values())) > 1:
         listing = ", ".join(f"{c} {w}x{h}" for c, (w, h) in sizes.items())
         raise InputError(f"calibration cameras have different image sizes ({listing}); the rig needs "
                          f"cameras of one resolution")
     return views, sizes, searched
+
+
+def _squares_hint(source: str, board: Board, camera: str, frames: Mapping, *, inverted: bool | None) -> str:
+    """"; " and :func:`~saddlescope.core.calibration.detection.squares_hint` on a fifth of the candidate frames."""
+    try:
+        grays = (gray for _, gray in iter_source_frames(source, camera=camera, start=int(frames["first"]),
+                                                        step=5 * int(frames["step"])))
+        hint = squares_hint(grays, board, inverted=inverted)
+    except (VideoError, InputError):
+        return ""
+    return f"; {hint}" if hint else ""
 
 
 def _calibration_result(rig: Rig, report: dict, board: Board, frames: Mapping,
@@ -306,6 +322,7 @@ def _calibration_result(rig: Rig, report: dict, board: Board, frames: Mapping,
     result["views"] = {
         cam: {"searched": searched[cam], "detected": len(views[cam]),
               "used": report["intrinsics"][cam]["n_views"],
+              "partial": report.get("n_partial_views", {}).get(cam, 0),
               "dropped_frames": report["intrinsics"][cam]["dropped_frames"],
               "residual_std_px": report["intrinsics"][cam]["residual_std_px"],
               "intrinsic_rms_px": report["intrinsics"][cam]["rms_px"]}
@@ -560,3 +577,78 @@ def read_calibration_toml(path: str | Path, *, units: str | None = None) -> tupl
                             f"{name} states no units; its translations were read as mm (anipose's usual unit, the "
                             f"cameras {spread:.0f} mm apart); set calibration_units in ride.json if they are not",
                             {"camera_spread_mm": spread})]
+
+
+def _lens_of(name: str, entry: Mapping, what: str) -> Camera:
+    """A camera's intrinsics from a ``{"K", "dist", "image_size"}`` object (the result document's camera)."""
+    K = checked_matrix(entry.get("K"), (3, 3), f"{what}: camera {name} K")
+    dist = distortion5(entry.get("dist", [0, 0, 0, 0, 0]), f"{what}: camera {name} dist")
+    size = entry.get("image_size")
+    if not isinstance(size, list | tuple) or len(size) != 2:
+        raise InputError(f"{what}: camera {name} image_size must be [width, height]")
+    return Camera(name, K, dist, (int(size[0]), int(size[1])))
+
+
+def read_intrinsics(path: str | Path) -> dict[str, Camera]:
+    """Cameras' intrinsics from an earlier calibration or a lens profile, by camera name.
+
+    Reads an anipose / Pose2Sim / FreeMoCap / caliscope TOML (:func:`read_calibration_toml`), SaddleScope's
+    calibration JSON (``saddlescope calibrate --json`` or a result's ``calibration``: ``cameras`` by name)
+    or a JSON lens profile of one camera (``{"K": 3x3, "dist": [k1, k2, p1, p2, k3], "image_size": [w, h]}``,
+    returned under the name "").
+
+    Raises
+    ------
+    InputError
+        A file that is none of these, or whose matrices are malformed.
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".toml":
+        rig, _ = read_calibration_toml(path)
+        return {n: Camera(n, c.K, c.dist, c.image_size) for n, c in rig.cameras.items()}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: not a TOML or JSON calibration ({exc})") from None
+    if isinstance(data, Mapping) and isinstance(data.get("calibration"), Mapping):
+        data = data["calibration"]  # a whole result document
+    if isinstance(data, Mapping) and isinstance(data.get("cameras"), Mapping) and data["cameras"]:
+        return {str(n): _lens_of(str(n), c, str(path)) for n, c in data["cameras"].items() if isinstance(c, Mapping)}
+    if isinstance(data, Mapping) and "K" in data:
+        return {"": _lens_of("", data, str(path))}
+    raise InputError(f"{path}: no camera intrinsics found (expected 'cameras' with K, dist and image_size, "
+                     "or one lens profile with K, dist and image_size)")
+
+
+def intrinsics_for_cameras(specs: list[tuple[str, str]], cameras: list[str]) -> dict[str, Camera]:
+    """Given intrinsics by camera from ``--intrinsics [NAME=]FILE`` options.
+
+    ``NAME=FILE``: camera NAME's intrinsics are the file's camera of that name, or its only camera;
+    ``FILE`` alone: every calibrated camera whose name the file has.
+
+    Raises
+    ------
+    InputError
+        A NAME that is not calibrated, or a file without a matching camera.
+    """
+    out: dict[str, Camera] = {}
+    for name, file in specs:
+        lenses = read_intrinsics(file)
+        if name:
+            if name not in cameras:
+                raise InputError(f"--intrinsics {name}={file}: there is no camera {name} "
+                                 f"(cameras: {', '.join(cameras)})")
+            lens = lenses.get(name) or (next(iter(lenses.values())) if len(lenses) == 1 else None)
+            if lens is None:
+                raise InputError(f"{file} has no camera {name} (it has {', '.join(lenses)}): name one with a lens "
+                                 "profile of one camera or a file that has this camera")
+            out[name] = Camera(name, lens.K, lens.dist, lens.image_size)
+            continue
+        matched = [n for n in cameras if n in lenses]
+        if not matched:
+            raise InputError(f"{file} has none of the cameras {', '.join(cameras)} (it has {', '.join(lenses)}): "
+                             "use --intrinsics NAME=FILE")
+        out.update({n: Camera(n, lenses[n].K, lenses[n].dist, lenses[n].image_size) for n in matched})
+    return out

@@ -53,6 +53,11 @@ _CAMERA = {
         "image_size": {"type": "array", "items": {"type": "integer", "minimum": 1}, "minItems": 2,
                        "maxItems": 2},
         "rms_px": {"type": ["number", "null"], "minimum": 0},
+        # which lens parameters the calibration fitted, and why (issue 35; absent in older results)
+        "lens_model": {"type": "object", "properties": {
+            **{k: {"type": "boolean"} for k in ("equal_focal", "principal_point", "tangential", "k3", "given",
+                                                 "joint")},
+            "label": {"type": "string"}, "reason": {"type": "string"}}},
     },
 }
 _POSE = {"type": "object", "required": ["R", "t_mm"],

@@ -12,10 +12,10 @@ from collections.abc import Mapping
 import numpy as np
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.types import Camera, Rig
+from saddlescope.core.types import Camera, LensModel, Rig
 from saddlescope.io.findings_document import findings_of, findings_to_list
 
-__all__ = ["checked_matrix", "distortion5", "rig_from_dict", "rig_to_dict"]
+__all__ = ["checked_matrix", "distortion5", "lens_model_to_dict", "rig_from_dict", "rig_to_dict"]
 
 
 def _lst(a) -> list:
@@ -26,7 +26,8 @@ def _lst(a) -> list:
 def rig_to_dict(rig: Rig) -> dict:
     """The result's ``calibration`` object (CONTRACTS section 2) for a rig.
 
-    ``cameras``: K, dist (k1, k2, p1, p2, k3), image_size [w, h], rms_px, K_std, dist_std;
+    ``cameras``: K, dist (k1, k2, p1, p2, k3), image_size [w, h], rms_px, K_std, dist_std, lens_model
+    (:func:`lens_model_to_dict`, where known);
     ``extrinsics`` of every camera but the first: R, t_mm (``x_cam = R @ x_first + t_mm``);
     ``checks``, ``findings`` (:mod:`saddlescope.io.findings_document`), ``flags`` (their details, for readers
     of the first format) and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}.
@@ -34,12 +35,14 @@ def rig_to_dict(rig: Rig) -> dict:
     names = rig.names
     cameras: dict[str, dict] = {}
     for name, cam in rig.cameras.items():
-        entry = {"K": _lst(cam.K), "dist": _lst(distortion5(cam.dist, f"camera {name} dist")),
+        entry: dict[str, object] = {"K": _lst(cam.K), "dist": _lst(distortion5(cam.dist, f"camera {name} dist")),
                  "image_size": [int(cam.image_size[0]), int(cam.image_size[1])], "rms_px": cam.rms_px}
         if cam.K_std is not None:
             entry["K_std"] = _lst(cam.K_std)
         if cam.dist_std is not None:
             entry["dist_std"] = _lst(cam.dist_std)
+        if name in rig.lens_models:
+            entry["lens_model"] = lens_model_to_dict(rig.lens_models[name])
         cameras[name] = entry
     extrinsics = {n: {"R": _lst(rig.cameras[n].R), "t_mm": _lst(rig.cameras[n].t_mm)} for n in names[1:]}
     pairs = {}
@@ -48,6 +51,23 @@ def rig_to_dict(rig: Rig) -> dict:
     checks = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in rig.checks.items()}
     return {"cameras": cameras, "extrinsics": extrinsics, "checks": checks, "flags": [f.detail for f in rig.flags],
             "findings": findings_to_list(rig.flags), "pairs": pairs}
+
+
+_LENS_FLAGS = ("equal_focal", "principal_point", "tangential", "k3", "given", "joint")
+
+
+def lens_model_to_dict(model: LensModel) -> dict:
+    """A camera's ``lens_model``: which parameters were fitted (booleans), ``label`` and ``reason`` in words."""
+    return {**{k: bool(getattr(model, k)) for k in _LENS_FLAGS}, "label": model.label, "reason": model.reason}
+
+
+def _lens_model_of(value) -> LensModel | None:
+    """The LensModel of a stored ``lens_model`` (None where absent or not an object)."""
+    if not isinstance(value, Mapping):
+        return None
+    defaults = LensModel()
+    return LensModel(**{k: bool(value.get(k, getattr(defaults, k))) for k in _LENS_FLAGS},
+                     reason=str(value.get("reason", "")))
 
 
 def checked_matrix(value, shape: tuple[int, ...], what: str) -> np.ndarray:
@@ -78,6 +98,7 @@ def rig_from_dict(d: Mapping) -> Rig:
         raise InputError("calibration has no 'cameras'")
     extr = d.get("extrinsics", {}) or {}
     cameras = {}
+    lens_models = {}
     for i, (name, c) in enumerate(cams_in.items()):
         K = checked_matrix(c.get("K"), (3, 3), f"camera {name} K")
         dist = distortion5(c.get("dist", [0, 0, 0, 0, 0]), f"camera {name} dist")
@@ -92,7 +113,11 @@ def rig_from_dict(d: Mapping) -> Rig:
         opt = lambda key: None if c.get(key) is None else np.asarray(c[key], np.float64)  # noqa: B023
         cameras[name] = Camera(name, K, dist, (int(size[0]), int(size[1])), R=R, t_mm=t,
                                rms_px=c.get("rms_px"), K_std=opt("K_std"), dist_std=opt("dist_std"))
+        model = _lens_model_of(c.get("lens_model"))
+        if model is not None:
+            lens_models[name] = model
     pairs = {}
     for key, p in (d.get("pairs") or {}).items():
         pairs[key] = {k: (np.asarray(v, np.float64) if k in ("R", "t_mm") else v) for k, v in p.items()}
-    return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(findings_of(d)), pairs=pairs)
+    return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(findings_of(d)), pairs=pairs,
+               lens_models=lens_models)

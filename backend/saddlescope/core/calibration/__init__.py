@@ -27,7 +27,7 @@ from saddlescope.core.calibration.boards import make_board
 from saddlescope.core.calibration.boards.checkerboard import canonical_checkerboard_order
 from saddlescope.core.calibration.bundle_adjustment import bundle_adjust
 from saddlescope.core.calibration.checks import board_distance_errors, metric_checks, triangulate_dlt
-from saddlescope.core.calibration.detection import BoardFinder, find_board_corners
+from saddlescope.core.calibration.detection import BoardFinder, find_board_corners, squares_hint
 from saddlescope.core.calibration.intrinsics import calibrate_intrinsics
 from saddlescope.core.calibration.rig import calibrate_rig, principal_point_common_shift
 from saddlescope.core.calibration.selection import select_instants
@@ -61,6 +61,7 @@ __all__ = [
     "render_board",
     "select_instants",
     "simulate_board_views",
+    "squares_hint",
     "stereo_extrinsics",
     "thesis_like_views",
     "triangulate_dlt",

@@ -17,7 +17,7 @@ from saddlescope.core.calibration.projection import (
 )
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.errors import CalibrationError, InputError
-from saddlescope.core.types import Board, Camera
+from saddlescope.core.types import Board, Camera, LensModel
 
 __all__ = ["bundle_adjust"]
 
@@ -84,10 +84,21 @@ def _projection_derivatives(xc: np.ndarray, intr: np.ndarray) -> tuple[np.ndarra
 class _Bundle:
     """Observations and the residual model of the joint bundle adjustment."""
 
-    def __init__(self, obj, obs_cam, obs_inst, obs_pt, obs_xy, n_cams, n_inst):
+    def __init__(self, obj, obs_cam, obs_inst, obs_pt, obs_xy, n_cams, n_inst, equal_focal=None):
         self.obj, self.cam, self.inst, self.pt, self.xy = obj, obs_cam, obs_inst, obs_pt, obs_xy
         self.C, self.I = n_cams, n_inst
+        # cameras whose fx and fy are one parameter (square pixels): fy follows fx
+        self.equal_focal = np.zeros(n_cams, bool) if equal_focal is None else np.asarray(equal_focal, bool)
+        self._tied_obs = self.equal_focal[self.cam]
         self._views()
+
+    def tie(self, cams: np.ndarray) -> np.ndarray:
+        """Cameras (C, 15) with fy set to fx where the focal lengths are one parameter."""
+        if not self.equal_focal.any():
+            return cams
+        cams = cams.copy()
+        cams[self.equal_focal, 1] = cams[self.equal_focal, 0]
+        return cams
 
     def _views(self) -> None:
         """The observations grouped by view (one camera at one instant), padded to the largest view.
@@ -154,6 +165,9 @@ class _Bundle:
         B = np.empty((M, 2, 6))
         B[:, :, :3] = J_xr @ np.einsum("mkij,mj->mik", dRb[self.inst], p)
         B[:, :, 3:] = J_xr
+        if self._tied_obs.any():  # one focal length f = fx = fy: d/df = d/dfx + d/dfy, fy's column unused
+            A[self._tied_obs, :, 0] += A[self._tied_obs, :, 1]
+            A[self._tied_obs, :, 1] = 0.0
         return A, B
 
     def normal_equations(self, A, B, r, w):
@@ -210,8 +224,8 @@ def _schur_solve(U, V, W, gc, gb, free, lam):
 
 def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, list[BoardView]],
                   board: Board, *, fix_k3: bool | Mapping[str, bool] = True, loss: str = "soft_l1",
-                  f_scale_px: float = 1.0,
-                  outlier_px: float = 5.0, max_iterations: int = 60) -> tuple[dict[str, Camera], dict]:
+                  f_scale_px: float = 1.0, outlier_px: float = 5.0, max_iterations: int = 60,
+                  lens_models: Mapping[str, LensModel] | None = None) -> tuple[dict[str, Camera], dict]:
     """Refine all cameras (intrinsics, distortion, pose) and all board poses jointly.
 
     The first camera is the reference (identity pose). Board poses are parameters per instant (a
@@ -228,6 +242,10 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
         Frame keys must be synchronised instants.
     outlier_px : float
         After a first pass, corners reprojecting worse than this are dropped and the fit repeated.
+    lens_models : dict name -> LensModel, optional
+        Which intrinsics each camera fits (``fix_k3`` is then ignored): parameters it does not fit stay
+        where they start (the caller starts them at the image centre and zero), fx = fy are fitted as
+        one focal length, and given intrinsics are not touched (only the pose is fitted).
 
     Returns
     -------
@@ -253,13 +271,16 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
     cams = np.array([np.concatenate([_intr_vector(cameras[n]), cameras[n].rvec, cameras[n].t_mm])
                      for n in names])
     boards = np.array([inst_pose[f] for f in instants])
-    free = _free_parameters(names, fix_k3)
+    free = _free_parameters(names, fix_k3, lens_models)
+    equal_focal = np.array([bool(lens_models and lens_models.get(n, LensModel()).equal_focal) for n in names])
+    cams[equal_focal, 1] = cams[equal_focal, 0] = np.sqrt(cams[equal_focal, 0] * cams[equal_focal, 1])
 
     keep = np.ones(len(obs_cam), bool)
     n_dropped = 0
     iterations = 0
     for _pass in range(2):
-        bundle = _Bundle(obj_all, obs_cam[keep], obs_inst[keep], obs_pt[keep], obs_xy[keep], C, I)
+        bundle = _Bundle(obj_all, obs_cam[keep], obs_inst[keep], obs_pt[keep], obs_xy[keep], C, I,
+                         equal_focal=equal_focal)
         cams, boards, r, w, n_iterations = _levenberg_marquardt(bundle, cams, boards, free, loss=loss,
                                                                 f_scale_px=f_scale_px,
                                                                 max_iterations=max_iterations)
@@ -323,16 +344,27 @@ def _observations(names: list[str], views_by_camera: Mapping[str, list[BoardView
     return obs_cam, obs_inst, obs_pt, obs_xy
 
 
-def _free_parameters(names: list[str], fix_k3: bool | Mapping[str, bool]) -> np.ndarray:
+def _free_parameters(names: list[str], fix_k3: bool | Mapping[str, bool],
+                     lens_models: Mapping[str, LensModel] | None = None) -> np.ndarray:
     """Indices into the cameras' parameters (C * 15) that the adjustment may change.
 
-    Not the reference camera's pose, which defines the rig frame, nor a k3 kept at zero.
+    Not the reference camera's pose, which defines the rig frame, nor a k3 kept at zero; with
+    ``lens_models``, only the intrinsics each camera's model fits (fy never alone where fx = fy).
     """
     free_mask = np.ones((len(names), _NCAM), bool)
     free_mask[0, 9:] = False  # the reference camera defines the rig frame
     k3_fixed = fix_k3 if isinstance(fix_k3, Mapping) else {n: bool(fix_k3) for n in names}
     for i, n in enumerate(names):
-        free_mask[i, 8] = not k3_fixed.get(n, True)
+        if lens_models is None:
+            free_mask[i, 8] = not k3_fixed.get(n, True)
+            continue
+        model = lens_models.get(n, LensModel())
+        free_mask[i, :9] = not model.given
+        if not model.given:
+            free_mask[i, 1] = not model.equal_focal
+            free_mask[i, 2:4] = model.principal_point
+            free_mask[i, 6:8] = model.tangential
+            free_mask[i, 8] = model.k3
     return np.flatnonzero(free_mask.ravel())
 
 
@@ -374,7 +406,7 @@ def _damped_step(bundle: _Bundle, normal, cams, boards, free, cost: float, lam: 
     U, V, W, gc, gb = normal
     for _try in range(10):
         dc, db, _ = _schur_solve(U, V, W, gc, gb, free, lam)
-        c_new, b_new = cams + dc, boards + db
+        c_new, b_new = bundle.tie(cams + dc), boards + db
         r_new = bundle.residuals(c_new, b_new)
         w_new, rho_new = _robust_weights(np.sum(r_new ** 2, axis=1), loss, f_scale_px)
         cost_new = float(rho_new.sum())
@@ -400,7 +432,9 @@ def _camera_std(bundle: _Bundle, cams: np.ndarray, boards: np.ndarray, r: np.nda
         std[free] = np.sqrt(np.clip(np.diag(np.linalg.inv(S[np.ix_(free, free)])), 0, None) * sigma2)
     except np.linalg.LinAlgError:
         std[free] = np.nan
-    return std.reshape(bundle.C, _NCAM)
+    std = std.reshape(bundle.C, _NCAM)
+    std[bundle.equal_focal, 1] = std[bundle.equal_focal, 0]  # fy is fx
+    return std
 
 
 def _refined_cameras(names: list[str], cameras: Mapping[str, Camera], cams: np.ndarray, std: np.ndarray,

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from saddlescope.core.calibration.boards import board_type
 from saddlescope.core.calibration.refinement import _as_gray
 from saddlescope.core.types import Board
 
-__all__ = ["BoardFinder", "find_board_corners"]
+__all__ = ["BoardFinder", "find_board_corners", "squares_hint"]
 
 
 class BoardFinder:
@@ -59,3 +61,28 @@ def find_board_corners(gray: np.ndarray, board: Board, *,
     :func:`~saddlescope.core.calibration.boards.checkerboard.canonical_checkerboard_order`), all of them.
     """
     return BoardFinder(board, inverted=inverted)(gray)
+
+
+SQUARES_HINT_FRAMES = 60  # frames searched for the board one corner smaller (only where no board was found)
+
+
+def squares_hint(frames: Iterable[np.ndarray], board: Board, *, inverted: bool | None = None) -> str:
+    """The sentence to say where a board's pattern was given in squares, not inner corners; else "".
+
+    A board of C x R squares has (C - 1) x (R - 1) inner corners (OpenCV's pattern size; caliscope's
+    ``columns`` and ``rows`` count squares). Where the board one corner smaller in each direction is found in
+    one of the first :data:`SQUARES_HINT_FRAMES` ``frames`` (grey images), that is the pattern to use.
+    """
+    cols, rows = board.inner_corners
+    if cols < 3 or rows < 3:
+        return ""
+    smaller = Board(board.kind, (cols - 1, rows - 1), board.square_mm, dictionary=board.dictionary,
+                    marker_mm=board.marker_mm, legacy=board.legacy)
+    finder = BoardFinder(smaller, inverted=inverted, thorough=False)
+    for n, gray in enumerate(frames):
+        if n >= SQUARES_HINT_FRAMES:
+            break
+        if finder(gray) is not None:
+            return (f"this board has {cols}x{rows} squares, i.e. {cols - 1}x{rows - 1} inner corners: use "
+                    f"--pattern {cols - 1}x{rows - 1} (the pattern counts inner corners, not squares)")
+    return ""

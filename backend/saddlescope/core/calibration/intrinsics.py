@@ -8,7 +8,7 @@ import numpy as np
 from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.calibration.views import MIN_CORNERS, MIN_VIEWS, BoardView
 from saddlescope.core.errors import CalibrationError, InputError
-from saddlescope.core.types import Board, Camera
+from saddlescope.core.types import Board, Camera, LensModel
 
 __all__ = ["calibrate_intrinsics"]
 
@@ -38,15 +38,45 @@ def _check_views(views: list[BoardView], board: Board, camera: str, clip: str | 
     return good
 
 
-def _calib_flags(fix_k3: bool) -> int:
-    return cv2.CALIB_FIX_K3 if fix_k3 else 0
+def _calib_flags(fix_k3: bool, model: LensModel | None = None) -> int:
+    """OpenCV's calibration flags for a lens model (None: fx, fy, cx, cy, k1, k2, p1, p2 and k3 unless fixed)."""
+    if model is None:
+        return cv2.CALIB_FIX_K3 if fix_k3 else 0
+    return ((0 if model.k3 else cv2.CALIB_FIX_K3) | (cv2.CALIB_FIX_ASPECT_RATIO if model.equal_focal else 0)
+            | (0 if model.principal_point else cv2.CALIB_FIX_PRINCIPAL_POINT)
+            | (0 if model.tangential else cv2.CALIB_ZERO_TANGENT_DIST))
+
+
+def _model_start(guess: Camera | None, model: LensModel | None, image_size: tuple[int, int]):
+    """The K and distortion OpenCV starts from (None, None: its own estimate), held where the model fixes them.
+
+    A fixed principal point is the image centre, an equal focal length the mean of the guess's two, a
+    fixed tangential term or k3 zero.
+    """
+    if guess is None and (model is None or (model.principal_point and not model.equal_focal)):
+        return None, None  # OpenCV's distortion-free start (the centre, fx = fy from the views)
+    w, h = image_size
+    if guess is None:
+        K, dist = np.array([[w, 0.0, (w - 1) / 2], [0.0, w, (h - 1) / 2], [0, 0, 1]]), np.zeros(5)
+    else:
+        K, dist = np.array(guess.K, np.float64), np.array(guess.dist, np.float64).ravel()[:5].copy()
+    if model is not None and not model.given:
+        if model.equal_focal:
+            K[0, 0] = K[1, 1] = float(np.sqrt(K[0, 0] * K[1, 1]))
+        if not model.principal_point:
+            K[0, 2], K[1, 2] = (w - 1) / 2, (h - 1) / 2
+        if not model.tangential:
+            dist[2:4] = 0.0
+        if not model.k3:
+            dist[4] = 0.0
+    return K, dist
 
 
 def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple[int, int], *,
                          camera: str = "camera", clip: str | None = None, fix_k3: bool = True,
                          min_views: int = MIN_VIEWS, outlier_factor: float = 3.0,
                          min_outlier_px: float = 0.5, max_rounds: int = 3,
-                         guess: Camera | None = None) -> tuple[Camera, dict]:
+                         guess: Camera | None = None, model: LensModel | None = None) -> tuple[Camera, dict]:
     """Intrinsics of one camera from board views (Zhang / Bouguet; thesis 3.4, Tables 8.1-8.3).
 
     Parameters
@@ -63,6 +93,10 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
         the calibration repeated (at most ``max_rounds`` times).
     guess : Camera, optional
         Start from these intrinsics instead of OpenCV's distortion-free initial estimate.
+    model : LensModel, optional
+        Fit only the parameters it names (``fix_k3`` is then ignored): fx = fy as one focal length, the
+        principal point held at the image centre, the tangential term or k3 held at zero; ``given``
+        intrinsics (``guess``) are held whole and only the views' poses fitted.
 
     Returns
     -------
@@ -77,13 +111,16 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
     CalibrationError
         No board, fewer than ``min_views`` views, or OpenCV failing to converge.
     """
+    if model is not None and model.given:
+        if guess is None:
+            raise InputError(f"camera {camera}: intrinsics marked as given but none were given")
+        return _given_intrinsics(views, board, guess, camera=camera, clip=clip, model=model)
     views = _check_views(views, board, camera, clip, min_views=min_views)
     obj_all = object_points_mm(board).astype(np.float32)
     dropped: list[int] = []
     w, h = (int(v) for v in image_size)
-    start = (None, None) if guess is None else (np.array(guess.K, np.float64),
-                                                np.array(guess.dist, np.float64).ravel()[:5].copy())
-    flags = _calib_flags(fix_k3) | (0 if guess is None else cv2.CALIB_USE_INTRINSIC_GUESS)
+    start = _model_start(guess, model, (w, h))
+    flags = _calib_flags(fix_k3, model) | (0 if start[0] is None else cv2.CALIB_USE_INTRINSIC_GUESS)
     for round_ in range(max_rounds + 1):
         obj = [obj_all[v.ids] for v in views]
         img = [v.corners_px.astype(np.float32).reshape(-1, 1, 2) for v in views]
@@ -117,11 +154,54 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
         "dropped_frames": sorted(dropped),
         "n_views": len(views),
         "n_points": int(len(res)),
-        "fix_k3": bool(fix_k3),
+        "fix_k3": bool(fix_k3) if model is None else not model.k3,
         "poses": {int(v.frame): (np.asarray(rv, np.float64).ravel(), np.asarray(tv, np.float64).ravel())
                   for v, rv, tv in zip(views, rvecs, tvecs, strict=True)},
     }
     return cam, report
+
+
+def _view_pose(cam: Camera, obj: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The board's pose (rvec, tvec_mm) in one view for fixed intrinsics (IPPE, then Levenberg-Marquardt)."""
+    K, dist = np.asarray(cam.K, np.float64), np.asarray(cam.dist, np.float64)
+    try:
+        ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_IPPE)
+        if not ok:
+            ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist)
+        if not ok:
+            return None
+        rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, dist, rvec, tvec)
+    except cv2.error:
+        return None
+    return rvec.ravel(), tvec.ravel()
+
+
+def _given_intrinsics(views: list[BoardView], board: Board, given: Camera, *, camera: str, clip: str | None,
+                      model: LensModel) -> tuple[Camera, dict]:
+    """Given intrinsics with the report :func:`calibrate_intrinsics` gives: only each view's pose is fitted."""
+    views = _check_views(views, board, camera, clip, min_views=1)
+    obj_all = object_points_mm(board).astype(np.float64)
+    kept, residuals, per_view, poses = [], [], {}, {}
+    for v in views:
+        pose = _view_pose(given, obj_all[v.ids], v.corners_px)
+        if pose is None:
+            continue
+        proj, _ = cv2.projectPoints(obj_all[v.ids], pose[0], pose[1], given.K, given.dist)
+        res = proj.reshape(-1, 2) - v.corners_px
+        kept.append(v)
+        residuals.append(res)
+        per_view[int(v.frame)] = float(np.sqrt(np.mean(np.sum(res ** 2, axis=1))))
+        poses[int(v.frame)] = pose
+    if not kept:
+        raise CalibrationError(f"no board pose could be fitted in the views of camera {camera}")
+    res = np.concatenate(residuals)
+    rms = float(np.sqrt(np.mean(np.sum(res ** 2, axis=1))))
+    cam = Camera(camera, np.array(given.K, np.float64), np.asarray(given.dist, np.float64).ravel()[:5].copy(),
+                 (int(given.image_size[0]), int(given.image_size[1])), rms_px=rms, K_std=np.zeros((3, 3)),
+                 dist_std=np.zeros(5))
+    return cam, {"rms_px": rms, "residual_std_px": res.std(axis=0).tolist(), "per_view_rms_px": per_view,
+                 "dropped_frames": [], "n_views": len(kept), "n_points": int(len(res)), "fix_k3": not model.k3,
+                 "poses": poses}
 
 
 K3_SCREEN_SIGMAS = 2.0  # a linearised k3 nearer zero than this (in standard deviations; the full test asks 3) ...

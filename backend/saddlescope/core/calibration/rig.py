@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -12,12 +13,12 @@ import numpy as np
 from saddlescope.core.calibration.boards import board_type, object_points_mm
 from saddlescope.core.calibration.bundle_adjustment import _pose_of_view, bundle_adjust
 from saddlescope.core.calibration.checks import metric_checks
-from saddlescope.core.calibration.intrinsics import _choose_k3, calibrate_intrinsics
+from saddlescope.core.calibration.intrinsics import _choose_k3, _given_intrinsics, calibrate_intrinsics
 from saddlescope.core.calibration.stereo import stereo_extrinsics
-from saddlescope.core.calibration.views import MIN_VIEWS, BoardView
+from saddlescope.core.calibration.views import MIN_CORNERS, MIN_POSE_CORNERS, MIN_VIEWS, BoardView
 from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.findings import Finding
-from saddlescope.core.types import Board, Camera, Rig
+from saddlescope.core.types import Board, Camera, LensModel, Rig
 
 __all__ = ["calibrate_rig", "principal_point_common_shift"]
 
@@ -141,7 +142,8 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
                   bundle: bool = True, loss: str = "soft_l1", min_views: int = MIN_VIEWS, min_shared: int = 3,
                   max_square_error_pct: float = 1.0, max_square_error_mm: float | None = None,
                   max_distance_rms_mm: float | None = None, max_principal_point_shift: float = 0.02,
-                  clip: str | None = "calibration", threads: int | None = 1) -> tuple[Rig, dict]:
+                  clip: str | None = "calibration", threads: int | None = 1,
+                  given_intrinsics: Mapping[str, Camera] | None = None) -> tuple[Rig, dict]:
     """Calibrate one or more cameras into a :class:`Rig` (first camera = reference, identity pose).
 
     Steps: intrinsics per camera (:func:`calibrate_intrinsics`); stereo pairs for every pair of cameras
@@ -163,6 +165,9 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
         this fraction of the smaller image side (:func:`principal_point_common_shift`).
     threads : int or None
         Intrinsics and pairs fitted this many at once (None: all); each fit uses its own views alone.
+    given_intrinsics : dict name -> Camera, optional
+        Intrinsics known for some cameras (an earlier calibration of the same camera, a lens profile):
+        held as given, only their poses fitted.
 
     Returns
     -------
@@ -171,7 +176,11 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
         {"a-b": {"R", "t_mm", "rms_px", "n_views"}}.
     report : dict
         ``intrinsics`` {name: report}, ``bundle`` report (or None), ``per_pair_checks``,
-        ``n_relabelled_views``, ``n_dropped_views``.
+        ``n_relabelled_views``, ``n_dropped_views``, ``n_partial_views`` {name: views of 4-5 corners used for
+        the board's pose}, ``lens_choice`` {name: :func:`_joint_lens_test`'s numbers}.
+
+    Each camera's lens comes from the joint adjustment unless its own views reject it
+    (:func:`_joint_lens_test`); ``rig.lens_models`` and a ``calibration.lens_model`` finding per camera say which.
     """
     names = list(views_by_camera)
     if not names:
@@ -179,16 +188,26 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     missing = [n for n in names if n not in image_sizes]
     if missing:
         raise InputError(f"image size missing for camera(s) {', '.join(missing)}")
+    given = dict(given_intrinsics or {})
+    unknown = [n for n in given if n not in names]
+    if unknown:
+        raise InputError(f"intrinsics given for camera(s) {', '.join(unknown)} that are not calibrated here")
     intrinsics, intr_reports = _all_intrinsics(views_by_camera, board, image_sizes, fix_k3=fix_k3, clip=clip,
-                                               min_views=min_views, threads=threads)
+                                               min_views=min_views, threads=threads, given=given)
     k3_fixed = {n: intr_reports[n]["fix_k3"] for n in names}
-    # views kept by the intrinsic step (outlier views dropped)
-    views = {n: [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]]
+    # views kept by the intrinsic step (outlier views dropped), and partial views (too few corners for a
+    # lens, enough for the board's pose: 4 or more) for the joint adjustment
+    views = {n: [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]
+                 or (MIN_POSE_CORNERS <= len(v.ids) < MIN_CORNERS
+                     and v.frame not in intr_reports[n]["dropped_frames"])]
              for n in names}
+    partial = {n: sum(len(v.ids) < MIN_CORNERS for v in views[n]) for n in names}
     report: dict = {"intrinsics": intr_reports, "bundle": None, "per_pair_checks": {},
-                    "n_relabelled_views": 0, "n_dropped_views": 0}
+                    "n_relabelled_views": 0, "n_dropped_views": 0, "lens_choice": {},
+                    "n_partial_views": partial}
+    models = {n: LensModel(k3=not k3_fixed[n], given=n in given) for n in names}
     if len(names) == 1:
-        return Rig({names[0]: intrinsics[names[0]]}), report
+        return Rig({names[0]: intrinsics[names[0]]}, lens_models=models), report
 
     pairs_cv = _stereo_pairs(views, intrinsics, board, min_shared=min_shared, threads=threads)
     init = _initial_poses(names, pairs_cv, names[0])
@@ -197,8 +216,10 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
                       dist_std=intrinsics[n].dist_std) for n in names}
     views, n_fixed, n_dropped = _fix_flipped_views(cams, views, board)
     report["n_relabelled_views"], report["n_dropped_views"] = n_fixed, n_dropped
+    lens_flags: list[Finding] = []
     if bundle:
-        cams, report["bundle"] = bundle_adjust(cams, views, board, fix_k3=k3_fixed, loss=loss)
+        cams, report["bundle"], models, report["lens_choice"], lens_flags = _adjust_with_lens_choice(
+            cams, intrinsics, intr_reports, views, views_by_camera, board, models, loss=loss, clip=clip)
     pairs = {}
     for (a, b), p in pairs_cv.items():
         pairs[f"{a}-{b}"] = {"R": p["R"], "t_mm": p["t_mm"], "rms_px": p["rms_px"], "n_views": p["n_views"]}
@@ -215,17 +236,118 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
         if flag is not None:
             flags.append(flag)
     report["per_pair_checks"] = per_pair
-    return Rig(cams, checks=checks, flags=tuple(flags), pairs=pairs), report
+    return Rig(cams, checks=checks, flags=tuple(flags) + tuple(lens_flags), pairs=pairs, lens_models=models), report
+
+
+JOINT_LENS_MIN_VIEWS = 6  # fewer own views than this cannot overrule the joint adjustment
+
+
+def _joint_lens_test(own_report: dict, joint_report: dict, n_intrinsics: int) -> dict:
+    """Whether a camera's own views reject the lens the joint adjustment gave it (Bayesian information criterion).
+
+    Two models of the camera's own views, each view with its own board pose: its own lens fit (``n_intrinsics``
+    more parameters) and the joint adjustment's lens (fixed). The criterion counts each view as one observation
+    (its corners' errors move together: a board a little off in time or bent, a corner detector's bias), so
+    ``bic_own - bic_joint = n_views ln(rss_own / rss_joint) + n_intrinsics ln(n_views)``; counting every
+    corner instead would reject any lens but the camera's own, down to a hundredth of a pixel.
+    """
+    n_views = int(joint_report["n_views"])
+    rss_own = own_report["rms_px"] ** 2 * own_report["n_points"] / n_views
+    rss_joint = joint_report["rms_px"] ** 2 * joint_report["n_points"] / n_views
+    bic_joint = n_views * float(np.log(max(rss_joint, 1e-300)))
+    bic_own = n_views * float(np.log(max(rss_own, 1e-300))) + n_intrinsics * float(np.log(max(n_views, 1)))
+    return {"own_views_rms_px": float(own_report["rms_px"]), "joint_lens_rms_px": float(joint_report["rms_px"]),
+            "n_views": n_views, "bic_own": bic_own, "bic_joint": bic_joint,
+            "held": bool(n_views >= JOINT_LENS_MIN_VIEWS and bic_own < bic_joint)}
+
+
+def _adjust_with_lens_choice(cams: dict[str, Camera], intrinsics: Mapping[str, Camera],
+                             intr_reports: Mapping[str, dict],
+                             views: Mapping[str, list[BoardView]], views_by_camera: Mapping[str, list[BoardView]],
+                             board: Board, models: dict[str, LensModel], *, loss: str, clip: str | None):
+    """The joint adjustment, repeated with the lens of each camera whose own views reject the joint one held.
+
+    The joint adjustment fits every camera's lens to all cameras' views at once; where the cameras disagree
+    by more than each sees alone (a real rig's views are not exactly simultaneous; caliscope's four webcams
+    disagree by 1.2 px where each camera's own fit leaves 0.2 px), a lens seen mostly in its middle absorbs
+    the disagreement: its focal length came out 23 % long, its principal point 140 px aside. Such a lens fits
+    its own camera's views far worse than the camera's own fit; :func:`_joint_lens_test` decides, once for
+    all cameras after the first adjustment, and the adjustment is repeated with those lenses held.
+
+    Returns cameras, the bundle report, the lens models, the tests' numbers and one finding per camera.
+    """
+    names = list(cams)
+    first, bundle_report = bundle_adjust(cams, views, board, lens_models=models, loss=loss)
+    choice: dict[str, dict] = {}
+    for n in names:
+        if models[n].given:
+            continue
+        own_views = [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]]
+        joint_rep = _given_intrinsics(own_views, board, first[n], camera=n, clip=clip,
+                                      model=LensModel(given=True))[1]
+        choice[n] = _joint_lens_test(intr_reports[n], joint_rep, models[n].n_intrinsics)
+    held = [n for n in choice if choice[n]["held"]]
+    out = first
+    if held:
+        start = {n: (Camera(n, intrinsics[n].K, intrinsics[n].dist, intrinsics[n].image_size, R=first[n].R,
+                            t_mm=first[n].t_mm) if n in held else first[n]) for n in names}
+        ba_models = {n: replace(models[n], given=True) if n in held else models[n] for n in names}
+        out, bundle_report = bundle_adjust(start, views, board, lens_models=ba_models, loss=loss)
+        for n in held:  # the own fit's uncertainty, not the adjustment's zero for a held lens
+            out[n] = replace(out[n], K_std=intrinsics[n].K_std, dist_std=intrinsics[n].dist_std)
+    models = {n: replace(m, joint=n not in held, reason=_lens_reason(n, m, choice.get(n)))
+              for n, m in models.items()}
+    return out, bundle_report, models, choice, [_lens_finding(n, models[n], choice[n], first[n], out[n])
+                                                for n in held]
+
+
+def _lens_reason(name: str, model: LensModel, test: dict | None) -> str:
+    """Why the camera's lens is what it is, in words."""
+    if model.given:
+        return "intrinsics given (an earlier calibration or a lens profile); only the camera's pose was fitted"
+    if test is None:
+        return "fitted by the joint adjustment of all cameras"
+    if test["held"]:
+        return (f"the joint adjustment's lens fits this camera's own views with {test['joint_lens_rms_px']:.2f} px "
+                f"against {test['own_views_rms_px']:.2f} px for its own fit, more than its "
+                f"{model.n_intrinsics} lens parameters explain over {test['n_views']} views: "
+                "the lens from its own views was kept and only its pose adjusted with the other cameras")
+    return (f"the joint adjustment's lens fits this camera's own views with {test['joint_lens_rms_px']:.2f} px "
+            f"(its own fit {test['own_views_rms_px']:.2f} px over {test['n_views']} views): kept")
+
+
+def _lens_finding(name: str, model: LensModel, test: dict, joint: Camera, final: Camera) -> Finding:
+    """A ``calibration.lens_model`` finding for a camera whose lens the joint adjustment was not allowed to bend."""
+    values = {"n_lens_parameters": float(model.n_intrinsics), "focal_x_px": float(final.K[0, 0]),
+              "focal_y_px": float(final.K[1, 1]), "joint_focal_x_px": float(joint.K[0, 0]),
+              "joint_focal_y_px": float(joint.K[1, 1]), "own_views_rms_px": test["own_views_rms_px"],
+              "joint_lens_rms_px": test["joint_lens_rms_px"], "n_views": float(test["n_views"]),
+              "bic_own": test["bic_own"], "bic_joint": test["bic_joint"]}
+    return Finding("calibration.lens_model", (
+        f"camera {name}: the joint adjustment of all cameras would have made its focal length "
+        f"{joint.K[0, 0]:.0f}/{joint.K[1, 1]:.0f} px, which fits its own views with {test['joint_lens_rms_px']:.2f} px "
+        f"against {test['own_views_rms_px']:.2f} px for its own lens ({final.K[0, 0]:.0f}/{final.K[1, 1]:.0f} px): "
+        "its own lens was kept and only its pose adjusted with the other cameras"), values)
 
 
 def _all_intrinsics(views_by_camera: Mapping[str, list[BoardView]], board: Board,
                     image_sizes: Mapping[str, tuple[int, int]], *, fix_k3: bool | None, clip: str | None,
-                    min_views: int, threads: int | None = 1) -> tuple[dict[str, Camera], dict[str, dict]]:
+                    min_views: int, threads: int | None = 1,
+                    given: Mapping[str, Camera] | None = None) -> tuple[dict[str, Camera], dict[str, dict]]:
     """Each camera's intrinsics and report (:func:`calibrate_intrinsics`), ``threads`` cameras at once.
 
-    Where ``fix_k3`` is None, k3 is chosen per camera (:func:`_choose_k3`).
+    Where ``fix_k3`` is None, k3 is chosen per camera (:func:`_choose_k3`); ``given`` intrinsics are held.
     """
     def one(name: str) -> tuple[Camera, dict]:
+        if given and name in given:
+            known = given[name]
+            if tuple(known.image_size) != tuple(image_sizes[name]):
+                raise InputError(f"intrinsics given for camera {name} are for {known.image_size[0]}x"
+                                 f"{known.image_size[1]} px images but its clip is {image_sizes[name][0]}x"
+                                 f"{image_sizes[name][1]} px")
+            return calibrate_intrinsics(views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
+                                        guess=known, model=LensModel(k3=bool(np.asarray(known.dist).ravel()[4:5].any()),
+                                                                     given=True))
         cam, rep = calibrate_intrinsics(views_by_camera[name], board, image_sizes[name], camera=name, clip=clip,
                                         fix_k3=True if fix_k3 is None else fix_k3, min_views=min_views)
         if fix_k3 is None:

@@ -6,10 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BoardView", "MIN_CORNERS", "MIN_VIEWS"]
+__all__ = ["BoardView", "MIN_CORNERS", "MIN_POSE_CORNERS", "MIN_VIEWS"]
 
 MIN_VIEWS = 6
-MIN_CORNERS = 6
+MIN_CORNERS = 6  # a view that counts for a camera's lens (intrinsics) and a stereo pair
+MIN_POSE_CORNERS = 4  # a partial view that counts for the board's pose in the joint adjustment
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ import numpy as np
 
 from saddlescope.core import calibration as calib
 from saddlescope.core.detection import track_markers
-from saddlescope.core.errors import DetectionError, SyncError
+from saddlescope.core.errors import CalibrationError, DetectionError, SyncError
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress, cameras_at_once
@@ -285,6 +285,9 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     # GIL. Each camera's views depend on its clip alone, so the result does not depend on the threads' timing;
     # progress is reported from this thread.
     found = _per_camera_in_threads(cams, board_views, progress, params.threads)
+    for cam in cams:
+        if not found[cam][0]:
+            _no_board(clips, cam, board, max(0, base + int(round(offsets.get(cam, 0.0)))), step)
     if on_views_found is not None:
         on_views_found()
     board_sync = None
@@ -307,6 +310,14 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     if board_sync is not None:
         report["sync"] = board_sync
     return rig, report
+
+
+def _no_board(clips: ClipReader, cam: str, board: Board, start: int, step: int) -> None:
+    """Raise the error of a calibration clip without the board; where the pattern counts squares, say so."""
+    grays = (gray for _, gray in clips.gray_frames("calibration", cam, start=start, step=5 * step))
+    hint = calib.squares_hint(grays, board)
+    raise CalibrationError(f"no calibration board found in the calibration clip of the {cam} camera"
+                           + (f"; {hint}" if hint else ""))
 
 
 def _per_camera_in_threads(cams: list[str], work: Callable[[str], tuple], progress: Progress | None,

@@ -15,7 +15,7 @@ import numpy as np
 
 from saddlescope.core.calibration.boards.protocol import grid_from_meta, grid_meta
 from saddlescope.core.calibration.refinement import _search_downscaled
-from saddlescope.core.calibration.views import MIN_CORNERS
+from saddlescope.core.calibration.views import MIN_POSE_CORNERS
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import Board
 
@@ -153,7 +153,7 @@ class CharucoFinder:
 
     def _find_charuco(self, gray):
         corners, ids, _, _ = self._detector.detectBoard(gray)
-        if ids is None or len(ids) < MIN_CORNERS:
+        if ids is None or len(ids) < MIN_POSE_CORNERS:  # partial views count for the board's pose
             return None
         ids = ids.ravel().astype(np.int64)
         if self._cv_board.checkCharucoCornersCollinear(ids.reshape(-1, 1).astype(np.int32)):
