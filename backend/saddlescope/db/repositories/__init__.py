@@ -23,6 +23,7 @@ from saddlescope.db.repositories.rides import (
     RideFilter,
     RideRepository,
 )
+from saddlescope.db.repositories.sharing import ShareLinkRepository
 from saddlescope.db.repositories.similarity import (
     AnalysedRide,
     SimilarityRepository,
@@ -51,6 +52,7 @@ __all__ = [
     "RiderRepository",
     "Rig",
     "RigRepository",
+    "ShareLinkRepository",
     "SimilarityRepository",
     "Upload",
     "UploadRepository",
