@@ -43,6 +43,8 @@ def call_kwargs(method: str, path: str, ids: dict, tiny) -> dict:
         }
     elif path == "/api/uploads/{upload_id}/parts" and method == "POST":
         body = {"numbers": [1]}
+    elif path == "/api/share-links" and method == "POST":
+        body = {"ride_id": ids["ride_id"]}
     elif path == "/api/riders" and method == "POST":
         body = {"name": "Someone", "user_id": ids["user_id"]}
     elif (

@@ -137,13 +137,16 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         riders,
         rides,
         rigs,
+        share_links,
+        shared,
         similarity,
         uploads,
     )
 
     for module in (health, auth, horses, horse_profile, riders, rigs, rides, readiness, mocap, uploads, grades,
-                   comparisons, similarity, jobs, reports):
+                   comparisons, similarity, jobs, reports, share_links):
         app.include_router(module.router, prefix="/api")
+    app.include_router(shared.router)  # /shared/<token>: what a share link opens, without an account
     if FRONTEND_DIR.is_dir():
         app.mount("/", DashboardFiles(directory=FRONTEND_DIR, html=True), name="frontend")
     else:
