@@ -35,7 +35,8 @@ def club(tmp_path_factory):
         cosmo = api.ok("POST", "/horses", 201, json={"name": "Cosmo"})["id"]
         docs = {}
         # the seeded documents know canter and walk; the sitting trot ride stores a canter-like result
-        for i, (horse, gait) in enumerate([(bella, "canter"), (bella, "sitting_trot"), (bella, "walk"), (cosmo, "canter")]):
+        plan = [(bella, "canter"), (bella, "sitting_trot"), (bella, "walk"), (cosmo, "canter")]
+        for i, (horse, gait) in enumerate(plan):
             ride = api.ok("POST", "/rides", 201, json={"horse_id": horse, "rider_id": rider, "gait": gait,
                                                        "direction": "CW", "ridden_on": f"2026-05-0{i + 1}"})
             docs[ride["id"]] = result_document(scale=1.0 + 0.1 * i, gait="walk" if gait == "walk" else "canter",
@@ -50,7 +51,8 @@ def test_a_horses_csv_has_one_row_per_ride_with_named_columns_and_rounded_values
     assert answer.headers["content-type"].startswith("text/csv")
     assert 'filename="bella-rosa-rides.csv"' in answer.headers["content-disposition"]
     rows = list(csv.DictReader(io.StringIO(answer.content.decode("utf-8-sig"))))
-    assert [row["Gait"] for row in rows] == ["canter", "sitting trot", "walk"] and {r["Horse"] for r in rows} == {"Bella Rosa"}
+    assert [row["Gait"] for row in rows] == ["canter", "sitting trot", "walk"]
+    assert {r["Horse"] for r in rows} == {"Bella Rosa"}
     header = list(rows[0])
     assert header[:5] == ["Ride", "Horse", "Rider", "Gait", "Ridden on"]
     assert "W_b r.m.s. (m/s²)" in header and "Speed (km/h)" in header

@@ -55,7 +55,8 @@ def test_csv_of_one_ride_has_named_columns_with_units_and_rounded_values():
     ("acc_y_wb_rms", 1.23456789, 1.23), ("acc_y_wb_rms", 0.0123456, 0.0123), ("vdv_y_wb", 12.3456, 12.3),
     ("t_a8_limit_wb_h", 2 + 5 / 60, 125), ("t_a8_limit_wb_h", 0.00025, 0.015), ("d_a8_limit_wb_km", 0.00416, 4.16),
     ("d_a8_limit_wb_km", 15.63, 15600), ("vel_x_avg_kmh", 17.6499, 17.6), ("amplitude_y_m", 0.07346, 7.35),
-    ("t_a8_limit_wb_h", math.inf, "no limit"), ("acc_y_wb_rms", math.nan, None), ("gait", "sitting_trot", "sitting trot"),
+    ("t_a8_limit_wb_h", math.inf, "no limit"), ("acc_y_wb_rms", math.nan, None),
+    ("gait", "sitting_trot", "sitting trot"),
     ("ride_id", 12345678, 12345678),
 ])
 def test_a_cell_is_in_its_headers_unit_rounded_to_three_significant_digits(key, value, shown):
@@ -72,7 +73,8 @@ def test_infinite_times_read_no_limit_in_both_formats(tmp_path):
     export.indicators_to_xlsx([ride], tmp_path / "one.xlsx")
     sheet = load_workbook(tmp_path / "one.xlsx")["Indicators"]
     header = [c.value for c in sheet[1]]
-    assert sheet.cell(row=2, column=header.index("Time to the A(8) exposure limit value, W_b (min)") + 1).value == "no limit"
+    column = header.index("Time to the A(8) exposure limit value, W_b (min)") + 1
+    assert sheet.cell(row=2, column=column).value == "no limit"
 
 
 def test_csv_to_path_is_utf8_with_bom_and_to_bytes_buffer(tmp_path):
@@ -132,7 +134,8 @@ def test_xlsx_has_indicator_summary_units_and_notes_sheets(tmp_path):
     assert lines[("Horse 1", "canter")][mean_col] == pytest.approx(expected, rel=1e-2)
     units = {r[1]: r for r in book["Units"].iter_rows(min_row=2, values_only=True)}
     assert units["vdv_y_wb"][2] == "m/s¹·⁷⁵" and units["t_vdv_limit_wk_h"][2] == "min"
-    assert units["d_a8_limit_wb_km"][:3] == ("Distance to the A(8) exposure limit value, W_b (m)", "d_a8_limit_wb_km", "m")
+    assert units["d_a8_limit_wb_km"][:3] == (
+        "Distance to the A(8) exposure limit value, W_b (m)", "d_a8_limit_wb_km", "m")
     assert "passive, seated" in book["Notes"]["A2"].value
 
 

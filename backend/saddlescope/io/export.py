@@ -325,7 +325,8 @@ def indicators_to_xlsx(rows: Iterable[Mapping], path_or_buffer: str | os.PathLik
     notes["A1"].font = Font(bold=True)
     notes.append([PASSIVE_SEATED_CAVEAT])
     notes.append(["W_b = BS 6841, W_k = ISO 2631-1, vertical = y axis of the motion frame; "
-                  "times in minutes, distances in metres, values to three significant digits (EU 2002/44/EC action 0.5 m/s^2 and "
+                  "times in minutes, distances in metres, values to three significant digits "
+                  "(EU 2002/44/EC action 0.5 m/s^2 and "
                   "9.1 m/s^1.75, limit 1.15 m/s^2 and 21 m/s^1.75)."])
     notes.column_dimensions["A"].width = 120
 

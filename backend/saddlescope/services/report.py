@@ -28,8 +28,8 @@ from saddlescope.services.results import analysed_result, result_document
 from saddlescope.storage import Storage
 
 __all__ = [
-    "GAIT_WORDS", "REPORT_INDICATORS", "member_links", "distance_text", "duration_text", "ride_report_html", "ride_report_pdf",
-    "stride_chart_svg", "value_text",
+    "GAIT_WORDS", "REPORT_INDICATORS", "distance_text", "duration_text", "member_links", "ride_report_html",
+    "ride_report_pdf", "stride_chart_svg", "value_text",
 ]
 
 TEMPLATE = Template((Path(__file__).parent / "templates" / "ride_report.html").read_text(encoding="utf-8"))

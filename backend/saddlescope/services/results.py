@@ -39,7 +39,8 @@ from saddlescope.storage import Storage
 
 __all__ = [
     "ANGULAR_PER_FRAME", "DERIVED_SERIES", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
-    "commit_result", "decimate", "export_horse", "export_ride", "export_rides", "indicator_table_bytes", "result_document",
+    "commit_result", "decimate", "export_horse", "export_ride", "export_rides", "indicator_table_bytes",
+    "result_document",
     "analysed_result", "result_view", "result_view_json", "tracks_mm", "uncertain_reason_of", "view_of_document",
 ]
 

@@ -68,7 +68,7 @@ def create_share_link(session: Session, *, club_id: int, user_id: int | None, ri
         raise InputError(f"a share link lasts 1 to {MAX_DAYS} days, not {days}")
     if ride_id is not None:
         RideRepository(session, club_id=club_id).get(ride_id)  # another club's ride: NotFound (404)
-    else:
+    elif horse_id is not None:
         HorseRepository(session, club_id=club_id).get(horse_id)
     token = secrets.token_urlsafe(32)
     link = ShareLinkRepository(session, club_id=club_id).add(

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 
 from saddlescope.core.vibration import GAITS, PASSIVE_SEATED_CAVEAT
 from saddlescope.db.models import ShareLink
-from saddlescope.db.repositories import HorseRepository
+from saddlescope.db.repositories import HorseRepository, NotFound
 from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, band_of, horse_history
 from saddlescope.services.report import GAIT_WORDS, value_text
 
@@ -77,7 +77,8 @@ def _gait_section(rows: list[dict[str, Any]], gait: str, ride_href) -> str:
     """One gait's rides: the trend and a table, each ride against the band of the rides before it."""
     esc = html.escape
     values = [_finite((row.get("indicators") or {}).get(BAND_KEY)) for row in rows]
-    lines, earlier = [], []
+    lines: list[str] = []
+    earlier: list[float | None] = []
     for row, value in zip(rows, values, strict=True):
         band = band_of(earlier)
         verdict = "–"
@@ -89,14 +90,16 @@ def _gait_section(rows: list[dict[str, Any]], gait: str, ride_href) -> str:
                         for key, _ in HORSE_COLUMNS)
         css = "band-in" if verdict == "within" else "band-out" if verdict != "–" else "hint"
         date = row["date"].isoformat() if row.get("date") else "date not given"
-        lines.append(f'<tr data-ride="{row["ride_id"]}"><td>{esc(date)}</td><td>{esc(str(row["rider"]))}</td>{cells}'
+        lines.append(f'<tr data-ride="{row["ride_id"]}"><td class="date">{esc(date)}</td>'
+                     f'<td>{esc(str(row["rider"]))}</td>{cells}'
                      f'<td class="{css}">{verdict}</td>'
                      f'<td><a href="{esc(ride_href(row["ride_id"]))}">Report</a></td></tr>')
     head = "".join(f'<th scope="col" class="num">{label}</th>' for _, label in HORSE_COLUMNS)
     n = len(rows)
     return (f'<section data-gait="{gait}"><h2>{esc(GAIT_WORDS.get(gait, gait).capitalize())}: {n} analysed '
             f"ride{'' if n == 1 else 's'}</h2>\n<figure>{trend_svg(values, band_of(values))}</figure>\n"
-            f'<div class="scroll"><table class="ind"><thead><tr><th scope="col">Ridden on</th><th scope="col">Rider'
+            f'<div class="scroll" tabindex="0" role="region" aria-label="Rides in {esc(GAIT_WORDS.get(gait, gait))}">'
+            '<table class="ind"><thead><tr><th scope="col">Ridden on</th><th scope="col">Rider'
             f'</th>{head}<th scope="col">W<sub>b</sub> against its band</th><th scope="col">'
             '<span class="visually-hidden">One-page report</span></th></tr></thead>\n<tbody>\n'
             + "\n".join(lines) + "\n</tbody></table></div></section>")
@@ -104,6 +107,8 @@ def _gait_section(rows: list[dict[str, Any]], gait: str, ride_href) -> str:
 
 def shared_horse_html(session: Session, link: ShareLink, *, ride_href) -> str:
     """The horse page a share link shows; `ride_href(ride_id)`: the link's address of a ride's report."""
+    if link.horse_id is None:
+        raise NotFound("this link shows one ride, not a horse's page")
     horse = HorseRepository(session, club_id=link.club_id).get(link.horse_id)
     history = horse_history(session, club_id=link.club_id, horse_id=horse.id)
     sections = []

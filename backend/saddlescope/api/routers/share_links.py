@@ -5,6 +5,8 @@ The pages a link opens, for someone without an account, are `routers.shared`'s.
 
 from __future__ import annotations
 
+from typing import Any, cast
+
 from fastapi import APIRouter, status
 
 from saddlescope.api.deps import ClubDep
@@ -20,9 +22,10 @@ from saddlescope.services.share_links import (
 __all__ = ["router"]
 
 router = APIRouter(prefix="/share-links", tags=["share links"])
+RESPONSES = cast(dict[int | str, dict[str, Any]], ERRORS)  # ERRORS is inferred narrower
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=ShareLinkCreated, responses=ERRORS)
+@router.post("", status_code=status.HTTP_201_CREATED, response_model=ShareLinkCreated, responses=RESPONSES)
 def create(body: ShareLinkIn, club: ClubDep) -> dict:
     """Make a read-only link to one ride's report or one horse's page (default 30 days, at most a year).
 
@@ -35,14 +38,14 @@ def create(body: ShareLinkIn, club: ClubDep) -> dict:
     return {**link_view(made.link), "path": made.path}
 
 
-@router.get("", response_model=list[ShareLinkOut], responses=ERRORS)
+@router.get("", response_model=list[ShareLinkOut], responses=RESPONSES)
 def list_links(club: ClubDep) -> list[dict]:
     """The club's share links, newest first: what each shows, who made it, until when, withdrawn or not."""
     club.require("share.manage")
     return list_share_links(club.session, club_id=club.club_id)
 
 
-@router.post("/{link_id}/revoke", response_model=ShareLinkOut, responses=ERRORS)
+@router.post("/{link_id}/revoke", response_model=ShareLinkOut, responses=RESPONSES)
 def revoke(link_id: Id, club: ClubDep) -> dict:
     """Withdraw a link: whoever opens it from now on reads "This link was withdrawn by the club"."""
     club.require("share.manage")

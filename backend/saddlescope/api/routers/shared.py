@@ -8,7 +8,7 @@ never a sign-in page: the reader has no account to sign in with.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, status
 from fastapi.responses import HTMLResponse, Response
@@ -27,7 +27,9 @@ __all__ = ["router"]
 router = APIRouter(prefix="/shared", tags=["shared"])
 Token = Annotated[str, Path(min_length=1, max_length=200, description="the share link's token")]
 PRIVATE = {"Cache-Control": "private, no-store", "X-Robots-Tag": "noindex, nofollow", "Referrer-Policy": "no-referrer"}
-PAGE = {200: {"content": {"text/html": {}}}, 404: {"content": {"text/html": {}}}, 410: {"content": {"text/html": {}}}}
+HTML: dict[str, Any] = {"content": {"text/html": {}}}
+PAGE: dict[int | str, dict[str, Any]] = {200: HTML, 404: HTML, 410: HTML}
+PDF_PAGE: dict[int | str, dict[str, Any]] = {**PAGE, 200: {"content": {"application/pdf": {}}}}
 REFUSED_STATUS = {"unknown": status.HTTP_404_NOT_FOUND, "withdrawn": status.HTTP_410_GONE,
                   "expired": status.HTTP_410_GONE}
 
@@ -75,7 +77,7 @@ def shared_page(token: Token, session: SessionDep, storage: StorageDep) -> HTMLR
     return _shared(render)
 
 
-@router.get("/{token}/report.pdf", responses={**PAGE, 200: {"content": {"application/pdf": {}}}})
+@router.get("/{token}/report.pdf", responses=PDF_PAGE)
 def shared_pdf(token: Token, session: SessionDep, storage: StorageDep) -> Response:
     """A ride link's report as an A4 PDF."""
 
@@ -105,7 +107,7 @@ def shared_ride_of_horse(token: Token, ride_id: Id, session: SessionDep, storage
     return _shared(render)
 
 
-@router.get("/{token}/rides/{ride_id}/report.pdf", responses={**PAGE, 200: {"content": {"application/pdf": {}}}})
+@router.get("/{token}/rides/{ride_id}/report.pdf", responses=PDF_PAGE)
 def shared_ride_of_horse_pdf(token: Token, ride_id: Id, session: SessionDep, storage: StorageDep) -> Response:
     """A horse link: one of that horse's rides' report as an A4 PDF."""
 
