@@ -102,6 +102,9 @@ def test_a_horse_link_shows_the_horse_and_its_reports_and_the_page_exports_its_r
     assert download.value.suggested_filename == "bella-rides.csv"
     link = _make_link(page)
     screenshot(page, "share-horse-control")
+    page.set_viewport_size({"width": 390, "height": 844})
+    assert_no_horizontal_scroll(page)
+    screenshot(page, "share-horse-control")
 
     context, vet = _fresh_tab(browser, dashboard, width=390)
     try:
