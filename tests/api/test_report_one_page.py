@@ -71,7 +71,7 @@ def test_the_report_of_a_ride_with_every_flag_has_no_raw_code_in_its_text(worst_
     page = api.get(f"/rides/{ride_id}/report").text
     sheet = page.split("<main", 1)[1].split("</main>", 1)[0]
     text = re.sub(r"<[^>]+>", " ", sheet)
-    assert "Too uncertain for a decision" in text and "more on the ride page" in text
+    assert "Too uncertain for a decision" in text and "more notes: the club sees every note on the ride page" in text
     assert not RAW_TEXT.findall(text), RAW_TEXT.findall(text)
 
 

@@ -240,7 +240,9 @@ def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
         badge = f'<span class="sev sev-{n["severity"]}">{n["severity"].upper()}</span>'
         rows.append(f'    <li data-note="{n["code"]}">{badge}{html.escape(n["message"])}{times}</li>')
     if len(seen) > len(shown):
-        rows.append(f'    <li class="hint">{len(seen) - len(shown)} more on the ride page.</li>')
+        more = len(seen) - len(shown)
+        rows.append(f'    <li class="hint">{more} more note{"s" if more != 1 else ""}: the club sees every note on '
+                    "the ride page.</li>")
     return "\n".join(rows), summary
 
 
