@@ -127,6 +127,9 @@ def test_a_horse_link_shows_its_rides_and_their_reports_but_no_other_horses(club
     page = _open(client, made["path"])
     assert page.status_code == 200 and "<h1>Bella</h1>" in page.text and "Canter: 2 analysed rides" in page.text
     assert "Cosmo" not in page.text and "<script" not in page.text
+    text = re.sub(r"<[^>]+>", " ", page.text.split("<main", 1)[1])
+    assert not re.findall(r"\bnull\b|\bNaN\b|\bundefined\b|\bNone\b|\b[a-z]+_[a-z0-9_]+\b", text)
+    assert not re.findall(r"\d\.\d{4,}", text)  # no number with more digits than it means
     token = made["path"].removeprefix("/shared/")
     assert f'href="{token}/rides/{bella[1]}"' in page.text
     report = _open(client, f"{made['path']}/rides/{bella[1]}")

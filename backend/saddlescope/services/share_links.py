@@ -126,15 +126,15 @@ def open_share_link(session: Session, token: str) -> ShareLink:
     link = ShareLinkRepository(session).by_token_hash(token_hash(token)) if 20 <= len(token) <= 100 else None
     if link is None:
         raise ShareRefused("unknown", "This link is not known",
-                           "This link is not known here. Check that it was copied whole, or ask the club "
-                           "for a new one.")
+                           "Check that the whole link was copied, or ask the club for a new one.")
     state = link_state(link)
     if state == "withdrawn":
         raise ShareRefused("withdrawn", "This link was withdrawn by the club",
-                           "This link was withdrawn by the club. Ask the club for a new one if you still need it.")
+                           "The club that shared it has withdrawn it. Ask the club for a new link if you still "
+                           "need it.")
     if state == "expired":
         raise ShareRefused("expired", "This link has expired",
-                           f"This link has expired (on {link.expires_at:%Y-%m-%d}). Ask the club for a new one.")
+                           f"It worked until {link.expires_at:%Y-%m-%d}. Ask the club for a new link.")
     return link
 
 
