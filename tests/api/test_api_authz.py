@@ -80,9 +80,11 @@ def world(env, tmp_path_factory):
             "filename": f"{SECRET}.mp4",
         },
     )
+    link = a.ok("POST", "/share-links", 201, json={"horse_id": horse["id"]})
     b, _ = new_club(env.client)
     b_member, _ = add_member(b)
     ids = {
+        "link_id": link["id"],
         "horse_id": horse["id"],
         "rider_id": rider["id"],
         "rig_id": rig["id"],
@@ -129,6 +131,7 @@ OWN_CLUB = {
     ("GET", "/api/rides"),
     ("GET", "/api/grades"),
     ("GET", "/api/jobs"),
+    ("GET", "/api/share-links"),
 }
 # Routes whose body or query names club A's things: refused as not found (or invalid), never done.
 REFERENCES = {
@@ -140,6 +143,7 @@ REFERENCES = {
     ("POST", "/api/rides/bundle"),
     ("POST", "/api/mocap"),
     ("GET", "/api/comparison"),
+    ("POST", "/api/share-links"),
 }
 
 

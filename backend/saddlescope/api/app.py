@@ -138,18 +138,25 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
         rides,
         rigs,
         saddles,
+        share_links,
+        shared,
         similarity,
         uploads,
     )
 
     for module in (health, auth, horses, horse_profile, riders, rigs, rides, readiness, mocap, uploads, grades,
-                   comparisons, similarity, jobs, reports, saddles):
+                   comparisons, similarity, jobs, reports, saddles, share_links):
         app.include_router(module.router, prefix="/api")
+    app.include_router(shared.router)  # /shared/<token>: what a share link opens, without an account
+    _mount_dashboard(app)
+    return app
+
+
+def _mount_dashboard(app: FastAPI) -> None:
     if FRONTEND_DIR.is_dir():
         app.mount("/", DashboardFiles(directory=FRONTEND_DIR, html=True), name="frontend")
     else:
         log.warning("no dashboard: %s does not exist", FRONTEND_DIR)
-    return app
 
 
 # Each error class answers with one status and its message as {"detail": ...}; the most specific

@@ -43,7 +43,8 @@ from saddlescope.db.enums import (
 
 __all__ = [
     "Base", "Club", "EndedSignIn", "Grade", "Horse", "Job", "LEADERBOARD_COLUMNS", "NAMING_CONVENTION",
-    "PasswordReset", "Recording", "Result", "Ride", "Rider", "Rig", "Saddle", "SimilarityPair", "TimestampMixin",
+    "PasswordReset", "Recording", "Result", "Ride", "Rider", "Rig", "Saddle", "ShareLink", "SimilarityPair",
+    "TimestampMixin",
     "UTCDateTime", "Upload", "User", "utcnow",
 ]
 
@@ -455,3 +456,31 @@ class SimilarityPair(TimestampMixin, Base):
     # The whole answer of compare_ride_documents (measures, frame, step, ...), JSON.
     answer: Mapped[dict[str, Any]] = mapped_column(default=dict)
     error: Mapped[str | None] = mapped_column(Text)
+
+
+class ShareLink(TimestampMixin, Base):
+    """A read-only link for someone without an account (a vet): one ride's report or one horse's page.
+
+    Only the SHA-256 of the link's token is kept (the token itself is shown once, to its maker). A link
+    shows exactly one ride (``ride_id``) or one horse (``horse_id``) until ``expires_at`` or until an
+    admin withdraws it (``revoked_at``); deleting the ride or horse deletes its links.
+    """
+
+    __tablename__ = "share_links"
+    __table_args__ = (
+        CheckConstraint("(ride_id IS NULL) <> (horse_id IS NULL)", name="one_target"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
+    token_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    ride_id: Mapped[int | None] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
+    horse_id: Mapped[int | None] = mapped_column(ForeignKey("horses.id", ondelete="CASCADE"), index=True)
+    created_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+    expires_at: Mapped[dt.datetime]
+    revoked_at: Mapped[dt.datetime | None]
+    revoked_by: Mapped[int | None] = mapped_column(ForeignKey("users.id", ondelete="SET NULL"))
+
+    ride: Mapped[Ride | None] = relationship()
+    horse: Mapped[Horse | None] = relationship()
+    maker: Mapped[User | None] = relationship(foreign_keys=[created_by])

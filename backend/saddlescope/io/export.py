@@ -1,13 +1,16 @@
 """CSV and Excel (xlsx) export of comfort indicators: one ride, a horse's rides, a club's rides.
 
-The thesis saved its Table 8.7 "in a format which is compatible with EXCEL"; here a table has
-one row per ride: the ride's metadata (``ride_id``, ``horse``, ``rider``, ``gait``, ``date``,
-then any other text fields) followed by its indicators, with units in the column headers
-(``acc_y_wb_rms [m/s^2]``).  Indicator columns come in the order of thesis Table 8.7
-(CONTRACTS section 2), then the other known indicators, then unknown numeric keys sorted.
+The thesis saved its Table 8.7 "in a format which is compatible with EXCEL"; here a table has one row
+per ride: the ride's metadata (Ride, Horse, Rider, Gait, Ridden on, then any other text fields) followed
+by its indicators. Columns are named in the field's words with the unit in the header ("W_b r.m.s.
+(m/s²)", "Speed (km/h)"), never a code; values are rounded to three significant digits (what the
+measurement supports), times to the exposure values are in minutes and distances in metres (not
+fractions of hours and km), the saddle's movement in cm. Indicator columns come in the order of thesis
+Table 8.7 (CONTRACTS section 2), then the other known indicators, then unknown numeric keys sorted.
+The xlsx's "Units" sheet names each column's key and meaning, for scripts that read the file.
 
 A row is a dict; the indicators may sit at its top level or under ``"indicators"`` (as in the
-result document).  Empty and NaN values become empty cells.
+result document).  Empty and NaN values become empty cells; an infinite time or distance reads "no limit".
 """
 
 from __future__ import annotations
@@ -36,9 +39,26 @@ from saddlescope.core.vibration import (
     indicator_unit,
 )
 
-__all__ = ["METADATA_COLUMNS", "indicator_table", "indicators_to_csv", "indicators_to_xlsx"]
+__all__ = [
+    "METADATA_COLUMNS", "SIGNIFICANT_DIGITS", "column_header", "column_value", "indicator_table", "indicators_to_csv",
+    "indicators_to_xlsx",
+]
 
 METADATA_COLUMNS = ("ride_id", "horse", "rider", "gait", "date")
+METADATA_HEADERS = {"ride_id": "Ride", "horse": "Horse", "rider": "Rider", "gait": "Gait", "date": "Ridden on"}
+GAIT_WORDS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "rising trot", "canter": "canter"}
+SIGNIFICANT_DIGITS = 3  # what a ride's numbers support (their 95 % intervals are a few % wide at best)
+# The names a rider or vet uses for the indicators they read first; the others are named from their label.
+SHORT_NAMES = {
+    "acc_y_wb_rms": "W_b r.m.s.", "acc_y_wk_rms": "W_k r.m.s.", "vdv_y_wb": "VDV W_b", "vdv_y_wk": "VDV W_k",
+    "acc_y_max": "Peak vertical acceleration", "crest_factor_y": "Crest factor, W_b",
+    "crest_factor_y_wk": "Crest factor, W_k", "vel_x_avg_kmh": "Speed",
+    "amplitude_y_m": "Saddle movement up and down", "stride_frequency_hz": "Stride frequency",
+    "duration_s": "Analysed duration",
+}
+# unit as stored -> (unit in the header, factor to it)
+_SHOWN_UNITS = {"h": ("min", 60.0), "km": ("m", 1000.0), "m/s^2": ("m/s²", 1.0), "m/s^1.75": ("m/s¹·⁷⁵", 1.0)}
+_NO_LIMIT = "no limit"
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
 
 
@@ -68,9 +88,51 @@ def _flatten(row: Mapping, index: int) -> tuple[dict, dict]:
     return meta, values
 
 
-def _header(key: str) -> str:
+def _shown_unit(key: str) -> tuple[str, float]:
+    """The unit a column shows and the factor from the stored value (cm for the saddle's movement)."""
+    if key == "amplitude_y_m":
+        return "cm", 100.0
     unit = indicator_unit(key)
-    return f"{key} [{unit}]" if unit else key
+    return _SHOWN_UNITS.get(unit, (unit, 1.0))
+
+
+def column_header(key: str) -> str:
+    """A column's header in words with its unit: "W_b r.m.s. (m/s²)", "Time to the ... (min)"."""
+    if key in METADATA_HEADERS:
+        return METADATA_HEADERS[key]
+    info = INDICATORS.get(key)
+    if key in SHORT_NAMES:
+        name = SHORT_NAMES[key]
+    elif info is not None:
+        name = info.label.replace(" (W_b)", ", W_b").replace(" (W_k)", ", W_k")
+        name = name[:1].upper() + name[1:]
+    else:
+        name = key.replace("_", " ").capitalize()
+    unit, _ = _shown_unit(key)
+    return f"{name} ({unit})" if unit else name
+
+
+def _round(value: float, digits: int = SIGNIFICANT_DIGITS) -> float | int:
+    """`value` to `digits` significant digits (an int when it has no fraction left: 1230, not 1230.0)."""
+    if value == 0 or not math.isfinite(value):
+        return value
+    rounded = round(value, digits - 1 - math.floor(math.log10(abs(value))))
+    return int(rounded) if rounded == int(rounded) and abs(rounded) >= 10 ** (digits - 1) else rounded
+
+
+def column_value(key: str, value):
+    """A cell's value as the column shows it: in its header's unit, rounded; words for the gait."""
+    if key == "gait" and isinstance(value, str):
+        return GAIT_WORDS.get(value, value)
+    if key in METADATA_COLUMNS or not _is_number(value):
+        return value
+    number = float(value)
+    if math.isnan(number):
+        return None
+    if math.isinf(number):
+        return _NO_LIMIT if number > 0 else None
+    _, factor = _shown_unit(key)
+    return _round(number * factor)
 
 
 def _table(rows: Iterable[Mapping]) -> tuple[list[str], list[str], list[list]]:
@@ -87,7 +149,8 @@ def _table(rows: Iterable[Mapping]) -> tuple[list[str], list[str], list[list]]:
     ordered = [k for k in known_order if k in indicator_keys]
     ordered += sorted(indicator_keys - set(ordered))
     meta_keys = list(METADATA_COLUMNS) + extra_meta
-    cells = [[meta.get(k) for k in meta_keys] + [values.get(k) for k in ordered] for meta, values in flat]
+    cells = [[column_value(k, meta.get(k)) for k in meta_keys] + [column_value(k, values.get(k)) for k in ordered]
+             for meta, values in flat]
     return meta_keys, ordered, cells
 
 
@@ -104,12 +167,14 @@ def indicator_table(rows: Iterable[Mapping]) -> tuple[list[str], list[str], list
     keys : list of str
         Column keys: metadata first, then indicators.
     headers : list of str
-        Column headers, indicator headers with their unit in brackets.
+        Column headers in words, indicators' with their unit in brackets (`column_header`).
     cells : list of list
-        One list per ride, aligned with ``keys``; None where a ride lacks a value.
+        One list per ride, aligned with ``keys``, as the columns show them (`column_value`); None where a
+        ride lacks a value.
     """
     meta_keys, indicator_keys, cells = _table(rows)
-    return meta_keys + indicator_keys, meta_keys + [_header(k) for k in indicator_keys], cells
+    keys = meta_keys + indicator_keys
+    return keys, [column_header(k) for k in keys], cells
 
 
 def _csv_text(value) -> str:
@@ -120,8 +185,10 @@ def _csv_text(value) -> str:
         if math.isnan(number):
             return ""
         if math.isinf(number):
-            return "inf" if number > 0 else "-inf"
-        return str(int(value)) if isinstance(value, int | np.integer) else repr(number)
+            return _NO_LIMIT if number > 0 else ""
+        if isinstance(value, int | np.integer) or (number.is_integer() and abs(number) < 1e15):
+            return str(int(number))
+        return repr(number)  # already rounded (`column_value`): the shortest form, "0.123"
     if isinstance(value, dt.date | dt.datetime):
         return value.isoformat()
     text = str(value)
@@ -172,7 +239,7 @@ def _xlsx_value(value):
         if math.isnan(number):
             return None
         if math.isinf(number):
-            return "inf" if number > 0 else "-inf"  # Excel has no infinity
+            return _NO_LIMIT if number > 0 else None  # Excel has no infinity
         return int(value) if isinstance(value, int | np.integer) else number
     if isinstance(value, dt.date | dt.datetime):
         return value
@@ -189,8 +256,6 @@ def _write_sheet(sheet, headers: list[str], lines: list[list], *, n_text_columns
         for cell in row:
             if isinstance(cell.value, str) and cell.value.startswith("="):
                 cell.data_type = "s"  # text, never a formula
-            elif isinstance(cell.value, float):
-                cell.number_format = "0.0000"  # the thesis's printed precision; full value kept
             elif isinstance(cell.value, dt.date | dt.datetime):
                 cell.number_format = "yyyy-mm-dd"
     sheet.freeze_panes = sheet.cell(row=2, column=n_text_columns + 1)
@@ -205,14 +270,14 @@ def _summary_lines(keys: list[str], cells: list[list]) -> tuple[list[str], list[
     groups: dict[tuple[str, str], list[list]] = {}
     for line in cells:
         groups.setdefault((str(line[col["horse"]]), str(line[col["gait"]])), []).append(line)
-    headers = ["horse", "gait", "n_rides"] + [_header(k) + " mean" for k in indicators]
+    headers = ["Horse", "Gait", "Rides"] + [column_header(k) + ", mean" for k in indicators]
     lines = []
     for (horse, gait), members in sorted(groups.items()):
         means = []
         for k in indicators:
-            values = [float(m[col[k]]) for m in members if m[col[k]] is not None]
+            values = [float(m[col[k]]) for m in members if _is_number(m[col[k]])]
             values = [v for v in values if not math.isnan(v)]
-            means.append(float(np.mean(values)) if values else None)
+            means.append(_round(float(np.mean(values))) if values else None)
         lines.append([horse, gait, len(members)] + means)
     return headers, lines
 
@@ -220,10 +285,10 @@ def _summary_lines(keys: list[str], cells: list[list]) -> tuple[list[str], list[
 def indicators_to_xlsx(rows: Iterable[Mapping], path_or_buffer: str | os.PathLike | IO) -> None:
     """Write the indicators of one or more rides as an Excel workbook.
 
-    Sheets: "Indicators" (one row per ride, units in the headers, values at full precision
-    shown with four decimals), "Summary" (per horse and gait: number of rides and mean of the
-    eight comfort indicators; only when the rides cover more than one horse or gait),
-    "Units" (key, unit, meaning, name in thesis Table 8.7) and "Notes" (the caveat that the
+    Sheets: "Indicators" (one row per ride, named columns with units in the headers, values as
+    `column_value` gives them), "Summary" (per horse and gait: number of rides and mean of the
+    eight comfort indicators; only when the rides cover more than one horse or gait), "Units"
+    (column, key, unit, meaning, name in thesis Table 8.7) and "Notes" (the caveat that the
     directive's limits assume a passive, seated person).
 
     Parameters
@@ -235,7 +300,7 @@ def indicators_to_xlsx(rows: Iterable[Mapping], path_or_buffer: str | os.PathLik
     """
     meta_keys, indicator_keys, cells = _table(rows)
     keys = meta_keys + indicator_keys
-    headers = meta_keys + [_header(k) for k in indicator_keys]
+    headers = [column_header(k) for k in keys]
     book = Workbook()
     sheet = book.active
     sheet.title = "Indicators"
@@ -251,15 +316,17 @@ def indicators_to_xlsx(rows: Iterable[Mapping], path_or_buffer: str | os.PathLik
     unit_lines = []
     for key in indicator_keys:
         info = INDICATORS.get(key)
-        unit_lines.append([key, indicator_unit(key), info.label if info else "",
+        unit_lines.append([column_header(key), key, _shown_unit(key)[0], info.label if info else "",
                            info.thesis_name if info and info.thesis_name else ""])
-    _write_sheet(units, ["key", "unit", "meaning", "thesis Table 8.7 name"], unit_lines, n_text_columns=1)
+    _write_sheet(units, ["Column", "Key", "Unit", "Meaning", "Name in thesis Table 8.7"], unit_lines,
+                 n_text_columns=1)
     notes = book.create_sheet("Notes")
     notes.append(["SaddleScope comfort indicators"])
     notes["A1"].font = Font(bold=True)
     notes.append([PASSIVE_SEATED_CAVEAT])
     notes.append(["W_b = BS 6841, W_k = ISO 2631-1, vertical = y axis of the motion frame; "
-                  "times in hours, distances in km (EU 2002/44/EC action 0.5 m/s^2 and "
+                  "times in minutes, distances in metres, values to three significant digits "
+                  "(EU 2002/44/EC action 0.5 m/s^2 and "
                   "9.1 m/s^1.75, limit 1.15 m/s^2 and 21 m/s^1.75)."])
     notes.column_dimensions["A"].width = 120
 

@@ -31,6 +31,8 @@ PERMISSIONS: dict[str, tuple[str, str]] = {
     "rig.change_board": (ADMIN, "change a rig's calibration board"),
     "rig.delete": (ADMIN, "delete a rig"),
     "user.manage": (ADMIN, "list, add and change the club's users and their roles"),
+    "share.create": (MEMBER, "make a read-only link to a ride's report or a horse's page for a vet"),
+    "share.manage": (ADMIN, "list the club's share links and withdraw one"),
 }
 
 

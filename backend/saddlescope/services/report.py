@@ -28,7 +28,8 @@ from saddlescope.services.results import analysed_result, result_document
 from saddlescope.storage import Storage
 
 __all__ = [
-    "REPORT_INDICATORS", "distance_text", "duration_text", "ride_report_html", "ride_report_pdf", "stride_chart_svg",
+    "GAIT_WORDS", "REPORT_INDICATORS", "distance_text", "duration_text", "member_links", "ride_report_html",
+    "ride_report_pdf", "stride_chart_svg", "value_text",
 ]
 
 TEMPLATE = Template((Path(__file__).parent / "templates" / "ride_report.html").read_text(encoding="utf-8"))
@@ -106,7 +107,8 @@ def _number(value: Any, digits: int = 3) -> str:
     return f"{value:.{decimals}f}"
 
 
-def _value_text(key: str, value: Any) -> str:
+def value_text(key: str, value: Any) -> str:
+    """An indicator's value in the report's words and units ("1.23 m/s²", "12 min", "4.2 cm")."""
     if key.endswith("_h"):
         return duration_text(value)
     if key == "amplitude_y_m" and isinstance(value, int | float):
@@ -122,7 +124,7 @@ def _label_html(label: str) -> str:
 def _band_cell(key: str, value: Any, band: dict[str, Any] | None) -> str:
     if band is None:
         return '<span class="hint">not enough earlier rides</span>'
-    span = f"{_value_text(key, band['low'])} – {_value_text(key, band['high'])} (n = {band['n']})"
+    span = f"{value_text(key, band['low'])} – {value_text(key, band['high'])} (n = {band['n']})"
     if not isinstance(value, int | float):
         return html.escape(span)
     where = "within" if band["low"] <= value <= band["high"] else "above" if value > band["high"] else "below"
@@ -193,8 +195,8 @@ def _indicator_rows(session: Session, ride, doc: dict[str, Any], club_id: int) -
         value = indicators.get(key)
         ci = _interval_html(key, intervals.get(key))
         rows.append(f'      <tr data-indicator="{key}"><td>{_label_html(label)}</td>'
-                    f'<td class="num">{html.escape(_value_text(key, value))}{ci}</td>'
-                    f"<td>{_band_cell(key, value, bands.get(key))}</td></tr>")
+                    f'<td class="num">{html.escape(value_text(key, value))}{ci}</td>'
+                    f'<td class="band">{_band_cell(key, value, bands.get(key))}</td></tr>')
     return "\n".join(rows), earlier
 
 
@@ -202,8 +204,8 @@ def _interval_html(key: str, pair: Any) -> str:
     """The indicator's 95 % interval under its value ("95 %: 1.10–1.41 m/s²"), or nothing without one."""
     if not isinstance(pair, list | tuple) or len(pair) != 2:
         return ""
-    lo, hi = ("–∞" if pair[0] is None else _value_text(key, pair[0]), "∞" if pair[1] is None else
-              _value_text(key, pair[1]))
+    lo, hi = ("–∞" if pair[0] is None else value_text(key, pair[0]), "∞" if pair[1] is None else
+              value_text(key, pair[1]))
     if lo == hi:  # an interval that reads as one value says nothing the value does not
         return ""
     return f'<span class="ci" data-ci="{key}">95 %: {html.escape(lo)} – {html.escape(hi)}</span>'
@@ -238,12 +240,25 @@ def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
         badge = f'<span class="sev sev-{n["severity"]}">{n["severity"].upper()}</span>'
         rows.append(f'    <li data-note="{n["code"]}">{badge}{html.escape(n["message"])}{times}</li>')
     if len(seen) > len(shown):
-        rows.append(f'    <li class="hint">{len(seen) - len(shown)} more on the ride page.</li>')
+        more = len(seen) - len(shown)
+        rows.append(f'    <li class="hint">{more} more note{"s" if more != 1 else ""}: the club sees every note on '
+                    "the ride page.</li>")
     return "\n".join(rows), summary
 
 
-def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_id: int) -> str:
-    """The report of an analysed ride of the club as one HTML page (404 until it is analysed)."""
+def member_links(ride_id: int) -> str:
+    """The report's links above the sheet for a signed-in member: back to the ride page, the PDF."""
+    return (f'<a href="/#/rides/{ride_id}">&larr; Back to the ride</a> &middot; '
+            f'<a href="/api/rides/{ride_id}/report.pdf">Download as PDF</a>')
+
+
+def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_id: int,
+                     screen_links: str | None = None) -> str:
+    """The report of an analysed ride of the club as one HTML page (404 until it is analysed).
+
+    `screen_links`: the links shown above the sheet on screen (HTML; default `member_links`; a shared
+    report links only to what its share link opens).
+    """
     ride = RideRepository(session, club_id=club_id).get(ride_id)
     result = analysed_result(session, storage, ride_id, club_id=club_id)
     doc = result_document(session, storage, ride_id, club_id=club_id)
@@ -252,12 +267,13 @@ def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_i
     gait = GAIT_WORDS.get(ride.gait, ride.gait)
     strides = strides_analysed(doc)
     period = doc.get("period_s")
-    chart, caption = stride_chart_svg(doc, width=340, height=180)  # half the sheet: beside the quality notes
+    chart, caption = stride_chart_svg(doc, width=340, height=150)  # half the sheet: beside the quality notes
     quality_rows, summary = _quality_rows(doc)
     indicator_rows, earlier = _indicator_rows(session, ride, doc, club_id)
     esc = html.escape
     return TEMPLATE.substitute(
-        ride_id=ride.id, horse=esc(horse.name), horse_details=esc(f"{horse.name}{f' ({details})' if details else ''}"),
+        ride_id=ride.id, screen_links=member_links(ride.id) if screen_links is None else screen_links,
+        horse=esc(horse.name), horse_details=esc(f"{horse.name}{f' ({details})' if details else ''}"),
         rider=esc(ride.rider.name), gait=esc(gait),
         direction="clockwise" if ride.direction == "CW" else "counter-clockwise",
         date=esc(ride.ridden_on.isoformat() if ride.ridden_on else "date not given"),

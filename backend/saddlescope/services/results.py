@@ -8,6 +8,7 @@ import io
 import json
 import logging
 import math
+import re
 import secrets
 import tempfile
 import threading
@@ -22,7 +23,14 @@ from sqlalchemy.orm import Session, sessionmaker
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import indicator_unit
 from saddlescope.db.models import Result
-from saddlescope.db.repositories import AnalyticsRepository, NotFound, ResultRepository, RideFilter, RideRepository
+from saddlescope.db.repositories import (
+    AnalyticsRepository,
+    HorseRepository,
+    NotFound,
+    ResultRepository,
+    RideFilter,
+    RideRepository,
+)
 from saddlescope.db.session import session_scope
 from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
 from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
@@ -31,7 +39,8 @@ from saddlescope.storage import Storage
 
 __all__ = [
     "ANGULAR_PER_FRAME", "DERIVED_SERIES", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
-    "commit_result", "decimate", "export_ride", "export_rides", "indicator_table_bytes", "result_document",
+    "commit_result", "decimate", "export_horse", "export_ride", "export_rides", "indicator_table_bytes",
+    "result_document",
     "analysed_result", "result_view", "result_view_json", "tracks_mm", "uncertain_reason_of", "view_of_document",
 ]
 
@@ -398,3 +407,15 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
     if old_key and old_key != key:
         storage.delete(old_key)
     return key
+
+
+def export_horse(session: Session, horse_id: int, fmt: str, *, club_id: int) -> tuple[bytes, str]:
+    """All of a horse's analysed rides (one row per ride, every gait) as CSV or xlsx, and the file's name."""
+    horse = HorseRepository(session, club_id=club_id).get(horse_id)  # another club's horse: NotFound (404)
+    if fmt not in TABLE_FORMATS:
+        raise InputError(f"indicator tables are exported as {' or '.join(TABLE_FORMATS)}, not {fmt!r}")
+    rows = _ride_rows(session, None, club_id=club_id, rides=RideFilter(horse_id=horse_id))
+    if not rows:
+        raise NotFound(f"{horse.name} has no analysed rides to export yet")
+    stem = re.sub(r"[^A-Za-z0-9]+", "-", horse.name).strip("-").lower() or f"horse-{horse_id}"
+    return indicator_table_bytes(rows, fmt), f"{stem}-rides.{fmt}"

@@ -5,6 +5,7 @@ import { get, patch, post } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { navigate } from "../router.js";
 import { can, changePassword, refreshSession, session, signOutEverywhere } from "../session.js";
+import { mountShareLinks } from "../share.js";
 
 const MEMBERS_PER_PAGE = 20;
 const MANAGE = "user.manage";
@@ -275,4 +276,6 @@ export async function mountAccount(view) {
   attachSignOutEverywhere(view);
   if (can(MANAGE)) await new Members(view).attach();
   else view.querySelector("[data-members]").remove(); // members never get the admins' controls at all
+  if (can("share.manage")) await mountShareLinks(view.querySelector("[data-share-links]"));
+  else view.querySelector("[data-share-links]").remove();
 }

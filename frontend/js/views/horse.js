@@ -4,11 +4,12 @@
 // beyond the uncertainty), and any two of its rides side by side with the % difference of each indicator.
 
 import { get, itemsOf, patch } from "../api.js";
-import { busy, h, page, showError } from "../dom.js";
+import { busy, fill, h, page, showError } from "../dom.js";
 import { countedBarChart, trendChart } from "../horse-charts.js";
 import { distanceText, durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { can } from "../session.js";
+import { shareControl } from "../share.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
 import { meanIntervalText } from "../saddle-words.js";
 import { loadPlotly } from "../charts.js";
@@ -290,6 +291,11 @@ export async function mountHorse(view, params) {
     return;
   }
   showProfile(view, horse);
+  for (const link of view.querySelectorAll("[data-horse-export]")) {
+    link.href = `/api/horses/${horse.id}/export?format=${link.dataset.horseExport}`;
+  }
+  view.querySelector("[data-horse-actions]").hidden = false;
+  fill(view.querySelector("[data-share-slot]"), shareControl({ horseId: horse.id }));
   setUpProfileForm(view, horse, (updated) => showProfile(view, updated));
   const [riders] = await Promise.all([
     get("/api/riders", { params: { limit: 500 } }).then((answer) => new Map(itemsOf(answer).map((r) => [r.id, r.name]))),

@@ -11,6 +11,7 @@ import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
 import { poll } from "../poll.js";
 import { can } from "../session.js";
+import { shareControl } from "../share.js";
 import { drawAnalysis, showQuality } from "./ride-analysis.js";
 import { mountAlikePanel } from "./similar.js";
 import { mountReadiness } from "../ride-readiness.js";
@@ -307,6 +308,8 @@ function showResult(view, ride, result) {
   for (const [hook, suffix] of [["[data-report-link]", "report"], ["[data-report-pdf]", "report.pdf"]]) {
     view.querySelector(hook).href = `/api/rides/${ride.id}/${suffix}`;
   }
+  const shareSlot = view.querySelector("[data-share-slot]");
+  if (!shareSlot.childElementCount) fill(shareSlot, shareControl({ rideId: ride.id })); // kept across refreshes
   box.hidden = false;
   drawSeries(view, result.series || {});
   drawAnalysis(view, result);

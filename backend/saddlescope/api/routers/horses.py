@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Response, status
 
@@ -13,6 +13,7 @@ from saddlescope.api.routers.common import (
     Id,
     IndicatorKey,
     changes,
+    download,
     page_of,
     paging_sorted_by,
     sort_enum,
@@ -20,6 +21,7 @@ from saddlescope.api.routers.common import (
 from saddlescope.api.schemas import HorseComparisonOut, HorseIn, HorseOut, HorseUpdate, Page
 from saddlescope.db.repositories import HorseRepository
 from saddlescope.services.analytics import horse_comparison
+from saddlescope.services.results import EXPORT_FORMATS, export_horse
 
 __all__ = ["HorseSort", "router"]
 
@@ -83,3 +85,14 @@ def compare_gaits(
     keys = [str(key) for key in indicator] if indicator else None
     return horse_comparison(club.session, horse_id, club_id=club.club_id, indicators=keys,
                             include_uncertain=include_uncertain)
+
+
+@router.get("/{horse_id}/export", responses={**ERRORS, 200: {"content": {"text/csv": {}, EXPORT_FORMATS["xlsx"]: {}}}})
+def export_horse_rides(
+    horse_id: Id,
+    club: ClubDep,
+    format: Annotated[Literal["csv", "xlsx"], Query(description="csv or xlsx")] = "csv",  # noqa: A002
+) -> Response:
+    """All of the horse's analysed rides, one row per ride, as CSV or xlsx (named columns, units, rounded)."""
+    data, name = export_horse(club.session, horse_id, format, club_id=club.club_id)
+    return download(data, name, EXPORT_FORMATS[format])

@@ -23,6 +23,7 @@ from saddlescope.db.repositories.rides import (
     RideFilter,
     RideRepository,
 )
+from saddlescope.db.repositories.sharing import ShareLinkRepository
 from saddlescope.db.repositories.similarity import (
     AnalysedRide,
     SimilarityRepository,
@@ -53,6 +54,7 @@ __all__ = [
     "Saddle",
     "RigRepository",
     "SaddleRepository",
+    "ShareLinkRepository",
     "SimilarityRepository",
     "Upload",
     "UploadRepository",
