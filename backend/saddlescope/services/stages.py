@@ -474,11 +474,32 @@ def run_calibrate(ctx: StageContext) -> None:
                              bundle.meta.get("sync"), replace=False)
 
 
+def _calibrate_rig_from_ride(ctx: StageContext, ride_id: int, rig_id: int) -> None:
+    """Calibrate rig `rig_id` from ride `ride_id`'s own calibration clips (a bundle's), replacing its calibration."""
+    with ctx.session() as session:
+        ride = RideRepository(session).get(ride_id)
+        rig = RigRepository(session).get(rig_id)
+        clips = complete_clip_sets(RecordingRepository(session).for_ride(ride_id)).get("calibration")
+        meta = dict(ride.meta or {})
+        board = meta.get("board") or rig.board
+    if clips is None:
+        raise CalibrationError(f"ride {ride_id} has no calibration clips of the left, middle and right cameras "
+                               "to calibrate its rig with")
+    if not board:
+        raise CalibrationError(f"neither ride {ride_id} nor rig {rig_id} describes the calibration board its "
+                               "clips show")
+    paths = {role: ctx.fetch(key) for role, key in clips.items()}
+    _calibrate_and_store(ctx, rig_id, paths, board, ctx.payload.get("sync") or meta.get("sync"), replace=True)
+
+
 @stage("calibrate_rig", weight=6.0)
 def run_calibrate_rig(ctx: StageContext) -> None:
     """Calibrate a rig from its three calibration clips (replacing an earlier calibration)."""
     if ctx.rig_id is None:
         raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
+    if ctx.ride_id is not None:  # "use this ride's calibration for the rig": the ride's own calibration clips
+        _calibrate_rig_from_ride(ctx, ctx.ride_id, ctx.rig_id)
+        return
     with ctx.session() as session:
         rig = RigRepository(session).get(ctx.rig_id)
         clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
