@@ -44,8 +44,7 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
     ("calibration.no_shared_view", "problem", "calibration",
      "Calibrate again so that at least two cameras see the board at the same moment; distances are unchecked."),
     ("calibration.cameras_moved", "problem", "detection",
-     "The cameras moved since the rig was calibrated: calibrate the rig again (film the board, or use this "
-     "ride's own calibration clips) and run the analysis again."),
+     "The cameras moved since the rig was calibrated: calibrate the rig again, then run the analysis again."),
     ("calibration.square_error", "problem", "calibration", _CALIBRATE_AGAIN),
     ("calibration.corner_distances", "problem", "calibration", _CALIBRATE_AGAIN),
     ("calibration.principal_point", "check", "calibration",

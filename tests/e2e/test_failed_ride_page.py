@@ -1,0 +1,123 @@
+"""A failed ride fixed from its page (issue 37, "Done when"), in Debian's chromium on a fresh `saddlescope
+serve` (embedded: the real job runner and the real pipeline).
+
+The tiny synthetic canter ride is uploaded as a bundle whose left motion clip is cut short (a copy
+interrupted half-way off the camera's card). Its job fails; the ride page says in one sentence which clip
+of which camera failed and what to do, with no jargon; the clip is replaced from the ride page (the
+other clips kept); the page follows the new job live, with no reload: queued or running with a
+percentage, then done, when it draws the ride's numbers and its badge reads "analysed".
+Screenshots at 1280 and 390 px in var/test-artifacts/screenshots/failed-ride-*.png.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import integration_services
+import pytest
+from browser_harness import assert_no_horizontal_scroll, chromium_for_module, new_club_admin, serve_fresh
+from test_dashboard import Console, _ok, _require_browser
+from test_rig_upload_pages import shoot
+
+from conftest import PROJECT_ROOT
+
+sys.path.insert(0, str(PROJECT_ROOT / "tests" / "api"))
+from api_helpers import zip_folder  # noqa: E402
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+tiny_ride = integration_services.tiny_ride  # the session fixture: a 2.5 s canter bundle folder
+
+PIPELINE_TIMEOUT_MS = 900_000  # calibration and analysis of the tiny ride on this loaded machine take minutes
+EMAIL, PASSWORD = "sec@broken-clip.example", "broken clip password"
+JARGON = ("sub-harmonic", "autocorrelation", "InvalidData", "Errno", "null", "undefined", "NaN")
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory, tiny_ride):
+    sync_playwright = _require_browser()
+    root = tmp_path_factory.mktemp("failed-ride")
+    good = (tiny_ride / "motion" / "left.mp4").read_bytes()
+    cut = good[: len(good) * 3 // 5]  # cut short: the file's index (at its end) is lost
+    with serve_fresh(root) as server, new_club_admin(server.base, club_name="Broken Clip Club", email=EMAIL,
+                                                     password=PASSWORD) as api:
+        uploaded = api.post("/api/rides/bundle", content=zip_folder(tiny_ride, rewrite={"motion/left.mp4": cut}),
+                            headers={"content-type": "application/zip", "x-filename": "bramble.zip"})
+        answer = _ok(uploaded, 201)
+        with chromium_for_module(sync_playwright) as chromium:
+            yield {"base": server.base, "api": api, "ride": answer["ride"]["id"], "job": answer["job_id"],
+                   "good": tiny_ride / "motion" / "left.mp4", "browser": chromium}
+
+
+def _open(served, width: int = 1280):
+    context = served["browser"].new_context(base_url=served["base"], viewport={"width": width, "height": 900})
+    tab = context.new_page()
+    tab.console = Console()
+    tab.console.attach(tab)
+    tab.set_default_timeout(60_000)
+    answer = tab.context.request.post("/api/auth/login", data={"email": EMAIL, "password": PASSWORD})
+    assert answer.ok, answer.text()
+    return tab
+
+
+def test_a_broken_clip_is_named_replaced_from_the_ride_page_and_the_ride_analysed(served):
+    ride_id = served["ride"]
+    tab = _open(served)
+    try:
+        tab.goto(f"/#/rides/{ride_id}")
+        sentence = tab.locator("[data-failure-sentence]")
+        sentence.wait_for(timeout=300_000)  # the probe stage finds the cut clip
+        text = sentence.inner_text()
+        assert "motion clip of the left camera" in text and "upload the motion clip of the left camera again" in text
+        assert not any(word in text for word in JARGON), text
+        assert tab.locator("[data-ride-badge]").inner_text() == "failed"
+        state = tab.locator("[data-ride-state]").inner_text()
+        assert not any(word in state.split("Technical detail")[0] for word in JARGON), state
+        shoot(tab, "failed-ride")
+        tab.set_viewport_size({"width": 390, "height": 900})
+        assert_no_horizontal_scroll(tab)
+        tab.set_viewport_size({"width": 1280, "height": 900})
+
+        # Replace the clip from the page; the page must follow the new job without a reload.
+        tab.evaluate("() => { window.__sameDocument = true; }")
+        form = tab.locator("[data-replace-clip='motion/left']")
+        form.get_by_label("New motion clip of the left camera").set_input_files(str(served["good"]))
+        form.get_by_role("button", name="Upload it and analyse again").click()
+        tab.wait_for_function("""() => {
+            const s = document.querySelector('[data-job-status]');
+            return s && (s.dataset.jobStatus === 'queued' || s.dataset.jobStatus === 'running');
+        }""")
+        tab.locator("[data-job-status='running']").wait_for(timeout=120_000)
+        assert tab.locator("[data-ride-badge]").inner_text() == "analysing"
+        tab.wait_for_function("""() => /\\d+ %/.test(document.querySelector('[data-job-progress]')?.textContent || '')""")
+        shoot(tab, "failed-ride-rerun")
+
+        # Done: the numbers drawn in place, the badge says so, still the same document (no reload).
+        tab.locator("[data-result]").wait_for(state="visible", timeout=PIPELINE_TIMEOUT_MS)
+        tab.wait_for_function("() => document.querySelector('[data-ride-badge]')?.textContent === 'analysed'")
+        assert tab.evaluate("() => window.__sameDocument === true")
+        assert tab.locator("[data-failure-sentence]").count() == 0
+        assert tab.locator("[data-indicator-cards] .card").count() >= 6
+        ride = _ok(served["api"].get(f"/api/rides/{ride_id}"))
+        assert ride["status"] == "analysed"
+        kept = {(r["clip_kind"], r["camera_role"]) for r in ride["recordings"]}
+        assert {("motion", "middle"), ("motion", "right"), ("calibration", "left")} <= kept
+        shoot(tab, "failed-ride-analysed")
+        assert tab.console.unexpected() == []
+    finally:
+        tab.context.close()
+
+
+def test_the_jobs_list_names_the_ride_and_says_the_failure(served):
+    tab = _open(served)
+    try:
+        tab.goto("/#/jobs")
+        link = tab.locator(f"[data-job-ride][href='#/rides/{served['ride']}']").first
+        link.wait_for()
+        assert link.inner_text() == "Synthetic horse 3, canter"
+        failed = tab.locator(f"tr[data-job-id='{served['job']}']")
+        assert "motion clip of the left camera" in failed.locator("[data-job-failure]").inner_text()
+        assert failed.locator("[data-job-time]").inner_text().startswith("took ")
+        assert tab.console.unexpected() == []
+    finally:
+        tab.context.close()
