@@ -89,7 +89,8 @@ def test_a_broken_clip_is_named_replaced_from_the_ride_page_and_the_ride_analyse
         }""")
         tab.locator("[data-job-status='running']").wait_for(timeout=120_000)
         assert tab.locator("[data-ride-badge]").inner_text() == "analysing"
-        tab.wait_for_function("""() => /\\d+ %/.test(document.querySelector('[data-job-progress]')?.textContent || '')""")
+        tab.wait_for_function(
+            """() => /\\d+ %/.test(document.querySelector('[data-job-progress]')?.textContent || '')""")
         shoot(tab, "failed-ride-rerun")
 
         # Done: the numbers drawn in place, the badge says so, still the same document (no reload).

@@ -19,7 +19,8 @@ CASES = [
     ("analyze: camera 'middle', clip 'motion': markers not found on any of the 40 frames (brightest blob 12)",
      "replace_clip", "middle", "motion", ["markers could not be found in the motion clip of the middle camera"]),
     ("analyze: no sync flash found in the static clip of the right camera: the largest brightness rise is 3 "
-     "grey levels", "replace_clip", "right", "static", ["sync flash is not seen in the static clip of the right camera"]),
+     "grey levels", "replace_clip", "right", "static",
+     ["sync flash is not seen in the static clip of the right camera"]),
     ("analyze: no sync flash, and the markers' motion in the right camera's motion clip matches no other camera",
      "replace_clip", "right", "motion", ["sync flash", "motion clip of the right camera"]),
     ("analyze: the motion clip: the right camera runs at 50 fps but the left camera at 25 fps; ...",
@@ -39,7 +40,8 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize(("error", "action", "camera", "kind", "words"), CASES, ids=[c[1] + str(i) for i, c in enumerate(CASES)])
+@pytest.mark.parametrize(("error", "action", "camera", "kind", "words"), CASES,
+                         ids=[c[1] + str(i) for i, c in enumerate(CASES)])
 def test_each_failure_is_one_plain_sentence_naming_its_clip(error, action, camera, kind, words):
     advice = explain_failure(error)
     assert advice is not None

@@ -12,7 +12,8 @@ from saddlescope.core.types import Camera, MarkerTracks, Rig
 
 
 def _rig(rms_px: float = 0.3, checks: dict | None = None) -> Rig:
-    cams = {name: Camera(name, np.eye(3), np.zeros(5), (640, 480), rms_px=rms_px) for name in ("left", "middle", "right")}
+    cams = {name: Camera(name, np.eye(3), np.zeros(5), (640, 480), rms_px=rms_px)
+            for name in ("left", "middle", "right")}
     return Rig(cams, checks=checks or {})
 
 
