@@ -88,7 +88,10 @@ def test_a_club_admin_brings_in_a_member_who_sets_and_changes_a_password(served)
                          ("#club-email", ADMIN["email"]), ("#club-password", ADMIN["password"])):
         admin.locator(field).fill(value)
     admin.get_by_role("button", name="Create club and sign in").click()
-    admin.wait_for_url("**/#/horses")
+    admin.wait_for_url("**/#/start")  # a new club lands on "Getting started"
+    loaded(admin, "Getting started")
+    assert admin.locator(".layout-drawing").is_visible()  # the cameras and markers drawn
+    shoot(admin, "getting-started")
 
     # A new club's overview says what to do first; the admin sees the health details.
     admin.goto("/#/")
@@ -96,7 +99,7 @@ def test_a_club_admin_brings_in_a_member_who_sets_and_changes_a_password(served)
     steps = admin.locator("[data-getting-started]")
     steps.wait_for(state="visible")
     assert [a.get_attribute("href") for a in steps.locator("a").all()] == [
-        "#/rigs", "#/horses", "#/riders", "#/upload"]
+        "#/start", "#/rigs", "#/horses", "#/riders", "#/upload"]
     admin.locator("[data-health-details]").wait_for(state="visible")
     assert admin.locator("[data-health-summary]").inner_text() == "Service OK"
     assert served["storage"] in admin.locator("[data-health-table]").inner_text()

@@ -51,7 +51,7 @@ def club(tmp_path_factory):
 
 def test_no_page_shows_null_undefined_or_nan(club):
     paths = [f"/rides/{club['ride']}", "/", "/rides", "/horses", "/riders", "/jobs", "/rigs", "/grades",
-             "/leaderboard", "/account"]
+             "/leaderboard", "/account", "/start"]
     found = []
     with chromium_for_module() as chromium:
         context = chromium.new_context(base_url=club["base"], viewport={"width": 1280, "height": 900})

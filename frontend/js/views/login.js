@@ -54,6 +54,6 @@ export function mountLogin(view, _params, query) {
       return;
     }
     announce("Club created; you are signed in.");
-    navigate("/horses");
+    navigate("/start");
   });
 }
