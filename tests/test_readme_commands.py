@@ -10,7 +10,6 @@ import argparse
 import re
 
 from conftest import PROJECT_ROOT
-
 from saddlescope.cli import build_parser
 
 README = PROJECT_ROOT / "README.md"
