@@ -129,6 +129,11 @@ export function showJob(slot, ride, job, handlers) {
         h("span", { class: "job-progress-text", "data-job-progress": "" }, text)));
   } else if (job.status === "done") {
     parts.push(h("p", { "data-job-status": "done" }, `${what}: finished${time ? ` (${time})` : ""}.`));
+    if (job.kind === "calibrate_rig" && can("ride.create")) {  // the rig calibrated anew: analyse the ride with it
+      parts.push(actionButton("Analyse the ride with the new calibration", "data-analyse-now", async () => {
+        handlers.follow((await post(`/api/rides/${ride.id}/analyze`))?.id);
+      }));
+    }
   } else {
     const failure = job.failure;
     const sentence = job.status === "cancelled" ? `${what} was cancelled.`

@@ -14,7 +14,7 @@ import types
 
 import integration_services
 import pytest
-from api_helpers import ThreadQueue, new_club, standin_analyze_bundle, standin_calibrate_clips
+from api_helpers import ThreadQueue, new_club, standin_analyze_bundle, standin_calibrate_clips, zip_folder
 from fastapi.testclient import TestClient
 
 from saddlescope.api import create_app
@@ -69,8 +69,6 @@ def _bundle_with_a_broken_left_clip(folder):
 
 
 def _upload_bundle(api, folder) -> dict:
-    from api_helpers import zip_folder
-
     response = api.client.post("/api/rides/bundle", content=zip_folder(folder),
                                headers={**api.headers, "content-type": "application/zip", "x-filename": "ride.zip"})
     assert response.status_code == 201, response.text
@@ -120,3 +118,48 @@ def test_a_ride_without_a_rig_cannot_lend_its_calibration(env):
     response = api.client.post(f"/api/rides/{uploaded['ride']['id']}/calibrate-rig", headers=api.headers)
     assert response.status_code == 422
     assert "has no rig" in response.json()["detail"]
+
+
+def test_a_rides_own_calibration_clips_calibrate_its_rig(env, monkeypatch):
+    api, root = env
+    import saddlescope.services.calibration as calibration
+
+    calibrated_from = []
+
+    def recording(paths, **kwargs):
+        calibrated_from.append(sorted(paths))
+        return standin_calibrate_clips(paths, **kwargs)
+
+    monkeypatch.setattr(calibration, "calibrate_clips", recording)
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Arena", "board": {
+        "kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0}})
+    folder = integration_services.write_tiny_bundle(root / "with-calibration", frames=5)
+    response = api.client.post(f"/api/rides/bundle?rig_id={rig['id']}", content=zip_folder(folder),
+                               headers={**api.headers, "content-type": "application/zip", "x-filename": "r.zip"})
+    assert response.status_code == 201, response.text
+    ride_id = response.json()["ride"]["id"]
+    _wait(api, response.json()["job_id"])
+    calibrated_from.clear()  # the first analysis calibrated the uncalibrated rig from the bundle itself
+    job = api.ok("POST", f"/rides/{ride_id}/calibrate-rig", 201)
+    assert (job["kind"], job["ride_id"], job["rig_id"]) == ("calibrate_rig", ride_id, rig["id"])
+    done = _wait(api, job["id"])
+    assert done["status"] == "done", done["error"]
+    assert calibrated_from == [["left", "middle", "right"]]  # from the ride's own three calibration clips
+    assert api.ok("GET", f"/rigs/{rig['id']}")["calibrated"]
+    assert "calibrate_rig" in done["timings_s"]
+    # the analysis runs again with the rig's new calibration
+    again = api.ok("POST", f"/rides/{ride_id}/analyze", 201)
+    assert _wait(api, again["id"])["status"] == "done"
+
+
+def test_a_ride_without_calibration_clips_cannot_lend_them(env):
+    api, root = env
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Barn", "board": {
+        "kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 50.0}})
+    ride = api.ok("POST", "/rides", 201, json={
+        "horse_id": api.ok("POST", "/horses", 201, json={"name": "Bramble"})["id"],
+        "rider_id": api.ok("POST", "/riders", 201, json={"name": "Robin"})["id"],
+        "gait": "sitting_trot", "direction": "CW", "rig_id": rig["id"]})
+    response = api.post(f"/rides/{ride['id']}/calibrate-rig")
+    assert response.status_code == 422
+    assert "no calibration clip of the left, middle, right cameras" in response.json()["detail"]

@@ -78,6 +78,14 @@ def test_a_broken_clip_is_named_replaced_from_the_ride_page_and_the_ride_analyse
         assert_no_horizontal_scroll(tab)
         tab.set_viewport_size({"width": 1280, "height": 900})
 
+        # The rides list open in another window follows the ride's status too.
+        rides = _open(served)
+        rides.goto("/#/rides")
+        badge = rides.locator(f"tr[data-ride-id='{ride_id}'] .badge").first
+        badge.wait_for()
+        assert badge.inner_text() == "failed"
+        rides.evaluate("() => { window.__sameDocument = true; }")
+
         # Replace the clip from the page; the page must follow the new job without a reload.
         tab.evaluate("() => { window.__sameDocument = true; }")
         form = tab.locator("[data-replace-clip='motion/left']")
@@ -98,6 +106,11 @@ def test_a_broken_clip_is_named_replaced_from_the_ride_page_and_the_ride_analyse
         tab.wait_for_function("() => document.querySelector('[data-ride-badge]')?.textContent === 'analysed'")
         assert tab.evaluate("() => window.__sameDocument === true")
         assert tab.locator("[data-failure-sentence]").count() == 0
+        rides.wait_for_function(f"""() => document.querySelector("tr[data-ride-id='{ride_id}'] .badge")
+            ?.textContent === 'analysed'""", timeout=60_000)
+        assert rides.evaluate("() => window.__sameDocument === true")
+        assert rides.console.unexpected() == []
+        rides.context.close()
         assert tab.locator("[data-indicator-cards] .card").count() >= 6
         ride = _ok(served["api"].get(f"/api/rides/{ride_id}"))
         assert ride["status"] == "analysed"

@@ -442,7 +442,7 @@ export async function mountRide(view, { id }) {
         render(); // draw the page again: the new numbers, the badge, no outdated-result notice
         return false;
       }
-      if (!hadResult) showJob(state, ride, job, { follow });
+      if (!hadResult || job.kind === "calibrate_rig") showJob(state, ride, job, { follow });
       return false;
     }
     if (unfinished) seenUnfinished = true;
