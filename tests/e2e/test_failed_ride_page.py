@@ -122,6 +122,38 @@ def test_a_broken_clip_is_named_replaced_from_the_ride_page_and_the_ride_analyse
         tab.context.close()
 
 
+def test_a_reanalysis_is_followed_live_and_its_outdated_notice_dropped(served):
+    ride_id = served["ride"]
+    if _ok(served["api"].get(f"/api/rides/{ride_id}"))["status"] != "analysed":
+        pytest.skip("needs the ride analysed by the test before")
+    _ok(served["api"].patch(f"/api/rides/{ride_id}", json={"direction": "CW"}))
+    tab = _open(served)
+    try:
+        tab.goto(f"/#/rides/{ride_id}")
+        notice = tab.locator("[data-ride-edit-outdated]")
+        notice.wait_for()
+        assert "computed with the old direction" in notice.inner_text()
+        tab.locator("[data-result]").wait_for(state="visible")
+        tab.evaluate("() => { window.__sameDocument = true; }")
+        tab.get_by_role("button", name="Re-analyse now").click()
+        tab.wait_for_function("""() => {
+            const t = document.querySelector('[data-ride-edit-outdated-text]')?.textContent || '';
+            return /Re-analysis (queued|waiting|running)/.test(t);
+        }""")
+        assert not tab.get_by_role("button", name="Re-analyse now").is_visible()  # not offered twice
+        # Done: drawn again in place, the notice gone, the numbers shown, no reload.
+        tab.wait_for_function("() => !document.querySelector('[data-ride-edit-outdated]')"
+                              " || document.querySelector('[data-ride-edit-outdated]').hidden",
+                              timeout=PIPELINE_TIMEOUT_MS)
+        tab.locator("[data-result]").wait_for(state="visible")
+        assert tab.evaluate("() => window.__sameDocument === true")
+        assert tab.locator("[data-ride-badge]").inner_text() == "analysed"
+        assert _ok(served["api"].get(f"/api/rides/{ride_id}"))["result_outdated_by"] == []
+        assert tab.console.unexpected() == []
+    finally:
+        tab.context.close()
+
+
 def test_the_jobs_list_names_the_ride_and_says_the_failure(served):
     tab = _open(served)
     try:

@@ -360,7 +360,7 @@ export async function mountRide(view, { id }) {
       horseName: () => horse,
       onSaved: () => render(),
       onDeleted: () => navigate("/rides"),
-      onReanalyse: () => render(),
+      onReanalyse: (job) => follow(job?.id), // followed live; the page is drawn again once it is done
     }).catch((error) => console.warn("ride details form failed:", error.message));
   }
 
@@ -405,6 +405,16 @@ export async function mountRide(view, { id }) {
     const badge = view.querySelector("[data-ride-meta] .badge");
     if (badge) { badge.className = `badge status-${status}`; badge.textContent = text; }
   };
+  // While the ride is analysed again, its "computed with the old ..." notice says so instead of offering it.
+  const sayReanalysing = (job) => {
+    const button = view.querySelector("[data-ride-edit-reanalyse]");
+    if (button) button.hidden = true;
+    const text = view.querySelector("[data-ride-edit-outdated-text]");
+    if (text) {
+      text.textContent = `Re-analysis ${job.status === "queued" ? "waiting to start" : "running"}: the result shown is `
+        + "from the old details until it is done.";
+    }
+  };
   const poller = poll(async () => {
     let job;
     try {
@@ -446,6 +456,7 @@ export async function mountRide(view, { id }) {
       return false;
     }
     if (unfinished) seenUnfinished = true;
+    if (unfinished && job.kind === "analyze") sayReanalysing(job);
     showJob(state, ride, job, { follow });
     return unfinished;
   });
