@@ -164,6 +164,7 @@ def test_the_jobs_list_names_the_ride_and_says_the_failure(served):
         failed = tab.locator(f"tr[data-job-id='{served['job']}']")
         assert "motion clip of the left camera" in failed.locator("[data-job-failure]").inner_text()
         assert failed.locator("[data-job-time]").inner_text().startswith("took ")
+        shoot(tab, "jobs-failed-ride")
         assert tab.console.unexpected() == []
     finally:
         tab.context.close()
