@@ -3,7 +3,7 @@
 // and the way to do it here: replace that clip (the other clips kept), calibrate the rig again (or use the
 // ride's own calibration clips for it), or run the analysis again.
 
-import { get, post } from "./api.js";
+import { get, itemsOf, patch, post } from "./api.js";
 import { h } from "./dom.js";
 import { jobProgressText, jobTimeText } from "./format.js";
 import { can } from "./session.js";
@@ -85,7 +85,37 @@ export function useRideCalibrationButton(ride, follow) {
   });
 }
 
-function failureActions(ride, job, failure, { follow, retry }) {
+// "Pick another calibration": the club's other calibrated rigs (one calibrated after the cameras moved),
+// the ride moved to the chosen one and analysed again.
+function pickRigForm(ride, follow) {
+  const id = `ride-${ride.id}-rig`;
+  const select = h("select", { id, name: "rig_id", "data-pick-rig": "" });
+  const error = h("p", { class: "form-error", role: "alert", hidden: true });
+  const form = h("form", { class: "replace-clip", hidden: true },
+    h("label", { for: id }, "Or analyse it with another rig's calibration"), select,
+    h("button", { type: "submit" }, "Use this rig and analyse again"), error);
+  get("/api/rigs", { params: { limit: 100 } }).then((answer) => {
+    const rigs = itemsOf(answer).filter((rig) => rig.calibrated && rig.id !== ride.rig_id);
+    select.replaceChildren(...rigs.map((rig) => h("option", { value: String(rig.id) }, rig.name)));
+    form.hidden = !rigs.length;
+  }).catch((err) => console.info("rigs not available:", err.message));
+  form.addEventListener("submit", async (event) => {
+    event.preventDefault();
+    const button = form.querySelector("button");
+    button.disabled = true;
+    try {
+      await patch(`/api/rides/${ride.id}`, { rig_id: Number(select.value) });
+      follow((await post(`/api/rides/${ride.id}/analyze`))?.id);
+    } catch (err) {
+      button.disabled = false;
+      error.textContent = err.message;
+      error.hidden = false;
+    }
+  });
+  return form;
+}
+
+function failureActions(ride, job, failure, { follow }) {
   const actions = [];
   const mayChange = can("ride.create");
   if (failure?.action === "replace_clip" && failure.camera && failure.clip_kind && mayChange) {
@@ -102,6 +132,7 @@ function failureActions(ride, job, failure, { follow, retry }) {
         "Calibrate the rig again"), " on its page (upload new calibration clips), then run the analysis again here."));
     }
     if (ride.rig_id && hasOwnCalibration(ride)) actions.push(useRideCalibrationButton(ride, follow));
+    actions.push(pickRigForm(ride, follow));
   }
   if (can("job.retry", ride.created_by ?? null)) {
     actions.push(actionButton("Run the analysis again", "data-retry-job", async () => {

@@ -6,14 +6,22 @@ interrupted half-way off the camera's card). Its job fails; the ride page says i
 of which camera failed and what to do, with no jargon; the clip is replaced from the ride page (the
 other clips kept); the page follows the new job live, with no reload: queued or running with a
 percentage, then done, when it draws the ride's numbers and its badge reads "analysed".
-Screenshots at 1280 and 390 px in var/test-artifacts/screenshots/failed-ride-*.png.
+A re-analysis started from the ride's edit form is followed the same way and drops the "computed with the
+old direction" notice. A ride filmed after a camera of its rig was turned fails saying the markers are not
+where the rig's calibration expects them, offers to calibrate the rig again, another calibrated rig, or the
+ride's own calibration clips, and is analysed once those calibrate the rig.
+Screenshots at 1280 and 390 px in var/test-artifacts/screenshots/failed-ride-*.png, cameras-moved-ride-*.png.
 """
 
 from __future__ import annotations
 
+import copy
+import json
 import sys
 
+import cv2
 import integration_services
+import numpy as np
 import pytest
 from browser_harness import assert_no_horizontal_scroll, chromium_for_module, new_club_admin, serve_fresh
 from test_dashboard import Console, _ok, _require_browser
@@ -46,7 +54,8 @@ def served(tmp_path_factory, tiny_ride):
         answer = _ok(uploaded, 201)
         with chromium_for_module(sync_playwright) as chromium:
             yield {"base": server.base, "api": api, "ride": answer["ride"]["id"], "job": answer["job_id"],
-                   "good": tiny_ride / "motion" / "left.mp4", "browser": chromium}
+                   "good": tiny_ride / "motion" / "left.mp4", "browser": chromium, "folder": tiny_ride,
+                   "database_url": server.database_url}
 
 
 def _open(served, width: int = 1280):
@@ -165,6 +174,62 @@ def test_the_jobs_list_names_the_ride_and_says_the_failure(served):
         assert "motion clip of the left camera" in failed.locator("[data-job-failure]").inner_text()
         assert failed.locator("[data-job-time]").inner_text().startswith("took ")
         shoot(tab, "jobs-failed-ride")
+        assert tab.console.unexpected() == []
+    finally:
+        tab.context.close()
+
+
+def _store_calibration(served, rig_id: int, *, right_turned_deg: float) -> None:
+    """The rig's calibration as a calibrate_rig job stores it: the ride's exact one, its right camera turned."""
+    from saddlescope.db.repositories import RigRepository
+    from saddlescope.db.session import make_engine, make_session_factory, session_scope
+
+    calibration = copy.deepcopy(json.loads((served["folder"] / "truth.json").read_text())["calibration"])
+    right = calibration["extrinsics"]["right"]
+    turn, _ = cv2.Rodrigues(np.array([0.0, np.radians(right_turned_deg), 0.0]))
+    right["R"] = (turn @ np.asarray(right["R"])).tolist()
+    right["t_mm"] = (turn @ np.asarray(right["t_mm"])).tolist()
+    engine = make_engine(served["database_url"])
+    try:
+        with session_scope(make_session_factory(engine)) as session:
+            RigRepository(session).set_calibration(rig_id, calibration, {"flags": []})
+    finally:
+        engine.dispose()
+
+
+def test_cameras_moved_since_the_rig_was_calibrated_the_rides_own_calibration_fixes_it(served):
+    api, board = served["api"], json.loads((served["folder"] / "ride.json").read_text())["board"]
+    moved = _ok(api.post("/api/rigs", json={"name": "Arena before the knock", "board": board}), 201)["id"]
+    other = _ok(api.post("/api/rigs", json={"name": "Arena after the knock", "board": board}), 201)["id"]
+    _store_calibration(served, moved, right_turned_deg=8.0)  # the right camera was knocked since
+    _store_calibration(served, other, right_turned_deg=0.0)
+    uploaded = api.post(f"/api/rides/bundle?rig_id={moved}", content=zip_folder(served["folder"]),
+                        headers={"content-type": "application/zip", "x-filename": "knocked.zip"})
+    ride_id = _ok(uploaded, 201)["ride"]["id"]
+    tab = _open(served)
+    try:
+        tab.goto(f"/#/rides/{ride_id}")
+        sentence = tab.locator("[data-failure-sentence]")
+        sentence.wait_for(timeout=300_000)
+        text = sentence.inner_text()
+        assert "where the rig's calibration expects them" in text and "calibrate the rig again" in text, text
+        assert not any(word in text for word in JARGON), text
+        assert tab.locator("[data-recalibrate-link]").get_attribute("href") == f"#/rigs/{moved}"
+        picker = tab.locator("[data-pick-rig]")
+        picker.wait_for()  # another calibrated rig of the club is offered
+        assert picker.locator("option").all_inner_texts() == ["Arena after the knock"]
+        shoot(tab, "cameras-moved-ride")
+
+        # The bundle carries its own calibration clips: they calibrate the rig again, then the ride runs.
+        tab.evaluate("() => { window.__sameDocument = true; }")
+        tab.locator("[data-ride-state] [data-use-ride-calibration]").click()
+        tab.locator("[data-result]").wait_for(state="visible", timeout=PIPELINE_TIMEOUT_MS)
+        tab.wait_for_function("() => document.querySelector('[data-ride-badge]')?.textContent === 'analysed'")
+        assert tab.evaluate("() => window.__sameDocument === true")
+        rig = _ok(api.get(f"/api/rigs/{moved}"))
+        assert rig["calibrated"]
+        kinds = [j["kind"] for j in _ok(api.get("/api/jobs", params={"ride_id": ride_id}))["items"]]
+        assert kinds.count("calibrate_rig") == 1 and kinds.count("analyze") == 2
         assert tab.console.unexpected() == []
     finally:
         tab.context.close()

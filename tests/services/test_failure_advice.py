@@ -36,8 +36,8 @@ CASES = [
      "recalibrate_rig", None, None, ["The cameras moved since the rig was calibrated", "calibrate the rig again"]),
     ("analyze: the left camera's view does not hold the spots that the other cameras see as the static clip's "
      "markers", "recalibrate_rig", "left", "static",
-     ["left camera does not see the markers where the rig's calibration expects them in the static clip of the left "
-      "camera", "calibrate the rig again"]),
+     ["left camera does not see the markers where the rig's calibration expects them in its static clip",
+      "calibrate the rig again"]),
     ("analyze: its worker host:12 stopped (last heartbeat 300 s ago) on attempt 3 of 3; not retried again",
      "run_again", None, None, ["not in your clips", "run it again"]),
     ("analyze: internal error (ZeroDivisionError: division by zero)", "run_again", None, None, ["run it again"]),

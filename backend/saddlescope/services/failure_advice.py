@@ -124,8 +124,9 @@ def _ride_failure(message: str, camera: str | None, kind: str | None) -> Failure
     if "does not hold the spots that the other cameras see" in message and camera:
         # the rig's calibration says where the other cameras' markers must appear in this camera: a camera
         # moved since the rig was calibrated does this, as does a camera whose view of the horse is blocked
+        where = f" in its {kind} clip" if kind else ""
         return FailureAdvice(f"The {camera} camera does not see the markers where the rig's calibration expects "
-                             f"them in {_clip_words(camera, kind)}: if a camera was moved since the rig was "
+                             f"them{where}: if a camera was moved since the rig was "
                              "calibrated, calibrate the rig again; otherwise check that this camera sees the "
                              "horse's markers.", "recalibrate_rig", camera, kind)
     if _any(message, _BOARD) or (kind == "calibration" and not _any(message, _UNREADABLE)):

@@ -462,7 +462,8 @@ export async function mountRide(view, { id }) {
   });
   // A ride carrying its own calibration clips (a bundle's) offers them to its rig.
   const calibrationSlot = view.querySelector("[data-ride-calibration-slot]");
-  if (calibrationSlot && ride.rig_id && hasOwnCalibration(ride) && can("ride.create")) {
+  // (a failed ride offers them among its remedies instead)
+  if (calibrationSlot && ride.status === "analysed" && ride.rig_id && hasOwnCalibration(ride) && can("ride.create")) {
     calibrationSlot.replaceChildren(h("p", { class: "hint" },
       "This ride carries its own calibration clips. If the cameras were moved since the rig was calibrated, "
       + "they can calibrate the rig again for this and later rides. "), useRideCalibrationButton(ride, follow));
