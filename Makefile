@@ -61,7 +61,7 @@ system-deps:
 	fi
 
 demo: install
-	$(BIN)/saddlescope demo
+	$(BIN)/saddlescope demo $(if $(PORT),--port $(PORT),)
 
 lint: install
 	$(BIN)/ruff check backend worker tests

@@ -19,6 +19,7 @@ function lazy(load, name, ...args) {
 }
 
 route("/", lazy(() => import("./js/views/home.js"), "mountHome"), { title: "Overview" });
+route("/start", lazy(() => import("./js/views/start.js"), "mountStart"), { title: "Getting started" });
 route("/login", lazy(() => import("./js/views/login.js"), "mountLogin"), { title: "Sign in", auth: false });
 route("/horses", lazy(() => import("./js/views/entities.js"), "mountEntities", "horses"), { title: "Horses" });
 route("/horses/:id", lazy(() => import("./js/views/horse.js"), "mountHorse"), { title: "Horse" });

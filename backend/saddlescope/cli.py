@@ -305,7 +305,13 @@ def run(args: argparse.Namespace) -> int:
             print(json.dumps(result, indent=2))
         return 0
     if cmd in ("demo", "serve", "worker", "sweep"):
-        return _run_service(args)
+        from saddlescope.server import PortInUse
+
+        try:
+            return _run_service(args)
+        except PortInUse as exc:  # one plain sentence, no bind error or traceback
+            print(f"saddlescope {cmd}: {exc}", file=sys.stderr)
+            return 2
     raise AssertionError(cmd)
 
 

@@ -84,6 +84,10 @@ def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
     """
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr
+    if serve:  # before minutes of analysis: a taken port is said at once
+        from saddlescope.server import check_port_free
+
+        check_port_free(host, port, hint="make demo PORT={port} (or saddlescope demo --port {port})")
     settings = settings or get_settings()
     upgrade_to_head(settings.database_url)
     sessions = session_factory_for(settings.database_url)

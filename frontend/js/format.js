@@ -144,6 +144,24 @@ export function durationText(hours) {
   return `${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
 }
 
+/** A job's time in seconds as a person says it: 40 -> "under a minute", 130 -> "about 2 min", 4000 -> "about 1 h 07 min". */
+export function secondsText(seconds) {
+  const s = Number(seconds);
+  if (seconds === null || seconds === undefined || !Number.isFinite(s) || s < 0) return "";
+  if (s < 60) return "under a minute";
+  const minutes = Math.round(s / 60);
+  if (minutes < 60) return `about ${minutes} min`;
+  return `about ${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
+}
+
+/** How long a job took or still needs, in words ("took about 3 min", "about 2 min left"); "" when unknown. */
+export function jobTimeText(job) {
+  if (job?.status === "running" && job.remaining_s != null) return `${secondsText(job.remaining_s)} left`;
+  if ((job?.status === "done" || job?.status === "failed") && job.duration_s != null) return `took ${secondsText(job.duration_s)}`;
+  if (job?.status === "queued") return "waiting to start";
+  return "";
+}
+
 /**
  * A riding distance in km as a rider says it: 0.00416 -> "about 4 m", 0.416 -> "about 420 m", 1.23 -> "about 1.2 km"
  * (two significant digits: the distances are estimates). The same words as saddlescope.services.report.distance_text.

@@ -88,7 +88,10 @@ def test_a_club_admin_brings_in_a_member_who_sets_and_changes_a_password(served)
                          ("#club-email", ADMIN["email"]), ("#club-password", ADMIN["password"])):
         admin.locator(field).fill(value)
     admin.get_by_role("button", name="Create club and sign in").click()
-    admin.wait_for_url("**/#/horses")
+    admin.wait_for_url("**/#/start")  # a new club lands on "Getting started"
+    loaded(admin, "Getting started")
+    assert admin.locator(".layout-drawing").is_visible()  # the cameras and markers drawn
+    shoot(admin, "getting-started")
 
     # A new club's overview says what to do first; the admin sees the health details.
     admin.goto("/#/")
@@ -96,7 +99,7 @@ def test_a_club_admin_brings_in_a_member_who_sets_and_changes_a_password(served)
     steps = admin.locator("[data-getting-started]")
     steps.wait_for(state="visible")
     assert [a.get_attribute("href") for a in steps.locator("a").all()] == [
-        "#/rigs", "#/horses", "#/riders", "#/upload"]
+        "#/start", "#/rigs", "#/horses", "#/riders", "#/upload"]
     admin.locator("[data-health-details]").wait_for(state="visible")
     assert admin.locator("[data-health-summary]").inner_text() == "Service OK"
     assert served["storage"] in admin.locator("[data-health-table]").inner_text()
@@ -254,3 +257,36 @@ def test_members_are_paged_and_the_phone_menu_works_by_keyboard(served):
     shoot(tab, "overview-with-rides")
     assert tab.console.unexpected() == []
     tab.context.close()
+
+
+def test_the_sign_in_page_says_refusals_in_plain_sentences(served):
+    tab = new_tab(served)
+    try:
+        tab.goto("/#/login")
+        loaded(tab, "Sign in")
+        for field, value in (("#club-name", "Short Password Club"), ("#club-email", "not-an-address"),
+                             ("#club-password", "short")):
+            tab.locator(field).fill(value)
+        tab.get_by_role("button", name="Create club and sign in").click()
+        error = tab.locator("[data-register-form] [data-form-error]")
+        error.wait_for(state="visible")
+        text = error.inner_text()
+        assert text == "The password needs at least 8 characters.", text
+        tab.locator("#club-password").fill("long enough password")
+        tab.get_by_role("button", name="Create club and sign in").click()
+        tab.wait_for_function("""() => !document.querySelector('[data-register-form] [data-form-error]')
+            .textContent.includes('password')""")
+        text = error.inner_text()
+        assert text == "'not-an-address' is not an e-mail address.", text
+        assert not any(raw in text for raw in ("body.", "String should", "loc")), text
+
+        tab.locator("#login-email").fill("nobody@club.example")
+        tab.locator("#login-password").fill("a wrong password")
+        tab.locator("[data-login-form]").get_by_role("button", name="Sign in").click()
+        refused = tab.locator("[data-login-form] [data-form-error]")
+        refused.wait_for(state="visible")
+        sentence = refused.inner_text()
+        assert sentence[0].isupper() and sentence.endswith("."), sentence
+        assert tab.console.unexpected(401, 422) == []
+    finally:
+        tab.context.close()

@@ -127,7 +127,7 @@ def _journey(tab, served, meta, folder) -> None:
                          ("#club-email", CLUB["email"]), ("#club-password", CLUB["password"])):
         tab.locator(field).fill(value)
     tab.get_by_role("button", name="Create club and sign in").click()
-    tab.wait_for_url("**/#/horses")
+    tab.wait_for_url("**/#/start")  # a new club lands on "Getting started"
     _loaded(tab)
     api = _api(served)
 

@@ -355,6 +355,16 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     assert page.console.unexpected() == []
 
 
+def test_leaderboard_opens_on_the_gait_with_the_most_ranked_rides(page, dashboard):
+    sign_in(page)
+    page.goto("/#/leaderboard")
+    page.locator("[data-leaderboard-table] tbody tr").first.wait_for()
+    # Bella's one walk ride against the canter rides of three horses: the canter, not the form's first gait
+    assert page.locator("[data-leaderboard-form] [name=gait]").input_value() == "canter"
+    assert page.locator("[data-leaderboard-note]").inner_text().startswith("Canter")
+    assert page.console.unexpected() == []
+
+
 def test_leaderboard_ranks_the_most_comfortable_horse_first(page, dashboard):
     sign_in(page)
     page.goto("/#/leaderboard?gait=canter&indicator=acc_y_wb_rms")

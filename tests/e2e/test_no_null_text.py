@@ -52,7 +52,7 @@ def club(tmp_path_factory):
 
 def test_no_page_shows_null_undefined_or_nan(club):
     paths = [f"/rides/{club['ride']}", "/", "/rides", "/horses", "/riders", "/jobs", "/rigs", "/grades",
-             "/leaderboard", "/account", "/saddles", f"/saddles/{club['saddle']}", f"/horses/{club['horse']}"]
+             "/leaderboard", "/account", "/start", "/saddles", f"/saddles/{club['saddle']}", f"/horses/{club['horse']}"]
     found = []
     with chromium_for_module() as chromium:
         context = chromium.new_context(base_url=club["base"], viewport={"width": 1280, "height": 900})

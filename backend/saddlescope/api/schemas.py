@@ -27,7 +27,7 @@ from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
 
 __all__ = [
     "BoardIn", "BundleUploaded", "MocapRideOut", "CameraRole", "ClipKind", "ClipUploaded", "ClubCreate", "ClubCreated",
-    "ClubOut", "ComparisonOut", "CorrelationOut", "Decimation", "Direction", "Email", "ErrorOut", "Gait",
+    "ClubOut", "ComparisonOut", "CorrelationOut", "Decimation", "Direction", "Email", "ErrorOut", "FailureOut", "Gait",
     "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
     "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
     "JobKindOut", "JobOut", "LeaderboardEntry", "LeaderboardOut", "LoginIn", "MAX_ID", "MarkersIn", "MeOut",
@@ -603,6 +603,15 @@ class JobCreate(_In):
         return payload
 
 
+class FailureOut(BaseModel):
+    """Why a job failed, in one sentence a club can act on, and what the ride page offers to do."""
+
+    sentence: str = Field(description="one plain sentence naming the clip and camera where known")
+    action: Literal["replace_clip", "recalibrate_rig", "film_again", "run_again"]
+    camera: Literal["left", "middle", "right"] | None = Field(description="the camera whose clip failed")
+    clip_kind: Literal["calibration", "plumb", "static", "motion"] | None = Field(description="the clip that failed")
+
+
 class JobOut(BaseModel):
     """A job: its status, progress, per-stage timings and error."""
 
@@ -629,6 +638,11 @@ class JobOut(BaseModel):
     stage_label: str = Field(default="", description="what the job is doing, in plain words")
     owner_id: int | None = Field(default=None, description=(
         "the user who made the job's ride (may cancel and retry it); None: admins only"))
+    failure: FailureOut | None = Field(default=None, description="a failed job's reason in plain words")
+    remaining_s: float | None = Field(default=None, description=(
+        "a running job's expected remaining time, from its progress so far (None: not running, too early)"))
+    duration_s: float | None = Field(default=None, description="how long a finished job ran")
+    ride_label: str | None = Field(default=None, description="the job's ride as a club names it ('Bramble, canter')")
 
 
 class JobKindOut(BaseModel):

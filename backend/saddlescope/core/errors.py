@@ -9,6 +9,7 @@ __all__ = [
     "InputError",
     "VideoError",
     "CalibrationError",
+    "CamerasMovedError",
     "SyncError",
     "DetectionError",
     "TriangulationError",
@@ -33,6 +34,10 @@ class VideoError(SaddleScopeError):
 
 class CalibrationError(SaddleScopeError):
     """No board found, too few board views, or a calibration that fails its checks."""
+
+
+class CamerasMovedError(CalibrationError):
+    """A ride's markers no longer fit its rig's calibration: the cameras moved since the rig was calibrated."""
 
 
 class SyncError(SaddleScopeError):

@@ -43,6 +43,8 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
     # calibration (core/calibration)
     ("calibration.no_shared_view", "problem", "calibration",
      "Calibrate again so that at least two cameras see the board at the same moment; distances are unchecked."),
+    ("calibration.cameras_moved", "problem", "detection",
+     "The cameras moved since the rig was calibrated: calibrate the rig again, then run the analysis again."),
     ("calibration.square_error", "problem", "calibration", _CALIBRATE_AGAIN),
     ("calibration.corner_distances", "problem", "calibration", _CALIBRATE_AGAIN),
     ("calibration.lens_model", "check", "calibration",

@@ -14,9 +14,10 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import InputError
 from saddlescope.db.enums import JobStatus
-from saddlescope.db.models import Job
+from saddlescope.db.models import Job, utcnow
 from saddlescope.db.repositories import JobRepository, RideRepository, RigRepository
 from saddlescope.db.session import session_scope
+from saddlescope.services.failure_advice import explain_failure
 from saddlescope.services.queue import JobQueue, QueueUnavailable
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.services.stage_labels import progress_percent, stage_label
@@ -107,7 +108,47 @@ def job_as_dict(job: Job) -> dict[str, Any]:
         "finished_at": job.finished_at, "note": None,
         "progress_percent": progress_percent(job.progress, job.status),
         "stage_label": stage_label(_printable(job.stage), job.status),
+        "failure": _failure(job), "remaining_s": remaining_seconds(job), "duration_s": _duration_s(job),
     }
+
+
+# A running job's expected remaining time is extrapolated from its progress only past this fraction
+# (the first percent is dominated by start-up, and would promise hours).
+_MIN_PROGRESS_FOR_ESTIMATE = 0.03
+
+
+def remaining_seconds(job: Job, *, now=None) -> float | None:
+    """A running job's expected remaining time: its elapsed time stretched over the progress still to go.
+
+    None for a job not running, or too early to tell.
+    """
+    if job.status != JobStatus.RUNNING.value or job.started_at is None:
+        return None
+    progress = float(job.progress or 0.0)
+    if progress < _MIN_PROGRESS_FOR_ESTIMATE:
+        return None
+    elapsed_s = ((now or utcnow()) - job.started_at).total_seconds()
+    if elapsed_s <= 0:
+        return None
+    return round(elapsed_s * (1.0 - progress) / progress, 1)
+
+
+def _duration_s(job: Job) -> float | None:
+    """How long a finished job ran (None while it has not both started and ended)."""
+    if job.started_at is None or job.finished_at is None:
+        return None
+    return round(max((job.finished_at - job.started_at).total_seconds(), 0.0), 1)
+
+
+def _failure(job: Job) -> dict[str, Any] | None:
+    """A failed job's advice (one sentence, the clip, the action) as the API sends it."""
+    if job.status != JobStatus.FAILED.value:
+        return None
+    advice = explain_failure(_printable(job.error))
+    if advice is None:
+        return None
+    return {"sentence": advice.sentence, "action": advice.action, "camera": advice.camera,
+            "clip_kind": advice.clip_kind}
 
 
 def job_note(session: Session, job: Job, queue: JobQueue, *, stale_after_s: float | None = None) -> str | None:

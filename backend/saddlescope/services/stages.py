@@ -344,7 +344,12 @@ def run_assemble(ctx: StageContext) -> None:
     with ctx.session() as session:
         ride = RideRepository(session).get(ride_id)
         if ride.bundle_key is not None:
-            (ctx.outputs() / "source.json").write_text(json.dumps({"bundle_key": ride.bundle_key}))
+            replaced = _replaced_bundle_clips(ride.bundle_key, RecordingRepository(session).for_ride(ride_id))
+            bundle_key = ride.bundle_key
+            if replaced:
+                _bundle_with_replacements(ctx, bundle_key, replaced)
+            else:
+                (ctx.outputs() / "source.json").write_text(json.dumps({"bundle_key": bundle_key}))
             return
         rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
         recordings = RecordingRepository(session)
@@ -371,7 +376,43 @@ def run_assemble(ctx: StageContext) -> None:
     ctx.report(1.0, None)
 
 
+def _replaced_bundle_clips(bundle_key: str, recordings) -> dict[str, dict[str, str]]:
+    """The clips of a bundle ride uploaded again from its ride page: {kind: {camera: storage key}}.
+
+    A bundle's own clips are stored under its bundle key; a clip replaced later is stored with the ride's
+    clips (`services.uploads.accept_clip`) and takes the bundle clip's place when the ride is assembled.
+    """
+    replaced: dict[str, dict[str, str]] = {}
+    for recording in recordings:
+        if recording.path and not recording.path.startswith(f"{bundle_key}/"):
+            replaced.setdefault(recording.clip_kind, {})[recording.camera_role] = recording.path
+    return replaced
+
+
+def _bundle_with_replacements(ctx: StageContext, bundle_key: str, replaced: dict[str, dict[str, str]]) -> None:
+    """The ride's bundle as a folder, its replaced clips put in place of the uploaded bundle's (ride.json too)."""
+    source = ctx.fetch(bundle_key)
+    folder = ctx.outputs() / ASSEMBLED_BUNDLE
+    shutil.copytree(source, folder)
+    meta_path = folder / "ride.json"
+    meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    clips = meta.setdefault("clips", {})
+    for kind, cams in replaced.items():
+        for camera, key in cams.items():
+            old = clips.get(kind, {}).get(camera)
+            if old is not None and not Path(old).is_absolute() and ".." not in Path(old).parts:
+                (folder / old).unlink(missing_ok=True)
+            rel = f"replaced/{kind}/{camera}{Path(key).suffix}"
+            ctx.storage.fetch(key, folder / rel)
+            clips.setdefault(kind, {})[camera] = rel
+    meta_path.write_text(json.dumps(meta, indent=1, allow_nan=False), encoding="utf-8")
+    ctx.report(1.0, None)
+
+
 def _bundle_path(ctx: StageContext, ride) -> Path:
+    assembled = ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE
+    if (assembled / "ride.json").is_file():  # a bundle ride with a clip replaced, or a ride of clips
+        return assembled
     if ride.bundle_key is not None:
         return ctx.fetch(ride.bundle_key)
     folder = ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE
@@ -433,11 +474,32 @@ def run_calibrate(ctx: StageContext) -> None:
                              bundle.meta.get("sync"), replace=False)
 
 
+def _calibrate_rig_from_ride(ctx: StageContext, ride_id: int, rig_id: int) -> None:
+    """Calibrate rig `rig_id` from ride `ride_id`'s own calibration clips (a bundle's), replacing its calibration."""
+    with ctx.session() as session:
+        ride = RideRepository(session).get(ride_id)
+        rig = RigRepository(session).get(rig_id)
+        clips = complete_clip_sets(RecordingRepository(session).for_ride(ride_id)).get("calibration")
+        meta = dict(ride.meta or {})
+        board = meta.get("board") or rig.board
+    if clips is None:
+        raise CalibrationError(f"ride {ride_id} has no calibration clips of the left, middle and right cameras "
+                               "to calibrate its rig with")
+    if not board:
+        raise CalibrationError(f"neither ride {ride_id} nor rig {rig_id} describes the calibration board its "
+                               "clips show")
+    paths = {role: ctx.fetch(key) for role, key in clips.items()}
+    _calibrate_and_store(ctx, rig_id, paths, board, ctx.payload.get("sync") or meta.get("sync"), replace=True)
+
+
 @stage("calibrate_rig", weight=6.0)
 def run_calibrate_rig(ctx: StageContext) -> None:
     """Calibrate a rig from its three calibration clips (replacing an earlier calibration)."""
     if ctx.rig_id is None:
         raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
+    if ctx.ride_id is not None:  # "use this ride's calibration for the rig": the ride's own calibration clips
+        _calibrate_rig_from_ride(ctx, ctx.ride_id, ctx.rig_id)
+        return
     with ctx.session() as session:
         rig = RigRepository(session).get(ctx.rig_id)
         clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")

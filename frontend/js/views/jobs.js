@@ -8,6 +8,7 @@ import { announce, formatDate, h, page, showError } from "../dom.js";
 import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
 import { poll } from "../poll.js";
 import { can } from "../session.js";
+import { jobTimeText } from "../format.js";
 
 const UNFINISHED = new Set(["queued", "running"]);
 const FILTERS = ["status", "kind", "ride_id"];
@@ -30,7 +31,8 @@ function doingCell(job) {
   return h("td", { class: "stage" },
     h("span", { "data-job-stage": true }, label),
     job.note && UNFINISHED.has(job.status) ? h("strong", { class: "job-note", role: "status", "data-job-note": true }, job.note) : null,
-    job.error ? h("span", { class: "error" }, job.error) : null);
+    job.failure ? h("span", { class: "error", "data-job-failure": true }, job.failure.sentence)
+      : job.error ? h("span", { class: "error" }, job.error) : null);
 }
 
 async function fillKinds(select) {
@@ -78,10 +80,12 @@ export async function mountJobs(view, params, query) {
     return h("tr", { dataset: { jobId: job.id, status: job.status } },
       h("td", {}, `#${job.id}`),
       h("td", {}, job.kind.replace(/_/g, " ")),
-      h("td", {}, job.ride_id ? h("a", { href: `#/rides/${job.ride_id}` }, `#${job.ride_id}`) : "\u2013"),
+      h("td", {}, job.ride_id ? h("a", { href: `#/rides/${job.ride_id}`, "data-job-ride": true },
+        job.ride_label || `Ride ${job.ride_id}`) : "\u2013"),
       h("td", {}, h("span", { class: `badge status-${job.status}` }, job.status)),
       progressCell(job),
       doingCell(job),
+      h("td", { class: "nowrap", "data-job-time": true }, jobTimeText(job) || "\u2013"),
       h("td", { class: "nowrap" }, formatDate(job.created_at)),
       h("td", { class: "actions" }, ...actions));
   }

@@ -6,6 +6,24 @@ import { fmt, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../forma
 import { fillOptions } from "../options.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
 
+// With no gait asked for, open on the gait with the most ranked rides (rides too uncertain for a decision
+// are not ranked): not on a gait whose rides are all too uncertain, as the walk's often are.
+async function mostRankedGait(form) {
+  const gaits = [...form.elements.gait.options].map((o) => o.value).filter(Boolean);
+  const indicator = form.elements.indicator.value;
+  const ranked = await Promise.all(gaits.map(async (gait) => {
+    try {
+      const rows = groupsOf(await get("/api/leaderboard", { params: { gait, indicator } }), indicator);
+      return rows.reduce((total, row) => total + (Number(row.n) || 0), 0);
+    } catch (error) {
+      console.info(`leaderboard of ${gait} not available:`, error.message);
+      return 0;
+    }
+  }));
+  const best = ranked.indexOf(Math.max(...ranked));
+  return best >= 0 && ranked[best] > 0 ? gaits[best] : null;
+}
+
 export async function mountLeaderboard(view, _params, query) {
   view.append(page("leaderboard"));
   const form = view.querySelector("[data-leaderboard-form]");
@@ -15,6 +33,10 @@ export async function mountLeaderboard(view, _params, query) {
   const section = form.closest("section");
   await fillOptions(view);
   for (const name of ["gait", "indicator", "saddle_id"]) if (query.get(name)) form.elements[name].value = query.get(name);
+  if (!query.get("gait")) {
+    const gait = await mostRankedGait(form);
+    if (gait) form.elements.gait.value = gait;
+  }
 
   const uncertainBox = view.querySelector("[data-leaderboard-uncertain]");
   if (query.get("include_uncertain") === "true") form.elements.include_uncertain.checked = true;
@@ -37,7 +59,8 @@ export async function mountLeaderboard(view, _params, query) {
     const info = indicatorInfoOf(indicator);
     const unit = prettyUnit(info.unit);
     view.querySelector("[data-value-head]").textContent = unit ? `Mean (${unit})` : "Mean";
-    note.textContent = `${gaitLabel(gait)}, ${labelText(info.label)}: ` +
+    const gaitWords = gaitLabel(gait);
+    note.textContent = `${gaitWords.charAt(0).toUpperCase()}${gaitWords.slice(1)}, ${labelText(info.label)}: ` +
       `${(answer.better ?? info.better) === "higher" ? "higher" : "lower"} is more comfortable.`;
     table.tBodies[0].replaceChildren(...rows.map((row) => h("tr", { dataset: { horse: row.horse } },
       h("td", { class: "rank" }, String(row.rank)),

@@ -1,6 +1,7 @@
 // Sign in, or create a club (which signs its first administrator in).
 
 import { announce, busy, formValues, page, showError } from "../dom.js";
+import { plainReason } from "../form-errors.js";
 import { navigate } from "../router.js";
 import { createClub, signIn } from "../session.js";
 
@@ -35,7 +36,7 @@ export function mountLogin(view, _params, query) {
     try {
       await busy(loginForm, () => signIn(email, password));
     } catch (error) {
-      showError(loginForm, error);
+      showError(loginForm, plainReason(error));
       return;
     }
     announce("Signed in.");
@@ -50,10 +51,10 @@ export function mountLogin(view, _params, query) {
     try {
       await busy(registerForm, () => createClub(formValues(registerForm)));
     } catch (error) {
-      showError(registerForm, error);
+      showError(registerForm, plainReason(error));
       return;
     }
     announce("Club created; you are signed in.");
-    navigate("/horses");
+    navigate("/start");
   });
 }

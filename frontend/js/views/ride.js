@@ -2,10 +2,10 @@
 // directive (with the passive-seated caveat), quality flags, kinematics charts, grade form, exports.
 
 import { ApiError, get, itemsOf, post } from "../api.js";
-import { announce, busy, fill, formValues, h, page, showError } from "../dom.js";
+import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import {
-  PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, jobProgressText, labelFragment, prettyUnit,
+  PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
 } from "../format.js";
 import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
@@ -16,6 +16,7 @@ import { drawAnalysis, showQuality } from "./ride-analysis.js";
 import { mountAlikePanel } from "./similar.js";
 import { mountReadiness } from "../ride-readiness.js";
 import { mountRideEdit } from "../ride-edit.js";
+import { badgeFor, hasOwnCalibration, newestJob, showJob, useRideCalibrationButton } from "../ride-job.js";
 import { navigate, render } from "../router.js";
 
 // Order of saddlescope.core.kinematics.VERSION_NAMES (eq. 6.3-6.4 for each reference marker).
@@ -315,25 +316,6 @@ function showResult(view, ride, result) {
   drawAnalysis(view, result);
 }
 
-function showJob(state, job, onRetry, ownerId) {
-  const { percent, stage, text } = jobProgressText(job);
-  const ended = job.status === "failed" || job.status === "cancelled";
-  fill(state,
-    h("p", {}, `Analysis job #${job.id}: ${job.status}${stage ? ` \u2013 ${stage}` : ""}`),
-    h("div", { class: "job-progress" },
-      h("progress", { max: "100", value: String(percent), "aria-label": "Analysis progress",
-                      "aria-valuetext": `${percent} percent${stage ? `, ${stage}` : ""}` }),
-      h("span", { class: "job-progress-text", "data-job-progress": "" }, text)),
-    // "waiting for a worker ...": the job cannot move until one is running (said, not left to guess)
-    job.note && !ended && job.status !== "done" ? h("p", { class: "job-note", role: "status", "data-job-note": "" },
-      `This job is ${job.note}.`) : null,
-    job.error ? h("p", { class: "form-error" }, job.error) : null,
-    // retrying is for the ride's maker or an admin: others are not shown a button that would answer 403
-    ended && can("job.retry", ownerId) ? h("button", { type: "button", onclick: onRetry,
-                                                       "data-permission": "job.retry" }, "Run the analysis again")
-      : null);
-}
-
 /** The saddle, pad and rider's weight of the ride, under its details line (a saddle links to its page). */
 async function showSaddle(view, ride) {
   if (ride.saddle_id == null && !ride.pad && ride.rider_weight_kg == null) return;
@@ -371,7 +353,7 @@ export async function mountRide(view, { id }) {
     ride.ridden_on ? ` \u00b7 ${ride.ridden_on}` : "",
     // a motion-capture file analysed as a ride says so: no cameras, no calibration behind it
     ride.meta?.source?.kind === "mocap" ? ` \u00b7 from the motion-capture file ${ride.meta.source.file}` : "",
-    " \u00b7 ", h("span", { class: `badge status-${ride.status}` }, ride.status));
+    " \u00b7 ", h("span", { class: `badge status-${ride.status}`, "data-ride-badge": "" }, ride.status));
   showMeta();
   showSaddle(view, ride).catch((error) => console.info("saddle not shown:", error.message));
   // A ride still missing clips says what it lacks (and where to add it) instead of an empty page.
@@ -393,7 +375,7 @@ export async function mountRide(view, { id }) {
       horseName: () => horse,
       onSaved: () => render(),
       onDeleted: () => navigate("/rides"),
-      onReanalyse: () => render(),
+      onReanalyse: (job) => follow(job?.id), // followed live; the page is drawn again once it is done
     }).catch((error) => console.warn("ride details form failed:", error.message));
   }
 
@@ -408,10 +390,14 @@ export async function mountRide(view, { id }) {
     await Promise.all([drawVersions(view, rideId, result), attachGradeForm(view, ride)]);
   }
 
-  if (ride.status === "analysed") {
+  // Follow the ride's newest job live: its badge, progress and remaining time; once an analysis finishes,
+  // the page is drawn again (new numbers, no "computed with the old ..." notice); once it fails, the
+  // sentence naming the clip and what to do, with the way to do it.
+  let hadResult = false;
+  if (ride.status === "analysed" || ride.indicators) {
     try {
       await loadResult();
-      return () => stopAlike?.();
+      hadResult = true;
     } catch (error) {
       if (!(error instanceof ApiError) || error.status !== 404) {
         state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
@@ -419,54 +405,83 @@ export async function mountRide(view, { id }) {
       }
     }
   }
-  // No result yet: follow the ride's newest job until it ends.
-  state.replaceChildren(h("p", {}, "This ride has not been analysed yet."));
-  let latestJobId = ride.latest_job_id;
+  if (!hadResult) state.replaceChildren(h("p", {}, "This ride has not been analysed yet."));
+  let followedId = ride.latest_job_id;
+  let thenAnalyse = false;
+  let seenUnfinished = false;
+  const follow = (jobId, { thenAnalyse: next = false } = {}) => {
+    followedId = jobId ?? followedId;
+    thenAnalyse = next;
+    seenUnfinished = true;
+    poller.restart();
+  };
+  const setBadge = (job) => {
+    const { status, text } = badgeFor(job, ride.status);
+    const badge = view.querySelector("[data-ride-meta] .badge");
+    if (badge) { badge.className = `badge status-${status}`; badge.textContent = text; }
+  };
+  // While the ride is analysed again, its "computed with the old ..." notice says so instead of offering it.
+  const sayReanalysing = (job) => {
+    const button = view.querySelector("[data-ride-edit-reanalyse]");
+    if (button) button.hidden = true;
+    const text = view.querySelector("[data-ride-edit-outdated-text]");
+    if (text) {
+      text.textContent = `Re-analysis ${job.status === "queued" ? "waiting to start" : "running"}: the result shown is `
+        + "from the old details until it is done.";
+    }
+  };
   const poller = poll(async () => {
     let job;
     try {
-      job = latestJobId
-        ? await get(`/api/jobs/${latestJobId}`)
-        : itemsOf(await get("/api/jobs", { params: { ride_id: rideId, limit: 20 } })).sort((a, b) => b.id - a.id)[0];
+      job = await newestJob(rideId, followedId);
     } catch (error) {
       state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
       return 5000;
     }
+    if (!state.isConnected) return false;
     if (!job) {
-      state.replaceChildren(h("p", {}, "This ride has not been analysed yet, and no analysis job exists for it."),
-        h("button", { type: "button", onclick: async (event) => {
-          event.target.disabled = true;
-          try {
-            latestJobId = (await post(`/api/rides/${rideId}/analyze`))?.id ?? null;
-            poller.restart();
-          } catch (err) {
-            state.append(h("p", { class: "form-error", role: "alert" }, err.message));
-          }
-        } }, "Analyse now"));
-      return 5000;
-    }
-    showJob(state, job, async (event) => {
-      event.target.disabled = true;
-      try {
-        latestJobId = (await post(`/api/jobs/${job.id}/retry`))?.id ?? job.id;
-        poller.restart();
-      } catch (err) {
-        event.target.disabled = false;
-        state.append(h("p", { class: "form-error", role: "alert" }, err.message));
-      }
-    }, ride.created_by_id ?? ride.created_by ?? null);
-    if (job.status === "done") {
-      announce("Analysis finished.");
-      try {
-        ride = await get(`/api/rides/${rideId}`);
-        showMeta();
-        await loadResult();
-      } catch (error) {
-        state.replaceChildren(h("p", { class: "form-error", role: "alert" }, error.message));
+      if (!hadResult) {
+        state.replaceChildren(h("p", {}, "This ride has not been analysed yet, and no analysis job exists for it."),
+          h("button", { type: "button", onclick: async (event) => {
+            event.target.disabled = true;
+            try {
+              follow((await post(`/api/rides/${rideId}/analyze`))?.id ?? null);
+            } catch (err) {
+              state.append(h("p", { class: "form-error", role: "alert" }, err.message));
+            }
+          } }, "Analyse now"));
       }
       return false;
     }
-    return job.status === "queued" || job.status === "running" ? true : false;
+    followedId = job.id;
+    setBadge(job);
+    const unfinished = job.status === "queued" || job.status === "running";
+    if (job.status === "done") {
+      if (job.kind === "calibrate_rig" && thenAnalyse) {
+        thenAnalyse = false;
+        followedId = (await post(`/api/rides/${rideId}/analyze`))?.id ?? null;
+        return true;
+      }
+      if (job.kind === "analyze" && seenUnfinished) {
+        announce("Analysis finished.");
+        render(); // draw the page again: the new numbers, the badge, no outdated-result notice
+        return false;
+      }
+      if (!hadResult || job.kind === "calibrate_rig") showJob(state, ride, job, { follow });
+      return false;
+    }
+    if (unfinished) seenUnfinished = true;
+    if (unfinished && job.kind === "analyze") sayReanalysing(job);
+    showJob(state, ride, job, { follow });
+    return unfinished;
   });
+  // A ride carrying its own calibration clips (a bundle's) offers them to its rig.
+  const calibrationSlot = view.querySelector("[data-ride-calibration-slot]");
+  // (a failed ride offers them among its remedies instead)
+  if (calibrationSlot && ride.status === "analysed" && ride.rig_id && hasOwnCalibration(ride) && can("ride.create")) {
+    calibrationSlot.replaceChildren(h("p", { class: "hint" },
+      "This ride carries its own calibration clips. If the cameras were moved since the rig was calibrated, "
+      + "they can calibrate the rig again for this and later rides. "), useRideCalibrationButton(ride, follow));
+  }
   return () => { poller.stop(); stopAlike?.(); };
 }

@@ -5,12 +5,15 @@
 import { get, itemsOf } from "../api.js";
 import { h, page, showError } from "../dom.js";
 import { nameLookups, horseName } from "../lookups.js";
+import { poll } from "../poll.js";
 import { fillOptions } from "../options.js";
 import { apiParams, bindFilterForm, listState, pager, updateQuery } from "../pager.js";
 import { deleteRideWithConfirmation, mountRideEdit } from "../ride-edit.js";
 import { rideTable, rideTitle } from "../ride-table.js";
 
 const FILTERS = ["horse_id", "rider_id", "gait", "status", "date_from", "date_to"];
+// A ride in these states is waiting for or inside its analysis: its badge is followed live.
+const UNDER_WAY = new Set(["ready", "processing"]);
 
 export async function mountRides(view, params, query) {
   view.append(page("rides"));
@@ -21,6 +24,7 @@ export async function mountRides(view, params, query) {
   const editSlot = view.querySelector("[data-ride-edit-slot]");
   const panel = list.closest(".panel");
   let lookups = null;
+  let shown = [];
 
   async function openEditor(ride) {
     editSlot.hidden = false;
@@ -52,6 +56,7 @@ export async function mountRides(view, params, query) {
       return;
     }
     const items = itemsOf(answer);
+    shown = items;
     const filtered = FILTERS.some((name) => state.filters[name] !== "");
     list.replaceChildren(items.length ? rideTable(items, lookups, {
       onEdit: (ride) => updateQuery({ edit: ride.id }),
@@ -77,4 +82,19 @@ export async function mountRides(view, params, query) {
       showError(panel, error);
     }
   }
+  // Status badges follow the rides' analyses without a reload: the list is drawn again when one changes
+  // (looked at every 3 s while a ride is under way, else every 15 s: a ride may be started elsewhere).
+  let first = true;
+  const poller = poll(async () => {
+    if (first) { first = false; return 3000; } // just drawn
+    try {
+      const now = itemsOf(await get("/api/rides", { params: apiParams(state) }));
+      const before = new Map(shown.map((ride) => [ride.id, ride.status]));
+      if (now.some((ride) => before.get(ride.id) !== ride.status) && !editSlot.contains(document.activeElement)) await load();
+    } catch (error) {
+      console.info("rides not refreshed:", error.message);
+    }
+    return shown.some((ride) => UNDER_WAY.has(ride.status)) ? 3000 : 15000;
+  });
+  return () => poller.stop();
 }

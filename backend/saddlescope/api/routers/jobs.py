@@ -43,6 +43,15 @@ class _AskOnce:
         return self._alive[0]
 
 
+_GAIT_WORDS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "rising trot", "canter": "canter"}
+
+
+def _ride_labels(club: ClubScope, ride_ids: list[int]) -> dict[int, str]:
+    """Ride id -> "Bramble, sitting trot": the ride as the club names it."""
+    return {ride_id: f"{horse}, {_GAIT_WORDS.get(gait, gait.replace('_', ' '))}"
+            for ride_id, (horse, gait) in club.rides.horses_and_gaits(ride_ids).items()}
+
+
 def _owners(club: ClubScope, jobs) -> dict[int, int | None]:
     return club.rides.creators_of([job.ride_id for job in jobs if job.ride_id is not None])
 
@@ -79,11 +88,12 @@ def list_jobs(
         offset=paging.offset,
     )
     owners = _owners(club, page.items)
+    labels = _ride_labels(club, [job.ride_id for job in page.items if job.ride_id is not None])
     asked = _AskOnce(queue)
     notes = {job.id: job_note(club.session, job, asked, stale_after_s=settings.stale_after_s)
              for job in page.items if job.status in ("queued", "running")}
     return page_of(page, lambda job: JobOut(**{**job_as_dict(job), "owner_id": owners.get(job.ride_id),
-                                               "note": notes.get(job.id)}))
+                                               "note": notes.get(job.id), "ride_label": labels.get(job.ride_id)}))
 
 
 @router.post(
@@ -130,7 +140,8 @@ def read(job_id: Id, club: ClubDep, queue: QueueDep, settings: SettingsDep) -> J
     job = get_job(club.session, job_id, club_id=club.club_id)
     owner = club.rides.creator_of(job.ride_id) if job.ride_id is not None else None
     note = job_note(club.session, job, queue, stale_after_s=settings.stale_after_s)
-    return JobOut(**{**job_as_dict(job), "note": note, "owner_id": owner})
+    label = _ride_labels(club, [job.ride_id]).get(job.ride_id) if job.ride_id is not None else None
+    return JobOut(**{**job_as_dict(job), "note": note, "owner_id": owner, "ride_label": label})
 
 
 @router.post("/{job_id}/cancel", response_model=JobOut, responses=ERRORS)

@@ -36,6 +36,8 @@ from saddlescope.api.schemas import (
     RideUpdate,
 )
 from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
+from saddlescope.core.errors import InputError
+from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.core.vibration import COMFORT_INDICATORS
 from saddlescope.db.enums import RIDE_STATUSES
 from saddlescope.db.repositories import Ride, RideFilter, RideRepository
@@ -305,6 +307,35 @@ async def analyze_ride(ride_id: Id, club: ClubDep, sessions: SessionFactoryDep, 
     club.session.rollback()
     job_id = await run_in_threadpool(
         submit_job, sessions, queue, kind="analyze", ride_id=ride_id, club_id=club.club_id
+    )
+    with session_scope(sessions) as session:
+        return JobOut(**job_as_dict(get_job(session, job_id)))
+
+
+@router.post(
+    "/{ride_id}/calibrate-rig",
+    status_code=status.HTTP_201_CREATED,
+    response_model=JobOut,
+    responses={**ERRORS, 503: {"model": ErrorOut}},
+)
+async def calibrate_rig_from_ride(ride_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
+    """Use this ride's own calibration clips (a bundle's) for its rig: a `calibrate_rig` job replacing the rig's.
+
+    Refused (422) when the ride has no rig or no calibration clip of each camera. Run the ride's analysis
+    again once the job is done.
+    """
+    ride = await run_in_threadpool(club.rides.get, ride_id)
+    if ride.rig_id is None:
+        raise InputError(f"ride {ride_id} has no rig: choose its rig on the ride page first")
+    kinds = {(r.clip_kind, r.camera_role) for r in club.recordings.for_ride(ride_id)}
+    missing = [cam for cam in CAMERA_ROLES if ("calibration", cam) not in kinds]
+    if missing:
+        raise InputError(f"ride {ride_id} has no calibration clip of the {', '.join(missing)} camera"
+                         f"{'s' if len(missing) > 1 else ''}, so it cannot calibrate its rig")
+    rig_id = ride.rig_id
+    club.session.rollback()
+    job_id = await run_in_threadpool(
+        submit_job, sessions, queue, kind="calibrate_rig", ride_id=ride_id, rig_id=rig_id, club_id=club.club_id
     )
     with session_scope(sessions) as session:
         return JobOut(**job_as_dict(get_job(session, job_id)))

@@ -13,10 +13,17 @@ from contextlib import nullcontext
 import cv2
 
 from saddlescope.core.calibration.boards import board_from_meta
-from saddlescope.core.errors import InputError
+from saddlescope.core.errors import CamerasMovedError, InputError, KinematicsError
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
-from saddlescope.core.pipeline.detection import EarlyMotionTracks, depth_uncertainty, detect_ride, disagreement_flag
+from saddlescope.core.pipeline.consistency import cameras_moved_finding
+from saddlescope.core.pipeline.detection import (
+    EarlyMotionTracks,
+    RideTracks,
+    depth_uncertainty,
+    detect_ride,
+    disagreement_flag,
+)
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.pipeline.result import assemble_result
 from saddlescope.core.pipeline.setup import (
@@ -85,6 +92,23 @@ def _within_thread_budget(params: PipelineParams) -> PipelineParams:
     return params
 
 
+def _kinematics(found: RideTracks, rig: Rig, params: PipelineParams, meta: Mapping):
+    """The saddle's kinematics, and the cameras-moved finding (a list of 0 or 1).
+
+    A rig calibrated before the ride may no longer fit it: a kinematics failure is then said as that cause.
+    """
+    moved = cameras_moved_finding(rig, found.tracks3d["motion"])
+    try:
+        kin = saddle_kinematics(found.tracks3d["motion"], found.tracks3d["static"], found.tracks3d.get("plumb"), params,
+                                horse_idx=found.horse_idx, saddle_idx=found.saddle_idx, gait=meta.get("gait"),
+                                depth=depth_uncertainty(rig, found.tracks3d["motion"]), down_hint=found.cameras_down)
+    except KinematicsError as exc:
+        if moved is None:
+            raise
+        raise CamerasMovedError(f"{moved.detail}; the ride's motion cannot be measured ({exc})") from exc
+    return kin, [moved] if moved is not None else []
+
+
 def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
                  rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
                  input_flags: Sequence[Finding] = (), rig_report: Mapping | None = None) -> RideResult:
@@ -146,11 +170,9 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.finish("triangulation", t0, seconds=found.triangulation_s)
 
     t0 = time.perf_counter()
-    kin = saddle_kinematics(found.tracks3d["motion"], found.tracks3d["static"], found.tracks3d.get("plumb"), params,
-                            horse_idx=found.horse_idx, saddle_idx=found.saddle_idx, gait=meta.get("gait"),
-                            depth=depth_uncertainty(rig, found.tracks3d["motion"]), down_hint=found.cameras_down)
+    kin, moved = _kinematics(found, rig, params, meta)
     disagreements = [f for kind, tr in found.tracks3d.items() if (f := disagreement_flag(kind, tr))]
-    flags = clock_flags + found.flags + disagreements + found.plumb_findings + list(kin.flags)
+    flags = clock_flags + found.flags + moved + disagreements + found.plumb_findings + list(kin.flags)
     progress.finish("kinematics", t0)
 
     t0 = time.perf_counter()

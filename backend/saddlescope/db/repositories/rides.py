@@ -136,6 +136,14 @@ class RideRepository(Repository):
         made_by = {ride_id: dict(meta or {}).get("_created_by") for ride_id, meta in self.session.execute(stmt)}
         return {ride_id: value if isinstance(value, int) else None for ride_id, value in made_by.items()}
 
+    def horses_and_gaits(self, ride_ids: Sequence[int]) -> dict[int, tuple[str, str]]:
+        """Ride id -> (its horse's name, its gait), for the rides (of this club): how a club names a ride."""
+        if not ride_ids:
+            return {}
+        stmt = self._scoped(select(Ride.id, Horse.name, Ride.gait).join(Horse, Horse.id == Ride.horse_id)
+                            .where(Ride.id.in_(set(ride_ids))))
+        return {ride_id: (name, gait) for ride_id, name, gait in self.session.execute(stmt)}
+
     def set_bundle_key(self, ride_id: int, bundle_key: str) -> None:
         """Store where the ride's bundle (ride.json and clips) lives in storage."""
         self.session.execute(self._scoped_update(ride_id).values(bundle_key=bundle_key))
