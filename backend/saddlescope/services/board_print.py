@@ -135,20 +135,21 @@ def _single_sheet(board: Board, paper: str) -> tuple[bool, bool, float]:
 
 
 def tile_grid(board: Board, paper: str = "a4") -> tuple[int, int, bool, float, float]:
-    """How A4 (or ``paper``) tiles cut the board: (columns, rows, landscape, cell width mm, cell height mm).
+    """How A4 (or ``paper``) tiles cut the board's squares: (columns, rows, landscape, cell width, cell height mm).
 
-    Each sheet owns a cell of the board and repeats ``OVERLAP_MM`` of its neighbours to the right and
-    below (the glue strip); the orientation giving fewer sheets wins.
+    The tiles cover the squares only (the white margin is the mounting board's); each sheet owns an
+    equal cell and repeats ``OVERLAP_MM`` of its neighbours to the right and below (the glue strip); the
+    orientation giving fewer sheets wins.
     """
-    width_mm, height_mm = board_size_mm(board)
+    cols, rows = board.inner_corners
+    width_mm, height_mm = (cols + 1) * board.square_mm, (rows + 1) * board.square_mm
     best: tuple[int, int, bool, float, float] | None = None
     for landscape in (False, True):
         pw, ph = _printable_mm(paper, landscape)
-        cell_w, cell_h = pw - OVERLAP_MM, ph - OVERLAP_MM
-        n_cols = max(1, math.ceil(width_mm / cell_w - 1e-9))
-        n_rows = max(1, math.ceil(height_mm / cell_h - 1e-9))
+        n_cols = max(1, math.ceil(width_mm / (pw - OVERLAP_MM) - 1e-9))
+        n_rows = max(1, math.ceil(height_mm / (ph - OVERLAP_MM) - 1e-9))
         if best is None or n_cols * n_rows < best[0] * best[1]:
-            best = (n_cols, n_rows, landscape, cell_w, cell_h)
+            best = (n_cols, n_rows, landscape, width_mm / n_cols, height_mm / n_rows)
     assert best is not None
     return best
 
@@ -255,15 +256,14 @@ def _single_sheets(board: Board, paper: str, title: str) -> tuple[float, float, 
 
 def _tile_sheets(board: Board, title: str) -> tuple[float, float, list[str]]:
     n_cols, n_rows, landscape, cell_w, cell_h = tile_grid(board)
-    width_mm, height_mm = board_size_mm(board)
     page_w, page_h = PAPERS_MM["a4"][::-1] if landscape else PAPERS_MM["a4"]
     sheets = []
     for row in range(n_rows):
         for col in range(n_cols):
-            bx, by = col * cell_w, row * cell_h
-            own_w, own_h = min(cell_w, width_mm - bx), min(cell_h, height_mm - by)  # the cell this sheet owns
-            show_w = min(own_w + (OVERLAP_MM if col + 1 < n_cols else 0.0), width_mm - bx)
-            show_h = min(own_h + (OVERLAP_MM if row + 1 < n_rows else 0.0), height_mm - by)
+            # the cell this sheet owns, in board mm (the squares start one square in, past the margin)
+            bx, by = board.square_mm + col * cell_w, board.square_mm + row * cell_h
+            show_w = cell_w + (OVERLAP_MM if col + 1 < n_cols else 0.0)
+            show_h = cell_h + (OVERLAP_MM if row + 1 < n_rows else 0.0)
             x0, y0 = MARGIN_MM, MARGIN_MM
             name = _tile_name(row, col)
             notes = [f"Sheet {name}: row {row + 1} of {n_rows}, column {col + 1} of {n_cols}."]
@@ -275,7 +275,7 @@ def _tile_sheets(board: Board, title: str) -> tuple[float, float, list[str]]:
                 notes.append("Cut along the marks left and top.")
             body = (f'<svg x="{_n(x0)}" y="{_n(y0)}" width="{_n(show_w)}" height="{_n(show_h)}" '
                     f'viewBox="{_n(bx)} {_n(by)} {_n(show_w)} {_n(show_h)}"><use href="#board"/></svg>'
-                    + _crop_marks(x0, y0, own_w, own_h)
+                    + _crop_marks(x0, y0, cell_w, cell_h)
                     + f'<text x="{_n(x0)}" y="{_n(y0 - 3)}" font-size="4" font-weight="bold">{name}</text>'
                     + f'<text x="{_n(x0 + 10)}" y="{_n(y0 - 3)}" font-size="2.4">{html.escape(" ".join(notes))}</text>'
                     + f'<text x="{_n(MARGIN_MM)}" y="{_n(page_h - MARGIN_MM - FOOTER_MM + 8)}" font-size="3">'
@@ -318,9 +318,9 @@ def board_print_html(board_meta: Mapping[str, Any], layout: str, *, rig_name: st
         title += f" \u2014 {rig_name}"
     if layout == "a4-tiles":
         page_w, page_h, sheets = _tile_sheets(board, title)
-        how = (f"{len(sheets)} A4 sheets. Cut each sheet but the first along its marks on the left and top, "
-               "lay it over the strip its neighbour repeats so that the squares run on, and glue the whole "
-               "flat on a rigid board.")
+        how = (f"{len(sheets)} A4 sheets holding the squares. Cut each sheet but the first along its marks on the "
+               "left and top, lay it over the strip its neighbour repeats so that the squares run on, and glue "
+               f"the whole flat on a rigid white board leaving {board.square_mm:g} mm of white all round.")
     else:
         page_w, page_h, sheets = _single_sheets(board, layout, title)
         how = f"One {layout.upper()} sheet. Glue it flat on a rigid board."

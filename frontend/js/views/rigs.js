@@ -104,6 +104,29 @@ async function showBoard(root, rig) {
   box.replaceChildren(document.importNode(svg, true));
   note.hidden = false;
   note.querySelector("[data-square-mm]").textContent = `${rig.board.square_mm} mm`;
+  showBoardSizes(root, await get(`/api/rigs/${rig.id}/board-sizes`));
+}
+
+const fmt = (value, digits = 0) => Number(value).toFixed(digits);
+
+/** The board's printed size, the papers it fits and the square each camera distance needs. */
+function showBoardSizes(root, sizes) {
+  root.querySelector("[data-board-sizes]").hidden = false;
+  root.querySelector("[data-board-sentences]").replaceChildren(...sizes.sentences.map((s) => h("li", {}, s)));
+  root.querySelector("[data-board-layouts]").replaceChildren(...sizes.layouts.map((lay) => h("li", {
+    class: lay.fits ? "fits" : "no-fit", dataset: { layout: lay.layout } },
+  h("strong", {}, `${lay.label}: `),
+  lay.layout === "a4-tiles"
+    ? `${lay.sheets} sheets with crop marks and a 100 mm ruler each; squares of ${fmt(lay.largest_square_mm, 0)} mm, found up to ${fmt(lay.reach_m, 1)} m from the camera.`
+    : lay.fits
+      ? `fits. This pattern could have squares up to ${fmt(Math.floor(lay.largest_square_mm))} mm on it (found up to ${fmt(lay.reach_m, 1)} m away).`
+      : `too small for ${fmt(sizes.square_mm)} mm squares; with this pattern it takes squares up to ${fmt(Math.floor(lay.largest_square_mm))} mm (cameras up to ${fmt(lay.reach_m, 1)} m away).`)));
+  const select = root.querySelector("[data-print-layout]");
+  const previous = select.value;
+  const fitting = sizes.layouts.filter((lay) => lay.fits);
+  select.replaceChildren(...fitting.map((lay) => h("option", { value: lay.layout }, lay.label)));
+  // The smallest single sheet that fits, else the tiles: what an office printer can do first.
+  select.value = fitting.some((lay) => lay.layout === previous) ? previous : fitting[0].layout;
 }
 
 function clipCell(rig, clip, kind, camera, onUploaded) {
@@ -274,10 +297,10 @@ export async function mountRig(view, params) {
     poller = poll(refreshCalibration, { intervalMs: 3000 });
   }
   wireBoardEdit(root, rig, reload);
+  // The print page has every sheet at its size in mm (@page): the browser prints it at scale.
   root.querySelector("[data-print-board]").addEventListener("click", () => {
-    document.body.classList.add("printing-board");
-    window.addEventListener("afterprint", () => document.body.classList.remove("printing-board"), { once: true });
-    window.print();
+    const layout = root.querySelector("[data-print-layout]").value || "a4-tiles";
+    window.open(`/api/rigs/${rigId}/board-print?layout=${encodeURIComponent(layout)}`, "_blank", "noopener");
   });
   root.querySelector("[data-calibrate]").addEventListener("click", async (event) => {
     const button = event.currentTarget;
