@@ -6,7 +6,8 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-__all__ = ["BoardLayoutOut", "BoardSizesOut", "SquareAtDistance"]
+__all__ = ["BoardLayoutOut", "BoardSizesOut", "CalibrationCheckOut", "CameraCheckOut", "CheckFindingOut",
+           "DepthCoverageOut", "SquareAtDistance"]
 
 
 class BoardLayoutOut(BaseModel):
@@ -42,3 +43,51 @@ class BoardSizesOut(BaseModel):
     squares_needed: list[SquareAtDistance]
     layouts: list[BoardLayoutOut]
     sentences: list[str]
+
+
+class CheckFindingOut(BaseModel):
+    """One finding of the check: its code (saddlescope.core.findings), severity, sentence and what to do."""
+
+    code: str
+    severity: Literal["ok", "check", "problem"]
+    detail: str = Field(description="the sentence with its numbers")
+    advice: str = Field(description="one sentence a club can act on")
+
+
+class DepthCoverageOut(BaseModel):
+    """The distances the board was held at from the camera: a histogram of views over distance bins."""
+
+    near_m: float | None = Field(description="10th percentile of the views' distances")
+    far_m: float | None = Field(description="90th percentile of the views' distances")
+    bin_edges_m: list[float]
+    views: list[int]
+
+
+class CameraCheckOut(BaseModel):
+    """One camera's calibration clip checked: coverage over the image and depth, reach, findings."""
+
+    camera: str
+    image_size: tuple[int, int]
+    frames_sampled: int
+    views: int = Field(description="sampled frames in which the board was found")
+    grid: list[list[int]] = Field(description="rows x columns of the image: views whose corners fell in each cell")
+    bands_missed: list[str] = Field(description="the thirds of the image no corner reached, in words")
+    corners_missed: list[str]
+    reach_x: tuple[float, float] = Field(description="leftmost and rightmost corner, shares of the width")
+    reach_y: tuple[float, float] = Field(description="topmost and lowest corner, shares of the height")
+    hull_fraction: float = Field(description="the corners' outline as a share of the image")
+    depth: DepthCoverageOut
+    film_again: bool
+    findings: list[CheckFindingOut]
+
+
+class CalibrationCheckOut(BaseModel):
+    """The rig's calibration clips checked before anyone rides (``checked`` False until the first check)."""
+
+    checked: bool
+    checking: bool = Field(description="a check is queued or running")
+    film_again: bool | None = None
+    verdict: str
+    seconds: float | None = Field(default=None, description="how long the check took")
+    clips: dict[str, int] = Field(default_factory=dict, description="camera -> the recording id checked")
+    cameras: dict[str, CameraCheckOut] = Field(default_factory=dict)

@@ -28,9 +28,9 @@ from saddlescope.core.calibration.boards import board_from_meta, board_type
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import Board
 
-__all__ = ["ASSUMED_HFOV_DEG", "ASSUMED_WIDTH_PX", "DISTANCES_M", "LAYOUTS", "PAPERS_MM", "BoardAdvice", "BoardLayout",
-           "CameraView", "board_advice", "board_layouts", "board_print_html", "board_size_mm", "camera_view", "min_square_px",
-           "square_needed_mm", "tile_grid"]
+__all__ = ["ASSUMED_HFOV_DEG", "ASSUMED_WIDTH_PX", "DISTANCES_M", "LAYOUTS", "PAPERS_MM", "BoardAdvice",
+           "BoardLayout", "CameraView", "board_advice", "board_layouts", "board_print_html", "board_size_mm",
+           "camera_view", "min_square_px", "square_needed_mm", "tile_grid"]
 
 # Paper sizes (width, height) mm, portrait; A2-A0 are a print shop's posters.
 PAPERS_MM: dict[str, tuple[float, float]] = {

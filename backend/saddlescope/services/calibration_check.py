@@ -20,6 +20,7 @@ import numpy as np
 from saddlescope.core.calibration import detect_board_views
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.calibration.coverage_check import CameraCoverageCheck, check_camera_coverage
+from saddlescope.core.findings import FINDING_KINDS
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.io.findings_document import findings_to_list
 from saddlescope.io.video import iter_gray_frames, probe_video
@@ -117,12 +118,11 @@ def _camera_document(c: CameraCoverageCheck) -> dict[str, Any]:
         "corners_missed": list(c.corners_missed),
         "reach_x": [round(v, 3) for v in c.reach_x], "reach_y": [round(v, 3) for v in c.reach_y],
         "hull_fraction": round(c.hull_fraction, 3),
-        "distance_m": {"near": round(float(np.percentile(known, 10)), 2) if len(known) else None,
-                       "far": round(float(np.percentile(known, 90)), 2) if len(known) else None,
-                       "bin_edges": _rounded(edges), "views": counts.astype(int).tolist()},
+        "depth": {"near_m": round(float(np.percentile(known, 10)), 2) if len(known) else None,
+                  "far_m": round(float(np.percentile(known, 90)), 2) if len(known) else None,
+                  "bin_edges_m": _rounded(edges), "views": counts.astype(int).tolist()},
         "film_again": c.film_again,
-        "findings": findings_to_list(list(c.findings)),
-        "sentences": [f.detail for f in c.findings],
+        "findings": [{**f, "advice": FINDING_KINDS[f["code"]].advice} for f in findings_to_list(c.findings)],
     }
 
 

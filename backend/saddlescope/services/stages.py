@@ -64,7 +64,8 @@ if TYPE_CHECKING:
 __all__ = [
     "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobFenced", "JobKind", "STAGES", "Stage",
     "StageContext", "StageUnavailable", "define_job_kind", "job_kind", "ride_document", "run_analyze",
-    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_check_calibration", "run_probe", "run_selftest", "run_similarity", "stage",
+    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_check_calibration",
+    "run_probe", "run_selftest", "run_similarity", "stage",
 ]
 
 ASSEMBLED_BUNDLE = "bundle"  # folder name of the assembled ride bundle in the assemble stage's outputs

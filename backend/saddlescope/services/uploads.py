@@ -236,8 +236,10 @@ def _probed(info) -> dict[str, Any]:
 
 def start_calibration_check(sessions: sessionmaker[Session], queue: JobQueue, owner: ClipOwner,
                             clip_kind: str) -> int | None:
-    """A rig's calibration clip arrived: check where its board went (a ``check_calibration`` job), unless
-    a check is already waiting to start (it will read this clip too); returns its id or None."""
+    """A rig's calibration clip arrived: check where its board went (a ``check_calibration`` job).
+
+    Not when a check is already waiting to start (it will read this clip too); returns its id or None.
+    """
     if owner.kind != "rig" or clip_kind != "calibration":
         return None
     with session_scope(sessions) as session:
