@@ -207,6 +207,63 @@ function coveragePicture(camera, entry) {
   return svg;
 }
 
+/** One camera's coverage map: the image cut in cells, each shaded by the views whose corners fell in it. */
+function checkGrid(camera, entry) {
+  const [w, h_] = entry.image_size;
+  const rows = entry.grid.length;
+  const cols = rows ? entry.grid[0].length : 0;
+  const most = Math.max(1, ...entry.grid.flat());
+  const svg = svgEl("svg", { viewBox: `0 0 ${w} ${h_}`, role: "img", class: "coverage",
+    "aria-label": `Coverage map of the ${camera} camera's image: ${entry.bands_missed.length ? `never reached: ${entry.bands_missed.join(", ")}` : "every third reached"}` });
+  svg.append(svgEl("rect", { x: 0, y: 0, width: w, height: h_, class: "coverage-frame" }));
+  entry.grid.forEach((row, r) => row.forEach((views, c) => {
+    const cell = svgEl("rect", { x: (c * w) / cols, y: (r * h_) / rows, width: w / cols, height: h_ / rows,
+      class: views ? "check-cell" : "coverage-missed" });
+    if (views) cell.setAttribute("fill-opacity", String(0.15 + (0.75 * views) / most));
+    svg.append(cell);
+  }));
+  for (const f of [1, 2]) {
+    svg.append(svgEl("line", { x1: (f * w) / 3, y1: 0, x2: (f * w) / 3, y2: h_, class: "coverage-grid" }));
+    svg.append(svgEl("line", { x1: 0, y1: (f * h_) / 3, x2: w, y2: (f * h_) / 3, class: "coverage-grid" }));
+  }
+  return svg;
+}
+
+/** The board's distances from the camera: one bar per distance bin, as tall as its views. */
+function depthBars(camera, depth) {
+  const most = Math.max(1, ...depth.views);
+  const n = depth.views.length;
+  const svg = svgEl("svg", { viewBox: `0 0 ${n * 10} 34`, role: "img", class: "check-depth",
+    "aria-label": depth.near_m == null ? `No distances for the ${camera} camera`
+      : `The board was held ${depth.near_m.toFixed(1)} to ${depth.far_m.toFixed(1)} m from the ${camera} camera` });
+  depth.views.forEach((views, i) => {
+    const tall = (24 * views) / most;
+    svg.append(svgEl("rect", { x: i * 10 + 1, y: 24 - tall, width: 8, height: tall, class: "check-depth-bar" }));
+  });
+  svg.append(svgEl("line", { x1: 0, y1: 24.5, x2: n * 10, y2: 24.5, class: "check-depth-axis" }));
+  for (const i of [0, n / 2, n]) {
+    const label = svgEl("text", { x: Math.min(Math.max(i * 10, 4), n * 10 - 4), y: 32, class: "check-depth-label" });
+    label.textContent = `${Number(depth.bin_edges_m[i]).toFixed(1)} m`;
+    svg.append(label);
+  }
+  return svg;
+}
+
+function showCheck(root, check) {
+  const verdict = root.querySelector("[data-check-verdict]");
+  verdict.textContent = check.checking && check.checked ? `Checking again… ${check.verdict}` : check.verdict;
+  verdict.className = `check-verdict${check.checked ? (check.film_again ? " film-again" : " ready") : ""}`;
+  root.querySelector("[data-check-cameras]").replaceChildren(...Object.entries(check.cameras || {}).map(([camera, entry]) => {
+    const reach = `Board in ${entry.views} of ${entry.frames_sampled} frames looked at; its corners reached ${Math.round(100 * entry.reach_x[0])}-${Math.round(100 * entry.reach_x[1])} % across and ${Math.round(100 * entry.reach_y[0])}-${Math.round(100 * entry.reach_y[1])} % down the image.`;
+    return h("figure", { class: `coverage-figure check-camera${entry.film_again ? " film-again" : ""}`, dataset: { checkCamera: camera } },
+      checkGrid(camera, entry), depthBars(camera, entry.depth),
+      h("figcaption", {}, h("strong", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera: ${entry.film_again ? "film again" : "good"}. `), reach,
+        h("ul", { class: "check-findings" }, ...entry.findings.map((f) => h("li", { class: `severity-${f.severity}` }, f.detail)))));
+  }));
+  const again = root.querySelector("[data-check-again]");
+  again.hidden = !can("ride.analyse") || check.checking || !check.checked;
+}
+
 function calibrationMissing(rig, clips) {
   const missing = [];
   if (!rig.board) missing.push("The rig has no calibration board described.");
@@ -281,10 +338,12 @@ export async function mountRig(view, params) {
   async function refreshCalibration() {
     if (gone) return false;
     const report = await get(`/api/rigs/${rigId}/calibration-report`);
+    const check = await get(`/api/rigs/${rigId}/calibration-check`);
     rig = await get(`/api/rigs/${rigId}`);
     if (gone) return false;
     showCalibration(root, rig, clips, report);
-    return report.calibrating;
+    showCheck(root, check);
+    return report.calibrating || check.checking;
   }
   async function reload() {
     if (gone) return;
@@ -310,6 +369,18 @@ export async function mountRig(view, params) {
       await reload();
     } catch (error) {
       showError(root.querySelector("[data-calibration-panel]"), error);
+    } finally {
+      button.disabled = false;
+    }
+  });
+  root.querySelector("[data-check-again]").addEventListener("click", async (event) => {
+    const button = event.currentTarget;
+    button.disabled = true;
+    try {
+      await post(`/api/rigs/${rigId}/calibration-check`, {});
+      await reload();
+    } catch (error) {
+      showError(root.querySelector("[data-check-panel]"), error);
     } finally {
       button.disabled = false;
     }
