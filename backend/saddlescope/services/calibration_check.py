@@ -29,7 +29,7 @@ __all__ = ["MIN_SAMPLES", "SAMPLE_FPS", "CalibrationCheck", "check_calibration_c
            "check_storage_key", "sample_step"]
 
 SAMPLE_FPS = 3.0  # frames a second looked at: the board moves slowly, and a view a third of a second on is new
-MIN_SAMPLES = 60  # a short clip is looked at more densely, down to every frame
+MIN_SAMPLES = 40  # a short clip is looked at more densely, down to every frame
 
 
 def sample_step(fps: float, frame_count: int, *, sample_fps: float = SAMPLE_FPS, min_samples: int = MIN_SAMPLES) -> int:
