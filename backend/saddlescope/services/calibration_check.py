@@ -81,7 +81,7 @@ def check_calibration_clips(
     out: dict[str, CameraCoverageCheck] = {}
     for n, camera in enumerate(order):
         if on_progress is not None:
-            on_progress(n / len(order), f"checking the {camera} camera's calibration clip")
+            on_progress(n / len(order), f"the {camera} camera")
         info = probe_video(Path(paths[camera]), decode_tail=False)
         step = sample_step(info.fps, info.frame_count, sample_fps=sample_fps)
         sampled = 0
