@@ -5,7 +5,8 @@ A4 tiles, and a 300 x 240 mm ChArUco board on one A3 sheet: Chromium's ``page.pd
 (as the browser's print dialog does at "actual size"), then in the PDF the page count and size, the
 black squares' size measured from the vector rectangles (within 1 % of the stated mm), and the 100 mm
 ruler bar on every page. The rig page offers the layouts (screenshots at 1280 and 390 px) and its
-"Print the board" opens the chosen print page.
+"Print the board" opens the chosen print page; it shows a stored calibration check per camera (coverage
+map, distances, verdict in words).
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ def served(tmp_path_factory):
         big = _ok(api.post("/api/rigs", json={"name": "Outdoor arena", "board": BIG_BOARD}))["id"]
         small = _ok(api.post("/api/rigs", json={"name": "Indoor school", "board": A3_BOARD}))["id"]
         with chromium_for_module(sync_playwright) as chromium:
-            yield {"base": server.base, "api": api, "big": big, "small": small, "chromium": chromium}
+            yield {"base": server.base, "api": api, "big": big, "small": small, "chromium": chromium,
+                   "storage": server.storage_dir}
 
 
 @pytest.fixture
@@ -125,4 +127,56 @@ def test_the_rig_page_states_the_size_and_offers_the_layouts(page, served):
     assert popup.locator("section.sheet").count() == 12
     popup.close()
     shoot_both_widths(page, "rig-board-print")
+    assert not page.console.errors
+
+
+def stored_check(storage_dir, rig_id: int) -> None:
+    """A check as the check_calibration job stores it: the middle camera's board everywhere, the right
+    camera's only in the middle band of its image (board corners projected by a known camera)."""
+    import json
+
+    import cv2
+    import numpy as np
+
+    from saddlescope.core.calibration.coverage_check import check_camera_coverage
+    from saddlescope.core.types import Board
+    from saddlescope.services.calibration_check import CalibrationCheck, check_document
+
+    board, size = Board("checkerboard", (12, 11), 50.0), (1920, 1080)
+    K = np.array([[1370.0, 0, 960], [0, 1370.0, 540], [0, 0, 1]])
+    obj = board.object_points_mm() - board.object_points_mm().mean(axis=0)
+
+    def seen(xs, ys, distances):
+        out = []
+        for (u, v), d in zip([(x, y) for x in xs for y in ys], np.resize(distances, len(xs) * len(ys)), strict=True):
+            t = np.linalg.solve(K, [u, v, 1.0]) * d * 1000.0
+            px = cv2.projectPoints(obj, np.array([0.2, -0.2, 0.0]), t, K, np.zeros(5))[0].reshape(-1, 2)
+            out.append((px, np.arange(len(px))))
+        return out
+
+    cameras = {
+        "middle": check_camera_coverage("middle", seen(np.linspace(250, 1670, 6), np.linspace(200, 880, 4),
+                                                       [3.0, 4.5, 6.0]), board, size, frames_sampled=90),
+        "right": check_camera_coverage("right", seen([900, 960, 1020], np.linspace(200, 880, 5), [4.0, 5.0]),
+                                       board, size, frames_sampled=90),
+    }
+    path = storage_dir / "rigs" / str(rig_id) / "calibration-check.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(check_document(CalibrationCheck(cameras, 41.0), clips={"middle": 1, "right": 2})))
+
+
+def test_the_rig_page_shows_the_check_before_anyone_rides(page, served):
+    stored_check(served["storage"], served["big"])
+    page.goto(f"/#/rigs/{served['big']}")
+    verdict = page.locator("[data-check-verdict]")
+    page.wait_for_function("() => document.querySelector('[data-check-verdict]')?.textContent.includes('Film again')")
+    assert verdict.inner_text().startswith("Film again: the right camera")
+    right = page.locator('[data-check-camera="right"]')
+    assert "Right camera: film again." in right.inner_text()
+    assert ("The board never reached the left third and right third of the right camera's view: film that part again."
+            in right.inner_text())
+    assert right.locator("rect.coverage-missed").count() > 0 and right.locator("svg.check-depth").count() == 1
+    assert "Middle camera: good." in page.locator('[data-check-camera="middle"]').inner_text()
+    page.locator("[data-check-panel]").scroll_into_view_if_needed()
+    shoot_both_widths(page, "rig-calibration-check")
     assert not page.console.errors

@@ -56,8 +56,9 @@ class CalibrationCheck:
         again = [name for name, c in self.cameras.items() if c.film_again]
         if again:
             names = again[0] if len(again) == 1 else ", ".join(again[:-1]) + " and " + again[-1]
-            return (f"Film again: the {names} camera{'s' if len(again) > 1 else ''}' calibration clip"
-                    f"{'s do' if len(again) > 1 else ' does'} not cover the view well enough (see below).")
+            if len(again) == 1:
+                return f"Film again: the {names} camera's calibration clip does not cover its view well enough."
+            return f"Film again: the {names} cameras' calibration clips do not cover their views well enough."
         return "Ready to ride: the board was seen well in every camera's view."
 
 

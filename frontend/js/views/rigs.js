@@ -233,20 +233,17 @@ function checkGrid(camera, entry) {
 function depthBars(camera, depth) {
   const most = Math.max(1, ...depth.views);
   const n = depth.views.length;
-  const svg = svgEl("svg", { viewBox: `0 0 ${n * 10} 34`, role: "img", class: "check-depth",
+  const bin = 30;
+  const svg = svgEl("svg", { viewBox: `0 0 ${n * bin} 28`, role: "img", class: "check-depth",
     "aria-label": depth.near_m == null ? `No distances for the ${camera} camera`
       : `The board was held ${depth.near_m.toFixed(1)} to ${depth.far_m.toFixed(1)} m from the ${camera} camera` });
   depth.views.forEach((views, i) => {
-    const tall = (24 * views) / most;
-    svg.append(svgEl("rect", { x: i * 10 + 1, y: 24 - tall, width: 8, height: tall, class: "check-depth-bar" }));
+    const tall = (26 * views) / most;
+    svg.append(svgEl("rect", { x: i * bin + 2, y: 27 - tall, width: bin - 4, height: tall, class: "check-depth-bar" }));
   });
-  svg.append(svgEl("line", { x1: 0, y1: 24.5, x2: n * 10, y2: 24.5, class: "check-depth-axis" }));
-  for (const i of [0, n / 2, n]) {
-    const label = svgEl("text", { x: Math.min(Math.max(i * 10, 4), n * 10 - 4), y: 32, class: "check-depth-label" });
-    label.textContent = `${Number(depth.bin_edges_m[i]).toFixed(1)} m`;
-    svg.append(label);
-  }
-  return svg;
+  svg.append(svgEl("line", { x1: 0, y1: 27.5, x2: n * bin, y2: 27.5, class: "check-depth-axis" }));
+  return h("div", { class: "check-depth-box" }, svg, h("div", { class: "check-depth-scale", "aria-hidden": "true" },
+    h("span", {}, "0 m"), h("span", {}, "distance from the camera"), h("span", {}, `${Number(depth.bin_edges_m[n]).toFixed(0)} m`)));
 }
 
 function showCheck(root, check) {
