@@ -29,17 +29,17 @@ def test_the_board_sizes_state_the_print_and_the_square_each_distance_needs(api)
     rig = api.ok("POST", "/rigs", 201, json={"name": "Outdoor", "board": BIG})
     sizes = api.ok("GET", f"/rigs/{rig['id']}/board-sizes")
     assert (sizes["width_mm"], sizes["height_mm"], sizes["square_mm"]) == (750, 700, 50)
-    # no clip, no calibration: a 1080p phone with a 70 degree view; 12 px a square
+    # no clip, no calibration: a 1080p phone with a 70 degree view; 8 px a square
     assert (sizes["image_width_px"], sizes["hfov_deg"], sizes["camera_source"]) == (1920, 70.0, "assumed")
     needed = {row["distance_m"]: row["square_mm"] for row in sizes["squares_needed"]}
-    assert needed[8.0] == pytest.approx(12 * 2 * 8000 * 0.7002 / 1920, abs=0.1)  # 70 mm at 8 m
+    assert needed[8.0] == pytest.approx(8 * 2 * 8000 * 0.7002 / 1920, abs=0.1)  # 47 mm at 8 m
     assert needed[4.0] == pytest.approx(needed[8.0] / 2, abs=0.1)
-    assert "70 mm at 8 m" in " ".join(sizes["sentences"])
+    assert "47 mm at 8 m" in " ".join(sizes["sentences"])
     assert sizes["reach_m"] == pytest.approx(50 / needed[8.0] * 8, rel=0.01)
     layouts = {lay["layout"]: lay for lay in sizes["layouts"]}
     assert [k for k, lay in layouts.items() if lay["fits"]] == ["a0", "a4-tiles"]
     assert layouts["a4-tiles"]["sheets"] == 12
-    # on one A3 sheet this pattern's squares could be at most (420 - 20) / 15 mm, found up to about 3.1 m
+    # on one A3 sheet this pattern's squares could be at most (420 - 20) / 15 mm, found up to about 4.4 m
     assert layouts["a3"]["largest_square_mm"] == pytest.approx(min(400 / 15, 259 / 14), abs=0.1)
     assert layouts["a3"]["reach_m"] < layouts["a0"]["reach_m"]
 
