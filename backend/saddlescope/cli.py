@@ -196,8 +196,8 @@ class _BoardKinds:
 
 
 # `saddlescope bench --only`'s choices (bench.SECTION_NAMES, named here so the parser imports no numpy)
-_BENCH_SECTIONS = ("detection", "calibration", "calibration_check", "speed", "footage", "floor", "accuracy", "similarity", "service",
-                   "coverage", "dashboard")
+_BENCH_SECTIONS = ("detection", "calibration", "calibration_check", "speed", "footage", "floor", "accuracy",
+                   "similarity", "service", "coverage", "dashboard")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -97,7 +97,7 @@ def _distances_m(corners: Sequence[np.ndarray], ids: Sequence[np.ndarray], board
             _, K_fit, dist_fit, _, _ = cv2.calibrateCamera([obj[i] for i in pick], [img[i] for i in pick],
                                                            (w, h), K.copy(), dist.copy(), flags=flags)
             if np.all(np.isfinite(K_fit)) and 0.2 * w < K_fit[0, 0] < 5 * w:
-                K, dist = K_fit, dist_fit
+                K, dist = np.asarray(K_fit, np.float64), np.asarray(dist_fit, np.float64).ravel()
         except cv2.error:
             pass  # too few or degenerate views: the guess stands
     out = np.full(len(corners), np.nan)
