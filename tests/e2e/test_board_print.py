@@ -14,7 +14,7 @@ from __future__ import annotations
 import statistics
 
 import pytest
-from browser_harness import chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
+from browser_harness import axe_violations, chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
 from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 pytestmark = [pytest.mark.browser]
@@ -179,4 +179,5 @@ def test_the_rig_page_shows_the_check_before_anyone_rides(page, served):
     assert "Middle camera: good." in page.locator('[data-check-camera="middle"]').inner_text()
     page.locator("[data-check-panel]").scroll_into_view_if_needed()
     shoot_both_widths(page, "rig-calibration-check")
+    assert axe_violations(page) == []
     assert not page.console.errors
