@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from saddlescope.core.calibration import detect_board_views
@@ -25,11 +26,12 @@ from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.io.findings_document import findings_to_list
 from saddlescope.io.video import iter_gray_frames, probe_video
 
-__all__ = ["MIN_SAMPLES", "SAMPLE_FPS", "CalibrationCheck", "check_calibration_clips", "check_document",
+CHECK_WIDTH_PX = 1440  # frames are searched at this width: a 9 px square at 1080p keeps 6.75 px, at 640 px grows
            "check_storage_key", "sample_step"]
 
 SAMPLE_FPS = 3.0  # frames a second looked at: the board moves slowly, and a view a third of a second on is new
 MIN_SAMPLES = 40  # a short clip is looked at more densely, down to every frame
+CHECK_WIDTH_PX = 1440  # frames are searched at this width: a 1080p square of 9 px keeps 6.75, a 640 px one grows
 
 
 def sample_step(fps: float, frame_count: int, *, sample_fps: float = SAMPLE_FPS, min_samples: int = MIN_SAMPLES) -> int:
@@ -85,18 +87,23 @@ def check_calibration_clips(
             on_progress(n / len(order), f"the {camera} camera")
         info = probe_video(Path(paths[camera]), decode_tail=False)
         step = sample_step(info.fps, info.frame_count, sample_fps=sample_fps)
+        scale = CHECK_WIDTH_PX / info.width if info.width else 1.0
         sampled = 0
 
-        def frames(path: Path = Path(paths[camera]), step: int = step):
+        def frames(path: Path = Path(paths[camera]), step: int = step, scale: float = scale):
             nonlocal sampled
             for index, gray in iter_gray_frames(path, step=step):
                 sampled += 1
-                yield index, gray
+                yield index, (gray if scale == 1.0 else cv2.resize(
+                    gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_CUBIC))
 
-        views, size = detect_board_views(frames(), board, track=False)
-        size = size or (info.width, info.height)
-        out[camera] = check_camera_coverage(camera, [(v.corners_px, v.ids) for v in views], board,
-                                            (int(size[0]), int(size[1])), frames_sampled=sampled)
+        # One search per frame at one width (max_width just under it: neither downscaled nor tried again
+        # enlarged, as the calibration's finder does): the check wants where the board went, fast.
+        width = max(2, round(info.width * scale))
+        views, _ = detect_board_views(frames(), board, track=False, max_width=width - 1)
+        sightings = [((v.corners_px + 0.5) / scale - 0.5, v.ids) for v in views]
+        out[camera] = check_camera_coverage(camera, sightings, board, (info.width, info.height),
+                                            frames_sampled=sampled)
     return CalibrationCheck(out, time.perf_counter() - t0)
 
 
