@@ -26,15 +26,16 @@ from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.io.findings_document import findings_to_list
 from saddlescope.io.video import iter_gray_frames, probe_video
 
-CHECK_WIDTH_PX = 1440  # frames are searched at this width: a 9 px square at 1080p keeps 6.75 px, at 640 px grows
-           "check_storage_key", "sample_step"]
+__all__ = ["CHECK_WIDTH_PX", "MIN_SAMPLES", "SAMPLE_FPS", "CalibrationCheck", "check_calibration_clips",
+           "check_document", "check_storage_key", "sample_step"]
 
 SAMPLE_FPS = 3.0  # frames a second looked at: the board moves slowly, and a view a third of a second on is new
 MIN_SAMPLES = 40  # a short clip is looked at more densely, down to every frame
-CHECK_WIDTH_PX = 1440  # frames are searched at this width: a 1080p square of 9 px keeps 6.75, a 640 px one grows
+CHECK_WIDTH_PX = 1440  # frames are searched at this width: a 9 px square at 1080p keeps 6.75 px
 
 
-def sample_step(fps: float, frame_count: int, *, sample_fps: float = SAMPLE_FPS, min_samples: int = MIN_SAMPLES) -> int:
+def sample_step(fps: float, frame_count: int, *, sample_fps: float = SAMPLE_FPS,
+                min_samples: int = MIN_SAMPLES) -> int:
     """Every how many frames one is looked at: ``sample_fps`` a second, but at least ``min_samples`` frames."""
     by_rate = max(1, int(round(float(fps) / sample_fps))) if fps and fps > 0 else 1
     by_count = max(1, int(frame_count) // min_samples) if frame_count else by_rate
