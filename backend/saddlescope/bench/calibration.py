@@ -10,6 +10,7 @@ saddlescope.bench.calibration RIDE ...`` with that checkout on the path) for a b
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -106,7 +107,8 @@ def calibration_check_clips_s(tmp: Path, *, quick: bool = False, clip_s: float =
 
     Returns
     -------
-    dict with ``calibration_check_3x{N}s_1080p_s``, ``calibration_check_vs_decode``, ``calibration_check_clip_s``,
+    dict with ``calibration_check_3x{N}s_1080p_s`` (wall) and ``..._cpu_s`` (this process's CPU),
+    ``calibration_check_vs_decode``, ``calibration_check_clip_s``,
     ``calibration_check_frames_sampled`` and ``calibration_check_views`` per camera and the verdict.
     """
     from saddlescope.arena.scene import HOLD_FRAMES, MOVE_FRAMES
@@ -123,17 +125,21 @@ def calibration_check_clips_s(tmp: Path, *, quick: bool = False, clip_s: float =
     with open_bundle(ride) as bundle:
         paths = {c: Path(p) for c, p in bundle.clip_paths["calibration"].items()}
         board = bundle.meta["board"]
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.process_time()
         check = check_calibration_clips(paths, board)
-        check_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
+        check_s, check_cpu_s = time.perf_counter() - t0, time.process_time() - cpu0
+        t0, cpu0 = time.perf_counter(), time.process_time()
         _decode_once(list(paths.values()))
-        decode_s = time.perf_counter() - t0
+        decode_s, decode_cpu_s = time.perf_counter() - t0, time.process_time() - cpu0
         info = probe_video(next(iter(paths.values())), decode_tail=False)
     n = round(clip_s)
     return {
         f"calibration_check_3x{n}s_1080p_s": round(check_s, 2),
         "calibration_check_vs_decode": round(check_s / decode_s, 3),
+        # CPU seconds of this process: on a loaded machine the wall time above is mostly waiting for a core
+        f"calibration_check_3x{n}s_1080p_cpu_s": round(check_cpu_s, 2),
+        "calibration_check_decode_cpu_s": round(decode_cpu_s, 2),
+        "calibration_check_load_avg": list(os.getloadavg()),
         "calibration_check_clip_s": round(info.frame_count / info.fps, 1),
         "calibration_check_image_size": [info.width, info.height],
         "calibration_check_frames_sampled": {c: v.frames_sampled for c, v in check.cameras.items()},
