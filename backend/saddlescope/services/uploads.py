@@ -243,6 +243,8 @@ def start_calibration_check(sessions: sessionmaker[Session], queue: JobQueue, ow
     if owner.kind != "rig" or clip_kind != "calibration":
         return None
     with session_scope(sessions) as session:
+        if not RigRepository(session, club_id=owner.club_id).get(owner.id).board:
+            return None  # nothing to look for yet: the rig page asks for the board first
         waiting = JobRepository(session, club_id=owner.club_id).active_for(rig_id=owner.id, kind="check_calibration")
         if waiting is not None and waiting.status == JobStatus.QUEUED:
             return None
