@@ -277,8 +277,8 @@ def _tile_sheets(board: Board, title: str) -> tuple[float, float, list[str]]:
             body = (f'<svg x="{_n(x0)}" y="{_n(y0)}" width="{_n(show_w)}" height="{_n(show_h)}" '
                     f'viewBox="{_n(bx)} {_n(by)} {_n(show_w)} {_n(show_h)}"><use href="#board"/></svg>'
                     + _crop_marks(x0, y0, cell_w, cell_h)
-                    + f'<text x="{_n(x0)}" y="{_n(y0 - 3)}" font-size="4" font-weight="bold">{name}</text>'
-                    + f'<text x="{_n(x0 + 10)}" y="{_n(y0 - 3)}" font-size="2.4">{html.escape(" ".join(notes))}</text>'
+                    + f'<text x="{_n(x0 + 2)}" y="{_n(y0 - 3)}" font-size="4" font-weight="bold">{name}</text>'
+                    + f'<text x="{_n(x0 + 12)}" y="{_n(y0 - 3)}" font-size="2.4">{html.escape(" ".join(notes))}</text>'
                     + f'<text x="{_n(MARGIN_MM)}" y="{_n(page_h - MARGIN_MM - FOOTER_MM + 8)}" font-size="3">'
                     + f"{html.escape(title)}</text>"
                     + _ruler(MARGIN_MM, page_h - MARGIN_MM - FOOTER_MM + 12))
@@ -313,7 +313,8 @@ def board_print_html(board_meta: Mapping[str, Any], layout: str, *, rig_name: st
     board = _board(board_meta)
     cols, rows = board.inner_corners
     width_mm, height_mm = board_size_mm(board)
-    title = (f"{board_type(board.kind).label} board {cols} \u00d7 {rows} inner corners, squares "
+    label = board_type(board.kind).label
+    title = (f"{label[:1].upper()}{label[1:]} board {cols} \u00d7 {rows} inner corners, squares "
              f"{board.square_mm:g} mm, {width_mm:g} \u00d7 {height_mm:g} mm")
     if rig_name:
         title += f" \u2014 {rig_name}"
