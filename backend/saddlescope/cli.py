@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from saddlescope.core.errors import SaddleScopeError
+from saddlescope.core.errors import InputError, SaddleScopeError
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -104,6 +104,56 @@ def _write_json(data: dict, out: str | None) -> None:
         print(text)
 
 
+def _add_check_parser(sub) -> None:
+    """`saddlescope check-calibration`: calibration clips judged before anyone rides (issue 35)."""
+    s = sub.add_parser("check-calibration", help="check calibration clips: where the board went in each camera's "
+                                                  "view, and whether to film again (exit status 1)")
+    s.add_argument("clips", nargs="*", metavar="CLIP",
+                   help="NAME=VIDEO or VIDEO (named by its file name, e.g. left.mp4 is the left camera)")
+    s.add_argument("--ride", default=None, help="a ride bundle folder: its calibration clips and board")
+    s.add_argument("--pattern", type=_pattern, default=None, help="the board's inner corners CxR, e.g. 9x6")
+    s.add_argument("--square", type=float, default=None, help="square size in mm")
+    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND", help="the board's kind")
+    s.add_argument("--dictionary", default=None, help="ChArUco dictionary")
+    s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
+    s.add_argument("--fps", dest="sample_fps", type=float, default=None, help="frames looked at a second (default 3)")
+    s.add_argument("--json", dest="json_out", default=None, help="also write the whole check here")
+
+
+def _check_calibration(args: argparse.Namespace) -> int:
+    """Run `check-calibration`: print the verdict and each camera's sentences; 1 when to film again."""
+    from saddlescope.services.calibration_check import SAMPLE_FPS, check_calibration_clips, check_document
+
+    board: dict = {}
+    paths: dict[str, Path] = {}
+    if args.ride:
+        meta = json.loads((Path(args.ride) / "ride.json").read_text(encoding="utf-8"))
+        board = dict(meta.get("board") or {})
+        paths = {p.stem: p for p in sorted((Path(args.ride) / "calibration").glob("*.*"))}
+    for clip in args.clips:
+        name, sep, source = clip.partition("=")
+        path = Path(source if sep else clip)
+        paths[name if sep else path.stem] = path
+    given = {"kind": args.board, "inner_corners": list(args.pattern) if args.pattern else None,
+             "square_mm": args.square, "dictionary": args.dictionary, "marker_mm": args.marker}
+    board.update({k: v for k, v in given.items() if v is not None})
+    if not paths:
+        raise InputError("give the calibration clips (CLIP ... or --ride BUNDLE)")
+    if "inner_corners" not in board or "square_mm" not in board:
+        raise InputError("say which board the clips show: --pattern CxR and --square MM (or --ride BUNDLE)")
+    check = check_calibration_clips(paths, board, sample_fps=args.sample_fps or SAMPLE_FPS,
+                                    on_progress=_print_progress)
+    document = check_document(check)
+    if args.json_out:
+        _write_json(document, args.json_out)
+    for name, camera in document["cameras"].items():
+        print(f"{name}: board in {camera['views']} of {camera['frames_sampled']} frames looked at")
+        for finding in camera["findings"]:
+            print(f"  {finding['detail']}")
+    print(f"{document['verdict']} ({document['seconds']:g} s)")
+    return 1 if check.film_again else 0
+
+
 def _add_synth_parser(sub) -> None:
     """`saddlescope synth`: its options (the arena's rigs, gaits, skin, frame clocks, flash)."""
     s = sub.add_parser("synth", help="write a synthetic ride bundle with truth.json")
@@ -152,8 +202,8 @@ class _BoardKinds:
 
 
 # `saddlescope bench --only`'s choices (bench.SECTION_NAMES, named here so the parser imports no numpy)
-_BENCH_SECTIONS = ("detection", "calibration", "speed", "footage", "floor", "accuracy", "similarity", "service",
-                   "coverage", "dashboard")
+_BENCH_SECTIONS = ("detection", "calibration", "calibration_check", "speed", "footage", "floor", "accuracy",
+                   "similarity", "service", "coverage", "dashboard")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -177,6 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="left untouched this many hours (default: SADDLESCOPE_UPLOAD_EXPIRY_S)")
 
     _add_synth_parser(sub)
+    _add_check_parser(sub)
 
     s = sub.add_parser("analyze", help="run the whole pipeline locally on a ride bundle (folder or zip)")
     s.add_argument("ride")
@@ -280,6 +331,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if cmd == "similar":
         return _similar(args)
+    if cmd == "check-calibration":
+        return _check_calibration(args)
     if cmd == "analyze-mocap":
         from saddlescope.services.mocap import analyze_mocap_file
 

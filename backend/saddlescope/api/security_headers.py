@@ -10,11 +10,14 @@ same headers at the proxy.
 
 from __future__ import annotations
 
+import base64
+import hashlib
+import re
 from urllib.parse import urlsplit
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-__all__ = ["DOCS_CSP", "SecurityHeaders", "content_security_policy", "report_csp"]
+__all__ = ["DOCS_CSP", "SecurityHeaders", "content_security_policy", "inline_style_hashes", "report_csp"]
 
 # The Swagger UI of /docs is FastAPI's page: its script and styles come from jsDelivr, with one inline script.
 DOCS_PATHS = ("/docs", "/docs/oauth2-redirect")
@@ -45,6 +48,15 @@ def content_security_policy(*, upload_origin: str | None = None) -> str:
             "img-src 'self' data: blob:; "
             f"font-src 'self'; connect-src {connect}; worker-src 'self' blob:; object-src 'none'; "
             "base-uri 'self'; form-action 'self'; frame-ancestors 'none'")
+
+
+INLINE_STYLE = re.compile(r"<style>(.*?)</style>", re.S)
+
+
+def inline_style_hashes(page: str) -> list[str]:
+    """CSP source of each inline <style> of a self-contained print page (the ride report, the board)."""
+    return ["sha256-" + base64.b64encode(hashlib.sha256(css.encode()).digest()).decode()
+            for css in INLINE_STYLE.findall(page)]
 
 
 def report_csp(style_hashes: list[str]) -> str:

@@ -53,6 +53,12 @@ class BenchSection:
     run: Callable[[Path, bool], dict]  # (scratch folder, quick) -> the run's top-level keys
 
 
+def _calibration_check(tmp: Path, quick: bool) -> dict:
+    from saddlescope.bench.calibration import calibration_check_clips_s
+
+    return calibration_check_clips_s(tmp, quick=quick)  # issue 35: the rig page's check within 2 minutes
+
+
 def _similarity(tmp: Path, quick: bool) -> dict:
     from saddlescope.bench.similarity import run_similarity_benchmarks
 
@@ -83,6 +89,8 @@ def _dashboard(tmp: Path, quick: bool) -> dict:
 SECTIONS: tuple[BenchSection, ...] = (
     BenchSection("detection", "marker detection against decoding, 640x480 and 1080p", _analysis.detection_section),
     BenchSection("calibration", "three cameras calibrated from their board clips", _analysis.calibration_section),
+    BenchSection("calibration_check", "calibration clips checked before riding: three 30 s 1080p clips",
+                 _calibration_check),
     BenchSection("speed", "whole rides against decoding their clips once, stages, memory", _analysis.speed_section),
     BenchSection("footage", "whole rides against the length of their footage", _analysis.footage_section),
     BenchSection("floor", "the kinematics' exact-marker floor", _analysis.floor_section),

@@ -10,11 +10,12 @@ saddlescope.bench.calibration RIDE ...`` with that checkout on the path) for a b
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
 
-__all__ = ["calibration_stage_s", "calibration_vs_decode"]
+__all__ = ["calibration_check_clips_s", "calibration_stage_s", "calibration_vs_decode"]
 
 
 def _decode_once(paths: list[Path]) -> int:
@@ -95,6 +96,56 @@ def calibration_vs_decode(tmp: Path, *, rig: str, quick: bool = False, repeats: 
     w, h = found["image_size"]
     return {(f"{k}_{w}x{h}" if k in ("calibration_s", "decode_s", "calibration_vs_decode") else k): v
             for k, v in found.items()}
+
+
+def calibration_check_clips_s(tmp: Path, *, quick: bool = False, clip_s: float = 30.0) -> dict:
+    """The rig page's calibration check (issue 35) on three ``clip_s`` calibration clips of 1920x1080 at 50 fps.
+
+    The arena's wide rig renders the clips (not timed); the check (a few frames a second sampled, the board
+    searched in each, the coverage judged) is timed against decoding every frame of the three clips once.
+    The target is under 2 minutes for three 30 s clips. ``quick``: 8 s clips.
+
+    Returns
+    -------
+    dict with ``calibration_check_3x{N}s_1080p_s`` (wall) and ``..._cpu_s`` (this process's CPU),
+    ``calibration_check_vs_decode``, ``calibration_check_clip_s``,
+    ``calibration_check_frames_sampled`` and ``calibration_check_views`` per camera and the verdict.
+    """
+    from saddlescope.arena.scene import HOLD_FRAMES, MOVE_FRAMES
+    from saddlescope.io.bundle import open_bundle
+    from saddlescope.io.synth_writer import write_ride_bundle
+    from saddlescope.io.video import probe_video
+    from saddlescope.services.calibration_check import check_calibration_clips
+
+    clip_s = 8.0 if quick else float(clip_s)
+    fps = 50.0  # the arena holds at most 400 board poses of 4 frames: 30 s at 50 fps
+    ride = Path(tmp) / f"calibration_check_{clip_s:g}s"
+    write_ride_bundle(ride, gait="canter", seed=3, rig="wide", extras=False, duration_s=2.0, fps=fps,
+                      calibration_poses=max(4, round(clip_s * fps / (HOLD_FRAMES + MOVE_FRAMES))))
+    with open_bundle(ride) as bundle:
+        paths = {c: Path(p) for c, p in bundle.clip_paths["calibration"].items()}
+        board = bundle.meta["board"]
+        t0, cpu0 = time.perf_counter(), time.process_time()
+        check = check_calibration_clips(paths, board)
+        check_s, check_cpu_s = time.perf_counter() - t0, time.process_time() - cpu0
+        t0, cpu0 = time.perf_counter(), time.process_time()
+        _decode_once(list(paths.values()))
+        decode_s, decode_cpu_s = time.perf_counter() - t0, time.process_time() - cpu0
+        info = probe_video(next(iter(paths.values())), decode_tail=False)
+    n = round(clip_s)
+    return {
+        f"calibration_check_3x{n}s_1080p_s": round(check_s, 2),
+        "calibration_check_vs_decode": round(check_s / decode_s, 3),
+        # CPU seconds of this process: on a loaded machine the wall time above is mostly waiting for a core
+        f"calibration_check_3x{n}s_1080p_cpu_s": round(check_cpu_s, 2),
+        "calibration_check_decode_cpu_s": round(decode_cpu_s, 2),
+        "calibration_check_load_avg": list(os.getloadavg()),
+        "calibration_check_clip_s": round(info.frame_count / info.fps, 1),
+        "calibration_check_image_size": [info.width, info.height],
+        "calibration_check_frames_sampled": {c: v.frames_sampled for c, v in check.cameras.items()},
+        "calibration_check_views": {c: v.views for c, v in check.cameras.items()},
+        "calibration_check_verdict": check.verdict(),
+    }
 
 
 if __name__ == "__main__":  # python -m saddlescope.bench.calibration RIDE [REPEATS]: one line of JSON

@@ -58,6 +58,18 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
      "The crossing's ends, seen where the board never went, were left out; carry the board to every view's corners."),
     ("calibration.coverage", "check", "detection",
      "Carry the board to the corners of every camera's view when you calibrate."),
+    # a calibration clip checked on upload, before anyone rides (core/calibration/coverage_check.py)
+    ("calibration_check.board_not_seen", "problem", "calibration",
+     "Film the calibration again with the whole board in view, sharp and well lit, held still in each place."),
+    ("calibration_check.few_views", "problem", "calibration",
+     "Film the calibration again for longer, carrying the board slowly through the whole view."),
+    ("calibration_check.third_missed", "problem", "calibration",
+     "Film the calibration again and carry the board into the part of the view it never reached, up to the edges."),
+    ("calibration_check.corners_missed", "check", "calibration",
+     "Usable; next time also carry the board into the corners of the view."),
+    ("calibration_check.narrow_depth", "check", "calibration",
+     "Usable; next time also carry the board nearer to and farther from the camera."),
+    ("calibration_check.covered", "ok", "calibration", "Nothing to do: the board reached every part of the view."),
     ("calibration.units_guessed", "check", "input",
      "Say in ride.json (calibration_units) whether the calibration file is in mm or metres."),
     # clips and synchronisation (core/pipeline)

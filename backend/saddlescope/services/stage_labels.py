@@ -16,6 +16,7 @@ STAGE_LABELS: dict[str, str] = {
     "assemble": "Putting the clips together",
     "calibrate": "Calibrating the cameras",
     "calibrate_rig": "Calibrating the rig's cameras",
+    "check_calibration": "Checking the calibration clips",
     "analyze": "Analysing the ride",
     "similarity": "Comparing rides",
     "selftest": "Testing the workers",

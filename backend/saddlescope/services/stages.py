@@ -64,7 +64,8 @@ if TYPE_CHECKING:
 __all__ = [
     "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobFenced", "JobKind", "STAGES", "Stage",
     "StageContext", "StageUnavailable", "define_job_kind", "job_kind", "ride_document", "run_analyze",
-    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_probe", "run_selftest", "run_similarity", "stage",
+    "run_assemble", "run_calibrate", "run_calibrate_rig", "run_check_calibration",
+    "run_probe", "run_selftest", "run_similarity", "stage",
 ]
 
 ASSEMBLED_BUNDLE = "bundle"  # folder name of the assembled ride bundle in the assemble stage's outputs
@@ -513,6 +514,29 @@ def run_calibrate_rig(ctx: StageContext) -> None:
     _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
 
 
+@stage("check_calibration", weight=2.0)
+def run_check_calibration(ctx: StageContext) -> None:
+    """Check the rig's calibration clips uploaded so far: where the board went in each view (issue 35)."""
+    from saddlescope.services.calibration_check import check_calibration_clips, check_document, check_storage_key
+
+    if ctx.rig_id is None:
+        raise InputError(f"check_calibration job {ctx.job_id} names no rig")
+    with ctx.session() as session:
+        rig = RigRepository(session).get(ctx.rig_id)
+        clips = {r.camera_role: (r.id, r.path) for r in RecordingRepository(session).for_rig(rig.id)
+                 if r.clip_kind == "calibration"}
+        board = rig.board
+    if not board:
+        raise CalibrationError(f"rig {ctx.rig_id} has no 'board' (the calibration board its clips show)")
+    if not clips:
+        raise CalibrationError(f"rig {ctx.rig_id} has no calibration clip to check yet")
+    paths = {role: ctx.fetch(key) for role, (_, key) in clips.items()}
+    check = check_calibration_clips(paths, board, on_progress=lambda f, s: ctx.report(f, s))
+    document = check_document(check, clips={role: rid for role, (rid, _) in clips.items()})
+    ctx.storage.write_bytes(check_storage_key(ctx.rig_id), json.dumps(document, allow_nan=False).encode())
+    ctx.report(1.0, None)
+
+
 def _edited_settings(bundle: Path, settings: dict[str, str]) -> dict[str, str]:
     """The ride's settings its bundle's ride.json says otherwise (edited after the upload)."""
     try:
@@ -589,6 +613,9 @@ define_job_kind(JobKind(ANALYSIS_JOB_KIND, ("probe", "assemble", "calibrate", "a
 define_job_kind(JobKind("similarity", ("similarity",), validate_payload=_similarity_payload,
                         description="compare pairs of analysed rides and cache the answers (the most-alike "
                                     "lists and a horse's consistency read them)"))
+define_job_kind(JobKind("check_calibration", ("check_calibration",),
+                        description="check a rig's calibration clips as they arrive: where the board went in "
+                                    "each camera's view, before anyone rides"))
 define_job_kind(JobKind("calibrate_rig", ("probe", "calibrate_rig"),
                         description="calibrate a rig once from its three calibration clips (used by its "
                                     "rides)"))

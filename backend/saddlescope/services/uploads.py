@@ -24,7 +24,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
-from saddlescope.db.enums import UploadStatus, UploadTarget
+from saddlescope.db.enums import JobStatus, UploadStatus, UploadTarget
 from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
     Conflict,
@@ -55,7 +55,8 @@ __all__ = [
     "accept_bundle",
     "accept_clip", "check_clip_slot", "clip_suffix", "commit_chunk", "create_upload", "expire_uploads",
     "FINALISE_WAIT_S", "FinaliseInProgress",
-    "bundle_meta", "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_processing",
+    "bundle_meta", "finalise_upload", "find_owner", "remove_upload_files", "staging_key", "start_calibration_check",
+    "start_processing",
     "sweep_abandoned",
 ]
 
@@ -254,6 +255,26 @@ def _probed(info) -> dict[str, Any]:
     """A recording's probe columns from `probe_video`'s answer (None: not probed yet, the probe stage will)."""
     names = ("fps", "frame_count", "width", "height", "codec")
     return {name: getattr(info, name) if info is not None else None for name in names}
+
+
+def start_calibration_check(sessions: sessionmaker[Session], queue: JobQueue, owner: ClipOwner,
+                            clip_kind: str) -> int | None:
+    """A rig's calibration clip arrived: check where its board went (a ``check_calibration`` job).
+
+    Not when a check is already waiting to start (it will read this clip too); returns its id or None.
+    """
+    if owner.kind != "rig" or clip_kind != "calibration":
+        return None
+    with session_scope(sessions) as session:
+        if not RigRepository(session, club_id=owner.club_id).get(owner.id).board:
+            return None  # nothing to look for yet: the rig page asks for the board first
+        waiting = JobRepository(session, club_id=owner.club_id).active_for(rig_id=owner.id, kind="check_calibration")
+        if waiting is not None and waiting.status == JobStatus.QUEUED:
+            return None
+    try:
+        return submit_job(sessions, queue, kind="check_calibration", club_id=owner.club_id, rig_id=owner.id)
+    except QueueUnavailable:
+        return None  # the check is a courtesy: the rig page offers "Check the clips" again
 
 
 def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: ClipOwner) -> int | None:
@@ -565,6 +586,7 @@ def _finalise_clip(sessions: sessionmaker[Session], storage: Storage, queue: Job
     """`accept_clip` of a finalised upload's staged clip, then the processing it allows; the upload's outcome."""
     recording_id = accept_clip(sessions, storage, owner, clip_kind, camera, staged, size_bytes=size,
                                sha256=storage.sha256(staged), filename=filename)
+    start_calibration_check(sessions, queue, owner, clip_kind)
     job_id = start_processing(sessions, queue, owner)
     outcome = {"recording_id": recording_id, "job_id": job_id}
     if owner.kind == "ride" and job_id is None:

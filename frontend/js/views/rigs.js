@@ -104,6 +104,29 @@ async function showBoard(root, rig) {
   box.replaceChildren(document.importNode(svg, true));
   note.hidden = false;
   note.querySelector("[data-square-mm]").textContent = `${rig.board.square_mm} mm`;
+  showBoardSizes(root, await get(`/api/rigs/${rig.id}/board-sizes`));
+}
+
+const fmt = (value, digits = 0) => Number(value).toFixed(digits);
+
+/** The board's printed size, the papers it fits and the square each camera distance needs. */
+function showBoardSizes(root, sizes) {
+  root.querySelector("[data-board-sizes]").hidden = false;
+  root.querySelector("[data-board-sentences]").replaceChildren(...sizes.sentences.map((s) => h("li", {}, s)));
+  root.querySelector("[data-board-layouts]").replaceChildren(...sizes.layouts.map((lay) => h("li", {
+    class: lay.fits ? "fits" : "no-fit", dataset: { layout: lay.layout } },
+  h("strong", {}, `${lay.label}: `),
+  lay.layout === "a4-tiles"
+    ? `${lay.sheets} sheets with crop marks and a 100 mm ruler each; squares of ${fmt(lay.largest_square_mm, 0)} mm, found up to ${fmt(lay.reach_m, 1)} m from the camera.`
+    : lay.fits
+      ? `fits. This pattern could have squares up to ${fmt(Math.floor(lay.largest_square_mm))} mm on it (found up to ${fmt(lay.reach_m, 1)} m away).`
+      : `too small for ${fmt(sizes.square_mm)} mm squares; with this pattern it takes squares up to ${fmt(Math.floor(lay.largest_square_mm))} mm (cameras up to ${fmt(lay.reach_m, 1)} m away).`)));
+  const select = root.querySelector("[data-print-layout]");
+  const previous = select.value;
+  const fitting = sizes.layouts.filter((lay) => lay.fits);
+  select.replaceChildren(...fitting.map((lay) => h("option", { value: lay.layout }, lay.label)));
+  // The smallest single sheet that fits, else the tiles: what an office printer can do first.
+  select.value = fitting.some((lay) => lay.layout === previous) ? previous : fitting[0].layout;
 }
 
 function clipCell(rig, clip, kind, camera, onUploaded) {
@@ -184,6 +207,60 @@ function coveragePicture(camera, entry) {
   return svg;
 }
 
+/** One camera's coverage map: the image cut in cells, each shaded by the views whose corners fell in it. */
+function checkGrid(camera, entry) {
+  const [w, h_] = entry.image_size;
+  const rows = entry.grid.length;
+  const cols = rows ? entry.grid[0].length : 0;
+  const most = Math.max(1, ...entry.grid.flat());
+  const svg = svgEl("svg", { viewBox: `0 0 ${w} ${h_}`, role: "img", class: "coverage",
+    "aria-label": `Coverage map of the ${camera} camera's image: ${entry.bands_missed.length ? `never reached: ${entry.bands_missed.join(", ")}` : "every third reached"}` });
+  svg.append(svgEl("rect", { x: 0, y: 0, width: w, height: h_, class: "coverage-frame" }));
+  entry.grid.forEach((row, r) => row.forEach((views, c) => {
+    const cell = svgEl("rect", { x: (c * w) / cols, y: (r * h_) / rows, width: w / cols, height: h_ / rows,
+      class: views ? "check-cell" : "coverage-missed" });
+    if (views) cell.setAttribute("fill-opacity", String(0.15 + (0.75 * views) / most));
+    svg.append(cell);
+  }));
+  for (const f of [1, 2]) {
+    svg.append(svgEl("line", { x1: (f * w) / 3, y1: 0, x2: (f * w) / 3, y2: h_, class: "coverage-grid" }));
+    svg.append(svgEl("line", { x1: 0, y1: (f * h_) / 3, x2: w, y2: (f * h_) / 3, class: "coverage-grid" }));
+  }
+  return svg;
+}
+
+/** The board's distances from the camera: one bar per distance bin, as tall as its views. */
+function depthBars(camera, depth) {
+  const most = Math.max(1, ...depth.views);
+  const n = depth.views.length;
+  const bin = 30;
+  const svg = svgEl("svg", { viewBox: `0 0 ${n * bin} 28`, role: "img", class: "check-depth",
+    "aria-label": depth.near_m == null ? `No distances for the ${camera} camera`
+      : `The board was held ${depth.near_m.toFixed(1)} to ${depth.far_m.toFixed(1)} m from the ${camera} camera` });
+  depth.views.forEach((views, i) => {
+    const tall = (26 * views) / most;
+    svg.append(svgEl("rect", { x: i * bin + 2, y: 27 - tall, width: bin - 4, height: tall, class: "check-depth-bar" }));
+  });
+  svg.append(svgEl("line", { x1: 0, y1: 27.5, x2: n * bin, y2: 27.5, class: "check-depth-axis" }));
+  return h("div", { class: "check-depth-box" }, svg, h("div", { class: "check-depth-scale", "aria-hidden": "true" },
+    h("span", {}, "0 m"), h("span", {}, "distance from the camera"), h("span", {}, `${Number(depth.bin_edges_m[n]).toFixed(0)} m`)));
+}
+
+function showCheck(root, check) {
+  const verdict = root.querySelector("[data-check-verdict]");
+  verdict.textContent = check.checking && check.checked ? `Checking again… ${check.verdict}` : check.verdict;
+  verdict.className = `check-verdict${check.checked ? (check.film_again ? " film-again" : " ready") : ""}`;
+  root.querySelector("[data-check-cameras]").replaceChildren(...Object.entries(check.cameras || {}).map(([camera, entry]) => {
+    const reach = `Board in ${entry.views} of ${entry.frames_sampled} frames looked at; its corners reached ${Math.round(100 * entry.reach_x[0])}-${Math.round(100 * entry.reach_x[1])} % across and ${Math.round(100 * entry.reach_y[0])}-${Math.round(100 * entry.reach_y[1])} % down the image.`;
+    return h("figure", { class: `coverage-figure check-camera${entry.film_again ? " film-again" : ""}`, dataset: { checkCamera: camera } },
+      checkGrid(camera, entry), depthBars(camera, entry.depth),
+      h("figcaption", {}, h("strong", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera: ${entry.film_again ? "film again" : "good"}. `), reach,
+        h("ul", { class: "check-findings" }, ...entry.findings.map((f) => h("li", { class: `severity-${f.severity}` }, f.detail)))));
+  }));
+  const again = root.querySelector("[data-check-again]");
+  again.hidden = !can("ride.analyse") || check.checking || !check.checked;
+}
+
 function calibrationMissing(rig, clips) {
   const missing = [];
   if (!rig.board) missing.push("The rig has no calibration board described.");
@@ -258,10 +335,12 @@ export async function mountRig(view, params) {
   async function refreshCalibration() {
     if (gone) return false;
     const report = await get(`/api/rigs/${rigId}/calibration-report`);
+    const check = await get(`/api/rigs/${rigId}/calibration-check`);
     rig = await get(`/api/rigs/${rigId}`);
     if (gone) return false;
     showCalibration(root, rig, clips, report);
-    return report.calibrating;
+    showCheck(root, check);
+    return report.calibrating || check.checking;
   }
   async function reload() {
     if (gone) return;
@@ -274,10 +353,10 @@ export async function mountRig(view, params) {
     poller = poll(refreshCalibration, { intervalMs: 3000 });
   }
   wireBoardEdit(root, rig, reload);
+  // The print page has every sheet at its size in mm (@page): the browser prints it at scale.
   root.querySelector("[data-print-board]").addEventListener("click", () => {
-    document.body.classList.add("printing-board");
-    window.addEventListener("afterprint", () => document.body.classList.remove("printing-board"), { once: true });
-    window.print();
+    const layout = root.querySelector("[data-print-layout]").value || "a4-tiles";
+    window.open(`/api/rigs/${rigId}/board-print?layout=${encodeURIComponent(layout)}`, "_blank", "noopener");
   });
   root.querySelector("[data-calibrate]").addEventListener("click", async (event) => {
     const button = event.currentTarget;
@@ -287,6 +366,18 @@ export async function mountRig(view, params) {
       await reload();
     } catch (error) {
       showError(root.querySelector("[data-calibration-panel]"), error);
+    } finally {
+      button.disabled = false;
+    }
+  });
+  root.querySelector("[data-check-again]").addEventListener("click", async (event) => {
+    const button = event.currentTarget;
+    button.disabled = true;
+    try {
+      await post(`/api/rigs/${rigId}/calibration-check`, {});
+      await reload();
+    } catch (error) {
+      showError(root.querySelector("[data-check-panel]"), error);
     } finally {
       button.disabled = false;
     }

@@ -10,7 +10,14 @@ from saddlescope.api.schemas import ClipUploaded, ErrorOut, RecordingOut
 from saddlescope.api.streaming import stream_upload
 from saddlescope.db.repositories import RecordingRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.uploads import ClipOwner, accept_clip, check_clip_slot, staging_key, start_processing
+from saddlescope.services.uploads import (
+    ClipOwner,
+    accept_clip,
+    check_clip_slot,
+    staging_key,
+    start_calibration_check,
+    start_processing,
+)
 
 __all__ = ["UPLOAD_ERRORS", "receive_clip"]
 
@@ -48,6 +55,7 @@ async def receive_clip(request: Request, owner: ClipOwner, clip_kind: str, camer
         sha256=staged.sha256,
         filename=staged.filename,
     )
+    await run_in_threadpool(start_calibration_check, sessions, queue, owner, clip_kind)
     job_id = await run_in_threadpool(start_processing, sessions, queue, owner)
     with session_scope(sessions) as session:
         recording = RecordingRepository(session, club_id=owner.club_id).get(recording_id)

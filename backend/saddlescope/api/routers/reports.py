@@ -2,28 +2,17 @@
 
 from __future__ import annotations
 
-import base64
-import hashlib
-import re
-
 from fastapi import APIRouter
 from fastapi.responses import HTMLResponse, Response
 
 from saddlescope.api.deps import ClubDep, StorageDep
 from saddlescope.api.routers.common import ERRORS, Id, download
-from saddlescope.api.security_headers import report_csp
+from saddlescope.api.security_headers import inline_style_hashes, report_csp
 from saddlescope.services.report import ride_report_html, ride_report_pdf
 
-__all__ = ["router", "style_hashes"]
+__all__ = ["router"]
 
 router = APIRouter(prefix="/rides", tags=["reports"])
-INLINE_STYLE = re.compile(r"<style>(.*?)</style>", re.S)
-
-
-def style_hashes(page: str) -> list[str]:
-    """CSP source of each inline <style> of the page (the report is one self-contained file, for print)."""
-    return ["sha256-" + base64.b64encode(hashlib.sha256(css.encode()).digest()).decode()
-            for css in INLINE_STYLE.findall(page)]
 
 
 @router.get("/{ride_id}/report", response_class=HTMLResponse,
@@ -36,7 +25,7 @@ def report_html(ride_id: Id, club: ClubDep, storage: StorageDep) -> HTMLResponse
     """
     page = ride_report_html(club.session, storage, ride_id, club_id=club.club_id)
     return HTMLResponse(page, headers={"Cache-Control": "private, no-cache",
-                                       "Content-Security-Policy": report_csp(style_hashes(page))})
+                                       "Content-Security-Policy": report_csp(inline_style_hashes(page))})
 
 
 @router.get("/{ride_id}/report.pdf", responses={**ERRORS, 200: {"content": {"application/pdf": {}}}})

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Request, Response, status
+from fastapi.responses import HTMLResponse
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import AdminClubDep, ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
+from saddlescope.api.rig_schemas import BoardLayoutOut, BoardSizesOut, CalibrationCheckOut, SquareAtDistance
 from saddlescope.api.routers.clips import UPLOAD_ERRORS, receive_clip
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import (
@@ -22,9 +25,12 @@ from saddlescope.api.schemas import (
     RigOut,
     RigUpdate,
 )
+from saddlescope.api.security_headers import inline_style_hashes, report_csp
 from saddlescope.api.streaming import UPLOAD_OPENAPI
-from saddlescope.db.repositories import NotFound, Rig
+from saddlescope.db.repositories import Conflict, NotFound, Rig
 from saddlescope.db.session import session_scope
+from saddlescope.services.board_print import board_advice, board_print_html, camera_view
+from saddlescope.services.calibration_check import check_storage_key
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
 from saddlescope.services.rig_views import board_svg, calibration_words, coverage_words
 from saddlescope.services.uploads import (
@@ -169,6 +175,89 @@ def rig_board_svg(rig_id: Id, club: ClubDep) -> Response:
         raise NotFound(f"rig {rig_id} ({rig.name}) has no board described yet")
     return Response(board_svg(rig.board), media_type="image/svg+xml",
                     headers={"Content-Disposition": f'inline; filename="rig-{rig_id}-board.svg"'})
+
+
+def _board_of(club, rig_id: int) -> Rig:
+    rig = club.rigs.get(rig_id)
+    if not rig.board:
+        raise NotFound(f"rig {rig_id} ({rig.name}) has no board described yet")
+    return rig
+
+
+@router.get("/{rig_id}/board-sizes", response_model=BoardSizesOut, responses=ERRORS)
+def rig_board_sizes(rig_id: Id, club: ClubDep) -> BoardSizesOut:
+    """The board's printed size in mm, the papers it fits (A4, A3, posters, A4 tiles) and the trade-off.
+
+    Which square each camera distance needs, for the rig's own cameras (calibrated focal length, else its
+    clips' width with a phone's 70 degree view, else a 1080p phone); 404 without a board.
+    """
+    rig = _board_of(club, rig_id)
+    widths = [r.width for r in club.recordings.for_rig(rig_id) if r.width]
+    advice = board_advice(rig.board, camera_view(rig.calibration, widths))
+    return BoardSizesOut(
+        width_mm=advice.width_mm, height_mm=advice.height_mm, square_mm=advice.square_mm,
+        image_width_px=advice.view.image_width_px, hfov_deg=advice.view.hfov_deg,
+        camera_source=advice.view.source,  # type: ignore[arg-type]
+        min_square_px=advice.min_square_px, reach_m=round(advice.reach_m, 2),
+        squares_needed=[SquareAtDistance(distance_m=d, square_mm=round(mm, 1))
+                        for d, mm in advice.square_needed_mm.items()],
+        layouts=[BoardLayoutOut(layout=lay.layout, label=lay.label, sheets=lay.sheets, fits=lay.fits,
+                                landscape=lay.landscape, largest_square_mm=round(lay.largest_square_mm, 1),
+                                reach_m=round(lay.reach_m, 2)) for lay in advice.layouts],
+        sentences=advice.sentences)
+
+
+@router.get("/{rig_id}/board-print", response_class=HTMLResponse,
+            responses={**ERRORS, 200: {"content": {"text/html": {}}, "description": "the print page"}})
+def rig_board_print(
+    rig_id: Id,
+    club: ClubDep,
+    layout: Annotated[str, Query(description="a4, a3, a2, a1, a0 (one sheet) or a4-tiles")] = "a4-tiles",
+) -> HTMLResponse:
+    """The board as a print page: every sheet at its size in mm (``@page``), a 100 mm ruler on each.
+
+    422 when the board does not fit one sheet of the paper asked for (the answer says the largest square
+    that would); 404 without a board.
+    """
+    rig = _board_of(club, rig_id)
+    page = board_print_html(rig.board, layout, rig_name=rig.name)
+    return HTMLResponse(page, headers={"Cache-Control": "private, no-cache",
+                                       "Content-Security-Policy": report_csp(inline_style_hashes(page))})
+
+
+@router.get("/{rig_id}/calibration-check", response_model=CalibrationCheckOut, responses=ERRORS)
+def rig_calibration_check(rig_id: Id, club: ClubDep, storage: StorageDep) -> CalibrationCheckOut:
+    """The latest check of the rig's calibration clips: per camera where the board went, and a verdict.
+
+    The check runs by itself on every calibration clip uploaded (a ``check_calibration`` job, a minute or
+    two); ``checking`` while one is queued or running.
+    """
+    club.rigs.get(rig_id)
+    checking = club.jobs.active_for(rig_id=rig_id, kind="check_calibration") is not None
+    key = check_storage_key(rig_id)
+    if not storage.exists(key):
+        return CalibrationCheckOut(checked=False, checking=checking, verdict=(
+            "Checking the calibration clips\u2026" if checking else
+            "Not checked yet: upload a calibration clip and it is checked at once."))
+    document = json.loads(storage.read_bytes(key))
+    return CalibrationCheckOut(checked=True, checking=checking, **document)
+
+
+@router.post("/{rig_id}/calibration-check", status_code=status.HTTP_201_CREATED, response_model=JobOut,
+             responses={**ERRORS, 503: {"model": ErrorOut}})
+async def check_rig_calibration(rig_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
+    """Check the rig's calibration clips again (a ``check_calibration`` job); 409 with no clip to check."""
+    rig = await run_in_threadpool(club.rigs.get, rig_id)
+    has_clip = any(r.clip_kind == "calibration" for r in await run_in_threadpool(club.recordings.for_rig, rig_id))
+    if not has_clip or not rig.board:
+        raise Conflict(f"rig {rig_id} ({rig.name}) has " + ("no board described" if not rig.board else
+                                                            "no calibration clip") + " to check yet")
+    club.session.rollback()
+    job_id = await run_in_threadpool(
+        submit_job, sessions, queue, kind="check_calibration", rig_id=rig_id, club_id=club.club_id
+    )
+    with session_scope(sessions) as session:
+        return JobOut(**job_as_dict(get_job(session, job_id)))
 
 
 @router.get("/{rig_id}/calibration-report", responses=ERRORS)

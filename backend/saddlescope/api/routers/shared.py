@@ -15,8 +15,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from saddlescope.api.deps import SessionDep, StorageDep
 from saddlescope.api.routers.common import Id
-from saddlescope.api.routers.reports import style_hashes
-from saddlescope.api.security_headers import report_csp
+from saddlescope.api.security_headers import inline_style_hashes, report_csp
 from saddlescope.db.repositories import NotFound
 from saddlescope.services.report import ride_report_html, ride_report_pdf
 from saddlescope.services.share_links import ShareRefused, open_share_link, refusal_html, ride_of_link
@@ -36,7 +35,7 @@ REFUSED_STATUS = {"unknown": status.HTTP_404_NOT_FOUND, "withdrawn": status.HTTP
 
 def _page(page: str, code: int = status.HTTP_200_OK) -> HTMLResponse:
     return HTMLResponse(page, status_code=code,
-                        headers={**PRIVATE, "Content-Security-Policy": report_csp(style_hashes(page))})
+                        headers={**PRIVATE, "Content-Security-Policy": report_csp(inline_style_hashes(page))})
 
 
 def _refused(title: str, message: str, code: int) -> HTMLResponse:

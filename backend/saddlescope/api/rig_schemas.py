@@ -1,0 +1,93 @@
+"""The rig page's responses beyond the rig itself: how to print its board, and the check of its calibration clips."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+__all__ = ["BoardLayoutOut", "BoardSizesOut", "CalibrationCheckOut", "CameraCheckOut", "CheckFindingOut",
+           "DepthCoverageOut", "SquareAtDistance"]
+
+
+class BoardLayoutOut(BaseModel):
+    """One way to print the board (one sheet of a paper size, or A4 tiles)."""
+
+    layout: str = Field(description="a4, a3, a2, a1, a0 (one sheet) or a4-tiles")
+    label: str
+    sheets: int
+    fits: bool = Field(description="the board at its square size fits this layout")
+    landscape: bool
+    largest_square_mm: float = Field(description="the largest square of this board's pattern that fits one sheet")
+    reach_m: float = Field(description="how far from the camera the largest square is still resolved")
+
+
+class SquareAtDistance(BaseModel):
+    """The smallest square a camera resolves at a distance."""
+
+    distance_m: float
+    square_mm: float
+
+
+class BoardSizesOut(BaseModel):
+    """The board's printed size, the layouts it fits, and which square each camera distance needs."""
+
+    width_mm: float
+    height_mm: float
+    square_mm: float
+    image_width_px: int
+    hfov_deg: float
+    camera_source: Literal["calibration", "clips", "assumed"]
+    min_square_px: int = Field(description="pixels a square must cover for its corners to be found")
+    reach_m: float = Field(description="how far from the camera this board's squares are resolved")
+    squares_needed: list[SquareAtDistance]
+    layouts: list[BoardLayoutOut]
+    sentences: list[str]
+
+
+class CheckFindingOut(BaseModel):
+    """One finding of the check: its code (saddlescope.core.findings), severity, sentence and what to do."""
+
+    code: str
+    severity: Literal["ok", "check", "problem"]
+    detail: str = Field(description="the sentence with its numbers")
+    advice: str = Field(description="one sentence a club can act on")
+
+
+class DepthCoverageOut(BaseModel):
+    """The distances the board was held at from the camera: a histogram of views over distance bins."""
+
+    near_m: float | None = Field(description="10th percentile of the views' distances")
+    far_m: float | None = Field(description="90th percentile of the views' distances")
+    bin_edges_m: list[float]
+    views: list[int]
+
+
+class CameraCheckOut(BaseModel):
+    """One camera's calibration clip checked: coverage over the image and depth, reach, findings."""
+
+    camera: str
+    image_size: tuple[int, int]
+    frames_sampled: int
+    views: int = Field(description="sampled frames in which the board was found")
+    grid: list[list[int]] = Field(description="rows x columns of the image: views whose corners fell in each cell")
+    bands_missed: list[str] = Field(description="the thirds of the image no corner reached, in words")
+    corners_missed: list[str]
+    reach_x: tuple[float, float] = Field(description="leftmost and rightmost corner, shares of the width")
+    reach_y: tuple[float, float] = Field(description="topmost and lowest corner, shares of the height")
+    hull_fraction: float = Field(description="the corners' outline as a share of the image")
+    depth: DepthCoverageOut
+    film_again: bool
+    findings: list[CheckFindingOut]
+
+
+class CalibrationCheckOut(BaseModel):
+    """The rig's calibration clips checked before anyone rides (``checked`` False until the first check)."""
+
+    checked: bool
+    checking: bool = Field(description="a check is queued or running")
+    film_again: bool | None = None
+    verdict: str
+    seconds: float | None = Field(default=None, description="how long the check took")
+    clips: dict[str, int] = Field(default_factory=dict, description="camera -> the recording id checked")
+    cameras: dict[str, CameraCheckOut] = Field(default_factory=dict)

@@ -1,0 +1,146 @@
+"""Use case: check calibration clips within a minute or two, before anyone rides (issue 35).
+
+Each camera's clip is sampled (a few frames a second, at least ``MIN_SAMPLES`` frames of a short clip),
+the board is searched in each sampled frame, and :func:`~saddlescope.core.calibration.coverage_check.
+check_camera_coverage` judges where it went. The rig page runs it as the ``check_calibration`` job on
+every calibration clip uploaded (its answer stored beside the rig's clips); ``saddlescope
+check-calibration`` runs it on files.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from saddlescope.core.calibration import detect_board_views
+from saddlescope.core.calibration.boards import board_from_meta
+from saddlescope.core.calibration.coverage_check import CameraCoverageCheck, check_camera_coverage
+from saddlescope.core.findings import FINDING_KINDS
+from saddlescope.core.types import CAMERA_ROLES
+from saddlescope.io.findings_document import findings_to_list
+from saddlescope.io.video import iter_gray_frames, probe_video
+
+__all__ = ["CHECK_WIDTH_PX", "MIN_SAMPLES", "SAMPLE_FPS", "CalibrationCheck", "check_calibration_clips",
+           "check_document", "check_storage_key", "sample_step"]
+
+SAMPLE_FPS = 3.0  # frames a second looked at: the board moves slowly, and a view a third of a second on is new
+MIN_SAMPLES = 40  # a short clip is looked at more densely, down to every frame
+CHECK_WIDTH_PX = 1440  # frames are searched at this width: a 9 px square at 1080p keeps 6.75 px
+
+
+def sample_step(fps: float, frame_count: int, *, sample_fps: float = SAMPLE_FPS,
+                min_samples: int = MIN_SAMPLES) -> int:
+    """Every how many frames one is looked at: ``sample_fps`` a second, but at least ``min_samples`` frames."""
+    by_rate = max(1, int(round(float(fps) / sample_fps))) if fps and fps > 0 else 1
+    by_count = max(1, int(frame_count) // min_samples) if frame_count else by_rate
+    return min(by_rate, by_count)
+
+
+@dataclass(frozen=True)
+class CalibrationCheck:
+    """The calibration clips checked: per camera the coverage, and the seconds the check took."""
+
+    cameras: dict[str, CameraCoverageCheck]
+    seconds: float
+
+    @property
+    def film_again(self) -> bool:
+        """Whether any camera's clip should be filmed again before riding."""
+        return any(c.film_again for c in self.cameras.values())
+
+    def verdict(self) -> str:
+        """The answer in one sentence."""
+        again = [name for name, c in self.cameras.items() if c.film_again]
+        if again:
+            names = again[0] if len(again) == 1 else ", ".join(again[:-1]) + " and " + again[-1]
+            if len(again) == 1:
+                return f"Film again: the {names} camera's calibration clip does not cover its view well enough."
+            return f"Film again: the {names} cameras' calibration clips do not cover their views well enough."
+        return "Ready to ride: the board was seen well in every camera's view."
+
+
+def check_calibration_clips(
+    paths: Mapping[str, Path],
+    board_meta: Mapping[str, Any],
+    *,
+    sample_fps: float = SAMPLE_FPS,
+    on_progress: Callable[[float, str], None] | None = None,
+) -> CalibrationCheck:
+    """Check each camera's calibration clip (any of left, middle, right present).
+
+    Raises
+    ------
+    InputError
+        The board section is not a valid board; VideoError: a clip does not decode.
+    """
+    board = board_from_meta(dict(board_meta))
+    t0 = time.perf_counter()
+    order = [c for c in CAMERA_ROLES if c in paths] + sorted(c for c in paths if c not in CAMERA_ROLES)
+    out: dict[str, CameraCoverageCheck] = {}
+    for n, camera in enumerate(order):
+        if on_progress is not None:
+            on_progress(n / len(order), f"the {camera} camera")
+        info = probe_video(Path(paths[camera]), decode_tail=False)
+        step = sample_step(info.fps, info.frame_count, sample_fps=sample_fps)
+        scale = CHECK_WIDTH_PX / info.width if info.width else 1.0
+        sampled = 0
+
+        def frames(path: Path = Path(paths[camera]), step: int = step, scale: float = scale):
+            nonlocal sampled
+            for index, gray in iter_gray_frames(path, step=step):
+                sampled += 1
+                yield index, (gray if scale == 1.0 else cv2.resize(
+                    gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_CUBIC))
+
+        # One search per frame at one width (max_width just under it: neither downscaled nor tried again
+        # enlarged, as the calibration's finder does): the check wants where the board went, fast.
+        width = max(2, round(info.width * scale))
+        views, _ = detect_board_views(frames(), board, track=False, max_width=width - 1)
+        sightings = [((v.corners_px + 0.5) / scale - 0.5, v.ids) for v in views]
+        out[camera] = check_camera_coverage(camera, sightings, board, (info.width, info.height),
+                                            frames_sampled=sampled)
+    return CalibrationCheck(out, time.perf_counter() - t0)
+
+
+def check_storage_key(rig_id: int) -> str:
+    """Where a rig's latest calibration check is stored (under the rig's own prefix, deleted with it)."""
+    return f"rigs/{int(rig_id)}/calibration-check.json"
+
+
+def _rounded(values: np.ndarray, digits: int = 2) -> list[float | None]:
+    return [round(float(v), digits) if np.isfinite(v) else None for v in values]
+
+
+def _camera_document(c: CameraCoverageCheck) -> dict[str, Any]:
+    known = c.distances_m[np.isfinite(c.distances_m)]
+    edges = np.linspace(0.0, max(1.0, float(np.ceil(known.max()))) if len(known) else 1.0, 9)
+    counts = np.histogram(known, bins=edges)[0] if len(known) else np.zeros(8, int)
+    return {
+        "camera": c.camera, "image_size": list(c.image_size), "frames_sampled": c.frames_sampled, "views": c.views,
+        "grid": c.grid.astype(int).tolist(), "bands_missed": list(c.bands_missed),
+        "corners_missed": list(c.corners_missed),
+        "reach_x": [round(v, 3) for v in c.reach_x], "reach_y": [round(v, 3) for v in c.reach_y],
+        "hull_fraction": round(c.hull_fraction, 3),
+        "depth": {"near_m": round(float(np.percentile(known, 10)), 2) if len(known) else None,
+                  "far_m": round(float(np.percentile(known, 90)), 2) if len(known) else None,
+                  "bin_edges_m": _rounded(edges), "views": counts.astype(int).tolist()},
+        "film_again": c.film_again,
+        "findings": [{**f, "advice": FINDING_KINDS[f["code"]].advice} for f in findings_to_list(c.findings)],
+    }
+
+
+def check_document(check: CalibrationCheck, *, clips: Mapping[str, int] | None = None) -> dict[str, Any]:
+    """The check as JSON (stored for the rig page, printed by the command line)."""
+    return {
+        "film_again": check.film_again,
+        "verdict": check.verdict(),
+        "seconds": round(check.seconds, 1),
+        "cameras": {name: _camera_document(c) for name, c in check.cameras.items()},
+        **({"clips": dict(clips)} if clips is not None else {}),
+    }
