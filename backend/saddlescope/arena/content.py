@@ -106,9 +106,9 @@ _LEG_PHASES = {
 }
 
 
-# The rider's boot over the rear marker (RenderOptions.boot_share): a dark blob 12 cm wide, 17 cm tall,
-# 45 cm out from the body's midline (nearer the cameras than the markers, 27 cm), resting 30 cm ahead
-# of the rear marker; it swings back over it once a stride.
+# The rider's boot over the rear marker (RenderOptions.boot_share): a dark blob 16 cm long, 12 cm tall,
+# 45 cm out from the body's midline (nearer the cameras than the markers, 27 cm), resting 30 cm below
+# the rear marker; it swings up over it once a stride.
 BOOT_RADIUS_M = 0.06
 BOOT_REST_M = 0.30
 BOOT_DEPTH_M = 0.45
@@ -201,11 +201,12 @@ class HorseContent:
         return w, np.array([22.0, 20.0]), np.array([stir, 235.0])
 
     def boot_offset_m(self, t: np.ndarray) -> np.ndarray:
-        """How far (m, along the body) the boot's centre is ahead of the rear marker at instants ``t`` (T,) s.
+        """How far (m, down the body) the boot's centre is below the rear marker at instants ``t`` (T,) s.
 
-        The boot rests :data:`BOOT_REST_M` ahead of the rear marker and swings back over it once a stride,
-        linearly in and out around the stride phase 0.5, so that the marker is at least partly covered
-        for ``boot_share`` of the stride (where the offset is below the boot's and the disc's radii).
+        The boot rests :data:`BOOT_REST_M` below the rear marker, clear of the marker row, and swings up
+        over it once a stride, linearly in and out around the stride phase 0.5, so that the marker is at
+        least partly covered for ``boot_share`` of the stride (where the offset is below the boot's
+        half-height plus the disc's radius).
         """
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
         phase = (self.model.stride_hz * (t - self.model.t_cross_s) + BOOT_PHASE) % 1.0
@@ -227,10 +228,11 @@ class HorseContent:
             return
         rot, org = self.pose_arena(np.array([t]))
         m3 = self.model.body_points_m[MARKER_NAMES[2]]
-        centre = np.array([m3[0] + float(self.boot_offset_m(np.array([t]))[0]), m3[1],
+        centre = np.array([m3[0], m3[1] + float(self.boot_offset_m(np.array([t]))[0]),
                            self.model.camera_side * BOOT_DEPTH_M])
         ang = np.linspace(0, 2 * np.pi, 20, endpoint=False)
-        blob = centre + np.column_stack([BOOT_RADIUS_M * np.cos(ang), 1.4 * BOOT_RADIUS_M * np.sin(ang),
+        # wider along the body than tall: it never reaches the next marker, 17-23 cm ahead
+        blob = centre + np.column_stack([1.3 * BOOT_RADIUS_M * np.cos(ang), BOOT_RADIUS_M * np.sin(ang),
                                          np.zeros_like(ang)])
         fill_polygons(frame, [view.project(self._body_to_world(blob, rot[0], org[0]))], [22.0])
 
