@@ -126,8 +126,10 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
     max_order : int, optional
         Cap on every Fourier series' order (see :func:`fit_fourier`).
     up_to_frame_rate : bool, optional
-        Try higher orders up to what the frame rate resolves while the criterion asks for them (see
-        :func:`fit_fourier`).
+        Try higher orders of the vertical (y) series up to what the frame rate resolves while the
+        criterion asks for them (see :func:`fit_fourier`). Only the vertical: the indicators weigh its
+        harmonics, while a narrow rig's poorly fixed depth (z) and the travel (x) would take their noise
+        for harmonics and move the rotation (a thesis-rig canter's ω versions spread 25 times more).
 
     Returns
     -------
@@ -205,7 +207,7 @@ def _fit_marker(fits: _Fits, m: int, t_s: np.ndarray, xyz: np.ndarray, how: _Ser
         fits[m, c] = fit_fourier(t_s, xyz[:, m, c], period_s=how.period_s, criterion=how.criterion,
                                  extra_orders=how.extra_orders, trend_degree=degree,
                                  name=f"{how.labels[m]} {'xyz'[c]}", max_order=how.max_order,
-                                 up_to_frame_rate=how.up_to_frame_rate)
+                                 up_to_frame_rate=how.up_to_frame_rate and c == 1)
 
 
 def _wild_samples(t_s: np.ndarray, xyz_marker: np.ndarray, marker_fits: list, reject_sigma: float,
@@ -259,7 +261,7 @@ def _share_centroid_order(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, whole: 
             order_c = fit_fourier(t_s[whole], xyz[whole, :, c].mean(axis=1), period_s=how.period_s,
                                   criterion=how.criterion, extra_orders=how.extra_orders, trend_degree=degree,
                                   name=f"markers' centroid {'xyz'[c]}", max_order=how.max_order,
-                                  up_to_frame_rate=how.up_to_frame_rate).order
+                                  up_to_frame_rate=how.up_to_frame_rate and c == 1).order
         except KinematicsError:
             continue
         for m in range(xyz.shape[1]):
