@@ -160,7 +160,9 @@ def _lit_frame(scene: Scene, view: CameraView, kind: str, t: float, opts: Render
 
 
 def row_instants(scene: Scene, camera: str, kind: str, xy_px: np.ndarray) -> np.ndarray:
-    """The instant (s) each image point (F, M, 2) was exposed at: its frame's instant plus its row's delay.
+    """The instant (s) each image point (F, M, 2) of the clip's F frames was exposed at, shape (F, M).
+
+    Its frame's instant plus its row's delay.
 
     With a global shutter (or a clip the rolling shutter is not applied to) the frames' instants.
     """
