@@ -266,7 +266,7 @@ class _Span:
 
 
 def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flags: list[Finding]
-                    ) -> tuple[np.ndarray, np.ndarray, list]:
+                    ) -> tuple[np.ndarray, np.ndarray, list, np.ndarray]:
     """The motion tracks (F, 3, 3) mm with broken samples dropped and short gaps bridged (5.2.1).
 
     Returns (tracks, bridged frames (F,) bool, long gaps [(start_s, end_s)], each marker's measured
@@ -354,7 +354,7 @@ def unmeasured_phase(t_s: np.ndarray, measured: np.ndarray, xyz_m: np.ndarray, p
     share reaches :data:`UNMEASURED_PHASE_LIMIT`, naming the marker hidden longest.
     """
     measured = np.asarray(measured, bool)
-    share = 1.0 - phase_coverage(t_s, measured.all(axis=1), period_s)
+    share = 1.0 - phase_coverage(t_s, np.all(measured, axis=1), period_s)
     per_marker = [1.0 - phase_coverage(t_s, measured[:, m], period_s) for m in range(measured.shape[1])]
     with np.errstate(invalid="ignore"):
         mean_x = np.array([np.nanmean(xyz_m[:, m, 0]) if np.isfinite(xyz_m[:, m, 0]).any() else np.nan
