@@ -179,6 +179,11 @@ def _add_synth_parser(sub) -> None:
                         "dropped frames, each frame stamped with its instant")
     s.add_argument("--no-flash", action="store_true",
                    help="no sync flash in the clips: the cameras are synchronised from the markers' motion")
+    s.add_argument("--boot", type=float, default=0.0, metavar="SHARE",
+                   help="a rider's boot swings over the rear marker for this share (0-0.25) of every stride")
+    s.add_argument("--readout-ms", type=float, default=0.0,
+                   help="a phone's rolling shutter: rows exposed one after another over this many ms (0-40)")
+    s.add_argument("--crf", type=int, default=20, help="x264 compression of the clips (18 fine, 28 a phone's)")
 
 
 class _BoardKinds:
@@ -303,7 +308,8 @@ def run(args: argparse.Namespace) -> int:
                                  board_band=args.board_band, speed_range_m_s=args.speed,
                                  options=RenderOptions(skin_motion=args.skin, marker_layout=args.layout,
                                                        variable_frame_rate=args.variable_frame_rate,
-                                                       flash=not args.no_flash))
+                                                       flash=not args.no_flash, boot_share=args.boot,
+                                                       readout_s=args.readout_ms / 1000.0, crf=args.crf))
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":

@@ -125,3 +125,17 @@ def test_one_arena_ride_end_to_end(tmp_path):
     assert doc["quality"]["decision"]["too_uncertain"] in (True, False)
     table = coverage_table(coverage_rows(folders, recompute=False))
     assert table["analysed"] == 1 and "acc_y_wb_rms" in table["indicators"]
+
+
+def test_the_nuisance_rides_pair_each_nuisance_with_the_same_ride_without_it():
+    from saddlescope.bench.coverage import BUILD_RIDES, COVERAGE_RIDES, NUISANCE_RIDES
+
+    names = [r.name for r in NUISANCE_RIDES]
+    assert len(set(names)) == len(names)
+    plain = {(r.rig, r.gait, r.seed) for r in NUISANCE_RIDES if not r.nuisance_suffix}
+    nuisances = [r for r in NUISANCE_RIDES if r.nuisance_suffix]
+    assert {"_boot0.2", "_ro25ms_crf28", "_h6x0.15"} <= {r.nuisance_suffix for r in nuisances}
+    assert all((r.rig, r.gait, r.seed) in plain for r in nuisances)
+    assert not {r.seed for r in NUISANCE_RIDES} & {r.seed for r in COVERAGE_RIDES + BUILD_RIDES}
+    phone = next(r for r in nuisances if r.readout_s).render_options()
+    assert (phone.readout_s, phone.crf, phone.boot_share) == (0.025, 28, 0.0)

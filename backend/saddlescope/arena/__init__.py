@@ -17,9 +17,11 @@ It renders with the science core's camera model and imports core; the core never
 
 from saddlescope.arena.clips import (
     OCCLUDED_CLIPS,
+    SHUTTER_CLIPS,
     frame_shape,
     lighting_gain,
     render_clip_frames,
+    row_instants,
     true_marker_pixels,
 )
 from saddlescope.arena.content import (
@@ -54,6 +56,7 @@ from saddlescope.arena.gait import (
     fourier_series,
     saddle_vertical_peak_to_peak,
     sample_gait,
+    with_high_harmonic,
     with_t_cross,
 )
 from saddlescope.arena.placement import (
@@ -147,6 +150,7 @@ __all__ = [
     "fourier_series",
     "saddle_vertical_peak_to_peak",
     "sample_gait",
+    "with_high_harmonic",
     "with_t_cross",
     "CameraView",
     "Pole",
@@ -190,7 +194,9 @@ __all__ = [
     "Scene",
     "build_scene",
     "OCCLUDED_CLIPS",
+    "SHUTTER_CLIPS",
     "frame_shape",
+    "row_instants",
     "lighting_gain",
     "render_clip_frames",
     "true_marker_pixels",

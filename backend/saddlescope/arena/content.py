@@ -106,6 +106,16 @@ _LEG_PHASES = {
 }
 
 
+# The rider's boot over the rear marker (RenderOptions.boot_share): a dark blob 16 cm long, 12 cm tall,
+# 45 cm out from the body's midline (nearer the cameras than the markers, 27 cm), resting 30 cm below
+# the rear marker; it swings up over it once a stride.
+BOOT_RADIUS_M = 0.06
+BOOT_REST_M = 0.30
+BOOT_DEPTH_M = 0.45
+BOOT_PHASE = 0.3
+MAX_BOOT_SHARE = 2.0 * (BOOT_RADIUS_M + 0.015) / BOOT_REST_M * 0.5  # the whole swing within one stride
+
+
 def _hash01(*vals: float) -> float:
     """A repeatable pseudo-random number in [0, 1) from numbers (no RNG state)."""
     return float((np.sin(np.dot(vals, [12.9898, 78.233, 37.719][: len(vals)])) * 43758.5453) % 1.0)
@@ -128,6 +138,7 @@ class HorseContent:
     peaks: np.ndarray = field(default_factory=lambda: np.array([265.0, 262.0, 268.0, 260.0]))
     marker_diameter_mm: float = 30.0
     distractors: bool = True
+    boot_share: float = 0.0  # share of every stride the rider's boot covers the rear marker (issue 38)
 
     @property
     def marker_names(self) -> tuple[str, ...]:
@@ -188,6 +199,42 @@ class HorseContent:
         phase = _hash01(len(view.role), ord(view.role[0]))
         stir = 300.0 * max(0.0, np.sin(2 * np.pi * (self.model.stride_hz * t + phase))) ** 6
         return w, np.array([22.0, 20.0]), np.array([stir, 235.0])
+
+    def boot_offset_m(self, t: np.ndarray) -> np.ndarray:
+        """How far (m, down the body) the boot's centre is below the rear marker at instants ``t`` (T,) s.
+
+        The boot rests :data:`BOOT_REST_M` below the rear marker, clear of the marker row, and swings up
+        over it once a stride, linearly in and out around the stride phase 0.5, so that the marker is at
+        least partly covered for ``boot_share`` of the stride (where the offset is below the boot's
+        half-height plus the disc's radius).
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        phase = (self.model.stride_hz * (t - self.model.t_cross_s) + BOOT_PHASE) % 1.0
+        reach = BOOT_RADIUS_M + 0.5e-3 * self.marker_diameter_mm
+        half = max(self.boot_share, 1e-9) * BOOT_REST_M / (2.0 * reach)  # half the swing, in stride phase
+        return BOOT_REST_M * np.minimum(1.0, np.abs(phase - 0.5) / half)
+
+    def boot_covers(self, t: np.ndarray) -> np.ndarray:
+        """Which markers (T, 4) bool the boot covers at least partly, seen square-on, at instants ``t`` (T,) s."""
+        t = np.atleast_1d(t)
+        out = np.zeros((len(t), 4), bool)
+        if self.boot_share > 0 and not self.static:
+            out[:, 2] = self.boot_offset_m(t) < BOOT_RADIUS_M + 0.5e-3 * self.marker_diameter_mm
+        return out
+
+    def draw_front(self, frame: np.ndarray, view: CameraView, t: float) -> None:
+        """Draw what passes in front of the markers (the rider's boot) at instant ``t`` into ``frame``."""
+        if self.boot_share <= 0 or self.static or not self.rider:
+            return
+        rot, org = self.pose_arena(np.array([t]))
+        m3 = self.model.body_points_m[MARKER_NAMES[2]]
+        centre = np.array([m3[0], m3[1] + float(self.boot_offset_m(np.array([t]))[0]),
+                           self.model.camera_side * BOOT_DEPTH_M])
+        ang = np.linspace(0, 2 * np.pi, 20, endpoint=False)
+        # wider along the body than tall: it never reaches the next marker, 17-23 cm ahead
+        blob = centre + np.column_stack([1.3 * BOOT_RADIUS_M * np.cos(ang), BOOT_RADIUS_M * np.sin(ang),
+                                         np.zeros_like(ang)])
+        fill_polygons(frame, [view.project(self._body_to_world(blob, rot[0], org[0]))], [22.0])
 
     def draw(self, frame: np.ndarray, view: CameraView, t: float) -> None:
         """Draw the horse, saddle pad, saddle and rider at instant ``t`` into ``frame`` (H, W) float32."""

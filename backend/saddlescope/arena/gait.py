@@ -16,7 +16,7 @@ are zero. The markers sit on the camera-facing side of the horse (``camera_side`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -39,6 +39,7 @@ __all__ = [
     "fourier_series",
     "saddle_vertical_peak_to_peak",
     "sample_gait",
+    "with_high_harmonic",
     "with_t_cross",
 ]
 
@@ -458,6 +459,25 @@ def _with_vertical_peak_to_peak(model: GaitModel, pp_target_m: float) -> GaitMod
             horse_height_m=model.horse_height_m,
         )
     return model
+
+
+def with_high_harmonic(model: GaitModel, order: int, share: float, rng: np.random.Generator) -> GaitModel:
+    """The model with a vertical harmonic of the stride at ``order`` (beyond the gait's four) added.
+
+    Its acceleration's r.m.s. is ``share`` of the vertical acceleration's r.m.s. before it; its phase
+    is drawn from ``rng``. (A trot whose saddle rings at its 6th harmonic, 8-9 Hz, issue 38.)
+    """
+    amps, phases = (np.asarray(v, dtype=np.float64) for v in model.harmonics["y"])
+    w = 2 * np.pi * model.stride_hz * np.arange(1, len(amps) + 1)
+    acc_rms = float(np.sqrt(np.sum((amps * w**2) ** 2) / 2))
+    k = int(order)
+    new_amps = np.concatenate([amps, np.zeros(max(k - len(amps), 0))])
+    new_phases = np.concatenate([phases, np.zeros(max(k - len(phases), 0))])
+    new_amps[k - 1] = share * acc_rms * np.sqrt(2.0) / (2 * np.pi * model.stride_hz * k) ** 2
+    new_phases[k - 1] = float(rng.uniform(-np.pi, np.pi))
+    harmonics = dict(model.harmonics)
+    harmonics["y"] = (new_amps, new_phases)
+    return replace(model, harmonics=harmonics)
 
 
 def _skin_motion(skin_model: str, rng: np.random.Generator, stride_hz: float) -> dict:

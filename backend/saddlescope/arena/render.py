@@ -64,6 +64,29 @@ class RenderOptions:
     # a sync lamp flashes at the start of every clip; False films a ride without one (the cameras are
     # then synchronised from the markers' own motion, with the same unknown sub-frame offsets)
     flash: bool = True
+    # --- the field's nuisances (issue 38), all off by default: the demo ride is unchanged ---
+    # a rider's boot, a dark blob in front of the rear marker (marker 3) for this share of every
+    # stride, phase-locked to the stride; it slides over the disc, so the disc is partly covered as
+    # it comes and goes (0: no boot)
+    boot_share: float = 0.0
+    # a phone's rolling shutter: row y of a frame is exposed at the frame's instant + y / H * readout
+    # (0: a global shutter); rendered per band of rows, each at its own instant
+    readout_s: float = 0.0
+    rolling_bands: int = 16  # row bands the rolling shutter is rendered in
+    # the H.264 constant rate factor the bundle's clips are written with (18 near-transparent, 28 a
+    # phone's visibly lossy compression)
+    crf: int = 20
+    # a saddle vertical harmonic of the stride at this order (k) beyond the gait's four, with its
+    # acceleration this share of the vertical acceleration's r.m.s. (0: none); e.g. a trot with
+    # energy at its 6th harmonic (8-9 Hz, where W_b weighs most)
+    high_harmonic: int = 6
+    high_harmonic_share: float = 0.0
+
+    def nuisances(self) -> dict:
+        """The field nuisances this ride was filmed with (for its truth.json)."""
+        return {"boot_share": self.boot_share, "readout_s": self.readout_s, "crf": self.crf,
+                "high_harmonic": self.high_harmonic if self.high_harmonic_share > 0 else None,
+                "high_harmonic_share": self.high_harmonic_share}
 
 
 @dataclass(frozen=True)

@@ -41,11 +41,12 @@ from saddlescope.arena.content import (
     ALL_CLIPS,
     BOARD,
     GRAVITY_M_S2,
+    MAX_BOOT_SHARE,
     BoardContent,
     HorseContent,
     PlumbContent,
 )
-from saddlescope.arena.gait import GaitModel, sample_gait, with_t_cross
+from saddlescope.arena.gait import GaitModel, sample_gait, with_high_harmonic, with_t_cross
 from saddlescope.arena.placement import (
     add_static_glints,
     board_distance_poses,
@@ -151,12 +152,16 @@ def build_scene(
     _check_arguments(gait, calibration_poses, duration_s)
     _check_scene_options(board_band, speed_range_m_s)
     options = options or RenderOptions()
+    _check_nuisances(options)
     ss = np.random.SeedSequence([int(seed), 0x5ADD1E])
     r_rig, r_gait, r_meta, r_time, r_board, r_bg, r_place, r_look = (np.random.default_rng(s) for s in ss.spawn(8))
 
     srig = make_rig(rig, r_rig, size=size, fps=fps)
     views = _make_views(srig)
     direction, m_dir, model = _draw_horse(gait, r_meta, r_gait, options, speed_range_m_s)
+    if options.high_harmonic_share > 0:
+        model = with_high_harmonic(model, options.high_harmonic, options.high_harmonic_share,
+                                   np.random.default_rng(np.random.SeedSequence([int(seed), 0x4A6])))
     timings = _clip_timings(r_time, srig.fps, calibration_poses, model.period_s, duration_s)
     tm = timings["motion"]
     usable = _usable_motion(tm, gait, model.period_s)
@@ -224,6 +229,21 @@ def _check_scene_options(board_band: float | None, speed_range_m_s: tuple[float,
         lo, hi = (float(v) for v in speed_range_m_s)
         if not 0.5 <= lo <= hi <= 12.0:
             raise InputError(f"speed range must be 0.5 <= low <= high <= 12 m/s, got {speed_range_m_s}")
+
+
+def _check_nuisances(options: RenderOptions) -> None:
+    """Refuse field nuisances outside what the arena models (issue 38)."""
+    if not 0.0 <= float(options.boot_share) <= MAX_BOOT_SHARE + 1e-9:
+        raise InputError(f"boot_share must be 0-{MAX_BOOT_SHARE:.2f} of the stride, got {options.boot_share}")
+    if not 0.0 <= float(options.readout_s) <= 0.040:
+        raise InputError(f"a rolling shutter's readout must be 0-40 ms, got {1000 * options.readout_s:g} ms")
+    if not 1 <= int(options.rolling_bands) <= 512:
+        raise InputError(f"rolling_bands must be 1-512, got {options.rolling_bands}")
+    if not 0 <= int(options.crf) <= 51:
+        raise InputError(f"crf must be 0-51, got {options.crf}")
+    if not 5 <= int(options.high_harmonic) <= 12 or not 0.0 <= float(options.high_harmonic_share) <= 1.0:
+        raise InputError("high_harmonic must be 5-12 and high_harmonic_share 0-1, got "
+                         f"{options.high_harmonic} and {options.high_harmonic_share}")
 
 
 def _make_views(rig: SceneRig) -> dict[str, CameraView]:
@@ -365,6 +385,7 @@ def _horse_and_plumb(views: dict[str, CameraView], srig: SceneRig, model: GaitMo
         peaks=peaks,
         marker_diameter_mm=diam,
         distractors=options.distractors,
+        boot_share=options.boot_share,
     )
     contents["static"] = place_standing_horse(views, model, m_dir, srig.ground_y_m, peaks=peaks,
                                               marker_diameter_mm=diam, distractors=options.distractors)

@@ -229,6 +229,14 @@ def _truth_section(scene: Scene, harm: dict[str, tuple[np.ndarray, np.ndarray]],
         },
         "calibration_board": _board_truth(scene, "calibration"),
     }
+    truth_sec["nuisances"] = scene.options.nuisances()
+    if scene.options.boot_share > 0:
+        t_win = scene.window_times
+        covered = scene.contents["motion"].boot_covers(t_win)[:, 2]
+        truth_sec["nuisances"]["boot"] = {
+            "marker": "marker3", "share_of_stride": scene.options.boot_share,
+            "window_share_covered": float(covered.mean()),
+            "note": "the rear marker is at least partly covered, seen square-on, for this share of every stride"}
     if scene.pole is not None:
         p = scene.pole
         truth_sec["occluder"] = {"kind": "pole", "x_m": p.x_m, "z_m": p.z_m, "width_m": p.width_m}

@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["BUILD_RIDES", "BUILD_RIDES_PARTIAL_NO_FLASH", "COVERAGE_RIDES", "SYNC_COMPARED_KEYS", "CoverageRide",
-           "coverage_rows", "coverage_table", "main", "motion_vs_flash", "run_coverage", "run_rides", "sync_check",
-           "truth_indicators"]
+__all__ = ["BUILD_RIDES", "BUILD_RIDES_PARTIAL_NO_FLASH", "COVERAGE_RIDES", "NUISANCE_RIDES", "SYNC_COMPARED_KEYS",
+           "CoverageRide", "coverage_rows", "coverage_table", "main", "motion_vs_flash", "run_coverage", "run_rides",
+           "sync_check", "truth_indicators"]
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,28 @@ class CoverageRide:
     # also analysed synchronised from motion although it has a flash (``result_motion.json``): the two
     # syncs' results side by side
     motion_sync_too: bool = False
+    # the field's nuisances (issue 38, arena.RenderOptions): the rider's boot over the rear marker for
+    # this share of every stride, a rolling shutter's readout (s), the clips' compression, a 6th
+    # stride harmonic carrying this share of the vertical acceleration
+    boot_share: float = 0.0
+    readout_s: float = 0.0
+    crf: int = 20
+    high_harmonic_share: float = 0.0
+
+    def render_options(self):
+        """The arena's render options for this ride."""
+        from saddlescope.arena import RenderOptions
+
+        return RenderOptions(flash=self.flash, boot_share=self.boot_share, readout_s=self.readout_s, crf=self.crf,
+                             high_harmonic_share=self.high_harmonic_share)
+
+    @property
+    def nuisance_suffix(self) -> str:
+        """The nuisances in a folder name ("" for none)."""
+        return ((f"_boot{self.boot_share:g}" if self.boot_share else "")
+                + (f"_ro{1000 * self.readout_s:g}ms" if self.readout_s else "")
+                + (f"_crf{self.crf}" if self.crf != 20 else "")
+                + (f"_h6x{self.high_harmonic_share:g}" if self.high_harmonic_share else ""))
 
     @property
     def name(self) -> str:
@@ -56,7 +78,7 @@ class CoverageRide:
         fps = f"{self.fps:g}" if self.fps else "default"
         extra = (f"_band{self.board_band:g}" if self.board_band is not None else "") + (
             "_{:g}-{:g}ms".format(*self.speed_range_m_s) if self.speed_range_m_s else "") + (
-            "" if self.flash else "_noflash") + ("_bothsyncs" if self.motion_sync_too else "")
+            "" if self.flash else "_noflash") + ("_bothsyncs" if self.motion_sync_too else "") + self.nuisance_suffix
         return f"{self.rig}_{self.gait}_{size}_{fps}fps_{self.calibration_poses}poses{extra}_s{self.seed}"
 
 
@@ -97,10 +119,30 @@ def _partial_and_no_flash(first_seed: int) -> tuple[CoverageRide, ...]:
     return partial + no_flash + both
 
 
+def _nuisance_rides(first_seed: int) -> tuple[CoverageRide, ...]:
+    """The field's nuisances (issue 38), each ride beside the same horse, rig and seed without it.
+
+    The rider's boot over the rear marker on canters and a sitting trot (thesis and wide rigs), a sitting
+    trot whose saddle rings at its 6th stride harmonic, and a rising trot filmed by phones (25 ms readout,
+    x264 CRF 28).
+    """
+    base = (CoverageRide(rig="thesis", gait="canter", seed=first_seed),
+            CoverageRide(rig="wide", gait="canter", seed=first_seed + 1, size=(1280, 720), fps=30.0),
+            CoverageRide(rig="thesis", gait="sitting_trot", seed=first_seed + 2))
+    boot = tuple(CoverageRide(**{**asdict(r), "boot_share": 0.2}) for r in base)
+    harmonic = (CoverageRide(rig="thesis", gait="sitting_trot", seed=first_seed + 3),
+                CoverageRide(rig="thesis", gait="sitting_trot", seed=first_seed + 3, high_harmonic_share=0.15))
+    phone = (CoverageRide(rig="thesis", gait="rising_trot", seed=first_seed + 4),
+             CoverageRide(rig="thesis", gait="rising_trot", seed=first_seed + 4, readout_s=0.025, crf=28))
+    return base + boot + harmonic + phone
+
+
 # the rides the interval's floors were set on, and the rides the coverage is checked on
 BUILD_RIDES: tuple[CoverageRide, ...] = _rides(1001, 12)
 BUILD_RIDES_PARTIAL_NO_FLASH: tuple[CoverageRide, ...] = _partial_and_no_flash(1013)
 COVERAGE_RIDES: tuple[CoverageRide, ...] = _rides(2001, 40) + _partial_and_no_flash(2041)
+# the field's nuisances, seeds used by no test (issue 38)
+NUISANCE_RIDES: tuple[CoverageRide, ...] = _nuisance_rides(3101)
 
 
 def run_rides(rides: Iterable[CoverageRide], out_dir: Path, *, keep_clips: bool = False, log=None) -> list[Path]:
@@ -122,14 +164,13 @@ def run_rides(rides: Iterable[CoverageRide], out_dir: Path, *, keep_clips: bool 
 
 
 def _run_ride(ride: CoverageRide, folder: Path, *, keep_clips: bool) -> None:
-    from saddlescope.arena import RenderOptions
     from saddlescope.io.synth_writer import write_ride_bundle
 
     work = folder / "bundle"
     write_ride_bundle(work, gait=ride.gait, seed=ride.seed, rig=ride.rig, size=ride.size, fps=ride.fps,
                       duration_s=ride.duration_s, calibration_poses=ride.calibration_poses, extras=False,
                       board_band=ride.board_band, speed_range_m_s=ride.speed_range_m_s,
-                      options=RenderOptions(flash=ride.flash))
+                      options=ride.render_options())
     shutil.copy(work / "truth.json", folder / "truth.json")
     (folder / "ride.txt").write_text(json.dumps(asdict(ride)))
     if ride.motion_sync_too:  # first, so that a resumed run never lacks it beside a result
@@ -326,7 +367,7 @@ def run_coverage(tmp: Path | None = None, *, quick: bool = False, rides: Sequenc
 
 
 _RIDE_SETS = {"coverage": lambda: COVERAGE_RIDES, "build": lambda: BUILD_RIDES,
-              "build-partial": lambda: BUILD_RIDES_PARTIAL_NO_FLASH}
+              "build-partial": lambda: BUILD_RIDES_PARTIAL_NO_FLASH, "nuisance": lambda: NUISANCE_RIDES}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -52,6 +52,9 @@ class PipelineParams:
     fit_span: str = "run"
     fit_margin_periods: float = 1.0
     max_order: int | None = None  # cap on the Fourier order the extrema rule and AICc choose
+    # orders above the extrema rule's range tried while the criterion asks for them, up to what the frame
+    # rate resolves (issue 38: a trot's 6th stride harmonic, 8-9 Hz, was cut: -2.5 % on W_b, -6.7 % on VDV)
+    harmonics_up_to_frame_rate: bool = True
     # order criterion (fitting.CRITERIA): "aicc" takes the noise's correlation over frames into
     # account, "aicc_white" is the textbook AICc
     criterion: str = "aicc"

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -239,6 +239,9 @@ class SaddleAnalysis:
     r_bs_m: np.ndarray
     flags: tuple[Finding, ...]
     long_gaps: list
+    # the share of the stride's phase no fitted frame measured (all markers, and per marker front to rear):
+    # see :func:`unmeasured_phase`
+    unmeasured_phase: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -263,10 +266,11 @@ class _Span:
 
 
 def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flags: list[Finding]
-                    ) -> tuple[np.ndarray, np.ndarray, list]:
+                    ) -> tuple[np.ndarray, np.ndarray, list, np.ndarray]:
     """The motion tracks (F, 3, 3) mm with broken samples dropped and short gaps bridged (5.2.1).
 
-    Returns (tracks, bridged frames (F,) bool, long gaps [(start_s, end_s)]); appends its flags.
+    Returns (tracks, bridged frames (F,) bool, long gaps [(start_s, end_s)], each marker's measured
+    samples (F, M) bool); appends its flags.
     """
     n_frames, n_markers, _ = xyz.shape
     if n_markers != 3:
@@ -294,6 +298,7 @@ def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flag
                              "broke the markers' distances (a look-alike taken for a marker) and were dropped",
                              {"samples": int(broken.sum()), "frames": int(broken.any(axis=1).sum())}))
     # Short gaps bridged (and flagged), long ones reported (5.2.1).
+    measured = np.all(np.isfinite(xyz), axis=2)  # (F, M): each marker's own measurements
     filled, filled_mask, long_gaps = bridge_gaps(t, xyz.reshape(n_frames, -1), max_gap_s=params.max_gap_s)
     xyz = filled.reshape(n_frames, n_markers, 3)
     bridged_frames = np.any(filled_mask.reshape(n_frames, -1), axis=1)
@@ -303,7 +308,75 @@ def _checked_tracks(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, flag
                              "registration; the fits use measured frames only and give the positions there)",
                              {"frames": int(bridged_frames.sum())}))
     flags.extend(_gap_flags(t, long_gaps))
-    return xyz, bridged_frames, long_gaps
+    return xyz, bridged_frames, long_gaps, measured
+
+
+# A marker hidden at the same moment of every stride (a rider's boot, a tail) leaves that part of the stride
+# unmeasured however many strides are filmed: the fits bend freely there. From this share of the stride on,
+# the ride says so (kinematics.stride_phase_unmeasured) and its intervals grow with the share
+# (core.vibration.intervals, "unmeasured_phase").
+UNMEASURED_PHASE_LIMIT = 0.1
+_SHARE_WORDS = ((0.1, "a tenth"), (0.125, "an eighth"), (1 / 6, "a sixth"), (0.2, "a fifth"), (0.25, "a quarter"),
+                (1 / 3, "a third"), (0.5, "half"))
+_POSITION_WORDS = {3: ("front", "middle", "rear"), 2: ("front", "rear")}
+
+
+def _share_words(share: float) -> str:
+    """A share of the stride in words ("a fifth"), the nearest of the common fractions."""
+    return min(_SHARE_WORDS, key=lambda sw: abs(sw[0] - share))[1]
+
+
+def phase_coverage(t_s: np.ndarray, measured: np.ndarray, period_s: float) -> float:
+    """The share (0-1) of the stride's phase that the measured samples reach, folded over the strides.
+
+    The stride is cut into as many bins as a stride holds frame intervals (rounded down: every bin then
+    holds a sample of a wholly measured stride); a bin counts where any measured sample falls.
+    """
+    t = np.asarray(t_s, dtype=np.float64)
+    if t.size < 2 or not np.isfinite(period_s) or period_s <= 0:
+        return 0.0
+    dt = float(np.median(np.diff(t)))
+    n_bins = max(4, int(np.floor(period_s / dt + 1e-9)))
+    phase = ((t - t[0]) / period_s) % 1.0
+    bins = np.minimum((phase * n_bins).astype(int), n_bins - 1)
+    hit = np.zeros(n_bins, bool)
+    hit[bins[np.asarray(measured, bool)]] = True
+    return float(hit.mean())
+
+
+def unmeasured_phase(t_s: np.ndarray, measured: np.ndarray, xyz_m: np.ndarray, period_s: float,
+                     flags: list[Finding]) -> dict:
+    """The share of the stride's phase the fits saw no measurement of, overall and per marker.
+
+    ``measured`` (F, M) marks each marker's own measured samples over the fitted frames ``t_s`` (F,);
+    ``xyz_m`` (F, M, 3) in the motion frame orders the markers front to rear (x is the travel). The fits
+    use the frames where every marker is measured. Appends ``kinematics.stride_phase_unmeasured`` when the
+    share reaches :data:`UNMEASURED_PHASE_LIMIT`, naming the marker hidden longest.
+    """
+    measured = np.asarray(measured, bool)
+    share = 1.0 - phase_coverage(t_s, np.all(measured, axis=1), period_s)
+    per_marker = [1.0 - phase_coverage(t_s, measured[:, m], period_s) for m in range(measured.shape[1])]
+    with np.errstate(invalid="ignore"):
+        mean_x = np.array([np.nanmean(xyz_m[:, m, 0]) if np.isfinite(xyz_m[:, m, 0]).any() else np.nan
+                           for m in range(measured.shape[1])])
+    order = np.argsort(-np.nan_to_num(mean_x, nan=-np.inf))  # front (largest x along the travel) first
+    words = _POSITION_WORDS.get(len(order), tuple(f"number {i + 1}" for i in range(len(order))))
+    position = {int(m): words[rank] for rank, m in enumerate(order)}
+    out = {"share": share, "per_marker": {position[m]: per_marker[m] for m in range(len(per_marker))}}
+    if share >= UNMEASURED_PHASE_LIMIT:
+        worst = int(np.argmax(per_marker))
+        hidden = per_marker[worst]
+        if hidden >= 0.5 * share:
+            where = (f"the {position[worst]} marker was hidden for {_share_words(hidden)} of every stride "
+                     f"({100 * hidden:.0f} %)")
+        else:
+            where = f"the markers were not all seen for {_share_words(share)} of every stride ({100 * share:.0f} %)"
+        flags.append(Finding(
+            "kinematics.stride_phase_unmeasured",
+            f"{where}: the fits guess the stride's motion there, so the ride is too uncertain; place the "
+            f"markers where the rider's leg, the tail or a lunge line does not pass",
+            {"unmeasured_share": share, "hidden_share": hidden, "limit_share": UNMEASURED_PHASE_LIMIT}))
+    return out
 
 
 def _gap_flags(t: np.ndarray, long_gaps: list) -> list[Finding]:
@@ -494,7 +567,7 @@ def _fit_markers(t_s: np.ndarray, xyz_m: np.ndarray, period_s: float, params: Pi
     return fit_marker_kinematics(t_s, xyz_m, period_s=period_s, x_model=params.x_model,
                                  extra_orders=params.extra_orders, max_order=params.max_order,
                                  criterion=params.criterion, trend_degree=params.trend_degree,
-                                 omega_from=params.omega_from)
+                                 omega_from=params.omega_from, up_to_frame_rate=params.harmonics_up_to_frame_rate)
 
 
 def _register_static_model(xyz: np.ndarray, xyz_m: np.ndarray, static_all: np.ndarray, static_tracks: MarkerTracks,
@@ -606,7 +679,7 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     """
     t = np.asarray(motion_tracks.t_s, dtype=np.float64)
     flags: list[Finding] = []
-    xyz, bridged_frames, long_gaps = _checked_tracks(
+    xyz, bridged_frames, long_gaps, measured = _checked_tracks(
         t, np.asarray(motion_tracks.xyz_mm, dtype=np.float64), params, flags)
     beyond_px = getattr(motion_tracks, "lens_extrapolation_px", None)  # ReachCheckedTracks
     span = _stride_span(t, xyz, params, gait, flags,
@@ -637,10 +710,12 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
     fits, reg, r, ang, s, r_bs = _fitted_saddle_point(t[win], reg, xyz_m, bridged_frames[win], span, static_all,
                                                      horse_idx, saddle_idx, frame, params, flags)
     omega = fits.omega_rad_s if np.isfinite(fits.omega_rad_s) else 2 * np.pi / period_s
+    unmeasured = unmeasured_phase(t_w, measured[win], xyz_m, float(2 * np.pi / omega), flags)
     return SaddleAnalysis(t_s=t_w[in_win], period_s=float(2 * np.pi / omega), period_estimate_s=float(period_s),
                           period_info=span.period_info, window=span.window, fitted=span.fitted, frame=frame,
                           registration=reg, fits=fits, angular=ang, saddle=s, markers_m=r,
-                          static_mismatch_mm=mismatch_mm, r_bs_m=r_bs, flags=tuple(flags), long_gaps=long_gaps)
+                          static_mismatch_mm=mismatch_mm, r_bs_m=r_bs, flags=tuple(flags), long_gaps=long_gaps,
+                          unmeasured_phase=unmeasured)
 
 
 def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int, *, trend: bool = False

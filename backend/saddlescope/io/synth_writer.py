@@ -30,7 +30,7 @@ def write_ride_bundle(
     duration_s: float | None = None,
     calibration_poses: int = 90,
     extras: bool = True,
-    crf: int = 20,
+    crf: int | None = None,
     options: RenderOptions | None = None,
     board_band: float | None = None,
     speed_range_m_s: tuple[float, float] | None = None,
@@ -43,7 +43,8 @@ def write_ride_bundle(
     ``calibration_poses`` (default 90, as the thesis) and ``extras=False`` make small bundles for
     tests; ``board_band`` and ``speed_range_m_s`` are :func:`~saddlescope.arena.build_scene`'s (a
     board carried only through the middle of the volume, a faster canter); ``on_progress(fraction,
-    stage)`` is called after each clip.
+    stage)`` is called after each clip. ``crf`` overrides the compression the ride's options ask for
+    (``RenderOptions.crf``, 20 by default; 28 is a phone's).
     """
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
@@ -62,6 +63,7 @@ def write_ride_bundle(
         speed_range_m_s=speed_range_m_s,
     )
     out_dir.mkdir(parents=True, exist_ok=True)
+    crf = scene.options.crf if crf is None else int(crf)
     manifest = ride_manifest(scene)
     jobs = [
         (kind, role, rel)
@@ -80,7 +82,9 @@ def write_ride_bundle(
         if on_progress is not None:
             on_progress((i + 1) / len(jobs), f"{kind}/{role}")
     dump_json(manifest, out_dir / "ride.json")
-    dump_json(build_truth(scene), out_dir / "truth.json")
+    truth = build_truth(scene)
+    truth["truth"]["nuisances"]["crf"] = crf  # what the clips were written with
+    dump_json(truth, out_dir / "truth.json")
     return out_dir
 
 

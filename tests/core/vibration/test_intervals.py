@@ -294,3 +294,23 @@ def _result(*, square_error_pct: float = 0.2, outside: dict | None = None, findi
         vertical_harmonics=VerticalHarmonics(f0_hz=F0_HZ, amplitudes_m_s2=AMPS, phases_rad=PHASES),
         indicators=_indicators(), quality=quality, params={"n_periods": 2}, timings_s={"total": 1.0},
         findings=findings)
+
+
+def test_an_interval_grows_with_the_stride_phase_no_frame_measured_and_a_fifth_marks_the_ride():
+    # issue 38: a boot over the rear marker for a fifth of every stride
+    good = _result()
+    base = interval_sources(good, depth_anisotropy=2.0)
+    assert base["gain_parts"]["unmeasured_phase"] == 0.0
+    assert decision_uncertainty(good.indicators, ride_intervals(good, sources=base)) is None
+    widths = []
+    for share in (0.05, 0.2):
+        hidden = replace(good, quality={**good.quality, "stride_phase_unmeasured_share": share})
+        src = interval_sources(hidden, depth_anisotropy=2.0)
+        assert src["gain_parts"]["unmeasured_phase"] == pytest.approx(0.5 * share)
+        lo, hi = ride_intervals(hidden, sources=src)["acc_y_wb_rms"]
+        widths.append(hi - lo)
+    assert widths[1] > widths[0]
+    hidden = replace(good, quality={**good.quality, "stride_phase_unmeasured_share": 0.2})
+    src = interval_sources(hidden, depth_anisotropy=2.0)
+    verdict = decision_uncertainty(hidden.indicators, ride_intervals(hidden, sources=src), src)
+    assert verdict is not None and "hidden at the same moment of every stride" in verdict

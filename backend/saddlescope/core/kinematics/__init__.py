@@ -47,6 +47,7 @@ _WHERE = {
     "FourierFit": "curve_fits",
     "count_extrema": "curve_fits",
     "fit_fourier": "curve_fits",
+    "resolvable_order": "curve_fits",
     "MarkerKinematics": "fitting",
     "fit_marker_kinematics": "fitting",
     "VERSION_NAMES": "rigid_body",
@@ -99,6 +100,7 @@ __all__ = [
     "FourierFit",
     "count_extrema",
     "fit_fourier",
+    "resolvable_order",
     "MarkerKinematics",
     "fit_marker_kinematics",
     # rigid body

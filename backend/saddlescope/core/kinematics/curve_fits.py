@@ -33,6 +33,7 @@ __all__ = [
     "FourierFit",
     "count_extrema",
     "fit_fourier",
+    "resolvable_order",
 ]
 
 
@@ -328,7 +329,8 @@ def _fit_order(tau: np.ndarray, y: np.ndarray, omega0: float, order: int, fit_om
 
 def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: str = "aicc",
                 fit_omega: bool = True, prominence: float = 0.1, extra_orders: int = 1,
-                trend_degree: int = 0, name: str = "y", max_order: int | None = None) -> FourierFit:
+                trend_degree: int = 0, name: str = "y", max_order: int | None = None,
+                up_to_frame_rate: bool = False) -> FourierFit:
     """Fit a Fourier series with its fundamental (eq. 5.23); order from the extrema rule.
 
     Parameters
@@ -359,6 +361,11 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     max_order : int, optional
         Cap on the orders tried by the rule (a user's override: the criterion assumes white noise,
         and tracking noise correlated over frames can pass for a small high harmonic).
+    up_to_frame_rate : bool, optional
+        Keep trying higher orders, one at a time, while the criterion's best order is at or just below
+        the highest tried, up to the harmonics the frame rate resolves (:func:`resolvable_order`) or
+        ``max_order``: no harmonic the samples resolve is dropped because the extrema rule's range
+        stopped short of it (a trot's saddle ringing at its 6th stride harmonic, 8-9 Hz, issue 38).
 
     Returns
     -------
@@ -381,8 +388,35 @@ def fit_fourier(t, y, *, period_s: float, order: int | None = None, criterion: s
     t0 = float(t.mean())
     tau = t - t0
     fits = [_fit_candidate(tau, y, omega0, o, fit_omega, name, trend_degree) for o in orders]
-    best = fits[_choose(fits, criterion, n_poly)]
-    return _fourier_fit(best, fits, t0=t0, n_poly=n_poly, criterion=used_criterion, extrema=extrema)
+    chosen = _choose(fits, criterion, n_poly)
+    if up_to_frame_rate and order is None:
+        cap = resolvable_order(t, period_s)
+        cap = cap if max_order is None else min(cap, int(max_order))
+        # the best order at (or one below) the highest tried: the next harmonic may be resolved too
+        while fits[chosen][0] >= fits[-1][0] - 1 and fits[-1][0] < cap and t.size >= n_params(fits[-1][0] + 1) + 1:
+            fits.append(_fit_candidate(tau, y, omega0, fits[-1][0] + 1, fit_omega, name, trend_degree))
+            chosen = _choose(fits, criterion, n_poly)
+    return _fourier_fit(fits[chosen], fits, t0=t0, n_poly=n_poly, criterion=used_criterion, extrema=extrema)
+
+
+# the highest stride harmonic fitted lies below this share of the samples' Nyquist frequency (above it
+# the frame's exposure blurs it and the harmonics alias into each other)
+NYQUIST_SHARE = 0.8
+MAX_RESOLVED_ORDER = 16
+
+
+def resolvable_order(t_s: np.ndarray, period_s: float) -> int:
+    """The highest stride harmonic the samples ``t_s`` (s) resolve: below :data:`NYQUIST_SHARE` of their Nyquist.
+
+    At least 1, at most :data:`MAX_RESOLVED_ORDER` (a thesis-rig 30 fps trot: 8; a 60 fps canter: 16).
+    """
+    t = np.sort(np.asarray(t_s, dtype=np.float64))
+    steps = np.diff(t)
+    steps = steps[steps > 0]
+    if steps.size == 0 or not np.isfinite(period_s) or period_s <= 0:
+        return 1
+    nyquist_hz = 0.5 / float(np.median(steps))
+    return int(min(MAX_RESOLVED_ORDER, max(1, np.floor(NYQUIST_SHARE * nyquist_hz * period_s))))
 
 
 def _check_fourier_options(period_s: float, criterion: str, extra_orders: int, trend_degree: int) -> None:

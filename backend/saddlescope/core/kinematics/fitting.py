@@ -77,7 +77,7 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
                           trend_degree: int = 0, names: tuple[str, ...] | None = None,
                           reject_sigma: float | None = 5.0, reject_min_m: float = 0.003,
                           shared_order: bool = True, omega_from: str = "vertical",
-                          max_order: int | None = None) -> MarkerKinematics:
+                          max_order: int | None = None, up_to_frame_rate: bool = False) -> MarkerKinematics:
     """Fit x linearly and y, z with Fourier series for every marker; differentiate analytically.
 
     Parameters
@@ -125,6 +125,11 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
         each marker's noise on the thesis rig and was dropped.
     max_order : int, optional
         Cap on every Fourier series' order (see :func:`fit_fourier`).
+    up_to_frame_rate : bool, optional
+        Try higher orders of the vertical (y) series up to what the frame rate resolves while the
+        criterion asks for them (see :func:`fit_fourier`). Only the vertical: the indicators weigh its
+        harmonics, while a narrow rig's poorly fixed depth (z) and the travel (x) would take their noise
+        for harmonics and move the rotation (a thesis-rig canter's ω versions spread 25 times more).
 
     Returns
     -------
@@ -134,7 +139,8 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
     n_mark = xyz.shape[1]
     label = tuple(names[m] if names is not None and m < len(names) else f"marker {m + 1}" for m in range(n_mark))
     how = _SeriesOptions(period_s=period_s, criterion=criterion, extra_orders=extra_orders,
-                         max_order=max_order, x_model=x_model, trend_degree=trend_degree, labels=label)
+                         max_order=max_order, x_model=x_model, trend_degree=trend_degree, labels=label,
+                         up_to_frame_rate=up_to_frame_rate)
     fits, xyz, rejected = _fit_markers(t_s, xyz, how, reject_sigma, reject_min_m)
     whole = np.all(np.isfinite(xyz), axis=(1, 2))
     if shared_order and n_mark > 1 and whole.sum() >= 8:
@@ -167,6 +173,7 @@ class _SeriesOptions:
     x_model: str
     trend_degree: int
     labels: tuple[str, ...]
+    up_to_frame_rate: bool = False
 
     @property
     def axes(self) -> dict[int, int]:
@@ -199,7 +206,8 @@ def _fit_marker(fits: _Fits, m: int, t_s: np.ndarray, xyz: np.ndarray, how: _Ser
     for c, degree in how.axes.items():
         fits[m, c] = fit_fourier(t_s, xyz[:, m, c], period_s=how.period_s, criterion=how.criterion,
                                  extra_orders=how.extra_orders, trend_degree=degree,
-                                 name=f"{how.labels[m]} {'xyz'[c]}", max_order=how.max_order)
+                                 name=f"{how.labels[m]} {'xyz'[c]}", max_order=how.max_order,
+                                 up_to_frame_rate=how.up_to_frame_rate and c == 1)
 
 
 def _wild_samples(t_s: np.ndarray, xyz_marker: np.ndarray, marker_fits: list, reject_sigma: float,
@@ -252,7 +260,8 @@ def _share_centroid_order(fits: _Fits, t_s: np.ndarray, xyz: np.ndarray, whole: 
         try:
             order_c = fit_fourier(t_s[whole], xyz[whole, :, c].mean(axis=1), period_s=how.period_s,
                                   criterion=how.criterion, extra_orders=how.extra_orders, trend_degree=degree,
-                                  name=f"markers' centroid {'xyz'[c]}", max_order=how.max_order).order
+                                  name=f"markers' centroid {'xyz'[c]}", max_order=how.max_order,
+                                  up_to_frame_rate=how.up_to_frame_rate and c == 1).order
         except KinematicsError:
             continue
         for m in range(xyz.shape[1]):

@@ -28,6 +28,7 @@ from saddlescope.core.detection import (
     tilt_from_down_deg,
     track_markers,
 )
+from saddlescope.core.detection.cover import drop_partly_covered
 from saddlescope.core.errors import DetectionError, KinematicsError, TriangulationError
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
@@ -411,6 +412,7 @@ def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Ma
     motion2d, horse_idx, saddle_idx, searched_together = detect_motion(
         clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
         clocks=clocks.get("motion"), alone=alone)
+    motion2d = _whole_discs(motion2d, found)
     found.tracks3d["motion"] = triangulate("motion", motion2d, n_horse)
     found_mm = layout_mismatch_mm(static_mm[horse_idx], found.tracks3d["motion"].xyz_mm)
     if found_mm > params.max_layout_mismatch_mm:
@@ -423,6 +425,7 @@ def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Ma
                 again2d, again_h, again_s, _ = detect_motion(
                     clips, rig, static_mm, n_horse, offsets["motion"], first_frame["motion"], params, down=down,
                     multiview=True, clocks=clocks.get("motion"))
+                again2d = _whole_discs(again2d, RideTracks())
                 again = triangulate("motion", again2d, n_horse)
                 again_mm = layout_mismatch_mm(static_mm[again_h], again.xyz_mm)
             except (DetectionError, TriangulationError):
@@ -443,6 +446,28 @@ def _detect_horse(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Ma
     found.motion2d = motion2d
     found.horse_idx = match_horse_markers(static_mm, horse_idx, found.tracks3d["motion"].xyz_mm)
     found.saddle_idx = saddle_idx
+
+
+def _whole_discs(motion2d: Mapping[str, ImageTracks], found: RideTracks) -> dict[str, ImageTracks]:
+    """The motion tracks without the samples of partly covered discs (issue 38); a finding says how many.
+
+    A disc half behind a boot, a tail or a lunge line has its centroid pulled off the marker: the sample
+    is dropped (a gap the fits do not see), not kept nor bridged through.
+    """
+    out, dropped = {}, {}
+    for cam, tracks in motion2d.items():
+        out[cam], n = drop_partly_covered(tracks)
+        if n:
+            dropped[cam] = n
+    if dropped:
+        total = sum(dropped.values())
+        per_cam = ", ".join(f"{n} in the {cam} camera" for cam, n in dropped.items())
+        found.flags.append(Finding(
+            "tracking.partly_covered",
+            f"{total} marker sample{'s' if total != 1 else ''} of a partly covered disc (its area fell, or it was "
+            f"about to vanish or had just reappeared) left out: {per_cam}",
+            {"samples": total, **{f"samples_{cam}": n for cam, n in dropped.items()}}))
+    return out
 
 
 def _coverage_flags(motion2d: Mapping[str, ImageTracks], calib_report: Mapping) -> list[Finding]:

@@ -79,6 +79,9 @@ def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str
         "vertical_harmonic_fit_rms_m_s2": harm["fit_rms_residual_m_s2"],
         "tracks": {kind: _track_quality(tr) for kind, tr in tracks3d.items()},
         "long_gaps_s": [list(g) for g in kin.long_gaps],
+        # the share of the stride no fitted frame measured (issue 38): the intervals grow with it
+        "stride_phase_unmeasured_share": float(kin.unmeasured_phase.get("share", 0.0)),
+        "stride_phase_unmeasured_per_marker": dict(kin.unmeasured_phase.get("per_marker", {})),
         "period_estimate_s": kin.period_estimate_s,
         # the frames the fits saw (the window's harmonics are estimated from every tracked stride)
         "fitted_frames": {"start_frame": int(kin.fitted[0]), "frames": int(kin.fitted[1] - kin.fitted[0])},

@@ -79,6 +79,11 @@ FLOORS: dict[str, float] = {
     # one wide_partial canter of four (seed 1014), 0.36, whose W_b r.m.s. came out 3.0 times the
     # truth and crest factor 37 % high (a reconstruction broken by the extrapolated lens)
     "not_periodic": 1.0,
+    # times the share of the stride's phase no fitted frame measured (a marker hidden at the same moment
+    # of every stride, issue 38; quality.stride_phase_unmeasured_share): the fits bend freely there. A
+    # fifth of the stride unmeasured gives ±20 %, which marks the ride too uncertain (a one-stride canter
+    # with a boot over its rear marker came out +88 % with ±8 % before such samples were left out)
+    "unmeasured_phase": 0.5,
 }
 
 # The skin-motion floor per gait: (gain, harmonic shape, weighted peak, displacement). The gain and the
@@ -243,7 +248,8 @@ def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
     outside = _outside_board_share(result)
     parts = {"calibration_scale": scale, "omega_versions": FLOORS["omega_spread"] * spread,
              "depth_roll": FLOORS["depth_roll"] if depth_anisotropy >= _DEPTH_ANISOTROPY else 0.0,
-             "lens_extrapolated": FLOORS["outside_board"] * outside ** 2}
+             "lens_extrapolated": FLOORS["outside_board"] * outside ** 2,
+             "unmeasured_phase": FLOORS["unmeasured_phase"] * float(q.get("stride_phase_unmeasured_share") or 0.0)}
     # an unknown gait takes the widest floors
     widest = tuple(max(parts) for parts in zip(*SKIN_FLOORS.values(), strict=True))
     skin_gain, shape, skin_peak, skin_disp = SKIN_FLOORS.get(result.gait or "", widest)
@@ -454,6 +460,8 @@ _GAIN_PART_WORDS = {
     "depth_roll": "the cameras fixing depth poorly (place them further apart)",
     "not_periodic": "a saddle motion that does not repeat stride by stride (a reconstruction that broke, or an "
                     "uneven ride)",
+    "unmeasured_phase": "a marker hidden at the same moment of every stride (place the markers where the rider's "
+                        "leg, the tail or a lunge line does not pass)",
 }
 
 
