@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from browser_harness import new_club_admin, serve_fresh
+from browser_harness import new_club_admin, serve_fresh, wait_for_charts_drawn
 from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
     EMAIL,
     PASSWORD,
@@ -82,7 +82,7 @@ def page(browser, served):  # noqa: F811 (the imported fixture)
 
 
 def _drawn(page, name: str) -> None:
-    page.wait_for_function(f"() => document.querySelector('[data-chart=\"{name}\"]')?.data !== undefined")
+    wait_for_charts_drawn(page, [name])
 
 
 def _fits_phone(page, name: str) -> None:
