@@ -56,8 +56,8 @@ function drawNow(div, traces, layout, config) {
   });
 }
 
-// Charts below the fold are drawn when scrolled near (within NEAR_PX): a ride page's twelve charts
-// would otherwise all be laid out before the first screen's are shown. The latest data asked for wins.
+// Charts below the fold are drawn when scrolled near (within NEAR_PX), but for a page's first charts
+// (data-chart-eager): a ride page's twelve charts would otherwise all be laid out before any is shown. The latest data asked for wins.
 const NEAR_PX = 300;
 let observer = null;
 
@@ -94,7 +94,9 @@ function later(div, args) {
  * else when it is scrolled near: resolves to the chart's div, as Plotly.react does.
  */
 export function react(div, traces, layout, config) {
-  if (div.__pendingChart || (typeof IntersectionObserver === "function" && !nearView(div))) {
+  // data-chart-eager: the page's first charts, drawn at once even when the text above pushes them down
+  const eager = div.hasAttribute("data-chart-eager");
+  if (div.__pendingChart || (!eager && typeof IntersectionObserver === "function" && !nearView(div))) {
     return later(div, [traces, layout, config]);
   }
   return drawNow(div, traces, layout, config);
