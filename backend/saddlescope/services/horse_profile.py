@@ -19,7 +19,14 @@ from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import INDICATORS, indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, Conflict, HorseRepository, RideRepository
 from saddlescope.services.analytics import check_gait, check_indicator
-from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, band_of, horse_history, ride_order_key
+from saddlescope.services.normal_band import (
+    MIN_OWN_RIDES,
+    MIN_RIDES_FOR_BAND,
+    band_of,
+    horse_history,
+    page_band,
+    ride_order_key,
+)
 
 __all__ = ["PAIR_INDICATORS", "horse_trend", "ride_pair"]
 
@@ -56,6 +63,10 @@ def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, ind
         points.append({"ride_id": row["ride_id"], "date": row["date"], "rider": row["rider"], "value": value,
                        "band": band, "outside": outside})
         earlier.append(value)
+    club_rows = [row for row in AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait)
+                 if row["horse_id"] != horse.id]
+    club_values = [_finite((row.get("indicators") or {}).get(indicator)) for row in club_rows]
+    horses_in_club = len({row["horse_id"] for row, v in zip(club_rows, club_values, strict=True) if v is not None})
     return {
         "horse_id": horse.id,
         "horse": horse.name,
@@ -64,6 +75,9 @@ def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, ind
         "unit": indicator_unit(indicator),
         "label": INDICATORS[indicator].label,
         "min_rides_for_band": MIN_RIDES_FOR_BAND,
+        "min_own_rides": MIN_OWN_RIDES,
+        # the band the page draws across the chart (issue 37): the horse's own, else the club's in the gait
+        "band": page_band(earlier, club_values, horses_in_club=horses_in_club),
         "points": points,
     }
 
