@@ -3,6 +3,7 @@
 import { get } from "./js/api.js";
 import { page } from "./js/dom.js";
 import { setIndicatorInfo } from "./js/format.js";
+import { loadGlossary } from "./js/glossary.js";
 import { checkHealth } from "./js/health.js";
 import { currentPath, navigate, render, route } from "./js/router.js";
 import { onSessionChange, refreshSession, session, signOut } from "./js/session.js";
@@ -114,6 +115,7 @@ async function start() {
   } catch (error) {
     console.warn("cannot ask who is signed in:", error.message);
   }
+  await loadGlossary(); // the labels of every code, before the first page is drawn (open without sign-in)
   if (session()) await loadIndicatorInfo();
   onSessionChange((current) => { if (current) loadIndicatorInfo(); });
   window.addEventListener("hashchange", () => render());

@@ -234,7 +234,7 @@ def test_compare_grades_and_leaderboard_say_how_many_rides_and_fit_a_phone(page,
     scatter = page.eval_on_selector('[data-chart="grades"]', "el => ({names: el.data.map(t => t.name), "
                                     "hover: el.data[0].hovertemplate, x: el.layout.xaxis.title.text, "
                                     "custom: el.data[0].customdata})")
-    assert scatter["names"] == ["canter"]  # one trace (colour) per gait, in the legend
+    assert scatter["names"] == ["walk", "canter"]  # one trace (colour) per gait, in the legend
     assert "Rider A" in [c[1] for c in scatter["custom"]] and "graded by" in scatter["hover"]
     assert "(m/s\u00b2)" in scatter["x"]
     page.select_option("#gr-gait", "")  # all gaits pooled: still one colour per gait

@@ -8,6 +8,7 @@ import { announce, formatDate, h, page, showError } from "../dom.js";
 import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
 import { poll } from "../poll.js";
 import { can } from "../session.js";
+import { glossaryLabel } from "../glossary.js";
 
 const UNFINISHED = new Set(["queued", "running"]);
 const FILTERS = ["status", "kind", "ride_id"];
@@ -77,7 +78,7 @@ export async function mountJobs(view, params, query) {
     }
     return h("tr", { dataset: { jobId: job.id, status: job.status } },
       h("td", {}, `#${job.id}`),
-      h("td", {}, job.kind.replace(/_/g, " ")),
+      h("td", {}, glossaryLabel("job_kind", job.kind)),
       h("td", {}, job.ride_id ? h("a", { href: `#/rides/${job.ride_id}` }, `#${job.ride_id}`) : "\u2013"),
       h("td", {}, h("span", { class: `badge status-${job.status}` }, job.status)),
       progressCell(job),
