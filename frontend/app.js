@@ -115,8 +115,8 @@ async function start() {
   } catch (error) {
     console.warn("cannot ask who is signed in:", error.message);
   }
-  await loadGlossary(); // the labels of every code, before the first page is drawn (open without sign-in)
-  if (session()) await loadIndicatorInfo();
+  // the labels of every code (open without sign-in) beside the indicator list: one round trip, not two
+  await Promise.all([loadGlossary(), session() ? loadIndicatorInfo() : null]);
   onSessionChange((current) => { if (current) loadIndicatorInfo(); });
   window.addEventListener("hashchange", () => render());
   await render({ view, guard, notFound });

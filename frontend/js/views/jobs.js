@@ -37,7 +37,7 @@ function doingCell(job) {
 async function fillKinds(select) {
   try {
     const kinds = await get("/api/jobs/kinds");
-    select.append(...kinds.map((kind) => h("option", { value: kind.name }, kind.name.replace(/_/g, " "))));
+    select.append(...kinds.map((kind) => h("option", { value: kind.name }, glossaryLabel("job_kind", kind.name))));
   } catch (error) {
     console.info("job kinds not available:", error.message);
   }
