@@ -310,6 +310,7 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
 
     # the curve fits: nine series, and the stride frequency and speed with their 95 % intervals
     fits = doc["markers"]["fits"]
+    page.locator("[data-fit-expert] summary").click()  # R² and RMSE are expert detail, folded (issue 37)
     rows = page.locator("[data-fit-table] tbody tr")
     assert rows.count() == 9
     y0 = fits["y"][0]
