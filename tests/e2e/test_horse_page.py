@@ -123,7 +123,8 @@ def test_the_horse_page_shows_trend_band_gait_counts_and_a_ride_pair(page, serve
     assert "1 of the 4 rides with enough earlier rides lie outside the band" in note
     # the page's band: Tango's own (8 canter rides), shaded across the chart, with its edges' intervals
     assert served["trend"]["band"]["source"] == "horse" and "this horse's own 8 rides" in note
-    shapes = page.eval_on_selector('[data-chart="horse-trend"]', "el => el.layout.shapes.map(s => [s.type, s.y0, s.y1])")
+    shapes = page.eval_on_selector('[data-chart="horse-trend"]',
+                                   "el => el.layout.shapes.map(s => [s.type, s.y0, s.y1])")
     band = served["trend"]["band"]
     assert ["rect", pytest.approx(band["low"]), pytest.approx(band["high"])] in shapes
 

@@ -34,7 +34,8 @@ def test_the_page_band_is_the_horses_own_from_five_rides_with_its_edges_uncertai
 
     own = [1.0, 1.1, 1.2, 0.9, 1.0]
     band = page_band(own, [5.0] * 10, horses_in_club=3)
-    assert band["source"] == "horse" and band["n"] == 5 and band["reason"] == "from this horse's own 5 rides in this gait"
+    assert band["source"] == "horse" and band["n"] == 5
+    assert band["reason"] == "from this horse's own 5 rides in this gait"
     sd = statistics.stdev(own)
     # edge = mean ± 2 SD; its 95 % half-width 1.96 * SD * sqrt(1/n + 4/(2(n-1))) = 1.96 * SD * sqrt(0.7)
     half = 1.959964 * sd * (1 / 5 + 4 / 8) ** 0.5

@@ -59,8 +59,8 @@ TTI_DEFINITION = (
     "navigation start of a fresh page load (static files cached, signed in) until the first animation "
     "frame where the view is not aria-busy and its main content is drawn: lists and leaderboard, a "
     "table body row (or the empty note); ride page, the result visible and its first charts "
-    "(every visible [data-chart] in the first screen or data-chart-eager) drawn by Plotly; horse page and compare, every visible [data-chart] in the first screen drawn; "
-    "median of the repeats"
+    "(every visible [data-chart] in the first screen or data-chart-eager) drawn by Plotly; horse page "
+    "and compare, every visible [data-chart] in the first screen drawn; median of the repeats"
 )
 
 # The readiness conditions, evaluated in the page at every animation frame; each answers
@@ -224,8 +224,8 @@ PLOTLY_LOAD_JS = """() => new Promise((resolve, reject) => {
 def _plotly_load_s(context, base: str, repeats: int) -> float:
     """The floor under every page with a chart.
 
-    Parsing and running the 1.4 MB cartesian Plotly bundle (every 2-D chart) once, from the browser's cache as the measured pages have it
-    (median of `repeats`).
+    Parsing and running the 1.4 MB cartesian Plotly bundle (every 2-D chart) once, from the browser's
+    cache as the measured pages have it (median of `repeats`).
     """
     samples = []
     for _ in range(repeats):
@@ -288,7 +288,10 @@ def _first_horse(url: str) -> int:
     engine = make_engine(url)
     try:
         with session_scope(make_session_factory(engine)) as session:
-            return int(session.scalar(select(Horse.id).order_by(Horse.id).limit(1)))
+            horse_id = session.scalar(select(Horse.id).order_by(Horse.id).limit(1))
+            if horse_id is None:
+                raise RuntimeError("the bench club has no horse (fill_rides adds them)")
+            return int(horse_id)
     finally:
         engine.dispose()
 
@@ -338,4 +341,5 @@ def run_dashboard_benchmarks(*, quick: bool = False) -> dict[str, Any]:
     return out
 
 
-__all__ = ["CHART_PAGE_KEYS", "TTI_DEFINITION", "TTI_PAGE_KEYS", "bench_database", "dashboard_tti", "run_dashboard_benchmarks"]
+__all__ = ["CHART_PAGE_KEYS", "TTI_DEFINITION", "TTI_PAGE_KEYS", "bench_database", "dashboard_tti",
+           "run_dashboard_benchmarks"]

@@ -1,5 +1,7 @@
-"""One glossary of every code the service shows a person: indicators, gaits, directions, job kinds and
-stages, clip kinds, where gravity came from and the ways rides are compared.
+"""One glossary of every code the service shows a person.
+
+Indicators, gaits, directions, job kinds and stages, clip kinds, where gravity came from and the ways
+rides are compared.
 
 ``GET /api/glossary`` serves it; the dashboard takes every label from it, so a raw code (``lab_vertical``,
 ``dtw``, ``analyze``) never reaches a page. Indicators carry ``expert``: the thesis's eight comfort

@@ -56,8 +56,10 @@ def band_with_uncertainty(values: Sequence[float | None], *, min_rides: int) -> 
 
 def page_band(own: Sequence[float | None], club: Sequence[float | None], *, horses_in_club: int,
               ) -> dict[str, Any] | None:
-    """The band the horse page draws: from the horse's own rides when it has `MIN_OWN_RIDES`, else
-    from the club's horses' rides in the gait (``source`` says which, ``reason`` in words); None with neither.
+    """The band the horse page draws: the horse's own, else the club's horses' in the gait.
+
+    From the horse's own rides when it has `MIN_OWN_RIDES`, else from the club's other horses' rides in
+    the gait (``source`` says which, ``reason`` in words); None with neither.
     """
     own_band = band_with_uncertainty(own, min_rides=MIN_OWN_RIDES)
     if own_band is not None:
