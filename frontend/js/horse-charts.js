@@ -108,7 +108,7 @@ export function trendChart(div, points, { title, unit, gait, band = null }) {
   if (!valued.length) return emptyChart(div, `No analysed rides in ${gaitLabel(gait)} yet.`);
   clearEmpty(div);
   // Dates on a time axis when every ride has one; otherwise the rides in order as categories.
-  const dated = valued.every((p) => p.date);
+  const dated = valued.length > 1 && valued.every((p) => p.date); // one date alone: a category, not a time axis
   const x = valued.map((p, i) => (dated ? p.date : p.date || `ride ${i + 1} (#${p.ride_id})`));
   const banded = valued.map((p) => p.band);
   const bandOf = (key) => banded.map((b) => (b ? b[key] : null));
