@@ -57,9 +57,17 @@ function drawNow(div, traces, layout, config) {
 }
 
 // Charts below the fold are drawn when scrolled near (within NEAR_PX), but for a page's first charts
-// (data-chart-eager): a ride page's twelve charts would otherwise all be laid out before any is shown. The latest data asked for wins.
+// (data-chart-eager): a ride page's twelve charts would otherwise all be laid out before any is shown.
+// The latest data asked for wins. Charts of a page left before they were drawn are let go.
 const NEAR_PX = 300;
 let observer = null;
+const pendingDivs = new Set();
+
+function forget(div) {
+  delete div.__pendingChart;
+  pendingDivs.delete(div);
+  observer?.unobserve(div);
+}
 
 function nearView(div) {
   const box = div.getBoundingClientRect();
@@ -69,8 +77,7 @@ function nearView(div) {
 function drawPending(div) {
   const pending = div.__pendingChart;
   if (!pending) return;
-  delete div.__pendingChart;
-  observer?.unobserve(div);
+  forget(div);
   drawNow(div, ...pending.args).then((drawn) => pending.waiters.forEach((w) => w.resolve(drawn)),
     (error) => pending.waiters.forEach((w) => w.reject(error)));
 }
@@ -81,10 +88,12 @@ function later(div, args) {
       if (entry.isIntersecting) drawPending(entry.target);
     }), { rootMargin: `${NEAR_PX}px 0px` });
   }
+  for (const old of pendingDivs) if (!old.isConnected) forget(old); // the page was left
   return new Promise((resolve, reject) => {
     const waiters = div.__pendingChart?.waiters ?? [];
     waiters.push({ resolve, reject });
     div.__pendingChart = { args, waiters };
+    pendingDivs.add(div);
     observer.observe(div);
   });
 }
@@ -108,8 +117,7 @@ function plotly() {
     purge(div) {
       if (div.__pendingChart) { // never drawn: its waiters see the empty chart instead
         div.__pendingChart.waiters.forEach((w) => w.resolve(div));
-        delete div.__pendingChart;
-        observer?.unobserve(div);
+        forget(div);
       }
       if (div.__plotly) div.__plotly.purge(div); // nothing to purge before Plotly drew anything
       delete div.__plotly;
