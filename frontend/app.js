@@ -3,6 +3,7 @@
 import { get } from "./js/api.js";
 import { page } from "./js/dom.js";
 import { setIndicatorInfo } from "./js/format.js";
+import { loadGlossary } from "./js/glossary.js";
 import { checkHealth } from "./js/health.js";
 import { currentPath, navigate, render, route } from "./js/router.js";
 import { onSessionChange, refreshSession, session, signOut } from "./js/session.js";
@@ -117,7 +118,8 @@ async function start() {
   } catch (error) {
     console.warn("cannot ask who is signed in:", error.message);
   }
-  if (session()) await loadIndicatorInfo();
+  // the labels of every code (open without sign-in) beside the indicator list: one round trip, not two
+  await Promise.all([loadGlossary(), session() ? loadIndicatorInfo() : null]);
   onSessionChange((current) => { if (current) loadIndicatorInfo(); });
   window.addEventListener("hashchange", () => render());
   await render({ view, guard, notFound });

@@ -11,42 +11,116 @@ const CONFIG = {
   toImageButtonOptions: { format: "png", scale: 2 },
 };
 
-// The pinned local Plotly (vendor/README.md) is 4.6 MB of script: it is loaded on the first chart, so
-// pages without charts (lists, forms) are interactive without parsing it, and fetched once per version
-// (the server marks vendor/ immutable).
-const PLOTLY_SRC = "vendor/plotly-3.7.0.min.js";
-let loading = null;
+// The pinned local Plotly (vendor/README.md) comes in two official bundles of one version: the
+// cartesian one (1.4 MB: scatter, bar, heatmap, every 2-D chart here) is loaded on the first chart, the
+// full one (4.8 MB, for scatter3d) only when a 3-D chart is drawn. Pages without charts (lists, forms)
+// parse neither; each is fetched once per version (the server marks vendor/ immutable).
+const PLOTLY_SRC = { cartesian: "vendor/plotly-cartesian-3.7.0.min.js", full: "vendor/plotly-3.7.0.min.js" };
+const libraries = {}; // bundle name -> Promise of its Plotly
+let lastLoaded = null; // both bundles set window.Plotly: each is kept as it was when its script ran
 
-/** Load Plotly once; resolves to `window.Plotly`. */
-export function loadPlotly() {
-  if (window.Plotly) return Promise.resolve(window.Plotly);
-  if (!loading) {
-    loading = new Promise((resolve, reject) => {
-      const script = document.createElement("script");
-      script.src = PLOTLY_SRC;
-      script.async = true;
-      script.onload = () => (window.Plotly ? resolve(window.Plotly)
-        : reject(new Error("The chart library (vendor/plotly) did not load.")));
-      script.onerror = () => {
-        loading = null; // a later chart tries again (e.g. after a network hiccup)
+function loadBundle(name) {
+  if (!libraries[name]) {
+    libraries[name] = new Promise((resolve, reject) => {
+      const failed = () => {
+        delete libraries[name]; // a later chart tries again (e.g. after a network hiccup)
         reject(new Error("The chart library (vendor/plotly) did not load."));
       };
+      const script = document.createElement("script");
+      script.src = PLOTLY_SRC[name];
+      script.async = true;
+      script.onload = () => {
+        if (!window.Plotly || window.Plotly === lastLoaded) return failed();
+        lastLoaded = window.Plotly;
+        resolve(window.Plotly);
+      };
+      script.onerror = failed;
       document.head.append(script);
     });
   }
-  return loading;
+  return libraries[name];
 }
 
-/** `Plotly.react`, once Plotly is loaded: resolves to the chart's div, as Plotly.react does. */
+/** Load Plotly once: the cartesian bundle, or the full one where `threeD` (or where it is loaded already). */
+export function loadPlotly({ threeD = false } = {}) {
+  if (threeD) return loadBundle("full");
+  return libraries.full && !libraries.cartesian ? libraries.full : loadBundle("cartesian");
+}
+
+function drawNow(div, traces, layout, config) {
+  const threeD = traces.some((t) => t.type === "scatter3d");
+  return loadPlotly({ threeD }).then((lib) => {
+    if (div.__plotly && div.__plotly !== lib) div.__plotly.purge(div); // drawn before by the other bundle
+    div.__plotly = lib;
+    return lib.react(div, traces, layout, config);
+  });
+}
+
+// Charts below the fold are drawn when scrolled near (within NEAR_PX), but for a page's first charts
+// (data-chart-eager): a ride page's twelve charts would otherwise all be laid out before any is shown.
+// The latest data asked for wins. Charts of a page left before they were drawn are let go.
+const NEAR_PX = 300;
+let observer = null;
+const pendingDivs = new Set();
+
+function forget(div) {
+  delete div.__pendingChart;
+  pendingDivs.delete(div);
+  observer?.unobserve(div);
+}
+
+function nearView(div) {
+  const box = div.getBoundingClientRect();
+  return box.top < window.innerHeight + NEAR_PX && box.bottom > -NEAR_PX;
+}
+
+function drawPending(div) {
+  const pending = div.__pendingChart;
+  if (!pending) return;
+  forget(div);
+  drawNow(div, ...pending.args).then((drawn) => pending.waiters.forEach((w) => w.resolve(drawn)),
+    (error) => pending.waiters.forEach((w) => w.reject(error)));
+}
+
+function later(div, args) {
+  if (!observer) {
+    observer = new IntersectionObserver((entries) => entries.forEach((entry) => {
+      if (entry.isIntersecting) drawPending(entry.target);
+    }), { rootMargin: `${NEAR_PX}px 0px` });
+  }
+  for (const old of pendingDivs) if (!old.isConnected) forget(old); // the page was left
+  return new Promise((resolve, reject) => {
+    const waiters = div.__pendingChart?.waiters ?? [];
+    waiters.push({ resolve, reject });
+    div.__pendingChart = { args, waiters };
+    pendingDivs.add(div);
+    observer.observe(div);
+  });
+}
+
+/**
+ * `Plotly.react` with the bundle that can draw `traces`, now when the chart is on or near the screen,
+ * else when it is scrolled near: resolves to the chart's div, as Plotly.react does.
+ */
 export function react(div, traces, layout, config) {
-  return loadPlotly().then((lib) => lib.react(div, traces, layout, config));
+  // data-chart-eager: the page's first charts, drawn at once even when the text above pushes them down
+  const eager = div.hasAttribute("data-chart-eager");
+  if (div.__pendingChart || (!eager && typeof IntersectionObserver === "function" && !nearView(div))) {
+    return later(div, [traces, layout, config]);
+  }
+  return drawNow(div, traces, layout, config);
 }
 
 function plotly() {
   return {
     react,
     purge(div) {
-      if (window.Plotly) window.Plotly.purge(div); // nothing to purge before Plotly drew anything
+      if (div.__pendingChart) { // never drawn: its waiters see the empty chart instead
+        div.__pendingChart.waiters.forEach((w) => w.resolve(div));
+        forget(div);
+      }
+      if (div.__plotly) div.__plotly.purge(div); // nothing to purge before Plotly drew anything
+      delete div.__plotly;
     },
   };
 }

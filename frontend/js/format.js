@@ -124,6 +124,11 @@ export function fmtUnit(value, unit, digits = 3) {
   return unit && text !== "\u2013" ? `${text} ${prettyUnit(unit)}` : text;
 }
 
+/** The glossary's gait labels (js/glossary.js) replace the built-in ones. */
+export function setGaitLabels(labels) {
+  Object.assign(GAIT_LABELS, labels);
+}
+
 export function gaitLabel(gait) {
   return GAIT_LABELS[gait] || gait || "";
 }

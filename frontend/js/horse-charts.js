@@ -84,12 +84,31 @@ export function countedBarChart(div, groups, { title, unit, xTitle }) {
  * rides outside their band marked in red.
  * @param {{ride_id: number, date: string|null, value: number|null, band: object|null, outside: boolean|null}[]} points
  */
-export function trendChart(div, points, { title, unit, gait }) {
+/**
+ * The page's band (the horse's own, or the club's horses' in the gait) as shapes across the whole chart,
+ * so it shows even over one ride: the band shaded, its mean dashed, and each edge's 95 % interval as a
+ * fainter strip (a band from few rides is itself uncertain).
+ */
+function pageBandShapes(band) {
+  if (!band || !Number.isFinite(band.low) || !Number.isFinite(band.high)) return [];
+  const across = (y0, y1, fill) => ({ type: "rect", xref: "paper", x0: 0, x1: 1, yref: "y", y0, y1,
+    fillcolor: fill, line: { width: 0 }, layer: "below" });
+  const edges = [band.low_interval_95, band.high_interval_95].filter((e) => e?.length === 2)
+    .map(([a, b]) => across(a, b, "rgba(47, 133, 90, 0.10)"));
+  return [
+    ...edges,
+    across(band.low, band.high, band.source === "club" ? "rgba(107, 114, 128, 0.20)" : "rgba(47, 133, 90, 0.22)"),
+    { type: "line", xref: "paper", x0: 0, x1: 1, yref: "y", y0: band.mean, y1: band.mean, layer: "below",
+      line: { color: band.source === "club" ? "#6b7280" : "#2f855a", width: 1.5, dash: "dash" } },
+  ];
+}
+
+export function trendChart(div, points, { title, unit, gait, band = null }) {
   const valued = (points || []).filter((p) => Number.isFinite(p.value));
   if (!valued.length) return emptyChart(div, `No analysed rides in ${gaitLabel(gait)} yet.`);
   clearEmpty(div);
   // Dates on a time axis when every ride has one; otherwise the rides in order as categories.
-  const dated = valued.every((p) => p.date);
+  const dated = valued.length > 1 && valued.every((p) => p.date); // one date alone: a category, not a time axis
   const x = valued.map((p, i) => (dated ? p.date : p.date || `ride ${i + 1} (#${p.ride_id})`));
   const banded = valued.map((p) => p.band);
   const bandOf = (key) => banded.map((b) => (b ? b[key] : null));
@@ -115,6 +134,13 @@ export function trendChart(div, points, { title, unit, gait }) {
   const xaxisType = dated ? "date" : "category";
   const chartLayout = layout(title, dated ? "date ridden" : "ride", unit ? `${unit}` : "", { hovermode: "closest" });
   chartLayout.xaxis.type = xaxisType;
+  chartLayout.shapes = pageBandShapes(band);
+  if (band) {  // the band and its edges' intervals in view even when every ride lies inside
+    const ys = [...valued.map((p) => p.value), ...(band.low_interval_95 || [band.low]), ...(band.high_interval_95 || [band.high])];
+    const [lo, hi] = [Math.min(...ys), Math.max(...ys)];
+    const pad = (hi - lo) * 0.08 || Math.abs(hi) * 0.1 || 1;
+    chartLayout.yaxis.range = [lo - pad, hi + pad];
+  }
   return react(div, traces, chartLayout, CONFIG);
 }
 

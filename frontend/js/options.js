@@ -24,13 +24,28 @@ const SOURCES = {
 };
 
 function indicatorChoices(keep) {
-  // The thesis's eight comfort indicators first, then the rest of the table.
+  // The thesis's eight comfort indicators first (the headline numbers), then the glossary's expert
+  // indicators (MTVV, the W_d axes, worst-axis times, ...) in their own group "Expert detail".
   const keys = [...COMFORT_INDICATORS, ...indicatorKeys().filter((k) => !COMFORT_INDICATORS.includes(k))];
   return keys.filter((key) => keep(indicatorInfoOf(key))).map((key) => {
     const info = indicatorInfoOf(key);
     const unit = info.unit ? ` (${prettyUnit(info.unit)})` : "";
-    return { value: key, text: `${labelText(info.label)}${unit}` };
+    const expert = info.expert ?? !COMFORT_INDICATORS.includes(key);
+    return { value: key, text: `${labelText(info.label)}${unit}`, title: info.short || null,
+      group: expert ? "Expert detail" : "Headline numbers" };
   });
+}
+
+/** Options, in <optgroup>s where the choices name their group. */
+function optionElements(choices) {
+  const option = (c) => h("option", { value: c.value, title: c.title ?? null }, c.text);
+  if (!choices.some((c) => c.group)) return choices.map(option);
+  const groups = new Map();
+  for (const c of choices) {
+    if (!groups.has(c.group)) groups.set(c.group, []);
+    groups.get(c.group).push(option(c));
+  }
+  return [...groups].map(([label, options]) => h("optgroup", { label }, ...options));
 }
 
 /** Fill every data-options select under `root`; returns when all are filled. */
@@ -42,7 +57,7 @@ export async function fillOptions(root) {
     if (!cache.has(source)) cache.set(source, SOURCES[source]());
     const choices = await cache.get(source);
     const keep = select.value;
-    const options = choices.map((c) => h("option", { value: c.value }, c.text));
+    const options = optionElements(choices);
     if (select.dataset.optional) options.unshift(h("option", { value: "" }, select.dataset.optional));
     if (!options.length) options.push(h("option", { value: "", disabled: true }, `no ${source} yet`));
     select.replaceChildren(...options);

@@ -310,7 +310,9 @@ def test_comparisons_leaderboard_and_grades(env, tiny_ride):
     corr = admin.ok("GET", "/grades/correlation", params={"gait": "canter", "indicator": "acc_y_wb_rms"})
     stats = corr["indicators"]["acc_y_wb_rms"]
     assert stats["n"] == 3 and len(stats["points"]) == 3 and stats["expected_sign"] == -1
-    assert -1 <= stats["pearson_r"] <= 1
+    # three points: no r nor rho (noise), and the reason in words (issue 37)
+    assert stats["pearson_r"] is None and stats["spearman_rho"] is None and stats["min_points"] == 5
+    assert stats["withheld_reason"].startswith("needs at least 5 graded horse-gait pairs")
 
 
 def test_cancel_retry_and_a_failed_stage_keeps_the_uploads(env, admin, tiny_ride):

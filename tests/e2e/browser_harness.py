@@ -240,6 +240,19 @@ def plotly_traces(page, selector: str) -> list[dict]:
         " n: (t.y || t.z || t.values || t.x || []).length}))")
 
 
+# Charts below the fold are drawn when scrolled near (js/charts.js): each poll scrolls the first chart not
+# yet drawn into view, until every named one is drawn.
+_SCROLL_TO_UNDRAWN_JS = """names => { const els = names.map(n => document.querySelector(`[data-chart="${n}"]`));
+    const undrawn = els.filter(el => !(el && Array.isArray(el.data) && el.data.length > 0));
+    if (!undrawn.length) return true;
+    undrawn.find(Boolean)?.scrollIntoView({block: 'center'}); return false; }"""
+
+
+def wait_for_charts_drawn(page, names, timeout_ms: float = 30_000) -> None:
+    """Wait until Plotly has drawn every chart `[data-chart=name]`, scrolling each into view in turn."""
+    page.wait_for_function(_SCROLL_TO_UNDRAWN_JS, arg=list(names), polling=100, timeout=timeout_ms)
+
+
 def visible_permission_controls(page) -> list[dict]:
     """Visible elements carrying data-permission="<action>": action, owner id (from the closest
     [data-owner-id], else None), tag and text, so a test can check each against the role."""
@@ -274,4 +287,4 @@ __all__ = ["AXE_JS", "CHROMIUM", "CHROMIUM_ARGS", "PHONE_WIDTH_PX", "SADDLESCOPE
            "assert_no_horizontal_scroll", "axe_violations", "chromium_for_module", "console_errors",
            "fail_or_skip", "free_port", "horizontal_overflow_px", "launch_chromium", "new_club_admin",
            "plotly_traces", "require_axe", "require_browser", "screenshot", "serve_fresh", "shoot_both_widths",
-           "sign_in", "visible_permission_controls", "wait_healthy", "widest_elements"]
+           "sign_in", "visible_permission_controls", "wait_for_charts_drawn", "wait_healthy", "widest_elements"]

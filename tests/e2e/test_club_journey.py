@@ -26,7 +26,7 @@ import httpx
 import integration_services
 import numpy as np
 import pytest
-from browser_harness import chromium_for_module, serve_fresh
+from browser_harness import chromium_for_module, serve_fresh, wait_for_charts_drawn
 from test_dashboard import (
     Console,
     _ok,
@@ -259,7 +259,7 @@ def _journey(tab, served, meta, folder) -> None:
         earlier.append(seeded)
     tab.goto(f"/#/horses/{horse_id}")
     tab.get_by_role("heading", level=1, name=HORSE).wait_for()
-    tab.wait_for_function("() => document.querySelector('[data-chart=\"horse-trend\"]')?.data !== undefined")
+    wait_for_charts_drawn(tab, ["horse-trend"])
     assert tab.locator("#hp-trend-gait").input_value() == "canter"
     traces = tab.eval_on_selector('[data-chart="horse-trend"]',
                                   "el => el.data.map(t => ({name: t.name, y: t.y, fill: t.fill || null}))")

@@ -310,6 +310,7 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
 
     # the curve fits: nine series, and the stride frequency and speed with their 95 % intervals
     fits = doc["markers"]["fits"]
+    page.locator("[data-fit-expert] summary").click()  # R² and RMSE are expert detail, folded (issue 37)
     rows = page.locator("[data-fit-table] tbody tr")
     assert rows.count() == 9
     y0 = fits["y"][0]
@@ -326,7 +327,7 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     assert f"{js_fmt(speed * 3.6, 3)} km/h" in facts and abs(speed - SPEED_KMH["canter"] / 3.6) < 0.01
     assert " m/s " not in facts
 
-    page.wait_for_function("() => document.querySelector('[data-chart=\"versions\"]').data !== undefined")
+    browser_harness.wait_for_charts_drawn(page, ["versions", "acceleration"])
     for name in ("position", "velocity", "acceleration", "omega", "alpha"):
         traces = chart_traces(page, name)
         assert [t["name"] for t in traces] == ["x", "y", "z"], name

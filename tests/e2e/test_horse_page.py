@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from browser_harness import new_club_admin, serve_fresh
+from browser_harness import new_club_admin, serve_fresh, wait_for_charts_drawn
 from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
     EMAIL,
     PASSWORD,
@@ -62,6 +62,8 @@ def _seed(base: str, database_url: str, storage_dir) -> dict:
             graded = ride(name, "canter", "2026-02-01", scale)
             _ok(api.post("/api/grades", json={"ride_id": graded, "rider_id": rider, "grade": grade}))
         _ok(api.post("/api/grades", json={"ride_id": canter[0], "rider_id": rider, "grade": 4}))
+        # a fourth horse-gait point: pooled over the gaits the grades page has 4, one short of a correlation
+        _ok(api.post("/api/grades", json={"ride_id": walk[0], "rider_id": rider, "grade": 3}))
         trend = _ok(api.get(f"/api/horses/{horses['Tango']}/trend",
                             params={"gait": "canter", "indicator": "acc_y_wb_rms"}))
         pair = _ok(api.get(f"/api/horses/{horses['Tango']}/ride-pair", params={"a": canter[-2], "b": canter[-1]}))
@@ -82,7 +84,7 @@ def page(browser, served):  # noqa: F811 (the imported fixture)
 
 
 def _drawn(page, name: str) -> None:
-    page.wait_for_function(f"() => document.querySelector('[data-chart=\"{name}\"]')?.data !== undefined")
+    wait_for_charts_drawn(page, [name])
 
 
 def _fits_phone(page, name: str) -> None:
@@ -117,7 +119,14 @@ def test_the_horse_page_shows_trend_band_gait_counts_and_a_ride_pair(page, serve
     np.testing.assert_allclose(by_name["ride"]["y"], [p["value"] for p in served["trend"]["points"]], rtol=1e-12)
     assert served["trend"]["points"][-1]["outside"] is True  # the rough last ride
     assert by_name["outside its band"]["y"] == [served["trend"]["points"][-1]["value"]]
-    assert "1 of the 4 with a band lie outside it" in page.locator("[data-trend-note]").inner_text()
+    note = page.locator("[data-trend-note]").inner_text()
+    assert "1 of the 4 rides with enough earlier rides lie outside the band" in note
+    # the page's band: Tango's own (8 canter rides), shaded across the chart, with its edges' intervals
+    assert served["trend"]["band"]["source"] == "horse" and "this horse's own 8 rides" in note
+    shapes = page.eval_on_selector('[data-chart="horse-trend"]',
+                                   "el => el.layout.shapes.map(s => [s.type, s.y0, s.y1])")
+    band = served["trend"]["band"]
+    assert ["rect", pytest.approx(band["low"]), pytest.approx(band["high"])] in shapes
 
     # Gait bars: walk then canter, each saying how many rides stand behind it.
     bars = page.eval_on_selector('[data-chart="horse-gaits"]', "el => ({x: el.data[0].x, text: el.data[0].text, "
@@ -175,6 +184,38 @@ def test_the_profile_takes_a_height_in_hands_and_explains_a_bare_number(page, se
     assert page.console.unexpected(422) == []
 
 
+def test_a_horse_with_one_ride_shows_the_club_band_so_it_is_seen(page, served):
+    sign_in(page)
+    page.goto(f"/#/horses/{served['horses']['Bella']}")
+    page.get_by_role("heading", level=1, name="Bella").wait_for()
+    _drawn(page, "horse-trend")
+    note = page.locator("[data-trend-note]")
+    note.filter(has_text="Shaded").wait_for()
+    text = note.inner_text()
+    assert "1 ride in canter" in text and "from the club's 2 other horses in this gait" in text, text
+    assert "this horse has 1 of the 5 rides its own band needs" in text
+    # drawn: a shaded rectangle across the plot, of a real height on screen (not a line of one point)
+    box = page.evaluate("""() => { const rects = [...document.querySelectorAll(
+        '[data-chart="horse-trend"] .layer-below .shapelayer path, [data-chart="horse-trend"] .shapelayer path')];
+        return rects.map(r => r.getBoundingClientRect()).map(b => [b.width, b.height]); }""")
+    assert any(w > 200 and h > 10 for w, h in box), box
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(SCREENSHOTS / "horse-one-ride-band-1280.png"), full_page=True)
+    _fits_phone(page, "horse-one-ride-band")
+
+
+def test_the_grades_page_shows_no_correlation_on_four_points(page, served):
+    sign_in(page)
+    page.goto("/#/grades")
+    _drawn(page, "grades")
+    page.select_option("#gr-gait", "")  # all gaits pooled: Tango canter and walk, Bella, Comet
+    stats = page.locator("[data-grades-stats]")
+    stats.locator('[data-stat="withheld"]').wait_for()
+    assert stats.locator('[data-stat="n"]').inner_text() == "4"
+    assert "needs at least 5 graded horse-gait pairs" in stats.inner_text()
+    assert stats.locator('[data-stat="pearson"]').count() == 0 and "Pearson" not in stats.inner_text()
+
+
 def test_compare_grades_and_leaderboard_say_how_many_rides_and_fit_a_phone(page, served):
     sign_in(page)
     page.goto(f"/#/compare?horse={served['horses']['Tango']}")
@@ -194,7 +235,7 @@ def test_compare_grades_and_leaderboard_say_how_many_rides_and_fit_a_phone(page,
     scatter = page.eval_on_selector('[data-chart="grades"]', "el => ({names: el.data.map(t => t.name), "
                                     "hover: el.data[0].hovertemplate, x: el.layout.xaxis.title.text, "
                                     "custom: el.data[0].customdata})")
-    assert scatter["names"] == ["canter"]  # one trace (colour) per gait, in the legend
+    assert scatter["names"] == ["walk", "canter"]  # one trace (colour) per gait, in the legend
     assert "Rider A" in [c[1] for c in scatter["custom"]] and "graded by" in scatter["hover"]
     assert "(m/s\u00b2)" in scatter["x"]
     page.select_option("#gr-gait", "")  # all gaits pooled: still one colour per gait

@@ -1,5 +1,7 @@
 """No page shows the words "null", "undefined" or "NaN" (issue #37): a value the page did not have
-must read as nothing, or as words, never as JavaScript's name for "missing".
+must read as nothing, or as words, never as JavaScript's name for "missing". Nor a raw code of the
+glossary (GET /api/glossary: `lab_vertical`, `sitting_trot`, `acc_y_wb_rms`, `analyze`, `dtw`, ...):
+every label comes from it.
 
 A small club on a fresh server: one ride with an analysis job that is queued or running (a long
 selftest job tied to the ride) and the main lists; each page's visible text is scanned in Debian's
@@ -20,6 +22,28 @@ ADMIN = ("secretary@nulls.example", "nulls admin password")
 # replaceChildren(null, null, null) shows); not inside other words ("annulled", "Nullarbor")
 MISSING_WORDS = re.compile(r"(?<![A-Za-z])(?:null|undefined|NaN)+(?![A-Za-z])")
 VISIBLE_TEXT_JS = "() => (document.querySelector('main') || document.body).innerText"
+
+
+# Glossary codes that are not themselves words a page may use ("walk", "canter", "left" are both).
+CODE_WORDS = ("analyze", "selftest", "dtw", "chaincode")
+
+
+def raw_code_pattern(glossary: list[dict]) -> re.Pattern[str]:
+    """The glossary's codes that must never show: those with an underscore, and `CODE_WORDS`."""
+    codes = sorted({e["code"] for e in glossary if "_" in e["code"] or e["code"] in CODE_WORDS}, key=len, reverse=True)
+    return re.compile(r"(?<![A-Za-z0-9_])(?:" + "|".join(map(re.escape, codes)) + r")(?![A-Za-z0-9_])")
+
+
+def raw_codes(text: str, pattern: re.Pattern[str]) -> list[str]:
+    """The lines of `text` that show a raw glossary code."""
+    return [line.strip() for line in text.splitlines() if pattern.search(line)]
+
+
+def test_raw_codes_are_found_as_words_only():
+    pattern = raw_code_pattern([{"code": "lab_vertical"}, {"code": "analyze"}, {"code": "walk"},
+                                {"code": "acc_y_wb_rms"}])
+    text = "Gravity from lab_vertical\nRide analysis\nwalk\nanalyze\nacc_y_wb_rms_x is another\nanalyzed"
+    assert raw_codes(text, pattern) == ["Gravity from lab_vertical", "analyze"]
 
 
 def missing_words(text: str) -> list[str]:
@@ -53,11 +77,14 @@ def club(tmp_path_factory):
 def test_no_page_shows_null_undefined_or_nan(club):
     paths = [f"/rides/{club['ride']}", "/", "/rides", "/horses", "/riders", "/jobs", "/rigs", "/grades",
              "/leaderboard", "/account", "/start", "/saddles", f"/saddles/{club['saddle']}", f"/horses/{club['horse']}"]
-    found = []
+    found, codes = [], []
     with chromium_for_module() as chromium:
         context = chromium.new_context(base_url=club["base"], viewport={"width": 1280, "height": 900})
         page = context.new_page()
         sign_in(page, *ADMIN)
+        glossary = page.context.request.get(f"{club['base']}/api/glossary")
+        assert glossary.ok, glossary.text()
+        pattern = raw_code_pattern(glossary.json())
         for path in paths:
             page.goto(f"{club['base']}/#{path}")
             page.wait_for_function("() => { const v = document.querySelector('[data-view]');"
@@ -65,7 +92,10 @@ def test_no_page_shows_null_undefined_or_nan(club):
             if path.startswith("/rides/"):
                 page.wait_for_selector("[data-job-progress]")
             page.wait_for_load_state("networkidle")
-            found += [f"{path}: {line!r}" for line in missing_words(page.evaluate(VISIBLE_TEXT_JS))]
+            text = page.evaluate(VISIBLE_TEXT_JS)
+            found += [f"{path}: {line!r}" for line in missing_words(text)]
+            codes += [f"{path}: {line!r}" for line in raw_codes(text, pattern)]
             screenshot(page, f"no-null{path.replace('/', '-') or '-overview'}")
         context.close()
     assert not found, "pages show JavaScript's words for a missing value:\n" + "\n".join(found)
+    assert not codes, "pages show raw codes instead of the glossary's labels:\n" + "\n".join(codes)

@@ -13,7 +13,7 @@ import io
 import numpy as np
 import pytest
 import test_dashboard
-from browser_harness import serve_fresh
+from browser_harness import serve_fresh, wait_for_charts_drawn
 from test_dashboard import (
     _ok,
     _seed,
@@ -80,9 +80,7 @@ def _charts_drawn(page) -> dict[str, int]:
 
 
 def _wait_for_charts(page) -> None:
-    page.wait_for_function("""names => names.every(n => {
-        const el = document.querySelector(`[data-chart="${n}"]`); return el && el.data && el.data.length > 0; })""",
-                           arg=list(CHARTS))
+    wait_for_charts_drawn(page, CHARTS)  # those below the fold are drawn when scrolled to
 
 
 def test_the_ride_page_draws_every_chart_and_says_its_quality_in_plain_words(page, dashboard, ride):

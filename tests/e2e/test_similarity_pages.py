@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 
 import pytest
-from browser_harness import chromium_for_module, new_club_admin, serve_fresh
+from browser_harness import chromium_for_module, new_club_admin, serve_fresh, wait_for_charts_drawn
 from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
@@ -111,6 +111,7 @@ def test_the_pair_view_overlays_both_paths_in_3d_and_shows_the_alignment(page, s
     rides = served["rides"]
     a, b = rides[("Birch", 0)], rides[("Cedar", 1)]
     page.goto(f"/#/compare-rides/{a}/{b}?markers=saddle&span=stride")
+    wait_for_charts_drawn(page, ["pair-paths", "pair-alignment"])
     page.wait_for_function("() => document.querySelector('[data-chart=\"pair-paths\"]')?.data?.length === 4")
     page.wait_for_function("() => document.querySelector('[data-chart=\"pair-alignment\"]')?.data?.length === 3")
     api = page.context.request.get(f"/api/rides/{a}/similar/{b}").json()

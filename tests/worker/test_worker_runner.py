@@ -123,7 +123,8 @@ def test_bad_payloads_and_kinds_are_refused_before_queueing(sessions):
     with pytest.raises(SaddleScopeError, match="steps must be an integer from 1 to 1000"):
         add_job(sessions, kind="selftest", payload={"steps": "many"})
     with pytest.raises(
-        SaddleScopeError, match="unknown job kind 'fly'; known kinds: analyze, calibrate_rig, check_calibration, probe, selftest"
+        SaddleScopeError,
+        match="unknown job kind 'fly'; known kinds: analyze, calibrate_rig, check_calibration, probe, selftest",
     ):
         add_job(sessions, kind="fly")
     with pytest.raises(NotFound, match="ride 12345 not found"):

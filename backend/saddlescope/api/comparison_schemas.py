@@ -68,5 +68,6 @@ class CorrelationOut(BaseModel):
     gait: str | None
     grades: int
     indicators: dict[str, dict[str, Any]] = Field(
-        description="per indicator: n, pearson_r, pearson_p, spearman_rho, intervals, expected_sign, points"
+        description="per indicator: n, pearson_r, pearson_p, spearman_rho, intervals, expected_sign, points; "
+        "min_points and withheld_reason (the coefficients are null on fewer than min_points points)"
     )

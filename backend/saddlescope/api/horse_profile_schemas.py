@@ -9,7 +9,7 @@ from pydantic import BaseModel, Field
 
 from saddlescope.api.schemas import Gait
 
-__all__ = ["Band", "PairIndicator", "PairOut", "PairRide", "TrendOut", "TrendPoint"]
+__all__ = ["Band", "PageBand", "PairIndicator", "PairOut", "PairRide", "TrendOut", "TrendPoint"]
 
 
 class Band(BaseModel):
@@ -20,6 +20,18 @@ class Band(BaseModel):
     sd: float = Field(description="sample standard deviation of the earlier rides")
     low: float = Field(description="mean - 2 SD")
     high: float = Field(description="mean + 2 SD")
+
+
+class PageBand(Band):
+    """The band the horse page draws across its trend, with where it comes from and its own uncertainty."""
+
+    source: Literal["horse", "club"] = Field(description="the horse's own rides, or the club's horses in the gait")
+    horses: int = Field(description="horses behind the band")
+    reason: str = Field(description="where the band comes from, in words")
+    low_interval_95: list[float] = Field(description="95 % interval of the band's lower edge", min_length=2,
+                                         max_length=2)
+    high_interval_95: list[float] = Field(description="95 % interval of the band's upper edge", min_length=2,
+                                          max_length=2)
 
 
 class TrendPoint(BaseModel):
@@ -46,6 +58,8 @@ class TrendOut(BaseModel):
     label: str
     min_rides_for_band: int
     uncertain_left_out: int = Field(default=0, description="rides too uncertain for a decision, not shown")
+    min_own_rides: int = Field(description="rides the horse needs for the page's band to be its own")
+    band: PageBand | None = Field(description="the band drawn across the chart (None: too few rides anywhere)")
     points: list[TrendPoint]
 
 

@@ -754,6 +754,18 @@ class ResultOut(BaseModel):
     decimation: Decimation
 
 
+class GlossaryEntryOut(BaseModel):
+    """What one code the service uses means to a person (services/glossary.py)."""
+
+    kind: Literal["indicator", "gait", "direction", "job_kind", "job_stage", "clip_kind", "camera",
+                  "gravity_source", "similarity_method"]
+    code: str = Field(description="the code as the API and the stored data carry it, never shown on a page")
+    label: str = Field(description="what a page shows instead of the code (W_b, W_k, W_d as subscripts)")
+    unit: str = Field(description="the unit of the values ('' where none)")
+    short: str = Field(description="one line on what it means ('' where the label says it all)")
+    expert: bool = Field(description="an expert indicator: folded under 'expert detail', after the headline numbers")
+
+
 class IndicatorOut(BaseModel):
     """What an indicator key means: unit, label, thesis name and which way is more comfortable."""
 

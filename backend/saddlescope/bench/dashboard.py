@@ -4,8 +4,10 @@
 its own on the server of SADDLESCOPE_BENCH_DATABASE_URL, else on the test server at 127.0.0.1:5432;
 SQLite otherwise, and the output says which) with `n_rides` analysed rides through SQLAlchemy core
 (`service.fill_rides`) and one ride whose result has `samples` samples per curve
-(`service._analysed_ride`), starts ``saddlescope serve`` on it and opens three pages in Debian's
-Chromium (driven by Playwright): the rides list, the leaderboard and that ride's page.
+(`service._analysed_ride`), starts ``saddlescope serve`` on it and opens five pages in Debian's
+Chromium (driven by Playwright): the rides list, the leaderboard, that ride's page, the page of the
+club's first horse (its trend over the rides the fill gave it) and compare (that horse across gaits and
+the horses in one gait).
 
 Time to interactive (TTI), as measured here: from the navigation start of a fresh load of the page
 (``performance.timeOrigin``; the dashboard's static files already in the browser's cache, as for a
@@ -14,8 +16,12 @@ is no longer ``aria-busy`` and its main content is drawn:
 
 - rides list and leaderboard: the page's first table has at least one body row (or its "empty" note
   shows);
-- ride page: its result section is visible and every visible chart (``[data-chart]``) has been drawn
-  by Plotly (the element carries Plotly's data and its ``js-plotly-plot`` class).
+- ride page: its result section is visible and its first charts have been drawn by Plotly (the element
+  carries Plotly's data and its ``js-plotly-plot`` class): every visible chart (``[data-chart]``) in the
+  first screen or marked ``data-chart-eager`` (position, velocity, acceleration); the others are drawn
+  when scrolled to (since issue 37);
+- horse page and compare: at least one chart is drawn and every visible chart that is in the first
+  screen (the viewport) is drawn (charts below the fold are drawn when scrolled to).
 
 Each page is loaded `repeats` times; the median is the number reported (all samples are kept). The
 goal is under 1 s each on the project's machine; it is printed, never asserted.
@@ -42,15 +48,19 @@ from saddlescope.db.session import make_engine, make_session_factory, session_sc
 from saddlescope.services.accounts import create_club
 
 CHROMIUM = Path("/usr/bin/chromium")
+TTI_PAGE_KEYS = ("tti_rides_list_s", "tti_leaderboard_s", "tti_ride_page_s", "tti_horse_page_s", "tti_compare_s")
+CHART_PAGE_KEYS = ("tti_ride_page_s", "tti_horse_page_s", "tti_compare_s")
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
                  "--disable-background-networking"]
 TEST_POSTGRES_URL = "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 GOAL_S = 1.0
+CHART_GOAL_S = 2.0  # the pages with charts: ride page, horse page, compare (issue 37)
 TTI_DEFINITION = (
     "navigation start of a fresh page load (static files cached, signed in) until the first animation "
     "frame where the view is not aria-busy and its main content is drawn: lists and leaderboard, a "
-    "table body row (or the empty note); ride page, the result visible and every visible [data-chart] "
-    "drawn by Plotly; median of the repeats"
+    "table body row (or the empty note); ride page, the result visible and its first charts "
+    "(every visible [data-chart] in the first screen or data-chart-eager) drawn by Plotly; horse page "
+    "and compare, every visible [data-chart] in the first screen drawn; median of the repeats"
 )
 
 # The readiness conditions, evaluated in the page at every animation frame; each answers
@@ -66,10 +76,18 @@ RIDE_READY_JS = f"""() => {{ const v = {_VIEW_READY}; if (!v) return false;
     const visible = (el) => el && (el.checkVisibility ? el.checkVisibility() : el.offsetParent !== null);
     const result = v.querySelector('[data-result]');
     if (!visible(result)) return false;
-    const charts = [...v.querySelectorAll('[data-chart]')].filter(visible);
+    const first = (el) => el.hasAttribute('data-chart-eager') || el.getBoundingClientRect().top < window.innerHeight;
+    const charts = [...v.querySelectorAll('[data-chart]')].filter(visible).filter(first);
     const drawn = charts.every(c => c.classList.contains('js-plotly-plot') && Array.isArray(c.data)
                                     && c.data.length > 0);
     return charts.length > 0 && drawn ? performance.now() : false; }}"""
+CHARTS_READY_JS = f"""() => {{ const v = {_VIEW_READY}; if (!v) return false;
+    const visible = (el) => el && (el.checkVisibility ? el.checkVisibility() : el.offsetParent !== null);
+    const inFirstScreen = (el) => el.getBoundingClientRect().top < window.innerHeight;
+    const drawn = (c) => c.classList.contains('js-plotly-plot') && Array.isArray(c.data) && c.data.length > 0;
+    const charts = [...v.querySelectorAll('[data-chart]')].filter(visible);
+    const first = charts.filter(inFirstScreen);
+    return charts.some(drawn) && first.every(drawn) ? performance.now() : false; }}"""
 # Installed before the page's own scripts: when the number of charts Plotly has drawn last changed.
 CHART_RECORDER_JS = """(() => { const state = window.__ttiCharts = {drawn: 0, lastDrawnMs: null};
   const tick = () => {
@@ -199,15 +217,15 @@ def _tti_samples_s(context, url: str, ready_js: str, repeats: int, timeout_s: fl
 
 PLOTLY_LOAD_JS = """() => new Promise((resolve, reject) => {
   const t0 = performance.now(); const script = document.createElement('script');
-  script.src = 'vendor/plotly-3.7.0.min.js';
+  script.src = 'vendor/plotly-cartesian-3.7.0.min.js';
   script.onload = () => resolve(performance.now() - t0); script.onerror = reject; document.head.append(script); })"""
 
 
 def _plotly_load_s(context, base: str, repeats: int) -> float:
     """The floor under every page with a chart.
 
-    Parsing and running the 4.6 MB Plotly bundle once, from the browser's cache as the measured pages have it
-    (median of `repeats`).
+    Parsing and running the 1.4 MB cartesian Plotly bundle (every 2-D chart) once, from the browser's
+    cache as the measured pages have it (median of `repeats`).
     """
     samples = []
     for _ in range(repeats):
@@ -220,13 +238,15 @@ def _plotly_load_s(context, base: str, repeats: int) -> float:
     return round(statistics.median(samples), 3)
 
 
-def _measure_pages(base: str, ride_id: int, *, repeats: int, timeout_s: float) -> dict[str, Any]:
+def _measure_pages(base: str, ride_id: int, horse_id: int, *, repeats: int, timeout_s: float) -> dict[str, Any]:
     from playwright.sync_api import sync_playwright
 
     pages = {
         "rides_list": (f"{base}/#/rides", TABLE_READY_JS),
         "leaderboard": (f"{base}/#/leaderboard", TABLE_READY_JS),
         "ride_page": (f"{base}/#/rides/{ride_id}", RIDE_READY_JS),
+        "horse_page": (f"{base}/#/horses/{horse_id}", CHARTS_READY_JS),
+        "compare": (f"{base}/#/compare?horse={horse_id}", CHARTS_READY_JS),
     }
     out: dict[str, Any] = {}
     with sync_playwright() as manager:
@@ -259,12 +279,31 @@ def _measure_pages(base: str, ride_id: int, *, repeats: int, timeout_s: float) -
 # --- the benchmark -----------------------------------------------------------------------------------
 
 
+def _first_horse(url: str) -> int:
+    """The bench club's first horse (one of the fill's, with its share of the rides)."""
+    from sqlalchemy import select
+
+    from saddlescope.db.models import Horse
+
+    engine = make_engine(url)
+    try:
+        with session_scope(make_session_factory(engine)) as session:
+            horse_id = session.scalar(select(Horse.id).order_by(Horse.id).limit(1))
+            if horse_id is None:
+                raise RuntimeError("the bench club has no horse (fill_rides adds them)")
+            return int(horse_id)
+    finally:
+        engine.dispose()
+
+
 def dashboard_tti(n_rides: int = 10_000, *, samples: int = 10_000, repeats: int = 3,
                   timeout_s: float = 30.0) -> dict[str, Any]:
-    """Time to interactive of the rides list, the leaderboard and a ride page (see the module's doc)."""
-    out: dict[str, Any] = {"tti_rides_list_s": None, "tti_leaderboard_s": None, "tti_ride_page_s": None,
-                           "rides": n_rides, "samples_per_curve": samples, "definition": TTI_DEFINITION,
-                           "goal_s": GOAL_S}
+    """Time to interactive of the rides list, the leaderboard, a ride page, a horse page and compare.
+
+    See the module's doc.
+    """
+    out: dict[str, Any] = {**dict.fromkeys(TTI_PAGE_KEYS), "rides": n_rides, "samples_per_curve": samples,
+                           "definition": TTI_DEFINITION, "goal_s": GOAL_S, "chart_goal_s": CHART_GOAL_S}
     reason = _why_no_browser()
     if reason is not None:
         out["skipped"] = reason
@@ -275,21 +314,26 @@ def dashboard_tti(n_rides: int = 10_000, *, samples: int = 10_000, repeats: int 
         fill_rides(url, n_rides)
         ride_id = _analysed_ride(root, url, samples)
         _add_omega_versions(root, ride_id)
+        horse_id = _first_horse(url)
         out["fill_s"] = round(time.perf_counter() - t0, 2)
         with bench_server(root, url) as server:
-            out.update(_measure_pages(server.base_url, ride_id, repeats=repeats, timeout_s=timeout_s))
-    measured = [out[k] for k in ("tti_rides_list_s", "tti_leaderboard_s", "tti_ride_page_s")]
-    out["ok"] = all(v is not None and v < GOAL_S for v in measured)
+            out.update(_measure_pages(server.base_url, ride_id, horse_id, repeats=repeats, timeout_s=timeout_s))
+    out["ok"] = all(out[k] is not None and out[k] < _goal_s(k) for k in TTI_PAGE_KEYS)
     return out
+
+
+def _goal_s(key: str) -> float:
+    """The goal of one time-to-interactive key: 2 s for the pages with charts, 1 s for the lists."""
+    return CHART_GOAL_S if key in CHART_PAGE_KEYS else GOAL_S
 
 
 def run_dashboard_benchmarks(*, quick: bool = False) -> dict[str, Any]:
     """`saddlescope bench`'s dashboard part (quick: 500 rides, 2,000 samples per curve, one load each)."""
     out = dashboard_tti(500 if quick else 10_000, samples=2_000 if quick else 10_000, repeats=1 if quick else 3)
-    for key in ("tti_rides_list_s", "tti_leaderboard_s", "tti_ride_page_s"):
+    for key in TTI_PAGE_KEYS:
         value = out[key]
         shown = "skipped" if value is None else f"{value:.3f} s"
-        print(f"dashboard {key}: {shown} (goal < {GOAL_S:g} s; {out['rides']} rides, "
+        print(f"dashboard {key}: {shown} (goal < {_goal_s(key):g} s; {out['rides']} rides, "
               f"{out.get('database', out.get('skipped'))})", file=sys.stderr)
     if out.get("plotly_load_s") is not None:
         print(f"dashboard plotly_load_s: {out['plotly_load_s']:.3f} s (loading the chart library alone: the floor "
@@ -297,4 +341,5 @@ def run_dashboard_benchmarks(*, quick: bool = False) -> dict[str, Any]:
     return out
 
 
-__all__ = ["TTI_DEFINITION", "bench_database", "dashboard_tti", "run_dashboard_benchmarks"]
+__all__ = ["CHART_PAGE_KEYS", "TTI_DEFINITION", "TTI_PAGE_KEYS", "bench_database", "dashboard_tti",
+           "run_dashboard_benchmarks"]

@@ -198,6 +198,7 @@ def grade_correlation_report(
     report = grades_vs_indicators(grade_rows, rows, indicators, gait=gait)
     for r in report.values():
         r["points"] = _described_points(r["points"], grade_rows, rows)
+        _withhold_correlation_on_few_points(r)
     return {
         "gait": gait,
         "grades": len(grade_rows),
@@ -210,6 +211,25 @@ def grade_correlation_report(
             for ind, r in report.items()
         },
     }
+
+
+# Pearson's r and Spearman's rho from fewer points are noise (r = -1.0 from two points): withheld, and
+# the page says how many are needed.
+MIN_CORRELATION_POINTS = 5
+
+
+def _withhold_correlation_on_few_points(r: dict[str, Any]) -> None:
+    """Blank the correlation coefficients, p-values and intervals of an indicator with too few points."""
+    n = int(r.get("n") or 0)
+    r["min_points"] = MIN_CORRELATION_POINTS
+    if n >= MIN_CORRELATION_POINTS:
+        r["withheld_reason"] = None
+        return
+    for key in list(r):
+        if key.startswith(("pearson", "spearman")):
+            r[key] = None
+    r["withheld_reason"] = (f"needs at least {MIN_CORRELATION_POINTS} graded horse-gait pairs to show a "
+                            f"correlation ({n} so far)")
 
 
 def _described_points(points: Sequence[dict[str, Any]], grade_rows: Sequence[dict[str, Any]],

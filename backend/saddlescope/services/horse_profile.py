@@ -19,7 +19,14 @@ from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import INDICATORS, indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, Conflict, HorseRepository, RideRepository
 from saddlescope.services.analytics import check_gait, check_indicator
-from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, band_of, horse_history, ride_order_key
+from saddlescope.services.normal_band import (
+    MIN_OWN_RIDES,
+    MIN_RIDES_FOR_BAND,
+    band_of,
+    horse_history,
+    page_band,
+    ride_order_key,
+)
 
 __all__ = ["PAIR_INDICATORS", "horse_trend", "ride_pair"]
 
@@ -64,6 +71,11 @@ def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, ind
                        "band": band, "outside": outside, "uncertain_reason": reason})
         if reason is None:
             earlier.append(value)
+    # the club's other horses in the gait, for the band until the horse has its own (rides too uncertain left out)
+    club = AnalyticsRepository(session, club_id=club_id).indicator_rows(indicator, gait=gait, include_uncertain=False)
+    club_rows = [row for row in club if row["horse_id"] != horse.id]
+    club_values = [_finite((row.get("indicators") or {}).get(indicator)) for row in club_rows]
+    horses_in_club = len({row["horse_id"] for row, v in zip(club_rows, club_values, strict=True) if v is not None})
     return {
         "horse_id": horse.id,
         "horse": horse.name,
@@ -73,6 +85,9 @@ def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, ind
         "label": INDICATORS[indicator].label,
         "min_rides_for_band": MIN_RIDES_FOR_BAND,
         "uncertain_left_out": left_out,
+        "min_own_rides": MIN_OWN_RIDES,
+        # the band the page draws across the chart (issue 37): the horse's own, else the club's in the gait
+        "band": page_band(earlier, club_values, horses_in_club=horses_in_club),
         "points": points,
     }
 

@@ -17,10 +17,15 @@ from sqlalchemy.orm import Session
 
 from saddlescope.db.repositories import AnalyticsRepository
 
-__all__ = ["MIN_RIDES_FOR_BAND", "band_of", "horse_history", "normal_bands_before", "ride_order_key"]
+__all__ = ["MIN_OWN_RIDES", "MIN_RIDES_FOR_BAND", "band_of", "band_with_uncertainty", "horse_history",
+           "normal_bands_before", "page_band", "ride_order_key"]
 
 MIN_RIDES_FOR_BAND = 4
 BAND_SD = 2.0  # mean ± 2 SD: about 95 % of a normally varying horse's rides
+# The band the horse page draws: the horse's own rides from this many on, the club's horses in the gait
+# before (a horse's first rides say nothing of its normal range).
+MIN_OWN_RIDES = 5
+Z_95 = 1.959964
 
 
 def band_of(values: Sequence[float | None], *, min_rides: int = MIN_RIDES_FOR_BAND) -> dict[str, Any] | None:
@@ -31,6 +36,43 @@ def band_of(values: Sequence[float | None], *, min_rides: int = MIN_RIDES_FOR_BA
     mean = sum(finite) / len(finite)
     sd = math.sqrt(sum((v - mean) ** 2 for v in finite) / (len(finite) - 1))  # sample SD
     return {"n": len(finite), "mean": mean, "sd": sd, "low": mean - BAND_SD * sd, "high": mean + BAND_SD * sd}
+
+
+def band_with_uncertainty(values: Sequence[float | None], *, min_rides: int) -> dict[str, Any] | None:
+    """`band_of` with the 95 % interval of each edge (``low_interval_95``, ``high_interval_95``).
+
+    An edge mean ± 2 SD from n rides is itself uncertain: var(mean) = SD²/n and, for normal data,
+    var(SD) ≈ SD²/(2(n-1)), so var(edge) ≈ SD²/n + 4 SD²/(2(n-1)) (the two are independent). With 5
+    rides an edge is uncertain by about ±1.5 SD: the page shows it, so a band from few rides is read as such.
+    """
+    band = band_of(values, min_rides=max(min_rides, 2))
+    if band is None:
+        return None
+    n, sd = band["n"], band["sd"]
+    half = Z_95 * math.sqrt(sd**2 / n + BAND_SD**2 * sd**2 / (2 * (n - 1)))
+    return {**band, "low_interval_95": [band["low"] - half, band["low"] + half],
+            "high_interval_95": [band["high"] - half, band["high"] + half]}
+
+
+def page_band(own: Sequence[float | None], club: Sequence[float | None], *, horses_in_club: int,
+              ) -> dict[str, Any] | None:
+    """The band the horse page draws: the horse's own, else the club's horses' in the gait.
+
+    From the horse's own rides when it has `MIN_OWN_RIDES`, else from the club's other horses' rides in
+    the gait (``source`` says which, ``reason`` in words); None with neither.
+    """
+    own_band = band_with_uncertainty(own, min_rides=MIN_OWN_RIDES)
+    if own_band is not None:
+        return {**own_band, "source": "horse", "horses": 1,
+                "reason": f"from this horse's own {own_band['n']} rides in this gait"}
+    club_band = band_with_uncertainty(club, min_rides=MIN_OWN_RIDES)
+    if club_band is None:
+        return None
+    n_own = sum(1 for v in own if isinstance(v, int | float) and math.isfinite(v))
+    return {**club_band, "source": "club", "horses": horses_in_club,
+            "reason": (f"from the club's {horses_in_club} other horse{'s' if horses_in_club != 1 else ''} in this "
+                       f"gait ({club_band['n']} rides): this horse has {n_own} of the {MIN_OWN_RIDES} rides "
+                       "its own band needs")}
 
 
 def ride_order_key(row: dict[str, Any]) -> tuple[dt.date, int]:

@@ -38,10 +38,16 @@ export async function mountGrades(view) {
     const info = indicatorInfoOf(indicator);
     const r = c.pearson_r ?? c.pearson?.r;
     const rho = c.spearman_rho ?? c.spearman?.rho;
+    // Fewer than min_points points: no coefficient is served, the page says how many are needed.
+    const withheld = c.withheld_reason || ((c.n ?? 0) < (c.min_points ?? 5)
+      ? `needs at least ${c.min_points ?? 5} graded horse-gait pairs to show a correlation` : null);
+    const correlation = withheld
+      ? [stat("Correlation", withheld, "withheld")]
+      : [stat("Pearson r", `${fmt(r, 2)}${interval(c.pearson_ci_low, c.pearson_ci_high)}`, "pearson"),
+        stat("Spearman \u03c1", `${fmt(rho, 2)}${interval(c.spearman_ci_low, c.spearman_ci_high)}`, "spearman")];
     stats.replaceChildren(
       stat("n (horse-gait pairs)", String(c.n ?? 0), "n"),
-      stat("Pearson r", `${fmt(r, 2)}${interval(c.pearson_ci_low, c.pearson_ci_high)}`, "pearson"),
-      stat("Spearman \u03c1", `${fmt(rho, 2)}${interval(c.spearman_ci_low, c.spearman_ci_high)}`, "spearman"),
+      ...correlation,
       stat("Expected sign", c.expected_sign === -1 ? "negative (lower is more comfortable)"
         : c.expected_sign === 1 ? "positive (higher is more comfortable)" : "none", "expected"));
     gradeGaitScatter(chart, c.points || [], { title: labelText(info.label), unit: prettyUnit(info.unit), label: labelText(info.label) });

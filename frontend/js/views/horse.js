@@ -148,15 +148,20 @@ function setUpTrend(view, horseId) {
       if (!current()) return;
       showError(section, null);
       const info = indicatorInfoOf(indicator);
-      trendChart(chart, trend.points, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), gait });
+      trendChart(chart, trend.points, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), gait, band: trend.band });
       const n = trend.points.length;
       const banded = trend.points.filter((p) => p.band).length;
       const outside = trend.points.filter((p) => p.outside).length;
       const left = trend.uncertain_left_out ?? 0;
       const leftText = left ? ` ${left} ride${left === 1 ? " is" : "s are"} too uncertain for a decision and not shown.` : "";
-      note.textContent = (!n ? "" : banded
-        ? `${n} rides in ${gaitLabel(gait)}; ${outside} of the ${banded} with a band lie outside it.`
-        : `${n} ride${n === 1 ? "" : "s"} in ${gaitLabel(gait)}: the band appears once ${trend.min_rides_for_band} earlier rides exist.`) + leftText;
+      const band = trend.band;
+      // Which band is drawn, from how many rides, and how sure its edges are (issue 37).
+      const bandText = band
+        ? `Shaded: the normal band (mean \u00b1 2 SD) ${band.reason}; its edges are uncertain by about \u00b1${fmt((band.low_interval_95[1] - band.low_interval_95[0]) / 2, 2)}${info.unit ? ` ${prettyUnit(info.unit)}` : ""} (fainter strips, 95 %).`
+        : `No band yet: it needs ${trend.min_own_rides} rides of this horse, or of the club's other horses, in ${gaitLabel(gait)}.`;
+      const flagged = banded
+        ? ` ${outside} of the ${banded} rides with enough earlier rides lie outside the band of those before them.` : "";
+      note.textContent = !n ? "" : `${n} ride${n === 1 ? "" : "s"} in ${gaitLabel(gait)}. ${bandText}${flagged}` + leftText;
     } catch (error) {
       if (current()) showError(section, error);
     }

@@ -9,6 +9,7 @@ import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
 import { poll } from "../poll.js";
 import { can } from "../session.js";
 import { jobTimeText } from "../format.js";
+import { glossaryLabel } from "../glossary.js";
 
 const UNFINISHED = new Set(["queued", "running"]);
 const FILTERS = ["status", "kind", "ride_id"];
@@ -38,7 +39,7 @@ function doingCell(job) {
 async function fillKinds(select) {
   try {
     const kinds = await get("/api/jobs/kinds");
-    select.append(...kinds.map((kind) => h("option", { value: kind.name }, kind.name.replace(/_/g, " "))));
+    select.append(...kinds.map((kind) => h("option", { value: kind.name }, glossaryLabel("job_kind", kind.name))));
   } catch (error) {
     console.info("job kinds not available:", error.message);
   }
@@ -79,7 +80,7 @@ export async function mountJobs(view, params, query) {
     }
     return h("tr", { dataset: { jobId: job.id, status: job.status } },
       h("td", {}, `#${job.id}`),
-      h("td", {}, job.kind.replace(/_/g, " ")),
+      h("td", {}, glossaryLabel("job_kind", job.kind)),
       h("td", {}, job.ride_id ? h("a", { href: `#/rides/${job.ride_id}`, "data-job-ride": true },
         job.ride_label || `Ride ${job.ride_id}`) : "\u2013"),
       h("td", {}, h("span", { class: `badge status-${job.status}` }, job.status)),

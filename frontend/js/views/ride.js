@@ -4,6 +4,7 @@
 import { ApiError, get, itemsOf, post } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
+import { glossaryLabel } from "../glossary.js";
 import {
   PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
 } from "../format.js";
@@ -120,7 +121,7 @@ function qualityFacts(result) {
   const facts = [
     ["Calibration", q.calibration_ok === undefined ? null : q.calibration_ok ? "ok" : "see warnings"],
     ["Board square error", checks.board_square_error_mm === undefined ? null : `${fmt(checks.board_square_error_mm)} mm`],
-    ["Gravity from", q.gravity_source],
+    ["Gravity from", q.gravity_source ? glossaryLabel("gravity_source", q.gravity_source) : null],
     ["Reprojection error (median)", q.tracks?.motion?.reprojection_error_px_median == null ? null
       : `${fmt(q.tracks.motion.reprojection_error_px_median)} px`],
     ["Rigidity residual (median)", q.rigidity_residual_mm?.median == null ? null : `${fmt(q.rigidity_residual_mm.median)} mm`],

@@ -124,7 +124,7 @@ function facts(pair) {
 
 /** The pair view: #/compare-rides/:a/:b?markers=...&span=... */
 export async function mountRidePair(view, { a, b }, query) {
-  loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
+  loadPlotly({ threeD: true }).catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("ride-pair"));
   const form = view.querySelector("[data-pair-form]");
   const state = view.querySelector("[data-pair-state]");

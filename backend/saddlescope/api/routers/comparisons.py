@@ -8,10 +8,11 @@ from fastapi import APIRouter, Query
 
 from saddlescope.api.deps import ClubDep
 from saddlescope.api.routers.common import ERRORS, IndicatorKey, QueryId
-from saddlescope.api.schemas import MAX_ID, ComparisonOut, Gait, IndicatorOut, LeaderboardOut
+from saddlescope.api.schemas import MAX_ID, ComparisonOut, Gait, GlossaryEntryOut, IndicatorOut, LeaderboardOut
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import COMFORT_INDICATORS, INDICATORS
 from saddlescope.services.analytics import club_leaderboard, horses_comparison
+from saddlescope.services.glossary import glossary
 
 __all__ = ["router"]
 
@@ -79,6 +80,16 @@ def leaderboard(
         club.session, club_id=club.club_id, gait=gait, indicator=str(indicator), lower_is_better=lower_is_better,
         include_uncertain=include_uncertain, saddle_id=saddle_id,
     )
+
+
+@router.get("/glossary", response_model=list[GlossaryEntryOut], responses=ERRORS)
+def glossary_entries() -> list[GlossaryEntryOut]:
+    """Every code a page may meet (indicators, gaits, job kinds, ...) with its label, unit and meaning.
+
+    Open without signing in: a shared report's reader needs the words too, and they hold no club data.
+    """
+    return [GlossaryEntryOut(kind=e.kind, code=e.code, label=e.label, unit=e.unit, short=e.short,  # type: ignore[arg-type]
+                             expert=e.expert) for e in glossary()]
 
 
 @router.get("/indicators", response_model=list[IndicatorOut], responses=ERRORS)
