@@ -211,6 +211,42 @@ _BENCH_SECTIONS = ("detection", "calibration", "calibration_check", "speed", "fo
                    "similarity", "service", "coverage", "dashboard")
 
 
+def _add_calibrate_parser(sub) -> None:
+    """``saddlescope calibrate``: cameras from image globs or videos, known lenses held."""
+    s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
+    s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
+    s.add_argument("--square", type=float, required=True, help="square size in mm")
+    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND",  # a metavar: no listing at start
+                   help="the board's kind (default checkerboard; an unknown one gets the list)")
+    s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
+    s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
+    s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")
+    s.add_argument("--json", dest="json_out", default=None)
+    s.add_argument("--toml", dest="toml_out", default=None, help="also write an anipose-style TOML")
+    s.add_argument("--intrinsics", type=_intrinsics_source, action="append", default=[], metavar="[NAME=]FILE",
+                   help="known intrinsics (an earlier calibration's JSON or TOML, anipose / caliscope, or a lens "
+                        "profile JSON): held, only the poses fitted; NAME= picks the camera")
+
+
+def _add_similar_parser(sub) -> None:
+    """``saddlescope similar``: how alike two rides or recordings move, or the matrix of many."""
+    s = sub.add_parser("similar", help="how alike two analysed rides (result JSON) or C3D/TRC recordings move; "
+                                       "over more recordings or a folder, the matrix of every pair")
+    s.add_argument("files", nargs="+", metavar="FILE",
+                   help="two result JSONs of `saddlescope analyze`, or C3D / TRC files or folders of them")
+    s.add_argument("--markers", default=None,
+                   help="C3D/TRC: the labels to compare, L1,L2,...; results: saddle, M1, M2, M3 or all")
+    s.add_argument("--map", dest="label_map", action="append", default=None, metavar="A=B",
+                   help="C3D/TRC: label A of the first file is label B of the second (repeatable)")
+    s.add_argument("--up", default=None, choices=["x", "y", "z"],
+                   help="C3D/TRC: the vertical axis (the alignment then only turns about it)")
+    s.add_argument("--alignment", default=None, choices=["cycle_phase", "subsequence_dtw"],
+                   help="C3D/TRC pair: force the time alignment (default: cycle phase where both are periodic)")
+    s.add_argument("--json", dest="json_out", default=None, help="also write the answer here")
+    s.add_argument("--csv", dest="csv_out", default=None, help="many recordings: write the matrix as CSV")
+    s.add_argument("--png", dest="png_out", default=None, help="many recordings: write the matrix as a heat map")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``saddlescope`` command's argument parser, one sub-command per task."""
     p = argparse.ArgumentParser(prog="saddlescope", description=__doc__.splitlines()[0])
@@ -241,39 +277,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the cameras are synchronised (default: ride.json's; without a flash the markers' "
                         "motion is used anyway)")
 
-    s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
-    s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
-    s.add_argument("--square", type=float, required=True, help="square size in mm")
-    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND",  # a metavar: no listing at start
-                   help="the board's kind (default checkerboard; an unknown one gets the list)")
-    s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
-    s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
-    s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")
-    s.add_argument("--json", dest="json_out", default=None)
-    s.add_argument("--toml", dest="toml_out", default=None, help="also write an anipose-style TOML")
-    s.add_argument("--intrinsics", type=_intrinsics_source, action="append", default=[], metavar="[NAME=]FILE",
-                   help="known intrinsics (an earlier calibration's JSON or TOML, anipose / caliscope, or a lens "
-                        "profile JSON): held, only the poses fitted; NAME= picks the camera")
+    _add_calibrate_parser(sub)
 
     s = sub.add_parser("import", help="read a C3D or TRC motion-capture file: its labels, rate, units, warnings")
     s.add_argument("file")
     s.add_argument("--json", dest="json_out", default=None)
 
-    s = sub.add_parser("similar", help="how alike two analysed rides (result JSON) or C3D/TRC recordings move; "
-                                       "over more recordings or a folder, the matrix of every pair")
-    s.add_argument("files", nargs="+", metavar="FILE",
-                   help="two result JSONs of `saddlescope analyze`, or C3D / TRC files or folders of them")
-    s.add_argument("--markers", default=None,
-                   help="C3D/TRC: the labels to compare, L1,L2,...; results: saddle, M1, M2, M3 or all")
-    s.add_argument("--map", dest="label_map", action="append", default=None, metavar="A=B",
-                   help="C3D/TRC: label A of the first file is label B of the second (repeatable)")
-    s.add_argument("--up", default=None, choices=["x", "y", "z"],
-                   help="C3D/TRC: the vertical axis (the alignment then only turns about it)")
-    s.add_argument("--alignment", default=None, choices=["cycle_phase", "subsequence_dtw"],
-                   help="C3D/TRC pair: force the time alignment (default: cycle phase where both are periodic)")
-    s.add_argument("--json", dest="json_out", default=None, help="also write the answer here")
-    s.add_argument("--csv", dest="csv_out", default=None, help="many recordings: write the matrix as CSV")
-    s.add_argument("--png", dest="png_out", default=None, help="many recordings: write the matrix as a heat map")
+    _add_similar_parser(sub)
 
     s = sub.add_parser("analyze-mocap", help="analyse a C3D or TRC file as a ride: three markers, a point")
     s.add_argument("file")

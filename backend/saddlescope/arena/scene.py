@@ -174,22 +174,8 @@ def build_scene(
     pole = _place_pole(views, model, m_dir, srig, r_place, start_s, n_periods) if options.occluder else None
     _paint_backgrounds(views, srig, pole, r_bg, options)
     contents = _horse_and_plumb(views, srig, model, m_dir, options, r_look)
-    board_tmpl = BoardContent(
-        [], 0.0, HOLD_FRAMES / srig.fps, MOVE_FRAMES / srig.fps, BOARD.square_mm / 1000.0, BOARD.inner_corners
-    )
-    volume_half_m, edge_share = srig.volume_half_m, 0.0 if rig == "thesis" else 1.0 / 3.0
-    if board_band is not None:
-        volume_half_m, edge_share = volume_half_m * np.array([float(board_band), 1.0, 1.0]), 0.0
-    poses = sample_board_poses(views, board_tmpl, r_board, int(calibration_poses), volume_half_m,
-                               edge_share=edge_share)
-    contents["calibration"] = BoardContent(
-        poses,
-        timings["calibration"].content_start_s,
-        HOLD_FRAMES / srig.fps,
-        MOVE_FRAMES / srig.fps,
-        BOARD.square_mm / 1000.0,
-        BOARD.inner_corners,
-    )
+    board_tmpl, contents["calibration"] = _calibration_board(
+        views, srig, rig, board_band, r_board, int(calibration_poses), timings["calibration"].content_start_s)
     if extras:
         _add_extra_clips(timings, contents, views, srig, r_time, r_place, board_tmpl)
     return Scene(
@@ -209,6 +195,32 @@ def build_scene(
         meta=_ride_meta(seed, model, r_meta),
         light_phase=float(r_look.uniform(0, 2 * np.pi)),
     )
+
+
+def _calibration_board(views, srig, rig: str, board_band: float | None, r_board: np.random.Generator,
+                       calibration_poses: int, content_start_s: float) -> tuple[BoardContent, BoardContent]:
+    """Return the board's template and its calibration clip's poses.
+
+    The board goes through the whole volume (and on wide rigs to the views' edges for a third of the
+    poses), or only through `board_band` of it along the track.
+    """
+    board_tmpl = BoardContent(
+        [], 0.0, HOLD_FRAMES / srig.fps, MOVE_FRAMES / srig.fps, BOARD.square_mm / 1000.0, BOARD.inner_corners
+    )
+    volume_half_m, edge_share = srig.volume_half_m, 0.0 if rig == "thesis" else 1.0 / 3.0
+    if board_band is not None:
+        volume_half_m, edge_share = volume_half_m * np.array([float(board_band), 1.0, 1.0]), 0.0
+    poses = sample_board_poses(views, board_tmpl, r_board, calibration_poses, volume_half_m,
+                               edge_share=edge_share)
+    calibration = BoardContent(
+        poses,
+        content_start_s,
+        HOLD_FRAMES / srig.fps,
+        MOVE_FRAMES / srig.fps,
+        BOARD.square_mm / 1000.0,
+        BOARD.inner_corners,
+    )
+    return board_tmpl, calibration
 
 
 def _check_arguments(gait: str, calibration_poses: int, duration_s: float | None) -> None:
