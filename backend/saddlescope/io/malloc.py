@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import os
 import threading
 
@@ -39,6 +40,7 @@ _lock = threading.Lock()
 _applied: bool | None = None  # None: not tried yet in this process
 
 
+@functools.cache  # find_library may run ldconfig: once a process
 def _glibc() -> ctypes.CDLL | None:
     """The C library when it is glibc (it has ``mallopt`` and ``malloc_trim``), else None."""
     name = ctypes.util.find_library("c")
