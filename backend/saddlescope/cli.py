@@ -420,6 +420,9 @@ def _print_progress(fraction: float, stage: str) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``saddlescope``: parse `argv` (the command line when None) and run; returns the exit status."""
     args = build_parser().parse_args(argv)
+    from saddlescope.io.malloc import limit_frame_memory
+
+    limit_frame_memory()  # before any thread starts: decoded frames are given back when freed (issue 39)
     try:
         return run(args)
     except SaddleScopeError as exc:

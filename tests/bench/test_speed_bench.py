@@ -45,6 +45,31 @@ def test_speed_keys_name_every_ride_and_say_none_where_one_failed():
     assert keys["whole_analysis_vs_clip_duration_1920x1080"] is None
     assert keys["rides_per_core_hour_1920x1080"] is None
     assert keys["peak_rss_mb_2160p30"] is None  # not measured (quick)
+    assert keys["peak_rss_mb_2160p30_loaded"] is None and keys["peak_rss_loaded_vs_quiet_2160p30"] is None
+
+
+def test_the_2160p_peak_under_load_stands_beside_the_quiet_one():
+    speed = {"3840x2160": {"peak_rss_mb": 800.0, "loaded": {"peak_rss_mb": 840.0, "busy_loops": 6},
+                           "loaded_vs_quiet": 1.05}}
+    keys = bench.speed_keys(speed)
+    assert (keys["peak_rss_mb_2160p30"], keys["peak_rss_mb_2160p30_loaded"]) == (800.0, 840.0)
+    assert keys["peak_rss_loaded_vs_quiet_2160p30"] == 1.05
+
+
+def test_busy_loops_spin_while_the_block_runs_and_are_gone_after():
+    import os
+    import time
+
+    from saddlescope.bench.analysis import busy_loops
+
+    with busy_loops(2) as pids:
+        assert len(pids) == 2
+        time.sleep(0.3)
+        for pid in pids:  # running (R) or runnable, each a separate process of ours
+            with open(f"/proc/{pid}/stat") as stat:
+                assert stat.read().split()[2] in "RS"
+    for pid in pids:
+        assert not os.path.exists(f"/proc/{pid}") or open(f"/proc/{pid}/stat").read().split()[2] == "Z"
 
 
 @pytest.mark.slow  # a child Python importing the package: seconds on a loaded machine

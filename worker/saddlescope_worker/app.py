@@ -17,6 +17,7 @@ from celery import Celery
 from celery.signals import worker_ready, worker_shutdown
 from sqlalchemy.exc import SQLAlchemyError
 
+from saddlescope.io.malloc import limit_frame_memory
 from saddlescope.services.queue import QUEUE_NAME, RUN_JOB_TASK, celery_config
 from saddlescope.settings import ConfigurationError, Settings, get_settings
 
@@ -24,6 +25,7 @@ log = logging.getLogger(__name__)
 
 def create_celery(settings: Settings) -> Celery:
     """A Celery app configured from `settings` (the broker URL must be set)."""
+    limit_frame_memory()  # before the pool starts (its forked processes inherit it): frames given back (issue 39)
     app = Celery("saddlescope", include=["saddlescope_worker.tasks"])
     app.conf.update(celery_config(settings))
     app.conf.worker_concurrency = 1  # one job per worker process; scale with more workers

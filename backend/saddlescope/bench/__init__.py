@@ -2,8 +2,8 @@
 
 - :mod:`.analysis`: the analysis itself (detection against decoding, whole rides against decoding their
   clips once at 640x480 and 1080p60 with each stage's share, rides per core-hour, a 2160p30 ride's peak
-  memory, calibration, whole rides against their footage, accuracy against the synthetic arena's exact
-  answers, the exact-marker floor);
+  memory quiet and beside busy loops, calibration, whole rides against their footage, accuracy against the
+  synthetic arena's exact answers, the exact-marker floor);
 - :mod:`.service`: the web service under load (uploads, leaderboards, concurrent readers);
 - :mod:`.similarity`: motion similarity (retrieval on synthetic rides, ranking 1,000 rides, 10k-sample pairs);
 - :mod:`.dashboard`: the dashboard's time to interactive in Chromium with 10,000 rides (rides list,
@@ -35,6 +35,7 @@ from saddlescope.bench.analysis import (
     indicator_errors_pct,
     kinematics_floor,
     peak_rss_analysis,
+    peak_rss_loaded_vs_quiet,
     speed_keys,
     speed_rides,
 )
@@ -141,5 +142,6 @@ def run_benchmarks(*, quick: bool = False, only: str | Sequence[str] | None = No
 
 __all__ = ["SECTIONS", "SECTION_NAMES", "TTI_KEYS", "BenchSection", "accuracy", "analysis_vs_decode",
            "analysis_vs_footage", "calibration_3cams", "dashboard_tti", "decode_once", "detection_vs_decode",
-           "exact_marker_floor", "indicator_errors_pct", "kinematics_floor", "peak_rss_analysis", "run_benchmarks",
-           "run_dashboard_benchmarks", "sections_named", "speed_keys", "speed_rides"]
+           "exact_marker_floor", "indicator_errors_pct", "kinematics_floor", "peak_rss_analysis",
+           "peak_rss_loaded_vs_quiet", "run_benchmarks", "run_dashboard_benchmarks", "sections_named", "speed_keys",
+           "speed_rides"]

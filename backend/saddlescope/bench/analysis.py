@@ -10,7 +10,8 @@ import os
 import resource
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -224,6 +225,52 @@ def peak_rss_analysis(ride: Path) -> dict:
         resource.RUSAGE_CHILDREN).ru_maxrss) / 1024.0, "analysis_s": wall}
 
 
+BUSY_LOOPS_PER_CPU = 3  # two cores and six busy loops: a load of 6-7, where issue 39 saw 2.1-2.8 GB
+
+
+@contextmanager
+def busy_loops(count: int) -> Iterator[list[int]]:
+    """``count`` processes spinning on a CPU each (at the default priority) while the block runs; their ids."""
+    import subprocess
+    import sys
+
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for _ in range(count)]
+    try:
+        yield [p.pid for p in procs]
+    finally:
+        for p in procs:
+            p.kill()
+        for p in procs:
+            p.wait()
+
+
+def _with_load_avg(measure: Callable[[], dict]) -> dict:
+    start = list(os.getloadavg())
+    out = measure()
+    return {**out, "load_avg_start": start, "load_avg_end": list(os.getloadavg())}
+
+
+def peak_rss_loaded_vs_quiet(ride: Path, *, busy: int | None = None) -> dict:
+    """Peak memory of the analysis of ``ride`` as the host is, and beside it with ``busy`` busy-loop processes.
+
+    Issue 39: the peak must not grow with the host's load (frames held while their consumers wait for a
+    CPU). ``busy`` defaults to :data:`BUSY_LOOPS_PER_CPU` per CPU of the worker's budget. Each measurement
+    carries the load average at its start and end (the machine may be loaded by other work as well).
+    """
+    from saddlescope.io.threads import default_worker_threads
+
+    busy = BUSY_LOOPS_PER_CPU * default_worker_threads() if busy is None else busy
+    quiet = _with_load_avg(lambda: peak_rss_analysis(ride))
+    with busy_loops(busy):
+        time.sleep(1.0)  # the loops running before the analysis starts
+        loaded = _with_load_avg(lambda: peak_rss_analysis(ride))
+    ratio = None
+    if "peak_rss_mb" in quiet and "peak_rss_mb" in loaded:
+        ratio = loaded["peak_rss_mb"] / quiet["peak_rss_mb"]
+    return {**quiet, "loaded": {**loaded, "busy_loops": busy}, "loaded_vs_quiet": ratio}
+
+
 def speed_rides(tmp: Path, *, quick: bool) -> dict:
     """Issue 28's speed keys.
 
@@ -251,7 +298,7 @@ def speed_rides(tmp: Path, *, quick: bool) -> dict:
             # is set by the frames decoded at once, not by the clips' length
             write_ride_bundle(ride, gait="canter", seed=1, extras=False, rig="wide", size=(3840, 2160), fps=30.0,
                               duration_s=2.0, calibration_poses=24)
-            out["3840x2160"] = peak_rss_analysis(ride)
+            out["3840x2160"] = peak_rss_loaded_vs_quiet(ride)
         except Exception as exc:  # noqa: BLE001
             out["3840x2160"] = {"error": f"{type(exc).__name__}: {exc}"}
         shutil.rmtree(ride, ignore_errors=True)
@@ -274,6 +321,9 @@ def speed_keys(speed: dict) -> dict:
     out["rides_per_core_hour_1920x1080"] = get("1920x1080", "rides_per_core_hour")
     out["rides_per_core_hour_640x480"] = get("640x480", "rides_per_core_hour")
     out["peak_rss_mb_2160p30"] = get("3840x2160", "peak_rss_mb")
+    # issue 39: the same ride beside busy-loop processes (a load of 6-7 on two cores); the ratio should be ~1
+    out["peak_rss_mb_2160p30_loaded"] = (get("3840x2160", "loaded") or {}).get("peak_rss_mb")
+    out["peak_rss_loaded_vs_quiet_2160p30"] = get("3840x2160", "loaded_vs_quiet")
     return out
 
 

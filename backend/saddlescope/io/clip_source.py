@@ -26,6 +26,7 @@ import numpy as np
 
 from saddlescope.core.errors import SyncError, VideoError
 from saddlescope.core.sync import MIN_FRAMES, flash_interval
+from saddlescope.io.malloc import limit_frame_memory, release_freed_memory
 from saddlescope.io.video import VideoInfo, iter_gray_frames, probe_video
 
 __all__ = ["HANDOFF_BUDGET_MB", "BundleClips", "brightness_until_flash"]
@@ -114,6 +115,7 @@ class BundleClips:
         self._handoff_bytes = 0.0  # kept or reserved by sync passes reading now
         self._handoffs: dict[tuple[str, str], _Handoff] = {}
         self._closed = False  # after close(), a pass still reading hands nothing over
+        limit_frame_memory()  # before the analysis starts its threads: frames freed are given back (issue 39)
 
     def __enter__(self) -> BundleClips:
         return self
@@ -128,6 +130,7 @@ class BundleClips:
             self._handoff_bytes -= sum(handoff.nbytes for handoff in handoffs)
         for handoff in handoffs:
             handoff.close()
+        release_freed_memory()  # the clips' frames are dropped: the next job starts from a small process
 
     def kinds(self) -> list[str]:
         """The clip sets there are (the ride's and the extra ones)."""

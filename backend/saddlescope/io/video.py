@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core.errors import VideoError
+from saddlescope.io.malloc import limit_frame_memory
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm"}
 _PLANAR_LUMA = {"yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "yuvj444p", "nv12", "nv21", "gray",
@@ -289,6 +290,7 @@ def iter_gray_frames(path: Path | str, start: int = 0, stop: int | None = None,
     path = Path(path)
     if step < 1:
         raise ValueError("step must be >= 1")
+    limit_frame_memory()  # freed frames go back to the system, however the threads interleave (issue 39)
     if path.is_dir():
         files = _image_files(path)
         for i in range(start, len(files) if stop is None else min(stop, len(files)), step):
