@@ -95,12 +95,8 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
         consistent, which the angular velocity (differences of marker velocities) needs. When
         False, each fit keeps its own w as in the thesis.
     omega_from : {"vertical", "all"}
-        Which series' w are pooled: the vertical (y) ones (default) or every Fourier series. The
-        saddle's vertical oscillation is the gait's strongest periodic motion and the best measured
-        on any rig; a narrow rig's poorly fixed depth leaks slow, non-periodic errors into x and z
-        that a free w absorbs with too small a standard error (a thesis-rig canter's x series read
-        w 2.8 % off, pulling the pooled stride 0.44 % off and the vertical acceleration from 3.5 % to
-        8.5 % error).
+        Which series' w are pooled: the vertical (y) ones (default: the best measured on any rig;
+        a thesis-rig canter's x series read w 2.8 % off, the vertical acceleration 8.5 % off) or all.
     criterion : str
         Order selection criterion, see :func:`fit_fourier`.
     extra_orders : int, optional
@@ -126,10 +122,8 @@ def fit_marker_kinematics(t_s, xyz_m, *, period_s: float, common_omega: bool = T
     max_order : int, optional
         Cap on every Fourier series' order (see :func:`fit_fourier`).
     up_to_frame_rate : bool, optional
-        Try higher orders of the vertical (y) series up to what the frame rate resolves while the
-        criterion asks for them (see :func:`fit_fourier`). Only the vertical: the indicators weigh its
-        harmonics, while a narrow rig's poorly fixed depth (z) and the travel (x) would take their noise
-        for harmonics and move the rotation (a thesis-rig canter's ω versions spread 25 times more).
+        Higher orders of the vertical (y) series up to what the frame rate resolves, while the criterion
+        asks (:func:`fit_fourier`); only y: z and x would take a narrow rig's noise for harmonics.
 
     Returns
     -------

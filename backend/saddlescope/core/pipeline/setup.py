@@ -297,19 +297,29 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
         offsets = board_sync.offsets
     views_by_camera = {cam: on_reference_clock(cam, found[cam][0]) for cam in cams}
     sizes = {cam: found[cam][1] for cam in cams}
-    if len(cams) > 1:
-        views_by_camera = _average_holds(views_by_camera)
-        keep = set(calib.select_instants(views_by_camera, board, sizes,
-                                         max_instants=params.max_calibration_instants))
-        views_by_camera = {c: [v for v in vs if v.frame in keep] for c, vs in views_by_camera.items()}
+    views_by_camera = _instants_to_solve(views_by_camera, board, sizes, params)
     rig, report = calib.calibrate_rig(views_by_camera, board, sizes, max_square_error_pct=params.max_square_error_pct,
                                       threads=cameras_at_once(len(cams), params.threads))
-    report["n_views"] = {c: len(v) for c, v in views_by_camera.items()}
-    report["board_coverage"] = {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v}
-    report["board_corners_px"] = {c: board_corner_sample(v) for c, v in views_by_camera.items() if v}
+    report.update(_views_report(views_by_camera, sizes))
     if board_sync is not None:
         report["sync"] = board_sync
     return rig, report
+
+
+def _instants_to_solve(views_by_camera: dict, board: Board, sizes: dict, params: PipelineParams) -> dict:
+    """With several cameras: each hold of the board averaged, then the instants the solve uses chosen."""
+    if len(views_by_camera) < 2:
+        return views_by_camera
+    views_by_camera = _average_holds(views_by_camera)
+    keep = set(calib.select_instants(views_by_camera, board, sizes, max_instants=params.max_calibration_instants))
+    return {c: [v for v in vs if v.frame in keep] for c, vs in views_by_camera.items()}
+
+
+def _views_report(views_by_camera: dict, sizes: dict) -> dict:
+    """Per camera the views used, the board's coverage of the image and a sample of its corners (px)."""
+    return {"n_views": {c: len(v) for c, v in views_by_camera.items()},
+            "board_coverage": {c: board_coverage(v, sizes[c]) for c, v in views_by_camera.items() if v},
+            "board_corners_px": {c: board_corner_sample(v) for c, v in views_by_camera.items() if v}}
 
 
 def _no_board(clips: ClipReader, cam: str, board: Board, start: int, step: int) -> None:
