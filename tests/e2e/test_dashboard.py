@@ -265,7 +265,8 @@ def test_login_flow_shows_the_servers_reason_then_signs_in(page, dashboard):
     wrong = httpx.post(f"{dashboard['base']}/api/auth/login",
                        json={"email": EMAIL, "password": "wrong password"})
     assert wrong.status_code == 401
-    assert error.inner_text() == wrong.json()["detail"]  # the server's reason, verbatim
+    reason = wrong.json()["detail"]  # the server's reason, written as a sentence (js/form-errors.js)
+    assert error.inner_text() == reason[0].upper() + reason[1:] + ("" if reason.endswith(".") else ".")
 
     page.locator("#login-password").fill(PASSWORD)
     page.get_by_role("button", name="Sign in", exact=True).click()
