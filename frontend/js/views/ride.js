@@ -2,7 +2,7 @@
 // directive (with the passive-seated caveat), quality flags, kinematics charts, grade form, exports.
 
 import { ApiError, get, itemsOf, post } from "../api.js";
-import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { announce, busy, fill, formValues, h, page, showError } from "../dom.js";
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import { glossaryLabel } from "../glossary.js";
 import {
