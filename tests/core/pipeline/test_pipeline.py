@@ -152,8 +152,9 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
     from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.services.analysis import analyze_bundle
 
+    # 30 calibration poses (the clock under test is the motion clip's; the rig only needs to be good)
     ride = write_ride_bundle(tmp_path / "phones", gait="canter", seed=21, rig="thesis", duration_s=3.0,
-                             extras=False, options=RenderOptions(variable_frame_rate=True))
+                             extras=False, calibration_poses=30, options=RenderOptions(variable_frame_rate=True))
     result = analyze_bundle(ride)
     truth = json.loads((ride / "truth.json").read_text())
     variable = [f["detail"].split(" camera")[0] for f in result["quality"]["findings"]
