@@ -61,7 +61,7 @@ HEAVY_FIRST = (
     "tests/bench/test_dashboard_bench.py",  # ~200 s
     "tests/core/pipeline/test_pipeline.py",
     "tests/api/test_api_flow.py",
-    "tests/e2e/test_dashboard.py",
+    "tests/e2e/dashboard_helpers.py",
     "tests/e2e/test_page_audit.py",
     "tests/io/test_synth_writer.py",
 )

@@ -27,7 +27,7 @@ import integration_services
 import numpy as np
 import pytest
 from browser_harness import chromium_for_module, serve_fresh
-from test_dashboard import (
+from dashboard_helpers import (
     Console,
     _ok,
     _require_browser,

@@ -41,7 +41,7 @@ from browser_harness import (
     sign_in,
     visible_permission_controls,
 )
-from test_dashboard import _ok, result_document, store_result
+from dashboard_helpers import _ok, result_document, store_result
 from test_no_null_text import VISIBLE_TEXT_JS, missing_words
 
 from conftest import PROJECT_ROOT

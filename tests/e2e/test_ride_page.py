@@ -2,7 +2,7 @@
 quality in plain words, exposure times in h / min ("under a minute"), the job's progress in words, no horizontal
 scrolling at 390 px, and the report printed by the browser as exactly one A4 page.
 
-The seeded server and browser are tests/e2e/test_dashboard.py's (imported, not copied); this module adds
+The seeded server and browser are tests/e2e/dashboard_helpers.py's (imported, not copied); this module adds
 one ride whose result also holds the markers' tracks (for the 3-D view) and a rotation flag.
 """
 
@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import io
 
+import dashboard_helpers
 import numpy as np
 import pytest
-import test_dashboard
 from browser_harness import serve_fresh
-from test_dashboard import (
+from dashboard_helpers import (
     _ok,
     _seed,
     api_client,
@@ -28,10 +28,10 @@ from saddlescope.services.report import duration_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-# test_dashboard's browser fixtures, used by name (the server fixture below gives it longer to start)
-sync_playwright_factory = test_dashboard.sync_playwright_factory
-browser = test_dashboard.browser
-page = test_dashboard.page
+# dashboard_helpers' browser fixtures, used by name (the server fixture below gives it longer to start)
+sync_playwright_factory = dashboard_helpers.sync_playwright_factory
+browser = dashboard_helpers.browser
+page = dashboard_helpers.page
 
 SCREENSHOTS = PROJECT_ROOT / "var" / "test-artifacts" / "screenshots"
 CHARTS = ("tracks3d", "fit-x", "fit-y", "fit-z", "weighted", "spectrum", "position", "velocity", "acceleration",
@@ -44,7 +44,7 @@ MARKERS_IN_LINE = ("the markers lie near a line (eigenvalue ratio 0.004 < 0.01):
 
 @pytest.fixture(scope="module")
 def dashboard(sync_playwright_factory, tmp_path_factory):
-    """test_dashboard's seeded server, with more time to start (a loaded machine imports slowly)."""
+    """dashboard_helpers' seeded server, with more time to start (a loaded machine imports slowly)."""
     with serve_fresh(tmp_path_factory.mktemp("ridepage")) as server:
         yield {"base": server.base, "log": server.log, "storage_dir": server.storage_dir,
                **_seed(server.base, server.database_url, server.storage_dir)}

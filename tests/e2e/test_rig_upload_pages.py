@@ -11,7 +11,7 @@ import integration_services
 import numpy as np
 import pytest
 from browser_harness import chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
-from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
+from dashboard_helpers import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
 
