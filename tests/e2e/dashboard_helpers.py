@@ -1,6 +1,6 @@
 """The seeded dashboard the browser tests share: a `saddlescope serve` with a club, horses, riders, rides
 and results built from exact Fourier series (indicators from the core), Debian's chromium through
-Playwright, and the small helpers the page tests use. dashboard_helpers.py and the other page tests import
+Playwright, and the small helpers the page tests use. test_dashboard.py and the other page tests import
 from here (never from each other)."""
 
 from __future__ import annotations
@@ -13,9 +13,10 @@ from pathlib import Path
 
 import browser_harness
 import httpx
+import integration_services
 import numpy as np
 import pytest
-from browser_harness import CHROMIUM, CHROMIUM_ARGS, new_club_admin
+from browser_harness import CHROMIUM, CHROMIUM_ARGS, new_club_admin, serve_fresh
 
 from conftest import IN_CI
 from saddlescope.core.kinematics import fit_marker_kinematics
@@ -238,3 +239,55 @@ def chart_traces(page, name: str) -> list[dict]:
     return page.eval_on_selector(
         f'[data-chart="{name}"]',
         "el => (el.data || []).map(t => ({name: t.name, n: (t.y || []).length}))")
+
+
+# ----------------------------------------------------------------------------- the ride page's server and charts
+
+CHARTS = ("tracks3d", "fit-x", "fit-y", "fit-z", "weighted", "spectrum", "position", "velocity", "acceleration",
+          "omega", "alpha", "versions")
+
+
+@pytest.fixture(scope="module")
+def ride_page_dashboard(sync_playwright_factory, tmp_path_factory):
+    """The seeded server of the ride page tests (test_ride_page, test_ride_intervals: assigned there as
+    `dashboard`), with its storage folder; started with more time (a loaded machine imports slowly)."""
+    with serve_fresh(tmp_path_factory.mktemp("ridepage")) as server:
+        yield {"base": server.base, "log": server.log, "storage_dir": server.storage_dir,
+               **_seed(server.base, server.database_url, server.storage_dir)}
+
+
+def charts_drawn(page) -> dict[str, int]:
+    """Per chart: the number of points Plotly holds in its traces (0 when not drawn)."""
+    return page.evaluate("""names => Object.fromEntries(names.map(n => {
+        const el = document.querySelector(`[data-chart="${n}"]`);
+        const points = (el?.data || []).reduce((s, t) => s + Math.max((t.x || []).length, (t.y || []).length), 0);
+        return [n, el && el.data && el.data.length > 0 ? points : 0];
+    }))""", list(CHARTS))
+
+
+def wait_for_charts(page) -> None:
+    """Until every chart of CHARTS holds a trace."""
+    page.wait_for_function("""names => names.every(n => {
+        const el = document.querySelector(`[data-chart="${n}"]`); return el && el.data && el.data.length > 0; })""",
+                           arg=list(CHARTS))
+
+
+# ----------------------------------------------------------------------------- pages of a fresh server
+
+
+def open_page(browser, served, email=EMAIL, password=PASSWORD, width=1280):
+    """A signed-in page of `served` (a fresh server's dict with its "base") with its console recorded."""
+    context = browser.new_context(base_url=served["base"], viewport={"width": width, "height": 900})
+    tab = context.new_page()
+    tab.console = Console()
+    tab.console.attach(tab)
+    tab.set_default_timeout(20_000)
+    answer = tab.context.request.post("/api/auth/login", data={"email": email, "password": password})
+    assert answer.ok, answer.text()
+    return tab
+
+
+def tiny_clip(served, name: str) -> dict:
+    """A six-frame MJPEG clip as Playwright's set_input_files takes it, written in `served`'s root."""
+    path = integration_services.write_tiny_clip(served["root"] / "clips" / f"{name}.avi", frames=6)
+    return {"name": path.name, "mimeType": "video/x-msvideo", "buffer": path.read_bytes()}

@@ -8,25 +8,20 @@ chromium. The full page tour (test_page_audit.py) runs the same scan on every pa
 
 from __future__ import annotations
 
-import re
-
 import pytest
-from browser_harness import chromium_for_module, new_club_admin, screenshot, serve_fresh, sign_in
+from browser_harness import (
+    VISIBLE_TEXT_JS,
+    chromium_for_module,
+    missing_words,
+    new_club_admin,
+    screenshot,
+    serve_fresh,
+    sign_in,
+)
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 ADMIN = ("secretary@nulls.example", "nulls admin password")
-# JavaScript's words for a missing value, alone or glued together ("nullnullnull" is what
-# replaceChildren(null, null, null) shows); not inside other words ("annulled", "Nullarbor")
-MISSING_WORDS = re.compile(r"(?<![A-Za-z])(?:null|undefined|NaN)+(?![A-Za-z])")
-VISIBLE_TEXT_JS = "() => (document.querySelector('main') || document.body).innerText"
-
-
-def missing_words(text: str) -> list[str]:
-    """The lines of `text` that show null / undefined / NaN."""
-    return [line.strip() for line in text.splitlines() if MISSING_WORDS.search(line)]
-
-
 def test_missing_words_are_found_alone_or_glued_but_not_inside_words():
     text = "Analysis job #3: queued\nnullnullnull\nHorse: Nullarbor, annulled\nspeed NaN km/h\nundefined"
     assert missing_words(text) == ["nullnullnull", "speed NaN km/h", "undefined"]
