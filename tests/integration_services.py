@@ -345,6 +345,27 @@ def write_tiny_clip(
     return path
 
 
+def write_noise_clip(path, n=60, *, gop=None, faststart=False, flash=None) -> None:
+    """An H.264 clip (PyAV) of `n` 64x48 frames of seeded noise; `gop` frames between keyframes, `faststart`
+    (the index first), `flash` (first, end) frames brightened by 150."""
+    import av
+
+    container = av.open(str(path), "w", options={"movflags": "faststart"} if faststart else {})
+    stream = container.add_stream("libx264", rate=30)
+    stream.width, stream.height, stream.pix_fmt = 64, 48, "yuv420p"
+    stream.options = {"crf": "18", **({"g": str(gop)} if gop else {})}
+    rng = np.random.default_rng(1)
+    for i in range(n):
+        img = rng.integers(40, 60, (48, 64, 3), dtype=np.uint8)
+        if flash is not None and flash[0] <= i < flash[1]:
+            img = img + 150
+        for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="rgb24")):
+            container.mux(packet)
+    for packet in stream.encode():
+        container.mux(packet)
+    container.close()
+
+
 def mp4_with_a_free_box(source: Path, dest: Path, note: str) -> Path:
     """`source` (an MP4) with a trailing ISO BMFF ``free`` box holding `note`: the same video, other bytes.
 
