@@ -28,10 +28,7 @@ def wide_ride(tmp_path_factory):
     from saddlescope.io.synth_writer import write_ride_bundle
 
     out = tmp_path_factory.mktemp("wide") / "canter"
-    # 40 calibration poses rather than the thesis's 90 (as `saddlescope bench --quick` calibrates the wide
-    # rig from 30): the focal lengths are still checked to half a per cent and the markers to 2 mm, at
-    # less than half the full-HD rendering and board detection
-    write_ride_bundle(out, gait="canter", seed=2, rig="wide", extras=False, calibration_poses=40)
+    write_ride_bundle(out, gait="canter", seed=2, rig="wide", extras=False)
     captured = {}
     original = run.saddle_kinematics
 
