@@ -18,18 +18,22 @@ import dashboard_helpers
 import httpx
 import numpy as np
 import pytest
-from dashboard_helpers import (
-    CLUB,
+from dashboard_helpers import (  # Console, _require_browser, result_document, store_result: re-exported only
+    CLUB,  # for test modules written before the helpers moved; new code imports from dashboard_helpers
     EMAIL,
     PASSWORD,
     SPEED_KMH,
     STRIDE_HZ,
+    Console,  # noqa: F401
     _ok,
+    _require_browser,  # noqa: F401
     api_client,
     api_get,
     chart_traces,
     js_fmt,
+    result_document,  # noqa: F401
     sign_in,
+    store_result,  # noqa: F401
 )
 
 from saddlescope.services.report import distance_text, duration_text
