@@ -57,26 +57,61 @@ class WandView:
     segment: int = 0
 
 
+def _wand_spots(gray: np.ndarray, radius_px: int | None, min_contrast: float) -> np.ndarray:
+    """The two ends' centres (2, 2) px in one frame, or an empty array where two are not clearly seen.
+
+    Spots are found at half resolution (the top-hat costs a quarter) and their centres refined at full
+    resolution: the intensity-weighted centroid above the patch's background. Two spots are kept only if
+    the second is at least half as contrasted as the first (else it is a glint or plank edge, not an end).
+    """
+    small = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    r_small = max(3, (radius_px or max(4, round(gray.shape[1] / 110))) // 2)
+    spots, peaks = bright_spots(small, max_spots=3, radius_px=r_small, min_contrast=min_contrast / 2,
+                                return_peaks=True)
+    if len(spots) < 2 or peaks[1] < 0.5 * peaks[0] or (len(spots) > 2 and peaks[2] > 0.7 * peaks[1]):
+        return np.empty((0, 2))
+    out = []
+    h, w = gray.shape
+    r = 2 * r_small
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    for x, y in spots[:2] * 2 + 0.5:
+        # the top-hat of a patch twice the kernel's reach: the disc above its surroundings, even where it
+        # crosses an edge between brighter and darker background (sky and wall)
+        x0, y0 = max(int(x) - 2 * r, 0), max(int(y) - 2 * r, 0)
+        patch = gray[y0:min(int(y) + 2 * r + 1, h), x0:min(int(x) + 2 * r + 1, w)]
+        if min(patch.shape) <= 2 * r:
+            return np.empty((0, 2))
+        lift = cv2.morphologyEx(patch, cv2.MORPH_TOPHAT, kernel).astype(np.float64)
+        ys, xs = np.mgrid[y0:y0 + patch.shape[0], x0:x0 + patch.shape[1]]
+        near = (np.abs(xs - x) <= r) & (np.abs(ys - y) <= r)
+        lift = np.where(near, lift, 0.0)
+        # the disc alone: the connected region above half its peak that holds the peak (not plank edges)
+        _, labels = cv2.connectedComponents((lift > 0.5 * lift.max()).astype(np.uint8), connectivity=8)
+        disc = labels == labels.flat[int(np.argmax(lift))]
+        wgt = np.where(disc, lift - 0.5 * lift.max(), 0.0)
+        out.append([float((wgt * xs).sum() / wgt.sum()), float((wgt * ys).sum() / wgt.sum())])
+    return np.asarray(out)
+
+
 def track_wand_ends(frames: Iterable[tuple[int, np.ndarray]], *, max_jump_px: float | None = None,
-                    radius_px: int | None = None) -> list[WandView]:
+                    radius_px: int | None = None, min_contrast: float = 30.0) -> list[WandView]:
     """The wand's two ends in every frame of one camera's clip where both are seen.
 
-    Each frame's two most contrasted small bright spots are the ends; they keep their labels from the
-    previous frame by the nearer assignment. A frame with fewer than two spots, or whose ends jumped by
-    more than ``max_jump_px`` (default a tenth of the image width), ends the segment: the next one's
-    labels are settled between cameras by :func:`calibrate_wand`.
+    Each frame's two most contrasted small bright spots are the ends (:func:`_wand_spots`); they keep
+    their labels from the previous frame by the nearer assignment. A frame without both ends, or whose
+    ends jumped by more than ``max_jump_px`` (default a tenth of the image width), ends the segment: the
+    next one's labels are settled between cameras by :func:`calibrate_wand`.
     """
     out: list[WandView] = []
     prev: np.ndarray | None = None
     segment = 0
     for frame, gray in frames:
-        spots = bright_spots(gray, max_spots=2, radius_px=radius_px)
-        if len(spots) < 2:
+        ends = _wand_spots(gray, radius_px, min_contrast)
+        if len(ends) < 2:
             if prev is not None:
                 segment += 1
             prev = None
             continue
-        ends = np.asarray(spots[:2], np.float64)
         jump = max_jump_px if max_jump_px is not None else gray.shape[1] / 10
         if prev is not None:
             straight = np.linalg.norm(ends - prev, axis=1).sum()
