@@ -144,30 +144,50 @@ def _epipolar_errors(E: np.ndarray, xa: np.ndarray, xb: np.ndarray) -> np.ndarra
     return np.sqrt(num / (Ea[:, 0] ** 2 + Ea[:, 1] ** 2 + Eb[:, 0] ** 2 + Eb[:, 1] ** 2))
 
 
-def _relabel(ref: Camera, cam: Camera, ref_views: list[WandView], views: list[WandView],
-             threshold: float) -> list[WandView]:
-    """``views`` with each segment's ends swapped where the swapped labels fit the epipolar geometry better.
+def _swap_evidence(ref: Camera, cam: Camera, ref_views: list[WandView], views: list[WandView],
+                   threshold: float) -> dict[int, tuple[int, float]]:
+    """Per frame both cameras see: (the reference's segment, how much better swapped ends fit than straight).
 
     Every shared frame offers both labellings as correspondences; half of them are wrong, which a RANSAC
-    essential matrix tolerates. Each segment then takes the labelling most of its frames agree with.
+    essential matrix tolerates. The evidence is the difference of the Sampson errors.
     """
     va, vb = _shared(ref_views, views)
-    if len(va) < MIN_WAND_FRAMES:
-        return views
+    if len(va) < MIN_WAND_FRAMES // 2:
+        return {}
     xa = _normalized(ref, np.concatenate([v.ends_px for v in va]))
     xb = _normalized(cam, np.concatenate([v.ends_px for v in vb]))
     xb_swapped = _normalized(cam, np.concatenate([v.ends_px[::-1] for v in vb]))
     E, _ = cv2.findEssentialMat(np.vstack([xa, xa]), np.vstack([xb, xb_swapped]), np.eye(3), cv2.RANSAC,
                                 0.999, threshold, 5000)
     if E is None or E.shape != (3, 3):
-        return views
-    err_straight = _epipolar_errors(E, xa, xb).reshape(-1, 2).sum(axis=1)
-    err_swapped = _epipolar_errors(E, xa, xb_swapped).reshape(-1, 2).sum(axis=1)
-    votes: dict[int, int] = {}
-    for v, s, w in zip(vb, err_straight, err_swapped, strict=True):
-        votes[v.segment] = votes.get(v.segment, 0) + (1 if w < s else -1)
-    return [WandView(v.frame, v.ends_px[::-1].copy(), v.segment) if votes.get(v.segment, 0) > 0 else v
-            for v in views]
+        return {}
+    straight = _epipolar_errors(E, xa, xb).reshape(-1, 2).sum(axis=1)
+    swapped = _epipolar_errors(E, xa, xb_swapped).reshape(-1, 2).sum(axis=1)
+    return {v.frame: (u.segment, float(s - w)) for u, v, s, w in zip(va, vb, straight, swapped, strict=True)}
+
+
+def _relabel(cameras: Mapping[str, Camera], resolved: list[str], name: str,
+             views: Mapping[str, list[WandView]], threshold: float) -> list[WandView]:
+    """Camera ``name``'s views with the ends labelled as in the cameras already ``resolved``.
+
+    A run of frames whose labels hold together is a (resolved camera, its run, this camera's segment)
+    group: each group takes the labelling most of its frames' epipolar evidence favours. Frames no resolved
+    camera sees keep their labels. The returned views' ``segment`` numbers these groups.
+    """
+    evidence = {r: _swap_evidence(cameras[r], cameras[name], views[r], views[name], threshold) for r in resolved}
+    keys, votes = [], {}
+    for v in views[name]:
+        key: tuple = ("alone", v.segment)
+        for r in resolved:
+            if v.frame in evidence[r]:
+                seg_r, better = evidence[r][v.frame]
+                key = (r, seg_r, v.segment)
+                votes[key] = votes.get(key, 0) + (1 if better > 0 else -1)
+                break
+        keys.append(key)
+    ids = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    return [WandView(v.frame, v.ends_px[::-1].copy() if votes.get(k, 0) > 0 else v.ends_px, ids[k])
+            for v, k in zip(views[name], keys, strict=True)]
 
 
 def _triangulate_pair(ca: Camera, cb: Camera, xa: np.ndarray, xb: np.ndarray) -> np.ndarray:
@@ -392,14 +412,13 @@ def calibrate_wand(views_by_camera: Mapping[str, list[WandView]], intrinsics: Ma
             for n in names}
     thr = threshold_px / float(np.mean([base[n].K[0, 0] for n in names]))
     views = dict(views_by_camera)
-    views[b] = _relabel(base[a], base[b], views[a], views[b], thr)
+    views[b] = _relabel(base, [a], b, views, thr)
     R, t = _pair_poses(base[a], base[b], *_shared(views[a], views[b]), wand_length_mm, thr)
     posed = {a: base[a], b: Camera(b, base[b].K, base[b].dist, base[b].image_size, R=R, t_mm=t)}
     for n in names:
         if n in posed:
             continue
-        # labels against the first camera of the pair (the rest's segments then agree through it)
-        views[n] = _relabel(base[a], base[n], views[a], views[n], thr)
+        views[n] = _relabel(base, list(posed), n, views, thr)
         cam = _add_by_pnp(base[n], posed, views)
         if cam is None:
             raise CalibrationError(f"camera {n} sees the wand together with the others in too few frames "
