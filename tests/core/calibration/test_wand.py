@@ -103,7 +103,7 @@ def test_a_poor_wand_length_is_a_typed_finding(wide):
     codes = [f.code for f in rig.flags]
     assert codes == ["calibration.wand_length"]
     assert "calibration.wand_length" in FINDING_KINDS
-    assert rig.flags[0].data["rms_mm"] > rig.flags[0].data["limit_mm"]
+    assert rig.flags[0].values["rms_mm"] > rig.flags[0].values["limit_mm"]
 
 
 def test_bad_input_is_said_clearly(wide):
