@@ -158,3 +158,43 @@ def test_rendered_wand_clips_calibrate_the_rig():
     rig, _ = calibrate_wand(views, _given(srig.cameras), 1000.0)
     assert max(_baseline_errors_mm(rig, srig)) < 15.0, _baseline_errors_mm(rig, srig)
     assert rig.checks["wand_length_rms_mm"] < 3.0
+
+
+def test_cli_calibrate_needs_a_board_or_a_wand(tmp_path, capsys):
+    from saddlescope.cli import main
+
+    assert main(["calibrate", "--camera", f"left={tmp_path}/*.png"]) == 2
+    err = capsys.readouterr().err
+    assert "--pattern and --square are required" in err and "--wand" in err and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_cli_calibrate_from_wand_clips(tmp_path):
+    """``saddlescope calibrate --wand 1.0`` on rendered 640x360 wand clips with the lenses given."""
+    import json
+
+    from saddlescope.cli import main
+    from saddlescope.core.types import Rig
+    from saddlescope.io.rig_document import rig_to_dict
+
+    rng = np.random.default_rng(10)
+    srig = make_rig("wide", rng, size=(640, 360))
+    path = wand_path(srig, rng, n_frames=90)
+    args = ["calibrate", "--wand", "1.0"]
+    for role in srig.cameras:
+        folder = tmp_path / role
+        folder.mkdir()
+        for f, gray in render_wand_frames(srig, path, role, rng=rng):
+            cv2.imwrite(str(folder / f"{f:04d}.png"), gray)
+        args += ["--camera", f"{role}={folder}/*.png"]
+    lenses = tmp_path / "lenses.json"
+    lenses.write_text(json.dumps(rig_to_dict(Rig(_given(srig.cameras))),
+                                 default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
+    out = tmp_path / "wand.json"
+    assert main([*args, "--intrinsics", str(lenses), "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert res["wand"]["length_m"] == 1.0 and min(res["wand"]["frames_with_both_ends"].values()) > 40
+    assert res["checks"]["wand_length_rms_mm"] < 10.0
+    t_right = np.asarray(res["extrinsics"]["right"]["t_mm"])
+    true_right = srig.cameras["right"].t_mm
+    assert abs(np.linalg.norm(t_right) - np.linalg.norm(true_right)) < 0.01 * np.linalg.norm(true_right)
