@@ -109,8 +109,9 @@ def _pose_errors(rig, truth) -> dict:
     for name, true in truth.cameras.items():
         cam = rig.cameras[name]
         centre, true_centre = -cam.R.T @ cam.t_mm, -true.R.T @ true.t_mm
+        turn_deg = float(np.degrees(np.linalg.norm(cv2.Rodrigues(cam.R @ true.R.T)[0])))
         out[name] = {"focal_error_pct": round(float(100 * (cam.K[0, 0] / true.K[0, 0] - 1)), 4),
-                     "rotation_error_deg": round(float(np.degrees(np.linalg.norm(cv2.Rodrigues(cam.R @ true.R.T)[0]))), 4),
+                     "rotation_error_deg": round(turn_deg, 4),
                      "centre_error_mm": round(float(np.linalg.norm(centre - true_centre)), 2)}
     return out
 

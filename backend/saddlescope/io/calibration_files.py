@@ -301,10 +301,11 @@ def calibrate_wand_sources(sources: Mapping[str, str], *, wand_length_m: float,
     sources = {str(k): str(v) for k, v in sources.items()}
     lenses = dict(intrinsics or {})
     need = [c for c in sources if c not in lenses]
-    if need and (not close_ups or board is None or any(c not in close_ups for c in need)):
-        raise InputError(f"camera(s) {', '.join(need)} need their lenses: give a close-up board clip "
-                         "(--close-up NAME=CLIP with --pattern and --square) or --intrinsics NAME=FILE")
-    lenses.update(_close_up_intrinsics({c: close_ups[c] for c in need}, board, max_views) if need else {})
+    if need:
+        if not close_ups or board is None or any(c not in close_ups for c in need):
+            raise InputError(f"camera(s) {', '.join(need)} need their lenses: give a close-up board clip "
+                             "(--close-up NAME=CLIP with --pattern and --square) or --intrinsics NAME=FILE")
+        lenses.update(_close_up_intrinsics({c: close_ups[c] for c in need}, board, max_views))
     frames = _common_frames(sources, sync, max_frames)
     t_lens = time.perf_counter()
     views = {}

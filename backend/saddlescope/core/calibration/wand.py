@@ -175,7 +175,8 @@ def _relabel(cameras: Mapping[str, Camera], resolved: list[str], name: str,
     camera sees keep their labels. The returned views' ``segment`` numbers these groups.
     """
     evidence = {r: _swap_evidence(cameras[r], cameras[name], views[r], views[name], threshold) for r in resolved}
-    keys, votes = [], {}
+    keys: list[tuple] = []
+    votes: dict[tuple, int] = {}
     for v in views[name]:
         key: tuple = ("alone", v.segment)
         for r in resolved:
