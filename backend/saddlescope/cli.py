@@ -171,7 +171,7 @@ class _BoardKinds:
 
 
 # `saddlescope bench --only`'s choices (bench.SECTION_NAMES, named here so the parser imports no numpy)
-_BENCH_SECTIONS = ("detection", "calibration", "speed", "footage", "floor", "accuracy", "similarity", "service",
+_BENCH_SECTIONS = ("detection", "calibration", "wand", "speed", "footage", "floor", "accuracy", "similarity", "service",
                    "coverage", "dashboard")
 
 
