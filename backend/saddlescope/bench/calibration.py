@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["calibration_stage_s", "calibration_vs_decode", "wand_vs_board"]
+__all__ = ["calibration_stage_s", "calibration_vs_decode", "wand_canter_indicators", "wand_vs_board"]
 
 
 def _decode_once(paths: list[Path]) -> int:
@@ -159,6 +159,60 @@ def _volume_board_views(srig, rng, n_poses: int = 60) -> dict:
     return simulate_board_views(Rig(srig.cameras), BOARD, np.array(rvecs), np.array(ts), noise_px=0.1, rng=rng)
 
 
+def _wand_rig(srig, seed: int, n_frames: int, length_m: float):
+    """The arena rig calibrated from close-up board views and rendered wand clips (rig, report, views, path, CPU s)."""
+    import numpy as np
+
+    from saddlescope.arena.wand import CLOSE_UP_BOARD, close_up_board_views, render_wand_frames, wand_path
+    from saddlescope.core.calibration.intrinsics import calibrate_intrinsics
+    from saddlescope.core.calibration.wand import calibrate_wand, track_wand_ends
+
+    rng = np.random.default_rng(seed + 1000)
+    t0 = time.process_time()
+    close = close_up_board_views(srig, rng)
+    intrinsics = {r: calibrate_intrinsics(v, CLOSE_UP_BOARD, srig.cameras[r].image_size, camera=r)[0]
+                  for r, v in close.items()}
+    path = wand_path(srig, rng, n_frames=n_frames, length_m=length_m)
+    t_render = time.process_time()
+    frames = {r: list(render_wand_frames(srig, path, r, rng=rng)) for r in srig.cameras}
+    render_s = time.process_time() - t_render
+    views = {r: track_wand_ends(frames[r]) for r in srig.cameras}
+    del frames
+    rig, report = calibrate_wand(views, intrinsics, length_m * 1000.0)
+    return rig, report, views, path, time.process_time() - t0 - render_s
+
+
+def wand_canter_indicators(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = False,
+                           wand_frames: int = 240) -> dict:
+    """A canter's indicators with the wand-calibrated rig against the board-calibrated one (issue 35).
+
+    The same rendered ride is analysed twice: as it comes (its board clips calibrate the rig) and with
+    the rig from :func:`_wand_rig`. Returns each indicator's two values and their relative difference (%),
+    and the largest difference.
+    """
+    import numpy as np
+
+    from saddlescope.arena.rig import make_rig
+    from saddlescope.io.synth_writer import write_ride_bundle
+    from saddlescope.services.analysis import analyze_bundle
+
+    ride = Path(tmp) / f"wand_vs_board_{rig}"
+    if not (ride / "ride.json").is_file():
+        write_ride_bundle(ride, gait="canter", seed=seed, rig=rig, extras=False,
+                          **({"duration_s": 3.0, "calibration_poses": 40} if quick else {}))
+    srig = make_rig(rig, np.random.default_rng(np.random.SeedSequence([int(seed), 0x5ADD1E]).spawn(8)[0]))
+    wand_rig = _wand_rig(srig, seed, wand_frames if not quick else wand_frames // 2, 1.0)[0]
+    board = analyze_bundle(ride)["indicators"]
+    wand = analyze_bundle(ride, rig=wand_rig)["indicators"]
+    out = {}
+    for key, b in board.items():
+        w = wand.get(key)
+        if isinstance(b, (int, float)) and isinstance(w, (int, float)) and b:
+            out[key] = {"board": b, "wand": w, "difference_pct": round(100 * (w - b) / abs(b), 3)}
+    worst = max((abs(v["difference_pct"]) for v in out.values()), default=float("nan"))
+    return {"wand_canter_indicators": out, "wand_canter_worst_difference_pct": worst}
+
+
 def wand_vs_board(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = False,
                   wand_frames: int = 240, length_m: float = 1.0) -> dict:
     """A rig calibrated from a wand and close-up board views against the full board calibration (issue 35).
@@ -180,10 +234,7 @@ def wand_vs_board(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = 
 
     from saddlescope.arena.content import BOARD
     from saddlescope.arena.rig import make_rig
-    from saddlescope.arena.wand import CLOSE_UP_BOARD, close_up_board_views, render_wand_frames, wand_path
     from saddlescope.core.calibration.checks import metric_checks
-    from saddlescope.core.calibration.intrinsics import calibrate_intrinsics
-    from saddlescope.core.calibration.wand import calibrate_wand, track_wand_ends
     from saddlescope.core.params import PipelineParams
     from saddlescope.core.pipeline.setup import calibrate_from_clips, synchronise
     from saddlescope.io.bundle import open_bundle
@@ -201,19 +252,8 @@ def wand_vs_board(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = 
     # the scene's rig, drawn as build_scene draws it
     r_rig = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5ADD1E]).spawn(8)[0])
     srig = make_rig(rig, r_rig)
-    rng = np.random.default_rng(seed + 1000)
-    t0 = time.process_time()
-    close = close_up_board_views(srig, rng)
-    intrinsics = {r: calibrate_intrinsics(v, CLOSE_UP_BOARD, srig.cameras[r].image_size, camera=r)[0]
-                  for r, v in close.items()}
-    path = wand_path(srig, rng, n_frames=wand_frames if not quick else wand_frames // 2, length_m=length_m)
-    t_render = time.process_time()
-    frames = {r: list(render_wand_frames(srig, path, r, rng=rng)) for r in srig.cameras}
-    render_s = time.process_time() - t_render
-    views = {r: track_wand_ends(frames[r]) for r in srig.cameras}
-    del frames
-    wand_rig, wand_report = calibrate_wand(views, intrinsics, length_m * 1000.0)
-    wand_cpu_s = time.process_time() - t0 - render_s
+    wand_rig, wand_report, views, path, wand_cpu_s = _wand_rig(
+        srig, seed, wand_frames if not quick else wand_frames // 2, length_m)
     check_views = _volume_board_views(srig, np.random.default_rng(seed + 2000))
     from saddlescope.core.types import Rig
 
