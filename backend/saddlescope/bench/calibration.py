@@ -204,13 +204,19 @@ def wand_canter_indicators(tmp: Path, *, rig: str = "wide", seed: int = 1, quick
     wand_rig = _wand_rig(srig, seed, wand_frames if not quick else wand_frames // 2, 1.0)[0]
     board = analyze_bundle(ride)["indicators"]
     wand = analyze_bundle(ride, rig=wand_rig)["indicators"]
+    truth = json.loads((ride / "truth.json").read_text()).get("indicators", {})
     out = {}
     for key, b in board.items():
-        w = wand.get(key)
+        w, t = wand.get(key), truth.get(key)
         if isinstance(b, (int, float)) and isinstance(w, (int, float)) and b:
             out[key] = {"board": b, "wand": w, "difference_pct": round(100 * (w - b) / abs(b), 3)}
+            if isinstance(t, (int, float)) and t:  # each calibration's error against the arena's exact answer
+                out[key].update({"truth": t, "board_error_pct": round(100 * (b - t) / abs(t), 3),
+                                 "wand_error_pct": round(100 * (w - t) / abs(t), 3)})
     worst = max((abs(v["difference_pct"]) for v in out.values()), default=float("nan"))
-    return {"wand_canter_indicators": out, "wand_canter_worst_difference_pct": worst}
+    closer = sum(abs(v["wand_error_pct"]) <= abs(v["board_error_pct"]) for v in out.values() if "truth" in v)
+    return {"wand_canter_indicators": out, "wand_canter_worst_difference_pct": worst,
+            "wand_canter_closer_to_truth": closer, "wand_canter_compared": sum("truth" in v for v in out.values())}
 
 
 def wand_vs_board(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = False,
