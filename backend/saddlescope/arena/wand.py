@@ -20,8 +20,8 @@ from saddlescope.core.calibration.simulation import simulate_board_views
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.types import Board, Camera, Rig
 
-__all__ = ["CLOSE_UP_BOARD", "WandPath", "close_up_board_views", "render_wand_frames", "true_wand_pixels",
-           "wand_path"]
+__all__ = ["CLOSE_UP_BOARD", "WandPath", "close_up_board_poses", "close_up_board_views", "render_wand_frames",
+           "true_wand_pixels", "wand_path"]
 
 # an A3 print: 10 x 7 squares of 30 mm
 CLOSE_UP_BOARD = Board(kind="checkerboard", inner_corners=(9, 6), square_mm=30.0)
@@ -101,27 +101,36 @@ def render_wand_frames(rig: SceneRig, path: WandPath, role: str, *, rng: np.rand
         yield f, finish_frame(frame, gain=1.0, flash=0.0, rng=rng, options=opts)
 
 
+def close_up_board_poses(camera: Camera, rng: np.random.Generator, *, board: Board = CLOSE_UP_BOARD,
+                         n_poses: int = 120) -> tuple[np.ndarray, np.ndarray]:
+    """Poses (rvecs (P, 3), t_mm (P, 3), in the camera's frame) of a board held 0.6-1.6 m in front of it.
+
+    The board's centre is spread over the image (10-90 % of each side) and it is tilted by up to 35 degrees.
+    """
+    obj_centre = np.array([(board.inner_corners[0] - 1) * board.square_mm / 2,
+                           (board.inner_corners[1] - 1) * board.square_mm / 2, 0.0])
+    w, h = camera.image_size
+    rvecs, ts = [], []
+    for _ in range(n_poses):
+        z = rng.uniform(600.0, 1600.0)
+        u, v = rng.uniform(0.1 * w, 0.9 * w), rng.uniform(0.1 * h, 0.9 * h)
+        ray = np.array([(u - camera.K[0, 2]) / camera.K[0, 0], (v - camera.K[1, 2]) / camera.K[1, 1], 1.0])
+        rv = np.array([rng.uniform(-0.6, 0.6), rng.uniform(-0.6, 0.6), rng.uniform(-0.3, 0.3)])
+        rvecs.append(rv)
+        ts.append(ray * z - cv2.Rodrigues(rv)[0] @ obj_centre)
+    return np.array(rvecs), np.array(ts)
+
+
 def close_up_board_views(rig: SceneRig, rng: np.random.Generator, *, board: Board = CLOSE_UP_BOARD,
                          n_poses: int = 40, noise_px: float = 0.15) -> dict[str, list[BoardView]]:
-    """Each camera's views of a small board held 0.6-1.6 m in front of it, spread over the image and tilted.
+    """Each camera's views of a small board held 0.6-1.6 m in front of it (:func:`close_up_board_poses`).
 
     Returns role -> list of BoardView (frame = pose index); only whole boards inside the image are kept.
     """
     out = {}
-    obj_centre = np.array([(board.inner_corners[0] - 1) * board.square_mm / 2,
-                           (board.inner_corners[1] - 1) * board.square_mm / 2, 0.0])
     for role, cam in rig.cameras.items():
         alone = Rig({role: Camera(role, cam.K, cam.dist, cam.image_size)})
-        w, h = cam.image_size
-        rvecs, ts = [], []
-        for _ in range(n_poses * 3):
-            z = rng.uniform(600.0, 1600.0)
-            u, v = rng.uniform(0.1 * w, 0.9 * w), rng.uniform(0.1 * h, 0.9 * h)
-            ray = np.array([(u - cam.K[0, 2]) / cam.K[0, 0], (v - cam.K[1, 2]) / cam.K[1, 1], 1.0])
-            rv = np.array([rng.uniform(-0.6, 0.6), rng.uniform(-0.6, 0.6), rng.uniform(-0.3, 0.3)])
-            R = cv2.Rodrigues(rv)[0]
-            rvecs.append(rv)
-            ts.append(ray * z - R @ obj_centre)
-        views = simulate_board_views(alone, board, np.array(rvecs), np.array(ts), noise_px=noise_px, rng=rng)[role]
+        rvecs, ts = close_up_board_poses(cam, rng, board=board, n_poses=n_poses * 3)
+        views = simulate_board_views(alone, board, rvecs, ts, noise_px=noise_px, rng=rng)[role]
         out[role] = views[:n_poses]
     return out

@@ -198,3 +198,38 @@ def test_cli_calibrate_from_wand_clips(tmp_path):
     t_right = np.asarray(res["extrinsics"]["right"]["t_mm"])
     true_right = srig.cameras["right"].t_mm
     assert abs(np.linalg.norm(t_right) - np.linalg.norm(true_right)) < 0.01 * np.linalg.norm(true_right)
+
+
+@pytest.mark.slow
+def test_cli_calibrate_from_wand_and_close_up_board_clips(tmp_path):
+    """``--wand`` with each lens from rendered close-up board images (``--close-up``), none given."""
+    import json
+
+    from saddlescope.arena.wand import close_up_board_poses
+    from saddlescope.cli import main
+    from saddlescope.core.calibration.simulation import render_board
+
+    rng = np.random.default_rng(11)
+    srig = make_rig("wide", rng, size=(960, 540))
+    path = wand_path(srig, rng, n_frames=90)
+    args = ["calibrate", "--wand", "1.0", "--pattern", "9x6", "--square", "30"]
+    for role, cam in srig.cameras.items():
+        wand_dir, board_dir = tmp_path / f"wand_{role}", tmp_path / f"board_{role}"
+        wand_dir.mkdir()
+        board_dir.mkdir()
+        for f, gray in render_wand_frames(srig, path, role, rng=rng):
+            cv2.imwrite(str(wand_dir / f"{f:04d}.png"), gray)
+        alone = Camera(role, cam.K, cam.dist, cam.image_size)
+        for i, (rv, t) in enumerate(zip(*close_up_board_poses(alone, rng, n_poses=30), strict=True)):
+            cv2.imwrite(str(board_dir / f"{i:04d}.png"), render_board(CLOSE_UP_BOARD, alone, rv, t))
+        args += ["--camera", f"{role}={wand_dir}/*.png", "--close-up", f"{role}={board_dir}/*.png"]
+    out = tmp_path / "wand.json"
+    assert main([*args, "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    for role, cam in srig.cameras.items():
+        fx = np.asarray(res["cameras"][role]["K"])[0][0]
+        assert abs(fx / cam.K[0, 0] - 1) < 0.01, (role, fx, cam.K[0, 0])
+    t_right = np.asarray(res["extrinsics"]["right"]["t_mm"])
+    true_right = srig.cameras["right"].t_mm
+    assert abs(np.linalg.norm(t_right) - np.linalg.norm(true_right)) < 0.02 * np.linalg.norm(true_right)
+    assert res["checks"]["wand_length_rms_mm"] < 15.0
