@@ -243,7 +243,7 @@ def _add_by_pnp(cam: Camera, posed: Mapping[str, Camera], views: Mapping[str, li
     X, _ = triangulate_dlt([posed[n] for n in names], xy)
     img = np.concatenate([mine[f].ends_px for f in frames])
     ok = np.all(np.isfinite(X), axis=1)
-    if ok.sum() < 2 * MIN_WAND_FRAMES // 2:
+    if ok.sum() < MIN_WAND_FRAMES:  # two points a frame: ten frames seen with the cameras already placed
         return None
     found, rvec, tvec, _ = cv2.solvePnPRansac(X[ok], img[ok], cam.K, cam.dist, reprojectionError=4.0,
                                               iterationsCount=500, flags=cv2.SOLVEPNP_EPNP)
