@@ -70,12 +70,14 @@ lint: install
 
 # Two pytest-xdist workers, each test file whole on one worker (--dist loadfile: a module's server, ride
 # or database is built once), overlapping one test's waiting (servers, browser, broker) with another's
-# computing: the whole suite ran in 15 min with two workers on a quiet 2-core machine (28 loaded), against about
-# 41 min in one process. TEST_WORKERS=0 runs everything in one process.
+# computing. Files are handed out heaviest first in tests/conftest.py's order (--no-loadscope-reorder:
+# xdist's own order, most tests first, left the few-test heavy files to the end with a worker idle).
+# TEST_WORKERS=0 runs everything in one process.
 TEST_WORKERS ?= 2
+XDIST := -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 test: install system-deps lint
-	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m pytest $(XDIST)
 
 # The inner loop: every test but the slow ones (whole rendered rides), the browser's and those needing
 # PostgreSQL, Redis, a Celery worker or an S3 server (markers slow, browser, integration). `make test` runs
@@ -83,7 +85,7 @@ test: install system-deps lint
 FAST_TESTS := not slow and not browser and not integration
 
 test-fast: install
-	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile -m "$(FAST_TESTS)"
+	$(BIN)/python -m pytest $(XDIST) -m "$(FAST_TESTS)"
 
 clean:
 	rm -rf $(VENV) var .cache/npm

@@ -317,6 +317,17 @@ def tiny_ride(tmp_path_factory) -> Path:
         folder / "ride", gait="canter", seed=3, duration_s=2.5, calibration_poses=20, extras=False)) / "ride"
 
 
+@pytest.fixture(scope="session")
+def short_canter_ride(tmp_path_factory) -> Path:
+    """A 3 s thesis-rig canter (seed 4, the default 90 calibration poses, the extra clips), written once
+    per run: tests/core/pipeline/test_pipeline.py analyses it against its truth, test_parallel_detection
+    tracks its static shot with one thread and with three. Read-only."""
+    from saddlescope.io.synth_writer import write_ride_bundle
+
+    return built_once_per_run(tmp_path_factory, "short-canter-seed4", lambda folder: write_ride_bundle(
+        folder / "canter", gait="canter", seed=4, rig="thesis", duration_s=3.0, extras=True)) / "canter"
+
+
 # --- tiny inputs ----------------------------------------------------------------------------------
 
 
@@ -332,6 +343,27 @@ def write_tiny_clip(
         writer.write(np.full((size[1], size[0], 3), min(255, 40 + 10 * i + shade), np.uint8))
     writer.release()
     return path
+
+
+def write_noise_clip(path, n=60, *, gop=None, faststart=False, flash=None) -> None:
+    """An H.264 clip (PyAV) of `n` 64x48 frames of seeded noise; `gop` frames between keyframes, `faststart`
+    (the index first), `flash` (first, end) frames brightened by 150."""
+    import av
+
+    container = av.open(str(path), "w", options={"movflags": "faststart"} if faststart else {})
+    stream = container.add_stream("libx264", rate=30)
+    stream.width, stream.height, stream.pix_fmt = 64, 48, "yuv420p"
+    stream.options = {"crf": "18", **({"g": str(gop)} if gop else {})}
+    rng = np.random.default_rng(1)
+    for i in range(n):
+        img = rng.integers(40, 60, (48, 64, 3), dtype=np.uint8)
+        if flash is not None and flash[0] <= i < flash[1]:
+            img = img + 150
+        for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="rgb24")):
+            container.mux(packet)
+    for packet in stream.encode():
+        container.mux(packet)
+    container.close()
 
 
 def mp4_with_a_free_box(source: Path, dest: Path, note: str) -> Path:

@@ -70,6 +70,25 @@ def _offset(text: str) -> tuple[float, float, float]:
     return dx, dy, dz
 
 
+def _calibrate_wand(args, cameras: dict[str, str]) -> int:
+    """``saddlescope calibrate --wand LENGTH_M``: poses and scale from a wand, lenses from close-ups or given."""
+    from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND, make_board
+    from saddlescope.io.calibration_files import calibrate_wand_sources, intrinsics_for_cameras
+
+    board = None
+    if args.close_up:
+        if args.pattern is None or args.square is None:
+            print("saddlescope calibrate: --close-up board clips need --pattern and --square", file=sys.stderr)
+            return 2
+        board = make_board(args.board or DEFAULT_BOARD_KIND, args.pattern, args.square, dictionary=args.dictionary,
+                           marker_mm=args.marker)
+    result = calibrate_wand_sources(cameras, wand_length_m=args.wand,
+                                    intrinsics=intrinsics_for_cameras(args.intrinsics, list(cameras)) or None,
+                                    close_ups=dict(args.close_up) or None, board=board, toml_out=args.toml_out)
+    _write_json(result, args.json_out)
+    return 0
+
+
 def _similar(args) -> int:
     """`saddlescope similar`: one pair's answer, or the matrix of every pair of many recordings."""
     from saddlescope.io import similarity_matrix as matrix_files
@@ -207,15 +226,21 @@ class _BoardKinds:
 
 
 # `saddlescope bench --only`'s choices (bench.SECTION_NAMES, named here so the parser imports no numpy)
-_BENCH_SECTIONS = ("detection", "calibration", "calibration_check", "speed", "footage", "floor", "accuracy",
-                   "similarity", "service", "coverage", "dashboard")
+_BENCH_SECTIONS = ("detection", "calibration", "calibration_check", "wand", "speed", "footage", "floor",
+                   "accuracy", "similarity", "service", "coverage", "dashboard")
 
 
 def _add_calibrate_parser(sub) -> None:
     """``saddlescope calibrate``: cameras from image globs or videos, known lenses held."""
-    s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos")
-    s.add_argument("--pattern", type=_pattern, required=True, help="inner corners CxR, e.g. 9x6")
-    s.add_argument("--square", type=float, required=True, help="square size in mm")
+    s = sub.add_parser("calibrate", help="calibrate cameras from image globs or videos, or the rig from a wand")
+    s.add_argument("--pattern", type=_pattern, default=None, help="inner corners CxR, e.g. 9x6")
+    s.add_argument("--square", type=float, default=None, help="square size in mm")
+    s.add_argument("--wand", type=float, default=None, metavar="LENGTH_M",
+                   help="the --camera clips film a wand of this length (m, between its two markers' centres) "
+                        "waved through the riding area: poses and scale from the wand, lenses from --close-up "
+                        "board clips or --intrinsics")
+    s.add_argument("--close-up", dest="close_up", type=_camera_source, action="append", default=[],
+                   metavar="NAME=SOURCE", help="with --wand: a board filmed close to camera NAME, for its lens")
     s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND",  # a metavar: no listing at start
                    help="the board's kind (default checkerboard; an unknown one gets the list)")
     s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
@@ -330,16 +355,7 @@ def run(args: argparse.Namespace) -> int:
         _write_json(result, args.json_out)
         return 0
     if cmd == "calibrate":
-        from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND
-        from saddlescope.io.calibration_files import calibrate_sources, intrinsics_for_cameras
-
-        cameras = dict(args.camera)
-        result = calibrate_sources(cameras, pattern=args.pattern, square_mm=args.square,
-                                   board_kind=args.board or DEFAULT_BOARD_KIND, dictionary=args.dictionary,
-                                   marker_mm=args.marker, toml_out=args.toml_out,
-                                   intrinsics=intrinsics_for_cameras(args.intrinsics, list(cameras)) or None)
-        _write_json(result, args.json_out)
-        return 0
+        return _calibrate(args)
     if cmd == "import":
         from saddlescope.io.mocap import read_mocap
 
@@ -382,6 +398,26 @@ def run(args: argparse.Namespace) -> int:
             print(f"saddlescope {cmd}: {exc}", file=sys.stderr)
             return 2
     raise AssertionError(cmd)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    """``saddlescope calibrate``: a board's clips (or a wand's) to a calibration document."""
+    from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND
+    from saddlescope.io.calibration_files import calibrate_sources, intrinsics_for_cameras
+
+    cameras = dict(args.camera)
+    if args.wand is not None:
+        return _calibrate_wand(args, cameras)
+    if args.pattern is None or args.square is None:
+        print("saddlescope calibrate: --pattern and --square are required (the board's inner corners and "
+              "square size), unless --wand gives a wand's length", file=sys.stderr)
+        return 2
+    result = calibrate_sources(cameras, pattern=args.pattern, square_mm=args.square,
+                               board_kind=args.board or DEFAULT_BOARD_KIND, dictionary=args.dictionary,
+                               marker_mm=args.marker, toml_out=args.toml_out,
+                               intrinsics=intrinsics_for_cameras(args.intrinsics, list(cameras)) or None)
+    _write_json(result, args.json_out)
+    return 0
 
 
 def _run_service(args: argparse.Namespace) -> int:

@@ -20,7 +20,7 @@ from conftest import PROJECT_ROOT
 from saddlescope.api import create_app
 
 sys.path.insert(0, str(PROJECT_ROOT / "tests" / "e2e"))
-from test_dashboard import result_document, store_result  # noqa: E402
+from dashboard_helpers import result_document, store_result  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -25,7 +25,7 @@ from saddlescope.io.findings_document import findings_to_list
 from saddlescope.services.report import REPORT_INDICATORS
 
 sys.path.insert(0, str(PROJECT_ROOT / "tests" / "e2e"))
-from test_dashboard import result_document, store_result  # noqa: E402
+from dashboard_helpers import result_document, store_result  # noqa: E402
 
 REASON = "the W_b r.m.s. is known only to ±14 % (95 % interval 3.52-4.63 m/s²; a decision needs ±10 %)"
 RAW_TEXT = re.compile(r"\bnull\b|\bNaN\b|\bundefined\b|\bNone\b|\b[a-z]+_[a-z0-9_]+\b|\b[a-z]{2,}\.[a-z_]{2,}\b")

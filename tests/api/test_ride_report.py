@@ -1,7 +1,7 @@
 """The ride page's new result fields (plain-language quality, fitted curves, weighted acceleration,
 spectrum) and the one-page ride report (HTML and a one-page PDF) through the API.
 
-Results are put in as the analyse stage would (tests/e2e/test_dashboard.py's seeded documents: exact
+Results are put in as the analyse stage would (tests/e2e/dashboard_helpers.py's seeded documents: exact
 Fourier series with the core's own indicators), for a horse with five canter rides so the last one has
 a normal band from four earlier rides and the first has none.
 """
@@ -25,7 +25,7 @@ from saddlescope.services.report import duration_text
 from saddlescope.settings import load_settings
 
 sys.path.insert(0, str(PROJECT_ROOT / "tests" / "e2e"))
-from test_dashboard import result_document, store_result  # noqa: E402
+from dashboard_helpers import result_document, store_result  # noqa: E402
 
 WEAK_AXIS = ("rotation about the markers' weakest axis (eigenvalue ratio 0.026) kept at 0% in ω and 0% in α: "
              "the rest is what skin motion predicts")

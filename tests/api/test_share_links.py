@@ -23,7 +23,7 @@ from saddlescope.api import create_app
 from saddlescope.db.models import ShareLink
 
 sys.path.insert(0, str(PROJECT_ROOT / "tests" / "e2e"))
-from test_dashboard import result_document, store_result  # noqa: E402
+from dashboard_helpers import result_document, store_result  # noqa: E402
 
 
 @pytest.fixture(scope="module")

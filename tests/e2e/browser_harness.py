@@ -14,6 +14,7 @@ No browser and no npm package is ever downloaded by the tests themselves.
 
 from __future__ import annotations
 
+import re
 import socket
 import subprocess
 import time
@@ -283,8 +284,23 @@ def shoot_both_widths(page, name: str) -> None:
     page.set_viewport_size({"width": 1280, "height": 900})
 
 
-__all__ = ["AXE_JS", "CHROMIUM", "CHROMIUM_ARGS", "PHONE_WIDTH_PX", "SADDLESCOPE", "SCREENSHOTS", "Served",
-           "assert_no_horizontal_scroll", "axe_violations", "chromium_for_module", "console_errors",
-           "fail_or_skip", "free_port", "horizontal_overflow_px", "launch_chromium", "new_club_admin",
-           "plotly_traces", "require_axe", "require_browser", "screenshot", "serve_fresh", "shoot_both_widths",
-           "sign_in", "visible_permission_controls", "wait_for_charts_drawn", "wait_healthy", "widest_elements"]
+# --- what a page must never show (issue #37; test_no_null_text.py, test_page_audit.py) ---------------
+
+# JavaScript's words for a missing value, alone or glued together ("nullnullnull" is what
+# replaceChildren(null, null, null) shows); not inside other words ("annulled", "Nullarbor")
+MISSING_WORDS = re.compile(r"(?<![A-Za-z])(?:null|undefined|NaN)+(?![A-Za-z])")
+VISIBLE_TEXT_JS = "() => (document.querySelector('main') || document.body).innerText"
+
+
+def missing_words(text: str) -> list[str]:
+    """The lines of `text` that show null / undefined / NaN."""
+    return [line.strip() for line in text.splitlines() if MISSING_WORDS.search(line)]
+
+
+__all__ = ["AXE_JS", "CHROMIUM", "CHROMIUM_ARGS", "MISSING_WORDS", "PHONE_WIDTH_PX", "SADDLESCOPE", "SCREENSHOTS",
+           "Served", "VISIBLE_TEXT_JS", "assert_no_horizontal_scroll", "axe_violations", "chromium_for_module",
+           "console_errors", "fail_or_skip", "free_port", "horizontal_overflow_px", "launch_chromium",
+           "missing_words", "new_club_admin", "plotly_traces", "require_axe", "require_browser", "screenshot",
+           "serve_fresh", "shoot_both_widths", "sign_in", "visible_permission_controls", "wait_for_charts_drawn",
+           "wait_healthy",
+           "widest_elements"]

@@ -4,7 +4,7 @@ section and no health details; the last admin cannot demote themselves; the over
 page fit a phone. Screenshots of each page at 1280 and 390 px go to var/test-artifacts/screenshots/.
 
 A real `saddlescope serve` (embedded mode, an empty SQLite database) and Debian's chromium driven by
-Playwright, started with the helpers of tests/e2e/test_dashboard.py; skipped without chromium.
+Playwright, started with the helpers of tests/e2e/dashboard_helpers.py; skipped without chromium.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import httpx
 import pytest
 from browser_harness import chromium_for_module, serve_fresh
-from test_dashboard import Console, _ok, _require_browser
+from dashboard_helpers import Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
 

@@ -15,7 +15,7 @@ import statistics
 
 import pytest
 from browser_harness import axe_violations, chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
-from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
+from dashboard_helpers import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 pytestmark = [pytest.mark.browser]
 

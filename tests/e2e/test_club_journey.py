@@ -26,16 +26,17 @@ import httpx
 import integration_services
 import numpy as np
 import pytest
-from browser_harness import chromium_for_module, serve_fresh, wait_for_charts_drawn
-from test_dashboard import (
+from browser_harness import SCREENSHOTS, chromium_for_module, serve_fresh, shoot_both_widths, wait_for_charts_drawn
+from dashboard_helpers import (
+    CHARTS,
     Console,
     _ok,
     _require_browser,
+    charts_drawn,
     result_document,
     store_result,
+    wait_for_charts,
 )
-from test_ride_page import CHARTS, _charts_drawn, _wait_for_charts
-from test_rig_upload_pages import SHOTS, shoot
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -101,7 +102,7 @@ def _clean(tab, step: str, *allowed: int) -> None:
 
 
 def _page_step(tab, step: str, *allowed: int) -> None:
-    shoot(tab, f"journey-{step}")
+    shoot_both_widths(tab, f"journey-{step}")
     _clean(tab, step, *allowed)
 
 
@@ -238,8 +239,8 @@ def _journey(tab, served, meta, folder) -> None:
     # 8. The ride page: every chart drawn, with points.
     tab.goto(f"/#/rides/{ride_id}")
     tab.locator("[data-result]").wait_for(state="visible", timeout=60_000)
-    _wait_for_charts(tab)
-    drawn = _charts_drawn(tab)
+    wait_for_charts(tab)
+    drawn = charts_drawn(tab)
     assert set(drawn) == set(CHARTS) and all(points > 0 for points in drawn.values()), drawn
     on_page = tab.eval_on_selector_all("main [data-chart]", """els => els.map(el => [el.dataset.chart,
         (el.data || []).reduce((s, t) => s + Math.max(...[t.x, t.y, t.z].map(v => (v || []).length)), 0)])""")
@@ -274,8 +275,8 @@ def _journey(tab, served, meta, folder) -> None:
     tab.goto(report_href)
     assert HORSE in tab.locator("h1").inner_text()
     pdf = tab.pdf(format="A4")
-    (SHOTS / "journey-10-report.pdf").write_bytes(pdf)  # the printed report, kept with the screenshots
-    (SHOTS / "journey-10-report.html").write_text(tab.content())
+    (SCREENSHOTS / "journey-10-report.pdf").write_bytes(pdf)  # the printed report, kept with the screenshots
+    (SCREENSHOTS / "journey-10-report.html").write_text(tab.content())
     assert len(pypdf.PdfReader(io.BytesIO(pdf)).pages) == 1
     served_pdf = api.get(f"/api/rides/{ride_id}/report.pdf", timeout=120)  # the server's own PDF (WeasyPrint)
     assert served_pdf.status_code == 200 and served_pdf.headers["content-type"].startswith("application/pdf")
@@ -306,7 +307,7 @@ def _journey(tab, served, meta, folder) -> None:
     assert _ok(api.get(f"/api/rides/{ride_id}"))["result_outdated_by"] == []
     tab.reload()  # (the same address: goto would not load the page again)
     tab.locator("[data-result]").wait_for(state="visible", timeout=60_000)
-    _wait_for_charts(tab)
+    wait_for_charts(tab)
     tab.locator("[data-ride-edit-form]").wait_for(state="attached")  # folded again: nothing outdated
     tab.wait_for_function(
         "() => "
@@ -325,7 +326,7 @@ def _journey(tab, served, meta, folder) -> None:
     row_button.click()
     dialog = tab.locator("[data-ride-delete-dialog]")
     dialog.wait_for(state="visible")
-    shoot(tab, "journey-12-delete-dialog")
+    shoot_both_widths(tab, "journey-12-delete-dialog")
     dialog.locator("[data-ride-delete-confirm]").click()
     row_button.wait_for(state="detached")
     assert tab.locator(f'main a[href="#/rides/{gone}"]').count() == 0

@@ -7,8 +7,7 @@ from __future__ import annotations
 import pytest
 import s3_server as s3_server_module
 from browser_harness import chromium_for_module, new_club_admin, serve_fresh
-from test_dashboard import EMAIL, PASSWORD, _ok, _require_browser
-from test_rig_upload_pages import open_page, tiny_clip
+from dashboard_helpers import EMAIL, PASSWORD, _ok, _require_browser, open_page, tiny_clip
 
 from saddlescope.storage import S3Storage
 

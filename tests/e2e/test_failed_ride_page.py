@@ -24,8 +24,8 @@ import integration_services
 import numpy as np
 import pytest
 from browser_harness import assert_no_horizontal_scroll, chromium_for_module, new_club_admin, serve_fresh
-from test_dashboard import Console, _ok, _require_browser
-from test_rig_upload_pages import shoot
+from browser_harness import shoot_both_widths as shoot
+from dashboard_helpers import Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
 

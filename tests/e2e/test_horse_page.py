@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from browser_harness import new_club_admin, serve_fresh, wait_for_charts_drawn
-from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
+from dashboard_helpers import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
     EMAIL,
     PASSWORD,
     Console,

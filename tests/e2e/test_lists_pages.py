@@ -4,8 +4,8 @@ deleted after a confirmation naming it; a member sees no control the API would r
 sideways at 390 px. Screenshots at 1280 and 390 px go to var/test-artifacts/screenshots/.
 
 A real `saddlescope serve` (embedded mode, SQLite) seeded with 120 rides over the REST API; two of
-them get a stored result as the analyse stage stores it (test_dashboard.store_result). Debian's
-chromium driven by Playwright; skipped without it (fails under CI=true), as tests/e2e/test_dashboard.py.
+them get a stored result as the analyse stage stores it (dashboard_helpers.store_result). Debian's
+chromium driven by Playwright; skipped without it (fails under CI=true), as tests/e2e/dashboard_helpers.py.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import httpx
 import numpy as np
 import pytest
 from browser_harness import chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
-from test_dashboard import (
+from dashboard_helpers import (
     EMAIL,
     PASSWORD,
     Console,

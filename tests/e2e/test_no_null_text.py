@@ -13,17 +13,19 @@ from __future__ import annotations
 import re
 
 import pytest
-from browser_harness import chromium_for_module, new_club_admin, screenshot, serve_fresh, sign_in
+from browser_harness import (
+    VISIBLE_TEXT_JS,
+    chromium_for_module,
+    missing_words,
+    new_club_admin,
+    screenshot,
+    serve_fresh,
+    sign_in,
+)
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 ADMIN = ("secretary@nulls.example", "nulls admin password")
-# JavaScript's words for a missing value, alone or glued together ("nullnullnull" is what
-# replaceChildren(null, null, null) shows); not inside other words ("annulled", "Nullarbor")
-MISSING_WORDS = re.compile(r"(?<![A-Za-z])(?:null|undefined|NaN)+(?![A-Za-z])")
-VISIBLE_TEXT_JS = "() => (document.querySelector('main') || document.body).innerText"
-
-
 # Glossary codes that are not themselves words a page may use ("walk", "canter", "left" are both).
 CODE_WORDS = ("analyze", "selftest", "dtw", "chaincode")
 
@@ -44,11 +46,6 @@ def test_raw_codes_are_found_as_words_only():
                                 {"code": "acc_y_wb_rms"}])
     text = "Gravity from lab_vertical\nRide analysis\nwalk\nanalyze\nacc_y_wb_rms_x is another\nanalyzed"
     assert raw_codes(text, pattern) == ["Gravity from lab_vertical", "analyze"]
-
-
-def missing_words(text: str) -> list[str]:
-    """The lines of `text` that show null / undefined / NaN."""
-    return [line.strip() for line in text.splitlines() if MISSING_WORDS.search(line)]
 
 
 def test_missing_words_are_found_alone_or_glued_but_not_inside_words():

@@ -30,10 +30,12 @@ import numpy as np
 import pytest
 from browser_harness import (
     PHONE_WIDTH_PX,
+    VISIBLE_TEXT_JS,
     assert_no_horizontal_scroll,
     axe_violations,
     console_errors,
     launch_chromium,
+    missing_words,
     require_axe,
     require_browser,
     screenshot,
@@ -41,8 +43,7 @@ from browser_harness import (
     sign_in,
     visible_permission_controls,
 )
-from test_dashboard import _ok, result_document, store_result
-from test_no_null_text import VISIBLE_TEXT_JS, missing_words
+from dashboard_helpers import _ok, result_document, store_result
 
 from conftest import PROJECT_ROOT
 

@@ -1,23 +1,22 @@
 """The ride page and the report in Debian's chromium show each indicator's 95 % interval, and a ride too
 uncertain for a decision says so above its numbers (issue 27). The seeded server and browser are
-tests/e2e/test_ride_page.py's (imported, not copied)."""
+the ride page tests' own, from dashboard_helpers.py."""
 
 from __future__ import annotations
 
+import dashboard_helpers
 import numpy as np
 import pytest
-import test_dashboard
-import test_ride_page
-from test_dashboard import _ok, api_client, result_document, sign_in, store_result
+from dashboard_helpers import _ok, api_client, result_document, sign_in, store_result
 
 from saddlescope.services.report import distance_text, duration_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-sync_playwright_factory = test_dashboard.sync_playwright_factory
-browser = test_dashboard.browser
-page = test_dashboard.page
-dashboard = test_ride_page.dashboard
+sync_playwright_factory = dashboard_helpers.sync_playwright_factory
+browser = dashboard_helpers.browser
+page = dashboard_helpers.page
+dashboard = dashboard_helpers.ride_page_dashboard
 
 REASON = "the W_b r.m.s. is known only to ±14 % (95 % interval 3.52-4.63 m/s²; a decision needs ±10 %)"
 

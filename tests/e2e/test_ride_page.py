@@ -2,7 +2,7 @@
 quality in plain words, exposure times in h / min ("under a minute"), the job's progress in words, no horizontal
 scrolling at 390 px, and the report printed by the browser as exactly one A4 page.
 
-The seeded server and browser are tests/e2e/test_dashboard.py's (imported, not copied); this module adds
+The seeded server and browser are tests/e2e/dashboard_helpers.py's (imported, not copied); this module adds
 one ride whose result also holds the markers' tracks (for the 3-D view) and a rotation flag.
 """
 
@@ -10,17 +10,17 @@ from __future__ import annotations
 
 import io
 
+import dashboard_helpers
 import numpy as np
 import pytest
-import test_dashboard
-from browser_harness import serve_fresh, wait_for_charts_drawn
-from test_dashboard import (
+from dashboard_helpers import (
     _ok,
-    _seed,
     api_client,
+    charts_drawn,
     result_document,
     sign_in,
     store_result,
+    wait_for_charts,
 )
 
 from conftest import PROJECT_ROOT
@@ -28,26 +28,17 @@ from saddlescope.services.report import duration_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-# test_dashboard's browser fixtures, used by name (the server fixture below gives it longer to start)
-sync_playwright_factory = test_dashboard.sync_playwright_factory
-browser = test_dashboard.browser
-page = test_dashboard.page
+# dashboard_helpers' browser fixtures and its seeded server for the ride page, used by name
+sync_playwright_factory = dashboard_helpers.sync_playwright_factory
+browser = dashboard_helpers.browser
+page = dashboard_helpers.page
+dashboard = dashboard_helpers.ride_page_dashboard
 
 SCREENSHOTS = PROJECT_ROOT / "var" / "test-artifacts" / "screenshots"
-CHARTS = ("tracks3d", "fit-x", "fit-y", "fit-z", "weighted", "spectrum", "position", "velocity", "acceleration",
-          "omega", "alpha", "versions")
 WEAK_AXIS = ("rotation about the markers' weakest axis (eigenvalue ratio 0.026) kept at 0% in ω and 0% in α: "
              "the rest is what skin motion predicts")
 MARKERS_IN_LINE = ("the markers lie near a line (eigenvalue ratio 0.004 < 0.01): rotation about it (axis [1, 0, 0] "
                    "in the motion frame) is not observable, so its component of ω and α is left out (taken as zero)")
-
-
-@pytest.fixture(scope="module")
-def dashboard(sync_playwright_factory, tmp_path_factory):
-    """test_dashboard's seeded server, with more time to start (a loaded machine imports slowly)."""
-    with serve_fresh(tmp_path_factory.mktemp("ridepage")) as server:
-        yield {"base": server.base, "log": server.log, "storage_dir": server.storage_dir,
-               **_seed(server.base, server.database_url, server.storage_dir)}
 
 
 @pytest.fixture(scope="module")
@@ -70,26 +61,13 @@ def ride(dashboard):
     return {"id": created["id"], "doc": doc}
 
 
-def _charts_drawn(page) -> dict[str, int]:
-    """Per chart: the number of points Plotly holds in its traces (0 when not drawn)."""
-    return page.evaluate("""names => Object.fromEntries(names.map(n => {
-        const el = document.querySelector(`[data-chart="${n}"]`);
-        const points = (el?.data || []).reduce((s, t) => s + Math.max((t.x || []).length, (t.y || []).length), 0);
-        return [n, el && el.data && el.data.length > 0 ? points : 0];
-    }))""", list(CHARTS))
-
-
-def _wait_for_charts(page) -> None:
-    wait_for_charts_drawn(page, CHARTS)  # those below the fold are drawn when scrolled to
-
-
 def test_the_ride_page_draws_every_chart_and_says_its_quality_in_plain_words(page, dashboard, ride):
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     sign_in(page)
     page.goto(f"/#/rides/{ride['id']}")
     page.locator("[data-result]").wait_for(state="visible")
-    _wait_for_charts(page)
-    drawn = _charts_drawn(page)
+    wait_for_charts(page)
+    drawn = charts_drawn(page)
     assert all(points > 0 for points in drawn.values()), drawn
     n = len(ride["doc"]["saddle"]["t_s"])
     assert page.eval_on_selector('[data-chart="tracks3d"]', "el => el.data.map(t => t.type)") == ["scatter3d"] * 4
@@ -121,7 +99,7 @@ def test_the_ride_page_draws_every_chart_and_says_its_quality_in_plain_words(pag
 
     page.set_viewport_size({"width": 390, "height": 844})
     page.reload()
-    _wait_for_charts(page)
+    wait_for_charts(page)
     assert page.evaluate("document.documentElement.scrollWidth <= innerWidth"), page.evaluate(
         "document.documentElement.scrollWidth")
     page.screenshot(path=str(SCREENSHOTS / "ride-390.png"), full_page=True)

@@ -11,7 +11,7 @@ import integration_services
 import numpy as np
 import pytest
 from browser_harness import chromium_for_module, new_club_admin, serve_fresh, shoot_both_widths
-from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
+from dashboard_helpers import EMAIL, PASSWORD, _ok, _require_browser, open_page, tiny_clip
 
 from conftest import PROJECT_ROOT
 
@@ -70,17 +70,6 @@ def browser(served):
         yield chromium
 
 
-def open_page(browser, served, email=EMAIL, password=PASSWORD, width=1280):
-    context = browser.new_context(base_url=served["base"], viewport={"width": width, "height": 900})
-    tab = context.new_page()
-    tab.console = Console()
-    tab.console.attach(tab)
-    tab.set_default_timeout(20_000)
-    answer = tab.context.request.post("/api/auth/login", data={"email": email, "password": password})
-    assert answer.ok, answer.text()
-    return tab
-
-
 @pytest.fixture
 def page(browser, served):
     tab = open_page(browser, served)
@@ -90,12 +79,7 @@ def page(browser, served):
         tab.context.close()
 
 
-def tiny_clip(served, name: str) -> dict:
-    path = integration_services.write_tiny_clip(served["root"] / "clips" / f"{name}.avi", frames=6)
-    return {"name": path.name, "mimeType": "video/x-msvideo", "buffer": path.read_bytes()}
-
-
-shoot = shoot_both_widths  # the journey test imports it by this name
+shoot = shoot_both_widths
 
 
 def test_a_rig_with_its_board_then_its_calibration_clips_one_by_one(page, served):

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from browser_harness import axe_violations, new_club_admin, serve_fresh, shoot_both_widths
-from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
+from browser_harness import axe_violations, missing_words, new_club_admin, serve_fresh, shoot_both_widths
+from dashboard_helpers import (  # noqa: F401 (browser and sync_playwright_factory are fixtures used here)
     EMAIL,
     PASSWORD,
     Console,
@@ -23,7 +23,6 @@ from test_dashboard import (  # noqa: F401 (browser and sync_playwright_factory 
     store_result,
     sync_playwright_factory,
 )
-from test_no_null_text import missing_words
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

@@ -3,25 +3,24 @@ opened in a fresh browser context without signing in, shows the report as a clea
 one A4 page); an admin withdraws it on the Account page and the link then says so in plain words, with no
 sign-in redirect. The horse page shares the horse's page and offers its rides as CSV / Excel.
 
-The seeded server is tests/e2e/test_ride_page.py's (imported, not copied).
+The seeded server is dashboard_helpers.ride_page_dashboard, the ride page tests' own.
 """
 
 from __future__ import annotations
 
 import io
 
+import dashboard_helpers
 import pytest
-import test_dashboard
-import test_ride_page
 from browser_harness import assert_no_horizontal_scroll, axe_violations, require_axe, screenshot
-from test_dashboard import Console, sign_in
+from dashboard_helpers import Console, sign_in
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-sync_playwright_factory = test_dashboard.sync_playwright_factory
-browser = test_dashboard.browser
-page = test_dashboard.page
-dashboard = test_ride_page.dashboard
+sync_playwright_factory = dashboard_helpers.sync_playwright_factory
+browser = dashboard_helpers.browser
+page = dashboard_helpers.page
+dashboard = dashboard_helpers.ride_page_dashboard
 
 
 def _make_link(page) -> str:

@@ -3,7 +3,7 @@
 A real `saddlescope serve` (embedded mode: the similarity job runs in its local worker pool) with three
 horses of two canter rides each, their results stored as the analyse stage stores them
 (tests/api/similarity_docs.py). Debian's chromium driven by Playwright; skipped without it (fails under
-CI=true), as tests/e2e/test_dashboard.py.
+CI=true), as tests/e2e/dashboard_helpers.py.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import sys
 
 import pytest
 from browser_harness import chromium_for_module, new_club_admin, serve_fresh, wait_for_charts_drawn
-from test_dashboard import EMAIL, PASSWORD, Console, _ok, _require_browser
+from dashboard_helpers import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 from conftest import PROJECT_ROOT
 

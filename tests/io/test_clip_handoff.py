@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+from integration_services import write_noise_clip
 
 from saddlescope.io.clip_source import BundleClips
 from saddlescope.io.video import iter_gray_frames
-from tests.io.test_video_threads import _clip
 
 
 def _frames(it):
@@ -21,7 +21,7 @@ def _same(a, b) -> bool:
 
 def test_the_next_pass_gets_the_same_frames_without_decoding_the_start_again(tmp_path):
     path = tmp_path / "flash.mp4"
-    _clip(path, 150, flash=(20, 24))
+    write_noise_clip(path, 150, flash=(20, 24))
     truth = _frames(iter_gray_frames(path, threads=1))
     with BundleClips({"motion": {"left": path}}, threads=1) as clips:
         values = clips.brightness("motion", "left")
@@ -39,7 +39,7 @@ def test_the_next_pass_gets_the_same_frames_without_decoding_the_start_again(tmp
 
 def test_an_earlier_start_a_budget_of_none_and_close_decode_as_before(tmp_path):
     path = tmp_path / "flash.mp4"
-    _clip(path, 90, flash=(10, 13))
+    write_noise_clip(path, 90, flash=(10, 13))
     truth = _frames(iter_gray_frames(path, threads=1))
     with BundleClips({"motion": {"left": path}}) as clips:
         clips.brightness("motion", "left")
@@ -59,7 +59,7 @@ def test_the_budget_bounds_what_the_sync_passes_keep(tmp_path):
     paths = {}
     for cam in ("left", "middle", "right"):
         paths[cam] = tmp_path / f"{cam}.mp4"
-        _clip(paths[cam], 90, flash=(10, 13))
+        write_noise_clip(paths[cam], 90, flash=(10, 13))
     frame_mb = 64 * 48 / 1e6
     # room for the reservation of one pass (a second of frames at 30 fps and two more), not of two
     with BundleClips({"motion": paths}, handoff_budget_mb=33 * frame_mb) as clips:
@@ -69,7 +69,7 @@ def test_the_budget_bounds_what_the_sync_passes_keep(tmp_path):
         assert clips._handoff_bytes <= 33 * frame_mb * 1e6
     # no flash (the whole clip read): nothing to hand over
     dark = tmp_path / "dark.mp4"
-    _clip(dark, 40)
+    write_noise_clip(dark, 40)
     with BundleClips({"motion": {"left": dark}}) as clips:
         assert len(clips.brightness("motion", "left")) == 40 and not clips._handoffs
 
@@ -77,7 +77,7 @@ def test_the_budget_bounds_what_the_sync_passes_keep(tmp_path):
 def test_close_during_a_sync_pass_leaves_that_pass_its_reservation_and_nothing_open(tmp_path):
     paths = {cam: tmp_path / f"{cam}.mp4" for cam in ("left", "middle")}
     for path in paths.values():
-        _clip(path, 90, flash=(10, 13))
+        write_noise_clip(path, 90, flash=(10, 13))
     clips = BundleClips({"motion": paths})
     clips.brightness("motion", "left")
     decoded = clips._decoded

@@ -8,14 +8,14 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from factories import ride_result
 
 from saddlescope.io.result_document import result_from_document, result_to_document
 from saddlescope.io.result_schema import result_problems
-from tests.io.test_rig_document import _result
 
 
 def test_intervals_round_trip_with_an_unbounded_end():
-    result = replace(_result(np.random.default_rng(5), calibrated=True),
+    result = replace(ride_result(np.random.default_rng(5), calibrated=True),
                      indicators_interval_95={"acc_y_wb_rms": (4.1, 4.9), "t_a8_action_wb_h": (1.0, math.inf)})
     doc = json.loads(json.dumps(result_to_document(result), allow_nan=False))
     assert doc["indicators_interval_95"] == {"acc_y_wb_rms": [4.1, 4.9], "t_a8_action_wb_h": [1.0, None]}
@@ -24,7 +24,7 @@ def test_intervals_round_trip_with_an_unbounded_end():
 
 
 def test_a_result_made_before_intervals_has_no_key_and_reads_back_as_none():
-    doc = result_to_document(_result(np.random.default_rng(5), calibrated=False))
+    doc = result_to_document(ride_result(np.random.default_rng(5), calibrated=False))
     assert "indicators_interval_95" not in doc
     assert result_from_document(doc).indicators_interval_95 is None
 

@@ -6,44 +6,15 @@ import json
 
 import numpy as np
 import pytest
+from factories import LOST, SQUARES, ride_result, two_camera_rig
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.findings import Finding
-from saddlescope.core.types import (
-    AnalysisWindow,
-    Camera,
-    HorseMarkers,
-    MotionFrameSummary,
-    RideResult,
-    Rig,
-    SaddleKinematics,
-    SaddleRotation,
-    VerticalHarmonics,
-)
 from saddlescope.io.result_document import result_from_document, result_to_document
 from saddlescope.io.rig_document import rig_from_dict, rig_to_dict
 
-K = np.array([[600.0, 0, 320], [0, 600, 240], [0, 0, 1]])
-
-
-def _rig() -> Rig:
-    right_R = np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])
-    cams = {"left": Camera("left", K, np.array([-0.1, 0.01, 0, 0, 0]), (640, 480), rms_px=0.2,
-                           K_std=np.diag([0.3, 0.3, 0.0]), dist_std=np.full(5, 0.001)),
-            "right": Camera("right", K, np.zeros(5), (640, 480), R=right_R, t_mm=np.array([-500.0, 0, 300]),
-                            rms_px=0.2)}
-    pairs = {"left-right": {"R": right_R, "t_mm": cams["right"].t_mm, "rms_px": 0.21, "n_views": 12}}
-    return Rig(cams, checks={"board_square_error_mm": np.float64(0.1), "views": np.int64(40)}, flags=(SQUARES,),
-               pairs=pairs)
-
-
-SQUARES = Finding("calibration.square_error", "reconstructed board squares are off by 0.40 mm RMS",
-                  {"square_error_mm": 0.4})
-LOST = Finding("tracking.lost", "markers lost from 1.00 s to 1.20 s", {"gap_start_s": 1.0, "gap_end_s": 1.2})
-
 
 def test_rig_dict_round_trip_is_json():
-    rig = _rig()
+    rig = two_camera_rig()
     d = json.loads(json.dumps(rig_to_dict(rig)))
     assert list(d["cameras"]) == ["left", "right"] and list(d["extrinsics"]) == ["right"]
     assert d["checks"] == {"board_square_error_mm": 0.1, "views": 40}  # numpy scalars as JSON numbers
@@ -64,39 +35,9 @@ def test_rig_dict_round_trip_is_json():
         rig_from_dict({"cameras": {"left": {**d["cameras"]["left"], "K": [[1, 2]]}}})
 
 
-def _result(rng: np.random.Generator, *, calibrated: bool) -> RideResult:
-    n = 7
-    t = np.arange(n) / 30.0
-    acc = rng.normal(size=(n, 3))
-    acc[2, 1] = np.nan  # a sample with no value is written as null and read back as NaN
-    return RideResult(
-        fps=30.0, gait="canter", direction="CCW", rig=_rig(),
-        sync_offsets={"motion": {"left": 0.0, "right": 12.25}}, period_s=0.6,
-        window=AnalysisWindow(start_s=1.0, duration_s=n / 30.0, start_frame=30, frames=n),
-        saddle=SaddleKinematics(t_s=t, position_m=rng.normal(size=(n, 3)), velocity_m_s=rng.normal(size=(n, 3)),
-                                acceleration_m_s2=acc, acceleration_spread_m_s2=rng.random(n),
-                                body_coordinates_m=rng.normal(size=3)),
-        angular=SaddleRotation(omega_rad_s=rng.normal(size=(n, 3)), alpha_rad_s2=rng.normal(size=(n, 3)),
-                               singularity_index=0.4, singularity_index_per_frame=rng.random(n),
-                               omega_versions_rad_s=rng.normal(size=(n, 6, 3)),
-                               omega_versions_excluded=rng.random((n, 6)) > 0.8,
-                               omega_spread_rad_s=rng.random((n, 3)), method="lsq_wiener", weak_axis_gain=(0.5, 0.25)),
-        markers=HorseMarkers(names=("M1", "M2", "M3"), position_m=rng.normal(size=(n, 3, 3)),
-                             velocity_m_s=rng.normal(size=(n, 3, 3)), acceleration_m_s2=rng.normal(size=(n, 3, 3)),
-                             rigidity_residual_mm=rng.random(n), fits={"x": [], "y": [], "z": []}),
-        motion_frame=MotionFrameSummary(R_rig_to_motion=np.eye(3), origin_mm=np.array([1.0, 2.0, 3.0]),
-                                        gravity_source="plumb"),
-        vertical_harmonics=VerticalHarmonics(f0_hz=1.6, amplitudes_m_s2=rng.random(4), phases_rad=rng.random(4)),
-        indicators={"acc_y_wb_rms": 4.5, "t_a8_action_wb_h": float("inf")},
-        quality={"singularity_index_median": np.float64(0.4)}, findings=(SQUARES, LOST),
-        params={"n_periods": 2}, timings_s={"total": 1.5},
-        calibration_views={"left": 40, "right": 38} if calibrated else None,
-        board_coverage_fraction={"left": 0.4, "right": 0.5} if calibrated else None)
-
-
 @pytest.mark.parametrize("calibrated", [True, False])
 def test_result_document_round_trip(calibrated):
-    result = _result(np.random.default_rng(3), calibrated=calibrated)
+    result = ride_result(np.random.default_rng(3), calibrated=calibrated)
     doc = json.loads(json.dumps(result_to_document(result), allow_nan=False))  # strict JSON: no NaN, no inf
     assert doc["format"] == "saddlescope.result/1"
     assert doc["saddle"]["acceleration_m_s2"][2][1] is None
@@ -115,7 +56,7 @@ def test_result_document_round_trip(calibrated):
 
 def test_a_calibration_stored_with_sentences_only_reads_back_as_coded_findings():
     """A rig calibration stored before findings were data (``flags`` only) keeps its codes."""
-    d = rig_to_dict(_rig())
+    d = rig_to_dict(two_camera_rig())
     del d["findings"]
     d["flags"] = ["the joint adjustment moved every camera's principal point by about 9 px (x +9, y -1) from where",
                   "something a later version will not say"]

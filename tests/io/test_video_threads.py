@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import av
 import numpy as np
 import pytest
+from integration_services import write_noise_clip
 
 from saddlescope.core.errors import VideoError
 from saddlescope.io import threads
@@ -45,26 +45,9 @@ def test_the_setting_overrides_the_quota_and_is_checked(monkeypatch):
         load_settings(worker_threads=0)
 
 
-def _clip(path, n=60, *, gop=None, faststart=False, flash=None):
-    container = av.open(str(path), "w", options={"movflags": "faststart"} if faststart else {})
-    stream = container.add_stream("libx264", rate=30)
-    stream.width, stream.height, stream.pix_fmt = 64, 48, "yuv420p"
-    stream.options = {"crf": "18", **({"g": str(gop)} if gop else {})}
-    rng = np.random.default_rng(1)
-    for i in range(n):
-        img = rng.integers(40, 60, (48, 64, 3), dtype=np.uint8)
-        if flash is not None and flash[0] <= i < flash[1]:
-            img = img + 150
-        for packet in stream.encode(av.VideoFrame.from_ndarray(img, format="rgb24")):
-            container.mux(packet)
-    for packet in stream.encode():
-        container.mux(packet)
-    container.close()
-
-
 def test_probe_counts_the_packets_as_decoding_would(tmp_path):
     path = tmp_path / "gop.mp4"
-    _clip(path, 75, gop=10)  # B-frames and a keyframe every 10 frames: the last GOP is decoded
+    write_noise_clip(path, 75, gop=10)  # B-frames and a keyframe every 10 frames: the last GOP is decoded
     info = probe_video(path)
     decoded = [i for i, _ in iter_gray_frames(path, threads=1)]
     assert info.frame_count == len(decoded) == 75
@@ -74,7 +57,7 @@ def test_probe_counts_the_packets_as_decoding_would(tmp_path):
 
 def test_probe_finds_a_clip_cut_short_with_its_index_in_front(tmp_path):
     good = tmp_path / "good.mp4"
-    _clip(good, 90, gop=30, faststart=True)  # a phone's layout: the index first, so the frames are all listed
+    write_noise_clip(good, 90, gop=30, faststart=True)  # a phone's layout: the index first, all frames listed
     data = good.read_bytes()
     for fraction in (0.5, 0.99):
         cut = tmp_path / f"cut{fraction}.mp4"
@@ -85,7 +68,7 @@ def test_probe_finds_a_clip_cut_short_with_its_index_in_front(tmp_path):
 
 def test_brightness_is_read_until_the_flash_has_settled(tmp_path):
     path = tmp_path / "flash.mp4"
-    _clip(path, 150, flash=(20, 24))
+    write_noise_clip(path, 150, flash=(20, 24))
     part = brightness_until_flash(iter_gray_frames(path), 30.0, clip="motion", camera="left")
     assert 30 <= len(part) <= 48  # a second at least, half a second after the flash, not the whole clip
     clips = BundleClips({"motion": {"left": path}}, threads=2)
@@ -93,13 +76,13 @@ def test_brightness_is_read_until_the_flash_has_settled(tmp_path):
     whole = BundleClips({"motion": {"left": path}}, whole_clip_brightness=True).brightness("motion", "left")
     assert len(whole) == 150 and np.array_equal(whole[: len(part)], part)
     dark = tmp_path / "dark.mp4"
-    _clip(dark, 40)  # no flash (offsets given in ride.json): every frame is read
+    write_noise_clip(dark, 40)  # no flash (offsets given in ride.json): every frame is read
     assert len(brightness_until_flash(iter_gray_frames(dark), 30.0, clip="motion", camera="left")) == 40
 
 
 def test_open_decoders_share_the_thread_budget(tmp_path):
     path = tmp_path / "c.mp4"
-    _clip(path, 5)
+    write_noise_clip(path, 5)
     clips = BundleClips({"motion": {"left": path, "right": path}}, threads=4)
     with clips._decoder_threads() as first, clips._decoder_threads() as second:
         assert (first, second) == (4, 2)

@@ -76,6 +76,13 @@ def _coverage(tmp: Path, quick: bool) -> dict:
     return {"coverage": run_coverage(quick=quick)}  # issue 27: do the 95 % intervals hold the truth?
 
 
+def _wand(tmp: Path, quick: bool) -> dict:
+    """A wide rig calibrated from a wand and close-up boards against the full board calibration (issue 35)."""
+    from saddlescope.bench.calibration import wand_vs_board
+
+    return wand_vs_board(tmp, quick=quick)
+
+
 def _dashboard(tmp: Path, quick: bool) -> dict:
     """The dashboard's five times to interactive as top-level keys, the rest under ``dashboard``.
 
@@ -92,6 +99,7 @@ SECTIONS: tuple[BenchSection, ...] = (
     BenchSection("calibration", "three cameras calibrated from their board clips", _analysis.calibration_section),
     BenchSection("calibration_check", "calibration clips checked before riding: three 30 s 1080p clips",
                  _calibration_check),
+    BenchSection("wand", "a wide rig from a wand and close-up boards against the full board calibration", _wand),
     BenchSection("speed", "whole rides against decoding their clips once, stages, memory", _analysis.speed_section),
     BenchSection("footage", "whole rides against the length of their footage", _analysis.footage_section),
     BenchSection("floor", "the kinematics' exact-marker floor", _analysis.floor_section),

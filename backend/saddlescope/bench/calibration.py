@@ -15,7 +15,8 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["calibration_check_clips_s", "calibration_stage_s", "calibration_vs_decode"]
+__all__ = ["calibration_check_clips_s", "calibration_stage_s", "calibration_vs_decode", "wand_canter_indicators",
+           "wand_vs_board"]
 
 
 def _decode_once(paths: list[Path]) -> int:
@@ -146,6 +147,191 @@ def calibration_check_clips_s(tmp: Path, *, quick: bool = False, clip_s: float =
         "calibration_check_views": {c: v.views for c, v in check.cameras.items()},
         "calibration_check_verdict": check.verdict(),
     }
+
+
+def _pose_errors(rig, truth) -> dict:
+    """Per camera: focal length error (%), rotation error (deg) and camera-centre error (mm) against ``truth``.
+
+    Both rigs share their reference camera (identity pose), so the centres are compared directly.
+    """
+    import cv2
+    import numpy as np
+
+    out = {}
+    for name, true in truth.cameras.items():
+        cam = rig.cameras[name]
+        centre, true_centre = -cam.R.T @ cam.t_mm, -true.R.T @ true.t_mm
+        turn_deg = float(np.degrees(np.linalg.norm(cv2.Rodrigues(cam.R @ true.R.T)[0])))
+        out[name] = {"focal_error_pct": round(float(100 * (cam.K[0, 0] / true.K[0, 0] - 1)), 4),
+                     "rotation_error_deg": round(turn_deg, 4),
+                     "centre_error_mm": round(float(np.linalg.norm(centre - true_centre)), 2)}
+    return out
+
+
+def _baseline_errors_mm(rig, truth) -> dict:
+    """Each pair's baseline (distance between camera centres) minus the true one, mm."""
+    import itertools
+
+    import numpy as np
+
+    def centre(c):
+        return -c.R.T @ c.t_mm
+
+    return {f"{a}-{b}": round(float(np.linalg.norm(centre(rig.cameras[a]) - centre(rig.cameras[b]))
+                                    - np.linalg.norm(centre(truth.cameras[a]) - centre(truth.cameras[b]))), 2)
+            for a, b in itertools.combinations(truth.names, 2)}
+
+
+def _volume_board_views(srig, rng, n_poses: int = 60) -> dict:
+    """The arena board held through the riding volume, seen by every camera (exact corners, 0.1 px noise).
+
+    The same views check the board squares of both calibrations (metric_checks), so neither is judged on
+    views it was fitted to.
+    """
+    import numpy as np
+
+    from saddlescope.arena.content import BOARD
+    from saddlescope.core.calibration.simulation import simulate_board_views
+    from saddlescope.core.types import Rig
+
+    half = np.asarray(srig.volume_half_m)
+    rvecs, ts = [], []
+    cols, rows = BOARD.inner_corners
+    centre_b = np.array([(cols - 1) * BOARD.square_mm / 2, (rows - 1) * BOARD.square_mm / 2, 0.0])
+    import cv2
+
+    for _ in range(n_poses):
+        # board facing the cameras (normal along -z world), turned by up to 30 degrees
+        r_bw = cv2.Rodrigues(np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.2, 0.2)]))[0]
+        c_w = rng.uniform(-half, half) * np.array([1.0, 1.0, 1.0])
+        r_br = srig.R_world_to_rig @ r_bw
+        t = srig.world_to_rig_mm(c_w) - r_br @ centre_b
+        rvecs.append(cv2.Rodrigues(r_br)[0].ravel())
+        ts.append(t)
+    return simulate_board_views(Rig(srig.cameras), BOARD, np.array(rvecs), np.array(ts), noise_px=0.1, rng=rng)
+
+
+def _wand_rig(srig, seed: int, n_frames: int, length_m: float):
+    """The arena rig calibrated from close-up board views and rendered wand clips (rig, report, views, path, CPU s)."""
+    import numpy as np
+
+    from saddlescope.arena.wand import CLOSE_UP_BOARD, close_up_board_views, render_wand_frames, wand_path
+    from saddlescope.core.calibration.intrinsics import calibrate_intrinsics
+    from saddlescope.core.calibration.wand import calibrate_wand, track_wand_ends
+
+    rng = np.random.default_rng(seed + 1000)
+    t0 = time.process_time()
+    close = close_up_board_views(srig, rng)
+    intrinsics = {r: calibrate_intrinsics(v, CLOSE_UP_BOARD, srig.cameras[r].image_size, camera=r)[0]
+                  for r, v in close.items()}
+    path = wand_path(srig, rng, n_frames=n_frames, length_m=length_m)
+    t_render = time.process_time()
+    frames = {r: list(render_wand_frames(srig, path, r, rng=rng)) for r in srig.cameras}
+    render_s = time.process_time() - t_render
+    views = {r: track_wand_ends(frames[r]) for r in srig.cameras}
+    del frames
+    rig, report = calibrate_wand(views, intrinsics, length_m * 1000.0)
+    return rig, report, views, path, time.process_time() - t0 - render_s
+
+
+def wand_canter_indicators(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = False,
+                           wand_frames: int = 240) -> dict:
+    """A canter's indicators with the wand-calibrated rig against the board-calibrated one (issue 35).
+
+    The same rendered ride is analysed twice: as it comes (its board clips calibrate the rig) and with
+    the rig from :func:`_wand_rig`. Returns each indicator's two values and their relative difference (%),
+    and the largest difference.
+    """
+    import numpy as np
+
+    from saddlescope.arena.rig import make_rig
+    from saddlescope.io.synth_writer import write_ride_bundle
+    from saddlescope.services.analysis import analyze_bundle
+
+    ride = Path(tmp) / f"wand_vs_board_{rig}"
+    if not (ride / "ride.json").is_file():
+        write_ride_bundle(ride, gait="canter", seed=seed, rig=rig, extras=False,
+                          **({"duration_s": 3.0, "calibration_poses": 40} if quick else {}))
+    srig = make_rig(rig, np.random.default_rng(np.random.SeedSequence([int(seed), 0x5ADD1E]).spawn(8)[0]))
+    wand_rig = _wand_rig(srig, seed, wand_frames if not quick else wand_frames // 2, 1.0)[0]
+    board = analyze_bundle(ride)["indicators"]
+    wand = analyze_bundle(ride, rig=wand_rig)["indicators"]
+    truth = json.loads((ride / "truth.json").read_text()).get("indicators", {})
+    out = {}
+    for key, b in board.items():
+        w, t = wand.get(key), truth.get(key)
+        if isinstance(b, (int, float)) and isinstance(w, (int, float)) and b:
+            out[key] = {"board": b, "wand": w, "difference_pct": round(100 * (w - b) / abs(b), 3)}
+            if isinstance(t, (int, float)) and t:  # each calibration's error against the arena's exact answer
+                out[key].update({"truth": t, "board_error_pct": round(100 * (b - t) / abs(t), 3),
+                                 "wand_error_pct": round(100 * (w - t) / abs(t), 3)})
+    worst = max((abs(v["difference_pct"]) for v in out.values()), default=float("nan"))
+    closer = sum(abs(v["wand_error_pct"]) <= abs(v["board_error_pct"]) for v in out.values() if "truth" in v)
+    return {"wand_canter_indicators": out, "wand_canter_worst_difference_pct": worst,
+            "wand_canter_closer_to_truth": closer, "wand_canter_compared": sum("truth" in v for v in out.values())}
+
+
+def wand_vs_board(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = False,
+                  wand_frames: int = 240, length_m: float = 1.0) -> dict:
+    """A rig calibrated from a wand and close-up board views against the full board calibration (issue 35).
+
+    The board calibration is the pipeline's calibration stage on a rendered synthetic ride's board clips
+    (as :func:`calibration_vs_decode`); the wand calibration uses the same arena rig: each lens from 40
+    close-up views of an A3 board (:func:`saddlescope.arena.wand.close_up_board_views`), the poses and scale
+    from ``wand_frames`` rendered frames of a 1 m wand waved through the riding volume by each camera
+    (:func:`saddlescope.arena.wand.render_wand_frames`), ends found by :func:`track_wand_ends`. Both rigs are
+    compared with the arena's exact cameras and checked on the same independent board views in the volume.
+
+    Returns
+    -------
+    dict ``wand_vs_board`` with, for ``board`` and ``wand``: per-camera pose errors, baseline errors (mm),
+    ``board_square_error_mm`` (and pct), and for the wand its length check; the ratios wand/board of the
+    square error and of the largest baseline error; the wand calibration's CPU time.
+    """
+    import numpy as np
+
+    from saddlescope.arena.content import BOARD
+    from saddlescope.arena.rig import make_rig
+    from saddlescope.core.calibration.checks import metric_checks
+    from saddlescope.core.params import PipelineParams
+    from saddlescope.core.pipeline.setup import calibrate_from_clips, synchronise
+    from saddlescope.io.bundle import open_bundle
+    from saddlescope.io.clip_source import BundleClips
+    from saddlescope.io.synth_writer import write_ride_bundle
+
+    ride = Path(tmp) / f"wand_vs_board_{rig}"
+    write_ride_bundle(ride, gait="canter", seed=seed, rig=rig, extras=False,
+                      **({"duration_s": 3.0, "calibration_poses": 40} if quick else {}))
+    with open_bundle(ride) as bundle:
+        clips = BundleClips(bundle.clip_paths)
+        offsets, first_frame = synchronise(clips, bundle.meta, ["calibration"])
+        board_rig, _ = calibrate_from_clips(clips, BOARD, offsets["calibration"], first_frame["calibration"],
+                                            PipelineParams())
+    # the scene's rig, drawn as build_scene draws it
+    r_rig = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5ADD1E]).spawn(8)[0])
+    srig = make_rig(rig, r_rig)
+    wand_rig, wand_report, views, path, wand_cpu_s = _wand_rig(
+        srig, seed, wand_frames if not quick else wand_frames // 2, length_m)
+    check_views = _volume_board_views(srig, np.random.default_rng(seed + 2000))
+    from saddlescope.core.types import Rig
+
+    truth = Rig(srig.cameras)
+    out: dict = {"rig": rig, "seed": seed, "wand_frames": len(path.ends_w), "wand_length_m": length_m,
+                 "wand_views": {r: len(v) for r, v in views.items()}, "wand_cpu_s": round(wand_cpu_s, 2)}
+    for label, r in (("board", board_rig), ("wand", wand_rig)):
+        checks, _, _ = metric_checks(r, check_views, BOARD)
+        out[label] = {"cameras": _pose_errors(r, truth), "baseline_error_mm": _baseline_errors_mm(r, truth),
+                      "board_square_error_mm": round(checks["board_square_error_mm"], 4),
+                      "board_square_error_pct": round(checks["board_square_error_pct"], 4),
+                      "board_scale_error_pct": round(checks["board_scale_error_pct"], 4)}
+    out["wand"].update({k: round(float(v), 3) for k, v in wand_rig.checks.items()})
+    out["wand"]["bundle"] = wand_report["bundle"]
+    out["wand"]["findings"] = [f.code for f in wand_rig.flags]
+    out["square_error_wand_vs_board"] = round(out["wand"]["board_square_error_mm"]
+                                              / max(out["board"]["board_square_error_mm"], 1e-9), 3)
+    worst = {k: max(abs(v) for v in out[k]["baseline_error_mm"].values()) for k in ("board", "wand")}
+    out["worst_baseline_error_mm"] = worst
+    return {"wand_vs_board": out}
 
 
 if __name__ == "__main__":  # python -m saddlescope.bench.calibration RIDE [REPEATS]: one line of JSON

@@ -49,6 +49,8 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
     ("calibration.corner_distances", "problem", "calibration", _CALIBRATE_AGAIN),
     ("calibration.lens_model", "check", "calibration",
      "Next calibration, carry the board to the edges and corners of this camera's view so its own views fix its lens."),
+    ("calibration.wand_length", "problem", "calibration",
+     "Calibrate again: wave the wand slowly through the whole riding area where every camera sees both ends."),
     ("calibration.principal_point", "check", "calibration",
      "Next calibration, carry the board higher and lower and tilt it towards and away from the cameras."),
     # two-camera samples whose depth rests on the lens extrapolated beyond the board (core/saddle.py)

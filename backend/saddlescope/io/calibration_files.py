@@ -32,9 +32,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from saddlescope.core.calibration import BoardFinder, BoardView, calibrate_rig, select_instants
+from saddlescope.core.calibration import (
+    BoardFinder,
+    BoardView,
+    calibrate_intrinsics,
+    calibrate_rig,
+    select_instants,
+)
 from saddlescope.core.calibration.boards import DEFAULT_BOARD_KIND, board_to_meta, charuco, make_board
 from saddlescope.core.calibration.detection import squares_hint
+from saddlescope.core.calibration.wand import calibrate_wand, track_wand_ends
 from saddlescope.core.errors import CalibrationError, InputError, SyncError, VideoError
 from saddlescope.core.findings import Finding
 from saddlescope.core.sync import flash_interval, offsets_from_intervals
@@ -241,6 +248,82 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
     result = _calibration_result(rig, report, board, frames, views, searched)
     result["timings_s"] = {"sync": t_sync - t0, "detection": t_detect - t_sync,
                            "calibration": t_cal - t_detect, "total": time.perf_counter() - t0}
+    if toml_out:
+        write_anipose_toml(rig, toml_out)
+    return result
+
+
+def _close_up_intrinsics(close_ups: Mapping[str, str], board: Board, max_views: int) -> dict[str, Camera]:
+    """Each camera's lens from its close-up board clip (every camera alone, no poses)."""
+    lenses = {}
+    for cam, src in close_ups.items():
+        probe = _probe(src, cam)
+        step = max(1, math.ceil(probe["frame_count"] / 300))
+        views, size, _ = detect_source_views(src, board, camera=cam, step=step)
+        if size is None or not views:
+            cols, rows = board.inner_corners
+            raise CalibrationError(f"no calibration board ({board.kind} {cols}x{rows} inner corners) found in "
+                                   f"the close-up clip of the {cam} camera ({src})")
+        chosen = set(select_instants({cam: views}, board, {cam: size}, max_instants=max_views))
+        lenses[cam], _ = calibrate_intrinsics([v for v in views if v.frame in chosen], board, size, camera=cam,
+                                              clip="close-up")
+    return lenses
+
+
+def calibrate_wand_sources(sources: Mapping[str, str], *, wand_length_m: float,
+                           intrinsics: Mapping[str, Camera] | None = None,
+                           close_ups: Mapping[str, str] | None = None, board: Board | None = None,
+                           sync: str | Mapping[str, float] = "auto", max_frames: int = 600, max_views: int = 40,
+                           toml_out: str | Path | None = None) -> dict:
+    """Calibrate cameras from a wand waved through the volume; the body of ``saddlescope calibrate --wand``.
+
+    Parameters
+    ----------
+    sources : dict camera name -> the wand clip (video, image folder or glob); the first is the reference
+    wand_length_m : float
+        The distance between the wand's two markers' centres, metres.
+    intrinsics : dict camera name -> Camera, optional
+        Known lenses (:func:`read_intrinsics`).
+    close_ups, board : optional
+        Close-up board clips per camera for the lenses not given, and the board they show.
+    max_frames : int
+        The wand clips are sampled at about this many common frames.
+
+    Returns
+    -------
+    dict
+        :func:`rig_to_dict` plus ``wand`` (length, frames with both ends per camera, the adjustment's numbers),
+        ``sync`` and ``timings_s``.
+    """
+    t0 = time.perf_counter()
+    if not sources:
+        raise InputError("no camera given: use --camera NAME=WAND_CLIP")
+    sources = {str(k): str(v) for k, v in sources.items()}
+    lenses = dict(intrinsics or {})
+    need = [c for c in sources if c not in lenses]
+    if need:
+        if not close_ups or board is None or any(c not in close_ups for c in need):
+            raise InputError(f"camera(s) {', '.join(need)} need their lenses: give a close-up board clip "
+                             "(--close-up NAME=CLIP with --pattern and --square) or --intrinsics NAME=FILE")
+        lenses.update(_close_up_intrinsics({c: close_ups[c] for c in need}, board, max_views))
+    frames = _common_frames(sources, sync, max_frames)
+    t_lens = time.perf_counter()
+    views = {}
+    for cam, src in sources.items():
+        off = frames["offsets"][cam]
+        shifted = ((i - off, g) for i, g in iter_source_frames(src, camera=cam, start=frames["first"] + off,
+                                                                step=frames["step"]))
+        views[cam] = track_wand_ends(shifted)
+        if not views[cam]:
+            raise CalibrationError(f"the wand's two ends were never both seen in the {cam} camera's clip ({src})")
+    t_track = time.perf_counter()
+    rig, report = calibrate_wand(views, lenses, wand_length_m * 1000.0)
+    result = rig_to_dict(rig)
+    result["wand"] = {"length_m": wand_length_m, "frames_with_both_ends": {c: len(v) for c, v in views.items()},
+                      "first_pair": report["first_pair"], "bundle": report["bundle"]}
+    result["sync"] = {**frames["sync_info"], "frame_offsets": frames["offsets"], "frame_step": frames["step"]}
+    result["timings_s"] = {"lenses": t_lens - t0, "wand_ends": t_track - t_lens,
+                           "calibration": time.perf_counter() - t_track, "total": time.perf_counter() - t0}
     if toml_out:
         write_anipose_toml(rig, toml_out)
     return result

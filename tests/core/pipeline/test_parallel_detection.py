@@ -5,11 +5,14 @@ from __future__ import annotations
 import threading
 import time
 
+import integration_services
 import numpy as np
 import pytest
 
 from saddlescope.core.errors import DetectionError
 from saddlescope.core.pipeline.detection import detect_clip, per_camera
+
+short_canter_ride = integration_services.short_canter_ride
 
 
 def test_per_camera_keeps_order_errors_and_the_budget():
@@ -51,15 +54,13 @@ def test_per_camera_keeps_order_errors_and_the_budget():
 
 
 @pytest.mark.slow
-def test_parallel_detection_gives_the_same_tracks(tmp_path):
+def test_parallel_detection_gives_the_same_tracks(short_canter_ride):
+    # the ride test_pipeline analyses (rendered once per run): only its static shot is tracked here
     from saddlescope.core import pipeline as P
     from saddlescope.io.bundle import open_bundle
     from saddlescope.io.clip_source import BundleClips
-    from saddlescope.io.synth_writer import write_ride_bundle
 
-    out = tmp_path / "canter"
-    write_ride_bundle(out, gait="canter", seed=4, rig="thesis", duration_s=2.0)
-    with open_bundle(out) as bundle:
+    with open_bundle(short_canter_ride) as bundle:
         clips = BundleClips(bundle.clip_paths)
         tracks = {threads: detect_clip(clips, "static", 4, {}, P.PipelineParams(threads=threads))[0]
                   for threads in (1, 3)}

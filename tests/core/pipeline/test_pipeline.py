@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import cv2
+import integration_services
 import numpy as np
 import pytest
 
@@ -20,14 +21,13 @@ from saddlescope.io.result_document import result_to_document
 from saddlescope.io.result_schema import validate_result
 from saddlescope.io.rig_document import rig_from_dict
 
+short_canter_ride = integration_services.short_canter_ride
+
 
 @pytest.fixture(scope="module")
-def short_ride(tmp_path_factory):
-    from saddlescope.io.synth_writer import write_ride_bundle
-
-    out = tmp_path_factory.mktemp("ride") / "canter"
-    write_ride_bundle(out, gait="canter", seed=4, rig="thesis", duration_s=3.0, extras=True)
-    return out
+def short_ride(short_canter_ride):
+    """The 3 s canter (seed 4) rendered once per run and shared with test_parallel_detection."""
+    return short_canter_ride
 
 
 @pytest.fixture(scope="module")
@@ -152,8 +152,9 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
     from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.services.analysis import analyze_bundle
 
+    # 30 calibration poses (the clock under test is the motion clip's; the rig only needs to be good)
     ride = write_ride_bundle(tmp_path / "phones", gait="canter", seed=21, rig="thesis", duration_s=3.0,
-                             extras=False, options=RenderOptions(variable_frame_rate=True))
+                             extras=False, calibration_poses=30, options=RenderOptions(variable_frame_rate=True))
     result = analyze_bundle(ride)
     truth = json.loads((ride / "truth.json").read_text())
     variable = [f["detail"].split(" camera")[0] for f in result["quality"]["findings"]
