@@ -146,7 +146,7 @@ def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     formats = exports.evaluate_all("els => els.map(e => e.dataset.export)")
     assert sorted(formats) == ["c3d", "csv", "json", "trc", "xlsx"]
     answer = page.context.request.get(exports.filter(has_text="CSV").get_attribute("href"))
-    assert answer.ok and b"acc_y_wb_rms" in answer.body()
+    assert answer.ok and "W_b r.m.s. (m/s²)".encode() in answer.body()  # columns named in words, with units
     page.screenshot(path="/tmp/dash_ride.png", full_page=True)
     assert page.console.unexpected() == []
 
@@ -318,7 +318,8 @@ def test_jobs_page_follows_a_job_live_and_offers_retry(page, dashboard):
     failed = page.locator(f'[data-jobs-table] tr[data-job-id="{failing["id"]}"][data-status="failed"]')
     failed.wait_for()
     job = api_get(dashboard, f"/api/jobs/{failing['id']}")
-    assert job["error"] and job["error"] in failed.inner_text()
+    # the failure in one plain sentence (services/failure_advice.py), not the engineer's message
+    assert job["error"] and job["failure"]["sentence"] in failed.inner_text()
     failed.get_by_role("button", name=f"Retry job {failing['id']}").click()
     page.locator(f'[data-jobs-table] tr[data-job-id="{failing["id"]}"][data-status="failed"]').wait_for()
     assert api_get(dashboard, f"/api/jobs/{failing['id']}")["attempts"] >= 2

@@ -237,9 +237,9 @@ def test_jobs_horses_and_riders_pages_page_and_filter(admin_page, server):
     page.wait_for_url("**kind=selftest**")
     page.wait_for_function(  # the filtered page has replaced the first one
         "() => [...document.querySelectorAll('[data-jobs-table] tbody tr td:nth-child(2)')]"
-        ".some(td => td.innerText === 'selftest')")
+        ".some(td => td.innerText === 'Worker self-test')")
     kinds = page.locator("[data-jobs-table] tbody tr td:nth-child(2)").all_inner_texts()
-    assert kinds and set(kinds) == {"selftest"}
+    assert kinds and set(kinds) == {"Worker self-test"}  # the glossary's label, never the code
     _shoot(page, "jobs")
 
     page.goto("/#/horses")

@@ -15,6 +15,7 @@ import integration_services
 import numpy as np
 import pytest
 
+from saddlescope.core.errors import CamerasMovedError
 from saddlescope.services.analysis import analyze_bundle
 from saddlescope.services.calibration import rig_from_calibration
 
@@ -37,10 +38,17 @@ def _codes(document) -> list[str]:
 
 
 def test_a_camera_turned_since_the_calibration_is_said_in_those_words(tiny_ride):
-    moved = analyze_bundle(tiny_ride, rig=_rig_turned(tiny_ride, 3.0))
-    finding = next(f for f in moved["quality"]["findings"] if f["code"] == "calibration.cameras_moved")
-    assert finding["detail"].startswith("the cameras moved since the rig was calibrated")
-    assert finding["severity"] == "problem" and finding["values"]["median_px"] > 4.0
+    # Either the ride is still measured and carries the finding, or (this tiny ride: the markers the turned
+    # camera no longer matches leave too short a run for two strides) it fails saying the cameras moved.
+    try:
+        moved = analyze_bundle(tiny_ride, rig=_rig_turned(tiny_ride, 3.0))
+    except CamerasMovedError as exc:
+        assert str(exc).startswith("the cameras moved since the rig was calibrated")
+        assert "reproject" in str(exc)
+    else:
+        finding = next(f for f in moved["quality"]["findings"] if f["code"] == "calibration.cameras_moved")
+        assert finding["detail"].startswith("the cameras moved since the rig was calibrated")
+        assert finding["severity"] == "problem" and finding["values"]["median_px"] > 4.0
 
     still = analyze_bundle(tiny_ride, rig=_rig_turned(tiny_ride, 0.0))
     assert "calibration.cameras_moved" not in _codes(still)

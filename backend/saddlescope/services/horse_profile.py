@@ -72,7 +72,7 @@ def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, ind
         if reason is None:
             earlier.append(value)
     # the club's other horses in the gait, for the band until the horse has its own (rides too uncertain left out)
-    club = AnalyticsRepository(session, club_id=club_id).indicator_rows(indicator, gait=gait, include_uncertain=False)
+    club = AnalyticsRepository(session, club_id=club_id).indicator_rows(gait=gait, include_uncertain=False)
     club_rows = [row for row in club if row["horse_id"] != horse.id]
     club_values = [_finite((row.get("indicators") or {}).get(indicator)) for row in club_rows]
     horses_in_club = len({row["horse_id"] for row, v in zip(club_rows, club_values, strict=True) if v is not None})
