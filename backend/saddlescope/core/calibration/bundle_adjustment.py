@@ -257,9 +257,8 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
     """
     names = list(cameras)
     obj_all = object_points_mm(board)
-    for name in names:
-        if not views_by_camera.get(name):
-            raise CalibrationError(f"bundle adjustment: camera {name} has no board view")
+    if without := [n for n in names if not views_by_camera.get(n)]:
+        raise CalibrationError(f"bundle adjustment: camera {without[0]} has no board view")
     inst_pose = _initial_board_poses(cameras, views_by_camera, obj_all)
     instants = sorted(inst_pose)
     if not instants:
@@ -295,16 +294,9 @@ def bundle_adjust(cameras: Mapping[str, Camera], views_by_camera: Mapping[str, l
 
     std = _camera_std(bundle, cams, boards, r, w, free)
     out, pose_std, rms_by_cam = _refined_cameras(names, cameras, cams, std, bundle, r)
-    report = {
-        "rms_px": float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))),
-        "rms_px_by_camera": rms_by_cam,
-        "n_observations": int(keep.sum()),
-        "n_dropped": n_dropped,
-        "n_instants": I,
-        "iterations": iterations,
-        "pose_std": pose_std,
-        "board_poses": {f: boards[inst_index[f]].copy() for f in instants},
-    }
+    report = {"rms_px": float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))), "rms_px_by_camera": rms_by_cam,
+              "n_observations": int(keep.sum()), "n_dropped": n_dropped, "n_instants": I, "iterations": iterations,
+              "pose_std": pose_std, "board_poses": {f: boards[inst_index[f]].copy() for f in instants}}
     return out, report
 
 

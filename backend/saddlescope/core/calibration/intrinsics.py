@@ -137,6 +137,16 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
             break  # (views are dropped only where a round follows to fit without them)
         dropped += [v.frame for v, b in zip(views, bad, strict=True) if b]
         views = [v for v, b in zip(views, bad, strict=True) if not b]
+    fix_k3_used = bool(fix_k3) if model is None else not model.k3
+    return _intrinsics_result(camera, views, obj_all, (w, h), (rms, K, dist, rvecs, tvecs, std_intr, per_view),
+                              dropped=dropped, fix_k3=fix_k3_used)
+
+
+def _intrinsics_result(camera: str, views: list[BoardView], obj_all: np.ndarray, size: tuple[int, int],
+                       fit: tuple, *, dropped: list[int], fix_k3: bool) -> tuple[Camera, dict]:
+    """The camera and the report of OpenCV's fit ``(rms, K, dist, rvecs, tvecs, std_intr, per_view)``."""
+    rms, K, dist, rvecs, tvecs, std_intr, per_view = fit
+    w, h = size
     residuals = []
     for v, rv, tv in zip(views, rvecs, tvecs, strict=True):
         proj, _ = cv2.projectPoints(obj_all[v.ids], rv, tv, K, dist)
@@ -154,7 +164,7 @@ def calibrate_intrinsics(views: list[BoardView], board: Board, image_size: tuple
         "dropped_frames": sorted(dropped),
         "n_views": len(views),
         "n_points": int(len(res)),
-        "fix_k3": bool(fix_k3) if model is None else not model.k3,
+        "fix_k3": fix_k3,
         "poses": {int(v.frame): (np.asarray(rv, np.float64).ravel(), np.asarray(tv, np.float64).ravel())
                   for v, rv, tv in zip(views, rvecs, tvecs, strict=True)},
     }

@@ -182,25 +182,11 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     Each camera's lens comes from the joint adjustment unless its own views reject it
     (:func:`_joint_lens_test`); ``rig.lens_models`` and a ``calibration.lens_model`` finding per camera say which.
     """
-    names = list(views_by_camera)
-    if not names:
-        raise InputError("no cameras to calibrate")
-    missing = [n for n in names if n not in image_sizes]
-    if missing:
-        raise InputError(f"image size missing for camera(s) {', '.join(missing)}")
-    given = dict(given_intrinsics or {})
-    unknown = [n for n in given if n not in names]
-    if unknown:
-        raise InputError(f"intrinsics given for camera(s) {', '.join(unknown)} that are not calibrated here")
+    names, given = _check_rig_inputs(views_by_camera, image_sizes, given_intrinsics)
     intrinsics, intr_reports = _all_intrinsics(views_by_camera, board, image_sizes, fix_k3=fix_k3, clip=clip,
                                                min_views=min_views, threads=threads, given=given)
     k3_fixed = {n: intr_reports[n]["fix_k3"] for n in names}
-    # views kept by the intrinsic step (outlier views dropped), and partial views (too few corners for a
-    # lens, enough for the board's pose: 4 or more) for the joint adjustment
-    views = {n: [v for v in views_by_camera[n] if v.frame in intr_reports[n]["per_view_rms_px"]
-                 or (MIN_POSE_CORNERS <= len(v.ids) < MIN_CORNERS
-                     and v.frame not in intr_reports[n]["dropped_frames"])]
-             for n in names}
+    views = {n: _pose_views(views_by_camera[n], intr_reports[n]) for n in names}
     partial = {n: sum(len(v.ids) < MIN_CORNERS for v in views[n]) for n in names}
     report: dict = {"intrinsics": intr_reports, "bundle": None, "per_pair_checks": {},
                     "n_relabelled_views": 0, "n_dropped_views": 0, "lens_choice": {},
@@ -220,23 +206,56 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     if bundle:
         cams, report["bundle"], models, report["lens_choice"], lens_flags = _adjust_with_lens_choice(
             cams, intrinsics, intr_reports, views, views_by_camera, board, models, loss=loss, clip=clip)
-    pairs = {}
-    for (a, b), p in pairs_cv.items():
-        pairs[f"{a}-{b}"] = {"R": p["R"], "t_mm": p["t_mm"], "rms_px": p["rms_px"], "n_views": p["n_views"]}
-    rig = Rig(cams, pairs=pairs)
-    checks, flags, per_pair = metric_checks(rig, views, board, max_square_error_pct=max_square_error_pct,
-                                            max_square_error_mm=max_square_error_mm,
-                                            max_distance_rms_mm=max_distance_rms_mm)
+    pairs = {f"{a}-{b}": {"R": p["R"], "t_mm": p["t_mm"], "rms_px": p["rms_px"], "n_views": p["n_views"]}
+             for (a, b), p in pairs_cv.items()}
+    checks, flags, report["per_pair_checks"] = _rig_checks(
+        cams, pairs, views, board, intrinsics, report["bundle"], image_sizes,
+        metric_limits={"max_square_error_pct": max_square_error_pct, "max_square_error_mm": max_square_error_mm,
+                       "max_distance_rms_mm": max_distance_rms_mm},
+        max_principal_point_shift=max_principal_point_shift)
+    return Rig(cams, checks=checks, flags=tuple(flags) + tuple(lens_flags), pairs=pairs, lens_models=models), report
+
+
+def _check_rig_inputs(views_by_camera: Mapping[str, list[BoardView]], image_sizes: Mapping[str, tuple[int, int]],
+                      given_intrinsics: Mapping[str, Camera] | None) -> tuple[list[str], dict[str, Camera]]:
+    """The cameras to calibrate and the intrinsics given; refuse none, a missing size or a stranger's lens."""
+    names = list(views_by_camera)
+    if not names:
+        raise InputError("no cameras to calibrate")
+    missing = [n for n in names if n not in image_sizes]
+    if missing:
+        raise InputError(f"image size missing for camera(s) {', '.join(missing)}")
+    given = dict(given_intrinsics or {})
+    unknown = [n for n in given if n not in names]
+    if unknown:
+        raise InputError(f"intrinsics given for camera(s) {', '.join(unknown)} that are not calibrated here")
+    return names, given
+
+
+def _pose_views(views: list[BoardView], intr_report: dict) -> list[BoardView]:
+    """Return the views kept by the intrinsic step (outliers dropped) and the partial ones.
+
+    Partial views have too few corners for a lens but enough for the board's pose (4 or more): they count
+    in the joint adjustment.
+    """
+    return [v for v in views if v.frame in intr_report["per_view_rms_px"]
+            or (MIN_POSE_CORNERS <= len(v.ids) < MIN_CORNERS and v.frame not in intr_report["dropped_frames"])]
+
+
+def _rig_checks(cams: dict[str, Camera], pairs: dict, views: dict, board: Board, intrinsics: dict,
+                bundle_report: dict | None, image_sizes: Mapping[str, tuple[int, int]], *,
+                metric_limits: dict, max_principal_point_shift: float) -> tuple[dict, list, dict]:
+    """The rig's metric checks in mm, each pair's own, and whether the adjustment moved every principal point."""
+    checks, flags, per_pair = metric_checks(Rig(cams, pairs=pairs), views, board, **metric_limits)
     for key, p in pairs.items():
         p.update({f"check_{k}": v for k, v in per_pair.get(key, {}).items()})
-    if report["bundle"] is not None:
-        checks["bundle_rms_px"] = report["bundle"]["rms_px"]
-        limit = max_principal_point_shift * min(min(image_sizes[n]) for n in names)
+    if bundle_report is not None:
+        checks["bundle_rms_px"] = bundle_report["rms_px"]
+        limit = max_principal_point_shift * min(min(image_sizes[n]) for n in cams)
         checks["principal_point_common_shift_px"], flag = _principal_point_check(intrinsics, cams, limit)
         if flag is not None:
             flags.append(flag)
-    report["per_pair_checks"] = per_pair
-    return Rig(cams, checks=checks, flags=tuple(flags) + tuple(lens_flags), pairs=pairs, lens_models=models), report
+    return checks, flags, per_pair
 
 
 JOINT_LENS_MIN_VIEWS = 6  # fewer own views than this cannot overrule the joint adjustment
