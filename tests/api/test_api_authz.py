@@ -21,6 +21,7 @@ PUBLIC = {
     ("POST", "/api/auth/login"),
     ("POST", "/api/auth/logout"),
     ("POST", "/api/auth/password-reset"),  # the one-time token is the credential
+    ("GET", "/api/glossary"),  # the words for the service's codes, the same for everyone (the sign-in page's too)
 }
 # Own-club routes that end the caller's sessions: checked signed out only (they would sign B out).
 ENDS_SESSIONS = {("POST", "/api/auth/logout-everywhere")}

@@ -8,11 +8,11 @@ import threading
 import time
 
 import pytest
+from integration_services import write_noise_clip
 
 from saddlescope.io import clip_source
 from saddlescope.io.clip_source import BundleClips
 from saddlescope.io.malloc import mapped_bytes
-from tests.io.test_video_threads import _clip
 
 CAMERAS = ("left", "middle", "right")
 
@@ -46,7 +46,7 @@ class _Counted:
 def test_slow_consumers_cannot_make_the_decoders_hold_more_frames(tmp_path, monkeypatch):
     paths = {cam: tmp_path / f"{cam}.mp4" for cam in CAMERAS}
     for path in paths.values():
-        _clip(path, 90, flash=(10, 13))
+        write_noise_clip(path, 90, flash=(10, 13))
     counted = _Counted()
     monkeypatch.setattr(clip_source, "iter_gray_frames", counted.wrap(clip_source.iter_gray_frames))
     frame_mb = 64 * 48 / 1e6
