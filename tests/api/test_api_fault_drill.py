@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import struct
 import subprocess
+import uuid
 from urllib.parse import urlsplit
 
 import integration_services
@@ -88,6 +90,14 @@ def restartable_redis(folder):
         stack.close()
 
 
+def distinct_clip(avi: bytes, tag: str) -> bytes:
+    """The clip with a RIFF JUNK chunk naming `tag` after it (players skip it): the same clips make one ride
+    (issue 37), so each ride of the drill needs bytes of its own."""
+    payload = tag.encode()
+    payload += b"\0" * (len(payload) % 2)
+    return avi + b"JUNK" + struct.pack("<I", len(payload)) + payload
+
+
 def make_things(api, tiny, tag: str) -> dict:
     """A horse, a rider, a rig, a ride with a clip, a grade, a job and an upload; their ids for `fill`."""
     member, user = add_member(api)
@@ -98,16 +108,19 @@ def make_things(api, tiny, tag: str) -> dict:
     ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"],
                                                "rig_id": rig["id"], "gait": "walk", "direction": "CW",
                                                "notes": f"notes {tag}"})
-    clip = (tiny / "motion" / "left.avi").read_bytes()
+    clip = distinct_clip((tiny / "motion" / "left.avi").read_bytes(), tag)
     api.ok("PUT", f"/rides/{ride['id']}/clips/motion/left", 200,
            files={"file": ("left.avi", clip, "video/x-msvideo")})
     grade = api.ok("POST", "/grades", 201, json={"ride_id": ride["id"], "rider_id": rider["id"], "grade": 3})
+    saddle = api.ok("POST", "/saddles", 201, json={"name": f"Saddle {tag}"})
+    link = api.ok("POST", "/share-links", 201, json={"horse_id": horse["id"]})
     job = api.ok("POST", "/jobs", 201, json={"kind": "selftest", "payload": {"steps": 1, "delay_s": 0}})
     upload = api.ok("POST", "/uploads", 201, json={"target": "ride_clip", "ride_id": ride["id"],
                                                    "clip_kind": "motion", "camera": "right", "length_bytes": 10})
     return {"horse_id": horse["id"], "rider_id": rider["id"], "rig_id": rig["id"], "ride_id": ride["id"],
             "other_id": ride["id"], "grade_id": grade["id"], "job_id": job["id"], "upload_id": upload["id"],
-            "user_id": user["id"], "fmt": "json", "clip_kind": "motion", "camera": "left"}
+            "user_id": user["id"], "fmt": "json", "clip_kind": "motion", "camera": "left",
+            "saddle_id": saddle["id"], "link_id": link["id"]}
 
 
 def snapshot(api, storage, ids: dict) -> dict:
@@ -146,8 +159,9 @@ def still_works(api, tiny, fault: str) -> None:
     rider = api.ok("POST", "/riders", 201, json={"name": f"After the {fault} fault"})
     ride = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
                                                "direction": "CW"})
+    clip = distinct_clip((tiny / "motion" / "middle.avi").read_bytes(), f"{fault} {uuid.uuid4()}")
     api.ok("PUT", f"/rides/{ride['id']}/clips/motion/middle", 200,
-           files={"file": ("middle.avi", (tiny / "motion" / "middle.avi").read_bytes(), "video/x-msvideo")})
+           files={"file": ("middle.avi", clip, "video/x-msvideo")})
     api.ok("POST", "/jobs", 201, json={"kind": "selftest", "payload": {"steps": 1, "delay_s": 0}})
     assert api.client.get("/api/health").status_code == 200
 
