@@ -154,7 +154,8 @@ export async function finalizeUpload(upload, body = {}, { signal } = {}) {
     // A rejected file (4xx) will not get better by resuming: forget it on both sides.
     if (error instanceof ApiError && error.status >= 400 && error.status < 500) {
       window.localStorage.removeItem(upload.key);
-      del(`/api/uploads/${upload.id}`).catch(() => {});
+      // clips already a ride of the club (409 naming it): the server dropped the upload itself
+      if (!Number.isInteger(error.body?.ride_id)) del(`/api/uploads/${upload.id}`).catch(() => {});
     }
     throw error;
   }
