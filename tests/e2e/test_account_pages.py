@@ -274,8 +274,9 @@ def test_the_sign_in_page_says_refusals_in_plain_sentences(served):
         assert text == "The password needs at least 8 characters.", text
         tab.locator("#club-password").fill("long enough password")
         tab.get_by_role("button", name="Create club and sign in").click()
-        tab.wait_for_function("""() => !document.querySelector('[data-register-form] [data-form-error]')
-            .textContent.includes('password')""")
+        tab.wait_for_function("""() => {  // the next refusal, not the moment the old one is cleared
+            const text = document.querySelector('[data-register-form] [data-form-error]').textContent;
+            return text.trim() !== '' && !text.includes('password'); }""")
         text = error.inner_text()
         assert text == "'not-an-address' is not an e-mail address.", text
         assert not any(raw in text for raw in ("body.", "String should", "loc")), text
