@@ -107,3 +107,16 @@ export function formatDate(value) {
   if (Number.isNaN(date.getTime())) return String(value);
   return date.toISOString().slice(0, 16).replace("T", " ");
 }
+
+/** Copy a text field's value to the clipboard; true when copied (else the text is left selected). */
+export async function copyText(input) {
+  try {
+    await navigator.clipboard.writeText(input.value);
+    return true;
+  } catch {
+    // No clipboard permission (plain http, older browsers): select it so Ctrl+C works.
+    input.focus();
+    input.select();
+    return document.execCommand?.("copy") ?? false;
+  }
+}

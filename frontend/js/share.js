@@ -3,24 +3,12 @@
 // with a button to withdraw one (docs/permissions.md, "Share links").
 
 import { get, itemsOf, post } from "./api.js";
-import { announce, formatDate, h, showError } from "./dom.js";
+import { announce, copyText, formatDate, h, showError } from "./dom.js";
 import { can } from "./session.js";
 
 const LIFETIMES = [[7, "a week"], [30, "30 days"], [90, "3 months"], [365, "a year"]];
 const STATE_WORDS = { active: "active", expired: "expired", withdrawn: "withdrawn" };
 let serial = 0;
-
-async function copyText(input) {
-  try {
-    await navigator.clipboard.writeText(input.value);
-    return true;
-  } catch {
-    // No clipboard permission (plain http, older browsers): select it so Ctrl+C works.
-    input.focus();
-    input.select();
-    return document.execCommand?.("copy") ?? false;
-  }
-}
 
 function day(value) {
   return value ? formatDate(value).slice(0, 10) : "";

@@ -312,3 +312,14 @@ class FullDisk:
             os.dup2(full, fd)  # the temporary file exists (and must be removed); its bytes go nowhere
             os.close(full)
         return fd, name
+
+
+def job_outcome(api, job_id: int, timeout_s: float = 60.0) -> dict:
+    """The job once it is done, failed or cancelled (polled through the API)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        job = api.ok("GET", f"/jobs/{job_id}")
+        if job["status"] in ("done", "failed", "cancelled"):
+            return job
+        time.sleep(0.05)
+    pytest.fail(f"job {job_id} not finished after {timeout_s} s")

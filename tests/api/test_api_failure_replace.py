@@ -9,12 +9,11 @@ A bundle ride's clip replaced from the ride page takes the bundle clip's place; 
 from __future__ import annotations
 
 import sys
-import time
 import types
 
 import integration_services
 import pytest
-from api_helpers import ThreadQueue, new_club, standin_analyze_bundle, standin_calibrate_clips, zip_folder
+from api_helpers import ThreadQueue, job_outcome, new_club, standin_analyze_bundle, standin_calibrate_clips, zip_folder
 from fastapi.testclient import TestClient
 
 from saddlescope.api import create_app
@@ -52,16 +51,6 @@ def env(tmp_path, monkeypatch):
     queue.close()
 
 
-def _wait(api, job_id: int, timeout_s: float = 60.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        job = api.ok("GET", f"/jobs/{job_id}")
-        if job["status"] in ("done", "failed", "cancelled"):
-            return job
-        time.sleep(0.05)
-    pytest.fail(f"job {job_id} did not finish: {job}")
-
-
 def _bundle_with_a_broken_left_clip(folder):
     bundle = integration_services.write_tiny_bundle(folder / "bundle", gait="canter", frames=5)
     integration_services.write_tiny_clip(bundle / "motion" / "left.avi", frames=9)  # not like the others
@@ -79,7 +68,7 @@ def test_a_failed_ride_names_the_clip_and_runs_once_that_clip_is_replaced(env):
     api, root = env
     uploaded = _upload_bundle(api, _bundle_with_a_broken_left_clip(root))
     ride_id = uploaded["ride"]["id"]
-    failed = _wait(api, uploaded["job_id"])
+    failed = job_outcome(api, uploaded["job_id"])
     assert failed["status"] == "failed"
     failure = failed["failure"]
     assert failure["action"] == "replace_clip"
@@ -103,7 +92,7 @@ def test_a_failed_ride_names_the_clip_and_runs_once_that_clip_is_replaced(env):
     assert response.status_code == 200, response.text
     job_id = response.json()["job_id"]
     assert job_id is not None and job_id != uploaded["job_id"]
-    done = _wait(api, job_id)
+    done = job_outcome(api, job_id)
     assert done["status"] == "done", done["error"]
     assert done["failure"] is None
     ride = api.ok("GET", f"/rides/{ride_id}")
@@ -138,18 +127,18 @@ def test_a_rides_own_calibration_clips_calibrate_its_rig(env, monkeypatch):
                                headers={**api.headers, "content-type": "application/zip", "x-filename": "r.zip"})
     assert response.status_code == 201, response.text
     ride_id = response.json()["ride"]["id"]
-    _wait(api, response.json()["job_id"])
+    job_outcome(api, response.json()["job_id"])
     calibrated_from.clear()  # the first analysis calibrated the uncalibrated rig from the bundle itself
     job = api.ok("POST", f"/rides/{ride_id}/calibrate-rig", 201)
     assert (job["kind"], job["ride_id"], job["rig_id"]) == ("calibrate_rig", ride_id, rig["id"])
-    done = _wait(api, job["id"])
+    done = job_outcome(api, job["id"])
     assert done["status"] == "done", done["error"]
     assert calibrated_from == [["left", "middle", "right"]]  # from the ride's own three calibration clips
     assert api.ok("GET", f"/rigs/{rig['id']}")["calibrated"]
     assert "calibrate_rig" in done["timings_s"]
     # the analysis runs again with the rig's new calibration
     again = api.ok("POST", f"/rides/{ride_id}/analyze", 201)
-    assert _wait(api, again["id"])["status"] == "done"
+    assert job_outcome(api, again["id"])["status"] == "done"
 
 
 def test_a_ride_without_calibration_clips_cannot_lend_them(env):

@@ -12,13 +12,12 @@ import hashlib
 import io
 import json
 import tempfile
-import time
 import zipfile
 
 import integration_services
 import pytest
 import s3_server as s3_server_module
-from api_helpers import new_club, zip_folder
+from api_helpers import job_outcome, new_club, zip_folder
 from disk_watch import HeldQueue, bundle_clip_digests, in_a_job_thread, queue_of, watching_local_writes
 from engines import EMBEDDED_S3, ENGINES, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip, zip_with_a_flipped_byte
@@ -39,16 +38,6 @@ def env(request, tmp_path_factory):
 
 def on_s3(env) -> bool:
     return env.settings.storage_url is not None and env.settings.storage_url.startswith("s3://")
-
-
-def job_outcome(api, job_id: int, timeout_s: float = 60.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        job = api.ok("GET", f"/jobs/{job_id}")
-        if job["status"] in ("done", "failed", "cancelled"):
-            return job
-        time.sleep(0.05)
-    pytest.fail(f"job {job_id} not finished after {timeout_s} s")
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 // (add, role, disable/enable, a one-time password-reset link to hand over: no mail server needed).
 
 import { get, patch, post } from "../api.js";
-import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { announce, busy, copyText, formValues, h, page, showError } from "../dom.js";
 import { navigate } from "../router.js";
 import { can, changePassword, refreshSession, session, signOutEverywhere } from "../session.js";
 import { mountShareLinks } from "../share.js";
@@ -65,18 +65,6 @@ function attachSignOutEverywhere(view) {
 function resetLink(token) {
   const base = `${window.location.origin}${window.location.pathname}`;
   return `${base}#/reset-password?token=${encodeURIComponent(token)}`;
-}
-
-async function copyText(input) {
-  try {
-    await navigator.clipboard.writeText(input.value);
-    return true;
-  } catch {
-    // No clipboard permission (plain http, older browsers): select it so Ctrl+C works.
-    input.focus();
-    input.select();
-    return document.execCommand?.("copy") ?? false;
-  }
 }
 
 class Members {
