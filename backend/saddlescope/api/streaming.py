@@ -10,6 +10,7 @@ held in memory.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from fastapi import Request
 from python_multipart.exceptions import MultipartParseError
@@ -18,7 +19,10 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect
 
 from saddlescope.core.errors import InputError
-from saddlescope.storage import AtomicWriter, Storage
+from saddlescope.storage import Storage, StorageWriter
+
+if TYPE_CHECKING:
+    from python_multipart.multipart import MultipartCallbacks
 
 __all__ = [
     "FILE_FIELD", "MAX_FIELD_BYTES", "StreamedUpload", "UPLOAD_OPENAPI", "UploadFormatError",
@@ -70,7 +74,7 @@ class _MultipartState:
     _part: str | None = None  # "file", a field name, or None (ignored part)
     _field_value: bytearray = field(default_factory=bytearray)
 
-    def callbacks(self) -> dict:
+    def callbacks(self) -> MultipartCallbacks:
         def on_part_begin() -> None:
             self._headers, self._part = {}, None
             self._field_value = bytearray()
@@ -143,7 +147,7 @@ class StreamedUpload:
     fields: dict[str, str]
 
 
-async def _drain(writer: AtomicWriter, data: bytes) -> None:
+async def _drain(writer: StorageWriter, data: bytes) -> None:
     if data:
         await run_in_threadpool(writer.write, data)
 

@@ -180,7 +180,7 @@ def run_all(*, quick: bool = False) -> dict[str, Any]:
 def load_table(out: dict[str, Any]) -> str:
     """The load figures of `run_all` as a plain table."""
     load, up = out["load"], out["upload_memory_real_video"]
-    rows = [("", "requests", "errors", "p50 ms", "p95 ms", "p99 ms")]
+    rows: list[tuple[str, ...]] = [("", "requests", "errors", "p50 ms", "p95 ms", "p99 ms")]
     for name, part in (("readers, job running", load["readers"]),
                        ("readers + login flood", load["readers_with_login_flood"])):
         rows.append((name, str(part["requests"]), str(part["errors"]),

@@ -311,7 +311,7 @@ def fill_rides(
     engine = make_engine(database_url)
     try:
         with session_scope(make_session_factory(engine)) as session:
-            club_id = session.scalar(select(Club.id).where(Club.name == "Bench club"))
+            club_id = int(session.scalar(select(Club.id).where(Club.name == "Bench club")) or 0)
             session.execute(
                 insert(Horse), [{"club_id": club_id, "name": f"Horse {i:03d}"} for i in range(n_horses)]
             )
@@ -320,7 +320,7 @@ def fill_rides(
             )
             horse_ids = session.scalars(select(Horse.id).where(Horse.club_id == club_id)).all()
             rider_ids = session.scalars(select(Rider.id).where(Rider.club_id == club_id)).all()
-            rides = [
+            rides: list[dict[str, Any]] = [
                 {
                     "club_id": club_id,
                     "horse_id": int(rng.choice(horse_ids)),
@@ -463,7 +463,7 @@ def _analysed_ride(root: Path, database_url: str, samples: int) -> int:
     engine = make_engine(database_url)
     try:
         with session_scope(make_session_factory(engine)) as session:
-            club_id = session.scalar(select(Club.id).where(Club.name == "Bench club"))
+            club_id = int(session.scalar(select(Club.id).where(Club.name == "Bench club")) or 0)
             horse = Horse(club_id=club_id, name="Reader")
             rider = Rider(club_id=club_id, name="Reader")
             session.add_all([horse, rider])

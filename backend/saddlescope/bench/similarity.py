@@ -11,10 +11,15 @@ new start (any phase), another length and another speed (travel and stride rate,
 from __future__ import annotations
 
 import time
+from collections.abc import Hashable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from saddlescope.arena.gait import sample_gait
+
+if TYPE_CHECKING:
+    from saddlescope.services.similarity import RideSignature
 
 __all__ = ["NOISE_MM", "synthetic_ride", "retrieval", "ranking_speed", "synthetic_recording", "recording_retrieval",
            "run_similarity_benchmarks"]
@@ -101,7 +106,7 @@ def ranking_speed(n_rides: int = 1000) -> dict:
 
     docs = [synthetic_ride(k % 50, GAITS[k % 3], k // 50, strides=10.0) for k in range(n_rides + 1)]
     t0 = time.perf_counter()
-    sigs = {k: ride_signature(d) for k, d in enumerate(docs)}
+    sigs: dict[Hashable, RideSignature] = {k: ride_signature(d) for k, d in enumerate(docs)}
     t1 = time.perf_counter()
     query = sigs.pop(0)
     rows = rank_signatures(query, sigs, top=10)

@@ -34,7 +34,8 @@ def _stored_finding(entry: Mapping[str, Any]) -> Finding | None:
     if not detail:
         return None
     code = str(entry.get("code") or "")
-    values = entry.get("values") if isinstance(entry.get("values"), Mapping) else {}
+    stored = entry.get("values")
+    values: Mapping[str, Any] = stored if isinstance(stored, Mapping) else {}
     numbers_only = {str(k): float(v) for k, v in values.items()
                     if isinstance(v, numbers.Real) and not isinstance(v, bool)}
     # a code this version does not know (a document from a later one) keeps its detail under "other"

@@ -7,7 +7,7 @@ place from the decoded frame, so detection costs little more than decoding (no c
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -140,22 +140,23 @@ def probe_video(path: Path | str, *, fps_hint: float | None = None, decode_tail:
         fps = float(rate)
         codec = stream.codec_context.name
         counted = _count_packets(container, stream, path, decode_tail=decode_tail)
+    times: Sequence[float | None]  # presentation times, None where a frame has none
     if counted is None:
         n_frames, (width, height), times = _decode_all(path)
     else:
         n_frames, (width, height), times = counted
     if width <= 0 or height <= 0:
         raise VideoError(f"{path}: frame size unknown")
-    frame_times = None
+    frame_times: np.ndarray | None = None
     variable = False
     if all(t is not None for t in times):
-        frame_times = np.asarray(times, dtype=np.float64)
+        stamps = np.asarray(times, dtype=np.float64)
         # timestamps that do not increase say nothing about timing: the frames are taken as even
-        if np.all(np.diff(frame_times) > 0):
-            variable, fps = frame_clock(frame_times, fps)
-        else:
-            frame_times = None
-    duration = float(frame_times[-1] - frame_times[0]) + 1.0 / fps if variable else n_frames / fps
+        if np.all(np.diff(stamps) > 0):
+            variable, fps = frame_clock(stamps, fps)
+            frame_times = stamps
+    duration = (float(frame_times[-1] - frame_times[0]) + 1.0 / fps if variable and frame_times is not None
+                else n_frames / fps)
     return VideoInfo(path, fps, n_frames, int(width), int(height), codec, duration,
                      variable_frame_rate=variable, frame_times_s=frame_times)
 

@@ -51,7 +51,7 @@ def check_gait(gait: str) -> str:
     return gait
 
 
-def _finite(value: float) -> float | None:
+def _finite(value: float | None) -> float | None:
     return value if isinstance(value, int | float) and math.isfinite(value) else None
 
 

@@ -56,7 +56,9 @@ def horse_trend(session: Session, horse_id: int, *, club_id: int, gait: str, ind
     check_indicator(indicator)
     horse = HorseRepository(session, club_id=club_id).get(horse_id)
     history = horse_history(session, club_id=club_id, horse_id=horse_id, gait=gait, include_uncertain=True)
-    points, earlier, left_out = [], [], 0
+    points: list[dict[str, Any]] = []
+    earlier: list[float | None] = []
+    left_out = 0
     for row in history:  # already in ride_order_key order
         reason = row.get("uncertain_reason")
         if reason is not None and not include_uncertain:

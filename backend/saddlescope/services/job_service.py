@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -25,9 +25,17 @@ from saddlescope.services.stages import job_kind
 from saddlescope.settings import get_settings
 
 __all__ = [
-    "JobStateError", "cancel_job", "create_job", "get_job", "job_as_dict", "job_note", "retry_job", "submit_job",
+    "JobStateError", "WorkersAlive", "cancel_job", "create_job", "get_job", "job_as_dict", "job_note", "retry_job",
+    "submit_job",
     "wait_for_job",
 ]
+
+
+class WorkersAlive(Protocol):
+    """What a job's note asks of the queue: whether any worker answers (None: cannot tell)."""
+
+    def workers_alive(self) -> bool | None:
+        """True when a worker answered, False when none did, None when the queue cannot tell."""
 
 
 def create_job(session: Session, *, kind: str, ride_id: int | None = None, rig_id: int | None = None,
@@ -151,7 +159,8 @@ def _failure(job: Job) -> dict[str, Any] | None:
             "clip_kind": advice.clip_kind}
 
 
-def job_note(session: Session, job: Job, queue: JobQueue, *, stale_after_s: float | None = None) -> str | None:
+def job_note(session: Session, job: Job, queue: JobQueue | WorkersAlive, *,
+             stale_after_s: float | None = None) -> str | None:
     """What an unfinished job is waiting for, when it is not simply progressing (None otherwise).
 
     A running job whose heartbeat (by the database's clock) is older than the stale limit

@@ -171,7 +171,8 @@ def most_alike(session: Session, ride_id: int, *, club_id: int, markers: str, sp
     if missing:
         return Lookup(None, missing, len(cached), len(pairs))
     rows = [(cached[ordered_pair(ride_id, r.ride_id)], r) for r in others]
-    ranked = sorted((x for x in rows if x[0].similarity is not None), key=lambda x: (-x[0].similarity, x[1].ride_id))
+    ranked = sorted((x for x in rows if x[0].similarity is not None),
+                    key=lambda x: (-(x[0].similarity or 0.0), x[1].ride_id))
     items = [{"rank": rank, **_entry(row, other)} for rank, (row, other) in enumerate(ranked[:limit], start=1)]
     answer = {
         "ride": ride_summary(query), "markers": markers, "span": span, "gait": "any" if any_gait else "same",

@@ -96,7 +96,7 @@ def pair_paths(doc_first: dict[str, Any], doc_second: dict[str, Any]) -> dict[st
     paths are decimated to at most `MAX_PATH_POINTS` points.
     """
     (xa, pa), (xb, pb) = _saddle(doc_first), _saddle(doc_second)
-    if xa is None or xb is None:
+    if xa is None or xb is None or pa is None or pb is None:
         return {"paths_mm": [], "strides": None, "reason": "a result has no saddle-point track"}
     da, db = detrended_path(xa), detrended_path(xb)
     paths = [_mm(d[:: max(1, int(np.ceil(d.shape[0] / MAX_PATH_POINTS)))]) for d in (da, db)]

@@ -19,6 +19,7 @@ import threading
 import time
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from functools import partial
 from typing import Protocol
 
 from saddlescope.core.errors import SaddleScopeError
@@ -90,7 +91,7 @@ class EmbeddedQueue:
             raise QueueUnavailable(f"the local job pool cannot take job {job_id}: {exc}") from None
         with self._lock:
             self._pending.add(future)
-        future.add_done_callback(lambda f, job_id=job_id: self._done(job_id, f))
+        future.add_done_callback(partial(self._done, job_id))
 
     def _done(self, job_id: int, future: Future) -> None:
         with self._lock:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import time
 from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from dtaidistance import dtw as dtai_dtw
@@ -46,6 +47,9 @@ from saddlescope.core.similarity import (
     stretch_differences,
 )
 from saddlescope.io.threads import single_threaded_numerics
+
+if TYPE_CHECKING:
+    from saddlescope.io.mocap.data import MocapData
 
 METHODS = ("dtw", "chaincode")
 # dtaidistance sets dtw_cc to None when its C extension failed to build (try_import_c would print).
@@ -212,18 +216,18 @@ def most_similar_rides(tracks_by_ride: Mapping[Hashable, np.ndarray], *, method:
                                  harmonics=harmonics, ride=rid)
                for rid, xyz in tracks_by_ride.items()}
     ids = list(strides)
-    pairs = []
+    pairs: list[dict[str, Any]] = []
     for p in range(len(ids)):
         for q in range(p + 1, len(ids)):
             sa, sb = strides[ids[p]], strides[ids[q]]
             if method == "dtw":
-                dist, shift = stride_distance_dtw(sa.mean, sb.mean)
-                pairs.append({"rides": [ids[p], ids[q]], "method": method, "distance": dist, "shift": shift})
+                dist, dtw_shift = stride_distance_dtw(sa.mean, sb.mean)
+                pairs.append({"rides": [ids[p], ids[q]], "method": method, "distance": dist, "shift": dtw_shift})
             else:
-                sim, shape, shift = stride_similarity_chaincode(sa.mean, sb.mean, sigma_a=sa.sigma_mean_m,
-                                                                sigma_b=sb.sigma_mean_m)
+                sim, shape, cc_shift = stride_similarity_chaincode(sa.mean, sb.mean, sigma_a=sa.sigma_mean_m,
+                                                                   sigma_b=sb.sigma_mean_m)
                 pairs.append({"rides": [ids[p], ids[q]], "method": method, "similarity": sim,
-                              "shape_dissimilarity": shape, "shift": shift})
+                              "shape_dissimilarity": shape, "shift": cc_shift})
     if method == "dtw":
         pairs.sort(key=lambda d: d["distance"])
     else:
@@ -706,7 +710,8 @@ def similarity_matrix(paths, *, markers: list[str] | None = None, up: str | None
     paths = list(paths)
     if len(paths) < 2:
         raise InputError("at least two recordings are needed for a matrix (name files or a folder)")
-    data, notes = [], []
+    data: list[MocapData | None] = []
+    notes: list[str] = []
     for path in paths:
         try:
             data.append(read_mocap(path))
@@ -719,11 +724,12 @@ def similarity_matrix(paths, *, markers: list[str] | None = None, up: str | None
     with single_threaded_numerics():
         for i in range(n):
             for j in range(i + 1, n):
-                if data[i] is None or data[j] is None:
+                first, second = data[i], data[j]
+                if first is None or second is None:
                     continue
                 try:
-                    xa, xb, labels, _ = _matched_recordings(data[i], data[j], markers, label_map)
-                    res = compare_recordings(xa, xb, rate_a_hz=data[i].rate_hz, rate_b_hz=data[j].rate_hz,
+                    xa, xb, labels, _ = _matched_recordings(first, second, markers, label_map)
+                    res = compare_recordings(xa, xb, rate_a_hz=first.rate_hz, rate_b_hz=second.rate_hz,
                                              labels=labels, up=None if up is None else "xyz".index(up),
                                              only=RANKING_MEASURE)
                 except (InputError, KinematicsError) as exc:

@@ -357,8 +357,8 @@ def run_assemble(ctx: StageContext) -> None:
         plan = ride_clip_plan(recordings.for_ride(ride_id), recordings.for_rig(rig.id) if rig else [],
                               rig_calibrated=bool(rig is not None and rig.calibration))
         calibration = dict(rig.calibration) if rig is not None and rig.calibration else None
-        if calibration is not None and plan.get("calibration") and plan["calibration"] == complete_clip_sets(
-                recordings.for_rig(rig.id)).get("calibration"):
+        if (rig is not None and calibration is not None and plan.get("calibration")
+                and plan["calibration"] == complete_clip_sets(recordings.for_rig(rig.id)).get("calibration")):
             # The rig's calibration replaces its clips: no need to carry them into every ride.
             plan.pop("calibration")
         clips = {kind: {role: f"{kind}/{role}{Path(key).suffix}" for role, key in cams.items()}
@@ -575,7 +575,7 @@ def run_analyze(ctx: StageContext) -> None:
     # where the rig's board has been: the lens model is held to it and markers outside it are flagged (issue 27)
     rig_report = {k: calibration[k] for k in ("n_views", "board_coverage") if calibration and calibration.get(k)}
     result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model, rig_report=rig_report,
-                            **({"meta_overrides": changed} if changed else {}))
+                            meta_overrides=changed or None)
     # The result document is what the dashboard and the exports read (its series decimated on the way);
     # it replaces the previous one atomically (the old one stays readable until the new one is committed).
     from saddlescope.services.results import commit_result

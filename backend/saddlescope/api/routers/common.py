@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import inspect
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import Depends, Path, Query
 from fastapi.responses import Response
@@ -24,13 +24,13 @@ QueryId = Annotated[int | None, Query(ge=1, le=MAX_ID)]
 MAX_OFFSET = 10_000_000
 
 # Responses every club route may give, for the OpenAPI.
-ERRORS = {
+ERRORS: dict[int | str, dict[str, Any]] = {
     401: {"model": ErrorOut, "description": "not signed in"},
     403: {"model": ErrorOut, "description": "not allowed (role, CSRF)"},
     404: {"model": ErrorOut, "description": "no such thing in your club"},
     422: {"model": ErrorOut, "description": "invalid input, with the reason"},
 }
-CONFLICT = {409: {"model": ErrorOut, "description": "conflicts with existing data"}}
+CONFLICT: dict[int | str, dict[str, Any]] = {409: {"model": ErrorOut, "description": "conflicts with existing data"}}
 
 
 @dataclass(frozen=True)
@@ -69,8 +69,11 @@ def sort_enum(name: str, fields: Iterable[str]) -> type[StrEnum]:
     return StrEnum(name, members)
 
 
-def paging_sorted_by(sort_values: type[StrEnum], default: str):
-    """A paging dependency whose `sort` is one of `sort_values` (an enum the OpenAPI shows)."""
+def paging_sorted_by(sort_values: type[StrEnum], default: str) -> Callable[..., Paging]:
+    """A paging dependency whose `sort` is one of `sort_values` (an enum the OpenAPI shows).
+
+    A route takes it as ``Annotated[Paging, Depends(paging_sorted_by(...))]``.
+    """
 
     def dependency(limit: int, offset: int, sort: StrEnum | None) -> Paging:
         return Paging(limit, offset, sort.value if sort is not None else None)
@@ -88,7 +91,7 @@ def paging_sorted_by(sort_values: type[StrEnum], default: str):
                           annotation=Annotated[int, Query(ge=0, le=MAX_OFFSET, description="rows to skip")]),
         inspect.Parameter("sort", keyword, default=None, annotation=sort_type),
     ])
-    return Annotated[Paging, Depends(dependency)]
+    return dependency
 
 
 def page_of(page, convert) -> dict:

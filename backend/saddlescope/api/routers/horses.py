@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from fastapi import APIRouter, Query, Response, status
+from fastapi import APIRouter, Depends, Query, Response, status
 
 from saddlescope.api.deps import AdminClubDep, ClubDep
 from saddlescope.api.routers.common import (
@@ -12,6 +12,7 @@ from saddlescope.api.routers.common import (
     ERRORS,
     Id,
     IndicatorKey,
+    Paging,
     changes,
     download,
     page_of,
@@ -27,7 +28,7 @@ __all__ = ["HorseSort", "router"]
 
 router = APIRouter(prefix="/horses", tags=["horses"])
 HorseSort = sort_enum("HorseSort", HorseRepository.sort_fields)
-HorsePaging = paging_sorted_by(HorseSort, "name")
+HorsePaging = Annotated[Paging, Depends(paging_sorted_by(HorseSort, "name"))]
 
 
 @router.get("", response_model=Page[HorseOut], responses=ERRORS)

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
-from fastapi import APIRouter, Query, status
+from fastapi import APIRouter, Depends, Query, status
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, ClubScope, QueueDep, SessionFactoryDep, SettingsDep
-from saddlescope.api.routers.common import ERRORS, Id, QueryId, page_of, paging_sorted_by, sort_enum
+from saddlescope.api.routers.common import ERRORS, Id, Paging, QueryId, page_of, paging_sorted_by, sort_enum
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
 from saddlescope.db.repositories import Job, JobRepository
 from saddlescope.db.session import session_scope
@@ -19,9 +19,12 @@ __all__ = ["JobKindName", "JobSort", "JobStatusName", "job_out", "router"]
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 JobStatusName = Literal["queued", "running", "done", "failed", "cancelled"]
-JobKindName = Literal[tuple(JOB_KINDS)]  # type: ignore[valid-type]
+if TYPE_CHECKING:
+    JobKindName = str
+else:  # the job kinds as a Literal the OpenAPI lists (built from JOB_KINDS at import)
+    JobKindName = Literal[tuple(JOB_KINDS)]
 JobSort = sort_enum("JobSort", JobRepository.sort_fields)
-JobPaging = paging_sorted_by(JobSort, "-id")
+JobPaging = Annotated[Paging, Depends(paging_sorted_by(JobSort, "-id"))]
 
 
 def job_out(job: Job, owner_id: int | None = None) -> JobOut:
@@ -36,7 +39,7 @@ class _AskOnce:
         self._queue = queue
         self._alive: list = []
 
-    def workers_alive(self):
+    def workers_alive(self) -> bool | None:
         if not self._alive:
             ask = getattr(self._queue, "workers_alive", None)
             self._alive.append(ask() if ask is not None else None)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query, Response, status
+from fastapi import APIRouter, Depends, Query, Response, status
 
 from saddlescope.api.deps import AdminClubDep, ClubDep
-from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, changes, page_of, paging_sorted_by, sort_enum
+from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, Paging, changes, page_of, paging_sorted_by, sort_enum
 from saddlescope.api.schemas import Page, RiderIn, RiderOut, RiderUpdate
 from saddlescope.db.repositories import RiderRepository
 
@@ -15,7 +15,7 @@ __all__ = ["RiderSort", "router"]
 
 router = APIRouter(prefix="/riders", tags=["riders"])
 RiderSort = sort_enum("RiderSort", RiderRepository.sort_fields)
-RiderPaging = paging_sorted_by(RiderSort, "name")
+RiderPaging = Annotated[Paging, Depends(paging_sorted_by(RiderSort, "name"))]
 
 
 def _check_user(club, user_id: int | None) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Annotated, Literal
 
-from fastapi import APIRouter, Query, Request, Response, status
+from fastapi import APIRouter, Depends, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
@@ -13,6 +13,7 @@ from saddlescope.api.routers.clips import UPLOAD_ERRORS, receive_clip
 from saddlescope.api.routers.common import (
     ERRORS,
     Id,
+    Paging,
     QueryId,
     changes,
     download,
@@ -59,7 +60,7 @@ router = APIRouter(prefix="/rides", tags=["rides"])
 RideStatusName = Literal[RIDE_STATUSES]  # type: ignore[valid-type]
 ExportFormat = Literal[tuple(EXPORT_FORMATS)]  # type: ignore[valid-type]
 RideSort = sort_enum("RideSort", RideRepository.sort_fields)
-RidePaging = paging_sorted_by(RideSort, "-ridden_on")
+RidePaging = Annotated[Paging, Depends(paging_sorted_by(RideSort, "-ridden_on"))]
 
 
 def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Query, Response, status
+from fastapi import APIRouter, Depends, Query, Response, status
 
 from saddlescope.api.deps import ClubDep
 from saddlescope.api.routers.common import (
@@ -32,10 +32,7 @@ __all__ = ["SaddleSort", "router"]
 
 router = APIRouter(tags=["saddles"])
 SaddleSort = sort_enum("SaddleSort", SaddleRepository.sort_fields)
-if TYPE_CHECKING:
-    SaddlePaging = Paging
-else:  # the paging dependency with the saddles' sort fields (an Annotated built at import)
-    SaddlePaging = paging_sorted_by(SaddleSort, "name")
+SaddlePaging = Annotated[Paging, Depends(paging_sorted_by(SaddleSort, "name"))]
 # The shared tables typed as FastAPI's `responses` wants them.
 _ERRORS: dict[int | str, dict[str, Any]] = {code: dict(spec) for code, spec in ERRORS.items()}
 _CONFLICTS: dict[int | str, dict[str, Any]] = {code: dict(spec) for code, spec in {**ERRORS, **CONFLICT}.items()}

@@ -7,7 +7,7 @@ then ask again).
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, status
 from fastapi.encoders import jsonable_encoder
@@ -38,9 +38,11 @@ __all__ = ["router"]
 
 router = APIRouter(tags=["similarity"])
 
-NOT_ANALYSED = {409: {"model": ErrorOut, "description": "a ride has no result to compare (the reason says why)"}}
-PENDING = {202: {"model": PendingOut, "description": "comparisons queued as a job: poll it, then ask again"},
-           503: {"model": ErrorOut, "description": "the job could not be queued"}}
+NOT_ANALYSED: dict[int | str, dict[str, Any]] = {
+    409: {"model": ErrorOut, "description": "a ride has no result to compare (the reason says why)"}}
+PENDING: dict[int | str, dict[str, Any]] = {
+    202: {"model": PendingOut, "description": "comparisons queued as a job: poll it, then ask again"},
+    503: {"model": ErrorOut, "description": "the job could not be queued"}}
 MarkersQuery = Annotated[MarkerSet, Query(description="saddle point S, one horse marker, or all markers")]
 SpanQuery = Annotated[Span, Query(description="one mean stride, or the whole analysed window")]
 

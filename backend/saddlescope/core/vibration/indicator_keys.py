@@ -10,6 +10,7 @@ horizontal axes x (travel) and z with W_d.  Times in hours, distances in km.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 __all__ = [
     "GAITS",
@@ -52,7 +53,7 @@ class IndicatorInfo:
     unit: str
     label: str
     thesis_name: str | None = None
-    better: str | None = None
+    better: Literal["lower", "higher"] | None = None
 
 
 def _exposure_infos() -> dict[str, IndicatorInfo]:

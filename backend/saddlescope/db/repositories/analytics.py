@@ -52,7 +52,7 @@ class AnalyticsRepository:
             row = {"ride_id": ride_id, "horse_id": horse_id, "horse": horse, "rider": rider,
                    "gait": ride_gait, "date": date, "saddle_id": saddle_id, "saddle": saddle,
                    "uncertain_reason": reason}
-            if column is not None:
+            if indicator is not None and column is not None:
                 row[indicator] = data
             elif indicator is not None:
                 row[indicator] = (data or {}).get(indicator)

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
-from sqlalchemy import ColumnElement, Select, exists, func, select
+from sqlalchemy import ColumnElement, CursorResult, Result, Select, exists, func, select
 from sqlalchemy.orm import Session
 
 from saddlescope.db.models import Base
 
-__all__ = ["BadQuery", "Conflict", "NotFound", "Page", "Repository", "like_pattern"]
+__all__ = ["BadQuery", "Conflict", "NotFound", "Page", "Repository", "changed_rows", "like_pattern"]
 
 M = TypeVar("M", bound=Base)
 
@@ -44,10 +44,17 @@ def like_pattern(text: str) -> str:
     return f"%{escaped}%"
 
 
+def changed_rows(result: Result[Any]) -> int:
+    """How many rows an UPDATE or DELETE changed (``Session.execute`` is typed as a plain ``Result``)."""
+    return int(cast(CursorResult[Any], result).rowcount or 0)
+
+
 class Repository:
     """Base: a session and an optional club scope."""
 
-    model: type[Base]
+    # The mapped class: its columns (id, club_id, name, ...) are read by name, which a type checker cannot
+    # follow through a class attribute shared by every repository.
+    model: Any
     # Sortable fields of `list_page`: public name -> column (override per repository).
     sort_fields: dict[str, Any] = {}
     default_sort = "id"
@@ -67,11 +74,11 @@ class Repository:
                                   f"club {self.club_id}")
         return self.club_id if club_id is None else club_id
 
-    def find(self, id_: int):
+    def find(self, id_: int | str) -> Any:
         """Return the row with primary key `id_` (in this club), or None."""
         return self.session.scalars(self._scoped(select(self.model).where(self.model.id == id_))).first()
 
-    def get(self, id_: int):
+    def get(self, id_: int | str) -> Any:
         """Return the row with primary key `id_` (in this club); `NotFound` otherwise."""
         row = self.find(id_)
         if row is None:

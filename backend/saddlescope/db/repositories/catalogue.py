@@ -8,7 +8,7 @@ from typing import Any
 from sqlalchemy import func, select, update
 
 from saddlescope.db.models import Horse, Ride, Rider, Rig, Saddle
-from saddlescope.db.repositories.base import Conflict, Page, Repository, like_pattern
+from saddlescope.db.repositories.base import Conflict, Page, Repository, changed_rows, like_pattern
 
 __all__ = ["HorseRepository", "RiderRepository", "RigRepository", "SaddleRepository"]
 
@@ -33,7 +33,7 @@ class _Named(Repository):
             raise Conflict(f"{noun} {row.name!r} still has {rides}; delete those rides first, or edit them to "
                            f"use another {noun} (the Rides page filters by {noun})")
 
-    def _check_name_free(self, name: str, *, club_id: int, exclude_id: int | None = None) -> None:
+    def _check_name_free(self, name: str, *, club_id: int | None, exclude_id: int | None = None) -> None:
         stmt = select(self.model.id).where(self.model.club_id == club_id, self.model.name == name)
         if exclude_id is not None:
             stmt = stmt.where(self.model.id != exclude_id)
@@ -158,7 +158,7 @@ class SaddleRepository(_Named):
                 .group_by(Ride.saddle_id))
         if self.club_id is not None:
             stmt = stmt.where(Ride.club_id == self.club_id)
-        return {int(sid): int(n) for sid, n in self.session.execute(stmt)}
+        return {int(sid): int(n) for sid, n in self.session.execute(stmt) if sid is not None}
 
 
 class RigRepository(_Named):
@@ -187,7 +187,7 @@ class RigRepository(_Named):
             calibration=calibration, quality=quality)
         if self.club_id is not None:
             stmt = stmt.where(Rig.club_id == self.club_id)
-        return self.session.execute(stmt).rowcount == 1
+        return changed_rows(self.session.execute(stmt)) == 1
 
     def clear_calibration(self, rig_id: int) -> None:
         """Forget a rig's calibration (its calibration clips changed)."""

@@ -15,7 +15,7 @@ from sqlalchemy.sql.expression import ColumnElement, FunctionElement
 
 from saddlescope.db.enums import JobStatus, UploadStatus
 from saddlescope.db.models import Job, Upload, utcnow
-from saddlescope.db.repositories.base import Page, Repository
+from saddlescope.db.repositories.base import Page, Repository, changed_rows
 
 __all__ = ["JobRepository", "UploadRepository", "db_utcnow", "seconds_since"]
 
@@ -128,7 +128,7 @@ class JobRepository(Repository):
         if host is not None:
             stmt = stmt.where(Job.host == host)
         values.setdefault("updated_at", db_utcnow())
-        return self.session.execute(stmt.values(**values)).rowcount == 1
+        return changed_rows(self.session.execute(stmt.values(**values))) == 1
 
     def set_progress(self, job_id: int, progress: float, stage: str | None, *, attempt: int | None = None,
                      host: str | None = None) -> bool:
@@ -149,7 +149,7 @@ class JobRepository(Repository):
             stmt = stmt.where(Job.attempts == attempt)
         if host is not None:
             stmt = stmt.where(Job.host == host)
-        return self.session.execute(stmt.values(timings=dict(timings), updated_at=db_utcnow())).rowcount == 1
+        return changed_rows(self.session.execute(stmt.values(timings=dict(timings), updated_at=db_utcnow()))) == 1
 
     def finish(self, job_id: int, status: JobStatus, *, error: str | None = None, attempt: int | None = None,
                host: str | None = None) -> bool:
@@ -173,20 +173,20 @@ class JobRepository(Repository):
         result = self.session.execute(
             update(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED.value).values(
                 status=JobStatus.FAILED.value, error=error, finished_at=utcnow(), updated_at=utcnow()))
-        return result.rowcount == 1
+        return changed_rows(result) == 1
 
     def discard_unstarted(self, job_id: int) -> bool:
         """Delete a job that is queued and was never started (the queue refused it as it was created)."""
         result = self.session.execute(delete(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED.value,
                                                         Job.attempts == 0, Job.started_at.is_(None)))
-        return result.rowcount == 1
+        return changed_rows(result) == 1
 
     def request_cancel(self, job_id: int) -> bool:
         """Cancel a queued or running job; a running one stops at its next progress report."""
         result = self.session.execute(
             update(Job).where(Job.id == job_id, Job.status.in_(_ACTIVE)).values(
                 status=JobStatus.CANCELLED.value, finished_at=utcnow(), updated_at=utcnow()))
-        return result.rowcount == 1
+        return changed_rows(result) == 1
 
     def requeue(self, job_id: int) -> bool:
         """Put a failed or cancelled job back in the queue (its outcome cleared; attempts kept)."""
@@ -195,7 +195,7 @@ class JobRepository(Repository):
                                                                  JobStatus.CANCELLED.value))).values(
                 status=JobStatus.QUEUED.value, error=None, finished_at=None, progress=0.0, stage=None,
                 updated_at=utcnow()))
-        return result.rowcount == 1
+        return changed_rows(result) == 1
 
     def active_for(self, *, ride_id: int | None = None, rig_id: int | None = None, kind: str | None = None
                    ) -> Job | None:
@@ -236,7 +236,7 @@ class JobRepository(Repository):
             stmt = stmt.where(Job.host == host)
         result = self.session.execute(
             stmt.values(status=JobStatus.QUEUED.value, stage=None, updated_at=db_utcnow()))
-        return result.rowcount == 1
+        return changed_rows(result) == 1
 
     def fail_lost(self, job_id: int, *, host: str | None, error: str) -> bool:
         """Fail a running job whose worker is gone for good (only if still held by `host`)."""
@@ -245,7 +245,7 @@ class JobRepository(Repository):
             stmt = stmt.where(Job.host == host)
         result = self.session.execute(stmt.values(status=JobStatus.FAILED.value, error=error,
                                                   finished_at=utcnow(), updated_at=db_utcnow()))
-        return result.rowcount == 1
+        return changed_rows(result) == 1
 
     def running_with_age(self) -> list[tuple[int, int | None, str | None, float | None, int]]:
         """(id, ride_id, host, seconds since its heartbeat by the database's clock, attempts) of running jobs."""
@@ -263,7 +263,7 @@ class JobRepository(Repository):
         """Note that a queued job was handed to the broker again (its wait starts over)."""
         result = self.session.execute(update(Job).where(Job.id == job_id, Job.status == JobStatus.QUEUED.value)
                                       .values(updated_at=db_utcnow()))
-        return result.rowcount == 1
+        return changed_rows(result) == 1
 
     def seconds_since_heartbeat(self, job_id: int) -> float | None:
         """Seconds since the job's last heartbeat (or progress, or queuing), by the database's clock."""
@@ -301,7 +301,7 @@ class UploadRepository(Repository):
         stmt = update(Upload).where(Upload.id == upload_id)
         if self.club_id is not None:
             stmt = stmt.where(Upload.club_id == self.club_id)
-        return self.session.execute(stmt.values(offset_bytes=Upload.offset_bytes)).rowcount == 1
+        return changed_rows(self.session.execute(stmt.values(offset_bytes=Upload.offset_bytes))) == 1
 
     def advance(self, upload_id: str, *, from_offset: int, to_offset: int) -> bool:
         """Move the offset forward, only if nobody else moved it meanwhile (two PATCHes racing)."""
@@ -310,7 +310,7 @@ class UploadRepository(Repository):
             offset_bytes=to_offset, updated_at=utcnow())
         if self.club_id is not None:
             stmt = stmt.where(Upload.club_id == self.club_id)
-        return self.session.execute(stmt).rowcount == 1
+        return changed_rows(self.session.execute(stmt)) == 1
 
     def claim(self, upload_id: str) -> bool:
         """Mark an open upload finalising, only if it still is open (one conditional UPDATE).
@@ -321,7 +321,7 @@ class UploadRepository(Repository):
             status=UploadStatus.FINALISING.value, updated_at=utcnow())
         if self.club_id is not None:
             stmt = stmt.where(Upload.club_id == self.club_id)
-        return self.session.execute(stmt).rowcount == 1
+        return changed_rows(self.session.execute(stmt)) == 1
 
     def reopen(self, upload_id: str, *, offset_bytes: int) -> None:
         """Give a claimed upload back, open at `offset_bytes` (its finalising stopped before using its bytes)."""

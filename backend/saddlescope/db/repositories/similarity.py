@@ -10,7 +10,7 @@ from typing import Any
 from sqlalchemy import delete, or_, select
 
 from saddlescope.db.models import Horse, Result, Ride, SimilarityPair
-from saddlescope.db.repositories.base import Repository
+from saddlescope.db.repositories.base import Repository, changed_rows
 
 __all__ = ["AnalysedRide", "SimilarityRepository", "analysis_version", "ordered_pair"]
 
@@ -61,7 +61,7 @@ class SimilarityRepository(Repository):
         if horse_id is not None:
             stmt = stmt.where(Ride.horse_id == horse_id)
         stmt = stmt.order_by(Ride.ridden_on.asc().nulls_first(), Ride.id.asc())
-        return [AnalysedRide(rid, club, hid, name, gait_, day, key, analysis_version(code, at))
+        return [AnalysedRide(rid, club, hid, name, gait_, day, str(key), analysis_version(code, at))
                 for rid, club, hid, name, gait_, day, key, code, at in self.session.execute(stmt)]
 
     def cached(self, pairs: Sequence[tuple[int, int]], *, markers: str, span: str, method_version: str,
@@ -112,4 +112,4 @@ class SimilarityRepository(Repository):
         """Delete every cached comparison of a ride (its analysis changed); returns how many."""
         stmt = delete(SimilarityPair).where(
             or_(SimilarityPair.ride_a_id == ride_id, SimilarityPair.ride_b_id == ride_id))
-        return self.session.execute(stmt).rowcount or 0
+        return changed_rows(self.session.execute(stmt))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import re
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 
 import c3d as c3d_lib
@@ -172,12 +173,11 @@ def read_c3d(path: str | Path) -> MocapData:
     units = (_strings(reader, "POINT:UNITS") or [""])[0] or "mm"  # the C3D default
     xyz, units = _normalise_units(xyz, units, path.name)
     n_points = xyz.shape[1]
-    labels = _strings(reader, "POINT:LABELS")[:n_points]
-    labels += [f"point{j + 1}" for j in range(len(labels), n_points)]  # unnamed points still need names
-    labels = [s or f"point{j + 1}" for j, s in enumerate(labels)]
+    stored = _strings(reader, "POINT:LABELS")[:n_points]
+    stored += [f"point{j + 1}" for j in range(len(stored), n_points)]  # unnamed points still need names
     described = _strings(reader, "POINT:DESCRIPTIONS")
     descriptions = tuple(described[:n_points]) if len(described) >= n_points else ()
-    labels, repeated = distinct_labels(labels, descriptions)
+    labels, repeated = distinct_labels([s or f"point{j + 1}" for j, s in enumerate(stored)], descriptions)
     return MocapData(labels=labels, rate_hz=rate, points=xyz, units=units, first_frame=int(reader.first_frame),
                      source_format="c3d", source=path.name, warnings=tuple(notes) + repeated,
                      descriptions=descriptions, up_axis=_screen_up(reader))
@@ -194,7 +194,8 @@ def _screen_up(reader) -> str | None:
     return text if re.fullmatch(r"[+-][xyz]", text) else None
 
 
-def distinct_labels(labels, descriptions=()) -> tuple[tuple[str, ...], tuple[str, ...]]:
+def distinct_labels(labels: Sequence[str],
+                    descriptions: Sequence[str] = ()) -> tuple[tuple[str, ...], tuple[Finding, ...]]:
     """Labels made distinct where a file repeats one, and a warning naming the repeated ones.
 
     Parameters

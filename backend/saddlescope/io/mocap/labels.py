@@ -144,9 +144,9 @@ def match_labels(labels_a: Sequence[str], labels_b: Sequence[str], *, user_map: 
             pairs.append((a, user_map[a]))
         elif a in free_b:
             pairs.append((a, a))
-        elif (b := keys_b.get(landmark_key(a))) is not None and b not in {p[1] for p in pairs}:
-            pairs.append((a, b))
-            by_alias.append((a, b))
+        elif (alias := keys_b.get(landmark_key(a))) is not None and alias not in {p[1] for p in pairs}:
+            pairs.append((a, alias))
+            by_alias.append((a, alias))
         else:
             unmatched.append(a)
     used_b = {p[1] for p in pairs}

@@ -61,7 +61,7 @@ def read_trc(path: str | Path) -> MocapData:
                      source_format="trc", source=name, warnings=tuple(warnings))
 
 
-def _trc_header(lines: list[str], name: str) -> tuple[float, int, int, str, list[str]]:
+def _trc_header(lines: list[str], name: str) -> tuple[float, int, int, str, list[Finding]]:
     """DataRate, NumFrames, NumMarkers and Units of the header lines, and the warnings they call for."""
     if not lines or not lines[0].startswith("PathFileType"):
         raise MocapFileError(f"{name}: not a TRC file (first line does not start with 'PathFileType')")
