@@ -189,7 +189,7 @@ def test_a_shrunk_frame_maps_back_onto_the_frame():
     small = tracking._shrunk_by(img, factor)
     assert factor == 3 and small.shape == (360, 640)
     y, x = np.unravel_index(np.argmax(small), small.shape)
-    assert small[y, x] == 255 and np.allclose(tracking._unscale(np.array([x, y]), 1 / 3), [901, 601])
+    assert small[y, x] == 255 and np.allclose(tracking.unscale_px(np.array([x, y]), 1 / 3), [901, 601])
     assert tracking._shrink_factor(640, tracking.COARSE_WIDTH_PX) == 1  # 640x480: searched as it is
     with pytest.raises(InputError, match="coarse_width_px"):
         BoardTracker(BOARD, coarse_width_px=10)

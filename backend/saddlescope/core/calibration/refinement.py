@@ -8,7 +8,7 @@ import numpy as np
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import Board
 
-__all__: list[str] = []  # helpers of the package's other modules only
+__all__ = ["refine_corners_subpixel", "search_downscaled", "unscale_px"]  # for the board detectors
 
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
 
@@ -35,7 +35,8 @@ def _min_spacing_px(corners: np.ndarray, board: Board, ids: np.ndarray) -> float
     return float(d.min()) if len(d) else 10.0
 
 
-def _subpix(gray, corners, board, ids=None, *, upsampled=False):
+def refine_corners_subpixel(gray, corners, board, ids=None, *, upsampled=False):
+    """Board corners (N, 2) refined to a fraction of a pixel, with a window sized to the corners' spacing."""
     ids = np.arange(len(corners)) if ids is None else ids
     # On an upsampled frame a corner's blur spans more pixels: a window of 0.35 of the spacing (2-3 px for
     # squares of 4 px upsampled 2x) is too small, cornerSubPix then wanders and returns where it started
@@ -47,10 +48,10 @@ def _subpix(gray, corners, board, ids=None, *, upsampled=False):
 
 
 def _refine_full_resolution(gray, corners, board, ids):
-    return _subpix(gray, corners, board, ids)
+    return refine_corners_subpixel(gray, corners, board, ids)
 
 
-def _unscale(xy: np.ndarray, scale: float) -> np.ndarray:
+def unscale_px(xy: np.ndarray, scale: float) -> np.ndarray:
     """Pixel coordinates in a frame resized by ``scale`` (cv2.resize) back in the original frame.
 
     cv2.resize aligns pixel centres, so x / scale alone is off by (1 / scale - 1) / 2 px (0.25 px at 2x).
@@ -59,11 +60,11 @@ def _unscale(xy: np.ndarray, scale: float) -> np.ndarray:
 
 
 def _rescale(xy: np.ndarray, scale: float) -> np.ndarray:
-    """The inverse of :func:`_unscale`."""
+    """The inverse of :func:`unscale_px`."""
     return (np.asarray(xy, np.float64) + 0.5) * scale - 0.5
 
 
-def _search_downscaled(gray: np.ndarray, board: Board, max_width: int, find) -> tuple[tuple | None, bool]:
+def search_downscaled(gray: np.ndarray, board: Board, max_width: int, find) -> tuple[tuple | None, bool]:
     """Run ``find`` on a frame, downscaled first when it is wide.
 
     ``find`` maps a grey frame to (corners (N, 2), ids (N,)) or None. A frame over 1.5 times
@@ -87,4 +88,4 @@ def _search_downscaled(gray: np.ndarray, board: Board, max_width: int, find) -> 
     corners, ids = found
     if scale == 1.0:
         return (corners, ids), False
-    return (_refine_full_resolution(gray, _unscale(corners, scale), board, ids), ids), True
+    return (_refine_full_resolution(gray, unscale_px(corners, scale), board, ids), ids), True

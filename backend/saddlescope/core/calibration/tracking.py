@@ -15,7 +15,7 @@ from saddlescope.core.calibration.boards.checkerboard import (
     canonical_checkerboard_order,
 )
 from saddlescope.core.calibration.detection import BoardFinder
-from saddlescope.core.calibration.refinement import _as_gray, _rescale, _subpix, _unscale
+from saddlescope.core.calibration.refinement import _as_gray, _rescale, refine_corners_subpixel, unscale_px
 from saddlescope.core.calibration.saddles import _grids_from_saddles, _saddle_clusters
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.errors import InputError
@@ -147,8 +147,8 @@ class BoardTracker:
         x1, y1 = np.minimum(np.ceil(corners.max(axis=0) + pad), [w, h]).astype(int)
         crop = gray[y0:y1, x0:x1]
         img = crop if up == 1.0 else cv2.resize(crop, None, fx=up, fy=up, interpolation=cv2.INTER_CUBIC)
-        refined = _subpix(img, _rescale(corners - [x0, y0], up), self.board, upsampled=up != 1.0)
-        new = _unscale(refined, up) + [x0, y0]
+        refined = refine_corners_subpixel(img, _rescale(corners - [x0, y0], up), self.board, upsampled=up != 1.0)
+        new = unscale_px(refined, up) + [x0, y0]
         if np.any(np.linalg.norm(new - corners, axis=1) >= _TRACK_MAX_MOVE * local):
             return None
         ratio, span = _square_checks(gray, new, self.board.inner_corners)
@@ -194,8 +194,8 @@ class BoardTracker:
             clusters = _saddle_clusters(_shrunk_by(gray, at), len(self.ids))
         regions = []  # (box, spacing) where the grid was not grown: searched by SB after every grid was tried
         for cluster in clusters[:2]:
-            x0, y0 = np.maximum(np.floor(_unscale(cluster.box[:2], 1.0 / at)), 0).astype(int)
-            x1, y1 = np.minimum(np.ceil(_unscale(cluster.box[2:], 1.0 / at)), [w, h]).astype(int)
+            x0, y0 = np.maximum(np.floor(unscale_px(cluster.box[:2], 1.0 / at)), 0).astype(int)
+            x1, y1 = np.minimum(np.ceil(unscale_px(cluster.box[2:], 1.0 / at)), [w, h]).astype(int)
             crop = gray[y0:y1, x0:x1]
             motion = np.inf if prev is None else _motion_px(prev[y0:y1, x0:x1], crop)
             if np.isfinite(motion) and motion > _MOVING_PX:
@@ -221,7 +221,7 @@ class BoardTracker:
                 grid_cluster, grid_factor, origin = fine[0], sub, np.array([x0, y0], np.float64)
                 spacing = fine[0].spacing * sub
             for grid in _grids_from_saddles(grid_cluster, self.board.inner_corners):
-                grid = _unscale(grid, 1.0 / grid_factor) + origin
+                grid = unscale_px(grid, 1.0 / grid_factor) + origin
                 if self._looks_like_board(gray, grid):
                     refine = 2.0 if spacing < 6 else 1.0
                     corners = self._refined(crop, grid - [x0, y0], refine) + [x0, y0]
@@ -244,7 +244,7 @@ class BoardTracker:
         """Grid corners in a crop put in canonical order and refined on the crop resized by ``scale``."""
         img = crop if scale == 1.0 else cv2.resize(crop, None, fx=scale, fy=scale, interpolation=cv2.INTER_CUBIC)
         big = canonical_checkerboard_order(img, _rescale(corners, scale), self.board.inner_corners)
-        return _unscale(_subpix(img, big, self.board, upsampled=scale != 1.0), scale)
+        return unscale_px(refine_corners_subpixel(img, big, self.board, upsampled=scale != 1.0), scale)
 
     def _looks_like_board(self, gray: np.ndarray, corners: np.ndarray) -> bool:
         """Whether the corners (N, 2) px look like the board.
@@ -278,7 +278,7 @@ class BoardTracker:
             if corners is None:
                 continue
             refine = 1.0 if up == 1.0 else 2.0
-            return self._refined(crop, _unscale(corners, up), refine), refine
+            return self._refined(crop, unscale_px(corners, up), refine), refine
         return None
 
     def _search_whole(self, gray: np.ndarray) -> _Track | None:
@@ -314,7 +314,7 @@ def _shrunk_by(gray: np.ndarray, factor: int) -> np.ndarray:
 
     Each pixel is the mean of a factor x factor block (the last rows and columns that do not fill a block
     are dropped): pixel i of the shrunk frame is centred on pixel (i + 0.5) * factor - 0.5 of the frame,
-    as :func:`~saddlescope.core.calibration.refinement._unscale` maps it back.
+    as :func:`~saddlescope.core.calibration.refinement.unscale_px` maps it back.
     """
     if factor == 1:
         return gray

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core.calibration.boards.protocol import grid_from_meta, grid_meta
-from saddlescope.core.calibration.refinement import _search_downscaled
+from saddlescope.core.calibration.refinement import search_downscaled
 from saddlescope.core.calibration.views import MIN_POSE_CORNERS
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import Board
@@ -139,7 +139,7 @@ class CharucoFinder:
 
     def __call__(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """Corners (N, 2) px and ids (N,) of the board in ``gray`` (H, W) uint8, or None."""
-        found, _ = _search_downscaled(gray, self.board, self.max_width, self._find)
+        found, _ = search_downscaled(gray, self.board, self.max_width, self._find)
         return found
 
     def _find(self, gray):

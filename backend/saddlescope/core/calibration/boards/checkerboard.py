@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core.calibration.boards.protocol import grid_from_meta, grid_meta
-from saddlescope.core.calibration.refinement import _search_downscaled, _subpix, _unscale
+from saddlescope.core.calibration.refinement import refine_corners_subpixel, search_downscaled, unscale_px
 from saddlescope.core.types import Board
 
 __all__ = ["BOARD_TYPE", "KIND", "CheckerboardFinder", "CheckerboardType", "canonical_checkerboard_order"]
@@ -135,7 +135,7 @@ class CheckerboardFinder:
         self._last_box = (int(x0), int(y0), int(x1), int(y1))
 
     def _find_full(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        found, refined_here = _search_downscaled(gray, self.board, self.max_width, self._find)
+        found, refined_here = search_downscaled(gray, self.board, self.max_width, self._find)
         if found is not None:
             self.refine_scale = 1.0 if refined_here else self._upsample
         return found
@@ -153,7 +153,7 @@ class CheckerboardFinder:
                 self._upsample = up
                 corners, ids = found
                 if up != 1.0:
-                    corners = _unscale(corners, up)  # refined by cornerSubPix on the upsampled frame
+                    corners = unscale_px(corners, up)  # refined by cornerSubPix on the upsampled frame
                 return corners, ids
         return None
 
@@ -163,7 +163,7 @@ def _find_checkerboard(gray: np.ndarray, board: Board, *, thorough: bool = True,
     if corners is None:
         return None
     # cornerSubPix with a window scaled to the squares: on Bouguet's images it halves SB's residuals
-    corners = _subpix(gray, corners, board, upsampled=upsampled)
+    corners = refine_corners_subpixel(gray, corners, board, upsampled=upsampled)
     corners = canonical_checkerboard_order(gray, corners, board.inner_corners)
     return corners, np.arange(len(corners))
 
