@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from saddlescope.core.detection.detectors import DetectionSettings
 
 __all__ = ["PipelineParams"]
 
@@ -58,7 +63,20 @@ class PipelineParams:
     # order criterion (fitting.CRITERIA): "aicc" takes the noise's correlation over frames into
     # account, "aicc_white" is the textbook AICc
     criterion: str = "aicc"
-    detection: dict = field(default_factory=dict)  # per clip kind: keyword overrides of track_markers
+    # the marker detector (core.detection.detectors' registry) and, per clip kind ("motion", "static",
+    # "plumb"), the user's typed overrides of its automatic choices
+    marker_detector: str = "bright_discs"
+    detection: Mapping[str, DetectionSettings] = field(default_factory=dict)
     # threads the analysis may use in all (camera threads, decoders, OpenCV); None: one per camera as
     # before, OpenCV's own default. The services set it from SADDLESCOPE_WORKER_THREADS (cgroup quota).
     threads: int | None = None
+
+    def __post_init__(self) -> None:
+        """Check the choices that would otherwise fail late (after the clips are decoded)."""
+        from saddlescope.core.detection.detectors import DetectionSettings, marker_detector
+
+        marker_detector(self.marker_detector)  # an InputError naming the known detectors
+        for kind, settings in self.detection.items():
+            if not isinstance(settings, DetectionSettings):
+                raise TypeError(f"PipelineParams.detection[{kind!r}] must be DetectionSettings, not "
+                                f"{type(settings).__name__}")

@@ -13,6 +13,8 @@ product for look-alikes (Fig. 4.13). A marker that is not found is a gap (NaN), 
 - :mod:`.tracker` and :mod:`.tracking`: following the markers through a clip (:func:`track_markers`):
   constant-velocity prediction, a window around it, the best assignment of blobs to markers; flashes
   skipped; after a loss the search resumes and keeps the labels.
+- :mod:`.detectors`: the marker detectors by name (the thesis's chain is ``"bright_discs"``) and the
+  user's typed overrides of their choices (:class:`TrackOptions`), checked when given.
 - :mod:`.search`: the horse markers, the plumb line or the standing horse's markers found with all
   calibrated cameras at once among look-alikes (:func:`find_markers_multiview`), to start the
   trackers from the right blobs.
@@ -22,6 +24,14 @@ frame, possibly a strided view into the decoder's buffer.
 """
 
 from saddlescope.core.detection.blobs import detect_blobs
+from saddlescope.core.detection.detectors import (
+    DetectionSettings,
+    MarkerDetector,
+    TrackOptions,
+    detector_names,
+    marker_detector,
+    register_detector,
+)
 from saddlescope.core.detection.pattern import MarkerPattern, initial_markers
 from saddlescope.core.detection.search import (
     SequentialFrames,
@@ -40,7 +50,13 @@ from saddlescope.core.detection.search import (
 from saddlescope.core.detection.tracking import track_markers
 
 __all__ = [
+    "DetectionSettings",
+    "MarkerDetector",
     "MarkerPattern",
+    "TrackOptions",
+    "detector_names",
+    "marker_detector",
+    "register_detector",
     "detect_blobs",
     "initial_markers",
     "track_markers",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from types import TracebackType
@@ -26,9 +26,9 @@ from saddlescope.core.detection import (
     find_static_multiview,
     in_image,
     tilt_from_down_deg,
-    track_markers,
 )
 from saddlescope.core.detection.cover import drop_partly_covered
+from saddlescope.core.detection.detectors import DetectionSettings, marker_detector
 from saddlescope.core.errors import DetectionError, KinematicsError, TriangulationError
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
@@ -61,29 +61,24 @@ def detect_clip(clips: ClipReader, kind: str, n_markers: int, first_frame: Mappi
     flags : list of Finding
         One per camera left out.
     """
-    overrides = dict(params.detection.get(kind, {}))
-    common = {k: v for k, v in overrides.items() if not isinstance(v, Mapping)}
+    settings = params.detection.get(kind, DetectionSettings())
+    detector = marker_detector(params.marker_detector)
     missed: dict[str, DetectionError] = {}
-    jobs: dict[str, dict] = {}  # camera -> its keyword arguments to track_markers
+    starts: dict[str, np.ndarray | None] = {}  # camera -> the markers on its first frame, where known
     for cam in clips.cameras(kind):
-        cam_overrides = overrides.get(cam, {}) if isinstance(overrides.get(cam), Mapping) else {}
-        if start_xy is not None and "first_frame_xy" not in {**common, **cam_overrides}:
-            if cam not in start_xy:
-                if spare_cameras:
-                    what = "the plumb line's markers" if kind == "plumb" else f"the {kind} clip's markers"
-                    missed[cam] = DetectionError(f"the {cam} camera's view does not hold the spots that the "
-                                                 f"other cameras see as {what}")
-                    continue
-            else:
-                cam_overrides = {**cam_overrides, "first_frame_xy": start_xy[cam]}
-        jobs[cam] = {**common, **cam_overrides}
+        if start_xy is not None and cam not in start_xy and spare_cameras:
+            what = "the plumb line's markers" if kind == "plumb" else f"the {kind} clip's markers"
+            missed[cam] = DetectionError(f"the {cam} camera's view does not hold the spots that the "
+                                         f"other cameras see as {what}")
+            continue
+        starts[cam] = start_xy.get(cam) if start_xy is not None else None
 
     def track(cam: str) -> ImageTracks:
-        return track_markers(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)), n_markers=n_markers,
-                             camera=cam, clip=kind, **jobs[cam])
+        return detector.track(clips.gray_frames(kind, cam, start=first_frame.get(cam, 0)), n_markers=n_markers,
+                              camera=cam, clip=kind, options=settings.for_camera(cam), first_frame_xy=starts[cam])
 
     tracks = {}
-    for cam, got in per_camera(list(jobs), track, params.threads).items():
+    for cam, got in per_camera(list(starts), track, params.threads).items():
         if isinstance(got, DetectionError):
             if not spare_cameras:
                 raise got
@@ -187,9 +182,13 @@ def _down_direction(plumb: MarkerTracks | None, cameras_down: np.ndarray) -> np.
     return cameras_down
 
 
-def _motion_overrides(params: PipelineParams) -> dict:
-    """The user's detection settings for the motion clip that apply to every camera."""
-    return {k: v for k, v in params.detection.get("motion", {}).items() if not isinstance(v, Mapping)}
+def _track_motion(params: PipelineParams, frames: Iterable[tuple[int, np.ndarray]], camera: str, n_horse: int, *,
+                  first_frame_xy: np.ndarray | None = None, moving: bool = False) -> ImageTracks:
+    """One camera's horse markers through the motion clip, with the ride's detector and options."""
+    return marker_detector(params.marker_detector).track(
+        frames, n_markers=n_horse, camera=camera, clip="motion",
+        options=params.detection.get("motion", DetectionSettings()).for_camera(camera),
+        first_frame_xy=first_frame_xy, moving=moving)
 
 
 class _Cancelled(Exception):
@@ -202,16 +201,14 @@ def motion_tracks_alone(clips: ClipReader, first_frame: Mapping[str, int], param
 
     ``stop``, once set, ends the tracking at the next frame (raising a private exception).
     """
-    overrides = _motion_overrides(params)
-
     def frames(cam: str) -> Iterator[tuple[int, np.ndarray]]:
         for item in clips.gray_frames("motion", cam, start=first_frame.get(cam, 0)):
             if stop is not None and stop.is_set():
                 raise _Cancelled
             yield item
 
-    return per_camera(clips.cameras("motion"), lambda c: track_markers(
-        frames(c), n_markers=n_horse, camera=c, clip="motion", **{"moving": True, **overrides}), params.threads)
+    return per_camera(clips.cameras("motion"), lambda c: _track_motion(params, frames(c), c, n_horse, moving=True),
+                      params.threads)
 
 
 class EarlyMotionTracks:
@@ -295,7 +292,6 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     order = [int(i) for i in np.argsort(height)]
     horse_idx = sorted(order[:n_horse])
     rest = [i for i in range(static_mm.shape[0]) if i not in horse_idx]
-    overrides = _motion_overrides(params)
     if not multiview:
         try:
             # First choice: each camera finds the markers by itself among what moves (glints stand still).
@@ -318,9 +314,9 @@ def detect_motion(clips: ClipReader, rig: Rig, static_mm: np.ndarray, n_horse: i
     position = stamped_position if clocks else None
     _, found = find_markers_multiview(rig, frames, offsets, [static_mm[horse_idx]], first=max(first, 0), last=last,
                                       frame_position=position)
-    tracks = per_camera(cams, lambda c: track_markers(
-        clips.gray_frames("motion", c, start=found["frames"][c]), n_markers=n_horse, camera=c, clip="motion",
-        first_frame_xy=found["xy"][c], **overrides), params.threads)
+    tracks = per_camera(cams, lambda c: _track_motion(
+        params, clips.gray_frames("motion", c, start=found["frames"][c]), c, n_horse, first_frame_xy=found["xy"][c]),
+        params.threads)
     for got in tracks.values():
         if isinstance(got, DetectionError):
             raise got

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core import calibration as calib
-from saddlescope.core.detection import track_markers
+from saddlescope.core.detection.detectors import DetectionSettings, marker_detector
 from saddlescope.core.errors import CalibrationError, DetectionError, SyncError
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
@@ -144,12 +144,13 @@ def motion_sync(clips: ClipReader, rig: Rig, kind: str, n_markers: int, params: 
         A camera that does not find the markers, or motion that does not fix the offsets.
     """
     cams = clips.cameras(kind)
-    overrides = {k: v for k, v in params.detection.get(kind, {}).items() if not isinstance(v, Mapping)}
+    settings = params.detection.get(kind, DetectionSettings())
+    detector = marker_detector(params.marker_detector)
     tracks = {}
     for c in cams:
         try:
-            tracks[c] = track_markers(clips.gray_frames(kind, c), n_markers=n_markers, camera=c, clip=kind,
-                                      **{"moving": True, **overrides})
+            tracks[c] = detector.track(clips.gray_frames(kind, c), n_markers=n_markers, camera=c, clip=kind,
+                                       options=settings.for_camera(c), moving=True)
         except DetectionError as exc:
             raise SyncError(f"no sync flash in the {kind} clip, and its markers' motion cannot synchronise the "
                             f"cameras: {exc}") from exc
