@@ -4,8 +4,10 @@ A marker detector follows one camera's markers through a clip and returns its 2-
 (:class:`~saddlescope.core.types.ImageTracks`, NaN where a marker was not found). The default,
 ``"bright_discs"``, is the thesis's filter chain (:func:`~saddlescope.core.detection.track_markers`).
 Another detector (coloured markers, a learned key-point model) is a class with a ``name`` and a
-``track`` method, made known with :func:`register_detector`; ``PipelineParams.marker_detector`` names
-the one a ride uses and is checked when the parameters are built, before any frame is decoded.
+``track`` method: a module of :mod:`saddlescope.core.detection` that defines ``MARKER_DETECTOR`` (an
+instance) registers it by being there, and code elsewhere (a plug-in, a test) calls
+:func:`register_detector`; ``PipelineParams.marker_detector`` names the one a ride uses and is checked
+when the parameters are built, before any frame is decoded.
 
 The user's overrides of a detector's automatic choices are typed (:class:`TrackOptions`, per clip set
 and per camera in :class:`DetectionSettings`) and checked when built, with a sentence naming the value.
@@ -120,6 +122,23 @@ class BrightDiscs:
 
 
 _DETECTORS: dict[str, MarkerDetector] = {DEFAULT_DETECTOR: BrightDiscs()}
+_DISCOVERED: list[bool] = []  # the package's modules were searched for MARKER_DETECTOR (once)
+
+
+def _discover() -> None:
+    """Register the ``MARKER_DETECTOR`` of every module of :mod:`saddlescope.core.detection` (once)."""
+    if _DISCOVERED:
+        return
+    _DISCOVERED.append(True)
+    import importlib
+    import pkgutil
+
+    import saddlescope.core.detection as package
+
+    for info in pkgutil.iter_modules(package.__path__):
+        found = getattr(importlib.import_module(f"{package.__name__}.{info.name}"), "MARKER_DETECTOR", None)
+        if found is not None:
+            register_detector(found)
 
 
 def register_detector(detector: MarkerDetector, *, replace: bool = False) -> MarkerDetector:
@@ -146,11 +165,13 @@ def unregister_detector(name: str) -> None:
 
 def detector_names() -> list[str]:
     """The registered detectors' names, the default first."""
+    _discover()
     return list(_DETECTORS)
 
 
 def marker_detector(name: str) -> MarkerDetector:
     """The detector registered as ``name``; an InputError naming the known ones otherwise."""
+    _discover()
     try:
         return _DETECTORS[name]
     except KeyError:
