@@ -315,8 +315,10 @@ def _choose_k3(cam: Camera, report: dict, views: list[BoardView], board: Board, 
 
 
 def _lens_candidates(k3: bool) -> list[LensModel]:
-    """The lens models a camera's views choose from: fx = fy or not, principal point fitted or at the centre,
-    tangential term or not (k3 as already chosen), the full model first."""
+    """The lens models a camera's views choose from, the full model first.
+
+    fx = fy or not, the principal point fitted or at the centre, a tangential term or not (k3 as already chosen).
+    """
     return [LensModel(equal_focal=eq, principal_point=pp, tangential=tg, k3=k3)
             for eq in (False, True) for pp in (True, False) for tg in (True, False)]
 
