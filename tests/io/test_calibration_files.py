@@ -195,12 +195,18 @@ def test_caliscope_lenses_fitted_by_the_evidence(tmp_path):
             ours = np.linalg.norm(rig.cameras[a].center_mm - rig.cameras[b].center_mm)
             assert abs(ours - np.linalg.norm(theirs.cameras[a].center_mm - theirs.cameras[b].center_mm)) < 30.0, (a, b)
     errs = board_distance_errors(rig, _caliscope_detections(), board)
-    # 0.97 mm before (with camera 1's lens bent); the issue asks at most 1.0: 1.03 measured (docs/accuracy.md)
-    assert float(np.sqrt(np.mean(errs["distance_errors_mm"] ** 2))) < 1.1
-    assert result["checks"]["corner_distance_error_rms_mm"] < 1.0
-    # which lens each camera got, and why: the document's field and a finding for the held one
+    # 0.96 mm with camera 1's lens bent (934/887 px); the issue asks at most 1.0 with camera 1 within 3 %: 1.032
+    # measured, and no lens of camera 1 within 3 % gets below 1.02 (caliscope's own lens held: 1.043;
+    # docs/accuracy.md), so the bound is the measured value's
+    assert float(np.sqrt(np.mean(errs["distance_errors_mm"] ** 2))) < 1.045
+    assert result["checks"]["corner_distance_error_rms_mm"] < 0.85
+    # which lens each camera got, and why: the document's field and a finding for the held one; camera 1's own
+    # views pay for neither a second focal length nor a principal point off the centre
     lens = {n: c["lens_model"] for n, c in result["cameras"].items()}
     assert not lens["cam_1"]["joint"] and "own views" in lens["cam_1"]["reason"]
+    assert lens["cam_1"]["equal_focal"] and not lens["cam_1"]["principal_point"]
+    assert "Bayesian information criterion" in lens["cam_1"]["reason"]
+    assert cam1.K[0, 0] == cam1.K[1, 1] and cam1.K[0, 2] == pytest.approx(639.5)
     assert all(lens[n]["joint"] for n in ("cam_0", "cam_2", "cam_3"))
     assert [f["code"] for f in result["findings"]].count("calibration.lens_model") == 1
     assert sum(v["partial"] for v in result["views"].values()) >= 2  # cam_2 and cam_3's 4-5 corner views

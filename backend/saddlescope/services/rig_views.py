@@ -95,10 +95,35 @@ def calibration_words(calibration: Mapping[str, Any] | None) -> dict[str, Any]:
             + {"good": "good, distances are measured accurately.",
                "fair": "fair; distances are within a millimetre.",
                "poor": "poor: check the square size typed for the board, and that the print was at 100 %."}[sq_grade])
+    sentences += _lens_sentences(cams)
     flags = list(calibration.get("flags") or [])
     return {"calibrated": True, "reprojection_px": reproj, "board_square_error_mm": square,
             "reprojection_grade": grade, "square_grade": sq_grade, "flags": flags,
             "n_views": calibration.get("n_views"), "sentences": sentences}
+
+
+def _lens_sentences(cams: Mapping[str, Any]) -> list[str]:
+    """One sentence per camera whose lens was not fitted with all cameras' views: held from its own, or given.
+
+    From each camera's ``lens_model`` (issue 35): which lens parameters its own views fixed, in words.
+    """
+    out = []
+    for name, cam in cams.items():
+        model = cam.get("lens_model") if isinstance(cam, Mapping) else None
+        if not isinstance(model, Mapping) or (model.get("joint", True) and not model.get("given")):
+            continue
+        if model.get("given"):
+            out.append(f"Camera {name}'s lens was given (an earlier calibration or a lens profile); "
+                       "only its position was fitted.")
+            continue
+        fixed = [w for flag, w in (("equal_focal", "one focal length for x and y"),
+                                   ("principal_point", "the principal point at the image centre"),
+                                   ("tangential", "no tangential distortion"))
+                 if bool(model.get(flag)) == (flag == "equal_focal")]
+        how = f", in the simplest model they support ({', '.join(fixed)})" if fixed else ""
+        out.append(f"Camera {name}'s lens comes from its own views{how}: the other cameras' views would have "
+                   "bent it. Next time carry the board to the edges of its view.")
+    return out
 
 
 _REGIONS = [["top-left corner", "top edge", "top-right corner"],

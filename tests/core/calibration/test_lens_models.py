@@ -78,7 +78,16 @@ def test_a_joint_lens_its_own_views_reject_is_held():
     assert test["joint_lens_rms_px"] > 1.5 * test["own_views_rms_px"]
     assert not report["lens_choice"]["c0"]["held"] and not report["lens_choice"]["c2"]["held"]
     assert not rig.lens_models["c1"].joint and rig.lens_models["c0"].joint
-    assert np.allclose(rig.cameras["c1"].K, own.K)  # the lens from its own views
+    # the lens from its own views, in the model they support: the truth's square pixels, its principal point
+    # half a pixel from the image centre and no tangential term are what the criterion fixes
+    model = rig.lens_models["c1"]
+    assert (model.equal_focal, model.principal_point, model.tangential) == (True, False, False)
+    assert "one focal length for x and y, the principal point at the image centre" in model.reason
+    chosen, _ = calibrate_intrinsics(views["c1"], board, sizes["c1"], guess=own, model=model, max_rounds=0)
+    assert np.allclose(rig.cameras["c1"].K, chosen.K)
+    bic, label = test["lens_test"]["bic"], model.label.split(";")[0]
+    assert test["lens_test"]["chosen"] == label and min(bic.values()) == bic[label]
+    assert len(bic) == 8 and bic["fx=fy, centre, k1 k2"] < bic["fx fy, cx cy, k1 k2, p1 p2"] - 10
     assert abs(rig.cameras["c1"].K[0, 0] / truth.cameras["c1"].K[0, 0] - 1) < 0.01
     found = [f for f in rig.flags if f.code == "calibration.lens_model"]
     assert len(found) == 1 and "camera c1" in found[0].detail and "own lens was kept" in found[0].detail

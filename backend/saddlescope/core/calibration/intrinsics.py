@@ -10,7 +10,7 @@ from saddlescope.core.calibration.views import MIN_CORNERS, MIN_VIEWS, BoardView
 from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.types import Board, Camera, LensModel
 
-__all__ = ["calibrate_intrinsics"]
+__all__ = ["calibrate_intrinsics", "choose_lens_model"]
 
 _CALIB_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-9)
 
@@ -312,3 +312,60 @@ def _choose_k3(cam: Camera, report: dict, views: list[BoardView], board: Board, 
         free_rep["k3_test"] = report["k3_test"]
         return free_cam, free_rep
     return cam, report
+
+
+def _lens_candidates(k3: bool) -> list[LensModel]:
+    """The lens models a camera's views choose from, the full model first.
+
+    fx = fy or not, the principal point fitted or at the centre, a tangential term or not (k3 as already chosen).
+    """
+    return [LensModel(equal_focal=eq, principal_point=pp, tangential=tg, k3=k3)
+            for eq in (False, True) for pp in (True, False) for tg in (True, False)]
+
+
+def _lens_bic(report: dict, model: LensModel) -> float:
+    """The Bayesian information criterion of a fit's reprojection residuals (every corner's x and y counted).
+
+    The views' poses (6 per view) are common to every candidate and left out.
+    """
+    n = 2 * report["n_points"]
+    return float(n * np.log(max(report["rms_px"], 1e-12) ** 2) + model.n_intrinsics * np.log(n))
+
+
+def choose_lens_model(cam: Camera, report: dict, views: list[BoardView], board: Board, image_size, *,
+                      camera: str, clip: str | None, min_views: int) -> tuple[Camera, dict, LensModel]:
+    """The lens model the camera's own views support: the lowest Bayesian information criterion.
+
+    Each of fx = fy, the principal point at the image centre and no tangential term is fixed where the views
+    do not pay for it: the eight combinations (k3 as :func:`_choose_k3` chose it) are fitted on the same
+    corners, each from the full fit, and the one with the lowest criterion kept. A lens seen mostly in its
+    middle cannot tell its principal point from its aim, nor its tangential term from the board's tilt; left
+    free there, they absorb whatever else disagrees (caliscope's webcam 1: principal point 140 px aside).
+
+    Returns the camera and report of the chosen model (``lens_test`` in the report: every candidate's
+    criterion by its label and the chosen label) and the model.
+    """
+    k3 = not report["fix_k3"]
+    dropped = set(report["dropped_frames"])
+    kept = [v for v in views if v.frame not in dropped and v.frame in report["per_view_rms_px"]]
+    fits: list[tuple[float, LensModel, Camera, dict]] = []
+    for model in _lens_candidates(k3):
+        if model == LensModel(k3=k3):
+            fit_cam, fit_rep = cam, report
+        else:
+            try:
+                fit_cam, fit_rep = calibrate_intrinsics(kept, board, image_size, camera=camera, clip=clip,
+                                                        min_views=min_views, guess=cam, model=model, max_rounds=0)
+            except CalibrationError:
+                continue
+        fits.append((_lens_bic(fit_rep, model), model, fit_cam, fit_rep))
+    bic, model, best_cam, best_rep = min(fits, key=lambda f: f[0])
+    best_rep = {**best_rep, "dropped_frames": report["dropped_frames"], "fix_k3": report["fix_k3"]}
+    if "k3_test" in report:
+        best_rep["k3_test"] = report["k3_test"]
+    best_rep["lens_test"] = {"bic": {m.label: b for b, m, _, _ in fits}, "chosen": model.label,
+                             "n_points": int(report["n_points"]),
+                             "model": {"equal_focal": model.equal_focal, "principal_point": model.principal_point,
+                                       "tangential": model.tangential}}
+    return best_cam, best_rep, model
+

@@ -13,7 +13,12 @@ import numpy as np
 from saddlescope.core.calibration.boards import board_type, object_points_mm
 from saddlescope.core.calibration.bundle_adjustment import _pose_of_view, bundle_adjust
 from saddlescope.core.calibration.checks import metric_checks
-from saddlescope.core.calibration.intrinsics import _choose_k3, _given_intrinsics, calibrate_intrinsics
+from saddlescope.core.calibration.intrinsics import (
+    _choose_k3,
+    _given_intrinsics,
+    calibrate_intrinsics,
+    choose_lens_model,
+)
 from saddlescope.core.calibration.stereo import stereo_extrinsics
 from saddlescope.core.calibration.views import MIN_CORNERS, MIN_POSE_CORNERS, MIN_VIEWS, BoardView
 from saddlescope.core.errors import CalibrationError, InputError
@@ -205,7 +210,8 @@ def calibrate_rig(views_by_camera: Mapping[str, list[BoardView]], board: Board,
     lens_flags: list[Finding] = []
     if bundle:
         cams, report["bundle"], models, report["lens_choice"], lens_flags = _adjust_with_lens_choice(
-            cams, intrinsics, intr_reports, views, views_by_camera, board, models, loss=loss, clip=clip)
+            cams, intrinsics, intr_reports, views, views_by_camera, board, models, loss=loss, clip=clip,
+            min_views=min_views)
     pairs = {f"{a}-{b}": {"R": p["R"], "t_mm": p["t_mm"], "rms_px": p["rms_px"], "n_views": p["n_views"]}
              for (a, b), p in pairs_cv.items()}
     checks, flags, report["per_pair_checks"] = _rig_checks(
@@ -283,7 +289,8 @@ def _joint_lens_test(own_report: dict, joint_report: dict, n_intrinsics: int) ->
 def _adjust_with_lens_choice(cams: dict[str, Camera], intrinsics: Mapping[str, Camera],
                              intr_reports: Mapping[str, dict],
                              views: Mapping[str, list[BoardView]], views_by_camera: Mapping[str, list[BoardView]],
-                             board: Board, models: dict[str, LensModel], *, loss: str, clip: str | None):
+                             board: Board, models: dict[str, LensModel], *, loss: str, clip: str | None,
+                             min_views: int = MIN_VIEWS):
     """The joint adjustment, repeated with the lens of each camera whose own views reject the joint one held.
 
     The joint adjustment fits every camera's lens to all cameras' views at once; where the cameras disagree
@@ -291,7 +298,9 @@ def _adjust_with_lens_choice(cams: dict[str, Camera], intrinsics: Mapping[str, C
     disagree by 1.2 px where each camera's own fit leaves 0.2 px), a lens seen mostly in its middle absorbs
     the disagreement: its focal length came out 23 % long, its principal point 140 px aside. Such a lens fits
     its own camera's views far worse than the camera's own fit; :func:`_joint_lens_test` decides, once for
-    all cameras after the first adjustment, and the adjustment is repeated with those lenses held.
+    all cameras after the first adjustment, and the adjustment is repeated with those lenses held, each in
+    the lens model its own views support (:func:`choose_lens_model`: fx = fy, the principal point at the
+    centre, no tangential term where the views do not pay for them).
 
     Returns cameras, the bundle report, the lens models, the tests' numbers and one finding per camera.
     """
@@ -308,16 +317,33 @@ def _adjust_with_lens_choice(cams: dict[str, Camera], intrinsics: Mapping[str, C
     held = [n for n in choice if choice[n]["held"]]
     out = first
     if held:
-        start = {n: (Camera(n, intrinsics[n].K, intrinsics[n].dist, intrinsics[n].image_size, R=first[n].R,
+        own = {n: choose_lens_model(intrinsics[n], intr_reports[n], views_by_camera[n], board,
+                                    intrinsics[n].image_size, camera=n, clip=clip, min_views=min_views)
+               for n in held}
+        for n, (_, rep, model) in own.items():
+            models[n] = replace(model, given=models[n].given)
+            choice[n]["lens_test"] = rep["lens_test"]
+        start = {n: (Camera(n, own[n][0].K, own[n][0].dist, own[n][0].image_size, R=first[n].R,
                             t_mm=first[n].t_mm) if n in held else first[n]) for n in names}
         ba_models = {n: replace(models[n], given=True) if n in held else models[n] for n in names}
         out, bundle_report = bundle_adjust(start, views, board, lens_models=ba_models, loss=loss)
         for n in held:  # the own fit's uncertainty, not the adjustment's zero for a held lens
-            out[n] = replace(out[n], K_std=intrinsics[n].K_std, dist_std=intrinsics[n].dist_std)
+            out[n] = replace(out[n], K_std=own[n][0].K_std, dist_std=own[n][0].dist_std)
     models = {n: replace(m, joint=n not in held, reason=_lens_reason(n, m, choice.get(n)))
               for n, m in models.items()}
     return out, bundle_report, models, choice, [_lens_finding(n, models[n], choice[n], first[n], out[n])
                                                 for n in held]
+
+
+def _fixed_in_words(model: LensModel) -> str:
+    """Which lens parameters a model fixes, in words ("every lens parameter fitted" where none)."""
+    fixed = [words for held, words in ((model.equal_focal, "one focal length for x and y"),
+                                       (not model.principal_point, "the principal point at the image centre"),
+                                       (not model.tangential, "no tangential distortion"),
+                                       (not model.k3, "k3 at zero")) if held]
+    if not fixed:
+        return "every lens parameter fitted"
+    return ", ".join(fixed[:-1]) + (" and " if len(fixed) > 1 else "") + fixed[-1]
 
 
 def _lens_reason(name: str, model: LensModel, test: dict | None) -> str:
@@ -328,9 +354,10 @@ def _lens_reason(name: str, model: LensModel, test: dict | None) -> str:
         return "fitted by the joint adjustment of all cameras"
     if test["held"]:
         return (f"the joint adjustment's lens fits this camera's own views with {test['joint_lens_rms_px']:.2f} px "
-                f"against {test['own_views_rms_px']:.2f} px for its own fit, more than its "
-                f"{model.n_intrinsics} lens parameters explain over {test['n_views']} views: "
-                "the lens from its own views was kept and only its pose adjusted with the other cameras")
+                f"against {test['own_views_rms_px']:.2f} px for its own fit, more than its lens parameters explain "
+                f"over {test['n_views']} views: the lens from its own views was kept ({_fixed_in_words(model)}, "
+                "the model its views support by the Bayesian information criterion) and only its pose adjusted "
+                "with the other cameras")
     return (f"the joint adjustment's lens fits this camera's own views with {test['joint_lens_rms_px']:.2f} px "
             f"(its own fit {test['own_views_rms_px']:.2f} px over {test['n_views']} views): kept")
 
