@@ -61,7 +61,8 @@ def wand_coverage(views: list[WandView], image_size: tuple[int, int]) -> dict:
 def _close_up_lens(clips: ClipReader, cam: str, board: Board) -> tuple[Camera, list, tuple[int, int]]:
     """One camera's lens from its close-up board clip (the camera alone)."""
     frames = clips.gray_frames("close_up", cam)
-    views, size = calib.detect_board_views(frames, board, search_every=1)
+    # each frame its own pose (the board held still, then moved): searched whole, not tracked from the last
+    views, size = calib.detect_board_views(frames, board, track=False)
     size = size or clips.image_size("close_up", cam)
     if not views:
         cols, rows = board.inner_corners
