@@ -381,7 +381,7 @@ def ride_problems(meta: Any) -> list[str]:
     if isinstance(sync, dict) and sync.get("method") == "offsets" and isinstance(clips, dict):
         offsets = sync.get("offsets") if isinstance(sync.get("offsets"), dict) else {}
         for kind in clips:
-            if kind in CLIP_KINDS and kind not in offsets:
+            if kind in (*CLIP_KINDS, "wand") and kind not in offsets:  # close-ups: each camera alone
                 problems.append(f"sync.offsets has no offsets for the {kind} clips")
     return problems
 
