@@ -412,7 +412,7 @@ def _wand_views_exact(srig, path, noise_px: float, rng) -> dict:
 
 
 def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band: float = 0.6, wand_frames: int = 480,
-                      length_m: float = 1.0) -> dict:
+                      length_m: float = 1.0, along_track: bool = True) -> dict:
     """A rig whose board reached only the middle band, refined by a wand pass: the extrapolated share (issue 35).
 
     For each partial-view canter (``wide_partial`` rig, 4-6 m/s, the board through ``band`` of the volume, 30
@@ -425,6 +425,7 @@ def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band
     the lens reach radius (as :mod:`~saddlescope.core.triangulation.lens_reach`), the largest over the
     cameras, before and after; the lens's ray error at the samples beyond the board's reach against the
     arena's true lens (px), before (the reach-limited model) and after; and a fresh wand's length error.
+    ``along_track=False`` waves the wand through the calibration volume only (as the ``wand`` section's path).
     Geometry only: no clip is rendered (detection's part is in the ``wand`` section).
     """
     import numpy as np
@@ -450,7 +451,7 @@ def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band
         board_rig, _ = calibrate_rig(board_views, BOARD, sizes)
         # the wand walked along the track the horse takes through the three views (its markers' x range)
         xy_w = scene.contents["motion"].markers_w(scene.timings["motion"].frame_times("left"))[..., 0]
-        track = (float(np.nanmin(xy_w)), float(np.nanmax(xy_w)))
+        track = (float(np.nanmin(xy_w)), float(np.nanmax(xy_w))) if along_track else None
         wand = _wand_views_exact(srig, wand_path(srig, rng, n_frames=wand_frames, length_m=length_m,
                                                  track_x_m=track), 0.2, rng)
         board_hull = {r: board_coverage(v, sizes[r])["hull_px"] for r, v in board_views.items()}
