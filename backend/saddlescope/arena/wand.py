@@ -24,8 +24,8 @@ from saddlescope.arena.render import (
     flash_fraction,
     render_background,
 )
-from saddlescope.arena.timing import ClipTiming, clip_timing
 from saddlescope.arena.rig import SceneRig, normalized_pixel_grid
+from saddlescope.arena.timing import ClipTiming, clip_timing
 from saddlescope.core.calibration.simulation import simulate_board_views
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.types import Board, Camera, Rig

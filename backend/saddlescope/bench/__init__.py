@@ -77,8 +77,10 @@ def _coverage(tmp: Path, quick: bool) -> dict:
 
 
 def _wand(tmp: Path, quick: bool) -> dict:
-    """A wide rig calibrated from a wand and close-up boards against the full board calibration, and a middle-band
-    board rig refined by a wand pass (issue 35)."""
+    """A wide rig from a wand and close-up boards against the full board walk; a middle band refined by a wand.
+
+    Issue 35: ``wand_vs_board`` and ``wand_refines_band`` of :mod:`saddlescope.bench.calibration`.
+    """
     from saddlescope.bench.calibration import wand_refines_band, wand_vs_board
 
     return {**wand_vs_board(tmp, quick=quick), **wand_refines_band(**({"seeds": (1013,)} if quick else {}))}

@@ -15,9 +15,9 @@ import numpy as np
 from saddlescope.core.camera_model import undistort_normalized
 from saddlescope.core.findings import Finding
 
-__all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "WAND_CLIP_KINDS", "AnalysisWindow", "Board", "Camera", "HorseMarkers",
-           "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig", "SaddleKinematics",
-           "SaddleRotation", "VerticalHarmonics"]
+__all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "WAND_CLIP_KINDS", "AnalysisWindow", "Board", "Camera",
+           "HorseMarkers", "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig",
+           "SaddleKinematics", "SaddleRotation", "VerticalHarmonics"]
 
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
 CLIP_KINDS: tuple[str, ...] = ("calibration", "plumb", "static", "motion")

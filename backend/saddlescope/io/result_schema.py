@@ -225,7 +225,8 @@ RIDE_SCHEMA: dict[str, Any] = {
     # A calibration clip set (or the wand's, checked in ride_problems) unless a calibration file replaces it.
     "anyOf": [{"required": ["calibration_file"]},
               {"properties": {"clips": {"required": ["calibration"]}}},
-              {"required": ["calibration"], "properties": {"calibration": {"properties": {"method": {"const": "wand"}}}}}],
+              {"required": ["calibration"],
+               "properties": {"calibration": {"properties": {"method": {"const": "wand"}}}}}],
 }
 
 

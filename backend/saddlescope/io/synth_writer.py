@@ -109,7 +109,13 @@ def write_ride_bundle(
 def _write_wand_clips(out_dir: Path, scene, manifest: dict, *, crf: int, wand_s: float, length_m: float,
                       close_up_poses: int) -> None:
     """The wand calibration's clips (``wand/``, ``close_up/``) and their part of ride.json."""
-    from saddlescope.arena.wand import CLOSE_UP_BOARD, render_close_up_frames, render_wand_clip, wand_clip_timing, wand_path
+    from saddlescope.arena.wand import (
+        CLOSE_UP_BOARD,
+        render_close_up_frames,
+        render_wand_clip,
+        wand_clip_timing,
+        wand_path,
+    )
     from saddlescope.core.calibration.boards import board_to_meta
 
     rng = np.random.default_rng([scene.seed, 0x3A9D])
