@@ -83,7 +83,8 @@ def _wand(tmp: Path, quick: bool) -> dict:
     """
     from saddlescope.bench.calibration import wand_refines_band, wand_vs_board
 
-    return {**wand_vs_board(tmp, quick=quick), **wand_refines_band(**({"seeds": (1013,)} if quick else {}))}
+    band = wand_refines_band(seeds=(1013,)) if quick else wand_refines_band()
+    return {**wand_vs_board(tmp, quick=quick), **band}
 
 
 def _dashboard(tmp: Path, quick: bool) -> dict:
