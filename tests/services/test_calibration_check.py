@@ -57,7 +57,7 @@ def test_the_command_says_what_is_missing(tmp_path, capsys):
     assert "--pattern CxR and --square MM" in capsys.readouterr().err
 
 
-def test_a_wand_waved_only_in_the_middle_says_film_the_sides_again(tmp_path):
+def test_a_wand_waved_only_in_the_middle_says_film_the_sides_again(tmp_path, capsys):
     """The wand's clips checked like the board's (issue 35): rendered by the arena's wide_partial rig, a wand
     waved only 0.6 m either side of the middle misses the middle camera's side thirds."""
     import numpy as np
@@ -85,3 +85,8 @@ def test_a_wand_waved_only_in_the_middle_says_film_the_sides_again(tmp_path):
     assert "wand clip" in check.verdict()
     with pytest.raises(InputError, match="not 0.05-5 m: measure it between the two markers' centres"):
         check_wand_clips(clips, 100.0)
+    # the same on the command line: no board to name, the wand's length instead; exit status 1
+    assert main(["check-calibration", "--wand", "1.0", *(f"{r}={p}" for r, p in clips.items())]) == 1
+    printed = capsys.readouterr().out
+    assert f"middle: wand in {middle.views} of {middle.frames_sampled} frames looked at" in printed
+    assert printed.strip().splitlines()[-1].startswith("Film again: the middle")
