@@ -136,19 +136,24 @@ def _add_check_parser(sub) -> None:
     s.add_argument("--dictionary", default=None, help="ChArUco dictionary")
     s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
     s.add_argument("--fps", dest="sample_fps", type=float, default=None, help="frames looked at a second (default 3)")
+    s.add_argument("--wand", type=float, default=None, metavar="LENGTH_M",
+                   help="the clips film a wand of this length (m) waved through the riding area: where its ends went")
     s.add_argument("--json", dest="json_out", default=None, help="also write the whole check here")
 
 
-def _check_calibration(args: argparse.Namespace) -> int:
-    """Run `check-calibration`: print the verdict and each camera's sentences; 1 when to film again."""
-    from saddlescope.services.calibration_check import SAMPLE_FPS, check_calibration_clips, check_document
-
+def _check_sources(args: argparse.Namespace) -> tuple[dict[str, Path], dict, float | None]:
+    """The clips to check, the board they show and, for a wand's clips, the wand's length (m)."""
     board: dict = {}
     paths: dict[str, Path] = {}
+    wand_m = args.wand
     if args.ride:
         meta = json.loads((Path(args.ride) / "ride.json").read_text(encoding="utf-8"))
         board = dict(meta.get("board") or {})
-        paths = {p.stem: p for p in sorted((Path(args.ride) / "calibration").glob("*.*"))}
+        cal = meta.get("calibration") or {}
+        if cal.get("method") == "wand" and wand_m is None:
+            wand_m = cal.get("wand_length_m")
+        folder = "wand" if wand_m is not None else "calibration"
+        paths = {p.stem: p for p in sorted((Path(args.ride) / folder).glob("*.*"))}
     for clip in args.clips:
         name, sep, source = clip.partition("=")
         path = Path(source if sep else clip)
@@ -158,15 +163,33 @@ def _check_calibration(args: argparse.Namespace) -> int:
     board.update({k: v for k, v in given.items() if v is not None})
     if not paths:
         raise InputError("give the calibration clips (CLIP ... or --ride BUNDLE)")
-    if "inner_corners" not in board or "square_mm" not in board:
-        raise InputError("say which board the clips show: --pattern CxR and --square MM (or --ride BUNDLE)")
-    check = check_calibration_clips(paths, board, sample_fps=args.sample_fps or SAMPLE_FPS,
-                                    on_progress=_print_progress)
+    if wand_m is None and ("inner_corners" not in board or "square_mm" not in board):
+        raise InputError("say which board the clips show: --pattern CxR and --square MM (or --ride BUNDLE), "
+                         "or --wand LENGTH_M for a wand's clips")
+    return paths, board, wand_m
+
+
+def _check_calibration(args: argparse.Namespace) -> int:
+    """Run `check-calibration`: print the verdict and each camera's sentences; 1 when to film again."""
+    from saddlescope.services.calibration_check import (
+        SAMPLE_FPS,
+        check_calibration_clips,
+        check_document,
+        check_wand_clips,
+    )
+
+    paths, board, wand_m = _check_sources(args)
+    if wand_m is not None:
+        check = check_wand_clips(paths, wand_m, on_progress=_print_progress,
+                                 **({"sample_fps": args.sample_fps} if args.sample_fps else {}))
+    else:
+        check = check_calibration_clips(paths, board, sample_fps=args.sample_fps or SAMPLE_FPS,
+                                        on_progress=_print_progress)
     document = check_document(check)
     if args.json_out:
         _write_json(document, args.json_out)
     for name, camera in document["cameras"].items():
-        print(f"{name}: board in {camera['views']} of {camera['frames_sampled']} frames looked at")
+        print(f"{name}: {check.what} in {camera['views']} of {camera['frames_sampled']} frames looked at")
         for finding in camera["findings"]:
             print(f"  {finding['detail']}")
     print(f"{document['verdict']} ({document['seconds']:g} s)")

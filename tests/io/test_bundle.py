@@ -413,3 +413,39 @@ def test_clip_images_of_zeros_are_refused_by_the_ratio_of_what_would_be_unpacked
     with pytest.raises(BundleError, match=r"padded clips.zip: the clips ride.json names unpack to \d+ MB, \d+ times"):
         open_bundle(zip_path, extract_to=out)
     assert not any(p.is_file() for p in out.rglob("*"))  # refused before a member was written
+
+
+# --- a wand calibration (issue 35 item 3): ride.json's ``calibration`` and its clip sets ----------------
+
+
+def _wand_meta(**calibration):
+    meta = _meta(kinds=("plumb", "static", "motion", "wand", "close_up"))
+    meta["calibration"] = {"method": "wand", "wand_length_m": 1.0, **calibration}
+    return meta
+
+
+def test_a_wand_bundle_opens_with_its_wand_and_close_up_clips(tmp_path):
+    with open_bundle(make_bundle(tmp_path / "ride", _wand_meta())) as bundle:
+        assert bundle.calibration_method == "wand"
+        assert set(bundle.clip_paths) == {"plumb", "static", "motion", "wand", "close_up"}
+        assert bundle.clip("close_up", "middle").name == "middle.mp4"
+    with open_bundle(make_bundle(tmp_path / "board", _meta())) as bundle:
+        assert bundle.calibration_method == "board"
+
+
+@pytest.mark.parametrize(("change", "says"), [
+    (lambda m: m["calibration"].pop("wand_length_m"), "needs calibration.wand_length_m"),
+    (lambda m: m["clips"].pop("close_up"), "needs clips.close_up: the board filmed close to each camera"),
+    (lambda m: m["clips"].pop("wand"), "needs clips.wand: the wand waved through the riding area"),
+    (lambda m: m["calibration"].update(wand_length_m=12.0), "calibration.wand_length_m"),
+    (lambda m: m["clips"].update(calibration={r: f"calibration/{r}.mp4" for r in ROLES}),
+     "and clips.calibration (a board walk) contradict each other"),
+    (lambda m: m.pop("calibration"), "clips.wand is a wand calibration's clip set"),
+    (lambda m: m["calibration"].update(method="stick"), "'stick' is not one of board, wand"),
+])
+def test_a_wrong_wand_bundle_is_refused_in_words(tmp_path, change, says):
+    meta = _wand_meta()
+    change(meta)
+    with pytest.raises(BundleError, match="ride.json") as err:
+        open_bundle(make_bundle(tmp_path / "ride", meta))
+    assert says in str(err.value)

@@ -10,6 +10,7 @@ import json
 import pytest
 
 from saddlescope.cli import main
+from saddlescope.core.errors import InputError
 from saddlescope.io.synth_writer import write_ride_bundle
 from saddlescope.services.calibration_check import check_calibration_clips, check_document, sample_step
 
@@ -54,3 +55,38 @@ def test_a_board_in_the_middle_band_never_reached_a_third_film_again(middle_band
 def test_the_command_says_what_is_missing(tmp_path, capsys):
     assert main(["check-calibration", str(tmp_path / "left.mp4")]) == 2
     assert "--pattern CxR and --square MM" in capsys.readouterr().err
+
+
+def test_a_wand_waved_only_in_the_middle_says_film_the_sides_again(tmp_path, capsys):
+    """The wand's clips checked like the board's (issue 35): rendered by the arena's wide_partial rig, a wand
+    waved only 0.6 m either side of the middle misses the middle camera's side thirds."""
+    import numpy as np
+
+    from saddlescope.arena.rig import make_rig
+    from saddlescope.arena.wand import render_wand_frames, wand_path
+    from saddlescope.io.video_writer import write_h264
+    from saddlescope.services.calibration_check import check_wand_clips
+
+    rng = np.random.default_rng(5)
+    rig = make_rig("wide_partial", rng, size=(640, 360))
+    path = wand_path(rig, rng, n_frames=120, fps=10.0, track_x_m=(-0.6, 0.6))
+    clips = {}
+    for role in ("middle", "right"):
+        clips[role] = tmp_path / f"{role}.mp4"
+        write_h264(clips[role], (g for _, g in render_wand_frames(rig, path, role, rng=rng)), fps=10.0)
+    check = check_wand_clips(clips, 1.0)
+    middle = check.cameras["middle"]
+    assert middle.views >= 40
+    assert {"left third", "right third"} <= set(middle.bands_missed)
+    third = next(f for f in middle.findings if f.code == "calibration_check.wand_third_missed")
+    assert third.detail.startswith("The wand never reached the ") and "left third" in third.detail
+    assert third.detail.endswith("of the middle camera's view: film that part again.")
+    assert check.verdict().startswith("Film again: the middle")
+    assert "wand clip" in check.verdict()
+    with pytest.raises(InputError, match="not 0.05-5 m: measure it between the two markers' centres"):
+        check_wand_clips(clips, 100.0)
+    # the same on the command line: no board to name, the wand's length instead; exit status 1
+    assert main(["check-calibration", "--wand", "1.0", *(f"{r}={p}" for r, p in clips.items())]) == 1
+    printed = capsys.readouterr().out
+    assert f"middle: wand in {middle.views} of {middle.frames_sampled} frames looked at" in printed
+    assert printed.strip().splitlines()[-1].startswith("Film again: the middle")

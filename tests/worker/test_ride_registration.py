@@ -74,3 +74,18 @@ def test_a_failed_copy_leaves_no_half_registered_ride(env, monkeypatch):
     with sessions() as s:
         assert s.query(Ride).count() == 0
     assert list(storage.iter_keys("rides")) == []
+
+
+def test_a_wand_calibrated_bundle_is_refused_in_words_and_registers_nothing(env):
+    import json
+
+    sessions, storage, bundle = env
+    meta = json.loads((bundle / "ride.json").read_text())
+    meta["clips"]["wand"] = meta["clips"].pop("calibration")
+    meta["clips"]["close_up"] = dict(meta["clips"]["wand"])
+    meta["calibration"] = {"method": "wand", "wand_length_m": 1.0}
+    (bundle / "ride.json").write_text(json.dumps(meta))
+    with pytest.raises(BundleError, match="calibrated by a wand .* is analysed with `saddlescope analyze` for now"):
+        register_bundle(sessions, storage, bundle)
+    with sessions() as s:
+        assert s.query(Ride).count() == 0

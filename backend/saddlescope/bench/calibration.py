@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 __all__ = ["calibration_check_clips_s", "calibration_stage_s", "calibration_vs_decode", "wand_canter_indicators",
-           "wand_vs_board"]
+           "wand_refines_band", "wand_vs_board"]
 
 
 def _decode_once(paths: list[Path]) -> int:
@@ -336,3 +336,164 @@ def wand_vs_board(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = 
 
 if __name__ == "__main__":  # python -m saddlescope.bench.calibration RIDE [REPEATS]: one line of JSON
     print(json.dumps(calibration_stage_s(Path(sys.argv[1]), repeats=int(sys.argv[2]) if len(sys.argv) > 2 else 1)))
+
+
+def _scene_board_views(scene, noise_px: float, rng) -> dict:
+    """Each camera's exact views of the scene's calibration board poses (+ pixel noise), whole boards only."""
+    import numpy as np
+
+    from saddlescope.arena.content import BOARD
+    from saddlescope.core.calibration.views import BoardView
+
+    obj_m = BOARD.object_points_mm() / 1000.0
+    ids = np.arange(len(obj_m))
+    out: dict = {}
+    for role, view in scene.views.items():
+        w, h = view.size
+        views = []
+        for i, (r_bw, o_w) in enumerate(scene.contents["calibration"].poses):
+            xy = view.project(o_w + obj_m @ r_bw.T)
+            if np.all(np.isfinite(xy)) and xy[:, 0].min() > 3 and xy[:, 1].min() > 3 and xy[:, 0].max() < w - 4 \
+                    and xy[:, 1].max() < h - 4:
+                views.append(BoardView(i, xy + rng.normal(0, noise_px, xy.shape), ids))
+        out[role] = views
+    return out
+
+
+def _samples_beyond(rig, hull_by_cam: dict, xy_by_cam: dict) -> dict:
+    """Per camera: the share of marker samples outside the hull (pointPolygonTest) and beyond the lens reach radius."""
+    import types
+
+    import numpy as np
+
+    from saddlescope.core.pipeline.setup import outside_coverage
+    from saddlescope.core.triangulation.lens_reach import board_reach_px
+
+    hull_share = outside_coverage({c: types.SimpleNamespace(xy_px=xy) for c, xy in xy_by_cam.items()},
+                                  {c: {"hull_px": h} for c, h in hull_by_cam.items()})
+    out = {}
+    for cam, xy in xy_by_cam.items():
+        pts = xy.reshape(-1, 2)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        reach = 1.1 * board_reach_px(rig.cameras[cam], hull_by_cam[cam])  # lens_reach's margin
+        radius = np.linalg.norm(pts - rig.cameras[cam].K[:2, 2], axis=1)
+        out[cam] = {"outside_hull": round(hull_share[cam], 4), "beyond_reach": round(float(np.mean(radius > reach)), 4),
+                    "reach_px": round(reach, 1)}
+    return out
+
+
+def _lens_error_px(est, true, xy, reach_px: float | None) -> dict:
+    """The estimated lens's ray error (px at the focal length) at pixels ``xy`` (N, 2), median and 95th percentile."""
+    import numpy as np
+
+    from saddlescope.core.camera_model import undistort_normalized
+    from saddlescope.core.triangulation.lens_reach import undistort_within_reach
+
+    got, _ = undistort_within_reach(est, xy, reach_px)
+    err = np.linalg.norm(got - undistort_normalized(true, xy), axis=1) * true.K[0, 0]
+    err = err[np.isfinite(err)]
+    return {"median": round(float(np.median(err)), 2), "p95": round(float(np.percentile(err, 95)), 2)} if err.size \
+        else {}
+
+
+def _wand_views_exact(srig, path, noise_px: float, rng) -> dict:
+    """WandView lists from the ends' exact pixels (+ noise), frames where both ends are in the image."""
+    import numpy as np
+
+    from saddlescope.arena.wand import true_wand_pixels
+    from saddlescope.core.calibration.wand import WandView
+
+    out = {}
+    for role in srig.cameras:
+        xy = true_wand_pixels(srig, path, role)
+        ok = np.all(np.isfinite(xy), axis=(1, 2))
+        out[role] = [WandView(int(f), xy[f] + rng.normal(0, noise_px, (2, 2))) for f in np.flatnonzero(ok)]
+    return out
+
+
+def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band: float = 0.6, wand_frames: int = 480,
+                      length_m: float = 1.0, along_track: bool = True) -> dict:
+    """A rig whose board reached only the middle band, refined by a wand pass: the extrapolated share (issue 35).
+
+    For each partial-view canter (``wide_partial`` rig, 4-6 m/s, the board through ``band`` of the volume, 30
+    poses; the coverage table's band-0.6 seeds, build 1013 and 1015, held-out 2041 and 2043): the rig is
+    calibrated from the board's exact corner projections (0.15 px noise) as the ride's board clip shows them,
+    then refined by a 1 m wand waved through the whole volume
+    (:func:`~saddlescope.core.calibration.wand.refine_with_wand`; its ends' exact pixels, 0.2 px noise). The
+    motion clip's exact marker pixels are then checked against where each calibration's lens is known: the
+    board's corners alone, then the board's and the wand's ends. Reported per ride: the share of marker
+    samples outside the region (the convex hull, as ``quality.markers_outside_board_fraction``) and beyond
+    the lens reach radius (as :mod:`~saddlescope.core.triangulation.lens_reach`), the largest over the
+    cameras, before and after; the lens's ray error at the samples beyond the board's reach against the
+    arena's true lens (px), before (the reach-limited model) and after; and a fresh wand's length error.
+    ``along_track=False`` waves the wand through the calibration volume only (as the ``wand`` section's path).
+    Geometry only: no clip is rendered (detection's part is in the ``wand`` section).
+    """
+    rides = {seed: _band_ride(seed, band, wand_frames, length_m, along_track) for seed in seeds}
+    ratios = [r["beyond_reach_max"]["after"] / max(r["beyond_reach_max"]["before"], 1e-9) for r in rides.values()]
+    return {"wand_refines_band": {"band": band, "rides": rides, "beyond_reach_ratio_max": round(max(ratios), 3)}}
+
+
+def _as_wand_views(board_views: list) -> list:
+    """Board views as WandView-like point sets (for one hull over the board's corners and the wand's ends)."""
+    from saddlescope.core.calibration.wand import WandView
+
+    return [WandView(v.frame, v.corners_px) for v in board_views]
+
+
+def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_track: bool) -> dict:
+    """One ride of :func:`wand_refines_band`."""
+    import numpy as np
+
+    from saddlescope.arena import build_scene
+    from saddlescope.arena.clips import true_marker_pixels
+    from saddlescope.arena.content import BOARD
+    from saddlescope.arena.wand import wand_path
+    from saddlescope.core.calibration import calibrate_rig
+    from saddlescope.core.calibration.wand import refine_with_wand, wand_length_errors
+    from saddlescope.core.pipeline.setup import board_coverage
+    from saddlescope.core.pipeline.wand_setup import wand_coverage
+    from saddlescope.core.triangulation.lens_reach import board_reach_px
+
+    rng = np.random.default_rng(seed + 7000)
+    scene = build_scene(gait="canter", seed=seed, rig="wide_partial", board_band=band, speed_range_m_s=(4.0, 6.0),
+                        calibration_poses=30, extras=False)
+    srig = scene.rig
+    board_views = _scene_board_views(scene, 0.15, rng)
+    sizes = {r: srig.cameras[r].image_size for r in srig.cameras}
+    board_rig, _ = calibrate_rig(board_views, BOARD, sizes)
+    # the wand walked along the track the horse takes through the three views (its markers' x range)
+    xy_w = scene.contents["motion"].markers_w(scene.timings["motion"].frame_times("left"))[..., 0]
+    track = (float(np.nanmin(xy_w)), float(np.nanmax(xy_w))) if along_track else None
+    wand = _wand_views_exact(srig, wand_path(srig, rng, n_frames=wand_frames, length_m=length_m,
+                                             track_x_m=track), 0.2, rng)
+    board_hull = {r: board_coverage(v, sizes[r])["hull_px"] for r, v in board_views.items()}
+    reach = {r: board_reach_px(board_rig.cameras[r], h) for r, h in board_hull.items()}
+    refined, report = refine_with_wand(board_rig, wand, length_m * 1000.0, reach_px=reach)
+    check = _wand_views_exact(srig, wand_path(srig, np.random.default_rng(seed + 9000), n_frames=240,
+                                              length_m=length_m, track_x_m=track), 0.2, rng)
+    xy = {r: true_marker_pixels(scene, r, "motion")["xy_px"] for r in srig.cameras}
+    both_hull = {r: board_coverage(v, sizes[r])["hull_px"] if not wand[r] else wand_coverage(
+        [*wand[r], *_as_wand_views(v)], sizes[r])["hull_px"] for r, v in board_views.items()}
+    before = _samples_beyond(board_rig, board_hull, xy)
+    after = _samples_beyond(refined, both_hull, xy)
+    lens = {}
+    for r in srig.cameras:
+        pts = xy[r].reshape(-1, 2)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        far = pts[np.linalg.norm(pts - board_rig.cameras[r].K[:2, 2], axis=1) > before[r]["reach_px"]]
+        if len(far):
+            true = srig.cameras[r]
+            lens[r] = {"samples": len(far),
+                       "before": _lens_error_px(board_rig.cameras[r], true, far, before[r]["reach_px"] / 1.1),
+                       "after": _lens_error_px(refined.cameras[r], true, far, after[r]["reach_px"] / 1.1)}
+    length = {k: float(np.sqrt(np.mean(wand_length_errors(rg, check, length_m * 1000.0) ** 2)))
+              for k, rg in (("before", board_rig), ("after", refined))}
+    return {
+        "outside_hull_max": {"before": max(v["outside_hull"] for v in before.values()),
+                             "after": max(v["outside_hull"] for v in after.values())},
+        "beyond_reach_max": {"before": max(v["beyond_reach"] for v in before.values()),
+                             "after": max(v["beyond_reach"] for v in after.values())},
+        "per_camera": {"before": before, "after": after}, "lens_error_beyond_board_px": lens,
+        "check_wand_length_rms_mm": {k: round(v, 2) for k, v in length.items()},
+        "wand_frames_seen": {r: len(v) for r, v in wand.items()}, "refinement": report}

@@ -72,6 +72,18 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
     ("calibration_check.narrow_depth", "check", "calibration",
      "Usable; next time also carry the board nearer to and farther from the camera."),
     ("calibration_check.covered", "ok", "calibration", "Nothing to do: the board reached every part of the view."),
+    # a wand calibration's clip checked the same way (core/calibration/coverage_check.py: check_wand_coverage)
+    ("calibration_check.wand_not_seen", "problem", "calibration",
+     "Film the wand again with both discs in view and nothing else as bright, waved slowly."),
+    ("calibration_check.wand_few_frames", "problem", "calibration",
+     "Film the wand again for longer, walking it slowly along the whole track through every view."),
+    ("calibration_check.wand_third_missed", "problem", "calibration",
+     "Film the wand again and walk it into the part of the view it never reached, up to the edges."),
+    ("calibration_check.wand_corners_missed", "check", "calibration",
+     "Usable; next time also take the wand higher and lower where the horse enters and leaves the view."),
+    ("calibration_check.wand_narrow_depth", "check", "calibration",
+     "Usable; next time also wave the wand nearer to and farther from the camera."),
+    ("calibration_check.wand_covered", "ok", "calibration", "Nothing to do: the wand reached every part of the view."),
     ("calibration.units_guessed", "check", "input",
      "Say in ride.json (calibration_units) whether the calibration file is in mm or metres."),
     # clips and synchronisation (core/pipeline)

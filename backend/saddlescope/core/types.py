@@ -15,12 +15,15 @@ import numpy as np
 from saddlescope.core.camera_model import undistort_normalized
 from saddlescope.core.findings import Finding
 
-__all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "AnalysisWindow", "Board", "Camera", "HorseMarkers",
-           "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig", "SaddleKinematics",
-           "SaddleRotation", "VerticalHarmonics"]
+__all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "WAND_CLIP_KINDS", "AnalysisWindow", "Board", "Camera",
+           "HorseMarkers", "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig",
+           "SaddleKinematics", "SaddleRotation", "VerticalHarmonics"]
 
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
 CLIP_KINDS: tuple[str, ...] = ("calibration", "plumb", "static", "motion")
+# A wand calibration's clip sets (issue 35): the wand waved through the volume by all cameras at once,
+# and a small board filmed close to each camera for its lens (each camera on its own, no sync).
+WAND_CLIP_KINDS: tuple[str, ...] = ("wand", "close_up")
 GAITS: tuple[str, ...] = ("walk", "sitting_trot", "rising_trot", "canter")
 DIRECTIONS: tuple[str, ...] = ("CW", "CCW")
 

@@ -32,7 +32,7 @@ from typing import Any, BinaryIO
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.findings import Finding
-from saddlescope.core.types import CLIP_KINDS, Board
+from saddlescope.core.types import CLIP_KINDS, WAND_CLIP_KINDS, Board
 from saddlescope.io.result_schema import validate_ride_meta
 
 __all__ = [
@@ -73,7 +73,8 @@ class RideBundle:
     board : Board
         The calibration board.
     clip_paths : dict of str to dict of str to Path
-        ``clip_paths[kind][camera]``, kind in calibration/plumb/static/motion (those present), each an
+        ``clip_paths[kind][camera]``, kind in calibration/plumb/static/motion and a wand calibration's
+        wand/close_up (those present), each an
         existing video file or folder of numbered images.
     truth : dict or None
         The parsed ``truth.json`` of a synthetic ride (result format), else None.
@@ -108,6 +109,11 @@ class RideBundle:
     def direction(self) -> str:
         """The ride's direction on the circle, as meta.json names it."""
         return self.meta["direction"]
+
+    @property
+    def calibration_method(self) -> str:
+        """How the clips calibrate the rig: ``"board"`` (the board walk, default) or ``"wand"`` (issue 35)."""
+        return (self.meta.get("calibration") or {}).get("method", "board")
 
     @property
     def sync_method(self) -> str:
@@ -611,10 +617,10 @@ def _open_folder(root: Path, *, source: Path | None, temp_dir: Path | None = Non
 
     clip_paths = {kind: {role: _clip_path(root, rel, f"clips.{kind}.{role}")
                          for role, rel in meta["clips"][kind].items()}
-                  for kind in CLIP_KINDS if kind in meta["clips"]}
+                  for kind in CLIP_KINDS + WAND_CLIP_KINDS if kind in meta["clips"]}
     extra = {name: {role: _clip_path(root, rel, f"extra_clips.{name}.{role}") for role, rel in cams.items()}
              for name, cams in (meta.get("extra_clips") or {}).items()}
-    clash = set(extra) & set(CLIP_KINDS)
+    clash = set(extra) & set(CLIP_KINDS + WAND_CLIP_KINDS)
     if clash:
         raise BundleError(f"{RIDE_JSON}: extra_clips may not reuse the clip kind {sorted(clash)[0]!r}")
 

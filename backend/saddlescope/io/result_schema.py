@@ -16,7 +16,7 @@ import jsonschema
 from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems, board_type
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.findings import FINDING_KINDS, SEVERITIES
-from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS, WAND_CLIP_KINDS
 from saddlescope.core.vibration import CONTRACT_KEYS
 
 __all__ = ["RESULT_FORMAT", "RIDE_FORMAT", "result_schema", "ride_schema",
@@ -25,6 +25,8 @@ __all__ = ["RESULT_FORMAT", "RIDE_FORMAT", "result_schema", "ride_schema",
 RESULT_FORMAT = "saddlescope.result/1"
 RIDE_FORMAT = "saddlescope.ride/1"
 MAX_LISTED_PROBLEMS = 5
+CALIBRATION_METHODS = ("board", "wand")
+WAND_LENGTH_RANGE_M = (0.05, 5.0)  # calibrate_wand's 50-5000 mm
 
 
 _NUMBER = {"type": "number"}
@@ -201,7 +203,7 @@ RIDE_SCHEMA: dict[str, Any] = {
         "clips": {
             "type": "object",
             "required": ["static", "motion"],
-            "properties": {kind: _CLIP_SET for kind in CLIP_KINDS},
+            "properties": {kind: _CLIP_SET for kind in CLIP_KINDS + WAND_CLIP_KINDS},
             "additionalProperties": False,
         },
         "extra_clips": {
@@ -212,10 +214,19 @@ RIDE_SCHEMA: dict[str, Any] = {
                 "additionalProperties": False},
         },
         "calibration_file": {"type": "string", "minLength": 1},
+        # How the clips calibrate the rig (issue 35): the board walk (default) or a wand of known length
+        # waved through the volume (clips.wand) with the board filmed close to each camera (clips.close_up).
+        "calibration": {"type": "object", "required": ["method"],
+                        "properties": {"method": {"enum": list(CALIBRATION_METHODS)},
+                                       "wand_length_m": {"type": "number", "minimum": WAND_LENGTH_RANGE_M[0],
+                                                         "maximum": WAND_LENGTH_RANGE_M[1]}},
+                        "additionalProperties": False},
     },
-    # A calibration clip set unless a calibration file replaces it.
+    # A calibration clip set (or the wand's, checked in ride_problems) unless a calibration file replaces it.
     "anyOf": [{"required": ["calibration_file"]},
-              {"properties": {"clips": {"required": ["calibration"]}}}],
+              {"properties": {"clips": {"required": ["calibration"]}}},
+              {"required": ["calibration"],
+               "properties": {"calibration": {"properties": {"method": {"const": "wand"}}}}}],
 }
 
 
@@ -261,7 +272,8 @@ def _describe(error: jsonschema.ValidationError) -> str:
         expected = value if isinstance(value, str) else " or ".join(value)
         return f"{prefix}must be {expected}, got {type(inst).__name__} {_short(inst)}"
     if kind == "anyOf" and error.schema is RIDE_SCHEMA:
-        return "needs clips.calibration or a calibration_file"
+        return ("needs clips.calibration (the board walk), a calibration_file, or "
+                "calibration.method 'wand' with clips.wand and clips.close_up")
     return f"{prefix}{error.message}"
 
 
@@ -365,12 +377,39 @@ def ride_problems(meta: Any) -> list[str]:
     if not isinstance(meta, dict):
         return problems
     problems += board_meta_problems(meta.get("board"))
+    problems += _wand_problems(meta)
     sync, clips = meta.get("sync"), meta.get("clips")
     if isinstance(sync, dict) and sync.get("method") == "offsets" and isinstance(clips, dict):
         offsets = sync.get("offsets") if isinstance(sync.get("offsets"), dict) else {}
         for kind in clips:
-            if kind in CLIP_KINDS and kind not in offsets:
+            if kind in (*CLIP_KINDS, "wand") and kind not in offsets:  # close-ups: each camera alone
                 problems.append(f"sync.offsets has no offsets for the {kind} clips")
+    return problems
+
+
+def _wand_problems(meta: dict) -> list[str]:
+    """A wand calibration needs its two clip sets and the wand's length; wand clips need the wand method."""
+    clips = meta.get("clips") if isinstance(meta.get("clips"), dict) else {}
+    cal = meta.get("calibration") if isinstance(meta.get("calibration"), dict) else {}
+    wand_sets = [k for k in WAND_CLIP_KINDS if k in clips]
+    if cal.get("method") != "wand":
+        if wand_sets:
+            return [f"clips.{wand_sets[0]} is a wand calibration's clip set: add "
+                    "\"calibration\": {\"method\": \"wand\", \"wand_length_m\": ...} or remove it"]
+        return []
+    problems = []
+    if "wand_length_m" not in cal:
+        problems.append("calibration.method 'wand' needs calibration.wand_length_m, the distance between the "
+                        "wand's two markers' centres in metres (e.g. 1.0)")
+    if meta.get("calibration_file"):
+        problems.append("calibration.method 'wand' and a calibration_file contradict each other: give one")
+    if "calibration" in clips:
+        problems.append("calibration.method 'wand' and clips.calibration (a board walk) contradict each other: "
+                        "give one way")
+    for kind, what in (("wand", "the wand waved through the riding area by the three cameras at once"),
+                       ("close_up", "the board filmed close to each camera, for its lens")):
+        if kind not in clips:
+            problems.append(f"calibration.method 'wand' needs clips.{kind}: {what}")
     return problems
 
 

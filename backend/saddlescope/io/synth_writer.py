@@ -9,6 +9,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from saddlescope.arena import RenderOptions, build_scene, build_truth, render_clip_frames, ride_manifest
 from saddlescope.core.errors import InputError
 from saddlescope.io.video_writer import write_h264
@@ -35,6 +37,10 @@ def write_ride_bundle(
     board_band: float | None = None,
     speed_range_m_s: tuple[float, float] | None = None,
     on_progress=None,
+    calibration: str = "board",
+    wand_s: float = 24.0,
+    wand_length_m: float = 1.0,
+    close_up_poses: int = 30,
 ) -> Path:
     """Render and write a synthetic ride bundle into ``out_dir``; returns out_dir.
 
@@ -45,7 +51,14 @@ def write_ride_bundle(
     board carried only through the middle of the volume, a faster canter); ``on_progress(fraction,
     stage)`` is called after each clip. ``crf`` overrides the compression the ride's options ask for
     (``RenderOptions.crf``, 20 by default; 28 is a phone's).
+
+    ``calibration="wand"`` writes a wand calibration instead of the board walk (issue 35): ``wand/`` (a
+    wand of ``wand_length_m`` waved through the volume for ``wand_s`` seconds, after a sync flash) and
+    ``close_up/`` (``close_up_poses`` frames of an A3 board held close to each camera), ride.json's
+    ``calibration`` ``{"method": "wand", "wand_length_m": ...}`` and the close-up board as its ``board``.
     """
+    if calibration not in ("board", "wand"):
+        raise InputError(f"calibration {calibration!r} is not 'board' or 'wand'")
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
@@ -65,6 +78,8 @@ def write_ride_bundle(
     out_dir.mkdir(parents=True, exist_ok=True)
     crf = scene.options.crf if crf is None else int(crf)
     manifest = ride_manifest(scene)
+    if calibration == "wand":
+        manifest["clips"].pop("calibration")
     jobs = [
         (kind, role, rel)
         for group in ("clips", "extra_clips")
@@ -81,11 +96,42 @@ def write_ride_bundle(
             raise InputError(f"{rel}: wrote {n} frames, expected {scene.timings[kind].n_frames[role]}")
         if on_progress is not None:
             on_progress((i + 1) / len(jobs), f"{kind}/{role}")
+    if calibration == "wand":
+        _write_wand_clips(out_dir, scene, manifest, crf=crf, wand_s=wand_s, length_m=wand_length_m,
+                          close_up_poses=close_up_poses)
     dump_json(manifest, out_dir / "ride.json")
     truth = build_truth(scene)
     truth["truth"]["nuisances"]["crf"] = crf  # what the clips were written with
     dump_json(truth, out_dir / "truth.json")
     return out_dir
+
+
+def _write_wand_clips(out_dir: Path, scene, manifest: dict, *, crf: int, wand_s: float, length_m: float,
+                      close_up_poses: int) -> None:
+    """The wand calibration's clips (``wand/``, ``close_up/``) and their part of ride.json."""
+    from saddlescope.arena.wand import (
+        CLOSE_UP_BOARD,
+        render_close_up_frames,
+        render_wand_clip,
+        wand_clip_timing,
+        wand_path,
+    )
+    from saddlescope.core.calibration.boards import board_to_meta
+
+    rng = np.random.default_rng([scene.seed, 0x3A9D])
+    path_fps = 10.0  # the path's own sampling (smooth): the clip is rendered at the rig's rate from it
+    path = wand_path(scene.rig, rng, n_frames=max(int(round(wand_s * path_fps)), 20), fps=path_fps, length_m=length_m)
+    timing = wand_clip_timing(path, rng, fps=scene.fps)
+    for role in scene.rig.cameras:
+        for kind, frames in (("wand", render_wand_clip(scene.rig, path, timing, role, rng=rng)),
+                             ("close_up", render_close_up_frames(scene.rig, role, rng=rng, n_poses=close_up_poses))):
+            rel = f"{kind}/{role}.mp4"
+            (out_dir / rel).parent.mkdir(parents=True, exist_ok=True)
+            write_h264(out_dir / rel, frames, fps=scene.fps, crf=crf)
+            manifest["clips"].setdefault(kind, {})[role] = rel
+    manifest["board"] = board_to_meta(CLOSE_UP_BOARD)
+    manifest["calibration"] = {"method": "wand", "wand_length_m": float(length_m)}
+    manifest["frames"]["wand"] = dict(timing.n_frames)
 
 
 __all__ = ["write_ride_bundle", "dump_json"]

@@ -13,13 +13,14 @@ from pathlib import Path
 from typing import Any
 
 from saddlescope.core.calibration.boards import board_from_meta
-from saddlescope.core.errors import CalibrationError
+from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.pipeline import (
     PipelineParams,
     calibrate_from_clips,
     frame_clocks,
     synchronise_clips,
 )
+from saddlescope.core.pipeline.wand_setup import calibrate_from_wand_clips
 from saddlescope.core.types import CAMERA_ROLES, Rig
 from saddlescope.io.clip_source import BundleClips
 from saddlescope.io.rig_document import rig_from_dict, rig_to_dict
@@ -84,6 +85,58 @@ def calibrate_clips(
     calibration["board_coverage"] = report.get("board_coverage")
     calibration["board_corners_px"] = report.get("board_corners_px")
     calibration["sync"] = {"calibration": {c: float(v) for c, v in offsets["calibration"].items()}}
+    return calibration
+
+
+def calibrate_wand_clips(
+    wand_paths: Mapping[str, Path],
+    close_up_paths: Mapping[str, Path],
+    *,
+    board: Mapping[str, Any],
+    wand_length_m: float,
+    sync: Mapping[str, Any] | None = None,
+    params: PipelineParams | None = None,
+    on_progress: Callable[[float, str], None] | None = None,
+) -> dict[str, Any]:
+    """Calibrate three cameras from a wand calibration's clips (issue 35): as a ride bundle's ``wand`` way.
+
+    ``wand_paths``: each camera's wand clip (filmed at once, after the flash); ``close_up_paths``: each
+    camera's close-up board clip (``board`` is that board); ``wand_length_m`` between the markers' centres.
+    Returns the result's ``calibration`` object plus ``n_views`` (close-up views), ``board_coverage`` (where
+    the close-up boards reached), ``wand`` (length, frames with both ends, the adjustment's numbers).
+
+    Raises
+    ------
+    InputError
+        A wand length outside 0.05-5 m; CalibrationError: a clip missing, the board or the wand not seen.
+    """
+    if not (isinstance(wand_length_m, int | float) and 0.05 <= float(wand_length_m) <= 5.0):
+        raise InputError(f"the wand's length {wand_length_m!r} m is not 0.05-5 m: measure it between the two "
+                         "markers' centres, in metres (e.g. 1.0)")
+    for kind, paths in (("wand", wand_paths), ("close-up", close_up_paths)):
+        missing = [role for role in CAMERA_ROLES if role not in paths]
+        if missing:
+            raise CalibrationError(f"no {kind} clip of the {', '.join(missing)} camera")
+    meta = {"sync": dict(sync or {"method": "flash"})}
+    if on_progress is not None:
+        on_progress(0.0, "sync")
+    with (BundleClips({"wand": {r: Path(wand_paths[r]) for r in CAMERA_ROLES},
+                       "close_up": {r: Path(close_up_paths[r]) for r in CAMERA_ROLES}}) as clips,
+          single_threaded_numerics()):
+        offsets, first_frame, methods = synchronise_clips(clips, meta, ["wand"])
+        if methods.get("wand") not in ("flash", "offsets"):
+            raise CalibrationError("the wand clips show no sync flash: film the flash before waving the wand")
+        if on_progress is not None:
+            on_progress(0.2, "lenses and wand")
+        rig, report = calibrate_from_wand_clips(clips, board_from_meta(dict(board)), 1000.0 * float(wand_length_m),
+                                                offsets["wand"], first_frame["wand"], params or PipelineParams())
+    calibration = rig_to_dict(rig)
+    calibration["n_views"] = report.get("n_views")
+    calibration["board_coverage"] = report.get("board_coverage")
+    calibration["board_corners_px"] = report.get("board_corners_px")
+    calibration["wand"] = {"length_m": float(wand_length_m), "frames_with_both_ends": report.get("wand_views"),
+                           "coverage": report.get("wand_coverage"), "bundle": report.get("wand")}
+    calibration["sync"] = {"wand": {c: float(v) for c, v in offsets["wand"].items()}}
     return calibration
 
 

@@ -20,14 +20,16 @@ import numpy as np
 
 from saddlescope.core.calibration import detect_board_views
 from saddlescope.core.calibration.boards import board_from_meta
-from saddlescope.core.calibration.coverage_check import CameraCoverageCheck, check_camera_coverage
+from saddlescope.core.calibration.coverage_check import CameraCoverageCheck, check_camera_coverage, check_wand_coverage
+from saddlescope.core.calibration.wand import track_wand_ends
+from saddlescope.core.errors import InputError
 from saddlescope.core.findings import FINDING_KINDS
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.io.findings_document import findings_to_list
 from saddlescope.io.video import iter_gray_frames, probe_video
 
 __all__ = ["CHECK_WIDTH_PX", "MIN_SAMPLES", "SAMPLE_FPS", "CalibrationCheck", "check_calibration_clips",
-           "check_document", "check_storage_key", "sample_step"]
+           "check_document", "check_storage_key", "check_wand_clips", "sample_step"]
 
 SAMPLE_FPS = 3.0  # frames a second looked at: the board moves slowly, and a view a third of a second on is new
 MIN_SAMPLES = 40  # a short clip is looked at more densely, down to every frame
@@ -48,6 +50,7 @@ class CalibrationCheck:
 
     cameras: dict[str, CameraCoverageCheck]
     seconds: float
+    what: str = "board"  # what the clips show: "board" (the board walk) or "wand"
 
     @property
     def film_again(self) -> bool:
@@ -60,9 +63,9 @@ class CalibrationCheck:
         if again:
             names = again[0] if len(again) == 1 else ", ".join(again[:-1]) + " and " + again[-1]
             if len(again) == 1:
-                return f"Film again: the {names} camera's calibration clip does not cover its view well enough."
-            return f"Film again: the {names} cameras' calibration clips do not cover their views well enough."
-        return "Ready to ride: the board was seen well in every camera's view."
+                return f"Film again: the {names} camera's {self.what} clip does not cover its view well enough."
+            return f"Film again: the {names} cameras' {self.what} clips do not cover their views well enough."
+        return f"Ready to ride: the {self.what} was seen well in every camera's view."
 
 
 def check_calibration_clips(
@@ -106,6 +109,43 @@ def check_calibration_clips(
         out[camera] = check_camera_coverage(camera, sightings, board, (info.width, info.height),
                                             frames_sampled=sampled)
     return CalibrationCheck(out, time.perf_counter() - t0)
+
+
+def check_wand_clips(paths: Mapping[str, Path], wand_length_m: float, *, sample_fps: float = 2 * SAMPLE_FPS,
+                     on_progress: Callable[[float, str], None] | None = None) -> CalibrationCheck:
+    """Check each camera's wand clip: where the wand's two ends went over the image and in depth.
+
+    The wand moves all the time, so twice the board's rate of frames is looked at; the ends are found in
+    each (:func:`~saddlescope.core.calibration.wand.track_wand_ends`) and judged by
+    :func:`~saddlescope.core.calibration.coverage_check.check_wand_coverage`.
+
+    Raises
+    ------
+    InputError
+        The wand's length is not 0.05-5 m; VideoError: a clip does not decode.
+    """
+    if not (isinstance(wand_length_m, int | float) and 0.05 <= float(wand_length_m) <= 5.0):
+        raise InputError(f"the wand's length {wand_length_m!r} m is not 0.05-5 m: measure it between the two "
+                         "markers' centres, in metres (e.g. 1.0)")
+    t0 = time.perf_counter()
+    order = [c for c in CAMERA_ROLES if c in paths] + sorted(c for c in paths if c not in CAMERA_ROLES)
+    out: dict[str, CameraCoverageCheck] = {}
+    for n, camera in enumerate(order):
+        if on_progress is not None:
+            on_progress(n / len(order), f"the {camera} camera")
+        info = probe_video(Path(paths[camera]), decode_tail=False)
+        step = sample_step(info.fps, info.frame_count, sample_fps=sample_fps)
+        sampled = [0]
+
+        def counted(path: Path = Path(paths[camera]), step: int = step, sampled: list = sampled):
+            for index, gray in iter_gray_frames(path, step=step):
+                sampled[0] += 1
+                yield index, gray
+
+        views = track_wand_ends(counted())
+        out[camera] = check_wand_coverage(camera, [v.ends_px for v in views], (info.width, info.height),
+                                          frames_sampled=sampled[0], wand_length_mm=1000.0 * float(wand_length_m))
+    return CalibrationCheck(out, time.perf_counter() - t0, what="wand")
 
 
 def check_storage_key(rig_id: int) -> str:

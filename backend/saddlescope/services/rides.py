@@ -218,6 +218,10 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
     """
     opened = open_bundle(bundle) if isinstance(bundle, str | Path) else open_zip_stream(bundle, name)
     with opened:
+        if opened.calibration_method == "wand":  # its clip sets have no recording kind yet (issue 35)
+            raise BundleError(f"{name}: a ride calibrated by a wand (ride.json calibration.method 'wand') is analysed "
+                              "with `saddlescope analyze` for now; to upload it here, give the rig's board walk "
+                              "(clips.calibration) or its calibration_file instead")
         return _register(sessions, storage, opened, club_name=club_name, club_id=club_id, rig_id=rig_id,
                          ridden_on=ridden_on, chosen=dict(chosen or {}), name=name)
 

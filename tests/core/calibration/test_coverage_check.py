@@ -92,3 +92,45 @@ def test_no_board_few_views_and_one_distance_have_their_own_findings():
     assert "calibration_check.narrow_depth" in codes and not flat.film_again  # worth a word, not a re-film
     for code in codes:
         assert code in FINDING_KINDS
+
+
+# --- a wand calibration's clip (check_wand_coverage) -----------------------------------------------------
+
+def _wand_ends(centres_px, length_px):
+    """The wand's two ends about each centre, turning from frame to frame."""
+    out = []
+    for i, (x, y) in enumerate(centres_px):
+        a = 0.7 * i
+        d = 0.5 * length_px * np.array([np.cos(a), np.sin(a)])
+        out.append(np.array([[x, y] - d, [x, y] + d]))
+    return out
+
+
+def test_a_wand_waved_only_through_the_middle_band_says_film_the_sides_again():
+    from saddlescope.core.calibration.coverage_check import check_wand_coverage
+
+    rng = np.random.default_rng(3)
+    middle = _wand_ends(np.column_stack([rng.uniform(500, 780, 80), rng.uniform(60, 660, 80)]), 80)
+    check = check_wand_coverage("right", middle, SIZE, frames_sampled=90, wand_length_mm=1000.0)
+    assert check.film_again
+    assert check.views == 80
+    third = next(f for f in check.findings if f.code == "calibration_check.wand_third_missed")
+    assert third.detail == ("The wand never reached the left third and right third of the right camera's view: "
+                            "film that part again.")
+    # the wand everywhere, at 60 to 200 px (4.5 to 15 m at a 60-degree lens): ready, its distances spread
+    every = _wand_ends(np.column_stack([rng.uniform(60, 1220, 120), rng.uniform(60, 660, 120)]), 0)
+    every = [e + (0.5 * rng.uniform(60, 200) * np.array([[-1, 0], [1, 0]])) for e in every]
+    ready = check_wand_coverage("left", every, SIZE, frames_sampled=130, wand_length_mm=1000.0)
+    assert [f.code for f in ready.findings] == ["calibration_check.wand_covered"]
+    assert 3.0 < np.nanmin(ready.distances_m) < np.nanmax(ready.distances_m) < 20.0
+
+
+def test_a_wand_never_seen_or_seldom_seen_has_its_own_findings():
+    from saddlescope.core.calibration.coverage_check import check_wand_coverage
+
+    none = check_wand_coverage("left", [], SIZE, frames_sampled=50, wand_length_mm=1000.0)
+    assert [f.code for f in none.findings] == ["calibration_check.wand_not_seen"]
+    few = check_wand_coverage("left", _wand_ends([(100, 100), (1200, 650)] * 5, 60), SIZE, frames_sampled=50,
+                              wand_length_mm=1000.0)
+    assert "calibration_check.wand_few_frames" in [f.code for f in few.findings]
+    assert all(f.code in FINDING_KINDS for f in few.findings + none.findings)

@@ -1,5 +1,8 @@
 """The calibration clip checked before anyone rides: where the board went in each camera's image and depth.
 
+A wand calibration's clip is checked the same way (:func:`check_wand_coverage`): where the wand's two ends
+went over the image, and the distances its apparent length puts it at.
+
 From the board corners found in a sample of one camera's calibration clip (a few frames a second, not
 every frame): a coverage map over the image (a grid counting the views whose corners fell in each
 cell), the reach of the board (its corners' extent and hull as shares of the image), the distances the
@@ -19,7 +22,7 @@ import numpy as np
 from saddlescope.core.findings import Finding
 from saddlescope.core.types import Board
 
-__all__ = ["BANDS", "CameraCoverageCheck", "check_camera_coverage"]
+__all__ = ["BANDS", "CameraCoverageCheck", "check_camera_coverage", "check_wand_coverage"]
 
 # The image's thirds: (axis, band index) -> name; axis 0 across (x), 1 down (y)
 BANDS: dict[tuple[int, int], str] = {
@@ -189,3 +192,93 @@ def check_camera_coverage(camera: str, sightings: Sequence[tuple[np.ndarray, np.
     return CameraCoverageCheck(camera, (w, h), int(frames_sampled), len(corners), grid, tuple(bands_missed),
                                tuple(corners_missed) if corners else (), reach_x, reach_y, hull_fraction,
                                distances, tuple(findings))
+
+
+MIN_WAND_FRAMES = 40  # sampled frames with both ends seen a camera's wand clip wants at least (a few a second)
+
+
+def _wand_distances_m(ends: Sequence[np.ndarray], size: tuple[int, int], wand_length_mm: float) -> np.ndarray:
+    """Each frame's wand distance (m) from its apparent length and a 60-degree lens: at most that far.
+
+    A wand turned towards the camera looks shorter, so one frame says "no farther than"; the spread of
+    many frames still tells a wand kept at one distance from one carried near and far.
+    """
+    focal_px = size[0] / (2 * np.tan(np.radians(30)))
+    length_px = np.array([float(np.linalg.norm(e[1] - e[0])) for e in ends])
+    with np.errstate(divide="ignore"):
+        return np.where(length_px > 1.0, focal_px * wand_length_mm / 1000.0 / np.maximum(length_px, 1.0), np.nan)
+
+
+def _wand_findings(camera: str, frames: int, seen: int, bands_missed: list[str], corners_missed: list[str],
+                   distances_m: np.ndarray) -> list[Finding]:
+    """The wand clip's findings, in the board's words (:func:`_findings`) for the wand's ends."""
+    if seen == 0:
+        return [Finding("calibration_check.wand_not_seen",
+                        f"The wand's two ends were never both seen in the {camera} camera's wand clip ({frames} frames "
+                        "looked at): film it again.", {"frames": frames})]
+    out = []
+    if seen < MIN_WAND_FRAMES:
+        out.append(Finding("calibration_check.wand_few_frames",
+                           f"The wand's two ends were seen in only {seen} of the {frames} frames looked at in the "
+                           f"{camera} camera's clip (at least {MIN_WAND_FRAMES} wanted): film it again, longer.",
+                           {"frames_seen": seen, "frames": frames}))
+    if bands_missed:
+        out.append(Finding("calibration_check.wand_third_missed",
+                           f"The wand never reached the {_joined(bands_missed)} of the {camera} camera's view: "
+                           "film that part again.", {"bands_missed": len(bands_missed)}))
+    elif corners_missed:
+        out.append(Finding("calibration_check.wand_corners_missed",
+                           f"The wand never reached the {_joined(corners_missed)} of the {camera} camera's view.",
+                           {"ninths_missed": len(corners_missed)}))
+    known = distances_m[np.isfinite(distances_m)]
+    if len(known) >= 4:
+        near, far = np.percentile(known, [10, 90])
+        if far / near < NARROW_DEPTH_RATIO:
+            out.append(Finding("calibration_check.wand_narrow_depth",
+                               f"The wand stayed about {near:.1f}-{far:.1f} m from the {camera} camera: wave it "
+                               "nearer and farther too.", {"near_m": float(near), "far_m": float(far)}))
+    if not out:
+        out.append(Finding("calibration_check.wand_covered",
+                           f"The wand reached every part of the {camera} camera's view in {seen} frames.",
+                           {"frames_seen": seen}))
+    return out
+
+
+def check_wand_coverage(camera: str, ends_px: Sequence[np.ndarray], image_size: tuple[int, int], *,
+                        frames_sampled: int, wand_length_mm: float, grid_cols: int = 12) -> CameraCoverageCheck:
+    """Check one camera's wand clip from the wand's two ends found in its sampled frames.
+
+    Parameters
+    ----------
+    ends_px : list of ndarray of shape (2, 2)
+        Per sampled frame where both ends were seen, their pixels.
+    wand_length_mm : float
+        The wand's length (for the distances its apparent length gives).
+
+    Returns
+    -------
+    CameraCoverageCheck
+        As :func:`check_camera_coverage`; ``views`` counts the frames with both ends, ``distances_m`` is
+        each such frame's "at most" distance, and the findings are the ``calibration_check.wand_*`` codes.
+    """
+    w, h = int(image_size[0]), int(image_size[1])
+    ends = [np.asarray(e, np.float64).reshape(2, 2) for e in ends_px]
+    rows = max(3, round(grid_cols * h / w))
+    grid = _views_per_cell(ends, (w, h), (rows, grid_cols))
+    band_views = _band_views(ends, (w, h))
+    bands_missed = [BANDS[(a, b)] for a in (1, 0) for b in range(3) if band_views[a, b] < MIN_VIEWS_IN_BAND] if ends \
+        else []
+    ninths = _views_per_cell(ends, (w, h), (3, 3))
+    corners_missed = [f"{_NINTHS[r][c]} corner" for r, c in ((0, 0), (0, 2), (2, 0), (2, 2)) if ninths[r, c] == 0] \
+        if ends else []
+    pts = np.concatenate(ends) if ends else np.zeros((0, 2))
+    if len(pts) >= 3:
+        hull_fraction = float(cv2.contourArea(cv2.convexHull(pts.astype(np.float32)))) / (w * h)
+        reach_x = (float(pts[:, 0].min() / w), float(pts[:, 0].max() / w))
+        reach_y = (float(pts[:, 1].min() / h), float(pts[:, 1].max() / h))
+    else:
+        hull_fraction, reach_x, reach_y = 0.0, (0.0, 0.0), (0.0, 0.0)
+    distances = _wand_distances_m(ends, (w, h), wand_length_mm) if ends else np.zeros(0)
+    findings = _wand_findings(camera, int(frames_sampled), len(ends), bands_missed, corners_missed, distances)
+    return CameraCoverageCheck(camera, (w, h), int(frames_sampled), len(ends), grid, tuple(bands_missed),
+                               tuple(corners_missed), reach_x, reach_y, hull_fraction, distances, tuple(findings))

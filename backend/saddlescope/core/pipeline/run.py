@@ -34,21 +34,40 @@ from saddlescope.core.pipeline.setup import (
     sync_quality,
     synchronise_clips,
 )
+from saddlescope.core.pipeline.wand_setup import calibrate_from_wand_clips
 from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
 from saddlescope.core.types import RideResult, Rig
 
 __all__ = ["analyze_ride"]
 
 
-def _clip_kinds(clips: ClipReader, rig: Rig | None) -> list[str]:
-    """The clip sets to synchronise, after checking the ride has what the analysis needs."""
+def _wand_length_mm(meta: Mapping) -> float | None:
+    """The wand's length (mm) of a wand calibration (ride.json ``calibration.method`` ``wand``), else None."""
+    cal = meta.get("calibration") or {}
+    if cal.get("method") != "wand":
+        return None
+    if not cal.get("wand_length_m"):
+        raise InputError("ride.json: calibration.method 'wand' needs calibration.wand_length_m (metres)")
+    return 1000.0 * float(cal["wand_length_m"])
+
+
+def _clip_kinds(clips: ClipReader, rig: Rig | None, meta: Mapping) -> list[str]:
+    """The clip sets to synchronise, after checking the ride has what the analysis needs.
+
+    A wand calibration's ``wand`` clips are synchronised; its ``close_up`` clips are each camera's alone.
+    """
     for kind in ("static", "motion"):
         if not clips.has(kind):
             raise InputError(f"the ride has no {kind} clip; it is required")
-    if rig is None and not clips.has("calibration"):
-        raise InputError("the ride has no calibration clip and no calibration was given")
-    kinds = [k for k in ("calibration", "plumb", "static", "motion") if clips.has(k)]
-    return [k for k in kinds if k != "calibration"] if rig is not None else kinds
+    cal_kind = "wand" if _wand_length_mm(meta) is not None else "calibration"
+    if rig is None and not clips.has(cal_kind):
+        raise InputError("the ride has no wand clips for its wand calibration and no calibration was given"
+                         if cal_kind == "wand" else "the ride has no calibration clip and no calibration was given")
+    if rig is None and cal_kind == "wand" and not clips.has("close_up"):
+        raise InputError("the ride's wand calibration has no close-up clips: each camera's lens comes from the "
+                         "board filmed close to it")
+    kinds = [k for k in (cal_kind, "plumb", "static", "motion") if clips.has(k)]
+    return [k for k in kinds if k != cal_kind] if rig is not None else kinds
 
 
 def _motion_clip_sync(clips: ClipReader, rig: Rig, n_horse: int, params: PipelineParams, clocks: Mapping,
@@ -77,7 +96,19 @@ def _calibrate(clips: ClipReader, meta: Mapping, offsets: Mapping, first_frame: 
     """The rig from the calibration clips, its report, and the clip's sync where the board gave it.
 
     The sync comes as ``{"calibration": MotionSync}`` (else empty); ``early`` starts once the views are found.
+    A wand calibration (ride.json ``calibration.method`` ``wand``) calibrates from its wand and close-up clips.
     """
+    wand_mm = _wand_length_mm(meta)
+    if wand_mm is not None:
+        if methods.get("wand") not in ("flash", "offsets"):
+            reason = methods.get("reasons", {}).get("wand", "")
+            raise InputError("the wand clips need the sync flash (or sync offsets in ride.json): the wand's ends "
+                             "must be paired at the same instants in every camera" + (f" ({reason})" if reason else ""))
+        rig, report = calibrate_from_wand_clips(clips, board_from_meta(meta.get("board")), wand_mm, offsets["wand"],
+                                                first_frame["wand"], params, progress)
+        if early is not None:
+            early.start()
+        return rig, report, {}
     rig, report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
                                        first_frame["calibration"], params, progress, clocks=clocks.get("calibration"),
                                        sync_from_board=methods.get("calibration") == "motion",
@@ -138,7 +169,7 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     params = _within_thread_budget(params or PipelineParams())
     progress = Progress(on_progress)
     t_start = time.perf_counter()
-    kinds = _clip_kinds(clips, rig)
+    kinds = _clip_kinds(clips, rig, meta)
     markers = dict(meta.get("markers") or {})
 
     t0 = time.perf_counter()
