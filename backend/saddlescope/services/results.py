@@ -33,14 +33,14 @@ from saddlescope.db.repositories import (
 )
 from saddlescope.db.session import session_scope
 from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
-from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
+from saddlescope.services.result_series import DERIVED_FORMAT, derived_series, strides_analysed
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.storage import Storage
 
 __all__ = [
     "ANGULAR_PER_FRAME", "DERIVED_SERIES", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
     "commit_result", "decimate", "export_horse", "export_ride", "export_rides", "indicator_table_bytes",
-    "result_document",
+    "result_document", "series_key", "stored_derived_series",
     "analysed_result", "result_view", "result_view_json", "tracks_mm", "uncertain_reason_of", "view_of_document",
 ]
 
@@ -84,8 +84,8 @@ def decimate(values: list, step: int) -> list:
     return values[::step] if step > 1 else values
 
 
-def _series(doc: dict[str, Any], step: int, n: int) -> dict[str, list]:
-    """The plotted series of the document, every `step`-th of its `n` samples."""
+def _series(doc: dict[str, Any], step: int, n: int, derived: dict[str, Any]) -> dict[str, list]:
+    """The plotted series of the document and its `derived` series, every `step`-th of its `n` samples."""
     series = {name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES}
     markers = doc.get("markers") or {}
     if markers.get("position_m"):
@@ -94,26 +94,28 @@ def _series(doc: dict[str, Any], step: int, n: int) -> dict[str, list]:
     for key in ANGULAR_PER_FRAME:
         if isinstance(angular.get(key), list) and len(angular[key]) == n:  # per frame: decimated alike
             series[key] = decimate(angular[key], step)
-    derived = {name: decimate(values, step) for name, values in fitted_saddle_series(doc).items()
-               if isinstance(values, list) and len(values) == n}
-    weighted, _ = weighted_series(doc, series["t_s"])  # exact per harmonic: computed at the drawn times only
-    derived.update(weighted)
+    stored = derived.get("series") or {}
     for name in DERIVED_SERIES:
-        series[name] = derived.get(name)
+        values = stored.get(name)
+        series[name] = decimate(values, step) if isinstance(values, list) and len(values) == n else None
     return series
 
 
-def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[str, Any]:
+def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int,
+                     derived: dict[str, Any] | None = None) -> dict[str, Any]:
     """What the dashboard shows of result document `doc` (its shape is `saddlescope.api.schemas.ResultOut`).
 
     `result` is the ride's result row (its job, code version and time). Series are decimated to at
-    most `max_points` samples; the indicators come with their units.
+    most `max_points` samples; the indicators come with their units. `derived` is the document's
+    derived series as stored with it (`stored_derived_series`); computed here when not given.
     """
     if max_points < 10:
         raise InputError(f"max_points must be at least 10, got {max_points}")
     n = len((doc.get("saddle") or {}).get("t_s") or [])
     step = max(1, math.ceil(n / max_points))
-    series = _series(doc, step, n)
+    if derived is None:
+        derived = derived_series(doc)
+    series = _series(doc, step, n, derived)
     markers = doc.get("markers") or {}
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
@@ -138,7 +140,7 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "quality_notes": quality_notes(findings),
         "quality_summary": {"severity": severity, "message": summary},
         "strides_analysed": strides_analysed(doc),
-        "spectrum": weighted_series(doc, [])[1],
+        "spectrum": derived.get("spectrum"),
         "calibration_checks": calibration.get("checks") or {},
         "calibration_flags": calibration.get("flags") or [],
         "series": series,
@@ -146,6 +148,43 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "fits": markers.get("fits") or {},
         "decimation": {"step": step, "samples": n, "max_points": max_points},
     }
+
+
+def series_key(result_key: str) -> str:
+    """Where a result document's derived series are stored: beside it (``….json`` -> ``….series.json``)."""
+    stem = result_key[: -len(".json")] if result_key.endswith(".json") else result_key
+    return f"{stem}.series.json"
+
+
+def _write_derived(storage: Storage, result_key: str, derived: dict[str, Any]) -> None:
+    storage.write_bytes(series_key(result_key), json.dumps(derived, allow_nan=False,
+                                                           separators=(",", ":")).encode())
+
+
+def stored_derived_series(storage: Storage, result_key: str, doc: dict[str, Any]) -> dict[str, Any]:
+    """The derived series of the result document `doc` stored under `result_key` (`derived_series`).
+
+    Read from storage where `commit_result` put them. A result stored before they were (or in an older
+    format) has them computed here once and stored (a lazy backfill): the next reader reads them. A
+    backfill racing a re-analysis that removed its document meanwhile removes what it wrote.
+    """
+    key = series_key(result_key)
+    n = len((doc.get("saddle") or {}).get("t_s") or [])
+    if storage.exists(key):
+        try:
+            stored = json.loads(storage.read_bytes(key))
+        except FileNotFoundError:
+            stored = None  # removed by a re-analysis meanwhile: the caller's document is gone too
+        except ValueError:
+            stored = None  # a torn or foreign file: computed again and replaced
+            log.warning("the stored series %s are unreadable; computing them again", key)
+        if isinstance(stored, dict) and stored.get("format") == DERIVED_FORMAT and stored.get("samples") == n:
+            return stored
+    derived = derived_series(doc)
+    _write_derived(storage, result_key, derived)
+    if not storage.exists(result_key):
+        storage.delete(key)
+    return derived
 
 
 def analysed_result(session: Session, storage: Storage, ride_id: int, *, club_id: int):
@@ -188,8 +227,11 @@ def result_view(
     Series are taken every ``step``-th sample so that none has more than `max_points` samples
     (``decimation.step``; the indicators are always computed from the full series).
     """
-    return _read_analysed(session, ride_id, club_id, lambda result: view_of_document(
-        json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points))
+    def view(result) -> dict[str, Any]:
+        doc = json.loads(storage.read_bytes(result.result_key))
+        return view_of_document(doc, result, ride_id, max_points, stored_derived_series(storage, result.result_key, doc))
+
+    return _read_analysed(session, ride_id, club_id, view)
 
 
 class _BytesCache:
@@ -246,7 +288,9 @@ def result_view_json(
         ).hexdigest()[:32]
         data = _VIEWS.get(etag)
         if data is None:
-            view = view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+            doc = json.loads(storage.read_bytes(result.result_key))
+            view = view_of_document(doc, result, ride_id, max_points,
+                                    stored_derived_series(storage, result.result_key, doc))
             data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
             _VIEWS.put(etag, data)
         return data, etag
@@ -370,8 +414,10 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
                   attempt: int | None = None, host: str | None = None) -> str:
     """Store a ride's new result document and make it the ride's result atomically; returns its key.
 
-    The document goes under a new key (naming the job and its attempt) first; the result row is
-    swapped to it in one transaction; only then is the previous document deleted. Until the commit
+    The document goes under a new key (naming the job and its attempt) first, its derived series (the
+    ride page's fitted curves, residuals and weighted acceleration: seconds to fit, so computed here,
+    not in a page's request) beside it; the result row is swapped to it in one transaction; only then
+    is the previous document deleted. Until the commit
     readers get the old result, and a failed commit leaves it (and removes the new document). With
     `attempt` and `host`, the swap happens only while that attempt still holds job `job_id` (its row
     locked until the commit); a stale worker's result is refused (`JobFenced`) and its document removed.
@@ -385,8 +431,10 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
 
     run = f"{job_id}-{attempt}-" if job_id is not None and attempt is not None else ""
     key = f"rides/{ride_id}/results/{run}{secrets.token_hex(8)}.json"
+    derived = derived_series(document)
     storage.write_bytes(key, json.dumps(document, allow_nan=False).encode())
     try:
+        _write_derived(storage, key, derived)
         with session_scope(sessions) as session:
             if job_id is not None and attempt is not None and host is not None and not JobRepository(
                     session).hold(job_id, attempt=attempt, host=host):
@@ -403,9 +451,11 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
             refresh_ride_status(session, ride_id)
     except BaseException:
         storage.delete(key)
+        storage.delete(series_key(key))
         raise
     if old_key and old_key != key:
         storage.delete(old_key)
+        storage.delete(series_key(old_key))
     return key
 
 
