@@ -21,7 +21,15 @@ from saddlescope.db.repositories import (
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services import results
 from saddlescope.services.result_series import DERIVED_FORMAT, derived_series
-from saddlescope.services.results import DERIVED_SERIES, commit_result, result_view, series_key, view_of_document
+from saddlescope.services.results import (
+    DERIVED_SERIES,
+    PAGE_POINTS,
+    commit_result,
+    page_key,
+    result_view,
+    series_key,
+    view_of_document,
+)
 from saddlescope.storage.files import FileStorage
 
 F0_HZ, FPS, N = 1.65, 200.0, 600
@@ -90,17 +98,33 @@ def test_the_writer_stores_the_series_and_the_page_reads_them_without_fitting(ri
     assert all(got["series"][name] is not None and len(got["series"][name]) == 100 for name in DERIVED_SERIES)
 
 
+def test_the_ride_pages_view_is_read_without_the_document(ride, monkeypatch):
+    """At the ride page's PAGE_POINTS the stored page is all a read needs: not the 6.6 MB document."""
+    sessions, storage, club_id, ride_id = ride
+    doc = saddle_document()
+    key = commit_result(sessions, storage, club_id=club_id, ride_id=ride_id, job_id=None, document=doc,
+                        code_version="test")
+    assert storage.exists(page_key(key))
+    want = view_of_document(doc, _row(sessions, ride_id), ride_id, PAGE_POINTS)
+    read, real_read = [], storage.read_bytes
+    monkeypatch.setattr(storage, "read_bytes", lambda k: read.append(k) or real_read(k))
+    _no_fitting(monkeypatch)
+    assert _view(sessions, storage, club_id, ride_id, PAGE_POINTS) == want
+    assert read == [page_key(key)]
+
+
 def test_a_re_analysis_replaces_the_stored_series_with_its_own(ride, monkeypatch):
     sessions, storage, club_id, ride_id = ride
     first = commit_result(sessions, storage, club_id=club_id, ride_id=ride_id, job_id=None,
                           document=saddle_document(), code_version="test")
     second = commit_result(sessions, storage, club_id=club_id, ride_id=ride_id, job_id=None,
                            document=saddle_document(scale=2.0), code_version="test")
-    assert not storage.exists(first) and not storage.exists(series_key(first))
+    assert not any(storage.exists(k) for k in (first, series_key(first), page_key(first)))
     assert storage.exists(series_key(second))
     _no_fitting(monkeypatch)
-    spectrum = _view(sessions, storage, club_id, ride_id)["spectrum"]
-    assert spectrum["amplitude_m_s2"] == pytest.approx([8.0, 3.0, 1.0])  # the new result's, not the old
+    for points in (100, PAGE_POINTS):
+        spectrum = _view(sessions, storage, club_id, ride_id, points)["spectrum"]
+        assert spectrum["amplitude_m_s2"] == pytest.approx([8.0, 3.0, 1.0])  # the new result's, not the old
 
 
 def test_a_result_stored_before_has_its_series_computed_once_and_stored(ride, monkeypatch):
@@ -111,10 +135,11 @@ def test_a_result_stored_before_has_its_series_computed_once_and_stored(ride, mo
         ResultRepository(s).replace_for_ride(club_id=club_id, ride_id=ride_id, job_id=None, indicators={},
                                              result_key=key, code_version="old", uncertain_reason=None)
     assert not storage.exists(series_key(key))
-    first = _view(sessions, storage, club_id, ride_id)
-    assert json.loads(storage.read_bytes(series_key(key)))["samples"] == N
+    first = _view(sessions, storage, club_id, ride_id, PAGE_POINTS)
+    assert json.loads(storage.read_bytes(series_key(key)))["samples"] == N and storage.exists(page_key(key))
     _no_fitting(monkeypatch)
-    assert _view(sessions, storage, club_id, ride_id)["series"] == first["series"]
+    assert _view(sessions, storage, club_id, ride_id, PAGE_POINTS)["series"] == first["series"]
+    assert _view(sessions, storage, club_id, ride_id)["series"]["position_fitted_m"]
 
 
 def test_series_of_another_format_or_length_are_computed_again(ride):

@@ -39,7 +39,7 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Club, Horse, Result, Ride, Rider
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services.accounts import create_club
-from saddlescope.services.results import stored_derived_series, uncertain_reason_of
+from saddlescope.services.results import store_with_result, uncertain_reason_of
 
 MIB = 1024**2
 PASSWORD = "benchmark password"
@@ -484,7 +484,7 @@ def _analysed_ride(root: Path, database_url: str, samples: int) -> int:
             document = _synthetic_result(samples)
             storage = FileStorage(root / "storage")
             storage.write_bytes(key, json.dumps(document).encode())
-            stored_derived_series(storage, key, document)  # the derived series beside it, as commit_result stores them
+            store_with_result(storage, key, document)  # its derived series and page beside it, as commit_result
             ResultRepository(session).replace_for_ride(
                 club_id=club_id,
                 ride_id=ride.id,

@@ -25,7 +25,10 @@ from saddlescope.core.kinematics import fit_marker_kinematics
 from saddlescope.core.saddle import vertical_harmonics
 from saddlescope.core.vibration import weighting_response
 
-__all__ = ["DERIVED_FORMAT", "WEIGHTINGS", "derived_series", "fitted_saddle_series", "strides_analysed", "vertical_harmonics_of", "weighted_series"]
+__all__ = [
+    "DERIVED_FORMAT", "WEIGHTINGS", "derived_series", "fitted_saddle_series", "strides_analysed",
+    "vertical_harmonics_of", "weighted_series",
+]
 
 WEIGHTINGS = (("wb", "Wb"), ("wk", "Wk"))  # (key suffix, ISO/BS weighting name): W_b = BS 6841, W_k = ISO 2631-1
 # The stored derived series' format: a stored file of another format is computed again (and replaced).

@@ -40,7 +40,8 @@ from saddlescope.storage import Storage
 __all__ = [
     "ANGULAR_PER_FRAME", "DERIVED_SERIES", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
     "commit_result", "decimate", "export_horse", "export_ride", "export_rides", "indicator_table_bytes",
-    "result_document", "series_key", "stored_derived_series",
+    "PAGE_POINTS", "page_key", "page_of_document", "result_document", "series_key", "store_with_result",
+    "stored_derived_series", "view_of_page",
     "analysed_result", "result_view", "result_view_json", "tracks_mm", "uncertain_reason_of", "view_of_document",
 ]
 
@@ -101,6 +102,32 @@ def _series(doc: dict[str, Any], step: int, n: int, derived: dict[str, Any]) -> 
     return series
 
 
+# The ride page asks for this many points (views/ride.js): its series are stored decimated for it, with
+# the document less its per-sample arrays (`page_of_document`), so the page's first load reads ~1 MB of
+# JSON, not the whole document (6.6 MB at 10,000 samples per curve) and its derived series.
+PAGE_POINTS = 2000
+_PER_SAMPLE = {"saddle": ("t_s", "position_m", "velocity_m_s", "acceleration_m_s2"),
+               "angular": ("omega_rad_s", "alpha_rad_s2", *ANGULAR_PER_FRAME), "markers": ("position_m",)}
+
+
+def page_of_document(doc: dict[str, Any], derived: dict[str, Any], max_points: int) -> dict[str, Any]:
+    """What a view of `doc` needs at `max_points`: its series decimated, and the document without them.
+
+    ``{"format", "max_points", "samples", "step", "document", "series", "spectrum"}``; `derived` is the
+    document's derived series (`derived_series`).
+    """
+    if max_points < 10:
+        raise InputError(f"max_points must be at least 10, got {max_points}")
+    n = len((doc.get("saddle") or {}).get("t_s") or [])
+    step = max(1, math.ceil(n / max_points))
+    light = dict(doc)
+    for group, keys in _PER_SAMPLE.items():
+        if isinstance(doc.get(group), dict):
+            light[group] = {k: v for k, v in doc[group].items() if k not in keys}
+    return {"format": DERIVED_FORMAT, "max_points": max_points, "samples": n, "step": step, "document": light,
+            "series": _series(doc, step, n, derived), "spectrum": derived.get("spectrum")}
+
+
 def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int,
                      derived: dict[str, Any] | None = None) -> dict[str, Any]:
     """What the dashboard shows of result document `doc` (its shape is `saddlescope.api.schemas.ResultOut`).
@@ -109,13 +136,13 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int,
     most `max_points` samples; the indicators come with their units. `derived` is the document's
     derived series as stored with it (`stored_derived_series`); computed here when not given.
     """
-    if max_points < 10:
-        raise InputError(f"max_points must be at least 10, got {max_points}")
-    n = len((doc.get("saddle") or {}).get("t_s") or [])
-    step = max(1, math.ceil(n / max_points))
-    if derived is None:
-        derived = derived_series(doc)
-    series = _series(doc, step, n, derived)
+    return view_of_page(page_of_document(doc, derived_series(doc) if derived is None else derived, max_points),
+                        result, ride_id)
+
+
+def view_of_page(page: dict[str, Any], result, ride_id: int) -> dict[str, Any]:
+    """`view_of_document` of a `page_of_document` (as computed, or as stored with the result)."""
+    doc, series, step, n = page["document"], page["series"], page["step"], page["samples"]
     markers = doc.get("markers") or {}
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
@@ -140,13 +167,13 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int,
         "quality_notes": quality_notes(findings),
         "quality_summary": {"severity": severity, "message": summary},
         "strides_analysed": strides_analysed(doc),
-        "spectrum": derived.get("spectrum"),
+        "spectrum": page["spectrum"],
         "calibration_checks": calibration.get("checks") or {},
         "calibration_flags": calibration.get("flags") or [],
         "series": series,
         # the curve fits' goodness and 95 % intervals (thesis 5.5): a few numbers per marker and axis
         "fits": markers.get("fits") or {},
-        "decimation": {"step": step, "samples": n, "max_points": max_points},
+        "decimation": {"step": step, "samples": n, "max_points": page["max_points"]},
     }
 
 
@@ -156,9 +183,55 @@ def series_key(result_key: str) -> str:
     return f"{stem}.series.json"
 
 
+def page_key(result_key: str) -> str:
+    """Where the ride page's view of a result is stored (`page_of_document`): ``….json`` -> ``….page.json``."""
+    return series_key(result_key).removesuffix(".series.json") + ".page.json"
+
+
+def _write_json(storage: Storage, key: str, value: dict[str, Any]) -> None:
+    storage.write_bytes(key, json.dumps(value, allow_nan=False, separators=(",", ":"), default=_json_default).encode())
+
+
 def _write_derived(storage: Storage, result_key: str, derived: dict[str, Any]) -> None:
-    storage.write_bytes(series_key(result_key), json.dumps(derived, allow_nan=False,
-                                                           separators=(",", ":")).encode())
+    _write_json(storage, series_key(result_key), derived)
+
+
+def _write_page(storage: Storage, result_key: str, doc: dict[str, Any], derived: dict[str, Any]) -> None:
+    _write_json(storage, page_key(result_key), page_of_document(doc, derived, PAGE_POINTS))
+    if not storage.exists(result_key):  # a re-analysis removed the document meanwhile
+        storage.delete(page_key(result_key))
+
+
+def _stored_page(storage: Storage, result_key: str) -> dict[str, Any] | None:
+    """The stored page of the result under `result_key`, or None (not stored, another format, unreadable)."""
+    try:
+        page = json.loads(storage.read_bytes(page_key(result_key)))
+    except (FileNotFoundError, ValueError):
+        return None
+    return page if isinstance(page, dict) and page.get("format") == DERIVED_FORMAT else None
+
+
+def _view_of_stored(storage: Storage, result, ride_id: int, max_points: int) -> dict[str, Any]:
+    """The view of a result row's document: from its stored page at `PAGE_POINTS`, else from the document.
+
+    A result stored before its page and series were gets them stored here (a lazy backfill).
+    """
+    if max_points == PAGE_POINTS:
+        page = _stored_page(storage, result.result_key)
+        if page is not None:
+            return view_of_page(page, result, ride_id)
+    doc = json.loads(storage.read_bytes(result.result_key))
+    derived = stored_derived_series(storage, result.result_key, doc)
+    if max_points == PAGE_POINTS:
+        _write_page(storage, result.result_key, doc, derived)
+    return view_of_document(doc, result, ride_id, max_points, derived)
+
+
+def store_with_result(storage: Storage, result_key: str, doc: dict[str, Any]) -> None:
+    """Store result `doc`'s derived series and ride page beside it, as `commit_result` does (for the bench)."""
+    derived = derived_series(doc)
+    _write_derived(storage, result_key, derived)
+    _write_page(storage, result_key, doc, derived)
 
 
 def stored_derived_series(storage: Storage, result_key: str, doc: dict[str, Any]) -> dict[str, Any]:
@@ -227,11 +300,8 @@ def result_view(
     Series are taken every ``step``-th sample so that none has more than `max_points` samples
     (``decimation.step``; the indicators are always computed from the full series).
     """
-    def view(result) -> dict[str, Any]:
-        doc = json.loads(storage.read_bytes(result.result_key))
-        return view_of_document(doc, result, ride_id, max_points, stored_derived_series(storage, result.result_key, doc))
-
-    return _read_analysed(session, ride_id, club_id, view)
+    return _read_analysed(session, ride_id, club_id,
+                          lambda result: _view_of_stored(storage, result, ride_id, max_points))
 
 
 class _BytesCache:
@@ -288,9 +358,7 @@ def result_view_json(
         ).hexdigest()[:32]
         data = _VIEWS.get(etag)
         if data is None:
-            doc = json.loads(storage.read_bytes(result.result_key))
-            view = view_of_document(doc, result, ride_id, max_points,
-                                    stored_derived_series(storage, result.result_key, doc))
+            view = _view_of_stored(storage, result, ride_id, max_points)
             data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
             _VIEWS.put(etag, data)
         return data, etag
@@ -301,12 +369,19 @@ def result_view_json(
 def _ride_rows(
     session: Session, ride_ids: list[int] | None, *, club_id: int, rides: RideFilter | None = None
 ) -> list[dict[str, Any]]:
+    """The export's rows: a ride's metadata, its saddle by name and the rider's weight on it, its indicators.
+
+    The columns are `io.export.METADATA_COLUMNS` and `OPTIONAL_METADATA`; ids are left out.
+    """
     rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(rides=rides)
     if ride_ids is not None:
         wanted = set(ride_ids)
         rows = [r for r in rows if r["ride_id"] in wanted]
+    weights = RideRepository(session, club_id=club_id).rider_weights_kg()
     for row in rows:
-        row.pop("horse_id", None)
+        for internal in ("horse_id", "saddle_id"):  # ids: the export names the horse and the saddle
+            row.pop(internal, None)
+        row["rider_weight_kg"] = weights.get(row["ride_id"])
     return rows
 
 
@@ -435,6 +510,7 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
     storage.write_bytes(key, json.dumps(document, allow_nan=False).encode())
     try:
         _write_derived(storage, key, derived)
+        _write_page(storage, key, document, derived)
         with session_scope(sessions) as session:
             if job_id is not None and attempt is not None and host is not None and not JobRepository(
                     session).hold(job_id, attempt=attempt, host=host):
@@ -450,12 +526,12 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
                                      uncertain_reason=uncertain_reason_of(document))
             refresh_ride_status(session, ride_id)
     except BaseException:
-        storage.delete(key)
-        storage.delete(series_key(key))
+        for written in (key, series_key(key), page_key(key)):
+            storage.delete(written)
         raise
     if old_key and old_key != key:
-        storage.delete(old_key)
-        storage.delete(series_key(old_key))
+        for stale in (old_key, series_key(old_key), page_key(old_key)):
+            storage.delete(stale)
     return key
 
 
