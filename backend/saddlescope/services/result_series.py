@@ -31,7 +31,8 @@ __all__ = [
 ]
 
 WEIGHTINGS = (("wb", "Wb"), ("wk", "Wk"))  # (key suffix, ISO/BS weighting name): W_b = BS 6841, W_k = ISO 2631-1
-# The stored derived series' format: a stored file of another format is computed again (and replaced).
+# The stored derived series' and ride pages' format (services/results.py): a stored file of another format
+# is computed again and replaced. Bump it when a series is added or computed differently (a new chart).
 DERIVED_FORMAT = 1
 
 
