@@ -103,7 +103,7 @@ export function labelText(label) {
 
 /**
  * A number with `digits` significant digits, without exponent for everyday sizes:
- * 0.0110 -> "0.0110", 1234.5 -> "1235", null/NaN -> "–".
+ * 0.0110 -> "0.0110", 1234.5 -> "1230" (4 digits: "1235"), null/NaN -> "–".
  */
 export function fmt(value, digits = 3) {
   if (value === null || value === undefined || value === "") return "\u2013";
@@ -113,10 +113,34 @@ export function fmt(value, digits = 3) {
   const magnitude = Math.floor(Math.log10(Math.abs(x)));
   if (magnitude >= digits - 1) {
     if (magnitude >= 9) return x.toExponential(digits - 1);
-    return Math.round(x).toString();
+    return Number(x.toPrecision(digits)).toString(); // 12345.6 -> "12300": no more digits than asked for
   }
   if (magnitude < -6) return x.toExponential(digits - 1);
   return x.toFixed(digits - 1 - magnitude);
+}
+
+// No page shows a number with more digits than this (issue 37): beyond it a reading claims a precision
+// the measurement has not, and a club stops trusting the page.
+export const MAX_DIGITS = 4;
+
+/**
+ * A 95 % interval "low–high" (no unit) that never reads as one value: ends that show alike at `digits`
+ * significant digits get one more digit (up to MAX_DIGITS), and ends alike even then read "± under 0.01"
+ * (the interval is narrower than the last digit a page shows). An open end (null) is "−∞" or "∞".
+ * The report words intervals the same way (saddlescope.services.report.range_text).
+ */
+export function rangeText(low, high, digits = 3) {
+  const open = (v) => v === null || v === undefined || v === "";
+  if (open(low) || open(high)) return `${open(low) ? "−∞" : fmt(low, digits)}–${open(high) ? "∞" : fmt(high, digits)}`;
+  for (let d = digits; d <= Math.max(digits, MAX_DIGITS); d += 1) {
+    const [a, b] = [fmt(low, d), fmt(high, d)];
+    if (a !== b) return `${a}–${b}`;
+  }
+  const size = Math.max(Math.abs(Number(low)), Math.abs(Number(high)));
+  if (!(size > 0)) return "± 0";
+  // the place of the last digit shown at MAX_DIGITS: both ends lie within it
+  const place = 10 ** (Math.floor(Math.log10(size)) - (Math.max(digits, MAX_DIGITS) - 1));
+  return `± under ${fmt(place, 1)}`;
 }
 
 export function fmtUnit(value, unit, digits = 3) {

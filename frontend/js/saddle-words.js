@@ -1,6 +1,6 @@
 // Saddles in words: their types as a fitter names them, and a mean with its 95 % interval.
 
-import { fmt } from "./format.js";
+import { fmt, rangeText } from "./format.js";
 
 /** The saddle types the API knows (saddlescope.db.enums.SaddleType), in words. */
 export const SADDLE_TYPES = {
@@ -22,5 +22,5 @@ export function meanIntervalText(stats) {
   if (!stats || !Number.isFinite(stats.mean)) return "\u2013";
   if (!Number.isFinite(stats.low) || !Number.isFinite(stats.high)) return `${fmt(stats.mean)} (one ride: no interval)`;
   // The saddle's indicators (r.m.s., VDV) are never negative: a t interval of few rides may reach below 0.
-  return `${fmt(stats.mean)} (${fmt(Math.max(0, stats.low))}\u2013${fmt(stats.high)})`;
+  return `${fmt(stats.mean)} (${rangeText(Math.max(0, stats.low), stats.high)})`;
 }

@@ -297,10 +297,44 @@ def missing_words(text: str) -> list[str]:
     return [line.strip() for line in text.splitlines() if MISSING_WORDS.search(line)]
 
 
+# No number a page shows has more than four significant digits (issue 37: "9.9712 km/h", "0.004163 km" claim
+# a precision no ride has). What counts as a number, and why the rest does not:
+# - a decimal ("18.00", "0.004163", "1,234.5"): its digits less the leading zeros are significant, the
+#   trailing zeros too ("18.000" claims five);
+# - a plain integer ("12346"): its digits less the leading and the trailing zeros ("10000" is one digit, as
+#   a rounded value shows it: format.js fmt rounds 12345.6 to "12300");
+# - not an integer written with thousands separators ("1,234 rides", "10,000 h"): that is how the pages
+#   write counts (toLocaleString), and a count is exact whatever its size;
+# - not a part of a date ("2026-11-29", "29/11/2026", "29.11.2026"), a time ("12:30"), a version or
+#   dotted number ("1.2.3"), a word or code ("a16e38d", "M1", "W_b"), an id ("#12345") or a URL (a share
+#   link's port and token): each number is taken whole between separators, and URLs are taken out first.
+NUMBER = re.compile(r"(?<![\w.,:/#])(\d{1,3}(?:,\d{3})+|\d+)(\.\d+)?(?![\w:/]|[.,]\d)")
+URL = re.compile(r"\b[a-z][a-z0-9+.-]*://\S+|(?<![\w])[#/][\w/#?=&.-]*", re.IGNORECASE)
+MAX_DIGITS = 4
+
+
+def significant_digits(whole: str, fraction: str | None) -> int | None:
+    """How many significant digits a number shows (None: a count with thousands separators, not checked)."""
+    if fraction is None:
+        return None if "," in whole else len(whole.lstrip("0").rstrip("0"))
+    return len((whole.replace(",", "") + fraction.lstrip(".")).lstrip("0"))
+
+
+def long_numbers(text: str) -> list[str]:
+    """The lines of `text` that show a number with more than `MAX_DIGITS` significant digits."""
+    found = []
+    for line in text.splitlines():
+        words = URL.sub(" ", line)
+        if any((significant_digits(m[1], m[2]) or 0) > MAX_DIGITS for m in NUMBER.finditer(words)):
+            found.append(line.strip())
+    return found
+
+
 __all__ = ["AXE_JS", "CHROMIUM", "CHROMIUM_ARGS", "MISSING_WORDS", "PHONE_WIDTH_PX", "SADDLESCOPE", "SCREENSHOTS",
            "Served", "VISIBLE_TEXT_JS", "assert_no_horizontal_scroll", "axe_violations", "chromium_for_module",
            "console_errors", "fail_or_skip", "free_port", "horizontal_overflow_px", "launch_chromium",
-           "missing_words", "new_club_admin", "plotly_traces", "require_axe", "require_browser", "screenshot",
+           "long_numbers", "missing_words", "new_club_admin", "plotly_traces", "require_axe", "require_browser",
+           "screenshot",
            "serve_fresh", "shoot_both_widths", "sign_in", "visible_permission_controls", "wait_for_charts_drawn",
            "wait_healthy",
            "widest_elements"]

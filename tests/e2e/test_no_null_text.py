@@ -1,27 +1,32 @@
 """No page shows the words "null", "undefined" or "NaN" (issue #37): a value the page did not have
 must read as nothing, or as words, never as JavaScript's name for "missing". Nor a raw code of the
 glossary (GET /api/glossary: `lab_vertical`, `sitting_trot`, `acc_y_wb_rms`, `analyze`, `dtw`, ...):
-every label comes from it.
+every label comes from it. Nor a number with more than four significant digits (`long_numbers`: what
+counts as one is defined and justified there).
 
 A small club on a fresh server: one ride with an analysis job that is queued or running (a long
-selftest job tied to the ride) and the main lists; each page's visible text is scanned in Debian's
-chromium. The full page tour (test_page_audit.py) runs the same scan on every page.
+selftest job tied to the ride), two analysed rides of its horse (a result with 95 % intervals, one whose
+speed interval is narrower than the last digit shown) and the main lists; each page's visible text is
+scanned in Debian's chromium. The full page tour (test_page_audit.py) runs the null scan on every page.
 """
 
 from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
 from browser_harness import (
     VISIBLE_TEXT_JS,
     chromium_for_module,
+    long_numbers,
     missing_words,
     new_club_admin,
     screenshot,
     serve_fresh,
     sign_in,
 )
+from dashboard_helpers import result_document, store_result
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -53,6 +58,31 @@ def test_missing_words_are_found_alone_or_glued_but_not_inside_words():
     assert missing_words(text) == ["nullnullnull", "speed NaN km/h", "undefined"]
 
 
+def test_long_numbers_are_found_but_not_dates_times_counts_ids_or_urls():
+    text = ("speed 9.9712 km/h\n0.004163 km\n18.00–18.00 km/h\n18.000 km/h\nridden 2026-11-29 12:30\n"
+            "1,234 rides\nride #12345\nhttp://127.0.0.1:54321/#/shared/abc123456789\n12346 m\n12300 m\n"
+            "version 0.1.0+a16e38d\n1,234.5 m\n-0.0041634\n29.11.2026\n95 %: 1.10–1.41 m/s²")
+    assert long_numbers(text) == ["speed 9.9712 km/h", "18.000 km/h", "12346 m", "1,234.5 m", "-0.0041634"]
+
+
+def _analysed_rides(served, api, horse: int, rider: int) -> list[int]:
+    """Two canters of the horse with results: intervals on the indicators, and one speed interval that
+    both ends round alike at four digits (the page must not show "18.00–18.00 km/h")."""
+    rides = []
+    for i, day in enumerate(("2026-05-01", "2026-05-08")):
+        created = api.post("/api/rides", json={"horse_id": horse, "rider_id": rider, "gait": "canter",
+                                               "direction": "CW", "ridden_on": day, "rider_weight_kg": 61.35})
+        assert created.status_code == 201, created.text
+        doc = result_document(scale=1.0 + 0.1 * i, gait="canter", rng=np.random.default_rng(40 + i))
+        speed = doc["indicators"]["vel_x_avg_kmh"]
+        doc["indicators_interval_95"] = {key: [0.93 * value, 1.07 * value] for key, value in doc["indicators"].items()
+                                         if isinstance(value, float) and value > 0}
+        doc["indicators_interval_95"]["vel_x_avg_kmh"] = [speed - 0.0004, speed + 0.0004]
+        store_result(served.database_url, served.storage_dir, created.json()["id"], doc)
+        rides.append(created.json()["id"])
+    return rides
+
+
 @pytest.fixture(scope="module")
 def club(tmp_path_factory):
     with serve_fresh(tmp_path_factory.mktemp("nulls")) as served:
@@ -68,13 +98,15 @@ def club(tmp_path_factory):
             job = api.post("/api/jobs", json={"kind": "selftest", "ride_id": ride_id,
                                               "payload": {"steps": 1000, "delay_s": 5}})
             assert job.status_code in (200, 201, 202), job.text
-        yield {"base": served.base, "ride": ride_id, "horse": horse, "saddle": saddle}
+            analysed = _analysed_rides(served, api, horse, rider)
+        yield {"base": served.base, "ride": ride_id, "horse": horse, "saddle": saddle, "analysed": analysed}
 
 
 def test_no_page_shows_null_undefined_or_nan(club):
     paths = [f"/rides/{club['ride']}", "/", "/rides", "/horses", "/riders", "/jobs", "/rigs", "/grades",
-             "/leaderboard", "/account", "/start", "/saddles", f"/saddles/{club['saddle']}", f"/horses/{club['horse']}"]
-    found, codes = [], []
+             "/leaderboard", "/account", "/start", "/saddles", f"/saddles/{club['saddle']}", f"/horses/{club['horse']}",
+             *[f"/rides/{ride}" for ride in club["analysed"]], f"/compare?horse={club['horse']}"]
+    found, codes, long = [], [], []
     with chromium_for_module() as chromium:
         context = chromium.new_context(base_url=club["base"], viewport={"width": 1280, "height": 900})
         page = context.new_page()
@@ -86,13 +118,17 @@ def test_no_page_shows_null_undefined_or_nan(club):
             page.goto(f"{club['base']}/#{path}")
             page.wait_for_function("() => { const v = document.querySelector('[data-view]');"
                                    " return v && !v.hasAttribute('aria-busy') && v.children.length > 0; }")
-            if path.startswith("/rides/"):
+            if path == f"/rides/{club['ride']}":
                 page.wait_for_selector("[data-job-progress]")
+            elif path.startswith("/rides/"):
+                page.locator("[data-result]").wait_for(state="visible")
             page.wait_for_load_state("networkidle")
             text = page.evaluate(VISIBLE_TEXT_JS)
             found += [f"{path}: {line!r}" for line in missing_words(text)]
             codes += [f"{path}: {line!r}" for line in raw_codes(text, pattern)]
+            long += [f"{path}: {line!r}" for line in long_numbers(text)]
             screenshot(page, f"no-null{path.replace('/', '-') or '-overview'}")
         context.close()
     assert not found, "pages show JavaScript's words for a missing value:\n" + "\n".join(found)
     assert not codes, "pages show raw codes instead of the glossary's labels:\n" + "\n".join(codes)
+    assert not long, "pages show numbers with more than four significant digits:\n" + "\n".join(long)

@@ -4,12 +4,14 @@ the ride page tests' own, from dashboard_helpers.py."""
 
 from __future__ import annotations
 
+import re
+
 import dashboard_helpers
 import numpy as np
 import pytest
 from dashboard_helpers import _ok, api_client, result_document, sign_in, store_result
 
-from saddlescope.services.report import distance_text, duration_text
+from saddlescope.services.report import distance_text, duration_text, range_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -78,3 +80,23 @@ def test_distances_read_in_metres_or_km_as_the_report_words_them(page, dashboard
     words = "(km) => import('/js/format.js').then(m => km.map(m.distanceText))"
     km = [None, 0.0004, 0.00416, 0.04, 0.416, 1.234, 15.6, 1234.0]
     assert page.evaluate(words, km) == [distance_text(d) for d in km]
+
+
+def test_an_interval_narrower_than_its_last_digit_does_not_read_as_one_value(page, dashboard):
+    """Issue #37: the seeded ride page showed "18.00–18.00 km/h". Ends that round alike get one more digit,
+    then read "± under 0.01"; the page (format.js rangeText) and the report (range_text) say the same."""
+    doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(15))
+    speed = doc["indicators"]["vel_x_avg_kmh"]
+    doc["indicators_interval_95"] = {"vel_x_avg_kmh": [speed - 0.0004, speed + 0.0004]}
+    created = _open_ride_page(page, dashboard, doc, ridden_on="2026-05-06")
+    card = page.locator('[data-ci="vel_x_avg_kmh"]').inner_text()
+    assert card.startswith("95 % interval ") and card.endswith(" km/h"), card
+    assert not re.search(r"(\d[\d.]*)–\1(?!\d)", card), card  # never "18.00–18.00"
+    pairs = [[17.91, 18.12], [18.01, 18.04], [18.0001, 18.0004], [0.0041611, 0.0041614], [1234.2, 1234.4],
+             [3.7, 4.52], [None, 4.52], [0.5, None], [speed - 0.0004, speed + 0.0004]]
+    shown = page.evaluate("(pairs) => import('/js/format.js').then(m => pairs.map(([a, b]) => m.rangeText(a, b)))",
+                          pairs)
+    assert shown == [range_text(a, b) for a, b in pairs]
+    assert "± under 0.01" in shown
+    page.goto(f"/api/rides/{created['id']}/report")
+    assert page.locator('[data-ci="vel_x_avg_kmh"]').inner_text() == f"95 %: {range_text(*pairs[-1])} km/h"

@@ -15,6 +15,7 @@ from saddlescope.db.session import make_engine, make_session_factory, session_sc
 from saddlescope.io.mocap import write_trc
 from saddlescope.services.analytics import club_leaderboard
 from saddlescope.services.mocap import MocapChoice, store_mocap_ride
+from saddlescope.services.results import series_key
 from saddlescope.storage.files import FileStorage
 
 
@@ -58,6 +59,7 @@ def test_a_too_uncertain_mocap_ride_is_stored_as_such_and_not_ranked(club, tmp_p
     with session_scope(sessions) as s:
         row = ResultRepository(s).for_ride(noisy_ride)
         assert row.uncertain_reason and "W_b r.m.s. is known only to" in row.uncertain_reason
+        assert storage.exists(series_key(row.result_key))  # the ride page's series stored with it (issue 37)
         board = club_leaderboard(s, club_id=club_id, gait="canter", indicator="acc_y_wb_rms")
     assert [e["horse"] for e in board["entries"]] == ["Clean"]
     assert [u["ride_id"] for u in board["uncertain"]] == [noisy_ride]

@@ -8,8 +8,8 @@ from saddlescope.services.report import _decision_html, _interval_html
 
 def test_the_interval_reads_in_the_values_own_units():
     assert _interval_html("acc_y_wb_rms", [3.7, 4.52]) == ('<span class="ci" data-ci="acc_y_wb_rms">'
-                                                          "95 %: 3.70 m/s² – 4.52 m/s²</span>")
-    assert "95 %: 21.0 cm – 25.8 cm" in _interval_html("amplitude_y_m", [0.21, 0.258])
+                                                          "95 %: 3.70–4.52 m/s²</span>")
+    assert "95 %: 21.0–25.8 cm" in _interval_html("amplitude_y_m", [0.21, 0.258])
     assert "∞" in _interval_html("t_a8_action_wb_h", [0.5, None])  # an unbounded time
     assert _interval_html("acc_y_wb_rms", None) == ""  # a result made before intervals
 

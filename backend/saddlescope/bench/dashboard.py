@@ -46,6 +46,7 @@ from saddlescope.bench.service import PASSWORD, _analysed_ride, _scratch, bench_
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services.accounts import create_club
+from saddlescope.services.results import store_with_result
 
 CHROMIUM = Path("/usr/bin/chromium")
 TTI_PAGE_KEYS = ("tti_rides_list_s", "tti_leaderboard_s", "tti_ride_page_s", "tti_horse_page_s", "tti_compare_s")
@@ -172,6 +173,7 @@ def _add_omega_versions(root: Path, ride_id: int) -> None:
     document["angular"]["omega_versions_rad_s"] = versions.round(5).tolist()
     document["angular"]["omega_versions_excluded"] = np.zeros(versions.shape[:2], dtype=bool).tolist()
     storage.write_bytes(key, json.dumps(document).encode())
+    store_with_result(storage, key, document)  # the stored page with the versions, as the result writer would
 
 
 # --- the browser -------------------------------------------------------------------------------------

@@ -39,7 +39,7 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Club, Horse, Result, Ride, Rider
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services.accounts import create_club
-from saddlescope.services.results import uncertain_reason_of
+from saddlescope.services.results import store_with_result, uncertain_reason_of
 
 MIB = 1024**2
 PASSWORD = "benchmark password"
@@ -482,7 +482,9 @@ def _analysed_ride(root: Path, database_url: str, samples: int) -> int:
             session.flush()
             key = f"{stage_output_key(ride.id, 'analyze')}/result.json"
             document = _synthetic_result(samples)
-            FileStorage(root / "storage").write_bytes(key, json.dumps(document).encode())
+            storage = FileStorage(root / "storage")
+            storage.write_bytes(key, json.dumps(document).encode())
+            store_with_result(storage, key, document)  # its derived series and page beside it, as commit_result
             ResultRepository(session).replace_for_ride(
                 club_id=club_id,
                 ride_id=ride.id,

@@ -1,7 +1,8 @@
 """CSV and Excel (xlsx) export of comfort indicators: one ride, a horse's rides, a club's rides.
 
 The thesis saved its Table 8.7 "in a format which is compatible with EXCEL"; here a table has one row
-per ride: the ride's metadata (Ride, Horse, Rider, Gait, Ridden on, then any other text fields) followed
+per ride: the ride's metadata (Ride, Horse, Rider, Gait, Ridden on, Saddle, Rider's weight (kg), why it is
+too uncertain for a decision, then any other text fields) followed
 by its indicators. Columns are named in the field's words with the unit in the header ("W_b r.m.s.
 (m/s²)", "Speed (km/h)"), never a code; values are rounded to three significant digits (what the
 measurement supports), times to the exposure values are in minutes and distances in metres (not
@@ -40,12 +41,18 @@ from saddlescope.core.vibration import (
 )
 
 __all__ = [
-    "METADATA_COLUMNS", "SIGNIFICANT_DIGITS", "column_header", "column_value", "indicator_table", "indicators_to_csv",
+    "METADATA_COLUMNS", "OPTIONAL_METADATA", "SIGNIFICANT_DIGITS",
+    "column_header", "column_value", "indicator_table", "indicators_to_csv",
     "indicators_to_xlsx",
 ]
 
 METADATA_COLUMNS = ("ride_id", "horse", "rider", "gait", "date")
-METADATA_HEADERS = {"ride_id": "Ride", "horse": "Horse", "rider": "Rider", "gait": "Gait", "date": "Ridden on"}
+# Then these, in this order, when the rows carry them (the club's exports do; empty where a ride has none):
+# which saddle and how heavy the rider was are the first questions asked of a comfort number (issue 37).
+OPTIONAL_METADATA = ("saddle", "rider_weight_kg", "uncertain_reason")
+METADATA_HEADERS = {"ride_id": "Ride", "horse": "Horse", "rider": "Rider", "gait": "Gait", "date": "Ridden on",
+                    "saddle": "Saddle", "rider_weight_kg": "Rider's weight (kg)",
+                    "uncertain_reason": "Too uncertain for a decision because"}
 GAIT_WORDS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "rising trot", "canter": "canter"}
 SIGNIFICANT_DIGITS = 3  # what a ride's numbers support (their 95 % intervals are a few % wide at best)
 # The names a rider or vet uses for the indicators they read first; the others are named from their label.
@@ -77,7 +84,7 @@ def _flatten(row: Mapping, index: int) -> tuple[dict, dict]:
     for key, value in row.items():
         if key == "indicators":
             continue
-        if key in METADATA_COLUMNS or not (_is_number(value) or value is None):
+        if key in METADATA_COLUMNS or key in OPTIONAL_METADATA or not (_is_number(value) or value is None):
             meta[str(key)] = value
         else:
             values[str(key)] = value
@@ -124,7 +131,9 @@ def column_value(key: str, value):
     """A cell's value as the column shows it: in its header's unit, rounded; words for the gait."""
     if key == "gait" and isinstance(value, str):
         return GAIT_WORDS.get(value, value)
-    if key in METADATA_COLUMNS or not _is_number(value):
+    if key == "rider_weight_kg" and _is_number(value):
+        return round(float(value), 1)  # as weighed: to 100 g
+    if key in METADATA_COLUMNS or key in OPTIONAL_METADATA or not _is_number(value):
         return value
     number = float(value)
     if math.isnan(number):
@@ -143,12 +152,13 @@ def _table(rows: Iterable[Mapping]) -> tuple[list[str], list[str], list[list]]:
     extra_meta: list[str] = []
     indicator_keys: set[str] = set()
     for meta, values in flat:
-        extra_meta += [k for k in meta if k not in METADATA_COLUMNS and k not in extra_meta]
+        extra_meta += [k for k in meta if k not in METADATA_COLUMNS + OPTIONAL_METADATA and k not in extra_meta]
         indicator_keys.update(values)
     known_order = list(CONTRACT_KEYS) + [k for k in INDICATORS if k not in CONTRACT_KEYS]
     ordered = [k for k in known_order if k in indicator_keys]
     ordered += sorted(indicator_keys - set(ordered))
-    meta_keys = list(METADATA_COLUMNS) + extra_meta
+    carried = [k for k in OPTIONAL_METADATA if any(k in meta for meta, _ in flat)]
+    meta_keys = list(METADATA_COLUMNS) + carried + extra_meta
     cells = [[column_value(k, meta.get(k)) for k in meta_keys] + [column_value(k, values.get(k)) for k in ordered]
              for meta, values in flat]
     return meta_keys, ordered, cells
@@ -313,7 +323,8 @@ def indicators_to_xlsx(rows: Iterable[Mapping], path_or_buffer: str | os.PathLik
         _write_sheet(book.create_sheet("Summary"), summary_headers, summary, n_text_columns=2)
 
     units = book.create_sheet("Units")
-    unit_lines = []
+    unit_lines = [[column_header("rider_weight_kg"), "rider_weight_kg", "kg", "the rider's weight on the ride", ""]
+                  ] if "rider_weight_kg" in meta_keys else []
     for key in indicator_keys:
         info = INDICATORS.get(key)
         unit_lines.append([column_header(key), key, _shown_unit(key)[0], info.label if info else "",

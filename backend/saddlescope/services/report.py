@@ -28,8 +28,8 @@ from saddlescope.services.results import analysed_result, result_document
 from saddlescope.storage import Storage
 
 __all__ = [
-    "GAIT_WORDS", "REPORT_INDICATORS", "distance_text", "duration_text", "member_links", "ride_report_html",
-    "ride_report_pdf", "stride_chart_svg", "value_text",
+    "GAIT_WORDS", "MAX_DIGITS", "REPORT_INDICATORS", "distance_text", "duration_text", "member_links",
+    "range_text", "ride_report_html", "ride_report_pdf", "stride_chart_svg", "value_text",
 ]
 
 TEMPLATE = Template((Path(__file__).parent / "templates" / "ride_report.html").read_text(encoding="utf-8"))
@@ -47,6 +47,8 @@ REPORT_INDICATORS = (
     ("stride_frequency_hz", "Stride frequency"),
 )
 _UNITS = {"m/s^2": "m/s²", "m/s^1.75": "m/s¹·⁷⁵"}
+# No number on the report has more significant digits than this (the dashboard's MAX_DIGITS, issue 37).
+MAX_DIGITS = 4
 GAIT_WORDS = {"walk": "walk", "sitting_trot": "sitting trot", "rising_trot": "rising trot", "canter": "canter"}
 
 
@@ -103,18 +105,44 @@ def _number(value: Any, digits: int = 3) -> str:
     if value == 0:
         return "0"
     magnitude = math.floor(math.log10(abs(value)))
-    decimals = max(0, digits - 1 - magnitude)
-    return f"{value:.{decimals}f}"
+    if magnitude >= digits - 1:  # 12345.6 -> "12300": no more digits than asked for
+        return f"{float(f'{value:.{digits}g}'):.0f}"
+    return f"{value:.{digits - 1 - magnitude}f}"
+
+
+def range_text(low: float | None, high: float | None, digits: int = 3) -> str:
+    """A 95 % interval "low–high" (no unit) that never reads as one value, as the dashboard's `rangeText`.
+
+    Ends that show alike at `digits` significant digits get one more digit (up to `MAX_DIGITS`); ends
+    alike even then read "± under 0.01" (the interval is narrower than the last digit shown). An open
+    end (None) is "–∞" or "∞".
+    """
+    if low is None or high is None:
+        return f"{'−∞' if low is None else _number(low, digits)}–{'∞' if high is None else _number(high, digits)}"
+    widest = max(digits, MAX_DIGITS)
+    for d in range(digits, widest + 1):
+        a, b = _number(low, d), _number(high, d)
+        if a != b:
+            return f"{a}–{b}"
+    size = max(abs(low), abs(high))
+    if not size > 0:
+        return "± 0"
+    return f"± under {_number(10.0 ** (math.floor(math.log10(size)) - (widest - 1)), 1)}"
+
+
+def _scale_and_unit(key: str) -> tuple[float, str]:
+    """What an indicator's value is multiplied by for the report, and the unit it then reads in."""
+    if key == "amplitude_y_m":
+        return 100.0, "cm"
+    return 1.0, _UNITS.get(INDICATORS[key].unit, INDICATORS[key].unit) if key in INDICATORS else ""
 
 
 def value_text(key: str, value: Any) -> str:
     """An indicator's value in the report's words and units ("1.23 m/s²", "12 min", "4.2 cm")."""
     if key.endswith("_h"):
         return duration_text(value)
-    if key == "amplitude_y_m" and isinstance(value, int | float):
-        return f"{_number(value * 100)} cm"
-    unit = _UNITS.get(INDICATORS[key].unit, INDICATORS[key].unit) if key in INDICATORS else ""
-    return f"{_number(value)} {unit}".strip()
+    scale, unit = _scale_and_unit(key)
+    return f"{_number(value * scale if isinstance(value, int | float) else value)} {unit}".strip()
 
 
 def _label_html(label: str) -> str:
@@ -201,14 +229,24 @@ def _indicator_rows(session: Session, ride, doc: dict[str, Any], club_id: int) -
 
 
 def _interval_html(key: str, pair: Any) -> str:
-    """The indicator's 95 % interval under its value ("95 %: 1.10–1.41 m/s²"), or nothing without one."""
+    """The indicator's 95 % interval under its value ("95 %: 1.10–1.41 m/s²"), or nothing without one.
+
+    Numbers as the dashboard shows them (`range_text`: never "18.0–18.0"); times in words, left out
+    when both ends read alike ("under a minute").
+    """
     if not isinstance(pair, list | tuple) or len(pair) != 2:
         return ""
-    lo, hi = ("–∞" if pair[0] is None else value_text(key, pair[0]), "∞" if pair[1] is None else
-              value_text(key, pair[1]))
-    if lo == hi:  # an interval that reads as one value says nothing the value does not
-        return ""
-    return f'<span class="ci" data-ci="{key}">95 %: {html.escape(lo)} – {html.escape(hi)}</span>'
+    if key.endswith("_h"):
+        lo, hi = ("–∞" if pair[0] is None else value_text(key, pair[0]), "∞" if pair[1] is None else
+                  value_text(key, pair[1]))
+        if lo == hi:  # an interval that reads as one value says nothing the value does not
+            return ""
+        text = f"{lo} – {hi}"
+    else:
+        scale, unit = _scale_and_unit(key)
+        ends = [v * scale if isinstance(v, int | float) else None for v in pair]
+        text = f"{range_text(ends[0], ends[1])} {unit}".strip()
+    return f'<span class="ci" data-ci="{key}">95 %: {html.escape(text)}</span>'
 
 
 def _decision_html(doc: dict[str, Any]) -> str:

@@ -10,6 +10,9 @@ the page shows the analysis, not a second one:
 - the W_b- and W_k-weighted vertical acceleration over time and its harmonic spectrum, weighted
   exactly per harmonic with the complex response (``core.vibration.weighting_response``), from the
   result's vertical harmonics (``core.saddle.vertical_harmonics`` when an older result lacks them).
+
+Fitting 10,000 samples takes seconds, so :func:`derived_series` computes all of them once, at full
+resolution, when a result is stored (``services.results.commit_result``); the ride page decimates them.
 """
 
 from __future__ import annotations
@@ -22,9 +25,15 @@ from saddlescope.core.kinematics import fit_marker_kinematics
 from saddlescope.core.saddle import vertical_harmonics
 from saddlescope.core.vibration import weighting_response
 
-__all__ = ["WEIGHTINGS", "fitted_saddle_series", "strides_analysed", "vertical_harmonics_of", "weighted_series"]
+__all__ = [
+    "DERIVED_FORMAT", "WEIGHTINGS", "derived_series", "fitted_saddle_series", "strides_analysed",
+    "vertical_harmonics_of", "weighted_series",
+]
 
 WEIGHTINGS = (("wb", "Wb"), ("wk", "Wk"))  # (key suffix, ISO/BS weighting name): W_b = BS 6841, W_k = ISO 2631-1
+# The stored derived series' and ride pages' format (services/results.py): a stored file of another format
+# is computed again and replaced. Bump it when a series is added or computed differently (a new chart).
+DERIVED_FORMAT = 1
 
 
 def _array(values: Any, columns: int | None = None) -> np.ndarray | None:
@@ -132,3 +141,20 @@ def weighted_series(doc: dict[str, Any], t_s: list[float]) -> tuple[dict[str, li
         series[f"acc_y_{suffix}_m_s2"] = _rows(weighted.sum(axis=0)) if t.size else []
         spectrum[f"amplitude_{suffix}_m_s2"] = _rows(amps * gain)
     return series, spectrum
+
+
+def derived_series(doc: dict[str, Any]) -> dict[str, Any]:
+    """Every derived series of result `doc` at full resolution, as stored beside the result.
+
+    Returns ``{"format", "samples", "series", "spectrum"}``: ``series`` maps the names of
+    :func:`fitted_saddle_series` and :func:`weighted_series` to one row per sample of S's track (the
+    weighted acceleration at every sample time: decimating it gives exactly the values at the drawn
+    times), ``spectrum`` is the harmonic spectrum (None without a vertical track).
+    """
+    t_s = (doc.get("saddle") or {}).get("t_s") or []
+    n = len(t_s)
+    series = {name: values for name, values in fitted_saddle_series(doc).items()
+              if isinstance(values, list) and len(values) == n}
+    weighted, spectrum = weighted_series(doc, t_s)
+    series.update(weighted)
+    return {"format": DERIVED_FORMAT, "samples": n, "series": series, "spectrum": spectrum}

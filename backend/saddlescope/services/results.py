@@ -33,14 +33,15 @@ from saddlescope.db.repositories import (
 )
 from saddlescope.db.session import session_scope
 from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
-from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
+from saddlescope.services.result_series import DERIVED_FORMAT, derived_series, strides_analysed
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.storage import Storage
 
 __all__ = [
     "ANGULAR_PER_FRAME", "DERIVED_SERIES", "EXPORT_FORMATS", "MARKER_LABELS", "SADDLE_LABEL", "SERIES", "TABLE_FORMATS",
     "commit_result", "decimate", "export_horse", "export_ride", "export_rides", "indicator_table_bytes",
-    "result_document",
+    "PAGE_POINTS", "page_key", "page_of_document", "result_document", "series_key", "store_with_result",
+    "stored_derived_series", "view_of_page",
     "analysed_result", "result_view", "result_view_json", "tracks_mm", "uncertain_reason_of", "view_of_document",
 ]
 
@@ -84,8 +85,8 @@ def decimate(values: list, step: int) -> list:
     return values[::step] if step > 1 else values
 
 
-def _series(doc: dict[str, Any], step: int, n: int) -> dict[str, list]:
-    """The plotted series of the document, every `step`-th of its `n` samples."""
+def _series(doc: dict[str, Any], step: int, n: int, derived: dict[str, Any]) -> dict[str, list]:
+    """The plotted series of the document and its `derived` series, every `step`-th of its `n` samples."""
     series = {name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES}
     markers = doc.get("markers") or {}
     if markers.get("position_m"):
@@ -94,26 +95,54 @@ def _series(doc: dict[str, Any], step: int, n: int) -> dict[str, list]:
     for key in ANGULAR_PER_FRAME:
         if isinstance(angular.get(key), list) and len(angular[key]) == n:  # per frame: decimated alike
             series[key] = decimate(angular[key], step)
-    derived = {name: decimate(values, step) for name, values in fitted_saddle_series(doc).items()
-               if isinstance(values, list) and len(values) == n}
-    weighted, _ = weighted_series(doc, series["t_s"])  # exact per harmonic: computed at the drawn times only
-    derived.update(weighted)
+    stored = derived.get("series") or {}
     for name in DERIVED_SERIES:
-        series[name] = derived.get(name)
+        values = stored.get(name)
+        series[name] = decimate(values, step) if isinstance(values, list) and len(values) == n else None
     return series
 
 
-def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int) -> dict[str, Any]:
-    """What the dashboard shows of result document `doc` (its shape is `saddlescope.api.schemas.ResultOut`).
+# The ride page asks for this many points (views/ride.js): its series are stored decimated for it, with
+# the document less its per-sample arrays (`page_of_document`), so the page's first load reads ~1 MB of
+# JSON, not the whole document (6.6 MB at 10,000 samples per curve) and its derived series.
+PAGE_POINTS = 2000
+_PER_SAMPLE = {"saddle": ("t_s", "position_m", "velocity_m_s", "acceleration_m_s2"),
+               "angular": ("omega_rad_s", "alpha_rad_s2", *ANGULAR_PER_FRAME), "markers": ("position_m",)}
 
-    `result` is the ride's result row (its job, code version and time). Series are decimated to at
-    most `max_points` samples; the indicators come with their units.
+
+def page_of_document(doc: dict[str, Any], derived: dict[str, Any], max_points: int) -> dict[str, Any]:
+    """What a view of `doc` needs at `max_points`: its series decimated, and the document without them.
+
+    ``{"format", "max_points", "samples", "step", "document", "series", "spectrum"}``; `derived` is the
+    document's derived series (`derived_series`).
     """
     if max_points < 10:
         raise InputError(f"max_points must be at least 10, got {max_points}")
     n = len((doc.get("saddle") or {}).get("t_s") or [])
     step = max(1, math.ceil(n / max_points))
-    series = _series(doc, step, n)
+    light = dict(doc)
+    for group, keys in _PER_SAMPLE.items():
+        if isinstance(doc.get(group), dict):
+            light[group] = {k: v for k, v in doc[group].items() if k not in keys}
+    return {"format": DERIVED_FORMAT, "max_points": max_points, "samples": n, "step": step, "document": light,
+            "series": _series(doc, step, n, derived), "spectrum": derived.get("spectrum")}
+
+
+def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int,
+                     derived: dict[str, Any] | None = None) -> dict[str, Any]:
+    """What the dashboard shows of result document `doc` (its shape is `saddlescope.api.schemas.ResultOut`).
+
+    `result` is the ride's result row (its job, code version and time). Series are decimated to at
+    most `max_points` samples; the indicators come with their units. `derived` is the document's
+    derived series as stored with it (`stored_derived_series`); computed here when not given.
+    """
+    return view_of_page(page_of_document(doc, derived_series(doc) if derived is None else derived, max_points),
+                        result, ride_id)
+
+
+def view_of_page(page: dict[str, Any], result, ride_id: int) -> dict[str, Any]:
+    """`view_of_document` of a `page_of_document` (as computed, or as stored with the result)."""
+    doc, series, step, n = page["document"], page["series"], page["step"], page["samples"]
     markers = doc.get("markers") or {}
     indicators = dict(doc.get("indicators") or {})
     calibration = doc.get("calibration") or {}
@@ -138,14 +167,97 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "quality_notes": quality_notes(findings),
         "quality_summary": {"severity": severity, "message": summary},
         "strides_analysed": strides_analysed(doc),
-        "spectrum": weighted_series(doc, [])[1],
+        "spectrum": page["spectrum"],
         "calibration_checks": calibration.get("checks") or {},
         "calibration_flags": calibration.get("flags") or [],
         "series": series,
         # the curve fits' goodness and 95 % intervals (thesis 5.5): a few numbers per marker and axis
         "fits": markers.get("fits") or {},
-        "decimation": {"step": step, "samples": n, "max_points": max_points},
+        "decimation": {"step": step, "samples": n, "max_points": page["max_points"]},
     }
+
+
+def series_key(result_key: str) -> str:
+    """Where a result document's derived series are stored: beside it (``….json`` -> ``….series.json``)."""
+    stem = result_key[: -len(".json")] if result_key.endswith(".json") else result_key
+    return f"{stem}.series.json"
+
+
+def page_key(result_key: str) -> str:
+    """Where the ride page's view of a result is stored (`page_of_document`): ``….json`` -> ``….page.json``."""
+    return series_key(result_key).removesuffix(".series.json") + ".page.json"
+
+
+def _write_json(storage: Storage, key: str, value: dict[str, Any]) -> None:
+    storage.write_bytes(key, json.dumps(value, allow_nan=False, separators=(",", ":"), default=_json_default).encode())
+
+
+def _write_derived(storage: Storage, result_key: str, derived: dict[str, Any]) -> None:
+    _write_json(storage, series_key(result_key), derived)
+
+
+def _write_page(storage: Storage, result_key: str, doc: dict[str, Any], derived: dict[str, Any]) -> None:
+    _write_json(storage, page_key(result_key), page_of_document(doc, derived, PAGE_POINTS))
+    if not storage.exists(result_key):  # a re-analysis removed the document meanwhile
+        storage.delete(page_key(result_key))
+
+
+def _stored_page(storage: Storage, result_key: str) -> dict[str, Any] | None:
+    """The stored page of the result under `result_key`, or None (not stored, another format, unreadable)."""
+    try:
+        page = json.loads(storage.read_bytes(page_key(result_key)))
+    except (FileNotFoundError, ValueError):
+        return None
+    return page if isinstance(page, dict) and page.get("format") == DERIVED_FORMAT else None
+
+
+def _view_of_stored(storage: Storage, result, ride_id: int, max_points: int) -> dict[str, Any]:
+    """The view of a result row's document: from its stored page at `PAGE_POINTS`, else from the document.
+
+    A result stored before its page and series were gets them stored here (a lazy backfill).
+    """
+    if max_points == PAGE_POINTS:
+        page = _stored_page(storage, result.result_key)
+        if page is not None:
+            return view_of_page(page, result, ride_id)
+    doc = json.loads(storage.read_bytes(result.result_key))
+    derived = stored_derived_series(storage, result.result_key, doc)
+    if max_points == PAGE_POINTS:
+        _write_page(storage, result.result_key, doc, derived)
+    return view_of_document(doc, result, ride_id, max_points, derived)
+
+
+def store_with_result(storage: Storage, result_key: str, doc: dict[str, Any]) -> None:
+    """Store result `doc`'s derived series and ride page beside it, as `commit_result` does (for the bench)."""
+    derived = derived_series(doc)
+    _write_derived(storage, result_key, derived)
+    _write_page(storage, result_key, doc, derived)
+
+
+def stored_derived_series(storage: Storage, result_key: str, doc: dict[str, Any]) -> dict[str, Any]:
+    """The derived series of the result document `doc` stored under `result_key` (`derived_series`).
+
+    Read from storage where `commit_result` put them. A result stored before they were (or in an older
+    format) has them computed here once and stored (a lazy backfill): the next reader reads them. A
+    backfill racing a re-analysis that removed its document meanwhile removes what it wrote.
+    """
+    key = series_key(result_key)
+    n = len((doc.get("saddle") or {}).get("t_s") or [])
+    if storage.exists(key):
+        try:
+            stored = json.loads(storage.read_bytes(key))
+        except FileNotFoundError:
+            stored = None  # removed by a re-analysis meanwhile: the caller's document is gone too
+        except ValueError:
+            stored = None  # a torn or foreign file: computed again and replaced
+            log.warning("the stored series %s are unreadable; computing them again", key)
+        if isinstance(stored, dict) and stored.get("format") == DERIVED_FORMAT and stored.get("samples") == n:
+            return stored
+    derived = derived_series(doc)
+    _write_derived(storage, result_key, derived)
+    if not storage.exists(result_key):
+        storage.delete(key)
+    return derived
 
 
 def analysed_result(session: Session, storage: Storage, ride_id: int, *, club_id: int):
@@ -188,8 +300,8 @@ def result_view(
     Series are taken every ``step``-th sample so that none has more than `max_points` samples
     (``decimation.step``; the indicators are always computed from the full series).
     """
-    return _read_analysed(session, ride_id, club_id, lambda result: view_of_document(
-        json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points))
+    return _read_analysed(session, ride_id, club_id,
+                          lambda result: _view_of_stored(storage, result, ride_id, max_points))
 
 
 class _BytesCache:
@@ -246,7 +358,7 @@ def result_view_json(
         ).hexdigest()[:32]
         data = _VIEWS.get(etag)
         if data is None:
-            view = view_of_document(json.loads(storage.read_bytes(result.result_key)), result, ride_id, max_points)
+            view = _view_of_stored(storage, result, ride_id, max_points)
             data = json.dumps(view, default=_json_default, allow_nan=False, separators=(",", ":")).encode()
             _VIEWS.put(etag, data)
         return data, etag
@@ -257,12 +369,19 @@ def result_view_json(
 def _ride_rows(
     session: Session, ride_ids: list[int] | None, *, club_id: int, rides: RideFilter | None = None
 ) -> list[dict[str, Any]]:
+    """The export's rows: a ride's metadata, its saddle by name and the rider's weight on it, its indicators.
+
+    The columns are `io.export.METADATA_COLUMNS` and `OPTIONAL_METADATA`; ids are left out.
+    """
     rows = AnalyticsRepository(session, club_id=club_id).indicator_rows(rides=rides)
     if ride_ids is not None:
         wanted = set(ride_ids)
         rows = [r for r in rows if r["ride_id"] in wanted]
+    weights = RideRepository(session, club_id=club_id).rider_weights_kg()
     for row in rows:
-        row.pop("horse_id", None)
+        for internal in ("horse_id", "saddle_id"):  # ids: the export names the horse and the saddle
+            row.pop(internal, None)
+        row["rider_weight_kg"] = weights.get(row["ride_id"])
     return rows
 
 
@@ -370,8 +489,10 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
                   attempt: int | None = None, host: str | None = None) -> str:
     """Store a ride's new result document and make it the ride's result atomically; returns its key.
 
-    The document goes under a new key (naming the job and its attempt) first; the result row is
-    swapped to it in one transaction; only then is the previous document deleted. Until the commit
+    The document goes under a new key (naming the job and its attempt) first, its derived series (the
+    ride page's fitted curves, residuals and weighted acceleration: seconds to fit, so computed here,
+    not in a page's request) beside it; the result row is swapped to it in one transaction; only then
+    is the previous document deleted. Until the commit
     readers get the old result, and a failed commit leaves it (and removes the new document). With
     `attempt` and `host`, the swap happens only while that attempt still holds job `job_id` (its row
     locked until the commit); a stale worker's result is refused (`JobFenced`) and its document removed.
@@ -385,8 +506,11 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
 
     run = f"{job_id}-{attempt}-" if job_id is not None and attempt is not None else ""
     key = f"rides/{ride_id}/results/{run}{secrets.token_hex(8)}.json"
+    derived = derived_series(document)
     storage.write_bytes(key, json.dumps(document, allow_nan=False).encode())
     try:
+        _write_derived(storage, key, derived)
+        _write_page(storage, key, document, derived)
         with session_scope(sessions) as session:
             if job_id is not None and attempt is not None and host is not None and not JobRepository(
                     session).hold(job_id, attempt=attempt, host=host):
@@ -402,10 +526,12 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
                                      uncertain_reason=uncertain_reason_of(document))
             refresh_ride_status(session, ride_id)
     except BaseException:
-        storage.delete(key)
+        for written in (key, series_key(key), page_key(key)):
+            storage.delete(written)
         raise
     if old_key and old_key != key:
-        storage.delete(old_key)
+        for stale in (old_key, series_key(old_key), page_key(old_key)):
+            storage.delete(stale)
     return key
 
 

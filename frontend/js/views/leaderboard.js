@@ -7,14 +7,16 @@ import { fillOptions } from "../options.js";
 import { groupsOf, onFormChange } from "./analysis-common.js";
 
 // With no gait asked for, open on the gait with the most ranked rides (rides too uncertain for a decision
-// are not ranked): not on a gait whose rides are all too uncertain, as the walk's often are.
-async function mostRankedGait(form) {
+// are not ranked): not on a gait whose rides are all too uncertain, as the walk's often are. The answers
+// are kept (`answers`, by gait) so the first table needs no second request.
+async function mostRankedGait(form, answers) {
   const gaits = [...form.elements.gait.options].map((o) => o.value).filter(Boolean);
   const indicator = form.elements.indicator.value;
   const ranked = await Promise.all(gaits.map(async (gait) => {
     try {
-      const rows = groupsOf(await get("/api/leaderboard", { params: { gait, indicator } }), indicator);
-      return rows.reduce((total, row) => total + (Number(row.n) || 0), 0);
+      const answer = await get("/api/leaderboard", { params: { gait, indicator } });
+      answers.set(`${gait}|${indicator}`, answer);
+      return groupsOf(answer, indicator).reduce((total, row) => total + (Number(row.n) || 0), 0);
     } catch (error) {
       console.info(`leaderboard of ${gait} not available:`, error.message);
       return 0;
@@ -33,8 +35,9 @@ export async function mountLeaderboard(view, _params, query) {
   const section = form.closest("section");
   await fillOptions(view);
   for (const name of ["gait", "indicator", "saddle_id"]) if (query.get(name)) form.elements[name].value = query.get(name);
+  const answers = new Map();
   if (!query.get("gait")) {
-    const gait = await mostRankedGait(form);
+    const gait = await mostRankedGait(form, answers);
     if (gait) form.elements.gait.value = gait;
   }
 
@@ -48,7 +51,11 @@ export async function mountLeaderboard(view, _params, query) {
       const params = { gait, indicator };
       if (saddleId) params.saddle_id = saddleId;
       if (includeUncertain) params.include_uncertain = "true";
-      answer = await get("/api/leaderboard", { params });
+      const key = `${gait}|${indicator}`;
+      // the plain ranking of a gait mostRankedGait fetched: once, for the first table
+      const fetched = Object.keys(params).length === 2 ? answers.get(key) : undefined;
+      answer = fetched ?? await get("/api/leaderboard", { params });
+      answers.clear();
       rows = groupsOf(answer, indicator);
     } catch (error) {
       if (current()) showError(section, error);

@@ -7,6 +7,7 @@ import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import { glossaryLabel } from "../glossary.js";
 import {
   PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
+  rangeText,
 } from "../format.js";
 import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
@@ -71,12 +72,12 @@ function card(result, { key, title, note }) {
     note ? h("p", { class: "card-note" }, labelFragment(note)) : null);
 }
 
-// "95 %: 1.10–1.41" from the result's indicators_interval_95 (issue 27), or null without one.
+// "95 %: 1.10–1.41" from the result's indicators_interval_95 (issue 27), or null without one; never
+// "18.0–18.0" (format.js rangeText).
 function intervalText(result, key, digits) {
   const pair = result.indicators_interval_95?.[key];
   if (!Array.isArray(pair)) return null;
-  const end = (v, open) => (v === null || v === undefined ? open : fmt(v, digits));
-  return `95 %: ${end(pair[0], "−∞")}–${end(pair[1], "∞")}`;
+  return `95 %: ${rangeText(pair[0], pair[1], digits)}`;
 }
 
 // A ride too uncertain for a decision says so above its numbers (docs/accuracy.md).
@@ -162,12 +163,12 @@ function fitFacts(fits) {
   const facts = [];
   if (stride) {
     facts.push(["Stride frequency (95 % CI)",
-      `${fmt(stride[0], 4)} Hz (${fmt(stride[1], 4)}\u2013${fmt(stride[2], 4)})`]);
+      `${fmt(stride[0], 4)} Hz (${rangeText(stride[1], stride[2], 4)})`]);
   }
   if (speed) {
     // km/h as on the speed card: one unit per quantity on a page (the fits give m/s)
-    const kmh = speed.map((v) => fmt(v * 3.6, 3));
-    facts.push(["Average speed (95 % CI)", `${kmh[0]} km/h (${kmh[1]}\u2013${kmh[2]})`]);
+    const kmh = speed.map((v) => v * 3.6);
+    facts.push(["Average speed (95 % CI)", `${fmt(kmh[0], 3)} km/h (${rangeText(kmh[1], kmh[2], 3)})`]);
   }
   return facts.flatMap(([term, value]) => [h("dt", {}, term), h("dd", {}, value)]);
 }
@@ -181,8 +182,8 @@ function intervalNotes(view, fits) {
     const cardEl = view.querySelector(`[data-indicator="${key}"]`);
     if (cardEl) cardEl.append(h("p", { class: "card-note card-ci", dataset: { ci: key } }, text));
   };
-  if (speed) put("vel_x_avg_kmh", `95 % interval ${fmt(speed[1] * 3.6, 4)}\u2013${fmt(speed[2] * 3.6, 4)} km/h`);
-  if (stride) put("stride_frequency_hz", `95 % interval ${fmt(stride[1], 4)}\u2013${fmt(stride[2], 4)} Hz`);
+  if (speed) put("vel_x_avg_kmh", `95 % interval ${rangeText(speed[1] * 3.6, speed[2] * 3.6)} km/h`);
+  if (stride) put("stride_frequency_hz", `95 % interval ${rangeText(stride[1], stride[2], 4)} Hz`);
 }
 
 function fitRows(fits) {

@@ -73,6 +73,11 @@ class RideRepository(Repository):
             if id_ is not None:
                 repo(self.session, club_id=self.club_id).get(id_)
 
+    def rider_weights_kg(self) -> dict[int, float]:
+        """The rider's weight on each of the club's rides that records one (ride id -> kg)."""
+        stmt = self._scoped(select(Ride.id, Ride.rider_weight_kg).where(Ride.rider_weight_kg.is_not(None)))
+        return {ride_id: float(kg) for ride_id, kg in self.session.execute(stmt)}
+
     def add(self, *, club_id: int | None = None, horse_id: int, rider_id: int, gait: str, direction: str,
             rig_id: int | None = None, ridden_on: dt.date | None = None, notes: str = "",
             meta: dict | None = None, saddle_id: int | None = None, pad: str | None = None,
