@@ -33,6 +33,7 @@ from saddlescope.db.repositories import (
 )
 from saddlescope.db.session import session_scope
 from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
+from saddlescope.services.passes_view import passes_view
 from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.storage import Storage
@@ -138,6 +139,8 @@ def view_of_document(doc: dict[str, Any], result, ride_id: int, max_points: int)
         "quality_notes": quality_notes(findings),
         "quality_summary": {"severity": severity, "message": summary},
         "strides_analysed": strides_analysed(doc),
+        # a ride of several passes: strides per pass and their spread (issue 38; None for one pass)
+        "passes": passes_view(doc),
         "spectrum": weighted_series(doc, [])[1],
         "calibration_checks": calibration.get("checks") or {},
         "calibration_flags": calibration.get("flags") or [],
