@@ -728,7 +728,7 @@ class Decimation(BaseModel):
 class PassOut(BaseModel):
     """One pass of the horse in front of the cameras (a ride may hold several, issue 38)."""
 
-    start_s: float | None
+    start_s: float | None = Field(description="first frame with every marker, s (end_s: the last)")
     end_s: float | None
     strides: int | None = Field(description="whole strides the pass's fits saw (0: left out)")
     speed_m_s: float | None
@@ -766,9 +766,7 @@ class ResultOut(BaseModel):
         default_factory=list, description="the flags in plain words, most serious first")
     quality_summary: QualitySummaryOut
     strides_analysed: int | None = Field(description="whole strides in the analysed window")
-    passes: PassesOut | None = Field(
-        default=None, description="a ride of several passes in front of the cameras: strides per pass and their "
-                                  "spread (null for one pass)")
+    passes: PassesOut | None = Field(default=None, description="several passes: strides per pass, spread")
     spectrum: SpectrumOut | None
     calibration_checks: dict[str, Any]
     calibration_flags: list[Any]

@@ -16,8 +16,8 @@ from saddlescope.core.camera_model import undistort_normalized
 from saddlescope.core.findings import Finding
 
 __all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "AnalysisWindow", "Board", "Camera", "HorseMarkers",
-           "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RidePass", "RideResult", "Rig", "SaddleKinematics",
-           "SaddleRotation", "VerticalHarmonics"]
+           "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RidePass", "RideResult", "Rig",
+           "SaddleKinematics", "SaddleRotation", "VerticalHarmonics"]
 
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
 CLIP_KINDS: tuple[str, ...] = ("calibration", "plumb", "static", "motion")

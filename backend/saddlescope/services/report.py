@@ -22,8 +22,8 @@ from saddlescope.core.vibration import INDICATORS, PASSIVE_SEATED_CAVEAT
 from saddlescope.db.repositories import RideRepository
 from saddlescope.io.findings_document import findings_of
 from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, horse_history, normal_bands_before
-from saddlescope.services.quality_notes import quality_notes, quality_summary
 from saddlescope.services.passes_view import passes_view
+from saddlescope.services.quality_notes import quality_notes, quality_summary
 from saddlescope.services.result_series import strides_analysed, vertical_harmonics_of, weighted_series
 from saddlescope.services.results import analysed_result, result_document
 from saddlescope.storage import Storage

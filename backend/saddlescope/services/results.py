@@ -32,8 +32,8 @@ from saddlescope.db.repositories import (
     RideRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
 from saddlescope.services.passes_view import passes_view
+from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
 from saddlescope.services.result_series import fitted_saddle_series, strides_analysed, weighted_series
 from saddlescope.services.rides import refresh_ride_status
 from saddlescope.storage import Storage

@@ -191,7 +191,7 @@ def _pooled_indicators(analyses: Sequence[PassAnalysis], reference: int, params:
     f0 = float(np.average([h["f0_hz"] for h in harms], weights=weights))
     speed_m_s = float(np.mean([abs(a.kin.fits.average_speed_m_s) for a in analyses if a.kin is not None]))
     amplitude_y = float(np.average([h["amplitude_y_m"] for h in harms], weights=weights))
-    indicators = ride_indicators(f0_hz=f0, acc_y_amplitudes_m_s2=amps, acc_y_phases_rad=phases,
+    indicators = ride_indicators(f0_hz=f0, acc_y_amplitudes_m_s2=amps.tolist(), acc_y_phases_rad=phases.tolist(),
                                  duration_s=params.n_periods / f0, speed_kmh=speed_m_s * 3.6,
                                  amplitude_y_m=amplitude_y, stride_frequency_hz=f0)
     return {k: float(v) for k, v in indicators.items()}, VerticalHarmonics(f0_hz=f0, amplitudes_m_s2=amps,
@@ -201,13 +201,12 @@ def _pooled_indicators(analyses: Sequence[PassAnalysis], reference: int, params:
 def _ride_pass(t_s: np.ndarray, a: PassAnalysis, result: RideResult | None) -> RidePass:
     """The result's entry for one pass (``result``: its own assembled result, None when left out)."""
     start, stop = a.span
-    common = {"start_s": float(t_s[start]), "end_s": float(t_s[stop - 1]), "start_frame": int(start),
-              "frames": int(stop - start)}
+    where = (float(t_s[start]), float(t_s[stop - 1]), int(start), int(stop - start))
     if a.kin is None or result is None:
-        return RidePass(**common, strides=0, speed_m_s=None, stride_frequency_hz=None, indicators={},
+        return RidePass(*where, strides=0, speed_m_s=None, stride_frequency_hz=None, indicators={},
                         used=False, reason=a.reason)
     intervals = result.indicators_interval_95 or {}
-    return RidePass(**common, strides=a.strides, speed_m_s=abs(float(a.kin.fits.average_speed_m_s)),
+    return RidePass(*where, strides=a.strides, speed_m_s=abs(float(a.kin.fits.average_speed_m_s)),
                     stride_frequency_hz=1.0 / a.kin.period_s,
                     indicators={k: float(result.indicators[k]) for k in PASS_INDICATORS if k in result.indicators},
                     intervals_95={k: intervals[k] for k in ("acc_y_wb_rms",) if k in intervals})
@@ -221,7 +220,7 @@ def strides_words(strides: Sequence[int]) -> str:
 
 
 def _pooled_findings(results: Sequence[RideResult], reference: int, analyses: Sequence[PassAnalysis],
-                     t_s: np.ndarray, pooled_wb: float, spread: float) -> list[Finding]:
+                     t_s: np.ndarray, pooled_wb: float, spread: float, n_periods: int) -> list[Finding]:
     """The reference pass's findings, the other passes' of other kinds, and what pooling did."""
     used = [a for a in analyses if a.kin is not None]
     total = sum(a.strides for a in used)
@@ -229,9 +228,9 @@ def _pooled_findings(results: Sequence[RideResult], reference: int, analyses: Se
     for i, r in enumerate(results):
         if i != reference:
             findings += [f for f in r.findings if f.code not in {g.code for g in findings}]
-    if total >= 2:  # the pooled strides are as many as the indicators span: no pass's short crossing matters
+    if total >= n_periods:  # the pooled strides are as many as the indicators span: no pass's short crossing matters
         findings = [f for f in findings if f.code != "fit.short_crossing"]
-    wb = ", ".join(f"{a.indicators['acc_y_wb_rms']:.2f}" for a in used)
+    wb = ", ".join(f"{(a.indicators or {})['acc_y_wb_rms']:.2f}" for a in used)
     findings.append(Finding(
         "passes.pooled",
         f"{len(used)} passes in front of the cameras, {strides_words([a.strides for a in used])} ({total} in all), "
@@ -259,9 +258,10 @@ def pool_passes(analyses: Sequence[PassAnalysis], results: Sequence[RideResult],
     strides = [a.strides for a in used]
     reference = max(range(len(used)), key=lambda i: (strides[i], used[i].span[1] - used[i].span[0]))
     indicators, harmonics = _pooled_indicators(used, reference, params)
-    wb = np.array([a.indicators["acc_y_wb_rms"] for a in used])
+    wb = np.array([(a.indicators or {})["acc_y_wb_rms"] for a in used])
     spread = float(np.std(wb, ddof=1) / np.mean(wb)) if len(wb) > 1 else 0.0
-    findings = _pooled_findings(results, reference, analyses, t_s, indicators["acc_y_wb_rms"], spread)
+    findings = _pooled_findings(results, reference, analyses, t_s, indicators["acc_y_wb_rms"], spread,
+                                int(params.n_periods))
     ref = results[reference]
     quality = dict(ref.quality)
     quality["pass_pooling"] = {"used": len(used), "left_out": len(analyses) - len(used), "strides": int(sum(strides)),

@@ -138,6 +138,31 @@ def _pooled_result(analyses: list[PassAnalysis], found: RideTracks, rig: Rig, fl
     return pool_passes(analyses, results, found.tracks3d["motion"].t_s, params, with_intervals)
 
 
+def _saddle_result(found: RideTracks, rig: Rig, params: PipelineParams, meta: Mapping,
+                   flags: tuple[list[Finding], list[Finding]], assemble: Callable[..., RideResult], progress: Progress,
+                   started: tuple[float, float]) -> RideResult:
+    """The kinematics and indicators stages, and the result: of the one pass, or of several pooled.
+
+    ``flags`` are the stages' findings before and after the cameras-moved one; ``started`` the kinematics
+    stage's and the analysis's start (perf_counter s).
+    """
+    (before, after), (t0, t_start) = flags, started
+    passes = _pass_analyses(found, rig, params, meta)
+    if passes is not None:  # several passes: each analysed, their strides pooled
+        moved_flag = cameras_moved_finding(rig, found.tracks3d["motion"])
+        progress.finish("kinematics", t0)
+        progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
+        return _pooled_result(passes, found, rig, before + ([moved_flag] if moved_flag else []) + after, assemble,
+                              params)
+    kin, moved = _kinematics(found, rig, params, meta)
+    progress.finish("kinematics", t0)
+    t0 = time.perf_counter()
+    harm, indicators = kinematics_indicators(kin, params)
+    progress.finish("indicators", t0)
+    progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
+    return assemble(kin, harm, indicators, before + moved + after + list(kin.flags))
+
+
 def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
                  rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
                  input_flags: Sequence[Finding] = (), rig_report: Mapping | None = None) -> RideResult:
@@ -201,29 +226,12 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     t0 = time.perf_counter()
     disagreements = [f for kind, tr in found.tracks3d.items() if (f := disagreement_flag(kind, tr))]
     fps = float(clips.fps("motion", clips.cameras("motion")[0]))
-    passes = _pass_analyses(found, rig, params, meta)
-    if passes is not None:  # several passes: each analysed, their strides pooled
-        moved_flag = cameras_moved_finding(rig, found.tracks3d["motion"])
-        flags = clock_flags + found.flags + ([moved_flag] if moved_flag else []) + disagreements + found.plumb_findings
-        progress.finish("kinematics", t0)
-        progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
 
-        def assemble(kin, harm, indicators, pass_flags):
-            return assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps,
-                                   progress.timings_s, params, pass_flags, input_flags)
+    def assemble(kin, harm, indicators, flags):
+        return assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps, progress.timings_s,
+                               params, flags, input_flags)
 
-        result = _pooled_result(passes, found, rig, flags, assemble, params)
-        result.quality["sync"] = sync_quality(kinds, methods, synced)
-        return result
-    kin, moved = _kinematics(found, rig, params, meta)
-    flags = clock_flags + found.flags + moved + disagreements + found.plumb_findings + list(kin.flags)
-    progress.finish("kinematics", t0)
-
-    t0 = time.perf_counter()
-    harm, indicators = kinematics_indicators(kin, params)
-    progress.finish("indicators", t0)
-    progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
-    result = assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps, progress.timings_s,
-                             params, flags, input_flags)
+    result = _saddle_result(found, rig, params, meta, (clock_flags + found.flags, disagreements + found.plumb_findings),
+                            assemble, progress, (t0, t_start))
     result.quality["sync"] = sync_quality(kinds, methods, synced)
     return result
