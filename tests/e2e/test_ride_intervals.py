@@ -78,3 +78,18 @@ def test_distances_read_in_metres_or_km_as_the_report_words_them(page, dashboard
     words = "(km) => import('/js/format.js').then(m => km.map(m.distanceText))"
     km = [None, 0.0004, 0.00416, 0.04, 0.416, 1.234, 15.6, 1234.0]
     assert page.evaluate(words, km) == [distance_text(d) for d in km]
+
+
+def test_a_ride_of_several_passes_says_its_strides_per_pass_and_their_spread(page, dashboard):
+    """Issue 38: the ride page and the report say "3 passes: 2, 2 and 3 strides" and the pass-to-pass spread."""
+    doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(15))
+    doc["passes"] = [{"start_s": 1.0 + 8 * i, "end_s": 2.3 + 8 * i, "start_frame": 30 + 240 * i, "frames": 40,
+                      "strides": n, "speed_m_s": 4.2, "indicators": {"acc_y_wb_rms": 4.0 + 0.1 * i},
+                      "used": True, "reason": None} for i, n in enumerate((2, 2, 3))]
+    doc["quality"]["pass_pooling"] = {"used": 3, "left_out": 0, "strides": 7, "reference_pass": 2,
+                                      "spread_fraction": {"acc_y_wb_rms": 0.025}}
+    created = _open_ride_page(page, dashboard, doc, ridden_on="2026-05-06")
+    line = page.locator("[data-passes]").inner_text()
+    assert line.startswith("3 passes: 2, 2 and 3 strides") and "±2.5 %" in line
+    page.goto(f"/api/rides/{created['id']}/report")
+    assert "3 passes: 2, 2 and 3 strides" in page.locator("main").inner_text()

@@ -252,7 +252,7 @@ def _strides_text(doc: dict[str, Any], strides: int | None) -> str:
     passes = passes_view(doc)
     if passes is not None:
         spread = passes["wb_rms_spread_percent"]
-        return html.escape(passes["line"] + (f" (W_b spread ±{spread:.1f} %)" if spread is not None else ""))
+        return html.escape(passes["line"]) + (f" (W<sub>b</sub> spread ±{spread:.1f} %)" if spread is not None else "")
     return f"{strides} whole stride{'s' if strides != 1 else ''}" if strides else "–"
 
 
