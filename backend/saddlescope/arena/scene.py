@@ -25,6 +25,10 @@ The scene (what a test may rely on):
   the thesis rig) in ``calibration_poses`` poses through the 6.5 x 0.7 x 0.5 m volume, each held still
   for 3 frame periods and moved in 1 (truth ``calibration_board.still`` marks left frames whose
   matching frames in every camera show the same still pose).
+- A ride of several passes (``RenderOptions.passes``, ``build_scene(passes=...)``): the one motion clip
+  holds that many crossings, ``PASS_GAP_S`` out of every camera's view between two (the horse going round
+  the arena's track), same direction, the stride's phase running on, each pass's speed up to
+  ``PASS_SPEED_SHARE`` from the first's (truth ``truth.passes``: crossing instant, speed, span in view).
 - During the ride a striped pole 2-2.6 m in front of the cameras hides each marker for a few
   frames in one camera at a time; a stirrup flash, a D-ring, the white saddle pad, wall glints and
   sunlit patches are the look-alikes; noise, lighting drift, motion blur over the exposure.
