@@ -45,8 +45,11 @@ def test_three_passes_leave_the_view_between_and_keep_the_stride():
     t_k = np.array([mid - 3 * m.period_s, mid + 3 * m.period_s])
     y = m.point(m.body_points_m["saddle"], t_k, derivative=2)[:, 1]
     assert y[0] == pytest.approx(y[1], abs=1e-9)
+    # out of view the horse waits at the travel's reach: never far along the track (near a camera's image plane)
+    assert np.all(np.abs(m.origin(t)[:, 0]) <= m.pass_reach_m + 0.1)
     # the model reads back from truth.json with its passes
-    assert GaitModel.from_dict(truth["model"]).passes == m.passes
+    back = GaitModel.from_dict(truth["model"])
+    assert (back.passes, back.pass_reach_m) == (m.passes, m.pass_reach_m)
 
 
 def test_passes_outside_one_to_six_are_refused():

@@ -181,6 +181,9 @@ class GaitModel:
     # changes pass out of view, going round the arena), the stride's phase runs on. Empty: one pass at
     # ``speed_m_s`` crossing at ``t_cross_s``.
     passes: tuple[tuple[float, float], ...] = ()
+    # with passes: the travel stops this far (m) either side of the crossing, out of every view (0: never),
+    # so that a horse far along the track never projects near a converging camera's image plane
+    pass_reach_m: float = 0.0
 
     @property
     def period_s(self) -> float:
@@ -196,10 +199,12 @@ class GaitModel:
             amps, phases = self.harmonics[name]
             out[:, axis] = fourier_series(t, self.stride_hz, amps, phases, derivative=derivative)
         t_cross, speed = self._travel(t)
+        travel = speed * (t - t_cross)
+        reach = self.pass_reach_m if self.passes and self.pass_reach_m > 0 else np.inf
         if derivative == 0:
-            out[:, 0] += speed * (t - t_cross)
+            out[:, 0] += np.clip(travel, -reach, reach)
         elif derivative == 1:
-            out[:, 0] += speed
+            out[:, 0] += np.where(np.abs(travel) < reach, speed, 0.0)
         return out
 
     def _travel(self, t: np.ndarray) -> tuple[np.ndarray | float, np.ndarray | float]:
@@ -322,7 +327,8 @@ class GaitModel:
             },
             "body_points_m": {k: v.tolist() for k, v in self.body_points_m.items()},
             "skin": {k: {kk: vv.tolist() for kk, vv in v.items()} for k, v in self.skin.items()},
-            **({"passes": [{"t_cross_s": t, "speed_m_s": v} for t, v in self.passes]} if self.passes else {}),
+            **({"passes": [{"t_cross_s": t, "speed_m_s": v} for t, v in self.passes],
+                "pass_reach_m": self.pass_reach_m} if self.passes else {}),
         }
 
     @classmethod
@@ -350,6 +356,7 @@ class GaitModel:
                 },
                 horse_height_m=float(d.get("horse_height_m", 1.65)),
                 passes=tuple((float(p["t_cross_s"]), float(p["speed_m_s"])) for p in d.get("passes", ())),
+                pass_reach_m=float(d.get("pass_reach_m", 0.0)),
             )
         except (KeyError, TypeError) as exc:
             raise InputError(f"truth gait model is incomplete: missing or malformed {exc}") from None

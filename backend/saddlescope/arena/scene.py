@@ -177,14 +177,14 @@ def build_scene(
     if options.high_harmonic_share > 0:
         model = with_high_harmonic(model, options.high_harmonic, options.high_harmonic_share,
                                    np.random.default_rng(np.random.SeedSequence([int(seed), 0x4A6])))
-    pass_speeds, spacing_s = _pass_plan(seed, options.passes, views, model, m_dir)
+    pass_speeds, spacing_s, reach_m = _pass_plan(seed, options.passes, views, model, m_dir)
     timings = _clip_timings(r_time, srig.fps, calibration_poses, model.period_s, duration_s,
                             extra_s=(options.passes - 1) * spacing_s)
     tm = timings["motion"]
     usable = _usable_motion(tm, gait, model.period_s)
     model = with_t_cross(model, 0.5 * (usable[0] + usable[1]))
     if options.passes > 1:
-        model = _with_passes(model, pass_speeds, spacing_s, usable)
+        model = replace(_with_passes(model, pass_speeds, spacing_s, usable), pass_reach_m=reach_m)
     if options.variable_frame_rate:
         r_vfr = np.random.default_rng(np.random.SeedSequence([int(seed), 0x0F1A5]))
         timings = {k: variable_rate(tm_k, r_vfr) for k, tm_k in timings.items()}
@@ -325,15 +325,17 @@ def _clip_timings(r_time: np.random.Generator, fps_: float, calibration_poses: i
 
 
 def _pass_plan(seed: int, n_passes: int, views: dict[str, CameraView], model: GaitModel, m_dir: np.ndarray
-               ) -> tuple[tuple[float, ...], float]:
-    """Each pass's speed (m/s) and the time (s) from one crossing to the next, for a ride of ``n_passes``.
+               ) -> tuple[tuple[float, ...], float, float]:
+    """Each pass's speed (m/s), the time (s) from one crossing to the next and the travel's reach (m).
+
+    For a ride of ``n_passes``; the reach is how far from the crossing the horse is out of every view.
 
     The first pass keeps the horse's speed, the others differ by up to ``PASS_SPEED_SHARE`` either way;
     crossings are far enough apart that the horse (its markers plus ``_HORSE_HALF_LENGTH_M`` for the
     body, rider and look-alikes) is out of every camera's view for ``PASS_GAP_S`` between two passes.
     """
     if n_passes <= 1:
-        return (model.speed_m_s,), 0.0
+        return (model.speed_m_s,), 0.0, 0.0
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x9A55]))
     speeds = (model.speed_m_s, *(model.speed_m_s * (1 + rng.uniform(-PASS_SPEED_SHARE, PASS_SPEED_SHARE))
                                  for _ in range(n_passes - 1)))
@@ -343,7 +345,8 @@ def _pass_plan(seed: int, n_passes: int, views: dict[str, CameraView], model: Ga
     pts = (probe.marker_positions(x / probe.speed_m_s, skin=False)[:, :3]) @ m_dir.T
     seen = x[visible_in(views, pts, 1, margin_px=0.0)]
     half_view_m = float(np.max(np.abs(seen))) + _HORSE_HALF_LENGTH_M if seen.size else 15.0
-    return speeds, 2.0 * half_view_m / min(speeds) + PASS_GAP_S
+    # the horse waits at the reach, out of view, until its next pass comes (spacing: PASS_GAP_S out of view)
+    return speeds, 2.0 * half_view_m / min(speeds) + PASS_GAP_S, half_view_m
 
 
 def _with_passes(model: GaitModel, speeds: tuple[float, ...], spacing_s: float,
