@@ -226,6 +226,9 @@ def _add_synth_parser(sub) -> None:
     s.add_argument("--readout-ms", type=float, default=0.0,
                    help="a phone's rolling shutter: rows exposed one after another over this many ms (0-40)")
     s.add_argument("--crf", type=int, default=20, help="x264 compression of the clips (18 fine, 28 a phone's)")
+    s.add_argument("--passes", type=int, default=1,
+                   help="the horse passes the cameras this many times (1-6) in the one motion clip, out of view "
+                        "for a few seconds between passes")
 
 
 class _BoardKinds:
@@ -367,7 +370,8 @@ def run(args: argparse.Namespace) -> int:
                                  options=RenderOptions(skin_motion=args.skin, marker_layout=args.layout,
                                                        variable_frame_rate=args.variable_frame_rate,
                                                        flash=not args.no_flash, boot_share=args.boot,
-                                                       readout_s=args.readout_ms / 1000.0, crf=args.crf))
+                                                       readout_s=args.readout_ms / 1000.0, crf=args.crf,
+                                                       passes=args.passes))
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":

@@ -42,6 +42,12 @@ def every_flag_document(rng: np.random.Generator) -> dict:
     doc["quality"]["decision"] = {"too_uncertain": True, "reason": REASON}
     doc["indicators_interval_95"] = {key: [0.8 * doc["indicators"][key], 1.25 * doc["indicators"][key]]
                                      for key, _ in REPORT_INDICATORS if isinstance(doc["indicators"].get(key), float)}
+    # the longest passes line: six passes, one of them left out (issue 38)
+    doc["passes"] = [{"start_s": 8.0 * i, "end_s": 8.0 * i + 1.2, "start_frame": 240 * i, "frames": 36,
+                      "strides": 0 if i == 5 else 2, "speed_m_s": 4.1, "indicators": {"acc_y_wb_rms": 4.0},
+                      "used": i != 5, "reason": "too short" if i == 5 else None} for i in range(6)]
+    doc["quality"]["pass_pooling"] = {"used": 5, "left_out": 1, "strides": 10, "reference_pass": 0,
+                                      "spread_fraction": {"acc_y_wb_rms": 0.031}}
     return doc
 
 
@@ -72,6 +78,7 @@ def test_the_report_of_a_ride_with_every_flag_has_no_raw_code_in_its_text(worst_
     sheet = page.split("<main", 1)[1].split("</main>", 1)[0]
     text = re.sub(r"<[^>]+>", " ", sheet)
     assert "Too uncertain for a decision" in text and "more notes: the club sees every note on the ride page" in text
+    assert "5 passes: 2, 2, 2, 2 and 2 strides (1 more left out: too short)" in text and "spread ±3.1 %" in text
     assert not RAW_TEXT.findall(text), RAW_TEXT.findall(text)
 
 

@@ -29,7 +29,7 @@ def test_the_default_ride_has_no_nuisance_and_its_truth_says_so():
     scene = build_scene(gait="sitting_trot", seed=5, calibration_poses=2, extras=False)
     truth = build_truth(scene)["truth"]
     assert truth["nuisances"] == {"boot_share": 0.0, "readout_s": 0.0, "crf": 20, "high_harmonic": None,
-                                  "high_harmonic_share": 0.0}
+                                  "high_harmonic_share": 0.0, "passes": 1}
     assert not scene.contents["motion"].boot_covers(scene.window_times).any()
 
 

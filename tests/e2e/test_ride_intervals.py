@@ -100,3 +100,18 @@ def test_an_interval_narrower_than_its_last_digit_does_not_read_as_one_value(pag
     assert "± under 0.01" in shown
     page.goto(f"/api/rides/{created['id']}/report")
     assert page.locator('[data-ci="vel_x_avg_kmh"]').inner_text() == f"95 %: {range_text(*pairs[-1])} km/h"
+
+
+def test_a_ride_of_several_passes_says_its_strides_per_pass_and_their_spread(page, dashboard):
+    """Issue 38: the ride page and the report say "3 passes: 2, 2 and 3 strides" and the pass-to-pass spread."""
+    doc = result_document(scale=1.0, gait="canter", rng=np.random.default_rng(15))
+    doc["passes"] = [{"start_s": 1.0 + 8 * i, "end_s": 2.3 + 8 * i, "start_frame": 30 + 240 * i, "frames": 40,
+                      "strides": n, "speed_m_s": 4.2, "indicators": {"acc_y_wb_rms": 4.0 + 0.1 * i},
+                      "used": True, "reason": None} for i, n in enumerate((2, 2, 3))]
+    doc["quality"]["pass_pooling"] = {"used": 3, "left_out": 0, "strides": 7, "reference_pass": 2,
+                                      "spread_fraction": {"acc_y_wb_rms": 0.025}}
+    created = _open_ride_page(page, dashboard, doc, ridden_on="2026-05-06")
+    line = page.locator("[data-passes]").inner_text()
+    assert line.startswith("3 passes: 2, 2 and 3 strides") and "±2.5 %" in line
+    page.goto(f"/api/rides/{created['id']}/report")
+    assert "3 passes: 2, 2 and 3 strides" in page.locator("main").inner_text()

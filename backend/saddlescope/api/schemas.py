@@ -31,7 +31,7 @@ __all__ = [
     "GaitComparison", "GradeIn", "GradeOut", "GradeUpdate", "GroupStats", "HealthOut", "HorseComparisonOut",
     "HorseGroupStats", "HorseIn", "HorseOut", "HorseUpdate", "HorsesInGait", "IndicatorOut", "JobCreate",
     "JobKindOut", "JobOut", "LeaderboardEntry", "LeaderboardOut", "LoginIn", "MAX_ID", "MarkersIn", "MeOut",
-    "UncertainRide", "Name", "Offsets", "Page", "PartHealth", "Password", "QualityNoteOut",
+    "UncertainRide", "Name", "Offsets", "Page", "PartHealth", "PassOut", "PassesOut", "Password", "QualityNoteOut",
     "QualitySummaryOut", "RecordingOut", "RefId", "ResultOut", "ResultSeries",
     "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
     "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SpectrumOut", "Pad",
@@ -725,6 +725,28 @@ class Decimation(BaseModel):
     max_points: int
 
 
+class PassOut(BaseModel):
+    """One pass of the horse in front of the cameras (a ride may hold several, issue 38)."""
+
+    start_s: float | None = Field(description="first frame with every marker, s (end_s: the last)")
+    end_s: float | None
+    strides: int | None = Field(description="whole strides the pass's fits saw (0: left out)")
+    speed_m_s: float | None
+    used: bool
+    reason: str | None = Field(description="why a pass was left out")
+    acc_y_wb_rms: float | None = Field(description="the pass's own W_b r.m.s., m/s²")
+
+
+class PassesOut(BaseModel):
+    """The passes of a ride that held several: what the ride page's and the report's passes line say."""
+
+    count: int = Field(description="passes whose strides are in the ride's numbers")
+    strides: list[int] = Field(description="strides per used pass")
+    line: str = Field(description='e.g. "3 passes: 2, 2 and 3 strides"')
+    wb_rms_spread_percent: float | None = Field(description="the passes' W_b r.m.s. spread (std over mean), %")
+    passes: list[PassOut]
+
+
 class ResultOut(BaseModel):
     """A ride's result as the dashboard shows it (built by `saddlescope.services.results.view_of_document`)."""
 
@@ -744,6 +766,7 @@ class ResultOut(BaseModel):
         default_factory=list, description="the flags in plain words, most serious first")
     quality_summary: QualitySummaryOut
     strides_analysed: int | None = Field(description="whole strides in the analysed window")
+    passes: PassesOut | None = Field(default=None, description="several passes: strides per pass, spread")
     spectrum: SpectrumOut | None
     calibration_checks: dict[str, Any]
     calibration_flags: list[Any]

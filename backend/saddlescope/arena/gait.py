@@ -176,6 +176,14 @@ class GaitModel:
     camera_side: float
     skin: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     horse_height_m: float = 1.65
+    # a ride of several passes in front of the cameras (issue 38): per pass (t_cross_s, speed_m_s), in
+    # time order; the forward position is that of the pass whose crossing is nearest in time (the horse
+    # changes pass out of view, going round the arena), the stride's phase runs on. Empty: one pass at
+    # ``speed_m_s`` crossing at ``t_cross_s``.
+    passes: tuple[tuple[float, float], ...] = ()
+    # with passes: the travel stops this far (m) either side of the crossing, out of every view (0: never),
+    # so that a horse far along the track never projects near a converging camera's image plane
+    pass_reach_m: float = 0.0
 
     @property
     def period_s(self) -> float:
@@ -190,11 +198,24 @@ class GaitModel:
         for axis, name in enumerate(("x", "y", "z")):
             amps, phases = self.harmonics[name]
             out[:, axis] = fourier_series(t, self.stride_hz, amps, phases, derivative=derivative)
+        t_cross, speed = self._travel(t)
+        travel = speed * (t - t_cross)
+        reach = self.pass_reach_m if self.passes and self.pass_reach_m > 0 else np.inf
         if derivative == 0:
-            out[:, 0] += self.speed_m_s * (t - self.t_cross_s)
+            out[:, 0] += np.clip(travel, -reach, reach)
         elif derivative == 1:
-            out[:, 0] += self.speed_m_s
+            out[:, 0] += np.where(np.abs(travel) < reach, speed, 0.0)
         return out
+
+    def _travel(self, t: np.ndarray) -> tuple[np.ndarray | float, np.ndarray | float]:
+        """The crossing instant (s) and forward speed (m/s) in force at each of ``t`` (T,)."""
+        if not self.passes:
+            return self.t_cross_s, self.speed_m_s
+        crossings = np.array([p[0] for p in self.passes])
+        speeds = np.array([p[1] for p in self.passes])
+        # the pass in force changes halfway between two crossings (out of every camera's view)
+        idx = np.searchsorted(0.5 * (crossings[1:] + crossings[:-1]), t)
+        return crossings[idx], speeds[idx]
 
     def angles(self, t_s: np.ndarray, *, derivative: int = 0) -> np.ndarray:
         """Roll, pitch, yaw (rad) or their derivatives: (T,) -> (T, 3)."""
@@ -306,6 +327,8 @@ class GaitModel:
             },
             "body_points_m": {k: v.tolist() for k, v in self.body_points_m.items()},
             "skin": {k: {kk: vv.tolist() for kk, vv in v.items()} for k, v in self.skin.items()},
+            **({"passes": [{"t_cross_s": t, "speed_m_s": v} for t, v in self.passes],
+                "pass_reach_m": self.pass_reach_m} if self.passes else {}),
         }
 
     @classmethod
@@ -332,6 +355,8 @@ class GaitModel:
                     for k, v in d.get("skin", {}).items()
                 },
                 horse_height_m=float(d.get("horse_height_m", 1.65)),
+                passes=tuple((float(p["t_cross_s"]), float(p["speed_m_s"])) for p in d.get("passes", ())),
+                pass_reach_m=float(d.get("pass_reach_m", 0.0)),
             )
         except (KeyError, TypeError) as exc:
             raise InputError(f"truth gait model is incomplete: missing or malformed {exc}") from None

@@ -81,12 +81,16 @@ class RenderOptions:
     # energy at its 6th harmonic (8-9 Hz, where W_b weighs most)
     high_harmonic: int = 6
     high_harmonic_share: float = 0.0
+    # passes of the horse in front of the cameras in the one motion clip (a club's ride round the arena's
+    # track): it crosses the view, leaves it for a few seconds and comes back, same direction, its stride
+    # running on and its speed a little different each time (1: the one crossing of the demo ride)
+    passes: int = 1
 
     def nuisances(self) -> dict:
         """The field nuisances this ride was filmed with (for its truth.json)."""
         return {"boot_share": self.boot_share, "readout_s": self.readout_s, "crf": self.crf,
                 "high_harmonic": self.high_harmonic if self.high_harmonic_share > 0 else None,
-                "high_harmonic_share": self.high_harmonic_share}
+                "high_harmonic_share": self.high_harmonic_share, "passes": self.passes}
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,10 @@ The scene (what a test may rely on):
   the thesis rig) in ``calibration_poses`` poses through the 6.5 x 0.7 x 0.5 m volume, each held still
   for 3 frame periods and moved in 1 (truth ``calibration_board.still`` marks left frames whose
   matching frames in every camera show the same still pose).
+- A ride of several passes (``RenderOptions.passes``, ``build_scene(passes=...)``): the one motion clip
+  holds that many crossings, ``PASS_GAP_S`` out of every camera's view between two (the horse going round
+  the arena's track), same direction, the stride's phase running on, each pass's speed up to
+  ``PASS_SPEED_SHARE`` from the first's (truth ``truth.passes``: crossing instant, speed, span in view).
 - During the ride a striped pole 2-2.6 m in front of the cameras hides each marker for a few
   frames in one camera at a time; a stirrup flash, a D-ring, the white saddle pad, wall glints and
   sunlit patches are the look-alikes; noise, lighting drift, motion blur over the exposure.
@@ -33,7 +37,7 @@ The scene (what a test may rely on):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -62,10 +66,16 @@ from saddlescope.arena.timing import ClipTiming, clip_timing, variable_rate
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import GAITS
 
-__all__ = ["HOLD_FRAMES", "MIN_MOTION_S", "MOVE_FRAMES", "Scene", "build_scene"]
+__all__ = ["HOLD_FRAMES", "MAX_PASSES", "MIN_MOTION_S", "MOVE_FRAMES", "PASS_GAP_S", "Scene", "build_scene"]
 
 HOLD_FRAMES, MOVE_FRAMES = 3, 1  # calibration board: still for 3 frame periods, moved in 1
 MIN_MOTION_S = 3.5
+# rides of several passes (RenderOptions.passes): at most this many; the later passes' speeds differ from the
+# first's by up to this share; the horse is out of every view this long between two passes
+MAX_PASSES = 6
+PASS_SPEED_SHARE = 0.05
+PASS_GAP_S = 2.0
+_HORSE_HALF_LENGTH_M = 1.8  # from the markers to the horse's (or the rider's) furthest part, with margin
 
 
 @dataclass
@@ -138,6 +148,7 @@ def build_scene(
     options: RenderOptions | None = None,
     board_band: float | None = None,
     speed_range_m_s: tuple[float, float] | None = None,
+    passes: int | None = None,
 ) -> Scene:
     """Draw one synthetic ride setup, deterministic in all arguments.
 
@@ -148,10 +159,14 @@ def build_scene(
     board_band (0-1] carries the calibration board only through that central share of the volume
     along the track, and not to the views' edges (default: the whole volume, and the edges on the
     wide rigs); speed_range_m_s (lo, hi) overrides the gait's speed band (e.g. a canter at 4-6 m/s).
+    passes (1-6) overrides ``options.passes``: the horse crosses the view that many times in the one
+    motion clip (:func:`_with_passes`); the analysis window of the truth is in the first pass.
     """
     _check_arguments(gait, calibration_poses, duration_s)
     _check_scene_options(board_band, speed_range_m_s)
     options = options or RenderOptions()
+    if passes is not None:
+        options = replace(options, passes=int(passes))
     _check_nuisances(options)
     ss = np.random.SeedSequence([int(seed), 0x5ADD1E])
     r_rig, r_gait, r_meta, r_time, r_board, r_bg, r_place, r_look = (np.random.default_rng(s) for s in ss.spawn(8))
@@ -162,10 +177,14 @@ def build_scene(
     if options.high_harmonic_share > 0:
         model = with_high_harmonic(model, options.high_harmonic, options.high_harmonic_share,
                                    np.random.default_rng(np.random.SeedSequence([int(seed), 0x4A6])))
-    timings = _clip_timings(r_time, srig.fps, calibration_poses, model.period_s, duration_s)
+    pass_speeds, spacing_s, reach_m = _pass_plan(seed, options.passes, views, model, m_dir)
+    timings = _clip_timings(r_time, srig.fps, calibration_poses, model.period_s, duration_s,
+                            extra_s=(options.passes - 1) * spacing_s)
     tm = timings["motion"]
     usable = _usable_motion(tm, gait, model.period_s)
     model = with_t_cross(model, 0.5 * (usable[0] + usable[1]))
+    if options.passes > 1:
+        model = replace(_with_passes(model, pass_speeds, spacing_s, usable), pass_reach_m=reach_m)
     if options.variable_frame_rate:
         r_vfr = np.random.default_rng(np.random.SeedSequence([int(seed), 0x0F1A5]))
         timings = {k: variable_rate(tm_k, r_vfr) for k, tm_k in timings.items()}
@@ -253,6 +272,8 @@ def _check_nuisances(options: RenderOptions) -> None:
         raise InputError(f"rolling_bands must be 1-512, got {options.rolling_bands}")
     if not 0 <= int(options.crf) <= 51:
         raise InputError(f"crf must be 0-51, got {options.crf}")
+    if not 1 <= int(options.passes) <= MAX_PASSES:
+        raise InputError(f"passes must be 1-{MAX_PASSES}, got {options.passes}")
     if not 5 <= int(options.high_harmonic) <= 12 or not 0.0 <= float(options.high_harmonic_share) <= 1.0:
         raise InputError("high_harmonic must be 5-12 and high_harmonic_share 0-1, got "
                          f"{options.high_harmonic} and {options.high_harmonic_share}")
@@ -280,8 +301,11 @@ def _draw_horse(gait: str, r_meta: np.random.Generator, r_gait: np.random.Genera
 
 
 def _clip_timings(r_time: np.random.Generator, fps_: float, calibration_poses: int, period: float,
-                  duration_s: float | None) -> dict[str, ClipTiming]:
-    """Timings of the four clips of the bundle (calibration, plumb, static, motion; drawn in that order)."""
+                  duration_s: float | None, extra_s: float = 0.0) -> dict[str, ClipTiming]:
+    """Timings of the four clips of the bundle (calibration, plumb, static, motion; drawn in that order).
+
+    ``extra_s`` lengthens the motion clip (the later passes of a ride of several, unless ``duration_s``).
+    """
     timings = {
         "calibration": clip_timing(
             "calibration", r_time, fps_, calibration_poses * (HOLD_FRAMES + MOVE_FRAMES) / fps_ + 0.1
@@ -293,11 +317,52 @@ def _clip_timings(r_time: np.random.Generator, fps_: float, calibration_poses: i
         "motion",
         r_time,
         fps_,
-        2 * period + 1.0,
-        min_total_s=MIN_MOTION_S,
+        2 * period + 1.0 + extra_s,
+        min_total_s=MIN_MOTION_S + extra_s,
         total_s=None if duration_s is None else float(duration_s),
     )
     return timings
+
+
+def _pass_plan(seed: int, n_passes: int, views: dict[str, CameraView], model: GaitModel, m_dir: np.ndarray
+               ) -> tuple[tuple[float, ...], float, float]:
+    """Each pass's speed (m/s), the time (s) from one crossing to the next and the travel's reach (m).
+
+    For a ride of ``n_passes``; the reach is how far from the crossing the horse is out of every view.
+
+    The first pass keeps the horse's speed, the others differ by up to ``PASS_SPEED_SHARE`` either way;
+    crossings are far enough apart that the horse (its markers plus ``_HORSE_HALF_LENGTH_M`` for the
+    body, rider and look-alikes) is out of every camera's view for ``PASS_GAP_S`` between two passes.
+    """
+    if n_passes <= 1:
+        return (model.speed_m_s,), 0.0, 0.0
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x9A55]))
+    speeds = (model.speed_m_s, *(model.speed_m_s * (1 + rng.uniform(-PASS_SPEED_SHARE, PASS_SPEED_SHARE))
+                                 for _ in range(n_passes - 1)))
+    # where along the track any camera sees a marker: the horse placed every 5 cm from -15 to 15 m
+    probe = with_t_cross(model, 0.0)
+    x = np.arange(-15.0, 15.0, 0.05)
+    pts = (probe.marker_positions(x / probe.speed_m_s, skin=False)[:, :3]) @ m_dir.T
+    seen = x[visible_in(views, pts, 1, margin_px=0.0)]
+    half_view_m = float(np.max(np.abs(seen))) + _HORSE_HALF_LENGTH_M if seen.size else 15.0
+    # the horse waits at the reach, out of view, until its next pass comes (spacing: PASS_GAP_S out of view)
+    return speeds, 2.0 * half_view_m / min(speeds) + PASS_GAP_S, half_view_m
+
+
+def _with_passes(model: GaitModel, speeds: tuple[float, ...], spacing_s: float,
+                 usable: tuple[float, float]) -> GaitModel:
+    """The horse crossing ``len(speeds)`` times, ``spacing_s`` apart, the first where the one pass would be.
+
+    The first crossing stays where a one-pass ride has it (the middle of the first ``usable`` span less the
+    later passes' time), so the analysis window and the pole fall in the first pass.
+    """
+    n = len(speeds)
+    first = 0.5 * (usable[0] + usable[1]) - 0.5 * (n - 1) * spacing_s
+    if first < usable[0]:
+        raise InputError(f"the motion clip is too short for {n} passes {spacing_s:.1f} s apart; leave its length "
+                         "to the arena")
+    crossings = first + spacing_s * np.arange(n)
+    return replace(with_t_cross(model, first), passes=tuple(zip(crossings.tolist(), speeds, strict=True)))
 
 
 def _usable_motion(tm: ClipTiming, gait: str, period: float) -> tuple[float, float]:

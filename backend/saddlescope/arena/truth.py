@@ -108,7 +108,7 @@ def _indicators(scene: Scene, harmonics: dict[str, tuple[np.ndarray, np.ndarray]
         acc_y_amplitudes_m_s2=harmonics["y"][0],
         acc_y_phases_rad=harmonics["y"][1],
         duration_s=scene.window_duration_s,
-        speed_kmh=scene.model.speed_m_s * 3.6,
+        speed_kmh=_ride_speed_m_s(scene.model) * 3.6,
         amplitude_y_m=pp_m,
         stride_frequency_hz=f0,
         acc_x=axis("x"),
@@ -213,8 +213,8 @@ def _truth_section(scene: Scene, harm: dict[str, tuple[np.ndarray, np.ndarray]],
         "saddle_acc_harmonics": {
             name: {"f0_hz": model.stride_hz, "amplitudes_m_s2": a, "phases_rad": p} for name, (a, p) in harm.items()
         },
-        "speed_kmh": model.speed_m_s * 3.6,
-        "speed_m_s": model.speed_m_s,
+        "speed_kmh": _ride_speed_m_s(model) * 3.6,
+        "speed_m_s": _ride_speed_m_s(model),
         "stride_frequency_hz": model.stride_hz,
         "amplitude_y_m": pp,
         "direction": scene.direction,
@@ -229,6 +229,8 @@ def _truth_section(scene: Scene, harm: dict[str, tuple[np.ndarray, np.ndarray]],
         },
         "calibration_board": _board_truth(scene, "calibration"),
     }
+    if len(model.passes) > 1:
+        truth_sec["passes"] = _passes_truth(scene)
     truth_sec["nuisances"] = scene.options.nuisances()
     if scene.options.boot_share > 0:
         t_win = scene.window_times
@@ -245,6 +247,34 @@ def _truth_section(scene: Scene, harm: dict[str, tuple[np.ndarray, np.ndarray]],
     if "board_distance" in scene.timings:
         truth_sec["board_distance"] = _distance_truth(scene)
     return truth_sec
+
+
+def _ride_speed_m_s(model: GaitModel) -> float:
+    """The ride's average speed (m/s) in front of the cameras: the mean of its passes' (each pass counts once)."""
+    return float(np.mean([v for _, v in model.passes])) if model.passes else model.speed_m_s
+
+
+def _passes_truth(scene: Scene) -> list[dict]:
+    """Per pass of a ride of several: its crossing instant, speed, and the span its markers are in view.
+
+    In view: seen by the rig's ``window_min_views`` cameras (left-clip seconds, first and last frame). The
+    saddle's motion (and so every indicator but the speed) is the same in every pass: the stride runs on.
+    """
+    from saddlescope.arena.placement import visible_in
+
+    t = scene.timings["motion"].left_times
+    pts = scene.model.marker_positions(t, skin=False)[:, :3] @ scene.m_dir.T
+    seen = visible_in(scene.views, pts, scene.rig.window_min_views)
+    crossings = np.array([c for c, _ in scene.model.passes])
+    owner = np.searchsorted(0.5 * (crossings[1:] + crossings[:-1]), t)
+    out = []
+    for i, (t_cross, speed) in enumerate(scene.model.passes):
+        in_view = t[seen & (owner == i)]
+        out.append({"t_cross_s": t_cross, "speed_m_s": speed, "speed_kmh": speed * 3.6,
+                    "in_view_s": [float(in_view[0]), float(in_view[-1])] if in_view.size else None,
+                    "strides_in_view": (float((in_view[-1] - in_view[0]) * scene.model.stride_hz)
+                                        if in_view.size else 0.0)})
+    return out
 
 
 def _markers_3d(scene: Scene) -> tuple[dict[str, np.ndarray], dict[str, list[str]]]:

@@ -530,11 +530,15 @@ def accuracy_section(tmp: Path, quick: bool) -> dict:
     """Rendered rides against the arena's exact answers, with skin motion and with markers fixed to the saddle body.
 
     The fixed markers show what the cameras and the stages cost without any skin motion (the floor is then zero).
-    Skipped (no keys) in quick mode.
+    ``passes_interval_ratio``: a three-pass canter's W_b interval over the same horse's one pass (issue 38,
+    :mod:`saddlescope.bench.passes`). Skipped (no keys) in quick mode.
     """
+    from saddlescope.bench.passes import passes_interval_ratio
+
     if quick:
         return {}
     gaits = ("walk", "sitting_trot", "rising_trot", "canter")
     return {"accuracy_thesis": accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,)),
             "accuracy_thesis_rigid_markers": accuracy(tmp, rig="thesis", gaits=gaits, seeds=(1,),
-                                                      skin_motion="none")}
+                                                      skin_motion="none"),
+            "passes_interval_ratio": passes_interval_ratio(tmp)}

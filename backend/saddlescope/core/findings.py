@@ -144,6 +144,11 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
      "One marker's curve did not follow the stride rhythm: check its residuals below and that it was tracked cleanly."),
     ("fit.short_crossing", "check", "kinematics",
      "The cameras saw too few strides together: film a longer straight line in all cameras' view."),
+    # rides of several passes in front of the cameras (core/pipeline/passes.py, issue 38)
+    ("passes.pooled", "ok", "kinematics",
+     "The strides of every pass were pooled into the numbers; nothing to do."),
+    ("passes.dropped", "check", "kinematics",
+     "A pass too short to measure a stride was left out: ride each pass straight through the whole view."),
     ("fit.no_fundamental", "check", "kinematics",
      "The stride rhythm came from the stride period only: film at least two clean strides at an even pace."),
     # rotation of the back (core/kinematics/rigid_body.py)

@@ -16,7 +16,8 @@ from saddlescope.core.camera_model import undistort_normalized
 from saddlescope.core.findings import Finding
 
 __all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "WAND_CLIP_KINDS", "AnalysisWindow", "Board", "Camera",
-           "HorseMarkers", "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RideResult", "Rig",
+           "HorseMarkers", "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RidePass", "RideResult",
+           "Rig",
            "SaddleKinematics", "SaddleRotation", "VerticalHarmonics"]
 
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
@@ -235,6 +236,28 @@ class AnalysisWindow:
 
 
 @dataclass(frozen=True)
+class RidePass:
+    """One pass of the horse in front of the cameras (a ride may hold several, issue 38).
+
+    ``start_s``/``end_s`` and ``start_frame``/``frames``: where its markers were tracked together on the
+    motion clip's clock; ``strides`` the whole strides its fits saw; ``indicators`` its own (the ride's
+    pool every used pass's strides); ``used`` False for a pass left out, with ``reason``.
+    """
+
+    start_s: float
+    end_s: float
+    start_frame: int
+    frames: int
+    strides: int
+    speed_m_s: float | None
+    stride_frequency_hz: float | None
+    indicators: dict[str, float]
+    intervals_95: dict[str, tuple[float, float]] = field(default_factory=dict)
+    used: bool = True
+    reason: str | None = None
+
+
+@dataclass(frozen=True)
 class SaddleKinematics:
     """The hidden saddle point S in the motion reference frame, over the window (thesis 6.3-6.4).
 
@@ -343,6 +366,10 @@ class RideResult:
     # 95 % interval (low, high) per indicator (core.vibration.intervals); None on results made before them
     indicators_interval_95: dict[str, tuple[float, float]] | None = None
     findings: tuple[Finding, ...] = ()
+    # the passes in front of the cameras when the ride held several (issue 38); empty for one pass, whose
+    # numbers are the window's. With several, the indicators and intervals pool every used pass's strides
+    # and the series (saddle, angular, markers, window) are the pass with the most strides.
+    passes: tuple[RidePass, ...] = ()
 
     @property
     def flags(self) -> list[str]:

@@ -18,6 +18,7 @@ from saddlescope.core.types import (
     AnalysisWindow,
     HorseMarkers,
     MotionFrameSummary,
+    RidePass,
     RideResult,
     SaddleKinematics,
     SaddleRotation,
@@ -106,7 +107,34 @@ def result_to_document(result: RideResult) -> dict[str, Any]:
     }
     if doc["indicators_interval_95"] is None:  # a result made before intervals: the key stays out
         del doc["indicators_interval_95"]
+    if result.passes:  # a ride of several passes (issue 38); one pass: the key stays out
+        doc["passes"] = [_pass_document(p) for p in result.passes]
     return _nan_to_none(doc)
+
+
+def _pass_document(p: RidePass) -> dict:
+    """One pass of the ride as the document's ``passes`` entry."""
+    return {"start_s": p.start_s, "end_s": p.end_s, "start_frame": p.start_frame, "frames": p.frames,
+            "strides": p.strides, "speed_m_s": p.speed_m_s, "stride_frequency_hz": p.stride_frequency_hz,
+            "indicators": dict(p.indicators),
+            "indicators_interval_95": {k: [float(lo), float(hi)] for k, (lo, hi) in p.intervals_95.items()},
+            "used": p.used, "reason": p.reason}
+
+
+def _passes(doc_passes: Any) -> tuple[RidePass, ...]:
+    """The document's ``passes`` (absent: one pass, an empty tuple)."""
+    if not isinstance(doc_passes, list):
+        return ()
+    return tuple(RidePass(start_s=float(p["start_s"]), end_s=float(p["end_s"]), start_frame=int(p["start_frame"]),
+                          frames=int(p["frames"]), strides=int(p["strides"]),
+                          speed_m_s=None if p.get("speed_m_s") is None else float(p["speed_m_s"]),
+                          stride_frequency_hz=(None if p.get("stride_frequency_hz") is None
+                                               else float(p["stride_frequency_hz"])),
+                          indicators={k: _number(v) for k, v in (p.get("indicators") or {}).items()},
+                          intervals_95={k: (float(lo), float(hi))
+                                        for k, (lo, hi) in (p.get("indicators_interval_95") or {}).items()},
+                          used=bool(p.get("used", True)), reason=p.get("reason"))
+                 for p in doc_passes)
 
 
 def _array(values: Any) -> np.ndarray:
@@ -164,6 +192,7 @@ def result_from_document(doc: Mapping[str, Any]) -> RideResult:
         board_coverage_fraction=cal.get("board_coverage_fraction"),
         indicators_interval_95=_intervals(doc.get("indicators_interval_95")),
         findings=tuple(findings_of(doc.get("quality"))),
+        passes=_passes(doc.get("passes")),
     )
 
 

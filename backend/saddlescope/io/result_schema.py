@@ -76,6 +76,14 @@ _OFFSETS = {"type": "object", "required": list(CAMERA_ROLES),
             "properties": {role: _NUMBER for role in CAMERA_ROLES},
             "additionalProperties": False}
 
+_PASS = {"type": "object", "required": ["start_s", "end_s", "start_frame", "frames", "strides", "used"],
+         "properties": {"start_s": _NUMBER, "end_s": _NUMBER, "start_frame": {"type": "integer", "minimum": 0},
+                        "frames": {"type": "integer", "minimum": 1}, "strides": {"type": "integer", "minimum": 0},
+                        "speed_m_s": {"type": ["number", "null"]}, "stride_frequency_hz": {"type": ["number", "null"]},
+                        "indicators": {"type": "object", "additionalProperties": _NUMBER},
+                        "indicators_interval_95": {"type": "object", "additionalProperties": _vector(2)},
+                        "used": {"type": "boolean"}, "reason": {"type": ["string", "null"]}}}
+
 RESULT_SCHEMA: dict[str, Any] = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
     "$id": "https://saddlescope.example/schemas/result-1.json",
@@ -123,6 +131,8 @@ RESULT_SCHEMA: dict[str, Any] = {
                                    "additionalProperties": {"type": "array", "items": {"type": ["number", "null"]},
                                                             "minItems": 2, "maxItems": 2}},
         "quality": {"type": "object", "properties": {"flags": _FLAGS, "findings": _FINDINGS}},
+        # the passes in front of the cameras of a ride that held several (issue 38; absent for one pass)
+        "passes": {"type": "array", "items": _PASS},
         "timings_s": {"type": "object", "required": ["total"],
                       "additionalProperties": _NON_NEGATIVE},
     },

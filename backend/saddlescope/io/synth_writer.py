@@ -36,6 +36,7 @@ def write_ride_bundle(
     options: RenderOptions | None = None,
     board_band: float | None = None,
     speed_range_m_s: tuple[float, float] | None = None,
+    passes: int | None = None,
     on_progress=None,
     calibration: str = "board",
     wand_s: float = 24.0,
@@ -50,7 +51,8 @@ def write_ride_bundle(
     tests; ``board_band`` and ``speed_range_m_s`` are :func:`~saddlescope.arena.build_scene`'s (a
     board carried only through the middle of the volume, a faster canter); ``on_progress(fraction,
     stage)`` is called after each clip. ``crf`` overrides the compression the ride's options ask for
-    (``RenderOptions.crf``, 20 by default; 28 is a phone's).
+    (``RenderOptions.crf``, 20 by default; 28 is a phone's). ``passes`` (1-6, default the options', 1)
+    films a ride of that many passes in front of the cameras in the one motion clip (issue 38).
 
     ``calibration="wand"`` writes a wand calibration instead of the board walk (issue 35): ``wand/`` (a
     wand of ``wand_length_m`` waved through the volume for ``wand_s`` seconds, after a sync flash) and
@@ -74,6 +76,7 @@ def write_ride_bundle(
         options=options,
         board_band=board_band,
         speed_range_m_s=speed_range_m_s,
+        passes=passes,
     )
     out_dir.mkdir(parents=True, exist_ok=True)
     crf = scene.options.crf if crf is None else int(crf)

@@ -22,6 +22,7 @@ from saddlescope.core.vibration import INDICATORS, PASSIVE_SEATED_CAVEAT
 from saddlescope.db.repositories import RideRepository
 from saddlescope.io.findings_document import findings_of
 from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, horse_history, normal_bands_before
+from saddlescope.services.passes_view import passes_view
 from saddlescope.services.quality_notes import quality_notes, quality_summary
 from saddlescope.services.result_series import strides_analysed, vertical_harmonics_of, weighted_series
 from saddlescope.services.results import analysed_result, result_document
@@ -284,6 +285,15 @@ def _quality_rows(doc: dict[str, Any]) -> tuple[str, str]:
     return "\n".join(rows), summary
 
 
+def _strides_text(doc: dict[str, Any], strides: int | None) -> str:
+    """The "Analysed" cell: the window's whole strides, or a ride of several passes' strides per pass and spread."""
+    passes = passes_view(doc)
+    if passes is not None:
+        spread = passes["wb_rms_spread_percent"]
+        return html.escape(passes["line"]) + (f" (W<sub>b</sub> spread ±{spread:.1f} %)" if spread is not None else "")
+    return f"{strides} whole stride{'s' if strides != 1 else ''}" if strides else "–"
+
+
 def member_links(ride_id: int) -> str:
     """The report's links above the sheet for a signed-in member: back to the ride page, the PDF."""
     return (f'<a href="/#/rides/{ride_id}">&larr; Back to the ride</a> &middot; '
@@ -315,7 +325,7 @@ def ride_report_html(session: Session, storage: Storage, ride_id: int, *, club_i
         rider=esc(ride.rider.name), gait=esc(gait),
         direction="clockwise" if ride.direction == "CW" else "counter-clockwise",
         date=esc(ride.ridden_on.isoformat() if ride.ridden_on else "date not given"),
-        strides=f"{strides} whole stride{'s' if strides != 1 else ''}" if strides else "–",
+        strides=_strides_text(doc, strides),
         stride_text=f"{_number(period)} s" if isinstance(period, int | float) else "–",
         indicator_rows=indicator_rows, decision=_decision_html(doc), chart=chart, chart_caption=esc(caption),
         earlier=f"{earlier} earlier analysed ride{'' if earlier == 1 else 's'}",

@@ -32,6 +32,7 @@ from saddlescope.db.repositories import (
     RideRepository,
 )
 from saddlescope.db.session import session_scope
+from saddlescope.services.passes_view import passes_view
 from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
 from saddlescope.services.result_series import DERIVED_FORMAT, derived_series, strides_analysed
 from saddlescope.services.rides import refresh_ride_status
@@ -167,6 +168,8 @@ def view_of_page(page: dict[str, Any], result, ride_id: int) -> dict[str, Any]:
         "quality_notes": quality_notes(findings),
         "quality_summary": {"severity": severity, "message": summary},
         "strides_analysed": strides_analysed(doc),
+        # a ride of several passes: strides per pass and their spread (issue 38; None for one pass)
+        "passes": passes_view(doc),
         "spectrum": page["spectrum"],
         "calibration_checks": calibration.get("checks") or {},
         "calibration_flags": calibration.get("flags") or [],

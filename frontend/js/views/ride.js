@@ -290,10 +290,22 @@ function attachGradeForm(view, ride) {
   });
 }
 
+// A ride of several passes says how many strides each gave and how far the passes' W_b r.m.s. spread
+// (issue 38: "3 passes: 2, 2 and 3 strides"); nothing for one pass.
+function passesNote(result) {
+  const passes = result.passes;
+  if (!passes?.line) return null;
+  const spread = Number.isFinite(passes.wb_rms_spread_percent)
+    ? `; pass-to-pass spread of the W_b r.m.s. ±${passes.wb_rms_spread_percent.toFixed(1)} %`
+    : "";
+  return h("p", { class: "card-note", dataset: { passes: String(passes.count) } },
+    `${passes.line}, pooled into these numbers${spread}.`);
+}
+
 function showResult(view, ride, result) {
   const box = view.querySelector("[data-result]");
   view.querySelector("[data-indicator-cards]").replaceChildren(
-    ...[decisionNote(result)].filter(Boolean),
+    ...[decisionNote(result), passesNote(result)].filter(Boolean),
     h("div", { class: "card-group" }, ...MAIN_CARDS.map((c) => card(result, c))),
     h("div", { class: "card-group secondary" }, ...RIDE_CARDS.map((c) => card(result, c))));
   view.querySelector("[data-exposure-table] tbody").replaceChildren(...exposureRows(result));

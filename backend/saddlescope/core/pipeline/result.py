@@ -144,14 +144,16 @@ def assemble_result(meta: Mapping, rig: Rig, calib_report: Mapping, offsets: Map
     return with_intervals(result)
 
 
-def with_intervals(result: RideResult) -> RideResult:
+def with_intervals(result: RideResult, *, sources: Mapping | None = None) -> RideResult:
     """``result`` with its indicators' 95 % intervals, and the too-uncertain verdict in its quality.
 
     The verdict (:func:`~saddlescope.core.vibration.intervals.decision_uncertainty`) joins the findings
     (``indicators.too_uncertain``) and ``quality["decision"]``; the noise model's parts go to
-    ``quality["interval_sources"]``.
+    ``quality["interval_sources"]``. ``sources`` replaces the noise model read from the result (a ride of
+    several passes pools its passes', :func:`~saddlescope.core.pipeline.passes.pooled_sources`).
     """
-    sources = interval_sources(result, depth_anisotropy=result.quality.get("depth_anisotropy"))
+    if sources is None:
+        sources = interval_sources(result, depth_anisotropy=result.quality.get("depth_anisotropy"))
     intervals = ride_intervals(result, sources=sources)
     reason = decision_uncertainty(result.indicators, intervals, sources)
     quality = dict(result.quality)

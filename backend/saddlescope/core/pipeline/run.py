@@ -25,7 +25,8 @@ from saddlescope.core.pipeline.detection import (
     disagreement_flag,
 )
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
-from saddlescope.core.pipeline.result import assemble_result
+from saddlescope.core.pipeline.passes import PassAnalysis, analyse_passes, find_passes, pool_passes
+from saddlescope.core.pipeline.result import assemble_result, with_intervals
 from saddlescope.core.pipeline.setup import (
     calibrate_from_clips,
     frame_clocks,
@@ -140,6 +141,59 @@ def _kinematics(found: RideTracks, rig: Rig, params: PipelineParams, meta: Mappi
     return kin, [moved] if moved is not None else []
 
 
+def _pass_analyses(found: RideTracks, rig: Rig, params: PipelineParams, meta: Mapping) -> list[PassAnalysis] | None:
+    """Each pass of a ride whose motion clip holds several (issue 38); None for one pass.
+
+    None too when fewer than two passes can be analysed: the clip is then analysed as a whole, as a
+    one-pass ride always is (its numbers unchanged).
+    """
+    motion = found.tracks3d["motion"]
+    spans = find_passes(motion.t_s, motion.xyz_mm)
+    if len(spans) < 2:
+        return None
+    depth = depth_uncertainty(rig, motion)
+
+    def analyse(tracks):
+        return saddle_kinematics(tracks, found.tracks3d["static"], found.tracks3d.get("plumb"), params,
+                                 horse_idx=found.horse_idx, saddle_idx=found.saddle_idx, gait=meta.get("gait"),
+                                 depth=depth, down_hint=found.cameras_down)
+
+    analyses = analyse_passes(motion, spans, analyse, params)
+    return analyses if sum(a.kin is not None for a in analyses) >= 2 else None
+
+
+def _pooled_result(analyses: list[PassAnalysis], found: RideTracks, rig: Rig, flags: list[Finding],
+                   assemble: Callable[..., RideResult], params: PipelineParams) -> RideResult:
+    """The result of a ride of several passes: each used pass assembled with its own findings, then pooled."""
+    results = [assemble(a.kin, a.harm, a.indicators, flags + list(a.kin.flags)) for a in analyses if a.kin is not None]
+    return pool_passes(analyses, results, found.tracks3d["motion"].t_s, params, with_intervals)
+
+
+def _saddle_result(found: RideTracks, rig: Rig, params: PipelineParams, meta: Mapping,
+                   flags: tuple[list[Finding], list[Finding]], assemble: Callable[..., RideResult], progress: Progress,
+                   started: tuple[float, float]) -> RideResult:
+    """The kinematics and indicators stages, and the result: of the one pass, or of several pooled.
+
+    ``flags`` are the stages' findings before and after the cameras-moved one; ``started`` the kinematics
+    stage's and the analysis's start (perf_counter s).
+    """
+    (before, after), (t0, t_start) = flags, started
+    passes = _pass_analyses(found, rig, params, meta)
+    if passes is not None:  # several passes: each analysed, their strides pooled
+        moved_flag = cameras_moved_finding(rig, found.tracks3d["motion"])
+        progress.finish("kinematics", t0)
+        progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
+        return _pooled_result(passes, found, rig, before + ([moved_flag] if moved_flag else []) + after, assemble,
+                              params)
+    kin, moved = _kinematics(found, rig, params, meta)
+    progress.finish("kinematics", t0)
+    t0 = time.perf_counter()
+    harm, indicators = kinematics_indicators(kin, params)
+    progress.finish("indicators", t0)
+    progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
+    return assemble(kin, harm, indicators, before + moved + after + list(kin.flags))
+
+
 def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | None = None,
                  rig: Rig | None = None, on_progress: Callable[[float, str], None] | None = None,
                  input_flags: Sequence[Finding] = (), rig_report: Mapping | None = None) -> RideResult:
@@ -201,17 +255,14 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
     progress.finish("triangulation", t0, seconds=found.triangulation_s)
 
     t0 = time.perf_counter()
-    kin, moved = _kinematics(found, rig, params, meta)
     disagreements = [f for kind, tr in found.tracks3d.items() if (f := disagreement_flag(kind, tr))]
-    flags = clock_flags + found.flags + moved + disagreements + found.plumb_findings + list(kin.flags)
-    progress.finish("kinematics", t0)
-
-    t0 = time.perf_counter()
-    harm, indicators = kinematics_indicators(kin, params)
-    progress.finish("indicators", t0)
-    progress.timings_s["total"] = round(time.perf_counter() - t_start, 4)
     fps = float(clips.fps("motion", clips.cameras("motion")[0]))
-    result = assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps, progress.timings_s,
-                             params, flags, input_flags)
+
+    def assemble(kin, harm, indicators, flags):
+        return assemble_result(meta, rig, calib_report, offsets, found, kin, harm, indicators, fps, progress.timings_s,
+                               params, flags, input_flags)
+
+    result = _saddle_result(found, rig, params, meta, (clock_flags + found.flags, disagreements + found.plumb_findings),
+                            assemble, progress, (t0, t_start))
     result.quality["sync"] = sync_quality(kinds, methods, synced)
     return result
