@@ -64,25 +64,27 @@ def write_ride_bundle(
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
-    scene = build_scene(
-        gait=gait,
-        seed=seed,
-        rig=rig,
-        size=size,
-        fps=fps,
-        duration_s=duration_s,
-        calibration_poses=calibration_poses,
-        extras=extras,
-        options=options,
-        board_band=board_band,
-        speed_range_m_s=speed_range_m_s,
-        passes=passes,
-    )
+    scene = build_scene(gait=gait, seed=seed, rig=rig, size=size, fps=fps, duration_s=duration_s,
+                        calibration_poses=calibration_poses, extras=extras, options=options, board_band=board_band,
+                        speed_range_m_s=speed_range_m_s, passes=passes)
     out_dir.mkdir(parents=True, exist_ok=True)
     crf = scene.options.crf if crf is None else int(crf)
     manifest = ride_manifest(scene)
     if calibration == "wand":
         manifest["clips"].pop("calibration")
+    _write_clips(out_dir, scene, manifest, crf=crf, on_progress=on_progress)
+    if calibration == "wand":
+        _write_wand_clips(out_dir, scene, manifest, crf=crf, wand_s=wand_s, length_m=wand_length_m,
+                          close_up_poses=close_up_poses)
+    dump_json(manifest, out_dir / "ride.json")
+    truth = build_truth(scene)
+    truth["truth"]["nuisances"]["crf"] = crf  # what the clips were written with
+    dump_json(truth, out_dir / "truth.json")
+    return out_dir
+
+
+def _write_clips(out_dir: Path, scene, manifest: dict, *, crf: int, on_progress=None) -> None:
+    """Every clip the manifest lists (clips and extra clips), each checked for its frame count."""
     jobs = [
         (kind, role, rel)
         for group in ("clips", "extra_clips")
@@ -99,14 +101,6 @@ def write_ride_bundle(
             raise InputError(f"{rel}: wrote {n} frames, expected {scene.timings[kind].n_frames[role]}")
         if on_progress is not None:
             on_progress((i + 1) / len(jobs), f"{kind}/{role}")
-    if calibration == "wand":
-        _write_wand_clips(out_dir, scene, manifest, crf=crf, wand_s=wand_s, length_m=wand_length_m,
-                          close_up_poses=close_up_poses)
-    dump_json(manifest, out_dir / "ride.json")
-    truth = build_truth(scene)
-    truth["truth"]["nuisances"]["crf"] = crf  # what the clips were written with
-    dump_json(truth, out_dir / "truth.json")
-    return out_dir
 
 
 def _write_wand_clips(out_dir: Path, scene, manifest: dict, *, crf: int, wand_s: float, length_m: float,
