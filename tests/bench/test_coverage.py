@@ -190,11 +190,13 @@ def test_the_field_table_counts_coverage_misses_marks_and_levels():
                    gait="walk"),  # far out but marked
         _field_row("e", {"acc_y_wb_rms": -3.0, "amplitude_y_m": 0.0}, readout_s=0.033, crf=28, rig="wide"),
         {"ride": "f", "error": "TrackingError: the rear marker was hidden", "setup": {"gait": "walk"}},
+        {"ride": "g", "error": "not run"},  # a run stopped early: not a refusal
     ]
     table = field_table(rows, keys=("acc_y_wb_rms", "amplitude_y_m"))
     wb, amp = table["indicators"]["acc_y_wb_rms"], table["indicators"]["amplitude_y_m"]
     assert table["analysed"] == 5 and table["refused"] == [{"ride": "f", "reason": "TrackingError: the rear marker "
                                                                                     "was hidden"}]
+    assert table["not_run"] == ["g"]
     assert wb["coverage_pct"] == pytest.approx(40.0) and amp["coverage_pct"] == pytest.approx(80.0)
     assert wb["median_abs_error_pct"] == pytest.approx(7.0) and wb["max_abs_error_pct"] == pytest.approx(88.0)
     # c misses by 88 % against ±5.9 %; b (7 % against ±5.35 %) is inside twice the half-width; d is marked

@@ -32,6 +32,9 @@ MISS_KEYS: tuple[str, ...] = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "ampli
 FIELD_FACTORS: tuple[str, ...] = ("boot_share", "readout_s", "crf", "gait", "rig")
 
 
+_NOT_RUN = "not run"  # coverage_rows' error for a ride folder without a result nor an error (yet)
+
+
 def _error_pct(row: dict, key: str) -> float | None:
     """The value's error against the truth (% of the truth), None where either is missing."""
     value, true = row["values"].get(key), row["truth"].get(key)
@@ -120,7 +123,8 @@ def field_table(rows: Sequence[dict], keys: Sequence[str] = FIELD_KEYS) -> dict:
         ``indicators`` (per key: coverage, median and worst error, misses beyond twice the half-width
         unmarked), ``misses_beyond_twice_half_width_unmarked`` (count and each ride's), the worst W_b r.m.s.
         error among the rides not marked, the rides marked (share overall and outside the walk, each with
-        its reason), the refusals with their reasons, and ``per_level`` (:func:`_per_level`).
+        its reason), the refusals with their reasons (``not_run``: the rides without a result yet), and
+        ``per_level`` (:func:`_per_level`).
     """
     ok = [r for r in rows if "error" not in r]
     kept = [abs(e) for r in ok if not r["uncertain"] and (e := _error_pct(r, "acc_y_wb_rms")) is not None]
@@ -128,7 +132,8 @@ def field_table(rows: Sequence[dict], keys: Sequence[str] = FIELD_KEYS) -> dict:
     misses = [{"ride": r["ride"], "misses": m} for r in ok if (m := misses_unmarked(r))]
     return {
         "rides": len(rows), "analysed": len(ok),
-        "refused": [{"ride": r["ride"], "reason": r["error"]} for r in rows if "error" in r],
+        "refused": [{"ride": r["ride"], "reason": r["error"]} for r in rows if r.get("error", _NOT_RUN) != _NOT_RUN],
+        "not_run": [r["ride"] for r in rows if r.get("error") == _NOT_RUN],  # a run stopped early, or under way
         "indicators": _coverage_per_key(ok, keys),
         "misses_beyond_twice_half_width_unmarked": sum(len(m["misses"]) for m in misses),
         "misses_unmarked": misses,
