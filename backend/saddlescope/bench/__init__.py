@@ -73,7 +73,7 @@ def _service(tmp: Path, quick: bool) -> dict:
 
 
 def _coverage(tmp: Path, quick: bool) -> dict:
-    """Issue 27: do the 95 % intervals hold the truth? Issue 38: and on rides with the field's nuisances?"""
+    """Issue 27: do the 95 % intervals hold the truth? Issue 38: and on rides with the field's nuisances."""
     from saddlescope.bench.nuisances import run_field_nuisances
 
     return {"coverage": run_coverage(quick=quick), "field_nuisances": run_field_nuisances(quick=quick)}
