@@ -159,7 +159,7 @@ def run_field_nuisances(tmp: Path | None = None, *, quick: bool = False) -> dict
 
     chosen = FIELD_RIDES[:8] if quick else FIELD_RIDES  # the first 8: every gait on both rigs
     own = tmp is None
-    work = Path(tempfile.mkdtemp(prefix="saddlescope-field-")) if own else Path(tmp) / "field_nuisances"
+    work = Path(tempfile.mkdtemp(prefix="saddlescope-field-")) if tmp is None else Path(tmp) / "field_nuisances"
     try:
         return field_table(coverage_rows(run_rides(chosen, work), recompute=False))
     finally:
