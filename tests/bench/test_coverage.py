@@ -139,3 +139,80 @@ def test_the_nuisance_rides_pair_each_nuisance_with_the_same_ride_without_it():
     assert not {r.seed for r in NUISANCE_RIDES} & {r.seed for r in COVERAGE_RIDES + BUILD_RIDES}
     phone = next(r for r in nuisances if r.readout_s).render_options()
     assert (phone.readout_s, phone.crf, phone.boot_share) == (0.025, 28, 0.0)
+
+
+def test_the_field_table_design_meets_every_level_with_every_gait_and_rig():
+    from itertools import product
+
+    from saddlescope.bench.coverage import (
+        BUILD_RIDES,
+        FIELD_BOOT_SHARES,
+        FIELD_CRFS,
+        FIELD_READOUTS_S,
+        FIELD_RIDES,
+        NUISANCE_RIDES,
+    )
+
+    assert 24 <= len(FIELD_RIDES) <= 32 and len({r.name for r in FIELD_RIDES}) == len(FIELD_RIDES)
+    assert {(r.rig, r.size, r.fps) for r in FIELD_RIDES} == {("thesis", (640, 480), 30.0), ("wide", (1280, 720), 30.0)}
+    factors = {"boot_share": FIELD_BOOT_SHARES, "readout_s": FIELD_READOUTS_S, "crf": FIELD_CRFS}
+    for name, levels in factors.items():
+        for level, gait in product(levels, GAITS):
+            assert any(getattr(r, name) == level and r.gait == gait for r in FIELD_RIDES), (name, level, gait)
+        for level, rig in product(levels, ("thesis", "wide")):
+            assert any(getattr(r, name) == level and r.rig == rig for r in FIELD_RIDES), (name, level, rig)
+    # and every level of one nuisance meets every level of another
+    for (a, la), (b, lb) in product(factors.items(), repeat=2):
+        if a < b:
+            for x, y in product(la, lb):
+                assert any(getattr(r, a) == x and getattr(r, b) == y for r in FIELD_RIDES), (a, x, b, y)
+    seeds = {r.seed for r in FIELD_RIDES}
+    assert not seeds & {r.seed for r in COVERAGE_RIDES + BUILD_RIDES + NUISANCE_RIDES} and min(seeds) > 3000
+
+
+def _field_row(name, errors_pct, *, half_pct=5.0, uncertain=None, **setup):
+    """A fake analysed ride: truth 1 for every indicator, the value off by errors_pct, interval ±half_pct."""
+    values = {k: 1 + e / 100 for k, e in errors_pct.items()}
+    return {"ride": name, "values": values, "truth": {k: 1.0 for k in errors_pct},
+            "intervals": {k: (v * (1 - half_pct / 100), v * (1 + half_pct / 100)) for k, v in values.items()},
+            "uncertain": uncertain,
+            "setup": {"gait": "canter", "rig": "thesis", "boot_share": 0.0, "readout_s": 0.0, "crf": 18, **setup}}
+
+
+def test_the_field_table_counts_coverage_misses_marks_and_levels():
+    from saddlescope.bench.nuisances import field_table, misses_unmarked
+
+    rows = [
+        _field_row("a", {"acc_y_wb_rms": 2.0, "amplitude_y_m": -1.0}),  # held (±5 %)
+        _field_row("b", {"acc_y_wb_rms": 7.0, "amplitude_y_m": 1.0}, boot_share=0.2),  # out, but < 2 half-widths
+        _field_row("c", {"acc_y_wb_rms": 88.0, "amplitude_y_m": 12.0}, boot_share=0.2),  # far out, unmarked
+        _field_row("d", {"acc_y_wb_rms": 40.0, "amplitude_y_m": 0.0}, uncertain="±20 %", boot_share=0.2,
+                   gait="walk"),  # far out but marked
+        _field_row("e", {"acc_y_wb_rms": -3.0, "amplitude_y_m": 0.0}, readout_s=0.033, crf=28, rig="wide"),
+        {"ride": "f", "error": "TrackingError: the rear marker was hidden", "setup": {"gait": "walk"}},
+        {"ride": "g", "error": "not run"},  # a run stopped early: not a refusal
+    ]
+    table = field_table(rows, keys=("acc_y_wb_rms", "amplitude_y_m"))
+    wb, amp = table["indicators"]["acc_y_wb_rms"], table["indicators"]["amplitude_y_m"]
+    assert table["analysed"] == 5 and table["refused"] == [{"ride": "f", "reason": "TrackingError: the rear marker "
+                                                                                    "was hidden"}]
+    assert table["not_run"] == ["g"]
+    assert wb["coverage_pct"] == pytest.approx(40.0) and amp["coverage_pct"] == pytest.approx(80.0)
+    assert wb["median_abs_error_pct"] == pytest.approx(7.0) and wb["max_abs_error_pct"] == pytest.approx(88.0)
+    # c misses by 88 % against ±5.9 %; b (7 % against ±5.35 %) is inside twice the half-width; d is marked
+    assert wb["misses_beyond_twice_half_width_unmarked"] == 1 and amp["misses_beyond_twice_half_width_unmarked"] == 1
+    assert table["misses_beyond_twice_half_width_unmarked"] == 2
+    assert [m["ride"] for m in table["misses_unmarked"]] == ["c"]
+    assert misses_unmarked(rows[3]) == [] and misses_unmarked(rows[1]) == []
+    # the worst W_b error of the rides not marked is c's; one ride in five marked, none of the four not walks
+    assert table["acc_y_wb_rms_max_abs_error_pct_not_marked"] == pytest.approx(88.0)
+    assert table["marked_too_uncertain"] == [{"ride": "d", "reason": "±20 %"}]
+    assert table["marked_too_uncertain_pct"] == pytest.approx(20.0)
+    assert table["marked_too_uncertain_pct_outside_walk"] == pytest.approx(0.0)
+    boot = table["per_level"]["boot_share"]
+    assert boot["0"]["rides"] == 2 and boot["0.2"]["rides"] == 3 and boot["0.2"]["marked_too_uncertain"] == 1
+    assert boot["0.2"]["median_abs_error_pct"]["acc_y_wb_rms"] == pytest.approx(40.0)
+    assert boot["0"]["median_abs_error_pct"]["acc_y_wb_rms"] == pytest.approx(2.5)
+    assert table["per_level"]["readout_s"]["0.033"]["median_abs_error_pct"] == {"acc_y_wb_rms": 3.0,
+                                                                                 "amplitude_y_m": 0.0}
+    assert set(table["per_level"]["rig"]) == {"thesis", "wide"}

@@ -13,7 +13,8 @@ sync's indicators are from the flash's (goal within 2 %).
 The rides' seeds (2001-2099) are used by no test and not by the rides the interval's noise floors
 were set on (seeds 1001-1099, :data:`BUILD_RIDES` and :data:`BUILD_RIDES_PARTIAL_NO_FLASH`).
 ``python -m saddlescope.bench.coverage --out DIR`` runs the table alone and keeps every ride's
-documents, so that the intervals can be recomputed later with another model (``--table-only``).
+documents, so that the intervals can be recomputed later with another model (``--table-only``);
+``--rides field`` the field-nuisance table of issue 38 (:data:`FIELD_RIDES`, :mod:`.nuisances`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["BUILD_RIDES", "BUILD_RIDES_PARTIAL_NO_FLASH", "COVERAGE_RIDES", "NUISANCE_RIDES", "SYNC_COMPARED_KEYS",
+__all__ = ["BUILD_RIDES", "BUILD_RIDES_PARTIAL_NO_FLASH", "COVERAGE_RIDES", "FIELD_BOOT_SHARES", "FIELD_CRFS",
+           "FIELD_READOUTS_S", "FIELD_RIDES", "NUISANCE_RIDES", "SYNC_COMPARED_KEYS",
            "CoverageRide", "coverage_rows", "coverage_table", "main", "motion_vs_flash", "run_coverage", "run_rides",
            "sync_check", "truth_indicators"]
 
@@ -55,6 +57,9 @@ class CoverageRide:
     readout_s: float = 0.0
     crf: int = 20
     high_harmonic_share: float = 0.0
+    # Merge point (issue 38 item 4, rides of several passes): the ride's number of passes goes here, as
+    # write_ride_bundle's ``passes``, passed on in _run_ride, named in nuisance_suffix, and added to
+    # bench.nuisances.FIELD_FACTORS and _field_rides as the table's 1 / 3 passes factor.
 
     def render_options(self):
         """The arena's render options for this ride."""
@@ -137,12 +142,42 @@ def _nuisance_rides(first_seed: int) -> tuple[CoverageRide, ...]:
     return base + boot + harmonic + phone
 
 
+# the field-nuisance table's factors (issue 38): the rider's boot over the rear marker for a fifth of
+# every stride or none, a rolling shutter's readout (s), the clips' x264 CRF; rigs: the thesis's
+# 640x480 at 30 fps and the wide rig at 1280x720 at 30 fps
+FIELD_BOOT_SHARES = (0.0, 0.2)
+FIELD_READOUTS_S = (0.0, 0.015, 0.033)
+FIELD_CRFS = (18, 28)
+_FIELD_RIGS = (("thesis", (640, 480), 30.0), ("wide", (1280, 720), 30.0))
+
+
+def _field_rides(first_seed: int) -> tuple[CoverageRide, ...]:
+    """The field-nuisance table: 24 rides, a fraction of the 4 x 2 x 2 x 3 x 2 full design.
+
+    Every gait on both rigs at each readout (4 x 2 x 3); the boot and the CRF alternate so that within each
+    gait and rig (three readouts) both levels of each appear: every level of every factor meets every gait,
+    both rigs and every level of the other factors. The order interleaves the readouts, so a run stopped
+    early still holds each gait on both rigs.
+    """
+    out = []
+    for k in range(len(FIELD_READOUTS_S)):
+        for i, gait in enumerate(_GAITS):
+            for j, (rig, size, fps) in enumerate(_FIELD_RIGS):
+                boot = FIELD_BOOT_SHARES[(i + j + k) % 2]
+                crf = FIELD_CRFS[(i // 2 + j + k) % 2]
+                out.append(CoverageRide(rig=rig, gait=gait, seed=first_seed + len(out), size=size, fps=fps,
+                                        boot_share=boot, readout_s=FIELD_READOUTS_S[k], crf=crf))
+    return tuple(out)
+
+
 # the rides the interval's floors were set on, and the rides the coverage is checked on
 BUILD_RIDES: tuple[CoverageRide, ...] = _rides(1001, 12)
 BUILD_RIDES_PARTIAL_NO_FLASH: tuple[CoverageRide, ...] = _partial_and_no_flash(1013)
 COVERAGE_RIDES: tuple[CoverageRide, ...] = _rides(2001, 40) + _partial_and_no_flash(2041)
 # the field's nuisances, seeds used by no test (issue 38)
 NUISANCE_RIDES: tuple[CoverageRide, ...] = _nuisance_rides(3101)
+# the field-nuisance coverage table (issue 38), seeds used by no test
+FIELD_RIDES: tuple[CoverageRide, ...] = _field_rides(3201)
 
 
 def run_rides(rides: Iterable[CoverageRide], out_dir: Path, *, keep_clips: bool = False, log=None) -> list[Path]:
@@ -227,6 +262,8 @@ def coverage_rows(folders: Iterable[Path], *, recompute: bool = True) -> list[di
         row: dict = {"ride": folder.name}
         if (folder / "error.txt").exists() or not (folder / "result.json").exists():
             row["error"] = (folder / "error.txt").read_text() if (folder / "error.txt").exists() else "not run"
+            if (folder / "ride.txt").exists():
+                row["setup"] = json.loads((folder / "ride.txt").read_text())
             rows.append(row)
             continue
         doc = json.loads((folder / "result.json").read_text())
@@ -239,6 +276,8 @@ def coverage_rows(folders: Iterable[Path], *, recompute: bool = True) -> list[di
                     "truth": truth_indicators(doc, truth),
                     "uncertain": decision_uncertainty(doc["indicators"], intervals),
                     "sync": sync_check(doc, truth)})
+        if (folder / "ride.txt").exists():  # the ride's set-up: its nuisances for the field table
+            row["setup"] = json.loads((folder / "ride.txt").read_text())
         if (folder / "result_motion.json").exists():
             row["motion_sync"] = motion_vs_flash(json.loads((folder / "result_motion.json").read_text()), doc, truth)
         elif (folder / "error_motion.txt").exists():
@@ -367,7 +406,8 @@ def run_coverage(tmp: Path | None = None, *, quick: bool = False, rides: Sequenc
 
 
 _RIDE_SETS = {"coverage": lambda: COVERAGE_RIDES, "build": lambda: BUILD_RIDES,
-              "build-partial": lambda: BUILD_RIDES_PARTIAL_NO_FLASH, "nuisance": lambda: NUISANCE_RIDES}
+              "build-partial": lambda: BUILD_RIDES_PARTIAL_NO_FLASH, "nuisance": lambda: NUISANCE_RIDES,
+              "field": lambda: FIELD_RIDES}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -396,7 +436,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         t0 = time.monotonic()
         folders = run_rides(rides, args.out, log=lambda name: print(
             f"{time.monotonic() - t0:7.0f} s  done {name}", file=sys.stderr, flush=True))
-    table = coverage_table(coverage_rows(folders, recompute=not args.stored_intervals))
+    rows = coverage_rows(folders, recompute=not args.stored_intervals)
+    if args.rides in ("field", "nuisance"):  # the field's nuisances: their own table (bench.nuisances)
+        from saddlescope.bench.nuisances import field_table
+
+        table = field_table(rows)
+        (args.out / "field_table.json").write_text(json.dumps(table, indent=1))
+        print(json.dumps(table, indent=1))
+        return 0
+    table = coverage_table(rows)
     (args.out / "table.json").write_text(json.dumps(table, indent=1))
     print(json.dumps({k: v for k, v in table.items() if k not in ("per_ride",)}, indent=1))
     return 0
