@@ -148,6 +148,7 @@ def test_the_field_table_design_meets_every_level_with_every_gait_and_rig():
         BUILD_RIDES,
         FIELD_BOOT_SHARES,
         FIELD_CRFS,
+        FIELD_PASSES,
         FIELD_READOUTS_S,
         FIELD_RIDES,
         NUISANCE_RIDES,
@@ -155,7 +156,8 @@ def test_the_field_table_design_meets_every_level_with_every_gait_and_rig():
 
     assert 24 <= len(FIELD_RIDES) <= 32 and len({r.name for r in FIELD_RIDES}) == len(FIELD_RIDES)
     assert {(r.rig, r.size, r.fps) for r in FIELD_RIDES} == {("thesis", (640, 480), 30.0), ("wide", (1280, 720), 30.0)}
-    factors = {"boot_share": FIELD_BOOT_SHARES, "readout_s": FIELD_READOUTS_S, "crf": FIELD_CRFS}
+    factors = {"boot_share": FIELD_BOOT_SHARES, "readout_s": FIELD_READOUTS_S, "crf": FIELD_CRFS,
+               "passes": FIELD_PASSES}
     for name, levels in factors.items():
         for level, gait in product(levels, GAITS):
             assert any(getattr(r, name) == level and r.gait == gait for r in FIELD_RIDES), (name, level, gait)

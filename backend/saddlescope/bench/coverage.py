@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["BUILD_RIDES", "BUILD_RIDES_PARTIAL_NO_FLASH", "COVERAGE_RIDES", "FIELD_BOOT_SHARES", "FIELD_CRFS",
+           "FIELD_PASSES",
            "FIELD_READOUTS_S", "FIELD_RIDES", "NUISANCE_RIDES", "SYNC_COMPARED_KEYS",
            "CoverageRide", "coverage_rows", "coverage_table", "main", "motion_vs_flash", "run_coverage", "run_rides",
            "sync_check", "truth_indicators"]
@@ -57,16 +58,15 @@ class CoverageRide:
     readout_s: float = 0.0
     crf: int = 20
     high_harmonic_share: float = 0.0
-    # Merge point (issue 38 item 4, rides of several passes): the ride's number of passes goes here, as
-    # write_ride_bundle's ``passes``, passed on in _run_ride, named in nuisance_suffix, and added to
-    # bench.nuisances.FIELD_FACTORS and _field_rides as the table's 1 / 3 passes factor.
+    # passes of the horse in front of the cameras in the one motion clip (issue 38 item 4: strides pooled)
+    passes: int = 1
 
     def render_options(self):
         """The arena's render options for this ride."""
         from saddlescope.arena import RenderOptions
 
         return RenderOptions(flash=self.flash, boot_share=self.boot_share, readout_s=self.readout_s, crf=self.crf,
-                             high_harmonic_share=self.high_harmonic_share)
+                             high_harmonic_share=self.high_harmonic_share, passes=self.passes)
 
     @property
     def nuisance_suffix(self) -> str:
@@ -74,7 +74,8 @@ class CoverageRide:
         return ((f"_boot{self.boot_share:g}" if self.boot_share else "")
                 + (f"_ro{1000 * self.readout_s:g}ms" if self.readout_s else "")
                 + (f"_crf{self.crf}" if self.crf != 20 else "")
-                + (f"_h6x{self.high_harmonic_share:g}" if self.high_harmonic_share else ""))
+                + (f"_h6x{self.high_harmonic_share:g}" if self.high_harmonic_share else "")
+                + (f"_{self.passes}passes" if self.passes != 1 else ""))
 
     @property
     def name(self) -> str:
@@ -148,16 +149,17 @@ def _nuisance_rides(first_seed: int) -> tuple[CoverageRide, ...]:
 FIELD_BOOT_SHARES = (0.0, 0.2)
 FIELD_READOUTS_S = (0.0, 0.015, 0.033)
 FIELD_CRFS = (18, 28)
+FIELD_PASSES = (1, 3)  # one crossing of the cameras, or three (strides pooled)
 _FIELD_RIGS = (("thesis", (640, 480), 30.0), ("wide", (1280, 720), 30.0))
 
 
 def _field_rides(first_seed: int) -> tuple[CoverageRide, ...]:
-    """The field-nuisance table: 24 rides, a fraction of the 4 x 2 x 2 x 3 x 2 full design.
+    """The field-nuisance table: 24 rides, a fraction of the 4 x 2 x 2 x 3 x 2 x 2 full design.
 
-    Every gait on both rigs at each readout (4 x 2 x 3); the boot and the CRF alternate so that within each
-    gait and rig (three readouts) both levels of each appear: every level of every factor meets every gait,
-    both rigs and every level of the other factors. The order interleaves the readouts, so a run stopped
-    early still holds each gait on both rigs.
+    Every gait on both rigs at each readout (4 x 2 x 3); the boot, the CRF and the passes (1 or 3) alternate so
+    that within each gait and rig (three readouts) both levels of each appear: every level of every factor meets
+    every gait, both rigs and every level of the other factors. The order interleaves the readouts, so a run
+    stopped early still holds each gait on both rigs.
     """
     out = []
     for k in range(len(FIELD_READOUTS_S)):
@@ -165,8 +167,9 @@ def _field_rides(first_seed: int) -> tuple[CoverageRide, ...]:
             for j, (rig, size, fps) in enumerate(_FIELD_RIGS):
                 boot = FIELD_BOOT_SHARES[(i + j + k) % 2]
                 crf = FIELD_CRFS[(i // 2 + j + k) % 2]
+                passes = FIELD_PASSES[(i // 2 + i + j + k) % 2]
                 out.append(CoverageRide(rig=rig, gait=gait, seed=first_seed + len(out), size=size, fps=fps,
-                                        boot_share=boot, readout_s=FIELD_READOUTS_S[k], crf=crf))
+                                        boot_share=boot, readout_s=FIELD_READOUTS_S[k], crf=crf, passes=passes))
     return tuple(out)
 
 

@@ -29,7 +29,7 @@ FIELD_KEYS: tuple[str, ...] = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_
 # the indicators whose miss by more than twice the interval's half-width must mark the ride (issue 38 item 6)
 MISS_KEYS: tuple[str, ...] = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "amplitude_y_m")
 # the ride set-up's fields the errors are broken down by (CoverageRide's names)
-FIELD_FACTORS: tuple[str, ...] = ("boot_share", "readout_s", "crf", "gait", "rig")
+FIELD_FACTORS: tuple[str, ...] = ("boot_share", "readout_s", "crf", "passes", "gait", "rig")
 
 
 _NOT_RUN = "not run"  # coverage_rows' error for a ride folder without a result nor an error (yet)
