@@ -76,6 +76,13 @@ def _coverage(tmp: Path, quick: bool) -> dict:
     return {"coverage": run_coverage(quick=quick)}  # issue 27: do the 95 % intervals hold the truth?
 
 
+def _rolling_shutter(tmp: Path, quick: bool) -> dict:
+    """Rides filmed with a phone's 25 ms readout: sync and speed against the truth (issue 38, item 3)."""
+    from saddlescope.bench.rolling import rolling_shutter_section
+
+    return rolling_shutter_section(tmp, quick)
+
+
 def _wand(tmp: Path, quick: bool) -> dict:
     """A wide rig calibrated from a wand and close-up boards against the full board calibration (issue 35)."""
     from saddlescope.bench.calibration import wand_vs_board
@@ -104,6 +111,8 @@ SECTIONS: tuple[BenchSection, ...] = (
     BenchSection("footage", "whole rides against the length of their footage", _analysis.footage_section),
     BenchSection("floor", "the kinematics' exact-marker floor", _analysis.floor_section),
     BenchSection("accuracy", "rendered rides against the arena's exact answers", _analysis.accuracy_section),
+    BenchSection("rolling_shutter", "rides filmed with a 25 ms rolling-shutter readout: sync and speed errors",
+                 _rolling_shutter),
     BenchSection("similarity", "motion similarity: retrieval, ranking, long pairs", _similarity),
     BenchSection("service", "the web service under load", _service),
     BenchSection("coverage", "do the 95 % intervals hold the truth", _coverage),
