@@ -32,7 +32,8 @@ def test_the_readout_is_measured_from_the_flash_sweep(rolling_ride):
         sync = doc["quality"]["sync"][kind]
         assert set(sync["readout_source"].values()) == {"flash sweep"}, kind
         for cam, ms in sync["readout_ms"].items():
-            assert ms == pytest.approx(25.0, abs=1.0), (kind, cam)
+            # within three of its own standard errors (0.5-0.8 ms at 640x480) and a band's quantisation
+            assert abs(ms - 25.0) <= 3 * sync["readout_sigma_ms"][cam] + 0.8, (kind, cam)
 
 
 def test_sync_and_speed_with_a_rolling_shutter(rolling_ride):

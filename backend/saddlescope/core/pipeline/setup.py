@@ -137,7 +137,9 @@ def clip_readouts(clips: ClipReader, meta: Mapping, kinds: list[str], *,
     bands_of = getattr(clips, "band_brightness", None)
     measured: dict[str, dict[str, CameraReadout]] = {kind: {} for kind in kinds}
     for kind in kinds:
-        for cam in clips.cameras(kind) if flash_clips and bands_of is not None else []:
+        if not flash_clips or bands_of is None:
+            break
+        for cam in clips.cameras(kind):
             try:
                 start, stop = flash_run(clips.brightness(kind, cam), clip=kind, camera=cam)
                 curves, rows = bands_of(kind, cam)
