@@ -253,7 +253,7 @@ class _BoardKinds:
 
 # `saddlescope bench --only`'s choices (bench.SECTION_NAMES, named here so the parser imports no numpy)
 _BENCH_SECTIONS = ("detection", "calibration", "calibration_check", "wand", "speed", "footage", "floor",
-                   "accuracy", "similarity", "service", "coverage", "dashboard")
+                   "accuracy", "rolling_shutter", "similarity", "service", "coverage", "dashboard")
 
 
 def _add_calibrate_parser(sub) -> None:

@@ -29,7 +29,11 @@ __all__ = ["OCCLUDED_CLIPS", "SHUTTER_CLIPS", "frame_shape", "lighting_gain", "r
            "true_marker_pixels"]
 
 OCCLUDED_CLIPS = ("motion",)  # the jump-stand pole stands in the arena during the ride only
-SHUTTER_CLIPS = ("motion",)  # a rolling shutter (RenderOptions.readout_s) is rendered on the ride's clip
+# a rolling shutter (RenderOptions.readout_s) sweeps the light of every clip (the flash, the lighting) down the
+# rows; the content is drawn band by band at its rows' instants in these clips (the ride), where it moves fast;
+# elsewhere it is drawn at the frame's instant (the horse and plumb line stand still, and the calibration uses
+# the board's still views)
+SHUTTER_CLIPS = ("motion",)
 
 
 def _exposure_samples(scene: Scene, t: float, options: RenderOptions) -> np.ndarray:
@@ -91,8 +95,7 @@ def render_clip_frames(
     clip_no, cam_no = ALL_CLIPS.index(kind), CAMERA_ROLES.index(camera)
     bank = noise_bank(np.random.default_rng([scene.seed, 0x5ADD1E, clip_no, cam_no]), frame_shape(view))
     board_cache: dict = {}
-    band = _RowBands(frame_shape(view)[0], scene.options.readout_s if kind in SHUTTER_CLIPS else 0.0,
-                     scene.options.rolling_bands)
+    band = _RowBands(frame_shape(view)[0], scene.options.readout_s, scene.options.rolling_bands)
     for k in range(int(start), stop):
         t = float(times[k])
         rng = np.random.default_rng([scene.seed, 0x5ADD1E, clip_no, cam_no, k])
@@ -101,11 +104,12 @@ def render_clip_frames(
             gain = lighting_gain(scene, camera, t) if opts.lighting_drift else 1.0
             yield finish_frame(frame, gain=gain, flash=float(flash[k]), rng=rng, options=opts, bank=bank)
             continue
-        # a rolling shutter: each band of rows drawn at its own instant, lit and flashed then
+        # a rolling shutter: each band of rows lit and flashed at its own instant (and drawn then in the ride)
         frame = np.empty(frame_shape(view), np.float32)
+        still = None if kind in SHUTTER_CLIPS else _lit_frame(scene, view, kind, t, opts, board_cache)
         for r0, r1, delay_s in band.bands():
             t_b = t + delay_s
-            part = _lit_frame(scene, view, kind, t_b, opts, board_cache)[r0:r1]
+            part = (_lit_frame(scene, view, kind, t_b, opts, board_cache) if still is None else still)[r0:r1]
             gain = lighting_gain(scene, camera, t_b) if opts.lighting_drift else 1.0
             fl = float(flash_fraction(np.array([t_b]), scene.rig.exposure_s, timing.flash_on_s, timing.flash_off_s,
                                       timing.flash_ramp_s)[0]) if scene.options.flash else 0.0

@@ -74,9 +74,16 @@ def _service(tmp: Path, quick: bool) -> dict:
 
 def _coverage(tmp: Path, quick: bool) -> dict:
     """Issue 27: do the 95 % intervals hold the truth? Issue 38: and on rides with the field's nuisances."""
-    from saddlescope.bench.nuisances import run_field_nuisances
+    from saddlescope.bench.coverage import run_field_nuisances
 
     return {"coverage": run_coverage(quick=quick), "field_nuisances": run_field_nuisances(quick=quick)}
+
+
+def _rolling_shutter(tmp: Path, quick: bool) -> dict:
+    """Rides filmed with a phone's 25 ms readout: sync and speed against the truth (issue 38, item 3)."""
+    from saddlescope.bench.rolling import rolling_shutter_section
+
+    return rolling_shutter_section(tmp, quick)
 
 
 def _wand(tmp: Path, quick: bool) -> dict:
@@ -112,6 +119,8 @@ SECTIONS: tuple[BenchSection, ...] = (
     BenchSection("footage", "whole rides against the length of their footage", _analysis.footage_section),
     BenchSection("floor", "the kinematics' exact-marker floor", _analysis.floor_section),
     BenchSection("accuracy", "rendered rides against the arena's exact answers", _analysis.accuracy_section),
+    BenchSection("rolling_shutter", "rides filmed with a 25 ms rolling-shutter readout: sync and speed errors",
+                 _rolling_shutter),
     BenchSection("similarity", "motion similarity: retrieval, ranking, long pairs", _similarity),
     BenchSection("service", "the web service under load", _service),
     BenchSection("coverage", "do the 95 % intervals hold the truth, also with the field's nuisances", _coverage),

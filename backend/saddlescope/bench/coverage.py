@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["BUILD_RIDES", "BUILD_RIDES_PARTIAL_NO_FLASH", "COVERAGE_RIDES", "FIELD_BOOT_SHARES", "FIELD_CRFS",
-           "FIELD_PASSES",
+           "FIELD_PASSES", "run_field_nuisances",
            "FIELD_READOUTS_S", "FIELD_RIDES", "NUISANCE_RIDES", "SYNC_COMPARED_KEYS",
            "CoverageRide", "coverage_rows", "coverage_table", "main", "motion_vs_flash", "run_coverage", "run_rides",
            "sync_check", "truth_indicators"]
@@ -411,6 +411,26 @@ def run_coverage(tmp: Path | None = None, *, quick: bool = False, rides: Sequenc
 _RIDE_SETS = {"coverage": lambda: COVERAGE_RIDES, "build": lambda: BUILD_RIDES,
               "build-partial": lambda: BUILD_RIDES_PARTIAL_NO_FLASH, "nuisance": lambda: NUISANCE_RIDES,
               "field": lambda: FIELD_RIDES}
+
+
+def run_field_nuisances(tmp: Path | None = None, *, quick: bool = False) -> dict:
+    """The field-nuisance table over :data:`FIELD_RIDES` (``quick``: the first 8).
+
+    Without ``tmp`` a temporary folder is made and removed. The 24 rides take about an hour on two quiet cores
+    (the wide rig's 1280x720 rides about 3 minutes each).
+    """
+    import tempfile
+
+    from saddlescope.bench.nuisances import field_table
+
+    chosen = FIELD_RIDES[:8] if quick else FIELD_RIDES  # the first 8: every gait on both rigs
+    own = tmp is None
+    work = Path(tempfile.mkdtemp(prefix="saddlescope-field-")) if tmp is None else Path(tmp) / "field_nuisances"
+    try:
+        return field_table(coverage_rows(run_rides(chosen, work), recompute=False))
+    finally:
+        if own:
+            shutil.rmtree(work, ignore_errors=True)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

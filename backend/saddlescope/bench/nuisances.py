@@ -15,13 +15,11 @@ error of each indicator.
 
 from __future__ import annotations
 
-import shutil
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FIELD_FACTORS", "FIELD_KEYS", "MISS_KEYS", "field_table", "misses_unmarked", "run_field_nuisances"]
+__all__ = ["FIELD_FACTORS", "FIELD_KEYS", "MISS_KEYS", "field_table", "misses_unmarked"]
 
 # the indicators the table reports on
 FIELD_KEYS: tuple[str, ...] = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vdv_y_wk", "amplitude_y_m",
@@ -145,23 +143,3 @@ def field_table(rows: Sequence[dict], keys: Sequence[str] = FIELD_KEYS) -> dict:
             [bool(r["uncertain"]) for r in not_walk])), 1) if not_walk else None,
         "per_level": _per_level(ok, keys),
     }
-
-
-def run_field_nuisances(tmp: Path | None = None, *, quick: bool = False) -> dict:
-    """The field-nuisance table over :data:`~saddlescope.bench.coverage.FIELD_RIDES` (``quick``: the first 8).
-
-    Without ``tmp`` a temporary folder is made and removed. The 24 rides take about an hour on two quiet cores
-    (the wide rig's 1280x720 rides about 3 minutes each).
-    """
-    import tempfile
-
-    from saddlescope.bench.coverage import FIELD_RIDES, coverage_rows, run_rides
-
-    chosen = FIELD_RIDES[:8] if quick else FIELD_RIDES  # the first 8: every gait on both rigs
-    own = tmp is None
-    work = Path(tempfile.mkdtemp(prefix="saddlescope-field-")) if tmp is None else Path(tmp) / "field_nuisances"
-    try:
-        return field_table(coverage_rows(run_rides(chosen, work), recompute=False))
-    finally:
-        if own:
-            shutil.rmtree(work, ignore_errors=True)

@@ -22,12 +22,15 @@ from collections.abc import Mapping
 import numpy as np
 
 from saddlescope.core.errors import SyncError
+from saddlescope.core.rolling_shutter import SweepFit, sweep_fit
 
 __all__ = [
     "MIN_FRAMES",
     "flash_interval",
     "flash_onset",
     "clip_offsets",
+    "flash_run",
+    "sweep_interval",
     "offsets_from_intervals",
     "offsets_from_spec",
     "clip_frames_at",
@@ -140,6 +143,49 @@ def _lit_run(b: np.ndarray, where: str, min_sigma: float, noise_floor: float,
     return start, stop, base_before, base_after, plateau
 
 
+def flash_run(mean_brightness: np.ndarray, *, clip: str, camera: str, min_sigma: float = 8.0,
+              noise_floor: float = 0.02, max_flash_fraction: float = 0.5) -> tuple[int, int]:
+    """The first and last frames the flash lights (the lit run of :func:`flash_interval`).
+
+    Raises
+    ------
+    SyncError
+        As :func:`flash_interval`.
+    """
+    where = f"{clip} clip of the {camera} camera"
+    b = _checked_brightness(mean_brightness, where, 1.0)
+    start, stop, *_ = _lit_run(b, where, min_sigma, noise_floor, max_flash_fraction)
+    return start, stop
+
+
+def sweep_interval(mean_brightness: np.ndarray, readout_frames: float, *, clip: str, camera: str,
+                   width: float | None = None, **kwargs) -> SweepFit:
+    """The flash's half-level rise and fall (frames, at the frames' top-row instants) under a rolling shutter.
+
+    The lit run is found as by :func:`flash_interval` (``kwargs``: its ``min_sigma``, ``noise_floor``,
+    ``max_flash_fraction``), then fitted with the sweep model
+    (:func:`saddlescope.core.rolling_shutter.sweep_fit`): the frame's brightness rises as the lamp's
+    light reaches more of its rows.
+    """
+    kwargs = {k: v for k, v in kwargs.items() if k in ("min_sigma", "noise_floor", "max_flash_fraction")}
+    start, stop = flash_run(mean_brightness, clip=clip, camera=camera, **kwargs)
+    return sweep_fit(np.asarray(mean_brightness, np.float64), start, stop, readout_frames, width=width)
+
+
+def _swept_intervals(brightness_by_camera: Mapping[str, np.ndarray], readout_frames: Mapping[str, float],
+                     cameras: list[str], clip: str, **kwargs) -> dict[str, tuple[float, float]]:
+    """Each camera's flash as (mid, mid) from the sweep model: its mid time is what the model fixes.
+
+    (A ramp and the lamp's time on may swap in the fit, moving its rise and fall apart, never its mid.)
+    """
+    out = {}
+    for c in cameras:
+        mid = sweep_interval(brightness_by_camera[c], float(readout_frames.get(c, 0.0)), clip=clip, camera=c,
+                             **kwargs).mid
+        out[c] = (mid, mid)
+    return out
+
+
 def _lit_frames(b: np.ndarray, rise_at: int, base_before: float, level: float) -> tuple[int, int]:
     """First and last frame of the flash that lights the frame after the largest rise ``rise_at``."""
     # the lit run: contiguous frames above the baseline that include the frame after the largest rise
@@ -248,7 +294,7 @@ def _check_fps(fps_by_camera: Mapping[str, float], cameras: list[str], clip: str
 
 def clip_offsets(brightness_by_camera: Mapping[str, np.ndarray], fps_by_camera: Mapping[str, float], *,
                  clip: str, reference: str | None = None, fps_rel_tol: float = 1e-3,
-                 **flash_kwargs) -> dict[str, float]:
+                 readout_frames: Mapping[str, float] | None = None, **flash_kwargs) -> dict[str, float]:
     """Frame offsets of every camera relative to the reference (first, i.e. left) camera.
 
     Parameters
@@ -260,6 +306,10 @@ def clip_offsets(brightness_by_camera: Mapping[str, np.ndarray], fps_by_camera: 
         Clip kind (e.g. "motion"), named in errors.
     reference : str, optional
         Camera whose offset is 0; default the first key.
+    readout_frames : dict camera -> float, optional
+        Rolling shutters' readout times in frames (:mod:`saddlescope.core.rolling_shutter`): where any is
+        above 0, every camera's flash is fitted with the sweep model (:func:`sweep_interval`, one lamp
+        ramp for all), whose times are the frames' top-row instants.
     flash_kwargs
         Passed to :func:`flash_interval`.
 
@@ -282,6 +332,9 @@ def clip_offsets(brightness_by_camera: Mapping[str, np.ndarray], fps_by_camera: 
         raise SyncError(f"{clip} clip: reference camera {reference} has no brightness curve")
     cameras = [reference] + [c for c in cameras if c != reference]
     _check_fps(fps_by_camera, cameras, clip, fps_rel_tol)
+    if readout_frames and any(float(v) > 0 for v in readout_frames.values()):
+        swept = _swept_intervals(brightness_by_camera, readout_frames, cameras, clip, **flash_kwargs)
+        return offsets_from_intervals(swept, reference=reference)
     if "edges" not in flash_kwargs:
         # A lamp that ramps over two frames or more (seen on some edge) is timed by its half-level
         # crossings, with one ramp width for all cameras (one lamp, one exposure setting); a brief

@@ -62,6 +62,7 @@ from saddlescope.core.errors import SyncError
 from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.triangulation import resample_tracks
 from saddlescope.core.triangulation.matching import match_markers_across_cameras
+from saddlescope.core.triangulation.tracks import at_top_row_instants
 from saddlescope.core.types import ImageTracks, Rig
 
 __all__ = ["MotionSync", "board_velocity", "image_speed", "motion_offsets", "speed_correlation",
@@ -397,7 +398,8 @@ def _match_labels(cons: _Consistency, offsets: Mapping[str, float], n_instants: 
 
 def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | None = None,
                    reference: str | None = None, clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
-                   max_offset_s: float = 2.0, clip: str = "motion") -> MotionSync:
+                   max_offset_s: float = 2.0, clip: str = "motion",
+                   row_readout: Mapping[str, tuple[float, int]] | None = None) -> MotionSync:
     """Offsets of every camera against the reference from the markers' motion (module docstring).
 
     Parameters
@@ -433,6 +435,8 @@ def motion_offsets(tracks: Mapping[str, ImageTracks], fps: float, *, rig: Rig | 
     if not (np.isfinite(fps) and fps > 0):
         raise SyncError(f"{clip} clip: frame rate {fps} is not positive")
     clocks = dict(clocks or {})
+    tracks = {c: at_top_row_instants(tracks[c], *(row_readout or {}).get(c, (0.0, 1)),
+                                     frame_times_s=clocks[c][0] if c in clocks else None) for c in cams}
     speeds = {}
     for c in cams:
         fi = np.asarray(tracks[c].frame_index)

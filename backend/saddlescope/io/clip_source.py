@@ -29,9 +29,10 @@ from saddlescope.core.sync import MIN_FRAMES, flash_interval
 from saddlescope.io.malloc import limit_frame_memory, release_freed_memory
 from saddlescope.io.video import VideoInfo, iter_gray_frames, probe_video
 
-__all__ = ["HANDOFF_BUDGET_MB", "BundleClips", "brightness_until_flash"]
+__all__ = ["HANDOFF_BUDGET_MB", "ROW_BANDS", "BundleClips", "RowBands", "brightness_until_flash"]
 
 BRIGHTNESS_DOWNSCALE = 8  # every 8th pixel of every 8th row: the mean of a 1080p frame from 32k samples
+ROW_BANDS = 16  # bands of rows whose own brightness shows a rolling shutter's flash sweeping down the frame
 # Frames the sync passes may keep for the next pass of their clips, all clips together: 1080p60 clips
 # keep 40-90 MB each (their frames from the flash's end to where the sync pass stopped), 640x480 ones a
 # tenth of that; a 2160p clip up to 270 MB while its sync pass reads, so with this budget one at a time.
@@ -41,8 +42,34 @@ HANDOFF_BUDGET_MB = 384.0
 SYNC_MIN_S, SYNC_SETTLE_S, SYNC_CHECK_EVERY_S = 1.0, 0.5, 0.25
 
 
+class RowBands:
+    """Each frame's mean brightness per band of rows (:data:`ROW_BANDS` bands), from the brightness pass's samples."""
+
+    def __init__(self) -> None:
+        self.values: list[np.ndarray] = []
+        self.edges: np.ndarray | None = None
+        self.row_fraction = np.zeros(0)
+
+    def add(self, sampled: np.ndarray, height: int) -> None:
+        """One frame's sampled pixels (every ``BRIGHTNESS_DOWNSCALE``-th row and column) of a ``height``-row image."""
+        row_means = sampled.mean(axis=1, dtype=np.float64)
+        if self.edges is None:
+            n = min(ROW_BANDS, len(row_means))
+            self.edges = np.linspace(0, len(row_means), n + 1).round().astype(np.int64)
+            rows = np.arange(len(row_means)) * BRIGHTNESS_DOWNSCALE + 0.5
+            self.row_fraction = np.array([rows[a:b].mean() for a, b in zip(self.edges[:-1], self.edges[1:],
+                                                                             strict=True)]) / height
+        sums = np.add.reduceat(row_means, self.edges[:-1])
+        self.values.append(sums / np.diff(self.edges))
+
+    def curves(self) -> tuple[np.ndarray, np.ndarray]:
+        """(brightness (F', B), each band's mean row height as a share of the image's height (B,))."""
+        return (np.asarray(self.values, dtype=np.float64).reshape(len(self.values), -1), self.row_fraction)
+
+
 def brightness_until_flash(frames, fps: float, *, clip: str, camera: str, min_s: float = SYNC_MIN_S,
-                           settle_s: float = SYNC_SETTLE_S, check_every_s: float = SYNC_CHECK_EVERY_S) -> np.ndarray:
+                           settle_s: float = SYNC_SETTLE_S, check_every_s: float = SYNC_CHECK_EVERY_S,
+                           bands: RowBands | None = None) -> np.ndarray:
     """Mean brightness of each frame (F',) from ``frames`` ((index, grey image) from frame 0).
 
     Read until the sync flash is found (:func:`saddlescope.core.sync.flash_interval`) with ``settle_s`` of frames
@@ -51,13 +78,17 @@ def brightness_until_flash(frames, fps: float, *, clip: str, camera: str, min_s:
 
     A flash is looked for every ``check_every_s``; the first bright interval that passes the flash
     detector's tests wins, where the whole clip would give the largest rise: a sync flash is filmed
-    first, before the ride, so the two agree on a clip filmed as docs/filming.md asks.
+    first, before the ride, so the two agree on a clip filmed as docs/filming.md asks. ``bands``
+    collects each frame's brightness per band of rows from the same samples (a rolling shutter's readout).
     """
     values: list[float] = []
     check_at = max(MIN_FRAMES, int(round(min_s * fps)))
     settle = max(5, int(round(settle_s * fps)))
     for _, img in frames:
-        values.append(float(img[::BRIGHTNESS_DOWNSCALE, ::BRIGHTNESS_DOWNSCALE].mean()))
+        sampled = img[::BRIGHTNESS_DOWNSCALE, ::BRIGHTNESS_DOWNSCALE]
+        values.append(float(sampled.mean()))
+        if bands is not None:
+            bands.add(sampled, img.shape[0])
         if len(values) >= check_at:
             check_at += max(1, int(round(check_every_s * fps)))
             try:
@@ -109,6 +140,7 @@ class BundleClips:
         self.whole_clip_brightness = whole_clip_brightness
         self._info = cache(self._probe)
         self._brightness = cache(self._mean_brightness)
+        self._bands: dict[tuple[str, str], RowBands] = {}  # filled by the brightness passes
         self._lock = threading.Lock()
         self._open_decoders = 0
         self._handoff_budget = float(handoff_budget_mb) * 1e6
@@ -233,10 +265,15 @@ class BundleClips:
                 raise VideoError(f"{kind} clip of the {camera} camera: {exc}") from None
 
     def _mean_brightness(self, kind: str, camera: str) -> np.ndarray:
+        bands = self._bands.setdefault((kind, camera), RowBands())
         if self.whole_clip_brightness:
             with closing(self._decoded(kind, camera, 0, None, 1)) as frames:
-                return np.asarray([float(img[::BRIGHTNESS_DOWNSCALE, ::BRIGHTNESS_DOWNSCALE].mean())
-                                   for _, img in frames], dtype=np.float64)
+                values = []
+                for _, img in frames:
+                    sampled = img[::BRIGHTNESS_DOWNSCALE, ::BRIGHTNESS_DOWNSCALE]
+                    values.append(float(sampled.mean()))
+                    bands.add(sampled, img.shape[0])
+                return np.asarray(values, dtype=np.float64)
         fps = self.fps(kind, camera)
         width, height = self.image_size(kind, camera)
         reserved = _frames_kept(fps) * float(width * height)
@@ -256,7 +293,7 @@ class BundleClips:
 
         nbytes = 0
         try:
-            values = brightness_until_flash(tapped(), fps, clip=kind, camera=camera)
+            values = brightness_until_flash(tapped(), fps, clip=kind, camera=camera, bands=bands)
             handoff = self._handoff_after_flash(values, kept, frames, kind, camera) if keep else None
             if handoff is not None:
                 with self._lock:
@@ -294,6 +331,14 @@ class BundleClips:
         The whole clip when it holds none, or with ``whole_clip_brightness``. Cached per clip.
         """
         return self._brightness(kind, camera)
+
+    def band_brightness(self, kind: str, camera: str) -> tuple[np.ndarray, np.ndarray]:
+        """Each frame's brightness per band of rows (F', B) over :meth:`brightness`'s frames.
+
+        With each band's mean row height as a share of the image's height (B,): read in the same pass.
+        """
+        self.brightness(kind, camera)
+        return self._bands[(kind, camera)].curves()
 
 
 def _from_handoff(handoff: _Handoff, start: int, stop: int | None, step: int) -> Iterator[tuple[int, np.ndarray]]:

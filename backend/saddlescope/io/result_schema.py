@@ -75,6 +75,10 @@ _FLAGS = {"type": "array", "items": {"type": "string"}}
 _OFFSETS = {"type": "object", "required": list(CAMERA_ROLES),
             "properties": {role: _NUMBER for role in CAMERA_ROLES},
             "additionalProperties": False}
+# a phone's rolling shutter: each camera's readout time in ms (0 a global shutter; a phone's 10-35 ms)
+_READOUT_MS = {"type": "object", "properties": {role: {"type": "number", "minimum": 0, "maximum": 40}
+                                                for role in CAMERA_ROLES},
+               "additionalProperties": False}
 
 _PASS = {"type": "object", "required": ["start_s", "end_s", "start_frame", "frames", "strides", "used"],
          "properties": {"start_s": _NUMBER, "end_s": _NUMBER, "start_frame": {"type": "integer", "minimum": 0},
@@ -184,6 +188,7 @@ RIDE_SCHEMA: dict[str, Any] = {
                 "method": {"enum": ["flash", "offsets", "motion"]},
                 "offsets": {"type": "object", "properties": {kind: _OFFSETS for kind in CLIP_KINDS},
                             "additionalProperties": _OFFSETS},
+                "readout_ms": _READOUT_MS,
             },
             "if": {"properties": {"method": {"const": "offsets"}}},
             "then": {"required": ["offsets"]},
@@ -281,6 +286,9 @@ def _describe(error: jsonschema.ValidationError) -> str:
     if kind == "type":
         expected = value if isinstance(value, str) else " or ".join(value)
         return f"{prefix}must be {expected}, got {type(inst).__name__} {_short(inst)}"
+    if kind in ("minimum", "maximum") and "readout_ms" in error.absolute_path:
+        return (f"{prefix}is {_short(inst)} ms: a rolling shutter's readout time must be 0-40 ms (a phone's is "
+                "10-35 ms, 0 for a global shutter)")
     if kind == "anyOf" and error.schema is RIDE_SCHEMA:
         return ("needs clips.calibration (the board walk), a calibration_file, or "
                 "calibration.method 'wand' with clips.wand and clips.close_up")

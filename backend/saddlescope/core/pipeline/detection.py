@@ -347,8 +347,12 @@ class _Triangulator:
     """Triangulates a clip's image tracks with the ride's rig, offsets and clocks, timing itself."""
 
     def __init__(self, clips: ClipReader, rig: Rig, offsets: Mapping, clocks: Mapping, params: PipelineParams,
-                 lens_reach_px: Mapping[str, float] | None = None):
+                 lens_reach_px: Mapping[str, float] | None = None, readouts: Mapping | None = None):
         self.rig, self.offsets, self.clocks, self.params = rig, offsets, clocks, params
+        # rolling shutters: per clip set, camera -> (readout in frames, image rows); only where one is not 0
+        self.row_readout = {kind: {c: (r.readout_s * clips.fps(kind, c), clips.image_size(kind, c)[1])
+                                   for c, r in per_cam.items() if r.readout_s > 0}
+                            for kind, per_cam in (readouts or {}).items()}
         # issue 27 (wt-arena-rigs): beyond the board's reach the lens model is not extrapolated, and the
         # ride's track has no step where a camera enters or leaves
         nview = params.triangulation == "nview"
@@ -363,7 +367,8 @@ class _Triangulator:
         started = time.perf_counter()
         out = triangulate_tracks(self.rig, tracks2d, self.offsets[kind], self.fps[kind],
                                  method=self.params.triangulation, names=tuple(f"M{i + 1}" for i in range(n)),
-                                 match_labels=True, clocks=self.clocks.get(kind), **self.extra,
+                                 match_labels=True, clocks=self.clocks.get(kind),
+                                 row_readout=self.row_readout.get(kind) or None, **self.extra,
                                  **(self.motion_extra if kind == "motion" else {}))
         self.seconds += time.perf_counter() - started
         return out
@@ -483,17 +488,20 @@ def _coverage_flags(motion2d: Mapping[str, ImageTracks], calib_report: Mapping) 
 def detect_ride(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapping, clocks: Mapping,
                 params: PipelineParams, calib_report: Mapping, progress: Progress, *,
                 n_horse: int, n_saddle: int, n_plumb: int,
-                early_motion: EarlyMotionTracks | None = None) -> RideTracks:
+                early_motion: EarlyMotionTracks | None = None, readouts: Mapping | None = None) -> RideTracks:
     """Stages 3-4: the plumb line, the standing horse and the ride's markers, in 3-D.
 
     ``offsets``, ``first_frame`` and ``clocks`` are :func:`~saddlescope.core.pipeline.setup.synchronise`'s
     and :func:`~saddlescope.core.pipeline.setup.frame_clocks`' per clip kind; ``calib_report`` the
     calibration's report (its board coverage flags markers seen where the lens is extrapolated);
-    ``early_motion`` the motion clip's per-camera tracks started during the calibration, if they were.
+    ``early_motion`` the motion clip's per-camera tracks started during the calibration, if they were;
+    ``readouts`` per clip kind and camera the rolling shutters' readouts
+    (:func:`~saddlescope.core.pipeline.setup.clip_readouts`): each observation is placed at its row's instant.
     """
     found = RideTracks()
     triangulate = _Triangulator(clips, rig, offsets, clocks, params,
-                                lens_reach_px=reach_by_camera(rig, calib_report.get("board_coverage")))
+                                lens_reach_px=reach_by_camera(rig, calib_report.get("board_coverage")),
+                                readouts=readouts)
     _detect_plumb(clips, rig, first_frame, params, n_plumb, triangulate, found)
     progress.stage("detection", 0.2)
     static2d, static_flags = detect_clip(clips, "static", n_horse + n_saddle, first_frame["static"], params,

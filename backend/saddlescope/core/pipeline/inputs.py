@@ -59,6 +59,15 @@ class ClipReader(Protocol):
         It may cover only the first F' <= F frames: up to a settled stretch after the flash.
         """
 
+    def band_brightness(self, kind: str, camera: str) -> tuple[np.ndarray, np.ndarray]:
+        """Each frame's brightness per band of rows, (F', B) over :meth:`brightness`'s frames.
+
+        With each band's mean row height as a share of the image's height (B,), 0 top: a rolling shutter's flash
+        sweeps down them.
+
+        Optional: a reader without it gives no readout estimate (readouts then come from ride.json or are 0).
+        """
+
     def frame_times(self, kind: str, camera: str) -> np.ndarray | None:
         """Each frame's timestamp (F,) s for a variable-rate clip (phones), None for an even one."""
 

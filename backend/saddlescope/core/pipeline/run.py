@@ -72,10 +72,11 @@ def _clip_kinds(clips: ClipReader, rig: Rig | None, meta: Mapping) -> list[str]:
 
 
 def _motion_clip_sync(clips: ClipReader, rig: Rig, n_horse: int, params: PipelineParams, clocks: Mapping,
-                      progress: Progress):
+                      progress: Progress, readouts: Mapping | None = None):
     """The motion clip's offsets from the markers' own motion (no flash), timed as ``sync_motion``."""
     t0 = time.perf_counter()
-    found = motion_sync(clips, rig, "motion", n_horse, params, clocks=clocks.get("motion"))
+    found = motion_sync(clips, rig, "motion", n_horse, params, clocks=clocks.get("motion"),
+                        readouts=(readouts or {}).get("motion"))
     progress.timings_s["sync_motion"] = round(time.perf_counter() - t0, 4)
     return found
 
@@ -243,14 +244,15 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
                                                    progress, early)
         progress.finish("calibration", t0)
         if methods.get("motion") == "motion":  # no flash: the markers' motion, with the rig just calibrated
-            synced["motion"] = _motion_clip_sync(clips, rig, n_horse, params, clocks, progress)
+            synced["motion"] = _motion_clip_sync(clips, rig, n_horse, params, clocks, progress,
+                                                 methods.get("readouts"))
         for kind, found_sync in synced.items():
             offsets[kind] = dict(found_sync.offsets)
             clock_flags.append(sync_flag(kind, found_sync))
         t0 = time.perf_counter()
         found = detect_ride(clips, rig, offsets, first_frame, clocks, params, calib_report, progress, n_horse=n_horse,
                             n_saddle=int(markers.get("saddle", 1)), n_plumb=int(markers.get("plumb", 2)),
-                            early_motion=early)
+                            early_motion=early, readouts=methods.get("readouts"))
     progress.finish("detection", t0, seconds=time.perf_counter() - t0 - found.triangulation_s)
     progress.finish("triangulation", t0, seconds=found.triangulation_s)
 

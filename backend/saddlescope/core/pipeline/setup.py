@@ -19,12 +19,13 @@ from saddlescope.core.errors import CalibrationError, DetectionError, SyncError
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress, cameras_at_once
-from saddlescope.core.sync import clip_offsets, flash_interval, nominal_frames_of, offsets_from_spec
+from saddlescope.core.rolling_shutter import CameraReadout, readout_from_bands, readouts_from_meta
+from saddlescope.core.sync import clip_offsets, flash_interval, flash_run, nominal_frames_of, offsets_from_spec
 from saddlescope.core.sync_motion import MotionSync, motion_offsets
 from saddlescope.core.types import Board, ImageTracks, Rig
 
-__all__ = ["SYNC_METHODS", "board_corner_sample", "board_coverage", "calibrate_from_clips", "frame_clocks",
-           "motion_sync", "outside_coverage", "still_views", "sync_flag", "sync_quality", "synchronise",
+__all__ = ["SYNC_METHODS", "board_corner_sample", "board_coverage", "calibrate_from_clips", "clip_readouts",
+           "frame_clocks", "motion_sync", "outside_coverage", "still_views", "sync_flag", "sync_quality", "synchronise",
            "synchronise_clips"]
 
 
@@ -61,7 +62,9 @@ def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str], *,
     "flash" or "offsets" (done), "motion" (the motion clip: from its markers once the rig is known,
     :func:`motion_sync`; the calibration clip: from the board, :func:`calibrate_from_clips`), or
     "still" (the plumb and static clips without a flash: their markers stand still, so frames pair up
-    whatever the offset, taken as 0); ``methods["reasons"][kind]`` why a flash was not used.
+    whatever the offset, taken as 0); ``methods["reasons"][kind]`` why a flash was not used;
+    ``methods["readouts"][kind][camera]`` the camera's rolling-shutter readout (:func:`clip_readouts`),
+    which the flash's sweep model uses.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -76,6 +79,7 @@ def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str], *,
     budget = threads or max(len(clips.cameras(kind)) for kind in kinds)
     with ThreadPoolExecutor(max_workers=max(1, min(len(jobs), budget))) as pool:
         decoded = dict(zip(jobs, pool.map(lambda job: clips.brightness(*job), jobs), strict=True))
+    methods["readouts"] = readouts = clip_readouts(clips, meta, kinds, flash_clips=not by_motion)
     for kind in kinds:
         cams = clips.cameras(kind)
         fps = {c: clips.fps(kind, c) for c in cams}
@@ -90,7 +94,8 @@ def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str], *,
         brightness = {c: decoded[kind, c] for c in cams}
         if known is None:
             try:
-                offsets[kind] = clip_offsets(brightness, fps, clip=kind, fps_rel_tol=rel_tol)
+                offsets[kind] = clip_offsets(brightness, fps, clip=kind, fps_rel_tol=rel_tol,
+                                             readout_frames={c: readouts[kind][c].readout_s * fps[c] for c in cams})
             except SyncError as exc:
                 if "no sync flash" not in str(exc):
                     raise  # frame rates, clip lengths: no other sync would help
@@ -109,6 +114,48 @@ def synchronise_clips(clips: ClipReader, meta: Mapping, kinds: list[str], *,
                     raise
                 first_frame[kind][c] = 0  # known offsets: the clip need not hold a flash
     return offsets, first_frame, methods
+
+
+def clip_readouts(clips: ClipReader, meta: Mapping, kinds: list[str], *,
+                  flash_clips: bool = True) -> dict[str, dict[str, CameraReadout]]:
+    """Every camera's rolling-shutter readout in every clip set: given in ride.json, or measured.
+
+    Measured from the flash sweeping down the clip's bands of rows
+    (:func:`~saddlescope.core.rolling_shutter.readout_from_bands`, from the reader's ``band_brightness``);
+    a clip without a flash takes the median of the camera's readouts measured in its other clips, and a
+    camera whose clips show no flash (or a reader without row bands) a global shutter (0).
+
+    Raises
+    ------
+    InputError
+        ride.json's ``sync.readout_ms`` is not a number of 0-40 ms for a camera of the ride.
+    """
+    cameras = list(dict.fromkeys(c for kind in kinds for c in clips.cameras(kind)))
+    given = readouts_from_meta(meta, cameras)
+    if given is not None:
+        return {kind: {c: CameraReadout(given[c], "ride.json") for c in clips.cameras(kind)} for kind in kinds}
+    bands_of = getattr(clips, "band_brightness", None)
+    measured: dict[str, dict[str, CameraReadout]] = {kind: {} for kind in kinds}
+    for kind in kinds:
+        if not flash_clips or bands_of is None:
+            break
+        for cam in clips.cameras(kind):
+            try:
+                start, stop = flash_run(clips.brightness(kind, cam), clip=kind, camera=cam)
+                curves, rows = bands_of(kind, cam)
+                est = readout_from_bands(curves, rows, clips.fps(kind, cam), start=start, stop=stop)
+            except SyncError:
+                continue
+            measured[kind][cam] = CameraReadout(est.readout_s, "flash sweep", est.sigma_s)
+    out: dict[str, dict[str, CameraReadout]] = {}
+    for kind in kinds:
+        out[kind] = {}
+        for cam in clips.cameras(kind):
+            elsewhere = [m[cam].readout_s for m in measured.values() if cam in m]
+            out[kind][cam] = measured[kind].get(cam) or (
+                CameraReadout(float(np.median(elsewhere)), "flash sweep elsewhere") if elsewhere
+                else CameraReadout(0.0, "none"))
+    return out
 
 
 def _same_rates(kind: str, fps: Mapping[str, float], rel_tol: float) -> None:
@@ -131,7 +178,8 @@ def _without_flash(kind: str, cams: list[str], offsets: dict, first_frame: dict,
 
 
 def motion_sync(clips: ClipReader, rig: Rig, kind: str, n_markers: int, params: PipelineParams,
-                clocks: Mapping[str, tuple[np.ndarray, float]] | None = None) -> MotionSync:
+                clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
+                readouts: Mapping[str, CameraReadout] | None = None) -> MotionSync:
     """Offsets of a clip set without a flash from its markers' motion, with the calibrated rig.
 
     Each camera tracks the moving markers by itself (as :func:`~saddlescope.core.pipeline.detection.detect_motion`
@@ -154,18 +202,24 @@ def motion_sync(clips: ClipReader, rig: Rig, kind: str, n_markers: int, params: 
         except DetectionError as exc:
             raise SyncError(f"no sync flash in the {kind} clip, and its markers' motion cannot synchronise the "
                             f"cameras: {exc}") from exc
-    return motion_offsets(tracks, clips.fps(kind, cams[0]), rig=rig, clocks=clocks, clip=kind)
+    fps = clips.fps(kind, cams[0])
+    row_readout = {c: (r.readout_s * fps, clips.image_size(kind, c)[1]) for c, r in (readouts or {}).items()
+                   if r.readout_s > 0}
+    return motion_offsets(tracks, fps, rig=rig, clocks=clocks, clip=kind, row_readout=row_readout)
 
 
 def sync_quality(kinds: list[str], methods: Mapping, synced: Mapping[str, MotionSync]) -> dict:
     """The result's ``quality.sync``: per clip set its method and, from motion, the offsets' uncertainty.
 
     ``{kind: {"method": "flash" | "offsets" | "motion" | "still", "sigma_frames": {camera: frames},
-    "rms_px": ..., "reason": why no flash}}`` (the last three only where they apply).
+    "rms_px": ..., "reason": why no flash, "readout_ms": {camera: ms}, "readout_source": {camera: source},
+    "readout_sigma_ms": {camera: ms}}}`` (the sigmas, rms and reason only where they apply; the readouts
+    where a camera has a rolling shutter or it was measured).
     """
     out = {}
     for kind in kinds:
         entry: dict = {"method": methods.get(kind, "flash")}
+        entry.update(_readout_quality(methods.get("readouts", {}).get(kind, {})))
         if kind in synced:
             entry["sigma_frames"] = {c: round(float(v), 4) for c, v in synced[kind].sigma_frames.items()}
             rms_px = synced[kind].rms_px
@@ -174,6 +228,18 @@ def sync_quality(kinds: list[str], methods: Mapping, synced: Mapping[str, Motion
         if kind in methods.get("reasons", {}):
             entry["reason"] = methods["reasons"][kind]
         out[kind] = entry
+    return out
+
+
+def _readout_quality(readouts: Mapping[str, CameraReadout]) -> dict:
+    """A clip set's readouts for ``quality.sync``: ms, source and (measured) standard error per camera."""
+    if not readouts or all(r.source == "none" for r in readouts.values()):
+        return {}
+    out: dict = {"readout_ms": {c: round(1000.0 * r.readout_s, 2) for c, r in readouts.items()},
+                 "readout_source": {c: r.source for c, r in readouts.items()}}
+    sigmas = {c: round(1000.0 * r.sigma_s, 3) for c, r in readouts.items() if r.sigma_s is not None}
+    if sigmas:
+        out["readout_sigma_ms"] = sigmas
     return out
 
 

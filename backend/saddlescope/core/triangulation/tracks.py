@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from saddlescope.core.errors import InputError, TriangulationError
+from saddlescope.core.rolling_shutter import row_delay_frames
 from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.triangulation.lens_reach import reach_radius
 from saddlescope.core.triangulation.matching import match_markers_across_cameras
@@ -21,7 +22,7 @@ from saddlescope.core.triangulation.nview import triangulate_nview
 from saddlescope.core.triangulation.pairs import triangulate_thesis_pairs
 from saddlescope.core.types import ImageTracks, MarkerTracks, Rig
 
-__all__ = ["ReachCheckedTracks", "resample_tracks", "triangulate_tracks"]
+__all__ = ["ReachCheckedTracks", "at_top_row_instants", "resample_at_instants", "resample_tracks", "triangulate_tracks"]
 
 
 @dataclass(frozen=True)
@@ -139,7 +140,8 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
                        match_labels: bool = True, names: Sequence[str] | None = None,
                        interpolation: str = "cubic",
                        clocks: Mapping[str, tuple[np.ndarray, float]] | None = None,
-                       camera_set_bias: bool = False, **kwargs) -> MarkerTracks:
+                       camera_set_bias: bool = False, row_readout: Mapping[str, tuple[float, int]] | None = None,
+                       **kwargs) -> MarkerTracks:
     """2-D tracks of several cameras -> 3-D marker tracks on the reference camera's clock.
 
     Camera c's clip frame ``k + offsets_frames[c]`` shows the same instant as the reference clip's frame
@@ -171,10 +173,14 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
         were measured. Offsets then count nominal frames at ``fps`` from that anchor, and the camera's
         tracks are sampled at the stamped instants (:func:`clip_frames_at`); the reference's too, so
         ``t_s`` stays even.
+    row_readout : dict of camera name -> (readout in frames, image rows), keyword-only
+        Rolling shutters: a marker seen at row y of a frame was exposed ``(y + 0.5) / rows * readout``
+        frames after the frame's (top row's) instant. Each observation is then placed at its own instant
+        and every camera's tracks (the reference's too) interpolated to the reference frames' instants
+        (:func:`resample_at_instants`). Cameras not given (or with readout 0) have a global shutter.
     camera_set_bias : bool, keyword-only
-        With "nview": where a marker is triangulated from fewer cameras than elsewhere (a camera
-        entered or left), remove that camera set's offset from the full set, measured on the nearest
-        frames both saw (:func:`_nview_without_set_steps`), so the track has no step at the switch.
+        With "nview": where a marker is triangulated from fewer cameras (a camera entered or left), remove
+        that set's offset from the full set's on the nearest frames both saw (no step at the switch).
     **kwargs
         Passed to the triangulation function.
 
@@ -188,7 +194,8 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
     """
     _, reference, M = _check_tracks(tracks, method, fps, reference)
     ref_frames = np.asarray(tracks[reference].frame_index, dtype=np.float64)
-    xy = _on_reference_clock(tracks, offsets_frames, reference, ref_frames, fps, interpolation, clocks or {})
+    xy = _on_reference_clock(tracks, offsets_frames, reference, ref_frames, fps, interpolation, clocks or {},
+                             row_readout or {})
     if match_labels and M > 1:
         xy = _labels_of_reference(rig, xy, reference)
     used = None
@@ -198,9 +205,8 @@ def triangulate_tracks(rig: Rig, tracks: Mapping[str, ImageTracks], offsets_fram
         X, err, views, used = triangulate_nview(rig, xy, return_used=True, **kwargs)
     else:
         X, err, views = triangulate_thesis_pairs(rig, xy, **kwargs)
-    if names is None:
-        names = tuple(str(i + 1) for i in range(M))
-    elif len(names) != M:
+    names = tuple(names) if names is not None else tuple(str(i + 1) for i in range(M))
+    if len(names) != M:
         raise InputError(f"{len(names)} marker names given for {M} markers")
     reach = kwargs.get("lens_reach_px")
     if used is None or not reach:
@@ -313,7 +319,8 @@ def _check_tracks(tracks: Mapping[str, ImageTracks], method: str, fps: float,
 
 def _on_reference_clock(tracks: Mapping[str, ImageTracks], offsets_frames: Mapping[str, float], reference: str,
                         ref_frames: np.ndarray, fps: float, interpolation: str,
-                        clocks: Mapping[str, tuple[np.ndarray, float]]) -> dict[str, np.ndarray]:
+                        clocks: Mapping[str, tuple[np.ndarray, float]],
+                        row_readout: Mapping[str, tuple[float, int]]) -> dict[str, np.ndarray]:
     """Every camera's tracks (F, M, 2) at the instants of the reference's frames ``ref_frames`` (F,)."""
     base = float(offsets_frames.get(reference, 0.0))
     xy = {}
@@ -321,11 +328,69 @@ def _on_reference_clock(tracks: Mapping[str, ImageTracks], offsets_frames: Mappi
         offset = float(offsets_frames.get(c, 0.0)) - base
         wanted = ref_frames + offset
         times = None
+        to_clip = None
         if c in clocks:
             times, anchor = clocks[c]
-            wanted = clip_frames_at(wanted, times, anchor, fps)
+            to_clip = _nominal_to_clip(times, anchor, fps)
+        readout, rows = row_readout.get(c, (0.0, 1))
+        if readout > 0:
+            xy[c] = resample_at_instants(tracks[c], wanted, readout, rows, kind=interpolation, frame_times_s=times,
+                                         to_clip_frames=to_clip)
+            continue
+        if to_clip is not None:
+            wanted = to_clip(wanted)
         xy[c] = resample_tracks(tracks[c], wanted, kind=interpolation, frame_times_s=times)
     return xy
+
+
+def _nominal_to_clip(times: np.ndarray, anchor: float, fps: float):
+    """Nominal (even-clock) frames -> a variable-rate clip's fractional frames (:func:`clip_frames_at`)."""
+    return lambda frames: clip_frames_at(frames, times, anchor, fps)
+
+
+def resample_at_instants(tracks: ImageTracks, instants: np.ndarray, readout_frames: float, rows: int, *,
+                         kind: str = "cubic", frame_times_s: np.ndarray | None = None, to_clip_frames=None,
+                         iterations: int = 3) -> np.ndarray:
+    """A rolling-shutter camera's 2-D tracks at given instants, each observation at its own instant.
+
+    The marker seen at row y of frame k was exposed at ``k + (y + 0.5) / rows * readout`` (frames of
+    this clip, top-row instants). Its track as a function of the frame number is smooth, so the
+    position at instant t is the track at the fractional frame k* with ``k* + delay(y(k*)) = t``,
+    found by fixed-point iteration for each marker (the delay changes by ``readout / rows`` per pixel
+    of vertical motion: a contraction, a few iterations reach 1e-4 frame).
+
+    Parameters
+    ----------
+    tracks : ImageTracks
+        (F, M, 2) at ``frame_index``.
+    instants : ndarray of shape (N,)
+        Wanted instants in this clip's (nominal) frames, at the frames' top-row convention.
+    readout_frames : float
+        The readout time in frames.
+    rows : int
+        The image's height in pixels.
+    kind, frame_times_s
+        As :func:`resample_tracks`.
+    to_clip_frames : callable, optional
+        Nominal frames -> clip frames for a variable-rate clip (identity otherwise).
+    iterations : int
+
+    Returns
+    -------
+    ndarray of shape (N, M, 2), NaN where the track does not reach.
+    """
+    xy = np.asarray(tracks.xy_px, dtype=np.float64)
+    t = np.asarray(instants, dtype=np.float64)
+    out = np.full((t.size, xy.shape[1], 2), np.nan)
+    convert = to_clip_frames or (lambda frames: frames)
+    for m in range(xy.shape[1]):
+        one = ImageTracks(tracks.camera, xy[:, m:m + 1], tracks.frame_index)
+        delay = np.full(t.size, 0.5 * readout_frames)  # mid-frame to start, then each marker's own row
+        for _ in range(iterations):
+            at = resample_tracks(one, convert(t - delay), kind=kind, frame_times_s=frame_times_s)[:, 0]
+            delay = np.where(np.isfinite(at[:, 1]), row_delay_frames(at[:, 1], readout_frames, rows), delay)
+        out[:, m] = resample_tracks(one, convert(t - delay), kind=kind, frame_times_s=frame_times_s)[:, 0]
+    return out
 
 
 def _labels_of_reference(rig: Rig, xy: dict[str, np.ndarray], reference: str) -> dict[str, np.ndarray]:
@@ -343,3 +408,17 @@ def _labels_of_reference(rig: Rig, xy: dict[str, np.ndarray], reference: str) ->
         perms = match_markers_across_cameras(rig, {c: xy[c][pick] for c in cams}, reference=reference)
         xy = {c: xy[c][:, perms[c]] for c in cams}
     return xy
+
+
+def at_top_row_instants(tracks: ImageTracks, readout_frames: float, rows: int, *,
+                        frame_times_s: np.ndarray | None = None) -> ImageTracks:
+    """A rolling-shutter camera's tracks moved to their frames' top-row instants, as a global shutter's.
+
+    Each frame's markers where they were at the frame's own instant (:func:`resample_at_instants` at the
+    tracked frames); a frame the track does not reach around gets NaN. Unchanged with readout 0.
+    """
+    if readout_frames <= 0:
+        return tracks
+    frames = np.asarray(tracks.frame_index, dtype=np.float64)
+    xy = resample_at_instants(tracks, frames, readout_frames, rows, frame_times_s=frame_times_s)
+    return ImageTracks(tracks.camera, xy, tracks.frame_index)
