@@ -334,3 +334,26 @@ def test_a_look_alike_moving_with_the_horse_breaks_the_static_layout():
     glint[:, 2] = noisy[:, 0] + [150.0, 650.0, 120.0]
     assert S.layout_mismatch_mm(static, glint) > P.PipelineParams().max_layout_mismatch_mm
     assert S.layout_mismatch_mm(static, np.full((4, 3, 3), np.nan)) == np.inf
+
+
+def test_a_ride_whose_rear_marker_keeps_hiding_is_refused_naming_it_not_as_too_short():
+    """Issue 38: a boot over the rear marker for part of every stride left runs shorter than a stride; the
+    refusal said "record a longer ride" where the club must move the marker."""
+    from saddlescope.core.saddle import hidden_marker_refusal
+
+    fps, period_s = 30.0, 0.75
+    t = np.arange(90) / fps
+    xyz = np.zeros((90, 3, 3))
+    xyz[:, :, 0] = 4000.0 * t[:, None] + np.array([400.0, 0.0, -400.0])  # travelling along +x: front, middle, rear
+    phase = (t / period_s) % 1.0
+    xyz[(phase > 0.6) & (phase < 0.85), 2] = np.nan  # the rear marker hidden for a quarter of every stride
+    refusal = hidden_marker_refusal(t, xyz, 0.5, period_s)
+    assert refusal is not None
+    text = str(refusal)
+    assert text.startswith("the rear marker was hidden again and again (2") and "place the rear marker" in text
+    other_way = np.zeros((90, 3, 3))  # the other way round the arena (-x): the first marker is now the rear one
+    other_way[:, :, 0] = -4000.0 * t[:, None] + np.array([400.0, 0.0, -400.0])
+    other_way[(phase > 0.6) & (phase < 0.85), 0] = np.nan
+    assert "the rear marker" in str(hidden_marker_refusal(t, other_way, 0.5, period_s))
+    other_way[(phase > 0.6) & (phase < 0.85), 0] = 0.0  # nothing hidden: no such refusal
+    assert hidden_marker_refusal(t, other_way, 0.5, period_s) is None

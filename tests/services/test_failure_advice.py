@@ -41,6 +41,10 @@ CASES = [
     ("analyze: its worker host:12 stopped (last heartbeat 300 s ago) on attempt 3 of 3; not retried again",
      "run_again", None, None, ["not in your clips", "run it again"]),
     ("analyze: internal error (ZeroDivisionError: division by zero)", "run_again", None, None, ["run it again"]),
+    ("analyze: the rear marker was hidden again and again (31 % of the frames where the other markers were seen): "
+     "the markers were seen together for at most 0.63 s, less than one stride of 0.74 s; place the rear marker "
+     "where the rider's leg, the tail or a lunge line does not pass, and film the ride again",
+     "film_again", None, "motion", ["The rear marker kept being hidden", "place the rear marker where nothing"]),
 ]
 
 

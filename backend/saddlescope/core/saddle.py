@@ -40,9 +40,9 @@ from saddlescope.core.params import PipelineParams
 from saddlescope.core.types import MarkerTracks
 from saddlescope.core.vibration import ride_indicators
 
-__all__ = ["STRIDE_RANGE_HZ", "SaddleAnalysis", "identify_saddle_marker", "kinematics_indicators",
-           "layout_mismatch_mm", "match_horse_markers", "pairwise_distances", "saddle_kinematics",
-           "static_positions", "vertical_harmonics"]
+__all__ = ["STRIDE_RANGE_HZ", "SaddleAnalysis", "hidden_marker_refusal", "identify_saddle_marker",
+           "kinematics_indicators", "layout_mismatch_mm", "match_horse_markers", "pairwise_distances",
+           "saddle_kinematics", "static_positions", "vertical_harmonics"]
 
 # Stride frequencies searched per declared gait (literature: walk 0.85-0.95 Hz, trot 1.3-1.5 Hz,
 # canter 1.6-1.7 Hz), with wide margins. They keep the stride apart from the 2x vertical line of walk
@@ -344,6 +344,57 @@ def phase_coverage(t_s: np.ndarray, measured: np.ndarray, period_s: float) -> fl
     return float(hit.mean())
 
 
+def _marker_positions(along_travel: np.ndarray) -> dict[int, str]:
+    """Each marker's place on the horse in words ("front", "middle", "rear").
+
+    ``along_travel`` (M,): each marker's mean position along the direction of travel (NaN: never seen).
+    """
+    n = along_travel.shape[0]
+    order = np.argsort(-np.nan_to_num(along_travel, nan=-np.inf))  # front (farthest along the travel) first
+    words = _POSITION_WORDS.get(n, tuple(f"number {i + 1}" for i in range(n)))
+    return {int(m): words[rank] for rank, m in enumerate(order)}
+
+
+def _along_travel(xyz: np.ndarray) -> np.ndarray:
+    """Each marker's mean position (M,) along the markers' own direction of travel, ``xyz`` (F, M, 3) any frame."""
+    with np.errstate(invalid="ignore"):
+        centre = np.nanmean(xyz, axis=1)  # (F, 3): the markers seen at each frame
+    ok = np.flatnonzero(np.all(np.isfinite(centre), axis=1))
+    travel = centre[ok[-1]] - centre[ok[0]] if ok.size > 1 else np.zeros(3)
+    if not np.linalg.norm(travel) > 0:
+        return np.full(xyz.shape[1], np.nan)
+    with np.errstate(invalid="ignore"):
+        return np.nanmean((xyz - centre[:, None, :]) @ (travel / np.linalg.norm(travel)), axis=0)
+
+
+def hidden_marker_refusal(t_s: np.ndarray, xyz: np.ndarray, run_s: float, period_s: float, *,
+                          min_hidden: float = 0.1) -> KinematicsError | None:
+    """The refusal of a ride whose markers were seen together for less than a stride because one kept hiding.
+
+    Over the frames from the first to the last where any marker is tracked (``xyz`` (F, M, 3) in the motion
+    frame), the share of the frames where the others are seen but one marker is not; from ``min_hidden``
+    on, the marker hidden most is named (a rider's boot, a tail): "record a longer ride" would not help.
+    None where no marker kept hiding.
+    """
+    seen = np.all(np.isfinite(xyz), axis=2)  # (F, M)
+    anything = np.flatnonzero(seen.any(axis=1))
+    if anything.size < 2 or seen.shape[1] < 2:
+        return None
+    span = seen[anything[0]: anything[-1] + 1]
+    others = np.array([np.all(np.delete(span, m, axis=1), axis=1) for m in range(span.shape[1])])  # (M, F')
+    hidden = np.array([float(np.mean(~span[others[m], m])) if others[m].any() else 0.0
+                       for m in range(span.shape[1])])
+    worst = int(np.argmax(hidden))
+    if hidden[worst] < min_hidden:
+        return None
+    name = _marker_positions(_along_travel(xyz))[worst]
+    return KinematicsError(
+        f"the {name} marker was hidden again and again ({100 * hidden[worst]:.0f} % of the frames where the other "
+        f"markers were seen): the markers were seen together for at most {run_s:.2f} s, less than one stride of "
+        f"{period_s:.2f} s; place the {name} marker where the rider's leg, the tail or a lunge line does not pass, "
+        "and film the ride again")
+
+
 def unmeasured_phase(t_s: np.ndarray, measured: np.ndarray, xyz_m: np.ndarray, period_s: float,
                      flags: list[Finding]) -> dict:
     """The share of the stride's phase the fits saw no measurement of, overall and per marker.
@@ -357,11 +408,8 @@ def unmeasured_phase(t_s: np.ndarray, measured: np.ndarray, xyz_m: np.ndarray, p
     share = 1.0 - phase_coverage(t_s, np.all(measured, axis=1), period_s)
     per_marker = [1.0 - phase_coverage(t_s, measured[:, m], period_s) for m in range(measured.shape[1])]
     with np.errstate(invalid="ignore"):
-        mean_x = np.array([np.nanmean(xyz_m[:, m, 0]) if np.isfinite(xyz_m[:, m, 0]).any() else np.nan
-                           for m in range(measured.shape[1])])
-    order = np.argsort(-np.nan_to_num(mean_x, nan=-np.inf))  # front (largest x along the travel) first
-    words = _POSITION_WORDS.get(len(order), tuple(f"number {i + 1}" for i in range(len(order))))
-    position = {int(m): words[rank] for rank, m in enumerate(order)}
+        position = _marker_positions(np.array([np.nanmean(xyz_m[:, m, 0]) if np.isfinite(xyz_m[:, m, 0]).any()
+                                               else np.nan for m in range(measured.shape[1])]))
     out = {"share": share, "per_marker": {position[m]: per_marker[m] for m in range(len(per_marker))}}
     if share >= UNMEASURED_PHASE_LIMIT:
         worst = int(np.argmax(per_marker))
@@ -493,6 +541,8 @@ def _stride_span(t: np.ndarray, xyz: np.ndarray, params: PipelineParams, gait: s
     run0, run1 = _run_off_guessed_lens(t, valid, (run0, run1), period_s, beyond_px, flags_)
     n_periods = int(params.n_periods)
     whole = int(np.floor((run1 - run0) * dt_s / period_s + 1e-9))
+    if whole < 1 and (hidden := hidden_marker_refusal(t, xyz, (run1 - run0) * dt_s, period_s)) is not None:
+        raise hidden
     if 1 <= whole < n_periods:
         flags_.append(Finding("fit.short_crossing",
                               f"the markers were tracked together for {(run1 - run0) * dt_s:.2f} s, "

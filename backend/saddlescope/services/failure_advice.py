@@ -134,6 +134,12 @@ def _ride_failure(message: str, camera: str | None, kind: str | None) -> Failure
         return FailureAdvice(f"The calibration board was not seen well enough{where}: film the board again, "
                              "moving it through the whole view of every camera, or pick another calibration for "
                              "the rig, then run the analysis again.", "recalibrate_rig", camera, "calibration")
+    if "was hidden again and again" in message:
+        marker = message.split(" marker was hidden", 1)[0].rsplit(" ", 1)[-1]
+        return FailureAdvice(f"The {marker} marker kept being hidden (a rider's leg, the tail or a lunge line "
+                             "passing over it), so the markers were never seen together for a whole stride: place "
+                             f"the {marker} marker where nothing passes over it and film the ride again.",
+                             "film_again", None, "motion")
     if _any(message, _NO_STRIDE):
         return FailureAdvice("No steady stride was found in the motion clips: film at least ten strides of one "
                              "steady gait with the horse in view of all three cameras, and upload the motion clips "
