@@ -8,7 +8,7 @@ checked is which clips and which length the rig's job hands it, and the refusals
 from __future__ import annotations
 
 import pytest
-from api_helpers import ThreadQueue, job_outcome, new_club, standin_calibration, standin_calibrate_clips
+from api_helpers import ThreadQueue, job_outcome, new_club, standin_calibrate_clips, standin_calibration
 from fastapi.testclient import TestClient
 from integration_services import write_tiny_clip
 

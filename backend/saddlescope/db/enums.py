@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import enum
 
-__all__ = ["RIDE_STATUSES", "RIDER_WEIGHT_RANGE_KG", "WAND_LENGTH_RANGE_M", "JobStatus", "RideStatus", "Role", "SaddleType", "UploadStatus",
+__all__ = ["RIDE_STATUSES", "RIDER_WEIGHT_RANGE_KG", "WAND_LENGTH_RANGE_M", "JobStatus", "RideStatus", "Role",
+           "SaddleType", "UploadStatus",
            "UploadTarget"]
 
 # A rider's weight in kg is believed between these (a child on a pony to a heavy adult); outside: a typo.

@@ -40,7 +40,6 @@ from saddlescope.services.direct_uploads import check_parts, is_direct
 from saddlescope.services.job_service import submit_job
 from saddlescope.services.queue import JobQueue, QueueUnavailable
 from saddlescope.services.readiness import missing_for_ride
-from saddlescope.services.rig_calibration import choose_calibration_way
 from saddlescope.services.rides import (
     DuplicateClips,
     duplicate_message,
@@ -49,6 +48,7 @@ from saddlescope.services.rides import (
     remove_bundle_ride,
     ride_clip_plan,
 )
+from saddlescope.services.rig_calibration import choose_calibration_way
 from saddlescope.storage import Storage, TooLarge, direct_upload_key, upload_key
 
 __all__ = [
