@@ -8,7 +8,7 @@ more); asking for the wand way is refused in words: no length, a length in centi
 from __future__ import annotations
 
 import pytest
-from browser_harness import chromium_for_module, new_club_admin, serve_fresh
+from browser_harness import axe_violations, chromium_for_module, new_club_admin, serve_fresh
 from dashboard_helpers import EMAIL, PASSWORD, Console, _ok, _require_browser
 
 pytestmark = [pytest.mark.browser]
@@ -79,4 +79,5 @@ def test_the_rig_page_offers_the_wand_way_and_refuses_it_in_words(page, served):
     assert "cannot be calibrated with a wand yet: upload the wand clip of the left, middle, right cameras and " \
            "the close-up clip of the left, middle, right cameras first." in no_clips
     assert served["api"].get(f"/api/rigs/{served['rig']}").json()["wand_length_m"] == 1.0  # the length was kept
+    assert axe_violations(page) == []  # the panel with its refusal and the choice opened
     assert page.console.unexpected(409, 422) == []
