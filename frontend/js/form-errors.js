@@ -5,10 +5,17 @@
 const FIELD_WORDS = {
   password: "the password", new_password: "the new password", email: "the e-mail address",
   club_name: "the club's name", display_name: "your name", username: "the e-mail address",
+  wand_length_m: "the wand's length",
 };
+// Fields whose validator's message is already a sentence for the club (it says the range and the likely slip).
+const OWN_SENTENCE = new Set(["wand_length_m"]);
+
+function fieldName(item) {
+  return Array.isArray(item.loc) ? String(item.loc[item.loc.length - 1]) : "";
+}
 
 function fieldWords(item) {
-  const name = Array.isArray(item.loc) ? String(item.loc[item.loc.length - 1]) : "";
+  const name = fieldName(item);
   return FIELD_WORDS[name] ?? (name ? `the ${name.replaceAll("_", " ")}` : "a field");
 }
 
@@ -32,6 +39,7 @@ export function fieldSentence(item) {
     case "missing":
       return capital(`please fill in ${field}`);
     case "value_error":
+      if (OWN_SENTENCE.has(fieldName(item))) return capital(String(item.msg ?? "").replace(/^Value error, /, ""));
       return capital(field === "the e-mail address" ? "please give a valid e-mail address, like name@club.org"
         : `${field} is not valid`);
     default:

@@ -8,6 +8,7 @@ from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import Column, Integer, MetaData, String, Table, inspect, text
+from sqlalchemy.exc import IntegrityError
 
 from saddlescope.db.migrate import alembic_config, current_revision, head_revision, upgrade_to_head
 from saddlescope.db.models import Base
@@ -131,3 +132,58 @@ def test_sqlite_0004_drops_the_unread_result_columns_and_keeps_the_results(tmp_p
 @pytest.mark.integration
 def test_postgresql_0004_drops_the_unread_result_columns_and_keeps_the_results(pg_database_url):
     check_0004_drops_the_unread_result_columns(pg_database_url)
+
+
+RIG_WITH_A_WAND = [
+    "INSERT INTO clubs (id, name, created_at) VALUES (1, 'Club', CURRENT_TIMESTAMP)",
+    "INSERT INTO rigs (id, club_id, name, cameras, wand_length_m, created_at) "
+    "VALUES (1, 1, 'Arena', '{}', 1.0, CURRENT_TIMESTAMP)",
+    "INSERT INTO recordings (club_id, rig_id, camera_role, clip_kind, path, created_at) "
+    "VALUES (1, 1, 'left', 'wand', 'rigs/1/clips/wand/left.mp4', CURRENT_TIMESTAMP)",
+    "INSERT INTO recordings (club_id, rig_id, camera_role, clip_kind, path, created_at) "
+    "VALUES (1, 1, 'left', 'close_up', 'rigs/1/clips/close_up/left.mp4', CURRENT_TIMESTAMP)",
+]
+A_WAND_CLIP = ("INSERT INTO recordings (club_id, rig_id, camera_role, clip_kind, path, created_at) "
+               "VALUES (1, 1, 'middle', 'wand', 'rigs/1/clips/wand/middle.mp4', CURRENT_TIMESTAMP)")
+
+
+def _refused(engine, statement: str) -> bool:
+    try:
+        with engine.begin() as conn:
+            conn.execute(text(statement))
+    except IntegrityError:
+        return True
+    return False
+
+
+def check_0014_takes_a_rigs_wand(database_url: str) -> None:
+    config = alembic_config(database_url)
+    upgrade_to_head(database_url)
+    engine = make_engine(database_url)
+    try:
+        with engine.begin() as conn:
+            for statement in RIG_WITH_A_WAND:
+                conn.execute(text(statement))
+        assert _refused(engine, "UPDATE rigs SET wand_length_m = 12 WHERE id = 1")  # 12 m: not a wand
+        assert _refused(engine, A_WAND_CLIP.replace("'wand'", "'wands'"))
+        command.downgrade(config, "0013_share_links")
+        assert "wand_length_m" not in {c["name"] for c in inspect(engine).get_columns("rigs")}
+        with engine.connect() as conn:  # the wand clips went with the kinds that named them
+            assert conn.execute(text("SELECT COUNT(*) FROM recordings")).scalar() == 0
+        assert _refused(engine, A_WAND_CLIP)
+        command.upgrade(config, "0014_rig_wand")
+        assert not _refused(engine, A_WAND_CLIP)
+        with engine.begin() as conn:
+            for table in ("recordings", "rigs", "clubs"):
+                conn.execute(text(f"DELETE FROM {table}"))
+    finally:
+        engine.dispose()
+
+
+def test_sqlite_0014_takes_a_rigs_wand_clips_and_length(tmp_path):
+    check_0014_takes_a_rigs_wand(f"sqlite:///{tmp_path / 'wand.db'}")
+
+
+@pytest.mark.integration
+def test_postgresql_0014_takes_a_rigs_wand_clips_and_length(pg_database_url):
+    check_0014_takes_a_rigs_wand(pg_database_url)

@@ -2,12 +2,46 @@
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, WithJsonSchema
 
-__all__ = ["BoardLayoutOut", "BoardSizesOut", "CalibrationCheckOut", "CameraCheckOut", "CheckFindingOut",
-           "DepthCoverageOut", "SquareAtDistance"]
+from saddlescope.db.enums import WAND_LENGTH_RANGE_M
+
+__all__ = ["BoardLayoutOut", "BoardSizesOut", "CalibrateIn", "CalibrationCheckOut", "CameraCheckOut", "CheckFindingOut",
+           "DepthCoverageOut", "SquareAtDistance", "WandLengthM", "check_wand_length_m"]
+
+
+def check_wand_length_m(value: float | None) -> float | None:
+    """`value` if None or within `WAND_LENGTH_RANGE_M`; ValueError with the reason otherwise."""
+    if value is None:
+        return None
+    low, high = WAND_LENGTH_RANGE_M
+    if not math.isfinite(value) or not low <= value <= high:
+        # A tape measure reads centimetres: 100 for a 1 m wand is the likely slip.
+        hint = f" (in centimetres? {value:g} cm is {value / 100:.2f} m)" if high < value <= 100 * high else ""
+        raise ValueError(f"a wand's length is in metres between the centres of its two markers, {low:g} to "
+                         f"{high:g}; {value:g} is outside{hint}")
+    return float(value)
+
+
+WandLengthM = Annotated[
+    float | None, AfterValidator(check_wand_length_m),
+    WithJsonSchema({"anyOf": [{"type": "number", "minimum": WAND_LENGTH_RANGE_M[0],
+                               "maximum": WAND_LENGTH_RANGE_M[1]}, {"type": "null"}],
+                    "description": "the wand's length in m between its markers' centres (0.05-5); null: not given"}),
+]
+
+
+class CalibrateIn(BaseModel):
+    """How to calibrate a rig: the board walk or a wand (default: the wand when its clips and length are there)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    method: Literal["board", "wand"] | None = Field(
+        default=None, description="board: the calibration clips; wand: the wand and close-up clips")
+    wand_length_m: WandLengthM = Field(default=None, description="sets the rig's wand length first")
 
 
 class BoardLayoutOut(BaseModel):

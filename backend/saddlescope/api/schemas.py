@@ -21,6 +21,7 @@ from saddlescope.api.comparison_schemas import (
 from saddlescope.api.horse_height import HeightWithersM
 from saddlescope.api.leaderboard_schemas import LeaderboardEntry, LeaderboardOut, UncertainRide
 from saddlescope.api.rider_weight import RiderWeightKg
+from saddlescope.api.rig_schemas import WandLengthM
 from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND, board_from_meta
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
@@ -337,6 +338,7 @@ class RigIn(_In):
     board: BoardIn | None = Field(
         default=None, description="the calibration board its calibration clips show"
     )
+    wand_length_m: WandLengthM = None
 
 
 class RigUpdate(_In):
@@ -346,6 +348,7 @@ class RigUpdate(_In):
     recorded_on: dt.date | None = None
     cameras: dict[CameraRole, CameraDetails] | None = None
     board: BoardIn | None = None
+    wand_length_m: WandLengthM = None
 
 
 class RigOut(_Out):
@@ -356,6 +359,7 @@ class RigOut(_Out):
     recorded_on: dt.date | None
     cameras: dict[str, Any]
     board: dict[str, Any] | None
+    wand_length_m: float | None = Field(default=None, description="m, between the wand's markers' centres")
     calibrated: bool
     quality: dict[str, Any] | None
     created_at: dt.datetime

@@ -30,9 +30,10 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS, WAND_CLIP_KINDS
 from saddlescope.db.enums import (
     RIDER_WEIGHT_RANGE_KG,
+    WAND_LENGTH_RANGE_M,
     JobStatus,
     RideStatus,
     Role,
@@ -216,6 +217,10 @@ class Rig(TimestampMixin, Base):
     """A camera set-up on one day: three cameras, their calibration and its quality flags."""
 
     __tablename__ = "rigs"
+    __table_args__ = (
+        CheckConstraint(f"wand_length_m IS NULL OR (wand_length_m >= {WAND_LENGTH_RANGE_M[0]:g} AND "
+                        f"wand_length_m <= {WAND_LENGTH_RANGE_M[1]:g})", name="wand_length_range"),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     club_id: Mapped[int] = mapped_column(ForeignKey("clubs.id", ondelete="CASCADE"), index=True)
@@ -228,6 +233,8 @@ class Rig(TimestampMixin, Base):
     # The `calibration` object of the result format (CONTRACTS section 2), once calibrated.
     calibration: Mapped[dict[str, Any] | None]
     quality: Mapped[dict[str, Any] | None]
+    # Between the centres of the wand's two markers, for a wand calibration (migration 0014_rig_wand).
+    wand_length_m: Mapped[float | None] = mapped_column(Float)
 
 
 class Ride(TimestampMixin, Base):
@@ -290,7 +297,8 @@ class Recording(TimestampMixin, Base):
     ride_id: Mapped[int | None] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
     rig_id: Mapped[int | None] = mapped_column(ForeignKey("rigs.id", ondelete="CASCADE"), index=True)
     camera_role: Mapped[str] = mapped_column(_str_enum(CAMERA_ROLES, "camera_role", length=8))
-    clip_kind: Mapped[str] = mapped_column(_str_enum(CLIP_KINDS, "clip_kind"))
+    # A rig's wand calibration clips too (migration 0014_rig_wand).
+    clip_kind: Mapped[str] = mapped_column(_str_enum(CLIP_KINDS + WAND_CLIP_KINDS, "clip_kind"))
     # Storage key (relative to the storage root), never an absolute path.
     path: Mapped[str] = mapped_column(String(500))
     sha256: Mapped[str | None] = mapped_column(String(64))
@@ -411,7 +419,7 @@ class Upload(Base):
     target: Mapped[str] = mapped_column(_str_enum(UploadTarget, "upload_target"))
     ride_id: Mapped[int | None] = mapped_column(ForeignKey("rides.id", ondelete="CASCADE"), index=True)
     rig_id: Mapped[int | None] = mapped_column(ForeignKey("rigs.id", ondelete="CASCADE"), index=True)
-    clip_kind: Mapped[str | None] = mapped_column(_str_enum(CLIP_KINDS, "upload_clip_kind"))
+    clip_kind: Mapped[str | None] = mapped_column(_str_enum(CLIP_KINDS + WAND_CLIP_KINDS, "upload_clip_kind"))
     camera_role: Mapped[str | None] = mapped_column(_str_enum(CAMERA_ROLES, "upload_camera_role", length=8))
     filename: Mapped[str | None] = mapped_column(String(255))
     length_bytes: Mapped[int] = mapped_column(BigInteger)

@@ -50,7 +50,8 @@ _JOB_KINDS = {
     "analyze": ("Ride analysis", "checks the clips, calibrates the cameras and measures the ride"),
     "probe": ("Clip check", "reads the clips' length, frame rate and size"),
     "similarity": ("Rides most alike", "compares the saddle's motion of the club's rides"),
-    "calibrate_rig": ("Rig calibration", "calibrates a rig's three cameras from its board clips"),
+    "calibrate_rig": ("Rig calibration", "calibrates a rig's three cameras from its board clips, or its wand and "
+                      "close-up clips"),
     "selftest": ("Worker self-test", "checks that the workers run"),
     "check_calibration": ("Calibration check", "judges calibration clips before anyone rides: where the board reached"),
 }
@@ -59,6 +60,8 @@ _CLIP_KINDS = {
     "calibration": ("calibration clip", "the calibration board shown to the three cameras"),
     "plumb": ("plumb-line clip", "a plumb line in view, for which way is down"),
     "static": ("still clip", "the markers standing still, for their layout"),
+    "wand": ("wand clip", "a wand with two markers waved through the arena, for the cameras' places and scale"),
+    "close_up": ("close-up clip", "a small board filmed close to one camera, for its lens"),
 }
 _GRAVITY_SOURCES = {
     "plumb": ("plumb line", "which way is down was measured from a plumb line in view"),

@@ -41,6 +41,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.db.repositories import (
+    Conflict,
     JobRepository,
     RecordingRepository,
     RideRepository,
@@ -425,9 +426,17 @@ def _bundle_path(ctx: StageContext, ride) -> Path:
 
 def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict,
                          sync: dict | None, *, replace: bool) -> dict[str, Any]:
-    from saddlescope.services.calibration import calibrate_clips, calibration_quality
+    from saddlescope.services.calibration import calibrate_clips
 
     calibration = calibrate_clips(paths, board=board, sync=sync, on_progress=lambda f, s: ctx.report(f, s))
+    return _store_calibration(ctx, rig_id, calibration, replace=replace)
+
+
+def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, Any], *,
+                       replace: bool) -> dict[str, Any]:
+    """Keep a rig's new calibration (the job's output and the rig's row); returns the one the rig has."""
+    from saddlescope.services.calibration import calibration_quality
+
     out = ctx.outputs()
     (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
     with ctx.session() as session:
@@ -495,23 +504,35 @@ def _calibrate_rig_from_ride(ctx: StageContext, ride_id: int, rig_id: int) -> No
 
 @stage("calibrate_rig", weight=6.0)
 def run_calibrate_rig(ctx: StageContext) -> None:
-    """Calibrate a rig from its three calibration clips (replacing an earlier calibration)."""
+    """Calibrate a rig from its three calibration clips, or its wand and close-up clips (replacing an earlier one).
+
+    The payload's ``method`` (``board`` or ``wand``) chooses; without it, the wand way when the rig has its
+    wand and close-up clips of the three cameras and a wand length, else the board walk.
+    """
     if ctx.rig_id is None:
         raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
     if ctx.ride_id is not None:  # "use this ride's calibration for the rig": the ride's own calibration clips
         _calibrate_rig_from_ride(ctx, ctx.ride_id, ctx.rig_id)
         return
+    from saddlescope.services.rig_calibration import choose_calibration_way
+
     with ctx.session() as session:
         rig = RigRepository(session).get(ctx.rig_id)
-        clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
-        board = rig.board
-    if clips is None:
-        raise CalibrationError(f"rig {ctx.rig_id}: the calibration clips of the left, middle and right "
-                               "cameras are not all uploaded")
-    if not board:
-        raise CalibrationError(f"rig {ctx.rig_id} has no 'board' (the calibration board its clips show)")
-    paths = {role: ctx.fetch(key) for role, key in clips.items()}
-    _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
+        try:  # the board walk, or the wand way when the rig has its wand clips and length (issue 35)
+            way = choose_calibration_way(rig, RecordingRepository(session).for_rig(rig.id), ctx.payload.get("method"))
+        except Conflict as exc:
+            raise CalibrationError(str(exc)) from None
+        board = dict(rig.board)
+    if way.method == "board":
+        paths = {role: ctx.fetch(key) for role, key in way.clips["calibration"].items()}
+        _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
+        return
+    from saddlescope.services.calibration import calibrate_wand_clips
+
+    wand, close_up = ({role: ctx.fetch(key) for role, key in way.clips[kind].items()} for kind in ("wand", "close_up"))
+    calibration = calibrate_wand_clips(wand, close_up, board=board, wand_length_m=way.wand_length_m or 0.0,
+                                       sync=ctx.payload.get("sync"), on_progress=lambda f, s: ctx.report(f, s))
+    _store_calibration(ctx, ctx.rig_id, calibration, replace=True)
 
 
 @stage("check_calibration", weight=2.0)

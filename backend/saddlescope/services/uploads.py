@@ -23,7 +23,7 @@ from typing import Any
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, InputError, SaddleScopeError, VideoError
-from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS
+from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, WAND_CLIP_KINDS
 from saddlescope.db.enums import JobStatus, UploadStatus, UploadTarget
 from saddlescope.db.models import Recording
 from saddlescope.db.repositories import (
@@ -48,6 +48,7 @@ from saddlescope.services.rides import (
     remove_bundle_ride,
     ride_clip_plan,
 )
+from saddlescope.services.rig_calibration import choose_calibration_way
 from saddlescope.storage import Storage, TooLarge, direct_upload_key, upload_key
 
 __all__ = [
@@ -60,7 +61,10 @@ __all__ = [
     "sweep_abandoned",
 ]
 
-RIG_CLIP_KINDS = ("calibration", "plumb", "static")
+# A rig's wand way (issue 35): each camera's wand clip and close-up board clip, beside the board walk's.
+RIG_CLIP_KINDS = ("calibration", "plumb", "static", *WAND_CLIP_KINDS)
+# Clips a rig's calibration is computed from: a new one makes the calibration stale.
+_CALIBRATING_KINDS = ("calibration", *WAND_CLIP_KINDS)
 RIDE_CLIP_KINDS = CLIP_KINDS
 # Frame rates of one clip set may differ by rounding in the container (29.97 written as 30000/1001 ...).
 FPS_TOLERANCE = 0.005
@@ -219,7 +223,7 @@ def accept_clip(
                     **_probed(info),
                     original_filename=filename,
                 )
-                if owner.kind == "rig" and clip_kind == "calibration":
+                if owner.kind == "rig" and clip_kind in _CALIBRATING_KINDS:
                     RigRepository(session, club_id=owner.club_id).clear_calibration(owner.id)
                 if owner.kind == "ride":
                     refresh_ride_status(session, owner.id)
@@ -280,7 +284,8 @@ def start_calibration_check(sessions: sessionmaker[Session], queue: JobQueue, ow
 def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: ClipOwner) -> int | None:
     """Start the job a newly complete set of clips allows; returns its id (None when nothing to start).
 
-    A rig with its three calibration clips (and a board) and no calibration: a ``calibrate_rig`` job.
+    A rig with its three calibration clips, or its wand and close-up clips and wand length (and a board),
+    and no calibration: a ``calibrate_rig`` job.
     A ride whose clips are complete: an ``analyze`` job. Never a second job while one is queued or running.
     """
     with session_scope(sessions) as session:
@@ -288,9 +293,12 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
         recordings = RecordingRepository(session, club_id=owner.club_id)
         if owner.kind == "rig":
             rig = RigRepository(session, club_id=owner.club_id).get(owner.id)
-            cams = {r.camera_role for r in recordings.for_rig(owner.id) if r.clip_kind == "calibration"}
-            if rig.calibration or not rig.board or set(CAMERA_ROLES) - cams:
+            if rig.calibration:
                 return None
+            try:  # the board walk's clips, or the wand's with its length (issue 35)
+                choose_calibration_way(rig, recordings.for_rig(owner.id))
+            except (Conflict, InputError):
+                return None  # not complete yet
             if jobs.active_for(rig_id=owner.id, kind="calibrate_rig") is not None:
                 return None
             kind, ids = "calibrate_rig", {"rig_id": owner.id}

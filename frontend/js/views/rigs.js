@@ -1,12 +1,14 @@
 // Rigs: the club's three-camera set-ups. #/rigs lists them with "add a rig" (name and its calibration
 // board); #/rigs/:id is one rig: the board to print at true scale, its calibration, plumb and static
 // clips per camera (resumable uploads), the calibration's quality in plain words and, per camera,
-// where in the image the board has been.
+// where in the image the board has been; beside the board walk, "Calibrate with a wand": the wand's
+// length and each camera's wand and close-up clips (issue 35).
 
 import { del, get, itemsOf, patch, post, request } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { poll } from "../poll.js";
 import { navigate } from "../router.js";
+import { plainReason } from "../form-errors.js";
 import { can } from "../session.js";
 import { uploadResumable } from "../uploader.js";
 
@@ -16,6 +18,12 @@ const RIG_CLIPS = [
   { kind: "plumb", label: "Plumb line" },
   { kind: "static", label: "Static (horse standing still)" },
 ];
+// The wand way's clips: the wand waved by all cameras at once, and a small board close to each camera.
+const WAND_CLIPS = [
+  { kind: "wand", label: "Wand (waved along the track, all cameras at once)" },
+  { kind: "close_up", label: "Close-up board (this camera alone)" },
+];
+const CLIP_LABELS = Object.fromEntries([...RIG_CLIPS, ...WAND_CLIPS].map((c) => [c.kind, c.label]));
 
 export function boardText(board) {
   if (!board) return "no board described";
@@ -145,7 +153,7 @@ function clipCell(rig, clip, kind, camera, onUploaded) {
       await uploadResumable(file, { target: "rig_clip", rig_id: rig.id, clip_kind: kind, camera }, {
         onProgress: (sent) => { status.textContent = `uploading ${Math.floor((100 * sent) / Math.max(file.size, 1))} %`; },
       });
-      announce(`The ${kind} clip of the ${camera} camera is uploaded.`);
+      announce(`The ${kind.replace("_", "-")} clip of the ${camera} camera is uploaded.`);
       await onUploaded();
     } catch (e) {
       error.textContent = e.message;
@@ -157,16 +165,16 @@ function clipCell(rig, clip, kind, camera, onUploaded) {
     }
   });
   return h("div", { class: "rig-clip", dataset: { clipKind: kind, camera } },
-    h("label", { for: id }, RIG_CLIPS.find((c) => c.kind === kind).label), status,
+    h("label", { for: id }, CLIP_LABELS[kind]), status,
     h("span", { "data-permission": "rig.create" }, input), error);
 }
 
-function showClips(root, rig, clips, refresh) {
-  const box = root.querySelector("[data-rig-clips]");
+function showClips(root, rig, clips, refresh, { where = "[data-rig-clips]", kinds = RIG_CLIPS, label = "camera" } = {}) {
+  const box = root.querySelector(where);
   const uploadAllowed = can("rig.create");
-  box.replaceChildren(...CAMERAS.map((camera) => h("section", { class: "camera-card", "aria-label": `${camera} camera` },
+  box.replaceChildren(...CAMERAS.map((camera) => h("section", { class: "camera-card", "aria-label": `${camera} ${label}` },
     h("h3", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera`),
-    ...RIG_CLIPS.map(({ kind }) => {
+    ...kinds.map(({ kind }) => {
       const cell = clipCell(rig, clips.find((c) => c.clip_kind === kind && c.camera_role === camera), kind, camera, refresh);
       if (!uploadAllowed) cell.querySelector("[data-permission]").remove();
       return cell;
@@ -318,6 +326,32 @@ function wireBoardEdit(root, rig, reload) {
   });
 }
 
+/** "Calibrate with a wand": save the wand's length when changed, then ask for the wand way; refusals in words. */
+function wireWand(root, rigId, getRig, reload) {
+  const form = root.querySelector("[data-wand-form]");
+  const button = form.querySelector("[data-calibrate-wand]");
+  button.hidden = !can("ride.analyse");
+  form.elements.wand_length_m.disabled = !can("rig.create");
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    showError(form, null);
+    busy(form, async () => {
+      try {
+        const typed = form.elements.wand_length_m.value.trim();
+        const length = typed === "" ? null : Number(typed.replace(",", "."));
+        if (length !== null && length !== getRig().wand_length_m) {
+          await patch(`/api/rigs/${rigId}`, { wand_length_m: Number.isFinite(length) ? length : typed });
+        }
+        await post(`/api/rigs/${rigId}/calibrate`, { method: "wand" });
+        announce("Calibrating with the wand.");
+        await reload();
+      } catch (error) {
+        showError(form, plainReason(error));
+      }
+    });
+  });
+}
+
 export async function mountRig(view, params) {
   // Its own box: uploads and polls finishing after the user left look into it, not into the next page.
   const root = h("div", { class: "rig-page" });
@@ -349,10 +383,14 @@ export async function mountRig(view, params) {
     if (gone) return;
     await showBoard(root, rig);
     showClips(root, rig, clips, reload);
+    showClips(root, rig, clips, reload, { where: "[data-wand-clips]", kinds: WAND_CLIPS, label: "camera's wand clips" });
+    const length = root.querySelector("[data-wand-form]").elements.wand_length_m;
+    if (rig.wand_length_m != null && document.activeElement !== length) length.value = String(rig.wand_length_m);
     poller?.stop?.();
     poller = poll(refreshCalibration, { intervalMs: 3000 });
   }
   wireBoardEdit(root, rig, reload);
+  wireWand(root, rigId, () => rig, reload);
   // The print page has every sheet at its size in mm (@page): the browser prints it at scale.
   root.querySelector("[data-print-board]").addEventListener("click", () => {
     const layout = root.querySelector("[data-print-layout]").value || "a4-tiles";

@@ -10,7 +10,13 @@ from fastapi.responses import HTMLResponse
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import AdminClubDep, ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
-from saddlescope.api.rig_schemas import BoardLayoutOut, BoardSizesOut, CalibrationCheckOut, SquareAtDistance
+from saddlescope.api.rig_schemas import (
+    BoardLayoutOut,
+    BoardSizesOut,
+    CalibrateIn,
+    CalibrationCheckOut,
+    SquareAtDistance,
+)
 from saddlescope.api.routers.clips import UPLOAD_ERRORS, receive_clip
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, PagingDep, changes, page_of
 from saddlescope.api.schemas import (
@@ -32,6 +38,7 @@ from saddlescope.db.session import session_scope
 from saddlescope.services.board_print import board_advice, board_print_html, camera_view
 from saddlescope.services.calibration_check import check_storage_key
 from saddlescope.services.job_service import get_job, job_as_dict, submit_job
+from saddlescope.services.rig_calibration import CalibrationWay, choose_calibration_way
 from saddlescope.services.rig_views import board_svg, calibration_words, coverage_words
 from saddlescope.services.uploads import (
     ClipOwner,
@@ -51,6 +58,7 @@ def rig_out(rig: Rig, *, detail: bool = False) -> RigOut:
         "recorded_on": rig.recorded_on,
         "cameras": rig.cameras or {},
         "board": rig.board,
+        "wand_length_m": rig.wand_length_m,
         "calibrated": rig.calibration is not None,
         "quality": rig.quality,
         "created_at": rig.created_at,
@@ -79,6 +87,7 @@ def create_rig(body: RigIn, club: ClubDep) -> RigOut:
             recorded_on=data.get("recorded_on"),
             cameras=data.get("cameras"),
             board=data.get("board"),
+            wand_length_m=data.get("wand_length_m"),
         )
     )
 
@@ -91,13 +100,26 @@ def read_rig(rig_id: Id, club: ClubDep) -> RigOut:
 
 @router.patch("/{rig_id}", response_model=RigOut, responses=ERRORS)
 def update_rig(rig_id: Id, body: RigUpdate, club: ClubDep) -> RigOut:
-    """Change a rig's details (a null recorded_on or board clears it)."""
-    values = changes(body, nullable=("recorded_on", "board"))
+    """Change a rig's details (a null recorded_on, board or wand_length_m clears it).
+
+    A new wand length forgets a calibration the wand made (its scale was the old length's).
+    """
+    values = changes(body, nullable=("recorded_on", "board", "wand_length_m"))
     if "board" in values:
         club.require("rig.change_board")
     if "board" in values and values["board"] is not None:
         values["board"] = {k: v for k, v in values["board"].items() if v is not None}
+    _forget_a_wand_calibration(club, rig_id, values.get("wand_length_m", ...))
     return rig_out(club.rigs.update_fields(rig_id, **values))
+
+
+def _forget_a_wand_calibration(club, rig_id: int, wand_length_m) -> None:
+    """A rig calibrated with a wand of another length than `wand_length_m` (... : unchanged) loses it."""
+    rig = club.rigs.get(rig_id)
+    if wand_length_m is ... or wand_length_m == rig.wand_length_m:
+        return
+    if rig.calibration and "wand" in rig.calibration:
+        club.rigs.clear_calibration(rig_id)
 
 
 @router.delete("/{rig_id}", status_code=status.HTTP_204_NO_CONTENT, responses={**ERRORS, **CONFLICT})
@@ -152,15 +174,32 @@ async def upload_rig_clip(
     response_model=JobOut,
     responses={**ERRORS, 503: {"model": ErrorOut}},
 )
-async def calibrate_rig(rig_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
-    """(Re)calibrate the rig from its three calibration clips (a `calibrate_rig` job)."""
-    await run_in_threadpool(club.rigs.get, rig_id)
-    club.session.rollback()
+async def calibrate_rig(rig_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep,
+                        body: CalibrateIn | None = None) -> JobOut:
+    """(Re)calibrate the rig (a `calibrate_rig` job): the board walk's three calibration clips, or a wand.
+
+    The wand way (issue 35) takes each camera's wand and close-up clips and the rig's wand length
+    (``wand_length_m`` here sets it); without ``method``, the wand way when all of these are there, else the
+    board walk. 422 for a wand way without its length, 409 for clips or the board missing, in words.
+    """
+    body = body or CalibrateIn()
+    way = await run_in_threadpool(_calibration_way, club, rig_id, body)
+    club.session.commit()  # the wand length given with the request, before the job reads the rig
     job_id = await run_in_threadpool(
-        submit_job, sessions, queue, kind="calibrate_rig", rig_id=rig_id, club_id=club.club_id
+        submit_job, sessions, queue, kind="calibrate_rig", rig_id=rig_id, club_id=club.club_id,
+        payload={"method": way.method} if body.method else None,
     )
     with session_scope(sessions) as session:
         return JobOut(**job_as_dict(get_job(session, job_id)))
+
+
+def _calibration_way(club, rig_id: int, body: CalibrateIn) -> CalibrationWay:
+    """The way the rig's calibration job will take (refused in words when it cannot)."""
+    if body.wand_length_m is not None:
+        _forget_a_wand_calibration(club, rig_id, body.wand_length_m)
+        club.rigs.update_fields(rig_id, wand_length_m=body.wand_length_m)
+    rig = club.rigs.get(rig_id)
+    return choose_calibration_way(rig, club.recordings.for_rig(rig_id), body.method)
 
 
 @router.get(

@@ -169,10 +169,10 @@ class RigRepository(_Named):
     default_sort = "-recorded_on"
 
     def add(self, *, club_id: int | None = None, name: str, recorded_on: dt.date | None = None,
-            cameras: dict | None = None, board: dict | None = None) -> Rig:
+            cameras: dict | None = None, board: dict | None = None, wand_length_m: float | None = None) -> Rig:
         """Add a rig (names need not be unique: the same set-up on another day)."""
         return self._add(Rig(club_id=self._club_for_new(club_id), name=name, recorded_on=recorded_on,
-                             cameras=cameras or {}, board=board))
+                             cameras=cameras or {}, board=board, wand_length_m=wand_length_m))
 
     def set_calibration(self, rig_id: int, calibration: dict, quality: dict) -> None:
         """Store a rig's calibration and its quality flags (replacing earlier ones)."""
