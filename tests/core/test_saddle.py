@@ -339,7 +339,7 @@ def test_a_look_alike_moving_with_the_horse_breaks_the_static_layout():
 def test_a_ride_whose_rear_marker_keeps_hiding_is_refused_naming_it_not_as_too_short():
     """Issue 38: a boot over the rear marker for part of every stride left runs shorter than a stride; the
     refusal said "record a longer ride" where the club must move the marker."""
-    from saddlescope.core.saddle import hidden_marker_refusal
+    from saddlescope.core.kinematics.hidden_phase import hidden_marker_refusal
 
     fps, period_s = 30.0, 0.75
     t = np.arange(90) / fps

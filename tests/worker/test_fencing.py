@@ -168,7 +168,10 @@ def test_two_workers_racing_to_store_one_jobs_result_leave_one_result(setup, cap
         result = s.scalars(select(Result).where(Result.ride_id == ride_id)).one()
         assert (result.result_key, result.acc_y_wb_rms, result.job_attempt) == (key, 2.0, second)
     # The stale attempt's document was removed again: only the stored result's remains.
-    assert list(storage.iter_keys(f"rides/{ride_id}/results")) == [key]
+    # the one stored result: its document, and the series and page derived from it beside it
+    stem = key.removesuffix(".json")
+    assert sorted(storage.iter_keys(f"rides/{ride_id}/results")) == sorted(
+        [key, f"{stem}.page.json", f"{stem}.series.json"])
     assert any("refused" in r.getMessage() for r in caplog.records)
 
 

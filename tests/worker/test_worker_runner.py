@@ -62,7 +62,7 @@ def fake_analysis(monkeypatch):
     """A stand-in for saddlescope.services.analysis (the lead's pipeline), recording its calls."""
     calls = []
 
-    def analyze_bundle(path, on_progress=None, rig=None, rig_report=None):
+    def analyze_bundle(path, on_progress=None, rig=None, rig_report=None, meta_overrides=None):
         calls.append(path)
         assert (path / "ride.json").is_file()
         for stage_name in ("calibrate", "triangulate", "indicators"):
