@@ -152,7 +152,9 @@ def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admi
     third = upload_clip(admin, "rigs", rig["id"], "calibration", "right", tiny_ride / "calibration/right.mp4")
     probed_by_api = env.settings.storage_url is None  # on object storage the worker's probe stage reads clips
     assert third["recording"]["fps"] == (30.0 if probed_by_api else None) and third["recording"]["sha256"]
-    job, _ = admin.wait_job(third["job_id"])  # the third camera completes the set: calibration starts
+    # the third camera completes the set: calibration starts, queued behind the three clips' calibration
+    # checks (each 15-50 s on a loaded two-core runner): the wait allows for them
+    job, _ = admin.wait_job(third["job_id"], timeout_s=240.0)
     assert job["kind"] == "calibrate_rig" and job["status"] == "done", job["error"]
     assert {clip["fps"] for clip in admin.ok("GET", f"/rigs/{rig['id']}/clips")} == {30.0}  # probed now
     rig_now = admin.ok("GET", f"/rigs/{rig['id']}")

@@ -113,7 +113,8 @@ def test_a_rig_with_its_board_then_its_calibration_clips_one_by_one(page, served
     status = page.locator("[data-calibration-status]")
     page.wait_for_function(
         "() => "
-        "document.querySelector('[data-calibration-status]').textContent.includes('right camera')")
+        "document.querySelector('[data-calibration-status]').textContent"
+        ".includes('The calibration clip of the right camera is missing.')")
     assert "The calibration clip of the right camera is missing." in status.inner_text()
     shoot(page, "rig")
 

@@ -7,7 +7,7 @@ import pytest
 
 from saddlescope.core.findings import Finding
 from saddlescope.core.kinematics import fit_fourier, resolvable_order
-from saddlescope.core.saddle import phase_coverage, unmeasured_phase
+from saddlescope.core.kinematics.hidden_phase import phase_coverage, unmeasured_phase
 
 FPS, PERIOD_S = 30.0, 1 / 1.65
 
