@@ -84,7 +84,7 @@ def check_calibration_clips(
     """
     board = board_from_meta(dict(board_meta))
     t0 = time.perf_counter()
-    order = [c for c in CAMERA_ROLES if c in paths] + sorted(c for c in paths if c not in CAMERA_ROLES)
+    order = _camera_order(paths)
     out: dict[str, CameraCoverageCheck] = {}
     for n, camera in enumerate(order):
         if on_progress is not None:
@@ -111,6 +111,11 @@ def check_calibration_clips(
     return CalibrationCheck(out, time.perf_counter() - t0)
 
 
+def _camera_order(paths: Mapping[str, Path]) -> list[str]:
+    """The clips' cameras, the rig's roles first (left, middle, right), then any other by name."""
+    return [c for c in CAMERA_ROLES if c in paths] + sorted(c for c in paths if c not in CAMERA_ROLES)
+
+
 def check_wand_clips(paths: Mapping[str, Path], wand_length_m: float, *, sample_fps: float = 2 * SAMPLE_FPS,
                      on_progress: Callable[[float, str], None] | None = None) -> CalibrationCheck:
     """Check each camera's wand clip: where the wand's two ends went over the image and in depth.
@@ -128,7 +133,7 @@ def check_wand_clips(paths: Mapping[str, Path], wand_length_m: float, *, sample_
         raise InputError(f"the wand's length {wand_length_m!r} m is not 0.05-5 m: measure it between the two "
                          "markers' centres, in metres (e.g. 1.0)")
     t0 = time.perf_counter()
-    order = [c for c in CAMERA_ROLES if c in paths] + sorted(c for c in paths if c not in CAMERA_ROLES)
+    order = _camera_order(paths)
     out: dict[str, CameraCoverageCheck] = {}
     for n, camera in enumerate(order):
         if on_progress is not None:
