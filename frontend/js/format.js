@@ -54,12 +54,23 @@ export const COMFORT_INDICATORS = [
 ];
 
 /** Replace the built-in indicator table with the server's (objects with unit, label, better). */
+// Merged per indicator: the glossary (labels, units, expert) and /api/indicators (better) arrive in
+// either order, and neither may drop what the other said (a glossary entry has no `better`: replacing
+// the whole entry left the leaderboard with no ranked indicator to choose).
 export function setIndicatorInfo(info) {
-  if (info && typeof info === "object" && Object.keys(info).length) indicatorInfo = { ...indicatorInfo, ...info };
+  if (!info || typeof info !== "object") return;
+  const merged = { ...indicatorInfo };
+  for (const [key, entry] of Object.entries(info)) {
+    if (!key || !entry || typeof entry !== "object") continue;
+    const defined = Object.fromEntries(Object.entries(entry).filter(([, v]) => v !== undefined && v !== null));
+    merged[key] = { ...(indicatorInfo[key] || {}), ...defined };
+  }
+  indicatorInfo = merged;
 }
 
 export function indicatorInfoOf(key) {
-  return indicatorInfo[key] || { unit: unitFromKey(key), label: key.replaceAll("_", " "), better: null };
+  const name = String(key ?? "");
+  return indicatorInfo[name] || { unit: unitFromKey(name), label: name.replaceAll("_", " "), better: null };
 }
 
 export function indicatorKeys() {

@@ -161,6 +161,23 @@ def test_leaderboard_opens_on_the_gait_with_the_most_ranked_rides(page, dashboar
     assert page.console.unexpected() == []
 
 
+def test_the_glossary_arriving_after_the_indicator_list_keeps_which_way_is_better(page, dashboard):
+    """CI once met "Cannot read properties of undefined (reading 'endsWith')" on the leaderboard: when the
+    glossary (labels, no `better`) answered after /api/indicators, its entries replaced the whole indicator
+    entries, no indicator was left rankable, the form sent no indicator. Both orders now keep `better`."""
+    sign_in(page)
+    page.goto("/#/leaderboard?gait=canter")
+    page.locator("[data-leaderboard-table] tbody tr").first.wait_for()
+    merged = page.evaluate("""() => import('/js/format.js').then((m) => {
+        m.setIndicatorInfo({acc_y_wb_rms: {unit: "m/s^2", label: "from the list", better: "lower"}});
+        m.setIndicatorInfo({acc_y_wb_rms: {unit: "m/s^2", label: "from the glossary", short: "s", expert: false}});
+        const after = m.indicatorInfoOf("acc_y_wb_rms");
+        return [after.better, after.label, m.indicatorInfoOf(undefined).label];
+    })""")
+    assert merged == ["lower", "from the glossary", ""]
+    assert page.console.unexpected() == []
+
+
 def test_leaderboard_ranks_the_most_comfortable_horse_first(page, dashboard):
     sign_in(page)
     page.goto("/#/leaderboard?gait=canter&indicator=acc_y_wb_rms")
