@@ -93,7 +93,7 @@ def _similar(args) -> int:
     """`saddlescope similar`: one pair's answer, or the matrix of every pair of many recordings."""
     from saddlescope.io import similarity_matrix as matrix_files
     from saddlescope.io.mocap.labels import parse_label_map
-    from saddlescope.services import similarity
+    from saddlescope.services.similarity import compare as similarity
 
     markers = [m.strip() for m in args.markers.split(",") if m.strip()] if args.markers else None
     label_map = parse_label_map(args.label_map)
@@ -171,7 +171,7 @@ def _check_sources(args: argparse.Namespace) -> tuple[dict[str, Path], dict, flo
 
 def _check_calibration(args: argparse.Namespace) -> int:
     """Run `check-calibration`: print the verdict and each camera's sentences; 1 when to film again."""
-    from saddlescope.services.calibration_check import (
+    from saddlescope.services.rigs.calibration_check import (
         SAMPLE_FPS,
         check_calibration_clips,
         check_document,
@@ -375,7 +375,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":
-        from saddlescope.services.analysis import analyze_bundle
+        from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
         overrides = {"sync": {"method": args.sync}} if args.sync else None
         result = analyze_bundle(Path(args.ride), on_progress=_print_progress, meta_overrides=overrides)
@@ -393,7 +393,7 @@ def run(args: argparse.Namespace) -> int:
     if cmd == "check-calibration":
         return _check_calibration(args)
     if cmd == "analyze-mocap":
-        from saddlescope.services.mocap import analyze_mocap_file
+        from saddlescope.services.analysis.mocap import analyze_mocap_file
 
         result = analyze_mocap_file(Path(args.file), args.markers, point=args.point, offset_mm=args.offset,
                                     up=args.up, strides=args.strides, gait=args.gait)
@@ -461,7 +461,7 @@ def _run_service(args: argparse.Namespace) -> int:
         return 0
     if cmd == "sweep":
         from saddlescope.db.session import session_factory_for
-        from saddlescope.services.uploads import sweep_abandoned
+        from saddlescope.services.uploads.intake import sweep_abandoned
         from saddlescope.settings import get_settings
         from saddlescope.storage import open_storage
 

@@ -2,7 +2,7 @@
 
 1. make a synthetic ride under ``./var/demo/ride`` if none exists,
 2. register it as a ride (club "Demo club") unless it already is,
-3. submit an ``analyze`` job through `saddlescope.services.queue.submit` and wait for it,
+3. submit an ``analyze`` job through `saddlescope.services.jobs.queue.submit` and wait for it,
 4. print the indicators as JSON (``--no-serve``) or serve the dashboard.
 """
 
@@ -17,9 +17,9 @@ from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import ClubRepository, ResultRepository, RideRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services.job_service import submit_job, wait_for_job
-from saddlescope.services.queue import JobQueue, make_queue
-from saddlescope.services.rides import register_bundle
+from saddlescope.services.jobs.lifecycle import submit_job, wait_for_job
+from saddlescope.services.jobs.queue import JobQueue, make_queue
+from saddlescope.services.rides.registration import register_bundle
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import Storage, open_storage
 
@@ -54,7 +54,7 @@ def ensure_demo_bundle(path: Path = DEMO_BUNDLE) -> Path:
 def ensure_demo_user(sessions) -> bool:
     """An admin of the demo club to sign in to the dashboard with; True if it exists now."""
     from saddlescope.db.repositories import UserRepository
-    from saddlescope.services.accounts import add_user
+    from saddlescope.services.accounts.users import add_user
 
     with session_scope(sessions) as session:
         club = ClubRepository(session).get_or_create(DEMO_CLUB)
@@ -80,7 +80,7 @@ def run_demo(serve: bool = True, host: str = "127.0.0.1", port: int = 8000, *,
     """Process the demo ride; then print its indicators (``serve=False``) or serve the dashboard.
 
     Returns the exit status (0 on success, 1 when the analysis job failed). `queue` defaults to the
-    one the settings ask for (`saddlescope.services.queue.make_queue`).
+    one the settings ask for (`saddlescope.services.jobs.queue.make_queue`).
     """
     stdout = stdout or sys.stdout
     stderr = stderr or sys.stderr

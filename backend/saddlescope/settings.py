@@ -97,7 +97,7 @@ class Settings(BaseSettings):
     cookie_secure: Literal["auto", "true", "false"] = "auto"
     # Proxies whose X-Forwarded-Proto/For are believed (uvicorn's forwarded_allow_ips).
     forwarded_allow_ips: str = "127.0.0.1"
-    # Sign-in back-off (services/login_guard.py): after this many wrong passwords for one account from
+    # Sign-in back-off (services/accounts/login_guard.py): after this many wrong passwords for one account from
     # one address, a wait of `login_backoff_s` doubling with each further one up to `login_lockout_s`;
     # counts expire `login_window_s` after their first failure. An address gets 4 times as many.
     login_max_failures: int = Field(default=10, ge=1)
@@ -118,7 +118,7 @@ class Settings(BaseSettings):
     # Workers look this often for lost jobs: running ones whose worker died, queued ones a broker
     # forgot (restarted with nothing persisted) and queued longer than `requeue_after_s`.
     recovery_interval_s: float = Field(default=60.0, gt=0)
-    # How often each worker sweeps abandoned uploads and partial writes (`services.uploads.sweep_abandoned`)
+    # How often each worker sweeps abandoned uploads and partial writes (`services.uploads.intake.sweep_abandoned`)
     sweep_interval_s: float = Field(default=3600.0, gt=0)
     requeue_after_s: float = Field(default=120.0, gt=0)
     # A running job without a heartbeat for this long (database clock) is handed to another worker;

@@ -138,7 +138,7 @@ export const MAX_DIGITS = 4;
  * A 95 % interval "low–high" (no unit) that never reads as one value: ends that show alike at `digits`
  * significant digits get one more digit (up to MAX_DIGITS), and ends alike even then read "± under 0.01"
  * (the interval is narrower than the last digit a page shows). An open end (null) is "−∞" or "∞".
- * The report words intervals the same way (saddlescope.services.report.range_text).
+ * The report words intervals the same way (saddlescope.services.results.report.range_text).
  */
 export function rangeText(low, high, digits = 3) {
   const open = (v) => v === null || v === undefined || v === "";
@@ -170,7 +170,7 @@ export function gaitLabel(gait) {
 
 /**
  * A time in hours as a rider says it: 2.083 -> "2 h 05 min", 0.2 -> "12 min", 0.011 -> "under a minute"
- * (no seconds: the times are estimates). The same words as the report (saddlescope.services.report.duration_text).
+ * (no seconds: the times are estimates). The same words as the report (saddlescope.services.results.report.duration_text).
  */
 export function durationText(hours) {
   if (hours === null || hours === undefined || hours === "") return "\u2013";
@@ -204,7 +204,7 @@ export function jobTimeText(job) {
 
 /**
  * A riding distance in km as a rider says it: 0.00416 -> "about 4 m", 0.416 -> "about 420 m", 1.23 -> "about 1.2 km"
- * (two significant digits: the distances are estimates). The same words as saddlescope.services.report.distance_text.
+ * (two significant digits: the distances are estimates). The same words as saddlescope.services.results.report.distance_text.
  */
 export function distanceText(km) {
   if (km === null || km === undefined || km === "") return "\u2013";

@@ -10,7 +10,7 @@ import { gaitLabel } from "./format.js";
 import { fillOptions } from "./options.js";
 import { can } from "./session.js";
 
-// The details the analysis reads (saddlescope.services.rides.RESULT_SETTINGS), in words.
+// The details the analysis reads (saddlescope.services.rides.registration.RESULT_SETTINGS), in words.
 const SETTING_WORDS = { gait: "gait", direction: "direction" };
 const FIELDS = ["horse_id", "rider_id", "gait", "direction", "ridden_on", "saddle_id", "pad", "rider_weight_kg", "notes"];
 // Fields a cleared box sends as null (not recorded), and those sent as numbers.

@@ -1,6 +1,6 @@
 // What a ride still needs before it can be analysed: the server's answer for a stored ride
 // (`mountReadiness`, for the ride page) and the same check on the upload form before anything is sent
-// (`missingBeforeUpload`). The sentences follow backend/saddlescope/services/readiness.py.
+// (`missingBeforeUpload`). The sentences follow backend/saddlescope/services/rides/readiness.py.
 
 import { get } from "./api.js";
 import { h } from "./dom.js";

@@ -1,7 +1,7 @@
 """Helpers of the API tests: a signed-in client, a thread job queue, a fast stand-in analysis, zips.
 
-The stand-in replaces `saddlescope.services.analysis.analyze_bundle` and the rig calibration
-(`saddlescope.services.calibration.calibrate_clips`): the real pipeline takes minutes per ride on a
+The stand-in replaces `saddlescope.services.analysis.ride_bundle.analyze_bundle` and the rig calibration
+(`saddlescope.services.rigs.calibration.calibrate_clips`): the real pipeline takes minutes per ride on a
 2-core machine, these take milliseconds. The stand-in still opens and validates the bundle, reports
 progress through the stage callback and returns a complete result document whose indicators come
 from `saddlescope.core.vibration.ride_indicators` on an exact harmonic saddle motion (different
@@ -170,10 +170,10 @@ def standin_calibrate_clips(paths, *, board, sync=None, params=None, on_progress
 
 def install_standin() -> None:
     """Replace the analysis and the rig calibration by the stand-ins in this process (a worker's)."""
-    module = types.ModuleType("saddlescope.services.analysis")
+    module = types.ModuleType("saddlescope.services.analysis.ride_bundle")
     module.analyze_bundle = standin_analyze_bundle
-    sys.modules["saddlescope.services.analysis"] = module
-    import saddlescope.services.calibration as calibration
+    sys.modules["saddlescope.services.analysis.ride_bundle"] = module
+    import saddlescope.services.rigs.calibration as calibration
 
     calibration.calibrate_clips = standin_calibrate_clips
 
@@ -181,28 +181,28 @@ def install_standin() -> None:
 @contextlib.contextmanager
 def standin_installed():
     """The stand-ins for the duration of a block (a test module), then the real functions again."""
-    import saddlescope.services.calibration as calibration
+    import saddlescope.services.rigs.calibration as calibration
 
-    saved_module = sys.modules.get("saddlescope.services.analysis")
+    saved_module = sys.modules.get("saddlescope.services.analysis.ride_bundle")
     saved_calibrate = calibration.calibrate_clips
     install_standin()
     try:
         yield STANDIN
     finally:
         if saved_module is None:
-            sys.modules.pop("saddlescope.services.analysis", None)
+            sys.modules.pop("saddlescope.services.analysis.ride_bundle", None)
         else:
-            sys.modules["saddlescope.services.analysis"] = saved_module
+            sys.modules["saddlescope.services.analysis.ride_bundle"] = saved_module
         calibration.calibrate_clips = saved_calibrate
 
 
 @pytest.fixture
 def standin(monkeypatch):
     """The stand-ins for one test (restored after it)."""
-    module = types.ModuleType("saddlescope.services.analysis")
+    module = types.ModuleType("saddlescope.services.analysis.ride_bundle")
     module.analyze_bundle = standin_analyze_bundle
-    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis", module)
-    import saddlescope.services.calibration as calibration
+    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis.ride_bundle", module)
+    import saddlescope.services.rigs.calibration as calibration
 
     monkeypatch.setattr(calibration, "calibrate_clips", standin_calibrate_clips)
     return STANDIN
@@ -218,7 +218,7 @@ class ThreadQueue:
         self.threads: list[threading.Thread] = []
 
     def submit(self, job_id: int) -> None:
-        from saddlescope.services.runner import run_job
+        from saddlescope.services.jobs.runner import run_job
 
         thread = threading.Thread(
             target=run_job, args=(job_id,), kwargs={"settings": self.settings}, daemon=True

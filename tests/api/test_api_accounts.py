@@ -15,7 +15,7 @@ from saddlescope.api import create_app
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import User
 from saddlescope.db.session import session_factory_for
-from saddlescope.services.accounts import issue_token, verify_password
+from saddlescope.services.accounts.users import issue_token, verify_password
 from saddlescope.settings import load_settings
 
 pg_database_url = integration_services.pg_database_url

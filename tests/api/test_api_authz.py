@@ -210,7 +210,7 @@ def test_a_forged_or_expired_token_is_401(env, world):
 
     import jwt
 
-    from saddlescope.services.accounts import TOKEN_AUDIENCE
+    from saddlescope.services.accounts.users import TOKEN_AUDIENCE
 
     token = world["b"].headers["Authorization"].removeprefix("Bearer ")
     claims = jwt.decode(token, options={"verify_signature": False})

@@ -25,8 +25,8 @@ from saddlescope.api import create_app
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job
 from saddlescope.db.session import session_factory_for
-from saddlescope.services import direct_uploads
-from saddlescope.services.queue import EmbeddedQueue
+from saddlescope.services.jobs.queue import EmbeddedQueue
+from saddlescope.services.uploads import direct as direct_uploads
 from saddlescope.settings import load_settings
 from saddlescope.storage import open_storage
 

@@ -16,7 +16,7 @@ from disk_watch import HeldQueue, bundle_clip_digests, queue_of, watching_local_
 from engines import EMBEDDED_S3, open_env
 from integration_services import write_tiny_bundle, write_tiny_clip
 
-from saddlescope.services import direct_uploads
+from saddlescope.services.uploads import direct as direct_uploads
 from saddlescope.storage import direct_upload_key, open_storage
 
 s3_server = s3_server_module.s3_server  # one SeaweedFS for the session (tests/s3_server.py)

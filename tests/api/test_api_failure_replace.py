@@ -37,10 +37,10 @@ def _picky_analysis(path, on_progress=None, rig=None, params=None, meta_override
 
 @pytest.fixture
 def env(tmp_path, monkeypatch):
-    module = types.ModuleType("saddlescope.services.analysis")
+    module = types.ModuleType("saddlescope.services.analysis.ride_bundle")
     module.analyze_bundle = _picky_analysis
-    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis", module)
-    import saddlescope.services.calibration as calibration
+    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis.ride_bundle", module)
+    import saddlescope.services.rigs.calibration as calibration
 
     monkeypatch.setattr(calibration, "calibrate_clips", standin_calibrate_clips)
     settings = load_settings(database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "storage"))
@@ -111,7 +111,7 @@ def test_a_ride_without_a_rig_cannot_lend_its_calibration(env):
 
 def test_a_rides_own_calibration_clips_calibrate_its_rig(env, monkeypatch):
     api, root = env
-    import saddlescope.services.calibration as calibration
+    import saddlescope.services.rigs.calibration as calibration
 
     calibrated_from = []
 

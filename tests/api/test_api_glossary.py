@@ -1,6 +1,6 @@
 """GET /api/glossary: one typed entry per code a page may meet (indicators, gaits, job kinds, gravity
 sources, comparison methods), open without signing in; and the grades' correlation withheld on fewer
-than five points (services/analytics.py)."""
+than five points (services/comparisons/analytics.py)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 from engines import open_env
 
 from saddlescope.core.vibration import COMFORT_INDICATORS, GAITS, INDICATORS
-from saddlescope.services.analytics import MIN_CORRELATION_POINTS, _withhold_correlation_on_few_points
-from saddlescope.services.stages import JOB_KINDS
+from saddlescope.services.comparisons.analytics import MIN_CORRELATION_POINTS, _withhold_correlation_on_few_points
+from saddlescope.services.jobs.stages import JOB_KINDS
 
 
 @pytest.fixture(scope="module", params=["embedded"])

@@ -18,7 +18,7 @@ from saddlescope.api.routers import uploads as uploads_router
 from saddlescope.db.models import Upload, utcnow
 from saddlescope.db.repositories import JobRepository, ResultRepository, UploadRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services.permissions import PERMISSIONS
+from saddlescope.services.accounts.permissions import PERMISSIONS
 from saddlescope.storage import open_storage, upload_key
 
 pg_database_url = integration_services.pg_database_url
@@ -148,7 +148,7 @@ def test_a_failed_re_analysis_leaves_the_old_result_readable(env, club, tmp_path
     ride_id = created["ride"]["id"]
     assert api.wait_job(created["job_id"])[0]["status"] == "done"
     before = api.get(f"/rides/{ride_id}/export/json").json()
-    analysis = sys.modules["saddlescope.services.analysis"]
+    analysis = sys.modules["saddlescope.services.analysis.ride_bundle"]
     first = analysis.analyze_bundle
 
     def changed(*args, **kwargs):  # the re-analysis gives other numbers

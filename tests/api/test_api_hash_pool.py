@@ -12,7 +12,7 @@ import pytest
 from engines import open_env
 from integration_services import add_member, new_club
 
-from saddlescope.services import accounts
+from saddlescope.services.accounts import users as accounts
 
 
 @pytest.fixture(scope="module", params=["embedded"])
@@ -89,7 +89,7 @@ def test_changing_ones_own_password_checks_and_hashes_on_the_pool(env, argon2_th
 
 
 def test_a_full_pool_answers_busy_for_admin_routes_too(env):
-    from saddlescope.services.login_guard import HashPool
+    from saddlescope.services.accounts.login_guard import HashPool
 
     admin, _ = new_club(env.client)
     app = env.client.app

@@ -14,7 +14,7 @@ from saddlescope.api import create_app
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services.rides import register_bundle
+from saddlescope.services.rides.registration import register_bundle
 from saddlescope.settings import load_settings
 from saddlescope.storage import open_storage
 
@@ -204,7 +204,7 @@ def test_a_job_says_it_waits_for_a_worker_when_none_is_alive(tmp_path):
 
     from saddlescope.db.models import Job
     from saddlescope.db.models import utcnow as now
-    from saddlescope.services.runner import STALE_AFTER_S
+    from saddlescope.services.jobs.runner import STALE_AFTER_S
 
     settings = load_settings(
         database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "s"))

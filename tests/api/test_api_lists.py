@@ -17,7 +17,7 @@ from saddlescope.api.routers.jobs import JobSort
 from saddlescope.api.routers.riders import RiderSort
 from saddlescope.api.routers.rides import RideSort
 from saddlescope.core.vibration import INDICATORS
-from saddlescope.services.stage_labels import progress_percent, stage_label
+from saddlescope.services.jobs.stage_labels import progress_percent, stage_label
 
 
 @pytest.fixture(scope="module", params=["embedded"])

@@ -13,7 +13,7 @@ from engines import ENGINES, open_env
 from fastapi.testclient import TestClient
 
 from saddlescope.api import create_app
-from saddlescope.services.login_guard import HashPool, HashPoolBusy, LoginGuard, LoginThrottled, MemoryCounters
+from saddlescope.services.accounts.login_guard import HashPool, HashPoolBusy, LoginGuard, LoginThrottled, MemoryCounters
 from saddlescope.settings import load_settings
 
 pg_database_url = integration_services.pg_database_url

@@ -26,7 +26,7 @@ from conftest import PROJECT_ROOT
 from saddlescope.api import create_app
 from saddlescope.api.schemas import ResultOut
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.services.results import view_of_document
+from saddlescope.services.results.documents import view_of_document
 from saddlescope.settings import load_settings
 
 pg_database_url = integration_services.pg_database_url
@@ -83,7 +83,7 @@ def shape_mismatches(view: dict, model: type[BaseModel], where: str) -> list[str
 
 
 def test_the_view_of_a_real_result_has_exactly_the_schemas_fields(reference):
-    """The view is built in services/results.py, its schema declared in api/schemas.py: adding a key to one
+    """The view is built in services/results/documents.py, its schema declared in api/schemas.py: adding a key to one
     and not the other fails here (the real document has every optional series)."""
     row = types.SimpleNamespace(job_id=7, code_version="test", created_at=dt.datetime.now(dt.UTC))
     view = view_of_document(reference, row, ride_id=3, max_points=50)

@@ -14,7 +14,7 @@ from integration_services import write_tiny_bundle
 
 from saddlescope.db.repositories import ResultRepository
 from saddlescope.db.session import session_factory_for
-from saddlescope.services.results import commit_result
+from saddlescope.services.results.documents import commit_result
 from saddlescope.storage import open_storage
 
 pg_database_url = integration_services.pg_database_url

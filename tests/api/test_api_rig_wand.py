@@ -21,7 +21,7 @@ SMALL = {"kind": "checkerboard", "inner_corners": [5, 4], "square_mm": 20.0}
 
 @pytest.fixture
 def env(tmp_path, monkeypatch):
-    import saddlescope.services.calibration as calibration
+    import saddlescope.services.rigs.calibration as calibration
 
     calls: list[dict] = []
 

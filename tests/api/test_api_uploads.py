@@ -365,7 +365,7 @@ def test_the_sweep_removes_an_abandoned_upload_and_keeps_a_live_one(env, club):
     """What a club gave up on goes with its bytes after `upload_expiry_s`; an upload still moving stays.
     The sweep is what every worker runs hourly and `saddlescope sweep` runs by hand."""
     from saddlescope.db.session import session_factory_for
-    from saddlescope.services.uploads import sweep_abandoned
+    from saddlescope.services.uploads.intake import sweep_abandoned
 
     api, ride = club["api"], club["ride"]
     data = write_tiny_clip(club["folder"] / "sweep.avi", frames=8).read_bytes()
@@ -435,7 +435,7 @@ def test_a_finalise_still_running_after_the_wait_answers_409_and_a_dead_one_is_s
     from sqlalchemy import create_engine, text
 
     from saddlescope.db.session import session_factory_for
-    from saddlescope.services import uploads as uploads_service
+    from saddlescope.services.uploads import intake as uploads_service
 
     api, ride = club["api"], club["ride"]
     data = write_tiny_clip(club["folder"] / "held.avi", frames=8).read_bytes()

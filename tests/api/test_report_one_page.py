@@ -22,7 +22,7 @@ from conftest import PROJECT_ROOT
 from saddlescope.api import create_app
 from saddlescope.core.findings import FINDING_KINDS, Finding
 from saddlescope.io.findings_document import findings_to_list
-from saddlescope.services.report import REPORT_INDICATORS
+from saddlescope.services.results.report import REPORT_INDICATORS
 
 sys.path.insert(0, str(PROJECT_ROOT / "tests" / "e2e"))
 from dashboard_helpers import result_document, store_result  # noqa: E402

@@ -21,7 +21,7 @@ from conftest import PROJECT_ROOT
 from saddlescope.api import create_app
 from saddlescope.core.findings import Finding
 from saddlescope.io.findings_document import findings_to_list
-from saddlescope.services.report import duration_text
+from saddlescope.services.results.report import duration_text
 from saddlescope.settings import load_settings
 
 sys.path.insert(0, str(PROJECT_ROOT / "tests" / "e2e"))

@@ -29,7 +29,7 @@ def test_every_ride_of_the_accuracy_loop_gets_the_clip_length_asked_for(monkeypa
         return json.loads((ride / "truth.json").read_text())
 
     monkeypatch.setattr("saddlescope.io.synth_writer.write_ride_bundle", write_ride_bundle)
-    monkeypatch.setattr("saddlescope.services.analysis.analyze_bundle", analyze_bundle)
+    monkeypatch.setattr("saddlescope.services.analysis.ride_bundle.analyze_bundle", analyze_bundle)
     rows = bench.accuracy(tmp_path, rig="thesis", gaits=("sitting_trot", "canter"), seeds=(1,))
     assert asked == [("sitting_trot", None), ("canter", None)]
     for row in rows:

@@ -270,7 +270,7 @@ def _ride(tmp_path_factory, name: str, *, flash: bool):
 def no_flash_ride(tmp_path_factory):
     import json
 
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     ride = _ride(tmp_path_factory, "no_flash", flash=False)
     # ride.json says "flash" as a club's default would: no flash is found, and the motion takes over
@@ -280,7 +280,7 @@ def no_flash_ride(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def by_flash(tmp_path_factory):
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     return analyze_bundle(_ride(tmp_path_factory, "flash", flash=True))
 
@@ -331,7 +331,7 @@ def test_a_wide_rig_walk_without_a_flash_is_synchronised_to_a_tenth_of_a_frame(t
     from saddlescope.io.bundle import open_bundle
     from saddlescope.io.clip_source import BundleClips
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.calibration import rig_from_calibration
+    from saddlescope.services.rigs.calibration import rig_from_calibration
 
     ride = write_ride_bundle(tmp_path / "walk", gait="walk", seed=3, rig="wide", size=(960, 540), fps=60.0,
                              calibration_poses=1, extras=False, options=RenderOptions(flash=False))

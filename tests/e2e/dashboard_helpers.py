@@ -115,7 +115,7 @@ def store_result(database_url: str, storage_dir: Path, ride_id: int, doc: dict) 
     """Put a finished analysis in as the analyse stage would: result JSON in storage, row in the DB."""
     from saddlescope.db.repositories import RideRepository
     from saddlescope.db.session import make_engine, make_session_factory, session_scope
-    from saddlescope.services.results import commit_result
+    from saddlescope.services.results.documents import commit_result
     from saddlescope.storage import FileStorage
 
     engine = make_engine(database_url)

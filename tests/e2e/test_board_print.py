@@ -140,7 +140,7 @@ def stored_check(storage_dir, rig_id: int) -> None:
 
     from saddlescope.core.calibration.coverage_check import check_camera_coverage
     from saddlescope.core.types import Board
-    from saddlescope.services.calibration_check import CalibrationCheck, check_document
+    from saddlescope.services.rigs.calibration_check import CalibrationCheck, check_document
 
     board, size = Board("checkerboard", (12, 11), 50.0), (1920, 1080)
     K = np.array([[1370.0, 0, 960], [0, 1370.0, 540], [0, 0, 1]])

@@ -33,7 +33,7 @@ from dashboard_helpers import (
     sign_in,
 )
 
-from saddlescope.services.report import distance_text, duration_text
+from saddlescope.services.results.report import distance_text, duration_text
 
 # the seeded server, the browser and a page of it: the fixtures dashboard_helpers defines
 sync_playwright_factory = dashboard_helpers.sync_playwright_factory
@@ -335,7 +335,7 @@ def test_jobs_page_follows_a_job_live_and_offers_retry(page, dashboard):
     failed = page.locator(f'[data-jobs-table] tr[data-job-id="{failing["id"]}"][data-status="failed"]')
     failed.wait_for()
     job = api_get(dashboard, f"/api/jobs/{failing['id']}")
-    # the failure in one plain sentence (services/failure_advice.py), not the engineer's message
+    # the failure in one plain sentence (services/jobs/failure_advice.py), not the engineer's message
     assert job["error"] and job["failure"]["sentence"] in failed.inner_text()
     failed.get_by_role("button", name=f"Retry job {failing['id']}").click()
     page.locator(f'[data-jobs-table] tr[data-job-id="{failing["id"]}"][data-status="failed"]').wait_for()

@@ -26,7 +26,7 @@ from dashboard_helpers import (  # noqa: F401 (browser and sync_playwright_facto
 )
 
 from conftest import PROJECT_ROOT
-from saddlescope.services.report import distance_text, duration_text
+from saddlescope.services.results.report import distance_text, duration_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

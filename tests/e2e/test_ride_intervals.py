@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from dashboard_helpers import _ok, api_client, result_document, sign_in, store_result
 
-from saddlescope.services.report import distance_text, duration_text, range_text
+from saddlescope.services.results.report import distance_text, duration_text, range_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

@@ -24,7 +24,7 @@ from dashboard_helpers import (
 )
 
 from conftest import PROJECT_ROOT
-from saddlescope.services.report import duration_text
+from saddlescope.services.results.report import duration_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

@@ -147,7 +147,7 @@ def test_a_zip_read_in_place_says_what_unpacking_it_says(tmp_path, case):
 
 def test_the_copy_in_path_order_gives_each_image_folder_its_tree_digest(tmp_path):
     """What the API records for an image-folder clip (hashed as its files stream past) is `tree_digest`."""
-    from saddlescope.services.rides import _store_files
+    from saddlescope.services.rides.registration import _store_files
     from saddlescope.storage import FileStorage
 
     with open_zip_stream(io.BytesIO(CASES["one top folder"]), "ride.zip") as bundle:

@@ -12,7 +12,7 @@ import pytest
 from saddlescope.cli import main
 from saddlescope.core.errors import InputError
 from saddlescope.io.synth_writer import write_ride_bundle
-from saddlescope.services.calibration_check import check_calibration_clips, check_document, sample_step
+from saddlescope.services.rigs.calibration_check import check_calibration_clips, check_document, sample_step
 
 pytestmark = pytest.mark.slow
 
@@ -65,7 +65,7 @@ def test_a_wand_waved_only_in_the_middle_says_film_the_sides_again(tmp_path, cap
     from saddlescope.arena.rig import make_rig
     from saddlescope.arena.wand import render_wand_frames, wand_path
     from saddlescope.io.video_writer import write_h264
-    from saddlescope.services.calibration_check import check_wand_clips
+    from saddlescope.services.rigs.calibration_check import check_wand_clips
 
     rng = np.random.default_rng(5)
     rig = make_rig("wide_partial", rng, size=(640, 360))

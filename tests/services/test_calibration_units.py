@@ -9,7 +9,7 @@ import pytest
 from conftest import real_data_path
 from saddlescope.io.bundle import read_bundle_calibration
 from saddlescope.io.calibration_files import rig_from_caliscope_toml, write_anipose_toml
-from saddlescope.services.analysis import load_calibration_file
+from saddlescope.services.analysis.ride_bundle import load_calibration_file
 
 
 @pytest.mark.realdata

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import CamerasMovedError
-from saddlescope.services.analysis import analyze_bundle
-from saddlescope.services.calibration import rig_from_calibration
+from saddlescope.services.analysis.ride_bundle import analyze_bundle
+from saddlescope.services.rigs.calibration import rig_from_calibration
 
 pytestmark = pytest.mark.slow
 

@@ -7,7 +7,7 @@ import re
 import pytest
 
 from saddlescope.core.errors import CamerasMovedError
-from saddlescope.services.failure_advice import explain_failure
+from saddlescope.services.jobs.failure_advice import explain_failure
 
 JARGON = re.compile(r"sub-harmonic|autocorrelation|blob|px\b|Hz\b|\bclip '|camera '|Error\b")
 

@@ -1,5 +1,5 @@
 """Rides too uncertain for a decision stay out of the leaderboard by default: shown, marked, with the reason
-(issue 27; services/analytics.py, results.uncertain_reason of migration 0009_intervals)."""
+(issue 27; services/comparisons/analytics.py, results.uncertain_reason of migration 0009_intervals)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from saddlescope.db.repositories import (
     RiderRepository,
 )
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.services.analytics import club_leaderboard
+from saddlescope.services.comparisons.analytics import club_leaderboard
 
 REASON = "the W_b r.m.s. is known only to ±19 % (95 % interval 3.4-5.0 m/s²; a decision needs ±10 %)"
 

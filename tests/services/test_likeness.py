@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from saddlescope.core.errors import InputError
-from saddlescope.services.likeness import similarity_payload
-from saddlescope.services.likeness_view import STRIDE_SAMPLES, pair_paths
+from saddlescope.services.similarity.club import similarity_payload
+from saddlescope.services.similarity.pair_view import STRIDE_SAMPLES, pair_paths
 
 
 def _doc(start_rad: float, *, strides: int = 6, fps: float = 50.0, f0: float = 1.5) -> dict:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from integration_services import own_redis_server
 
-from saddlescope.services.login_guard import LoginGuard, LoginThrottled, RedisCounters, make_login_guard
+from saddlescope.services.accounts.login_guard import LoginGuard, LoginThrottled, RedisCounters, make_login_guard
 from saddlescope.settings import load_settings
 
 pytestmark = pytest.mark.integration

@@ -8,7 +8,7 @@ import pytest
 
 from saddlescope.core.errors import InputError
 from saddlescope.io.mocap import write_trc
-from saddlescope.services.mocap import analyze_mocap_file, parse_up_axis
+from saddlescope.services.analysis.mocap import analyze_mocap_file, parse_up_axis
 
 
 def _walking_triad_m(tmp_path, *, speed_m_s=1.6, stride_s=0.9, rate_hz=100.0, seconds=5.0):

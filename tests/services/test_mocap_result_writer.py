@@ -1,4 +1,4 @@
-"""A motion-capture ride is stored through the one result writer (`services.results.commit_result`), so a
+"""A motion-capture ride is stored through the one result writer (`services.results.documents.commit_result`), so a
 result the analysis marks too uncertain is never ranked on the leaderboard (issue 34: the mocap path
 skipped the uncertainty reason and its ride came first, seen in the browser)."""
 
@@ -13,9 +13,9 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import ClubRepository, HorseRepository, ResultRepository, RiderRepository
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.io.mocap import write_trc
-from saddlescope.services.analytics import club_leaderboard
-from saddlescope.services.mocap import MocapChoice, store_mocap_ride
-from saddlescope.services.results import series_key
+from saddlescope.services.analysis.mocap import MocapChoice, store_mocap_ride
+from saddlescope.services.comparisons.analytics import club_leaderboard
+from saddlescope.services.results.documents import series_key
 from saddlescope.storage.files import FileStorage
 
 

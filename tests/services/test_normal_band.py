@@ -1,4 +1,4 @@
-"""The horse's own normal band (services.normal_band): mean ± 2 SD of earlier rides, from 4 rides on."""
+"""The horse's own normal band (services.horses.normal_band): mean ± 2 SD of earlier rides, from 4 rides on."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import statistics
 
 import pytest
 
-from saddlescope.services.normal_band import band_of, normal_bands_before, page_band
+from saddlescope.services.horses.normal_band import band_of, normal_bands_before, page_band
 
 
 def test_band_needs_four_rides_and_uses_the_sample_sd():

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from saddlescope.api.schemas import PassesOut
-from saddlescope.services.passes_view import passes_view
+from saddlescope.services.results.passes_view import passes_view
 
 
 def _doc(strides, used=None, spread=0.021):

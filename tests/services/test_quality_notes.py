@@ -1,7 +1,7 @@
 """Findings as data (issue 34): one table of kinds, every code raised somewhere, old sentences still read.
 
 The analysis raises :class:`~saddlescope.core.findings.Finding` values by code; the plain-language note
-is the table's entry for that code (services/quality_notes.py). Results stored before findings were data
+is the table's entry for that code (services/results/quality_notes.py). Results stored before findings were data
 hold sentences only: ``legacy_flags.json`` lists sentences of every kind the analysis wrote then (the
 old source's flags rendered with placeholder numbers, scanned at commit 4dc2726) with the code the old
 regular expressions gave each; the legacy reader must keep giving those codes.
@@ -17,7 +17,7 @@ import pytest
 
 from saddlescope.core.findings import FINDING_KINDS, SEVERITIES, Finding
 from saddlescope.io.legacy_flags import finding_from_sentence
-from saddlescope.services.quality_notes import NOTES, document_findings, quality_notes, quality_summary
+from saddlescope.services.results.quality_notes import NOTES, document_findings, quality_notes, quality_summary
 
 PACKAGE = Path(__file__).resolve().parents[2] / "backend" / "saddlescope"
 LEGACY = json.loads((Path(__file__).with_name("legacy_flags.json")).read_text(encoding="utf-8"))

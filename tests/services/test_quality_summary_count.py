@@ -4,7 +4,7 @@ over 6 notes): findings that ask for the same thing are one line, and the count 
 from __future__ import annotations
 
 from saddlescope.core.findings import FINDING_KINDS, Finding
-from saddlescope.services.quality_notes import quality_notes, quality_summary
+from saddlescope.services.results.quality_notes import quality_notes, quality_summary
 
 
 def _checks(n: int) -> list[str]:

@@ -13,7 +13,7 @@ from conftest import real_data_path
 from saddlescope.cli import main
 from saddlescope.core.errors import InputError
 from saddlescope.io.mocap import read_mocap, write_c3d, write_trc
-from saddlescope.services.similarity import compare_files, compare_recordings
+from saddlescope.services.similarity.compare import compare_files, compare_recordings
 
 
 def _walk(n: int, t0: float = 0.0, *, shape: float = 0.0) -> np.ndarray:
@@ -119,7 +119,7 @@ def test_many_recordings_give_the_matrix_csv_and_heat_map(tmp_path, capsys):
 
 def test_rides_differences_find_the_marker_and_stretch_that_differ():
     from saddlescope.bench.similarity import synthetic_ride
-    from saddlescope.services.similarity import compare_ride_documents
+    from saddlescope.services.similarity.compare import compare_ride_documents
 
     doc = synthetic_ride(0, "sitting_trot", 0, strides=10.0)
     other = {**doc, "markers": {**doc["markers"], "position_m": np.array(doc["markers"]["position_m"], copy=True)}}

@@ -1,9 +1,9 @@
 """The one-page report shows each indicator's 95 % interval under its value and says when a ride is too
-uncertain for a decision (issue 27; services/report.py)."""
+uncertain for a decision (issue 27; services/results/report.py)."""
 
 from __future__ import annotations
 
-from saddlescope.services.report import _decision_html, _interval_html
+from saddlescope.services.results.report import _decision_html, _interval_html
 
 
 def test_the_interval_reads_in_the_values_own_units():

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from saddlescope.services.report import _interval_html, _number, distance_text, duration_text, range_text
+from saddlescope.services.results.report import _interval_html, _number, distance_text, duration_text, range_text
 
 
 def test_times_under_a_minute_are_not_given_in_seconds():

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from saddlescope.core.vibration import harmonic_metrics
-from saddlescope.services.result_series import fitted_saddle_series, weighted_series
-from saddlescope.services.results import DERIVED_SERIES, view_of_document
+from saddlescope.services.results.documents import DERIVED_SERIES, view_of_document
+from saddlescope.services.results.series import fitted_saddle_series, weighted_series
 
 F0_HZ, FPS, N = 1.65, 500.0, 10_000
 AMPS, PHASES = (4.0, 1.5, 0.5), (0.3, -0.8, 1.2)

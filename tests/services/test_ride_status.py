@@ -1,4 +1,4 @@
-"""A ride's status is derived in one place (saddlescope.services.rides): from its clips, its latest
+"""A ride's status is derived in one place (saddlescope.services.rides.registration): from its clips, its latest
 analysis job and its result."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from saddlescope.db.repositories import (
     RiderRepository,
 )
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.services.rides import refresh_ride_status, ride_status
+from saddlescope.services.rides.registration import refresh_ride_status, ride_status
 
 
 @pytest.mark.parametrize(

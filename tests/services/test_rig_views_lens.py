@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from saddlescope.core.types import LensModel
 from saddlescope.io.rig_document import lens_model_to_dict
-from saddlescope.services.rig_views import calibration_words
+from saddlescope.services.rigs.views import calibration_words
 
 
 def _calibration(models: dict[str, LensModel]) -> dict:

@@ -1,16 +1,16 @@
-"""Tests of saddlescope.services.similarity: dtaidistance DTW and the ranking of ride pairs."""
+"""Tests of the ride similarity: dtaidistance DTW and the ranking of ride pairs (core.similarity.stride_ranking),
+the comparison of result documents and files (services.similarity.compare)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from saddlescope.bench.similarity import bench_chaincode_10k, bench_dtw_10k
 from saddlescope.core.errors import InputError
-from saddlescope.core.similarity import dtw_distance_reference
-from saddlescope.services.similarity import (
-    bench_chaincode_10k,
-    bench_dtw_10k,
+from saddlescope.core.similarity import (
     dtw_distance,
+    dtw_distance_reference,
     most_similar_rides,
     normalise_stride,
     stride_distance_dtw,
@@ -138,7 +138,7 @@ def trot():
 
 
 def test_compare_reports_every_measure_with_frame_and_step(trot):
-    from saddlescope.services.similarity import MEASURES, RANKING_MEASURE, compare_ride_documents
+    from saddlescope.services.similarity.compare import MEASURES, RANKING_MEASURE, compare_ride_documents
 
     res = compare_ride_documents(trot, trot)
     assert res["measure"] == RANKING_MEASURE and res["similarity"] == res["measures"][RANKING_MEASURE]
@@ -152,7 +152,7 @@ def test_compare_reports_every_measure_with_frame_and_step(trot):
 
 
 def test_translated_later_started_and_time_stretched_copies_score_as_identical(trot):
-    from saddlescope.services.similarity import compare_ride_documents
+    from saddlescope.services.similarity.compare import compare_ride_documents
 
     x = np.asarray(trot["saddle"]["position_m"])
     ident = compare_ride_documents(trot, trot)["measures"]
@@ -169,7 +169,7 @@ def test_translated_later_started_and_time_stretched_copies_score_as_identical(t
 
 
 def test_still_marker_is_no_motion(trot):
-    from saddlescope.services.similarity import compare_ride_documents
+    from saddlescope.services.similarity.compare import compare_ride_documents
 
     rng = np.random.default_rng(0)
 
@@ -187,7 +187,7 @@ def test_still_marker_is_no_motion(trot):
 
 def test_shape_dissimilarity_does_not_depend_on_the_recording_length():
     from saddlescope.bench.similarity import synthetic_ride
-    from saddlescope.services.similarity import compare_ride_documents
+    from saddlescope.services.similarity.compare import compare_ride_documents
 
     d = [compare_ride_documents(synthetic_ride(3, "sitting_trot", 0, strides=k),
                                 synthetic_ride(3, "sitting_trot", 1, strides=k))["measures"]["shape_dissimilarity"]
@@ -197,7 +197,7 @@ def test_shape_dissimilarity_does_not_depend_on_the_recording_length():
 
 def test_rank_rides_finds_the_other_recording(trot):
     from saddlescope.bench.similarity import synthetic_ride
-    from saddlescope.services.similarity import rank_rides
+    from saddlescope.services.similarity.compare import rank_rides
 
     cands = {f"h{h}-{g}-{r}": synthetic_ride(h, g, r) for h in range(3) for g in ("walk", "sitting_trot")
              for r in (0, 1)}
@@ -211,7 +211,7 @@ def test_rank_rides_finds_the_other_recording(trot):
 
 
 def test_generic_recordings_are_compared_in_cycle_phase_and_a_kabsch_frame(trot):
-    from saddlescope.services.similarity import compare_recordings
+    from saddlescope.services.similarity.compare import compare_recordings
 
     a = np.asarray(trot["markers"]["position_m"]) * 1e3  # mm
     q, _ = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))

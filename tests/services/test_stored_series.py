@@ -19,9 +19,8 @@ from saddlescope.db.repositories import (
     RiderRepository,
 )
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.services import results
-from saddlescope.services.result_series import DERIVED_FORMAT, derived_series
-from saddlescope.services.results import (
+from saddlescope.services.results import documents as results
+from saddlescope.services.results.documents import (
     DERIVED_SERIES,
     PAGE_POINTS,
     commit_result,
@@ -30,6 +29,7 @@ from saddlescope.services.results import (
     series_key,
     view_of_document,
 )
+from saddlescope.services.results.series import DERIVED_FORMAT, derived_series
 from saddlescope.storage.files import FileStorage
 
 F0_HZ, FPS, N = 1.65, 200.0, 600

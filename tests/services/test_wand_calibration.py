@@ -1,4 +1,4 @@
-"""A rig calibrated from a wand calibration's clips (services.calibration.calibrate_wand_clips, issue 35): bad
+"""A rig calibrated from a wand calibration's clips (services.rigs.calibration.calibrate_wand_clips, issue 35): bad
 input is refused in words before any clip is read."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from saddlescope.core.errors import CalibrationError, InputError
-from saddlescope.services.calibration import calibrate_wand_clips
+from saddlescope.services.rigs.calibration import calibrate_wand_clips
 
 BOARD = {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 30.0}
 ROLES = ("left", "middle", "right")

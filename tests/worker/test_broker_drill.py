@@ -113,7 +113,7 @@ def test_a_redis_restarted_empty_loses_no_job(pg_database_url, tmp_path):
 
 
 def test_the_sweep_sees_which_jobs_a_redis_broker_holds(tmp_path):
-    from saddlescope.services.queue import CeleryQueue, broker_job_ids
+    from saddlescope.services.jobs.queue import CeleryQueue, broker_job_ids
 
     port = _free_port()
     redis = _start_redis(port, tmp_path / "redis.log")

@@ -11,8 +11,8 @@ from integration_services import new_club
 
 from saddlescope.api import create_app
 from saddlescope.db.session import session_factory_for
-from saddlescope.services.queue import CeleryQueue
-from saddlescope.services.rides import register_bundle
+from saddlescope.services.jobs.queue import CeleryQueue
+from saddlescope.services.rides.registration import register_bundle
 from saddlescope.settings import load_settings
 from saddlescope.storage import open_storage
 

@@ -17,10 +17,10 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job, Result, utcnow
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services import runner
-from saddlescope.services.results import commit_result
-from saddlescope.services.runner import run_job
-from saddlescope.services.stages import JobFenced
+from saddlescope.services.jobs import runner
+from saddlescope.services.jobs.runner import run_job
+from saddlescope.services.jobs.stages import JobFenced
+from saddlescope.services.results.documents import commit_result
 from saddlescope.settings import load_settings
 from saddlescope.storage import FileStorage
 
@@ -101,7 +101,7 @@ def test_a_stale_workers_run_stops_at_its_next_report_and_leaves_the_job_alone(s
         job_id = JobRepository(s).add(kind="selftest", payload={"steps": 40, "delay_s": 0.05}).id
     outcome: list[str] = []
     worker = threading.Thread(target=lambda: outcome.append(run_job(job_id, settings=settings)))
-    with caplog.at_level(logging.WARNING, logger="saddlescope.services.runner"):
+    with caplog.at_level(logging.WARNING, logger="saddlescope.services.jobs.runner"):
         worker.start()
         for _ in range(200):  # until the run has started
             with session_scope(sessions) as s:
@@ -154,7 +154,7 @@ def test_two_workers_racing_to_store_one_jobs_result_leave_one_result(setup, cap
         except JobFenced as exc:
             outcomes[host] = exc
 
-    with caplog.at_level(logging.WARNING, logger="saddlescope.services.results"):
+    with caplog.at_level(logging.WARNING, logger="saddlescope.services.results.documents"):
         threads = [threading.Thread(target=store, args=(host,)) for host in workers]
         for thread in threads:
             thread.start()

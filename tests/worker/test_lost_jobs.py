@@ -15,8 +15,8 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services import runner
-from saddlescope.services.runner import job_is_lost, recover_lost_jobs, run_job
+from saddlescope.services.jobs import runner
+from saddlescope.services.jobs.runner import job_is_lost, recover_lost_jobs, run_job
 from saddlescope.settings import load_settings
 
 NOW = dt.datetime(2026, 5, 1, 12, 0, tzinfo=dt.UTC)
@@ -138,7 +138,7 @@ def test_a_job_that_keeps_losing_its_worker_is_failed_with_the_reason(setup):
 
 
 def test_queued_jobs_the_broker_forgot_are_sent_again_once(setup):
-    from saddlescope.services.runner import resend_queued_jobs
+    from saddlescope.services.jobs.runner import resend_queued_jobs
 
     settings, sessions = setup
     with session_scope(sessions) as s:

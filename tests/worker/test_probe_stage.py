@@ -11,9 +11,9 @@ import pytest
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job, Recording
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services.job_service import create_job
-from saddlescope.services.rides import register_bundle
-from saddlescope.services.runner import run_job
+from saddlescope.services.jobs.lifecycle import create_job
+from saddlescope.services.jobs.runner import run_job
+from saddlescope.services.rides.registration import register_bundle
 from saddlescope.settings import load_settings
 from saddlescope.storage import FileStorage as Storage
 
@@ -43,7 +43,7 @@ def test_a_probed_clip_is_not_decoded_or_hashed_again(probed_ride, monkeypatch):
 
     real_probe = video.probe_video
     monkeypatch.setattr(video, "probe_video", lambda path, **kw: read.append(str(path)) or real_probe(path, **kw))
-    import saddlescope.services.stages as stages
+    import saddlescope.services.jobs.stages as stages
 
     real_sha = stages.sha256_file
     monkeypatch.setattr(stages, "sha256_file", lambda path: read.append(str(path)) or real_sha(path))

@@ -10,7 +10,7 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Horse, Recording, Ride
 from saddlescope.db.session import session_factory_for
 from saddlescope.io.bundle import open_bundle, write_bundle_zip
-from saddlescope.services.rides import register_bundle
+from saddlescope.services.rides.registration import register_bundle
 from saddlescope.storage import FileStorage
 
 

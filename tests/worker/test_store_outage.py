@@ -12,8 +12,8 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Job
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services import queue, runner
-from saddlescope.services.runner import run_job
+from saddlescope.services.jobs import queue, runner
+from saddlescope.services.jobs.runner import run_job
 from saddlescope.settings import load_settings
 from saddlescope.storage import StoreUnavailable
 

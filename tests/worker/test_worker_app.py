@@ -8,7 +8,7 @@ import integration_services
 import pytest
 
 from conftest import PROJECT_ROOT
-from saddlescope.services.queue import QUEUE_NAME, RUN_JOB_TASK
+from saddlescope.services.jobs.queue import QUEUE_NAME, RUN_JOB_TASK
 from saddlescope.settings import load_settings
 from saddlescope_worker.app import app, create_celery
 

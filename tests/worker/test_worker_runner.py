@@ -18,11 +18,11 @@ from saddlescope.db.models import Job, Recording, Ride
 from saddlescope.db.repositories import JobRepository, NotFound, ResultRepository
 from saddlescope.db.session import session_factory_for, session_scope
 from saddlescope.demo import DemoError, ensure_demo_bundle, run_demo
-from saddlescope.services import stages
-from saddlescope.services.job_service import create_job, submit_job
-from saddlescope.services.queue import InlineQueue
-from saddlescope.services.rides import register_bundle
-from saddlescope.services.runner import run_job
+from saddlescope.services.jobs import stages
+from saddlescope.services.jobs.lifecycle import create_job, submit_job
+from saddlescope.services.jobs.queue import InlineQueue
+from saddlescope.services.jobs.runner import run_job
+from saddlescope.services.rides.registration import register_bundle
 from saddlescope.settings import load_settings
 from saddlescope.storage import open_storage
 
@@ -59,7 +59,7 @@ def ride_id(settings, sessions, tmp_path):
 
 @pytest.fixture
 def fake_analysis(monkeypatch):
-    """A stand-in for saddlescope.services.analysis (the lead's pipeline), recording its calls."""
+    """A stand-in for saddlescope.services.analysis.ride_bundle (the lead's pipeline), recording its calls."""
     calls = []
 
     def analyze_bundle(path, on_progress=None, rig=None, rig_report=None, meta_overrides=None):
@@ -75,9 +75,9 @@ def fake_analysis(monkeypatch):
             "angular": {"omega_rad_s": [[0, 0, 1]] * 3},
         }
 
-    module = types.ModuleType("saddlescope.services.analysis")
+    module = types.ModuleType("saddlescope.services.analysis.ride_bundle")
     module.analyze_bundle = analyze_bundle
-    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis", module)
+    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis.ride_bundle", module)
     return calls
 
 
@@ -141,7 +141,7 @@ def test_a_job_of_a_kind_this_worker_does_not_know_fails_clearly(settings, sessi
 
 
 def test_cancelling_stops_a_running_job_at_its_next_progress_report(settings, sessions, monkeypatch):
-    monkeypatch.setattr("saddlescope.services.runner.PROGRESS_INTERVAL_S", 0.0)
+    monkeypatch.setattr("saddlescope.services.jobs.runner.PROGRESS_INTERVAL_S", 0.0)
     job_id = add_job(sessions, kind="selftest", payload={"steps": 200, "delay_s": 0.01})
     outcome = {}
     thread = threading.Thread(target=lambda: outcome.update(status=run_job(job_id, settings=settings)))
@@ -207,11 +207,11 @@ def test_analyze_stores_the_result_and_rerunning_replaces_it(settings, sessions,
 
 
 def test_analyze_without_the_pipeline_fails_clearly(settings, sessions, ride_id, monkeypatch):
-    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis", None)
+    monkeypatch.setitem(sys.modules, "saddlescope.services.analysis.ride_bundle", None)
     job_id = add_job(sessions, kind="analyze", ride_id=ride_id)
     assert run_job(job_id, settings=settings) == "failed"
     assert (
-        "analysis pipeline (saddlescope.services.analysis) is not part of this installation"
+        "analysis pipeline (saddlescope.services.analysis.ride_bundle) is not part of this installation"
         in job_row(sessions, job_id).error
     )
     with sessions() as s:

@@ -18,7 +18,7 @@ from celery.signals import worker_ready, worker_shutdown
 from sqlalchemy.exc import SQLAlchemyError
 
 from saddlescope.io.malloc import limit_frame_memory
-from saddlescope.services.queue import QUEUE_NAME, RUN_JOB_TASK, celery_config
+from saddlescope.services.jobs.queue import QUEUE_NAME, RUN_JOB_TASK, celery_config
 from saddlescope.settings import ConfigurationError, Settings, get_settings
 
 log = logging.getLogger(__name__)
@@ -49,13 +49,13 @@ _stop_recovery = threading.Event()
 def recover_once(settings: Settings | None = None) -> list[int]:
     """Send again the jobs a dead worker or a forgetful broker lost; returns their ids.
 
-    Running jobs whose worker is gone (`saddlescope.services.runner.recover_lost_jobs`), and jobs
+    Running jobs whose worker is gone (`saddlescope.services.jobs.runner.recover_lost_jobs`), and jobs
     queued longer than ``requeue_after_s`` that the broker does not hold (a Redis restarted with
     nothing persisted; `resend_queued_jobs`).
     """
     from saddlescope.db.session import session_factory_for
-    from saddlescope.services.queue import broker_job_ids
-    from saddlescope.services.runner import recover_lost_jobs, resend_queued_jobs
+    from saddlescope.services.jobs.queue import broker_job_ids
+    from saddlescope.services.jobs.runner import recover_lost_jobs, resend_queued_jobs
 
     settings = settings or get_settings()
     sessions = session_factory_for(settings.database_url)
@@ -70,9 +70,9 @@ def recover_once(settings: Settings | None = None) -> list[int]:
 
 
 def sweep_once(settings: Settings | None = None) -> dict[str, int]:
-    """Remove abandoned uploads and partial writes (`saddlescope.services.uploads.sweep_abandoned`)."""
+    """Remove abandoned uploads and partial writes (`saddlescope.services.uploads.intake.sweep_abandoned`)."""
     from saddlescope.db.session import session_factory_for
-    from saddlescope.services.uploads import sweep_abandoned
+    from saddlescope.services.uploads.intake import sweep_abandoned
     from saddlescope.storage import open_storage
 
     settings = settings or get_settings()

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from sqlalchemy.exc import OperationalError
 
-from saddlescope.services.queue import RUN_JOB_TASK
-from saddlescope.services.runner import RETRY, STORE_RETRY_S
-from saddlescope.services.runner import run_job as run_job_body
+from saddlescope.services.jobs.queue import RUN_JOB_TASK
+from saddlescope.services.jobs.runner import RETRY, STORE_RETRY_S
+from saddlescope.services.jobs.runner import run_job as run_job_body
 from saddlescope_worker.app import app
 
 

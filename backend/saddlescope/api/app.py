@@ -29,11 +29,11 @@ from saddlescope.core.errors import SaddleScopeError
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFound
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.services.accounts import AuthError, Forbidden
-from saddlescope.services.job_service import JobStateError
-from saddlescope.services.login_guard import HashPool, HashPoolBusy, LoginThrottled, make_login_guard
-from saddlescope.services.queue import JobQueue, QueueUnavailable, make_queue
-from saddlescope.services.uploads import IncompleteUpload, sweep_abandoned
+from saddlescope.services.accounts.login_guard import HashPool, HashPoolBusy, LoginThrottled, make_login_guard
+from saddlescope.services.accounts.users import AuthError, Forbidden
+from saddlescope.services.jobs.lifecycle import JobStateError
+from saddlescope.services.jobs.queue import JobQueue, QueueUnavailable, make_queue
+from saddlescope.services.uploads.intake import IncompleteUpload, sweep_abandoned
 from saddlescope.settings import Settings, get_settings, with_embedded_secret
 from saddlescope.storage import StoreUnavailable, TooLarge, open_storage
 

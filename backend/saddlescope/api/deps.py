@@ -34,7 +34,8 @@ from saddlescope.db.repositories import (
     UploadRepository,
     UserRepository,
 )
-from saddlescope.services.accounts import (
+from saddlescope.services.accounts.permissions import require as require_permission
+from saddlescope.services.accounts.users import (
     AuthError,
     Forbidden,
     Principal,
@@ -42,8 +43,7 @@ from saddlescope.services.accounts import (
     read_token,
     require_admin,
 )
-from saddlescope.services.permissions import require as require_permission
-from saddlescope.services.queue import JobQueue
+from saddlescope.services.jobs.queue import JobQueue
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage
 
@@ -214,7 +214,7 @@ class ClubScope:
         require_admin(self.principal)
 
     def require(self, action: str, *, owner_id: int | None = None) -> None:
-        """Raise `Forbidden` unless the caller may do `action` (the table in services/permissions.py)."""
+        """Raise `Forbidden` unless the caller may do `action` (the table in services/accounts/permissions.py)."""
         require_permission(self.principal, action, owner_id=owner_id)
 
     def _repo(self, cls):

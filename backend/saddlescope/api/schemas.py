@@ -697,7 +697,7 @@ class ResultSeries(BaseModel):
 
 
 class QualityNoteOut(BaseModel):
-    """One finding of the analysis in plain words (`saddlescope.services.quality_notes`)."""
+    """One finding of the analysis in plain words (`saddlescope.services.results.quality_notes`)."""
 
     code: str = Field(description="the kind of finding, e.g. rotation.weak_axis (saddlescope.core.findings)")
     severity: Literal["ok", "check", "problem"]
@@ -731,7 +731,7 @@ class Decimation(BaseModel):
 
 
 class ResultOut(BaseModel):
-    """A ride's result as the dashboard shows it (built by `saddlescope.services.results.view_of_document`)."""
+    """A ride's result as the dashboard shows it (`saddlescope.services.results.documents.view_of_document`)."""
 
     ride_id: int
     job_id: int | None

@@ -8,7 +8,7 @@ from typing import Literal
 from pydantic import BaseModel, Field, model_validator
 
 from saddlescope.api.schemas import MAX_ID, _In
-from saddlescope.services.share_links import DEFAULT_DAYS, MAX_DAYS
+from saddlescope.services.accounts.share_links import DEFAULT_DAYS, MAX_DAYS
 
 __all__ = ["ShareLinkCreated", "ShareLinkIn", "ShareLinkOut"]
 

@@ -8,7 +8,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, Field
 
 from saddlescope.api.schemas import Gait, JobOut
-from saddlescope.services.similarity import MARKER_SETS, SPANS
+from saddlescope.services.similarity.compare import MARKER_SETS, SPANS
 
 __all__ = [
     "AlikeEntry", "AlikeOut", "ConsistencyGait", "ConsistencyOut", "ConsistencyRide", "Differences", "GaitScope",

@@ -101,7 +101,7 @@ def analysis_vs_footage(tmp: Path, *, quick: bool) -> dict:
     """Wall time of the whole analysis of a default thesis-rig ride / duration of its footage."""
     from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.io.video import probe_video
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     ride = tmp / "speed_640x480"  # the ride speed_rides analysed, when it ran first (same arguments)
     t0 = time.perf_counter()
@@ -165,7 +165,7 @@ def analysis_vs_decode(ride: Path, *, shared_by: int = 10) -> dict:
     ``shared_by`` + cpu(the ride with that calibration given)), CPU seconds from getrusage.
     """
     from saddlescope.io.rig_document import rig_from_dict
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
     from saddlescope.settings import get_settings
 
     c0 = _cpu_s()
@@ -200,7 +200,7 @@ def analysis_vs_decode(ride: Path, *, shared_by: int = 10) -> dict:
 
 _RSS_CHILD = """
 import resource, sys
-from saddlescope.services.analysis import analyze_bundle
+from saddlescope.services.analysis.ride_bundle import analyze_bundle
 analyze_bundle(sys.argv[1])
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 """
@@ -339,7 +339,7 @@ def accuracy(tmp: Path, *, rig: str, gaits: tuple[str, ...], seeds: tuple[int, .
     """
     from saddlescope.arena import RenderOptions, saddle_truth_at
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     rows = []
     for gait in gaits:

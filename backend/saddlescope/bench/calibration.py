@@ -116,7 +116,7 @@ def calibration_check_clips_s(tmp: Path, *, quick: bool = False, clip_s: float =
     from saddlescope.io.bundle import open_bundle
     from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.io.video import probe_video
-    from saddlescope.services.calibration_check import check_calibration_clips
+    from saddlescope.services.rigs.calibration_check import check_calibration_clips
 
     clip_s = 8.0 if quick else float(clip_s)
     fps = 50.0  # the arena holds at most 400 board poses of 4 frames: 30 s at 50 fps
@@ -246,7 +246,7 @@ def wand_canter_indicators(tmp: Path, *, rig: str = "wide", seed: int = 1, quick
 
     from saddlescope.arena.rig import make_rig
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     ride = Path(tmp) / f"wand_vs_board_{rig}"
     if not (ride / "ride.json").is_file():

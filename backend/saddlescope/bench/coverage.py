@@ -219,7 +219,7 @@ def _run_ride(ride: CoverageRide, folder: Path, *, keep_clips: bool) -> None:
 
 
 def _analyse(work: Path, folder: Path, suffix: str, overrides: dict | None) -> None:
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     try:
         result = analyze_bundle(work, meta_overrides=overrides)

@@ -45,8 +45,8 @@ import numpy as np
 from saddlescope.bench.service import PASSWORD, _analysed_ride, _scratch, bench_server, fill_rides
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.services.accounts import create_club
-from saddlescope.services.results import store_with_result
+from saddlescope.services.accounts.users import create_club
+from saddlescope.services.results.documents import store_with_result
 
 CHROMIUM = Path("/usr/bin/chromium")
 TTI_PAGE_KEYS = ("tti_rides_list_s", "tti_leaderboard_s", "tti_ride_page_s", "tti_horse_page_s", "tti_compare_s")

@@ -76,7 +76,7 @@ def passes_interval_ratio(tmp: Path, *, seed: int = 3, size: tuple[int, int] = (
     (:func:`_ride_row`), ``wb_interval_ratio_3_vs_1`` and the floors' ratio, or ``error`` on a failure.
     """
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     out: dict = {"seed": seed, "rig": "wide", "size": list(size), "fps": fps, "speed_range_m_s": speed_range_m_s}
     for passes in (1, 3):

@@ -61,7 +61,7 @@ def rolling_ride_row(ride: Path, result: dict) -> dict:
 def _analysed(tmp: Path, spec: RollingRide, readout_s: float) -> dict:
     from saddlescope.arena import RenderOptions
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     ride = tmp / f"rolling_{spec.name}_ro{1000 * readout_s:g}ms"
     if not (ride / "truth.json").exists():

@@ -38,8 +38,8 @@ from saddlescope.core.types import GAITS
 from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.models import Club, Horse, Result, Ride, Rider
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
-from saddlescope.services.accounts import create_club
-from saddlescope.services.results import store_with_result, uncertain_reason_of
+from saddlescope.services.accounts.users import create_club
+from saddlescope.services.results.documents import store_with_result, uncertain_reason_of
 
 MIB = 1024**2
 PASSWORD = "benchmark password"
@@ -377,7 +377,7 @@ def leaderboard_latency(
     otherwise the rides are spread over the four gaits and the repeats cycle through them. Also times
     an indicator without its own column (read from the JSON of every result) for comparison.
     """
-    from saddlescope.services.analytics import club_leaderboard
+    from saddlescope.services.comparisons.analytics import club_leaderboard
 
     with _scratch("saddlescope-bench-leaderboard-") as root:
         url = prepare_database(root)

@@ -17,9 +17,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from saddlescope.arena.gait import sample_gait
+from saddlescope.core.similarity import chain_code_3d, default_step, dtw_distance, nw_similarity, shape_dissimilarity
 
 if TYPE_CHECKING:
-    from saddlescope.services.similarity import RideSignature
+    from saddlescope.services.similarity.compare import RideSignature
 
 __all__ = ["NOISE_MM", "synthetic_ride", "retrieval", "ranking_speed", "synthetic_recording", "recording_retrieval",
            "run_similarity_benchmarks"]
@@ -73,7 +74,7 @@ def retrieval(*, horses: int = 6, gaits: tuple[str, ...] = GAITS, markers: str =
     similarity of the pairs of recordings of the same horse and gait against all pairs of different
     horses.
     """
-    from saddlescope.services.similarity import MEASURES, RANKING_MEASURE, compare_signatures, ride_signature
+    from saddlescope.services.similarity.compare import MEASURES, RANKING_MEASURE, compare_signatures, ride_signature
 
     keys = [(h, g, r) for h in range(horses) for g in gaits for r in (0, 1)]
     t0 = time.perf_counter()
@@ -102,7 +103,7 @@ def retrieval(*, horses: int = 6, gaits: tuple[str, ...] = GAITS, markers: str =
 
 def ranking_speed(n_rides: int = 1000) -> dict:
     """Seconds to put ``n_rides`` stored rides into stride phase once, and to rank them for one query."""
-    from saddlescope.services.similarity import rank_signatures, ride_signature
+    from saddlescope.services.similarity.compare import rank_signatures, ride_signature
 
     docs = [synthetic_ride(k % 50, GAITS[k % 3], k // 50, strides=10.0) for k in range(n_rides + 1)]
     t0 = time.perf_counter()
@@ -151,7 +152,7 @@ def _pair_cost(sig_a, sig_b) -> tuple[float, float]:
     """
     from dtaidistance import dtw_ndim
 
-    from saddlescope.services.similarity import RANKING_MEASURE, compare_recording_signatures
+    from saddlescope.services.similarity.compare import RANKING_MEASURE, compare_recording_signatures
 
     flat_a = np.ascontiguousarray(sig_a.x.reshape(sig_a.x.shape[0], -1))
     flat_b = np.ascontiguousarray(sig_b.x.reshape(sig_b.x.shape[0], -1))
@@ -179,7 +180,7 @@ def recording_retrieval(*, subjects: int = 8) -> dict:
     """
     from saddlescope.core.similarity import recording_signature
     from saddlescope.io.threads import single_threaded_numerics
-    from saddlescope.services.similarity import RANKING_MEASURE, compare_recording_signatures
+    from saddlescope.services.similarity.compare import RANKING_MEASURE, compare_recording_signatures
 
     recs = [synthetic_recording(h, r) for h in range(subjects) for r in (0, 1)]
     n = len(recs)
@@ -221,8 +222,6 @@ def _stride_hz(subject: int, gait: str = "sitting_trot") -> float:
 
 def run_similarity_benchmarks(*, quick: bool = False) -> dict:
     """The keys `saddlescope bench` reports for similarity."""
-    from saddlescope.services.similarity import bench_chaincode_10k, bench_dtw_10k
-
     out: dict = {"chaincode_10k_s": bench_chaincode_10k(), "dtw_10k_s": bench_dtw_10k()}
     ret = retrieval(horses=6)
     out["similarity_retrieval"] = ret
@@ -238,3 +237,55 @@ def run_similarity_benchmarks(*, quick: bool = False) -> dict:
     out["most_similar_1000_s"] = speed["total_s"] if not quick else None
     out["similarity_ranking_speed"] = speed
     return out
+
+
+# ----------------------------------------------------------------------------------------------
+# DTW and chain codes of 10,000-sample trajectories, timed (moved here from the similarity service)
+
+
+def bench_trajectories(n: int = 10_000, *, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Two seeded, ride-like 3-D trajectories of ``n`` samples (30 closed strides each, m).
+
+    The second has another start phase, a slowly varying stride rate and its own measurement noise.
+    """
+    rng = np.random.default_rng(seed)
+    u = np.linspace(0.0, 30 * 2 * np.pi, n)
+    warp = u + 0.3 * np.sin(u / 7.0)
+
+    def loop(p: np.ndarray) -> np.ndarray:
+        return np.column_stack([0.02 * np.cos(p) + 0.005 * np.cos(2 * p), 0.05 * np.sin(2 * p + 0.3),
+                                0.015 * np.sin(p)])
+
+    a = loop(u) + rng.normal(0.0, 2e-4, (n, 3))
+    b = loop(warp + 0.4) + rng.normal(0.0, 2e-4, (n, 3))
+    return a, b
+
+
+def bench_chaincode_10k() -> float:
+    """Seconds for one chain-code similarity of two 10,000-sample trajectories.
+
+    Both chain codes (common default grid, 50 cells over the extent) plus the banded
+    Needleman-Wunsch similarity of the two chains.
+    """
+    a, b = bench_trajectories()
+    t0 = time.perf_counter()
+    step = default_step(a, b)
+    nw_similarity(chain_code_3d(a, step=step), chain_code_3d(b, step=step))
+    return time.perf_counter() - t0
+
+
+def bench_shape_10k() -> float:
+    """Seconds for the chain codes plus Bribiesca & Aguilar's shape dissimilarity (10,000 samples)."""
+    a, b = bench_trajectories()
+    t0 = time.perf_counter()
+    step = default_step(a, b)
+    shape_dissimilarity(chain_code_3d(a, step=step), chain_code_3d(b, step=step))
+    return time.perf_counter() - t0
+
+
+def bench_dtw_10k() -> float:
+    """Seconds for one 3-D DTW distance of two 10,000-sample trajectories (C, window 10 %)."""
+    a, b = bench_trajectories()
+    t0 = time.perf_counter()
+    dtw_distance(a, b, window=1000)
+    return time.perf_counter() - t0

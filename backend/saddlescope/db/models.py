@@ -434,7 +434,7 @@ class Upload(Base):
 
 
 class SimilarityPair(TimestampMixin, Base):
-    """A cached comparison of two analysed rides (``services.similarity.compare_ride_documents``' answer).
+    """A cached comparison of two analysed rides (``services.similarity.compare.compare_ride_documents``' answer).
 
     One row per pair of rides (``ride_a_id < ride_b_id``), marker set and span. It is valid while both
     rides keep the analysis it was computed from (``version_a``, ``version_b``: each result's code

@@ -1,6 +1,6 @@
 """Many recordings at once: the files named (folders opened) and the similarity matrix written.
 
-``saddlescope similar`` over a folder or a list (:func:`saddlescope.services.similarity.similarity_matrix`)
+``saddlescope similar`` over a folder or a list (:func:`saddlescope.services.similarity.compare.similarity_matrix`)
 writes its matrix as CSV and as a heat map (OpenCV; matplotlib is not a dependency).
 """
 

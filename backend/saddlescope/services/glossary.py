@@ -13,11 +13,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from saddlescope.core.similarity import METHODS
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.core.vibration import COMFORT_INDICATORS, GAITS, INDICATORS
-from saddlescope.services.similarity import METHODS
-from saddlescope.services.stage_labels import STAGE_LABELS
-from saddlescope.services.stages import JOB_KINDS
+from saddlescope.services.jobs.stage_labels import STAGE_LABELS
+from saddlescope.services.jobs.stages import JOB_KINDS
 
 __all__ = ["GLOSSARY_KINDS", "GlossaryEntry", "glossary", "label_of"]
 

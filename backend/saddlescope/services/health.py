@@ -15,7 +15,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from saddlescope.db.migrate import current_revision, head_revision
 from saddlescope.db.session import ping
-from saddlescope.services.queue import JobQueue
+from saddlescope.services.jobs.queue import JobQueue
 from saddlescope.storage import FileStorage, Storage
 
 __all__ = ["PART_TROUBLE", "STORAGE_LOW", "check_database", "check_queue", "check_storage", "health_report",

@@ -12,8 +12,8 @@ import json
 import pytest
 from integration_services import built_once_per_run
 
-from saddlescope.services.analysis import analyze_bundle
-from saddlescope.services.calibration import rig_from_calibration
+from saddlescope.services.analysis.ride_bundle import analyze_bundle
+from saddlescope.services.rigs.calibration import rig_from_calibration
 
 pytestmark = pytest.mark.slow
 

@@ -110,7 +110,7 @@ def test_no_static_shot_is_refused(tmp_path):
 
 @pytest.fixture(scope="module")
 def validation(short_ride, analysed):
-    from saddlescope.services.validation import run_validation
+    from saddlescope.services.analysis.validation import run_validation
 
     result, truth = analysed
     points = {k: tuple(v) for k, v in truth["truth"]["board_distance"]["points"].items()}
@@ -150,7 +150,7 @@ def test_phone_cameras_at_a_variable_frame_rate(tmp_path):
     # stamps the ride measures as well as an even one (5.2 % on this ride at an even rate).
     from saddlescope.arena import RenderOptions
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     # 30 calibration poses (the clock under test is the motion clip's; the rig only needs to be good)
     ride = write_ride_bundle(tmp_path / "phones", gait="canter", seed=21, rig="thesis", duration_s=3.0,
@@ -177,7 +177,7 @@ def test_a_marker_moved_after_the_static_shot_is_flagged(short_ride, analysed, m
     # triangle no longer matches the static one and no search finds one that does. The ride is still
     # measured, and the result says what to check.
     from saddlescope.core.pipeline import detection
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     static_positions = S.static_positions
 
@@ -215,7 +215,7 @@ def test_a_plumb_line_leaning_far_from_the_cameras_vertical_is_not_taken_for_gra
             out = MarkerTracks(out.names, out.t_s, xyz, out.reprojection_error_px, out.views)
         return out
 
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     monkeypatch.setattr(detection, "triangulate_tracks", leaning)
     result = analyze_bundle(short_ride, rig=rig_from_dict(analysed[0]["calibration"]))  # calibration as analysed

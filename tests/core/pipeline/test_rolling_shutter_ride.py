@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def rolling_ride(tmp_path_factory):
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     out = write_ride_bundle(tmp_path_factory.mktemp("rolling") / "ride", gait="canter", seed=4103, rig="thesis",
                             duration_s=3.0, calibration_poses=30, extras=False,

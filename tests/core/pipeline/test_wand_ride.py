@@ -12,7 +12,7 @@ pytestmark = pytest.mark.slow
 
 def test_a_wand_calibrated_ride_is_analysed_end_to_end(tmp_path):
     from saddlescope.io.synth_writer import write_ride_bundle
-    from saddlescope.services.analysis import analyze_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     ride = write_ride_bundle(tmp_path / "wand", gait="canter", seed=4, rig="thesis", duration_s=3.0, extras=False,
                              calibration_poses=4, calibration="wand", wand_s=16.0, close_up_poses=25)

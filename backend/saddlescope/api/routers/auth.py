@@ -38,7 +38,8 @@ from saddlescope.api.schemas import (
 from saddlescope.core.errors import InputError
 from saddlescope.db.repositories import ClubRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.accounts import (
+from saddlescope.services.accounts.permissions import grants
+from saddlescope.services.accounts.users import (
     AuthError,
     Forbidden,
     WrongPassword,
@@ -54,7 +55,6 @@ from saddlescope.services.accounts import (
     start_password_reset,
     update_user,
 )
-from saddlescope.services.permissions import grants
 
 __all__ = ["LOGIN_OPENAPI", "registration_open", "router"]
 

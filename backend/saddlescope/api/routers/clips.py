@@ -10,7 +10,7 @@ from saddlescope.api.schemas import ClipUploaded, ErrorOut, RecordingOut
 from saddlescope.api.streaming import stream_upload
 from saddlescope.db.repositories import RecordingRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.uploads import (
+from saddlescope.services.uploads.intake import (
     ClipOwner,
     accept_clip,
     check_clip_slot,

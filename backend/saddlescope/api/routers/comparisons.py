@@ -11,7 +11,7 @@ from saddlescope.api.routers.common import ERRORS, IndicatorKey, QueryId
 from saddlescope.api.schemas import MAX_ID, ComparisonOut, Gait, GlossaryEntryOut, IndicatorOut, LeaderboardOut
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import COMFORT_INDICATORS, INDICATORS
-from saddlescope.services.analytics import club_leaderboard, horses_comparison
+from saddlescope.services.comparisons.analytics import club_leaderboard, horses_comparison
 from saddlescope.services.glossary import glossary
 
 __all__ = ["router"]

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query, Response, status
 from saddlescope.api.deps import ClubDep
 from saddlescope.api.routers.common import ERRORS, Id, IndicatorKey, PagingDep, QueryId, changes, page_of
 from saddlescope.api.schemas import CorrelationOut, Gait, GradeIn, GradeOut, GradeUpdate, Page
-from saddlescope.services.analytics import grade_correlation_report
+from saddlescope.services.comparisons.analytics import grade_correlation_report
 
 __all__ = ["router"]
 

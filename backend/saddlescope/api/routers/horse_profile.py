@@ -13,7 +13,7 @@ from saddlescope.api.deps import ClubDep
 from saddlescope.api.horse_profile_schemas import PairOut, TrendOut
 from saddlescope.api.routers.common import CONFLICT, ERRORS, Id, IndicatorKey
 from saddlescope.api.schemas import MAX_ID, Gait
-from saddlescope.services.horse_profile import horse_trend, ride_pair
+from saddlescope.services.horses.profile import horse_trend, ride_pair
 
 __all__ = ["router"]
 

@@ -21,8 +21,8 @@ from saddlescope.api.routers.common import (
 )
 from saddlescope.api.schemas import HorseComparisonOut, HorseIn, HorseOut, HorseUpdate, Page
 from saddlescope.db.repositories import HorseRepository
-from saddlescope.services.analytics import horse_comparison
-from saddlescope.services.results import EXPORT_FORMATS, export_horse
+from saddlescope.services.comparisons.analytics import horse_comparison
+from saddlescope.services.results.documents import EXPORT_FORMATS, export_horse
 
 __all__ = ["HorseSort", "router"]
 

@@ -12,8 +12,8 @@ from saddlescope.api.routers.common import ERRORS, Id, Paging, QueryId, page_of,
 from saddlescope.api.schemas import ErrorOut, JobCreate, JobKindOut, JobOut, Page
 from saddlescope.db.repositories import Job, JobRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.job_service import cancel_job, get_job, job_as_dict, job_note, retry_job, submit_job
-from saddlescope.services.stages import JOB_KINDS
+from saddlescope.services.jobs.lifecycle import cancel_job, get_job, job_as_dict, job_note, retry_job, submit_job
+from saddlescope.services.jobs.stages import JOB_KINDS
 
 __all__ = ["JobKindName", "JobSort", "JobStatusName", "job_out", "router"]
 

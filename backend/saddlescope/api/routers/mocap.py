@@ -17,9 +17,9 @@ from saddlescope.api.streaming import UPLOAD_OPENAPI, stream_upload
 from saddlescope.core.errors import InputError
 from saddlescope.db.repositories import RideRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.mocap import MocapChoice, store_mocap_ride
-from saddlescope.services.results import result_document
-from saddlescope.services.uploads import staging_key
+from saddlescope.services.analysis.mocap import MocapChoice, store_mocap_ride
+from saddlescope.services.results.documents import result_document
+from saddlescope.services.uploads.intake import staging_key
 
 __all__ = ["router"]
 

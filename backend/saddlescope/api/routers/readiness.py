@@ -6,7 +6,7 @@ from fastapi import APIRouter
 
 from saddlescope.api.deps import ClubDep
 from saddlescope.api.routers.common import ERRORS, Id
-from saddlescope.services.readiness import missing_for_ride
+from saddlescope.services.rides.readiness import missing_for_ride
 
 __all__ = ["router"]
 

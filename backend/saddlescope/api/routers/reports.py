@@ -8,7 +8,7 @@ from fastapi.responses import HTMLResponse, Response
 from saddlescope.api.deps import ClubDep, StorageDep
 from saddlescope.api.routers.common import ERRORS, Id, download
 from saddlescope.api.security_headers import inline_style_hashes, report_csp
-from saddlescope.services.report import ride_report_html, ride_report_pdf
+from saddlescope.services.results.report import ride_report_html, ride_report_pdf
 
 __all__ = ["router"]
 

@@ -43,11 +43,11 @@ from saddlescope.core.vibration import COMFORT_INDICATORS
 from saddlescope.db.enums import RIDE_STATUSES
 from saddlescope.db.repositories import Ride, RideFilter, RideRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.job_service import get_job, job_as_dict, submit_job
-from saddlescope.services.readiness import require_ready
-from saddlescope.services.results import EXPORT_FORMATS, export_ride, export_rides, result_view_json
-from saddlescope.services.rides import outdated_result_settings, update_ride_details
-from saddlescope.services.uploads import (
+from saddlescope.services.jobs.lifecycle import get_job, job_as_dict, submit_job
+from saddlescope.services.results.documents import EXPORT_FORMATS, export_ride, export_rides, result_view_json
+from saddlescope.services.rides.readiness import require_ready
+from saddlescope.services.rides.registration import outdated_result_settings, update_ride_details
+from saddlescope.services.uploads.intake import (
     ClipOwner,
     accept_bundle,
     remove_upload_files,

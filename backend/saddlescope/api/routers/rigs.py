@@ -35,12 +35,12 @@ from saddlescope.api.security_headers import inline_style_hashes, report_csp
 from saddlescope.api.streaming import UPLOAD_OPENAPI
 from saddlescope.db.repositories import Conflict, NotFound, Rig
 from saddlescope.db.session import session_scope
-from saddlescope.services.board_print import board_advice, board_print_html, camera_view
-from saddlescope.services.calibration_check import check_storage_key
-from saddlescope.services.job_service import get_job, job_as_dict, submit_job
-from saddlescope.services.rig_calibration import CalibrationWay, choose_calibration_way
-from saddlescope.services.rig_views import board_svg, calibration_words, coverage_words
-from saddlescope.services.uploads import (
+from saddlescope.services.jobs.lifecycle import get_job, job_as_dict, submit_job
+from saddlescope.services.rigs.board_print import board_advice, board_print_html, camera_view
+from saddlescope.services.rigs.calibration_check import check_storage_key
+from saddlescope.services.rigs.calibration_way import CalibrationWay, choose_calibration_way
+from saddlescope.services.rigs.views import board_svg, calibration_words, coverage_words
+from saddlescope.services.uploads.intake import (
     ClipOwner,
     remove_upload_files,
 )

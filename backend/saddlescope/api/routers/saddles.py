@@ -26,7 +26,7 @@ from saddlescope.api.saddle_schemas import (
 )
 from saddlescope.api.schemas import Gait, Page
 from saddlescope.db.repositories import Saddle, SaddleRepository
-from saddlescope.services.saddles import horse_saddles, saddle_across_horses
+from saddlescope.services.comparisons.saddles import horse_saddles, saddle_across_horses
 
 __all__ = ["SaddleSort", "router"]
 

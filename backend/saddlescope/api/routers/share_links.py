@@ -10,7 +10,7 @@ from fastapi import APIRouter, status
 from saddlescope.api.deps import ClubDep
 from saddlescope.api.routers.common import ERRORS, Id
 from saddlescope.api.share_schemas import ShareLinkCreated, ShareLinkIn, ShareLinkOut
-from saddlescope.services.share_links import (
+from saddlescope.services.accounts.share_links import (
     create_share_link,
     link_view,
     list_share_links,

@@ -17,9 +17,9 @@ from saddlescope.api.deps import SessionDep, StorageDep
 from saddlescope.api.routers.common import Id
 from saddlescope.api.security_headers import inline_style_hashes, report_csp
 from saddlescope.db.repositories import NotFound
-from saddlescope.services.report import ride_report_html, ride_report_pdf
-from saddlescope.services.share_links import ShareRefused, open_share_link, refusal_html, ride_of_link
-from saddlescope.services.shared_horse import shared_horse_html
+from saddlescope.services.accounts.share_links import ShareRefused, open_share_link, refusal_html, ride_of_link
+from saddlescope.services.horses.shared_page import shared_horse_html
+from saddlescope.services.results.report import ride_report_html, ride_report_pdf
 
 __all__ = ["router"]
 

@@ -25,14 +25,14 @@ from saddlescope.api.similarity_schemas import (
     PendingOut,
     Span,
 )
-from saddlescope.services.likeness import (
+from saddlescope.services.similarity.club import (
     compare_pair,
     horse_consistency,
     method_version,
     most_alike,
     pending_answer,
 )
-from saddlescope.services.likeness_jobs import queue_pairs
+from saddlescope.services.similarity.jobs import queue_pairs
 
 __all__ = ["router"]
 

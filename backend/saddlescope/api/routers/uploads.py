@@ -16,7 +16,7 @@ from saddlescope.api.schemas import Direction, ErrorOut, Gait, Pad, RefId, Text,
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
-from saddlescope.services.direct_uploads import (
+from saddlescope.services.uploads.direct import (
     MAX_URLS,
     S3_PARTS,
     STREAM,
@@ -26,7 +26,7 @@ from saddlescope.services.direct_uploads import (
     start_direct,
     transport_for,
 )
-from saddlescope.services.uploads import (
+from saddlescope.services.uploads.intake import (
     IncompleteUpload,
     bundle_meta,
     commit_chunk,

@@ -14,6 +14,8 @@ Bribiesca & Aguilar, and, for reference, by dynamic time warping (DTW) of the ra
 - :mod:`.shape`: maximal common sub-chains and the shape dissimilarity D';
 - :mod:`.recordings`: two recordings aligned in time (cycle phase or subsequence DTW) and space;
 - :mod:`.dtw`: dynamic time warping (the plain numpy reference);
+- :mod:`.stride_ranking`: two rides' mean strides compared (DTW over cyclic shifts, chain codes) and
+  ride pairs ranked;
 - :mod:`.trajectories`: all of them per marker subset and time window.
 
 The dissertation's own implementation took 41 minutes for one pair of sensors; everything here is
@@ -71,6 +73,14 @@ from saddlescope.core.similarity.recordings import (
     stretch_differences,
 )
 from saddlescope.core.similarity.shape import maximal_matches, shape_dissimilarity
+from saddlescope.core.similarity.stride_ranking import (
+    METHODS,
+    dtw_distance,
+    most_similar_rides,
+    normalise_stride,
+    stride_distance_dtw,
+    stride_similarity_chaincode,
+)
 from saddlescope.core.similarity.trajectories import trajectory_similarity
 
 __all__ = [
@@ -128,4 +138,11 @@ __all__ = [
     "dtw_distance_reference",
     # per marker subset and time window
     "trajectory_similarity",
+    # mean strides compared and ride pairs ranked
+    "METHODS",
+    "dtw_distance",
+    "most_similar_rides",
+    "normalise_stride",
+    "stride_distance_dtw",
+    "stride_similarity_chaincode",
 ]

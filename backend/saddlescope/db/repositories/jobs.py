@@ -20,7 +20,7 @@ from saddlescope.db.repositories.base import Page, Repository, changed_rows
 __all__ = ["JobRepository", "UploadRepository", "db_utcnow", "seconds_since"]
 
 _ACTIVE = (JobStatus.QUEUED.value, JobStatus.RUNNING.value)
-# A running job silent this long (by the database's clock) has lost its worker (services.runner.STALE_AFTER_S).
+# A running job silent this long (by the database's clock) has lost its worker (services.jobs.runner.STALE_AFTER_S).
 STALE_AFTER_S = 180.0
 
 

@@ -114,7 +114,7 @@ class RideRepository(Repository):
                           count_stmt=select(Ride))
 
     def set_status(self, ride_id: int, status: str) -> None:
-        """Store a ride's status (derived by `saddlescope.services.rides.refresh_ride_status`, its one caller)."""
+        """Store a ride's status (derived by `services.rides.registration.refresh_ride_status`, its one caller)."""
         self.session.execute(self._scoped_update(ride_id).values(status=status))
 
     def with_bundle_sha256(self, sha256: str) -> int | None:
@@ -267,7 +267,7 @@ class ResultRepository(Repository):
 
         The ride's cached comparisons with other rides are deleted: they were computed from the old
         analysis. ``uncertain_reason``: why the ride is too uncertain for a decision (None: it is not);
-        required, so no writer can leave the verdict out (``services.results.commit_result`` derives it
+        required, so no writer can leave the verdict out (``services.results.documents.commit_result`` derives it
         from the document).
         """
         self.session.execute(delete(SimilarityPair).where(

@@ -12,7 +12,7 @@ the page shows the analysis, not a second one:
   result's vertical harmonics (``core.saddle.vertical_harmonics`` when an older result lacks them).
 
 Fitting 10,000 samples takes seconds, so :func:`derived_series` computes all of them once, at full
-resolution, when a result is stored (``services.results.commit_result``); the ride page decimates them.
+resolution, when a result is stored (``services.results.documents.commit_result``); the ride page decimates them.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ __all__ = [
 ]
 
 WEIGHTINGS = (("wb", "Wb"), ("wk", "Wk"))  # (key suffix, ISO/BS weighting name): W_b = BS 6841, W_k = ISO 2631-1
-# The stored derived series' and ride pages' format (services/results.py): a stored file of another format
+# The stored derived series' and ride pages' format (services/results/documents.py): a stored file of another format
 # is computed again and replaced. Bump it when a series is added or computed differently (a new chart).
 DERIVED_FORMAT = 1
 

@@ -1,9 +1,9 @@
 """The one-page ride report for a vet or a trainer: HTML that prints to one A4 sheet, and its PDF.
 
 Horse, rider, date and gait; the main indicators with units against the horse's own normal band
-(`services.normal_band`); one chart drawn here as inline SVG (the W_b-weighted vertical acceleration
+(`services.horses.normal_band`); one chart drawn here as inline SVG (the W_b-weighted vertical acceleration
 over one stride, so it prints sharp without JavaScript); the quality in plain words
-(`services.quality_notes`); the analysis version. The PDF is the same HTML laid out by WeasyPrint.
+(`services.results.quality_notes`); the analysis version. The PDF is the same HTML laid out by WeasyPrint.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from sqlalchemy.orm import Session
 from saddlescope.core.vibration import INDICATORS, PASSIVE_SEATED_CAVEAT
 from saddlescope.db.repositories import RideRepository
 from saddlescope.io.findings_document import findings_of
-from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, horse_history, normal_bands_before
-from saddlescope.services.passes_view import passes_view
-from saddlescope.services.quality_notes import quality_notes, quality_summary
-from saddlescope.services.result_series import strides_analysed, vertical_harmonics_of, weighted_series
-from saddlescope.services.results import analysed_result, result_document
+from saddlescope.services.horses.normal_band import MIN_RIDES_FOR_BAND, horse_history, normal_bands_before
+from saddlescope.services.results.documents import analysed_result, result_document
+from saddlescope.services.results.passes_view import passes_view
+from saddlescope.services.results.quality_notes import quality_notes, quality_summary
+from saddlescope.services.results.series import strides_analysed, vertical_harmonics_of, weighted_series
 from saddlescope.storage import Storage
 
 __all__ = [
@@ -33,7 +33,7 @@ __all__ = [
     "range_text", "ride_report_html", "ride_report_pdf", "stride_chart_svg", "value_text",
 ]
 
-TEMPLATE = Template((Path(__file__).parent / "templates" / "ride_report.html").read_text(encoding="utf-8"))
+TEMPLATE = Template((Path(__file__).parents[1] / "templates" / "ride_report.html").read_text(encoding="utf-8"))
 # The indicators a vet or trainer reads first (the thesis's comfort indicators and the W_k twins).
 REPORT_INDICATORS = (
     ("acc_y_wb_rms", "Vertical acceleration, W_b r.m.s."),

@@ -7,7 +7,7 @@ in docs/permissions.md and compares it with `PERMISSIONS`, so the page and the c
 
 from __future__ import annotations
 
-from saddlescope.services.accounts import Forbidden, Principal
+from saddlescope.services.accounts.users import Forbidden, Principal
 
 __all__ = ["ADMIN", "MEMBER", "OWNER", "PERMISSIONS", "allowed", "grants", "require"]
 

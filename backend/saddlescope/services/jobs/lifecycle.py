@@ -17,11 +17,11 @@ from saddlescope.db.enums import JobStatus
 from saddlescope.db.models import Job, utcnow
 from saddlescope.db.repositories import JobRepository, RideRepository, RigRepository
 from saddlescope.db.session import session_scope
-from saddlescope.services.failure_advice import explain_failure
-from saddlescope.services.queue import JobQueue, QueueUnavailable
-from saddlescope.services.rides import refresh_ride_status
-from saddlescope.services.stage_labels import progress_percent, stage_label
-from saddlescope.services.stages import job_kind
+from saddlescope.services.jobs.failure_advice import explain_failure
+from saddlescope.services.jobs.queue import JobQueue, QueueUnavailable
+from saddlescope.services.jobs.stage_labels import progress_percent, stage_label
+from saddlescope.services.jobs.stages import job_kind
+from saddlescope.services.rides.registration import refresh_ride_status
 from saddlescope.settings import get_settings
 
 __all__ = [

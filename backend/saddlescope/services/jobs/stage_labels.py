@@ -10,7 +10,7 @@ from saddlescope.core.types import CAMERA_ROLES
 
 __all__ = ["STAGE_LABELS", "STEP_LABELS", "progress_percent", "stage_label"]
 
-# Stage names (services/stages.py) -> what the job is doing.
+# Stage names (services/jobs/stages.py) -> what the job is doing.
 STAGE_LABELS: dict[str, str] = {
     "probe": "Checking the clips",
     "assemble": "Putting the clips together",

@@ -1,7 +1,7 @@
 """The body of every job: run a job's stages in order, reporting progress and timings.
 
 `run_job` is what a Celery task calls (`saddlescope_worker.tasks`) and what the embedded process
-pool calls (`saddlescope.services.queue`). It takes an id, never objects, and is safe to run again: a job
+pool calls (`saddlescope.services.jobs.queue`). It takes an id, never objects, and is safe to run again: a job
 already finished is left alone, and a job interrupted half-way (lost worker, restarted server) is
 re-run from its first stage, each stage replacing only its own outputs.
 """
@@ -28,8 +28,8 @@ from saddlescope.db.enums import JobStatus
 from saddlescope.db.models import utcnow
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
-from saddlescope.services.rides import refresh_ride_status
-from saddlescope.services.stages import JOB_KINDS, STAGES, JobCancelled, JobFenced, JobKind, StageContext
+from saddlescope.services.jobs.stages import JOB_KINDS, STAGES, JobCancelled, JobFenced, JobKind, StageContext
+from saddlescope.services.rides.registration import refresh_ride_status
 from saddlescope.settings import Settings, get_settings
 from saddlescope.storage import StoreUnavailable, open_storage
 

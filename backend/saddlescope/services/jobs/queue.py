@@ -7,7 +7,7 @@ Two queues behind one small interface (`JobQueue`):
 - `CeleryQueue` (``SADDLESCOPE_BROKER_URL`` set): ``send_task`` by name to Celery workers
   (`saddlescope_worker`), so the API needs no import of the worker's code.
 
-Both end in the same function, `saddlescope.services.runner.run_job(job_id)`. Only ids travel;
+Both end in the same function, `saddlescope.services.jobs.runner.run_job(job_id)`. Only ids travel;
 the job row must be committed before `submit` is called.
 """
 
@@ -60,7 +60,7 @@ class JobQueue(Protocol):
 
 def _run_in_child(job_id: int, settings: Settings) -> str:
     # Imported here: the child process needs the services, the parent (API) does not.
-    from saddlescope.services.runner import run_job
+    from saddlescope.services.jobs.runner import run_job
 
     return run_job(job_id, settings=settings)
 
@@ -99,7 +99,7 @@ class EmbeddedQueue:
         if future.cancelled():
             return
         exc = future.exception()
-        from saddlescope.services.runner import RETRY, STORE_RETRY_S
+        from saddlescope.services.jobs.runner import RETRY, STORE_RETRY_S
 
         if exc is None and future.result() == RETRY:
             # the file store did not answer: the runner queued the job again; run it after a pause
@@ -160,7 +160,7 @@ class InlineQueue:
 
     def submit(self, job_id: int) -> None:
         """Run job `job_id` now, in the calling process, retrying while the store is unavailable."""
-        from saddlescope.services.runner import RETRY, STORE_RETRY_S, run_job
+        from saddlescope.services.jobs.runner import RETRY, STORE_RETRY_S, run_job
 
         while run_job(job_id, settings=self.settings) == RETRY:  # the runner bounds the attempts
             time.sleep(STORE_RETRY_S)
@@ -179,7 +179,7 @@ def _mark_lost(settings: Settings, job_id: int) -> None:
     from saddlescope.db.enums import JobStatus
     from saddlescope.db.repositories import JobRepository
     from saddlescope.db.session import session_factory_for, session_scope
-    from saddlescope.services.rides import refresh_ride_status
+    from saddlescope.services.rides.registration import refresh_ride_status
 
     with session_scope(session_factory_for(settings.database_url)) as session:
         jobs = JobRepository(session)

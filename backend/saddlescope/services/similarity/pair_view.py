@@ -1,6 +1,6 @@
 """What the pair view draws of two analysed rides: their saddle-point paths and their mean strides aligned.
 
-For display only (the similarity itself is `saddlescope.services.similarity`'s): each ride's saddle
+For display only (the similarity itself is `saddlescope.services.similarity.compare`'s): each ride's saddle
 point S in the motion frame, with the travel (a least-squares straight line per coordinate) and the
 mean removed, so the two paths overlay; and each ride's mean stride over stride phase, the second
 shifted in phase to line up with the first by circular cross-correlation.

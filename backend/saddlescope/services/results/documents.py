@@ -32,10 +32,10 @@ from saddlescope.db.repositories import (
     RideRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.services.passes_view import passes_view
-from saddlescope.services.quality_notes import document_findings, quality_notes, quality_summary
-from saddlescope.services.result_series import DERIVED_FORMAT, derived_series, strides_analysed
-from saddlescope.services.rides import refresh_ride_status
+from saddlescope.services.results.passes_view import passes_view
+from saddlescope.services.results.quality_notes import document_findings, quality_notes, quality_summary
+from saddlescope.services.results.series import DERIVED_FORMAT, derived_series, strides_analysed
+from saddlescope.services.rides.registration import refresh_ride_status
 from saddlescope.storage import Storage
 
 __all__ = [
@@ -64,7 +64,7 @@ SERIES = (
     ("omega_rad_s", "angular", "omega_rad_s"),
     ("alpha_rad_s2", "angular", "alpha_rad_s2"),
 )
-# S's fitted position, measured velocity and acceleration and the residuals (services/result_series.py),
+# S's fitted position, measured velocity and acceleration and the residuals (services/results/series.py),
 # and the weighted vertical acceleration: always in the view, None when the result cannot give them.
 DERIVED_SERIES = (
     "position_fitted_m", "position_residual_m", "velocity_measured_m_s", "velocity_residual_m_s",
@@ -164,7 +164,7 @@ def view_of_page(page: dict[str, Any], result, ride_id: int) -> dict[str, Any]:
         "indicators_interval_95": dict(doc.get("indicators_interval_95") or {}),
         "units": {key: indicator_unit(key) for key in indicators},
         "quality": quality,
-        # every flag in plain words (services/quality_notes.py): what the page and the report say
+        # every flag in plain words (services/results/quality_notes.py): what the page and the report say
         "quality_notes": quality_notes(findings),
         "quality_summary": {"severity": severity, "message": summary},
         "strides_analysed": strides_analysed(doc),
@@ -505,7 +505,7 @@ def commit_result(sessions: sessionmaker[Session], storage: Storage, *, club_id:
     (:func:`uncertain_reason_of`) and the ride's status is refreshed in the same transaction.
     """
     from saddlescope.db.repositories import JobRepository
-    from saddlescope.services.fencing import JobFenced
+    from saddlescope.services.jobs.fencing import JobFenced
 
     run = f"{job_id}-{attempt}-" if job_id is not None and attempt is not None else ""
     key = f"rides/{ride_id}/results/{run}{secrets.token_hex(8)}.json"

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 from saddlescope.core.vibration import INDICATORS, indicator_unit, mean_interval, welch_difference
 from saddlescope.db.repositories import AnalyticsRepository, HorseRepository, RideFilter, SaddleRepository
-from saddlescope.services.analytics import check_gait, check_indicator
+from saddlescope.services.comparisons.analytics import check_gait, check_indicator
 
 __all__ = ["METHOD", "SADDLE_INDICATORS", "SHORT_LABELS", "difference_sentence", "horse_saddles",
            "saddle_across_horses"]

@@ -2,7 +2,7 @@
 
 One indicator's trend over dates with the horse's own normal band, and two of its rides side by side.
 
-The band of every ride is `services.normal_band`'s: mean ± 2 SD of the same horse's EARLIER analysed
+The band of every ride is `services.horses.normal_band`'s: mean ± 2 SD of the same horse's EARLIER analysed
 rides in the same gait, present once there are at least `MIN_RIDES_FOR_BAND` of them. A ride outside
 its band is marked, so a vet sees at a glance "this horse moved unlike itself that day".
 """
@@ -18,8 +18,8 @@ from sqlalchemy.orm import Session
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import INDICATORS, indicator_unit
 from saddlescope.db.repositories import AnalyticsRepository, Conflict, HorseRepository, RideRepository
-from saddlescope.services.analytics import check_gait, check_indicator
-from saddlescope.services.normal_band import (
+from saddlescope.services.comparisons.analytics import check_gait, check_indicator
+from saddlescope.services.horses.normal_band import (
     MIN_OWN_RIDES,
     MIN_RIDES_FOR_BAND,
     band_of,

@@ -48,8 +48,8 @@ from saddlescope.db.repositories import (
     RigRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.services.fencing import JobFenced
-from saddlescope.services.rides import (
+from saddlescope.services.jobs.fencing import JobFenced
+from saddlescope.services.rides.registration import (
     ANALYSIS_JOB_KIND,
     analysed_settings,
     complete_clip_sets,
@@ -382,7 +382,7 @@ def _replaced_bundle_clips(bundle_key: str, recordings) -> dict[str, dict[str, s
     """The clips of a bundle ride uploaded again from its ride page: {kind: {camera: storage key}}.
 
     A bundle's own clips are stored under its bundle key; a clip replaced later is stored with the ride's
-    clips (`services.uploads.accept_clip`) and takes the bundle clip's place when the ride is assembled.
+    clips (`services.uploads.intake.accept_clip`) and takes the bundle clip's place when the ride is assembled.
     """
     replaced: dict[str, dict[str, str]] = {}
     for recording in recordings:
@@ -426,7 +426,7 @@ def _bundle_path(ctx: StageContext, ride) -> Path:
 
 def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict,
                          sync: dict | None, *, replace: bool) -> dict[str, Any]:
-    from saddlescope.services.calibration import calibrate_clips
+    from saddlescope.services.rigs.calibration import calibrate_clips
 
     calibration = calibrate_clips(paths, board=board, sync=sync, on_progress=lambda f, s: ctx.report(f, s))
     return _store_calibration(ctx, rig_id, calibration, replace=replace)
@@ -435,7 +435,7 @@ def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path],
 def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, Any], *,
                        replace: bool) -> dict[str, Any]:
     """Keep a rig's new calibration (the job's output and the rig's row); returns the one the rig has."""
-    from saddlescope.services.calibration import calibration_quality
+    from saddlescope.services.rigs.calibration import calibration_quality
 
     out = ctx.outputs()
     (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
@@ -514,7 +514,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
     if ctx.ride_id is not None:  # "use this ride's calibration for the rig": the ride's own calibration clips
         _calibrate_rig_from_ride(ctx, ctx.ride_id, ctx.rig_id)
         return
-    from saddlescope.services.rig_calibration import choose_calibration_way
+    from saddlescope.services.rigs.calibration_way import choose_calibration_way
 
     with ctx.session() as session:
         rig = RigRepository(session).get(ctx.rig_id)
@@ -527,7 +527,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
         paths = {role: ctx.fetch(key) for role, key in way.clips["calibration"].items()}
         _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
         return
-    from saddlescope.services.calibration import calibrate_wand_clips
+    from saddlescope.services.rigs.calibration import calibrate_wand_clips
 
     wand, close_up = ({role: ctx.fetch(key) for role, key in way.clips[kind].items()} for kind in ("wand", "close_up"))
     calibration = calibrate_wand_clips(wand, close_up, board=board, wand_length_m=way.wand_length_m or 0.0,
@@ -538,7 +538,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
 @stage("check_calibration", weight=2.0)
 def run_check_calibration(ctx: StageContext) -> None:
     """Check the rig's calibration clips uploaded so far: where the board went in each view (issue 35)."""
-    from saddlescope.services.calibration_check import check_calibration_clips, check_document, check_storage_key
+    from saddlescope.services.rigs.calibration_check import check_calibration_clips, check_document, check_storage_key
 
     if ctx.rig_id is None:
         raise InputError(f"check_calibration job {ctx.job_id} names no rig")
@@ -571,11 +571,11 @@ def _edited_settings(bundle: Path, settings: dict[str, str]) -> dict[str, str]:
 def run_analyze(ctx: StageContext) -> None:
     """Run the whole pipeline on the ride's bundle and store its result (replacing an earlier one)."""
     try:
-        from saddlescope.services.analysis import analyze_bundle
+        from saddlescope.services.analysis.ride_bundle import analyze_bundle
     except ImportError as exc:
-        if exc.name not in ("saddlescope.services.analysis", "saddlescope.services"):
+        if exc.name not in ("saddlescope.services.analysis.ride_bundle", "saddlescope.services"):
             raise
-        raise StageUnavailable("the analysis pipeline (saddlescope.services.analysis) is not part of this "
+        raise StageUnavailable("the analysis pipeline (saddlescope.services.analysis.ride_bundle) is not part of this "
                                "installation yet, so rides cannot be analysed") from None
     ride_id = ctx._require_ride()
     with ctx.session() as session:
@@ -589,7 +589,7 @@ def run_analyze(ctx: StageContext) -> None:
         settings = analysed_settings(ride)  # a bundle's ride.json may say otherwise: the ride's own win
     rig_model = None
     if calibration is not None:
-        from saddlescope.services.calibration import rig_from_calibration
+        from saddlescope.services.rigs.calibration import rig_from_calibration
 
         rig_model = rig_from_calibration(calibration)
     changed = _edited_settings(path, settings)
@@ -599,7 +599,7 @@ def run_analyze(ctx: StageContext) -> None:
                             meta_overrides=changed or None)
     # The result document is what the dashboard and the exports read (its series decimated on the way);
     # it replaces the previous one atomically (the old one stays readable until the new one is committed).
-    from saddlescope.services.results import commit_result
+    from saddlescope.services.results.documents import commit_result
 
     commit_result(ctx.sessions, ctx.storage, club_id=club_id, ride_id=ride_id, job_id=ctx.job_id,
                   document=result, code_version=ctx.settings.resolved_code_version,
@@ -610,7 +610,7 @@ def run_analyze(ctx: StageContext) -> None:
 
 
 def _similarity_payload(payload: dict[str, Any]) -> dict[str, Any]:
-    from saddlescope.services.likeness import similarity_payload
+    from saddlescope.services.similarity.club import similarity_payload
 
     return similarity_payload(payload)
 
@@ -618,7 +618,7 @@ def _similarity_payload(payload: dict[str, Any]) -> dict[str, Any]:
 @stage("similarity", weight=1.0)
 def run_similarity(ctx: StageContext) -> None:
     """Compare the payload's pairs of analysed rides and cache each comparison (skipping cached ones)."""
-    from saddlescope.services.likeness import method_version, run_pairs_job
+    from saddlescope.services.similarity.club import method_version, run_pairs_job
 
     counts = run_pairs_job(ctx.sessions, ctx.storage, ctx.payload, club_id=ctx.club_id,
                            version=method_version(ctx.settings), report=ctx.report)

@@ -1,6 +1,6 @@
 """A failed job's reason as one sentence a club can act on: which clip of which camera, and what to do.
 
-A job stores its error as ``"<stage>: <the typed error's message>"`` (`services.runner.run_job`). The
+A job stores its error as ``"<stage>: <the typed error's message>"`` (`services.jobs.runner.run_job`). The
 pipeline's messages are written for an engineer ("the dominant motion frequency 1.00 Hz has no
 sub-harmonic ..."); this module names the clip and the camera they concern (the messages of
 `core.errors`' types name them in a few fixed forms) and says what to do, in one sentence, with the

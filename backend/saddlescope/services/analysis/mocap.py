@@ -294,7 +294,7 @@ def store_mocap_ride(sessions, storage, staged_key: str, filename: str | None, c
 
     from saddlescope.db.repositories import RideRepository
     from saddlescope.db.session import session_scope
-    from saddlescope.services.results import commit_result
+    from saddlescope.services.results.documents import commit_result
 
     try:
         suffix = mocap_suffix(filename)

@@ -1,11 +1,11 @@
 """Use cases of ride similarity in the product: most-alike rides, a pair, a horse's consistency.
 
-The comparison itself is `saddlescope.services.similarity.compare_ride_documents` (called, never
+The comparison itself is `saddlescope.services.similarity.compare.compare_ride_documents` (called, never
 re-implemented here). Every comparison is cached in the ``similarity_pairs`` table per pair of rides,
 marker set and span, with the analysis versions of both rides and the similarity method's version;
 a row is used only while all three still hold (and a re-analysed ride's rows are deleted with its
 old result). A list that needs comparisons not cached yet is not computed in the web request: the
-missing pairs go to the workers as a ``similarity`` job (`saddlescope.services.likeness_jobs`), and
+missing pairs go to the workers as a ``similarity`` job (`saddlescope.services.similarity.jobs`), and
 the caller answers 202 with that job.
 """
 
@@ -56,7 +56,7 @@ class NotAnalysed(Conflict):
 
 def check_options(markers: str, span: str) -> None:
     """Raise `InputError` naming the field when `markers` or `span` is not one the method knows."""
-    from saddlescope.services.similarity import MARKER_SETS, SPANS
+    from saddlescope.services.similarity.compare import MARKER_SETS, SPANS
 
     if markers not in MARKER_SETS:
         raise InputError(f"markers: unknown marker set {markers!r}; choose one of {', '.join(MARKER_SETS)}")
@@ -67,10 +67,10 @@ def check_options(markers: str, span: str) -> None:
 def method_version(settings: Settings) -> str:
     """The similarity method's version a cached comparison must match.
 
-    ``services.similarity.METHOD_VERSION`` where the method declares one, else the code version (so a
+    ``services.similarity.compare.METHOD_VERSION`` where the method declares one, else the code version (so a
     new deployment recomputes rather than serving a comparison an older method made).
     """
-    from saddlescope.services import similarity
+    from saddlescope.services.similarity import compare as similarity
 
     declared = getattr(similarity, "METHOD_VERSION", None)
     return str(declared)[:100] if declared else f"code {settings.resolved_code_version}"[:100]
@@ -125,7 +125,7 @@ def _jsonable(value: Any) -> Any:
 
 def _compare(doc_a: dict, doc_b: dict, markers: str, span: str) -> tuple[float | None, str | None, dict, str | None]:
     """(similarity, measure, answer, error) of two result documents; a refusal becomes the error."""
-    from saddlescope.services.similarity import compare_ride_documents
+    from saddlescope.services.similarity.compare import compare_ride_documents
 
     try:
         answer = _jsonable(compare_ride_documents(doc_a, doc_b, markers=markers, span=span))
@@ -194,7 +194,7 @@ def _store(session: Session, club_id: int, a: AnalysedRide, b: AnalysedRide, doc
 def compare_pair(session: Session, storage: Storage, ride_id: int, other_id: int, *, club_id: int, markers: str,
                  span: str, version: str) -> dict[str, Any]:
     """Two rides compared (from the cache, or computed and cached now), with the pair view's paths."""
-    from saddlescope.services.likeness_view import pair_paths
+    from saddlescope.services.similarity.pair_view import pair_paths
 
     check_options(markers, span)
     for rid in (ride_id, other_id):

@@ -1,6 +1,6 @@
 """Queue the comparisons a similarity list still needs as one ``similarity`` job (reusing a running one).
 
-Apart from `saddlescope.services.likeness` so the stage registry (which runs the job) does not import
+Apart from `saddlescope.services.similarity.club` so the stage registry (which runs the job) does not import
 the job service (which submits it).
 """
 
@@ -14,8 +14,8 @@ from sqlalchemy.orm import Session, sessionmaker
 from saddlescope.db.enums import JobStatus
 from saddlescope.db.repositories import JobRepository, ordered_pair
 from saddlescope.db.session import session_scope
-from saddlescope.services.job_service import get_job, job_as_dict, submit_job
-from saddlescope.services.likeness import JOB_KIND
+from saddlescope.services.jobs.lifecycle import get_job, job_as_dict, submit_job
+from saddlescope.services.similarity.club import JOB_KIND
 
 __all__ = ["queue_pairs"]
 

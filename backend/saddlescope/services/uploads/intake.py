@@ -36,11 +36,10 @@ from saddlescope.db.repositories import (
     UploadRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.services.direct_uploads import check_parts, is_direct
-from saddlescope.services.job_service import submit_job
-from saddlescope.services.queue import JobQueue, QueueUnavailable
-from saddlescope.services.readiness import missing_for_ride
-from saddlescope.services.rides import (
+from saddlescope.services.jobs.lifecycle import submit_job
+from saddlescope.services.jobs.queue import JobQueue, QueueUnavailable
+from saddlescope.services.rides.readiness import missing_for_ride
+from saddlescope.services.rides.registration import (
     DuplicateClips,
     duplicate_message,
     refresh_ride_status,
@@ -48,7 +47,8 @@ from saddlescope.services.rides import (
     remove_bundle_ride,
     ride_clip_plan,
 )
-from saddlescope.services.rig_calibration import choose_calibration_way
+from saddlescope.services.rigs.calibration_way import choose_calibration_way
+from saddlescope.services.uploads.direct import check_parts, is_direct
 from saddlescope.storage import Storage, TooLarge, direct_upload_key, upload_key
 
 __all__ = [
@@ -610,7 +610,7 @@ def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: 
     Only ride.json is read (the whole bundle is checked when it is finalised). The horse and rider are
     matched by name among the club's (``id`` None when the club has no such horse or rider yet).
     """
-    from saddlescope.services.bundle_meta import read_bundle_meta
+    from saddlescope.services.uploads.bundle_meta import read_bundle_meta
 
     uploads = UploadRepository(session, club_id=club_id)
     upload = uploads.get(upload_id)

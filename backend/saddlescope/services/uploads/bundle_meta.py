@@ -1,7 +1,7 @@
 """Read a ride bundle zip's ride.json only, to pre-fill the upload form the user then confirms.
 
 The bundle's horse, rider, gait and direction are suggestions: the ride is filed under what the
-form sends at finalise (`services.uploads.finalise_upload`'s ``chosen``), never under the zip's
+form sends at finalise (`services.uploads.intake.finalise_upload`'s ``chosen``), never under the zip's
 horse unless the user kept it.
 """
 

@@ -1,7 +1,7 @@
 """A horse's page as a share link shows it: one self-contained, read-only HTML page without the app.
 
 For a vet without an account: the horse, and per gait its analysed rides oldest first with the main
-comfort numbers, each against the horse's own normal band of the rides before it (`services.normal_band`),
+comfort numbers, each against the horse's own normal band of the rides before it (`services.horses.normal_band`),
 a small trend of the W_b r.m.s. drawn as inline SVG, and a link to each ride's one-page report (which the
 same share link opens, and nothing else). No script: the page runs under the report's strict policy.
 """
@@ -20,12 +20,12 @@ from sqlalchemy.orm import Session
 from saddlescope.core.vibration import GAITS, PASSIVE_SEATED_CAVEAT
 from saddlescope.db.models import ShareLink
 from saddlescope.db.repositories import HorseRepository, NotFound
-from saddlescope.services.normal_band import MIN_RIDES_FOR_BAND, band_of, horse_history
-from saddlescope.services.report import GAIT_WORDS, value_text
+from saddlescope.services.horses.normal_band import MIN_RIDES_FOR_BAND, band_of, horse_history
+from saddlescope.services.results.report import GAIT_WORDS, value_text
 
 __all__ = ["HORSE_COLUMNS", "shared_horse_html", "trend_svg"]
 
-TEMPLATE = Template((Path(__file__).parent / "templates" / "shared_horse.html").read_text(encoding="utf-8"))
+TEMPLATE = Template((Path(__file__).parents[1] / "templates" / "shared_horse.html").read_text(encoding="utf-8"))
 # The columns a vet reads first, in the report's words; the band is the first one's (W_b r.m.s.).
 HORSE_COLUMNS = (
     ("acc_y_wb_rms", "W<sub>b</sub> r.m.s."),

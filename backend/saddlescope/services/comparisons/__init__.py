@@ -1,0 +1,1 @@
+"""Comparisons of the club's rides: horses across gaits and within one, the leaderboard, grades, saddles."""

@@ -1,0 +1,1 @@
+"""Jobs: created, queued, run stage by stage on a worker, fenced, and their failures in plain words."""

@@ -1,0 +1,1 @@
+"""Uploads: clips, ride bundles and resumable uploads accepted, probed and turned into work."""
