@@ -83,7 +83,7 @@ def test_a_wand_waved_only_in_the_middle_says_film_the_sides_again(tmp_path, cap
     assert third.detail.endswith("of the middle camera's view: film that part again.")
     assert check.verdict().startswith("Film again: the middle")
     assert "wand clip" in check.verdict()
-    with pytest.raises(InputError, match="not 0.05-5 m: measure it between the two markers' centres"):
+    with pytest.raises(InputError, match=r"outside 0.05-5 m \(in centimetres\? 100 cm is 1.00 m\): measure"):
         check_wand_clips(clips, 100.0)
     # the same on the command line: no board to name, the wand's length instead; exit status 1
     assert main(["check-calibration", "--wand", "1.0", *(f"{r}={p}" for r, p in clips.items())]) == 1

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, WithJsonSchema
 
-from saddlescope.db.enums import WAND_LENGTH_RANGE_M
+from saddlescope.core.calibration.wand import WAND_LENGTH_RANGE_M, wand_length_problem
 
 __all__ = ["BoardLayoutOut", "BoardSizesOut", "CalibrateIn", "CalibrationCheckOut", "CameraCheckOut", "CheckFindingOut",
            "DepthCoverageOut", "SquareAtDistance", "WandLengthM", "check_wand_length_m"]
@@ -17,12 +16,8 @@ def check_wand_length_m(value: float | None) -> float | None:
     """`value` if None or within `WAND_LENGTH_RANGE_M`; ValueError with the reason otherwise."""
     if value is None:
         return None
-    low, high = WAND_LENGTH_RANGE_M
-    if not math.isfinite(value) or not low <= value <= high:
-        # A tape measure reads centimetres: 100 for a 1 m wand is the likely slip.
-        hint = f" (in centimetres? {value:g} cm is {value / 100:.2f} m)" if high < value <= 100 * high else ""
-        raise ValueError(f"a wand's length is in metres between the centres of its two markers, {low:g} to "
-                         f"{high:g}; {value:g} is outside{hint}")
+    if problem := wand_length_problem(value):
+        raise ValueError(problem)
     return float(value)
 
 

@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import enum
 
+from saddlescope.core.calibration.wand import WAND_LENGTH_RANGE_M as CORE_WAND_LENGTH_RANGE_M
+
 __all__ = ["RIDE_STATUSES", "RIDER_WEIGHT_RANGE_KG", "WAND_LENGTH_RANGE_M", "JobStatus", "RideStatus", "Role",
            "SaddleType", "UploadStatus",
            "UploadTarget"]
 
 # A rider's weight in kg is believed between these (a child on a pony to a heavy adult); outside: a typo.
 RIDER_WEIGHT_RANGE_KG = (20.0, 200.0)
-# A calibration wand's length in m (the markers' centres): a short stick to a long pole, as the wand way takes.
-WAND_LENGTH_RANGE_M = (0.05, 5.0)
+# A calibration wand's length in m: the core's one range (core.calibration.wand).
+WAND_LENGTH_RANGE_M = CORE_WAND_LENGTH_RANGE_M
 
 
 class Role(enum.StrEnum):

@@ -14,6 +14,7 @@ from typing import Any
 import jsonschema
 
 from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems, board_type
+from saddlescope.core.calibration.wand import WAND_LENGTH_RANGE_M
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.findings import FINDING_KINDS, SEVERITIES
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS, WAND_CLIP_KINDS
@@ -26,7 +27,6 @@ RESULT_FORMAT = "saddlescope.result/1"
 RIDE_FORMAT = "saddlescope.ride/1"
 MAX_LISTED_PROBLEMS = 5
 CALIBRATION_METHODS = ("board", "wand")
-WAND_LENGTH_RANGE_M = (0.05, 5.0)  # calibrate_wand's 50-5000 mm
 
 
 _NUMBER = {"type": "number"}

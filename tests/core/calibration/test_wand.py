@@ -233,3 +233,17 @@ def test_cli_calibrate_from_wand_and_close_up_board_clips(tmp_path):
     true_right = srig.cameras["right"].t_mm
     assert abs(np.linalg.norm(t_right) - np.linalg.norm(true_right)) < 0.02 * np.linalg.norm(true_right)
     assert res["checks"]["wand_length_rms_mm"] < 15.0
+
+
+def test_one_wand_length_range_answers_every_layer_in_words():
+    """The wand's 0.05-5 m is one constant (core.calibration.wand), checked by one function everywhere."""
+    from saddlescope.core.calibration.wand import WAND_LENGTH_RANGE_M, wand_length_problem
+    from saddlescope.db.enums import WAND_LENGTH_RANGE_M as DB_RANGE
+    from saddlescope.io.result_schema import WAND_LENGTH_RANGE_M as BUNDLE_RANGE
+
+    assert DB_RANGE is WAND_LENGTH_RANGE_M and BUNDLE_RANGE is WAND_LENGTH_RANGE_M
+    assert wand_length_problem(1.0) is None and wand_length_problem(0.05) is None and wand_length_problem(5) is None
+    assert "in centimetres? 100 cm is 1.00 m" in wand_length_problem(100.0)
+    assert "outside 0.05-5 m" in wand_length_problem(0.0) and "centimetres" not in wand_length_problem(0.0)
+    for bad in (float("nan"), True, "1.0", None):
+        assert "is not a number of metres" in wand_length_problem(bad)

@@ -38,10 +38,27 @@ from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.findings import Finding
 from saddlescope.core.types import Camera, LensModel, Rig
 
-__all__ = ["WandView", "calibrate_wand", "refine_with_wand", "track_wand_ends", "wand_length_errors"]
+__all__ = ["WAND_LENGTH_RANGE_M", "WandView", "calibrate_wand", "refine_with_wand", "track_wand_ends",
+           "wand_length_errors", "wand_length_problem"]
 
 MIN_WAND_FRAMES = 20  # frames two cameras must share for the first pair's essential matrix
 WAND_LENGTH_LIMIT_PCT = 0.5  # the wand's length r.m.s. error (percent of its length) above which it is flagged
+# A wand's length in m (its two markers' centres): a short stick to a long pole. The one range every layer
+# checks (the rig's column and its API field, ride.json, the command line, the calibration itself).
+WAND_LENGTH_RANGE_M = (0.05, 5.0)
+
+
+def wand_length_problem(length_m: object) -> str | None:
+    """Why ``length_m`` is not a wand's length in metres (a sentence), or None when it is one."""
+    low, high = WAND_LENGTH_RANGE_M
+    if isinstance(length_m, bool) or not isinstance(length_m, int | float) or not np.isfinite(length_m):
+        return f"the wand's length {length_m!r} is not a number of metres"
+    if low <= float(length_m) <= high:
+        return None
+    # A tape measure reads centimetres: 100 for a 1 m wand is the likely slip.
+    hint = f" (in centimetres? {length_m:g} cm is {length_m / 100:.2f} m)" if high < length_m <= 100 * high else ""
+    return (f"the wand's length {length_m:g} m is outside {low:g}-{high:g} m{hint}: measure it between the centres "
+            "of its two markers, in metres (e.g. 1.0)")
 
 
 @dataclass(frozen=True)
@@ -432,9 +449,8 @@ def calibrate_wand(views_by_camera: Mapping[str, list[WandView]], intrinsics: Ma
     if missing:
         raise InputError(f"no intrinsics for camera(s) {', '.join(missing)}: film the board close to them "
                          "or give their lenses (saddlescope calibrate --intrinsics)")
-    if not 50.0 <= wand_length_mm <= 5000.0:
-        raise InputError(f"wand length {wand_length_mm:g} mm is outside 50-5000 mm (give it in metres on the "
-                         "command line: --wand 1.0)")
+    if problem := wand_length_problem(float(wand_length_mm) / 1000.0):
+        raise InputError(problem)
     a, b = _first_pair(names, views_by_camera)
     base = {n: Camera(n, intrinsics[n].K, intrinsics[n].dist, intrinsics[n].image_size,
                       rms_px=intrinsics[n].rms_px, K_std=intrinsics[n].K_std, dist_std=intrinsics[n].dist_std)

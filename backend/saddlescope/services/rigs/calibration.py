@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from saddlescope.core.calibration.boards import board_from_meta
+from saddlescope.core.calibration.wand import wand_length_problem
 from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.pipeline import (
     PipelineParams,
@@ -108,11 +109,11 @@ def calibrate_wand_clips(
     Raises
     ------
     InputError
-        A wand length outside 0.05-5 m; CalibrationError: a clip missing, the board or the wand not seen.
+        A wand length outside `WAND_LENGTH_RANGE_M` (core.calibration.wand); CalibrationError: a clip missing,
+        the board or the wand not seen.
     """
-    if not (isinstance(wand_length_m, int | float) and 0.05 <= float(wand_length_m) <= 5.0):
-        raise InputError(f"the wand's length {wand_length_m!r} m is not 0.05-5 m: measure it between the two "
-                         "markers' centres, in metres (e.g. 1.0)")
+    if problem := wand_length_problem(wand_length_m):
+        raise InputError(problem)
     for kind, paths in (("wand", wand_paths), ("close-up", close_up_paths)):
         missing = [role for role in CAMERA_ROLES if role not in paths]
         if missing:

@@ -21,7 +21,7 @@ import numpy as np
 from saddlescope.core.calibration import detect_board_views
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.calibration.coverage_check import CameraCoverageCheck, check_camera_coverage, check_wand_coverage
-from saddlescope.core.calibration.wand import track_wand_ends
+from saddlescope.core.calibration.wand import track_wand_ends, wand_length_problem
 from saddlescope.core.errors import InputError
 from saddlescope.core.findings import FINDING_KINDS
 from saddlescope.core.types import CAMERA_ROLES
@@ -127,11 +127,10 @@ def check_wand_clips(paths: Mapping[str, Path], wand_length_m: float, *, sample_
     Raises
     ------
     InputError
-        The wand's length is not 0.05-5 m; VideoError: a clip does not decode.
+        The wand's length is outside `WAND_LENGTH_RANGE_M` (core.calibration.wand); VideoError: a clip does not decode.
     """
-    if not (isinstance(wand_length_m, int | float) and 0.05 <= float(wand_length_m) <= 5.0):
-        raise InputError(f"the wand's length {wand_length_m!r} m is not 0.05-5 m: measure it between the two "
-                         "markers' centres, in metres (e.g. 1.0)")
+    if problem := wand_length_problem(wand_length_m):
+        raise InputError(problem)
     t0 = time.perf_counter()
     order = _camera_order(paths)
     out: dict[str, CameraCoverageCheck] = {}
