@@ -198,8 +198,8 @@ def _add_error_handlers(app: FastAPI) -> None:
             if disk_full(exc):  # e.g. a bundle that could not be unpacked for want of space: not bad input
                 return DISK_FULL.response()
             headers = {"WWW-Authenticate": "Bearer"} if code == status.HTTP_401_UNAUTHORIZED else None
-            if getattr(exc, "retry_after_s", None):
-                headers = {"Retry-After": str(exc.retry_after_s)}
+            if retry_after_s := getattr(exc, "retry_after_s", None):
+                headers = {"Retry-After": str(retry_after_s)}
             body: dict[str, object] = {"detail": str(exc)}
             if isinstance(existing := getattr(exc, "existing_ride_id", None), int):
                 body["ride_id"] = existing  # the same clips again: the ride they already are

@@ -139,8 +139,8 @@ def _lit_frame(scene: Scene, view: CameraView, kind: str, t: float, opts: Render
                ) -> np.ndarray:
     """One float frame (H, W) of clip ``kind`` at instant ``t``: content, markers, glints, boot, pole."""
     content = scene.contents[kind]
-    rendered = np.asarray(content.rendered, bool)
-    frame = view.background.copy()
+    rendered = np.asarray(content.rendered, np.bool_)
+    frame = view.rendered_background().copy()
     samples = _exposure_samples(scene, t, opts)
     if isinstance(content, BoardContent):
         content.draw_samples(frame, view, samples, opts, cache=board_cache)
@@ -214,7 +214,7 @@ def true_marker_pixels(scene: Scene, camera: str, kind: str) -> dict:
         occluded = np.zeros(xy.shape[:2], bool)
     if isinstance(content, HorseContent):
         occluded = occluded | content.boot_covers(times)
-    visible = inside & ~occluded & np.asarray(content.rendered, bool)[None, :]
+    visible = inside & ~occluded & np.asarray(content.rendered, np.bool_)[None, :]
     out = np.where(visible[..., None], xy, np.nan)
     return {
         "names": tuple(content.marker_names),

@@ -30,6 +30,7 @@ __all__ = [
     "GRAVITY_M_S2",
     "BallContent",
     "BoardContent",
+    "ClipContent",
     "HorseContent",
     "PlumbContent",
 ]
@@ -500,3 +501,7 @@ class BoardContent:
         grid = np.zeros((rows * cols, 3))
         grid[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * self.square_m
         return o_w + grid @ r_bw.T
+
+
+# What one clip shows: the horse (motion, static), the plumb line, the thrown ball or a board.
+ClipContent = HorseContent | PlumbContent | BallContent | BoardContent

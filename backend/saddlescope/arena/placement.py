@@ -232,7 +232,7 @@ def add_static_glints(views: dict[str, CameraView], rig: SceneRig, rng: np.rando
     for view in views.values():
         xy = view.project(pts)
         r = view.radius_px(pts, diam)
-        draw_markers(view.background, xy[None], r, peak, options=opts)
+        draw_markers(view.rendered_background(), xy[None], r, peak, options=opts)
 
 
 def place_ball(views: dict[str, CameraView], top_y_m: float, v_up_m_s: float, release_s: float, flight_s: float,

@@ -126,6 +126,12 @@ class CameraView:
         self.fg_alpha: np.ndarray | None = None
         self.fg_value: np.ndarray | None = None
 
+    def rendered_background(self) -> np.ndarray:
+        """The pre-rendered static background (H, W); the scene paints it when it builds the views."""
+        if self.background is None:
+            raise RuntimeError(f"the {self.role} camera's background is not rendered yet (build the scene first)")
+        return self.background
+
     @property
     def center_w(self) -> np.ndarray:
         """The camera centre in world metres, shape (3,)."""
@@ -171,7 +177,7 @@ class CameraView:
     def fg_covers(self, xy_px: np.ndarray, radius_px: np.ndarray) -> np.ndarray:
         """True where a disc of radius_px + 1 around xy_px (..., 2) touches the foreground pole."""
         out = np.zeros(xy_px.shape[:-1], dtype=bool)
-        if self.fg_alpha is None:
+        if self.fg_alpha is None or self.fg_box is None:
             return out
         x0, y0, x1, y1 = self.fg_box
         ys, xs = np.nonzero(self.fg_alpha > 0.02)
@@ -300,7 +306,7 @@ def render_pole(view: CameraView, pole: Pole) -> None:
 
 def composite_foreground(frame: np.ndarray, view: CameraView) -> None:
     """Lay the view's pre-rendered foreground pole over ``frame`` (H, W) float32, in place."""
-    if view.fg_alpha is None:
+    if view.fg_alpha is None or view.fg_value is None or view.fg_box is None:
         return
     x0, y0, x1, y1 = view.fg_box
     sub = frame[y0:y1, x0:x1]
@@ -420,11 +426,11 @@ def board_patch(
     u_lo, u_hi = -2 * square_m, (cols + 1) * square_m
     v_lo, v_hi = -2 * square_m, (rows + 1) * square_m
     outline = np.array([[u_lo, v_lo], [u_hi, v_lo], [u_hi, v_hi], [u_lo, v_hi]])
-    pix = []
+    outlines_px = []
     for r_bw, o_w in poses:
         pts = o_w + np.concatenate([outline, np.zeros((4, 1))], 1) @ r_bw.T
-        pix.append(view.project(pts))
-    pix = np.concatenate(pix)
+        outlines_px.append(view.project(pts))
+    pix = np.concatenate(outlines_px)
     if not np.all(np.isfinite(pix)):
         return None
     w, h = view.size

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -47,6 +48,7 @@ from saddlescope.arena.content import (
     GRAVITY_M_S2,
     MAX_BOOT_SHARE,
     BoardContent,
+    ClipContent,
     HorseContent,
     PlumbContent,
 )
@@ -75,6 +77,7 @@ MIN_MOTION_S = 3.5
 MAX_PASSES = 6
 PASS_SPEED_SHARE = 0.05
 PASS_GAP_S = 2.0
+_Content = TypeVar("_Content", bound=ClipContent)
 _HORSE_HALF_LENGTH_M = 1.8  # from the markers to the horse's (or the rider's) furthest part, with margin
 
 
@@ -95,13 +98,20 @@ class Scene:
     m_dir: np.ndarray  # arena -> world rotation (3, 3)
     views: dict[str, CameraView]
     timings: dict[str, ClipTiming]
-    contents: dict[str, object]
+    contents: dict[str, ClipContent]
     window_start_s: float
     window_periods: int
     pole: Pole | None
     options: RenderOptions
     meta: dict = field(default_factory=dict)
     light_phase: float = 0.0
+
+    def content(self, kind: str, of_type: type[_Content]) -> _Content:
+        """The content of clip ``kind``, which is an ``of_type`` (motion and static: the horse; freefall: the ball)."""
+        content = self.contents[kind]
+        if not isinstance(content, of_type):
+            raise TypeError(f"the {kind} clip shows a {type(content).__name__}, not a {of_type.__name__}")
+        return content
 
     @property
     def fps(self) -> float:
@@ -448,10 +458,10 @@ def _paint_backgrounds(views: dict[str, CameraView], srig: SceneRig, pole: Pole 
 
 
 def _horse_and_plumb(views: dict[str, CameraView], srig: SceneRig, model: GaitModel, m_dir: np.ndarray,
-                     options: RenderOptions, r_look: np.random.Generator) -> dict[str, object]:
+                     options: RenderOptions, r_look: np.random.Generator) -> dict[str, ClipContent]:
     """What the motion, static and plumb clips film: the ridden horse, the standing horse, the plumb line."""
     diam = srig.marker_diameter_mm
-    contents: dict[str, object] = {}
+    contents: dict[str, ClipContent] = {}
     peaks = r_look.uniform(250.0, 290.0, 4)
     contents["motion"] = HorseContent(
         model,

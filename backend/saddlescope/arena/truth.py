@@ -16,6 +16,7 @@ from saddlescope.arena.content import (
     GRAVITY_M_S2,
     BallContent,
     BoardContent,
+    HorseContent,
 )
 from saddlescope.arena.gait import (
     MARKER_NAMES,
@@ -105,8 +106,8 @@ def _indicators(scene: Scene, harmonics: dict[str, tuple[np.ndarray, np.ndarray]
 
     return ride_indicators(
         f0_hz=f0,
-        acc_y_amplitudes_m_s2=harmonics["y"][0],
-        acc_y_phases_rad=harmonics["y"][1],
+        acc_y_amplitudes_m_s2=harmonics["y"][0].tolist(),
+        acc_y_phases_rad=harmonics["y"][1].tolist(),
         duration_s=scene.window_duration_s,
         speed_kmh=_ride_speed_m_s(scene.model) * 3.6,
         amplitude_y_m=pp_m,
@@ -231,11 +232,11 @@ def _truth_section(scene: Scene, harm: dict[str, tuple[np.ndarray, np.ndarray]],
     }
     if len(model.passes) > 1:
         truth_sec["passes"] = _passes_truth(scene)
-    truth_sec["nuisances"] = scene.options.nuisances()
+    truth_sec["nuisances"] = nuisances = scene.options.nuisances()
     if scene.options.boot_share > 0:
         t_win = scene.window_times
-        covered = scene.contents["motion"].boot_covers(t_win)[:, 2]
-        truth_sec["nuisances"]["boot"] = {
+        covered = scene.content("motion", HorseContent).boot_covers(t_win)[:, 2]
+        nuisances["boot"] = {
             "marker": "marker3", "share_of_stride": scene.options.boot_share,
             "window_share_covered": float(covered.mean()),
             "note": "the rear marker is at least partly covered, seen square-on, for this share of every stride"}
@@ -309,7 +310,7 @@ def _clips_truth(scene: Scene, markers_3d: dict[str, np.ndarray]) -> dict:
 def _freefall_truth(scene: Scene) -> dict:
     """The thrown ball's exact flight in the rig frame (mm, s) and its left frames in flight."""
     rig = scene.rig
-    ball: BallContent = scene.contents["freefall"]
+    ball = scene.content("freefall", BallContent)
     return {
         "g_m_s2": GRAVITY_M_S2,
         "release_s": ball.release_s,
@@ -332,7 +333,7 @@ def _in_view_interval(scene: Scene, kind: str) -> list[int] | None:
     """
     tm = scene.timings[kind]
     content = scene.contents[kind]
-    rendered = np.asarray(content.rendered, bool)
+    rendered = np.asarray(content.rendered, np.bool_)
     pts = content.markers_w(tm.left_times)[:, rendered]
     ok = np.ones(tm.n_left, bool)
     for view in scene.views.values():
@@ -343,7 +344,7 @@ def _in_view_interval(scene: Scene, kind: str) -> list[int] | None:
 
 def _board_truth(scene: Scene, kind: str) -> dict:
     """Board pose (rig frame) at every left frame and whether it stands still in all cameras there."""
-    board: BoardContent = scene.contents[kind]
+    board = scene.content(kind, BoardContent)
     tm = scene.timings[kind]
     r_wr, t_wr = scene.rig.R_world_to_rig, scene.rig.t_world_to_rig_mm
     rs, ts, still, index = [], [], [], []
@@ -373,7 +374,7 @@ def _board_truth(scene: Scene, kind: str) -> dict:
 
 def _distance_truth(scene: Scene) -> dict:
     """The board-distance clip: the corner points' exact positions (rig mm) per pose and their distances."""
-    board: BoardContent = scene.contents["board_distance"]
+    board = scene.content("board_distance", BoardContent)
     tm = scene.timings["board_distance"]
     cols = board.inner_corners[0]
     poses = []

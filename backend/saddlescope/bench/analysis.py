@@ -13,8 +13,25 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
+
+
+class RideLength(TypedDict, total=False):
+    """How long a benchmark's synthetic ride is (`write_ride_bundle`'s own lengths where absent)."""
+
+    duration_s: float
+    calibration_poses: int
+
+
+class _SpeedRide(RideLength, total=False):
+    rig: str
+
+
+def quick_ride(quick: bool) -> RideLength:
+    """A short ride (3 s, 40 board poses) for a quick run, else the writer's default length."""
+    return {"duration_s": 3.0, "calibration_poses": 40} if quick else {}
 
 
 def _best_of(fn: Callable[[], object], repeats: int) -> float:
@@ -105,7 +122,7 @@ def analysis_vs_footage(tmp: Path, *, quick: bool) -> dict:
 
     ride = tmp / "speed_640x480"  # the ride speed_rides analysed, when it ran first (same arguments)
     t0 = time.perf_counter()
-    kwargs = {"duration_s": 3.0, "calibration_poses": 40} if quick else {}
+    kwargs = quick_ride(quick)
     if not (ride / "ride.json").exists():
         write_ride_bundle(ride, gait="canter", seed=1, rig="thesis", extras=False, **kwargs)
     synth_s = time.perf_counter() - t0
@@ -145,6 +162,8 @@ def decode_once(ride: Path, kinds=RIDE_KINDS, *, threads: int = 1) -> dict:
             stream.thread_count = threads
             n = sum(1 for _ in container.decode(stream))
             frames += n
+            if stream.average_rate is None:
+                raise ValueError(f"{clip}: the video stream states no frame rate")
             clip_s += n / float(stream.average_rate)
     return {"seconds": time.perf_counter() - t0, "frames": frames, "clip_s": clip_s}
 
@@ -280,9 +299,9 @@ def speed_rides(tmp: Path, *, quick: bool) -> dict:
     from saddlescope.io.synth_writer import write_ride_bundle
 
     out: dict = {}
-    small = {"duration_s": 3.0, "calibration_poses": 40} if quick else {}
-    rides = {"640x480": {"rig": "thesis", **small},  # the ride of analysis_vs_footage
-             "1920x1080": {"rig": "wide", **({"duration_s": 2.5, "calibration_poses": 30} if quick else {})}}
+    wide: RideLength = {"duration_s": 2.5, "calibration_poses": 30} if quick else {}
+    rides: dict[str, _SpeedRide] = {"640x480": {"rig": "thesis", **quick_ride(quick)},  # as analysis_vs_footage's
+                                    "1920x1080": {"rig": "wide", **wide}}
     for name, kwargs in rides.items():
         ride = tmp / f"speed_{name}"
         try:
@@ -476,7 +495,10 @@ def kinematics_floor(*, rig: str, gaits: tuple[str, ...] = ("walk", "sitting_tro
             scene = build_scene(gait=gait, seed=seed, rig=rig, extras=False, calibration_poses=4,
                                 options=RenderOptions(skin_motion=skin_motion, marker_layout=marker_layout,
                                                       textured_background=False))
-            rows.append(exact_marker_floor(json.loads(json.dumps(build_truth(scene))), params))
+            floor = exact_marker_floor(json.loads(json.dumps(build_truth(scene))), params)
+            if floor is None:
+                raise ValueError(f"the {gait} scene of seed {seed} has no exact markers in its truth")
+            rows.append(floor)
         acc = [r["acc_y_rms_error_pct"] for r in rows]
         acc_rig = [r["acc_y_rms_error_pct_rig"] for r in rows]
         common = [r["acc_y_skin_common_mode_pct"] for r in rows]

@@ -15,6 +15,8 @@ import sys
 import time
 from pathlib import Path
 
+from saddlescope.bench.analysis import quick_ride
+
 __all__ = ["calibration_check_clips_s", "calibration_stage_s", "calibration_vs_decode", "wand_canter_indicators",
            "wand_refines_band", "wand_vs_board"]
 
@@ -92,7 +94,7 @@ def calibration_vs_decode(tmp: Path, *, rig: str, quick: bool = False, repeats: 
 
     ride = Path(tmp) / f"calibration_{rig}"
     write_ride_bundle(ride, gait="canter", seed=1, rig=rig, extras=False,
-                      **({"duration_s": 3.0, "calibration_poses": 40} if quick else {}))
+                      **quick_ride(quick))
     found = calibration_stage_s(ride, repeats=repeats)
     w, h = found["image_size"]
     return {(f"{k}_{w}x{h}" if k in ("calibration_s", "decode_s", "calibration_vs_decode") else k): v
@@ -251,7 +253,7 @@ def wand_canter_indicators(tmp: Path, *, rig: str = "wide", seed: int = 1, quick
     ride = Path(tmp) / f"wand_vs_board_{rig}"
     if not (ride / "ride.json").is_file():
         write_ride_bundle(ride, gait="canter", seed=seed, rig=rig, extras=False,
-                          **({"duration_s": 3.0, "calibration_poses": 40} if quick else {}))
+                          **quick_ride(quick))
     srig = make_rig(rig, np.random.default_rng(np.random.SeedSequence([int(seed), 0x5ADD1E]).spawn(8)[0]))
     wand_rig = _wand_rig(srig, seed, wand_frames if not quick else wand_frames // 2, 1.0)[0]
     board = analyze_bundle(ride)["indicators"]
@@ -301,7 +303,7 @@ def wand_vs_board(tmp: Path, *, rig: str = "wide", seed: int = 1, quick: bool = 
 
     ride = Path(tmp) / f"wand_vs_board_{rig}"
     write_ride_bundle(ride, gait="canter", seed=seed, rig=rig, extras=False,
-                      **({"duration_s": 3.0, "calibration_poses": 40} if quick else {}))
+                      **quick_ride(quick))
     with open_bundle(ride) as bundle:
         clips = BundleClips(bundle.clip_paths)
         offsets, first_frame = synchronise(clips, bundle.meta, ["calibration"])
@@ -362,14 +364,14 @@ def _scene_board_views(scene, noise_px: float, rng) -> dict:
 
 def _samples_beyond(rig, hull_by_cam: dict, xy_by_cam: dict) -> dict:
     """Per camera: the share of marker samples outside the hull (pointPolygonTest) and beyond the lens reach radius."""
-    import types
-
     import numpy as np
 
     from saddlescope.core.pipeline.setup import outside_coverage
     from saddlescope.core.triangulation.lens_reach import board_reach_px
+    from saddlescope.core.types import ImageTracks
 
-    hull_share = outside_coverage({c: types.SimpleNamespace(xy_px=xy) for c, xy in xy_by_cam.items()},
+    tracks = {c: ImageTracks(camera=c, xy_px=xy, frame_index=np.arange(len(xy))) for c, xy in xy_by_cam.items()}
+    hull_share = outside_coverage(tracks,
                                   {c: {"hull_px": h} for c, h in hull_by_cam.items()})
     out = {}
     for cam, xy in xy_by_cam.items():

@@ -161,7 +161,7 @@ def _field_rides(first_seed: int) -> tuple[CoverageRide, ...]:
     every gait, both rigs and every level of the other factors. The order interleaves the readouts, so a run
     stopped early still holds each gait on both rigs.
     """
-    out = []
+    out: list[CoverageRide] = []
     for k in range(len(FIELD_READOUTS_S)):
         for i, gait in enumerate(_GAITS):
             for j, (rig, size, fps) in enumerate(_FIELD_RIGS):
@@ -399,7 +399,7 @@ def run_coverage(tmp: Path | None = None, *, quick: bool = False, rides: Sequenc
 
     chosen = tuple(rides) if rides is not None else (COVERAGE_RIDES[:4] if quick else COVERAGE_RIDES)
     own = tmp is None
-    work = Path(tempfile.mkdtemp(prefix="saddlescope-coverage-")) if own else Path(tmp) / "coverage"
+    work = Path(tempfile.mkdtemp(prefix="saddlescope-coverage-")) if tmp is None else Path(tmp) / "coverage"
     try:
         folders = run_rides(chosen, work)
         return coverage_table(coverage_rows(folders, recompute=False))

@@ -27,7 +27,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from types import SimpleNamespace
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, TypeVar
 
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import BundleError, InputError
@@ -210,7 +210,11 @@ def open_bundle(path: str | Path, *, extract_to: str | Path | None = None, max_f
         raise
 
 
-def _find_root(folder: Path, *, label: str | None = None) -> Path:
+# A folder on disk or inside a zip read in place (`ZipMember` answers the `Path` questions asked here).
+_Folder = TypeVar("_Folder", Path, "ZipMember")
+
+
+def _find_root(folder: _Folder, *, label: str | None = None) -> _Folder:
     """The folder itself, or its single subfolder, whichever holds ride.json (zips often nest one)."""
     if (folder / RIDE_JSON).is_file():
         return folder

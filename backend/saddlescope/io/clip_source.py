@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from contextlib import closing, contextmanager
 from dataclasses import dataclass
 from functools import cache
@@ -256,7 +256,7 @@ class BundleClips:
         return handoff
 
     def _decoded(self, kind: str, camera: str, start: int, stop: int | None,
-                 step: int) -> Iterator[tuple[int, np.ndarray]]:
+                 step: int) -> Generator[tuple[int, np.ndarray], None, None]:
         with self._decoder_threads() as threads:
             try:
                 yield from iter_gray_frames(self.path(kind, camera), start=start, stop=stop, step=step,
@@ -268,12 +268,12 @@ class BundleClips:
         bands = self._bands.setdefault((kind, camera), RowBands())
         if self.whole_clip_brightness:
             with closing(self._decoded(kind, camera, 0, None, 1)) as frames:
-                values = []
+                means = []
                 for _, img in frames:
                     sampled = img[::BRIGHTNESS_DOWNSCALE, ::BRIGHTNESS_DOWNSCALE]
-                    values.append(float(sampled.mean()))
+                    means.append(float(sampled.mean()))
                     bands.add(sampled, img.shape[0])
-                return np.asarray(values, dtype=np.float64)
+                return np.asarray(means, dtype=np.float64)
         fps = self.fps(kind, camera)
         width, height = self.image_size(kind, camera)
         reserved = _frames_kept(fps) * float(width * height)

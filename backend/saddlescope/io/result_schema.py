@@ -398,17 +398,22 @@ def ride_problems(meta: Any) -> list[str]:
     problems += _wand_problems(meta)
     sync, clips = meta.get("sync"), meta.get("clips")
     if isinstance(sync, dict) and sync.get("method") == "offsets" and isinstance(clips, dict):
-        offsets = sync.get("offsets") if isinstance(sync.get("offsets"), dict) else {}
+        offsets = _object_at(sync, "offsets")
         for kind in clips:
             if kind in (*CLIP_KINDS, "wand") and kind not in offsets:  # close-ups: each camera alone
                 problems.append(f"sync.offsets has no offsets for the {kind} clips")
     return problems
 
 
+def _object_at(doc: dict, key: str) -> dict:
+    """``doc[key]`` when it is an object, else an empty one (the schema's problems name a wrong type)."""
+    value = doc.get(key)
+    return value if isinstance(value, dict) else {}
+
+
 def _wand_problems(meta: dict) -> list[str]:
     """A wand calibration needs its two clip sets and the wand's length; wand clips need the wand method."""
-    clips = meta.get("clips") if isinstance(meta.get("clips"), dict) else {}
-    cal = meta.get("calibration") if isinstance(meta.get("calibration"), dict) else {}
+    clips, cal = _object_at(meta, "clips"), _object_at(meta, "calibration")
     wand_sets = [k for k in WAND_CLIP_KINDS if k in clips]
     if cal.get("method") != "wand":
         if wand_sets:

@@ -6,7 +6,7 @@ import inspect
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Annotated, Any
+from typing import Annotated, Any, cast
 
 from fastapi import Depends, Path, Query
 from fastapi.responses import Response
@@ -58,7 +58,7 @@ def _paging(
 PagingDep = Annotated[Paging, Depends(_paging)]
 
 # Every indicator key of the result (CONTRACTS section 2 and more): the OpenAPI lists them.
-IndicatorKey = StrEnum("IndicatorKey", [(key, key) for key in INDICATORS])
+IndicatorKey = StrEnum("IndicatorKey", [(key, key) for key in INDICATORS])  # type: ignore[misc]  # members from data
 
 
 def sort_enum(name: str, fields: Iterable[str]) -> type[StrEnum]:
@@ -66,7 +66,7 @@ def sort_enum(name: str, fields: Iterable[str]) -> type[StrEnum]:
     members = []
     for field in dict.fromkeys(["id", *fields]):
         members += [(field, field), (f"desc_{field}", f"-{field}")]
-    return StrEnum(name, members)
+    return cast("type[StrEnum]", StrEnum(name, members))  # the functional API makes a class, not a member
 
 
 def paging_sorted_by(sort_values: type[StrEnum], default: str) -> Callable[..., Paging]:

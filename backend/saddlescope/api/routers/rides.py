@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Annotated, Literal
+from typing import Annotated, Literal, get_args
 
 from fastapi import APIRouter, Depends, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
@@ -58,7 +58,10 @@ __all__ = ["ExportFormat", "RideSort", "RideStatusName", "ride_detail", "ride_ou
 
 router = APIRouter(prefix="/rides", tags=["rides"])
 RideStatusName = Literal[RIDE_STATUSES]  # type: ignore[valid-type]
-ExportFormat = Literal[tuple(EXPORT_FORMATS)]  # type: ignore[valid-type]
+# EXPORT_FORMATS' keys spelled out so that the type checker knows them; import fails if the two drift apart.
+ExportFormat = Literal["json", "csv", "xlsx", "c3d", "trc"]
+if set(get_args(ExportFormat)) != set(EXPORT_FORMATS):
+    raise RuntimeError(f"ExportFormat {get_args(ExportFormat)} differs from EXPORT_FORMATS {tuple(EXPORT_FORMATS)}")
 RideSort = sort_enum("RideSort", RideRepository.sort_fields)
 RidePaging = Annotated[Paging, Depends(paging_sorted_by(RideSort, "-ridden_on"))]
 

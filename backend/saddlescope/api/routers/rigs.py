@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import json
-from typing import Annotated
+from typing import Annotated, Any, TypedDict
 
 from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import HTMLResponse
@@ -50,9 +51,23 @@ __all__ = ["rig_out", "router"]
 router = APIRouter(prefix="/rigs", tags=["rigs"])
 
 
+class _RigFields(TypedDict):
+    """The fields of `RigOut`, read from a rig row (`RigDetail` adds the calibration)."""
+
+    id: int
+    name: str
+    recorded_on: dt.date | None
+    cameras: dict[str, Any]
+    board: dict[str, Any] | None
+    wand_length_m: float | None
+    calibrated: bool
+    quality: dict[str, Any] | None
+    created_at: dt.datetime
+
+
 def rig_out(rig: Rig, *, detail: bool = False) -> RigOut:
     """The list view of a rig, or (`detail`) the view with its calibration."""
-    data = {
+    data: _RigFields = {
         "id": rig.id,
         "name": rig.name,
         "recorded_on": rig.recorded_on,
@@ -216,11 +231,12 @@ def rig_board_svg(rig_id: Id, club: ClubDep) -> Response:
                     headers={"Content-Disposition": f'inline; filename="rig-{rig_id}-board.svg"'})
 
 
-def _board_of(club, rig_id: int) -> Rig:
+def _board_of(club, rig_id: int) -> tuple[Rig, dict[str, Any]]:
+    """The rig and its board's description (NotFound without one)."""
     rig = club.rigs.get(rig_id)
     if not rig.board:
         raise NotFound(f"rig {rig_id} ({rig.name}) has no board described yet")
-    return rig
+    return rig, rig.board
 
 
 @router.get("/{rig_id}/board-sizes", response_model=BoardSizesOut, responses=ERRORS)
@@ -230,9 +246,9 @@ def rig_board_sizes(rig_id: Id, club: ClubDep) -> BoardSizesOut:
     Which square each camera distance needs, for the rig's own cameras (calibrated focal length, else its
     clips' width with a phone's 70 degree view, else a 1080p phone); 404 without a board.
     """
-    rig = _board_of(club, rig_id)
+    rig, board = _board_of(club, rig_id)
     widths = [r.width for r in club.recordings.for_rig(rig_id) if r.width]
-    advice = board_advice(rig.board, camera_view(rig.calibration, widths))
+    advice = board_advice(board, camera_view(rig.calibration, widths))
     return BoardSizesOut(
         width_mm=advice.width_mm, height_mm=advice.height_mm, square_mm=advice.square_mm,
         image_width_px=advice.view.image_width_px, hfov_deg=advice.view.hfov_deg,
@@ -258,8 +274,8 @@ def rig_board_print(
     422 when the board does not fit one sheet of the paper asked for (the answer says the largest square
     that would); 404 without a board.
     """
-    rig = _board_of(club, rig_id)
-    page = board_print_html(rig.board, layout, rig_name=rig.name)
+    rig, board = _board_of(club, rig_id)
+    page = board_print_html(board, layout, rig_name=rig.name)
     return HTMLResponse(page, headers={"Cache-Control": "private, no-cache",
                                        "Content-Security-Policy": report_csp(inline_style_hashes(page))})
 

@@ -57,9 +57,10 @@ class MocapChoice:
         Narrows the stride frequencies searched (walk, sitting_trot, rising_trot, canter).
     """
 
-    markers: tuple[str, str, str]
+    # Three each, as the file's user typed them: analyze_mocap checks the counts with a clear error.
+    markers: tuple[str, ...]
     point: str | None = None
-    offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    offset_mm: tuple[float, ...] = (0.0, 0.0, 0.0)
     up: str | None = None
     strides: int | None = None
     gait: str | None = None

@@ -78,7 +78,7 @@ SADDLE_LABEL = "S"
 
 def result_document(session: Session, storage: Storage, ride_id: int, *, club_id: int) -> dict[str, Any]:
     """The full stored result document (CONTRACTS section 2) of an analysed ride of the club."""
-    return _read_analysed(session, ride_id, club_id, lambda result: json.loads(storage.read_bytes(result.result_key)))
+    return _read_analysed(session, ride_id, club_id, lambda _result, key: json.loads(storage.read_bytes(key)))
 
 
 def decimate(values: list, step: int) -> list:
@@ -86,9 +86,11 @@ def decimate(values: list, step: int) -> list:
     return values[::step] if step > 1 else values
 
 
-def _series(doc: dict[str, Any], step: int, n: int, derived: dict[str, Any]) -> dict[str, list]:
+def _series(doc: dict[str, Any], step: int, n: int, derived: dict[str, Any]) -> dict[str, list | None]:
     """The plotted series of the document and its `derived` series, every `step`-th of its `n` samples."""
-    series = {name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES}
+    series: dict[str, list | None] = {
+        name: decimate((doc.get(group) or {}).get(key) or [], step) for name, group, key in SERIES
+    }
     markers = doc.get("markers") or {}
     if markers.get("position_m"):
         series["markers_position_m"] = decimate(markers["position_m"], step)
@@ -263,12 +265,12 @@ def stored_derived_series(storage: Storage, result_key: str, doc: dict[str, Any]
     return derived
 
 
-def analysed_result(session: Session, storage: Storage, ride_id: int, *, club_id: int):
+def analysed_result(session: Session, storage: Storage, ride_id: int, *, club_id: int) -> Result:
     """The result row of an analysed ride of the club (NotFound until it has one)."""
 
-    def stored(result):
-        if not storage.exists(result.result_key):
-            raise FileNotFoundError(result.result_key)
+    def stored(result: Result, key: str) -> Result:
+        if not storage.exists(key):
+            raise FileNotFoundError(key)
         return result
 
     return _read_analysed(session, ride_id, club_id, stored)
@@ -281,15 +283,15 @@ _SWAPPED_READS = 5
 T = TypeVar("T")
 
 
-def _read_analysed(session: Session, ride_id: int, club_id: int, read: Callable[[Result], T]) -> T:
-    """`read` of the ride's result row (raising `FileNotFoundError` when its document is gone meanwhile)."""
+def _read_analysed(session: Session, ride_id: int, club_id: int, read: Callable[[Result, str], T]) -> T:
+    """`read` of the ride's result row and its document's key (raising `FileNotFoundError` when gone meanwhile)."""
     for _ in range(_SWAPPED_READS):
         RideRepository(session, club_id=club_id).get(ride_id)
         result = ResultRepository(session, club_id=club_id).for_ride(ride_id)
         if result is None or result.result_key is None:
             break
         try:
-            return read(result)
+            return read(result, result.result_key)
         except FileNotFoundError:
             session.rollback()  # a new snapshot (SQLite) and no cached row: see the swap's commit
     raise NotFound(f"ride {ride_id} has no result yet (it has not been analysed)")
@@ -304,7 +306,7 @@ def result_view(
     (``decimation.step``; the indicators are always computed from the full series).
     """
     return _read_analysed(session, ride_id, club_id,
-                          lambda result: _view_of_stored(storage, result, ride_id, max_points))
+                          lambda result, _key: _view_of_stored(storage, result, ride_id, max_points))
 
 
 class _BytesCache:
@@ -355,7 +357,7 @@ def result_view_json(
     a parse and an encoding of the whole result document.
     """
 
-    def encoded(result) -> tuple[bytes, str]:
+    def encoded(result: Result, _key: str) -> tuple[bytes, str]:
         etag = hashlib.sha256(
             f"{result.id}|{result.result_key}|{result.created_at.isoformat()}|{max_points}".encode()
         ).hexdigest()[:32]

@@ -47,7 +47,7 @@ def quality_notes(findings: Iterable[Finding]) -> list[dict[str, str]]:
     ``detail`` is the finding's sentence with its numbers; findings of one code keep their own detail
     each, in the pipeline's order.
     """
-    rank = {s: i for i, s in enumerate(reversed(SEVERITIES))}
+    rank: dict[str, int] = {s: i for i, s in enumerate(reversed(SEVERITIES))}
     notes = [{"code": n.code, "severity": n.severity, "message": n.message, "detail": f.detail}
              for f in findings for n in (NOTES[f.code],)]
     return sorted(notes, key=lambda n: rank[n["severity"]])

@@ -51,7 +51,8 @@ def _rows(arr: np.ndarray | None) -> list | None:
     if arr is None:
         return None
     rounded = np.round(np.asarray(arr, dtype=np.float64), 7)
-    return np.where(np.isfinite(rounded), rounded, None).tolist()
+    # numpy's stubs take no None as a branch of `where`; numpy does (an object array)
+    return np.where(np.isfinite(rounded), rounded, None).tolist()  # type: ignore[call-overload]
 
 
 def strides_analysed(doc: dict[str, Any]) -> int | None:
@@ -65,7 +66,7 @@ def strides_analysed(doc: dict[str, Any]) -> int | None:
     return None
 
 
-def fitted_saddle_series(doc: dict[str, Any]) -> dict[str, list]:
+def fitted_saddle_series(doc: dict[str, Any]) -> dict[str, list | None]:
     """S's fitted position and, per quantity, measured samples and residuals (each shape (N, 3)).
 
     Empty when the result has no saddle track or too few samples to fit.
@@ -74,7 +75,7 @@ def fitted_saddle_series(doc: dict[str, Any]) -> dict[str, list]:
     t = _array(saddle.get("t_s"))
     position = _array(saddle.get("position_m"), 3)
     period = doc.get("period_s")
-    if t is None or position is None or len(t) != len(position) or len(t) < 8 or not (period or 0) > 0:
+    if t is None or position is None or len(t) != len(position) or len(t) < 8 or period is None or not period > 0:
         return {}
     x_model = (doc.get("params") or {}).get("x_model") or "linear"
     try:
@@ -109,7 +110,7 @@ def vertical_harmonics_of(doc: dict[str, Any]) -> dict[str, Any] | None:
     acc = _array(saddle.get("acceleration_m_s2"), 3)
     pos = _array(saddle.get("position_m"), 3)
     period = doc.get("period_s")
-    if t is None or acc is None or pos is None or len(t) < 8 or not (period or 0) > 0:
+    if t is None or acc is None or pos is None or len(t) < 8 or period is None or not period > 0:
         return None
     if len(acc) != len(t) or len(pos) != len(t) or not np.isfinite(acc[:, 1]).all():
         return None
@@ -118,7 +119,7 @@ def vertical_harmonics_of(doc: dict[str, Any]) -> dict[str, Any] | None:
             "phases_rad": [float(p) for p in harm["phases_rad"]]}
 
 
-def weighted_series(doc: dict[str, Any], t_s: list[float]) -> tuple[dict[str, list], dict[str, Any] | None]:
+def weighted_series(doc: dict[str, Any], t_s: list[float]) -> tuple[dict[str, list | None], dict[str, Any] | None]:
     """The W_b- and W_k-weighted vertical acceleration at times `t_s`, and the harmonic spectrum.
 
     Returns ``({"acc_y_wb_m_s2": [...], "acc_y_wk_m_s2": [...]}, spectrum)`` where ``spectrum`` is
@@ -133,7 +134,8 @@ def weighted_series(doc: dict[str, Any], t_s: list[float]) -> tuple[dict[str, li
     phases = np.asarray(harm["phases_rad"], dtype=np.float64)
     freqs = f0 * np.arange(1, len(amps) + 1)
     t = np.asarray(t_s, dtype=np.float64)
-    series, spectrum = {}, {"f0_hz": f0, "frequency_hz": _rows(freqs), "amplitude_m_s2": _rows(amps)}
+    series: dict[str, list | None] = {}
+    spectrum: dict[str, Any] = {"f0_hz": f0, "frequency_hz": _rows(freqs), "amplitude_m_s2": _rows(amps)}
     for suffix, name in WEIGHTINGS:
         response = weighting_response(name, freqs)  # eq. 7.x: each harmonic times H(j 2 pi k f0)
         gain, lag = np.abs(response), np.angle(response)
@@ -153,8 +155,8 @@ def derived_series(doc: dict[str, Any]) -> dict[str, Any]:
     """
     t_s = (doc.get("saddle") or {}).get("t_s") or []
     n = len(t_s)
-    series = {name: values for name, values in fitted_saddle_series(doc).items()
-              if isinstance(values, list) and len(values) == n}
+    series: dict[str, list | None] = {name: values for name, values in fitted_saddle_series(doc).items()
+                                      if isinstance(values, list) and len(values) == n}
     weighted, spectrum = weighted_series(doc, t_s)
     series.update(weighted)
     return {"format": DERIVED_FORMAT, "samples": n, "series": series, "spectrum": spectrum}

@@ -34,7 +34,7 @@ from saddlescope.db.repositories import (
     SaddleRepository,
 )
 from saddlescope.db.session import session_scope
-from saddlescope.io.bundle import RideBundle, open_bundle, open_zip_stream, zip_bundle_files
+from saddlescope.io.bundle import RideBundle, ZipMember, open_bundle, open_zip_stream, zip_bundle_files
 from saddlescope.storage import Storage, ride_bundle_key, sha256_file, tree_digest
 
 __all__ = [
@@ -304,21 +304,26 @@ def _store_files(storage: Storage, bundle: RideBundle, bundle_key: str) -> dict[
         return {rel: tree_digest(source) if source.is_dir() else (source.stat().st_size, sha256_file(source))
                 for rel, source in clips.items()}
     # A clip of numbered images: `tree_digest` of its folder, fed as its files stream past in path order.
-    folders = {rel: [0, hashlib.sha256()] for rel, source in clips.items() if source.is_dir()}
+    folders = [rel for rel, source in clips.items() if source.is_dir()]
+    sizes = dict.fromkeys(folders, 0)
+    hashes = {folder: hashlib.sha256() for folder in folders}
+    zip_root = bundle.root
+    if not isinstance(zip_root, ZipMember):  # `archive` is set with a root inside it (`open_zip_stream`)
+        raise ValueError("a bundle with an archive is a zip read in place: its root is a ZipMember")
     digests: dict[str, tuple[int, str]] = {}
     for member, chunks in zip_bundle_files(bundle):
-        rel = member.relative_to(bundle.root).as_posix()
-        inside = [(folder, state) for folder, state in folders.items() if rel.startswith(folder + "/")]
-        for folder, state in inside:
-            state[1].update(rel[len(folder) + 1:].encode() + b"\0")
+        rel = member.relative_to(zip_root).as_posix()
+        inside = [folder for folder in folders if rel.startswith(folder + "/")]
+        for folder in inside:
+            hashes[folder].update(rel[len(folder) + 1:].encode() + b"\0")
         with storage.writer(f"{bundle_key}/{rel}") as out:
             for chunk in chunks:
                 out.write(chunk)
-                for _, state in inside:
-                    state[0] += len(chunk)
-                    state[1].update(chunk)
+                for folder in inside:
+                    sizes[folder] += len(chunk)
+                    hashes[folder].update(chunk)
             digests[rel] = out.commit()
-    digests.update({folder: (size, digest.hexdigest()) for folder, (size, digest) in folders.items()})
+    digests.update({folder: (sizes[folder], hashes[folder].hexdigest()) for folder in folders})
     return {rel: digests[rel] for rel in clips}
 
 

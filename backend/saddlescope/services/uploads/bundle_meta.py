@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, BinaryIO
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
@@ -47,7 +47,8 @@ def _named(meta: dict[str, Any], key: str) -> str | None:
     return name.strip()[:200] if isinstance(name, str) and name.strip() else None
 
 
-def read_bundle_meta(session: Session, zip_path: Path, *, club_id: int, shown: str) -> dict[str, Any]:
+def read_bundle_meta(session: Session, zip_path: Path | BinaryIO, *, club_id: int,
+                     shown: str) -> dict[str, Any]:
     """The form's suggestions from a bundle zip's ride.json.
 
     Returns

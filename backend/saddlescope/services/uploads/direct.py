@@ -19,7 +19,7 @@ from saddlescope.core.errors import InputError
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Conflict, UploadRepository
 from saddlescope.settings import Settings
-from saddlescope.storage import Storage, direct_upload_key
+from saddlescope.storage import S3Storage, Storage, direct_upload_key
 
 __all__ = [
     "DIRECT_PART_BYTES", "DirectUploadError", "MAX_URLS", "PART_URL_EXPIRY_S", "STREAM", "S3_PARTS", "check_parts",
@@ -49,22 +49,29 @@ def part_count(length_bytes: int) -> int:
     return max(1, -(-length_bytes // DIRECT_PART_BYTES))
 
 
+def _bucket(storage: Storage) -> S3Storage:
+    """The store as the bucket a direct upload's parts go to (`transport_for` sends them to an S3 store only)."""
+    if not isinstance(storage, S3Storage):
+        raise TypeError(f"direct uploads go to an S3 bucket, not to {storage.describe()}")
+    return storage
+
+
 def start_direct(storage: Storage, upload_id: str, length_bytes: int) -> dict[str, Any]:
     """Open the bucket's multipart upload for a new upload; returns what the client needs to send it."""
-    storage.start_direct(direct_upload_key(upload_id))
+    _bucket(storage).start_direct(direct_upload_key(upload_id))
     return {"transport": S3_PARTS, "part_bytes": DIRECT_PART_BYTES, "parts_total": part_count(length_bytes)}
 
 
 def is_direct(storage: Storage, upload_id: str) -> bool:
     """Whether the upload's bytes go straight to the bucket (its multipart upload is open)."""
-    return storage.kind == "s3" and storage.direct_id(direct_upload_key(upload_id)) is not None
+    return isinstance(storage, S3Storage) and storage.direct_id(direct_upload_key(upload_id)) is not None
 
 
 def _open_direct(session: Session, storage: Storage, upload_id: str, club_id: int | None):
     upload = UploadRepository(session, club_id=club_id).get(upload_id)  # NotFound: 404
     if upload.status != UploadStatus.OPEN.value:
         raise DirectUploadError(f"upload {upload_id} is {upload.status}; it takes no more bytes")
-    direct_id = storage.direct_id(direct_upload_key(upload_id)) if storage.kind == "s3" else None
+    direct_id = storage.direct_id(direct_upload_key(upload_id)) if isinstance(storage, S3Storage) else None
     return upload, direct_id
 
 
@@ -80,8 +87,8 @@ def part_urls(session: Session, storage: Storage, upload_id: str, numbers: list[
     wrong = [n for n in numbers if not 1 <= n <= total]
     if wrong:
         raise InputError(f"upload {upload_id} has parts 1 to {total}; no part {wrong[0]}")
-    key = direct_upload_key(upload_id)
-    return {"urls": {str(n): storage.part_url(key, direct_id, n, expires_s=PART_URL_EXPIRY_S) for n in numbers},
+    key, bucket = direct_upload_key(upload_id), _bucket(storage)
+    return {"urls": {str(n): bucket.part_url(key, direct_id, n, expires_s=PART_URL_EXPIRY_S) for n in numbers},
             "expires_s": PART_URL_EXPIRY_S, "part_bytes": DIRECT_PART_BYTES}
 
 
@@ -94,7 +101,7 @@ def parts_state(session: Session, storage: Storage, upload_id: str, *, club_id: 
     upload, direct_id = _open_direct(session, storage, upload_id, club_id)
     if direct_id is None:
         return {"transport": STREAM, "parts": [], "offset_bytes": upload.offset_bytes}
-    arrived = storage.direct_parts(direct_upload_key(upload_id), direct_id)
+    arrived = _bucket(storage).direct_parts(direct_upload_key(upload_id), direct_id)
     good = [p for p in arrived if p["size"] == _expected_size(p["number"], upload.length_bytes)]
     numbers = {p["number"] for p in good}
     in_order = 0
@@ -107,11 +114,11 @@ def parts_state(session: Session, storage: Storage, upload_id: str, *, club_id: 
 
 def check_parts(storage: Storage, upload_id: str, length_bytes: int) -> None:
     """Join a direct upload's parts into its object; `DirectUploadError` (409) naming what is missing."""
-    key = direct_upload_key(upload_id)
-    direct_id = storage.direct_id(key)
+    key, bucket = direct_upload_key(upload_id), _bucket(storage)
+    direct_id = bucket.direct_id(key)
     if direct_id is None:
         raise DirectUploadError(f"upload {upload_id} has no open parts in the bucket")
-    parts = {p["number"]: p for p in storage.direct_parts(key, direct_id)}
+    parts = {p["number"]: p for p in bucket.direct_parts(key, direct_id)}
     total = part_count(length_bytes)
     missing = [n for n in range(1, total + 1)
                if n not in parts or parts[n]["size"] != _expected_size(n, length_bytes)]
@@ -120,4 +127,4 @@ def check_parts(storage: Storage, upload_id: str, length_bytes: int) -> None:
         raise DirectUploadError(
             f"upload {upload_id} has {have} of its {length_bytes} bytes; send part(s) "
             f"{', '.join(map(str, missing[:10]))}{' ...' if len(missing) > 10 else ''} first")
-    storage.complete_direct(key, direct_id, [parts[n] for n in range(1, total + 1)])
+    bucket.complete_direct(key, direct_id, [parts[n] for n in range(1, total + 1)])

@@ -18,7 +18,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -49,7 +49,10 @@ from saddlescope.services.rides.registration import (
 )
 from saddlescope.services.rigs.calibration_way import choose_calibration_way
 from saddlescope.services.uploads.direct import check_parts, is_direct
-from saddlescope.storage import Storage, TooLarge, direct_upload_key, upload_key
+from saddlescope.storage import FileStorage, S3Storage, Storage, TooLarge, direct_upload_key, upload_key
+
+if TYPE_CHECKING:
+    from saddlescope.io.video import VideoInfo
 
 __all__ = [
     "BUNDLE_BLOCK_BYTES", "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS",
@@ -72,6 +75,13 @@ log = logging.getLogger(__name__)
 _SUFFIX = re.compile(r"^\.[a-z0-9]{1,8}$")
 
 
+class OwnerColumns(TypedDict):
+    """The columns naming a clip's owner: one of the two is set."""
+
+    ride_id: int | None
+    rig_id: int | None
+
+
 @dataclass(frozen=True)
 class ClipOwner:
     """A ride or a rig of a club, whose clip `clip_kind` of camera `camera` is being uploaded."""
@@ -85,7 +95,7 @@ class ClipOwner:
         """The owner in words (``ride 3``)."""
         return f"{self.kind} {self.id}"
 
-    def where(self) -> dict[str, int | None]:
+    def where(self) -> OwnerColumns:
         """The recording columns naming this owner (``ride_id`` and ``rig_id``)."""
         return (
             {"ride_id": self.id, "rig_id": None}
@@ -120,13 +130,13 @@ def find_owner(
     session: Session, *, club_id: int, ride_id: int | None = None, rig_id: int | None = None
 ) -> ClipOwner:
     """The ride or rig (of this club: `NotFound` otherwise)."""
-    if (ride_id is None) == (rig_id is None):
-        raise InputError("name exactly one of ride_id and rig_id")
-    if ride_id is not None:
+    if ride_id is not None and rig_id is None:
         RideRepository(session, club_id=club_id).get(ride_id)
         return ClipOwner("ride", ride_id, club_id)
-    RigRepository(session, club_id=club_id).get(rig_id)
-    return ClipOwner("rig", rig_id, club_id)
+    if rig_id is not None and ride_id is None:
+        RigRepository(session, club_id=club_id).get(rig_id)
+        return ClipOwner("rig", rig_id, club_id)
+    raise InputError("name exactly one of ride_id and rig_id")
 
 
 def _agreement(owner: ClipOwner, clip_kind: str, camera: str, info, others: list[Recording]) -> None:
@@ -148,7 +158,7 @@ def _agreement(owner: ClipOwner, clip_kind: str, camera: str, info, others: list
 
 
 def _probe_staged(storage: Storage, owner: ClipOwner, clip_kind: str, camera: str, staged_key: str, *,
-                  size_bytes: int, filename: str | None):
+                  size_bytes: int, filename: str | None) -> VideoInfo | None:
     """The staged clip's `VideoInfo` (None on object storage, where the worker's probe stage reads it).
 
     Raises `VideoError` naming the owner, the clip and the user's file (never the staging path) for an
@@ -159,16 +169,18 @@ def _probe_staged(storage: Storage, owner: ClipOwner, clip_kind: str, camera: st
     name = filename or "the upload"
     if size_bytes == 0:
         raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera is an empty file")
+    if not isinstance(storage, FileStorage):
+        return None  # on object storage the worker's probe stage reads the clip (the API keeps no video bytes)
+    path = storage.path(staged_key)
     try:
-        # On object storage the worker's probe stage reads the clip (the API keeps no video bytes).
-        info = probe_video(storage.path(staged_key)) if storage.local else None
+        info = probe_video(path)
     except VideoError as exc:
         # The staging path means nothing to the user (and says where storage lives): name the file.
-        reason = str(exc).replace(str(storage.path(staged_key)), name).removeprefix(f"{name}: ")
+        reason = str(exc).replace(str(path), name).removeprefix(f"{name}: ")
         raise VideoError(
             f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is not a usable video: {reason}"
         ) from None
-    if info is not None and (short := too_short_for(clip_kind, info)):
+    if short := too_short_for(clip_kind, info):
         raise VideoError(f"{owner.label}: the {clip_kind} clip of the {camera} camera ({name}) is too short: {short}")
     return info
 
@@ -301,7 +313,7 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
                 return None  # not complete yet
             if jobs.active_for(rig_id=owner.id, kind="calibrate_rig") is not None:
                 return None
-            kind, ids = "calibrate_rig", {"rig_id": owner.id}
+            kind = "calibrate_rig"
         else:
             ride = RideRepository(session, club_id=owner.club_id).get(owner.id)
             rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
@@ -317,8 +329,8 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
                 return None  # it would stop at a missing board or a partial clip set: never queue it
             if jobs.active_for(ride_id=ride.id) is not None:
                 return None
-            kind, ids = "analyze", {"ride_id": ride.id}
-    return submit_job(sessions, queue, kind=kind, club_id=owner.club_id, **ids)
+            kind = "analyze"
+    return submit_job(sessions, queue, kind=kind, club_id=owner.club_id, **owner.where())
 
 
 # A bundle zip in a bucket is read in place by ranged GETs of this size (few requests, bounded memory).
@@ -376,7 +388,7 @@ def accept_bundle(
             again = "your upload is kept: finalise it again" if give_back else "send the bundle again"
             raise QueueUnavailable(f"{shown}: {exc}; no ride was made from it, {again} in a moment") from None
     finally:
-        if give_back:
+        if give_back and return_to is not None:
             storage.move(staged_key, return_to)
         else:
             storage.delete(staged_key)
@@ -386,7 +398,7 @@ def accept_bundle(
 def _register_staged(sessions: sessionmaker[Session], storage: Storage, staged_key: str, shown: str,
                      **options: Any) -> int:
     """`register_bundle` of the staged zip; errors name the user's file (`shown`), not the staging key."""
-    if not storage.local:
+    if not isinstance(storage, FileStorage):
         # Read in place by ranges and copied member by member: no byte of it on this machine's disk.
         with storage.open_seekable(staged_key, block_bytes=BUNDLE_BLOCK_BYTES) as stream:
             return register_bundle(sessions, storage, stream, name=shown, **options)
@@ -584,7 +596,11 @@ def _finalise_staged(sessions: sessionmaker[Session], storage: Storage, queue: J
                                          return_to=upload_key(upload_id))
         return {"ride_id": new_ride, "job_id": job_id}
     ride_clip = claimed.target == UploadTarget.RIDE_CLIP
-    owner = ClipOwner("ride" if ride_clip else "rig", claimed.ride_id if ride_clip else rig_id, club_id)
+    owner_id = claimed.ride_id if ride_clip else rig_id
+    if owner_id is None or claimed.clip_kind is None or claimed.camera is None:  # create_upload sets them
+        raise InputError(f"upload {upload_id} is a clip without its {'ride' if ride_clip else 'rig'}, clip kind "
+                         "or camera")
+    owner = ClipOwner("ride" if ride_clip else "rig", owner_id, club_id)
     return _finalise_clip(sessions, storage, queue, owner, claimed.clip_kind, claimed.camera, staged,
                           size=claimed.length_bytes, filename=claimed.filename)
 
@@ -596,7 +612,7 @@ def _finalise_clip(sessions: sessionmaker[Session], storage: Storage, queue: Job
                                sha256=storage.sha256(staged), filename=filename)
     start_calibration_check(sessions, queue, owner, clip_kind)
     job_id = start_processing(sessions, queue, owner)
-    outcome = {"recording_id": recording_id, "job_id": job_id}
+    outcome: dict[str, Any] = {"recording_id": recording_id, "job_id": job_id}
     if owner.kind == "ride" and job_id is None:
         with session_scope(sessions) as session:
             # Said with the clip, so the page never reports "queued" for a ride that cannot run.
@@ -648,7 +664,7 @@ def _upload_locked(session: Session, storage: Storage, upload_id: str, *, club_i
     A file lock on this host's disk, the row's lock in the database otherwise (API replicas on several hosts share
     only the database and the bucket).
     """
-    if storage.local:
+    if isinstance(storage, FileStorage):  # `local`: keys are files on this machine
         with storage.locked(upload_key(upload_id)):
             session.rollback()  # read the offset as it is now, under the lock
             yield
@@ -699,7 +715,7 @@ def remove_upload_files(storage: Storage, upload_ids: list[str]) -> None:
     """Delete the bytes of uploads: their collected file and any chunk still being checked."""
     for upload_id in upload_ids:
         storage.delete(upload_key(upload_id))
-        if storage.kind == "s3":  # a direct upload's parts, and its object if it was joined
+        if isinstance(storage, S3Storage):  # a direct upload's parts, and its object if it was joined
             storage.abort_direct(direct_upload_key(upload_id))
             storage.delete(direct_upload_key(upload_id))
     if upload_ids and storage.exists("uploads"):
