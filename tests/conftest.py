@@ -64,6 +64,14 @@ HEAVY_FIRST = (
     "tests/e2e/dashboard_helpers.py",
     "tests/e2e/test_page_audit.py",
     "tests/io/test_synth_writer.py",
+    # few tests each but long ones (CI's durations, 2026-11-29): first, so none is left running alone at the end
+    "tests/e2e/test_club_journey.py",  # ~150 s
+    "tests/api/test_api_real_pipeline.py",  # ~145 s
+    "tests/core/pipeline/test_wand_ride.py",  # ~125 s
+    "tests/core/pipeline/test_partial_views.py",  # ~100 s
+    "tests/core/pipeline/test_passes_rendered.py",  # ~85 s
+    "tests/core/pipeline/test_rolling_shutter_ride.py",  # ~85 s
+    "tests/services/test_calibration_check.py",  # ~80 s
 )
 _HEAVY_MARKS = ("slow", "browser", "integration")
 
