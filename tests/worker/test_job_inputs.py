@@ -12,7 +12,7 @@ import pytest
 from sqlalchemy import event
 
 from saddlescope.db.migrate import upgrade_to_head
-from saddlescope.db.models import Ride
+from saddlescope.db.models import Job, Ride
 from saddlescope.db.repositories import (
     ClubRepository,
     HorseRepository,
@@ -139,10 +139,8 @@ def test_a_job_whose_ride_is_gone_fails_with_the_reason(settings, sessions, monk
                         lambda sessions, _ride_id, job_id: real(sessions, 10_000, job_id=job_id))
     assert run_job(job_id, settings=settings) == "failed"
     with sessions() as s:
-        from saddlescope.db.models import Job
-
-        assert s.get(Job, job_id).error == f"probe: ride 10000 of job {job_id} no longer exists (deleted after the job " \
-                                           "was queued)"
+        error = s.get(Job, job_id).error
+    assert error == f"probe: ride 10000 of job {job_id} no longer exists (deleted after the job was queued)"
 
 
 class _NoDatabase:
