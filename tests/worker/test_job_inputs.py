@@ -233,3 +233,23 @@ def test_analyze_uses_the_calibration_this_runs_calibrate_stage_stored(settings,
     stages.run_analyze(_context(settings, inputs, "analyze", run, sessions=sessions))
     assert overrides_seen[0]["rig_report"] == {"n_views": 40, "board_coverage": 0.7}
     assert overrides_seen[0]["meta_overrides"] == {"gait": "rising_trot", "direction": "CW"}
+
+
+def test_the_ride_shows_processing_from_the_transaction_that_starts_its_job(settings, sessions, monkeypatch):
+    ride_id, _ = _ride_of_clips(sessions, open_storage(settings), calibrated=True)
+    seen: list[str] = []
+
+    def peek(ctx):
+        with sessions() as s:
+            seen.append(s.get(Ride, ride_id).status)
+
+    monkeypatch.setitem(stages.STAGES, "peek", stages.Stage("peek", peek))
+    monkeypatch.setitem(stages.JOB_KINDS, "analyze", stages.JobKind("analyze", ("peek",), needs_ride=True))
+    with session_scope(sessions) as s:
+        job_id = create_job(s, kind="analyze", ride_id=ride_id).id
+    with sessions() as s:
+        assert s.get(Ride, ride_id).status == "ready"
+    assert run_job(job_id, settings=settings) == "done"
+    assert seen == ["processing"]
+    with sessions() as s:
+        assert s.get(Ride, ride_id).status == "ready"  # done without a result: back to its clips' status

@@ -329,6 +329,7 @@ def _claim(sessions: sessionmaker[Session], settings: Settings, job_id: int) -> 
             # Finished already, cancelled before it started, or running on a live worker (a copy
             # re-sent after the broker lost its data): never run twice at once.
             return jobs.status_of(job_id) or job.status
+        refresh_ride_status(session, job.ride_id)  # "processing", in the transaction that starts the job
         return _Claimed(_Fence(job_id, attempt, host), kind, job.club_id, job.ride_id, job.rig_id,
                         dict(job.payload or {}))
 
@@ -380,8 +381,6 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
     if isinstance(claimed, str):
         return claimed
     fence, kind, ride_id = claimed.fence, claimed.kind, claimed.ride_id
-
-    _refresh_ride_status(sessions, ride_id)
     progress = _Progress(fence, sessions, {name: STAGES[name].weight for name in kind.stages})
     timings: dict[str, float] = {}
     t_job = time.perf_counter()
