@@ -29,7 +29,8 @@ if TYPE_CHECKING:
     from saddlescope.db.models import Recording, Rig
 
 __all__ = [
-    "DEFAULT_MARKERS", "ClipInput", "HorseDetails", "RideGone", "RideJobInputs", "RigGone", "RigInputs",
+    "DEFAULT_MARKERS", "ClipInput", "ClipPlan", "HorseDetails", "RideGone", "RideJobInputs", "RigGone", "RigInputs",
+    "bundle_clip_paths",
     "read_ride_job_inputs", "read_rig_inputs", "ride_document",
 ]
 
