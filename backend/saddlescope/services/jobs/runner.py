@@ -15,10 +15,11 @@ import shutil
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Generic, TypeVar
 
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
@@ -28,6 +29,7 @@ from saddlescope.db.enums import JobStatus
 from saddlescope.db.models import utcnow
 from saddlescope.db.repositories import JobRepository
 from saddlescope.db.session import session_factory_for, session_scope
+from saddlescope.services.jobs.inputs import RideJobInputs, RigInputs, read_ride_job_inputs, read_rig_inputs
 from saddlescope.services.jobs.stages import JOB_KINDS, STAGES, JobCancelled, JobFenced, JobKind, StageContext
 from saddlescope.services.rides.registration import refresh_ride_status
 from saddlescope.settings import Settings, get_settings
@@ -270,6 +272,22 @@ def _removed_after(folder: Path) -> Iterator[Path]:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+_T = TypeVar("_T")
+
+
+class _ReadOnce(Generic[_T]):
+    """Calls `read` on first use and hands every later caller (every stage of the run) the same answer."""
+
+    def __init__(self, read: Callable[[], _T]) -> None:
+        self._read = read
+        self._value: _T | None = None
+
+    def __call__(self) -> _T:
+        if self._value is None:
+            self._value = self._read()
+        return self._value
+
+
 @dataclass(frozen=True)
 class _Claimed:
     """A job this process now runs: its fence and what its stages need."""
@@ -280,6 +298,14 @@ class _Claimed:
     ride_id: int | None
     rig_id: int | None
     payload: dict
+
+    def readers(self, sessions: sessionmaker[Session]) -> tuple[Callable[[], RideJobInputs] | None,
+                                                             Callable[[], RigInputs] | None]:
+        """The job's ride and rig, each read from the database once per run, when a stage first asks."""
+        job_id, ride_id, rig_id = self.fence.job_id, self.ride_id, self.rig_id
+        ride = None if ride_id is None else _ReadOnce(lambda: read_ride_job_inputs(sessions, ride_id, job_id=job_id))
+        rig = None if rig_id is None else _ReadOnce(lambda: read_rig_inputs(sessions, rig_id, job_id=job_id))
+        return ride, rig
 
 
 def _claim(sessions: sessionmaker[Session], settings: Settings, job_id: int) -> _Claimed | str:
@@ -303,6 +329,7 @@ def _claim(sessions: sessionmaker[Session], settings: Settings, job_id: int) -> 
             # Finished already, cancelled before it started, or running on a live worker (a copy
             # re-sent after the broker lost its data): never run twice at once.
             return jobs.status_of(job_id) or job.status
+        refresh_ride_status(session, job.ride_id)  # "processing", in the transaction that starts the job
         return _Claimed(_Fence(job_id, attempt, host), kind, job.club_id, job.ride_id, job.rig_id,
                         dict(job.payload or {}))
 
@@ -354,8 +381,6 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
     if isinstance(claimed, str):
         return claimed
     fence, kind, ride_id = claimed.fence, claimed.kind, claimed.ride_id
-
-    _refresh_ride_status(sessions, ride_id)
     progress = _Progress(fence, sessions, {name: STAGES[name].weight for name in kind.stages})
     timings: dict[str, float] = {}
     t_job = time.perf_counter()
@@ -372,6 +397,7 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
 
     # This run's own local folder: the stages fetch their inputs into it and write their outputs in it.
     scratch = Path(tempfile.mkdtemp(prefix=f"saddlescope-job{job_id}-attempt{fence.attempt}-"))
+    read_inputs, read_rig_inputs = claimed.readers(sessions)
     with _Heartbeat(fence, sessions, settings.resolved_heartbeat_s), _removed_after(scratch):
         try:
             for current in kind.stages:
@@ -379,7 +405,8 @@ def run_job(job_id: int, *, settings: Settings | None = None) -> str:
                 ctx = StageContext(job_id=job_id, attempt=fence.attempt, host=fence.host, kind=kind.name,
                                    stage=current, club_id=claimed.club_id, ride_id=ride_id, rig_id=claimed.rig_id,
                                    payload=claimed.payload, settings=settings, storage=storage,
-                                   sessions=sessions, report=progress, scratch=scratch)
+                                   sessions=sessions, report=progress, scratch=scratch, read_inputs=read_inputs,
+                                   read_rig_inputs=read_rig_inputs)
                 t_stage = time.perf_counter()
                 try:
                     STAGES[current].run(ctx)

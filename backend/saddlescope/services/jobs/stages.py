@@ -1,7 +1,8 @@
 """The stage registry: what each job kind runs, in which order.
 
-A *stage* is a function ``run(ctx: StageContext) -> None`` that reads its inputs (database rows,
-stored clips fetched with `StageContext.fetch`, the folders of earlier stages of the same run) and
+A *stage* is a function ``run(ctx: StageContext) -> None`` that reads its inputs (the ride's or rig's
+rows read once per run, `StageContext.inputs` / `rig_inputs` (`services.jobs.inputs`), stored clips
+fetched with `StageContext.fetch`, the folders of earlier stages of the same run) and
 writes only its own outputs: its folder in the run's scratch folder (`StageContext.outputs`, emptied
 before each run; local to the worker and removed when the job ends) and, through fenced writes
 (`commit_result`), the rows and stored documents it owns, under keys naming the job and its attempt.
@@ -24,13 +25,14 @@ Stages never see Celery: the same functions run in a Celery worker and in the em
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,23 +41,18 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy.orm import Session, sessionmaker
 
 from saddlescope.core.errors import BundleError, CalibrationError, InputError, SaddleScopeError, VideoError
-from saddlescope.core.types import CAMERA_ROLES
-from saddlescope.db.repositories import (
-    Conflict,
-    JobRepository,
-    RecordingRepository,
-    RideRepository,
-    RigRepository,
-)
+from saddlescope.db.repositories import Conflict, JobRepository, RecordingRepository, RigRepository
 from saddlescope.db.session import session_scope
 from saddlescope.services.jobs.fencing import JobFenced
-from saddlescope.services.rides.registration import (
-    ANALYSIS_JOB_KIND,
-    analysed_settings,
-    complete_clip_sets,
-    note_analysed_settings,
-    ride_clip_plan,
+from saddlescope.services.jobs.inputs import (
+    DEFAULT_MARKERS,
+    ClipInput,
+    RideJobInputs,
+    RigInputs,
+    bundle_clip_paths,
+    ride_document,
 )
+from saddlescope.services.rides.registration import ANALYSIS_JOB_KIND, complete_clip_sets, note_analysed_settings
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage, sha256_file, tree_digest
 
@@ -70,7 +67,6 @@ __all__ = [
 ]
 
 ASSEMBLED_BUNDLE = "bundle"  # folder name of the assembled ride bundle in the assemble stage's outputs
-DEFAULT_MARKERS = {"horse": 3, "plumb": 2, "saddle": 1}
 
 
 class StageUnavailable(SaddleScopeError):
@@ -100,6 +96,26 @@ class StageContext:
     report: Callable[[float, str | None], None] = field(repr=False)
     # This run's own local folder (one per job attempt): fetched inputs and the stages' outputs.
     scratch: Path = field(default_factory=lambda: Path(tempfile.mkdtemp(prefix="saddlescope-stage-")))
+    # Read the job's ride (rig) from the database, once per run: the runner shares one reader by all stages.
+    read_inputs: Callable[[], RideJobInputs] | None = field(default=None, repr=False)
+    read_rig_inputs: Callable[[], RigInputs] | None = field(default=None, repr=False)
+
+    @property
+    def inputs(self) -> RideJobInputs:
+        """The job's ride, its rig and their clips as read once for this run; `InputError` for a job without one."""
+        self._require_ride()
+        if self.read_inputs is None:
+            raise InputError(f"stage {self.stage!r} of job {self.job_id}: no reader of the ride's inputs was given")
+        return self.read_inputs()
+
+    @property
+    def rig_inputs(self) -> RigInputs:
+        """The job's rig and its clips as read once for this run; `InputError` for a job without one."""
+        if self.rig_id is None:
+            raise InputError(f"stage {self.stage!r} of job {self.job_id} needs a rig, the job has none")
+        if self.read_rig_inputs is None:
+            raise InputError(f"stage {self.stage!r} of job {self.job_id}: no reader of the rig's inputs was given")
+        return self.read_rig_inputs()
 
     @contextmanager
     def session(self) -> Iterator[Session]:
@@ -234,16 +250,16 @@ def run_selftest(ctx: StageContext) -> None:
         raise InputError(f"selftest job {ctx.job_id} failed on request (payload fail=true)")
 
 
-def _recorded_probe(recording) -> tuple[int, VideoInfo] | None:
-    """(size in bytes, clip facts) a recording was probed with (at upload, or by an earlier job), or None."""
+def _recorded_probe(clip: ClipInput) -> tuple[int, VideoInfo] | None:
+    """(size in bytes, clip facts) a clip was probed with (at upload, or by an earlier job), or None."""
     from saddlescope.io.video import VideoInfo
 
-    r = recording
-    if r.probed_at is None or not r.sha256 or r.size_bytes is None or None in (r.fps, r.frame_count, r.width,
-                                                                               r.height):
+    c = clip
+    if (not c.probed or not c.sha256 or c.size_bytes is None or c.fps is None or c.frame_count is None
+            or c.width is None or c.height is None):
         return None
-    return r.size_bytes, VideoInfo(Path(r.path), float(r.fps), int(r.frame_count), int(r.width), int(r.height),
-                                   r.codec or "", r.frame_count / r.fps if r.fps else 0.0)
+    return c.size_bytes, VideoInfo(Path(c.key), float(c.fps), int(c.frame_count), int(c.width), int(c.height),
+                                   c.codec or "", c.frame_count / c.fps if c.fps else 0.0)
 
 
 def _stored_file_size(storage, key: str) -> int | None:
@@ -262,17 +278,13 @@ def run_probe(ctx: StageContext) -> None:
     """Read every clip of the ride (or rig): size, sha256, fps, frame count and frame size."""
     from saddlescope.io.video import probe_video, too_short_for
 
-    with ctx.session() as session:
-        repo = RecordingRepository(session)
-        if ctx.ride_id is not None:
-            recordings = repo.for_ride(ctx.ride_id)
-            owner = f"ride {ctx.ride_id}"
-        elif ctx.rig_id is not None:
-            recordings = repo.for_rig(ctx.rig_id)
-            owner = f"rig {ctx.rig_id}"
-        else:
-            raise InputError(f"probe job {ctx.job_id} names neither a ride nor a rig")
-        clips = [(r.id, r.path, r.clip_kind, r.camera_role, _recorded_probe(r)) for r in recordings]
+    if ctx.ride_id is not None:
+        recordings, owner = ctx.inputs.clips, f"ride {ctx.ride_id}"
+    elif ctx.rig_id is not None:
+        recordings, owner = ctx.rig_inputs.clips, f"rig {ctx.rig_id}"
+    else:
+        raise InputError(f"probe job {ctx.job_id} names neither a ride nor a rig")
+    clips = [(c.recording_id, c.key, c.clip_kind, c.camera_role, _recorded_probe(c)) for c in recordings]
     if not clips:
         raise BundleError(f"{owner} has no recordings to probe")
     probed: dict[str, list] = {}
@@ -317,78 +329,30 @@ def run_probe(ctx: StageContext) -> None:
     ctx.report(1.0, None)
 
 
-def ride_document(ride, rig, *, clips: dict[str, dict[str, str]],
-                  calibration_file: str | None) -> dict[str, Any]:
-    """ride.json (CONTRACTS section 1) of a ride assembled from stored clips."""
-    meta = dict(ride.meta or {})
-    board = meta.get("board") or (rig.board if rig is not None else None)
-    if not board:
-        raise InputError(f"ride {ride.id}: no calibration board described (give the rig a 'board', or "
-                         "the ride a meta.board)")
-    horse = ride.horse
-    doc: dict[str, Any] = {
-        "format": "saddlescope.ride/1", "cameras": list(CAMERA_ROLES), "board": board,
-        "sync": meta.get("sync") or {"method": "flash"},
-        "markers": meta.get("markers") or dict(DEFAULT_MARKERS),
-        "horse": {"name": horse.name, "breed": horse.breed, "birth_year": horse.birth_year,
-                  "height_m": horse.height_withers_m},
-        "rider": {"name": ride.rider.name}, "gait": ride.gait, "direction": ride.direction, "clips": clips,
-    }
-    if calibration_file is not None:
-        doc["calibration_file"] = calibration_file
-    return doc
-
-
 @stage("assemble", weight=0.5)
 def run_assemble(ctx: StageContext) -> None:
     """Put the ride's clips (and its rig's shared ones) together as a ride bundle."""
-    ride_id = ctx._require_ride()
-    with ctx.session() as session:
-        ride = RideRepository(session).get(ride_id)
-        if ride.bundle_key is not None:
-            replaced = _replaced_bundle_clips(ride.bundle_key, RecordingRepository(session).for_ride(ride_id))
-            bundle_key = ride.bundle_key
-            if replaced:
-                _bundle_with_replacements(ctx, bundle_key, replaced)
-            else:
-                (ctx.outputs() / "source.json").write_text(json.dumps({"bundle_key": bundle_key}))
-            return
-        rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
-        recordings = RecordingRepository(session)
-        plan = ride_clip_plan(recordings.for_ride(ride_id), recordings.for_rig(rig.id) if rig else [],
-                              rig_calibrated=bool(rig is not None and rig.calibration))
-        calibration = dict(rig.calibration) if rig is not None and rig.calibration else None
-        if (rig is not None and calibration is not None and plan.get("calibration")
-                and plan["calibration"] == complete_clip_sets(recordings.for_rig(rig.id)).get("calibration")):
-            # The rig's calibration replaces its clips: no need to carry them into every ride.
-            plan.pop("calibration")
-        clips = {kind: {role: f"{kind}/{role}{Path(key).suffix}" for role, key in cams.items()}
-                 for kind, cams in plan.items()}
-        doc = ride_document(ride, rig, clips=clips,
-                            calibration_file="calibration.json" if "calibration" not in plan else None)
+    inputs = ctx.inputs
+    if inputs.bundle_key is not None:
+        replaced = inputs.replaced_bundle_clips()
+        if replaced:
+            _bundle_with_replacements(ctx, inputs.bundle_key, replaced)
+        else:
+            (ctx.outputs() / "source.json").write_text(json.dumps({"bundle_key": inputs.bundle_key}))
+        return
+    plan = inputs.require_clip_plan()
+    clips = bundle_clip_paths(plan)
+    doc = ride_document(inputs, clips=clips, calibration_file="calibration.json" if "calibration" not in plan else None)
     folder = ctx.outputs() / ASSEMBLED_BUNDLE
     folder.mkdir()
     for i, (kind, cams) in enumerate(plan.items()):
         for role, key in cams.items():
             ctx.storage.fetch(key, folder / clips[kind][role])
         ctx.report((i + 1) / (len(plan) + 1), kind)
-    if "calibration" not in plan:
-        (folder / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
+    if "calibration" not in plan:  # the plan leaves the clips out only when the rig's calibration is stored
+        (folder / "calibration.json").write_text(json.dumps(inputs.calibration, allow_nan=False))
     (folder / "ride.json").write_text(json.dumps(doc, indent=1, allow_nan=False))
     ctx.report(1.0, None)
-
-
-def _replaced_bundle_clips(bundle_key: str, recordings) -> dict[str, dict[str, str]]:
-    """The clips of a bundle ride uploaded again from its ride page: {kind: {camera: storage key}}.
-
-    A bundle's own clips are stored under its bundle key; a clip replaced later is stored with the ride's
-    clips (`services.uploads.intake.accept_clip`) and takes the bundle clip's place when the ride is assembled.
-    """
-    replaced: dict[str, dict[str, str]] = {}
-    for recording in recordings:
-        if recording.path and not recording.path.startswith(f"{bundle_key}/"):
-            replaced.setdefault(recording.clip_kind, {})[recording.camera_role] = recording.path
-    return replaced
 
 
 def _bundle_with_replacements(ctx: StageContext, bundle_key: str, replaced: dict[str, dict[str, str]]) -> None:
@@ -411,17 +375,15 @@ def _bundle_with_replacements(ctx: StageContext, bundle_key: str, replaced: dict
     ctx.report(1.0, None)
 
 
-def _bundle_path(ctx: StageContext, ride) -> Path:
+def _bundle_path(ctx: StageContext, inputs: RideJobInputs) -> Path:
+    """The ride's bundle on this worker: the one assembled in this run, else its uploaded bundle fetched."""
     assembled = ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE
     if (assembled / "ride.json").is_file():  # a bundle ride with a clip replaced, or a ride of clips
         return assembled
-    if ride.bundle_key is not None:
-        return ctx.fetch(ride.bundle_key)
-    folder = ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE
-    if not (folder / "ride.json").is_file():
-        raise BundleError(f"ride {ride.id}: its clips were not assembled into a bundle (run the assemble "
-                          "stage)")
-    return folder
+    if inputs.bundle_key is not None:
+        return ctx.fetch(inputs.bundle_key)
+    raise BundleError(f"ride {inputs.ride_id}: its clips were not assembled into a bundle (run the assemble "
+                      "stage)")
 
 
 def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict,
@@ -434,11 +396,14 @@ def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path],
 
 def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, Any], *,
                        replace: bool) -> dict[str, Any]:
-    """Keep a rig's new calibration (the job's output and the rig's row); returns the one the rig has."""
+    """Keep a rig's new calibration (the job's output and the rig's row); returns the one the rig has.
+
+    The stage's calibration.json is the one the rig has once stored (another job's, when it came first):
+    the analyze stage of the same run reads it there.
+    """
     from saddlescope.services.rigs.calibration import calibration_quality
 
     out = ctx.outputs()
-    (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
     with ctx.session() as session:
         ctx.hold(session)
         rigs = RigRepository(session)
@@ -446,6 +411,7 @@ def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, An
             rigs.set_calibration(rig_id, calibration, calibration_quality(calibration))
         elif not rigs.set_calibration_if_missing(rig_id, calibration, calibration_quality(calibration)):
             calibration = dict(rigs.get(rig_id).calibration)  # another job calibrated it first: use that
+    (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
     ctx.report(1.0, None)
     return calibration
 
@@ -453,53 +419,50 @@ def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, An
 @stage("calibrate", weight=6.0)
 def run_calibrate(ctx: StageContext) -> None:
     """The rig's calibration: reused when stored, else computed once from the rig's clips and stored."""
-    ride_id = ctx._require_ride()
-    with ctx.session() as session:
-        ride = RideRepository(session).get(ride_id)
-        rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
-        if rig is None or rig.calibration:
-            note = {"source": "ride" if rig is None else "rig", "rig_id": rig.id if rig else None,
-                    "reused": rig is not None}
-            (ctx.outputs() / "source.json").write_text(json.dumps(note))
-            return
-        rig_clips = complete_clip_sets(RecordingRepository(session).for_rig(rig.id)).get("calibration")
-        rig_id, board = rig.id, rig.board
-        meta = dict(ride.meta or {})
+    inputs = ctx.inputs
+    rig = inputs.rig
+    if rig is None or rig.calibration:
+        note = {"source": "ride" if rig is None else "rig", "rig_id": rig.rig_id if rig else None,
+                "reused": rig is not None}
+        (ctx.outputs() / "source.json").write_text(json.dumps(note))
+        return
+    rig_clips = rig.calibration_clips
     if rig_clips is not None:
-        if not board:
-            raise CalibrationError(f"rig {rig_id} has no 'board' (the calibration board its clips show)")
+        if not rig.board:
+            raise CalibrationError(f"rig {rig.rig_id} has no 'board' (the calibration board its clips show)")
         paths = {role: ctx.fetch(key) for role, key in rig_clips.items()}
-        _calibrate_and_store(ctx, rig_id, paths, board, meta.get("sync"), replace=False)
+        _calibrate_and_store(ctx, rig.rig_id, paths, dict(rig.board), _copied(inputs.sync), replace=False)
         return
     # A ride bundle uploaded for a rig without calibration clips: the bundle's own clips calibrate the rig.
     from saddlescope.io.bundle import open_bundle
 
-    with ctx.session() as session:
-        path = _bundle_path(ctx, RideRepository(session).get(ride_id))
-    with open_bundle(path) as bundle:
+    with open_bundle(_bundle_path(ctx, inputs)) as bundle:
         if "calibration" not in bundle.clip_paths:
-            raise CalibrationError(f"rig {rig_id} has no calibration, and neither the rig nor ride "
-                                   f"{ride_id} has calibration clips to compute it")
-        _calibrate_and_store(ctx, rig_id, dict(bundle.clip_paths["calibration"]), bundle.meta["board"],
+            raise CalibrationError(f"rig {rig.rig_id} has no calibration, and neither the rig nor ride "
+                                   f"{inputs.ride_id} has calibration clips to compute it")
+        _calibrate_and_store(ctx, rig.rig_id, dict(bundle.clip_paths["calibration"]), bundle.meta["board"],
                              bundle.meta.get("sync"), replace=False)
 
 
-def _calibrate_rig_from_ride(ctx: StageContext, ride_id: int, rig_id: int) -> None:
-    """Calibrate rig `rig_id` from ride `ride_id`'s own calibration clips (a bundle's), replacing its calibration."""
-    with ctx.session() as session:
-        ride = RideRepository(session).get(ride_id)
-        rig = RigRepository(session).get(rig_id)
-        clips = complete_clip_sets(RecordingRepository(session).for_ride(ride_id)).get("calibration")
-        meta = dict(ride.meta or {})
-        board = meta.get("board") or rig.board
+def _copied(section: Mapping[str, Any] | None) -> dict[str, Any] | None:
+    """A ride.json section of the inputs as a dict of the stage's own (None stays None)."""
+    return copy.deepcopy(dict(section)) if section is not None else None
+
+
+def _calibrate_rig_from_ride(ctx: StageContext, rig: RigInputs) -> None:
+    """Calibrate rig `rig` from the job's ride's own calibration clips (a bundle's), replacing its calibration."""
+    inputs = ctx.inputs
+    clips = complete_clip_sets(inputs.clips_as_recordings()).get("calibration")
+    board = inputs.board or rig.board
     if clips is None:
-        raise CalibrationError(f"ride {ride_id} has no calibration clips of the left, middle and right cameras "
-                               "to calibrate its rig with")
+        raise CalibrationError(f"ride {inputs.ride_id} has no calibration clips of the left, middle and right "
+                               "cameras to calibrate its rig with")
     if not board:
-        raise CalibrationError(f"neither ride {ride_id} nor rig {rig_id} describes the calibration board its "
-                               "clips show")
+        raise CalibrationError(f"neither ride {inputs.ride_id} nor rig {rig.rig_id} describes the calibration "
+                               "board its clips show")
     paths = {role: ctx.fetch(key) for role, key in clips.items()}
-    _calibrate_and_store(ctx, rig_id, paths, board, ctx.payload.get("sync") or meta.get("sync"), replace=True)
+    _calibrate_and_store(ctx, rig.rig_id, paths, _copied(board) or {},
+                         ctx.payload.get("sync") or _copied(inputs.sync), replace=True)
 
 
 @stage("calibrate_rig", weight=6.0)
@@ -511,18 +474,17 @@ def run_calibrate_rig(ctx: StageContext) -> None:
     """
     if ctx.rig_id is None:
         raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
+    rig = ctx.rig_inputs
     if ctx.ride_id is not None:  # "use this ride's calibration for the rig": the ride's own calibration clips
-        _calibrate_rig_from_ride(ctx, ctx.ride_id, ctx.rig_id)
+        _calibrate_rig_from_ride(ctx, rig)
         return
     from saddlescope.services.rigs.calibration_way import choose_calibration_way
 
-    with ctx.session() as session:
-        rig = RigRepository(session).get(ctx.rig_id)
-        try:  # the board walk, or the wand way when the rig has its wand clips and length (issue 35)
-            way = choose_calibration_way(rig, RecordingRepository(session).for_rig(rig.id), ctx.payload.get("method"))
-        except Conflict as exc:
-            raise CalibrationError(str(exc)) from None
-        board = dict(rig.board)
+    try:  # the board walk, or the wand way when the rig has its wand clips and length (issue 35)
+        way = choose_calibration_way(rig, rig.recordings(), ctx.payload.get("method"))
+    except Conflict as exc:
+        raise CalibrationError(str(exc)) from None
+    board = copy.deepcopy(dict(rig.board or {}))
     if way.method == "board":
         paths = {role: ctx.fetch(key) for role, key in way.clips["calibration"].items()}
         _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
@@ -542,11 +504,9 @@ def run_check_calibration(ctx: StageContext) -> None:
 
     if ctx.rig_id is None:
         raise InputError(f"check_calibration job {ctx.job_id} names no rig")
-    with ctx.session() as session:
-        rig = RigRepository(session).get(ctx.rig_id)
-        clips = {r.camera_role: (r.id, r.path) for r in RecordingRepository(session).for_rig(rig.id)
-                 if r.clip_kind == "calibration"}
-        board = rig.board
+    rig = ctx.rig_inputs
+    clips = {c.camera_role: (c.recording_id, c.key) for c in rig.clips if c.clip_kind == "calibration"}
+    board = _copied(rig.board)
     if not board:
         raise CalibrationError(f"rig {ctx.rig_id} has no 'board' (the calibration board its clips show)")
     if not clips:
@@ -558,13 +518,14 @@ def run_check_calibration(ctx: StageContext) -> None:
     ctx.report(1.0, None)
 
 
-def _edited_settings(bundle: Path, settings: dict[str, str]) -> dict[str, str]:
-    """The ride's settings its bundle's ride.json says otherwise (edited after the upload)."""
-    try:
-        meta = json.loads((Path(bundle) / "ride.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        meta = {}
-    return {name: value for name, value in settings.items() if meta.get(name) != value}
+def _calibration_for_analysis(ctx: StageContext, inputs: RideJobInputs) -> dict[str, Any] | None:
+    """The rig's calibration: stored when the job started, else the one this run's calibrate stage stored."""
+    if inputs.calibration is not None:
+        return copy.deepcopy(dict(inputs.calibration))
+    calibrated = ctx.stage_dir("calibrate") / "calibration.json"
+    if inputs.rig is not None and calibrated.is_file():
+        return dict(json.loads(calibrated.read_text(encoding="utf-8")))
+    return None
 
 
 @stage("analyze", weight=20.0)
@@ -577,35 +538,31 @@ def run_analyze(ctx: StageContext) -> None:
             raise
         raise StageUnavailable("the analysis pipeline (saddlescope.services.analysis.ride_bundle) is not part of this "
                                "installation yet, so rides cannot be analysed") from None
-    ride_id = ctx._require_ride()
-    with ctx.session() as session:
-        ride = RideRepository(session).get(ride_id)
-        club_id = ride.club_id
-        rig = RigRepository(session).find(ride.rig_id) if ride.rig_id is not None else None
-        calibration = dict(rig.calibration) if rig is not None and rig.calibration else None
-        if ride.bundle_key is None and not (ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE).is_dir():
-            raise BundleError(f"ride {ride_id} has no ride bundle in storage (register its clips first)")
-        path = _bundle_path(ctx, ride)
-        settings = analysed_settings(ride)  # a bundle's ride.json may say otherwise: the ride's own win
+    inputs = ctx.inputs
+    if inputs.bundle_key is None and not (ctx.stage_dir("assemble") / ASSEMBLED_BUNDLE).is_dir():
+        raise BundleError(f"ride {inputs.ride_id} has no ride bundle in storage (register its clips first)")
+    path = _bundle_path(ctx, inputs)
+    calibration = _calibration_for_analysis(ctx, inputs)
     rig_model = None
     if calibration is not None:
         from saddlescope.services.rigs.calibration import rig_from_calibration
 
         rig_model = rig_from_calibration(calibration)
-    changed = _edited_settings(path, settings)
     # where the rig's board has been: the lens model is held to it and markers outside it are flagged (issue 27)
     rig_report = {k: calibration[k] for k in ("n_views", "board_coverage") if calibration and calibration.get(k)}
+    # The ride's own settings win over what a bundle's ride.json says (edited after the upload, or chosen then).
+    settings = inputs.analysed_settings
     result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model, rig_report=rig_report,
-                            meta_overrides=changed or None)
+                            meta_overrides=dict(settings))
     # The result document is what the dashboard and the exports read (its series decimated on the way);
     # it replaces the previous one atomically (the old one stays readable until the new one is committed).
     from saddlescope.services.results.documents import commit_result
 
-    commit_result(ctx.sessions, ctx.storage, club_id=club_id, ride_id=ride_id, job_id=ctx.job_id,
+    commit_result(ctx.sessions, ctx.storage, club_id=inputs.club_id, ride_id=inputs.ride_id, job_id=ctx.job_id,
                   document=result, code_version=ctx.settings.resolved_code_version,
                   attempt=ctx.attempt, host=ctx.host)
     with ctx.session() as session:
-        note_analysed_settings(session, ride_id, settings)
+        note_analysed_settings(session, inputs.ride_id, settings)
     ctx.report(1.0, None)
 
 
