@@ -96,3 +96,41 @@ def test_a_ride_through_clips_jobs_and_results(sessions):
 def test_an_unknown_ride_has_no_status(sessions):
     with session_scope(sessions) as s:
         assert refresh_ride_status(s, 12345) is None and refresh_ride_status(s, None) is None
+
+
+def test_a_rides_status_follows_its_rigs_clips_and_calibration(sessions):
+    """A ride filmed with a rig needs the rig's calibration clips or its calibration: when they arrive (or the
+    calibration goes) the ride's status follows at once, not at the ride's next change."""
+    from saddlescope.db.repositories import RigRepository
+    from saddlescope.services.rides.registration import refresh_rig_rides_status
+
+    with session_scope(sessions) as s:
+        club = ClubRepository(s).get_or_create("B")
+        horse = HorseRepository(s, club_id=club.id).add(name="Horse")
+        rider = RiderRepository(s, club_id=club.id).add(name="Rider")
+        rig = RigRepository(s, club_id=club.id).add(name="Monday")
+        rides = RideRepository(s, club_id=club.id)
+        ride_ids = [rides.add(horse_id=horse.id, rider_id=rider.id, gait="walk", direction="CW", rig_id=rig.id).id
+                    for _ in range(2)]
+        other = rides.add(horse_id=horse.id, rider_id=rider.id, gait="walk", direction="CW").id
+        for ride_id in ride_ids:
+            for kind in ("static", "motion"):
+                for camera in ("left", "middle", "right"):
+                    RecordingRepository(s).add(club_id=club.id, ride_id=ride_id, camera_role=camera,
+                                               clip_kind=kind, path=f"{ride_id}/{kind}/{camera}")
+        for ride_id in (*ride_ids, other):
+            refresh_ride_status(s, ride_id)
+    with session_scope(sessions) as s:
+        assert [RideRepository(s).get(r).status for r in ride_ids] == ["new", "new"]  # no calibration yet
+    with session_scope(sessions) as s:
+        RigRepository(s).set_calibration(rig.id, {"cameras": {}}, {})
+        refresh_rig_rides_status(s, rig.id)
+    with session_scope(sessions) as s:
+        assert [RideRepository(s).get(r).status for r in ride_ids] == ["ready", "ready"]
+        assert RideRepository(s).get(other).status == "new"  # another rig's (none): untouched
+    with session_scope(sessions) as s:
+        RigRepository(s).clear_calibration(rig.id)
+        refresh_rig_rides_status(s, rig.id)
+    with session_scope(sessions) as s:
+        assert [RideRepository(s).get(r).status for r in ride_ids] == ["new", "new"]
+        refresh_rig_rides_status(s, None)  # no rig: nothing to do

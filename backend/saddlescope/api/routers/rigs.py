@@ -37,6 +37,7 @@ from saddlescope.api.streaming import UPLOAD_OPENAPI
 from saddlescope.db.repositories import Conflict, NotFound, Rig
 from saddlescope.db.session import session_scope
 from saddlescope.services.jobs.lifecycle import get_job, job_as_dict, submit_job
+from saddlescope.services.rides.registration import refresh_rig_rides_status
 from saddlescope.services.rigs.board_print import board_advice, board_print_html, camera_view
 from saddlescope.services.rigs.calibration_check import check_storage_key
 from saddlescope.services.rigs.calibration_way import CalibrationWay, choose_calibration_way
@@ -135,6 +136,7 @@ def _forget_a_wand_calibration(club, rig_id: int, wand_length_m) -> None:
         return
     if rig.calibration and "wand" in rig.calibration:
         club.rigs.clear_calibration(rig_id)
+        refresh_rig_rides_status(club.session, rig_id)  # its rides may no longer be complete
 
 
 @router.delete("/{rig_id}", status_code=status.HTTP_204_NO_CONTENT, responses={**ERRORS, **CONFLICT})

@@ -164,6 +164,10 @@ class RideRepository(Repository):
             stmt = stmt.where(Ride.club_id == self.club_id)
         self.session.execute(stmt)
 
+    def ids_of_rig(self, rig_id: int) -> list[int]:
+        """The ids of the rides filmed with rig `rig_id` (whose completeness its clips and calibration decide)."""
+        return list(self.session.scalars(self._scoped(select(Ride.id).where(Ride.rig_id == rig_id)).order_by(Ride.id)))
+
     def latest_with_bundle(self, club_id: int) -> int | None:
         """Return the id of the club's newest ride that has a stored bundle, or None."""
         stmt = self._scoped(select(Ride.id).where(Ride.club_id == club_id, Ride.bundle_key.is_not(None)))

@@ -52,7 +52,12 @@ from saddlescope.services.jobs.inputs import (
     bundle_clip_paths,
     ride_document,
 )
-from saddlescope.services.rides.registration import ANALYSIS_JOB_KIND, complete_clip_sets, note_analysed_settings
+from saddlescope.services.rides.registration import (
+    ANALYSIS_JOB_KIND,
+    complete_clip_sets,
+    note_analysed_settings,
+    refresh_rig_rides_status,
+)
 from saddlescope.settings import Settings
 from saddlescope.storage import Storage, sha256_file, tree_digest
 
@@ -411,6 +416,7 @@ def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, An
             rigs.set_calibration(rig_id, calibration, calibration_quality(calibration))
         elif not rigs.set_calibration_if_missing(rig_id, calibration, calibration_quality(calibration)):
             calibration = dict(rigs.get(rig_id).calibration)  # another job calibrated it first: use that
+        refresh_rig_rides_status(session, rig_id)  # a calibrated rig completes rides that lacked its clips
     (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
     ctx.report(1.0, None)
     return calibration

@@ -48,6 +48,7 @@ __all__ = [
     "update_ride_details",
     "complete_clip_sets",
     "refresh_ride_status",
+    "refresh_rig_rides_status",
     "register_bundle",
     "remove_bundle_ride",
     "ride_clip_plan",
@@ -172,6 +173,18 @@ def refresh_ride_status(session: Session, ride_id: int | None) -> str | None:
     if ride.status != status.value:
         rides.set_status(ride.id, status.value)
     return status.value
+
+
+def refresh_rig_rides_status(session: Session, rig_id: int | None) -> None:
+    """Refresh the status of every ride of rig `rig_id` (its rig's clips and calibration change).
+
+    A rig's clips and calibration decide whether its rides' clips are complete: a ride was left "new" after its
+    rig's calibration clips arrived, until something else of the ride changed.
+    """
+    if rig_id is None:
+        return
+    for ride_id in RideRepository(session).ids_of_rig(rig_id):
+        refresh_ride_status(session, ride_id)
 
 
 class DuplicateClips(Conflict):

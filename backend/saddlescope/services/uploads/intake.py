@@ -43,6 +43,7 @@ from saddlescope.services.rides.registration import (
     DuplicateClips,
     duplicate_message,
     refresh_ride_status,
+    refresh_rig_rides_status,
     register_bundle,
     remove_bundle_ride,
     ride_clip_plan,
@@ -239,6 +240,8 @@ def accept_clip(
                     RigRepository(session, club_id=owner.club_id).clear_calibration(owner.id)
                 if owner.kind == "ride":
                     refresh_ride_status(session, owner.id)
+                else:  # a rig's clip (and its calibration cleared) decides whether its rides are complete
+                    refresh_rig_rides_status(session, owner.id)
                 recording_id = row.id
                 session.commit()
             except BaseException:
