@@ -110,3 +110,26 @@ def test_a_ride_takes_no_wand_clips(env):
     refused = api.client.put(f"/api/rides/{ride['id']}/clips/wand/left", files={"file": ("w.avi", clip)},
                              headers=api.headers)
     assert refused.status_code == 422 and "a ride has no 'wand' clips" in refused.text
+
+
+def test_a_wand_clip_is_checked_on_upload_and_shown_beside_the_boards_check(env):
+    """Issue 35 item 4: the wand's clips are checked before anyone rides, like the board's (the rig page shows
+    the check's `wand`); without the wand's length there is nothing to look for, and the check waits for it."""
+    api, tmp_path, _ = env
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Arena", "board": SMALL})
+    clip = write_tiny_clip(tmp_path / "clip.avi", frames=12).read_bytes()
+    _upload(api, rig["id"], "wand", "left", clip)
+    assert [j for j in api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]
+            if j["kind"] == "check_calibration"] == []  # no wand length yet: nothing to check against
+    refused = api.client.post(f"/api/rigs/{rig['id']}/calibration-check", headers=api.headers)
+    assert refused.status_code == 409 and "no wand length for its wand clips" in refused.json()["detail"]
+    api.ok("PATCH", f"/rigs/{rig['id']}", json={"wand_length_m": 1.0})
+    _upload(api, rig["id"], "wand", "middle", clip)  # a clip of a rig with its wand's length: checked at once
+    job = next(j for j in api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]
+               if j["kind"] == "check_calibration")
+    assert job_outcome(api, job["id"])["status"] == "done"
+    check = api.ok("GET", f"/rigs/{rig['id']}/calibration-check")
+    assert check["checked"] is False  # the board's clips: none uploaded
+    wand = check["wand"]
+    assert sorted(wand["cameras"]) == ["left", "middle"] and wand["film_again"] is True  # no wand in these clips
+    assert wand["verdict"].startswith("Film again: the left and middle cameras' wand clips")

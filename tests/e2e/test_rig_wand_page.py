@@ -24,7 +24,7 @@ def served(tmp_path_factory):
                                                      password=PASSWORD) as api:
         rig = _ok(api.post("/api/rigs", json={"name": "Wide arena", "board": SMALL_BOARD}))["id"]
         with chromium_for_module(sync_playwright) as chromium:
-            yield {"base": server.base, "api": api, "rig": rig, "chromium": chromium}
+            yield {"base": server.base, "api": api, "rig": rig, "chromium": chromium, "base_dir": root}
 
 
 @pytest.fixture
@@ -74,10 +74,35 @@ def test_the_rig_page_offers_the_wand_way_and_refuses_it_in_words(page, served):
     assert "give the wand's length first (in metres, between the centres of its two markers" in no_length
     assert no_length[0].isupper() and no_length.endswith(".")
     centimetres = _ask(page, "100")
-    assert centimetres.startswith("A wand's length is in metres") and "100 cm is 1.00 m" in centimetres
+    assert "length 100 m is outside 0.05-5 m (in centimetres? 100 cm is 1.00 m)" in centimetres
+    assert centimetres[0].isupper()
     no_clips = _ask(page, "1.0")
     assert "cannot be calibrated with a wand yet: upload the wand clip of the left, middle, right cameras and " \
            "the close-up clip of the left, middle, right cameras first." in no_clips
     assert served["api"].get(f"/api/rigs/{served['rig']}").json()["wand_length_m"] == 1.0  # the length was kept
     assert axe_violations(page) == []  # the panel with its refusal and the choice opened
     assert page.console.unexpected(409, 422) == []
+
+
+def test_the_wand_clips_check_is_shown_beside_the_boards(page, served):
+    """Issue 35 item 4: a wand clip uploaded to a rig with its wand's length is checked at once; the rig page
+    shows each camera's wand check (here: clips without a wand, so "film again") beside the board's."""
+    from integration_services import write_tiny_clip
+
+    api = served["api"]
+    rig = _ok(api.post("/api/rigs", json={"name": "Wand day", "board": SMALL_BOARD, "wand_length_m": 1.0}))["id"]
+    clip = write_tiny_clip(served["base_dir"] / "wand.avi", frames=12).read_bytes()
+    for camera in ("left", "middle"):
+        _ok(api.put(f"/api/rigs/{rig}/clips/wand/{camera}", files={"file": (f"wand-{camera}.avi", clip)}))
+    page.goto(f"/#/rigs/{rig}")
+    block = page.locator("[data-wand-check]")
+    block.locator("[data-check-camera=middle]").wait_for(timeout=120_000)  # the check job ran on the server
+    assert block.locator("[data-wand-check-verdict]").inner_text().startswith(
+        "Film again: the left and middle cameras' wand clips")
+    caption = block.locator("[data-check-camera=left] figcaption").inner_text()
+    assert caption.startswith("Left camera's wand clip: film again.") and "Both wand ends were not found in any of the" in caption
+    assert "0-0 %" not in caption
+    assert page.locator("[data-check-verdict]").first.inner_text().startswith("Not checked yet")  # no board clip
+    page.locator("[data-check-panel]").screenshot(path="/tmp/rig_wand_check.png")
+    assert axe_violations(page) == []
+    assert page.console.unexpected() == []

@@ -110,6 +110,16 @@ class CameraCheckOut(BaseModel):
     findings: list[CheckFindingOut]
 
 
+class WandCheckOut(BaseModel):
+    """The rig's wand clips checked before anyone rides: per camera where the wand's two ends went."""
+
+    film_again: bool
+    verdict: str
+    seconds: float | None = None
+    clips: dict[str, int] = Field(default_factory=dict, description="camera -> the recording id checked")
+    cameras: dict[str, CameraCheckOut] = Field(default_factory=dict)
+
+
 class CalibrationCheckOut(BaseModel):
     """The rig's calibration clips checked before anyone rides (``checked`` False until the first check)."""
 
@@ -120,3 +130,5 @@ class CalibrationCheckOut(BaseModel):
     seconds: float | None = Field(default=None, description="how long the check took")
     clips: dict[str, int] = Field(default_factory=dict, description="camera -> the recording id checked")
     cameras: dict[str, CameraCheckOut] = Field(default_factory=dict)
+    wand: WandCheckOut | None = Field(default=None, description="the wand clips' check, once the rig has wand "
+                                      "clips and its wand's length (the same per camera: where the wand's ends went)")

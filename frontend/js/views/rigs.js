@@ -238,13 +238,13 @@ function checkGrid(camera, entry) {
 }
 
 /** The board's distances from the camera: one bar per distance bin, as tall as its views. */
-function depthBars(camera, depth) {
+function depthBars(camera, depth, what = "board") {
   const most = Math.max(1, ...depth.views);
   const n = depth.views.length;
   const bin = 30;
   const svg = svgEl("svg", { viewBox: `0 0 ${n * bin} 28`, role: "img", class: "check-depth",
     "aria-label": depth.near_m == null ? `No distances for the ${camera} camera`
-      : `The board was held ${depth.near_m.toFixed(1)} to ${depth.far_m.toFixed(1)} m from the ${camera} camera` });
+      : `The ${what} was held ${depth.near_m.toFixed(1)} to ${depth.far_m.toFixed(1)} m from the ${camera} camera` });
   depth.views.forEach((views, i) => {
     const tall = (26 * views) / most;
     svg.append(svgEl("rect", { x: i * bin + 2, y: 27 - tall, width: bin - 4, height: tall, class: "check-depth-bar" }));
@@ -254,19 +254,37 @@ function depthBars(camera, depth) {
     h("span", {}, "0 m"), h("span", {}, "distance from the camera"), h("span", {}, `${Number(depth.bin_edges_m[n]).toFixed(0)} m`)));
 }
 
+// One camera's check: where the board's corners (or the wand's two ends) went, over the image and in depth.
+function checkFigure(camera, entry, what) {
+  const seen = what === "wand" ? `Both wand ends in ${entry.views} of ${entry.frames_sampled} frames looked at; they reached`
+    : `Board in ${entry.views} of ${entry.frames_sampled} frames looked at; its corners reached`;
+  const reach = !entry.views
+    ? `${what === "wand" ? "Both wand ends were" : "The board was"} not found in any of the ${entry.frames_sampled} frames looked at.`
+    : `${seen} ${Math.round(100 * entry.reach_x[0])}-${Math.round(100 * entry.reach_x[1])} % across and ${Math.round(100 * entry.reach_y[0])}-${Math.round(100 * entry.reach_y[1])} % down the image.`;
+  return h("figure", { class: `coverage-figure check-camera${entry.film_again ? " film-again" : ""}`, dataset: { checkCamera: camera, checkWhat: what } },
+    checkGrid(camera, entry), depthBars(camera, entry.depth, what),
+    h("figcaption", {}, h("strong", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera${what === "wand" ? "'s wand clip" : ""}: ${entry.film_again ? "film again" : "good"}. `), reach,
+      h("ul", { class: "check-findings" }, ...entry.findings.map((f) => h("li", { class: `severity-${f.severity}` }, f.detail)))));
+}
+
 function showCheck(root, check) {
   const verdict = root.querySelector("[data-check-verdict]");
   verdict.textContent = check.checking && check.checked ? `Checking again… ${check.verdict}` : check.verdict;
   verdict.className = `check-verdict${check.checked ? (check.film_again ? " film-again" : " ready") : ""}`;
-  root.querySelector("[data-check-cameras]").replaceChildren(...Object.entries(check.cameras || {}).map(([camera, entry]) => {
-    const reach = `Board in ${entry.views} of ${entry.frames_sampled} frames looked at; its corners reached ${Math.round(100 * entry.reach_x[0])}-${Math.round(100 * entry.reach_x[1])} % across and ${Math.round(100 * entry.reach_y[0])}-${Math.round(100 * entry.reach_y[1])} % down the image.`;
-    return h("figure", { class: `coverage-figure check-camera${entry.film_again ? " film-again" : ""}`, dataset: { checkCamera: camera } },
-      checkGrid(camera, entry), depthBars(camera, entry.depth),
-      h("figcaption", {}, h("strong", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera: ${entry.film_again ? "film again" : "good"}. `), reach,
-        h("ul", { class: "check-findings" }, ...entry.findings.map((f) => h("li", { class: `severity-${f.severity}` }, f.detail)))));
-  }));
+  root.querySelector("[data-check-cameras]").replaceChildren(
+    ...Object.entries(check.cameras || {}).map(([camera, entry]) => checkFigure(camera, entry, "board")));
+  // The wand's clips, once the rig has them and its wand's length (issue 35): checked the same way.
+  const wand = root.querySelector("[data-wand-check]");
+  wand.hidden = !check.wand;
+  if (check.wand) {
+    const words = wand.querySelector("[data-wand-check-verdict]");
+    words.textContent = check.wand.verdict;
+    words.className = `check-verdict${check.wand.film_again ? " film-again" : " ready"}`;
+    wand.querySelector("[data-wand-check-cameras]").replaceChildren(
+      ...Object.entries(check.wand.cameras || {}).map(([camera, entry]) => checkFigure(camera, entry, "wand")));
+  }
   const again = root.querySelector("[data-check-again]");
-  again.hidden = !can("ride.analyse") || check.checking || !check.checked;
+  again.hidden = !can("ride.analyse") || check.checking || !(check.checked || check.wand);
 }
 
 function calibrationMissing(rig, clips) {

@@ -291,13 +291,14 @@ def rig_calibration_check(rig_id: Id, club: ClubDep, storage: StorageDep) -> Cal
     """
     club.rigs.get(rig_id)
     checking = club.jobs.active_for(rig_id=rig_id, kind="check_calibration") is not None
-    key = check_storage_key(rig_id)
+    key, wand_key = check_storage_key(rig_id), check_storage_key(rig_id, "wand")
+    wand = json.loads(storage.read_bytes(wand_key)) if storage.exists(wand_key) else None
     if not storage.exists(key):
-        return CalibrationCheckOut(checked=False, checking=checking, verdict=(
+        return CalibrationCheckOut(checked=False, checking=checking, wand=wand, verdict=(
             "Checking the calibration clips\u2026" if checking else
             "Not checked yet: upload a calibration clip and it is checked at once."))
     document = json.loads(storage.read_bytes(key))
-    return CalibrationCheckOut(checked=True, checking=checking, **document)
+    return CalibrationCheckOut(checked=True, checking=checking, wand=wand, **document)
 
 
 @router.post("/{rig_id}/calibration-check", status_code=status.HTTP_201_CREATED, response_model=JobOut,
@@ -305,10 +306,13 @@ def rig_calibration_check(rig_id: Id, club: ClubDep, storage: StorageDep) -> Cal
 async def check_rig_calibration(rig_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep) -> JobOut:
     """Check the rig's calibration clips again (a ``check_calibration`` job); 409 with no clip to check."""
     rig = await run_in_threadpool(club.rigs.get, rig_id)
-    has_clip = any(r.clip_kind == "calibration" for r in await run_in_threadpool(club.recordings.for_rig, rig_id))
-    if not has_clip or not rig.board:
-        raise Conflict(f"rig {rig_id} ({rig.name}) has " + ("no board described" if not rig.board else
-                                                            "no calibration clip") + " to check yet")
+    kinds = {r.clip_kind for r in await run_in_threadpool(club.recordings.for_rig, rig_id)}
+    board_ready = "calibration" in kinds and bool(rig.board)
+    wand_ready = "wand" in kinds and rig.wand_length_m is not None
+    if not (board_ready or wand_ready):
+        raise Conflict(f"rig {rig_id} ({rig.name}) has " + ("no board described" if "calibration" in kinds else
+                                                            "no calibration clip") + " to check yet"
+                       + ("" if "wand" not in kinds else ", and no wand length for its wand clips"))
     club.session.rollback()
     job_id = await run_in_threadpool(
         submit_job, sessions, queue, kind="check_calibration", rig_id=rig_id, club_id=club.club_id

@@ -505,22 +505,43 @@ def run_calibrate_rig(ctx: StageContext) -> None:
 
 @stage("check_calibration", weight=2.0)
 def run_check_calibration(ctx: StageContext) -> None:
-    """Check the rig's calibration clips uploaded so far: where the board went in each view (issue 35)."""
-    from saddlescope.services.rigs.calibration_check import check_calibration_clips, check_document, check_storage_key
+    """Check the rig's calibration clips uploaded so far: where the board, and the wand, went in each view (issue 35).
+
+    The board's clips are checked when the rig describes its board; the wand's when the rig has its length.
+    Each check is stored on its own (`check_storage_key`), for the rig page.
+    """
+    from saddlescope.services.rigs.calibration_check import (
+        check_calibration_clips,
+        check_document,
+        check_storage_key,
+        check_wand_clips,
+    )
 
     if ctx.rig_id is None:
         raise InputError(f"check_calibration job {ctx.job_id} names no rig")
     rig = ctx.rig_inputs
-    clips = {c.camera_role: (c.recording_id, c.key) for c in rig.clips if c.clip_kind == "calibration"}
+    board_clips = {c.camera_role: (c.recording_id, c.key) for c in rig.clips if c.clip_kind == "calibration"}
+    wand_clips = {c.camera_role: (c.recording_id, c.key) for c in rig.clips if c.clip_kind == "wand"}
     board = _copied(rig.board)
-    if not board:
-        raise CalibrationError(f"rig {ctx.rig_id} has no 'board' (the calibration board its clips show)")
-    if not clips:
-        raise CalibrationError(f"rig {ctx.rig_id} has no calibration clip to check yet")
-    paths = {role: ctx.fetch(key) for role, (_, key) in clips.items()}
-    check = check_calibration_clips(paths, board, on_progress=lambda f, s: ctx.report(f, s))
-    document = check_document(check, clips={role: rid for role, (rid, _) in clips.items()})
-    ctx.storage.write_bytes(check_storage_key(ctx.rig_id), json.dumps(document, allow_nan=False).encode())
+    checks: list[tuple[str, dict[str, tuple[int, str]]]] = []
+    if board_clips and board:
+        checks.append(("board", board_clips))
+    if wand_clips and rig.wand_length_m is not None:
+        checks.append(("wand", wand_clips))
+    if not checks:
+        raise CalibrationError(
+            f"rig {ctx.rig_id} has nothing to check yet: " + ("no 'board' described for its calibration clips"
+                                                             if board_clips else "no calibration clip")
+            + (" and no wand length for its wand clips" if wand_clips else ""))
+    for n, (what, clips) in enumerate(checks):
+        def progress(f: float, step: str | None, n: int = n) -> None:
+            ctx.report((n + f) / len(checks), step)
+
+        paths = {role: ctx.fetch(key) for role, (_, key) in clips.items()}
+        check = (check_calibration_clips(paths, board or {}, on_progress=progress) if what == "board" else
+                 check_wand_clips(paths, float(rig.wand_length_m or 0.0), on_progress=progress))
+        document = check_document(check, clips={role: rid for role, (rid, _) in clips.items()})
+        ctx.storage.write_bytes(check_storage_key(ctx.rig_id, what), json.dumps(document, allow_nan=False).encode())
     ctx.report(1.0, None)
 
 

@@ -152,9 +152,14 @@ def check_wand_clips(paths: Mapping[str, Path], wand_length_m: float, *, sample_
     return CalibrationCheck(out, time.perf_counter() - t0, what="wand")
 
 
-def check_storage_key(rig_id: int) -> str:
-    """Where a rig's latest calibration check is stored (under the rig's own prefix, deleted with it)."""
-    return f"rigs/{int(rig_id)}/calibration-check.json"
+def check_storage_key(rig_id: int, what: str = "board") -> str:
+    """Where a rig's latest check of its board (``what`` "board") or wand clips ("wand") is stored.
+
+    Under the rig's own prefix, deleted with it.
+    """
+    if what not in ("board", "wand"):
+        raise InputError(f"a calibration check is of the board or the wand clips, not {what!r}")
+    return f"rigs/{int(rig_id)}/{'calibration' if what == 'board' else 'wand'}-check.json"
 
 
 def _rounded(values: np.ndarray, digits: int = 2) -> list[float | None]:

@@ -278,15 +278,16 @@ def _probed(info) -> dict[str, Any]:
 
 def start_calibration_check(sessions: sessionmaker[Session], queue: JobQueue, owner: ClipOwner,
                             clip_kind: str) -> int | None:
-    """A rig's calibration clip arrived: check where its board went (a ``check_calibration`` job).
+    """A rig's calibration or wand clip arrived: check where its board or wand went (a ``check_calibration`` job).
 
     Not when a check is already waiting to start (it will read this clip too); returns its id or None.
     """
-    if owner.kind != "rig" or clip_kind != "calibration":
+    if owner.kind != "rig" or clip_kind not in ("calibration", "wand"):
         return None
     with session_scope(sessions) as session:
-        if not RigRepository(session, club_id=owner.club_id).get(owner.id).board:
-            return None  # nothing to look for yet: the rig page asks for the board first
+        rig = RigRepository(session, club_id=owner.club_id).get(owner.id)
+        if not (rig.board if clip_kind == "calibration" else rig.wand_length_m is not None):
+            return None  # nothing to look for yet: the rig page asks for the board or the wand's length first
         waiting = JobRepository(session, club_id=owner.club_id).active_for(rig_id=owner.id, kind="check_calibration")
         if waiting is not None and waiting.status == JobStatus.QUEUED:
             return None
