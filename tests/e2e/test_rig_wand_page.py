@@ -100,7 +100,8 @@ def test_the_wand_clips_check_is_shown_beside_the_boards(page, served):
     assert block.locator("[data-wand-check-verdict]").inner_text().startswith(
         "Film again: the left and middle cameras' wand clips")
     caption = block.locator("[data-check-camera=left] figcaption").inner_text()
-    assert caption.startswith("Left camera's wand clip: film again.") and "Both wand ends were not found in any of the" in caption
+    assert caption.startswith("Left camera's wand clip: film again.")
+    assert "Both wand ends were not found in any of the" in caption
     assert "0-0 %" not in caption
     assert page.locator("[data-check-verdict]").first.inner_text().startswith("Not checked yet")  # no board clip
     page.locator("[data-check-panel]").screenshot(path="/tmp/rig_wand_check.png")
