@@ -253,3 +253,26 @@ def test_a_bundles_ride_json_names_the_saddle_pad_and_weight(env, tmp_path):
     refused = api.ok("POST", "/rides/bundle", 422, files={"file": ("ride.zip", data, "application/zip")})
     assert "saddle.type 'racing' is not one of" in refused["detail"]
     assert api.ok("GET", "/saddles")["total"] == 2  # nothing left of the refused bundles
+
+
+def test_an_indicator_added_in_the_core_is_ranked_with_no_other_change(env):
+    """The newcomer's table, row (c): an indicator added in core/vibration (its key, its computation, its
+    interval) is a leaderboard choice at once; here ISO 2631-1's VDV ratio, lower is better."""
+    from saddlescope.core.vibration import INDICATORS
+
+    assert INDICATORS["vdv_ratio_y_wb"].better == "lower"
+    api, created = new_club(env.client)
+    horses = {name: api.ok("POST", "/horses", 201, json={"name": name})["id"] for name in ("Jolty", "Smooth")}
+    rider = api.ok("POST", "/riders", 201, json={"name": "Cara"})["id"]
+    for name, ratio in (("Jolty", 1.9), ("Jolty", 1.8), ("Smooth", 1.2)):
+        ride = api.ok("POST", "/rides", 201, json={"horse_id": horses[name], "rider_id": rider, "gait": "canter",
+                                                   "direction": "CW"})
+        with session_scope(session_factory_for(env.settings.database_url)) as session:
+            ResultRepository(session).replace_for_ride(
+                club_id=created["club"]["id"], ride_id=ride["id"], job_id=None, result_key=None, code_version="t",
+                indicators={"acc_y_wb_rms": 1.0, "vdv_ratio_y_wb": ratio}, uncertain_reason=None)
+    board = api.ok("GET", "/leaderboard", params={"gait": "canter", "indicator": "vdv_ratio_y_wb"})
+    assert [e["horse"] for e in board["entries"]] == ["Smooth", "Jolty"]
+    assert board["entries"][1]["mean"] == pytest.approx(1.85)
+    glossary = {e["code"]: e for e in api.ok("GET", "/glossary") if e["kind"] == "indicator"}
+    assert "ISO 2631-1 6.3.3" in glossary["vdv_ratio_y_wb"]["label"]

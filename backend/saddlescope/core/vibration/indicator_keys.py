@@ -1,6 +1,6 @@
 """The comfort indicators' keys, units and meaning (thesis Table 8.7 and section 8.5).
 
-:data:`INDICATORS` is the one table of every indicator key a ride's result holds (46), in the
+:data:`INDICATORS` is the one table of every indicator key a ride's result holds (47), in the
 order the exports list them; :data:`CONTRACT_KEYS` are the 25 of thesis Table 8.7 fixed by
 CONTRACTS section 2, :data:`COMFORT_INDICATORS` the thesis's eight comfort indicators.
 Vertical = y axis of the motion frame, weighted with W_b (BS 6841) and W_k (ISO 2631-1);
@@ -97,7 +97,7 @@ def _worst_axis_infos() -> dict[str, IndicatorInfo]:
     return infos
 
 
-# Every indicator key a ride's result may hold (46), in the order the exports list them.
+# Every indicator key a ride's result may hold (47), in the order the exports list them.
 INDICATORS: dict[str, IndicatorInfo] = {
     "acc_y_wb_rms": IndicatorInfo("m/s^2", "vertical W_b weighted r.m.s. acceleration",
                                   "acc_y_Wb_rms", "lower"),
@@ -119,6 +119,10 @@ INDICATORS: dict[str, IndicatorInfo] = {
     "acc_y_rms": IndicatorInfo("m/s^2", "unweighted vertical r.m.s. acceleration", None, "lower"),
     "mtvv_y_wb": IndicatorInfo("m/s^2", "vertical W_b maximum transient vibration value", None, "lower"),
     "mtvv_y_wk": IndicatorInfo("m/s^2", "vertical W_k maximum transient vibration value", None, "lower"),
+    # ISO 2631-1 6.3.3: VDV over its estimate from the r.m.s., 1.4 a_w T^(1/4); above 1.75 the r.m.s. (and the
+    # A(8) times built on it) understate the jolts, and the VDV's times are the ones to read
+    "vdv_ratio_y_wb": IndicatorInfo("", "vertical W_b VDV over its r.m.s. estimate (ISO 2631-1 6.3.3)", None,
+                                    "lower"),
     "duration_s": IndicatorInfo("s", "analysed duration (whole number of periods)"),
     **_horizontal_infos(),
     **_worst_axis_infos(),

@@ -63,6 +63,7 @@ def _assemble(wb: Mapping[str, float], wk: Mapping[str, float], raw: Mapping[str
         "acc_y_rms": raw["rms"],
         "mtvv_y_wb": wb["mtvv"],
         "mtvv_y_wk": wk["mtvv"],
+        "vdv_ratio_y_wb": wb["vdv"] / (1.4 * wb["rms"] * duration_s ** 0.25),  # ISO 2631-1 6.3.3
         "duration_s": duration_s,
     })
     return {key: float(value) for key, value in out.items()}

@@ -49,7 +49,7 @@ INTERVAL_KEYS: tuple[str, ...] = (
     "acc_y_wb_peak", "acc_y_wk_peak", "acc_y_rms",
     *(f"{kind}_{basis}_{level}_{w}_{unit}" for kind, unit in (("t", "h"), ("d", "km")) for basis in ("a8", "vdv")
       for level in ("action", "limit") for w in ("wb", "wk")),
-    "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz")
+    "vel_x_avg_kmh", "amplitude_y_m", "stride_frequency_hz", "vdv_ratio_y_wb")
 
 # One-sigma floors (fractions), set on the build rides (see the module note)
 FLOORS: dict[str, float] = {
@@ -375,6 +375,7 @@ def bootstrap_indicators(*, f0_hz: float, amplitudes_m_s2, phases_rad, n_periods
            "crest_factor_y": m["Wb"]["peak"] / m["Wb"]["rms"], "crest_factor_y_wk": m["Wk"]["peak"] / m["Wk"]["rms"],
            "acc_y_wb_peak": m["Wb"]["peak"], "acc_y_wk_peak": m["Wk"]["peak"]}
     duration_s = n_periods / f0
+    out["vdv_ratio_y_wb"] = m["Wb"]["vdv"] / (1.4 * m["Wb"]["rms"] * duration_s ** 0.25)  # ISO 2631-1 6.3.3
     thresholds = {"a8": {"action": A8_ACTION_M_S2, "limit": A8_LIMIT_M_S2},
                   "vdv": {"action": VDV_ACTION_M_S175, "limit": VDV_LIMIT_M_S175}}
     for w in ("wb", "wk"):
