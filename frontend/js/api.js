@@ -2,8 +2,9 @@
 // server's own error reason (FastAPI's `detail`) kept verbatim so pages can show it to the user.
 
 const UNSAFE = new Set(["POST", "PUT", "PATCH", "DELETE"]);
+// The names the server uses (saddlescope.api.deps.CSRF_HEADER, CSRF_COOKIE): it sets this one cookie only.
 const CSRF_HEADER = "X-CSRF-Token";
-const CSRF_COOKIES = ["saddlescope_csrf", "csrf_token", "csrftoken", "csrf"];
+const CSRF_COOKIE = "saddlescope_csrf";
 
 let csrfToken = null;
 const unauthorisedListeners = new Set();
@@ -26,7 +27,7 @@ export function setCsrfToken(token) {
 function csrfFromCookie() {
   for (const part of document.cookie.split(";")) {
     const [name, ...rest] = part.trim().split("=");
-    if (CSRF_COOKIES.includes(name)) return decodeURIComponent(rest.join("="));
+    if (name === CSRF_COOKIE) return decodeURIComponent(rest.join("="));
   }
   return null;
 }

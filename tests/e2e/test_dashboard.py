@@ -78,6 +78,21 @@ def test_login_flow_shows_the_servers_reason_then_signs_in(page, dashboard):
     assert page.console.unexpected(401) == []
 
 
+def test_unsafe_requests_send_the_servers_one_csrf_cookie(page, dashboard):
+    """The server sets one CSRF cookie (saddlescope.api.deps.CSRF_COOKIE); cookies of other names (a
+    sibling app's `csrftoken`, `csrf_token`) are not ours, and the page once sent the first of them."""
+    page.context.add_cookies([{"name": name, "value": "planted", "url": dashboard["base"]}
+                              for name in ("csrftoken", "csrf_token", "csrf")])
+    sign_in(page)
+    page.goto("/#/")
+    page.locator("[data-account-logout]").wait_for(state="visible")
+    status = page.evaluate("""() => import('/js/api.js').then((m) => m.post('/api/auth/logout')
+        .then(() => 204, (error) => error.status))""")
+    assert status == 204
+    assert "saddlescope_session" not in {c["name"] for c in page.context.cookies()}
+    assert page.console.unexpected() == []
+
+
 def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     sign_in(page)
     ride = next(r for r in dashboard["rides"] if r["horse"] == "Dancer")
