@@ -17,7 +17,7 @@ const SOURCES = {
     .map((saddle) => ({ value: saddle.id, text: saddle.name })),
   "saddle-types": async () => Object.entries(SADDLE_TYPES).map(([value, text]) => ({ value, text })),
   rigs: async () => itemsOf(await get("/api/rigs", { params: { limit: 500 } }))
-    .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibration ? " (calibrated)" : ""}` })),
+    .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibrated ? " (calibrated)" : ""}` })),
   gaits: async () => GAITS.map((gait) => ({ value: gait, text: gaitLabel(gait) })),
   indicators: async () => indicatorChoices(() => true),
   "ranked-indicators": async () => indicatorChoices((info) => info.better === "lower" || info.better === "higher"),

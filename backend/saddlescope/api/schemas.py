@@ -462,7 +462,9 @@ class RideOut(_Out):
 
     id: int
     horse_id: int
+    horse_name: str = Field(description="the horse's name (so a page need not look it up by horse_id)")
     rider_id: int
+    rider_name: str = Field(description="the rider's name (so a page need not look it up by rider_id)")
     rig_id: int | None
     gait: str
     direction: str

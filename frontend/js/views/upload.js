@@ -240,7 +240,7 @@ export async function mountUpload(view, _params, query) {
     label.textContent = `Creating the ride from ${stagedBundle.file.name}`;
     const answer = await finalizeUpload(stagedBundle.upload, details, { signal: controller.signal });
     stagedBundle = null;
-    return answer?.ride?.id ?? answer?.ride_id;
+    return answer.ride_id; // finalize answers {ride_id, job_id} for a bundle
   }
 
   async function uploadClips(values) {

@@ -1,0 +1,46 @@
+"""What the dashboard reads, the API sends (issue 34 part 6): each ride carries its horse's and rider's
+names (the pages once looked them up in lists capped at 500), and the constants the pages label with
+(the indicator table, the glossary) are open without signing in, so the app loads them before its first
+page, sign-in page included."""
+
+from __future__ import annotations
+
+import pytest
+from api_helpers import new_club
+from engines import open_env
+
+from saddlescope.core.vibration import INDICATORS
+
+
+@pytest.fixture(scope="module", params=["embedded"])
+def env(request, tmp_path_factory):
+    yield from open_env(request, tmp_path_factory, worker=False)
+
+
+def test_every_ride_answer_names_its_horse_and_rider(env):
+    api, _ = new_club(env.client)
+    horse = api.ok("POST", "/horses", 201, json={"name": "Quintus"})
+    rider = api.ok("POST", "/riders", 201, json={"name": "Rider Q"})
+    other = api.ok("POST", "/horses", 201, json={"name": "Ulla"})
+    made = api.ok("POST", "/rides", 201, json={"horse_id": horse["id"], "rider_id": rider["id"], "gait": "walk",
+                                               "direction": "CW"})
+    assert (made["horse_name"], made["rider_name"]) == ("Quintus", "Rider Q")
+    listed = api.ok("GET", "/rides", params={"limit": 1})["items"]
+    assert [(r["id"], r["horse_name"], r["rider_name"]) for r in listed] == [(made["id"], "Quintus", "Rider Q")]
+    assert api.ok("GET", f"/rides/{made['id']}")["horse_name"] == "Quintus"
+    moved = api.ok("PATCH", f"/rides/{made['id']}", json={"horse_id": other["id"]})
+    assert moved["horse_name"] == "Ulla"
+    api.ok("PATCH", f"/horses/{other['id']}", json={"name": "Ulla II"})
+    assert api.ok("GET", "/rides")["items"][0]["horse_name"] == "Ulla II"
+
+
+def test_the_indicator_table_and_glossary_need_no_sign_in(env):
+    env.client.cookies.clear()
+    indicators = env.client.get("/api/indicators")
+    assert indicators.status_code == 200, indicators.text
+    assert {item["key"] for item in indicators.json()} == set(INDICATORS)
+    assert all(item["better"] in ("lower", "higher", None) for item in indicators.json())
+    glossary = env.client.get("/api/glossary")
+    assert glossary.status_code == 200, glossary.text
+    kinds = {entry["kind"] for entry in glossary.json()}
+    assert {"indicator", "gait"} <= kinds
