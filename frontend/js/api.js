@@ -123,3 +123,22 @@ export function itemsOf(answer) {
   if (answer && Array.isArray(answer.items)) return answer.items;
   return [];
 }
+
+// The most rows a list answers at once (the `limit` bound of saddlescope.api.routers.common's Paging).
+export const MAX_PAGE_ROWS = 500;
+
+/**
+ * Every row of a paged list (GET `path` answering {items, total, limit, offset}), for pickers that must
+ * offer all of a club's horses, not its first 500: the first page says the total, the rest are read
+ * together.
+ */
+export async function getAll(path, params = {}, options = {}) {
+  const pageAt = (offset) => get(path, { ...options, params: { ...params, limit: MAX_PAGE_ROWS, offset } });
+  const first = await pageAt(0);
+  const offsets = [];
+  for (let offset = first.items.length; first.items.length && offset < first.total; offset += MAX_PAGE_ROWS) {
+    offsets.push(offset);
+  }
+  const rest = await Promise.all(offsets.map(pageAt));
+  return [first, ...rest].flatMap((page) => page.items);
+}

@@ -1,7 +1,7 @@
 // <select data-options="horses|riders|saddles|saddle-types|rigs|gaits|indicators|ranked-indicators">: filled from the API.
 // data-optional="text" adds a first, empty choice with that text.
 
-import { get, itemsOf } from "./api.js";
+import { getAll } from "./api.js";
 import { h } from "./dom.js";
 import { COMFORT_INDICATORS, GAITS, gaitLabel, indicatorInfoOf, indicatorKeys, labelText, prettyUnit } from "./format.js";
 import { SADDLE_TYPES } from "./saddle-words.js";
@@ -9,14 +9,14 @@ import { SADDLE_TYPES } from "./saddle-words.js";
 const byName = (items) => [...items].sort((a, b) => a.name.localeCompare(b.name));
 
 const SOURCES = {
-  horses: async () => byName(itemsOf(await get("/api/horses", { params: { limit: 500 } })))
+  horses: async () => byName(await getAll("/api/horses"))
     .map((horse) => ({ value: horse.id, text: horse.name })),
-  riders: async () => byName(itemsOf(await get("/api/riders", { params: { limit: 500 } })))
+  riders: async () => byName(await getAll("/api/riders"))
     .map((rider) => ({ value: rider.id, text: rider.name })),
-  saddles: async () => byName(itemsOf(await get("/api/saddles", { params: { limit: 500 } })))
+  saddles: async () => byName(await getAll("/api/saddles"))
     .map((saddle) => ({ value: saddle.id, text: saddle.name })),
   "saddle-types": async () => Object.entries(SADDLE_TYPES).map(([value, text]) => ({ value, text })),
-  rigs: async () => itemsOf(await get("/api/rigs", { params: { limit: 500 } }))
+  rigs: async () => (await getAll("/api/rigs"))
     .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibrated ? " (calibrated)" : ""}` })),
   gaits: async () => GAITS.map((gait) => ({ value: gait, text: gaitLabel(gait) })),
   indicators: async () => indicatorChoices(() => true),

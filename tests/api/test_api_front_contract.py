@@ -5,6 +5,9 @@ page, sign-in page included."""
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import pytest
 from api_helpers import new_club
 from engines import open_env
@@ -44,3 +47,13 @@ def test_the_indicator_table_and_glossary_need_no_sign_in(env):
     assert glossary.status_code == 200, glossary.text
     kinds = {entry["kind"] for entry in glossary.json()}
     assert {"indicator", "gait"} <= kinds
+
+
+def test_the_dashboards_page_size_is_the_apis_largest(env):
+    """api.js getAll reads lists MAX_PAGE_ROWS at a time: more than the API allows would be refused (422)."""
+    source = (Path(__file__).parents[2] / "frontend" / "js" / "api.js").read_text(encoding="utf-8")
+    rows = int(re.search(r"export const MAX_PAGE_ROWS = (\d+);", source).group(1))
+    schema = env.client.get("/openapi.json").json()
+    for path in ("/api/horses", "/api/riders", "/api/saddles", "/api/rigs", "/api/rides"):
+        limit = next(p for p in schema["paths"][path]["get"]["parameters"] if p["name"] == "limit")
+        assert limit["schema"]["maximum"] == rows, path

@@ -93,6 +93,24 @@ def test_unsafe_requests_send_the_servers_one_csrf_cookie(page, dashboard):
     assert page.console.unexpected() == []
 
 
+def test_a_club_with_501_horses_finds_every_one_in_the_pickers(page, dashboard):
+    """The pickers read every page of a list (api.js getAll), not the first 500 rows the API answers at
+    most (saddlescope.api.routers.common's Paging): the 501st horse was missing from every form."""
+    email, password = "stable@example.org", "many-horses-pass-1"
+    with browser_harness.new_club_admin(dashboard["base"], club_name="Big Stable", email=email,
+                                        password=password) as api:
+        for i in range(501):
+            _ok(api.post("/api/horses", json={"name": f"Horse {i:03d}"}))
+    answer = page.context.request.post("/api/auth/login", data={"email": email, "password": password})
+    assert answer.ok, answer.text()
+    page.goto("/#/rides")
+    picker = page.locator("#rides-horse option:not([value=''])")
+    page.wait_for_function("() => document.querySelectorAll('#rides-horse option').length > 1")
+    assert picker.count() == 501
+    assert picker.last.inner_text() == "Horse 500"
+    assert page.console.unexpected() == []
+
+
 def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     sign_in(page)
     ride = next(r for r in dashboard["rides"] if r["horse"] == "Dancer")

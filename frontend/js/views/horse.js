@@ -3,7 +3,7 @@
 // band, its saddles compared (mean and 95 % interval per saddle, and in words whether two differ
 // beyond the uncertainty), and any two of its rides side by side with the % difference of each indicator.
 
-import { get, itemsOf, patch } from "../api.js";
+import { get, getAll, itemsOf, patch } from "../api.js";
 import { busy, fill, h, page, showError } from "../dom.js";
 import { countedBarChart, trendChart } from "../horse-charts.js";
 import { distanceText, durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
@@ -235,7 +235,7 @@ async function setUpPair(view, horseId) {
   const table = view.querySelector("[data-pair-table]");
   const empty = view.querySelector("[data-pair-empty]");
   const section = form.closest("section");
-  const rides = itemsOf(await get("/api/rides", { params: { horse_id: horseId, status: "analysed", limit: 500, sort: "-ridden_on" } }));
+  const rides = await getAll("/api/rides", { horse_id: horseId, status: "analysed", sort: "-ridden_on" });
   const options = rides.map((ride) => h("option", { value: ride.id }, rideLabel(ride)));
   form.elements.a.replaceChildren(...options.map((o) => o.cloneNode(true)));
   form.elements.b.replaceChildren(...options);
