@@ -1,62 +1,43 @@
-// Numbers, units and indicator names for display. The indicator table mirrors
-// saddlescope.core.vibration.INDICATORS; the server's own list (GET /api/indicators) replaces it when offered.
+// Numbers, units and indicator names for display. The service's constants (the indicator table, the
+// gaits, the exposure caveat) are not copied here: js/glossary.js loads them from GET /api/indicators and
+// GET /api/glossary before the first page is drawn (app.js), and fills the tables below.
 
-export const GAITS = ["walk", "sitting_trot", "rising_trot", "canter"];
+/** The gait codes in the service's order (saddlescope.core.vibration.GAITS), filled at start. */
+export const GAITS = [];
 
-export const GAIT_LABELS = {
-  walk: "walk",
-  sitting_trot: "sitting trot",
-  rising_trot: "rising trot",
-  canter: "canter",
-};
+/** Each gait's label ("sitting_trot" -> "sitting trot"), filled at start. */
+export const GAIT_LABELS = {};
 
-// Shown with the exposure times, as in saddlescope.core.vibration.PASSIVE_SEATED_CAVEAT.
-export const PASSIVE_SEATED_CAVEAT =
-  "The EU 2002/44/EC action and limit values assume a passive, seated person who takes no " +
-  "counter-measures against the vibration. A rider compensates actively (the pelvis follows " +
-  "the saddle in sitting trot, the trunk swings in canter; in rising trot the rider is not in " +
-  "continuous contact with the saddle at all), so the allowed times and distances are far on " +
-  "the safe side: read them as relative comfort indicators between horses and gaits, not as " +
-  "absolute limits (thesis 8.5).";
+/** The thesis's eight comfort indicators (8.5), all W_b: the default choice in comparisons. Filled at start. */
+export const COMFORT_INDICATORS = [];
 
-const exposure = {};
-for (const [basis, basisLabel] of [["a8", "A(8)"], ["vdv", "VDV"]]) {
-  for (const level of ["action", "limit"]) {
-    for (const w of ["wb", "wk"]) {
-      exposure[`t_${basis}_${level}_${w}_h`] = {
-        unit: "h", label: `time to the ${basisLabel} exposure ${level} value (W_${w[1]})`, better: "higher" };
-      exposure[`d_${basis}_${level}_${w}_km`] = {
-        unit: "km", label: `distance to the ${basisLabel} exposure ${level} value (W_${w[1]})`, better: "higher" };
-    }
-  }
+let passiveSeatedCaveat = "";
+let indicatorInfo = {};
+
+/** The gaits of the glossary ({code, label}, in its order). */
+export function setGaits(entries) {
+  GAITS.splice(0, GAITS.length, ...entries.map((e) => e.code));
+  for (const e of entries) GAIT_LABELS[e.code] = e.label;
 }
 
-let indicatorInfo = {
-  acc_y_wb_rms: { unit: "m/s^2", label: "vertical W_b weighted r.m.s. acceleration", better: "lower" },
-  acc_y_wk_rms: { unit: "m/s^2", label: "vertical W_k weighted r.m.s. acceleration", better: "lower" },
-  vdv_y_wb: { unit: "m/s^1.75", label: "vertical W_b vibration dose value", better: "lower" },
-  vdv_y_wk: { unit: "m/s^1.75", label: "vertical W_k vibration dose value", better: "lower" },
-  acc_y_max: { unit: "m/s^2", label: "peak unweighted vertical acceleration", better: "lower" },
-  crest_factor_y: { unit: "", label: "vertical crest factor (W_b)", better: "lower" },
-  ...exposure,
-  vel_x_avg_kmh: { unit: "km/h", label: "average speed in the direction of travel", better: null },
-  amplitude_y_m: { unit: "m", label: "peak-to-peak vertical displacement of the saddle point", better: null },
-  stride_frequency_hz: { unit: "Hz", label: "stride frequency", better: null },
-  crest_factor_y_wk: { unit: "", label: "vertical crest factor (W_k)", better: "lower" },
-  acc_y_rms: { unit: "m/s^2", label: "unweighted vertical r.m.s. acceleration", better: "lower" },
-  duration_s: { unit: "s", label: "analysed duration (whole number of periods)", better: null },
-};
+/** The comfort indicators (keys, in the server's order). */
+export function setComfortIndicators(keys) {
+  COMFORT_INDICATORS.splice(0, COMFORT_INDICATORS.length, ...keys);
+}
 
-// The thesis's eight comfort indicators (8.5), all W_b: the default choice in comparisons.
-export const COMFORT_INDICATORS = [
-  "acc_y_wb_rms", "vdv_y_wb", "acc_y_max", "crest_factor_y", "t_a8_limit_wb_h", "d_a8_limit_wb_km",
-  "vel_x_avg_kmh", "amplitude_y_m",
-];
+/** The sentence shown with the exposure times (saddlescope.core.vibration.PASSIVE_SEATED_CAVEAT). */
+export function setPassiveSeatedCaveat(text) {
+  passiveSeatedCaveat = text;
+}
 
-/** Replace the built-in indicator table with the server's (objects with unit, label, better). */
-// Merged per indicator: the glossary (labels, units, expert) and /api/indicators (better) arrive in
-// either order, and neither may drop what the other said (a glossary entry has no `better`: replacing
-// the whole entry left the leaderboard with no ranked indicator to choose).
+export function caveatText() {
+  return passiveSeatedCaveat;
+}
+
+/** Add the server's indicator entries (objects with unit, label, better, short, expert). */
+// Merged per indicator: the glossary (labels, units, expert) and /api/indicators (better) both fill it,
+// and neither may drop what the other said (a glossary entry has no `better`: replacing the whole entry
+// left the leaderboard with no ranked indicator to choose).
 export function setIndicatorInfo(info) {
   if (!info || typeof info !== "object") return;
   const merged = { ...indicatorInfo };
@@ -68,20 +49,14 @@ export function setIndicatorInfo(info) {
   indicatorInfo = merged;
 }
 
+/** The server's entry of an indicator; a key it does not list is said in words, with no unit. */
 export function indicatorInfoOf(key) {
   const name = String(key ?? "");
-  return indicatorInfo[name] || { unit: unitFromKey(name), label: name.replaceAll("_", " "), better: null };
+  return indicatorInfo[name] || { unit: "", label: name.replaceAll("_", " "), better: null };
 }
 
 export function indicatorKeys() {
   return Object.keys(indicatorInfo);
-}
-
-function unitFromKey(key) {
-  for (const [suffix, unit] of [["_kmh", "km/h"], ["_km", "km"], ["_hz", "Hz"], ["_h", "h"], ["_s", "s"], ["_m", "m"]]) {
-    if (key.endsWith(suffix)) return unit;
-  }
-  return "";
 }
 
 /** "m/s^2" -> "m/s²" for text; keeps other units as they are. */
@@ -159,11 +134,6 @@ export function fmtUnit(value, unit, digits = 3) {
   return unit && text !== "\u2013" ? `${text} ${prettyUnit(unit)}` : text;
 }
 
-/** The glossary's gait labels (js/glossary.js) replace the built-in ones. */
-export function setGaitLabels(labels) {
-  Object.assign(GAIT_LABELS, labels);
-}
-
 export function gaitLabel(gait) {
   return GAIT_LABELS[gait] || gait || "";
 }
@@ -221,17 +191,9 @@ export function distanceText(km) {
   return `about ${twoDigits(d)} km`;
 }
 
-// A job's stage names in plain words, where the job does not carry its own stage_label.
-const STAGE_WORDS = {
-  probe: "checking the clips", assemble: "gathering the clips", calibrate: "calibrating the cameras",
-  analyze: "analysing the ride", analyse: "analysing the ride", similarity: "comparing rides",
-  selftest: "self-test", queued: "waiting in the queue",
-};
-
-/** "42 % – analysing the ride" for a job ({progress_percent?, progress?, stage_label?, stage?}); never "null". */
+/** "42 % – analysing the ride" for a job (JobOut: progress_percent, stage_label in the server's words); never "null". */
 export function jobProgressText(job) {
-  const raw = job?.progress_percent ?? (Number.isFinite(job?.progress) ? job.progress * 100 : null);
-  const percent = Number.isFinite(Number(raw)) && raw !== null ? Math.max(0, Math.min(100, Math.round(Number(raw)))) : 0;
-  const stage = job?.stage_label || STAGE_WORDS[job?.stage] || (job?.stage ? String(job.stage).replaceAll("_", " ") : "");
+  const percent = Math.max(0, Math.min(100, Math.round(Number(job?.progress_percent) || 0)));
+  const stage = job?.stage_label || "";
   return { percent, stage, text: stage ? `${percent} % \u2013 ${stage}` : `${percent} %` };
 }

@@ -4,7 +4,7 @@
 import { getAll } from "./api.js";
 import { h } from "./dom.js";
 import { COMFORT_INDICATORS, GAITS, gaitLabel, indicatorInfoOf, indicatorKeys, labelText, prettyUnit } from "./format.js";
-import { SADDLE_TYPES } from "./saddle-words.js";
+import { glossaryEntries } from "./glossary.js";
 
 const byName = (items) => [...items].sort((a, b) => a.name.localeCompare(b.name));
 
@@ -15,7 +15,7 @@ const SOURCES = {
     .map((rider) => ({ value: rider.id, text: rider.name })),
   saddles: async () => byName(await getAll("/api/saddles"))
     .map((saddle) => ({ value: saddle.id, text: saddle.name })),
-  "saddle-types": async () => Object.entries(SADDLE_TYPES).map(([value, text]) => ({ value, text })),
+  "saddle-types": async () => glossaryEntries("saddle_type").map((e) => ({ value: e.code, text: e.label })),
   rigs: async () => (await getAll("/api/rigs"))
     .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibrated ? " (calibrated)" : ""}` })),
   gaits: async () => GAITS.map((gait) => ({ value: gait, text: gaitLabel(gait) })),

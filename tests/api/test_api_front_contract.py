@@ -12,7 +12,8 @@ import pytest
 from api_helpers import new_club
 from engines import open_env
 
-from saddlescope.core.vibration import INDICATORS
+from saddlescope.core.vibration import GAITS, INDICATORS, PASSIVE_SEATED_CAVEAT
+from saddlescope.db.enums import SaddleType
 
 
 @pytest.fixture(scope="module", params=["embedded"])
@@ -45,8 +46,14 @@ def test_the_indicator_table_and_glossary_need_no_sign_in(env):
     assert all(item["better"] in ("lower", "higher", None) for item in indicators.json())
     glossary = env.client.get("/api/glossary")
     assert glossary.status_code == 200, glossary.text
-    kinds = {entry["kind"] for entry in glossary.json()}
-    assert {"indicator", "gait"} <= kinds
+    by_kind: dict[str, dict[str, str]] = {}
+    for entry in glossary.json():
+        by_kind.setdefault(entry["kind"], {})[entry["code"]] = entry["label"]
+    # what the dashboard once kept copies of: gaits (in the core's order), saddle types, the caveat
+    assert list(by_kind["gait"]) == list(GAITS)
+    assert set(by_kind["saddle_type"]) == {t.value for t in SaddleType}
+    assert by_kind["saddle_type"]["gp"] == "general purpose"
+    assert by_kind["caveat"] == {"passive_seated": PASSIVE_SEATED_CAVEAT}
 
 
 def test_the_dashboards_page_size_is_the_apis_largest(env):

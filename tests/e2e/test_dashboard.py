@@ -211,6 +211,41 @@ def test_the_glossary_arriving_after_the_indicator_list_keeps_which_way_is_bette
     assert page.console.unexpected() == []
 
 
+def test_the_pages_words_are_the_servers_glossary(page, dashboard):
+    """No copies of the service's constants in the page: a gait's label and the exposure caveat changed in
+    the server's glossary answer are what the ride page shows."""
+    def changed_glossary(route):
+        entries = route.fetch().json()
+        for entry in entries:
+            if (entry["kind"], entry["code"]) == ("gait", "canter"):
+                entry["label"] = "canter (server's word)"
+            if entry["kind"] == "caveat":
+                entry["label"] = "The server's caveat."
+        route.fulfill(json=entries)
+
+    page.route("**/api/glossary", changed_glossary)
+    sign_in(page)
+    ride = next(r for r in dashboard["rides"] if r["horse"] == "Dancer")
+    page.goto(f"/#/rides/{ride['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    assert page.locator("h1").inner_text() == "Dancer \u2013 canter (server's word)"
+    assert page.locator("[data-caveat]").inner_text() == "The server's caveat."
+    assert page.console.unexpected() == []
+
+
+def test_without_the_servers_constants_no_page_is_drawn_with_guessed_labels(page, dashboard):
+    page.route("**/api/indicators", lambda route: route.abort())
+    sign_in(page)
+    page.goto("/#/leaderboard")
+    page.get_by_role("heading", level=1, name="Cannot reach the server").wait_for()
+    assert page.locator("[data-leaderboard-form]").count() == 0
+    page.unroute("**/api/indicators")
+    page.get_by_role("button", name="Try again").click()
+    page.locator("[data-leaderboard-table] tbody tr").first.wait_for()
+    # the aborted request is the browser's own console error; nothing else failed
+    assert [e for e in page.console.unexpected() if "ERR_FAILED" not in e] == []
+
+
 def test_leaderboard_ranks_the_most_comfortable_horse_first(page, dashboard):
     sign_in(page)
     page.goto("/#/leaderboard?gait=canter&indicator=acc_y_wb_rms")

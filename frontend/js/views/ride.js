@@ -6,7 +6,7 @@ import { announce, busy, fill, formValues, h, page, showError } from "../dom.js"
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import { glossaryLabel } from "../glossary.js";
 import {
-  PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
+  caveatText, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
   rangeText,
 } from "../format.js";
 import { fillOptions } from "../options.js";
@@ -308,7 +308,7 @@ function showResult(view, ride, result) {
     h("div", { class: "card-group" }, ...MAIN_CARDS.map((c) => card(result, c))),
     h("div", { class: "card-group secondary" }, ...RIDE_CARDS.map((c) => card(result, c))));
   view.querySelector("[data-exposure-table] tbody").replaceChildren(...exposureRows(result));
-  view.querySelector("[data-caveat]").textContent = result.caveat ?? PASSIVE_SEATED_CAVEAT;
+  view.querySelector("[data-caveat]").textContent = caveatText();
   view.querySelector("[data-quality-facts]").replaceChildren(...qualityFacts(result));
   showQuality(view, result);
   const fits = result.fits || {};
