@@ -106,6 +106,11 @@ async function start() {
       navigate(`/login?next=${encodeURIComponent(currentPath().path)}`);
     }
     previous = current;
+    // signed in: the chart library comes into the cache while nothing else is asked for
+    if (current) {
+      (window.requestIdleCallback ?? ((work) => setTimeout(work, 2000)))(
+        () => import("./js/charts.js").then((charts) => charts.prefetchPlotly()));
+    }
   });
   checkHealth();
   // the server's constants (labels of every code, the indicator table; open without sign-in), asked

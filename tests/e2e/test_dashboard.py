@@ -111,6 +111,24 @@ def test_a_club_with_501_horses_finds_every_one_in_the_pickers(page, dashboard):
     assert page.console.unexpected() == []
 
 
+def test_the_sign_in_page_fetches_no_chart_library(page, dashboard):
+    """Plotly (1.4-4.8 MB) is fetched where a chart is drawn, or once signed in when the browser is idle;
+    the sign-in page (once prefetching it in index.html) asks for none of it."""
+    asked: list[str] = []
+    page.on("request", lambda request: asked.append(request.url))
+    page.goto("/#/login")
+    page.locator("#login-email").wait_for()
+    page.wait_for_load_state("networkidle")
+    page.wait_for_timeout(2500)  # past the idle prefetch's fallback delay: nobody signed in, none came
+    assert [url for url in asked if "plotly" in url] == []
+    # signed in, the cartesian bundle is prefetched when the browser is idle (the first chart is cached)
+    sign_in(page)
+    page.goto("/#/rides")
+    page.reload()
+    page.locator("link[data-plotly-prefetch]").wait_for(state="attached")
+    assert page.console.unexpected(401) == []
+
+
 def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     sign_in(page)
     ride = next(r for r in dashboard["rides"] if r["horse"] == "Dancer")
