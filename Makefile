@@ -28,6 +28,21 @@ $(AXE_STAMP):
 	    || echo "note: could not install axe-core with npm; the page audit will skip (fail under CI)"; \
 	else echo "note: npm missing; the page audit will skip (fail under CI)"; fi
 
+# TypeScript's checker for the dashboard's JSDoc types (frontend/tsconfig.json: the files that start with
+# // @ts-check), pinned, from the npm registry into a cache folder of its own (an install beside axe-core
+# could prune it); stamped. Without npm `make lint` skips the check with a note (fails under CI=true).
+TSC_VERSION := 5.9.3
+TSC_DIR     := .cache/npm-tsc
+TSC_STAMP   := $(TSC_DIR)/.typescript-$(TSC_VERSION)
+TSC         := $(TSC_DIR)/node_modules/.bin/tsc
+
+$(TSC_STAMP):
+	@if command -v npm >/dev/null; then \
+	  npm install --prefix $(TSC_DIR) --no-save --no-audit --no-fund --loglevel=error typescript@$(TSC_VERSION) \
+	    && touch $(TSC_STAMP) \
+	    || echo "note: could not install typescript with npm; the JSDoc type check will skip (fail under CI)"; \
+	else echo "note: npm missing; the JSDoc type check will skip (fail under CI)"; fi
+
 # The compose CLI from PyPI (docker-compose 1.29.2: its `config` needs no Docker daemon) for the check of
 # docker-compose.yml, in a venv of its own: it pins PyYAML<6 (built here with Cython<3, having no wheel for
 # this Python) and jsonschema<4, which the project's venv must not take. Stamped; a failure only notes.
@@ -63,10 +78,13 @@ system-deps:
 demo: install
 	$(BIN)/saddlescope demo $(if $(PORT),--port $(PORT),)
 
-lint: install
+lint: install $(TSC_STAMP)
 	$(BIN)/ruff check backend worker tests
 	$(BIN)/lint-imports --config pyproject.toml
 	$(BIN)/mypy  # [tool.mypy] in pyproject.toml: the saddlescope package, the core strict
+	@if [ -x $(TSC) ]; then echo "$(TSC) -p frontend/tsconfig.json"; $(TSC) -p frontend/tsconfig.json; \
+	elif [ "$$CI" = "true" ]; then echo "typescript is missing (npm?): the JSDoc type check cannot run under CI" >&2; exit 1; \
+	else echo "note: typescript missing (npm?); skipped the JSDoc type check (frontend/tsconfig.json)"; fi
 
 # Two pytest-xdist workers, each test file whole on one worker (--dist loadfile: a module's server, ride
 # or database is built once), overlapping one test's waiting (servers, browser, broker) with another's
@@ -88,4 +106,4 @@ test-fast: install
 	$(BIN)/python -m pytest $(XDIST) -m "$(FAST_TESTS)"
 
 clean:
-	rm -rf $(VENV) var .cache/npm
+	rm -rf $(VENV) var .cache/npm .cache/npm-tsc

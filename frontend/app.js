@@ -1,9 +1,7 @@
 // SaddleScope dashboard: routes, the signed-in state in the header, and start-up.
 
-import { get } from "./js/api.js";
 import { page } from "./js/dom.js";
-import { setIndicatorInfo } from "./js/format.js";
-import { loadGlossary } from "./js/glossary.js";
+import { loadConstants } from "./js/glossary.js";
 import { checkHealth } from "./js/health.js";
 import { currentPath, navigate, render, route } from "./js/router.js";
 import { onSessionChange, refreshSession, session, signOut } from "./js/session.js";
@@ -85,16 +83,13 @@ function setUpMenu() {
   window.addEventListener("hashchange", () => setOpen(false)); // a link was followed
 }
 
-async function loadIndicatorInfo() {
-  try {
-    const answer = await get("/api/indicators");
-    const list = Array.isArray(answer) ? answer : answer?.items;
-    if (list) setIndicatorInfo(Object.fromEntries(list.map((item) => [item.key ?? item.name, item])));
-    else setIndicatorInfo(answer?.indicators ?? answer);
-  } catch (error) {
-    // The built-in table (a copy of saddlescope.core.vibration.INDICATORS) serves instead.
-    console.info("indicator list not available from the server:", error.message);
-  }
+/** The server did not answer the start-up's constants: say so (no page is drawn with guessed labels). */
+function showUnreachable(error) {
+  const unreachable = page("unreachable");
+  unreachable.querySelector("[data-unreachable-reason]").textContent = error.message;
+  unreachable.querySelector("[data-unreachable-retry]").addEventListener("click", () => window.location.reload());
+  view.replaceChildren(unreachable);
+  document.title = "Cannot reach the server \u2013 SaddleScope";
 }
 
 async function start() {
@@ -111,16 +106,27 @@ async function start() {
       navigate(`/login?next=${encodeURIComponent(currentPath().path)}`);
     }
     previous = current;
+    // signed in: the chart library comes into the cache while nothing else is asked for
+    if (current) {
+      (window.requestIdleCallback ?? ((work) => setTimeout(work, 2000)))(
+        () => import("./js/charts.js").then((charts) => charts.prefetchPlotly()));
+    }
   });
   checkHealth();
+  // the server's constants (labels of every code, the indicator table; open without sign-in), asked
+  // for beside the session and in hand before the first page is drawn
+  // (its failure held as a value: a rejection waiting for the session would count as unhandled)
+  const constantsFailed = loadConstants().then(() => null, (error) => error);
   try {
     await refreshSession();
   } catch (error) {
     console.warn("cannot ask who is signed in:", error.message);
   }
-  // the labels of every code (open without sign-in) beside the indicator list: one round trip, not two
-  await Promise.all([loadGlossary(), session() ? loadIndicatorInfo() : null]);
-  onSessionChange((current) => { if (current) loadIndicatorInfo(); });
+  const failed = await constantsFailed;
+  if (failed) {
+    showUnreachable(failed);
+    return;
+  }
   window.addEventListener("hashchange", () => render());
   await render({ view, guard, notFound });
 }

@@ -41,6 +41,20 @@ function loadBundle(name) {
   return libraries[name];
 }
 
+/**
+ * Fetch the cartesian bundle into the cache at low priority, without running it (app.js: once signed in,
+ * when the browser is idle), so the first chart comes from the cache. The sign-in page never calls it.
+ */
+export function prefetchPlotly() {
+  if (libraries.cartesian || document.querySelector("link[data-plotly-prefetch]")) return;
+  const link = document.createElement("link");
+  link.rel = "prefetch";
+  link.as = "script";
+  link.href = PLOTLY_SRC.cartesian;
+  link.dataset.plotlyPrefetch = "";
+  document.head.append(link);
+}
+
 /** Load Plotly once: the cartesian bundle, or the full one where `threeD` (or where it is loaded already). */
 export function loadPlotly({ threeD = false } = {}) {
   if (threeD) return loadBundle("full");

@@ -1,62 +1,87 @@
-// Numbers, units and indicator names for display. The indicator table mirrors
-// saddlescope.core.vibration.INDICATORS; the server's own list (GET /api/indicators) replaces it when offered.
+// @ts-check
+// Numbers, units and indicator names for display. The service's constants (the indicator table, the
+// gaits, the exposure caveat) are not copied here: js/glossary.js loads them from GET /api/indicators and
+// GET /api/glossary before the first page is drawn (app.js), and fills the tables below.
 
-export const GAITS = ["walk", "sitting_trot", "rising_trot", "canter"];
+/**
+ * What an indicator key means (GET /api/indicators merged with the glossary's indicator entries).
+ * @typedef {object} IndicatorInfo
+ * @property {string} unit
+ * @property {string} label
+ * @property {"lower" | "higher" | null} [better] which way is more comfortable (null: neither)
+ * @property {string} [short] one line on what it means
+ * @property {boolean} [expert] folded under "expert detail"
+ * @property {boolean} [comfort] one of the thesis's eight comfort indicators
+ */
 
-export const GAIT_LABELS = {
-  walk: "walk",
-  sitting_trot: "sitting trot",
-  rising_trot: "rising trot",
-  canter: "canter",
-};
+/**
+ * The fields of a job (saddlescope.api.schemas.JobOut) the words below read.
+ * @typedef {object} Job
+ * @property {string} status
+ * @property {number} progress_percent
+ * @property {string} stage_label
+ * @property {number | null} remaining_s
+ * @property {number | null} duration_s
+ */
 
-// Shown with the exposure times, as in saddlescope.core.vibration.PASSIVE_SEATED_CAVEAT.
-export const PASSIVE_SEATED_CAVEAT =
-  "The EU 2002/44/EC action and limit values assume a passive, seated person who takes no " +
-  "counter-measures against the vibration. A rider compensates actively (the pelvis follows " +
-  "the saddle in sitting trot, the trunk swings in canter; in rising trot the rider is not in " +
-  "continuous contact with the saddle at all), so the allowed times and distances are far on " +
-  "the safe side: read them as relative comfort indicators between horses and gaits, not as " +
-  "absolute limits (thesis 8.5).";
+/**
+ * The gait codes in the service's order (saddlescope.core.vibration.GAITS), filled at start.
+ * @type {string[]}
+ */
+export const GAITS = [];
 
-const exposure = {};
-for (const [basis, basisLabel] of [["a8", "A(8)"], ["vdv", "VDV"]]) {
-  for (const level of ["action", "limit"]) {
-    for (const w of ["wb", "wk"]) {
-      exposure[`t_${basis}_${level}_${w}_h`] = {
-        unit: "h", label: `time to the ${basisLabel} exposure ${level} value (W_${w[1]})`, better: "higher" };
-      exposure[`d_${basis}_${level}_${w}_km`] = {
-        unit: "km", label: `distance to the ${basisLabel} exposure ${level} value (W_${w[1]})`, better: "higher" };
-    }
-  }
+/**
+ * Each gait's label ("sitting_trot" -> "sitting trot"), filled at start.
+ * @type {Record<string, string>}
+ */
+export const GAIT_LABELS = {};
+
+/**
+ * The thesis's eight comfort indicators (8.5), all W_b: the default choice in comparisons. Filled at start.
+ * @type {string[]}
+ */
+export const COMFORT_INDICATORS = [];
+
+let passiveSeatedCaveat = "";
+/** @type {Record<string, IndicatorInfo>} */
+let indicatorInfo = {};
+
+/**
+ * The gaits of the glossary ({code, label}, in its order).
+ * @param {{code: string, label: string}[]} entries
+ */
+export function setGaits(entries) {
+  GAITS.splice(0, GAITS.length, ...entries.map((e) => e.code));
+  for (const e of entries) GAIT_LABELS[e.code] = e.label;
 }
 
-let indicatorInfo = {
-  acc_y_wb_rms: { unit: "m/s^2", label: "vertical W_b weighted r.m.s. acceleration", better: "lower" },
-  acc_y_wk_rms: { unit: "m/s^2", label: "vertical W_k weighted r.m.s. acceleration", better: "lower" },
-  vdv_y_wb: { unit: "m/s^1.75", label: "vertical W_b vibration dose value", better: "lower" },
-  vdv_y_wk: { unit: "m/s^1.75", label: "vertical W_k vibration dose value", better: "lower" },
-  acc_y_max: { unit: "m/s^2", label: "peak unweighted vertical acceleration", better: "lower" },
-  crest_factor_y: { unit: "", label: "vertical crest factor (W_b)", better: "lower" },
-  ...exposure,
-  vel_x_avg_kmh: { unit: "km/h", label: "average speed in the direction of travel", better: null },
-  amplitude_y_m: { unit: "m", label: "peak-to-peak vertical displacement of the saddle point", better: null },
-  stride_frequency_hz: { unit: "Hz", label: "stride frequency", better: null },
-  crest_factor_y_wk: { unit: "", label: "vertical crest factor (W_k)", better: "lower" },
-  acc_y_rms: { unit: "m/s^2", label: "unweighted vertical r.m.s. acceleration", better: "lower" },
-  duration_s: { unit: "s", label: "analysed duration (whole number of periods)", better: null },
-};
+/**
+ * The comfort indicators (keys, in the server's order).
+ * @param {string[]} keys
+ */
+export function setComfortIndicators(keys) {
+  COMFORT_INDICATORS.splice(0, COMFORT_INDICATORS.length, ...keys);
+}
 
-// The thesis's eight comfort indicators (8.5), all W_b: the default choice in comparisons.
-export const COMFORT_INDICATORS = [
-  "acc_y_wb_rms", "vdv_y_wb", "acc_y_max", "crest_factor_y", "t_a8_limit_wb_h", "d_a8_limit_wb_km",
-  "vel_x_avg_kmh", "amplitude_y_m",
-];
+/**
+ * The sentence shown with the exposure times (saddlescope.core.vibration.PASSIVE_SEATED_CAVEAT).
+ * @param {string} text
+ */
+export function setPassiveSeatedCaveat(text) {
+  passiveSeatedCaveat = text;
+}
 
-/** Replace the built-in indicator table with the server's (objects with unit, label, better). */
-// Merged per indicator: the glossary (labels, units, expert) and /api/indicators (better) arrive in
-// either order, and neither may drop what the other said (a glossary entry has no `better`: replacing
-// the whole entry left the leaderboard with no ranked indicator to choose).
+export function caveatText() {
+  return passiveSeatedCaveat;
+}
+
+// Merged per indicator: the glossary (labels, units, expert) and /api/indicators (better) both fill it,
+// and neither may drop what the other said (a glossary entry has no `better`: replacing the whole entry
+// left the leaderboard with no ranked indicator to choose).
+/**
+ * Add the server's indicator entries (objects with unit, label, better, short, expert).
+ * @param {Record<string, Partial<IndicatorInfo>> | null | undefined} info
+ */
 export function setIndicatorInfo(info) {
   if (!info || typeof info !== "object") return;
   const merged = { ...indicatorInfo };
@@ -68,28 +93,32 @@ export function setIndicatorInfo(info) {
   indicatorInfo = merged;
 }
 
+/**
+ * The server's entry of an indicator; a key it does not list is said in words, with no unit.
+ * @param {unknown} key
+ * @returns {IndicatorInfo}
+ */
 export function indicatorInfoOf(key) {
   const name = String(key ?? "");
-  return indicatorInfo[name] || { unit: unitFromKey(name), label: name.replaceAll("_", " "), better: null };
+  return indicatorInfo[name] || { unit: "", label: name.replaceAll("_", " "), better: null };
 }
 
 export function indicatorKeys() {
   return Object.keys(indicatorInfo);
 }
 
-function unitFromKey(key) {
-  for (const [suffix, unit] of [["_kmh", "km/h"], ["_km", "km"], ["_hz", "Hz"], ["_h", "h"], ["_s", "s"], ["_m", "m"]]) {
-    if (key.endsWith(suffix)) return unit;
-  }
-  return "";
-}
-
-/** "m/s^2" -> "m/s²" for text; keeps other units as they are. */
+/**
+ * "m/s^2" -> "m/s²" for text; keeps other units as they are.
+ * @param {string | null | undefined} unit
+ */
 export function prettyUnit(unit) {
   return (unit || "").replace("^2", "\u00b2").replace("^1.75", "\u00b9\u00b7\u2077\u2075");
 }
 
-/** "W_b" -> "W_b" as text with the subscript marked up (returns a DocumentFragment). */
+/**
+ * "W_b" -> "W_b" as text with the subscript marked up (returns a DocumentFragment).
+ * @param {unknown} label
+ */
 export function labelFragment(label) {
   const fragment = document.createDocumentFragment();
   const parts = String(label).split(/(W_[a-z])/);
@@ -107,7 +136,10 @@ export function labelFragment(label) {
   return fragment;
 }
 
-/** Plain-text label ("W_b" -> "Wb") for chart axes and option lists. */
+/**
+ * Plain-text label ("W_b" -> "Wb") for chart axes and option lists.
+ * @param {unknown} label
+ */
 export function labelText(label) {
   return String(label).replace(/W_([a-z])/g, "W$1");
 }
@@ -115,6 +147,9 @@ export function labelText(label) {
 /**
  * A number with `digits` significant digits, without exponent for everyday sizes:
  * 0.0110 -> "0.0110", 1234.5 -> "1230" (4 digits: "1235"), null/NaN -> "–".
+ * @param {number | string | null | undefined} value
+ * @param {number} [digits]
+ * @returns {string}
  */
 export function fmt(value, digits = 3) {
   if (value === null || value === undefined || value === "") return "\u2013";
@@ -139,9 +174,12 @@ export const MAX_DIGITS = 4;
  * significant digits get one more digit (up to MAX_DIGITS), and ends alike even then read "± under 0.01"
  * (the interval is narrower than the last digit a page shows). An open end (null) is "−∞" or "∞".
  * The report words intervals the same way (saddlescope.services.results.report.range_text).
+ * @param {number | null | undefined} low
+ * @param {number | null | undefined} high
+ * @param {number} [digits]
  */
 export function rangeText(low, high, digits = 3) {
-  const open = (v) => v === null || v === undefined || v === "";
+  const open = (/** @type {unknown} */ v) => v === null || v === undefined || v === "";
   if (open(low) || open(high)) return `${open(low) ? "−∞" : fmt(low, digits)}–${open(high) ? "∞" : fmt(high, digits)}`;
   for (let d = digits; d <= Math.max(digits, MAX_DIGITS); d += 1) {
     const [a, b] = [fmt(low, d), fmt(high, d)];
@@ -154,23 +192,21 @@ export function rangeText(low, high, digits = 3) {
   return `± under ${fmt(place, 1)}`;
 }
 
+/** @param {number | string | null | undefined} value @param {string | null | undefined} unit @param {number} [digits] */
 export function fmtUnit(value, unit, digits = 3) {
   const text = fmt(value, digits);
   return unit && text !== "\u2013" ? `${text} ${prettyUnit(unit)}` : text;
 }
 
-/** The glossary's gait labels (js/glossary.js) replace the built-in ones. */
-export function setGaitLabels(labels) {
-  Object.assign(GAIT_LABELS, labels);
-}
-
+/** @param {string | null | undefined} gait */
 export function gaitLabel(gait) {
-  return GAIT_LABELS[gait] || gait || "";
+  return (gait && GAIT_LABELS[gait]) || gait || "";
 }
 
 /**
  * A time in hours as a rider says it: 2.083 -> "2 h 05 min", 0.2 -> "12 min", 0.011 -> "under a minute"
  * (no seconds: the times are estimates). The same words as the report (saddlescope.services.results.report.duration_text).
+ * @param {number | string | null | undefined} hours
  */
 export function durationText(hours) {
   if (hours === null || hours === undefined || hours === "") return "\u2013";
@@ -184,7 +220,10 @@ export function durationText(hours) {
   return `${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
 }
 
-/** A job's time in seconds as a person says it: 40 -> "under a minute", 130 -> "about 2 min", 4000 -> "about 1 h 07 min". */
+/**
+ * A job's time in seconds as a person says it: 40 -> "under a minute", 130 -> "about 2 min", 4000 -> "about 1 h 07 min".
+ * @param {number | null | undefined} seconds
+ */
 export function secondsText(seconds) {
   const s = Number(seconds);
   if (seconds === null || seconds === undefined || !Number.isFinite(s) || s < 0) return "";
@@ -194,7 +233,10 @@ export function secondsText(seconds) {
   return `about ${Math.floor(minutes / 60)} h ${String(minutes % 60).padStart(2, "0")} min`;
 }
 
-/** How long a job took or still needs, in words ("took about 3 min", "about 2 min left"); "" when unknown. */
+/**
+ * How long a job took or still needs, in words ("took about 3 min", "about 2 min left"); "" when unknown.
+ * @param {Partial<Job> | null | undefined} job
+ */
 export function jobTimeText(job) {
   if (job?.status === "running" && job.remaining_s != null) return `${secondsText(job.remaining_s)} left`;
   if ((job?.status === "done" || job?.status === "failed") && job.duration_s != null) return `took ${secondsText(job.duration_s)}`;
@@ -205,13 +247,14 @@ export function jobTimeText(job) {
 /**
  * A riding distance in km as a rider says it: 0.00416 -> "about 4 m", 0.416 -> "about 420 m", 1.23 -> "about 1.2 km"
  * (two significant digits: the distances are estimates). The same words as saddlescope.services.results.report.distance_text.
+ * @param {number | string | null | undefined} km
  */
 export function distanceText(km) {
   if (km === null || km === undefined || km === "") return "\u2013";
   const d = Number(km);
   if (Number.isNaN(d) || d < 0) return "\u2013";
   if (d === Infinity) return "no limit";
-  const twoDigits = (v) => {
+  const twoDigits = (/** @type {number} */ v) => {
     const rounded = Number(v.toPrecision(2));
     return rounded >= 10 ? Math.round(rounded).toLocaleString("en") : String(rounded);
   };
@@ -221,17 +264,12 @@ export function distanceText(km) {
   return `about ${twoDigits(d)} km`;
 }
 
-// A job's stage names in plain words, where the job does not carry its own stage_label.
-const STAGE_WORDS = {
-  probe: "checking the clips", assemble: "gathering the clips", calibrate: "calibrating the cameras",
-  analyze: "analysing the ride", analyse: "analysing the ride", similarity: "comparing rides",
-  selftest: "self-test", queued: "waiting in the queue",
-};
-
-/** "42 % – analysing the ride" for a job ({progress_percent?, progress?, stage_label?, stage?}); never "null". */
+/**
+ * "42 % – analysing the ride" for a job (JobOut: progress_percent, stage_label in the server's words); never "null".
+ * @param {Partial<Job> | null | undefined} job
+ */
 export function jobProgressText(job) {
-  const raw = job?.progress_percent ?? (Number.isFinite(job?.progress) ? job.progress * 100 : null);
-  const percent = Number.isFinite(Number(raw)) && raw !== null ? Math.max(0, Math.min(100, Math.round(Number(raw)))) : 0;
-  const stage = job?.stage_label || STAGE_WORDS[job?.stage] || (job?.stage ? String(job.stage).replaceAll("_", " ") : "");
+  const percent = Math.max(0, Math.min(100, Math.round(Number(job?.progress_percent) || 0)));
+  const stage = job?.stage_label || "";
   return { percent, stage, text: stage ? `${percent} % \u2013 ${stage}` : `${percent} %` };
 }

@@ -1,31 +1,39 @@
-// The one glossary of codes the service shows (GET /api/glossary, services/glossary.py): every label of
-// an indicator, gait, direction, job kind, clip kind, gravity source or comparison method comes from it,
-// so a raw code (`lab_vertical`, `dtw`, `analyze`) never reaches a page. Loaded once at start (it needs no
-// sign-in); until it is, and for a code it lacks, the code is said in words (underscores as spaces).
+// The service's own words and constants: the glossary of every code a page shows (GET /api/glossary,
+// services/glossary.py: indicators, gaits, directions, job kinds, clip kinds, gravity sources, comparison
+// methods, saddle types, the exposure caveat) and the indicator table (GET /api/indicators: which way is
+// more comfortable, the comfort indicators). Both are open without sign-in; app.js loads them once at
+// start, before the first page is drawn, so a page never shows a guessed label. A code the glossary lacks
+// is said in words (underscores as spaces), never as the raw code.
 
 import { get } from "./api.js";
-import { setGaitLabels, setIndicatorInfo } from "./format.js";
+import { setComfortIndicators, setGaits, setIndicatorInfo, setPassiveSeatedCaveat } from "./format.js";
 
 const entries = new Map(); // "kind:code" -> {kind, code, label, unit, short, expert}
 let loading = null;
 
-/** Fetch the glossary once; indicators also refresh format.js's table (labels, units, expert). */
-export function loadGlossary() {
+function keep(glossary, indicators) {
+  entries.clear();
+  for (const e of glossary) entries.set(`${e.kind}:${e.code}`, e);
+  setIndicatorInfo(Object.fromEntries(indicators.map(({ key, ...info }) => [key, info])));
+  setIndicatorInfo(Object.fromEntries(glossaryEntries("indicator").map((e) => [e.code,
+    { unit: e.unit, label: e.label, short: e.short, expert: e.expert }])));
+  setComfortIndicators(indicators.filter((info) => info.comfort).map((info) => info.key));
+  setGaits(glossaryEntries("gait"));
+  setPassiveSeatedCaveat(glossaryEntry("caveat", "passive_seated")?.label ?? "");
+}
+
+/**
+ * Fetch the glossary and the indicator table once (format.js's tables are filled from them). Rejects
+ * with the ApiError when the server cannot answer; a later call tries again.
+ */
+export function loadConstants() {
   if (!loading) {
-    loading = get("/api/glossary").then((list) => {
-      for (const e of list || []) entries.set(`${e.kind}:${e.code}`, e);
-      const indicators = (list || []).filter((e) => e.kind === "indicator");
-      if (indicators.length) {
-        setIndicatorInfo(Object.fromEntries(indicators.map((e) => [e.code, { unit: e.unit, label: e.label,
-          short: e.short, expert: e.expert }])));
-      }
-      setGaitLabels(Object.fromEntries((list || []).filter((e) => e.kind === "gait").map((e) => [e.code, e.label])));
-      return entries;
-    }).catch((error) => {
-      loading = null; // a later page tries again
-      console.info("glossary not available from the server:", error.message);
-      return entries;
-    });
+    loading = Promise.all([get("/api/glossary"), get("/api/indicators")])
+      .then(([glossary, indicators]) => keep(glossary, indicators))
+      .catch((error) => {
+        loading = null;
+        throw error;
+      });
   }
   return loading;
 }
@@ -33,6 +41,11 @@ export function loadGlossary() {
 /** The glossary's entry of `code` of `kind`, or null. */
 export function glossaryEntry(kind, code) {
   return entries.get(`${kind}:${code}`) ?? null;
+}
+
+/** Every entry of `kind`, in the glossary's order. */
+export function glossaryEntries(kind) {
+  return [...entries.values()].filter((e) => e.kind === kind);
 }
 
 /** The label of `code` of `kind` ("lab_vertical" -> "the lab's vertical axis"); never the raw code. */

@@ -1,28 +1,46 @@
+// @ts-check
 // <select data-options="horses|riders|saddles|saddle-types|rigs|gaits|indicators|ranked-indicators">: filled from the API.
 // data-optional="text" adds a first, empty choice with that text.
 
-import { get, itemsOf } from "./api.js";
+import { getAll } from "./api.js";
 import { h } from "./dom.js";
 import { COMFORT_INDICATORS, GAITS, gaitLabel, indicatorInfoOf, indicatorKeys, labelText, prettyUnit } from "./format.js";
-import { SADDLE_TYPES } from "./saddle-words.js";
+import { glossaryEntries } from "./glossary.js";
 
+/**
+ * One choice of a picker; `group` names its <optgroup>.
+ * @typedef {object} Choice
+ * @property {string | number} value
+ * @property {string} text
+ * @property {string | null} [title]
+ * @property {string} [group]
+ */
+
+/** @typedef {import("./format.js").IndicatorInfo} IndicatorInfo */
+
+/** @type {(items: {name: string}[]) => any[]} */
 const byName = (items) => [...items].sort((a, b) => a.name.localeCompare(b.name));
 
+/** @type {Record<string, () => Promise<Choice[]>>} */
 const SOURCES = {
-  horses: async () => byName(itemsOf(await get("/api/horses", { params: { limit: 500 } })))
+  horses: async () => byName(await getAll("/api/horses"))
     .map((horse) => ({ value: horse.id, text: horse.name })),
-  riders: async () => byName(itemsOf(await get("/api/riders", { params: { limit: 500 } })))
+  riders: async () => byName(await getAll("/api/riders"))
     .map((rider) => ({ value: rider.id, text: rider.name })),
-  saddles: async () => byName(itemsOf(await get("/api/saddles", { params: { limit: 500 } })))
+  saddles: async () => byName(await getAll("/api/saddles"))
     .map((saddle) => ({ value: saddle.id, text: saddle.name })),
-  "saddle-types": async () => Object.entries(SADDLE_TYPES).map(([value, text]) => ({ value, text })),
-  rigs: async () => itemsOf(await get("/api/rigs", { params: { limit: 500 } }))
-    .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibration ? " (calibrated)" : ""}` })),
+  "saddle-types": async () => glossaryEntries("saddle_type").map((e) => ({ value: e.code, text: e.label })),
+  rigs: async () => (await getAll("/api/rigs"))
+    .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibrated ? " (calibrated)" : ""}` })),
   gaits: async () => GAITS.map((gait) => ({ value: gait, text: gaitLabel(gait) })),
   indicators: async () => indicatorChoices(() => true),
   "ranked-indicators": async () => indicatorChoices((info) => info.better === "lower" || info.better === "higher"),
 };
 
+/**
+ * @param {(info: IndicatorInfo) => boolean} keep
+ * @returns {Choice[]}
+ */
 function indicatorChoices(keep) {
   // The thesis's eight comfort indicators first (the headline numbers), then the glossary's expert
   // indicators (MTVV, the W_d axes, worst-axis times, ...) in their own group "Expert detail".
@@ -36,26 +54,35 @@ function indicatorChoices(keep) {
   });
 }
 
-/** Options, in <optgroup>s where the choices name their group. */
+/**
+ * Options, in <optgroup>s where the choices name their group.
+ * @param {Choice[]} choices
+ * @returns {Element[]}
+ */
 function optionElements(choices) {
-  const option = (c) => h("option", { value: c.value, title: c.title ?? null }, c.text);
+  const option = (/** @type {Choice} */ c) => h("option", { value: c.value, title: c.title ?? null }, c.text);
   if (!choices.some((c) => c.group)) return choices.map(option);
+  /** @type {Map<string | undefined, Element[]>} */
   const groups = new Map();
   for (const c of choices) {
     if (!groups.has(c.group)) groups.set(c.group, []);
-    groups.get(c.group).push(option(c));
+    groups.get(c.group)?.push(option(c));
   }
   return [...groups].map(([label, options]) => h("optgroup", { label }, ...options));
 }
 
-/** Fill every data-options select under `root`; returns when all are filled. */
+/**
+ * Fill every data-options select under `root`; returns when all are filled.
+ * @param {ParentNode} root
+ */
 export async function fillOptions(root) {
-  const selects = [...root.querySelectorAll("select[data-options]")];
+  const selects = [...root.querySelectorAll("select[data-options]")].filter((el) => el instanceof HTMLSelectElement);
+  /** @type {Map<string, Promise<Choice[]>>} */
   const cache = new Map();
   await Promise.all(selects.map(async (select) => {
-    const source = select.dataset.options;
+    const source = select.dataset.options ?? "";
     if (!cache.has(source)) cache.set(source, SOURCES[source]());
-    const choices = await cache.get(source);
+    const choices = (await cache.get(source)) ?? [];
     const keep = select.value;
     const options = optionElements(choices);
     if (select.dataset.optional) options.unshift(h("option", { value: "" }, select.dataset.optional));

@@ -29,9 +29,9 @@ function words(names) {
 }
 
 /** A short name of the ride ("ride #12: canter, 2026-03-01"); `horse` adds the horse's name. */
-function titleOf(ride, horse) {
+function titleOf(ride) {
   const date = ride.ridden_on ?? "no date";
-  return `ride #${ride.id}${horse ? ` of ${horse}` : ""} (${gaitLabel(ride.gait)}, ${date})`;
+  return `ride #${ride.id} of ${ride.horse_name} (${gaitLabel(ride.gait)}, ${date})`;
 }
 
 /**
@@ -65,7 +65,7 @@ export async function deleteRideWithConfirmation(ride, title) {
  * `onSaved(ride)` gets the saved ride, `onDeleted(ride)` is called after a deletion,
  * `onReanalyse(job)` after a re-analysis was queued. Returns a cleanup function.
  */
-export async function mountRideEdit(container, ride, { onSaved, onDeleted, onReanalyse, horseName } = {}) {
+export async function mountRideEdit(container, ride, { onSaved, onDeleted, onReanalyse } = {}) {
   container.replaceChildren(part("ride-edit"));
   const form = container.querySelector("[data-ride-edit-form]");
   const outdated = container.querySelector("[data-ride-edit-outdated]");
@@ -91,7 +91,7 @@ export async function mountRideEdit(container, ride, { onSaved, onDeleted, onRea
       const el = form.elements[name];
       if (el) el.value = current[name] ?? "";
     }
-    heading.textContent = `Details of ${titleOf(current, horseName?.(current))}`;
+    heading.textContent = `Details of ${titleOf(current)}`;
     remove.hidden = !can("ride.delete", current.created_by);
     showOutdated();
   }
@@ -147,7 +147,7 @@ export async function mountRideEdit(container, ride, { onSaved, onDeleted, onRea
 
   remove.addEventListener("click", async () => {
     try {
-      if (await deleteRideWithConfirmation(current, titleOf(current, horseName?.(current)))) onDeleted?.(current);
+      if (await deleteRideWithConfirmation(current, titleOf(current))) onDeleted?.(current);
     } catch (error) {
       showError(form, error);
     }

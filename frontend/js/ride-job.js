@@ -3,7 +3,7 @@
 // and the way to do it here: replace that clip (the other clips kept), calibrate the rig again (or use the
 // ride's own calibration clips for it), or run the analysis again.
 
-import { get, itemsOf, patch, post } from "./api.js";
+import { get, getAll, patch, post } from "./api.js";
 import { h } from "./dom.js";
 import { jobProgressText, jobTimeText } from "./format.js";
 import { can } from "./session.js";
@@ -94,8 +94,8 @@ function pickRigForm(ride, follow) {
   const form = h("form", { class: "replace-clip", hidden: true },
     h("label", { for: id }, "Or analyse it with another rig's calibration"), select,
     h("button", { type: "submit" }, "Use this rig and analyse again"), error);
-  get("/api/rigs", { params: { limit: 100 } }).then((answer) => {
-    const rigs = itemsOf(answer).filter((rig) => rig.calibrated && rig.id !== ride.rig_id);
+  getAll("/api/rigs").then((all) => {
+    const rigs = all.filter((rig) => rig.calibrated && rig.id !== ride.rig_id);
     select.replaceChildren(...rigs.map((rig) => h("option", { value: String(rig.id) }, rig.name)));
     form.hidden = !rigs.length;
   }).catch((err) => console.info("rigs not available:", err.message));

@@ -1,11 +1,10 @@
-// Tables of rides: `rideTable(items, lookups, actions)` draws one (horse names link to the horse page;
+// Tables of rides: `rideTable(items, actions)` draws one (horse names link to the horse page;
 // with `actions`, Edit and, where allowed, Delete per row), and [data-ride-table data-limit="N"] on a
 // page (the overview) gets the club's N newest rides.
 
 import { get, itemsOf } from "./api.js";
 import { h, showError } from "./dom.js";
 import { fmt, gaitLabel } from "./format.js";
-import { horseName, nameLookups, riderName } from "./lookups.js";
 import { can } from "./session.js";
 
 function statusBadge(status) {
@@ -13,17 +12,17 @@ function statusBadge(status) {
 }
 
 function indicatorOf(ride, key) {
-  return ride.indicators?.[key] ?? ride.result?.indicators?.[key] ?? ride[key];
+  return ride.indicators?.[key];
 }
 
 /** A short name of a ride for headings and confirmations: "#12 Bravo, canter, 2026-03-01". */
-export function rideTitle(ride, lookups) {
+export function rideTitle(ride) {
   const date = ride.ridden_on ?? (ride.created_at ? ride.created_at.slice(0, 10) : "no date");
-  return `#${ride.id} ${horseName(ride, lookups)}, ${gaitLabel(ride.gait)}, ${date}`;
+  return `#${ride.id} ${ride.horse_name}, ${gaitLabel(ride.gait)}, ${date}`;
 }
 
-function actionsCell(ride, lookups, actions) {
-  const title = rideTitle(ride, lookups);
+function actionsCell(ride, actions) {
+  const title = rideTitle(ride);
   const cell = h("td", { class: "actions" },
     h("a", { href: `#/rides/${ride.id}`, "aria-label": `Open ride ${title}` }, "Open"),
     actions.onEdit ? h("button", { type: "button", class: "link-button", "data-ride-edit": ride.id,
@@ -38,11 +37,11 @@ function actionsCell(ride, lookups, actions) {
   return cell;
 }
 
-export function rideTable(items, lookups, actions = null) {
+export function rideTable(items, actions = null) {
   const body = items.map((ride) => h("tr", { dataset: { rideId: ride.id, ownerId: ride.created_by ?? "" } },
     h("td", {}, h("a", { href: `#/rides/${ride.id}` }, `#${ride.id}`)),
-    h("td", {}, h("a", { href: `#/horses/${ride.horse_id}` }, horseName(ride, lookups))),
-    h("td", {}, riderName(ride, lookups)),
+    h("td", {}, h("a", { href: `#/horses/${ride.horse_id}` }, ride.horse_name)),
+    h("td", {}, ride.rider_name),
     h("td", {}, gaitLabel(ride.gait)),
     h("td", {}, ride.direction ?? ""),
     h("td", { class: "nowrap" }, ride.ridden_on ?? (ride.created_at ? ride.created_at.slice(0, 10) : "")),
@@ -51,7 +50,7 @@ export function rideTable(items, lookups, actions = null) {
         "re-analyse") : null),
     h("td", { class: "num" }, fmt(indicatorOf(ride, "acc_y_wb_rms"))),
     h("td", { class: "num" }, fmt(indicatorOf(ride, "vdv_y_wb"))),
-    actions ? actionsCell(ride, lookups, actions) : null));
+    actions ? actionsCell(ride, actions) : null));
   return h("div", { class: "table-wrap", tabindex: "0", role: "region", "aria-label": "Rides table" },
     h("table", { class: "data", "data-rides-table": true },
       h("thead", {}, h("tr", {},
@@ -68,9 +67,8 @@ export async function attachRideTable(container) {
   const limit = Number(container.dataset.limit || 50);
   container.replaceChildren(h("p", { class: "form-error", role: "alert", "data-form-error": true, hidden: true }));
   let rides;
-  let lookups;
   try {
-    [rides, lookups] = await Promise.all([get("/api/rides", { params: { limit, sort: "-id" } }), nameLookups()]);
+    rides = await get("/api/rides", { params: { limit, sort: "-id" } });
   } catch (error) {
     showError(container, error);
     return;
@@ -80,5 +78,5 @@ export async function attachRideTable(container) {
     container.append(h("p", { class: "empty" }, "No rides yet. ", h("a", { href: "#/upload" }, "Upload the first one"), "."));
     return;
   }
-  container.append(rideTable(items, lookups));
+  container.append(rideTable(items));
 }

@@ -1,20 +1,11 @@
-// Saddles in words: their types as a fitter names them, and a mean with its 95 % interval.
+// Saddles in words: their types as a fitter names them (the glossary's saddle_type entries), and a mean
+// with its 95 % interval.
 
 import { fmt, rangeText } from "./format.js";
-
-/** The saddle types the API knows (saddlescope.db.enums.SaddleType), in words. */
-export const SADDLE_TYPES = {
-  gp: "general purpose",
-  dressage: "dressage",
-  jump: "jumping",
-  treeless: "treeless",
-  endurance: "endurance",
-  western: "western",
-  other: "other",
-};
+import { glossaryLabel } from "./glossary.js";
 
 export function saddleTypeText(type) {
-  return SADDLE_TYPES[type] ?? "\u2013";
+  return type ? glossaryLabel("saddle_type", type) : "\u2013";
 }
 
 /** "0.812 (0.701–0.923)": a mean and its 95 % interval; a single ride has no interval ("0.812, one ride"). */

@@ -20,9 +20,9 @@ function offsetFrom(headers, fallback) {
   return Number.isFinite(n) ? n : fallback;
 }
 
-/** Where the server's copy ends (`offset_bytes`, or `offset` in older answers). */
+/** Where the server's copy ends (UploadOut.offset_bytes). */
 function serverOffset(state) {
-  return Number(state?.offset_bytes ?? state?.offset) || 0;
+  return Number(state?.offset_bytes) || 0;
 }
 
 const sleep = (ms, signal) => new Promise((resolve, reject) => {

@@ -22,6 +22,7 @@ PUBLIC = {
     ("POST", "/api/auth/logout"),
     ("POST", "/api/auth/password-reset"),  # the one-time token is the credential
     ("GET", "/api/glossary"),  # the words for the service's codes, the same for everyone (the sign-in page's too)
+    ("GET", "/api/indicators"),  # the indicator table, the same for everyone (loaded before the first page)
 }
 # Own-club routes that end the caller's sessions: checked signed out only (they would sign B out).
 ENDS_SESSIONS = {("POST", "/api/auth/logout-everywhere")}
@@ -115,7 +116,6 @@ OWN_CLUB = {
     ("GET", "/api/auth/me"),
     ("GET", "/api/health/details"),  # the server's, no club's: admins of any club
     ("POST", "/api/auth/password"),
-    ("GET", "/api/indicators"),
     ("GET", "/api/jobs/kinds"),
     ("POST", "/api/horses"),
     ("POST", "/api/saddles"),

@@ -78,6 +78,57 @@ def test_login_flow_shows_the_servers_reason_then_signs_in(page, dashboard):
     assert page.console.unexpected(401) == []
 
 
+def test_unsafe_requests_send_the_servers_one_csrf_cookie(page, dashboard):
+    """The server sets one CSRF cookie (saddlescope.api.deps.CSRF_COOKIE); cookies of other names (a
+    sibling app's `csrftoken`, `csrf_token`) are not ours, and the page once sent the first of them."""
+    page.context.add_cookies([{"name": name, "value": "planted", "url": dashboard["base"]}
+                              for name in ("csrftoken", "csrf_token", "csrf")])
+    sign_in(page)
+    page.goto("/#/")
+    page.locator("[data-account-logout]").wait_for(state="visible")
+    status = page.evaluate("""() => import('/js/api.js').then((m) => m.post('/api/auth/logout')
+        .then(() => 204, (error) => error.status))""")
+    assert status == 204
+    assert "saddlescope_session" not in {c["name"] for c in page.context.cookies()}
+    assert page.console.unexpected() == []
+
+
+def test_a_club_with_501_horses_finds_every_one_in_the_pickers(page, dashboard):
+    """The pickers read every page of a list (api.js getAll), not the first 500 rows the API answers at
+    most (saddlescope.api.routers.common's Paging): the 501st horse was missing from every form."""
+    email, password = "stable@example.org", "many-horses-pass-1"
+    with browser_harness.new_club_admin(dashboard["base"], club_name="Big Stable", email=email,
+                                        password=password) as api:
+        for i in range(501):
+            _ok(api.post("/api/horses", json={"name": f"Horse {i:03d}"}))
+    answer = page.context.request.post("/api/auth/login", data={"email": email, "password": password})
+    assert answer.ok, answer.text()
+    page.goto("/#/rides")
+    picker = page.locator("#rides-horse option:not([value=''])")
+    page.wait_for_function("() => document.querySelectorAll('#rides-horse option').length > 1")
+    assert picker.count() == 501
+    assert picker.last.inner_text() == "Horse 500"
+    assert page.console.unexpected() == []
+
+
+def test_the_sign_in_page_fetches_no_chart_library(page, dashboard):
+    """Plotly (1.4-4.8 MB) is fetched where a chart is drawn, or once signed in when the browser is idle;
+    the sign-in page (once prefetching it in index.html) asks for none of it."""
+    asked: list[str] = []
+    page.on("request", lambda request: asked.append(request.url))
+    page.goto("/#/login")
+    page.locator("#login-email").wait_for()
+    page.wait_for_load_state("networkidle")
+    page.wait_for_timeout(2500)  # past the idle prefetch's fallback delay: nobody signed in, none came
+    assert [url for url in asked if "plotly" in url] == []
+    # signed in, the cartesian bundle is prefetched when the browser is idle (the first chart is cached)
+    sign_in(page)
+    page.goto("/#/rides")
+    page.reload()
+    page.locator("link[data-plotly-prefetch]").wait_for(state="attached")
+    assert page.console.unexpected(401) == []
+
+
 def test_ride_result_page_shows_indicator_cards_and_charts(page, dashboard):
     sign_in(page)
     ride = next(r for r in dashboard["rides"] if r["horse"] == "Dancer")
@@ -176,6 +227,41 @@ def test_the_glossary_arriving_after_the_indicator_list_keeps_which_way_is_bette
     })""")
     assert merged == ["lower", "from the glossary", ""]
     assert page.console.unexpected() == []
+
+
+def test_the_pages_words_are_the_servers_glossary(page, dashboard):
+    """No copies of the service's constants in the page: a gait's label and the exposure caveat changed in
+    the server's glossary answer are what the ride page shows."""
+    def changed_glossary(route):
+        entries = route.fetch().json()
+        for entry in entries:
+            if (entry["kind"], entry["code"]) == ("gait", "canter"):
+                entry["label"] = "canter (server's word)"
+            if entry["kind"] == "caveat":
+                entry["label"] = "The server's caveat."
+        route.fulfill(json=entries)
+
+    page.route("**/api/glossary", changed_glossary)
+    sign_in(page)
+    ride = next(r for r in dashboard["rides"] if r["horse"] == "Dancer")
+    page.goto(f"/#/rides/{ride['id']}")
+    page.locator("[data-result]").wait_for(state="visible")
+    assert page.locator("h1").inner_text() == "Dancer \u2013 canter (server's word)"
+    assert page.locator("[data-caveat]").inner_text() == "The server's caveat."
+    assert page.console.unexpected() == []
+
+
+def test_without_the_servers_constants_no_page_is_drawn_with_guessed_labels(page, dashboard):
+    page.route("**/api/indicators", lambda route: route.abort())
+    sign_in(page)
+    page.goto("/#/leaderboard")
+    page.get_by_role("heading", level=1, name="Cannot reach the server").wait_for()
+    assert page.locator("[data-leaderboard-form]").count() == 0
+    page.unroute("**/api/indicators")
+    page.get_by_role("button", name="Try again").click()
+    page.locator("[data-leaderboard-table] tbody tr").first.wait_for()
+    # the aborted request is the browser's own console error; nothing else failed
+    assert [e for e in page.console.unexpected() if "ERR_FAILED" not in e] == []
 
 
 def test_leaderboard_ranks_the_most_comfortable_horse_first(page, dashboard):

@@ -462,7 +462,9 @@ class RideOut(_Out):
 
     id: int
     horse_id: int
+    horse_name: str = Field(description="the horse's name (so a page need not look it up by horse_id)")
     rider_id: int
+    rider_name: str = Field(description="the rider's name (so a page need not look it up by rider_id)")
     rig_id: int | None
     gait: str
     direction: str
@@ -764,7 +766,7 @@ class GlossaryEntryOut(BaseModel):
     """What one code the service uses means to a person (services/glossary.py)."""
 
     kind: Literal["indicator", "gait", "direction", "job_kind", "job_stage", "clip_kind", "camera",
-                  "gravity_source", "similarity_method"]
+                  "gravity_source", "similarity_method", "saddle_type", "caveat"]
     code: str = Field(description="the code as the API and the stored data carry it, never shown on a page")
     label: str = Field(description="what a page shows instead of the code (W_b, W_k, W_d as subscripts)")
     unit: str = Field(description="the unit of the values ('' where none)")

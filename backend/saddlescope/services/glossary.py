@@ -1,7 +1,7 @@
 """One glossary of every code the service shows a person.
 
-Indicators, gaits, directions, job kinds and stages, clip kinds, where gravity came from and the ways
-rides are compared.
+Indicators, gaits, directions, job kinds and stages, clip kinds, where gravity came from, the ways
+rides are compared, saddle types, and the caveat shown with the exposure times.
 
 ``GET /api/glossary`` serves it; the dashboard takes every label from it, so a raw code (``lab_vertical``,
 ``dtw``, ``analyze``) never reaches a page. Indicators carry ``expert``: the thesis's eight comfort
@@ -15,14 +15,15 @@ from dataclasses import dataclass
 
 from saddlescope.core.similarity import METHODS
 from saddlescope.core.types import CAMERA_ROLES
-from saddlescope.core.vibration import COMFORT_INDICATORS, GAITS, INDICATORS
+from saddlescope.core.vibration import COMFORT_INDICATORS, GAITS, INDICATORS, PASSIVE_SEATED_CAVEAT
+from saddlescope.db.enums import SaddleType
 from saddlescope.services.jobs.stage_labels import STAGE_LABELS
 from saddlescope.services.jobs.stages import JOB_KINDS
 
 __all__ = ["GLOSSARY_KINDS", "GlossaryEntry", "glossary", "label_of"]
 
 GLOSSARY_KINDS = ("indicator", "gait", "direction", "job_kind", "job_stage", "clip_kind", "camera",
-                  "gravity_source", "similarity_method")
+                  "gravity_source", "similarity_method", "saddle_type", "caveat")
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,12 @@ _JOB_KINDS = {
                       "close-up clips"),
     "selftest": ("Worker self-test", "checks that the workers run"),
     "check_calibration": ("Calibration check", "judges calibration clips before anyone rides: where the board reached"),
+}
+# every SaddleType, as a saddle fitter names it (the dashboard's saddle forms and pages show these)
+_SADDLE_TYPES = {
+    SaddleType.GP: "general purpose", SaddleType.DRESSAGE: "dressage", SaddleType.JUMP: "jumping",
+    SaddleType.TREELESS: "treeless", SaddleType.ENDURANCE: "endurance", SaddleType.WESTERN: "western",
+    SaddleType.OTHER: "other",
 }
 _CLIP_KINDS = {
     "motion": ("ride clip", "the horse ridden past the three cameras"),
@@ -125,6 +132,9 @@ def glossary() -> list[GlossaryEntry]:
         *[GlossaryEntry("camera", role, f"{role} camera", "", "") for role in CAMERA_ROLES],
         *_table("gravity_source", _GRAVITY_SOURCES),
         *_table("similarity_method", {m: _SIMILARITY_METHODS.get(m, (m, "")) for m in METHODS}),
+        *[GlossaryEntry("saddle_type", t.value, _SADDLE_TYPES.get(t, t.value), "", "") for t in SaddleType],
+        # the sentence shown with the exposure times (the EU limits assume a passive, seated person)
+        GlossaryEntry("caveat", "passive_seated", PASSIVE_SEATED_CAVEAT, "", ""),
     ]
 
 

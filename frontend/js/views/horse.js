@@ -3,7 +3,7 @@
 // band, its saddles compared (mean and 95 % interval per saddle, and in words whether two differ
 // beyond the uncertainty), and any two of its rides side by side with the % difference of each indicator.
 
-import { get, itemsOf, patch } from "../api.js";
+import { get, getAll, itemsOf, patch } from "../api.js";
 import { busy, fill, h, page, showError } from "../dom.js";
 import { countedBarChart, trendChart } from "../horse-charts.js";
 import { distanceText, durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
@@ -78,17 +78,17 @@ function setUpProfileForm(view, horse, onSaved) {
   });
 }
 
-function rideRow(ride, riders) {
+function rideRow(ride) {
   const wb = ride.indicators?.acc_y_wb_rms;
   return h("tr", { dataset: { rideId: ride.id } },
     h("td", {}, h("a", { href: `#/rides/${ride.id}` }, ride.ridden_on ?? `ride #${ride.id}`)),
     h("td", {}, gaitLabel(ride.gait)),
-    h("td", {}, riders.get(ride.rider_id) ?? `rider ${ride.rider_id}`),
+    h("td", {}, ride.rider_name),
     h("td", {}, ride.status),
     h("td", { class: "num", dataset: { value: wb ?? "" } }, fmt(wb)));
 }
 
-function setUpRides(view, horseId, riders) {
+function setUpRides(view, horseId) {
   const table = view.querySelector("[data-horse-rides]");
   const empty = view.querySelector("[data-horse-rides-empty]");
   const prev = view.querySelector("[data-page-prev]");
@@ -98,8 +98,8 @@ function setUpRides(view, horseId, riders) {
   const load = async () => {
     const answer = await get("/api/rides", { params: { horse_id: horseId, limit: RIDES_PER_PAGE, offset, sort: "-ridden_on" } });
     const rides = itemsOf(answer);
-    const total = answer.total ?? rides.length;
-    table.tBodies[0].replaceChildren(...rides.map((ride) => rideRow(ride, riders)));
+    const { total } = answer;
+    table.tBodies[0].replaceChildren(...rides.map(rideRow));
     table.hidden = !rides.length;
     empty.hidden = rides.length > 0;
     info.textContent = total ? `${offset + 1}\u2013${offset + rides.length} of ${total}` : "";
@@ -235,7 +235,7 @@ async function setUpPair(view, horseId) {
   const table = view.querySelector("[data-pair-table]");
   const empty = view.querySelector("[data-pair-empty]");
   const section = form.closest("section");
-  const rides = itemsOf(await get("/api/rides", { params: { horse_id: horseId, status: "analysed", limit: 500, sort: "-ridden_on" } }));
+  const rides = await getAll("/api/rides", { horse_id: horseId, status: "analysed", sort: "-ridden_on" });
   const options = rides.map((ride) => h("option", { value: ride.id }, rideLabel(ride)));
   form.elements.a.replaceChildren(...options.map((o) => o.cloneNode(true)));
   form.elements.b.replaceChildren(...options);
@@ -302,10 +302,7 @@ export async function mountHorse(view, params) {
   view.querySelector("[data-horse-actions]").hidden = false;
   fill(view.querySelector("[data-share-slot]"), shareControl({ horseId: horse.id }));
   setUpProfileForm(view, horse, (updated) => showProfile(view, updated));
-  const [riders] = await Promise.all([
-    get("/api/riders", { params: { limit: 500 } }).then((answer) => new Map(itemsOf(answer).map((r) => [r.id, r.name]))),
-    fillOptions(view),
-  ]);
+  await fillOptions(view);
   const trendForm = view.querySelector("[data-horse-trend-form]");
   // The trend starts in the gait this horse has most rides in.
   const chooseGait = (groups) => {
@@ -315,7 +312,7 @@ export async function mountHorse(view, params) {
       trendForm.dataset.chosen = "yes";
     }
   };
-  await Promise.all([setUpRides(view, horseId, riders), setUpGaits(view, horseId, chooseGait)]);
+  await Promise.all([setUpRides(view, horseId), setUpGaits(view, horseId, chooseGait)]);
   const saddlesForm = view.querySelector("[data-horse-saddles-form]");
   saddlesForm.elements.gait.value = trendForm.elements.gait.value; // the gait it has most rides in
   await Promise.all([setUpTrend(view, horseId), setUpSaddles(view, horseId), setUpPair(view, horseId)]);

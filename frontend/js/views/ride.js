@@ -6,10 +6,9 @@ import { announce, busy, fill, formValues, h, page, showError } from "../dom.js"
 import { emptyChart, loadPlotly, versionsChart, xyzChart } from "../charts.js";
 import { glossaryLabel } from "../glossary.js";
 import {
-  PASSIVE_SEATED_CAVEAT, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
+  caveatText, distanceText, durationText, fmt, gaitLabel, indicatorInfoOf, labelFragment, prettyUnit,
   rangeText,
 } from "../format.js";
-import { horseName, nameLookups, riderName } from "../lookups.js";
 import { fillOptions } from "../options.js";
 import { poll } from "../poll.js";
 import { can } from "../session.js";
@@ -309,7 +308,7 @@ function showResult(view, ride, result) {
     h("div", { class: "card-group" }, ...MAIN_CARDS.map((c) => card(result, c))),
     h("div", { class: "card-group secondary" }, ...RIDE_CARDS.map((c) => card(result, c))));
   view.querySelector("[data-exposure-table] tbody").replaceChildren(...exposureRows(result));
-  view.querySelector("[data-caveat]").textContent = result.caveat ?? PASSIVE_SEATED_CAVEAT;
+  view.querySelector("[data-caveat]").textContent = caveatText();
   view.querySelector("[data-quality-facts]").replaceChildren(...qualityFacts(result));
   showQuality(view, result);
   const fits = result.fits || {};
@@ -347,9 +346,8 @@ export async function mountRide(view, { id }) {
   const rideId = Number(id);
   const state = view.querySelector("[data-ride-state]");
   let ride;
-  let lookups;
   try {
-    [ride, lookups] = await Promise.all([get(`/api/rides/${rideId}`), nameLookups()]);
+    ride = await get(`/api/rides/${rideId}`);
   } catch (error) {
     if (!state.isConnected) return undefined; // left meanwhile: `view` holds another page now
     view.querySelector("[data-ride-title]").textContent = `Ride #${id}`;
@@ -357,8 +355,8 @@ export async function mountRide(view, { id }) {
     return undefined;
   }
   if (!state.isConnected) return undefined; // left while the ride loaded: `view` holds another page now
-  const horse = horseName(ride, lookups);
-  const rider = riderName(ride, lookups);
+  const horse = ride.horse_name;
+  const rider = ride.rider_name;
   view.querySelector("[data-ride-crumb]").textContent = `#${ride.id}`;
   view.querySelector("[data-ride-title]").textContent = `${horse} \u2013 ${gaitLabel(ride.gait)}`;
   document.title = `${horse}, ${gaitLabel(ride.gait)} \u2013 SaddleScope`;
@@ -386,7 +384,6 @@ export async function mountRide(view, { id }) {
       h("summary", {}, can("ride.delete", ride.created_by) ? "Edit the ride's details or delete it"
         : "Edit the ride's details"), form));
     mountRideEdit(form, ride, {
-      horseName: () => horse,
       onSaved: () => render(),
       onDeleted: () => navigate("/rides"),
       onReanalyse: (job) => follow(job?.id), // followed live; the page is drawn again once it is done

@@ -4,7 +4,6 @@
 
 import { get, itemsOf } from "../api.js";
 import { h, page, showError } from "../dom.js";
-import { nameLookups, horseName } from "../lookups.js";
 import { poll } from "../poll.js";
 import { fillOptions } from "../options.js";
 import { apiParams, bindFilterForm, listState, pager, updateQuery } from "../pager.js";
@@ -23,13 +22,11 @@ export async function mountRides(view, params, query) {
   const pagerSlot = view.querySelector("[data-rides-pager]");
   const editSlot = view.querySelector("[data-ride-edit-slot]");
   const panel = list.closest(".panel");
-  let lookups = null;
   let shown = [];
 
   async function openEditor(ride) {
     editSlot.hidden = false;
     await mountRideEdit(editSlot, ride, {
-      horseName: (r) => horseName(r, lookups),
       onSaved: () => load(),
       onDeleted: () => updateQuery({ edit: null }),
     });
@@ -40,7 +37,7 @@ export async function mountRides(view, params, query) {
 
   async function remove(ride) {
     try {
-      if (await deleteRideWithConfirmation(ride, rideTitle(ride, lookups).replace(/^#/, "ride #"))) await load();
+      if (await deleteRideWithConfirmation(ride, rideTitle(ride).replace(/^#/, "ride #"))) await load();
     } catch (error) {
       showError(panel, error);
     }
@@ -49,7 +46,7 @@ export async function mountRides(view, params, query) {
   async function load() {
     let answer;
     try {
-      [answer, lookups] = await Promise.all([get("/api/rides", { params: apiParams(state) }), lookups ?? nameLookups()]);
+      answer = await get("/api/rides", { params: apiParams(state) });
       showError(panel, null);
     } catch (error) {
       showError(panel, error);
@@ -58,7 +55,7 @@ export async function mountRides(view, params, query) {
     const items = itemsOf(answer);
     shown = items;
     const filtered = FILTERS.some((name) => state.filters[name] !== "");
-    list.replaceChildren(items.length ? rideTable(items, lookups, {
+    list.replaceChildren(items.length ? rideTable(items, {
       onEdit: (ride) => updateQuery({ edit: ride.id }),
       onDelete: remove,
     }) : h("p", { class: "empty" }, filtered ? "No ride matches these filters. " : "No rides yet. ",

@@ -4,7 +4,7 @@
 // where in the image the board has been; beside the board walk, "Calibrate with a wand": the wand's
 // length and each camera's wand and close-up clips (issue 35).
 
-import { del, get, itemsOf, patch, post, request } from "../api.js";
+import { del, get, getAll, patch, post, request } from "../api.js";
 import { announce, busy, formValues, h, page, showError } from "../dom.js";
 import { poll } from "../poll.js";
 import { navigate } from "../router.js";
@@ -66,7 +66,7 @@ export async function mountRigs(view) {
   const form = view.querySelector("[data-rig-form]");
   wireBoardKind(form);
   form.hidden = !can("rig.create");
-  const rigs = itemsOf(await get("/api/rigs", { params: { limit: 500 } }));
+  const rigs = await getAll("/api/rigs");
   body.replaceChildren(...(rigs.length ? rigs.map((rig) => h("tr", {},
     h("th", { scope: "row" }, h("a", { href: `#/rigs/${rig.id}` }, rig.name)),
     h("td", {}, rig.recorded_on || ""),

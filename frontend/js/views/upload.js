@@ -5,7 +5,7 @@
 // anything is sent (`missingBeforeUpload`): the form names every missing clip or setting.
 // `#/upload?ride=ID` completes an incomplete ride: its stored clips count, only the missing are sent.
 
-import { ApiError, del, get, itemsOf, patch, post, request } from "../api.js";
+import { ApiError, del, get, getAll, patch, post, request } from "../api.js";
 import { announce, formValues, h, page, showError } from "../dom.js";
 import { fillOptions } from "../options.js";
 import { missingBeforeUpload, missingList } from "../ride-readiness.js";
@@ -70,7 +70,7 @@ export async function mountUpload(view, _params, query) {
   const source = () => form.querySelector("[data-upload-source]:checked").value;
 
   async function loadRigs() {
-    rigs = itemsOf(await get("/api/rigs", { params: { limit: 500 } }));
+    rigs = await getAll("/api/rigs");
     const select = form.elements.rig_id;
     const keep = select.value;
     select.replaceChildren(h("option", { value: "" }, rigs.length ? "choose the rig\u2026" : "no rigs yet: add one on the Rigs page"),
@@ -240,7 +240,7 @@ export async function mountUpload(view, _params, query) {
     label.textContent = `Creating the ride from ${stagedBundle.file.name}`;
     const answer = await finalizeUpload(stagedBundle.upload, details, { signal: controller.signal });
     stagedBundle = null;
-    return answer?.ride?.id ?? answer?.ride_id;
+    return answer.ride_id; // finalize answers {ride_id, job_id} for a bundle
   }
 
   async function uploadClips(values) {

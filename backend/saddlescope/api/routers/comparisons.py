@@ -93,8 +93,12 @@ def glossary_entries() -> list[GlossaryEntryOut]:
 
 
 @router.get("/indicators", response_model=list[IndicatorOut], responses=ERRORS)
-def indicators(club: ClubDep) -> list[IndicatorOut]:
-    """Every indicator key: unit, label, its name in thesis Table 8.7, and which way is more comfortable."""
+def indicators() -> list[IndicatorOut]:
+    """Every indicator key: unit, label, its name in thesis Table 8.7, and which way is more comfortable.
+
+    Open without signing in, as the glossary: the dashboard loads both before its first page (the
+    sign-in page too), and they hold no club data.
+    """
     return [
         IndicatorOut(
             key=key,

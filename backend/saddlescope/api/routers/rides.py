@@ -74,7 +74,9 @@ def ride_out(ride: Ride, result_indicators: dict | None = None) -> RideOut:
     return RideOut(
         id=ride.id,
         horse_id=ride.horse_id,
+        horse_name=ride.horse.name,
         rider_id=ride.rider_id,
+        rider_name=ride.rider.name,
         rig_id=ride.rig_id,
         gait=ride.gait,
         direction=ride.direction,

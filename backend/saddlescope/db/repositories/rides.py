@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy import ColumnElement, delete, or_, select, update
+from sqlalchemy.orm import selectinload
 
 from saddlescope.db.models import (
     LEADERBOARD_COLUMNS,
@@ -109,7 +110,9 @@ class RideRepository(Repository):
         # Outer join only to sort by a result's indicator: the count and the other sorts stay on the
         # rides table and its (club_id, ...) indexes.
         by_result = (sort or "").removeprefix("-") in LEADERBOARD_COLUMNS
-        stmt = select(Ride).outerjoin(Result, Result.ride_id == Ride.id) if by_result else None
+        stmt = select(Ride).outerjoin(Result, Result.ride_id == Ride.id) if by_result else select(Ride)
+        # the names the list sends with each ride, in one query per page rather than one per ride
+        stmt = stmt.options(selectinload(Ride.horse), selectinload(Ride.rider))
         return self._page((rides or RideFilter()).where(), sort=sort, limit=limit, offset=offset, stmt=stmt,
                           count_stmt=select(Ride))
 
