@@ -76,7 +76,7 @@ def test_a_smooth_stride_with_a_hidden_fifth_costs_little_where_the_fixed_cost_m
     assert test.tested and set(test.changes) == set(DELETION_KEYS)
     truth = harmonic_indicators(_harmonics(t, _position(t)))
     error = abs(harmonic_indicators(base)["acc_y_wb_rms"] / truth["acc_y_wb_rms"] - 1)
-    half_width = 1.96 * FLOORS["unmeasured_phase_deletion"] * test.rms_change
+    half_width = 1.96 * FLOORS["unmeasured_phase_deletion"] * test.median_change
     assert half_width < MAX_HALF_WIDTH_FRACTION / 2  # not marked for the boot
     assert 1.96 * FLOORS["unmeasured_phase"] * 0.2 > MAX_HALF_WIDTH_FRACTION  # the fixed cost marked it
     assert error < 2 * max(half_width, 0.01)
@@ -87,14 +87,14 @@ def test_a_gap_the_fits_cannot_bridge_costs_a_lot():
     t, y, seen = _ride(2.0, hidden=(0.3, 0.55), noise_m=0.006, seed=3)
     test = phase_deletion_test(t, seen, 1 / F0_HZ, _refit(t, y, seen), _harmonics(t[seen], y[seen]))
     assert test.tested
-    assert 1.96 * FLOORS["unmeasured_phase_deletion"] * test.rms_change > MAX_HALF_WIDTH_FRACTION
+    assert 1.96 * FLOORS["unmeasured_phase_deletion"] * test.median_change > MAX_HALF_WIDTH_FRACTION
 
 
 def test_too_few_strides_or_a_failing_refit_leave_the_test_undone():
     t, y, seen = _ride(1.1)
     test = phase_deletion_test(t, seen, 1 / F0_HZ, _refit(t, y, seen), _harmonics(t[seen], y[seen]))
     assert not test.tested and "1.1 strides" in test.reason
-    assert test.as_quality()["rms_change"] is None
+    assert test.as_quality()["median_change"] is None
 
     def broken(deleted):
         raise KinematicsError("the fit is singular")

@@ -322,14 +322,14 @@ def test_a_hidden_fifth_costs_what_the_phase_deletion_test_measured_on_the_ride(
     # the field table's trots and canters: a fifth of the stride hidden moved W_b by at most 4.7 %, while
     # the share's fixed cost put ±20 % on them and marked them too uncertain
     good = _result()
-    measured = {"tested": True, "rms_change": 0.01, "max_change": 0.02, "deletions": 6}
+    measured = {"tested": True, "median_change": 0.01, "max_change": 0.02, "deletions": 6}
     hidden = replace(good, quality={**good.quality, "stride_phase_unmeasured_share": 0.2,
                                     "stride_phase_deletion": measured})
     src = interval_sources(hidden, depth_anisotropy=2.0)
     assert src["gain_parts"]["unmeasured_phase"] == pytest.approx(FLOORS["unmeasured_phase_deletion"] * 0.01)
     assert decision_uncertainty(hidden.indicators, ride_intervals(hidden, sources=src), src) is None
     # a ride where leaving more of the stride out moves the indicators a lot is marked, naming the boot
-    shaky = replace(hidden, quality={**hidden.quality, "stride_phase_deletion": {**measured, "rms_change": 0.15}})
+    shaky = replace(hidden, quality={**hidden.quality, "stride_phase_deletion": {**measured, "median_change": 0.15}})
     src = interval_sources(shaky, depth_anisotropy=2.0)
     verdict = decision_uncertainty(shaky.indicators, ride_intervals(shaky, sources=src), src)
     assert verdict is not None and "hidden at the same moment of every stride" in verdict
@@ -338,7 +338,7 @@ def test_a_hidden_fifth_costs_what_the_phase_deletion_test_measured_on_the_ride(
 def test_a_hidden_fifth_whose_cost_could_not_be_measured_marks_the_ride():
     # a one-stride canter with a boot over its rear marker (+88 % on W_b once): too few strides to refit
     good = _result()
-    untested = {"tested": False, "rms_change": None, "reason": "the fits saw 1.1 strides"}
+    untested = {"tested": False, "median_change": None, "reason": "the fits saw 1.1 strides"}
     hidden = replace(good, quality={**good.quality, "stride_phase_unmeasured_share": 0.12,
                                     "stride_phase_deletion": untested})
     src = interval_sources(hidden, depth_anisotropy=2.0)
