@@ -125,8 +125,9 @@ def hidden_marker_refusal(t_s: np.ndarray, xyz: np.ndarray, run_s: float, period
 # most 4.7 % while it put ±18-24 % on them, and said nothing of the one-stride canter it moved by +88 %.
 DELETIONS = 6
 DELETION_KEYS = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "amplitude_y_m")
-# the fits must see at least this many strides for a deletion to leave every other phase measured twice
-# over the fitted frames; fewer, and the refit says nothing of a gap's cost (docs/accuracy.md)
+# below this many strides fitted, most phases are measured once: a deletion removes their only measurement
+# and the refit says nothing of one gap's cost (the field table's one-stride boot rides, 1.15-1.23 strides,
+# gave median changes of 14-20 % where the boot cost 2-5 %); such rides are marked (docs/accuracy.md)
 MIN_STRIDES_TESTED = 1.5
 _VDV_GRID = 512
 
