@@ -142,7 +142,7 @@ class PhaseDeletionTest:
 
     The median, not the r.m.s. or the largest: at some phases a second gap and the hidden part together
     leave a stretch of the stride the fits cannot bridge, and one deletion of six moves W_b by 15-117 %
-    where the hidden part alone cost 1.4-4.8 % (exact-marker rides, docs/accuracy.md): that measures two
+    where the hidden part alone cost 1.4-7 % (exact-marker rides, docs/accuracy.md): that measures two
     gaps, not the one.
     """
 

@@ -88,9 +88,9 @@ FLOORS: dict[str, float] = {
     # much of the stride left out again at 6 other moments and the ride refitted): what the hidden part
     # costs THIS ride. Set on exact-marker arena rides with the rear marker hidden for a fifth of every
     # stride at a random phase (docs/accuracy.md): the hidden part's worst cost over W_b, W_k, VDV and
-    # the displacement was 0.1-7 %, at most 4.1 times the test's median change (0.8 times in the median);
-    # with the skin floors every cost of a ride not marked fell inside its interval, and 3 of the 45
-    # trots and canters were marked (1.5 would have marked 10)
+    # the displacement was 0.1-7 % at the trots and canters (the walk's up to 52 %, marked), 0.8 times the
+    # test's median change in the median and 4.1 times at most; with the skin floors every cost of a ride
+    # not marked fell inside its interval, and 3 of the 45 trots and canters were marked (1.5: 10)
     "unmeasured_phase_deletion": 1.0,
     # where the test could not be done (too few strides fitted) and a tenth of the stride or more was
     # unmeasured: ±20 %, which marks the ride too uncertain (a one-stride canter with a boot over its
