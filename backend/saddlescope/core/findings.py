@@ -106,8 +106,13 @@ _TABLE: tuple[tuple[str, Severity, str, str], ...] = (
      "A few look-alike spots were dropped; cover shiny tack near the markers if this repeats."),
     ("tracking.partly_covered", "ok", "detection",
      "Moments where something passed in front of a marker were left out; nothing to do unless it is every stride."),
-    ("kinematics.stride_phase_unmeasured", "problem", "kinematics",
+    # a marker hidden at the same moment of every stride (core/kinematics/hidden_phase.py): what that costs
+    # is measured on the ride and carried by its intervals (which mark it too uncertain when too wide), or,
+    # where it cannot be measured (too few strides fitted), the ride is too uncertain
+    ("kinematics.stride_phase_unmeasured", "check", "kinematics",
      "Place the markers where the rider's leg, the tail or a lunge line does not pass in front of them."),
+    ("kinematics.stride_phase_untested", "problem", "kinematics",
+     "Place the markers where the rider's leg, the tail or a lunge line does not pass, and film more strides."),
     ("tracking.gaps_bridged", "ok", "kinematics",
      "Short moments where a marker was hidden were bridged; nothing to do."),
     ("tracking.lost_all_along", "problem", "kinematics",

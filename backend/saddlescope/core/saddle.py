@@ -642,15 +642,40 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
         horse_idx, saddle_idx, _ = identify_saddle_marker(static_all, xyz)
     mismatch_mm, reg = _register_static_model(xyz, xyz_m, static_all, static_tracks, horse_idx, frame)
 
+    refit = _deletion_refit(t_w, reg, xyz_m, bridged_frames[win], span, static_all, horse_idx, saddle_idx, frame,
+                            params)
     fits, reg, r, ang, s, r_bs = _fitted_saddle_point(t[win], reg, xyz_m, bridged_frames[win], span, static_all,
                                                      horse_idx, saddle_idx, frame, params, flags)
     omega = fits.omega_rad_s if np.isfinite(fits.omega_rad_s) else 2 * np.pi / period_s
-    unmeasured = unmeasured_phase(t_w, measured[win], xyz_m, float(2 * np.pi / omega), flags)
+    unmeasured = unmeasured_phase(t_w, measured[win], xyz_m, float(2 * np.pi / omega), flags, refit=refit,
+                                  base=_vertical_of(fits, s, t_w[in_win], period_s))
     return SaddleAnalysis(t_s=t_w[in_win], period_s=float(2 * np.pi / omega), period_estimate_s=float(period_s),
                           period_info=span.period_info, window=span.window, fitted=span.fitted, frame=frame,
                           registration=reg, fits=fits, angular=ang, saddle=s, markers_m=r,
                           static_mismatch_mm=mismatch_mm, r_bs_m=r_bs, flags=tuple(flags), long_gaps=long_gaps,
                           unmeasured_phase=unmeasured)
+
+
+def _deletion_refit(t_w: np.ndarray, reg: Registration, xyz_m: np.ndarray, bridged_w: np.ndarray, span: _Span,
+                    static_all: np.ndarray, horse_idx: list[int], saddle_idx: int, frame: MotionFrame,
+                    params: PipelineParams):
+    """The refit the phase-deletion test asks for (:func:`~saddlescope.core.kinematics.hidden_phase.unmeasured_phase`).
+
+    ``refit(deleted)``: the saddle point's vertical harmonics (:func:`_vertical_of`) fitted exactly as the
+    analysis fits them (:func:`_fitted_saddle_point`) with the fitted frames ``deleted`` (F,) left out too.
+    """
+    def refit(deleted: np.ndarray) -> dict:
+        fits, _, _, _, s, _ = _fitted_saddle_point(t_w, reg, xyz_m, bridged_w | deleted, span, static_all, horse_idx,
+                                                   saddle_idx, frame, params, [])
+        return _vertical_of(fits, s, t_w[span.in_window], span.period_s)
+    return refit
+
+
+def _vertical_of(fits: MarkerKinematics, s, t_win: np.ndarray, period_s: float) -> dict:
+    """The saddle point's vertical harmonics (:func:`vertical_harmonics`) as the indicators take them."""
+    omega = fits.omega_rad_s if np.isfinite(fits.omega_rad_s) else 2 * np.pi / period_s
+    return vertical_harmonics(t_win, s.acceleration_m_s2[:, 1], s.position_m[:, 1], float(2 * np.pi / omega),
+                              max(f.order for f in fits.fits_y))
 
 
 def _harmonic_form(t_s: np.ndarray, y: np.ndarray, f0_hz: float, order: int, *, trend: bool = False

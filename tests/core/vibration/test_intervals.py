@@ -24,6 +24,7 @@ from saddlescope.core.types import (
 from saddlescope.core.vibration import ride_indicators
 from saddlescope.core.vibration.intervals import (
     COMFORT_BAND_EDGES_M_S2,
+    FLOORS,
     INTERVAL_KEYS,
     MAX_HALF_WIDTH_FRACTION,
     SKIN_FLOORS,
@@ -297,7 +298,8 @@ def _result(*, square_error_pct: float = 0.2, outside: dict | None = None, findi
 
 
 def test_an_interval_grows_with_the_stride_phase_no_frame_measured_and_a_fifth_marks_the_ride():
-    # issue 38: a boot over the rear marker for a fifth of every stride
+    # issue 38: a boot over the rear marker for a fifth of every stride, in a result analysed before the
+    # phase-deletion test (no quality["stride_phase_deletion"]): the share's fixed cost
     good = _result()
     base = interval_sources(good, depth_anisotropy=2.0)
     assert base["gain_parts"]["unmeasured_phase"] == 0.0
@@ -314,3 +316,31 @@ def test_an_interval_grows_with_the_stride_phase_no_frame_measured_and_a_fifth_m
     src = interval_sources(hidden, depth_anisotropy=2.0)
     verdict = decision_uncertainty(hidden.indicators, ride_intervals(hidden, sources=src), src)
     assert verdict is not None and "hidden at the same moment of every stride" in verdict
+
+
+def test_a_hidden_fifth_costs_what_the_phase_deletion_test_measured_on_the_ride():
+    # the field table's trots and canters: a fifth of the stride hidden moved W_b by at most 4.7 %, while
+    # the share's fixed cost put ±20 % on them and marked them too uncertain
+    good = _result()
+    measured = {"tested": True, "median_change": 0.01, "max_change": 0.02, "deletions": 6}
+    hidden = replace(good, quality={**good.quality, "stride_phase_unmeasured_share": 0.2,
+                                    "stride_phase_deletion": measured})
+    src = interval_sources(hidden, depth_anisotropy=2.0)
+    assert src["gain_parts"]["unmeasured_phase"] == pytest.approx(FLOORS["unmeasured_phase_deletion"] * 0.01)
+    assert decision_uncertainty(hidden.indicators, ride_intervals(hidden, sources=src), src) is None
+    # a ride where leaving more of the stride out moves the indicators a lot is marked, naming the boot
+    shaky = replace(hidden, quality={**hidden.quality, "stride_phase_deletion": {**measured, "median_change": 0.15}})
+    src = interval_sources(shaky, depth_anisotropy=2.0)
+    verdict = decision_uncertainty(shaky.indicators, ride_intervals(shaky, sources=src), src)
+    assert verdict is not None and "hidden at the same moment of every stride" in verdict
+
+
+def test_a_hidden_fifth_whose_cost_could_not_be_measured_marks_the_ride():
+    # a one-stride canter with a boot over its rear marker (+88 % on W_b once): too few strides to refit
+    good = _result()
+    untested = {"tested": False, "median_change": None, "reason": "the fits saw 1.1 strides"}
+    hidden = replace(good, quality={**good.quality, "stride_phase_unmeasured_share": 0.12,
+                                    "stride_phase_deletion": untested})
+    src = interval_sources(hidden, depth_anisotropy=2.0)
+    assert src["gain_parts"]["unmeasured_phase"] == FLOORS["unmeasured_phase_untested"]
+    assert decision_uncertainty(hidden.indicators, ride_intervals(hidden, sources=src), src) is not None

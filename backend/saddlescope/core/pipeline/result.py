@@ -82,6 +82,8 @@ def _quality(rig: Rig, kin: SaddleAnalysis, harm: Mapping, tracks3d: Mapping[str
         # the share of the stride no fitted frame measured (issue 38): the intervals grow with it
         "stride_phase_unmeasured_share": float(kin.unmeasured_phase.get("share", 0.0)),
         "stride_phase_unmeasured_per_marker": dict(kin.unmeasured_phase.get("per_marker", {})),
+        # what that part costs this ride (core.kinematics.hidden_phase's phase-deletion test), or None
+        "stride_phase_deletion": kin.unmeasured_phase.get("deletion"),
         "period_estimate_s": kin.period_estimate_s,
         # the frames the fits saw (the window's harmonics are estimated from every tracked stride)
         "fitted_frames": {"start_frame": int(kin.fitted[0]), "frames": int(kin.fitted[1] - kin.fitted[0])},

@@ -80,10 +80,22 @@ FLOORS: dict[str, float] = {
     # truth and crest factor 37 % high (a reconstruction broken by the extrapolated lens)
     "not_periodic": 1.0,
     # times the share of the stride's phase no fitted frame measured (a marker hidden at the same moment
-    # of every stride, issue 38; quality.stride_phase_unmeasured_share): the fits bend freely there. A
-    # fifth of the stride unmeasured gives ±20 %, which marks the ride too uncertain (a one-stride canter
-    # with a boot over its rear marker came out +88 % with ±8 % before such samples were left out)
+    # of every stride, issue 38; quality.stride_phase_unmeasured_share): the fits bend freely there. Only
+    # for results analysed before the phase-deletion test (quality.stride_phase_deletion), and for shares
+    # below a tenth of the stride where the test could not be done. A fifth gives ±20 %
     "unmeasured_phase": 0.5,
+    # times the phase-deletion test's median change of the indicators (core.kinematics.hidden_phase: as
+    # much of the stride left out again at 6 other moments and the ride refitted): what the hidden part
+    # costs THIS ride. Set on exact-marker arena rides with the rear marker hidden for a fifth of every
+    # stride at a random phase (docs/accuracy.md): the hidden part's worst cost over W_b, W_k, VDV and
+    # the displacement was 0.1-7 % at the trots and canters (the walk's up to 52 %, marked), 0.8 times the
+    # test's median change in the median and 4.1 times at most; with the skin floors every cost of a ride
+    # not marked fell inside its interval, and 3 of the 45 trots and canters were marked (1.5: 10)
+    "unmeasured_phase_deletion": 1.0,
+    # where the test could not be done (too few strides fitted) and a tenth of the stride or more was
+    # unmeasured: ±20 %, which marks the ride too uncertain (a one-stride canter with a boot over its
+    # rear marker came out +88 % with ±8 % before the partly covered samples were left out)
+    "unmeasured_phase_untested": 0.1,
 }
 
 # The skin-motion floor per gait: (gain, harmonic shape, weighted peak, displacement). The gain and the
@@ -211,6 +223,22 @@ def _indicator_strides(result) -> int:
     return int((result.params or {}).get("n_periods") or round(ind.get("duration_s", 0) * vh.f0_hz) or 2)
 
 
+def _unmeasured_phase_part(quality: Mapping) -> float:
+    """The common gain's part (relative sigma) for the stride phase no fitted frame measured.
+
+    The phase-deletion test's r.m.s. change (``quality["stride_phase_deletion"]``) where it was done;
+    where it could not be done, the share's fixed cost but at least ±20 % (the ride is too uncertain);
+    results analysed before the test (and small shares it could not test) keep the share's fixed cost.
+    """
+    share = float(quality.get("stride_phase_unmeasured_share") or 0.0)
+    test = quality.get("stride_phase_deletion")
+    if not share or not test:
+        return FLOORS["unmeasured_phase"] * share
+    if not test.get("tested"):
+        return max(FLOORS["unmeasured_phase"] * share, FLOORS["unmeasured_phase_untested"])
+    return FLOORS["unmeasured_phase_deletion"] * float(test["median_change"])
+
+
 def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
     """The noise model's standard deviations for one ride, from what its result knows.
 
@@ -249,7 +277,7 @@ def interval_sources(result, *, depth_anisotropy: float | None = None) -> dict:
     parts = {"calibration_scale": scale, "omega_versions": FLOORS["omega_spread"] * spread,
              "depth_roll": FLOORS["depth_roll"] if depth_anisotropy >= _DEPTH_ANISOTROPY else 0.0,
              "lens_extrapolated": FLOORS["outside_board"] * outside ** 2,
-             "unmeasured_phase": FLOORS["unmeasured_phase"] * float(q.get("stride_phase_unmeasured_share") or 0.0)}
+             "unmeasured_phase": _unmeasured_phase_part(q)}
     # an unknown gait takes the widest floors
     widest = tuple(max(parts) for parts in zip(*SKIN_FLOORS.values(), strict=True))
     skin_gain, shape, skin_peak, skin_disp = SKIN_FLOORS.get(result.gait or "", widest)
