@@ -231,11 +231,12 @@ def _pooled_findings(results: Sequence[RideResult], reference: int, analyses: Se
     if total >= n_periods:  # the pooled strides are as many as the indicators span: no pass's short crossing matters
         findings = [f for f in findings if f.code != "fit.short_crossing"]
     wb = ", ".join(f"{(a.indicators or {})['acc_y_wb_rms']:.2f}" for a in used)
-    findings.append(Finding(
-        "passes.pooled",
-        f"{len(used)} passes in front of the cameras, {strides_words([a.strides for a in used])} ({total} in all), "
-        f"pooled: W_b r.m.s. per pass {wb} m/s², pass-to-pass spread ±{100 * spread:.1f} %, pooled "
-        f"{pooled_wb:.2f} m/s²", {"passes": len(used), "strides": total, "wb_rms_spread_fraction": spread}))
+    if len(used) > 1:  # one pass analysed of several: nothing pooled (passes.dropped says why the others were not)
+        findings.append(Finding(
+            "passes.pooled",
+            f"{len(used)} passes in front of the cameras, {strides_words([a.strides for a in used])} ({total} in "
+            f"all), pooled: W_b r.m.s. per pass {wb} m/s², pass-to-pass spread ±{100 * spread:.1f} %, pooled "
+            f"{pooled_wb:.2f} m/s²", {"passes": len(used), "strides": total, "wb_rms_spread_fraction": spread}))
     for a in analyses:
         if a.kin is None:
             start, stop = a.span

@@ -145,8 +145,9 @@ def _kinematics(found: RideTracks, rig: Rig, params: PipelineParams, meta: Mappi
 def _pass_analyses(found: RideTracks, rig: Rig, params: PipelineParams, meta: Mapping) -> list[PassAnalysis] | None:
     """Each pass of a ride whose motion clip holds several (issue 38); None for one pass.
 
-    None too when fewer than two passes can be analysed: the clip is then analysed as a whole, as a
-    one-pass ride always is (its numbers unchanged).
+    None too when no pass can be analysed: the clip is then analysed as a whole, as a one-pass ride always
+    is (its numbers unchanged). One pass analysed of several is the ride's result alone (the others left out
+    with their reasons): the whole clip would span the gaps between the passes, where the horse is out of view.
     """
     motion = found.tracks3d["motion"]
     spans = find_passes(motion.t_s, motion.xyz_mm)
@@ -160,7 +161,7 @@ def _pass_analyses(found: RideTracks, rig: Rig, params: PipelineParams, meta: Ma
                                  depth=depth, down_hint=found.cameras_down)
 
     analyses = analyse_passes(motion, spans, analyse, params)
-    return analyses if sum(a.kin is not None for a in analyses) >= 2 else None
+    return analyses if any(a.kin is not None for a in analyses) else None
 
 
 def _pooled_result(analyses: list[PassAnalysis], found: RideTracks, rig: Rig, flags: list[Finding],
