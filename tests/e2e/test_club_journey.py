@@ -300,8 +300,13 @@ def _journey(tab, served, meta, folder) -> None:
     tab.locator("[data-ride-edit-reanalyse]").click()
     tab.locator("[data-ride-edit-outdated-text]").filter(has_text="Re-analysis queued").or_(
         tab.locator("main").get_by_text("%")).first.wait_for()
-    requeued = _wait_job(api, served, statuses=("queued", "running", "done"), ride_id=ride_id)
+    # the page's "%" can be an interval's ("95 %") before the request lands: wait for the new job itself
+    deadline = time.monotonic() + 60
+    while (_ok(api.get("/api/jobs", params={"ride_id": ride_id}))["total"] == jobs_before
+           and time.monotonic() < deadline):
+        time.sleep(0.5)
     assert _ok(api.get("/api/jobs", params={"ride_id": ride_id}))["total"] == jobs_before + 1
+    requeued = _wait_job(api, served, statuses=("queued", "running", "done"), ride_id=ride_id)
     _wait_job(api, served, ride_id=ride_id)
     assert _ok(api.get(f"/api/jobs/{requeued['id']}"))["status"] == "done"
     assert _ok(api.get(f"/api/rides/{ride_id}"))["result_outdated_by"] == []
