@@ -10,7 +10,7 @@ check-calibration`` runs it on files.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -89,26 +89,37 @@ def check_calibration_clips(
     for n, camera in enumerate(order):
         if on_progress is not None:
             on_progress(n / len(order), f"the {camera} camera")
-        info = probe_video(Path(paths[camera]), decode_tail=False)
-        step = sample_step(info.fps, info.frame_count, sample_fps=sample_fps)
-        scale = CHECK_WIDTH_PX / info.width if info.width else 1.0
-        sampled = 0
-
-        def frames(path: Path = Path(paths[camera]), step: int = step, scale: float = scale):
-            nonlocal sampled
-            for index, gray in iter_gray_frames(path, step=step):
-                sampled += 1
-                yield index, (gray if scale == 1.0 else cv2.resize(
-                    gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_CUBIC))
-
+        clip = _SampledClip(Path(paths[camera]), sample_fps, width_px=CHECK_WIDTH_PX)
         # One search per frame at one width (max_width just under it: neither downscaled nor tried again
         # enlarged, as the calibration's finder does): the check wants where the board went, fast.
-        width = max(2, round(info.width * scale))
-        views, _ = detect_board_views(frames(), board, track=False, max_width=width - 1)
-        sightings = [((v.corners_px + 0.5) / scale - 0.5, v.ids) for v in views]
-        out[camera] = check_camera_coverage(camera, sightings, board, (info.width, info.height),
-                                            frames_sampled=sampled)
+        width = max(2, round(clip.info.width * clip.scale))
+        views, _ = detect_board_views(clip.frames(), board, track=False, max_width=width - 1)
+        sightings = [((v.corners_px + 0.5) / clip.scale - 0.5, v.ids) for v in views]
+        out[camera] = check_camera_coverage(camera, sightings, board, (clip.info.width, clip.info.height),
+                                            frames_sampled=clip.sampled)
     return CalibrationCheck(out, time.perf_counter() - t0)
+
+
+class _SampledClip:
+    """One camera's clip as the checks look at it: every `step`-th frame (`sample_step`), at `width_px` wide.
+
+    ``sampled`` counts the frames :meth:`frames` has yielded so far.
+    """
+
+    def __init__(self, path: Path, sample_fps: float, *, width_px: int | None = None) -> None:
+        self.path = path
+        self.info = probe_video(path, decode_tail=False)
+        self.step = sample_step(self.info.fps, self.info.frame_count, sample_fps=sample_fps)
+        self.scale = width_px / self.info.width if width_px and self.info.width else 1.0
+        self.sampled = 0
+
+    def frames(self) -> Iterator[tuple[int, np.ndarray]]:
+        """(frame index, grey frame) of the sampled frames, resized to the check's width."""
+        for index, gray in iter_gray_frames(self.path, step=self.step):
+            self.sampled += 1
+            yield index, (gray if self.scale == 1.0 else cv2.resize(
+                gray, None, fx=self.scale, fy=self.scale,
+                interpolation=cv2.INTER_AREA if self.scale < 1 else cv2.INTER_CUBIC))
 
 
 def _camera_order(paths: Mapping[str, Path]) -> list[str]:
@@ -137,18 +148,10 @@ def check_wand_clips(paths: Mapping[str, Path], wand_length_m: float, *, sample_
     for n, camera in enumerate(order):
         if on_progress is not None:
             on_progress(n / len(order), f"the {camera} camera")
-        info = probe_video(Path(paths[camera]), decode_tail=False)
-        step = sample_step(info.fps, info.frame_count, sample_fps=sample_fps)
-        sampled = [0]
-
-        def counted(path: Path = Path(paths[camera]), step: int = step, sampled: list = sampled):
-            for index, gray in iter_gray_frames(path, step=step):
-                sampled[0] += 1
-                yield index, gray
-
-        views = track_wand_ends(counted())
-        out[camera] = check_wand_coverage(camera, [v.ends_px for v in views], (info.width, info.height),
-                                          frames_sampled=sampled[0], wand_length_mm=1000.0 * float(wand_length_m))
+        clip = _SampledClip(Path(paths[camera]), sample_fps)
+        views = track_wand_ends(clip.frames())
+        out[camera] = check_wand_coverage(camera, [v.ends_px for v in views], (clip.info.width, clip.info.height),
+                                          frames_sampled=clip.sampled, wand_length_mm=1000.0 * float(wand_length_m))
     return CalibrationCheck(out, time.perf_counter() - t0, what="wand")
 
 
