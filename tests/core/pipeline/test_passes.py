@@ -5,6 +5,7 @@ Exact marker positions of arena rides (no cameras): the pooling's own behaviour,
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -184,3 +185,27 @@ def test_one_pass_analysable_of_three_is_the_rides_result_not_the_whole_clip():
     assert [p.used for p in result.passes] == [True, False, False]
     true_speed = truth["truth"]["passes"][0]["speed_kmh"]
     assert result.indicators["vel_x_avg_kmh"] == pytest.approx(true_speed, rel=0.01)
+
+
+@pytest.mark.slow
+def test_a_hidden_phase_is_pooled_by_the_passes_median_not_one_outlying_pass():
+    found, _ = _exact_ride(3)
+    params = PipelineParams()
+    analyses = run._pass_analyses(found, Rig({}), params, {"gait": "canter"})
+    results = [run.assemble_result({"gait": "canter"}, Rig({}), {}, {}, found, a.kin, a.harm, a.indicators, 30.0,
+                                   {"total": 0.0}, params, []) for a in analyses]
+
+    def hidden(result, change, tested=True):
+        quality = {**result.quality, "stride_phase_unmeasured_share": 0.2,
+                   "stride_phase_deletion": {"tested": tested, "median_change": change}}
+        return dataclasses.replace(result, quality=quality)
+
+    # the field's s3219: one pass's test answered 15 times its peers' while their W_b agreed within 0.8 %
+    outlier = [hidden(r, c) for r, c in zip(results, (0.02, 0.03, 0.45), strict=True)]
+    assert pooled_sources(outlier, [2, 2, 2])["gain_parts"]["unmeasured_phase"] == pytest.approx(0.03)
+    # a pass whose test could not be done does not vote while another's was done
+    untested = [hidden(results[0], 0.04), hidden(results[1], 0.0, tested=False), hidden(results[2], 0.06)]
+    assert pooled_sources(untested, [1, 3, 1])["gain_parts"]["unmeasured_phase"] == pytest.approx(0.05)
+    # none done: the stride-weighted mean of the fixed costs (every pass's ±20 % floor, so still marked)
+    none = [hidden(r, 0.0, tested=False) for r in results]
+    assert pooled_sources(none, [1, 1, 2])["gain_parts"]["unmeasured_phase"] == pytest.approx(0.1)
