@@ -642,10 +642,11 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
         horse_idx, saddle_idx, _ = identify_saddle_marker(static_all, xyz)
     mismatch_mm, reg = _register_static_model(xyz, xyz_m, static_all, static_tracks, horse_idx, frame)
 
-    refit = _deletion_refit(t_w, reg, xyz_m, bridged_frames[win], span, static_all, horse_idx, saddle_idx, frame,
-                            params)
+    fit_reg = reg
     fits, reg, r, ang, s, r_bs = _fitted_saddle_point(t[win], reg, xyz_m, bridged_frames[win], span, static_all,
                                                      horse_idx, saddle_idx, frame, params, flags)
+    refit = _deletion_refit(t_w, fit_reg, xyz_m, bridged_frames[win], span, static_all, horse_idx, saddle_idx, frame,
+                            params, fits)
     omega = fits.omega_rad_s if np.isfinite(fits.omega_rad_s) else 2 * np.pi / period_s
     unmeasured = unmeasured_phase(t_w, measured[win], xyz_m, float(2 * np.pi / omega), flags, refit=refit,
                                   base=_vertical_of(fits, s, t_w[in_win], period_s))
@@ -658,14 +659,29 @@ def saddle_kinematics(motion_tracks: MarkerTracks, static_tracks: MarkerTracks,
 
 def _deletion_refit(t_w: np.ndarray, reg: Registration, xyz_m: np.ndarray, bridged_w: np.ndarray, span: _Span,
                     static_all: np.ndarray, horse_idx: list[int], saddle_idx: int, frame: MotionFrame,
-                    params: PipelineParams):
+                    params: PipelineParams, base: MarkerKinematics):
     """The refit the phase-deletion test asks for (:func:`~saddlescope.core.kinematics.hidden_phase.unmeasured_phase`).
 
     ``refit(deleted)``: the saddle point's vertical harmonics (:func:`_vertical_of`) fitted exactly as the
-    analysis fits them (:func:`_fitted_saddle_point`) with the fitted frames ``deleted`` (F,) left out too.
+    analysis fits them (:func:`_fitted_saddle_point`) with the fitted frames ``deleted`` (F,) left out instead
+    of the hidden ones. The hidden frames take the analysis's own fitted positions (``base``): each refit then
+    has one gap, as wide as the hidden part, as the analysis had; leaving the hidden part out as well made two
+    gaps, which a thesis rig's noisy fits bridge with lower orders, so the test measured the second gap, not
+    the first (docs/accuracy.md, "What a hidden phase costs").
     """
+    if bridged_w.any():
+        guessed = base.position_m(t_w[bridged_w])
+        registered = reg.registered.copy()
+        registered[bridged_w] = guessed
+        reg = replace(reg, registered=registered)
+        xyz_m = xyz_m.copy()
+        xyz_m[bridged_w] = guessed
+        left_out = np.zeros_like(bridged_w)
+    else:
+        left_out = bridged_w
+
     def refit(deleted: np.ndarray) -> dict:
-        fits, _, _, _, s, _ = _fitted_saddle_point(t_w, reg, xyz_m, bridged_w | deleted, span, static_all, horse_idx,
+        fits, _, _, _, s, _ = _fitted_saddle_point(t_w, reg, xyz_m, left_out | deleted, span, static_all, horse_idx,
                                                    saddle_idx, frame, params, [])
         return _vertical_of(fits, s, t_w[span.in_window], span.period_s)
     return refit

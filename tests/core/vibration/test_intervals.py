@@ -335,6 +335,20 @@ def test_a_hidden_fifth_costs_what_the_phase_deletion_test_measured_on_the_ride(
     assert verdict is not None and "hidden at the same moment of every stride" in verdict
 
 
+def test_the_one_gap_test_carries_its_own_factor_and_stored_two_gap_tests_keep_theirs():
+    # the test as it is now fills the hidden part with the analysis's fit (one gap per refit, method
+    # "one_gap"), which measures about half what the two-gap test did: its factor is its own
+    good = _result()
+    one_gap = {"tested": True, "method": "one_gap", "median_change": 0.02, "max_change": 0.03, "deletions": 6}
+    for test, factor in ((one_gap, FLOORS["unmeasured_phase_deletion_one_gap"]),
+                         ({k: v for k, v in one_gap.items() if k != "method"}, FLOORS["unmeasured_phase_deletion"])):
+        hidden = replace(good, quality={**good.quality, "stride_phase_unmeasured_share": 0.2,
+                                        "stride_phase_deletion": test})
+        src = interval_sources(hidden, depth_anisotropy=2.0)
+        assert src["gain_parts"]["unmeasured_phase"] == pytest.approx(factor * 0.02)
+    assert FLOORS["unmeasured_phase_deletion_one_gap"] > FLOORS["unmeasured_phase_deletion"]
+
+
 def test_a_hidden_fifth_whose_cost_could_not_be_measured_marks_the_ride():
     # a one-stride canter with a boot over its rear marker (+88 % on W_b once): too few strides to refit
     good = _result()

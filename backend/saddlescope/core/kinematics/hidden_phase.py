@@ -118,9 +118,10 @@ def hidden_marker_refusal(t_s: np.ndarray, xyz: np.ndarray, run_s: float, period
 
 
 # The phase-deletion test: what a gap of the hidden part's width costs THIS ride's indicators. The ride's
-# own fitted frames are refitted, exactly as the analysis fits them, with as much of the stride again left
-# out at DELETIONS other moments spread over the measured part; the spread of the indicators' changes is
-# the cost the intervals carry (core.vibration.intervals, FLOORS["unmeasured_phase_deletion"]). A fixed
+# own fitted frames are refitted, exactly as the analysis fits them, with as much of the stride left out at
+# DELETIONS other moments spread over the measured part (the caller's refit fills the hidden part with the
+# analysis's own fit, so each refit has one gap as the analysis had); the spread of the indicators' changes
+# is the cost the intervals carry (core.vibration.intervals, FLOORS["unmeasured_phase_deletion_one_gap"]). A fixed
 # cost per share was blunt: a fifth of the stride hidden moved the field table's trots and canters by at
 # most 4.7 % while it put ±18-24 % on them, and said nothing of the one-stride canter it moved by +88 %.
 DELETIONS = 6
@@ -154,8 +155,13 @@ class PhaseDeletionTest:
     seconds: float = 0.0
 
     def as_quality(self) -> dict:
-        """The test as the result's ``quality["stride_phase_deletion"]`` (JSON: no NaN)."""
-        return {"tested": self.tested, "deletions": len(next(iter(self.changes.values()), ())),
+        """The test as the result's ``quality["stride_phase_deletion"]`` (JSON: no NaN).
+
+        ``method`` "one_gap": each refit had the hidden part filled by the analysis's own fit and one window
+        left out elsewhere; results stored without it were refitted with both gaps (their factor is
+        ``FLOORS["unmeasured_phase_deletion"]``, this one's ``FLOORS["unmeasured_phase_deletion_one_gap"]``).
+        """
+        return {"tested": self.tested, "method": "one_gap", "deletions": len(next(iter(self.changes.values()), ())),
                 "median_change": self.median_change if self.tested else None,
                 "max_change": self.max_change if self.tested else None, "reason": self.reason,
                 "seconds": self.seconds, "changes": {k: list(v) for k, v in self.changes.items()}}
