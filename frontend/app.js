@@ -8,35 +8,57 @@ import { onSessionChange, refreshSession, session, signOut } from "./js/session.
 
 /**
  * A page's module, loaded on its first visit (start-up fetches only the shell, not every page's code):
- * `mountX` of the module, or `mountX(...args)` for pages made by a factory.
+ * `mountX` of the module, or `mountX(...args)` for pages made by a factory. The router starts `load`
+ * beside the page's markup (each route's `markup`: the .html files beside the modules that use them).
  */
 function lazy(load, name, ...args) {
-  return async (view, params, query) => {
+  const mountLazily = async (view, params, query) => {
     const mount = (await load())[name];
     return (args.length ? mount(...args) : mount)(view, params, query);
   };
+  return Object.assign(mountLazily, { load });
 }
 
-route("/", lazy(() => import("./js/views/home.js"), "mountHome"), { title: "Overview" });
-route("/start", lazy(() => import("./js/views/start.js"), "mountStart"), { title: "Getting started" });
-route("/login", lazy(() => import("./js/views/login.js"), "mountLogin"), { title: "Sign in", auth: false });
-route("/horses", lazy(() => import("./js/views/entities.js"), "mountEntities", "horses"), { title: "Horses" });
-route("/horses/:id", lazy(() => import("./js/views/horse.js"), "mountHorse"), { title: "Horse" });
-route("/riders", lazy(() => import("./js/views/entities.js"), "mountEntities", "riders"), { title: "Riders" });
-route("/saddles", lazy(() => import("./js/views/entities.js"), "mountEntities", "saddles"), { title: "Saddles" });
-route("/saddles/:id", lazy(() => import("./js/views/saddle.js"), "mountSaddle"), { title: "Saddle" });
-route("/rides", lazy(() => import("./js/views/rides.js"), "mountRides"), { title: "Rides" });
-route("/rides/:id", lazy(() => import("./js/views/ride.js"), "mountRide"), { title: "Ride" });
-route("/compare-rides/:a/:b", lazy(() => import("./js/views/similar.js"), "mountRidePair"), { title: "Two rides compared" });
-route("/upload", lazy(() => import("./js/views/upload.js"), "mountUpload"), { title: "Upload a ride" });
-route("/rigs", lazy(() => import("./js/views/rigs.js"), "mountRigs"), { title: "Rigs" });
-route("/rigs/:id", lazy(() => import("./js/views/rigs.js"), "mountRig"), { title: "Rig" });
-route("/jobs", lazy(() => import("./js/views/jobs.js"), "mountJobs"), { title: "Jobs" });
-route("/compare", lazy(() => import("./js/views/compare.js"), "mountCompare"), { title: "Compare" });
-route("/leaderboard", lazy(() => import("./js/views/leaderboard.js"), "mountLeaderboard"), { title: "Leaderboard" });
-route("/grades", lazy(() => import("./js/views/grades.js"), "mountGrades"), { title: "Grades" });
-route("/account", lazy(() => import("./js/views/account.js"), "mountAccount"), { title: "Your account" });
-route("/reset-password", lazy(() => import("./js/views/reset-password.js"), "mountResetPassword"), { title: "Set a new password", auth: false });
+route("/", lazy(() => import("./js/views/home.js"), "mountHome"),
+      { title: "Overview", markup: ["js/views/home.html"] });
+route("/start", lazy(() => import("./js/views/start.js"), "mountStart"),
+      { title: "Getting started", markup: ["js/views/start.html"] });
+route("/login", lazy(() => import("./js/views/login.js"), "mountLogin"),
+      { title: "Sign in", auth: false, markup: ["js/views/login.html"] });
+route("/horses", lazy(() => import("./js/views/entities.js"), "mountEntities", "horses"),
+      { title: "Horses", markup: ["js/views/entities.html"] });
+route("/horses/:id", lazy(() => import("./js/views/horse.js"), "mountHorse"),
+      { title: "Horse", markup: ["js/views/horse.html"] });
+route("/riders", lazy(() => import("./js/views/entities.js"), "mountEntities", "riders"),
+      { title: "Riders", markup: ["js/views/entities.html"] });
+route("/saddles", lazy(() => import("./js/views/entities.js"), "mountEntities", "saddles"),
+      { title: "Saddles", markup: ["js/views/entities.html"] });
+route("/saddles/:id", lazy(() => import("./js/views/saddle.js"), "mountSaddle"),
+      { title: "Saddle", markup: ["js/views/saddle.html"] });
+route("/rides", lazy(() => import("./js/views/rides.js"), "mountRides"),
+      { title: "Rides", markup: ["js/views/rides.html", "js/ride-edit.html"] });
+route("/rides/:id", lazy(() => import("./js/views/ride.js"), "mountRide"),
+      { title: "Ride", markup: ["js/views/ride.html", "js/ride-edit.html"] });
+route("/compare-rides/:a/:b", lazy(() => import("./js/views/similar.js"), "mountRidePair"),
+      { title: "Two rides compared", markup: ["js/views/similar.html"] });
+route("/upload", lazy(() => import("./js/views/upload.js"), "mountUpload"),
+      { title: "Upload a ride", markup: ["js/views/upload.html"] });
+route("/rigs", lazy(() => import("./js/views/rigs.js"), "mountRigs"),
+      { title: "Rigs", markup: ["js/views/rigs.html"] });
+route("/rigs/:id", lazy(() => import("./js/views/rigs.js"), "mountRig"),
+      { title: "Rig", markup: ["js/views/rigs.html"] });
+route("/jobs", lazy(() => import("./js/views/jobs.js"), "mountJobs"),
+      { title: "Jobs", markup: ["js/views/jobs.html"] });
+route("/compare", lazy(() => import("./js/views/compare.js"), "mountCompare"),
+      { title: "Compare", markup: ["js/views/compare.html"] });
+route("/leaderboard", lazy(() => import("./js/views/leaderboard.js"), "mountLeaderboard"),
+      { title: "Leaderboard", markup: ["js/views/leaderboard.html"] });
+route("/grades", lazy(() => import("./js/views/grades.js"), "mountGrades"),
+      { title: "Grades", markup: ["js/views/grades.html"] });
+route("/account", lazy(() => import("./js/views/account.js"), "mountAccount"),
+      { title: "Your account", markup: ["js/views/account.html"] });
+route("/reset-password", lazy(() => import("./js/views/reset-password.js"), "mountResetPassword"),
+      { title: "Set a new password", auth: false, markup: ["js/views/reset-password.html"] });
 
 const view = document.querySelector("[data-view]");
 

@@ -1,17 +1,23 @@
 // Hash routes ("#/rides/12") to page modules; each page gets a fresh copy of its <template>.
 
+import { loadMarkup } from "./markup.js";
+
 const routes = [];
 let cleanup = null;
 let renderCount = 0;
 
-/** Register a page: pattern like "/rides/:id", and `mount(view, params, query)` that may return a cleanup. */
-export function route(pattern, mount, { title, auth = true } = {}) {
+/**
+ * Register a page: pattern like "/rides/:id", and `mount(view, params, query)` that may return a cleanup.
+ * `markup`: the files of the templates the page uses (js/markup.js), in the document before `mount` runs;
+ * `mount.load`, when given (app.js's lazy pages), fetches the page's module, asked for beside them.
+ */
+export function route(pattern, mount, { title, auth = true, markup = [] } = {}) {
   const names = [];
   const regex = new RegExp(`^${pattern.replace(/:(\w+)/g, (_, name) => {
     names.push(name);
     return "([^/]+)";
   })}/?$`);
-  routes.push({ regex, names, mount, title, auth });
+  routes.push({ regex, names, mount, title, auth, markup });
 }
 
 export function currentPath() {
@@ -51,6 +57,8 @@ export async function render({ view, guard, notFound } = renderOptions) {
     cleanup = null;
   }
   const count = ++renderCount;
+  // The page's markup and its module are asked for at once, as the route matches (neither waits on the other).
+  const ready = found ? Promise.all([loadMarkup(found.route.markup), found.route.mount.load?.()]) : null;
   // Each render mounts into a root of its own: a slower, older mount that finishes late then fills a
   // detached root instead of appending a second copy of a page to the view.
   const root = document.createElement("div");
@@ -61,6 +69,7 @@ export async function render({ view, guard, notFound } = renderOptions) {
   const mount = found ? found.route.mount : notFound;
   document.title = found?.route.title ? `${found.route.title} \u2013 SaddleScope` : "SaddleScope";
   try {
+    await ready;
     const result = await mount(root, found ? found.params : {}, query);
     if (count !== renderCount) {
       if (typeof result === "function") result(); // a newer page was rendered meanwhile

@@ -2,8 +2,9 @@
 
 `vendor/` holds pinned, versioned libraries (the file name carries the version, e.g.
 ``plotly-3.7.0.min.js``), so a browser may keep them for a year without asking again. Everything else
-(index.html, app.js, the page modules, style.css) changes with each release under the same name: the
-browser keeps it but revalidates each load (``no-cache``), answered 304 from the ETag when unchanged.
+(index.html, app.js, the page modules and the markup beside them, style.css) changes with each release under
+the same name: the browser keeps it but revalidates each load (``no-cache``), answered 304 from the ETag
+when unchanged.
 """
 
 from __future__ import annotations
