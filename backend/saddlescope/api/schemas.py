@@ -5,9 +5,9 @@ from __future__ import annotations
 import datetime as dt
 import json
 import re
-from typing import Annotated, Any, Generic, Literal, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, create_model, field_validator, model_validator
 
 from saddlescope.api.board_schemas import BoardIn
 from saddlescope.api.comparison_schemas import (
@@ -25,6 +25,7 @@ from saddlescope.api.pass_schemas import PassesOut, PassOut
 from saddlescope.api.rider_weight import RiderWeightKg
 from saddlescope.api.rig_schemas import WandLengthM
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+from saddlescope.services.results.series import DERIVED
 
 __all__ = [
     "BoardIn", "BundleUploaded", "MocapRideOut", "CameraRole", "ClipKind", "ClipUploaded", "ClubCreate", "ClubCreated",
@@ -636,7 +637,7 @@ class JobKindOut(BaseModel):
 # --- results and comparisons -------------------------------------------------------------------------
 
 
-class ResultSeries(BaseModel):
+class _ResultSeriesBase(BaseModel):
     """The plotted series, every ``decimation.step``-th frame (vectors as [x, y, z] in the motion frame)."""
 
     t_s: list[float]
@@ -653,21 +654,16 @@ class ResultSeries(BaseModel):
         default=None, description="per frame, which versions were left out of omega")
     singularity_index_per_frame: list[Any] | None = Field(
         default=None, description="per frame, how close the markers' geometry is to singular")
-    position_fitted_m: list[Any] | None = Field(
-        default=None, description="S's position from a Fourier (or straight-line) fit per axis")
-    position_residual_m: list[Any] | None = Field(default=None, description="measured minus fitted position")
-    velocity_measured_m_s: list[Any] | None = Field(
-        default=None, description="central differences of the measured positions")
-    velocity_residual_m_s: list[Any] | None = Field(
-        default=None, description="measured minus fitted velocity (the result's velocity_m_s)")
-    acceleration_measured_m_s2: list[Any] | None = Field(
-        default=None, description="second differences of the measured positions")
-    acceleration_residual_m_s2: list[Any] | None = Field(
-        default=None, description="measured minus fitted acceleration (the result's acceleration_m_s2)")
-    acc_y_wb_m_s2: list[Any] | None = Field(
-        default=None, description="vertical acceleration weighted with W_b (BS 6841), exact per harmonic")
-    acc_y_wk_m_s2: list[Any] | None = Field(
-        default=None, description="vertical acceleration weighted with W_k (ISO 2631-1), exact per harmonic")
+
+
+# The derived series (services/results/series.py DERIVED: fitted curves, residuals, weighted acceleration),
+# each a field of ResultSeries made from its declaration: the view serves exactly those.
+if TYPE_CHECKING:
+    ResultSeries = _ResultSeriesBase
+else:
+    ResultSeries = create_model(
+        "ResultSeries", __base__=_ResultSeriesBase, __module__=__name__, __doc__=_ResultSeriesBase.__doc__,
+        **{series.name: (list[Any] | None, Field(default=None, description=series.description)) for series in DERIVED})
 
 
 class QualityNoteOut(BaseModel):
