@@ -41,6 +41,41 @@ def _pattern(text: str) -> tuple[int, int]:
     return c, r
 
 
+def _board_option_text(text: str) -> tuple[str, str]:
+    """``NAME=VALUE`` of --board-option (checked against the kinds' fields when the command runs)."""
+    name, sep, value = text.partition("=")
+    if not (sep and name and value):
+        raise argparse.ArgumentTypeError(f"a board option looks like NAME=VALUE (e.g. circle_mm=10), got {text!r}")
+    return name, value
+
+
+def _board_options(args: argparse.Namespace) -> dict:
+    """The board's own fields from --dictionary, --marker and every --board-option, typed as its kind declares.
+
+    Raises
+    ------
+    InputError
+        A field no registered kind declares, or a value not of its type.
+    """
+    from saddlescope.core.calibration.boards import board_option
+
+    options = {"dictionary": args.dictionary, "marker_mm": args.marker}
+    for name, text in args.board_option:
+        options[name] = board_option(name).parse(text)
+    return {name: value for name, value in options.items() if value is not None}
+
+
+def _add_board_arguments(s) -> None:
+    """The board's kind and fields, shared by ``calibrate`` and ``check-calibration``."""
+    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND",  # a metavar: no listing at start
+                   help="the board's kind (default checkerboard; an unknown one gets the list)")
+    s.add_argument("--dictionary", default=None, help="ChArUco dictionary (default DICT_4X4_50)")
+    s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
+    s.add_argument("--board-option", dest="board_option", type=_board_option_text, action="append", default=[],
+                   metavar="NAME=VALUE", help="a field of the board's kind (GET /api/board-types lists them), "
+                                              "e.g. circle_mm=10")
+
+
 def _intrinsics_source(text: str) -> tuple[str, str]:
     """``NAME=FILE`` or ``FILE`` of --intrinsics (NAME "" for every camera the file names)."""
     name, sep, file = text.partition("=")
@@ -80,8 +115,7 @@ def _calibrate_wand(args, cameras: dict[str, str]) -> int:
         if args.pattern is None or args.square is None:
             print("saddlescope calibrate: --close-up board clips need --pattern and --square", file=sys.stderr)
             return 2
-        board = make_board(args.board or DEFAULT_BOARD_KIND, args.pattern, args.square, dictionary=args.dictionary,
-                           marker_mm=args.marker)
+        board = make_board(args.board or DEFAULT_BOARD_KIND, args.pattern, args.square, **_board_options(args))
     result = calibrate_wand_sources(cameras, wand_length_m=args.wand,
                                     intrinsics=intrinsics_for_cameras(args.intrinsics, list(cameras)) or None,
                                     close_ups=dict(args.close_up) or None, board=board, toml_out=args.toml_out)
@@ -132,9 +166,7 @@ def _add_check_parser(sub) -> None:
     s.add_argument("--ride", default=None, help="a ride bundle folder: its calibration clips and board")
     s.add_argument("--pattern", type=_pattern, default=None, help="the board's inner corners CxR, e.g. 9x6")
     s.add_argument("--square", type=float, default=None, help="square size in mm")
-    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND", help="the board's kind")
-    s.add_argument("--dictionary", default=None, help="ChArUco dictionary")
-    s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
+    _add_board_arguments(s)
     s.add_argument("--fps", dest="sample_fps", type=float, default=None, help="frames looked at a second (default 3)")
     s.add_argument("--wand", type=float, default=None, metavar="LENGTH_M",
                    help="the clips film a wand of this length (m) waved through the riding area: where its ends went")
@@ -159,7 +191,7 @@ def _check_sources(args: argparse.Namespace) -> tuple[dict[str, Path], dict, flo
         path = Path(source if sep else clip)
         paths[name if sep else path.stem] = path
     given = {"kind": args.board, "inner_corners": list(args.pattern) if args.pattern else None,
-             "square_mm": args.square, "dictionary": args.dictionary, "marker_mm": args.marker}
+             "square_mm": args.square, **_board_options(args)}
     board.update({k: v for k, v in given.items() if v is not None})
     if not paths:
         raise InputError("give the calibration clips (CLIP ... or --ride BUNDLE)")
@@ -267,10 +299,7 @@ def _add_calibrate_parser(sub) -> None:
                         "board clips or --intrinsics")
     s.add_argument("--close-up", dest="close_up", type=_camera_source, action="append", default=[],
                    metavar="NAME=SOURCE", help="with --wand: a board filmed close to camera NAME, for its lens")
-    s.add_argument("--board", default=None, choices=_BoardKinds(), metavar="KIND",  # a metavar: no listing at start
-                   help="the board's kind (default checkerboard; an unknown one gets the list)")
-    s.add_argument("--dictionary", default="DICT_4X4_50", help="ChArUco dictionary")
-    s.add_argument("--marker", type=float, default=None, help="ChArUco marker size in mm")
+    _add_board_arguments(s)
     s.add_argument("--camera", type=_camera_source, action="append", required=True, metavar="NAME=SOURCE")
     s.add_argument("--json", dest="json_out", default=None)
     s.add_argument("--toml", dest="toml_out", default=None, help="also write an anipose-style TOML")
@@ -440,8 +469,8 @@ def _calibrate(args: argparse.Namespace) -> int:
               "square size), unless --wand gives a wand's length", file=sys.stderr)
         return 2
     result = calibrate_sources(cameras, pattern=args.pattern, square_mm=args.square,
-                               board_kind=args.board or DEFAULT_BOARD_KIND, dictionary=args.dictionary,
-                               marker_mm=args.marker, toml_out=args.toml_out,
+                               board_kind=args.board or DEFAULT_BOARD_KIND, board_options=_board_options(args),
+                               toml_out=args.toml_out,
                                intrinsics=intrinsics_for_cameras(args.intrinsics, list(cameras)) or None)
     _write_json(result, args.json_out)
     return 0

@@ -23,6 +23,7 @@ PUBLIC = {
     ("POST", "/api/auth/password-reset"),  # the one-time token is the credential
     ("GET", "/api/glossary"),  # the words for the service's codes, the same for everyone (the sign-in page's too)
     ("GET", "/api/indicators"),  # the indicator table, the same for everyone (loaded before the first page)
+    ("GET", "/api/board-types"),  # the kinds of calibration board and their fields, the same for everyone
 }
 # Own-club routes that end the caller's sessions: checked signed out only (they would sign B out).
 ENDS_SESSIONS = {("POST", "/api/auth/logout-everywhere")}

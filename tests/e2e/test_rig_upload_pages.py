@@ -209,6 +209,32 @@ def test_a_member_sees_no_board_change_or_delete(browser, served):
         tab.context.close()
 
 
+def test_the_board_form_offers_the_registrys_kinds_and_each_kinds_own_fields(page, served):
+    api = served["api"]
+    kinds = _ok(api.get("/api/board-types"))
+    rig = _ok(api.post("/api/rigs", json={"name": "Board form", "board": {
+        "kind": "checkerboard", "inner_corners": [5, 4], "square_mm": 30.0}}))
+    page.goto(f"/#/rigs/{rig['id']}")
+    form = page.locator("[data-board-form]")
+    kind = form.get_by_label("Board type")
+    kind.locator("option").nth(len(kinds) - 1).wait_for(state="attached")
+    assert kind.locator("option").all_inner_texts() == [k["label"] for k in kinds]  # none listed in the page
+    assert not form.get_by_label("Marker size (mm)").is_visible()  # a checkerboard has no fields of its own
+    kind.select_option("charuco")
+    charuco = next(k for k in kinds if k["kind"] == "charuco")
+    assert form.locator("[data-board-kind-hint]").inner_text() == charuco["short"]
+    form.get_by_label("Marker size (mm)").fill("22")
+    form.get_by_label("Marker dictionary").select_option("DICT_5X5_100")
+    form.get_by_role("button", name="Save the board").click()
+    page.locator("[data-board-text]").get_by_text("ChArUco, 5 \u00d7 4 inner corners").wait_for()
+    stored = _ok(api.get(f"/api/rigs/{rig['id']}"))["board"]
+    assert stored == {"kind": "charuco", "inner_corners": [5, 4], "square_mm": 30.0, "marker_mm": 22.0,
+                      "dictionary": "DICT_5X5_100"}  # the legacy box unticked: not sent
+    assert page.locator("[data-board-text]").inner_text() == \
+        "ChArUco, 5 \u00d7 4 inner corners, squares 30 mm, markers 22 mm, DICT_5X5_100"
+    assert page.console.unexpected() == []
+
+
 def test_a_calibrated_rig_says_its_quality_and_where_the_board_has_been(page, served):
     page.goto(f"/#/rigs/{served['calibrated']}")
     pictures = page.locator("[data-coverage] svg.coverage")

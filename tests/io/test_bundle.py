@@ -151,7 +151,7 @@ def test_charuco_board(tmp_path):
     meta["board"] = {"kind": "charuco", "inner_corners": [4, 3], "square_mm": 54.0,
                      "dictionary": "DICT_4X4_1000", "marker_mm": 40.5}
     b = open_bundle(make_bundle(tmp_path / "ride", meta))
-    assert (b.board.dictionary, b.board.marker_mm) == ("DICT_4X4_1000", 40.5)
+    assert (b.board.option("dictionary"), b.board.option("marker_mm")) == ("DICT_4X4_1000", 40.5)
     meta["board"]["dictionary"] = "DICT_9X9_7"
     make_bundle(tmp_path / "ride", meta)
     with pytest.raises(BundleError, match="'DICT_9X9_7' is not an OpenCV ArUco dictionary"):

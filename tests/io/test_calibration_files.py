@@ -161,7 +161,7 @@ def test_caliscope_videos_calibrated_from_scratch():
     board, inverted = board_from_caliscope_toml(real_data_path("caliscope_4cam", "charuco.toml"))
     sources = {f"cam_{i}": str(folder / f"cam_{i}.mp4") for i in range(4)}
     result = calibrate_sources(sources, pattern=board.inner_corners, square_mm=board.square_mm,
-                               board_kind="charuco", dictionary=board.dictionary, marker_mm=board.marker_mm)
+                               board_kind="charuco", board_options=dict(board.options))
     assert result["sync"]["method"] == "none"  # their clips are synchronised, no flash
     assert result["checks"]["corner_distance_error_rms_mm"] < 2.0
     assert result["checks"]["check_instants"] >= 50
@@ -185,7 +185,7 @@ def test_caliscope_lenses_fitted_by_the_evidence(tmp_path):
     board, _ = board_from_caliscope_toml(base / "charuco.toml")
     sources = {f"cam_{i}": str(folder / f"cam_{i}.mp4") for i in range(4)}
     kw = dict(pattern=board.inner_corners, square_mm=board.square_mm, board_kind="charuco",
-              dictionary=board.dictionary, marker_mm=board.marker_mm)
+              board_options=dict(board.options))
     result = calibrate_sources(sources, **kw)
     rig, theirs = rig_from_dict(result), rig_from_caliscope_toml(base / "camera_array.toml")
     cam1, their1 = rig.cameras["cam_1"], theirs.cameras["cam_1"]

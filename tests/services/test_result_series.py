@@ -12,7 +12,7 @@ import pytest
 
 from saddlescope.core.vibration import harmonic_metrics
 from saddlescope.services.results.documents import DERIVED_SERIES, view_of_document
-from saddlescope.services.results.series import fitted_saddle_series, weighted_series
+from saddlescope.services.results.series import DERIVED, derived_series, fitted_saddle_series, weighted_series
 
 F0_HZ, FPS, N = 1.65, 500.0, 10_000
 AMPS, PHASES = (4.0, 1.5, 0.5), (0.3, -0.8, 1.2)
@@ -71,3 +71,16 @@ def test_the_weighted_series_has_the_cores_harmonic_rms():
 def test_a_result_without_a_track_gives_no_derived_series():
     assert fitted_saddle_series({"saddle": {}}) == {}
     assert weighted_series({"saddle": {}}, []) == ({}, None)
+
+
+def test_the_series_computed_are_the_declared_ones_and_the_api_serves_each():
+    """A new series is its computation and its declaration (DERIVED); the view and ResultSeries follow from it."""
+    from saddlescope.api.schemas import ResultSeries
+
+    doc = long_document()
+    doc["saddle"] = {key: values[:1500] for key, values in doc["saddle"].items()}  # ten strides: quick to fit
+    computed = derived_series(doc)["series"]
+    assert sorted(computed) == sorted(DERIVED_SERIES) and all(len(computed[name]) == 1500 for name in computed)
+    fields = ResultSeries.model_fields
+    assert all(fields[s.name].description == s.description for s in DERIVED)
+

@@ -5,10 +5,11 @@ from __future__ import annotations
 import datetime as dt
 import json
 import re
-from typing import Annotated, Any, Generic, Literal, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, create_model, field_validator, model_validator
 
+from saddlescope.api.board_schemas import BoardIn
 from saddlescope.api.comparison_schemas import (
     ComparisonOut,
     CorrelationOut,
@@ -23,9 +24,8 @@ from saddlescope.api.leaderboard_schemas import LeaderboardEntry, LeaderboardOut
 from saddlescope.api.pass_schemas import PassesOut, PassOut
 from saddlescope.api.rider_weight import RiderWeightKg
 from saddlescope.api.rig_schemas import WandLengthM
-from saddlescope.core.calibration.boards import BOARD_KINDS, DEFAULT_BOARD_KIND, board_from_meta
-from saddlescope.core.errors import InputError
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS
+from saddlescope.services.results.series import DERIVED
 
 __all__ = [
     "BoardIn", "BundleUploaded", "MocapRideOut", "CameraRole", "ClipKind", "ClipUploaded", "ClubCreate", "ClubCreated",
@@ -295,34 +295,6 @@ class RiderOut(_Out):
     created_at: dt.datetime
 
 
-class BoardIn(_In):
-    """ride.json's "board" (CONTRACTS section 1)."""
-
-    kind: str = Field(default=DEFAULT_BOARD_KIND, json_schema_extra=lambda s: s.update(enum=list(BOARD_KINDS)))
-    inner_corners: tuple[Annotated[int, Field(ge=2, le=100)], Annotated[int, Field(ge=2, le=100)]]
-    square_mm: float = Field(gt=0, le=10_000)
-    dictionary: Annotated[str, StringConstraints(pattern=r"^DICT_[A-Z0-9_]+$", max_length=40)] | None = None
-    marker_mm: float | None = Field(default=None, gt=0, le=10_000)
-    legacy: bool | None = None
-
-    @field_validator("kind")
-    @classmethod
-    def _registered_kind(cls, kind: str) -> str:
-        if kind not in BOARD_KINDS:
-            raise ValueError(f"board kind {kind!r} is not one of {', '.join(BOARD_KINDS)}")
-        return kind
-
-    @model_validator(mode="after")
-    def _a_board_its_type_can_make(self) -> BoardIn:
-        # The board type's own checks (a ChArUco dictionary OpenCV knows, markers inside their squares) at
-        # creation, not first when board.svg or a calibration job reads it.
-        try:
-            board_from_meta(self.model_dump(exclude_none=True))
-        except InputError as exc:
-            raise ValueError(str(exc)) from None
-        return self
-
-
 # A camera's details (model, serial, lens, ...): a few short texts, not a store for anything else.
 _DetailName = Annotated[str, StringConstraints(min_length=1, max_length=40)]
 CameraDetails = Annotated[dict[_DetailName, Annotated[str, StringConstraints(max_length=200)]], Field(max_length=20)]
@@ -360,6 +332,7 @@ class RigOut(_Out):
     recorded_on: dt.date | None
     cameras: dict[str, Any]
     board: dict[str, Any] | None
+    board_text: str = Field(default="no board described", description="the board in words (its kind's)")
     wand_length_m: float | None = Field(default=None, description="m, between the wand's markers' centres")
     calibrated: bool
     quality: dict[str, Any] | None
@@ -664,7 +637,7 @@ class JobKindOut(BaseModel):
 # --- results and comparisons -------------------------------------------------------------------------
 
 
-class ResultSeries(BaseModel):
+class _ResultSeriesBase(BaseModel):
     """The plotted series, every ``decimation.step``-th frame (vectors as [x, y, z] in the motion frame)."""
 
     t_s: list[float]
@@ -681,21 +654,16 @@ class ResultSeries(BaseModel):
         default=None, description="per frame, which versions were left out of omega")
     singularity_index_per_frame: list[Any] | None = Field(
         default=None, description="per frame, how close the markers' geometry is to singular")
-    position_fitted_m: list[Any] | None = Field(
-        default=None, description="S's position from a Fourier (or straight-line) fit per axis")
-    position_residual_m: list[Any] | None = Field(default=None, description="measured minus fitted position")
-    velocity_measured_m_s: list[Any] | None = Field(
-        default=None, description="central differences of the measured positions")
-    velocity_residual_m_s: list[Any] | None = Field(
-        default=None, description="measured minus fitted velocity (the result's velocity_m_s)")
-    acceleration_measured_m_s2: list[Any] | None = Field(
-        default=None, description="second differences of the measured positions")
-    acceleration_residual_m_s2: list[Any] | None = Field(
-        default=None, description="measured minus fitted acceleration (the result's acceleration_m_s2)")
-    acc_y_wb_m_s2: list[Any] | None = Field(
-        default=None, description="vertical acceleration weighted with W_b (BS 6841), exact per harmonic")
-    acc_y_wk_m_s2: list[Any] | None = Field(
-        default=None, description="vertical acceleration weighted with W_k (ISO 2631-1), exact per harmonic")
+
+
+# The derived series (services/results/series.py DERIVED: fitted curves, residuals, weighted acceleration),
+# each a field of ResultSeries made from its declaration: the view serves exactly those.
+if TYPE_CHECKING:
+    ResultSeries = _ResultSeriesBase
+else:
+    ResultSeries = create_model(
+        "ResultSeries", __base__=_ResultSeriesBase, __module__=__name__, __doc__=_ResultSeriesBase.__doc__,
+        **{series.name: (list[Any] | None, Field(default=None, description=series.description)) for series in DERIVED})
 
 
 class QualityNoteOut(BaseModel):

@@ -15,7 +15,8 @@ import numpy as np
 from saddlescope.core.camera_model import undistort_normalized
 from saddlescope.core.findings import Finding
 
-__all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "WAND_CLIP_KINDS", "AnalysisWindow", "Board", "Camera",
+__all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "WAND_CLIP_KINDS", "AnalysisWindow", "Board",
+           "BoardOptionValue", "Camera",
            "HorseMarkers", "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RidePass", "RideResult",
            "Rig",
            "SaddleKinematics", "SaddleRotation", "VerticalHarmonics"]
@@ -169,19 +170,34 @@ class Rig:
         return list(self.cameras)
 
 
+# A board option's value, as a board section's JSON holds it (number, text or flag).
+BoardOptionValue = float | str | bool
+
+
 @dataclass(frozen=True)
 class Board:
-    """A planar calibration board. ``inner_corners`` is (cols, rows) as OpenCV's pattern size."""
+    """A planar calibration board. ``inner_corners`` is (cols, rows) as OpenCV's pattern size.
+
+    ``options`` are the fields its kind adds (a ChArUco board's ``dictionary``, ``marker_mm``, ``legacy``),
+    as (name, value) pairs in the order the kind declares them; the kind's module
+    (:mod:`saddlescope.core.calibration.boards`) reads and validates them.
+    """
 
     kind: str
     inner_corners: tuple[int, int]
     square_mm: float
-    dictionary: str | None = None
-    marker_mm: float | None = None
-    legacy: bool = False
+    options: tuple[tuple[str, BoardOptionValue], ...] = ()
+
+    def option(self, name: str, default: BoardOptionValue | None = None) -> BoardOptionValue | None:
+        """The value of one of the kind's fields, or ``default`` where the board has none."""
+        return dict(self.options).get(name, default)
 
     def object_points_mm(self) -> np.ndarray:
-        """Inner-corner coordinates in board mm, shape (cols*rows, 3), row-major as OpenCV returns."""
+        """Inner-corner coordinates in board mm, shape (cols*rows, 3), row-major as OpenCV returns.
+
+        The rectangular grid of the checkerboard-like kinds; a kind whose points lie otherwise (the
+        asymmetric circle grid) has its own: ask :func:`saddlescope.core.calibration.boards.object_points_mm`.
+        """
         cols, rows = self.inner_corners
         grid = np.zeros((rows * cols, 3), np.float64)
         grid[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * self.square_mm

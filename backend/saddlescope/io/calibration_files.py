@@ -28,6 +28,7 @@ import time
 import tomllib
 from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -191,11 +192,11 @@ def _sync_offsets(sources: Mapping[str, str], probes: Mapping[str, dict], sync) 
 
 
 def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], square_mm: float,
-                      board_kind: str = DEFAULT_BOARD_KIND, dictionary: str | None = None,
-                      marker_mm: float | None = None, toml_out: str | Path | None = None,
+                      board_kind: str = DEFAULT_BOARD_KIND, board_options: Mapping[str, Any] | None = None,
+                      toml_out: str | Path | None = None,
                       fix_k3: bool | None = None, max_views: int = 60, max_candidates: int = 300,
                       sync: str | Mapping[str, float] = "auto", inverted: bool | None = None,
-                      legacy: bool = False, same_size: bool = True,
+                      same_size: bool = True,
                       intrinsics: Mapping[str, Camera] | None = None) -> dict:
     """Calibrate cameras from their sources; the body of ``saddlescope calibrate``.
 
@@ -207,8 +208,9 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
         Inner corners of the board (OpenCV's pattern size). For ChArUco too: a board of 5 x 7 squares
         is pattern (4, 6).
     square_mm : float
-    board_kind : one of :data:`~saddlescope.core.calibration.boards.BOARD_KINDS`; dictionary, marker_mm,
-        inverted, legacy for ChArUco.
+    board_kind : one of :data:`~saddlescope.core.calibration.boards.BOARD_KINDS`
+    board_options : the kind's own fields (ChArUco's dictionary, marker_mm, legacy; ``GET /api/board-types``)
+    inverted : ChArUco printed white-on-black; None tries both.
     toml_out : path, optional
         Also write an anipose-style TOML (mm).
     max_views : int
@@ -233,8 +235,7 @@ def calibrate_sources(sources: Mapping[str, str], *, pattern: tuple[int, int], s
     t0 = time.perf_counter()
     if not sources:
         raise InputError("no camera given: use --camera NAME=SOURCE")
-    board = make_board(board_kind, pattern, square_mm, dictionary=dictionary, marker_mm=marker_mm,
-                       legacy=legacy)
+    board = make_board(board_kind, pattern, square_mm, **dict(board_options or {}))
     sources = {str(k): str(v) for k, v in sources.items()}
     frames = _common_frames(sources, sync, max_candidates)
     t_sync = time.perf_counter()

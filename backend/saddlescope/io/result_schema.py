@@ -13,7 +13,7 @@ from typing import Any
 
 import jsonschema
 
-from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems, board_type
+from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems, board_type, options_schema
 from saddlescope.core.calibration.wand import WAND_LENGTH_RANGE_M
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.findings import FINDING_KINDS, SEVERITIES
@@ -160,8 +160,8 @@ def _board_schema() -> dict[str, Any]:
     }
     rules = []
     for kind in BOARD_KINDS:
-        own = board_type(kind).meta_schema
-        schema["properties"].update(own.get("properties", {}))
+        own = options_schema(board_type(kind).options)
+        schema["properties"].update(own["properties"])
         if own.get("required"):
             rules.append({"if": {"properties": {"kind": {"const": kind}}},
                           "then": {"required": list(own["required"])}})

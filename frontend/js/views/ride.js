@@ -210,14 +210,31 @@ async function fullDocument(rideId) {
   }
 }
 
+// The x, y, z charts against time, each of one series of the result (ResultSeries), in page order. A chart the
+// page's markup lacks gets its figure after the one before it here, so a new series' chart is one line.
+const XYZ_CHARTS = [
+  { chart: "position", series: "position_m", title: "Position", unit: "m" },
+  { chart: "velocity", series: "velocity_m_s", title: "Velocity", unit: "m/s" },
+  { chart: "acceleration", series: "acceleration_m_s2", title: "Acceleration", unit: "m/s\u00b2" },
+  { chart: "omega", series: "omega_rad_s", title: "Angular velocity \u03c9", unit: "rad/s" },
+  { chart: "alpha", series: "alpha_rad_s2", title: "Angular acceleration \u03b1", unit: "rad/s\u00b2" },
+];
+
+/** The chart `[data-chart=name]`, or a new figure for it after `previous`'s figure. */
+function chartSlot(view, { chart, title }, previous) {
+  const found = view.querySelector(`[data-chart="${chart}"]`);
+  if (found) return found;
+  const div = h("div", { class: "chart", dataset: { chart }, role: "figure", "aria-label": `${title} x, y, z against time` });
+  previous.closest("figure").after(h("figure", {}, div));
+  return div;
+}
+
 function drawSeries(view, series) {
-  const t = series.t_s;
-  const chart = (name) => view.querySelector(`[data-chart="${name}"]`);
-  xyzChart(chart("position"), t, series.position_m, { title: "Position", unit: "m" });
-  xyzChart(chart("velocity"), t, series.velocity_m_s, { title: "Velocity", unit: "m/s" });
-  xyzChart(chart("acceleration"), t, series.acceleration_m_s2, { title: "Acceleration", unit: "m/s\u00b2" });
-  xyzChart(chart("omega"), t, series.omega_rad_s, { title: "Angular velocity \u03c9", unit: "rad/s" });
-  xyzChart(chart("alpha"), t, series.alpha_rad_s2, { title: "Angular acceleration \u03b1", unit: "rad/s\u00b2" });
+  let previous = null;
+  for (const entry of XYZ_CHARTS) {
+    previous = chartSlot(view, entry, previous);
+    xyzChart(previous, series.t_s, series[entry.series], { title: entry.title, unit: entry.unit });
+  }
 }
 
 async function drawVersions(view, rideId, result) {

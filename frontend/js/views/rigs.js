@@ -25,36 +25,68 @@ const WAND_CLIPS = [
 ];
 const CLIP_LABELS = Object.fromEntries([...RIG_CLIPS, ...WAND_CLIPS].map((c) => [c.kind, c.label]));
 
-export function boardText(board) {
-  if (!board) return "no board described";
-  const [cols, rows] = board.inner_corners;
-  const kind = board.kind === "charuco" ? "ChArUco" : "checkerboard";
-  const extra = board.kind === "charuco" ? `, markers ${board.marker_mm ?? "0.75 \u00d7 square"} mm, ${board.dictionary ?? "DICT_4X4_50"}` : "";
-  return `${kind}, ${cols} \u00d7 ${rows} inner corners, squares ${board.square_mm} mm${extra}`;
+// The kinds of calibration board and the fields each adds (GET /api/board-types, the board registry's):
+// the form's choice of kind and its fields are made from them, never listed here.
+let boardTypesLoading = null;
+
+function boardTypes() {
+  if (!boardTypesLoading) {
+    boardTypesLoading = get("/api/board-types").catch((error) => {
+      boardTypesLoading = null;
+      throw error;
+    });
+  }
+  return boardTypesLoading;
 }
 
-/** The board section of a board form (kind, cols, rows, square_mm, marker_mm, dictionary). */
-function boardFrom(values) {
+/** The form field of one of a kind's own fields: a number, a text, a choice of the offered texts or a flag. */
+function boardOptionField(select, type, option) {
+  const id = `${select.id}-${type.kind}-${option.name}`;
+  let input;
+  if (option.value === "flag") input = h("input", { id, name: option.name, type: "checkbox", value: "true" });
+  else if (option.offered.length) {
+    input = h("select", { id, name: option.name },
+      option.offered.map((value, i) => h("option", { value }, i === 0 ? `${value} (default)` : value)));
+  } else if (option.value === "number") {
+    input = h("input", { id, name: option.name, type: "number", step: "0.1", min: option.greater_than ?? undefined,
+      max: option.at_most ?? undefined, placeholder: option.unset || undefined, "data-kind": "float" });
+  } else input = h("input", { id, name: option.name, type: "text", placeholder: option.unset || undefined });
+  return h("div", { class: "field", dataset: { boardKind: type.kind }, hidden: true }, h("label", { for: id }, option.label), input);
+}
+
+/** The board section of a board form: kind, grid and the chosen kind's own fields as their types say. */
+async function boardFrom(values) {
   const board = {
     kind: values.kind || "checkerboard",
     inner_corners: [Number(values.cols), Number(values.rows)],
     square_mm: Number(values.square_mm),
   };
-  if (board.kind === "charuco") {
-    if (values.marker_mm) board.marker_mm = Number(values.marker_mm);
-    if (values.dictionary) board.dictionary = values.dictionary;
+  const type = (await boardTypes()).find((t) => t.kind === board.kind);
+  for (const option of type?.options ?? []) {
+    const raw = values[option.name];
+    if (raw === undefined) continue;
+    board[option.name] = option.value === "number" ? Number(raw) : option.value === "flag" ? raw === "true" : raw;
   }
   if (!(board.inner_corners[0] >= 2 && board.inner_corners[1] >= 2)) throw new Error("The board needs at least 2 \u00d7 2 inner corners.");
   if (!(board.square_mm > 0)) throw new Error("Give the size of one square in millimetres.");
   return board;
 }
 
-function wireBoardKind(form) {
+/** Fill the form's choice of kind and its kinds' fields; only the chosen kind's show (and are sent). */
+async function wireBoardKind(form) {
+  const select = form.elements.kind;
+  const types = await boardTypes();
+  select.replaceChildren(...types.map((t) => h("option", { value: t.kind }, t.label)));
+  form.querySelector("[data-board-options]").replaceChildren(
+    ...types.flatMap((t) => t.options.map((option) => boardOptionField(select, t, option))));
   const show = () => {
-    const charuco = form.elements.kind.value === "charuco";
-    for (const el of form.querySelectorAll("[data-charuco-only]")) el.hidden = !charuco;
+    form.querySelector("[data-board-kind-hint]").textContent = types.find((t) => t.kind === select.value)?.short ?? "";
+    for (const field of form.querySelectorAll("[data-board-kind]")) {
+      field.hidden = field.dataset.boardKind !== select.value;
+      for (const input of field.querySelectorAll("input, select")) input.disabled = field.hidden;
+    }
   };
-  form.elements.kind.addEventListener("change", show);
+  select.addEventListener("change", show);
   show();
 }
 
@@ -64,13 +96,13 @@ export async function mountRigs(view) {
   view.append(page("rigs"));
   const body = view.querySelector("[data-rig-rows]");
   const form = view.querySelector("[data-rig-form]");
-  wireBoardKind(form);
+  await wireBoardKind(form);
   form.hidden = !can("rig.create");
   const rigs = await getAll("/api/rigs");
   body.replaceChildren(...(rigs.length ? rigs.map((rig) => h("tr", {},
     h("th", { scope: "row" }, h("a", { href: `#/rigs/${rig.id}` }, rig.name)),
     h("td", {}, rig.recorded_on || ""),
-    h("td", {}, boardText(rig.board)),
+    h("td", {}, rig.board_text),
     h("td", {}, h("span", { class: `status status-${rig.calibrated ? "done" : "queued"}` },
       rig.calibrated ? "calibrated" : "not calibrated")),
   )) : [h("tr", {}, h("td", { colspan: 4, class: "hint" }, "No rigs yet: add the rig your cameras form below."))]));
@@ -82,7 +114,7 @@ export async function mountRigs(view) {
         const values = formValues(form);
         if (!values.name) throw new Error("Give the rig a name (e.g. \u201cIndoor arena, three phones\u201d).");
         const rig = await post("/api/rigs", {
-          name: values.name, ...(values.recorded_on ? { recorded_on: values.recorded_on } : {}), board: boardFrom(values),
+          name: values.name, ...(values.recorded_on ? { recorded_on: values.recorded_on } : {}), board: await boardFrom(values),
         });
         announce(`Rig ${rig.name} added.`);
         navigate(`/rigs/${rig.id}`);
@@ -98,7 +130,7 @@ export async function mountRigs(view) {
 async function showBoard(root, rig) {
   const box = root.querySelector("[data-board-image]");
   const note = root.querySelector("[data-board-note]");
-  root.querySelector("[data-board-text]").textContent = boardText(rig.board);
+  root.querySelector("[data-board-text]").textContent = rig.board_text;
   if (!rig.board) {
     box.replaceChildren(h("p", { class: "hint" }, "No board described yet."));
     note.hidden = true;
@@ -320,21 +352,24 @@ function wireBoardEdit(root, rig, reload) {
   const form = root.querySelector("[data-board-form]");
   form.hidden = !can("rig.change_board");
   if (form.hidden) return;
-  wireBoardKind(form);
-  if (rig.board) {
+  wireBoardKind(form).then(() => {
+    if (!rig.board) return;
     form.elements.kind.value = rig.board.kind;
     [form.elements.cols.value, form.elements.rows.value] = rig.board.inner_corners;
     form.elements.square_mm.value = rig.board.square_mm;
-    if (rig.board.marker_mm) form.elements.marker_mm.value = rig.board.marker_mm;
-    if (rig.board.dictionary) form.elements.dictionary.value = rig.board.dictionary;
+    for (const [name, value] of Object.entries(rig.board)) {
+      const input = form.querySelector(`[data-board-kind="${rig.board.kind}"] [name="${name}"]`);
+      if (input?.type === "checkbox") input.checked = value === true;
+      else if (input && value !== null) input.value = value;
+    }
     form.elements.kind.dispatchEvent(new Event("change"));
-  }
+  }).catch((error) => showError(form, error));
   form.addEventListener("submit", (event) => {
     event.preventDefault();
     showError(form, null);
     busy(form, async () => {
       try {
-        await patch(`/api/rigs/${rig.id}`, { board: boardFrom(formValues(form)) });
+        await patch(`/api/rigs/${rig.id}`, { board: await boardFrom(formValues(form)) });
         announce("Board changed.");
         await reload();
       } catch (error) {

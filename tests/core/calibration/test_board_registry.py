@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import sys
 import textwrap
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -24,6 +25,7 @@ from saddlescope.core.calibration import (
 from saddlescope.core.calibration.boards import (
     BOARD_KINDS,
     DEFAULT_BOARD_KIND,
+    BoardOption,
     board_from_meta,
     board_to_meta,
     board_type,
@@ -105,9 +107,13 @@ def test_an_unregistered_kind_is_refused_naming_the_known_ones():
         board_from_meta({"kind": KIND, "inner_corners": [7, 6], "square_mm": 30})
 
 
+# A grid every kind accepts (5 a row, an odd number of rows: the asymmetric circle grid's rule).
+GRID = {"inner_corners": [5, 7], "square_mm": 40.0}
+
+
 @pytest.mark.parametrize("kind", list(BOARD_KINDS))
 def test_every_registered_kind_round_trips_through_meta(kind):
-    board = board_from_meta({"kind": kind, "inner_corners": [5, 4], "square_mm": 40})
+    board = board_from_meta({"kind": kind, **GRID})
     meta = board_to_meta(board)
     assert meta["kind"] == kind
     assert board_from_meta(json.loads(json.dumps(meta))) == board  # JSON types only
@@ -118,7 +124,7 @@ def test_charuco_fields_round_trip_through_meta():
     meta = {"kind": "charuco", "inner_corners": [4, 3], "square_mm": 54.0, "dictionary": "DICT_5X5_100",
             "marker_mm": 40.5, "legacy": True}
     board = board_from_meta(meta)
-    assert (board.dictionary, board.marker_mm, board.legacy) == ("DICT_5X5_100", 40.5, True)
+    assert board.options == (("dictionary", "DICT_5X5_100"), ("marker_mm", 40.5), ("legacy", True))
     assert board_to_meta(board) == meta
     with pytest.raises(InputError, match="incomplete or wrong"):
         board_from_meta({"kind": "charuco", "square_mm": 54.0})
@@ -152,10 +158,63 @@ def test_a_module_in_the_boards_package_registers_its_kind(tmp_path, monkeypatch
         BOARD_TYPE = DottedType()
     '''))
     monkeypatch.setattr(boards, "__path__", [*boards.__path__, str(tmp_path)])
+    before = list(BOARD_KINDS)
     try:
         boards._register_package_board_types()  # as when the package is imported
         assert "test_dotted" in BOARD_KINDS and board_type("test_dotted").label == "dotted test board"
     finally:
         unregister("test_dotted")
         sys.modules.pop("saddlescope.core.calibration.boards.test_dotted_board", None)
-    assert BOARD_KINDS == ["checkerboard", "charuco"]
+    assert BOARD_KINDS == [kind for kind in before if kind != "test_dotted"]
+
+
+@pytest.mark.parametrize("kind", list(BOARD_KINDS))
+def test_every_registered_kind_is_offered_taken_printed_and_described_from_its_own_module(kind):
+    from saddlescope.api.routers.comparisons import calibration_board_types
+    from saddlescope.api.schemas import BoardIn
+    from saddlescope.services.rigs.board_print import board_advice, board_print_html, camera_view
+    from saddlescope.services.rigs.views import board_svg, board_words
+
+    meta = board_to_meta(board_from_meta({"kind": kind, **GRID}))  # every field of its kind, at its default
+    assert BoardIn(**meta).model_dump(exclude_none=True) == {**meta, "inner_corners": (5, 7)}
+    offered = {t.kind: t for t in calibration_board_types()}[kind]  # GET /api/board-types: the rig page's form
+    assert offered.label == board_type(kind).label and offered.min_square_px == board_type(kind).min_square_px
+    assert [o.name for o in offered.options] == [o.name for o in board_type(kind).options]
+    words = board_type(kind).describe(board_from_meta(meta))
+    assert words.startswith(board_type(kind).label) and board_words(meta) == words
+    assert words in board_svg(meta) and words[1:] in board_print_html(meta, "a4-tiles")
+    assert board_advice(meta, camera_view(None, [])).min_square_px == board_type(kind).min_square_px
+
+
+def test_a_kind_may_not_declare_a_field_another_kind_declares_otherwise():
+    class _Clash(CheckerboardType):
+        kind = "test_clash"
+        options = (BoardOption("marker_mm", "text", "Marker"),)  # ChArUco's marker_mm is a number
+
+    with pytest.raises(InputError, match="declares board.marker_mm otherwise"):
+        register(_Clash())
+    assert "test_clash" not in BOARD_KINDS
+
+
+def test_the_cli_types_a_board_option_as_its_kind_declares_it():
+    from saddlescope.cli import _board_options, build_parser
+
+    def options(*extra):
+        return _board_options(build_parser().parse_args(["calibrate", "--pattern", "4x3", "--square", "40",
+                                                         "--camera", "a=a.mp4", *extra]))
+
+    assert options("--marker", "30", "--board-option", "legacy=yes") == {"marker_mm": 30.0, "legacy": True}
+    with pytest.raises(InputError, match="board option 'marker' is not one of dictionary, marker_mm"):
+        options("--board-option", "marker=30")
+    with pytest.raises(InputError, match="board option marker_mm is a number, not 'big'"):
+        options("--board-option", "marker_mm=big")
+
+
+def test_outside_the_boards_package_a_boards_points_come_from_its_type():
+    """``Board.object_points_mm()`` is the checkerboard-like grid; any kind's points are its type's."""
+    backend = Path(boards.__file__).resolve().parents[3]
+    allowed = {"core/calibration/boards", "arena", "bench"}  # the types themselves; the arena's own checkerboard
+    callers = [str(path.relative_to(backend)) for path in backend.rglob("*.py")
+               if not any(part in str(path.relative_to(backend)) for part in allowed)
+               and ".object_points_mm()" in path.read_text(encoding="utf-8")]
+    assert callers == []

@@ -1,4 +1,7 @@
-"""Comparisons across the club: horses within a gait, the leaderboard, and what the indicators mean."""
+"""Comparisons across the club: horses within a gait, the leaderboard, and what the codes mean.
+
+What the codes mean: the glossary, the indicators and the kinds of calibration board.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +9,11 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query
 
+from saddlescope.api.board_schemas import BoardTypeOut, board_type_out
 from saddlescope.api.deps import ClubDep
 from saddlescope.api.routers.common import ERRORS, IndicatorKey, QueryId
 from saddlescope.api.schemas import MAX_ID, ComparisonOut, Gait, GlossaryEntryOut, IndicatorOut, LeaderboardOut
+from saddlescope.core.calibration.boards import board_types
 from saddlescope.core.errors import InputError
 from saddlescope.core.vibration import COMFORT_INDICATORS, INDICATORS
 from saddlescope.services.comparisons.analytics import club_leaderboard, horses_comparison
@@ -110,3 +115,13 @@ def indicators() -> list[IndicatorOut]:
         )
         for key, info in INDICATORS.items()
     ]
+
+
+@router.get("/board-types", response_model=list[BoardTypeOut], responses=ERRORS)
+def calibration_board_types() -> list[BoardTypeOut]:
+    """The kinds of calibration board (the board registry's), the default first, with the fields each adds.
+
+    The rig page's choice of board and its fields come from here. Open without signing in, as the glossary:
+    the same for everyone, no club data.
+    """
+    return [board_type_out(kind) for kind in board_types()]

@@ -41,7 +41,7 @@ from saddlescope.services.rides.registration import refresh_rig_rides_status
 from saddlescope.services.rigs.board_print import board_advice, board_print_html, camera_view
 from saddlescope.services.rigs.calibration_check import check_storage_key
 from saddlescope.services.rigs.calibration_way import CalibrationWay, choose_calibration_way
-from saddlescope.services.rigs.views import board_svg, calibration_words, coverage_words
+from saddlescope.services.rigs.views import board_svg, board_words, calibration_words, coverage_words
 from saddlescope.services.uploads.intake import (
     ClipOwner,
     remove_upload_files,
@@ -60,6 +60,7 @@ class _RigFields(TypedDict):
     recorded_on: dt.date | None
     cameras: dict[str, Any]
     board: dict[str, Any] | None
+    board_text: str
     wand_length_m: float | None
     calibrated: bool
     quality: dict[str, Any] | None
@@ -74,6 +75,7 @@ def rig_out(rig: Rig, *, detail: bool = False) -> RigOut:
         "recorded_on": rig.recorded_on,
         "cameras": rig.cameras or {},
         "board": rig.board,
+        "board_text": board_words(rig.board),
         "wand_length_m": rig.wand_length_m,
         "calibrated": rig.calibration is not None,
         "quality": rig.quality,

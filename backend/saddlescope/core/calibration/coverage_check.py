@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.findings import Finding
 from saddlescope.core.types import Board
 
@@ -84,7 +85,7 @@ def _band_views(corners: Sequence[np.ndarray], size: tuple[int, int]) -> np.ndar
 def _distances_m(corners: Sequence[np.ndarray], ids: Sequence[np.ndarray], board: Board,
                  size: tuple[int, int]) -> np.ndarray:
     """Each view's board distance (m) from a quick lens fit of these views (a 60 degree guess if it fails)."""
-    grid_mm = board.object_points_mm().astype(np.float32)
+    grid_mm = object_points_mm(board).astype(np.float32)
     usable = [i for i, pts in enumerate(corners) if len(pts) >= 6]
     obj = [grid_mm[np.asarray(ids[i], int)] for i in usable]
     img = [np.asarray(corners[i], np.float32).reshape(-1, 1, 2) for i in usable]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import replace
 
 import numpy as np
 
@@ -76,8 +77,7 @@ def squares_hint(frames: Iterable[np.ndarray], board: Board, *, inverted: bool |
     cols, rows = board.inner_corners
     if cols < 3 or rows < 3:
         return ""
-    smaller = Board(board.kind, (cols - 1, rows - 1), board.square_mm, dictionary=board.dictionary,
-                    marker_mm=board.marker_mm, legacy=board.legacy)
+    smaller = replace(board, inner_corners=(cols - 1, rows - 1))
     finder = BoardFinder(smaller, inverted=inverted, thorough=False)
     for n, gray in enumerate(frames):
         if n >= SQUARES_HINT_FRAMES:

@@ -22,7 +22,7 @@ class BoardView:
     corners_px : ndarray of shape (N, 2)
         Distorted pixel coordinates of the corners found.
     ids : ndarray of shape (N,)
-        Index of each corner into ``board.object_points_mm()``.
+        Index of each corner into the board's points (:func:`~saddlescope.core.calibration.boards.object_points_mm`).
     """
 
     frame: int

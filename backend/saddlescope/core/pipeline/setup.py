@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core import calibration as calib
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.detection.detectors import DetectionSettings, marker_detector
 from saddlescope.core.errors import CalibrationError, DetectionError, SyncError
 from saddlescope.core.findings import Finding
@@ -428,7 +429,7 @@ def board_track(views: list, board: Board) -> ImageTracks:
     Its image speed (:func:`~saddlescope.core.sync_motion.image_speed`: the mean over the corners found
     in both frames) is the board's motion, unaffected by corners coming and going.
     """
-    n = len(board.object_points_mm())
+    n = len(object_points_mm(board))
     frames = np.array(sorted({int(v.frame) for v in views}), dtype=np.int64)
     xy = np.full((frames.size, n, 2), np.nan)
     row = {int(f): i for i, f in enumerate(frames)}

@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 
 from saddlescope.core.calibration import BoardView
+from saddlescope.core.calibration.boards import object_points_mm
 from saddlescope.core.camera_model import project_points, undistort_normalized
 from saddlescope.core.errors import InputError
 from saddlescope.core.triangulation import triangulate_nview
@@ -24,10 +25,9 @@ def grid_points_px(camera: Camera, view: BoardView, board: Board, ids: np.ndarra
                    min_corners: int = 12) -> np.ndarray:
     """Image positions (distorted px) of board corners ``ids`` from every corner the view found.
 
-    The inner corners of a flat board lie on an evenly spaced grid, so in the undistorted image they
-    follow one homography of their (column, row) indices; fitted to all the corners found, it places
-    each wanted corner with the detection errors of a hundred corners averaged out (the board's size
-    is not used: the grid indices are unitless).
+    The points of a flat board lie on one plane, so in the undistorted image they follow one homography
+    of their board coordinates (the board type's points, any kind's layout); fitted to all the corners
+    found, it places each wanted corner with the detection errors of a hundred corners averaged out.
 
     Parameters
     ----------
@@ -48,13 +48,13 @@ def grid_points_px(camera: Camera, view: BoardView, board: Board, ids: np.ndarra
     out = np.full((ids.size, 2), np.nan)
     if len(view.ids) < min_corners:
         return out
-    cols = board.inner_corners[0]
+    board_xy = object_points_mm(board)[:, :2] / board.square_mm  # in squares: well scaled for the fit
     found = np.asarray(view.ids, dtype=np.int64)
-    grid = np.stack([found % cols, found // cols], axis=1).astype(np.float64)
-    H, _ = cv2.findHomography(grid, undistort_normalized(camera, np.asarray(view.corners_px, np.float64)), 0)
+    H, _ = cv2.findHomography(board_xy[found], undistort_normalized(camera, np.asarray(view.corners_px, np.float64)),
+                              0)
     if H is None:
         return out
-    wanted = np.stack([ids % cols, ids // cols], axis=1).astype(np.float64)
+    wanted = board_xy[ids]
     xy_n = cv2.perspectiveTransform(wanted[None], H)[0]
     # back to distorted pixels through the camera model: a point on each ray, in rig coordinates
     x_cam = 1000.0 * np.column_stack([xy_n, np.ones(len(xy_n))])
@@ -94,7 +94,7 @@ def board_point_distances(rig: Rig, views_by_camera: Mapping[str, list[BoardView
         raise InputError(f"unknown board distance method {method!r} (use 'grid' or 'corners')")
     cols = board.inner_corners[0]
     ids = {name: int(r * cols + c) for name, (c, r) in points.items()}
-    obj = board.object_points_mm()
+    obj = object_points_mm(board)
     names = list(points)
     wanted = np.array([ids[n] for n in names])
     cams = [c for c in rig.names if c in views_by_camera]

@@ -34,7 +34,7 @@ from saddlescope.db.repositories import (
 from saddlescope.db.session import session_scope
 from saddlescope.services.results.passes_view import passes_view
 from saddlescope.services.results.quality_notes import document_findings, quality_notes, quality_summary
-from saddlescope.services.results.series import DERIVED_FORMAT, derived_series, strides_analysed
+from saddlescope.services.results.series import DERIVED_FORMAT, DERIVED_SERIES, derived_series, strides_analysed
 from saddlescope.services.rides.registration import refresh_ride_status
 from saddlescope.storage import Storage
 
@@ -64,12 +64,8 @@ SERIES = (
     ("omega_rad_s", "angular", "omega_rad_s"),
     ("alpha_rad_s2", "angular", "alpha_rad_s2"),
 )
-# S's fitted position, measured velocity and acceleration and the residuals (services/results/series.py),
-# and the weighted vertical acceleration: always in the view, None when the result cannot give them.
-DERIVED_SERIES = (
-    "position_fitted_m", "position_residual_m", "velocity_measured_m_s", "velocity_residual_m_s",
-    "acceleration_measured_m_s2", "acceleration_residual_m_s2", "acc_y_wb_m_s2", "acc_y_wk_m_s2",
-)
+# DERIVED_SERIES (services/results/series.py: S's fitted position, measured velocity and acceleration and
+# the residuals, the weighted vertical acceleration ...): always in the view, None when the result cannot give them.
 # Per-frame series of the angular kinematics, served when the result has them.
 ANGULAR_PER_FRAME = ("omega_versions_rad_s", "omega_versions_excluded", "singularity_index_per_frame")
 MARKER_LABELS = ("M1", "M2", "M3")

@@ -13,10 +13,15 @@ the page shows the analysis, not a second one:
 
 Fitting 10,000 samples takes seconds, so :func:`derived_series` computes all of them once, at full
 resolution, when a result is stored (``services.results.documents.commit_result``); the ride page decimates them.
+
+:data:`DERIVED` declares each series (its name with its unit, what it is): the ride page's view serves
+exactly these, and the API's ``ResultSeries`` is made from the same declarations, so a new series is
+its computation and its line there (and its chart in the ride page's list, ``views/ride.js``).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -26,14 +31,36 @@ from saddlescope.core.saddle import vertical_harmonics
 from saddlescope.core.vibration import weighting_response
 
 __all__ = [
-    "DERIVED_FORMAT", "WEIGHTINGS", "derived_series", "fitted_saddle_series", "strides_analysed",
-    "vertical_harmonics_of", "weighted_series",
+    "DERIVED", "DERIVED_FORMAT", "DERIVED_SERIES", "WEIGHTINGS", "DerivedSeries", "derived_series",
+    "fitted_saddle_series", "strides_analysed", "vertical_harmonics_of", "weighted_series",
 ]
 
 WEIGHTINGS = (("wb", "Wb"), ("wk", "Wk"))  # (key suffix, ISO/BS weighting name): W_b = BS 6841, W_k = ISO 2631-1
 # The stored derived series' and ride pages' format (services/results/documents.py): a stored file of another format
 # is computed again and replaced. Bump it when a series is added or computed differently (a new chart).
 DERIVED_FORMAT = 1
+
+
+@dataclass(frozen=True)
+class DerivedSeries:
+    """One series :func:`derived_series` computes: its name (unit suffix) and what it is, for the API's schema."""
+
+    name: str
+    description: str
+
+
+# Every derived series, in the ride page's view whether or not a result can give it (None then).
+DERIVED = (
+    DerivedSeries("position_fitted_m", "S's position from a Fourier (or straight-line) fit per axis"),
+    DerivedSeries("position_residual_m", "measured minus fitted position"),
+    DerivedSeries("velocity_measured_m_s", "central differences of the measured positions"),
+    DerivedSeries("velocity_residual_m_s", "measured minus fitted velocity (the result's velocity_m_s)"),
+    DerivedSeries("acceleration_measured_m_s2", "second differences of the measured positions"),
+    DerivedSeries("acceleration_residual_m_s2", "measured minus fitted acceleration (the result's acceleration_m_s2)"),
+    DerivedSeries("acc_y_wb_m_s2", "vertical acceleration weighted with W_b (BS 6841), exact per harmonic"),
+    DerivedSeries("acc_y_wk_m_s2", "vertical acceleration weighted with W_k (ISO 2631-1), exact per harmonic"),
+)
+DERIVED_SERIES = tuple(series.name for series in DERIVED)
 
 
 def _array(values: Any, columns: int | None = None) -> np.ndarray | None:

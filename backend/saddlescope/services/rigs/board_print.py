@@ -8,11 +8,13 @@ it to see that the printer did not scale.
 
 Which square size a camera needs (the trade-off the rig page states): a camera ``W`` pixels wide with a
 horizontal field of view ``θ`` sees, at ``d`` metres, a strip ``2 d tan(θ/2)`` wide, so one pixel covers
-``2 d tan(θ/2) / W`` metres. The corner detectors need a square of at least ``N`` pixels (8 for a
-checkerboard: the detector searches a 2x enlarged frame for smaller squares, but finds them less often
-and less exactly; 16 for a ChArUco board, whose markers' cells are an eighth of a square and need 2 px
-each), hence a square of at least ``N · 2 d tan(θ/2) / W`` -- 47 mm at 8 m from a 1920-pixel phone
-with a 70° view, 23 mm at 4 m (the 50 mm squares the filming guide asks for reach 8.6 m).
+``2 d tan(θ/2) / W`` metres. The corner detectors need a square of at least ``N`` pixels (the board
+type's ``min_square_px``: 8 for a checkerboard: the detector searches a 2x enlarged frame for smaller
+squares, but finds them less often and less exactly; 16 for a ChArUco board, whose markers' cells are an
+eighth of a square and need 2 px each), hence a square of at least ``N · 2 d tan(θ/2) / W`` -- 47 mm at
+8 m from a 1920-pixel phone with a 70° view, 23 mm at 4 m (the 50 mm squares the filming guide asks for
+reach 8.6 m). A board's printed size is its type's texture's: the pattern and one square of white margin
+all round.
 """
 
 from __future__ import annotations
@@ -78,8 +80,8 @@ def camera_view(calibration: Mapping[str, Any] | None, clip_widths_px: list[int]
 
 
 def min_square_px(kind: str) -> int:
-    """Pixels a square needs in the image for its corners to be found surely (8 checkerboard, 16 ChArUco)."""
-    return 16 if kind == "charuco" else 8
+    """Pixels a square needs in a frame for the board to be found surely (its type's: 8 checkerboard, 16 ChArUco)."""
+    return board_type(kind).min_square_px
 
 
 def square_needed_mm(distance_m: float, *, image_width_px: int, hfov_deg: float, kind: str) -> float:
@@ -96,9 +98,10 @@ def _board(board_meta: Mapping[str, Any]) -> Board:
 
 
 def board_size_mm(board: Board) -> tuple[float, float]:
-    """Printed width and height (mm): the squares plus a one-square white margin all round."""
-    cols, rows = board.inner_corners
-    return (cols + 3) * board.square_mm, (rows + 3) * board.square_mm
+    """Printed width and height (mm): its type's texture, the pattern plus a one-square white margin all round."""
+    # at print resolution: a ChArUco marker needs a few pixels a cell
+    texture, px_per_mm, _ = board_type(board.kind).texture(board, px_per_square=_PX_PER_SQUARE)
+    return round(texture.shape[1] / px_per_mm, 6), round(texture.shape[0] / px_per_mm, 6)  # whole squares
 
 
 @dataclass(frozen=True)
@@ -123,12 +126,11 @@ def _printable_mm(paper: str, landscape: bool) -> tuple[float, float]:
 
 def _single_sheet(board: Board, paper: str) -> tuple[bool, bool, float]:
     """(fits, landscape, largest square mm) of the board on one sheet of ``paper``."""
-    cols, rows = board.inner_corners
     width_mm, height_mm = board_size_mm(board)
     best = (False, False, 0.0)
     for landscape in (False, True):
         pw, ph = _printable_mm(paper, landscape)
-        largest = min(pw / (cols + 3), ph / (rows + 3))
+        largest = board.square_mm * min(pw / width_mm, ph / height_mm)  # the print scales with the square
         fits = width_mm <= pw + 1e-6 and height_mm <= ph + 1e-6
         if (fits, largest) > (best[0], best[2]):
             best = (fits, landscape, largest)
@@ -142,8 +144,7 @@ def tile_grid(board: Board, paper: str = "a4") -> tuple[int, int, bool, float, f
     equal cell and repeats ``OVERLAP_MM`` of its neighbours to the right and below (the glue strip); the
     orientation giving fewer sheets wins.
     """
-    cols, rows = board.inner_corners
-    width_mm, height_mm = (cols + 1) * board.square_mm, (rows + 1) * board.square_mm
+    width_mm, height_mm = (size - 2 * board.square_mm for size in board_size_mm(board))  # less the margin
     best: tuple[int, int, bool, float, float] | None = None
     for landscape in (False, True):
         pw, ph = _printable_mm(paper, landscape)
@@ -311,11 +312,9 @@ def board_print_html(board_meta: Mapping[str, Any], layout: str, *, rig_name: st
     if layout not in LAYOUTS:
         raise InputError(f"unknown print layout {layout!r}: choose one of {', '.join(LAYOUTS)}")
     board = _board(board_meta)
-    cols, rows = board.inner_corners
     width_mm, height_mm = board_size_mm(board)
-    label = board_type(board.kind).label
-    title = (f"{label[:1].upper()}{label[1:]} board {cols} \u00d7 {rows} inner corners, squares "
-             f"{board.square_mm:g} mm, {width_mm:g} \u00d7 {height_mm:g} mm")
+    words = board_type(board.kind).describe(board)
+    title = f"{words[:1].upper()}{words[1:]}; {width_mm:g} \u00d7 {height_mm:g} mm"
     if rig_name:
         title += f" \u2014 {rig_name}"
     if layout == "a4-tiles":

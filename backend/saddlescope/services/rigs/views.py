@@ -8,6 +8,7 @@ renders), wrapped in an SVG whose width and height are in millimetres, so a brow
 from __future__ import annotations
 
 import base64
+import html
 from collections.abc import Mapping
 from typing import Any
 
@@ -17,7 +18,7 @@ import numpy as np
 from saddlescope.core.calibration.boards import board_from_meta, board_type
 from saddlescope.core.errors import InputError
 
-__all__ = ["board_svg", "board_svg_size_mm", "calibration_words", "coverage_words"]
+__all__ = ["board_svg", "board_svg_size_mm", "board_words", "calibration_words", "coverage_words"]
 
 _PX_PER_SQUARE = 48
 
@@ -25,8 +26,19 @@ _PX_PER_SQUARE = 48
 def board_svg_size_mm(board_meta: Mapping[str, Any]) -> tuple[float, float]:
     """Printed width and height (mm) of the board's SVG: its squares plus a one-square white margin."""
     board = board_from_meta(dict(board_meta))
-    texture, px_per_mm, _ = board_type(board.kind).texture(board, px_per_square=4)
+    texture, px_per_mm, _ = board_type(board.kind).texture(board, px_per_square=_PX_PER_SQUARE)
     return texture.shape[1] / px_per_mm, texture.shape[0] / px_per_mm
+
+
+def board_words(board_meta: Mapping[str, Any] | None) -> str:
+    """The rig's board in words (its type's :meth:`describe`), or what is wrong with its description."""
+    if not board_meta:
+        return "no board described"
+    try:
+        board = board_from_meta(dict(board_meta))
+    except InputError as exc:
+        return f"a board not described right ({exc})"
+    return board_type(board.kind).describe(board)
 
 
 def board_svg(board_meta: Mapping[str, Any]) -> str:
@@ -46,9 +58,7 @@ def board_svg(board_meta: Mapping[str, Any]) -> str:
     if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
         raise InputError("the board image could not be drawn")
     width_mm, height_mm = texture.shape[1] / px_per_mm, texture.shape[0] / px_per_mm
-    cols, rows = board.inner_corners
-    title = (f"{board_type(board.kind).label} board, {cols} x {rows} inner corners, squares of "
-             f"{board.square_mm:g} mm")
+    title = html.escape(board_type(board.kind).describe(board), quote=True)
     data = base64.b64encode(png.tobytes()).decode("ascii")
     return (
         f'<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink" '

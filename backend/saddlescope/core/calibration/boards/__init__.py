@@ -2,23 +2,36 @@
 
 A module of this package that defines ``BOARD_TYPE`` (an object implementing
 :class:`~saddlescope.core.calibration.boards.protocol.BoardType`) is registered when the package is
-imported: ride.json's ``board.kind``, the API's boards, ``saddlescope calibrate --board``, corner
-detection, rendering and the calibration all find it through :func:`board_type`. Built in:
-:mod:`~saddlescope.core.calibration.boards.checkerboard` and
-:mod:`~saddlescope.core.calibration.boards.charuco`.
+imported: ride.json's ``board`` section and its schema, the API's boards and ``GET /api/board-types``
+(the rig page's choice of kind and its fields), ``saddlescope calibrate --board`` and
+``--board-option``, corner detection, printing, rendering and the calibration all find it through
+:func:`board_type`, :func:`board_types` and :func:`board_options`. Its test beside the others
+(``tests/core/calibration/``) is the only other file a new kind needs.
 """
 
 import importlib
 import pkgutil
 
-from saddlescope.core.calibration.boards.protocol import BoardDetector, BoardType, grid_from_meta, grid_meta
+from saddlescope.core.calibration.boards.protocol import (
+    BoardDetector,
+    BoardOption,
+    BoardType,
+    grid_from_meta,
+    grid_meta,
+    option_number,
+    options_schema,
+    read_options,
+)
 from saddlescope.core.calibration.boards.registry import (
     BOARD_KINDS,
     DEFAULT_BOARD_KIND,
     board_from_meta,
     board_meta_problems,
+    board_option,
+    board_options,
     board_to_meta,
     board_type,
+    board_types,
     make_board,
     object_points_mm,
     register,
@@ -29,15 +42,22 @@ __all__ = [
     "BOARD_KINDS",
     "DEFAULT_BOARD_KIND",
     "BoardDetector",
+    "BoardOption",
     "BoardType",
     "board_from_meta",
     "board_meta_problems",
+    "board_option",
+    "board_options",
     "board_to_meta",
     "board_type",
+    "board_types",
     "grid_from_meta",
     "grid_meta",
     "make_board",
     "object_points_mm",
+    "option_number",
+    "options_schema",
+    "read_options",
     "register",
     "unregister",
 ]

@@ -13,7 +13,13 @@ from typing import Any
 import cv2
 import numpy as np
 
-from saddlescope.core.calibration.boards.protocol import grid_from_meta, grid_meta
+from saddlescope.core.calibration.boards.protocol import (
+    BoardOption,
+    grid_from_meta,
+    grid_meta,
+    option_number,
+    read_options,
+)
 from saddlescope.core.calibration.refinement import search_downscaled
 from saddlescope.core.calibration.views import MIN_POSE_CORNERS
 from saddlescope.core.errors import InputError
@@ -34,15 +40,18 @@ class CharucoType:
 
     kind = KIND
     label = "ChArUco"
+    short = ("a checkerboard with small square codes (ArUco markers) in its white squares: found when partly "
+             "hidden or at the frame's edge")
     trackable = False
-    meta_schema: Mapping[str, Any] = {
-        "properties": {
-            "dictionary": {"type": "string", "pattern": "^DICT_"},
-            "marker_mm": {"type": "number", "exclusiveMinimum": 0},
-            "legacy": {"type": "boolean"},
-        },
-        "required": ["dictionary", "marker_mm"],
-    }
+    options = (
+        BoardOption("dictionary", "text", "Marker dictionary", unset=_DEFAULT_DICTIONARY,
+                    pattern=r"^DICT_[A-Za-z0-9_]+$", max_length=40, required=True,
+                    offered=(_DEFAULT_DICTIONARY, "DICT_4X4_100", "DICT_5X5_100", "DICT_6X6_250")),
+        BoardOption("marker_mm", "number", "Marker size (mm)", unset="0.75 \u00d7 square", greater_than=0,
+                    at_most=10_000, required=True),
+        BoardOption("legacy", "flag", "Printed in OpenCV's legacy pattern (before 4.6)"),
+    )
+    min_square_px = 16  # its markers' cells are an eighth of a square and need 2 px each
 
     def from_meta(self, meta: Mapping[str, Any]) -> Board:
         """The validated board of a board section.
@@ -51,22 +60,28 @@ class CharucoType:
         takes its default.
         """
         inner_corners, square_mm = grid_from_meta(meta)
-        dictionary = meta.get("dictionary") or _DEFAULT_DICTIONARY
-        if dictionary not in ARUCO_DICTIONARIES:
-            raise InputError(f"board.dictionary {dictionary!r} is not an OpenCV ArUco dictionary; the "
+        options = dict(read_options(meta, self.options, {"dictionary": _DEFAULT_DICTIONARY,
+                                                         "marker_mm": _DEFAULT_MARKER_SCALE * square_mm,
+                                                         "legacy": False}))
+        if options["dictionary"] not in ARUCO_DICTIONARIES:
+            raise InputError(f"board.dictionary {options['dictionary']!r} is not an OpenCV ArUco dictionary; the "
                              f"dictionaries are {', '.join(ARUCO_DICTIONARIES)}")
-        marker = meta.get("marker_mm")
-        marker_mm = _DEFAULT_MARKER_SCALE * square_mm if marker is None else float(marker)
+        marker_mm = float(options["marker_mm"])
         if not 0 < marker_mm < square_mm:
             raise InputError(f"ChArUco marker size {marker_mm} mm must be between 0 and the square "
                              f"({square_mm} mm)")
-        return Board(self.kind, inner_corners, square_mm, dictionary=dictionary, marker_mm=marker_mm,
-                     legacy=bool(meta.get("legacy", False)))
+        return Board(self.kind, inner_corners, square_mm, options=tuple(options.items()))
 
     def to_meta(self, board: Board) -> dict[str, Any]:
         """The board section of a board."""
-        return {**grid_meta(board), "dictionary": board.dictionary, "marker_mm": board.marker_mm,
-                "legacy": board.legacy}
+        return grid_meta(board)
+
+    def describe(self, board: Board) -> str:
+        """The board in words: ChArUco, 7 × 5 inner corners, squares 30 mm, markers 22 mm, DICT_4X4_50."""
+        cols, rows = board.inner_corners
+        return (f"{self.label}, {cols} \u00d7 {rows} inner corners, squares {board.square_mm:g} mm, markers "
+                f"{option_number(board, 'marker_mm', _DEFAULT_MARKER_SCALE * board.square_mm):g} mm, "
+                f"{board.option('dictionary', _DEFAULT_DICTIONARY)}")
 
     def meta_problems(self, meta: Mapping[str, Any]) -> list[str]:
         """The markers must be smaller than the squares they sit in."""
@@ -91,11 +106,11 @@ class CharucoType:
     def cv_board(self, board: Board) -> cv2.aruco.CharucoBoard:
         """OpenCV's ``CharucoBoard`` of the board (its squares are ``inner_corners`` + 1)."""
         cols, rows = board.inner_corners
-        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary or _DEFAULT_DICTIONARY))
-        cv_board = cv2.aruco.CharucoBoard((cols + 1, rows + 1), float(board.square_mm),
-                                          float(board.marker_mm or _DEFAULT_MARKER_SCALE * board.square_mm),
-                                          dictionary)
-        cv_board.setLegacyPattern(bool(board.legacy))
+        name = str(board.option("dictionary", _DEFAULT_DICTIONARY))
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+        marker_mm = option_number(board, "marker_mm", _DEFAULT_MARKER_SCALE * board.square_mm)
+        cv_board = cv2.aruco.CharucoBoard((cols + 1, rows + 1), float(board.square_mm), marker_mm, dictionary)
+        cv_board.setLegacyPattern(bool(board.option("legacy", False)))
         return cv_board
 
     def texture(self, board: Board, *, px_per_square: int = 40) -> tuple[np.ndarray, float, np.ndarray]:

@@ -8,7 +8,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from saddlescope.core.calibration.boards.protocol import grid_from_meta, grid_meta
+from saddlescope.core.calibration.boards.protocol import BoardOption, grid_from_meta, grid_meta
 from saddlescope.core.calibration.refinement import refine_corners_subpixel, search_downscaled, unscale_px
 from saddlescope.core.types import Board
 
@@ -22,8 +22,12 @@ class CheckerboardType:
 
     kind = KIND
     label = "checkerboard"
+    short = "black and white squares: the simplest to print; every square must be in view"
     trackable = True
-    meta_schema: Mapping[str, Any] = {}
+    options: tuple[BoardOption, ...] = ()
+    # the detector also searches a 2x enlarged frame for smaller squares, but finds them less often and
+    # less exactly
+    min_square_px = 8
 
     def from_meta(self, meta: Mapping[str, Any]) -> Board:
         """The validated board of a board section (kind, inner_corners, square_mm)."""
@@ -33,6 +37,11 @@ class CheckerboardType:
     def to_meta(self, board: Board) -> dict[str, Any]:
         """The board section of a board."""
         return grid_meta(board)
+
+    def describe(self, board: Board) -> str:
+        """The board in words: checkerboard, 9 × 6 inner corners, squares 50 mm."""
+        cols, rows = board.inner_corners
+        return f"{self.label}, {cols} \u00d7 {rows} inner corners, squares {board.square_mm:g} mm"
 
     def meta_problems(self, meta: Mapping[str, Any]) -> list[str]:
         """None: the schema states all a checkerboard's section needs."""

@@ -1,7 +1,9 @@
-"""The board types by kind: one registry that ride.json, the API, the CLI and the calibration consult.
+"""The board types by kind: one registry that ride.json, the API, the CLI, the rig page and the calibration consult.
 
 A board type registers itself by being a module of :mod:`saddlescope.core.calibration.boards` with a
-``BOARD_TYPE``; code elsewhere (a test, a plug-in) may :func:`register` one too.
+``BOARD_TYPE``; code elsewhere (a test, a plug-in) may :func:`register` one too. The fields each kind
+adds (:class:`~saddlescope.core.calibration.boards.protocol.BoardOption`) are listed here as well: the
+API's board and the CLI's ``--board-option`` accept every registered kind's.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from saddlescope.core.calibration.boards.protocol import BoardType
+from saddlescope.core.calibration.boards.protocol import BoardOption, BoardType
 from saddlescope.core.errors import InputError
 from saddlescope.core.types import Board
 
@@ -20,8 +22,11 @@ __all__ = [
     "DEFAULT_BOARD_KIND",
     "board_from_meta",
     "board_meta_problems",
+    "board_option",
+    "board_options",
     "board_to_meta",
     "board_type",
+    "board_types",
     "make_board",
     "object_points_mm",
     "register",
@@ -44,13 +49,18 @@ def register(board_type: BoardType, *, replace: bool = False) -> BoardType:
     Raises
     ------
     InputError
-        Another type of that kind is registered already (unless ``replace``).
+        Another type of that kind is registered already (unless ``replace``), or it declares a field
+        another kind declares otherwise (one name, one meaning: the API's board holds every kind's).
     """
     kind = board_type.kind
     if _TYPES.get(kind) is board_type:
         return board_type  # registered already: nothing changes
     if kind in _TYPES and not replace:
         raise InputError(f"board kind {kind!r} is registered already")
+    for option in board_type.options:
+        other = next((o for k, t in _TYPES.items() if k != kind for o in t.options if o.name == option.name), None)
+        if other is not None and other != option:
+            raise InputError(f"board kind {kind!r} declares board.{option.name} otherwise than another kind does")
     if kind == DEFAULT_BOARD_KIND and kind not in _TYPES:
         BOARD_KINDS.insert(0, kind)
     elif kind not in _TYPES:
@@ -79,12 +89,40 @@ def board_type(kind: str) -> BoardType:
         raise InputError(f"board kind {kind!r} is not one of {', '.join(BOARD_KINDS)}") from None
 
 
+def board_types() -> list[BoardType]:
+    """The registered board types, in the order of :data:`BOARD_KINDS` (the default first)."""
+    return [_TYPES[kind] for kind in BOARD_KINDS]
+
+
+def board_options() -> list[BoardOption]:
+    """Every field a registered kind adds to a board section, once each, in the kinds' order."""
+    seen: dict[str, BoardOption] = {}
+    for kind in board_types():
+        for option in kind.options:
+            seen.setdefault(option.name, option)
+    return list(seen.values())
+
+
+def board_option(name: str) -> BoardOption:
+    """The field ``name`` some registered kind adds.
+
+    Raises
+    ------
+    InputError
+        No kind declares it, naming those that are declared.
+    """
+    options = {option.name: option for option in board_options()}
+    if name not in options:
+        raise InputError(f"board option {name!r} is not one of {', '.join(options) or 'none'}")
+    return options[name]
+
+
 def make_board(kind: str, inner_corners: tuple[int, int], square_mm: float, **options: Any) -> Board:
     """Validated :class:`~saddlescope.core.types.Board` of a kind.
 
-    ``options`` are the kind's own fields (for ChArUco ``dictionary``, ``marker_mm``, ``legacy``;
-    None leaves a field at its default); other kinds ignore them. For ChArUco, ``inner_corners`` is
-    (squares_x - 1, squares_y - 1).
+    ``options`` are the kind's own fields (:attr:`BoardType.options`, e.g. ChArUco's ``dictionary``,
+    ``marker_mm``, ``legacy``; None leaves a field at its default); other kinds ignore them. For
+    ChArUco, ``inner_corners`` is (squares_x - 1, squares_y - 1).
     """
     return board_type(kind).from_meta({"inner_corners": inner_corners, "square_mm": square_mm, **options})
 
