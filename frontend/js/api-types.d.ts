@@ -959,6 +959,16 @@ export interface QualitySummaryOut {
 }
 
 /**
+ * Whether a ride can be analysed now, and every clip or setting it still needs.
+ * GET /api/rides/{ride_id}/readiness answers it
+ */
+export interface ReadinessOut {
+  ready: boolean;
+  /** one sentence per missing clip or setting (none: ready) */
+  missing: string[];
+}
+
+/**
  * A stored clip and what probing it found.
  * GET /api/rides/{ride_id}/clips answers it
  * GET /api/rigs/{rig_id}/clips answers it

@@ -6,11 +6,13 @@
  * @typedef {Node | string | number | boolean | null | undefined} Part
  * @typedef {Part | Part[]} Child
  */
+/** @typedef {((event: Event) => unknown) | null | undefined | false} Listener */
 /**
- * h()'s attributes: "class", "dataset" (an object), "html" (our own constant markup), `on<event>` listeners,
- * and any other attribute (true: present and empty; null, undefined and false: left out).
- * @typedef {{[key: `on${string}`]: ((event: Event) => unknown) | null | undefined | false}
- *   & {[key: string]: unknown}} Attrs
+ * h()'s attributes: "class", "dataset" (an object), "html" (our own constant markup), `on<event>` listeners
+ * (the pages' own named, so their events are typed), and any other attribute (true: present and empty;
+ * null, undefined and false: left out).
+ * @typedef {{onclick?: Listener, onchange?: Listener, onsubmit?: Listener, oninput?: Listener,
+ *   [key: string]: unknown}} Attrs
  */
 
 /**
