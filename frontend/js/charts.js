@@ -252,8 +252,8 @@ function ready(div) {
 /**
  * x, y, z of an (N, 3) series against t_s.
  * @param {HTMLElement} div
- * @param {number[]} tS  times (s), shape (N,)
- * @param {unknown[]} xyz  shape (N, 3)
+ * @param {number[] | null | undefined} tS  times (s), shape (N,)
+ * @param {unknown[] | null | undefined} xyz  shape (N, 3)
  * @param {{title: string, unit: string, scale?: number}} words
  */
 export function xyzChart(div, tS, xyz, { title, unit, scale = 1 }) {
@@ -274,7 +274,7 @@ export function xyzChart(div, tS, xyz, { title, unit, scale = 1 }) {
 /**
  * The six ω versions (component `component`) with the singularity index on a second axis.
  * @param {HTMLElement} div
- * @param {number[]} tS  shape (N,)
+ * @param {number[] | null | undefined} tS  shape (N,)
  * @param {(number | null)[][][]} versions  shape (N, 6, 3)
  * @param {(number | null)[] | null | undefined} singularity  shape (N,)
  * @param {{names?: string[], component?: number, omega?: unknown[] | null, excluded?: boolean[][] | null}} options
@@ -480,9 +480,9 @@ function lineType(n) {
  * Marker tracks and the saddle point S in 3-D, equal aspect (metres in the motion frame).
  * Plotted as x less S's steady travel, sideways z and height −y so "up" is up on the screen.
  * @param {HTMLElement} div
- * @param {number[]} tS  shape (N,), s
+ * @param {number[] | null | undefined} tS  shape (N,), s
  * @param {((number | null)[] | null)[][] | null | undefined} markers  shape (N, M, 3), m
- * @param {unknown[]} saddle  shape (N, 3), m
+ * @param {unknown[] | null | undefined} saddle  shape (N, 3), m
  * @param {{names?: string[]}} [options]
  */
 export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "M3"] } = {}) {
@@ -498,7 +498,7 @@ export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "
   const xMean = ok.reduce((a, [, x]) => a + x, 0) / (ok.length || 1);
   const slope = ok.reduce((a, [t, x]) => a + (t - tMean) * (x - xMean), 0)
     / (ok.reduce((a, [t]) => a + (t - tMean) ** 2, 0) || 1);
-  const travel = (/** @type {number} */ i) => (Number.isFinite(tS?.[i]) ? xMean + slope * (tS[i] - tMean) : 0);
+  const travel = (/** @type {number} */ i) => (tS && Number.isFinite(tS[i]) ? xMean + slope * (tS[i] - tMean) : 0);
   /**
    * @param {unknown[]} rows
    * @param {string} name
@@ -531,7 +531,7 @@ export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "
 /**
  * One axis of S: the measured samples, the fitted curve over them and, below, the residual.
  * @param {HTMLElement} div
- * @param {number[]} tS  shape (N,)
+ * @param {number[] | null | undefined} tS  shape (N,)
  * @param {(number | null)[] | null} measured  shape (N,)
  * @param {(number | null)[]} fitted  shape (N,)
  * @param {(number | null)[] | null} residual  shape (N,)
@@ -569,7 +569,7 @@ export function fitChart(div, tS, measured, fitted, residual, { title, unit, col
 /**
  * The vertical acceleration of S over time: unweighted and weighted with W_b and W_k.
  * @param {HTMLElement} div
- * @param {number[]} tS  shape (N,)
+ * @param {number[] | null | undefined} tS  shape (N,)
  * @param {unknown[] | null | undefined} unweighted  shape (N,), m/s²
  * @param {unknown[] | null | undefined} wb  shape (N,), m/s²
  * @param {unknown[] | null | undefined} wk  shape (N,), m/s²
