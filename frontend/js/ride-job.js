@@ -76,8 +76,8 @@ function replaceClipForm(ride, failure, follow) {
     status.textContent = `Uploading ${file.name}\u2026`;
     try {
       const target = /** @type {import("./uploader.js").UploadTarget} */ ({ target: "ride_clip", ride_id: ride.id, clip_kind: kind, camera });
-      const answer = /** @type {import("./uploader.js").Finalized} */ (await uploadResumable(file, target,
-        { onProgress: (sent) => { status.textContent = `Uploading: ${Math.round((100 * sent) / Math.max(file.size, 1))} %`; } }));
+      const answer = await uploadResumable(file, target,
+        { onProgress: (sent) => { status.textContent = `Uploading: ${Math.round((100 * sent) / Math.max(file.size, 1))} %`; } });
       /** @type {number | undefined} */
       const jobId = answer?.job_id ?? (await post(`/api/rides/${ride.id}/analyze`))?.id;
       status.textContent = "Uploaded; the analysis starts again.";

@@ -194,6 +194,20 @@ async function sendChunk(id, file, offset, signal) {
 }
 
 /**
+ * @overload
+ * @param {File} file
+ * @param {UploadTarget} target
+ * @param {SendOptions & {finalize: false, body?: object}} options
+ * @returns {Promise<{id: string, key: string}>} the complete upload, to finish with finalizeUpload
+ */
+/**
+ * @overload
+ * @param {File} file
+ * @param {UploadTarget} target
+ * @param {SendOptions & {finalize?: true, body?: object}} [options]
+ * @returns {Promise<Finalized>}
+ */
+/**
  * Upload `file` to `target` ({target: "bundle"|"ride_clip"|"rig_clip", ride_id?, rig_id?, clip_kind?, camera?}).
  * `onProgress(sentBytes)` after each chunk. Resolves to the finalize answer (with `finalize: false`: to
  * the complete, not yet finalised upload {id, key}; finish it with `finalizeUpload`).
