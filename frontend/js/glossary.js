@@ -38,7 +38,11 @@ function keep(glossary, indicators) {
  */
 export function loadConstants() {
   if (!loading) {
-    loading = Promise.all([get("/api/glossary"), get("/api/indicators")])
+    /** @type {Promise<GlossaryEntry[]>} */
+    const glossaryAsked = get("/api/glossary");
+    /** @type {Promise<import("./api-types").IndicatorOut[]>} */
+    const indicatorsAsked = get("/api/indicators");
+    loading = Promise.all([glossaryAsked, indicatorsAsked])
       .then(([glossary, indicators]) => keep(glossary, indicators))
       .catch((error) => {
         loading = null;

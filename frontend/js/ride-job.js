@@ -79,7 +79,7 @@ function replaceClipForm(ride, failure, follow) {
       const answer = await uploadResumable(file, target,
         { onProgress: (sent) => { status.textContent = `Uploading: ${Math.round((100 * sent) / Math.max(file.size, 1))} %`; } });
       /** @type {number | undefined} */
-      const jobId = answer?.job_id ?? (await post(`/api/rides/${ride.id}/analyze`))?.id;
+      const jobId = answer?.job_id ?? /** @type {JobOut | null} */ (await post(`/api/rides/${ride.id}/analyze`))?.id;
       status.textContent = "Uploaded; the analysis starts again.";
       follow(jobId);
     } catch (err) {
@@ -137,7 +137,9 @@ function pickRigForm(ride, follow) {
   const form = h("form", { class: "replace-clip", hidden: true },
     h("label", { for: id }, "Or analyse it with another rig's calibration"), select,
     h("button", { type: "submit" }, "Use this rig and analyse again"), error);
-  getAll("/api/rigs").then((/** @type {import("./api-types").RigOut[]} */ all) => {
+  /** @type {Promise<import("./api-types").RigOut[]>} */
+  const rigsAsked = getAll("/api/rigs");
+  rigsAsked.then((all) => {
     const rigs = all.filter((rig) => rig.calibrated && rig.id !== ride.rig_id);
     select.replaceChildren(...rigs.map((rig) => h("option", { value: String(rig.id) }, rig.name)));
     form.hidden = !rigs.length;
@@ -148,7 +150,7 @@ function pickRigForm(ride, follow) {
     button.disabled = true;
     try {
       await patch(`/api/rides/${ride.id}`, { rig_id: Number(select.value) });
-      follow((await post(`/api/rides/${ride.id}/analyze`))?.id);
+      follow(/** @type {JobOut | null} */ (await post(`/api/rides/${ride.id}/analyze`))?.id);
     } catch (err) {
       button.disabled = false;
       error.textContent = messageOf(err);
@@ -188,7 +190,7 @@ function failureActions(ride, job, failure, { follow }) {
   if (can("job.retry", ride.created_by ?? null)) {
     actions.push(actionButton("Run the analysis again", "data-retry-job", async () => {
       const again = job.kind === "analyze" ? await post(`/api/jobs/${job.id}/retry`) : await post(`/api/rides/${ride.id}/analyze`);
-      follow(again?.id ?? job.id);
+      follow(/** @type {JobOut | null} */ (again)?.id ?? job.id);
     }));
   }
   return actions;
@@ -220,7 +222,7 @@ export function showJob(slot, ride, job, handlers) {
     parts.push(h("p", { "data-job-status": "done" }, `${what}: finished${time ? ` (${time})` : ""}.`));
     if (job.kind === "calibrate_rig" && can("ride.create")) {  // the rig calibrated anew: analyse the ride with it
       parts.push(actionButton("Analyse the ride with the new calibration", "data-analyse-now", async () => {
-        handlers.follow((await post(`/api/rides/${ride.id}/analyze`))?.id);
+        handlers.follow(/** @type {JobOut | null} */ (await post(`/api/rides/${ride.id}/analyze`))?.id);
       }));
     }
   } else {

@@ -597,7 +597,7 @@ export async function mountRide(view, { id }) {
           h("button", { type: "button", onclick: async (event) => {
             /** @type {HTMLButtonElement} */ (event.target).disabled = true;
             try {
-              follow((await post(`/api/rides/${rideId}/analyze`))?.id ?? null);
+              follow(/** @type {JobOut | null} */ (await post(`/api/rides/${rideId}/analyze`))?.id ?? null);
             } catch (err) {
               state.append(h("p", { class: "form-error", role: "alert" }, messageOf(err)));
             }
@@ -611,7 +611,7 @@ export async function mountRide(view, { id }) {
     if (job.status === "done") {
       if (job.kind === "calibrate_rig" && thenAnalyse) {
         thenAnalyse = false;
-        followedId = (await post(`/api/rides/${rideId}/analyze`))?.id ?? null;
+        followedId = /** @type {JobOut | null} */ (await post(`/api/rides/${rideId}/analyze`))?.id ?? null;
         return true;
       }
       if (job.kind === "analyze" && seenUnfinished) {

@@ -13,6 +13,7 @@ import { h, maybeOne, messageOf, page } from "../dom.js";
  */
 async function has(url, test = (items) => items.length > 0) {
   try {
+    /** @type {T[] | {items?: T[]} | null} a list, or a Page of one */
     const answer = await get(url, { params: { limit: 50 } });
     return test(Array.isArray(answer) ? answer : answer?.items ?? []);
   } catch (error) {

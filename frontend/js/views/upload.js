@@ -442,8 +442,11 @@ export async function mountUpload(view, _params, query) {
     control(form, "ridden_on").value = today();
     await Promise.all([fillOptions(form), loadRigs()]);
     if (completing) {
-      /** @type {[import("../api-types").RideDetail, import("../api-types").RecordingOut[]]} */
-      const [ride, clips] = await Promise.all([get(`/api/rides/${completing}`), get(`/api/rides/${completing}/clips`)]);
+      /** @type {Promise<import("../api-types").RideDetail>} */
+      const asked = get(`/api/rides/${completing}`);
+      /** @type {Promise<import("../api-types").RecordingOut[]>} */
+      const askedClips = get(`/api/rides/${completing}/clips`);
+      const [ride, clips] = await Promise.all([asked, askedClips]);
       storedClips = clips.map((c) => ({ kind: c.clip_kind, camera: c.camera_role }));
       for (const name of /** @type {const} */ (["horse_id", "rider_id", "gait", "direction", "ridden_on", "rig_id"])) {
         if (ride[name] != null) control(form, name).value = String(ride[name]);
