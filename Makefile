@@ -28,9 +28,10 @@ $(AXE_STAMP):
 	    || echo "note: could not install axe-core with npm; the page audit will skip (fail under CI)"; \
 	else echo "note: npm missing; the page audit will skip (fail under CI)"; fi
 
-# TypeScript's checker for the dashboard's JSDoc types (frontend/tsconfig.json: the files that start with
-# // @ts-check), pinned, from the npm registry into a cache folder of its own (an install beside axe-core
-# could prune it); stamped. Without npm `make lint` skips the check with a note (fails under CI=true).
+# TypeScript's checker for the dashboard's JSDoc types (frontend/tsconfig.json: every module, strict; the API's
+# answers typed by frontend/js/api-types.d.ts, `make api-types`), pinned, from the npm registry into a cache
+# folder of its own (an install beside axe-core could prune it); stamped. Without npm `make lint` skips the
+# check with a note (fails under CI=true).
 TSC_VERSION := 5.9.3
 TSC_DIR     := .cache/npm-tsc
 TSC_STAMP   := $(TSC_DIR)/.typescript-$(TSC_VERSION)

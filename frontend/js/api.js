@@ -1,4 +1,3 @@
-// @ts-check
 // The REST client: JSON in and out, the session cookie, the CSRF header on unsafe requests, and the
 // server's own error reason (FastAPI's `detail`) kept verbatim so pages can show it to the user.
 

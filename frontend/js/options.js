@@ -1,4 +1,3 @@
-// @ts-check
 // <select data-options="horses|riders|saddles|saddle-types|rigs|gaits|indicators|ranked-indicators">: filled from the API.
 // data-optional="text" adds a first, empty choice with that text.
 
