@@ -62,3 +62,48 @@ def test_every_dashboard_module_is_checked():
 def test_the_jsdoc_types_check():
     done = _tsc()
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+PROBE = """\
+import {{ get }} from "{api}";
+
+/** @typedef {{import("{types}").RideDetail}} RideDetail */
+
+/** @param {{number}} id */
+export async function named(id) {{
+  /** @type {{RideDetail}} */
+  const ride = await get(`/api/rides/${{id}}`);
+  return ride.horse_name;
+}}
+
+/** @param {{number}} id */
+export async function misspelt(id) {{
+  /** @type {{RideDetail}} */
+  const ride = await get(`/api/rides/${{id}}`);
+  return ride.horse_nam;
+}}
+
+/** @param {{number}} id */
+export async function unnamed(id) {{
+  const ride = await get(`/api/rides/${{id}}`);
+  return ride.horse_name;
+}}
+"""
+
+
+def test_a_page_reading_the_api_must_name_the_schema_and_its_fields(tmp_path):
+    """What the check holds a page to: an answer read through api.js's `get` has the type the page names
+    from api-types.d.ts (a field the API does not send fails), and no type at all (`unknown`) unnamed."""
+    probe = tmp_path / "probe.js"
+    probe.write_text(PROBE.format(api=FRONTEND / "js" / "api.js", types=FRONTEND / "js" / "api-types"),
+                     encoding="utf-8")
+    if not TSC.exists():
+        _tsc()  # skips (fails under CI) with the reason
+    done = subprocess.run([str(TSC), "--noEmit", "--allowJs", "--checkJs", "--strict", "--target", "ES2022",
+                           "--module", "ES2022", "--moduleResolution", "bundler", "--skipLibCheck", str(probe)],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False)
+    errors = [line for line in done.stdout.splitlines() if "probe.js(" in line]
+    lines = {int(re.search(r"probe\.js\((\d+),", line).group(1)) for line in errors}
+    source = PROBE.splitlines()
+    assert lines == {source.index("  return ride.horse_nam;") + 1, len(source) - 1}, done.stdout
+    assert "horse_nam" in errors[0] and "unknown" in errors[1], errors
