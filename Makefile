@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast install system-deps lint clean
+.PHONY: demo test test-fast install system-deps lint api-types clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -28,9 +28,10 @@ $(AXE_STAMP):
 	    || echo "note: could not install axe-core with npm; the page audit will skip (fail under CI)"; \
 	else echo "note: npm missing; the page audit will skip (fail under CI)"; fi
 
-# TypeScript's checker for the dashboard's JSDoc types (frontend/tsconfig.json: the files that start with
-# // @ts-check), pinned, from the npm registry into a cache folder of its own (an install beside axe-core
-# could prune it); stamped. Without npm `make lint` skips the check with a note (fails under CI=true).
+# TypeScript's checker for the dashboard's JSDoc types (frontend/tsconfig.json: every module, strict; the API's
+# answers typed by frontend/js/api-types.d.ts, `make api-types`), pinned, from the npm registry into a cache
+# folder of its own (an install beside axe-core could prune it); stamped. Without npm `make lint` skips the
+# check with a note (fails under CI=true).
 TSC_VERSION := 5.9.3
 TSC_DIR     := .cache/npm-tsc
 TSC_STAMP   := $(TSC_DIR)/.typescript-$(TSC_VERSION)
@@ -85,6 +86,11 @@ lint: install $(TSC_STAMP)
 	@if [ -x $(TSC) ]; then echo "$(TSC) -p frontend/tsconfig.json"; $(TSC) -p frontend/tsconfig.json; \
 	elif [ "$$CI" = "true" ]; then echo "typescript is missing (npm?): the JSDoc type check cannot run under CI" >&2; exit 1; \
 	else echo "note: typescript missing (npm?); skipped the JSDoc type check (frontend/tsconfig.json)"; fi
+
+# The dashboard's types of the API's answers (frontend/js/api-types.d.ts), written from the API's own OpenAPI
+# schema; tests/api/test_api_frontend_types.py fails while the file is older than the schemas.
+api-types: install
+	$(BIN)/python -m saddlescope.api.frontend_types
 
 # Two pytest-xdist workers, each test file whole on one worker (--dist loadfile: a module's server, ride
 # or database is built once), overlapping one test's waiting (servers, browser, broker) with another's

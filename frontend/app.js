@@ -1,6 +1,6 @@
 // SaddleScope dashboard: routes, the signed-in state in the header, and start-up.
 
-import { page } from "./js/dom.js";
+import { messageOf, one, page } from "./js/dom.js";
 import { loadConstants } from "./js/glossary.js";
 import { checkHealth } from "./js/health.js";
 import { currentPath, navigate, render, route } from "./js/router.js";
@@ -10,11 +10,18 @@ import { onSessionChange, refreshSession, session, signOut } from "./js/session.
  * A page's module, loaded on its first visit (start-up fetches only the shell, not every page's code):
  * `mountX` of the module, or `mountX(...args)` for pages made by a factory. The router starts `load`
  * beside the page's markup (each route's `markup`: the .html files beside the modules that use them).
+ * @template {Record<string, unknown>} M
+ * @param {() => Promise<M>} load
+ * @param {keyof M & string} name
+ * @param {...string} args
+ * @returns {import("./js/router.js").Mount}
  */
 function lazy(load, name, ...args) {
+  /** @type {import("./js/router.js").Mount} */
   const mountLazily = async (view, params, query) => {
-    const mount = (await load())[name];
-    return (args.length ? mount(...args) : mount)(view, params, query);
+    // `name` is a mount of the module, or (with args) a factory of one
+    const mount = /** @type {Function} */ ((await load())[name]);
+    return /** @type {import("./js/router.js").Mount} */ (args.length ? mount(...args) : mount)(view, params, query);
   };
   return Object.assign(mountLazily, { load });
 }
@@ -60,13 +67,18 @@ route("/account", lazy(() => import("./js/views/account.js"), "mountAccount"),
 route("/reset-password", lazy(() => import("./js/views/reset-password.js"), "mountResetPassword"),
       { title: "Set a new password", auth: false, markup: ["js/views/reset-password.html"] });
 
-const view = document.querySelector("[data-view]");
+const view = one(document, "[data-view]");
 
+/**
+ * @param {import("./js/router.js").Route} target
+ * @param {string} path
+ */
 function guard(target, path) {
   if (target.auth && !session()) return `/login?next=${encodeURIComponent(path)}`;
   return null;
 }
 
+/** @param {HTMLElement} el */
 function notFound(el) {
   el.append(page("not-found"));
 }
@@ -74,24 +86,25 @@ function notFound(el) {
 // Pages anyone may open: a session ending there does not send the user to sign in.
 const OPEN_PAGES = new Set(["/login", "/reset-password"]);
 
+/** @param {import("./js/api-types").MeOut | null} current */
 function showAccount(current) {
-  const name = document.querySelector("[data-account-name]");
-  const login = document.querySelector("[data-account-login]");
-  const logout = document.querySelector("[data-account-logout]");
+  const name = one(document, "[data-account-name]");
+  const login = one(document, "[data-account-login]");
+  const logout = one(document, "[data-account-logout]");
   name.textContent = current ? `${current.user.display_name || current.user.email}${current.club ? ` \u00b7 ${current.club.name}` : ""}` : "";
   name.hidden = !current;
   login.hidden = Boolean(current);
   logout.hidden = !current;
-  document.querySelector("[data-nav]").hidden = !current;
-  document.querySelector("[data-nav-toggle]").hidden = !current;
-  document.querySelector(".site-header").toggleAttribute("data-signed-in", Boolean(current));
+  one(document, "[data-nav]").hidden = !current;
+  one(document, "[data-nav-toggle]").hidden = !current;
+  one(document, ".site-header").toggleAttribute("data-signed-in", Boolean(current));
 }
 
 /** The phone menu: the button folds the nav and the account links open and shut (Escape shuts it). */
 function setUpMenu() {
-  const header = document.querySelector(".site-header");
-  const toggle = header.querySelector("[data-nav-toggle]");
-  const setOpen = (open) => {
+  const header = one(document, ".site-header");
+  const toggle = one(header, "[data-nav-toggle]");
+  const setOpen = (/** @type {boolean} */ open) => {
     header.toggleAttribute("data-nav-open", open);
     toggle.setAttribute("aria-expanded", String(open));
   };
@@ -105,21 +118,25 @@ function setUpMenu() {
   window.addEventListener("hashchange", () => setOpen(false)); // a link was followed
 }
 
-/** The server did not answer the start-up's constants: say so (no page is drawn with guessed labels). */
+/**
+ * The server did not answer the start-up's constants: say so (no page is drawn with guessed labels).
+ * @param {unknown} error
+ */
 function showUnreachable(error) {
   const unreachable = page("unreachable");
-  unreachable.querySelector("[data-unreachable-reason]").textContent = error.message;
-  unreachable.querySelector("[data-unreachable-retry]").addEventListener("click", () => window.location.reload());
+  one(unreachable, "[data-unreachable-reason]").textContent = messageOf(error);
+  one(unreachable, "[data-unreachable-retry]").addEventListener("click", () => window.location.reload());
   view.replaceChildren(unreachable);
   document.title = "Cannot reach the server \u2013 SaddleScope";
 }
 
 async function start() {
-  document.querySelector("[data-account-logout]").addEventListener("click", async () => {
+  one(document, "[data-account-logout]").addEventListener("click", async () => {
     await signOut();
     navigate("/login");
   });
   setUpMenu();
+  /** @type {import("./js/api-types").MeOut | null} */
   let previous = null;
   onSessionChange((current) => {
     showAccount(current);
@@ -130,7 +147,7 @@ async function start() {
     previous = current;
     // signed in: the chart library comes into the cache while nothing else is asked for
     if (current) {
-      (window.requestIdleCallback ?? ((work) => setTimeout(work, 2000)))(
+      (window.requestIdleCallback ?? ((/** @type {() => void} */ work) => setTimeout(work, 2000)))(
         () => import("./js/charts.js").then((charts) => charts.prefetchPlotly()));
     }
   });
@@ -142,7 +159,7 @@ async function start() {
   try {
     await refreshSession();
   } catch (error) {
-    console.warn("cannot ask who is signed in:", error.message);
+    console.warn("cannot ask who is signed in:", messageOf(error));
   }
   const failed = await constantsFailed;
   if (failed) {

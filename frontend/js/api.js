@@ -1,4 +1,3 @@
-// @ts-check
 // The REST client: JSON in and out, the session cookie, the CSRF header on unsafe requests, and the
 // server's own error reason (FastAPI's `detail`) kept verbatim so pages can show it to the user.
 
@@ -37,7 +36,7 @@ export class ApiError extends Error {
   /**
    * @param {number} status the HTTP status (0: the server was not reached)
    * @param {string} message the server's reason
-   * @param {any} body the parsed answer
+   * @param {any} body the parsed answer (any: an error's body is the route's own, read where it is known)
    */
   constructor(status, message, body) {
     super(message);
@@ -77,7 +76,7 @@ export function onUnauthorised(listener) {
 
 /**
  * FastAPI `detail` as one readable sentence: a string as is, validation errors as "field: message".
- * @param {any} body the parsed answer
+ * @param {any} body the parsed answer (any: FastAPI's {detail}, a string, or anything a proxy sent)
  * @param {number} status
  * @param {string} [statusText]
  * @returns {string}
@@ -134,7 +133,7 @@ async function readBody(response) {
  * @param {string} method
  * @param {string} url
  * @param {RequestOptions} [options]
- * @returns {Promise<any>}
+ * @returns {Promise<any>} any: get, post, patch and del hand it on as the type their caller names
  */
 export async function request(method, url, { json, body, headers, signal, params, withHeaders = false } = {}) {
   method = method.toUpperCase();
@@ -165,19 +164,23 @@ export async function request(method, url, { json, body, headers, signal, params
   return withHeaders ? { data: parsed, headers: response.headers, status: response.status } : parsed;
 }
 
-/** @type {(url: string, options?: RequestOptions) => Promise<any>} */
+// The answer is of the type the caller names (/** @type {import("./api-types").RideOut} */ const ride =
+// await get(...)): TypeScript infers T from it; a caller that names none gets `unknown`, which it cannot
+// read without saying what it is.
+/** @type {<T = unknown>(url: string, options?: RequestOptions) => Promise<T>} */
 export const get = (url, options) => request("GET", url, options);
-/** @type {(url: string, json?: unknown, options?: RequestOptions) => Promise<any>} */
+/** @type {<T = unknown>(url: string, json?: unknown, options?: RequestOptions) => Promise<T>} */
 export const post = (url, json, options) => request("POST", url, { ...options, json });
-/** @type {(url: string, json?: unknown, options?: RequestOptions) => Promise<any>} */
+/** @type {<T = unknown>(url: string, json?: unknown, options?: RequestOptions) => Promise<T>} */
 export const patch = (url, json, options) => request("PATCH", url, { ...options, json });
-/** @type {(url: string, options?: RequestOptions) => Promise<any>} */
+/** @type {<T = unknown>(url: string, options?: RequestOptions) => Promise<T>} */
 export const del = (url, options) => request("DELETE", url, options);
 
 /**
  * A list answer may be a bare array or a page object ({items: [...]}); pages want the array.
- * @param {any} answer
- * @returns {any[]}
+ * @template T the rows' type
+ * @param {T[] | {items?: T[]} | null | undefined} answer
+ * @returns {T[]}
  */
 export function itemsOf(answer) {
   if (Array.isArray(answer)) return answer;
@@ -192,13 +195,14 @@ export const MAX_PAGE_ROWS = 500;
  * Every row of a paged list (GET `path` answering {items, total, limit, offset}), for pickers that must
  * offer all of a club's horses, not its first 500: the first page says the total, the rest are read
  * together.
+ * @template [T=unknown] the rows' type (the list's schema, e.g. HorseOut)
  * @param {string} path
  * @param {RequestOptions["params"]} [params] the list's filters and sort
  * @param {RequestOptions} [options]
- * @returns {Promise<any[]>}
+ * @returns {Promise<T[]>}
  */
 export async function getAll(path, params = {}, options = {}) {
-  /** @type {(offset: number) => Promise<Page<any>>} */
+  /** @type {(offset: number) => Promise<Page<T>>} */
   const pageAt = (offset) => get(path, { ...options, params: { ...params, limit: MAX_PAGE_ROWS, offset } });
   const first = await pageAt(0);
   const offsets = [];

@@ -1,5 +1,30 @@
 // Plotly charts, always drawn with Plotly.react so a redraw replaces the data in place.
 
+// Plotly's own reference has hundreds of keys: traces and layouts are typed as open objects here, with
+// the parts the charts change after building them (margins, axes, legend) as objects of their own.
+/** @typedef {Record<string, unknown>} Trace one Plotly trace: type, x, y, line, ... */
+/** @typedef {Record<string, unknown>} LayoutPart */
+/**
+ * A 2-D chart's layout (baseLayout), its parts open for a chart to change.
+ * @typedef {{[key: string]: unknown, margin: LayoutPart, xaxis: LayoutPart, yaxis: LayoutPart, legend: LayoutPart}} Layout
+ */
+/**
+ * The part of Plotly (vendor/plotly-*.min.js, window.Plotly) the dashboard calls.
+ * @typedef {object} PlotlyLibrary
+ * @property {(div: HTMLElement, traces: Trace[], layout: object, config: object) => Promise<HTMLElement>} react
+ * @property {(div: HTMLElement) => void} purge
+ */
+/**
+ * A chart's div: the bundle that drew it, and the chart waiting for it to be scrolled near.
+ * @typedef {HTMLElement & {__plotly?: PlotlyLibrary, __pendingChart?: PendingChart}} ChartDiv
+ */
+/**
+ * @typedef {object} PendingChart
+ * @property {[Trace[], object, object]} args traces, layout, config
+ * @property {{resolve: (div: HTMLElement) => void, reject: (error: unknown) => void}[]} waiters
+ */
+
+/** @type {Record<string, string>} */
 const AXIS_COLOURS = { x: "#1f5fa8", y: "#c2410c", z: "#2f855a" };
 const VERSION_COLOURS = ["#1f5fa8", "#6b8fd6", "#c2410c", "#e8925c", "#2f855a", "#7cc29a"];
 const FONT = { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 12, color: "#1d2630" };
@@ -16,9 +41,17 @@ const CONFIG = {
 // full one (4.8 MB, for scatter3d) only when a 3-D chart is drawn. Pages without charts (lists, forms)
 // parse neither; each is fetched once per version (the server marks vendor/ immutable).
 const PLOTLY_SRC = { cartesian: "vendor/plotly-cartesian-3.7.0.min.js", full: "vendor/plotly-3.7.0.min.js" };
-const libraries = {}; // bundle name -> Promise of its Plotly
+/** @typedef {keyof PLOTLY_SRC} Bundle */
+/** @type {Partial<Record<Bundle, Promise<PlotlyLibrary>>>} bundle name -> Promise of its Plotly */
+const libraries = {};
+/** @type {PlotlyLibrary | null} */
 let lastLoaded = null; // both bundles set window.Plotly: each is kept as it was when its script ran
+const withPlotly = /** @type {Window & {Plotly?: PlotlyLibrary}} */ (window);
 
+/**
+ * @param {Bundle} name
+ * @returns {Promise<PlotlyLibrary>}
+ */
 function loadBundle(name) {
   if (!libraries[name]) {
     libraries[name] = new Promise((resolve, reject) => {
@@ -30,9 +63,9 @@ function loadBundle(name) {
       script.src = PLOTLY_SRC[name];
       script.async = true;
       script.onload = () => {
-        if (!window.Plotly || window.Plotly === lastLoaded) return failed();
-        lastLoaded = window.Plotly;
-        resolve(window.Plotly);
+        if (!withPlotly.Plotly || withPlotly.Plotly === lastLoaded) return failed();
+        lastLoaded = withPlotly.Plotly;
+        resolve(withPlotly.Plotly);
       };
       script.onerror = failed;
       document.head.append(script);
@@ -55,12 +88,22 @@ export function prefetchPlotly() {
   document.head.append(link);
 }
 
-/** Load Plotly once: the cartesian bundle, or the full one where `threeD` (or where it is loaded already). */
+/**
+ * Load Plotly once: the cartesian bundle, or the full one where `threeD` (or where it is loaded already).
+ * @param {{threeD?: boolean}} [options]
+ * @returns {Promise<PlotlyLibrary>}
+ */
 export function loadPlotly({ threeD = false } = {}) {
   if (threeD) return loadBundle("full");
   return libraries.full && !libraries.cartesian ? libraries.full : loadBundle("cartesian");
 }
 
+/**
+ * @param {ChartDiv} div
+ * @param {Trace[]} traces
+ * @param {object} layout
+ * @param {object} config
+ */
 function drawNow(div, traces, layout, config) {
   const threeD = traces.some((t) => t.type === "scatter3d");
   return loadPlotly({ threeD }).then((lib) => {
@@ -74,20 +117,25 @@ function drawNow(div, traces, layout, config) {
 // (data-chart-eager): a ride page's twelve charts would otherwise all be laid out before any is shown.
 // The latest data asked for wins. Charts of a page left before they were drawn are let go.
 const NEAR_PX = 300;
+/** @type {IntersectionObserver | null} */
 let observer = null;
+/** @type {Set<ChartDiv>} */
 const pendingDivs = new Set();
 
+/** @param {ChartDiv} div */
 function forget(div) {
   delete div.__pendingChart;
   pendingDivs.delete(div);
   observer?.unobserve(div);
 }
 
+/** @param {HTMLElement} div */
 function nearView(div) {
   const box = div.getBoundingClientRect();
   return box.top < window.innerHeight + NEAR_PX && box.bottom > -NEAR_PX;
 }
 
+/** @param {ChartDiv} div */
 function drawPending(div) {
   const pending = div.__pendingChart;
   if (!pending) return;
@@ -96,25 +144,34 @@ function drawPending(div) {
     (error) => pending.waiters.forEach((w) => w.reject(error)));
 }
 
+/**
+ * @param {ChartDiv} div
+ * @param {PendingChart["args"]} args
+ * @returns {Promise<HTMLElement>}
+ */
 function later(div, args) {
-  if (!observer) {
-    observer = new IntersectionObserver((entries) => entries.forEach((entry) => {
-      if (entry.isIntersecting) drawPending(entry.target);
-    }), { rootMargin: `${NEAR_PX}px 0px` });
-  }
+  const watcher = observer ?? new IntersectionObserver((entries) => entries.forEach((entry) => {
+    if (entry.isIntersecting) drawPending(/** @type {ChartDiv} */ (entry.target));
+  }), { rootMargin: `${NEAR_PX}px 0px` });
+  observer = watcher;
   for (const old of pendingDivs) if (!old.isConnected) forget(old); // the page was left
   return new Promise((resolve, reject) => {
     const waiters = div.__pendingChart?.waiters ?? [];
     waiters.push({ resolve, reject });
     div.__pendingChart = { args, waiters };
     pendingDivs.add(div);
-    observer.observe(div);
+    watcher.observe(div);
   });
 }
 
 /**
  * `Plotly.react` with the bundle that can draw `traces`, now when the chart is on or near the screen,
  * else when it is scrolled near: resolves to the chart's div, as Plotly.react does.
+ * @param {ChartDiv} div
+ * @param {Trace[]} traces
+ * @param {object} layout
+ * @param {object} config
+ * @returns {Promise<HTMLElement>}
  */
 export function react(div, traces, layout, config) {
   // data-chart-eager: the page's first charts, drawn at once even when the text above pushes them down
@@ -128,6 +185,7 @@ export function react(div, traces, layout, config) {
 function plotly() {
   return {
     react,
+    /** @param {ChartDiv} div */
     purge(div) {
       if (div.__pendingChart) { // never drawn: its waiters see the empty chart instead
         div.__pendingChart.waiters.forEach((w) => w.resolve(div));
@@ -139,6 +197,13 @@ function plotly() {
   };
 }
 
+/**
+ * @param {string} title
+ * @param {string} xTitle
+ * @param {string} yTitle
+ * @param {Record<string, unknown>} [extra]
+ * @returns {Layout}
+ */
 function baseLayout(title, xTitle, yTitle, extra = {}) {
   return {
     title: { text: title, x: 0, xanchor: "left", font: { size: 14 } },
@@ -154,11 +219,21 @@ function baseLayout(title, xTitle, yTitle, extra = {}) {
   };
 }
 
+/**
+ * Column `i` of rows of numbers (null where a row lacks it).
+ * @param {unknown[] | null | undefined} rows
+ * @param {number} i
+ * @returns {(number | null)[]}
+ */
 function column(rows, i) {
   return (rows || []).map((row) => (Array.isArray(row) && row[i] !== null && row[i] !== undefined ? row[i] : null));
 }
 
-/** Draw a message instead of a chart (no data). */
+/**
+ * Draw a message instead of a chart (no data).
+ * @param {HTMLElement} div
+ * @param {string} message
+ */
 export function emptyChart(div, message) {
   plotly().purge(div);
   div.replaceChildren();
@@ -166,6 +241,7 @@ export function emptyChart(div, message) {
   div.textContent = message;
 }
 
+/** @param {HTMLElement} div */
 function ready(div) {
   if (div.classList.contains("chart-empty")) {
     div.classList.remove("chart-empty");
@@ -176,8 +252,9 @@ function ready(div) {
 /**
  * x, y, z of an (N, 3) series against t_s.
  * @param {HTMLElement} div
- * @param {number[]} tS  times (s), shape (N,)
- * @param {number[][]} xyz  shape (N, 3)
+ * @param {number[] | null | undefined} tS  times (s), shape (N,)
+ * @param {unknown[] | null | undefined} xyz  shape (N, 3)
+ * @param {{title: string, unit: string, scale?: number}} words
  */
 export function xyzChart(div, tS, xyz, { title, unit, scale = 1 }) {
   if (!tS?.length || !xyz?.length) return emptyChart(div, `${title}: no data in this result.`);
@@ -196,9 +273,12 @@ export function xyzChart(div, tS, xyz, { title, unit, scale = 1 }) {
 
 /**
  * The six ω versions (component `component`) with the singularity index on a second axis.
- * @param {number[][][]} versions  shape (N, 6, 3)
- * @param {number[]} singularity  shape (N,)
- * @param {boolean[][]} [excluded]  shape (N, 6): samples to leave out
+ * @param {HTMLElement} div
+ * @param {number[] | null | undefined} tS  shape (N,)
+ * @param {(number | null)[][][]} versions  shape (N, 6, 3)
+ * @param {(number | null)[] | null | undefined} singularity  shape (N,)
+ * @param {{names?: string[], component?: number, omega?: unknown[] | null, excluded?: boolean[][] | null}} options
+ *   excluded: shape (N, 6), samples to leave out
  */
 export function versionsChart(div, tS, versions, singularity, { names, component = 1, omega = null, excluded = null }) {
   if (!tS?.length || !versions?.length) {
@@ -207,6 +287,7 @@ export function versionsChart(div, tS, versions, singularity, { names, component
   ready(div);
   const axisName = "xyz"[component];
   const nVersions = Array.isArray(versions[0]) ? versions[0].length : 0;
+  /** @type {Trace[]} */
   const traces = [];
   for (let v = 0; v < nVersions; v += 1) {
     traces.push({
@@ -242,7 +323,9 @@ export function versionsChart(div, tS, versions, singularity, { names, component
 
 /**
  * Bars of a group summary with the spread: mean and std as error bar, min-max as a thin range.
- * @param {{group: string, mean: number, std: number, min: number, max: number, n: number}[]} groups
+ * @param {HTMLElement} div
+ * @param {{group: string, label?: string, mean: number, std: number, min: number, max: number, n: number}[]} groups
+ * @param {{title: string, unit: string, xTitle: string}} words
  */
 export function spreadBarChart(div, groups, { title, unit, xTitle }) {
   if (!groups?.length) return emptyChart(div, "No analysed rides to compare yet.");
@@ -269,7 +352,12 @@ export function spreadBarChart(div, groups, { title, unit, xTitle }) {
   return plotly().react(div, [bars, range], layout, CONFIG);
 }
 
-/** Grades against indicator values, one point per horse and gait. */
+/**
+ * Grades against indicator values, one point per horse and gait.
+ * @param {HTMLElement} div
+ * @param {{value: number, grade: number, horse: string, gait: string}[]} points
+ * @param {{title: string, unit: string, label: string}} words
+ */
 export function gradeScatter(div, points, { title, unit, label }) {
   if (!points?.length) return emptyChart(div, "No graded horses with analysed rides yet.");
   ready(div);
@@ -292,13 +380,19 @@ const PAIR_COLOURS = ["#1f5fa8", "#c2410c"];
 
 /**
  * Two rides' saddle-point paths (travel and mean removed) and their mean strides, overlaid in 3-D.
- * @param {number[][][]} pathsMm  two paths, each shape (M, 3), mm
+ * @param {HTMLElement} div
+ * @param {number[][][] | null | undefined} pathsMm  two paths, each shape (M, 3), mm
  * @param {{first_mm: number[][], second_mm: number[][]}|null} strides  mean strides, shape (n, 3) each
  * @param {string[]} names  the two rides' names
  */
 export function pairPaths3d(div, pathsMm, strides, names) {
   if (!pathsMm?.length) return emptyChart(div, "These results have no saddle-point track.");
   ready(div);
+  /**
+   * @param {number[][]} xyz
+   * @param {number} i
+   * @param {{closed?: boolean, width?: number, opacity?: number, suffix?: string}} [style]
+   */
   const line = (xyz, i, { closed = false, width = 2, opacity = 1, suffix = "" } = {}) => {
     const rows = closed && xyz.length ? [...xyz, xyz[0]] : xyz;
     return {
@@ -313,7 +407,7 @@ export function pairPaths3d(div, pathsMm, strides, names) {
     traces.push(line(strides.first_mm, 0, { closed: true, width: 6, suffix: ", stride" }));
     traces.push(line(strides.second_mm, 1, { closed: true, width: 6, suffix: ", stride aligned" }));
   }
-  const axis = (title) => ({ title: { text: title }, gridcolor: "#e6e9ee", zerolinecolor: "#c9ced6" });
+  const axis = (/** @type {string} */ title) => ({ title: { text: title }, gridcolor: "#e6e9ee", zerolinecolor: "#c9ced6" });
   const layout = {
     font: FONT, paper_bgcolor: "rgba(0,0,0,0)", margin: { l: 0, r: 0, t: 8, b: 0 },
     legend: { orientation: "h", x: 0, y: 0, yanchor: "top" },
@@ -326,11 +420,14 @@ export function pairPaths3d(div, pathsMm, strides, names) {
 /**
  * The vertical position of both mean strides over stride phase: the second before and after the
  * phase shift that lines it up with the first.
+ * @param {HTMLElement} div
+ * @param {import("./api-types").StridesView | null | undefined} strides
+ * @param {string[]} names the two rides' names
  */
 export function strideAlignmentChart(div, strides, names) {
   if (!strides) return emptyChart(div, "A ride is shorter than one whole stride: no mean stride to align.");
   ready(div);
-  const height = (xyz) => column(xyz, 1).map((v) => (v === null ? null : -v));
+  const height = (/** @type {number[][]} */ xyz) => column(xyz, 1).map((v) => (v === null ? null : -v));
   const traces = [
     { type: "scatter", mode: "lines", name: names[0], x: strides.phase, y: height(strides.first_mm),
       line: { color: PAIR_COLOURS[0], width: 2.5 } },
@@ -348,7 +445,7 @@ export function strideAlignmentChart(div, strides, names) {
 /**
  * Where two rides differ: a heat strip of the RMS distance (mm) per track and per stretch of the stride.
  * @param {HTMLElement} div
- * @param {object|null} differences  the pair answer's `differences` (per_marker[].per_stretch_mm)
+ * @param {import("./api-types").Differences | null | undefined} differences  the pair answer's `differences`
  */
 export function differencesStrip(div, differences) {
   if (!differences?.per_marker?.length) return emptyChart(div, "The rides could not be compared: no differences.");
@@ -374,6 +471,7 @@ export const COLOURS = AXIS_COLOURS;
 // ----------------------------------------------------------------------------- ride page (fits, 3-D, vibration)
 
 // WebGL lines only where SVG gets slow: thousands of points per trace.
+/** @param {number} n */
 function lineType(n) {
   return n > 3000 ? "scattergl" : "scatter";
 }
@@ -381,9 +479,11 @@ function lineType(n) {
 /**
  * Marker tracks and the saddle point S in 3-D, equal aspect (metres in the motion frame).
  * Plotted as x less S's steady travel, sideways z and height −y so "up" is up on the screen.
- * @param {number[]} tS  shape (N,), s
- * @param {number[][][]|null} markers  shape (N, M, 3), m
- * @param {number[][]} saddle  shape (N, 3), m
+ * @param {HTMLElement} div
+ * @param {number[] | null | undefined} tS  shape (N,), s
+ * @param {((number | null)[] | null)[][] | null | undefined} markers  shape (N, M, 3), m
+ * @param {unknown[] | null | undefined} saddle  shape (N, 3), m
+ * @param {{names?: string[]}} [options]
  */
 export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "M3"] } = {}) {
   if (!saddle?.length) return emptyChart(div, "This result has no saddle-point track.");
@@ -392,25 +492,33 @@ export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "
   // S's steady travel (least-squares line of its x over time) is taken out of every track: at equal
   // scale metres of travel would flatten the centimetres of motion into a line.
   const xs = column(saddle, 0);
-  const ok = (tS || []).map((t, i) => [t, xs[i]]).filter(([t, x]) => Number.isFinite(t) && Number.isFinite(x));
+  const ok = /** @type {[number, number][]} */ ((tS || []).map((t, i) => [t, xs[i]])
+    .filter(([t, x]) => Number.isFinite(t) && Number.isFinite(x)));
   const tMean = ok.reduce((a, [t]) => a + t, 0) / (ok.length || 1);
   const xMean = ok.reduce((a, [, x]) => a + x, 0) / (ok.length || 1);
   const slope = ok.reduce((a, [t, x]) => a + (t - tMean) * (x - xMean), 0)
     / (ok.reduce((a, [t]) => a + (t - tMean) ** 2, 0) || 1);
-  const travel = (i) => (Number.isFinite(tS?.[i]) ? xMean + slope * (tS[i] - tMean) : 0);
+  const travel = (/** @type {number} */ i) => (tS && Number.isFinite(tS[i]) ? xMean + slope * (tS[i] - tMean) : 0);
+  /**
+   * @param {unknown[]} rows
+   * @param {string} name
+   * @param {string} colour
+   * @param {number} width
+   */
   const trace = (rows, name, colour, width) => ({
     type: "scatter3d", mode: "lines", name, x: column(rows, 0).map((v, i) => (v === null ? null : v - travel(i))),
     y: column(rows, 2), z: column(rows, 1).map((v) => (v === null ? null : -v)), line: { color: colour, width },
     hovertemplate: `${name}: x %{x:.3f} m, z %{y:.3f} m, height %{z:.3f} m<extra></extra>`,
   });
+  /** @type {Trace[]} */
   const traces = [];
-  const nMarkers = Array.isArray(markers?.[0]) ? markers[0].length : 0;
-  for (let m = 0; m < nMarkers; m += 1) {
+  const nMarkers = markers && Array.isArray(markers[0]) ? markers[0].length : 0;
+  for (let m = 0; m < nMarkers && markers; m += 1) {
     traces.push(trace(markers.map((frame) => frame?.[m] ?? [null, null, null]), names[m] ?? `M${m + 1}`,
       colours[m % colours.length], 3));
   }
   traces.push(trace(saddle, "saddle point S", "#c2410c", 6));
-  const axis = (title) => ({ title: { text: title }, gridcolor: "#e6e9ee", zerolinecolor: "#c9ced6" });
+  const axis = (/** @type {string} */ title) => ({ title: { text: title }, gridcolor: "#e6e9ee", zerolinecolor: "#c9ced6" });
   const layout = {
     font: FONT, paper_bgcolor: "rgba(0,0,0,0)", margin: { l: 0, r: 0, t: 8, b: 0 },
     legend: { orientation: "h", x: 0, y: 1, yanchor: "bottom" },
@@ -422,15 +530,18 @@ export function tracks3dChart(div, tS, markers, saddle, { names = ["M1", "M2", "
 
 /**
  * One axis of S: the measured samples, the fitted curve over them and, below, the residual.
- * @param {number[]} tS  shape (N,)
- * @param {number[]|null} measured  shape (N,)
- * @param {number[]} fitted  shape (N,)
- * @param {number[]|null} residual  shape (N,)
+ * @param {HTMLElement} div
+ * @param {number[] | null | undefined} tS  shape (N,)
+ * @param {(number | null)[] | null} measured  shape (N,)
+ * @param {(number | null)[]} fitted  shape (N,)
+ * @param {(number | null)[] | null} residual  shape (N,)
+ * @param {{title: string, unit: string, colour?: string}} words
  */
 export function fitChart(div, tS, measured, fitted, residual, { title, unit, colour = "#1f5fa8" }) {
   if (!tS?.length || !fitted?.length) return emptyChart(div, `${title}: no data in this result.`);
   ready(div);
   const type = lineType(tS.length);
+  /** @type {Trace[]} */
   const traces = [];
   if (measured?.length) {
     traces.push({ type, mode: "markers", name: "measured", x: tS, y: measured,
@@ -457,11 +568,22 @@ export function fitChart(div, tS, measured, fitted, residual, { title, unit, col
 
 /**
  * The vertical acceleration of S over time: unweighted and weighted with W_b and W_k.
+ * @param {HTMLElement} div
+ * @param {number[] | null | undefined} tS  shape (N,)
+ * @param {unknown[] | null | undefined} unweighted  shape (N,), m/s²
+ * @param {unknown[] | null | undefined} wb  shape (N,), m/s²
+ * @param {unknown[] | null | undefined} wk  shape (N,), m/s²
  */
 export function weightedChart(div, tS, unweighted, wb, wk) {
   if (!tS?.length || !wb?.length) return emptyChart(div, "This result has no vertical acceleration to weight.");
   ready(div);
   const type = lineType(tS.length);
+  /**
+   * @param {string} name
+   * @param {unknown[]} y
+   * @param {string} colour
+   * @param {Record<string, unknown>} [extra]
+   */
   const line = (name, y, colour, extra = {}) => ({ type, mode: "lines", name, x: tS, y,
     line: { color: colour, width: 2, ...extra }, hovertemplate: "%{y:.3g} m/s²" });
   const traces = [
@@ -475,11 +597,20 @@ export function weightedChart(div, tS, unweighted, wb, wk) {
   return plotly().react(div, traces, layout, CONFIG);
 }
 
-/** Harmonic spectrum: amplitude of each harmonic k·f0, unweighted and weighted (bars). */
+/**
+ * Harmonic spectrum: amplitude of each harmonic k·f0, unweighted and weighted (bars).
+ * @param {HTMLElement} div
+ * @param {import("./api-types").SpectrumOut | null | undefined} spectrum
+ */
 export function spectrumChart(div, spectrum) {
   if (!spectrum?.frequency_hz?.length) return emptyChart(div, "This result has no harmonic spectrum.");
   ready(div);
   const labels = spectrum.frequency_hz.map((f, i) => `${i + 1}·f0 (${f.toFixed(2)} Hz)`);
+  /**
+   * @param {string} name
+   * @param {(number | null)[]} y
+   * @param {string} colour
+   */
   const bar = (name, y, colour) => ({ type: "bar", name, x: labels, y, marker: { color: colour },
                                       hovertemplate: `%{x}: %{y:.3g} m/s²<extra>${name}</extra>` });
   const traces = [bar("unweighted", spectrum.amplitude_m_s2, "#9aa3ae"),

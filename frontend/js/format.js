@@ -1,4 +1,3 @@
-// @ts-check
 // Numbers, units and indicator names for display. The service's constants (the indicator table, the
 // gaits, the exposure caveat) are not copied here: js/glossary.js loads them from GET /api/indicators and
 // GET /api/glossary before the first page is drawn (app.js), and fills the tables below.
@@ -14,15 +13,7 @@
  * @property {boolean} [comfort] one of the thesis's eight comfort indicators
  */
 
-/**
- * The fields of a job (saddlescope.api.schemas.JobOut) the words below read.
- * @typedef {object} Job
- * @property {string} status
- * @property {number} progress_percent
- * @property {string} stage_label
- * @property {number | null} remaining_s
- * @property {number | null} duration_s
- */
+/** @typedef {import("./api-types").JobOut} Job a job, as the API answers it */
 
 /**
  * The gait codes in the service's order (saddlescope.core.vibration.GAITS), filled at start.

@@ -8,9 +8,18 @@
 import { get } from "./api.js";
 import { setComfortIndicators, setGaits, setIndicatorInfo, setPassiveSeatedCaveat } from "./format.js";
 
-const entries = new Map(); // "kind:code" -> {kind, code, label, unit, short, expert}
+/** @typedef {import("./api-types").GlossaryEntryOut} GlossaryEntry */
+/** @typedef {GlossaryEntry["kind"]} GlossaryKind */
+
+/** @type {Map<string, GlossaryEntry>} "kind:code" -> the entry */
+const entries = new Map();
+/** @type {Promise<void> | null} */
 let loading = null;
 
+/**
+ * @param {GlossaryEntry[]} glossary
+ * @param {import("./api-types").IndicatorOut[]} indicators
+ */
 function keep(glossary, indicators) {
   entries.clear();
   for (const e of glossary) entries.set(`${e.kind}:${e.code}`, e);
@@ -25,10 +34,15 @@ function keep(glossary, indicators) {
 /**
  * Fetch the glossary and the indicator table once (format.js's tables are filled from them). Rejects
  * with the ApiError when the server cannot answer; a later call tries again.
+ * @returns {Promise<void>}
  */
 export function loadConstants() {
   if (!loading) {
-    loading = Promise.all([get("/api/glossary"), get("/api/indicators")])
+    /** @type {Promise<GlossaryEntry[]>} */
+    const glossaryAsked = get("/api/glossary");
+    /** @type {Promise<import("./api-types").IndicatorOut[]>} */
+    const indicatorsAsked = get("/api/indicators");
+    loading = Promise.all([glossaryAsked, indicatorsAsked])
       .then(([glossary, indicators]) => keep(glossary, indicators))
       .catch((error) => {
         loading = null;
@@ -38,17 +52,31 @@ export function loadConstants() {
   return loading;
 }
 
-/** The glossary's entry of `code` of `kind`, or null. */
+/**
+ * The glossary's entry of `code` of `kind`, or null.
+ * @param {GlossaryKind} kind
+ * @param {string} code
+ * @returns {GlossaryEntry | null}
+ */
 export function glossaryEntry(kind, code) {
   return entries.get(`${kind}:${code}`) ?? null;
 }
 
-/** Every entry of `kind`, in the glossary's order. */
+/**
+ * Every entry of `kind`, in the glossary's order.
+ * @param {GlossaryKind} kind
+ * @returns {GlossaryEntry[]}
+ */
 export function glossaryEntries(kind) {
   return [...entries.values()].filter((e) => e.kind === kind);
 }
 
-/** The label of `code` of `kind` ("lab_vertical" -> "the lab's vertical axis"); never the raw code. */
+/**
+ * The label of `code` of `kind` ("lab_vertical" -> "the lab's vertical axis"); never the raw code.
+ * @param {GlossaryKind} kind
+ * @param {string | null | undefined} code
+ * @returns {string}
+ */
 export function glossaryLabel(kind, code) {
   if (code === null || code === undefined || code === "") return "";
   return glossaryEntry(kind, code)?.label ?? String(code).replaceAll("_", " ");

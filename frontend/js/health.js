@@ -3,17 +3,26 @@
 // club admins also get each part's detail (versions, queue, storage folder) from /api/health/details.
 
 import { get } from "./api.js";
-import { h } from "./dom.js";
+import { h, maybeOne, messageOf, one } from "./dom.js";
 import { isAdmin } from "./session.js";
 
+/** @typedef {import("./api-types").HealthSummaryOut} HealthSummary */
+/** @typedef {import("./api-types").HealthOut} HealthDetails */
+
+/** @returns {Promise<HealthSummary>} */
 async function fetchHealth() {
   // 503 still carries the report (a part is not ok), so read the body whatever the status.
   const response = await fetch("/api/health", { headers: { Accept: "application/json" } });
   return response.json();
 }
 
+/** @type {Record<string, string>} */
 const PART_NAMES = { database: "Database", broker: "Job queue", storage: "File storage" };
 
+/**
+ * @param {string} name
+ * @param {import("./api-types").PartHealth} part
+ */
 function row(name, part) {
   return h("tr", { dataset: { part: name } },
     h("th", { scope: "row" }, PART_NAMES[name] ?? name),
@@ -21,25 +30,31 @@ function row(name, part) {
     h("td", {}, part.detail));
 }
 
+/** @param {ParentNode} root */
 async function showDetails(root) {
-  const box = root.querySelector("[data-health-details]");
+  const box = maybeOne(root, "[data-health-details]");
   if (!box) return;
   if (!isAdmin()) {
     box.hidden = true;
-    root.querySelector("[data-health-table]").tBodies[0].replaceChildren();
+    one(root, "[data-health-table]", HTMLTableElement).tBodies[0].replaceChildren();
     return;
   }
+  /** @type {HealthDetails} */
   const details = await get("/api/health/details");
-  root.querySelector("[data-health-version]").textContent =
+  one(root, "[data-health-version]").textContent =
     `SaddleScope ${details.version}, jobs run ${details.mode === "celery" ? "on Celery workers" : "on this server (embedded)"}.`;
-  root.querySelector("[data-health-table]").tBodies[0].replaceChildren(
+  one(root, "[data-health-table]", HTMLTableElement).tBodies[0].replaceChildren(
     ...Object.entries(details.parts).map(([name, part]) => row(name, part)));
   box.hidden = false;
 }
 
+/**
+ * Fill the health summary under `root` (the overview's panel) and the footer badge.
+ * @param {ParentNode} [root]
+ */
 export async function checkHealth(root = document) {
-  const summary = root.querySelector("[data-health-summary]");
-  const badge = document.querySelector("[data-health-badge]");
+  const summary = maybeOne(root, "[data-health-summary]");
+  const badge = maybeOne(document, "[data-health-badge]");
   if (summary) summary.textContent = "Checking\u2026";
   try {
     const health = await fetchHealth();
@@ -52,13 +67,16 @@ export async function checkHealth(root = document) {
   } catch (error) {
     for (const el of [summary, badge]) {
       if (!el) continue;
-      el.textContent = `Cannot reach the server: ${error.message}`;
+      el.textContent = `Cannot reach the server: ${messageOf(error)}`;
       el.dataset.status = "error";
     }
   }
 }
 
-/** Attach the overview's health panel (refresh button). */
+/**
+ * Attach the overview's health panel (refresh button).
+ * @param {ParentNode} root
+ */
 export function attachHealthPanel(root) {
   const refresh = root.querySelector("[data-health-refresh]");
   if (refresh) refresh.addEventListener("click", () => checkHealth(root));

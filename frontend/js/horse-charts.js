@@ -4,12 +4,40 @@
 import { emptyChart, react } from "./charts.js";
 import { GAITS, gaitLabel } from "./format.js";
 
+/** @typedef {import("./charts.js").Trace} Trace */
+/** @typedef {import("./charts.js").Layout} Layout */
+/**
+ * A group's bar: a mean with its spread over `n` rides (GroupStats, HorseGroupStats, LeaderboardEntry ...).
+ * @typedef {{label: string, n: number, mean: number | null, std: number | null, min: number | null, max: number | null}} CountedGroup
+ */
+/**
+ * A horse-gait point of the grades page (GET /api/grades/correlation's `points`, which the schema leaves
+ * open: saddlescope.services.comparisons.analytics._described_points writes them).
+ * @typedef {object} GradePoint
+ * @property {string} horse
+ * @property {string} gait
+ * @property {number} grade the riders' average grade
+ * @property {number} value the indicator's mean over the horse's rides in the gait
+ * @property {string[]} [riders] who graded
+ * @property {number} [rides] analysed rides behind the mean
+ * @property {string | null} [first_date]
+ * @property {string | null} [last_date]
+ */
+
 const FONT = { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 12, color: "#1d2630" };
 const CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d", "autoScale2d"] };
+/** @type {Record<string, string>} */
 export const GAIT_COLOURS = { walk: "#2f855a", sitting_trot: "#1f5fa8", rising_trot: "#7c3aed", canter: "#c2410c" };
 const BAND_FILL = "rgba(47,133,90,0.16)";
 const OUTSIDE = "#b91c1c";
 
+/**
+ * @param {string} title
+ * @param {string} xTitle
+ * @param {string} yTitle
+ * @param {Record<string, unknown>} [extra]
+ * @returns {Layout}
+ */
 function layout(title, xTitle, yTitle, extra = {}) {
   return {
     title: { text: title, x: 0, xanchor: "left", font: { size: 14 } },
@@ -26,8 +54,13 @@ function layout(title, xTitle, yTitle, extra = {}) {
   };
 }
 
-/** Break a long axis title into lines of at most `width` characters (Plotly does not wrap). */
+/**
+ * Break a long axis title into lines of at most `width` characters (Plotly does not wrap).
+ * @param {string} text
+ * @param {number} [width]
+ */
 function wrapped(text, width = 34) {
+  /** @type {string[]} */
   const lines = [];
   for (const word of String(text).split(" ")) {
     const last = lines.length ? lines[lines.length - 1] : null;
@@ -37,6 +70,7 @@ function wrapped(text, width = 34) {
   return lines.join("<br>");
 }
 
+/** @param {HTMLElement} div */
 function clearEmpty(div) {
   if (div.classList.contains("chart-empty")) {
     div.classList.remove("chart-empty");
@@ -47,10 +81,14 @@ function clearEmpty(div) {
 /**
  * Bars of the mean ± one SD per group with the number of rides written on every bar ("n = 3") and
  * in the hover; the orange range is smallest to largest ride. The legend names both.
- * @param {{label: string, n: number, mean: number, std: number, min: number, max: number}[]} groups
+ * @param {HTMLElement} div
+ * @param {CountedGroup[]} groups
+ * @param {{title: string, unit: string, xTitle: string}} words
  */
 export function countedBarChart(div, groups, { title, unit, xTitle }) {
-  const shown = (groups || []).filter((g) => Number.isFinite(g.mean));
+  // groups without a mean are not drawn; one with a mean has its smallest and largest ride (min, max)
+  const shown = /** @type {(CountedGroup & {mean: number, min: number, max: number})[]} */ (
+    (groups || []).filter((g) => Number.isFinite(g.mean)));
   if (!shown.length) return emptyChart(div, "No analysed rides to compare yet.");
   clearEmpty(div);
   const labels = shown.map((g) => g.label);
@@ -79,18 +117,18 @@ export function countedBarChart(div, groups, { title, unit, xTitle }) {
 }
 
 /**
- * One indicator over the rides of one gait: the values, the horse's own normal band (mean ± 2 SD of
- * the EARLIER rides, from the ride that has enough before it) as a shaded area with its mean, and the
- * rides outside their band marked in red.
- * @param {{ride_id: number, date: string|null, value: number|null, band: object|null, outside: boolean|null}[]} points
- */
-/**
  * The page's band (the horse's own, or the club's horses' in the gait) as shapes across the whole chart,
  * so it shows even over one ride: the band shaded, its mean dashed, and each edge's 95 % interval as a
  * fainter strip (a band from few rides is itself uncertain).
+ * @param {import("./api-types").PageBand | null} band
  */
 function pageBandShapes(band) {
   if (!band || !Number.isFinite(band.low) || !Number.isFinite(band.high)) return [];
+  /**
+   * @param {number} y0
+   * @param {number} y1
+   * @param {string} fill
+   */
   const across = (y0, y1, fill) => ({ type: "rect", xref: "paper", x0: 0, x1: 1, yref: "y", y0, y1,
     fillcolor: fill, line: { width: 0 }, layer: "below" });
   const edges = [band.low_interval_95, band.high_interval_95].filter((e) => e?.length === 2)
@@ -103,16 +141,26 @@ function pageBandShapes(band) {
   ];
 }
 
+/**
+ * One indicator over the rides of one gait: the values, the horse's own normal band (mean ± 2 SD of
+ * the EARLIER rides, from the ride that has enough before it) as a shaded area with its mean, and the
+ * rides outside their band marked in red.
+ * @param {HTMLElement} div
+ * @param {import("./api-types").TrendPoint[]} points
+ * @param {{title: string, unit: string, gait: string, band?: import("./api-types").PageBand | null}} words
+ */
 export function trendChart(div, points, { title, unit, gait, band = null }) {
-  const valued = (points || []).filter((p) => Number.isFinite(p.value));
+  const valued = /** @type {(import("./api-types").TrendPoint & {value: number})[]} */ (
+    (points || []).filter((p) => Number.isFinite(p.value)));
   if (!valued.length) return emptyChart(div, `No analysed rides in ${gaitLabel(gait)} yet.`);
   clearEmpty(div);
   // Dates on a time axis when every ride has one; otherwise the rides in order as categories.
   const dated = valued.length > 1 && valued.every((p) => p.date); // one date alone: a category, not a time axis
   const x = valued.map((p, i) => (dated ? p.date : p.date || `ride ${i + 1} (#${p.ride_id})`));
   const banded = valued.map((p) => p.band);
-  const bandOf = (key) => banded.map((b) => (b ? b[key] : null));
+  const bandOf = (/** @type {"low" | "high" | "mean"} */ key) => banded.map((b) => (b ? b[key] : null));
   const unitText = unit ? ` ${unit}` : "";
+  /** @type {Trace[]} */
   const traces = [
     { type: "scatter", mode: "lines", name: "band low", x, y: bandOf("low"), line: { width: 0 },
       showlegend: false, hoverinfo: "skip", connectgaps: false },
@@ -147,12 +195,15 @@ export function trendChart(div, points, { title, unit, gait, band = null }) {
 /**
  * Riders' average grade against the indicator, one point per horse and gait, one colour per gait with
  * a legend; hovering names the horse, the riders who graded and the days ridden.
+ * @param {HTMLElement} div
+ * @param {GradePoint[]} points
+ * @param {{title: string, unit: string, label: string}} words
  */
 export function gradeGaitScatter(div, points, { title, unit, label }) {
   if (!points?.length) return emptyChart(div, "No graded horses with analysed rides yet.");
   clearEmpty(div);
   const unitText = unit ? ` ${unit}` : "";
-  const days = (p) => (p.first_date ? (p.first_date === p.last_date ? p.first_date : `${p.first_date} to ${p.last_date}`) : "no dates");
+  const days = (/** @type {GradePoint} */ p) => (p.first_date ? (p.first_date === p.last_date ? p.first_date : `${p.first_date} to ${p.last_date}`) : "no dates");
   const traces = GAITS.filter((gait) => points.some((p) => p.gait === gait)).map((gait) => {
     const mine = points.filter((p) => p.gait === gait);
     return {

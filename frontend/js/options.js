@@ -1,4 +1,3 @@
-// @ts-check
 // <select data-options="horses|riders|saddles|saddle-types|rigs|gaits|indicators|ranked-indicators">: filled from the API.
 // data-optional="text" adds a first, empty choice with that text.
 
@@ -18,19 +17,19 @@ import { glossaryEntries } from "./glossary.js";
 
 /** @typedef {import("./format.js").IndicatorInfo} IndicatorInfo */
 
-/** @type {(items: {name: string}[]) => any[]} */
+/** @type {<T extends {name: string}>(items: T[]) => T[]} */
 const byName = (items) => [...items].sort((a, b) => a.name.localeCompare(b.name));
 
 /** @type {Record<string, () => Promise<Choice[]>>} */
 const SOURCES = {
-  horses: async () => byName(await getAll("/api/horses"))
+  horses: async () => byName(/** @type {import("./api-types").HorseOut[]} */ (await getAll("/api/horses")))
     .map((horse) => ({ value: horse.id, text: horse.name })),
-  riders: async () => byName(await getAll("/api/riders"))
+  riders: async () => byName(/** @type {import("./api-types").RiderOut[]} */ (await getAll("/api/riders")))
     .map((rider) => ({ value: rider.id, text: rider.name })),
-  saddles: async () => byName(await getAll("/api/saddles"))
+  saddles: async () => byName(/** @type {import("./api-types").SaddleOut[]} */ (await getAll("/api/saddles")))
     .map((saddle) => ({ value: saddle.id, text: saddle.name })),
   "saddle-types": async () => glossaryEntries("saddle_type").map((e) => ({ value: e.code, text: e.label })),
-  rigs: async () => (await getAll("/api/rigs"))
+  rigs: async () => (/** @type {import("./api-types").RigOut[]} */ (await getAll("/api/rigs")))
     .map((rig) => ({ value: rig.id, text: `${rig.name}${rig.calibrated ? " (calibrated)" : ""}` })),
   gaits: async () => GAITS.map((gait) => ({ value: gait, text: gaitLabel(gait) })),
   indicators: async () => indicatorChoices(() => true),

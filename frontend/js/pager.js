@@ -5,16 +5,30 @@
 import { h } from "./dom.js";
 import { currentPath, navigate } from "./router.js";
 
+/**
+ * A list's state, read from the URL.
+ * @typedef {object} ListState
+ * @property {Record<string, string>} filters the filters' values ("" when not given)
+ * @property {number} page 1-based
+ * @property {number} size rows per page
+ * @property {string} sort a field name, "-field" for descending
+ * @property {URLSearchParams} query
+ */
+/** @typedef {Record<string, string | number>} ListParams a list's query parameters of the API */
+
 export const PAGE_SIZES = [25, 50, 100, 200];
 const DEFAULT_SIZE = 50;
 
 /**
  * The list state of the current URL: `filters` (the names given, "" when absent), the page (1-based),
  * rows per page and sort (the given default when absent).
+ * @param {URLSearchParams} query
+ * @param {{filters?: string[], sort?: string}} [defaults]
+ * @returns {ListState}
  */
 export function listState(query, { filters = [], sort = "" } = {}) {
-  const size = Number.parseInt(query.get("size"), 10);
-  const pageNo = Number.parseInt(query.get("page"), 10);
+  const size = Number.parseInt(query.get("size") ?? "", 10);
+  const pageNo = Number.parseInt(query.get("page") ?? "", 10);
   return {
     filters: Object.fromEntries(filters.map((name) => [name, query.get(name) ?? ""])),
     page: Number.isFinite(pageNo) && pageNo > 0 ? pageNo : 1,
@@ -24,15 +38,23 @@ export function listState(query, { filters = [], sort = "" } = {}) {
   };
 }
 
-/** The API parameters of a list state: the filters given, limit, offset and sort. */
+/**
+ * The API parameters of a list state: the filters given, limit, offset and sort.
+ * @param {ListState} state
+ * @returns {ListParams}
+ */
 export function apiParams(state) {
+  /** @type {ListParams} */
   const params = { limit: state.size, offset: (state.page - 1) * state.size };
   if (state.sort) params.sort = state.sort;
   for (const [name, value] of Object.entries(state.filters)) if (value !== "") params[name] = value;
   return params;
 }
 
-/** Go to the same page with `changes` to its query (null or "" removes a key); a new history entry. */
+/**
+ * Go to the same page with `changes` to its query (null or "" removes a key); a new history entry.
+ * @param {Record<string, string | number | null | undefined>} changes
+ */
 export function updateQuery(changes) {
   const { path, query } = currentPath();
   const next = new URLSearchParams(query);
@@ -44,17 +66,36 @@ export function updateQuery(changes) {
   navigate(text ? `${path}?${text}` : path);
 }
 
-/** Fill a filter form's fields from the state, and make submitting it (and "Clear") update the URL. */
+/**
+ * A filter form's field `name` (an input, a select or a group of radio buttons), or null where the form
+ * has none.
+ * @param {HTMLFormElement} form
+ * @param {string} name
+ * @returns {HTMLInputElement | HTMLSelectElement | RadioNodeList | null}
+ */
+function filterField(form, name) {
+  const el = form.elements.namedItem(name);
+  return el instanceof HTMLInputElement || el instanceof HTMLSelectElement || el instanceof RadioNodeList ? el : null;
+}
+
+/**
+ * Fill a filter form's fields from the state, and make submitting it (and "Clear") update the URL.
+ * @param {HTMLFormElement} form
+ * @param {ListState} state
+ */
 export function bindFilterForm(form, state) {
   for (const [name, value] of Object.entries(state.filters)) {
-    if (form.elements[name]) form.elements[name].value = value;
+    const el = filterField(form, name);
+    if (el) el.value = value;
   }
-  if (form.elements.sort && state.sort) form.elements.sort.value = state.sort;
+  const sort = filterField(form, "sort");
+  if (sort && state.sort) sort.value = state.sort;
   form.addEventListener("submit", (event) => {
     event.preventDefault();
+    /** @type {Record<string, string | null>} */
     const changes = { page: null };
-    for (const name of Object.keys(state.filters)) changes[name] = form.elements[name]?.value.trim() ?? "";
-    if (form.elements.sort) changes.sort = form.elements.sort.value;
+    for (const name of Object.keys(state.filters)) changes[name] = filterField(form, name)?.value.trim() ?? "";
+    if (sort) changes.sort = sort.value;
     updateQuery(changes);
   });
   const clear = form.querySelector("[data-filter-clear]");
@@ -69,14 +110,19 @@ export function bindFilterForm(form, state) {
 
 const number = new Intl.NumberFormat("en-GB");
 
-/** A pager for a list `page` answer ({total, limit, offset}) with the state of the URL. */
+/**
+ * A pager for a list `page` answer ({total, limit, offset}) with the state of the URL.
+ * @param {{total?: number, offset: number, items?: unknown[]}} answer a Page of the API
+ * @param {ListState} state
+ * @param {{noun?: string}} [words]
+ */
 export function pager(answer, state, { noun = "rows" } = {}) {
   const total = answer.total ?? 0;
   const first = total ? answer.offset + 1 : 0;
   const last = Math.min(answer.offset + (answer.items?.length ?? 0), total);
   const pages = Math.max(1, Math.ceil(total / state.size));
   const sizeSelect = h("select", { "aria-label": `${noun} per page`, "data-pager-size": true,
-                                   onchange: (event) => updateQuery({ size: event.target.value, page: null }) },
+                                   onchange: (event) => updateQuery({ size: /** @type {HTMLSelectElement} */ (event.target).value, page: null }) },
     PAGE_SIZES.map((n) => h("option", { value: n, selected: n === state.size }, `${n} per page`)));
   return h("nav", { class: "pager", "aria-label": `Pages of ${noun}`, "data-pager": true },
     h("button", { type: "button", "data-pager-prev": true, disabled: state.page <= 1,
@@ -91,6 +137,7 @@ export function pager(answer, state, { noun = "rows" } = {}) {
     sizeSelect);
 }
 
+/** @param {string} word */
 function capitalised(word) {
   return word[0].toUpperCase() + word.slice(1);
 }

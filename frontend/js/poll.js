@@ -1,7 +1,21 @@
 // Repeat `work` every `intervalMs` while it resolves to true (or to a number: wait that many ms);
 // false stops. Pauses while the tab is hidden and resumes when it is shown again.
 
+/**
+ * @typedef {object} Poller
+ * @property {() => void} now run `work` at once (and go on from there)
+ * @property {() => void} restart after `work` said stop (false): start polling again, e.g. when a job is retried
+ * @property {() => void} stop
+ */
+
+/**
+ * @param {() => Promise<boolean | number> | boolean | number} work true: again after `intervalMs`; a number:
+ *   again after that many ms; false: stop
+ * @param {{intervalMs?: number}} [options]
+ * @returns {Poller}
+ */
 export function poll(work, { intervalMs = 1500 } = {}) {
+  /** @type {number | null} */
   let timer = null;
   let stopped = false;
   let running = false;
@@ -10,6 +24,7 @@ export function poll(work, { intervalMs = 1500 } = {}) {
     timer = null;
     if (stopped || running) return;
     running = true;
+    /** @type {boolean | number} */
     let again = false;
     try {
       again = await work();

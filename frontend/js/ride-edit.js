@@ -5,30 +5,40 @@
 // first, naming it. The ride page calls mountRideEdit in its <section data-ride-edit-slot>.
 
 import { del, patch, post } from "./api.js";
-import { announce, busy, h, showError } from "./dom.js";
+import { announce, busy, control, h, maybeControl, one, showError } from "./dom.js";
 import { gaitLabel } from "./format.js";
 import { fillOptions } from "./options.js";
 import { can } from "./session.js";
 
+/** @typedef {import("./api-types").RideOut} RideOut */
+/** @typedef {import("./api-types").JobOut} JobOut */
+
 // The details the analysis reads (saddlescope.services.rides.registration.RESULT_SETTINGS), in words.
+/** @type {Record<string, string>} */
 const SETTING_WORDS = { gait: "gait", direction: "direction" };
+/** @type {(keyof RideOut & keyof import("./api-types").RideUpdate)[]} */
 const FIELDS = ["horse_id", "rider_id", "gait", "direction", "ridden_on", "saddle_id", "pad", "rider_weight_kg", "notes"];
 // Fields a cleared box sends as null (not recorded), and those sent as numbers.
 const CLEARABLE = new Set(["ridden_on", "saddle_id", "pad", "rider_weight_kg"]);
 const INTEGERS = new Set(["horse_id", "rider_id", "saddle_id"]);
 
+/** @param {string} name */
 function part(name) {
-  const template = document.getElementById(`part-${name}`);
+  const template = /** @type {HTMLTemplateElement | null} */ (document.getElementById(`part-${name}`));
   if (!template) throw new Error(`no template part-${name}`);
   return template.content.cloneNode(true);
 }
 
+/** @param {string[]} names */
 function words(names) {
   const list = names.map((name) => SETTING_WORDS[name] ?? name);
   return list.length > 1 ? `${list.slice(0, -1).join(", ")} and ${list.at(-1)}` : list[0];
 }
 
-/** A short name of the ride ("ride #12: canter, 2026-03-01"); `horse` adds the horse's name. */
+/**
+ * A short name of the ride ("ride #12 of Bravo (canter, 2026-03-01)").
+ * @param {RideOut} ride
+ */
 function titleOf(ride) {
   const date = ride.ridden_on ?? "no date";
   return `ride #${ride.id} of ${ride.horse_name} (${gaitLabel(ride.gait)}, ${date})`;
@@ -37,6 +47,9 @@ function titleOf(ride) {
 /**
  * Ask in a dialog whether to delete `ride` (named by `title`), then delete it.
  * Resolves true when deleted, false when the user kept it; rejects with the server's reason.
+ * @param {{id: number}} ride
+ * @param {string} title
+ * @returns {Promise<boolean>}
  */
 export async function deleteRideWithConfirmation(ride, title) {
   const confirmButton = h("button", { type: "submit", value: "delete", class: "danger", "data-ride-delete-confirm": true },
@@ -64,15 +77,20 @@ export async function deleteRideWithConfirmation(ride, title) {
  * Fill `container` with the edit form of `ride` (a RideOut or RideDetail).
  * `onSaved(ride)` gets the saved ride, `onDeleted(ride)` is called after a deletion,
  * `onReanalyse(job)` after a re-analysis was queued. Returns a cleanup function.
+ * @template {RideOut} R
+ * @param {HTMLElement} container
+ * @param {R} ride
+ * @param {{onSaved?: (ride: R) => unknown, onDeleted?: (ride: R) => unknown, onReanalyse?: (job: JobOut) => unknown}} [actions]
+ * @returns {Promise<() => void>}
  */
 export async function mountRideEdit(container, ride, { onSaved, onDeleted, onReanalyse } = {}) {
   container.replaceChildren(part("ride-edit"));
-  const form = container.querySelector("[data-ride-edit-form]");
-  const outdated = container.querySelector("[data-ride-edit-outdated]");
-  const outdatedText = container.querySelector("[data-ride-edit-outdated-text]");
-  const reanalyse = container.querySelector("[data-ride-edit-reanalyse]");
-  const remove = container.querySelector("[data-ride-edit-delete]");
-  const heading = container.querySelector("[data-ride-edit-title]");
+  const form = one(container, "[data-ride-edit-form]", HTMLFormElement);
+  const outdated = one(container, "[data-ride-edit-outdated]");
+  const outdatedText = one(container, "[data-ride-edit-outdated-text]");
+  const reanalyse = one(container, "[data-ride-edit-reanalyse]");
+  const remove = one(container, "[data-ride-edit-delete]");
+  const heading = one(container, "[data-ride-edit-title]");
   let current = ride;
 
   function showOutdated() {
@@ -88,8 +106,8 @@ export async function mountRideEdit(container, ride, { onSaved, onDeleted, onRea
 
   function fill() {
     for (const name of FIELDS) {
-      const el = form.elements[name];
-      if (el) el.value = current[name] ?? "";
+      const el = maybeControl(form, name);
+      if (el) el.value = String(current[name] ?? "");
     }
     heading.textContent = `Details of ${titleOf(current)}`;
     remove.hidden = !can("ride.delete", current.created_by);
@@ -105,9 +123,10 @@ export async function mountRideEdit(container, ride, { onSaved, onDeleted, onRea
 
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
+    /** @type {Record<string, string | number | null>} the RideUpdate */
     const values = {};
     for (const name of FIELDS) {
-      const el = form.elements[name];
+      const el = control(form, name);
       const raw = el.value.trim();
       const before = current[name] ?? "";
       if (raw === String(before)) continue;
@@ -121,6 +140,7 @@ export async function mountRideEdit(container, ride, { onSaved, onDeleted, onRea
       return;
     }
     try {
+      /** @type {RideOut} */
       const saved = await busy(form, () => patch(`/api/rides/${current.id}`, values));
       current = { ...current, ...saved };
       showError(form, null);
@@ -134,6 +154,7 @@ export async function mountRideEdit(container, ride, { onSaved, onDeleted, onRea
 
   reanalyse.addEventListener("click", async () => {
     try {
+      /** @type {JobOut} */
       const job = await post(`/api/rides/${current.id}/analyze`);
       outdatedText.textContent = `Re-analysis queued (job #${job.id}); the result shown is from the old details `
         + "until it is done.";

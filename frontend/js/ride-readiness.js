@@ -5,22 +5,39 @@
 import { get } from "./api.js";
 import { h } from "./dom.js";
 
+/** @typedef {{kind: string, camera: string}} Clip a clip chosen or stored: its kind and camera */
+
 export const CAMERAS = ["left", "middle", "right"];
+/** @type {Record<string, [string, string]>} each clip kind's name and what it shows */
 export const CLIP_WORDS = {
   calibration: ["calibration", "the board moved through the view"],
   plumb: ["plumb-line", "the plumb line hanging still"],
   static: ["static", "horse standing still, saddle marker visible"],
   motion: ["motion", "the ride"],
 };
+/** @type {(kind: string, plural?: boolean) => string} */
 const clipsOf = (kind, plural = false) => `${CLIP_WORDS[kind][0]} clip${plural ? "s" : ""} (${CLIP_WORDS[kind][1]})`;
 
+/** @type {(names: string[]) => string} */
 const and = (names) => (names.length === 1 ? names[0] : `${names.slice(0, -1).join(", ")} and ${names.at(-1)}`);
+/** @type {(have: Set<string>) => string[]} */
 const lacking = (have) => CAMERAS.filter((c) => !have.has(c));
 
+/**
+ * @param {Clip[]} clips
+ * @param {string} kind
+ */
 function camerasOf(clips, kind) {
   return new Set(clips.filter((c) => c.kind === kind).map((c) => c.camera));
 }
 
+/**
+ * @param {string} kind
+ * @param {Set<string>} own the ride's cameras with such a clip
+ * @param {Set<string>} shared the rig's
+ * @param {string} where
+ * @returns {string[]}
+ */
 function clipSentences(kind, own, shared, where) {
   if (!lacking(own).length || !lacking(shared).length) return [];
   const have = own.size ? own : shared;
@@ -35,8 +52,11 @@ function clipSentences(kind, own, shared, where) {
  * What a ride of clips still lacks, before anything is sent.
  * `rideClips`: [{kind, camera}] chosen in the form (and already stored); `rig`: the chosen rig
  * ({name, board, calibrated}) or null; `rigClips`: the rig's stored clips as [{kind, camera}].
+ * @param {{rideClips: Clip[], rig: {name: string, board?: unknown, calibrated: boolean} | null, rigClips?: Clip[]}} what
+ * @returns {string[]}
  */
 export function missingBeforeUpload({ rideClips, rig, rigClips = [] }) {
+  /** @type {string[]} */
   const missing = [];
   if (!rig) {
     missing.push("No camera rig is chosen: choose the rig these clips were filmed with (its calibration board is needed; create one on the Rigs page).");
@@ -65,7 +85,10 @@ export function missingBeforeUpload({ rideClips, rig, rigClips = [] }) {
   return missing;
 }
 
-/** The list of what is missing, as shown on the upload form and the ride page. */
+/**
+ * The list of what is missing, as shown on the upload form and the ride page.
+ * @param {string[]} missing
+ */
 export function missingList(missing) {
   return h("ul", { class: "readiness-missing" }, ...missing.map((sentence) => h("li", {}, sentence)));
 }
@@ -73,8 +96,12 @@ export function missingList(missing) {
 /**
  * On the ride page of an incomplete ride: what it still needs, with a link to complete it on the
  * upload page. Renders nothing for a ride that can run. Resolves to the server's answer.
+ * @param {HTMLElement} container
+ * @param {number} rideId
+ * @returns {Promise<import("./api-types").ReadinessOut>}
  */
 export async function mountReadiness(container, rideId) {
+  /** @type {import("./api-types").ReadinessOut} */
   const answer = await get(`/api/rides/${rideId}/readiness`);
   if (answer.ready) {
     container.replaceChildren();

@@ -2,7 +2,33 @@
 
 import { loadMarkup } from "./markup.js";
 
+/**
+ * A page: fills `view` (a fresh root) for the route's `params` (":id" of the pattern) and the hash's query;
+ * may return (or resolve to) a cleanup function, run when the page is left.
+ * `load`, when given (app.js's lazy pages), fetches the page's module, asked for beside its markup.
+ * @typedef {((view: HTMLElement, params: Record<string, string>, query: URLSearchParams) => unknown)
+ *   & {load?: () => Promise<unknown>}} Mount
+ */
+/**
+ * @typedef {object} Route
+ * @property {RegExp} regex
+ * @property {string[]} names the pattern's parameters, in order
+ * @property {Mount} mount
+ * @property {string | undefined} title
+ * @property {boolean} auth whether the page needs a signed-in user
+ * @property {string[]} markup the files of the templates the page uses (js/markup.js)
+ */
+/**
+ * What render() draws into and with: `guard(route, path)` may answer another path to go to instead.
+ * @typedef {object} RenderOptions
+ * @property {HTMLElement} view
+ * @property {(route: Route, path: string) => string | null} [guard]
+ * @property {Mount} notFound
+ */
+
+/** @type {Route[]} */
 const routes = [];
+/** @type {(() => void) | null} */
 let cleanup = null;
 let renderCount = 0;
 
@@ -10,8 +36,12 @@ let renderCount = 0;
  * Register a page: pattern like "/rides/:id", and `mount(view, params, query)` that may return a cleanup.
  * `markup`: the files of the templates the page uses (js/markup.js), in the document before `mount` runs;
  * `mount.load`, when given (app.js's lazy pages), fetches the page's module, asked for beside them.
+ * @param {string} pattern
+ * @param {Mount} mount
+ * @param {{title?: string, auth?: boolean, markup?: string[]}} [options]
  */
 export function route(pattern, mount, { title, auth = true, markup = [] } = {}) {
+  /** @type {string[]} */
   const names = [];
   const regex = new RegExp(`^${pattern.replace(/:(\w+)/g, (_, name) => {
     names.push(name);
@@ -26,11 +56,13 @@ export function currentPath() {
   return { path: path || "/", query: new URLSearchParams(queryString || "") };
 }
 
+/** @param {string} path */
 export function navigate(path) {
   if (window.location.hash === `#${path}`) render();
   else window.location.hash = path;
 }
 
+/** @param {string} path */
 function match(path) {
   for (const r of routes) {
     const m = r.regex.exec(path);
@@ -42,6 +74,7 @@ function match(path) {
 /**
  * Render the page for the current hash into `view`. `guard(route)` may return another path to go to
  * (e.g. the sign-in page) instead.
+ * @param {RenderOptions} [options] the first call's, kept for later calls
  */
 export async function render({ view, guard, notFound } = renderOptions) {
   renderOptions = { view, guard, notFound };
@@ -75,7 +108,7 @@ export async function render({ view, guard, notFound } = renderOptions) {
       if (typeof result === "function") result(); // a newer page was rendered meanwhile
       return;
     }
-    cleanup = typeof result === "function" ? result : null;
+    cleanup = typeof result === "function" ? /** @type {() => void} */ (result) : null;
   } finally {
     if (count === renderCount) view.removeAttribute("aria-busy");
   }
@@ -87,11 +120,13 @@ export async function render({ view, guard, notFound } = renderOptions) {
     heading.focus({ preventScroll: true });
   }
 }
-let renderOptions = {};
+/** @type {RenderOptions} set by the first render */
+let renderOptions = /** @type {RenderOptions} */ ({});
 
+/** @param {string} path */
 function markNav(path) {
   for (const link of document.querySelectorAll("[data-nav] a")) {
-    const target = link.getAttribute("href").replace(/^#/, "");
+    const target = (link.getAttribute("href") ?? "").replace(/^#/, "");
     const active = target === "/" ? path === "/" : path === target || path.startsWith(`${target}/`);
     if (active) link.setAttribute("aria-current", "page");
     else link.removeAttribute("aria-current");

@@ -2,18 +2,29 @@
 
 import { ApiError, get, onUnauthorised, post, setCsrfToken } from "./api.js";
 
-let current = null; // {user, club} or null
+/** @typedef {import("./api-types").MeOut} MeOut */
+/** @typedef {(current: MeOut | null) => void} SessionListener */
+
+/** @type {MeOut | null} */
+let current = null; // {user, club, permissions} or null
+/** @type {Set<SessionListener>} */
 const listeners = new Set();
 
 function changed() {
   for (const listener of listeners) listener(current);
 }
 
+/**
+ * Call `listener` with the new session (or null) whenever it changes.
+ * @param {SessionListener} listener
+ * @returns {() => boolean} to stop listening
+ */
 export function onSessionChange(listener) {
   listeners.add(listener);
   return () => listeners.delete(listener);
 }
 
+/** @returns {MeOut | null} */
 export function session() {
   return current;
 }
@@ -22,11 +33,14 @@ export function session() {
  * Whether the signed-in user may do `action` (the names of docs/permissions.md, e.g. "ride.delete").
  * Rules "own" need `ownerId`, the id of the user who made the thing. Pages hide the controls this
  * answers false for, so a member never sees a button that the API would answer with 403.
+ * @param {string} action
+ * @param {number | null} [ownerId]
+ * @returns {boolean}
  */
 export function can(action, ownerId = null) {
   const grant = current?.permissions?.[action];
   if (grant === "all") return true;
-  if (grant === "own") return ownerId != null && ownerId === current.user.id;
+  if (grant === "own") return ownerId != null && ownerId === current?.user.id;
   return false;
 }
 
@@ -40,7 +54,10 @@ function hasSessionCookies() {
   return document.cookie.split(";").some((part) => part.trim().startsWith("saddlescope_csrf="));
 }
 
-/** Ask the server who we are; null when not signed in. */
+/**
+ * Ask the server who we are; null when not signed in.
+ * @returns {Promise<MeOut | null>}
+ */
 export async function refreshSession() {
   if (!hasSessionCookies()) {
     // Without the cookies the answer is a 401 for sure; skip the request (and its console error).
@@ -49,6 +66,7 @@ export async function refreshSession() {
     return current;
   }
   try {
+    /** @type {MeOut | null} */
     const me = await get("/api/auth/me");
     current = me && me.user ? me : null;
   } catch (error) {
@@ -59,13 +77,23 @@ export async function refreshSession() {
   return current;
 }
 
+/**
+ * @param {string} email
+ * @param {string} password
+ * @returns {Promise<MeOut | null>}
+ */
 export async function signIn(email, password) {
+  /** @type {import("./api-types").TokenOut | null} */
   const answer = await post("/api/auth/login", { email, password });
   setCsrfToken(answer?.csrf_token);
   await refreshSession();
   return current;
 }
 
+/**
+ * Create a club and its first admin, and sign in as them.
+ * @param {import("./api-types").ClubCreate} values
+ */
 export async function createClub(values) {
   await post("/api/clubs", values);
   return signIn(values.email, values.password);
@@ -85,16 +113,20 @@ export async function signOut() {
  * Change the signed-in user's password. The server ends every session of the account (other browsers
  * and phones too); this browser signs straight back in with the new password so the user carries on.
  * Resolves to true when signed in again, false when the user must sign in by hand.
+ * @param {string} currentPassword
+ * @param {string} newPassword
+ * @returns {Promise<boolean>}
  */
 export async function changePassword(currentPassword, newPassword) {
   const email = current?.user?.email;
   await post("/api/auth/password", { current_password: currentPassword, new_password: newPassword });
   setCsrfToken(null);
   try {
+    if (!email) throw new Error("nobody was signed in");
     await signIn(email, newPassword);
     return Boolean(current);
   } catch (error) {
-    console.info("signing back in after the password change failed:", error.message);
+    console.info("signing back in after the password change failed:", error instanceof Error ? error.message : error);
     current = null;
     changed();
     return false;

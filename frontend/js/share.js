@@ -3,18 +3,27 @@
 // with a button to withdraw one (docs/permissions.md, "Share links").
 
 import { get, itemsOf, post } from "./api.js";
-import { announce, copyText, formatDate, h, showError } from "./dom.js";
+import { announce, copyText, formatDate, h, one, showError } from "./dom.js";
 import { can } from "./session.js";
 
+/** @typedef {import("./api-types").ShareLinkOut} ShareLink */
+
+/** @type {[number, string][]} days, in words */
 const LIFETIMES = [[7, "a week"], [30, "30 days"], [90, "3 months"], [365, "a year"]];
+/** @type {Record<ShareLink["state"], string>} */
 const STATE_WORDS = { active: "active", expired: "expired", withdrawn: "withdrawn" };
 let serial = 0;
 
+/** @param {string | null | undefined} value */
 function day(value) {
   return value ? formatDate(value).slice(0, 10) : "";
 }
 
-/** The made link, its copy button and what it lets the reader see. */
+/**
+ * The made link, its copy button and what it lets the reader see.
+ * @param {import("./api-types").ShareLinkCreated} made
+ * @param {string} what
+ */
 function madeLink(made, what) {
   const id = `share-link-${++serial}`;
   const input = h("input", { id, readonly: true, value: `${window.location.origin}${made.path}`, dataset: { shareUrl: "" } });
@@ -29,7 +38,11 @@ function madeLink(made, what) {
     h("div", { class: "reset-link-row" }, h("label", { class: "sr-only", for: id }, "Share link"), input, copy));
 }
 
-/** A "Share with your vet" control for a ride (`rideId`) or a horse (`horseId`); nothing for those who may not. */
+/**
+ * A "Share with your vet" control for a ride (`rideId`) or a horse (`horseId`); nothing for those who may not.
+ * @param {{rideId?: number | null, horseId?: number | null}} target
+ * @returns {HTMLDetailsElement | null}
+ */
 export function shareControl({ rideId = null, horseId = null }) {
   if (!can("share.create")) return null;
   const what = rideId ? "this ride's report" : "this horse's page and its rides' reports";
@@ -42,7 +55,10 @@ export function shareControl({ rideId = null, horseId = null }) {
     event.preventDefault();
     error.hidden = true;
     try {
-      const made = await post("/api/share-links", { ride_id: rideId, horse_id: horseId, days: Number(select.value) });
+      /** @type {import("./api-types").ShareLinkIn} */
+      const asked = { ride_id: rideId, horse_id: horseId, days: Number(select.value) };
+      /** @type {import("./api-types").ShareLinkCreated} */
+      const made = await post("/api/share-links", asked);
       result.replaceChildren(madeLink(made, what));
       announce("Share link made.");
     } catch (failure) {
@@ -58,6 +74,11 @@ export function shareControl({ rideId = null, horseId = null }) {
     h("summary", {}, "Share with your vet"), form, result);
 }
 
+/**
+ * @param {ShareLink} link
+ * @param {() => Promise<void>} reload
+ * @param {HTMLElement} box where a refusal is shown
+ */
 function linkRow(link, reload, box) {
   const withdraw = link.state === "active"
     ? h("button", { type: "button", dataset: { revoke: String(link.id) }, onclick: async () => {
@@ -75,12 +96,16 @@ function linkRow(link, reload, box) {
     h("td", {}, day(link.expires_at)), h("td", {}, STATE_WORDS[link.state] ?? "–"), h("td", {}, withdraw));
 }
 
-/** The admins' list of the club's share links in `section` (a panel of the Account page). */
+/**
+ * The admins' list of the club's share links in `section` (a panel of the Account page).
+ * @param {HTMLElement} section
+ */
 export async function mountShareLinks(section) {
-  const body = section.querySelector("tbody");
-  const empty = section.querySelector("[data-share-links-empty]");
+  const body = one(section, "tbody", HTMLTableSectionElement);
+  const empty = one(section, "[data-share-links-empty]");
   const reload = async () => {
     try {
+      /** @type {ShareLink[]} */
       const links = itemsOf(await get("/api/share-links"));
       body.replaceChildren(...links.map((link) => linkRow(link, reload, section)));
       empty.hidden = links.length > 0;

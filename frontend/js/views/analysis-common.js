@@ -1,34 +1,18 @@
-// Shared by the comparison, leaderboard and grades pages: read a per-indicator answer in any of the
-// shapes the server may use, and re-run a page's query when its form changes.
+// Shared by the comparison, leaderboard, grades, horse and saddle pages: re-run a page's query when its
+// form changes.
 
-import { itemsOf } from "../api.js";
-
-/** The part of `answer` about `indicator`: answer[indicator], answer.indicators[indicator], or answer itself. */
-export function forIndicator(answer, indicator) {
-  if (answer && !Array.isArray(answer) && typeof answer === "object") {
-    if (answer[indicator] !== undefined) return answer[indicator];
-    if (answer.indicators?.[indicator] !== undefined) return answer.indicators[indicator];
-    if (answer.results?.[indicator] !== undefined) return answer.results[indicator];
-  }
-  return answer;
-}
-
-/** Group summaries ({group, n, mean, std, min, max}) out of a comparison answer. */
-export function groupsOf(answer, indicator) {
-  const part = forIndicator(answer, indicator);
-  if (Array.isArray(part)) return part;
-  for (const key of ["gaits", "horses", "groups", "entries"]) {
-    if (part && Array.isArray(part[key])) return part[key];
-  }
-  return itemsOf(part);
-}
-
-/** Call `run(values)` now and whenever a field of `form` changes; a newer run wins. */
+/**
+ * Call `run(values)` now and whenever a field of `form` changes; a newer run wins (`current()` says whether
+ * this run is still the newest).
+ * @param {HTMLFormElement} form a form of selects and boxes (no file fields: every value is text)
+ * @param {(values: Record<string, string>, current: () => boolean) => Promise<void>} run
+ * @returns {Promise<void>}
+ */
 export function onFormChange(form, run) {
   let generation = 0;
   const go = async () => {
     const mine = ++generation;
-    const values = Object.fromEntries(new FormData(form).entries());
+    const values = /** @type {Record<string, string>} */ (Object.fromEntries(new FormData(form).entries()));
     await run(values, () => mine === generation);
   };
   form.addEventListener("change", go);

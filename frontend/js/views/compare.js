@@ -2,16 +2,20 @@
 // saying how many rides stand behind it.
 
 import { get } from "../api.js";
-import { h, page, showError } from "../dom.js";
+import { field, h, maybeOne, one, page, showError } from "../dom.js";
 import { countedBarChart } from "../horse-charts.js";
 import { GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
-import { groupsOf, onFormChange } from "./analysis-common.js";
+import { onFormChange } from "./analysis-common.js";
 import { loadPlotly } from "../charts.js";
 
-/** Under a chart: how many rides too uncertain for a decision were left out of it (none: nothing said). */
+/**
+ * Under a chart: how many rides too uncertain for a decision were left out of it (none: nothing said).
+ * @param {HTMLElement} chart
+ * @param {number | undefined} count
+ */
 function sayLeftOut(chart, count) {
-  let note = chart.parentElement.querySelector("[data-left-out]");
+  let note = maybeOne(/** @type {HTMLElement} */ (chart.parentElement), "[data-left-out]");
   if (!note) {
     note = h("p", { class: "hint", "data-left-out": true });
     chart.after(note);
@@ -20,33 +24,40 @@ function sayLeftOut(chart, count) {
   note.hidden = !count;
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} _params
+ * @param {URLSearchParams} query
+ */
 export async function mountCompare(view, _params, query) {
   loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("compare"));
-  const horseForm = view.querySelector('[data-compare-form="horse"]');
-  const gaitForm = view.querySelector('[data-compare-form="gait"]');
-  const horseChart = view.querySelector('[data-chart="compare-horse"]');
-  const gaitChart = view.querySelector('[data-chart="compare-gait"]');
+  const horseForm = one(view, '[data-compare-form="horse"]', HTMLFormElement);
+  const gaitForm = one(view, '[data-compare-form="gait"]', HTMLFormElement);
+  const horseChart = one(view, '[data-chart="compare-horse"]');
+  const gaitChart = one(view, '[data-chart="compare-gait"]');
   await fillOptions(view);
-  if (query.get("horse")) horseForm.elements.horse_id.value = query.get("horse");
-  if (query.get("saddle_id")) gaitForm.elements.saddle_id.value = query.get("saddle_id");
+  const asked = { horse: query.get("horse"), saddle: query.get("saddle_id") };
+  if (asked.horse) field(horseForm, "horse_id", HTMLSelectElement).value = asked.horse;
+  if (asked.saddle) field(gaitForm, "saddle_id", HTMLSelectElement).value = asked.saddle;
 
   const byHorse = onFormChange(horseForm, async ({ horse_id: horseId, indicator }, current) => {
-    const section = horseForm.closest("section");
-    const horsePage = section.querySelector("[data-compare-horse-page]");
+    const section = /** @type {HTMLElement} */ (horseForm.closest("section"));
+    const horsePage = one(section, "[data-compare-horse-page]");
     horsePage.hidden = !horseId;
     if (!horseId) return;
-    horsePage.querySelector("a").href = `#/horses/${horseId}`;
+    one(horsePage, "a", HTMLAnchorElement).href = `#/horses/${horseId}`;
     try {
+      /** @type {import("../api-types").HorseComparisonOut} */
       const answer = await get(`/api/horses/${horseId}/comparison`, { params: { indicator } });
       if (!current()) return;
       showError(section, null);
       // Gaits in their natural order (walk, trots, canter), not the server's.
-      const groups = groupsOf(answer, indicator)
-        .map((g) => ({ ...g, label: gaitLabel(g.group ?? g.gait) }))
-        .sort((a, b) => GAITS.indexOf(a.group ?? a.gait) - GAITS.indexOf(b.group ?? b.gait));
+      const groups = (answer.indicators[indicator]?.gaits ?? [])
+        .map((g) => ({ ...g, label: gaitLabel(g.group) }))
+        .sort((a, b) => GAITS.indexOf(a.group) - GAITS.indexOf(b.group));
       const info = indicatorInfoOf(indicator);
-      const horse = horseForm.elements.horse_id.selectedOptions[0]?.textContent ?? "";
+      const horse = field(horseForm, "horse_id", HTMLSelectElement).selectedOptions[0]?.textContent ?? "";
       countedBarChart(horseChart, groups, { title: `${horse}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "gait" });
       sayLeftOut(horseChart, answer.uncertain_left_out);
     } catch (error) {
@@ -55,14 +66,16 @@ export async function mountCompare(view, _params, query) {
   });
 
   const byGait = onFormChange(gaitForm, async ({ gait, indicator, saddle_id: saddleId }, current) => {
-    const section = gaitForm.closest("section");
+    const section = /** @type {HTMLElement} */ (gaitForm.closest("section"));
     try {
+      /** @type {Record<string, string>} */
       const params = { gait, indicator };
       if (saddleId) params.saddle_id = saddleId;
+      /** @type {import("../api-types").ComparisonOut} */
       const answer = await get("/api/comparison", { params });
       if (!current()) return;
       showError(section, null);
-      const groups = groupsOf(answer, indicator).map((g) => ({ ...g, label: g.horse ?? g.group }));
+      const groups = (answer.indicators[indicator]?.horses ?? []).map((g) => ({ ...g, label: g.horse ?? g.group }));
       const info = indicatorInfoOf(indicator);
       countedBarChart(gaitChart, groups, { title: `${gaitLabel(gait)}: ${labelText(info.label)}`, unit: prettyUnit(info.unit), xTitle: "horse" });
       sayLeftOut(gaitChart, answer.uncertain_left_out);

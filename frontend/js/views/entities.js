@@ -4,13 +4,27 @@
 // (#/horses/:id), a saddle's its page across horses (#/saddles/:id).
 
 import { del, get, itemsOf, patch, post } from "../api.js";
-import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { announce, busy, control, formValues, h, maybeControl, one, page, showError } from "../dom.js";
 import { fmt } from "../format.js";
 import { fillOptions } from "../options.js";
 import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
 import { saddleTypeText } from "../saddle-words.js";
 import { can } from "../session.js";
 
+/** @typedef {import("../api-types").HorseOut | import("../api-types").RiderOut | import("../api-types").SaddleOut} Entity */
+/**
+ * One kind of list: where it lives, its noun, its table's columns (the first is the row's heading) and its
+ * form's fields.
+ * @template {Entity} T
+ * @typedef {object} Kind
+ * @property {string} url
+ * @property {string} noun
+ * @property {((x: T) => import("../dom.js").Child)[]} columns
+ * @property {string[]} fields
+ * @property {string} deletePermission
+ */
+
+/** @type {{horses: Kind<import("../api-types").HorseOut>, riders: Kind<import("../api-types").RiderOut>, saddles: Kind<import("../api-types").SaddleOut>}} */
 const KINDS = {
   horses: {
     url: "/api/horses",
@@ -23,7 +37,7 @@ const KINDS = {
   riders: {
     url: "/api/riders",
     noun: "rider",
-    columns: [(x) => x.name, (x) => (Number.isFinite(x.weight_kg) ? `${Number(x.weight_kg.toFixed(1))}` : "\u2013")],
+    columns: [(x) => x.name, (x) => (x.weight_kg != null && Number.isFinite(x.weight_kg) ? `${Number(x.weight_kg.toFixed(1))}` : "\u2013")],
     fields: ["name", "weight_kg"],
     deletePermission: "horse.delete", // the same permission covers riders
   },
@@ -37,43 +51,55 @@ const KINDS = {
   },
 };
 
+/** @param {string} word */
 function capitalised(word) {
   return word[0].toUpperCase() + word.slice(1);
 }
 
+/**
+ * The page of one kind of list (app.js: "horses", "riders" or "saddles").
+ * @param {keyof KINDS} kindName
+ * @returns {import("../router.js").Mount}
+ */
 export function mountEntities(kindName) {
   return async (view, params, query) => {
-    const kind = KINDS[kindName];
+    // each kind's columns read the rows its own url answers: one kind's rows never meet another's columns
+    const kind = /** @type {Kind<Entity>} */ (/** @type {unknown} */ (KINDS[kindName]));
     view.append(page(kindName));
     const state = listState(query ?? new URLSearchParams(), { filters: ["q"], sort: "name" });
-    const pagerSlot = view.querySelector("[data-entity-pager]");
-    const tableWrap = view.querySelector(".table-wrap");
+    const pagerSlot = one(view, "[data-entity-pager]");
+    const tableWrap = one(view, ".table-wrap");
     // Errors of the list (a refused deletion) show above it, not in the add form.
-    const listPanel = tableWrap.closest(".panel");
-    listPanel.querySelector("h2").after(h("p", { class: "form-error", role: "alert", "data-form-error": true, hidden: true }));
-    const table = view.querySelector("[data-entity-table]");
-    const empty = view.querySelector("[data-entity-empty]");
-    const form = view.querySelector("[data-entity-form]");
-    const title = view.querySelector("[data-entity-form-title]");
-    const submit = view.querySelector("[data-entity-submit]");
-    const cancel = view.querySelector("[data-entity-cancel]");
+    const listPanel = /** @type {HTMLElement} */ (tableWrap.closest(".panel"));
+    one(listPanel, "h2").after(h("p", { class: "form-error", role: "alert", "data-form-error": true, hidden: true }));
+    const table = one(view, "[data-entity-table]", HTMLTableElement);
+    const empty = one(view, "[data-entity-empty]");
+    const form = one(view, "[data-entity-form]", HTMLFormElement);
+    const title = one(view, "[data-entity-form-title]");
+    const submit = one(view, "[data-entity-submit]");
+    const cancel = one(view, "[data-entity-cancel]");
+    /** @type {Entity | null} */
     let editing = null;
 
+    /** @param {Entity | null} item */
     function setEditing(item) {
       editing = item;
       form.reset();
       showError(form, null);
       if (item) {
         for (const name of kind.fields) {
-          if (form.elements[name] && item[name] !== null && item[name] !== undefined) form.elements[name].value = item[name];
+          const el = maybeControl(form, name);
+          const value = /** @type {Record<string, unknown>} */ (/** @type {unknown} */ (item))[name]; // a field of the row
+          if (el && value !== null && value !== undefined) el.value = String(value);
         }
       }
       title.textContent = item ? `Edit ${item.name}` : `Add a ${kind.noun}`;
       submit.textContent = item ? "Save changes" : `Add ${kind.noun}`;
       cancel.hidden = !item;
-      if (item) form.elements.name.focus();
+      if (item) control(form, "name").focus();
     }
 
+    /** @param {Entity} item */
     function actions(item) {
       const cell = h("td", { class: "actions" },
         h("button", { type: "button", class: "link-button", "aria-label": `Edit ${item.name}`,
@@ -86,6 +112,7 @@ export function mountEntities(kindName) {
     }
 
     async function load() {
+      /** @type {{items: Entity[], total: number, limit: number, offset: number}} a Page of the kind's rows */
       const answer = await get(kind.url, { params: apiParams(state) });
       const items = itemsOf(answer);
       table.tBodies[0].replaceChildren(...items.map((item) => h("tr", { dataset: { id: item.id } },
@@ -96,6 +123,7 @@ export function mountEntities(kindName) {
       pagerSlot.replaceChildren(pager(answer, state, { noun: kindName }));
     }
 
+    /** @param {Entity} item */
     async function remove(item) {
       if (!window.confirm(`Delete ${kind.noun} ${item.name}?`)) return;
       showError(listPanel, null);
@@ -111,18 +139,21 @@ export function mountEntities(kindName) {
 
     form.addEventListener("submit", async (event) => {
       event.preventDefault();
-      if (!form.elements.name.value.trim()) {
+      if (!control(form, "name").value.trim()) {
         showError(form, "Please fill in the name.");
-        form.elements.name.focus();
+        control(form, "name").focus();
         return;
       }
+      /** @type {Record<string, string | number | null>} */
       const values = formValues(form);
       if (editing) {
         // Cleared optional fields are sent as null so the server forgets them.
         for (const name of kind.fields) if (!(name in values)) values[name] = null;
       }
       try {
-        const saved = await busy(form, () => (editing ? patch(`${kind.url}/${editing.id}`, values) : post(kind.url, values)));
+        const target = editing;
+        /** @type {Entity | null} */
+        const saved = await busy(form, () => (target ? patch(`${kind.url}/${target.id}`, values) : post(kind.url, values)));
         announce(`${capitalised(kind.noun)} ${saved?.name ?? values.name} ${editing ? "saved" : "added"}.`);
         setEditing(null);
         await load();
@@ -132,7 +163,7 @@ export function mountEntities(kindName) {
     });
     cancel.addEventListener("click", () => setEditing(null));
     await fillOptions(form).catch((error) => showError(form, error)); // the saddle types
-    bindFilterForm(view.querySelector("[data-entity-filter]"), state);
+    bindFilterForm(one(view, "[data-entity-filter]", HTMLFormElement), state);
 
     try {
       await load();

@@ -4,59 +4,79 @@
 // beyond the uncertainty), and any two of its rides side by side with the % difference of each indicator.
 
 import { get, getAll, itemsOf, patch } from "../api.js";
-import { busy, fill, h, page, showError } from "../dom.js";
+import { all, busy, field, fill, h, one, page, showError } from "../dom.js";
 import { countedBarChart, trendChart } from "../horse-charts.js";
 import { distanceText, durationText, fmt, GAITS, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
 import { can } from "../session.js";
 import { shareControl } from "../share.js";
-import { groupsOf, onFormChange } from "./analysis-common.js";
+import { onFormChange } from "./analysis-common.js";
 import { meanIntervalText } from "../saddle-words.js";
 import { loadPlotly } from "../charts.js";
+
+/** @typedef {import("../api-types").HorseOut} HorseOut */
+/** @typedef {import("../api-types").RideOut} RideOut */
+/** @typedef {import("../api-types").GroupStats & {gait: string, label: string}} GaitGroup a gait's bar */
 
 const RIDES_PER_PAGE = 10;
 const INCH_M = 0.0254;
 
-/** 1.5748 -> "15.2 hh": hands, and inches after the point (0-3). */
+/**
+ * 1.5748 -> "15.2 hh": hands, and inches after the point (0-3).
+ * @param {number} heightM
+ */
 export function handsText(heightM) {
   const inches = Math.round(heightM / INCH_M);
   return `${Math.floor(inches / 4)}.${inches % 4} hh`;
 }
 
+/** @param {number | null} heightM */
 function heightText(heightM) {
-  return Number.isFinite(heightM) ? `${heightM.toFixed(2)} m (${handsText(heightM)})` : "\u2013";
+  return heightM !== null && Number.isFinite(heightM) ? `${heightM.toFixed(2)} m (${handsText(heightM)})` : "\u2013";
 }
 
+/** @param {RideOut} ride */
 function rideLabel(ride) {
   return `${ride.ridden_on ?? "undated"} \u00b7 ${gaitLabel(ride.gait)} \u00b7 #${ride.id}`;
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {HorseOut} horse
+ */
 function showProfile(view, horse) {
-  view.querySelector("[data-horse-name]").textContent = horse.name;
+  one(view, "[data-horse-name]").textContent = horse.name;
   document.title = `${horse.name} \u2013 SaddleScope`;
+  /** @type {(term: string, value: string, key: string) => HTMLElement} */
   const item = (term, value, key) => h("div", {}, h("dt", {}, term), h("dd", { dataset: { profile: key } }, value));
-  view.querySelector("[data-horse-profile]").replaceChildren(
+  one(view, "[data-horse-profile]").replaceChildren(
     item("Breed", horse.breed || "\u2013", "breed"),
     item("Born", horse.birth_year ? String(horse.birth_year) : "\u2013", "birth_year"),
     item("Height at the withers", heightText(horse.height_withers_m), "height"));
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {HorseOut} horse
+ * @param {(horse: HorseOut) => void} onSaved
+ */
 function setUpProfileForm(view, horse, onSaved) {
-  const form = view.querySelector("[data-horse-form]");
-  if (!can(form.dataset.permission)) return; // stays hidden: the API would answer 403
+  const form = one(view, "[data-horse-form]", HTMLFormElement);
+  if (!can(form.dataset.permission ?? "")) return; // stays hidden: the API would answer 403
   form.hidden = false;
-  const fill = (current) => {
-    form.elements.name.value = current.name;
-    form.elements.breed.value = current.breed ?? "";
-    form.elements.birth_year.value = current.birth_year ?? "";
-    form.elements.height_withers_m.value = Number.isFinite(current.height_withers_m) ? current.height_withers_m.toFixed(2) : "";
+  const fill = (/** @type {HorseOut} */ current) => {
+    field(form, "name").value = current.name;
+    field(form, "breed").value = current.breed ?? "";
+    field(form, "birth_year").value = String(current.birth_year ?? "");
+    field(form, "height_withers_m").value = current.height_withers_m !== null && Number.isFinite(current.height_withers_m)
+      ? current.height_withers_m.toFixed(2) : "";
   };
   fill(horse);
   form.addEventListener("submit", (event) => {
     event.preventDefault();
-    const saved = form.querySelector("[data-horse-saved]");
+    const saved = one(form, "[data-horse-saved]");
     saved.textContent = "";
-    const text = (name) => form.elements[name].value.trim();
+    const text = (/** @type {string} */ name) => field(form, name).value.trim();
     const body = {
       name: text("name"),
       breed: text("breed") || null,
@@ -66,6 +86,7 @@ function setUpProfileForm(view, horse, onSaved) {
     };
     busy(form, async () => {
       try {
+        /** @type {HorseOut} */
         const updated = await patch(`/api/horses/${horse.id}`, body);
         showError(form, null);
         fill(updated);
@@ -78,6 +99,7 @@ function setUpProfileForm(view, horse, onSaved) {
   });
 }
 
+/** @param {RideOut} ride */
 function rideRow(ride) {
   const wb = ride.indicators?.acc_y_wb_rms;
   return h("tr", { dataset: { rideId: ride.id } },
@@ -88,14 +110,19 @@ function rideRow(ride) {
     h("td", { class: "num", dataset: { value: wb ?? "" } }, fmt(wb)));
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {string} horseId
+ */
 function setUpRides(view, horseId) {
-  const table = view.querySelector("[data-horse-rides]");
-  const empty = view.querySelector("[data-horse-rides-empty]");
-  const prev = view.querySelector("[data-page-prev]");
-  const next = view.querySelector("[data-page-next]");
-  const info = view.querySelector("[data-page-info]");
+  const table = one(view, "[data-horse-rides]", HTMLTableElement);
+  const empty = one(view, "[data-horse-rides-empty]");
+  const prev = one(view, "[data-page-prev]", HTMLButtonElement);
+  const next = one(view, "[data-page-next]", HTMLButtonElement);
+  const info = one(view, "[data-page-info]");
   let offset = 0;
   const load = async () => {
+    /** @type {import("../api-types").Page_RideOut_} */
     const answer = await get("/api/rides", { params: { horse_id: horseId, limit: RIDES_PER_PAGE, offset, sort: "-ridden_on" } });
     const rides = itemsOf(answer);
     const { total } = answer;
@@ -112,23 +139,29 @@ function setUpRides(view, horseId) {
   return load();
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {string} horseId
+ * @param {(groups: GaitGroup[]) => void} [onCounts]
+ */
 function setUpGaits(view, horseId, onCounts) {
-  const form = view.querySelector("[data-horse-gaits-form]");
-  const chart = view.querySelector('[data-chart="horse-gaits"]');
-  const section = form.closest("section");
+  const form = one(view, "[data-horse-gaits-form]", HTMLFormElement);
+  const chart = one(view, '[data-chart="horse-gaits"]');
+  const section = /** @type {HTMLElement} */ (form.closest("section"));
   return onFormChange(form, async ({ indicator }, current) => {
     try {
+      /** @type {import("../api-types").HorseComparisonOut} */
       const answer = await get(`/api/horses/${horseId}/comparison`, { params: { indicator } });
       if (!current()) return;
       showError(section, null);
-      const groups = groupsOf(answer, indicator)
-        .map((g) => ({ ...g, gait: g.group ?? g.gait, label: gaitLabel(g.group ?? g.gait) }))
+      const groups = (answer.indicators[indicator]?.gaits ?? [])
+        .map((g) => ({ ...g, gait: g.group, label: gaitLabel(g.group) }))
         .sort((a, b) => GAITS.indexOf(a.gait) - GAITS.indexOf(b.gait));
       onCounts?.(groups);
       const info = indicatorInfoOf(indicator);
       countedBarChart(chart, groups, { title: labelText(info.label), unit: prettyUnit(info.unit), xTitle: "gait" });
       const left = answer.uncertain_left_out ?? 0;
-      const note = section.querySelector("[data-gaits-left-out]");
+      const note = one(section, "[data-gaits-left-out]");
       note.textContent = left ? `${left} ride${left === 1 ? " is" : "s are"} too uncertain for a decision and left out.` : "";
       note.hidden = !left;
     } catch (error) {
@@ -137,13 +170,18 @@ function setUpGaits(view, horseId, onCounts) {
   });
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {string} horseId
+ */
 function setUpTrend(view, horseId) {
-  const form = view.querySelector("[data-horse-trend-form]");
-  const chart = view.querySelector('[data-chart="horse-trend"]');
-  const note = view.querySelector("[data-trend-note]");
-  const section = form.closest("section");
+  const form = one(view, "[data-horse-trend-form]", HTMLFormElement);
+  const chart = one(view, '[data-chart="horse-trend"]');
+  const note = one(view, "[data-trend-note]");
+  const section = /** @type {HTMLElement} */ (form.closest("section"));
   return onFormChange(form, async ({ gait, indicator }, current) => {
     try {
+      /** @type {import("../api-types").TrendOut} */
       const trend = await get(`/api/horses/${horseId}/trend`, { params: { gait, indicator } });
       if (!current()) return;
       showError(section, null);
@@ -168,14 +206,19 @@ function setUpTrend(view, horseId) {
   });
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {string} horseId
+ */
 function setUpSaddles(view, horseId) {
-  const form = view.querySelector("[data-horse-saddles-form]");
-  const table = view.querySelector("[data-saddles-table]");
-  const verdicts = view.querySelector("[data-saddles-verdicts]");
-  const empty = view.querySelector("[data-saddles-empty]");
-  const method = view.querySelector("[data-saddles-method]");
-  const section = form.closest("section");
+  const form = one(view, "[data-horse-saddles-form]", HTMLFormElement);
+  const table = one(view, "[data-saddles-table]", HTMLTableElement);
+  const verdicts = one(view, "[data-saddles-verdicts]");
+  const empty = one(view, "[data-saddles-empty]");
+  const method = one(view, "[data-saddles-method]");
+  const section = /** @type {HTMLElement} */ (form.closest("section"));
   return onFormChange(form, async ({ gait }, current) => {
+    /** @type {import("../api-types").HorseSaddlesOut} */
     let answer;
     try {
       answer = await get(`/api/horses/${horseId}/saddles`, { params: { gait } });
@@ -186,7 +229,7 @@ function setUpSaddles(view, horseId) {
     if (!current()) return;
     showError(section, null);
     const keys = Object.keys(answer.labels);
-    table.tHead.rows[0].replaceChildren(h("th", { scope: "col" }, "Saddle"), h("th", { scope: "col", class: "num" }, "Rides"),
+    /** @type {HTMLTableSectionElement} */ (table.tHead).rows[0].replaceChildren(h("th", { scope: "col" }, "Saddle"), h("th", { scope: "col", class: "num" }, "Rides"),
       ...keys.map((key) => h("th", { scope: "col", class: "num" },
         `${labelText(answer.labels[key])} (${prettyUnit(answer.units[key])})`)));
     table.tBodies[0].replaceChildren(...answer.saddles.map((row) => h("tr", { dataset: { saddleId: row.saddle_id } },
@@ -195,7 +238,7 @@ function setUpSaddles(view, horseId) {
       ...keys.map((key) => h("td", { class: "num", dataset: { key } }, meanIntervalText(row.indicators[key]))))));
     table.hidden = !answer.saddles.length;
     // The headline comparison (the first indicator, W_b r.m.s.) of each pair; the others folded below it.
-    const item = (d) => h("li", { dataset: { indicator: d.indicator, exceeds: String(d.exceeds_uncertainty ?? "unknown") } },
+    const item = (/** @type {import("../api-types").SaddleDifference} */ d) => h("li", { dataset: { indicator: d.indicator, exceeds: String(d.exceeds_uncertainty ?? "unknown") } },
       d.sentence);
     const headline = answer.differences.filter((d) => d.indicator === keys[0]);
     const others = answer.differences.filter((d) => d.indicator !== keys[0]);
@@ -204,6 +247,7 @@ function setUpSaddles(view, horseId) {
       verdicts.append(h("li", { class: "more" }, h("details", {}, h("summary", {}, "The other indicators"),
         h("ul", {}, ...others.map(item)))));
     }
+    /** @type {string[]} */
     const notes = [];
     if (answer.saddles.length < 2) {
       notes.push(answer.saddles.length
@@ -218,9 +262,10 @@ function setUpSaddles(view, horseId) {
   });
 }
 
+/** @param {import("../api-types").PairIndicator} row */
 function differenceCell(row) {
   const pct = row.difference_percent;
-  if (!Number.isFinite(pct)) return h("td", { class: "num" }, "\u2013");
+  if (pct === null || !Number.isFinite(pct)) return h("td", { class: "num" }, "\u2013");
   // Below 0.05 % the two rides agree to the digits shown (rounding noise reads as 0 %).
   if (Math.abs(pct) < 0.05) return h("td", { class: "num", dataset: { value: pct, difference: "" } }, "0 %");
   // Which way is more comfortable decides the colour; indicators without a direction stay neutral.
@@ -230,22 +275,28 @@ function differenceCell(row) {
   return h("td", { class: cls, dataset: { value: pct, difference: "" } }, `${sign}${fmt(pct, 2)} %`);
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {string} horseId
+ */
 async function setUpPair(view, horseId) {
-  const form = view.querySelector("[data-horse-pair-form]");
-  const table = view.querySelector("[data-pair-table]");
-  const empty = view.querySelector("[data-pair-empty]");
-  const section = form.closest("section");
+  const form = one(view, "[data-horse-pair-form]", HTMLFormElement);
+  const table = one(view, "[data-pair-table]", HTMLTableElement);
+  const empty = one(view, "[data-pair-empty]");
+  const section = /** @type {HTMLElement} */ (form.closest("section"));
+  /** @type {RideOut[]} */
   const rides = await getAll("/api/rides", { horse_id: horseId, status: "analysed", sort: "-ridden_on" });
   const options = rides.map((ride) => h("option", { value: ride.id }, rideLabel(ride)));
-  form.elements.a.replaceChildren(...options.map((o) => o.cloneNode(true)));
-  form.elements.b.replaceChildren(...options);
+  const [first, second] = [field(form, "a", HTMLSelectElement), field(form, "b", HTMLSelectElement)];
+  first.replaceChildren(...options.map((o) => o.cloneNode(true)));
+  second.replaceChildren(...options);
   if (rides.length < 2) {
     form.hidden = true;
     empty.hidden = false;
     return;
   }
-  form.elements.a.value = String(rides[1].id); // the second newest against the newest
-  form.elements.b.value = String(rides[0].id);
+  first.value = String(rides[1].id); // the second newest against the newest
+  second.value = String(rides[0].id);
   await onFormChange(form, async ({ a, b }, current) => {
     if (a === b) {
       showError(section, "Choose two different rides.");
@@ -253,6 +304,7 @@ async function setUpPair(view, horseId) {
       return;
     }
     try {
+      /** @type {import("../api-types").HorseProfilePairOut} */
       const pair = await get(`/api/horses/${horseId}/ride-pair`, { params: { a, b } });
       if (!current()) return;
       showError(section, null);
@@ -265,8 +317,8 @@ async function setUpPair(view, horseId) {
         h("td", { class: "num", dataset: { value: row.b ?? "" } }, pairValue(row.b, row.unit)),
         differenceCell(row))));
       table.hidden = false;
-      view.querySelector("[data-pair-motion-link]").href = `#/compare-rides/${a}/${b}`;
-      view.querySelector("[data-pair-motion]").hidden = false;
+      one(view, "[data-pair-motion-link]", HTMLAnchorElement).href = `#/compare-rides/${a}/${b}`;
+      one(view, "[data-pair-motion]").hidden = false;
     } catch (error) {
       if (current()) showError(section, error);
     }
@@ -275,45 +327,55 @@ async function setUpPair(view, horseId) {
 
 const SAYS_ITS_UNIT = new Set(["h", "km"]);
 
-/** A value of the pair table: exposure times as "2 h 05 min", distances as "about 40 m", the rest with three digits. */
+/**
+ * A value of the pair table: exposure times as "2 h 05 min", distances as "about 40 m", the rest with three digits.
+ * @param {number | null} value
+ * @param {string} unit
+ */
 function pairValue(value, unit) {
-  if (unit === "h" && Number.isFinite(value)) return durationText(value);
-  if (unit === "km" && Number.isFinite(value)) return distanceText(value);
+  if (unit === "h" && value !== null && Number.isFinite(value)) return durationText(value);
+  if (unit === "km" && value !== null && Number.isFinite(value)) return distanceText(value);
   return fmt(value);
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} params the horse's id
+ */
 export async function mountHorse(view, params) {
   loadPlotly().catch(() => {}); // parse the chart library while the API answers (a chart says if it failed)
   view.append(page("horse"));
   const horseId = params.id;
+  /** @type {HorseOut} */
   let horse;
   try {
     horse = await get(`/api/horses/${horseId}`);
   } catch (error) {
-    view.querySelector("[data-horse-name]").textContent = "Horse not found";
-    showError(view.querySelector("[data-horse-page-error]"), error);
-    for (const panel of view.querySelectorAll("section.panel")) panel.hidden = true;
+    one(view, "[data-horse-name]").textContent = "Horse not found";
+    showError(one(view, "[data-horse-page-error]"), error);
+    for (const panel of all(view, "section.panel")) panel.hidden = true;
     return;
   }
   showProfile(view, horse);
-  for (const link of view.querySelectorAll("[data-horse-export]")) {
+  for (const link of all(view, "[data-horse-export]", HTMLAnchorElement)) {
     link.href = `/api/horses/${horse.id}/export?format=${link.dataset.horseExport}`;
   }
-  view.querySelector("[data-horse-actions]").hidden = false;
-  fill(view.querySelector("[data-share-slot]"), shareControl({ horseId: horse.id }));
+  one(view, "[data-horse-actions]").hidden = false;
+  fill(one(view, "[data-share-slot]"), shareControl({ horseId: horse.id }));
   setUpProfileForm(view, horse, (updated) => showProfile(view, updated));
   await fillOptions(view);
-  const trendForm = view.querySelector("[data-horse-trend-form]");
+  const trendForm = one(view, "[data-horse-trend-form]", HTMLFormElement);
+  const trendGait = field(trendForm, "gait", HTMLSelectElement);
   // The trend starts in the gait this horse has most rides in.
-  const chooseGait = (groups) => {
+  const chooseGait = (/** @type {GaitGroup[]} */ groups) => {
     const most = [...groups].sort((x, y) => (y.n ?? 0) - (x.n ?? 0))[0];
     if (most?.gait && !trendForm.dataset.chosen) {
-      trendForm.elements.gait.value = most.gait;
+      trendGait.value = most.gait;
       trendForm.dataset.chosen = "yes";
     }
   };
   await Promise.all([setUpRides(view, horseId), setUpGaits(view, horseId, chooseGait)]);
-  const saddlesForm = view.querySelector("[data-horse-saddles-form]");
-  saddlesForm.elements.gait.value = trendForm.elements.gait.value; // the gait it has most rides in
+  const saddlesForm = one(view, "[data-horse-saddles-form]", HTMLFormElement);
+  field(saddlesForm, "gait", HTMLSelectElement).value = trendGait.value; // the gait it has most rides in
   await Promise.all([setUpTrend(view, horseId), setUpSaddles(view, horseId), setUpPair(view, horseId)]);
 }

@@ -4,7 +4,7 @@
 // to those allowed (the ride's maker and admins: can("job.cancel", owner)).
 
 import { get, itemsOf, post } from "../api.js";
-import { announce, formatDate, h, page, showError } from "../dom.js";
+import { announce, formatDate, h, messageOf, one, page, showError } from "../dom.js";
 import { apiParams, bindFilterForm, listState, pager } from "../pager.js";
 import { poll } from "../poll.js";
 import { can } from "../session.js";
@@ -14,11 +14,15 @@ import { glossaryLabel } from "../glossary.js";
 const UNFINISHED = new Set(["queued", "running"]);
 const FILTERS = ["status", "kind", "ride_id"];
 
+/** @typedef {import("../api-types").JobOut} JobOut */
+
+/** @param {JobOut} job */
 function percentOf(job) {
-  if (Number.isFinite(job.progress_percent)) return job.progress_percent;
+  if (job.progress_percent !== undefined && Number.isFinite(job.progress_percent)) return job.progress_percent;
   return Math.round((job.progress ?? 0) * 100);
 }
 
+/** @param {JobOut} job */
 function progressCell(job) {
   const percent = percentOf(job);
   return h("td", { class: "progress-cell" },
@@ -27,6 +31,7 @@ function progressCell(job) {
     h("span", { class: "num", "data-job-percent": true }, ` ${percent}\u00a0%`));
 }
 
+/** @param {JobOut} job */
 function doingCell(job) {
   const label = job.stage_label || job.stage || "";
   return h("td", { class: "stage" },
@@ -36,27 +41,39 @@ function doingCell(job) {
       : job.error ? h("span", { class: "error" }, job.error) : null);
 }
 
+/** @param {HTMLSelectElement} select */
 async function fillKinds(select) {
   try {
+    /** @type {import("../api-types").JobKindOut[]} */
     const kinds = await get("/api/jobs/kinds");
     select.append(...kinds.map((kind) => h("option", { value: kind.name }, glossaryLabel("job_kind", kind.name))));
   } catch (error) {
-    console.info("job kinds not available:", error.message);
+    console.info("job kinds not available:", messageOf(error));
   }
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} params
+ * @param {URLSearchParams} query
+ */
 export async function mountJobs(view, params, query) {
   view.append(page("jobs"));
   const state = listState(query, { filters: FILTERS, sort: "-id" });
-  const form = view.querySelector("[data-jobs-filter]");
-  const panel = view.querySelector("[data-jobs-table]").closest(".panel");
-  const table = view.querySelector("[data-jobs-table]");
-  const empty = view.querySelector("[data-jobs-empty]");
-  const note = view.querySelector("[data-jobs-note]");
-  const pagerSlot = view.querySelector("[data-jobs-pager]");
+  const form = one(view, "[data-jobs-filter]", HTMLFormElement);
+  const panel = /** @type {HTMLElement} */ (one(view, "[data-jobs-table]").closest(".panel"));
+  const table = one(view, "[data-jobs-table]", HTMLTableElement);
+  const empty = one(view, "[data-jobs-empty]");
+  const note = one(view, "[data-jobs-note]");
+  const pagerSlot = one(view, "[data-jobs-pager]");
   panel.prepend(h("p", { class: "form-error", role: "alert", "data-form-error": true, hidden: true }));
+  /** @type {Map<number, string>} */
   const lastStatus = new Map();
 
+  /**
+   * @param {JobOut} job
+   * @param {"cancel" | "retry"} action
+   */
   async function act(job, action) {
     try {
       await post(`/api/jobs/${job.id}/${action}`);
@@ -67,11 +84,17 @@ export async function mountJobs(view, params, query) {
     }
   }
 
+  /**
+   * @param {JobOut} job
+   * @param {"cancel" | "retry"} action
+   * @param {string} label
+   */
   function actionButton(job, action, label) {
     return h("button", { type: "button", class: "link-button", "data-permission": `job.${action}`,
                          onclick: () => act(job, action), "aria-label": `${label} job ${job.id}` }, label);
   }
 
+  /** @param {JobOut} job */
   function row(job) {
     const actions = [];
     if (UNFINISHED.has(job.status) && can("job.cancel", job.owner_id)) actions.push(actionButton(job, "cancel", "Cancel"));
@@ -92,6 +115,7 @@ export async function mountJobs(view, params, query) {
   }
 
   async function refresh() {
+    /** @type {import("../api-types").Page_JobOut_} */
     let answer;
     try {
       answer = await get("/api/jobs", { params: apiParams(state) });
@@ -100,9 +124,10 @@ export async function mountJobs(view, params, query) {
       showError(panel, error);
       return true; // keep trying: the server may be restarting
     }
+    /** @type {JobOut[]} */
     const jobs = itemsOf(answer);
     table.tBodies[0].replaceChildren(...jobs.map(row));
-    table.closest(".table-wrap").hidden = !jobs.length;
+    /** @type {HTMLElement} */ (table.closest(".table-wrap")).hidden = !jobs.length;
     empty.hidden = jobs.length > 0;
     pagerSlot.replaceChildren(pager(answer, state, { noun: "jobs" }));
     for (const job of jobs) {
@@ -119,7 +144,7 @@ export async function mountJobs(view, params, query) {
     return active.length > 0 ? true : 10000; // a new job may start elsewhere: keep looking, slowly
   }
 
-  await fillKinds(form.querySelector("[data-jobs-kinds]"));
+  await fillKinds(one(form, "[data-jobs-kinds]", HTMLSelectElement));
   bindFilterForm(form, state);
   const poller = poll(refresh);
   return () => poller.stop();

@@ -1,24 +1,32 @@
 // Horses ranked per gait and indicator, most comfortable first (the server ranks; we show).
 
 import { get } from "../api.js";
-import { h, page, showError } from "../dom.js";
+import { field, h, messageOf, one, page, showError } from "../dom.js";
 import { fmt, gaitLabel, indicatorInfoOf, labelText, prettyUnit } from "../format.js";
 import { fillOptions } from "../options.js";
-import { groupsOf, onFormChange } from "./analysis-common.js";
+import { onFormChange } from "./analysis-common.js";
+
+/** @typedef {import("../api-types").LeaderboardOut} Leaderboard */
 
 // With no gait asked for, open on the gait with the most ranked rides (rides too uncertain for a decision
 // are not ranked): not on a gait whose rides are all too uncertain, as the walk's often are. The answers
 // are kept (`answers`, by gait) so the first table needs no second request.
+/**
+ * @param {HTMLFormElement} form
+ * @param {Map<string, Leaderboard>} answers "gait|indicator" -> the ranking
+ * @returns {Promise<string | null>}
+ */
 async function mostRankedGait(form, answers) {
-  const gaits = [...form.elements.gait.options].map((o) => o.value).filter(Boolean);
-  const indicator = form.elements.indicator.value;
+  const gaits = [...field(form, "gait", HTMLSelectElement).options].map((o) => o.value).filter(Boolean);
+  const indicator = field(form, "indicator", HTMLSelectElement).value;
   const ranked = await Promise.all(gaits.map(async (gait) => {
     try {
+      /** @type {Leaderboard} */
       const answer = await get("/api/leaderboard", { params: { gait, indicator } });
       answers.set(`${gait}|${indicator}`, answer);
-      return groupsOf(answer, indicator).reduce((total, row) => total + (Number(row.n) || 0), 0);
+      return answer.entries.reduce((total, row) => total + (Number(row.n) || 0), 0);
     } catch (error) {
-      console.info(`leaderboard of ${gait} not available:`, error.message);
+      console.info(`leaderboard of ${gait} not available:`, messageOf(error));
       return 0;
     }
   }));
@@ -26,28 +34,39 @@ async function mostRankedGait(form, answers) {
   return best >= 0 && ranked[best] > 0 ? gaits[best] : null;
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} _params
+ * @param {URLSearchParams} query
+ */
 export async function mountLeaderboard(view, _params, query) {
   view.append(page("leaderboard"));
-  const form = view.querySelector("[data-leaderboard-form]");
-  const table = view.querySelector("[data-leaderboard-table]");
-  const empty = view.querySelector("[data-leaderboard-empty]");
-  const note = view.querySelector("[data-leaderboard-note]");
-  const section = form.closest("section");
+  const form = one(view, "[data-leaderboard-form]", HTMLFormElement);
+  const table = one(view, "[data-leaderboard-table]", HTMLTableElement);
+  const empty = one(view, "[data-leaderboard-empty]");
+  const note = one(view, "[data-leaderboard-note]");
+  const section = /** @type {HTMLElement} */ (form.closest("section"));
   await fillOptions(view);
-  for (const name of ["gait", "indicator", "saddle_id"]) if (query.get(name)) form.elements[name].value = query.get(name);
+  for (const name of ["gait", "indicator", "saddle_id"]) {
+    const value = query.get(name);
+    if (value) field(form, name, HTMLSelectElement).value = value;
+  }
+  /** @type {Map<string, Leaderboard>} */
   const answers = new Map();
   if (!query.get("gait")) {
     const gait = await mostRankedGait(form, answers);
-    if (gait) form.elements.gait.value = gait;
+    if (gait) field(form, "gait", HTMLSelectElement).value = gait;
   }
 
-  const uncertainBox = view.querySelector("[data-leaderboard-uncertain]");
-  if (query.get("include_uncertain") === "true") form.elements.include_uncertain.checked = true;
+  const uncertainBox = one(view, "[data-leaderboard-uncertain]");
+  if (query.get("include_uncertain") === "true") field(form, "include_uncertain").checked = true;
 
   await onFormChange(form, async ({ gait, indicator, include_uncertain: includeUncertain, saddle_id: saddleId }, current) => {
+    /** @type {Leaderboard} */
     let answer;
     let rows;
     try {
+      /** @type {Record<string, string>} */
       const params = { gait, indicator };
       if (saddleId) params.saddle_id = saddleId;
       if (includeUncertain) params.include_uncertain = "true";
@@ -56,7 +75,7 @@ export async function mountLeaderboard(view, _params, query) {
       const fetched = Object.keys(params).length === 2 ? answers.get(key) : undefined;
       answer = fetched ?? await get("/api/leaderboard", { params });
       answers.clear();
-      rows = groupsOf(answer, indicator);
+      rows = answer.entries;
     } catch (error) {
       if (current()) showError(section, error);
       return;
@@ -65,7 +84,7 @@ export async function mountLeaderboard(view, _params, query) {
     showError(section, null);
     const info = indicatorInfoOf(indicator);
     const unit = prettyUnit(info.unit);
-    view.querySelector("[data-value-head]").textContent = unit ? `Mean (${unit})` : "Mean";
+    one(view, "[data-value-head]").textContent = unit ? `Mean (${unit})` : "Mean";
     const gaitWords = gaitLabel(gait);
     note.textContent = `${gaitWords.charAt(0).toUpperCase()}${gaitWords.slice(1)}, ${labelText(info.label)}: ` +
       `${(answer.better ?? info.better) === "higher" ? "higher" : "lower"} is more comfortable.`;
@@ -81,7 +100,7 @@ export async function mountLeaderboard(view, _params, query) {
       h("td", { class: "num" }, fmt(row.max)))));
     table.hidden = !rows.length;
     empty.hidden = rows.length > 0;
-    const saddle = saddleId ? form.elements.saddle_id.selectedOptions[0]?.textContent : null;
+    const saddle = saddleId ? field(form, "saddle_id", HTMLSelectElement).selectedOptions[0]?.textContent : null;
     empty.textContent = saddle ? `No analysed rides in this gait in the saddle ${saddle} yet.`
       : "No analysed rides in this gait yet.";
     showUncertain(uncertainBox, answer.uncertain ?? [], Boolean(includeUncertain), unit);
@@ -90,13 +109,19 @@ export async function mountLeaderboard(view, _params, query) {
 
 // Rides too uncertain for a decision: shown, marked, with the reason (issue 27); left out of the
 // ranking unless the box is ticked.
+/**
+ * @param {HTMLElement} box
+ * @param {import("../api-types").UncertainRide[]} rides
+ * @param {boolean} included
+ * @param {string} unit
+ */
 function showUncertain(box, rides, included, unit) {
   box.hidden = !rides.length;
   if (!rides.length) return;
-  box.querySelector("[data-uncertain-note]").textContent = included
+  one(box, "[data-uncertain-note]").textContent = included
     ? `${rides.length} ride(s) below are too uncertain for a decision; they are counted in the ranking above.`
     : `${rides.length} ride(s) below are too uncertain for a decision and are left out of the ranking above.`;
-  box.querySelector("[data-uncertain-list]").replaceChildren(...rides.map((ride) => h("li",
+  one(box, "[data-uncertain-list]").replaceChildren(...rides.map((ride) => h("li",
     { dataset: { uncertainRide: ride.ride_id } },
     h("a", { href: `#/rides/${ride.ride_id}` }, `${ride.horse}, ride ${ride.ride_id}`),
     `: ${fmt(ride.value)}${unit ? ` ${unit}` : ""} (${ride.reason})`)));

@@ -2,23 +2,28 @@
 // them (no sign-in needed: the token is the credential, and it works once).
 
 import { post } from "../api.js";
-import { announce, busy, page, showError } from "../dom.js";
+import { announce, busy, field, one, page, showError } from "../dom.js";
 
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} _params
+ * @param {URLSearchParams} query
+ */
 export function mountResetPassword(view, _params, query) {
   view.append(page("reset-password"));
-  const form = view.querySelector("[data-reset-form]");
+  const form = one(view, "[data-reset-form]", HTMLFormElement);
   const token = query.get("token");
   if (!token) {
     form.hidden = true;
-    view.querySelector("[data-reset-intro]").hidden = true;
-    view.querySelector("[data-reset-missing]").hidden = false;
+    one(view, "[data-reset-intro]").hidden = true;
+    one(view, "[data-reset-missing]").hidden = false;
     return;
   }
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
-    const password = form.elements.new_password.value;
+    const password = field(form, "new_password").value;
     const problem = password.length < 8 ? "The new password needs at least 8 characters."
-      : password !== form.elements.repeat_password.value ? "The two passwords differ; type the same one twice."
+      : password !== field(form, "repeat_password").value ? "The two passwords differ; type the same one twice."
         : null;
     showError(form, problem);
     if (problem) return;
@@ -31,8 +36,8 @@ export function mountResetPassword(view, _params, query) {
     // The link is spent: take it out of the address bar and the history.
     window.history.replaceState(null, "", `${window.location.pathname}#/reset-password`);
     form.hidden = true;
-    view.querySelector("[data-reset-intro]").hidden = true;
-    view.querySelector("[data-reset-done]").hidden = false;
+    one(view, "[data-reset-intro]").hidden = true;
+    one(view, "[data-reset-done]").hidden = false;
     announce("Your password is set. Sign in with it.");
   });
 }

@@ -2,15 +2,26 @@
 // samples with residuals, weighted vertical acceleration and its spectrum, why a rotation reads zero.
 
 import { fitChart, spectrumChart, tracks3dChart, weightedChart } from "../charts.js";
-import { h } from "../dom.js";
+import { h, one } from "../dom.js";
 
+/** @typedef {import("../api-types").ResultOut} ResultOut */
+/** @typedef {import("../api-types").ResultSeries} ResultSeries */
+/** @typedef {import("../api-types").QualityNoteOut} QualityNoteOut */
+
+/** @type {Record<string, string>} */
 const SEVERITY_WORDS = { ok: "OK", check: "Check", problem: "Problem" };
-const AXES = ["x", "y", "z"];
+const AXES = /** @type {const} */ (["x", "y", "z"]);
 const AXIS_WORDS = { x: "x, direction of travel", y: "y, vertical (down)", z: "z, sideways" };
 const AXIS_COLOURS = { x: "#1f5fa8", y: "#c2410c", z: "#2f855a" };
 // ω components as riders name the rotations of the back (x travel, y down, z sideways)
 const ROTATION_WORDS = ["roll (about the direction of travel)", "yaw (about the vertical)",
   "pitch (about the sideways axis)"];
+/**
+ * A quantity of S the fit charts show: the series of its measured samples, its fitted curve and residual.
+ * @typedef {{label: string, unit: string, measured: keyof ResultSeries, fitted: keyof ResultSeries,
+ *   residual: keyof ResultSeries, note: string}} Quantity
+ */
+/** @type {Record<string, Quantity>} */
 const QUANTITIES = {
   position: { label: "Position", unit: "m", measured: "position_m", fitted: "position_fitted_m",
               residual: "position_residual_m", note: "measured: the registered samples" },
@@ -21,25 +32,36 @@ const QUANTITIES = {
                   note: "measured: second differences of the measured positions" },
 };
 
+/**
+ * Column `i` of rows of numbers (null where a row lacks a finite one).
+ * @param {unknown[] | null | undefined} rows
+ * @param {number} i
+ * @returns {(number | null)[]}
+ */
 function column(rows, i) {
   return (rows || []).map((row) => (Array.isArray(row) && Number.isFinite(row[i]) ? row[i] : null));
 }
 
-/** The quality notes: the overall line, then one sentence per flag with the expert detail folded away. */
+/**
+ * The quality notes: the overall line, then one sentence per flag with the expert detail folded away.
+ * @param {HTMLElement} view
+ * @param {ResultOut} result
+ */
 export function showQuality(view, result) {
   const notes = result.quality_notes || [];
   const summary = result.quality_summary || { severity: "ok", message: "" };
-  const line = view.querySelector("[data-quality-summary]");
+  const line = one(view, "[data-quality-summary]");
   line.className = `quality-summary severity-${summary.severity}`;
   line.replaceChildren(h("span", { class: `severity severity-${summary.severity}` },
     SEVERITY_WORDS[summary.severity] ?? summary.severity), " ", summary.message || "");
   // flags that ask for the same thing are one line, with each expert sentence behind its toggle
+  /** @type {Map<string, QualityNoteOut & {details: string[]}>} */
   const groups = new Map();
   for (const note of notes) {
     if (!groups.has(note.message)) groups.set(note.message, { ...note, details: [] });
-    groups.get(note.message).details.push(note.detail);
+    groups.get(note.message)?.details.push(note.detail);
   }
-  view.querySelector("[data-quality-notes]").replaceChildren(...(groups.size
+  one(view, "[data-quality-notes]").replaceChildren(...(groups.size
     ? [...groups.values()].map((note) => h("li", { class: `quality-note severity-${note.severity}`,
                                                     dataset: { code: note.code } },
       h("span", { class: `severity severity-${note.severity}` }, SEVERITY_WORDS[note.severity] ?? note.severity),
@@ -49,7 +71,10 @@ export function showQuality(view, result) {
     : [h("li", { class: "no-flags" }, "No quality warnings.")]));
 }
 
-/** One sentence per ω component that reads zero, saying why; or that all three are measured. */
+/**
+ * One sentence per ω component that reads zero, saying why; or that all three are measured.
+ * @param {ResultOut} result
+ */
 export function zeroRotationText(result) {
   const omega = result.series?.omega_rad_s || [];
   if (!omega.length) return "This result has no rotation of the back.";
@@ -65,32 +90,45 @@ export function zeroRotationText(result) {
   return `${zero.map((i) => `\u03c9${AXES[i]}, ${ROTATION_WORDS[i]},`).join(" and ")} reads zero because ${why}.`;
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {Partial<ResultSeries>} series
+ * @param {string} quantity a key of QUANTITIES
+ */
 function drawFits(view, series, quantity) {
   const q = QUANTITIES[quantity];
+  /** @type {(key: keyof ResultSeries) => unknown[] | null | undefined} the series' rows (t_s too is an array) */
+  const rows = (key) => series[key];
   for (const [i, axis] of AXES.entries()) {
-    const div = view.querySelector(`[data-chart="fit-${axis}"]`);
-    fitChart(div, series.t_s, series[q.measured] ? column(series[q.measured], i) : null,
-      column(series[q.fitted], i), series[q.residual] ? column(series[q.residual], i) : null,
+    const div = one(view, `[data-chart="fit-${axis}"]`);
+    fitChart(div, series.t_s, rows(q.measured) ? column(rows(q.measured), i) : null,
+      column(rows(q.fitted), i), rows(q.residual) ? column(rows(q.residual), i) : null,
       { title: `${q.label} of S, ${AXIS_WORDS[axis]}`, unit: q.unit, colour: AXIS_COLOURS[axis] });
   }
-  view.querySelector("[data-fit-note]").textContent =
+  one(view, "[data-fit-note]").textContent =
     `Grey dots: ${q.note}; line: the fitted curve; below: measured minus fitted.`;
 }
 
-/** Draw the 3-D tracks, the per-axis fits (with a quantity switch), the weighted acceleration and spectrum. */
+/**
+ * Draw the 3-D tracks, the per-axis fits (with a quantity switch), the weighted acceleration and spectrum.
+ * @param {HTMLElement} view
+ * @param {ResultOut} result
+ */
 export function drawAnalysis(view, result) {
+  /** @type {Partial<ResultSeries>} */
   const series = result.series || {};
-  tracks3dChart(view.querySelector('[data-chart="tracks3d"]'), series.t_s, series.markers_position_m,
-    series.position_m);
-  const select = view.querySelector("[data-fit-quantity]");
+  // markers_position_m: per frame, [x, y, z] of each marker (the schema says only "list")
+  const markers = /** @type {((number | null)[] | null)[][] | null | undefined} */ (series.markers_position_m);
+  tracks3dChart(one(view, '[data-chart="tracks3d"]'), series.t_s, markers, series.position_m);
+  const select = one(view, "[data-fit-quantity]", HTMLSelectElement);
   select.replaceChildren(...Object.entries(QUANTITIES).map(([key, q]) => h("option", { value: key }, q.label)));
   select.addEventListener("change", () => drawFits(view, series, select.value));
   drawFits(view, series, select.value || "position");
-  weightedChart(view.querySelector('[data-chart="weighted"]'), series.t_s, column(series.acceleration_m_s2, 1),
+  weightedChart(one(view, '[data-chart="weighted"]'), series.t_s, column(series.acceleration_m_s2, 1),
     series.acc_y_wb_m_s2, series.acc_y_wk_m_s2);
-  spectrumChart(view.querySelector('[data-chart="spectrum"]'), result.spectrum);
-  view.querySelector("[data-zero-rotation]").textContent = zeroRotationText(result);
+  spectrumChart(one(view, '[data-chart="spectrum"]'), result.spectrum);
+  one(view, "[data-zero-rotation]").textContent = zeroRotationText(result);
   const strides = result.strides_analysed;
-  view.querySelector("[data-strides]").textContent = Number.isFinite(strides)
+  one(view, "[data-strides]").textContent = strides != null && Number.isFinite(strides)
     ? `${strides} whole stride${strides === 1 ? "" : "s"} analysed` : "";
 }

@@ -3,7 +3,7 @@
 // the list (&edit=12), Delete (its maker and admins only) asks first.
 
 import { get, itemsOf } from "../api.js";
-import { h, page, showError } from "../dom.js";
+import { h, messageOf, one, page, showError } from "../dom.js";
 import { poll } from "../poll.js";
 import { fillOptions } from "../options.js";
 import { apiParams, bindFilterForm, listState, pager, updateQuery } from "../pager.js";
@@ -14,16 +14,26 @@ const FILTERS = ["horse_id", "rider_id", "gait", "status", "date_from", "date_to
 // A ride in these states is waiting for or inside its analysis: its badge is followed live.
 const UNDER_WAY = new Set(["ready", "processing"]);
 
+/** @typedef {import("../api-types").RideOut} RideOut */
+/** @typedef {import("../api-types").Page_RideOut_} RidePage */
+
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} params
+ * @param {URLSearchParams} query
+ */
 export async function mountRides(view, params, query) {
   view.append(page("rides"));
   const state = listState(query, { filters: FILTERS, sort: "-ridden_on" });
-  const form = view.querySelector("[data-rides-filter]");
-  const list = view.querySelector("[data-rides-list]");
-  const pagerSlot = view.querySelector("[data-rides-pager]");
-  const editSlot = view.querySelector("[data-ride-edit-slot]");
-  const panel = list.closest(".panel");
+  const form = one(view, "[data-rides-filter]", HTMLFormElement);
+  const list = one(view, "[data-rides-list]");
+  const pagerSlot = one(view, "[data-rides-pager]");
+  const editSlot = one(view, "[data-ride-edit-slot]");
+  const panel = /** @type {HTMLElement} */ (list.closest(".panel"));
+  /** @type {RideOut[]} */
   let shown = [];
 
+  /** @param {RideOut} ride */
   async function openEditor(ride) {
     editSlot.hidden = false;
     await mountRideEdit(editSlot, ride, {
@@ -35,6 +45,7 @@ export async function mountRides(view, params, query) {
     editSlot.scrollIntoView({ block: "start" });
   }
 
+  /** @param {RideOut} ride */
   async function remove(ride) {
     try {
       if (await deleteRideWithConfirmation(ride, rideTitle(ride).replace(/^#/, "ride #"))) await load();
@@ -44,6 +55,7 @@ export async function mountRides(view, params, query) {
   }
 
   async function load() {
+    /** @type {RidePage} */
     let answer;
     try {
       answer = await get("/api/rides", { params: apiParams(state) });
@@ -52,14 +64,14 @@ export async function mountRides(view, params, query) {
       showError(panel, error);
       return;
     }
-    const items = itemsOf(answer);
+    const items = answer.items;
     shown = items;
     const filtered = FILTERS.some((name) => state.filters[name] !== "");
     list.replaceChildren(items.length ? rideTable(items, {
       onEdit: (ride) => updateQuery({ edit: ride.id }),
       onDelete: remove,
     }) : h("p", { class: "empty" }, filtered ? "No ride matches these filters. " : "No rides yet. ",
-      filtered ? h("button", { type: "button", class: "link-button", onclick: () => form.querySelector("[data-filter-clear]").click() },
+      filtered ? h("button", { type: "button", class: "link-button", onclick: () => one(form, "[data-filter-clear]").click() },
         "Clear the filters") : h("a", { href: "#/upload" }, "Upload the first one"), "."));
     pagerSlot.replaceChildren(pager(answer, state, { noun: "rides" }));
   }
@@ -71,7 +83,7 @@ export async function mountRides(view, params, query) {
   }
   bindFilterForm(form, state);
   await load();
-  const editId = Number.parseInt(query.get("edit"), 10);
+  const editId = Number.parseInt(query.get("edit") ?? "", 10);
   if (editId > 0) {
     try {
       await openEditor(await get(`/api/rides/${editId}`));
@@ -85,11 +97,12 @@ export async function mountRides(view, params, query) {
   const poller = poll(async () => {
     if (first) { first = false; return 3000; } // just drawn
     try {
+      /** @type {RideOut[]} */
       const now = itemsOf(await get("/api/rides", { params: apiParams(state) }));
       const before = new Map(shown.map((ride) => [ride.id, ride.status]));
       if (now.some((ride) => before.get(ride.id) !== ride.status) && !editSlot.contains(document.activeElement)) await load();
     } catch (error) {
-      console.info("rides not refreshed:", error.message);
+      console.info("rides not refreshed:", messageOf(error));
     }
     return shown.some((ride) => UNDER_WAY.has(ride.status)) ? 3000 : 15000;
   });

@@ -5,20 +5,54 @@
 // length and each camera's wand and close-up clips (issue 35).
 
 import { del, get, getAll, patch, post, request } from "../api.js";
-import { announce, busy, formValues, h, page, showError } from "../dom.js";
+import { all, announce, busy, control, field, formValues, h, maybeOne, messageOf, one, page, showError } from "../dom.js";
 import { poll } from "../poll.js";
 import { navigate } from "../router.js";
 import { plainReason } from "../form-errors.js";
 import { can } from "../session.js";
 import { uploadResumable } from "../uploader.js";
 
+/** @typedef {import("../api-types").RigDetail} RigDetail */
+/** @typedef {import("../api-types").BoardIn} Board */
+/** @typedef {import("../api-types").RecordingOut} RecordingOut */
+/** @typedef {import("../api-types").CameraCheckOut} CameraCheckOut */
+/** @typedef {import("../api-types").BoardTypeOut} BoardType */
+/** @typedef {{kind: string, label: string}} ClipSet a kind of clip a rig holds, and its words */
+/**
+ * What GET /api/rigs/{id}/calibration-report answers (no model in the API: saddlescope.services.rigs.views
+ * calibration_words and coverage_words).
+ * @typedef {object} CalibrationReport
+ * @property {{calibrated: boolean, sentences: string[], flags?: string[]}} quality
+ * @property {Record<string, Coverage>} coverage per camera
+ * @property {boolean} calibrating
+ */
+/**
+ * Where in one camera's image the board has been (coverage_words).
+ * @typedef {object} Coverage
+ * @property {[number, number]} image_size
+ * @property {[number, number][]} [corners_px]
+ * @property {[number, number][] | null} [hull_px]
+ * @property {string[] | null} missed the ninths of the image no corner reached (null: not stored)
+ * @property {string} sentence
+ */
+
+/**
+ * A rig's board: the BoardIn it was given (RigOut.board, which the schema leaves an open object).
+ * @param {{board: Record<string, unknown> | null}} rig
+ */
+function boardOf(rig) {
+  return /** @type {Board | null} */ (rig.board);
+}
+
 export const CAMERAS = ["left", "middle", "right"];
+/** @type {ClipSet[]} */
 const RIG_CLIPS = [
   { kind: "calibration", label: "Calibration (board moved through the view)" },
   { kind: "plumb", label: "Plumb line" },
   { kind: "static", label: "Static (horse standing still)" },
 ];
 // The wand way's clips: the wand waved by all cameras at once, and a small board close to each camera.
+/** @type {ClipSet[]} */
 const WAND_CLIPS = [
   { kind: "wand", label: "Wand (waved along the track, all cameras at once)" },
   { kind: "close_up", label: "Close-up board (this camera alone)" },
@@ -27,11 +61,15 @@ const CLIP_LABELS = Object.fromEntries([...RIG_CLIPS, ...WAND_CLIPS].map((c) => 
 
 // The kinds of calibration board and the fields each adds (GET /api/board-types, the board registry's):
 // the form's choice of kind and its fields are made from them, never listed here.
+/** @type {Promise<BoardType[]> | null} */
 let boardTypesLoading = null;
 
+/** @returns {Promise<BoardType[]>} */
 function boardTypes() {
   if (!boardTypesLoading) {
-    boardTypesLoading = get("/api/board-types").catch((error) => {
+    /** @type {Promise<BoardType[]>} */
+    const loading = get("/api/board-types");
+    boardTypesLoading = loading.catch((error) => {
       boardTypesLoading = null;
       throw error;
     });
@@ -39,7 +77,12 @@ function boardTypes() {
   return boardTypesLoading;
 }
 
-/** The form field of one of a kind's own fields: a number, a text, a choice of the offered texts or a flag. */
+/**
+ * The form field of one of a kind's own fields: a number, a text, a choice of the offered texts or a flag.
+ * @param {HTMLSelectElement} select
+ * @param {BoardType} type
+ * @param {BoardType["options"][number]} option
+ */
 function boardOptionField(select, type, option) {
   const id = `${select.id}-${type.kind}-${option.name}`;
   let input;
@@ -54,10 +97,15 @@ function boardOptionField(select, type, option) {
   return h("div", { class: "field", dataset: { boardKind: type.kind }, hidden: true }, h("label", { for: id }, option.label), input);
 }
 
-/** The board section of a board form: kind, grid and the chosen kind's own fields as their types say. */
+/**
+ * The board section of a board form: kind, grid and the chosen kind's own fields as their types say.
+ * @param {Record<string, string | number>} values
+ * @returns {Promise<Board>}
+ */
 async function boardFrom(values) {
+  /** @type {Board & Record<string, unknown>} */
   const board = {
-    kind: values.kind || "checkerboard",
+    kind: /** @type {Board["kind"]} */ (values.kind || "checkerboard"), // the form's select: the API's kinds
     inner_corners: [Number(values.cols), Number(values.rows)],
     square_mm: Number(values.square_mm),
   };
@@ -72,18 +120,23 @@ async function boardFrom(values) {
   return board;
 }
 
-/** Fill the form's choice of kind and its kinds' fields; only the chosen kind's show (and are sent). */
+/**
+ * Fill the form's choice of kind and its kinds' fields; only the chosen kind's show (and are sent).
+ * @param {HTMLFormElement} form
+ */
 async function wireBoardKind(form) {
-  const select = form.elements.kind;
+  const select = field(form, "kind", HTMLSelectElement);
   const types = await boardTypes();
   select.replaceChildren(...types.map((t) => h("option", { value: t.kind }, t.label)));
-  form.querySelector("[data-board-options]").replaceChildren(
+  one(form, "[data-board-options]").replaceChildren(
     ...types.flatMap((t) => t.options.map((option) => boardOptionField(select, t, option))));
   const show = () => {
-    form.querySelector("[data-board-kind-hint]").textContent = types.find((t) => t.kind === select.value)?.short ?? "";
-    for (const field of form.querySelectorAll("[data-board-kind]")) {
-      field.hidden = field.dataset.boardKind !== select.value;
-      for (const input of field.querySelectorAll("input, select")) input.disabled = field.hidden;
+    one(form, "[data-board-kind-hint]").textContent = types.find((t) => t.kind === select.value)?.short ?? "";
+    for (const div of all(form, "[data-board-kind]")) {
+      div.hidden = div.dataset.boardKind !== select.value;
+      for (const input of div.querySelectorAll("input, select")) {
+        if (input instanceof HTMLInputElement || input instanceof HTMLSelectElement) input.disabled = div.hidden;
+      }
     }
   };
   select.addEventListener("change", show);
@@ -92,17 +145,19 @@ async function wireBoardKind(form) {
 
 // ------------------------------------------------------------------------------------------- list
 
+/** @param {HTMLElement} view */
 export async function mountRigs(view) {
   view.append(page("rigs"));
-  const body = view.querySelector("[data-rig-rows]");
-  const form = view.querySelector("[data-rig-form]");
+  const body = one(view, "[data-rig-rows]");
+  const form = one(view, "[data-rig-form]", HTMLFormElement);
   await wireBoardKind(form);
   form.hidden = !can("rig.create");
+  /** @type {import("../api-types").RigOut[]} */
   const rigs = await getAll("/api/rigs");
   body.replaceChildren(...(rigs.length ? rigs.map((rig) => h("tr", {},
     h("th", { scope: "row" }, h("a", { href: `#/rigs/${rig.id}` }, rig.name)),
     h("td", {}, rig.recorded_on || ""),
-    h("td", {}, rig.board_text),
+    h("td", {}, rig.board_text ?? ""),
     h("td", {}, h("span", { class: `status status-${rig.calibrated ? "done" : "queued"}` },
       rig.calibrated ? "calibrated" : "not calibrated")),
   )) : [h("tr", {}, h("td", { colspan: 4, class: "hint" }, "No rigs yet: add the rig your cameras form below."))]));
@@ -113,6 +168,7 @@ export async function mountRigs(view) {
       try {
         const values = formValues(form);
         if (!values.name) throw new Error("Give the rig a name (e.g. \u201cIndoor arena, three phones\u201d).");
+        /** @type {import("../api-types").RigOut} */
         const rig = await post("/api/rigs", {
           name: values.name, ...(values.recorded_on ? { recorded_on: values.recorded_on } : {}), board: await boardFrom(values),
         });
@@ -127,11 +183,16 @@ export async function mountRigs(view) {
 
 // ------------------------------------------------------------------------------------------- one rig
 
+/**
+ * @param {HTMLElement} root
+ * @param {RigDetail} rig
+ */
 async function showBoard(root, rig) {
-  const box = root.querySelector("[data-board-image]");
-  const note = root.querySelector("[data-board-note]");
-  root.querySelector("[data-board-text]").textContent = rig.board_text;
-  if (!rig.board) {
+  const box = one(root, "[data-board-image]");
+  const note = one(root, "[data-board-note]");
+  one(root, "[data-board-text]").textContent = rig.board_text ?? "";
+  const board = boardOf(rig);
+  if (!board) {
     box.replaceChildren(h("p", { class: "hint" }, "No board described yet."));
     note.hidden = true;
     return;
@@ -143,17 +204,22 @@ async function showBoard(root, rig) {
   box.style.setProperty("--board-height", svg.getAttribute("height"));
   box.replaceChildren(document.importNode(svg, true));
   note.hidden = false;
-  note.querySelector("[data-square-mm]").textContent = `${rig.board.square_mm} mm`;
+  one(note, "[data-square-mm]").textContent = `${board.square_mm} mm`;
   showBoardSizes(root, await get(`/api/rigs/${rig.id}/board-sizes`));
 }
 
+/** @type {(value: unknown, digits?: number) => string} */
 const fmt = (value, digits = 0) => Number(value).toFixed(digits);
 
-/** The board's printed size, the papers it fits and the square each camera distance needs. */
+/**
+ * The board's printed size, the papers it fits and the square each camera distance needs.
+ * @param {HTMLElement} root
+ * @param {import("../api-types").BoardSizesOut} sizes
+ */
 function showBoardSizes(root, sizes) {
-  root.querySelector("[data-board-sizes]").hidden = false;
-  root.querySelector("[data-board-sentences]").replaceChildren(...sizes.sentences.map((s) => h("li", {}, s)));
-  root.querySelector("[data-board-layouts]").replaceChildren(...sizes.layouts.map((lay) => h("li", {
+  one(root, "[data-board-sizes]").hidden = false;
+  one(root, "[data-board-sentences]").replaceChildren(...sizes.sentences.map((s) => h("li", {}, s)));
+  one(root, "[data-board-layouts]").replaceChildren(...sizes.layouts.map((lay) => h("li", {
     class: lay.fits ? "fits" : "no-fit", dataset: { layout: lay.layout } },
   h("strong", {}, `${lay.label}: `),
   lay.layout === "a4-tiles"
@@ -161,7 +227,7 @@ function showBoardSizes(root, sizes) {
     : lay.fits
       ? `fits. This pattern could have squares up to ${fmt(Math.floor(lay.largest_square_mm))} mm on it (found up to ${fmt(lay.reach_m, 1)} m away).`
       : `too small for ${fmt(sizes.square_mm)} mm squares; with this pattern it takes squares up to ${fmt(Math.floor(lay.largest_square_mm))} mm (cameras up to ${fmt(lay.reach_m, 1)} m away).`)));
-  const select = root.querySelector("[data-print-layout]");
+  const select = one(root, "[data-print-layout]", HTMLSelectElement);
   const previous = select.value;
   const fitting = sizes.layouts.filter((lay) => lay.fits);
   select.replaceChildren(...fitting.map((lay) => h("option", { value: lay.layout }, lay.label)));
@@ -169,6 +235,13 @@ function showBoardSizes(root, sizes) {
   select.value = fitting.some((lay) => lay.layout === previous) ? previous : fitting[0].layout;
 }
 
+/**
+ * @param {RigDetail} rig
+ * @param {RecordingOut | undefined} clip the rig's clip of this kind and camera
+ * @param {string} kind
+ * @param {string} camera
+ * @param {() => Promise<void>} onUploaded
+ */
 function clipCell(rig, clip, kind, camera, onUploaded) {
   const id = `rig-clip-${kind}-${camera}`;
   const input = h("input", { id, type: "file", accept: "video/*,.mp4,.mov,.avi,.mkv", dataset: { rigClip: `${kind}-${camera}` } });
@@ -176,19 +249,21 @@ function clipCell(rig, clip, kind, camera, onUploaded) {
     clip ? `${clip.original_filename || "uploaded"} \u00b7 ${clip.width}\u00d7${clip.height} px, ${Number(clip.fps).toFixed(1)} fps` : "not uploaded");
   const error = h("p", { class: "form-error", role: "alert", hidden: true });
   input.addEventListener("change", async () => {
-    if (!input.files.length) return;
+    if (!input.files?.length) return;
     const file = input.files[0];
     error.hidden = true;
     input.disabled = true;
     try {
       status.textContent = "uploading\u2026";
-      await uploadResumable(file, { target: "rig_clip", rig_id: rig.id, clip_kind: kind, camera }, {
+      // the rig page's kinds and cameras are the API's (RIG_CLIPS, WAND_CLIPS, CAMERAS)
+      const target = /** @type {import("../uploader.js").UploadTarget} */ ({ target: "rig_clip", rig_id: rig.id, clip_kind: kind, camera });
+      await uploadResumable(file, target, {
         onProgress: (sent) => { status.textContent = `uploading ${Math.floor((100 * sent) / Math.max(file.size, 1))} %`; },
       });
       announce(`The ${kind.replace("_", "-")} clip of the ${camera} camera is uploaded.`);
       await onUploaded();
     } catch (e) {
-      error.textContent = e.message;
+      error.textContent = messageOf(e);
       error.hidden = false;
       status.textContent = clip ? "the earlier clip is kept" : "not uploaded";
     } finally {
@@ -201,26 +276,41 @@ function clipCell(rig, clip, kind, camera, onUploaded) {
     h("span", { "data-permission": "rig.create" }, input), error);
 }
 
+/**
+ * @param {HTMLElement} root
+ * @param {RigDetail} rig
+ * @param {RecordingOut[]} clips
+ * @param {() => Promise<void>} refresh
+ * @param {{where?: string, kinds?: ClipSet[], label?: string}} [options]
+ */
 function showClips(root, rig, clips, refresh, { where = "[data-rig-clips]", kinds = RIG_CLIPS, label = "camera" } = {}) {
-  const box = root.querySelector(where);
+  const box = one(root, where);
   const uploadAllowed = can("rig.create");
   box.replaceChildren(...CAMERAS.map((camera) => h("section", { class: "camera-card", "aria-label": `${camera} ${label}` },
     h("h3", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera`),
     ...kinds.map(({ kind }) => {
       const cell = clipCell(rig, clips.find((c) => c.clip_kind === kind && c.camera_role === camera), kind, camera, refresh);
-      if (!uploadAllowed) cell.querySelector("[data-permission]").remove();
+      if (!uploadAllowed) one(cell, "[data-permission]").remove();
       return cell;
     }))));
 }
 
 const SVG_NS = "http://www.w3.org/2000/svg";
+/**
+ * @param {string} tag
+ * @param {Record<string, string | number>} attrs
+ */
 function svgEl(tag, attrs) {
   const el = document.createElementNS(SVG_NS, tag);
-  for (const [k, v] of Object.entries(attrs)) el.setAttribute(k, v);
+  for (const [k, v] of Object.entries(attrs)) el.setAttribute(k, String(v));
   return el;
 }
 
-/** One camera's image frame with the board corners seen (dots) and their hull. */
+/**
+ * One camera's image frame with the board corners seen (dots) and their hull.
+ * @param {string} camera
+ * @param {Coverage} entry
+ */
 function coveragePicture(camera, entry) {
   const [w, h_] = entry.image_size;
   const svg = svgEl("svg", { viewBox: `0 0 ${w} ${h_}`, role: "img", class: "coverage",
@@ -247,7 +337,11 @@ function coveragePicture(camera, entry) {
   return svg;
 }
 
-/** One camera's coverage map: the image cut in cells, each shaded by the views whose corners fell in it. */
+/**
+ * One camera's coverage map: the image cut in cells, each shaded by the views whose corners fell in it.
+ * @param {string} camera
+ * @param {CameraCheckOut} entry
+ */
 function checkGrid(camera, entry) {
   const [w, h_] = entry.image_size;
   const rows = entry.grid.length;
@@ -269,14 +363,19 @@ function checkGrid(camera, entry) {
   return svg;
 }
 
-/** The board's distances from the camera: one bar per distance bin, as tall as its views. */
+/**
+ * The board's distances from the camera: one bar per distance bin, as tall as its views.
+ * @param {string} camera
+ * @param {import("../api-types").DepthCoverageOut} depth
+ * @param {string} [what]
+ */
 function depthBars(camera, depth, what = "board") {
   const most = Math.max(1, ...depth.views);
   const n = depth.views.length;
   const bin = 30;
   const svg = svgEl("svg", { viewBox: `0 0 ${n * bin} 28`, role: "img", class: "check-depth",
     "aria-label": depth.near_m == null ? `No distances for the ${camera} camera`
-      : `The ${what} was held ${depth.near_m.toFixed(1)} to ${depth.far_m.toFixed(1)} m from the ${camera} camera` });
+      : `The ${what} was held ${depth.near_m.toFixed(1)} to ${Number(depth.far_m).toFixed(1)} m from the ${camera} camera` });
   depth.views.forEach((views, i) => {
     const tall = (26 * views) / most;
     svg.append(svgEl("rect", { x: i * bin + 2, y: 27 - tall, width: bin - 4, height: tall, class: "check-depth-bar" }));
@@ -287,6 +386,11 @@ function depthBars(camera, depth, what = "board") {
 }
 
 // One camera's check: where the board's corners (or the wand's two ends) went, over the image and in depth.
+/**
+ * @param {string} camera
+ * @param {CameraCheckOut} entry
+ * @param {"board" | "wand"} what
+ */
 function checkFigure(camera, entry, what) {
   const seen = what === "wand" ? `Both wand ends in ${entry.views} of ${entry.frames_sampled} frames looked at; they reached`
     : `Board in ${entry.views} of ${entry.frames_sampled} frames looked at; its corners reached`;
@@ -299,27 +403,36 @@ function checkFigure(camera, entry, what) {
       h("ul", { class: "check-findings" }, ...entry.findings.map((f) => h("li", { class: `severity-${f.severity}` }, f.detail)))));
 }
 
+/**
+ * @param {HTMLElement} root
+ * @param {import("../api-types").CalibrationCheckOut} check
+ */
 function showCheck(root, check) {
-  const verdict = root.querySelector("[data-check-verdict]");
+  const verdict = one(root, "[data-check-verdict]");
   verdict.textContent = check.checking && check.checked ? `Checking again… ${check.verdict}` : check.verdict;
   verdict.className = `check-verdict${check.checked ? (check.film_again ? " film-again" : " ready") : ""}`;
-  root.querySelector("[data-check-cameras]").replaceChildren(
+  one(root, "[data-check-cameras]").replaceChildren(
     ...Object.entries(check.cameras || {}).map(([camera, entry]) => checkFigure(camera, entry, "board")));
   // The wand's clips, once the rig has them and its wand's length (issue 35): checked the same way.
-  const wand = root.querySelector("[data-wand-check]");
+  const wand = one(root, "[data-wand-check]");
   wand.hidden = !check.wand;
   if (check.wand) {
-    const words = wand.querySelector("[data-wand-check-verdict]");
+    const words = one(wand, "[data-wand-check-verdict]");
     words.textContent = check.wand.verdict;
     words.className = `check-verdict${check.wand.film_again ? " film-again" : " ready"}`;
-    wand.querySelector("[data-wand-check-cameras]").replaceChildren(
+    one(wand, "[data-wand-check-cameras]").replaceChildren(
       ...Object.entries(check.wand.cameras || {}).map(([camera, entry]) => checkFigure(camera, entry, "wand")));
   }
-  const again = root.querySelector("[data-check-again]");
+  const again = one(root, "[data-check-again]");
   again.hidden = !can("ride.analyse") || check.checking || !(check.checked || check.wand);
 }
 
+/**
+ * @param {RigDetail} rig
+ * @param {RecordingOut[]} clips
+ */
 function calibrationMissing(rig, clips) {
+  /** @type {string[]} */
   const missing = [];
   if (!rig.board) missing.push("The rig has no calibration board described.");
   const have = clips.filter((c) => c.clip_kind === "calibration").map((c) => c.camera_role);
@@ -328,11 +441,17 @@ function calibrationMissing(rig, clips) {
   return missing;
 }
 
+/**
+ * @param {HTMLElement} root
+ * @param {RigDetail} rig
+ * @param {RecordingOut[]} clips
+ * @param {CalibrationReport} report
+ */
 function showCalibration(root, rig, clips, report) {
-  const status = root.querySelector("[data-calibration-status]");
-  const words = root.querySelector("[data-calibration-words]");
-  const flags = root.querySelector("[data-calibration-flags]");
-  const coverage = root.querySelector("[data-coverage]");
+  const status = one(root, "[data-calibration-status]");
+  const words = one(root, "[data-calibration-words]");
+  const flags = one(root, "[data-calibration-flags]");
+  const coverage = one(root, "[data-coverage]");
   const missing = calibrationMissing(rig, clips);
   const q = report.quality;
   if (report.calibrating) status.textContent = "Calibrating now\u2026 (this page updates by itself)";
@@ -343,26 +462,35 @@ function showCalibration(root, rig, clips, report) {
   flags.replaceChildren(...(q.flags || []).map((f) => h("li", { class: "flag" }, f)));
   coverage.replaceChildren(...Object.entries(report.coverage || {}).map(([camera, entry]) => h("figure", { class: "coverage-figure" },
     coveragePicture(camera, entry), h("figcaption", {}, h("strong", {}, `${camera}: `), entry.sentence))));
-  const again = root.querySelector("[data-calibrate]");
+  const again = one(root, "[data-calibrate]");
   again.hidden = !can("ride.analyse") || report.calibrating || missing.length > 0;
   again.textContent = q.calibrated ? "Calibrate again" : "Calibrate now";
 }
 
+/**
+ * @param {HTMLElement} root
+ * @param {RigDetail} rig
+ * @param {() => Promise<void>} reload
+ */
 function wireBoardEdit(root, rig, reload) {
-  const form = root.querySelector("[data-board-form]");
+  const form = one(root, "[data-board-form]", HTMLFormElement);
   form.hidden = !can("rig.change_board");
   if (form.hidden) return;
   wireBoardKind(form).then(() => {
-    if (!rig.board) return;
-    form.elements.kind.value = rig.board.kind;
-    [form.elements.cols.value, form.elements.rows.value] = rig.board.inner_corners;
-    form.elements.square_mm.value = rig.board.square_mm;
-    for (const [name, value] of Object.entries(rig.board)) {
-      const input = form.querySelector(`[data-board-kind="${rig.board.kind}"] [name="${name}"]`);
-      if (input?.type === "checkbox") input.checked = value === true;
-      else if (input && value !== null) input.value = value;
+    const board = boardOf(rig);
+    if (!board) return;
+    const text = (/** @type {string} */ name) => control(form, name);
+    text("kind").value = String(board.kind);
+    [text("cols").value, text("rows").value] = board.inner_corners.map(String);
+    text("square_mm").value = String(board.square_mm);
+    for (const [name, value] of Object.entries(board)) {
+      const input = form.querySelector(`[data-board-kind="${board.kind}"] [name="${name}"]`);
+      if (input instanceof HTMLInputElement && input.type === "checkbox") input.checked = value === true;
+      else if ((input instanceof HTMLInputElement || input instanceof HTMLSelectElement) && value !== null) {
+        input.value = String(value);
+      }
     }
-    form.elements.kind.dispatchEvent(new Event("change"));
+    text("kind").dispatchEvent(new Event("change"));
   }).catch((error) => showError(form, error));
   form.addEventListener("submit", (event) => {
     event.preventDefault();
@@ -379,18 +507,24 @@ function wireBoardEdit(root, rig, reload) {
   });
 }
 
-/** "Calibrate with a wand": save the wand's length when changed, then ask for the wand way; refusals in words. */
+/**
+ * "Calibrate with a wand": save the wand's length when changed, then ask for the wand way; refusals in words.
+ * @param {HTMLElement} root
+ * @param {number} rigId
+ * @param {() => RigDetail} getRig
+ * @param {() => Promise<void>} reload
+ */
 function wireWand(root, rigId, getRig, reload) {
-  const form = root.querySelector("[data-wand-form]");
-  const button = form.querySelector("[data-calibrate-wand]");
+  const form = one(root, "[data-wand-form]", HTMLFormElement);
+  const button = one(form, "[data-calibrate-wand]");
   button.hidden = !can("ride.analyse");
-  form.elements.wand_length_m.disabled = !can("rig.create");
+  field(form, "wand_length_m").disabled = !can("rig.create");
   form.addEventListener("submit", (event) => {
     event.preventDefault();
     showError(form, null);
     busy(form, async () => {
       try {
-        const typed = form.elements.wand_length_m.value.trim();
+        const typed = field(form, "wand_length_m").value.trim();
         const length = typed === "" ? null : Number(typed.replace(",", "."));
         if (length !== null && length !== getRig().wand_length_m) {
           await patch(`/api/rigs/${rigId}`, { wand_length_m: Number.isFinite(length) ? length : typed });
@@ -405,6 +539,10 @@ function wireWand(root, rigId, getRig, reload) {
   });
 }
 
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} params the rig's id
+ */
 export async function mountRig(view, params) {
   // Its own box: uploads and polls finishing after the user left look into it, not into the next page.
   const root = h("div", { class: "rig-page" });
@@ -412,16 +550,21 @@ export async function mountRig(view, params) {
   view.append(root);
   const rigId = Number(params.id);
   let gone = false;
+  /** @type {RigDetail} */
   let rig = await get(`/api/rigs/${rigId}`);
+  /** @type {RecordingOut[]} */
   let clips = [];
+  /** @type {import("../poll.js").Poller | null} */
   let poller = null;
-  root.querySelector("[data-rig-name]").textContent = rig.name;
-  root.querySelector("[data-upload-with-rig]").href = `#/upload?rig=${rigId}`;
-  root.querySelector("[data-rig-date]").textContent = rig.recorded_on ? `Recorded on ${rig.recorded_on}` : "";
+  one(root, "[data-rig-name]").textContent = rig.name;
+  one(root, "[data-upload-with-rig]", HTMLAnchorElement).href = `#/upload?rig=${rigId}`;
+  one(root, "[data-rig-date]").textContent = rig.recorded_on ? `Recorded on ${rig.recorded_on}` : "";
 
   async function refreshCalibration() {
     if (gone) return false;
+    /** @type {CalibrationReport} */
     const report = await get(`/api/rigs/${rigId}/calibration-report`);
+    /** @type {import("../api-types").CalibrationCheckOut} */
     const check = await get(`/api/rigs/${rigId}/calibration-check`);
     rig = await get(`/api/rigs/${rigId}`);
     if (gone) return false;
@@ -437,7 +580,7 @@ export async function mountRig(view, params) {
     await showBoard(root, rig);
     showClips(root, rig, clips, reload);
     showClips(root, rig, clips, reload, { where: "[data-wand-clips]", kinds: WAND_CLIPS, label: "camera's wand clips" });
-    const length = root.querySelector("[data-wand-form]").elements.wand_length_m;
+    const length = field(one(root, "[data-wand-form]", HTMLFormElement), "wand_length_m");
     if (rig.wand_length_m != null && document.activeElement !== length) length.value = String(rig.wand_length_m);
     poller?.stop?.();
     poller = poll(refreshCalibration, { intervalMs: 3000 });
@@ -445,35 +588,37 @@ export async function mountRig(view, params) {
   wireBoardEdit(root, rig, reload);
   wireWand(root, rigId, () => rig, reload);
   // The print page has every sheet at its size in mm (@page): the browser prints it at scale.
-  root.querySelector("[data-print-board]").addEventListener("click", () => {
-    const layout = root.querySelector("[data-print-layout]").value || "a4-tiles";
+  one(root, "[data-print-board]").addEventListener("click", () => {
+    const layout = one(root, "[data-print-layout]", HTMLSelectElement).value || "a4-tiles";
     window.open(`/api/rigs/${rigId}/board-print?layout=${encodeURIComponent(layout)}`, "_blank", "noopener");
   });
-  root.querySelector("[data-calibrate]").addEventListener("click", async (event) => {
-    const button = event.currentTarget;
+  const calibrate = one(root, "[data-calibrate]", HTMLButtonElement);
+  calibrate.addEventListener("click", async () => {
+    const button = calibrate;
     button.disabled = true;
     try {
       await post(`/api/rigs/${rigId}/calibrate`, {});
       await reload();
     } catch (error) {
-      showError(root.querySelector("[data-calibration-panel]"), error);
+      showError(one(root, "[data-calibration-panel]"), error);
     } finally {
       button.disabled = false;
     }
   });
-  root.querySelector("[data-check-again]").addEventListener("click", async (event) => {
-    const button = event.currentTarget;
+  const checkAgain = one(root, "[data-check-again]", HTMLButtonElement);
+  checkAgain.addEventListener("click", async () => {
+    const button = checkAgain;
     button.disabled = true;
     try {
       await post(`/api/rigs/${rigId}/calibration-check`, {});
       await reload();
     } catch (error) {
-      showError(root.querySelector("[data-check-panel]"), error);
+      showError(one(root, "[data-check-panel]"), error);
     } finally {
       button.disabled = false;
     }
   });
-  const remove = root.querySelector("[data-rig-delete]");
+  const remove = one(root, "[data-rig-delete]");
   remove.hidden = !can("rig.delete");
   remove.addEventListener("click", async () => {
     if (!window.confirm(`Delete the rig \u201c${rig.name}\u201d with its clips and calibration?`)) return;
@@ -481,7 +626,7 @@ export async function mountRig(view, params) {
       await del(`/api/rigs/${rigId}`);
       navigate("/rigs");
     } catch (error) {
-      showError(root.querySelector("[data-rig-header]"), error);
+      showError(one(root, "[data-rig-header]"), error);
     }
   });
   await reload();

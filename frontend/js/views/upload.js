@@ -6,11 +6,30 @@
 // `#/upload?ride=ID` completes an incomplete ride: its stored clips count, only the missing are sent.
 
 import { ApiError, del, get, getAll, patch, post, request } from "../api.js";
-import { announce, formValues, h, page, showError } from "../dom.js";
+import { all, announce, control, field, formValues, h, messageOf, one, page, showError } from "../dom.js";
 import { fillOptions } from "../options.js";
 import { missingBeforeUpload, missingList } from "../ride-readiness.js";
 import { navigate } from "../router.js";
 import { abandonUploads, finalizeUpload, uploadResumable } from "../uploader.js";
+
+/** @typedef {import("../uploader.js").UploadTarget} UploadTarget */
+/** @typedef {import("../ride-readiness.js").Clip} Clip */
+/** @typedef {Record<string, string | number>} FormValues the form's filled fields (dom.js formValues) */
+/** @typedef {{name: string | null, id: number | null}} Named a horse, rider or saddle of a bundle: its name and the club's id */
+/**
+ * What GET /api/uploads/{id}/bundle-meta answers (no model in the API:
+ * saddlescope.services.uploads.bundle_meta.read_bundle_meta): the ride.json of an uploaded bundle.
+ * @typedef {object} BundleMeta
+ * @property {Named} horse
+ * @property {Named} rider
+ * @property {Named} saddle
+ * @property {string | null} gait
+ * @property {string | null} direction
+ * @property {string | null} ridden_on
+ * @property {string} notes
+ * @property {string | null} pad
+ * @property {number | null} rider_weight_kg
+ */
 
 const CAMERAS = ["left", "middle", "right"];
 const CLIP_SETS = [
@@ -21,6 +40,7 @@ const CLIP_SETS = [
 ];
 const FROM_BUNDLE = "from-bundle";
 
+/** @param {Clip[]} stored the ride's clips on the server */
 function clipCards(stored) {
   return CAMERAS.map((camera) => h("section", { class: "camera-card", "aria-label": `${camera} camera` },
     h("h3", {}, `${camera[0].toUpperCase()}${camera.slice(1)} camera`),
@@ -34,44 +54,66 @@ function clipCards(stored) {
     })));
 }
 
+/**
+ * The clips chosen in the form, with the kind and camera of each.
+ * @param {HTMLFormElement} form
+ * @returns {(Clip & {file: File})[]}
+ */
 function chosenClips(form) {
-  return [...form.querySelectorAll("input[data-clip-kind]")]
-    .filter((input) => input.files.length)
-    .map((input) => ({ file: input.files[0], kind: input.dataset.clipKind, camera: input.dataset.camera }));
+  return all(form, "input[data-clip-kind]", HTMLInputElement)
+    .filter((input) => input.files?.length)
+    .map((input) => ({ file: /** @type {FileList} */ (input.files)[0], kind: input.dataset.clipKind ?? "",
+      camera: input.dataset.camera ?? "" }));
 }
 
+/** @param {number} bytes */
 function mib(bytes) {
   return `${(bytes / 1048576).toFixed(bytes < 10485760 ? 1 : 0)} MiB`;
 }
 
 const today = () => new Date().toISOString().slice(0, 10);
 
+/**
+ * @param {HTMLElement} view
+ * @param {Record<string, string>} _params
+ * @param {URLSearchParams} query
+ */
 export async function mountUpload(view, _params, query) {
   view.append(page("upload"));
-  const form = view.querySelector("[data-upload-form]");
-  const progressBox = form.querySelector("[data-upload-progress]");
-  const progress = progressBox.querySelector("progress");
-  const status = form.querySelector("[data-upload-status]");
-  const label = form.querySelector("[data-upload-label]");
-  const submit = form.querySelector("[data-upload-submit]");
-  const cancel = form.querySelector("[data-upload-cancel]");
-  const readiness = form.querySelector("[data-readiness]");
-  const prefillNote = form.querySelector("[data-bundle-prefill]");
+  const form = one(view, "[data-upload-form]", HTMLFormElement);
+  const progressBox = one(form, "[data-upload-progress]");
+  const progress = one(progressBox, "progress", HTMLProgressElement);
+  const status = one(form, "[data-upload-status]");
+  const label = one(form, "[data-upload-label]");
+  const submit = one(form, "[data-upload-submit]", HTMLButtonElement);
+  const cancel = one(form, "[data-upload-cancel]");
+  const readiness = one(form, "[data-readiness]");
+  const prefillNote = one(form, "[data-bundle-prefill]");
+  const rigSelect = field(form, "rig_id", HTMLSelectElement);
+  /** @type {AbortController | null} */
   let controller = null;
+  /** @type {{file: File, target: UploadTarget}[]} */
   let active = [];
-  let stagedBundle = null; // {upload: {id, key}, file}: uploaded, read, not yet a ride
-  let bundleError = null; // why the chosen bundle could not be read
+  /** @type {{upload: {id: string, key: string}, file: File} | null} uploaded, read, not yet a ride */
+  let stagedBundle = null;
+  /** @type {unknown} why the chosen bundle could not be read */
+  let bundleError = null;
   const completing = query?.get?.("ride") ? Number(query.get("ride")) : null;
   let pendingRideId = completing;
-  let storedClips = []; // the ride's clips already on the server (completing a ride)
+  /** @type {Clip[]} the ride's clips already on the server (completing a ride) */
+  let storedClips = [];
+  /** @type {import("../api-types").RigOut[]} */
   let rigs = [];
+  /** @type {{rig: import("../api-types").RigOut | null, clips: Clip[]}} */
   let rigInfo = { rig: null, clips: [] };
 
-  const source = () => form.querySelector("[data-upload-source]:checked").value;
+  const source = () => one(form, "[data-upload-source]:checked", HTMLInputElement).value;
+  /** The abort signal of the upload under way (set before any upload starts). */
+  const signal = () => /** @type {AbortController} */ (controller).signal;
 
   async function loadRigs() {
     rigs = await getAll("/api/rigs");
-    const select = form.elements.rig_id;
+    const select = rigSelect;
     const keep = select.value;
     select.replaceChildren(h("option", { value: "" }, rigs.length ? "choose the rig\u2026" : "no rigs yet: add one on the Rigs page"),
       ...rigs.map((rig) => h("option", { value: rig.id }, `${rig.name} (${rig.calibrated ? "calibrated" : "not calibrated"})`)));
@@ -79,9 +121,11 @@ export async function mountUpload(view, _params, query) {
   }
 
   async function loadRig() {
-    const id = Number(form.elements.rig_id.value) || null;
+    const id = Number(rigSelect.value) || null;
     const rig = rigs.find((r) => r.id === id) || null;
-    const clips = rig ? (await get(`/api/rigs/${rig.id}/clips`)).map((c) => ({ kind: c.clip_kind, camera: c.camera_role })) : [];
+    /** @type {import("../api-types").RecordingOut[]} */
+    const stored = rig ? await get(`/api/rigs/${rig.id}/clips`) : [];
+    const clips = stored.map((c) => ({ kind: c.clip_kind, camera: c.camera_role }));
     rigInfo = { rig, clips };
     markRigClips();
     checkReadiness();
@@ -89,11 +133,11 @@ export async function mountUpload(view, _params, query) {
 
   // Clips the chosen rig already holds need not be sent again: say so beside each file field.
   function markRigClips() {
-    for (const input of form.querySelectorAll("input[data-clip-kind]")) {
+    for (const input of all(form, "input[data-clip-kind]", HTMLInputElement)) {
       const { clipKind, camera } = input.dataset;
       const fromRig = rigInfo.clips.some((c) => c.kind === clipKind && c.camera === camera)
         || (clipKind === "calibration" && rigInfo.rig?.calibrated);
-      const hint = input.closest(".field")?.querySelector("[data-rig-hint]");
+      const hint = input.closest(".field")?.querySelector("[data-rig-hint]") ?? null;
       if (hint) hint.textContent = fromRig ? " – the rig has it: only to replace it for this ride" : "";
     }
   }
@@ -106,18 +150,22 @@ export async function mountUpload(view, _params, query) {
   function checkReadiness() {
     const missing = source() === "clips" ? missingNow() : [];
     readiness.hidden = !missing.length;
-    form.querySelector("[data-readiness-list]").replaceChildren(missingList(missing));
+    one(form, "[data-readiness-list]").replaceChildren(missingList(missing));
     return missing;
   }
 
   function showSource() {
-    for (const part of form.querySelectorAll("[data-upload-part]")) part.hidden = part.dataset.uploadPart !== source();
+    for (const part of all(form, "[data-upload-part]")) part.hidden = part.dataset.uploadPart !== source();
     // A motion-capture file has no cameras to calibrate.
-    form.elements.rig_id.closest(".field").hidden = source() === "mocap";
+    /** @type {HTMLElement} */ (rigSelect.closest(".field")).hidden = source() === "mocap";
     checkReadiness();
   }
-  for (const radio of form.querySelectorAll("[data-upload-source]")) radio.addEventListener("change", showSource);
+  for (const radio of all(form, "[data-upload-source]")) radio.addEventListener("change", showSource);
 
+  /**
+   * @param {boolean} on
+   * @param {string} [text]
+   */
   function setBusy(on, text = "") {
     submit.disabled = on;
     cancel.hidden = !on;
@@ -126,7 +174,13 @@ export async function mountUpload(view, _params, query) {
     if (text) status.textContent = text;
   }
 
+  /**
+   * A progress function for `totalBytes` sent in parts: call it with each part's name and bytes sent.
+   * @param {number} totalBytes
+   * @returns {(name: string, bytes: number) => void}
+   */
   function track(totalBytes) {
+    /** @type {Map<string, number>} */
     const sent = new Map();
     progress.max = Math.max(totalBytes, 1);
     progress.value = 0;
@@ -145,7 +199,12 @@ export async function mountUpload(view, _params, query) {
     };
   }
 
-  /** Choose `id` in `select`, or add a "new, from the bundle" choice named `name` and choose that. */
+  /**
+   * Choose `id` in `select`, or add a "new, from the bundle" choice named `name` and choose that.
+   * @param {HTMLSelectElement} select
+   * @param {Named | null | undefined} entity
+   * @param {string} what
+   */
   function prefillEntity(select, entity, what) {
     for (const old of select.querySelectorAll(`option[value="${FROM_BUNDLE}"]`)) old.remove();
     if (entity?.id) {
@@ -158,37 +217,43 @@ export async function mountUpload(view, _params, query) {
     return `the ${what} \u201c${entity.name}\u201d is not in the club yet: keep it to add it, or choose one of yours`;
   }
 
+  /** @param {BundleMeta} meta */
   function prefill(meta) {
-    const notes = [prefillEntity(form.elements.horse_id, meta.horse, "horse"), prefillEntity(form.elements.rider_id, meta.rider, "rider"),
-      prefillEntity(form.elements.saddle_id, meta.saddle, "saddle")];
-    if (meta.pad && !form.elements.pad.value) form.elements.pad.value = meta.pad;
-    if (Number.isFinite(meta.rider_weight_kg) && !form.elements.rider_weight_kg.value) form.elements.rider_weight_kg.value = meta.rider_weight_kg;
-    if (meta.gait) form.elements.gait.value = meta.gait;
-    if (meta.direction) form.elements.direction.value = meta.direction;
-    if (meta.ridden_on) form.elements.ridden_on.value = meta.ridden_on;
-    if (meta.notes && !form.elements.notes.value) form.elements.notes.value = meta.notes;
+    const select = (/** @type {string} */ name) => field(form, name, HTMLSelectElement);
+    const notes = [prefillEntity(select("horse_id"), meta.horse, "horse"), prefillEntity(select("rider_id"), meta.rider, "rider"),
+      prefillEntity(select("saddle_id"), meta.saddle, "saddle")];
+    const text = (/** @type {string} */ name) => control(form, name);
+    if (meta.pad && !text("pad").value) text("pad").value = meta.pad;
+    if (meta.rider_weight_kg != null && Number.isFinite(meta.rider_weight_kg) && !text("rider_weight_kg").value) {
+      text("rider_weight_kg").value = String(meta.rider_weight_kg);
+    }
+    if (meta.gait) text("gait").value = meta.gait;
+    if (meta.direction) text("direction").value = meta.direction;
+    if (meta.ridden_on) text("ridden_on").value = meta.ridden_on;
+    if (meta.notes && !text("notes").value) text("notes").value = meta.notes;
     const extra = notes.filter(Boolean);
     prefillNote.textContent = `Filled in from the bundle's ride.json: check the ride's details above, then press \u201cUpload and analyse\u201d.${extra.length ? ` Note: ${extra.join("; ")}.` : ""}`;
     prefillNote.hidden = false;
   }
 
   async function stageBundle() {
-    const input = form.elements.bundle;
+    const input = field(form, "bundle");
     stagedBundle = null;
     bundleError = null;
     prefillNote.hidden = true;
-    if (!input.files.length) return;
+    if (!input.files?.length) return;
     const file = input.files[0];
     controller = new AbortController();
     setBusy(true, "Starting\u2026");
     showError(form, null);
     try {
-      const target = { target: "bundle", ...(form.elements.rig_id.value ? { rig_id: Number(form.elements.rig_id.value) } : {}) };
+      /** @type {UploadTarget} */
+      const target = { target: "bundle", ...(rigSelect.value ? { rig_id: Number(rigSelect.value) } : {}) };
       active = [{ file, target }];
       const progressOf = track(file.size);
       label.textContent = `Uploading ${file.name}`;
-      const upload = await uploadResumable(file, target, { signal: controller.signal, finalize: false,
-        onProgress: (b) => progressOf(file.name, b) });
+      const upload = await uploadResumable(file, target,
+        { signal: signal(), finalize: false, onProgress: (b) => progressOf(file.name, b) });
       try {
         prefill(await get(`/api/uploads/${upload.id}/bundle-meta`));
       } catch (error) {
@@ -204,12 +269,18 @@ export async function mountUpload(view, _params, query) {
       bundleError = error;
       setBusy(false);
       progressBox.hidden = true;
-      showError(form, error.name === "AbortError" ? "Upload cancelled." : reason(error));
+      showError(form, isAbort(error) ? "Upload cancelled." : reason(error));
     }
   }
-  form.elements.bundle.addEventListener("change", stageBundle);
+  field(form, "bundle").addEventListener("change", stageBundle);
 
+  /**
+   * The ride's details as the form has them (a bundle's, over its ride.json).
+   * @param {FormValues} values
+   * @returns {Record<string, string | number | null>}
+   */
   function chosenDetails(values) {
+    /** @type {Record<string, string | number | null>} */
     const details = { gait: values.gait, direction: values.direction, ridden_on: values.ridden_on || null, notes: values.notes || "" };
     if (values.horse_id && values.horse_id !== FROM_BUNDLE) details.horse_id = Number(values.horse_id);
     if (values.rider_id && values.rider_id !== FROM_BUNDLE) details.rider_id = Number(values.rider_id);
@@ -219,17 +290,21 @@ export async function mountUpload(view, _params, query) {
   }
 
   // The saddle, pad and rider's weight chosen (left out when empty: the bundle's, or the rider's weight).
+  /** @param {FormValues} values */
   function saddleDetails(values) {
+    /** @type {{saddle_id?: number, pad?: string | number, rider_weight_kg?: number}} */
     const details = {};
     if (values.saddle_id && values.saddle_id !== FROM_BUNDLE) details.saddle_id = Number(values.saddle_id);
     if (values.pad) details.pad = values.pad;
-    if (Number.isFinite(values.rider_weight_kg)) details.rider_weight_kg = values.rider_weight_kg;
+    const weight = values.rider_weight_kg;
+    if (typeof weight === "number" && Number.isFinite(weight)) details.rider_weight_kg = weight; // data-kind="float"
     return details;
   }
 
+  /** @param {FormValues} values */
   async function uploadBundle(values) {
     if (!stagedBundle) {
-      if (!form.elements.bundle.files.length) throw new Error("Please choose the ride bundle (.zip).");
+      if (!field(form, "bundle").files?.length) throw new Error("Please choose the ride bundle (.zip).");
       if (bundleError) throw bundleError;
       await stageBundle();
       if (bundleError) throw bundleError;
@@ -238,11 +313,12 @@ export async function mountUpload(view, _params, query) {
     const details = chosenDetails(values);
     if (!details.ridden_on) delete details.ridden_on;
     label.textContent = `Creating the ride from ${stagedBundle.file.name}`;
-    const answer = await finalizeUpload(stagedBundle.upload, details, { signal: controller.signal });
+    const answer = await finalizeUpload(stagedBundle.upload, details, { signal: signal() });
     stagedBundle = null;
     return answer.ride_id; // finalize answers {ride_id, job_id} for a bundle
   }
 
+  /** @param {FormValues} values */
   async function uploadClips(values) {
     const missing = checkReadiness();
     if (missing.length) throw new Error("Nothing was sent: the ride cannot be analysed without what is listed above.");
@@ -254,41 +330,47 @@ export async function mountUpload(view, _params, query) {
       notes: values.notes || "", ...saddleDetails(values),
     };
     // After a failed attempt the ride exists already: send the clips to it again instead of a new one.
+    /** @type {{id: number}} the ride (a RideOut when made or changed here) */
     const ride = pendingRideId ? (completing === pendingRideId ? { id: pendingRideId } : await patch(`/api/rides/${pendingRideId}`, fields))
       : await post("/api/rides", fields);
     pendingRideId = ride.id;
     const progressOf = track(clips.reduce((total, c) => total + c.file.size, 0));
     active = [];
+    /** @type {import("../uploader.js").Finalized | null} */
     let last = null;
     for (const clip of clips) {
-      const target = { target: "ride_clip", ride_id: ride.id, clip_kind: clip.kind, camera: clip.camera };
+      // the clip fields' kinds and cameras are the API's (CLIP_SETS, CAMERAS)
+      const target = /** @type {UploadTarget} */ ({ target: "ride_clip", ride_id: ride.id, clip_kind: clip.kind, camera: clip.camera });
       active.push({ file: clip.file, target });
       label.textContent = `Uploading the ${clip.kind} clip of the ${clip.camera} camera`;
       last = await uploadResumable(clip.file, target, {
-        signal: controller.signal, onProgress: (b) => progressOf(`${clip.kind}/${clip.camera}`, b) });
+        signal: signal(), onProgress: (b) => progressOf(`${clip.kind}/${clip.camera}`, b) });
     }
     if (last && last.job_id == null) {
       // Stored, but the server found something still missing: say so instead of "queued".
+      /** @type {import("../api-types").ReadinessOut} */
       const answer = await get(`/api/rides/${ride.id}/readiness`);
       if (!answer.ready) {
         readiness.hidden = false;
-        form.querySelector("[data-readiness-list]").replaceChildren(missingList(answer.missing));
+        one(form, "[data-readiness-list]").replaceChildren(missingList(answer.missing));
         throw new Error(`The clips are stored with ride ${ride.id}, but it cannot be analysed yet (see above).`);
       }
     }
     return ride.id;
   }
 
+  /** @param {FormValues} values */
   async function uploadMocap(values) {
-    const input = form.elements.mocap;
-    if (!input.files.length) throw new Error("Please choose the C3D or TRC file.");
-    const labels = (values.markers || "").split(",").map((l) => l.trim()).filter(Boolean);
+    const input = field(form, "mocap");
+    if (!input.files?.length) throw new Error("Please choose the C3D or TRC file.");
+    const labels = String(values.markers || "").split(",").map((l) => l.trim()).filter(Boolean);
     if (labels.length !== 3) throw new Error("Please name three marker labels for M1, M2 and M3, separated by commas.");
     const file = input.files[0];
     label.textContent = `Uploading and analysing ${file.name}`;
     progress.removeAttribute("value");  // indeterminate: the file goes in one request, analysed on arrival
+    /** @type {import("../api-types").MocapRideOut | null} */
     const answer = await request("POST", "/api/mocap", {
-      body: file, signal: controller.signal, headers: { "Content-Type": "application/octet-stream" },
+      body: file, signal: signal(), headers: { "Content-Type": "application/octet-stream" },
       params: {
         horse_id: values.horse_id, rider_id: values.rider_id, gait: values.gait, direction: values.direction,
         ridden_on: values.ridden_on, markers: labels.join(","), point: values.point, up: values.up,
@@ -298,9 +380,15 @@ export async function mountUpload(view, _params, query) {
     return answer?.ride?.id;
   }
 
+  /** @param {unknown} error */
   function reason(error) {
     // The server's reason verbatim (e.g. 422 "... is not a zip file"), with the status for 4xx/5xx.
-    return error instanceof ApiError && error.status ? `${error.message} (HTTP ${error.status})` : error.message;
+    return error instanceof ApiError && error.status ? `${error.message} (HTTP ${error.status})` : messageOf(error);
+  }
+
+  /** @param {unknown} error whether it is the Cancel button's (an aborted fetch) */
+  function isAbort(error) {
+    return error instanceof Error && error.name === "AbortError";
   }
 
   form.addEventListener("submit", async (event) => {
@@ -310,8 +398,9 @@ export async function mountUpload(view, _params, query) {
     controller = new AbortController();
     setBusy(true, "Starting\u2026");
     try {
-      const upload = { bundle: uploadBundle, clips: uploadClips, mocap: uploadMocap }[source()];
-      const rideId = await upload(values);
+      /** @type {Record<string, (values: FormValues) => Promise<number | undefined>>} */
+      const ways = { bundle: uploadBundle, clips: uploadClips, mocap: uploadMocap };
+      const rideId = await ways[source()](values);
       pendingRideId = null;
       setBusy(false, "Upload complete.");
       announce(source() === "mocap" ? "Upload complete; the ride is analysed." : "Upload complete; the analysis has been queued.");
@@ -319,13 +408,14 @@ export async function mountUpload(view, _params, query) {
     } catch (error) {
       setBusy(false);
       progressBox.hidden = true;
-      showError(form, error.name === "AbortError" ? "Upload cancelled." : reason(error));
+      showError(form, isAbort(error) ? "Upload cancelled." : reason(error));
       if (error instanceof ApiError && Number.isInteger(error.body?.ride_id)) await sameClipsAgain(error.body.ride_id);
     }
   });
 
   // The same clips again (409 naming the ride they already are): the empty ride just made for them goes,
   // and the error links to the existing one.
+  /** @param {number} existing the ride the clips are already */
   async function sameClipsAgain(existing) {
     if (pendingRideId && pendingRideId !== completing && pendingRideId !== existing) {
       try {
@@ -335,7 +425,7 @@ export async function mountUpload(view, _params, query) {
         // kept: the member may not delete it (the error above still names the existing ride)
       }
     }
-    form.querySelector("[data-form-error]").append(" ", h("a", { href: `#/rides/${existing}`, "data-existing-ride": existing },
+    one(form, "[data-form-error]").append(" ", h("a", { href: `#/rides/${existing}`, "data-existing-ride": existing },
       `Open ride ${existing}`));
   }
 
@@ -343,26 +433,33 @@ export async function mountUpload(view, _params, query) {
     controller?.abort();
     await Promise.all(active.map(({ file, target }) => abandonUploads(file, target)));
   });
-  form.elements.rig_id.addEventListener("change", () => loadRig().catch((error) => showError(form, error)));
-  form.addEventListener("change", (event) => { if (event.target.dataset?.clipKind) checkReadiness(); });
+  rigSelect.addEventListener("change", () => loadRig().catch((error) => showError(form, error)));
+  form.addEventListener("change", (event) => {
+    if (/** @type {HTMLElement} */ (event.target).dataset?.clipKind) checkReadiness();
+  });
 
   try {
-    form.elements.ridden_on.value = today();
+    control(form, "ridden_on").value = today();
     await Promise.all([fillOptions(form), loadRigs()]);
     if (completing) {
-      const [ride, clips] = await Promise.all([get(`/api/rides/${completing}`), get(`/api/rides/${completing}/clips`)]);
+      /** @type {Promise<import("../api-types").RideDetail>} */
+      const asked = get(`/api/rides/${completing}`);
+      /** @type {Promise<import("../api-types").RecordingOut[]>} */
+      const askedClips = get(`/api/rides/${completing}/clips`);
+      const [ride, clips] = await Promise.all([asked, askedClips]);
       storedClips = clips.map((c) => ({ kind: c.clip_kind, camera: c.camera_role }));
-      for (const name of ["horse_id", "rider_id", "gait", "direction", "ridden_on", "rig_id"]) {
-        if (ride[name] != null) form.elements[name].value = String(ride[name]);
+      for (const name of /** @type {const} */ (["horse_id", "rider_id", "gait", "direction", "ridden_on", "rig_id"])) {
+        if (ride[name] != null) control(form, name).value = String(ride[name]);
       }
-      form.querySelector('[data-upload-source][value="clips"]').checked = true;
+      one(form, '[data-upload-source][value="clips"]', HTMLInputElement).checked = true;
       // The ride exists: only its missing clips are sent (its details are changed on the ride page).
-      for (const name of ["horse_id", "rider_id", "gait", "direction", "ridden_on", "rig_id", "notes"]) form.elements[name].disabled = true;
-      for (const radio of form.querySelectorAll("[data-upload-source]")) radio.disabled = radio.value !== "clips";
-      view.querySelector("h1").textContent = `Complete ride ${completing}`;
+      for (const name of ["horse_id", "rider_id", "gait", "direction", "ridden_on", "rig_id", "notes"]) control(form, name).disabled = true;
+      for (const radio of all(form, "[data-upload-source]", HTMLInputElement)) radio.disabled = radio.value !== "clips";
+      one(view, "h1").textContent = `Complete ride ${completing}`;
     }
-    if (!completing && query?.get?.("rig")) form.elements.rig_id.value = query.get("rig");  // from a rig page
-    form.querySelector("[data-clip-cards]").append(...clipCards(storedClips));
+    const rigAsked = query?.get?.("rig");
+    if (!completing && rigAsked) rigSelect.value = rigAsked;  // from a rig page
+    one(form, "[data-clip-cards]").append(...clipCards(storedClips));
     showSource();
     await loadRig();
   } catch (error) {
