@@ -2,10 +2,10 @@
 
 A board carried through the middle band of the volume fixes each lens only where it went (the lens reach,
 :mod:`saddlescope.core.triangulation.lens_reach`); a wand walked along the track reaches the image edges.
-:func:`refine_board_rig` refines the board's rig with the wand's ends
-(:func:`~saddlescope.core.calibration.wand.refine_with_wand`: the poses and each lens's k1, k2, the wand's
-length held, the ends taken in outward from the board's reach) on most of the wand's frames, then checks
-both rigs on what neither fitted to (:func:`check_rig`):
+:func:`refine_board_rig` refines the board's rig with the wand's ends on most of the wand's frames
+(:func:`~saddlescope.core.calibration.board_wand_bundle.refine_board_and_wand`: the poses and each lens's k1,
+k2 from the board's views and the wand's ends together, the wand's length held, the ends taken in outward
+from the board's reach), then checks both rigs on what neither fitted to (:func:`check_rig`):
 
 - the wand's length on the wand frames held out of the refinement (every fifth run of
   :data:`HELD_OUT_RUN_FRAMES` frames), each rig triangulating with its own lens reach, as the ride does;
@@ -25,12 +25,13 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
+from saddlescope.core.calibration.board_wand_bundle import refine_board_and_wand
 from saddlescope.core.calibration.checks import metric_checks
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.calibration.wand import (
     WAND_LENGTH_LIMIT_PCT,
     WandView,
-    refine_with_wand,
+    relabel_with_rig,
 )
 from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.findings import Finding
@@ -46,11 +47,11 @@ __all__ = ["HELD_OUT_EVERY", "HELD_OUT_RUN_FRAMES", "check_rig", "held_out_split
 # held-out ends go where the fitted ones went (the horse's markers pass there too).
 HELD_OUT_EVERY = 5
 HELD_OUT_RUN_FRAMES = 10
-# How much worse a check may come out and still count as "not worse": (ratio, floor). On the arena's band
-# rides (docs/accuracy.md, "A middle-band board refined by a wand") a good refinement rebuilt the board's
-# squares 0.025 % -> 0.045-0.067 % off (the wand's scale, not the board's) and its corners 0.15 -> 0.15-0.16 px;
-# a wand told 0.3 % long gave 0.34 %, ends 1 px off 0.19 % and 0.25 px. The floor of 0.1 % of the square is
-# what a tape measure gives on a 1 m wand (1 mm).
+# How much worse a check may come out and still count as "not worse": (ratio, floor). On the arena's four band
+# rides (docs/accuracy.md, "A middle-band board refined by a wand") a good refinement rebuilt the board's squares
+# 0.022-0.026 % -> 0.025-0.047 % off and its corners 0.152 -> 0.152-0.155 px; a wand told 1 % long gave 0.22 %
+# (refused), 0.3 % long 0.08 % (kept: the board's squares and the wand share the scale). The floor of 0.1 % of
+# the square is what a tape measure gives on a 1 m wand (1 mm).
 SQUARE_TOLERANCE = (0.25, 0.1)  # of board_square_error_pct: ratio, percent of the square
 BOARD_PX_TOLERANCE = (0.25, 0.05)  # of board_rms_px: ratio, px
 LENGTH_TOLERANCE = (0.0, 0.5)  # of the held-out wand length r.m.s.: ratio, mm
@@ -187,7 +188,8 @@ def refine_board_rig(rig: Rig, board_views: Mapping[str, list[BoardView]], board
     ----------
     rig, board_views, board : the board walk's rig, the views it was fitted to and its board.
     wand_views : dict name -> list of WandView
-        The wand's ends on the first camera's clock.
+        The wand's ends on the first camera's clock, each camera's labels its own tracker's (they are made to
+        agree between cameras with the rig's epipolar geometry, :func:`relabel_with_rig`).
     board_hull_px : dict name -> (H, 2) list
         Where the board's corners went in each image (the board coverage's hull): the board's lens reach.
 
@@ -197,18 +199,20 @@ def refine_board_rig(rig: Rig, board_views: Mapping[str, list[BoardView]], board
         Its ``wand_refinement`` says whether it is the refined rig and why. A refined rig's checks are the
         board's metric checks recomputed with it and the wand's (``wand_length_rms_mm`` over every frame).
     report : dict
-        ``refinement`` (:func:`refine_with_wand`'s report, where it ran) and, where the refined rig is kept,
+        ``refinement`` (:func:`refine_board_and_wand`'s report, where it ran) and, where the refined rig is kept,
         ``lens_coverage`` (:func:`lens_coverage`: where its lens is known, for the ride's lens reach).
     """
-    fit, held = held_out_split(wand_views)
+    # each camera's tracker named the ends by itself: end A made the same marker in every camera first
+    fit, held = held_out_split(relabel_with_rig(rig, wand_views))
     board_check, n_held = check_rig(rig, board_views, board, held, wand_length_mm, board_hull_px)
 
     def board_kept(reason: str, refined_check: WandCheck | None = None) -> Rig:
         choice = WandRefinement(False, reason, float(wand_length_mm), n_held, board_check, refined_check)
         return Rig(rig.cameras, rig.checks, rig.flags, rig.pairs, rig.lens_models, wand_refinement=choice)
 
-    try:
-        refined, report = refine_with_wand(rig, fit, wand_length_mm, reach_px=board_check.reach_px, loss=loss)
+    try:  # the board's views and the wand's ends together: the poses stay consistent with the board's lenses
+        refined, report = refine_board_and_wand(rig, board_views, board, fit, wand_length_mm,
+                                                reach_px=board_check.reach_px, loss=loss)
     except (CalibrationError, InputError) as exc:
         return board_kept(f"the wand could not refine it ({exc})"), {}
     coverage = lens_coverage(refined, board_hull_px, fit)
