@@ -420,8 +420,9 @@ def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band
     For each partial-view canter (``wide_partial`` rig, 4-6 m/s, the board through ``band`` of the volume, 30
     poses; the coverage table's band-0.6 seeds, build 1013 and 1015, held-out 2041 and 2043): the rig is
     calibrated from the board's exact corner projections (0.15 px noise) as the ride's board clip shows them,
-    then refined by a 1 m wand waved through the whole volume
-    (:func:`~saddlescope.core.calibration.wand.refine_with_wand`; its ends' exact pixels, 0.2 px noise). The
+    then refined by a 1 m wand waved through the whole volume as the pipeline's ``board+wand`` way does
+    (:func:`~saddlescope.core.calibration.wand_refinement.refine_board_rig`: the board's views and the wand's
+    ends adjusted together, kept where the held-out checks are no worse; its ends' exact pixels, 0.2 px noise). The
     motion clip's exact marker pixels are then checked against where each calibration's lens is known: the
     board's corners alone, then the board's and the wand's ends. Reported per ride: the share of marker
     samples outside the region (the convex hull, as ``quality.markers_outside_board_fraction``) and beyond
@@ -436,13 +437,6 @@ def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band
     return {"wand_refines_band": {"band": band, "rides": rides, "beyond_reach_ratio_max": round(max(ratios), 3)}}
 
 
-def _as_wand_views(board_views: list) -> list:
-    """Board views as WandView-like point sets (for one hull over the board's corners and the wand's ends)."""
-    from saddlescope.core.calibration.wand import WandView
-
-    return [WandView(v.frame, v.corners_px) for v in board_views]
-
-
 def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_track: bool) -> dict:
     """One ride of :func:`wand_refines_band`."""
     import numpy as np
@@ -452,10 +446,9 @@ def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_
     from saddlescope.arena.content import BOARD
     from saddlescope.arena.wand import wand_path
     from saddlescope.core.calibration import calibrate_rig
-    from saddlescope.core.calibration.wand import refine_with_wand, wand_length_errors
+    from saddlescope.core.calibration.wand import wand_length_errors
+    from saddlescope.core.calibration.wand_refinement import refine_board_rig
     from saddlescope.core.pipeline.setup import board_coverage
-    from saddlescope.core.pipeline.wand_setup import wand_coverage
-    from saddlescope.core.triangulation.lens_reach import board_reach_px
 
     rng = np.random.default_rng(seed + 7000)
     scene = build_scene(gait="canter", seed=seed, rig="wide_partial", board_band=band, speed_range_m_s=(4.0, 6.0),
@@ -470,13 +463,13 @@ def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_
     wand = _wand_views_exact(srig, wand_path(srig, rng, n_frames=wand_frames, length_m=length_m,
                                              track_x_m=track), 0.2, rng)
     board_hull = {r: board_coverage(v, sizes[r])["hull_px"] for r, v in board_views.items()}
-    reach = {r: board_reach_px(board_rig.cameras[r], h) for r, h in board_hull.items()}
-    refined, report = refine_with_wand(board_rig, wand, length_m * 1000.0, reach_px=reach)
+    # the product's step: the board's views and the wand's ends together, kept where the held-out checks agree
+    refined, report = refine_board_rig(board_rig, board_views, BOARD, wand, length_m * 1000.0,
+                                       board_hull_px=board_hull)
     check = _wand_views_exact(srig, wand_path(srig, np.random.default_rng(seed + 9000), n_frames=240,
                                               length_m=length_m, track_x_m=track), 0.2, rng)
     xy = {r: true_marker_pixels(scene, r, "motion")["xy_px"] for r in srig.cameras}
-    both_hull = {r: board_coverage(v, sizes[r])["hull_px"] if not wand[r] else wand_coverage(
-        [*wand[r], *_as_wand_views(v)], sizes[r])["hull_px"] for r, v in board_views.items()}
+    both_hull = {r: c["hull_px"] for r, c in report.get("lens_coverage", {}).items()} or board_hull
     before = _samples_beyond(board_rig, board_hull, xy)
     after = _samples_beyond(refined, both_hull, xy)
     lens = {}
@@ -498,7 +491,9 @@ def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_
                              "after": max(v["beyond_reach"] for v in after.values())},
         "per_camera": {"before": before, "after": after}, "lens_error_beyond_board_px": lens,
         "check_wand_length_rms_mm": {k: round(v, 2) for k, v in length.items()},
-        "wand_frames_seen": {r: len(v) for r, v in wand.items()}, "refinement": report}
+        "wand_frames_seen": {r: len(v) for r, v in wand.items()}, "refinement": report.get("refinement"),
+        "kept": refined.wand_refinement.kept if refined.wand_refinement else None,
+        "reason": refined.wand_refinement.reason if refined.wand_refinement else None}
 
 
 def _beyond_reach_share(scene, reach_px: dict) -> dict[str, float]:

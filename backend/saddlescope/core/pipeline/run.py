@@ -221,7 +221,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         The user's choices (defaults: the thesis's, where it was right).
     rig : Rig, optional
         A calibration to reuse (e.g. the rig's, computed once for every ride of that day); ``rig_report``
-        its ``n_views`` and ``board_coverage``, so that the lens limit and board-region checks still apply.
+        its ``n_views`` and ``board_coverage`` (and ``lens_coverage`` where a wand refined it), so that the lens
+        limit and board-region checks still apply.
     on_progress : callable(fraction, stage), optional
         Called as each stage advances, ``fraction`` of the whole analysis in [0, 1].
     input_flags : sequence of Finding, optional
