@@ -130,3 +130,8 @@ def test_a_wand_whose_length_disagrees_with_the_board_leaves_the_boards_rig(band
     few = {cam: views[:5] for cam, views in wand.items()}
     kept, _ = refine_board_rig(rig, board_views, board, few, 1000.0, board_hull_px=hulls)
     assert not kept.wand_refinement.kept and "the wand could not refine it" in kept.wand_refinement.reason
+    # the wand's two ends seen by one camera only (the others' clips never showed both): nothing to refine with
+    alone = {cam: views if cam == "middle" else [] for cam, views in wand.items()}
+    kept, _ = refine_board_rig(rig, board_views, board, alone, 1000.0, board_hull_px=hulls)
+    assert not kept.wand_refinement.kept and "seen by two or more cameras" in kept.wand_refinement.reason
+    assert math.isnan(kept.wand_refinement.board.wand_length_rms_mm)  # no held-out frame two cameras saw

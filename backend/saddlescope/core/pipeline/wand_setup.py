@@ -79,13 +79,13 @@ def _close_up_lens(clips: ClipReader, cam: str, board: Board) -> tuple[Camera, l
 
 
 def wand_views_from_clips(clips: ClipReader, offsets: Mapping[str, float], first_frame: Mapping[str, int],
-                          params: PipelineParams) -> dict[str, list[WandView]]:
+                          params: PipelineParams, *, every_camera: bool = True) -> dict[str, list[WandView]]:
     """Each camera's wand ends in its ``wand`` clip, from the flash on, put on the first camera's clock.
 
     Raises
     ------
     CalibrationError
-        A camera whose clip never shows both ends.
+        With ``every_camera``, a camera whose clip never shows both ends (without, its list is empty).
     """
     cams = clips.cameras("wand")
     base = max(first_frame.get(c, 0) - int(round(offsets.get(c, 0.0))) for c in cams)
@@ -97,7 +97,7 @@ def wand_views_from_clips(clips: ClipReader, offsets: Mapping[str, float], first
     tracked = _per_camera_in_threads(cams, ends, None, params.threads)
     views = {c: wand_on_reference_clock(tracked[c][0], float(offsets.get(c, 0.0))) for c in cams}
     for cam in cams:
-        if not views[cam]:
+        if not views[cam] and every_camera:
             raise CalibrationError(f"the wand's two ends were never both seen in the wand clip of the {cam} camera "
                                    "(two bright markers, nothing else as bright in view)")
     return views
@@ -164,12 +164,13 @@ def refine_from_wand_clips(clips: ClipReader, rig: Rig, board_report: Mapping, b
         (where the board's corners and the wand's ends went: the ride's lens reach).
     """
     out = {k: v for k, v in board_report.items() if k != "board_views"}
-    views = wand_views_from_clips(clips, offsets, first_frame, params)
+    # a camera that never saw both ends keeps the board's lens (its refinement is then the other cameras')
+    views = wand_views_from_clips(clips, offsets, first_frame, params, every_camera=False)
     hulls = {c: cov["hull_px"] for c, cov in (board_report.get("board_coverage") or {}).items()}
     refined, report = refine_board_rig(rig, board_report["board_views"], board, views, wand_length_mm,
                                        board_hull_px=hulls, max_square_error_pct=params.max_square_error_pct)
     sizes = {c: rig.cameras[c].image_size for c in views if c in rig.cameras}
-    out.update({"wand_coverage": {c: wand_coverage(views[c], sizes[c]) for c in sizes},
+    out.update({"wand_coverage": {c: wand_coverage(views[c], sizes[c]) for c in sizes if views[c]},
                 "wand_views": {c: len(views[c]) for c in views},
                 "wand": (report.get("refinement") or {}).get("bundle"), "method": "board+wand"})
     if "lens_coverage" in report:
