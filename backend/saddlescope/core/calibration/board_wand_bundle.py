@@ -13,7 +13,7 @@ principal points stay the board's, and the poses stay consistent with them throu
 wand extends k1, k2 to the image edges. On seed 2041 the board's squares came out 0.08 % off (0.03 % with the
 board alone, 0.26 % refined by the wand alone), the wand's held-out length 3.9 mm r.m.s. (84 mm with the
 board alone). Freeing a focal-length factor per camera too gave 0.05 % and 1.6 mm but moved every focal
-length by -1.2 to -1.6 % together (an object at one depth cannot tell focal length from distance), and cost
+length by -1.0 to -1.6 % together (an object at one depth cannot tell focal length from distance), and cost
 four times the CPU: not done. The wand's ends are taken in outward from the board's reach in stages, as
 :func:`~saddlescope.core.calibration.wand.refine_with_wand` does.
 """
