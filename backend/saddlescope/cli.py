@@ -182,7 +182,7 @@ def _check_sources(args: argparse.Namespace) -> tuple[dict[str, Path], dict, flo
         meta = json.loads((Path(args.ride) / "ride.json").read_text(encoding="utf-8"))
         board = dict(meta.get("board") or {})
         cal = meta.get("calibration") or {}
-        if cal.get("method") == "wand" and wand_m is None:
+        if cal.get("method") == "wand" and wand_m is None:  # board+wand: the board walk's clips, unless --wand
             wand_m = cal.get("wand_length_m")
         folder = "wand" if wand_m is not None else "calibration"
         paths = {p.stem: p for p in sorted((Path(args.ride) / folder).glob("*.*"))}
@@ -261,6 +261,10 @@ def _add_synth_parser(sub) -> None:
     s.add_argument("--passes", type=int, default=1,
                    help="the horse passes the cameras this many times (1-6) in the one motion clip, out of view "
                         "for a few seconds between passes")
+    s.add_argument("--calibration", default="board", choices=["board", "wand", "board+wand"],
+                   help="board: the board walk; wand: a wand waved through the volume and close-up boards; "
+                        "board+wand: the board walk and a wand walked along the track, which refines it")
+    s.add_argument("--wand-seconds", type=float, default=24.0, help="how long the wand is filmed (s)")
 
 
 class _BoardKinds:
@@ -400,7 +404,8 @@ def run(args: argparse.Namespace) -> int:
                                                        variable_frame_rate=args.variable_frame_rate,
                                                        flash=not args.no_flash, boot_share=args.boot,
                                                        readout_s=args.readout_ms / 1000.0, crf=args.crf,
-                                                       passes=args.passes))
+                                                       passes=args.passes),
+                                 calibration=args.calibration, wand_s=args.wand_seconds)
         print(f"wrote synthetic ride bundle {path}", file=sys.stderr)
         return 0
     if cmd == "analyze":

@@ -31,14 +31,34 @@ def env(tmp_path, monkeypatch):
                       "wand_files": sorted(p.name.split("-")[0] for p in wand_paths.values())})
         return {**standin_calibration((64, 48)), "wand": {"length_m": wand_length_m}}
 
+    def standin_board_and_wand(paths, wand_paths, *, board, wand_length_m, sync=None, params=None, on_progress=None):
+        calls.append({"way": "board+wand", "calibration": sorted(paths), "wand": sorted(wand_paths),
+                      "wand_length_m": wand_length_m,
+                      "kinds": [_kind_of(p) for p in [*paths.values(), *wand_paths.values()]]})
+        return {**standin_calibration((64, 48)), "wand": {"length_m": wand_length_m},
+                "wand_refinement": {"kept": True, "reason": "no worse", "sentence": "Refined by the wand: the middle "
+                                    "camera's lens is now known to 700 px from the centre of its image, was 240 px.",
+                                    "board": {}, "refined": {}}}
+
     monkeypatch.setattr(calibration, "calibrate_clips", standin_calibrate_clips)
     monkeypatch.setattr(calibration, "calibrate_wand_clips", standin_wand)
+    monkeypatch.setattr(calibration, "calibrate_board_and_wand_clips", standin_board_and_wand)
     settings = load_settings(database_url=f"sqlite:///{tmp_path / 'db.sqlite'}", storage_dir=str(tmp_path / "storage"))
     queue = ThreadQueue(settings)
     with TestClient(create_app(settings, queue=queue)) as client:
         api, _account = new_club(client)
         yield api, tmp_path, calls
     queue.close()
+
+
+def _kind_of(path) -> str:
+    """The clip kind of a clip the job fetched: the kind `_tagged` appended to its bytes."""
+    return path.read_bytes()[-16:].decode().strip("#")
+
+
+def _tagged(clip: bytes, kind: str) -> bytes:
+    """A clip with its kind appended (after the container's end: decoders ignore it)."""
+    return clip + kind.rjust(16, "#").encode()
 
 
 def _upload(api, rig_id: int, kind: str, camera: str, clip: bytes) -> None:
@@ -133,3 +153,38 @@ def test_a_wand_clip_is_checked_on_upload_and_shown_beside_the_boards_check(env)
     wand = check["wand"]
     assert sorted(wand["cameras"]) == ["left", "middle"] and wand["film_again"] is True  # no wand in these clips
     assert wand["verdict"].startswith("Film again: the left and middle cameras' wand clips")
+
+
+def test_a_rig_with_its_board_walk_and_wand_clips_is_calibrated_by_both(env):
+    """Issue 35: the board walk refined by the wand is the way once the rig has both clip sets and the wand's
+    length; the rig page says whether the wand refined it."""
+    api, tmp_path, calls = env
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Arena", "board": SMALL, "wand_length_m": 1.0})
+    url = f"/api/rigs/{rig['id']}/calibrate"
+    clip = write_tiny_clip(tmp_path / "clip.avi", frames=6).read_bytes()
+    for camera in CAMERA_ROLES:
+        # the third starts the board walk's calibration
+        _upload(api, rig["id"], "calibration", camera, _tagged(clip, "calibration"))
+    jobs = api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]
+    assert job_outcome(api, next(j for j in jobs if j["kind"] == "calibrate_rig")["id"])["status"] == "done"
+    no_wand = api.client.post(url, json={"method": "board+wand"}, headers=api.headers)
+    assert no_wand.status_code == 409 and no_wand.json()["detail"].endswith(
+        "cannot be calibrated with the board walk refined by the wand yet: upload the wand clip of the left, "
+        "middle, right cameras first")
+    for camera in CAMERA_ROLES:  # each new clip makes the calibration stale; the third wand clip completes both
+        _upload(api, rig["id"], "wand", camera, _tagged(clip, "wand"))
+    jobs = api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]
+    assert job_outcome(api, max(j["id"] for j in jobs if j["kind"] == "calibrate_rig"))["status"] == "done"
+    call = {"way": "board+wand", "calibration": sorted(CAMERA_ROLES), "wand": sorted(CAMERA_ROLES),
+            "wand_length_m": 1.0, "kinds": ["calibration"] * 3 + ["wand"] * 3}
+    assert calls == [call]
+    again = api.ok("POST", f"/rigs/{rig['id']}/calibrate", 201, json={})  # the page's "Calibrate again"
+    assert job_outcome(api, again["id"])["status"] == "done"
+    assert calls == [call, call]
+    report = api.ok("GET", f"/rigs/{rig['id']}/calibration-report")
+    assert report["quality"]["refined_by_wand"] is True
+    assert "Refined by the wand: the middle camera's lens is now known to 700 px" in " ".join(
+        report["quality"]["sentences"])
+    # asked for by name, the board walk alone is still a way
+    board = api.ok("POST", f"/rigs/{rig['id']}/calibrate", 201, json={"method": "board"})
+    assert job_outcome(api, board["id"])["status"] == "done" and len(calls) == 2

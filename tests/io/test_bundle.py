@@ -440,11 +440,44 @@ def test_a_wand_bundle_opens_with_its_wand_and_close_up_clips(tmp_path):
     (lambda m: m["calibration"].update(wand_length_m=12.0), "calibration.wand_length_m"),
     (lambda m: m["clips"].update(calibration={r: f"calibration/{r}.mp4" for r in ROLES}),
      "and clips.calibration (a board walk) contradict each other"),
-    (lambda m: m.pop("calibration"), "clips.wand is a wand calibration's clip set"),
+    (lambda m: m.pop("calibration"), "clips.wand is a wand's clip set"),
     (lambda m: m["calibration"].update(method="stick"), "'stick' is not one of board, wand"),
 ])
 def test_a_wrong_wand_bundle_is_refused_in_words(tmp_path, change, says):
     meta = _wand_meta()
+    change(meta)
+    with pytest.raises(BundleError, match="ride.json") as err:
+        open_bundle(make_bundle(tmp_path / "ride", meta))
+    assert says in str(err.value)
+
+
+# --- the board walk refined by a wand (issue 35): ride.json's "board+wand" ------------------------------
+
+
+def _board_wand_meta():
+    meta = _meta(kinds=("calibration", "plumb", "static", "motion", "wand"))
+    meta["calibration"] = {"method": "board+wand", "wand_length_m": 1.0}
+    return meta
+
+
+def test_a_board_and_wand_bundle_opens_with_its_board_walk_and_wand_clips(tmp_path):
+    with open_bundle(make_bundle(tmp_path / "ride", _board_wand_meta())) as bundle:
+        assert bundle.calibration_method == "board+wand"
+        assert {"calibration", "wand"} <= set(bundle.clip_paths) and "close_up" not in bundle.clip_paths
+
+
+@pytest.mark.parametrize(("change", "says"), [
+    (lambda m: m["calibration"].pop("wand_length_m"), "'board+wand' needs calibration.wand_length_m"),
+    (lambda m: m["clips"].pop("wand"), "'board+wand' needs clips.wand: the wand waved through the riding area by "
+                                       "the three cameras at once, along the track the horse takes"),
+    (lambda m: m["clips"].pop("calibration"), "'board+wand' needs clips.calibration: the board walk the wand refines"),
+    (lambda m: m["clips"].update(close_up={r: f"close_up/{r}.mp4" for r in ROLES}),
+     "'board+wand' takes each lens from the board walk: clips.close_up is not used"),
+    (lambda m: m["calibration"].update(method="wand+board"), "'wand+board' is not one of board, wand, board+wand"),
+    (lambda m: m["calibration"].update(method="board"), "clips.wand is a wand's clip set: add"),
+])
+def test_a_wrong_board_and_wand_bundle_is_refused_in_words(tmp_path, change, says):
+    meta = _board_wand_meta()
     change(meta)
     with pytest.raises(BundleError, match="ride.json") as err:
         open_bundle(make_bundle(tmp_path / "ride", meta))

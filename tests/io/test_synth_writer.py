@@ -124,6 +124,8 @@ def test_bundle_writer_rejects_bad_arguments(tmp_path):
         write_ride_bundle(tmp_path / "file", calibration_poses=2, extras=False)
     with pytest.raises(InputError, match="gait"):
         write_ride_bundle(tmp_path / "x", gait="tölt")
+    with pytest.raises(InputError, match="calibration 'wand_only' is not 'board', 'wand' or 'board\\+wand'"):
+        write_ride_bundle(tmp_path / "x", calibration="wand_only")
 
 
 def test_write_h264_round_trip_and_errors(tmp_path):
@@ -201,3 +203,9 @@ def test_cli_synth_skin_model_reaches_the_writer(tmp_path, monkeypatch):
     assert seen["options"].marker_layout == "triangle"
     with pytest.raises(SystemExit):
         cli.build_parser().parse_args(["synth", str(tmp_path / "r"), "--layout", "square"])
+    # --calibration: the board walk (default), a wand, or the board walk and a wand that refines it (issue 35)
+    assert seen["calibration"] == "board" and seen["wand_s"] == 24.0
+    assert cli.main(["synth", str(tmp_path / "r"), "--calibration", "board+wand", "--wand-seconds", "16"]) == 0
+    assert seen["calibration"] == "board+wand" and seen["wand_s"] == 16.0
+    with pytest.raises(SystemExit):
+        cli.build_parser().parse_args(["synth", str(tmp_path / "r"), "--calibration", "stick"])

@@ -85,7 +85,7 @@ def test_a_wand_calibrated_bundle_is_refused_in_words_and_registers_nothing(env)
     meta["clips"]["close_up"] = dict(meta["clips"]["wand"])
     meta["calibration"] = {"method": "wand", "wand_length_m": 1.0}
     (bundle / "ride.json").write_text(json.dumps(meta))
-    with pytest.raises(BundleError, match="calibrated by a wand .* is analysed with `saddlescope analyze` for now"):
+    with pytest.raises(BundleError, match="calibrated with a wand .* is analysed with `saddlescope analyze` for now"):
         register_bundle(sessions, storage, bundle)
     with sessions() as s:
         assert s.query(Ride).count() == 0

@@ -30,12 +30,17 @@ WandLengthM = Annotated[
 
 
 class CalibrateIn(BaseModel):
-    """How to calibrate a rig: the board walk or a wand (default: the wand when its clips and length are there)."""
+    """How to calibrate a rig: the board walk, a wand, or the board walk refined by the wand.
+
+    Default: the board walk refined by the wand when the calibration and wand clips and the wand's length are
+    there, else the wand when its clips and length are, else the board walk.
+    """
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    method: Literal["board", "wand"] | None = Field(
-        default=None, description="board: the calibration clips; wand: the wand and close-up clips")
+    method: Literal["board", "wand", "board+wand"] | None = Field(
+        default=None, description="board: the calibration clips; wand: the wand and close-up clips; board+wand: "
+                                  "the calibration clips refined by the wand clips where that helps")
     wand_length_m: WandLengthM = Field(default=None, description="sets the rig's wand length first")
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from saddlescope.bench.analysis import quick_ride
 
 __all__ = ["calibration_check_clips_s", "calibration_stage_s", "calibration_vs_decode", "wand_canter_indicators",
-           "wand_refines_band", "wand_vs_board"]
+           "wand_refines_band", "wand_refines_band_rendered", "wand_vs_board"]
 
 
 def _decode_once(paths: list[Path]) -> int:
@@ -420,8 +420,9 @@ def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band
     For each partial-view canter (``wide_partial`` rig, 4-6 m/s, the board through ``band`` of the volume, 30
     poses; the coverage table's band-0.6 seeds, build 1013 and 1015, held-out 2041 and 2043): the rig is
     calibrated from the board's exact corner projections (0.15 px noise) as the ride's board clip shows them,
-    then refined by a 1 m wand waved through the whole volume
-    (:func:`~saddlescope.core.calibration.wand.refine_with_wand`; its ends' exact pixels, 0.2 px noise). The
+    then refined by a 1 m wand waved through the whole volume as the pipeline's ``board+wand`` way does
+    (:func:`~saddlescope.core.calibration.wand_refinement.refine_board_rig`: the board's views and the wand's
+    ends adjusted together, kept where the held-out checks are no worse; its ends' exact pixels, 0.2 px noise). The
     motion clip's exact marker pixels are then checked against where each calibration's lens is known: the
     board's corners alone, then the board's and the wand's ends. Reported per ride: the share of marker
     samples outside the region (the convex hull, as ``quality.markers_outside_board_fraction``) and beyond
@@ -436,13 +437,6 @@ def wand_refines_band(*, seeds: tuple[int, ...] = (1013, 1015, 2041, 2043), band
     return {"wand_refines_band": {"band": band, "rides": rides, "beyond_reach_ratio_max": round(max(ratios), 3)}}
 
 
-def _as_wand_views(board_views: list) -> list:
-    """Board views as WandView-like point sets (for one hull over the board's corners and the wand's ends)."""
-    from saddlescope.core.calibration.wand import WandView
-
-    return [WandView(v.frame, v.corners_px) for v in board_views]
-
-
 def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_track: bool) -> dict:
     """One ride of :func:`wand_refines_band`."""
     import numpy as np
@@ -452,10 +446,9 @@ def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_
     from saddlescope.arena.content import BOARD
     from saddlescope.arena.wand import wand_path
     from saddlescope.core.calibration import calibrate_rig
-    from saddlescope.core.calibration.wand import refine_with_wand, wand_length_errors
+    from saddlescope.core.calibration.wand import wand_length_errors
+    from saddlescope.core.calibration.wand_refinement import refine_board_rig
     from saddlescope.core.pipeline.setup import board_coverage
-    from saddlescope.core.pipeline.wand_setup import wand_coverage
-    from saddlescope.core.triangulation.lens_reach import board_reach_px
 
     rng = np.random.default_rng(seed + 7000)
     scene = build_scene(gait="canter", seed=seed, rig="wide_partial", board_band=band, speed_range_m_s=(4.0, 6.0),
@@ -470,13 +463,13 @@ def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_
     wand = _wand_views_exact(srig, wand_path(srig, rng, n_frames=wand_frames, length_m=length_m,
                                              track_x_m=track), 0.2, rng)
     board_hull = {r: board_coverage(v, sizes[r])["hull_px"] for r, v in board_views.items()}
-    reach = {r: board_reach_px(board_rig.cameras[r], h) for r, h in board_hull.items()}
-    refined, report = refine_with_wand(board_rig, wand, length_m * 1000.0, reach_px=reach)
+    # the product's step: the board's views and the wand's ends together, kept where the held-out checks agree
+    refined, report = refine_board_rig(board_rig, board_views, BOARD, wand, length_m * 1000.0,
+                                       board_hull_px=board_hull)
     check = _wand_views_exact(srig, wand_path(srig, np.random.default_rng(seed + 9000), n_frames=240,
                                               length_m=length_m, track_x_m=track), 0.2, rng)
     xy = {r: true_marker_pixels(scene, r, "motion")["xy_px"] for r in srig.cameras}
-    both_hull = {r: board_coverage(v, sizes[r])["hull_px"] if not wand[r] else wand_coverage(
-        [*wand[r], *_as_wand_views(v)], sizes[r])["hull_px"] for r, v in board_views.items()}
+    both_hull = {r: c["hull_px"] for r, c in report.get("lens_coverage", {}).items()} or board_hull
     before = _samples_beyond(board_rig, board_hull, xy)
     after = _samples_beyond(refined, both_hull, xy)
     lens = {}
@@ -498,4 +491,80 @@ def _band_ride(seed: int, band: float, wand_frames: int, length_m: float, along_
                              "after": max(v["beyond_reach"] for v in after.values())},
         "per_camera": {"before": before, "after": after}, "lens_error_beyond_board_px": lens,
         "check_wand_length_rms_mm": {k: round(v, 2) for k, v in length.items()},
-        "wand_frames_seen": {r: len(v) for r, v in wand.items()}, "refinement": report}
+        "wand_frames_seen": {r: len(v) for r, v in wand.items()}, "refinement": report.get("refinement"),
+        "kept": refined.wand_refinement.kept if refined.wand_refinement else None,
+        "reason": refined.wand_refinement.reason if refined.wand_refinement else None}
+
+
+def _beyond_reach_share(scene, reach_px: dict) -> dict[str, float]:
+    """Per camera, the share of the motion clip's exact marker samples beyond the lens reach (times 1.1).
+
+    The margin is lens_reach's: beyond it the ride's lens model is continued with k1 alone.
+    """
+    import numpy as np
+
+    from saddlescope.arena.clips import true_marker_pixels
+
+    out = {}
+    for role, cam in scene.rig.cameras.items():
+        pts = true_marker_pixels(scene, role, "motion")["xy_px"].reshape(-1, 2)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        if role in reach_px and len(pts):
+            radius = np.linalg.norm(pts - cam.K[:2, 2], axis=1)
+            out[role] = round(float(np.mean(radius > 1.1 * reach_px[role])), 4)
+    return out
+
+
+def _ride_errors(result: dict, truth: dict) -> dict:
+    """W_b, W_k r.m.s., VDV, speed and stride frequency of a result against the truth (%), with its window."""
+    from saddlescope.bench.coverage import truth_indicators
+
+    ref = truth_indicators(result, truth)
+    keys = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "vel_x_avg_kmh", "stride_frequency_hz")
+    codes = [f["code"] for f in result["quality"]["findings"]]
+    return {"error_pct": {k: round(100 * (result["indicators"][k] / ref[k] - 1), 2) for k in keys if ref.get(k)},
+            "outside_region": {c: round(v, 4) for c, v in result["quality"]["markers_outside_board_fraction"].items()},
+            "window_s": result["window"]["duration_s"], "guessed_depth": "calibration.guessed_depth" in codes,
+            "too_uncertain": "indicators.too_uncertain" in codes}
+
+
+def wand_refines_band_rendered(tmp: Path, *, seed: int = 2041, band: float = 0.6, wand_s: float = 24.0,
+                               size: tuple[int, int] | None = None) -> dict:
+    """A partial-view canter rendered with a wand walked along the track: the band's board alone against board+wand.
+
+    The coverage table's ride (``wide_partial`` rig, 1280x720 at 50 fps unless ``size``, a canter at 4-6 m/s, 30
+    board stops through the middle ``band`` of the volume) written with ``calibration="board+wand"`` (the board
+    walk and ``wand_s`` seconds of a 1 m wand walked along the stretch of track the markers cross, after a flash),
+    then analysed twice with :func:`~saddlescope.services.analysis.ride_bundle.analyze_bundle`: as the board walk
+    alone (ride.json's calibration overridden to ``board``) and as ``board+wand`` (the pipeline's refinement and its
+    choice). Per analysis: the share of the exact marker samples beyond each camera's lens reach (the board's,
+    or the board's and the wand's where the refinement was kept), the result's share outside the region reached,
+    W_b / W_k / VDV / speed / stride frequency against the truth, the window, and the refinement's choice.
+    """
+    from saddlescope.arena import build_scene
+    from saddlescope.io.synth_writer import write_ride_bundle
+    from saddlescope.services.analysis.ride_bundle import analyze_bundle
+
+    ride = Path(tmp) / f"board_wand_{seed}"
+    t0 = time.perf_counter()
+    if not (ride / "ride.json").is_file():
+        write_ride_bundle(ride, gait="canter", seed=seed, rig="wide_partial", size=size, board_band=band,
+                          speed_range_m_s=(4.0, 6.0), calibration_poses=30, extras=False, calibration="board+wand",
+                          wand_s=wand_s)
+    out: dict = {"seed": seed, "band": band, "wand_s": wand_s, "render_s": round(time.perf_counter() - t0, 1)}
+    truth = json.loads((ride / "truth.json").read_text())
+    results = {}
+    for label, overrides in (("board", {"calibration": {"method": "board"}}), ("board+wand", None)):
+        t0 = time.perf_counter()
+        results[label] = analyze_bundle(ride, meta_overrides=overrides)
+        out[label] = {**_ride_errors(results[label], truth), "analyse_s": round(time.perf_counter() - t0, 1)}
+    choice = results["board+wand"]["calibration"]["wand_refinement"]
+    scene = build_scene(gait="canter", seed=seed, rig="wide_partial", size=size, board_band=band,
+                        speed_range_m_s=(4.0, 6.0), calibration_poses=30, extras=False)
+    out["board"]["beyond_reach"] = _beyond_reach_share(scene, choice["board"]["reach_px"])
+    kept = choice["refined"] if choice["kept"] else choice["board"]
+    out["board+wand"]["beyond_reach"] = _beyond_reach_share(scene, kept["reach_px"])
+    out["board+wand"]["calibration_s"] = results["board+wand"]["timings_s"].get("calibration")
+    out["board"]["calibration_s"] = results["board"]["timings_s"].get("calibration")
+    out["refinement"] = choice
+    return {"wand_refines_band_rendered": out}

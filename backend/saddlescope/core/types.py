@@ -18,7 +18,7 @@ from saddlescope.core.findings import Finding
 __all__ = ["CAMERA_ROLES", "CLIP_KINDS", "DIRECTIONS", "GAITS", "WAND_CLIP_KINDS", "AnalysisWindow", "Board",
            "BoardOptionValue", "Camera",
            "HorseMarkers", "ImageTracks", "LensModel", "MarkerTracks", "MotionFrameSummary", "RidePass", "RideResult",
-           "Rig",
+           "Rig", "WandCheck", "WandRefinement",
            "SaddleKinematics", "SaddleRotation", "VerticalHarmonics"]
 
 CAMERA_ROLES: tuple[str, ...] = ("left", "middle", "right")
@@ -150,12 +150,60 @@ class LensModel:
 
 
 @dataclass(frozen=True)
+class WandCheck:
+    """A rig checked on what its calibration did not fit, for the wand refinement's choice (issue 35).
+
+    ``wand_length_rms_mm``: the wand's length, triangulated on the wand frames held out of the refinement,
+    r.m.s. about its true length (NaN where no held-out frame was seen by two cameras);
+    ``board_square_error_pct`` and ``board_rms_px``: the board walk's square check (percent of the square) and
+    its corners' triangulation r.m.s. on the board views; ``reach_px``: per camera how far from the principal point the
+    lens is known (:func:`~saddlescope.core.triangulation.lens_reach.board_reach_px`).
+    """
+
+    wand_length_rms_mm: float
+    board_square_error_pct: float
+    board_rms_px: float
+    reach_px: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class WandRefinement:
+    """Whether a board calibration was refined by a wand pass, and why (issue 35).
+
+    ``kept``: the refined rig is the rig (False: the board's is, unchanged). ``reason`` says why in words;
+    ``board`` and ``refined`` are the two rigs' checks (``refined`` None where the refinement failed);
+    ``held_out_frames`` the wand frames the refinement did not see, on which both were checked.
+    """
+
+    kept: bool
+    reason: str
+    wand_length_mm: float
+    held_out_frames: int
+    board: WandCheck
+    refined: WandCheck | None = None
+
+    @property
+    def sentence(self) -> str:
+        """The choice in plain words, e.g. "Refined by the wand: the middle camera's lens is now known to 700 px"."""
+        if not self.kept or self.refined is None:
+            return f"Not refined by the wand: {self.reason}. The board's calibration is kept."
+        grown = {c: (self.board.reach_px.get(c, 0.0), r) for c, r in self.refined.reach_px.items()}
+        cam, (was, now) = max(grown.items(), key=lambda kv: kv[1][1] - kv[1][0])
+        length = (f"; the wand's length on {self.held_out_frames} frames it did not fit is off by "
+                  f"{self.refined.wand_length_rms_mm:.1f} mm r.m.s., was {self.board.wand_length_rms_mm:.1f} mm"
+                  if np.isfinite(self.refined.wand_length_rms_mm) else "")
+        return (f"Refined by the wand: the {cam} camera's lens is now known to {now:.0f} px from the centre of "
+                f"its image, was {was:.0f} px{length}.")
+
+
+@dataclass(frozen=True)
 class Rig:
     """Calibrated cameras keyed by role (left, middle, right, or any names for other rigs).
 
     ``checks`` holds metric quality numbers (e.g. ``board_square_error_mm``); ``flags`` lists the
     calibration's findings (e.g. a metric error over its threshold, :mod:`saddlescope.core.findings`);
-    ``lens_models`` which lens parameters each camera's calibration fitted (empty where unknown).
+    ``lens_models`` which lens parameters each camera's calibration fitted (empty where unknown);
+    ``wand_refinement`` whether a board calibration was refined by a wand pass (None: none was offered).
     """
 
     cameras: dict[str, Camera]
@@ -163,6 +211,7 @@ class Rig:
     flags: tuple[Finding, ...] = ()
     pairs: dict[str, dict] = field(default_factory=dict)
     lens_models: dict[str, LensModel] = field(default_factory=dict)
+    wand_refinement: WandRefinement | None = None
 
     @property
     def names(self) -> list[str]:

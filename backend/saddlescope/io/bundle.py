@@ -32,6 +32,7 @@ from typing import Any, BinaryIO, TypeVar
 from saddlescope.core.calibration.boards import board_from_meta
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.findings import Finding
+from saddlescope.core.pipeline.inputs import calibration_spec
 from saddlescope.core.types import CLIP_KINDS, WAND_CLIP_KINDS, Board
 from saddlescope.io.result_schema import validate_ride_meta
 
@@ -112,8 +113,11 @@ class RideBundle:
 
     @property
     def calibration_method(self) -> str:
-        """How the clips calibrate the rig: ``"board"`` (the board walk, default) or ``"wand"`` (issue 35)."""
-        return (self.meta.get("calibration") or {}).get("method", "board")
+        """How the clips calibrate the rig: ``"board"``, ``"wand"`` or ``"board+wand"`` (issue 35).
+
+        The board walk (default), a wand with close-up boards, or the board walk refined by a wand.
+        """
+        return calibration_spec(self.meta).method
 
     @property
     def sync_method(self) -> str:

@@ -17,6 +17,7 @@ from saddlescope.core.calibration.boards import BOARD_KINDS, board_meta_problems
 from saddlescope.core.calibration.wand import WAND_LENGTH_RANGE_M
 from saddlescope.core.errors import BundleError, InputError
 from saddlescope.core.findings import FINDING_KINDS, SEVERITIES
+from saddlescope.core.pipeline.inputs import CALIBRATION_METHODS
 from saddlescope.core.types import CAMERA_ROLES, CLIP_KINDS, DIRECTIONS, GAITS, WAND_CLIP_KINDS
 from saddlescope.core.vibration import CONTRACT_KEYS
 
@@ -26,7 +27,6 @@ __all__ = ["RESULT_FORMAT", "RIDE_FORMAT", "result_schema", "ride_schema",
 RESULT_FORMAT = "saddlescope.result/1"
 RIDE_FORMAT = "saddlescope.ride/1"
 MAX_LISTED_PROBLEMS = 5
-CALIBRATION_METHODS = ("board", "wand")
 
 
 _NUMBER = {"type": "number"}
@@ -72,6 +72,17 @@ _FINDINGS = {"type": "array", "items": {
                    "stage": {"type": "string"}, "detail": {"type": "string", "minLength": 1},
                    "values": {"type": "object", "additionalProperties": _NUMBER}}}}
 _FLAGS = {"type": "array", "items": {"type": "string"}}
+# a board calibration offered a wand pass (issue 35): whether the refined rig was kept, and both rigs' checks
+_WAND_CHECK = {"type": "object", "required": ["wand_length_rms_mm", "board_square_error_pct", "board_rms_px"],
+               "properties": {"wand_length_rms_mm": {"type": ["number", "null"], "minimum": 0},
+                              "board_square_error_pct": {"type": ["number", "null"], "minimum": 0},
+                              "board_rms_px": {"type": ["number", "null"], "minimum": 0},
+                              "reach_px": {"type": "object", "additionalProperties": _NON_NEGATIVE}}}
+_WAND_REFINEMENT = {"type": "object", "required": ["kept", "reason", "board"],
+                    "properties": {"kept": {"type": "boolean"}, "reason": {"type": "string"},
+                                   "sentence": {"type": "string"}, "wand_length_mm": _POSITIVE,
+                                   "held_out_frames": {"type": "integer", "minimum": 0}, "board": _WAND_CHECK,
+                                   "refined": {"anyOf": [{"type": "null"}, _WAND_CHECK]}}}
 _OFFSETS = {"type": "object", "required": list(CAMERA_ROLES),
             "properties": {role: _NUMBER for role in CAMERA_ROLES},
             "additionalProperties": False}
@@ -109,6 +120,7 @@ RESULT_SCHEMA: dict[str, Any] = {
                 "checks": {"type": "object", "additionalProperties": {"type": ["number", "null"]}},
                 "flags": _FLAGS,
                 "findings": _FINDINGS,
+                "wand_refinement": _WAND_REFINEMENT,
             },
         },
         "sync": {"type": "object", "required": ["motion"],
@@ -229,8 +241,9 @@ RIDE_SCHEMA: dict[str, Any] = {
                 "additionalProperties": False},
         },
         "calibration_file": {"type": "string", "minLength": 1},
-        # How the clips calibrate the rig (issue 35): the board walk (default) or a wand of known length
-        # waved through the volume (clips.wand) with the board filmed close to each camera (clips.close_up).
+        # How the clips calibrate the rig (issue 35): the board walk (default), a wand of known length waved
+        # through the volume (clips.wand) with the board filmed close to each camera (clips.close_up), or the
+        # board walk refined by a wand walked along the track (clips.calibration and clips.wand: "board+wand").
         "calibration": {"type": "object", "required": ["method"],
                         "properties": {"method": {"enum": list(CALIBRATION_METHODS)},
                                        "wand_length_m": {"type": "number", "minimum": WAND_LENGTH_RANGE_M[0],
@@ -412,27 +425,38 @@ def _object_at(doc: dict, key: str) -> dict:
 
 
 def _wand_problems(meta: dict) -> list[str]:
-    """A wand calibration needs its two clip sets and the wand's length; wand clips need the wand method."""
+    """A wand calibration needs its clip sets and the wand's length; wand clips need a way that uses them."""
     clips, cal = _object_at(meta, "clips"), _object_at(meta, "calibration")
     wand_sets = [k for k in WAND_CLIP_KINDS if k in clips]
-    if cal.get("method") != "wand":
+    method = cal.get("method")
+    if method not in ("wand", "board+wand"):
         if wand_sets:
-            return [f"clips.{wand_sets[0]} is a wand calibration's clip set: add "
-                    "\"calibration\": {\"method\": \"wand\", \"wand_length_m\": ...} or remove it"]
+            return [f"clips.{wand_sets[0]} is a wand's clip set: add \"calibration\": {{\"method\": \"wand\" (or "
+                    "\"board+wand\" with clips.calibration), \"wand_length_m\": ...} or remove it"]
         return []
     problems = []
     if "wand_length_m" not in cal:
-        problems.append("calibration.method 'wand' needs calibration.wand_length_m, the distance between the "
+        problems.append(f"calibration.method {method!r} needs calibration.wand_length_m, the distance between the "
                         "wand's two markers' centres in metres (e.g. 1.0)")
     if meta.get("calibration_file"):
-        problems.append("calibration.method 'wand' and a calibration_file contradict each other: give one")
-    if "calibration" in clips:
-        problems.append("calibration.method 'wand' and clips.calibration (a board walk) contradict each other: "
-                        "give one way")
-    for kind, what in (("wand", "the wand waved through the riding area by the three cameras at once"),
-                       ("close_up", "the board filmed close to each camera, for its lens")):
-        if kind not in clips:
-            problems.append(f"calibration.method 'wand' needs clips.{kind}: {what}")
+        problems.append(f"calibration.method {method!r} and a calibration_file contradict each other: give one")
+    if "wand" not in clips:
+        problems.append(f"calibration.method {method!r} needs clips.wand: the wand waved through the riding area "
+                        "by the three cameras at once" + (", along the track the horse takes"
+                                                          if method == "board+wand" else ""))
+    if method == "wand":
+        if "calibration" in clips:
+            problems.append("calibration.method 'wand' and clips.calibration (a board walk) contradict each other: "
+                            "give one way, or \"board+wand\" to refine the board walk by the wand")
+        if "close_up" not in clips:
+            problems.append("calibration.method 'wand' needs clips.close_up: the board filmed close to each camera, "
+                            "for its lens")
+        return problems
+    if "calibration" not in clips:
+        problems.append("calibration.method 'board+wand' needs clips.calibration: the board walk the wand refines")
+    if "close_up" in clips:
+        problems.append("calibration.method 'board+wand' takes each lens from the board walk: clips.close_up is "
+                        "not used; remove it, or use the method 'wand'")
     return problems
 
 

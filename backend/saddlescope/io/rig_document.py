@@ -12,10 +12,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from saddlescope.core.errors import InputError
-from saddlescope.core.types import Camera, LensModel, Rig
+from saddlescope.core.types import Camera, LensModel, Rig, WandCheck, WandRefinement
 from saddlescope.io.findings_document import findings_of, findings_to_list
 
-__all__ = ["checked_matrix", "distortion5", "lens_model_to_dict", "rig_from_dict", "rig_to_dict"]
+__all__ = ["checked_matrix", "distortion5", "lens_model_to_dict", "rig_from_dict", "rig_to_dict",
+           "wand_refinement_of", "wand_refinement_to_dict"]
 
 
 def _lst(a) -> list:
@@ -30,7 +31,8 @@ def rig_to_dict(rig: Rig) -> dict:
     (:func:`lens_model_to_dict`, where known);
     ``extrinsics`` of every camera but the first: R, t_mm (``x_cam = R @ x_first + t_mm``);
     ``checks``, ``findings`` (:mod:`saddlescope.io.findings_document`), ``flags`` (their details, for readers
-    of the first format) and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}.
+    of the first format) and ``pairs`` {"a-b": {R, t_mm, rms_px, n_views, check_*}}; where a wand pass was
+    offered to refine a board calibration, ``wand_refinement`` (:func:`wand_refinement_to_dict`).
     """
     names = rig.names
     cameras: dict[str, dict] = {}
@@ -49,8 +51,51 @@ def rig_to_dict(rig: Rig) -> dict:
     for key, p in rig.pairs.items():
         pairs[key] = {k: (_lst(v) if isinstance(v, np.ndarray) else v) for k, v in p.items()}
     checks = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in rig.checks.items()}
-    return {"cameras": cameras, "extrinsics": extrinsics, "checks": checks, "flags": [f.detail for f in rig.flags],
-            "findings": findings_to_list(rig.flags), "pairs": pairs}
+    out = {"cameras": cameras, "extrinsics": extrinsics, "checks": checks, "flags": [f.detail for f in rig.flags],
+           "findings": findings_to_list(rig.flags), "pairs": pairs}
+    if rig.wand_refinement is not None:
+        out["wand_refinement"] = wand_refinement_to_dict(rig.wand_refinement)
+    return out
+
+
+def _number(value: float) -> float | None:
+    """A float for JSON: None where not finite (JSON has no NaN)."""
+    return float(value) if np.isfinite(value) else None
+
+
+def _check_to_dict(check: WandCheck) -> dict:
+    return {"wand_length_rms_mm": _number(check.wand_length_rms_mm),
+            "board_square_error_pct": _number(check.board_square_error_pct),
+            "board_rms_px": _number(check.board_rms_px), "reach_px": {k: float(v) for k, v in check.reach_px.items()}}
+
+
+def wand_refinement_to_dict(refinement: WandRefinement) -> dict:
+    """A calibration's ``wand_refinement`` (issue 35): kept, why, the sentence, and both rigs' checks."""
+    return {"kept": bool(refinement.kept), "reason": refinement.reason, "sentence": refinement.sentence,
+            "wand_length_mm": float(refinement.wand_length_mm), "held_out_frames": int(refinement.held_out_frames),
+            "board": _check_to_dict(refinement.board),
+            "refined": _check_to_dict(refinement.refined) if refinement.refined is not None else None}
+
+
+def _check_of(value: Mapping) -> WandCheck:
+    def num(key: str) -> float:
+        v = value.get(key)
+        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else float("nan")
+
+    reach = value.get("reach_px") or {}
+    return WandCheck(num("wand_length_rms_mm"), num("board_square_error_pct"), num("board_rms_px"),
+                     {str(k): float(v) for k, v in reach.items() if isinstance(v, int | float)})
+
+
+def wand_refinement_of(value) -> WandRefinement | None:
+    """The WandRefinement of a stored ``wand_refinement`` (None where absent or not an object)."""
+    if not isinstance(value, Mapping) or not isinstance(value.get("board"), Mapping):
+        return None
+    refined = value.get("refined")
+    return WandRefinement(kept=bool(value.get("kept")), reason=str(value.get("reason", "")),
+                          wand_length_mm=float(value.get("wand_length_mm") or 0.0),
+                          held_out_frames=int(value.get("held_out_frames") or 0), board=_check_of(value["board"]),
+                          refined=_check_of(refined) if isinstance(refined, Mapping) else None)
 
 
 _LENS_FLAGS = ("equal_focal", "principal_point", "tangential", "k3", "given", "joint")
@@ -120,4 +165,4 @@ def rig_from_dict(d: Mapping) -> Rig:
     for key, p in (d.get("pairs") or {}).items():
         pairs[key] = {k: (np.asarray(v, np.float64) if k in ("R", "t_mm") else v) for k, v in p.items()}
     return Rig(cameras, checks=dict(d.get("checks") or {}), flags=tuple(findings_of(d)), pairs=pairs,
-               lens_models=lens_models)
+               lens_models=lens_models, wand_refinement=wand_refinement_of(d.get("wand_refinement")))

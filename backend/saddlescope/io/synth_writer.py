@@ -58,9 +58,12 @@ def write_ride_bundle(
     wand of ``wand_length_m`` waved through the volume for ``wand_s`` seconds, after a sync flash) and
     ``close_up/`` (``close_up_poses`` frames of an A3 board held close to each camera), ride.json's
     ``calibration`` ``{"method": "wand", "wand_length_m": ...}`` and the close-up board as its ``board``.
+    ``calibration="board+wand"`` keeps the board walk and adds ``wand/``: the wand walked along the stretch of
+    track the horse's markers cross (``wand_path(track_x_m=...)``), ride.json's ``calibration``
+    ``{"method": "board+wand", "wand_length_m": ...}``.
     """
-    if calibration not in ("board", "wand"):
-        raise InputError(f"calibration {calibration!r} is not 'board' or 'wand'")
+    if calibration not in ("board", "wand", "board+wand"):
+        raise InputError(f"calibration {calibration!r} is not 'board', 'wand' or 'board+wand'")
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
@@ -73,9 +76,9 @@ def write_ride_bundle(
     if calibration == "wand":
         manifest["clips"].pop("calibration")
     _write_clips(out_dir, scene, manifest, crf=crf, on_progress=on_progress)
-    if calibration == "wand":
+    if calibration != "board":
         _write_wand_clips(out_dir, scene, manifest, crf=crf, wand_s=wand_s, length_m=wand_length_m,
-                          close_up_poses=close_up_poses)
+                          close_up_poses=close_up_poses if calibration == "wand" else None)
     dump_json(manifest, out_dir / "ride.json")
     truth = build_truth(scene)
     truth["truth"]["nuisances"]["crf"] = crf  # what the clips were written with
@@ -103,9 +106,19 @@ def _write_clips(out_dir: Path, scene, manifest: dict, *, crf: int, on_progress=
             on_progress((i + 1) / len(jobs), f"{kind}/{role}")
 
 
+def _track_stretch_m(scene) -> tuple[float, float]:
+    """The stretch of track (world x, m) the horse's markers cross in the motion clip."""
+    x = scene.contents["motion"].markers_w(scene.timings["motion"].frame_times("left"))[..., 0]
+    return float(np.nanmin(x)), float(np.nanmax(x))
+
+
 def _write_wand_clips(out_dir: Path, scene, manifest: dict, *, crf: int, wand_s: float, length_m: float,
-                      close_up_poses: int) -> None:
-    """The wand calibration's clips (``wand/``, ``close_up/``) and their part of ride.json."""
+                      close_up_poses: int | None) -> None:
+    """The wand's clips (``wand/``, and ``close_up/`` unless ``close_up_poses`` is None) and their part of ride.json.
+
+    With close-ups, a wand calibration (the wand waved through the calibration volume); without, the wand that
+    refines the board walk (``board+wand``), walked along the track the horse takes.
+    """
     from saddlescope.arena.wand import (
         CLOSE_UP_BOARD,
         render_close_up_frames,
@@ -117,17 +130,23 @@ def _write_wand_clips(out_dir: Path, scene, manifest: dict, *, crf: int, wand_s:
 
     rng = np.random.default_rng([scene.seed, 0x3A9D])
     path_fps = 10.0  # the path's own sampling (smooth): the clip is rendered at the rig's rate from it
-    path = wand_path(scene.rig, rng, n_frames=max(int(round(wand_s * path_fps)), 20), fps=path_fps, length_m=length_m)
+    track = _track_stretch_m(scene) if close_up_poses is None else None
+    path = wand_path(scene.rig, rng, n_frames=max(int(round(wand_s * path_fps)), 20), fps=path_fps, length_m=length_m,
+                     track_x_m=track)
     timing = wand_clip_timing(path, rng, fps=scene.fps)
     for role in scene.rig.cameras:
-        for kind, frames in (("wand", render_wand_clip(scene.rig, path, timing, role, rng=rng)),
-                             ("close_up", render_close_up_frames(scene.rig, role, rng=rng, n_poses=close_up_poses))):
+        clips = [("wand", render_wand_clip(scene.rig, path, timing, role, rng=rng))]
+        if close_up_poses is not None:
+            clips.append(("close_up", render_close_up_frames(scene.rig, role, rng=rng, n_poses=close_up_poses)))
+        for kind, frames in clips:
             rel = f"{kind}/{role}.mp4"
             (out_dir / rel).parent.mkdir(parents=True, exist_ok=True)
             write_h264(out_dir / rel, frames, fps=scene.fps, crf=crf)
             manifest["clips"].setdefault(kind, {})[role] = rel
-    manifest["board"] = board_to_meta(CLOSE_UP_BOARD)
-    manifest["calibration"] = {"method": "wand", "wand_length_m": float(length_m)}
+    if close_up_poses is not None:
+        manifest["board"] = board_to_meta(CLOSE_UP_BOARD)
+    manifest["calibration"] = {"method": "wand" if close_up_poses is not None else "board+wand",
+                               "wand_length_m": float(length_m)}
     manifest["frames"]["wand"] = dict(timing.n_frames)
 
 

@@ -195,11 +195,13 @@ async def upload_rig_clip(
 )
 async def calibrate_rig(rig_id: Id, club: ClubDep, sessions: SessionFactoryDep, queue: QueueDep,
                         body: CalibrateIn | None = None) -> JobOut:
-    """(Re)calibrate the rig (a `calibrate_rig` job): the board walk's three calibration clips, or a wand.
+    """(Re)calibrate the rig (a `calibrate_rig` job): the board walk's three calibration clips, a wand, or both.
 
     The wand way (issue 35) takes each camera's wand and close-up clips and the rig's wand length
-    (``wand_length_m`` here sets it); without ``method``, the wand way when all of these are there, else the
-    board walk. 422 for a wand way without its length, 409 for clips or the board missing, in words.
+    (``wand_length_m`` here sets it); the board+wand way the calibration clips refined by the wand clips (the
+    refinement kept only where it helps). Without ``method``: board+wand when the calibration and wand clips
+    and the length are there, else the wand way when its clips and length are, else the board walk. 422 for a
+    way with a wand but without its length, 409 for clips or the board missing, in words.
     """
     body = body or CalibrateIn()
     way = await run_in_threadpool(_calibration_way, club, rig_id, body)

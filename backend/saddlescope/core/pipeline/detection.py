@@ -33,7 +33,7 @@ from saddlescope.core.errors import DetectionError, KinematicsError, Triangulati
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress, cameras_at_once
-from saddlescope.core.pipeline.setup import outside_coverage
+from saddlescope.core.pipeline.setup import lens_coverage_of, outside_coverage
 from saddlescope.core.saddle import layout_mismatch_mm, match_horse_markers, static_positions
 from saddlescope.core.sync import clip_frames_at
 from saddlescope.core.triangulation import position_uncertainty, reach_by_camera, triangulate_tracks
@@ -472,15 +472,19 @@ def _whole_discs(motion2d: Mapping[str, ImageTracks], found: RideTracks) -> dict
 
 
 def _coverage_flags(motion2d: Mapping[str, ImageTracks], calib_report: Mapping) -> list[Finding]:
-    """A finding per camera that saw the markers outside the region the calibration board covered."""
+    """A finding per camera that saw the markers outside the region the calibration board (and wand) covered."""
     flags = []
-    if calib_report.get("board_coverage"):
-        for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items():
+    coverage = lens_coverage_of(calib_report)
+    what, fix = (("calibration board and the wand", "walk the wand along the whole track, up to the edges of every "
+                  "camera's view") if calib_report.get("lens_coverage") else
+                 ("calibration board", "move the board to the edges of every camera's view"))
+    if coverage:
+        for cam, share in outside_coverage(motion2d, coverage).items():
             if share > 0.05:
                 flags.append(Finding("calibration.coverage",
-                                     f"the {cam} camera saw the markers outside the region the calibration board "
+                                     f"the {cam} camera saw the markers outside the region the {what} "
                                      f"covered in {100 * share:.0f} % of its detections: its lens distortion is "
-                                     "extrapolated there (move the board to the edges of every camera's view)",
+                                     f"extrapolated there ({fix})",
                                      {"outside_share_pct": 100 * share}))
     return flags
 
@@ -500,7 +504,7 @@ def detect_ride(clips: ClipReader, rig: Rig, offsets: Mapping, first_frame: Mapp
     """
     found = RideTracks()
     triangulate = _Triangulator(clips, rig, offsets, clocks, params,
-                                lens_reach_px=reach_by_camera(rig, calib_report.get("board_coverage")),
+                                lens_reach_px=reach_by_camera(rig, lens_coverage_of(calib_report)),
                                 readouts=readouts)
     _detect_plumb(clips, rig, first_frame, params, n_plumb, triangulate, found)
     progress.stage("detection", 0.2)

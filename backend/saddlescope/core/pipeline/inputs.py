@@ -8,13 +8,62 @@ the core never knows about jobs or queues.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Literal, Protocol, cast
 
 import numpy as np
 
-__all__ = ["STAGE_WEIGHTS", "ClipReader", "Progress", "cameras_at_once"]
+from saddlescope.core.calibration.wand import wand_length_problem
+from saddlescope.core.errors import InputError
+
+__all__ = ["CALIBRATION_METHODS", "STAGE_WEIGHTS", "CalibrationSpec", "ClipReader", "Progress", "calibration_spec",
+           "cameras_at_once"]
+
+# How a ride's clips calibrate its rig (ride.json ``calibration.method``, issue 35): the board walk; a wand
+# with close-up boards; or the board walk refined by a wand walked along the track.
+CALIBRATION_METHODS: tuple[str, ...] = ("board", "wand", "board+wand")
+CalibrationMethod = Literal["board", "wand", "board+wand"]
+
+
+@dataclass(frozen=True)
+class CalibrationSpec:
+    """ride.json's ``calibration``: the way (:data:`CALIBRATION_METHODS`) and, with a wand, its length (m)."""
+
+    method: CalibrationMethod = "board"
+    wand_length_m: float | None = None
+
+    @property
+    def clip_kinds(self) -> tuple[str, ...]:
+        """The clip sets the way calibrates from and synchronises (a wand's close-ups are each camera alone)."""
+        return {"board": ("calibration",), "wand": ("wand",), "board+wand": ("calibration", "wand")}[self.method]
+
+    @property
+    def wand_length_mm(self) -> float | None:
+        """The wand's length in mm (None: no wand)."""
+        return None if self.wand_length_m is None else 1000.0 * self.wand_length_m
+
+
+def calibration_spec(meta: Mapping[str, Any]) -> CalibrationSpec:
+    """The typed ``calibration`` of ride.json (absent: the board walk), or an InputError saying what is wrong."""
+    cal = meta.get("calibration")
+    if cal is None:
+        return CalibrationSpec()
+    if not isinstance(cal, Mapping):
+        raise InputError(f"ride.json: calibration must be an object such as {{\"method\": \"board+wand\", "
+                         f"\"wand_length_m\": 1.0}}, got {cal!r}")
+    method = cal.get("method", "board")
+    if method not in CALIBRATION_METHODS:
+        raise InputError(f"ride.json: calibration.method {method!r} is not one of {', '.join(CALIBRATION_METHODS)} "
+                         "(the board walk; a wand with close-up boards; the board walk refined by a wand)")
+    if method == "board":
+        return CalibrationSpec()
+    if cal.get("wand_length_m") is None:
+        raise InputError(f"ride.json: calibration.method {method!r} needs calibration.wand_length_m, the distance "
+                         "between the wand's two markers' centres in metres (e.g. 1.0)")
+    if problem := wand_length_problem(cal["wand_length_m"]):
+        raise InputError(f"ride.json: calibration.wand_length_m: {problem}")
+    return CalibrationSpec(cast(CalibrationMethod, method), float(cal["wand_length_m"]))
 
 # Share of the total progress each stage reports (rough wall-time shares on the thesis rig).
 STAGE_WEIGHTS: dict[str, float] = {"sync": 0.15, "calibration": 0.35, "detection": 0.3,

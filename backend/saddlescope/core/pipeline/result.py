@@ -14,7 +14,7 @@ import numpy as np
 from saddlescope.core.findings import Finding
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.detection import RideTracks, depth_uncertainty
-from saddlescope.core.pipeline.setup import outside_coverage
+from saddlescope.core.pipeline.setup import lens_coverage_of, outside_coverage
 from saddlescope.core.saddle import SaddleAnalysis
 from saddlescope.core.types import (
     AnalysisWindow,
@@ -51,10 +51,11 @@ def _track_quality(tracks: MarkerTracks) -> dict:
 
 
 def _outside_board(motion2d, calib_report: Mapping | None) -> dict[str, float]:
-    """Per camera, the share of its marker detections outside the region the calibration board covered."""
-    if not motion2d or not calib_report or not calib_report.get("board_coverage"):
+    """Per camera, the share of its marker detections outside the region the calibration board (and wand) covered."""
+    coverage = lens_coverage_of(calib_report)
+    if not motion2d or not coverage:
         return {}
-    return {cam: float(share) for cam, share in outside_coverage(motion2d, calib_report["board_coverage"]).items()}
+    return {cam: float(share) for cam, share in outside_coverage(motion2d, coverage).items()}
 
 
 def _findings(rig: Rig, flags: Sequence[Finding], input_flags: Sequence[Finding]) -> tuple[Finding, ...]:

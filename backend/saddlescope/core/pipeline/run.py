@@ -24,7 +24,7 @@ from saddlescope.core.pipeline.detection import (
     detect_ride,
     disagreement_flag,
 )
-from saddlescope.core.pipeline.inputs import ClipReader, Progress
+from saddlescope.core.pipeline.inputs import ClipReader, Progress, calibration_spec
 from saddlescope.core.pipeline.passes import PassAnalysis, analyse_passes, find_passes, pool_passes
 from saddlescope.core.pipeline.result import assemble_result, with_intervals
 from saddlescope.core.pipeline.setup import (
@@ -35,40 +35,36 @@ from saddlescope.core.pipeline.setup import (
     sync_quality,
     synchronise_clips,
 )
-from saddlescope.core.pipeline.wand_setup import calibrate_from_wand_clips
+from saddlescope.core.pipeline.wand_setup import calibrate_from_wand_clips, refine_from_wand_clips
 from saddlescope.core.saddle import kinematics_indicators, saddle_kinematics
 from saddlescope.core.types import RideResult, Rig
 
 __all__ = ["analyze_ride"]
 
 
-def _wand_length_mm(meta: Mapping) -> float | None:
-    """The wand's length (mm) of a wand calibration (ride.json ``calibration.method`` ``wand``), else None."""
-    cal = meta.get("calibration") or {}
-    if cal.get("method") != "wand":
-        return None
-    if not cal.get("wand_length_m"):
-        raise InputError("ride.json: calibration.method 'wand' needs calibration.wand_length_m (metres)")
-    return 1000.0 * float(cal["wand_length_m"])
-
-
 def _clip_kinds(clips: ClipReader, rig: Rig | None, meta: Mapping) -> list[str]:
     """The clip sets to synchronise, after checking the ride has what the analysis needs.
 
-    A wand calibration's ``wand`` clips are synchronised; its ``close_up`` clips are each camera's alone.
+    The calibration's clip sets (ride.json ``calibration.method``: the board walk's ``calibration``, a wand
+    calibration's ``wand``, or both for the board walk refined by a wand) are synchronised unless a rig is
+    given; a wand calibration's ``close_up`` clips are each camera's alone.
     """
     for kind in ("static", "motion"):
         if not clips.has(kind):
             raise InputError(f"the ride has no {kind} clip; it is required")
-    cal_kind = "wand" if _wand_length_mm(meta) is not None else "calibration"
-    if rig is None and not clips.has(cal_kind):
-        raise InputError("the ride has no wand clips for its wand calibration and no calibration was given"
-                         if cal_kind == "wand" else "the ride has no calibration clip and no calibration was given")
-    if rig is None and cal_kind == "wand" and not clips.has("close_up"):
-        raise InputError("the ride's wand calibration has no close-up clips: each camera's lens comes from the "
-                         "board filmed close to it")
-    kinds = [k for k in (cal_kind, "plumb", "static", "motion") if clips.has(k)]
-    return [k for k in kinds if k != cal_kind] if rig is not None else kinds
+    spec = calibration_spec(meta)
+    if rig is None:
+        missing = [k for k in spec.clip_kinds if not clips.has(k)]
+        if missing == ["calibration"] and spec.method == "board":
+            raise InputError("the ride has no calibration clip and no calibration was given")
+        if missing:
+            raise InputError(f"the ride's {spec.method} calibration has no {' and no '.join(missing)} clips, and "
+                             "no calibration was given")
+        if spec.method == "wand" and not clips.has("close_up"):
+            raise InputError("the ride's wand calibration has no close-up clips: each camera's lens comes from the "
+                             "board filmed close to it")
+    cal_kinds = spec.clip_kinds if rig is None else ()
+    return [k for k in (*cal_kinds, "plumb", "static", "motion") if clips.has(k)]
 
 
 def _motion_clip_sync(clips: ClipReader, rig: Rig, n_horse: int, params: PipelineParams, clocks: Mapping,
@@ -92,30 +88,44 @@ def _early_motion(clips: ClipReader, rig: Rig | None, methods: Mapping, first_fr
     return EarlyMotionTracks(clips, first_frame["motion"], params, n_horse)
 
 
+def _wand_synchronised(methods: Mapping) -> None:
+    """Refuse wand clips without the flash (or given offsets): their ends are paired at the same instants."""
+    if methods.get("wand") not in ("flash", "offsets"):
+        reason = methods.get("reasons", {}).get("wand", "")
+        raise InputError("the wand clips need the sync flash (or sync offsets in ride.json): the wand's ends "
+                         "must be paired at the same instants in every camera" + (f" ({reason})" if reason else ""))
+
+
 def _calibrate(clips: ClipReader, meta: Mapping, offsets: Mapping, first_frame: Mapping, methods: Mapping,
                clocks: Mapping, params: PipelineParams, progress: Progress,
                early: EarlyMotionTracks | None) -> tuple[Rig, dict, dict]:
     """The rig from the calibration clips, its report, and the clip's sync where the board gave it.
 
     The sync comes as ``{"calibration": MotionSync}`` (else empty); ``early`` starts once the views are found.
-    A wand calibration (ride.json ``calibration.method`` ``wand``) calibrates from its wand and close-up clips.
+    ride.json's ``calibration.method`` chooses the way: ``wand`` calibrates from its wand and close-up clips,
+    ``board+wand`` refines the board walk's rig by the wand clips where that helps (issue 35).
     """
-    wand_mm = _wand_length_mm(meta)
-    if wand_mm is not None:
-        if methods.get("wand") not in ("flash", "offsets"):
-            reason = methods.get("reasons", {}).get("wand", "")
-            raise InputError("the wand clips need the sync flash (or sync offsets in ride.json): the wand's ends "
-                             "must be paired at the same instants in every camera" + (f" ({reason})" if reason else ""))
-        rig, report = calibrate_from_wand_clips(clips, board_from_meta(meta.get("board")), wand_mm, offsets["wand"],
+    spec = calibration_spec(meta)
+    board = board_from_meta(meta.get("board"))
+    if spec.method == "wand" and spec.wand_length_mm is not None:
+        _wand_synchronised(methods)
+        rig, report = calibrate_from_wand_clips(clips, board, spec.wand_length_mm, offsets["wand"],
                                                 first_frame["wand"], params, progress)
         if early is not None:
             early.start()
         return rig, report, {}
-    rig, report = calibrate_from_clips(clips, board_from_meta(meta.get("board")), offsets["calibration"],
+    if spec.method == "board+wand":
+        _wand_synchronised(methods)  # before the board's solve: a missing flash is said at once
+    rig, report = calibrate_from_clips(clips, board, offsets["calibration"],
                                        first_frame["calibration"], params, progress, clocks=clocks.get("calibration"),
                                        sync_from_board=methods.get("calibration") == "motion",
                                        on_views_found=early.start if early is not None else None)
-    return rig, report, ({"calibration": report.pop("sync")} if "sync" in report else {})
+    synced = {"calibration": report.pop("sync")} if "sync" in report else {}
+    if spec.method == "board+wand" and spec.wand_length_mm is not None:
+        rig, report = refine_from_wand_clips(clips, rig, report, board, spec.wand_length_mm, offsets["wand"],
+                                             first_frame["wand"], params)
+    report.pop("board_views", None)  # the solve's views: not part of the result
+    return rig, report, synced
 
 
 def _within_thread_budget(params: PipelineParams) -> PipelineParams:
@@ -211,7 +221,8 @@ def analyze_ride(clips: ClipReader, meta: Mapping, *, params: PipelineParams | N
         The user's choices (defaults: the thesis's, where it was right).
     rig : Rig, optional
         A calibration to reuse (e.g. the rig's, computed once for every ride of that day); ``rig_report``
-        its ``n_views`` and ``board_coverage``, so that the lens limit and board-region checks still apply.
+        its ``n_views`` and ``board_coverage`` (and ``lens_coverage`` where a wand refined it), so that the lens
+        limit and board-region checks still apply.
     on_progress : callable(fraction, stage), optional
         Called as each stage advances, ``fraction`` of the whole analysis in [0, 1].
     input_flags : sequence of Finding, optional

@@ -26,7 +26,8 @@ from saddlescope.core.sync_motion import MotionSync, motion_offsets
 from saddlescope.core.types import Board, ImageTracks, Rig
 
 __all__ = ["SYNC_METHODS", "board_corner_sample", "board_coverage", "calibrate_from_clips", "clip_readouts",
-           "frame_clocks", "motion_sync", "outside_coverage", "still_views", "sync_flag", "sync_quality", "synchronise",
+           "frame_clocks", "lens_coverage_of",
+           "motion_sync", "outside_coverage", "still_views", "sync_flag", "sync_quality", "synchronise",
            "synchronise_clips"]
 
 
@@ -322,8 +323,9 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     -------
     rig : Rig
     report : dict
-        ``n_views`` and ``board_coverage`` (image hull, share of the image) per camera; with
-        ``sync_from_board`` also ``sync`` (:class:`~saddlescope.core.sync_motion.MotionSync`).
+        ``n_views`` and ``board_coverage`` (image hull, share of the image) per camera, ``board_views`` (the
+        views solved, per camera: a wand refinement checks on them); with ``sync_from_board`` also ``sync``
+        (:class:`~saddlescope.core.sync_motion.MotionSync`).
     """
     cams = clips.cameras("calibration")
     fps = clips.fps("calibration", cams[0])
@@ -369,6 +371,7 @@ def calibrate_from_clips(clips: ClipReader, board: Board, offsets: Mapping[str, 
     rig, report = calib.calibrate_rig(views_by_camera, board, sizes, max_square_error_pct=params.max_square_error_pct,
                                       threads=cameras_at_once(len(cams), params.threads))
     report.update(_views_report(views_by_camera, sizes))
+    report["board_views"] = views_by_camera
     if board_sync is not None:
         report["sync"] = board_sync
     return rig, report
@@ -463,6 +466,18 @@ def board_coverage(views: list, image_size: tuple[int, int]) -> dict:
     hull = cv2.convexHull(pts).reshape(-1, 2)
     return {"hull_px": hull.astype(float).round(1).tolist(),
             "area_fraction": float(cv2.contourArea(hull) / (image_size[0] * image_size[1]))}
+
+
+def lens_coverage_of(calib_report: Mapping | None) -> dict | None:
+    """Per camera the image region the rig's lens is known in: where the board went, or the board and a wand.
+
+    A board calibration refined by a wand (issue 35) knows its lens where the wand's ends went too
+    (``lens_coverage``); else the board's coverage (the board walk's, or a wand calibration's close-ups). None
+    where the calibration says neither (a calibration file).
+    """
+    if not calib_report:
+        return None
+    return calib_report.get("lens_coverage") or calib_report.get("board_coverage") or None
 
 
 def outside_coverage(tracks: Mapping[str, ImageTracks], coverage: Mapping[str, dict], *,

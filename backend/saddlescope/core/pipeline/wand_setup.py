@@ -1,5 +1,7 @@
 """A ride's rig from a wand calibration's clips (issue 35 item 3): the ``wand`` and ``close_up`` clip sets.
 
+Or (the ``board+wand`` way) the board walk's rig refined by the ``wand`` clips: :func:`refine_from_wand_clips`.
+
 Each camera's lens comes from its ``close_up`` clip (a small board filmed close to that camera alone, no
 sync needed); the poses and the scale come from the ``wand`` clips, filmed by the cameras at once and
 synchronised like every other clip set (the flash, or given offsets). The wand's ends are put on the
@@ -16,13 +18,15 @@ import numpy as np
 
 from saddlescope.core import calibration as calib
 from saddlescope.core.calibration.wand import WandView, calibrate_wand, track_wand_ends
+from saddlescope.core.calibration.wand_refinement import refine_board_rig
 from saddlescope.core.errors import CalibrationError
 from saddlescope.core.params import PipelineParams
 from saddlescope.core.pipeline.inputs import ClipReader, Progress
 from saddlescope.core.pipeline.setup import _per_camera_in_threads, board_corner_sample, board_coverage
 from saddlescope.core.types import Board, Camera, Rig
 
-__all__ = ["calibrate_from_wand_clips", "wand_coverage", "wand_on_reference_clock"]
+__all__ = ["calibrate_from_wand_clips", "refine_from_wand_clips", "wand_coverage", "wand_on_reference_clock",
+           "wand_views_from_clips"]
 
 MAX_CLOSE_UP_VIEWS = 40  # views per lens: the close-up clip's board spread over the image
 
@@ -74,6 +78,31 @@ def _close_up_lens(clips: ClipReader, cam: str, board: Board) -> tuple[Camera, l
     return lens, used, size
 
 
+def wand_views_from_clips(clips: ClipReader, offsets: Mapping[str, float], first_frame: Mapping[str, int],
+                          params: PipelineParams, *, every_camera: bool = True) -> dict[str, list[WandView]]:
+    """Each camera's wand ends in its ``wand`` clip, from the flash on, put on the first camera's clock.
+
+    Raises
+    ------
+    CalibrationError
+        With ``every_camera``, a camera whose clip never shows both ends (without, its list is empty).
+    """
+    cams = clips.cameras("wand")
+    base = max(first_frame.get(c, 0) - int(round(offsets.get(c, 0.0))) for c in cams)
+
+    def ends(cam: str) -> tuple[list[WandView], None]:
+        start = max(0, base + int(round(offsets.get(cam, 0.0))))
+        return track_wand_ends(clips.gray_frames("wand", cam, start=start)), None
+
+    tracked = _per_camera_in_threads(cams, ends, None, params.threads)
+    views = {c: wand_on_reference_clock(tracked[c][0], float(offsets.get(c, 0.0))) for c in cams}
+    for cam in cams:
+        if not views[cam] and every_camera:
+            raise CalibrationError(f"the wand's two ends were never both seen in the wand clip of the {cam} camera "
+                                   "(two bright markers, nothing else as bright in view)")
+    return views
+
+
 def calibrate_from_wand_clips(clips: ClipReader, board: Board, wand_length_mm: float, offsets: Mapping[str, float],
                               first_frame: Mapping[str, int], params: PipelineParams,
                               progress: Progress | None = None) -> tuple[Rig, dict]:
@@ -103,18 +132,7 @@ def calibrate_from_wand_clips(clips: ClipReader, board: Board, wand_length_mm: f
         raise CalibrationError(f"no close-up clip for the {', '.join(missing)} camera: each camera's lens comes from "
                                "the board filmed close to it")
     lenses = _per_camera_in_threads(cams, lambda c: _close_up_lens(clips, c, board), progress, params.threads)
-    base = max(first_frame.get(c, 0) - int(round(offsets.get(c, 0.0))) for c in cams)
-
-    def ends(cam: str) -> tuple[list[WandView], None]:
-        start = max(0, base + int(round(offsets.get(cam, 0.0))))
-        return track_wand_ends(clips.gray_frames("wand", cam, start=start)), None
-
-    tracked = _per_camera_in_threads(cams, ends, None, params.threads)
-    views = {c: wand_on_reference_clock(tracked[c][0], float(offsets.get(c, 0.0))) for c in cams}
-    for cam in cams:
-        if not views[cam]:
-            raise CalibrationError(f"the wand's two ends were never both seen in the wand clip of the {cam} camera "
-                                   "(two bright markers, nothing else as bright in view)")
+    views = wand_views_from_clips(clips, offsets, first_frame, params)
     rig, report = calibrate_wand(views, {c: lenses[c][0] for c in cams}, wand_length_mm)
     sizes = {c: lenses[c][2] for c in cams}
     out = {"n_views": {c: len(lenses[c][1]) for c in cams},
@@ -124,3 +142,37 @@ def calibrate_from_wand_clips(clips: ClipReader, board: Board, wand_length_mm: f
            "wand_views": {c: len(views[c]) for c in cams}, "wand": report["bundle"],
            "method": "wand"}
     return rig, out
+
+
+def refine_from_wand_clips(clips: ClipReader, rig: Rig, board_report: Mapping, board: Board, wand_length_mm: float,
+                           offsets: Mapping[str, float], first_frame: Mapping[str, int], params: PipelineParams
+                           ) -> tuple[Rig, dict]:
+    """The board walk's rig refined by the ``wand`` clips where that helps (issue 35: the ``board+wand`` way).
+
+    ``board_report``: :func:`~saddlescope.core.pipeline.setup.calibrate_from_clips`'s (its ``board_views``
+    and ``board_coverage``); ``offsets`` and ``first_frame``: the wand clips'. The refinement and the choice
+    are :func:`~saddlescope.core.calibration.wand_refinement.refine_board_rig`'s; a camera without wand
+    clips keeps the board's lens and pose.
+
+    Returns
+    -------
+    rig : Rig
+        The refined rig, or the board's; its ``wand_refinement`` says which and why.
+    report : dict
+        ``board_report`` without its views, plus ``wand_coverage``, ``wand_views``, ``wand`` (the refinement's
+        stages, where it ran), ``method`` "board+wand" and, where the refined rig is kept, ``lens_coverage``
+        (where the board's corners and the wand's ends went: the ride's lens reach).
+    """
+    out = {k: v for k, v in board_report.items() if k != "board_views"}
+    # a camera that never saw both ends keeps the board's lens (its refinement is then the other cameras')
+    views = wand_views_from_clips(clips, offsets, first_frame, params, every_camera=False)
+    hulls = {c: cov["hull_px"] for c, cov in (board_report.get("board_coverage") or {}).items()}
+    refined, report = refine_board_rig(rig, board_report["board_views"], board, views, wand_length_mm,
+                                       board_hull_px=hulls, max_square_error_pct=params.max_square_error_pct)
+    sizes = {c: rig.cameras[c].image_size for c in views if c in rig.cameras}
+    out.update({"wand_coverage": {c: wand_coverage(views[c], sizes[c]) for c in sizes if views[c]},
+                "wand_views": {c: len(views[c]) for c in views},
+                "wand": (report.get("refinement") or {}).get("bundle"), "method": "board+wand"})
+    if "lens_coverage" in report:
+        out["lens_coverage"] = report["lens_coverage"]
+    return refined, out

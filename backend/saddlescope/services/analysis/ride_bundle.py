@@ -27,7 +27,8 @@ def analyze_bundle(path: Path | str, *, on_progress: Callable[[float, str], None
                    meta_overrides: dict | None = None, rig_report: dict | None = None) -> dict:
     """Open a ride bundle (folder or zip), run the pipeline, return the validated result document.
 
-    `rig_report`: a reused rig calibration's `n_views` and `board_coverage` (where its board has been).
+    `rig_report`: a reused rig calibration's `n_views` and `board_coverage` (where its board has been), and for a
+    board refined by a wand its `lens_coverage` (where the board and the wand have been).
 
     `meta_overrides` replace keys of the bundle's ride.json (a ride's gait edited after upload).
     """

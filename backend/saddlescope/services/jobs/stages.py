@@ -473,10 +473,12 @@ def _calibrate_rig_from_ride(ctx: StageContext, rig: RigInputs) -> None:
 
 @stage("calibrate_rig", weight=6.0)
 def run_calibrate_rig(ctx: StageContext) -> None:
-    """Calibrate a rig from its three calibration clips, or its wand and close-up clips (replacing an earlier one).
+    """Calibrate a rig from its calibration clips, its wand and close-up clips, or both (replacing an earlier one).
 
-    The payload's ``method`` (``board`` or ``wand``) chooses; without it, the wand way when the rig has its
-    wand and close-up clips of the three cameras and a wand length, else the board walk.
+    The payload's ``method`` (``board``, ``wand`` or ``board+wand``) chooses; without it
+    (:func:`~saddlescope.services.rigs.calibration_way.choose_calibration_way`) the board walk refined by the
+    wand when the rig has its calibration and wand clips and a wand length, else the wand way when it has its
+    wand and close-up clips and a wand length, else the board walk.
     """
     if ctx.rig_id is None:
         raise InputError(f"calibrate_rig job {ctx.job_id} names no rig")
@@ -495,11 +497,18 @@ def run_calibrate_rig(ctx: StageContext) -> None:
         paths = {role: ctx.fetch(key) for role, key in way.clips["calibration"].items()}
         _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
         return
-    from saddlescope.services.rigs.calibration import calibrate_wand_clips
+    from saddlescope.services.rigs.calibration import calibrate_board_and_wand_clips, calibrate_wand_clips
 
-    wand, close_up = ({role: ctx.fetch(key) for role, key in way.clips[kind].items()} for kind in ("wand", "close_up"))
-    calibration = calibrate_wand_clips(wand, close_up, board=board, wand_length_m=way.wand_length_m or 0.0,
-                                       sync=ctx.payload.get("sync"), on_progress=lambda f, s: ctx.report(f, s))
+    fetched = {kind: {role: ctx.fetch(key) for role, key in cams.items()} for kind, cams in way.clips.items()}
+    if way.method == "board+wand":  # the board walk, refined by the wand where that helps (issue 35)
+        calibration = calibrate_board_and_wand_clips(fetched["calibration"], fetched["wand"], board=board,
+                                                     wand_length_m=way.wand_length_m or 0.0,
+                                                     sync=ctx.payload.get("sync"),
+                                                     on_progress=lambda f, s: ctx.report(f, s))
+    else:
+        calibration = calibrate_wand_clips(fetched["wand"], fetched["close_up"], board=board,
+                                           wand_length_m=way.wand_length_m or 0.0, sync=ctx.payload.get("sync"),
+                                           on_progress=lambda f, s: ctx.report(f, s))
     _store_calibration(ctx, ctx.rig_id, calibration, replace=True)
 
 
@@ -575,8 +584,10 @@ def run_analyze(ctx: StageContext) -> None:
         from saddlescope.services.rigs.calibration import rig_from_calibration
 
         rig_model = rig_from_calibration(calibration)
-    # where the rig's board has been: the lens model is held to it and markers outside it are flagged (issue 27)
-    rig_report = {k: calibration[k] for k in ("n_views", "board_coverage") if calibration and calibration.get(k)}
+    # where the rig's board (and a wand that refined it) has been: the lens model is held to it and markers
+    # outside it are flagged (issues 27, 35)
+    rig_report = {k: calibration[k] for k in ("n_views", "board_coverage", "lens_coverage")
+                  if calibration and calibration.get(k)}
     # The ride's own settings win over what a bundle's ride.json says (edited after the upload, or chosen then).
     settings = inputs.analysed_settings
     result = analyze_bundle(path, on_progress=lambda f, s: ctx.report(f, s), rig=rig_model, rig_report=rig_report,

@@ -231,10 +231,11 @@ def register_bundle(sessions: sessionmaker[Session], storage: Storage, bundle: P
     """
     opened = open_bundle(bundle) if isinstance(bundle, str | Path) else open_zip_stream(bundle, name)
     with opened:
-        if opened.calibration_method == "wand":  # its clip sets have no recording kind yet (issue 35)
-            raise BundleError(f"{name}: a ride calibrated by a wand (ride.json calibration.method 'wand') is analysed "
-                              "with `saddlescope analyze` for now; to upload it here, give the rig's board walk "
-                              "(clips.calibration) or its calibration_file instead")
+        if opened.calibration_method != "board":  # its clip sets have no recording kind yet (issue 35)
+            raise BundleError(f"{name}: a ride calibrated with a wand (ride.json calibration.method "
+                              f"{opened.calibration_method!r}) is analysed with `saddlescope analyze` for now; to "
+                              "upload it here, give the rig's board walk (clips.calibration) or its calibration_file "
+                              "instead, and the wand's clips on the rig's page")
         return _register(sessions, storage, opened, club_name=club_name, club_id=club_id, rig_id=rig_id,
                          ridden_on=ridden_on, chosen=dict(chosen or {}), name=name)
 

@@ -78,7 +78,9 @@ def _grade(value: float | None, good: float, fair: float) -> str | None:
 
 
 def calibration_words(calibration: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The calibration's quality in plain words: reprojection error (px), board square error (mm).
+    """The calibration's quality in plain words: reprojection error (px), board square error (mm), wand refinement.
+
+    ``refined_by_wand``: whether a wand refined the board's calibration (None where no wand was offered).
 
     Thresholds: a reprojection r.m.s. under 0.5 px is good, under 1 px fair (a phone video's corner
     noise); squares rebuilt within 0.5 mm good, within 1 mm fair (CONTRACTS' 1 mm board check).
@@ -106,10 +108,14 @@ def calibration_words(calibration: Mapping[str, Any] | None) -> dict[str, Any]:
                "fair": "fair; distances are within a millimetre.",
                "poor": "poor: check the square size typed for the board, and that the print was at 100 %."}[sq_grade])
     sentences += _lens_sentences(cams)
+    refinement = calibration.get("wand_refinement")
+    if isinstance(refinement, Mapping) and isinstance(refinement.get("sentence"), str):
+        sentences.append(refinement["sentence"])  # issue 35: refined by the wand or not, and why
     flags = list(calibration.get("flags") or [])
     return {"calibrated": True, "reprojection_px": reproj, "board_square_error_mm": square,
             "reprojection_grade": grade, "square_grade": sq_grade, "flags": flags,
-            "n_views": calibration.get("n_views"), "sentences": sentences}
+            "n_views": calibration.get("n_views"), "sentences": sentences,
+            "refined_by_wand": bool(refinement.get("kept")) if isinstance(refinement, Mapping) else None}
 
 
 def _lens_sentences(cams: Mapping[str, Any]) -> list[str]:
