@@ -156,12 +156,15 @@ export interface BundleUploaded {
 }
 
 /**
- * How to calibrate a rig: the board walk or a wand (default: the wand when its clips and length are there).
+ * How to calibrate a rig: the board walk, a wand, or the board walk refined by the wand.
+ *
+ * Default: the board walk refined by the wand when the calibration and wand clips and the wand's length are
+ * there, else the wand when its clips and length are, else the board walk.
  * POST /api/rigs/{rig_id}/calibrate takes it
  */
 export interface CalibrateIn {
-  /** board: the calibration clips; wand: the wand and close-up clips */
-  method?: "board" | "wand" | null;
+  /** board: the calibration clips; wand: the wand and close-up clips; board+wand: the calibration clips refined by the wand clips where that helps */
+  method?: "board" | "wand" | "board+wand" | null;
   /** sets the rig's wand length first */
   wand_length_m?: number | null;
 }
