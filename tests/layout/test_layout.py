@@ -63,3 +63,26 @@ def test_no_import_cycle_between_modules():
     graph = grimp.build_graph("saddlescope", cache_dir=None)
     cycle = _cycle(graph, set(graph.modules))
     assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def _stage(module: str) -> str:
+    """The package a module's private names belong to: its parent, at most three deep ("saddlescope.api",
+    "saddlescope.core.calibration", "saddlescope.services.rigs")."""
+    return ".".join(module.split(".")[:-1][:3])
+
+
+def test_private_names_are_imported_only_inside_their_package():
+    """Issue 34: 90 imports of `_private` names crossed modules; a name with a leading underscore is a
+    package's own, so another package reaches it through a public one instead."""
+    crossings = []
+    for path in _modules():
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        importer = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not (isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("saddlescope")):
+                continue
+            for alias in node.names:
+                private = alias.name.startswith("_") and not alias.name.startswith("__")
+                if private and not importer.startswith(_stage(node.module)):
+                    crossings.append(f"{importer} imports {node.module}.{alias.name}")
+    assert not crossings, crossings
