@@ -147,6 +147,33 @@ export interface BundleChoice {
 }
 
 /**
+ * A ride bundle's upload finalised: the new ride, and its analysis job.
+ * POST /api/uploads/{upload_id}/finalize answers it
+ */
+export interface BundleFinalisedOut {
+  ride_id: number;
+  job_id: number;
+}
+
+/**
+ * A complete bundle upload's ride.json, to pre-fill the upload form (suggestions: its text, unchecked).
+ * GET /api/uploads/{upload_id}/bundle-meta answers it
+ */
+export interface BundleMetaOut {
+  horse: NamedInClubOut;
+  rider: NamedInClubOut;
+  gait: string | null;
+  direction: string | null;
+  /** ride.json's date as written */
+  ridden_on: string | null;
+  notes: string;
+  saddle: NamedInClubOut;
+  pad: string | null;
+  /** kg, as ride.json writes it */
+  rider_weight_kg: number | null;
+}
+
+/**
  * The ride a bundle became, and its analysis job.
  * POST /api/rides/bundle answers it
  */
@@ -188,6 +215,37 @@ export interface CalibrationCheckOut {
   wand?: WandCheckOut | null;
 }
 
+/** A rig's calibration in plain words: each number with its grade, and sentences a club can act on. */
+export interface CalibrationQualityOut {
+  calibrated: true;
+  /** the worst camera's reprojection r.m.s.; null: no camera says */
+  reprojection_px: number | null;
+  /** how far the rebuilt board squares are off */
+  board_square_error_mm: number | null;
+  /** good under 0.5 px, fair under 1 px, else poor */
+  reprojection_grade: "good" | "fair" | "poor" | null;
+  /** good within 0.5 mm, fair within 1 mm, else poor */
+  square_grade: "good" | "fair" | "poor" | null;
+  flags: string[];
+  /** camera -> the board views its lens was fitted with */
+  n_views: Record<string, number> | null;
+  sentences: string[];
+  /** whether a wand refined the board's calibration; null: no wand was offered */
+  refined_by_wand: boolean | null;
+}
+
+/**
+ * A rig's calibration in plain words, and per camera where in the image the board has been.
+ * GET /api/rigs/{rig_id}/calibration-report answers it
+ */
+export interface CalibrationReportOut {
+  quality: NotCalibratedOut | CalibrationQualityOut;
+  /** camera -> where its board has been */
+  coverage: Record<string, CameraCoverageOut>;
+  /** a calibrate_rig job is queued or running */
+  calibrating: boolean;
+}
+
 /** One camera's calibration clip checked: coverage over the image and depth, reach, findings. */
 export interface CameraCheckOut {
   camera: string;
@@ -211,6 +269,21 @@ export interface CameraCheckOut {
   findings: CheckFindingOut[];
 }
 
+/** Where in one camera's image the board has been (the lens is only known there). */
+export interface CameraCoverageOut {
+  /** width and height, px */
+  image_size: [number, number];
+  /** the board corners seen (a sample), px */
+  corners_px: [number, number][];
+  /** their convex hull, px; null: not stored */
+  hull_px: [number, number][] | null;
+  /** the hull's share of the image */
+  area_fraction: number | null;
+  /** the ninths of the image no corner reached, in words; null: the corners are not stored for this calibration */
+  missed: string[] | null;
+  sentence: string;
+}
+
 /** One finding of the check: its code (saddlescope.core.findings), severity, sentence and what to do. */
 export interface CheckFindingOut {
   code: string;
@@ -219,6 +292,18 @@ export interface CheckFindingOut {
   detail: string;
   /** one sentence a club can act on */
   advice: string;
+}
+
+/**
+ * A clip's upload finalised: its recording, and the job the clip let start.
+ * POST /api/uploads/{upload_id}/finalize answers it
+ */
+export interface ClipFinalisedOut {
+  recording_id: number;
+  /** null: nothing to start yet (or a job already queued or running) */
+  job_id: number | null;
+  /** a ride's clip that started no job: what the ride still needs (absent otherwise) */
+  missing?: string[] | null;
 }
 
 /**
@@ -343,6 +428,19 @@ export interface Differences {
   most_different_marker: string;
   /** index into per_stretch_mm */
   most_different_stretch: number;
+}
+
+/**
+ * Which parts of a direct upload the bucket has (a part of the wrong size is missing: send it again).
+ * GET /api/uploads/{upload_id}/parts answers it
+ */
+export interface DirectPartsOut {
+  transport: "s3-parts";
+  part_bytes: number;
+  parts_total: number;
+  parts: PartOut[];
+  /** the bytes of the parts in order from the first */
+  offset_bytes: number;
 }
 
 /** An error's reason, in words for the user. */
@@ -748,10 +846,33 @@ export interface MocapRideOut {
   source: Record<string, unknown>;
 }
 
+/** A horse, rider or saddle a bundle names, and the club's one of that name. */
+export interface NamedInClubOut {
+  /** as ride.json says it; null: ride.json names none */
+  name: string | null;
+  /** the club's horse, rider or saddle of that name; null: the club has none */
+  id: number | null;
+}
+
+/** A rig not calibrated yet: its quality is one sentence saying so. */
+export interface NotCalibratedOut {
+  calibrated: false;
+  sentences: string[];
+}
+
 /** A ride that could not be compared, and why. */
 export interface NotComparable {
   ride: RideSummary;
   reason: string;
+}
+
+/** A chunk refused (409): its Upload-Offset is not where the upload stands, or the upload takes no more bytes. */
+export interface OffsetConflictOut {
+  detail: string;
+  /** 409 for clips uploaded again: the ride they already are */
+  ride_id?: number | null;
+  /** where the upload stands: send the next chunk from here (also the Upload-Offset header); absent when it takes no more bytes */
+  offset_bytes?: number | null;
 }
 
 /** The band the horse page draws across its trend, with where it comes from and its own uncertainty. */
@@ -893,12 +1014,32 @@ export interface PartNumbers {
   numbers: number[];
 }
 
+/** A part the bucket has, of the size its place needs. */
+export interface PartOut {
+  number: number;
+  /** bytes */
+  size: number;
+}
+
 /** One part's health without its detail (what anyone may see). */
 export interface PartState {
   ok: boolean;
   status: "ok" | "degraded" | "error";
   /** storage only: free bytes of the folder's disk */
   free_bytes?: number | null;
+}
+
+/**
+ * Pre-signed URLs to PUT parts of a direct upload to.
+ * POST /api/uploads/{upload_id}/parts answers it
+ */
+export interface PartUrlsOut {
+  /** part number ("1") -> the URL to PUT it to */
+  urls: Record<string, string>;
+  /** how long the URLs work */
+  expires_s: number;
+  /** each part's size in bytes (the last one shorter) */
+  part_bytes: number;
 }
 
 /** One pass of the horse in front of the cameras (a ride may hold several, issue 38). */
@@ -1533,6 +1674,17 @@ export interface SpectrumOut {
 export interface SquareAtDistance {
   distance_m: number;
   square_mm: number;
+}
+
+/**
+ * A streamed upload has no parts: its bytes arrive through the API (resume from `offset_bytes`).
+ * GET /api/uploads/{upload_id}/parts answers it
+ */
+export interface StreamedPartsOut {
+  transport: "stream";
+  /** always empty */
+  parts: PartOut[];
+  offset_bytes: number;
 }
 
 /** Both rides' mean strides over stride phase (mm), the second shifted to line up with the first. */

@@ -8,14 +8,8 @@ import { ApiError, del, get, post, request } from "./api.js";
 /** @typedef {Omit<import("./api-types").UploadCreate, "length_bytes" | "filename">} UploadTarget where the file goes */
 /** @typedef {"stream" | "s3-parts"} Transport how the bytes go: through the API, or straight to the store */
 /**
- * What GET /api/uploads/{id}/parts answers (the API declares no model for it:
- * saddlescope.services.uploads.direct.parts_state).
- * @typedef {object} PartsState
- * @property {Transport} transport
- * @property {{number: number, size: number}[]} parts the parts the store has
- * @property {number} offset_bytes
- * @property {number} [part_bytes]
- * @property {number} [parts_total]
+ * What GET /api/uploads/{id}/parts answers: the parts the store has (a direct upload), or none (a streamed one).
+ * @typedef {import("./api-types").StreamedPartsOut | import("./api-types").DirectPartsOut} PartsState
  */
 /**
  * An upload being sent: its id, where the server's copy ends, where this browser keeps its id, and how
@@ -30,13 +24,8 @@ import { ApiError, del, get, post, request } from "./api.js";
  * @property {{number: number, size: number}[]} [parts]
  */
 /**
- * What POST /api/uploads/{id}/finalize answers (no model in the API: saddlescope.services.uploads.intake
- * finalise_upload's outcome): a clip's recording, or a bundle's ride, and the job it started.
- * @typedef {object} Finalized
- * @property {number | null} [job_id]
- * @property {number} [recording_id]
- * @property {number} [ride_id]
- * @property {unknown} [missing] what the ride still needs, when no job started
+ * What POST /api/uploads/{id}/finalize answers: a clip's recording, or a bundle's ride, and the job it started.
+ * @typedef {import("./api-types").ClipFinalisedOut | import("./api-types").BundleFinalisedOut} Finalized
  */
 /**
  * @typedef {object} SendOptions
@@ -126,7 +115,7 @@ function partBytes(upload) {
  * @param {AbortSignal} [signal]
  */
 async function sendPart(upload, file, number, signal) {
-  /** @type {{urls: Record<string, string>}} what POST /parts answers (no model in the API: direct.part_urls) */
+  /** @type {import("./api-types").PartUrlsOut} */
   const { urls } = await post(`/api/uploads/${upload.id}/parts`, { numbers: [number] }, { signal });
   const start = (number - 1) * partBytes(upload);
   let response;
@@ -184,9 +173,12 @@ async function sendChunk(id, file, offset, signal) {
     });
     return offsetFrom(answer.headers, offset + chunk.size);
   } catch (error) {
-    // 409: our offset is not the server's; carry on from the server's.
+    // 409: our offset is not the server's; carry on from the server's (its Upload-Offset header and
+    // `offset_bytes`; neither when the upload takes no more bytes).
     if (error instanceof ApiError && error.status === 409) {
-      const server = offsetFrom(error.headers, Number(error.body?.offset_bytes ?? error.body?.offset));
+      /** @type {import("./api-types").OffsetConflictOut | null} */
+      const conflict = error.body;
+      const server = offsetFrom(error.headers, conflict?.offset_bytes ?? Number.NaN);
       if (Number.isFinite(server)) return server;
     }
     throw error;

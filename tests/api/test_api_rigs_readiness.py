@@ -64,8 +64,9 @@ def test_a_ride_is_refused_with_what_is_missing_until_its_clips_and_rig_are_comp
 
     api.ok("PATCH", f"/rigs/{rig['id']}", json={"board": BOARD})  # the club's admin sets the board
     for camera in ("left", "middle"):
-        upload(api, clip(folder, f"cal-{camera}"), target="rig_clip", rig_id=rig["id"], clip_kind="calibration",
-               camera=camera)
+        rig_clip = upload(api, clip(folder, f"cal-{camera}"), target="rig_clip", rig_id=rig["id"],
+                          clip_kind="calibration", camera=camera)
+        assert set(rig_clip) == {"recording_id", "job_id"}  # a rig's clip: no `missing` (absent, not null)
     for kind in ("static", "motion"):
         for camera in ("left", "middle", "right"):
             last = upload(api, clip(folder, f"{kind}-{camera}"), target="ride_clip", ride_id=ride["id"],
@@ -187,6 +188,9 @@ def test_a_member_cannot_change_the_board(env, club):
 def test_the_calibration_report_says_quality_and_where_the_board_never_was(env, club):
     api = club["api"]
     rig = api.ok("POST", "/rigs", 201, json={"name": "measured", "board": BOARD})
+    # not calibrated: the quality is one sentence, without the numbers' keys (CalibrationReportOut)
+    assert api.ok("GET", f"/rigs/{rig['id']}/calibration-report") == {
+        "quality": {"calibrated": False, "sentences": ["Not calibrated yet."]}, "coverage": {}, "calibrating": False}
     cams = {c: {"K": [[800, 0, 320], [0, 800, 240], [0, 0, 1]], "dist": [0] * 5, "image_size": [640, 480],
                 "rms_px": rms} for c, rms in (("left", 0.21), ("middle", 0.3), ("right", 1.6))}
     left_third = [[x, y] for x in (20.0, 100.0, 200.0) for y in (20.0, 240.0, 460.0)]

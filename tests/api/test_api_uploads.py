@@ -97,6 +97,11 @@ def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club
     assert stale.status_code == 204 and stale.headers["Upload-Offset"] == str(third)
     other = send(api, upload["id"], 0, b"\xff" * third)  # other bytes where some were acknowledged
     assert other.status_code == 409 and f"resume from {third}" in other.json()["detail"]
+    # The 409 says where to resume as the client reads it (uploader.js): the header and `offset_bytes`.
+    assert (other.headers["Upload-Offset"], other.json()["offset_bytes"]) == (str(third), third)
+    ahead = send(api, upload["id"], 2 * third, data[2 * third :])  # past the server's offset (a lost chunk)
+    assert ahead.status_code == 409 and (ahead.headers["Upload-Offset"], ahead.json()["offset_bytes"]) == (
+        str(third), third)
     early = api.post(f"/uploads/{upload['id']}/finalize")
     assert early.status_code == 409 and f"has {third} of its {len(data)} bytes" in early.json()["detail"]
 
@@ -122,7 +127,9 @@ def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club
     assert clip["original_filename"] == "left.avi"
     done = api.ok("GET", f"/uploads/{upload['id']}")
     assert done["status"] == "finalised" and done["outcome"] == outcome
-    assert send(api, upload["id"], len(data), b"more").status_code == 409
+    closed = send(api, upload["id"], len(data), b"more")
+    # no offset to resume from: the upload takes no more bytes
+    assert closed.status_code == 409 and "Upload-Offset" not in closed.headers and "offset_bytes" not in closed.json()
     assert not open_storage(env.settings).exists(upload_key(upload["id"]))
 
 

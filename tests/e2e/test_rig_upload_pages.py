@@ -331,3 +331,30 @@ def test_the_same_clips_as_a_bundle_then_one_by_one_make_one_ride(page, served):
     assert _ok(api.get("/api/rides"))["total"] == rides_before  # the ride made for the clips was taken back
     shoot(page, "upload-same-clips")
     assert page.console.unexpected(409) == []
+
+
+def test_a_chunk_refused_at_a_wrong_offset_is_sent_again_from_the_servers_offset(page, served):
+    """The 409 of a chunk whose Upload-Offset is not the server's says where the upload stands (its Upload-Offset
+    header, `offset_bytes`), and the page carries on from there: the first chunk's offset is spoilt in flight."""
+    rig = _ok(served["api"].post("/api/rigs", json={"name": "Spoilt offset"}))["id"]
+    spoilt: list[str] = []
+    answers: list[tuple[str, int, str | None]] = []
+
+    def spoil_the_first_chunk(route):
+        if route.request.method == "PATCH" and not spoilt:
+            spoilt.append(route.request.url)
+            route.continue_(headers={**route.request.headers, "upload-offset": "4096"})
+        else:
+            route.continue_()
+
+    page.route("**/api/uploads/*", spoil_the_first_chunk)
+    page.on("response", lambda r: answers.append((r.request.method, r.status, r.headers.get("upload-offset")))
+            if "/api/uploads/" in r.url else None)
+    page.goto(f"/#/rigs/{rig}")
+    page.locator('[data-rig-clip="static-left"]').set_input_files(tiny_clip(served, "spoilt-static"))
+    page.locator('.rig-clip[data-clip-kind="static"][data-camera="left"]').get_by_text("spoilt-static.avi").wait_for()
+    patches = [(status, offset) for method, status, offset in answers if method == "PATCH"]
+    assert spoilt and patches[0] == (409, "0") and patches[1][0] == 204, answers
+    clips = _ok(served["api"].get(f"/api/rigs/{rig}/clips"))
+    assert [(c["clip_kind"], c["camera_role"]) for c in clips] == [("static", "left")]
+    assert page.console.unexpected(409) == []

@@ -17,7 +17,7 @@ def test_a_held_lens_and_a_given_lens_are_said_in_words_a_joint_one_is_not():
         "cam_0": LensModel(),
         "cam_1": LensModel(equal_focal=True, principal_point=False, joint=False),
         "cam_2": LensModel(given=True),
-    }))["sentences"]
+    })).sentences
     lens = [s for s in words if "lens" in s and s.startswith("Camera")]
     assert len(lens) == 2
     assert lens[0].startswith("Camera cam_1's lens comes from its own views, in the simplest model they support "
@@ -27,7 +27,7 @@ def test_a_held_lens_and_a_given_lens_are_said_in_words_a_joint_one_is_not():
 
 
 def test_a_held_lens_with_every_parameter_fitted_names_no_fixed_parameter():
-    words = calibration_words(_calibration({"c": LensModel(joint=False)}))["sentences"]
+    words = calibration_words(_calibration({"c": LensModel(joint=False)})).sentences
     assert "Camera c's lens comes from its own views: the other cameras' views would have bent it." in " ".join(words)
 
 
@@ -49,8 +49,8 @@ def test_whether_a_wand_refined_the_board_is_said_in_words():
              "calibration is kept.", False)):
         words = calibration_words(rig_to_dict(Rig(cameras, checks={"board_square_error_mm": 0.02},
                                                   wand_refinement=choice)))
-        assert says in words["sentences"] and words["refined_by_wand"] is kept
-    assert calibration_words(_calibration({"c": LensModel()}))["refined_by_wand"] is None  # no wand offered
+        assert says in words.sentences and words.refined_by_wand is kept
+    assert calibration_words(_calibration({"c": LensModel()})).refined_by_wand is None  # no wand offered
 
 
 def _rig_cameras() -> dict:

@@ -203,6 +203,10 @@ def _add_error_handlers(app: FastAPI) -> None:
             body: dict[str, object] = {"detail": str(exc)}
             if isinstance(existing := getattr(exc, "existing_ride_id", None), int):
                 body["ride_id"] = existing  # the same clips again: the ride they already are
+            if isinstance(offset := getattr(exc, "offset_bytes", None), int):
+                # a chunk at the wrong offset: where to resume, as every answer of the upload says it
+                body["offset_bytes"] = offset
+                headers = {**(headers or {}), "Upload-Offset": str(offset)}
             return JSONResponse(body, status_code=code, headers=headers)
 
         return handler

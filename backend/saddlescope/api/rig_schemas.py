@@ -1,4 +1,7 @@
-"""The rig page's responses beyond the rig itself: how to print its board, and the check of its calibration clips."""
+"""The rig page's responses beyond the rig itself.
+
+How to print its board, the check of its calibration clips, and its calibration's report.
+"""
 
 from __future__ import annotations
 
@@ -8,8 +11,9 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, WithJsonSchem
 
 from saddlescope.core.calibration.wand import WAND_LENGTH_RANGE_M, wand_length_problem
 
-__all__ = ["BoardLayoutOut", "BoardSizesOut", "CalibrateIn", "CalibrationCheckOut", "CameraCheckOut", "CheckFindingOut",
-           "DepthCoverageOut", "SquareAtDistance", "WandLengthM", "check_wand_length_m"]
+__all__ = ["BoardLayoutOut", "BoardSizesOut", "CalibrateIn", "CalibrationCheckOut", "CalibrationQualityOut",
+           "CalibrationReportOut", "CameraCheckOut", "CameraCoverageOut", "CheckFindingOut", "DepthCoverageOut",
+           "NotCalibratedOut", "SquareAtDistance", "WandLengthM", "check_wand_length_m"]
 
 
 def check_wand_length_m(value: float | None) -> float | None:
@@ -137,3 +141,56 @@ class CalibrationCheckOut(BaseModel):
     cameras: dict[str, CameraCheckOut] = Field(default_factory=dict)
     wand: WandCheckOut | None = Field(default=None, description="the wand clips' check, once the rig has wand "
                                       "clips and its wand's length (the same per camera: where the wand's ends went)")
+
+
+Grade = Literal["good", "fair", "poor"]
+
+
+class NotCalibratedOut(BaseModel):
+    """A rig not calibrated yet: its quality is one sentence saying so."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    calibrated: Literal[False]
+    sentences: list[str]
+
+
+class CalibrationQualityOut(BaseModel):
+    """A rig's calibration in plain words: each number with its grade, and sentences a club can act on."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    calibrated: Literal[True]
+    reprojection_px: float | None = Field(description="the worst camera's reprojection r.m.s.; null: no camera says")
+    board_square_error_mm: float | None = Field(description="how far the rebuilt board squares are off")
+    reprojection_grade: Grade | None = Field(description="good under 0.5 px, fair under 1 px, else poor")
+    square_grade: Grade | None = Field(description="good within 0.5 mm, fair within 1 mm, else poor")
+    flags: list[str]
+    n_views: dict[str, int] | None = Field(description="camera -> the board views its lens was fitted with")
+    sentences: list[str]
+    refined_by_wand: bool | None = Field(description="whether a wand refined the board's calibration; null: no wand "
+                                                     "was offered")
+
+
+class CameraCoverageOut(BaseModel):
+    """Where in one camera's image the board has been (the lens is only known there)."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    image_size: tuple[int, int] = Field(description="width and height, px")
+    corners_px: list[tuple[float, float]] = Field(description="the board corners seen (a sample), px")
+    hull_px: list[tuple[float, float]] | None = Field(description="their convex hull, px; null: not stored")
+    area_fraction: float | None = Field(description="the hull's share of the image")
+    missed: list[str] | None = Field(description="the ninths of the image no corner reached, in words; null: the "
+                                                 "corners are not stored for this calibration")
+    sentence: str
+
+
+class CalibrationReportOut(BaseModel):
+    """A rig's calibration in plain words, and per camera where in the image the board has been."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    quality: Annotated[NotCalibratedOut | CalibrationQualityOut, Field(discriminator="calibrated")]
+    coverage: dict[str, CameraCoverageOut] = Field(description="camera -> where its board has been")
+    calibrating: bool = Field(description="a calibrate_rig job is queued or running")

@@ -18,23 +18,8 @@ import { uploadResumable } from "../uploader.js";
 /** @typedef {import("../api-types").CameraCheckOut} CameraCheckOut */
 /** @typedef {import("../api-types").BoardTypeOut} BoardType */
 /** @typedef {{kind: string, label: string}} ClipSet a kind of clip a rig holds, and its words */
-/**
- * What GET /api/rigs/{id}/calibration-report answers (no model in the API: saddlescope.services.rigs.views
- * calibration_words and coverage_words).
- * @typedef {object} CalibrationReport
- * @property {{calibrated: boolean, sentences: string[], flags?: string[]}} quality
- * @property {Record<string, Coverage>} coverage per camera
- * @property {boolean} calibrating
- */
-/**
- * Where in one camera's image the board has been (coverage_words).
- * @typedef {object} Coverage
- * @property {[number, number]} image_size
- * @property {[number, number][]} [corners_px]
- * @property {[number, number][] | null} [hull_px]
- * @property {string[] | null} missed the ninths of the image no corner reached (null: not stored)
- * @property {string} sentence
- */
+/** @typedef {import("../api-types").CalibrationReportOut} CalibrationReport what GET /api/rigs/{id}/calibration-report answers */
+/** @typedef {import("../api-types").CameraCoverageOut} Coverage where in one camera's image the board has been */
 
 /**
  * A rig's board: the BoardIn it was given (RigOut.board, which the schema leaves an open object).
@@ -459,7 +444,7 @@ function showCalibration(root, rig, clips, report) {
   else if (missing.length) status.textContent = `Not calibrated yet. ${missing.join(" ")}`;
   else status.textContent = "Not calibrated yet: the calibration has not run or did not succeed (see Jobs); start it again below.";
   words.replaceChildren(...(q.calibrated ? q.sentences : []).map((s) => h("li", {}, s)));
-  flags.replaceChildren(...(q.flags || []).map((f) => h("li", { class: "flag" }, f)));
+  flags.replaceChildren(...(q.calibrated ? q.flags : []).map((f) => h("li", { class: "flag" }, f)));
   coverage.replaceChildren(...Object.entries(report.coverage || {}).map(([camera, entry]) => h("figure", { class: "coverage-figure" },
     coveragePicture(camera, entry), h("figcaption", {}, h("strong", {}, `${camera}: `), entry.sentence))));
   const again = one(root, "[data-calibrate]");

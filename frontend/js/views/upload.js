@@ -15,21 +15,8 @@ import { abandonUploads, finalizeUpload, uploadResumable } from "../uploader.js"
 /** @typedef {import("../uploader.js").UploadTarget} UploadTarget */
 /** @typedef {import("../ride-readiness.js").Clip} Clip */
 /** @typedef {Record<string, string | number>} FormValues the form's filled fields (dom.js formValues) */
-/** @typedef {{name: string | null, id: number | null}} Named a horse, rider or saddle of a bundle: its name and the club's id */
-/**
- * What GET /api/uploads/{id}/bundle-meta answers (no model in the API:
- * saddlescope.services.uploads.bundle_meta.read_bundle_meta): the ride.json of an uploaded bundle.
- * @typedef {object} BundleMeta
- * @property {Named} horse
- * @property {Named} rider
- * @property {Named} saddle
- * @property {string | null} gait
- * @property {string | null} direction
- * @property {string | null} ridden_on
- * @property {string} notes
- * @property {string | null} pad
- * @property {number | null} rider_weight_kg
- */
+/** @typedef {import("../api-types").NamedInClubOut} Named a horse, rider or saddle of a bundle: its name and the club's id */
+/** @typedef {import("../api-types").BundleMetaOut} BundleMeta what GET /api/uploads/{id}/bundle-meta answers: the ride.json of an uploaded bundle */
 
 const CAMERAS = ["left", "middle", "right"];
 const CLIP_SETS = [
@@ -315,7 +302,7 @@ export async function mountUpload(view, _params, query) {
     label.textContent = `Creating the ride from ${stagedBundle.file.name}`;
     const answer = await finalizeUpload(stagedBundle.upload, details, { signal: signal() });
     stagedBundle = null;
-    return answer.ride_id; // finalize answers {ride_id, job_id} for a bundle
+    return "ride_id" in answer ? answer.ride_id : undefined; // a bundle's finalize answers BundleFinalisedOut
   }
 
   /** @param {FormValues} values */

@@ -16,6 +16,7 @@ from saddlescope.api.rig_schemas import (
     BoardSizesOut,
     CalibrateIn,
     CalibrationCheckOut,
+    CalibrationReportOut,
     SquareAtDistance,
 )
 from saddlescope.api.routers.clips import UPLOAD_ERRORS, receive_clip
@@ -325,8 +326,8 @@ async def check_rig_calibration(rig_id: Id, club: ClubDep, sessions: SessionFact
         return JobOut(**job_as_dict(get_job(session, job_id)))
 
 
-@router.get("/{rig_id}/calibration-report", responses=ERRORS)
-def rig_calibration_report(rig_id: Id, club: ClubDep) -> dict:
+@router.get("/{rig_id}/calibration-report", response_model=CalibrationReportOut, responses=ERRORS)
+def rig_calibration_report(rig_id: Id, club: ClubDep) -> CalibrationReportOut:
     """The calibration in plain words, and per camera where in the image the board has been.
 
     ``quality``: reprojection px and board square error mm, each with a verdict; ``coverage``: per camera
@@ -334,5 +335,6 @@ def rig_calibration_report(rig_id: Id, club: ClubDep) -> dict:
     """
     rig = club.rigs.get(rig_id)
     job = club.jobs.active_for(rig_id=rig_id, kind="calibrate_rig")
-    return {"quality": calibration_words(rig.calibration), "coverage": coverage_words(rig.calibration),
-            "calibrating": job is not None}
+    return CalibrationReportOut.model_validate(
+        {"quality": calibration_words(rig.calibration), "coverage": coverage_words(rig.calibration),
+         "calibrating": job is not None}, from_attributes=True)

@@ -2,22 +2,31 @@
 
 from __future__ import annotations
 
-import datetime as dt
-from typing import Annotated, Literal
+from typing import Annotated
 
 from fastapi import APIRouter, Body, Header, Path, Request, Response, status
-from pydantic import Field
+from pydantic import TypeAdapter
 from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
-from saddlescope.api.rider_weight import RiderWeightKg
 from saddlescope.api.routers.common import ERRORS
-from saddlescope.api.schemas import Direction, ErrorOut, Gait, Pad, RefId, Text, UploadCreate, UploadOut, _In
+from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
 from saddlescope.api.streaming import stream_chunk
+from saddlescope.api.upload_schemas import (
+    BundleChoice,
+    BundleFinalisedOut,
+    BundleMetaOut,
+    ClipFinalisedOut,
+    FinalisedOut,
+    OffsetConflictOut,
+    PartNumbers,
+    PartsOut,
+    PartUrlsOut,
+    UploadCreatedOut,
+)
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload
 from saddlescope.services.uploads.direct import (
-    MAX_URLS,
     S3_PARTS,
     STREAM,
     is_direct,
@@ -35,6 +44,7 @@ from saddlescope.services.uploads.intake import (
     finalise_upload,
     remove_upload_files,
 )
+from saddlescope.services.uploads.outcome import BundleFinalised, UploadOutcome
 from saddlescope.storage import upload_chunk_key
 
 __all__ = ["CHUNK_OPENAPI", "OffsetMismatch", "UploadId", "router"]
@@ -49,23 +59,8 @@ CHUNK_OPENAPI = {
 }
 
 
-class BundleChoice(_In):
-    """What the user chose for a bundle's ride at upload; each given field wins over ride.json."""
-
-    horse_id: RefId | None = Field(default=None, description="None: the horse ride.json names (added if new)")
-    rider_id: RefId | None = Field(default=None, description="None: the rider ride.json names (added if new)")
-    gait: Gait | None = None
-    direction: Direction | None = None
-    ridden_on: dt.date | None = None
-    notes: Text | None = None
-    rig_id: RefId | None = Field(default=None, description="the rig the ride uses (over the one named at creation)")
-    saddle_id: RefId | None = Field(default=None, description="the club's saddle (None: the one ride.json names)")
-    pad: Pad | None = None
-    rider_weight_kg: RiderWeightKg = Field(default=None, description="kg; default: ride.json's, else the rider's")
-
-
 class OffsetMismatch(IncompleteUpload):
-    """A chunk's Upload-Offset is not where the upload stands (HTTP 409)."""
+    """A chunk's Upload-Offset is not where the upload stands, or the upload takes no more bytes (HTTP 409)."""
 
 
 def _headers(upload: Upload) -> dict[str, str]:
@@ -76,22 +71,7 @@ def _headers(upload: Upload) -> dict[str, str]:
     }
 
 
-class UploadCreatedOut(UploadOut):
-    """A new upload, and how to send its bytes.
-
-    ``stream``: PATCH chunks to the API; ``s3-parts``: PUT parts of `part_bytes` straight to the bucket,
-    to the URLs from ``POST /uploads/{id}/parts``.
-    """
-
-    transport: Literal["stream", "s3-parts"] = "stream"
-    part_bytes: int | None = None
-    parts_total: int | None = None
-
-
-class PartNumbers(_In):
-    """The parts (1-based) of a direct upload to sign URLs for."""
-
-    numbers: list[Annotated[int, Field(ge=1, le=10_000)]] = Field(min_length=1, max_length=MAX_URLS)
+_PARTS = TypeAdapter(PartsOut)
 
 
 @router.post(
@@ -131,16 +111,18 @@ def create(
     return UploadCreatedOut.model_validate({**UploadOut.model_validate(upload).model_dump(), **sending})
 
 
-@router.post("/{upload_id}/parts", responses={**ERRORS, 409: {"model": ErrorOut}})
-def sign_parts(upload_id: UploadId, body: PartNumbers, club: ClubDep, storage: StorageDep) -> dict:
+@router.post("/{upload_id}/parts", response_model=PartUrlsOut, responses={**ERRORS, 409: {"model": ErrorOut}})
+def sign_parts(upload_id: UploadId, body: PartNumbers, club: ClubDep, storage: StorageDep) -> PartUrlsOut:
     """Pre-signed URLs to PUT parts `numbers` of a direct upload to (``{"urls": {"1": url}, "expires_s"}``)."""
-    return part_urls(club.session, storage, upload_id, body.numbers, club_id=club.club_id)
+    urls = part_urls(club.session, storage, upload_id, body.numbers, club_id=club.club_id)
+    return PartUrlsOut.model_validate(urls, from_attributes=True)
 
 
-@router.get("/{upload_id}/parts", responses=ERRORS)
-def read_parts(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> dict:
+@router.get("/{upload_id}/parts", response_model=PartsOut, responses=ERRORS)
+def read_parts(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> PartsOut:
     """Which parts of a direct upload arrived (resume by sending the others) and the bytes in order."""
-    return parts_state(club.session, storage, upload_id, club_id=club.club_id)
+    state = parts_state(club.session, storage, upload_id, club_id=club.club_id)
+    return _PARTS.validate_python(state, from_attributes=True)
 
 
 @router.get("/{upload_id}", response_model=UploadOut, responses=ERRORS)
@@ -163,7 +145,7 @@ def offset(upload_id: UploadId, club: ClubDep) -> Response:
     openapi_extra=CHUNK_OPENAPI,
     responses={
         **ERRORS,
-        409: {"model": ErrorOut, "description": "wrong offset, or not open"},
+        409: {"model": OffsetConflictOut, "description": "wrong offset (resume from `offset_bytes`), or not open"},
         413: {"model": ErrorOut},
     },
 )
@@ -179,8 +161,8 @@ async def append(
 
     `Upload-Offset` must be the upload's current offset; a retried chunk at an earlier offset is accepted
     when it equals the bytes already received there (answering the current offset), else 409 with the
-    server's offset. Acknowledged bytes are never rewritten. Answers 204 with the new `Upload-Offset`.
-    An expired upload is gone (404).
+    server's offset (its `Upload-Offset` header and `offset_bytes`). Acknowledged bytes are never rewritten.
+    Answers 204 with the new `Upload-Offset`. An expired upload is gone (404).
     """
     await run_in_threadpool(expire_uploads, club.session, storage, max_age_s=settings.upload_expiry_s)
     upload = await run_in_threadpool(club.uploads.get, upload_id)
@@ -189,7 +171,8 @@ async def append(
     if upload_offset > upload.offset_bytes:
         raise OffsetMismatch(
             f"Upload-Offset {upload_offset} does not match the upload's offset "
-            f"{upload.offset_bytes}; resume from {upload.offset_bytes}"
+            f"{upload.offset_bytes}; resume from {upload.offset_bytes}",
+            offset_bytes=upload.offset_bytes,
         )
     if await run_in_threadpool(is_direct, storage, upload_id):
         raise OffsetMismatch(f"upload {upload_id} is sent to the bucket directly: PUT its parts to the URLs "
@@ -211,7 +194,9 @@ async def append(
 
 
 @router.post(
-    "/{upload_id}/finalize", responses={**ERRORS, 409: {"model": ErrorOut}, 503: {"model": ErrorOut}}
+    "/{upload_id}/finalize",
+    response_model=FinalisedOut,
+    responses={**ERRORS, 409: {"model": ErrorOut}, 503: {"model": ErrorOut}},
 )
 async def finalize(
     upload_id: UploadId,
@@ -221,7 +206,7 @@ async def finalize(
     queue: QueueDep,
     settings: SettingsDep,
     body: Annotated[BundleChoice | None, Body()] = None,
-) -> dict:
+) -> FinalisedOut:
     """Turn the complete upload into a clip (probed as a direct upload is) or a ride (bundle).
 
     Starts the processing the new clips allow. Returns ``{"recording_id", "job_id"}`` (with ``missing``:
@@ -232,18 +217,26 @@ async def finalize(
     club_id = club.club_id
     club.session.rollback()
     chosen = body.model_dump(exclude_none=True) if body is not None else None
-    return await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id,
-                                   chosen=chosen)
+    outcome = await run_in_threadpool(finalise_upload, sessions, storage, queue, upload_id, club_id=club_id,
+                                      chosen=chosen)
+    return _finalised_out(outcome)
 
 
-@router.get("/{upload_id}/bundle-meta", responses={**ERRORS, 409: {"model": ErrorOut}})
-def read_bundle_meta(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> dict:
+def _finalised_out(outcome: UploadOutcome) -> FinalisedOut:
+    if isinstance(outcome, BundleFinalised):
+        return BundleFinalisedOut.model_validate(outcome, from_attributes=True)
+    return ClipFinalisedOut.model_validate(outcome, from_attributes=True)
+
+
+@router.get("/{upload_id}/bundle-meta", response_model=BundleMetaOut, responses={**ERRORS, 409: {"model": ErrorOut}})
+def read_bundle_meta(upload_id: UploadId, club: ClubDep, storage: StorageDep) -> BundleMetaOut:
     """A complete bundle upload's ride.json, to pre-fill the form before finalising (nothing is created).
 
     ``horse`` and ``rider`` give the name ride.json uses and the id of the club's horse or rider of that
     name (None: not in the club). 409 until every byte has arrived.
     """
-    return bundle_meta(club.session, storage, upload_id, club_id=club.club_id)
+    meta = bundle_meta(club.session, storage, upload_id, club_id=club.club_id)
+    return BundleMetaOut.model_validate(meta, from_attributes=True)
 
 
 @router.delete("/{upload_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)

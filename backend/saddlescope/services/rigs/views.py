@@ -10,7 +10,8 @@ from __future__ import annotations
 import base64
 import html
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -18,9 +19,46 @@ import numpy as np
 from saddlescope.core.calibration.boards import board_from_meta, board_type
 from saddlescope.core.errors import InputError
 
-__all__ = ["board_svg", "board_svg_size_mm", "board_words", "calibration_words", "coverage_words"]
+__all__ = ["CalibrationQuality", "CameraCoverage", "Grade", "NotCalibrated", "board_svg", "board_svg_size_mm",
+           "board_words", "calibration_words", "coverage_words"]
 
 _PX_PER_SQUARE = 48
+Grade = Literal["good", "fair", "poor"]
+
+
+@dataclass(frozen=True)
+class NotCalibrated:
+    """A rig without a calibration: its quality is one sentence saying so."""
+
+    sentences: tuple[str, ...] = ("Not calibrated yet.",)
+    calibrated: Literal[False] = False
+
+
+@dataclass(frozen=True)
+class CalibrationQuality:
+    """A rig's calibration in plain words (`calibration_words`)."""
+
+    reprojection_px: float | None  # the worst camera's reprojection r.m.s.; None: no camera says
+    board_square_error_mm: float | None  # how far the rebuilt board squares are off
+    reprojection_grade: Grade | None
+    square_grade: Grade | None
+    flags: tuple[str, ...]
+    n_views: Mapping[str, int] | None  # camera -> the board views its lens was fitted with
+    sentences: tuple[str, ...]
+    refined_by_wand: bool | None  # None: no wand was offered
+    calibrated: Literal[True] = True
+
+
+@dataclass(frozen=True)
+class CameraCoverage:
+    """Where in one camera's image the board has been (`coverage_words`)."""
+
+    image_size: tuple[int, int]  # px, width and height
+    corners_px: tuple[tuple[float, float], ...]  # the board corners seen (a sample)
+    hull_px: tuple[tuple[float, float], ...] | None  # their convex hull; None: not stored
+    area_fraction: float | None  # the hull's share of the image
+    missed: tuple[str, ...] | None  # the ninths of the image no corner reached; None: corners not stored
+    sentence: str
 
 
 def board_svg_size_mm(board_meta: Mapping[str, Any]) -> tuple[float, float]:
@@ -71,13 +109,13 @@ def board_svg(board_meta: Mapping[str, Any]) -> str:
     )
 
 
-def _grade(value: float | None, good: float, fair: float) -> str | None:
+def _grade(value: float | None, good: float, fair: float) -> Grade | None:
     if value is None or not np.isfinite(value):
         return None
     return "good" if value <= good else "fair" if value <= fair else "poor"
 
 
-def calibration_words(calibration: Mapping[str, Any] | None) -> dict[str, Any]:
+def calibration_words(calibration: Mapping[str, Any] | None) -> CalibrationQuality | NotCalibrated:
     """The calibration's quality in plain words: reprojection error (px), board square error (mm), wand refinement.
 
     ``refined_by_wand``: whether a wand refined the board's calibration (None where no wand was offered).
@@ -86,7 +124,7 @@ def calibration_words(calibration: Mapping[str, Any] | None) -> dict[str, Any]:
     noise); squares rebuilt within 0.5 mm good, within 1 mm fair (CONTRACTS' 1 mm board check).
     """
     if not calibration:
-        return {"calibrated": False, "sentences": ["Not calibrated yet."]}
+        return NotCalibrated()
     cams = calibration.get("cameras") or {}
     rms = [float(c["rms_px"]) for c in cams.values() if isinstance(c.get("rms_px"), int | float)]
     reproj = max(rms) if rms else None
@@ -111,11 +149,13 @@ def calibration_words(calibration: Mapping[str, Any] | None) -> dict[str, Any]:
     refinement = calibration.get("wand_refinement")
     if isinstance(refinement, Mapping) and isinstance(refinement.get("sentence"), str):
         sentences.append(refinement["sentence"])  # issue 35: refined by the wand or not, and why
-    flags = list(calibration.get("flags") or [])
-    return {"calibrated": True, "reprojection_px": reproj, "board_square_error_mm": square,
-            "reprojection_grade": grade, "square_grade": sq_grade, "flags": flags,
-            "n_views": calibration.get("n_views"), "sentences": sentences,
-            "refined_by_wand": bool(refinement.get("kept")) if isinstance(refinement, Mapping) else None}
+    n_views = calibration.get("n_views")
+    return CalibrationQuality(
+        reprojection_px=reproj, board_square_error_mm=square, reprojection_grade=grade, square_grade=sq_grade,
+        flags=tuple(str(f) for f in calibration.get("flags") or []),
+        n_views={str(c): int(n) for c, n in n_views.items()} if isinstance(n_views, Mapping) else None,
+        sentences=tuple(sentences),
+        refined_by_wand=bool(refinement.get("kept")) if isinstance(refinement, Mapping) else None)
 
 
 def _lens_sentences(cams: Mapping[str, Any]) -> list[str]:
@@ -147,7 +187,7 @@ _REGIONS = [["top-left corner", "top edge", "top-right corner"],
             ["bottom-left corner", "bottom edge", "bottom-right corner"]]
 
 
-def coverage_words(calibration: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+def coverage_words(calibration: Mapping[str, Any] | None) -> dict[str, CameraCoverage]:
     """Per camera: image size, board corners seen (px), hull, share of the image, regions never reached.
 
     The image is cut in 3 x 3 parts; a part no corner reached is named in the sentence.
@@ -156,25 +196,33 @@ def coverage_words(calibration: Mapping[str, Any] | None) -> dict[str, dict[str,
         return {}
     corners = calibration.get("board_corners_px") or {}
     coverage = calibration.get("board_coverage") or {}
-    out = {}
-    for name, cam in (calibration.get("cameras") or {}).items():
-        w, h = (cam.get("image_size") or [0, 0])[:2]
-        pts = np.asarray(corners.get(name) or [], dtype=np.float64).reshape(-1, 2)
-        entry: dict[str, Any] = {"image_size": [w, h], "corners_px": pts.tolist(),
-                                 "hull_px": (coverage.get(name) or {}).get("hull_px"),
-                                 "area_fraction": (coverage.get(name) or {}).get("area_fraction")}
-        if len(pts) and w and h:
-            cells = {(min(int(3 * y / h), 2), min(int(3 * x / w), 2)) for x, y in pts}
-            missed = [_REGIONS[r][c] for r in range(3) for c in range(3) if (r, c) not in cells]
-            entry["missed"] = missed
-            entry["sentence"] = (
-                f"The board reached every part of the {name} camera's image." if not missed else
-                f"The board never reached the {', '.join(missed[:-1]) + ' and ' if len(missed) > 1 else ''}"
-                f"{missed[-1]} of the {name} camera's image: distances measured there are less certain; "
-                "carry the board there when you film the calibration again.")
-        else:
-            entry["missed"] = None
-            entry["sentence"] = (f"Where the board was in the {name} camera's image is not stored for this "
-                                 "calibration; calibrate again to see it.")
-        out[name] = entry
-    return out
+    return {name: _camera_coverage(name, cam, corners.get(name), coverage.get(name) or {})
+            for name, cam in (calibration.get("cameras") or {}).items()}
+
+
+def _points(stored: object) -> tuple[tuple[float, float], ...]:
+    """Stored [[x, y], ...] pixel points as pairs of floats."""
+    pts = np.asarray(stored or [], dtype=np.float64).reshape(-1, 2)
+    return tuple((float(x), float(y)) for x, y in pts)
+
+
+def _camera_coverage(name: str, cam: Mapping[str, Any], corners: object,
+                     covered: Mapping[str, Any]) -> CameraCoverage:
+    w, h = (int(v) for v in (cam.get("image_size") or [0, 0])[:2])
+    pts = _points(corners)
+    hull, area = covered.get("hull_px"), covered.get("area_fraction")
+    missed: tuple[str, ...] | None = None
+    if pts and w and h:
+        cells = {(min(int(3 * y / h), 2), min(int(3 * x / w), 2)) for x, y in pts}
+        missed = tuple(_REGIONS[r][c] for r in range(3) for c in range(3) if (r, c) not in cells)
+        sentence = (
+            f"The board reached every part of the {name} camera's image." if not missed else
+            f"The board never reached the {', '.join(missed[:-1]) + ' and ' if len(missed) > 1 else ''}"
+            f"{missed[-1]} of the {name} camera's image: distances measured there are less certain; "
+            "carry the board there when you film the calibration again.")
+    else:
+        sentence = (f"Where the board was in the {name} camera's image is not stored for this "
+                    "calibration; calibrate again to see it.")
+    return CameraCoverage(image_size=(w, h), corners_px=pts, hull_px=_points(hull) if hull is not None else None,
+                          area_fraction=float(area) if isinstance(area, int | float) else None, missed=missed,
+                          sentence=sentence)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any, BinaryIO
 
@@ -18,9 +19,32 @@ from sqlalchemy.orm import Session
 from saddlescope.core.errors import BundleError
 from saddlescope.db.models import Horse, Rider, Saddle
 
-__all__ = ["MAX_RIDE_JSON_BYTES", "read_bundle_meta"]
+__all__ = ["BundleMeta", "MAX_RIDE_JSON_BYTES", "NamedInClub", "read_bundle_meta"]
 
 MAX_RIDE_JSON_BYTES = 1024**2  # a ride.json is a few kB; more is not a ride.json
+
+
+@dataclass(frozen=True)
+class NamedInClub:
+    """A horse, rider or saddle a bundle names, and the club's one of that name."""
+
+    name: str | None  # as ride.json says it; None: ride.json names none
+    id: int | None  # the club's horse, rider or saddle of that name; None: the club has none
+
+
+@dataclass(frozen=True)
+class BundleMeta:
+    """A bundle's ride.json as suggestions for the upload form (its text as written, unchecked)."""
+
+    horse: NamedInClub
+    rider: NamedInClub
+    gait: str | None
+    direction: str | None
+    ridden_on: str | None  # ride.json's ``date`` (else ``ridden_on``) as written
+    notes: str
+    saddle: NamedInClub
+    pad: str | None
+    rider_weight_kg: float | None
 
 
 def _ride_json(zf: zipfile.ZipFile, shown: str) -> dict[str, Any]:
@@ -47,16 +71,11 @@ def _named(meta: dict[str, Any], key: str) -> str | None:
     return name.strip()[:200] if isinstance(name, str) and name.strip() else None
 
 
-def read_bundle_meta(session: Session, zip_path: Path | BinaryIO, *, club_id: int,
-                     shown: str) -> dict[str, Any]:
+def read_bundle_meta(session: Session, zip_path: Path | BinaryIO, *, club_id: int, shown: str) -> BundleMeta:
     """The form's suggestions from a bundle zip's ride.json.
 
-    Returns
-    -------
-    dict
-        ``horse``, ``rider`` and ``saddle`` ({"name", "id"}: id of the club's horse, rider or saddle of
-        that name, or None), ``gait``, ``direction``, ``ridden_on`` (ride.json's ``date`` if any),
-        ``notes``, ``pad`` and ``rider_weight_kg``.
+    The horse, rider and saddle by name (with the id of the club's one of that name, or None), gait, direction,
+    date, notes, pad and the rider's weight.
     """
     try:
         with zipfile.ZipFile(zip_path) as zf:
@@ -80,14 +99,14 @@ def read_bundle_meta(session: Session, zip_path: Path | BinaryIO, *, club_id: in
         value = meta.get(key)
         return value if isinstance(value, str) else None
 
-    return {
-        "horse": {"name": horse_name, "id": horse_id},
-        "rider": {"name": rider_name, "id": rider_id},
-        "gait": text("gait"),
-        "direction": text("direction"),
-        "ridden_on": text("date") or text("ridden_on"),
-        "notes": text("notes") or "",
-        "saddle": {"name": saddle_name, "id": saddle_id},
-        "pad": text("pad"),
-        "rider_weight_kg": weight if isinstance(weight, int | float) and not isinstance(weight, bool) else None,
-    }
+    return BundleMeta(
+        horse=NamedInClub(horse_name, horse_id),
+        rider=NamedInClub(rider_name, rider_id),
+        gait=text("gait"),
+        direction=text("direction"),
+        ridden_on=text("date") or text("ridden_on"),
+        notes=text("notes") or "",
+        saddle=NamedInClub(saddle_name, saddle_id),
+        pad=text("pad"),
+        rider_weight_kg=weight if isinstance(weight, int | float) and not isinstance(weight, bool) else None,
+    )

@@ -11,6 +11,8 @@ client is told which way to send when it creates the upload (`transport`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy.orm import Session
@@ -22,8 +24,9 @@ from saddlescope.settings import Settings
 from saddlescope.storage import S3Storage, Storage, direct_upload_key
 
 __all__ = [
-    "DIRECT_PART_BYTES", "DirectUploadError", "MAX_URLS", "PART_URL_EXPIRY_S", "STREAM", "S3_PARTS", "check_parts",
-    "is_direct", "part_count", "part_urls", "parts_state", "start_direct", "transport_for",
+    "ArrivedPart", "DIRECT_PART_BYTES", "DirectUploadError", "MAX_URLS", "PART_URL_EXPIRY_S", "PartUrls", "PartsState",
+    "STREAM", "S3_PARTS", "check_parts", "is_direct", "part_count", "part_urls", "parts_state", "start_direct",
+    "transport_for",
 ]
 
 STREAM, S3_PARTS = "stream", "s3-parts"
@@ -35,6 +38,34 @@ MAX_URLS = 100  # part URLs signed per request
 
 class DirectUploadError(Conflict):
     """A direct upload's parts are not (yet) what its length needs (HTTP 409)."""
+
+
+@dataclass(frozen=True)
+class PartUrls:
+    """Pre-signed URLs to PUT parts of a direct upload to."""
+
+    urls: Mapping[str, str]  # part number ("1", 1-based) -> its URL
+    expires_s: int  # how long the URLs work
+    part_bytes: int  # each part's size (the last one shorter)
+
+
+@dataclass(frozen=True)
+class ArrivedPart:
+    """A part of a direct upload the bucket has, of the size its place needs."""
+
+    number: int
+    size: int  # bytes
+
+
+@dataclass(frozen=True)
+class PartsState:
+    """What of a resumable upload arrived: the parts in the bucket (``s3-parts``), or the bytes streamed."""
+
+    transport: str  # STREAM or S3_PARTS
+    parts: tuple[ArrivedPart, ...]  # none for a streamed upload
+    offset_bytes: int  # the bytes in order from the start
+    part_bytes: int | None = None  # a direct upload's part size
+    parts_total: int | None = None  # and how many parts it takes
 
 
 def transport_for(storage: Storage, settings: Settings) -> str:
@@ -76,7 +107,7 @@ def _open_direct(session: Session, storage: Storage, upload_id: str, club_id: in
 
 
 def part_urls(session: Session, storage: Storage, upload_id: str, numbers: list[int], *,
-              club_id: int | None) -> dict[str, Any]:
+              club_id: int | None) -> PartUrls:
     """Pre-signed PUT URLs for parts `numbers` (1-based) of a direct upload."""
     upload, direct_id = _open_direct(session, storage, upload_id, club_id)
     if direct_id is None:
@@ -88,28 +119,28 @@ def part_urls(session: Session, storage: Storage, upload_id: str, numbers: list[
     if wrong:
         raise InputError(f"upload {upload_id} has parts 1 to {total}; no part {wrong[0]}")
     key, bucket = direct_upload_key(upload_id), _bucket(storage)
-    return {"urls": {str(n): bucket.part_url(key, direct_id, n, expires_s=PART_URL_EXPIRY_S) for n in numbers},
-            "expires_s": PART_URL_EXPIRY_S, "part_bytes": DIRECT_PART_BYTES}
+    return PartUrls(urls={str(n): bucket.part_url(key, direct_id, n, expires_s=PART_URL_EXPIRY_S) for n in numbers},
+                    expires_s=PART_URL_EXPIRY_S, part_bytes=DIRECT_PART_BYTES)
 
 
 def _expected_size(number: int, length_bytes: int) -> int:
     return min(DIRECT_PART_BYTES, length_bytes - (number - 1) * DIRECT_PART_BYTES)
 
 
-def parts_state(session: Session, storage: Storage, upload_id: str, *, club_id: int | None) -> dict[str, Any]:
+def parts_state(session: Session, storage: Storage, upload_id: str, *, club_id: int | None) -> PartsState:
     """Which parts arrived (a part of the wrong size counts as missing: send it again) and the bytes in order."""
     upload, direct_id = _open_direct(session, storage, upload_id, club_id)
     if direct_id is None:
-        return {"transport": STREAM, "parts": [], "offset_bytes": upload.offset_bytes}
+        return PartsState(transport=STREAM, parts=(), offset_bytes=upload.offset_bytes)
     arrived = _bucket(storage).direct_parts(direct_upload_key(upload_id), direct_id)
     good = [p for p in arrived if p["size"] == _expected_size(p["number"], upload.length_bytes)]
     numbers = {p["number"] for p in good}
     in_order = 0
     while in_order + 1 in numbers:
         in_order += 1
-    return {"transport": S3_PARTS, "part_bytes": DIRECT_PART_BYTES, "parts_total": part_count(upload.length_bytes),
-            "parts": [{"number": p["number"], "size": p["size"]} for p in good],
-            "offset_bytes": sum(p["size"] for p in good if p["number"] <= in_order)}
+    return PartsState(transport=S3_PARTS, part_bytes=DIRECT_PART_BYTES, parts_total=part_count(upload.length_bytes),
+                      parts=tuple(ArrivedPart(number=p["number"], size=p["size"]) for p in good),
+                      offset_bytes=sum(p["size"] for p in good if p["number"] <= in_order))
 
 
 def check_parts(storage: Storage, upload_id: str, length_bytes: int) -> None:

@@ -50,10 +50,12 @@ from saddlescope.services.rides.registration import (
 )
 from saddlescope.services.rigs.calibration_way import choose_calibration_way
 from saddlescope.services.uploads.direct import check_parts, is_direct
+from saddlescope.services.uploads.outcome import BundleFinalised, ClipFinalised, UploadOutcome, outcome_from_json
 from saddlescope.storage import FileStorage, S3Storage, Storage, TooLarge, direct_upload_key, upload_key
 
 if TYPE_CHECKING:
     from saddlescope.io.video import VideoInfo
+    from saddlescope.services.uploads.bundle_meta import BundleMeta
 
 __all__ = [
     "BUNDLE_BLOCK_BYTES", "ClipOwner", "FPS_TOLERANCE", "IncompleteUpload", "RIDE_CLIP_KINDS", "RIG_CLIP_KINDS",
@@ -488,7 +490,7 @@ class _ClaimedUpload:
 
 
 def _claim_or_outcome(sessions: sessionmaker[Session], storage: Storage, upload_id: str, *,
-                      club_id: int) -> _ClaimedUpload | dict[str, Any]:
+                      club_id: int) -> _ClaimedUpload | UploadOutcome:
     """Claim the open upload for this request, or the outcome of the request that finalised it.
 
     The "still open" check and the claim are one conditional UPDATE (`UploadRepository.claim`), so of
@@ -500,7 +502,7 @@ def _claim_or_outcome(sessions: sessionmaker[Session], storage: Storage, upload_
             uploads = UploadRepository(session, club_id=club_id)
             upload = uploads.get(upload_id)
             if upload.status == UploadStatus.FINALISED.value:
-                return dict(upload.outcome)  # finalised already (a retry): the same answer
+                return outcome_from_json(upload.outcome)  # finalised already (a retry): the same answer
             if upload.status == UploadStatus.FAILED.value:
                 raise InputError(f"upload {upload_id} was refused when it was finalised: {upload.error}")
             if upload.status == UploadStatus.OPEN.value:
@@ -538,7 +540,7 @@ def _end_claim(sessions: sessionmaker[Session], upload_id: str, *, club_id: int,
 def finalise_upload(
     sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str, *, club_id: int,
     chosen: dict[str, Any] | None = None,
-) -> dict[str, Any]:
+) -> UploadOutcome:
     """Turn a complete resumable upload into a recording (and maybe a job) or a ride; returns the outcome.
 
     `chosen` (a bundle only): the ride's details chosen at upload, over the bundle's ride.json.
@@ -548,7 +550,7 @@ def finalise_upload(
     claimed it and answer its outcome (or 409 `FinaliseInProgress` if it takes over `FINALISE_WAIT_S`).
     """
     claimed = _claim_or_outcome(sessions, storage, upload_id, club_id=club_id)
-    if isinstance(claimed, dict):
+    if not isinstance(claimed, _ClaimedUpload):
         return claimed
     target, rig_id, size = claimed.target, claimed.rig_id, claimed.length_bytes
     staged = staging_key(club_id, claimed.filename)
@@ -585,20 +587,20 @@ def finalise_upload(
         raise
     with session_scope(sessions) as session:
         UploadRepository(session, club_id=club_id).close(
-            upload_id, status=UploadStatus.FINALISED, outcome=outcome
+            upload_id, status=UploadStatus.FINALISED, outcome=outcome.as_json()
         )
     return outcome
 
 
 def _finalise_staged(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, upload_id: str,
                      claimed: _ClaimedUpload, staged: str, *, club_id: int, rig_id: int | None,
-                     chosen: dict[str, Any]) -> dict[str, Any]:
+                     chosen: dict[str, Any]) -> UploadOutcome:
     """The clip or ride a claimed upload's staged bytes make; the upload's outcome."""
     if claimed.target == UploadTarget.BUNDLE:
         new_ride, job_id = accept_bundle(sessions, storage, queue, staged, club_id=club_id, rig_id=rig_id,
                                          filename=claimed.filename, user_id=claimed.user_id, chosen=chosen,
                                          return_to=upload_key(upload_id))
-        return {"ride_id": new_ride, "job_id": job_id}
+        return BundleFinalised(ride_id=new_ride, job_id=job_id)
     ride_clip = claimed.target == UploadTarget.RIDE_CLIP
     owner_id = claimed.ride_id if ride_clip else rig_id
     if owner_id is None or claimed.clip_kind is None or claimed.camera is None:  # create_upload sets them
@@ -610,21 +612,21 @@ def _finalise_staged(sessions: sessionmaker[Session], storage: Storage, queue: J
 
 
 def _finalise_clip(sessions: sessionmaker[Session], storage: Storage, queue: JobQueue, owner: ClipOwner,
-                   clip_kind: str, camera: str, staged: str, *, size: int, filename: str | None) -> dict[str, Any]:
+                   clip_kind: str, camera: str, staged: str, *, size: int, filename: str | None) -> ClipFinalised:
     """`accept_clip` of a finalised upload's staged clip, then the processing it allows; the upload's outcome."""
     recording_id = accept_clip(sessions, storage, owner, clip_kind, camera, staged, size_bytes=size,
                                sha256=storage.sha256(staged), filename=filename)
     start_calibration_check(sessions, queue, owner, clip_kind)
     job_id = start_processing(sessions, queue, owner)
-    outcome: dict[str, Any] = {"recording_id": recording_id, "job_id": job_id}
-    if owner.kind == "ride" and job_id is None:
-        with session_scope(sessions) as session:
-            # Said with the clip, so the page never reports "queued" for a ride that cannot run.
-            outcome["missing"] = missing_for_ride(session, owner.id, club_id=owner.club_id)
-    return outcome
+    if owner.kind != "ride" or job_id is not None:
+        return ClipFinalised(recording_id=recording_id, job_id=job_id)
+    with session_scope(sessions) as session:
+        # Said with the clip, so the page never reports "queued" for a ride that cannot run.
+        missing = missing_for_ride(session, owner.id, club_id=owner.club_id)
+    return ClipFinalised(recording_id=recording_id, job_id=None, missing=tuple(missing))
 
 
-def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: int) -> dict[str, Any]:
+def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: int) -> BundleMeta:
     """What a complete, not yet finalised bundle upload's ride.json says, to pre-fill the upload form.
 
     Only ride.json is read (the whole bundle is checked when it is finalised). The horse and rider are
@@ -652,7 +654,15 @@ def bundle_meta(session: Session, storage: Storage, upload_id: str, *, club_id: 
 
 
 class IncompleteUpload(InputError):
-    """A resumable upload is finalised before all its bytes arrived (HTTP 409)."""
+    """A resumable upload is finalised before all its bytes arrived, or a chunk is not where it stands (HTTP 409).
+
+    `offset_bytes`: where the upload stands, when the client is to resume there (a chunk at the wrong offset); the
+    409 says it in its ``Upload-Offset`` header and ``offset_bytes``.
+    """
+
+    def __init__(self, message: str, *, offset_bytes: int | None = None) -> None:
+        super().__init__(message)
+        self.offset_bytes = offset_bytes
 
 
 class FinaliseInProgress(IncompleteUpload):
@@ -699,12 +709,13 @@ def commit_chunk(session: Session, storage: Storage, upload_id: str, *, offset: 
             raise IncompleteUpload(f"upload {upload_id} is {upload.status}; it takes no more bytes")
         if offset > current:
             raise IncompleteUpload(f"Upload-Offset {offset} is past the upload's offset {current}; "
-                                   f"resume from {current}")
+                                   f"resume from {current}", offset_bytes=current)
         overlap = min(offset + size, current) - offset
         if overlap > 0 and not storage.same_bytes(key, offset, staged_key, overlap):
             raise IncompleteUpload(
                 f"the chunk at Upload-Offset {offset} differs from the bytes already received there; "
-                f"acknowledged bytes are never rewritten: the upload is at offset {current}, resume from {current}"
+                f"acknowledged bytes are never rewritten: the upload is at offset {current}, resume from {current}",
+                offset_bytes=current,
             )
         if offset + size <= current:
             return current  # a retry of bytes already here: nothing to do
