@@ -33,15 +33,14 @@ from saddlescope.core.calibration.projection import _distort_project, _intr_vect
 from saddlescope.core.calibration.views import BoardView
 from saddlescope.core.calibration.wand import (
     _REFINE_STAGES,
-    MIN_WAND_FRAMES,
     WandView,
     _direction,
-    _initial_wand,
     _to_reference,
+    _wand_frames,
     _within,
     wand_length_errors,
 )
-from saddlescope.core.errors import CalibrationError, InputError
+from saddlescope.core.errors import InputError
 from saddlescope.core.types import Board, Camera, Rig
 
 __all__ = ["refine_board_and_wand"]
@@ -136,17 +135,7 @@ def _stage(cams: list[Camera], board_views: Mapping[str, list[BoardView]], board
     obj = object_points_mm(board)
     inst_pose = _initial_board_poses({c.name: c for c in cams}, board_views, obj)
     instants = {f: i for i, f in enumerate(sorted(inst_pose))}
-    seen: dict[int, int] = {}
-    for n in names:
-        for v in wand_views.get(n, []):
-            seen[v.frame] = seen.get(v.frame, 0) + 1
-    frames = sorted(f for f, k in seen.items() if k >= 2)
-    wand = _initial_wand(cams, frames, wand_views) if frames else np.empty((0, 5))
-    good = np.all(np.isfinite(wand), axis=1)
-    frames, wand = [f for f, g in zip(frames, good, strict=True) if g], wand[good]
-    if len(frames) < MIN_WAND_FRAMES:
-        raise CalibrationError(f"the wand was seen by two cameras at once in {len(frames)} frames; a refinement "
-                               f"needs {MIN_WAND_FRAMES} or more")
+    frames, wand = _wand_frames(cams, wand_views)
     prob = _BoardWandBundle(cams, _board_observations(names, board_views, instants, BOARD_CORNER_STEP), len(instants),
                             _wand_observations(names, wand_views, {f: i for i, f in enumerate(frames)}),
                             len(frames), obj, length_mm)

@@ -378,6 +378,26 @@ class _WandLensBundle(_WandBundle):
         return hstack([base[:, :n_pose], lens.tocsc(), base[:, n_pose:]]).tolil()
 
 
+def _wand_frames(cams: list[Camera], views: Mapping[str, list[WandView]]) -> tuple[list[int], np.ndarray]:
+    """The frames two or more cameras saw the wand in, and its initial poses there (F, 5).
+
+    Frames whose ends the initial cameras cannot triangulate are left out; fewer than
+    :data:`MIN_WAND_FRAMES` left refuse the refinement.
+    """
+    seen: dict[int, int] = {}
+    for c in cams:
+        for v in views.get(c.name, []):
+            seen[v.frame] = seen.get(v.frame, 0) + 1
+    frames = sorted(f for f, n in seen.items() if n >= 2)
+    wand = _initial_wand(cams, frames, views) if frames else np.empty((0, 5))
+    good = np.all(np.isfinite(wand), axis=1)
+    frames, wand = [f for f, g in zip(frames, good, strict=True) if g], wand[good]
+    if len(frames) < MIN_WAND_FRAMES:
+        raise CalibrationError(f"the wand was seen by two cameras at once in {len(frames)} frames; a refinement "
+                               f"needs {MIN_WAND_FRAMES} or more")
+    return frames, wand
+
+
 def _initial_wand(cams: list[Camera], frames: list[int], views: Mapping[str, list[WandView]]) -> np.ndarray:
     """Wand poses (F, 5) from the ends the initial cameras triangulate."""
     by_cam = [{v.frame: v for v in views[c.name]} for c in cams]
@@ -541,17 +561,7 @@ def _within(cams: list[Camera], views: Mapping[str, list[WandView]], reach_px: M
 def _refine_stage(cams: list[Camera], views: Mapping[str, list[WandView]], length_mm: float, loss: str
                   ) -> tuple[list[Camera], dict]:
     """One adjustment of the poses, each lens's k1, k2 and the wand's poses on ``views``."""
-    frames_seen: dict[int, int] = {}
-    for c in cams:
-        for v in views[c.name]:
-            frames_seen[v.frame] = frames_seen.get(v.frame, 0) + 1
-    frames = sorted(f for f, n in frames_seen.items() if n >= 2)
-    wand = _initial_wand(cams, frames, views) if frames else np.empty((0, 5))
-    good = np.all(np.isfinite(wand), axis=1)
-    frames, wand = [f for f, g in zip(frames, good, strict=True) if g], wand[good]
-    if len(frames) < MIN_WAND_FRAMES:
-        raise CalibrationError(f"the wand was seen by two cameras at once in {len(frames)} frames; a refinement "
-                               f"needs {MIN_WAND_FRAMES} or more")
+    frames, wand = _wand_frames(cams, views)
     prob = _WandLensBundle(cams, frames, views, length_mm)
     radial0 = np.array([_intr_vector(c)[4:6] for c in cams])
     x0 = np.concatenate([np.concatenate([c.rvec, c.t_mm]) for c in cams[1:]] + [radial0.ravel(), wand.ravel()])
