@@ -536,22 +536,32 @@ def finish_frame(
     good as fresh Gaussian noise for a detector, at a fraction of the cost. Without a bank it is
     drawn from ``rng``.
     """
-    img = frame
-    if gain != 1.0:
-        img = img * np.float32(gain)
+    # one working copy, changed in place (a 1080p frame is 8 MB of float32: each temporary costs as much
+    # as the arithmetic); the same operations in the same order as out-of-place, so the same values
+    img = frame * np.float32(gain) if gain != 1.0 else np.array(frame, dtype=np.float32)
     if flash > 0:
-        img = img + np.float32(95.0 * flash)
+        img += np.float32(95.0 * flash)
     if options.noise_sigma > 0 or options.shot_noise > 0:
         h, w = img.shape
+        negate = False
         if bank is None:
             noise = rng.standard_normal(img.shape, dtype=np.float32)
         else:
             dy, dx = rng.integers(0, bank.shape[0] - h + 1), rng.integers(0, bank.shape[1] - w + 1)
             noise = bank[dy : dy + h, dx : dx + w]
-            if rng.random() < 0.5:
-                noise = -noise
-        sigma = np.float32(options.noise_sigma)
+            negate = bool(rng.random() < 0.5)
         if options.shot_noise > 0:
-            sigma = sigma + np.float32(options.shot_noise) * np.sqrt(np.maximum(img, 0.0))
-        img = img + noise * sigma
-    return np.clip(img + 0.5, 0, 255).astype(np.uint8)
+            sigma = np.maximum(img, np.float32(0.0))
+            np.sqrt(sigma, out=sigma)
+            sigma *= np.float32(options.shot_noise)
+            sigma += np.float32(options.noise_sigma)
+            sigma *= noise
+        else:
+            sigma = noise * np.float32(options.noise_sigma)
+        if negate:  # img + (-noise) * sigma, exactly
+            img -= sigma
+        else:
+            img += sigma
+    img += np.float32(0.5)
+    np.clip(img, 0, 255, out=img)
+    return img.astype(np.uint8)
