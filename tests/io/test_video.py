@@ -115,16 +115,3 @@ def test_the_analysis_probe_reads_packets_only_and_still_refuses_a_cut_file(tmp_
     with pytest.raises(VideoError, match="cut.mp4"):
         probe_video(truncated, decode_tail=False)
 
-
-def test_clips_are_written_as_a_phone_writes_them_i_and_p_frames_only(tmp_path):
-    from saddlescope.io.video_writer import write_h264
-
-    rng = np.random.default_rng(5)
-    scene = cv2.GaussianBlur(rng.uniform(30, 220, (80, 160)).astype(np.float32), (0, 0), 3)
-    frames = [np.clip(scene[8:72, k:k + 96] + rng.normal(0, 2, (64, 96)), 0, 255).astype(np.uint8)
-              for k in range(24)]  # a pan with sensor noise: libx264's veryfast would make B-frames of it
-    path = tmp_path / "phone.mp4"
-    assert write_h264(path, frames, fps=30.0) == 24
-    with av.open(str(path)) as container:
-        kinds = [int(frame.pict_type) for frame in container.decode(video=0)]  # AVPictureType: 1 I, 2 P, 3 B
-    assert set(kinds) == {1, 2}, kinds

@@ -114,9 +114,7 @@ def _add_h264_stream(container, path: Path, size: tuple[int, int], *, fps: float
     stream = container.add_stream("libx264", rate=fps_fraction(fps))
     stream.width, stream.height = w, h
     stream.pix_fmt = "yuv420p"
-    # I and P frames only, as a phone's hardware encoder writes its camera clips (B-frames are for files
-    # made to be small; libx264's veryfast would add three): it also halves libx264's work per frame
-    stream.options = {"crf": str(int(crf)), "preset": preset, "x264-params": "bframes=0"}
+    stream.options = {"crf": str(int(crf)), "preset": preset}
     if variable_rate:
         stream.codec_context.time_base = _VFR_TIME_BASE
         stream.time_base = _VFR_TIME_BASE
