@@ -92,12 +92,12 @@ lint: install $(TSC_STAMP)
 api-types: install
 	$(BIN)/python -m saddlescope.api.frontend_types
 
-# Two pytest-xdist workers, each test file whole on one worker (--dist loadfile: a module's server, ride
-# or database is built once), overlapping one test's waiting (servers, browser, broker) with another's
-# computing. Files are handed out heaviest first in tests/conftest.py's order (--no-loadscope-reorder:
-# xdist's own order, most tests first, left the few-test heavy files to the end with a worker idle).
-# TEST_WORKERS=0 runs everything in one process.
-TEST_WORKERS ?= 2
+# Three pytest-xdist workers on two cores, each test file whole on one worker (--dist loadfile: a module's
+# server, ride or database is built once): a third of the suite's time is waiting (servers, browser, broker,
+# the drills' outages), and a third worker computes meanwhile. Files are handed out heaviest first in
+# tests/conftest.py's order (--no-loadscope-reorder: xdist's own order, most tests first, left the few-test
+# heavy files to the end with a worker idle). TEST_WORKERS=0 runs everything in one process.
+TEST_WORKERS ?= 3
 XDIST := -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 test: install system-deps lint

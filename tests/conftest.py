@@ -52,26 +52,34 @@ def pytest_testnodedown(node, error):
 # --- the order of test files (`make test`: --dist loadfile --no-loadscope-reorder) ---------------------
 # Each worker takes the next whole file as it finishes one; pytest-xdist's own order (most tests first)
 # left the heaviest files, which hold few tests, to the end, with one worker idle meanwhile. The files
-# measured heaviest go first (heaviest first; CPU seconds on a quiet run), then the files with the most
+# measured heaviest go first (heaviest first), then the files with the most
 # slow, browser or integration tests, then the rest in their usual order: the light files fill the end.
 HEAVY_FIRST = (
-    "tests/multihost/test_multihost.py",  # ~240 s
-    "tests/core/test_sync_motion.py",  # ~230 s
-    "tests/core/pipeline/test_wide_rig.py",  # ~220 s
-    "tests/bench/test_dashboard_bench.py",  # ~200 s
-    "tests/core/pipeline/test_pipeline.py",
-    "tests/api/test_api_flow.py",
-    "tests/e2e/dashboard_helpers.py",
-    "tests/e2e/test_page_audit.py",
-    "tests/io/test_synth_writer.py",
-    # few tests each but long ones (CI's durations, 2026-11-29): first, so none is left running alone at the end
-    "tests/e2e/test_club_journey.py",  # ~150 s
-    "tests/api/test_api_real_pipeline.py",  # ~145 s
-    "tests/core/pipeline/test_wand_ride.py",  # ~125 s
-    "tests/core/pipeline/test_partial_views.py",  # ~100 s
-    "tests/core/pipeline/test_passes_rendered.py",  # ~85 s
-    "tests/core/pipeline/test_rolling_shutter_ride.py",  # ~85 s
-    "tests/services/test_calibration_check.py",  # ~80 s
+    # test seconds on a full run, setup included (pytest's junit report, 2026-11-29 evening)
+    "tests/multihost/test_multihost.py",  # ~300 s
+    "tests/api/test_api_flow.py",  # ~255 s
+    "tests/core/pipeline/test_wide_rig.py",  # ~225 s
+    "tests/core/test_sync_motion.py",  # ~130 s
+    "tests/core/pipeline/test_pipeline.py",  # ~120 s
+    "tests/core/pipeline/test_wand_ride.py",  # ~105 s
+    "tests/e2e/test_page_audit.py",  # ~105 s
+    "tests/core/calibration/test_wand.py",  # ~90 s
+    "tests/api/test_api_real_pipeline.py",  # ~90 s
+    "tests/core/kinematics/test_kinematics_floor.py",  # ~85 s
+    "tests/e2e/test_club_journey.py",  # ~75 s
+    "tests/core/pipeline/test_board_wand_ride.py",  # ~75 s
+    "tests/core/pipeline/test_passes_rendered.py",  # ~70 s
+    "tests/e2e/test_dashboard.py",  # ~70 s
+    "tests/core/pipeline/test_partial_views.py",  # ~65 s
+    "tests/services/test_calibration_check.py",  # ~60 s
+    "tests/bench/test_service_bench.py",  # ~60 s
+    "tests/api/test_api_schemathesis.py",  # ~55 s
+    "tests/e2e/test_failed_ride_page.py",  # ~55 s
+    "tests/io/test_calibration_files.py",  # ~50 s
+    "tests/io/test_synth_writer.py",  # ~45 s
+    "tests/api/test_api_worker_fault.py",  # ~45 s
+    "tests/core/pipeline/test_rolling_shutter_ride.py",  # ~45 s
+    "tests/api/test_api_sessions.py",  # ~45 s
 )
 _HEAVY_MARKS = ("slow", "browser", "integration")
 

@@ -1798,7 +1798,8 @@ export interface UploadCreatedOut {
   offset_bytes: number;
   status: string;
   error: string | null;
-  outcome: Record<string, unknown>;
+  /** what finalising made (the same answer as the finalise); null until the upload is finalised */
+  outcome: ClipFinalisedOut | BundleFinalisedOut | null;
   created_at: string;
   updated_at: string;
   transport?: "stream" | "s3-parts";
@@ -1822,7 +1823,8 @@ export interface UploadOut {
   offset_bytes: number;
   status: string;
   error: string | null;
-  outcome: Record<string, unknown>;
+  /** what finalising made (the same answer as the finalise); null until the upload is finalised */
+  outcome: ClipFinalisedOut | BundleFinalisedOut | null;
   created_at: string;
   updated_at: string;
 }

@@ -81,7 +81,7 @@ export function onUnauthorised(listener) {
  * @param {string} [statusText]
  * @returns {string}
  */
-export function reasonOf(body, status, statusText) {
+function reasonOf(body, status, statusText) {
   const detail = body && typeof body === "object" ? body.detail : null;
   if (typeof detail === "string" && detail) return detail;
   if (Array.isArray(detail) && detail.length) {

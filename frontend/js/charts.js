@@ -25,7 +25,7 @@
  */
 
 /** @type {Record<string, string>} */
-const AXIS_COLOURS = { x: "#1f5fa8", y: "#c2410c", z: "#2f855a" };
+export const AXIS_COLOURS = { x: "#1f5fa8", y: "#c2410c", z: "#2f855a" };
 const VERSION_COLOURS = ["#1f5fa8", "#6b8fd6", "#c2410c", "#e8925c", "#2f855a", "#7cc29a"];
 const FONT = { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 12, color: "#1d2630" };
 
@@ -321,61 +321,6 @@ export function versionsChart(div, tS, versions, singularity, { names, component
   return plotly().react(div, traces, layout, CONFIG);
 }
 
-/**
- * Bars of a group summary with the spread: mean and std as error bar, min-max as a thin range.
- * @param {HTMLElement} div
- * @param {{group: string, label?: string, mean: number, std: number, min: number, max: number, n: number}[]} groups
- * @param {{title: string, unit: string, xTitle: string}} words
- */
-export function spreadBarChart(div, groups, { title, unit, xTitle }) {
-  if (!groups?.length) return emptyChart(div, "No analysed rides to compare yet.");
-  ready(div);
-  const labels = groups.map((g) => g.label ?? g.group);
-  const bars = {
-    type: "bar", name: "mean", x: labels, y: groups.map((g) => g.mean),
-    marker: { color: "#1f5fa8" },
-    error_y: { type: "data", array: groups.map((g) => (Number.isFinite(g.std) ? g.std : 0)), visible: true,
-               color: "#1d2630", thickness: 1.5, width: 6 },
-    text: groups.map((g) => `n = ${g.n}`), textposition: "none",
-    hovertemplate: `%{x}: %{y:.4g} ${unit} (\u00b1 std, %{text})<extra></extra>`,
-  };
-  const range = {
-    type: "scatter", mode: "markers", name: "min \u2013 max", x: labels, showlegend: false,
-    y: groups.map((g) => (g.min + g.max) / 2),
-    marker: { color: "rgba(0,0,0,0)", size: 1 },
-    error_y: { type: "data", symmetric: false, visible: true, color: "#c2410c", thickness: 1, width: 14,
-               array: groups.map((g) => g.max - (g.min + g.max) / 2),
-               arrayminus: groups.map((g) => (g.min + g.max) / 2 - g.min) },
-    hoverinfo: "skip",
-  };
-  const layout = baseLayout(title, xTitle, unit, { hovermode: "closest", bargap: 0.45, showlegend: false });
-  return plotly().react(div, [bars, range], layout, CONFIG);
-}
-
-/**
- * Grades against indicator values, one point per horse and gait.
- * @param {HTMLElement} div
- * @param {{value: number, grade: number, horse: string, gait: string}[]} points
- * @param {{title: string, unit: string, label: string}} words
- */
-export function gradeScatter(div, points, { title, unit, label }) {
-  if (!points?.length) return emptyChart(div, "No graded horses with analysed rides yet.");
-  ready(div);
-  const trace = {
-    type: "scatter", mode: "markers+text", x: points.map((p) => p.value), y: points.map((p) => p.grade),
-    text: points.map((p) => p.horse), textposition: "top center",
-    customdata: points.map((p) => p.gait),
-    marker: { size: 11, color: "#1f5fa8", line: { color: "#fff", width: 1 } },
-    hovertemplate: `%{text} (%{customdata}): %{x:.4g} ${unit}, grade %{y:.2f}<extra></extra>`,
-  };
-  const layout = baseLayout(title, unit ? `${label} (${unit})` : label, "average grade", {
-    hovermode: "closest", showlegend: false,
-  });
-  layout.yaxis.range = [0.5, 5.5];
-  layout.yaxis.dtick = 1;
-  return plotly().react(div, [trace], layout, CONFIG);
-}
-
 const PAIR_COLOURS = ["#1f5fa8", "#c2410c"];
 
 /**
@@ -465,8 +410,6 @@ export function differencesStrip(div, differences) {
   div.style.height = `${layout.height}px`; // one row per track, not a chart's usual height
   return plotly().react(div, traces, layout, CONFIG);
 }
-
-export const COLOURS = AXIS_COLOURS;
 
 // ----------------------------------------------------------------------------- ride page (fits, 3-D, vibration)
 

@@ -36,7 +36,7 @@ function capital(text) {
  * @param {FieldError} item
  * @returns {string}
  */
-export function fieldSentence(item) {
+function fieldSentence(item) {
   const field = fieldWords(item);
   // pydantic's limits (its ctx) are not always sent: read them from its message then ("at least 8 characters")
   const number = (String(item.msg ?? "").match(/(\d+)/) || [])[1];

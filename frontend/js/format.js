@@ -25,7 +25,7 @@ export const GAITS = [];
  * Each gait's label ("sitting_trot" -> "sitting trot"), filled at start.
  * @type {Record<string, string>}
  */
-export const GAIT_LABELS = {};
+const GAIT_LABELS = {};
 
 /**
  * The thesis's eight comfort indicators (8.5), all W_b: the default choice in comparisons. Filled at start.
@@ -183,12 +183,6 @@ export function rangeText(low, high, digits = 3) {
   return `± under ${fmt(place, 1)}`;
 }
 
-/** @param {number | string | null | undefined} value @param {string | null | undefined} unit @param {number} [digits] */
-export function fmtUnit(value, unit, digits = 3) {
-  const text = fmt(value, digits);
-  return unit && text !== "\u2013" ? `${text} ${prettyUnit(unit)}` : text;
-}
-
 /** @param {string | null | undefined} gait */
 export function gaitLabel(gait) {
   return (gait && GAIT_LABELS[gait]) || gait || "";
@@ -215,7 +209,7 @@ export function durationText(hours) {
  * A job's time in seconds as a person says it: 40 -> "under a minute", 130 -> "about 2 min", 4000 -> "about 1 h 07 min".
  * @param {number | null | undefined} seconds
  */
-export function secondsText(seconds) {
+function secondsText(seconds) {
   const s = Number(seconds);
   if (seconds === null || seconds === undefined || !Number.isFinite(s) || s < 0) return "";
   if (s < 60) return "under a minute";

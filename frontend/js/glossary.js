@@ -58,7 +58,7 @@ export function loadConstants() {
  * @param {string} code
  * @returns {GlossaryEntry | null}
  */
-export function glossaryEntry(kind, code) {
+function glossaryEntry(kind, code) {
   return entries.get(`${kind}:${code}`) ?? null;
 }
 

@@ -27,7 +27,7 @@ import { GAITS, gaitLabel } from "./format.js";
 const FONT = { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 12, color: "#1d2630" };
 const CONFIG = { responsive: true, displaylogo: false, modeBarButtonsToRemove: ["lasso2d", "select2d", "autoScale2d"] };
 /** @type {Record<string, string>} */
-export const GAIT_COLOURS = { walk: "#2f855a", sitting_trot: "#1f5fa8", rising_trot: "#7c3aed", canter: "#c2410c" };
+const GAIT_COLOURS = { walk: "#2f855a", sitting_trot: "#1f5fa8", rising_trot: "#7c3aed", canter: "#c2410c" };
 const BAND_FILL = "rgba(47,133,90,0.16)";
 const OUTSIDE = "#b91c1c";
 

@@ -16,7 +16,7 @@ import { currentPath, navigate } from "./router.js";
  */
 /** @typedef {Record<string, string | number>} ListParams a list's query parameters of the API */
 
-export const PAGE_SIZES = [25, 50, 100, 200];
+const PAGE_SIZES = [25, 50, 100, 200];
 const DEFAULT_SIZE = 50;
 
 /**

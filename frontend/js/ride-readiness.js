@@ -9,7 +9,7 @@ import { h } from "./dom.js";
 
 export const CAMERAS = ["left", "middle", "right"];
 /** @type {Record<string, [string, string]>} each clip kind's name and what it shows */
-export const CLIP_WORDS = {
+const CLIP_WORDS = {
   calibration: ["calibration", "the board moved through the view"],
   plumb: ["plumb-line", "the plumb line hanging still"],
   static: ["static", "horse standing still, saddle marker visible"],

@@ -173,6 +173,11 @@ def test_a_rig_with_its_board_walk_and_wand_clips_is_calibrated_by_both(env):
         "middle, right cameras first")
     for camera in CAMERA_ROLES:  # each new clip makes the calibration stale; the third wand clip completes both
         _upload(api, rig["id"], "wand", camera, _tagged(clip, "wand"))
+        # Each clip's board-walk job ends before the next clip comes: a clip arriving while the rig's job runs
+        # starts no job after it (a known gap, docs/rigs-and-uploads.md), and the rig would keep that job's calibration.
+        for job in api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]:
+            if job["kind"] == "calibrate_rig":
+                assert job_outcome(api, job["id"])["status"] == "done"
     jobs = api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]
     assert job_outcome(api, max(j["id"] for j in jobs if j["kind"] == "calibrate_rig"))["status"] == "done"
     call = {"way": "board+wand", "calibration": sorted(CAMERA_ROLES), "wand": sorted(CAMERA_ROLES),

@@ -108,9 +108,9 @@ def test_chunks_at_offsets_resume_and_finalise_into_a_probed_recording(env, club
     assert send(api, upload["id"], third, data[third : 2 * third]).status_code == 204
     too_much = send(api, upload["id"], 2 * third, data[2 * third :] + b"extra")
     assert too_much.status_code == 413 and "more bytes than the" in too_much.json()["detail"]
-    assert (
-        api.ok("GET", f"/uploads/{upload['id']}")["offset_bytes"] == 2 * third
-    )  # the bad chunk did not count
+    part_way = api.ok("GET", f"/uploads/{upload['id']}")
+    assert part_way["offset_bytes"] == 2 * third  # the bad chunk did not count
+    assert part_way["outcome"] is None  # nothing made yet (the row keeps {}: not an answer)
     assert send(api, upload["id"], 2 * third, data[2 * third :]).status_code == 204
 
     outcome = api.ok("POST", f"/uploads/{upload['id']}/finalize")

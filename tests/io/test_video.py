@@ -114,3 +114,4 @@ def test_the_analysis_probe_reads_packets_only_and_still_refuses_a_cut_file(tmp_
     truncated.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
     with pytest.raises(VideoError, match="cut.mp4"):
         probe_video(truncated, decode_tail=False)
+

@@ -38,7 +38,7 @@ __all__ = [
     "RideDetail", "RideIn", "RideMetaIn", "RideOut", "RideUpdate", "RiderIn", "RiderOut", "RiderUpdate",
     "RigDetail", "RigIn", "RigOut", "RigUpdate", "RoleName", "SpectrumOut", "Pad",
     "SyncIn", "Text", "TokenOut", "UploadCreate",
-    "UploadOut", "UserCreate", "UserOut", "UserUpdate",
+    "UserCreate", "UserOut", "UserUpdate",
     "HealthSummaryOut", "PartState",  # the public health answer (accounts area)
 ]
 
@@ -502,25 +502,6 @@ class UploadCreate(_In):
     clip_kind: ClipKind | None = None
     camera: CameraRole | None = None
     filename: Annotated[str, StringConstraints(max_length=255)] | None = None
-
-
-class UploadOut(_Out):
-    """A resumable upload's state (`offset_bytes` is where to resume)."""
-
-    id: str
-    target: str
-    ride_id: int | None
-    rig_id: int | None
-    clip_kind: str | None
-    camera_role: str | None
-    filename: str | None
-    length_bytes: int
-    offset_bytes: int
-    status: str
-    error: str | None
-    outcome: dict[str, Any]
-    created_at: dt.datetime
-    updated_at: dt.datetime
 
 
 # --- grades ------------------------------------------------------------------------------------------

@@ -1,7 +1,6 @@
-"""The resumable uploads' requests and answers beyond the upload itself (`UploadOut`).
+"""The resumable uploads' answers: the upload itself (`UploadOut`) and what finalising made.
 
-How to send its bytes, the parts of a direct upload, a bundle's ride.json read before finalising, and what
-finalising made.
+How to send its bytes, the parts of a direct upload and a bundle's ride.json read before finalising.
 """
 
 from __future__ import annotations
@@ -9,15 +8,68 @@ from __future__ import annotations
 import datetime as dt
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from saddlescope.api.rider_weight import RiderWeightKg
-from saddlescope.api.schemas import Direction, ErrorOut, Gait, Pad, RefId, Text, UploadOut, _In
+from saddlescope.api.schemas import Direction, ErrorOut, Gait, Pad, RefId, Text, _In, _Out
 from saddlescope.services.uploads.direct import MAX_URLS
 
 __all__ = ["BundleChoice", "BundleFinalisedOut", "BundleMetaOut", "ClipFinalisedOut", "DirectPartsOut",
            "FinalisedOut", "NamedInClubOut", "OffsetConflictOut", "PartNumbers", "PartOut", "PartUrlsOut",
-           "PartsOut", "StreamedPartsOut", "UploadCreatedOut"]
+           "PartsOut", "StreamedPartsOut", "UploadCreatedOut", "UploadOut"]
+
+
+def _absent_when_none(value: object) -> bool:
+    return value is None
+
+
+class ClipFinalisedOut(BaseModel):
+    """A clip's upload finalised: its recording, and the job the clip let start."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    recording_id: int
+    job_id: int | None = Field(description="null: nothing to start yet (or a job already queued or running)")
+    missing: list[str] | None = Field(default=None, exclude_if=_absent_when_none,  # absent, not null, as ever
+                                      description="a ride's clip that started no job: what the ride still needs "
+                                                  "(absent otherwise)")
+
+
+class BundleFinalisedOut(BaseModel):
+    """A ride bundle's upload finalised: the new ride, and its analysis job."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    ride_id: int
+    job_id: int
+
+
+FinalisedOut = ClipFinalisedOut | BundleFinalisedOut
+
+
+class UploadOut(_Out):
+    """A resumable upload's state (`offset_bytes` is where to resume)."""
+
+    id: str
+    target: str
+    ride_id: int | None
+    rig_id: int | None
+    clip_kind: str | None
+    camera_role: str | None
+    filename: str | None
+    length_bytes: int
+    offset_bytes: int
+    status: str
+    error: str | None
+    outcome: FinalisedOut | None = Field(description="what finalising made (the same answer as the finalise); null "
+                                         "until the upload is finalised")
+    created_at: dt.datetime
+    updated_at: dt.datetime
+
+    @field_validator("outcome", mode="before")
+    @classmethod
+    def _nothing_yet(cls, kept: object) -> object:
+        return kept or None  # an upload's row keeps {} until it is finalised
 
 
 class UploadCreatedOut(UploadOut):
@@ -129,29 +181,3 @@ class BundleChoice(_In):
     rider_weight_kg: RiderWeightKg = Field(default=None, description="kg; default: ride.json's, else the rider's")
 
 
-def _absent_when_none(value: object) -> bool:
-    return value is None
-
-
-class ClipFinalisedOut(BaseModel):
-    """A clip's upload finalised: its recording, and the job the clip let start."""
-
-    model_config = ConfigDict(from_attributes=True)
-
-    recording_id: int
-    job_id: int | None = Field(description="null: nothing to start yet (or a job already queued or running)")
-    missing: list[str] | None = Field(default=None, exclude_if=_absent_when_none,  # absent, not null, as ever
-                                      description="a ride's clip that started no job: what the ride still needs "
-                                                  "(absent otherwise)")
-
-
-class BundleFinalisedOut(BaseModel):
-    """A ride bundle's upload finalised: the new ride, and its analysis job."""
-
-    model_config = ConfigDict(from_attributes=True)
-
-    ride_id: int
-    job_id: int
-
-
-FinalisedOut = ClipFinalisedOut | BundleFinalisedOut

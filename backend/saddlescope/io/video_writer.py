@@ -12,6 +12,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import av
+import cv2
 import numpy as np
 
 from saddlescope.core.errors import InputError, VideoError
@@ -20,11 +21,15 @@ from saddlescope.io.video import fps_fraction
 _LUT = np.round(16.0 + np.arange(256) * (219.0 / 255.0)).astype(np.uint8)
 
 
-def gray_to_yuv420p(frame: np.ndarray) -> np.ndarray:
-    """uint8 (H, W) grey -> yuv420p planes stacked as (H * 3 / 2, W), limited range, neutral chroma."""
+def gray_to_yuv420p(frame: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """uint8 (H, W) grey -> yuv420p planes stacked as (H * 3 / 2, W), limited range, neutral chroma.
+
+    ``out``: the planes of the previous frame of this size, reused (its chroma is already neutral).
+    """
     h, w = frame.shape
-    out = np.full((h * 3 // 2, w), 128, np.uint8)
-    out[:h] = _LUT[frame]
+    if out is None or out.shape != (h * 3 // 2, w):
+        out = np.full((h * 3 // 2, w), 128, np.uint8)
+    cv2.LUT(np.ascontiguousarray(frame), _LUT, dst=out[:h])  # a table look-up, as _LUT[frame] but ~10x faster
     return out
 
 
@@ -46,6 +51,7 @@ def write_h264(
         raise InputError(f"crf must be 0-51, got {crf}")
     ticks = _frame_ticks(path, frame_times_s)
     n = 0
+    planes = None  # one yuv420p buffer for the clip: PyAV copies it into each frame
     try:
         with av.open(str(path), mode="w") as container:
             stream = None
@@ -63,7 +69,8 @@ def write_h264(
                     raise InputError(
                         f"{path.name}: frame {n} is {w}x{h}, expected {stream.width}x{stream.height}"
                     )
-                vf = av.VideoFrame.from_ndarray(gray_to_yuv420p(img), format="yuv420p")
+                planes = gray_to_yuv420p(img, planes)
+                vf = av.VideoFrame.from_ndarray(planes, format="yuv420p")
                 if ticks is None:
                     vf.pts = n
                 else:

@@ -25,7 +25,7 @@ const INCH_M = 0.0254;
  * 1.5748 -> "15.2 hh": hands, and inches after the point (0-3).
  * @param {number} heightM
  */
-export function handsText(heightM) {
+function handsText(heightM) {
   const inches = Math.round(heightM / INCH_M);
   return `${Math.floor(inches / 4)}.${inches % 4} hh`;
 }

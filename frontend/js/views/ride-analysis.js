@@ -1,7 +1,7 @@
 // The ride page's analysis panels: quality in plain words, 3-D tracks, fitted curves over the measured
 // samples with residuals, weighted vertical acceleration and its spectrum, why a rotation reads zero.
 
-import { fitChart, spectrumChart, tracks3dChart, weightedChart } from "../charts.js";
+import { AXIS_COLOURS, fitChart, spectrumChart, tracks3dChart, weightedChart } from "../charts.js";
 import { h, one } from "../dom.js";
 
 /** @typedef {import("../api-types").ResultOut} ResultOut */
@@ -12,7 +12,6 @@ import { h, one } from "../dom.js";
 const SEVERITY_WORDS = { ok: "OK", check: "Check", problem: "Problem" };
 const AXES = /** @type {const} */ (["x", "y", "z"]);
 const AXIS_WORDS = { x: "x, direction of travel", y: "y, vertical (down)", z: "z, sideways" };
-const AXIS_COLOURS = { x: "#1f5fa8", y: "#c2410c", z: "#2f855a" };
 // ω components as riders name the rotations of the back (x travel, y down, z sideways)
 const ROTATION_WORDS = ["roll (about the direction of travel)", "yaw (about the vertical)",
   "pitch (about the sideways axis)"];
@@ -75,7 +74,7 @@ export function showQuality(view, result) {
  * One sentence per ω component that reads zero, saying why; or that all three are measured.
  * @param {ResultOut} result
  */
-export function zeroRotationText(result) {
+function zeroRotationText(result) {
   const omega = result.series?.omega_rad_s || [];
   if (!omega.length) return "This result has no rotation of the back.";
   const zero = [0, 1, 2].filter((i) => column(omega, i).every((v) => v === null || Math.abs(v) < 1e-9));

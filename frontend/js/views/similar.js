@@ -11,11 +11,11 @@ import { poll } from "../poll.js";
 /** @typedef {{markers: string, span: string, gait: string, limit: number}} AlikeOptions */
 
 /** @type {[string, string][]} */
-export const MARKER_CHOICES = [
+const MARKER_CHOICES = [
   ["saddle", "saddle point S"], ["M1", "marker M1"], ["M2", "marker M2"], ["M3", "marker M3"], ["all", "all markers"],
 ];
 /** @type {[string, string][]} */
-export const SPAN_CHOICES = [["stride", "one mean stride"], ["window", "whole window"]];
+const SPAN_CHOICES = [["stride", "one mean stride"], ["window", "whole window"]];
 
 /**
  * @param {HTMLSelectElement} select

@@ -10,7 +10,7 @@ from starlette.concurrency import run_in_threadpool
 
 from saddlescope.api.deps import ClubDep, QueueDep, SessionFactoryDep, SettingsDep, StorageDep
 from saddlescope.api.routers.common import ERRORS
-from saddlescope.api.schemas import ErrorOut, UploadCreate, UploadOut
+from saddlescope.api.schemas import ErrorOut, UploadCreate
 from saddlescope.api.streaming import stream_chunk
 from saddlescope.api.upload_schemas import (
     BundleChoice,
@@ -23,6 +23,7 @@ from saddlescope.api.upload_schemas import (
     PartsOut,
     PartUrlsOut,
     UploadCreatedOut,
+    UploadOut,
 )
 from saddlescope.db.enums import UploadStatus
 from saddlescope.db.repositories import Upload

@@ -1,7 +1,7 @@
 """The board walk's views and a wand pass adjusted together (issue 35): a middle-band board refined by a wand.
 
-:func:`~saddlescope.core.calibration.wand.refine_with_wand` holds each lens's focal length at the board's and
-fits the poses and k1, k2 to the wand's ends alone. On rendered band rides that left the board's own views
+A first version held each lens's focal length at the board's and fitted the poses and k1, k2 to the wand's
+ends alone. On rendered band rides that left the board's own views
 0.26 % off in scale (arena ``wide_partial`` seed 2041): a board seen only in the middle of the image fixes
 the focal lengths to a few tenths of a percent (the right camera's -0.72 %), which the board's rig makes up
 for with its poses; poses fitted to the wand with that focal length no longer fit the board.
@@ -14,8 +14,8 @@ wand extends k1, k2 to the image edges. On seed 2041 the board's squares came ou
 board alone, 0.26 % refined by the wand alone), the wand's held-out length 3.9 mm r.m.s. (84 mm with the
 board alone). Freeing a focal-length factor per camera too gave 0.05 % and 1.6 mm but moved every focal
 length by -1.0 to -1.6 % together (an object at one depth cannot tell focal length from distance), and cost
-four times the CPU: not done. The wand's ends are taken in outward from the board's reach in stages, as
-:func:`~saddlescope.core.calibration.wand.refine_with_wand` does.
+four times the CPU: not done. The wand's ends are taken in outward from the board's reach in stages
+(:data:`~saddlescope.core.calibration.wand._REFINE_STAGES`).
 """
 
 from __future__ import annotations

@@ -38,7 +38,7 @@ from saddlescope.core.errors import CalibrationError, InputError
 from saddlescope.core.findings import Finding
 from saddlescope.core.types import Camera, LensModel, Rig
 
-__all__ = ["WAND_LENGTH_RANGE_M", "WandView", "calibrate_wand", "refine_with_wand", "relabel_with_rig",
+__all__ = ["WAND_LENGTH_RANGE_M", "WandView", "calibrate_wand", "relabel_with_rig",
            "track_wand_ends", "wand_length_errors", "wand_length_problem"]
 
 MIN_WAND_FRAMES = 20  # frames two cameras must share for the first pair's essential matrix
@@ -558,71 +558,7 @@ def _within(cams: list[Camera], views: Mapping[str, list[WandView]], reach_px: M
     return out
 
 
-def _refine_stage(cams: list[Camera], views: Mapping[str, list[WandView]], length_mm: float, loss: str
-                  ) -> tuple[list[Camera], dict]:
-    """One adjustment of the poses, each lens's k1, k2 and the wand's poses on ``views``."""
-    frames, wand = _wand_frames(cams, views)
-    prob = _WandLensBundle(cams, frames, views, length_mm)
-    radial0 = np.array([_intr_vector(c)[4:6] for c in cams])
-    x0 = np.concatenate([np.concatenate([c.rvec, c.t_mm]) for c in cams[1:]] + [radial0.ravel(), wand.ravel()])
-    r0 = prob.residuals(x0)
-    sol = least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), loss=loss, f_scale=1.0,
-                        x_scale="jac", method="trf", max_nfev=200)
-    n_pose = 6 * (len(cams) - 1)
-    poses = np.vstack([np.concatenate([cams[0].rvec, cams[0].t_mm]), sol.x[:n_pose].reshape(-1, 6)])
-    radial = sol.x[n_pose:n_pose + 2 * len(cams)].reshape(-1, 2)
-    out = []
-    for c, p, k in zip(cams, poses, radial, strict=True):
-        dist = np.pad(np.asarray(c.dist, np.float64).ravel(), (0, 5))[:5]
-        dist[:2] = k
-        out.append(Camera(c.name, c.K, dist, c.image_size, R=cv2.Rodrigues(p[:3])[0], t_mm=p[3:].copy(),
-                          rms_px=c.rms_px, K_std=c.K_std))
-    r = sol.fun.reshape(-1, 2)
-    return out, {"n_frames": len(frames), "initial_rms_px": float(np.sqrt(np.mean(np.sum(r0.reshape(-1, 2) ** 2, 1)))),
-                 "rms_px": float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))), "n_evaluations": int(sol.nfev)}
-
-
 # The wand's ends are taken in by how far beyond each lens's reach they lie: the ends just outside it first,
 # where the board's lens is still close, then the farther ones with the lens those fixed (the board's
 # polynomial, extrapolated to the image edge, can start the ends there metres off).
 _REFINE_STAGES = (1.3, 1.8, np.inf)
-
-
-def refine_with_wand(rig: Rig, views_by_camera: Mapping[str, list[WandView]], wand_length_mm: float, *,
-                     reach_px: Mapping[str, float] | None = None, loss: str = "soft_l1") -> tuple[Rig, dict]:
-    """A board-calibrated rig refined by a wand pass: poses and each lens's k1, k2 from the wand's ends.
-
-    A board carried through the middle of the volume fixes each lens only where it went (the lens reach,
-    :mod:`saddlescope.core.triangulation.lens_reach`); a wand walked along the track reaches the image
-    edges, and its ends, seen by two or three cameras with the length held, fix the radial terms there.
-    The focal lengths and principal points stay the board's (the wand's points fix them poorly); the
-    first camera stays the reference, the scale is the wand's. With ``reach_px`` (the board's reach per
-    camera) the ends are taken in stage by stage outward (:data:`_REFINE_STAGES`).
-
-    Returns
-    -------
-    rig : Rig
-        The refined cameras, the board rig's checks plus the wand's length check (``wand_length_rms_mm`` ...).
-    report : dict
-        ``bundle`` (each stage's initial and final r.m.s. px, frames, evaluations) and ``radial`` per camera:
-        k1, k2 before and after.
-    """
-    names = [n for n in rig.names if n in views_by_camera and views_by_camera[n]]
-    if len(names) < 2:
-        raise InputError("a wand refinement needs the wand seen by two or more cameras")
-    ref = _to_reference({n: rig.cameras[n] for n in names}, names[0])
-    cams = [ref[n] for n in names]
-    radial0 = {c.name: _intr_vector(c)[4:6].tolist() for c in cams}
-    stages = []
-    for factor in _REFINE_STAGES if reach_px is not None else (np.inf,):
-        cams, stage = _refine_stage(cams, _within(cams, views_by_camera, reach_px, factor), wand_length_mm, loss)
-        stages.append({"reach_factor": None if not np.isfinite(factor) else factor, **stage})
-    out = {c.name: c for c in cams}
-    refined = Rig(out)
-    err = wand_length_errors(refined, views_by_camera, wand_length_mm)
-    checks = dict(rig.checks)
-    checks.update({"wand_length_mm": float(wand_length_mm), "wand_frames": float(len(err)),
-                   "wand_length_rms_mm": float(np.sqrt(np.mean(err ** 2))) if len(err) else float("nan")})
-    report = {"bundle": stages, "radial": {c.name: {"before": radial0[c.name], "after": _intr_vector(c)[4:6].tolist()}
-                                           for c in cams}}
-    return Rig(out, checks=checks, flags=rig.flags, lens_models=rig.lens_models), report
