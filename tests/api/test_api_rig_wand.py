@@ -173,8 +173,8 @@ def test_a_rig_with_its_board_walk_and_wand_clips_is_calibrated_by_both(env):
         "middle, right cameras first")
     for camera in CAMERA_ROLES:  # each new clip makes the calibration stale; the third wand clip completes both
         _upload(api, rig["id"], "wand", camera, _tagged(clip, "wand"))
-        # Each clip's board-walk job ends before the next clip comes: a clip arriving while the rig's job runs
-        # starts no job after it (a known gap, docs/rigs-and-uploads.md), and the rig would keep that job's calibration.
+        # Each clip's board-walk job ends before the next clip comes, so that the wand's way is taken once
+        # (a clip arriving while a job runs: test_a_wand_clip_uploaded_while_the_board_walk_is_calibrated_is_used).
         for job in api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]:
             if job["kind"] == "calibrate_rig":
                 assert job_outcome(api, job["id"])["status"] == "done"
@@ -193,3 +193,41 @@ def test_a_rig_with_its_board_walk_and_wand_clips_is_calibrated_by_both(env):
     # asked for by name, the board walk alone is still a way
     board = api.ok("POST", f"/rigs/{rig['id']}/calibrate", 201, json={"method": "board"})
     assert job_outcome(api, board["id"])["status"] == "done" and len(calls) == 2
+
+
+def test_a_wand_clip_uploaded_while_the_board_walk_is_calibrated_is_used(env, monkeypatch):
+    """A clip that arrives while the rig's calibration job runs: that job keeps nothing (its clips changed), and
+    the job queued behind it calibrates from the clips as they are, the wand's among them."""
+    import threading
+
+    from api_helpers import standin_calibrate_clips
+
+    import saddlescope.services.rigs.calibration as calibration
+
+    api, tmp_path, calls = env
+    release = threading.Event()
+    started = threading.Semaphore(0)
+
+    def slow_board_walk(paths, **kwargs):
+        started.release()
+        assert release.wait(60), "the test never let the board walk's calibration finish"
+        return standin_calibrate_clips(paths, **kwargs)
+
+    monkeypatch.setattr(calibration, "calibrate_clips", slow_board_walk)
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Arena", "board": SMALL, "wand_length_m": 1.0})
+    clip = write_tiny_clip(tmp_path / "clip.avi", frames=6).read_bytes()
+    for camera in CAMERA_ROLES:
+        _upload(api, rig["id"], "calibration", camera, _tagged(clip, "calibration"))
+    assert started.acquire(timeout=60)  # the board walk's job is calibrating
+    for camera in CAMERA_ROLES:
+        _upload(api, rig["id"], "wand", camera, _tagged(clip, "wand"))
+    jobs = api.ok("GET", "/jobs", params={"rig_id": rig["id"]})["items"]
+    newest = max(j["id"] for j in jobs if j["kind"] == "calibrate_rig")
+    assert job_outcome(api, newest)["status"] == "done"  # the wand's clips completed, while the first still runs
+    assert [c["way"] for c in calls] == ["board+wand"]
+    release.set()
+    first = min(j["id"] for j in jobs if j["kind"] == "calibrate_rig")
+    ended = job_outcome(api, first)
+    assert ended["status"] == "failed" and "its clips changed while this job calibrated it" in ended["error"]
+    report = api.ok("GET", f"/rigs/{rig['id']}/calibration-report")
+    assert report["quality"]["refined_by_wand"] is True  # the wand's calibration stayed: the board walk's did not

@@ -189,6 +189,18 @@ class RigRepository(_Named):
             stmt = stmt.where(Rig.club_id == self.club_id)
         return changed_rows(self.session.execute(stmt)) == 1
 
+    def lock(self, rig_id: int) -> Rig:
+        """The rig's row, locked until the transaction ends.
+
+        A calibration stored under the lock cannot cross an upload that clears it (PostgreSQL; SQLite's writes are
+        one at a time anyway).
+        """
+        stmt = select(Rig).where(Rig.id == rig_id).with_for_update()
+        rig = self.session.scalars(self._scoped(stmt)).first()
+        if rig is None:
+            return self.get(rig_id)  # the repository's own "not found"
+        return rig
+
     def clear_calibration(self, rig_id: int) -> None:
         """Forget a rig's calibration (its calibration clips changed)."""
         self.get(rig_id)

@@ -49,6 +49,7 @@ from saddlescope.services.jobs.inputs import (
     ClipInput,
     RideJobInputs,
     RigInputs,
+    _rig_inputs,
     bundle_clip_paths,
     ride_document,
 )
@@ -63,6 +64,7 @@ from saddlescope.storage import Storage, sha256_file, tree_digest
 
 if TYPE_CHECKING:
     from saddlescope.io.video import VideoInfo
+    from saddlescope.services.rigs.calibration_way import CalibrationWay
 
 __all__ = [
     "ASSEMBLED_BUNDLE", "DEFAULT_MARKERS", "JOB_KINDS", "JobCancelled", "JobFenced", "JobKind", "STAGES", "Stage",
@@ -400,11 +402,13 @@ def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path],
 
 
 def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, Any], *,
-                       replace: bool) -> dict[str, Any]:
+                       replace: bool, made_from: CalibrationWay | None = None) -> dict[str, Any]:
     """Keep a rig's new calibration (the job's output and the rig's row); returns the one the rig has.
 
     The stage's calibration.json is the one the rig has once stored (another job's, when it came first):
-    the analyze stage of the same run reads it there.
+    the analyze stage of the same run reads it there. ``made_from``: the way and clips the calibration was made
+    from; when the rig's clips are no longer those (a clip uploaded while the job ran), nothing is stored and the
+    job fails saying so: the upload queued a job behind this one (`start_processing`), which calibrates from them.
     """
     from saddlescope.services.rigs.calibration import calibration_quality
 
@@ -412,6 +416,8 @@ def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, An
     with ctx.session() as session:
         ctx.hold(session)
         rigs = RigRepository(session)
+        if made_from is not None:
+            _still_the_rigs_clips(session, rigs.lock(rig_id), made_from, ctx.payload.get("method"))
         if replace:
             rigs.set_calibration(rig_id, calibration, calibration_quality(calibration))
         elif not rigs.set_calibration_if_missing(rig_id, calibration, calibration_quality(calibration)):
@@ -420,6 +426,21 @@ def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, An
     (out / "calibration.json").write_text(json.dumps(calibration, allow_nan=False))
     ctx.report(1.0, None)
     return calibration
+
+
+def _still_the_rigs_clips(session: Session, rig: Any, made_from: CalibrationWay, method: str | None) -> None:
+    """Raise `CalibrationError` when the way and clips the rig would be calibrated with now are not `made_from`."""
+    from saddlescope.services.rigs.calibration_way import choose_calibration_way
+
+    current = _rig_inputs(session, rig)
+    try:
+        now = choose_calibration_way(current, current.recordings(), method)
+    except (Conflict, InputError):
+        now = None
+    if now is None or (now.method, now.clips) != (made_from.method, made_from.clips):
+        raise CalibrationError(f"rig {rig.id} ({rig.name}): its clips changed while this job calibrated it (a clip "
+                               "was uploaded meanwhile), so its calibration is not kept; the job queued after the "
+                               "upload calibrates it from its clips as they are now")
 
 
 @stage("calibrate", weight=6.0)
@@ -495,7 +516,11 @@ def run_calibrate_rig(ctx: StageContext) -> None:
     board = copy.deepcopy(dict(rig.board or {}))
     if way.method == "board":
         paths = {role: ctx.fetch(key) for role, key in way.clips["calibration"].items()}
-        _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True)
+        from saddlescope.services.rigs.calibration import calibrate_clips
+
+        calibration = calibrate_clips(paths, board=board, sync=ctx.payload.get("sync"),
+                                      on_progress=lambda f, s: ctx.report(f, s))
+        _store_calibration(ctx, ctx.rig_id, calibration, replace=True, made_from=way)
         return
     from saddlescope.services.rigs.calibration import calibrate_board_and_wand_clips, calibrate_wand_clips
 
@@ -509,7 +534,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
         calibration = calibrate_wand_clips(fetched["wand"], fetched["close_up"], board=board,
                                            wand_length_m=way.wand_length_m or 0.0, sync=ctx.payload.get("sync"),
                                            on_progress=lambda f, s: ctx.report(f, s))
-    _store_calibration(ctx, ctx.rig_id, calibration, replace=True)
+    _store_calibration(ctx, ctx.rig_id, calibration, replace=True, made_from=way)
 
 
 @stage("check_calibration", weight=2.0)

@@ -303,8 +303,9 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
     """Start the job a newly complete set of clips allows; returns its id (None when nothing to start).
 
     A rig with its three calibration clips, or its wand and close-up clips and wand length (and a board),
-    and no calibration: a ``calibrate_rig`` job.
-    A ride whose clips are complete: an ``analyze`` job. Never a second job while one is queued or running.
+    and no calibration: a ``calibrate_rig`` job, also behind one running on the clips it started with (never a
+    second one queued). A ride whose clips are complete: an ``analyze`` job, never a second one while one is
+    queued or running.
     """
     with session_scope(sessions) as session:
         jobs = JobRepository(session, club_id=owner.club_id)
@@ -317,8 +318,11 @@ def start_processing(sessions: sessionmaker[Session], queue: JobQueue, owner: Cl
                 choose_calibration_way(rig, recordings.for_rig(owner.id))
             except (Conflict, InputError):
                 return None  # not complete yet
-            if jobs.active_for(rig_id=owner.id, kind="calibrate_rig") is not None:
-                return None
+            active = jobs.active_for(rig_id=owner.id, kind="calibrate_rig")
+            if active is not None and active.status != JobStatus.RUNNING.value:
+                return None  # queued: it reads the rig's clips when it starts, this one among them
+            # None, or one running on the clips it started with (it will not keep its calibration, `run_calibrate_rig`):
+            # a job behind it calibrates from the clips as they are now
             kind = "calibrate_rig"
         else:
             ride = RideRepository(session, club_id=owner.club_id).get(owner.id)
