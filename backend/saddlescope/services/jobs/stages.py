@@ -393,12 +393,12 @@ def _bundle_path(ctx: StageContext, inputs: RideJobInputs) -> Path:
                       "stage)")
 
 
-def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict,
-                         sync: dict | None, *, replace: bool) -> dict[str, Any]:
+def _calibrate_and_store(ctx: StageContext, rig_id: int, paths: dict[str, Path], board: dict, sync: dict | None,
+                         *, replace: bool, made_from: CalibrationWay | None = None) -> dict[str, Any]:
     from saddlescope.services.rigs.calibration import calibrate_clips
 
     calibration = calibrate_clips(paths, board=board, sync=sync, on_progress=lambda f, s: ctx.report(f, s))
-    return _store_calibration(ctx, rig_id, calibration, replace=replace)
+    return _store_calibration(ctx, rig_id, calibration, replace=replace, made_from=made_from)
 
 
 def _store_calibration(ctx: StageContext, rig_id: int, calibration: dict[str, Any], *,
@@ -516,11 +516,7 @@ def run_calibrate_rig(ctx: StageContext) -> None:
     board = copy.deepcopy(dict(rig.board or {}))
     if way.method == "board":
         paths = {role: ctx.fetch(key) for role, key in way.clips["calibration"].items()}
-        from saddlescope.services.rigs.calibration import calibrate_clips
-
-        calibration = calibrate_clips(paths, board=board, sync=ctx.payload.get("sync"),
-                                      on_progress=lambda f, s: ctx.report(f, s))
-        _store_calibration(ctx, ctx.rig_id, calibration, replace=True, made_from=way)
+        _calibrate_and_store(ctx, ctx.rig_id, paths, board, ctx.payload.get("sync"), replace=True, made_from=way)
         return
     from saddlescope.services.rigs.calibration import calibrate_board_and_wand_clips, calibrate_wand_clips
 
