@@ -90,3 +90,43 @@ def test_a_calibration_clip_is_checked_as_soon_as_it_is_uploaded(api, tmp_path):
     again = api.ok("POST", f"/rigs/{rig['id']}/calibration-check", 201)
     assert again["kind"] == "check_calibration"
     assert api.wait_job(again["id"], timeout_s=120)[0]["status"] == "done"
+
+
+def test_a_clip_checked_before_keeps_its_answer_and_only_new_or_changed_clips_are_searched(api, tmp_path,
+                                                                                            monkeypatch):
+    import saddlescope.services.rigs.calibration_check as calibration_check
+
+    searched: list[list[str]] = []
+    real = calibration_check.check_calibration_clips
+
+    def spy(paths, board, **kwargs):
+        searched.append(sorted(paths))
+        return real(paths, board, **kwargs)
+
+    monkeypatch.setattr(calibration_check, "check_calibration_clips", spy)
+    rig = api.ok("POST", "/rigs", 201, json={"name": "Arena, clip by clip", "board": BIG})
+
+    def upload_and_check(camera: str, shade: int) -> dict:
+        clip = write_tiny_clip(tmp_path / f"{camera}-{shade}.avi", frames=6, shade=shade).read_bytes()
+        api.ok("PUT", f"/rigs/{rig['id']}/clips/calibration/{camera}", files={"file": (f"{camera}.avi", clip)})
+        return wait_checks()
+
+    def wait_checks() -> dict:
+        for job in api.ok("GET", "/jobs", params={"rig_id": rig["id"], "kind": "check_calibration"})["items"]:
+            assert api.wait_job(job["id"], timeout_s=120)[0]["status"] == "done"
+        return api.ok("GET", f"/rigs/{rig['id']}/calibration-check")
+
+    upload_and_check("left", 0)
+    check = upload_and_check("middle", 40)
+    assert searched == [["left"], ["middle"]]  # the left clip was not searched again
+    assert list(check["cameras"]) == ["left", "middle"] and set(check["clips"]) == {"left", "middle"}
+    assert check["verdict"].startswith("Film again: the left and middle cameras' board clips")
+    assert check["cameras"]["left"]["frames_sampled"] == 6 and check["cameras"]["middle"]["views"] == 0
+
+    retaken = upload_and_check("left", 80)  # another take for the left camera (same recording id): searched again
+    assert searched[-1] == ["left"] and retaken["clips"] == check["clips"]
+    api.ok("PATCH", f"/rigs/{rig['id']}", json={"board": SMALL})  # another board: every clip searched again
+    api.ok("POST", f"/rigs/{rig['id']}/calibration-check", 201)
+    again = wait_checks()
+    assert searched[-1] == ["left", "middle"] and list(again["cameras"]) == ["left", "middle"]
+    assert again["film_again"] and again["verdict"] == check["verdict"]

@@ -542,18 +542,20 @@ def run_check_calibration(ctx: StageContext) -> None:
     """
     from saddlescope.services.rigs.calibration_check import (
         check_calibration_clips,
-        check_document,
         check_storage_key,
         check_wand_clips,
+        checked_with,
+        merged_check_document,
+        reusable_cameras,
     )
 
     if ctx.rig_id is None:
         raise InputError(f"check_calibration job {ctx.job_id} names no rig")
     rig = ctx.rig_inputs
-    board_clips = {c.camera_role: (c.recording_id, c.key) for c in rig.clips if c.clip_kind == "calibration"}
-    wand_clips = {c.camera_role: (c.recording_id, c.key) for c in rig.clips if c.clip_kind == "wand"}
+    board_clips = {c.camera_role: c for c in rig.clips if c.clip_kind == "calibration"}
+    wand_clips = {c.camera_role: c for c in rig.clips if c.clip_kind == "wand"}
     board = _copied(rig.board)
-    checks: list[tuple[str, dict[str, tuple[int, str]]]] = []
+    checks: list[tuple[str, dict[str, ClipInput]]] = []
     if board_clips and board:
         checks.append(("board", board_clips))
     if wand_clips and rig.wand_length_m is not None:
@@ -567,12 +569,28 @@ def run_check_calibration(ctx: StageContext) -> None:
         def progress(f: float, step: str | None, n: int = n) -> None:
             ctx.report((n + f) / len(checks), step)
 
-        paths = {role: ctx.fetch(key) for role, (_, key) in clips.items()}
-        check = (check_calibration_clips(paths, board or {}, on_progress=progress) if what == "board" else
-                 check_wand_clips(paths, float(rig.wand_length_m or 0.0), on_progress=progress))
-        document = check_document(check, clips={role: rid for role, (rid, _) in clips.items()})
-        ctx.storage.write_bytes(check_storage_key(ctx.rig_id, what), json.dumps(document, allow_nan=False).encode())
+        key, inputs = check_storage_key(ctx.rig_id, what), checked_with(what, board=board,
+                                                                          wand_length_m=rig.wand_length_m)
+        ids = {role: clip.recording_id for role, clip in clips.items()}
+        sha256 = {role: clip.sha256 for role, clip in clips.items()}
+        # a clip checked before (same bytes, board or wand) keeps its answer: uploads come one by one
+        reused = reusable_cameras(_stored_json(ctx.storage, key), sha256, inputs)
+        paths = {role: ctx.fetch(clip.key) for role, clip in clips.items() if role not in reused}
+        check = None if not paths else (
+            check_calibration_clips(paths, board or {}, on_progress=progress) if what == "board" else
+            check_wand_clips(paths, float(rig.wand_length_m or 0.0), on_progress=progress))
+        document = merged_check_document(check, reused, clips=ids, sha256=sha256, inputs=inputs)
+        ctx.storage.write_bytes(key, json.dumps(document, allow_nan=False).encode())
     ctx.report(1.0, None)
+
+
+def _stored_json(storage: Storage, key: str) -> dict[str, Any] | None:
+    """A JSON document stored at `key`, or None where there is none or it does not parse."""
+    try:
+        document = json.loads(storage.read_bytes(key)) if storage.exists(key) else None
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return document if isinstance(document, dict) else None
 
 
 def _calibration_for_analysis(ctx: StageContext, inputs: RideJobInputs) -> dict[str, Any] | None:

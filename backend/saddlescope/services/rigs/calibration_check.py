@@ -29,11 +29,14 @@ from saddlescope.io.findings_document import findings_to_list
 from saddlescope.io.video import iter_gray_frames, probe_video
 
 __all__ = ["CHECK_WIDTH_PX", "MIN_SAMPLES", "SAMPLE_FPS", "CalibrationCheck", "check_calibration_clips",
-           "check_document", "check_storage_key", "check_wand_clips", "sample_step"]
+           "check_document", "check_storage_key", "check_wand_clips", "checked_with", "merged_check_document",
+           "reusable_cameras", "sample_step"]
 
 SAMPLE_FPS = 3.0  # frames a second looked at: the board moves slowly, and a view a third of a second on is new
 MIN_SAMPLES = 40  # a short clip is looked at more densely, down to every frame
 CHECK_WIDTH_PX = 1440  # frames are searched at this width: a 9 px square at 1080p keeps 6.75 px
+# Raise when the check's answer for the same clip changes: a stored camera's answer is reused only by the same revision.
+CHECK_REVISION = 1
 
 
 def sample_step(fps: float, frame_count: int, *, sample_fps: float = SAMPLE_FPS,
@@ -59,13 +62,17 @@ class CalibrationCheck:
 
     def verdict(self) -> str:
         """The answer in one sentence."""
-        again = [name for name, c in self.cameras.items() if c.film_again]
-        if again:
-            names = again[0] if len(again) == 1 else ", ".join(again[:-1]) + " and " + again[-1]
-            if len(again) == 1:
-                return f"Film again: the {names} camera's {self.what} clip does not cover its view well enough."
-            return f"Film again: the {names} cameras' {self.what} clips do not cover their views well enough."
-        return f"Ready to ride: the {self.what} was seen well in every camera's view."
+        return _verdict([name for name, c in self.cameras.items() if c.film_again], self.what)
+
+
+def _verdict(again: list[str], what: str) -> str:
+    """The check's answer in one sentence, from the cameras whose clip should be filmed again."""
+    if not again:
+        return f"Ready to ride: the {what} was seen well in every camera's view."
+    names = again[0] if len(again) == 1 else ", ".join(again[:-1]) + " and " + again[-1]
+    if len(again) == 1:
+        return f"Film again: the {names} camera's {what} clip does not cover its view well enough."
+    return f"Film again: the {names} cameras' {what} clips do not cover their views well enough."
 
 
 def check_calibration_clips(
@@ -196,3 +203,38 @@ def check_document(check: CalibrationCheck, *, clips: Mapping[str, int] | None =
         "cameras": {name: _camera_document(c) for name, c in check.cameras.items()},
         **({"clips": dict(clips)} if clips is not None else {}),
     }
+
+
+def checked_with(what: str, *, board: Mapping[str, Any] | None = None, wand_length_m: float | None = None
+                 ) -> dict[str, Any]:
+    """What a camera's stored answer depends on besides its clip: the check's revision and the board (or wand)."""
+    return {"revision": CHECK_REVISION, "what": what,
+            **({"board": dict(board or {})} if what == "board" else {"wand_length_m": float(wand_length_m or 0.0)})}
+
+
+def reusable_cameras(previous: Mapping[str, Any] | None, sha256: Mapping[str, str | None],
+                     inputs: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """The previous check's camera answers that still hold: the same clip bytes, board (or wand) and revision.
+
+    Clips are uploaded one by one and each upload checks the rig's clips again; a clip already checked
+    is not decoded and searched a second time (a minute on a 1080p clip). A camera's clip replaced by
+    another take keeps its recording id, so the bytes' SHA-256 decides.
+    """
+    if not previous or previous.get("checked_with") != dict(inputs):
+        return {}
+    before, answers = previous.get("clip_sha256") or {}, previous.get("cameras") or {}
+    return {role: dict(answers[role]) for role, digest in sha256.items()
+            if digest and before.get(role) == digest and isinstance(answers.get(role), dict)}
+
+
+def merged_check_document(check: CalibrationCheck | None, reused: Mapping[str, dict[str, Any]], *,
+                          clips: Mapping[str, int], sha256: Mapping[str, str | None],
+                          inputs: Mapping[str, Any]) -> dict[str, Any]:
+    """The check's document from the cameras checked now (`check`) and the answers reused, in the rig's camera order."""
+    fresh = check_document(check)["cameras"] if check is not None else {}
+    cameras = {role: (fresh[role] if role in fresh else dict(reused[role]))
+               for role in _camera_order({**fresh, **reused})}
+    again = [role for role, answer in cameras.items() if answer.get("film_again")]
+    return {"film_again": bool(again), "verdict": _verdict(again, str(inputs["what"])),
+            "seconds": round(check.seconds, 1) if check is not None else 0.0,
+            "cameras": cameras, "clips": dict(clips), "clip_sha256": dict(sha256), "checked_with": dict(inputs)}
