@@ -129,7 +129,7 @@ class _SampledClip:
                 interpolation=cv2.INTER_AREA if self.scale < 1 else cv2.INTER_CUBIC))
 
 
-def _camera_order(paths: Mapping[str, Path]) -> list[str]:
+def _camera_order(paths: Mapping[str, object]) -> list[str]:
     """The clips' cameras, the rig's roles first (left, middle, right), then any other by name."""
     return [c for c in CAMERA_ROLES if c in paths] + sorted(c for c in paths if c not in CAMERA_ROLES)
 
