@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from integration_services import Api, add_member, free_box, new_club, sign_in  # noqa: F401 (the signed-in client)
+from integration_services import Api, add_member, free_box, new_club, poll_pauses, sign_in  # noqa: F401 (the signed-in client)
 
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.core.vibration import ride_indicators
@@ -317,9 +317,11 @@ class FullDisk:
 def job_outcome(api, job_id: int, timeout_s: float = 60.0) -> dict:
     """The job once it is done, failed or cancelled (polled through the API)."""
     deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+    for pause in poll_pauses():
+        if time.monotonic() >= deadline:
+            break
         job = api.ok("GET", f"/jobs/{job_id}")
         if job["status"] in ("done", "failed", "cancelled"):
             return job
-        time.sleep(0.05)
+        time.sleep(pause)
     pytest.fail(f"job {job_id} not finished after {timeout_s} s")

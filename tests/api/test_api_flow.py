@@ -214,6 +214,9 @@ def test_clips_one_by_one_with_a_rig_calibrated_once_for_all_its_rides(env, admi
     assert calibrations["total"] == 1  # once for the rig, reused by both rides
 
 
+# Database logic over rides: on both engines, not again on each storage back end (the uploads' and results'
+# storage paths are the other tests' own)
+@pytest.mark.parametrize("env", ENGINES, indirect=True)
 def test_comparisons_leaderboard_and_grades(env, tiny_ride):
     admin, _ = new_club(env.client)
     plan = [

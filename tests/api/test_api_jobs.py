@@ -9,6 +9,7 @@ import integration_services
 import pytest
 from api_helpers import Api, new_club
 from fastapi.testclient import TestClient
+from integration_services import poll_pauses
 
 from saddlescope.api import create_app
 from saddlescope.db.migrate import upgrade_to_head
@@ -41,13 +42,15 @@ def wait_done(client: Api, job_id: int, timeout_s: float = 60.0) -> tuple[dict, 
     """Poll GET /api/jobs/{id} until finished; returns the last view and every view seen."""
     seen = []
     deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+    for pause in poll_pauses():
+        if time.monotonic() >= deadline:
+            break
         response = client.get(f"/jobs/{job_id}")
         assert response.status_code == 200
         seen.append(response.json())
         if seen[-1]["status"] in ("done", "failed", "cancelled"):
             return seen[-1], seen
-        time.sleep(0.05)
+        time.sleep(pause)
     pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1]}")
 
 

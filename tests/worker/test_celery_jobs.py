@@ -7,7 +7,7 @@ import time
 import integration_services
 import pytest
 from fastapi.testclient import TestClient
-from integration_services import new_club
+from integration_services import new_club, poll_pauses
 
 from saddlescope.api import create_app
 from saddlescope.db.session import session_factory_for
@@ -44,11 +44,13 @@ def api(celery_worker, tmp_path_factory):
 def wait_done(client, job_id, timeout_s=60.0):
     seen = []
     deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+    for pause in poll_pauses():
+        if time.monotonic() >= deadline:
+            break
         seen.append(client.get(f"/jobs/{job_id}").json())
         if seen[-1]["status"] in ("done", "failed", "cancelled"):
             return seen[-1], seen
-        time.sleep(0.05)
+        time.sleep(pause)
     pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1] if seen else None}")
 
 
