@@ -7,6 +7,10 @@ from pathlib import Path
 
 import pytest
 
+# Argon2's cheapest parameters for every server the tests start (Settings.password_hashing): the suite signs in
+# thousands of times, each 0.15 s of a core with a club server's parameters; test_api_accounts checks those.
+os.environ.setdefault("SADDLESCOPE_PASSWORD_HASHING", "cheapest-for-tests")
+
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 REAL_DATA = PROJECT_ROOT.parent / "shared" / "data" / "real"
 IN_CI = os.environ.get("CI", "").lower() in {"1", "true", "yes"}

@@ -181,6 +181,8 @@ def own_redis_server(folder: Path):
 def service_env(*, database_url: str, storage_dir: Path, broker_url: str | None = None) -> dict[str, str]:
     """Environment of a SaddleScope child process (server or worker) for these services."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("SADDLESCOPE_")}
+    if "SADDLESCOPE_PASSWORD_HASHING" in os.environ:  # tests/conftest.py: the cheapest Argon2 for tests
+        env["SADDLESCOPE_PASSWORD_HASHING"] = os.environ["SADDLESCOPE_PASSWORD_HASHING"]
     env.update(
         SADDLESCOPE_DATABASE_URL=database_url,
         SADDLESCOPE_STORAGE_DIR=str(storage_dir),

@@ -33,6 +33,11 @@ Every variable starts with ``SADDLESCOPE_``:
     This machine's name in a job's ``host:pid`` (default the host name); it must differ between hosts
     that share a host name but not their processes, since a job of this host whose process is gone is lost
     at once.
+``SADDLESCOPE_PASSWORD_HASHING``
+    Argon2id's parameters: ``rfc9106-low-memory`` (default: RFC 9106's second recommendation, 64 MiB
+    and 3 passes, about 0.15 s of a core per hash or sign-in) or ``cheapest-for-tests`` (argon2-cffi's
+    cheapest, for test suites that sign in thousands of times; never for a club's server: the server
+    logs a warning). A password hashed one way is re-hashed the other way at its next sign-in.
 ``SADDLESCOPE_WORKER_THREADS``
     Threads one analysis may use (its camera threads, PyAV's decoders, OpenCV). Unset: the CPUs the
     worker's cgroup quota gives it (``io.threads.default_worker_threads``), never the host's core count.
@@ -104,6 +109,9 @@ class Settings(BaseSettings):
     login_backoff_s: int = Field(default=30, ge=1)
     login_lockout_s: int = Field(default=15 * 60, ge=1)
     login_window_s: int = Field(default=3600, ge=1)
+    # Argon2id's parameters (services/accounts/users.py PASSWORD_HASHING): RFC 9106's low-memory ones, or
+    # the library's cheapest for test suites.
+    password_hashing: Literal["rfc9106-low-memory", "cheapest-for-tests"] = "rfc9106-low-memory"
     # Argon2 runs in its own small pool; more waiting sign-ins than the queue holds get 503.
     hash_workers: int = Field(default=2, ge=1, le=32)
     hash_queue: int = Field(default=16, ge=1)

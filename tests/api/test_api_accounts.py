@@ -172,3 +172,31 @@ def test_registration_is_closed_in_a_deployment_once_a_club_exists(tmp_path):
             ).status_code
             == 201
         )
+
+
+def test_passwords_take_rfc_9106_parameters_and_a_suites_cheapest_ones_are_rehashed_at_sign_in(env, caplog):
+    from saddlescope.services.accounts import users
+
+    assert load_settings().model_fields["password_hashing"].default == "rfc9106-low-memory"
+    assert env.settings.password_hashing == "cheapest-for-tests"  # tests/conftest.py: thousands of sign-ins
+    _, account = new_club(env.client, password="a long password")
+
+    def stored() -> str:
+        with session_factory_for(env.settings.database_url)() as session:
+            return session.query(User).filter_by(email=account["email"]).one().password_hash
+
+    assert "$m=8,t=1,p=1$" in stored()
+    club_server = env.settings.model_copy(update={"password_hashing": "rfc9106-low-memory"})
+    try:
+        with caplog.at_level("WARNING"), TestClient(create_app(club_server)) as client:
+            assert "cheapest" not in caplog.text
+            signed_in = client.post("/api/auth/login",
+                                    data={"username": account["email"], "password": "a long password"})
+            assert signed_in.status_code == 200, signed_in.text
+        assert "$m=65536,t=3,p=4$" in stored()  # re-hashed with the club server's parameters at sign-in
+        assert verify_password(stored(), "a long password") and not verify_password(stored(), "a long passwore")
+        with caplog.at_level("WARNING"):
+            create_app(env.settings)
+        assert "cheapest-for-tests" in caplog.text and "test suites only" in caplog.text
+    finally:
+        users.use_password_hashing(env.settings.password_hashing)

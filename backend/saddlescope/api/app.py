@@ -30,7 +30,7 @@ from saddlescope.db.migrate import upgrade_to_head
 from saddlescope.db.repositories import BadQuery, Conflict, JobRepository, NotFound
 from saddlescope.db.session import make_engine, make_session_factory, session_scope
 from saddlescope.services.accounts.login_guard import HashPool, HashPoolBusy, LoginThrottled, make_login_guard
-from saddlescope.services.accounts.users import AuthError, Forbidden
+from saddlescope.services.accounts.users import AuthError, Forbidden, use_password_hashing
 from saddlescope.services.jobs.lifecycle import JobStateError
 from saddlescope.services.jobs.queue import JobQueue, QueueUnavailable, make_queue
 from saddlescope.services.uploads.intake import IncompleteUpload, sweep_abandoned
@@ -81,6 +81,10 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     the first club of a deployment (``settings.open_registration`` where the settings have it).
     """
     settings = with_embedded_secret(settings or get_settings())
+    use_password_hashing(settings.password_hashing)
+    if settings.password_hashing == "cheapest-for-tests":
+        log.warning("SADDLESCOPE_PASSWORD_HASHING=cheapest-for-tests: passwords are hashed with Argon2's cheapest "
+                    "parameters, which are for test suites only; unset it on a club's server")
     if open_registration is None:
         open_registration = getattr(settings, "open_registration", None)
 

@@ -1,6 +1,7 @@
 """Clubs, users, passwords and access tokens (no web framework here).
 
-Passwords are hashed with Argon2id (argon2-cffi's defaults). An access token is a JWT (HS256, signed
+Passwords are hashed with Argon2id (argon2-cffi's defaults, RFC 9106's low-memory parameters; a test
+suite may choose the library's cheapest, `use_password_hashing`). An access token is a JWT (HS256, signed
 with ``SADDLESCOPE_SECRET_KEY``) naming the user, their club and role, and carrying a random CSRF
 token: the browser gets the same token as an HttpOnly session cookie and must echo the CSRF token in a
 header on unsafe requests (`saddlescope.api.deps`).
@@ -20,7 +21,7 @@ import secrets
 from dataclasses import dataclass, replace
 
 import jwt
-from argon2 import PasswordHasher
+from argon2 import PasswordHasher, profiles
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
 from sqlalchemy.orm import Session
 
@@ -34,7 +35,8 @@ __all__ = [
     "AuthError", "Forbidden", "MIN_PASSWORD_LENGTH", "Principal", "RESET_LIFETIME", "TOKEN_ALGORITHM",
     "TOKEN_AUDIENCE", "WrongPassword", "add_user", "authenticate", "change_password", "check_email", "check_password",
     "consume_password_reset", "create_club", "current_principal", "end_sessions", "end_sign_in", "hash_password",
-    "issue_token", "read_token", "require_admin", "start_password_reset", "update_user", "verify_password",
+    "issue_token", "read_token", "require_admin", "start_password_reset", "update_user", "use_password_hashing",
+    "verify_password", "PASSWORD_HASHING",
 ]
 
 TOKEN_ALGORITHM = "HS256"
@@ -42,9 +44,26 @@ TOKEN_AUDIENCE = "saddlescope"
 MIN_PASSWORD_LENGTH = 8
 RESET_LIFETIME = dt.timedelta(hours=24)
 _EMAIL = re.compile(r"^[^@\s]+@[^@\s]+\.[^@\s]+$")
-_hasher = PasswordHasher()
+# Settings.password_hashing -> Argon2id's parameters
+PASSWORD_HASHING = {"rfc9106-low-memory": profiles.RFC_9106_LOW_MEMORY, "cheapest-for-tests": profiles.CHEAPEST}
+_hasher = PasswordHasher.from_parameters(PASSWORD_HASHING["rfc9106-low-memory"])
 # Verifying against this when the e-mail is unknown keeps sign-in time the same either way.
 _DUMMY_HASH = _hasher.hash("not-a-real-password")
+
+
+def use_password_hashing(name: str) -> None:
+    """Hash and check passwords with the parameters `name` names (a key of `PASSWORD_HASHING`) from now on.
+
+    The server sets it from its settings at start (`SADDLESCOPE_PASSWORD_HASHING`); stored hashes of
+    the other parameters still verify, and are re-hashed at their next sign-in (`authenticate`).
+    """
+    global _hasher, _DUMMY_HASH
+    parameters = PASSWORD_HASHING.get(name)
+    if parameters is None:
+        raise InputError(f"password hashing {name!r} is not one of {', '.join(PASSWORD_HASHING)}")
+    if _hasher.time_cost != parameters.time_cost or _hasher.memory_cost != parameters.memory_cost:
+        _hasher = PasswordHasher.from_parameters(parameters)
+        _DUMMY_HASH = _hasher.hash("not-a-real-password")
 
 
 class AuthError(SaddleScopeError):
