@@ -71,6 +71,14 @@ def _resume_unfinished(app: FastAPI) -> None:
         log.info("swept what was abandoned: %s", ", ".join(f"{what} {n}" for what, n in swept.items()))
 
 
+def _use_password_hashing(settings: Settings) -> None:
+    """Argon2's parameters from the settings; a warning where they are the test suites' cheapest."""
+    use_password_hashing(settings.password_hashing)
+    if settings.password_hashing == "cheapest-for-tests":
+        log.warning("SADDLESCOPE_PASSWORD_HASHING=cheapest-for-tests: passwords are hashed with Argon2's cheapest "
+                    "parameters, which are for test suites only; unset it on a club's server")
+
+
 def create_app(settings: Settings | None = None, *, queue: JobQueue | None = None,
                open_registration: bool | None = None) -> FastAPI:
     """The SaddleScope web application for `settings` (default: from the environment).
@@ -81,10 +89,7 @@ def create_app(settings: Settings | None = None, *, queue: JobQueue | None = Non
     the first club of a deployment (``settings.open_registration`` where the settings have it).
     """
     settings = with_embedded_secret(settings or get_settings())
-    use_password_hashing(settings.password_hashing)
-    if settings.password_hashing == "cheapest-for-tests":
-        log.warning("SADDLESCOPE_PASSWORD_HASHING=cheapest-for-tests: passwords are hashed with Argon2's cheapest "
-                    "parameters, which are for test suites only; unset it on a club's server")
+    _use_password_hashing(settings)
     if open_registration is None:
         open_registration = getattr(settings, "open_registration", None)
 
