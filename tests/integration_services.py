@@ -486,9 +486,10 @@ class Api:
         pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1] if seen else None}")
 
 
-def poll_pauses(first_s: float = 0.05, longest_s: float = 0.25) -> Iterator[float]:
-    """Pauses between polls of a job: quick at first, then a quarter second (a poll is a request the
-    test process serves; at 20 a second for a minute-long job they took a tenth of a core)."""
+def poll_pauses(first_s: float = 0.05, longest_s: float = 0.1) -> Iterator[float]:
+    """Pauses between polls of a job: quick at first, then a tenth of a second (a poll is a request the
+    test process serves; at 20 a second for a minute-long job they took a tenth of a core, and a quarter
+    second's pause made the quick tier's many short jobs wait longer than it saved)."""
     pause = first_s
     while True:
         yield pause
