@@ -196,13 +196,15 @@ def _camera_document(c: CameraCoverageCheck) -> dict[str, Any]:
 
 def check_document(check: CalibrationCheck, *, clips: Mapping[str, int] | None = None) -> dict[str, Any]:
     """The check as JSON (stored for the rig page, printed by the command line)."""
-    return {
-        "film_again": check.film_again,
-        "verdict": check.verdict(),
-        "seconds": round(check.seconds, 1),
-        "cameras": {name: _camera_document(c) for name, c in check.cameras.items()},
-        **({"clips": dict(clips)} if clips is not None else {}),
-    }
+    cameras = {name: _camera_document(c) for name, c in check.cameras.items()}
+    return {**_document(cameras, check.what, check.seconds), **({"clips": dict(clips)} if clips is not None else {})}
+
+
+def _document(cameras: dict[str, dict[str, Any]], what: str, seconds: float) -> dict[str, Any]:
+    """A check's document from its cameras' documents: the verdict follows their ``film_again``."""
+    again = [name for name, answer in cameras.items() if answer.get("film_again")]
+    return {"film_again": bool(again), "verdict": _verdict(again, what), "seconds": round(seconds, 1),
+            "cameras": cameras}
 
 
 def checked_with(what: str, *, board: Mapping[str, Any] | None = None, wand_length_m: float | None = None
@@ -231,10 +233,8 @@ def merged_check_document(check: CalibrationCheck | None, reused: Mapping[str, d
                           clips: Mapping[str, int], sha256: Mapping[str, str | None],
                           inputs: Mapping[str, Any]) -> dict[str, Any]:
     """The check's document from the cameras checked now (`check`) and the answers reused, in the rig's camera order."""
-    fresh = check_document(check)["cameras"] if check is not None else {}
+    fresh = {name: _camera_document(c) for name, c in check.cameras.items()} if check is not None else {}
     cameras = {role: (fresh[role] if role in fresh else dict(reused[role]))
                for role in _camera_order({**fresh, **reused})}
-    again = [role for role, answer in cameras.items() if answer.get("film_again")]
-    return {"film_again": bool(again), "verdict": _verdict(again, str(inputs["what"])),
-            "seconds": round(check.seconds, 1) if check is not None else 0.0,
-            "cameras": cameras, "clips": dict(clips), "clip_sha256": dict(sha256), "checked_with": dict(inputs)}
+    return {**_document(cameras, str(inputs["what"]), check.seconds if check is not None else 0.0),
+            "clips": dict(clips), "clip_sha256": dict(sha256), "checked_with": dict(inputs)}
