@@ -20,7 +20,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -474,26 +474,25 @@ class Api:
 
     def wait_job(self, job_id: int, *, timeout_s: float = 60.0) -> tuple[dict, list[dict]]:
         """Poll a job until finished; (last view, every view seen)."""
-        seen: list[dict] = []
-        deadline = time.monotonic() + timeout_s
-        for pause in poll_pauses():
-            if time.monotonic() >= deadline:
-                break
-            seen.append(self.ok("GET", f"/jobs/{job_id}"))
-            if seen[-1]["status"] in ("done", "failed", "cancelled"):
-                return seen[-1], seen
-            time.sleep(pause)
-        pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1] if seen else None}")
+        return poll_job(lambda: self.ok("GET", f"/jobs/{job_id}"), job_id, timeout_s=timeout_s)
 
 
-def poll_pauses(first_s: float = 0.05, longest_s: float = 0.1) -> Iterator[float]:
-    """Pauses between polls of a job: quick at first, then a tenth of a second (a poll is a request the
-    test process serves; at 20 a second for a minute-long job they took a tenth of a core, and a quarter
-    second's pause made the quick tier's many short jobs wait longer than it saved)."""
-    pause = first_s
-    while True:
-        yield pause
-        pause = min(longest_s, pause * 1.5)
+def poll_job(view: Callable[[], dict], job_id: int, *, timeout_s: float = 60.0) -> tuple[dict, list[dict]]:
+    """Call `view()` (the job as the API shows it) until the job is finished; (last view, every view seen).
+
+    The pauses between polls grow from 50 ms to a tenth of a second: a poll is a request the test process
+    serves (at 20 a second for a minute-long job they took a tenth of a core), and a quarter second's pause
+    made the quick tier's many short jobs wait longer than it saved.
+    """
+    seen: list[dict] = []
+    deadline, pause = time.monotonic() + timeout_s, 0.05
+    while time.monotonic() < deadline:
+        seen.append(view())
+        if seen[-1]["status"] in ("done", "failed", "cancelled"):
+            return seen[-1], seen
+        time.sleep(pause)
+        pause = min(0.1, pause * 1.5)
+    pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1] if seen else None}")
 
 
 _counter = iter(range(1, 10**9))

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from integration_services import Api, add_member, free_box, new_club, poll_pauses, sign_in  # noqa: F401 (the signed-in client)
+from integration_services import Api, add_member, free_box, new_club, poll_job, sign_in  # noqa: F401 (the signed-in client)
 
 from saddlescope.core.types import CAMERA_ROLES
 from saddlescope.core.vibration import ride_indicators
@@ -316,12 +316,4 @@ class FullDisk:
 
 def job_outcome(api, job_id: int, timeout_s: float = 60.0) -> dict:
     """The job once it is done, failed or cancelled (polled through the API)."""
-    deadline = time.monotonic() + timeout_s
-    for pause in poll_pauses():
-        if time.monotonic() >= deadline:
-            break
-        job = api.ok("GET", f"/jobs/{job_id}")
-        if job["status"] in ("done", "failed", "cancelled"):
-            return job
-        time.sleep(pause)
-    pytest.fail(f"job {job_id} not finished after {timeout_s} s")
+    return poll_job(lambda: api.ok("GET", f"/jobs/{job_id}"), job_id, timeout_s=timeout_s)[0]

@@ -9,7 +9,7 @@ import integration_services
 import pytest
 from api_helpers import Api, new_club
 from fastapi.testclient import TestClient
-from integration_services import poll_pauses
+from integration_services import poll_job
 
 from saddlescope.api import create_app
 from saddlescope.db.migrate import upgrade_to_head
@@ -40,18 +40,12 @@ def env(tmp_path_factory):
 
 def wait_done(client: Api, job_id: int, timeout_s: float = 60.0) -> tuple[dict, list[dict]]:
     """Poll GET /api/jobs/{id} until finished; returns the last view and every view seen."""
-    seen = []
-    deadline = time.monotonic() + timeout_s
-    for pause in poll_pauses():
-        if time.monotonic() >= deadline:
-            break
+    def view() -> dict:
         response = client.get(f"/jobs/{job_id}")
         assert response.status_code == 200
-        seen.append(response.json())
-        if seen[-1]["status"] in ("done", "failed", "cancelled"):
-            return seen[-1], seen
-        time.sleep(pause)
-    pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1]}")
+        return response.json()
+
+    return poll_job(view, job_id, timeout_s=timeout_s)
 
 
 def test_health_reports_each_part_ok_and_the_embedded_broker(env):

@@ -7,7 +7,7 @@ import time
 import integration_services
 import pytest
 from fastapi.testclient import TestClient
-from integration_services import new_club, poll_pauses
+from integration_services import new_club, poll_job
 
 from saddlescope.api import create_app
 from saddlescope.db.session import session_factory_for
@@ -42,16 +42,7 @@ def api(celery_worker, tmp_path_factory):
 
 
 def wait_done(client, job_id, timeout_s=60.0):
-    seen = []
-    deadline = time.monotonic() + timeout_s
-    for pause in poll_pauses():
-        if time.monotonic() >= deadline:
-            break
-        seen.append(client.get(f"/jobs/{job_id}").json())
-        if seen[-1]["status"] in ("done", "failed", "cancelled"):
-            return seen[-1], seen
-        time.sleep(pause)
-    pytest.fail(f"job {job_id} not finished after {timeout_s} s: {seen[-1] if seen else None}")
+    return poll_job(lambda: client.get(f"/jobs/{job_id}").json(), job_id, timeout_s=timeout_s)
 
 
 def test_health_is_ok_with_postgresql_redis_and_storage(api):
