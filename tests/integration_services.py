@@ -313,9 +313,9 @@ def built_once_per_run(tmp_path_factory, name: str, build: Callable[[Path], obje
 @pytest.fixture(scope="session")
 def tiny_ride(tmp_path_factory) -> Path:
     """A short synthetic ride bundle (2.5 s, 20 calibration poses, no extras), written once per run."""
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
 
-    return built_once_per_run(tmp_path_factory, "tiny-ride", lambda folder: write_ride_bundle(
+    return built_once_per_run(tmp_path_factory, "tiny-ride", lambda folder: cached_ride_bundle(
         folder / "ride", gait="canter", seed=3, duration_s=2.5, calibration_poses=20, extras=False)) / "ride"
 
 
@@ -324,9 +324,9 @@ def short_canter_ride(tmp_path_factory) -> Path:
     """A 3 s thesis-rig canter (seed 4, the default 90 calibration poses, the extra clips), written once
     per run: tests/core/pipeline/test_pipeline.py analyses it against its truth, test_parallel_detection
     tracks its static shot with one thread and with three. Read-only."""
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
 
-    return built_once_per_run(tmp_path_factory, "short-canter-seed4", lambda folder: write_ride_bundle(
+    return built_once_per_run(tmp_path_factory, "short-canter-seed4", lambda folder: cached_ride_bundle(
         folder / "canter", gait="canter", seed=4, rig="thesis", duration_s=3.0, extras=True)) / "canter"
 
 

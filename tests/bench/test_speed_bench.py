@@ -82,12 +82,12 @@ def test_peak_memory_of_a_ride_that_cannot_be_analysed_is_a_clear_error(tmp_path
 
 @pytest.mark.slow
 def test_analysis_against_decoding_once_on_a_short_thesis_ride(tmp_path):
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
 
     # 20 calibration poses (as the API tests' tiny ride): the keys and their relations are checked, not the
     # accuracy, and the ride is calibrated twice (the analysis and its peak-memory child)
-    ride = write_ride_bundle(tmp_path / "ride", gait="canter", seed=1, rig="thesis", extras=False,
-                             duration_s=3.0, calibration_poses=20)
+    ride = cached_ride_bundle(tmp_path / "ride", gait="canter", seed=1, rig="thesis", extras=False,
+                              duration_s=3.0, calibration_poses=20)
     out = bench.analysis_vs_decode(ride)
     assert out["ratio"] == pytest.approx(out["analysis_s"] / out["decode_once_s"])
     assert out["decode_once_s"] == min(out["decode_once_s_runs"])

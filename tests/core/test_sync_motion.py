@@ -254,15 +254,16 @@ def test_sync_by_choice_decodes_no_brightness_and_checks_frame_rates():
 # --------------------------------------------------------------------------------------------------
 
 def _ride(tmp_path_factory, name: str, *, flash: bool):
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.arena import RenderOptions
-    from saddlescope.io.synth_writer import write_ride_bundle
 
     out = tmp_path_factory.mktemp(name) / "canter"
     # 30 calibration poses (120 frames) rather than the thesis's 90: the board's motion still places the
     # calibration clips to a frame and calibrates the rig for the 1 % checks, at a third of the rendering
     # and board detection (two rides, each analysed once)
-    write_ride_bundle(out, gait="canter", seed=23, rig="thesis", duration_s=3.0, extras=False,
-                      calibration_poses=30, options=RenderOptions(flash=flash))
+    cached_ride_bundle(out, gait="canter", seed=23, rig="thesis", duration_s=3.0, extras=False,
+                       calibration_poses=30, options=RenderOptions(flash=flash))
     return out
 
 
@@ -325,16 +326,17 @@ def test_a_wide_rig_walk_without_a_flash_is_synchronised_to_a_tenth_of_a_frame(t
     the motion clip's offsets come within a tenth of a frame of the arena's, and say so."""
     import json
 
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.arena import RenderOptions
     from saddlescope.core.params import PipelineParams
     from saddlescope.core.pipeline.setup import motion_sync
     from saddlescope.io.bundle import open_bundle
     from saddlescope.io.clip_source import BundleClips
-    from saddlescope.io.synth_writer import write_ride_bundle
     from saddlescope.services.rigs.calibration import rig_from_calibration
 
-    ride = write_ride_bundle(tmp_path / "walk", gait="walk", seed=3, rig="wide", size=(960, 540), fps=60.0,
-                             calibration_poses=1, extras=False, options=RenderOptions(flash=False))
+    ride = cached_ride_bundle(tmp_path / "walk", gait="walk", seed=3, rig="wide", size=(960, 540), fps=60.0,
+                              calibration_poses=1, extras=False, options=RenderOptions(flash=False))
     truth = json.loads((ride / "truth.json").read_text())
     with open_bundle(ride) as bundle:
         clips = BundleClips(bundle.clip_paths, threads=1)

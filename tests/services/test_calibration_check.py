@@ -8,10 +8,10 @@ from __future__ import annotations
 import json
 
 import pytest
+from rendered_rides import cached_ride_bundle
 
 from saddlescope.cli import main
 from saddlescope.core.errors import InputError
-from saddlescope.io.synth_writer import write_ride_bundle
 from saddlescope.services.rigs.calibration_check import check_calibration_clips, check_document, sample_step
 
 pytestmark = pytest.mark.slow
@@ -20,8 +20,8 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def middle_band(tmp_path_factory):
     """The board carried only through the central 30 % of the volume (left to right)."""
-    return write_ride_bundle(tmp_path_factory.mktemp("band") / "ride", rig="wide_partial", size=(640, 360),
-                             calibration_poses=20, duration_s=2.0, extras=False, board_band=0.3, seed=3)
+    return cached_ride_bundle(tmp_path_factory.mktemp("band") / "ride", rig="wide_partial", size=(640, 360),
+                              calibration_poses=20, duration_s=2.0, extras=False, board_band=0.3, seed=3)
 
 
 def test_sampling_is_a_few_frames_a_second_but_enough_of_a_short_clip():

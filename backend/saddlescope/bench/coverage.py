@@ -433,6 +433,16 @@ def run_field_nuisances(tmp: Path | None = None, *, quick: bool = False) -> dict
             shutil.rmtree(work, ignore_errors=True)
 
 
+def _seed_list(text: str) -> list[int]:
+    """``--seeds 3208,3214`` -> [3208, 3214]."""
+    import argparse
+
+    try:
+        return [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of seeds") from None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m saddlescope.bench.coverage --out DIR``.
 
@@ -449,9 +459,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--table-only", action="store_true", help="do not run rides, tabulate those done")
     parser.add_argument("--stored-intervals", action="store_true",
                         help="read the documents' own intervals instead of recomputing them")
+    parser.add_argument("--seeds", type=_seed_list, default=None,
+                        help="only these rides of the set, in this order (comma-separated seeds, e.g. 3208,3214)")
     args = parser.parse_args(argv)
     # the rigs nobody tuned for first: a run stopped early still holds them
     rides = sorted(_RIDE_SETS[args.rides](), key=lambda r: r.flash and not r.board_band and not r.motion_sync_too)
+    if args.seeds is not None:
+        unknown = [s for s in args.seeds if all(r.seed != s for r in rides)]
+        if unknown:
+            parser.error(f"no ride of --rides {args.rides} has seed {', '.join(map(str, unknown))}")
+        rides = [r for s in args.seeds for r in rides if r.seed == s]  # a seed may name two rides (a twin)
     args.out.mkdir(parents=True, exist_ok=True)
     if args.table_only:
         folders = [args.out / r.name for r in rides if (args.out / r.name).exists()]

@@ -14,11 +14,12 @@ from saddlescope.arena import RenderOptions
 
 @pytest.mark.slow
 def test_a_one_stride_canter_with_a_boot_over_its_rear_marker_stays_marked(tmp_path):
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
-    out = write_ride_bundle(tmp_path / "ride", gait="canter", seed=4113, rig="thesis", size=(640, 480), fps=30.0,
-                            calibration_poses=30, extras=False, options=RenderOptions(boot_share=0.2))
+    out = cached_ride_bundle(tmp_path / "ride", gait="canter", seed=4113, rig="thesis", size=(640, 480), fps=30.0,
+                             calibration_poses=30, extras=False, options=RenderOptions(boot_share=0.2))
     doc = analyze_bundle(out)
     quality = doc["quality"]
     assert quality["fitted_frames"]["frames"] / doc["fps"] / doc["period_s"] < 1.5  # one stride fitted

@@ -19,10 +19,10 @@ RIDE = {"gait": "canter", "seed": 2, "rig": "wide_partial", "size": (640, 360), 
 
 @pytest.fixture(scope="module")
 def ride(tmp_path_factory):
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
 
-    return write_ride_bundle(tmp_path_factory.mktemp("board_wand") / "canter", calibration="board+wand", wand_s=16.0,
-                             **RIDE)
+    return cached_ride_bundle(tmp_path_factory.mktemp("board_wand") / "canter", calibration="board+wand", wand_s=16.0,
+                              **RIDE)
 
 
 @pytest.fixture(scope="module")

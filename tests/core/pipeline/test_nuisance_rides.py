@@ -21,10 +21,11 @@ KEYS = ("acc_y_wb_rms", "acc_y_wk_rms", "vdv_y_wb", "amplitude_y_m")
 
 
 def _analysed(tmp_path_factory, name: str, **ride):
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
-    out = write_ride_bundle(tmp_path_factory.mktemp(name) / "ride", calibration_poses=30, extras=False, **ride)
+    out = cached_ride_bundle(tmp_path_factory.mktemp(name) / "ride", calibration_poses=30, extras=False, **ride)
     doc = analyze_bundle(out)
     return doc, truth_indicators(doc, json.loads((out / "truth.json").read_text()))
 

@@ -22,11 +22,12 @@ RIDE = {"gait": "canter", "rig": "wide_partial", "size": (640, 360), "calibratio
 
 
 def _analysed(tmp_path_factory, seed: int, **changes):
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.io.bundle import open_bundle
     from saddlescope.io.clip_source import BundleClips
-    from saddlescope.io.synth_writer import write_ride_bundle
 
-    out = write_ride_bundle(tmp_path_factory.mktemp(f"partial{seed}") / "canter", seed=seed, **{**RIDE, **changes})
+    out = cached_ride_bundle(tmp_path_factory.mktemp(f"partial{seed}") / "canter", seed=seed, **{**RIDE, **changes})
     with open_bundle(out) as bundle:
         result = result_to_document(P.analyze_ride(BundleClips(bundle.clip_paths), bundle.meta))
     return result, json.loads((out / "truth.json").read_text())

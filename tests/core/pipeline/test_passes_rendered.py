@@ -22,9 +22,9 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def three_pass_ride(tmp_path_factory):
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
 
-    ride = built_once_per_run(tmp_path_factory, "three-pass-canter-seed3-720p", lambda folder: write_ride_bundle(
+    ride = built_once_per_run(tmp_path_factory, "three-pass-canter-seed3-720p", lambda folder: cached_ride_bundle(
         folder / "canter", gait="canter", seed=3, rig="wide", size=(1280, 720), fps=30.0, passes=3,
         calibration_poses=1, extras=False, speed_range_m_s=(5.5, 6.0))) / "canter"
     truth = json.loads((ride / "truth.json").read_text())

@@ -17,12 +17,13 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def rolling_ride(tmp_path_factory):
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
-    out = write_ride_bundle(tmp_path_factory.mktemp("rolling") / "ride", gait="canter", seed=4103, rig="thesis",
-                            duration_s=3.0, calibration_poses=30, extras=False,
-                            options=RenderOptions(readout_s=0.025))
+    out = cached_ride_bundle(tmp_path_factory.mktemp("rolling") / "ride", gait="canter", seed=4103, rig="thesis",
+                             duration_s=3.0, calibration_poses=30, extras=False,
+                             options=RenderOptions(readout_s=0.025))
     return analyze_bundle(out), json.loads((out / "truth.json").read_text())
 
 

@@ -11,15 +11,16 @@ pytestmark = pytest.mark.slow
 
 
 def test_a_wand_calibrated_ride_is_analysed_end_to_end(tmp_path):
-    from saddlescope.io.synth_writer import write_ride_bundle
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.services.analysis.ride_bundle import analyze_bundle
 
     # The wide rig, at 960x540. On the thesis rig (cameras 0.22 m apart, 640x480) the same ride passed at the
     # last stop and failed in 3 of 3 encodes on 2026-11-29 (libx264's output is not the same from run to run):
     # the wand's rig checked 0.11 px on its own clips while the motion markers reprojected 18-50 px off
     # ("the cameras moved"); so short a baseline leaves the wand's extrinsics at the mercy of the encode.
-    ride = write_ride_bundle(tmp_path / "wand", gait="canter", seed=4, rig="wide", size=(960, 540), duration_s=3.0,
-                             extras=False, calibration_poses=4, calibration="wand", wand_s=16.0, close_up_poses=25)
+    ride = cached_ride_bundle(tmp_path / "wand", gait="canter", seed=4, rig="wide", size=(960, 540), duration_s=3.0,
+                              extras=False, calibration_poses=4, calibration="wand", wand_s=16.0, close_up_poses=25)
     meta = json.loads((ride / "ride.json").read_text())
     assert meta["calibration"] == {"method": "wand", "wand_length_m": 1.0}
     assert "calibration" not in meta["clips"] and {"wand", "close_up"} <= set(meta["clips"])

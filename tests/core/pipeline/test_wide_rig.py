@@ -23,12 +23,13 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def wide_ride(tmp_path_factory):
+    from rendered_rides import cached_ride_bundle
+
     from saddlescope.io.bundle import open_bundle
     from saddlescope.io.clip_source import BundleClips
-    from saddlescope.io.synth_writer import write_ride_bundle
 
     out = tmp_path_factory.mktemp("wide") / "canter"
-    write_ride_bundle(out, gait="canter", seed=2, rig="wide", extras=False)
+    cached_ride_bundle(out, gait="canter", seed=2, rig="wide", extras=False)
     captured = {}
     original = run.saddle_kinematics
 
