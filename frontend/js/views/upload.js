@@ -107,11 +107,16 @@ export async function mountUpload(view, _params, query) {
     if (keep) select.value = keep;
   }
 
+  // The rig's clips as last asked (a rig chosen and "Upload and analyse" pressed at once waits for them).
+  /** @type {Promise<void>} */
+  let rigLoaded = Promise.resolve();
+
   async function loadRig() {
     const id = Number(rigSelect.value) || null;
     const rig = rigs.find((r) => r.id === id) || null;
     /** @type {import("../api-types").RecordingOut[]} */
     const stored = rig ? await get(`/api/rigs/${rig.id}/clips`) : [];
+    if ((Number(rigSelect.value) || null) !== id) return; // another rig was chosen meanwhile: its answer counts
     const clips = stored.map((c) => ({ kind: c.clip_kind, camera: c.camera_role }));
     rigInfo = { rig, clips };
     markRigClips();
@@ -307,6 +312,7 @@ export async function mountUpload(view, _params, query) {
 
   /** @param {FormValues} values */
   async function uploadClips(values) {
+    await rigLoaded.catch(() => undefined); // the chosen rig's clips decide what is missing (its error is shown)
     const missing = checkReadiness();
     if (missing.length) throw new Error("Nothing was sent: the ride cannot be analysed without what is listed above.");
     if (!completing && (!values.horse_id || !values.rider_id)) throw new Error("Please choose the horse and the rider.");
@@ -420,7 +426,10 @@ export async function mountUpload(view, _params, query) {
     controller?.abort();
     await Promise.all(active.map(({ file, target }) => abandonUploads(file, target)));
   });
-  rigSelect.addEventListener("change", () => loadRig().catch((error) => showError(form, error)));
+  rigSelect.addEventListener("change", () => {
+    rigLoaded = loadRig();
+    rigLoaded.catch((error) => showError(form, error));
+  });
   form.addEventListener("change", (event) => {
     if (/** @type {HTMLElement} */ (event.target).dataset?.clipKind) checkReadiness();
   });
@@ -448,7 +457,8 @@ export async function mountUpload(view, _params, query) {
     if (!completing && rigAsked) rigSelect.value = rigAsked;  // from a rig page
     one(form, "[data-clip-cards]").append(...clipCards(storedClips));
     showSource();
-    await loadRig();
+    rigLoaded = loadRig();
+    await rigLoaded;
   } catch (error) {
     showError(form, error);
   }
