@@ -57,6 +57,30 @@ def test_the_truth_is_taken_on_the_analysed_duration():
     assert truth_indicators(short, truth)["vdv_y_wb"] == pytest.approx(5.0)
 
 
+def test_the_true_speed_is_that_of_the_passes_the_analysis_used():
+    # three passes at 13.59, 13.47 and 13.09 km/h (the wide-rig canter s3224); the truth's speed is their mean
+    speeds = (3.7748, 3.7418, 3.6351)
+    truth = {"window": {"duration_s": 1.0},
+             "indicators": {"vel_x_avg_kmh": 3.6 * sum(speeds) / 3, "d_vdv_action_wb_km": 10.0, "acc_y_wb_rms": 4.0},
+             "truth": {"passes": [{"speed_m_s": v, "in_view_s": [1.07 + 7.78 * i, 3.2 + 7.78 * i]}
+                                  for i, v in enumerate(speeds)]}}
+    result = {"period_s": 0.5, "window": {"duration_s": 1.0},
+              "passes": [{"start_s": 0.93, "end_s": 3.3, "used": True},
+                         {"start_s": 8.73, "end_s": 11.1, "used": False},
+                         {"start_s": 15.5, "end_s": 18.93, "used": False}]}
+    t = truth_indicators(result, truth)
+    assert t["vel_x_avg_kmh"] == pytest.approx(3.6 * speeds[0])  # the first pass alone was used
+    assert t["d_vdv_action_wb_km"] == pytest.approx(10.0 * speeds[0] / (sum(speeds) / 3))
+    assert t["acc_y_wb_rms"] == 4.0  # the saddle's motion is the same in every pass
+    result["passes"][2]["used"] = True
+    assert truth_indicators(result, truth)["vel_x_avg_kmh"] == pytest.approx(3.6 * (speeds[0] + speeds[2]) / 2)
+    for p in result["passes"]:
+        p["used"] = True
+    assert truth_indicators(result, truth)["vel_x_avg_kmh"] == pytest.approx(truth["indicators"]["vel_x_avg_kmh"])
+    one_pass = {**truth, "truth": {"passes": []}}
+    assert truth_indicators(result, one_pass)["vel_x_avg_kmh"] == truth["indicators"]["vel_x_avg_kmh"]
+
+
 def _row(name, value, truth, lo, hi, *, uncertain=None, speed=(14.0, 14.0)):
     return {"ride": name, "values": {"acc_y_wb_rms": value, "vel_x_avg_kmh": speed[0]},
             "truth": {"acc_y_wb_rms": truth, "vel_x_avg_kmh": speed[1]},

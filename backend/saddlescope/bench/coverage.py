@@ -247,7 +247,32 @@ def truth_indicators(result: dict, truth: dict) -> dict:
         # (T_VDV = τ (VDV_threshold / VDV)^4 = VDV_threshold^4 / (VDV^4 / τ): the same for any whole
         # number of periods, as are the r.m.s., peaks and the A(8) times)
         out[key] = float(value)
+    speed_ratio = _used_passes_speed_ratio(result, truth)
+    if speed_ratio is not None:  # the speed (and the distances, speed x time) of the passes the analysis used
+        for key in out:
+            if key == "vel_x_avg_kmh" or (key.startswith("d_") and key.endswith("_km")):
+                out[key] *= speed_ratio
     return out
+
+
+def _used_passes_speed_ratio(result: dict, truth: dict) -> float | None:
+    """The mean true speed of the passes the analysis used over that of every pass; None for one pass.
+
+    The truth's speed is the mean of all the ride's passes (each counts once), the analysis's the mean of the
+    passes it used: a pass left out ("no periodic motion found") changes what the speed is the mean of. Each
+    used pass of the result is matched to the true pass whose span in view overlaps it most.
+    """
+    true_passes = (truth.get("truth") or {}).get("passes") or []
+    found = [p for p in result.get("passes") or [] if p.get("used")]
+    if len(true_passes) < 2 or not found:
+        return None
+
+    def overlap(found_pass: dict, true_pass: dict) -> float:
+        start, end = true_pass["in_view_s"]
+        return min(end, found_pass["end_s"]) - max(start, found_pass["start_s"])
+
+    used = [max(true_passes, key=lambda t, f=f: overlap(f, t))["speed_m_s"] for f in found]
+    return float(np.mean(used) / np.mean([t["speed_m_s"] for t in true_passes]))
 
 
 def coverage_rows(folders: Iterable[Path], *, recompute: bool = True) -> list[dict]:
