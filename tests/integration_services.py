@@ -9,7 +9,6 @@ not collide, and a summary at the end of the run names the services the tests re
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import itertools
 import json
 import os
@@ -298,16 +297,12 @@ def built_once_per_run(tmp_path_factory, name: str, build: Callable[[Path], obje
     A session fixture assigned into several modules is a fixture of each module (pytest runs it once
     per module), and each pytest-xdist worker is a session of its own: the folder is shared through
     the run's temporary root under a lock instead. Tests must treat it as read-only."""
+    from rendered_rides import built_once
+
     base = tmp_path_factory.getbasetemp()
     root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # xdist: the run's root
-    folder, done = root / name, root / f"{name}.built"
-    with (root / f"{name}.lock").open("w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # another worker may be building it: wait for it
-        if not done.exists():
-            shutil.rmtree(folder, ignore_errors=True)  # a build that failed half-way
-            build(folder)
-            done.touch()
-    return folder
+    with built_once(root / name, build) as folder:  # another worker may be building it: it waits
+        return folder
 
 
 @pytest.fixture(scope="session")

@@ -14,6 +14,7 @@ same from one run to the next; `tests/io/test_synth_writer.py` renders without t
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import fcntl
 import functools
@@ -22,6 +23,7 @@ import json
 import os
 import platform
 import shutil
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 CACHE_ENV = "SADDLESCOPE_TEST_RENDER_CACHE"
@@ -106,21 +108,37 @@ def cached_ride_bundle(out_dir: Path, **arguments) -> Path:
     if root is None:
         return write_ride_bundle(out_dir, **arguments)
     root.mkdir(parents=True, exist_ok=True)
-    key = bundle_key(arguments)
-    stored = root / key
-    with (root / f"{key}.lock").open("w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # another worker may be rendering it: wait for it
-        if not (stored / "ride.json").exists():
-            building = root / f"{key}.building"
-            shutil.rmtree(building, ignore_errors=True)  # a render that stopped half-way
-            write_ride_bundle(building, **arguments)
-            (building / "arguments.json").write_text(json.dumps(_plain(arguments), indent=1, sort_keys=True))
-            shutil.rmtree(stored, ignore_errors=True)
-            building.rename(stored)
-            _evict(root, keep=stored)
+
+    def render(folder: Path) -> None:
+        write_ride_bundle(folder, **arguments)
+        (folder / "arguments.json").write_text(json.dumps(_plain(arguments), indent=1, sort_keys=True))
+        _evict(root, keep=folder)
+
+    with built_once(root / bundle_key(arguments), render) as stored:  # held while copied: never evicted meanwhile
         os.utime(stored)  # recently used
         shutil.copytree(stored, out_dir, ignore=shutil.ignore_patterns("arguments.json"), dirs_exist_ok=True)
     return out_dir
+
+
+@contextlib.contextmanager
+def built_once(folder: Path, build: Callable[[Path], object]) -> Iterator[Path]:
+    """`folder`, made by `build(folder)` unless a build of it finished before; under its lock while in use.
+
+    Another process building or using it waits for the lock; a build that stopped half-way (no
+    ``<folder>.built`` beside it) is thrown away and made again.
+    """
+    done = _marker(folder, "built")
+    with _marker(folder, "lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            build(folder)
+            done.touch()
+        yield folder
+
+
+def _marker(folder: Path, what: str) -> Path:
+    return folder.with_name(f"{folder.name}.{what}")
 
 
 def _evict(root: Path, *, keep: Path) -> None:
@@ -130,7 +148,7 @@ def _evict(root: Path, *, keep: Path) -> None:
     """
     entries = []
     for folder in root.iterdir():
-        if folder.is_dir() and not folder.name.endswith(".building"):
+        if folder.is_dir():
             size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
             entries.append((folder.stat().st_mtime, size, folder))
     total = sum(size for _, size, _ in entries)
@@ -139,10 +157,11 @@ def _evict(root: Path, *, keep: Path) -> None:
             break
         if folder == keep:
             continue
-        with (root / f"{folder.name}.lock").open("w") as lock:
+        with _marker(folder, "lock").open("w") as lock:
             try:
                 fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 continue
+            _marker(folder, "built").unlink(missing_ok=True)  # first: a bundle without it is made again
             shutil.rmtree(folder, ignore_errors=True)
             total -= size
